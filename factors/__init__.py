@@ -1,0 +1,1 @@
+"""Custom GTSAM factors for planodom."""

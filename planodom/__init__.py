@@ -1,0 +1,1 @@
+"""planodom: odometry from planar landmarks."""

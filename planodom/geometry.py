@@ -1,0 +1,403 @@
+"""Geometry shared by every stage: planes, rigid transforms, frames and reference points.
+
+Conventions (kept everywhere in planodom):
+
+- A plane is a unit normal ``n`` and an offset ``d`` with ``n . p + d = 0`` for every point
+  ``p`` on it, the convention of ``gtsam.OrientedPlane3``. Measured planes have normals
+  pointing towards the sensor, so ``d > 0`` for a plane that does not pass through the
+  sensor origin (the origin is on the positive side: ``n . 0 + d = d > 0``).
+- ``T_a_b`` is a 4x4 homogeneous transform taking coordinates in frame ``b`` to frame ``a``:
+  ``p_a = T_a_b @ p_b``. ``T_world_base`` is the pose of the vehicle base in the world.
+- SI units inside: metres and radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planodom.errors import GeometryError
+
+#: Unit vector of the vertical axis of a base frame (z up).
+UP = np.array([0.0, 0.0, 1.0])
+
+
+# --------------------------------------------------------------------------- transforms
+
+
+def make_transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Build ``T`` (4, 4) from a rotation ``R`` (3, 3) and a translation ``t`` (3,), metres."""
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = np.asarray(t, dtype=float).reshape(3)
+    return T
+
+
+def invert_transform(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid transform ``T`` (4, 4) (``T_b_a`` from ``T_a_b``) in closed form."""
+    R = T[:3, :3]
+    return make_transform(R.T, -R.T @ T[:3, 3])
+
+
+def transform_points(T_a_b: np.ndarray, points_b: np.ndarray) -> np.ndarray:
+    """Map ``points_b`` (N, 3), metres, in frame b to frame a; returns (N, 3)."""
+    return points_b @ T_a_b[:3, :3].T + T_a_b[:3, 3]
+
+
+def transform_from_rpy_xyz(
+    roll: float, pitch: float, yaw: float, x: float, y: float, z: float = 0.0
+) -> np.ndarray:
+    """``T`` (4, 4) from intrinsic roll, pitch, yaw (rad; R = Rz(yaw) Ry(pitch) Rx(roll)) and xyz (m)."""
+    R = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_matrix()
+    return make_transform(R, [x, y, z])
+
+
+def rpy_from_rotation(R: np.ndarray) -> np.ndarray:
+    """(roll, pitch, yaw) (3,), radians, of ``R`` (3, 3) with R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    yaw, pitch, roll = Rotation.from_matrix(R).as_euler("ZYX")
+    return np.array([roll, pitch, yaw])
+
+
+def pose5_from_transform(T: np.ndarray) -> np.ndarray:
+    """The 5 observed DoF (roll, pitch, yaw, x, y) (5,), rad and m, of a relative transform."""
+    return np.concatenate([rpy_from_rotation(T[:3, :3]), T[:2, 3]])
+
+
+def rotation_angle(R: np.ndarray) -> float:
+    """Angle (rad) of the rotation ``R`` (3, 3), robust near 0 and pi."""
+    return float(Rotation.from_matrix(R).magnitude())
+
+
+def pose_error(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
+    """Rotation error (rad) and translation error (m) of ``inv(T_true) @ T_est``."""
+    E = invert_transform(T_true) @ T_est
+    return rotation_angle(E[:3, :3]), float(np.linalg.norm(E[:3, 3]))
+
+
+def check_points(points: np.ndarray, name: str = "points") -> np.ndarray:
+    """Return ``points`` as a (N, 3) float64 array or raise :class:`GeometryError` naming it."""
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise GeometryError(f"{name}: expected an (N, 3) array, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.count_nonzero(~np.isfinite(arr).all(axis=1)))
+        raise GeometryError(f"{name}: {bad} of {len(arr)} points have NaN or infinite coordinates")
+    return arr
+
+
+# --------------------------------------------------------------------------- planes
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneSupport:
+    """What was seen of a plane: its inlier points summarised.
+
+    Attributes:
+        centroid: (3,) float64, metres, mean of the inlier points.
+        polygon: (M, 3) float64, metres, convex hull of the inliers projected on the plane,
+            vertices in order (M >= 3; empty (0, 3) when unknown).
+        n_points: number of inlier points.
+    """
+
+    centroid: np.ndarray
+    polygon: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    n_points: int = 0
+
+    def transformed(self, T_a_b: np.ndarray) -> PlaneSupport:
+        """The same support in frame a, given it in frame b."""
+        poly = transform_points(T_a_b, self.polygon) if len(self.polygon) else self.polygon
+        return PlaneSupport(transform_points(T_a_b, self.centroid[None])[0], poly, self.n_points)
+
+    @property
+    def area(self) -> float:
+        """Area (m^2) of the support polygon (0 when unknown)."""
+        if len(self.polygon) < 3:
+            return 0.0
+        v = self.polygon - self.polygon[0]
+        return float(0.5 * np.linalg.norm(np.cross(v[1:-1], v[2:]).sum(axis=0)))
+
+
+@dataclass(frozen=True, eq=False)
+class Plane:
+    """An oriented plane ``n . p + d = 0`` with what is known of its quality and extent.
+
+    Attributes:
+        normal: (3,) float64, unit normal; for measured planes it points towards the sensor.
+        offset: ``d``, metres.
+        covariance: (4, 4) float64 covariance of ``(nx, ny, nz, d)`` from the fit (rank 3:
+            no variance along ``n`` itself), or None when unknown.
+        confidence: weight in (0, 1]; higher is better (see :mod:`planodom.extraction`).
+        support: inlier extent and centroid, or None.
+        truth_id: id of the true surface in simulated data (-1 when unknown).
+    """
+
+    normal: np.ndarray
+    offset: float
+    covariance: np.ndarray | None = None
+    confidence: float = 1.0
+    support: PlaneSupport | None = None
+    truth_id: int = -1
+
+    def __post_init__(self) -> None:
+        n = np.asarray(self.normal, dtype=np.float64).reshape(-1)
+        if n.shape != (3,) or not np.all(np.isfinite(n)):
+            raise GeometryError(f"plane normal must be 3 finite numbers, got {self.normal!r}")
+        norm = np.linalg.norm(n)
+        if norm < 1e-12:
+            raise GeometryError("plane normal has zero length")
+        if not np.isfinite(self.offset):
+            raise GeometryError(f"plane offset must be finite, got {self.offset!r}")
+        if not 0.0 < self.confidence <= 1.0:
+            raise GeometryError(f"plane confidence must lie in (0, 1], got {self.confidence!r}")
+        object.__setattr__(self, "normal", n / norm)
+        object.__setattr__(self, "offset", float(self.offset) / norm)
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        """(4,) ``[nx, ny, nz, d]``."""
+        return np.append(self.normal, self.offset)
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distances (N,), metres, of ``points`` (N, 3); positive on the normal's side."""
+        return np.asarray(points) @ self.normal + self.offset
+
+    def transformed(self, T_a_b: np.ndarray) -> Plane:
+        """This plane (given in frame b) expressed in frame a; covariance and support follow."""
+        n, d = transform_planes(T_a_b, self.normal[None], np.array([self.offset]))
+        cov = None
+        if self.covariance is not None:
+            J = plane_transform_jacobian(T_a_b)
+            cov = J @ self.covariance @ J.T
+        support = self.support.transformed(T_a_b) if self.support is not None else None
+        return replace(self, normal=n[0], offset=float(d[0]), covariance=cov, support=support)
+
+    def flipped(self) -> Plane:
+        """The same plane with the opposite orientation (``-n, -d``)."""
+        return replace(self, normal=-self.normal, offset=-self.offset)
+
+    def oriented_towards(self, point: np.ndarray) -> Plane:
+        """This plane with its normal turned so that ``point`` (3,) lies on its positive side."""
+        return self.flipped() if self.distance(np.asarray(point)[None])[0] < 0 else self
+
+    def closest_point(self) -> np.ndarray:
+        """(3,) the point of the plane closest to the origin, ``-d n``."""
+        return -self.offset * self.normal
+
+
+def transform_planes(
+    T_a_b: np.ndarray, normals_b: np.ndarray, offsets_b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Express planes given in frame b in frame a.
+
+    Args:
+        T_a_b: (4, 4) transform from frame b to frame a.
+        normals_b: (K, 3) unit normals in frame b.
+        offsets_b: (K,) offsets in frame b, metres.
+
+    Returns:
+        normals_a (K, 3) and offsets_a (K,): ``n_a = R n_b``, ``d_a = d_b - n_a . t``.
+    """
+    R, t = T_a_b[:3, :3], T_a_b[:3, 3]
+    normals_a = normals_b @ R.T
+    return normals_a, offsets_b - normals_a @ t
+
+
+def plane_transform_jacobian(T_a_b: np.ndarray) -> np.ndarray:
+    """(4, 4) Jacobian of ``(n_a, d_a)`` with respect to ``(n_b, d_b)`` under ``T_a_b``."""
+    R, t = T_a_b[:3, :3], T_a_b[:3, 3]
+    J = np.zeros((4, 4))
+    J[:3, :3] = R
+    J[3, :3] = -(t @ R)
+    J[3, 3] = 1.0
+    return J
+
+
+def stack_planes(planes: list[Plane]) -> tuple[np.ndarray, np.ndarray]:
+    """Normals (K, 3) and offsets (K,) of a list of planes (K may be 0)."""
+    if not planes:
+        return np.zeros((0, 3)), np.zeros(0)
+    return np.stack([p.normal for p in planes]), np.array([p.offset for p in planes])
+
+
+def dihedral_angles(normals: np.ndarray) -> np.ndarray:
+    """(K, K) angles (rad, in [0, pi]) between every pair of oriented normals (K, 3).
+
+    With normals oriented towards the sensor the angle between two planes' normals is
+    invariant under rigid motion of the sensor, which is what the relative constraints
+    of data association compare.
+    """
+    c = np.clip(normals @ normals.T, -1.0, 1.0)
+    return np.arccos(c)
+
+
+def dihedral_angle(n1: np.ndarray, n2: np.ndarray) -> float:
+    """Angle (rad, in [0, pi]) between two unit normals (3,), computed stably with atan2."""
+    return float(np.arctan2(np.linalg.norm(np.cross(n1, n2)), np.dot(n1, n2)))
+
+
+def are_parallel(n1: np.ndarray, n2: np.ndarray, min_angle: float) -> bool:
+    """True when the (unoriented) angle between the normals is below ``min_angle`` rad."""
+    return float(np.linalg.norm(np.cross(n1, n2))) < np.sin(min_angle)
+
+
+def rotation_frame(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
+    """The paper's frame ``U = [n1 n2 n1 x n2]``, orthonormalised, (3, 3), columns.
+
+    Columns: ``u1 = n1``, ``u3 = (n1 x n2) / |n1 x n2|``, ``u2 = u3 x u1`` (the part of n2
+    orthogonal to n1). Equal to the paper's U when n1 is orthogonal to n2. Raises
+    :class:`GeometryError` for (nearly) parallel normals.
+    """
+    c = np.cross(n1, n2)
+    s = np.linalg.norm(c)
+    if s < 1e-9:
+        raise GeometryError("rotation frame needs two non-parallel normals")
+    u1 = n1 / np.linalg.norm(n1)
+    u3 = c / s
+    return np.column_stack([u1, np.cross(u3, u1), u3])
+
+
+def rotation_frames(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
+    """Vectorised :func:`rotation_frame`: (M, 3) and (M, 3) normals to (M, 3, 3) frames.
+
+    Pairs that are (nearly) parallel give NaN frames.
+    """
+    c = np.cross(n1, n2)
+    s = np.linalg.norm(c, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u3 = np.where(s > 1e-9, c / s, np.nan)
+    u1 = n1 / np.linalg.norm(n1, axis=1, keepdims=True)
+    return np.stack([u1, np.cross(u3, u1), u3], axis=2)
+
+
+def rotation_from_frames(U_a: np.ndarray, U_b: np.ndarray) -> np.ndarray:
+    """``R_a_b`` (3, 3) with ``U_a = R_a_b U_b`` (paper eq. 1, ``U_{k+d} = R_k^-1 U_k``).
+
+    ``U_a`` is built from a pair of planes seen in frame a, ``U_b`` from the same pair seen
+    in frame b. Works batched on (..., 3, 3).
+    """
+    return U_a @ np.swapaxes(U_b, -1, -2)
+
+
+def intersection_line(
+    n1: np.ndarray, d1: float, n2: np.ndarray, d2: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Intersection line of two planes: its point closest to the origin (3,) and unit direction (3,).
+
+    Raises :class:`GeometryError` when the planes are parallel.
+    """
+    v = np.cross(n1, n2)
+    s2 = float(v @ v)
+    if s2 < 1e-18:
+        raise GeometryError("parallel planes have no intersection line")
+    # Closed form of the point on both planes closest to the origin.
+    p = (np.cross(v, n1) * (-d2) + np.cross(n2, v) * (-d1)) / s2
+    return p, v / np.sqrt(s2)
+
+
+def horizontal_reference_points(
+    n1: np.ndarray, d1: np.ndarray, n2: np.ndarray, d2: np.ndarray, min_verticality: float = 0.2
+) -> np.ndarray:
+    """The paper's 2D reference point of plane pairs, vectorised.
+
+    The intersection line of each pair is cut with the horizontal plane ``z = 0`` of the
+    frame the planes are given in; the (x, y) of that point is the reference point. If the
+    frame translates by ``t = (tx, ty, 0)`` the point moves by exactly ``-(tx, ty)`` (paper
+    eq. 2); a vertical translation ``tz`` shifts it by ``tz * v_xy / v_z`` (v the line's
+    direction), which vanishes for vertical lines: the 5-DoF model leaves z unobserved.
+
+    Args:
+        n1, n2: (M, 3) unit normals. d1, d2: (M,) offsets, metres.
+        min_verticality: minimum ``|v_z|`` of the unit line direction; flatter lines give NaN.
+
+    Returns:
+        (M, 2) float64 reference points, metres; NaN rows for parallel or flat pairs.
+    """
+    n1 = np.atleast_2d(n1)
+    n2 = np.atleast_2d(n2)
+    v = np.cross(n1, n2)
+    norm_v = np.linalg.norm(v, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        vz = np.abs(v[:, 2]) / norm_v
+    ok = (norm_v > 1e-9) & (vz >= min_verticality)
+    # Solve [n1; n2; e_z] p = [-d1; -d2; 0] for the xy part by Cramer's rule on the 2x2 block.
+    a, b = n1[:, 0], n1[:, 1]
+    c, e = n2[:, 0], n2[:, 1]
+    det = a * e - b * c
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x = (-np.asarray(d1) * e + np.asarray(d2) * b) / det
+        y = (-a * np.asarray(d2) + c * np.asarray(d1)) / det
+    out = np.column_stack([x, y])
+    out[~ok] = np.nan
+    return out
+
+
+def horizontal_reference_point(
+    n1: np.ndarray, d1: float, n2: np.ndarray, d2: float, min_verticality: float = 0.2
+) -> np.ndarray:
+    """Single-pair :func:`horizontal_reference_points`: (2,) metres, NaN when undefined."""
+    return horizontal_reference_points(
+        n1[None], np.array([d1]), n2[None], np.array([d2]), min_verticality
+    )[0]
+
+
+def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """Total-least-squares plane through ``points`` (N, 3), metres, N >= 3.
+
+    Returns:
+        normal (3,), offset d, and the singular values (3,) of the centred points
+        (the smallest one squared over N is the mean squared residual).
+    """
+    pts = check_points(points)
+    if len(pts) < 3:
+        raise GeometryError(f"a plane fit needs at least 3 points, got {len(pts)}")
+    c = pts.mean(axis=0)
+    _, s, vt = np.linalg.svd(pts - c, full_matrices=False)
+    n = vt[2]
+    return n, float(-n @ c), s
+
+
+# --------------------------------------------------------------------------- gtsam
+
+
+def plane_to_gtsam(plane: Plane):
+    """``gtsam.OrientedPlane3`` with the same ``(n, d)``."""
+    import gtsam
+
+    return gtsam.OrientedPlane3(plane.coefficients)
+
+
+def plane_from_gtsam(p, **kwargs) -> Plane:
+    """:class:`Plane` from a ``gtsam.OrientedPlane3``; ``kwargs`` fill the other fields."""
+    c = np.asarray(p.planeCoefficients(), dtype=float)
+    return Plane(c[:3], float(c[3]), **kwargs)
+
+
+def pose_to_gtsam(T: np.ndarray):
+    """``gtsam.Pose3`` from a 4x4 transform."""
+    import gtsam
+
+    return gtsam.Pose3(np.asarray(T, dtype=float))
+
+
+def pose_from_gtsam(pose) -> np.ndarray:
+    """4x4 transform from a ``gtsam.Pose3``."""
+    return np.asarray(pose.matrix(), dtype=float)
+
+
+def plane_tangent_covariance(plane: Plane) -> np.ndarray:
+    """(3, 3) covariance of ``plane`` in ``gtsam.OrientedPlane3``'s tangent coordinates.
+
+    gtsam perturbs a plane by ``(Unit3 basis coefficients (2), d (1))``; the (4, 4) fit
+    covariance of ``(n, d)`` is projected onto that basis. Raises when it is unknown.
+    """
+    import gtsam
+
+    if plane.covariance is None:
+        raise GeometryError("plane has no covariance")
+    B = np.asarray(gtsam.Unit3(plane.normal).basis())  # (3, 2)
+    P = np.zeros((4, 3))
+    P[:3, :2] = B
+    P[3, 2] = 1.0
+    return P.T @ plane.covariance @ P
