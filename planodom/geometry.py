@@ -49,7 +49,7 @@ def transform_points(T_a_b: np.ndarray, points_b: np.ndarray) -> np.ndarray:
 def transform_from_rpy_xyz(
     roll: float, pitch: float, yaw: float, x: float, y: float, z: float = 0.0
 ) -> np.ndarray:
-    """``T`` (4, 4) from intrinsic roll, pitch, yaw (rad; R = Rz(yaw) Ry(pitch) Rx(roll)) and xyz (m)."""
+    """``T`` (4, 4) from roll, pitch, yaw (rad), ``R = Rz(yaw) Ry(pitch) Rx(roll)``, and xyz (m)."""
     R = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_matrix()
     return make_transform(R, [x, y, z])
 
@@ -261,7 +261,7 @@ def rotation_frame(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
 def rotation_frames(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
     """Vectorised :func:`rotation_frame`: (M, 3) and (M, 3) normals to (M, 3, 3) frames.
 
-    Pairs that are (nearly) parallel give NaN frames.
+    Frames of (nearly) parallel pairs contain NaN.
     """
     c = np.cross(n1, n2)
     s = np.linalg.norm(c, axis=1, keepdims=True)
@@ -283,7 +283,7 @@ def rotation_from_frames(U_a: np.ndarray, U_b: np.ndarray) -> np.ndarray:
 def intersection_line(
     n1: np.ndarray, d1: float, n2: np.ndarray, d2: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Intersection line of two planes: its point closest to the origin (3,) and unit direction (3,).
+    """Intersection line of two planes: point closest to the origin (3,), unit direction (3,).
 
     Raises :class:`GeometryError` when the planes are parallel.
     """
