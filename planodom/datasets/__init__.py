@@ -1,0 +1,52 @@
+"""The dataset format: a directory of scans, optional ground truth and rig description.
+
+Layout::
+
+    <dataset>/
+        scans/000000.ply, 000001.ply, ...   one file per epoch, in time order
+        poses.tum                           optional: ground truth T_world_base per epoch
+        rig.yaml                            optional: free-form rig description (a dict)
+
+- Scan files hold the points of one epoch in the vehicle base frame at each point's
+  acquisition time: PLY vertices ``x y z`` (float32 or float64, metres), optional ``ring``
+  (int32 scan-line id), ``t`` (float64 s relative to the epoch's reference time) and, for
+  simulated data, ``label`` (int32 true surface id). ``.pcd`` files with the same fields
+  and KITTI ``.bin`` files (float32 ``x y z intensity`` rows) are read too; all files of a
+  dataset share one extension. A directory of scan files can be given directly instead of
+  a dataset with a ``scans/`` folder.
+- ``poses.tum``: ``time tx ty tz qx qy qz qw`` per epoch, ``T_world_base`` at the epoch's
+  reference time (the TUM format of evo).
+- Epoch times come from ``poses.tum`` when present, else ``k / epoch_rate`` with
+  ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * 0.1`` s. There is no ``times.txt``.
+- ``rig.yaml``: e.g. ``T_base_scanner`` extrinsics, field of view, angular step, rate,
+  maximum range, noise, and for simulated data the scene and seed.
+
+Every problem with a dataset raises :class:`planodom.errors.DatasetError` naming the file.
+"""
+
+from planodom.datasets.dataset import (
+    DEFAULT_EPOCH_PERIOD,
+    Dataset,
+    epoch_times,
+    load_dataset,
+    read_rig,
+    write_dataset,
+    write_rig,
+)
+from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
+from planodom.datasets.tum import read_tum, write_tum
+
+__all__ = [
+    "DEFAULT_EPOCH_PERIOD",
+    "SCAN_EXTENSIONS",
+    "Dataset",
+    "epoch_times",
+    "load_dataset",
+    "read_rig",
+    "read_scan",
+    "read_tum",
+    "write_dataset",
+    "write_rig",
+    "write_scan",
+    "write_tum",
+]

@@ -1,0 +1,279 @@
+"""A dataset directory: scan files, optional ground truth ``poses.tum``, optional ``rig.yaml``."""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
+from planodom.datasets.tum import read_tum, write_tum
+from planodom.errors import DatasetError
+from planodom.scan import Scan
+
+SCANS_DIR = "scans"
+POSES_FILE = "poses.tum"
+RIG_FILE = "rig.yaml"
+#: Epoch period (s) when neither poses.tum nor rig.yaml's ``epoch_rate`` gives the times.
+DEFAULT_EPOCH_PERIOD = 0.1
+
+
+class Dataset:
+    """A lazily loaded sequence of epochs: ``len(ds)``, ``ds[k] -> Scan``, ``for scan in ds``.
+
+    Attributes:
+        path: the dataset directory.
+        scan_files: one file per epoch, in time order.
+        times: (E,) float64 seconds, reference time of each epoch (see :func:`load_dataset`).
+        gt_poses: (E, 4, 4) float64 ground truth ``T_world_base`` at ``times``, or None.
+        rig: the content of ``rig.yaml`` (a dict), or None when there is none.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        scan_files: Sequence[Path],
+        times: np.ndarray,
+        gt_poses: np.ndarray | None = None,
+        rig: dict[str, Any] | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.scan_files = list(scan_files)
+        self.times = np.asarray(times, dtype=np.float64)
+        self.gt_poses = gt_poses
+        self.rig = rig
+        if len(self.times) != len(self.scan_files):
+            raise DatasetError(
+                f"{self.path}: {len(self.times)} epoch times for {len(self.scan_files)} scans"
+            )
+
+    def __len__(self) -> int:
+        return len(self.scan_files)
+
+    def __getitem__(self, index: int) -> Scan:
+        """Read epoch ``index``'s scan from its file (negative indices count from the end)."""
+        n = len(self.scan_files)
+        if not -n <= index < n:
+            raise IndexError(f"epoch {index} out of range for {n} epochs")
+        return read_scan(self.scan_files[index])
+
+    def __iter__(self) -> Iterator[Scan]:
+        for file in self.scan_files:
+            yield read_scan(file)
+
+    def __repr__(self) -> str:
+        gt = "with" if self.gt_poses is not None else "without"
+        return f"Dataset({str(self.path)!r}, {len(self)} epochs, {gt} ground truth)"
+
+
+def load_dataset(path: str | Path) -> Dataset:
+    """Open a dataset directory; scans are read only when indexed.
+
+    ``path`` is either a dataset (scan files in ``path/scans/``) or a directory of scan
+    files itself (e.g. KITTI's ``velodyne/``). Files are sorted by name with digit runs
+    compared as numbers (``2.bin`` before ``10.bin``); hidden files are skipped. ``poses.tum``
+    and ``rig.yaml`` are looked for in ``path``.
+
+    Epoch times: from ``poses.tum`` when present, else ``k / epoch_rate`` with
+    ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s).
+
+    Raises:
+        DatasetError: naming the file, when ``path`` is missing, there are no scan files,
+            files have unknown or mixed extensions, ``poses.tum`` is malformed or has a
+            pose count different from the scan count, or ``rig.yaml`` is malformed.
+    """
+    root = Path(path)
+    if not root.exists():
+        raise DatasetError(f"dataset {root} does not exist")
+    if not root.is_dir():
+        raise DatasetError(f"dataset {root} is not a directory")
+    scan_files = _scan_files(root)
+    rig = read_rig(root / RIG_FILE) if (root / RIG_FILE).exists() else None
+    gt_poses = None
+    if (root / POSES_FILE).exists():
+        times, gt_poses = read_tum(root / POSES_FILE)
+        if len(times) != len(scan_files):
+            raise DatasetError(
+                f"{root / POSES_FILE}: {len(times)} poses for {len(scan_files)} scan files "
+                f"in {scan_files[0].parent}"
+            )
+    else:
+        times = epoch_times(len(scan_files), rig)
+    return Dataset(root, scan_files, times, gt_poses, rig)
+
+
+def write_dataset(
+    path: str | Path,
+    scans: Sequence[Scan],
+    times: np.ndarray,
+    gt_poses: np.ndarray | None = None,
+    rig: dict[str, Any] | None = None,
+    overwrite: bool = False,
+    *,
+    extension: str = ".ply",
+    points_dtype: type[np.floating] = np.float64,
+) -> Dataset:
+    """Write a dataset directory: ``scans/000000.ply``, ..., ``poses.tum``, ``rig.yaml``.
+
+    Args:
+        path: dataset directory (created if needed).
+        scans: E scans in time order (scans with zero points are fine).
+        times: (E,) float64 seconds, strictly increasing. Without ``gt_poses`` they are not
+            stored, so they must equal the times :func:`load_dataset` will derive (from
+            ``rig['epoch_rate']`` or the 0.1 s default); otherwise DatasetError.
+        gt_poses: (E, 4, 4) ground truth ``T_world_base``, written to ``poses.tum``.
+        rig: dict for ``rig.yaml``; numpy arrays and scalars are stored as lists / numbers.
+        overwrite: replace the scan files, ``poses.tum`` and ``rig.yaml`` of an existing
+            dataset at ``path`` (other files are left alone). Without it an existing
+            dataset there is a DatasetError.
+        extension: ".ply" or ".pcd".
+        points_dtype: np.float64 (exact) or np.float32 for the coordinates.
+
+    Returns:
+        The written dataset, loaded back.
+    """
+    root = Path(path)
+    times = np.asarray(times, dtype=np.float64).reshape(-1)
+    if len(scans) == 0:
+        raise DatasetError(f"{root}: no scans to write")
+    if len(times) != len(scans):
+        raise DatasetError(f"{root}: {len(times)} times for {len(scans)} scans")
+    if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
+        raise DatasetError(f"{root}: epoch times must be finite and strictly increasing")
+    if gt_poses is None:
+        implied = epoch_times(len(scans), rig)
+        if not np.allclose(times, implied, rtol=0.0, atol=1e-9):
+            raise DatasetError(
+                f"{root}: without gt_poses the epoch times are not stored and would load as "
+                f"k / epoch_rate ({implied[:3].tolist()}...), not the given times; "
+                "pass gt_poses or set rig['epoch_rate']"
+            )
+    elif np.shape(gt_poses) != (len(scans), 4, 4):
+        raise DatasetError(
+            f"{root}: gt_poses must have shape ({len(scans)}, 4, 4), got {np.shape(gt_poses)}"
+        )
+    if extension.lower() not in (".ply", ".pcd"):
+        raise DatasetError(f"{root}: cannot write scans as '{extension}' (use .ply or .pcd)")
+
+    if root.exists() and not root.is_dir():
+        raise DatasetError(f"{root} exists and is not a directory")
+    scans_dir = root / SCANS_DIR
+    existing = [root / POSES_FILE, root / RIG_FILE]
+    existing = [f for f in existing if f.exists()] + _files(scans_dir, SCAN_EXTENSIONS)
+    if existing and not overwrite:
+        raise DatasetError(f"{root} already holds a dataset ({existing[0].name}); overwrite=True")
+    for file in existing:
+        file.unlink()
+
+    scans_dir.mkdir(parents=True, exist_ok=True)
+    width = max(6, len(str(len(scans) - 1)))
+    for k, scan in enumerate(scans):
+        write_scan(scans_dir / f"{k:0{width}d}{extension.lower()}", scan, points_dtype)
+    if gt_poses is not None:
+        write_tum(root / POSES_FILE, times, np.asarray(gt_poses, dtype=np.float64))
+    if rig is not None:
+        write_rig(root / RIG_FILE, rig)
+    return load_dataset(root)
+
+
+def epoch_times(n_epochs: int, rig: dict[str, Any] | None) -> np.ndarray:
+    """(E,) seconds ``k / rig['epoch_rate']``, or ``k * DEFAULT_EPOCH_PERIOD`` without a rate."""
+    k = np.arange(n_epochs, dtype=np.float64)
+    rate = None if rig is None else _epoch_rate(rig, "rig")
+    return k * DEFAULT_EPOCH_PERIOD if rate is None else k / rate
+
+
+def read_rig(path: str | Path) -> dict[str, Any]:
+    """The dict in a ``rig.yaml`` file (empty file: ``{}``).
+
+    Raises:
+        DatasetError: naming the file when it is not YAML, not a mapping, or has an
+            ``epoch_rate`` that is not a positive number (Hz).
+    """
+    path = Path(path)
+    try:
+        rig = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise DatasetError(f"{path}: cannot read rig file: {exc}") from None
+    if rig is None:
+        return {}
+    if not isinstance(rig, dict):
+        raise DatasetError(f"{path}: rig file must hold a mapping, not {type(rig).__name__}")
+    _epoch_rate(rig, str(path))
+    return rig
+
+
+def _epoch_rate(rig: dict[str, Any], source: str) -> float | None:
+    """``rig['epoch_rate']`` (Hz) checked to be a positive number, or None when absent."""
+    rate = rig.get("epoch_rate")
+    if rate is None:
+        return None
+    if isinstance(rate, bool) or not isinstance(rate, int | float | np.number) or not rate > 0:
+        raise DatasetError(f"{source}: epoch_rate must be a positive number (Hz), got {rate!r}")
+    if not math.isfinite(rate):
+        raise DatasetError(f"{source}: epoch_rate must be finite, got {rate!r}")
+    return float(rate)
+
+
+def write_rig(path: str | Path, rig: dict[str, Any]) -> None:
+    """Write ``rig`` to ``path`` as YAML (numpy arrays as nested lists, floats exact)."""
+    Path(path).write_text(yaml.safe_dump(_plain(rig), sort_keys=False), encoding="utf-8")
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with numpy arrays / scalars and tuples turned into YAML-safe Python types."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray | np.generic):
+        return value.tolist()
+    return value
+
+
+def _natural_key(path: Path) -> tuple:
+    """Sort key comparing digit runs as numbers: ``2.ply`` < ``10.ply``."""
+    parts = re.split(r"(\d+)", path.name)
+    return tuple((0, int(p), p) if p.isdigit() else (1, 0, p) for p in parts)
+
+
+def _files(directory: Path, extensions: Sequence[str] | None = None) -> list[Path]:
+    """Visible files in ``directory`` (optionally only with ``extensions``); [] if none."""
+    if not directory.is_dir():
+        return []
+    files = [f for f in directory.iterdir() if f.is_file() and not f.name.startswith(".")]
+    if extensions is not None:
+        files = [f for f in files if f.suffix.lower() in extensions]
+    return files
+
+
+def _scan_files(root: Path) -> list[Path]:
+    """The scan files of a dataset, checked for a single known extension and sorted."""
+    scans_dir = root / SCANS_DIR
+    if scans_dir.exists():
+        if not scans_dir.is_dir():
+            raise DatasetError(f"{scans_dir} is not a directory")
+        files = _files(scans_dir)
+        if not files:
+            raise DatasetError(f"{scans_dir} is empty: no scan files")
+    else:
+        files = [f for f in _files(root) if f.name not in (POSES_FILE, RIG_FILE)]
+        if not files:
+            raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files")
+    unknown = sorted(f.name for f in files if f.suffix.lower() not in SCAN_EXTENSIONS)
+    if unknown:
+        more = f" and {len(unknown) - 5} more" if len(unknown) > 5 else ""
+        shown = ", ".join(unknown[:5]) + more
+        raise DatasetError(
+            f"{files[0].parent}: files with unknown extensions: {shown} "
+            f"(scan files are {', '.join(SCAN_EXTENSIONS)})"
+        )
+    suffixes = sorted({f.suffix.lower() for f in files})
+    if len(suffixes) > 1:
+        raise DatasetError(f"{files[0].parent}: scan files mix extensions {', '.join(suffixes)}")
+    return sorted(files, key=_natural_key)
