@@ -1,0 +1,79 @@
+"""Writing a results folder: trajectories (TUM, KITTI), per-epoch CSV, config, metrics.
+
+Layout of ``<out>/``::
+
+    poses.tum          T_world_base per epoch (the first epoch's base frame is the world)
+    poses_kitti.txt    the same poses as KITTI rows (3x4 row-major, no time)
+    epochs.csv         one row per epoch: 5-DoF increments, status, diagnostics
+    config.yaml        the resolved configuration
+    metrics.json       metrics against ground truth, when it is known
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from planodom.config import PlanodomConfig
+from planodom.datasets import write_tum
+
+
+def prepare_output(out: str | Path) -> Path:
+    """Create the output folder (parents too) and return it."""
+    path = Path(out)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def write_kitti(path: str | Path, poses: np.ndarray) -> None:
+    """KITTI odometry format: one line per pose (E, 4, 4), the top 3x4 rows row-major.
+
+    Written with ``repr`` precision so that a round trip is exact (evo's KITTI writer
+    rounds through ``%e`` formatting).
+    """
+    lines = [" ".join(repr(float(v)) for v in T[:3, :4].ravel()) for T in np.asarray(poses)]
+    Path(path).write_text("\n".join(lines) + ("\n" if lines else ""))
+
+
+def write_trajectory(out: Path, times: np.ndarray, poses: np.ndarray) -> None:
+    """``poses.tum`` and ``poses_kitti.txt`` of ``poses`` (E, 4, 4) at ``times`` (E,) s."""
+    write_tum(out / "poses.tum", times, poses)
+    write_kitti(out / "poses_kitti.txt", poses)
+
+
+def write_rows(path: str | Path, rows: Sequence[Mapping[str, object]]) -> None:
+    """A CSV with the union of the rows' keys as columns (first-seen order)."""
+    columns: list[str] = []
+    for row in rows:
+        columns += [k for k in row if k not in columns]
+    with Path(path).open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _json_safe(value: object) -> object:
+    if isinstance(value, Mapping):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def write_metrics(out: Path, metrics: Mapping[str, object]) -> None:
+    """``metrics.json`` (NaN and inf written as null)."""
+    (out / "metrics.json").write_text(json.dumps(_json_safe(metrics), indent=2) + "\n")
+
+
+def write_config(out: Path, config: PlanodomConfig) -> None:
+    """``config.yaml``: the resolved configuration of the run."""
+    config.to_yaml(out / "config.yaml")

@@ -1,0 +1,39 @@
+"""Config loading: partial files keep defaults, bad files name the file and field."""
+
+from __future__ import annotations
+
+import pytest
+
+from planodom.config import PlanodomConfig
+from planodom.errors import ConfigError
+
+
+def test_partial_yaml_keeps_defaults(tmp_path) -> None:
+    (tmp_path / "c.yaml").write_text("extraction: {}\n")
+    assert PlanodomConfig.from_yaml(tmp_path / "c.yaml") == PlanodomConfig()
+
+
+def test_round_trip(tmp_path) -> None:
+    cfg = PlanodomConfig()
+    text = cfg.to_yaml(tmp_path / "c.yaml")
+    assert PlanodomConfig.from_yaml(tmp_path / "c.yaml") == cfg
+    assert text == (tmp_path / "c.yaml").read_text()
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("odometry: {no_such_field: 1}\n", r"c\.yaml: field 'odometry\.no_such_field'"),
+        ("nonsense_section: 3\n", r"c\.yaml: field 'nonsense_section'"),
+        ("odometry: [1, 2\n", r"c\.yaml: not valid YAML"),
+    ],
+)
+def test_bad_files_name_file_and_field(tmp_path, text: str, match: str) -> None:
+    (tmp_path / "c.yaml").write_text(text)
+    with pytest.raises(ConfigError, match=match):
+        PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+
+
+def test_missing_file(tmp_path) -> None:
+    with pytest.raises(ConfigError, match="missing.yaml: cannot read"):
+        PlanodomConfig.from_yaml(tmp_path / "missing.yaml")
