@@ -1,0 +1,28 @@
+"""A simulated run written as a dataset reads back identically."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planodom.datasets import load_dataset
+from planodom.simulation import simulate_named
+from planodom.simulation.export import write_simulated_dataset
+
+
+def test_simulated_dataset_round_trip(tmp_path) -> None:
+    run = simulate_named("paper-loop", "isoclinal", noise=0.006, seed=3, n_epochs=3)
+    ds = write_simulated_dataset(run, tmp_path / "ds", scene_name="paper-loop")
+    assert len(ds) == 3
+    np.testing.assert_array_equal(ds.times, run.times)
+    np.testing.assert_allclose(ds.gt_poses, run.poses, atol=1e-14)
+    for k in range(3):
+        a, b = ds[k], run[k]
+        np.testing.assert_array_equal(a.points, b.points)
+        np.testing.assert_array_equal(a.ring, b.ring)
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_array_equal(a.label, b.label)
+    rig = load_dataset(tmp_path / "ds").rig
+    assert rig["epoch_rate"] == run.epoch_rate
+    assert rig["simulation"]["seed"] == 3
+    origins = np.array(rig["sensor_origins"])
+    assert origins.shape == (len(run.rig.sensors), 3)
