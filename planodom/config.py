@@ -22,19 +22,284 @@ class Section(BaseModel):
 
 
 class ExtractionConfig(Section):
-    """Plane extraction (planodom.extraction)."""
+    """Plane extraction (planodom.extraction).
+
+    Distance tolerances scale with the sensor noise: ``sigma`` is ``range_noise_m``, or
+    the across-line noise estimated from the epoch's own scan lines when that is larger
+    (``estimate_noise``); a tolerance is ``max(factor * sigma, tolerance_floor_m)``.
+    """
+
+    mode: str = "auto"
+    """"auto", "rig2d" or "lidar". auto: the 2D-rig path when ``ring`` is present with at
+    most ``max_rig_rings`` distinct values, else the 3D (lidar) path."""
+    max_rig_rings: int = 8
+    """Most scan lines (rings) an epoch of a 2D-scanner rig has (auto mode)."""
+    range_noise_m: float = 0.006
+    """Expected range noise sigma of the sensor (m); default: SICK LMS 221 (paper, VI-A)."""
+    estimate_noise: bool = True
+    """Also estimate sigma from second differences along the scan lines; use the larger."""
+    tolerance_floor_m: float = 0.02
+    """Smallest distance tolerance (m): trace curvature from motion within one sweep
+    (about v / scan rate, 2 cm at 1.5 m/s and 75 Hz), deskew residue, float32 hits."""
+    sweep_gap_factor: float = 2.5
+    """A time step above this many median beam intervals starts a new sweep (2D rig)."""
+    min_gap_m: float = 1.0
+    """Consecutive points of a scan line farther apart than max(this, gap_range_ratio *
+    range) start a new run (m)."""
+    gap_range_ratio: float = 0.1
+    """Range-proportional part of the gap threshold (m per m of range)."""
+    split_sigma_factor: float = 4.0
+    """A run is split where a point lies more than this many sigma from its chord."""
+    min_segment_points: int = 3
+    """Fewest points of a straight segment kept for grouping (one sweep of a scanner may
+    put only a few beams on a distant or narrow wall)."""
+    min_segment_length_m: float = 0.1
+    """Shortest straight segment kept for grouping (m)."""
+    max_seed_direction_error_deg: float = 3.0
+    """A segment seeds a plane only if its direction is known to this (deg), predicted
+    as sigma * sqrt(12 / N) / length (line fit of N points spread over length)."""
+    min_cross_angle_deg: float = 10.0
+    """Two traces determine a plane only if they cross at least at this angle (deg); at
+    10 deg the normal's error across the traces is about 1 / sin(10 deg) = 5.8 times the
+    error along them. Traces of one ring never seed a plane (they are parallel, or lie in
+    one scan plane)."""
+    member_sigma_factor: float = 3.0
+    """A segment joins a plane when its centroid and its ends lie within this many sigma."""
+    max_rms_sigma_factor: float = 1.5
+    """A group of segments is a plane only if the RMS distance of its points to their
+    fitted plane is at most max(this * sigma, rms_floor_m): two traces of two walls can be
+    coplanar by coincidence (within the tolerance), but not flat to the noise level."""
+    rms_floor_m: float = 0.001
+    """Floor of the RMS test above (m): deskew and ray-casting residue of noise-free data."""
+    inlier_sigma_factor: float = 3.5
+    """Final point inliers: residual within this many robust sigmas (1.4826 MAD) of the
+    fit, iterated; at most 0.05 % of Gaussian inliers are lost."""
+    min_plane_points: int = 20
+    """Fewest inlier points of a plane."""
+    min_plane_width_m: float = 0.2
+    """Smallest in-plane width of a plane's inliers (m), measured as 2 sqrt(lambda2 / N)
+    along the minor in-plane axis; thinner sets are lines, not planes."""
+    viewpoint_height_m: float = 1.0
+    """Without sensor origins normals point towards (0, 0, this) in the base frame (m)."""
+    covariance_sigma_floor_m: float = 1e-4
+    """Lower bound of the residual sigma used in the fit covariance (m), so that noise-free
+    data gives a finite information matrix."""
+    confidence_points_ref: float = 50.0
+    """CPEF point-count scale: w_count = 1 - exp(-N / this)."""
+    confidence_width_ref_m: float = 1.0
+    """CPEF extent scale (m): w_extent = 1 - exp(-width / this)."""
+    voxel_size_m: float = 0.3
+    """3D path: voxel size (m) of the cloud RANSAC runs on (inliers are refit at full
+    resolution, so this sets speed and the smallest plane, not precision)."""
+    ransac_iterations: int = 300
+    """3D path: most RANSAC iterations per plane (open3d segment_plane)."""
+    ransac_probability: float = 0.999
+    """3D path: RANSAC stops early once it has this probability of an all-inlier sample."""
+    max_planes: int = 40
+    """3D path: most planes searched per epoch."""
+    cluster_gap_deg: float = 3.0
+    """3D path: coplanar inliers separated, as seen from the viewpoint, by a gap wider
+    than this angle (deg) are separate planes. An angle, not a distance, because a
+    lidar's rings spread apart with range (about 1 deg apart on a 32-beam unit)."""
+    seed: int = 0
+    """3D path: seed of open3d's random generator (deterministic RANSAC)."""
 
 
 class AssociationConfig(Section):
-    """Lenient and strict data association (planodom.association)."""
+    """Lenient and strict data association (planodom.association).
+
+    The absolute constraints assume a maximum motion between two consecutive epochs:
+    ``max_translation_m`` and ``max_rotation_deg`` (the defaults allow 10 m/s and 200 deg/s
+    at 10 Hz epochs). With a motion prior (the constant-velocity prediction) the bounds
+    are ``prior_translation_m`` / ``prior_rotation_deg`` around the prior instead. A
+    dataset with faster motion or a lower epoch rate must raise them (config file or
+    ``rig.yaml``); when epoch k is associated with epoch k - delta, the streaming
+    odometry multiplies the per-epoch bounds by delta.
+    """
+
+    parallel_angle_deg: float = 15.0
+    """Plane pairs whose normals are closer than this (or to its opposite) are parallel."""
+    dihedral_tol_deg: float = 5.0
+    """LDA: two pairs are candidates when their dihedral angles differ by at most this."""
+    max_translation_m: float = 1.0
+    """Assumed maximum translation between consecutive epochs, metres (no prior)."""
+    max_rotation_deg: float = 20.0
+    """Assumed maximum rotation angle between consecutive epochs, degrees (no prior)."""
+    prior_translation_m: float = 0.3
+    """Allowed deviation from the motion prior's translation, metres."""
+    prior_rotation_deg: float = 5.0
+    """Allowed deviation from the motion prior's rotation, degrees."""
+    normal_tol_deg: float = 5.0
+    """Margin for noise on a plane normal's direction, degrees (added to rotation bounds)."""
+    offset_tol_m: float = 0.2
+    """Margin for noise on plane offsets and pair reference points, metres."""
+    overlap_margin_m: float = 1.0
+    """Margin of the support-overlap test (bounding circles of the support polygons), m."""
+    strict_normal_deg: float = 3.0
+    """SDA: maximum angle between a previous normal and a rotated current normal, degrees."""
+    strict_offset_m: float = 0.15
+    """SDA: margin on offset differences beyond the translation bound, metres."""
+    min_line_verticality: float = 0.2
+    """Minimum |v_z| of a pair's unit intersection direction to define a reference point."""
+
+    def model_post_init(self, context: object, /) -> None:
+        for name, value in self:
+            if value is not None and not value > 0:
+                raise ConfigError(f"association.{name}: must be > 0, got {value!r}")
+        if self.parallel_angle_deg >= 90.0 or self.min_line_verticality > 1.0:
+            raise ConfigError("association: parallel_angle_deg < 90 and min_line_verticality <= 1")
 
 
 class OdometryConfig(Section):
-    """Rotation / translation consensus and the divide-and-conquer pipeline."""
+    """Rotation / translation consensus and the divide-and-conquer pipeline.
+
+    Pipelines (paper Fig. 3): ``"wocsc"`` = (LDA, WOCSC rotation, WOCSC translation);
+    ``"sda-mean"`` = (LDA, WOCSC rotation, SDA, mean translation "cog"); ablations
+    ``"ocsc"`` = unweighted consensus for both, ``"mean"`` = chordal mean rotation of all
+    LDA candidates, SDA and mean translation.
+    """
+
+    pipeline: str = "wocsc"
+    """One of "wocsc", "sda-mean", "ocsc", "mean"."""
+    delta: int = 1
+    """Associate epoch k with epoch k - delta (paper's future work: delta > 1)."""
+    rotation_inlier_deg: float = 3.0
+    """A plane association agrees with a rotation when the normals match within this."""
+    translation_inlier_m: float = 0.1
+    """A pair agrees with a translation when its reference points match within this, m."""
+    truncate_rotation_deg: float | None = None
+    """Truncate per-element rotation errors at this angle (None: plain squared error)."""
+    truncate_translation_m: float | None = None
+    """Truncate per-element translation errors at this distance, m (None: plain)."""
+    best_partner: bool = True
+    """An element with several LDA partners (ambiguous association) is scored once, with
+    its best partner under each candidate; False scores every association (all count)."""
+    estimate_z: bool = True
+    """Estimate the vertical translation from associated near-horizontal planes (ground)."""
+    z_plane_max_tilt_deg: float = 30.0
+    """Planes tilted less than this from horizontal constrain the vertical translation."""
+    use_motion_prior: bool = True
+    """Streaming: use the constant-velocity prediction as prior for association."""
+    retry_without_prior: bool = True
+    """Repeat LDA with the prior-free bounds when the prior leaves no candidate."""
+    deskew: bool = True
+    """Streaming: deskew each epoch with the constant-velocity twist of the last estimate."""
+    epoch_period_s: float = 0.1
+    """Epoch period used when epochs come without times, seconds."""
+    min_sigma_rotation_deg: float = 0.01
+    """Floor of the reported per-axis rotation sigma, degrees."""
+    min_sigma_translation_m: float = 0.002
+    """Floor of the reported per-axis translation sigma, metres."""
+
+    def model_post_init(self, context: object, /) -> None:
+        if self.pipeline not in ("wocsc", "sda-mean", "ocsc", "mean"):
+            raise ConfigError(
+                f"odometry.pipeline: expected wocsc, sda-mean, ocsc or mean, got {self.pipeline!r}"
+            )
+        if self.delta < 1:
+            raise ConfigError(f"odometry.delta: must be >= 1, got {self.delta}")
+        for name, value in self:
+            if isinstance(value, float) and not value > 0:
+                raise ConfigError(f"odometry.{name}: must be > 0, got {value!r}")
 
 
 class SmoothingConfig(Section):
-    """Factor-graph smoothing (planodom.smoothing)."""
+    """Factor-graph smoothing (planodom.smoothing).
+
+    Noise models come from the data (odometry sigmas, plane fit covariances, confidences);
+    the ``*_min_*`` fields are floors (noiseless simulations report zero covariances), the
+    ``default_*`` fields stand in when an input carries no uncertainty at all.
+    """
+
+    delta_max: int = 3
+    """D: relative poses (and associations) between epochs k - delta and k, delta = 1..D."""
+    window: int = 10
+    """W: epochs kept by the fixed-lag smoother (windowed mode); needs W > D."""
+    windowed_backend: str = "incremental"
+    """"incremental" (gtsam.IncrementalFixedLagSmoother, iSAM2) or "batch"
+    (gtsam.BatchFixedLagSmoother, Levenberg-Marquardt over the window)."""
+    plane_factor: str = "auto"
+    """"global" (gtsam.OrientedPlane3Factor, world-frame landmark), "anchored"
+    (LocalOrientedPlane3Factor, landmark in an anchor frame near its observations) or "auto":
+    global for landmarks first seen within ``global_plane_max_distance_m`` of the world
+    origin when no robust kernel is asked for planes, anchored otherwise."""
+    global_plane_max_distance_m: float = 30.0
+    """auto: farthest first-observing position (m) for a global plane factor."""
+    min_landmark_epochs: int = 2
+    """A tracked plane enters the graph once seen in at least this many epochs."""
+    flipped_normals: str = "flip"
+    """A measured normal more than 90 deg from the predicted one: "flip" it or "reject" it."""
+    robust_kernel: str = "huber"
+    """"none", "huber" or "cauchy", on the factors chosen by ``robust_between`` and
+    ``robust_planes`` (outlier associations)."""
+    robust_threshold: float | None = None
+    """Kernel parameter in whitened units (sigmas); None: 1.345 (Huber), 2.3849 (Cauchy)."""
+    robust_between: bool = True
+    """Robust kernel on the 5-DoF between factors."""
+    robust_planes: bool = True
+    """Robust kernel on the plane factors (forces anchored plane factors in auto mode)."""
+    default_rotation_sigma_rad: float = 0.005
+    """Per-axis rotation sigma of a relative pose without sigmas, rad."""
+    default_translation_sigma_m: float = 0.05
+    """Per-axis horizontal translation sigma of a relative pose without sigmas, m."""
+    min_rotation_sigma_rad: float = 1e-4
+    """Floor of the between factors' rotation sigmas, rad."""
+    min_translation_sigma_m: float = 1e-3
+    """Floor of the between factors' translation sigmas, m."""
+    default_plane_normal_sigma_rad: float = 0.01
+    """Normal sigma (per tangent axis) of a plane without covariance, rad."""
+    default_plane_offset_sigma_m: float = 0.02
+    """Offset sigma of a plane without covariance, m."""
+    min_plane_normal_sigma_rad: float = 1e-4
+    """Floor added (in quadrature) to the plane factors' normal sigmas, rad."""
+    min_plane_offset_sigma_m: float = 1e-3
+    """Floor added (in quadrature) to the plane factors' offset sigma, m."""
+    plane_covariance_scale: float = 1.0
+    """Multiplies every plane covariance (before dividing by the plane's confidence)."""
+    vertical_sigma_m: float = 0.05
+    """Weak prior on the change of height between consecutive epochs, m (z is unobserved
+    by the 5-DoF factors; see planodom.smoothing.graph)."""
+    fallback_rotation_sigma_rad: float = 0.1
+    """Constant-velocity between factor for an epoch no relative pose reaches, rad."""
+    fallback_translation_sigma_m: float = 1.0
+    """Translation sigma of that fallback factor, m."""
+    prior_sigma: float = 1e-6
+    """Sigma of the prior fixing the first pose (gauge), rad and m."""
+    max_iterations: int = 100
+    """Levenberg-Marquardt iterations (batch)."""
+    relative_error_tol: float = 1e-9
+    """Levenberg-Marquardt relative error decrease at convergence (batch)."""
+    relinearize_threshold: float = 0.01
+    """iSAM2 relinearisation threshold (incremental windowed backend)."""
+    compute_covariances: bool = True
+    """Batch: marginal covariances of the poses (gtsam.Marginals)."""
+
+    def model_post_init(self, context: object, /) -> None:
+        choices = {
+            "windowed_backend": ("incremental", "batch"),
+            "plane_factor": ("auto", "global", "anchored"),
+            "flipped_normals": ("flip", "reject"),
+            "robust_kernel": ("none", "huber", "cauchy"),
+        }
+        for name, allowed in choices.items():
+            if getattr(self, name) not in allowed:
+                raise ConfigError(
+                    f"smoothing.{name}: expected one of {', '.join(allowed)}, "
+                    f"got {getattr(self, name)!r}"
+                )
+        if self.delta_max < 1:
+            raise ConfigError(f"smoothing.delta_max: must be >= 1, got {self.delta_max}")
+        if self.window <= self.delta_max:
+            raise ConfigError(
+                f"smoothing.window: must exceed delta_max ({self.delta_max}), got {self.window}"
+            )
+        if self.min_landmark_epochs < 2:
+            raise ConfigError(
+                f"smoothing.min_landmark_epochs: must be >= 2, got {self.min_landmark_epochs}"
+            )
+        for name, value in self:
+            if isinstance(value, float) and not value > 0:
+                raise ConfigError(f"smoothing.{name}: must be > 0, got {value!r}")
 
 
 class PlanodomConfig(Section):

@@ -1,0 +1,103 @@
+"""Bring the points of one epoch to its reference time with a constant body twist.
+
+A point seen at time ``t`` (seconds, relative to the epoch's reference time) in the base
+frame of that time is mapped to the base frame at the reference time by
+``T_ref_t = exp(t * xi)``, ``xi = (wx, wy, wz, vx, vy, vz)`` in rad/s and m/s, expressed
+in the base frame at the reference time (docs/ARCHITECTURE.md). The SE(3) exponential is
+evaluated exactly, per point:
+
+    R(t) = exp([t w]x)                        (Rodrigues, via scipy's Rotation)
+    p(t) = J_l(t w) (t v)                     (left Jacobian of SO(3))
+    J_l(phi) v = v + (1 - cos a) / a^2 (phi x v) + (a - sin a) / a^3 (phi x (phi x v)),
+    a = |phi|, with Taylor series for small a.
+
+so ``p_ref = R(t) p_t + p(t)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planodom.errors import GeometryError
+
+
+def check_twist(twist: np.ndarray | None) -> np.ndarray | None:
+    """``twist`` as a finite (6,) float64 array (rad/s, m/s), or None; raises GeometryError."""
+    if twist is None:
+        return None
+    try:
+        xi = np.asarray(twist, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise GeometryError(f"twist must be 6 finite numbers, got {twist!r}") from exc
+    if xi.shape != (6,) or not np.all(np.isfinite(xi)):
+        raise GeometryError(
+            f"twist must be 6 finite numbers (wx, wy, wz, vx, vy, vz), got {twist!r}"
+        )
+    return xi
+
+
+def _left_jacobian_apply(phi: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``J_l(phi_i) v_i`` for (N, 3) rotation vectors ``phi`` and (N, 3) vectors ``v``."""
+    a2 = np.einsum("ij,ij->i", phi, phi)
+    a = np.sqrt(a2)
+    small = a < 1e-4
+    safe_a = np.where(small, 1.0, a)
+    safe_a2 = safe_a * safe_a
+    # (1 - cos a) / a^2 and (a - sin a) / a^3, Taylor-expanded near 0 (error < 1e-17).
+    c1 = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(safe_a)) / safe_a2)
+    c2 = np.where(small, 1.0 / 6.0 - a2 / 120.0, (safe_a - np.sin(safe_a)) / (safe_a2 * safe_a))
+    pxv = np.cross(phi, v)
+    return v + c1[:, None] * pxv + c2[:, None] * np.cross(phi, pxv)
+
+
+def se3_exp(twist: np.ndarray, t: np.ndarray) -> tuple[Rotation, np.ndarray]:
+    """``exp(t_i * xi)`` for every time: rotations (N of them) and translations (N, 3), m.
+
+    Args:
+        twist: (6,) ``(wx, wy, wz, vx, vy, vz)``, rad/s and m/s.
+        t: (N,) seconds.
+    """
+    xi = check_twist(twist)
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    phi = t[:, None] * xi[None, :3]
+    rho = t[:, None] * xi[None, 3:]
+    return Rotation.from_rotvec(phi), _left_jacobian_apply(phi, rho)
+
+
+def deskew_points(points: np.ndarray, t: np.ndarray, twist: np.ndarray) -> np.ndarray:
+    """Map points seen at times ``t`` to the reference time: ``p_ref = exp(t xi) p_t``.
+
+    Args:
+        points: (N, 3) metres, each in the base frame of its own time.
+        t: (N,) seconds relative to the reference time.
+        twist: (6,) constant body twist, rad/s and m/s.
+
+    Returns:
+        (N, 3) metres in the base frame at the reference time.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    if len(points) == 0:
+        return points.reshape(0, 3).copy()
+    rot, trans = se3_exp(twist, t)
+    return rot.apply(points) + trans
+
+
+def se3_log(T: np.ndarray) -> np.ndarray:
+    """Twist ``(w, v)`` (6,) with ``exp(xi) = T`` for a rigid transform ``T`` (4, 4).
+
+    ``w`` is the rotation vector of ``R``; ``v = J_l(w)^-1 t`` with the closed-form inverse
+    left Jacobian ``I - [w]x / 2 + (1 / a^2 - (1 + cos a) / (2 a sin a)) [w]x^2``.
+    A constant-velocity twist over an epoch of ``dt`` seconds is ``se3_log(T_a_b) / dt``.
+    """
+    T = np.asarray(T, dtype=np.float64)
+    w = Rotation.from_matrix(T[:3, :3]).as_rotvec()
+    t = T[:3, 3]
+    a = float(np.linalg.norm(w))
+    if a < 1e-6:
+        c = 1.0 / 12.0 + a * a / 720.0
+    else:
+        c = 1.0 / a**2 - (1.0 + np.cos(a)) / (2.0 * a * np.sin(a))
+    wxt = np.cross(w, t)
+    v = t - 0.5 * wxt + c * np.cross(w, wxt)
+    return np.concatenate([w, v])

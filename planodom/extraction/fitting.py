@@ -1,0 +1,172 @@
+"""Robust total-least-squares plane fits, their covariance, orientation and support.
+
+Covariance of a TLS plane fit (first order, isotropic point noise sigma along n):
+
+Let ``c`` be the centroid of the N inliers, ``C = sum (p - c)(p - c)^T`` their scatter with
+eigenvalues ``l1 >= l2 >= l3`` and eigenvectors ``e1, e2, e3 = n``. A perturbation ``dC``
+moves the smallest eigenvector by ``dn = -sum_k e_k (e_k^T dC n) / (l_k - l3)``, k = 1, 2.
+With point noise ``eps_i`` (sigma along n) ``e_k^T dC n = sum_i (e_k . (p_i - c)) (n . eps_i)``
+plus a second-order term, of variance ``sigma^2 (l_k^true + N sigma^2) ~ sigma^2 l_k``; the
+two are uncorrelated (e1, e2 diagonalise C). Hence
+
+    Cov(n) = sigma^2 sum_{k=1,2} l_k / (l_k - l3)^2 e_k e_k^T      (rank 2, nothing along n)
+
+``d = -n . c`` gives ``dd = -c . dn - n . dc`` with ``Var(n . dc) = sigma^2 / N``,
+uncorrelated with ``dn`` (centred sums), so
+
+    Cov(n, d) = -Cov(n) c,    Var(d) = c^T Cov(n) c + sigma^2 / N.
+
+``sigma^2`` is estimated by the residual variance ``l3 / (N - 3)`` (three parameters fitted),
+bounded below by ``covariance_sigma_floor_m^2``. The 4x4 covariance of ``(n, d)`` has rank 3.
+It does not change when the plane is flipped (``(n, d) -> (-n, -d)``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from planodom.geometry import PlaneSupport
+
+#: Residuals below this (m) always count as inliers (round-off of exact data).
+_EXACT_M = 1e-7
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneFit:
+    """A TLS fit to inlier points.
+
+    Attributes:
+        inliers: (K,) int64 indices of the inliers among the fitted points.
+        normal: (3,) unit normal (not yet oriented). offset: d, metres.
+        centroid: (3,) metres. evals: (3,) scatter eigenvalues, descending, m^2.
+        evecs: (3, 3) columns e1, e2, n.
+    """
+
+    inliers: np.ndarray
+    normal: np.ndarray
+    offset: float
+    centroid: np.ndarray
+    evals: np.ndarray
+    evecs: np.ndarray
+
+    @property
+    def n_points(self) -> int:
+        return len(self.inliers)
+
+    @property
+    def rms(self) -> float:
+        """RMS residual (m) of the inliers."""
+        return float(np.sqrt(max(self.evals[2], 0.0) / max(len(self.inliers), 1)))
+
+    @property
+    def width(self) -> float:
+        """In-plane width (m) along the minor axis: ``2 sqrt(l2 / N)``."""
+        return float(2.0 * np.sqrt(max(self.evals[1], 0.0) / max(len(self.inliers), 1)))
+
+
+def tls_fit(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centroid (3,), eigenvalues (3,) descending and eigenvectors (3, 3) of the scatter."""
+    c = points.mean(axis=0)
+    q = points - c
+    evals, evecs = np.linalg.eigh(q.T @ q)
+    return c, evals[::-1], evecs[:, ::-1]
+
+
+def robust_plane_fit(points: np.ndarray, k_sigma: float, max_iter: int = 4) -> PlaneFit | None:
+    """TLS plane through ``points`` (N, 3), metres, with iterated robust inlier selection.
+
+    Residuals ``r`` to the current fit are kept when ``|r| <= max(k_sigma * 1.4826 *
+    median(|r|), 1e-7 m)``; the fit is redone on the inliers until they stop changing.
+    Returns None when fewer than 3 points remain.
+    """
+    idx = np.arange(len(points))
+    for _ in range(max_iter):
+        if len(idx) < 3:
+            return None
+        c, evals, evecs = tls_fit(points[idx])
+        n = evecs[:, 2]
+        r = np.abs((points - c) @ n)
+        thr = max(k_sigma * 1.4826 * float(np.median(r[idx])), _EXACT_M)
+        new = np.flatnonzero(r <= thr)
+        if np.array_equal(new, idx):
+            break
+        idx = new
+    if len(idx) < 3:
+        return None
+    c, evals, evecs = tls_fit(points[idx])
+    n = evecs[:, 2]
+    return PlaneFit(idx, n, float(-n @ c), c, evals, evecs)
+
+
+def tls_covariance(fit: PlaneFit, sigma_floor_m: float) -> np.ndarray:
+    """(4, 4) covariance of ``(nx, ny, nz, d)`` of a TLS fit (module docstring)."""
+    n_pts = fit.n_points
+    l1, l2, l3 = (float(v) for v in fit.evals)
+    sigma2 = max(l3 / max(n_pts - 3, 1), sigma_floor_m**2)
+    e1, e2 = fit.evecs[:, 0], fit.evecs[:, 1]
+    cov_n = sigma2 * (
+        l1 / (l1 - l3) ** 2 * np.outer(e1, e1) + l2 / (l2 - l3) ** 2 * np.outer(e2, e2)
+    )
+    c = fit.centroid
+    cov = np.empty((4, 4))
+    cov[:3, :3] = cov_n
+    cov[:3, 3] = cov[3, :3] = -cov_n @ c
+    cov[3, 3] = c @ cov_n @ c + sigma2 / n_pts
+    return cov
+
+
+def orientation_sign(
+    normal: np.ndarray,
+    offset: float,
+    centroid: np.ndarray,
+    viewpoint: np.ndarray,
+) -> float:
+    """+1 or -1: the sign that makes the normal point towards the side the sensor saw from.
+
+    The plane is oriented so that ``viewpoint`` (3,) (the mean sensor origin of the
+    inliers when known, else a point above the base origin) lies on its positive side. If
+    the viewpoint lies on the plane (|distance| < 1 mm) a near-horizontal plane
+    (|n_z| >= cos 45 deg) gets its normal up, any other its normal towards the base
+    origin's side of the centroid.
+    """
+    dist = float(normal @ viewpoint + offset)
+    if abs(dist) >= 1e-3:
+        return 1.0 if dist > 0 else -1.0
+    if abs(normal[2]) >= np.cos(np.radians(45.0)):
+        return 1.0 if normal[2] > 0 else -1.0
+    towards = float(-normal[:2] @ centroid[:2])
+    return -1.0 if towards < 0 else 1.0
+
+
+def support_polygon(points: np.ndarray, fit: PlaneFit) -> np.ndarray:
+    """(M, 3) convex hull of ``points`` (the inliers) projected on the plane, in order.
+
+    Vertices counter-clockwise about the (unoriented) fit normal; (0, 3) when degenerate.
+    """
+    basis = fit.evecs[:, :2]
+    uv = (points - fit.centroid) @ basis
+    try:
+        hull = ConvexHull(uv)
+    except (QhullError, ValueError):
+        return np.zeros((0, 3))
+    v = uv[hull.vertices]
+    return fit.centroid + v @ basis.T
+
+
+def make_support(points: np.ndarray, fit: PlaneFit) -> PlaneSupport:
+    """:class:`PlaneSupport` of the inlier ``points`` (K, 3) of ``fit``."""
+    return PlaneSupport(fit.centroid.copy(), support_polygon(points, fit), fit.n_points)
+
+
+def majority_label(labels: np.ndarray | None) -> int:
+    """Most frequent non-negative label among ``labels`` (K,), or -1."""
+    if labels is None or len(labels) == 0:
+        return -1
+    lab = labels[labels >= 0]
+    if len(lab) == 0:
+        return -1
+    values, counts = np.unique(lab, return_counts=True)
+    return int(values[np.argmax(counts)])

@@ -1,0 +1,153 @@
+"""Planes of a dense 3D scan (a spinning lidar, or points without rings).
+
+1. The cloud is reduced to one point per ``voxel_size_m`` voxel (open3d).
+2. open3d's RANSAC ``segment_plane`` runs in a loop on the voxel points not yet explained,
+   with ``o3d.utility.random.seed(config.seed + k)`` before the k-th call, so that a scan
+   gives the same planes every time.
+3. The inliers of each RANSAC plane are split into connected clusters as seen from the
+   viewpoint (occupancy grid of ``cluster_gap_deg`` cells in azimuth and elevation,
+   8-connected, wrapping in azimuth), so that two coplanar but separate walls become two
+   planes while the rings of one ground plane, which spread apart with range, stay one.
+4. Each cluster is refit by total least squares, twice on the full-resolution points
+   within the distance tolerance of it and inside its (dilated) cells and not taken by an
+   earlier plane; these points are the candidate inlier set (the caller refits it
+   robustly). Voxel points that the refit plane explains are not searched again.
+
+The distance tolerance is ``max(member_sigma_factor * sigma, tolerance_floor_m)`` with
+sigma from :func:`planodom.extraction.segments.effective_noise`: the configured range noise,
+or the noise measured along the rings (second differences) when larger.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from planodom._open3d import o3d
+from planodom.config import ExtractionConfig
+from planodom.extraction.fitting import tls_fit
+from planodom.extraction.segments import effective_noise, estimate_line_noise, run_breaks
+
+
+def ring_noise(points: np.ndarray, ring: np.ndarray | None, config: ExtractionConfig) -> float:
+    """Noise (m) measured along the rings by second differences; 0 without rings."""
+    if ring is None or not config.estimate_noise:
+        return 0.0
+    order = np.argsort(ring, kind="stable")
+    pts = points[order]
+    run_start, _ = run_breaks(
+        pts, ring[order], None, config.sweep_gap_factor, config.min_gap_m, config.gap_range_ratio
+    )
+    return estimate_line_noise(pts, run_start)
+
+
+def angular_cells(points: np.ndarray, viewpoint: np.ndarray, cell_deg: float) -> np.ndarray:
+    """(N, 2) int64 (azimuth, elevation) cells of ``cell_deg`` of the points seen from
+    ``viewpoint`` (3,)."""
+    rel = points - viewpoint
+    az = np.arctan2(rel[:, 1], rel[:, 0])
+    el = np.arctan2(rel[:, 2], np.hypot(rel[:, 0], rel[:, 1]))
+    cell = np.radians(cell_deg)
+    return np.floor(np.column_stack([(az + np.pi) / cell, (el + np.pi / 2) / cell])).astype(
+        np.int64
+    )
+
+
+def _clusters(cells: np.ndarray, n_az: int) -> tuple[np.ndarray, np.ndarray]:
+    """8-connected clusters of occupied angular cells (K, 2), azimuth wrapping at n_az.
+
+    Returns the label (K,) of every point (0-based) and a lookup grid (n_az, n_el) of
+    the labels dilated by one cell (-1 = free).
+    """
+    n_el = int(cells[:, 1].max()) + 2
+    grid = np.zeros((n_az, n_el), dtype=bool)
+    grid[cells[:, 0] % n_az, cells[:, 1]] = True
+    labels, n_lab = ndimage.label(grid, structure=np.ones((3, 3), dtype=bool))
+    # Join clusters across the azimuth seam (first and last column).
+    first, last = labels[0], labels[-1]
+    a = np.concatenate([first[:-1], first, first[1:]])
+    b = np.concatenate([last[1:], last, last[:-1]])
+    seam = (a > 0) & (b > 0)
+    graph = coo_matrix(
+        (np.ones(np.count_nonzero(seam)), (a[seam], b[seam])), shape=(n_lab + 1, n_lab + 1)
+    )
+    _, comp = connected_components(graph, directed=False)
+    merged = np.where(labels > 0, comp[labels], -1)
+    free = merged < 0
+    padded = np.vstack([merged[-1:], merged, merged[:1]])
+    dilated = ndimage.grey_dilation(padded, size=(3, 3))[1:-1]
+    lookup = np.where(free, dilated, merged)
+    return merged[cells[:, 0] % n_az, cells[:, 1]], lookup
+
+
+def lidar_candidates(
+    points: np.ndarray,
+    config: ExtractionConfig,
+    ring: np.ndarray | None = None,
+    viewpoint: np.ndarray | None = None,
+) -> tuple[list[np.ndarray], float]:
+    """Candidate inlier sets (indices into ``points`` (N, 3), metres) and the sigma used (m).
+
+    ``viewpoint`` (3,), metres: where the scan was taken from (clusters are separated by
+    angular gaps as seen from there); the base origin if None.
+    """
+    sigma = effective_noise(config, ring_noise(points, ring, config))
+    tol = max(config.member_sigma_factor * sigma, config.tolerance_floor_m)
+    view = np.zeros(3) if viewpoint is None else np.asarray(viewpoint, dtype=np.float64)
+    n_az = int(np.ceil(360.0 / config.cluster_gap_deg))
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    vox = np.asarray(pcd.voxel_down_sample(config.voxel_size_m).points)
+    vox_cells = angular_cells(vox, view, config.cluster_gap_deg)
+    cells = angular_cells(points, view, config.cluster_gap_deg)
+    remaining = np.ones(len(vox), dtype=bool)
+    taken = np.zeros(len(points), dtype=bool)
+    min_vox = max(3, config.min_plane_points // 4)
+    out: list[np.ndarray] = []
+    for k in range(config.max_planes):
+        rem = np.flatnonzero(remaining)
+        if len(rem) < min_vox:
+            break
+        sub = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(vox[rem]))
+        o3d.utility.random.seed(config.seed + k)
+        _, inl = sub.segment_plane(
+            distance_threshold=tol,
+            ransac_n=3,
+            num_iterations=config.ransac_iterations,
+            probability=config.ransac_probability,
+        )
+        inl = rem[np.asarray(inl, dtype=np.int64)]
+        if len(inl) < min_vox:
+            break
+        for _ in range(2):  # RANSAC's plane is rough: refit it, select again
+            c, _, ev = tls_fit(vox[inl])
+            inl = rem[np.abs((vox[rem] - c) @ ev[:, 2]) <= tol]
+            if len(inl) < min_vox:
+                break
+        if len(inl) < min_vox:
+            remaining[rem] = False
+            break
+        remaining[inl] = False
+        labels, lookup = _clusters(vox_cells[inl], n_az)
+        for lab in np.unique(labels):
+            members = inl[labels == lab]
+            if len(members) < min_vox:
+                continue
+            c, _, ev = tls_fit(vox[members])
+            n = ev[:, 2]
+            in_cells = lookup[cells[:, 0] % n_az, np.minimum(cells[:, 1], lookup.shape[1] - 1)]
+            region = ~taken & (in_cells == lab)
+            for _ in range(2):  # refit on the full-resolution points, then select again
+                cand = np.flatnonzero(region & (np.abs((points - c) @ n) <= tol))
+                if len(cand) < 3:
+                    break
+                c, _, ev = tls_fit(points[cand])
+                n = ev[:, 2]
+            # Voxels this plane explains are not searched again.
+            v_in = lookup[vox_cells[:, 0] % n_az, np.minimum(vox_cells[:, 1], lookup.shape[1] - 1)]
+            remaining &= ~((v_in == lab) & (np.abs((vox - c) @ n) <= tol))
+            if len(cand) >= config.min_plane_points:
+                taken[cand] = True
+                out.append(cand)
+    return out, sigma

@@ -1,0 +1,278 @@
+"""One epoch's points to oriented planes with covariance, confidence and support.
+
+``extract(scan, config, twist, sensor_origins) -> ExtractionResult`` runs:
+
+1. input checks (finite points, times, twist, origins; fewer than 3 points: no planes);
+2. deskewing with the twist, when given and the scan has times (:mod:`.deskew`);
+3. either the 2D-rig path (:mod:`.segments`, :mod:`.grouping`) or the 3D path
+   (:mod:`.lidar`), which give candidate inlier sets;
+4. per candidate, a robust TLS fit on the points (:mod:`.fitting`), rejection of sets that
+   are too small or too thin to be planes, orientation, covariance, CPEF confidence
+   (:mod:`.confidence`), support polygon and the majority true label.
+
+Normal orientation: normals point to the side the sensor saw the plane from. With
+``sensor_origins`` the viewpoint of a plane is the mean origin of the scanners that saw
+its inliers (each origin carried to the reference time with the twist at the inliers'
+mean time); without, it is ``(0, 0, viewpoint_height_m)`` in the base frame: a point above
+the base origin, so that a ground plane through the base origin (a vehicle frame on the
+ground, rig.yaml absent) still gets its normal up, and walls, whose distance from that
+point equals their distance from the origin, face the vehicle. Planes through the
+viewpoint itself fall back to "up" for near-horizontal ones
+(:func:`.fitting.orientation_sign`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planodom.config import ExtractionConfig
+from planodom.errors import ConfigError, GeometryError
+from planodom.extraction.confidence import cpef
+from planodom.extraction.deskew import check_twist, deskew_points, se3_exp
+from planodom.extraction.fitting import (
+    majority_label,
+    make_support,
+    orientation_sign,
+    robust_plane_fit,
+    tls_covariance,
+)
+from planodom.extraction.grouping import group_segments
+from planodom.extraction.lidar import lidar_candidates
+from planodom.extraction.segments import split_scan_lines
+from planodom.geometry import Plane
+from planodom.scan import Scan
+
+#: Largest coordinate (m) accepted; beyond it squares lose all precision.
+MAX_COORDINATE_M = 1e6
+
+MODES = ("auto", "rig2d", "lidar")
+
+
+@dataclass(frozen=True, eq=False)
+class ExtractionResult:
+    """Planes of one epoch and how they were found.
+
+    Attributes:
+        planes: the extracted planes, largest support first.
+        inliers: per plane, (K,) int64 indices into the scan's points.
+        mode: "rig2d" or "lidar" (the path that ran), "empty" when no points.
+        sigma_m: the noise sigma (m) the tolerances were scaled with.
+        n_segments: straight segments found (2D path; 0 otherwise).
+        n_candidates: candidate inlier sets before the plane tests.
+        n_rejected: candidates rejected (too few points, too thin, seed lost).
+        points: (N, 3) the points the planes were fit to (deskewed when a twist was given).
+    """
+
+    planes: list[Plane]
+    inliers: list[np.ndarray]
+    mode: str
+    sigma_m: float
+    n_segments: int = 0
+    n_candidates: int = 0
+    n_rejected: int = 0
+    points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+
+def _check_inputs(scan: Scan, sensor_origins) -> np.ndarray | None:
+    pts = scan.points
+    finite = np.isfinite(pts).all(axis=1)
+    if not finite.all():
+        raise GeometryError(
+            f"scan has {int(np.count_nonzero(~finite))} of {len(pts)} points with NaN or "
+            "infinite coordinates (drop no-return beams before extraction)"
+        )
+    if len(pts) and np.abs(pts).max() > MAX_COORDINATE_M:
+        raise GeometryError(
+            f"scan coordinates reach {np.abs(pts).max():.3g} m, beyond {MAX_COORDINATE_M:g} m"
+        )
+    if scan.t is not None and not np.all(np.isfinite(scan.t)):
+        raise GeometryError("scan times t contain NaN or infinite values")
+    if sensor_origins is None:
+        return None
+    try:
+        org = np.asarray(sensor_origins, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise GeometryError(f"sensor_origins must be numbers, got {sensor_origins!r}") from exc
+    if org.ndim == 1:
+        org = org.reshape(1, -1)
+    if org.ndim != 2 or org.shape[1] != 3 or not np.all(np.isfinite(org)):
+        raise GeometryError(
+            f"sensor_origins must be a finite (3,) or (R, 3) array, got shape {org.shape}"
+        )
+    if len(org) > 1:
+        if scan.ring is None:
+            raise GeometryError("per-ring sensor_origins need the scan's ring field")
+        if len(scan.ring) and (scan.ring.min() < 0 or scan.ring.max() >= len(org)):
+            raise GeometryError(
+                f"ring ids {scan.ring.min()}..{scan.ring.max()} do not index the "
+                f"{len(org)} sensor_origins"
+            )
+    return org
+
+
+def choose_mode(scan: Scan, config: ExtractionConfig) -> str:
+    """ "rig2d" or "lidar" for this scan under ``config.mode`` (see ExtractionConfig)."""
+    if config.mode not in MODES:
+        raise ConfigError(f"extraction.mode must be one of {MODES}, got {config.mode!r}")
+    if config.mode != "auto":
+        if config.mode == "rig2d" and scan.ring is None:
+            raise GeometryError("extraction.mode 'rig2d' needs the scan's ring field")
+        return config.mode
+    if scan.ring is None:
+        return "lidar"
+    return "rig2d" if len(np.unique(scan.ring)) <= config.max_rig_rings else "lidar"
+
+
+def extract(
+    scan: Scan,
+    config: ExtractionConfig | None = None,
+    twist: np.ndarray | None = None,
+    sensor_origins: np.ndarray | None = None,
+) -> ExtractionResult:
+    """Planes of one epoch, with diagnostics (see :func:`extract_planes`)."""
+    config = ExtractionConfig() if config is None else config
+    org = _check_inputs(scan, sensor_origins)
+    xi = check_twist(twist)
+    if len(scan) < 3:
+        return ExtractionResult([], [], "empty", config.range_noise_m, points=scan.points)
+    mode = choose_mode(scan, config)
+    pts = scan.points
+    if xi is not None and scan.t is not None:
+        pts = deskew_points(pts, scan.t, xi)
+
+    if mode == "rig2d":
+        segs, sigma = split_scan_lines(pts, scan.ring, scan.t, config)
+        tol = max(config.member_sigma_factor * sigma, config.tolerance_floor_m)
+        groups, rejected = group_segments(
+            segs,
+            tol,
+            sigma,
+            config.min_cross_angle_deg,
+            config.max_seed_direction_error_deg,
+            config.min_plane_points,
+            max(config.max_rms_sigma_factor * sigma, config.rms_floor_m),
+        )
+        candidates = [segs.order[segs.point_indices(g)] for g in groups]
+        n_segments = len(segs)
+    else:
+        view = _scan_viewpoint(org, config)
+        candidates, sigma = lidar_candidates(pts, config, scan.ring, view)
+        rejected, n_segments = 0, 0
+
+    planes: list[Plane] = []
+    inliers: list[np.ndarray] = []
+    for cand in candidates:
+        built = _build_plane(cand, pts, scan, config, sigma, org, xi)
+        if built is None:
+            rejected += 1
+            continue
+        planes.append(built[0])
+        inliers.append(built[1])
+    order = np.argsort([-len(i) for i in inliers], kind="stable")
+    return ExtractionResult(
+        planes=[planes[i] for i in order],
+        inliers=[inliers[i] for i in order],
+        mode=mode,
+        sigma_m=sigma,
+        n_segments=n_segments,
+        n_candidates=len(candidates),
+        n_rejected=rejected,
+        points=pts,
+    )
+
+
+def _scan_viewpoint(org: np.ndarray | None, config: ExtractionConfig) -> np.ndarray:
+    """(3,) one viewpoint for the whole scan: the mean sensor origin, or above the origin."""
+    if org is None:
+        return np.array([0.0, 0.0, config.viewpoint_height_m])
+    return org.mean(axis=0)
+
+
+def _viewpoint(
+    idx: np.ndarray, scan: Scan, org: np.ndarray | None, xi: np.ndarray | None, config
+) -> np.ndarray:
+    """(3,) where the inliers ``idx`` were seen from, in the reference-time base frame."""
+    if org is None:
+        return np.array([0.0, 0.0, config.viewpoint_height_m])
+    view = org[0] if len(org) == 1 else org[scan.ring[idx]].mean(axis=0)
+    if xi is not None and scan.t is not None:
+        rot, trans = se3_exp(xi, np.array([float(scan.t[idx].mean())]))
+        view = rot.apply(view[None])[0] + trans[0]
+    return view
+
+
+def _build_plane(
+    cand: np.ndarray,
+    pts: np.ndarray,
+    scan: Scan,
+    config: ExtractionConfig,
+    sigma: float,
+    org: np.ndarray | None,
+    xi: np.ndarray | None,
+) -> tuple[Plane, np.ndarray] | None:
+    if len(cand) < config.min_plane_points:
+        return None
+    fit = robust_plane_fit(pts[cand], config.inlier_sigma_factor)
+    if fit is None or fit.n_points < config.min_plane_points:
+        return None
+    if fit.width < config.min_plane_width_m:
+        return None
+    idx = cand[fit.inliers]
+    inl = pts[idx]
+    view = _viewpoint(idx, scan, org, xi, config)
+    sign = orientation_sign(fit.normal, fit.offset, fit.centroid, view)
+    conf = cpef(
+        fit.rms,
+        max(sigma, config.covariance_sigma_floor_m),
+        fit.n_points,
+        fit.width,
+        fit.normal,
+        inl,
+        view,
+        config.confidence_points_ref,
+        config.confidence_width_ref_m,
+    )
+    plane = Plane(
+        normal=sign * fit.normal,
+        offset=sign * fit.offset,
+        covariance=tls_covariance(fit, config.covariance_sigma_floor_m),
+        confidence=conf,
+        support=make_support(inl, fit),
+        truth_id=majority_label(None if scan.label is None else scan.label[idx]),
+    )
+    return plane, idx
+
+
+def extract_planes(
+    scan: Scan,
+    config: ExtractionConfig | None = None,
+    twist: np.ndarray | None = None,
+    sensor_origins: np.ndarray | None = None,
+) -> list[Plane]:
+    """The planes of one epoch: oriented normal, offset, covariance, CPEF weight, support.
+
+    Args:
+        scan: the epoch's points (base frame at each point's time), with ``ring`` (a 2D
+            rig: few rings; a lidar: many) and ``t`` when known, ``label`` in simulation.
+        config: thresholds (:class:`planodom.config.ExtractionConfig`); defaults if None.
+        twist: optional (6,) constant body twist ``(wx, wy, wz, vx, vy, vz)`` (rad/s, m/s)
+            over the epoch; points are first brought to the reference time with it.
+        sensor_origins: optional sensor positions in the base frame, metres: (3,) one for
+            all points, or (R, 3) indexed by ring id. Used to orient normals.
+
+    Returns:
+        Planes, largest support first. Each has a unit normal pointing towards the
+        sensor, ``d`` (n . p + d = 0), a (4, 4) covariance of (n, d) (rank 3,
+        :mod:`planodom.extraction.fitting`), a CPEF confidence in (0, 1]
+        (:mod:`planodom.extraction.confidence`), support (centroid, convex polygon in the
+        plane, point count) and ``truth_id`` (majority inlier label, -1 without labels).
+        Empty input or fewer than 3 points give no planes.
+
+    Raises:
+        GeometryError: NaN / infinite / absurdly large coordinates or times, a malformed
+            twist or sensor_origins.
+        ConfigError: an unknown ``config.mode``.
+    """
+    return extract(scan, config, twist, sensor_origins).planes

@@ -1,0 +1,304 @@
+"""Split the scan lines of a 2D-scanner rig into straight segments, in scan order.
+
+A ring (one scanner) holds, within one epoch, several successive sweeps. Its points, kept
+in scan order, are first cut into runs:
+
+- at a change of ring;
+- at a sweep boundary: the time step to the next point exceeds ``sweep_gap_factor`` times
+  the median beam interval, or time goes backwards;
+- at a spatial gap larger than ``max(min_gap_m, gap_range_ratio * range)``.
+
+Each run is then split recursively at the point farthest from the chord joining its end
+points while that distance exceeds the split tolerance (iterative end-point fit, the
+"split" of split-and-merge). The recursion is vectorised: each round processes every
+pending segment of the epoch at once, so the cost is a few numpy passes per round and the
+number of rounds is the depth of the recursion, not the number of segments.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planodom.config import ExtractionConfig
+
+
+@dataclass(frozen=True, eq=False)
+class Segments:
+    """Straight pieces of scan lines, with the moments needed to fit planes to their unions.
+
+    ``points`` are the scan's points re-ordered by ring (stable, so scan order is kept);
+    ``order[i]`` is the index in the scan of ``points[i]``. Segment ``k`` holds
+    ``points[starts[k]:ends[k]]``. Only segments that passed the length and count tests
+    are listed; the points between them belong to no segment.
+
+    Attributes:
+        points: (M, 3) float64 metres. order: (M,) int64.
+        starts, ends: (S,) int64.
+        ring, sweep: (S,) int64 ring id and epoch-wide sweep id of each segment.
+        count: (S,) int64 number of points. centroid: (S, 3) metres.
+        scatter: (S, 3, 3) centred scatter matrix ``sum (p - c)(p - c)^T``, m^2.
+        direction: (S, 3) unit direction (first principal axis).
+        length: (S,) metres, extent along ``direction``.
+        rms: (S,) metres, RMS distance of the points to the segment's fitted line.
+    """
+
+    points: np.ndarray
+    order: np.ndarray
+    starts: np.ndarray
+    ends: np.ndarray
+    ring: np.ndarray
+    sweep: np.ndarray
+    count: np.ndarray
+    centroid: np.ndarray
+    scatter: np.ndarray
+    direction: np.ndarray
+    length: np.ndarray
+    rms: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    def point_indices(self, segs: np.ndarray) -> np.ndarray:
+        """Indices into ``points`` of all points of the segments ``segs`` (K,), concatenated."""
+        segs = np.asarray(segs, dtype=np.int64)
+        return ranges(self.starts[segs], self.ends[segs])
+
+
+def ranges(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Concatenation of ``arange(s, e)`` for every pair, vectorised; (sum(e - s),) int64."""
+    lens = ends - starts
+    total = int(lens.sum())
+    if total == 0:
+        return np.zeros(0, dtype=np.int64)
+    offs = np.repeat(starts - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens)
+    return np.arange(total, dtype=np.int64) + offs
+
+
+def run_breaks(
+    points: np.ndarray,
+    ring: np.ndarray,
+    t: np.ndarray | None,
+    sweep_gap_factor: float,
+    min_gap_m: float,
+    gap_range_ratio: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where runs start, for points sorted by ring in scan order.
+
+    Args:
+        points: (M, 3) metres. ring: (M,) ids. t: (M,) seconds or None.
+
+    Returns:
+        ``run_start`` (M,) bool, True where a run starts (always at 0), and
+        ``sweep_start`` (M,) bool, True where a sweep (or ring) starts.
+    """
+    m = len(points)
+    sweep_start = np.ones(m, dtype=bool)
+    if m == 0:
+        return sweep_start, sweep_start
+    same_ring = ring[1:] == ring[:-1]
+    new_sweep = ~same_ring
+    if t is not None:
+        dt = np.diff(t)
+        valid = same_ring & (dt > 0)
+        med = float(np.median(dt[valid])) if np.any(valid) else 0.0
+        new_sweep = new_sweep | (dt < 0) | ((dt > sweep_gap_factor * med) & (med > 0))
+    if t is None or not np.any(np.diff(t) > 0):
+        new_sweep = new_sweep | _angle_reversals(points, ring)
+    sweep_start[1:] = new_sweep
+    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    rng = np.linalg.norm(points[1:], axis=1)
+    gap = step > np.maximum(min_gap_m, gap_range_ratio * rng)
+    run_start = sweep_start.copy()
+    run_start[1:] |= gap
+    return run_start, sweep_start
+
+
+def _angle_reversals(points: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """(M - 1,) bool: where the scan angle of a ring jumps back by more than 60 deg.
+
+    Used when times do not separate the sweeps (no ``t``, or all zero). The angle is
+    measured in each ring's best-fit plane (its scan plane) about the base origin, a
+    stand-in for the unknown scanner origin that is good enough to see a sweep restart.
+    """
+    out = np.zeros(max(len(points) - 1, 0), dtype=bool)
+    bounds = np.flatnonzero(np.diff(ring)) + 1
+    for a, b in zip(np.r_[0, bounds], np.r_[bounds, len(points)], strict=True):
+        if b - a < 3:
+            continue
+        q = points[a:b]
+        _, _, vt = np.linalg.svd(q - q.mean(axis=0), full_matrices=False)
+        e1 = q.mean(axis=0) - (q.mean(axis=0) @ vt[2]) * vt[2]
+        e1 = e1 / np.linalg.norm(e1) if np.linalg.norm(e1) > 0 else vt[0]
+        e2 = np.cross(vt[2], e1)
+        ang = np.unwrap(np.arctan2(q @ e2, q @ e1))
+        step = np.diff(ang)
+        sign = 1.0 if np.median(step) >= 0 else -1.0
+        out[a : b - 1] = sign * step < -np.radians(60.0)
+    return out
+
+
+def estimate_line_noise(points: np.ndarray, run_start: np.ndarray) -> float:
+    """Robust estimate (m) of the noise across scan lines from second differences.
+
+    For points ``p[i-1], p[i], p[i+1]`` of a straight run the second difference
+    ``p[i-1] - 2 p[i] + p[i+1]`` has, across the line, standard deviation ``sqrt(6) sigma``;
+    its component across the local direction ``p[i+2] - p[i-2]`` is taken at every point
+    whose five neighbours lie in one run, and ``sigma = median(|.|) / (0.6745 sqrt(6))``.
+    Corners and gaps are a small minority and do not move the median. Returns 0 when fewer
+    than 10 points qualify.
+    """
+    m = len(points)
+    if m < 15:
+        return 0.0
+    run_id = np.cumsum(run_start)
+    ok = run_id[4:] == run_id[:-4]  # points 2 .. m-3 with all of i-2 .. i+2 in one run
+    if np.count_nonzero(ok) < 10:
+        return 0.0
+    pm1, p0, pp1 = points[1:-3], points[2:-2], points[3:-1]
+    direction = points[4:] - points[:-4]
+    sec = pm1 - 2.0 * p0 + pp1
+    norm = np.linalg.norm(direction, axis=1)
+    good = ok & (norm > 0)
+    if np.count_nonzero(good) < 10:
+        return 0.0
+    across = np.linalg.norm(np.cross(sec[good], direction[good]), axis=1) / norm[good]
+    return float(np.median(across) / (0.6745 * np.sqrt(6.0)))
+
+
+def _split_runs(points: np.ndarray, starts: np.ndarray, ends: np.ndarray, tol: float):
+    """Iterative end-point fit on all runs at once; returns the final (starts, ends)."""
+    done_s, done_e = [], []
+    s, e = starts, ends
+    while len(s):
+        short = (e - s) < 3
+        done_s.append(s[short])
+        done_e.append(e[short])
+        s, e = s[~short], e[~short]
+        if len(s) == 0:
+            break
+        lens = e - s
+        idx = ranges(s, e)
+        local = np.concatenate([[0], np.cumsum(lens)[:-1]])
+        seg_of = np.repeat(np.arange(len(s)), lens)
+        a = points[s]
+        chord = points[e - 1] - a
+        clen = np.linalg.norm(chord, axis=1)
+        u = chord / np.where(clen > 0, clen, 1.0)[:, None]
+        rel = points[idx] - a[seg_of]
+        dist = np.linalg.norm(np.cross(rel, u[seg_of]), axis=1)
+        # A degenerate chord (closed loop of points): distance to the start point instead.
+        degenerate = (clen <= 0)[seg_of]
+        if np.any(degenerate):
+            dist[degenerate] = np.linalg.norm(rel[degenerate], axis=1)
+        mx = np.maximum.reduceat(dist, local)
+        cand = np.where(dist >= mx[seg_of], idx, np.iinfo(np.int64).max)
+        arg = np.minimum.reduceat(cand, local)
+        split = (mx > tol) & (arg > s) & (arg < e)
+        done_s.append(s[~split])
+        done_e.append(e[~split])
+        s, e, arg = s[split], e[split], arg[split]
+        s, e = np.concatenate([s, arg]), np.concatenate([arg, e])
+    fs, fe = np.concatenate(done_s), np.concatenate(done_e)
+    order = np.argsort(fs, kind="stable")
+    return fs[order], fe[order]
+
+
+def split_scan_lines(
+    points: np.ndarray, ring: np.ndarray, t: np.ndarray | None, config: ExtractionConfig
+) -> tuple[Segments, float]:
+    """Straight segments of every ring of a 2D-rig epoch.
+
+    Args:
+        points: (N, 3) metres, finite (already deskewed when a twist is known).
+        ring: (N,) scanner id of each point; points of one ring in scan order.
+        t: (N,) seconds or None, used to find sweep boundaries.
+        config: thresholds (``sweep_gap_factor``, ``min_gap_m``, ``gap_range_ratio``,
+            ``split_sigma_factor``, ``min_segment_points``, ``min_segment_length_m``).
+
+    Returns:
+        The kept :class:`Segments` and the effective noise sigma (m) used for the
+        tolerances (:func:`effective_noise`).
+    """
+    ring = np.asarray(ring)
+    if len(ring) > 1 and np.any(ring[1:] < ring[:-1]):
+        order = np.argsort(ring, kind="stable")
+    else:
+        order = np.arange(len(ring))
+    pts = points[order]
+    rg = ring[order]
+    tt = None if t is None else t[order]
+    run_start, sweep_start = run_breaks(
+        pts, rg, tt, config.sweep_gap_factor, config.min_gap_m, config.gap_range_ratio
+    )
+    estimate = estimate_line_noise(pts, run_start) if config.estimate_noise else 0.0
+    sigma = effective_noise(config, estimate)
+    split_tol = max(config.split_sigma_factor * sigma, config.tolerance_floor_m)
+    starts = np.flatnonzero(run_start)
+    ends = np.append(starts[1:], len(pts))
+    s, e = _split_runs(pts, starts, ends, split_tol)
+    sweep = np.cumsum(sweep_start) - 1
+    segs = segment_features(
+        pts, order, rg, sweep, s, e, config.min_segment_points, config.min_segment_length_m
+    )
+    return segs, sigma
+
+
+def effective_noise(config: ExtractionConfig, estimate_m: float) -> float:
+    """The noise sigma (m) the tolerances scale with: the configured range noise, or the
+    noise estimated from the data when that is larger (and ``config.estimate_noise``)."""
+    if config.estimate_noise:
+        return max(config.range_noise_m, estimate_m)
+    return config.range_noise_m
+
+
+def segment_features(
+    pts: np.ndarray,
+    order: np.ndarray,
+    ring_sorted: np.ndarray,
+    sweep_sorted: np.ndarray,
+    s: np.ndarray,
+    e: np.ndarray,
+    min_points: int,
+    min_length_m: float,
+) -> Segments:
+    """Moments, directions and lengths of the segments ``[s, e)`` that partition ``pts``."""
+    count = e - s
+    keep = count >= max(min_points, 2)
+    s, e, count = s[keep], e[keep], count[keep]
+    idx = ranges(s, e)
+    local = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+    seg_of = np.repeat(np.arange(len(s)), count)
+    if len(s) == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return Segments(
+            pts, order, z, z, z, z, z, np.zeros((0, 3)), np.zeros((0, 3, 3)),
+            np.zeros((0, 3)), np.zeros(0), np.zeros(0),
+        )  # fmt: skip
+    p = pts[idx]
+    centroid = np.add.reduceat(p, local, axis=0) / count[:, None]
+    q = p - centroid[seg_of]
+    scatter = np.add.reduceat((q[:, :, None] * q[:, None, :]).reshape(-1, 9), local, axis=0)
+    scatter = scatter.reshape(-1, 3, 3)
+    evals, evecs = np.linalg.eigh(scatter)
+    direction = evecs[:, :, 2]
+    proj = np.einsum("ij,ij->i", q, direction[seg_of])
+    length = np.maximum.reduceat(proj, local) - np.minimum.reduceat(proj, local)
+    rms = np.sqrt(np.maximum(evals[:, 0] + evals[:, 1], 0.0) / count)
+    ok = length >= min_length_m
+    sel = np.flatnonzero(ok)
+    return Segments(
+        points=pts,
+        order=order,
+        starts=s[sel],
+        ends=e[sel],
+        ring=ring_sorted[s[sel]].astype(np.int64),
+        sweep=sweep_sorted[s[sel]].astype(np.int64),
+        count=count[sel],
+        centroid=centroid[sel],
+        scatter=scatter[sel],
+        direction=direction[sel],
+        length=length[sel],
+        rms=rms[sel],
+    )

@@ -1,0 +1,235 @@
+"""Sensor rigs: the isoclinal 2D-scanner rig (default) and spinning lidars; ``rig.yaml``.
+
+A :class:`Rig` is a tuple of sensors (:class:`Scanner2D`, :class:`SpinningLidar`) with
+their extrinsics ``T_base_sensor``. Rings are numbered over the rig: a 2D scanner is one
+ring, a lidar ``n_beams`` rings, in sensor order (:attr:`Rig.ring_offsets`).
+
+Default isoclinal geometry (see /work/shared/RIG.md). A wall with horizontal normal n
+gets non-parallel traces from two scan planes with normals m1, m2 iff ``n . h != 0``,
+``h = m1 x m2`` being the direction in which the scan planes meet. A pair therefore sees
+as planes all walls except those whose normal is perpendicular to h, and no single pair
+covers every orientation. The default uses two pairs of scan planes inclined by the same
+angle (30 deg) to the horizontal, each pair "rolled" by +-30 deg about a horizontal
+meeting direction: the forward pair (looking forward) meets along azimuth +45 deg, the
+backward pair (looking backward) along -45 deg. The two blind orientations (walls with
+normals at -45 and +45 deg) are 90 deg apart, so a wall blind to one pair is seen at the
+best angle by the other, and walls along or across the road (the common case) cross at
+45 deg for both pairs. Mixed pairs (a forward with a backward scanner hitting the same
+wall) add more crossing traces. ``experiments/observability.py`` measures it on the
+paper loop: see its docstring for the numbers and for the alternatives that were tried.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from planodom.errors import ConfigError, DatasetError
+from planodom.geometry import make_transform
+from planodom.simulation.sensors import Scanner2D, Sensor, SpinningLidar
+
+__all__ = [
+    "Rig",
+    "Scanner2D",
+    "SpinningLidar",
+    "isoclinal_rig",
+    "lidar_rig",
+    "rig_from_name",
+    "scanner_pose",
+    "load_rig",
+    "save_rig",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class Rig:
+    """Sensors mounted on the vehicle base; ``name`` is free text."""
+
+    sensors: tuple[Sensor, ...]
+    name: str = "rig"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "sensors", tuple(self.sensors))
+        if not self.sensors:
+            raise ConfigError(f"rig '{self.name}' has no sensors")
+
+    def __len__(self) -> int:
+        return len(self.sensors)
+
+    @property
+    def ring_offsets(self) -> np.ndarray:
+        """(S,) int, the first global ring id of each sensor."""
+        return np.concatenate([[0], np.cumsum([s.n_rings for s in self.sensors])[:-1]]).astype(int)
+
+    @property
+    def n_rings(self) -> int:
+        """Total number of rings."""
+        return int(sum(s.n_rings for s in self.sensors))
+
+    def with_noise(self, sigma: float) -> Rig:
+        """The same rig with every sensor's range noise set to ``sigma`` (m)."""
+        return replace(self, sensors=tuple(replace(s, noise_sigma=sigma) for s in self.sensors))
+
+    def to_dict(self) -> dict:
+        """Plain dict for ``rig.yaml`` (extrinsics as 4x4 lists)."""
+        return {"name": self.name, "sensors": [s.to_dict() for s in self.sensors]}
+
+    @classmethod
+    def from_dict(cls, data: object, source: str = "rig") -> Rig:
+        """Rig from :meth:`to_dict` output; errors name ``source`` and the field."""
+        if not isinstance(data, dict) or not isinstance(data.get("sensors"), list):
+            raise ConfigError(f"{source}: field 'sensors': expected a list of sensors")
+        unknown = set(data) - {"name", "sensors"}
+        if unknown:
+            raise ConfigError(f"{source}: unknown field(s) {sorted(unknown)}")
+        sensors = [
+            _sensor_from_dict(d, f"{source}: field 'sensors.{i}'")
+            for i, d in enumerate(data["sensors"])
+        ]
+        return cls(tuple(sensors), str(data.get("name", "rig")))
+
+
+_TYPES: dict[str, type] = {"scanner2d": Scanner2D, "lidar": SpinningLidar}
+
+
+def _sensor_from_dict(d: object, where: str) -> Sensor:
+    if not isinstance(d, dict) or d.get("type") not in _TYPES:
+        raise ConfigError(f"{where}.type: expected one of {sorted(_TYPES)}")
+    cls = _TYPES[d["type"]]
+    kwargs = {k: v for k, v in d.items() if k != "type"}
+    allowed = set(cls.__dataclass_fields__)
+    unknown = set(kwargs) - allowed
+    if unknown:
+        raise ConfigError(f"{where}: unknown field(s) {sorted(unknown)}")
+    if "vfov_deg" in kwargs:
+        kwargs["vfov_deg"] = tuple(kwargs["vfov_deg"])
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where}: {exc}") from exc
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from exc
+
+
+def save_rig(rig: Rig, path: str | Path) -> None:
+    """Write ``rig`` as YAML (``rig.yaml``)."""
+    Path(path).write_text(yaml.safe_dump(rig.to_dict(), sort_keys=False))
+
+
+def load_rig(path: str | Path) -> Rig:
+    """Read a ``rig.yaml``; raises :class:`DatasetError` naming the file and field."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+        return Rig.from_dict(data, source=str(path))
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read rig file ({exc.strerror})") from exc
+    except (yaml.YAMLError, ConfigError) as exc:
+        raise DatasetError(str(exc) if isinstance(exc, ConfigError) else f"{path}: {exc}") from exc
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def scanner_pose(origin, normal, look) -> np.ndarray:
+    """``T_base_sensor`` (4, 4) of a 2D scanner at ``origin`` (3,) m whose scan plane has
+    unit ``normal`` (3,) (its z axis) and whose field of view is centred on the projection
+    of ``look`` (3,) onto the scan plane (its x axis)."""
+    z = np.asarray(normal, dtype=np.float64)
+    z = z / np.linalg.norm(z)
+    look = np.asarray(look, dtype=np.float64)
+    x = look - (look @ z) * z
+    if np.linalg.norm(x) < 1e-9:
+        raise ConfigError("scanner look direction is perpendicular to its scan plane")
+    x = x / np.linalg.norm(x)
+    return make_transform(np.column_stack([x, np.cross(z, x), z]), origin)
+
+
+def isoclinal_normals(meet_deg: float, inclination_deg: float) -> np.ndarray:
+    """(2, 3) scan-plane normals of a pair inclined by ``inclination_deg`` to the horizontal,
+    rolled in opposite senses about the horizontal direction at azimuth ``meet_deg``
+    (where they meet: ``h = m1 x m2`` is along it)."""
+    g, th = np.deg2rad(meet_deg), np.deg2rad(inclination_deg)
+    w = np.array([-np.sin(g), np.cos(g), 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    return np.stack([np.cos(th) * up + np.sin(th) * w, np.cos(th) * up - np.sin(th) * w])
+
+
+def isoclinal_rig(
+    inclination_deg: float = 25.0,
+    forward_meet_deg: float = 45.0,
+    backward_meet_deg: float = -45.0,
+    look_down_deg: float = 15.0,
+    mount_height: float = 0.8,
+    step_deg: float = 0.5,
+    rate_hz: float = 75.0,
+    max_range: float = 80.0,
+    noise_sigma: float = 0.0,
+) -> Rig:
+    """Two isoclinal pairs of :class:`Scanner2D` (see the module docstring).
+
+    Scanners sit ``mount_height`` m above the base origin at (+-1.0, +-0.5) m; the forward
+    pair looks forward (+x), the backward pair backward, and each looks 15 deg down so
+    that most of the sweep reaches walls and the ground. Rings: 0-1 forward, 2-3 backward.
+    """
+    sensors = []
+    pairs = ((forward_meet_deg, 1.0, "front"), (backward_meet_deg, -1.0, "rear"))
+    for meet, sign, label in pairs:
+        look = np.array([sign, 0.0, -np.tan(np.deg2rad(look_down_deg))])
+        for k, (m, side) in enumerate(
+            zip(isoclinal_normals(meet, inclination_deg), ("left", "right"), strict=True)
+        ):
+            origin = [sign * 1.0, 0.5 - k, mount_height]
+            sensors.append(
+                Scanner2D(
+                    scanner_pose(origin, m, look),
+                    step_deg=step_deg,
+                    rate_hz=rate_hz,
+                    max_range=max_range,
+                    noise_sigma=noise_sigma,
+                    name=f"{label}-{side}",
+                )
+            )
+    return Rig(tuple(sensors), "isoclinal")
+
+
+def lidar_rig(
+    n_beams: int = 32,
+    vfov_deg: tuple[float, float] = (-25.0, 15.0),
+    n_columns: int = 1024,
+    rate_hz: float = 10.0,
+    mount_height: float = 0.8,
+    max_range: float = 100.0,
+    noise_sigma: float = 0.0,
+) -> Rig:
+    """One :class:`SpinningLidar` on the roof, ``mount_height`` m above the base origin."""
+    T = make_transform(np.eye(3), [0.0, 0.0, mount_height])
+    lidar = SpinningLidar(
+        T,
+        rate_hz=rate_hz,
+        max_range=max_range,
+        noise_sigma=noise_sigma,
+        n_beams=n_beams,
+        vfov_deg=vfov_deg,
+        n_columns=n_columns,
+        name=f"lidar{n_beams}",
+    )
+    return Rig((lidar,), f"lidar{n_beams}")
+
+
+RIGS = {
+    "isoclinal": isoclinal_rig,
+    "lidar16": lambda: lidar_rig(16, (-15.0, 15.0)),
+    "lidar32": lambda: lidar_rig(32),
+    "lidar64": lambda: lidar_rig(64, (-24.8, 2.0)),
+}
+
+
+def rig_from_name(name: str) -> Rig:
+    """A built-in rig by name: ``isoclinal``, ``lidar16``, ``lidar32`` or ``lidar64``."""
+    if name not in RIGS:
+        raise ConfigError(f"unknown rig '{name}' (choose from {', '.join(RIGS)})")
+    return RIGS[name]()

@@ -1,0 +1,200 @@
+"""Continuous-time ground truth ``T_world_base(t)``, exactly evaluable at any time.
+
+Every trajectory maps times ``t`` (T,) in seconds to poses (T, 4, 4) with
+:meth:`Trajectory.poses`; the simulator evaluates it once per beam. Orientation is
+``R = Rz(yaw) Ry(pitch) Rx(roll)`` (as :func:`planodom.geometry.transform_from_rpy_xyz`).
+
+- :class:`WaypointTrajectory`: a C2 cubic spline through 2D waypoints (periodic for a
+  closed loop), travelled at constant speed (arc length inverted by a second spline),
+  yaw along the path, plus small roll / pitch / heave oscillations so that all three
+  rotation rates are exercised.
+- :class:`TwistTrajectory`: ``T0 @ exp(t xi)`` for a constant body twist (closed form),
+  the motion model of deskewing; :class:`StaticTrajectory` stands still.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from planodom.errors import GeometryError
+from planodom.simulation.worlds import PAPER_LOOP_ROUTE, URBAN_CANYON_ROUTE
+
+
+def rpy_matrices(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """Rotations (T, 3, 3) ``Rz(yaw) Ry(pitch) Rx(roll)`` from angles (T,), radians."""
+    cr, sr, cp, sp, cy, sy = (f(a) for a in (roll, pitch, yaw) for f in (np.cos, np.sin))
+    R = np.empty((len(roll), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    R[:, 1, 0], R[:, 1, 1], R[:, 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    R[:, 2, 0], R[:, 2, 1], R[:, 2, 2] = -sp, cp * sr, cp * cr
+    return R
+
+
+class Trajectory(ABC):
+    """Ground truth ``T_world_base(t)``; ``duration`` (s) is one lap or the whole path."""
+
+    duration: float
+
+    @abstractmethod
+    def poses(self, t: np.ndarray) -> np.ndarray:
+        """Poses ``T_world_base`` (T, 4, 4) at times ``t`` (T,), seconds."""
+
+    def pose(self, t: float) -> np.ndarray:
+        """Single pose ``T_world_base`` (4, 4) at time ``t`` (s)."""
+        return self.poses(np.array([float(t)]))[0]
+
+
+def _assemble(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    T = np.zeros((len(R), 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1.0
+    return T
+
+
+@dataclass(frozen=True)
+class Sway:
+    """Small oscillations on top of the path: amplitudes (rad, m) and frequencies (Hz)."""
+
+    roll: float = np.deg2rad(1.5)
+    roll_hz: float = 0.37
+    pitch: float = np.deg2rad(1.0)
+    pitch_hz: float = 0.23
+    heave: float = 0.02
+    heave_hz: float = 0.5
+
+    @classmethod
+    def still(cls) -> Sway:
+        """No oscillation at all."""
+        return cls(roll=0.0, pitch=0.0, heave=0.0)
+
+    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """roll (T,), pitch (T,) in rad and heave (T,) in m at times ``t`` (T,), s."""
+        w = 2.0 * np.pi * t
+        return (
+            self.roll * np.sin(self.roll_hz * w),
+            self.pitch * np.sin(self.pitch_hz * w + 1.0),
+            self.heave * np.sin(self.heave_hz * w + 2.0),
+        )
+
+
+class WaypointTrajectory(Trajectory):
+    """Constant-speed drive along a cubic spline through 2D waypoints.
+
+    Args:
+        waypoints: (W, 2) metres; W >= 3 for a closed loop, W >= 2 otherwise.
+        speed: m/s along the path. height: z of the base (m). closed: periodic loop.
+        sway: roll / pitch / heave oscillations (:class:`Sway`, default ``Sway()``;
+            ``Sway.still()`` for none).
+
+    ``duration`` is one lap (closed) or the path (open). Open paths hold the last pose
+    after the end and the first before the start; closed loops repeat.
+    """
+
+    def __init__(
+        self,
+        waypoints: np.ndarray,
+        speed: float = 2.0,
+        height: float = 1.0,
+        closed: bool = True,
+        sway: Sway | None = None,
+    ) -> None:
+        w = np.asarray(waypoints, dtype=np.float64)
+        if w.ndim != 2 or w.shape[1] != 2 or len(w) < (3 if closed else 2) or speed <= 0:
+            raise GeometryError("waypoints must be (W, 2), W >= 3 closed / 2 open; speed > 0")
+        self.speed, self.height, self.closed = float(speed), float(height), closed
+        self.sway = sway if sway is not None else Sway()
+        if closed:
+            w = np.vstack([w, w[:1]])
+        u = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(w, axis=0), axis=1))])
+        self._path = CubicSpline(u, w, bc_type="periodic" if closed else "natural")
+        # Arc length s(u) on a fine grid (Simpson per cell), inverted by a spline u(s).
+        uu = np.linspace(0.0, u[-1], max(2000, int(u[-1] * 20)))
+        mid = 0.5 * (uu[1:] + uu[:-1])
+        sp = [np.linalg.norm(self._path(x, 1), axis=1) for x in (uu[:-1], mid, uu[1:])]
+        ds = np.diff(uu) / 6.0 * (sp[0] + 4.0 * sp[1] + sp[2])
+        s = np.concatenate([[0.0], np.cumsum(ds)])
+        self.length = float(s[-1])
+        self.duration = self.length / self.speed
+        self._u_span = float(u[-1])
+        if closed:  # u(s) - s * U / L is periodic: a periodic spline keeps the loop C2
+            g = uu - s * self._u_span / self.length
+            g[-1] = g[0]
+            self._u_of_s = CubicSpline(s, g, bc_type="periodic")
+        else:
+            self._u_of_s = CubicSpline(s, uu)
+
+    def _param(self, t: np.ndarray) -> np.ndarray:
+        s = self.speed * np.asarray(t, dtype=np.float64)
+        if self.closed:
+            s = np.mod(s, self.length)
+            return self._u_of_s(s) + s * self._u_span / self.length
+        return self._u_of_s(np.clip(s, 0.0, self.length))
+
+    def poses(self, t: np.ndarray) -> np.ndarray:
+        """Poses ``T_world_base`` (T, 4, 4) at times ``t`` (T,), seconds."""
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        u = self._param(t)
+        xy, dxy = self._path(u), self._path(u, 1)
+        yaw = np.arctan2(dxy[:, 1], dxy[:, 0])
+        roll, pitch, heave = self.sway.at(t)
+        p = np.column_stack([xy, self.height + heave])
+        return _assemble(rpy_matrices(roll, pitch, yaw), p)
+
+
+class TwistTrajectory(Trajectory):
+    """``T_world_base(t) = T0 @ exp(t * xi)``: constant body twist ``xi = (w, v)`` (6,),
+    rad/s and m/s, from ``T0`` (4, 4) at t = 0 (closed-form SE(3) exponential)."""
+
+    def __init__(self, T0: np.ndarray, xi: np.ndarray, duration: float = 10.0) -> None:
+        self.T0 = np.asarray(T0, dtype=np.float64)
+        self.xi = np.asarray(xi, dtype=np.float64).reshape(6)
+        self.duration = float(duration)
+
+    def poses(self, t: np.ndarray) -> np.ndarray:
+        """Poses ``T_world_base`` (T, 4, 4) at times ``t`` (T,), seconds."""
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        return self.T0 @ se3_exp(t[:, None] * self.xi)
+
+
+class StaticTrajectory(Trajectory):
+    """A vehicle standing still at ``T`` (4, 4)."""
+
+    def __init__(self, T: np.ndarray, duration: float = 10.0) -> None:
+        self.T = np.asarray(T, dtype=np.float64)
+        self.duration = float(duration)
+
+    def poses(self, t: np.ndarray) -> np.ndarray:
+        """``T`` repeated: (T, 4, 4)."""
+        return np.repeat(self.T[None], len(np.atleast_1d(t)), axis=0)
+
+
+def se3_exp(xi: np.ndarray) -> np.ndarray:
+    """SE(3) exponential of twists ``xi`` (T, 6) = (wx, wy, wz, vx, vy, vz) to (T, 4, 4)."""
+    w, v = xi[:, :3], xi[:, 3:]
+    th = np.linalg.norm(w, axis=1)
+    small = th < 1e-8
+    ths = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th**2 / 6.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - th**2 / 24.0, (1.0 - np.cos(ths)) / ths**2)
+    c = np.where(small, 1.0 / 6.0 - th**2 / 120.0, (ths - np.sin(ths)) / ths**3)
+    K = np.zeros((len(xi), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    K = K - np.swapaxes(K, 1, 2)
+    K2 = K @ K
+    eye = np.eye(3)
+    R = eye + a[:, None, None] * K + b[:, None, None] * K2
+    V = eye + b[:, None, None] * K + c[:, None, None] * K2
+    return _assemble(R, np.einsum("tij,tj->ti", V, v))
+
+
+def paper_loop_trajectory(speed: float = 2.0, sway: Sway | None = None) -> WaypointTrajectory:
+    """One lap (about 150 m) of the paper loop's route at ``speed`` m/s, base 1 m above ground."""
+    return WaypointTrajectory(PAPER_LOOP_ROUTE, speed=speed, closed=True, sway=sway)
+
+
+def urban_canyon_trajectory(speed: float = 2.0, sway: Sway | None = None) -> WaypointTrajectory:
+    """The 150 m street of the urban canyon, once, at ``speed`` m/s."""
+    return WaypointTrajectory(URBAN_CANYON_ROUTE, speed=speed, closed=False, sway=sway)

@@ -1,0 +1,400 @@
+"""Building the factor graph epoch by epoch, for the batch and the fixed-lag smoother alike.
+
+Variables: ``X(k)`` the pose ``T_world_base`` of epoch k (Pose3), ``L(j)`` plane landmark j
+(OrientedPlane3, in the world frame or in its anchor frame), ``A(j)`` the anchor frame of
+an anchored landmark (Pose3, see :mod:`factors.planes`).
+
+Factors per epoch k:
+
+- a 5-DoF between factor (:func:`factors.pose5.pose5_factor`) for every resolved relative
+  pose from epoch ``k - delta``, ``delta = 1..D``, with the odometry's per-DoF sigmas
+  (floored) as noise and an optional robust kernel;
+- a weak vertical factor between ``X(k-1)`` and ``X(k)`` (no vertical jumps);
+- a plane factor for every observation of a tracked plane (:mod:`.landmarks`) once its
+  track spans ``min_landmark_epochs`` epochs, noise from the plane's fit covariance in
+  OrientedPlane3 tangent coordinates divided by its confidence (plus floors);
+- a prior on ``X(0)``; a weak constant-velocity between factor for an epoch that no
+  resolved relative pose reaches, so the graph stays connected.
+
+Gauge and observability. The first-pose prior fixes the 6-DoF gauge; anchor priors fix
+the anchors' (pure gauge) freedom. The 5-DoF factors observe relative roll, pitch, yaw
+and horizontal translation, never z. A plane factor observes the pose's offset along the
+plane's normal, so vertical walls observe only horizontal position, while ground, ceiling
+and inclined planes seen from two epochs observe the change of height between them. With
+walls only, every pose's z would be free (a singular system); the weak vertical factor
+(``vertical_sigma_m`` per epoch, a random walk in height) removes that null space and is
+outweighed wherever a non-vertical plane observes z.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+
+from factors.planes import (
+    anchor_pose,
+    anchor_prior,
+    anchored_plane_factor,
+    orient_measurement,
+    plane_factor,
+    plane_noise,
+    predict_plane,
+)
+from factors.pose5 import pose5_factor, vertical_factor
+from planodom.config import SmoothingConfig
+from planodom.errors import ConfigError
+from planodom.geometry import Plane, invert_transform, plane_tangent_covariance, transform_planes
+from planodom.smoothing.landmarks import LandmarkTracker
+
+X = gtsam.symbol_shorthand.X
+L = gtsam.symbol_shorthand.L
+A = gtsam.symbol_shorthand.A
+
+#: Default robust kernel parameters (95 % efficiency on Gaussian noise), in sigmas.
+ROBUST_DEFAULTS = {"huber": 1.345, "cauchy": 2.3849}
+
+
+@dataclass(frozen=True, eq=False)
+class RelativeMeasurement:
+    """A 5-DoF relative pose between epochs ``prev`` and ``curr`` (``curr > prev``).
+
+    Attributes:
+        prev, curr: epoch indices.
+        T_prev_curr: (4, 4) relative transform; its z is not used.
+        sigmas: (5,) standard deviations of (roll, pitch, yaw) rad and (x, y) m, or None.
+        associations: (M, 2) int, (plane index in ``prev``, plane index in ``curr``), the
+            strict associations that gave this relative pose.
+        ok: False for an unresolved pair (no factor; its associations are ignored).
+    """
+
+    prev: int
+    curr: int
+    T_prev_curr: np.ndarray
+    sigmas: np.ndarray | None = None
+    associations: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=int))
+    ok: bool = True
+
+    @property
+    def delta(self) -> int:
+        """Epoch gap ``curr - prev``."""
+        return self.curr - self.prev
+
+
+@dataclass
+class GraphUpdate:
+    """What one epoch adds: new factors, initial values of new variables, key timestamps."""
+
+    epoch: int
+    factors: gtsam.NonlinearFactorGraph
+    values: gtsam.Values
+    timestamps: dict[int, float]
+
+
+@dataclass
+class GraphStats:
+    """Counts of what went into the graph."""
+
+    between: int = 0
+    fallback: int = 0
+    vertical: int = 0
+    plane_factors: int = 0
+    global_landmarks: int = 0
+    anchored_landmarks: int = 0
+    flipped: int = 0
+    rejected_flips: int = 0
+    dropped_observations: int = 0
+    unresolved_epochs: list[int] = field(default_factory=list)
+
+
+@dataclass
+class _Landmark:
+    key: int
+    anchor_key: int | None
+    T_world_anchor: np.ndarray | None
+    plane_world: np.ndarray  # (4,) current estimate, world frame
+    last_epoch: int
+
+
+def plane_from_anchor(T_world_anchor: np.ndarray, plane_anchor: np.ndarray) -> np.ndarray:
+    """(4,) world plane from a plane (4,) given in the anchor frame ``T_world_anchor``."""
+    n, d = transform_planes(T_world_anchor, plane_anchor[None, :3], plane_anchor[3:])
+    return np.append(n[0], d[0])
+
+
+class GraphBuilder:
+    """Turns epochs of planes and relative poses into factors, values and timestamps.
+
+    One instance per sequence; call :meth:`add_epoch` for epochs 0, 1, 2, ... in order.
+    ``poses`` holds the current estimate of each pose (the chained initial guess, or the
+    smoother's estimate after :meth:`update_estimates`); it seeds new variables.
+    """
+
+    def __init__(self, config: SmoothingConfig, T_world_first: np.ndarray | None = None) -> None:
+        robust_planes = config.robust_planes and config.robust_kernel != "none"
+        if config.plane_factor == "global" and robust_planes:
+            raise ConfigError(
+                "smoothing.plane_factor 'global' takes no robust kernel "
+                "(gtsam.OrientedPlane3Factor accepts only Gaussian noise): "
+                "set robust_planes to false or plane_factor to 'anchored' or 'auto'"
+            )
+        self.config = config
+        self.tracker = LandmarkTracker(config.min_landmark_epochs)
+        self.poses: dict[int, np.ndarray] = {}
+        self.planes: dict[int, Sequence[Plane]] = {}
+        self.landmarks: dict[int, _Landmark] = {}
+        self.stats = GraphStats()
+        self.n_epochs = 0
+        self._T_world_first = np.eye(4) if T_world_first is None else np.asarray(T_world_first)
+        self._emitted: set[tuple[int, int]] = set()
+        self._robust_planes = robust_planes
+
+    # ----------------------------------------------------------------- noise models
+
+    def _robust(self, base: gtsam.noiseModel.Base) -> gtsam.noiseModel.Base:
+        kernel = self.config.robust_kernel
+        k = self.config.robust_threshold or ROBUST_DEFAULTS[kernel]
+        if kernel == "huber":
+            return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(k), base)
+        return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(k), base)
+
+    def between_noise(self, sigmas: np.ndarray | None) -> gtsam.noiseModel.Base:
+        """5-dim noise from the odometry's sigmas (5,) (floored), robust if configured."""
+        c = self.config
+        if sigmas is None or not np.all(np.isfinite(sigmas)):
+            s = np.array([c.default_rotation_sigma_rad] * 3 + [c.default_translation_sigma_m] * 2)
+        else:
+            s = np.asarray(sigmas, dtype=float).reshape(5)
+        floor = np.array([c.min_rotation_sigma_rad] * 3 + [c.min_translation_sigma_m] * 2)
+        base = gtsam.noiseModel.Diagonal.Sigmas(np.maximum(s, floor))
+        if c.robust_between and c.robust_kernel != "none":
+            return self._robust(base)
+        return base
+
+    def plane_covariance(self, plane: Plane) -> np.ndarray:
+        """(3, 3) covariance of a measured plane in OrientedPlane3 tangent coordinates."""
+        c = self.config
+        if plane.covariance is not None and np.all(np.isfinite(plane.covariance)):
+            cov = plane_tangent_covariance(plane)
+            cov = 0.5 * (cov + cov.T)
+        else:
+            n2, d2 = c.default_plane_normal_sigma_rad**2, c.default_plane_offset_sigma_m**2
+            cov = np.diag([n2, n2, d2])
+        floor = np.diag([c.min_plane_normal_sigma_rad**2] * 2 + [c.min_plane_offset_sigma_m**2])
+        return cov * (c.plane_covariance_scale / plane.confidence) + floor
+
+    # ----------------------------------------------------------------- building
+
+    def _initial_pose(self, k: int, resolved: list[RelativeMeasurement]) -> np.ndarray | None:
+        """Chained guess of ``T_world_k`` from the smallest-delta resolved pose, or None."""
+        for rel in sorted(resolved, key=lambda r: r.delta):
+            if rel.prev in self.poses:
+                return self.poses[rel.prev] @ np.asarray(rel.T_prev_curr, dtype=float)
+        return None
+
+    def _constant_velocity(self, k: int) -> np.ndarray:
+        """(4, 4) relative pose ``T_{k-1}_k`` repeating the last motion (identity if none)."""
+        if k >= 2 and k - 2 in self.poses and k - 1 in self.poses:
+            return invert_transform(self.poses[k - 2]) @ self.poses[k - 1]
+        return np.eye(4)
+
+    def add_epoch(
+        self,
+        planes: Sequence[Plane],
+        relatives: Sequence[RelativeMeasurement] = (),
+        min_epoch: int = 0,
+    ) -> GraphUpdate:
+        """Add the next epoch.
+
+        Args:
+            planes: the epoch's measured planes (base frame, normals towards the sensor).
+            relatives: relative poses from earlier epochs to this one (``curr`` must be
+                this epoch); pairs with ``delta > delta_max`` or ``prev < min_epoch`` are
+                skipped.
+            min_epoch: oldest epoch still in the graph (fixed-lag smoothing); factors on
+                older poses are not built.
+
+        Returns:
+            The factors, values and timestamps (epoch index) this epoch adds.
+        """
+        c = self.config
+        k = self.n_epochs
+        self.n_epochs += 1
+        self.planes[k] = planes
+        graph, values, stamps = gtsam.NonlinearFactorGraph(), gtsam.Values(), {}
+        resolved = [
+            r
+            for r in relatives
+            if r.ok and r.curr == k and min_epoch <= r.prev < k and r.delta <= c.delta_max
+        ]
+        if k == 0:
+            T = self._T_world_first
+            sigma = np.full(6, c.prior_sigma)
+            graph.add(
+                gtsam.PriorFactorPose3(
+                    X(0), gtsam.Pose3(T), gtsam.noiseModel.Diagonal.Sigmas(sigma)
+                )
+            )
+        else:
+            T = self._initial_pose(k, resolved)
+            if T is None:
+                T_rel = self._constant_velocity(k)
+                T = self.poses[k - 1] @ T_rel
+                sigmas = np.array(
+                    [c.fallback_rotation_sigma_rad] * 3 + [c.fallback_translation_sigma_m] * 2
+                )
+                if k - 1 >= min_epoch:
+                    noise = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+                    graph.add(pose5_factor(X(k - 1), X(k), T_rel, noise))
+                    self.stats.fallback += 1
+                self.stats.unresolved_epochs.append(k)
+            if k - 1 >= min_epoch:
+                noise = gtsam.noiseModel.Isotropic.Sigma(1, c.vertical_sigma_m)
+                graph.add(vertical_factor(X(k - 1), X(k), 0.0, noise))
+                self.stats.vertical += 1
+        for rel in resolved:
+            graph.add(
+                pose5_factor(X(rel.prev), X(k), rel.T_prev_curr, self.between_noise(rel.sigmas))
+            )
+            self.stats.between += 1
+        self.poses[k] = T
+        values.insert(X(k), gtsam.Pose3(T))
+        stamps[X(k)] = float(k)
+
+        roots = self.tracker.add_epoch(k, len(planes), {r.delta: r.associations for r in resolved})
+        for root in dict.fromkeys(roots):  # unique, in plane order
+            j = self.tracker.landmark(root)
+            if j is None:
+                continue
+            members = [(e, i) for e, i in self.tracker.members(root) if (e, i) not in self._emitted]
+            self._add_observations(j, members, min_epoch, graph, values, stamps, k)
+        return GraphUpdate(k, graph, values, stamps)
+
+    def _new_landmark(
+        self,
+        j: int,
+        epoch: int,
+        index: int,
+        graph: gtsam.NonlinearFactorGraph,
+        values: gtsam.Values,
+    ) -> _Landmark:
+        c = self.config
+        T = self.poses[epoch]
+        world = self.planes[epoch][index].transformed(T).coefficients
+        origin = T[:3, 3]
+        use_global = c.plane_factor == "global" or (
+            c.plane_factor == "auto"
+            and not self._robust_planes
+            and float(np.linalg.norm(origin)) < c.global_plane_max_distance_m
+        )
+        if use_global:
+            values.insert(L(j), gtsam.OrientedPlane3(world))
+            self.stats.global_landmarks += 1
+            return _Landmark(L(j), None, None, world, epoch)
+        T_wa = anchor_pose(origin)
+        values.insert(A(j), gtsam.Pose3(T_wa))
+        values.insert(L(j), gtsam.OrientedPlane3(predict_plane(T_wa, world)))
+        cov = self.plane_covariance(self.planes[epoch][index])
+        sigma_n, sigma_d = np.sqrt(max(cov[0, 0], cov[1, 1])), np.sqrt(cov[2, 2])
+        noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma_n] * 3 + [sigma_d] * 3))
+        graph.add(anchor_prior(A(j), T_wa, noise))
+        self.stats.anchored_landmarks += 1
+        return _Landmark(L(j), A(j), T_wa, world, epoch)
+
+    def _add_observations(
+        self,
+        j: int,
+        members: list[tuple[int, int]],
+        min_epoch: int,
+        graph: gtsam.NonlinearFactorGraph,
+        values: gtsam.Values,
+        stamps: dict[int, float],
+        k: int,
+    ) -> None:
+        usable = []
+        for e, i in members:
+            if e < min_epoch or e not in self.poses:
+                self._emitted.add((e, i))
+                self.stats.dropped_observations += 1
+            else:
+                usable.append((e, i))
+        lm = self.landmarks.get(j)
+        if lm is None and len({e for e, _ in usable}) < self.config.min_landmark_epochs:
+            return  # wait for more observations inside the window
+        self._emitted.update(usable)
+        if lm is not None and lm.last_epoch < min_epoch:
+            # The landmark has left the window; its key is gone from the smoother.
+            self.stats.dropped_observations += len(usable)
+            return
+        if lm is None:
+            lm = self.landmarks[j] = self._new_landmark(j, *usable[0], graph, values)
+        for e, i in usable:
+            plane = self.planes[e][i]
+            predicted = predict_plane(self.poses[e], lm.plane_world)
+            _, flipped = orient_measurement(plane.coefficients, predicted)
+            if flipped:
+                if self.config.flipped_normals == "reject":
+                    self.stats.rejected_flips += 1
+                    continue
+                self.stats.flipped += 1
+                plane = plane.flipped()
+            noise = plane_noise(
+                self.plane_covariance(plane), isotropic_normal=lm.anchor_key is None
+            )
+            if lm.anchor_key is None:
+                graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
+            else:
+                if self._robust_planes:
+                    noise = self._robust(noise)
+                graph.add(
+                    anchored_plane_factor(X(e), lm.anchor_key, lm.key, plane.coefficients, noise)
+                )
+            self.stats.plane_factors += 1
+        lm.last_epoch = k
+        stamps[lm.key] = float(k)
+        if lm.anchor_key is not None:
+            stamps[lm.anchor_key] = float(k)
+
+    # ----------------------------------------------------------------- estimates
+
+    def update_estimates(self, values: gtsam.Values, since: int = 0) -> None:
+        """Refresh ``poses`` and the landmarks' world planes from an estimate.
+
+        Args:
+            values: an estimate holding (some of) the graph's variables.
+            since: refresh only epochs ``>= since`` and landmarks seen since then.
+        """
+        for e in range(since, self.n_epochs):
+            if values.exists(X(e)):
+                self.poses[e] = values.atPose3(X(e)).matrix()
+        for lm in self.landmarks.values():
+            if lm.last_epoch < since or not values.exists(lm.key):
+                continue
+            plane = np.asarray(values.atOrientedPlane3(lm.key).planeCoefficients())
+            if lm.anchor_key is not None:
+                if values.exists(lm.anchor_key):
+                    lm.T_world_anchor = values.atPose3(lm.anchor_key).matrix()
+                plane = plane_from_anchor(lm.T_world_anchor, plane)
+            lm.plane_world = plane
+
+    def landmark_planes(self) -> dict[int, np.ndarray]:
+        """Landmark id -> (4,) current world plane ``(n, d)``."""
+        return {j: lm.plane_world.copy() for j, lm in self.landmarks.items()}
+
+    def forget(self, before: int) -> None:
+        """Drop stored planes of epochs older than ``before`` (memory in long runs)."""
+        for e in [e for e in self.planes if e < before]:
+            del self.planes[e]
+
+
+def group_by_epoch(
+    relatives: Sequence[RelativeMeasurement], n_epochs: int
+) -> Mapping[int, list[RelativeMeasurement]]:
+    """Relative poses keyed by their ``curr`` epoch (0..n_epochs-1)."""
+    out: dict[int, list[RelativeMeasurement]] = {k: [] for k in range(n_epochs)}
+    for rel in relatives:
+        if 0 <= rel.curr < n_epochs:
+            out[rel.curr].append(rel)
+    return out

@@ -1,0 +1,113 @@
+"""Windowed smoothing: a fixed-lag smoother over the last W epochs, run epoch by epoch.
+
+Keys carry their epoch as timestamp; the smoother marginalises keys older than
+``W - 1`` epochs. Plane landmarks (and their anchors) are re-stamped whenever they are
+observed, so a plane stays in the window while it is seen; with ``delta_max < W`` every
+association reaches a pose and a landmark that are still in the window.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import gtsam
+import numpy as np
+
+from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.geometry import Plane
+from planodom.smoothing.batch import SmoothingResult, smoothing_config
+from planodom.smoothing.graph import GraphBuilder, RelativeMeasurement
+
+
+class WindowedSmoother:
+    """Online fixed-lag smoothing (gtsam.IncrementalFixedLagSmoother or BatchFixedLagSmoother).
+
+    Call :meth:`add_epoch` once per epoch; :attr:`poses` holds, per epoch, the latest
+    estimate while it was in the window (the lagged, smoothed output) and
+    :attr:`online_poses` the estimate when it was the newest epoch.
+    """
+
+    def __init__(
+        self,
+        config: SmoothingConfig | PlanodomConfig | None = None,
+        T_world_first: np.ndarray | None = None,
+    ) -> None:
+        self.config = smoothing_config(config)
+        self.builder = GraphBuilder(self.config, T_world_first)
+        lag = float(self.config.window - 1)
+        if self.config.windowed_backend == "incremental":
+            params = gtsam.ISAM2Params()
+            params.setRelinearizeThreshold(self.config.relinearize_threshold)
+            params.relinearizeSkip = 1
+            self.smoother = gtsam.IncrementalFixedLagSmoother(lag, params)
+        else:
+            lm = gtsam.LevenbergMarquardtParams()
+            lm.setMaxIterations(self.config.max_iterations)
+            self.smoother = gtsam.BatchFixedLagSmoother(lag, lm)
+        self.poses: list[np.ndarray] = []
+        self.online_poses: list[np.ndarray] = []
+        self.initial_poses: list[np.ndarray] = []
+        self.runtime_s = 0.0
+
+    @property
+    def n_epochs(self) -> int:
+        """Epochs added so far."""
+        return self.builder.n_epochs
+
+    def add_epoch(
+        self, planes: Sequence[Plane], relatives: Sequence[RelativeMeasurement] = ()
+    ) -> np.ndarray:
+        """Add the next epoch and update the window.
+
+        Args:
+            planes: the epoch's measured planes (base frame, normals towards the sensor).
+            relatives: relative poses from earlier epochs to this one (delta <= delta_max).
+
+        Returns:
+            (4, 4) the current estimate of this epoch's ``T_world_base``.
+        """
+        start = time.perf_counter()
+        k = self.builder.n_epochs
+        oldest = max(0, k - (self.config.window - 1))
+        update = self.builder.add_epoch(planes, relatives, min_epoch=oldest)
+        self.initial_poses.append(self.builder.poses[k])
+        self.smoother.update(update.factors, update.values, update.timestamps)
+        estimate = self.smoother.calculateEstimate()
+        self.builder.update_estimates(estimate, since=oldest)
+        self.builder.forget(oldest)
+        self.poses.append(self.builder.poses[k])
+        for e in range(oldest, k + 1):
+            self.poses[e] = self.builder.poses[e]
+        self.online_poses.append(self.builder.poses[k])
+        self.runtime_s += time.perf_counter() - start
+        return self.builder.poses[k]
+
+    def result(self) -> SmoothingResult:
+        """The smoothed trajectory so far (E, 4, 4) and the graph's statistics."""
+        return SmoothingResult(
+            poses=np.stack(self.poses),
+            initial_poses=np.stack(self.initial_poses),
+            covariances=None,
+            landmarks=self.builder.landmark_planes(),
+            stats=self.builder.stats,
+            mode="windowed",
+            runtime_s=self.runtime_s,
+            online_poses=np.stack(self.online_poses),
+        )
+
+
+def smooth_windowed(
+    epochs_planes: Sequence[Sequence[Plane]],
+    relative_poses: Sequence[RelativeMeasurement],
+    config: SmoothingConfig | PlanodomConfig | None = None,
+    T_world_first: np.ndarray | None = None,
+) -> SmoothingResult:
+    """Run :class:`WindowedSmoother` over a whole sequence (same inputs as smooth_batch)."""
+    smoother = WindowedSmoother(config, T_world_first)
+    by_curr: dict[int, list[RelativeMeasurement]] = {}
+    for rel in relative_poses:
+        by_curr.setdefault(rel.curr, []).append(rel)
+    for k, planes in enumerate(epochs_planes):
+        smoother.add_epoch(planes, by_curr.get(k, []))
+    return smoother.result()

@@ -1,0 +1,171 @@
+"""LDA and SDA: vectorised vs brute force, absolute constraints, injectivity, truth."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+from planes_factory import noisy, observe, random_motion, world_planes
+
+from planodom.association import (
+    PlaneArrays,
+    lenient_association,
+    strict_association,
+)
+from planodom.config import AssociationConfig
+from planodom.geometry import Plane, dihedral_angle, transform_from_rpy_xyz
+
+LOOSE = AssociationConfig(
+    max_translation_m=1e3, max_rotation_deg=180.0, overlap_margin_m=1e3, offset_tol_m=1e3
+)
+
+
+def two_epochs(seed: int, n_walls: int = 6, motion=None):
+    rng = np.random.default_rng(seed)
+    world = world_planes(rng, n_walls)
+    T_w_a = transform_from_rpy_xyz(0.02, -0.01, rng.uniform(-3, 3), 1.0, 2.0, 0.0)
+    T_ab = random_motion(rng) if motion is None else motion
+    return world, observe(world, T_w_a), observe(world, T_w_a @ T_ab), T_ab
+
+
+def true_pairs(prev: list[Plane], curr: list[Plane], parallel_deg: float) -> set:
+    """Pair associations that are correct by truth id, both orders as seen."""
+    j_of = {p.truth_id: j for j, p in enumerate(curr)}
+    out = set()
+    for i1, i2 in itertools.combinations(range(len(prev)), 2):
+        a = dihedral_angle(prev[i1].normal, prev[i2].normal)
+        if np.radians(parallel_deg) <= a <= np.pi - np.radians(parallel_deg):
+            out.add((i1, i2, j_of[prev[i1].truth_id], j_of[prev[i2].truth_id]))
+    return out
+
+
+def as_set(lda) -> set:
+    return {
+        tuple(int(v) for v in np.r_[p, c])
+        for p, c in zip(lda.prev_pairs, lda.curr_pairs, strict=True)
+    }
+
+
+def brute_force_lda(prev, curr, parallel_deg, tol_deg) -> set:
+    """Relative constraint only, with loops: all pairs whose dihedral angles agree."""
+    par, tol = np.radians(parallel_deg), np.radians(tol_deg)
+    out = set()
+    for i1, i2 in itertools.combinations(range(len(prev)), 2):
+        a = dihedral_angle(prev[i1].normal, prev[i2].normal)
+        if not par <= a <= np.pi - par:
+            continue
+        for j1, j2 in itertools.permutations(range(len(curr)), 2):
+            b = dihedral_angle(curr[j1].normal, curr[j2].normal)
+            if par <= b <= np.pi - par and abs(a - b) <= tol:
+                out.add((i1, i2, j1, j2))
+    return out
+
+
+@given(st.integers(0, 10_000))
+def test_lda_relative_constraint_matches_brute_force(seed):
+    _, prev, curr, _ = two_epochs(seed)
+    lda = lenient_association(prev, curr, LOOSE)
+    assert as_set(lda) == brute_force_lda(
+        prev, curr, LOOSE.parallel_angle_deg, LOOSE.dihedral_tol_deg
+    )
+
+
+@given(st.integers(0, 10_000))
+def test_lda_keeps_every_true_pair_within_the_motion_bounds(seed):
+    _, prev, curr, _ = two_epochs(seed)
+    lda = lenient_association(prev, curr)
+    found = as_set(lda)
+    assert true_pairs(prev, curr, 15.0) <= found
+    # The rotations of the true pairs are the true rotation.
+    assert len(found) >= len(true_pairs(prev, curr, 15.0))
+
+
+def test_absolute_constraints_prune_the_ambiguous_pairs():
+    loose = total = 0
+    for seed in range(20):
+        _, prev, curr, _ = two_epochs(seed, n_walls=8)
+        loose += len(lenient_association(prev, curr, LOOSE))
+        total += len(lenient_association(prev, curr))
+    assert total < 0.5 * loose
+
+
+def test_motion_beyond_the_bounds_needs_a_prior_or_larger_bounds():
+    big = transform_from_rpy_xyz(0.01, 0.0, np.radians(40.0), 3.0, -1.0)
+    _, prev, curr, T = two_epochs(7, motion=big)
+    want = true_pairs(prev, curr, 15.0)
+    assert not want & as_set(lenient_association(prev, curr))  # default: 20 deg, 1 m
+    assert want <= as_set(lenient_association(prev, curr, prior=T))
+    wide = AssociationConfig(max_rotation_deg=60.0, max_translation_m=4.0)
+    assert want <= as_set(lenient_association(prev, curr, wide))
+
+
+def test_rotations_of_true_pairs_are_exact():
+    _, prev, curr, T = two_epochs(3)
+    lda = lenient_association(prev, curr)
+    want = true_pairs(prev, curr, 15.0)
+    assert want
+    for p, c, R in zip(lda.prev_pairs, lda.curr_pairs, lda.rotations, strict=True):
+        if (p[0], p[1], c[0], c[1]) in want:
+            np.testing.assert_allclose(R, T[:3, :3], atol=1e-12)
+            np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+            assert np.linalg.det(R) > 0
+
+
+def test_lda_of_degenerate_inputs_is_empty():
+    n = np.array([1.0, 0.0, 0.0])
+    parallel = [Plane(n, 2.0), Plane(n, 5.0), Plane(-n, 3.0)]
+    assert len(lenient_association(parallel, parallel)) == 0
+    assert len(lenient_association(parallel[:1], parallel[:1])) == 0
+    assert len(lenient_association([], [])) == 0
+    assert lenient_association([], []).plane_associations().shape == (0, 2)
+
+
+def test_plane_associations_are_unique_and_sorted():
+    _, prev, curr, _ = two_epochs(5)
+    ij = lenient_association(prev, curr).plane_associations()
+    assert len(np.unique(ij, axis=0)) == len(ij)
+    assert np.all(np.diff(ij[:, 0] * 1000 + ij[:, 1]) > 0)
+
+
+# ----------------------------------------------------------------------------- SDA
+
+
+@given(st.integers(0, 10_000))
+def test_sda_recovers_truth_and_is_injective(seed):
+    _, prev, curr, T = two_epochs(seed)
+    ij = strict_association(prev, curr, T[:3, :3])
+    assert len(np.unique(ij[:, 0])) == len(ij) == len(np.unique(ij[:, 1]))
+    truth = {
+        (i, j) for i, p in enumerate(prev) for j, q in enumerate(curr) if p.truth_id == q.truth_id
+    }
+    assert {tuple(r) for r in ij.tolist()} == truth
+
+
+def test_sda_stays_injective_with_duplicated_planes():
+    rng = np.random.default_rng(2)
+    _, prev, curr, T = two_epochs(2)
+    # Near-copies of every current plane (5 mm and 0.2 deg away) compete for each match.
+    curr2 = curr + noisy(curr, rng, np.radians(0.2), 0.005)
+    ij = strict_association(prev, curr2, T[:3, :3], translation=T[:3, 3], translation_bound=0.05)
+    assert len(np.unique(ij[:, 0])) == len(ij) == len(np.unique(ij[:, 1]))
+    assert len(ij) == len(prev)
+    assert all(prev[i].truth_id == curr2[j].truth_id for i, j in ij)
+
+
+def test_sda_rejects_a_wrong_rotation():
+    _, prev, curr, T = two_epochs(4)
+    wrong = transform_from_rpy_xyz(0, 0, np.radians(10.0), 0, 0)[:3, :3] @ T[:3, :3]
+    ij = strict_association(prev, curr, wrong)
+    # Only planes whose normals are (nearly) vertical survive a 10 deg yaw error.
+    assert all(abs(prev[i].normal[2]) > 0.9 for i, _ in ij)
+
+
+def test_plane_arrays_from_planes():
+    _, prev, _, _ = two_epochs(1)
+    arr = PlaneArrays.from_planes(prev)
+    assert arr.normals.shape == (len(prev), 3) and arr.radii.shape == (len(prev),)
+    assert np.all(arr.radii > 0)
+    bare = PlaneArrays.from_planes([Plane([0, 0, 1.0], 1.0)])
+    assert np.isnan(bare.radii[0]) and np.isnan(bare.centroids[0]).all()

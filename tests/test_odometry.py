@@ -1,0 +1,213 @@
+"""The relative pose and the streaming odometry on synthetic plane sets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from planes_factory import noisy, observe, random_motion, world_planes
+
+from planodom.config import PlanodomConfig
+from planodom.geometry import (
+    Plane,
+    invert_transform,
+    pose5_from_transform,
+    transform_from_rpy_xyz,
+)
+from planodom.odometry import PlaneOdometry, estimate_relative_pose, run_odometry
+from planodom.odometry.streaming import se3_exp, se3_log
+
+
+def config(pipeline: str = "wocsc", **odometry) -> PlanodomConfig:
+    return PlanodomConfig.from_dict({"odometry": {"pipeline": pipeline, **odometry}})
+
+
+def scene(seed: int, n_walls: int = 6, ground: bool = True, motion=None, tilt: bool = True):
+    rng = np.random.default_rng(seed)
+    world = world_planes(rng, n_walls, ground)
+    rp = rng.uniform(-0.05, 0.05, 2) if tilt else (0.0, 0.0)
+    T_w_a = transform_from_rpy_xyz(rp[0], rp[1], rng.uniform(-3, 3), 1.0, -2.0, 0.3)
+    T_ab = random_motion(rng) if motion is None else motion
+    return observe(world, T_w_a), observe(world, T_w_a @ T_ab), T_ab
+
+
+@given(st.integers(0, 100_000), st.sampled_from(["wocsc", "sda-mean", "ocsc"]))
+def test_exact_recovery_of_random_5dof_motions(seed, pipeline):
+    prev, curr, T = scene(seed, n_walls=int(seed % 5) + 3, ground=bool(seed % 2))
+    r = estimate_relative_pose(prev, curr, config(pipeline))
+    assert r.status == "ok"
+    np.testing.assert_allclose(r.T_prev_curr, T, atol=1e-9)
+    assert r.z_observed == bool(seed % 2)
+    # Every true plane association agrees with the winner.
+    assert r.rotation_consensus.n_inliers >= len(r.plane_associations)
+
+
+@given(st.integers(0, 100_000))
+def test_vertical_translation_is_recovered_from_the_ground(seed):
+    rng = np.random.default_rng(seed)
+    T_true = random_motion(rng, tz=rng.uniform(-0.1, 0.1))
+    prev, curr, _ = scene(seed, motion=T_true)
+    r = estimate_relative_pose(prev, curr, config())
+    assert r.status == "ok" and r.z_observed
+    np.testing.assert_allclose(r.T_prev_curr, T_true, atol=1e-9)
+
+
+def test_without_ground_z_comes_from_the_prior_and_is_marked():
+    T_true = random_motion(np.random.default_rng(1))
+    prev, curr, _ = scene(1, ground=False, motion=T_true, tilt=False)
+    prior = T_true.copy()
+    prior[:2, 3] += 0.1  # the prior's horizontal part is not used for the estimate
+    r = estimate_relative_pose(prev, curr, config(), prior=prior)
+    assert r.status == "ok" and not r.z_observed and r.sigma_z == np.inf
+    np.testing.assert_allclose(r.T_prev_curr, T_true, atol=1e-9)
+
+
+def test_result_fields():
+    prev, curr, T = scene(2)
+    r = estimate_relative_pose(prev, curr, config())
+    np.testing.assert_allclose(r.pose5, pose5_from_transform(T), atol=1e-9)
+    assert r.covariance.shape == (5, 5) and np.all(np.linalg.eigvalsh(r.covariance) > 0)
+    np.testing.assert_allclose(r.sigmas5[:3], np.radians(0.01), rtol=1e-6)  # noise-free: floors
+    assert len(r.plane_associations) == len(prev)
+    assert all(prev[i].truth_id == curr[j].truth_id for i, j in r.plane_associations)
+    assert r.n_translation_pairs > 0 and r.translation_consensus.n_inliers > 0
+
+
+@pytest.mark.parametrize("pipeline", ["wocsc", "sda-mean", "ocsc", "mean"])
+def test_permutation_of_plane_order_changes_nothing(pipeline):
+    rng = np.random.default_rng(8)
+    prev, curr, _ = scene(8, n_walls=8)
+    prev, curr = noisy(prev, rng, 0.01, 0.02), noisy(curr, rng, 0.01, 0.02)
+    a = estimate_relative_pose(prev, curr, config(pipeline))
+    pp, pc = rng.permutation(len(prev)), rng.permutation(len(curr))
+    b = estimate_relative_pose([prev[i] for i in pp], [curr[j] for j in pc], config(pipeline))
+    np.testing.assert_array_equal(a.T_prev_curr, b.T_prev_curr)
+    np.testing.assert_array_equal(a.covariance, b.covariance)
+    map_a = {(prev[i].truth_id, curr[j].truth_id) for i, j in a.plane_associations}
+    map_b = {(prev[pp[i]].truth_id, curr[pc[j]].truth_id) for i, j in b.plane_associations}
+    assert map_a == map_b
+
+
+def test_determinism():
+    rng = np.random.default_rng(9)
+    prev, curr, _ = scene(9)
+    prev, curr = noisy(prev, rng, 0.02, 0.05), noisy(curr, rng, 0.02, 0.05)
+    runs = [estimate_relative_pose(prev, curr, config()) for _ in range(3)]
+    for r in runs[1:]:
+        np.testing.assert_array_equal(r.T_prev_curr, runs[0].T_prev_curr)
+        np.testing.assert_array_equal(
+            r.rotation_consensus.errors, runs[0].rotation_consensus.errors
+        )
+
+
+def test_degenerate_scenes_are_unresolved():
+    n = np.array([0.0, 1.0, 0.0])
+    parallel = [Plane(n, 2.0), Plane(-n, 3.0), Plane(n, 6.0)]
+    for prev, curr in [
+        (parallel, parallel),
+        (parallel[:1], parallel[:1]),
+        ([], []),
+        (parallel, []),
+    ]:
+        r = estimate_relative_pose(prev, curr, config())
+        assert r.status == "unresolved" and not r.resolved
+        np.testing.assert_array_equal(r.T_prev_curr, np.eye(4))
+    prior = transform_from_rpy_xyz(0, 0, 0.1, 0.5, 0)
+    r = estimate_relative_pose([], [], config(), prior=prior)
+    np.testing.assert_array_equal(r.T_prev_curr, prior)
+
+
+def test_no_vertical_intersection_is_degenerate():
+    """Ground and one wall: rotation resolved, the horizontal line gives no translation."""
+    ground, wall = Plane([0, 0, 1.0], 1.5), Plane([1.0, 0, 0], 4.0)
+    T = transform_from_rpy_xyz(0.01, 0.02, 0.1, 0.3, 0.1)
+    curr = [p.transformed(invert_transform(T)) for p in (ground, wall)]
+    r = estimate_relative_pose([ground, wall], curr, config())
+    assert r.status == "degenerate"
+    np.testing.assert_allclose(r.T_prev_curr[:3, :3], T[:3, :3], atol=1e-12)
+    np.testing.assert_array_equal(r.T_prev_curr[:2, 3], [0.0, 0.0])
+
+
+# ----------------------------------------------------------------------------- streaming
+
+
+def trajectory(n: int, seed: int = 0):
+    """World planes and n poses of a vehicle driving a gentle curve with small roll/pitch."""
+    rng = np.random.default_rng(seed)
+    world = world_planes(rng, 10)
+    poses = []
+    for k in range(n):
+        yaw = 0.03 * k
+        poses.append(transform_from_rpy_xyz(0.01 * np.sin(k), 0.01 * np.cos(0.7 * k), yaw,
+                                            0.1 * k, 0.002 * k**2, 0.0))  # fmt: skip
+    return world, poses
+
+
+def test_streaming_chain_equals_truth_and_cv_bridges_unresolved_epochs():
+    world, poses = trajectory(12)
+    odo = PlaneOdometry(config())
+    for k, T in enumerate(poses):
+        planes = [] if k == 6 else observe(world, T)  # epoch 6 sees nothing
+        odo.register_planes(planes, time=0.1 * k)
+    assert odo.results[0] is None
+    # Epochs 6 (sees nothing) and 7 (its reference, 6, has nothing) are unresolved.
+    statuses = [r.status for r in odo.results[1:]]
+    assert statuses.count("unresolved") == 2 and odo.results[6].fallback and odo.results[7].fallback
+    for k in range(1, 12):
+        T_rel_true = invert_transform(poses[k - 1]) @ poses[k]
+        T_rel = invert_transform(odo.poses[k - 1]) @ odo.poses[k]
+        if k not in (6, 7):
+            np.testing.assert_allclose(T_rel, T_rel_true, atol=1e-9)
+    # Epochs 6 and 7 repeat the previous increment (constant velocity).
+    step5 = invert_transform(odo.poses[4]) @ odo.poses[5]
+    np.testing.assert_allclose(invert_transform(odo.poses[5]) @ odo.poses[6], step5, atol=1e-9)
+    np.testing.assert_allclose(invert_transform(odo.poses[6]) @ odo.poses[7], step5, atol=1e-9)
+    assert odo.last_relative is odo.results[-1]
+
+
+def test_streaming_with_delta_two_associates_two_epochs_back():
+    world, poses = trajectory(8, seed=3)
+    odo = PlaneOdometry(config(delta=2))
+    for T in poses:
+        odo.register_planes(observe(world, T))
+    for k in range(8):
+        np.testing.assert_allclose(odo.poses[k], invert_transform(poses[0]) @ poses[k], atol=1e-8)
+    np.testing.assert_allclose(
+        odo.results[5].T_prev_curr, invert_transform(poses[3]) @ poses[5], atol=1e-9
+    )
+
+
+def test_run_odometry_on_plane_lists_and_rows():
+    world, poses = trajectory(6, seed=4)
+    seen = []
+    run = run_odometry(
+        [observe(world, T) for T in poses], config(), progress=lambda k, n: seen.append(k)
+    )
+    assert seen == [1, 2, 3, 4, 5, 6] and run.poses.shape == (6, 4, 4)
+    rows = run.rows()
+    assert rows[0]["status"] == "first" and all(r["status"] == "ok" for r in rows[1:])
+    assert run.n_unresolved == 0 and len(run.planes) == 6
+
+
+def test_run_odometry_extracts_with_the_given_extractor():
+    from planodom.scan import Scan
+
+    world, poses = trajectory(4, seed=5)
+    planes = [observe(world, T) for T in poses]
+    calls = []
+
+    def extractor(scan, cfg, twist=None):
+        calls.append(twist)
+        return planes[int(scan.points[0, 0])]
+
+    scans = [Scan(np.full((1, 3), float(k))) for k in range(4)]
+    run = run_odometry(scans, config(), extractor=extractor, times=[0.0, 0.1, 0.2, 0.3])
+    assert calls[0] is None and calls[1] is None and calls[2].shape == (6,)
+    np.testing.assert_allclose(run.poses[-1], invert_transform(poses[0]) @ poses[-1], atol=1e-9)
+
+
+def test_se3_log_exp_round_trip():
+    T = transform_from_rpy_xyz(0.1, -0.2, 0.3, 1.0, 2.0, -0.5)
+    np.testing.assert_allclose(se3_exp(se3_log(T)), T, atol=1e-12)
+    np.testing.assert_allclose(se3_log(np.eye(4)), np.zeros(6), atol=1e-15)
