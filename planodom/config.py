@@ -171,13 +171,16 @@ class OdometryConfig(Section):
     """Truncate per-element rotation errors at this angle (None: plain squared error)."""
     truncate_translation_m: float | None = None
     """Truncate per-element translation errors at this distance, m (None: plain)."""
+    condition_weights: bool = True
+    """Weight a pair's reference point by ``w1 w2 sin^2(angle)`` per epoch (its intersection's
+    conditioning: offset noise moves it by ~ sigma_d / sin(angle)); False: ``w1 w2`` only."""
     best_partner: bool = True
     """An element with several LDA partners (ambiguous association) is scored once, with
     its best partner under each candidate; False scores every association (all count)."""
     estimate_z: bool = True
-    """Estimate the vertical translation from associated near-horizontal planes (ground)."""
+    """Estimate the vertical translation from associated ground-like planes."""
     z_plane_max_tilt_deg: float = 30.0
-    """Planes tilted less than this from horizontal constrain the vertical translation."""
+    """Up-facing planes tilted less than this from horizontal give the vertical translation."""
     use_motion_prior: bool = True
     """Streaming: use the constant-velocity prediction as prior for association."""
     retry_without_prior: bool = True

@@ -75,12 +75,38 @@ def deskew_points(points: np.ndarray, t: np.ndarray, twist: np.ndarray) -> np.nd
 
     Returns:
         (N, 3) metres in the base frame at the reference time.
+
+    The rotation axis ``k = w / |w|`` is the same for every point, so Rodrigues' formula
+    ``R p = p + sin(a) k x p + (1 - cos a) k x (k x p)``, ``a = t |w|``, is evaluated with
+    two fixed 3x3 products for all points; this is exact like :func:`se3_exp` but avoids
+    building N scipy rotations (a per-point cost ~10x higher, the bulk of a 2D-rig epoch).
     """
     points = np.asarray(points, dtype=np.float64)
     if len(points) == 0:
         return points.reshape(0, 3).copy()
-    rot, trans = se3_exp(twist, t)
-    return rot.apply(points) + trans
+    xi = check_twist(twist)
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    w, v = xi[:3], xi[3:]
+    speed = float(np.linalg.norm(w))
+    if speed < 1e-12:
+        return points + t[:, None] * v[None, :]
+    k = w / speed
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    a = t * speed
+    kp = points @ K.T
+    out = points + np.sin(a)[:, None] * kp + (1.0 - np.cos(a))[:, None] * (kp @ K.T)
+    # Translation J_l(t w) (t v) = t v + c1 t^2 (w x v) + c2 t^3 (w x (w x v)), with
+    # c1 = (1 - cos a) / a^2, c2 = (a - sin a) / a^3 (Taylor series for small a).
+    a2 = a * a
+    small = np.abs(a) < 1e-4
+    sa = np.where(small, 1.0, a)
+    c1 = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(sa)) / (sa * sa))
+    c2 = np.where(small, 1.0 / 6.0 - a2 / 120.0, (sa - np.sin(sa)) / (sa * sa * sa))
+    wxv = np.cross(w, v)
+    wwxv = np.cross(w, wxv)
+    t2 = t * t
+    out += t[:, None] * v + (c1 * t2)[:, None] * wxv + (c2 * t2 * t)[:, None] * wwxv
+    return out
 
 
 def se3_log(T: np.ndarray) -> np.ndarray:

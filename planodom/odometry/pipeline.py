@@ -20,7 +20,7 @@ unobserved.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,7 +40,7 @@ from planodom.odometry.rotation import (
     chordal_mean_rotation,
     rotation_angles_to,
     rotation_consensus,
-    rpy_spread,
+    rpy_of,
 )
 from planodom.odometry.translation import (
     TranslationElements,
@@ -141,8 +141,13 @@ def _pair_ids(pairs: np.ndarray) -> np.ndarray:
     return pairs[:, 0].astype(np.int64) * (int(pairs.max(initial=0)) + 1) + pairs[:, 1]
 
 
-def _floor_cov(cov: np.ndarray, floors: np.ndarray) -> np.ndarray:
-    return cov + np.diag(np.asarray(floors) ** 2)
+def _weighted_mean(x: np.ndarray, w: np.ndarray) -> np.ndarray:
+    return np.einsum("m,m...->...", w, x) / w.sum()
+
+
+def _spread(d: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Weighted second moment (D, D) of deviations ``d`` (M, D)."""
+    return np.einsum("m,mi,mj->ij", w, d, d) / w.sum()
 
 
 def estimate_relative_pose(
@@ -158,134 +163,161 @@ def estimate_relative_pose(
         planes_curr: planes of epoch k + d in its base frame.
         config: association and odometry sections are used.
         prior: optional predicted ``T_prev_curr`` (4, 4), e.g. constant velocity. LDA
-            then bounds the motion around it (retrying without it when it leaves no
-            candidate, if ``retry_without_prior``); its z fills an unobserved height.
+            then bounds the motion around it; when that leaves the epoch unresolved or
+            degenerate and ``retry_without_prior`` is set, it is solved again with the
+            prior-free bounds (a wrong prior must not lock the odometry out). The
+            prior's z fills an unobserved height, its translation an unmeasured one.
 
     Returns:
         :class:`RelativePose`; index arrays refer to the input lists.
     """
     cfg = config or PlanodomConfig()
-    ocfg, acfg = cfg.odometry, cfg.association
-    rot_method, trans_method = pipeline_methods(ocfg.pipeline)
+    pipeline_methods(cfg.odometry.pipeline)  # validate early
     prev_in, curr_in = as_plane_arrays(planes_prev), as_plane_arrays(planes_curr)
     order_p, order_c = _canonical_order(prev_in), _canonical_order(curr_in)
     prev, curr = prev_in.take(order_p), curr_in.take(order_c)
     prior = None if prior is None else np.asarray(prior, dtype=np.float64)
 
-    used_prior = prior is not None
-    lda = lenient_association(prev, curr, acfg, prior)
-    if len(lda) == 0 and prior is not None and ocfg.retry_without_prior:
-        lda, used_prior = lenient_association(prev, curr, acfg, None), False
+    result = _solve(prev, curr, cfg, prior, bound_by_prior=prior is not None)
+    if result.status != "ok" and prior is not None and cfg.odometry.retry_without_prior:
+        free = _solve(prev, curr, cfg, prior, bound_by_prior=False)
+        if _rank(free) > _rank(result):
+            result = free
+    ij = result.plane_associations
+    return replace(
+        result,
+        lda=result.lda.remapped(order_p, order_c),
+        plane_associations=np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]])
+        if len(ij)
+        else ij,
+    )
 
-    def result(T, status, **kw) -> RelativePose:
-        ij = kw.pop("plane_associations", np.zeros((0, 2), dtype=np.intp))
-        ij = np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]]) if len(ij) else ij
-        return RelativePose(
-            T_prev_curr=T,
-            status=status,
-            pipeline=ocfg.pipeline,
-            lda=lda.remapped(order_p, order_c),
-            plane_associations=ij,
-            used_prior=used_prior,
-            **kw,
-        )
 
+def _rank(r: RelativePose) -> int:
+    return {"unresolved": 0, "degenerate": 1, "ok": 2}[r.status]
+
+
+def _solve(
+    prev: PlaneArrays,
+    curr: PlaneArrays,
+    cfg: PlanodomConfig,
+    prior: np.ndarray | None,
+    bound_by_prior: bool,
+) -> RelativePose:
+    """One pass of the pipeline on canonically ordered planes (indices not remapped)."""
+    ocfg, acfg = cfg.odometry, cfg.association
+    rot_method, trans_method = pipeline_methods(ocfg.pipeline)
+    lda = lenient_association(prev, curr, acfg, prior if bound_by_prior else None)
+    t0 = prior[:3, 3] if bound_by_prior else np.zeros(3)
+    t_bound = acfg.prior_translation_m if bound_by_prior else acfg.max_translation_m
+    rot_bound = np.radians(acfg.prior_rotation_deg if bound_by_prior else acfg.max_rotation_deg)
     z_prior = float(prior[2, 3]) if prior is not None else 0.0
+    common = {"pipeline": ocfg.pipeline, "lda": lda, "used_prior": bound_by_prior}
+
     if len(lda) == 0:
         T = prior.copy() if prior is not None else np.eye(4)
-        return result(T, "unresolved", z_observed=False, covariance=np.full((5, 5), np.nan),
-                      sigma_z=np.inf)  # fmt: skip
+        cov = np.diag([rot_bound**2] * 3 + [t_bound**2] * 2)
+        none = np.zeros((0, 2), dtype=np.intp)
+        return RelativePose(T, "unresolved", z_observed=False, covariance=cov, sigma_z=np.inf,
+                            plane_associations=none, **common)  # fmt: skip
 
-    # ---------------------------------------------------------------- rotation
-    inlier_angle = np.radians(ocfg.rotation_inlier_deg)
-    if rot_method == "mean":
-        rot_cons = None
-        R = chordal_mean_rotation(lda.rotations)
-        close = rotation_angles_to(lda.rotations, R) <= inlier_angle
-        cov_r = rpy_spread(lda.rotations[close], R) / max(int(close.sum()), 1)
-    else:
-        truncate = ocfg.truncate_rotation_deg
-        rot_cons, _ = rotation_consensus(
-            prev, curr, lda, weighted=rot_method == "wocsc", inlier_angle=inlier_angle,
-            truncate_angle=None if truncate is None else np.radians(truncate),
-            best_partner=ocfg.best_partner,
-        )  # fmt: skip
-        R = lda.rotations[rot_cons.best_index]
-        close = rotation_angles_to(lda.rotations, R) <= inlier_angle
-        cov_r = rpy_spread(lda.rotations[close], R)
+    R, cov_r, rot_cons = _rotation(prev, curr, lda, rot_method, ocfg)
 
-    # ---------------------------------------------------------------- translation
-    t0 = prior[:3, 3] if used_prior else np.zeros(3)
-    t_bound = acfg.prior_translation_m if used_prior else acfg.max_translation_m
     parallel = np.radians(acfg.parallel_angle_deg)
     if trans_method == "cog":
         ij = strict_association(prev, curr, R, acfg, t0, t_bound)
-        elems = translation_elements(prev, curr, R, *pairs_of_associations(ij, prev, parallel),
-                                     acfg.min_line_verticality)  # fmt: skip
-    else:
-        # LDA pairs whose both plane associations agree with R.
-        c = chord(inlier_angle)
+        pp, cp = pairs_of_associations(ij, prev, parallel)
+    else:  # LDA pairs whose both plane associations agree with R
+        c = chord(np.radians(ocfg.rotation_inlier_deg))
         pp, cp = lda.prev_pairs, lda.curr_pairs
         e1 = np.linalg.norm(prev.normals[pp[:, 0]] - curr.normals[cp[:, 0]] @ R.T, axis=1)
         e2 = np.linalg.norm(prev.normals[pp[:, 1]] - curr.normals[cp[:, 1]] @ R.T, axis=1)
         agree = (e1 <= c) & (e2 <= c)
-        ij = lda.plane_associations(agree)
-        elems = translation_elements(prev, curr, R, pp[agree], cp[agree],
-                                     acfg.min_line_verticality)  # fmt: skip
-
+        ij, pp, cp = lda.plane_associations(agree), pp[agree], cp[agree]
+    elems = translation_elements(
+        prev, curr, R, pp, cp, acfg.min_line_verticality, ocfg.condition_weights
+    )
     heights = height_elements(prev, curr, ij, np.radians(ocfg.z_plane_max_tilt_deg))
-    use_z = ocfg.estimate_z and len(heights) > 0
+
     trans_cons = None
     if len(elems) == 0:
         status, txy, z = "degenerate", t0[:2].copy(), z_prior
-        cov_t, sigma_z, z_observed = np.full((2, 2), np.nan), np.inf, False
+        cov_t, sigma_z, z_observed = np.diag([t_bound**2] * 2), np.inf, False
     else:
         status = "ok"
+        use_heights = heights if ocfg.estimate_z and len(heights) else None
         txy, z, cov_t, trans_cons, sigma_z, z_observed = _translation(
-            elems, heights if use_z else None, z_prior, trans_method, ocfg
+            elems, use_heights, z_prior, trans_method, ocfg
         )
 
     T = make_transform(R, [txy[0], txy[1], z])
     cov = np.zeros((5, 5))
-    cov[:3, :3] = _floor_cov(cov_r, [np.radians(ocfg.min_sigma_rotation_deg)] * 3)
-    cov[3:, 3:] = _floor_cov(cov_t, [ocfg.min_sigma_translation_m] * 2)
-    final_ij = strict_association(
-        prev, curr, R, acfg, T[:3, 3],
-        ocfg.translation_inlier_m if status == "ok" else t_bound,
-    )  # fmt: skip
-    return result(
+    cov[:3, :3] = cov_r + np.eye(3) * np.radians(ocfg.min_sigma_rotation_deg) ** 2
+    cov[3:, 3:] = cov_t + np.eye(2) * ocfg.min_sigma_translation_m**2
+    sda_bound = ocfg.translation_inlier_m if status == "ok" else t_bound
+    final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
+    return RelativePose(
         T, status, z_observed=z_observed, covariance=cov, sigma_z=sigma_z,
         plane_associations=final_ij, rotation_consensus=rot_cons,
-        translation_consensus=trans_cons, n_translation_pairs=len(elems),
+        translation_consensus=trans_cons, n_translation_pairs=len(elems), **common,
     )  # fmt: skip
+
+
+def _rotation(prev, curr, lda: PairAssociations, method: str, ocfg):
+    """Rotation ``R`` (3, 3), its (roll, pitch, yaw) covariance (3, 3) and the consensus.
+
+    The covariance is the (weighted) spread of the candidates within
+    ``rotation_inlier_deg`` of the result (divided by their number for the mean).
+    """
+    inlier_angle = np.radians(ocfg.rotation_inlier_deg)
+    weights = lda.weights if method != "ocsc" else np.ones(len(lda))
+    if method == "mean":
+        R, cons = chordal_mean_rotation(lda.rotations), None
+    else:
+        truncate = ocfg.truncate_rotation_deg
+        cons, _ = rotation_consensus(
+            prev, curr, lda, weighted=method == "wocsc", inlier_angle=inlier_angle,
+            truncate_angle=None if truncate is None else np.radians(truncate),
+            best_partner=ocfg.best_partner,
+        )  # fmt: skip
+        R = lda.rotations[cons.best_index]
+    close = rotation_angles_to(lda.rotations, R) <= inlier_angle
+    d = rpy_of(lda.rotations[close]) - rpy_of(R[None])
+    d = (d + np.pi) % (2.0 * np.pi) - np.pi
+    cov = _spread(d, weights[close]) if close.any() else np.zeros((3, 3))
+    if method == "mean":
+        cov = cov / max(int(close.sum()), 1)
+    return R, cov, cons
 
 
 def _translation(elems: TranslationElements, heights, z0: float, method: str, ocfg):
     """Horizontal (and vertical) translation from the pair elements.
 
+    Every element gives ``t_xy(z) = a - z g``; the result is one element's (consensus) or
+    the mean of all (cog), then z comes from the height elements when there are any.
     Returns (txy (2,), z, cov_xy (2, 2), consensus or None, sigma_z, z_observed).
     """
+    a_all, g_all = elems.candidates(0.0), elems.slope
+    cands = elems.candidates(z0)
+    weights = elems.weights if method == "wocsc" else np.ones(len(elems))
     if method == "cog":
-        cons = None
-        cands = elems.candidates(z0)
-        txy = cands.mean(axis=0)
-        a, g = elems.candidates(0.0).mean(axis=0), elems.slope.mean(axis=0)
-        d = cands - txy
-        cov = d.T @ d / len(d) ** 2
+        cons, use = None, np.ones(len(elems), dtype=bool)
+        weights = np.ones(len(elems))
     else:
-        truncate = ocfg.truncate_translation_m
         cons = consensus(
-            elems.candidates(z0), elems.ref_prev, elems.targets(z0), apply_negative_translation,
+            cands, elems.ref_prev, elems.targets(z0), apply_negative_translation,
             weights=elems.weights if method == "wocsc" else None,
-            inlier_tol=ocfg.translation_inlier_m, truncate=truncate,
+            inlier_tol=ocfg.translation_inlier_m, truncate=ocfg.truncate_translation_m,
             groups=_pair_ids(elems.prev_pairs) if ocfg.best_partner else None,
         )  # fmt: skip
-        b_ = cons.best_index
-        txy = cons.best_candidate.copy()
-        a, g = elems.candidates(0.0)[b_], elems.slope[b_]
-        d = elems.candidates(z0)
-        d = d[np.linalg.norm(d - txy, axis=1) <= ocfg.translation_inlier_m] - txy
-        cov = d.T @ d / len(d)
+        use = np.arange(len(elems)) == cons.best_index
+    a, g = _weighted_mean(a_all[use], weights[use]), _weighted_mean(g_all[use], weights[use])
+    txy = a - z0 * g
+    near = np.linalg.norm(cands - txy, axis=1) <= ocfg.translation_inlier_m
+    near = near if method != "cog" else np.ones(len(elems), dtype=bool)
+    cov = _spread(cands[near] - txy, weights[near]) if near.any() else np.zeros((2, 2))
+    if method == "cog":
+        cov = cov / len(elems)
 
     if heights is None:
         return txy, z0, cov, cons, np.inf, False

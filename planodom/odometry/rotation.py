@@ -71,15 +71,6 @@ def rotation_angles_to(rotations: np.ndarray, R: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(cos, -1.0, 1.0))
 
 
-def rpy_spread(rotations: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """(3, 3) second moment of ``rpy(R_m) - rpy(R)`` over ``rotations`` (M, 3, 3), rad^2."""
-    if len(rotations) < 2:
-        return np.zeros((3, 3))
-    d = rpy_of(rotations) - rpy_of(R[None])
-    d = (d + np.pi) % (2.0 * np.pi) - np.pi
-    return d.T @ d / len(d)
-
-
 def rpy_of(rotations: np.ndarray) -> np.ndarray:
     """(M, 3) (roll, pitch, yaw), rad, of rotations (M, 3, 3) = Rz(yaw) Ry(pitch) Rx(roll)."""
     roll = np.arctan2(rotations[:, 2, 1], rotations[:, 2, 2])

@@ -37,6 +37,21 @@ def se3_exp(xi: np.ndarray) -> np.ndarray:
     return np.asarray(gtsam.Pose3.Expmap(np.asarray(xi, dtype=np.float64)).matrix())
 
 
+def rig_sensor_origins(rig: object) -> np.ndarray | None:
+    """Sensor positions (S, 3) (or (3,) for one sensor) from a ``rig.yaml`` dict or a Rig."""
+    if rig is None:
+        return None
+    if isinstance(rig, dict):
+        origins = rig.get("sensor_origins")
+    else:
+        sensors = getattr(rig, "sensors", None)
+        origins = None if sensors is None else [s.T_base_sensor[:3, 3] for s in sensors]
+    if origins is None or len(origins) == 0:
+        return None
+    origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+    return origins[0] if len(origins) == 1 else origins
+
+
 def _default_extractor() -> Extractor:
     from planodom.extraction import extract_planes
 
@@ -45,6 +60,13 @@ def _default_extractor() -> Extractor:
 
 class PlaneOdometry:
     """Streaming plane odometry.
+
+    Args:
+        config: the pipeline configuration (default: defaults).
+        extractor: ``extractor(scan, extraction_config, twist=..., [sensor_origins=...])
+            -> list[Plane]``; default :func:`planodom.extraction.extract_planes`.
+        sensor_origins: sensor positions in the base frame, metres ((3,) or (S, 3) by
+            ring), passed to the extractor to orient normals; None: its default.
 
     Attributes:
         config: the pipeline configuration.
@@ -55,9 +77,15 @@ class PlaneOdometry:
         last_planes: the planes of the last epoch (a history of ``delta`` epochs is kept).
     """
 
-    def __init__(self, config: PlanodomConfig | None = None, extractor: Extractor | None = None):
+    def __init__(
+        self,
+        config: PlanodomConfig | None = None,
+        extractor: Extractor | None = None,
+        sensor_origins: np.ndarray | None = None,
+    ):
         self.config = config or PlanodomConfig()
         self._extract = extractor
+        self.sensor_origins = sensor_origins
         self.poses: list[np.ndarray] = []
         self.times: list[float] = []
         self.results: list[RelativePose | None] = []
@@ -94,7 +122,8 @@ class PlaneOdometry:
         if self._extract is None:
             self._extract = _default_extractor()
         twist = self._twist if self.config.odometry.deskew else None
-        return list(self._extract(scan, self.config.extraction, twist=twist))
+        kwargs = {} if self.sensor_origins is None else {"sensor_origins": self.sensor_origins}
+        return list(self._extract(scan, self.config.extraction, twist=twist, **kwargs))
 
     def register_epoch(self, scan: Scan, time: float | None = None) -> np.ndarray:
         """Extract the planes of one epoch and register them; returns ``T_world_base``.
@@ -230,6 +259,7 @@ def run_odometry(
     progress: Callable[[int, int], None] | None = None,
     extractor: Extractor | None = None,
     times: Sequence[float] | None = None,
+    sensor_origins: np.ndarray | None = None,
 ) -> OdometryRun:
     """Run :class:`PlaneOdometry` over a sequence of epochs.
 
@@ -242,9 +272,13 @@ def run_odometry(
         extractor: ``extractor(scan, extraction_config, twist=...) -> list[Plane]``;
             default :func:`planodom.extraction.extract_planes`.
         times: epoch reference times (N,), seconds.
+        sensor_origins: see :class:`PlaneOdometry`; default: from ``source.rig`` when it
+            is a ``rig.yaml`` dict with ``sensor_origins`` or a simulation ``Rig``.
     """
     cfg = config or PlanodomConfig()
-    odo = PlaneOdometry(cfg, extractor)
+    if sensor_origins is None:
+        sensor_origins = rig_sensor_origins(getattr(source, "rig", None))
+    odo = PlaneOdometry(cfg, extractor, sensor_origins)
     n = len(source)  # type: ignore[arg-type]
     if times is None:
         times = getattr(source, "times", None)

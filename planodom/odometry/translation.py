@@ -9,7 +9,7 @@ translation ``t_z`` the two frames differ by a horizontal shift only and, exactl
 a translation candidate ``T = varpi_k - varpi'(z)``.
 
 The vertical translation, unobserved by vertical walls (the paper's 5-DoF model), is
-observed by near-horizontal planes such as the ground: ``n_i . t = d_j - d_i`` gives
+observed by ground-like planes (near-horizontal, facing up): ``n_i . t = d_j - d_i`` gives
 ``t_z = b - m . (t_x, t_y)`` with ``b = (d_j - d_i) / n_iz``, ``m = n_i,xy / n_iz``.
 """
 
@@ -32,7 +32,7 @@ class TranslationElements:
         ref_prev: (E, 2) previous reference points, metres.
         ref_curr0: (E, 2) reference points of the rotated current pairs at height 0, m.
         slope: (E, 2) ``g``: change of the current reference point per metre of height.
-        weights: (E,) product of the four planes' confidences.
+        weights: (E,) confidence of each element (see :func:`translation_elements`).
     """
 
     prev_pairs: np.ndarray
@@ -61,8 +61,15 @@ def translation_elements(
     prev_pairs: np.ndarray,
     curr_pairs: np.ndarray,
     min_verticality: float,
+    condition: bool = True,
 ) -> TranslationElements:
-    """Reference points of the pairs ``prev_pairs[e] -> curr_pairs[e]`` (E, 2) under ``R``."""
+    """Reference points of the pairs ``prev_pairs[e] -> curr_pairs[e]`` (E, 2) under ``R``.
+
+    Weights: the product of the four planes' confidences (paper), times
+    ``sin^2`` of each epoch's dihedral angle when ``condition``: a reference point's
+    confidence includes how well its two planes cut (offset noise sigma moves it by about
+    sigma / sin(angle)).
+    """
     i1, i2 = prev_pairs[:, 0], prev_pairs[:, 1]
     j1, j2 = curr_pairs[:, 0], curr_pairs[:, 1]
     n1, n2 = curr.normals[j1] @ R.T, curr.normals[j2] @ R.T
@@ -78,6 +85,10 @@ def translation_elements(
     ref_p, ref_c, slope = np.split(refs, 3)
     ok = np.isfinite(ref_p).all(axis=1) & np.isfinite(ref_c).all(axis=1)
     w = prev.weights[i1] * prev.weights[i2] * curr.weights[j1] * curr.weights[j2]
+    if condition:
+        sin2_p = np.sum(np.cross(prev.normals[i1], prev.normals[i2]) ** 2, axis=1)
+        sin2_c = np.sum(np.cross(curr.normals[j1], curr.normals[j2]) ** 2, axis=1)
+        w = w * sin2_p * sin2_c
     return TranslationElements(
         prev_pairs[ok], curr_pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok]
     )
@@ -117,10 +128,11 @@ class HeightElements:
 def height_elements(
     prev: PlaneArrays, curr: PlaneArrays, ij: np.ndarray, max_tilt: float
 ) -> HeightElements:
-    """Elements from the associations ``ij`` (L, 2) whose previous plane is within
-    ``max_tilt`` rad of horizontal."""
+    """Elements from the associations ``ij`` (L, 2) whose previous plane is ground-like:
+    within ``max_tilt`` rad of horizontal and facing up (below the sensor, normal towards
+    it), the ground a vehicle drives on."""
     n = prev.normals[ij[:, 0]]
-    keep = np.abs(n[:, 2]) >= np.cos(max_tilt)
+    keep = n[:, 2] >= np.cos(max_tilt)
     ij, n = ij[keep], n[keep]
     b = (curr.offsets[ij[:, 1]] - prev.offsets[ij[:, 0]]) / n[:, 2]
     w = prev.weights[ij[:, 0]] * curr.weights[ij[:, 1]]

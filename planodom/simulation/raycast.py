@@ -45,9 +45,12 @@ class RayCaster:
         self.scene = scene
         self.nthreads = nthreads
         verts, tris, owner = scene.triangles()
-        self._owner = owner.astype(np.int64)
-        self._planes = np.column_stack([scene.normals, scene.offsets])  # (K, 4)
-        self._ids = scene.ids.astype(np.int32)
+        # Per triangle: its surface index, plane (n, d) and surface id.
+        self._owner = np.append(owner.astype(np.int64), -1)  # last entry: no hit
+        planes = np.column_stack([scene.normals, scene.offsets])[owner]
+        self._planes = np.vstack([planes, [0.0, 0.0, 0.0, np.nan]])
+        self._ids = np.append(scene.ids.astype(np.int32)[owner], np.int32(-1))
+        self._no_hit = np.uint32(len(owner))  # index of the sentinel entries
         self._rs = o3d.t.geometry.RaycastingScene()
         self._rs.add_triangles(
             o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(tris.astype(np.uint32))
@@ -58,26 +61,24 @@ class RayCaster:
     ) -> RayHits:
         """Cast rays from ``origins`` (N, 3) along unit ``directions`` (N, 3), world frame,
         metres (float64). Hits beyond ``max_range`` (scalar or (N,), metres) are no hits."""
-        n = len(origins)
-        rays = np.empty((n, 6), dtype=np.float32)
-        rays[:, :3], rays[:, 3:] = origins, directions
-        out = self._rs.cast_rays(o3d.core.Tensor.from_numpy(rays), nthreads=self.nthreads)
-        prim = out["primitive_ids"].numpy()
-        hit = np.flatnonzero(prim != _INVALID)
-        surf = self._owner.take(prim.take(hit))
-        P = self._planes.take(surf, axis=0)
-        o, d = origins.take(hit, axis=0), directions.take(hit, axis=0)
-        num = P[:, 0] * o[:, 0] + P[:, 1] * o[:, 1] + P[:, 2] * o[:, 2] + P[:, 3]
-        den = P[:, 0] * d[:, 0] + P[:, 1] * d[:, 1] + P[:, 2] * d[:, 2]
+        return self.cast_rays(np.hstack([origins, directions]), max_range)
+
+    def cast_rays(self, rays: np.ndarray, max_range: float | np.ndarray = np.inf) -> RayHits:
+        """:meth:`cast` for rays (N, 6) ``[origin, unit direction]``, float64, world frame."""
+        rays = np.asarray(rays, dtype=np.float64)
+        out = self._rs.cast_rays(
+            o3d.core.Tensor.from_numpy(rays.astype(np.float32)), nthreads=self.nthreads
+        )
+        prim = np.minimum(out["primitive_ids"].numpy(), self._no_hit)  # invalid -> sentinel
+        P = self._planes.take(prim, axis=0)
+        nx, ny, nz = P[:, 0], P[:, 1], P[:, 2]
+        num = nx * rays[:, 0] + ny * rays[:, 1] + nz * rays[:, 2] + P[:, 3]
+        den = nx * rays[:, 3] + ny * rays[:, 4] + nz * rays[:, 5]
         with np.errstate(divide="ignore", invalid="ignore"):
             r = -num / den  # float64 intersection with the hit surface's plane
-        rmax = max_range if np.ndim(max_range) == 0 else np.take(max_range, hit)
-        ok = (r > 0) & (r <= rmax)  # also drops NaN from (impossible) grazing hits
-        hit, surf, r = hit[ok], surf[ok], r[ok]
-        ranges = np.full(n, np.inf)
-        ranges[hit] = r
-        surface = np.full(n, -1, dtype=np.int64)
-        surface[hit] = surf
-        labels = np.full(n, -1, dtype=np.int32)
-        labels[hit] = self._ids.take(surf)
-        return RayHits(ranges, surface, labels)
+            ok = (r > 0) & (r <= max_range)  # NaN (no hit, grazing) fails both
+        return RayHits(
+            np.where(ok, r, np.inf),
+            np.where(ok, self._owner.take(prim), -1),
+            np.where(ok, self._ids.take(prim), np.int32(-1)),
+        )

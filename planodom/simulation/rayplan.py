@@ -24,7 +24,7 @@ class TimingGroup:
         rate_hz, time_offset: sweeps per second; start of sweep 0, seconds.
         firing_times: (F,) seconds from a sweep start.
         directions: (F, G, 3) unit ray directions in the base frame (G: all the rays of
-            one firing over the group's sensors); directions_t: the same as (F, 3, G).
+            one firing over the group's sensors).
         origins: (G, 3) ray origins in the base frame, metres.
         rings: (G,) int32 global ring id. max_range, sigma: (G,) metres.
     """
@@ -41,14 +41,18 @@ class TimingGroup:
     sigma: np.ndarray
 
     @property
-    def directions_t(self) -> np.ndarray:
-        """(F, 3, G) contiguous transpose of :attr:`directions`."""
-        return self._directions_t
+    def homogeneous(self) -> np.ndarray:
+        """(F, 2G, 4) rows ``(o_g, 1)``, ``(d_fg, 0)`` per ray: ``homogeneous @ A`` with
+        ``A = [R^T; p^T]`` (4, 3) gives each ray's world origin and direction, in the
+        layout of a (F * G, 6) ray array."""
+        return self._homogeneous
 
     def __post_init__(self) -> None:
-        object.__setattr__(
-            self, "_directions_t", np.ascontiguousarray(self.directions.transpose(0, 2, 1))
-        )
+        F, G = self.directions.shape[:2]
+        h = np.zeros((F, G, 2, 4))
+        h[:, :, 0, :3], h[:, :, 0, 3] = self.origins, 1.0
+        h[:, :, 1, :3] = self.directions
+        object.__setattr__(self, "_homogeneous", h.reshape(F, 2 * G, 4))
 
     def sweep_starts(self, t0: float, t1: float) -> np.ndarray:
         """(S,) start times (s) of the sweeps starting in ``[t0, t1)``."""

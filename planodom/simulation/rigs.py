@@ -82,12 +82,11 @@ class Rig:
         """Rig from :meth:`to_dict` output; errors name ``source`` and the field."""
         if not isinstance(data, dict) or not isinstance(data.get("sensors"), list):
             raise ConfigError(f"{source}: field 'sensors': expected a list of sensors")
-        unknown = set(data) - {"name", "sensors"}
+        unknown = sorted(set(data) - {"name", "sensors"})
         if unknown:
-            raise ConfigError(f"{source}: unknown field(s) {sorted(unknown)}")
+            raise ConfigError(f"{source}: field '{unknown[0]}': unknown field")
         sensors = [
-            _sensor_from_dict(d, f"{source}: field 'sensors.{i}'")
-            for i, d in enumerate(data["sensors"])
+            _sensor_from_dict(d, source, f"sensors.{i}") for i, d in enumerate(data["sensors"])
         ]
         return cls(tuple(sensors), str(data.get("name", "rig")))
 
@@ -95,23 +94,21 @@ class Rig:
 _TYPES: dict[str, type] = {"scanner2d": Scanner2D, "lidar": SpinningLidar}
 
 
-def _sensor_from_dict(d: object, where: str) -> Sensor:
+def _sensor_from_dict(d: object, source: str, field: str) -> Sensor:
+    """One sensor from its dict; errors read ``source: field 'sensors.i.key': message``."""
     if not isinstance(d, dict) or d.get("type") not in _TYPES:
-        raise ConfigError(f"{where}.type: expected one of {sorted(_TYPES)}")
+        raise ConfigError(f"{source}: field '{field}.type': expected one of {sorted(_TYPES)}")
     cls = _TYPES[d["type"]]
     kwargs = {k: v for k, v in d.items() if k != "type"}
-    allowed = set(cls.__dataclass_fields__)
-    unknown = set(kwargs) - allowed
+    unknown = sorted(set(kwargs) - set(cls.__dataclass_fields__))
     if unknown:
-        raise ConfigError(f"{where}: unknown field(s) {sorted(unknown)}")
+        raise ConfigError(f"{source}: field '{field}.{unknown[0]}': unknown field")
     if "vfov_deg" in kwargs:
         kwargs["vfov_deg"] = tuple(kwargs["vfov_deg"])
     try:
         return cls(**kwargs)
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"{where}: {exc}") from exc
-    except ConfigError as exc:
-        raise ConfigError(f"{where}: {exc}") from exc
+    except (TypeError, ValueError, ConfigError) as exc:
+        raise ConfigError(f"{source}: field '{field}': {exc}") from exc
 
 
 def save_rig(rig: Rig, path: str | Path) -> None:
@@ -162,7 +159,7 @@ def isoclinal_rig(
     inclination_deg: float = 25.0,
     forward_meet_deg: float = 45.0,
     backward_meet_deg: float = -45.0,
-    look_down_deg: float = 15.0,
+    look_down_deg: float = 10.0,
     mount_height: float = 0.8,
     step_deg: float = 0.5,
     rate_hz: float = 75.0,

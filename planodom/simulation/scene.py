@@ -251,7 +251,7 @@ def scene_from_dict(data: object, source: str = "scene") -> Scene:
         spec = _SceneSpec.model_validate(data)
     except ValidationError as exc:
         first = exc.errors()[0]
-        loc = ".".join(str(x) for x in first["loc"])
+        loc = ".".join(str(x) for x in first["loc"]) or "(document)"
         raise DatasetError(f"{source}: field '{loc}': {first['msg']}") from exc
     surfaces = []
     for i, e in enumerate(spec.surfaces):

@@ -77,8 +77,7 @@ class _Rays:
     starts: np.ndarray  # (S,) sweep start times, s
     times: np.ndarray  # (S, F) firing times, s
     shape: tuple[int, int, int]  # (S, F, G)
-    origins: np.ndarray  # (S * F * G, 3) world, metres
-    directions: np.ndarray  # (S * F * G, 3) world, unit
+    rays: np.ndarray  # (S * F * G, 6) world origins (m) and unit directions, float64
 
 
 def _group_rays(g: TimingGroup, traj: Trajectory, t_k: float, t_end: float, snapshot: bool):
@@ -87,15 +86,15 @@ def _group_rays(g: TimingGroup, traj: Trajectory, t_k: float, t_end: float, snap
     times = starts[:, None] + g.firing_times[None, :]
     (S, F), G = times.shape, len(g.origins)
     if snapshot:
-        T = traj.pose(t_k)
-        dirs = np.broadcast_to(g.directions @ T[:3, :3].T, (S, F, G, 3))
-        orig = np.broadcast_to(g.origins @ T[:3, :3].T + T[:3, 3], (S, F, G, 3))
+        R, p = traj.rotations_translations(np.array([t_k]))
+        A = np.concatenate([R[0].T, p])  # (4, 3)
+        rays = np.broadcast_to(g.homogeneous @ A, (S, F, 2 * G, 3))
     else:
-        T = traj.poses(times.ravel()).reshape(S, F, 4, 4)
-        R = T[..., :3, :3]
-        dirs = np.matmul(R, g.directions_t).transpose(0, 1, 3, 2)
-        orig = np.matmul(R, g.origins.T).transpose(0, 1, 3, 2) + T[:, :, None, :3, 3]
-    return _Rays(starts, times, (S, F, G), orig.reshape(-1, 3), dirs.reshape(-1, 3))
+        R, p = traj.rotations_translations(times.ravel())
+        A = np.empty((S, F, 4, 3))  # [R^T; p^T] per firing, C-contiguous for matmul
+        A[:, :, :3], A[:, :, 3] = R.reshape(S, F, 3, 3).transpose(0, 1, 3, 2), p.reshape(S, F, 3)
+        rays = np.matmul(g.homogeneous, A)  # (S, F, 2G, 3)
+    return _Rays(starts, times, (S, F, G), rays.reshape(S * F * G, 6))
 
 
 def _returns(g: TimingGroup, rays: _Rays, ranges: np.ndarray, labels: np.ndarray, dt: np.ndarray):
@@ -142,8 +141,19 @@ class Simulator:
         self.epoch_rate, self.seed, self.motion = float(epoch_rate), int(seed), motion
         self.caster, self.groups = RayCaster(scene), plan_rays(rig)
         ranges = {float(s.max_range) for s in rig.sensors}
+        sigmas = {float(s.noise_sigma) for s in rig.sensors}
+        # scalars when all sensors agree, else None: per-ray arrays are built per epoch
         self._max_range = ranges.pop() if len(ranges) == 1 else None
-        self._noisy = any(s.noise_sigma > 0 for s in rig.sensors)
+        self._sigma = sigmas.pop() if len(sigmas) == 1 else None
+
+    def _per_ray(self, name: str, rays: list[_Rays]) -> np.ndarray:
+        """(N,) per-ray values of a per-sensor attribute of the timing groups."""
+        return _concat(
+            [
+                np.broadcast_to(getattr(g, name), r.shape).ravel()
+                for g, r in zip(self.groups, rays, strict=True)
+            ]
+        )
 
     def epoch(self, k: int, t_k: float) -> SimulatedEpoch:
         """Epoch number ``k`` (seeds its noise) with reference time ``t_k`` (s)."""
@@ -151,23 +161,15 @@ class Simulator:
         t_end = t_k + 1.0 / self.epoch_rate
         rays = [_group_rays(g, self.trajectory, t_k, t_end, snapshot) for g in self.groups]
         counts = [int(np.prod(r.shape)) for r in rays]
-        rmax = [
-            np.broadcast_to(g.max_range, r.shape).ravel()
-            for g, r in zip(self.groups, rays, strict=True)
-        ]
-        sigma = [
-            np.broadcast_to(g.sigma, r.shape).ravel()
-            for g, r in zip(self.groups, rays, strict=True)
-        ]
-        hits = self.caster.cast(
-            _concat([r.origins for r in rays]),
-            _concat([r.directions for r in rays]),
-            self._max_range if self._max_range is not None else _concat(rmax),
+        hits = self.caster.cast_rays(
+            _concat([r.rays for r in rays]),
+            self._max_range if self._max_range is not None else self._per_ray("max_range", rays),
         )
         ranges = hits.ranges
-        if self._noisy:
-            sig = _concat(sigma)
-            ranges = ranges + sig * np.random.default_rng([self.seed, k]).standard_normal(len(sig))
+        if self._sigma is None or self._sigma > 0:
+            sigma = self._sigma if self._sigma is not None else self._per_ray("sigma", rays)
+            noise = np.random.default_rng([self.seed, k]).standard_normal(len(ranges))
+            ranges = ranges + sigma * noise
         blocks, out_ranges, out_starts, n0 = [], {}, {}, 0
         for g, r, n in zip(self.groups, rays, counts, strict=True):
             rg, lab = ranges[n0 : n0 + n], hits.labels[n0 : n0 + n]
@@ -176,7 +178,10 @@ class Simulator:
             blocks.append(_returns(g, r, rg, lab, dt))
             rg = rg.reshape(r.shape)
             for i, sl in zip(g.sensors, g.slices, strict=True):
-                out_ranges[i], out_starts[i] = rg[:, :, sl].reshape(r.shape[0], -1), r.starts
+                out_ranges[i], out_starts[i] = (
+                    rg[:, :, sl].reshape(r.shape[0], r.shape[1] * (sl.stop - sl.start)),
+                    r.starts,
+                )
         scan = Scan(*(_concat([b[j] for b in blocks]) for j in range(4)))
         order = range(len(self.rig.sensors))
         return SimulatedEpoch(

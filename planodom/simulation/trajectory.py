@@ -26,12 +26,28 @@ from planodom.simulation.worlds import PAPER_LOOP_ROUTE, URBAN_CANYON_ROUTE
 
 def rpy_matrices(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
     """Rotations (T, 3, 3) ``Rz(yaw) Ry(pitch) Rx(roll)`` from angles (T,), radians."""
-    cr, sr, cp, sp, cy, sy = (f(a) for a in (roll, pitch, yaw) for f in (np.cos, np.sin))
-    R = np.empty((len(roll), 3, 3))
-    R[:, 0, 0], R[:, 0, 1], R[:, 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
-    R[:, 1, 0], R[:, 1, 1], R[:, 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
-    R[:, 2, 0], R[:, 2, 1], R[:, 2, 2] = -sp, cp * sr, cp * cr
-    return R
+    return _rotations(
+        np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    )
+
+
+def _rotations(cr, sr, cp, sp, cy, sy) -> np.ndarray:
+    """``Rz Ry Rx`` (T, 3, 3) from the cosines and sines (T,) of roll, pitch and yaw."""
+    spcr, spsr = sp * cr, sp * sr
+    rows = (cy * cp, cy * spsr - sy * cr, cy * spcr + sy * sr,
+            sy * cp, sy * spsr + cy * cr, sy * spcr - cy * sr,
+            -sp, cp * sr, cp * cr)  # fmt: skip
+    return np.stack(rows, axis=-1).reshape(-1, 3, 3)
+
+
+def _cubic(x: np.ndarray, c: np.ndarray, u: np.ndarray, deriv: bool = True):
+    """Value (and first derivative) of a cubic piecewise polynomial (scipy ``PPoly``
+    layout: breakpoints ``x`` (n+1,), coefficients ``c`` (4, n, ...)) at ``u`` (T,)."""
+    i = np.clip(np.searchsorted(x, u, side="right") - 1, 0, len(x) - 2)
+    h = (u - x.take(i)).reshape((-1,) + (1,) * (c.ndim - 2))
+    c0, c1, c2, c3 = np.take(c, i, axis=1)
+    value = ((c0 * h + c1) * h + c2) * h + c3
+    return (value, (3.0 * c0 * h + 2.0 * c1) * h + c2) if deriv else value
 
 
 class Trajectory(ABC):
@@ -46,6 +62,11 @@ class Trajectory(ABC):
     def pose(self, t: float) -> np.ndarray:
         """Single pose ``T_world_base`` (4, 4) at time ``t`` (s)."""
         return self.poses(np.array([float(t)]))[0]
+
+    def rotations_translations(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations (T, 3, 3) and translations (T, 3), metres, of :meth:`poses` at ``t``."""
+        T = self.poses(t)
+        return T[:, :3, :3], T[:, :3, 3]
 
 
 def _assemble(R: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -64,6 +85,10 @@ class Sway:
     pitch_hz: float = 0.23
     heave: float = 0.02
     heave_hz: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not (abs(self.roll) < np.pi / 2 and abs(self.pitch) < np.pi / 2):
+            raise GeometryError("sway roll and pitch amplitudes must be below 90 degrees")
 
     @classmethod
     def still(cls) -> Sway:
@@ -127,21 +152,29 @@ class WaypointTrajectory(Trajectory):
             self._u_of_s = CubicSpline(s, uu)
 
     def _param(self, t: np.ndarray) -> np.ndarray:
-        s = self.speed * np.asarray(t, dtype=np.float64)
+        """Spline parameter u (T,) at times t (T,): arc length s = speed t inverted."""
+        s = self.speed * t
         if self.closed:
             s = np.mod(s, self.length)
-            return self._u_of_s(s) + s * self._u_span / self.length
-        return self._u_of_s(np.clip(s, 0.0, self.length))
+            return _cubic(self._u_of_s.x, self._u_of_s.c, s, False) + s * (
+                self._u_span / self.length
+            )
+        return _cubic(self._u_of_s.x, self._u_of_s.c, np.clip(s, 0.0, self.length), False)
+
+    def rotations_translations(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations (T, 3, 3) and translations (T, 3), metres, at times ``t`` (T,), s."""
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        xy, dxy = _cubic(self._path.x, self._path.c, self._param(t))
+        heading = dxy / np.hypot(dxy[:, 0], dxy[:, 1])[:, None]  # (cos yaw, sin yaw)
+        roll, pitch, heave = self.sway.at(t)
+        sr, sp = np.sin(roll), np.sin(pitch)  # |roll|, |pitch| < pi / 2: cos = sqrt(1 - sin^2)
+        cr, cp = np.sqrt(1.0 - sr * sr), np.sqrt(1.0 - sp * sp)
+        R = _rotations(cr, sr, cp, sp, heading[:, 0], heading[:, 1])
+        return R, np.column_stack([xy, self.height + heave])
 
     def poses(self, t: np.ndarray) -> np.ndarray:
         """Poses ``T_world_base`` (T, 4, 4) at times ``t`` (T,), seconds."""
-        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
-        u = self._param(t)
-        xy, dxy = self._path(u), self._path(u, 1)
-        yaw = np.arctan2(dxy[:, 1], dxy[:, 0])
-        roll, pitch, heave = self.sway.at(t)
-        p = np.column_stack([xy, self.height + heave])
-        return _assemble(rpy_matrices(roll, pitch, yaw), p)
+        return _assemble(*self.rotations_translations(t))
 
 
 class TwistTrajectory(Trajectory):
