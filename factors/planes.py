@@ -32,7 +32,7 @@ import gtsam
 import gtsam_unstable
 import numpy as np
 
-from planodom.geometry import invert_transform, make_transform, transform_planes
+from planodom.geometry import make_transform
 
 #: Default plane measurement noise: Unit3 tangent (2) rad, offset (1) m.
 PLANE_NOISE = gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-2, 1e-2, 2e-2]))
@@ -100,8 +100,10 @@ def anchor_prior(
 
 def predict_plane(T_world_base: np.ndarray, plane_world: np.ndarray) -> np.ndarray:
     """(4,) ``(n, d)`` of a world plane (4,) seen from ``T_world_base`` (4, 4)."""
-    n, d = transform_planes(invert_transform(T_world_base), plane_world[None, :3], plane_world[3:])
-    return np.append(n[0], d[0])
+    n_world = plane_world[:3]
+    return np.append(
+        T_world_base[:3, :3].T @ n_world, plane_world[3] + n_world @ T_world_base[:3, 3]
+    )
 
 
 def orient_measurement(

@@ -37,6 +37,9 @@ import numpy as np
 #: Default noise of a 5-DoF relative pose: (rot x, rot y, rot z) rad, (x, y) m.
 POSE5_NOISE = gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-3, 1e-3, 1e-3, 1e-2, 1e-2]))
 
+#: Default noise of a relative rotation alone, rad.
+ROTATION_NOISE = gtsam.noiseModel.Isotropic.Sigma(3, 1e-3)
+
 #: Default weak prior on the change of height between epochs, m.
 VERTICAL_NOISE = gtsam.noiseModel.Isotropic.Sigma(1, 0.05)
 
@@ -82,6 +85,7 @@ def pose5_error(
 
 def _pose5_error(
     measured: gtsam.Pose3,
+    rows: slice,
     this: gtsam.CustomFactor,
     values: gtsam.Values,
     jacobians: list[np.ndarray] | None,
@@ -91,9 +95,9 @@ def _pose5_error(
         measured, values.atPose3(keys[0]), values.atPose3(keys[1]), jacobians is not None
     )
     if jacobians is not None:
-        jacobians[0] = H_i
-        jacobians[1] = H_j
-    return error
+        jacobians[0] = H_i[rows]
+        jacobians[1] = H_j[rows]
+    return error[rows]
 
 
 def _vertical_error(
@@ -126,7 +130,25 @@ def pose5_factor(
             may be robust.
     """
     measured = T_i_j if isinstance(T_i_j, gtsam.Pose3) else gtsam.Pose3(np.asarray(T_i_j))
-    return gtsam.CustomFactor(noise, [key_i, key_j], partial(_pose5_error, measured))
+    return gtsam.CustomFactor(noise, [key_i, key_j], partial(_pose5_error, measured, slice(0, 5)))
+
+
+def rotation_factor(
+    key_i: int,
+    key_j: int,
+    T_i_j: np.ndarray | gtsam.Pose3,
+    noise: gtsam.noiseModel.Base = ROTATION_NOISE,
+) -> gtsam.CustomFactor:
+    """The rotation rows of :func:`pose5_factor` alone (relative rotation measured,
+    horizontal translation not: the odometry's "degenerate" epochs).
+
+    Args:
+        key_i, key_j: keys of ``T_world_i`` and ``T_world_j``.
+        T_i_j: (4, 4) measured relative transform (only its rotation is used) or a Pose3.
+        noise: 3-dimensional noise model (rad); may be robust.
+    """
+    measured = T_i_j if isinstance(T_i_j, gtsam.Pose3) else gtsam.Pose3(np.asarray(T_i_j))
+    return gtsam.CustomFactor(noise, [key_i, key_j], partial(_pose5_error, measured, slice(0, 3)))
 
 
 def vertical_factor(

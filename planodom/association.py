@@ -185,6 +185,23 @@ def _plane_gate(
     return ok
 
 
+def _gated_combinations(
+    gate1: np.ndarray, gate2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All (p, j1, j2) with ``gate1[p, j1]`` and ``gate2[p, j2]``, vectorised, ordered by
+    p, then j1, then j2. gate1, gate2: (P, K) bool. Returns three (M,) int arrays."""
+    p1, j1 = np.nonzero(gate1)
+    p2, j2 = np.nonzero(gate2)
+    n = len(gate1)
+    c1, c2 = np.bincount(p1, minlength=n), np.bincount(p2, minlength=n)
+    s1, s2 = np.cumsum(c1) - c1, np.cumsum(c2) - c2
+    per = c1 * c2
+    p = np.repeat(np.arange(n), per)
+    q = np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
+    u, v = q // c2[p], q % c2[p]
+    return p, j1[s1[p] + u], j2[s2[p] + v]
+
+
 def lenient_association(
     prev: Sequence[Plane] | PlaneArrays,
     curr: Sequence[Plane] | PlaneArrays,
@@ -237,14 +254,14 @@ def lenient_association(
     if len(i1) == 0:
         return PairAssociations.empty()
 
-    # (P, Kc, Kc): prev pair p may map to the ordered current pair (j1, j2).
-    a_p = ang_p[i1, i2]
-    mask = gate[i1][:, :, None] & gate[i2][:, None, :] & ok_c[None]
-    mask &= np.abs(a_p[:, None, None] - ang_c[None]) <= np.radians(cfg.dihedral_tol_deg)
-    p, j1, j2 = np.nonzero(mask)
-    if len(p) == 0:
+    # Prev pair p may map to the ordered current pair (j1, j2) with j1, j2 gated.
+    p, j1, j2 = _gated_combinations(gate[i1], gate[i2])
+    a_p = ang_p[i1, i2][p]
+    keep = ok_c[j1, j2] & (np.abs(a_p - ang_c[j1, j2]) <= np.radians(cfg.dihedral_tol_deg))
+    if not keep.any():
         return PairAssociations.empty()
-    i1, i2, a_p = i1[p], i2[p], a_p[p]
+    p, j1, j2, a_p = p[keep], j1[keep], j2[keep], a_p[keep]
+    i1, i2 = i1[p], i2[p]
 
     U_p = rotation_frames(prev.normals[i1], prev.normals[i2])
     U_c = rotation_frames(curr.normals[j1], curr.normals[j2])

@@ -28,6 +28,8 @@ import numpy as np
 
 #: Budget of (candidate, element) pairs evaluated at once, to bound memory.
 _BLOCK = 1 << 18
+#: Default budget of (candidate, element) evaluations before shortlisting.
+_BUDGET = 1 << 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,6 +97,8 @@ def consensus(
     inlier_tol: float | None = None,
     truncate: float | None = None,
     groups: np.ndarray | None = None,
+    budget: int | None = _BUDGET,
+    shortlist: int = 256,
 ) -> ConsensusResult:
     """Select the candidate transformation that best fits all associated elements.
 
@@ -102,9 +106,9 @@ def consensus(
         candidates: (C, ...) candidate operands ``K^j`` (C >= 1).
         source: (E, ...) elements at epoch k, ``x_k^i``.
         target: (E, ...) the associated elements at epoch k + d, ``x_{k+d}^i``.
-        apply: ``apply(candidates (c, ...), source (E, ...)) -> (c, E, ...)``, the operator
+        apply: ``apply(candidates (c, ...), source (e, ...)) -> (c, e, ...)``, the operator
             ``K (.) x``; called on blocks of candidates.
-        error: per-element squared error ``(c, E, ...) , (E, ...) -> (c, E)``.
+        error: per-element squared error ``(c, e, ...) , (e, ...) -> (c, e)``.
         weights: (E,) non-negative weights ``w_k^i * w_{k+d}^i`` (WOCSC); None for OCSC.
         inlier_tol: an element is an inlier of the winner when ``error <= inlier_tol**2``
             (a distance, in the units of the elements); None counts every defined element.
@@ -113,10 +117,14 @@ def consensus(
             associations of one element (an ambiguous LDA association ``x_k^i -> x_{k+d}^j``
             or ``-> x_{k+d}^j'``); a group contributes only its least weighted error,
             i.e. each element is scored with its best partner under the candidate.
+        budget: most (candidate, element) evaluations of the exhaustive selection. Beyond
+            it, every candidate is first scored on an evenly strided subset of the
+            elements (whole groups), the ``shortlist`` best go on to the exhaustive score
+            and the others get an error of +inf. None: always exhaustive.
 
-    Elements whose error is NaN for every candidate (undefined, e.g. a reference point
-    that does not exist) or whose weight is zero are ignored; other non-finite errors
-    count as infinite (capped by ``truncate`` when given).
+    Elements with a non-finite source or target value (undefined, e.g. a reference point
+    that does not exist) or with zero weight are ignored; non-finite errors count as
+    infinite (capped by ``truncate`` when given).
 
     Returns:
         :class:`ConsensusResult`; ties between candidates go to the lowest index.
@@ -134,29 +142,40 @@ def consensus(
         raise ValueError(f"consensus: weights must be {n_elem} finite non-negative numbers")
     cap = np.inf if truncate is None else float(truncate) ** 2
 
-    block = max(1, _BLOCK // max(n_elem, 1))
-    per_element = np.empty((n_cand, n_elem))
-    for start in range(0, n_cand, block):
-        stop = min(start + block, n_cand)
-        per_element[start:stop] = error(apply(candidates[start:stop], source), target)
-    defined = ~np.all(np.isnan(per_element), axis=0)
-    used = defined & (w > 0)
-    e = np.where(np.isfinite(per_element), per_element, np.inf)
-    if groups is None:
-        totals = np.minimum(e, cap)[:, used] @ w[used]
+    defined = np.isfinite(source.reshape(n_elem, -1)).all(axis=1)
+    defined &= np.isfinite(target.reshape(n_elem, -1)).all(axis=1)
+    used = np.flatnonzero(defined & (w > 0))
+    gid = np.arange(n_elem) if groups is None else np.asarray(groups)
+    used = used[np.argsort(gid[used], kind="stable")]  # group members side by side
+
+    def totals_of(cand_index: np.ndarray, elems: np.ndarray) -> np.ndarray:
+        g = gid[elems]
+        starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1]]) if len(elems) else elems
+        out = np.zeros(len(cand_index))
+        block = max(1, _BLOCK // max(len(elems), 1))
+        for b in range(0, len(cand_index) if len(elems) else 0, block):
+            idx = cand_index[b : b + block]
+            e = error(apply(candidates[idx], source[elems]), target[elems])
+            e = np.minimum(np.where(np.isfinite(e), e, np.inf), cap) * w[elems]
+            if groups is not None:
+                e = np.minimum.reduceat(e, starts, axis=1)
+            out[b : b + block] = e.sum(axis=1)
+        return out
+
+    everyone = np.arange(n_cand)
+    if budget is not None and n_cand > shortlist and n_cand * len(used) > budget:
+        group_rank = np.cumsum(np.r_[True, gid[used][1:] != gid[used][:-1]]) - 1
+        stride = int(np.ceil(n_cand * len(used) / budget))
+        rough = totals_of(everyone, used[group_rank % stride == 0])
+        chosen = np.sort(np.argsort(rough, kind="stable")[:shortlist])
+        totals = np.full(n_cand, np.inf)
+        totals[chosen] = totals_of(chosen, used)
     else:
-        g = np.asarray(groups)[used]
-        order = np.argsort(g, kind="stable")
-        weighted = (np.minimum(e[:, used], cap) * w[used])[:, order]
-        starts = np.flatnonzero(np.r_[True, np.diff(g[order]) != 0]) if len(g) else []
-        totals = (
-            np.minimum.reduceat(weighted, starts, axis=1).sum(axis=1)
-            if len(g)
-            else np.zeros(n_cand)
-        )
+        totals = totals_of(everyone, used)
     best = int(np.argmin(totals))
 
-    best_errors = per_element[best]
+    best_errors = error(apply(candidates[best : best + 1], source), target)[0]
+    best_errors = np.where(defined, best_errors, np.nan)
     tol2 = np.inf if inlier_tol is None else float(inlier_tol) ** 2
     with np.errstate(invalid="ignore"):
         inliers = defined & (best_errors <= tol2)

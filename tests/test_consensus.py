@@ -164,3 +164,17 @@ def test_measured_breakdown_of_plain_and_truncated_consensus():
     assert success_rate(4, structured=True, truncate=0.1) >= 0.95
     assert success_rate(8, structured=False, truncate=0.1) >= 0.95
     assert success_rate(7, structured=True, truncate=0.1) <= 0.05
+
+
+def test_shortlist_beyond_the_budget_keeps_a_clear_winner():
+    rng = np.random.default_rng(12)
+    R_true = Rotation.random(random_state=rng).as_matrix()
+    cands = Rotation.random(600, random_state=rng).as_matrix()
+    cands[417] = R_true
+    src = rng.normal(size=(300, 3))
+    tgt = src @ R_true + rng.normal(0, 0.01, (300, 3))
+    full = consensus(cands, src, tgt, apply_inverse_rotation, budget=None)
+    short = consensus(cands, src, tgt, apply_inverse_rotation, budget=10_000, shortlist=16)
+    assert full.best_index == short.best_index == 417
+    assert np.isfinite(short.errors).sum() == 16
+    assert short.errors[417] == full.errors[417]

@@ -15,7 +15,7 @@ from factors.planes import (
     plane_factor,
     predict_plane,
 )
-from factors.pose5 import pose5_factor, vertical_factor
+from factors.pose5 import pose5_factor, rotation_factor, vertical_factor
 from planodom import geometry as g
 
 X = gtsam.symbol_shorthand.X
@@ -90,6 +90,11 @@ def test_pose5_jacobians_match_numerical(seed: int) -> None:
     values.insert(X(1), Tj)
     assert_jacobians_match(pose5_factor(X(0), X(1), measured, UNIT5), values)
     assert_jacobians_match(vertical_factor(X(0), X(1), 0.3, UNIT1), values)
+    assert_jacobians_match(rotation_factor(X(0), X(1), measured, UNIT3), values)
+    e5 = pose5_factor(X(0), X(1), measured, UNIT5).unwhitenedError(values)
+    np.testing.assert_allclose(
+        rotation_factor(X(0), X(1), measured, UNIT3).unwhitenedError(values), e5[:3]
+    )
 
 
 def test_pose5_error_components_and_free_z() -> None:

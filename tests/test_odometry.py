@@ -211,3 +211,42 @@ def test_se3_log_exp_round_trip():
     T = transform_from_rpy_xyz(0.1, -0.2, 0.3, 1.0, 2.0, -0.5)
     np.testing.assert_allclose(se3_exp(se3_log(T)), T, atol=1e-12)
     np.testing.assert_allclose(se3_log(np.eye(4)), np.zeros(6), atol=1e-15)
+
+
+def test_long_constant_velocity_bridges_keep_poses_rigid():
+    """Hundreds of unresolved epochs in a row: rounding must not grow (poses stay in SE(3))."""
+    world, poses = trajectory(4, seed=6)
+    odo = PlaneOdometry(config())
+    for k in range(300):
+        odo.register_planes(observe(world, poses[k]) if k < 4 else [], time=0.1 * k)
+    R = odo.poses[-1][:3, :3]
+    np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+    step = invert_transform(odo.poses[2]) @ odo.poses[3]
+    np.testing.assert_allclose(invert_transform(odo.poses[-2]) @ odo.poses[-1], step, atol=1e-9)
+    assert all(r.fallback for r in odo.results[4:])
+
+
+def test_dataset_motion_bounds_widen_the_config():
+    from planodom.odometry import motion_assumption, with_dataset_bounds
+
+    cfg = config()
+    wide = with_dataset_bounds(cfg, {"motion_bounds": {"max_rotation_deg": 60.0}})
+    assert wide.association.max_rotation_deg == 60.0
+    assert wide.association.max_translation_m == cfg.association.max_translation_m
+    narrow = with_dataset_bounds(cfg, {"motion_bounds": {"max_translation_m": 0.1}})
+    assert narrow.association.max_translation_m == cfg.association.max_translation_m
+    assert with_dataset_bounds(cfg, None) is cfg
+    assert "1 m and 20 deg" in motion_assumption(cfg)
+
+
+def test_large_motion_at_a_low_rate_needs_stated_bounds():
+    """40 deg and 3 m between epochs: beyond the default bounds, found once they are stated."""
+    big = transform_from_rpy_xyz(0.01, -0.02, np.radians(40.0), 3.0, -1.0)
+    prev, curr, _ = scene(11, n_walls=7, motion=big)
+    default = estimate_relative_pose(prev, curr, config())
+    assert default.status != "ok" or not np.allclose(default.T_prev_curr, big, atol=1e-3)
+    cfg = PlanodomConfig.from_dict(
+        {"association": {"max_rotation_deg": 50.0, "max_translation_m": 4.0}}
+    )
+    r = estimate_relative_pose(prev, curr, cfg)
+    np.testing.assert_allclose(r.T_prev_curr, big, atol=1e-9)

@@ -5,12 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given
+from hypothesis import strategies as st
 
 from planodom.errors import ConfigError, DatasetError
 from planodom.simulation import (
     Rig,
     Scanner2D,
     SpinningLidar,
+    isoclinal_normals,
     isoclinal_rig,
     lidar_rig,
     load_rig,
@@ -123,3 +126,19 @@ def test_named_rigs():
         rig_from_name("kinect")
     with pytest.raises(DatasetError, match="nope.yaml"):
         load_rig("/nonexistent/nope.yaml")
+
+
+@given(st.floats(-180, 180), st.floats(5, 60), st.floats(-180, 180))
+def test_isoclinal_trace_crossing_angle(meet_deg, inclination_deg, wall_azimuth_deg):
+    """Traces m x n of a rolled pair on a vertical wall cross at 2 atan(tan(theta) |n.h|)."""
+    m = isoclinal_normals(meet_deg, inclination_deg)
+    np.testing.assert_allclose(np.arccos(m[:, 2]), np.deg2rad(inclination_deg), atol=1e-9)
+    a = np.deg2rad(wall_azimuth_deg)
+    n = np.array([np.cos(a), np.sin(a), 0.0])
+    t = np.cross(m, n)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    h = np.cross(m[0], m[1])
+    h /= np.linalg.norm(h)
+    expected = 2 * np.arctan(np.tan(np.deg2rad(inclination_deg)) * abs(n @ h))
+    expected = min(expected, np.pi - expected)  # lines: the acute angle
+    assert np.arccos(min(1.0, abs(t[0] @ t[1]))) == pytest.approx(expected, abs=1e-6)

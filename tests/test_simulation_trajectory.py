@@ -136,3 +136,24 @@ def test_twist_trajectory_is_a_one_parameter_group(xi, a, b):
 def test_static_trajectory():
     T = transform_from_rpy_xyz(0, 0, 1.0, 3, 4, 1)
     np.testing.assert_array_equal(StaticTrajectory(T).poses(np.zeros(3)), np.stack([T] * 3))
+
+
+def test_se3_exp_is_accurate_for_tiny_rotations() -> None:
+    """Against scipy's rotation and the series of the left Jacobian, across the switch."""
+    from scipy.spatial.transform import Rotation
+
+    from planodom.simulation.trajectory import se3_exp
+
+    for th in (1e-9, 1e-6, 5e-4, 2e-3, 0.3):
+        w = th * np.array([0.6, -0.8, 0.0])
+        v = np.array([1.0, 2.0, -0.5])
+        T = se3_exp(np.concatenate([w, v])[None])[0]
+        np.testing.assert_allclose(T[:3, :3], Rotation.from_rotvec(w).as_matrix(), atol=1e-15)
+        # J_l(w) v by its power series sum_k [w]^k v / (k+1)!, independent of the closed form.
+        K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+        term, series, fact = v.copy(), v.copy(), 1.0
+        for k in range(1, 25):
+            term = K @ term
+            fact *= k + 1
+            series = series + term / fact
+        np.testing.assert_allclose(T[:3, 3], series, atol=1e-14)

@@ -183,7 +183,8 @@ def plot_trajectories(runs: Sequence[LevelRun], path: Path) -> None:
     for ax, noise in zip(axes.ravel(), levels, strict=False):
         here = [lr for lr in runs if lr.noise == noise]
         gt = here[0].gt_poses[:, :3, 3]
-        ax.plot(gt[:, 0], gt[:, 1], "x", color="tab:blue", ms=3, label="truth")
+        every = max(1, len(gt) // 150)
+        ax.plot(gt[::every, 0], gt[::every, 1], "x", color="tab:blue", ms=4, label="truth")
         for lr in here:
             p = lr.run.poses[:, :3, 3]
             ax.plot(p[:, 0], p[:, 1], "-", color=COLOURS.get(lr.method), lw=1.2, label=lr.method)

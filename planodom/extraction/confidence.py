@@ -35,6 +35,7 @@ def cpef(
     viewpoint: np.ndarray,
     points_ref: float,
     width_ref_m: float,
+    incidence: float | None = None,
 ) -> float:
     """CPEF weight in (0, 1] (module docstring).
 
@@ -44,12 +45,16 @@ def cpef(
         normal: (3,) unit normal. points: (K, 3) inliers, metres.
         viewpoint: (3,) or (K, 3) ray origins, metres.
         points_ref: N_ref. width_ref_m: W_ref (m).
+        incidence: ``w_incidence`` when already computed (``points`` is then not used).
     """
     w_res = float(np.exp(-((rms_m / (2.0 * max(sigma_m, 1e-12))) ** 2)))
     w_cnt = float(1.0 - np.exp(-n_points / points_ref))
     w_ext = float(1.0 - np.exp(-width_m / width_ref_m))
-    rays = points - viewpoint
-    norm = np.linalg.norm(rays, axis=1)
-    ok = norm > 0
-    w_inc = float(np.mean(np.abs(rays[ok] @ normal) / norm[ok])) if np.any(ok) else 1.0
+    if incidence is not None:
+        w_inc = float(incidence)
+    else:
+        rays = points - viewpoint
+        norm = np.linalg.norm(rays, axis=1)
+        ok = norm > 0
+        w_inc = float(np.mean(np.abs(rays[ok] @ normal) / norm[ok])) if np.any(ok) else 1.0
     return float(np.clip(w_res * w_cnt * w_ext * w_inc, 1e-6, 1.0))

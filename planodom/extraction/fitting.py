@@ -26,7 +26,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 
 from planodom.geometry import PlaneSupport
 
@@ -141,18 +140,38 @@ def orientation_sign(
     return -1.0 if towards < 0 else 1.0
 
 
-def support_polygon(points: np.ndarray, fit: PlaneFit) -> np.ndarray:
-    """(M, 3) convex hull of ``points`` (the inliers) projected on the plane, in order.
+#: Directions in which support_polygon takes the extreme point (every 360 / 32 deg).
+_POLY_DIRS = np.stack(
+    [np.cos(np.arange(32) * np.pi / 16), np.sin(np.arange(32) * np.pi / 16)], axis=0
+)
 
-    Vertices counter-clockwise about the (unoriented) fit normal; (0, 3) when degenerate.
+
+def support_polygon(points: np.ndarray, fit: PlaneFit) -> np.ndarray:
+    """(M, 3) convex polygon of ``points`` (the inliers) projected on the plane, in order.
+
+    The polygon joins the extreme points of the projected inliers in 32 directions, 11.25
+    deg apart, counter-clockwise about the (unoriented) fit normal: each vertex is a
+    vertex of the convex hull, and the polygon differs from the hull only by hull
+    vertices between two sampled directions (a few cm on a wall). qhull (scipy) gives the
+    exact hull but costs ~0.1 ms per call, more than the rest of a plane's fit. (0, 3)
+    when the points are degenerate.
     """
     basis = fit.evecs[:, :2]
     uv = (points - fit.centroid) @ basis
-    try:
-        hull = ConvexHull(uv)
-    except (QhullError, ValueError):
+    if len(uv) < 3:
         return np.zeros((0, 3))
-    v = uv[hull.vertices]
+    arg = np.argmax(uv @ _POLY_DIRS, axis=0)
+    keep = np.ones(len(arg), dtype=bool)
+    keep[1:] = arg[1:] != arg[:-1]
+    if arg[-1] == arg[0] and keep.sum() > 1:
+        keep[-1] = False
+    v = uv[arg[keep]]
+    if len(v) < 3:
+        return np.zeros((0, 3))
+    e = v - v.mean(axis=0)
+    area2 = np.sum(e[:, 0] * np.roll(e[:, 1], -1) - np.roll(e[:, 0], -1) * e[:, 1])
+    if not abs(area2) > 1e-12 * max(float(np.abs(e).max()) ** 2, 1e-300):
+        return np.zeros((0, 3))
     return fit.centroid + v @ basis.T
 
 

@@ -1,51 +1,185 @@
-"""Group straight segments of different rings and sweeps into planes.
+"""Group straight segments into traces, and traces of different scanners into planes.
 
-Two segments seed a plane only when they come from different rings (scanners) and cross
-at ``min_cross_angle_deg`` or more: the segments of one ring lie in (nearly) one scan
-plane, so two of them on different walls would "determine" the scan plane itself, and
-two of them on one wall are parallel (successive sweeps). A seed pair must also be
-coplanar within the tolerance. Every other segment (of any ring and sweep, parallel or
-not) joins a seeded plane when both its end points lie within the tolerance of it.
+1. Traces. A scanner sweeps several times per epoch; its segments on one wall in
+   successive sweeps are parallel lines displaced by the vehicle's motion (identical when
+   it stands still). Segments of one ring in consecutive sweeps are linked when they are
+   parallel (within ``trace_parallel_deg`` plus three times their predicted direction
+   errors), the centroid of one lies within ``tol + trace_step_m`` of the other's line and
+   their extents along it overlap; linked components are *traces*. A trace's moments are
+   the sums of its segments' (parallel-axis theorem), its direction the count-weighted
+   mean of theirs. This is the "trace" of :mod:`planodom.simulation.observability`, and
+   it keeps the few points each sweep puts on a narrow wall together (direction known
+   from all sweeps).
+2. Seeds. Two traces seed a plane only when they come from different rings (scanners),
+   cross at ``min_cross_angle_deg`` or more, their predicted direction errors are at most
+   ``max_seed_direction_error_deg`` and they are coplanar within the tolerance (plus the
+   slack of their direction errors). A pair whose lines cross at an end of both (an "L")
+   may be two traces of two walls that meet at a corner, ending there: such seeds are
+   tried only after every other seed.
+   Traces of one ring never seed: they are parallel or lie in one scan plane.
+3. Growth. Seeds are taken greedily, the one whose plane gathers the most points first;
+   every available trace whose RMS distance to the plane and whose end points lie within
+   the tolerance joins, the plane is refit from the members' moments (total least
+   squares) and the members re-collected. The group is a plane only if it still holds
+   its seed pair, has ``min_points`` points, its RMS residual is at most ``max_rms_m``
+   and, at high noise, it holds ``min_traces`` traces (see
+   :func:`required_traces`). Members of an accepted plane are not used again.
 
-Seeds are taken greedily, the one whose plane gathers the most points first; its plane is
-refit from the members' moments (total least squares) and its members re-collected until
-they no longer change. A seed whose own segments do not stay in its refit plane is
-dropped. Members of an accepted plane are not used again. So a group always contains two
-non-parallel traces of two different scanners: a set of parallel traces is never
-accepted, and a plane is never guessed from one trace.
+So a plane always contains two non-parallel traces of two scanners: a set of parallel
+traces is never accepted, and a plane is never guessed from one trace.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from planodom.extraction.segments import Segments
 
+#: Segments after each one (same ring, in time order) searched for its continuation in
+#: later sweeps: about 4 sweeps of ~8 segments each.
+LINK_BAND = 32
 
-def combined_fit(segs: Segments, members: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """Total-least-squares plane of the union of the segments ``members`` (bool (S,)).
 
-    Uses the parallel-axis theorem on the segments' centred scatter matrices, so no point
-    is touched. Returns the unit normal (3,), offset d (m) and RMS residual (m).
+@dataclass(frozen=True, eq=False)
+class Traces:
+    """Segments of one ring merged over sweeps (module docstring, step 1).
+
+    Attributes:
+        label: (S,) trace id of every segment.
+        ring, count: (T,) int64. centroid: (T, 3) m. scatter: (T, 3, 3) centred, m^2.
+        direction: (T, 3) unit. lo, hi: (T,) extent along the direction, relative to the
+        centroid (m). dir_err: (T,) predicted direction error (rad).
     """
-    cnt = segs.count[members].astype(np.float64)
-    cen = segs.centroid[members]
+
+    label: np.ndarray
+    ring: np.ndarray
+    count: np.ndarray
+    centroid: np.ndarray
+    scatter: np.ndarray
+    direction: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    dir_err: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.ring)
+
+
+def direction_error(sigma_m: float, count: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """Predicted 1-sigma direction error (rad) of a line fit to ``count`` points spread
+    over ``length`` m with noise ``sigma_m``: ``sigma sqrt(12 / N) / length``."""
+    return sigma_m * np.sqrt(12.0 / np.maximum(count, 1)) / np.maximum(length, 1e-9)
+
+
+def moment_sums(label, n_lab, count, centroid, scatter):
+    """Count, centroid and centred scatter of the unions of items grouped by ``label``."""
+    cnt = np.bincount(label, count.astype(np.float64), n_lab)
+    cen = (
+        np.stack([np.bincount(label, count * centroid[:, k], n_lab) for k in range(3)], axis=1)
+        / np.maximum(cnt, 1e-300)[:, None]
+    )
+    dc = centroid - cen[label]
+    full = scatter + count[:, None, None] * dc[:, :, None] * dc[:, None, :]
+    sc = np.stack([np.bincount(label, full[:, i, j], n_lab) for i in range(3) for j in range(3)])
+    return cnt, cen, sc.T.reshape(-1, 3, 3)
+
+
+def build_traces(segs: Segments, tol_m: float, sigma_m: float, parallel_deg: float, step_m: float):
+    """Merge the segments of each ring over its sweeps into :class:`Traces`."""
+    S = len(segs)
+    err = direction_error(sigma_m, segs.count, segs.length)
+    # Candidate links: each segment with the next LINK_BAND segments (sorted by ring, then
+    # time): a few sweeps of the same ring. Sweep ids are not used: time gaps from
+    # no-return beams split a sweep into several.
+    band = min(LINK_BAND, S - 1)
+    i = np.repeat(np.arange(S), band)
+    j = i + np.tile(np.arange(1, band + 1), S)
+    inside = j < S
+    i, j = i[inside], j[inside]
+    keep = segs.ring[i] == segs.ring[j]
+    i, j = i[keep], j[keep]
+    di, dj = segs.direction[i], segs.direction[j]
+    cosang = np.abs(np.einsum("ij,ij->i", di, dj))
+    sin_tol = np.sin(np.radians(parallel_deg) + 3.0 * (err[i] + err[j]))
+    sep = segs.centroid[j] - segs.centroid[i]
+    along = np.einsum("ij,ij->i", sep, di)
+    lateral = np.sqrt(np.maximum(np.einsum("ij,ij->i", sep, sep) - along * along, 0.0))
+    hi_i = 0.5 * segs.length[i]
+    hj = 0.5 * segs.length[j] * cosang
+    overlap = np.abs(along) <= hi_i + hj + tol_m
+    link = (np.sqrt(np.maximum(1.0 - cosang * cosang, 0.0)) <= sin_tol) & overlap
+    link &= lateral <= tol_m + step_m
+    i, j = i[link], j[link]
+    graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(S, S))
+    n_lab, label = connected_components(graph, directed=False)
+    cnt, cen, sc = moment_sums(label, n_lab, segs.count, segs.centroid, segs.scatter)
+    # Direction: count-weighted mean of the members' directions, signs aligned.
+    ref = np.zeros((n_lab, 3))
+    ref[label[::-1]] = segs.direction[::-1]  # the first member of each trace
+    sgn = np.where(np.einsum("ij,ij->i", segs.direction, ref[label]) < 0, -1.0, 1.0)
+    w = (segs.count * sgn)[:, None] * segs.direction
+    dsum = np.stack([np.bincount(label, w[:, k], n_lab) for k in range(3)], axis=1)
+    direction = dsum / np.linalg.norm(dsum, axis=1)[:, None]
+    # Extent along it: the members' end points.
+    t0 = np.einsum("ij,ij->i", segs.end0 - cen[label], direction[label])
+    t1 = np.einsum("ij,ij->i", segs.end1 - cen[label], direction[label])
+    lo = np.full(n_lab, np.inf)
+    hi = np.full(n_lab, -np.inf)
+    np.minimum.at(lo, label, np.minimum(t0, t1))
+    np.maximum.at(hi, label, np.maximum(t0, t1))
+    ring = np.zeros(n_lab, dtype=np.int64)
+    ring[label] = segs.ring
+    # Direction error: all the trace's points over its length.
+    err_t = direction_error(sigma_m, cnt, hi - lo)
+    return Traces(label, ring, cnt.astype(np.int64), cen, sc, direction, lo, hi, err_t)
+
+
+def plane_of(tr: Traces, members: np.ndarray) -> tuple[np.ndarray, float, float, float]:
+    """TLS plane of the union of traces ``members`` (bool (T,)) from their moments:
+    unit normal (3,), offset d (m), RMS residual (m), number of points."""
+    cnt = tr.count[members].astype(np.float64)
+    cen = tr.centroid[members]
     total = cnt.sum()
-    c = (cnt[:, None] * cen).sum(axis=0) / total
+    c = cnt @ cen / total
     dc = cen - c
-    scatter = segs.scatter[members].sum(axis=0) + (
-        cnt[:, None, None] * dc[:, :, None] * dc[:, None, :]
-    ).sum(axis=0)
+    scatter = tr.scatter[members].sum(axis=0) + (cnt[:, None] * dc).T @ dc
     vals, vecs = np.linalg.eigh(scatter)
     n = vecs[:, 0]
-    return n, float(-n @ c), float(np.sqrt(max(vals[0], 0.0) / total))
+    return n, float(-n @ c), float(np.sqrt(max(vals[0], 0.0) / total)), float(total)
 
 
-def _within(segs: Segments, n: np.ndarray, d: float, tol: float) -> np.ndarray:
-    """(S,) bool: both end points of each segment within ``tol`` of the plane (n, d)."""
-    dist_c = np.abs(segs.centroid @ n + d)
-    tilt = np.abs(segs.direction @ n) * 0.5 * segs.length
-    return dist_c + tilt <= tol
+def _fits(tr: Traces, n: np.ndarray, d: float, tol: float) -> np.ndarray:
+    """(T,) bool: a trace's RMS distance to the plane (n, d) and its end points (the ends
+    of its extent, at its centroid's offset) are within ``tol``."""
+    off = tr.centroid @ n + d
+    ms = (np.einsum("i,tij,j->t", n, tr.scatter, n) / tr.count) + off * off
+    slope = tr.direction @ n
+    ends = np.maximum(np.abs(off + slope * tr.lo), np.abs(off + slope * tr.hi))
+    return (ms <= tol * tol) & (ends <= tol)
+
+
+def quad_forms(normals: np.ndarray, scatter: np.ndarray) -> np.ndarray:
+    """(P, T) ``n_p^T S_t n_p`` for normals (P, 3) and symmetric matrices (T, 3, 3), as one
+    (P, 6) x (6, T) product (a three-operand einsum is ~50x slower here)."""
+    n = normals
+    nn = np.stack(
+        [n[:, 0] ** 2, 2 * n[:, 0] * n[:, 1], 2 * n[:, 0] * n[:, 2], n[:, 1] ** 2,
+         2 * n[:, 1] * n[:, 2], n[:, 2] ** 2],
+        axis=1,
+    )  # fmt: skip
+    s6 = scatter.reshape(-1, 9)[:, [0, 1, 2, 4, 5, 8]]
+    return nn @ s6.T
+
+
+def required_traces(sigma_m: float, tol_floor_m: float, min_traces_high_noise: int) -> int:
+    """Traces a plane needs: 2 while the noise is below the tolerance floor's order
+    (``sigma <= tol_floor_m``), else ``min_traces_high_noise``: at high noise two
+    traces of two walls that meet are coplanar within it, a third trace is evidence."""
+    return 2 if sigma_m <= tol_floor_m else max(2, min_traces_high_noise)
 
 
 def group_segments(
@@ -57,99 +191,100 @@ def group_segments(
     min_points: int,
     max_rms_m: float,
     margin_m: float = 0.2,
+    parallel_deg: float = 2.0,
+    step_m: float = 0.1,
+    min_traces: int = 2,
 ) -> tuple[list[np.ndarray], int]:
     """Segments grouped into planes.
 
     Args:
         segs: the epoch's segments.
-        tol_m: distance (m) within which a segment's ends must lie of a plane to join it.
-        sigma_m: noise sigma (m); predicts each segment's direction error
-            ``sigma sqrt(12 / N) / length`` (rad).
+        tol_m: distance (m) within which a trace must lie of a plane to join it.
+        sigma_m: noise sigma (m); predicts direction errors (:func:`direction_error`).
         min_cross_angle_deg: smallest angle between a seed pair's directions (deg).
         max_seed_direction_error_deg: largest predicted direction error of a seed (deg).
         min_points: fewest points of a group.
         max_rms_m: largest RMS residual (m) of a group's points to its plane.
         margin_m: an L-shaped seed pair has its crossing within this (m) of both ends.
+        parallel_deg, step_m: trace merging (``trace_parallel_deg``, ``trace_step_m``).
+        min_traces: fewest traces in a plane.
 
     Returns:
         A list of (K,) int64 arrays of segment indices, one per plane, and the number of
         seeds rejected after refitting.
     """
-    S = len(segs)
-    if S < 2:
+    if len(segs) < 2:
         return [], 0
-    dir_err = sigma_m * np.sqrt(12.0 / segs.count) / np.maximum(segs.length, 1e-9)
-    seeds = np.flatnonzero(dir_err <= np.radians(max_seed_direction_error_deg))
-    a, b = np.triu_indices(len(seeds), 1)
-    iu, ju = seeds[a], seeds[b]
-    keep = segs.ring[iu] != segs.ring[ju]
-    iu, ju = iu[keep], ju[keep]
-    cross = np.cross(segs.direction[iu], segs.direction[ju])
+    tr = build_traces(segs, tol_m, sigma_m, parallel_deg, step_m)
+    T = len(tr)
+    ok = tr.dir_err <= np.radians(max_seed_direction_error_deg)
+    a, b = np.triu_indices(T, 1)
+    keep = ok[a] & ok[b] & (tr.ring[a] != tr.ring[b])
+    iu, ju = a[keep], b[keep]
+    di, dj = tr.direction[iu], tr.direction[ju]
+    cross = np.cross(di, dj)
     sin_a = np.linalg.norm(cross, axis=1)
     keep = sin_a >= np.sin(np.radians(min_cross_angle_deg))
-    iu, ju, cross, sin_a = iu[keep], ju[keep], cross[keep], sin_a[keep]
+    iu, ju, cross, sin_a, di, dj = iu[keep], ju[keep], cross[keep], sin_a[keep], di[keep], dj[keep]
     normals = cross / sin_a[:, None]
-    mid = 0.5 * (segs.centroid[iu] + segs.centroid[ju])
-    offs = -np.einsum("ij,ij->i", normals, mid)
-    sep = segs.centroid[iu] - segs.centroid[ju]
+    sep = tr.centroid[iu] - tr.centroid[ju]
     gap = np.abs(np.einsum("ij,ij->i", normals, sep))
     # The pair's normal is uncertain by about (err_i + err_j) / sin(angle) (rad).
-    slack = np.linalg.norm(sep, axis=1) * 2.0 * (dir_err[iu] + dir_err[ju]) / sin_a
+    slack = np.linalg.norm(sep, axis=1) * 2.0 * (tr.dir_err[iu] + tr.dir_err[ju]) / sin_a
     keep = gap <= tol_m + slack
-    # Two lines that meet are coplanar: the traces of two scanners on two walls that
-    # meet at a corner, each ending at the corner, look like one plane when they reach
-    # the corner at the same point. Such an L (the crossing point at an end of both
-    # segments) is ambiguous and seeds nothing; X, T and V shapes do.
-    ui, uj = segs.direction[iu], segs.direction[ju]
-    a_ = np.einsum("ij,ij->i", ui, uj)
-    wi, wj = np.einsum("ij,ij->i", ui, sep), np.einsum("ij,ij->i", uj, sep)
-    den = np.maximum(1.0 - a_ * a_, 1e-12)
-    s_i = (a_ * wj - wi) / den
-    s_j = (wj - a_ * wi) / den
-    hi, hj = 0.5 * segs.length[iu], 0.5 * segs.length[ju]
-    at_end_i = np.abs(np.abs(s_i) - hi) <= np.maximum(margin_m, 0.05 * hi)
-    at_end_j = np.abs(np.abs(s_j) - hj) <= np.maximum(margin_m, 0.05 * hj)
-    keep &= ~(at_end_i & at_end_j)
-    iu, ju, normals, offs = iu[keep], ju[keep], normals[keep], offs[keep]
+    # Where the two lines cross, along each (relative to its centroid). An L (crossing at
+    # an end of both traces, within the margin) is two walls meeting at a corner.
+    c_ = np.einsum("ij,ij->i", di, dj)
+    wi, wj = np.einsum("ij,ij->i", di, sep), np.einsum("ij,ij->i", dj, sep)
+    den = np.maximum(1.0 - c_ * c_, 1e-12)
+    s_i = (c_ * wj - wi) / den
+    s_j = (wj - c_ * wi) / den
+    mi = np.maximum(margin_m, 0.05 * (tr.hi[iu] - tr.lo[iu]))
+    mj = np.maximum(margin_m, 0.05 * (tr.hi[ju] - tr.lo[ju]))
+    end_i = np.minimum(np.abs(s_i - tr.lo[iu]), np.abs(s_i - tr.hi[iu])) <= mi
+    end_j = np.minimum(np.abs(s_j - tr.lo[ju]), np.abs(s_j - tr.hi[ju])) <= mj
+    is_l = (end_i & end_j)[keep]
+    iu, ju, normals = iu[keep], ju[keep], normals[keep]
     if len(iu) == 0:
         return [], 0
-    # Many pairs (sweeps x sweeps of two scanners on one wall) seed the same plane: keep
-    # one per cell of (normal, offset) space (cells of ~0.6 deg and of the tolerance).
-    sgn = np.where(offs < 0, -1.0, 1.0)
-    key = np.column_stack(
-        [np.round(normals * sgn[:, None] / 0.01), np.round(offs * sgn / max(tol_m, 1e-3))]
-    ).astype(np.int64)
-    _, first = np.unique(key, axis=0, return_index=True)
-    first.sort()
-    iu, ju, normals, offs = iu[first], ju[first], normals[first], offs[first]
-    # Membership of every segment in every candidate plane: (P, S).
-    dist_c = np.abs(normals @ segs.centroid.T + offs[:, None])
-    tilt = np.abs(normals @ segs.direction.T) * (0.5 * segs.length)[None, :]
-    member = (dist_c + tilt) <= tol_m
-    weight = segs.count.astype(np.float64)
-    scores = member @ weight
+    mid = 0.5 * (tr.centroid[iu] + tr.centroid[ju])
+    offs = -np.einsum("ij,ij->i", normals, mid)
+    # Membership of every trace in every seed plane: (P, T), as in _fits.
+    off = normals @ tr.centroid.T + offs[:, None]
+    var_n = quad_forms(normals, tr.scatter) / tr.count[None, :]
+    slope = normals @ tr.direction.T
+    ends = np.maximum(np.abs(off + slope * tr.lo), np.abs(off + slope * tr.hi))
+    member = (var_n + off * off <= tol_m * tol_m) & (ends <= tol_m)
+    weight = tr.count.astype(np.float64)
+    # L seeds come last: the traces of a wall that meets another at a corner are taken
+    # by the walls' own crossing pairs first, and the L dies with them. An L that is
+    # left is two traces of one wall meeting at its edge (or an unresolved corner).
+    tier = np.where(is_l, 0.0, 2.0 * weight.sum() + 1.0)
+    scores = member @ weight + tier
     alive = np.ones(len(iu), dtype=bool)
-    available = np.ones(S, dtype=bool)
+    available = np.ones(T, dtype=bool)
     groups: list[np.ndarray] = []
     rejected = 0
     while True:
         masked = np.where(alive, scores, -1.0)
         p = int(np.argmax(masked))
-        if masked[p] < min_points:
+        if masked[p] - tier[p] < min_points:
             break
         alive[p] = False
         members = member[p] & available
-        for _ in range(5):
-            n, d, rms = combined_fit(segs, members)
-            new = _within(segs, n, d, tol_m) & available
+        members[iu[p]] = members[ju[p]] = True
+        for _ in range(3):
+            n, d, rms, total = plane_of(tr, members)
+            new = _fits(tr, n, d, tol_m) & available
             if np.array_equal(new, members) or np.count_nonzero(new) < 2:
                 break
             members = new
-        n, d, rms = combined_fit(segs, members)
+        n, d, rms, total = plane_of(tr, members)
         if (
             not (members[iu[p]] and members[ju[p]])
-            or weight[members].sum() < min_points
+            or total < min_points
             or rms > max_rms_m
+            or np.count_nonzero(members) < min_traces
         ):
             rejected += 1
             # Seeds that both fall in this rejected set would grow into it again.
@@ -160,4 +295,5 @@ def group_segments(
         available[idx] = False
         alive &= available[iu] & available[ju]
         scores -= member[:, idx] @ weight[idx]
-    return groups, rejected
+    label_groups = [np.flatnonzero(np.isin(tr.label, g)) for g in groups]
+    return label_groups, rejected

@@ -10,7 +10,13 @@ from planodom.odometry.pipeline import (
     estimate_relative_pose,
     pipeline_methods,
 )
-from planodom.odometry.streaming import OdometryRun, PlaneOdometry, run_odometry
+from planodom.odometry.streaming import (
+    OdometryRun,
+    PlaneOdometry,
+    motion_assumption,
+    run_odometry,
+    with_dataset_bounds,
+)
 
 __all__ = [
     "PIPELINES",
@@ -18,6 +24,8 @@ __all__ = [
     "PlaneOdometry",
     "RelativePose",
     "estimate_relative_pose",
+    "motion_assumption",
     "pipeline_methods",
     "run_odometry",
+    "with_dataset_bounds",
 ]

@@ -69,13 +69,16 @@ class RelativePose:
         T_prev_curr: (4, 4) maps the current base frame to the previous one.
         status: "ok"; "unresolved" (no associated non-parallel pair: no measurement,
             ``T_prev_curr`` is the prior or identity); "degenerate" (rotation measured,
-            horizontal translation not: no pair has a vertical-enough intersection; the
-            translation is the prior's or zero).
+            horizontal translation not: no pair has a vertical-enough intersection, or
+            the translation found exceeds the motion bound; the translation is then the
+            prior's or zero).
         pipeline: the pipeline name.
         z_observed: whether the vertical translation was measured (ground plane).
-        covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 / m^2, from the
-            spread of the candidates that agree with the winner (plus floors); for a
-            mean, the spread divided by the count.
+        covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 / m^2: for a
+            consensus winner the weighted spread of the candidates that agree with it
+            (within the inlier tolerances), for a mean that spread over the count, plus
+            the floors ``min_sigma_*``; block diagonal (rotation, translation). DoF that
+            were not measured (unresolved, degenerate) get the squared motion bound.
         sigma_z: standard deviation of the vertical translation, metres (inf: unobserved).
         lda: the LDA pair associations (indices into the input plane lists).
         plane_associations: (L, 2) SDA associations (i, j) under the final pose.
@@ -104,6 +107,26 @@ class RelativePose:
     def rpy(self) -> np.ndarray:
         """(roll, pitch, yaw) increments, rad."""
         return rpy_from_rotation(self.T_prev_curr[:3, :3])
+
+    @property
+    def roll(self) -> float:
+        return float(self.rpy[0])
+
+    @property
+    def pitch(self) -> float:
+        return float(self.rpy[1])
+
+    @property
+    def yaw(self) -> float:
+        return float(self.rpy[2])
+
+    @property
+    def x(self) -> float:
+        return float(self.T_prev_curr[0, 3])
+
+    @property
+    def y(self) -> float:
+        return float(self.T_prev_curr[1, 3])
 
     @property
     def pose5(self) -> np.ndarray:
@@ -239,16 +262,24 @@ def _solve(
     )
     heights = height_elements(prev, curr, ij, np.radians(ocfg.z_plane_max_tilt_deg))
 
-    trans_cons = None
-    if len(elems) == 0:
-        status, txy, z = "degenerate", t0[:2].copy(), z_prior
-        cov_t, sigma_z, z_observed = np.diag([t_bound**2] * 2), np.inf, False
-    else:
-        status = "ok"
+    trans_cons, status = None, "degenerate"
+    if len(elems):
         use_heights = heights if ocfg.estimate_z and len(heights) else None
         txy, z, cov_t, trans_cons, sigma_z, z_observed = _translation(
             elems, use_heights, z_prior, trans_method, ocfg
         )
+        # The result must respect the motion assumption that admitted its associations;
+        # beyond it (a wrong association, an artefact plane) it is not a measurement.
+        reach = t_bound + acfg.offset_tol_m
+        if z_observed and abs(z - t0[2]) > reach:
+            txy, z, cov_t, trans_cons, sigma_z, z_observed = _translation(
+                elems, None, z_prior, trans_method, ocfg
+            )
+        if np.linalg.norm(txy - t0[:2]) <= reach:
+            status = "ok"
+    if status == "degenerate":
+        txy, z = t0[:2].copy(), z_prior
+        cov_t, sigma_z, z_observed = np.diag([t_bound**2] * 2), np.inf, False
 
     T = make_transform(R, [txy[0], txy[1], z])
     cov = np.zeros((5, 5))

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 import gtsam
 import numpy as np
 
+from planodom.association import PlaneArrays
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform
 from planodom.odometry.pipeline import RelativePose, estimate_relative_pose
@@ -35,6 +36,39 @@ def se3_log(T: np.ndarray) -> np.ndarray:
 def se3_exp(xi: np.ndarray) -> np.ndarray:
     """``exp(xi)`` (4, 4) of a twist ``(wx, wy, wz, vx, vy, vz)`` (6,)."""
     return np.asarray(gtsam.Pose3.Expmap(np.asarray(xi, dtype=np.float64)).matrix())
+
+
+def with_dataset_bounds(config: PlanodomConfig, rig: object) -> PlanodomConfig:
+    """``config`` with the motion bounds a dataset states, when it states any.
+
+    A ``rig.yaml`` may say how fast its vehicle moves between consecutive epochs::
+
+        motion_bounds: {max_translation_m: 3.0, max_rotation_deg: 45.0}
+
+    Each bound becomes the larger of the config's and the dataset's (both are
+    assumptions of a maximum, so the union is the safe one).
+    """
+    bounds = rig.get("motion_bounds") if isinstance(rig, dict) else None
+    if not bounds:
+        return config
+    a = config.association
+    update = {
+        key: max(float(getattr(a, key)), float(bounds[key]))
+        for key in ("max_translation_m", "max_rotation_deg")
+        if key in bounds
+    }
+    return config.model_copy(update={"association": a.model_copy(update=update)})
+
+
+def motion_assumption(config: PlanodomConfig) -> str:
+    """One line stating what the absolute constraints of the association assume."""
+    a, d = config.association, config.odometry.delta
+    return (
+        f"association assumes at most {a.max_translation_m:g} m and {a.max_rotation_deg:g} deg "
+        f"of motion between consecutive epochs (x{d} for delta = {d}); with a "
+        f"constant-velocity prior, {a.prior_translation_m:g} m / {a.prior_rotation_deg:g} deg "
+        "around it (config association.max_*/prior_*, or motion_bounds in rig.yaml)"
+    )
 
 
 def rig_sensor_origins(rig: object) -> np.ndarray | None:
@@ -89,8 +123,12 @@ class PlaneOdometry:
         self.poses: list[np.ndarray] = []
         self.times: list[float] = []
         self.results: list[RelativePose | None] = []
-        self._history: deque[list[Plane]] = deque(maxlen=self.config.odometry.delta)
+        # The planes of the last delta epochs, with their array form.
+        self._history: deque[tuple[list[Plane], PlaneArrays]] = deque(
+            maxlen=self.config.odometry.delta
+        )
         self._twist: np.ndarray | None = None
+        self._steps: list[np.ndarray] = []  # T_{k-1}_k per epoch (identity first)
 
     @property
     def last_relative(self) -> RelativePose | None:
@@ -99,7 +137,7 @@ class PlaneOdometry:
 
     @property
     def last_planes(self) -> list[Plane]:
-        return self._history[-1] if self._history else []
+        return self._history[-1][0] if self._history else []
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -138,31 +176,36 @@ class PlaneOdometry:
         """Register an epoch given its planes (base frame); returns ``T_world_base`` (4, 4)."""
         t = self._next_time(time)
         planes = list(planes)
+        arrays = PlaneArrays.from_planes(planes)
         k = len(self.poses)
         if k == 0:
-            T_world = np.eye(4)
-            result = None
+            T_world, result, step = np.eye(4), None, np.eye(4)
         else:
-            T_world, result = self._relative(planes, t, k)
+            result, step = self._relative(arrays, t, k)
+            T_world = _orthonormalised(self.poses[-1] @ step)
             dt = t - self.times[-1]
-            step = invert_transform(self.poses[-1]) @ T_world
             self._twist = se3_log(step) / dt if dt > 0 else None
         self.poses.append(T_world)
+        self._steps.append(step)
         self.times.append(t)
         self.results.append(result)
-        self._history.append(planes)
+        self._history.append((planes, arrays))
         return T_world
 
-    def _relative(self, planes: list[Plane], t: float, k: int) -> tuple[np.ndarray, RelativePose]:
+    def _relative(self, planes: PlaneArrays, t: float, k: int) -> tuple[RelativePose, np.ndarray]:
+        """The relative pose to epoch ``k - delta`` and the step ``T_{k-1}_k`` it implies.
+
+        Poses are chained through steps (products of rigid transforms), never through the
+        inverse of a chained world pose, so rounding cannot grow from epoch to epoch.
+        """
         delta = min(self.config.odometry.delta, k)
-        ref = k - delta
-        T_world_ref = self.poses[ref]
-        # Constant-velocity prediction of this epoch, then relative to the reference.
+        T_ref_last = np.eye(4)  # T_{k-delta}_{k-1}
+        for step in self._steps[k - delta + 1 :]:
+            T_ref_last = T_ref_last @ step
         dt = t - self.times[-1]
-        prediction = None
+        prediction = None  # constant velocity: T_{k-delta}_k
         if self._twist is not None and dt > 0:
-            T_world_pred = self.poses[-1] @ se3_exp(self._twist * dt)
-            prediction = invert_transform(T_world_ref) @ T_world_pred
+            prediction = T_ref_last @ se3_exp(self._twist * dt)
         prior = prediction if self.config.odometry.use_motion_prior else None
 
         cfg = self.config
@@ -178,15 +221,23 @@ class PlaneOdometry:
                     )
                 }
             )
-        result = estimate_relative_pose(self._history[0], planes, cfg, prior)
+        result = estimate_relative_pose(self._history[0][1], planes, cfg, prior)
         if result.status == "unresolved":
-            T_rel = (
-                prediction
-                if prediction is not None
-                else invert_transform(T_world_ref) @ self.poses[-1]
-            )
+            T_rel = prediction if prediction is not None else T_ref_last
             result = replace(result, T_prev_curr=T_rel, fallback=True)
-        return T_world_ref @ result.T_prev_curr, result
+        step = _orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
+        return result, step
+
+
+def _orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+    """``T`` (4, 4) with its rotation projected on SO(3) (SVD) once rounding exceeds ``tol``."""
+    R = T[:3, :3]
+    if np.max(np.abs(R.T @ R - np.eye(3))) <= tol:
+        return T
+    U, _, Vt = np.linalg.svd(R)
+    out = T.copy()
+    out[:3, :3] = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    return out
 
 
 @dataclass
@@ -200,6 +251,7 @@ class OdometryRun:
         n_planes: (N,) planes extracted per epoch.
         planes: the planes of every epoch (base frame), for smoothing and diagnostics.
         seconds: wall time spent in extraction and in odometry, seconds.
+        config: the configuration the run used (with a dataset's motion bounds).
     """
 
     poses: np.ndarray
@@ -208,6 +260,7 @@ class OdometryRun:
     n_planes: np.ndarray
     planes: list[list[Plane]] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
+    config: PlanodomConfig | None = None
 
     @property
     def statuses(self) -> list[str]:
@@ -265,8 +318,9 @@ def run_odometry(
 
     Args:
         source: a sequence of :class:`Scan` (``len`` and indexing), e.g. a dataset; its
-            ``times`` attribute (N,) seconds is used when present and ``times`` is None.
-            Items may also be plane lists (then no extraction runs).
+            ``times`` attribute (N,) seconds is used when present and ``times`` is None,
+            its ``rig`` (``rig.yaml`` dict) for sensor origins and ``motion_bounds``
+            (:func:`with_dataset_bounds`). Items may also be plane lists (no extraction).
         config: pipeline configuration.
         progress: called as ``progress(k, n)`` after each epoch.
         extractor: ``extractor(scan, extraction_config, twist=...) -> list[Plane]``;
@@ -275,7 +329,7 @@ def run_odometry(
         sensor_origins: see :class:`PlaneOdometry`; default: from ``source.rig`` when it
             is a ``rig.yaml`` dict with ``sensor_origins`` or a simulation ``Rig``.
     """
-    cfg = config or PlanodomConfig()
+    cfg = with_dataset_bounds(config or PlanodomConfig(), getattr(source, "rig", None))
     if sensor_origins is None:
         sensor_origins = rig_sensor_origins(getattr(source, "rig", None))
     odo = PlaneOdometry(cfg, extractor, sensor_origins)
@@ -305,4 +359,5 @@ def run_odometry(
         n_planes=n_planes,
         planes=all_planes,
         seconds={"extraction": t_extract, "odometry": t_odo},
+        config=cfg,
     )

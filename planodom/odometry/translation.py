@@ -85,10 +85,10 @@ def translation_elements(
     ref_p, ref_c, slope = np.split(refs, 3)
     ok = np.isfinite(ref_p).all(axis=1) & np.isfinite(ref_c).all(axis=1)
     w = prev.weights[i1] * prev.weights[i2] * curr.weights[j1] * curr.weights[j2]
-    if condition:
-        sin2_p = np.sum(np.cross(prev.normals[i1], prev.normals[i2]) ** 2, axis=1)
-        sin2_c = np.sum(np.cross(curr.normals[j1], curr.normals[j2]) ** 2, axis=1)
-        w = w * sin2_p * sin2_c
+    if condition:  # sin^2 = 1 - cos^2 for unit normals
+        cos_p = np.einsum("ij,ij->i", prev.normals[i1], prev.normals[i2])
+        cos_c = np.einsum("ij,ij->i", curr.normals[j1], curr.normals[j2])
+        w = w * (1.0 - cos_p**2) * (1.0 - cos_c**2)
     return TranslationElements(
         prev_pairs[ok], curr_pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok]
     )

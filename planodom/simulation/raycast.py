@@ -77,8 +77,5 @@ class RayCaster:
         with np.errstate(divide="ignore", invalid="ignore"):
             r = -num / den  # float64 intersection with the hit surface's plane
             ok = (r > 0) & (r <= max_range)  # NaN (no hit, grazing) fails both
-        return RayHits(
-            np.where(ok, r, np.inf),
-            np.where(ok, self._owner.take(prim), -1),
-            np.where(ok, self._ids.take(prim), np.int32(-1)),
-        )
+        prim = np.where(ok, prim, self._no_hit)  # beyond range -> sentinel too
+        return RayHits(np.where(ok, r, np.inf), self._owner.take(prim), self._ids.take(prim))

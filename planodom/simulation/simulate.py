@@ -155,6 +155,13 @@ class Simulator:
             ]
         )
 
+    def rays(self, t_k: float) -> np.ndarray:
+        """All world rays (N, 6) ``[origin (m), unit direction]`` of the epoch at ``t_k`` (s)."""
+        t_end, snapshot = t_k + 1.0 / self.epoch_rate, self.motion == "snapshot"
+        return _concat(
+            [_group_rays(g, self.trajectory, t_k, t_end, snapshot).rays for g in self.groups]
+        )
+
     def epoch(self, k: int, t_k: float) -> SimulatedEpoch:
         """Epoch number ``k`` (seeds its noise) with reference time ``t_k`` (s)."""
         snapshot = self.motion == "snapshot"

@@ -208,11 +208,14 @@ def se3_exp(xi: np.ndarray) -> np.ndarray:
     """SE(3) exponential of twists ``xi`` (T, 6) = (wx, wy, wz, vx, vy, vz) to (T, 4, 4)."""
     w, v = xi[:, :3], xi[:, 3:]
     th = np.linalg.norm(w, axis=1)
-    small = th < 1e-8
+    # Below 1e-3 rad the closed forms cancel catastrophically; the Taylor series to th^4
+    # is exact there to ~1e-19.
+    small = th < 1e-3
     ths = np.where(small, 1.0, th)
-    a = np.where(small, 1.0 - th**2 / 6.0, np.sin(ths) / ths)
-    b = np.where(small, 0.5 - th**2 / 24.0, (1.0 - np.cos(ths)) / ths**2)
-    c = np.where(small, 1.0 / 6.0 - th**2 / 120.0, (ths - np.sin(ths)) / ths**3)
+    t2 = th**2
+    a = np.where(small, 1.0 - t2 / 6.0 + t2**2 / 120.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - t2 / 24.0 + t2**2 / 720.0, (1.0 - np.cos(ths)) / ths**2)
+    c = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t2**2 / 5040.0, (ths - np.sin(ths)) / ths**3)
     K = np.zeros((len(xi), 3, 3))
     K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
     K = K - np.swapaxes(K, 1, 2)

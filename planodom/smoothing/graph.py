@@ -43,10 +43,17 @@ from factors.planes import (
     plane_noise,
     predict_plane,
 )
-from factors.pose5 import pose5_factor, vertical_factor
+from factors.pose5 import pose5_factor, rotation_factor, vertical_factor
 from planodom.config import SmoothingConfig
 from planodom.errors import ConfigError
-from planodom.geometry import Plane, invert_transform, plane_tangent_covariance, transform_planes
+from planodom.geometry import (
+    Plane,
+    invert_transform,
+    make_transform,
+    plane_tangent_covariance,
+    rpy_from_rotation,
+    transform_planes,
+)
 from planodom.smoothing.landmarks import LandmarkTracker
 
 X = gtsam.symbol_shorthand.X
@@ -68,6 +75,10 @@ class RelativeMeasurement:
         associations: (M, 2) int, (plane index in ``prev``, plane index in ``curr``), the
             strict associations that gave this relative pose.
         ok: False for an unresolved pair (no factor; its associations are ignored).
+        covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 and m^2; when
+            given it replaces ``sigmas``.
+        translation_observed: False when only the rotation was measured (a rotation-only
+            factor is built).
     """
 
     prev: int
@@ -76,6 +87,8 @@ class RelativeMeasurement:
     sigmas: np.ndarray | None = None
     associations: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=int))
     ok: bool = True
+    covariance: np.ndarray | None = None
+    translation_observed: bool = True
 
     @property
     def delta(self) -> int:
@@ -118,6 +131,17 @@ class _Landmark:
     last_epoch: int
 
 
+def rpy_to_rotation_vector(rpy: np.ndarray) -> np.ndarray:
+    """(3, 3) Jacobian of the body-frame rotation error w.r.t. (roll, pitch, yaw) at ``rpy``.
+
+    For ``R = Rz(yaw) Ry(pitch) Rx(roll)``, ``R(rpy + d) = R Exp(J d)`` to first order; it
+    maps a covariance of rpy increments to the tangent of :func:`factors.pose5.pose5_factor`.
+    """
+    roll, pitch, _ = rpy
+    sr, cr, sp, cp = np.sin(roll), np.cos(roll), np.sin(pitch), np.cos(pitch)
+    return np.array([[1.0, 0.0, -sp], [0.0, cr, sr * cp], [0.0, -sr, cr * cp]])
+
+
 def plane_from_anchor(T_world_anchor: np.ndarray, plane_anchor: np.ndarray) -> np.ndarray:
     """(4,) world plane from a plane (4,) given in the anchor frame ``T_world_anchor``."""
     n, d = transform_planes(T_world_anchor, plane_anchor[None, :3], plane_anchor[3:])
@@ -148,7 +172,6 @@ class GraphBuilder:
         self.stats = GraphStats()
         self.n_epochs = 0
         self._T_world_first = np.eye(4) if T_world_first is None else np.asarray(T_world_first)
-        self._emitted: set[tuple[int, int]] = set()
         self._robust_planes = robust_planes
 
     # ----------------------------------------------------------------- noise models
@@ -160,15 +183,29 @@ class GraphBuilder:
             return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(k), base)
         return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(k), base)
 
-    def between_noise(self, sigmas: np.ndarray | None) -> gtsam.noiseModel.Base:
-        """5-dim noise from the odometry's sigmas (5,) (floored), robust if configured."""
+    def between_noise(self, rel: RelativeMeasurement) -> gtsam.noiseModel.Base:
+        """Noise of a relative pose's factor (5-dim, or 3-dim when rotation-only).
+
+        The covariance (or ``sigmas``) of (roll, pitch, yaw, x, y) is mapped to the
+        factor's rotation-vector tangent (:func:`rpy_to_rotation_vector`), floored in
+        quadrature, and wrapped in the robust kernel if configured.
+        """
         c = self.config
-        if sigmas is None or not np.all(np.isfinite(sigmas)):
-            s = np.array([c.default_rotation_sigma_rad] * 3 + [c.default_translation_sigma_m] * 2)
+        if rel.covariance is not None and np.all(np.isfinite(rel.covariance)):
+            cov = np.asarray(rel.covariance, dtype=float).reshape(5, 5)
+        elif rel.sigmas is not None and np.all(np.isfinite(rel.sigmas)):
+            cov = np.diag(np.asarray(rel.sigmas, dtype=float).reshape(5) ** 2)
         else:
-            s = np.asarray(sigmas, dtype=float).reshape(5)
-        floor = np.array([c.min_rotation_sigma_rad] * 3 + [c.min_translation_sigma_m] * 2)
-        base = gtsam.noiseModel.Diagonal.Sigmas(np.maximum(s, floor))
+            cov = np.diag(
+                [c.default_rotation_sigma_rad**2] * 3 + [c.default_translation_sigma_m**2] * 2
+            )
+        J = np.eye(5)
+        J[:3, :3] = rpy_to_rotation_vector(rpy_from_rotation(rel.T_prev_curr[:3, :3]))
+        floor = [c.min_rotation_sigma_rad**2] * 3 + [c.min_translation_sigma_m**2] * 2
+        cov = J @ (0.5 * (cov + cov.T)) @ J.T + np.diag(floor)
+        if not rel.translation_observed:
+            cov = cov[:3, :3]
+        base = gtsam.noiseModel.Gaussian.Covariance(cov)
         if c.robust_between and c.robust_kernel != "none":
             return self._robust(base)
         return base
@@ -188,17 +225,27 @@ class GraphBuilder:
     # ----------------------------------------------------------------- building
 
     def _initial_pose(self, k: int, resolved: list[RelativeMeasurement]) -> np.ndarray | None:
-        """Chained guess of ``T_world_k`` from the smallest-delta resolved pose, or None."""
-        for rel in sorted(resolved, key=lambda r: r.delta):
+        """Chained guess of ``T_world_k``: smallest delta, full 5-DoF before rotation-only."""
+        for rel in sorted(resolved, key=lambda r: (not r.translation_observed, r.delta)):
             if rel.prev in self.poses:
                 return self.poses[rel.prev] @ np.asarray(rel.T_prev_curr, dtype=float)
         return None
 
-    def _constant_velocity(self, k: int) -> np.ndarray:
-        """(4, 4) relative pose ``T_{k-1}_k`` repeating the last motion (identity if none)."""
-        if k >= 2 and k - 2 in self.poses and k - 1 in self.poses:
-            return invert_transform(self.poses[k - 2]) @ self.poses[k - 1]
-        return np.eye(4)
+    def _fallback_motion(self, k: int, relatives: Sequence[RelativeMeasurement]) -> np.ndarray:
+        """(4, 4) guess of ``T_{k-1}_k`` for an epoch no resolved relative pose reaches.
+
+        The unresolved delta = 1 result's transform when given (the odometry fills it by
+        constant velocity), else the last motion repeated, else the identity; the rotation
+        is re-orthonormalised so that repeated fallbacks cannot drift off SO(3).
+        """
+        T = np.eye(4)
+        given = [r.T_prev_curr for r in relatives if r.curr == k and r.delta == 1]
+        if given and np.all(np.isfinite(given[0])):
+            T = np.asarray(given[0], dtype=float)
+        elif k >= 2 and k - 2 in self.poses and k - 1 in self.poses:
+            T = invert_transform(self.poses[k - 2]) @ self.poses[k - 1]
+        U, _, Vt = np.linalg.svd(T[:3, :3])
+        return make_transform(U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt, T[:3, 3])
 
     def add_epoch(
         self,
@@ -239,25 +286,26 @@ class GraphBuilder:
             )
         else:
             T = self._initial_pose(k, resolved)
+            T_rel = self._fallback_motion(k, relatives)
             if T is None:
-                T_rel = self._constant_velocity(k)
                 T = self.poses[k - 1] @ T_rel
+                self.stats.unresolved_epochs.append(k)
+            if not any(r.translation_observed for r in resolved) and k - 1 >= min_epoch:
+                # Nothing measured the horizontal translation into epoch k (unresolved or
+                # rotation-only): a weak constant-velocity factor keeps the graph connected.
                 sigmas = np.array(
                     [c.fallback_rotation_sigma_rad] * 3 + [c.fallback_translation_sigma_m] * 2
                 )
-                if k - 1 >= min_epoch:
-                    noise = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
-                    graph.add(pose5_factor(X(k - 1), X(k), T_rel, noise))
-                    self.stats.fallback += 1
-                self.stats.unresolved_epochs.append(k)
+                noise = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+                graph.add(pose5_factor(X(k - 1), X(k), T_rel, noise))
+                self.stats.fallback += 1
             if k - 1 >= min_epoch:
                 noise = gtsam.noiseModel.Isotropic.Sigma(1, c.vertical_sigma_m)
                 graph.add(vertical_factor(X(k - 1), X(k), 0.0, noise))
                 self.stats.vertical += 1
         for rel in resolved:
-            graph.add(
-                pose5_factor(X(rel.prev), X(k), rel.T_prev_curr, self.between_noise(rel.sigmas))
-            )
+            make = pose5_factor if rel.translation_observed else rotation_factor
+            graph.add(make(X(rel.prev), X(k), rel.T_prev_curr, self.between_noise(rel)))
             self.stats.between += 1
         self.poses[k] = T
         values.insert(X(k), gtsam.Pose3(T))
@@ -266,10 +314,8 @@ class GraphBuilder:
         roots = self.tracker.add_epoch(k, len(planes), {r.delta: r.associations for r in resolved})
         for root in dict.fromkeys(roots):  # unique, in plane order
             j = self.tracker.landmark(root)
-            if j is None:
-                continue
-            members = [(e, i) for e, i in self.tracker.members(root) if (e, i) not in self._emitted]
-            self._add_observations(j, members, min_epoch, graph, values, stamps, k)
+            if j is not None:
+                self._add_observations(j, root, min_epoch, graph, values, stamps, k)
         return GraphUpdate(k, graph, values, stamps)
 
     def _new_landmark(
@@ -306,7 +352,7 @@ class GraphBuilder:
     def _add_observations(
         self,
         j: int,
-        members: list[tuple[int, int]],
+        root: int,
         min_epoch: int,
         graph: gtsam.NonlinearFactorGraph,
         values: gtsam.Values,
@@ -314,16 +360,15 @@ class GraphBuilder:
         k: int,
     ) -> None:
         usable = []
-        for e, i in members:
+        for e, i in self.tracker.take_pending(root):
             if e < min_epoch or e not in self.poses:
-                self._emitted.add((e, i))
                 self.stats.dropped_observations += 1
             else:
                 usable.append((e, i))
         lm = self.landmarks.get(j)
         if lm is None and len({e for e, _ in usable}) < self.config.min_landmark_epochs:
-            return  # wait for more observations inside the window
-        self._emitted.update(usable)
+            self.tracker.put_back(root, usable)  # wait for more observations in the window
+            return
         if lm is not None and lm.last_epoch < min_epoch:
             # The landmark has left the window; its key is gone from the smoother.
             self.stats.dropped_observations += len(usable)

@@ -35,6 +35,7 @@ class LandmarkTracker:
         self.conflicts = 0
         self._parent: list[int] = []
         self._members: dict[int, list[int]] = {}
+        self._pending: dict[int, list[int]] = {}
         self._epochs: dict[int, set[int]] = {}
         self._landmark: dict[int, int] = {}
         self._first_node: dict[int, int] = {}  # epoch -> node id of its plane 0
@@ -66,6 +67,7 @@ class LandmarkTracker:
             ra, rb = rb, ra
         self._parent[rb] = ra
         self._members[ra] += self._members.pop(rb)
+        self._pending[ra] += self._pending.pop(rb)
         self._epochs[ra] |= self._epochs.pop(rb)
         if rb in self._landmark:
             self._landmark[ra] = self._landmark.pop(rb)
@@ -93,6 +95,7 @@ class LandmarkTracker:
             node = start + i
             self._parent.append(node)
             self._members[node] = [node]
+            self._pending[node] = [node]
             self._epochs[node] = {epoch}
             self.observations.append((epoch, i))
         for delta in sorted(associations):
@@ -107,6 +110,18 @@ class LandmarkTracker:
     def members(self, root: int) -> list[tuple[int, int]]:
         """(epoch, plane index) of the observations of a track, by node id."""
         return [self.observations[n] for n in sorted(self._members[root])]
+
+    def take_pending(self, root: int) -> list[tuple[int, int]]:
+        """(epoch, plane index) of the track's observations not taken yet, by node id.
+
+        They are taken: a later call returns only observations added (or merged in) since.
+        """
+        nodes, self._pending[root] = self._pending[root], []
+        return [self.observations[n] for n in sorted(nodes)]
+
+    def put_back(self, root: int, observations: list[tuple[int, int]]) -> None:
+        """Return observations to the track's pending list (not used yet)."""
+        self._pending[root] += [self._first_node[e] + i for e, i in observations]
 
     def landmark(self, root: int) -> int | None:
         """Landmark id of a track, promoting it when it spans ``min_epochs`` epochs."""

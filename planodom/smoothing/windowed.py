@@ -40,6 +40,10 @@ class WindowedSmoother:
             params = gtsam.ISAM2Params()
             params.setRelinearizeThreshold(self.config.relinearize_threshold)
             params.relinearizeSkip = 1
+            # QR: the window's absolute position is only as certain as the marginalised
+            # past (weak after long unresolved stretches) while plane factors are stiff;
+            # Cholesky squares that condition number and gives up.
+            params.setFactorization("QR")
             self.smoother = gtsam.IncrementalFixedLagSmoother(lag, params)
         else:
             lm = gtsam.LevenbergMarquardtParams()

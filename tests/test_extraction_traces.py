@@ -1,0 +1,65 @@
+"""Trace merging over sweeps, the fast deskew, the support polygon (2D-rig path)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+from synth_scans import default_scene, scan_rig
+
+from planodom.config import ExtractionConfig
+from planodom.extraction import deskew_points, se3_exp
+from planodom.extraction.fitting import majority_label, robust_plane_fit, support_polygon
+from planodom.extraction.grouping import build_traces
+from planodom.extraction.segments import split_scan_lines
+
+XI = np.array([0.05, -0.04, 0.6, 3.0, 0.4, 0.1])
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-6, 0.0])
+def test_fast_deskew_matches_se3_exp(scale):
+    rng = np.random.default_rng(3)
+    p = rng.uniform(-60, 60, (500, 3))
+    t = rng.uniform(-0.1, 0.2, 500)
+    rot, trans = se3_exp(XI * scale, t)
+    np.testing.assert_allclose(deskew_points(p, t, XI * scale), rot.apply(p) + trans, atol=1e-12)
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.006])
+def test_traces_are_one_per_ring_and_wall(sigma):
+    # 7 sweeps of a moving rig: each scanner's segments on one wall become one trace.
+    scan = scan_rig(default_scene(), twist=XI, sigma=sigma, seed=1)
+    cfg = ExtractionConfig(range_noise_m=max(sigma, 0.002))
+    pts = deskew_points(scan.points, scan.t, XI)
+    segs, sig = split_scan_lines(pts, scan.ring, scan.t, cfg)
+    tr = build_traces(segs, max(3 * sig, 0.02), sig, 2.0, 0.1)
+    lab = np.array(
+        [
+            majority_label(scan.label[segs.order[a:b]])
+            for a, b in zip(segs.starts, segs.ends, strict=True)
+        ]
+    )
+    pure = [len(set(lab[tr.label == k])) == 1 for k in range(len(tr))]
+    assert all(pure)
+    # Collinear pieces of one trace may stay apart (a gap), but not more than a few.
+    assert len(tr) <= len(set(zip(segs.ring, lab, strict=True))) + 2
+    assert len(tr) < len(segs) / 4
+    assert tr.count[tr.count >= 3 * 3].sum() >= 0.99 * tr.count.sum()  # several sweeps each
+
+
+def test_support_polygon_is_the_hull_up_to_sampling():
+    rng = np.random.default_rng(0)
+    uv = rng.uniform([-3, -1], [3, 1], (400, 2))
+    pts = np.column_stack([uv, 0.5 * uv[:, 0] + 2.0])
+    fit = robust_plane_fit(pts, 3.5)
+    poly = support_polygon(pts, fit)
+    # Every vertex is an input point, on the plane.
+    assert np.all(np.min(np.linalg.norm(pts[None] - poly[:, None], axis=2), axis=1) < 1e-12)
+    # Convex, and its area is within 3 % of the exact hull's.
+    q = (poly - fit.centroid) @ fit.evecs[:, :2]
+    e = np.roll(q, -1, axis=0) - q
+    cross = e[:, 0] * np.roll(e[:, 1], -1) - e[:, 1] * np.roll(e[:, 0], -1)
+    assert np.all(cross > 0) or np.all(cross < 0)
+    area = 0.5 * abs(np.sum(q[:, 0] * np.roll(q[:, 1], -1) - np.roll(q[:, 0], -1) * q[:, 1]))
+    hull = ConvexHull((pts - fit.centroid) @ fit.evecs[:, :2]).volume
+    assert 0.97 * hull <= area <= hull + 1e-9

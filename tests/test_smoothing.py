@@ -1,0 +1,226 @@
+"""Smoothing: landmark tracks, noiseless recovery, consistency (NEES), flips, windows."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import gtsam
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.errors import ConfigError
+from planodom.geometry import Plane, make_transform, pose_error
+from planodom.smoothing import LandmarkTracker, WindowedSmoother, smooth_batch, smooth_windowed
+from planodom.smoothing.graph import GraphBuilder
+from planodom.smoothing.synthetic import SyntheticSequence, make_sequence
+
+GAUSSIAN = SmoothingConfig(robust_kernel="none")
+NOISE = dict(sigma_rotation=1e-3, sigma_translation=0.01, sigma_normal=0.005, sigma_offset=0.01)
+
+
+def max_pose_errors(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """Largest rotation (rad) and translation (m) error over a trajectory (E, 4, 4)."""
+    errors = np.array([pose_error(a, b) for a, b in zip(estimate, truth, strict=True)])
+    return float(errors[:, 0].max()), float(errors[:, 1].max())
+
+
+# --------------------------------------------------------------------------- landmarks
+
+
+def test_tracker_chains_and_needs_two_epochs() -> None:
+    tracker = LandmarkTracker(min_epochs=2)
+    roots0 = tracker.add_epoch(0, 3, {})
+    assert all(tracker.landmark(r) is None for r in roots0)  # seen once: no landmark
+    roots1 = tracker.add_epoch(1, 2, {1: np.array([[0, 1], [2, 0]])})
+    roots2 = tracker.add_epoch(2, 1, {1: np.array([[1, 0]]), 2: np.array([[0, 0]])})
+    assert tracker.find(roots2[0]) == tracker.find(roots1[1]) == tracker.find(roots0[0])
+    assert tracker.take_pending(tracker.find(roots2[0])) == [(0, 0), (1, 1), (2, 0)]
+    assert tracker.take_pending(tracker.find(roots2[0])) == []
+    ids = {tracker.landmark(tracker.find(r)) for r in (roots0[0], roots0[2])}
+    assert ids == {0, 1}
+    assert tracker.landmark(tracker.find(roots0[1])) is None  # plane 1 of epoch 0: once
+    assert tracker.conflicts == 0
+
+
+def test_tracker_refuses_two_planes_of_one_epoch_in_a_track() -> None:
+    tracker = LandmarkTracker()
+    tracker.add_epoch(0, 2, {})
+    # Epoch 1's plane 0 matches both planes of epoch 0 (delta 1) -> second join refused.
+    roots = tracker.add_epoch(1, 1, {1: np.array([[0, 0], [1, 0]])})
+    assert tracker.conflicts == 1
+    assert [e for e, _ in tracker.take_pending(roots[0])] == [0, 1]
+
+
+# --------------------------------------------------------------------------- batch / windowed
+
+
+@pytest.mark.parametrize("plane_factor", ["anchored", "global"])
+def test_noiseless_graph_optimises_to_the_truth(plane_factor: str) -> None:
+    seq = make_sequence(30, seed=2, vertical_sigma=0.0)
+    config = replace_config(GAUSSIAN, plane_factor=plane_factor)
+    result = smooth_batch(seq.planes, seq.relatives, config)
+    rot, trans = max_pose_errors(result.poses, seq.poses)
+    assert rot < 1e-9 and trans < 1e-8
+    # The initial guess (odometry chained, z unobserved) was not the truth.
+    assert max_pose_errors(result.initial_poses, seq.poses)[1] > 1e-3
+    assert result.stats.flipped == 0 and not result.stats.unresolved_epochs
+    for j, plane in result.landmarks.items():
+        assert min(np.abs(plane - seq.walls).sum(axis=1)) < 1e-8, j
+
+
+def replace_config(config: SmoothingConfig, **changes: object) -> SmoothingConfig:
+    return SmoothingConfig.model_validate({**config.model_dump(), **changes})
+
+
+def test_far_from_the_origin_anchored_landmarks_recover_the_truth() -> None:
+    origin = np.array([3000.0, -2000.0, 50.0])
+    seq = make_sequence(30, seed=3, vertical_sigma=0.0, origin=origin)
+    result = smooth_batch(seq.planes, seq.relatives, GAUSSIAN, T_world_first=seq.poses[0])
+    assert result.stats.global_landmarks == 0  # auto mode: all anchored out here
+    rot, trans = max_pose_errors(result.poses, seq.poses)
+    assert rot < 1e-9 and trans < 1e-7
+
+
+def test_noisy_batch_is_consistent_with_its_covariance() -> None:
+    """NEES of the last pose over independent seeds against chi-square bounds (6 DoF)."""
+    seeds = range(24)
+    nees = []
+    for seed in seeds:
+        seq = make_sequence(25, seed=seed, **NOISE)
+        result = smooth_batch(seq.planes, seq.relatives, GAUSSIAN)
+        k = len(seq.poses) - 1
+        xi = gtsam.Pose3(result.poses[k]).localCoordinates(gtsam.Pose3(seq.poses[k]))
+        nees.append(xi @ np.linalg.solve(result.covariances[k], xi))
+    dof = 6 * len(seeds)
+    lo, hi = chi2.ppf([0.005, 0.995], dof)
+    assert lo < np.sum(nees) < hi, (np.sum(nees), lo, hi)
+
+
+def test_smoothing_beats_chained_odometry_under_noise() -> None:
+    seq = make_sequence(60, seed=5, **NOISE)
+    result = smooth_batch(seq.planes, seq.relatives, GAUSSIAN)
+    final_initial = pose_error(result.initial_poses[-1], seq.poses[-1])[1]
+    final_smoothed = pose_error(result.poses[-1], seq.poses[-1])[1]
+    assert final_smoothed < 0.5 * final_initial
+
+
+def test_windowed_agrees_with_batch_when_the_window_covers_the_sequence() -> None:
+    seq = make_sequence(20, seed=4, **NOISE)
+    config = replace_config(GAUSSIAN, window=25, relinearize_threshold=1e-4)
+    batch = smooth_batch(seq.planes, seq.relatives, config)
+    windowed = smooth_windowed(seq.planes, seq.relatives, config)
+    rot, trans = max_pose_errors(windowed.poses, batch.poses)
+    assert rot < 1e-5 and trans < 1e-4
+    assert windowed.stats.plane_factors == batch.stats.plane_factors
+    for backend_result in (
+        smooth_windowed(
+            seq.planes, seq.relatives, replace_config(config, windowed_backend="batch")
+        ),
+    ):
+        assert max_pose_errors(backend_result.poses, batch.poses)[1] < 1e-4
+
+
+def test_short_window_runs_online_and_stays_close() -> None:
+    seq = make_sequence(50, seed=6, **NOISE)
+    config = replace_config(GAUSSIAN, window=6, delta_max=3)
+    smoother = WindowedSmoother(config)
+    by_curr: dict[int, list] = {}
+    for rel in seq.relatives:
+        by_curr.setdefault(rel.curr, []).append(rel)
+    for k, planes in enumerate(seq.planes):
+        T = smoother.add_epoch(planes, by_curr.get(k, []))
+        assert pose_error(T, seq.poses[k])[1] < 0.5
+        poses_kept = [
+            key for key in smoother.smoother.timestamps() if gtsam.Symbol(key).chr() == ord("x")
+        ]
+        assert len(poses_kept) == min(k + 1, config.window)
+    windowed = smoother.result()
+    assert windowed.online_poses is not None and len(windowed.poses) == 50
+    batch = smooth_batch(seq.planes, seq.relatives, config)
+    # Loose: a 6-epoch window drifts more than the batch, but not wildly.
+    assert max_pose_errors(windowed.poses, seq.poses)[1] < 10 * max(
+        max_pose_errors(batch.poses, seq.poses)[1], 0.05
+    )
+
+
+# --------------------------------------------------------------------------- guards
+
+
+def _with_flipped_observation(seq: SyntheticSequence, epoch: int, index: int) -> list[list[Plane]]:
+    planes = [list(p) for p in seq.planes]
+    planes[epoch][index] = planes[epoch][index].flipped()
+    return planes
+
+
+@pytest.mark.parametrize("policy", ["flip", "reject"])
+def test_flipped_normal_is_caught(policy: str) -> None:
+    seq = make_sequence(20, seed=7, vertical_sigma=0.0)
+    planes = _with_flipped_observation(seq, 10, 2)
+    config = replace_config(GAUSSIAN, flipped_normals=policy)
+    result = smooth_batch(planes, seq.relatives, config)
+    if policy == "flip":
+        assert result.stats.flipped == 1 and result.stats.rejected_flips == 0
+    else:
+        assert result.stats.rejected_flips == 1 and result.stats.flipped == 0
+    rot, trans = max_pose_errors(result.poses, seq.poses)
+    assert rot < 1e-9 and trans < 1e-8
+    # Without the guard the flipped plane would pull the pose along its normal.
+    clean = smooth_batch(seq.planes, seq.relatives, config)
+    assert clean.stats.plane_factors == result.stats.plane_factors + (policy == "reject")
+
+
+def test_plane_seen_once_stays_out_of_the_graph() -> None:
+    seq = make_sequence(12, seed=8, vertical_sigma=0.0)
+    planes = [list(p) for p in seq.planes]
+    planes[5].append(Plane(np.array([0.0, 1.0, 0.0]), 7.0, confidence=0.5))  # no association
+    builder_stats = smooth_batch(planes, seq.relatives, GAUSSIAN).stats
+    reference = smooth_batch(seq.planes, seq.relatives, GAUSSIAN).stats
+    assert builder_stats.plane_factors == reference.plane_factors
+    assert (
+        builder_stats.anchored_landmarks + builder_stats.global_landmarks
+        == reference.anchored_landmarks + reference.global_landmarks
+    )
+    # Every landmark's track has at least two observations in the graph.
+    seq_tracks: dict[int, set[int]] = {}
+    for k, ps in enumerate(seq.planes):
+        for p in ps:
+            seq_tracks.setdefault(p.truth_id, set()).add(k)
+    assert reference.plane_factors == sum(len(v) for v in seq_tracks.values() if len(v) >= 2)
+
+
+def test_unresolved_epoch_gets_a_fallback_and_planes_bridge_it() -> None:
+    seq = make_sequence(20, seed=9, vertical_sigma=0.0)
+    relatives = [replace(r, ok=False) if r.curr == 10 else r for r in seq.relatives]
+    result = smooth_batch(seq.planes, relatives, GAUSSIAN)
+    assert result.stats.unresolved_epochs == [10] and result.stats.fallback == 1
+    rot, trans = max_pose_errors(result.poses, seq.poses)
+    assert rot < 1e-6 and trans < 1e-5
+
+
+def test_robust_kernel_limits_an_outlier_relative_pose() -> None:
+    seq = make_sequence(30, seed=10, **NOISE)
+    bad = make_transform(np.eye(3), [2.0, -1.5, 0.0])
+    relatives = [
+        replace(r, T_prev_curr=r.T_prev_curr @ bad) if (r.prev, r.curr) == (14, 15) else r
+        for r in seq.relatives
+    ]
+    gaussian = smooth_batch(seq.planes, relatives, GAUSSIAN)
+    huber = smooth_batch(seq.planes, relatives, replace_config(GAUSSIAN, robust_kernel="huber"))
+    cauchy = smooth_batch(seq.planes, relatives, replace_config(GAUSSIAN, robust_kernel="cauchy"))
+    err = {
+        name: max_pose_errors(r.poses, seq.poses)[1]
+        for name, r in (("gaussian", gaussian), ("huber", huber), ("cauchy", cauchy))
+    }
+    assert err["huber"] < err["gaussian"] and err["cauchy"] < err["gaussian"], err
+
+
+def test_config_validation() -> None:
+    with pytest.raises(ConfigError, match="window"):
+        SmoothingConfig(window=3, delta_max=3)
+    with pytest.raises(ConfigError, match="robust_kernel"):
+        SmoothingConfig(robust_kernel="tukey")
+    with pytest.raises(ConfigError, match="global"):
+        GraphBuilder(SmoothingConfig(plane_factor="global"))
+    assert PlanodomConfig.from_dict({"smoothing": {"delta_max": 2}}).smoothing.delta_max == 2
