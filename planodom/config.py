@@ -347,6 +347,8 @@ class PlanodomConfig(Section):
             first = exc.errors()[0]
             loc = ".".join(str(x) for x in first["loc"])
             raise ConfigError(f"{source}: field '{loc}': {first['msg']}") from exc
+        except ConfigError as exc:  # raised by a section's own cross-field checks
+            raise ConfigError(f"{source}: {exc}") from exc
 
     def to_yaml(self, path: str | Path | None = None) -> str:
         """The resolved config as YAML text; also written to ``path`` when given."""

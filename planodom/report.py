@@ -43,3 +43,43 @@ def metrics_table(metrics: Mapping[str, float], title: str = "metrics") -> Table
     for key, value in metrics.items():
         table.add_row(key, f"{value:.6g}" if isinstance(value, float) else str(value))
     return table
+
+
+def odometry_table(run: object, metrics: Mapping[str, float], title: str = "odometry") -> Table:
+    """Summary of an odometry run: statuses, speed and, with ground truth, the errors."""
+    rows = [
+        ("epochs", "epochs", "{:.0f}"),
+        ("unresolved epochs (fallback: constant velocity)", "unresolved_epochs", "{:.0f}"),
+        ("degenerate epochs (translation not observed)", "degenerate_epochs", "{:.0f}"),
+        ("planes per epoch (median)", "planes_per_epoch_median", "{:.0f}"),
+        ("front end speed", "epochs_per_second", "{:.1f} epochs/s"),
+        ("distance travelled", "distance_m", "{:.1f} m"),
+        ("ATE rmse (3D / horizontal)", ("ate_rmse_m", "ate_rmse_m_xy"), "{:.3f} / {:.3f} m"),
+        ("final drift (horizontal)", ("drift_m_xy", "drift_percent_xy"), "{:.3f} m = {:.2f} %"),
+        ("RPE translation rmse", "rpe_trans_rmse_m", "{:.4f} m"),
+        ("RPE rotation rmse", "rpe_rot_rmse_deg", "{:.4f} deg"),
+    ]
+    for name in ("roll", "pitch", "yaw"):
+        rows.append(
+            (
+                f"{name} rate error mean / std",
+                (f"{name}_err_mean_deg", f"{name}_err_std_deg"),
+                "{:.4f} / {:.4f} deg",
+            )
+        )
+    for name in ("x", "y"):
+        rows.append(
+            (
+                f"{name} error mean / std",
+                (f"{name}_err_mean_m", f"{name}_err_std_m"),
+                "{:.4f} / {:.4f} m",
+            )
+        )
+    table = Table(title=title, show_header=False)
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    for label, keys, fmt in rows:
+        keys = (keys,) if isinstance(keys, str) else keys
+        if all(k in metrics for k in keys):
+            table.add_row(label, fmt.format(*(metrics[k] for k in keys)))
+    return table

@@ -19,8 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from planodom import metrics
 from planodom.config import PlanodomConfig
 from planodom.datasets import write_tum
+from planodom.odometry import OdometryRun
 
 
 def prepare_output(out: str | Path) -> Path:
@@ -72,6 +74,40 @@ def _json_safe(value: object) -> object:
 def write_metrics(out: Path, metrics: Mapping[str, object]) -> None:
     """``metrics.json`` (NaN and inf written as null)."""
     (out / "metrics.json").write_text(json.dumps(_json_safe(metrics), indent=2) + "\n")
+
+
+def odometry_metrics(run: OdometryRun, gt_poses: np.ndarray | None) -> dict[str, float]:
+    """Run statistics, and ATE / RPE / drift / per-epoch errors when ``gt_poses`` is known.
+
+    ATE and drift are given in 3D and in the horizontal plane (``_xy``): the odometry
+    observes 5 DoF, so z is only known where the planes happen to constrain it.
+    """
+    statuses = run.statuses
+    seconds = sum(run.seconds.values())
+    out: dict[str, float] = {
+        "epochs": float(len(statuses)),
+        "unresolved_epochs": float(run.n_unresolved),
+        "degenerate_epochs": float(run.n_degenerate),
+        "planes_per_epoch_median": float(np.median(run.n_planes)) if len(run.n_planes) else 0.0,
+        "epochs_per_second": len(statuses) / seconds if seconds > 0 else float("nan"),
+    }
+    if gt_poses is None or len(run.poses) < 2:
+        return out
+    out |= metrics.summarize(run.poses, gt_poses)
+    flat = metrics.summarize(run.poses, gt_poses, xy_only=True)
+    out |= {f"{k}_xy": flat[k] for k in ("ate_rmse_m", "drift_m", "drift_percent")}
+    return out
+
+
+def write_odometry_run(out: Path, run: OdometryRun, gt_poses: np.ndarray | None) -> dict:
+    """Write every output of an odometry run to ``out``; returns the metrics."""
+    write_trajectory(out, run.times, run.poses)
+    write_rows(out / "epochs.csv", run.rows())
+    if run.config is not None:
+        write_config(out, run.config)
+    stats = odometry_metrics(run, gt_poses)
+    write_metrics(out, stats)
+    return stats
 
 
 def write_config(out: Path, config: PlanodomConfig) -> None:

@@ -25,4 +25,7 @@ def test_simulated_dataset_round_trip(tmp_path) -> None:
     assert rig["epoch_rate"] == run.epoch_rate
     assert rig["simulation"]["seed"] == 3
     origins = np.array(rig["sensor_origins"])
-    assert origins.shape == (len(run.rig.sensors), 3)
+    assert origins.shape == (run.rig.n_rings, 3)
+    for ring in np.unique(run[0].ring):  # each ring's origin is its scanner's position
+        sensor = run.rig.sensors[int(np.searchsorted(run.rig.ring_offsets, ring, "right")) - 1]
+        np.testing.assert_array_equal(origins[ring], sensor.T_base_sensor[:3, 3])

@@ -16,15 +16,17 @@ def rig_description(run: SimulatedRun, scene_name: str | None = None) -> dict[st
     """The ``rig.yaml`` dict of a simulated run.
 
     Keys: ``epoch_rate`` (Hz), ``rig`` (sensors with ``T_base_sensor`` extrinsics, rates,
-    ranges, noise: :meth:`Rig.to_dict`), ``sensor_origins`` ((S, 3) sensor positions in
-    the base frame, metres, for orienting normals) and ``simulation`` (scene name and
+    ranges, noise: :meth:`Rig.to_dict`), ``sensor_origins`` ((R, 3): for each ring, the
+    position of its sensor in the base frame, metres, for orienting normals) and ``simulation`` (scene name and
     polygons, seed, motion, noise sigma in metres).
     """
     sensors = run.rig.sensors
     return {
         "epoch_rate": float(run.epoch_rate),
         "rig": run.rig.to_dict(),
-        "sensor_origins": np.array([s.T_base_sensor[:3, 3] for s in sensors]).tolist(),
+        "sensor_origins": np.repeat(
+            [s.T_base_sensor[:3, 3] for s in sensors], [s.n_rings for s in sensors], axis=0
+        ).tolist(),
         "simulation": {
             "scene_name": scene_name,
             "seed": int(run.seed),
