@@ -211,6 +211,35 @@ def run(
     console.print(odometry_table(odo, metrics, title=f"planodom run -> {out}"))
 
 
+@app.command("eval")
+@reports_errors
+def evaluate(
+    estimate: Annotated[Path, typer.Argument(help="Estimated trajectory, TUM format.")],
+    truth: Annotated[
+        Path, typer.Argument(help="Ground truth: a TUM file or a dataset with poses.tum.")
+    ],
+    delta: Annotated[int, typer.Option(help="RPE step in epochs.")] = 1,
+    align: Annotated[str, typer.Option(help="none | origin | se3 | 4dof")] = "origin",
+) -> None:
+    """ATE, RPE, drift and per-epoch 5-DoF errors of a trajectory against ground truth."""
+    import numpy as np
+
+    from planodom import metrics
+    from planodom.datasets import read_tum
+    from planodom.errors import DatasetError
+    from planodom.report import metrics_table
+
+    if align not in ("none", "origin", "se3", "4dof"):
+        raise DatasetError(f"--align: expected none, origin, se3 or 4dof, got '{align}'")
+    t_est, est = read_tum(estimate)
+    t_gt, gt = read_tum(truth / "poses.tum" if truth.is_dir() else truth)
+    if len(t_est) != len(t_gt) or not np.allclose(t_est, t_gt, atol=1e-6):
+        raise DatasetError(
+            f"{estimate}: {len(t_est)} poses whose times do not match the {len(t_gt)} of {truth}"
+        )
+    console.print(metrics_table(metrics.summarize(est, gt, align=align, delta=delta)))
+
+
 def main() -> None:  # pragma: no cover - console entry point
     app()
 

@@ -53,3 +53,23 @@ def test_run_reports_bad_input_in_one_line(tmp_path) -> None:
     args = ["run", "--scenario", "paper-loop", "--out", str(tmp_path / "o"), "--epochs", "2"]
     bad = runner.invoke(app, [*args, "--config", str(tmp_path / "bad.yaml")])
     assert bad.exit_code == 2 and "bad.yaml" in bad.output and "pipeline" in bad.output
+
+
+def test_eval_against_truth(tmp_path) -> None:
+    from planodom.datasets import write_tum
+    from planodom.geometry import transform_from_rpy_xyz
+
+    times = np.arange(5) * 0.1
+    gt = np.stack([transform_from_rpy_xyz(0, 0, 0.1 * k, k, 0) for k in range(5)])
+    est = gt.copy()
+    est[:, 1, 3] += 0.5  # a constant 0.5 m offset, removed by the origin alignment
+    est[4, 0, 3] += 0.3  # and one final error of 0.3 m
+    write_tum(tmp_path / "gt.tum", times, gt)
+    write_tum(tmp_path / "est.tum", times, est)
+    result = runner.invoke(app, ["eval", str(tmp_path / "est.tum"), str(tmp_path / "gt.tum")])
+    assert result.exit_code == 0, result.output
+    line = next(x for x in result.output.splitlines() if "drift_m" in x)
+    assert abs(float(line.split()[-2]) - 0.3) < 1e-9
+    write_tum(tmp_path / "short.tum", times[:3], gt[:3])
+    bad = runner.invoke(app, ["eval", str(tmp_path / "short.tum"), str(tmp_path / "gt.tum")])
+    assert bad.exit_code == 2 and "short.tum" in bad.output
