@@ -244,6 +244,11 @@ class SmoothingConfig(Section):
     """A tracked plane enters the graph once seen in at least this many epochs."""
     flipped_normals: str = "flip"
     """A measured normal more than 90 deg from the predicted one: "flip" it or "reject" it."""
+    gate_normal_deg: float = 15.0
+    """After orientation, a plane observation whose normal is farther than this from its
+    landmark's prediction (at the initial estimate) is a wrong association: not added."""
+    gate_offset_m: float = 2.0
+    """Same for the offset along the normal, metres (allows odometry drift along a track)."""
     robust_kernel: str = "huber"
     """"none", "huber" or "cauchy", on the factors chosen by ``robust_between`` and
     ``robust_planes`` (outlier associations)."""
