@@ -211,6 +211,65 @@ def run(
     console.print(odometry_table(odo, metrics, title=f"planodom run -> {out}"))
 
 
+@app.command()
+@reports_errors
+def smooth(
+    out: OutDir,
+    dataset: Annotated[Path | None, typer.Argument(help="Dataset directory.")] = None,
+    window: Annotated[
+        int | None, typer.Option(help="Fixed-lag window W in epochs (implies --mode windowed).")
+    ] = None,
+    delta: Annotated[
+        int | None, typer.Option(help="Relative poses for delta = 1..D (default: config's).")
+    ] = None,
+    mode: Annotated[str | None, typer.Option(help="batch | windowed.")] = None,
+    scenario: Scenario = None,
+    rig: RigName = "isoclinal",
+    noise: Noise = "lms221",
+    seed: Seed = 0,
+    epochs: Epochs = None,
+    motion: Motion = "continuous",
+    config: ConfigFile = None,
+) -> None:
+    """Smooth the odometry with a factor graph (batch, or a fixed-lag window).
+
+    Writes the smoothed poses.tum / poses_kitti.txt, the raw odometry as odometry.tum,
+    config.yaml and, with ground truth, metrics.json for both.
+    """
+    from planodom import results
+    from planodom.report import comparison_table
+    from planodom.smoothing.run import run_smoothing
+
+    cfg = _load_config(config)
+    mode = mode or ("windowed" if window is not None else "batch")
+    out = results.prepare_output(out)
+    data = _dataset_or_scenario(
+        dataset, scenario, out, rig=rig, noise=noise, seed=seed, epochs=epochs, motion=motion
+    )
+    progress, callback = _progress("odometry and relative poses")
+    with progress:
+        sm = run_smoothing(
+            data,
+            cfg,
+            window=window,
+            delta=delta,
+            mode=mode,
+            progress=lambda stage, k, n: callback(k, n),
+        )
+    odo_metrics = results.write_odometry_run(out, sm.odometry, data.gt_poses)
+    results.write_trajectory(out, sm.times, sm.poses)  # the smoothed trajectory is the output
+    results.write_tum(out / "odometry.tum", sm.times, sm.odometry.poses)
+    results.write_config(out, sm.config)
+    smoothed = results.trajectory_metrics(sm.poses, data.gt_poses)
+    results.write_metrics(out, {"odometry": odo_metrics, f"smoothing_{mode}": smoothed})
+    console.print(
+        comparison_table(
+            {"odometry": odo_metrics, f"{mode} smoothing": smoothed},
+            title=f"planodom smooth -> {out}",
+        )
+    )
+
+
 @app.command("eval")
 @reports_errors
 def evaluate(

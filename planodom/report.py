@@ -83,3 +83,25 @@ def odometry_table(run: object, metrics: Mapping[str, float], title: str = "odom
         if all(k in metrics for k in keys):
             table.add_row(label, fmt.format(*(metrics[k] for k in keys)))
     return table
+
+
+#: Columns of a comparison table: (header, metrics key, format).
+COMPARISON_COLUMNS = (
+    ("ATE xy [m]", "ate_rmse_m_xy", "{:.3f}"),
+    ("ATE 3D [m]", "ate_rmse_m", "{:.3f}"),
+    ("RPE t [m]", "rpe_trans_rmse_m", "{:.4f}"),
+    ("RPE r [deg]", "rpe_rot_rmse_deg", "{:.4f}"),
+    ("drift xy [%]", "drift_percent_xy", "{:.2f}"),
+)
+
+
+def comparison_table(rows: Mapping[str, Mapping[str, float]], title: str = "") -> Table:
+    """One row per estimator with the headline metrics (ATE and RPE are rmse)."""
+    table = Table(title=title)
+    table.add_column("estimator")
+    for header, _, _ in COMPARISON_COLUMNS:
+        table.add_column(header, justify="right")
+    for name, m in rows.items():
+        cells = [fmt.format(m[key]) if key in m else "-" for _, key, fmt in COMPARISON_COLUMNS]
+        table.add_row(name, *cells)
+    return table

@@ -22,6 +22,8 @@ import numpy as np
 from planodom import metrics
 from planodom.config import PlanodomConfig
 from planodom.datasets import write_tum
+
+__all__ = ["write_tum"]
 from planodom.odometry import OdometryRun
 
 
@@ -76,12 +78,21 @@ def write_metrics(out: Path, metrics: Mapping[str, object]) -> None:
     (out / "metrics.json").write_text(json.dumps(_json_safe(metrics), indent=2) + "\n")
 
 
-def odometry_metrics(run: OdometryRun, gt_poses: np.ndarray | None) -> dict[str, float]:
-    """Run statistics, and ATE / RPE / drift / per-epoch errors when ``gt_poses`` is known.
+def trajectory_metrics(poses: np.ndarray, gt_poses: np.ndarray | None) -> dict[str, float]:
+    """ATE / RPE / drift / per-epoch errors, plus horizontal ATE and drift (``_xy``).
 
-    ATE and drift are given in 3D and in the horizontal plane (``_xy``): the odometry
-    observes 5 DoF, so z is only known where the planes happen to constrain it.
+    The odometry observes 5 DoF, so z is only known where the planes constrain it; the
+    horizontal figures are the ones to compare. Empty without ground truth.
     """
+    if gt_poses is None or len(poses) < 2:
+        return {}
+    out = metrics.summarize(poses, gt_poses)
+    flat = metrics.summarize(poses, gt_poses, xy_only=True)
+    return out | {f"{k}_xy": flat[k] for k in ("ate_rmse_m", "drift_m", "drift_percent")}
+
+
+def odometry_metrics(run: OdometryRun, gt_poses: np.ndarray | None) -> dict[str, float]:
+    """Run statistics, and :func:`trajectory_metrics` when ``gt_poses`` is known."""
     statuses = run.statuses
     seconds = sum(run.seconds.values())
     out: dict[str, float] = {
@@ -91,12 +102,7 @@ def odometry_metrics(run: OdometryRun, gt_poses: np.ndarray | None) -> dict[str,
         "planes_per_epoch_median": float(np.median(run.n_planes)) if len(run.n_planes) else 0.0,
         "epochs_per_second": len(statuses) / seconds if seconds > 0 else float("nan"),
     }
-    if gt_poses is None or len(run.poses) < 2:
-        return out
-    out |= metrics.summarize(run.poses, gt_poses)
-    flat = metrics.summarize(run.poses, gt_poses, xy_only=True)
-    out |= {f"{k}_xy": flat[k] for k in ("ate_rmse_m", "drift_m", "drift_percent")}
-    return out
+    return out | trajectory_metrics(run.poses, gt_poses)
 
 
 def write_odometry_run(out: Path, run: OdometryRun, gt_poses: np.ndarray | None) -> dict:

@@ -73,3 +73,19 @@ def test_eval_against_truth(tmp_path) -> None:
     write_tum(tmp_path / "short.tum", times[:3], gt[:3])
     bad = runner.invoke(app, ["eval", str(tmp_path / "short.tum"), str(tmp_path / "gt.tum")])
     assert bad.exit_code == 2 and "short.tum" in bad.output
+
+
+def test_smooth_noise_free_recovers_the_truth(tmp_path) -> None:
+    out = tmp_path / "smooth"
+    args = ["smooth", "--scenario", "paper-loop", "--out", str(out), "--epochs", "10"]
+    args += ["--noise", "0", "--motion", "snapshot", "--delta", "2"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    _, est = read_tum(out / "poses.tum")
+    _, odo = read_tum(out / "odometry.tum")
+    gt = relative_to_first(load_dataset(out / "dataset").gt_poses)
+    np.testing.assert_allclose(est[:, :2, 3], gt[:, :2, 3], atol=1e-5)
+    np.testing.assert_allclose(est[:, :3, :3], gt[:, :3, :3], atol=1e-5)
+    np.testing.assert_allclose(odo[:, :2, 3], gt[:, :2, 3], atol=1e-6)
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics) == {"odometry", "smoothing_batch"}
