@@ -121,15 +121,27 @@ def orient_measurement(
 def plane_noise(
     tangent_covariance: np.ndarray, isotropic_normal: bool = False
 ) -> gtsam.noiseModel.Gaussian:
-    """Gaussian noise model from a (3, 3) covariance in OrientedPlane3 tangent coordinates.
+    """Gaussian noise model of a plane factor from the measured plane's covariance.
 
-    ``isotropic_normal`` replaces the (2, 2) normal block by its largest eigenvalue times
-    the identity and drops the normal-offset correlation: the global factor expresses its
-    error in the tangent basis of the *predicted* normal, which may be rotated in the
-    tangent plane with respect to the measured one's.
+    Args:
+        tangent_covariance: (3, 3) covariance of the measured plane in OrientedPlane3
+            tangent coordinates (``retract`` / ``localCoordinates``: Unit3 basis (2), d).
+        isotropic_normal: replace the (2, 2) normal block by its largest eigenvalue times
+            the identity and drop the normal-offset correlation: the global factor
+            expresses its error in the tangent basis of the *predicted* normal, which may
+            be rotated in the tangent plane with respect to the measured one's.
+
+    ``OrientedPlane3::errorVector`` (used by both factors) does not return tangent
+    coordinates: its normal part has the sign of ``localCoordinates`` but its offset part
+    the opposite one (``d_this - d_other``; checked in tests/test_factors.py). The error's
+    covariance is therefore ``S C S`` with ``S = diag(1, 1, -1)``: the normal-offset
+    correlations change sign. Without this, plane fits (whose normal and offset errors are
+    strongly correlated when the centroid is far from the sensor) are whitened wrongly.
     """
     cov = np.array(tangent_covariance, dtype=float)
     if isotropic_normal:
         lam = float(np.linalg.eigvalsh(cov[:2, :2])[-1])
         cov = np.diag([lam, lam, cov[2, 2]])
+    cov[:2, 2] *= -1.0
+    cov[2, :2] *= -1.0
     return gtsam.noiseModel.Gaussian.Covariance(cov)

@@ -44,32 +44,38 @@ ROTATION_NOISE = gtsam.noiseModel.Isotropic.Sigma(3, 1e-3)
 VERTICAL_NOISE = gtsam.noiseModel.Isotropic.Sigma(1, 0.05)
 
 
+def _matrix(T: np.ndarray | gtsam.Pose3) -> np.ndarray:
+    """(4, 4) float64 copy of a transform or Pose3."""
+    return np.array(T.matrix() if isinstance(T, gtsam.Pose3) else T, dtype=float).reshape(4, 4)
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def pose5_error(
-    measured: gtsam.Pose3,
-    pose_i: gtsam.Pose3,
-    pose_j: gtsam.Pose3,
+    T_i_j: np.ndarray,
+    T_world_i: np.ndarray,
+    T_world_j: np.ndarray,
     jacobians: bool = False,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-    """5-DoF error (5,) of ``pose_i^-1 pose_j`` against ``measured`` (module docstring).
+    """5-DoF error (5,) of ``T_world_i^-1 T_world_j`` against ``T_i_j`` (module docstring).
 
     Args:
-        measured: the measured relative pose ``T_i_j`` (its z is ignored).
-        pose_i, pose_j: ``T_world_i`` and ``T_world_j``.
-        jacobians: also return the (5, 6) Jacobians w.r.t. both poses.
+        T_i_j: (4, 4) the measured relative pose (its z is ignored).
+        T_world_i, T_world_j: (4, 4) the two poses.
+        jacobians: also return the (5, 6) Jacobians w.r.t. both poses (gtsam tangent).
 
     Returns:
         error (5,): rad (3), m (2); and H_i, H_j (or None when not asked for).
     """
-    Ri = pose_i.rotation().matrix()
-    Rj = pose_j.rotation().matrix()
-    R_pred = Ri.T @ Rj
-    t_pred = Ri.T @ (pose_j.translation() - pose_i.translation())
-    e_rot = gtsam.Rot3.Logmap(gtsam.Rot3(measured.rotation().matrix().T @ R_pred))
-    error = np.concatenate([e_rot, (t_pred - measured.translation())[:2]])
+    Ri_T = T_world_i[:3, :3].T
+    R_pred = Ri_T @ T_world_j[:3, :3]
+    t_pred = Ri_T @ (T_world_j[:3, 3] - T_world_i[:3, 3])
+    e_rot = gtsam.Rot3.Logmap(gtsam.Rot3(T_i_j[:3, :3].T @ R_pred))
+    error = np.empty(5)
+    error[:3] = e_rot
+    error[3:] = t_pred[:2] - T_i_j[:2, 3]
     if not jacobians:
         return error, None, None
     Jr_inv = gtsam.Rot3.LogmapDerivative(e_rot)
@@ -78,13 +84,13 @@ def pose5_error(
     H_i[:3, :3] = -Jr_inv @ R_pred.T
     H_j[:3, :3] = Jr_inv
     H_i[3:, :3] = _skew(t_pred)[:2]
-    H_i[3:, 3:] = -np.eye(3)[:2]
+    H_i[3, 3] = H_i[4, 4] = -1.0
     H_j[3:, 3:] = R_pred[:2]
     return error, H_i, H_j
 
 
 def _pose5_error(
-    measured: gtsam.Pose3,
+    measured: np.ndarray,
     rows: slice,
     this: gtsam.CustomFactor,
     values: gtsam.Values,
@@ -92,7 +98,10 @@ def _pose5_error(
 ) -> np.ndarray:
     keys = this.keys()
     error, H_i, H_j = pose5_error(
-        measured, values.atPose3(keys[0]), values.atPose3(keys[1]), jacobians is not None
+        measured,
+        values.atPose3(keys[0]).matrix(),
+        values.atPose3(keys[1]).matrix(),
+        jacobians is not None,
     )
     if jacobians is not None:
         jacobians[0] = H_i[rows]
@@ -107,12 +116,16 @@ def _vertical_error(
     jacobians: list[np.ndarray] | None,
 ) -> np.ndarray:
     keys = this.keys()
-    pose_i, pose_j = values.atPose3(keys[0]), values.atPose3(keys[1])
+    T_i, T_j = values.atPose3(keys[0]).matrix(), values.atPose3(keys[1]).matrix()
     if jacobians is not None:
         # t' = t + R v: the height moves by the third row of R.
-        jacobians[0] = np.concatenate([np.zeros(3), -pose_i.rotation().matrix()[2]])[None]
-        jacobians[1] = np.concatenate([np.zeros(3), pose_j.rotation().matrix()[2]])[None]
-    return np.array([pose_j.translation()[2] - pose_i.translation()[2] - dz])
+        H_i = np.zeros((1, 6))
+        H_j = np.zeros((1, 6))
+        H_i[0, 3:] = -T_i[2, :3]
+        H_j[0, 3:] = T_j[2, :3]
+        jacobians[0] = H_i
+        jacobians[1] = H_j
+    return np.array([T_j[2, 3] - T_i[2, 3] - dz])
 
 
 def pose5_factor(
@@ -129,8 +142,9 @@ def pose5_factor(
         noise: 5-dimensional noise model, sigmas (rot x, rot y, rot z) rad, (x, y) m;
             may be robust.
     """
-    measured = T_i_j if isinstance(T_i_j, gtsam.Pose3) else gtsam.Pose3(np.asarray(T_i_j))
-    return gtsam.CustomFactor(noise, [key_i, key_j], partial(_pose5_error, measured, slice(0, 5)))
+    return gtsam.CustomFactor(
+        noise, [key_i, key_j], partial(_pose5_error, _matrix(T_i_j), slice(0, 5))
+    )
 
 
 def rotation_factor(
@@ -147,8 +161,9 @@ def rotation_factor(
         T_i_j: (4, 4) measured relative transform (only its rotation is used) or a Pose3.
         noise: 3-dimensional noise model (rad); may be robust.
     """
-    measured = T_i_j if isinstance(T_i_j, gtsam.Pose3) else gtsam.Pose3(np.asarray(T_i_j))
-    return gtsam.CustomFactor(noise, [key_i, key_j], partial(_pose5_error, measured, slice(0, 3)))
+    return gtsam.CustomFactor(
+        noise, [key_i, key_j], partial(_pose5_error, _matrix(T_i_j), slice(0, 3))
+    )
 
 
 def vertical_factor(

@@ -43,6 +43,7 @@ from planodom.geometry import (
     dihedral_angles,
     horizontal_reference_points,
     make_transform,
+    plane_transform_jacobian,
     rotation_frames,
     transform_planes,
     transform_points,
@@ -61,6 +62,7 @@ class PlaneArrays:
         centroids: (K, 3) support centroids, metres (NaN rows when unknown).
         radii: (K,) largest distance from centroid to support polygon vertex, metres
             (NaN when the polygon is unknown).
+        covariances: (K, 4, 4) covariances of ``(n, d)`` (NaN when unknown).
     """
 
     normals: np.ndarray
@@ -68,27 +70,34 @@ class PlaneArrays:
     weights: np.ndarray
     centroids: np.ndarray
     radii: np.ndarray
+    covariances: np.ndarray
 
     @classmethod
     def from_planes(cls, planes: Sequence[Plane]) -> PlaneArrays:
         k = len(planes)
         normals, offsets = np.zeros((k, 3)), np.zeros(k)
         weights, centroids, radii = np.ones(k), np.full((k, 3), np.nan), np.full(k, np.nan)
+        covariances = np.full((k, 4, 4), np.nan)
         for i, p in enumerate(planes):
             normals[i], offsets[i], weights[i] = p.normal, p.offset, p.confidence
+            if p.covariance is not None:
+                covariances[i] = p.covariance
             if p.support is not None:
                 centroids[i] = p.support.centroid
                 if len(p.support.polygon):
                     radii[i] = np.max(np.linalg.norm(p.support.polygon - centroids[i], axis=1))
-        return cls(normals, offsets, weights, centroids, radii)
+        return cls(normals, offsets, weights, centroids, radii, covariances)
 
     def __len__(self) -> int:
         return len(self.offsets)
 
     def transformed(self, T_a_b: np.ndarray) -> PlaneArrays:
-        """These planes (in frame b) expressed in frame a."""
+        """These planes (in frame b) expressed in frame a; covariances follow."""
         n, d = transform_planes(T_a_b, self.normals, self.offsets)
-        return PlaneArrays(n, d, self.weights, transform_points(T_a_b, self.centroids), self.radii)
+        J = plane_transform_jacobian(T_a_b)
+        cov = J @ self.covariances @ J.T
+        centroids = transform_points(T_a_b, self.centroids)
+        return PlaneArrays(n, d, self.weights, centroids, self.radii, cov)
 
     def take(self, index: np.ndarray) -> PlaneArrays:
         """The planes at ``index`` (int array or mask), in that order."""
@@ -98,6 +107,7 @@ class PlaneArrays:
             self.weights[index],
             self.centroids[index],
             self.radii[index],
+            self.covariances[index],
         )
 
 

@@ -68,7 +68,8 @@ def test_result_fields():
     r = estimate_relative_pose(prev, curr, config())
     np.testing.assert_allclose(r.pose5, pose5_from_transform(T), atol=1e-9)
     assert r.covariance.shape == (5, 5) and np.all(np.linalg.eigvalsh(r.covariance) > 0)
-    np.testing.assert_allclose(r.sigmas5[:3], np.radians(0.01), rtol=1e-6)  # noise-free: floors
+    floor = np.radians(PlanodomConfig().odometry.min_sigma_rotation_deg)
+    np.testing.assert_allclose(r.sigmas5[:3], floor, rtol=1e-6)  # noise-free: the floors
     assert len(r.plane_associations) == len(prev)
     assert all(prev[i].truth_id == curr[j].truth_id for i, j in r.plane_associations)
     assert r.n_translation_pairs > 0 and r.translation_consensus.n_inliers > 0
@@ -87,6 +88,13 @@ def test_permutation_of_plane_order_changes_nothing(pipeline):
     map_a = {(prev[i].truth_id, curr[j].truth_id) for i, j in a.plane_associations}
     map_b = {(prev[pp[i]].truth_id, curr[pc[j]].truth_id) for i, j in b.plane_associations}
     assert map_a == map_b
+    if a.rotation_pair is not None:
+        ids_a = [prev[i].truth_id for i in a.rotation_pair[:2]]
+        ids_b = [prev[pp[i]].truth_id for i in b.rotation_pair[:2]]
+        assert ids_a == ids_b
+        assert [curr[j].truth_id for j in a.rotation_pair[2:]] == [
+            curr[pc[j]].truth_id for j in b.rotation_pair[2:]
+        ]
 
 
 def test_determinism():
@@ -150,19 +158,22 @@ def test_streaming_chain_equals_truth_and_cv_bridges_unresolved_epochs():
     for k, T in enumerate(poses):
         planes = [] if k == 6 else observe(world, T)  # epoch 6 sees nothing
         odo.register_planes(planes, time=0.1 * k)
-    assert odo.results[0] is None
-    # Epochs 6 (sees nothing) and 7 (its reference, 6, has nothing) are unresolved.
+    assert odo.results[0] is None and odo.reference_index[:3] == [-1, 0, 1]
+    # Epoch 6 is unresolved and bridged by constant velocity; epoch 7 skips the blind
+    # epoch and associates with epoch 5.
     statuses = [r.status for r in odo.results[1:]]
-    assert statuses.count("unresolved") == 2 and odo.results[6].fallback and odo.results[7].fallback
-    for k in range(1, 12):
-        T_rel_true = invert_transform(poses[k - 1]) @ poses[k]
-        T_rel = invert_transform(odo.poses[k - 1]) @ odo.poses[k]
-        if k not in (6, 7):
-            np.testing.assert_allclose(T_rel, T_rel_true, atol=1e-9)
-    # Epochs 6 and 7 repeat the previous increment (constant velocity).
+    assert statuses.count("unresolved") == 1 and odo.results[6].fallback
+    assert odo.reference_index[7] == 5 and odo.results[7].status == "ok"
     step5 = invert_transform(odo.poses[4]) @ odo.poses[5]
     np.testing.assert_allclose(invert_transform(odo.poses[5]) @ odo.poses[6], step5, atol=1e-9)
-    np.testing.assert_allclose(invert_transform(odo.poses[6]) @ odo.poses[7], step5, atol=1e-9)
+    for k in range(1, 12):
+        if k != 6:
+            np.testing.assert_allclose(
+                odo.poses[k], invert_transform(poses[0]) @ poses[k], atol=1e-8
+            )
+    np.testing.assert_allclose(
+        odo.results[7].T_prev_curr, invert_transform(poses[5]) @ poses[7], atol=1e-9
+    )
     assert odo.last_relative is odo.results[-1]
 
 
@@ -250,3 +261,43 @@ def test_large_motion_at_a_low_rate_needs_stated_bounds():
     )
     r = estimate_relative_pose(prev, curr, cfg)
     np.testing.assert_allclose(r.T_prev_curr, big, atol=1e-9)
+
+
+def test_covariance_is_propagated_from_plane_covariances():
+    """With plane fit covariances, sigmas follow them (first order) and scale with them."""
+    prev, curr, _ = scene(3)
+
+    def with_cov(planes, s):
+        C = np.diag([s**2, s**2, s**2, (10 * s) ** 2])
+        return [Plane(p.normal, p.offset, covariance=C, confidence=p.confidence,
+                      support=p.support) for p in planes]  # fmt: skip
+
+    small = estimate_relative_pose(with_cov(prev, 1e-4), with_cov(curr, 1e-4), config())
+    large = estimate_relative_pose(with_cov(prev, 1e-3), with_cov(curr, 1e-3), config())
+    assert small.rotation_pair is not None and small.translation_pair is not None
+    ratio = large.sigmas5 / small.sigmas5
+    assert np.all(ratio > 5) and np.all(ratio < 11)
+
+
+def test_time_spread_epochs_are_extracted_again_with_their_own_twist():
+    from planodom.scan import Scan
+
+    world, poses = trajectory(5, seed=7)
+    planes = [observe(world, T) for T in poses]
+    twists = []
+
+    def extractor(scan, cfg, twist=None):
+        twists.append(twist)
+        return planes[int(scan.points[0, 0])]
+
+    def scans(spread: float):
+        return [Scan(np.full((2, 3), float(k)), t=[0.0, spread]) for k in range(5)]
+
+    run_odometry(scans(0.05), config(), extractor=extractor, times=0.1 * np.arange(5))
+    assert len(twists) == 1 + 2 * 4  # first epoch once, then prediction + own estimate
+    # The second extraction of epoch 1 uses the twist of epoch 1's own estimate.
+    step = invert_transform(poses[0]) @ poses[1]
+    np.testing.assert_allclose(twists[2], se3_log(step) / 0.1, atol=1e-9)
+    twists.clear()
+    run_odometry(scans(0.0), config(), extractor=extractor, times=0.1 * np.arange(5))
+    assert len(twists) == 5

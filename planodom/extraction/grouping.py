@@ -27,6 +27,17 @@
 
 So a plane always contains two non-parallel traces of two scanners: a set of parallel
 traces is never accepted, and a plane is never guessed from one trace.
+
+Time windows (points not deskewed, ``max_span_s`` finite): each point is in the base frame
+of its own time, so traces of successive sweeps are displaced by the motion between them.
+Then segments merge into a trace only within one sweep, two traces seed a plane only when
+their times lie within ``max_span_s`` (about one sweep), and a trace joins a seed's plane
+only when its times lie in the window of ``max_span_s`` centred on the seed's: every plane
+is fit to points taken within one window (the crossing traces of a scanner pair in the
+same sweep), between which the vehicle moved little. L-shaped seeds are not used then
+(one sweep's L is two lines meeting at a corner, with nothing else to confirm it). One
+wall gives a plane per window; the caller keeps one
+(:func:`planodom.extraction.pipeline.drop_repeats`).
 """
 
 from __future__ import annotations
@@ -53,6 +64,8 @@ class Traces:
         ring, count: (T,) int64. centroid: (T, 3) m. scatter: (T, 3, 3) centred, m^2.
         direction: (T, 3) unit. lo, hi: (T,) extent along the direction, relative to the
         centroid (m). dir_err: (T,) predicted direction error (rad).
+        t_lo, t_hi: (T,) first and last acquisition time of its points (s; 0 without
+        times).
     """
 
     label: np.ndarray
@@ -64,6 +77,8 @@ class Traces:
     lo: np.ndarray
     hi: np.ndarray
     dir_err: np.ndarray
+    t_lo: np.ndarray
+    t_hi: np.ndarray
 
     def __len__(self) -> int:
         return len(self.ring)
@@ -88,9 +103,24 @@ def moment_sums(label, n_lab, count, centroid, scatter):
     return cnt, cen, sc.T.reshape(-1, 3, 3)
 
 
-def build_traces(segs: Segments, tol_m: float, sigma_m: float, parallel_deg: float, step_m: float):
-    """Merge the segments of each ring over its sweeps into :class:`Traces`."""
+def build_traces(
+    segs: Segments,
+    tol_m: float,
+    sigma_m: float,
+    parallel_deg: float,
+    step_m: float,
+    seg_t0: np.ndarray | None = None,
+    seg_t1: np.ndarray | None = None,
+    max_span_s: float = np.inf,
+):
+    """Merge the segments of each ring over its sweeps into :class:`Traces`.
+
+    ``seg_t0``, ``seg_t1`` (S,): first and last time of each segment (s); segments merge
+    only when their times lie within ``max_span_s`` (module docstring, time windows).
+    """
     S = len(segs)
+    t0s = np.zeros(S) if seg_t0 is None else np.asarray(seg_t0, dtype=np.float64)
+    t1s = np.zeros(S) if seg_t1 is None else np.asarray(seg_t1, dtype=np.float64)
     err = direction_error(sigma_m, segs.count, segs.length)
     # Candidate links: each segment with the next LINK_BAND segments (sorted by ring, then
     # time): a few sweeps of the same ring. Sweep ids are not used: time gaps from
@@ -113,6 +143,10 @@ def build_traces(segs: Segments, tol_m: float, sigma_m: float, parallel_deg: flo
     overlap = np.abs(along) <= hi_i + hj + tol_m
     link = (np.sqrt(np.maximum(1.0 - cosang * cosang, 0.0)) <= sin_tol) & overlap
     link &= lateral <= tol_m + step_m
+    if np.isfinite(max_span_s):
+        # Only pieces of one sweep (links of a chain would add up their spans).
+        link &= segs.sweep[i] == segs.sweep[j]
+        link &= np.maximum(t1s[i], t1s[j]) - np.minimum(t0s[i], t0s[j]) <= max_span_s
     i, j = i[link], j[link]
     graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(S, S))
     n_lab, label = connected_components(graph, directed=False)
@@ -135,7 +169,11 @@ def build_traces(segs: Segments, tol_m: float, sigma_m: float, parallel_deg: flo
     ring[label] = segs.ring
     # Direction error: all the trace's points over its length.
     err_t = direction_error(sigma_m, cnt, hi - lo)
-    return Traces(label, ring, cnt.astype(np.int64), cen, sc, direction, lo, hi, err_t)
+    t_lo = np.full(n_lab, np.inf)
+    t_hi = np.full(n_lab, -np.inf)
+    np.minimum.at(t_lo, label, t0s)
+    np.maximum.at(t_hi, label, t1s)
+    return Traces(label, ring, cnt.astype(np.int64), cen, sc, direction, lo, hi, err_t, t_lo, t_hi)
 
 
 def plane_of(tr: Traces, members: np.ndarray) -> tuple[np.ndarray, float, float, float]:
@@ -194,6 +232,9 @@ def group_segments(
     parallel_deg: float = 2.0,
     step_m: float = 0.1,
     min_traces: int = 2,
+    seg_t0: np.ndarray | None = None,
+    seg_t1: np.ndarray | None = None,
+    max_span_s: float = np.inf,
 ) -> tuple[list[np.ndarray], int]:
     """Segments grouped into planes.
 
@@ -208,6 +249,9 @@ def group_segments(
         margin_m: an L-shaped seed pair has its crossing within this (m) of both ends.
         parallel_deg, step_m: trace merging (``trace_parallel_deg``, ``trace_step_m``).
         min_traces: fewest traces in a plane.
+        seg_t0, seg_t1, max_span_s: first and last time (s) of each segment (S,) and the
+            longest time span (s) of a trace, seed or plane (module docstring, time
+            windows); no limit by default.
 
     Returns:
         A list of (K,) int64 arrays of segment indices, one per plane, and the number of
@@ -215,11 +259,15 @@ def group_segments(
     """
     if len(segs) < 2:
         return [], 0
-    tr = build_traces(segs, tol_m, sigma_m, parallel_deg, step_m)
+    tr = build_traces(segs, tol_m, sigma_m, parallel_deg, step_m, seg_t0, seg_t1, max_span_s)
     T = len(tr)
+    windowed = bool(np.isfinite(max_span_s))
     ok = tr.dir_err <= np.radians(max_seed_direction_error_deg)
     a, b = np.triu_indices(T, 1)
     keep = ok[a] & ok[b] & (tr.ring[a] != tr.ring[b])
+    if windowed:
+        span = np.maximum(tr.t_hi[a], tr.t_hi[b]) - np.minimum(tr.t_lo[a], tr.t_lo[b])
+        keep &= span <= max_span_s
     iu, ju = a[keep], b[keep]
     di, dj = tr.direction[iu], tr.direction[ju]
     cross = np.cross(di, dj)
@@ -244,6 +292,9 @@ def group_segments(
     end_i = np.minimum(np.abs(s_i - tr.lo[iu]), np.abs(s_i - tr.hi[iu])) <= mi
     end_j = np.minimum(np.abs(s_j - tr.lo[ju]), np.abs(s_j - tr.hi[ju])) <= mj
     is_l = (end_i & end_j)[keep]
+    if windowed:  # one sweep's L is two lines meeting at a corner, no other evidence
+        keep[keep] = ~is_l
+        is_l = is_l[~is_l]
     iu, ju, normals = iu[keep], ju[keep], normals[keep]
     if len(iu) == 0:
         return [], 0
@@ -255,6 +306,11 @@ def group_segments(
     slope = normals @ tr.direction.T
     ends = np.maximum(np.abs(off + slope * tr.lo), np.abs(off + slope * tr.hi))
     member = (var_n + off * off <= tol_m * tol_m) & (ends <= tol_m)
+    if windowed:  # members lie in a window of max_span_s centred on the seed's times
+        half = 0.5 * max_span_s
+        mid_t = 0.5 * (np.minimum(tr.t_lo[iu], tr.t_lo[ju]) + np.maximum(tr.t_hi[iu], tr.t_hi[ju]))
+        win_lo, win_hi = mid_t - half, mid_t + half
+        member &= (tr.t_lo[None, :] >= win_lo[:, None]) & (tr.t_hi[None, :] <= win_hi[:, None])
     weight = tr.count.astype(np.float64)
     # L seeds come last: the traces of a wall that meets another at a corner are taken
     # by the walls' own crossing pairs first, and the L dies with them. An L that is
@@ -273,9 +329,12 @@ def group_segments(
         alive[p] = False
         members = member[p] & available
         members[iu[p]] = members[ju[p]] = True
+        in_window = available
+        if windowed:
+            in_window = available & (tr.t_lo >= win_lo[p]) & (tr.t_hi <= win_hi[p])
         for _ in range(3):
             n, d, rms, total = plane_of(tr, members)
-            new = _fits(tr, n, d, tol_m) & available
+            new = _fits(tr, n, d, tol_m) & in_window
             if np.array_equal(new, members) or np.count_nonzero(new) < 2:
                 break
             members = new

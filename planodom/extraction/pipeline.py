@@ -23,6 +23,7 @@ viewpoint itself fall back to "up" for near-horizontal ones
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -147,6 +148,16 @@ def extract(
     if mode == "rig2d":
         segs, sigma = split_scan_lines(pts, scan.ring, scan.t, config)
         tol = max(config.member_sigma_factor * sigma, config.tolerance_floor_m)
+        max_rms = max(config.max_rms_sigma_factor * sigma, config.rms_floor_m)
+        windowed = unskewed_windows(scan, xi, config)
+        seg_t0 = seg_t1 = None
+        span = np.inf
+        if windowed:
+            tt = scan.t[segs.order]
+            seg_t0, seg_t1 = tt[segs.starts], tt[segs.ends - 1]
+            span = config.max_unskewed_span_s
+            tol += config.max_unskewed_motion_m
+            max_rms += 0.5 * config.max_unskewed_motion_m
         groups, rejected = group_segments(
             segs,
             tol,
@@ -154,15 +165,21 @@ def extract(
             config.min_cross_angle_deg,
             config.max_seed_direction_error_deg,
             config.min_plane_points,
-            max(config.max_rms_sigma_factor * sigma, config.rms_floor_m),
+            max_rms,
             parallel_deg=config.trace_parallel_deg,
             step_m=config.trace_step_m,
             min_traces=required_traces(
                 sigma, config.tolerance_floor_m, config.min_traces_high_noise
             ),
+            seg_t0=seg_t0,
+            seg_t1=seg_t1,
+            max_span_s=span,
         )
         n_segments = len(segs)
         planes, inliers, n_rej = _rig_planes(groups, segs, pts, scan, config, sigma, org, xi)
+        if windowed:
+            planes, inliers, n_rep = drop_repeats(planes, inliers, scan.t, tol, config)
+            n_rej += n_rep
         return _result(planes, inliers, mode, sigma, n_segments, len(groups), rejected + n_rej, pts)
     else:
         view = _scan_viewpoint(org, config)
@@ -179,6 +196,87 @@ def extract(
         planes.append(built[0])
         inliers.append(built[1])
     return _result(planes, inliers, mode, sigma, n_segments, len(candidates), rejected, pts)
+
+
+def unskewed_windows(scan: Scan, xi: np.ndarray | None, config: ExtractionConfig) -> bool:
+    """True when the 2D-rig path must work in time windows: no twist, and the scan's
+    times spread over more than ``config.max_unskewed_span_s`` (see ExtractionConfig)."""
+    if xi is not None or scan.t is None or len(scan.t) == 0:
+        return False
+    return float(np.ptp(scan.t)) > config.max_unskewed_span_s
+
+
+def drop_repeats(
+    planes: list[Plane],
+    inliers: list[np.ndarray],
+    t: np.ndarray,
+    tol_m: float,
+    config: ExtractionConfig,
+) -> tuple[list[Plane], list[np.ndarray], int]:
+    """Keep one plane per wall among planes fit in different time windows (no deskew).
+
+    Planes are visited by the mean time of their inliers, earliest first (closest to the
+    reference time, so least displaced by the motion); a plane is dropped when a kept one
+    has its normal within ``unskewed_repeat_deg`` (either sign), its offset within
+    ``tol_m + max_unskewed_speed_m_s * dt`` (dt: the difference of their mean times) and
+    supports that overlap (bounding circles about the centroids, grown by the same
+    allowance). Returns the kept planes and inliers and the number dropped.
+    """
+    if len(planes) < 2:
+        return planes, inliers, 0
+    tm = np.array([float(t[i].mean()) for i in inliers])
+    order = np.argsort(tm, kind="stable")
+    n = np.array([p.normal for p in planes])
+    d = np.array([p.offset for p in planes])
+    cen = np.array([p.support.centroid for p in planes])
+    rad = np.array(
+        [
+            float(np.linalg.norm(p.support.polygon - p.support.centroid, axis=1).max())
+            if len(p.support.polygon)
+            else 0.0
+            for p in planes
+        ]
+    )
+    cos_tol = np.cos(np.radians(config.unskewed_repeat_deg))
+    c = n @ n.T
+    sgn = np.where(c < 0, -1.0, 1.0)
+    allow = tol_m + config.max_unskewed_speed_m_s * np.abs(tm[:, None] - tm[None, :])
+    same = (np.abs(c) >= cos_tol) & (np.abs(sgn * d[:, None] - d[None, :]) <= allow)
+    dist = np.linalg.norm(cen[:, None] - cen[None, :], axis=2)
+    same &= dist <= rad[:, None] + rad[None, :] + allow
+    np.fill_diagonal(same, False)
+    seen = same.sum(axis=1)
+    kept: list[int] = []
+    for i in order:
+        if seen[i] + 1 < config.min_unskewed_windows:
+            continue
+        if not (kept and np.any(same[i, kept])):
+            kept.append(int(i))
+    kept.sort()
+    out = [_extrapolate(planes[i], n, d, tm, np.flatnonzero(same[i]), i) for i in kept]
+    return out, [inliers[i] for i in kept], len(planes) - len(kept)
+
+
+def _extrapolate(plane: Plane, n: np.ndarray, d: np.ndarray, tm: np.ndarray, rep, i) -> Plane:
+    """``plane`` (index ``i``) with (n, d) extrapolated to the reference time t = 0 from
+    its repeats ``rep`` in other windows: a straight-line fit of each normal component
+    and of the offset against the windows' mean times (constant velocity), normal
+    renormalised. Unchanged without repeats at other times."""
+    idx = np.concatenate([[i], rep])
+    t = tm[idx]
+    if len(idx) < 2 or np.ptp(t) <= 0:
+        return plane
+    sgn = np.where(n[idx] @ n[i] < 0, -1.0, 1.0)
+    y = np.column_stack([sgn[:, None] * n[idx], sgn * d[idx]])  # (K, 4)
+    A = np.column_stack([np.ones_like(t), t])
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    nn = coef[0, :3]
+    norm = float(np.linalg.norm(nn))
+    if not norm > 0:
+        return plane
+    # Same orientation as the plane (its sign was chosen for its viewpoint).
+    s = 1.0 if nn @ plane.normal >= 0 else -1.0
+    return dataclasses.replace(plane, normal=s * nn / norm, offset=s * float(coef[0, 3]) / norm)
 
 
 def _result(planes, inliers, mode, sigma, n_segments, n_candidates, rejected, pts):

@@ -35,6 +35,7 @@ from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
 from planodom.errors import ConfigError
 from planodom.geometry import Plane, make_transform, rpy_from_rotation
+from planodom.odometry.propagate import rotation_covariance, translation_covariance
 from planodom.odometry.rotation import (
     chord,
     chordal_mean_rotation,
@@ -74,11 +75,14 @@ class RelativePose:
             prior's or zero).
         pipeline: the pipeline name.
         z_observed: whether the vertical translation was measured (ground plane).
-        covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 / m^2: for a
-            consensus winner the weighted spread of the candidates that agree with it
-            (within the inlier tolerances), for a mean that spread over the count, plus
-            the floors ``min_sigma_*``; block diagonal (rotation, translation). DoF that
-            were not measured (unresolved, degenerate) get the squared motion bound.
+        covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 / m^2, block
+            diagonal (rotation, translation), plus the floors ``min_sigma_*``. For a
+            consensus winner: first-order propagation of the winning pair's plane fit
+            covariances (:mod:`planodom.odometry.propagate`; the translation includes
+            the rotation's and the height's uncertainty); without plane covariances, the
+            weighted spread of the candidates that agree with the winner. For a mean:
+            the spread over the count. DoF that were not measured (unresolved,
+            degenerate) get the squared motion bound.
         sigma_z: standard deviation of the vertical translation, metres (inf: unobserved).
         lda: the LDA pair associations (indices into the input plane lists).
         plane_associations: (L, 2) SDA associations (i, j) under the final pose.
@@ -87,6 +91,8 @@ class RelativePose:
         used_prior: the LDA bounds were applied around the prior.
         fallback: True when ``T_prev_curr`` is not measured (set by the streaming
             odometry for unresolved epochs, which it bridges by constant velocity).
+        rotation_pair, translation_pair: (4,) ``(i1, i2, j1, j2)`` of the winning pair
+            association (None for a mean or when not measured).
     """
 
     T_prev_curr: np.ndarray
@@ -102,6 +108,8 @@ class RelativePose:
     n_translation_pairs: int = 0
     used_prior: bool = False
     fallback: bool = False
+    rotation_pair: np.ndarray | None = None
+    translation_pair: np.ndarray | None = None
 
     @property
     def rpy(self) -> np.ndarray:
@@ -164,10 +172,6 @@ def _pair_ids(pairs: np.ndarray) -> np.ndarray:
     return pairs[:, 0].astype(np.int64) * (int(pairs.max(initial=0)) + 1) + pairs[:, 1]
 
 
-def _weighted_mean(x: np.ndarray, w: np.ndarray) -> np.ndarray:
-    return np.einsum("m,m...->...", w, x) / w.sum()
-
-
 def _spread(d: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Weighted second moment (D, D) of deviations ``d`` (M, D)."""
     return np.einsum("m,mi,mj->ij", w, d, d) / w.sum()
@@ -207,12 +211,18 @@ def estimate_relative_pose(
         if _rank(free) > _rank(result):
             result = free
     ij = result.plane_associations
+
+    def pair(q: np.ndarray | None) -> np.ndarray | None:
+        return None if q is None else np.r_[order_p[q[:2]], order_c[q[2:]]]
+
     return replace(
         result,
         lda=result.lda.remapped(order_p, order_c),
         plane_associations=np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]])
         if len(ij)
         else ij,
+        rotation_pair=pair(result.rotation_pair),
+        translation_pair=pair(result.translation_pair),
     )
 
 
@@ -258,26 +268,29 @@ def _solve(
         agree = (e1 <= c) & (e2 <= c)
         ij, pp, cp = lda.plane_associations(agree), pp[agree], cp[agree]
     elems = translation_elements(
-        prev, curr, R, pp, cp, acfg.min_line_verticality, ocfg.condition_weights
-    )
+        prev, curr, R, pp, cp, acfg.min_line_verticality, ocfg.condition_weights,
+        np.radians(ocfg.translation_min_angle_deg),
+    )  # fmt: skip
     heights = height_elements(prev, curr, ij, np.radians(ocfg.z_plane_max_tilt_deg))
 
-    trans_cons, status = None, "degenerate"
+    tr, status = None, "degenerate"
     if len(elems):
         use_heights = heights if ocfg.estimate_z and len(heights) else None
-        txy, z, cov_t, trans_cons, sigma_z, z_observed = _translation(
-            elems, use_heights, z_prior, trans_method, ocfg
-        )
+        tr = _translation(prev, curr, elems, use_heights, z_prior, trans_method, ocfg)
         # The result must respect the motion assumption that admitted its associations;
         # beyond it (a wrong association, an artefact plane) it is not a measurement.
         reach = t_bound + acfg.offset_tol_m
-        if z_observed and abs(z - t0[2]) > reach:
-            txy, z, cov_t, trans_cons, sigma_z, z_observed = _translation(
-                elems, None, z_prior, trans_method, ocfg
-            )
-        if np.linalg.norm(txy - t0[:2]) <= reach:
+        if tr.z_observed and abs(tr.z - t0[2]) > reach:
+            tr = _translation(prev, curr, elems, None, z_prior, trans_method, ocfg)
+        if np.linalg.norm(tr.txy - t0[:2]) <= reach:
             status = "ok"
-    if status == "degenerate":
+    if status == "ok":
+        txy, z, cov_t, sigma_z, z_observed = tr.txy, tr.z, tr.cov, tr.sigma_z, tr.z_observed
+        if tr.best >= 0:
+            cov_t = _propagated_translation_cov(
+                prev, curr, elems, tr, R, cov_r, acfg.min_line_verticality, cov_t
+            )
+    else:
         txy, z = t0[:2].copy(), z_prior
         cov_t, sigma_z, z_observed = np.diag([t_bound**2] * 2), np.inf, False
 
@@ -287,18 +300,27 @@ def _solve(
     cov[3:, 3:] = cov_t + np.eye(2) * ocfg.min_sigma_translation_m**2
     sda_bound = ocfg.translation_inlier_m if status == "ok" else t_bound
     final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
+    rot_pair = None
+    if rot_cons is not None:
+        rot_pair = np.r_[lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index]]
+    trans_pair = None
+    if status == "ok" and tr.best >= 0:
+        trans_pair = np.r_[elems.prev_pairs[tr.best], elems.curr_pairs[tr.best]]
     return RelativePose(
         T, status, z_observed=z_observed, covariance=cov, sigma_z=sigma_z,
         plane_associations=final_ij, rotation_consensus=rot_cons,
-        translation_consensus=trans_cons, n_translation_pairs=len(elems), **common,
+        translation_consensus=tr.consensus if tr is not None else None,
+        n_translation_pairs=len(elems), rotation_pair=rot_pair, translation_pair=trans_pair,
+        **common,
     )  # fmt: skip
 
 
-def _rotation(prev, curr, lda: PairAssociations, method: str, ocfg):
+def _rotation(prev: PlaneArrays, curr: PlaneArrays, lda: PairAssociations, method: str, ocfg):
     """Rotation ``R`` (3, 3), its (roll, pitch, yaw) covariance (3, 3) and the consensus.
 
-    The covariance is the (weighted) spread of the candidates within
-    ``rotation_inlier_deg`` of the result (divided by their number for the mean).
+    Covariance: for a consensus winner, first-order propagation of its four planes' fit
+    covariances when they are known; otherwise, and for the mean, the weighted spread of
+    the candidates within ``rotation_inlier_deg`` (over their number for the mean).
     """
     inlier_angle = np.radians(ocfg.rotation_inlier_deg)
     weights = lda.weights if method != "ocsc" else np.ones(len(lda))
@@ -312,6 +334,10 @@ def _rotation(prev, curr, lda: PairAssociations, method: str, ocfg):
             best_partner=ocfg.best_partner,
         )  # fmt: skip
         R = lda.rotations[cons.best_index]
+        i, j = lda.prev_pairs[cons.best_index], lda.curr_pairs[cons.best_index]
+        cp, cc = prev.covariances[i], curr.covariances[j]
+        if np.all(np.isfinite(cp)) and np.all(np.isfinite(cc)):
+            return R, rotation_covariance(prev.normals[i], curr.normals[j], cp, cc), cons
     close = rotation_angles_to(lda.rotations, R) <= inlier_angle
     d = rpy_of(lda.rotations[close]) - rpy_of(R[None])
     d = (d + np.pi) % (2.0 * np.pi) - np.pi
@@ -321,19 +347,35 @@ def _rotation(prev, curr, lda: PairAssociations, method: str, ocfg):
     return R, cov, cons
 
 
-def _translation(elems: TranslationElements, heights, z0: float, method: str, ocfg):
+@dataclass(frozen=True)
+class _Translation:
+    """Result of :func:`_translation`: horizontal translation (2,), height, covariance of
+    the horizontal part (spread based), consensus, sigma of z, whether z was measured,
+    and the indices of the winning pair element and height element (-1: a mean / none)."""
+
+    txy: np.ndarray
+    z: float
+    cov: np.ndarray
+    consensus: ConsensusResult | None
+    sigma_z: float
+    z_observed: bool
+    best: int = -1
+    height: int = -1
+
+
+def _translation(prev, curr, elems: TranslationElements, heights, z0: float, method, ocfg):
     """Horizontal (and vertical) translation from the pair elements.
 
     Every element gives ``t_xy(z) = a - z g``; the result is one element's (consensus) or
-    the mean of all (cog), then z comes from the height elements when there are any.
-    Returns (txy (2,), z, cov_xy (2, 2), consensus or None, sigma_z, z_observed).
+    the mean of all (cog); then z comes from the height elements when there are any.
     """
     a_all, g_all = elems.candidates(0.0), elems.slope
     cands = elems.candidates(z0)
-    weights = elems.weights if method == "wocsc" else np.ones(len(elems))
     if method == "cog":
-        cons, use = None, np.ones(len(elems), dtype=bool)
-        weights = np.ones(len(elems))
+        cons, best = None, -1
+        a, g = a_all.mean(axis=0), g_all.mean(axis=0)
+        d = cands - (a - z0 * g)
+        cov = d.T @ d / len(d) ** 2
     else:
         cons = consensus(
             cands, elems.ref_prev, elems.targets(z0), apply_negative_translation,
@@ -341,30 +383,44 @@ def _translation(elems: TranslationElements, heights, z0: float, method: str, oc
             inlier_tol=ocfg.translation_inlier_m, truncate=ocfg.truncate_translation_m,
             groups=_pair_ids(elems.prev_pairs) if ocfg.best_partner else None,
         )  # fmt: skip
-        use = np.arange(len(elems)) == cons.best_index
-    a, g = _weighted_mean(a_all[use], weights[use]), _weighted_mean(g_all[use], weights[use])
+        best = cons.best_index
+        a, g = a_all[best], g_all[best]
+        w = elems.weights if method == "wocsc" else np.ones(len(elems))
+        near = np.linalg.norm(cands - cands[best], axis=1) <= ocfg.translation_inlier_m
+        cov = _spread(cands[near] - cands[best], w[near])
     txy = a - z0 * g
-    near = np.linalg.norm(cands - txy, axis=1) <= ocfg.translation_inlier_m
-    near = near if method != "cog" else np.ones(len(elems), dtype=bool)
-    cov = _spread(cands[near] - txy, weights[near]) if near.any() else np.zeros((2, 2))
-    if method == "cog":
-        cov = cov / len(elems)
-
     if heights is None:
-        return txy, z0, cov, cons, np.inf, False
+        return _Translation(txy, z0, cov, cons, np.inf, False, best)
+
     hz = heights.heights(txy)
     if method == "cog":
-        k_b, k_m = float(heights.b.mean()), heights.m.mean(axis=0)
+        h, k_b, k_m = -1, float(heights.b.mean()), heights.m.mean(axis=0)
         spread_z = float(np.sqrt(np.mean((hz - hz.mean()) ** 2) / len(hz)))
     else:
         zc = consensus(
             hz[:, None], hz[:, None], np.zeros((len(hz), 1)), apply_negative_translation,
             weights=heights.weights if method == "wocsc" else None,
         )  # fmt: skip
-        k_b, k_m = float(heights.b[zc.best_index]), heights.m[zc.best_index]
-        spread_z = float(np.sqrt(np.mean((hz - hz[zc.best_index]) ** 2)))
+        h = zc.best_index
+        k_b, k_m = float(heights.b[h]), heights.m[h]
+        i, j = heights.ij[h]
+        var_d = prev.covariances[i, 3, 3] + curr.covariances[j, 3, 3]
+        spread_z = float(np.sqrt(var_d)) / abs(prev.normals[i, 2])
+        if not np.isfinite(spread_z):
+            spread_z = float(np.sqrt(np.mean((hz - hz[h]) ** 2)))
     z = solve_height(a, g, k_b, k_m)
     if z is None:
-        return txy, z0, cov, cons, np.inf, False
+        return _Translation(txy, z0, cov, cons, np.inf, False, best)
     sigma_z = max(spread_z, ocfg.min_sigma_translation_m)
-    return a - z * g, z, cov, cons, sigma_z, True
+    return _Translation(a - z * g, z, cov, cons, sigma_z, True, best, h)
+
+
+def _propagated_translation_cov(prev, curr, elems, tr: _Translation, R, cov_r, min_vert, fallback):
+    """Covariance (2, 2) of the winning pair's translation from its planes' covariances
+    (and the rotation's and height's), or ``fallback`` when a covariance is unknown."""
+    pp, cp = elems.prev_pairs[tr.best], elems.curr_pairs[tr.best]
+    c_p, c_c = prev.covariances[pp], curr.covariances[cp]
+    if not (np.all(np.isfinite(c_p)) and np.all(np.isfinite(c_c)) and np.all(np.isfinite(cov_r))):
+        return fallback
+    sigma_z = tr.sigma_z if tr.z_observed else 0.0
+    return translation_covariance(prev, curr, pp, cp, c_p, c_c, R, tr.z, cov_r, sigma_z, min_vert)

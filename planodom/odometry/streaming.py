@@ -4,8 +4,10 @@ Per epoch k: extract planes (deskewed with the constant-velocity twist of the la
 estimate), associate them with the planes of epoch ``k - delta`` (a short history is
 kept), estimate the relative pose with the constant-velocity prediction as prior, and
 chain: ``T_world_k = T_world_{k-delta} @ T_{k-delta}_k``. The first epoch defines the
-world frame (identity). An unresolved epoch (no associated non-parallel pair) is bridged
-by constant velocity (the last per-epoch increment, scaled to the elapsed time) and
+world frame (identity). When the reference epoch has fewer than two planes, the latest
+earlier epoch with two or more is used instead (bounds scaled by the gap). An unresolved
+epoch (no associated non-parallel pair) is bridged by constant velocity (the last
+increment's twist times the elapsed time; standing still before any motion is known) and
 marked: its result has ``status == "unresolved"`` and ``fallback == True``.
 """
 
@@ -26,6 +28,7 @@ from planodom.odometry.pipeline import RelativePose, estimate_relative_pose
 from planodom.scan import Scan
 
 Extractor = Callable[..., list[Plane]]
+_RANK = {"unresolved": 0, "degenerate": 1, "ok": 2}
 
 
 def se3_log(T: np.ndarray) -> np.ndarray:
@@ -106,9 +109,12 @@ class PlaneOdometry:
         config: the pipeline configuration.
         poses: ``T_world_base`` (4, 4) of every registered epoch (the first is identity).
         times: reference time of every epoch, seconds.
-        results: per epoch the :class:`RelativePose` to epoch ``k - delta`` (None for
-            the first epoch).
-        last_planes: the planes of the last epoch (a history of ``delta`` epochs is kept).
+        results: per epoch the :class:`RelativePose` to its reference epoch (None for
+            the first epoch); ``reference_index[k]`` says which epoch that was.
+        reference_index: per epoch the epoch it was associated with: ``k - delta``, or,
+            when that one has fewer than two planes, the latest earlier epoch that has
+            (so that a blind epoch does not also cost the next one); -1 for the first.
+        last_planes: the planes of the last epoch (a short history is kept).
     """
 
     def __init__(
@@ -123,10 +129,12 @@ class PlaneOdometry:
         self.poses: list[np.ndarray] = []
         self.times: list[float] = []
         self.results: list[RelativePose | None] = []
-        # The planes of the last delta epochs, with their array form.
-        self._history: deque[tuple[list[Plane], PlaneArrays]] = deque(
+        self.reference_index: list[int] = []
+        # (epoch, planes, arrays) of the last delta epochs, and of the last one with >= 2.
+        self._history: deque[tuple[int, list[Plane], PlaneArrays]] = deque(
             maxlen=self.config.odometry.delta
         )
+        self._last_usable: tuple[int, list[Plane], PlaneArrays] | None = None
         self._twist: np.ndarray | None = None
         self._steps: list[np.ndarray] = []  # T_{k-1}_k per epoch (identity first)
 
@@ -137,7 +145,7 @@ class PlaneOdometry:
 
     @property
     def last_planes(self) -> list[Plane]:
-        return self._history[-1][0] if self._history else []
+        return self._history[-1][1] if self._history else []
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -155,33 +163,65 @@ class PlaneOdometry:
             return 0.0
         return self.times[-1] + self.config.odometry.epoch_period_s
 
-    def extract(self, scan: Scan) -> list[Plane]:
-        """The planes of one epoch, deskewed with the constant-velocity twist if enabled."""
+    def extract(self, scan: Scan, twist: np.ndarray | None = None) -> list[Plane]:
+        """The planes of one epoch, deskewed with ``twist`` (default: the constant-velocity
+        twist of the last estimate; none when ``deskew`` is off)."""
         if self._extract is None:
             self._extract = _default_extractor()
-        twist = self._twist if self.config.odometry.deskew else None
+        if not self.config.odometry.deskew:
+            twist = None
+        elif twist is None:
+            twist = self._twist
         kwargs = {} if self.sensor_origins is None else {"sensor_origins": self.sensor_origins}
         return list(self._extract(scan, self.config.extraction, twist=twist, **kwargs))
 
     def register_epoch(self, scan: Scan, time: float | None = None) -> np.ndarray:
         """Extract the planes of one epoch and register them; returns ``T_world_base``.
 
+        With ``deskew`` and points spread in time, the epoch is extracted again with the
+        twist of its own estimate (``deskew_iterations`` times, while that helps): the
+        constant-velocity twist is only a prediction, and a poor one at start-up or after
+        a manoeuvre.
+
         Args:
             scan: the epoch's points in the base frame (with per-point times if known).
             time: the epoch's reference time, seconds (default: previous + epoch period).
         """
-        return self.register_planes(self.extract(scan), time)
+        t = self._next_time(time)
+        planes = self.extract(scan)
+        if not self.poses:
+            return self._commit(planes, PlaneArrays.from_planes(planes), t, None)
+        arrays = PlaneArrays.from_planes(planes)
+        est = self._relative(arrays, t, len(self.poses))
+        spread = scan.t is not None and len(scan.t) and np.ptp(scan.t) > 0
+        dt = t - self.times[-1]
+        if self.config.odometry.deskew and spread and dt > 0:
+            for _ in range(self.config.odometry.deskew_iterations):
+                if est[0].status == "unresolved":
+                    break
+                again = self.extract(scan, se3_log(est[1]) / dt)
+                arrays_again = PlaneArrays.from_planes(again)
+                est_again = self._relative(arrays_again, t, len(self.poses))
+                if _RANK[est_again[0].status] < _RANK[est[0].status]:
+                    break
+                planes, arrays, est = again, arrays_again, est_again
+        return self._commit(planes, arrays, t, est)
 
     def register_planes(self, planes: Sequence[Plane], time: float | None = None) -> np.ndarray:
         """Register an epoch given its planes (base frame); returns ``T_world_base`` (4, 4)."""
         t = self._next_time(time)
         planes = list(planes)
         arrays = PlaneArrays.from_planes(planes)
+        est = self._relative(arrays, t, len(self.poses)) if self.poses else None
+        return self._commit(planes, arrays, t, est)
+
+    def _commit(self, planes, arrays, t: float, est) -> np.ndarray:
+        """Append the epoch: its pose from the step of ``est`` (None for the first)."""
         k = len(self.poses)
-        if k == 0:
-            T_world, result, step = np.eye(4), None, np.eye(4)
+        if est is None:
+            T_world, result, step, ref = np.eye(4), None, np.eye(4), -1
         else:
-            result, step = self._relative(arrays, t, k)
+            result, step, ref = est
             T_world = _orthonormalised(self.poses[-1] @ step)
             dt = t - self.times[-1]
             self._twist = se3_log(step) / dt if dt > 0 else None
@@ -189,44 +229,53 @@ class PlaneOdometry:
         self._steps.append(step)
         self.times.append(t)
         self.results.append(result)
-        self._history.append((planes, arrays))
+        self.reference_index.append(ref)
+        self._history.append((k, planes, arrays))
+        if len(planes) >= 2:
+            self._last_usable = (k, planes, arrays)
         return T_world
 
-    def _relative(self, planes: PlaneArrays, t: float, k: int) -> tuple[RelativePose, np.ndarray]:
-        """The relative pose to epoch ``k - delta`` and the step ``T_{k-1}_k`` it implies.
+    def _relative(
+        self, planes: PlaneArrays, t: float, k: int
+    ) -> tuple[RelativePose, np.ndarray, int]:
+        """The relative pose to the reference epoch, the step ``T_{k-1}_k`` it implies, and
+        the reference's index.
 
         Poses are chained through steps (products of rigid transforms), never through the
         inverse of a chained world pose, so rounding cannot grow from epoch to epoch.
         """
-        delta = min(self.config.odometry.delta, k)
-        T_ref_last = np.eye(4)  # T_{k-delta}_{k-1}
-        for step in self._steps[k - delta + 1 :]:
+        ref, _, ref_planes = self._history[0]
+        if len(ref_planes) < 2 and self._last_usable is not None:
+            ref, _, ref_planes = self._last_usable
+        gap = k - ref
+        T_ref_last = np.eye(4)  # T_{ref}_{k-1}
+        for step in self._steps[ref + 1 :]:
             T_ref_last = T_ref_last @ step
         dt = t - self.times[-1]
-        prediction = None  # constant velocity: T_{k-delta}_k
+        prediction = None  # constant velocity: T_{ref}_k
         if self._twist is not None and dt > 0:
             prediction = T_ref_last @ se3_exp(self._twist * dt)
         prior = prediction if self.config.odometry.use_motion_prior else None
 
         cfg = self.config
-        if delta > 1:
+        if gap > 1:
             a = cfg.association
             cfg = cfg.model_copy(
                 update={
                     "association": a.model_copy(
                         update={
-                            "max_translation_m": a.max_translation_m * delta,
-                            "max_rotation_deg": min(a.max_rotation_deg * delta, 180.0),
+                            "max_translation_m": a.max_translation_m * gap,
+                            "max_rotation_deg": min(a.max_rotation_deg * gap, 180.0),
                         }
                     )
                 }
             )
-        result = estimate_relative_pose(self._history[0][1], planes, cfg, prior)
+        result = estimate_relative_pose(ref_planes, planes, cfg, prior)
         if result.status == "unresolved":
             T_rel = prediction if prediction is not None else T_ref_last
             result = replace(result, T_prev_curr=T_rel, fallback=True)
         step = _orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
-        return result, step
+        return result, step, ref
 
 
 def _orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:
@@ -332,22 +381,35 @@ def run_odometry(
     cfg = with_dataset_bounds(config or PlanodomConfig(), getattr(source, "rig", None))
     if sensor_origins is None:
         sensor_origins = rig_sensor_origins(getattr(source, "rig", None))
-    odo = PlaneOdometry(cfg, extractor, sensor_origins)
+    base_extract = extractor
+    spent = {"extraction": 0.0}
+
+    def timed_extract(*args, **kwargs) -> list[Plane]:
+        nonlocal base_extract
+        if base_extract is None:
+            base_extract = _default_extractor()
+        c0 = _time.perf_counter()
+        out = base_extract(*args, **kwargs)
+        spent["extraction"] += _time.perf_counter() - c0
+        return out
+
+    odo = PlaneOdometry(cfg, timed_extract, sensor_origins)
     n = len(source)  # type: ignore[arg-type]
     if times is None:
         times = getattr(source, "times", None)
-    t_extract = t_odo = 0.0
+    total = 0.0
     n_planes = np.zeros(n, dtype=int)
     all_planes: list[list[Plane]] = []
     for k in range(n):
         item = source[k]  # type: ignore[index]
         t_k = None if times is None else float(times[k])
         c0 = _time.perf_counter()
-        planes = odo.extract(item) if isinstance(item, Scan) else list(item)
-        c1 = _time.perf_counter()
-        odo.register_planes(planes, t_k)
-        t_extract += c1 - c0
-        t_odo += _time.perf_counter() - c1
+        if isinstance(item, Scan):
+            odo.register_epoch(item, t_k)
+        else:
+            odo.register_planes(list(item), t_k)
+        total += _time.perf_counter() - c0
+        planes = odo.last_planes
         n_planes[k] = len(planes)
         all_planes.append(planes)
         if progress is not None:
@@ -358,6 +420,6 @@ def run_odometry(
         results=odo.results,
         n_planes=n_planes,
         planes=all_planes,
-        seconds={"extraction": t_extract, "odometry": t_odo},
+        seconds={"extraction": spent["extraction"], "odometry": total - spent["extraction"]},
         config=cfg,
     )

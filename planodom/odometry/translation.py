@@ -62,8 +62,12 @@ def translation_elements(
     curr_pairs: np.ndarray,
     min_verticality: float,
     condition: bool = True,
+    min_angle: float = 0.0,
 ) -> TranslationElements:
     """Reference points of the pairs ``prev_pairs[e] -> curr_pairs[e]`` (E, 2) under ``R``.
+
+    Only pairs defined in both epochs (intersection direction with ``|v_z| >=
+    min_verticality``) and cutting at ``min_angle`` rad or more from parallel are kept.
 
     Weights: the product of the four planes' confidences (paper), times
     ``sin^2`` of each epoch's dihedral angle when ``condition``: a reference point's
@@ -84,10 +88,11 @@ def translation_elements(
     )
     ref_p, ref_c, slope = np.split(refs, 3)
     ok = np.isfinite(ref_p).all(axis=1) & np.isfinite(ref_c).all(axis=1)
+    cos_p = np.einsum("ij,ij->i", prev.normals[i1], prev.normals[i2])
+    cos_c = np.einsum("ij,ij->i", curr.normals[j1], curr.normals[j2])
+    ok &= np.abs(cos_p) <= np.cos(min_angle)
     w = prev.weights[i1] * prev.weights[i2] * curr.weights[j1] * curr.weights[j2]
     if condition:  # sin^2 = 1 - cos^2 for unit normals
-        cos_p = np.einsum("ij,ij->i", prev.normals[i1], prev.normals[i2])
-        cos_c = np.einsum("ij,ij->i", curr.normals[j1], curr.normals[j2])
         w = w * (1.0 - cos_p**2) * (1.0 - cos_c**2)
     return TranslationElements(
         prev_pairs[ok], curr_pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok]

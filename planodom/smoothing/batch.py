@@ -64,9 +64,15 @@ def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> Smoothi
 def pose_covariances(
     graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, n_epochs: int
 ) -> np.ndarray:
-    """(E, 6, 6) marginal covariances of ``X(0..E-1)`` (gtsam.Marginals, Cholesky)."""
-    marginals = gtsam.Marginals(graph, values)
-    return np.stack([marginals.marginalCovariance(X(k)) for k in range(n_epochs)])
+    """(E, 6, 6) marginal covariances of ``X(0..E-1)`` at ``values``.
+
+    Like ``gtsam.Marginals`` but from a QR elimination (``gtsam.Marginals`` uses Cholesky,
+    which squares the condition number; see :func:`levenberg_marquardt`).
+    """
+    linear = graph.linearize(values)
+    ordering = gtsam.Ordering.ColamdNonlinearFactorGraph(graph)
+    tree = linear.eliminateMultifrontal(ordering, gtsam.EliminateQR)
+    return np.stack([tree.marginalCovariance(X(k)) for k in range(n_epochs)])
 
 
 def levenberg_marquardt(
@@ -87,6 +93,10 @@ def levenberg_marquardt(
     4.4 s per Gauss-Newton iteration inside gtsam, 0.7 s for the same linearise and solve
     called from Python. Here ``graph.linearize`` and ``graph.error`` are called on the
     Python-owned values, which pybind11 passes by reference.
+
+    Linear steps by QR, not Cholesky: a long stretch bridged by weak fallback factors next
+    to stiff plane factors gives Hessian condition numbers of 1e16 and more (measured on the
+    paper loop), which Cholesky (squaring the Jacobian's condition number) cannot factor.
 
     Damping: ``lambda * I`` on every variable's tangent (gtsam's default); lambda / 10 on a
     successful step, * 10 on a failed one. Stops when the relative decrease of the error
@@ -114,7 +124,7 @@ def levenberg_marquardt(
                     key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)
                 )
             try:
-                candidate = values.retract(damped.optimize(ordering))
+                candidate = values.retract(damped.optimize(ordering, gtsam.EliminateQR))
                 new_error = graph.error(candidate)
             except RuntimeError:  # indeterminant at this damping: damp more
                 new_error = np.inf

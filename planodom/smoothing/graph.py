@@ -118,6 +118,7 @@ class GraphStats:
     anchored_landmarks: int = 0
     flipped: int = 0
     rejected_flips: int = 0
+    gated: int = 0
     dropped_observations: int = 0
     unresolved_epochs: list[int] = field(default_factory=list)
 
@@ -128,7 +129,8 @@ class _Landmark:
     anchor_key: int | None
     T_world_anchor: np.ndarray | None
     plane_world: np.ndarray  # (4,) current estimate, world frame
-    last_epoch: int
+    last_epoch: int  # latest epoch whose update touched the landmark (its timestamp)
+    last_seen: tuple[int, np.ndarray] | None = None  # last accepted (epoch, (4,) base frame)
 
 
 def rpy_to_rotation_vector(rpy: np.ndarray) -> np.ndarray:
@@ -377,7 +379,7 @@ class GraphBuilder:
             lm = self.landmarks[j] = self._new_landmark(j, *usable[0], graph, values)
         for e, i in usable:
             plane = self.planes[e][i]
-            predicted = predict_plane(self.poses[e], lm.plane_world)
+            predicted = self._predict(lm, e)
             _, flipped = orient_measurement(plane.coefficients, predicted)
             if flipped:
                 if self.config.flipped_normals == "reject":
@@ -385,6 +387,9 @@ class GraphBuilder:
                     continue
                 self.stats.flipped += 1
                 plane = plane.flipped()
+            if not self._within_gate(plane.coefficients, predicted):
+                self.stats.gated += 1
+                continue
             noise = plane_noise(
                 self.plane_covariance(plane), isotropic_normal=lm.anchor_key is None
             )
@@ -397,10 +402,33 @@ class GraphBuilder:
                     anchored_plane_factor(X(e), lm.anchor_key, lm.key, plane.coefficients, noise)
                 )
             self.stats.plane_factors += 1
+            lm.last_seen = (e, plane.coefficients)
         lm.last_epoch = k
         stamps[lm.key] = float(k)
         if lm.anchor_key is not None:
             stamps[lm.anchor_key] = float(k)
+
+    def _predict(self, lm: _Landmark, epoch: int) -> np.ndarray:
+        """(4,) the landmark as epoch ``epoch`` should see it, for the flip and gate checks.
+
+        From the track's last accepted observation carried over the (short) gap between
+        the two epochs, so that drift of the initial estimate along a long track does not
+        turn good observations into "wrong associations"; from the landmark's estimate
+        before the first one.
+        """
+        if lm.last_seen is None:
+            return predict_plane(self.poses[epoch], lm.plane_world)
+        e_last, seen = lm.last_seen
+        world = plane_from_anchor(self.poses[e_last], seen)
+        return predict_plane(self.poses[epoch], world)
+
+    def _within_gate(self, measured: np.ndarray, predicted: np.ndarray) -> bool:
+        """Whether an oriented plane observation (4,) agrees with its prediction (4,)."""
+        cos_angle = float(np.clip(measured[:3] @ predicted[:3], -1.0, 1.0))
+        return (
+            np.degrees(np.arccos(cos_angle)) <= self.config.gate_normal_deg
+            and abs(measured[3] - predicted[3]) <= self.config.gate_offset_m
+        )
 
     # ----------------------------------------------------------------- estimates
 

@@ -1,10 +1,12 @@
 """End to end: scans -> planes and odometry (delta = 1) -> relative poses delta = 2..D -> smoothing.
 
 The paper's odometry (:func:`planodom.odometry.run_odometry`, delta = 1) extracts each
-epoch's planes and gives the delta = 1 relative poses and the raw trajectory; the same
-stored planes then give the relative poses to epochs ``k - delta`` for delta = 2..D
+epoch's planes and gives the raw trajectory; the stored planes then give the relative
+poses between epochs ``k - delta`` and ``k`` for delta = 1..D
 (:func:`planodom.odometry.estimate_relative_pose`, with the odometry's chained motion as
-prior and association bounds widened with delta, as the streaming odometry does). Every
+prior and association bounds widened with delta, as the streaming odometry does). The
+delta = 1 poses are recomputed rather than taken from the streaming run, whose reference
+epoch may be an earlier one when epoch ``k - 1`` has too few planes. Every
 resolved relative pose becomes a 5-DoF factor (a rotation-only factor when the odometry
 reports "degenerate": rotation measured, translation not), every SDA chain a landmark.
 
@@ -41,8 +43,8 @@ class SmoothingRun:
         relatives: every relative pose used, delta = 1..D.
         times: (E,) epoch times, seconds.
         config: the resolved configuration (``smoothing.window`` / ``delta_max`` set).
-        seconds: wall time of "extraction", "odometry" (delta = 1), "relatives"
-            (delta = 2..D) and "smoothing".
+        seconds: wall time of "extraction", "odometry" (the delta = 1 streaming run),
+            "relatives" (delta = 1..D) and "smoothing".
     """
 
     result: SmoothingResult
@@ -166,12 +168,9 @@ def run_smoothing(
         odometry = run_odometry(source, cfg, progress=step)
     seconds["extraction"] = odometry.seconds.get("extraction", 0.0)
     seconds["odometry"] = odometry.seconds.get("odometry", 0.0)
-    relatives = [
-        from_relative_pose(r, k - 1, k) for k, r in enumerate(odometry.results) if r is not None
-    ]
     start = time.perf_counter()
-    relatives += relative_poses(
-        odometry.planes, cfg, range(2, cfg.smoothing.delta_max + 1), odometry.poses, progress
+    relatives = relative_poses(
+        odometry.planes, cfg, range(1, cfg.smoothing.delta_max + 1), odometry.poses, progress
     )
     seconds["relatives"] = time.perf_counter() - start
 

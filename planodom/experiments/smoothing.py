@@ -1,0 +1,289 @@
+"""Smoothing against the paper's odometry: four noise levels, two scenes, four estimators.
+
+For each scene (default loop, urban canyon) and range-noise sigma (0, 6 mm, 2 cm, 10 cm) the
+isoclinal rig is simulated, planes are extracted once, and the trajectory is estimated by
+
+- ``odometry d=1``: the paper's odometry, epoch k against epoch k - 1, chained;
+- ``odometry d=D``: the paper's future work, epoch k against epoch k - D, chained;
+- ``windowed``: fixed-lag smoothing over W epochs with relative poses for delta = 1..D;
+- ``batch``: the whole sequence in one graph (same factors), with marginal covariances.
+
+Outputs (``out/``): ``trajectories_<scene>.png`` (top views over the truth, one panel per
+noise level), ``summary.md`` / ``summary.csv`` (ATE and RPE via evo, drift at the end,
+runtime, epochs per second), ``nees.md`` / ``nees.csv`` (consistency of the batch poses
+against their marginal covariances), ``config.yaml``.
+
+NEES: for each epoch, ``xi = Local(T_est, T_true)`` (gtsam's Pose3 tangent at the estimate,
+the frame of its marginal covariance P) and ``xi^T P^-1 xi``; over the 6 DoF and over the 5
+observed ones (body z removed, which only the weak vertical prior and ground planes
+constrain). An honest covariance gives NEES ~ chi2(dof): the table reports the mean, the
+fraction of epochs inside the two-sided 95 % interval of chi2(dof), and that interval.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import gtsam
+import numpy as np
+from scipy.stats import chi2
+
+from planodom.config import PlanodomConfig
+from planodom.experiments.paper import PAPER_NOISE_LEVELS, markdown_table, write_csv
+from planodom.geometry import invert_transform
+from planodom.metrics import summarize
+from planodom.odometry import run_odometry
+from planodom.smoothing.batch import SmoothingResult, smooth_batch
+from planodom.smoothing.run import from_relative_pose, relative_poses
+from planodom.smoothing.windowed import smooth_windowed
+
+#: Scenes of the comparison (built-in simulator names).
+SCENES = ("paper-loop", "urban-canyon")
+#: Estimators in table order, and their plot colours.
+COLOURS = {
+    "odometry d=1": "tab:green",
+    "odometry d=D": "tab:orange",
+    "windowed": "tab:purple",
+    "batch": "tab:red",
+}
+
+
+@dataclass
+class EstimatorRun:
+    """One estimate of one simulated run.
+
+    Attributes:
+        scene, noise (m), method: what was run. poses: (E, 4, 4) estimate, first at
+        identity. gt_poses: (E, 4, 4) truth relative to its first pose. seconds: wall
+        time of the estimator itself (see ``summary_rows``). unresolved: epochs without a
+        resolved relative pose. smoothing: the smoother's result (smoothers only).
+    """
+
+    scene: str
+    noise: float
+    method: str
+    poses: np.ndarray
+    gt_poses: np.ndarray
+    seconds: float
+    unresolved: int
+    smoothing: SmoothingResult | None = None
+
+
+@dataclass
+class SmoothingExperiment:
+    """All runs, the summary and NEES tables (flat dict rows), and the written files."""
+
+    runs: list[EstimatorRun]
+    summary: list[dict[str, object]]
+    nees: list[dict[str, object]]
+    files: dict[str, Path] = field(default_factory=dict)
+
+
+def nees(poses: np.ndarray, covariances: np.ndarray, gt_poses: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-epoch NEES (E,) over 6 DoF and over the 5 observed ones (body z dropped).
+
+    Args:
+        poses: (E, 4, 4) estimates. covariances: (E, 6, 6) their marginal covariances in
+            gtsam's Pose3 tangent at the estimate. gt_poses: (E, 4, 4) truth, same frame.
+    """
+    out6, out5 = np.full(len(poses), np.nan), np.full(len(poses), np.nan)
+    keep = [0, 1, 2, 3, 4]
+    for k, (T, P, G) in enumerate(zip(poses, covariances, gt_poses, strict=True)):
+        xi = np.asarray(gtsam.Pose3(T).localCoordinates(gtsam.Pose3(G)))
+        try:
+            out6[k] = xi @ np.linalg.solve(P, xi)
+            out5[k] = xi[keep] @ np.linalg.solve(P[np.ix_(keep, keep)], xi[keep])
+        except np.linalg.LinAlgError:
+            continue
+    return {"nees6": out6, "nees5": out5}
+
+
+def summary_rows(runs: Sequence[EstimatorRun]) -> list[dict[str, object]]:
+    """Per scene, noise level and estimator: ATE, RPE, drift, runtime."""
+    rows = []
+    for r in runs:
+        m = summarize(r.poses, r.gt_poses, align="origin")
+        n = len(r.poses)
+        rows.append(
+            {
+                "scene": r.scene,
+                "noise_mm": r.noise * 1000,
+                "method": r.method,
+                "epochs": n,
+                "unresolved": r.unresolved,
+                "ate_rmse_m": m["ate_rmse_m"],
+                "rpe_trans_rmse_m": m["rpe_trans_rmse_m"],
+                "rpe_rot_rmse_deg": m["rpe_rot_rmse_deg"],
+                "drift_m": m["drift_m"],
+                "drift_percent": m["drift_percent"],
+                "seconds": r.seconds,
+                "epochs_per_s": n / r.seconds if r.seconds > 0 else float("nan"),
+            }
+        )
+    return rows
+
+
+def nees_rows(runs: Sequence[EstimatorRun]) -> list[dict[str, object]]:
+    """Consistency of the batch runs' marginal covariances (see module docstring)."""
+    rows = []
+    for r in runs:
+        res = r.smoothing
+        if r.method != "batch" or res is None:
+            continue
+        row: dict[str, object] = {"scene": r.scene, "noise_mm": r.noise * 1000}
+        if res.covariances is not None:  # epoch 0 is the prior: left out
+            values = nees(res.poses[1:], res.covariances[1:], r.gt_poses[1:])
+        for dof, key in ((6, "nees6"), (5, "nees5")):
+            lo, hi = chi2.ppf([0.025, 0.975], dof)
+            v = values[key][np.isfinite(values[key])] if res.covariances is not None else []
+            row[f"mean_nees{dof}"] = float(np.mean(v)) if len(v) else float("nan")
+            row[f"inside95_{dof}dof"] = float(np.mean((v >= lo) & (v <= hi))) if len(v) else 0.0
+            row[f"chi2_95_{dof}dof"] = f"[{lo:.2f}, {hi:.2f}]"
+        row["note"] = "" if res.covariances is not None else (res.covariance_note or "none")
+        rows.append(row)
+    return rows
+
+
+def plot_trajectories(runs: Sequence[EstimatorRun], scene: str, path: Path) -> None:
+    """Top views, one panel per noise level: truth (crosses) and every estimator."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    here = [r for r in runs if r.scene == scene]
+    levels = sorted({r.noise for r in here})
+    ncol = min(2, len(levels))
+    nrow = int(np.ceil(len(levels) / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(6.5 * ncol, 5.5 * nrow), squeeze=False)
+    for ax, noise in zip(axes.ravel(), levels, strict=False):
+        level = [r for r in here if r.noise == noise]
+        gt = level[0].gt_poses[:, :3, 3]
+        every = max(1, len(gt) // 150)
+        ax.plot(gt[::every, 0], gt[::every, 1], "x", color="tab:blue", ms=4, label="truth")
+        for r in level:
+            p = r.poses[:, :3, 3]
+            ax.plot(p[:, 0], p[:, 1], "-", color=COLOURS.get(r.method), lw=1.2, label=r.method)
+        ax.set_title(f"{scene}, sigma = {noise * 1000:g} mm")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.legend(loc="best", fontsize=8)
+    for ax in axes.ravel()[len(levels) :]:
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _with(config: PlanodomConfig, section: str, **changes: object) -> PlanodomConfig:
+    data = config.model_dump()
+    data[section].update(changes)
+    return PlanodomConfig.from_dict(data, source="experiment")
+
+
+def run_scene_level(
+    scene: str,
+    noise: float,
+    config: PlanodomConfig,
+    seed: int = 1,
+    n_epochs: int | None = None,
+    motion: str = "snapshot",
+    say: Callable[[str], None] = lambda msg: None,
+) -> list[EstimatorRun]:
+    """The four estimators on one simulated run (planes extracted once, shared)."""
+    from planodom.extraction import extract_planes
+    from planodom.simulation import simulate_named
+
+    D = config.smoothing.delta_max
+    say(f"{scene}: simulating sigma = {noise * 1000:g} mm")
+    sim = simulate_named(scene, "isoclinal", noise=noise, seed=seed, n_epochs=n_epochs,
+                         motion=motion)  # fmt: skip
+    gt = invert_transform(sim.poses[0])[None] @ sim.poses
+    say(f"{scene}: extracting planes of {len(sim)} epochs")
+    c0 = time.perf_counter()
+    planes = [extract_planes(scan, config.extraction) for scan in sim]
+    t_extract = time.perf_counter() - c0
+    runs = []
+
+    say(f"{scene}: odometry d=1 and d={D}")
+    odo1 = run_odometry(planes, _with(config, "odometry", delta=1), times=sim.times)
+    runs.append(EstimatorRun(scene, noise, "odometry d=1", odo1.poses, gt,
+                             odo1.seconds["odometry"], odo1.n_unresolved))  # fmt: skip
+    odoD = run_odometry(planes, _with(config, "odometry", delta=D), times=sim.times)
+    runs.append(EstimatorRun(scene, noise, "odometry d=D", odoD.poses, gt,
+                             odoD.seconds["odometry"], odoD.n_unresolved))  # fmt: skip
+
+    say(f"{scene}: relative poses delta = 2..{D}")
+    c0 = time.perf_counter()
+    relatives = [
+        from_relative_pose(r, k - 1, k) for k, r in enumerate(odo1.results) if r is not None
+    ]
+    relatives += relative_poses(planes, config, range(2, D + 1), odo1.poses)
+    t_relatives = time.perf_counter() - c0
+    front = odo1.seconds["odometry"] + t_relatives  # shared by both smoothers
+    for method, smooth in (("windowed", smooth_windowed), ("batch", smooth_batch)):
+        say(f"{scene}: {method} smoothing")
+        res = smooth(planes, relatives, config.smoothing)
+        runs.append(EstimatorRun(scene, noise, method, res.poses, gt, res.runtime_s,
+                                 len(res.stats.unresolved_epochs), res))  # fmt: skip
+    say(f"{scene}: extraction {t_extract:.1f} s, relative poses {front:.1f} s")
+    return runs
+
+
+def run_smoothing_experiment(
+    out: str | Path | None = None,
+    noise_levels: Sequence[float] = PAPER_NOISE_LEVELS,
+    scenes: Sequence[str] = SCENES,
+    window: int = 10,
+    delta: int = 3,
+    seed: int = 1,
+    n_epochs: int | None = None,
+    motion: str = "snapshot",
+    config: PlanodomConfig | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> SmoothingExperiment:
+    """Run the comparison; write figures and tables to ``out`` when given.
+
+    Args:
+        out: output directory (created), or None to only compute.
+        noise_levels: range noise sigmas, metres. scenes: built-in scene names.
+        window: W of the fixed-lag smoother. delta: D (odometry d=D and delta = 1..D).
+        seed: noise seed. n_epochs: epochs per run (default: the scene's whole path).
+        motion: "snapshot" or "continuous" (see :mod:`planodom.experiments.paper`).
+        config: base configuration; ``smoothing.window`` / ``delta_max`` are replaced.
+        progress: called with a short message at each step.
+
+    The ``seconds`` of a smoother are its own (graph building and optimisation); the
+    relative poses for delta = 2..D, shared by both smoothers, are reported by ``progress``.
+    """
+    base = _with(config or PlanodomConfig(), "smoothing", window=window, delta_max=delta)
+    say = progress or (lambda msg: None)
+    runs: list[EstimatorRun] = []
+    for scene in scenes:
+        for noise in noise_levels:
+            runs += run_scene_level(scene, noise, base, seed, n_epochs, motion, say)
+    result = SmoothingExperiment(runs, summary_rows(runs), nees_rows(runs))
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        files = {f"trajectories_{s}": out / f"trajectories_{s}.png" for s in scenes}
+        for scene in scenes:
+            plot_trajectories(runs, scene, files[f"trajectories_{scene}"])
+        files |= {
+            "summary_md": out / "summary.md",
+            "summary_csv": out / "summary.csv",
+            "nees_md": out / "nees.md",
+            "nees_csv": out / "nees.csv",
+            "config": out / "config.yaml",
+        }
+        files["summary_md"].write_text(markdown_table(result.summary))
+        write_csv(files["summary_csv"], result.summary)
+        files["nees_md"].write_text(markdown_table(result.nees))
+        write_csv(files["nees_csv"], result.nees)
+        base.to_yaml(files["config"])
+        result.files = files
+    return result
