@@ -9,7 +9,9 @@ Two paths, chosen by ``ExtractionConfig.mode`` (auto: by the number of rings):
 - 3D scan (many rings or none): open3d RANSAC in a seeded loop, with coplanar inliers
   split into connected pieces (:mod:`.lidar`).
 
-Points are first deskewed with an optional constant twist (:mod:`.deskew`). Every plane
+Points are first deskewed with an optional constant twist (:mod:`.deskew`); without one,
+a moving 2D-rig epoch is grouped in time windows of about one sweep
+(``ExtractionConfig.max_unskewed_span_s``). Every plane
 gets an oriented normal, a (4, 4) TLS covariance (:mod:`.fitting`), a CPEF confidence
 (:mod:`.confidence`), support and a true label; see :func:`extract_planes`.
 """

@@ -200,6 +200,59 @@ def _fits(tr: Traces, n: np.ndarray, d: float, tol: float) -> np.ndarray:
     return (ms <= tol * tol) & (ends <= tol)
 
 
+def connected_piece(
+    tr: Traces, members: np.ndarray, seed: int, gap_m: float, gap_ratio: float
+) -> np.ndarray:
+    """(T,) bool: the traces among ``members`` connected to trace ``seed``.
+
+    Each trace is its centre line (centroid + direction * [lo, hi]); two traces are linked
+    when the 3D distance between these segments is at most ``max(gap_m, gap_ratio * r)``,
+    ``r`` the range (distance from the base origin) of the nearer centroid: the rule that
+    splits scan lines into runs (:func:`planodom.extraction.segments.run_breaks`).
+    """
+    idx = np.flatnonzero(members)
+    K = len(idx)
+    s = np.flatnonzero(idx == seed)
+    if K <= 1 or len(s) == 0:
+        return members
+    a0 = tr.centroid[idx] + tr.lo[idx, None] * tr.direction[idx]
+    a1 = tr.centroid[idx] + tr.hi[idx, None] * tr.direction[idx]
+    ends = np.concatenate([a0, a1])
+    if np.linalg.norm(np.ptp(ends, axis=0)) <= gap_m:  # all within one gap: connected
+        return members
+    i, j = np.triu_indices(K, 1)
+    dist = segment_distances(a0[i], a1[i], a0[j], a1[j])
+    rng = np.linalg.norm(tr.centroid[idx], axis=1)
+    thr = np.maximum(gap_m, gap_ratio * np.minimum(rng[i], rng[j]))
+    link = dist <= thr
+    graph = coo_matrix((np.ones(np.count_nonzero(link)), (i[link], j[link])), shape=(K, K))
+    _, lab = connected_components(graph, directed=False)
+    out = np.zeros_like(members)
+    out[idx[lab == lab[s[0]]]] = True
+    return out
+
+
+def segment_distances(p0, p1, q0, q1) -> np.ndarray:
+    """(K,) closest distances between 3D segments ``[p0, p1]`` and ``[q0, q1]`` (K, 3):
+    the closest points of the two lines clamped to the first segment, then alternately
+    re-projected and clamped on each (exact unless both clamps bind, then within a
+    negligible margin for the gap test)."""
+    u, v, w = p1 - p0, q1 - q0, p0 - q0
+    a = np.einsum("ij,ij->i", u, u)
+    b = np.einsum("ij,ij->i", u, v)
+    c = np.einsum("ij,ij->i", v, v)
+    d = np.einsum("ij,ij->i", u, w)
+    e = np.einsum("ij,ij->i", v, w)
+    den = a * c - b * b
+    safe = den > 1e-12 * np.maximum(a * c, 1e-300)
+    sc = np.where(safe, (b * e - c * d) / np.where(safe, den, 1.0), 0.0)
+    sc = np.clip(sc, 0.0, 1.0)
+    tc = np.clip((b * sc + e) / np.maximum(c, 1e-300), 0.0, 1.0)
+    sc = np.clip((b * tc - d) / np.maximum(a, 1e-300), 0.0, 1.0)
+    diff = w + sc[:, None] * u - tc[:, None] * v
+    return np.linalg.norm(diff, axis=1)
+
+
 def quad_forms(normals: np.ndarray, scatter: np.ndarray) -> np.ndarray:
     """(P, T) ``n_p^T S_t n_p`` for normals (P, 3) and symmetric matrices (T, 3, 3), as one
     (P, 6) x (6, T) product (a three-operand einsum is ~50x slower here)."""
@@ -235,6 +288,8 @@ def group_segments(
     seg_t0: np.ndarray | None = None,
     seg_t1: np.ndarray | None = None,
     max_span_s: float = np.inf,
+    gap_m: float = np.inf,
+    gap_ratio: float = 0.0,
 ) -> tuple[list[np.ndarray], int]:
     """Segments grouped into planes.
 
@@ -252,6 +307,10 @@ def group_segments(
         seg_t0, seg_t1, max_span_s: first and last time (s) of each segment (S,) and the
             longest time span (s) of a trace, seed or plane (module docstring, time
             windows); no limit by default.
+        gap_m, gap_ratio: a plane keeps only the traces connected to its seed's first
+            trace through traces less than ``max(gap_m, gap_ratio * range)`` apart
+            (:func:`connected_piece`); coplanar walls with a wider gap between them are
+            separate planes. No limit by default.
 
     Returns:
         A list of (K,) int64 arrays of segment indices, one per plane, and the number of
@@ -338,6 +397,8 @@ def group_segments(
             if np.array_equal(new, members) or np.count_nonzero(new) < 2:
                 break
             members = new
+        if np.isfinite(gap_m):  # only the piece of the plane that holds the seed
+            members = connected_piece(tr, members, iu[p], gap_m, gap_ratio)
         n, d, rms, total = plane_of(tr, members)
         if (
             not (members[iu[p]] and members[ju[p]])

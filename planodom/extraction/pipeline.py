@@ -6,6 +6,11 @@
 2. deskewing with the twist, when given and the scan has times (:mod:`.deskew`);
 3. either the 2D-rig path (:mod:`.segments`, :mod:`.grouping`) or the 3D path
    (:mod:`.lidar`), which give candidate inlier sets;
+   without a twist on a moving 2D-rig epoch (times spread over more than
+   ``max_unskewed_span_s``) the grouping works in time windows of about one sweep (the
+   odometry's first epochs have no motion yet): planes are fit per window, a wall must be
+   found in ``min_unskewed_windows`` windows, one plane per wall is kept
+   (:func:`drop_repeats`) with its (n, d) extrapolated to the reference time;
 4. per candidate, a robust TLS fit on the points (:mod:`.fitting`), rejection of sets that
    are too small or too thin to be planes, orientation, covariance, CPEF confidence
    (:mod:`.confidence`), support polygon and the majority true label.
@@ -174,6 +179,8 @@ def extract(
             seg_t0=seg_t0,
             seg_t1=seg_t1,
             max_span_s=span,
+            gap_m=config.plane_gap_m,
+            gap_ratio=config.gap_range_ratio,
         )
         n_segments = len(segs)
         planes, inliers, n_rej = _rig_planes(groups, segs, pts, scan, config, sigma, org, xi)

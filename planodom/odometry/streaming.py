@@ -95,6 +95,18 @@ def _default_extractor() -> Extractor:
     return extract_planes
 
 
+@dataclass
+class _Epoch:
+    """What the odometry keeps of a registered epoch: its planes (and their arrays), and,
+    for re-extraction, its scan and the twist it was deskewed with (None: not deskewed)."""
+
+    index: int
+    planes: list[Plane]
+    arrays: PlaneArrays
+    scan: Scan | None = None
+    twist: np.ndarray | None = None
+
+
 class PlaneOdometry:
     """Streaming plane odometry.
 
@@ -130,12 +142,11 @@ class PlaneOdometry:
         self.times: list[float] = []
         self.results: list[RelativePose | None] = []
         self.reference_index: list[int] = []
-        # (epoch, planes, arrays) of the last delta epochs, and of the last one with >= 2.
-        self._history: deque[tuple[int, list[Plane], PlaneArrays]] = deque(
-            maxlen=self.config.odometry.delta
-        )
-        self._last_usable: tuple[int, list[Plane], PlaneArrays] | None = None
+        # The last delta epochs, and the last one with two planes or more.
+        self._history: deque[_Epoch] = deque(maxlen=self.config.odometry.delta)
+        self._last_usable: _Epoch | None = None
         self._twist: np.ndarray | None = None
+        self._velocities: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
         self._steps: list[np.ndarray] = []  # T_{k-1}_k per epoch (identity first)
 
     @property
@@ -145,7 +156,7 @@ class PlaneOdometry:
 
     @property
     def last_planes(self) -> list[Plane]:
-        return self._history[-1][1] if self._history else []
+        return self._history[-1].planes if self._history else []
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -153,7 +164,8 @@ class PlaneOdometry:
 
     @property
     def twist(self) -> np.ndarray | None:
-        """Constant-velocity body twist (6,), rad/s and m/s, of the last increment."""
+        """Constant-velocity body twist (6,), rad/s and m/s, predicted for the next epoch
+        (angular rate of the last increment, median recent linear velocity)."""
         return self._twist
 
     def _next_time(self, time: float | None) -> float:
@@ -163,77 +175,132 @@ class PlaneOdometry:
             return 0.0
         return self.times[-1] + self.config.odometry.epoch_period_s
 
-    def extract(self, scan: Scan, twist: np.ndarray | None = None) -> list[Plane]:
-        """The planes of one epoch, deskewed with ``twist`` (default: the constant-velocity
-        twist of the last estimate; none when ``deskew`` is off)."""
+    def extract(self, scan: Scan) -> list[Plane]:
+        """The planes of one epoch, deskewed with the constant-velocity twist of the last
+        estimate (when ``deskew`` is on and one is known)."""
+        return self._extract_with(scan, self._twist if self.config.odometry.deskew else None)
+
+    def _extract_with(self, scan: Scan, twist: np.ndarray | None) -> list[Plane]:
+        """The planes of ``scan`` deskewed with exactly ``twist`` (None: not deskewed)."""
         if self._extract is None:
             self._extract = _default_extractor()
-        if not self.config.odometry.deskew:
-            twist = None
-        elif twist is None:
-            twist = self._twist
         kwargs = {} if self.sensor_origins is None else {"sensor_origins": self.sensor_origins}
         return list(self._extract(scan, self.config.extraction, twist=twist, **kwargs))
 
     def register_epoch(self, scan: Scan, time: float | None = None) -> np.ndarray:
         """Extract the planes of one epoch and register them; returns ``T_world_base``.
 
-        With ``deskew`` and points spread in time, the epoch is extracted again with the
-        twist of its own estimate (``deskew_iterations`` times, while that helps): the
-        constant-velocity twist is only a prediction, and a poor one at start-up or after
-        a manoeuvre.
+        With ``deskew`` and points spread in time, the constant-velocity twist is only a
+        prediction: when the epoch's own estimate implies a twist that changes the
+        deskewing by more than ``deskew_tolerance_m`` over the epoch, the epoch is
+        extracted again with it (at most ``deskew_iterations`` times, while the status
+        does not get worse); a reference epoch that was never deskewed (the first) is
+        extracted again too. When the predicted twist leaves the epoch unresolved or
+        degenerate, it is also tried without deskewing, so that a wrong twist cannot lock
+        the odometry out.
 
         Args:
             scan: the epoch's points in the base frame (with per-point times if known).
             time: the epoch's reference time, seconds (default: previous + epoch period).
         """
+        ocfg = self.config.odometry
         t = self._next_time(time)
-        planes = self.extract(scan)
-        if not self.poses:
-            return self._commit(planes, PlaneArrays.from_planes(planes), t, None)
-        arrays = PlaneArrays.from_planes(planes)
-        est = self._relative(arrays, t, len(self.poses))
-        spread = scan.t is not None and len(scan.t) and np.ptp(scan.t) > 0
+        k = len(self.poses)
+        spread = bool(ocfg.deskew and scan.t is not None and len(scan.t) and np.ptp(scan.t) > 0)
+        twist = self._twist if spread else None
+        epoch = self._new_epoch(k, scan, twist)
+        if k == 0:
+            return self._commit(epoch, t, None)
         dt = t - self.times[-1]
-        if self.config.odometry.deskew and spread and dt > 0:
-            for _ in range(self.config.odometry.deskew_iterations):
-                if est[0].status == "unresolved":
-                    break
-                again = self.extract(scan, se3_log(est[1]) / dt)
-                arrays_again = PlaneArrays.from_planes(again)
-                est_again = self._relative(arrays_again, t, len(self.poses))
-                if _RANK[est_again[0].status] < _RANK[est[0].status]:
-                    break
-                planes, arrays, est = again, arrays_again, est_again
-        return self._commit(planes, arrays, t, est)
+        est = self._relative(epoch.arrays, t, k)
+        if spread and dt > 0 and twist is not None and est[0].status != "ok":
+            plain = self._new_epoch(k, scan, None)
+            est_plain = self._relative(plain.arrays, t, k)
+            if _RANK[est_plain[0].status] > _RANK[est[0].status]:
+                epoch, est = plain, est_plain
+        for _ in range(ocfg.deskew_iterations if spread and dt > 0 else 0):
+            if est[0].status == "unresolved":
+                break
+            new = se3_log(est[1]) / dt
+            ref = self._reference()
+            stale_ref = ref.scan is not None and ref.twist is None
+            if not stale_ref and self._smear(new, epoch.twist, dt) <= ocfg.deskew_tolerance_m:
+                break
+            if stale_ref:
+                self._reextract(ref, new)
+            again = self._new_epoch(k, scan, new)
+            est_again = self._relative(again.arrays, t, k)
+            if _RANK[est_again[0].status] < _RANK[est[0].status]:
+                break
+            epoch, est = again, est_again
+        return self._commit(epoch, t, est)
 
     def register_planes(self, planes: Sequence[Plane], time: float | None = None) -> np.ndarray:
         """Register an epoch given its planes (base frame); returns ``T_world_base`` (4, 4)."""
         t = self._next_time(time)
         planes = list(planes)
-        arrays = PlaneArrays.from_planes(planes)
-        est = self._relative(arrays, t, len(self.poses)) if self.poses else None
-        return self._commit(planes, arrays, t, est)
+        epoch = _Epoch(len(self.poses), planes, PlaneArrays.from_planes(planes))
+        est = self._relative(epoch.arrays, t, len(self.poses)) if self.poses else None
+        return self._commit(epoch, t, est)
 
-    def _commit(self, planes, arrays, t: float, est) -> np.ndarray:
+    def _new_epoch(self, k: int, scan: Scan, twist: np.ndarray | None) -> _Epoch:
+        planes = self._extract_with(scan, twist)
+        return _Epoch(k, planes, PlaneArrays.from_planes(planes), scan, twist)
+
+    def _reextract(self, epoch: _Epoch, twist: np.ndarray) -> None:
+        """Extract a kept epoch again with ``twist`` (its pose is not changed)."""
+        epoch.planes = self._extract_with(epoch.scan, twist)
+        epoch.arrays = PlaneArrays.from_planes(epoch.planes)
+        epoch.twist = twist
+        if len(epoch.planes) >= 2 and (
+            self._last_usable is None or self._last_usable.index <= epoch.index
+        ):
+            self._last_usable = epoch
+
+    @staticmethod
+    def _smear(a: np.ndarray, b: np.ndarray | None, dt: float) -> float:
+        """How far (m) deskewing with twist ``a`` instead of ``b`` moves a point 10 m away
+        by the end of an epoch of ``dt`` seconds."""
+        d = a if b is None else a - b
+        return float((np.linalg.norm(d[3:]) + 10.0 * np.linalg.norm(d[:3])) * dt)
+
+    def _commit(self, epoch: _Epoch, t: float, est) -> np.ndarray:
         """Append the epoch: its pose from the step of ``est`` (None for the first)."""
-        k = len(self.poses)
         if est is None:
             T_world, result, step, ref = np.eye(4), None, np.eye(4), -1
         else:
             result, step, ref = est
             T_world = _orthonormalised(self.poses[-1] @ step)
             dt = t - self.times[-1]
-            self._twist = se3_log(step) / dt if dt > 0 else None
+            if dt > 0:
+                self._twist = self._predicted_twist(se3_log(step) / dt, result.status == "ok")
         self.poses.append(T_world)
         self._steps.append(step)
         self.times.append(t)
         self.results.append(result)
         self.reference_index.append(ref)
-        self._history.append((k, planes, arrays))
-        if len(planes) >= 2:
-            self._last_usable = (k, planes, arrays)
+        self._history.append(epoch)
+        if len(epoch.planes) >= 2:
+            self._last_usable = epoch
         return T_world
+
+    def _predicted_twist(self, twist: np.ndarray, measured: bool) -> np.ndarray:
+        """The constant-velocity twist for the next epoch: the angular rate of the last
+        step, and the median linear velocity of the last ``velocity_window`` steps whose
+        translation was measured (one wrong translation must not steer the deskewing and
+        the prior of the following epochs; a degenerate step only repeats its prior)."""
+        if measured:
+            self._velocities.append(twist[3:])
+        if not self._velocities:
+            return twist
+        return np.r_[twist[:3], np.median(np.array(self._velocities), axis=0)]
+
+    def _reference(self) -> _Epoch:
+        """The epoch the next one is associated with (see ``reference_index``)."""
+        ref = self._history[0]
+        if len(ref.planes) < 2 and self._last_usable is not None:
+            ref = self._last_usable
+        return ref
 
     def _relative(
         self, planes: PlaneArrays, t: float, k: int
@@ -244,9 +311,8 @@ class PlaneOdometry:
         Poses are chained through steps (products of rigid transforms), never through the
         inverse of a chained world pose, so rounding cannot grow from epoch to epoch.
         """
-        ref, _, ref_planes = self._history[0]
-        if len(ref_planes) < 2 and self._last_usable is not None:
-            ref, _, ref_planes = self._last_usable
+        reference = self._reference()
+        ref, ref_planes = reference.index, reference.arrays
         gap = k - ref
         T_ref_last = np.eye(4)  # T_{ref}_{k-1}
         for step in self._steps[ref + 1 :]:

@@ -48,8 +48,6 @@ from planodom.config import SmoothingConfig
 from planodom.errors import ConfigError
 from planodom.geometry import (
     Plane,
-    invert_transform,
-    make_transform,
     plane_tangent_covariance,
     rpy_from_rotation,
     transform_planes,
@@ -175,6 +173,7 @@ class GraphBuilder:
         self.n_epochs = 0
         self._T_world_first = np.eye(4) if T_world_first is None else np.asarray(T_world_first)
         self._robust_planes = robust_planes
+        self._last_step: np.ndarray | None = None
 
     # ----------------------------------------------------------------- noise models
 
@@ -233,21 +232,14 @@ class GraphBuilder:
                 return self.poses[rel.prev] @ np.asarray(rel.T_prev_curr, dtype=float)
         return None
 
-    def _fallback_motion(self, k: int, relatives: Sequence[RelativeMeasurement]) -> np.ndarray:
-        """(4, 4) guess of ``T_{k-1}_k`` for an epoch no resolved relative pose reaches.
+    def _fallback_motion(self, k: int) -> np.ndarray:
+        """(4, 4) guess of ``T_{k-1}_k`` when no relative pose measured the motion into k.
 
-        The unresolved delta = 1 result's transform when given (the odometry fills it by
-        constant velocity), else the last motion repeated, else the identity; the rotation
-        is re-orthonormalised so that repeated fallbacks cannot drift off SO(3).
+        The last *measured* delta = 1 motion repeated (constant velocity), identity before
+        any: taken from the measurements, never from the estimates, so that a smoother's
+        corrections cannot feed back into the guess over a run of unresolved epochs.
         """
-        T = np.eye(4)
-        given = [r.T_prev_curr for r in relatives if r.curr == k and r.delta == 1]
-        if given and np.all(np.isfinite(given[0])):
-            T = np.asarray(given[0], dtype=float)
-        elif k >= 2 and k - 2 in self.poses and k - 1 in self.poses:
-            T = invert_transform(self.poses[k - 2]) @ self.poses[k - 1]
-        U, _, Vt = np.linalg.svd(T[:3, :3])
-        return make_transform(U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt, T[:3, 3])
+        return self._last_step if self._last_step is not None else np.eye(4)
 
     def add_epoch(
         self,
@@ -288,7 +280,7 @@ class GraphBuilder:
             )
         else:
             T = self._initial_pose(k, resolved)
-            T_rel = self._fallback_motion(k, relatives)
+            T_rel = self._fallback_motion(k)
             if T is None:
                 T = self.poses[k - 1] @ T_rel
                 self.stats.unresolved_epochs.append(k)
@@ -306,6 +298,8 @@ class GraphBuilder:
                 graph.add(vertical_factor(X(k - 1), X(k), 0.0, noise))
                 self.stats.vertical += 1
         for rel in resolved:
+            if rel.delta == 1 and rel.translation_observed:
+                self._last_step = np.asarray(rel.T_prev_curr, dtype=float)
             make = pose5_factor if rel.translation_observed else rotation_factor
             graph.add(make(X(rel.prev), X(k), rel.T_prev_curr, self.between_noise(rel)))
             self.stats.between += 1

@@ -44,6 +44,10 @@ class WindowedSmoother:
             # past (weak after long unresolved stretches) while plane factors are stiff;
             # Cholesky squares that condition number and gives up.
             params.setFactorization("QR")
+            # Dogleg (a trust region) rather than Gauss-Newton: a window held only by
+            # fallback and rotation-only factors and a few planes is nearly singular, and
+            # undamped steps there overshoot by metres.
+            params.setOptimizationParams(gtsam.ISAM2DoglegParams())
             self.smoother = gtsam.IncrementalFixedLagSmoother(lag, params)
         else:
             lm = gtsam.LevenbergMarquardtParams()
