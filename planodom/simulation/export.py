@@ -15,10 +15,10 @@ from planodom.simulation.simulate import SimulatedRun
 def rig_description(run: SimulatedRun, scene_name: str | None = None) -> dict[str, Any]:
     """The ``rig.yaml`` dict of a simulated run.
 
-    Keys: ``epoch_rate`` (Hz), ``rig`` (sensors with ``T_base_sensor`` extrinsics, rates,
-    ranges, noise: :meth:`Rig.to_dict`), ``sensor_origins`` ((R, 3): for each ring, the
-    position of its sensor in the base frame, metres, for orienting normals) and ``simulation`` (scene name and
-    polygons, seed, motion, noise sigma in metres).
+    Keys: ``epoch_rate`` (Hz); ``rig`` (sensors with ``T_base_sensor`` extrinsics, rates,
+    ranges, noise: :meth:`Rig.to_dict`); ``sensor_origins`` ((R, 3): for each ring, the
+    position of its sensor in the base frame, metres, for orienting normals);
+    ``simulation`` (scene name and polygons, seed, motion, noise sigma in metres).
     """
     sensors = run.rig.sensors
     return {
