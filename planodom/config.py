@@ -239,9 +239,11 @@ class OdometryConfig(Section):
     deskew_iterations: int = 2
     """Streaming: extract a time-spread epoch again with its own estimate's twist, at most
     this many times (see ``deskew_tolerance_m``); 0: the prediction only."""
-    deskew_tolerance_m: float = 0.02
+    deskew_tolerance_m: float = 0.05
     """Re-extract when the estimate's twist moves a point 10 m away by more than this over
-    the epoch, compared with the twist the epoch was deskewed with, metres."""
+    the epoch, compared with the twist the epoch was deskewed with, metres. Above the
+    noise of one epoch's twist (a few cm/epoch in translation at 6 mm), so that it acts
+    at start-up and after a misprediction, not on noise."""
     velocity_window: int = 5
     """Streaming: the predicted linear velocity is the median over this many recent
     measured steps (the angular rate is the last step's)."""

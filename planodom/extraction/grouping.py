@@ -223,12 +223,16 @@ def connected_piece(
     i, j = np.triu_indices(K, 1)
     dist = segment_distances(a0[i], a1[i], a0[j], a1[j])
     rng = np.linalg.norm(tr.centroid[idx], axis=1)
-    thr = np.maximum(gap_m, gap_ratio * np.minimum(rng[i], rng[j]))
-    link = dist <= thr
-    graph = coo_matrix((np.ones(np.count_nonzero(link)), (i[link], j[link])), shape=(K, K))
-    _, lab = connected_components(graph, directed=False)
+    adj = np.eye(K, dtype=bool)
+    adj[i, j] = adj[j, i] = dist <= np.maximum(gap_m, gap_ratio * np.minimum(rng[i], rng[j]))
+    reach = adj[s[0]]
+    while True:  # breadth-first growth (K is a few tens: cheaper than a sparse graph)
+        grown = adj[reach].any(axis=0)
+        if np.array_equal(grown, reach):
+            break
+        reach = grown
     out = np.zeros_like(members)
-    out[idx[lab == lab[s[0]]]] = True
+    out[idx[reach]] = True
     return out
 
 
