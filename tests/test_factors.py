@@ -13,6 +13,7 @@ from factors.planes import (
     anchored_plane_factor,
     orient_measurement,
     plane_factor,
+    plane_noise,
     predict_plane,
 )
 from factors.pose5 import pose5_factor, rotation_factor, vertical_factor
@@ -238,3 +239,30 @@ def test_anchored_planes_are_well_conditioned_far_from_the_origin() -> None:
     graph, values = _far_graph(1000.0, anchored=True)
     result = gtsam.LevenbergMarquardtOptimizer(graph, values).optimize()
     np.testing.assert_allclose(result.atPose3(X(0)).translation(), [999.0, 0, 0], atol=1e-6)
+
+
+def test_error_vector_sign_convention_and_plane_noise_whitening() -> None:
+    """errorVector = [normal part like localCoordinates, offset part negated]; plane_noise
+    turns the tangent covariance into the covariance of that error (MC check)."""
+    rng = np.random.default_rng(21)
+    measured = gtsam.OrientedPlane3(np.array([0.6, 0.64, 0.48, 3.0]))
+    for k in range(3):
+        v = np.zeros(3)
+        v[k] = 1e-3
+        e = measured.errorVector(measured.retract(v))
+        np.testing.assert_allclose(e, [1e-3, 0, 0] if k == 0 else [0, 1e-3, 0] if k == 1
+                                   else [0, 0, -1e-3], atol=1e-8)  # fmt: skip
+    cov = np.array([[4e-6, 0.0, 1.5e-5], [0.0, 1e-6, 0.0], [1.5e-5, 0.0, 1e-4]])
+    noise = plane_noise(cov)
+    values = gtsam.Values()
+    values.insert(X(0), gtsam.Pose3())
+    values.insert(A(0), gtsam.Pose3())
+    factor = anchored_plane_factor(X(0), A(0), L(0), measured.planeCoefficients(), noise)
+    squares = []
+    for xi in rng.multivariate_normal(np.zeros(3), cov, size=400):
+        # The truth is the measurement moved back by the noise.
+        truth = measured.retract(-xi)
+        trial = gtsam.Values(values)
+        trial.insert(L(0), truth)
+        squares.append(2.0 * factor.error(trial))
+    assert 2.7 < np.mean(squares) < 3.3  # chi2(3) mean; the wrong sign gives 7.4

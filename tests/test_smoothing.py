@@ -7,13 +7,15 @@ from dataclasses import replace
 import gtsam
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import ConfigError
 from planodom.geometry import Plane, make_transform, pose_error
 from planodom.smoothing import LandmarkTracker, WindowedSmoother, smooth_batch, smooth_windowed
-from planodom.smoothing.graph import GraphBuilder
+from planodom.smoothing.graph import GraphBuilder, rpy_to_rotation_vector
+from planodom.smoothing.run import rotation_determined
 from planodom.smoothing.synthetic import SyntheticSequence, make_sequence
 
 GAUSSIAN = SmoothingConfig(robust_kernel="none")
@@ -83,13 +85,19 @@ def test_far_from_the_origin_anchored_landmarks_recover_the_truth() -> None:
     assert rot < 1e-9 and trans < 1e-7
 
 
-def test_noisy_batch_is_consistent_with_its_covariance() -> None:
-    """NEES of the last pose over independent seeds against chi-square bounds (6 DoF)."""
+@pytest.mark.parametrize("plane_factor", ["anchored", "global"])
+def test_noisy_batch_is_consistent_with_its_covariance(plane_factor: str) -> None:
+    """NEES of the last pose over independent seeds against chi-square bounds (6 DoF).
+
+    The synthetic plane noise has normal-offset correlations: with the anchored factor
+    (full covariance) a wrong sign of those correlations pushes the sum to ~200.
+    """
     seeds = range(24)
     nees = []
+    config = replace_config(GAUSSIAN, plane_factor=plane_factor)
     for seed in seeds:
         seq = make_sequence(25, seed=seed, **NOISE)
-        result = smooth_batch(seq.planes, seq.relatives, GAUSSIAN)
+        result = smooth_batch(seq.planes, seq.relatives, config)
         k = len(seq.poses) - 1
         xi = gtsam.Pose3(result.poses[k]).localCoordinates(gtsam.Pose3(seq.poses[k]))
         nees.append(xi @ np.linalg.solve(result.covariances[k], xi))
@@ -224,3 +232,38 @@ def test_config_validation() -> None:
     with pytest.raises(ConfigError, match="global"):
         GraphBuilder(SmoothingConfig(plane_factor="global"))
     assert PlanodomConfig.from_dict({"smoothing": {"delta_max": 2}}).smoothing.delta_max == 2
+
+
+def test_rpy_covariance_maps_to_the_rotation_error_tangent() -> None:
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        rpy = rng.uniform(-0.6, 0.6, 3)
+        R = Rotation.from_euler("ZYX", rpy[::-1]).as_matrix()
+        J = rpy_to_rotation_vector(rpy)
+        d = rng.normal(scale=1e-6, size=3)
+        R2 = Rotation.from_euler("ZYX", (rpy + d)[::-1]).as_matrix()
+        e = gtsam.Rot3.Logmap(gtsam.Rot3(R.T @ R2))
+        np.testing.assert_allclose(e, J @ d, atol=1e-11)
+
+
+def test_wrong_association_is_gated() -> None:
+    seq = make_sequence(15, seed=12, vertical_sigma=0.0)
+    planes = [list(p) for p in seq.planes]
+    # Epoch 8's plane 1 replaced by a wall turned by 40 degrees: still "associated".
+    wrong = planes[8][1]
+    turned = Rotation.from_euler("z", 40, degrees=True).as_matrix() @ wrong.normal
+    planes[8][1] = Plane(turned, wrong.offset, covariance=wrong.covariance)
+    result = smooth_batch(planes, seq.relatives, GAUSSIAN)
+    assert result.stats.gated == 1
+    rot, trans = max_pose_errors(result.poses, seq.poses)
+    assert rot < 1e-9 and trans < 1e-8
+
+
+def test_rotation_needs_two_non_parallel_associated_planes() -> None:
+    ground = Plane(np.array([0.0, 0.0, 1.0]), 1.5)
+    wall = Plane(np.array([1.0, 0.0, 0.0]), 4.0)
+    parallel = Plane(np.array([-1.0, 0.0, 0.0]), 3.0)
+    assert rotation_determined([ground, wall], np.array([[0, 0], [1, 1]]))
+    assert not rotation_determined([ground, wall], np.array([[0, 0]]))
+    assert not rotation_determined([wall, parallel], np.array([[0, 0], [1, 1]]))
+    assert not rotation_determined([ground], np.array([[0, 0], [1, 5]]))  # index out of range

@@ -190,7 +190,7 @@ def extract(
         return _result(planes, inliers, mode, sigma, n_segments, len(groups), rejected + n_rej, pts)
     else:
         view = _scan_viewpoint(org, config)
-        candidates, sigma = lidar_candidates(pts, config, scan.ring, view)
+        candidates, sigma = lidar_candidates(pts, config, scan.ring, view, scan.t)
         rejected, n_segments = 0, 0
 
     planes: list[Plane] = []

@@ -191,13 +191,13 @@ class PlaneOdometry:
         """Extract the planes of one epoch and register them; returns ``T_world_base``.
 
         With ``deskew`` and points spread in time, the constant-velocity twist is only a
-        prediction: when the epoch's own estimate implies a twist that changes the
-        deskewing by more than ``deskew_tolerance_m`` over the epoch, the epoch is
-        extracted again with it (at most ``deskew_iterations`` times, while the status
-        does not get worse); a reference epoch that was never deskewed (the first) is
-        extracted again too. When the predicted twist leaves the epoch unresolved or
-        degenerate, it is also tried without deskewing, so that a wrong twist cannot lock
-        the odometry out.
+        prediction: when the epoch's own estimate implies an angular rate or a velocity
+        that differs from it by more than ``deskew_rate_tolerance_deg_s`` /
+        ``deskew_speed_tolerance_mps``, the epoch is extracted again with them (at most
+        ``deskew_iterations`` times, while the status does not get worse); a reference
+        epoch that was never deskewed (the first) is extracted again too. When the
+        predicted twist leaves the epoch unresolved or degenerate, it is also tried
+        without deskewing, so that a wrong twist cannot lock the odometry out.
 
         Args:
             scan: the epoch's points in the base frame (with per-point times if known).
@@ -221,10 +221,11 @@ class PlaneOdometry:
         for _ in range(ocfg.deskew_iterations if spread and dt > 0 else 0):
             if est[0].status == "unresolved":
                 break
-            new = se3_log(est[1]) / dt
+            used = np.zeros(6) if epoch.twist is None else epoch.twist
+            new = self._refined_twist(se3_log(est[1]) / dt, used, est[0].status == "ok")
             ref = self._reference()
             stale_ref = ref.scan is not None and ref.twist is None
-            if not stale_ref and self._smear(new, epoch.twist, dt) <= ocfg.deskew_tolerance_m:
+            if not stale_ref and np.array_equal(new, used):
                 break
             if stale_ref:
                 self._reextract(ref, new)
@@ -257,12 +258,17 @@ class PlaneOdometry:
         ):
             self._last_usable = epoch
 
-    @staticmethod
-    def _smear(a: np.ndarray, b: np.ndarray | None, dt: float) -> float:
-        """How far (m) deskewing with twist ``a`` instead of ``b`` moves a point 10 m away
-        by the end of an epoch of ``dt`` seconds."""
-        d = a if b is None else a - b
-        return float((np.linalg.norm(d[3:]) + 10.0 * np.linalg.norm(d[:3])) * dt)
+    def _refined_twist(self, own: np.ndarray, used: np.ndarray, measured: bool) -> np.ndarray:
+        """The twist to extract again with: the epoch's own angular rate and (when its
+        translation was measured) linear velocity, each only where it differs from the
+        twist used by more than its tolerance; else ``used`` unchanged."""
+        ocfg = self.config.odometry
+        new = used.copy()
+        if np.degrees(np.linalg.norm(own[:3] - used[:3])) > ocfg.deskew_rate_tolerance_deg_s:
+            new[:3] = own[:3]
+        if measured and np.linalg.norm(own[3:] - used[3:]) > ocfg.deskew_speed_tolerance_mps:
+            new[3:] = own[3:]
+        return new
 
     def _commit(self, epoch: _Epoch, t: float, est) -> np.ndarray:
         """Append the epoch: its pose from the step of ``est`` (None for the first)."""

@@ -72,7 +72,8 @@ class RelativeMeasurement:
         sigmas: (5,) standard deviations of (roll, pitch, yaw) rad and (x, y) m, or None.
         associations: (M, 2) int, (plane index in ``prev``, plane index in ``curr``), the
             strict associations that gave this relative pose.
-        ok: False for an unresolved pair (no factor; its associations are ignored).
+        ok: False for an unresolved pair: no factor (its associations, if any, still
+            track planes into landmarks).
         covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 and m^2; when
             given it replaces ``sigmas``.
         translation_observed: False when only the rotation was measured (a rotation-only
@@ -307,7 +308,13 @@ class GraphBuilder:
         values.insert(X(k), gtsam.Pose3(T))
         stamps[X(k)] = float(k)
 
-        roots = self.tracker.add_epoch(k, len(planes), {r.delta: r.associations for r in resolved})
+        # Associations track planes even when their relative pose gave no factor.
+        tracked = [
+            r
+            for r in relatives
+            if r.curr == k and min_epoch <= r.prev < k and r.delta <= c.delta_max
+        ]
+        roots = self.tracker.add_epoch(k, len(planes), {r.delta: r.associations for r in tracked})
         for root in dict.fromkeys(roots):  # unique, in plane order
             j = self.tracker.landmark(root)
             if j is not None:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -74,6 +74,24 @@ def from_relative_pose(rel: RelativePose, prev: int, curr: int) -> RelativeMeasu
     )
 
 
+def rotation_determined(
+    planes_curr: Sequence[Plane], associations: np.ndarray, min_angle_deg: float = 10.0
+) -> bool:
+    """Whether the associated planes can determine a rotation: two non-parallel normals.
+
+    Args:
+        planes_curr: the current epoch's planes. associations: (M, 2) indices (prev, curr).
+        min_angle_deg: smallest angle between two normals that counts as non-parallel.
+    """
+    idx = np.asarray(associations, dtype=int).reshape(-1, 2)[:, 1]
+    idx = idx[(idx >= 0) & (idx < len(planes_curr))]
+    if len(idx) < 2:
+        return False
+    normals = np.stack([planes_curr[i].normal for i in idx])
+    cross = np.linalg.norm(np.cross(normals[:, None], normals[None]), axis=2)
+    return bool(cross.max() >= np.sin(np.radians(min_angle_deg)))
+
+
 def config_for_delta(config: PlanodomConfig, delta: int) -> PlanodomConfig:
     """Association bounds widened for a gap of ``delta`` epochs (as the streaming odometry)."""
     if delta <= 1:
@@ -116,7 +134,12 @@ def relative_poses(
             if guess_poses is not None:
                 prior = invert_transform(guess_poses[k - delta]) @ guess_poses[k]
             rel = estimate_relative_pose(planes[k - delta], planes[k], cfg, prior)
-            out.append(from_relative_pose(rel, k - delta, k))
+            measurement = from_relative_pose(rel, k - delta, k)
+            if measurement.ok and not rotation_determined(planes[k], measurement.associations):
+                # A rotation from fewer than two non-parallel associated planes is the
+                # prior's, not a measurement: keep the associations, drop the factor.
+                measurement = replace(measurement, ok=False)
+            out.append(measurement)
             done += 1
             if progress is not None:
                 progress("relatives", done, total)

@@ -5,7 +5,7 @@ against their covariances: relative rotations ``R_true Exp(n_rot)``, horizontal
 translations ``t_true[:2] + n_xy`` (z reported as 0, unobserved), planes
 ``OrientedPlane3(true).retract(n_plane)`` with a (4, 4) fit covariance whose projection on
 the measured plane's tangent basis is the sampling covariance (isotropic in the normal,
-so the basis does not matter). The truth's height is a random walk with the sigma of the
+with a random normal-offset correlation). The truth's height is a random walk with the sigma of the
 graph's vertical factor.
 """
 
@@ -87,13 +87,18 @@ def _measure_plane(
     c = np.asarray(true_body.planeCoefficients())
     if c[3] < 0:  # orient towards the sensor (origin on the positive side)
         true_body = gtsam.OrientedPlane3(-c)
-    xi = rng.normal(0.0, [sigma_normal, sigma_normal, sigma_offset])
+    # Tangent covariance: isotropic normal, one normal axis correlated with the offset (as
+    # for a fit whose centroid is off the sensor).
+    rho = rng.uniform(-0.8, 0.8)
+    tangent = np.diag([sigma_normal**2, sigma_normal**2, sigma_offset**2])
+    tangent[0, 2] = tangent[2, 0] = rho * sigma_normal * sigma_offset
+    xi = rng.multivariate_normal(np.zeros(3), tangent) if sigma_normal > 0 else np.zeros(3)
     measured = np.asarray(true_body.retract(xi).planeCoefficients())
     B = np.asarray(gtsam.Unit3(measured[:3]).basis())
     P = np.zeros((4, 3))
     P[:3, :2] = B
     P[3, 2] = 1.0
-    cov = P @ np.diag([sigma_normal**2, sigma_normal**2, sigma_offset**2]) @ P.T
+    cov = P @ tangent @ P.T
     return Plane(measured[:3], measured[3], covariance=cov, truth_id=truth_id)
 
 
