@@ -299,6 +299,90 @@ def evaluate(
     console.print(metrics_table(metrics.summarize(est, gt, align=align, delta=delta)))
 
 
+Levels = Annotated[str, typer.Option(help="Comma-separated range noise sigmas in metres.")]
+ExpOut = Annotated[Path, typer.Option("--out", "-o", help="Output directory.")]
+
+
+def _levels(text: str) -> list[float]:
+    from planodom.errors import ConfigError
+
+    try:
+        levels = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ConfigError(f"--levels: expected comma-separated numbers, got '{text}'") from None
+    if not levels or any(not (x >= 0) for x in levels):
+        raise ConfigError(f"--levels: expected sigmas >= 0 in metres, got '{text}'")
+    return levels
+
+
+def _say(message: str) -> None:
+    err_console.print(f"[dim]{message}[/]", highlight=False)
+
+
+@experiment_app.command("paper")
+@reports_errors
+def experiment_paper(
+    out: ExpOut = Path("results/paper"),
+    levels: Levels = "0,0.006,0.02,0.1",
+    epochs: Epochs = None,
+    seed: Seed = 1,
+    motion: Motion = "snapshot",
+    config: ConfigFile = None,
+) -> None:
+    """The paper's section VI: Fig. 5 trajectories, Fig. 6 / 7 precision tables."""
+    from rich.markdown import Markdown
+
+    from planodom.experiments.paper import (
+        markdown_table,
+        precision_markdown,
+        run_paper_experiment,
+    )
+
+    result = run_paper_experiment(
+        out, noise_levels=_levels(levels), seed=seed, n_epochs=epochs, motion=motion,
+        config=_load_config(config), progress=_say,
+    )  # fmt: skip
+    console.print(Markdown(precision_markdown(result.precision)))
+    keep = ("noise_m", "method", "unresolved", "degenerate", "rot_rms_deg", "xy_rms_m")
+    keep += ("drift_percent", "ate_rmse_m")
+    console.print(Markdown(markdown_table([{k: r[k] for k in keep} for r in result.summary])))
+    for name, path in result.files.items():
+        console.print(f"{name}: {path}", highlight=False)
+
+
+@experiment_app.command("smoothing")
+@reports_errors
+def experiment_smoothing(
+    out: ExpOut = Path("results/smoothing"),
+    levels: Levels = "0,0.006,0.02,0.1",
+    scenes: Annotated[str, typer.Option(help="Comma-separated built-in scenes.")] = (
+        "paper-loop,urban-canyon"
+    ),
+    window: Annotated[int, typer.Option(help="Fixed-lag window W, epochs.")] = 10,
+    delta: Annotated[int, typer.Option(help="Relative poses for delta = 1..D.")] = 3,
+    epochs: Epochs = None,
+    seed: Seed = 1,
+    motion: Motion = "snapshot",
+    config: ConfigFile = None,
+) -> None:
+    """Raw odometry vs delta > 1 vs windowed vs batch smoothing, with NEES."""
+    from pathlib import Path as _Path
+
+    from planodom.experiments.smoothing import run_smoothing_experiment
+
+    result = run_smoothing_experiment(
+        out, noise_levels=_levels(levels), scenes=[x for x in scenes.split(",") if x],
+        window=window, delta=delta, seed=seed, n_epochs=epochs, motion=motion,
+        config=_load_config(config), progress=_say,
+    )  # fmt: skip
+    for name, path in getattr(result, "files", {}).items():
+        if _Path(path).suffix == ".md":
+            from rich.markdown import Markdown
+
+            console.print(Markdown(_Path(path).read_text()))
+        console.print(f"{name}: {path}", highlight=False)
+
+
 def main() -> None:  # pragma: no cover - console entry point
     app()
 

@@ -89,3 +89,20 @@ def test_smooth_noise_free_recovers_the_truth(tmp_path) -> None:
     np.testing.assert_allclose(odo[:, :2, 3], gt[:, :2, 3], atol=1e-6)
     metrics = json.loads((out / "metrics.json").read_text())
     assert set(metrics) == {"odometry", "smoothing_batch"}
+
+
+def test_experiment_paper_small(tmp_path) -> None:
+    import csv
+
+    out = tmp_path / "paper"
+    args = ["experiment", "paper", "--out", str(out), "--epochs", "6", "--levels", "0"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    for name in ("trajectories.png", "precision.csv", "precision.md", "summary.csv"):
+        assert (out / name).exists(), name
+    rows = list(csv.DictReader((out / "summary.csv").open()))
+    assert {r["method"] for r in rows} == {"sda-mean", "wocsc"}
+    # Noise-free: the per-epoch errors against the simulator's truth vanish.
+    assert all(float(r["xy_rms_m"]) < 1e-6 and float(r["rot_rms_deg"]) < 1e-6 for r in rows)
+    bad = runner.invoke(app, ["experiment", "paper", "--out", str(out), "--levels", "-1"])
+    assert bad.exit_code == 2 and "--levels" in bad.output
