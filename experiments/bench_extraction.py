@@ -59,7 +59,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     print(f"{'case':40s} {'pts/ep':>8s} {'wall ep/s':>10s} {'cpu ep/s':>9s}  target")
-    for rig, n, target in (("isoclinal", args.epochs, 500), ("lidar32", args.lidar_epochs, 20)):
+    rigs = (("isoclinal", args.epochs, 500), ("lidar32", args.lidar_epochs, 20))
+    for rig, n, target in rigs:
         run = simulate_named("paper-loop", rig, noise=0.006, seed=1, n_epochs=n)
         cases = [("no deskew", None), ("cv-deskew", _twists(run))]
         for name, tw in cases if rig == "isoclinal" else cases[1:]:

@@ -51,3 +51,23 @@ def test_coplanar_separate_walls_are_two_planes():
     assert sorted(p.truth_id for p in walls) == [1, 2]
     for p in walls:
         assert p.normal[0] < -0.999 and abs(p.offset - 8.0) < 1e-6
+
+
+def test_range_image_matches_truth_with_noise_and_dropouts():
+    """Ringed scans take the range-image path: noisy walls within a sigma-derived bound,
+    the same walls as the RANSAC path, also with no-return beams dropped."""
+    sigma = 0.006
+    scan = scan_lidar(SCENE, sigma=sigma, n_azimuth=1024, seed=3)
+    keep = np.random.default_rng(0).random(len(scan)) > 0.05  # 5 % no-returns
+    scan = scan.subset(keep)
+    cfg = ExtractionConfig(range_noise_m=sigma)
+    res = extract(scan, cfg)
+    assert res.mode == "lidar"
+    big = [p for p in res.planes if p.support.n_points > 500]
+    assert {p.truth_id for p in big} == set(TRUTH)
+    for p in big:
+        n, d = TRUTH[p.truth_id]
+        assert np.linalg.norm(np.cross(p.normal, n)) < 5 * np.sqrt(np.trace(p.covariance[:3, :3]))
+        assert abs(p.offset - d) < 5 * np.sqrt(p.covariance[3, 3]) + 1e-3
+    ransac = extract(scan, cfg.model_copy(update={"range_image": False}))
+    assert {p.truth_id for p in ransac.planes if p.support.n_points > 500} == set(TRUTH)

@@ -1,12 +1,14 @@
 """Planes of a ringed 3D scan by region growing on its range image.
 
 A spinning lidar's points form a grid: one row per ring (rows in ring-id order, which a
-lidar driver's ``ring`` field follows: lowest beam first, or highest) and one column per firing. The column of a point is
-taken from its time within its ring (``round((t - t_min) / dt)``, ``dt`` the median time
-step between consecutive points of a ring: dropped no-return beams leave empty pixels),
-or, without usable times, from its azimuth about the viewpoint (as many columns as the
-fullest ring has points). Only what a recorded cloud with rings has is used: ``ring``,
-the points' order within a ring, ``t``.
+lidar driver's ``ring`` field follows: lowest beam first, or highest) and one column per
+firing. The column of a point is taken from its time within its ring,
+``round((t - t_min) / dt)`` with ``dt`` the median time step between consecutive points
+of a ring (dropped no-return beams leave empty pixels), or, without usable times (all zero:
+a snapshot), from its azimuth about the viewpoint (as many columns as the fullest ring has
+points) when ``region_azimuth_columns``, else the caller uses RANSAC. Only
+what a recorded cloud with rings has is used: ``ring``, the points' order within a ring,
+``t``.
 
 1. Pixel normals: ``n = t_h x t_v`` with the row tangent ``t_h = sum_k k (p[c+k] - p[c-k])``,
    ``k = 1..region_window`` (columns wrap) and the column tangent ``t_v = p[r+1] - p[r-1]``.
@@ -17,15 +19,17 @@ the points' order within a ring, ``t``.
    plane (``tol = max(member_sigma_factor * sigma, tolerance_floor_m)``) and the points
    are at most ``max(min_gap_m, gap_range_ratio * range)`` apart. Connected components of
    the pixel graph (scipy.sparse.csgraph) with ``min_plane_points / 2`` pixels or more
-   and an RMS residual within ``max(max_rms_sigma_factor * sigma, rms_floor_m)`` of their
-   TLS plane (moments by bincount, batched eigen-solver) are plane pieces.
-3. Pieces whose pixels come within ``cluster_gap_deg`` of each other in the grid (so that
+   an RMS residual within ``max(max_rms_sigma_factor * sigma, rms_floor_m)`` of their
+   TLS plane (moments by bincount, batched eigen-solver) and a minor width of
+   ``min_plane_width_m`` (not a line) are plane pieces.
+3. Pieces whose pixels come within ``cluster_gap_deg`` (columns) and two rows of each
+   other in the grid (so that
    a pole in front of a wall does not split it) and whose planes agree (normals within
    ``region_merge_deg + 3 (sigma / sqrt(l2_a) + sigma / sqrt(l2_b))``, each centroid within
    ``tol`` of the other's plane) are merged, and refit from their moments.
-4. Every point (also points that shared a pixel, or had no normal) joins the nearest
-   plane, among those of its pixel and its 8 grid neighbours, that it lies within ``tol``
-   of. These sets are the candidates (the caller refits them robustly).
+4. Every point (also points that shared a pixel, or had no normal) joins the plane of
+   its pixel, or else of its 4, or else of its diagonal grid neighbours, that it lies
+   within ``tol`` of. These sets are the candidates (the caller refits them robustly).
 
 Region growing needs pixel normals better than the angle between two surfaces; when the
 median predicted pixel normal error exceeds ``region_max_normal_error_deg`` (high noise,
@@ -47,25 +51,34 @@ _SYM33 = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])
 
 
 def grid_indices(
-    points: np.ndarray, ring: np.ndarray, t: np.ndarray | None, viewpoint: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, int, int]:
-    """Row (N,), column (N,) of every point and the grid size (H, W) (module docstring)."""
-    rings, row = np.unique(ring, return_inverse=True)
-    H = len(rings)
-    inv = row
+    points: np.ndarray,
+    ring: np.ndarray,
+    t: np.ndarray | None,
+    viewpoint: np.ndarray,
+    azimuth: bool = True,
+) -> tuple[np.ndarray, np.ndarray | None, int, int]:
+    """Row (N,), column (N,) of every point and the grid size (H, W) (module docstring);
+    column None (W = 0) when the times are unusable and ``azimuth`` is False."""
+    key = np.asarray(ring, dtype=np.int64) - int(np.min(ring))
+    present = np.bincount(key) > 0
+    row = (np.cumsum(present) - 1)[key]
+    H = int(np.count_nonzero(present))
+    counts = np.bincount(row, minlength=H)
     rel = points - viewpoint
-    counts = np.bincount(inv, minlength=H)
     col = None
     if t is not None and len(t) > 1:
-        order = np.argsort(inv, kind="stable")
+        # Radix sort on small keys; stable, so each ring keeps its scan order.
+        order = np.argsort(row.astype(np.uint16) if H < 65536 else row, kind="stable")
         dt = np.diff(t[order])
-        same = inv[order][1:] == inv[order][:-1]
+        same = row[order][1:] == row[order][:-1]
         pos = dt[same & (dt > 0)]
         if len(pos) >= len(points) // 4:
             step = float(np.median(pos))
             c = np.rint((t - t.min()) / step).astype(np.int64)
             if c.max() < 4 * counts.max() + 16:
                 col = c
+    if col is None and not azimuth:
+        return row, None, H, 0
     if col is None:
         W = int(counts.max())
         az = np.arctan2(rel[:, 1], rel[:, 0])
@@ -110,7 +123,9 @@ def range_image_candidates(
     """Candidate inlier sets (indices into ``points`` (N, 3), metres), or None when the
     pixel normals are too noisy for region growing (module docstring)."""
     tol = max(config.member_sigma_factor * sigma, config.tolerance_floor_m)
-    row, col, H, W = grid_indices(points, ring, t, viewpoint)
+    row, col, H, W = grid_indices(points, ring, t, viewpoint, config.region_azimuth_columns)
+    if col is None:  # no usable times and azimuth columns not enabled
+        return None
     flat = row * W + col
     # One point per pixel (the first in scan order); the others join in step 4.
     pix_pt = np.full(H * W, -1, dtype=np.int64)
@@ -122,10 +137,12 @@ def range_image_candidates(
 
     # 1. Pixel normals and their predicted errors.
     K = max(1, int(config.region_window))
+    near = {k: _shift_cols(P, k) for k in range(-K, K + 1) if k}
+    near["up"], near["down"] = _shift_rows(P, 1), _shift_rows(P, -1)
     th = np.zeros((H, W, 3))
     for k in range(1, K + 1):
-        th += k * (_shift_cols(P, k) - _shift_cols(P, -k))
-    tv = _shift_rows(P, 1) - _shift_rows(P, -1)
+        th += k * (near[k] - near[-k])
+    tv = near["up"] - near["down"]
     n = np.cross(th, tv)
     nn = np.linalg.norm(n, axis=2)
     lh2 = np.einsum("rci,rci->rc", th, th)
@@ -134,18 +151,12 @@ def range_image_candidates(
         n = n / nn[:, :, None]
         e = sigma * np.sqrt(2.0 * sum(k * k for k in range(1, K + 1)) / lh2 + 2.0 / lv2)
     ok = np.isfinite(nn) & (nn > 0) & np.isfinite(e)
-    # A pixel whose window straddles an edge or a corner has a mixed normal: every point
-    # of its window must lie within the edge test's limit of its tangent plane.
+    # A pixel whose window straddles an edge or a corner has a mixed normal: the ends of
+    # its window must lie within the edge test's limit of its tangent plane.
     ks = config.region_normal_sigmas
     n0 = np.where(ok[:, :, None], n, 0.0)
     e0 = np.where(ok, e, 0.0)
-    for k in [k for k in range(-K, K + 1) if k] + ["up", "down"]:
-        if k == "up":
-            Q = _shift_rows(P, 1)
-        elif k == "down":
-            Q = _shift_rows(P, -1)
-        else:
-            Q = _shift_cols(P, k)
+    for Q in (near[K], near[-K], near["up"], near["down"]):  # the window's extremes
         dq = Q - P
         res = np.abs(np.einsum("rci,rci->rc", dq, n0))
         lim = tol + ks * e0 * np.sqrt(np.einsum("rci,rci->rc", dq, dq))
@@ -161,11 +172,11 @@ def range_image_candidates(
     floor = np.radians(config.region_normal_floor_deg)
     ks = config.region_normal_sigmas
     src, dst = [], []
-    for other, oidx in (
-        (lambda a: _shift_cols(a, 1), _shift_cols(idx, 1)),
-        (lambda a: _shift_rows(a, 1), _shift_rows(idx, 1)),
+    for other, oidx, Pj in (
+        (lambda a: _shift_cols(a, 1), _shift_cols(idx, 1), near[1]),
+        (lambda a: _shift_rows(a, 1), _shift_rows(idx, 1), near["up"]),
     ):
-        Pj, nj, ej, okj = other(P), other(n), other(e), other(ok.astype(np.float64)) > 0
+        nj, ej, okj = other(n), other(e), other(ok.astype(np.float64)) > 0
         both = ok & okj
         a = np.flatnonzero(both)
         pi, pj = P.reshape(-1, 3)[a], Pj.reshape(-1, 3)[a]
@@ -204,7 +215,10 @@ def range_image_candidates(
     vals, vecs = np.linalg.eigh(sc)
     rms = np.sqrt(np.maximum(vals[:, 0], 0.0) / cnt)
     max_rms = max(config.max_rms_sigma_factor * sigma, config.rms_floor_m)
-    flat_ok = rms <= max_rms
+    # Pieces must be planes, not lines (a ring's stretch of ground has a free normal and
+    # would chain-merge the ground with a wall): minor width as in min_plane_width_m.
+    width = 2.0 * np.sqrt(np.maximum(vals[:, 1], 0.0) / cnt)
+    flat_ok = (rms <= max_rms) & (width >= config.min_plane_width_m)
     if not np.any(flat_ok):
         return []
     # Renumber the flat pieces 0..C'-1.
@@ -221,17 +235,11 @@ def range_image_candidates(
     offset = -np.einsum("ij,ij->i", normal, cen)
     gap_cols = max(1, int(np.ceil(np.radians(config.cluster_gap_deg) / (2 * np.pi / W))))
     pairs = []
-    for dr in (-1, 0, 1):
-        for dc in range(0 if dr > 0 else 1, gap_cols + 1):
-            if dr == 0 and dc == 0:
-                continue
+    for dr in (-2, -1, 0, 1, 2):  # a ring may be missing between two pieces
+        for dc in range(0 if dr > 0 else 1, gap_cols + 1, 2 if abs(dr) == 2 else 1):
             other = _shift_cols(_shift_rows(label, dr), dc)
             m = (label >= 0) & (other >= 0) & (label != other)
             pairs.append(label[m] * C + other[m])
-    for dr in (2,):  # rings spread apart with range (ground): one ring may be missing
-        other = _shift_rows(label, dr)
-        m = (label >= 0) & (other >= 0) & (label != other)
-        pairs.append(label[m] * C + other[m])
     pairs = np.unique(np.concatenate(pairs))
     if len(pairs):
         a, b = pairs // C, pairs % C
@@ -252,19 +260,25 @@ def range_image_candidates(
             label = np.where(label >= 0, merged[np.maximum(label, 0)], -1)
             C = M
 
-    # 4. Every point joins the nearest plane of its pixel's 3 x 3 neighbourhood.
-    best = np.full(len(points), np.inf)
+    # 4. Every point joins a plane of its pixel's 3 x 3 neighbourhood.
     owner = np.full(len(points), -1, dtype=np.int64)
-    for dr in (0, -1, 1):
-        for dc in (0, -1, 1):
-            nb = _shift_cols(_shift_rows(label, dr), dc).ravel()[flat]
-            has_nb = nb >= 0
-            ii = np.flatnonzero(has_nb)
-            lab_i = nb[ii]
-            r = np.abs(np.einsum("ij,ij->i", points[ii], normal[lab_i]) + offset[lab_i])
-            better = (r <= tol) & (r < best[ii])
-            best[ii[better]] = r[better]
-            owner[ii[better]] = lab_i[better]
+    todo = np.arange(len(points))
+    lab_flat = label.ravel()
+    for dr, dc in ((0, 0), (0, -1), (0, 1), (-1, 0), (1, 0), (-1, -1), (-1, 1), (1, -1), (1, 1)):
+        # Own pixel first, then the 4 and the diagonal neighbours: a point takes the first
+        # plane it lies within tol of (pixels are small, so the nearest in practice).
+        if len(todo) == 0:
+            break
+        r_nb = row[todo] + dr
+        inside = (r_nb >= 0) & (r_nb < H)
+        todo_in = todo[inside]
+        nb = lab_flat[r_nb[inside] * W + (col[todo_in] + dc) % W]
+        hit = nb >= 0
+        ii, lab_i = todo_in[hit], nb[hit]
+        r = np.abs(np.einsum("ij,ij->i", points[ii], normal[lab_i]) + offset[lab_i])
+        good = r <= tol
+        owner[ii[good]] = lab_i[good]
+        todo = todo[owner[todo] < 0]
     assigned = np.flatnonzero(owner >= 0)
     srt = assigned[np.argsort(owner[assigned], kind="stable")]
     bounds = np.searchsorted(owner[srt], np.arange(C + 1))

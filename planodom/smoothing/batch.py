@@ -66,13 +66,25 @@ def pose_covariances(
 ) -> np.ndarray:
     """(E, 6, 6) marginal covariances of ``X(0..E-1)`` at ``values``.
 
-    Like ``gtsam.Marginals`` but from a QR elimination (``gtsam.Marginals`` uses Cholesky,
-    which squares the condition number; see :func:`levenberg_marquardt`).
+    ``gtsam.Marginals`` (Cholesky), or the same from a QR elimination when Cholesky finds
+    the system indeterminant (see :func:`levenberg_marquardt`).
     """
     linear = graph.linearize(values)
     ordering = gtsam.Ordering.ColamdNonlinearFactorGraph(graph)
-    tree = linear.eliminateMultifrontal(ordering, gtsam.EliminateQR)
-    return np.stack([tree.marginalCovariance(X(k)) for k in range(n_epochs)])
+    try:
+        marginals = gtsam.Marginals(linear, values)  # Cholesky
+        return np.stack([marginals.marginalCovariance(X(k)) for k in range(n_epochs)])
+    except RuntimeError:
+        tree = linear.eliminateMultifrontal(ordering, gtsam.EliminateQR)
+        return np.stack([tree.marginalCovariance(X(k)) for k in range(n_epochs)])
+
+
+def _solve(linear: gtsam.GaussianFactorGraph, ordering: gtsam.Ordering) -> gtsam.VectorValues:
+    """Solve a linear graph by Cholesky, falling back to QR when it is too ill-conditioned."""
+    try:
+        return linear.optimize(ordering)
+    except RuntimeError:
+        return linear.optimize(ordering, gtsam.EliminateQR)
 
 
 def levenberg_marquardt(
@@ -94,9 +106,10 @@ def levenberg_marquardt(
     called from Python. Here ``graph.linearize`` and ``graph.error`` are called on the
     Python-owned values, which pybind11 passes by reference.
 
-    Linear steps by QR, not Cholesky: a long stretch bridged by weak fallback factors next
-    to stiff plane factors gives Hessian condition numbers of 1e16 and more (measured on the
-    paper loop), which Cholesky (squaring the Jacobian's condition number) cannot factor.
+    Linear steps by Cholesky, and by QR when gtsam finds the system indeterminant: a long
+    stretch bridged by weak fallback factors next to stiff plane factors gives Hessian
+    condition numbers of 1e16 and more (measured on the paper loop), which Cholesky
+    (squaring the Jacobian's condition number) cannot factor; QR is 10x slower.
 
     Damping: ``lambda * I`` on every variable's tangent (gtsam's default); lambda / 10 on a
     successful step, * 10 on a failed one. Stops when the relative decrease of the error
@@ -124,9 +137,9 @@ def levenberg_marquardt(
                     key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)
                 )
             try:
-                candidate = values.retract(damped.optimize(ordering, gtsam.EliminateQR))
+                candidate = values.retract(_solve(damped, ordering))
                 new_error = graph.error(candidate)
-            except RuntimeError:  # indeterminant at this damping: damp more
+            except RuntimeError:  # indeterminant even for QR at this damping: damp more
                 new_error = np.inf
             if new_error <= error:
                 break

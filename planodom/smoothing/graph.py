@@ -49,7 +49,6 @@ from planodom.errors import ConfigError
 from planodom.geometry import (
     Plane,
     plane_tangent_covariance,
-    rpy_from_rotation,
     transform_planes,
 )
 from planodom.smoothing.landmarks import LandmarkTracker
@@ -137,8 +136,9 @@ def rpy_to_rotation_vector(rpy: np.ndarray) -> np.ndarray:
 
     For ``R = Rz(yaw) Ry(pitch) Rx(roll)``, ``R(rpy + d) = R Exp(J d)`` to first order; it
     maps a covariance of rpy increments to the tangent of :func:`factors.pose5.pose5_factor`.
+    Only roll and pitch matter.
     """
-    roll, pitch, _ = rpy
+    roll, pitch = rpy[0], rpy[1]
     sr, cr, sp, cp = np.sin(roll), np.cos(roll), np.sin(pitch), np.cos(pitch)
     return np.array([[1.0, 0.0, -sp], [0.0, cr, sr * cp], [0.0, -sr, cr * cp]])
 
@@ -202,7 +202,9 @@ class GraphBuilder:
                 [c.default_rotation_sigma_rad**2] * 3 + [c.default_translation_sigma_m**2] * 2
             )
         J = np.eye(5)
-        J[:3, :3] = rpy_to_rotation_vector(rpy_from_rotation(rel.T_prev_curr[:3, :3]))
+        R = rel.T_prev_curr[:3, :3]  # roll and pitch of R = Rz Ry Rx, in closed form
+        roll_pitch = (np.arctan2(R[2, 1], R[2, 2]), -np.arcsin(np.clip(R[2, 0], -1.0, 1.0)))
+        J[:3, :3] = rpy_to_rotation_vector(roll_pitch)
         floor = [c.min_rotation_sigma_rad**2] * 3 + [c.min_translation_sigma_m**2] * 2
         cov = J @ (0.5 * (cov + cov.T)) @ J.T + np.diag(floor)
         if not rel.translation_observed:
@@ -227,11 +229,26 @@ class GraphBuilder:
     # ----------------------------------------------------------------- building
 
     def _initial_pose(self, k: int, resolved: list[RelativeMeasurement]) -> np.ndarray | None:
-        """Chained guess of ``T_world_k``: smallest delta, full 5-DoF before rotation-only."""
-        for rel in sorted(resolved, key=lambda r: (not r.translation_observed, r.delta)):
-            if rel.prev in self.poses:
-                return self.poses[rel.prev] @ np.asarray(rel.T_prev_curr, dtype=float)
-        return None
+        """Chained guess of ``T_world_k`` from the resolved relative poses, or None.
+
+        Each full (5-DoF) relative pose chained from its earlier epoch is a candidate; with
+        three or more the medoid (least summed distance, metres plus radians times 10 m) is
+        taken, so that one outlier relative pose cannot throw the guess off; else the
+        smallest delta. Rotation-only relative poses are used only when nothing else is.
+        """
+        known = [r for r in resolved if r.prev in self.poses]
+        full = sorted((r for r in known if r.translation_observed), key=lambda r: r.delta)
+        pool = full or sorted(known, key=lambda r: r.delta)
+        if not pool:
+            return None
+        candidates = [self.poses[r.prev] @ np.asarray(r.T_prev_curr, dtype=float) for r in pool]
+        if len(candidates) < 3:
+            return candidates[0]
+        t = np.stack([c[:3, 3] for c in candidates])
+        R = np.stack([c[:3, :3] for c in candidates])
+        cos = np.clip((np.einsum("aij,bij->ab", R, R) - 1.0) / 2.0, -1.0, 1.0)
+        dist = np.linalg.norm(t[:, None] - t[None], axis=2) + 10.0 * np.arccos(cos)
+        return candidates[int(np.argmin(dist.sum(axis=1)))]
 
     def _fallback_motion(self, k: int) -> np.ndarray:
         """(4, 4) guess of ``T_{k-1}_k`` when no relative pose measured the motion into k.

@@ -15,6 +15,7 @@ import gtsam
 import numpy as np
 
 from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.errors import PlanodomError
 from planodom.geometry import Plane
 from planodom.smoothing.batch import SmoothingResult, smoothing_config
 from planodom.smoothing.graph import GraphBuilder, RelativeMeasurement
@@ -44,14 +45,14 @@ class WindowedSmoother:
             # past (weak after long unresolved stretches) while plane factors are stiff;
             # Cholesky squares that condition number and gives up.
             params.setFactorization("QR")
-            # Dogleg (a trust region) rather than Gauss-Newton: a window held only by
-            # fallback and rotation-only factors and a few planes is nearly singular, and
-            # undamped steps there overshoot by metres.
+            # Dogleg (a trust region) rather than Gauss-Newton bounds each step where a
+            # window held only by fallback and rotation-only factors is nearly singular.
             params.setOptimizationParams(gtsam.ISAM2DoglegParams())
             self.smoother = gtsam.IncrementalFixedLagSmoother(lag, params)
         else:
             lm = gtsam.LevenbergMarquardtParams()
             lm.setMaxIterations(self.config.max_iterations)
+            lm.setLinearSolverType("MULTIFRONTAL_QR")  # see the QR note above
             self.smoother = gtsam.BatchFixedLagSmoother(lag, lm)
         self.poses: list[np.ndarray] = []
         self.online_poses: list[np.ndarray] = []
@@ -80,7 +81,14 @@ class WindowedSmoother:
         oldest = max(0, k - (self.config.window - 1))
         update = self.builder.add_epoch(planes, relatives, min_epoch=oldest)
         self.initial_poses.append(self.builder.poses[k])
-        self.smoother.update(update.factors, update.values, update.timestamps)
+        try:
+            self.smoother.update(update.factors, update.values, update.timestamps)
+        except RuntimeError as exc:  # gtsam's IndeterminantLinearSystemException
+            first = " ".join(str(exc).split()[:10])
+            raise PlanodomError(
+                f"fixed-lag smoother failed at epoch {k} ({first}); "
+                "try smoothing.windowed_backend 'batch' or batch smoothing"
+            ) from exc
         estimate = self.smoother.calculateEstimate()
         self.builder.update_estimates(estimate, since=oldest)
         self.builder.forget(oldest)
