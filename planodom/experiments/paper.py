@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from planodom.config import PlanodomConfig
+from planodom.experiments.plots import save_grid, top_view
 from planodom.geometry import invert_transform
 from planodom.metrics import POSE5_NAMES, drift, per_epoch_errors, relative_motions, summarize
 from planodom.odometry import OdometryRun, run_odometry
@@ -183,21 +184,9 @@ def plot_trajectories(runs: Sequence[LevelRun], path: Path) -> None:
     for ax, noise in zip(axes.ravel(), levels, strict=False):
         here = [lr for lr in runs if lr.noise == noise]
         gt = here[0].gt_poses[:, :3, 3]
-        every = max(1, len(gt) // 150)
-        ax.plot(gt[::every, 0], gt[::every, 1], "x", color="tab:blue", ms=4, label="truth")
-        for lr in here:
-            p = lr.run.poses[:, :3, 3]
-            ax.plot(p[:, 0], p[:, 1], "-", color=COLOURS.get(lr.method), lw=1.2, label=lr.method)
-        ax.set_title(f"sigma = {noise * 1000:g} mm")
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.legend(loc="best", fontsize=8)
-    for ax in axes.ravel()[len(levels) :]:
-        ax.axis("off")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+        tracks = [(lr.method, lr.run.poses, COLOURS.get(lr.method)) for lr in here]
+        top_view(ax, gt, tracks, f"sigma = {noise * 1000:g} mm")
+    save_grid(fig, axes, len(levels), path)
 
 
 def write_csv(path: Path, rows: Sequence[dict[str, object]]) -> None:

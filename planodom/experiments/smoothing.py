@@ -35,6 +35,7 @@ from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig
 from planodom.experiments.paper import PAPER_NOISE_LEVELS, markdown_table, write_csv
+from planodom.experiments.plots import save_grid, top_view
 from planodom.geometry import invert_transform
 from planodom.metrics import summarize
 from planodom.odometry import run_odometry
@@ -165,21 +166,9 @@ def plot_trajectories(runs: Sequence[EstimatorRun], scene: str, path: Path) -> N
     for ax, noise in zip(axes.ravel(), levels, strict=False):
         level = [r for r in here if r.noise == noise]
         gt = level[0].gt_poses[:, :3, 3]
-        every = max(1, len(gt) // 150)
-        ax.plot(gt[::every, 0], gt[::every, 1], "x", color="tab:blue", ms=4, label="truth")
-        for r in level:
-            p = r.poses[:, :3, 3]
-            ax.plot(p[:, 0], p[:, 1], "-", color=COLOURS.get(r.method), lw=1.2, label=r.method)
-        ax.set_title(f"{scene}, sigma = {noise * 1000:g} mm")
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.legend(loc="best", fontsize=8)
-    for ax in axes.ravel()[len(levels) :]:
-        ax.axis("off")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+        tracks = [(r.method, r.poses, COLOURS.get(r.method)) for r in level]
+        top_view(ax, gt, tracks, f"{scene}, sigma = {noise * 1000:g} mm")
+    save_grid(fig, axes, len(levels), path)
 
 
 def _with(config: PlanodomConfig, section: str, **changes: object) -> PlanodomConfig:
