@@ -5,7 +5,8 @@ a 32-beam lidar) prints per noise level:
 
 - recall: walls the epoch's points determine (two crossing traces of two rings per the
   labels, :func:`planodom.simulation.epoch_observability`, 10 deg) found as a plane
-  that matches them;
+  that matches them (within the tolerances) and holds at least half of their points
+  (coplanar walls with a narrow gap between them are one plane, which finds both);
 - precision: extracted planes whose ``truth_id`` surface matches within the tolerances
   (angle ``--tol-deg``, offset ``--tol-m``; ground included);
 - normal error (deg) and offset error (m) of every plane against its truth_id surface,
@@ -75,7 +76,8 @@ def evaluate(run, config: ExtractionConfig, twists=None, tol_deg=3.0, tol_m=0.15
         elapsed += time.perf_counter() - t0
         truth = true_planes(run, k)
         good_ids = set()
-        for p in res.planes:
+        wall_points = np.bincount(scan.label[scan.label >= 0]) if scan.label is not None else []
+        for p, idx in zip(res.planes, res.inliers, strict=True):
             n_planes += 1
             if p.truth_id < 0:
                 continue
@@ -85,6 +87,16 @@ def evaluate(run, config: ExtractionConfig, twists=None, tol_deg=3.0, tol_m=0.15
             if a <= tol_deg and o <= tol_m:
                 n_good += 1
                 good_ids.add(p.truth_id)
+            # It also finds other walls whose true plane it matches and of which it holds
+            # at least half the epoch's points (coplanar walls apart by a gap narrower
+            # than plane_gap_m are one plane, which finds both).
+            labs, cnt = np.unique(scan.label[idx], return_counts=True)
+            for lab, c in zip(labs, cnt, strict=True):
+                if lab < 0 or 2 * c < wall_points[lab]:
+                    continue
+                a, o = plane_errors(p, truth[int(lab)])
+                if a <= tol_deg and o <= tol_m:
+                    good_ids.add(int(lab))
         if scan.ring is not None and len(np.unique(scan.ring)) <= config.max_rig_rings:
             obs = set(epoch_observability(scan, run.scene).walls_observable)
         else:  # a lidar: every wall with enough points is determined

@@ -51,8 +51,9 @@ class ExtractionConfig(Section):
     split_sigma_factor: float = 4.0
     """A run is split where a point lies more than this many sigma from its chord."""
     min_segment_points: int = 3
-    """Fewest points of a straight segment kept for grouping (one sweep of a scanner may
-    put only a few beams on a distant or narrow wall)."""
+    """Fewest points of a trace (the straight segments of one scanner on one line,
+    merged over the epoch's sweeps) kept for grouping. Single segments of two points are
+    kept until merged: one sweep may put only two beams on a distant or narrow wall."""
     min_segment_length_m: float = 0.1
     """Shortest straight segment kept for grouping (m)."""
     max_seed_direction_error_deg: float = 3.0

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
-from synth_scans import default_scene, scan_rig
+from synth_scans import default_scene, rect, scan_rig
 
 from planodom.config import ExtractionConfig
-from planodom.extraction import deskew_points, se3_exp
+from planodom.extraction import deskew_points, extract_planes, se3_exp
 from planodom.extraction.fitting import majority_label, robust_plane_fit, support_polygon
 from planodom.extraction.grouping import build_traces
 from planodom.extraction.segments import split_scan_lines
@@ -45,6 +45,29 @@ def test_traces_are_one_per_ring_and_wall(sigma):
     assert len(tr) <= len(set(zip(segs.ring, lab, strict=True))) + 2
     assert len(tr) < len(segs) / 4
     assert tr.count[tr.count >= 3 * 3].sum() >= 0.99 * tr.count.sum()  # several sweeps each
+
+
+@pytest.mark.parametrize("n_sweeps", [1, 7])
+def test_two_beams_per_sweep_merge_into_a_trace(n_sweeps):
+    # A narrow pillar 6 m ahead: each forward scanner puts only two beams on it per sweep
+    # (6 deg steps). Over 7 sweeps the 2-point pieces merge into traces of 14 points and
+    # the pillar is a plane; from one sweep (2 + 2 points) it is not guessed.
+    scene = [
+        rect([5, 0, 0], [0, 0, 1], up=[1, 0, 0], half_u=30, half_v=30),
+        rect([6, 0, 2], [-1, 0, 0], half_u=0.5, half_v=2.0),
+    ]
+    scan = scan_rig(scene, step_deg=6.0, n_sweeps=n_sweeps)
+    on_pillar = scan.label == 1
+    for ring in (0, 1):  # the premise: two beams per sweep and scanner
+        assert np.count_nonzero(on_pillar & (scan.ring == ring)) == 2 * n_sweeps
+    planes = extract_planes(scan, twist=np.zeros(6))
+    pillar = [p for p in planes if p.truth_id == 1]
+    if n_sweeps == 1:
+        assert pillar == []
+        return
+    assert len(pillar) == 1
+    np.testing.assert_allclose(pillar[0].normal, [-1.0, 0.0, 0.0], atol=1e-9)
+    assert abs(pillar[0].offset - 6.0) < 1e-9
 
 
 def test_support_polygon_is_the_hull_up_to_sampling():

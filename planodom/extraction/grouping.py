@@ -294,6 +294,7 @@ def group_segments(
     max_span_s: float = np.inf,
     gap_m: float = np.inf,
     gap_ratio: float = 0.0,
+    min_trace_points: int = 3,
 ) -> tuple[list[np.ndarray], int]:
     """Segments grouped into planes.
 
@@ -315,6 +316,8 @@ def group_segments(
             trace through traces less than ``max(gap_m, gap_ratio * range)`` apart
             (:func:`connected_piece`); coplanar walls with a wider gap between them are
             separate planes. No limit by default.
+        min_trace_points: fewest points of a trace (its segments merged over sweeps);
+            smaller traces neither seed nor join a plane.
 
     Returns:
         A list of (K,) int64 arrays of segment indices, one per plane, and the number of
@@ -325,7 +328,8 @@ def group_segments(
     tr = build_traces(segs, tol_m, sigma_m, parallel_deg, step_m, seg_t0, seg_t1, max_span_s)
     T = len(tr)
     windowed = bool(np.isfinite(max_span_s))
-    ok = tr.dir_err <= np.radians(max_seed_direction_error_deg)
+    big = tr.count >= min_trace_points
+    ok = big & (tr.dir_err <= np.radians(max_seed_direction_error_deg))
     a, b = np.triu_indices(T, 1)
     keep = ok[a] & ok[b] & (tr.ring[a] != tr.ring[b])
     if windowed:
@@ -368,7 +372,7 @@ def group_segments(
     var_n = quad_forms(normals, tr.scatter) / tr.count[None, :]
     slope = normals @ tr.direction.T
     ends = np.maximum(np.abs(off + slope * tr.lo), np.abs(off + slope * tr.hi))
-    member = (var_n + off * off <= tol_m * tol_m) & (ends <= tol_m)
+    member = (var_n + off * off <= tol_m * tol_m) & (ends <= tol_m) & big[None, :]
     if windowed:  # members lie in a window of max_span_s centred on the seed's times
         half = 0.5 * max_span_s
         mid_t = 0.5 * (np.minimum(tr.t_lo[iu], tr.t_lo[ju]) + np.maximum(tr.t_hi[iu], tr.t_hi[ju]))
@@ -381,7 +385,7 @@ def group_segments(
     tier = np.where(is_l, 0.0, 2.0 * weight.sum() + 1.0)
     scores = member @ weight + tier
     alive = np.ones(len(iu), dtype=bool)
-    available = np.ones(T, dtype=bool)
+    available = big.copy()
     groups: list[np.ndarray] = []
     rejected = 0
     while True:

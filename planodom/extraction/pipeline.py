@@ -181,6 +181,7 @@ def extract(
             max_span_s=span,
             gap_m=config.plane_gap_m,
             gap_ratio=config.gap_range_ratio,
+            min_trace_points=config.min_segment_points,
         )
         n_segments = len(segs)
         planes, inliers, n_rej = _rig_planes(groups, segs, pts, scan, config, sigma, org, xi)

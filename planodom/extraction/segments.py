@@ -271,7 +271,9 @@ def split_scan_lines(
         ring: (N,) scanner id of each point; points of one ring in scan order.
         t: (N,) seconds or None, used to find sweep boundaries.
         config: thresholds (``sweep_gap_factor``, ``min_gap_m``, ``gap_range_ratio``,
-            ``split_sigma_factor``, ``min_segment_points``, ``min_segment_length_m``).
+            ``split_sigma_factor``, ``min_segment_length_m``). Segments of two points are
+            kept: one sweep may put only two beams on a narrow or distant wall, and
+            :mod:`.grouping` merges them over sweeps before ``min_segment_points`` applies.
 
     Returns:
         The kept :class:`Segments` and the effective noise sigma (m) used for the
@@ -306,7 +308,7 @@ def split_scan_lines(
         sweep,
         s,
         e,
-        config.min_segment_points,
+        2,
         config.min_segment_length_m,
         split_tol,
     )
