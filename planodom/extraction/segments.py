@@ -19,12 +19,18 @@ scan plane, up to the motion left after deskewing), where range noise lies entir
 chord distance costs two products instead of a 3D cross product. Segments are then
 described by exact 3D moments of their (deskewed) points; a segment whose 3D line residual
 exceeds the split tolerance (a ring that is not planar) is dropped.
+
+The passes over the points (run breaks, ring planes, noise estimate, split, moments) are
+compiled with numba: they are short loops with branches over ~10^4 points per epoch, where
+numpy needs tens of array passes and temporaries each; no library implements
+split-and-merge.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from planodom.config import ExtractionConfig
@@ -102,26 +108,53 @@ def run_breaks(
         ``run_start`` (M,) bool, True where a run starts (always at 0), and
         ``sweep_start`` (M,) bool, True where a sweep (or ring) starts.
     """
-    m = len(points)
-    sweep_start = np.ones(m, dtype=bool)
-    if m == 0:
-        return sweep_start, sweep_start
-    same_ring = ring[1:] == ring[:-1]
-    new_sweep = ~same_ring
-    if t is not None:
-        dt = np.diff(t)
-        valid = same_ring & (dt > 0)
-        med = float(np.median(dt[valid])) if np.any(valid) else 0.0
-        new_sweep = new_sweep | (dt < 0) | ((dt > sweep_gap_factor * med) & (med > 0))
-    if t is None or not np.any(np.diff(t) > 0):
-        new_sweep = new_sweep | _angle_reversals(points, ring)
-    sweep_start[1:] = new_sweep
-    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    rng = np.linalg.norm(points[1:], axis=1)
-    gap = step > np.maximum(min_gap_m, gap_range_ratio * rng)
-    run_start = sweep_start.copy()
-    run_start[1:] |= gap
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    rg = np.ascontiguousarray(ring, dtype=np.int64)
+    has_t = t is not None
+    tt = np.ascontiguousarray(t, dtype=np.float64) if has_t else np.zeros(len(pts))
+    run_start, sweep_start, any_forward = _breaks_kernel(
+        pts, rg, tt, has_t, sweep_gap_factor, min_gap_m, gap_range_ratio
+    )
+    if len(pts) > 1 and not any_forward:
+        rev = _angle_reversals(pts, rg)
+        sweep_start[1:] |= rev
+        run_start[1:] |= rev
     return run_start, sweep_start
+
+
+@numba.njit(cache=True)
+def _breaks_kernel(pts, ring, t, has_t, sweep_gap_factor, min_gap_m, gap_range_ratio):
+    """:func:`run_breaks` without the angle test; also whether time ever moves forward."""
+    m = pts.shape[0]
+    run_start = np.ones(m, dtype=np.bool_)
+    sweep_start = np.ones(m, dtype=np.bool_)
+    med = 0.0
+    any_forward = False
+    if has_t and m > 1:
+        buf = np.empty(m - 1)
+        k = 0
+        for i in range(m - 1):
+            dt = t[i + 1] - t[i]
+            if dt > 0:
+                any_forward = True
+                if ring[i + 1] == ring[i]:
+                    buf[k] = dt
+                    k += 1
+        if k > 0:
+            med = np.median(buf[:k])
+    for i in range(1, m):
+        new = ring[i] != ring[i - 1]
+        if has_t:
+            dt = t[i] - t[i - 1]
+            new = new or dt < 0 or (med > 0 and dt > sweep_gap_factor * med)
+        sweep_start[i] = new
+        d0 = pts[i, 0] - pts[i - 1, 0]
+        d1 = pts[i, 1] - pts[i - 1, 1]
+        d2 = pts[i, 2] - pts[i - 1, 2]
+        step = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        rng = np.sqrt(pts[i, 0] ** 2 + pts[i, 1] ** 2 + pts[i, 2] ** 2)
+        run_start[i] = new or step > max(min_gap_m, gap_range_ratio * rng)
+    return run_start, sweep_start, any_forward
 
 
 def _angle_reversals(points: np.ndarray, ring: np.ndarray) -> np.ndarray:
@@ -176,89 +209,127 @@ def estimate_line_noise(points: np.ndarray, run_start: np.ndarray) -> float:
     return float(np.median(across) / (0.6745 * np.sqrt(6.0)))
 
 
-def _split_runs(x: np.ndarray, y: np.ndarray, starts: np.ndarray, ends: np.ndarray, tol: float):
-    """Iterative end-point fit of all runs at once on 2D points ``(x, y)``; returns the final
-    (starts, ends). Hand-written (no library does split-and-merge); one round handles every
-    pending segment with a few flat numpy passes."""
-    done_s, done_e = [], []
-    s, e = starts, ends
-    big = np.iinfo(np.int64).max
-    while len(s):
-        short = (e - s) < 3
-        if np.any(short):
-            done_s.append(s[short])
-            done_e.append(e[short])
-            s, e = s[~short], e[~short]
-        if len(s) == 0:
-            break
-        lens = e - s
-        idx = ranges(s, e)
-        local = np.zeros(len(s), dtype=np.int64)
-        np.cumsum(lens[:-1], out=local[1:])
-        ax, ay = x[s], y[s]
-        dx, dy = x[e - 1] - ax, y[e - 1] - ay
-        clen = np.hypot(dx, dy)
-        deg = clen <= 0
-        clen[deg] = 1.0
-        ux, uy = dx / clen, dy / clen
-        rx = x[idx] - np.repeat(ax, lens)
-        ry = y[idx] - np.repeat(ay, lens)
-        dist = np.abs(rx * np.repeat(uy, lens) - ry * np.repeat(ux, lens))
-        if np.any(deg):  # closed loop of points: distance to the start point instead
-            d_rep = np.repeat(deg, lens)
-            dist[d_rep] = np.hypot(rx[d_rep], ry[d_rep])
-        mx = np.maximum.reduceat(dist, local)
-        arg = np.minimum.reduceat(np.where(dist >= np.repeat(mx, lens), idx, big), local)
-        split = (mx > tol) & (arg > s) & (arg < e)
-        done_s.append(s[~split])
-        done_e.append(e[~split])
-        s, e, arg = s[split], e[split], arg[split]
-        s, e = np.concatenate([s, arg]), np.concatenate([arg, e])
-    fs, fe = np.concatenate(done_s), np.concatenate(done_e)
-    order = np.argsort(fs, kind="stable")
-    return fs[order], fe[order]
+@numba.njit(cache=True)
+def _split_runs(x, y, starts, ends, tol):  # pragma: no cover - compiled
+    """Iterative end-point fit of the runs ``[starts[k], ends[k])`` of 2D points ``(x, y)``
+    (M,): each piece is split at its point farthest from the chord joining its ends (the
+    first such point) while that distance exceeds ``tol`` (m) and lies strictly inside.
+    A chord of length 0 (a closed loop) uses the distance to its start point. Returns the
+    final (starts, ends), in order."""
+    cap = x.shape[0] + 2 * starts.shape[0] + 1
+    out_s = np.empty(cap, dtype=np.int64)
+    out_e = np.empty(cap, dtype=np.int64)
+    stack_s = np.empty(cap, dtype=np.int64)
+    stack_e = np.empty(cap, dtype=np.int64)
+    n_out = 0
+    for r in range(starts.shape[0]):
+        top = 0
+        stack_s[0] = starts[r]
+        stack_e[0] = ends[r]
+        top = 1
+        while top > 0:
+            top -= 1
+            s = stack_s[top]
+            e = stack_e[top]
+            if e - s < 3:
+                out_s[n_out] = s
+                out_e[n_out] = e
+                n_out += 1
+                continue
+            ax, ay = x[s], y[s]
+            dx, dy = x[e - 1] - ax, y[e - 1] - ay
+            clen = np.sqrt(dx * dx + dy * dy)
+            mx = -1.0
+            arg = s
+            if clen > 0:
+                ux, uy = dx / clen, dy / clen
+                for i in range(s, e):
+                    d = abs((x[i] - ax) * uy - (y[i] - ay) * ux)
+                    if d > mx:
+                        mx = d
+                        arg = i
+            else:
+                for i in range(s, e):
+                    d = np.sqrt((x[i] - ax) ** 2 + (y[i] - ay) ** 2)
+                    if d > mx:
+                        mx = d
+                        arg = i
+            if mx > tol and s < arg < e:
+                # Right piece pushed first: pieces come out in order.
+                stack_s[top] = arg
+                stack_e[top] = e
+                stack_s[top + 1] = s
+                stack_e[top + 1] = arg
+                top += 2
+            else:
+                out_s[n_out] = s
+                out_e[n_out] = e
+                n_out += 1
+    return out_s[:n_out].copy(), out_e[:n_out].copy()
 
 
-def ring_plane_coordinates(
-    pts: np.ndarray, ring_sorted: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """2D coordinates (x, y) (M,) of points sorted by ring, in each ring's best-fit plane.
+@numba.njit(cache=True)
+def ring_plane_coordinates(pts, ring_sorted):  # pragma: no cover - compiled
+    """2D coordinates (x, y) (M,) of points (M, 3) sorted by ring, in each ring's best-fit
+    plane: x along its largest principal axis, y along the second.
 
-    The plane of a ring is fit (TLS) to every 8th of its points: a scan plane is exactly
-    planar in the sensor, and only the motion left after deskewing bends it.
+    The plane of a ring is fit (TLS) to every k-th of its points (about 256 of them): a
+    scan plane is exactly planar in the sensor, and only the motion left after deskewing
+    bends it.
     """
-    bounds = np.flatnonzero(ring_sorted[1:] != ring_sorted[:-1]) + 1
-    lo = np.concatenate([[0], bounds])
-    hi = np.concatenate([bounds, [len(pts)]])
-    x = np.empty(len(pts))
-    y = np.empty(len(pts))
-    for a, b in zip(lo, hi, strict=True):
-        q = pts[a:b]
-        sub = q[:: max(1, (b - a) // 256)]
-        c = sub.mean(axis=0)
-        _, vecs = np.linalg.eigh((sub - c).T @ (sub - c))
-        xy = (q - c) @ vecs[:, 1:]
-        x[a:b] = xy[:, 1]
-        y[a:b] = xy[:, 0]
+    m = pts.shape[0]
+    x = np.empty(m)
+    y = np.empty(m)
+    a = 0
+    while a < m:
+        b = a + 1
+        while b < m and ring_sorted[b] == ring_sorted[a]:
+            b += 1
+        step = max(1, (b - a) // 256)
+        c = np.zeros(3)
+        ns = 0
+        for i in range(a, b, step):
+            c += pts[i]
+            ns += 1
+        c /= ns
+        sc = np.zeros((3, 3))
+        for i in range(a, b, step):
+            q = pts[i] - c
+            for u in range(3):
+                for v in range(3):
+                    sc[u, v] += q[u] * q[v]
+        _, vecs = np.linalg.eigh(sc)
+        for i in range(a, b):
+            q0, q1, q2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]
+            x[i] = q0 * vecs[0, 2] + q1 * vecs[1, 2] + q2 * vecs[2, 2]
+            y[i] = q0 * vecs[0, 1] + q1 * vecs[1, 1] + q2 * vecs[2, 1]
+        a = b
     return x, y
 
 
-def estimate_line_noise_2d(x: np.ndarray, y: np.ndarray, run_start: np.ndarray) -> float:
+@numba.njit(cache=True)
+def estimate_line_noise_2d(x, y, run_start):  # pragma: no cover - compiled
     """:func:`estimate_line_noise` on 2D points (x, y) (M,) (a ring in its scan plane)."""
-    m = len(x)
+    m = x.shape[0]
     if m < 15:
         return 0.0
-    run_id = np.cumsum(run_start)
-    ok = run_id[4:] == run_id[:-4]
-    sx = x[1:-3] - 2.0 * x[2:-2] + x[3:-1]
-    sy = y[1:-3] - 2.0 * y[2:-2] + y[3:-1]
-    dx, dy = x[4:] - x[:-4], y[4:] - y[:-4]
-    norm = np.hypot(dx, dy)
-    good = ok & (norm > 0)
-    if np.count_nonzero(good) < 10:
+    across = np.empty(m)
+    k = 0
+    run = np.cumsum(run_start)
+    for c in range(2, m - 2):  # points c with c-2 .. c+2 in one run
+        if run[c + 2] != run[c - 2]:
+            continue
+        dx, dy = x[c + 2] - x[c - 2], y[c + 2] - y[c - 2]
+        norm = np.sqrt(dx * dx + dy * dy)
+        if not norm > 0:
+            continue
+        sx = x[c - 1] - 2.0 * x[c] + x[c + 1]
+        sy = y[c - 1] - 2.0 * y[c] + y[c + 1]
+        across[k] = abs(sx * dy - sy * dx) / norm
+        k += 1
+    if k < 10:
         return 0.0
-    across = np.abs(sx[good] * dy[good] - sy[good] * dx[good]) / norm[good]
-    return float(np.median(across) / (0.6745 * np.sqrt(6.0)))
+    return np.median(across[:k]) / (0.6745 * np.sqrt(6.0))
 
 
 def split_scan_lines(
@@ -287,8 +358,8 @@ def split_scan_lines(
         order = np.argsort(key, kind="stable")
     else:
         order = np.arange(len(ring))
-    pts = points[order]
-    rg = ring[order]
+    pts = np.ascontiguousarray(points[order], dtype=np.float64)
+    rg = ring[order].astype(np.int64)
     tt = None if t is None else t[order]
     run_start, sweep_start = run_breaks(
         pts, rg, tt, config.sweep_gap_factor, config.min_gap_m, config.gap_range_ratio
@@ -334,69 +405,112 @@ def segment_features(
     min_length_m: float,
     max_rms_m: float = np.inf,
 ) -> Segments:
-    """Moments, directions and lengths of the segments ``[s, e)`` of ``pts``.
+    """Moments, directions and lengths of the segments ``[s, e)`` of ``pts`` (M, 3), m.
 
     The direction is the principal axis of the scatter, found by power iteration from the
     chord (it converges in two steps for a line: the ratio of its two largest eigenvalues
-    is (noise / length)^2); a batched 3x3 eigen-solver costs ~100x more per segment.
-    Segments shorter than ``min_length_m``, with fewer than ``min_points`` points or an RMS
-    line residual above ``max_rms_m`` are dropped.
+    is (noise / length)^2). Segments shorter than ``min_length_m``, with fewer than
+    ``min_points`` (at least 2) points or an RMS line residual above ``max_rms_m`` are
+    dropped.
     """
-    count = e - s
-    keep = count >= max(min_points, 2)
-    s, e, count = s[keep], e[keep], count[keep]
-    if len(s) == 0:
-        z = np.zeros(0, dtype=np.int64)
-        z3 = np.zeros((0, 3))
-        return Segments(
-            pts, order, z, z, z, z, z, z3, np.zeros((0, 3, 3)), z3, np.zeros(0), np.zeros(0),
-            z3, z3,
-        )  # fmt: skip
-    idx = ranges(s, e)
-    local = np.zeros(len(s), dtype=np.int64)
-    np.cumsum(count[:-1], out=local[1:])
-    p = pts[idx]
-    centroid = np.add.reduceat(p, local, axis=0) / count[:, None]
-    q = p - np.repeat(centroid, count, axis=0)
-    outer = q[:, _I6] * q[:, _J6]
-    m6 = np.add.reduceat(outer, local, axis=0)
-    scatter = m6[:, _SYM].reshape(-1, 3, 3)
-    v = pts[e - 1] - pts[s]
-    for _ in range(3):
-        nv = np.linalg.norm(v, axis=1)
-        v = v / np.where(nv > 0, nv, 1.0)[:, None]
-        v = np.einsum("sij,sj->si", scatter, v)
-    nv = np.linalg.norm(v, axis=1)
-    direction = v / np.where(nv > 0, nv, 1.0)[:, None]
-    lam1 = np.einsum("si,si->s", direction, np.einsum("sij,sj->si", scatter, direction))
-    trace = m6[:, 0] + m6[:, 3] + m6[:, 5]
-    rms = np.sqrt(np.maximum(trace - lam1, 0.0) / count)
-    t0 = np.einsum("ij,ij->i", pts[s] - centroid, direction)
-    t1 = np.einsum("ij,ij->i", pts[e - 1] - centroid, direction)
-    length = np.abs(t1 - t0)
-    ok = (length >= min_length_m) & (nv > 0) & (rms <= max_rms_m)
-    sel = np.flatnonzero(ok)
-    c = centroid[sel]
-    d = direction[sel]
+    sel, cen, sc, direction, length, rms, t0, t1 = _features_kernel(
+        pts, np.asarray(s, dtype=np.int64), np.asarray(e, dtype=np.int64),
+        max(min_points, 2), min_length_m, max_rms_m,
+    )  # fmt: skip
+    s, e = s[sel], e[sel]
     return Segments(
         points=pts,
         order=order,
-        starts=s[sel],
-        ends=e[sel],
-        ring=ring_sorted[s[sel]].astype(np.int64),
-        sweep=sweep_sorted[s[sel]].astype(np.int64),
-        count=count[sel],
-        centroid=c,
-        scatter=scatter[sel],
-        direction=d,
-        length=length[sel],
-        rms=rms[sel],
-        end0=c + t0[sel, None] * d,
-        end1=c + t1[sel, None] * d,
+        starts=s,
+        ends=e,
+        ring=ring_sorted[s].astype(np.int64),
+        sweep=sweep_sorted[s].astype(np.int64),
+        count=e - s,
+        centroid=cen,
+        scatter=sc,
+        direction=direction,
+        length=length,
+        rms=rms,
+        end0=cen + t0[:, None] * direction,
+        end1=cen + t1[:, None] * direction,
     )
 
 
-#: Index pairs of the 6 distinct entries of a symmetric 3x3 matrix, and their layout.
-_I6 = np.array([0, 0, 0, 1, 1, 2])
-_J6 = np.array([0, 1, 2, 1, 2, 2])
-_SYM = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])
+@numba.njit(cache=True)
+def _features_kernel(pts, starts, ends, min_points, min_length_m, max_rms_m):  # pragma: no cover
+    """Per kept segment: its index, centroid (3,), centred scatter (3, 3), unit direction,
+    length, RMS line residual and the projections t0, t1 of its end points on the line
+    (relative to the centroid)."""
+    S = starts.shape[0]
+    sel = np.empty(S, dtype=np.int64)
+    cen = np.empty((S, 3))
+    sc = np.empty((S, 3, 3))
+    dirs = np.empty((S, 3))
+    length = np.empty(S)
+    rms = np.empty(S)
+    t0 = np.empty(S)
+    t1 = np.empty(S)
+    k = 0
+    c = np.empty(3)
+    m = np.empty((3, 3))
+    v = np.empty(3)
+    w = np.empty(3)
+    for g in range(S):
+        a, b = starts[g], ends[g]
+        n = b - a
+        if n < min_points:
+            continue
+        for u in range(3):
+            acc = 0.0
+            for i in range(a, b):
+                acc += pts[i, u]
+            c[u] = acc / n
+        m[:] = 0.0
+        for i in range(a, b):
+            q0, q1, q2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]
+            m[0, 0] += q0 * q0
+            m[0, 1] += q0 * q1
+            m[0, 2] += q0 * q2
+            m[1, 1] += q1 * q1
+            m[1, 2] += q1 * q2
+            m[2, 2] += q2 * q2
+        m[1, 0], m[2, 0], m[2, 1] = m[0, 1], m[0, 2], m[1, 2]
+        for u in range(3):
+            v[u] = pts[b - 1, u] - pts[a, u]
+        for _ in range(3):  # power iteration from the chord
+            nv = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+            if nv > 0:
+                v /= nv
+            for u in range(3):
+                w[u] = m[u, 0] * v[0] + m[u, 1] * v[1] + m[u, 2] * v[2]
+            v[:] = w
+        nv = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        if not nv > 0:
+            continue
+        v /= nv
+        lam1 = 0.0
+        for u in range(3):
+            lam1 += v[u] * (m[u, 0] * v[0] + m[u, 1] * v[1] + m[u, 2] * v[2])
+        r = np.sqrt(max(m[0, 0] + m[1, 1] + m[2, 2] - lam1, 0.0) / n)
+        a0 = (pts[a, 0] - c[0]) * v[0] + (pts[a, 1] - c[1]) * v[1] + (pts[a, 2] - c[2]) * v[2]
+        a1 = (
+            (pts[b - 1, 0] - c[0]) * v[0]
+            + (pts[b - 1, 1] - c[1]) * v[1]
+            + (pts[b - 1, 2] - c[2]) * v[2]
+        )
+        ln = abs(a1 - a0)
+        if ln < min_length_m or r > max_rms_m:
+            continue
+        sel[k] = g
+        cen[k] = c
+        sc[k] = m
+        dirs[k] = v
+        length[k] = ln
+        rms[k] = r
+        t0[k] = a0
+        t1[k] = a1
+        k += 1
+    return (
+        sel[:k].copy(), cen[:k].copy(), sc[:k].copy(), dirs[:k].copy(), length[:k].copy(),
+        rms[:k].copy(), t0[:k].copy(), t1[:k].copy(),
+    )  # fmt: skip
