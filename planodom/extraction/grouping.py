@@ -44,15 +44,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from planodom.extraction.segments import Segments
 
 #: Segments after each one (same ring, in time order) searched for its continuation in
 #: later sweeps: about 4 sweeps of ~8 segments each.
 LINK_BAND = 32
+
+# The linking, seeding and greedy growth below are compiled with numba: they are loops
+# over a few hundred segments and a few tens of traces with per-step decisions (a greedy
+# loop whose every step refits a plane), where numpy pays its per-call overhead tens of
+# times per step; no library implements this grouping.
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,162 +116,137 @@ def build_traces(
     seg_t0: np.ndarray | None = None,
     seg_t1: np.ndarray | None = None,
     max_span_s: float = np.inf,
-):
+) -> Traces:
     """Merge the segments of each ring over its sweeps into :class:`Traces`.
 
     ``seg_t0``, ``seg_t1`` (S,): first and last time of each segment (s); segments merge
     only when their times lie within ``max_span_s`` (module docstring, time windows).
+    Candidate links: each segment with the next ``LINK_BAND`` segments (sorted by ring,
+    then time): a few sweeps of the same ring. Sweep ids are not used there: time gaps
+    from no-return beams split a sweep into several. Traces are numbered in the order of
+    their first segment.
     """
     S = len(segs)
     t0s = np.zeros(S) if seg_t0 is None else np.asarray(seg_t0, dtype=np.float64)
     t1s = np.zeros(S) if seg_t1 is None else np.asarray(seg_t1, dtype=np.float64)
-    err = direction_error(sigma_m, segs.count, segs.length)
-    # Candidate links: each segment with the next LINK_BAND segments (sorted by ring, then
-    # time): a few sweeps of the same ring. Sweep ids are not used: time gaps from
-    # no-return beams split a sweep into several.
-    band = min(LINK_BAND, S - 1)
-    i = np.repeat(np.arange(S), band)
-    j = i + np.tile(np.arange(1, band + 1), S)
-    inside = j < S
-    i, j = i[inside], j[inside]
-    keep = segs.ring[i] == segs.ring[j]
-    i, j = i[keep], j[keep]
-    di, dj = segs.direction[i], segs.direction[j]
-    cosang = np.abs(np.einsum("ij,ij->i", di, dj))
-    sin_tol = np.sin(np.radians(parallel_deg) + 3.0 * (err[i] + err[j]))
-    sep = segs.centroid[j] - segs.centroid[i]
-    along = np.einsum("ij,ij->i", sep, di)
-    lateral = np.sqrt(np.maximum(np.einsum("ij,ij->i", sep, sep) - along * along, 0.0))
-    hi_i = 0.5 * segs.length[i]
-    hj = 0.5 * segs.length[j] * cosang
-    overlap = np.abs(along) <= hi_i + hj + tol_m
-    link = (np.sqrt(np.maximum(1.0 - cosang * cosang, 0.0)) <= sin_tol) & overlap
-    link &= lateral <= tol_m + step_m
-    if np.isfinite(max_span_s):
-        # Only pieces of one sweep (links of a chain would add up their spans).
-        link &= segs.sweep[i] == segs.sweep[j]
-        link &= np.maximum(t1s[i], t1s[j]) - np.minimum(t0s[i], t0s[j]) <= max_span_s
-    i, j = i[link], j[link]
-    graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(S, S))
-    n_lab, label = connected_components(graph, directed=False)
-    cnt, cen, sc = moment_sums(label, n_lab, segs.count, segs.centroid, segs.scatter)
-    # Direction: count-weighted mean of the members' directions, signs aligned.
+    out = _traces_kernel(
+        segs.ring, segs.sweep, segs.count, segs.centroid, segs.scatter, segs.direction,
+        segs.length, segs.end0, segs.end1, t0s, t1s, tol_m, sigma_m, np.radians(parallel_deg),
+        step_m, max_span_s, LINK_BAND,
+    )  # fmt: skip
+    return Traces(*out)
+
+
+@numba.njit(cache=True)
+def _traces_kernel(
+    ring, sweep, count, centroid, scatter, direction, length, end0, end1, t0s, t1s,
+    tol_m, sigma_m, parallel_rad, step_m, max_span_s, band,
+):  # fmt: skip  # pragma: no cover - compiled
+    S = ring.shape[0]
+    windowed = np.isfinite(max_span_s)
+    err = sigma_m * np.sqrt(12.0 / np.maximum(count, 1)) / np.maximum(length, 1e-9)
+    parent = np.arange(S)
+    for i in range(S):
+        for j in range(i + 1, min(i + band + 1, S)):
+            if ring[i] != ring[j]:
+                continue
+            if windowed and (
+                sweep[i] != sweep[j] or max(t1s[i], t1s[j]) - min(t0s[i], t0s[j]) > max_span_s
+            ):
+                continue
+            cosang = abs(
+                direction[i, 0] * direction[j, 0]
+                + direction[i, 1] * direction[j, 1]
+                + direction[i, 2] * direction[j, 2]
+            )
+            if np.sqrt(max(1.0 - cosang * cosang, 0.0)) > np.sin(
+                parallel_rad + 3.0 * (err[i] + err[j])
+            ):
+                continue
+            s0 = centroid[j, 0] - centroid[i, 0]
+            s1 = centroid[j, 1] - centroid[i, 1]
+            s2 = centroid[j, 2] - centroid[i, 2]
+            along = s0 * direction[i, 0] + s1 * direction[i, 1] + s2 * direction[i, 2]
+            lateral = np.sqrt(max(s0 * s0 + s1 * s1 + s2 * s2 - along * along, 0.0))
+            if abs(along) > 0.5 * length[i] + 0.5 * length[j] * cosang + tol_m:
+                continue
+            if lateral > tol_m + step_m:
+                continue
+            ri, rj = _find(parent, i), _find(parent, j)
+            if ri != rj:
+                parent[max(ri, rj)] = min(ri, rj)
+    # Labels in the order of each component's first segment.
+    label = np.empty(S, dtype=np.int64)
+    root_label = np.full(S, -1, dtype=np.int64)
+    n_lab = 0
+    for i in range(S):
+        r = _find(parent, i)
+        if root_label[r] < 0:
+            root_label[r] = n_lab
+            n_lab += 1
+        label[i] = root_label[r]
+    cnt = np.zeros(n_lab)
+    cen = np.zeros((n_lab, 3))
+    for i in range(S):
+        cnt[label[i]] += count[i]
+        for u in range(3):
+            cen[label[i], u] += count[i] * centroid[i, u]
+    for g in range(n_lab):
+        cen[g] /= max(cnt[g], 1e-300)
+    sc = np.zeros((n_lab, 3, 3))
     ref = np.zeros((n_lab, 3))
-    ref[label[::-1]] = segs.direction[::-1]  # the first member of each trace
-    sgn = np.where(np.einsum("ij,ij->i", segs.direction, ref[label]) < 0, -1.0, 1.0)
-    w = (segs.count * sgn)[:, None] * segs.direction
-    dsum = np.stack([np.bincount(label, w[:, k], n_lab) for k in range(3)], axis=1)
-    direction = dsum / np.linalg.norm(dsum, axis=1)[:, None]
-    # Extent along it: the members' end points.
-    t0 = np.einsum("ij,ij->i", segs.end0 - cen[label], direction[label])
-    t1 = np.einsum("ij,ij->i", segs.end1 - cen[label], direction[label])
-    lo = np.full(n_lab, np.inf)
-    hi = np.full(n_lab, -np.inf)
-    np.minimum.at(lo, label, np.minimum(t0, t1))
-    np.maximum.at(hi, label, np.maximum(t0, t1))
-    ring = np.zeros(n_lab, dtype=np.int64)
-    ring[label] = segs.ring
-    # Direction error: all the trace's points over its length.
-    err_t = direction_error(sigma_m, cnt, hi - lo)
+    seen = np.zeros(n_lab, dtype=np.bool_)
+    dsum = np.zeros((n_lab, 3))
+    t_ring = np.zeros(n_lab, dtype=np.int64)
     t_lo = np.full(n_lab, np.inf)
     t_hi = np.full(n_lab, -np.inf)
-    np.minimum.at(t_lo, label, t0s)
-    np.maximum.at(t_hi, label, t1s)
-    return Traces(label, ring, cnt.astype(np.int64), cen, sc, direction, lo, hi, err_t, t_lo, t_hi)
+    for i in range(S):
+        g = label[i]
+        for u in range(3):
+            du = centroid[i, u] - cen[g, u]
+            for v in range(3):
+                sc[g, u, v] += scatter[i, u, v] + count[i] * du * (centroid[i, v] - cen[g, v])
+        if not seen[g]:  # the first member's direction sets the sign
+            seen[g] = True
+            ref[g] = direction[i]
+        dot = (
+            direction[i, 0] * ref[g, 0] + direction[i, 1] * ref[g, 1] + direction[i, 2] * ref[g, 2]
+        )
+        sg = -1.0 if dot < 0 else 1.0
+        for u in range(3):
+            dsum[g, u] += count[i] * sg * direction[i, u]
+        t_ring[g] = ring[i]
+        t_lo[g] = min(t_lo[g], t0s[i])
+        t_hi[g] = max(t_hi[g], t1s[i])
+    tdir = np.empty((n_lab, 3))
+    for g in range(n_lab):
+        nrm = np.sqrt(dsum[g, 0] ** 2 + dsum[g, 1] ** 2 + dsum[g, 2] ** 2)
+        tdir[g] = dsum[g] / nrm
+    lo = np.full(n_lab, np.inf)
+    hi = np.full(n_lab, -np.inf)
+    for i in range(S):
+        g = label[i]
+        a = 0.0
+        b = 0.0
+        for u in range(3):
+            a += (end0[i, u] - cen[g, u]) * tdir[g, u]
+            b += (end1[i, u] - cen[g, u]) * tdir[g, u]
+        lo[g] = min(lo[g], min(a, b))
+        hi[g] = max(hi[g], max(a, b))
+    err_t = sigma_m * np.sqrt(12.0 / np.maximum(cnt, 1.0)) / np.maximum(hi - lo, 1e-9)
+    icnt = np.empty(n_lab, dtype=np.int64)
+    for g in range(n_lab):
+        icnt[g] = np.int64(cnt[g])
+    return label, t_ring, icnt, cen, sc, tdir, lo, hi, err_t, t_lo, t_hi
 
 
-def plane_of(tr: Traces, members: np.ndarray) -> tuple[np.ndarray, float, float, float]:
-    """TLS plane of the union of traces ``members`` (bool (T,)) from their moments:
-    unit normal (3,), offset d (m), RMS residual (m), number of points."""
-    cnt = tr.count[members].astype(np.float64)
-    cen = tr.centroid[members]
-    total = cnt.sum()
-    c = cnt @ cen / total
-    dc = cen - c
-    scatter = tr.scatter[members].sum(axis=0) + (cnt[:, None] * dc).T @ dc
-    vals, vecs = np.linalg.eigh(scatter)
-    n = vecs[:, 0]
-    return n, float(-n @ c), float(np.sqrt(max(vals[0], 0.0) / total)), float(total)
-
-
-def _fits(tr: Traces, n: np.ndarray, d: float, tol: float) -> np.ndarray:
-    """(T,) bool: a trace's RMS distance to the plane (n, d) and its end points (the ends
-    of its extent, at its centroid's offset) are within ``tol``."""
-    off = tr.centroid @ n + d
-    ms = (np.einsum("i,tij,j->t", n, tr.scatter, n) / tr.count) + off * off
-    slope = tr.direction @ n
-    ends = np.maximum(np.abs(off + slope * tr.lo), np.abs(off + slope * tr.hi))
-    return (ms <= tol * tol) & (ends <= tol)
-
-
-def connected_piece(
-    tr: Traces, members: np.ndarray, seed: int, gap_m: float, gap_ratio: float
-) -> np.ndarray:
-    """(T,) bool: the traces among ``members`` connected to trace ``seed``.
-
-    Each trace is its centre line (centroid + direction * [lo, hi]); two traces are linked
-    when the 3D distance between these segments is at most ``max(gap_m, gap_ratio * r)``,
-    ``r`` the range (distance from the base origin) of the nearer centroid: the rule that
-    splits scan lines into runs (:func:`planodom.extraction.segments.run_breaks`).
-    """
-    idx = np.flatnonzero(members)
-    K = len(idx)
-    s = np.flatnonzero(idx == seed)
-    if K <= 1 or len(s) == 0:
-        return members
-    a0 = tr.centroid[idx] + tr.lo[idx, None] * tr.direction[idx]
-    a1 = tr.centroid[idx] + tr.hi[idx, None] * tr.direction[idx]
-    ends = np.concatenate([a0, a1])
-    if np.linalg.norm(np.ptp(ends, axis=0)) <= gap_m:  # all within one gap: connected
-        return members
-    i, j = np.triu_indices(K, 1)
-    dist = segment_distances(a0[i], a1[i], a0[j], a1[j])
-    rng = np.linalg.norm(tr.centroid[idx], axis=1)
-    adj = np.eye(K, dtype=bool)
-    adj[i, j] = adj[j, i] = dist <= np.maximum(gap_m, gap_ratio * np.minimum(rng[i], rng[j]))
-    reach = adj[s[0]]
-    while True:  # breadth-first growth (K is a few tens: cheaper than a sparse graph)
-        grown = adj[reach].any(axis=0)
-        if np.array_equal(grown, reach):
-            break
-        reach = grown
-    out = np.zeros_like(members)
-    out[idx[reach]] = True
-    return out
-
-
-def segment_distances(p0, p1, q0, q1) -> np.ndarray:
-    """(K,) closest distances between 3D segments ``[p0, p1]`` and ``[q0, q1]`` (K, 3):
-    the closest points of the two lines clamped to the first segment, then alternately
-    re-projected and clamped on each (exact unless both clamps bind, then within a
-    negligible margin for the gap test)."""
-    u, v, w = p1 - p0, q1 - q0, p0 - q0
-    a = np.einsum("ij,ij->i", u, u)
-    b = np.einsum("ij,ij->i", u, v)
-    c = np.einsum("ij,ij->i", v, v)
-    d = np.einsum("ij,ij->i", u, w)
-    e = np.einsum("ij,ij->i", v, w)
-    den = a * c - b * b
-    safe = den > 1e-12 * np.maximum(a * c, 1e-300)
-    sc = np.where(safe, (b * e - c * d) / np.where(safe, den, 1.0), 0.0)
-    sc = np.clip(sc, 0.0, 1.0)
-    tc = np.clip((b * sc + e) / np.maximum(c, 1e-300), 0.0, 1.0)
-    sc = np.clip((b * tc - d) / np.maximum(a, 1e-300), 0.0, 1.0)
-    diff = w + sc[:, None] * u - tc[:, None] * v
-    return np.linalg.norm(diff, axis=1)
-
-
-def quad_forms(normals: np.ndarray, scatter: np.ndarray) -> np.ndarray:
-    """(P, T) ``n_p^T S_t n_p`` for normals (P, 3) and symmetric matrices (T, 3, 3), as one
-    (P, 6) x (6, T) product (a three-operand einsum is ~50x slower here)."""
-    n = normals
-    nn = np.stack(
-        [n[:, 0] ** 2, 2 * n[:, 0] * n[:, 1], 2 * n[:, 0] * n[:, 2], n[:, 1] ** 2,
-         2 * n[:, 1] * n[:, 2], n[:, 2] ** 2],
-        axis=1,
-    )  # fmt: skip
-    s6 = scatter.reshape(-1, 9)[:, [0, 1, 2, 4, 5, 8]]
-    return nn @ s6.T
+@numba.njit(cache=True)
+def _find(parent, i):  # pragma: no cover - compiled
+    """Root of ``i`` in a union-find forest, halving the path on the way."""
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
 
 
 def required_traces(sigma_m: float, tol_floor_m: float, min_traces_high_noise: int) -> int:
@@ -326,102 +305,284 @@ def group_segments(
     if len(segs) < 2:
         return [], 0
     tr = build_traces(segs, tol_m, sigma_m, parallel_deg, step_m, seg_t0, seg_t1, max_span_s)
-    T = len(tr)
-    windowed = bool(np.isfinite(max_span_s))
-    big = tr.count >= min_trace_points
-    ok = big & (tr.dir_err <= np.radians(max_seed_direction_error_deg))
-    a, b = np.triu_indices(T, 1)
-    keep = ok[a] & ok[b] & (tr.ring[a] != tr.ring[b])
-    if windowed:
-        span = np.maximum(tr.t_hi[a], tr.t_hi[b]) - np.minimum(tr.t_lo[a], tr.t_lo[b])
-        keep &= span <= max_span_s
-    iu, ju = a[keep], b[keep]
-    di, dj = tr.direction[iu], tr.direction[ju]
-    cross = np.cross(di, dj)
-    sin_a = np.linalg.norm(cross, axis=1)
-    keep = sin_a >= np.sin(np.radians(min_cross_angle_deg))
-    iu, ju, cross, sin_a, di, dj = iu[keep], ju[keep], cross[keep], sin_a[keep], di[keep], dj[keep]
-    normals = cross / sin_a[:, None]
-    sep = tr.centroid[iu] - tr.centroid[ju]
-    gap = np.abs(np.einsum("ij,ij->i", normals, sep))
-    # The pair's normal is uncertain by about (err_i + err_j) / sin(angle) (rad).
-    slack = np.linalg.norm(sep, axis=1) * 2.0 * (tr.dir_err[iu] + tr.dir_err[ju]) / sin_a
-    keep = gap <= tol_m + slack
-    # Where the two lines cross, along each (relative to its centroid). An L (crossing at
-    # an end of both traces, within the margin) is two walls meeting at a corner.
-    c_ = np.einsum("ij,ij->i", di, dj)
-    wi, wj = np.einsum("ij,ij->i", di, sep), np.einsum("ij,ij->i", dj, sep)
-    den = np.maximum(1.0 - c_ * c_, 1e-12)
-    s_i = (c_ * wj - wi) / den
-    s_j = (wj - c_ * wi) / den
-    mi = np.maximum(margin_m, 0.05 * (tr.hi[iu] - tr.lo[iu]))
-    mj = np.maximum(margin_m, 0.05 * (tr.hi[ju] - tr.lo[ju]))
-    end_i = np.minimum(np.abs(s_i - tr.lo[iu]), np.abs(s_i - tr.hi[iu])) <= mi
-    end_j = np.minimum(np.abs(s_j - tr.lo[ju]), np.abs(s_j - tr.hi[ju])) <= mj
-    is_l = (end_i & end_j)[keep]
-    if windowed:  # one sweep's L is two lines meeting at a corner, no other evidence
-        keep[keep] = ~is_l
-        is_l = is_l[~is_l]
-    iu, ju, normals = iu[keep], ju[keep], normals[keep]
-    if len(iu) == 0:
-        return [], 0
-    mid = 0.5 * (tr.centroid[iu] + tr.centroid[ju])
-    offs = -np.einsum("ij,ij->i", normals, mid)
-    # Membership of every trace in every seed plane: (P, T), as in _fits.
-    off = normals @ tr.centroid.T + offs[:, None]
-    var_n = quad_forms(normals, tr.scatter) / tr.count[None, :]
-    slope = normals @ tr.direction.T
-    ends = np.maximum(np.abs(off + slope * tr.lo), np.abs(off + slope * tr.hi))
-    member = (var_n + off * off <= tol_m * tol_m) & (ends <= tol_m) & big[None, :]
-    if windowed:  # members lie in a window of max_span_s centred on the seed's times
-        half = 0.5 * max_span_s
-        mid_t = 0.5 * (np.minimum(tr.t_lo[iu], tr.t_lo[ju]) + np.maximum(tr.t_hi[iu], tr.t_hi[ju]))
-        win_lo, win_hi = mid_t - half, mid_t + half
-        member &= (tr.t_lo[None, :] >= win_lo[:, None]) & (tr.t_hi[None, :] <= win_hi[:, None])
-    weight = tr.count.astype(np.float64)
+    seg_group, n_groups, rejected = _grow_kernel(
+        tr.ring, tr.count, tr.centroid, tr.scatter, tr.direction, tr.lo, tr.hi, tr.dir_err,
+        tr.t_lo, tr.t_hi, tol_m, np.sin(np.radians(min_cross_angle_deg)),
+        np.radians(max_seed_direction_error_deg), float(min_points), max_rms_m, margin_m,
+        min_traces, max_span_s, gap_m, gap_ratio, min_trace_points,
+    )  # fmt: skip
+    group_of_seg = seg_group[tr.label]
+    order = np.argsort(group_of_seg, kind="stable")
+    bounds = np.searchsorted(group_of_seg[order], np.arange(n_groups + 1))
+    groups = [order[bounds[g] : bounds[g + 1]] for g in range(n_groups)]
+    return groups, int(rejected)
+
+
+@numba.njit(cache=True)
+def _plane_of(members, count, centroid, scatter):  # pragma: no cover - compiled
+    """TLS plane of the union of traces ``members`` (bool (T,)) from their moments:
+    unit normal (3,), offset d (m), RMS residual (m), number of points."""
+    total = 0.0
+    c = np.zeros(3)
+    for t in range(members.shape[0]):
+        if members[t]:
+            total += count[t]
+            c += count[t] * centroid[t]
+    c /= total
+    sc = np.zeros((3, 3))
+    for t in range(members.shape[0]):
+        if members[t]:
+            dc = centroid[t] - c
+            for u in range(3):
+                for v in range(3):
+                    sc[u, v] += scatter[t, u, v] + count[t] * dc[u] * dc[v]
+    vals, vecs = np.linalg.eigh(sc)
+    n = vecs[:, 0].copy()
+    return n, -(n[0] * c[0] + n[1] * c[1] + n[2] * c[2]), np.sqrt(max(vals[0], 0.0) / total), total
+
+
+@numba.njit(cache=True)
+def _fits(t, n, d, tol, count, centroid, scatter, direction, lo, hi):  # pragma: no cover
+    """Trace ``t``'s RMS distance to the plane (n, d) and its end points (the ends of its
+    extent, at its centroid's offset) are within ``tol``."""
+    off = centroid[t, 0] * n[0] + centroid[t, 1] * n[1] + centroid[t, 2] * n[2] + d
+    q = 0.0
+    for u in range(3):
+        for v in range(3):
+            q += n[u] * scatter[t, u, v] * n[v]
+    slope = direction[t, 0] * n[0] + direction[t, 1] * n[1] + direction[t, 2] * n[2]
+    ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
+    return q / count[t] + off * off <= tol * tol and ends <= tol
+
+
+@numba.njit(cache=True)
+def _segment_distance(p0, p1, q0, q1):  # pragma: no cover - compiled
+    """Closest distance between 3D segments [p0, p1] and [q0, q1]: the closest points of
+    the two lines clamped to the first segment, then alternately re-projected and clamped
+    on each (exact unless both clamps bind, then within a negligible margin for the gap
+    test)."""
+    u = p1 - p0
+    v = q1 - q0
+    w = p0 - q0
+    a = u @ u
+    b = u @ v
+    c = v @ v
+    d = u @ w
+    e = v @ w
+    den = a * c - b * b
+    sc = (b * e - c * d) / den if den > 1e-12 * max(a * c, 1e-300) else 0.0
+    sc = min(max(sc, 0.0), 1.0)
+    tc = min(max((b * sc + e) / max(c, 1e-300), 0.0), 1.0)
+    sc = min(max((b * tc - d) / max(a, 1e-300), 0.0), 1.0)
+    diff = w + sc * u - tc * v
+    return np.sqrt(diff @ diff)
+
+
+@numba.njit(cache=True)
+def _connected_piece(members, seed, centroid, direction, lo, hi, gap_m, gap_ratio):
+    """The traces among ``members`` (bool (T,)) connected to trace ``seed``: two traces
+    are linked when the 3D distance between their centre lines (centroid + direction *
+    [lo, hi]) is at most ``max(gap_m, gap_ratio * r)``, ``r`` the range (distance from
+    the base origin) of the nearer centroid: the rule that splits scan lines into runs
+    (:func:`planodom.extraction.segments.run_breaks`)."""
+    idx = np.flatnonzero(members)
+    K = idx.shape[0]
+    if K <= 1 or not members[seed]:
+        return members
+    a0 = np.empty((K, 3))
+    a1 = np.empty((K, 3))
+    bmin = np.full(3, np.inf)
+    bmax = np.full(3, -np.inf)
+    for k in range(K):
+        t = idx[k]
+        a0[k] = centroid[t] + lo[t] * direction[t]
+        a1[k] = centroid[t] + hi[t] * direction[t]
+        for u in range(3):
+            bmin[u] = min(bmin[u], a0[k, u], a1[k, u])
+            bmax[u] = max(bmax[u], a0[k, u], a1[k, u])
+    span = bmax - bmin
+    if np.sqrt(span @ span) <= gap_m:  # all within one gap: connected
+        return members
+    rng = np.empty(K)
+    for k in range(K):
+        rng[k] = np.sqrt(centroid[idx[k]] @ centroid[idx[k]])
+    reach = np.zeros(K, dtype=np.bool_)
+    queue = np.empty(K, dtype=np.int64)
+    s = 0
+    while idx[s] != seed:
+        s += 1
+    reach[s] = True
+    queue[0] = s
+    head, tail = 0, 1
+    while head < tail:  # breadth-first growth
+        i = queue[head]
+        head += 1
+        for j in range(K):
+            if reach[j]:
+                continue
+            lim = max(gap_m, gap_ratio * min(rng[i], rng[j]))
+            if _segment_distance(a0[i], a1[i], a0[j], a1[j]) <= lim:
+                reach[j] = True
+                queue[tail] = j
+                tail += 1
+    out = np.zeros_like(members)
+    for k in range(K):
+        if reach[k]:
+            out[idx[k]] = True
+    return out
+
+
+@numba.njit(cache=True)
+def _grow_kernel(
+    ring, count_i, centroid, scatter, direction, lo, hi, dir_err, t_lo, t_hi, tol_m,
+    sin_min_cross, max_seed_err, min_points, max_rms_m, margin_m, min_traces, max_span_s,
+    gap_m, gap_ratio, min_trace_points,
+):  # fmt: skip  # pragma: no cover - compiled
+    """Seeds, membership and greedy growth (module docstring, steps 2 and 3). Returns the
+    group of every trace (-1: none), the number of groups and of rejected seeds."""
+    T = ring.shape[0]
+    count = count_i.astype(np.float64)
+    windowed = np.isfinite(max_span_s)
+    big = count_i >= min_trace_points
+    ok = big & (dir_err <= max_seed_err)
+    # Seed pairs, in (i, j), i < j order.
+    P_max = T * (T - 1) // 2
+    iu = np.empty(P_max, dtype=np.int64)
+    ju = np.empty(P_max, dtype=np.int64)
+    normals = np.empty((P_max, 3))
+    is_l = np.empty(P_max, dtype=np.bool_)
+    win_lo = np.empty(P_max)
+    win_hi = np.empty(P_max)
+    P = 0
+    for i in range(T):
+        if not ok[i]:
+            continue
+        for j in range(i + 1, T):
+            if not ok[j] or ring[i] == ring[j]:
+                continue
+            if windowed and max(t_hi[i], t_hi[j]) - min(t_lo[i], t_lo[j]) > max_span_s:
+                continue
+            di, dj = direction[i], direction[j]
+            cr = np.cross(di, dj)
+            sin_a = np.sqrt(cr @ cr)
+            if sin_a < sin_min_cross:
+                continue
+            n = cr / sin_a
+            sep = centroid[i] - centroid[j]
+            gap = abs(n @ sep)
+            # The pair's normal is uncertain by about (err_i + err_j) / sin(angle) (rad).
+            slack = np.sqrt(sep @ sep) * 2.0 * (dir_err[i] + dir_err[j]) / sin_a
+            if gap > tol_m + slack:
+                continue
+            # Where the two lines cross, along each (relative to its centroid). An L
+            # (crossing at an end of both, within the margin) is two walls at a corner.
+            c_ = di @ dj
+            wi, wj = di @ sep, dj @ sep
+            den = max(1.0 - c_ * c_, 1e-12)
+            s_i = (c_ * wj - wi) / den
+            s_j = (wj - c_ * wi) / den
+            mi = max(margin_m, 0.05 * (hi[i] - lo[i]))
+            mj = max(margin_m, 0.05 * (hi[j] - lo[j]))
+            end_i = min(abs(s_i - lo[i]), abs(s_i - hi[i])) <= mi
+            end_j = min(abs(s_j - lo[j]), abs(s_j - hi[j])) <= mj
+            if windowed and end_i and end_j:
+                continue  # one sweep's L is two lines meeting at a corner, nothing else
+            iu[P], ju[P] = i, j
+            normals[P] = n
+            is_l[P] = end_i and end_j
+            mid_t = 0.5 * (min(t_lo[i], t_lo[j]) + max(t_hi[i], t_hi[j]))
+            win_lo[P] = mid_t - 0.5 * max_span_s
+            win_hi[P] = mid_t + 0.5 * max_span_s
+            P += 1
+    group = np.full(T, -1, dtype=np.int64)
+    if P == 0:
+        return group, 0, 0
+    # Membership of every trace in every seed plane (P, T), as in _fits.
+    member = np.zeros((P, T), dtype=np.bool_)
+    for p in range(P):
+        n = normals[p]
+        d = -0.5 * (n @ centroid[iu[p]] + n @ centroid[ju[p]])
+        for t in range(T):
+            if not big[t]:
+                continue
+            if windowed and (t_lo[t] < win_lo[p] or t_hi[t] > win_hi[p]):
+                continue
+            member[p, t] = _fits(t, n, d, tol_m, count, centroid, scatter, direction, lo, hi)
+    weight_sum = count.sum()
     # L seeds come last: the traces of a wall that meets another at a corner are taken
     # by the walls' own crossing pairs first, and the L dies with them. An L that is
     # left is two traces of one wall meeting at its edge (or an unresolved corner).
-    tier = np.where(is_l, 0.0, 2.0 * weight.sum() + 1.0)
-    scores = member @ weight + tier
-    alive = np.ones(len(iu), dtype=bool)
+    tier = np.empty(P)
+    scores = np.empty(P)
+    for p in range(P):
+        tier[p] = 0.0 if is_l[p] else 2.0 * weight_sum + 1.0
+        sc = 0.0
+        for t in range(T):
+            if member[p, t]:
+                sc += count[t]
+        scores[p] = sc + tier[p]
+    alive = np.ones(P, dtype=np.bool_)
     available = big.copy()
-    groups: list[np.ndarray] = []
+    n_groups = 0
     rejected = 0
     while True:
-        masked = np.where(alive, scores, -1.0)
-        p = int(np.argmax(masked))
-        if masked[p] - tier[p] < min_points:
+        best = -1
+        best_score = -np.inf
+        for p in range(P):  # the first maximum, as np.argmax
+            sc = scores[p] if alive[p] else -1.0
+            if sc > best_score:
+                best_score = sc
+                best = p
+        p = best
+        if best_score - tier[p] < min_points:
             break
         alive[p] = False
         members = member[p] & available
-        members[iu[p]] = members[ju[p]] = True
-        in_window = available
+        members[iu[p]] = True
+        members[ju[p]] = True
+        in_window = available.copy()
         if windowed:
-            in_window = available & (tr.t_lo >= win_lo[p]) & (tr.t_hi <= win_hi[p])
+            for t in range(T):
+                in_window[t] = in_window[t] and t_lo[t] >= win_lo[p] and t_hi[t] <= win_hi[p]
         for _ in range(3):
-            n, d, rms, total = plane_of(tr, members)
-            new = _fits(tr, n, d, tol_m) & in_window
-            if np.array_equal(new, members) or np.count_nonzero(new) < 2:
+            n, d, rms, total = _plane_of(members, count, centroid, scatter)
+            new = np.zeros(T, dtype=np.bool_)
+            n_new = 0
+            same = True
+            for t in range(T):
+                new[t] = in_window[t] and _fits(
+                    t, n, d, tol_m, count, centroid, scatter, direction, lo, hi
+                )
+                n_new += new[t]
+                same = same and new[t] == members[t]
+            if same or n_new < 2:
                 break
             members = new
         if np.isfinite(gap_m):  # only the piece of the plane that holds the seed
-            members = connected_piece(tr, members, iu[p], gap_m, gap_ratio)
-        n, d, rms, total = plane_of(tr, members)
+            members = _connected_piece(
+                members, iu[p], centroid, direction, lo, hi, gap_m, gap_ratio
+            )
+        n, d, rms, total = _plane_of(members, count, centroid, scatter)
         if (
             not (members[iu[p]] and members[ju[p]])
             or total < min_points
             or rms > max_rms_m
-            or np.count_nonzero(members) < min_traces
+            or members.sum() < min_traces
         ):
             rejected += 1
             # Seeds that both fall in this rejected set would grow into it again.
-            alive &= ~(members[iu] & members[ju])
+            for q in range(P):
+                if members[iu[q]] and members[ju[q]]:
+                    alive[q] = False
             continue
-        idx = np.flatnonzero(members)
-        groups.append(idx)
-        available[idx] = False
-        alive &= available[iu] & available[ju]
-        scores -= member[:, idx] @ weight[idx]
-    label_groups = [np.flatnonzero(np.isin(tr.label, g)) for g in groups]
-    return label_groups, rejected
+        for t in range(T):
+            if members[t]:
+                group[t] = n_groups
+                available[t] = False
+                for q in range(P):
+                    if member[q, t]:
+                        scores[q] -= count[t]
+        n_groups += 1
+        for q in range(P):
+            alive[q] = alive[q] and available[iu[q]] and available[ju[q]]
+    return group, n_groups, rejected
