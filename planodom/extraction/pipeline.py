@@ -46,7 +46,8 @@ from planodom.extraction.fitting import (
     support_polygon,
     tls_covariance,
 )
-from planodom.extraction.grouping import group_segments, moment_sums, required_traces
+from planodom.extraction.groupfit import fit_groups
+from planodom.extraction.grouping import group_segments, required_traces
 from planodom.extraction.lidar import lidar_candidates
 from planodom.extraction.segments import split_scan_lines
 from planodom.geometry import Plane, PlaneSupport
@@ -301,92 +302,34 @@ def _result(planes, inliers, mode, sigma, n_segments, n_candidates, rejected, pt
     )
 
 
-def _group_moments(gid: np.ndarray, n_groups: int, p: np.ndarray):
-    """Count (G,), centroid (G, 3) and centred scatter (G, 3, 3) of points ``p`` (K, 3)
-    grouped by ``gid`` (K,), two-pass (centred) so that exact data stays exact."""
-    cnt = np.bincount(gid, minlength=n_groups).astype(np.float64)
-    cen = np.stack([np.bincount(gid, p[:, k], n_groups) for k in range(3)], axis=1)
-    cen /= np.maximum(cnt, 1.0)[:, None]
-    q = p - cen[gid]
-    sc = np.stack([np.bincount(gid, q[:, i] * q[:, j], n_groups) for i, j in _PAIRS], axis=1)
-    return cnt, cen, sc[:, _SYM33].reshape(-1, 3, 3)
-
-
-_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-_SYM33 = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])
-
-
 def _rig_planes(groups, segs, pts, scan, config, sigma, org, xi):
-    """Planes of the 2D-rig groups of segments, all groups at once.
-
-    Each group's points are refit by TLS, keeping the points within
-    ``inlier_sigma_factor`` times a robust scale of the group (the median of its segments'
-    RMS distances to the plane, computed from moments instead of a per-point median), at
-    least 1e-7 m.
-    The first fit comes from the segments' moments; the final one is two-pass (centred)
-    on the inlier points, so that exact data gives exact planes.
-    """
+    """Planes of the 2D-rig groups of segments: robust refit of all groups at once
+    (:func:`.groupfit.fit_groups`), then per group the plane tests, orientation,
+    covariance, confidence and support. Returns planes, inliers (scan indices) and the
+    number of groups rejected (too few inliers, too thin)."""
     G = len(groups)
     if G == 0:
         return [], [], 0
-    gseg = np.concatenate(groups)
-    glab = np.repeat(np.arange(G), [len(g) for g in groups])
-    lens = segs.ends[gseg] - segs.starts[gseg]
-    pos = segs.point_indices(gseg)
-    gid = np.repeat(glab, lens)
-    p = segs.points[pos]
-    # First fit from the segments' moments (no pass over the points), then one robust
-    # inlier selection and the final two-pass fit on the inliers.
-    cnt, cen, sc = moment_sums(glab, G, segs.count[gseg], segs.centroid[gseg], segs.scatter[gseg])
-    vals, vecs = np.linalg.eigh(sc)
-    n = vecs[:, :, 0]
-    d = -np.einsum("ij,ij->i", n, cen)
-    # Robust scale: the median over a group's segments of their RMS distance to its plane
-    # (from moments); one segment across a corner does not move it.
-    ng = n[glab]
-    off = np.einsum("ij,ij->i", segs.centroid[gseg], ng) + d[glab]
-    seg_ms = np.einsum("si,sij,sj->s", ng, segs.scatter[gseg], ng) / segs.count[gseg]
-    seg_rms = np.sqrt(np.maximum(seg_ms, 0.0) + off * off)
-    srt = np.lexsort((seg_rms, glab))
-    lo = np.searchsorted(glab[srt], np.arange(G))
-    hi = np.searchsorted(glab[srt], np.arange(G), side="right")
-    scale = seg_rms[srt][(lo + hi - 1) // 2]
-    thr = np.maximum(config.inlier_sigma_factor * scale, 1e-7)
-    r = np.abs(np.einsum("ij,ij->i", p, n[gid]) + d[gid])
-    keep = r <= thr[gid]
-    cnt, cen, sc = _group_moments(gid[keep], G, p[keep])
-    vals, vecs = np.linalg.eigh(sc)
-    kg, kpos, kp = gid[keep], pos[keep], p[keep]
     view0 = np.array([0.0, 0.0, config.viewpoint_height_m])
-    rays = kp - view0 if org is None else None
-    if rays is not None:
-        nk = vecs[kg, :, 0]
-        inc = np.abs(np.einsum("ij,ij->i", rays, nk)) / np.maximum(
-            np.linalg.norm(rays, axis=1), 1e-300
-        )
-        incidence = np.bincount(kg, inc, G) / np.maximum(cnt, 1.0)
-    bounds = np.searchsorted(kg, np.arange(G + 1))
-    # The support polygon of a group only needs its segments' first and last inliers
-    # (the extreme points of a set of straight pieces are among their ends).
-    first = np.ones(len(kpos), dtype=bool)
-    first[1:] = kpos[1:] != kpos[:-1] + 1
-    last = np.roll(first, -1)
-    last[-1] = True
-    ends_mask = first | last
+    fits = fit_groups(segs, groups, config.inlier_sigma_factor, view0 if org is None else None)
+    kp_all = segs.points[fits.inliers]
     planes, inliers, rejected = [], [], 0
     for g in range(G):
-        a, b = bounds[g], bounds[g + 1]
+        a, b = fits.bounds[g], fits.bounds[g + 1]
         if b - a < max(config.min_plane_points, 3):
             rejected += 1
             continue
+        vals, vecs = fits.evals[g], fits.evecs[g]
+        n = vecs[:, 0].copy()
         fit = PlaneFit(
-            kpos[a:b], vecs[g, :, 0].copy(), float(-vecs[g, :, 0] @ cen[g]), cen[g].copy(),
-            vals[g, ::-1].copy(), vecs[g, :, ::-1].copy(),
+            fits.inliers[a:b], n, float(-n @ fits.centroid[g]), fits.centroid[g].copy(),
+            vals[::-1].copy(), vecs[:, ::-1].copy(),
         )  # fmt: skip
         if fit.width < config.min_plane_width_m:
             rejected += 1
             continue
-        idx = segs.order[kpos[a:b]]
+        idx = segs.order[fits.inliers[a:b]]
+        kp = kp_all[a:b]
         view = _viewpoint(idx, scan, org, xi, config)
         sign = orientation_sign(fit.normal, fit.offset, fit.centroid, view)
         conf = cpef(
@@ -395,19 +338,20 @@ def _rig_planes(groups, segs, pts, scan, config, sigma, org, xi):
             fit.n_points,
             fit.width,
             fit.normal,
-            kp[a:b],
+            kp,
             view,
             config.confidence_points_ref,
             config.confidence_width_ref_m,
-            incidence=None if rays is None else incidence[g],
+            incidence=fits.incidence[g] if org is None else None,
         )
-        ends = kp[a:b][ends_mask[a:b]]
         plane = Plane(
             normal=sign * fit.normal,
             offset=sign * fit.offset,
             covariance=tls_covariance(fit, config.covariance_sigma_floor_m),
             confidence=conf,
-            support=PlaneSupport(fit.centroid.copy(), support_polygon(ends, fit), fit.n_points),
+            support=PlaneSupport(
+                fit.centroid.copy(), support_polygon(kp[fits.is_end[a:b]], fit), fit.n_points
+            ),
             truth_id=majority_label(None if scan.label is None else scan.label[idx]),
         )
         planes.append(plane)
