@@ -86,3 +86,22 @@ def test_support_polygon_is_the_hull_up_to_sampling():
     area = 0.5 * abs(np.sum(q[:, 0] * np.roll(q[:, 1], -1) - np.roll(q[:, 0], -1) * q[:, 1]))
     hull = ConvexHull((pts - fit.centroid) @ fit.evecs[:, :2]).volume
     assert 0.97 * hull <= area <= hull + 1e-9
+
+
+def test_segment_end_point_off_the_line_is_trimmed():
+    # Ten points on a line, then a corner point 3 cm off it (tolerance 2 cm): the chord of
+    # the split runs through it, so the segment's fit must drop it.
+    from planodom.extraction.segments import segment_features
+
+    u = np.array([0.6, 0.8, 0.0])
+    pts = np.array([[1.0, 2.0, 0.5]]) + np.arange(10)[:, None] * 0.1 * u
+    corner = pts[-1] + 0.05 * u + np.array([0.0, 0.0, 0.03])
+    pts = np.vstack([pts, corner])
+    zeros = np.zeros(len(pts), dtype=np.int64)
+    segs = segment_features(
+        pts, np.arange(len(pts)), zeros, zeros, np.array([0]), np.array([len(pts)]), 3, 0.1, 0.02
+    )
+    assert len(segs) == 1
+    assert (segs.starts[0], segs.ends[0]) == (0, 10)
+    assert abs(abs(segs.direction[0] @ u) - 1.0) < 1e-12
+    assert segs.rms[0] < 1e-7  # sqrt of round-off

@@ -323,19 +323,27 @@ def _plane_of(members, count, centroid, scatter):  # pragma: no cover - compiled
     """TLS plane of the union of traces ``members`` (bool (T,)) from their moments:
     unit normal (3,), offset d (m), RMS residual (m), number of points."""
     total = 0.0
-    c = np.zeros(3)
+    c0 = c1 = c2 = 0.0
     for t in range(members.shape[0]):
         if members[t]:
-            total += count[t]
-            c += count[t] * centroid[t]
-    c /= total
+            w = count[t]
+            total += w
+            c0 += w * centroid[t, 0]
+            c1 += w * centroid[t, 1]
+            c2 += w * centroid[t, 2]
+    c = np.array([c0 / total, c1 / total, c2 / total])
     sc = np.zeros((3, 3))
     for t in range(members.shape[0]):
         if members[t]:
-            dc = centroid[t] - c
-            for u in range(3):
-                for v in range(3):
-                    sc[u, v] += scatter[t, u, v] + count[t] * dc[u] * dc[v]
+            d0, d1, d2 = centroid[t, 0] - c[0], centroid[t, 1] - c[1], centroid[t, 2] - c[2]
+            w = count[t]
+            sc[0, 0] += scatter[t, 0, 0] + w * d0 * d0
+            sc[0, 1] += scatter[t, 0, 1] + w * d0 * d1
+            sc[0, 2] += scatter[t, 0, 2] + w * d0 * d2
+            sc[1, 1] += scatter[t, 1, 1] + w * d1 * d1
+            sc[1, 2] += scatter[t, 1, 2] + w * d1 * d2
+            sc[2, 2] += scatter[t, 2, 2] + w * d2 * d2
+    sc[1, 0], sc[2, 0], sc[2, 1] = sc[0, 1], sc[0, 2], sc[1, 2]
     vals, vecs = np.linalg.eigh(sc)
     n = vecs[:, 0].copy()
     return n, -(n[0] * c[0] + n[1] * c[1] + n[2] * c[2]), np.sqrt(max(vals[0], 0.0) / total), total
@@ -361,21 +369,23 @@ def _segment_distance(p0, p1, q0, q1):  # pragma: no cover - compiled
     the two lines clamped to the first segment, then alternately re-projected and clamped
     on each (exact unless both clamps bind, then within a negligible margin for the gap
     test)."""
-    u = p1 - p0
-    v = q1 - q0
-    w = p0 - q0
-    a = u @ u
-    b = u @ v
-    c = v @ v
-    d = u @ w
-    e = v @ w
+    u0, u1, u2 = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+    v0, v1, v2 = q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2]
+    w0, w1, w2 = p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]
+    a = u0 * u0 + u1 * u1 + u2 * u2
+    b = u0 * v0 + u1 * v1 + u2 * v2
+    c = v0 * v0 + v1 * v1 + v2 * v2
+    d = u0 * w0 + u1 * w1 + u2 * w2
+    e = v0 * w0 + v1 * w1 + v2 * w2
     den = a * c - b * b
     sc = (b * e - c * d) / den if den > 1e-12 * max(a * c, 1e-300) else 0.0
     sc = min(max(sc, 0.0), 1.0)
     tc = min(max((b * sc + e) / max(c, 1e-300), 0.0), 1.0)
     sc = min(max((b * tc - d) / max(a, 1e-300), 0.0), 1.0)
-    diff = w + sc * u - tc * v
-    return np.sqrt(diff @ diff)
+    x0 = w0 + sc * u0 - tc * v0
+    x1 = w1 + sc * u1 - tc * v1
+    x2 = w2 + sc * u2 - tc * v2
+    return np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
 
 
 @numba.njit(cache=True)
@@ -462,22 +472,27 @@ def _grow_kernel(
                 continue
             if windowed and max(t_hi[i], t_hi[j]) - min(t_lo[i], t_lo[j]) > max_span_s:
                 continue
-            di, dj = direction[i], direction[j]
-            cr = np.cross(di, dj)
-            sin_a = np.sqrt(cr @ cr)
+            # Scalar arithmetic: small-array temporaries cost more than the maths here.
+            a0, a1, a2 = direction[i, 0], direction[i, 1], direction[i, 2]
+            b0, b1, b2 = direction[j, 0], direction[j, 1], direction[j, 2]
+            n0, n1, n2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+            sin_a = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
             if sin_a < sin_min_cross:
                 continue
-            n = cr / sin_a
-            sep = centroid[i] - centroid[j]
-            gap = abs(n @ sep)
+            n0, n1, n2 = n0 / sin_a, n1 / sin_a, n2 / sin_a
+            e0 = centroid[i, 0] - centroid[j, 0]
+            e1 = centroid[i, 1] - centroid[j, 1]
+            e2 = centroid[i, 2] - centroid[j, 2]
+            gap = abs(n0 * e0 + n1 * e1 + n2 * e2)
             # The pair's normal is uncertain by about (err_i + err_j) / sin(angle) (rad).
-            slack = np.sqrt(sep @ sep) * 2.0 * (dir_err[i] + dir_err[j]) / sin_a
+            slack = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) * 2.0 * (dir_err[i] + dir_err[j]) / sin_a
             if gap > tol_m + slack:
                 continue
             # Where the two lines cross, along each (relative to its centroid). An L
             # (crossing at an end of both, within the margin) is two walls at a corner.
-            c_ = di @ dj
-            wi, wj = di @ sep, dj @ sep
+            c_ = a0 * b0 + a1 * b1 + a2 * b2
+            wi = a0 * e0 + a1 * e1 + a2 * e2
+            wj = b0 * e0 + b1 * e1 + b2 * e2
             den = max(1.0 - c_ * c_, 1e-12)
             s_i = (c_ * wj - wi) / den
             s_j = (wj - c_ * wi) / den
@@ -488,7 +503,7 @@ def _grow_kernel(
             if windowed and end_i and end_j:
                 continue  # one sweep's L is two lines meeting at a corner, nothing else
             iu[P], ju[P] = i, j
-            normals[P] = n
+            normals[P, 0], normals[P, 1], normals[P, 2] = n0, n1, n2
             is_l[P] = end_i and end_j
             mid_t = 0.5 * (min(t_lo[i], t_lo[j]) + max(t_hi[i], t_hi[j]))
             win_lo[P] = mid_t - 0.5 * max_span_s
@@ -501,7 +516,10 @@ def _grow_kernel(
     member = np.zeros((P, T), dtype=np.bool_)
     for p in range(P):
         n = normals[p]
-        d = -0.5 * (n @ centroid[iu[p]] + n @ centroid[ju[p]])
+        i, j = iu[p], ju[p]
+        d = 0.0
+        for u in range(3):
+            d -= 0.5 * n[u] * (centroid[i, u] + centroid[j, u])
         for t in range(T):
             if not big[t]:
                 continue
@@ -534,9 +552,13 @@ def _grow_kernel(
                 best_score = sc
                 best = p
         p = best
-        if best_score - tier[p] < min_points:
+        if best_score < 0:  # no seed left
             break
         alive[p] = False
+        if best_score - tier[p] < min_points:
+            # Scores only fall: this seed never gathers enough points. Not a stop: an L
+            # seed (lower tier) may still hold a plane.
+            continue
         members = member[p] & available
         members[iu[p]] = True
         members[ju[p]] = True

@@ -86,13 +86,13 @@ class ExtractionResult:
 
 def _check_inputs(scan: Scan, sensor_origins) -> np.ndarray | None:
     pts = scan.points
-    finite = np.isfinite(pts).all(axis=1)
-    if not finite.all():
+    if not np.isfinite(pts).all():
+        finite = np.isfinite(pts).all(axis=1)
         raise GeometryError(
             f"scan has {int(np.count_nonzero(~finite))} of {len(pts)} points with NaN or "
             "infinite coordinates (drop no-return beams before extraction)"
         )
-    if len(pts) and np.abs(pts).max() > MAX_COORDINATE_M:
+    if len(pts) and max(pts.max(), -pts.min()) > MAX_COORDINATE_M:
         raise GeometryError(
             f"scan coordinates reach {np.abs(pts).max():.3g} m, beyond {MAX_COORDINATE_M:g} m"
         )
@@ -131,7 +131,17 @@ def choose_mode(scan: Scan, config: ExtractionConfig) -> str:
         return config.mode
     if scan.ring is None:
         return "lidar"
-    return "rig2d" if len(np.unique(scan.ring)) <= config.max_rig_rings else "lidar"
+    return "rig2d" if count_rings(scan.ring) <= config.max_rig_rings else "lidar"
+
+
+def count_rings(ring: np.ndarray) -> int:
+    """Number of distinct ring ids in ``ring`` (N,) (a counting pass for small ids)."""
+    if len(ring) == 0:
+        return 0
+    lo, hi = int(ring.min()), int(ring.max())
+    if lo >= 0 and hi < 1 << 16:
+        return int(np.count_nonzero(np.bincount(ring)))
+    return len(np.unique(ring))
 
 
 def extract(

@@ -409,15 +409,17 @@ def segment_features(
 
     The direction is the principal axis of the scatter, found by power iteration from the
     chord (it converges in two steps for a line: the ratio of its two largest eigenvalues
-    is (noise / length)^2). Segments shorter than ``min_length_m``, with fewer than
-    ``min_points`` (at least 2) points or an RMS line residual above ``max_rms_m`` are
-    dropped.
+    is (noise / length)^2). An end point farther than ``max_rms_m`` from the fitted line
+    is dropped and the line refit, up to ``MAX_END_TRIM`` times: the chord of the split
+    runs through the end points, so a corner point at an end of a piece is never split
+    off, and it would tilt the plane the segment joins. Segments shorter than
+    ``min_length_m``, with fewer than ``min_points`` (at least 2) points or an RMS line
+    residual above ``max_rms_m`` are dropped.
     """
-    sel, cen, sc, direction, length, rms, t0, t1 = _features_kernel(
+    s, e, cen, sc, direction, length, rms, t0, t1 = _features_kernel(
         pts, np.asarray(s, dtype=np.int64), np.asarray(e, dtype=np.int64),
-        max(min_points, 2), min_length_m, max_rms_m,
+        max(min_points, 2), min_length_m, max_rms_m, MAX_END_TRIM,
     )  # fmt: skip
-    s, e = s[sel], e[sel]
     return Segments(
         points=pts,
         order=order,
@@ -437,12 +439,13 @@ def segment_features(
 
 
 @numba.njit(cache=True)
-def _features_kernel(pts, starts, ends, min_points, min_length_m, max_rms_m):  # pragma: no cover
-    """Per kept segment: its index, centroid (3,), centred scatter (3, 3), unit direction,
-    length, RMS line residual and the projections t0, t1 of its end points on the line
-    (relative to the centroid)."""
+def _features_kernel(pts, starts, ends, min_points, min_length_m, max_rms_m, max_trim):
+    """Per kept segment: its (trimmed) start and end, centroid (3,), centred scatter
+    (3, 3), unit direction, length, RMS line residual and the projections t0, t1 of its
+    end points on the line (relative to the centroid)."""
     S = starts.shape[0]
-    sel = np.empty(S, dtype=np.int64)
+    out_s = np.empty(S, dtype=np.int64)
+    out_e = np.empty(S, dtype=np.int64)
     cen = np.empty((S, 3))
     sc = np.empty((S, 3, 3))
     dirs = np.empty((S, 3))
@@ -457,37 +460,27 @@ def _features_kernel(pts, starts, ends, min_points, min_length_m, max_rms_m):  #
     w = np.empty(3)
     for g in range(S):
         a, b = starts[g], ends[g]
+        fitted = False
+        for trim in range(max_trim + 1):
+            n = b - a
+            if n < min_points:
+                break
+            fitted = _line_fit(pts, a, b, c, m, v, w)
+            if not fitted or trim == max_trim or n <= 2:
+                break
+            # An end point off the line (a corner point the chord went through): drop it.
+            da = _line_distance2(pts, a, c, v)
+            db = _line_distance2(pts, b - 1, c, v)
+            if max(da, db) <= max_rms_m * max_rms_m:
+                break
+            if da >= db:
+                a += 1
+            else:
+                b -= 1
+            fitted = False
+        if not fitted:
+            continue
         n = b - a
-        if n < min_points:
-            continue
-        for u in range(3):
-            acc = 0.0
-            for i in range(a, b):
-                acc += pts[i, u]
-            c[u] = acc / n
-        m[:] = 0.0
-        for i in range(a, b):
-            q0, q1, q2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]
-            m[0, 0] += q0 * q0
-            m[0, 1] += q0 * q1
-            m[0, 2] += q0 * q2
-            m[1, 1] += q1 * q1
-            m[1, 2] += q1 * q2
-            m[2, 2] += q2 * q2
-        m[1, 0], m[2, 0], m[2, 1] = m[0, 1], m[0, 2], m[1, 2]
-        for u in range(3):
-            v[u] = pts[b - 1, u] - pts[a, u]
-        for _ in range(3):  # power iteration from the chord
-            nv = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-            if nv > 0:
-                v /= nv
-            for u in range(3):
-                w[u] = m[u, 0] * v[0] + m[u, 1] * v[1] + m[u, 2] * v[2]
-            v[:] = w
-        nv = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-        if not nv > 0:
-            continue
-        v /= nv
         lam1 = 0.0
         for u in range(3):
             lam1 += v[u] * (m[u, 0] * v[0] + m[u, 1] * v[1] + m[u, 2] * v[2])
@@ -501,7 +494,8 @@ def _features_kernel(pts, starts, ends, min_points, min_length_m, max_rms_m):  #
         ln = abs(a1 - a0)
         if ln < min_length_m or r > max_rms_m:
             continue
-        sel[k] = g
+        out_s[k] = a
+        out_e[k] = b
         cen[k] = c
         sc[k] = m
         dirs[k] = v
@@ -511,6 +505,55 @@ def _features_kernel(pts, starts, ends, min_points, min_length_m, max_rms_m):  #
         t1[k] = a1
         k += 1
     return (
-        sel[:k].copy(), cen[:k].copy(), sc[:k].copy(), dirs[:k].copy(), length[:k].copy(),
-        rms[:k].copy(), t0[:k].copy(), t1[:k].copy(),
+        out_s[:k].copy(), out_e[:k].copy(), cen[:k].copy(), sc[:k].copy(), dirs[:k].copy(),
+        length[:k].copy(), rms[:k].copy(), t0[:k].copy(), t1[:k].copy(),
     )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _line_fit(pts, a, b, c, m, v, w):  # pragma: no cover - compiled
+    """Line through ``pts[a:b]``: fills centroid ``c`` (3,), scatter ``m`` (3, 3) and unit
+    direction ``v`` (3,) (power iteration from the chord; ``w`` is scratch). False when
+    the direction is undefined (all points equal)."""
+    n = b - a
+    for u in range(3):
+        acc = 0.0
+        for i in range(a, b):
+            acc += pts[i, u]
+        c[u] = acc / n
+    m[:] = 0.0
+    for i in range(a, b):
+        q0, q1, q2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]
+        m[0, 0] += q0 * q0
+        m[0, 1] += q0 * q1
+        m[0, 2] += q0 * q2
+        m[1, 1] += q1 * q1
+        m[1, 2] += q1 * q2
+        m[2, 2] += q2 * q2
+    m[1, 0], m[2, 0], m[2, 1] = m[0, 1], m[0, 2], m[1, 2]
+    for u in range(3):
+        v[u] = pts[b - 1, u] - pts[a, u]
+    for _ in range(3):  # power iteration from the chord
+        nv = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        if nv > 0:
+            v /= nv
+        for u in range(3):
+            w[u] = m[u, 0] * v[0] + m[u, 1] * v[1] + m[u, 2] * v[2]
+        v[:] = w
+    nv = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if not nv > 0:
+        return False
+    v /= nv
+    return True
+
+
+@numba.njit(cache=True)
+def _line_distance2(pts, i, c, v):  # pragma: no cover - compiled
+    """Squared distance (m^2) of ``pts[i]`` to the line through ``c`` along unit ``v``."""
+    q0, q1, q2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]
+    along = q0 * v[0] + q1 * v[1] + q2 * v[2]
+    return max(q0 * q0 + q1 * q1 + q2 * q2 - along * along, 0.0)
+
+
+#: End points a segment may lose to :func:`_features_kernel`'s trimming, per segment.
+MAX_END_TRIM = 3
