@@ -274,6 +274,7 @@ def group_segments(
     gap_m: float = np.inf,
     gap_ratio: float = 0.0,
     min_trace_points: int = 3,
+    seed_floor_m: float = np.inf,
 ) -> tuple[list[np.ndarray], int]:
     """Segments grouped into planes.
 
@@ -297,6 +298,10 @@ def group_segments(
             separate planes. No limit by default.
         min_trace_points: fewest points of a trace (its segments merged over sweeps);
             smaller traces neither seed nor join a plane.
+        seed_floor_m: the gap between a seed pair's lines must be at most ``min(tol_m,
+            seed_floor_m + 3 sigma sqrt(1 / N_i + 1 / N_j))`` (plus the slack of their
+            direction errors): the noise of the gap is that of the two traces' centroids,
+            not of single points. No floor (the member tolerance alone) by default.
 
     Returns:
         A list of (K,) int64 arrays of segment indices, one per plane, and the number of
@@ -309,7 +314,7 @@ def group_segments(
         tr.ring, tr.count, tr.centroid, tr.scatter, tr.direction, tr.lo, tr.hi, tr.dir_err,
         tr.t_lo, tr.t_hi, tol_m, np.sin(np.radians(min_cross_angle_deg)),
         np.radians(max_seed_direction_error_deg), float(min_points), max_rms_m, margin_m,
-        min_traces, max_span_s, gap_m, gap_ratio, min_trace_points,
+        min_traces, max_span_s, gap_m, gap_ratio, min_trace_points, sigma_m, seed_floor_m,
     )  # fmt: skip
     group_of_seg = seg_group[tr.label]
     order = np.argsort(group_of_seg, kind="stable")
@@ -446,7 +451,7 @@ def _connected_piece(members, seed, centroid, direction, lo, hi, gap_m, gap_rati
 def _grow_kernel(
     ring, count_i, centroid, scatter, direction, lo, hi, dir_err, t_lo, t_hi, tol_m,
     sin_min_cross, max_seed_err, min_points, max_rms_m, margin_m, min_traces, max_span_s,
-    gap_m, gap_ratio, min_trace_points,
+    gap_m, gap_ratio, min_trace_points, sigma_m, seed_floor_m,
 ):  # fmt: skip  # pragma: no cover - compiled
     """Seeds, membership and greedy growth (module docstring, steps 2 and 3). Returns the
     group of every trace (-1: none), the number of groups and of rejected seeds."""
@@ -486,7 +491,11 @@ def _grow_kernel(
             gap = abs(n0 * e0 + n1 * e1 + n2 * e2)
             # The pair's normal is uncertain by about (err_i + err_j) / sin(angle) (rad).
             slack = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) * 2.0 * (dir_err[i] + dir_err[j]) / sin_a
-            if gap > tol_m + slack:
+            # The gap between the two lines: its noise is that of the two centroids along
+            # the normal, sigma sqrt(1 / N_i + 1 / N_j), far below the per-point tolerance
+            # for long traces; the floor covers deskew residue and trace curvature.
+            gap_tol = seed_floor_m + 3.0 * sigma_m * np.sqrt(1.0 / count[i] + 1.0 / count[j])
+            if gap > min(tol_m, gap_tol) + slack:
                 continue
             # Where the two lines cross, along each (relative to its centroid). An L
             # (crossing at an end of both, within the margin) is two walls at a corner.

@@ -193,6 +193,8 @@ def extract(
             gap_m=config.plane_gap_m,
             gap_ratio=config.gap_range_ratio,
             min_trace_points=config.min_segment_points,
+            seed_floor_m=config.tolerance_floor_m
+            + (config.max_unskewed_motion_m if windowed else 0.0),
         )
         n_segments = len(segs)
         planes, inliers, n_rej = _rig_planes(groups, segs, pts, scan, config, sigma, org, xi)
