@@ -6,10 +6,10 @@
    parallel (within ``trace_parallel_deg`` plus three times their predicted direction
    errors), the centroid of one lies within ``tol + trace_step_m`` of the other's line and
    their extents along it overlap; linked components are *traces*. A trace's moments are
-   the sums of its segments' (parallel-axis theorem), its direction the count-weighted
-   mean of theirs. This is the "trace" of :mod:`planodom.simulation.observability`, and
-   it keeps the few points each sweep puts on a narrow wall together (direction known
-   from all sweeps).
+   the sums of its segments' (parallel-axis theorem), its direction the mean of theirs
+   weighted by their inverse predicted variances (``N L^2``). This is the "trace" of
+   :mod:`planodom.simulation.observability`, and it keeps the few points each sweep puts
+   on a narrow wall together (direction known from all sweeps).
 2. Seeds. Two traces seed a plane only when they come from different rings (scanners),
    cross at ``min_cross_angle_deg`` or more, their predicted direction errors are at most
    ``max_seed_direction_error_deg`` and they are coplanar within the tolerance (plus the
@@ -213,8 +213,11 @@ def _traces_kernel(
             direction[i, 0] * ref[g, 0] + direction[i, 1] * ref[g, 1] + direction[i, 2] * ref[g, 2]
         )
         sg = -1.0 if dot < 0 else 1.0
+        # Inverse-variance weights (direction_error^-2 ~ N L^2): a short piece of two
+        # points across a corner, tilted by degrees, does not tilt a trace of long ones.
+        wgt = count[i] * length[i] * length[i]
         for u in range(3):
-            dsum[g, u] += count[i] * sg * direction[i, u]
+            dsum[g, u] += wgt * sg * direction[i, u]
         t_ring[g] = ring[i]
         t_lo[g] = min(t_lo[g], t0s[i])
         t_hi[g] = max(t_hi[g], t1s[i])

@@ -12,7 +12,8 @@
    found in ``min_unskewed_windows`` windows, one plane per wall is kept
    (:func:`drop_repeats`) with its (n, d) extrapolated to the reference time;
 4. per candidate, a robust TLS fit on the points (:mod:`.fitting`), rejection of sets that
-   are too small or too thin to be planes, orientation, covariance, CPEF confidence
+   are too small or too thin to be planes or whose normal is too uncertain
+   (``max_normal_sigma_deg``), orientation, covariance, CPEF confidence
    (:mod:`.confidence`), support polygon and the majority true label.
 
 Normal orientation: normals point to the side the sensor saw the plane from. With
@@ -340,6 +341,10 @@ def _rig_planes(groups, segs, pts, scan, config, sigma, org, xi):
         if fit.width < config.min_plane_width_m:
             rejected += 1
             continue
+        cov = tls_covariance(fit, config.covariance_sigma_floor_m)
+        if too_uncertain(cov, config):
+            rejected += 1
+            continue
         idx = segs.order[fits.inliers[a:b]]
         kp = kp_all[a:b]
         view = _viewpoint(idx, scan, org, xi, config)
@@ -359,7 +364,7 @@ def _rig_planes(groups, segs, pts, scan, config, sigma, org, xi):
         plane = Plane(
             normal=sign * fit.normal,
             offset=sign * fit.offset,
-            covariance=tls_covariance(fit, config.covariance_sigma_floor_m),
+            covariance=cov,
             confidence=conf,
             support=PlaneSupport(
                 fit.centroid.copy(), support_polygon(kp[fits.is_end[a:b]], fit), fit.n_points
@@ -369,6 +374,12 @@ def _rig_planes(groups, segs, pts, scan, config, sigma, org, xi):
         planes.append(plane)
         inliers.append(idx)
     return planes, inliers, rejected
+
+
+def too_uncertain(cov: np.ndarray, config: ExtractionConfig) -> bool:
+    """True when the (4, 4) (n, d) covariance puts the normal's 1-sigma error above
+    ``config.max_normal_sigma_deg``."""
+    return bool(np.trace(cov[:3, :3]) > np.radians(config.max_normal_sigma_deg) ** 2)
 
 
 def _scan_viewpoint(org: np.ndarray | None, config: ExtractionConfig) -> np.ndarray:
@@ -407,6 +418,9 @@ def _build_plane(
         return None
     if fit.width < config.min_plane_width_m:
         return None
+    cov = tls_covariance(fit, config.covariance_sigma_floor_m)
+    if too_uncertain(cov, config):
+        return None
     idx = cand[fit.inliers]
     inl = pts[idx]
     view = _viewpoint(idx, scan, org, xi, config)
@@ -425,7 +439,7 @@ def _build_plane(
     plane = Plane(
         normal=sign * fit.normal,
         offset=sign * fit.offset,
-        covariance=tls_covariance(fit, config.covariance_sigma_floor_m),
+        covariance=cov,
         confidence=conf,
         support=make_support(inl, fit),
         truth_id=majority_label(None if scan.label is None else scan.label[idx]),
