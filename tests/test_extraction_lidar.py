@@ -1,12 +1,27 @@
-"""The 3D path (open3d RANSAC loop): exact planes, determinism, coplanar but separate walls."""
+"""The 3D path (range-image region growing, open3d RANSAC loop): exact planes,
+determinism, coplanar but separate walls; the compiled kernels against numpy / scipy."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from synth_scans import default_scene, planes_in_base, rect, scan_lidar
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract
+from planodom.extraction.lidar import ring_noise
+from planodom.extraction.rangeimage import (
+    _fill_grid,
+    _grow_pieces,
+    _near_pairs,
+    _pixel_normals,
+    grid_indices,
+    ring_order,
+    ring_rows,
+)
+from planodom.extraction.segments import estimate_line_noise
 
 SCENE = default_scene()
 TRUTH = planes_in_base(SCENE)
@@ -71,3 +86,137 @@ def test_range_image_matches_truth_with_noise_and_dropouts():
         assert abs(p.offset - d) < 5 * np.sqrt(p.covariance[3, 3]) + 1e-3
     ransac = extract(scan, cfg.model_copy(update={"range_image": False}))
     assert {p.truth_id for p in ransac.planes if p.support.n_points > 500} == set(TRUTH)
+
+
+# The compiled kernels of the range-image path against independent numpy / scipy versions.
+
+
+def _grid(sigma: float, seed: int, n_beams: int = 16, n_azimuth: int = 256):
+    """A noisy ringed scan with 5 % no-returns on its range-image grid: P (H, W, 3)."""
+    scan = scan_lidar(SCENE, sigma=sigma, n_beams=n_beams, n_azimuth=n_azimuth, seed=seed)
+    scan = scan.subset(np.random.default_rng(seed).random(len(scan)) > 0.05)
+    row, col, H, W = grid_indices(scan.points, scan.ring, scan.t, np.zeros(3), False)
+    return _fill_grid(scan.points, row * W + col, H * W).reshape(H, W, 3)
+
+
+def _normals_reference(P, K, sigma, tol, ks):
+    """Step 1 of :mod:`planodom.extraction.rangeimage` with whole-grid numpy shifts."""
+    up, down = np.full_like(P, np.nan), np.full_like(P, np.nan)
+    up[:-1], down[1:] = P[1:], P[:-1]
+    th = sum(k * (np.roll(P, -k, axis=1) - np.roll(P, k, axis=1)) for k in range(1, K + 1))
+    tv = up - down
+    n = np.cross(th, tv)
+    nn = np.linalg.norm(n, axis=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = n / nn[:, :, None]
+        s2 = 2.0 * sum(k * k for k in range(1, K + 1))
+        e = sigma * np.sqrt(s2 / np.sum(th * th, axis=2) + 2.0 / np.sum(tv * tv, axis=2))
+        ok = np.isfinite(nn) & (nn > 0) & np.isfinite(e)
+        for Q in (np.roll(P, -K, axis=1), np.roll(P, K, axis=1), up, down):
+            dq = Q - P
+            res = np.abs(np.sum(dq * n, axis=2))
+            ok &= ~(res > tol + ks * e * np.linalg.norm(dq, axis=2))
+    return n, e, ok
+
+
+def _pieces_reference(P, n, e, ok, tol, ks, floor, min_gap, ratio, view, min_px):
+    """Step 2: edge tests in numpy, scipy's connected components, pieces of min_px
+    pixels or more numbered by their first pixel."""
+    H, W = ok.shape
+    idx = np.arange(H * W).reshape(H, W)
+    below = np.vstack([idx[1:], np.full((1, W), -1)])
+    Pf, nf, ef, okf = P.reshape(-1, 3), n.reshape(-1, 3), e.ravel(), ok.ravel()
+    src, dst = [], []
+    for nb in (np.roll(idx, -1, axis=1), below):
+        i, j = idx.ravel(), nb.ravel()
+        m = j >= 0
+        i, j = i[m], j[m]
+        m = okf[i] & okf[j]
+        i, j = i[m], j[m]
+        dp = Pf[j] - Pf[i]
+        dist = np.linalg.norm(dp, axis=1)
+        cosang = np.abs(np.sum(nf[i] * nf[j], axis=1))
+        lim = np.minimum(floor + ks * np.sqrt(ef[i] ** 2 + ef[j] ** 2), np.pi / 2)
+        keep = cosang >= np.cos(lim)
+        keep &= np.abs(np.sum(nf[i] * dp, axis=1)) <= tol + ks * ef[i] * dist
+        keep &= np.abs(np.sum(nf[j] * dp, axis=1)) <= tol + ks * ef[j] * dist
+        rng = np.linalg.norm(Pf[i] - view, axis=1)
+        keep &= dist <= np.maximum(min_gap, ratio * rng)
+        src.append(i[keep])
+        dst.append(j[keep])
+    src, dst = np.concatenate(src), np.concatenate(dst)
+    graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(H * W, H * W))
+    _, comp = connected_components(graph, directed=False)
+    sizes = np.bincount(comp[okf], minlength=comp.max() + 1)
+    lab = np.where(okf & (sizes[comp] >= min_px), comp, -1)
+    out = np.full(H * W, -1)
+    sel = np.flatnonzero(lab >= 0)
+    _, first, inv = np.unique(lab[sel], return_index=True, return_inverse=True)
+    out[sel] = np.argsort(np.argsort(first))[inv]
+    return out
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.006, 0.02])
+def test_region_growing_kernels_match_numpy_and_scipy(sigma):
+    P = _grid(sigma, seed=int(sigma * 1000))
+    K, ks, tol = 3, 3.0, max(3 * sigma, 0.02)
+    n, e, ok = _pixel_normals(P, K, max(sigma, 0.002), tol, ks)
+    n_ref, e_ref, ok_ref = _normals_reference(P, K, max(sigma, 0.002), tol, ks)
+    np.testing.assert_array_equal(ok, ok_ref)
+    assert 0.3 * ok.size < np.count_nonzero(ok) < ok.size
+    np.testing.assert_allclose(n[ok], n_ref[ok], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(e[ok], e_ref[ok], rtol=1e-12)
+    # A short gap limit (0.1 m + 3 % of the range) so that the gap test also cuts edges.
+    args = (tol, ks, np.radians(2.0), 0.1, 0.03, np.array([0.0, 0.0, 1.8]), 10)
+    piece, n_pieces = _grow_pieces(P, n, e, ok, *args)
+    ref = _pieces_reference(P, n, e, ok, *args)
+    assert n_pieces >= 3
+    np.testing.assert_array_equal(piece, ref)
+
+
+def _pairs_reference(label, n_pieces, gap_cols):
+    """Step 3's pairs from the label grid shifted by every offset (numpy)."""
+    H, W = label.shape
+    pairs = []
+    for dr in (-2, -1, 0, 1, 2):
+        shifted = np.full_like(label, -1)
+        shifted[max(0, -dr) : H - max(0, dr)] = label[max(0, dr) : H + min(0, dr)]
+        for dc in range(0 if dr > 0 else 1, gap_cols + 1, 2 if abs(dr) == 2 else 1):
+            other = np.roll(shifted, -dc, axis=1)
+            m = (label >= 0) & (other >= 0) & (label != other)
+            pairs.append(label[m] * n_pieces + other[m])
+    return np.unique(np.concatenate(pairs))
+
+
+def test_near_pairs_match_shifted_grids():
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        H, W, C = int(rng.integers(1, 8)), int(rng.integers(1, 40)), int(rng.integers(1, 6))
+        label = rng.integers(-1, C, size=(H, (W + 2) // 3))
+        if rng.random() < 0.5:  # runs of 3, as pieces are
+            label = np.repeat(label, 3, axis=1)
+        label = np.ascontiguousarray(label, dtype=np.int64)
+        gap = int(rng.integers(1, 2 * label.shape[1] + 2))  # also wider than the grid
+        np.testing.assert_array_equal(
+            np.unique(_near_pairs(label, C, gap)), _pairs_reference(label, C, gap)
+        )
+
+
+def test_ring_noise_matches_estimate_line_noise():
+    """The fused kernel against estimate_line_noise on the stable-sorted rings, with the
+    points shuffled and ring ids neither contiguous nor from 0."""
+    cfg = ExtractionConfig()
+    for seed, sigma in enumerate((0.0, 0.006, 0.05)):
+        scan = scan_lidar(SCENE, sigma=sigma, n_azimuth=512, seed=seed)
+        perm = np.random.default_rng(seed).permutation(len(scan))
+        pts, ring = scan.points[perm], 3 * scan.ring[perm] + 1000
+        order = np.argsort(ring, kind="stable")
+        row, n_rows = ring_rows(ring)
+        np.testing.assert_array_equal(ring_order(row, n_rows), order)
+        p, rg = pts[order], ring[order]
+        run_start = np.ones(len(p), dtype=bool)
+        step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        gap = np.maximum(cfg.min_gap_m, cfg.gap_range_ratio * np.linalg.norm(p[1:], axis=1))
+        run_start[1:] = (rg[1:] != rg[:-1]) | (step > gap)
+        expected = estimate_line_noise(p, run_start)
+        assert ring_noise(pts, ring, cfg) == pytest.approx(expected, rel=1e-12, abs=1e-15)
