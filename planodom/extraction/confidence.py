@@ -47,9 +47,6 @@ def cpef(
         points_ref: N_ref. width_ref_m: W_ref (m).
         incidence: ``w_incidence`` when already computed (``points`` is then not used).
     """
-    w_res = float(np.exp(-((rms_m / (2.0 * max(sigma_m, 1e-12))) ** 2)))
-    w_cnt = float(1.0 - np.exp(-n_points / points_ref))
-    w_ext = float(1.0 - np.exp(-width_m / width_ref_m))
     if incidence is not None:
         w_inc = float(incidence)
     else:
@@ -57,4 +54,26 @@ def cpef(
         norm = np.linalg.norm(rays, axis=1)
         ok = norm > 0
         w_inc = float(np.mean(np.abs(rays[ok] @ normal) / norm[ok])) if np.any(ok) else 1.0
-    return float(np.clip(w_res * w_cnt * w_ext * w_inc, 1e-6, 1.0))
+    return float(
+        cpef_batch(
+            np.array([rms_m]), sigma_m, np.array([n_points]), np.array([width_m]),
+            np.array([w_inc]), points_ref, width_ref_m,
+        )[0]
+    )  # fmt: skip
+
+
+def cpef_batch(
+    rms_m: np.ndarray,
+    sigma_m: float,
+    n_points: np.ndarray,
+    width_m: np.ndarray,
+    incidence: np.ndarray,
+    points_ref: float,
+    width_ref_m: float,
+) -> np.ndarray:
+    """(G,) CPEF weights of G planes from their RMS residuals (m), inlier counts, minor
+    widths (m) and mean incidences ``w_incidence`` (all (G,)); see :func:`cpef`."""
+    w_res = np.exp(-((np.asarray(rms_m) / (2.0 * max(sigma_m, 1e-12))) ** 2))
+    w_cnt = 1.0 - np.exp(-np.asarray(n_points, dtype=np.float64) / points_ref)
+    w_ext = 1.0 - np.exp(-np.asarray(width_m) / width_ref_m)
+    return np.clip(w_res * w_cnt * w_ext * np.asarray(incidence), 1e-6, 1.0)

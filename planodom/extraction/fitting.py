@@ -103,17 +103,38 @@ def robust_plane_fit(points: np.ndarray, k_sigma: float, max_iter: int = 4) -> P
 
 def tls_covariance(fit: PlaneFit, sigma_floor_m: float) -> np.ndarray:
     """(4, 4) covariance of ``(nx, ny, nz, d)`` of a TLS fit (module docstring)."""
-    n_pts = fit.n_points
-    l1, l2, l3 = (float(v) for v in fit.evals)
-    sigma2 = max(l3 / max(n_pts - 3, 1), sigma_floor_m**2)
-    e12 = fit.evecs[:, :2]
-    cov_n = (e12 * (sigma2 * np.array([l1 / (l1 - l3) ** 2, l2 / (l2 - l3) ** 2]))) @ e12.T
-    c = fit.centroid
-    cov = np.empty((4, 4))
-    cov[:3, :3] = cov_n
-    cn = cov_n @ c
-    cov[:3, 3] = cov[3, :3] = -cn
-    cov[3, 3] = c @ cn + sigma2 / n_pts
+    return tls_covariances(
+        fit.evals[None], fit.evecs[None], fit.centroid[None], np.array([fit.n_points]),
+        sigma_floor_m,
+    )[0]  # fmt: skip
+
+
+def tls_covariances(
+    evals: np.ndarray,
+    evecs: np.ndarray,
+    centroids: np.ndarray,
+    n_points: np.ndarray,
+    sigma_floor_m: float,
+) -> np.ndarray:
+    """(G, 4, 4) covariances of G TLS fits at once (module docstring).
+
+    Args:
+        evals: (G, 3) scatter eigenvalues, descending (m^2). evecs: (G, 3, 3) columns
+        e1, e2, n. centroids: (G, 3) metres. n_points: (G,) inlier counts.
+        sigma_floor_m: lower bound of the residual sigma (m).
+    """
+    n_pts = np.asarray(n_points, dtype=np.float64)
+    l1, l2, l3 = evals[:, 0], evals[:, 1], evals[:, 2]
+    sigma2 = np.maximum(l3 / np.maximum(n_pts - 3.0, 1.0), sigma_floor_m**2)
+    w = sigma2[:, None] * np.stack([l1 / (l1 - l3) ** 2, l2 / (l2 - l3) ** 2], axis=1)
+    e12 = evecs[:, :, :2]
+    cov_n = np.einsum("gik,gk,gjk->gij", e12, w, e12)
+    cn = np.einsum("gij,gj->gi", cov_n, centroids)
+    cov = np.empty((len(n_pts), 4, 4))
+    cov[:, :3, :3] = cov_n
+    cov[:, :3, 3] = -cn
+    cov[:, 3, :3] = -cn
+    cov[:, 3, 3] = np.einsum("gi,gi->g", centroids, cn) + sigma2 / n_pts
     return cov
 
 
@@ -131,13 +152,23 @@ def orientation_sign(
     (|n_z| >= cos 45 deg) gets its normal up, any other its normal towards the base
     origin's side of the centroid.
     """
-    dist = float(normal @ viewpoint + offset)
-    if abs(dist) >= 1e-3:
-        return 1.0 if dist > 0 else -1.0
-    if abs(normal[2]) >= np.cos(np.radians(45.0)):
-        return 1.0 if normal[2] > 0 else -1.0
-    towards = float(-normal[:2] @ centroid[:2])
-    return -1.0 if towards < 0 else 1.0
+    return float(
+        orientation_signs(normal[None], np.array([offset]), centroid[None], viewpoint[None])[0]
+    )
+
+
+def orientation_signs(
+    normals: np.ndarray, offsets: np.ndarray, centroids: np.ndarray, viewpoints: np.ndarray
+) -> np.ndarray:
+    """(G,) :func:`orientation_sign` of G planes: normals (G, 3), offsets (G,), centroids
+    (G, 3) and viewpoints (G, 3) (or (3,) for all), metres."""
+    views = np.broadcast_to(viewpoints, normals.shape)
+    dist = np.einsum("gi,gi->g", normals, views) + offsets
+    up = np.where(normals[:, 2] > 0, 1.0, -1.0)
+    towards = -np.einsum("gi,gi->g", normals[:, :2], centroids[:, :2])
+    side = np.where(towards < 0, -1.0, 1.0)
+    on_plane = np.where(np.abs(normals[:, 2]) >= np.cos(np.radians(45.0)), up, side)
+    return np.where(np.abs(dist) >= 1e-3, np.where(dist > 0, 1.0, -1.0), on_plane)
 
 
 #: Directions in which support_polygon takes the extreme point (every 360 / 32 deg).

@@ -36,16 +36,18 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.errors import ConfigError, GeometryError
-from planodom.extraction.confidence import cpef
+from planodom.extraction.confidence import cpef, cpef_batch
 from planodom.extraction.deskew import check_twist, deskew_points, se3_exp
 from planodom.extraction.fitting import (
     PlaneFit,
     majority_label,
     make_support,
     orientation_sign,
+    orientation_signs,
     robust_plane_fit,
     support_polygon,
     tls_covariance,
+    tls_covariances,
 )
 from planodom.extraction.groupfit import fit_groups
 from planodom.extraction.grouping import group_segments, required_traces
@@ -317,63 +319,68 @@ def _result(planes, inliers, mode, sigma, n_segments, n_candidates, rejected, pt
 
 def _rig_planes(groups, segs, pts, scan, config, sigma, org, xi):
     """Planes of the 2D-rig groups of segments: robust refit of all groups at once
-    (:func:`.groupfit.fit_groups`), then per group the plane tests, orientation,
-    covariance, confidence and support. Returns planes, inliers (scan indices) and the
-    number of groups rejected (too few inliers, too thin)."""
+    (:func:`.groupfit.fit_groups`), the plane tests, covariances, orientations and
+    confidences of all groups at once, then a :class:`Plane` per kept group with its
+    support. Returns planes, inliers (scan indices) and the number of groups rejected
+    (too few inliers, too thin, too uncertain a normal)."""
     G = len(groups)
     if G == 0:
         return [], [], 0
     view0 = np.array([0.0, 0.0, config.viewpoint_height_m])
     fits = fit_groups(segs, groups, config.inlier_sigma_factor, view0 if org is None else None)
+    cnt = np.maximum(fits.count, 1).astype(np.float64)
+    evals = fits.evals[:, ::-1]  # descending: l1, l2, l3
+    evecs = fits.evecs[:, :, ::-1]  # columns e1, e2, n
+    width = 2.0 * np.sqrt(np.maximum(evals[:, 1], 0.0) / cnt)
+    rms = np.sqrt(np.maximum(evals[:, 2], 0.0) / cnt)
+    normals = evecs[:, :, 2]
+    offsets = -np.einsum("gi,gi->g", normals, fits.centroid)
+    covs = tls_covariances(evals, evecs, fits.centroid, fits.count, config.covariance_sigma_floor_m)
+    keep = (fits.count >= max(config.min_plane_points, 3)) & (width >= config.min_plane_width_m)
+    keep &= np.einsum("gii->g", covs[:, :3, :3]) <= np.radians(config.max_normal_sigma_deg) ** 2
+    kept = np.flatnonzero(keep)
+    idx_all = segs.order[fits.inliers]
     kp_all = segs.points[fits.inliers]
-    planes, inliers, rejected = [], [], 0
-    for g in range(G):
+    views = np.broadcast_to(view0, (G, 3)).copy()
+    incidence = fits.incidence.copy()
+    if org is not None:
+        for g in kept:
+            a, b = fits.bounds[g], fits.bounds[g + 1]
+            views[g] = _viewpoint(idx_all[a:b], scan, org, xi, config)
+            rays = kp_all[a:b] - views[g]
+            norm = np.linalg.norm(rays, axis=1)
+            ok = norm > 0
+            incidence[g] = (
+                float(np.mean(np.abs(rays[ok] @ normals[g]) / norm[ok])) if np.any(ok) else 1.0
+            )
+    signs = orientation_signs(normals, offsets, fits.centroid, views)
+    conf = cpef_batch(
+        rms, max(sigma, config.covariance_sigma_floor_m), fits.count, width, incidence,
+        config.confidence_points_ref, config.confidence_width_ref_m,
+    )  # fmt: skip
+    planes, inliers = [], []
+    for g in kept:
         a, b = fits.bounds[g], fits.bounds[g + 1]
-        if b - a < max(config.min_plane_points, 3):
-            rejected += 1
-            continue
-        vals, vecs = fits.evals[g], fits.evecs[g]
-        n = vecs[:, 0].copy()
+        idx = idx_all[a:b]
         fit = PlaneFit(
-            fits.inliers[a:b], n, float(-n @ fits.centroid[g]), fits.centroid[g].copy(),
-            vals[::-1].copy(), vecs[:, ::-1].copy(),
+            fits.inliers[a:b], normals[g], float(offsets[g]), fits.centroid[g], evals[g],
+            evecs[g],
         )  # fmt: skip
-        if fit.width < config.min_plane_width_m:
-            rejected += 1
-            continue
-        cov = tls_covariance(fit, config.covariance_sigma_floor_m)
-        if too_uncertain(cov, config):
-            rejected += 1
-            continue
-        idx = segs.order[fits.inliers[a:b]]
-        kp = kp_all[a:b]
-        view = _viewpoint(idx, scan, org, xi, config)
-        sign = orientation_sign(fit.normal, fit.offset, fit.centroid, view)
-        conf = cpef(
-            fit.rms,
-            max(sigma, config.covariance_sigma_floor_m),
-            fit.n_points,
-            fit.width,
-            fit.normal,
-            kp,
-            view,
-            config.confidence_points_ref,
-            config.confidence_width_ref_m,
-            incidence=fits.incidence[g] if org is None else None,
-        )
         plane = Plane(
-            normal=sign * fit.normal,
-            offset=sign * fit.offset,
-            covariance=cov,
-            confidence=conf,
+            normal=signs[g] * normals[g],
+            offset=signs[g] * float(offsets[g]),
+            covariance=covs[g],
+            confidence=float(conf[g]),
             support=PlaneSupport(
-                fit.centroid.copy(), support_polygon(kp[fits.is_end[a:b]], fit), fit.n_points
+                fits.centroid[g].copy(),
+                support_polygon(kp_all[a:b][fits.is_end[a:b]], fit),
+                int(fits.count[g]),
             ),
             truth_id=majority_label(None if scan.label is None else scan.label[idx]),
         )
         planes.append(plane)
         inliers.append(idx)
-    return planes, inliers, rejected
+    return planes, inliers, G - len(kept)
 
 
 def too_uncertain(cov: np.ndarray, config: ExtractionConfig) -> bool:
