@@ -29,7 +29,6 @@ viewpoint itself fall back to "up" for near-horizontal ones
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -200,10 +199,10 @@ def extract(
             + (config.max_unskewed_motion_m if windowed else 0.0),
         )
         n_segments = len(segs)
-        planes, inliers, n_rej = _rig_planes(groups, segs, pts, scan, config, sigma, org, xi)
-        if windowed:
-            planes, inliers, n_rep = drop_repeats(planes, inliers, scan.t, tol, config)
-            n_rej += n_rep
+        repeats_tol = tol if windowed else None
+        planes, inliers, n_rej = _rig_planes(
+            groups, segs, scan, config, sigma, org, xi, repeats_tol
+        )
         return _result(planes, inliers, mode, sigma, n_segments, len(groups), rejected + n_rej, pts)
     else:
         view = _scan_viewpoint(org, config)
@@ -231,12 +230,14 @@ def unskewed_windows(scan: Scan, xi: np.ndarray | None, config: ExtractionConfig
 
 
 def drop_repeats(
-    planes: list[Plane],
-    inliers: list[np.ndarray],
-    t: np.ndarray,
+    n: np.ndarray,
+    d: np.ndarray,
+    cen: np.ndarray,
+    rad: np.ndarray,
+    tm: np.ndarray,
     tol_m: float,
     config: ExtractionConfig,
-) -> tuple[list[Plane], list[np.ndarray], int]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Keep one plane per wall among planes fit in different time windows (no deskew).
 
     Planes are visited by the mean time of their inliers, earliest first (closest to the
@@ -244,23 +245,23 @@ def drop_repeats(
     has its normal within ``unskewed_repeat_deg`` (either sign), its offset within
     ``tol_m + max_unskewed_speed_m_s * dt`` (dt: the difference of their mean times) and
     supports that overlap (bounding circles about the centroids, grown by the same
-    allowance). Returns the kept planes and inliers and the number dropped.
+    allowance). A plane found in fewer than ``min_unskewed_windows`` windows is dropped.
+    The (n, d) of a kept plane are extrapolated to the reference time t = 0 from its
+    repeats: a straight-line fit of each normal component and of the offset against the
+    windows' mean times (constant velocity), normal renormalised and oriented as before.
+
+    Args:
+        n: (P, 3) oriented unit normals. d: (P,) offsets (m). cen: (P, 3) support centroids
+        (m). rad: (P,) support radii about them (m). tm: (P,) mean inlier times (s).
+
+    Returns:
+        Indices (K,) of the kept planes (ascending), their normals (K, 3) and offsets (K,).
     """
-    if len(planes) < 2:
-        return planes, inliers, 0
-    tm = np.array([float(t[i].mean()) for i in inliers])
+    P = len(n)
+    if P < 2:
+        keep = np.arange(P) if config.min_unskewed_windows <= 1 else np.zeros(0, np.int64)
+        return keep, n[keep], d[keep]
     order = np.argsort(tm, kind="stable")
-    n = np.array([p.normal for p in planes])
-    d = np.array([p.offset for p in planes])
-    cen = np.array([p.support.centroid for p in planes])
-    rad = np.array(
-        [
-            float(np.linalg.norm(p.support.polygon - p.support.centroid, axis=1).max())
-            if len(p.support.polygon)
-            else 0.0
-            for p in planes
-        ]
-    )
     cos_tol = np.cos(np.radians(config.unskewed_repeat_deg))
     c = n @ n.T
     sgn = np.where(c < 0, -1.0, 1.0)
@@ -277,30 +278,25 @@ def drop_repeats(
         if not (kept and np.any(same[i, kept])):
             kept.append(int(i))
     kept.sort()
-    out = [_extrapolate(planes[i], n, d, tm, np.flatnonzero(same[i]), i) for i in kept]
-    return out, [inliers[i] for i in kept], len(planes) - len(kept)
-
-
-def _extrapolate(plane: Plane, n: np.ndarray, d: np.ndarray, tm: np.ndarray, rep, i) -> Plane:
-    """``plane`` (index ``i``) with (n, d) extrapolated to the reference time t = 0 from
-    its repeats ``rep`` in other windows: a straight-line fit of each normal component
-    and of the offset against the windows' mean times (constant velocity), normal
-    renormalised. Unchanged without repeats at other times."""
-    idx = np.concatenate([[i], rep])
-    t = tm[idx]
-    if len(idx) < 2 or np.ptp(t) <= 0:
-        return plane
-    sgn = np.where(n[idx] @ n[i] < 0, -1.0, 1.0)
-    y = np.column_stack([sgn[:, None] * n[idx], sgn * d[idx]])  # (K, 4)
-    A = np.column_stack([np.ones_like(t), t])
-    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-    nn = coef[0, :3]
-    norm = float(np.linalg.norm(nn))
-    if not norm > 0:
-        return plane
-    # Same orientation as the plane (its sign was chosen for its viewpoint).
-    s = 1.0 if nn @ plane.normal >= 0 else -1.0
-    return dataclasses.replace(plane, normal=s * nn / norm, offset=s * float(coef[0, 3]) / norm)
+    keep = np.array(kept, dtype=np.int64)
+    n_out, d_out = n[keep].copy(), d[keep].copy()
+    for k, i in enumerate(keep):
+        idx = np.concatenate([[i], np.flatnonzero(same[i])])
+        t = tm[idx]
+        if len(idx) < 2 or np.ptp(t) <= 0:
+            continue
+        # Least-squares line y = a + b t per component; a is the value at t = 0.
+        y = sgn[i, idx][:, None] * np.column_stack([n[idx], d[idx]])  # (K, 4)
+        tc = t - t.mean()
+        slope = tc @ (y - y.mean(axis=0)) / (tc @ tc)
+        at0 = y.mean(axis=0) - slope * t.mean()
+        norm = float(np.linalg.norm(at0[:3]))
+        if not norm > 0:
+            continue
+        s = 1.0 if at0[:3] @ n[i] >= 0 else -1.0  # the plane's own orientation
+        n_out[k] = s * at0[:3] / norm
+        d_out[k] = s * at0[3] / norm
+    return keep, n_out, d_out
 
 
 def _result(planes, inliers, mode, sigma, n_segments, n_candidates, rejected, pts):
@@ -317,12 +313,14 @@ def _result(planes, inliers, mode, sigma, n_segments, n_candidates, rejected, pt
     )
 
 
-def _rig_planes(groups, segs, pts, scan, config, sigma, org, xi):
+def _rig_planes(groups, segs, scan, config, sigma, org, xi, repeats_tol=None):
     """Planes of the 2D-rig groups of segments: robust refit of all groups at once
     (:func:`.groupfit.fit_groups`), the plane tests, covariances, orientations and
     confidences of all groups at once, then a :class:`Plane` per kept group with its
-    support. Returns planes, inliers (scan indices) and the number of groups rejected
-    (too few inliers, too thin, too uncertain a normal)."""
+    support. With ``repeats_tol`` (m; time windows without deskew) one plane per wall is
+    kept among the windows' (:func:`drop_repeats`) before the planes are built. Returns
+    planes, inliers (scan indices) and the number of groups rejected (too few inliers,
+    too thin, too uncertain a normal, a repeat)."""
     G = len(groups)
     if G == 0:
         return [], [], 0
@@ -358,6 +356,23 @@ def _rig_planes(groups, segs, pts, scan, config, sigma, org, xi):
         rms, max(sigma, config.covariance_sigma_floor_m), fits.count, width, incidence,
         config.confidence_points_ref, config.confidence_width_ref_m,
     )  # fmt: skip
+    n_or = signs[:, None] * normals
+    d_or = signs * offsets
+    if repeats_tol is not None and len(kept):
+        tm = np.add.reduceat(scan.t[idx_all], fits.bounds[:-1]) / cnt
+        # Support radius: the farthest run end from the centroid (the polygon's vertices
+        # are among the run ends).
+        ends = fits.is_end
+        gid = np.repeat(np.arange(G), np.diff(fits.bounds))[ends]
+        r_end = np.linalg.norm(kp_all[ends] - fits.centroid[gid], axis=1)
+        rad = np.zeros(G)
+        np.maximum.at(rad, gid, r_end)
+        sel, n_k, d_k = drop_repeats(
+            n_or[kept], d_or[kept], fits.centroid[kept], rad[kept], tm[kept], repeats_tol,
+            config,
+        )  # fmt: skip
+        kept = kept[sel]
+        n_or[kept], d_or[kept] = n_k, d_k
     planes, inliers = [], []
     for g in kept:
         a, b = fits.bounds[g], fits.bounds[g + 1]
@@ -367,8 +382,8 @@ def _rig_planes(groups, segs, pts, scan, config, sigma, org, xi):
             evecs[g],
         )  # fmt: skip
         plane = Plane(
-            normal=signs[g] * normals[g],
-            offset=signs[g] * float(offsets[g]),
+            normal=n_or[g],
+            offset=float(d_or[g]),
             covariance=covs[g],
             confidence=float(conf[g]),
             support=PlaneSupport(
