@@ -157,27 +157,64 @@ def _breaks_kernel(pts, ring, t, has_t, sweep_gap_factor, min_gap_m, gap_range_r
     return run_start, sweep_start, any_forward
 
 
-def _angle_reversals(points: np.ndarray, ring: np.ndarray) -> np.ndarray:
+@numba.njit(cache=True)
+def _angle_reversals(points, ring):  # pragma: no cover - compiled
     """(M - 1,) bool: where the scan angle of a ring jumps back by more than 60 deg.
 
-    Used when times do not separate the sweeps (no ``t``, or all zero). The angle is
+    Used when times do not separate the sweeps (no ``t``, or all equal). The angle is
     measured in each ring's best-fit plane (its scan plane) about the base origin, a
     stand-in for the unknown scanner origin that is good enough to see a sweep restart.
     """
-    out = np.zeros(max(len(points) - 1, 0), dtype=bool)
-    bounds = np.flatnonzero(np.diff(ring)) + 1
-    for a, b in zip(np.r_[0, bounds], np.r_[bounds, len(points)], strict=True):
-        if b - a < 3:
-            continue
-        q = points[a:b]
-        _, _, vt = np.linalg.svd(q - q.mean(axis=0), full_matrices=False)
-        e1 = q.mean(axis=0) - (q.mean(axis=0) @ vt[2]) * vt[2]
-        e1 = e1 / np.linalg.norm(e1) if np.linalg.norm(e1) > 0 else vt[0]
-        e2 = np.cross(vt[2], e1)
-        ang = np.unwrap(np.arctan2(q @ e2, q @ e1))
-        step = np.diff(ang)
-        sign = 1.0 if np.median(step) >= 0 else -1.0
-        out[a : b - 1] = sign * step < -np.radians(60.0)
+    m = points.shape[0]
+    out = np.zeros(max(m - 1, 0), dtype=np.bool_)
+    lim = np.radians(60.0)
+    a = 0
+    while a < m:
+        b = a + 1
+        while b < m and ring[b] == ring[a]:
+            b += 1
+        if b - a >= 3:
+            c = np.zeros(3)
+            for i in range(a, b):
+                for u in range(3):
+                    c[u] += points[i, u]
+            c /= b - a
+            sc = np.zeros((3, 3))
+            for i in range(a, b):
+                q0, q1, q2 = points[i, 0] - c[0], points[i, 1] - c[1], points[i, 2] - c[2]
+                sc[0, 0] += q0 * q0
+                sc[0, 1] += q0 * q1
+                sc[0, 2] += q0 * q2
+                sc[1, 1] += q1 * q1
+                sc[1, 2] += q1 * q2
+                sc[2, 2] += q2 * q2
+            sc[1, 0], sc[2, 0], sc[2, 1] = sc[0, 1], sc[0, 2], sc[1, 2]
+            _, vecs = np.linalg.eigh(sc)
+            nrm = vecs[:, 0].copy()
+            e1 = c - (c @ nrm) * nrm
+            ln = np.sqrt(e1 @ e1)
+            e1 = e1 / ln if ln > 0 else vecs[:, 2].copy()
+            e2 = np.cross(nrm, e1)
+            step = np.empty(b - a - 1)
+            f0, f1, f2, g0, g1, g2 = e1[0], e1[1], e1[2], e2[0], e2[1], e2[2]
+            p = points
+            prev = np.arctan2(
+                p[a, 0] * g0 + p[a, 1] * g1 + p[a, 2] * g2,
+                p[a, 0] * f0 + p[a, 1] * f1 + p[a, 2] * f2,
+            )
+            for i in range(a + 1, b):
+                ang = np.arctan2(
+                    p[i, 0] * g0 + p[i, 1] * g1 + p[i, 2] * g2,
+                    p[i, 0] * f0 + p[i, 1] * f1 + p[i, 2] * f2,
+                )
+                d = ang - prev
+                d -= 2.0 * np.pi * np.floor((d + np.pi) / (2.0 * np.pi))  # unwrapped step
+                step[i - a - 1] = d
+                prev = ang
+            sign = 1.0 if np.median(step) >= 0 else -1.0
+            for k in range(b - a - 1):
+                out[a + k] = sign * step[k] < -lim
+        a = b
     return out
 
 
