@@ -69,6 +69,8 @@ def evaluate(run, config: ExtractionConfig, twists=None, tol_deg=3.0, tol_m=0.15
     found = determinable = n_planes = n_good = 0
     ang_err, off_err = [], []
     elapsed = 0.0
+    if len(run):  # warm-up: the first call loads (or compiles) the numba kernels
+        extract(run.scans[0], config, twist=None if twists is None else twists[0])
     for k, scan in enumerate(run.scans):
         xi = None if twists is None else twists[k]
         t0 = time.perf_counter()

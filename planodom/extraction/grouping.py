@@ -47,6 +47,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from planodom.extraction.kernels import find_root
 from planodom.extraction.segments import Segments
 
 #: Segments after each one (same ring, in time order) searched for its continuation in
@@ -172,7 +173,7 @@ def _traces_kernel(
                 continue
             if lateral > tol_m + step_m:
                 continue
-            ri, rj = _find(parent, i), _find(parent, j)
+            ri, rj = find_root(parent, i), find_root(parent, j)
             if ri != rj:
                 parent[max(ri, rj)] = min(ri, rj)
     # Labels in the order of each component's first segment.
@@ -180,7 +181,7 @@ def _traces_kernel(
     root_label = np.full(S, -1, dtype=np.int64)
     n_lab = 0
     for i in range(S):
-        r = _find(parent, i)
+        r = find_root(parent, i)
         if root_label[r] < 0:
             root_label[r] = n_lab
             n_lab += 1
@@ -241,15 +242,6 @@ def _traces_kernel(
     for g in range(n_lab):
         icnt[g] = np.int64(cnt[g])
     return label, t_ring, icnt, cen, sc, tdir, lo, hi, err_t, t_lo, t_hi
-
-
-@numba.njit(cache=True)
-def _find(parent, i):  # pragma: no cover - compiled
-    """Root of ``i`` in a union-find forest, halving the path on the way."""
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
 
 
 def required_traces(sigma_m: float, tol_floor_m: float, min_traces_high_noise: int) -> int:

@@ -55,6 +55,7 @@ from scipy.sparse.csgraph import connected_components
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.grouping import moment_sums
+from planodom.extraction.kernels import find_root
 
 #: Step 4's pixel order, (row, column) offsets: own pixel, the 4, the diagonal neighbours.
 _NEIGHBOURS = np.array(
@@ -215,15 +216,6 @@ def _pixel_normals(P, K, sigma, tol, ks):  # pragma: no cover - compiled
     return normal, err, ok
 
 
-@numba.njit(cache=True)
-def _find(parent, i):  # pragma: no cover - compiled
-    """Root of ``i`` in the union-find forest ``parent``, halving the path on the way."""
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
 @numba.njit(cache=True, error_model="numpy")
 def _grow_pieces(P, normal, err, ok, tol, ks, floor, min_gap, gap_ratio, view, min_px):
     # pragma: no cover - compiled
@@ -274,8 +266,8 @@ def _grow_pieces(P, normal, err, ok, tol, ks, floor, min_gap, gap_ratio, view, m
                 rng = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
                 if not dist <= max(min_gap, gap_ratio * rng):
                     continue
-                a = _find(parent, i)
-                b = _find(parent, r2 * W + c2)
+                a = find_root(parent, i)
+                b = find_root(parent, r2 * W + c2)
                 if a != b:  # the smaller root wins: deterministic
                     if a < b:
                         parent[b] = a
@@ -285,14 +277,14 @@ def _grow_pieces(P, normal, err, ok, tol, ks, floor, min_gap, gap_ratio, view, m
     size = np.zeros(H * W, dtype=np.int64)
     for i in range(H * W):
         if okf[i]:
-            size[_find(parent, i)] += 1
+            size[find_root(parent, i)] += 1
     piece = np.full(H * W, -1, dtype=np.int64)
     number = np.full(H * W, -1, dtype=np.int64)
     n_pieces = 0
     for i in range(H * W):
         if not okf[i]:
             continue
-        root = _find(parent, i)
+        root = find_root(parent, i)
         if size[root] < min_px:
             continue
         if number[root] < 0:

@@ -34,6 +34,7 @@ import numba
 import numpy as np
 
 from planodom.config import ExtractionConfig
+from planodom.extraction.kernels import range_moments
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,21 +175,9 @@ def _angle_reversals(points, ring):  # pragma: no cover - compiled
         while b < m and ring[b] == ring[a]:
             b += 1
         if b - a >= 3:
-            c = np.zeros(3)
-            for i in range(a, b):
-                for u in range(3):
-                    c[u] += points[i, u]
-            c /= b - a
-            sc = np.zeros((3, 3))
-            for i in range(a, b):
-                q0, q1, q2 = points[i, 0] - c[0], points[i, 1] - c[1], points[i, 2] - c[2]
-                sc[0, 0] += q0 * q0
-                sc[0, 1] += q0 * q1
-                sc[0, 2] += q0 * q2
-                sc[1, 1] += q1 * q1
-                sc[1, 2] += q1 * q2
-                sc[2, 2] += q2 * q2
-            sc[1, 0], sc[2, 0], sc[2, 1] = sc[0, 1], sc[0, 2], sc[1, 2]
+            c = np.empty(3)
+            sc = np.empty((3, 3))
+            range_moments(points, a, b, c, sc)
             _, vecs = np.linalg.eigh(sc)
             nrm = vecs[:, 0].copy()
             e1 = c - (c @ nrm) * nrm
@@ -552,22 +541,7 @@ def _line_fit(pts, a, b, c, m, v, w):  # pragma: no cover - compiled
     """Line through ``pts[a:b]``: fills centroid ``c`` (3,), scatter ``m`` (3, 3) and unit
     direction ``v`` (3,) (power iteration from the chord; ``w`` is scratch). False when
     the direction is undefined (all points equal)."""
-    n = b - a
-    for u in range(3):
-        acc = 0.0
-        for i in range(a, b):
-            acc += pts[i, u]
-        c[u] = acc / n
-    m[:] = 0.0
-    for i in range(a, b):
-        q0, q1, q2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]
-        m[0, 0] += q0 * q0
-        m[0, 1] += q0 * q1
-        m[0, 2] += q0 * q2
-        m[1, 1] += q1 * q1
-        m[1, 2] += q1 * q2
-        m[2, 2] += q2 * q2
-    m[1, 0], m[2, 0], m[2, 1] = m[0, 1], m[0, 2], m[1, 2]
+    range_moments(pts, a, b, c, m)
     for u in range(3):
         v[u] = pts[b - 1, u] - pts[a, u]
     for _ in range(3):  # power iteration from the chord
