@@ -8,8 +8,11 @@ one plane):
    plane (from moments; one segment across a corner does not move it; the lower middle
    value for an even count);
 3. the inlier points: residual within ``k_sigma`` times that scale, at least 1e-7 m;
-4. the final fit, two-pass (centred) on the inliers, so that exact data gives exact
-   planes: count, centroid, scatter eigenvalues and eigenvectors;
+4. the fit, two-pass (centred) on the inliers, so that exact data gives exact planes:
+   count, centroid, scatter eigenvalues and eigenvectors; then the inliers are chosen
+   again with ``k_sigma`` times the RMS of that fit (at least 1e-7 m) and refit, up to
+   ``MAX_REFITS`` times, until their count settles: corner points that passed the first
+   (segment-level) scale drop out, and noise-free planes become exact;
 5. the mean incidence ``|cos|`` of the rays from a viewpoint to the inliers (CPEF,
    :mod:`.confidence`), and the first and last inlier of each run of consecutive points
    (the extreme points of a set of straight pieces are among their ends, so these are
@@ -28,6 +31,9 @@ import numba
 import numpy as np
 
 from planodom.extraction.segments import Segments
+
+#: Refits of a group after the first (module docstring, step 4).
+MAX_REFITS = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,37 +135,57 @@ def _fit_groups_kernel(
             rms[k - a] = np.sqrt(max(q / seg_count[s], 0.0) + off * off)
         rms.sort()
         thr = max(k_sigma * rms[(b - a - 1) // 2], 1e-7)
-        # 3. Inliers, and 4. their two-pass moments.
-        bounds[g] = K
+        # 3. Inliers, and 4. their two-pass moments; then again with the scale from
+        # the inliers' own fit (k_sigma times their RMS), until their count settles.
+        start = K
+        bounds[g] = start
+        m = 0
+        fitted = False
         c2 = np.zeros(3)
-        for k in range(a, b):
-            s = gseg[k]
-            for i in range(starts[s], ends[s]):
-                p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
-                if abs(p0 * n[0] + p1 * n[1] + p2 * n[2] + d) <= thr:
-                    inl[K] = i
-                    K += 1
-                    c2[0] += p0
-                    c2[1] += p1
-                    c2[2] += p2
-        m = K - bounds[g]
+        vals = np.zeros(3)
+        vecs2 = np.eye(3)
+        for it in range(MAX_REFITS + 1):
+            K = start
+            c2 = np.zeros(3)
+            for k in range(a, b):
+                s = gseg[k]
+                for i in range(starts[s], ends[s]):
+                    p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
+                    if abs(p0 * n[0] + p1 * n[1] + p2 * n[2] + d) <= thr:
+                        inl[K] = i
+                        K += 1
+                        c2[0] += p0
+                        c2[1] += p1
+                        c2[2] += p2
+            m_prev = m
+            m = K - start
+            if m < 3:
+                fitted = False
+                break
+            c2 /= m
+            s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+            for j in range(start, K):
+                i = inl[j]
+                q0, q1, q2 = points[i, 0] - c2[0], points[i, 1] - c2[1], points[i, 2] - c2[2]
+                s00 += q0 * q0
+                s01 += q0 * q1
+                s02 += q0 * q2
+                s11 += q1 * q1
+                s12 += q1 * q2
+                s22 += q2 * q2
+            sc2 = np.array([[s00, s01, s02], [s01, s11, s12], [s02, s12, s22]])
+            vals, vecs2 = np.linalg.eigh(sc2)
+            fitted = True
+            if it > 0 and m == m_prev:
+                break
+            n = vecs2[:, 0].copy()
+            d = -(n[0] * c2[0] + n[1] * c2[1] + n[2] * c2[2])
+            thr = max(k_sigma * np.sqrt(max(vals[0], 0.0) / m), 1e-7)
+        K = start + m
         cnt_out[g] = m
-        if m == 0:
+        if not fitted:
             bounds[g + 1] = K
             continue
-        c2 /= m
-        s00 = s01 = s02 = s11 = s12 = s22 = 0.0
-        for j in range(bounds[g], K):
-            i = inl[j]
-            q0, q1, q2 = points[i, 0] - c2[0], points[i, 1] - c2[1], points[i, 2] - c2[2]
-            s00 += q0 * q0
-            s01 += q0 * q1
-            s02 += q0 * q2
-            s11 += q1 * q1
-            s12 += q1 * q2
-            s22 += q2 * q2
-        sc2 = np.array([[s00, s01, s02], [s01, s11, s12], [s02, s12, s22]])
-        vals, vecs2 = np.linalg.eigh(sc2)
         cen_out[g] = c2
         vals_out[g] = vals
         vecs_out[g] = vecs2
