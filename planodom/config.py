@@ -147,7 +147,7 @@ class ExtractionConfig(Section):
     """3D path: voxel size (m) of the cloud RANSAC runs on (inliers are refit at full
     resolution, so this sets speed and the smallest plane, not precision)."""
     ransac_iterations: int = 300
-    """3D path: most RANSAC iterations per plane (open3d segment_plane)."""
+    """3D path: most RANSAC iterations per plane (planodom.extraction.ransac)."""
     ransac_probability: float = 0.999
     """3D path: RANSAC stops early once it has this probability of an all-inlier sample."""
     max_planes: int = 40
@@ -157,7 +157,8 @@ class ExtractionConfig(Section):
     than this angle (deg) are separate planes. An angle, not a distance, because a
     lidar's rings spread apart with range (about 1 deg apart on a 32-beam unit)."""
     seed: int = 0
-    """3D path: seed of open3d's random generator (deterministic RANSAC)."""
+    """3D path: seed of the RANSAC's numpy generator (one per scan: the same scan gives
+    the same planes in every run)."""
     range_image: bool = True
     """3D path with ``ring``: grow planes on the range image (ring x firing grid,
     planodom.extraction.rangeimage) instead of the RANSAC loop; RANSAC is still used

@@ -1,7 +1,14 @@
-"""The 3D path (range-image region growing, open3d RANSAC loop): exact planes,
-determinism, coplanar but separate walls; the compiled kernels against numpy / scipy."""
+"""The 3D path (range-image region growing, seeded RANSAC loop): exact planes,
+determinism (also across processes), coplanar but separate walls; the compiled kernels
+(range image, RANSAC) against numpy / scipy."""
 
 from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,7 +18,7 @@ from synth_scans import default_scene, planes_in_base, rect, scan_lidar
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract
-from planodom.extraction.lidar import ring_noise
+from planodom.extraction.lidar import lidar_candidates, ring_noise
 from planodom.extraction.rangeimage import (
     _fill_grid,
     _grow_pieces,
@@ -21,6 +28,7 @@ from planodom.extraction.rangeimage import (
     ring_order,
     ring_rows,
 )
+from planodom.extraction.ransac import sample_triples, segment_plane
 from planodom.extraction.segments import estimate_line_noise
 
 SCENE = default_scene()
@@ -220,3 +228,157 @@ def test_ring_noise_matches_estimate_line_noise():
         run_start[1:] = (rg[1:] != rg[:-1]) | (step > gap)
         expected = estimate_line_noise(p, run_start)
         assert ring_noise(pts, ring, cfg) == pytest.approx(expected, rel=1e-12, abs=1e-15)
+
+
+# The RANSAC fallback (no rings): reproducible across processes, and its kernel against a
+# plain numpy RANSAC with the same samples.
+
+_FALLBACK_SCRIPT = """
+import hashlib, sys
+import numpy as np
+sys.path.insert(0, {tests!r})
+from synth_scans import default_scene, scan_lidar
+from planodom.config import ExtractionConfig
+from planodom.extraction import extract
+from planodom.extraction.ransac import segment_plane
+scan = scan_lidar(default_scene(), sigma=0.02, n_azimuth=512, seed=5, with_ring=False)
+res = extract(scan, ExtractionConfig(range_noise_m=0.02))
+raw = segment_plane(scan.points, 0.06, 300, 0.999, np.random.default_rng(0))
+h = hashlib.sha256()
+for p, idx in zip(res.planes, res.inliers, strict=True):
+    h.update(p.coefficients.tobytes())
+    h.update(np.asarray(idx, dtype=np.int64).tobytes())
+h.update(raw[0].tobytes())
+h.update(raw[1].tobytes())
+print(len(res.planes), h.hexdigest())
+"""
+
+
+def _digest(res, raw) -> str:
+    """The planes and inliers of an extraction, and a raw RANSAC plane and its inliers."""
+    h = hashlib.sha256()
+    for p, idx in zip(res.planes, res.inliers, strict=True):
+        h.update(p.coefficients.tobytes())
+        h.update(np.asarray(idx, dtype=np.int64).tobytes())
+    h.update(raw[0].tobytes())
+    h.update(raw[1].tobytes())
+    return f"{len(res.planes)} {h.hexdigest()}"
+
+
+def test_ransac_fallback_is_reproducible_across_processes():
+    """The same scan without rings gives the same planes, bit for bit, in this process
+    (twice) and in two fresh interpreters (one and two OpenMP / BLAS threads), and so
+    does one raw RANSAC search: open3d's segment_plane did not (isl-org/Open3D#7270;
+    open3d 0.20 varies even within one process after the same o3d.utility.random.seed)."""
+    scan = scan_lidar(SCENE, sigma=0.02, n_azimuth=512, seed=5, with_ring=False)
+    cfg = ExtractionConfig(range_noise_m=0.02)
+    res = extract(scan, cfg)
+    assert res.mode == "lidar" and len(res.planes) >= len(TRUTH)
+    raw = segment_plane(scan.points, 0.06, 300, 0.999, np.random.default_rng(0))
+    here = _digest(res, raw)
+    raw_again = segment_plane(scan.points, 0.06, 300, 0.999, np.random.default_rng(0))
+    assert _digest(extract(scan, cfg), raw_again) == here
+    code = _FALLBACK_SCRIPT.format(tests=str(Path(__file__).parent))
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", code],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={
+                **os.environ,
+                "OMP_NUM_THREADS": str(threads),
+                "OPENBLAS_NUM_THREADS": str(threads),
+            },
+        )
+        for threads in (1, 2)
+    ]
+    outs = [p.communicate(timeout=300) for p in procs]
+    for p, (stdout, stderr) in zip(procs, outs, strict=True):
+        assert p.returncode == 0, stderr
+        assert stdout.strip() == here
+
+
+def test_ransac_fallback_same_seed_same_candidates_other_seed_same_walls():
+    scan = scan_lidar(SCENE, sigma=0.006, n_azimuth=512, seed=2, with_ring=False)
+    cfg = ExtractionConfig(range_noise_m=0.006)
+    a, sa = lidar_candidates(scan.points, cfg)
+    b, sb = lidar_candidates(scan.points, cfg)
+    assert sa == sb and len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(x, y)
+    other = extract(scan, cfg.model_copy(update={"seed": 7}))
+    assert {p.truth_id for p in other.planes if p.support.n_points > 1000} == set(TRUTH)
+
+
+def _ransac_reference(pts, tol, triples, probability):
+    """Plain numpy RANSAC over the given triples: open3d's rules (count, then the sum of
+    squared inlier distances; stop after log(1 - p) / log(1 - w^3) hypotheses)."""
+    best, best_cnt, best_sse, stop = np.zeros(4), 0, np.inf, len(triples)
+    log_fail = np.log1p(-probability) if probability < 1 else -np.inf
+    for it, (i, j, k) in enumerate(triples):
+        if it >= stop:
+            break
+        n = np.cross(pts[j] - pts[i], pts[k] - pts[i])
+        if not np.linalg.norm(n) > 0:
+            continue
+        n = n / np.linalg.norm(n)
+        r = np.abs(pts @ n - n @ pts[i])
+        cnt, sse = np.count_nonzero(r <= tol), np.sum(r[r <= tol] ** 2)
+        if cnt < best_cnt or cnt == 0 or (cnt == best_cnt and not sse < best_sse):
+            continue
+        best, best_cnt, best_sse = np.append(n, -n @ pts[i]), cnt, sse
+        w = cnt / len(pts)
+        stop = 0 if w >= 1 else min(log_fail / np.log1p(-(w**3)), len(triples))
+    return best, best_cnt
+
+
+@pytest.mark.parametrize("probability", [1.0, 0.999, 0.9])
+def test_segment_plane_matches_numpy_reference(probability):
+    rng = np.random.default_rng(4)
+    n_in, n_out = 600, 1400  # a noisy plane in uniform clutter, then shuffled
+    uv = rng.uniform(-5, 5, size=(n_in, 2))
+    normal = np.array([0.2, -0.3, 0.93])
+    normal /= np.linalg.norm(normal)
+    e1 = np.cross(normal, [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(normal, e1)
+    plane_pts = (
+        uv[:, :1] * e1 + uv[:, 1:] * e2 + (1.5 + 0.01 * rng.standard_normal((n_in, 1))) * normal
+    )
+    pts = rng.permutation(np.vstack([plane_pts, rng.uniform(-5, 5, size=(n_out, 3))]))
+    tol = 0.03
+    plane, inl = segment_plane(pts, tol, 200, probability, np.random.default_rng(11))
+    triples = sample_triples(np.random.default_rng(11), len(pts), 200)
+    ref, ref_cnt = _ransac_reference(pts, tol, triples, probability)
+    np.testing.assert_allclose(plane, ref, rtol=0, atol=1e-12)
+    assert len(inl) == ref_cnt >= 0.9 * n_in
+    r = np.abs(pts @ plane[:3] + plane[3])
+    np.testing.assert_array_equal(inl, np.flatnonzero(r <= tol))  # no boundary points here
+    assert abs(abs(plane[:3] @ normal) - 1) < 1e-3
+    again = segment_plane(pts, tol, 200, probability, np.random.default_rng(11))
+    np.testing.assert_array_equal(again[0], plane)
+    np.testing.assert_array_equal(again[1], inl)
+
+
+def test_segment_plane_degenerate_inputs():
+    rng = np.random.default_rng(0)
+    for m in (0, 1, 2):
+        plane, inl = segment_plane(np.zeros((m, 3)), 0.1, 50, 0.99, rng)
+        assert not plane.any() and len(inl) == 0
+    line = np.outer(np.arange(10.0), [1.0, 2.0, 3.0])  # every triple collinear
+    plane, inl = segment_plane(line, 0.1, 50, 0.99, rng)
+    assert not plane.any() and len(inl) == 0
+    square = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
+    plane, inl = segment_plane(square, 0.01, 50, 0.99, rng)  # all inliers: stops at once
+    assert abs(plane[2]) == 1.0 and plane[3] == 0.0
+    np.testing.assert_array_equal(inl, np.arange(4))
+
+
+def test_sample_triples_distinct_and_uniform():
+    tri = sample_triples(np.random.default_rng(1), 4, 48_000)
+    assert tri.min() == 0 and tri.max() == 3
+    assert np.all((tri[:, 0] != tri[:, 1]) & (tri[:, 0] != tri[:, 2]) & (tri[:, 1] != tri[:, 2]))
+    _, counts = np.unique(tri, axis=0, return_counts=True)
+    assert len(counts) == 24  # the 4 * 3 * 2 ordered triples, 2000 expected each
+    assert np.all(np.abs(counts - 2000) < 5 * np.sqrt(2000))

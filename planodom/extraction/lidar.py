@@ -1,9 +1,14 @@
 """Planes of a dense 3D scan (a spinning lidar, or points without rings).
 
-1. The cloud is reduced to one point per ``voxel_size_m`` voxel (open3d).
-2. open3d's RANSAC ``segment_plane`` runs in a loop on the voxel points not yet explained,
-   with ``o3d.utility.random.seed(config.seed + k)`` before the k-th call, so that a scan
-   gives the same planes every time.
+1. The cloud is reduced to one point per ``voxel_size_m`` voxel (open3d's voxel grid,
+   which is deterministic, in its own order).
+2. A RANSAC plane search (:func:`planodom.extraction.ransac.segment_plane`: three-point
+   samples, at most ``ransac_iterations``, early stop at ``ransac_probability``) runs in a
+   loop on the voxel points not yet explained, its samples drawn from one
+   ``np.random.default_rng(config.seed)`` per scan, so that a scan gives the same planes
+   every time, in every process. Not open3d's ``segment_plane``: it is not reproducible
+   across processes, or even between two calls, despite ``o3d.utility.random.seed``
+   (isl-org/Open3D#7270).
 3. The inliers of each RANSAC plane are split into connected clusters as seen from the
    viewpoint (occupancy grid of ``cluster_gap_deg`` cells in azimuth and elevation,
    8-connected, wrapping in azimuth), so that two coplanar but separate walls become two
@@ -30,6 +35,7 @@ from planodom._open3d import o3d
 from planodom.config import ExtractionConfig
 from planodom.extraction.fitting import tls_fit
 from planodom.extraction.rangeimage import range_image_candidates, ring_order, ring_rows
+from planodom.extraction.ransac import segment_plane
 from planodom.extraction.segments import effective_noise
 
 
@@ -165,27 +171,33 @@ def lidar_candidates(
         if grown is not None:
             return grown, sigma
     n_az = int(np.ceil(360.0 / config.cluster_gap_deg))
+    # open3d's voxel grid is deterministic (checked: the same voxels in the same order in
+    # separate processes and with 1 or 2 OpenMP threads). Its order (a hash map's) is kept:
+    # it scatters the voxels in space, so the same seed does not sample the same places in
+    # consecutive, similar scans. Sorted by coordinates it did, and a wrong plane found by
+    # chance recurred over several epochs (paper loop, lidar32, sigma = 0: 5 of 40).
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     vox = np.asarray(pcd.voxel_down_sample(config.voxel_size_m).points)
     vox_cells = angular_cells(vox, view, config.cluster_gap_deg)
     cells = angular_cells(points, view, config.cluster_gap_deg)
+    vox_az, pt_az = vox_cells[:, 0] % n_az, cells[:, 0] % n_az
     remaining = np.ones(len(vox), dtype=bool)
     taken = np.zeros(len(points), dtype=bool)
     min_vox = max(3, config.min_plane_points // 4)
+    # Our own RANSAC (planodom.extraction.ransac), not open3d's segment_plane: that one
+    # gives different planes in two processes despite o3d.utility.random.seed and one
+    # thread (isl-org/Open3D#7270). One generator per scan: the same scan and seed give
+    # the same planes.
+    rng = np.random.default_rng(config.seed)
     out: list[np.ndarray] = []
-    for k in range(config.max_planes):
+    for _ in range(config.max_planes):
         rem = np.flatnonzero(remaining)
         if len(rem) < min_vox:
             break
-        sub = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(vox[rem]))
-        o3d.utility.random.seed(config.seed + k)
-        _, inl = sub.segment_plane(
-            distance_threshold=tol,
-            ransac_n=3,
-            num_iterations=config.ransac_iterations,
-            probability=config.ransac_probability,
+        _, inl = segment_plane(
+            vox[rem], tol, config.ransac_iterations, config.ransac_probability, rng
         )
-        inl = rem[np.asarray(inl, dtype=np.int64)]
+        inl = rem[inl]
         if len(inl) < min_vox:
             break
         for _ in range(2):  # RANSAC's plane is rough: refit it, select again
@@ -198,23 +210,26 @@ def lidar_candidates(
             break
         remaining[inl] = False
         labels, lookup = _clusters(vox_cells[inl], n_az)
+        # The (dilated) cluster of every point and voxel (-1: none).
+        top = lookup.shape[1] - 1
+        pt_lab = lookup[pt_az, np.minimum(cells[:, 1], top)]
+        vox_lab = lookup[vox_az, np.minimum(vox_cells[:, 1], top)]
         for lab in np.unique(labels):
             members = inl[labels == lab]
             if len(members) < min_vox:
                 continue
             c, _, ev = tls_fit(vox[members])
             n = ev[:, 2]
-            in_cells = lookup[cells[:, 0] % n_az, np.minimum(cells[:, 1], lookup.shape[1] - 1)]
-            region = ~taken & (in_cells == lab)
+            region = np.flatnonzero((pt_lab == lab) & ~taken)
             for _ in range(2):  # refit on the full-resolution points, then select again
-                cand = np.flatnonzero(region & (np.abs((points - c) @ n) <= tol))
+                cand = region[np.abs((points[region] - c) @ n) <= tol]
                 if len(cand) < 3:
                     break
                 c, _, ev = tls_fit(points[cand])
                 n = ev[:, 2]
             # Voxels this plane explains are not searched again.
-            v_in = lookup[vox_cells[:, 0] % n_az, np.minimum(vox_cells[:, 1], lookup.shape[1] - 1)]
-            remaining &= ~((v_in == lab) & (np.abs((vox - c) @ n) <= tol))
+            v_reg = np.flatnonzero(vox_lab == lab)
+            remaining[v_reg[np.abs((vox[v_reg] - c) @ n) <= tol]] = False
             if len(cand) >= config.min_plane_points:
                 taken[cand] = True
                 out.append(cand)
