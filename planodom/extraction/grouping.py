@@ -12,10 +12,11 @@
    on a narrow wall together (direction known from all sweeps).
 2. Seeds. Two traces seed a plane only when they come from different rings (scanners),
    cross at ``min_cross_angle_deg`` or more, their predicted direction errors are at most
-   ``max_seed_direction_error_deg`` and they are coplanar within the tolerance (plus the
-   slack of their direction errors). A pair whose lines cross at an end of both (an "L")
-   may be two traces of two walls that meet at a corner, ending there: such seeds are
-   tried only after every other seed.
+   ``max_seed_direction_error_deg`` and they are coplanar: the gap between their lines is
+   within the noise of their centroids, ``floor + 3 sigma sqrt(1 / N_i + 1 / N_j)`` (at
+   most the member tolerance), plus the slack of their direction errors. A pair whose
+   lines cross at an end of both (an "L") may be two traces of two walls that meet at a
+   corner, ending there: such seeds are tried only after every other seed.
    Traces of one ring never seed: they are parallel or lie in one scan plane.
 3. Growth. Seeds are taken greedily, the one whose plane gathers the most points first;
    every available trace whose RMS distance to the plane and whose end points lie within
