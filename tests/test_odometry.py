@@ -285,6 +285,48 @@ def test_covariance_is_propagated_from_plane_covariances():
     assert np.all(ratio > 5) and np.all(ratio < 11)
 
 
+def test_covariance_is_consistent_when_one_pair_gives_rotation_and_translation():
+    """Two walls: the only pair gives both. Monte Carlo NEES of the 5-DoF result against
+    its reported covariance: the joint propagation counts the pair's planes once (treating
+    the rotation as independent of them made the translation's NEES 1.26 instead of 2)."""
+    import gtsam
+    from scipy.stats import chi2
+
+    from factors.pose5 import pose5_error
+    from planodom.smoothing.graph import rpy_to_rotation_vector
+
+    rng = np.random.default_rng(7)
+    world = world_planes(rng, 2, ground=False)
+    T_w_a = transform_from_rpy_xyz(0.02, -0.01, 0.5, 1.0, -2.0, 0.0)
+    T_ab = random_motion(rng)
+    prev, curr = observe(world, T_w_a), observe(world, T_w_a @ T_ab)
+    sn, sd = 2e-3, 1e-2
+
+    def sample(planes):
+        out = []
+        for p in planes:
+            B = np.asarray(gtsam.Unit3(p.normal).basis())
+            C = np.zeros((4, 4))
+            C[:3, :3], C[3, 3] = sn**2 * B @ B.T, sd**2
+            n = p.normal + B @ rng.normal(0, sn, 2)
+            out.append(Plane(n, p.offset + rng.normal(0, sd), covariance=C, support=p.support))
+        return out
+
+    n_samples, nees = 400, []
+    for _ in range(n_samples):
+        r = estimate_relative_pose(sample(prev), sample(curr), config())
+        assert r.status == "ok"
+        e, _, _ = pose5_error(r.T_prev_curr, np.eye(4), T_ab)
+        J = np.eye(5)
+        J[:3, :3] = rpy_to_rotation_vector(r.rpy)
+        P = J @ r.covariance @ J.T
+        nees.append((e @ np.linalg.solve(P, e), e[3:] @ np.linalg.solve(P[3:, 3:], e[3:])))
+    mean5, mean2 = np.mean(nees, axis=0)
+    lo5, hi5 = chi2.ppf([0.005, 0.995], 5 * n_samples) / n_samples
+    lo2, hi2 = chi2.ppf([0.005, 0.995], 2 * n_samples) / n_samples
+    assert lo5 < mean5 < hi5 and lo2 < mean2 < hi2, (mean5, mean2)
+
+
 def test_time_spread_epochs_are_extracted_again_with_their_own_twist():
     from planodom.scan import Scan
 

@@ -35,7 +35,11 @@ from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
 from planodom.errors import ConfigError
 from planodom.geometry import Plane, make_transform, rpy_from_rotation
-from planodom.odometry.propagate import rotation_covariance, translation_covariance
+from planodom.odometry.propagate import (
+    pose_covariance,
+    rotation_covariance,
+    translation_covariance,
+)
 from planodom.odometry.rotation import (
     chord,
     chordal_mean_rotation,
@@ -75,11 +79,13 @@ class RelativePose:
             prior's or zero).
         pipeline: the pipeline name.
         z_observed: whether the vertical translation was measured (ground plane).
-        covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 / m^2, block
-            diagonal (rotation, translation), plus the floors ``min_sigma_*``. For a
-            consensus winner: first-order propagation of the winning pair's plane fit
-            covariances (:mod:`planodom.odometry.propagate`; the translation includes
-            the rotation's and the height's uncertainty); without plane covariances, the
+        covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 / m^2, plus
+            the floors ``min_sigma_*``. For consensus winners: first-order propagation
+            of the fit covariances of the winning rotation and translation pairs' planes,
+            jointly (:func:`planodom.odometry.propagate.pose_covariance`: the translation
+            includes the rotation's and the height's uncertainty, planes shared by the
+            two pairs count once, rotation and translation are correlated); block
+            diagonal (rotation, translation) otherwise; without plane covariances, the
             weighted spread of the candidates that agree with the winner. For a mean:
             the spread over the count. DoF that were not measured (unresolved,
             degenerate) get the squared motion bound.
@@ -295,17 +301,21 @@ def _solve(
         cov_t, sigma_z, z_observed = np.diag([t_bound**2] * 2), np.inf, False
 
     T = make_transform(R, [txy[0], txy[1], z])
-    cov = np.zeros((5, 5))
-    cov[:3, :3] = cov_r + np.eye(3) * np.radians(ocfg.min_sigma_rotation_deg) ** 2
-    cov[3:, 3:] = cov_t + np.eye(2) * ocfg.min_sigma_translation_m**2
-    sda_bound = ocfg.translation_inlier_m if status == "ok" else t_bound
-    final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
     rot_pair = None
     if rot_cons is not None:
         rot_pair = np.r_[lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index]]
     trans_pair = None
     if status == "ok" and tr.best >= 0:
         trans_pair = np.r_[elems.prev_pairs[tr.best], elems.curr_pairs[tr.best]]
+    cov = np.zeros((5, 5))
+    cov[:3, :3] = cov_r
+    cov[3:, 3:] = cov_t
+    if rot_pair is not None and trans_pair is not None:
+        cov = _joint_covariance(prev, curr, rot_pair, trans_pair, tr, cov)
+    rot_floor, trans_floor = np.radians(ocfg.min_sigma_rotation_deg), ocfg.min_sigma_translation_m
+    cov = cov + np.diag([rot_floor**2] * 3 + [trans_floor**2] * 2)
+    sda_bound = ocfg.translation_inlier_m if status == "ok" else t_bound
+    final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
     return RelativePose(
         T, status, z_observed=z_observed, covariance=cov, sigma_z=sigma_z,
         plane_associations=final_ij, rotation_consensus=rot_cons,
@@ -413,6 +423,18 @@ def _translation(prev, curr, elems: TranslationElements, heights, z0: float, met
         return _Translation(txy, z0, cov, cons, np.inf, False, best)
     sigma_z = max(spread_z, ocfg.min_sigma_translation_m)
     return _Translation(a - z * g, z, cov, cons, sigma_z, True, best, h)
+
+
+def _joint_covariance(prev, curr, rot_pair, trans_pair, tr: _Translation, fallback):
+    """(5, 5) covariance of (roll, pitch, yaw, x, y) propagated jointly from the planes of
+    the winning rotation and translation pairs (:func:`pose_covariance`: shared planes
+    counted once), or ``fallback`` when a plane covariance is unknown."""
+    c_p = prev.covariances[np.r_[rot_pair[:2], trans_pair[:2]]]
+    c_c = curr.covariances[np.r_[rot_pair[2:], trans_pair[2:]]]
+    if not (np.all(np.isfinite(c_p)) and np.all(np.isfinite(c_c))):
+        return fallback
+    sigma_z = tr.sigma_z if tr.z_observed else 0.0
+    return pose_covariance(prev, curr, rot_pair, trans_pair, tr.z, sigma_z)
 
 
 def _propagated_translation_cov(prev, curr, elems, tr: _Translation, R, cov_r, min_vert, fallback):

@@ -7,6 +7,13 @@ central differences, in one batch. Rotation: (roll, pitch, yaw) of
 ``R = U(n1, n2) U(n1', n2')^T``. Translation: ``varpi_k - varpi'(z)`` of the pair, with the
 uncertainty of the rotation (as a body rotation vector, covariance taken equal to the
 (roll, pitch, yaw) one, valid for small angles) and of the height z added.
+
+:func:`pose_covariance` does both at once, as functions of the distinct planes of the
+rotation pair and the translation pair: when the two pairs share planes (the same pair
+often wins both), the rotation's error and the translation pair's plane errors are
+correlated, which :func:`translation_covariance` (rotation taken as independent) misses.
+On the simulated loop at 6 mm the translation's NEES was then 2.4 times too small (median
+0.58 against chi2(2)'s 1.39) for relative poses whose two pairs are one.
 """
 
 from __future__ import annotations
@@ -100,4 +107,67 @@ def translation_covariance(
     J = _jacobian(f, x)
     var_z = sigma_z**2 if np.isfinite(sigma_z) else 0.0
     S = block_diag(*prev_cov, *curr_cov, rotation_cov, [[var_z]])
+    return J @ S @ J.T
+
+
+def pose_covariance(
+    prev: PlaneArrays,
+    curr: PlaneArrays,
+    rotation_pair: np.ndarray,
+    translation_pair: np.ndarray,
+    z: float,
+    sigma_z: float,
+) -> np.ndarray:
+    """(5, 5) covariance of (roll, pitch, yaw, x, y), rad and m, of a relative pose.
+
+    The rotation comes from ``rotation_pair``, the translation from ``translation_pair``
+    under that rotation at height ``z``, both as functions of the distinct planes of the
+    two pairs (module docstring), so shared planes are counted once and the
+    rotation-translation correlation is kept.
+
+    Args:
+        prev, curr: the planes (``covariances`` must be finite for the pairs' planes).
+        rotation_pair, translation_pair: (4,) ``(i1, i2, j1, j2)``: planes i1, i2 of
+            ``prev`` associated with j1, j2 of ``curr``.
+        z: the height used, m. sigma_z: its standard deviation, m (0 or inf: exact).
+    """
+    rp, tp = np.asarray(rotation_pair, dtype=int), np.asarray(translation_pair, dtype=int)
+    ids_p = list(dict.fromkeys([*rp[:2], *tp[:2]]))
+    ids_c = list(dict.fromkeys([*rp[2:], *tp[2:]]))
+    n_p = len(ids_p)
+
+    def cols(indices: list[int], offset: int) -> list[slice]:
+        return [slice(offset + 4 * k, offset + 4 * k + 4) for k in range(len(indices))]
+
+    at_p, at_c = cols(ids_p, 0), cols(ids_c, 4 * n_p)
+    col = {("p", i): at_p[k] for k, i in enumerate(ids_p)}
+    col |= {("c", j): at_c[k] for k, j in enumerate(ids_c)}
+    x = np.concatenate(
+        [np.r_[prev.normals[i], prev.offsets[i]] for i in ids_p]
+        + [np.r_[curr.normals[j], curr.offsets[j]] for j in ids_c]
+        + [[z]]
+    )
+
+    def plane(b: np.ndarray, side: str, index: int) -> tuple[np.ndarray, np.ndarray]:
+        s = col[(side, int(index))]
+        return b[:, s.start : s.start + 3], b[:, s.start + 3]
+
+    def f(b: np.ndarray) -> np.ndarray:
+        U_p = rotation_frames(plane(b, "p", rp[0])[0], plane(b, "p", rp[1])[0])
+        U_c = rotation_frames(plane(b, "c", rp[2])[0], plane(b, "c", rp[3])[0])
+        R = U_p @ np.swapaxes(U_c, 1, 2)
+        (m1, e1), (m2, e2) = plane(b, "p", tp[0]), plane(b, "p", tp[1])
+        (k1, f1), (k2, f2) = plane(b, "c", tp[2]), plane(b, "c", tp[3])
+        ref_p = horizontal_reference_points(m1, e1, m2, e2, 0.0)
+        n1 = np.einsum("bij,bj->bi", R, k1)
+        n2 = np.einsum("bij,bj->bi", R, k2)
+        zb = b[:, -1]
+        ref_c = horizontal_reference_points(n1, f1 - n1[:, 2] * zb, n2, f2 - n2[:, 2] * zb, 0.0)
+        return np.column_stack([rpy_of(R), ref_p - ref_c])
+
+    J = _jacobian(f, x)
+    var_z = sigma_z**2 if np.isfinite(sigma_z) else 0.0
+    S = block_diag(
+        *(prev.covariances[i] for i in ids_p), *(curr.covariances[j] for j in ids_c), [[var_z]]
+    )
     return J @ S @ J.T

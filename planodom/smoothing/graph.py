@@ -7,12 +7,16 @@ an anchored landmark (Pose3, see :mod:`factors.planes`).
 Factors per epoch k:
 
 - a 5-DoF between factor (:func:`factors.pose5.pose5_factor`) for every resolved relative
-  pose from epoch ``k - delta``, ``delta = 1..D``, with the odometry's per-DoF sigmas
-  (floored) as noise and an optional robust kernel;
+  pose from epoch ``k - delta``, ``delta = 1..D``, with the odometry's covariance
+  (floored) as noise and an optional robust kernel; with ``between_factors`` "untracked"
+  (default) only for those whose source planes are not plane factors of shared
+  landmarks already (:meth:`GraphBuilder.in_plane_factors`): a relative pose is a
+  function of its planes, and both factors would count the same measurements twice;
 - a weak vertical factor between ``X(k-1)`` and ``X(k)`` (no vertical jumps);
 - a plane factor for every observation of a tracked plane (:mod:`.landmarks`) once its
   track spans ``min_landmark_epochs`` epochs, noise from the plane's fit covariance in
-  OrientedPlane3 tangent coordinates divided by its confidence (plus floors);
+  OrientedPlane3 tangent coordinates (plus floors; divided by its confidence only with
+  ``plane_confidence_scaling``);
 - a prior on ``X(0)``; a weak constant-velocity between factor for an epoch that no
   resolved relative pose reaches, so the graph stays connected.
 
@@ -28,8 +32,9 @@ outweighed wherever a non-vertical plane observes z.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import gtsam
 import numpy as np
@@ -77,6 +82,10 @@ class RelativeMeasurement:
             given it replaces ``sigmas``.
         translation_observed: False when only the rotation was measured (a rotation-only
             factor is built).
+        sources: (S, 2) int, (plane index in ``prev``, plane index in ``curr``), the
+            associations the relative pose was computed from (the odometry's winning
+            rotation and translation pairs); None when it does not derive from the
+            epochs' planes (an independent sensor). See ``SmoothingConfig.between_factors``.
     """
 
     prev: int
@@ -87,6 +96,7 @@ class RelativeMeasurement:
     ok: bool = True
     covariance: np.ndarray | None = None
     translation_observed: bool = True
+    sources: np.ndarray | None = None
 
     @property
     def delta(self) -> int:
@@ -96,19 +106,31 @@ class RelativeMeasurement:
 
 @dataclass
 class GraphUpdate:
-    """What one epoch adds: new factors, initial values of new variables, key timestamps."""
+    """What one epoch adds: new factors, initial values of new variables, key timestamps.
+
+    ``gaussian`` maps the index (in ``factors``) of each factor with a robust kernel to
+    the same factor with its Gaussian noise model alone (for the batch covariances, see
+    :func:`planodom.smoothing.batch.covariance_graph`).
+    """
 
     epoch: int
     factors: gtsam.NonlinearFactorGraph
     values: gtsam.Values
     timestamps: dict[int, float]
+    gaussian: dict[int, gtsam.NonlinearFactor] = field(default_factory=dict)
 
 
 @dataclass
 class GraphStats:
-    """Counts of what went into the graph."""
+    """Counts of what went into the graph.
+
+    ``between`` counts the relative poses that became factors, ``between_left_out`` the
+    resolved ones left out by ``SmoothingConfig.between_factors`` (their source planes
+    are plane factors already, or "none").
+    """
 
     between: int = 0
+    between_left_out: int = 0
     fallback: int = 0
     vertical: int = 0
     plane_factors: int = 0
@@ -175,6 +197,8 @@ class GraphBuilder:
         self._T_world_first = np.eye(4) if T_world_first is None else np.asarray(T_world_first)
         self._robust_planes = robust_planes
         self._last_step: np.ndarray | None = None
+        self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
+        self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
 
     # ----------------------------------------------------------------- noise models
 
@@ -185,12 +209,12 @@ class GraphBuilder:
             return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(k), base)
         return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(k), base)
 
-    def between_noise(self, rel: RelativeMeasurement) -> gtsam.noiseModel.Base:
-        """Noise of a relative pose's factor (5-dim, or 3-dim when rotation-only).
+    def between_covariance(self, rel: RelativeMeasurement) -> np.ndarray:
+        """(5, 5) covariance of a relative pose's factor error, or (3, 3) rotation-only.
 
         The covariance (or ``sigmas``) of (roll, pitch, yaw, x, y) is mapped to the
-        factor's rotation-vector tangent (:func:`rpy_to_rotation_vector`), floored in
-        quadrature, and wrapped in the robust kernel if configured.
+        factor's rotation-vector tangent (:func:`rpy_to_rotation_vector`) and floored in
+        quadrature.
         """
         c = self.config
         if rel.covariance is not None and np.all(np.isfinite(rel.covariance)):
@@ -207,12 +231,7 @@ class GraphBuilder:
         J[:3, :3] = rpy_to_rotation_vector(roll_pitch)
         floor = [c.min_rotation_sigma_rad**2] * 3 + [c.min_translation_sigma_m**2] * 2
         cov = J @ (0.5 * (cov + cov.T)) @ J.T + np.diag(floor)
-        if not rel.translation_observed:
-            cov = cov[:3, :3]
-        base = gtsam.noiseModel.Gaussian.Covariance(cov)
-        if c.robust_between and c.robust_kernel != "none":
-            return self._robust(base)
-        return base
+        return cov if rel.translation_observed else cov[:3, :3]
 
     def plane_covariance(self, plane: Plane) -> np.ndarray:
         """(3, 3) covariance of a measured plane in OrientedPlane3 tangent coordinates."""
@@ -224,7 +243,10 @@ class GraphBuilder:
             n2, d2 = c.default_plane_normal_sigma_rad**2, c.default_plane_offset_sigma_m**2
             cov = np.diag([n2, n2, d2])
         floor = np.diag([c.min_plane_normal_sigma_rad**2] * 2 + [c.min_plane_offset_sigma_m**2])
-        return cov * (c.plane_covariance_scale / plane.confidence) + floor
+        scale = c.plane_covariance_scale
+        if c.plane_confidence_scaling:
+            scale /= plane.confidence
+        return cov * scale + floor
 
     # ----------------------------------------------------------------- building
 
@@ -283,6 +305,7 @@ class GraphBuilder:
         self.n_epochs += 1
         self.planes[k] = planes
         graph, values, stamps = gtsam.NonlinearFactorGraph(), gtsam.Values(), {}
+        self._gaussian = {}
         resolved = [
             r
             for r in relatives
@@ -315,12 +338,6 @@ class GraphBuilder:
                 noise = gtsam.noiseModel.Isotropic.Sigma(1, c.vertical_sigma_m)
                 graph.add(vertical_factor(X(k - 1), X(k), 0.0, noise))
                 self.stats.vertical += 1
-        for rel in resolved:
-            if rel.delta == 1 and rel.translation_observed:
-                self._last_step = np.asarray(rel.T_prev_curr, dtype=float)
-            make = pose5_factor if rel.translation_observed else rotation_factor
-            graph.add(make(X(rel.prev), X(k), rel.T_prev_curr, self.between_noise(rel)))
-            self.stats.between += 1
         self.poses[k] = T
         values.insert(X(k), gtsam.Pose3(T))
         stamps[X(k)] = float(k)
@@ -336,7 +353,56 @@ class GraphBuilder:
             j = self.tracker.landmark(root)
             if j is not None:
                 self._add_observations(j, root, min_epoch, graph, values, stamps, k)
-        return GraphUpdate(k, graph, values, stamps)
+
+        # Between factors last: whether a relative pose's planes are already plane
+        # factors is known once this epoch's observations are in.
+        for rel in resolved:
+            if rel.delta == 1 and rel.translation_observed:
+                self._last_step = np.asarray(rel.T_prev_curr, dtype=float)
+            if c.between_factors == "none" or (
+                c.between_factors == "untracked" and self.in_plane_factors(rel)
+            ):
+                self.stats.between_left_out += 1
+                continue
+            make = pose5_factor if rel.translation_observed else rotation_factor
+            base = gtsam.noiseModel.Gaussian.Covariance(self.between_covariance(rel))
+            robust = c.robust_between and c.robust_kernel != "none"
+            self._add(graph, partial(make, X(rel.prev), X(k), rel.T_prev_curr), base, robust)
+            self.stats.between += 1
+        return GraphUpdate(k, graph, values, stamps, self._gaussian)
+
+    def _add(
+        self,
+        graph: gtsam.NonlinearFactorGraph,
+        make: Callable[[gtsam.noiseModel.Base], gtsam.NonlinearFactor],
+        base: gtsam.noiseModel.Gaussian,
+        robust: bool,
+    ) -> None:
+        """Add the factor ``make(noise)``: ``base`` wrapped in the robust kernel when
+        ``robust`` (its Gaussian twin ``make(base)`` is then kept under its index in
+        ``graph``, see :class:`GraphUpdate`), else ``base``."""
+        if not robust:
+            graph.add(make(base))
+            return
+        self._gaussian[graph.size()] = make(base)
+        graph.add(make(self._robust(base)))
+
+    def in_plane_factors(self, rel: RelativeMeasurement) -> bool:
+        """Whether the planes a relative pose was computed from are plane factors already.
+
+        True when ``rel.sources`` is known and non-empty and each source association
+        ``(i, j)`` has a plane factor for plane i of epoch ``prev`` and for plane j of
+        epoch ``curr`` on one and the same landmark: the relative pose is then a function
+        of measurements the graph holds, and a factor for it would count them twice.
+        """
+        if rel.sources is None or len(rel.sources) == 0:
+            return False
+        seen = self._factor_landmark
+        for i, j in np.asarray(rel.sources, dtype=int).reshape(-1, 2):
+            lm = seen.get((rel.prev, int(i)))
+            if lm is None or seen.get((rel.curr, int(j))) != lm:
+                return False
+        return True
 
     def _new_landmark(
         self,
@@ -414,12 +480,12 @@ class GraphBuilder:
             if lm.anchor_key is None:
                 graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
             else:
-                if self._robust_planes:
-                    noise = self._robust(noise)
-                graph.add(
-                    anchored_plane_factor(X(e), lm.anchor_key, lm.key, plane.coefficients, noise)
+                make = partial(
+                    anchored_plane_factor, X(e), lm.anchor_key, lm.key, plane.coefficients
                 )
+                self._add(graph, make, noise, self._robust_planes)
             self.stats.plane_factors += 1
+            self._factor_landmark[(e, i)] = j
             lm.last_seen = (e, plane.coefficients)
         lm.last_epoch = k
         stamps[lm.key] = float(k)
@@ -478,6 +544,8 @@ class GraphBuilder:
         """Drop stored planes of epochs older than ``before`` (memory in long runs)."""
         for e in [e for e in self.planes if e < before]:
             del self.planes[e]
+        for key in [key for key in self._factor_landmark if key[0] < before]:
+            del self._factor_landmark[key]
 
 
 def group_by_epoch(

@@ -64,6 +64,7 @@ def from_relative_pose(rel: RelativePose, prev: int, curr: int) -> RelativeMeasu
     """The graph's view of an odometry result between epochs ``prev`` and ``curr``."""
     measured = rel.status in ("ok", "degenerate") and not rel.fallback
     return RelativeMeasurement(
+        sources=source_associations(rel),
         prev=prev,
         curr=curr,
         T_prev_curr=np.asarray(rel.T_prev_curr, dtype=float),
@@ -72,6 +73,23 @@ def from_relative_pose(rel: RelativePose, prev: int, curr: int) -> RelativeMeasu
         covariance=np.asarray(rel.covariance, dtype=float),
         translation_observed=rel.status == "ok",
     )
+
+
+def source_associations(rel: RelativePose) -> np.ndarray | None:
+    """(S, 2) the plane associations (prev, curr) a relative pose was computed from.
+
+    The winning rotation pair and translation pair of the consensus, ``(i1, i2, j1, j2)``
+    each, give the associations ``(i1, j1)`` and ``(i2, j2)``. None when a DoF measured
+    does not come from one pair (a mean over all pairs, or no winning pair recorded): the
+    relative pose is then always a factor.
+    """
+    pairs = [rel.rotation_pair]
+    if rel.status == "ok":
+        pairs.append(rel.translation_pair)
+    if any(p is None for p in pairs):
+        return None
+    rows = np.concatenate([np.asarray(p, dtype=int).reshape(2, 2).T for p in pairs])
+    return np.unique(rows, axis=0)
 
 
 def rotation_determined(
