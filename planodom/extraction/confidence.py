@@ -47,19 +47,22 @@ def cpef(
         points_ref: N_ref. width_ref_m: W_ref (m).
         incidence: ``w_incidence`` when already computed (``points`` is then not used).
     """
-    if incidence is not None:
-        w_inc = float(incidence)
-    else:
-        rays = points - viewpoint
-        norm = np.linalg.norm(rays, axis=1)
-        ok = norm > 0
-        w_inc = float(np.mean(np.abs(rays[ok] @ normal) / norm[ok])) if np.any(ok) else 1.0
+    w_inc = float(incidence) if incidence is not None else mean_incidence(points, viewpoint, normal)
     return float(
         cpef_batch(
             np.array([rms_m]), sigma_m, np.array([n_points]), np.array([width_m]),
             np.array([w_inc]), points_ref, width_ref_m,
         )[0]
     )  # fmt: skip
+
+
+def mean_incidence(points: np.ndarray, viewpoint: np.ndarray, normal: np.ndarray) -> float:
+    """``w_incidence``: mean ``|cos|`` of the angles between ``normal`` (3,) and the rays
+    from ``viewpoint`` ((3,) or (K, 3), metres) to ``points`` (K, 3); 1 without rays."""
+    rays = points - viewpoint
+    norm = np.linalg.norm(rays, axis=1)
+    ok = norm > 0
+    return float(np.mean(np.abs(rays[ok] @ normal) / norm[ok])) if np.any(ok) else 1.0
 
 
 def cpef_batch(

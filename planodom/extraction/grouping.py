@@ -131,22 +131,24 @@ def build_traces(
     S = len(segs)
     t0s = np.zeros(S) if seg_t0 is None else np.asarray(seg_t0, dtype=np.float64)
     t1s = np.zeros(S) if seg_t1 is None else np.asarray(seg_t1, dtype=np.float64)
-    out = _traces_kernel(
+    label, ring, cnt, cen, sc, tdir, lo, hi, t_lo, t_hi = _traces_kernel(
         segs.ring, segs.sweep, segs.count, segs.centroid, segs.scatter, segs.direction,
-        segs.length, segs.end0, segs.end1, t0s, t1s, tol_m, sigma_m, np.radians(parallel_deg),
-        step_m, max_span_s, LINK_BAND,
+        segs.length, segs.end0, segs.end1, t0s, t1s, tol_m,
+        direction_error(sigma_m, segs.count, segs.length), np.radians(parallel_deg), step_m,
+        max_span_s, LINK_BAND,
     )  # fmt: skip
-    return Traces(*out)
+    # Direction error of a trace: all its points over its length.
+    err_t = direction_error(sigma_m, cnt, hi - lo)
+    return Traces(label, ring, cnt, cen, sc, tdir, lo, hi, err_t, t_lo, t_hi)
 
 
 @numba.njit(cache=True)
 def _traces_kernel(
     ring, sweep, count, centroid, scatter, direction, length, end0, end1, t0s, t1s,
-    tol_m, sigma_m, parallel_rad, step_m, max_span_s, band,
+    tol_m, err, parallel_rad, step_m, max_span_s, band,
 ):  # fmt: skip  # pragma: no cover - compiled
     S = ring.shape[0]
     windowed = np.isfinite(max_span_s)
-    err = sigma_m * np.sqrt(12.0 / np.maximum(count, 1)) / np.maximum(length, 1e-9)
     parent = np.arange(S)
     for i in range(S):
         for j in range(i + 1, min(i + band + 1, S)):
@@ -238,11 +240,10 @@ def _traces_kernel(
             b += (end1[i, u] - cen[g, u]) * tdir[g, u]
         lo[g] = min(lo[g], min(a, b))
         hi[g] = max(hi[g], max(a, b))
-    err_t = sigma_m * np.sqrt(12.0 / np.maximum(cnt, 1.0)) / np.maximum(hi - lo, 1e-9)
     icnt = np.empty(n_lab, dtype=np.int64)
     for g in range(n_lab):
         icnt[g] = np.int64(cnt[g])
-    return label, t_ring, icnt, cen, sc, tdir, lo, hi, err_t, t_lo, t_hi
+    return label, t_ring, icnt, cen, sc, tdir, lo, hi, t_lo, t_hi
 
 
 def required_traces(sigma_m: float, tol_floor_m: float, min_traces_high_noise: int) -> int:

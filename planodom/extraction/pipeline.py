@@ -35,7 +35,7 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.errors import ConfigError, GeometryError
-from planodom.extraction.confidence import cpef, cpef_batch
+from planodom.extraction.confidence import cpef, cpef_batch, mean_incidence
 from planodom.extraction.deskew import check_twist, deskew_points, se3_exp
 from planodom.extraction.fitting import (
     PlaneFit,
@@ -335,7 +335,7 @@ def _rig_planes(groups, segs, scan, config, sigma, org, xi, repeats_tol=None):
     offsets = -np.einsum("gi,gi->g", normals, fits.centroid)
     covs = tls_covariances(evals, evecs, fits.centroid, fits.count, config.covariance_sigma_floor_m)
     keep = (fits.count >= max(config.min_plane_points, 3)) & (width >= config.min_plane_width_m)
-    keep &= np.einsum("gii->g", covs[:, :3, :3]) <= np.radians(config.max_normal_sigma_deg) ** 2
+    keep &= ~too_uncertain(covs, config)
     kept = np.flatnonzero(keep)
     idx_all = segs.order[fits.inliers]
     kp_all = segs.points[fits.inliers]
@@ -345,12 +345,7 @@ def _rig_planes(groups, segs, scan, config, sigma, org, xi, repeats_tol=None):
         for g in kept:
             a, b = fits.bounds[g], fits.bounds[g + 1]
             views[g] = _viewpoint(idx_all[a:b], scan, org, xi, config)
-            rays = kp_all[a:b] - views[g]
-            norm = np.linalg.norm(rays, axis=1)
-            ok = norm > 0
-            incidence[g] = (
-                float(np.mean(np.abs(rays[ok] @ normals[g]) / norm[ok])) if np.any(ok) else 1.0
-            )
+            incidence[g] = mean_incidence(kp_all[a:b], views[g], normals[g])
     signs = orientation_signs(normals, offsets, fits.centroid, views)
     conf = cpef_batch(
         rms, max(sigma, config.covariance_sigma_floor_m), fits.count, width, incidence,
@@ -398,10 +393,11 @@ def _rig_planes(groups, segs, scan, config, sigma, org, xi, repeats_tol=None):
     return planes, inliers, G - len(kept)
 
 
-def too_uncertain(cov: np.ndarray, config: ExtractionConfig) -> bool:
-    """True when the (4, 4) (n, d) covariance puts the normal's 1-sigma error above
-    ``config.max_normal_sigma_deg``."""
-    return bool(np.trace(cov[:3, :3]) > np.radians(config.max_normal_sigma_deg) ** 2)
+def too_uncertain(cov: np.ndarray, config: ExtractionConfig) -> np.ndarray:
+    """True where a (..., 4, 4) (n, d) covariance puts the normal's 1-sigma error above
+    ``config.max_normal_sigma_deg`` (a bool array of the leading shape)."""
+    var_n = np.trace(cov[..., :3, :3], axis1=-2, axis2=-1)
+    return var_n > np.radians(config.max_normal_sigma_deg) ** 2
 
 
 def _scan_viewpoint(org: np.ndarray | None, config: ExtractionConfig) -> np.ndarray:
