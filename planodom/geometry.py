@@ -36,9 +36,14 @@ def make_transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def invert_transform(T: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid transform ``T`` (4, 4) (``T_b_a`` from ``T_a_b``) in closed form."""
-    R = T[:3, :3]
-    return make_transform(R.T, -R.T @ T[:3, 3])
+    """Inverse of rigid transforms ``T`` (..., 4, 4) (``T_b_a`` from ``T_a_b``) in closed form."""
+    T = np.asarray(T, dtype=np.float64)
+    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
+    inv = np.zeros_like(T)
+    inv[..., :3, :3] = R_t
+    inv[..., :3, 3] = -(R_t @ T[..., :3, 3, None])[..., 0]
+    inv[..., 3, 3] = 1.0
+    return inv
 
 
 def transform_points(T_a_b: np.ndarray, points_b: np.ndarray) -> np.ndarray:
@@ -55,14 +60,81 @@ def transform_from_rpy_xyz(
 
 
 def rpy_from_rotation(R: np.ndarray) -> np.ndarray:
-    """(roll, pitch, yaw) (3,), radians, of ``R`` (3, 3) with R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    yaw, pitch, roll = Rotation.from_matrix(R).as_euler("ZYX")
-    return np.array([roll, pitch, yaw])
+    """(roll, pitch, yaw), radians, of rotations ``R`` (..., 3, 3) = Rz(yaw) Ry(pitch) Rx(roll).
+
+    Returns (..., 3): (3,) for one rotation. scipy's ZYX Euler angles (gimbal-lock aware).
+    """
+    R = np.asarray(R, dtype=np.float64)
+    ypr = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_euler("ZYX")
+    return ypr[:, ::-1].reshape(R.shape[:-2] + (3,))
 
 
 def pose5_from_transform(T: np.ndarray) -> np.ndarray:
-    """The 5 observed DoF (roll, pitch, yaw, x, y) (5,), rad and m, of a relative transform."""
-    return np.concatenate([rpy_from_rotation(T[:3, :3]), T[:2, 3]])
+    """The 5 observed DoF (roll, pitch, yaw, x, y), rad and m, of relative transforms.
+
+    ``T`` (..., 4, 4) -> (..., 5): (5,) for one transform.
+    """
+    T = np.asarray(T, dtype=np.float64)
+    return np.concatenate([rpy_from_rotation(T[..., :3, :3]), T[..., :2, 3]], axis=-1)
+
+
+def _skew(w: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrices (N, 3, 3) of vectors ``w`` (N, 3): ``skew(w) @ v = w x v``."""
+    K = np.zeros((len(w), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    return K - np.swapaxes(K, 1, 2)
+
+
+def se3_exp(xi: np.ndarray) -> np.ndarray:
+    """SE(3) exponential of twists ``xi`` (..., 6) = (wx, wy, wz, vx, vy, vz), rad and m.
+
+    Returns ``T = exp(xi)`` (..., 4, 4): (4, 4) for one twist. Our own closed form,
+    batched (gtsam's ``Pose3.Expmap`` takes one twist per call); below 1e-3 rad the closed
+    forms cancel catastrophically and the Taylor series to th^4 (exact to ~1e-19) is used.
+    """
+    xi = np.asarray(xi, dtype=np.float64)
+    flat = xi.reshape(-1, 6)
+    w, v = flat[:, :3], flat[:, 3:]
+    th = np.linalg.norm(w, axis=1)
+    small = th < 1e-3
+    ths = np.where(small, 1.0, th)
+    t2 = th**2
+    a = np.where(small, 1.0 - t2 / 6.0 + t2**2 / 120.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - t2 / 24.0 + t2**2 / 720.0, (1.0 - np.cos(ths)) / ths**2)
+    c = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t2**2 / 5040.0, (ths - np.sin(ths)) / ths**3)
+    K = _skew(w)
+    K2 = K @ K
+    eye = np.eye(3)
+    out = np.zeros((len(flat), 4, 4))
+    out[:, :3, :3] = eye + a[:, None, None] * K + b[:, None, None] * K2
+    V = eye + b[:, None, None] * K + c[:, None, None] * K2
+    out[:, :3, 3] = np.einsum("tij,tj->ti", V, v)
+    out[:, 3, 3] = 1.0
+    return out.reshape(xi.shape[:-1] + (4, 4))
+
+
+def se3_log(T: np.ndarray) -> np.ndarray:
+    """Twists ``(w, v)`` (..., 6) with ``exp(xi) = T`` for rigid transforms ``T`` (..., 4, 4).
+
+    ``w`` is the rotation vector of ``R``; ``v = J_l(w)^-1 t`` with the closed-form inverse
+    left Jacobian ``I - [w]x / 2 + (1 / a^2 - (1 + cos a) / (2 a sin a)) [w]x^2`` (series
+    below 1e-6 rad). A constant-velocity twist over ``dt`` seconds is ``se3_log(T_a_b) / dt``.
+    """
+    T = np.asarray(T, dtype=np.float64)
+    flat = T.reshape(-1, 4, 4)
+    w = Rotation.from_matrix(flat[:, :3, :3]).as_rotvec()
+    t = flat[:, :3, 3]
+    a = np.linalg.norm(w, axis=1)
+    small = a < 1e-6
+    safe = np.where(small, 1.0, a)
+    c = np.where(
+        small,
+        1.0 / 12.0 + a * a / 720.0,
+        1.0 / safe**2 - (1.0 + np.cos(safe)) / (2.0 * safe * np.sin(safe)),
+    )
+    wxt = np.cross(w, t)
+    v = t - 0.5 * wxt + c[:, None] * np.cross(w, wxt)
+    return np.concatenate([w, v], axis=1).reshape(T.shape[:-2] + (6,))
 
 
 def rotation_angle(R: np.ndarray) -> float:

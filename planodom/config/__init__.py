@@ -1,0 +1,86 @@
+"""The one typed configuration of the planodom pipeline (pydantic, YAML in and out).
+
+Every tunable threshold lives here with its unit in its name or docstring. Each stage owns
+one section; ``PlanodomConfig`` nests them. Angles in configs are in degrees where the
+field name says ``_deg``; everything else is SI.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import yaml
+from pydantic import ValidationError
+
+from planodom.config.extraction import ExtractionConfig
+from planodom.config.odometry import AssociationConfig, OdometryConfig
+from planodom.config.section import Section
+from planodom.config.smoothing import SmoothingConfig
+from planodom.errors import ConfigError
+
+__all__ = [
+    "AssociationConfig",
+    "ExtractionConfig",
+    "OdometryConfig",
+    "PlanodomConfig",
+    "Section",
+    "SmoothingConfig",
+]
+
+
+class PlanodomConfig(Section):
+    """All sections of the pipeline."""
+
+    extraction: ExtractionConfig = ExtractionConfig()
+    association: AssociationConfig = AssociationConfig()
+    odometry: OdometryConfig = OdometryConfig()
+    smoothing: SmoothingConfig = SmoothingConfig()
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> PlanodomConfig:
+        """Load a (partial) config; missing keys keep their defaults."""
+        path = Path(path)
+        try:
+            data = yaml.safe_load(path.read_text()) or {}
+        except OSError as exc:
+            raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from exc
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"{path}: not valid YAML ({exc})") from exc
+        return cls.from_dict(data, source=str(path))
+
+    @classmethod
+    def from_dict(cls, data: dict, source: str = "config") -> PlanodomConfig:
+        """Validate a nested dict; errors name the source and the field."""
+        try:
+            return cls.model_validate(data)
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            loc = ".".join(str(x) for x in first["loc"])
+            raise ConfigError(f"{source}: field '{loc}': {first['msg']}") from exc
+        except ConfigError as exc:  # raised by a section's own cross-field checks
+            raise ConfigError(f"{source}: {exc}") from exc
+
+    def updated(self, changes: Mapping[str, object], source: str = "config") -> PlanodomConfig:
+        """A new config with ``changes`` applied and every check run again.
+
+        The one way to derive a changed config (CLI options, experiments, the streaming
+        odometry's widened bounds): ``changes`` maps dotted field names to values, e.g.
+        ``{"association.max_translation_m": 2.0, "odometry.pipeline": "sda-mean"}``;
+        the result is validated like a loaded file (``model_copy`` would skip that).
+        Raises :class:`ConfigError` naming ``source`` and the field.
+        """
+        data = self.model_dump(mode="python")
+        for dotted, value in changes.items():
+            section, _, name = dotted.partition(".")
+            if section not in data or not name or name not in data[section]:
+                raise ConfigError(f"{source}: unknown config field {dotted!r}")
+            data[section][name] = value
+        return type(self).from_dict(data, source=source)
+
+    def to_yaml(self, path: str | Path | None = None) -> str:
+        """The resolved config as YAML text; also written to ``path`` when given."""
+        text = yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)
+        if path is not None:
+            Path(path).write_text(text)
+        return text

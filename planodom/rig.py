@@ -1,0 +1,156 @@
+"""What a dataset says about the vehicle that recorded it: the typed ``rig.yaml``.
+
+A :class:`Rig` is read and validated once, where a dataset is read (``rig.yaml``) or
+simulated; the odometry and the extraction take it as a typed object and never see YAML.
+Every field is optional: a recording without ``rig.yaml`` is ``Rig()``.
+
+``rig.yaml`` (all keys optional)::
+
+    epoch_rate: 10.0                      # Hz: epoch k starts at k / epoch_rate seconds
+    sensor_origins: [[x, y, z], ...]      # metres, base frame, one row per ring (scanner)
+    motion_bounds: {max_translation_m: 3.0, max_rotation_deg: 45.0}   # per epoch
+    extrinsics: [[16 numbers row-major], ...]   # T_base_sensor (4, 4) per sensor
+
+Unknown keys are kept in :attr:`Rig.extra` (and written back) so that a dataset's own notes
+survive a round trip.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from planodom.errors import DatasetError
+
+_KNOWN = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics")
+
+
+@dataclass(frozen=True)
+class MotionBounds:
+    """Largest motion a dataset's vehicle makes between consecutive epochs.
+
+    Attributes:
+        max_translation_m: metres per epoch (None: not stated).
+        max_rotation_deg: degrees per epoch (None: not stated).
+    """
+
+    max_translation_m: float | None = None
+    max_rotation_deg: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Rig:
+    """The vehicle and its sensors, as far as a dataset states them.
+
+    Attributes:
+        epoch_rate_hz: epochs per second (None: not stated).
+        sensor_origins: (S, 3) float64, metres: the position of sensor / ring ``s`` in the
+            base frame, used to orient measured normals towards the sensor (None: not
+            stated).
+        motion_bounds: the largest motion per epoch, or None.
+        extrinsics: ``T_base_sensor`` (4, 4) per sensor (may be empty).
+        extra: keys of ``rig.yaml`` this class does not interpret, kept as read.
+    """
+
+    epoch_rate_hz: float | None = None
+    sensor_origins: np.ndarray | None = None
+    motion_bounds: MotionBounds | None = None
+    extrinsics: tuple[np.ndarray, ...] = ()
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any] | None, source: str = "rig.yaml") -> Rig:
+        """Validate the mapping of a ``rig.yaml``; errors name ``source`` and the field."""
+        if data is None:
+            return cls()
+        if not isinstance(data, Mapping):
+            raise DatasetError(f"{source}: rig file must hold a mapping, not {type(data).__name__}")
+        rate = data.get("epoch_rate")
+        if rate is not None:
+            rate = _positive(rate, source, "epoch_rate")
+        origins = data.get("sensor_origins")
+        if origins is not None:
+            origins = _array(origins, source, "sensor_origins", (-1, 3))
+            if len(origins) == 0:
+                origins = None
+        bounds = data.get("motion_bounds")
+        if bounds is not None:
+            if not isinstance(bounds, Mapping):
+                raise DatasetError(
+                    f"{source}: field 'motion_bounds' must be a mapping with max_translation_m "
+                    f"and/or max_rotation_deg, got {bounds!r}"
+                )
+            unknown = set(bounds) - {"max_translation_m", "max_rotation_deg"}
+            if unknown:
+                raise DatasetError(
+                    f"{source}: field 'motion_bounds' has unknown keys {sorted(unknown)}"
+                )
+            bounds = MotionBounds(
+                *(
+                    None
+                    if bounds.get(k) is None
+                    else _positive(bounds[k], source, f"motion_bounds.{k}")
+                    for k in ("max_translation_m", "max_rotation_deg")
+                )
+            )
+        extr = data.get("extrinsics")
+        extrinsics: tuple[np.ndarray, ...] = ()
+        if extr is not None:
+            arr = _array(extr, source, "extrinsics", (-1, 4, 4))
+            if not np.allclose(arr[:, 3], [0.0, 0.0, 0.0, 1.0]):
+                raise DatasetError(
+                    f"{source}: field 'extrinsics': last row of each must be 0 0 0 1"
+                )
+            extrinsics = tuple(arr)
+        extra = {k: v for k, v in data.items() if k not in _KNOWN}
+        return cls(rate, origins, bounds, extrinsics, extra)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``rig.yaml`` mapping (plain Python types; absent fields are left out)."""
+        out: dict[str, Any] = dict(self.extra)
+        if self.epoch_rate_hz is not None:
+            out["epoch_rate"] = float(self.epoch_rate_hz)
+        if self.sensor_origins is not None:
+            out["sensor_origins"] = np.asarray(self.sensor_origins).tolist()
+        if self.motion_bounds is not None:
+            mb = {
+                "max_translation_m": self.motion_bounds.max_translation_m,
+                "max_rotation_deg": self.motion_bounds.max_rotation_deg,
+            }
+            out["motion_bounds"] = {k: v for k, v in mb.items() if v is not None}
+        if self.extrinsics:
+            out["extrinsics"] = [np.asarray(T).tolist() for T in self.extrinsics]
+        return out
+
+
+def _positive(value: Any, source: str, name: str) -> float:
+    """``value`` as a finite positive float, or DatasetError naming the field."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+        raise DatasetError(f"{source}: field '{name}' must be a positive number, got {value!r}")
+    if not (math.isfinite(value) and value > 0):
+        raise DatasetError(f"{source}: field '{name}' must be positive and finite, got {value!r}")
+    return float(value)
+
+
+def _array(value: Any, source: str, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a finite float64 array of ``shape`` (-1: any length), or DatasetError."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise DatasetError(f"{source}: field '{name}' must be numbers, got {value!r}") from None
+    want = "x".join("N" if s < 0 else str(s) for s in shape)
+    if arr.size == 0:
+        return arr.reshape((0,) + shape[1:])
+    if arr.ndim == len(shape) - 1:
+        arr = arr[None]
+    if arr.ndim != len(shape) or arr.shape[1:] != shape[1:]:
+        raise DatasetError(
+            f"{source}: field '{name}' must have shape {want}, got shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise DatasetError(f"{source}: field '{name}' must be finite")
+    return arr
