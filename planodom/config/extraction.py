@@ -2,7 +2,48 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
+from pydantic import ConfigDict, Field, model_validator
+
 from planodom.config.section import Section
+from planodom.errors import ConfigError
+
+
+class TimeWindowConfig(Section):
+    """The 2D-rig path without a twist (points not deskewed, the odometry's first epochs).
+
+    With per-point times spread over more than ``span_s`` the 2D-rig path only combines
+    points acquired within one window of ``span_s`` (:mod:`planodom.extraction.rig2d.windows`):
+    traces, seeds and planes are built per window, and one plane per wall is kept. With a
+    twist none of this is used.
+    """
+
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    span_s: float = Field(0.015, gt=0)
+    """Longest time span (s) of the points combined into one trace, seed or plane: about
+    one sweep of a 75 Hz scanner (1 / 75 s), i.e. the crossing traces of a scanner pair in
+    the same sweep, between which the vehicle moved at most ``motion_m``. Each wall then
+    gives one plane per window; the earliest (closest to the reference time) is kept."""
+    motion_m: float = Field(0.03, ge=0)
+    """Vehicle displacement assumed within one window (m): 2 m/s x 1 / 75 s = 2.7 cm.
+    Added to the member tolerance and the seed floor, and half of it to the RMS limit of a
+    plane."""
+    speed_m_s: float = Field(5.0, ge=0)
+    """Two planes from different windows are one wall seen twice when their normals are
+    within ``repeat_deg`` and their offsets within the member tolerance plus this speed
+    (m/s) times their time difference."""
+    min_windows: int = Field(3, ge=1)
+    """A wall is a plane only when it is found in at least this many windows (of the ~7
+    sweeps of a 10 Hz epoch): two lines of one sweep far apart can be coplanar by chance,
+    not in several sweeps. On the paper loop at 6 mm, 1 / 2 / 3 gave 85 / 88 / 91 %
+    precision for 5.9 / 5.8 / 5.75 good planes per epoch. The kept plane's normal and
+    offset are extrapolated to the reference time from its windows (a straight line in
+    time)."""
+    repeat_deg: float = Field(5.0, gt=0, le=90)
+    """Normal angle (deg) within which planes of two windows may be one wall (the turn of
+    the vehicle over an epoch plus the fit error of one sweep's traces)."""
 
 
 class ExtractionConfig(Section):
@@ -11,77 +52,59 @@ class ExtractionConfig(Section):
     Distance tolerances scale with the sensor noise: ``sigma`` is ``range_noise_m``, or
     the across-line noise estimated from the epoch's own scan lines when that is larger
     (``estimate_noise``); a tolerance is ``max(factor * sigma, tolerance_floor_m)``.
+
+    Every numeric field is range-checked and finite; :meth:`_cross_checks` relates fields
+    that only make sense together. Both raise at load (a YAML file fails with a one-line
+    :class:`planodom.errors.ConfigError` naming the field).
     """
 
-    mode: str = "auto"
-    """"auto", "rig2d" or "lidar". auto: the 2D-rig path when ``ring`` is present with at
-    most ``max_rig_rings`` distinct values, else the 3D (lidar) path."""
-    max_rig_rings: int = 8
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    mode: Literal["auto", "rig2d", "lidar"] = "auto"
+    """Which path runs. auto: the 2D-rig path when ``ring`` is present with at most
+    ``max_rig_rings`` distinct values, else the 3D (lidar) path."""
+    max_rig_rings: int = Field(8, ge=1)
     """Most scan lines (rings) an epoch of a 2D-scanner rig has (auto mode)."""
-    range_noise_m: float = 0.006
+    range_noise_m: float = Field(0.006, ge=0)
     """Expected range noise sigma of the sensor (m); default: SICK LMS 221 (paper, VI-A)."""
     estimate_noise: bool = True
     """Also estimate sigma from second differences along the scan lines; use the larger."""
-    tolerance_floor_m: float = 0.02
+    tolerance_floor_m: float = Field(0.02, ge=0)
     """Smallest distance tolerance (m): trace curvature from motion within one sweep
     (about v / scan rate, 2 cm at 1.5 m/s and 75 Hz), deskew residue, float32 hits."""
-    sweep_gap_factor: float = 2.5
+    sweep_gap_factor: float = Field(2.5, gt=1)
     """A time step above this many median beam intervals starts a new sweep (2D rig)."""
-    min_gap_m: float = 1.0
+    min_gap_m: float = Field(1.0, gt=0)
     """Consecutive points of a scan line farther apart than max(this, gap_range_ratio *
     range) start a new run (m)."""
-    gap_range_ratio: float = 0.1
+    gap_range_ratio: float = Field(0.1, ge=0)
     """Range-proportional part of the gap threshold (m per m of range)."""
-    split_sigma_factor: float = 4.0
+    split_sigma_factor: float = Field(4.0, gt=0)
     """A run is split where a point lies more than this many sigma from its chord."""
-    min_segment_points: int = 3
+    min_segment_points: int = Field(3, ge=2)
     """Fewest points of a trace (the straight segments of one scanner on one line,
     merged over the epoch's sweeps) kept for grouping. Single segments of two points are
     kept until merged: one sweep may put only two beams on a distant or narrow wall."""
-    min_segment_length_m: float = 0.1
+    min_segment_length_m: float = Field(0.1, ge=0)
     """Shortest straight segment kept for grouping (m)."""
-    max_seed_direction_error_deg: float = 3.0
+    max_seed_direction_error_deg: float = Field(3.0, gt=0, le=90)
     """A segment seeds a plane only if its direction is known to this (deg), predicted
     as sigma * sqrt(12 / N) / length (line fit of N points spread over length)."""
-    min_cross_angle_deg: float = 10.0
+    min_cross_angle_deg: float = Field(10.0, gt=0, le=90)
     """Two traces determine a plane only if they cross at least at this angle (deg); at
     10 deg the normal's error across the traces is about 1 / sin(10 deg) = 5.8 times the
     error along them. Traces of one ring never seed a plane (they are parallel, or lie in
     one scan plane)."""
-    trace_parallel_deg: float = 2.0
+    trace_parallel_deg: float = Field(2.0, ge=0, le=90)
     """Segments of one ring in nearby sweeps merge into one trace when their directions
     differ by less than this (deg) plus three times their predicted direction errors
     (a turn of 20 deg/s moves a direction by 0.3 deg between 75 Hz sweeps)."""
-    trace_step_m: float = 0.1
+    trace_step_m: float = Field(0.1, ge=0)
     """...and when one's centroid lies within this (m) plus the member tolerance of the
     other's line: the displacement of a trace between sweeps (0.1 m at 75 Hz is 7.5 m/s)."""
-    max_unskewed_span_s: float = 0.015
-    """Without a twist (no deskewing) and with per-point times spread over more than this
-    (s), the 2D-rig path only combines points acquired within this span: traces, seeds and
-    planes are built per time window (about one sweep of a 75 Hz scanner, 1 / 75 s), i.e.
-    from the crossing traces of a scanner pair in the same sweep, between which the
-    vehicle moved at most ``max_unskewed_motion_m``. Each wall then gives one plane per
-    window; the earliest (closest to the reference time) is kept, so a plane is off by
-    about the motion from the reference time to its window. With a twist this is unused."""
-    max_unskewed_motion_m: float = 0.03
-    """Vehicle displacement assumed within one ``max_unskewed_span_s`` window when points
-    are not deskewed (m): 2 m/s x 1 / 75 s = 2.7 cm. Added to the member tolerance, and
-    half of it to the RMS limit of a plane, in that case only."""
-    max_unskewed_speed_m_s: float = 5.0
-    """Without a twist, two planes from different time windows are one wall seen twice
-    when their normals are within ``unskewed_repeat_deg`` and their offsets within the
-    member tolerance plus this speed (m/s) times their time difference."""
-    min_unskewed_windows: int = 3
-    """Without a twist, a wall is a plane only when it is found in at least this many time
-    windows (of the ~7 sweeps of a 10 Hz epoch): two lines of one sweep far apart can be
-    coplanar by chance, not in several sweeps. On the paper loop at 6 mm, 1 / 2 / 3 gave
-    85 / 88 / 91 % precision for 5.9 / 5.8 / 5.75 good planes per epoch. The kept plane's
-    normal and offset are extrapolated to the reference time from its windows (a
-    straight line in time)."""
-    unskewed_repeat_deg: float = 5.0
-    """Normal angle (deg) within which planes of two time windows may be one wall (the
-    turn of the vehicle over an epoch plus the fit error of one sweep's traces)."""
-    plane_gap_m: float = 10.0
+    time_windows: TimeWindowConfig = TimeWindowConfig()
+    """The 2D-rig path without a twist: time windows (:class:`TimeWindowConfig`)."""
+    plane_gap_m: float = Field(10.0, gt=0)
     """2D rig: a plane keeps only the traces connected to its seed through traces whose
     centre lines are at most max(this, gap_range_ratio * range) apart (m); coplanar walls
     separated by a wider gap are separate planes (and get their own extents), and two
@@ -89,28 +112,23 @@ class ExtractionConfig(Section):
     crossing traces of one wall often meet only where their lines are extended (on the
     paper loop at 6 mm, recall with 4 / 6 / 10 m / no limit: 81 / 90 / 91 / 91 %; without a
     twist 10 m raised precision from 96 % to 99 %)."""
-    min_traces_high_noise: int = 2
-    """When sigma exceeds ``tolerance_floor_m`` a plane needs this many traces (two
-    crossing ones of two scanners plus one more): two traces of two walls that meet are
-    then coplanar within the tolerance by chance. 2 (default) disables it: on the paper
-    loop at 10 cm, 3 raised precision from 70 % to 78 % but cut recall from 63 % to 24 %."""
-    member_sigma_factor: float = 3.0
+    member_sigma_factor: float = Field(3.0, gt=0)
     """A segment joins a plane when its centroid and its ends lie within this many sigma."""
-    max_rms_sigma_factor: float = 1.5
+    max_rms_sigma_factor: float = Field(1.5, gt=0)
     """A group of segments is a plane only if the RMS distance of its points to their
     fitted plane is at most max(this * sigma, rms_floor_m): two traces of two walls can be
     coplanar by coincidence (within the tolerance), but not flat to the noise level."""
-    rms_floor_m: float = 0.001
+    rms_floor_m: float = Field(0.001, ge=0)
     """Floor of the RMS test above (m): deskew and ray-casting residue of noise-free data."""
-    inlier_sigma_factor: float = 3.5
+    inlier_sigma_factor: float = Field(3.5, gt=0)
     """Final point inliers: residual within this many robust sigmas (1.4826 MAD) of the
     fit, iterated; at most 0.05 % of Gaussian inliers are lost."""
-    min_plane_points: int = 20
+    min_plane_points: int = Field(20, ge=3)
     """Fewest inlier points of a plane."""
-    min_plane_width_m: float = 0.2
+    min_plane_width_m: float = Field(0.2, ge=0)
     """Smallest in-plane width of a plane's inliers (m), measured as 2 sqrt(lambda2 / N)
     along the minor in-plane axis; thinner sets are lines, not planes."""
-    max_normal_sigma_deg: float = 1.0
+    max_normal_sigma_deg: float = Field(1.0, gt=0, le=180)
     """Planes whose normal is known only to worse than this are dropped (deg; the 1-sigma
     error sqrt(trace Cov(n)) of the fit, :mod:`planodom.extraction.fitting`): narrow
     strips at high noise, whose offsets at a 10 m lever arm are off by ~0.2 m. Such a
@@ -118,56 +136,71 @@ class ExtractionConfig(Section):
     paper loop at 10 cm (every other epoch of a lap): it drops 36 % of the planes that
     miss their wall by 3 deg / 0.15 m and 1.8 % of the others (precision 89 -> 93 %);
     nothing at 6 mm and 2 cm."""
-    viewpoint_height_m: float = 1.0
+    viewpoint_height_m: float = Field(1.0, gt=0)
     """Without sensor origins normals point towards (0, 0, this) in the base frame (m)."""
-    covariance_sigma_floor_m: float = 1e-4
+    covariance_sigma_floor_m: float = Field(1e-4, gt=0)
     """Lower bound of the residual sigma used in the fit covariance (m), so that noise-free
     data gives a finite information matrix."""
-    confidence_points_ref: float = 50.0
+    confidence_points_ref: float = Field(50.0, gt=0)
     """CPEF point-count scale: w_count = 1 - exp(-N / this)."""
-    confidence_width_ref_m: float = 1.0
+    confidence_width_ref_m: float = Field(1.0, gt=0)
     """CPEF extent scale (m): w_extent = 1 - exp(-width / this)."""
-    voxel_size_m: float = 0.3
+    voxel_size_m: float = Field(0.3, gt=0)
     """3D path: voxel size (m) of the cloud RANSAC runs on (inliers are refit at full
     resolution, so this sets speed and the smallest plane, not precision)."""
-    ransac_iterations: int = 300
+    ransac_iterations: int = Field(300, ge=1)
     """3D path: most RANSAC iterations per plane (planodom.extraction.ransac)."""
-    ransac_probability: float = 0.999
+    ransac_probability: float = Field(0.999, gt=0, le=1)
     """3D path: RANSAC stops early once it has this probability of an all-inlier sample."""
-    max_planes: int = 40
+    max_planes: int = Field(40, ge=1)
     """3D path: most planes searched per epoch."""
-    cluster_gap_deg: float = 3.0
+    cluster_gap_deg: float = Field(3.0, gt=0, le=90)
     """3D path: coplanar inliers separated, as seen from the viewpoint, by a gap wider
     than this angle (deg) are separate planes. An angle, not a distance, because a
     lidar's rings spread apart with range (about 1 deg apart on a 32-beam unit)."""
-    seed: int = 0
+    seed: int = Field(0, ge=0)
     """3D path: seed of the RANSAC's numpy generator (one per scan: the same scan gives
     the same planes in every run)."""
     range_image: bool = True
     """3D path with ``ring``: grow planes on the range image (ring x firing grid,
     planodom.extraction.rangeimage) instead of the RANSAC loop; RANSAC is still used
     without rings or when the pixel normals are too noisy (next field)."""
-    region_max_normal_error_deg: float = 4.0
+    region_max_normal_error_deg: float = Field(4.0, gt=0, le=90)
     """Range image: region growing only when the median predicted pixel-normal error
     (from sigma and the pixel spacing) is at most this (deg); else RANSAC. Walls meet the
     ground and each other at tens of degrees; a few degrees of noise keeps them apart."""
-    region_window: int = 3
+    region_window: int = Field(3, ge=1)
     """Range image: half-width (columns) of the row tangent of a pixel normal; its error
     falls as 1 / (window^1.5) while pixels within it of an edge get no normal."""
-    region_normal_sigmas: float = 3.0
+    region_normal_sigmas: float = Field(3.0, ge=0)
     """Range image: two neighbouring pixels join when their normals differ by at most
     region_normal_floor_deg plus this many predicted errors (and their points lie within
     the member tolerance plus this many errors times their distance of each other's
     tangent planes)."""
-    region_normal_floor_deg: float = 2.0
+    region_normal_floor_deg: float = Field(2.0, ge=0, le=90)
     """Range image: angle allowance (deg) added to the predicted normal error of two
     pixels (round-off and ray-casting residue at sigma = 0)."""
-    region_azimuth_columns: bool = False
-    """Range image without usable times (all equal): take columns from the azimuth about
-    the viewpoint instead of falling back to RANSAC. Off: with the sensor away from the
-    base origin, azimuth bins collide and split walls (paper loop, lidar32, sigma = 0
-    snapshot: recall 81 % against 100 % with RANSAC)."""
-    region_merge_deg: float = 1.0
+    region_merge_deg: float = Field(1.0, ge=0, le=90)
     """Range image: two grown pieces near in the grid are one plane when their TLS normals
     differ by at most this (deg) plus 3 sigma / sqrt(l2) of each (their predicted
     errors) and each centroid lies within the member tolerance of the other's plane."""
+
+    @model_validator(mode="after")
+    def _cross_checks(self) -> ExtractionConfig:
+        """Fields that only make sense together (raises :class:`ConfigError`)."""
+        pairs = (
+            # (smaller field, larger field, why)
+            ("rms_floor_m", "tolerance_floor_m", "a plane's RMS limit within its tolerance"),
+            ("max_rms_sigma_factor", "member_sigma_factor", "the RMS test within membership"),
+            ("trace_parallel_deg", "min_cross_angle_deg", "parallel traces never cross"),
+            ("min_segment_points", "min_plane_points", "a trace fits in a plane"),
+            ("min_gap_m", "plane_gap_m", "a scan-line run fits in one plane piece"),
+        )
+        for small, large, why in pairs:
+            a, b = getattr(self, small), getattr(self, large)
+            if a > b:
+                raise ConfigError(
+                    f"extraction.{small}: must be at most extraction.{large} ({b!r}: {why}), "
+                    f"got {a!r}"
+                )
+        return self

@@ -1,25 +1,24 @@
 """Planar landmarks from laser scans: ``extract_planes(scan, config, twist, sensor_origins)``.
 
-Two paths, chosen by ``ExtractionConfig.mode`` (auto: by the number of rings):
+Two paths, chosen by ``ExtractionConfig.mode`` (auto: by the number of rings), and one
+plane builder they share:
 
-- 2D-scanner rig (few rings): scan lines are split into straight segments in scan order
-  (:mod:`.segments`), segments of different scanners and sweeps that lie in one plane are
-  grouped, seeded only by two traces of different scanners that cross
-  (:mod:`.grouping`), and each group is fit by total least squares on its points
-  (:mod:`.groupfit`).
-- 3D scan (many rings or none): region growing on the range image when rings and times
-  allow (:mod:`.rangeimage`), else a seeded RANSAC loop (:mod:`.ransac`, reproducible
-  across processes, unlike open3d's), with coplanar inliers split into connected pieces
-  (:mod:`.lidar`).
+- :mod:`.rig2d` (a 2D-scanner rig, few rings): scan lines split into straight segments,
+  merged over sweeps into traces, traces of different scanners grouped into planes
+  (seeded only by two traces that cross), each group refit on its points; without a twist
+  on a moving epoch, all in time windows of about one sweep (:mod:`.rig2d.windows`).
+- :mod:`.lidar` (a 3D scan, many rings or none): region growing on the range image when
+  rings and times allow, else a seeded RANSAC loop (reproducible across processes, unlike
+  open3d's), with coplanar inliers split into connected pieces; each candidate refit
+  robustly.
+- :mod:`.planes`: the plane builder (TLS covariance, orientation towards the sensor, CPEF
+  confidence, support polygon, true label).
 
-Points are first deskewed with an optional constant twist (:mod:`.deskew`); without one,
-a moving 2D-rig epoch is grouped in time windows of about one sweep
-(``ExtractionConfig.max_unskewed_span_s``). Every plane
-gets an oriented normal, a (4, 4) TLS covariance (:mod:`.fitting`), a CPEF confidence
-(:mod:`.confidence`), support and a true label; see :func:`extract_planes`.
+:mod:`.pipeline` reads top to bottom: checks, deskewing (:mod:`.deskew`), the path, the
+planes. :mod:`.kernels` holds the small numba helpers the paths share.
 """
 
-from planodom.extraction.deskew import deskew_points, se3_exp, se3_log
+from planodom.extraction.deskew import deskew_points
 from planodom.extraction.pipeline import ExtractionResult, extract, extract_planes
 
 __all__ = [
@@ -27,6 +26,4 @@ __all__ = [
     "deskew_points",
     "extract",
     "extract_planes",
-    "se3_exp",
-    "se3_log",
 ]

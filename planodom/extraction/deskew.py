@@ -4,9 +4,9 @@ A point seen at time ``t`` (seconds, relative to the epoch's reference time) in 
 frame of that time is mapped to the base frame at the reference time by
 ``T_ref_t = exp(t * xi)``, ``xi = (wx, wy, wz, vx, vy, vz)`` in rad/s and m/s, expressed
 in the base frame at the reference time (docs/ARCHITECTURE.md). The SE(3) exponential is
-evaluated exactly, per point:
+evaluated exactly, per point (the closed form of :func:`planodom.geometry.se3_exp`):
 
-    R(t) = exp([t w]x)                        (Rodrigues, via scipy's Rotation)
+    R(t) = exp([t w]x)                        (Rodrigues)
     p(t) = J_l(t w) (t v)                     (left Jacobian of SO(3))
     J_l(phi) v = v + (1 - cos a) / a^2 (phi x v) + (a - sin a) / a^3 (phi x (phi x v)),
     a = |phi|, with Taylor series for small a.
@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planodom.errors import GeometryError
 
@@ -38,34 +37,6 @@ def check_twist(twist: np.ndarray | None) -> np.ndarray | None:
     return xi
 
 
-def _left_jacobian_apply(phi: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``J_l(phi_i) v_i`` for (N, 3) rotation vectors ``phi`` and (N, 3) vectors ``v``."""
-    a2 = np.einsum("ij,ij->i", phi, phi)
-    a = np.sqrt(a2)
-    small = a < 1e-4
-    safe_a = np.where(small, 1.0, a)
-    safe_a2 = safe_a * safe_a
-    # (1 - cos a) / a^2 and (a - sin a) / a^3, Taylor-expanded near 0 (error < 1e-17).
-    c1 = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(safe_a)) / safe_a2)
-    c2 = np.where(small, 1.0 / 6.0 - a2 / 120.0, (safe_a - np.sin(safe_a)) / (safe_a2 * safe_a))
-    pxv = np.cross(phi, v)
-    return v + c1[:, None] * pxv + c2[:, None] * np.cross(phi, pxv)
-
-
-def se3_exp(twist: np.ndarray, t: np.ndarray) -> tuple[Rotation, np.ndarray]:
-    """``exp(t_i * xi)`` for every time: rotations (N of them) and translations (N, 3), m.
-
-    Args:
-        twist: (6,) ``(wx, wy, wz, vx, vy, vz)``, rad/s and m/s.
-        t: (N,) seconds.
-    """
-    xi = check_twist(twist)
-    t = np.asarray(t, dtype=np.float64).reshape(-1)
-    phi = t[:, None] * xi[None, :3]
-    rho = t[:, None] * xi[None, 3:]
-    return Rotation.from_rotvec(phi), _left_jacobian_apply(phi, rho)
-
-
 def deskew_points(points: np.ndarray, t: np.ndarray, twist: np.ndarray) -> np.ndarray:
     """Map points seen at times ``t`` to the reference time: ``p_ref = exp(t xi) p_t``.
 
@@ -79,8 +50,9 @@ def deskew_points(points: np.ndarray, t: np.ndarray, twist: np.ndarray) -> np.nd
 
     The rotation axis ``k = w / |w|`` is the same for every point, so Rodrigues' formula
     ``R p = p + sin(a) k x p + (1 - cos a) k x (k x p)``, ``a = t |w|``, is evaluated in
-    one compiled pass; this is exact like :func:`se3_exp` but avoids building N scipy
-    rotations (a per-point cost ~10x higher).
+    one compiled pass; this is exact like :func:`planodom.geometry.se3_exp` at every
+    ``t xi``, but avoids building N (4, 4) transforms (a per-point cost ~10x higher, and
+    this is the first stage of every 2D-rig epoch).
     """
     points = np.ascontiguousarray(points, dtype=np.float64)
     if len(points) == 0:
@@ -93,7 +65,8 @@ def deskew_points(points: np.ndarray, t: np.ndarray, twist: np.ndarray) -> np.nd
 @numba.njit(cache=True)
 def _deskew_kernel(points, t, xi):  # pragma: no cover - compiled
     """One pass over the points (numba: the numpy version makes ~30 passes, and this is
-    the first stage of every 2D-rig epoch). Same formulas as :func:`se3_exp`:
+    the first stage of every 2D-rig epoch). Same formulas as
+    :func:`planodom.geometry.se3_exp`, written out per point:
     Rodrigues about the fixed axis ``k = w / |w|`` and ``J_l(t w) (t v) = t v +
     c1 t^2 (w x v) + c2 t^3 (w x (w x v))``, ``c1 = (1 - cos a) / a^2``, ``c2 = (a - sin a)
     / a^3`` (Taylor series below a = 1e-4)."""
@@ -131,23 +104,3 @@ def _deskew_kernel(points, t, xi):  # pragma: no cover - compiled
         out[i, 1] = p1 + sa * q1 + (1.0 - ca) * r1 + ti * v1 + f1 * a1 + f2 * b1
         out[i, 2] = p2 + sa * q2 + (1.0 - ca) * r2 + ti * v2 + f1 * a2 + f2 * b2
     return out
-
-
-def se3_log(T: np.ndarray) -> np.ndarray:
-    """Twist ``(w, v)`` (6,) with ``exp(xi) = T`` for a rigid transform ``T`` (4, 4).
-
-    ``w`` is the rotation vector of ``R``; ``v = J_l(w)^-1 t`` with the closed-form inverse
-    left Jacobian ``I - [w]x / 2 + (1 / a^2 - (1 + cos a) / (2 a sin a)) [w]x^2``.
-    A constant-velocity twist over an epoch of ``dt`` seconds is ``se3_log(T_a_b) / dt``.
-    """
-    T = np.asarray(T, dtype=np.float64)
-    w = Rotation.from_matrix(T[:3, :3]).as_rotvec()
-    t = T[:3, 3]
-    a = float(np.linalg.norm(w))
-    if a < 1e-6:
-        c = 1.0 / 12.0 + a * a / 720.0
-    else:
-        c = 1.0 / a**2 - (1.0 + np.cos(a)) / (2.0 * a * np.sin(a))
-    wxt = np.cross(w, t)
-    v = t - 0.5 * wxt + c * np.cross(w, wxt)
-    return np.concatenate([w, v])

@@ -2,7 +2,7 @@
 
 1. The cloud is reduced to one point per ``voxel_size_m`` voxel (open3d's voxel grid,
    which is deterministic, in its own order).
-2. A RANSAC plane search (:func:`planodom.extraction.ransac.segment_plane`: three-point
+2. A RANSAC plane search (:func:`.ransac.segment_plane`: three-point
    samples, at most ``ransac_iterations``, early stop at ``ransac_probability``) runs in a
    loop on the voxel points not yet explained, its samples drawn from one
    ``np.random.default_rng(config.seed)`` per scan, so that a scan gives the same planes
@@ -18,9 +18,13 @@
    earlier plane; these points are the candidate inlier set (the caller refits it
    robustly). Voxel points that the refit plane explains are not searched again.
 
+With rings (and ``range_image``) the candidates come from region growing on the range
+image instead (:mod:`.rangeimage`); the loop above is its fallback.
+
 The distance tolerance is ``max(member_sigma_factor * sigma, tolerance_floor_m)`` with
-sigma from :func:`planodom.extraction.segments.effective_noise`: the configured range noise,
-or the noise measured along the rings (second differences) when larger.
+sigma from :func:`planodom.extraction.noise.effective_noise`: the configured range noise,
+or the noise measured along the rings (second differences, :func:`ring_noise`) when
+larger.
 """
 
 from __future__ import annotations
@@ -33,19 +37,23 @@ from scipy.sparse.csgraph import connected_components
 
 from planodom._open3d import o3d
 from planodom.config import ExtractionConfig
-from planodom.extraction.fitting import tls_fit
-from planodom.extraction.rangeimage import range_image_candidates, ring_order, ring_rows
-from planodom.extraction.ransac import segment_plane
-from planodom.extraction.segments import effective_noise
+from planodom.extraction.lidar.grid import ring_order, ring_rows
+from planodom.extraction.lidar.rangeimage import range_image_candidates
+from planodom.extraction.lidar.ransac import segment_plane
+from planodom.extraction.noise import effective_noise, member_tolerance
+from planodom.extraction.planes.fit import tls_fit
 
 
 def ring_noise(points: np.ndarray, ring: np.ndarray | None, config: ExtractionConfig) -> float:
     """Noise (m) measured along the rings by second differences; 0 without rings.
 
-    :func:`planodom.extraction.segments.estimate_line_noise` on the points (N, 3) sorted
-    by ring in scan order, cut into runs where the ring changes or consecutive points are
-    farther apart than the gap rule of ``run_breaks`` (sweeps need not be separated for
-    the noise estimate).
+    The median of ``|(p[i-1] - 2 p[i] + p[i+1]) x d| / |d|``, ``d = p[i+2] - p[i-2]``
+    (the second difference across the line, of standard deviation ``sqrt(6) sigma``), over
+    the points (N, 3) sorted by ring in scan order whose four neighbours lie in their run,
+    divided by ``0.6745 sqrt(6)``; runs are cut where the ring changes or consecutive
+    points are farther apart than ``max(min_gap_m, gap_range_ratio * range)`` (sweeps need
+    not be separated for the noise estimate). Corners and gaps are a small minority and do
+    not move the median.
     """
     if ring is None or not config.estimate_noise or len(points) < 15:
         return 0.0
@@ -65,7 +73,7 @@ def ring_noise(points: np.ndarray, ring: np.ndarray | None, config: ExtractionCo
 @numba.njit(cache=True)
 def _ring_noise_terms(points, order, row, min_gap, gap_ratio):  # pragma: no cover - compiled
     """(K,) metres: the across-line second differences that :func:`ring_noise` takes the
-    median of, as in ``estimate_line_noise``: ``|(p[i-1] - 2 p[i] + p[i+1]) x d| / |d|``,
+    median of: ``|(p[i-1] - 2 p[i] + p[i+1]) x d| / |d|``,
     ``d = p[i+2] - p[i-2]``, at every point whose four neighbours lie in its run
     (``d != 0``).
 
@@ -160,16 +168,25 @@ def lidar_candidates(
     ``viewpoint`` (3,), metres: where the scan was taken from (clusters are separated by
     angular gaps as seen from there); the base origin if None. With ``ring`` (and
     ``config.range_image``) planes are grown on the range image
-    (:func:`planodom.extraction.rangeimage.range_image_candidates`, ``t`` (N,) s gives the
-    columns); the RANSAC loop below runs when that declines (noisy pixel normals).
+    (:func:`.rangeimage.range_image_candidates`, ``t`` (N,) s gives the columns); the
+    RANSAC loop (:func:`ransac_candidates`) runs when that declines (noisy pixel normals,
+    no usable times).
     """
     sigma = effective_noise(config, ring_noise(points, ring, config))
-    tol = max(config.member_sigma_factor * sigma, config.tolerance_floor_m)
     view = np.zeros(3) if viewpoint is None else np.asarray(viewpoint, dtype=np.float64)
     if ring is not None and config.range_image:
         grown = range_image_candidates(points, ring, t, sigma, config, view)
         if grown is not None:
             return grown, sigma
+    return ransac_candidates(points, config, view, member_tolerance(config, sigma)), sigma
+
+
+def ransac_candidates(
+    points: np.ndarray, config: ExtractionConfig, view: np.ndarray, tol: float
+) -> list[np.ndarray]:
+    """Steps 1 to 4 of the module docstring: candidate inlier sets (indices into
+    ``points`` (N, 3), m) of the RANSAC loop, clusters seen from ``view`` (3,), m,
+    distance tolerance ``tol`` (m)."""
     n_az = int(np.ceil(360.0 / config.cluster_gap_deg))
     # open3d's voxel grid is deterministic (checked: the same voxels in the same order in
     # separate processes and with 1 or 2 OpenMP threads). Its order (a hash map's) is kept:
@@ -184,10 +201,10 @@ def lidar_candidates(
     remaining = np.ones(len(vox), dtype=bool)
     taken = np.zeros(len(points), dtype=bool)
     min_vox = max(3, config.min_plane_points // 4)
-    # Our own RANSAC (planodom.extraction.ransac), not open3d's segment_plane: that one
-    # gives different planes in two processes despite o3d.utility.random.seed and one
-    # thread (isl-org/Open3D#7270). One generator per scan: the same scan and seed give
-    # the same planes.
+    # Our own RANSAC (.ransac), not open3d's segment_plane: that one gives different
+    # planes in two processes despite o3d.utility.random.seed and one thread
+    # (isl-org/Open3D#7270). One generator per scan: the same scan and seed give the same
+    # planes.
     rng = np.random.default_rng(config.seed)
     out: list[np.ndarray] = []
     for _ in range(config.max_planes):
@@ -233,4 +250,4 @@ def lidar_candidates(
             if len(cand) >= config.min_plane_points:
                 taken[cand] = True
                 out.append(cand)
-    return out, sigma
+    return out

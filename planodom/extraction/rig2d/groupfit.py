@@ -1,6 +1,6 @@
 """Robust TLS refit of the 2D-rig groups of segments on their points, all groups at once.
 
-For each group (the segments :func:`planodom.extraction.grouping.group_segments` put in
+For each group (the segments :func:`.grouping.group_segments` put in
 one plane):
 
 1. a first plane from the segments' moments (parallel-axis theorem, no pass over points);
@@ -30,7 +30,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from planodom.extraction.segments import Segments
+from planodom.extraction.kernels import range_moments
+from planodom.extraction.rig2d.segments import Segments
 
 #: Refits of a group after the first (module docstring, step 4).
 MAX_REFITS = 3
@@ -95,6 +96,8 @@ def _fit_groups_kernel(
     for k in range(gseg.shape[0]):
         total += ends[gseg[k]] - starts[gseg[k]]
     inl = np.empty(total, dtype=np.int64)
+    buf = np.empty((total, 3))  # the inlier points, contiguous for range_moments
+    sc2 = np.empty((3, 3))
     is_end = np.zeros(total, dtype=np.bool_)
     bounds = np.zeros(G + 1, dtype=np.int64)
     cnt_out = np.zeros(G, dtype=np.int64)
@@ -146,34 +149,20 @@ def _fit_groups_kernel(
         vecs2 = np.eye(3)
         for it in range(MAX_REFITS + 1):
             K = start
-            c2 = np.zeros(3)
             for k in range(a, b):
                 s = gseg[k]
                 for i in range(starts[s], ends[s]):
                     p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
                     if abs(p0 * n[0] + p1 * n[1] + p2 * n[2] + d) <= thr:
                         inl[K] = i
+                        buf[K] = points[i]
                         K += 1
-                        c2[0] += p0
-                        c2[1] += p1
-                        c2[2] += p2
             m_prev = m
             m = K - start
             if m < 3:
                 fitted = False
                 break
-            c2 /= m
-            s00 = s01 = s02 = s11 = s12 = s22 = 0.0
-            for j in range(start, K):
-                i = inl[j]
-                q0, q1, q2 = points[i, 0] - c2[0], points[i, 1] - c2[1], points[i, 2] - c2[2]
-                s00 += q0 * q0
-                s01 += q0 * q1
-                s02 += q0 * q2
-                s11 += q1 * q1
-                s12 += q1 * q2
-                s22 += q2 * q2
-            sc2 = np.array([[s00, s01, s02], [s01, s11, s12], [s02, s12, s22]])
+            range_moments(buf, start, K, c2, sc2)
             vals, vecs2 = np.linalg.eigh(sc2)
             fitted = True
             if it > 0 and m == m_prev:

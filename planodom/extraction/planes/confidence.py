@@ -7,7 +7,8 @@ factors, each in (0, 1], so that ``w`` lies in (0, 1] and higher is better:
     w = w_residual * w_count * w_extent * w_incidence
 
 - ``w_residual = exp(-(rms / (2 sigma))^2)``: fit residual against the sensor noise
-  ``sigma`` (the effective noise of the epoch, :func:`effective_noise`): 0.78 for a plane
+  ``sigma`` (the effective noise of the epoch,
+  :func:`planodom.extraction.noise.effective_noise`): 0.78 for a plane
   whose residual is the sensor noise, 0.37 for twice it (not a plane, or bad motion).
 - ``w_count = 1 - exp(-N / N_ref)``: number of inliers, ``N_ref = confidence_points_ref``.
 - ``w_extent = 1 - exp(-width / W_ref)``: spatial extent, ``width = 2 sqrt(l2 / N)`` the
@@ -25,37 +26,6 @@ from __future__ import annotations
 import numpy as np
 
 
-def cpef(
-    rms_m: float,
-    sigma_m: float,
-    n_points: int,
-    width_m: float,
-    normal: np.ndarray,
-    points: np.ndarray,
-    viewpoint: np.ndarray,
-    points_ref: float,
-    width_ref_m: float,
-    incidence: float | None = None,
-) -> float:
-    """CPEF weight in (0, 1] (module docstring).
-
-    Args:
-        rms_m: RMS residual of the fit (m). sigma_m: sensor noise sigma (m), > 0.
-        n_points: inlier count. width_m: minor in-plane width (m).
-        normal: (3,) unit normal. points: (K, 3) inliers, metres.
-        viewpoint: (3,) or (K, 3) ray origins, metres.
-        points_ref: N_ref. width_ref_m: W_ref (m).
-        incidence: ``w_incidence`` when already computed (``points`` is then not used).
-    """
-    w_inc = float(incidence) if incidence is not None else mean_incidence(points, viewpoint, normal)
-    return float(
-        cpef_batch(
-            np.array([rms_m]), sigma_m, np.array([n_points]), np.array([width_m]),
-            np.array([w_inc]), points_ref, width_ref_m,
-        )[0]
-    )  # fmt: skip
-
-
 def mean_incidence(points: np.ndarray, viewpoint: np.ndarray, normal: np.ndarray) -> float:
     """``w_incidence``: mean ``|cos|`` of the angles between ``normal`` (3,) and the rays
     from ``viewpoint`` ((3,) or (K, 3), metres) to ``points`` (K, 3); 1 without rays."""
@@ -65,7 +35,7 @@ def mean_incidence(points: np.ndarray, viewpoint: np.ndarray, normal: np.ndarray
     return float(np.mean(np.abs(rays[ok] @ normal) / norm[ok])) if np.any(ok) else 1.0
 
 
-def cpef_batch(
+def cpef(
     rms_m: np.ndarray,
     sigma_m: float,
     n_points: np.ndarray,
@@ -74,8 +44,14 @@ def cpef_batch(
     points_ref: float,
     width_ref_m: float,
 ) -> np.ndarray:
-    """(G,) CPEF weights of G planes from their RMS residuals (m), inlier counts, minor
-    widths (m) and mean incidences ``w_incidence`` (all (G,)); see :func:`cpef`."""
+    """(G,) CPEF weights of G planes (module docstring).
+
+    Args:
+        rms_m: (G,) RMS residuals of the fits (m). sigma_m: sensor noise sigma (m), > 0.
+        n_points: (G,) inlier counts. width_m: (G,) minor in-plane widths (m).
+        incidence: (G,) ``w_incidence`` (:func:`mean_incidence`).
+        points_ref: N_ref. width_ref_m: W_ref (m).
+    """
     w_res = np.exp(-((np.asarray(rms_m) / (2.0 * max(sigma_m, 1e-12))) ** 2))
     w_cnt = 1.0 - np.exp(-np.asarray(n_points, dtype=np.float64) / points_ref)
     w_ext = 1.0 - np.exp(-np.asarray(width_m) / width_ref_m)

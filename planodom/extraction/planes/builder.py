@@ -1,0 +1,163 @@
+"""The one plane builder of both paths: from TLS fits to oriented planes.
+
+Both paths end in TLS fits of candidate inlier sets (:class:`PlaneFits`): the 2D-rig
+path's group refits (:mod:`planodom.extraction.rig2d.groupfit`), the lidar path's robust
+fits of its candidates (:func:`.fit.robust_plane_fit`). :func:`build_planes` then, for all
+fits at once:
+
+1. rejects fits with fewer than ``min_plane_points`` inliers, thinner than
+   ``min_plane_width_m`` (``2 sqrt(l2 / N)``) or whose normal is known only to worse than
+   ``max_normal_sigma_deg`` (``sqrt(trace Cov(n))`` of the covariance, :mod:`.fit`);
+2. orients the normals to the side the sensor saw the plane from (:func:`orientation_sign`,
+   viewpoints from :class:`planodom.extraction.epoch.Epoch`);
+3. weights them by CPEF (:mod:`.confidence`);
+4. lets the caller adjust the kept planes (the 2D rig's time windows keep one plane per
+   wall, :mod:`planodom.extraction.rig2d.windows`);
+5. gives each its support polygon (:mod:`.support`) and majority true label.
+
+Viewpoints: with sensor origins a plane is seen from the mean origin of the scanners that
+saw its inliers (carried to the reference time with the twist at their mean time);
+without, from ``(0, 0, viewpoint_height_m)`` in the base frame: a point above the base
+origin, so that a ground plane through the base origin (a vehicle frame on the ground,
+rig.yaml absent) still gets its normal up, and walls, whose distance from that point
+equals their distance from the origin, face the vehicle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from planodom.config import ExtractionConfig
+from planodom.extraction.epoch import Epoch
+from planodom.extraction.planes.confidence import cpef, mean_incidence
+from planodom.extraction.planes.fit import tls_covariance
+from planodom.extraction.planes.support import majority_label, support_polygon
+from planodom.geometry import Plane, PlaneSupport
+
+#: ``adjust(kept, normals, offsets) -> kept``: may change the oriented (G, 3) normals and
+#: (G,) offsets of the kept planes in place and drop planes (step 4).
+Adjust = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneFits:
+    """TLS fits of G candidate planes, the input of :func:`build_planes`.
+
+    Attributes:
+        count: (G,) int64 inliers. centroid: (G, 3) metres. offset: (G,) d of the
+            unoriented normal, metres.
+        evals: (G, 3) scatter eigenvalues, descending, m^2.
+        evecs: (G, 3, 3) eigenvectors, columns e1, e2, n.
+        inliers: (K,) int64 scan indices of all inliers, plane by plane: plane g holds
+            ``inliers[bounds[g]:bounds[g + 1]]``. bounds: (G + 1,) int64.
+        outline: (K,) bool, the inliers the support polygon is built from (all of them,
+            or only those that can be extreme, e.g. the ends of straight runs).
+        incidence: (G,) CPEF ``w_incidence`` seen from ``(0, 0, viewpoint_height_m)``
+            when the path computed it, or None (computed here from the viewpoints).
+    """
+
+    count: np.ndarray
+    centroid: np.ndarray
+    offset: np.ndarray
+    evals: np.ndarray
+    evecs: np.ndarray
+    inliers: np.ndarray
+    bounds: np.ndarray
+    outline: np.ndarray
+    incidence: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.count)
+
+    def members(self, g: int) -> np.ndarray:
+        """(K_g,) scan indices of plane g's inliers."""
+        return self.inliers[self.bounds[g] : self.bounds[g + 1]]
+
+
+def too_uncertain(cov: np.ndarray, config: ExtractionConfig) -> np.ndarray:
+    """True where a (..., 4, 4) (n, d) covariance puts the normal's 1-sigma error above
+    ``config.max_normal_sigma_deg`` (a bool array of the leading shape)."""
+    var_n = np.trace(cov[..., :3, :3], axis1=-2, axis2=-1)
+    return var_n > np.radians(config.max_normal_sigma_deg) ** 2
+
+
+def orientation_sign(
+    normals: np.ndarray, offsets: np.ndarray, centroids: np.ndarray, viewpoints: np.ndarray
+) -> np.ndarray:
+    """(G,) +1 or -1: the signs that make the normals point towards the viewpoints.
+
+    Planes ``normals`` (G, 3), ``offsets`` (G,), ``centroids`` (G, 3) (m) are oriented so
+    that ``viewpoints`` (G, 3) (or (3,) for all, m) lie on their positive side. If a
+    viewpoint lies on its plane (|distance| < 1 mm) a near-horizontal plane
+    (|n_z| >= cos 45 deg) gets its normal up, any other its normal towards the base
+    origin's side of the centroid.
+    """
+    views = np.broadcast_to(viewpoints, normals.shape)
+    dist = np.einsum("gi,gi->g", normals, views) + offsets
+    up = np.where(normals[:, 2] > 0, 1.0, -1.0)
+    towards = -np.einsum("gi,gi->g", normals[:, :2], centroids[:, :2])
+    side = np.where(towards < 0, -1.0, 1.0)
+    on_plane = np.where(np.abs(normals[:, 2]) >= np.cos(np.radians(45.0)), up, side)
+    return np.where(np.abs(dist) >= 1e-3, np.where(dist > 0, 1.0, -1.0), on_plane)
+
+
+def build_planes(
+    fits: PlaneFits,
+    epoch: Epoch,
+    sigma_m: float,
+    config: ExtractionConfig,
+    adjust: Adjust | None = None,
+) -> tuple[list[Plane], list[np.ndarray], int]:
+    """Planes of the fits that pass the tests (module docstring), in fit order.
+
+    Returns the planes, their inliers ((K,) int64 scan indices each) and the number of
+    fits rejected (by the tests or by ``adjust``).
+    """
+    G = len(fits)
+    if G == 0:
+        return [], [], 0
+    cnt = np.maximum(fits.count, 1).astype(np.float64)
+    width = 2.0 * np.sqrt(np.maximum(fits.evals[:, 1], 0.0) / cnt)
+    rms = np.sqrt(np.maximum(fits.evals[:, 2], 0.0) / cnt)
+    normals = fits.evecs[:, :, 2]
+    floor = config.covariance_sigma_floor_m
+    covs = tls_covariance(fits.evals, fits.evecs, fits.centroid, fits.count, floor)
+    keep = (fits.count >= config.min_plane_points) & (width >= config.min_plane_width_m)
+    kept = np.flatnonzero(keep & ~too_uncertain(covs, config))
+    height = config.viewpoint_height_m
+    views = np.broadcast_to(np.array([0.0, 0.0, height]), (G, 3)).copy()
+    incidence = np.ones(G) if fits.incidence is None else fits.incidence.copy()
+    if fits.incidence is None or epoch.origins is not None:
+        for g in kept:
+            idx = fits.members(g)
+            views[g] = epoch.viewpoint(idx, height)
+            incidence[g] = mean_incidence(epoch.points[idx], views[g], normals[g])
+    signs = orientation_sign(normals, fits.offset, fits.centroid, views)
+    conf = cpef(
+        rms, max(sigma_m, floor), fits.count, width, incidence,
+        config.confidence_points_ref, config.confidence_width_ref_m,
+    )  # fmt: skip
+    n_or = signs[:, None] * normals
+    d_or = signs * fits.offset
+    if adjust is not None and len(kept):
+        kept = adjust(kept, n_or, d_or)
+    planes, inliers = [], []
+    labels = epoch.scan.label
+    for g in kept:
+        idx = fits.members(g)
+        outline = epoch.points[idx][fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]
+        polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
+        plane = Plane(
+            normal=n_or[g],
+            offset=float(d_or[g]),
+            covariance=covs[g],
+            confidence=float(conf[g]),
+            support=PlaneSupport(fits.centroid[g].copy(), polygon, int(fits.count[g])),
+            truth_id=majority_label(None if labels is None else labels[idx]),
+        )
+        planes.append(plane)
+        inliers.append(idx)
+    return planes, inliers, G - len(kept)

@@ -1,0 +1,113 @@
+"""Robust total-least-squares plane fits and their covariance.
+
+Covariance of a TLS plane fit (first order, isotropic point noise sigma along n):
+
+Let ``c`` be the centroid of the N inliers, ``C = sum (p - c)(p - c)^T`` their scatter with
+eigenvalues ``l1 >= l2 >= l3`` and eigenvectors ``e1, e2, e3 = n``. A perturbation ``dC``
+moves the smallest eigenvector by ``dn = -sum_k e_k (e_k^T dC n) / (l_k - l3)``, k = 1, 2.
+With point noise ``eps_i`` (sigma along n) ``e_k^T dC n = sum_i (e_k . (p_i - c)) (n . eps_i)``
+plus a second-order term, of variance ``sigma^2 (l_k^true + N sigma^2) ~ sigma^2 l_k``; the
+two are uncorrelated (e1, e2 diagonalise C). Hence
+
+    Cov(n) = sigma^2 sum_{k=1,2} l_k / (l_k - l3)^2 e_k e_k^T      (rank 2, nothing along n)
+
+``d = -n . c`` gives ``dd = -c . dn - n . dc`` with ``Var(n . dc) = sigma^2 / N``,
+uncorrelated with ``dn`` (centred sums), so
+
+    Cov(n, d) = -Cov(n) c,    Var(d) = c^T Cov(n) c + sigma^2 / N.
+
+``sigma^2`` is estimated by the residual variance ``l3 / (N - 3)`` (three parameters fitted),
+bounded below by ``covariance_sigma_floor_m^2``. The 4x4 covariance of ``(n, d)`` has rank 3.
+It does not change when the plane is flipped (``(n, d) -> (-n, -d)``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Residuals below this (m) always count as inliers (round-off of exact data).
+_EXACT_M = 1e-7
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneFit:
+    """A TLS fit to inlier points (:func:`robust_plane_fit`).
+
+    Attributes:
+        inliers: (K,) int64 indices of the inliers among the fitted points.
+        normal: (3,) unit normal (not yet oriented). offset: d, metres.
+        centroid: (3,) metres. evals: (3,) scatter eigenvalues, descending, m^2.
+        evecs: (3, 3) columns e1, e2, n.
+    """
+
+    inliers: np.ndarray
+    normal: np.ndarray
+    offset: float
+    centroid: np.ndarray
+    evals: np.ndarray
+    evecs: np.ndarray
+
+
+def tls_fit(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centroid (3,), eigenvalues (3,) descending and eigenvectors (3, 3) of the scatter."""
+    c = points.mean(axis=0)
+    q = points - c
+    evals, evecs = np.linalg.eigh(q.T @ q)
+    return c, evals[::-1], evecs[:, ::-1]
+
+
+def robust_plane_fit(points: np.ndarray, k_sigma: float, max_iter: int = 4) -> PlaneFit | None:
+    """TLS plane through ``points`` (N, 3), metres, with iterated robust inlier selection.
+
+    Residuals ``r`` to the current fit are kept when ``|r| <= max(k_sigma * 1.4826 *
+    median(|r|), 1e-7 m)``; the fit is redone on the inliers until they stop changing.
+    Returns None when fewer than 3 points remain.
+    """
+    idx = np.arange(len(points))
+    for _ in range(max_iter):
+        if len(idx) < 3:
+            return None
+        c, evals, evecs = tls_fit(points[idx])
+        n = evecs[:, 2]
+        r = np.abs((points - c) @ n)
+        thr = max(k_sigma * 1.4826 * float(np.median(r[idx])), _EXACT_M)
+        new = np.flatnonzero(r <= thr)
+        if np.array_equal(new, idx):
+            break
+        idx = new
+    if len(idx) < 3:
+        return None
+    c, evals, evecs = tls_fit(points[idx])
+    n = evecs[:, 2]
+    return PlaneFit(idx, n, float(-n @ c), c, evals, evecs)
+
+
+def tls_covariance(
+    evals: np.ndarray,
+    evecs: np.ndarray,
+    centroids: np.ndarray,
+    n_points: np.ndarray,
+    sigma_floor_m: float,
+) -> np.ndarray:
+    """(G, 4, 4) covariances of G TLS fits at once (module docstring).
+
+    Args:
+        evals: (G, 3) scatter eigenvalues, descending (m^2). evecs: (G, 3, 3) columns
+        e1, e2, n. centroids: (G, 3) metres. n_points: (G,) inlier counts.
+        sigma_floor_m: lower bound of the residual sigma (m).
+    """
+    n_pts = np.asarray(n_points, dtype=np.float64)
+    l1, l2, l3 = evals[:, 0], evals[:, 1], evals[:, 2]
+    sigma2 = np.maximum(l3 / np.maximum(n_pts - 3.0, 1.0), sigma_floor_m**2)
+    w = sigma2[:, None] * np.stack([l1 / (l1 - l3) ** 2, l2 / (l2 - l3) ** 2], axis=1)
+    e12 = evecs[:, :, :2]
+    cov_n = np.einsum("gik,gk,gjk->gij", e12, w, e12)
+    cn = np.einsum("gij,gj->gi", cov_n, centroids)
+    cov = np.empty((len(n_pts), 4, 4))
+    cov[:, :3, :3] = cov_n
+    cov[:, :3, 3] = -cn
+    cov[:, 3, :3] = -cn
+    cov[:, 3, 3] = np.einsum("gi,gi->g", centroids, cn) + sigma2 / n_pts
+    return cov

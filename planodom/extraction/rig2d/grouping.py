@@ -1,0 +1,446 @@
+"""Group the traces of different scanners into planes: seeds, then greedy growth.
+
+The traces (:mod:`.traces`) are the input.
+
+1. Seeds. Two traces seed a plane only when they come from different rings (scanners),
+   cross at ``min_cross_angle_deg`` or more, their predicted direction errors are at most
+   ``max_seed_direction_error_deg`` and they are coplanar: the gap between their lines is
+   within the noise of their centroids, ``floor + 3 sigma sqrt(1 / N_i + 1 / N_j)`` (at
+   most the member tolerance), plus the slack of their direction errors. A pair whose
+   lines cross at an end of both (an "L") may be two traces of two walls that meet at a
+   corner, ending there: such seeds are tried only after every other seed.
+   Traces of one ring never seed: they are parallel or lie in one scan plane.
+2. Growth. Seeds are taken greedily, the one whose plane gathers the most points first;
+   every available trace whose RMS distance to the plane and whose end points lie within
+   the tolerance joins, the plane is refit from the members' moments (total least
+   squares) and the members re-collected; only the traces connected to the seed through
+   gaps of at most ``max(plane_gap_m, gap_range_ratio * range)`` stay. The group is a
+   plane only if it still holds its seed pair, has ``min_points`` points and its RMS
+   residual is at most ``max_rms_m``. Members of an accepted plane are not used again.
+
+So a plane always contains two non-parallel traces of two scanners: a set of parallel
+traces is never accepted, and a plane is never guessed from one trace.
+
+Time windows (points not deskewed, ``max_span_s`` finite, :mod:`.windows`): two traces
+seed a plane only when their times lie within ``max_span_s`` (about one sweep), and a
+trace joins a seed's plane only when its times lie in the window of ``max_span_s`` centred
+on the seed's: every plane is fit to points taken within one window. L-shaped seeds are
+not used then (one sweep's L is two lines meeting at a corner, with nothing else to
+confirm it).
+
+The seeding and greedy growth are compiled with numba: loops over a few tens of traces
+with per-step decisions (a greedy loop whose every step refits a plane), where numpy pays
+its per-call overhead tens of times per step; no library implements this grouping. Their
+thresholds travel as one named tuple (:class:`GroupingParams`), the traces as another
+(:class:`.traces.TraceSet`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from planodom.extraction.rig2d.segments import Segments
+from planodom.extraction.rig2d.traces import build_traces
+
+#: An L-shaped seed pair has its crossing within this (m), or 5 % of each trace's
+#: length, of an end of both.
+L_MARGIN_M = 0.2
+
+
+class GroupingParams(NamedTuple):
+    """Thresholds of seeding and growth (module docstring), in the kernels' units.
+
+    Attributes:
+        tol_m: distance (m) within which a trace must lie of a plane to join it.
+        sigma_m: noise sigma (m) of the points.
+        sin_min_cross: sine of the smallest angle between a seed pair's directions.
+        max_seed_err_rad: largest predicted direction error of a seed trace (rad).
+        min_points: fewest points of a group.
+        max_rms_m: largest RMS residual (m) of a group's points to its plane.
+        min_trace_points: fewest points of a trace that seeds or joins a plane.
+        seed_floor_m: floor of the gap allowed between a seed pair's lines (m).
+        gap_m, gap_ratio: traces connect when less than ``max(gap_m, gap_ratio * range)``
+            apart (:func:`_connected_piece`); ``gap_m`` inf: no limit.
+        max_span_s: longest time span (s) of a trace, seed or plane; inf: no windows.
+        margin_m: an L-shaped seed pair has its crossing within this (m) of both ends.
+    """
+
+    tol_m: float
+    sigma_m: float
+    sin_min_cross: float
+    max_seed_err_rad: float
+    min_points: float
+    max_rms_m: float
+    min_trace_points: int
+    seed_floor_m: float
+    gap_m: float
+    gap_ratio: float
+    max_span_s: float
+    margin_m: float = L_MARGIN_M
+
+
+def group_segments(
+    segs: Segments,
+    params: GroupingParams,
+    parallel_deg: float,
+    step_m: float,
+    seg_times: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[list[np.ndarray], int]:
+    """Segments grouped into planes (module docstring).
+
+    Args:
+        segs: the epoch's segments.
+        params: seeding and growth thresholds.
+        parallel_deg, step_m: trace merging (``trace_parallel_deg``, ``trace_step_m``,
+            :func:`.traces.build_traces`).
+        seg_times: first and last time (s) of each segment, (S,) each, in time windows.
+
+    Returns:
+        A list of (K,) int64 arrays of segment indices, one per plane, and the number of
+        seeds rejected after refitting.
+    """
+    if len(segs) < 2:
+        return [], 0
+    tr = build_traces(
+        segs, params.tol_m, params.sigma_m, parallel_deg, step_m, seg_times, params.max_span_s
+    )
+    seg_group, n_groups, rejected = _grow_kernel(tr, params)
+    group_of_seg = seg_group[tr.label]
+    order = np.argsort(group_of_seg, kind="stable")
+    bounds = np.searchsorted(group_of_seg[order], np.arange(n_groups + 1))
+    groups = [order[bounds[g] : bounds[g + 1]] for g in range(n_groups)]
+    return groups, int(rejected)
+
+
+class _Seeds(NamedTuple):
+    """P seed pairs: traces ``i`` < ``j`` (P,), their plane's normal (P, 3), whether they
+    form an L (P,) and their time window [win_lo, win_hi] (P,) (s)."""
+
+    i: np.ndarray
+    j: np.ndarray
+    normal: np.ndarray
+    is_l: np.ndarray
+    win_lo: np.ndarray
+    win_hi: np.ndarray
+
+
+@numba.njit(cache=True)
+def _plane_of(members, count, centroid, scatter):  # pragma: no cover - compiled
+    """TLS plane of the union of traces ``members`` (bool (T,)) from their moments:
+    unit normal (3,), offset d (m), RMS residual (m), number of points."""
+    total = 0.0
+    c0 = c1 = c2 = 0.0
+    for t in range(members.shape[0]):
+        if members[t]:
+            w = count[t]
+            total += w
+            c0 += w * centroid[t, 0]
+            c1 += w * centroid[t, 1]
+            c2 += w * centroid[t, 2]
+    c = np.array([c0 / total, c1 / total, c2 / total])
+    sc = np.zeros((3, 3))
+    for t in range(members.shape[0]):
+        if members[t]:
+            d0, d1, d2 = centroid[t, 0] - c[0], centroid[t, 1] - c[1], centroid[t, 2] - c[2]
+            w = count[t]
+            sc[0, 0] += scatter[t, 0, 0] + w * d0 * d0
+            sc[0, 1] += scatter[t, 0, 1] + w * d0 * d1
+            sc[0, 2] += scatter[t, 0, 2] + w * d0 * d2
+            sc[1, 1] += scatter[t, 1, 1] + w * d1 * d1
+            sc[1, 2] += scatter[t, 1, 2] + w * d1 * d2
+            sc[2, 2] += scatter[t, 2, 2] + w * d2 * d2
+    sc[1, 0], sc[2, 0], sc[2, 1] = sc[0, 1], sc[0, 2], sc[1, 2]
+    vals, vecs = np.linalg.eigh(sc)
+    n = vecs[:, 0].copy()
+    return n, -(n[0] * c[0] + n[1] * c[1] + n[2] * c[2]), np.sqrt(max(vals[0], 0.0) / total), total
+
+
+@numba.njit(cache=True)
+def _fits(tr, count, t, n, d, tol):  # pragma: no cover - compiled
+    """Trace ``t``'s RMS distance to the plane (n, d) and its end points (the ends of its
+    extent, at its centroid's offset) are within ``tol`` (``count``: (T,) float64)."""
+    centroid, scatter, direction = tr.centroid, tr.scatter, tr.direction
+    off = centroid[t, 0] * n[0] + centroid[t, 1] * n[1] + centroid[t, 2] * n[2] + d
+    q = 0.0
+    for u in range(3):
+        for v in range(3):
+            q += n[u] * scatter[t, u, v] * n[v]
+    slope = direction[t, 0] * n[0] + direction[t, 1] * n[1] + direction[t, 2] * n[2]
+    ends = max(abs(off + slope * tr.lo[t]), abs(off + slope * tr.hi[t]))
+    return q / count[t] + off * off <= tol * tol and ends <= tol
+
+
+@numba.njit(cache=True)
+def _segment_distance(p0, p1, q0, q1):  # pragma: no cover - compiled
+    """Closest distance between 3D segments [p0, p1] and [q0, q1]: the closest points of
+    the two lines clamped to the first segment, then alternately re-projected and clamped
+    on each (exact unless both clamps bind, then within a negligible margin for the gap
+    test)."""
+    u0, u1, u2 = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+    v0, v1, v2 = q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2]
+    w0, w1, w2 = p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]
+    a = u0 * u0 + u1 * u1 + u2 * u2
+    b = u0 * v0 + u1 * v1 + u2 * v2
+    c = v0 * v0 + v1 * v1 + v2 * v2
+    d = u0 * w0 + u1 * w1 + u2 * w2
+    e = v0 * w0 + v1 * w1 + v2 * w2
+    den = a * c - b * b
+    sc = (b * e - c * d) / den if den > 1e-12 * max(a * c, 1e-300) else 0.0
+    sc = min(max(sc, 0.0), 1.0)
+    tc = min(max((b * sc + e) / max(c, 1e-300), 0.0), 1.0)
+    sc = min(max((b * tc - d) / max(a, 1e-300), 0.0), 1.0)
+    x0 = w0 + sc * u0 - tc * v0
+    x1 = w1 + sc * u1 - tc * v1
+    x2 = w2 + sc * u2 - tc * v2
+    return np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+
+
+@numba.njit(cache=True)
+def _connected_piece(members, seed, centroid, direction, lo, hi, gap_m, gap_ratio):
+    """The traces among ``members`` (bool (T,)) connected to trace ``seed``: two traces
+    are linked when the 3D distance between their centre lines (centroid + direction *
+    [lo, hi]) is at most ``max(gap_m, gap_ratio * r)``, ``r`` the range (distance from
+    the base origin) of the nearer centroid: the rule that splits scan lines into runs
+    (:func:`planodom.extraction.segments.run_breaks`)."""
+    idx = np.flatnonzero(members)
+    K = idx.shape[0]
+    if K <= 1 or not members[seed]:
+        return members
+    a0 = np.empty((K, 3))
+    a1 = np.empty((K, 3))
+    bmin = np.full(3, np.inf)
+    bmax = np.full(3, -np.inf)
+    for k in range(K):
+        t = idx[k]
+        a0[k] = centroid[t] + lo[t] * direction[t]
+        a1[k] = centroid[t] + hi[t] * direction[t]
+        for u in range(3):
+            bmin[u] = min(bmin[u], a0[k, u], a1[k, u])
+            bmax[u] = max(bmax[u], a0[k, u], a1[k, u])
+    span = bmax - bmin
+    if np.sqrt(span @ span) <= gap_m:  # all within one gap: connected
+        return members
+    rng = np.empty(K)
+    for k in range(K):
+        rng[k] = np.sqrt(centroid[idx[k]] @ centroid[idx[k]])
+    reach = np.zeros(K, dtype=np.bool_)
+    queue = np.empty(K, dtype=np.int64)
+    s = 0
+    while idx[s] != seed:
+        s += 1
+    reach[s] = True
+    queue[0] = s
+    head, tail = 0, 1
+    while head < tail:  # breadth-first growth
+        i = queue[head]
+        head += 1
+        for j in range(K):
+            if reach[j]:
+                continue
+            lim = max(gap_m, gap_ratio * min(rng[i], rng[j]))
+            if _segment_distance(a0[i], a1[i], a0[j], a1[j]) <= lim:
+                reach[j] = True
+                queue[tail] = j
+                tail += 1
+    out = np.zeros_like(members)
+    for k in range(K):
+        if reach[k]:
+            out[idx[k]] = True
+    return out
+
+
+@numba.njit(cache=True)
+def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
+    """Step 1: the seed pairs (:class:`_Seeds`) among the traces ``ok`` (T,) bool, in
+    (i, j), i < j order (``count``: (T,) float64)."""
+    T = tr.ring.shape[0]
+    ring, direction, centroid, dir_err = tr.ring, tr.direction, tr.centroid, tr.dir_err
+    lo, hi, t_lo, t_hi = tr.lo, tr.hi, tr.t_lo, tr.t_hi
+    windowed = np.isfinite(p.max_span_s)
+    P_max = T * (T - 1) // 2
+    iu = np.empty(P_max, dtype=np.int64)
+    ju = np.empty(P_max, dtype=np.int64)
+    normals = np.empty((P_max, 3))
+    is_l = np.empty(P_max, dtype=np.bool_)
+    win_lo = np.empty(P_max)
+    win_hi = np.empty(P_max)
+    P = 0
+    for i in range(T):
+        if not ok[i]:
+            continue
+        for j in range(i + 1, T):
+            if not ok[j] or ring[i] == ring[j]:
+                continue
+            if windowed and max(t_hi[i], t_hi[j]) - min(t_lo[i], t_lo[j]) > p.max_span_s:
+                continue
+            # Scalar arithmetic: small-array temporaries cost more than the maths here.
+            a0, a1, a2 = direction[i, 0], direction[i, 1], direction[i, 2]
+            b0, b1, b2 = direction[j, 0], direction[j, 1], direction[j, 2]
+            n0, n1, n2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+            sin_a = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+            if sin_a < p.sin_min_cross:
+                continue
+            n0, n1, n2 = n0 / sin_a, n1 / sin_a, n2 / sin_a
+            e0 = centroid[i, 0] - centroid[j, 0]
+            e1 = centroid[i, 1] - centroid[j, 1]
+            e2 = centroid[i, 2] - centroid[j, 2]
+            gap = abs(n0 * e0 + n1 * e1 + n2 * e2)
+            # The pair's normal is uncertain by about (err_i + err_j) / sin(angle) (rad).
+            slack = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) * 2.0 * (dir_err[i] + dir_err[j]) / sin_a
+            # The gap between the two lines: its noise is that of the two centroids along
+            # the normal, sigma sqrt(1 / N_i + 1 / N_j), far below the per-point tolerance
+            # for long traces; the floor covers deskew residue and trace curvature.
+            gap_tol = p.seed_floor_m + 3.0 * p.sigma_m * np.sqrt(1.0 / count[i] + 1.0 / count[j])
+            if gap > min(p.tol_m, gap_tol) + slack:
+                continue
+            # Where the two lines cross, along each (relative to its centroid). An L
+            # (crossing at an end of both, within the margin) is two walls at a corner.
+            c_ = a0 * b0 + a1 * b1 + a2 * b2
+            wi = a0 * e0 + a1 * e1 + a2 * e2
+            wj = b0 * e0 + b1 * e1 + b2 * e2
+            den = max(1.0 - c_ * c_, 1e-12)
+            s_i = (c_ * wj - wi) / den
+            s_j = (wj - c_ * wi) / den
+            mi = max(p.margin_m, 0.05 * (hi[i] - lo[i]))
+            mj = max(p.margin_m, 0.05 * (hi[j] - lo[j]))
+            end_i = min(abs(s_i - lo[i]), abs(s_i - hi[i])) <= mi
+            end_j = min(abs(s_j - lo[j]), abs(s_j - hi[j])) <= mj
+            if windowed and end_i and end_j:
+                continue  # one sweep's L is two lines meeting at a corner, nothing else
+            iu[P], ju[P] = i, j
+            normals[P, 0], normals[P, 1], normals[P, 2] = n0, n1, n2
+            is_l[P] = end_i and end_j
+            mid_t = 0.5 * (min(t_lo[i], t_lo[j]) + max(t_hi[i], t_hi[j]))
+            win_lo[P] = mid_t - 0.5 * p.max_span_s
+            win_hi[P] = mid_t + 0.5 * p.max_span_s
+            P += 1
+    return _Seeds(iu[:P], ju[:P], normals[:P], is_l[:P], win_lo[:P], win_hi[:P])
+
+
+@numba.njit(cache=True)
+def _in_window(tr, seeds, p, s, t):  # pragma: no cover - compiled
+    """Trace ``t`` lies in seed ``s``'s time window (always, without windows)."""
+    if not np.isfinite(p.max_span_s):
+        return True
+    return tr.t_lo[t] >= seeds.win_lo[s] and tr.t_hi[t] <= seeds.win_hi[s]
+
+
+@numba.njit(cache=True)
+def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
+    """(P, T) bool: trace t fits seed s's plane (through the midpoint of its pair's
+    centroids, :func:`_fits`) and lies in its time window."""
+    P, T = seeds.i.shape[0], tr.ring.shape[0]
+    member = np.zeros((P, T), dtype=np.bool_)
+    for s in range(P):
+        n = seeds.normal[s]
+        i, j = seeds.i[s], seeds.j[s]
+        d = 0.0
+        for u in range(3):
+            d -= 0.5 * n[u] * (tr.centroid[i, u] + tr.centroid[j, u])
+        for t in range(T):
+            if big[t] and _in_window(tr, seeds, p, s, t):
+                member[s, t] = _fits(tr, count, t, n, d, p.tol_m)
+    return member
+
+
+@numba.njit(cache=True)
+def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - compiled
+    """Step 2 for seed ``s`` from its initial ``members`` (T,) bool: refit and re-collect
+    the available traces in its window (at most three times), keep the piece connected
+    to the seed. Returns the members and their plane's RMS residual (m) and point count."""
+    T = tr.ring.shape[0]
+    in_window = available.copy()
+    for t in range(T):
+        in_window[t] = in_window[t] and _in_window(tr, seeds, p, s, t)
+    for _ in range(3):
+        n, d, rms, total = _plane_of(members, count, tr.centroid, tr.scatter)
+        new = np.zeros(T, dtype=np.bool_)
+        n_new = 0
+        same = True
+        for t in range(T):
+            new[t] = in_window[t] and _fits(tr, count, t, n, d, p.tol_m)
+            n_new += new[t]
+            same = same and new[t] == members[t]
+        if same or n_new < 2:
+            break
+        members = new
+    if np.isfinite(p.gap_m):  # only the piece of the plane that holds the seed
+        members = _connected_piece(
+            members, seeds.i[s], tr.centroid, tr.direction, tr.lo, tr.hi, p.gap_m, p.gap_ratio
+        )
+    n, d, rms, total = _plane_of(members, count, tr.centroid, tr.scatter)
+    return members, rms, total
+
+
+@numba.njit(cache=True)
+def _grow_kernel(tr, p):  # pragma: no cover - compiled
+    """Seeds, membership and greedy growth (module docstring). Returns the group of
+    every trace (-1: none), the number of groups and of rejected seeds."""
+    T = tr.ring.shape[0]
+    count = tr.count.astype(np.float64)
+    big = tr.count >= p.min_trace_points
+    seeds = _seed_pairs(tr, p, count, big & (tr.dir_err <= p.max_seed_err_rad))
+    P = seeds.i.shape[0]
+    iu, ju = seeds.i, seeds.j
+    group = np.full(T, -1, dtype=np.int64)
+    if P == 0:
+        return group, 0, 0
+    member = _membership(tr, p, count, big, seeds)
+    weight_sum = count.sum()
+    # L seeds come last: the traces of a wall that meets another at a corner are taken
+    # by the walls' own crossing pairs first, and the L dies with them. An L that is
+    # left is two traces of one wall meeting at its edge (or an unresolved corner).
+    tier = np.empty(P)
+    scores = np.empty(P)
+    for s in range(P):
+        tier[s] = 0.0 if seeds.is_l[s] else 2.0 * weight_sum + 1.0
+        sc = 0.0
+        for t in range(T):
+            if member[s, t]:
+                sc += count[t]
+        scores[s] = sc + tier[s]
+    alive = np.ones(P, dtype=np.bool_)
+    available = big.copy()
+    n_groups = 0
+    rejected = 0
+    while True:
+        best = -1
+        best_score = -np.inf
+        for s in range(P):  # the first maximum, as np.argmax
+            sc = scores[s] if alive[s] else -1.0
+            if sc > best_score:
+                best_score = sc
+                best = s
+        s = best
+        if best_score < 0:  # no seed left
+            break
+        alive[s] = False
+        if best_score - tier[s] < p.min_points:
+            # Scores only fall: this seed never gathers enough points. Not a stop: an L
+            # seed (lower tier) may still hold a plane.
+            continue
+        members = member[s] & available
+        members[iu[s]] = True
+        members[ju[s]] = True
+        members, rms, total = _grow(tr, p, count, seeds, s, members, available)
+        if not (members[iu[s]] and members[ju[s]]) or total < p.min_points or rms > p.max_rms_m:
+            rejected += 1
+            # Seeds that both fall in this rejected set would grow into it again.
+            for q in range(P):
+                if members[iu[q]] and members[ju[q]]:
+                    alive[q] = False
+            continue
+        for t in range(T):
+            if members[t]:
+                group[t] = n_groups
+                available[t] = False
+                for q in range(P):
+                    if member[q, t]:
+                        scores[q] -= count[t]
+        n_groups += 1
+        for q in range(P):
+            alive[q] = alive[q] and available[iu[q]] and available[ju[q]]
+    return group, n_groups, rejected

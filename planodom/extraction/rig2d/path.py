@@ -1,0 +1,84 @@
+"""The 2D-rig path: scan lines to segments, traces, groups, fits and planes.
+
+1. split the scan lines into straight segments (:mod:`.segments`, :mod:`.scanlines`);
+2. merge each scanner's segments over its sweeps into traces and group traces of
+   different scanners into planes (:mod:`.traces`, :mod:`.grouping`);
+3. refit every group robustly on its points (:mod:`.groupfit`);
+4. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
+
+Without a twist on a moving epoch, all of this works in time windows (:mod:`.windows`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planodom.config import ExtractionConfig
+from planodom.extraction.epoch import Epoch, PathResult
+from planodom.extraction.noise import member_tolerance, rms_limit
+from planodom.extraction.planes.builder import PlaneFits, build_planes
+from planodom.extraction.rig2d import windows
+from planodom.extraction.rig2d.groupfit import fit_groups
+from planodom.extraction.rig2d.grouping import GroupingParams, group_segments
+from planodom.extraction.rig2d.segments import Segments, split_scan_lines
+
+
+def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
+    """The planes of a 2D-rig epoch (module docstring)."""
+    scan = epoch.scan
+    segs, sigma = split_scan_lines(epoch.points, scan.ring, scan.t, config)
+    tol, max_rms = member_tolerance(config, sigma), rms_limit(config, sigma)
+    seed_floor = config.tolerance_floor_m
+    tw = config.time_windows
+    windowed = windows.is_windowed(scan, epoch.twist, tw)
+    seg_times, span = None, np.inf
+    if windowed:
+        seg_times, span = windows.segment_times(scan, segs), tw.span_s
+        tol, max_rms, seed_floor = windows.windowed_tolerances(tol, max_rms, seed_floor, tw)
+    params = GroupingParams(
+        tol_m=float(tol),
+        sigma_m=float(sigma),
+        sin_min_cross=float(np.sin(np.radians(config.min_cross_angle_deg))),
+        max_seed_err_rad=float(np.radians(config.max_seed_direction_error_deg)),
+        min_points=float(config.min_plane_points),
+        max_rms_m=float(max_rms),
+        min_trace_points=int(config.min_segment_points),
+        seed_floor_m=float(seed_floor),
+        gap_m=float(config.plane_gap_m),
+        gap_ratio=float(config.gap_range_ratio),
+        max_span_s=float(span),
+    )
+    groups, n_lost = group_segments(
+        segs, params, config.trace_parallel_deg, config.trace_step_m, seg_times
+    )
+    if not groups:
+        return PathResult([], [], sigma, len(segs), 0, n_lost)
+    fits = _group_fits(segs, groups, epoch, config)
+    adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw) if windowed else None
+    planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
+    return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)
+
+
+def _group_fits(
+    segs: Segments, groups: list[np.ndarray], epoch: Epoch, config: ExtractionConfig
+) -> PlaneFits:
+    """The robust refits of the groups (:func:`.groupfit.fit_groups`) as builder input;
+    the incidence is computed in the refit when the viewpoint is the same for all (no
+    sensor origins)."""
+    view0 = np.array([0.0, 0.0, config.viewpoint_height_m])
+    no_origins = epoch.origins is None
+    fits = fit_groups(segs, groups, config.inlier_sigma_factor, view0 if no_origins else None)
+    evals = fits.evals[:, ::-1]  # descending: l1, l2, l3
+    evecs = fits.evecs[:, :, ::-1]  # columns e1, e2, n
+    offsets = -np.einsum("gi,gi->g", evecs[:, :, 2], fits.centroid)
+    return PlaneFits(
+        count=fits.count,
+        centroid=fits.centroid,
+        offset=offsets,
+        evals=evals,
+        evecs=evecs,
+        inliers=segs.order[fits.inliers],
+        bounds=fits.bounds,
+        outline=fits.is_end,
+        incidence=fits.incidence if no_origins else None,
+    )

@@ -1,0 +1,148 @@
+"""The 2D-rig path without a twist: time windows (the odometry's first epochs).
+
+Without a twist each point is in the base frame of its own time, so traces of successive
+sweeps are displaced by the motion between them. When the scan's times spread over more
+than ``time_windows.span_s`` (:func:`is_windowed`), the 2D-rig path only combines points
+acquired within one window of that span (about one sweep,
+:class:`planodom.config.extraction.TimeWindowConfig`):
+
+- segments merge into a trace only within one sweep and window (:mod:`.traces`);
+- two traces seed a plane only when their times lie within the span, a trace joins a
+  seed's plane only inside the seed's window, L-shaped seeds are not used
+  (:mod:`.grouping`);
+- the tolerances grow by the motion within a window (:func:`windowed_tolerances`);
+- each wall then gives a plane per window: one is kept (:func:`drop_repeats`), its (n, d)
+  extrapolated to the reference time, and only when it was found in ``min_windows``
+  windows.
+
+Everything specific to this case is here; the other modules only see a finite
+``max_span_s`` and the segment times.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planodom.config.extraction import TimeWindowConfig
+from planodom.extraction.planes.builder import Adjust, PlaneFits
+from planodom.extraction.rig2d.segments import Segments
+from planodom.scan import Scan
+
+
+def is_windowed(scan: Scan, twist: np.ndarray | None, windows: TimeWindowConfig) -> bool:
+    """True when the 2D-rig path must work in time windows: no twist, and the scan's
+    times spread over more than ``windows.span_s``."""
+    if twist is not None or scan.t is None or len(scan.t) == 0:
+        return False
+    return float(np.ptp(scan.t)) > windows.span_s
+
+
+def segment_times(scan: Scan, segs: Segments) -> tuple[np.ndarray, np.ndarray]:
+    """First and last acquisition time (s) of every segment, (S,) each."""
+    tt = scan.t[segs.order]
+    return tt[segs.starts], tt[segs.ends - 1]
+
+
+def windowed_tolerances(
+    tol_m: float, max_rms_m: float, seed_floor_m: float, windows: TimeWindowConfig
+) -> tuple[float, float, float]:
+    """The member tolerance, RMS limit and seed floor (m) widened by the motion within a
+    window: ``motion_m`` on the tolerance and the floor, half of it on the RMS limit."""
+    motion = windows.motion_m
+    return tol_m + motion, max_rms_m + 0.5 * motion, seed_floor_m + motion
+
+
+def keep_one_per_wall(
+    fits: PlaneFits, points: np.ndarray, scan: Scan, tol_m: float, windows: TimeWindowConfig
+) -> Adjust:
+    """The builder's ``adjust`` step (:func:`planodom.extraction.planes.builder.build_planes`)
+    for time windows: :func:`drop_repeats` on the kept planes, with each plane's mean
+    inlier time and support radius (the farthest outline point from its centroid: the
+    polygon's vertices are among them). ``points`` (N, 3) m: the scan's points."""
+
+    def adjust(kept: np.ndarray, n_or: np.ndarray, d_or: np.ndarray) -> np.ndarray:
+        G = len(fits)
+        cnt = np.maximum(fits.count, 1).astype(np.float64)
+        tm = np.add.reduceat(scan.t[fits.inliers], fits.bounds[:-1]) / cnt
+        gid = np.repeat(np.arange(G), np.diff(fits.bounds))[fits.outline]
+        r_end = np.linalg.norm(points[fits.inliers[fits.outline]] - fits.centroid[gid], axis=1)
+        rad = np.zeros(G)
+        np.maximum.at(rad, gid, r_end)
+        sel, n_k, d_k = drop_repeats(
+            n_or[kept], d_or[kept], fits.centroid[kept], rad[kept], tm[kept], tol_m, windows
+        )
+        kept = kept[sel]
+        n_or[kept], d_or[kept] = n_k, d_k
+        return kept
+
+    return adjust
+
+
+def drop_repeats(
+    n: np.ndarray,
+    d: np.ndarray,
+    cen: np.ndarray,
+    rad: np.ndarray,
+    tm: np.ndarray,
+    tol_m: float,
+    windows: TimeWindowConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Keep one plane per wall among planes fit in different time windows (no deskew).
+
+    Planes are visited by the mean time of their inliers, earliest first (closest to the
+    reference time, so least displaced by the motion); a plane is dropped when a kept one
+    has its normal within ``repeat_deg`` (either sign), its offset within
+    ``tol_m + max_unskewed_speed_m_s * dt`` (dt: the difference of their mean times) and
+    supports that overlap (bounding circles about the centroids, grown by the same
+    allowance). A plane found in fewer than ``min_windows`` windows is dropped.
+    The (n, d) of a kept plane are extrapolated to the reference time t = 0 from its
+    repeats: a straight-line fit of each normal component and of the offset against the
+    windows' mean times (constant velocity), normal renormalised and oriented as before.
+
+    Args:
+        n: (P, 3) oriented unit normals. d: (P,) offsets (m). cen: (P, 3) support centroids
+        (m). rad: (P,) support radii about them (m). tm: (P,) mean inlier times (s).
+
+    Returns:
+        Indices (K,) of the kept planes (ascending), their normals (K, 3) and offsets (K,).
+    """
+    P = len(n)
+    if P < 2:
+        keep = np.arange(P) if windows.min_windows <= 1 else np.zeros(0, np.int64)
+        return keep, n[keep], d[keep]
+    order = np.argsort(tm, kind="stable")
+    cos_tol = np.cos(np.radians(windows.repeat_deg))
+    c = n @ n.T
+    sgn = np.where(c < 0, -1.0, 1.0)
+    allow = tol_m + windows.speed_m_s * np.abs(tm[:, None] - tm[None, :])
+    same = (np.abs(c) >= cos_tol) & (np.abs(sgn * d[:, None] - d[None, :]) <= allow)
+    dist = np.linalg.norm(cen[:, None] - cen[None, :], axis=2)
+    same &= dist <= rad[:, None] + rad[None, :] + allow
+    np.fill_diagonal(same, False)
+    seen = same.sum(axis=1)
+    kept: list[int] = []
+    for i in order:
+        if seen[i] + 1 < windows.min_windows:
+            continue
+        if not (kept and np.any(same[i, kept])):
+            kept.append(int(i))
+    kept.sort()
+    keep = np.array(kept, dtype=np.int64)
+    n_out, d_out = n[keep].copy(), d[keep].copy()
+    for k, i in enumerate(keep):
+        idx = np.concatenate([[i], np.flatnonzero(same[i])])
+        t = tm[idx]
+        if len(idx) < 2 or np.ptp(t) <= 0:
+            continue
+        # Least-squares line y = a + b t per component; a is the value at t = 0.
+        y = sgn[i, idx][:, None] * np.column_stack([n[idx], d[idx]])  # (K, 4)
+        tc = t - t.mean()
+        slope = tc @ (y - y.mean(axis=0)) / (tc @ tc)
+        at0 = y.mean(axis=0) - slope * t.mean()
+        norm = float(np.linalg.norm(at0[:3]))
+        if not norm > 0:
+            continue
+        s = 1.0 if at0[:3] @ n[i] >= 0 else -1.0  # the plane's own orientation
+        n_out[k] = s * at0[:3] / norm
+        d_out[k] = s * at0[3] / norm
+    return keep, n_out, d_out
