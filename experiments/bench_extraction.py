@@ -22,8 +22,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from planodom.config import ExtractionConfig  # noqa: E402
-from planodom.extraction import extract, se3_log  # noqa: E402
-from planodom.geometry import invert_transform  # noqa: E402
+from planodom.extraction import extract  # noqa: E402
+from planodom.geometry import invert_transform, se3_log  # noqa: E402
 from planodom.simulation import simulate_named  # noqa: E402
 
 

@@ -19,7 +19,7 @@ twist from ground truth (``log(T_k^-1 T_k+1) * rate``, the best constant twist o
 epoch; the loop's sway makes it inexact), and, on a constant-twist trajectory, with the
 true twist (exact). The 2D rig's noisy rows are also run without a twist ("no-deskew":
 the odometry's first epochs), where the extractor works in time windows
-(``ExtractionConfig.max_unskewed_span_s``).
+(``ExtractionConfig.time_windows``).
 
     uv run python experiments/extraction_quality.py            # full table (~1 min)
     uv run python experiments/extraction_quality.py --epochs 40 --lidar-epochs 10
@@ -38,8 +38,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from planodom.config import ExtractionConfig  # noqa: E402
-from planodom.extraction import extract, se3_log  # noqa: E402
-from planodom.geometry import invert_transform, transform_planes  # noqa: E402
+from planodom.extraction import extract  # noqa: E402
+from planodom.geometry import invert_transform, se3_log, transform_planes  # noqa: E402
 from planodom.simulation import (  # noqa: E402
     TwistTrajectory,
     epoch_observability,

@@ -14,22 +14,21 @@ import numpy as np
 import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
-from synth_scans import default_scene, planes_in_base, rect, scan_lidar
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract
-from planodom.extraction.lidar import lidar_candidates, ring_noise
-from planodom.extraction.rangeimage import (
-    _fill_grid,
-    _grow_pieces,
-    _near_pairs,
-    _pixel_normals,
+from planodom.extraction.lidar.candidates import lidar_candidates, ring_noise
+from planodom.extraction.lidar.grid import (
+    fill_grid,
     grid_indices,
+    near_pairs,
     ring_order,
     ring_rows,
 )
-from planodom.extraction.ransac import sample_triples, segment_plane
-from planodom.extraction.segments import estimate_line_noise
+from planodom.extraction.lidar.rangeimage import _grow_pieces, _pixel_normals
+from planodom.extraction.lidar.ransac import sample_triples, segment_plane
+
+from .synth_scans import default_scene, planes_in_base, rect, scan_lidar
 
 SCENE = default_scene()
 TRUTH = planes_in_base(SCENE)
@@ -92,7 +91,7 @@ def test_range_image_matches_truth_with_noise_and_dropouts():
         n, d = TRUTH[p.truth_id]
         assert np.linalg.norm(np.cross(p.normal, n)) < 5 * np.sqrt(np.trace(p.covariance[:3, :3]))
         assert abs(p.offset - d) < 5 * np.sqrt(p.covariance[3, 3]) + 1e-3
-    ransac = extract(scan, cfg.model_copy(update={"range_image": False}))
+    ransac = extract(scan, ExtractionConfig(range_noise_m=0.02, range_image=False))
     assert {p.truth_id for p in ransac.planes if p.support.n_points > 500} == set(TRUTH)
 
 
@@ -103,8 +102,8 @@ def _grid(sigma: float, seed: int, n_beams: int = 16, n_azimuth: int = 256):
     """A noisy ringed scan with 5 % no-returns on its range-image grid: P (H, W, 3)."""
     scan = scan_lidar(SCENE, sigma=sigma, n_beams=n_beams, n_azimuth=n_azimuth, seed=seed)
     scan = scan.subset(np.random.default_rng(seed).random(len(scan)) > 0.05)
-    row, col, H, W = grid_indices(scan.points, scan.ring, scan.t, np.zeros(3), False)
-    return _fill_grid(scan.points, row * W + col, H * W).reshape(H, W, 3)
+    row, col, H, W = grid_indices(scan.ring, scan.t)
+    return fill_grid(scan.points, row * W + col, H * W).reshape(H, W, 3)
 
 
 def _normals_reference(P, K, sigma, tol, ks):
@@ -206,8 +205,30 @@ def test_near_pairs_match_shifted_grids():
         label = np.ascontiguousarray(label, dtype=np.int64)
         gap = int(rng.integers(1, 2 * label.shape[1] + 2))  # also wider than the grid
         np.testing.assert_array_equal(
-            np.unique(_near_pairs(label, C, gap)), _pairs_reference(label, C, gap)
+            np.unique(near_pairs(label, C, gap)), _pairs_reference(label, C, gap)
         )
+
+
+def estimate_line_noise(points: np.ndarray, run_start: np.ndarray) -> float:
+    """Independent numpy reference of the noise across scan lines: for points
+    ``p[i-1], p[i], p[i+1]`` of a straight run the second difference has, across the
+    line, standard deviation ``sqrt(6) sigma``; its component across ``p[i+2] - p[i-2]``
+    at every point whose four neighbours lie in its run, ``median(|.|) / (0.6745 sqrt(6))``.
+    """
+    m = len(points)
+    if m < 15:
+        return 0.0
+    run_id = np.cumsum(run_start)
+    ok = run_id[4:] == run_id[:-4]
+    pm1, p0, pp1 = points[1:-3], points[2:-2], points[3:-1]
+    direction = points[4:] - points[:-4]
+    norm = np.linalg.norm(direction, axis=1)
+    good = ok & (norm > 0)
+    if np.count_nonzero(good) < 10:
+        return 0.0
+    sec = (pm1 - 2.0 * p0 + pp1)[good]
+    across = np.linalg.norm(np.cross(sec, direction[good]), axis=1) / norm[good]
+    return float(np.median(across) / (0.6745 * np.sqrt(6.0)))
 
 
 def test_ring_noise_matches_estimate_line_noise():
@@ -240,7 +261,7 @@ sys.path.insert(0, {tests!r})
 from synth_scans import default_scene, scan_lidar
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract
-from planodom.extraction.ransac import segment_plane
+from planodom.extraction.lidar.ransac import segment_plane
 scan = scan_lidar(default_scene(), sigma=0.02, n_azimuth=512, seed=5, with_ring=False)
 res = extract(scan, ExtractionConfig(range_noise_m=0.02))
 raw = segment_plane(scan.points, 0.06, 300, 0.999, np.random.default_rng(0))
@@ -307,7 +328,7 @@ def test_ransac_fallback_same_seed_same_candidates_other_seed_same_walls():
     assert sa == sb and len(a) == len(b)
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x, y)
-    other = extract(scan, cfg.model_copy(update={"seed": 7}))
+    other = extract(scan, ExtractionConfig(range_noise_m=0.006, seed=7))
     assert {p.truth_id for p in other.planes if p.support.n_points > 1000} == set(TRUTH)
 
 

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from planodom.extraction.confidence import cpef
-from planodom.extraction.fitting import PlaneFit, robust_plane_fit, tls_covariance, tls_fit
+from planodom.extraction.planes.builder import orientation_sign
+from planodom.extraction.planes.confidence import cpef, mean_incidence
+from planodom.extraction.planes.fit import robust_plane_fit, tls_covariance, tls_fit
 
 
 def _patch(n_pts: int, rng) -> tuple[np.ndarray, np.ndarray, float]:
@@ -35,8 +37,7 @@ def test_covariance_matches_monte_carlo():
     pred = np.zeros((4, 4))
     for k in range(0, trials, 20):
         cc, ev, V = tls_fit(noisy[k])
-        fit = PlaneFit(np.arange(n_pts), V[:, 2], float(-V[:, 2] @ cc), cc, ev, V)
-        pred += tls_covariance(fit, 0.0)
+        pred += tls_covariance(ev[None], V[None], cc[None], np.array([n_pts]), 0.0)[0]
     pred /= len(range(0, trials, 20))
     assert np.linalg.norm(pred - sample) / np.linalg.norm(sample) < 0.1
     np.testing.assert_allclose(np.diag(pred), np.diag(sample), rtol=0.12)
@@ -48,19 +49,34 @@ def test_covariance_is_floored_for_exact_data():
     rng = np.random.default_rng(1)
     pts, _, _ = _patch(30, rng)
     fit = robust_plane_fit(pts, 3.5)
-    cov = tls_covariance(fit, 1e-4)
+    n = np.array([len(fit.inliers)])
+    cov = tls_covariance(fit.evals[None], fit.evecs[None], fit.centroid[None], n, 1e-4)[0]
     assert np.all(np.isfinite(cov)) and np.linalg.matrix_rank(cov, tol=1e-20) == 3
 
 
 def test_cpef_factors():
     rng = np.random.default_rng(2)
     pts, n, _ = _patch(200, rng)
-    view = np.zeros(3)
-    base = dict(normal=n, points=pts, viewpoint=view, points_ref=50.0, width_ref_m=1.0)
-    w = cpef(0.006, 0.006, 200, 1.0, **base)
-    assert 0 < w <= 1
-    assert cpef(0.03, 0.006, 200, 1.0, **base) < w  # larger residual
-    assert cpef(0.006, 0.006, 20, 1.0, **base) < w  # fewer points
-    assert cpef(0.006, 0.006, 200, 0.1, **base) < w  # thinner
-    grazing = dict(base, viewpoint=pts.mean(axis=0) + 50 * np.cross(n, [0, 0, 1.0]))
-    assert cpef(0.006, 0.006, 200, 1.0, **grazing) < w  # grazing incidence
+    inc = mean_incidence(pts, np.zeros(3), n)
+    grazing = mean_incidence(pts, pts.mean(axis=0) + 50 * np.cross(n, [0, 0, 1.0]), n)
+    # Rows: reference, larger residual, fewer points, thinner, grazing incidence.
+    w = cpef(
+        np.array([0.006, 0.03, 0.006, 0.006, 0.006]), 0.006, np.array([200, 200, 20, 200, 200]),
+        np.array([1.0, 1.0, 1.0, 0.1, 1.0]), np.array([inc, inc, inc, inc, grazing]), 50.0, 1.0,
+    )  # fmt: skip
+    assert 0 < w[0] <= 1
+    assert np.all(w[1:] < w[0])
+    # The closed form of the reference row (module docstring of planes.confidence).
+    expected = np.exp(-0.25) * (1 - np.exp(-4.0)) * (1 - np.exp(-1.0)) * inc
+    assert w[0] == pytest.approx(expected, rel=1e-12)
+
+
+def test_orientation_sign_faces_the_viewpoint_or_up():
+    normals = np.array([[1.0, 0, 0], [1.0, 0, 0], [0, 0, -1.0], [1.0, 0, 0]])
+    offsets = np.array([-5.0, -5.0, 0.0, -5.0])  # x = 5, x = 5, z = 0, x = 5
+    centroids = np.array([[5.0, 0, 0], [5.0, 0, 0], [3.0, 0, 0], [5.0, 2, 0]])
+    views = np.array([[0.0, 0, 1], [9.0, 0, 1], [0.0, 0, 0], [5.0, 0, 1]])
+    # Seen from x = 0 (behind the normal) and x = 9 (in front); on the plane: up for the
+    # ground, towards the base origin's side of the centroid for a wall.
+    s = orientation_sign(normals, offsets, centroids, views)
+    np.testing.assert_array_equal(s, [-1.0, 1.0, -1.0, -1.0])

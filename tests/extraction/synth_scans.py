@@ -11,10 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from planodom.extraction.deskew import se3_exp
-from planodom.geometry import transform_from_rpy_xyz
+from planodom.geometry import se3_exp, transform_from_rpy_xyz
 from planodom.scan import Scan
 
 
@@ -90,11 +88,17 @@ def default_rig() -> list[np.ndarray]:
     return out
 
 
-def _poses(times: np.ndarray, twist: np.ndarray | None):
-    """Rotations and translations of T_ref_t = exp(t xi) for every time."""
+def _poses(times: np.ndarray, twist: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Rotations (N, 3, 3) and translations (N, 3) of T_ref_t = exp(t xi) for every time."""
     if twist is None:
-        return Rotation.identity(len(times)), np.zeros((len(times), 3))
-    return se3_exp(twist, times)
+        return np.tile(np.eye(3), (len(times), 1, 1)), np.zeros((len(times), 3))
+    T = se3_exp(np.asarray(times, dtype=np.float64)[:, None] * np.asarray(twist)[None])
+    return T[:, :3, :3], T[:, :3, 3]
+
+
+def _rotate(rot: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``rot[i] @ v[i]`` for rotations (N, 3, 3) and vectors (N, 3) (or (3,) for all)."""
+    return np.einsum("nij,nj->ni", rot, np.broadcast_to(v, (len(rot), 3)))
 
 
 def scan_rig(
@@ -124,8 +128,8 @@ def scan_rig(
         d_base = np.tile(beam @ T_bs[:3, :3].T, (n_sweeps, 1))
         o_base = np.broadcast_to(T_bs[:3, 3], d_base.shape).copy()
         rot, trans = _poses(t, twist)
-        o_world = rot.apply(o_base) + trans
-        d_world = rot.apply(d_base)
+        o_world = _rotate(rot, o_base) + trans
+        d_world = _rotate(rot, d_base)
         r, ids = cast(rects, o_world, d_world)
         r = r + sigma * rng.standard_normal(len(r))
         ok = np.isfinite(r) & (r > 0)
@@ -161,7 +165,7 @@ def scan_lidar(
     ring = np.tile(np.arange(n_beams), n_azimuth)
     o_base = np.broadcast_to([0.0, 0.0, height], d_base.shape).copy()
     rot, trans = _poses(t, twist)
-    r, ids = cast(rects, rot.apply(o_base) + trans, rot.apply(d_base))
+    r, ids = cast(rects, _rotate(rot, o_base) + trans, _rotate(rot, d_base))
     r = r + sigma * rng.standard_normal(len(r))
     ok = np.isfinite(r) & (r > 0)
     pts = o_base[ok] + r[ok, None] * d_base[ok]

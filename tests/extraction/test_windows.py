@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from planodom.config import ExtractionConfig
-from planodom.extraction import extract, se3_log
-from planodom.geometry import invert_transform, transform_planes
+from planodom.extraction import extract
+from planodom.geometry import invert_transform, se3_log, transform_planes
 from planodom.simulation import simulate_named
 
 SIGMA = 0.006
@@ -60,7 +60,7 @@ def test_snapshot_and_deskewed_scans_are_not_windowed():
     )
     cfg = ExtractionConfig(range_noise_m=0.002)
     # All times are 0: one window; a huge span disables windows on moving scans too.
-    wide = ExtractionConfig(range_noise_m=0.002, max_unskewed_span_s=1.0)
+    wide = ExtractionConfig(range_noise_m=0.002, time_windows={"span_s": 1.0})
     for scan in run.scans:
         a, b = extract(scan, cfg), extract(scan, wide)
         assert [len(i) for i in a.inliers] == [len(i) for i in b.inliers]

@@ -1,28 +1,21 @@
-"""Trace merging over sweeps, the fast deskew, the support polygon (2D-rig path)."""
+"""Trace merging over sweeps, segment trimming, the support polygon (2D-rig path)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
-from synth_scans import default_scene, rect, scan_rig
 
 from planodom.config import ExtractionConfig
-from planodom.extraction import deskew_points, extract_planes, se3_exp
-from planodom.extraction.fitting import majority_label, robust_plane_fit, support_polygon
-from planodom.extraction.grouping import build_traces
-from planodom.extraction.segments import split_scan_lines
+from planodom.extraction import deskew_points, extract_planes
+from planodom.extraction.planes.fit import robust_plane_fit
+from planodom.extraction.planes.support import majority_label, support_polygon
+from planodom.extraction.rig2d.segments import segment_features, split_scan_lines
+from planodom.extraction.rig2d.traces import build_traces
+
+from .synth_scans import default_scene, rect, scan_rig
 
 XI = np.array([0.05, -0.04, 0.6, 3.0, 0.4, 0.1])
-
-
-@pytest.mark.parametrize("scale", [1.0, 1e-6, 0.0])
-def test_fast_deskew_matches_se3_exp(scale):
-    rng = np.random.default_rng(3)
-    p = rng.uniform(-60, 60, (500, 3))
-    t = rng.uniform(-0.1, 0.2, 500)
-    rot, trans = se3_exp(XI * scale, t)
-    np.testing.assert_allclose(deskew_points(p, t, XI * scale), rot.apply(p) + trans, atol=1e-12)
 
 
 @pytest.mark.parametrize("sigma", [0.0, 0.006])
@@ -39,11 +32,11 @@ def test_traces_are_one_per_ring_and_wall(sigma):
             for a, b in zip(segs.starts, segs.ends, strict=True)
         ]
     )
-    pure = [len(set(lab[tr.label == k])) == 1 for k in range(len(tr))]
+    pure = [len(set(lab[tr.label == k])) == 1 for k in range(len(tr.ring))]
     assert all(pure)
     # Collinear pieces of one trace may stay apart (a gap), but not more than a few.
-    assert len(tr) <= len(set(zip(segs.ring, lab, strict=True))) + 2
-    assert len(tr) < len(segs) / 4
+    assert len(tr.ring) <= len(set(zip(segs.ring, lab, strict=True))) + 2
+    assert len(tr.ring) < len(segs) / 4
     assert tr.count[tr.count >= 3 * 3].sum() >= 0.99 * tr.count.sum()  # several sweeps each
 
 
@@ -75,7 +68,7 @@ def test_support_polygon_is_the_hull_up_to_sampling():
     uv = rng.uniform([-3, -1], [3, 1], (400, 2))
     pts = np.column_stack([uv, 0.5 * uv[:, 0] + 2.0])
     fit = robust_plane_fit(pts, 3.5)
-    poly = support_polygon(pts, fit)
+    poly = support_polygon(pts, fit.centroid, fit.evecs[:, :2])
     # Every vertex is an input point, on the plane.
     assert np.all(np.min(np.linalg.norm(pts[None] - poly[:, None], axis=2), axis=1) < 1e-12)
     # Convex, and its area is within 3 % of the exact hull's.
@@ -91,8 +84,6 @@ def test_support_polygon_is_the_hull_up_to_sampling():
 def test_segment_end_point_off_the_line_is_trimmed():
     # Ten points on a line, then a corner point 3 cm off it (tolerance 2 cm): the chord of
     # the split runs through it, so the segment's fit must drop it.
-    from planodom.extraction.segments import segment_features
-
     u = np.array([0.6, 0.8, 0.0])
     pts = np.array([[1.0, 2.0, 0.5]]) + np.arange(10)[:, None] * 0.1 * u
     corner = pts[-1] + 0.05 * u + np.array([0.0, 0.0, 0.03])

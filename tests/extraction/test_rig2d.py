@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from synth_scans import default_rig, default_scene, planes_in_base, rect, scan_rig
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract, extract_planes
 from planodom.geometry import transform_from_rpy_xyz
+
+from .synth_scans import default_rig, default_scene, planes_in_base, rect, scan_rig
 
 SCENE = default_scene()
 TRUTH = planes_in_base(SCENE)

@@ -1,15 +1,18 @@
-"""Degenerate and malformed input: no planes, or GeometryError / ConfigError, never a crash."""
+"""Degenerate and malformed input: no planes, a GeometryError or a config that does not
+load, never a crash."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from synth_scans import default_scene, scan_rig
+from pydantic import ValidationError
 
 from planodom.config import ExtractionConfig
-from planodom.errors import ConfigError, GeometryError
+from planodom.errors import GeometryError
 from planodom.extraction import extract, extract_planes
 from planodom.scan import Scan
+
+from .synth_scans import default_scene, scan_rig
 
 
 @pytest.mark.parametrize("n", [0, 1, 2])
@@ -69,7 +72,7 @@ def test_bad_sensor_origins_raise(origins):
 
 
 def test_bad_mode():
-    with pytest.raises(ConfigError, match="mode"):
-        extract(scan_rig(default_scene()), ExtractionConfig(mode="magic"))
+    with pytest.raises(ValidationError, match="mode"):
+        ExtractionConfig(mode="magic")
     with pytest.raises(GeometryError, match="ring"):
         extract(Scan(np.zeros((10, 3))), ExtractionConfig(mode="rig2d"))
