@@ -26,6 +26,7 @@ in arithmetic.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -61,6 +62,18 @@ class GroupFits:
     is_end: np.ndarray
 
 
+class _SegmentMoments(NamedTuple):
+    """The segments as the compiled refit reads them: points (M, 3) m, starts, ends (S,)
+    int64, count (S,) float64, centroid (S, 3) m, scatter (S, 3, 3) m^2."""
+
+    points: np.ndarray
+    starts: np.ndarray
+    ends: np.ndarray
+    count: np.ndarray
+    centroid: np.ndarray
+    scatter: np.ndarray
+
+
 def fit_groups(
     segs: Segments,
     groups: list[np.ndarray],
@@ -79,25 +92,106 @@ def fit_groups(
     gb = np.zeros(len(groups) + 1, dtype=np.int64)
     np.cumsum(sizes, out=gb[1:])
     view = np.zeros(3) if viewpoint is None else np.asarray(viewpoint, dtype=np.float64)
-    out = _fit_groups_kernel(
+    seg = _SegmentMoments(
         segs.points, segs.starts, segs.ends, segs.count.astype(np.float64), segs.centroid,
-        segs.scatter, gseg, gb, float(k_sigma), view, viewpoint is not None,
+        segs.scatter,
     )  # fmt: skip
+    out = _fit_groups_kernel(seg, gseg, gb, float(k_sigma), view, viewpoint is not None)
     return GroupFits(*out)
 
 
 @numba.njit(cache=True)
-def _fit_groups_kernel(
-    points, starts, ends, seg_count, seg_centroid, seg_scatter, gseg, gb, k_sigma, view,
-    use_view,
-):  # fmt: skip  # pragma: no cover - compiled
+def _first_plane(seg, members):  # pragma: no cover - compiled
+    """Step 1: unit normal (3,) and offset (m) of the union of the segments ``members``
+    (K,) from their moments (parallel-axis theorem)."""
+    cnt = 0.0
+    c = np.zeros(3)
+    for s in members:
+        cnt += seg.count[s]
+        c += seg.count[s] * seg.centroid[s]
+    c /= max(cnt, 1e-300)
+    sc = np.zeros((3, 3))
+    for s in members:
+        dc = seg.centroid[s] - c
+        for u in range(3):
+            for v in range(3):
+                sc[u, v] += seg.scatter[s, u, v] + seg.count[s] * dc[u] * dc[v]
+    _, vecs = np.linalg.eigh(sc)
+    n = vecs[:, 0].copy()
+    return n, -(n @ c)
+
+
+@numba.njit(cache=True)
+def _robust_scale(seg, members, n, d):  # pragma: no cover - compiled
+    """Step 2: the median (the lower middle value for an even count) of the segments'
+    RMS distances (m) to the plane (n, d), from their moments."""
+    rms = np.empty(members.shape[0])
+    for k in range(members.shape[0]):
+        s = members[k]
+        off = seg.centroid[s] @ n + d
+        q = 0.0
+        for u in range(3):
+            for v in range(3):
+                q += n[u] * seg.scatter[s, u, v] * n[v]
+        rms[k] = np.sqrt(max(q / seg.count[s], 0.0) + off * off)
+    rms.sort()
+    return rms[(members.shape[0] - 1) // 2]
+
+
+@numba.njit(cache=True)
+def _select(seg, members, n, d, thr, inl, buf, start):  # pragma: no cover - compiled
+    """Step 3: write the points of the segments ``members`` within ``thr`` (m) of the
+    plane (n, d) to ``inl`` (their positions) and ``buf`` (the points) from ``start`` on;
+    returns the end."""
+    K = start
+    for s in members:
+        for i in range(seg.starts[s], seg.ends[s]):
+            p0, p1, p2 = seg.points[i, 0], seg.points[i, 1], seg.points[i, 2]
+            if abs(p0 * n[0] + p1 * n[1] + p2 * n[2] + d) <= thr:
+                inl[K] = i
+                buf[K] = seg.points[i]
+                K += 1
+    return K
+
+
+@numba.njit(cache=True)
+def _refit(seg, members, k_sigma, inl, buf, start):  # pragma: no cover - compiled
+    """Steps 1 to 4 for one group: the end K of its inliers in ``inl`` (from ``start``),
+    whether it was fit (3 inliers or more), its centroid (3,), eigenvalues (3,) and
+    eigenvectors (3, 3) of the scatter (ascending)."""
+    n, d = _first_plane(seg, members)
+    thr = max(k_sigma * _robust_scale(seg, members, n, d), 1e-7)
+    m = 0
+    c2 = np.zeros(3)
+    sc2 = np.empty((3, 3))
+    vals = np.zeros(3)
+    vecs2 = np.eye(3)
+    for it in range(MAX_REFITS + 1):
+        K = _select(seg, members, n, d, thr, inl, buf, start)
+        m_prev = m
+        m = K - start
+        if m < 3:
+            return start + m, False, c2, vals, vecs2
+        range_moments(buf, start, K, c2, sc2)
+        vals, vecs2 = np.linalg.eigh(sc2)
+        if it > 0 and m == m_prev:
+            break
+        n = vecs2[:, 0].copy()
+        d = -(n[0] * c2[0] + n[1] * c2[1] + n[2] * c2[2])
+        thr = max(k_sigma * np.sqrt(max(vals[0], 0.0) / m), 1e-7)
+    return start + m, True, c2, vals, vecs2
+
+
+@numba.njit(cache=True)
+def _fit_groups_kernel(seg, gseg, gb, k_sigma, view, use_view):  # pragma: no cover
+    """All groups (``gseg[gb[g]:gb[g + 1]]`` the segments of group g): the fields of
+    :class:`GroupFits`, in order."""
     G = gb.shape[0] - 1
     total = 0
     for k in range(gseg.shape[0]):
-        total += ends[gseg[k]] - starts[gseg[k]]
+        total += seg.ends[gseg[k]] - seg.starts[gseg[k]]
     inl = np.empty(total, dtype=np.int64)
     buf = np.empty((total, 3))  # the inlier points, contiguous for range_moments
-    sc2 = np.empty((3, 3))
     is_end = np.zeros(total, dtype=np.bool_)
     bounds = np.zeros(G + 1, dtype=np.int64)
     cnt_out = np.zeros(G, dtype=np.int64)
@@ -107,73 +201,13 @@ def _fit_groups_kernel(
     inc_out = np.ones(G)
     K = 0
     for g in range(G):
-        a, b = gb[g], gb[g + 1]
-        # 1. First plane from the segments' moments.
-        cnt = 0.0
-        c = np.zeros(3)
-        for k in range(a, b):
-            s = gseg[k]
-            cnt += seg_count[s]
-            c += seg_count[s] * seg_centroid[s]
-        c /= max(cnt, 1e-300)
-        sc = np.zeros((3, 3))
-        for k in range(a, b):
-            s = gseg[k]
-            dc = seg_centroid[s] - c
-            for u in range(3):
-                for v in range(3):
-                    sc[u, v] += seg_scatter[s, u, v] + seg_count[s] * dc[u] * dc[v]
-        _, vecs = np.linalg.eigh(sc)
-        n = vecs[:, 0].copy()
-        d = -(n @ c)
-        # 2. Robust scale: median of the segments' RMS distances to it.
-        rms = np.empty(b - a)
-        for k in range(a, b):
-            s = gseg[k]
-            off = seg_centroid[s] @ n + d
-            q = 0.0
-            for u in range(3):
-                for v in range(3):
-                    q += n[u] * seg_scatter[s, u, v] * n[v]
-            rms[k - a] = np.sqrt(max(q / seg_count[s], 0.0) + off * off)
-        rms.sort()
-        thr = max(k_sigma * rms[(b - a - 1) // 2], 1e-7)
-        # 3. Inliers, and 4. their two-pass moments; then again with the scale from
-        # the inliers' own fit (k_sigma times their RMS), until their count settles.
         start = K
         bounds[g] = start
-        m = 0
-        fitted = False
-        c2 = np.zeros(3)
-        vals = np.zeros(3)
-        vecs2 = np.eye(3)
-        for it in range(MAX_REFITS + 1):
-            K = start
-            for k in range(a, b):
-                s = gseg[k]
-                for i in range(starts[s], ends[s]):
-                    p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
-                    if abs(p0 * n[0] + p1 * n[1] + p2 * n[2] + d) <= thr:
-                        inl[K] = i
-                        buf[K] = points[i]
-                        K += 1
-            m_prev = m
-            m = K - start
-            if m < 3:
-                fitted = False
-                break
-            range_moments(buf, start, K, c2, sc2)
-            vals, vecs2 = np.linalg.eigh(sc2)
-            fitted = True
-            if it > 0 and m == m_prev:
-                break
-            n = vecs2[:, 0].copy()
-            d = -(n[0] * c2[0] + n[1] * c2[1] + n[2] * c2[2])
-            thr = max(k_sigma * np.sqrt(max(vals[0], 0.0) / m), 1e-7)
-        K = start + m
+        K, fitted, c2, vals, vecs2 = _refit(seg, gseg[gb[g] : gb[g + 1]], k_sigma, inl, buf, start)
+        m = K - start
         cnt_out[g] = m
+        bounds[g + 1] = K
         if not fitted:
-            bounds[g + 1] = K
             continue
         cen_out[g] = c2
         vals_out[g] = vals
@@ -182,17 +216,18 @@ def _fit_groups_kernel(
         if use_view:
             acc = 0.0
             n0, n1, n2 = vecs2[0, 0], vecs2[1, 0], vecs2[2, 0]
-            for j in range(bounds[g], K):
+            for j in range(start, K):
                 i = inl[j]
-                r0, r1, r2 = points[i, 0] - view[0], points[i, 1] - view[1], points[i, 2] - view[2]
+                r0 = seg.points[i, 0] - view[0]
+                r1 = seg.points[i, 1] - view[1]
+                r2 = seg.points[i, 2] - view[2]
                 r = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
                 acc += abs(r0 * n0 + r1 * n1 + r2 * n2) / max(r, 1e-300)
             inc_out[g] = acc / m
-        for j in range(bounds[g], K):
-            first = j == bounds[g] or inl[j] != inl[j - 1] + 1
+        for j in range(start, K):
+            first = j == start or inl[j] != inl[j - 1] + 1
             last = j == K - 1 or inl[j + 1] != inl[j] + 1
             is_end[j] = first or last
-        bounds[g + 1] = K
     return (
         cnt_out, cen_out, vals_out, vecs_out, inc_out, inl[:K].copy(), bounds,
         is_end[:K].copy(),

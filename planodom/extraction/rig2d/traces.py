@@ -59,6 +59,36 @@ class TraceSet(NamedTuple):
     t_hi: np.ndarray
 
 
+class _SegmentLines(NamedTuple):
+    """The segments as the compiled linking reads them (:class:`.segments.Segments`),
+    with their first and last times t0, t1 (S,) s and predicted direction errors err
+    (S,) rad."""
+
+    ring: np.ndarray
+    sweep: np.ndarray
+    count: np.ndarray
+    centroid: np.ndarray
+    scatter: np.ndarray
+    direction: np.ndarray
+    length: np.ndarray
+    end0: np.ndarray
+    end1: np.ndarray
+    t0: np.ndarray
+    t1: np.ndarray
+    err: np.ndarray
+
+
+class _LinkParams(NamedTuple):
+    """Linking thresholds: member tolerance (m), parallel angle (rad), step between
+    sweeps (m), longest time span (s; inf: no windows), segments searched after each."""
+
+    tol_m: float
+    parallel_rad: float
+    step_m: float
+    max_span_s: float
+    band: int
+
+
 def direction_error(sigma_m: float, count: np.ndarray, length: np.ndarray) -> np.ndarray:
     """Predicted 1-sigma direction error (rad) of a line fit to ``count`` points spread
     over ``length`` m with noise ``sigma_m``: ``sigma sqrt(12 / N) / length``."""
@@ -85,23 +115,28 @@ def build_traces(
     """
     S = len(segs)
     t0s, t1s = (np.zeros(S), np.zeros(S)) if seg_times is None else seg_times
-    label, ring, cnt, cen, sc, tdir, lo, hi, t_lo, t_hi = _traces_kernel(
+    lines = _SegmentLines(
         segs.ring, segs.sweep, segs.count, segs.centroid, segs.scatter, segs.direction,
         segs.length, segs.end0, segs.end1, np.asarray(t0s, dtype=np.float64),
-        np.asarray(t1s, dtype=np.float64), tol_m,
-        direction_error(sigma_m, segs.count, segs.length), np.radians(parallel_deg), step_m,
-        max_span_s, LINK_BAND,
+        np.asarray(t1s, dtype=np.float64), direction_error(sigma_m, segs.count, segs.length),
     )  # fmt: skip
+    link = _LinkParams(float(tol_m), float(np.radians(parallel_deg)), float(step_m),
+                       float(max_span_s), LINK_BAND)  # fmt: skip
+    label = _link_segments(lines, link)
+    ring, cnt, cen, sc, tdir, lo, hi, t_lo, t_hi = _trace_moments(lines, label)
     # Direction error of a trace: all its points over its length.
     err_t = direction_error(sigma_m, cnt, hi - lo)
     return TraceSet(label, ring, cnt, cen, sc, tdir, lo, hi, err_t, t_lo, t_hi)
 
 
 @numba.njit(cache=True)
-def _traces_kernel(
-    ring, sweep, count, centroid, scatter, direction, length, end0, end1, t0s, t1s,
-    tol_m, err, parallel_rad, step_m, max_span_s, band,
-):  # fmt: skip  # pragma: no cover - compiled
+def _link_segments(g, p):  # pragma: no cover - compiled
+    """The trace label (S,) of every segment of ``g`` (:class:`_SegmentLines`): linked
+    pairs (module docstring) under ``p`` (:class:`_LinkParams`), union-find components
+    numbered in the order of their first segment."""
+    ring, sweep, centroid, direction, length = g.ring, g.sweep, g.centroid, g.direction, g.length
+    t0s, t1s, err = g.t0, g.t1, g.err
+    tol_m, parallel_rad, step_m, max_span_s, band = p
     S = ring.shape[0]
     windowed = np.isfinite(max_span_s)
     parent = np.arange(S)
@@ -144,6 +179,22 @@ def _traces_kernel(
             root_label[r] = n_lab
             n_lab += 1
         label[i] = root_label[r]
+    return label
+
+
+@numba.njit(cache=True)
+def _trace_moments(g, label):  # pragma: no cover - compiled
+    """Per trace (``label`` (S,) of the segments of ``g``): ring, count, centroid,
+    centred scatter, unit direction (weighted mean), extent lo, hi along it and first and
+    last time (module docstring)."""
+    ring, count, centroid, scatter, direction, length = (
+        g.ring, g.count, g.centroid, g.scatter, g.direction, g.length
+    )  # fmt: skip
+    end0, end1, t0s, t1s = g.end0, g.end1, g.t0, g.t1
+    S = ring.shape[0]
+    n_lab = 0
+    for i in range(S):
+        n_lab = max(n_lab, label[i] + 1)
     cnt = np.zeros(n_lab)
     cen = np.zeros((n_lab, 3))
     for i in range(S):
@@ -198,4 +249,4 @@ def _traces_kernel(
     icnt = np.empty(n_lab, dtype=np.int64)
     for g in range(n_lab):
         icnt[g] = np.int64(cnt[g])
-    return label, t_ring, icnt, cen, sc, tdir, lo, hi, t_lo, t_hi
+    return t_ring, icnt, cen, sc, tdir, lo, hi, t_lo, t_hi
