@@ -130,7 +130,7 @@ class ExtractionConfig(Section):
     along the minor in-plane axis; thinner sets are lines, not planes."""
     max_normal_sigma_deg: float = Field(1.0, gt=0, le=180)
     """Planes whose normal is known only to worse than this are dropped (deg; the 1-sigma
-    error sqrt(trace Cov(n)) of the fit, :mod:`planodom.extraction.fitting`): narrow
+    error sqrt(trace Cov(n)) of the fit, :mod:`planodom.extraction.planes.fit`): narrow
     strips at high noise, whose offsets at a 10 m lever arm are off by ~0.2 m. Such a
     plane adds little to a rotation known to ~0.03 deg at 6 mm noise. Measured on the
     paper loop at 10 cm (every other epoch of a lap): it drops 36 % of the planes that
@@ -149,7 +149,7 @@ class ExtractionConfig(Section):
     """3D path: voxel size (m) of the cloud RANSAC runs on (inliers are refit at full
     resolution, so this sets speed and the smallest plane, not precision)."""
     ransac_iterations: int = Field(300, ge=1)
-    """3D path: most RANSAC iterations per plane (planodom.extraction.ransac)."""
+    """3D path: most RANSAC iterations per plane (planodom.extraction.lidar.ransac)."""
     ransac_probability: float = Field(0.999, gt=0, le=1)
     """3D path: RANSAC stops early once it has this probability of an all-inlier sample."""
     max_planes: int = Field(40, ge=1)
@@ -163,7 +163,7 @@ class ExtractionConfig(Section):
     the same planes in every run)."""
     range_image: bool = True
     """3D path with ``ring``: grow planes on the range image (ring x firing grid,
-    planodom.extraction.rangeimage) instead of the RANSAC loop; RANSAC is still used
+    planodom.extraction.lidar.rangeimage) instead of the RANSAC loop; RANSAC is still used
     without rings or when the pixel normals are too noisy (next field)."""
     region_max_normal_error_deg: float = Field(4.0, gt=0, le=90)
     """Range image: region growing only when the median predicted pixel-normal error

@@ -174,7 +174,7 @@ def extract_planes(
     Returns:
         Planes, largest support first. Each has a unit normal pointing towards the
         sensor, ``d`` (n . p + d = 0), a (4, 4) covariance of (n, d) (rank 3,
-        :mod:`planodom.extraction.fitting`), a CPEF confidence in (0, 1]
+        :mod:`planodom.extraction.planes.fit`), a CPEF confidence in (0, 1]
         (:mod:`planodom.extraction.planes.confidence`), support (centroid, convex polygon in the
         plane, point count) and ``truth_id`` (majority inlier label, -1 without labels).
         Empty input or fewer than 3 points give no planes.

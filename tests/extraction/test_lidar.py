@@ -107,7 +107,7 @@ def _grid(sigma: float, seed: int, n_beams: int = 16, n_azimuth: int = 256):
 
 
 def _normals_reference(P, K, sigma, tol, ks):
-    """Step 1 of :mod:`planodom.extraction.rangeimage` with whole-grid numpy shifts."""
+    """Step 1 of :mod:`planodom.extraction.lidar.rangeimage` with whole-grid numpy shifts."""
     up, down = np.full_like(P, np.nan), np.full_like(P, np.nan)
     up[:-1], down[1:] = P[1:], P[:-1]
     th = sum(k * (np.roll(P, -k, axis=1) - np.roll(P, k, axis=1)) for k in range(1, K + 1))

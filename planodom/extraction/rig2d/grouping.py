@@ -204,7 +204,7 @@ def _connected_piece(members, seed, centroid, direction, lo, hi, gap_m, gap_rati
     are linked when the 3D distance between their centre lines (centroid + direction *
     [lo, hi]) is at most ``max(gap_m, gap_ratio * r)``, ``r`` the range (distance from
     the base origin) of the nearer centroid: the rule that splits scan lines into runs
-    (:func:`planodom.extraction.segments.run_breaks`)."""
+    (:func:`.scanlines.run_breaks`)."""
     idx = np.flatnonzero(members)
     K = idx.shape[0]
     if K <= 1 or not members[seed]:

@@ -60,22 +60,22 @@ class TraceSet(NamedTuple):
 
 
 class _SegmentLines(NamedTuple):
-    """The segments as the compiled linking reads them (:class:`.segments.Segments`),
-    with their first and last times t0, t1 (S,) s and predicted direction errors err
-    (S,) rad."""
+    """The segments as the compiled linking reads them (:class:`.segments.Segments`):
+    which ring, sweep and times (t0, t1 (S,) s) they belong to; their lines, with the
+    predicted direction errors err (S,) rad; their moments; their end points."""
 
     ring: np.ndarray
     sweep: np.ndarray
-    count: np.ndarray
-    centroid: np.ndarray
-    scatter: np.ndarray
-    direction: np.ndarray
-    length: np.ndarray
-    end0: np.ndarray
-    end1: np.ndarray
     t0: np.ndarray
     t1: np.ndarray
+    centroid: np.ndarray
+    direction: np.ndarray
+    length: np.ndarray
     err: np.ndarray
+    count: np.ndarray
+    scatter: np.ndarray
+    end0: np.ndarray
+    end1: np.ndarray
 
 
 class _LinkParams(NamedTuple):
@@ -116,10 +116,19 @@ def build_traces(
     S = len(segs)
     t0s, t1s = (np.zeros(S), np.zeros(S)) if seg_times is None else seg_times
     lines = _SegmentLines(
-        segs.ring, segs.sweep, segs.count, segs.centroid, segs.scatter, segs.direction,
-        segs.length, segs.end0, segs.end1, np.asarray(t0s, dtype=np.float64),
-        np.asarray(t1s, dtype=np.float64), direction_error(sigma_m, segs.count, segs.length),
-    )  # fmt: skip
+        ring=segs.ring,
+        sweep=segs.sweep,
+        t0=np.asarray(t0s, dtype=np.float64),
+        t1=np.asarray(t1s, dtype=np.float64),
+        centroid=segs.centroid,
+        direction=segs.direction,
+        length=segs.length,
+        err=direction_error(sigma_m, segs.count, segs.length),
+        count=segs.count,
+        scatter=segs.scatter,
+        end0=segs.end0,
+        end1=segs.end1,
+    )
     link = _LinkParams(float(tol_m), float(np.radians(parallel_deg)), float(step_m),
                        float(max_span_s), LINK_BAND)  # fmt: skip
     label = _link_segments(lines, link)

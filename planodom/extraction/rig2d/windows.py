@@ -92,7 +92,7 @@ def drop_repeats(
     Planes are visited by the mean time of their inliers, earliest first (closest to the
     reference time, so least displaced by the motion); a plane is dropped when a kept one
     has its normal within ``repeat_deg`` (either sign), its offset within
-    ``tol_m + max_unskewed_speed_m_s * dt`` (dt: the difference of their mean times) and
+    ``tol_m + speed_m_s * dt`` (dt: the difference of their mean times) and
     supports that overlap (bounding circles about the centroids, grown by the same
     allowance). A plane found in fewer than ``min_windows`` windows is dropped.
     The (n, d) of a kept plane are extrapolated to the reference time t = 0 from its
