@@ -25,7 +25,7 @@ import numpy as np
 
 from planodom.simulation import (
     ObservabilityStats,
-    Rig,
+    SensorRig,
     Simulator,
     isoclinal_rig,
     observability,
@@ -34,7 +34,7 @@ from planodom.simulation import (
 )
 
 
-def evaluate(rig: Rig, stride: int = 1, min_angle_deg: float = 10.0) -> ObservabilityStats:
+def evaluate(rig: SensorRig, stride: int = 1, min_angle_deg: float = 10.0) -> ObservabilityStats:
     """Observability of every ``stride``-th 10 Hz epoch of one noise-free lap of the paper
     loop with ``rig``; traces count as crossing above ``min_angle_deg``."""
     scene, trajectory = paper_loop(), paper_loop_trajectory()
@@ -62,7 +62,7 @@ def histogram(stats: ObservabilityStats) -> None:
         print(f"  {k:2d} | {'#' * int(np.ceil(60 * c / counts.max())):<60} {c}")
 
 
-ALTERNATIVES: dict[str, Callable[[], Rig]] = {
+ALTERNATIVES: dict[str, Callable[[], SensorRig]] = {
     "both pairs meet forward (0/0)": lambda: isoclinal_rig(forward_meet_deg=0, backward_meet_deg=0),
     "both pairs meet lateral (90/90)": lambda: isoclinal_rig(
         forward_meet_deg=90, backward_meet_deg=90

@@ -19,7 +19,7 @@ def test_simulate_writes_a_dataset(tmp_path) -> None:
     result = runner.invoke(app, ["simulate", "--out", str(out), "--epochs", "3", "--seed", "2"])
     assert result.exit_code == 0, result.output
     ds = load_dataset(out)
-    assert len(ds) == 3 and ds.gt_poses is not None and ds.rig["simulation"]["seed"] == 2
+    assert len(ds) == 3 and ds.gt_poses is not None and ds.rig.extra["simulation"]["seed"] == 2
     # Existing dataset: a one-line error, no traceback, exit status 2.
     again = runner.invoke(app, ["simulate", "--out", str(out), "--epochs", "3"])
     assert again.exit_code == 2

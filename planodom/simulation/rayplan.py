@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planodom.simulation.rigs import Rig
+from planodom.simulation.rigs import SensorRig
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,7 +62,7 @@ class TimingGroup:
         return self.time_offset + np.arange(i0, i1) / self.rate_hz
 
 
-def plan_rays(rig: Rig) -> list[TimingGroup]:
+def plan_rays(rig: SensorRig) -> list[TimingGroup]:
     """Group the rig's sensors by timing and precompute their rays in the base frame."""
     keys: dict[tuple, list[int]] = {}
     for i, s in enumerate(rig.sensors):
