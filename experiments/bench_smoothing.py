@@ -83,7 +83,7 @@ def main() -> None:
         planes, relatives, gt = loop_inputs(config, 0.006, args.seed)
         print(f"paper loop input: {len(planes)} epochs in {time.perf_counter() - t0:.1f} s")
         rows += bench("paper-loop 6 mm", planes, relatives, gt, config.smoothing)
-    from planodom.experiments.paper import markdown_table
+    from planodom.experiments.tables import markdown_table
 
     print(markdown_table(rows))
 

@@ -48,7 +48,7 @@ from scipy.stats import chi2
 from factors.pose5 import pose5_error
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane, invert_transform, plane_tangent_covariance
-from planodom.metrics import summarize
+from planodom.metrics import pose_nees, relative_to_first, summarize
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
 from planodom.smoothing.graph import GraphBuilder, RelativeMeasurement
 
@@ -101,9 +101,7 @@ def simulate_inputs(
     sim = simulate_named(scene, "isoclinal", noise=noise, seed=seed, n_epochs=n_epochs,
                          motion=motion)  # fmt: skip
     planes = [extract_planes(scan, config.extraction) for scan in sim]
-    data = config.model_dump()
-    data["odometry"]["delta"] = 1
-    odo = run_odometry(planes, PlanodomConfig.from_dict(data), times=sim.times)
+    odo = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times)
     D = config.smoothing.delta_max
     relatives = relative_poses(planes, config, range(1, D + 1), odo.poses)
     surfaces = {s.id: np.append(s.normal, s.offset) for s in sim.scene.surfaces}
@@ -174,23 +172,15 @@ def smoothed_nees(result: SmoothingResult, gt_poses: np.ndarray) -> np.ndarray:
     estimate and truth relative to their first pose (module docstring)."""
     if result.covariances is None:
         return np.full(len(result.poses) - 1, np.nan)
-    est = invert_transform(result.poses[0])[None] @ result.poses
-    gt = invert_transform(gt_poses[0])[None] @ gt_poses
-    keep = np.ix_(range(5), range(5))
-    out = np.full(len(est) - 1, np.nan)
-    for k in range(1, len(est)):
-        xi = np.asarray(gtsam.Pose3(est[k]).localCoordinates(gtsam.Pose3(gt[k])))[:5]
-        try:
-            out[k - 1] = xi @ np.linalg.solve(result.covariances[k][keep], xi)
-        except np.linalg.LinAlgError:
-            continue
-    return out
+    est = relative_to_first(result.poses)
+    gt = relative_to_first(gt_poses)
+    return pose_nees(est[1:], result.covariances[1:], gt[1:], dofs=range(5))
 
 
 def variant_config(config: SmoothingConfig, variant: str) -> SmoothingConfig:
     """The smoothing config of a graph variant (:data:`VARIANTS`)."""
-    data = config.model_dump() | VARIANTS[variant]
-    return SmoothingConfig.model_validate(data)
+    changes = {f"smoothing.{key}": value for key, value in VARIANTS[variant].items()}
+    return PlanodomConfig(smoothing=config).updated(changes, source=variant).smoothing
 
 
 def chi2_interval(dof: int, n: int, level: float = 0.95) -> tuple[float, float]:

@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from planodom.config import PlanodomConfig
-from planodom.experiments.plots import save_grid, top_view
+from planodom.experiments.plots import plot_panels
+from planodom.experiments.tables import Rows, write_tables
 from planodom.geometry import invert_transform
 from planodom.metrics import POSE5_NAMES, drift, per_epoch_errors, relative_motions, summarize
 from planodom.odometry import OdometryRun, run_odometry
@@ -140,21 +141,7 @@ def summary_rows(runs: Sequence[LevelRun]) -> list[dict[str, object]]:
     return rows
 
 
-def markdown_table(rows: Sequence[dict[str, object]], digits: int = 4) -> str:
-    """A GitHub Markdown table of flat dict rows (floats in ``digits`` significant digits)."""
-    if not rows:
-        return ""
-    cols = list(rows[0])
-
-    def fmt(v: object) -> str:
-        return f"{v:.{digits}g}" if isinstance(v, float) else str(v)
-
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    lines += ["| " + " | ".join(fmt(r[c]) for c in cols) + " |" for r in rows]
-    return "\n".join(lines) + "\n"
-
-
-def precision_markdown(rows: Sequence[dict[str, object]]) -> str:
+def precision_markdown(rows: Rows) -> str:
     """Fig. 6 / 7 as one Markdown table: a row per method and DoF, ``mean / std`` per level."""
     levels = sorted({r["noise_m"] for r in rows})
     keys = list(dict.fromkeys((r["method"], r["dof"], r["unit"]) for r in rows))
@@ -172,30 +159,12 @@ def precision_markdown(rows: Sequence[dict[str, object]]) -> str:
 
 def plot_trajectories(runs: Sequence[LevelRun], path: Path) -> None:
     """Fig. 5: one top view per noise level, truth and every method's trajectory."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    levels = sorted({lr.noise for lr in runs})
-    ncol = min(2, len(levels))
-    nrow = int(np.ceil(len(levels) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(6.5 * ncol, 5.5 * nrow), squeeze=False)
-    for ax, noise in zip(axes.ravel(), levels, strict=False):
+    panels = []
+    for noise in sorted({lr.noise for lr in runs}):
         here = [lr for lr in runs if lr.noise == noise]
-        gt = here[0].gt_poses[:, :3, 3]
         tracks = [(lr.method, lr.run.poses, COLOURS.get(lr.method)) for lr in here]
-        top_view(ax, gt, tracks, f"sigma = {noise * 1000:g} mm")
-    save_grid(fig, axes, len(levels), path)
-
-
-def write_csv(path: Path, rows: Sequence[dict[str, object]]) -> None:
-    import csv
-
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]) if rows else [])
-        writer.writeheader()
-        writer.writerows(rows)
+        panels.append((f"sigma = {noise * 1000:g} mm", here[0].gt_poses[:, :3, 3], tracks))
+    plot_panels(panels, path)
 
 
 def run_paper_experiment(
@@ -237,9 +206,7 @@ def run_paper_experiment(
             t_extract = time.perf_counter() - c0
         for method in methods:
             say(f"odometry {method} at sigma = {noise * 1000:g} mm")
-            cfg = base.model_copy(
-                update={"odometry": base.odometry.model_copy(update={"pipeline": method})}
-            )
+            cfg = base.updated({"odometry.pipeline": method}, source="paper experiment")
             if shared is not None:
                 run = run_odometry(shared, cfg, times=sim.times)
                 seconds = {"extraction": t_extract, "odometry": run.seconds["odometry"]}
@@ -252,19 +219,10 @@ def run_paper_experiment(
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
-        files = {
-            "trajectories": out / "trajectories.png",
-            "precision_md": out / "precision.md",
-            "precision_csv": out / "precision.csv",
-            "summary_md": out / "summary.md",
-            "summary_csv": out / "summary.csv",
-            "config": out / "config.yaml",
-        }
+        files = {"trajectories": out / "trajectories.png", "config": out / "config.yaml"}
         plot_trajectories(runs, files["trajectories"])
-        files["precision_md"].write_text(precision_markdown(result.precision))
-        write_csv(files["precision_csv"], result.precision)
-        files["summary_md"].write_text(markdown_table(result.summary))
-        write_csv(files["summary_csv"], result.summary)
+        tables = {"precision": result.precision, "summary": result.summary}
+        files |= write_tables(out, tables, markdown={"precision": precision_markdown})
         base.to_yaml(files["config"])
         result.files = files
     return result

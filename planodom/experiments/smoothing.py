@@ -13,12 +13,13 @@ noise level), ``summary.md`` / ``summary.csv`` (ATE and RPE via evo, drift at th
 runtime, epochs per second), ``nees.md`` / ``nees.csv`` (consistency of the batch poses
 against their marginal covariances), ``config.yaml``.
 
-NEES: for each epoch, ``xi = Local(T_est, T_true)`` (gtsam's Pose3 tangent at the estimate,
-the frame of its marginal covariance P) and ``xi^T P^-1 xi``; over the 6 DoF and over the 5
-observed ones (body z removed, which only the weak vertical prior and ground planes
-constrain). An honest covariance gives NEES ~ chi2(dof): the table reports the mean and
-median (chi2 medians: 5.35 for 6 DoF, 4.35 for 5), the fraction of epochs inside the
-two-sided 95 % interval of chi2(dof), and that interval. The epochs' NEES are correlated
+NEES (:func:`planodom.metrics.pose_nees`): for each epoch, ``xi = Local(T_est, T_true)``
+(gtsam's Pose3 tangent at the estimate, the frame of its marginal covariance P) and
+``xi^T P^-1 xi``; over the 6 DoF and over the 5 observed ones (body z marginalised, which
+only the weak vertical prior and ground planes constrain). An honest covariance gives
+NEES ~ chi2(dof): the table reports the mean and median (chi2 medians: 5.35 for 6 DoF,
+4.35 for 5), the fraction of epochs inside the two-sided 95 % interval of chi2(dof), and
+that interval. The epochs' NEES are correlated
 (one trajectory), so these are diagnostics, not a test.
 """
 
@@ -29,15 +30,15 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import gtsam
 import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig
-from planodom.experiments.paper import PAPER_NOISE_LEVELS, markdown_table, write_csv
-from planodom.experiments.plots import save_grid, top_view
+from planodom.experiments.paper import PAPER_NOISE_LEVELS
+from planodom.experiments.plots import plot_panels
+from planodom.experiments.tables import write_tables
 from planodom.geometry import invert_transform
-from planodom.metrics import summarize
+from planodom.metrics import pose_nees, summarize
 from planodom.odometry import run_odometry
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
 from planodom.smoothing.run import relative_poses
@@ -85,25 +86,6 @@ class SmoothingExperiment:
     files: dict[str, Path] = field(default_factory=dict)
 
 
-def nees(poses: np.ndarray, covariances: np.ndarray, gt_poses: np.ndarray) -> dict[str, np.ndarray]:
-    """Per-epoch NEES (E,) over 6 DoF and over the 5 observed ones (body z dropped).
-
-    Args:
-        poses: (E, 4, 4) estimates. covariances: (E, 6, 6) their marginal covariances in
-            gtsam's Pose3 tangent at the estimate. gt_poses: (E, 4, 4) truth, same frame.
-    """
-    out6, out5 = np.full(len(poses), np.nan), np.full(len(poses), np.nan)
-    keep = [0, 1, 2, 3, 4]
-    for k, (T, P, G) in enumerate(zip(poses, covariances, gt_poses, strict=True)):
-        xi = np.asarray(gtsam.Pose3(T).localCoordinates(gtsam.Pose3(G)))
-        try:
-            out6[k] = xi @ np.linalg.solve(P, xi)
-            out5[k] = xi[keep] @ np.linalg.solve(P[np.ix_(keep, keep)], xi[keep])
-        except np.linalg.LinAlgError:
-            continue
-    return {"nees6": out6, "nees5": out5}
-
-
 def summary_rows(runs: Sequence[EstimatorRun]) -> list[dict[str, object]]:
     """Per scene, noise level and estimator: ATE, RPE, drift, runtime."""
     rows = []
@@ -137,11 +119,12 @@ def nees_rows(runs: Sequence[EstimatorRun]) -> list[dict[str, object]]:
         if r.method != "batch" or res is None:
             continue
         row: dict[str, object] = {"scene": r.scene, "noise_mm": r.noise * 1000}
-        if res.covariances is not None:  # epoch 0 is the prior: left out
-            values = nees(res.poses[1:], res.covariances[1:], r.gt_poses[1:])
-        for dof, key in ((6, "nees6"), (5, "nees5")):
+        for dof in (6, 5):  # 5: body z, unobserved by the odometry, marginalised
             lo, hi = chi2.ppf([0.025, 0.975], dof)
-            v = values[key][np.isfinite(values[key])] if res.covariances is not None else []
+            v = np.zeros(0)
+            if res.covariances is not None:  # epoch 0 is the prior: left out
+                nees = pose_nees(res.poses[1:], res.covariances[1:], r.gt_poses[1:], range(dof))
+                v = nees[np.isfinite(nees)]
             row[f"mean_nees{dof}"] = float(np.mean(v)) if len(v) else float("nan")
             row[f"median_nees{dof}"] = float(np.median(v)) if len(v) else float("nan")
             row[f"inside95_{dof}dof"] = float(np.mean((v >= lo) & (v <= hi))) if len(v) else 0.0
@@ -153,28 +136,14 @@ def nees_rows(runs: Sequence[EstimatorRun]) -> list[dict[str, object]]:
 
 def plot_trajectories(runs: Sequence[EstimatorRun], scene: str, path: Path) -> None:
     """Top views, one panel per noise level: truth (crosses) and every estimator."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     here = [r for r in runs if r.scene == scene]
-    levels = sorted({r.noise for r in here})
-    ncol = min(2, len(levels))
-    nrow = int(np.ceil(len(levels) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(6.5 * ncol, 5.5 * nrow), squeeze=False)
-    for ax, noise in zip(axes.ravel(), levels, strict=False):
+    panels = []
+    for noise in sorted({r.noise for r in here}):
         level = [r for r in here if r.noise == noise]
-        gt = level[0].gt_poses[:, :3, 3]
         tracks = [(r.method, r.poses, COLOURS.get(r.method)) for r in level]
-        top_view(ax, gt, tracks, f"{scene}, sigma = {noise * 1000:g} mm")
-    save_grid(fig, axes, len(levels), path)
-
-
-def _with(config: PlanodomConfig, section: str, **changes: object) -> PlanodomConfig:
-    data = config.model_dump()
-    data[section].update(changes)
-    return PlanodomConfig.from_dict(data, source="experiment")
+        title = f"{scene}, sigma = {noise * 1000:g} mm"
+        panels.append((title, level[0].gt_poses[:, :3, 3], tracks))
+    plot_panels(panels, path)
 
 
 def run_scene_level(
@@ -202,10 +171,10 @@ def run_scene_level(
     runs = []
 
     say(f"{scene}: odometry d=1 and d={D}")
-    odo1 = run_odometry(planes, _with(config, "odometry", delta=1), times=sim.times)
+    odo1 = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times)
     runs.append(EstimatorRun(scene, noise, "odometry d=1", odo1.poses, gt,
                              odo1.seconds["odometry"], odo1.n_unresolved))  # fmt: skip
-    odoD = run_odometry(planes, _with(config, "odometry", delta=D), times=sim.times)
+    odoD = run_odometry(planes, config.updated({"odometry.delta": D}), times=sim.times)
     runs.append(EstimatorRun(scene, noise, "odometry d=D", odoD.poses, gt,
                              odoD.seconds["odometry"], odoD.n_unresolved))  # fmt: skip
 
@@ -248,7 +217,8 @@ def run_smoothing_experiment(
     The ``seconds`` of a smoother are its own (graph building and optimisation); the
     relative poses for delta = 1..D, shared by both smoothers, are reported by ``progress``.
     """
-    base = _with(config or PlanodomConfig(), "smoothing", window=window, delta_max=delta)
+    changes = {"smoothing.window": window, "smoothing.delta_max": delta}
+    base = (config or PlanodomConfig()).updated(changes, source="smoothing experiment")
     say = progress or (lambda msg: None)
     runs: list[EstimatorRun] = []
     for scene in scenes:
@@ -261,17 +231,8 @@ def run_smoothing_experiment(
         files = {f"trajectories_{s}": out / f"trajectories_{s}.png" for s in scenes}
         for scene in scenes:
             plot_trajectories(runs, scene, files[f"trajectories_{scene}"])
-        files |= {
-            "summary_md": out / "summary.md",
-            "summary_csv": out / "summary.csv",
-            "nees_md": out / "nees.md",
-            "nees_csv": out / "nees.csv",
-            "config": out / "config.yaml",
-        }
-        files["summary_md"].write_text(markdown_table(result.summary))
-        write_csv(files["summary_csv"], result.summary)
-        files["nees_md"].write_text(markdown_table(result.nees))
-        write_csv(files["nees_csv"], result.nees)
+        files |= write_tables(out, {"summary": result.summary, "nees": result.nees})
+        files["config"] = out / "config.yaml"
         base.to_yaml(files["config"])
         result.files = files
     return result
