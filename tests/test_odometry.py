@@ -292,8 +292,8 @@ def test_covariance_is_consistent_when_one_pair_gives_rotation_and_translation()
     import gtsam
     from scipy.stats import chi2
 
-    from factors.pose5 import pose5_error
     from planodom.smoothing.graph import rpy_to_rotation_vector
+    from planodom_factors.pose5 import pose5_error
 
     rng = np.random.default_rng(7)
     world = world_planes(rng, 2, ground=False)

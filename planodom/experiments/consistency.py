@@ -5,7 +5,7 @@ extracted, the delta = 1 odometry gives the initial trajectory and the relative 
 delta = 1..D are estimated (as :func:`planodom.smoothing.run.run_smoothing` does). Then:
 
 - **relative poses** (the odometry, per step): the 5-DoF error of each measured relative
-  pose (``factors.pose5.pose5_error``: rotation vector, horizontal translation) against
+  pose (``planodom_factors.pose5.pose5_error``: rotation vector, horizontal translation) against
   the true one, whitened by the covariance its between factor would get
   (:meth:`GraphBuilder.between_covariance`: the propagated covariance of
   :mod:`planodom.odometry.propagate` in the factor's tangent, plus the smoothing floors);
@@ -45,12 +45,12 @@ import gtsam
 import numpy as np
 from scipy.stats import chi2
 
-from factors.pose5 import pose5_error
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane, invert_transform, plane_tangent_covariance
 from planodom.metrics import pose_nees, relative_to_first, summarize
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
 from planodom.smoothing.graph import GraphBuilder, RelativeMeasurement
+from planodom_factors.pose5 import pose5_error
 
 #: Graph variants: smoothing config changes applied on top of the given config.
 VARIANTS: dict[str, dict[str, object]] = {
