@@ -105,6 +105,7 @@ def _pose5_error(
     """``gtsam.CustomFactor`` error of :func:`pose5_error`'s ``rows``."""
     error, H_i, H_j = pose5_error(measured, *_poses(this, values), H is not None)
     if H is not None:
+        assert H_i is not None and H_j is not None
         H[0], H[1] = H_i[rows], H_j[rows]
     return error[rows]
 

@@ -418,9 +418,5 @@ def experiment_smoothing(
     _print_files(result.files)
 
 
-def main() -> None:  # pragma: no cover - console entry point
-    app()
-
-
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    sys.exit(app())

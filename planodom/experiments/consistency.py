@@ -101,7 +101,7 @@ def simulate_inputs(
     sim = simulate_named(scene, "isoclinal", noise=noise, seed=seed, n_epochs=n_epochs,
                          motion=motion)  # fmt: skip
     planes = [extract_planes(scan, config.extraction) for scan in sim]
-    odo = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times)
+    odo = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times.tolist())
     D = config.smoothing.delta_max
     relatives = relative_poses(planes, config, range(1, D + 1), odo.poses)
     surfaces = {s.id: np.append(s.normal, s.offset) for s in sim.scene.surfaces}

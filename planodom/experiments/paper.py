@@ -208,7 +208,7 @@ def run_paper_experiment(
             say(f"odometry {method} at sigma = {noise * 1000:g} mm")
             cfg = base.updated({"odometry.pipeline": method}, source="paper experiment")
             if shared is not None:
-                run = run_odometry(shared, cfg, times=sim.times)
+                run = run_odometry(shared, cfg, times=sim.times.tolist())
                 seconds = {"extraction": t_extract, "odometry": run.seconds["odometry"]}
             else:
                 run = run_odometry(sim, cfg)

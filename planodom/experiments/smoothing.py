@@ -171,10 +171,10 @@ def run_scene_level(
     runs = []
 
     say(f"{scene}: odometry d=1 and d={D}")
-    odo1 = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times)
+    odo1 = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times.tolist())
     runs.append(EstimatorRun(scene, noise, "odometry d=1", odo1.poses, gt,
                              odo1.seconds["odometry"], odo1.n_unresolved))  # fmt: skip
-    odoD = run_odometry(planes, config.updated({"odometry.delta": D}), times=sim.times)
+    odoD = run_odometry(planes, config.updated({"odometry.delta": D}), times=sim.times.tolist())
     runs.append(EstimatorRun(scene, noise, "odometry d=D", odoD.poses, gt,
                              odoD.seconds["odometry"], odoD.n_unresolved))  # fmt: skip
 

@@ -8,7 +8,7 @@ per column. Ray directions and origins are precomputed in the base frame.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -39,6 +39,7 @@ class TimingGroup:
     rings: np.ndarray
     max_range: np.ndarray
     sigma: np.ndarray
+    _homogeneous: np.ndarray = field(init=False, repr=False)
 
     @property
     def homogeneous(self) -> np.ndarray:

@@ -37,7 +37,7 @@ observable count drops to 1/5/9 at 20 deg), 35 deg reaches fewer walls; meeting 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -125,7 +125,10 @@ class SensorRig:
         return cls(tuple(sensors), str(data.get("name", "rig")))
 
 
-_TYPES: dict[str, type] = {"scanner2d": Scanner2D, "lidar": SpinningLidar}
+_TYPES: dict[str, type[Scanner2D] | type[SpinningLidar]] = {
+    "scanner2d": Scanner2D,
+    "lidar": SpinningLidar,
+}
 
 
 def _sensor_from_dict(d: object, source: str, field: str) -> Sensor:
@@ -134,7 +137,7 @@ def _sensor_from_dict(d: object, source: str, field: str) -> Sensor:
         raise ConfigError(f"{source}: field '{field}.type': expected one of {sorted(_TYPES)}")
     cls = _TYPES[d["type"]]
     kwargs = {k: v for k, v in d.items() if k != "type"}
-    unknown = sorted(set(kwargs) - set(cls.__dataclass_fields__))
+    unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
     if unknown:
         raise ConfigError(f"{source}: field '{field}.{unknown[0]}': unknown field")
     if "vfov_deg" in kwargs:
@@ -214,7 +217,7 @@ def isoclinal_rig(
     Scanners sit at (+-1.0, +-0.5, mount_height) m in the base frame. Rings: 0 front-left,
     1 front-right, 2 rear-left, 3 rear-right.
     """
-    common = {"rate_hz": rate_hz, "max_range": max_range, "noise_sigma": noise_sigma}
+    common: dict[str, Any] = dict(rate_hz=rate_hz, max_range=max_range, noise_sigma=noise_sigma)
     sensors = []
     pairs = ((forward_meet_deg, 1.0, "front"), (backward_meet_deg, -1.0, "rear"))
     for meet, sign, label in pairs:
@@ -238,9 +241,9 @@ def lidar_rig(
     """One :class:`SpinningLidar` on the roof, ``mount_height`` m above the base origin:
     ``n_beams`` rings over ``vfov_deg`` (lowest, highest elevation, deg), ``n_columns``
     firings per revolution, ``rate_hz`` revolutions/s, ``max_range`` and ``noise_sigma`` m."""
-    T = make_transform(np.eye(3), [0.0, 0.0, mount_height])
-    beams = {"n_beams": n_beams, "vfov_deg": vfov_deg, "n_columns": n_columns}
-    common = {"rate_hz": rate_hz, "max_range": max_range, "noise_sigma": noise_sigma}
+    T = make_transform(np.eye(3), np.array([0.0, 0.0, mount_height]))
+    beams: dict[str, Any] = {"n_beams": n_beams, "vfov_deg": vfov_deg, "n_columns": n_columns}
+    common: dict[str, Any] = dict(rate_hz=rate_hz, max_range=max_range, noise_sigma=noise_sigma)
     lidar = SpinningLidar(T, name=f"lidar{n_beams}", **beams, **common)
     return SensorRig((lidar,), f"lidar{n_beams}")
 

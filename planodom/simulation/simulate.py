@@ -12,6 +12,7 @@ All rays of an epoch go to Embree in one call.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,6 +72,9 @@ class SimulatedRun:
 
     def __getitem__(self, k: int) -> Scan:
         return self.scans[k]
+
+    def __iter__(self) -> Iterator[Scan]:
+        return iter(self.scans)
 
     @property
     def gt_poses(self) -> np.ndarray:
