@@ -145,24 +145,33 @@ _SOURCE_OPTIONS = (
 )
 
 
-def takes_source(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Give a command the :class:`Source` options; it receives them as ``source``."""
-    keyword = inspect.Parameter.KEYWORD_ONLY
-    hints = typing.get_type_hints(func, include_extras=True)  # resolved, for typer
-    own = [
-        p.replace(kind=keyword, annotation=hints[p.name])
-        for p in inspect.signature(func).parameters.values()
-        if p.name != "source"
-    ]
-    shared = [inspect.Parameter(n, keyword, default=d, annotation=a) for n, a, d in _SOURCE_OPTIONS]
+def _bundles(name: str, make: Callable[..., Any], options: tuple) -> Callable:
+    """A decorator giving a command the typer ``options`` (name, annotation, default) and
+    passing them to it as one argument ``name`` = ``make(**options)``."""
 
-    @functools.wraps(func)
-    def wrapper(**kwargs: Any) -> Any:
-        source = Source(**{name: kwargs.pop(name) for name, _, _ in _SOURCE_OPTIONS})
-        return func(source=source, **kwargs)
+    def decorate(func: Callable[..., Any]) -> Callable[..., Any]:
+        keyword = inspect.Parameter.KEYWORD_ONLY
+        hints = typing.get_type_hints(func, include_extras=True)  # resolved, for typer
+        own = [
+            p.replace(kind=keyword, annotation=hints[p.name])
+            for p in inspect.signature(func).parameters.values()
+            if p.name != name
+        ]
+        shared = [inspect.Parameter(n, keyword, default=d, annotation=a) for n, a, d in options]
 
-    wrapper.__signature__ = inspect.Signature(own + shared)  # type: ignore[attr-defined]
-    return wrapper
+        @functools.wraps(func)
+        def wrapper(**kwargs: Any) -> Any:
+            bundle = make(**{option: kwargs.pop(option) for option, _, _ in options})
+            return func(**{name: bundle}, **kwargs)
+
+        wrapper.__signature__ = inspect.Signature(own + shared)  # type: ignore[attr-defined]
+        return wrapper
+
+    return decorate
+
+
+#: ``run`` and ``smooth`` take their epochs from one :class:`Source` option set.
+takes_source = _bundles("source", Source, _SOURCE_OPTIONS)
 
 
 def _load_config(path: Path | None, changes: dict[str, object] | None = None):
@@ -372,29 +381,44 @@ def _print_files(files: dict[str, Path]) -> None:
         console.print(f"{name}: {path}", highlight=False)
 
 
+def _simulation(epochs: int | None, seed: int, motion: str):
+    from planodom.experiments.simulated import Simulation
+
+    return Simulation(seed=seed, n_epochs=epochs, motion=motion)
+
+
+#: The experiments' simulation options, passed as one ``Simulation``.
+takes_simulation = _bundles(
+    "simulation",
+    _simulation,
+    (("epochs", Epochs, None), ("seed", ExpSeed, 1), ("motion", ExpMotion, "snapshot")),
+)
+
+
 @experiment_app.command("paper")
 @reports_errors
+@takes_simulation
 def experiment_paper(
+    simulation: Any,
     out: ExpOut = Path("results/paper"),
     levels: Levels = "0,0.006,0.02,0.1",
-    epochs: Epochs = None,
-    seed: ExpSeed = 1,
-    motion: ExpMotion = "snapshot",
     config: ConfigFile = None,
 ) -> None:
     """The paper's section VI: Fig. 5 trajectories, Fig. 6 / 7 precision tables."""
     from planodom.experiments.paper import run_paper_experiment
 
     result = run_paper_experiment(
-        out, noise_levels=_levels(levels), seed=seed, n_epochs=epochs, motion=motion,
-        config=_load_config(config), progress=_say,
+        out, noise_levels=_levels(levels), simulation=simulation, config=_load_config(config),
+        progress=_say,
     )  # fmt: skip
     _print_files(result.files)
 
 
 @experiment_app.command("smoothing")
 @reports_errors
+@takes_simulation
 def experiment_smoothing(
+    simulation: Any,
     out: ExpOut = Path("results/smoothing"),
     levels: Levels = "0,0.006,0.02,0.1",
     scenes: Annotated[str, typer.Option(help="Comma-separated built-in scenes.")] = (
@@ -402,9 +426,6 @@ def experiment_smoothing(
     ),
     window: Annotated[int, typer.Option(help="Fixed-lag window W, epochs.")] = 10,
     delta: Annotated[int, typer.Option(help="Relative poses for delta = 1..D.")] = 3,
-    epochs: Epochs = None,
-    seed: ExpSeed = 1,
-    motion: ExpMotion = "snapshot",
     config: ConfigFile = None,
 ) -> None:
     """Raw odometry vs delta > 1 vs windowed vs batch smoothing, with NEES."""
@@ -412,8 +433,8 @@ def experiment_smoothing(
 
     result = run_smoothing_experiment(
         out, noise_levels=_levels(levels), scenes=[x for x in scenes.split(",") if x],
-        window=window, delta=delta, seed=seed, n_epochs=epochs, motion=motion,
-        config=_load_config(config), progress=_say,
+        window=window, delta=delta, simulation=simulation, config=_load_config(config),
+        progress=_say,
     )  # fmt: skip
     _print_files(result.files)
 

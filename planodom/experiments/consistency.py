@@ -40,13 +40,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import gtsam
 import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig, SmoothingConfig
-from planodom.geometry import Plane, invert_transform, plane_tangent_covariance
+from planodom.experiments.simulated import Simulation, simulate_level
+from planodom.geometry import Plane, plane_tangent_covariance
 from planodom.metrics import pose_nees, relative_to_first, summarize
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
 from planodom.smoothing.graph import GraphBuilder, RelativeMeasurement
@@ -85,28 +87,23 @@ class ConsistencyInputs:
 
 
 def simulate_inputs(
-    scene: str,
-    noise: float,
-    config: PlanodomConfig,
-    seed: int = 1,
-    n_epochs: int | None = None,
-    motion: str = "snapshot",
+    scene: str, noise: float, config: PlanodomConfig, seed: int = 1, **simulation: Any
 ) -> ConsistencyInputs:
-    """Simulate, extract and run the odometry (delta = 1..``smoothing.delta_max``)."""
-    from planodom.extraction import extract_planes
+    """Simulate (``simulation``: ``n_epochs``, ``motion`` of
+    :class:`~planodom.experiments.simulated.Simulation`), extract and run the odometry
+    (delta = 1..``smoothing.delta_max``)."""
     from planodom.odometry import run_odometry
-    from planodom.simulation import simulate_named
     from planodom.smoothing.run import relative_poses
 
-    sim = simulate_named(scene, "isoclinal", noise=noise, seed=seed, n_epochs=n_epochs,
-                         motion=motion)  # fmt: skip
-    planes = [extract_planes(scan, config.extraction) for scan in sim]
+    level = simulate_level(scene, noise, config, Simulation(seed, **simulation))
+    sim, planes = level.sim, level.planes
+    assert planes is not None
     odo = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times.tolist())
     D = config.smoothing.delta_max
     relatives = relative_poses(planes, config, range(1, D + 1), odo.poses)
     surfaces = {s.id: np.append(s.normal, s.offset) for s in sim.scene.surfaces}
-    gt = invert_transform(sim.poses[0])[None] @ sim.poses
-    return ConsistencyInputs(scene, noise, seed, planes, relatives, gt, sim.poses[0], surfaces)
+    first = sim.poses[0]
+    return ConsistencyInputs(scene, noise, seed, planes, relatives, level.gt_poses, first, surfaces)
 
 
 def relative_pose_nees(
@@ -277,6 +274,8 @@ def run_consistency_experiment(
         for noise in noise_levels:
             for seed in seeds:
                 say(f"{scene}, sigma = {noise * 1000:g} mm, seed {seed}")
-                inputs.append(simulate_inputs(scene, noise, cfg, seed, n_epochs, motion))
+                inputs.append(
+                    simulate_inputs(scene, noise, cfg, seed, n_epochs=n_epochs, motion=motion)
+                )
     say("smoothing")
     return consistency_tables(inputs, cfg.smoothing, variants)

@@ -22,7 +22,6 @@ extraction itself.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +30,7 @@ import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.experiments.plots import plot_panels
+from planodom.experiments.simulated import DEFAULT_SIMULATION, Simulation, simulate_level
 from planodom.experiments.tables import Rows, write_tables
 from planodom.geometry import invert_transform
 from planodom.metrics import POSE5_NAMES, drift, per_epoch_errors, relative_motions, summarize
@@ -171,9 +171,7 @@ def run_paper_experiment(
     out: str | Path | None = None,
     noise_levels: Sequence[float] = PAPER_NOISE_LEVELS,
     methods: Sequence[str] = PAPER_METHODS,
-    seed: int = 1,
-    n_epochs: int | None = None,
-    motion: str = "snapshot",
+    simulation: Simulation = DEFAULT_SIMULATION,
     config: PlanodomConfig | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> PaperExperiment:
@@ -182,34 +180,25 @@ def run_paper_experiment(
     Args:
         out: output directory (created), or None to only compute.
         noise_levels: range noise sigmas, metres. methods: pipeline names.
-        seed: noise seed. n_epochs: epochs per level (default: one lap).
-        motion: "snapshot" (the paper's simulator) or "continuous" (deskewing).
+        simulation: seed, epochs per level (default: one lap) and motion: "snapshot" (the
+            paper's simulator) or "continuous" (deskewing).
         config: base configuration; its ``odometry.pipeline`` is replaced per method.
         progress: called with a short message at each step.
     """
-    from planodom.extraction import extract_planes
-    from planodom.simulation import simulate_named
-
     base = config or PlanodomConfig()
     say = progress or (lambda msg: None)
     runs: list[LevelRun] = []
     for noise in noise_levels:
-        say(f"simulating sigma = {noise * 1000:g} mm")
-        sim = simulate_named("paper-loop", "isoclinal", noise=noise, seed=seed,
-                             n_epochs=n_epochs, motion=motion)  # fmt: skip
-        shared = None
-        t_extract = 0.0
-        if motion == "snapshot":
-            say(f"extracting planes of {len(sim)} epochs")
-            c0 = time.perf_counter()
-            shared = [extract_planes(scan, base.extraction) for scan in sim]
-            t_extract = time.perf_counter() - c0
+        say(f"simulating sigma = {noise * 1000:g} mm and extracting planes")
+        level = simulate_level("paper-loop", noise, base, simulation,
+                               extract=simulation.motion == "snapshot")  # fmt: skip
+        sim = level.sim
         for method in methods:
             say(f"odometry {method} at sigma = {noise * 1000:g} mm")
             cfg = base.updated({"odometry.pipeline": method}, source="paper experiment")
-            if shared is not None:
-                run = run_odometry(shared, cfg, times=sim.times.tolist())
-                seconds = {"extraction": t_extract, "odometry": run.seconds["odometry"]}
+            if level.planes is not None:
+                run = run_odometry(level.planes, cfg, times=sim.times.tolist())
+                seconds = {"extraction": level.extraction_s, "odometry": run.seconds["odometry"]}
             else:
                 run = run_odometry(sim, cfg)
                 seconds = dict(run.seconds)

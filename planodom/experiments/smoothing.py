@@ -36,8 +36,13 @@ from scipy.stats import chi2
 from planodom.config import PlanodomConfig
 from planodom.experiments.paper import PAPER_NOISE_LEVELS
 from planodom.experiments.plots import plot_panels
+from planodom.experiments.simulated import (
+    DEFAULT_SIMULATION,
+    SimulatedLevel,
+    Simulation,
+    simulate_level,
+)
 from planodom.experiments.tables import write_tables
-from planodom.geometry import invert_transform
 from planodom.metrics import pose_nees, summarize
 from planodom.odometry import run_odometry
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
@@ -147,34 +152,19 @@ def plot_trajectories(runs: Sequence[EstimatorRun], scene: str, path: Path) -> N
 
 
 def run_scene_level(
-    scene: str,
-    noise: float,
-    config: PlanodomConfig,
-    seed: int = 1,
-    n_epochs: int | None = None,
-    motion: str = "snapshot",
-    say: Callable[[str], None] = lambda msg: None,
+    level: SimulatedLevel, config: PlanodomConfig, say: Callable[[str], None] = lambda msg: None
 ) -> list[EstimatorRun]:
-    """The four estimators on one simulated run (planes extracted once, shared)."""
-    from planodom.extraction import extract_planes
-    from planodom.simulation import simulate_named
-
+    """The four estimators on one simulated run (its planes extracted once, shared)."""
     D = config.smoothing.delta_max
-    say(f"{scene}: simulating sigma = {noise * 1000:g} mm")
-    sim = simulate_named(scene, "isoclinal", noise=noise, seed=seed, n_epochs=n_epochs,
-                         motion=motion)  # fmt: skip
-    gt = invert_transform(sim.poses[0])[None] @ sim.poses
-    say(f"{scene}: extracting planes of {len(sim)} epochs")
-    c0 = time.perf_counter()
-    planes = [extract_planes(scan, config.extraction) for scan in sim]
-    t_extract = time.perf_counter() - c0
+    scene, noise, gt, planes = level.scene, level.noise, level.gt_poses, level.planes
+    assert planes is not None, "the smoothing experiment needs the extracted planes"
+    times = level.sim.times.tolist()
     runs = []
-
     say(f"{scene}: odometry d=1 and d={D}")
-    odo1 = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times.tolist())
+    odo1 = run_odometry(planes, config.updated({"odometry.delta": 1}), times=times)
     runs.append(EstimatorRun(scene, noise, "odometry d=1", odo1.poses, gt,
                              odo1.seconds["odometry"], odo1.n_unresolved))  # fmt: skip
-    odoD = run_odometry(planes, config.updated({"odometry.delta": D}), times=sim.times.tolist())
+    odoD = run_odometry(planes, config.updated({"odometry.delta": D}), times=times)
     runs.append(EstimatorRun(scene, noise, "odometry d=D", odoD.poses, gt,
                              odoD.seconds["odometry"], odoD.n_unresolved))  # fmt: skip
 
@@ -187,7 +177,7 @@ def run_scene_level(
         res = smooth(planes, relatives, config.smoothing)
         runs.append(EstimatorRun(scene, noise, method, res.poses, gt, res.runtime_s,
                                  len(res.stats.unresolved_epochs), res))  # fmt: skip
-    say(f"{scene}: extraction {t_extract:.1f} s, relative poses {front:.1f} s")
+    say(f"{scene}: extraction {level.extraction_s:.1f} s, relative poses {front:.1f} s")
     return runs
 
 
@@ -197,9 +187,7 @@ def run_smoothing_experiment(
     scenes: Sequence[str] = SCENES,
     window: int = 10,
     delta: int = 3,
-    seed: int = 1,
-    n_epochs: int | None = None,
-    motion: str = "snapshot",
+    simulation: Simulation = DEFAULT_SIMULATION,
     config: PlanodomConfig | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> SmoothingExperiment:
@@ -209,8 +197,8 @@ def run_smoothing_experiment(
         out: output directory (created), or None to only compute.
         noise_levels: range noise sigmas, metres. scenes: built-in scene names.
         window: W of the fixed-lag smoother. delta: D (odometry d=D and delta = 1..D).
-        seed: noise seed. n_epochs: epochs per run (default: the scene's whole path).
-        motion: "snapshot" or "continuous" (see :mod:`planodom.experiments.paper`).
+        simulation: seed, epochs per run (default: the scene's whole path) and motion
+            (:class:`~planodom.experiments.simulated.Simulation`).
         config: base configuration; ``smoothing.window`` / ``delta_max`` are replaced.
         progress: called with a short message at each step.
 
@@ -223,7 +211,8 @@ def run_smoothing_experiment(
     runs: list[EstimatorRun] = []
     for scene in scenes:
         for noise in noise_levels:
-            runs += run_scene_level(scene, noise, base, seed, n_epochs, motion, say)
+            say(f"{scene}: simulating sigma = {noise * 1000:g} mm and extracting planes")
+            runs += run_scene_level(simulate_level(scene, noise, base, simulation), base, say)
     result = SmoothingExperiment(runs, summary_rows(runs), nees_rows(runs))
     if out is not None:
         out = Path(out)
