@@ -63,12 +63,10 @@ def histogram(stats: ObservabilityStats) -> None:
 
 
 ALTERNATIVES: dict[str, Callable[[], SensorRig]] = {
-    "both pairs meet forward (0/0)": lambda: isoclinal_rig(forward_meet_deg=0, backward_meet_deg=0),
-    "both pairs meet lateral (90/90)": lambda: isoclinal_rig(
-        forward_meet_deg=90, backward_meet_deg=90
-    ),
-    "meet 0 / 90": lambda: isoclinal_rig(forward_meet_deg=0, backward_meet_deg=90),
-    "meet +60/-60": lambda: isoclinal_rig(forward_meet_deg=60, backward_meet_deg=-60),
+    "both pairs meet forward (0/0)": lambda: isoclinal_rig(meet_deg=(0, 0)),
+    "both pairs meet lateral (90/90)": lambda: isoclinal_rig(meet_deg=(90, 90)),
+    "meet 0 / 90": lambda: isoclinal_rig(meet_deg=(0, 90)),
+    "meet +60/-60": lambda: isoclinal_rig(meet_deg=(60, -60)),
     "meet +45/-45, inclination 15": lambda: isoclinal_rig(inclination_deg=15),
     "meet +45/-45, inclination 35": lambda: isoclinal_rig(inclination_deg=35),
 }

@@ -6,11 +6,12 @@ a traceback, and exit with status 2.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import inspect
 import sys
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
@@ -117,12 +118,15 @@ class Source:
     motion: str
 
     def load(self, out: Path):
-        """The dataset, or the scenario simulated into ``out/dataset`` and loaded."""
+        """The dataset, or the scenario simulated into ``out/dataset`` and loaded; creates
+        the output folder ``out``."""
         from planodom.datasets import load_dataset
         from planodom.errors import ConfigError
+        from planodom.results import prepare_output
 
         if (self.dataset is None) == (self.scenario is None):
             raise ConfigError("give either a DATASET directory or --scenario NAME")
+        prepare_output(out)
         if self.dataset is not None:
             return load_dataset(self.dataset)
         from planodom.simulation.export import write_simulated_dataset
@@ -184,8 +188,9 @@ def _load_config(path: Path | None, changes: dict[str, object] | None = None):
     return cfg.updated(changes, source="command line") if changes else cfg
 
 
-def _progress(description: str):
-    """A rich progress bar in epochs; returns (progress, callback(k, n))."""
+@contextlib.contextmanager
+def _progress(description: str) -> Iterator[Callable[[int, int], None]]:
+    """A rich progress bar in epochs while the block runs; yields ``callback(k, n)``."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -194,21 +199,10 @@ def _progress(description: str):
         TimeRemainingColumn,
     )
 
-    progress = Progress(
-        TextColumn(description),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("epochs"),
-        TimeRemainingColumn(),
-        console=err_console,
-        transient=True,
-    )
-    task = progress.add_task(description, total=None)
-
-    def callback(k: int, n: int) -> None:
-        progress.update(task, completed=k, total=n)
-
-    return progress, callback
+    columns = (BarColumn(), MofNCompleteColumn(), TextColumn("epochs"), TimeRemainingColumn())
+    with Progress(TextColumn(description), *columns, console=err_console, transient=True) as bar:
+        task = bar.add_task(description, total=None)
+        yield lambda k, n: bar.update(task, completed=k, total=n)
 
 
 @app.command()
@@ -255,10 +249,8 @@ def run(
     from planodom.report import odometry_table
 
     cfg = _load_config(config, {"odometry.pipeline": pipeline, "odometry.delta": delta})
-    out = results.prepare_output(out)
     data = source.load(out)
-    progress, callback = _progress("odometry")
-    with progress:
+    with _progress("odometry") as callback:
         odo = run_odometry(data, cfg, progress=callback)
     metrics = results.write_odometry_run(out, odo, data.gt_poses)
     console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
@@ -271,14 +263,14 @@ def run(
 def smooth(
     out: OutDir,
     source: Source,
-    config: ConfigFile = None,
+    mode: Annotated[str | None, typer.Option(help="batch | windowed.")] = None,
     window: Annotated[
         int | None, typer.Option(help="Fixed-lag window W in epochs (implies --mode windowed).")
     ] = None,
     delta: Annotated[
         int | None, typer.Option(help="Relative poses for delta = 1..D (default: config's).")
     ] = None,
-    mode: Annotated[str | None, typer.Option(help="batch | windowed.")] = None,
+    config: ConfigFile = None,
 ) -> None:
     """Smooth the odometry with a factor graph (batch, or a fixed-lag window).
 
@@ -289,12 +281,10 @@ def smooth(
     from planodom.report import comparison_table
     from planodom.smoothing.run import run_smoothing
 
-    cfg = _load_config(config)
+    cfg = _load_config(config)  # before simulating: a bad file fails at once
     mode = mode or ("windowed" if window is not None else "batch")
-    out = results.prepare_output(out)
     data = source.load(out)
-    progress, callback = _progress("odometry and relative poses")
-    with progress:
+    with _progress("odometry and relative poses") as callback:
         sm = run_smoothing(
             data, cfg, window=window, delta=delta, mode=mode,
             progress=lambda stage, k, n: callback(k, n),
@@ -419,13 +409,13 @@ def experiment_paper(
 @takes_simulation
 def experiment_smoothing(
     simulation: Any,
-    out: ExpOut = Path("results/smoothing"),
-    levels: Levels = "0,0.006,0.02,0.1",
     scenes: Annotated[str, typer.Option(help="Comma-separated built-in scenes.")] = (
         "paper-loop,urban-canyon"
     ),
+    levels: Levels = "0,0.006,0.02,0.1",
     window: Annotated[int, typer.Option(help="Fixed-lag window W, epochs.")] = 10,
     delta: Annotated[int, typer.Option(help="Relative poses for delta = 1..D.")] = 3,
+    out: ExpOut = Path("results/smoothing"),
     config: ConfigFile = None,
 ) -> None:
     """Raw odometry vs delta > 1 vs windowed vs batch smoothing, with NEES."""

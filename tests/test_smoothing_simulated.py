@@ -43,10 +43,10 @@ def test_smoothing_experiment_writes_its_figures_and_tables(tmp_path) -> None:
         tmp_path, noise_levels=(0.0,), scenes=("paper-loop",), window=5, delta=2,
         simulation=Simulation(n_epochs=10),
     )  # fmt: skip
-    assert [r["method"] for r in res.summary] == [
+    assert [r["method"] for r in res.tables["summary"]] == [
         "odometry d=1", "odometry d=D", "windowed", "batch",
     ]  # fmt: skip
-    assert len(res.nees) == 1 and np.isfinite(res.nees[0]["mean_nees6"])
+    assert len(res.tables["nees"]) == 1 and np.isfinite(res.tables["nees"][0]["mean_nees6"])
     for path in res.files.values():
         assert path.exists() and path.stat().st_size > 0
     assert "windowed" in (tmp_path / "summary.md").read_text()

@@ -31,7 +31,7 @@ import numpy as np
 from planodom.config import PlanodomConfig
 from planodom.experiments.plots import plot_panels
 from planodom.experiments.simulated import DEFAULT_SIMULATION, Simulation, simulate_level
-from planodom.experiments.tables import Rows, write_tables
+from planodom.experiments.tables import ExperimentResult, Rows, write_tables
 from planodom.geometry import invert_transform
 from planodom.metrics import POSE5_NAMES, drift, per_epoch_errors, relative_motions, summarize
 from planodom.odometry import OdometryRun, run_odometry
@@ -66,14 +66,8 @@ class LevelRun:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-@dataclass
-class PaperExperiment:
-    """All runs of the experiment and its tables (lists of flat dicts), plus written files."""
-
-    runs: list[LevelRun]
-    precision: list[dict[str, object]]
-    summary: list[dict[str, object]]
-    files: dict[str, Path] = field(default_factory=dict)
+#: The paper experiment's runs, tables "precision" and "summary", and files.
+PaperExperiment = ExperimentResult[LevelRun]
 
 
 def _level_run(noise, method, run, gt, rate, seconds) -> LevelRun:
@@ -204,13 +198,13 @@ def run_paper_experiment(
                 seconds = dict(run.seconds)
             runs.append(_level_run(noise, method, run, sim.poses, sim.epoch_rate, seconds))
 
-    result = PaperExperiment(runs, precision_rows(runs), summary_rows(runs))
+    tables = {"precision": precision_rows(runs), "summary": summary_rows(runs)}
+    result = PaperExperiment(runs, tables)
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         files = {"trajectories": out / "trajectories.png", "config": out / "config.yaml"}
         plot_trajectories(runs, files["trajectories"])
-        tables = {"precision": result.precision, "summary": result.summary}
         files |= write_tables(out, tables, markdown={"precision": precision_markdown})
         base.to_yaml(files["config"])
         result.files = files

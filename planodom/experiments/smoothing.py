@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +42,7 @@ from planodom.experiments.simulated import (
     Simulation,
     simulate_level,
 )
-from planodom.experiments.tables import write_tables
+from planodom.experiments.tables import ExperimentResult, write_tables
 from planodom.metrics import pose_nees, summarize
 from planodom.odometry import run_odometry
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
@@ -81,14 +81,8 @@ class EstimatorRun:
     smoothing: SmoothingResult | None = None
 
 
-@dataclass
-class SmoothingExperiment:
-    """All runs, the summary and NEES tables (flat dict rows), and the written files."""
-
-    runs: list[EstimatorRun]
-    summary: list[dict[str, object]]
-    nees: list[dict[str, object]]
-    files: dict[str, Path] = field(default_factory=dict)
+#: The smoothing experiment's runs, tables "summary" and "nees", and files.
+SmoothingExperiment = ExperimentResult[EstimatorRun]
 
 
 def summary_rows(runs: Sequence[EstimatorRun]) -> list[dict[str, object]]:
@@ -185,10 +179,10 @@ def run_smoothing_experiment(
     out: str | Path | None = None,
     noise_levels: Sequence[float] = PAPER_NOISE_LEVELS,
     scenes: Sequence[str] = SCENES,
+    config: PlanodomConfig | None = None,
     window: int = 10,
     delta: int = 3,
     simulation: Simulation = DEFAULT_SIMULATION,
-    config: PlanodomConfig | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> SmoothingExperiment:
     """Run the comparison; write figures and tables to ``out`` when given.
@@ -196,10 +190,10 @@ def run_smoothing_experiment(
     Args:
         out: output directory (created), or None to only compute.
         noise_levels: range noise sigmas, metres. scenes: built-in scene names.
+        config: base configuration; ``smoothing.window`` / ``delta_max`` are replaced.
         window: W of the fixed-lag smoother. delta: D (odometry d=D and delta = 1..D).
         simulation: seed, epochs per run (default: the scene's whole path) and motion
             (:class:`~planodom.experiments.simulated.Simulation`).
-        config: base configuration; ``smoothing.window`` / ``delta_max`` are replaced.
         progress: called with a short message at each step.
 
     The ``seconds`` of a smoother are its own (graph building and optimisation); the
@@ -213,14 +207,14 @@ def run_smoothing_experiment(
         for noise in noise_levels:
             say(f"{scene}: simulating sigma = {noise * 1000:g} mm and extracting planes")
             runs += run_scene_level(simulate_level(scene, noise, base, simulation), base, say)
-    result = SmoothingExperiment(runs, summary_rows(runs), nees_rows(runs))
+    result = SmoothingExperiment(runs, {"summary": summary_rows(runs), "nees": nees_rows(runs)})
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         files = {f"trajectories_{s}": out / f"trajectories_{s}.png" for s in scenes}
         for scene in scenes:
             plot_trajectories(runs, scene, files[f"trajectories_{scene}"])
-        files |= write_tables(out, {"summary": result.summary, "nees": result.nees})
+        files |= write_tables(out, result.tables)
         files["config"] = out / "config.yaml"
         base.to_yaml(files["config"])
         result.files = files

@@ -1,14 +1,26 @@
-"""The experiments' tables: lists of flat dict rows, written as Markdown and CSV."""
+"""The experiments' results: runs and tables (lists of flat dict rows, written as Markdown
+and CSV)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 from planodom.results import write_rows
 
 Rows = Sequence[Mapping[str, Any]]
+RunT = TypeVar("RunT")
+
+
+@dataclass
+class ExperimentResult(Generic[RunT]):
+    """An experiment's runs, its tables (name -> rows, e.g. "summary") and written files."""
+
+    runs: list[RunT]
+    tables: dict[str, list[dict[str, Any]]]
+    files: dict[str, Path] = field(default_factory=dict)
 
 
 def markdown_table(rows: Rows, digits: int = 4) -> str:

@@ -194,58 +194,49 @@ def isoclinal_normals(meet_deg: float, inclination_deg: float) -> np.ndarray:
 
 def isoclinal_rig(
     inclination_deg: float = 25.0,
-    forward_meet_deg: float = 45.0,
-    backward_meet_deg: float = -45.0,
+    meet_deg: tuple[float, float] = (45.0, -45.0),
     look_down_deg: float = 10.0,
     mount_height: float = 0.8,
-    step_deg: float = 0.5,
-    rate_hz: float = 75.0,
-    max_range: float = 80.0,
-    noise_sigma: float = 0.0,
+    **scanner: Any,
 ) -> SensorRig:
     """Two isoclinal pairs of :class:`Scanner2D` (see the module docstring).
 
     Args:
         inclination_deg: angle of every scan plane to the horizontal, degrees.
-        forward_meet_deg, backward_meet_deg: azimuth (deg, base frame, from +x towards
-            +y) of the horizontal direction along which each pair's scan planes meet.
+        meet_deg: for the forward and the backward pair, the azimuth (deg, base frame,
+            from +x towards +y) of the horizontal direction along which its scan planes meet.
         look_down_deg: the field of view is centred on the forward (backward) direction
             tilted down by this angle (deg), projected onto each scan plane.
-        mount_height: metres above the base origin. step_deg, rate_hz, max_range (m),
-            noise_sigma (m): per scanner (:class:`Scanner2D`).
+        mount_height: metres above the base origin.
+        scanner: per-scanner fields of :class:`Scanner2D` (``step_deg``, ``rate_hz``,
+            ``max_range`` m, ``noise_sigma`` m; its defaults otherwise: an LMS 221).
 
     Scanners sit at (+-1.0, +-0.5, mount_height) m in the base frame. Rings: 0 front-left,
     1 front-right, 2 rear-left, 3 rear-right.
     """
-    common: dict[str, Any] = dict(rate_hz=rate_hz, max_range=max_range, noise_sigma=noise_sigma)
     sensors = []
-    pairs = ((forward_meet_deg, 1.0, "front"), (backward_meet_deg, -1.0, "rear"))
-    for meet, sign, label in pairs:
+    for meet, sign, label in zip(meet_deg, (1.0, -1.0), ("front", "rear"), strict=True):
         look = np.array([sign, 0.0, -np.tan(np.deg2rad(look_down_deg))])
         normals = isoclinal_normals(meet, inclination_deg)
         for k, (m, side) in enumerate(zip(normals, ("left", "right"), strict=True)):
             T = scanner_pose([sign * 1.0, 0.5 - k, mount_height], m, look)
-            sensors.append(Scanner2D(T, name=f"{label}-{side}", step_deg=step_deg, **common))
+            sensors.append(Scanner2D(T, name=f"{label}-{side}", **scanner))
     return SensorRig(tuple(sensors), "isoclinal")
 
 
 def lidar_rig(
     n_beams: int = 32,
     vfov_deg: tuple[float, float] = (-25.0, 15.0),
-    n_columns: int = 1024,
-    rate_hz: float = 10.0,
     mount_height: float = 0.8,
-    max_range: float = 100.0,
-    noise_sigma: float = 0.0,
+    **lidar: Any,
 ) -> SensorRig:
     """One :class:`SpinningLidar` on the roof, ``mount_height`` m above the base origin:
-    ``n_beams`` rings over ``vfov_deg`` (lowest, highest elevation, deg), ``n_columns``
-    firings per revolution, ``rate_hz`` revolutions/s, ``max_range`` and ``noise_sigma`` m."""
+    ``n_beams`` rings over ``vfov_deg`` (lowest, highest elevation, deg); ``lidar``: its
+    other fields (``n_columns`` firings per revolution, ``rate_hz`` revolutions/s,
+    ``max_range`` and ``noise_sigma`` m; its defaults otherwise)."""
     T = make_transform(np.eye(3), np.array([0.0, 0.0, mount_height]))
-    beams: dict[str, Any] = {"n_beams": n_beams, "vfov_deg": vfov_deg, "n_columns": n_columns}
-    common: dict[str, Any] = dict(rate_hz=rate_hz, max_range=max_range, noise_sigma=noise_sigma)
-    lidar = SpinningLidar(T, name=f"lidar{n_beams}", **beams, **common)
-    return SensorRig((lidar,), f"lidar{n_beams}")
+    sensor = SpinningLidar(T, name=f"lidar{n_beams}", n_beams=n_beams, vfov_deg=vfov_deg, **lidar)
+    return SensorRig((sensor,), f"lidar{n_beams}")
 
 
 RIGS: dict[str, Callable[[], SensorRig]] = {

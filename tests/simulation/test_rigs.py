@@ -77,7 +77,7 @@ def test_default_pairs_cover_every_wall_orientation():
     az = np.arange(0.0, 180.0, 1.0)
     assert _best_crossing(isoclinal_rig(), az).min() >= np.cos(np.deg2rad(45.0)) - 1e-12
     # both pairs meeting along the forward axis leave side walls (normal along y) blind
-    bad = isoclinal_rig(forward_meet_deg=0.0, backward_meet_deg=0.0)
+    bad = isoclinal_rig(meet_deg=(0.0, 0.0))
     assert _best_crossing(bad, az).min() < 1e-12
 
 
