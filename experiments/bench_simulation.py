@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from planodom.simulation import (
-    Rig,
+    SensorRig,
     Simulator,
     WaypointTrajectory,
     isoclinal_rig,
@@ -45,7 +45,7 @@ def _laps(fn, repeats: int) -> tuple[np.ndarray, float]:
     return laps, (time.process_time() - cpu0) / repeats
 
 
-def bench(name: str, rig: Rig, target_ms: float, repeats: int) -> None:
+def bench(name: str, rig: SensorRig, target_ms: float, repeats: int) -> None:
     sim = Simulator(
         random_walls(100, extent=60.0, seed=1), WaypointTrajectory(ROUTE), rig.with_noise(0.006)
     )

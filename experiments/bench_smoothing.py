@@ -53,7 +53,7 @@ def loop_inputs(config: PlanodomConfig, noise: float, seed: int):
 
     sim = simulate_named("paper-loop", "isoclinal", noise=noise, seed=seed, motion="snapshot")
     planes = [extract_planes(scan, config.extraction) for scan in sim]
-    odo = run_odometry(planes, config, times=sim.times)
+    odo = run_odometry(planes, config, times=sim.times.tolist())
     D = config.smoothing.delta_max
     relatives = relative_poses(planes, config, range(1, D + 1), odo.poses)
     return planes, relatives, invert_transform(sim.poses[0])[None] @ sim.poses
@@ -83,7 +83,7 @@ def main() -> None:
         planes, relatives, gt = loop_inputs(config, 0.006, args.seed)
         print(f"paper loop input: {len(planes)} epochs in {time.perf_counter() - t0:.1f} s")
         rows += bench("paper-loop 6 mm", planes, relatives, gt, config.smoothing)
-    from planodom.experiments.paper import markdown_table
+    from planodom.experiments.tables import markdown_table
 
     print(markdown_table(rows))
 

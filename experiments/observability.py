@@ -25,7 +25,7 @@ import numpy as np
 
 from planodom.simulation import (
     ObservabilityStats,
-    Rig,
+    SensorRig,
     Simulator,
     isoclinal_rig,
     observability,
@@ -34,7 +34,7 @@ from planodom.simulation import (
 )
 
 
-def evaluate(rig: Rig, stride: int = 1, min_angle_deg: float = 10.0) -> ObservabilityStats:
+def evaluate(rig: SensorRig, stride: int = 1, min_angle_deg: float = 10.0) -> ObservabilityStats:
     """Observability of every ``stride``-th 10 Hz epoch of one noise-free lap of the paper
     loop with ``rig``; traces count as crossing above ``min_angle_deg``."""
     scene, trajectory = paper_loop(), paper_loop_trajectory()
@@ -62,13 +62,11 @@ def histogram(stats: ObservabilityStats) -> None:
         print(f"  {k:2d} | {'#' * int(np.ceil(60 * c / counts.max())):<60} {c}")
 
 
-ALTERNATIVES: dict[str, Callable[[], Rig]] = {
-    "both pairs meet forward (0/0)": lambda: isoclinal_rig(forward_meet_deg=0, backward_meet_deg=0),
-    "both pairs meet lateral (90/90)": lambda: isoclinal_rig(
-        forward_meet_deg=90, backward_meet_deg=90
-    ),
-    "meet 0 / 90": lambda: isoclinal_rig(forward_meet_deg=0, backward_meet_deg=90),
-    "meet +60/-60": lambda: isoclinal_rig(forward_meet_deg=60, backward_meet_deg=-60),
+ALTERNATIVES: dict[str, Callable[[], SensorRig]] = {
+    "both pairs meet forward (0/0)": lambda: isoclinal_rig(meet_deg=(0, 0)),
+    "both pairs meet lateral (90/90)": lambda: isoclinal_rig(meet_deg=(90, 90)),
+    "meet 0 / 90": lambda: isoclinal_rig(meet_deg=(0, 90)),
+    "meet +60/-60": lambda: isoclinal_rig(meet_deg=(60, -60)),
     "meet +45/-45, inclination 15": lambda: isoclinal_rig(inclination_deg=15),
     "meet +45/-45, inclination 35": lambda: isoclinal_rig(inclination_deg=35),
 }

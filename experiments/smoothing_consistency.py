@@ -26,17 +26,16 @@ import yaml
 
 from planodom.config import PlanodomConfig
 from planodom.experiments.consistency import VARIANTS, run_consistency_experiment
-from planodom.experiments.paper import markdown_table
+from planodom.experiments.tables import markdown_table
 
 
 def config_with(overrides: list[str]) -> PlanodomConfig:
     """Defaults with ``section.key=value`` overrides (values parsed as YAML)."""
-    data = PlanodomConfig().model_dump()
+    changes = {}
     for item in overrides:
         key, _, value = item.partition("=")
-        section, _, field = key.partition(".")
-        data[section][field] = yaml.safe_load(value)
-    return PlanodomConfig.from_dict(data, source="--set")
+        changes[key] = yaml.safe_load(value)
+    return PlanodomConfig().updated(changes, source="--set")
 
 
 def main() -> None:

@@ -34,6 +34,9 @@ import numpy as np
 
 from planodom.geometry import make_transform
 
+GaussianNoise = gtsam.noiseModel.Gaussian
+Noise = gtsam.noiseModel.Base
+
 #: Default plane measurement noise: Unit3 tangent (2) rad, offset (1) m.
 PLANE_NOISE = gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-2, 1e-2, 2e-2]))
 
@@ -42,19 +45,12 @@ ANCHOR_NOISE = gtsam.noiseModel.Isotropic.Sigma(6, 1.0)
 
 
 def plane_factor(
-    pose_key: int,
-    landmark_key: int,
-    measured: np.ndarray,
-    noise: gtsam.noiseModel.Gaussian = PLANE_NOISE,
+    pose_key: int, landmark_key: int, measured: np.ndarray, noise: GaussianNoise = PLANE_NOISE
 ) -> gtsam.OrientedPlane3Factor:
-    """Global plane factor: landmark in the world frame.
-
-    Args:
-        pose_key: key of ``T_world_base`` (Pose3).
-        landmark_key: key of the world plane (OrientedPlane3).
-        measured: (4,) ``(n, d)`` of the plane in the base frame, normal towards the sensor.
-        noise: 3-dim Gaussian noise in OrientedPlane3 tangent coordinates (not robust).
-    """
+    """Global plane factor between ``T_world_base`` (Pose3 ``pose_key``) and the world
+    plane (OrientedPlane3 ``landmark_key``): ``measured`` (4,) ``(n, d)`` in the base frame,
+    normal towards the sensor; ``noise`` 3-dim Gaussian in OrientedPlane3 tangent
+    coordinates (the Python constructor takes no robust model)."""
     return gtsam.OrientedPlane3Factor(np.asarray(measured, float), noise, pose_key, landmark_key)
 
 
@@ -63,17 +59,13 @@ def anchored_plane_factor(
     anchor_key: int,
     landmark_key: int,
     measured: np.ndarray,
-    noise: gtsam.noiseModel.Base = PLANE_NOISE,
+    noise: Noise = PLANE_NOISE,
 ) -> gtsam_unstable.LocalOrientedPlane3Factor:
-    """Anchored plane factor: landmark expressed in the anchor frame ``anchor_key``.
-
-    Args:
-        pose_key: key of ``T_world_base`` (Pose3).
-        anchor_key: key of ``T_world_anchor`` (Pose3, see :func:`anchor_prior`).
-        landmark_key: key of the plane in the anchor frame (OrientedPlane3).
-        measured: (4,) ``(n, d)`` in the base frame, normal towards the sensor.
-        noise: 3-dim noise model in the measured plane's tangent coordinates; may be robust.
-    """
+    """Anchored plane factor: the landmark (OrientedPlane3 ``landmark_key``) is expressed in
+    the anchor frame ``T_world_anchor`` (Pose3 ``anchor_key``, see :func:`anchor_prior`)
+    and observed from ``T_world_base`` (Pose3 ``pose_key``) as ``measured`` (4,) ``(n, d)``
+    in the base frame, normal towards the sensor; ``noise`` 3-dim in the measured plane's
+    tangent coordinates, may be robust."""
     return gtsam_unstable.LocalOrientedPlane3Factor(
         np.asarray(measured, float), noise, pose_key, anchor_key, landmark_key
     )
@@ -87,7 +79,7 @@ def anchor_pose(origin: np.ndarray) -> np.ndarray:
 def anchor_prior(
     anchor_key: int,
     T_world_anchor: np.ndarray,
-    noise: gtsam.noiseModel.Base = ANCHOR_NOISE,
+    noise: Noise = ANCHOR_NOISE,
 ) -> gtsam.PriorFactorPose3:
     """The gauge-fixing prior of an anchor frame (see the module docstring).
 

@@ -34,6 +34,10 @@ from functools import partial
 import gtsam
 import numpy as np
 
+Transform = np.ndarray | gtsam.Pose3
+Noise = gtsam.noiseModel.Base
+Jacobians = list[np.ndarray] | None
+
 #: Default noise of a 5-DoF relative pose: (rot x, rot y, rot z) rad, (x, y) m.
 POSE5_NOISE = gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-3, 1e-3, 1e-3, 1e-2, 1e-2]))
 
@@ -44,7 +48,7 @@ ROTATION_NOISE = gtsam.noiseModel.Isotropic.Sigma(3, 1e-3)
 VERTICAL_NOISE = gtsam.noiseModel.Isotropic.Sigma(1, 0.05)
 
 
-def _matrix(T: np.ndarray | gtsam.Pose3) -> np.ndarray:
+def _matrix(T: Transform) -> np.ndarray:
     """(4, 4) float64 copy of a transform or Pose3."""
     return np.array(T.matrix() if isinstance(T, gtsam.Pose3) else T, dtype=float).reshape(4, 4)
 
@@ -89,50 +93,40 @@ def pose5_error(
     return error, H_i, H_j
 
 
-def _pose5_error(
-    measured: np.ndarray,
-    rows: slice,
-    this: gtsam.CustomFactor,
-    values: gtsam.Values,
-    jacobians: list[np.ndarray] | None,
-) -> np.ndarray:
+def _poses(this: gtsam.CustomFactor, values: gtsam.Values) -> tuple[np.ndarray, np.ndarray]:
+    """The (4, 4) matrices of a two-pose custom factor's variables ``T_world_i, T_world_j``."""
     keys = this.keys()
-    error, H_i, H_j = pose5_error(
-        measured,
-        values.atPose3(keys[0]).matrix(),
-        values.atPose3(keys[1]).matrix(),
-        jacobians is not None,
-    )
-    if jacobians is not None:
-        jacobians[0] = H_i[rows]
-        jacobians[1] = H_j[rows]
+    return values.atPose3(keys[0]).matrix(), values.atPose3(keys[1]).matrix()
+
+
+def _pose5_error(
+    measured: np.ndarray, rows: slice, this: gtsam.CustomFactor, values: gtsam.Values, H: Jacobians
+) -> np.ndarray:
+    """``gtsam.CustomFactor`` error of :func:`pose5_error`'s ``rows``."""
+    error, H_i, H_j = pose5_error(measured, *_poses(this, values), H is not None)
+    if H is not None:
+        assert H_i is not None and H_j is not None
+        H[0], H[1] = H_i[rows], H_j[rows]
     return error[rows]
 
 
 def _vertical_error(
-    dz: float,
-    this: gtsam.CustomFactor,
-    values: gtsam.Values,
-    jacobians: list[np.ndarray] | None,
+    dz: float, this: gtsam.CustomFactor, values: gtsam.Values, H: Jacobians
 ) -> np.ndarray:
-    keys = this.keys()
-    T_i, T_j = values.atPose3(keys[0]).matrix(), values.atPose3(keys[1]).matrix()
-    if jacobians is not None:
+    """``gtsam.CustomFactor`` error of the change of height against ``dz`` (m)."""
+    T_i, T_j = _poses(this, values)
+    if H is not None:
         # t' = t + R v: the height moves by the third row of R.
         H_i = np.zeros((1, 6))
         H_j = np.zeros((1, 6))
         H_i[0, 3:] = -T_i[2, :3]
         H_j[0, 3:] = T_j[2, :3]
-        jacobians[0] = H_i
-        jacobians[1] = H_j
+        H[0], H[1] = H_i, H_j
     return np.array([T_j[2, 3] - T_i[2, 3] - dz])
 
 
 def pose5_factor(
-    key_i: int,
-    key_j: int,
-    T_i_j: np.ndarray | gtsam.Pose3,
-    noise: gtsam.noiseModel.Base = POSE5_NOISE,
+    key_i: int, key_j: int, T_i_j: Transform, noise: Noise = POSE5_NOISE
 ) -> gtsam.CustomFactor:
     """5-DoF between factor (roll, pitch, yaw, x, y of ``T_i_j``; z free).
 
@@ -148,10 +142,7 @@ def pose5_factor(
 
 
 def rotation_factor(
-    key_i: int,
-    key_j: int,
-    T_i_j: np.ndarray | gtsam.Pose3,
-    noise: gtsam.noiseModel.Base = ROTATION_NOISE,
+    key_i: int, key_j: int, T_i_j: Transform, noise: Noise = ROTATION_NOISE
 ) -> gtsam.CustomFactor:
     """The rotation rows of :func:`pose5_factor` alone (relative rotation measured,
     horizontal translation not: the odometry's "degenerate" epochs).
@@ -167,7 +158,7 @@ def rotation_factor(
 
 
 def vertical_factor(
-    key_i: int, key_j: int, dz: float = 0.0, noise: gtsam.noiseModel.Base = VERTICAL_NOISE
+    key_i: int, key_j: int, dz: float = 0.0, noise: Noise = VERTICAL_NOISE
 ) -> gtsam.CustomFactor:
     """1-DoF factor on the change of height ``z_j - z_i`` (world frame) against ``dz``, m.
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes
 import sys
+from typing import Any
 
 
 def _preload_libusb() -> None:
@@ -34,6 +35,7 @@ _preload_libusb()
 
 import open3d  # noqa: E402
 
-o3d = open3d
+# Typed as Any: open3d's partial stubs reject the numpy arrays its functions accept.
+o3d: Any = open3d
 
 __all__ = ["o3d"]

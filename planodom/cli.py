@@ -6,9 +6,13 @@ a traceback, and exit with status 2.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import inspect
 import sys
-from collections.abc import Callable
+import typing
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -37,14 +41,29 @@ def reports_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
-        except PlanodomError as exc:
-            err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
-            raise typer.Exit(2) from None
-        except FileExistsError as exc:
+        except (PlanodomError, FileExistsError) as exc:
             err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
 
     return wrapper
+
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import version
+
+        console.print(f"planodom {version('planodom')}", highlight=False)
+        raise typer.Exit()
+
+
+@app.callback()
+def main_options(
+    version: Annotated[
+        bool | None,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
+    ] = None,
+) -> None:
+    """Odometry from planar landmarks, smoothed with factor graphs."""
 
 
 OutDir = Annotated[Path, typer.Option("--out", "-o", help="Output directory.")]
@@ -64,22 +83,126 @@ Motion = Annotated[
     str,
     typer.Option(help="continuous: each point from the pose at its time; snapshot: one pose."),
 ]
-
-
-def _noise_value(noise: str) -> float | str:
-    try:
-        return float(noise)
-    except ValueError:
-        return noise
+ConfigFile = Annotated[
+    Path | None, typer.Option("--config", "-c", help="YAML file with config overrides.")
+]
+DatasetDir = Annotated[Path | None, typer.Argument(help="Dataset directory.")]
+Scenario = Annotated[
+    str | None,
+    typer.Option(help="Simulate this built-in scene (paper-loop, urban-canyon) instead."),
+]
 
 
 def _simulate(scene: str, rig: str, noise: str, seed: int, epochs: int | None, motion: str):
     from planodom.simulation import simulate_named
 
+    try:
+        sigma: float | str = float(noise)
+    except ValueError:
+        sigma = noise  # a preset name
     with console.status(f"simulating {scene} with the {rig} rig"):
-        return simulate_named(
-            scene, rig, noise=_noise_value(noise), seed=seed, n_epochs=epochs, motion=motion
-        )
+        return simulate_named(scene, rig, noise=sigma, seed=seed, n_epochs=epochs, motion=motion)
+
+
+@dataclass(frozen=True)
+class Source:
+    """Where ``run`` and ``smooth`` take their epochs from: a dataset directory, or a
+    built-in scenario simulated with the given rig, noise, seed, length and motion."""
+
+    dataset: Path | None
+    scenario: str | None
+    rig: str
+    noise: str
+    seed: int
+    epochs: int | None
+    motion: str
+
+    def load(self, out: Path):
+        """The dataset, or the scenario simulated into ``out/dataset`` and loaded; creates
+        the output folder ``out``."""
+        from planodom.datasets import load_dataset
+        from planodom.errors import ConfigError
+        from planodom.results import prepare_output
+
+        if (self.dataset is None) == (self.scenario is None):
+            raise ConfigError("give either a DATASET directory or --scenario NAME")
+        prepare_output(out)
+        if self.dataset is not None:
+            return load_dataset(self.dataset)
+        from planodom.simulation.export import write_simulated_dataset
+
+        sim = (self.scenario, self.rig, self.noise, self.seed, self.epochs, self.motion)
+        run = _simulate(*sim)  # type: ignore[arg-type]
+        with console.status("writing the simulated dataset"):
+            return write_simulated_dataset(run, out / "dataset", self.scenario, overwrite=True)
+
+
+#: The options of :class:`Source`, shared by ``run`` and ``smooth`` (:func:`takes_source`).
+_SOURCE_OPTIONS = (
+    ("dataset", DatasetDir, None),
+    ("scenario", Scenario, None),
+    ("rig", RigName, "isoclinal"),
+    ("noise", Noise, "lms221"),
+    ("seed", Seed, 0),
+    ("epochs", Epochs, None),
+    ("motion", Motion, "continuous"),
+)
+
+
+def _bundles(name: str, make: Callable[..., Any], options: tuple) -> Callable:
+    """A decorator giving a command the typer ``options`` (name, annotation, default) and
+    passing them to it as one argument ``name`` = ``make(**options)``."""
+
+    def decorate(func: Callable[..., Any]) -> Callable[..., Any]:
+        keyword = inspect.Parameter.KEYWORD_ONLY
+        hints = typing.get_type_hints(func, include_extras=True)  # resolved, for typer
+        own = [
+            p.replace(kind=keyword, annotation=hints[p.name])
+            for p in inspect.signature(func).parameters.values()
+            if p.name != name
+        ]
+        shared = [inspect.Parameter(n, keyword, default=d, annotation=a) for n, a, d in options]
+
+        @functools.wraps(func)
+        def wrapper(**kwargs: Any) -> Any:
+            bundle = make(**{option: kwargs.pop(option) for option, _, _ in options})
+            return func(**{name: bundle}, **kwargs)
+
+        wrapper.__signature__ = inspect.Signature(own + shared)  # type: ignore[attr-defined]
+        return wrapper
+
+    return decorate
+
+
+#: ``run`` and ``smooth`` take their epochs from one :class:`Source` option set.
+takes_source = _bundles("source", Source, _SOURCE_OPTIONS)
+
+
+def _load_config(path: Path | None, changes: dict[str, object] | None = None):
+    """The config of ``path`` (defaults without), with the non-None ``changes`` (dotted
+    field names, e.g. ``odometry.delta``) applied through ``PlanodomConfig.updated``."""
+    from planodom.config import PlanodomConfig
+
+    cfg = PlanodomConfig() if path is None else PlanodomConfig.from_yaml(path)
+    changes = {k: v for k, v in (changes or {}).items() if v is not None}
+    return cfg.updated(changes, source="command line") if changes else cfg
+
+
+@contextlib.contextmanager
+def _progress(description: str) -> Iterator[Callable[[int, int], None]]:
+    """A rich progress bar in epochs while the block runs; yields ``callback(k, n)``."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    columns = (BarColumn(), MofNCompleteColumn(), TextColumn("epochs"), TimeRemainingColumn())
+    with Progress(TextColumn(description), *columns, console=err_console, transient=True) as bar:
+        task = bar.add_task(description, total=None)
+        yield lambda k, n: bar.update(task, completed=k, total=n)
 
 
 @app.command()
@@ -104,90 +227,17 @@ def simulate(
     console.print(simulation_table(run, title=f"{scene} / {rig} -> {out}"))
 
 
-ConfigFile = Annotated[
-    Path | None, typer.Option("--config", "-c", help="YAML file with config overrides.")
-]
-
-
-def _load_config(path: Path | None, **odometry: object):
-    from planodom.config import PlanodomConfig
-
-    cfg = PlanodomConfig() if path is None else PlanodomConfig.from_yaml(path)
-    updates = {k: v for k, v in odometry.items() if v is not None}
-    if updates:
-        data = cfg.model_dump()
-        data["odometry"].update(updates)
-        cfg = PlanodomConfig.from_dict(data, source="command line")
-    return cfg
-
-
-def _progress(description: str):
-    """A rich progress bar in epochs; returns (progress, callback(k, n))."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeRemainingColumn,
-    )
-
-    progress = Progress(
-        TextColumn(description),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("epochs"),
-        TimeRemainingColumn(),
-        console=err_console,
-        transient=True,
-    )
-    task = progress.add_task(description, total=None)
-
-    def callback(k: int, n: int) -> None:
-        progress.update(task, completed=k, total=n)
-
-    return progress, callback
-
-
-def _dataset_or_scenario(dataset: Path | None, scenario: str | None, out: Path, **sim: object):
-    """Load ``dataset``, or simulate ``scenario`` into ``out/dataset`` and load that."""
-    from planodom.datasets import load_dataset
-    from planodom.errors import ConfigError
-
-    if (dataset is None) == (scenario is None):
-        raise ConfigError("give either a DATASET directory or --scenario NAME")
-    if dataset is not None:
-        return load_dataset(dataset)
-    from planodom.simulation.export import write_simulated_dataset
-
-    run = _simulate(scenario, **sim)  # type: ignore[arg-type]
-    with console.status("writing the simulated dataset"):
-        return write_simulated_dataset(run, out / "dataset", scene_name=scenario, overwrite=True)
-
-
-Scenario = Annotated[
-    str | None,
-    typer.Option(help="Simulate this built-in scene (paper-loop, urban-canyon) instead."),
-]
-Pipeline = Annotated[
-    str | None, typer.Option(help="wocsc | sda-mean | ocsc | mean (default: config's).")
-]
-Delta = Annotated[int | None, typer.Option(help="Associate epoch k with k - delta.")]
-
-
 @app.command()
 @reports_errors
+@takes_source
 def run(
     out: OutDir,
-    dataset: Annotated[Path | None, typer.Argument(help="Dataset directory.")] = None,
-    scenario: Scenario = None,
-    rig: RigName = "isoclinal",
-    noise: Noise = "lms221",
-    seed: Seed = 0,
-    epochs: Epochs = None,
-    motion: Motion = "continuous",
+    source: Source,
     config: ConfigFile = None,
-    pipeline: Pipeline = None,
-    delta: Delta = None,
+    pipeline: Annotated[
+        str | None, typer.Option(help="wocsc | sda-mean | ocsc | mean (default: config's).")
+    ] = None,
+    delta: Annotated[int | None, typer.Option(help="Associate epoch k with k - delta.")] = None,
 ) -> None:
     """Extract planes and run the paper's odometry over a dataset (or a built-in scenario).
 
@@ -198,13 +248,9 @@ def run(
     from planodom.odometry import motion_assumption, run_odometry
     from planodom.report import odometry_table
 
-    cfg = _load_config(config, pipeline=pipeline, delta=delta)
-    out = results.prepare_output(out)
-    data = _dataset_or_scenario(
-        dataset, scenario, out, rig=rig, noise=noise, seed=seed, epochs=epochs, motion=motion
-    )
-    progress, callback = _progress("odometry")
-    with progress:
+    cfg = _load_config(config, {"odometry.pipeline": pipeline, "odometry.delta": delta})
+    data = source.load(out)
+    with _progress("odometry") as callback:
         odo = run_odometry(data, cfg, progress=callback)
     metrics = results.write_odometry_run(out, odo, data.gt_poses)
     console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
@@ -213,22 +259,17 @@ def run(
 
 @app.command()
 @reports_errors
+@takes_source
 def smooth(
     out: OutDir,
-    dataset: Annotated[Path | None, typer.Argument(help="Dataset directory.")] = None,
+    source: Source,
+    mode: Annotated[str | None, typer.Option(help="batch | windowed.")] = None,
     window: Annotated[
         int | None, typer.Option(help="Fixed-lag window W in epochs (implies --mode windowed).")
     ] = None,
     delta: Annotated[
         int | None, typer.Option(help="Relative poses for delta = 1..D (default: config's).")
     ] = None,
-    mode: Annotated[str | None, typer.Option(help="batch | windowed.")] = None,
-    scenario: Scenario = None,
-    rig: RigName = "isoclinal",
-    noise: Noise = "lms221",
-    seed: Seed = 0,
-    epochs: Epochs = None,
-    motion: Motion = "continuous",
     config: ConfigFile = None,
 ) -> None:
     """Smooth the odometry with a factor graph (batch, or a fixed-lag window).
@@ -240,34 +281,22 @@ def smooth(
     from planodom.report import comparison_table
     from planodom.smoothing.run import run_smoothing
 
-    cfg = _load_config(config)
+    cfg = _load_config(config)  # before simulating: a bad file fails at once
     mode = mode or ("windowed" if window is not None else "batch")
-    out = results.prepare_output(out)
-    data = _dataset_or_scenario(
-        dataset, scenario, out, rig=rig, noise=noise, seed=seed, epochs=epochs, motion=motion
-    )
-    progress, callback = _progress("odometry and relative poses")
-    with progress:
+    data = source.load(out)
+    with _progress("odometry and relative poses") as callback:
         sm = run_smoothing(
-            data,
-            cfg,
-            window=window,
-            delta=delta,
-            mode=mode,
+            data, cfg, window=window, delta=delta, mode=mode,
             progress=lambda stage, k, n: callback(k, n),
-        )
+        )  # fmt: skip
     odo_metrics = results.write_odometry_run(out, sm.odometry, data.gt_poses)
     results.write_trajectory(out, sm.times, sm.poses)  # the smoothed trajectory is the output
     results.write_tum(out / "odometry.tum", sm.times, sm.odometry.poses)
     results.write_config(out, sm.config)
     smoothed = results.trajectory_metrics(sm.poses, data.gt_poses)
     results.write_metrics(out, {"odometry": odo_metrics, f"smoothing_{mode}": smoothed})
-    console.print(
-        comparison_table(
-            {"odometry": odo_metrics, f"{mode} smoothing": smoothed},
-            title=f"planodom smooth -> {out}",
-        )
-    )
+    rows = {"odometry": odo_metrics, f"{mode} smoothing": smoothed}
+    console.print(comparison_table(rows, title=f"planodom smooth -> {out}"))
 
 
 @app.command("eval")
@@ -296,11 +325,24 @@ def evaluate(
         raise DatasetError(
             f"{estimate}: {len(t_est)} poses whose times do not match the {len(t_gt)} of {truth}"
         )
-    console.print(metrics_table(metrics.summarize(est, gt, align=align, delta=delta)))
+    summary = metrics.summarize(est, gt, align=align, delta=delta)  # type: ignore[arg-type]
+    console.print(metrics_table(summary))
+
+
+@app.command("config")
+@reports_errors
+def show_config(config: ConfigFile = None) -> None:
+    """Print the resolved configuration (defaults, or a file over them) as YAML.
+
+    The output loads back unchanged: ``planodom config > my.yaml``, edit, ``--config my.yaml``.
+    """
+    typer.echo(_load_config(config).to_yaml(), nl=False)
 
 
 Levels = Annotated[str, typer.Option(help="Comma-separated range noise sigmas in metres.")]
 ExpOut = Annotated[Path, typer.Option("--out", "-o", help="Output directory.")]
+ExpSeed = Annotated[int, typer.Option(help="Noise seed.")]
+ExpMotion = Annotated[str, typer.Option(help="snapshot (the paper's simulator) | continuous.")]
 
 
 def _levels(text: str) -> list[float]:
@@ -319,73 +361,73 @@ def _say(message: str) -> None:
     err_console.print(f"[dim]{message}[/]", highlight=False)
 
 
+def _print_files(files: dict[str, Path]) -> None:
+    """The written files, Markdown tables rendered."""
+    from rich.markdown import Markdown
+
+    for name, path in files.items():
+        if path.suffix == ".md":
+            console.print(Markdown(path.read_text()))
+        console.print(f"{name}: {path}", highlight=False)
+
+
+def _simulation(epochs: int | None, seed: int, motion: str):
+    from planodom.experiments.simulated import Simulation
+
+    return Simulation(seed=seed, n_epochs=epochs, motion=motion)
+
+
+#: The experiments' simulation options, passed as one ``Simulation``.
+takes_simulation = _bundles(
+    "simulation",
+    _simulation,
+    (("epochs", Epochs, None), ("seed", ExpSeed, 1), ("motion", ExpMotion, "snapshot")),
+)
+
+
 @experiment_app.command("paper")
 @reports_errors
+@takes_simulation
 def experiment_paper(
+    simulation: Any,
     out: ExpOut = Path("results/paper"),
     levels: Levels = "0,0.006,0.02,0.1",
-    epochs: Epochs = None,
-    seed: Seed = 1,
-    motion: Motion = "snapshot",
     config: ConfigFile = None,
 ) -> None:
     """The paper's section VI: Fig. 5 trajectories, Fig. 6 / 7 precision tables."""
-    from rich.markdown import Markdown
-
-    from planodom.experiments.paper import (
-        markdown_table,
-        precision_markdown,
-        run_paper_experiment,
-    )
+    from planodom.experiments.paper import run_paper_experiment
 
     result = run_paper_experiment(
-        out, noise_levels=_levels(levels), seed=seed, n_epochs=epochs, motion=motion,
-        config=_load_config(config), progress=_say,
+        out, noise_levels=_levels(levels), simulation=simulation, config=_load_config(config),
+        progress=_say,
     )  # fmt: skip
-    console.print(Markdown(precision_markdown(result.precision)))
-    keep = ("noise_m", "method", "unresolved", "degenerate", "rot_rms_deg", "xy_rms_m")
-    keep += ("drift_percent", "ate_rmse_m")
-    console.print(Markdown(markdown_table([{k: r[k] for k in keep} for r in result.summary])))
-    for name, path in result.files.items():
-        console.print(f"{name}: {path}", highlight=False)
+    _print_files(result.files)
 
 
 @experiment_app.command("smoothing")
 @reports_errors
+@takes_simulation
 def experiment_smoothing(
-    out: ExpOut = Path("results/smoothing"),
-    levels: Levels = "0,0.006,0.02,0.1",
+    simulation: Any,
     scenes: Annotated[str, typer.Option(help="Comma-separated built-in scenes.")] = (
         "paper-loop,urban-canyon"
     ),
+    levels: Levels = "0,0.006,0.02,0.1",
     window: Annotated[int, typer.Option(help="Fixed-lag window W, epochs.")] = 10,
     delta: Annotated[int, typer.Option(help="Relative poses for delta = 1..D.")] = 3,
-    epochs: Epochs = None,
-    seed: Seed = 1,
-    motion: Motion = "snapshot",
+    out: ExpOut = Path("results/smoothing"),
     config: ConfigFile = None,
 ) -> None:
     """Raw odometry vs delta > 1 vs windowed vs batch smoothing, with NEES."""
-    from pathlib import Path as _Path
-
     from planodom.experiments.smoothing import run_smoothing_experiment
 
     result = run_smoothing_experiment(
         out, noise_levels=_levels(levels), scenes=[x for x in scenes.split(",") if x],
-        window=window, delta=delta, seed=seed, n_epochs=epochs, motion=motion,
-        config=_load_config(config), progress=_say,
+        window=window, delta=delta, simulation=simulation, config=_load_config(config),
+        progress=_say,
     )  # fmt: skip
-    for name, path in getattr(result, "files", {}).items():
-        if _Path(path).suffix == ".md":
-            from rich.markdown import Markdown
-
-            console.print(Markdown(_Path(path).read_text()))
-        console.print(f"{name}: {path}", highlight=False)
-
-
-def main() -> None:  # pragma: no cover - console entry point
-    app()
+    _print_files(result.files)
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    sys.exit(app())

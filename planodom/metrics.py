@@ -1,4 +1,4 @@
-"""Trajectory metrics: ATE and RPE through evo, drift, per-epoch 5-DoF increment errors.
+"""Trajectory metrics: ATE and RPE through evo, drift, per-epoch 5-DoF increment errors, NEES.
 
 Trajectories are (E, 4, 4) arrays of ``T_world_base`` at the same E epochs (so no time
 synchronisation is needed). An odometry estimate starts at identity: its frame is the base
@@ -9,15 +9,17 @@ so; per-epoch errors are in radians and metres.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Literal
 
+import gtsam
 import numpy as np
 from evo.core import metrics as evo_metrics
 from evo.core.geometry import GeometryException
 from evo.core.trajectory import PoseTrajectory3D
-from scipy.spatial.transform import Rotation
 
 from planodom.errors import GeometryError
+from planodom.geometry import invert_transform, pose5_from_transform
 
 Alignment = Literal["none", "origin", "se3", "4dof"]
 #: Statistics reported for ATE and RPE.
@@ -29,13 +31,13 @@ POSE5_NAMES = ("roll", "pitch", "yaw", "x", "y")
 def relative_to_first(poses: np.ndarray) -> np.ndarray:
     """Poses (E, 4, 4) expressed in the frame of the first one: ``inv(T_0) @ T_k``."""
     poses = _check_poses(poses, "poses")
-    return _inverse(poses[0])[None] @ poses
+    return invert_transform(poses[0])[None] @ poses
 
 
 def relative_motions(poses: np.ndarray) -> np.ndarray:
     """Increments (E-1, 4, 4) ``T_k_k+1 = inv(T_k) @ T_k+1`` of poses (E, 4, 4)."""
     poses = _check_poses(poses, "poses")
-    return _inverse(poses[:-1]) @ poses[1:]
+    return invert_transform(poses[:-1]) @ poses[1:]
 
 
 def aligned(est_poses: np.ndarray, gt_poses: np.ndarray, align: Alignment = "origin") -> np.ndarray:
@@ -152,21 +154,11 @@ def drift(est_poses: np.ndarray, gt_poses: np.ndarray, xy_only: bool = False) ->
     return {"final_error": final, "distance": distance, "percent": percent}
 
 
-def pose5(transforms: np.ndarray) -> np.ndarray:
-    """(K, 5) ``(roll, pitch, yaw, x, y)`` (rad, m) of transforms (K, 4, 4).
-
-    The batched form of :func:`planodom.geometry.pose5_from_transform`:
-    ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
-    """
-    transforms = np.asarray(transforms, dtype=np.float64).reshape(-1, 4, 4)
-    ypr = Rotation.from_matrix(transforms[:, :3, :3]).as_euler("ZYX")
-    return np.column_stack([ypr[:, ::-1], transforms[:, :2, 3]])
-
-
 def per_epoch_errors(est_rel: np.ndarray, gt_rel: np.ndarray) -> dict[str, np.ndarray]:
     """Signed errors of the estimated per-epoch increments in the 5 observed DoF.
 
-    The error of epoch k is ``pose5(est_rel[k]) - pose5(gt_rel[k])``, the angles wrapped to
+    With ``pose5`` = :func:`planodom.geometry.pose5_from_transform` (roll, pitch, yaw, x, y),
+    the error of epoch k is ``pose5(est_rel[k]) - pose5(gt_rel[k])``, the angles wrapped to
     [-pi, pi): the estimated roll / pitch / yaw rate (rad per epoch) and x / y displacement
     (m, in the base frame of epoch k) minus the true ones. This is what the paper's tables
     summarise by mean (bias) and standard deviation per DoF. (The alternative,
@@ -183,7 +175,7 @@ def per_epoch_errors(est_rel: np.ndarray, gt_rel: np.ndarray) -> dict[str, np.nd
     gt = np.asarray(gt_rel, dtype=np.float64)
     if est.shape != gt.shape or est.ndim != 3 or est.shape[1:] != (4, 4):
         raise GeometryError(f"expected two (K, 4, 4) arrays, got {est.shape} and {gt.shape}")
-    diff = pose5(est) - pose5(gt)
+    diff = pose5_from_transform(est) - pose5_from_transform(gt)
     diff[:, :3] = (diff[:, :3] + np.pi) % (2.0 * np.pi) - np.pi
     return {name: diff[:, j] for j, name in enumerate(POSE5_NAMES)}
 
@@ -224,6 +216,39 @@ def summarize(
     return out
 
 
+def pose_nees(
+    poses: np.ndarray,
+    covariances: np.ndarray,
+    gt_poses: np.ndarray,
+    dofs: Sequence[int] = range(6),
+) -> np.ndarray:
+    """Per-epoch NEES (E,) of estimated poses against the truth, over tangent components ``dofs``.
+
+    ``xi = Local(T_est, T_true)`` in gtsam's Pose3 tangent at the estimate
+    (rot x, y, z in rad, then x, y, z in m, body frame: the frame of gtsam's marginal
+    covariances) and ``NEES = xi_d^T P_dd^-1 xi_d``, ``P_dd`` the sub-block of ``dofs``
+    (the other components marginalised); e.g. ``dofs=range(5)`` leaves out body z, which a
+    5-DoF odometry does not observe. An honest covariance gives NEES ~ chi2(len(dofs)).
+
+    Args:
+        poses: (E, 4, 4) estimates. covariances: (E, 6, 6) their covariances in that
+            tangent. gt_poses: (E, 4, 4) the truth, in the same frame as the estimates.
+
+    Returns:
+        (E,) float64; NaN where ``P_dd`` is singular.
+    """
+    keep = list(dofs)
+    block = np.ix_(keep, keep)
+    out = np.full(len(poses), np.nan)
+    for k, (T, P, G) in enumerate(zip(poses, covariances, gt_poses, strict=True)):
+        xi = np.asarray(gtsam.Pose3(T).localCoordinates(gtsam.Pose3(G)))[keep]
+        try:
+            out[k] = xi @ np.linalg.solve(P[block], xi)
+        except np.linalg.LinAlgError:
+            continue
+    return out
+
+
 # --------------------------------------------------------------------------- helpers
 
 
@@ -234,16 +259,6 @@ def _check_poses(poses: np.ndarray, name: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise GeometryError(f"{name}: poses are not finite")
     return arr
-
-
-def _inverse(T: np.ndarray) -> np.ndarray:
-    """Closed-form inverse of rigid transforms (..., 4, 4)."""
-    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
-    inv = np.zeros_like(T)
-    inv[..., :3, :3] = R_t
-    inv[..., :3, 3] = -(R_t @ T[..., :3, 3, None])[..., 0]
-    inv[..., 3, 3] = 1.0
-    return inv
 
 
 def _trajectory(poses: np.ndarray) -> PoseTrajectory3D:

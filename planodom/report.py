@@ -24,7 +24,7 @@ def simulation_table(run: SimulatedRun, title: str = "simulation") -> Table:
         "epoch rate": f"{run.epoch_rate:g} Hz",
         "duration": f"{len(run) / run.epoch_rate:.1f} s",
         "distance travelled": f"{np.linalg.norm(steps, axis=1).sum():.1f} m",
-        "sensors": f"{len(run.rig.sensors)} ({run.rig.name})",
+        "sensors": f"{len(run.sensor_rig.sensors)} ({run.sensor_rig.name})",
         "motion": run.motion,
         "points per epoch (median)": f"{np.median(n_points):.0f}" if len(n_points) else "-",
         "beams without return": f"{100 * no_return:.1f} %",

@@ -62,6 +62,14 @@ class Rig:
     extrinsics: tuple[np.ndarray, ...] = ()
     extra: Mapping[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        # Built in code (a simulated rig) as well as from YAML: hold arrays of one form.
+        if self.sensor_origins is not None:
+            origins = np.asarray(self.sensor_origins, dtype=np.float64).reshape(-1, 3)
+            object.__setattr__(self, "sensor_origins", origins)
+        extrinsics = tuple(np.asarray(T, dtype=np.float64) for T in self.extrinsics)
+        object.__setattr__(self, "extrinsics", extrinsics)
+
     @classmethod
     def from_dict(cls, data: Mapping[str, Any] | None, source: str = "rig.yaml") -> Rig:
         """Validate the mapping of a ``rig.yaml``; errors name ``source`` and the field."""
@@ -70,44 +78,16 @@ class Rig:
         if not isinstance(data, Mapping):
             raise DatasetError(f"{source}: rig file must hold a mapping, not {type(data).__name__}")
         rate = data.get("epoch_rate")
-        if rate is not None:
-            rate = _positive(rate, source, "epoch_rate")
         origins = data.get("sensor_origins")
         if origins is not None:
             origins = _array(origins, source, "sensor_origins", (-1, 3))
-            if len(origins) == 0:
-                origins = None
-        bounds = data.get("motion_bounds")
-        if bounds is not None:
-            if not isinstance(bounds, Mapping):
-                raise DatasetError(
-                    f"{source}: field 'motion_bounds' must be a mapping with max_translation_m "
-                    f"and/or max_rotation_deg, got {bounds!r}"
-                )
-            unknown = set(bounds) - {"max_translation_m", "max_rotation_deg"}
-            if unknown:
-                raise DatasetError(
-                    f"{source}: field 'motion_bounds' has unknown keys {sorted(unknown)}"
-                )
-            bounds = MotionBounds(
-                *(
-                    None
-                    if bounds.get(k) is None
-                    else _positive(bounds[k], source, f"motion_bounds.{k}")
-                    for k in ("max_translation_m", "max_rotation_deg")
-                )
-            )
-        extr = data.get("extrinsics")
-        extrinsics: tuple[np.ndarray, ...] = ()
-        if extr is not None:
-            arr = _array(extr, source, "extrinsics", (-1, 4, 4))
-            if not np.allclose(arr[:, 3], [0.0, 0.0, 0.0, 1.0]):
-                raise DatasetError(
-                    f"{source}: field 'extrinsics': last row of each must be 0 0 0 1"
-                )
-            extrinsics = tuple(arr)
-        extra = {k: v for k, v in data.items() if k not in _KNOWN}
-        return cls(rate, origins, bounds, extrinsics, extra)
+        return cls(
+            epoch_rate_hz=None if rate is None else _positive(rate, source, "epoch_rate"),
+            sensor_origins=origins if origins is not None and len(origins) else None,
+            motion_bounds=_motion_bounds(data.get("motion_bounds"), source),
+            extrinsics=_extrinsics(data.get("extrinsics"), source),
+            extra={k: v for k, v in data.items() if k not in _KNOWN},
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """The ``rig.yaml`` mapping (plain Python types; absent fields are left out)."""
@@ -125,6 +105,36 @@ class Rig:
         if self.extrinsics:
             out["extrinsics"] = [np.asarray(T).tolist() for T in self.extrinsics]
         return out
+
+
+def _motion_bounds(bounds: Any, source: str) -> MotionBounds | None:
+    """The ``motion_bounds`` mapping as :class:`MotionBounds` (None when absent)."""
+    if bounds is None:
+        return None
+    if not isinstance(bounds, Mapping):
+        raise DatasetError(
+            f"{source}: field 'motion_bounds' must be a mapping with max_translation_m "
+            f"and/or max_rotation_deg, got {bounds!r}"
+        )
+    keys = ("max_translation_m", "max_rotation_deg")
+    unknown = set(bounds) - set(keys)
+    if unknown:
+        raise DatasetError(f"{source}: field 'motion_bounds' has unknown keys {sorted(unknown)}")
+    values = [
+        None if bounds.get(k) is None else _positive(bounds[k], source, f"motion_bounds.{k}")
+        for k in keys
+    ]
+    return MotionBounds(*values)
+
+
+def _extrinsics(value: Any, source: str) -> tuple[np.ndarray, ...]:
+    """The ``extrinsics`` list as (4, 4) rigid transforms (() when absent)."""
+    if value is None:
+        return ()
+    arr = _array(value, source, "extrinsics", (-1, 4, 4))
+    if not np.allclose(arr[:, 3], [0.0, 0.0, 0.0, 1.0]):
+        raise DatasetError(f"{source}: field 'extrinsics': last row of each must be 0 0 0 1")
+    return tuple(arr)
 
 
 def _positive(value: Any, source: str, name: str) -> float:

@@ -19,7 +19,7 @@ def test_simulate_writes_a_dataset(tmp_path) -> None:
     result = runner.invoke(app, ["simulate", "--out", str(out), "--epochs", "3", "--seed", "2"])
     assert result.exit_code == 0, result.output
     ds = load_dataset(out)
-    assert len(ds) == 3 and ds.gt_poses is not None and ds.rig["simulation"]["seed"] == 2
+    assert len(ds) == 3 and ds.gt_poses is not None and ds.rig.extra["simulation"]["seed"] == 2
     # Existing dataset: a one-line error, no traceback, exit status 2.
     again = runner.invoke(app, ["simulate", "--out", str(out), "--epochs", "3"])
     assert again.exit_code == 2
@@ -106,3 +106,29 @@ def test_experiment_paper_small(tmp_path) -> None:
     assert all(float(r["xy_rms_m"]) < 1e-6 and float(r["rot_rms_deg"]) < 1e-6 for r in rows)
     bad = runner.invoke(app, ["experiment", "paper", "--out", str(out), "--levels", "-1"])
     assert bad.exit_code == 2 and "--levels" in bad.output
+
+
+def test_config_prints_defaults_that_load_back_unchanged(tmp_path) -> None:
+    from planodom.config import PlanodomConfig
+
+    result = runner.invoke(app, ["config"])
+    assert result.exit_code == 0, result.output
+    (tmp_path / "c.yaml").write_text(result.output)
+    assert PlanodomConfig.from_yaml(tmp_path / "c.yaml") == PlanodomConfig()
+    # a file over the defaults is resolved: its values, every other field as default
+    (tmp_path / "d.yaml").write_text("odometry: {delta: 2}\n")
+    again = runner.invoke(app, ["config", "--config", str(tmp_path / "d.yaml")])
+    (tmp_path / "e.yaml").write_text(again.output)
+    expected = PlanodomConfig().updated({"odometry.delta": 2})
+    assert PlanodomConfig.from_yaml(tmp_path / "e.yaml") == expected != PlanodomConfig()
+
+
+def test_version_and_shared_source_options() -> None:
+    from importlib.metadata import version
+
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0 and result.output.strip() == f"planodom {version('planodom')}"
+    for command in ("run", "smooth"):  # one option set, both commands
+        text = runner.invoke(app, [command, "--help"], terminal_width=200).output
+        for option in ("--scenario", "--rig", "--noise", "--seed", "--epochs", "--motion"):
+            assert option in text, (command, option)

@@ -190,10 +190,21 @@ def test_per_epoch_errors_known_biases_and_wrapping() -> None:
         np.testing.assert_allclose(errors[name], bias[j], atol=1e-9)  # incl. the wrapped yaw
 
 
-def test_pose5_matches_geometry() -> None:
-    T = m.relative_motions(random_trajectory(np.random.default_rng(9), 12))
-    expected = np.array([g.pose5_from_transform(t) for t in T])
-    np.testing.assert_allclose(m.pose5(T), expected, atol=1e-12)
+def test_pose_nees_closed_form() -> None:
+    """The truth displaced from each estimate by a known twist: NEES = sum (xi_i / sigma_i)^2."""
+    import gtsam
+
+    rng = np.random.default_rng(9)
+    est = random_trajectory(rng, 6)
+    sigmas = np.array([0.01, 0.02, 0.03, 0.1, 0.2, 0.3])
+    xi = rng.normal(size=(6, 6)) * sigmas
+    gt = np.array([T @ gtsam.Pose3.Expmap(x).matrix() for T, x in zip(est, xi, strict=True)])
+    P = np.broadcast_to(np.diag(sigmas**2), (6, 6, 6)).copy()
+    np.testing.assert_allclose(m.pose_nees(est, P, gt), np.sum((xi / sigmas) ** 2, axis=1))
+    five = m.pose_nees(est, P, gt, dofs=range(5))  # body z marginalised
+    np.testing.assert_allclose(five, np.sum((xi[:, :5] / sigmas[:5]) ** 2, axis=1))
+    P[2] = 0.0  # a singular covariance gives NaN, not an error
+    assert np.isnan(m.pose_nees(est, P, gt)[2]) and np.isfinite(m.pose_nees(est, P, gt)[3])
 
 
 def test_summarize() -> None:

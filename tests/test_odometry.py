@@ -245,12 +245,13 @@ def test_long_constant_velocity_bridges_keep_poses_rigid():
 
 def test_dataset_motion_bounds_widen_the_config():
     from planodom.odometry import motion_assumption, with_dataset_bounds
+    from planodom.rig import Rig
 
     cfg = config()
-    wide = with_dataset_bounds(cfg, {"motion_bounds": {"max_rotation_deg": 60.0}})
+    wide = with_dataset_bounds(cfg, Rig.from_dict({"motion_bounds": {"max_rotation_deg": 60.0}}))
     assert wide.association.max_rotation_deg == 60.0
     assert wide.association.max_translation_m == cfg.association.max_translation_m
-    narrow = with_dataset_bounds(cfg, {"motion_bounds": {"max_translation_m": 0.1}})
+    narrow = with_dataset_bounds(cfg, Rig.from_dict({"motion_bounds": {"max_translation_m": 0.1}}))
     assert narrow.association.max_translation_m == cfg.association.max_translation_m
     assert with_dataset_bounds(cfg, None) is cfg
     assert "1 m and 20 deg" in motion_assumption(cfg)
@@ -292,8 +293,8 @@ def test_covariance_is_consistent_when_one_pair_gives_rotation_and_translation()
     import gtsam
     from scipy.stats import chi2
 
-    from factors.pose5 import pose5_error
     from planodom.smoothing.graph import rpy_to_rotation_vector
+    from planodom_factors.pose5 import pose5_error
 
     rng = np.random.default_rng(7)
     world = world_planes(rng, 2, ground=False)

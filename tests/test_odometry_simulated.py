@@ -7,6 +7,7 @@ import pytest
 
 from planodom.config import PlanodomConfig
 from planodom.experiments.paper import run_paper_experiment
+from planodom.experiments.simulated import Simulation
 from planodom.metrics import per_epoch_errors, relative_motions
 from planodom.odometry import run_odometry
 from planodom.simulation import simulate_named
@@ -34,12 +35,14 @@ def test_noise_free_loop_is_recovered(loop):
 
 
 def test_paper_experiment_writes_its_figures_and_tables(tmp_path):
-    res = run_paper_experiment(tmp_path, noise_levels=(0.0, 0.02), n_epochs=6)
+    res = run_paper_experiment(
+        tmp_path, noise_levels=(0.0, 0.02), simulation=Simulation(n_epochs=6)
+    )
     assert {lr.method for lr in res.runs} == {"sda-mean", "wocsc"}
-    assert len(res.precision) == 2 * 2 * 5 and len(res.summary) == 4
+    assert len(res.tables["precision"]) == 2 * 2 * 5 and len(res.tables["summary"]) == 4
     for path in res.files.values():
         assert path.exists() and path.stat().st_size > 0
     text = (tmp_path / "precision.md").read_text()
     assert "roll rate" in text and "sigma 20 mm" in text
-    exact = [r for r in res.summary if r["noise_m"] == 0.0]
+    exact = [r for r in res.tables["summary"] if r["noise_m"] == 0.0]
     assert all(r["unresolved"] == 0 for r in exact)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from planodom.config import PlanodomConfig
+from planodom.experiments.simulated import Simulation
 from planodom.experiments.smoothing import run_smoothing_experiment
 from planodom.geometry import invert_transform, pose_error
 from planodom.simulation import simulate_named
@@ -39,12 +40,13 @@ def test_noise_free_loop_is_smoothed_to_the_truth(loop, mode: str) -> None:
 
 def test_smoothing_experiment_writes_its_figures_and_tables(tmp_path) -> None:
     res = run_smoothing_experiment(
-        tmp_path, noise_levels=(0.0,), scenes=("paper-loop",), n_epochs=10, window=5, delta=2
-    )
-    assert [r["method"] for r in res.summary] == [
+        tmp_path, noise_levels=(0.0,), scenes=("paper-loop",), window=5, delta=2,
+        simulation=Simulation(n_epochs=10),
+    )  # fmt: skip
+    assert [r["method"] for r in res.tables["summary"]] == [
         "odometry d=1", "odometry d=D", "windowed", "batch",
     ]  # fmt: skip
-    assert len(res.nees) == 1 and np.isfinite(res.nees[0]["mean_nees6"])
+    assert len(res.tables["nees"]) == 1 and np.isfinite(res.tables["nees"][0]["mean_nees6"])
     for path in res.files.values():
         assert path.exists() and path.stat().st_size > 0
     assert "windowed" in (tmp_path / "summary.md").read_text()

@@ -5,7 +5,7 @@ Layout::
     <dataset>/
         scans/000000.ply, 000001.ply, ...   one file per epoch, in time order
         poses.tum                           optional: ground truth T_world_base per epoch
-        rig.yaml                            optional: free-form rig description (a dict)
+        rig.yaml                            optional: the rig (:class:`planodom.rig.Rig`)
 
 - Scan files hold the points of one epoch in the vehicle base frame at each point's
   acquisition time: PLY vertices ``x y z`` (float32 or float64, metres), optional ``ring``
@@ -18,8 +18,10 @@ Layout::
   reference time (the TUM format of evo).
 - Epoch times come from ``poses.tum`` when present, else ``k / epoch_rate`` with
   ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * 0.1`` s. There is no ``times.txt``.
-- ``rig.yaml``: e.g. ``T_base_scanner`` extrinsics, field of view, angular step, rate,
-  maximum range, noise, and for simulated data the scene and seed.
+- ``rig.yaml`` is read and validated once, into ``Dataset.rig`` (a typed
+  :class:`planodom.rig.Rig`: epoch rate, sensor origins per ring, motion bounds,
+  extrinsics); keys it does not interpret (for simulated data the sensor models, the
+  scene and the seed) are kept in ``Rig.extra``.
 
 Every problem with a dataset raises :class:`planodom.errors.DatasetError` naming the file.
 """

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -14,6 +13,7 @@ import yaml
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError
+from planodom.rig import Rig
 from planodom.scan import Scan
 
 SCANS_DIR = "scans"
@@ -31,7 +31,7 @@ class Dataset:
         scan_files: one file per epoch, in time order.
         times: (E,) float64 seconds, reference time of each epoch (see :func:`load_dataset`).
         gt_poses: (E, 4, 4) float64 ground truth ``T_world_base`` at ``times``, or None.
-        rig: the content of ``rig.yaml`` (a dict), or None when there is none.
+        rig: the typed ``rig.yaml`` (:class:`planodom.rig.Rig`; ``Rig()`` when there is none).
     """
 
     def __init__(
@@ -40,13 +40,13 @@ class Dataset:
         scan_files: Sequence[Path],
         times: np.ndarray,
         gt_poses: np.ndarray | None = None,
-        rig: dict[str, Any] | None = None,
+        rig: Rig | None = None,
     ) -> None:
         self.path = Path(path)
         self.scan_files = list(scan_files)
         self.times = np.asarray(times, dtype=np.float64)
         self.gt_poses = gt_poses
-        self.rig = rig
+        self.rig = rig if rig is not None else Rig()
         if len(self.times) != len(self.scan_files):
             raise DatasetError(
                 f"{self.path}: {len(self.times)} epoch times for {len(self.scan_files)} scans"
@@ -93,7 +93,7 @@ def load_dataset(path: str | Path) -> Dataset:
     if not root.is_dir():
         raise DatasetError(f"dataset {root} is not a directory")
     scan_files = _scan_files(root)
-    rig = read_rig(root / RIG_FILE) if (root / RIG_FILE).exists() else None
+    rig = read_rig(root / RIG_FILE) if (root / RIG_FILE).exists() else Rig()
     gt_poses = None
     if (root / POSES_FILE).exists():
         times, gt_poses = read_tum(root / POSES_FILE)
@@ -112,7 +112,7 @@ def write_dataset(
     scans: Sequence[Scan],
     times: np.ndarray,
     gt_poses: np.ndarray | None = None,
-    rig: dict[str, Any] | None = None,
+    rig: Rig | None = None,
     overwrite: bool = False,
     *,
     extension: str = ".ply",
@@ -125,9 +125,10 @@ def write_dataset(
         scans: E scans in time order (scans with zero points are fine).
         times: (E,) float64 seconds, strictly increasing. Without ``gt_poses`` they are not
             stored, so they must equal the times :func:`load_dataset` will derive (from
-            ``rig['epoch_rate']`` or the 0.1 s default); otherwise DatasetError.
+            ``rig.epoch_rate_hz`` or the 0.1 s default); otherwise DatasetError.
         gt_poses: (E, 4, 4) ground truth ``T_world_base``, written to ``poses.tum``.
-        rig: dict for ``rig.yaml``; numpy arrays and scalars are stored as lists / numbers.
+        rig: written to ``rig.yaml`` (None: no file; numpy values in ``rig.extra`` are
+            stored as lists / numbers).
         overwrite: replace the scan files, ``poses.tum`` and ``rig.yaml`` of an existing
             dataset at ``path`` (other files are left alone). Without it an existing
             dataset there is a DatasetError.
@@ -151,7 +152,7 @@ def write_dataset(
             raise DatasetError(
                 f"{root}: without gt_poses the epoch times are not stored and would load as "
                 f"k / epoch_rate ({implied[:3].tolist()}...), not the given times; "
-                "pass gt_poses or set rig['epoch_rate']"
+                "pass gt_poses or set rig.epoch_rate_hz"
             )
     elif np.shape(gt_poses) != (len(scans), 4, 4):
         raise DatasetError(
@@ -181,48 +182,32 @@ def write_dataset(
     return load_dataset(root)
 
 
-def epoch_times(n_epochs: int, rig: dict[str, Any] | None) -> np.ndarray:
-    """(E,) seconds ``k / rig['epoch_rate']``, or ``k * DEFAULT_EPOCH_PERIOD`` without a rate."""
+def epoch_times(n_epochs: int, rig: Rig | None = None) -> np.ndarray:
+    """(E,) seconds ``k / rig.epoch_rate_hz``, or ``k * DEFAULT_EPOCH_PERIOD`` without a rate."""
     k = np.arange(n_epochs, dtype=np.float64)
-    rate = None if rig is None else _epoch_rate(rig, "rig")
+    rate = None if rig is None else rig.epoch_rate_hz
     return k * DEFAULT_EPOCH_PERIOD if rate is None else k / rate
 
 
-def read_rig(path: str | Path) -> dict[str, Any]:
-    """The dict in a ``rig.yaml`` file (empty file: ``{}``).
+def read_rig(path: str | Path) -> Rig:
+    """The typed :class:`Rig` of a ``rig.yaml`` file (an empty file: ``Rig()``).
 
     Raises:
-        DatasetError: naming the file when it is not YAML, not a mapping, or has an
-            ``epoch_rate`` that is not a positive number (Hz).
+        DatasetError: naming the file (and the field) when it is not YAML, not a mapping,
+            or a field fails :meth:`Rig.from_dict`'s checks.
     """
     path = Path(path)
     try:
-        rig = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise DatasetError(f"{path}: cannot read rig file: {exc}") from None
-    if rig is None:
-        return {}
-    if not isinstance(rig, dict):
-        raise DatasetError(f"{path}: rig file must hold a mapping, not {type(rig).__name__}")
-    _epoch_rate(rig, str(path))
-    return rig
+    return Rig.from_dict(data, source=str(path))
 
 
-def _epoch_rate(rig: dict[str, Any], source: str) -> float | None:
-    """``rig['epoch_rate']`` (Hz) checked to be a positive number, or None when absent."""
-    rate = rig.get("epoch_rate")
-    if rate is None:
-        return None
-    if isinstance(rate, bool) or not isinstance(rate, int | float | np.number) or not rate > 0:
-        raise DatasetError(f"{source}: epoch_rate must be a positive number (Hz), got {rate!r}")
-    if not math.isfinite(rate):
-        raise DatasetError(f"{source}: epoch_rate must be finite, got {rate!r}")
-    return float(rate)
-
-
-def write_rig(path: str | Path, rig: dict[str, Any]) -> None:
+def write_rig(path: str | Path, rig: Rig) -> None:
     """Write ``rig`` to ``path`` as YAML (numpy arrays as nested lists, floats exact)."""
-    Path(path).write_text(yaml.safe_dump(_plain(rig), sort_keys=False), encoding="utf-8")
+    text = yaml.safe_dump(_plain(rig.to_dict()), sort_keys=False)
+    Path(path).write_text(text, encoding="utf-8")
 
 
 def _plain(value: Any) -> Any:

@@ -132,6 +132,7 @@ def read_ply_vertices(path: Path) -> dict[str, np.ndarray]:
     if not all(e.fixed_size for e in before):
         raise DatasetError(f"{path}: PLY elements with list properties precede 'vertex'")
     endian = _FORMATS[fmt]
+    assert endian is not None  # ascii was read above
     try:
         dtype = np.dtype([(n, endian + c) for n, c in vertex.props])
     except (ValueError, TypeError) as exc:

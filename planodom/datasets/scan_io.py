@@ -43,12 +43,7 @@ def read_scan(file: str | Path) -> Scan:
             does not parse, is truncated or has NaN / infinite coordinates or times.
     """
     path = Path(file)
-    suffix = path.suffix.lower()
-    if suffix not in SCAN_EXTENSIONS:
-        raise DatasetError(
-            f"{path}: unknown scan file extension '{path.suffix}' "
-            f"(expected one of {', '.join(SCAN_EXTENSIONS)})"
-        )
+    suffix = _suffix(path, SCAN_EXTENSIONS, "unknown scan file extension")
     if not path.is_file():
         raise DatasetError(f"{path}: scan file does not exist")
     if suffix == ".ply":
@@ -70,12 +65,7 @@ def write_scan(file: str | Path, scan: Scan, points_dtype: type[np.floating] = n
             exactly, so a float32 file round-trips bit for bit).
     """
     path = Path(file)
-    suffix = path.suffix.lower()
-    if suffix not in WRITABLE_EXTENSIONS:
-        raise DatasetError(
-            f"{path}: cannot write scans as '{path.suffix}' "
-            f"(expected one of {', '.join(WRITABLE_EXTENSIONS)})"
-        )
+    suffix = _suffix(path, WRITABLE_EXTENSIONS, "cannot write scans as")
     if np.dtype(points_dtype) not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise DatasetError(f"{path}: points_dtype must be float32 or float64, not {points_dtype}")
     with np.errstate(over="ignore"):
@@ -94,6 +84,16 @@ def write_scan(file: str | Path, scan: Scan, points_dtype: type[np.floating] = n
         write_ply_vertices(path, fields)
     else:
         _write_pcd(path, fields)
+
+
+def _suffix(path: Path, allowed: tuple[str, ...], problem: str) -> str:
+    """The lower-case extension of ``path``, or DatasetError ``path: problem '.ext'``."""
+    suffix = path.suffix.lower()
+    if suffix not in allowed:
+        raise DatasetError(
+            f"{path}: {problem} '{path.suffix}' (expected one of {', '.join(allowed)})"
+        )
+    return suffix
 
 
 def _scan_from_fields(path: Path, fields: dict[str, np.ndarray]) -> Scan:

@@ -5,7 +5,7 @@ extracted, the delta = 1 odometry gives the initial trajectory and the relative 
 delta = 1..D are estimated (as :func:`planodom.smoothing.run.run_smoothing` does). Then:
 
 - **relative poses** (the odometry, per step): the 5-DoF error of each measured relative
-  pose (``factors.pose5.pose5_error``: rotation vector, horizontal translation) against
+  pose (``planodom_factors.pose5.pose5_error``: rotation vector, horizontal translation) against
   the true one, whitened by the covariance its between factor would get
   (:meth:`GraphBuilder.between_covariance`: the propagated covariance of
   :mod:`planodom.odometry.propagate` in the factor's tangent, plus the smoothing floors);
@@ -40,17 +40,19 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import gtsam
 import numpy as np
 from scipy.stats import chi2
 
-from factors.pose5 import pose5_error
 from planodom.config import PlanodomConfig, SmoothingConfig
-from planodom.geometry import Plane, invert_transform, plane_tangent_covariance
-from planodom.metrics import summarize
+from planodom.experiments.simulated import Simulation, simulate_level
+from planodom.geometry import Plane, plane_tangent_covariance
+from planodom.metrics import pose_nees, relative_to_first, summarize
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
 from planodom.smoothing.graph import GraphBuilder, RelativeMeasurement
+from planodom_factors.pose5 import pose5_error
 
 #: Graph variants: smoothing config changes applied on top of the given config.
 VARIANTS: dict[str, dict[str, object]] = {
@@ -85,30 +87,23 @@ class ConsistencyInputs:
 
 
 def simulate_inputs(
-    scene: str,
-    noise: float,
-    config: PlanodomConfig,
-    seed: int = 1,
-    n_epochs: int | None = None,
-    motion: str = "snapshot",
+    scene: str, noise: float, config: PlanodomConfig, seed: int = 1, **simulation: Any
 ) -> ConsistencyInputs:
-    """Simulate, extract and run the odometry (delta = 1..``smoothing.delta_max``)."""
-    from planodom.extraction import extract_planes
+    """Simulate (``simulation``: ``n_epochs``, ``motion`` of
+    :class:`~planodom.experiments.simulated.Simulation`), extract and run the odometry
+    (delta = 1..``smoothing.delta_max``)."""
     from planodom.odometry import run_odometry
-    from planodom.simulation import simulate_named
     from planodom.smoothing.run import relative_poses
 
-    sim = simulate_named(scene, "isoclinal", noise=noise, seed=seed, n_epochs=n_epochs,
-                         motion=motion)  # fmt: skip
-    planes = [extract_planes(scan, config.extraction) for scan in sim]
-    data = config.model_dump()
-    data["odometry"]["delta"] = 1
-    odo = run_odometry(planes, PlanodomConfig.from_dict(data), times=sim.times)
+    level = simulate_level(scene, noise, config, Simulation(seed, **simulation))
+    sim, planes = level.sim, level.planes
+    assert planes is not None
+    odo = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times.tolist())
     D = config.smoothing.delta_max
     relatives = relative_poses(planes, config, range(1, D + 1), odo.poses)
     surfaces = {s.id: np.append(s.normal, s.offset) for s in sim.scene.surfaces}
-    gt = invert_transform(sim.poses[0])[None] @ sim.poses
-    return ConsistencyInputs(scene, noise, seed, planes, relatives, gt, sim.poses[0], surfaces)
+    first = sim.poses[0]
+    return ConsistencyInputs(scene, noise, seed, planes, relatives, level.gt_poses, first, surfaces)
 
 
 def relative_pose_nees(
@@ -174,23 +169,15 @@ def smoothed_nees(result: SmoothingResult, gt_poses: np.ndarray) -> np.ndarray:
     estimate and truth relative to their first pose (module docstring)."""
     if result.covariances is None:
         return np.full(len(result.poses) - 1, np.nan)
-    est = invert_transform(result.poses[0])[None] @ result.poses
-    gt = invert_transform(gt_poses[0])[None] @ gt_poses
-    keep = np.ix_(range(5), range(5))
-    out = np.full(len(est) - 1, np.nan)
-    for k in range(1, len(est)):
-        xi = np.asarray(gtsam.Pose3(est[k]).localCoordinates(gtsam.Pose3(gt[k])))[:5]
-        try:
-            out[k - 1] = xi @ np.linalg.solve(result.covariances[k][keep], xi)
-        except np.linalg.LinAlgError:
-            continue
-    return out
+    est = relative_to_first(result.poses)
+    gt = relative_to_first(gt_poses)
+    return pose_nees(est[1:], result.covariances[1:], gt[1:], dofs=range(5))
 
 
 def variant_config(config: SmoothingConfig, variant: str) -> SmoothingConfig:
     """The smoothing config of a graph variant (:data:`VARIANTS`)."""
-    data = config.model_dump() | VARIANTS[variant]
-    return SmoothingConfig.model_validate(data)
+    changes = {f"smoothing.{key}": value for key, value in VARIANTS[variant].items()}
+    return PlanodomConfig(smoothing=config).updated(changes, source=variant).smoothing
 
 
 def chi2_interval(dof: int, n: int, level: float = 0.95) -> tuple[float, float]:
@@ -287,6 +274,8 @@ def run_consistency_experiment(
         for noise in noise_levels:
             for seed in seeds:
                 say(f"{scene}, sigma = {noise * 1000:g} mm, seed {seed}")
-                inputs.append(simulate_inputs(scene, noise, cfg, seed, n_epochs, motion))
+                inputs.append(
+                    simulate_inputs(scene, noise, cfg, seed, n_epochs=n_epochs, motion=motion)
+                )
     say("smoothing")
     return consistency_tables(inputs, cfg.smoothing, variants)

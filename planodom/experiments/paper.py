@@ -22,7 +22,6 @@ extraction itself.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,7 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from planodom.config import PlanodomConfig
-from planodom.experiments.plots import save_grid, top_view
+from planodom.experiments.plots import plot_panels
+from planodom.experiments.simulated import DEFAULT_SIMULATION, Simulation, simulate_level
+from planodom.experiments.tables import ExperimentResult, Rows, write_tables
 from planodom.geometry import invert_transform
 from planodom.metrics import POSE5_NAMES, drift, per_epoch_errors, relative_motions, summarize
 from planodom.odometry import OdometryRun, run_odometry
@@ -65,14 +66,8 @@ class LevelRun:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-@dataclass
-class PaperExperiment:
-    """All runs of the experiment and its tables (lists of flat dicts), plus written files."""
-
-    runs: list[LevelRun]
-    precision: list[dict[str, object]]
-    summary: list[dict[str, object]]
-    files: dict[str, Path] = field(default_factory=dict)
+#: The paper experiment's runs, tables "precision" and "summary", and files.
+PaperExperiment = ExperimentResult[LevelRun]
 
 
 def _level_run(noise, method, run, gt, rate, seconds) -> LevelRun:
@@ -140,21 +135,7 @@ def summary_rows(runs: Sequence[LevelRun]) -> list[dict[str, object]]:
     return rows
 
 
-def markdown_table(rows: Sequence[dict[str, object]], digits: int = 4) -> str:
-    """A GitHub Markdown table of flat dict rows (floats in ``digits`` significant digits)."""
-    if not rows:
-        return ""
-    cols = list(rows[0])
-
-    def fmt(v: object) -> str:
-        return f"{v:.{digits}g}" if isinstance(v, float) else str(v)
-
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    lines += ["| " + " | ".join(fmt(r[c]) for c in cols) + " |" for r in rows]
-    return "\n".join(lines) + "\n"
-
-
-def precision_markdown(rows: Sequence[dict[str, object]]) -> str:
+def precision_markdown(rows: Rows) -> str:
     """Fig. 6 / 7 as one Markdown table: a row per method and DoF, ``mean / std`` per level."""
     levels = sorted({r["noise_m"] for r in rows})
     keys = list(dict.fromkeys((r["method"], r["dof"], r["unit"]) for r in rows))
@@ -172,39 +153,19 @@ def precision_markdown(rows: Sequence[dict[str, object]]) -> str:
 
 def plot_trajectories(runs: Sequence[LevelRun], path: Path) -> None:
     """Fig. 5: one top view per noise level, truth and every method's trajectory."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    levels = sorted({lr.noise for lr in runs})
-    ncol = min(2, len(levels))
-    nrow = int(np.ceil(len(levels) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(6.5 * ncol, 5.5 * nrow), squeeze=False)
-    for ax, noise in zip(axes.ravel(), levels, strict=False):
+    panels = []
+    for noise in sorted({lr.noise for lr in runs}):
         here = [lr for lr in runs if lr.noise == noise]
-        gt = here[0].gt_poses[:, :3, 3]
         tracks = [(lr.method, lr.run.poses, COLOURS.get(lr.method)) for lr in here]
-        top_view(ax, gt, tracks, f"sigma = {noise * 1000:g} mm")
-    save_grid(fig, axes, len(levels), path)
-
-
-def write_csv(path: Path, rows: Sequence[dict[str, object]]) -> None:
-    import csv
-
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]) if rows else [])
-        writer.writeheader()
-        writer.writerows(rows)
+        panels.append((f"sigma = {noise * 1000:g} mm", here[0].gt_poses[:, :3, 3], tracks))
+    plot_panels(panels, path)
 
 
 def run_paper_experiment(
     out: str | Path | None = None,
     noise_levels: Sequence[float] = PAPER_NOISE_LEVELS,
     methods: Sequence[str] = PAPER_METHODS,
-    seed: int = 1,
-    n_epochs: int | None = None,
-    motion: str = "snapshot",
+    simulation: Simulation = DEFAULT_SIMULATION,
     config: PlanodomConfig | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> PaperExperiment:
@@ -213,58 +174,38 @@ def run_paper_experiment(
     Args:
         out: output directory (created), or None to only compute.
         noise_levels: range noise sigmas, metres. methods: pipeline names.
-        seed: noise seed. n_epochs: epochs per level (default: one lap).
-        motion: "snapshot" (the paper's simulator) or "continuous" (deskewing).
+        simulation: seed, epochs per level (default: one lap) and motion: "snapshot" (the
+            paper's simulator) or "continuous" (deskewing).
         config: base configuration; its ``odometry.pipeline`` is replaced per method.
         progress: called with a short message at each step.
     """
-    from planodom.extraction import extract_planes
-    from planodom.simulation import simulate_named
-
     base = config or PlanodomConfig()
     say = progress or (lambda msg: None)
     runs: list[LevelRun] = []
     for noise in noise_levels:
-        say(f"simulating sigma = {noise * 1000:g} mm")
-        sim = simulate_named("paper-loop", "isoclinal", noise=noise, seed=seed,
-                             n_epochs=n_epochs, motion=motion)  # fmt: skip
-        shared = None
-        t_extract = 0.0
-        if motion == "snapshot":
-            say(f"extracting planes of {len(sim)} epochs")
-            c0 = time.perf_counter()
-            shared = [extract_planes(scan, base.extraction) for scan in sim]
-            t_extract = time.perf_counter() - c0
+        say(f"simulating sigma = {noise * 1000:g} mm and extracting planes")
+        level = simulate_level("paper-loop", noise, base, simulation,
+                               extract=simulation.motion == "snapshot")  # fmt: skip
+        sim = level.sim
         for method in methods:
             say(f"odometry {method} at sigma = {noise * 1000:g} mm")
-            cfg = base.model_copy(
-                update={"odometry": base.odometry.model_copy(update={"pipeline": method})}
-            )
-            if shared is not None:
-                run = run_odometry(shared, cfg, times=sim.times)
-                seconds = {"extraction": t_extract, "odometry": run.seconds["odometry"]}
+            cfg = base.updated({"odometry.pipeline": method}, source="paper experiment")
+            if level.planes is not None:
+                run = run_odometry(level.planes, cfg, times=sim.times.tolist())
+                seconds = {"extraction": level.extraction_s, "odometry": run.seconds["odometry"]}
             else:
                 run = run_odometry(sim, cfg)
                 seconds = dict(run.seconds)
             runs.append(_level_run(noise, method, run, sim.poses, sim.epoch_rate, seconds))
 
-    result = PaperExperiment(runs, precision_rows(runs), summary_rows(runs))
+    tables = {"precision": precision_rows(runs), "summary": summary_rows(runs)}
+    result = PaperExperiment(runs, tables)
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
-        files = {
-            "trajectories": out / "trajectories.png",
-            "precision_md": out / "precision.md",
-            "precision_csv": out / "precision.csv",
-            "summary_md": out / "summary.md",
-            "summary_csv": out / "summary.csv",
-            "config": out / "config.yaml",
-        }
+        files = {"trajectories": out / "trajectories.png", "config": out / "config.yaml"}
         plot_trajectories(runs, files["trajectories"])
-        files["precision_md"].write_text(precision_markdown(result.precision))
-        write_csv(files["precision_csv"], result.precision)
-        files["summary_md"].write_text(markdown_table(result.summary))
-        write_csv(files["summary_csv"], result.summary)
+        files |= write_tables(out, tables, markdown={"precision": precision_markdown})
         base.to_yaml(files["config"])
         result.files = files
     return result

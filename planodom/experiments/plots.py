@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -31,3 +31,22 @@ def save_grid(fig, axes, n_used: int, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+#: One panel: title, truth (E, 3) positions, and ``(label, poses (E, 4, 4), colour)`` tracks.
+Panel = tuple[str, np.ndarray, list[tuple[str, np.ndarray, str | None]]]
+
+
+def plot_panels(panels: Sequence[Panel], path: Path) -> None:
+    """Top views (:func:`top_view`) in a grid of two columns, saved to ``path`` (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ncol = min(2, len(panels))
+    nrow = int(np.ceil(len(panels) / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(6.5 * ncol, 5.5 * nrow), squeeze=False)
+    for ax, (title, gt, tracks) in zip(axes.ravel(), panels, strict=False):
+        top_view(ax, gt, tracks, title)
+    save_grid(fig, axes, len(panels), path)

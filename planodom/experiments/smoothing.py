@@ -13,12 +13,13 @@ noise level), ``summary.md`` / ``summary.csv`` (ATE and RPE via evo, drift at th
 runtime, epochs per second), ``nees.md`` / ``nees.csv`` (consistency of the batch poses
 against their marginal covariances), ``config.yaml``.
 
-NEES: for each epoch, ``xi = Local(T_est, T_true)`` (gtsam's Pose3 tangent at the estimate,
-the frame of its marginal covariance P) and ``xi^T P^-1 xi``; over the 6 DoF and over the 5
-observed ones (body z removed, which only the weak vertical prior and ground planes
-constrain). An honest covariance gives NEES ~ chi2(dof): the table reports the mean and
-median (chi2 medians: 5.35 for 6 DoF, 4.35 for 5), the fraction of epochs inside the
-two-sided 95 % interval of chi2(dof), and that interval. The epochs' NEES are correlated
+NEES (:func:`planodom.metrics.pose_nees`): for each epoch, ``xi = Local(T_est, T_true)``
+(gtsam's Pose3 tangent at the estimate, the frame of its marginal covariance P) and
+``xi^T P^-1 xi``; over the 6 DoF and over the 5 observed ones (body z marginalised, which
+only the weak vertical prior and ground planes constrain). An honest covariance gives
+NEES ~ chi2(dof): the table reports the mean and median (chi2 medians: 5.35 for 6 DoF,
+4.35 for 5), the fraction of epochs inside the two-sided 95 % interval of chi2(dof), and
+that interval. The epochs' NEES are correlated
 (one trajectory), so these are diagnostics, not a test.
 """
 
@@ -26,18 +27,23 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
-import gtsam
 import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig
-from planodom.experiments.paper import PAPER_NOISE_LEVELS, markdown_table, write_csv
-from planodom.experiments.plots import save_grid, top_view
-from planodom.geometry import invert_transform
-from planodom.metrics import summarize
+from planodom.experiments.paper import PAPER_NOISE_LEVELS
+from planodom.experiments.plots import plot_panels
+from planodom.experiments.simulated import (
+    DEFAULT_SIMULATION,
+    SimulatedLevel,
+    Simulation,
+    simulate_level,
+)
+from planodom.experiments.tables import ExperimentResult, write_tables
+from planodom.metrics import pose_nees, summarize
 from planodom.odometry import run_odometry
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
 from planodom.smoothing.run import relative_poses
@@ -75,33 +81,8 @@ class EstimatorRun:
     smoothing: SmoothingResult | None = None
 
 
-@dataclass
-class SmoothingExperiment:
-    """All runs, the summary and NEES tables (flat dict rows), and the written files."""
-
-    runs: list[EstimatorRun]
-    summary: list[dict[str, object]]
-    nees: list[dict[str, object]]
-    files: dict[str, Path] = field(default_factory=dict)
-
-
-def nees(poses: np.ndarray, covariances: np.ndarray, gt_poses: np.ndarray) -> dict[str, np.ndarray]:
-    """Per-epoch NEES (E,) over 6 DoF and over the 5 observed ones (body z dropped).
-
-    Args:
-        poses: (E, 4, 4) estimates. covariances: (E, 6, 6) their marginal covariances in
-            gtsam's Pose3 tangent at the estimate. gt_poses: (E, 4, 4) truth, same frame.
-    """
-    out6, out5 = np.full(len(poses), np.nan), np.full(len(poses), np.nan)
-    keep = [0, 1, 2, 3, 4]
-    for k, (T, P, G) in enumerate(zip(poses, covariances, gt_poses, strict=True)):
-        xi = np.asarray(gtsam.Pose3(T).localCoordinates(gtsam.Pose3(G)))
-        try:
-            out6[k] = xi @ np.linalg.solve(P, xi)
-            out5[k] = xi[keep] @ np.linalg.solve(P[np.ix_(keep, keep)], xi[keep])
-        except np.linalg.LinAlgError:
-            continue
-    return {"nees6": out6, "nees5": out5}
+#: The smoothing experiment's runs, tables "summary" and "nees", and files.
+SmoothingExperiment = ExperimentResult[EstimatorRun]
 
 
 def summary_rows(runs: Sequence[EstimatorRun]) -> list[dict[str, object]]:
@@ -137,11 +118,12 @@ def nees_rows(runs: Sequence[EstimatorRun]) -> list[dict[str, object]]:
         if r.method != "batch" or res is None:
             continue
         row: dict[str, object] = {"scene": r.scene, "noise_mm": r.noise * 1000}
-        if res.covariances is not None:  # epoch 0 is the prior: left out
-            values = nees(res.poses[1:], res.covariances[1:], r.gt_poses[1:])
-        for dof, key in ((6, "nees6"), (5, "nees5")):
+        for dof in (6, 5):  # 5: body z, unobserved by the odometry, marginalised
             lo, hi = chi2.ppf([0.025, 0.975], dof)
-            v = values[key][np.isfinite(values[key])] if res.covariances is not None else []
+            v = np.zeros(0)
+            if res.covariances is not None:  # epoch 0 is the prior: left out
+                nees = pose_nees(res.poses[1:], res.covariances[1:], r.gt_poses[1:], range(dof))
+                v = nees[np.isfinite(nees)]
             row[f"mean_nees{dof}"] = float(np.mean(v)) if len(v) else float("nan")
             row[f"median_nees{dof}"] = float(np.median(v)) if len(v) else float("nan")
             row[f"inside95_{dof}dof"] = float(np.mean((v >= lo) & (v <= hi))) if len(v) else 0.0
@@ -153,59 +135,30 @@ def nees_rows(runs: Sequence[EstimatorRun]) -> list[dict[str, object]]:
 
 def plot_trajectories(runs: Sequence[EstimatorRun], scene: str, path: Path) -> None:
     """Top views, one panel per noise level: truth (crosses) and every estimator."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     here = [r for r in runs if r.scene == scene]
-    levels = sorted({r.noise for r in here})
-    ncol = min(2, len(levels))
-    nrow = int(np.ceil(len(levels) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(6.5 * ncol, 5.5 * nrow), squeeze=False)
-    for ax, noise in zip(axes.ravel(), levels, strict=False):
+    panels = []
+    for noise in sorted({r.noise for r in here}):
         level = [r for r in here if r.noise == noise]
-        gt = level[0].gt_poses[:, :3, 3]
         tracks = [(r.method, r.poses, COLOURS.get(r.method)) for r in level]
-        top_view(ax, gt, tracks, f"{scene}, sigma = {noise * 1000:g} mm")
-    save_grid(fig, axes, len(levels), path)
-
-
-def _with(config: PlanodomConfig, section: str, **changes: object) -> PlanodomConfig:
-    data = config.model_dump()
-    data[section].update(changes)
-    return PlanodomConfig.from_dict(data, source="experiment")
+        title = f"{scene}, sigma = {noise * 1000:g} mm"
+        panels.append((title, level[0].gt_poses[:, :3, 3], tracks))
+    plot_panels(panels, path)
 
 
 def run_scene_level(
-    scene: str,
-    noise: float,
-    config: PlanodomConfig,
-    seed: int = 1,
-    n_epochs: int | None = None,
-    motion: str = "snapshot",
-    say: Callable[[str], None] = lambda msg: None,
+    level: SimulatedLevel, config: PlanodomConfig, say: Callable[[str], None] = lambda msg: None
 ) -> list[EstimatorRun]:
-    """The four estimators on one simulated run (planes extracted once, shared)."""
-    from planodom.extraction import extract_planes
-    from planodom.simulation import simulate_named
-
+    """The four estimators on one simulated run (its planes extracted once, shared)."""
     D = config.smoothing.delta_max
-    say(f"{scene}: simulating sigma = {noise * 1000:g} mm")
-    sim = simulate_named(scene, "isoclinal", noise=noise, seed=seed, n_epochs=n_epochs,
-                         motion=motion)  # fmt: skip
-    gt = invert_transform(sim.poses[0])[None] @ sim.poses
-    say(f"{scene}: extracting planes of {len(sim)} epochs")
-    c0 = time.perf_counter()
-    planes = [extract_planes(scan, config.extraction) for scan in sim]
-    t_extract = time.perf_counter() - c0
+    scene, noise, gt, planes = level.scene, level.noise, level.gt_poses, level.planes
+    assert planes is not None, "the smoothing experiment needs the extracted planes"
+    times = level.sim.times.tolist()
     runs = []
-
     say(f"{scene}: odometry d=1 and d={D}")
-    odo1 = run_odometry(planes, _with(config, "odometry", delta=1), times=sim.times)
+    odo1 = run_odometry(planes, config.updated({"odometry.delta": 1}), times=times)
     runs.append(EstimatorRun(scene, noise, "odometry d=1", odo1.poses, gt,
                              odo1.seconds["odometry"], odo1.n_unresolved))  # fmt: skip
-    odoD = run_odometry(planes, _with(config, "odometry", delta=D), times=sim.times)
+    odoD = run_odometry(planes, config.updated({"odometry.delta": D}), times=times)
     runs.append(EstimatorRun(scene, noise, "odometry d=D", odoD.poses, gt,
                              odoD.seconds["odometry"], odoD.n_unresolved))  # fmt: skip
 
@@ -218,7 +171,7 @@ def run_scene_level(
         res = smooth(planes, relatives, config.smoothing)
         runs.append(EstimatorRun(scene, noise, method, res.poses, gt, res.runtime_s,
                                  len(res.stats.unresolved_epochs), res))  # fmt: skip
-    say(f"{scene}: extraction {t_extract:.1f} s, relative poses {front:.1f} s")
+    say(f"{scene}: extraction {level.extraction_s:.1f} s, relative poses {front:.1f} s")
     return runs
 
 
@@ -226,12 +179,10 @@ def run_smoothing_experiment(
     out: str | Path | None = None,
     noise_levels: Sequence[float] = PAPER_NOISE_LEVELS,
     scenes: Sequence[str] = SCENES,
+    config: PlanodomConfig | None = None,
     window: int = 10,
     delta: int = 3,
-    seed: int = 1,
-    n_epochs: int | None = None,
-    motion: str = "snapshot",
-    config: PlanodomConfig | None = None,
+    simulation: Simulation = DEFAULT_SIMULATION,
     progress: Callable[[str], None] | None = None,
 ) -> SmoothingExperiment:
     """Run the comparison; write figures and tables to ``out`` when given.
@@ -239,39 +190,32 @@ def run_smoothing_experiment(
     Args:
         out: output directory (created), or None to only compute.
         noise_levels: range noise sigmas, metres. scenes: built-in scene names.
-        window: W of the fixed-lag smoother. delta: D (odometry d=D and delta = 1..D).
-        seed: noise seed. n_epochs: epochs per run (default: the scene's whole path).
-        motion: "snapshot" or "continuous" (see :mod:`planodom.experiments.paper`).
         config: base configuration; ``smoothing.window`` / ``delta_max`` are replaced.
+        window: W of the fixed-lag smoother. delta: D (odometry d=D and delta = 1..D).
+        simulation: seed, epochs per run (default: the scene's whole path) and motion
+            (:class:`~planodom.experiments.simulated.Simulation`).
         progress: called with a short message at each step.
 
     The ``seconds`` of a smoother are its own (graph building and optimisation); the
     relative poses for delta = 1..D, shared by both smoothers, are reported by ``progress``.
     """
-    base = _with(config or PlanodomConfig(), "smoothing", window=window, delta_max=delta)
+    changes = {"smoothing.window": window, "smoothing.delta_max": delta}
+    base = (config or PlanodomConfig()).updated(changes, source="smoothing experiment")
     say = progress or (lambda msg: None)
     runs: list[EstimatorRun] = []
     for scene in scenes:
         for noise in noise_levels:
-            runs += run_scene_level(scene, noise, base, seed, n_epochs, motion, say)
-    result = SmoothingExperiment(runs, summary_rows(runs), nees_rows(runs))
+            say(f"{scene}: simulating sigma = {noise * 1000:g} mm and extracting planes")
+            runs += run_scene_level(simulate_level(scene, noise, base, simulation), base, say)
+    result = SmoothingExperiment(runs, {"summary": summary_rows(runs), "nees": nees_rows(runs)})
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         files = {f"trajectories_{s}": out / f"trajectories_{s}.png" for s in scenes}
         for scene in scenes:
             plot_trajectories(runs, scene, files[f"trajectories_{scene}"])
-        files |= {
-            "summary_md": out / "summary.md",
-            "summary_csv": out / "summary.csv",
-            "nees_md": out / "nees.md",
-            "nees_csv": out / "nees.csv",
-            "config": out / "config.yaml",
-        }
-        files["summary_md"].write_text(markdown_table(result.summary))
-        write_csv(files["summary_csv"], result.summary)
-        files["nees_md"].write_text(markdown_table(result.nees))
-        write_csv(files["nees_csv"], result.nees)
+        files |= write_tables(out, result.tables)
+        files["config"] = out / "config.yaml"
         base.to_yaml(files["config"])
         result.files = files
     return result

@@ -51,14 +51,14 @@ def with_dataset_bounds(config: PlanodomConfig, rig: object) -> PlanodomConfig:
     Each bound becomes the larger of the config's and the dataset's (both are
     assumptions of a maximum, so the union is the safe one).
     """
-    bounds = rig.get("motion_bounds") if isinstance(rig, dict) else None
-    if not bounds:
+    bounds = getattr(rig, "motion_bounds", None)  # a planodom.rig.Rig
+    if bounds is None:
         return config
     a = config.association
     update = {
-        key: max(float(getattr(a, key)), float(bounds[key]))
+        key: max(float(getattr(a, key)), float(getattr(bounds, key)))
         for key in ("max_translation_m", "max_rotation_deg")
-        if key in bounds
+        if getattr(bounds, key) is not None
     }
     return config.model_copy(update={"association": a.model_copy(update=update)})
 
@@ -75,14 +75,8 @@ def motion_assumption(config: PlanodomConfig) -> str:
 
 
 def rig_sensor_origins(rig: object) -> np.ndarray | None:
-    """Sensor positions (S, 3) (or (3,) for one sensor) from a ``rig.yaml`` dict or a Rig."""
-    if rig is None:
-        return None
-    if isinstance(rig, dict):
-        origins = rig.get("sensor_origins")
-    else:
-        sensors = getattr(rig, "sensors", None)
-        origins = None if sensors is None else [s.T_base_sensor[:3, 3] for s in sensors]
+    """Sensor positions (S, 3) (or (3,) for one sensor) of a :class:`planodom.rig.Rig`."""
+    origins = getattr(rig, "sensor_origins", None)
     if origins is None or len(origins) == 0:
         return None
     origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)

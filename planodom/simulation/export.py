@@ -3,38 +3,28 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
-
-import numpy as np
 
 from planodom.datasets import Dataset, write_dataset
+from planodom.rig import Rig
 from planodom.simulation.scene import scene_to_dict
 from planodom.simulation.simulate import SimulatedRun
 
 
-def rig_description(run: SimulatedRun, scene_name: str | None = None) -> dict[str, Any]:
-    """The ``rig.yaml`` dict of a simulated run.
-
-    Keys: ``epoch_rate`` (Hz); ``rig`` (sensors with ``T_base_sensor`` extrinsics, rates,
-    ranges, noise: :meth:`Rig.to_dict`); ``sensor_origins`` ((R, 3): for each ring, the
-    position of its sensor in the base frame, metres, for orienting normals);
-    ``simulation`` (scene name and polygons, seed, motion, noise sigma in metres).
-    """
-    sensors = run.rig.sensors
-    return {
-        "epoch_rate": float(run.epoch_rate),
-        "rig": run.rig.to_dict(),
-        "sensor_origins": np.repeat(
-            [s.T_base_sensor[:3, 3] for s in sensors], [s.n_rings for s in sensors], axis=0
-        ).tolist(),
-        "simulation": {
-            "scene_name": scene_name,
-            "seed": int(run.seed),
-            "motion": run.motion,
-            "noise_sigma": float(max((s.noise_sigma for s in sensors), default=0.0)),
-            "scene": scene_to_dict(run.scene),
-        },
+def dataset_rig(run: SimulatedRun, scene_name: str | None = None) -> Rig:
+    """The typed ``rig.yaml`` of a simulated run: :attr:`SimulatedRun.rig` (epoch rate,
+    sensor origins per ring, extrinsics) plus, as extra keys, ``sensor_rig`` (the sensor
+    models: :meth:`SensorRig.to_dict`) and ``simulation`` (scene name and polygons, seed,
+    motion, noise sigma in metres)."""
+    sensors = run.sensor_rig.sensors
+    simulation = {
+        "scene_name": scene_name,
+        "seed": int(run.seed),
+        "motion": run.motion,
+        "noise_sigma": float(max((s.noise_sigma for s in sensors), default=0.0)),
+        "scene": scene_to_dict(run.scene),
     }
+    extra = {"sensor_rig": run.sensor_rig.to_dict(), "simulation": simulation}
+    return run.sensor_rig.dataset_rig(run.epoch_rate, extra)
 
 
 def write_simulated_dataset(
@@ -46,6 +36,6 @@ def write_simulated_dataset(
         run.scans,
         run.times,
         gt_poses=run.poses,
-        rig=rig_description(run, scene_name),
+        rig=dataset_rig(run, scene_name),
         overwrite=overwrite,
     )

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from planodom.errors import ConfigError
-from planodom.simulation.rigs import Rig, rig_from_name
+from planodom.simulation.rigs import SensorRig, rig_from_name
 from planodom.simulation.scene import Scene
 from planodom.simulation.simulate import SimulatedRun, simulate
 from planodom.simulation.trajectory import (
@@ -19,7 +19,7 @@ TRAJECTORIES = {"paper-loop": paper_loop_trajectory, "urban-canyon": urban_canyo
 
 def simulate_named(
     scene: str | Scene = "paper-loop",
-    rig: str | Rig = "isoclinal",
+    rig: str | SensorRig = "isoclinal",
     noise: float | str = 0.0,
     seed: int = 0,
     n_epochs: int | None = None,
@@ -30,7 +30,8 @@ def simulate_named(
     trajectory: Trajectory | None = None,
 ) -> SimulatedRun:
     """Simulate ``scene`` (``"paper-loop"`` | ``"urban-canyon"`` or a :class:`Scene`) with
-    ``rig`` (``"isoclinal"`` | ``"lidar16"`` | ``"lidar32"`` | ``"lidar64"`` or a :class:`Rig`).
+    ``rig`` (``"isoclinal"`` | ``"lidar16"`` | ``"lidar32"`` | ``"lidar64"`` or a
+    :class:`SensorRig`).
 
     Args:
         noise: range noise sigma in metres, or a ``NOISE_PRESETS`` name ("none",
@@ -47,14 +48,5 @@ def simulate_named(
         trajectory = TRAJECTORIES[scene](speed=speed)
     scene_obj = scene_from_name(scene) if isinstance(scene, str) else scene
     rig_obj = rig_from_name(rig) if isinstance(rig, str) else rig
-    return simulate(
-        scene_obj,
-        trajectory,
-        rig_obj,
-        n_epochs=n_epochs,
-        duration=duration,
-        epoch_rate=epoch_rate,
-        noise_sigma=noise,
-        seed=seed,
-        motion=motion,
-    )
+    return simulate(scene_obj, trajectory, rig_obj, n_epochs=n_epochs, duration=duration,
+                    epoch_rate=epoch_rate, noise_sigma=noise, seed=seed, motion=motion)  # fmt: skip

@@ -20,7 +20,7 @@ from planodom.simulation.scene import VERTICAL_KINDS, Scene
 
 
 @dataclass(frozen=True)
-class Traces:
+class RingTraces:
     """Traces of one scan: per trace its surface id (K,), ring (K,), point count (K,),
     unit direction (K, 3) and length (K,) in metres (sqrt(12) x the principal std)."""
 
@@ -31,7 +31,7 @@ class Traces:
     length: np.ndarray
 
 
-def traces(scan: Scan, min_points: int = 5, min_length: float = 0.5) -> Traces:
+def ring_traces(scan: Scan, min_points: int = 5, min_length: float = 0.5) -> RingTraces:
     """The traces of ``scan`` with at least ``min_points`` points and ``min_length`` m."""
     if scan.label is None or scan.ring is None:
         raise ValueError("observability needs a scan with labels and rings")
@@ -46,7 +46,7 @@ def traces(scan: Scan, min_points: int = 5, min_length: float = 0.5) -> Traces:
     w, v = np.linalg.eigh(cov.reshape(-1, 3, 3) / count[:, None, None])
     length = np.sqrt(12.0 * np.maximum(w[:, 2], 0.0))
     ok = (count >= min_points) & (length >= min_length)
-    return Traces(keys[ok] // 100_000, keys[ok] % 100_000, count[ok], v[ok, :, 2], length[ok])
+    return RingTraces(keys[ok] // 100_000, keys[ok] % 100_000, count[ok], v[ok, :, 2], length[ok])
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,7 @@ def epoch_observability(
     min_length: float = 0.5,
 ) -> EpochObservability:
     """Observability of the surfaces of ``scene`` in one ``scan`` (see module docstring)."""
-    tr = traces(scan, min_points, min_length)
+    tr = ring_traces(scan, min_points, min_length)
     sin_min = np.sin(np.deg2rad(min_angle_deg))
     hit, observable, ground_ok = [], [], False
     for lab in np.unique(tr.label):

@@ -8,11 +8,11 @@ per column. Ray directions and origins are precomputed in the base frame.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from planodom.simulation.rigs import Rig
+from planodom.simulation.rigs import SensorRig
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,6 +39,7 @@ class TimingGroup:
     rings: np.ndarray
     max_range: np.ndarray
     sigma: np.ndarray
+    _homogeneous: np.ndarray = field(init=False, repr=False)
 
     @property
     def homogeneous(self) -> np.ndarray:
@@ -62,7 +63,7 @@ class TimingGroup:
         return self.time_offset + np.arange(i0, i1) / self.rate_hz
 
 
-def plan_rays(rig: Rig) -> list[TimingGroup]:
+def plan_rays(rig: SensorRig) -> list[TimingGroup]:
     """Group the rig's sensors by timing and precompute their rays in the base frame."""
     keys: dict[tuple, list[int]] = {}
     for i, s in enumerate(rig.sensors):

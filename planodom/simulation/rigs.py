@@ -1,8 +1,11 @@
-"""Sensor rigs: the isoclinal 2D-scanner rig (default) and spinning lidars; ``rig.yaml``.
+"""Simulated sensor rigs: the isoclinal 2D-scanner rig (default) and spinning lidars.
 
-A :class:`Rig` is a tuple of sensors (:class:`Scanner2D`, :class:`SpinningLidar`) with
-their extrinsics ``T_base_sensor``. Rings are numbered over the rig: a 2D scanner is one
-ring, a lidar ``n_beams`` rings, in sensor order (:attr:`Rig.ring_offsets`).
+A :class:`SensorRig` is a tuple of sensor models (:class:`Scanner2D`,
+:class:`SpinningLidar`) with their extrinsics ``T_base_sensor``: what the simulator casts
+rays with. Rings are numbered over the rig: a 2D scanner is one ring, a lidar ``n_beams``
+rings, in sensor order (:attr:`SensorRig.ring_offsets`). What a dataset states about its
+rig, recorded or simulated, is the typed :class:`planodom.rig.Rig`
+(:meth:`SensorRig.dataset_rig`: sensor origins per ring, extrinsics, epoch rate).
 
 Default isoclinal geometry (see /work/shared/RIG.md). A wall with horizontal normal n
 gets non-parallel traces from two scan planes with normals m1, m2 iff ``n . h != 0``,
@@ -33,40 +36,43 @@ observable count drops to 1/5/9 at 20 deg), 35 deg reaches fewer walls; meeting 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
 
 from planodom.errors import ConfigError, DatasetError
 from planodom.geometry import make_transform
+from planodom.rig import Rig
 from planodom.simulation.sensors import Scanner2D, Sensor, SpinningLidar
 
 __all__ = [
-    "Rig",
+    "SensorRig",
     "Scanner2D",
     "SpinningLidar",
     "isoclinal_rig",
     "lidar_rig",
     "rig_from_name",
     "scanner_pose",
-    "load_rig",
-    "save_rig",
+    "load_sensor_rig",
+    "save_sensor_rig",
 ]
 
 
 @dataclass(frozen=True, eq=False)
-class Rig:
-    """Sensors mounted on the vehicle base; ``name`` is free text."""
+class SensorRig:
+    """Sensor models mounted on the vehicle base; ``name`` is free text."""
 
     sensors: tuple[Sensor, ...]
     name: str = "rig"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "sensors", tuple(self.sensors))
-        if not self.sensors:
+        if len(self.sensors) == 0:
             raise ConfigError(f"rig '{self.name}' has no sensors")
+        object.__setattr__(self, "sensors", tuple(self.sensors))
 
     def __len__(self) -> int:
         return len(self.sensors)
@@ -81,16 +87,32 @@ class Rig:
         """Total number of rings."""
         return int(sum(s.n_rings for s in self.sensors))
 
-    def with_noise(self, sigma: float) -> Rig:
+    @property
+    def sensor_origins(self) -> np.ndarray:
+        """(R, 3) float64, metres: for each ring, its sensor's position in the base frame."""
+        origins = [s.T_base_sensor[:3, 3] for s in self.sensors]
+        return np.repeat(origins, [s.n_rings for s in self.sensors], axis=0)
+
+    def dataset_rig(self, epoch_rate_hz: float, extra: dict[str, Any] | None = None) -> Rig:
+        """The typed :class:`planodom.rig.Rig` a dataset of this rig states: sensor origins
+        per ring, extrinsics per sensor, ``epoch_rate_hz`` and ``extra`` (kept as given)."""
+        return Rig(
+            epoch_rate_hz=float(epoch_rate_hz),
+            sensor_origins=self.sensor_origins,
+            extrinsics=tuple(s.T_base_sensor for s in self.sensors),
+            extra=dict(extra or {}),
+        )
+
+    def with_noise(self, sigma: float) -> SensorRig:
         """The same rig with every sensor's range noise set to ``sigma`` (m)."""
         return replace(self, sensors=tuple(replace(s, noise_sigma=sigma) for s in self.sensors))
 
-    def to_dict(self) -> dict:
-        """Plain dict for ``rig.yaml`` (extrinsics as 4x4 lists)."""
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict for a sensor rig file (extrinsics as 4x4 lists)."""
         return {"name": self.name, "sensors": [s.to_dict() for s in self.sensors]}
 
     @classmethod
-    def from_dict(cls, data: object, source: str = "rig") -> Rig:
+    def from_dict(cls, data: object, source: str = "rig") -> SensorRig:
         """Rig from :meth:`to_dict` output; errors name ``source`` and the field."""
         if not isinstance(data, dict) or not isinstance(data.get("sensors"), list):
             raise ConfigError(f"{source}: field 'sensors': expected a list of sensors")
@@ -103,7 +125,10 @@ class Rig:
         return cls(tuple(sensors), str(data.get("name", "rig")))
 
 
-_TYPES: dict[str, type] = {"scanner2d": Scanner2D, "lidar": SpinningLidar}
+_TYPES: dict[str, type[Scanner2D] | type[SpinningLidar]] = {
+    "scanner2d": Scanner2D,
+    "lidar": SpinningLidar,
+}
 
 
 def _sensor_from_dict(d: object, source: str, field: str) -> Sensor:
@@ -112,7 +137,7 @@ def _sensor_from_dict(d: object, source: str, field: str) -> Sensor:
         raise ConfigError(f"{source}: field '{field}.type': expected one of {sorted(_TYPES)}")
     cls = _TYPES[d["type"]]
     kwargs = {k: v for k, v in d.items() if k != "type"}
-    unknown = sorted(set(kwargs) - set(cls.__dataclass_fields__))
+    unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
     if unknown:
         raise ConfigError(f"{source}: field '{field}.{unknown[0]}': unknown field")
     if "vfov_deg" in kwargs:
@@ -123,17 +148,17 @@ def _sensor_from_dict(d: object, source: str, field: str) -> Sensor:
         raise ConfigError(f"{source}: field '{field}': {exc}") from exc
 
 
-def save_rig(rig: Rig, path: str | Path) -> None:
-    """Write ``rig`` as YAML (``rig.yaml``)."""
+def save_sensor_rig(rig: SensorRig, path: str | Path) -> None:
+    """Write ``rig`` as YAML (the form of a simulated dataset's ``rig.yaml: sensor_rig``)."""
     Path(path).write_text(yaml.safe_dump(rig.to_dict(), sort_keys=False))
 
 
-def load_rig(path: str | Path) -> Rig:
-    """Read a ``rig.yaml``; raises :class:`DatasetError` naming the file and field."""
+def load_sensor_rig(path: str | Path) -> SensorRig:
+    """Read a sensor rig file; raises :class:`DatasetError` naming the file and field."""
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text())
-        return Rig.from_dict(data, source=str(path))
+        return SensorRig.from_dict(data, source=str(path))
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read rig file ({exc.strerror})") from exc
     except (yaml.YAMLError, ConfigError) as exc:
@@ -169,77 +194,52 @@ def isoclinal_normals(meet_deg: float, inclination_deg: float) -> np.ndarray:
 
 def isoclinal_rig(
     inclination_deg: float = 25.0,
-    forward_meet_deg: float = 45.0,
-    backward_meet_deg: float = -45.0,
+    meet_deg: tuple[float, float] = (45.0, -45.0),
     look_down_deg: float = 10.0,
     mount_height: float = 0.8,
-    step_deg: float = 0.5,
-    rate_hz: float = 75.0,
-    max_range: float = 80.0,
-    noise_sigma: float = 0.0,
-) -> Rig:
+    **scanner: Any,
+) -> SensorRig:
     """Two isoclinal pairs of :class:`Scanner2D` (see the module docstring).
 
     Args:
         inclination_deg: angle of every scan plane to the horizontal, degrees.
-        forward_meet_deg, backward_meet_deg: azimuth (deg, base frame, from +x towards
-            +y) of the horizontal direction along which each pair's scan planes meet.
+        meet_deg: for the forward and the backward pair, the azimuth (deg, base frame,
+            from +x towards +y) of the horizontal direction along which its scan planes meet.
         look_down_deg: the field of view is centred on the forward (backward) direction
             tilted down by this angle (deg), projected onto each scan plane.
-        mount_height: metres above the base origin. step_deg, rate_hz, max_range (m),
-            noise_sigma (m): per scanner (:class:`Scanner2D`).
+        mount_height: metres above the base origin.
+        scanner: per-scanner fields of :class:`Scanner2D` (``step_deg``, ``rate_hz``,
+            ``max_range`` m, ``noise_sigma`` m; its defaults otherwise: an LMS 221).
 
     Scanners sit at (+-1.0, +-0.5, mount_height) m in the base frame. Rings: 0 front-left,
     1 front-right, 2 rear-left, 3 rear-right.
     """
     sensors = []
-    pairs = ((forward_meet_deg, 1.0, "front"), (backward_meet_deg, -1.0, "rear"))
-    for meet, sign, label in pairs:
+    for meet, sign, label in zip(meet_deg, (1.0, -1.0), ("front", "rear"), strict=True):
         look = np.array([sign, 0.0, -np.tan(np.deg2rad(look_down_deg))])
-        for k, (m, side) in enumerate(
-            zip(isoclinal_normals(meet, inclination_deg), ("left", "right"), strict=True)
-        ):
-            origin = [sign * 1.0, 0.5 - k, mount_height]
-            sensors.append(
-                Scanner2D(
-                    scanner_pose(origin, m, look),
-                    step_deg=step_deg,
-                    rate_hz=rate_hz,
-                    max_range=max_range,
-                    noise_sigma=noise_sigma,
-                    name=f"{label}-{side}",
-                )
-            )
-    return Rig(tuple(sensors), "isoclinal")
+        normals = isoclinal_normals(meet, inclination_deg)
+        for k, (m, side) in enumerate(zip(normals, ("left", "right"), strict=True)):
+            T = scanner_pose([sign * 1.0, 0.5 - k, mount_height], m, look)
+            sensors.append(Scanner2D(T, name=f"{label}-{side}", **scanner))
+    return SensorRig(tuple(sensors), "isoclinal")
 
 
 def lidar_rig(
     n_beams: int = 32,
     vfov_deg: tuple[float, float] = (-25.0, 15.0),
-    n_columns: int = 1024,
-    rate_hz: float = 10.0,
     mount_height: float = 0.8,
-    max_range: float = 100.0,
-    noise_sigma: float = 0.0,
-) -> Rig:
+    **lidar: Any,
+) -> SensorRig:
     """One :class:`SpinningLidar` on the roof, ``mount_height`` m above the base origin:
-    ``n_beams`` rings over ``vfov_deg`` (lowest, highest elevation, deg), ``n_columns``
-    firings per revolution, ``rate_hz`` revolutions/s, ``max_range`` and ``noise_sigma`` m."""
-    T = make_transform(np.eye(3), [0.0, 0.0, mount_height])
-    lidar = SpinningLidar(
-        T,
-        rate_hz=rate_hz,
-        max_range=max_range,
-        noise_sigma=noise_sigma,
-        n_beams=n_beams,
-        vfov_deg=vfov_deg,
-        n_columns=n_columns,
-        name=f"lidar{n_beams}",
-    )
-    return Rig((lidar,), f"lidar{n_beams}")
+    ``n_beams`` rings over ``vfov_deg`` (lowest, highest elevation, deg); ``lidar``: its
+    other fields (``n_columns`` firings per revolution, ``rate_hz`` revolutions/s,
+    ``max_range`` and ``noise_sigma`` m; its defaults otherwise)."""
+    T = make_transform(np.eye(3), np.array([0.0, 0.0, mount_height]))
+    sensor = SpinningLidar(T, name=f"lidar{n_beams}", n_beams=n_beams, vfov_deg=vfov_deg, **lidar)
+    return SensorRig((sensor,), f"lidar{n_beams}")
 
 
-RIGS = {
+RIGS: dict[str, Callable[[], SensorRig]] = {
     "isoclinal": isoclinal_rig,
     "lidar16": lambda: lidar_rig(16, (-15.0, 15.0)),
     "lidar32": lambda: lidar_rig(32),
@@ -247,7 +247,7 @@ RIGS = {
 }
 
 
-def rig_from_name(name: str) -> Rig:
+def rig_from_name(name: str) -> SensorRig:
     """A built-in rig by name: ``isoclinal``, ``lidar16``, ``lidar32`` or ``lidar64``."""
     if name not in RIGS:
         raise ConfigError(f"unknown rig '{name}' (choose from {', '.join(RIGS)})")

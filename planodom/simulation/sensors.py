@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -56,6 +56,14 @@ class _Sensor:
                 raise ConfigError(f"sensor '{self.name}': {key} must be > 0")
         if not self.noise_sigma >= 0:
             raise ConfigError(f"sensor '{self.name}': noise_sigma must be >= 0")
+        self._check()
+
+    def _check(self) -> None:
+        """Checks of a subclass's own fields (raise :class:`ConfigError`)."""
+
+    def _own_dict(self) -> dict[str, Any]:
+        """A subclass's own fields for ``rig.yaml``."""
+        return {}
 
     @property
     def n_rings(self) -> int:
@@ -75,8 +83,8 @@ class _Sensor:
     def firing_times(self) -> np.ndarray:  # pragma: no cover - overridden
         raise NotImplementedError
 
-    def common_dict(self) -> dict:
-        """The fields every sensor writes to ``rig.yaml``."""
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict for a sensor rig file: the common fields, then the subclass's own."""
         return {
             "type": self.type,
             "name": self.name,
@@ -85,6 +93,7 @@ class _Sensor:
             "max_range": float(self.max_range),
             "noise_sigma": float(self.noise_sigma),
             "time_offset": float(self.time_offset),
+            **self._own_dict(),
         }
 
 
@@ -97,14 +106,13 @@ class Scanner2D(_Sensor):
         fov_deg: field of view in the scan plane, degrees. step_deg: angular step, degrees.
     """
 
+    type: ClassVar[str] = "scanner2d"
+    name: str = "scanner"
     fov_deg: float = 180.0
     step_deg: float = 0.5
     rate_hz: float = 75.0
-    name: str = "scanner"
-    type: ClassVar[str] = "scanner2d"
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def _check(self) -> None:
         if not (0 < self.fov_deg <= 360 and 0 < self.step_deg <= self.fov_deg):
             raise ConfigError(f"sensor '{self.name}': need 0 < step_deg <= fov_deg <= 360")
 
@@ -131,9 +139,8 @@ class Scanner2D(_Sensor):
         """(3,) unit normal of the scan plane in the base frame (the sensor's z axis)."""
         return self.T_base_sensor[:3, 2].copy()
 
-    def to_dict(self) -> dict:
-        """Plain dict for ``rig.yaml``."""
-        return {**self.common_dict(), "fov_deg": self.fov_deg, "step_deg": self.step_deg}
+    def _own_dict(self) -> dict[str, Any]:
+        return {"fov_deg": self.fov_deg, "step_deg": self.step_deg}
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,16 +148,15 @@ class SpinningLidar(_Sensor):
     """A spinning multi-beam lidar: ``n_beams`` rings over ``vfov_deg`` = (lowest, highest)
     elevation in degrees, ``n_columns`` firings per revolution, ``rate_hz`` revolutions/s."""
 
+    type: ClassVar[str] = "lidar"
+    name: str = "lidar"
     n_beams: int = 32
     vfov_deg: tuple[float, float] = (-25.0, 15.0)
     n_columns: int = 1024
     rate_hz: float = 10.0
     max_range: float = 100.0
-    name: str = "lidar"
-    type: ClassVar[str] = "lidar"
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def _check(self) -> None:
         lo, hi = self.vfov_deg
         if self.n_beams < 1 or self.n_columns < 1 or not -90 <= lo <= hi <= 90:
             raise ConfigError(f"sensor '{self.name}': need n_beams, n_columns >= 1, lo <= hi")
@@ -180,10 +186,8 @@ class SpinningLidar(_Sensor):
         """(F,) seconds from the sweep start."""
         return np.arange(self.n_columns) / (self.n_columns * self.rate_hz)
 
-    def to_dict(self) -> dict:
-        """Plain dict for ``rig.yaml``."""
+    def _own_dict(self) -> dict[str, Any]:
         return {
-            **self.common_dict(),
             "n_beams": self.n_beams,
             "vfov_deg": list(self.vfov_deg),
             "n_columns": self.n_columns,

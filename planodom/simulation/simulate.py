@@ -12,15 +12,17 @@ All rays of an epoch go to Embree in one call.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from planodom.errors import ConfigError
+from planodom.rig import Rig
 from planodom.scan import Scan
 from planodom.simulation.raycast import RayCaster
 from planodom.simulation.rayplan import TimingGroup, plan_rays
-from planodom.simulation.rigs import Rig
+from planodom.simulation.rigs import SensorRig
 from planodom.simulation.scene import Scene
 from planodom.simulation.trajectory import Trajectory
 
@@ -42,8 +44,10 @@ class SimulatedRun:
             ``column * n_beams + beam``).
         sweep_starts: per epoch, per sensor, (sweeps,) absolute sweep start times, s.
         times: (E,) epoch reference times t_k, s. poses: (E, 4, 4) ``T_world_base(t_k)``.
-        scene, rig (its sensors' ``noise_sigma`` = the noise used), trajectory,
+        scene, sensor_rig (its sensors' ``noise_sigma`` = the noise used), trajectory,
         epoch_rate (Hz), motion, seed.
+        rig: what a dataset of this run states (:class:`planodom.rig.Rig`, the same as a
+            recorded dataset's ``Dataset.rig``).
     """
 
     scans: tuple[Scan, ...]
@@ -52,17 +56,25 @@ class SimulatedRun:
     times: np.ndarray
     poses: np.ndarray
     scene: Scene
-    rig: Rig
+    sensor_rig: SensorRig
     trajectory: Trajectory
     epoch_rate: float
     motion: str
     seed: int
+
+    @property
+    def rig(self) -> Rig:
+        """The typed rig of the run: sensor origins per ring, extrinsics, epoch rate."""
+        return self.sensor_rig.dataset_rig(self.epoch_rate)
 
     def __len__(self) -> int:
         return len(self.scans)
 
     def __getitem__(self, k: int) -> Scan:
         return self.scans[k]
+
+    def __iter__(self) -> Iterator[Scan]:
+        return iter(self.scans)
 
     @property
     def gt_poses(self) -> np.ndarray:
@@ -128,7 +140,7 @@ class Simulator:
         self,
         scene: Scene,
         trajectory: Trajectory,
-        rig: Rig,
+        rig: SensorRig,
         epoch_rate: float = 10.0,
         seed: int = 0,
         motion: str = "continuous",
@@ -200,7 +212,7 @@ def _concat(arrays: list[np.ndarray]) -> np.ndarray:
     return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
 
 
-def resolve_noise(noise: float | str | None, rig: Rig) -> Rig:
+def resolve_noise(noise: float | str | None, rig: SensorRig) -> SensorRig:
     """The rig with range noise ``noise`` (m, or a :data:`NOISE_PRESETS` name; None keeps
     the rig's own per-sensor values)."""
     if noise is None:
@@ -217,7 +229,7 @@ def resolve_noise(noise: float | str | None, rig: Rig) -> Rig:
 def simulate(
     scene: Scene,
     trajectory: Trajectory,
-    rig: Rig,
+    rig: SensorRig,
     n_epochs: int | None = None,
     duration: float | None = None,
     epoch_rate: float = 10.0,
@@ -251,7 +263,7 @@ def simulate(
         times=times,
         poses=trajectory.poses(times) if n_epochs else np.zeros((0, 4, 4)),
         scene=scene,
-        rig=rig,
+        sensor_rig=rig,
         trajectory=trajectory,
         epoch_rate=float(epoch_rate),
         motion=motion,

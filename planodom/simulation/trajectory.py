@@ -21,18 +21,16 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from planodom.errors import GeometryError
+from planodom.geometry import se3_exp
 from planodom.simulation.worlds import PAPER_LOOP_ROUTE, URBAN_CANYON_ROUTE
 
 
-def rpy_matrices(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-    """Rotations (T, 3, 3) ``Rz(yaw) Ry(pitch) Rx(roll)`` from angles (T,), radians."""
-    return _rotations(
-        np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
-    )
-
-
 def _rotations(cr, sr, cp, sp, cy, sy) -> np.ndarray:
-    """``Rz Ry Rx`` (T, 3, 3) from the cosines and sines (T,) of roll, pitch and yaw."""
+    """``Rz Ry Rx`` (T, 3, 3) from the cosines and sines (T,) of roll, pitch and yaw.
+
+    Our own product rather than scipy's Euler angles: the path gives the yaw's cosine and
+    sine directly (the unit tangent), with no angle to recover, and the simulator
+    evaluates it once per beam (cheap, and the simulated scans stay as recorded)."""
     spcr, spsr = sp * cr, sp * sr
     rows = (cy * cp, cy * spsr - sy * cr, cy * spcr + sy * sr,
             sy * cp, sy * spsr + cy * cr, sy * spcr - cy * sr,
@@ -202,28 +200,6 @@ class StaticTrajectory(Trajectory):
     def poses(self, t: np.ndarray) -> np.ndarray:
         """``T`` repeated: (T, 4, 4)."""
         return np.repeat(self.T[None], len(np.atleast_1d(t)), axis=0)
-
-
-def se3_exp(xi: np.ndarray) -> np.ndarray:
-    """SE(3) exponential of twists ``xi`` (T, 6) = (wx, wy, wz, vx, vy, vz) to (T, 4, 4)."""
-    w, v = xi[:, :3], xi[:, 3:]
-    th = np.linalg.norm(w, axis=1)
-    # Below 1e-3 rad the closed forms cancel catastrophically; the Taylor series to th^4
-    # is exact there to ~1e-19.
-    small = th < 1e-3
-    ths = np.where(small, 1.0, th)
-    t2 = th**2
-    a = np.where(small, 1.0 - t2 / 6.0 + t2**2 / 120.0, np.sin(ths) / ths)
-    b = np.where(small, 0.5 - t2 / 24.0 + t2**2 / 720.0, (1.0 - np.cos(ths)) / ths**2)
-    c = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t2**2 / 5040.0, (ths - np.sin(ths)) / ths**3)
-    K = np.zeros((len(xi), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
-    K = K - np.swapaxes(K, 1, 2)
-    K2 = K @ K
-    eye = np.eye(3)
-    R = eye + a[:, None, None] * K + b[:, None, None] * K2
-    V = eye + b[:, None, None] * K + c[:, None, None] * K2
-    return _assemble(R, np.einsum("tij,tj->ti", V, v))
 
 
 def paper_loop_trajectory(speed: float = 2.0, sway: Sway | None = None) -> WaypointTrajectory:

@@ -39,16 +39,6 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from factors.planes import (
-    anchor_pose,
-    anchor_prior,
-    anchored_plane_factor,
-    orient_measurement,
-    plane_factor,
-    plane_noise,
-    predict_plane,
-)
-from factors.pose5 import pose5_factor, rotation_factor, vertical_factor
 from planodom.config import SmoothingConfig
 from planodom.errors import ConfigError
 from planodom.geometry import (
@@ -57,6 +47,16 @@ from planodom.geometry import (
     transform_planes,
 )
 from planodom.smoothing.landmarks import LandmarkTracker
+from planodom_factors.planes import (
+    anchor_pose,
+    anchor_prior,
+    anchored_plane_factor,
+    orient_measurement,
+    plane_factor,
+    plane_noise,
+    predict_plane,
+)
+from planodom_factors.pose5 import pose5_factor, rotation_factor, vertical_factor
 
 X = gtsam.symbol_shorthand.X
 L = gtsam.symbol_shorthand.L

@@ -14,7 +14,7 @@ from planodom.simulation import (
     isoclinal_rig,
     paper_loop,
     paper_loop_trajectory,
-    traces,
+    ring_traces,
     wall,
 )
 
@@ -71,7 +71,7 @@ def test_short_or_sparse_traces_are_ignored():
     scan = _join(
         _line(1, 0, (10, -1, 1), (0, 0.1, 0.05)), _line(1, 1, (10, -1, 1), (0, 1, -1), n=3)
     )
-    assert len(traces(scan).label) == 0
+    assert len(ring_traces(scan).label) == 0
 
 
 @pytest.mark.parametrize("t", [0.0, 12.0, 25.0, 37.0, 50.0, 62.0])

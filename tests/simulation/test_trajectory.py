@@ -9,7 +9,12 @@ from hypothesis import strategies as st
 from scipy.linalg import expm
 
 from planodom.errors import GeometryError
-from planodom.geometry import invert_transform, rpy_from_rotation, transform_from_rpy_xyz
+from planodom.geometry import (
+    invert_transform,
+    rpy_from_rotation,
+    se3_exp,
+    transform_from_rpy_xyz,
+)
 from planodom.simulation import (
     PAPER_LOOP_ROUTE,
     StaticTrajectory,
@@ -17,17 +22,17 @@ from planodom.simulation import (
     TwistTrajectory,
     WaypointTrajectory,
     paper_loop_trajectory,
-    se3_exp,
     urban_canyon_trajectory,
 )
-from planodom.simulation.trajectory import rpy_matrices
+from planodom.simulation.trajectory import _rotations
 
 angle = st.floats(-3.0, 3.0)
 
 
 @given(angle, st.floats(-1.5, 1.5), angle)
-def test_rpy_matrices_match_geometry(roll, pitch, yaw):
-    R = rpy_matrices(np.array([roll]), np.array([pitch]), np.array([yaw]))[0]
+def test_rotations_match_geometry(roll, pitch, yaw):
+    cs = [f(np.array([a])) for a in (roll, pitch, yaw) for f in (np.cos, np.sin)]
+    R = _rotations(*cs)[0]
     np.testing.assert_allclose(
         R, transform_from_rpy_xyz(roll, pitch, yaw, 0, 0)[:3, :3], atol=1e-14
     )
@@ -141,8 +146,6 @@ def test_static_trajectory():
 def test_se3_exp_is_accurate_for_tiny_rotations() -> None:
     """Against scipy's rotation and the series of the left Jacobian, across the switch."""
     from scipy.spatial.transform import Rotation
-
-    from planodom.simulation.trajectory import se3_exp
 
     for th in (1e-9, 1e-6, 5e-4, 2e-3, 0.3):
         w = th * np.array([0.6, -0.8, 0.0])

@@ -10,15 +10,15 @@ from hypothesis import strategies as st
 
 from planodom.errors import ConfigError, DatasetError
 from planodom.simulation import (
-    Rig,
     Scanner2D,
+    SensorRig,
     SpinningLidar,
     isoclinal_normals,
     isoclinal_rig,
     lidar_rig,
-    load_rig,
+    load_sensor_rig,
     rig_from_name,
-    save_rig,
+    save_sensor_rig,
 )
 
 
@@ -63,7 +63,7 @@ def test_isoclinal_default_geometry():
     assert np.all(look[:2, 0] > 0.7) and np.all(look[2:, 0] < -0.7)
 
 
-def _best_crossing(rig: Rig, azimuth_deg: np.ndarray) -> np.ndarray:
+def _best_crossing(rig: SensorRig, azimuth_deg: np.ndarray) -> np.ndarray:
     """Per wall normal azimuth, the best |n . h| / |h| over the rig's two pairs."""
     m = np.array([s.scan_plane_normal for s in rig.sensors])
     h = np.array([np.cross(m[0], m[1]), np.cross(m[2], m[3])])
@@ -77,15 +77,15 @@ def test_default_pairs_cover_every_wall_orientation():
     az = np.arange(0.0, 180.0, 1.0)
     assert _best_crossing(isoclinal_rig(), az).min() >= np.cos(np.deg2rad(45.0)) - 1e-12
     # both pairs meeting along the forward axis leave side walls (normal along y) blind
-    bad = isoclinal_rig(forward_meet_deg=0.0, backward_meet_deg=0.0)
+    bad = isoclinal_rig(meet_deg=(0.0, 0.0))
     assert _best_crossing(bad, az).min() < 1e-12
 
 
 @pytest.mark.parametrize("rig", [isoclinal_rig(noise_sigma=0.006), lidar_rig(64)])
 def test_rig_yaml_round_trip(tmp_path, rig):
     path = tmp_path / "rig.yaml"
-    save_rig(rig, path)
-    back = load_rig(path)
+    save_sensor_rig(rig, path)
+    back = load_sensor_rig(path)
     assert back.to_dict() == rig.to_dict()
     for a, b in zip(rig.sensors, back.sensors, strict=True):
         assert type(a) is type(b)
@@ -114,9 +114,9 @@ def test_bad_rig_files_name_file_and_field(tmp_path, mutate, message):
     path = tmp_path / "rig.yaml"
     path.write_text(yaml.safe_dump(data))
     with pytest.raises(DatasetError, match=f"rig.yaml.*{message}"):
-        load_rig(path)
+        load_sensor_rig(path)
     with pytest.raises(ConfigError):
-        Rig.from_dict(data)
+        SensorRig.from_dict(data)
 
 
 def test_named_rigs():
@@ -125,7 +125,7 @@ def test_named_rigs():
     with pytest.raises(ConfigError, match="unknown rig"):
         rig_from_name("kinect")
     with pytest.raises(DatasetError, match="nope.yaml"):
-        load_rig("/nonexistent/nope.yaml")
+        load_sensor_rig("/nonexistent/nope.yaml")
 
 
 @given(st.floats(-180, 180), st.floats(5, 60), st.floats(-180, 180))

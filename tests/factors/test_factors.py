@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from factors.planes import (
+from planodom import geometry as g
+from planodom_factors.planes import (
     anchor_pose,
     anchor_prior,
     anchored_plane_factor,
@@ -16,8 +17,7 @@ from factors.planes import (
     plane_noise,
     predict_plane,
 )
-from factors.pose5 import pose5_factor, rotation_factor, vertical_factor
-from planodom import geometry as g
+from planodom_factors.pose5 import pose5_factor, rotation_factor, vertical_factor
 
 X = gtsam.symbol_shorthand.X
 L = gtsam.symbol_shorthand.L

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from planodom.datasets import load_dataset
-from planodom.simulation import simulate_named
+from planodom.simulation import SensorRig, simulate_named
 from planodom.simulation.export import write_simulated_dataset
 
 
@@ -22,10 +22,16 @@ def test_simulated_dataset_round_trip(tmp_path) -> None:
         np.testing.assert_array_equal(a.t, b.t)
         np.testing.assert_array_equal(a.label, b.label)
     rig = load_dataset(tmp_path / "ds").rig
-    assert rig["epoch_rate"] == run.epoch_rate
-    assert rig["simulation"]["seed"] == 3
-    origins = np.array(rig["sensor_origins"])
-    assert origins.shape == (run.rig.n_rings, 3)
+    assert rig.epoch_rate_hz == run.epoch_rate == run.rig.epoch_rate_hz
+    assert rig.extra["simulation"]["seed"] == 3
+    sensors = run.sensor_rig
+    assert rig.sensor_origins.shape == (sensors.n_rings, 3)
+    np.testing.assert_array_equal(rig.sensor_origins, run.rig.sensor_origins)
     for ring in np.unique(run[0].ring):  # each ring's origin is its scanner's position
-        sensor = run.rig.sensors[int(np.searchsorted(run.rig.ring_offsets, ring, "right")) - 1]
-        np.testing.assert_array_equal(origins[ring], sensor.T_base_sensor[:3, 3])
+        sensor = sensors.sensors[int(np.searchsorted(sensors.ring_offsets, ring, "right")) - 1]
+        np.testing.assert_array_equal(rig.sensor_origins[ring], sensor.T_base_sensor[:3, 3])
+    for T, sensor in zip(rig.extrinsics, sensors.sensors, strict=True):
+        np.testing.assert_array_equal(T, sensor.T_base_sensor)
+    # the sensor models travel in rig.yaml too, and read back as the same rig
+    back = SensorRig.from_dict(rig.extra["sensor_rig"])
+    assert back.to_dict() == sensors.to_dict()

@@ -12,8 +12,8 @@ from planodom.geometry import make_transform, transform_from_rpy_xyz
 from planodom.scan import Scan
 from planodom.simulation import (
     NOISE_PRESETS,
-    Rig,
     Scene,
+    SensorRig,
     Simulator,
     StaticTrajectory,
     TwistTrajectory,
@@ -115,7 +115,7 @@ def test_noise_std_matches_sigma():
     assert n > 10000
     assert abs(res.mean()) < 5 * sigma / np.sqrt(n)
     assert abs(res.std() / sigma - 1.0) < 5 / np.sqrt(2 * n)
-    assert noisy.rig.sensors[0].noise_sigma == sigma
+    assert noisy.sensor_rig.sensors[0].noise_sigma == sigma
 
 
 def test_noise_is_deterministic_per_seed():
@@ -185,7 +185,7 @@ def test_bad_arguments():
 def test_simulate_named(scene, rig):
     run = simulate_named(scene, rig, noise="worst", seed=3, n_epochs=2, motion="snapshot")
     assert len(run) == 2 and run.motion == "snapshot" and run.seed == 3
-    assert run.rig.sensors[0].noise_sigma == NOISE_PRESETS["worst"]
+    assert run.sensor_rig.sensors[0].noise_sigma == NOISE_PRESETS["worst"]
     assert run.scene.name == scene and all(len(s) > 100 for s in run.scans)
 
 
@@ -198,7 +198,7 @@ def test_mixed_rig_with_per_sensor_noise_and_ranges():
     )
     short = replace(iso.sensors[2], max_range=10.0)
     lidar = lidar_rig(16, n_columns=128).sensors[0]
-    rig = Rig((quiet, loud, short, iso.sensors[3], lidar))
+    rig = SensorRig((quiet, loud, short, iso.sensors[3], lidar))
     np.testing.assert_array_equal(rig.ring_offsets, [0, 1, 2, 3, 4])
     assert rig.n_rings == 20
     clean = simulate(SCENE, LOOP, rig.with_noise(0.0), n_epochs=2)

@@ -1,0 +1,187 @@
+"""Scan files: exact round trips (.ply, .pcd, KITTI .bin), interop with open3d, bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from dataset_factory import ALL_FIELDS, assert_same_scan, float32_safe, make_scan
+
+from planodom._open3d import o3d
+from planodom.datasets import read_scan, write_scan
+from planodom.datasets.ply import write_ply_vertices
+from planodom.errors import DatasetError
+from planodom.scan import Scan
+
+# --------------------------------------------------------------------------- scans
+
+
+@pytest.mark.parametrize("ext", [".ply", ".pcd"])
+@pytest.mark.parametrize("fields", [ALL_FIELDS, (), ("ring",), ("t", "label")])
+@pytest.mark.parametrize("n", [0, 1, 200])
+def test_scan_round_trip_float64_exact(tmp_path: Path, ext: str, fields, n: int) -> None:
+    scan = make_scan(np.random.default_rng(n), n, fields)
+    write_scan(tmp_path / f"s{ext}", scan)
+    assert_same_scan(read_scan(tmp_path / f"s{ext}"), scan)
+
+
+@pytest.mark.parametrize("ext", [".ply", ".pcd"])
+def test_scan_float32_storage_round_trips(tmp_path: Path, ext: str) -> None:
+    scan = make_scan(np.random.default_rng(1), 100)
+    with pytest.raises(DatasetError, match="beyond float32 range"):  # it holds 1e300
+        write_scan(tmp_path / f"a{ext}", scan, points_dtype=np.float32)
+    scan = float32_safe(scan)
+    write_scan(tmp_path / f"a{ext}", scan, points_dtype=np.float32)
+    back = read_scan(tmp_path / f"a{ext}")
+    assert np.array_equal(back.points, scan.points.astype(np.float32).astype(np.float64))
+    # A float32 scan written again as float32 is the same file content, bit for bit.
+    write_scan(tmp_path / f"b{ext}", back, points_dtype=np.float32)
+    assert_same_scan(read_scan(tmp_path / f"b{ext}"), back)
+    if ext == ".ply":
+        assert (tmp_path / "a.ply").read_bytes() == (tmp_path / "b.ply").read_bytes()
+
+
+def test_ply_from_and_to_open3d(tmp_path: Path) -> None:
+    """Our PLY files read the same in open3d, and open3d's PLY files read the same here."""
+    scan = float32_safe(make_scan(np.random.default_rng(2), 80))
+    write_scan(tmp_path / "ours.ply", scan)
+    cloud = o3d.t.io.read_point_cloud(str(tmp_path / "ours.ply"))
+    assert np.array_equal(cloud.point["positions"].numpy(), scan.points)
+    for name in ALL_FIELDS:
+        assert np.array_equal(cloud.point[name].numpy().ravel(), getattr(scan, name))
+
+    for dtype in (np.float64, np.float32):
+        theirs = o3d.t.geometry.PointCloud()
+        theirs.point["positions"] = o3d.core.Tensor(scan.points.astype(dtype))
+        for name in ALL_FIELDS:
+            theirs.point[name] = o3d.core.Tensor(getattr(scan, name)[:, None])
+        assert o3d.t.io.write_point_cloud(str(tmp_path / "theirs.ply"), theirs)
+        back = read_scan(tmp_path / "theirs.ply")
+        expected = Scan(scan.points.astype(dtype), scan.ring, scan.t, scan.label)
+        assert_same_scan(back, expected)
+
+
+def test_ply_other_property_types_and_ascii(tmp_path: Path) -> None:
+    """uint16 ring (lidar drivers), float32 t, extra properties ignored, ASCII PLY."""
+    n = 4
+    write_ply_vertices(
+        tmp_path / "u.ply",
+        {
+            "x": np.arange(n, dtype=np.float32),
+            "y": np.ones(n, np.float32),
+            "z": np.zeros(n, np.float32),
+            "intensity": np.full(n, 7.5, np.float32),
+            "ring": np.array([0, 1, 65000, 3], np.uint16),
+            "t": np.array([0.0, 0.25, 0.5, 0.75], np.float32),
+        },
+    )
+    scan = read_scan(tmp_path / "u.ply")
+    assert scan.ring.tolist() == [0, 1, 65000, 3] and scan.ring.dtype == np.int32
+    assert scan.t.tolist() == [0.0, 0.25, 0.5, 0.75] and scan.label is None
+
+    text = (
+        "ply\nformat ascii 1.0\ncomment hand written\nelement vertex 2\n"
+        "property double x\nproperty double y\nproperty double z\nproperty int label\n"
+        "end_header\n0.1 -2.5 3e-7 4\n1 2 3 -1\n"
+    )
+    (tmp_path / "a.ply").write_text(text)
+    scan = read_scan(tmp_path / "a.ply")
+    assert np.array_equal(scan.points, [[0.1, -2.5, 3e-7], [1.0, 2.0, 3.0]])
+    assert scan.label.tolist() == [4, -1]
+
+
+def test_kitti_bin(tmp_path: Path) -> None:
+    rows = np.random.default_rng(3).normal(size=(30, 4)).astype(np.float32)
+    rows.tofile(tmp_path / "000000.bin")
+    np.zeros((0, 4), np.float32).tofile(tmp_path / "000001.bin")
+    scan = read_scan(tmp_path / "000000.bin")
+    assert np.array_equal(scan.points, rows[:, :3].astype(np.float64))
+    assert scan.ring is None and scan.t is None and scan.label is None
+    assert len(read_scan(tmp_path / "000001.bin")) == 0
+
+
+def test_pcd_with_uint16_ring_and_ascii_from_other_tools(tmp_path: Path) -> None:
+    header = (
+        "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z ring\nSIZE 4 4 4 2\nTYPE F F F U\n"
+        "COUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\n"
+    )
+    (tmp_path / "a.pcd").write_text(header + "DATA ascii\n1 2 3 4\n-1 0.5 2 60000\n")
+    scan = read_scan(tmp_path / "a.pcd")
+    assert np.array_equal(scan.points, [[1, 2, 3], [-1, 0.5, 2]])
+    assert scan.ring.tolist() == [4, 60000]
+
+
+# --------------------------------------------------------------------------- bad scans
+
+
+def _good_ply(tmp_path: Path) -> bytes:
+    write_scan(tmp_path / "good.ply", make_scan(np.random.default_rng(4), 20))
+    return (tmp_path / "good.ply").read_bytes()
+
+
+def _good_pcd(tmp_path: Path) -> bytes:
+    write_scan(tmp_path / "good.pcd", make_scan(np.random.default_rng(5), 20))
+    return (tmp_path / "good.pcd").read_bytes()
+
+
+@pytest.mark.parametrize(
+    "name, content, message",
+    [
+        ("garbage.ply", lambda p: np.random.default_rng(0).bytes(500), "not a PLY"),
+        ("truncated.ply", lambda p: _good_ply(p)[:-9], "truncated"),
+        ("noheader.ply", lambda p: b"ply\nformat ascii 1.0\nelement vertex 3\n", "end_header"),
+        ("badtype.ply", lambda p: b"ply\nformat ascii 1.0\nproperty quad x\nend_header\n", "bad"),
+        (
+            "ascii.ply",
+            lambda p: (
+                b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
+                b"property float y\nproperty float z\nend_header\n1 2 3\n4 5\n"
+            ),
+            "truncated",
+        ),
+        (
+            "noxyz.ply",
+            lambda p: b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
+            "coordinates",
+        ),
+        ("garbage.pcd", lambda p: np.random.default_rng(1).bytes(500), "PCD"),
+        ("truncated.pcd", lambda p: _good_pcd(p)[:-9], "truncated"),
+        (
+            "ascii.pcd",
+            lambda p: (
+                b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+                b"COUNT 1 1 1\nWIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n1 2 3\n4 5 6\n"
+            ),
+            "header says 3",
+        ),
+        ("truncated.bin", lambda p: np.zeros(10, np.float32).tobytes(), "multiple of 16"),
+        ("scan.xyz", lambda p: b"1 2 3\n", "unknown scan file extension"),
+    ],
+)
+def test_bad_scan_files(tmp_path: Path, name: str, content, message: str) -> None:
+    (tmp_path / name).write_bytes(content(tmp_path))
+    with pytest.raises(DatasetError, match=message) as err:
+        read_scan(tmp_path / name)
+    assert name in str(err.value)
+
+
+@pytest.mark.parametrize("ext", [".ply", ".pcd", ".bin"])
+def test_nan_points_are_rejected_with_count(tmp_path: Path, ext: str) -> None:
+    pts = np.ones((10, 4), np.float32)
+    pts[2, 0], pts[5, 1], pts[5, 2], pts[7, 2] = np.nan, np.inf, np.nan, -np.inf
+    if ext == ".bin":
+        pts.tofile(tmp_path / "nan.bin")
+    elif ext == ".ply":
+        write_ply_vertices(tmp_path / "nan.ply", {c: pts[:, i] for i, c in enumerate("xyz")})
+    else:
+        cloud = o3d.t.geometry.PointCloud()
+        cloud.point["positions"] = o3d.core.Tensor(pts[:, :3].copy())
+        o3d.t.io.write_point_cloud(str(tmp_path / "nan.pcd"), cloud)
+    with pytest.raises(DatasetError, match=r"nan\.\w+: 3 of 10 points have NaN or infinite"):
+        read_scan(tmp_path / f"nan{ext}")
+
+
+def test_missing_scan_file(tmp_path: Path) -> None:
+    with pytest.raises(DatasetError, match="nothere.ply"):
+        read_scan(tmp_path / "nothere.ply")
