@@ -66,16 +66,19 @@ class PlanodomConfig(Section):
 
         The one way to derive a changed config (CLI options, experiments, the streaming
         odometry's widened bounds): ``changes`` maps dotted field names to values, e.g.
-        ``{"association.max_translation_m": 2.0, "odometry.pipeline": "sda-mean"}``;
+        ``{"association.max_translation_m": 2.0, "extraction.time_windows.span_s": 0.02}``;
         the result is validated like a loaded file (``model_copy`` would skip that).
         Raises :class:`ConfigError` naming ``source`` and the field.
         """
         data = self.model_dump(mode="python")
         for dotted, value in changes.items():
-            section, _, name = dotted.partition(".")
-            if section not in data or not name or name not in data[section]:
+            *path, name = dotted.split(".")
+            node = data
+            for key in path:
+                node = node.get(key) if isinstance(node, dict) else None
+            if not path or not isinstance(node, dict) or name not in node:
                 raise ConfigError(f"{source}: unknown config field {dotted!r}")
-            data[section][name] = value
+            node[name] = value
         return type(self).from_dict(data, source=source)
 
     def to_yaml(self, path: str | Path | None = None) -> str:
