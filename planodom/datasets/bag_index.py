@@ -230,9 +230,15 @@ def index_bag(
     gt_times = np.array([r[0] for r in gt_rows], dtype=np.int64)
     gt_poses = np.array([r[1] for r in gt_rows], dtype=np.float64).reshape(-1, 4, 4)
     return BagIndex(
-        index, table[:, 0].astype(np.int32), table[:, 1], table[:, 2], tree, gt_times, gt_poses,
+        index,
+        table[:, 0].astype(np.int32),
+        table[:, 1],
+        table[:, 2],
+        tree,
+        gt_times,
+        gt_poses,
         gt_child,
-    )  # fmt: skip
+    )
 
 
 def _deserialize(reader: AnyReader, path: Path, conn: Connection, raw: bytes) -> Any:

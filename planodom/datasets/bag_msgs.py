@@ -46,9 +46,7 @@ def stamp_ns(header: Any) -> int:
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
-def decode_sweep(
-    msg: Any, msgtype: str
-) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
+def decode_sweep(msg: Any, msgtype: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
     """One sweep in its sensor frame: ``(points (n, 3), ring (n,) int32 or None, dt (n,), rings)``.
 
     ``dt`` is float64 seconds after ``header.stamp``; ``rings`` the ring count (1 for a

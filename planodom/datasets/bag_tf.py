@@ -141,4 +141,3 @@ class TfTree:
             f"{where}: no transform from frame '{frame_name(source)}' to base frame "
             f"'{frame_name(target)}' in /tf_static or /tf ({why}; frames: {shown or 'none'})"
         )
-

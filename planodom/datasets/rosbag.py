@@ -40,7 +40,6 @@ from rosbags.highlevel import AnyReader
 from planodom.datasets.bag_epochs import NS, group_epochs, interpolate_poses
 from planodom.datasets.bag_index import (
     BagIndex,
-    TopicIndex,
     bag_errors,
     bag_location,
     index_bag,
@@ -98,8 +97,9 @@ class BagDataset:
     Use as a context manager (or call :meth:`close`) to release the bag's file handles.
     """
 
-    def __init__(self, path: Path, base_frame: str, epoch_rate: float, index: BagIndex,
-                 gt_topic: str | None) -> None:  # fmt: skip
+    def __init__(
+        self, path: Path, base_frame: str, epoch_rate: float, index: BagIndex, gt_topic: str | None
+    ) -> None:
         self.path = path
         self.base_frame = frame_name(base_frame)
         self.epoch_rate = float(epoch_rate)
@@ -251,8 +251,9 @@ def _bag_rig(ds: BagDataset) -> Rig:
     first_T = [next(iter(t.T_base_sensor.values())) for t in ds.topics]
     origins = None
     if all(t.rings > 0 for t in ds.topics):
-        origins = np.concatenate([np.tile(T[:3, 3], (t.rings, 1)) for t, T in
-                                  zip(ds.topics, first_T, strict=True)])  # fmt: skip
+        origins = np.concatenate(
+            [np.tile(T[:3, 3], (t.rings, 1)) for t, T in zip(ds.topics, first_T, strict=True)]
+        )
     elif len(ds.topics) == 1:
         origins = first_T[0][:3, 3][None]
     extra = {
@@ -261,11 +262,17 @@ def _bag_rig(ds: BagDataset) -> Rig:
         "base_frame": ds.base_frame,
         "gt_topic": ds.gt_topic,
         "topics": [
-            {"topic": t.name, "type": t.msgtype.split("/")[-1], "frame": next(iter(t.T_base_sensor)),
-             "first_ring": t.first_ring, "rings": t.rings, "sweeps": t.sweeps}
+            {
+                "topic": t.name,
+                "type": t.msgtype.split("/")[-1],
+                "frame": next(iter(t.T_base_sensor)),
+                "first_ring": t.first_ring,
+                "rings": t.rings,
+                "sweeps": t.sweeps,
+            }
             for t in ds.topics
         ],
-    }  # fmt: skip
+    }
     return Rig(ds.epoch_rate, origins, None, tuple(first_T), extra)
 
 
@@ -284,7 +291,8 @@ def open_bag(
             ``.mcap`` file.
         base_frame: tf frame of the vehicle the points are expressed in.
         epoch_rate: epochs per second (Hz); an epoch gathers the sweeps of one window.
-        topics: scan topics to read, in ring order (None: every LaserScan / PointCloud2).
+        topics: scan topics to read, in ring order (None or empty: every LaserScan /
+            PointCloud2 topic with messages, sorted by name).
         gt_topic: reference trajectory: a pose topic or ``"tf:PARENT:CHILD"`` (None: none).
 
     Raises:
@@ -294,6 +302,7 @@ def open_bag(
     """
     if not (np.isfinite(epoch_rate) and epoch_rate > 0):
         raise DatasetError(f"epoch rate must be a positive number of Hz, got {epoch_rate!r}")
+    topics = list(topics) if topics else None
     location = bag_location(path)
     reader = open_reader(location)
     try:
@@ -352,8 +361,9 @@ def convert_bag(
         DatasetError: see :func:`open_bag`; ``out_dir`` already holds a dataset and not
             ``overwrite``.
     """
-    with open_bag(bag_path, base_frame=base_frame, epoch_rate=epoch_rate, topics=topics,
-                  gt_topic=gt_topic) as ds:  # fmt: skip
+    with open_bag(
+        bag_path, base_frame=base_frame, epoch_rate=epoch_rate, topics=topics, gt_topic=gt_topic
+    ) as ds:
         rig = ds.rig.to_dict()
         times = ds.times
         if ds.gt_poses is None:
@@ -362,10 +372,17 @@ def convert_bag(
         counter = _CountingScans(ds)
         write_dataset(out_dir, counter, times, ds.gt_poses, rig, overwrite=overwrite)
         return BagConversion(
-            ds.path, Path(out_dir), len(ds), counter.points, tuple(t.name for t in ds.topics),
+            ds.path,
+            Path(out_dir),
+            len(ds),
+            counter.points,
+            tuple(t.name for t in ds.topics),
             sum(t.rings for t in ds.topics) if all(t.rings for t in ds.topics) else 0,
-            float(ds.times[0]), float(ds.times[-1]), gt_topic, ds.dropped_epochs,
-        )  # fmt: skip
+            float(ds.times[0]),
+            float(ds.times[-1]),
+            gt_topic,
+            ds.dropped_epochs,
+        )
 
 
 class _CountingScans:

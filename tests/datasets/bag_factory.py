@@ -42,8 +42,8 @@ def true_pose(t: np.ndarray | float) -> np.ndarray:
     tau = np.asarray(t, dtype=np.float64) - T0_NS / 1e9
     T = np.zeros(tau.shape + (4, 4))
     rpy = np.stack([0.02 * np.sin(2 * tau), 0.015 * np.cos(tau), 0.4 * tau], axis=-1)
-    T[..., :3, :3] = Rotation.from_euler("xyz", rpy.reshape(-1, 3)).as_matrix().reshape(
-        tau.shape + (3, 3)
+    T[..., :3, :3] = (
+        Rotation.from_euler("xyz", rpy.reshape(-1, 3)).as_matrix().reshape(tau.shape + (3, 3))
     )
     T[..., 0, 3] = -3.0 + 1.5 * tau
     T[..., 1, 3] = 0.3 * np.sin(tau)
@@ -103,7 +103,9 @@ class BagWriter:
 
     def write(self, topic: str, msg: Any, bag_ns: int) -> None:
         if topic not in self.conns:
-            self.conns[topic] = self.writer.add_connection(topic, msg.__msgtype__, typestore=self.ts)
+            self.conns[topic] = self.writer.add_connection(
+                topic, msg.__msgtype__, typestore=self.ts
+            )
         ser = self.ts.serialize_ros1 if self.ros == 1 else self.ts.serialize_cdr
         self.writer.write(self.conns[topic], bag_ns, ser(msg, msg.__msgtype__))
 
@@ -161,10 +163,17 @@ def laser_scan(bw: BagWriter, truth: Truth, topic: str, frame: str, stamp: int) 
     truth.times.setdefault(topic, []).append(times[ok])
     truth.world.setdefault(topic, []).append(hits[ok])
     return bw.T["sensor_msgs/msg/LaserScan"](
-        header=bw.header(stamp, frame), angle_min=float(a0), angle_max=float(a0 + inc * (n - 1)),
-        angle_increment=float(inc), time_increment=float(dt), scan_time=0.1, range_min=0.05,
-        range_max=40.0, ranges=ranges, intensities=np.zeros(n, dtype=np.float32),
-    )  # fmt: skip
+        header=bw.header(stamp, frame),
+        angle_min=float(a0),
+        angle_max=float(a0 + inc * (n - 1)),
+        angle_increment=float(inc),
+        time_increment=float(dt),
+        scan_time=0.1,
+        range_min=0.05,
+        range_max=40.0,
+        ranges=ranges,
+        intensities=np.zeros(n, dtype=np.float32),
+    )
 
 
 def lidar_cloud(
@@ -213,12 +222,21 @@ def lidar_cloud(
     raw = arr.tobytes()
     row = width * step
     data = b"".join(raw[k * row : (k + 1) * row] + bytes(pad) for k in range(height))
-    fields = [PF(name=n, offset=o, datatype=c, count=1) for n, o, c in zip(names, offsets, codes)]
+    fields = [
+        PF(name=n, offset=o, datatype=c, count=1)
+        for n, o, c in zip(names, offsets, codes, strict=True)
+    ]
     return bw.T["sensor_msgs/msg/PointCloud2"](
-        header=bw.header(stamp, frame), height=height, width=width, fields=fields,
-        is_bigendian=False, point_step=step, row_step=row + pad,
-        data=np.frombuffer(data, dtype=np.uint8), is_dense=False,
-    )  # fmt: skip
+        header=bw.header(stamp, frame),
+        height=height,
+        width=width,
+        fields=fields,
+        is_bigendian=False,
+        point_step=step,
+        row_step=row + pad,
+        data=np.frombuffer(data, dtype=np.uint8),
+        is_dense=False,
+    )
 
 
 @dataclass
@@ -247,8 +265,11 @@ def write_bag(
     """Write a bag: /tf_static, sensors at 10 Hz, /odom (Odometry) at 200 Hz, optional /tf."""
     truth = Truth(T_base_sensor=T_base_sensor)
     with BagWriter(path, ros, storage) as bw:
-        bw.write("/tf_static", bw.tf([bw.transform_stamped(T0_NS, p, c, T) for p, c, T in
-                                       static_tf]), T0_NS)  # fmt: skip
+        bw.write(
+            "/tf_static",
+            bw.tf([bw.transform_stamped(T0_NS, p, c, T) for p, c, T in static_tf]),
+            T0_NS,
+        )
         events: list[tuple[int, int, str, Any]] = []
         for k in range(int(duration_s * 10)):
             for s in sensors:

@@ -62,7 +62,7 @@ def check_against_truth(
     for k, scan in zip(epochs or range(len(scans)), scans, strict=True):
         assert scan.t is not None and scan.ring is not None
         abs_t = ds.times[k] + scan.t
-        world = (true_pose(abs_t) @ np.append(scan.points, np.ones((len(scan), 1)), 1)[..., None])
+        world = true_pose(abs_t) @ np.append(scan.points, np.ones((len(scan), 1)), 1)[..., None]
         assert distance_to_room(world[:, :3, 0]).max() < 1e-3
         for topic in set(ring_topics.values()):
             sel = np.isin(scan.ring, [r for r, t in ring_topics.items() if t == topic])
@@ -257,4 +257,3 @@ def test_not_a_bag(tmp_path: Path) -> None:
     with pytest.raises(DatasetError) as exc:
         open_bag(tmp_path / "x")
     assert "not a bag" in one_line(exc)
-
