@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sqlite3
 import struct
+from array import array
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -32,7 +33,7 @@ from planodom.datasets.bag_msgs import (
     decode_sweep,
     stamp_ns,
 )
-from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, TfTree, frame_name
+from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
 from planodom.errors import DatasetError
 
 #: Prefix of a ``gt_topic`` naming a tf frame pair: ``"tf:PARENT:CHILD"``.
@@ -51,8 +52,16 @@ BAG_ERRORS: tuple[type[BaseException], ...] = (
     KeyError,
     IndexError,
     AssertionError,
-    UnicodeDecodeError,
+    ValueError,
+    OverflowError,
+    MemoryError,  # mcap: a corrupt record length
 )
+try:  # rosbags reads sqlite3 bags through apsw
+    import apsw
+
+    BAG_ERRORS = (*BAG_ERRORS, apsw.Error)
+except ImportError:  # pragma: no cover
+    pass
 
 
 def is_bag(path: str | Path) -> bool:
@@ -203,8 +212,8 @@ def index_bag(
     index = [TopicIndex(name, str(reader.topics[name].msgtype)) for name in names]
     wanted = {*names, TF_TOPIC, TF_STATIC_TOPIC} | ({gt} if isinstance(gt, str) else set())
     conns = [c for c in reader.connections if c.topic in wanted]
-    rows: list[tuple[int, int, int]] = []
-    gt_rows: list[tuple[int, np.ndarray]] = []
+    rows = array("q")  # topic, bag time, stamp per sweep: 24 bytes each
+    gt_log = PoseLog()
     gt_child = gt[1] if isinstance(gt, tuple) else ""
     with bag_errors(path):
         for conn, bag_time, raw in reader.messages(connections=conns):
@@ -214,21 +223,20 @@ def index_bag(
                     tree.add(msg, static=conn.topic == TF_STATIC_TOPIC)
             elif conn.topic in topic_of:
                 k = topic_of[conn.topic]
-                rows.append((k, bag_time, stamp_ns(msg.header) or bag_time))
+                rows.extend((k, bag_time, stamp_ns(msg.header) or bag_time))
                 _note_sweep(index[k], msg, path)
             else:
                 with _message_errors(path, conn.topic):
                     stamp, T, _, child = decode_pose(msg, conn.msgtype)
-                gt_rows.append((stamp or bag_time, T))
+                gt_log.append(stamp or bag_time, T)
                 gt_child = gt_child or child
     if isinstance(gt, tuple):
-        gt_rows = list(zip(tree.track_times, tree.track_poses, strict=True))
-    if gt is not None and not gt_rows:
+        gt_log = tree.track
+    if gt is not None and not len(gt_log):
         what = f"/tf transform '{gt[0]}' -> '{gt[1]}'" if isinstance(gt, tuple) else gt
         raise DatasetError(f"{path}: no reference poses in gt {what}")
-    table = np.array(rows, dtype=np.int64).reshape(-1, 3)
-    gt_times = np.array([r[0] for r in gt_rows], dtype=np.int64)
-    gt_poses = np.array([r[1] for r in gt_rows], dtype=np.float64).reshape(-1, 4, 4)
+    table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 3).copy()
+    gt_times, gt_poses = gt_log.arrays()
     return BagIndex(
         index,
         table[:, 0].astype(np.int32),

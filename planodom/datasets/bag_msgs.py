@@ -55,10 +55,11 @@ def decode_sweep(msg: Any, msgtype: str) -> tuple[np.ndarray, np.ndarray | None,
     Raises:
         ValueError: a malformed message (one line, the caller adds the topic).
     """
-    if msgtype == LASER_SCAN:
-        return _decode_laser_scan(msg)
-    if msgtype == POINT_CLOUD2:
-        return _decode_cloud(msg)
+    with np.errstate(invalid="ignore", over="ignore"):  # corrupt or signalling-NaN values
+        if msgtype == LASER_SCAN:
+            return _decode_laser_scan(msg)
+        if msgtype == POINT_CLOUD2:
+            return _decode_cloud(msg)
     raise ValueError(f"{msgtype} is not a scan message")
 
 

@@ -10,6 +10,7 @@ direction (up to a common ancestor and down again).
 
 from __future__ import annotations
 
+from array import array
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
@@ -55,6 +56,30 @@ def _same_transform(A: np.ndarray, B: np.ndarray) -> bool:
     return float(np.arccos(np.clip(cos, -1.0, 1.0))) <= RIGID_TOL
 
 
+class PoseLog:
+    """Stamped poses appended one by one in compact storage (20 doubles' worth per pose)."""
+
+    def __init__(self) -> None:
+        self._times = array("q")
+        self._poses = array("d")
+
+    def __len__(self) -> int:
+        return len(self._times)
+
+    def append(self, stamp_ns: int, T: np.ndarray) -> None:
+        """Add ``T`` (4, 4) at ``stamp_ns`` (int ns)."""
+        self._times.append(int(stamp_ns))
+        self._poses.extend(np.asarray(T, dtype=np.float64)[:3].reshape(-1).tolist())
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(times (M,) int64 ns, poses (M, 4, 4) float64)``."""
+        times = np.frombuffer(self._times, dtype=np.int64).copy()
+        poses = np.zeros((len(times), 4, 4))
+        poses[:, :3] = np.frombuffer(self._poses, dtype=np.float64).reshape(-1, 3, 4)
+        poses[:, 3, 3] = 1.0
+        return times, poses
+
+
 @dataclass
 class TfTree:
     """The rigid and moving edges of a bag's tf, built message by message with :meth:`add`.
@@ -64,16 +89,14 @@ class TfTree:
         moving: ``(parent, child)`` of the /tf edges whose value changes over the bag.
         tracked: the ``(parent, child)`` edge whose every value is kept (for a tf-pair
             ground truth), or None.
-        track_times: stamps (ns) of the tracked edge's values.
-        track_poses: ``T_parent_child`` (4, 4) of the tracked edge, one per stamp.
+        track: the tracked edge's values ``T_parent_child`` at their stamps.
     """
 
     rigid: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
     moving: set[tuple[str, str]] = field(default_factory=set)
     static_edges: set[tuple[str, str]] = field(default_factory=set)
     tracked: tuple[str, str] | None = None
-    track_times: list[int] = field(default_factory=list)
-    track_poses: list[np.ndarray] = field(default_factory=list)
+    track: PoseLog = field(default_factory=PoseLog)
 
     def add(self, msg: Any, static: bool) -> None:
         """Add the transforms of one ``tf2_msgs/TFMessage`` (from /tf_static when ``static``).
@@ -86,8 +109,7 @@ class TfTree:
             T = transform_from_msg(tr.transform.translation, tr.transform.rotation)
             if edge == self.tracked:
                 stamp = tr.header.stamp
-                self.track_times.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
-                self.track_poses.append(T)
+                self.track.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec), T)
             if static:
                 self.static_edges.add(edge)
                 self.rigid[edge] = T

@@ -257,3 +257,23 @@ def test_not_a_bag(tmp_path: Path) -> None:
     with pytest.raises(DatasetError) as exc:
         open_bag(tmp_path / "x")
     assert "not a bag" in one_line(exc)
+
+
+@pytest.mark.slow
+def test_odometry_on_a_lidar_bag(tmp_path: Path) -> None:
+    """End to end: the paper's odometry on a converted lidar bag recovers the motion."""
+    from planodom.geometry import pose5_from_transform
+    from planodom.metrics import relative_motions
+    from planodom.odometry.streaming import run_odometry
+
+    sensors = [Sensor("/velodyne_points", "lidar", 0, "velodyne")]
+    write_bag(tmp_path / "bag", 2, sensors, STATIC_TF, T_BASE, duration_s=0.6)
+    with open_bag(tmp_path / "bag", gt_topic="/odom") as ds:
+        run = run_odometry(ds, sensor_origins=ds.rig.sensor_origins)
+        assert run.statuses[1:] == ["ok"] * (len(ds) - 1)
+        est = relative_motions(np.asarray(run.poses))
+        gt = relative_motions(ds.gt_poses)
+        errors = np.abs([pose5_from_transform(a) - pose5_from_transform(b) for a, b in
+                         zip(est, gt, strict=True)])  # fmt: skip
+        assert errors[:, :3].max() < np.deg2rad(0.1)  # roll, pitch, yaw
+        assert errors[:, 3:].max() < 0.01  # x, y (m)
