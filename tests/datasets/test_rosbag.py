@@ -147,6 +147,22 @@ def test_chosen_topics_set_the_ring_order(ros1_bag: tuple[Path, Truth]) -> None:
         check_against_truth(ds, [ds[0], ds[-1]], truth, rings, [0, len(ds) - 1])
 
 
+def test_another_base_frame(ros1_bag: tuple[Path, Truth]) -> None:
+    # base_footprint is 0.1 m below base_link: the extrinsics and the reference (whose child
+    # frame is base_link) move with it
+    with open_bag(ros1_bag[0], base_frame="base_footprint", gt_topic="/odom") as ds:
+        expected = true_pose(ds.times) @ invert_transform(T_FP_BL)
+        assert np.abs(ds.gt_poses - expected).max() < 1e-5
+        assert np.allclose(ds.rig.extrinsics[1], T_FP_BL @ T_BASE["laser_left"], atol=1e-9)
+        scan = ds[4]
+        shifted = scan.points - T_FP_BL[:3, 3]  # back in base_link
+        world = (
+            true_pose(ds.times[4] + scan.t)
+            @ np.append(shifted, np.ones((len(scan), 1)), 1)[..., None]
+        )
+        assert distance_to_room(world[:, :3, 0]).max() < 1e-3
+
+
 def test_convert_bag_writes_a_dataset(ros1_bag: tuple[Path, Truth], tmp_path: Path) -> None:
     path, truth = ros1_bag
     summary = convert_bag(path, tmp_path / "ds", gt_topic="/odom")
