@@ -1,0 +1,285 @@
+"""Opening a bag and indexing it in one streaming pass: sweeps, tf tree, reference poses.
+
+The index keeps per sweep only its topic, bag time and header stamp (ns), so that memory
+stays flat however long the bag; the points are read again epoch by epoch later.
+Every reading problem becomes a one-line :class:`~planodom.errors.DatasetError` naming
+the bag and, where it applies, the topic or frame.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import struct
+from array import array
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.interfaces import Connection
+from rosbags.rosbag1 import ReaderError as Reader1Error
+from rosbags.rosbag2 import ReaderError as Reader2Error
+from rosbags.serde import SerdeError
+from rosbags.typesys import Stores, TypesysError, get_typestore
+
+from planodom.datasets.bag_msgs import (
+    LASER_SCAN,
+    POSE_TYPES,
+    SCAN_TYPES,
+    decode_pose,
+    decode_sweep,
+    stamp_ns,
+)
+from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
+from planodom.errors import DatasetError
+
+#: Prefix of a ``gt_topic`` naming a tf frame pair: ``"tf:PARENT:CHILD"``.
+TF_PAIR_PREFIX = "tf:"
+#: Exceptions of rosbags and the storage libraries that mean a broken or unreadable bag.
+BAG_ERRORS: tuple[type[BaseException], ...] = (
+    AnyReaderError,
+    Reader1Error,
+    Reader2Error,
+    SerdeError,
+    TypesysError,
+    struct.error,
+    sqlite3.Error,
+    EOFError,
+    OSError,
+    KeyError,
+    IndexError,
+    AssertionError,
+    ValueError,
+    OverflowError,
+    MemoryError,  # mcap: a corrupt record length
+)
+try:  # rosbags reads sqlite3 bags through apsw
+    import apsw
+
+    BAG_ERRORS = (*BAG_ERRORS, apsw.Error)
+except ImportError:  # pragma: no cover
+    pass
+
+
+def is_bag(path: str | Path) -> bool:
+    """True for a ROS 1 ``.bag`` file or a ROS 2 bag (a folder with ``metadata.yaml``)."""
+    path = Path(path)
+    if path.is_file():
+        return path.suffix == ".bag"
+    return path.is_dir() and (path / "metadata.yaml").is_file()
+
+
+def bag_location(path: str | Path) -> Path:
+    """The path rosbags opens: the ``.bag`` file or the ROS 2 folder (also from its file)."""
+    path = Path(path)
+    if not path.exists():
+        raise DatasetError(f"bag {path} does not exist")
+    if path.is_file() and path.suffix in (".db3", ".mcap") and is_bag(path.parent):
+        return path.parent
+    if not is_bag(path):
+        raise DatasetError(
+            f"{path} is not a bag: neither a ROS 1 .bag file nor a ROS 2 bag folder with "
+            "metadata.yaml"
+        )
+    return path
+
+
+@contextmanager
+def bag_errors(path: Path, what: str = "cannot read bag") -> Iterator[None]:
+    """Turn the exceptions of a broken bag into a one-line DatasetError naming ``path``."""
+    try:
+        yield
+    except DatasetError:
+        raise
+    except BAG_ERRORS as exc:
+        detail = " ".join(str(exc).split()) or type(exc).__name__
+        raise DatasetError(f"{path}: {what} (truncated or corrupt?): {detail[:200]}") from None
+
+
+def open_reader(path: Path) -> AnyReader:
+    """An opened AnyReader on the bag at ``path`` (from :func:`bag_location`)."""
+    with bag_errors(path):
+        reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
+        reader.open()
+    return reader
+
+
+@dataclass
+class TopicIndex:
+    """What the index pass learnt about one scan topic.
+
+    Attributes:
+        name: the topic.
+        msgtype: ``sensor_msgs/msg/LaserScan`` or ``sensor_msgs/msg/PointCloud2``.
+        frames: the ``header.frame_id`` values of its messages (first seen first).
+        rings: ring count: 1 for a LaserScan, max ring + 1 for a cloud with a ring field,
+            0 for a cloud without one.
+    """
+
+    name: str
+    msgtype: str
+    frames: list[str] = field(default_factory=list)
+    rings: int = 0
+
+
+@dataclass
+class BagIndex:
+    """The sweeps (one row each, in the order the bag yields them), tf and reference poses.
+
+    Attributes:
+        topics: the scan topics, in ring order.
+        sweep_topic: (n,) int32 index into ``topics``.
+        sweep_bag_time: (n,) int64 ns, the bag's record time of the message.
+        sweep_stamp: (n,) int64 ns, the header stamp (the record time when the stamp is 0).
+        tf: the bag's transform tree.
+        gt_times: (M,) int64 ns and ``gt_poses`` (M, 4, 4) ``T_parent_child`` of the
+            reference trajectory (empty without ``gt_topic``); ``gt_child`` its child frame.
+    """
+
+    topics: list[TopicIndex]
+    sweep_topic: np.ndarray
+    sweep_bag_time: np.ndarray
+    sweep_stamp: np.ndarray
+    tf: TfTree
+    gt_times: np.ndarray
+    gt_poses: np.ndarray
+    gt_child: str
+
+
+def select_topics(reader: AnyReader, path: Path, topics: Sequence[str] | None) -> list[str]:
+    """The scan topics to read: ``topics`` checked against the bag, or every scan topic."""
+    available = reader.topics
+    scans = sorted(name for name, info in available.items() if info.msgtype in SCAN_TYPES)
+    if topics is None:
+        chosen = [name for name in scans if available[name].msgcount > 0]
+        if not chosen:
+            shown = ", ".join(sorted(available)) or "none"
+            raise DatasetError(
+                f"{path}: no sensor_msgs/LaserScan or sensor_msgs/PointCloud2 topic with "
+                f"messages (topics: {shown})"
+            )
+        return chosen
+    for name in topics:
+        if name not in available:
+            raise DatasetError(
+                f"{path}: no topic '{name}' (scan topics: {', '.join(scans) or 'none'})"
+            )
+        if available[name].msgtype not in SCAN_TYPES:
+            raise DatasetError(
+                f"{path}: topic '{name}' is {available[name].msgtype}, not "
+                "sensor_msgs/LaserScan or sensor_msgs/PointCloud2"
+            )
+        if available[name].msgcount == 0:
+            raise DatasetError(f"{path}: topic '{name}' has no messages")
+    if len(set(topics)) != len(topics):
+        raise DatasetError(f"{path}: topics given more than once: {list(topics)}")
+    return list(topics)
+
+
+def parse_gt(reader: AnyReader, path: Path, gt_topic: str | None) -> tuple[str, str] | str | None:
+    """The reference source: None, a pose topic name, or a ``(parent, child)`` tf pair."""
+    if gt_topic is None:
+        return None
+    if gt_topic.startswith(TF_PAIR_PREFIX):
+        parts = gt_topic[len(TF_PAIR_PREFIX) :].split(":")
+        if len(parts) != 2 or not all(parts):
+            raise DatasetError(f"{path}: gt '{gt_topic}' must read 'tf:PARENT:CHILD'")
+        return frame_name(parts[0]), frame_name(parts[1])
+    info = reader.topics.get(gt_topic)
+    if info is None:
+        poses = sorted(n for n, i in reader.topics.items() if i.msgtype in POSE_TYPES)
+        raise DatasetError(
+            f"{path}: no gt topic '{gt_topic}' (pose topics: {', '.join(poses) or 'none'})"
+        )
+    if info.msgtype not in POSE_TYPES:
+        raise DatasetError(
+            f"{path}: gt topic '{gt_topic}' is {info.msgtype}, not one of {', '.join(POSE_TYPES)}"
+        )
+    return gt_topic
+
+
+def index_bag(
+    reader: AnyReader, path: Path, topics: Sequence[str] | None, gt_topic: str | None
+) -> BagIndex:
+    """One streaming pass over the scan, tf and reference messages of an opened bag."""
+    names = select_topics(reader, path, topics)
+    gt = parse_gt(reader, path, gt_topic)
+    tree = TfTree(tracked=gt if isinstance(gt, tuple) else None)
+    topic_of = {name: i for i, name in enumerate(names)}
+    index = [TopicIndex(name, str(reader.topics[name].msgtype)) for name in names]
+    wanted = {*names, TF_TOPIC, TF_STATIC_TOPIC} | ({gt} if isinstance(gt, str) else set())
+    conns = [c for c in reader.connections if c.topic in wanted]
+    rows = array("q")  # topic, bag time, stamp per sweep: 24 bytes each
+    gt_log = PoseLog()
+    gt_child = gt[1] if isinstance(gt, tuple) else ""
+    with bag_errors(path):
+        for conn, bag_time, raw in reader.messages(connections=conns):
+            msg = _deserialize(reader, path, conn, raw)
+            if conn.topic in (TF_TOPIC, TF_STATIC_TOPIC):
+                with _message_errors(path, conn.topic):
+                    tree.add(msg, static=conn.topic == TF_STATIC_TOPIC)
+            elif conn.topic in topic_of:
+                k = topic_of[conn.topic]
+                rows.extend((k, bag_time, stamp_ns(msg.header) or bag_time))
+                _note_sweep(index[k], msg, path)
+            else:
+                with _message_errors(path, conn.topic):
+                    stamp, T, _, child = decode_pose(msg, conn.msgtype)
+                gt_log.append(stamp or bag_time, T)
+                gt_child = gt_child or child
+    if isinstance(gt, tuple):
+        gt_log = tree.track
+    if gt is not None and not len(gt_log):
+        what = f"/tf transform '{gt[0]}' -> '{gt[1]}'" if isinstance(gt, tuple) else gt
+        raise DatasetError(f"{path}: no reference poses in gt {what}")
+    table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 3).copy()
+    gt_times, gt_poses = gt_log.arrays()
+    return BagIndex(
+        index,
+        table[:, 0].astype(np.int32),
+        table[:, 1],
+        table[:, 2],
+        tree,
+        gt_times,
+        gt_poses,
+        gt_child,
+    )
+
+
+def _deserialize(reader: AnyReader, path: Path, conn: Connection, raw: bytes) -> Any:
+    """A message, or a one-line DatasetError naming the bag and the topic."""
+    try:
+        return reader.deserialize(raw, conn.msgtype)
+    except BAG_ERRORS as exc:
+        detail = " ".join(str(exc).split())[:200]
+        raise DatasetError(
+            f"{path}: cannot decode a {conn.msgtype} message on topic '{conn.topic}' "
+            f"(truncated or corrupt?): {detail}"
+        ) from None
+
+
+@contextmanager
+def _message_errors(path: Path, topic: str) -> Iterator[None]:
+    """A ValueError from a decoder as a one-line DatasetError naming the topic."""
+    try:
+        yield
+    except ValueError as exc:
+        raise DatasetError(f"{path}: topic '{topic}': {exc}") from None
+
+
+def _note_sweep(topic: TopicIndex, msg: Any, path: Path) -> None:
+    """Record a sweep's frame and, for a cloud, its largest ring."""
+    frame = frame_name(msg.header.frame_id)
+    if not frame:
+        raise DatasetError(f"{path}: topic '{topic.name}' has a message without frame_id")
+    if frame not in topic.frames:
+        topic.frames.append(frame)
+    if topic.msgtype == LASER_SCAN:
+        topic.rings = 1
+        return
+    with _message_errors(path, topic.name):
+        _, _, _, rings = decode_sweep(msg, topic.msgtype)
+    topic.rings = max(topic.rings, rings)

@@ -1,0 +1,173 @@
+"""Decoding the messages of a bag: sweeps (LaserScan, PointCloud2) and reference poses.
+
+A sweep is decoded in its sensor's frame (the message's ``header.frame_id``): points (n, 3)
+float64 metres, the ring of each point within the sensor (0 for a LaserScan), and each
+point's time (n,) float64 seconds relative to the message's ``header.stamp``.
+
+- ``sensor_msgs/LaserScan``: beam ``i`` at angle ``angle_min + i angle_increment`` in the
+  sensor's x-y plane, seen at ``i time_increment`` after the stamp (the ROS convention:
+  the stamp is the first beam's time). Beams with a non-finite range or one outside
+  ``[range_min, range_max]`` are no returns and are dropped.
+- ``sensor_msgs/PointCloud2``: fields ``x y z`` (float32/float64); an optional ring field
+  (:data:`RING_FIELDS`) and time field (:data:`TIME_FIELDS`, first present wins). Integer
+  time fields are nanoseconds, float ones seconds; values above 1e15 ns / 1e8 s are absolute
+  times (since the Unix epoch), smaller ones offsets from the stamp. Points with a
+  non-finite coordinate or exactly at the origin (a common no-return marker) are dropped.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from planodom.datasets.bag_tf import frame_name, transform_from_msg
+
+LASER_SCAN = "sensor_msgs/msg/LaserScan"
+POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
+SCAN_TYPES = (LASER_SCAN, POINT_CLOUD2)
+ODOMETRY = "nav_msgs/msg/Odometry"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+POSE_COV_STAMPED = "geometry_msgs/msg/PoseWithCovarianceStamped"
+TRANSFORM_STAMPED = "geometry_msgs/msg/TransformStamped"
+POSE_TYPES = (ODOMETRY, POSE_STAMPED, POSE_COV_STAMPED, TRANSFORM_STAMPED)
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+
+#: Names of a per-point ring (scan line) field, first present wins.
+RING_FIELDS = ("ring", "line")
+#: Names of a per-point time field, first present wins.
+TIME_FIELDS = ("t", "time", "timestamp", "offset_time")
+#: PointField datatype codes -> numpy types.
+_POINT_FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+
+
+def stamp_ns(header: Any) -> int:
+    """A ``std_msgs/Header``'s stamp in integer nanoseconds since the Unix epoch."""
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def decode_sweep(msg: Any, msgtype: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
+    """One sweep in its sensor frame: ``(points (n, 3), ring (n,) int32 or None, dt (n,), rings)``.
+
+    ``dt`` is float64 seconds after ``header.stamp``; ``rings`` the ring count (1 for a
+    LaserScan, max ring + 1 for a cloud with a ring field, 0 without one).
+
+    Raises:
+        ValueError: a malformed message (one line, the caller adds the topic).
+    """
+    with np.errstate(invalid="ignore", over="ignore"):  # corrupt or signalling-NaN values
+        if msgtype == LASER_SCAN:
+            return _decode_laser_scan(msg)
+        if msgtype == POINT_CLOUD2:
+            return _decode_cloud(msg)
+    raise ValueError(f"{msgtype} is not a scan message")
+
+
+def _decode_laser_scan(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    ranges = np.asarray(msg.ranges, dtype=np.float64)
+    index = np.arange(len(ranges), dtype=np.float64)
+    angles = float(msg.angle_min) + index * float(msg.angle_increment)
+    valid = np.isfinite(ranges) & (ranges >= float(msg.range_min))
+    if float(msg.range_max) > 0:
+        valid &= ranges <= float(msg.range_max)
+    r, a = ranges[valid], angles[valid]
+    points = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)])
+    dt = index[valid] * float(msg.time_increment)
+    return points, np.zeros(len(r), dtype=np.int32), dt, 1
+
+
+def _cloud_array(msg: Any) -> np.ndarray:
+    """The points of a PointCloud2 as a flat structured array (only the known fields)."""
+    order = ">" if msg.is_bigendian else "<"
+    names, formats, offsets = [], [], []
+    for f in msg.fields:
+        code = _POINT_FIELD_TYPES.get(int(f.datatype))
+        if code is None or f.name in names:
+            continue
+        names.append(f.name)
+        formats.append(order + code if int(f.count) <= 1 else (order + code, int(f.count)))
+        offsets.append(int(f.offset))
+    step, width, height = int(msg.point_step), int(msg.width), int(msg.height)
+    dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": step})
+    data = np.asarray(msg.data, dtype=np.uint8).reshape(-1)
+    row_step = int(msg.row_step) if int(msg.row_step) > 0 else width * step
+    if width * height == 0:
+        return np.zeros(0, dtype=dtype)
+    if step <= 0 or row_step < width * step or len(data) < row_step * (height - 1) + width * step:
+        raise ValueError(
+            f"PointCloud2 of {height}x{width} points with point_step {step} and row_step "
+            f"{row_step} does not fit its {len(data)} data bytes"
+        )
+    rows = [
+        np.frombuffer(data[r * row_step : r * row_step + width * step].tobytes(), dtype=dtype)
+        for r in range(height)
+    ]
+    return rows[0] if height == 1 else np.concatenate(rows)
+
+
+def _decode_cloud(msg: Any) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
+    cloud = _cloud_array(msg)
+    names = cloud.dtype.names or ()
+    missing = [c for c in "xyz" if c not in names]
+    if missing:
+        raise ValueError(f"PointCloud2 without field(s) {', '.join(missing)}")
+    points = np.column_stack([cloud[c].astype(np.float64) for c in "xyz"])
+    valid = np.all(np.isfinite(points), axis=1) & np.any(points != 0.0, axis=1)
+    ring_name = next((n for n in RING_FIELDS if n in names), None)
+    ring = None
+    rings = 0
+    if ring_name is not None:
+        ring = cloud[ring_name].astype(np.int64)[valid]
+        if len(ring) and ring.min() < 0:
+            raise ValueError(f"PointCloud2 field '{ring_name}' has negative values")
+        rings = int(ring.max()) + 1 if len(ring) else 0
+        ring = ring.astype(np.int32)
+    time_name = next((n for n in TIME_FIELDS if n in names), None)
+    dt = np.zeros(int(valid.sum()))
+    if time_name is not None:
+        dt = _relative_times(cloud[time_name][valid], stamp_ns(msg.header))
+    return points[valid], ring, dt, rings
+
+
+def _relative_times(values: np.ndarray, stamp: int) -> np.ndarray:
+    """Per-point times (see the module docstring) as float64 seconds after ``stamp`` (ns)."""
+    if np.issubdtype(values.dtype, np.integer):
+        ns = values.astype(np.int64)
+        if len(ns) and np.abs(ns).max() > 10**15:
+            ns = ns - stamp
+        return ns.astype(np.float64) * 1e-9
+    seconds = values.astype(np.float64)
+    if len(seconds) and np.abs(seconds).max() > 1e8:
+        whole, frac = divmod(stamp, 1_000_000_000)
+        seconds = (seconds - whole) - frac * 1e-9
+    return seconds
+
+
+def decode_pose(msg: Any, msgtype: str) -> tuple[int, np.ndarray, str, str]:
+    """A reference pose message as ``(stamp ns, T_parent_child (4, 4), parent, child)``.
+
+    ``child`` is ``child_frame_id`` for Odometry and TransformStamped, "" for the pose types
+    that have none.
+
+    Raises:
+        ValueError: an invalid quaternion or a type that is not in :data:`POSE_TYPES`.
+    """
+    if msgtype == ODOMETRY:
+        pose, child = msg.pose.pose, msg.child_frame_id
+    elif msgtype == POSE_STAMPED:
+        pose, child = msg.pose, ""
+    elif msgtype == POSE_COV_STAMPED:
+        pose, child = msg.pose.pose, ""
+    elif msgtype == TRANSFORM_STAMPED:
+        tr = msg.transform
+        T = transform_from_msg(tr.translation, tr.rotation)
+        return (
+            stamp_ns(msg.header),
+            T,
+            frame_name(msg.header.frame_id),
+            frame_name(msg.child_frame_id),
+        )
+    else:
+        raise ValueError(f"{msgtype} is not a pose message ({', '.join(POSE_TYPES)})")
+    T = transform_from_msg(pose.position, pose.orientation)
+    return stamp_ns(msg.header), T, frame_name(msg.header.frame_id), frame_name(child)

@@ -1,0 +1,165 @@
+"""The transform tree of a bag: extrinsics from ``/tf_static`` and ``/tf``, tf trajectories.
+
+Edges are ``T_parent_child`` (4, 4) float64 (``p_parent = T_parent_child p_child``), keyed
+by ``(parent, child)`` frame names with any leading ``/`` removed. ``/tf_static`` edges are
+rigid by definition; a ``/tf`` edge counts as rigid (an extrinsic) while every message
+repeats its first value to within 1 micrometre / 1 microradian, and as moving otherwise
+(``odom -> base_link``). Extrinsics are chained through rigid edges only, in either
+direction (up to a common ancestor and down again).
+"""
+
+from __future__ import annotations
+
+from array import array
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planodom.errors import DatasetError
+from planodom.geometry import invert_transform
+
+TF_TOPIC = "/tf"
+TF_STATIC_TOPIC = "/tf_static"
+#: Largest change of a /tf edge (metres, radians) for which it still counts as rigid.
+RIGID_TOL = 1e-6
+
+
+def frame_name(name: str) -> str:
+    """A tf frame name without the leading ``/`` older ROS 1 bags carry."""
+    return name.lstrip("/")
+
+
+def transform_from_msg(translation: Any, rotation: Any) -> np.ndarray:
+    """``T`` (4, 4) from a ROS ``Vector3``/``Point`` and a ``Quaternion`` (normalised).
+
+    Raises:
+        ValueError: the quaternion is zero or not finite.
+    """
+    q = np.array([rotation.x, rotation.y, rotation.z, rotation.w], dtype=np.float64)
+    norm = float(np.linalg.norm(q))
+    if not np.isfinite(norm) or norm < 1e-9:
+        raise ValueError(f"invalid quaternion {q.tolist()}")
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat(q / norm).as_matrix()
+    T[:3, 3] = [translation.x, translation.y, translation.z]
+    return T
+
+
+def _same_transform(A: np.ndarray, B: np.ndarray) -> bool:
+    """True when ``A`` and ``B`` differ by at most :data:`RIGID_TOL` (m and rad)."""
+    if np.linalg.norm(A[:3, 3] - B[:3, 3]) > RIGID_TOL:
+        return False
+    cos = (np.trace(A[:3, :3].T @ B[:3, :3]) - 1.0) / 2.0
+    return float(np.arccos(np.clip(cos, -1.0, 1.0))) <= RIGID_TOL
+
+
+class PoseLog:
+    """Stamped poses appended one by one in compact storage (20 doubles' worth per pose)."""
+
+    def __init__(self) -> None:
+        self._times = array("q")
+        self._poses = array("d")
+
+    def __len__(self) -> int:
+        return len(self._times)
+
+    def append(self, stamp_ns: int, T: np.ndarray) -> None:
+        """Add ``T`` (4, 4) at ``stamp_ns`` (int ns)."""
+        self._times.append(int(stamp_ns))
+        self._poses.extend(np.asarray(T, dtype=np.float64)[:3].reshape(-1).tolist())
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(times (M,) int64 ns, poses (M, 4, 4) float64)``."""
+        times = np.frombuffer(self._times, dtype=np.int64).copy()
+        poses = np.zeros((len(times), 4, 4))
+        poses[:, :3] = np.frombuffer(self._poses, dtype=np.float64).reshape(-1, 3, 4)
+        poses[:, 3, 3] = 1.0
+        return times, poses
+
+
+@dataclass
+class TfTree:
+    """The rigid and moving edges of a bag's tf, built message by message with :meth:`add`.
+
+    Attributes:
+        rigid: ``(parent, child) -> T_parent_child`` of the edges usable as extrinsics.
+        moving: ``(parent, child)`` of the /tf edges whose value changes over the bag.
+        tracked: the ``(parent, child)`` edge whose every value is kept (for a tf-pair
+            ground truth), or None.
+        track: the tracked edge's values ``T_parent_child`` at their stamps.
+    """
+
+    rigid: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
+    moving: set[tuple[str, str]] = field(default_factory=set)
+    static_edges: set[tuple[str, str]] = field(default_factory=set)
+    tracked: tuple[str, str] | None = None
+    track: PoseLog = field(default_factory=PoseLog)
+
+    def add(self, msg: Any, static: bool) -> None:
+        """Add the transforms of one ``tf2_msgs/TFMessage`` (from /tf_static when ``static``).
+
+        Raises:
+            ValueError: a transform has an invalid quaternion.
+        """
+        for tr in msg.transforms:
+            edge = (frame_name(tr.header.frame_id), frame_name(tr.child_frame_id))
+            T = transform_from_msg(tr.transform.translation, tr.transform.rotation)
+            if edge == self.tracked:
+                stamp = tr.header.stamp
+                self.track.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec), T)
+            if static:
+                self.static_edges.add(edge)
+                self.rigid[edge] = T
+                self.moving.discard(edge)
+            elif edge in self.static_edges or edge in self.moving:
+                continue
+            elif edge not in self.rigid:
+                self.rigid[edge] = T
+            elif not _same_transform(self.rigid[edge], T):
+                del self.rigid[edge]
+                self.moving.add(edge)
+
+    def frames(self) -> list[str]:
+        """Every frame named by a rigid or moving edge, sorted."""
+        names = {f for edge in (*self.rigid, *self.moving) for f in edge}
+        return sorted(names)
+
+    def lookup(self, target: str, source: str) -> np.ndarray | None:
+        """``T_target_source`` (4, 4) through rigid edges, or None when they do not connect."""
+        target, source = frame_name(target), frame_name(source)
+        if target == source:
+            return np.eye(4)
+        neighbours: dict[str, list[tuple[str, np.ndarray]]] = {}
+        for (parent, child), T in self.rigid.items():
+            neighbours.setdefault(parent, []).append((child, T))
+            neighbours.setdefault(child, []).append((parent, invert_transform(T)))
+        # breadth-first from the target: T_target_frame for every reached frame
+        reached = {target: np.eye(4)}
+        queue = deque([target])
+        while queue:
+            frame = queue.popleft()
+            for other, T_frame_other in neighbours.get(frame, []):
+                if other not in reached:
+                    reached[other] = reached[frame] @ T_frame_other
+                    queue.append(other)
+        return reached.get(source)
+
+    def require(self, target: str, source: str, where: str) -> np.ndarray:
+        """:meth:`lookup`, or a one-line DatasetError naming both frames and ``where``."""
+        T = self.lookup(target, source)
+        if T is not None:
+            return T
+        known = self.frames()
+        shown = ", ".join(known[:12]) + (" ..." if len(known) > 12 else "")
+        why = (
+            "connected only through moving /tf transforms"
+            if any(frame_name(source) in e for e in self.moving)
+            else "no static transform chain"
+        )
+        raise DatasetError(
+            f"{where}: no transform from frame '{frame_name(source)}' to base frame "
+            f"'{frame_name(target)}' in /tf_static or /tf ({why}; frames: {shown or 'none'})"
+        )

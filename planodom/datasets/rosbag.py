@@ -1,0 +1,404 @@
+"""ROS 1 ``.bag`` files and ROS 2 bag folders (sqlite3 or mcap) as planodom datasets.
+
+Read with the ``rosbags`` package (no ROS install). :func:`open_bag` indexes the bag in one
+streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``, ``times``,
+``gt_poses``, ``rig``) whose scans are read from the bag epoch by epoch;
+:func:`convert_bag` writes it as a dataset directory (``scans/*.ply`` with ``ring`` and
+``t``, ``poses.tum``, ``rig.yaml``).
+
+- Scan topics: every ``sensor_msgs/LaserScan`` and ``sensor_msgs/PointCloud2`` topic with
+  messages (sorted by name), or the ``topics`` given (in that order).
+- Rings: the topics' rings are numbered in topic order: a LaserScan topic (a 2D scanner)
+  is one ring; a cloud with a ring field takes ``max ring + 1`` rings. If a cloud has no
+  ring field the scans carry no ``ring``.
+- Extrinsics: ``T_base_sensor`` of each message's ``header.frame_id``, chained through
+  ``/tf_static`` and the rigid ``/tf`` edges (see :mod:`planodom.datasets.bag_tf`).
+- Epochs: the sweeps inside each ``1 / epoch_rate`` window (see
+  :mod:`planodom.datasets.bag_epochs`); ``times`` are the epochs' reference stamps in
+  seconds since the Unix epoch (the bag's own clock). A point's ``t`` is its acquisition
+  time minus its epoch's reference time (see :mod:`planodom.datasets.bag_msgs` for the
+  per-beam and per-point times). Points are in the base frame at their own time: the
+  extrinsics are applied, the vehicle's motion within the epoch is not removed.
+- Reference: ``gt_topic`` is a ``nav_msgs/Odometry``, ``geometry_msgs/PoseStamped``,
+  ``PoseWithCovarianceStamped`` or ``TransformStamped`` topic, or ``"tf:PARENT:CHILD"`` (a
+  direct /tf edge). Poses are interpolated at the epoch times (linear + Slerp); when the
+  message's child frame is not the base frame but is rigidly linked to it, the result is
+  ``T_world_child @ T_child_base``. Epochs outside the reference's time span are dropped.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rosbags.highlevel import AnyReader
+
+from planodom.datasets.bag_epochs import NS, group_epochs, interpolate_poses
+from planodom.datasets.bag_index import (
+    BagIndex,
+    bag_errors,
+    bag_location,
+    index_bag,
+    open_reader,
+)
+from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
+from planodom.datasets.bag_tf import frame_name
+from planodom.datasets.dataset import write_dataset
+from planodom.errors import DatasetError
+from planodom.geometry import transform_points
+from planodom.rig import Rig
+from planodom.scan import Scan
+
+DEFAULT_BASE_FRAME = "base_link"
+DEFAULT_EPOCH_RATE = 10.0
+
+
+@dataclass(frozen=True, eq=False)
+class BagTopic:
+    """A scan topic as read.
+
+    Attributes:
+        name: the topic.
+        msgtype: ``sensor_msgs/msg/LaserScan`` or ``sensor_msgs/msg/PointCloud2``.
+        first_ring: ring id of the topic's ring 0 in the scans.
+        rings: number of rings (1 for a LaserScan; 0: a cloud without ring field).
+        T_base_sensor: (frame -> (4, 4)) extrinsics of the frames its messages name.
+        sweeps: number of messages.
+    """
+
+    name: str
+    msgtype: str
+    first_ring: int
+    rings: int
+    T_base_sensor: dict[str, np.ndarray]
+    sweeps: int
+
+
+class BagDataset:
+    """The epochs of a bag, read lazily (see the module docstring).
+
+    Attributes:
+        path: the bag (``.bag`` file or ROS 2 folder).
+        base_frame: the frame of the points and of ``gt_poses``.
+        epoch_rate: epochs per second (Hz) of the windows.
+        topics: the scan topics (:class:`BagTopic`), in ring order.
+        times: (E,) float64 seconds since the Unix epoch, each epoch's reference time.
+        gt_poses: (E, 4, 4) ``T_world_base`` at ``times`` from ``gt_topic``, or None.
+        gt_topic: the reference source as given, or None.
+        rig: :class:`~planodom.rig.Rig` with ``epoch_rate_hz``, ``sensor_origins`` per ring
+            (the sensors' positions, m, base frame), ``extrinsics`` per topic (its first
+            frame) and ``extra`` describing the source (bag, base frame, topics).
+        dropped_epochs: epochs left out for lying outside the reference's time span.
+
+    Use as a context manager (or call :meth:`close`) to release the bag's file handles.
+    """
+
+    def __init__(
+        self, path: Path, base_frame: str, epoch_rate: float, index: BagIndex, gt_topic: str | None
+    ) -> None:
+        self.path = path
+        self.base_frame = frame_name(base_frame)
+        self.epoch_rate = float(epoch_rate)
+        self.gt_topic = gt_topic
+        self._index = index
+        self.topics = _bag_topics(path, self.base_frame, index)
+        members, ref = group_epochs(index.sweep_stamp, round(NS / self.epoch_rate))
+        self.gt_poses: np.ndarray | None = None
+        self.dropped_epochs = 0
+        if gt_topic is not None:
+            inside, poses = interpolate_poses(index.gt_times, index.gt_poses, ref)
+            if not inside.any():
+                raise DatasetError(
+                    f"{path}: gt '{gt_topic}' spans no epoch time (reference poses from "
+                    f"{index.gt_times.min() / NS:.3f} to {index.gt_times.max() / NS:.3f} s)"
+                )
+            members = [m for m, keep in zip(members, inside, strict=True) if keep]
+            ref = ref[inside]
+            self.dropped_epochs = int((~inside).sum())
+            self.gt_poses = poses @ self._child_to_base(index.gt_child)
+        self._members = members
+        self._ref = ref
+        self.times = ref.astype(np.float64) / NS
+        self.rig = _bag_rig(self)
+        self._reader: AnyReader | None = None
+
+    def _child_to_base(self, child: str) -> np.ndarray:
+        """``T_child_base`` when the reference's child frame is rigidly linked, else identity."""
+        if not child or child == self.base_frame:
+            return np.eye(4)
+        T = self._index.tf.lookup(child, self.base_frame)
+        return np.eye(4) if T is None else T
+
+    def __len__(self) -> int:
+        return len(self._members)
+
+    def __repr__(self) -> str:
+        gt = "with" if self.gt_poses is not None else "without"
+        return f"BagDataset({str(self.path)!r}, {len(self)} epochs, {gt} ground truth)"
+
+    def _open(self) -> AnyReader:
+        if self._reader is None:
+            self._reader = open_reader(self.path)
+        return self._reader
+
+    def close(self) -> None:
+        """Close the bag (it is reopened if the dataset is indexed again)."""
+        if self._reader is not None:
+            reader, self._reader = self._reader, None
+            reader.close()
+
+    def __enter__(self) -> BagDataset:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __getitem__(self, index: int) -> Scan:
+        """Epoch ``index``'s scan, read from the bag (negative indices count from the end)."""
+        n = len(self)
+        if not -n <= index < n:
+            raise IndexError(f"epoch {index} out of range for {n} epochs")
+        sweeps = self._members[index % n]
+        idx = self._index
+        wanted = Counter(
+            (int(idx.sweep_topic[s]), int(idx.sweep_bag_time[s]), int(idx.sweep_stamp[s]))
+            for s in sweeps
+        )
+        start = int(idx.sweep_bag_time[sweeps].min())
+        stop = int(idx.sweep_bag_time[sweeps].max()) + 1
+        found = []
+        for k, bag_time, msg in self._scan_messages(start, stop):
+            key = (k, bag_time, stamp_ns(msg.header) or bag_time)
+            if wanted[key] > 0:
+                wanted[key] -= 1
+                found.append((k, key[2], msg))
+        if sum(wanted.values()):
+            raise DatasetError(f"{self.path}: epoch {index}: sweeps indexed but not read back")
+        return self._scan(found, int(self._ref[index % n]))
+
+    def __iter__(self) -> Iterator[Scan]:
+        """The epochs in order, in a single pass over the bag (flat memory)."""
+        idx = self._index
+        epoch_of = np.full(len(idx.sweep_stamp), -1, dtype=np.int64)
+        for e, sweeps in enumerate(self._members):
+            epoch_of[sweeps] = e
+        pending: dict[int, list[tuple[int, int, Any]]] = {}
+        next_epoch = 0
+        for s, (k, bag_time, msg) in enumerate(self._scan_messages(None, None)):
+            e = int(epoch_of[s])
+            if e < 0:
+                continue
+            pending.setdefault(e, []).append((k, stamp_ns(msg.header) or bag_time, msg))
+            while next_epoch < len(self) and len(pending.get(next_epoch, ())) == len(
+                self._members[next_epoch]
+            ):
+                yield self._scan(pending.pop(next_epoch), int(self._ref[next_epoch]))
+                next_epoch += 1
+        if next_epoch != len(self):
+            raise DatasetError(f"{self.path}: epoch {next_epoch}: sweeps indexed but not read")
+
+    def _scan_messages(self, start: int | None, stop: int | None) -> Iterator[tuple[int, int, Any]]:
+        """``(topic index, bag time, message)`` of the scan topics in ``[start, stop)`` ns."""
+        reader = self._open()
+        topic_of = {t.name: k for k, t in enumerate(self.topics)}
+        conns = [c for c in reader.connections if c.topic in topic_of]
+        with bag_errors(self.path):
+            for conn, bag_time, raw in reader.messages(connections=conns, start=start, stop=stop):
+                yield topic_of[conn.topic], bag_time, reader.deserialize(raw, conn.msgtype)
+
+    def _scan(self, sweeps: list[tuple[int, int, Any]], ref: int) -> Scan:
+        """The scan of one epoch from its ``(topic index, stamp ns, message)`` sweeps."""
+        points, rings, times = [], [], []
+        for k, stamp, msg in sorted(sweeps, key=lambda s: (s[0], s[1])):
+            topic = self.topics[k]
+            try:
+                pts, ring, dt, _ = decode_sweep(msg, topic.msgtype)
+            except ValueError as exc:
+                raise DatasetError(f"{self.path}: topic '{topic.name}': {exc}") from None
+            if ring is not None:
+                order = np.argsort(ring, kind="stable")
+                pts, ring, dt = pts[order], ring[order], dt[order]
+                rings.append(ring + topic.first_ring)
+            T = topic.T_base_sensor[frame_name(msg.header.frame_id)]
+            points.append(transform_points(T, pts))
+            times.append((stamp - ref) / NS + dt)
+        has_rings = all(t.rings > 0 for t in self.topics)
+        return Scan(
+            np.concatenate(points) if points else np.zeros((0, 3)),
+            np.concatenate(rings).astype(np.int32) if has_rings and rings else None,
+            np.concatenate(times) if times else np.zeros(0),
+        )
+
+
+def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
+    """The topics with their ring numbering and extrinsics (every frame must resolve)."""
+    topics, first = [], 0
+    counts = np.bincount(index.sweep_topic, minlength=len(index.topics))
+    for k, t in enumerate(index.topics):
+        where = f"{path}: topic '{t.name}'"
+        extr = {f: index.tf.require(base_frame, f, where) for f in t.frames}
+        topics.append(BagTopic(t.name, t.msgtype, first, t.rings, extr, int(counts[k])))
+        first += t.rings
+    return topics
+
+
+def _bag_rig(ds: BagDataset) -> Rig:
+    """The typed rig of a bag: rate, per-ring sensor origins, per-topic extrinsics, source."""
+    first_T = [next(iter(t.T_base_sensor.values())) for t in ds.topics]
+    origins = None
+    if all(t.rings > 0 for t in ds.topics):
+        origins = np.concatenate(
+            [np.tile(T[:3, 3], (t.rings, 1)) for t, T in zip(ds.topics, first_T, strict=True)]
+        )
+    elif len(ds.topics) == 1:
+        origins = first_T[0][:3, 3][None]
+    extra = {
+        "source": "rosbag",
+        "bag": str(ds.path),
+        "base_frame": ds.base_frame,
+        "gt_topic": ds.gt_topic,
+        "topics": [
+            {
+                "topic": t.name,
+                "type": t.msgtype.split("/")[-1],
+                "frame": next(iter(t.T_base_sensor)),
+                "first_ring": t.first_ring,
+                "rings": t.rings,
+                "sweeps": t.sweeps,
+            }
+            for t in ds.topics
+        ],
+    }
+    return Rig(ds.epoch_rate, origins, None, tuple(first_T), extra)
+
+
+def open_bag(
+    path: str | Path,
+    *,
+    base_frame: str = DEFAULT_BASE_FRAME,
+    epoch_rate: float = DEFAULT_EPOCH_RATE,
+    topics: Sequence[str] | None = None,
+    gt_topic: str | None = None,
+) -> BagDataset:
+    """Index a ROS 1 ``.bag`` or ROS 2 bag folder and return it as a lazy dataset.
+
+    Args:
+        path: a ``.bag`` file, a ROS 2 bag folder (with ``metadata.yaml``) or its ``.db3`` /
+            ``.mcap`` file.
+        base_frame: tf frame of the vehicle the points are expressed in.
+        epoch_rate: epochs per second (Hz); an epoch gathers the sweeps of one window.
+        topics: scan topics to read, in ring order (None or empty: every LaserScan /
+            PointCloud2 topic with messages, sorted by name).
+        gt_topic: reference trajectory: a pose topic or ``"tf:PARENT:CHILD"`` (None: none).
+
+    Raises:
+        DatasetError: one line naming the bag and the topic or frame: missing or corrupt
+            bag, no scan topic, an unknown or non-scan topic, a scanner frame without a
+            transform to ``base_frame``, an unusable ``gt_topic``.
+    """
+    if not (np.isfinite(epoch_rate) and epoch_rate > 0):
+        raise DatasetError(f"epoch rate must be a positive number of Hz, got {epoch_rate!r}")
+    topics = list(topics) if topics else None
+    location = bag_location(path)
+    reader = open_reader(location)
+    try:
+        index = index_bag(reader, location, topics, gt_topic)
+    finally:
+        with bag_errors(location):
+            reader.close()
+    if len(index.sweep_stamp) == 0:
+        raise DatasetError(f"{location}: no messages on the scan topics")
+    return BagDataset(location, base_frame, epoch_rate, index, gt_topic)
+
+
+@dataclass(frozen=True)
+class BagConversion:
+    """What :func:`convert_bag` wrote.
+
+    Attributes:
+        bag: the bag read; out_dir: the dataset written.
+        epochs: epochs written; points: points written in all.
+        topics: the scan topics, in ring order; rings: total ring count (0: no rings).
+        start_time, end_time: first and last epoch time, seconds since the Unix epoch.
+        gt_topic: the reference source, or None; dropped_epochs: epochs outside its span.
+    """
+
+    bag: Path
+    out_dir: Path
+    epochs: int
+    points: int
+    topics: tuple[str, ...]
+    rings: int
+    start_time: float
+    end_time: float
+    gt_topic: str | None
+    dropped_epochs: int
+
+
+def convert_bag(
+    bag_path: str | Path,
+    out_dir: str | Path,
+    *,
+    base_frame: str = DEFAULT_BASE_FRAME,
+    epoch_rate: float = DEFAULT_EPOCH_RATE,
+    topics: Sequence[str] | None = None,
+    gt_topic: str | None = None,
+    overwrite: bool = False,
+) -> BagConversion:
+    """Convert a bag into a dataset directory (arguments as :func:`open_bag`).
+
+    Writes ``scans/NNNNNN.ply`` (float64 ``x y z``, ``ring``, ``t``), ``rig.yaml`` and, with
+    ``gt_topic``, ``poses.tum`` with the bag's epoch times. The dataset format keeps epoch
+    times only in ``poses.tum``; without a reference they are stored in ``rig.yaml`` as
+    ``bag_epoch_times`` (seconds since the Unix epoch) and the dataset loads with
+    ``k / epoch_rate``. Scans are streamed: memory stays flat.
+
+    Raises:
+        DatasetError: see :func:`open_bag`; ``out_dir`` already holds a dataset and not
+            ``overwrite``.
+    """
+    with open_bag(
+        bag_path, base_frame=base_frame, epoch_rate=epoch_rate, topics=topics, gt_topic=gt_topic
+    ) as ds:
+        rig = ds.rig.to_dict()
+        times = ds.times
+        if ds.gt_poses is None:
+            rig["bag_epoch_times"] = ds.times.tolist()
+            times = np.arange(len(ds)) / ds.epoch_rate
+        counter = _CountingScans(ds)
+        write_dataset(out_dir, counter, times, ds.gt_poses, rig, overwrite=overwrite)
+        return BagConversion(
+            ds.path,
+            Path(out_dir),
+            len(ds),
+            counter.points,
+            tuple(t.name for t in ds.topics),
+            sum(t.rings for t in ds.topics) if all(t.rings for t in ds.topics) else 0,
+            float(ds.times[0]),
+            float(ds.times[-1]),
+            gt_topic,
+            ds.dropped_epochs,
+        )
+
+
+class _CountingScans:
+    """A dataset's scans as a streamed sequence for ``write_dataset``, counting the points."""
+
+    def __init__(self, ds: BagDataset) -> None:
+        self.ds = ds
+        self.points = 0
+
+    def __len__(self) -> int:
+        return len(self.ds)
+
+    def __getitem__(self, index: int) -> Scan:
+        return self.ds[index]
+
+    def __iter__(self) -> Iterator[Scan]:
+        for scan in self.ds:
+            self.points += len(scan)
+            yield scan

@@ -1,0 +1,141 @@
+"""The parts of the bag reader checked by hand: epochs, interpolation, time fields, tf chains."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import SimpleNamespace as NS
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from planodom.datasets.bag_epochs import group_epochs, interpolate_poses, window_phase
+from planodom.datasets.bag_msgs import POINT_CLOUD2, decode_sweep
+from planodom.datasets.bag_tf import TfTree
+from planodom.errors import DatasetError
+
+MS = 1_000_000
+
+
+def test_jittered_scanners_never_straddle_a_window() -> None:
+    # scanners at phases 0, 25, 50 ms of a 100 ms period with +-2 ms jitter: the windows
+    # start mid of the largest phase gap (52..98 ms -> 75 ms), so each epoch gets one sweep
+    # of each scanner even though scanner 0 jitters around the period's zero
+    rng = np.random.default_rng(3)
+    base = 1_700_000_000_000 * MS
+    stamps, owner = [], []
+    for k in range(50):
+        for s, phase in enumerate((0, 25, 50)):
+            stamps.append(base + k * 100 * MS + phase * MS + int(rng.integers(-2 * MS, 2 * MS)))
+            owner.append(s)
+    stamps_a = np.array(stamps)
+    phase = window_phase(stamps_a, 100 * MS)
+    assert 70 * MS < phase < 80 * MS
+    members, ref = group_epochs(stamps_a, 100 * MS)
+    assert len(members) == 50
+    for idx in members:
+        assert sorted(np.array(owner)[idx].tolist()) == [0, 1, 2]
+    # the reference is the middle scanner's sweep (closest to the window centre, 25 ms)
+    assert [int(np.array(owner)[members[e][np.argmax(stamps_a[members[e]] == ref[e])]])
+            for e in range(50)] == [1] * 50  # fmt: skip
+    assert np.all(np.diff(ref) > 0)
+
+
+def test_interpolation_by_hand() -> None:
+    T0, T1 = np.eye(4), np.eye(4)
+    T1[:3, :3] = Rotation.from_euler("z", 0.8).as_matrix()
+    T1[:3, 3] = [2.0, -4.0, 1.0]
+    times = np.array([10 * MS, 20 * MS])
+    inside, poses = interpolate_poses(
+        times, np.stack([T0, T1]), np.array([5, 15, 17.5, 20, 21]) * MS
+    )
+    assert inside.tolist() == [False, True, True, True, False]
+    assert np.allclose(poses[0, :3, 3], [1.0, -2.0, 0.5])
+    assert np.allclose(Rotation.from_matrix(poses[0, :3, :3]).as_rotvec(), [0, 0, 0.4])
+    assert np.allclose(Rotation.from_matrix(poses[1, :3, :3]).as_rotvec(), [0, 0, 0.6])
+    assert np.allclose(poses[2], T1)
+
+
+def cloud(fields: list[tuple[str, int, int]], rows: np.ndarray, step: int, stamp_ns: int) -> NS:
+    """A PointCloud2-like message (unorganised) from a structured array."""
+    return NS(
+        header=NS(stamp=NS(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9), frame_id="lidar"),
+        height=1, width=len(rows), is_bigendian=False, point_step=step, row_step=step * len(rows),
+        fields=[NS(name=n, offset=o, datatype=c, count=1) for n, o, c in fields],
+        data=np.frombuffer(rows.tobytes(), dtype=np.uint8),
+    )  # fmt: skip
+
+
+def test_absolute_float_timestamps_hesai() -> None:
+    stamp = 1_700_000_000 * 10**9 + 500 * MS
+    dtype = np.dtype({"names": ["x", "y", "z", "timestamp", "ring"],
+                      "formats": ["<f4", "<f4", "<f4", "<f8", "<u2"],
+                      "offsets": [0, 4, 8, 16, 24], "itemsize": 32})  # fmt: skip
+    rows = np.zeros(3, dtype=dtype)
+    rows["x"] = [1.0, 2.0, np.nan]
+    rows["timestamp"] = [1_700_000_000.5, 1_700_000_000.5625, 1_700_000_000.6]
+    rows["ring"] = [3, 0, 1]
+    fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("timestamp", 16, 8), ("ring", 24, 4)]
+    pts, ring, dt, rings = decode_sweep(cloud(fields, rows, 32, stamp), POINT_CLOUD2)
+    assert pts.tolist() == [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]  # the NaN point is dropped
+    assert ring.tolist() == [3, 0] and rings == 4
+    assert dt == pytest.approx([0.0, 0.0625], abs=1e-6)
+
+
+def test_relative_ns_offsets_livox() -> None:
+    dtype = np.dtype({"names": ["x", "y", "z", "offset_time"],
+                      "formats": ["<f4", "<f4", "<f4", "<u4"],
+                      "offsets": [0, 4, 8, 12], "itemsize": 16})  # fmt: skip
+    rows = np.zeros(2, dtype=dtype)
+    rows["y"] = [1.0, 0.0]
+    rows["offset_time"] = [0, 12_345_678]
+    fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("offset_time", 12, 6)]
+    pts, ring, dt, rings = decode_sweep(cloud(fields, rows, 16, 10**18), POINT_CLOUD2)
+    # the all-zero second point is a no-return marker and is dropped
+    assert pts.tolist() == [[0.0, 1.0, 0.0]] and ring is None and rings == 0
+    assert dt.tolist() == [0.0]
+    rows["x"] = [0.0, 5.0]
+    _, _, dt, _ = decode_sweep(cloud(fields, rows, 16, 10**18), POINT_CLOUD2)
+    assert dt.tolist() == [0.0, 0.012345678]
+
+
+def test_cloud_that_does_not_fit_its_data() -> None:
+    rows = np.zeros(2, dtype=np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4")]))
+    msg = cloud([("x", 0, 7), ("y", 4, 7), ("z", 8, 7)], rows, 12, 0)
+    msg.width = 5
+    with pytest.raises(ValueError, match="does not fit"):
+        decode_sweep(msg, POINT_CLOUD2)
+
+
+def tf_msg(parent: str, child: str, xyz: tuple[float, float, float], yaw: float = 0.0) -> NS:
+    q = Rotation.from_euler("z", yaw).as_quat()
+    tr = NS(translation=NS(x=xyz[0], y=xyz[1], z=xyz[2]),
+            rotation=NS(x=q[0], y=q[1], z=q[2], w=q[3]))  # fmt: skip
+    header = NS(frame_id=parent, stamp=NS(sec=1, nanosec=0))
+    return NS(transforms=[NS(header=header, child_frame_id=child, transform=tr)])
+
+
+def test_tf_chain_up_and_down_and_moving_edges() -> None:
+    tree = TfTree()
+    tree.add(tf_msg("/base_footprint", "base_link", (0.0, 0.0, 0.5)), static=True)
+    tree.add(tf_msg("base_footprint", "laser", (1.0, 0.0, 0.0), math.pi / 2), static=True)
+    tree.add(tf_msg("odom", "base_footprint", (0.0, 0.0, 0.0)), static=False)
+    tree.add(tf_msg("odom", "base_footprint", (0.1, 0.0, 0.0)), static=False)
+    tree.add(tf_msg("base_link", "cam", (0.0, 2.0, 0.0)), static=False)
+    tree.add(tf_msg("base_link", "cam", (0.0, 2.0, 0.0)), static=False)
+    # laser in base_link: up to base_footprint (+1 x) and down to base_link (-0.5 z)
+    T = tree.require("base_link", "laser", "bag")
+    assert np.allclose(T[:3, 3], [1.0, 0.0, -0.5])
+    assert np.allclose(T[:3, :3], Rotation.from_euler("z", math.pi / 2).as_matrix())
+    assert np.allclose(tree.lookup("base_link", "cam")[:3, 3], [0.0, 2.0, 0.0])  # rigid /tf
+    assert tree.lookup("base_link", "odom") is None  # odom -> base_footprint moves
+    with pytest.raises(DatasetError, match="'odom'.*moving /tf"):
+        tree.require("base_link", "odom", "bag: topic '/x'")
+
+
+def test_files_dropped_beside_a_bag_are_not_bags(tmp_path: Path) -> None:
+    from planodom.datasets.bag_index import is_bag
+
+    (tmp_path / "x.db3").write_bytes(b"")
+    assert not is_bag(tmp_path) and not is_bag(tmp_path / "x.db3")

@@ -1,0 +1,295 @@
+"""Bags written with rosbags from a known scene and motion, read back and checked to 1 mm."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bag_factory import (
+    T0_NS,
+    Sensor,
+    Truth,
+    distance_to_room,
+    pose,
+    true_pose,
+    write_bag,
+)
+from scipy.spatial import cKDTree
+
+from planodom.datasets import load_dataset
+from planodom.datasets.rosbag import convert_bag, open_bag
+from planodom.errors import DatasetError
+from planodom.geometry import invert_transform
+
+# the rig: three tilted 2D scanners, two of them behind intermediate frames
+T_FP_BL = pose(0, 0, 0, (0.0, 0.0, 0.1))  # base_footprint -> base_link
+T_BL_MOUNT = pose(0, 0, 0.2, (0.6, 0.0, 0.9))
+T_BASE = {
+    "laser_front": pose(0.0, 0.35, 0.0, (0.8, 0.0, 1.0)),
+    "laser_left": pose(0.5, 0.0, 1.57, (0.0, 0.4, 1.1)),
+    "laser_rear": pose(0.0, 0.3, 3.14159, (-0.7, 0.0, 0.95)),
+    "lidar": pose(0.0, 0.05, 0.3, (0.1, 0.0, 1.6)),
+}
+STATIC_TF = [
+    ("base_footprint", "base_link", T_FP_BL),
+    ("base_link", "mount", T_BL_MOUNT),
+    ("mount", "laser_front", invert_transform(T_BL_MOUNT) @ T_BASE["laser_front"]),
+    ("base_link", "laser_left", T_BASE["laser_left"]),
+    ("base_footprint", "laser_rear", T_FP_BL @ T_BASE["laser_rear"]),
+    ("base_link", "lidar", T_BASE["lidar"]),
+]
+SCANNERS = [
+    Sensor("/scan_front", "laser_front", 0),
+    Sensor("/scan_left", "laser_left", 33_000_000),
+    Sensor("/scan_rear", "laser_rear", 66_000_000),
+]
+
+
+def check_against_truth(
+    ds, scans, truth: Truth, ring_topics: dict[int, str], epochs: list[int] | None = None
+) -> None:
+    """Every point lies on the room at its true pose, and equals its true hit, within 1 mm."""
+    # the true hits of each topic's sweeps, in the base frame at their own time
+    true_times, true_base = {}, {}
+    for topic in set(ring_topics.values()):
+        times = np.concatenate(truth.times[topic])
+        T_bw = invert_transform(true_pose(times))
+        hits = np.concatenate(truth.world[topic])
+        true_times[topic] = times
+        true_base[topic] = cKDTree(np.einsum("nij,nj->ni", T_bw[:, :3, :3], hits) + T_bw[:, :3, 3])
+    total = 0
+    for k, scan in zip(epochs or range(len(scans)), scans, strict=True):
+        assert scan.t is not None and scan.ring is not None
+        abs_t = ds.times[k] + scan.t
+        world = true_pose(abs_t) @ np.append(scan.points, np.ones((len(scan), 1)), 1)[..., None]
+        assert distance_to_room(world[:, :3, 0]).max() < 1e-3
+        for topic in set(ring_topics.values()):
+            sel = np.isin(scan.ring, [r for r, t in ring_topics.items() if t == topic])
+            if not sel.any():
+                continue
+            d, j = true_base[topic].query(scan.points[sel])
+            assert d.max() < 1e-3
+            assert np.abs(true_times[topic][j] - abs_t[sel]).max() < 1e-6
+        assert set(np.unique(scan.ring).tolist()) <= set(ring_topics)
+        total += len(scan)
+    if epochs is None:
+        expected = sum(len(x) for topic in set(ring_topics.values()) for x in truth.times[topic])
+        assert total == expected
+
+
+@pytest.fixture()
+def ros1_bag(tmp_path: Path) -> tuple[Path, Truth]:
+    path = tmp_path / "rig.bag"
+    truth = write_bag(path, 1, SCANNERS, STATIC_TF, T_BASE)
+    return path, truth
+
+
+def test_ros1_laser_scans_land_on_the_truth(ros1_bag: tuple[Path, Truth]) -> None:
+    path, truth = ros1_bag
+    with open_bag(path, gt_topic="/odom") as ds:
+        assert len(ds) == 12
+        scans = list(ds)  # the streaming pass
+        for scan in scans:
+            assert sorted(set(scan.ring.tolist())) == [0, 1, 2]
+        check_against_truth(ds, scans, truth, {0: "/scan_front", 1: "/scan_left", 2: "/scan_rear"})
+        # reference times: the sweep stamp nearest each window's centre, in seconds
+        # the windows sit between the 0.066 s sweeps and the next 0 s ones: centre 0.033 s
+        assert np.allclose(ds.times - T0_NS / 1e9, 0.033 + 0.1 * np.arange(12), atol=1e-6)
+        assert ds.times[0] > 1.6e9  # the bag's own clock
+        err = np.abs(ds.gt_poses - true_pose(ds.times)).max()
+        assert err < 1e-5
+        names = ["laser_front", "laser_left", "laser_rear"]
+        assert np.allclose(ds.rig.sensor_origins, [T_BASE[n][:3, 3] for n in names], atol=1e-9)
+        for T, name in zip(ds.rig.extrinsics, names, strict=True):
+            assert np.allclose(T, T_BASE[name], atol=1e-9)
+        assert ds.rig.epoch_rate_hz == 10.0
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_ros2_scans_and_lidar(tmp_path: Path, storage: str) -> None:
+    sensors = [*SCANNERS[:2], Sensor("/velodyne_points", "lidar", 50_000_000, "velodyne")]
+    truth = write_bag(tmp_path / "bag", 2, sensors, STATIC_TF, T_BASE, storage=storage)
+    with open_bag(tmp_path / "bag", gt_topic="/odom") as ds:
+        # topics sorted by name: /scan_front, /scan_left, /velodyne_points
+        assert [t.name for t in ds.topics] == ["/scan_front", "/scan_left", "/velodyne_points"]
+        scans = [ds[k] for k in range(len(ds))]  # random access path
+        rings = {0: "/scan_front", 1: "/scan_left"} | {r: "/velodyne_points" for r in range(2, 18)}
+        check_against_truth(ds, scans, truth, rings)
+        assert ds.rig.sensor_origins.shape == (18, 3)
+        assert np.allclose(ds.rig.sensor_origins[2:], T_BASE["lidar"][:3, 3])
+        assert np.abs(ds.gt_poses - true_pose(ds.times)).max() < 1e-5
+        # the lidar's points of one ring come in scan (time) order
+        lidar = scans[3].ring == 7
+        assert np.all(np.diff(scans[3].t[lidar]) >= 0)
+
+
+def test_organised_cloud_with_ns_time_and_tf_pair_reference(tmp_path: Path) -> None:
+    sensors = [Sensor("/os/points", "lidar", 0, "ouster")]
+    truth = write_bag(tmp_path / "bag", 2, sensors, STATIC_TF, T_BASE, odom=False, tf_odom=True)
+    with open_bag(tmp_path / "bag", gt_topic="tf:odom:base_link") as ds:
+        scans = list(ds)
+        check_against_truth(ds, scans, truth, {r: "/os/points" for r in range(16)})
+        assert np.abs(ds.gt_poses - true_pose(ds.times)).max() < 1e-5
+        # odom -> base_link moves: never used as an extrinsic
+        assert ("odom", "base_link") in ds._index.tf.moving
+
+
+def test_chosen_topics_set_the_ring_order(ros1_bag: tuple[Path, Truth]) -> None:
+    path, truth = ros1_bag
+    with open_bag(path, topics=["/scan_rear", "/scan_front"]) as ds:
+        assert ds.gt_poses is None
+        assert np.allclose(ds.rig.sensor_origins[0], T_BASE["laser_rear"][:3, 3])
+        rings = {0: "/scan_rear", 1: "/scan_front"}
+        # phases 0 (front) and 66 ms (rear): windows start at 33 ms, so epoch 0 holds only
+        # the front sweep at 0 ms and the others a rear then a front sweep
+        assert np.unique(ds[0].ring).tolist() == [1]
+        check_against_truth(ds, [ds[0], ds[-1]], truth, rings, [0, len(ds) - 1])
+
+
+def test_another_base_frame(ros1_bag: tuple[Path, Truth]) -> None:
+    # base_footprint is 0.1 m below base_link: the extrinsics and the reference (whose child
+    # frame is base_link) move with it
+    with open_bag(ros1_bag[0], base_frame="base_footprint", gt_topic="/odom") as ds:
+        expected = true_pose(ds.times) @ invert_transform(T_FP_BL)
+        assert np.abs(ds.gt_poses - expected).max() < 1e-5
+        assert np.allclose(ds.rig.extrinsics[1], T_FP_BL @ T_BASE["laser_left"], atol=1e-9)
+        scan = ds[4]
+        shifted = scan.points - T_FP_BL[:3, 3]  # back in base_link
+        world = (
+            true_pose(ds.times[4] + scan.t)
+            @ np.append(shifted, np.ones((len(scan), 1)), 1)[..., None]
+        )
+        assert distance_to_room(world[:, :3, 0]).max() < 1e-3
+
+
+def test_convert_bag_writes_a_dataset(ros1_bag: tuple[Path, Truth], tmp_path: Path) -> None:
+    path, truth = ros1_bag
+    summary = convert_bag(path, tmp_path / "ds", gt_topic="/odom")
+    assert summary.epochs == 12 and summary.rings == 3
+    assert summary.points == sum(len(x) for v in truth.times.values() for x in v)
+    ds = load_dataset(tmp_path / "ds")
+    assert len(ds) == 12
+    assert ds.times[0] == pytest.approx(T0_NS / 1e9, abs=0.1)  # the bag's clock in poses.tum
+    assert np.abs(ds.gt_poses - true_pose(ds.times)).max() < 1e-5
+    rings = {0: "/scan_front", 1: "/scan_left", 2: "/scan_rear"}
+    check_against_truth(ds, list(ds), truth, rings)
+    assert np.allclose(ds.rig["sensor_origins"][2], T_BASE["laser_rear"][:3, 3])
+
+
+def test_convert_without_reference_keeps_the_bag_times(ros1_bag, tmp_path: Path) -> None:
+    path, truth = ros1_bag
+    convert_bag(path, tmp_path / "ds", epoch_rate=5.0)
+    ds = load_dataset(tmp_path / "ds")
+    # sweeps at 0, 33, 66 ms + 100 k ms; 200 ms windows start mid of the first largest phase
+    # gap (66..100 ms): [-117, 83), [83, 283), ..., [1083, 1283) ms -> 7 epochs
+    assert len(ds) == 7
+    assert ds.gt_poses is None
+    bag_times = np.array(ds.rig["bag_epoch_times"])
+    stamps = np.array(sorted(s for v in truth.stamps.values() for s in v)) / 1e9
+    assert np.abs(bag_times[:, None] - stamps[None]).min(axis=1).max() < 1e-6
+    assert all(len(set(s.ring.tolist())) == 3 for s in ds)
+
+
+# ------------------------------------------------------------------ one-line errors
+
+
+def one_line(exc: pytest.ExceptionInfo[DatasetError]) -> str:
+    message = str(exc.value)
+    assert "\n" not in message
+    return message
+
+
+def test_missing_tf_names_frame_and_topic(tmp_path: Path) -> None:
+    static = [e for e in STATIC_TF if e[1] != "laser_left"]
+    write_bag(tmp_path / "a.bag", 1, SCANNERS, static, T_BASE)
+    with pytest.raises(DatasetError) as exc:
+        open_bag(tmp_path / "a.bag")
+    message = one_line(exc)
+    assert "'laser_left'" in message and "/scan_left" in message and "base_link" in message
+
+
+def test_unknown_base_frame(ros1_bag: tuple[Path, Truth]) -> None:
+    with pytest.raises(DatasetError) as exc:
+        open_bag(ros1_bag[0], base_frame="chassis")
+    assert "'chassis'" in one_line(exc)
+
+
+def test_bag_without_scan_topics(tmp_path: Path) -> None:
+    write_bag(tmp_path / "b", 2, [], STATIC_TF, T_BASE)
+    with pytest.raises(DatasetError) as exc:
+        open_bag(tmp_path / "b")
+    message = one_line(exc)
+    assert "no sensor_msgs/LaserScan" in message and "/odom" in message
+
+
+@pytest.mark.parametrize("topic", ["/scan_top", "/odom"])
+def test_unknown_or_wrong_topic(ros1_bag: tuple[Path, Truth], topic: str) -> None:
+    with pytest.raises(DatasetError) as exc:
+        open_bag(ros1_bag[0], topics=["/scan_front", topic])
+    assert f"'{topic}'" in one_line(exc)
+
+
+def test_unknown_gt_topic(ros1_bag: tuple[Path, Truth]) -> None:
+    with pytest.raises(DatasetError) as exc:
+        open_bag(ros1_bag[0], gt_topic="/ground_truth")
+    assert "'/ground_truth'" in one_line(exc) and "/odom" in str(exc.value)
+    with pytest.raises(DatasetError) as exc:
+        open_bag(ros1_bag[0], gt_topic="tf:map:base_link")
+    assert "'map' -> 'base_link'" in one_line(exc)
+
+
+def truncate(file: Path, keep: float) -> None:
+    data = file.read_bytes()
+    file.write_bytes(data[: int(len(data) * keep)])
+
+
+@pytest.mark.parametrize("keep", [0.5, 0.01])
+def test_truncated_ros1_bag(ros1_bag: tuple[Path, Truth], keep: float) -> None:
+    path = ros1_bag[0]
+    truncate(path, keep)
+    with pytest.raises(DatasetError) as exc:
+        ds = open_bag(path)
+        list(ds)
+    assert str(path) in one_line(exc)
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_truncated_ros2_bag(tmp_path: Path, storage: str) -> None:
+    write_bag(tmp_path / "bag", 2, SCANNERS, STATIC_TF, T_BASE, storage=storage)
+    (data,) = [f for f in (tmp_path / "bag").iterdir() if f.suffix in (".db3", ".mcap")]
+    truncate(data, 0.5)
+    with pytest.raises(DatasetError) as exc:
+        ds = open_bag(tmp_path / "bag")
+        list(ds)
+    assert str(tmp_path / "bag") in one_line(exc)
+
+
+def test_not_a_bag(tmp_path: Path) -> None:
+    with pytest.raises(DatasetError) as exc:
+        open_bag(tmp_path / "missing.bag")
+    assert "does not exist" in one_line(exc)
+    (tmp_path / "x").mkdir()
+    with pytest.raises(DatasetError) as exc:
+        open_bag(tmp_path / "x")
+    assert "not a bag" in one_line(exc)
+
+
+@pytest.mark.slow
+def test_odometry_on_a_lidar_bag(tmp_path: Path) -> None:
+    """End to end: the paper's odometry on a converted lidar bag recovers the motion."""
+    from planodom.geometry import pose5_from_transform
+    from planodom.metrics import relative_motions
+    from planodom.odometry.streaming import run_odometry
+
+    sensors = [Sensor("/velodyne_points", "lidar", 0, "velodyne")]
+    write_bag(tmp_path / "bag", 2, sensors, STATIC_TF, T_BASE, duration_s=0.6)
+    with open_bag(tmp_path / "bag", gt_topic="/odom") as ds:
+        run = run_odometry(ds, sensor_origins=ds.rig.sensor_origins)
+        assert run.statuses[1:] == ["ok"] * (len(ds) - 1)
+        est = relative_motions(np.asarray(run.poses))
+        gt = relative_motions(ds.gt_poses)
+        errors = np.abs([pose5_from_transform(a) - pose5_from_transform(b) for a, b in
+                         zip(est, gt, strict=True)])  # fmt: skip
+        assert errors[:, :3].max() < np.deg2rad(0.1)  # roll, pitch, yaw
+        assert errors[:, 3:].max() < 0.01  # x, y (m)
