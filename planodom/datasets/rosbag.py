@@ -364,10 +364,10 @@ def convert_bag(
     with open_bag(
         bag_path, base_frame=base_frame, epoch_rate=epoch_rate, topics=topics, gt_topic=gt_topic
     ) as ds:
-        rig = ds.rig.to_dict()
-        times = ds.times
+        rig, times = ds.rig, ds.times
         if ds.gt_poses is None:
-            rig["bag_epoch_times"] = ds.times.tolist()
+            extra = {**rig.extra, "bag_epoch_times": ds.times.tolist()}
+            rig = Rig.from_dict({**rig.to_dict(), **extra}, source=str(bag_path))
             times = np.arange(len(ds)) / ds.epoch_rate
         counter = _CountingScans(ds)
         write_dataset(out_dir, counter, times, ds.gt_poses, rig, overwrite=overwrite)

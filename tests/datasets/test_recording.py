@@ -6,9 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bag_factory import write_bag
-from test_kitti import make_sequence
-from test_rosbag import SCANNERS, STATIC_TF, T_BASE
+from bag_factory import SCANNERS, STATIC_TF, T_BASE, write_bag
+from kitti_factory import make_sequence
 
 from planodom.datasets import write_dataset
 from planodom.datasets.kitti import KittiSequence

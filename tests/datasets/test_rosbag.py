@@ -7,11 +7,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bag_factory import (
+    SCANNERS,
+    STATIC_TF,
     T0_NS,
+    T_BASE,
+    T_FP_BL,
     Sensor,
     Truth,
     distance_to_room,
-    pose,
     true_pose,
     write_bag,
 )
@@ -21,29 +24,6 @@ from planodom.datasets import load_dataset
 from planodom.datasets.rosbag import convert_bag, open_bag
 from planodom.errors import DatasetError
 from planodom.geometry import invert_transform
-
-# the rig: three tilted 2D scanners, two of them behind intermediate frames
-T_FP_BL = pose(0, 0, 0, (0.0, 0.0, 0.1))  # base_footprint -> base_link
-T_BL_MOUNT = pose(0, 0, 0.2, (0.6, 0.0, 0.9))
-T_BASE = {
-    "laser_front": pose(0.0, 0.35, 0.0, (0.8, 0.0, 1.0)),
-    "laser_left": pose(0.5, 0.0, 1.57, (0.0, 0.4, 1.1)),
-    "laser_rear": pose(0.0, 0.3, 3.14159, (-0.7, 0.0, 0.95)),
-    "lidar": pose(0.0, 0.05, 0.3, (0.1, 0.0, 1.6)),
-}
-STATIC_TF = [
-    ("base_footprint", "base_link", T_FP_BL),
-    ("base_link", "mount", T_BL_MOUNT),
-    ("mount", "laser_front", invert_transform(T_BL_MOUNT) @ T_BASE["laser_front"]),
-    ("base_link", "laser_left", T_BASE["laser_left"]),
-    ("base_footprint", "laser_rear", T_FP_BL @ T_BASE["laser_rear"]),
-    ("base_link", "lidar", T_BASE["lidar"]),
-]
-SCANNERS = [
-    Sensor("/scan_front", "laser_front", 0),
-    Sensor("/scan_left", "laser_left", 33_000_000),
-    Sensor("/scan_rear", "laser_rear", 66_000_000),
-]
 
 
 def check_against_truth(
@@ -174,7 +154,7 @@ def test_convert_bag_writes_a_dataset(ros1_bag: tuple[Path, Truth], tmp_path: Pa
     assert np.abs(ds.gt_poses - true_pose(ds.times)).max() < 1e-5
     rings = {0: "/scan_front", 1: "/scan_left", 2: "/scan_rear"}
     check_against_truth(ds, list(ds), truth, rings)
-    assert np.allclose(ds.rig["sensor_origins"][2], T_BASE["laser_rear"][:3, 3])
+    assert np.allclose(ds.rig.sensor_origins[2], T_BASE["laser_rear"][:3, 3])
 
 
 def test_convert_without_reference_keeps_the_bag_times(ros1_bag, tmp_path: Path) -> None:
@@ -185,7 +165,7 @@ def test_convert_without_reference_keeps_the_bag_times(ros1_bag, tmp_path: Path)
     # gap (66..100 ms): [-117, 83), [83, 283), ..., [1083, 1283) ms -> 7 epochs
     assert len(ds) == 7
     assert ds.gt_poses is None
-    bag_times = np.array(ds.rig["bag_epoch_times"])
+    bag_times = np.array(ds.rig.extra["bag_epoch_times"])
     stamps = np.array(sorted(s for v in truth.stamps.values() for s in v)) / 1e9
     assert np.abs(bag_times[:, None] - stamps[None]).min(axis=1).max() < 1e-6
     assert all(len(set(s.ring.tolist())) == 3 for s in ds)

@@ -21,6 +21,8 @@ from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from scipy.spatial.transform import Rotation
 
+from planodom.geometry import invert_transform
+
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 T0_NS = 1_700_000_000 * 1_000_000_000  # bag start, ns since the Unix epoch
 #: The room: planes n . x = d with outward normals n (inside: n . x < d).
@@ -298,3 +300,27 @@ def write_bag(
         if extra is not None:
             extra(bw)
     return truth
+
+
+# the rig: three tilted 2D scanners, two of them behind intermediate frames
+T_FP_BL = pose(0, 0, 0, (0.0, 0.0, 0.1))  # base_footprint -> base_link
+T_BL_MOUNT = pose(0, 0, 0.2, (0.6, 0.0, 0.9))
+T_BASE = {
+    "laser_front": pose(0.0, 0.35, 0.0, (0.8, 0.0, 1.0)),
+    "laser_left": pose(0.5, 0.0, 1.57, (0.0, 0.4, 1.1)),
+    "laser_rear": pose(0.0, 0.3, 3.14159, (-0.7, 0.0, 0.95)),
+    "lidar": pose(0.0, 0.05, 0.3, (0.1, 0.0, 1.6)),
+}
+STATIC_TF = [
+    ("base_footprint", "base_link", T_FP_BL),
+    ("base_link", "mount", T_BL_MOUNT),
+    ("mount", "laser_front", invert_transform(T_BL_MOUNT) @ T_BASE["laser_front"]),
+    ("base_link", "laser_left", T_BASE["laser_left"]),
+    ("base_footprint", "laser_rear", T_FP_BL @ T_BASE["laser_rear"]),
+    ("base_link", "lidar", T_BASE["lidar"]),
+]
+SCANNERS = [
+    Sensor("/scan_front", "laser_front", 0),
+    Sensor("/scan_left", "laser_left", 33_000_000),
+    Sensor("/scan_rear", "laser_rear", 66_000_000),
+]
