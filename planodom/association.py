@@ -31,7 +31,6 @@ plane only its best match.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,81 +38,15 @@ from scipy.optimize import linear_sum_assignment
 
 from planodom.config import AssociationConfig
 from planodom.geometry import (
-    Plane,
     dihedral_angles,
     horizontal_reference_points,
     make_transform,
-    plane_transform_jacobian,
     rotation_frames,
-    transform_planes,
-    transform_points,
 )
+from planodom.planes import PlaneSet
 
 #: Cost of a forbidden match in the SDA assignment (gated costs are at most 2).
 _FORBIDDEN = 1e6
-
-
-@dataclass(frozen=True, eq=False)
-class PlaneArrays:
-    """The planes of one epoch as arrays, what association and consensus need.
-
-    Attributes:
-        normals: (K, 3) unit normals. offsets: (K,) metres. weights: (K,) confidences.
-        centroids: (K, 3) support centroids, metres (NaN rows when unknown).
-        radii: (K,) largest distance from centroid to support polygon vertex, metres
-            (NaN when the polygon is unknown).
-        covariances: (K, 4, 4) covariances of ``(n, d)`` (NaN when unknown).
-    """
-
-    normals: np.ndarray
-    offsets: np.ndarray
-    weights: np.ndarray
-    centroids: np.ndarray
-    radii: np.ndarray
-    covariances: np.ndarray
-
-    @classmethod
-    def from_planes(cls, planes: Sequence[Plane]) -> PlaneArrays:
-        k = len(planes)
-        normals, offsets = np.zeros((k, 3)), np.zeros(k)
-        weights, centroids, radii = np.ones(k), np.full((k, 3), np.nan), np.full(k, np.nan)
-        covariances = np.full((k, 4, 4), np.nan)
-        for i, p in enumerate(planes):
-            normals[i], offsets[i], weights[i] = p.normal, p.offset, p.confidence
-            if p.covariance is not None:
-                covariances[i] = p.covariance
-            if p.support is not None:
-                centroids[i] = p.support.centroid
-                if len(p.support.polygon):
-                    radii[i] = np.max(np.linalg.norm(p.support.polygon - centroids[i], axis=1))
-        return cls(normals, offsets, weights, centroids, radii, covariances)
-
-    def __len__(self) -> int:
-        return len(self.offsets)
-
-    def transformed(self, T_a_b: np.ndarray) -> PlaneArrays:
-        """These planes (in frame b) expressed in frame a; covariances follow."""
-        n, d = transform_planes(T_a_b, self.normals, self.offsets)
-        J = plane_transform_jacobian(T_a_b)
-        cov = J @ self.covariances @ J.T
-        centroids = transform_points(T_a_b, self.centroids)
-        return PlaneArrays(n, d, self.weights, centroids, self.radii, cov)
-
-    def take(self, index: np.ndarray) -> PlaneArrays:
-        """The planes at ``index`` (int array or mask), in that order."""
-        return PlaneArrays(
-            self.normals[index],
-            self.offsets[index],
-            self.weights[index],
-            self.centroids[index],
-            self.radii[index],
-            self.covariances[index],
-        )
-
-
-def as_plane_arrays(planes: Sequence[Plane] | PlaneArrays) -> PlaneArrays:
-    """Accept a list of :class:`Plane` or ready :class:`PlaneArrays`."""
-    return planes if isinstance(planes, PlaneArrays) else PlaneArrays.from_planes(planes)
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,8 +106,8 @@ def nonparallel_pairs(normals: np.ndarray, parallel_angle: float) -> tuple[np.nd
 
 
 def _plane_gate(
-    prev: PlaneArrays,
-    curr_in_prev: PlaneArrays,
+    prev: PlaneSet,
+    curr_in_prev: PlaneSet,
     curr_ranges: np.ndarray,
     t_bound: float,
     t_prior: float,
@@ -213,8 +146,8 @@ def _gated_combinations(
 
 
 def lenient_association(
-    prev: Sequence[Plane] | PlaneArrays,
-    curr: Sequence[Plane] | PlaneArrays,
+    prev: PlaneSet,
+    curr: PlaneSet,
     config: AssociationConfig | None = None,
     prior: np.ndarray | None = None,
 ) -> PairAssociations:
@@ -232,7 +165,6 @@ def lenient_association(
         either epoch has no non-parallel pair).
     """
     cfg = config or AssociationConfig()
-    prev, curr = as_plane_arrays(prev), as_plane_arrays(curr)
     if len(prev) < 2 or len(curr) < 2:
         return PairAssociations.empty()
     if prior is None:
@@ -310,8 +242,8 @@ def lenient_association(
 
 
 def strict_association(
-    prev: Sequence[Plane] | PlaneArrays,
-    curr: Sequence[Plane] | PlaneArrays,
+    prev: PlaneSet,
+    curr: PlaneSet,
     rotation: np.ndarray,
     config: AssociationConfig | None = None,
     translation: np.ndarray | None = None,
@@ -337,7 +269,6 @@ def strict_association(
         appears at most once.
     """
     cfg = config or AssociationConfig()
-    prev, curr = as_plane_arrays(prev), as_plane_arrays(curr)
     if len(prev) == 0 or len(curr) == 0:
         return np.zeros((0, 2), dtype=np.intp)
     t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)

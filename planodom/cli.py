@@ -195,8 +195,9 @@ def run(
     metrics.json to --out, and prints a summary.
     """
     from planodom import results
-    from planodom.odometry import motion_assumption, run_odometry
-    from planodom.report import odometry_table
+    from planodom.odometry import run_odometry
+    from planodom.report import motion_assumption, odometry_table
+    from planodom.rig import Rig
 
     cfg = _load_config(config, pipeline=pipeline, delta=delta)
     out = results.prepare_output(out)
@@ -205,7 +206,7 @@ def run(
     )
     progress, callback = _progress("odometry")
     with progress:
-        odo = run_odometry(data, cfg, progress=callback)
+        odo = run_odometry(data, cfg, Rig.from_dict(data.rig), progress=callback)
     metrics = results.write_odometry_run(out, odo, data.gt_poses)
     console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
     console.print(odometry_table(odo, metrics, title=f"planodom run -> {out}"))
@@ -238,6 +239,7 @@ def smooth(
     """
     from planodom import results
     from planodom.report import comparison_table
+    from planodom.rig import Rig
     from planodom.smoothing.run import run_smoothing
 
     cfg = _load_config(config)
@@ -251,6 +253,7 @@ def smooth(
         sm = run_smoothing(
             data,
             cfg,
+            Rig.from_dict(data.rig),
             window=window,
             delta=delta,
             mode=mode,

@@ -34,6 +34,7 @@ from planodom.experiments.plots import save_grid, top_view
 from planodom.geometry import invert_transform
 from planodom.metrics import POSE5_NAMES, drift, per_epoch_errors, relative_motions, summarize
 from planodom.odometry import OdometryRun, run_odometry
+from planodom.rig import Rig
 
 #: The paper's noise levels, metres.
 PAPER_NOISE_LEVELS = (0.0, 0.006, 0.02, 0.10)
@@ -244,7 +245,8 @@ def run_paper_experiment(
                 run = run_odometry(shared, cfg, times=sim.times)
                 seconds = {"extraction": t_extract, "odometry": run.seconds["odometry"]}
             else:
-                run = run_odometry(sim, cfg)
+                origins = np.array([s.T_base_sensor[:3, 3] for s in sim.rig.sensors])
+                run = run_odometry(sim, cfg, Rig(sensor_origins=origins))
                 seconds = dict(run.seconds)
             runs.append(_level_run(noise, method, run, sim.poses, sim.epoch_rate, seconds))
 

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planodom.association import PlaneArrays, nonparallel_pairs
+from planodom.association import nonparallel_pairs
 from planodom.geometry import horizontal_reference_points
+from planodom.planes import PlaneSet
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,13 +56,12 @@ class TranslationElements:
 
 
 def translation_elements(
-    prev: PlaneArrays,
-    curr: PlaneArrays,
+    prev: PlaneSet,
+    curr: PlaneSet,
     R: np.ndarray,
     prev_pairs: np.ndarray,
     curr_pairs: np.ndarray,
     min_verticality: float,
-    condition: bool = True,
     min_angle: float = 0.0,
 ) -> TranslationElements:
     """Reference points of the pairs ``prev_pairs[e] -> curr_pairs[e]`` (E, 2) under ``R``.
@@ -70,7 +70,7 @@ def translation_elements(
     min_verticality``) and cutting at ``min_angle`` rad or more from parallel are kept.
 
     Weights: the product of the four planes' confidences (paper), times
-    ``sin^2`` of each epoch's dihedral angle when ``condition``: a reference point's
+    ``sin^2`` of each epoch's dihedral angle: a reference point's
     confidence includes how well its two planes cut (offset noise sigma moves it by about
     sigma / sin(angle)).
     """
@@ -92,15 +92,14 @@ def translation_elements(
     cos_c = np.einsum("ij,ij->i", curr.normals[j1], curr.normals[j2])
     ok &= np.abs(cos_p) <= np.cos(min_angle)
     w = prev.weights[i1] * prev.weights[i2] * curr.weights[j1] * curr.weights[j2]
-    if condition:  # sin^2 = 1 - cos^2 for unit normals
-        w = w * (1.0 - cos_p**2) * (1.0 - cos_c**2)
+    w = w * (1.0 - cos_p**2) * (1.0 - cos_c**2)  # sin^2 = 1 - cos^2 for unit normals
     return TranslationElements(
         prev_pairs[ok], curr_pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok]
     )
 
 
 def pairs_of_associations(
-    ij: np.ndarray, prev: PlaneArrays, parallel_angle: float
+    ij: np.ndarray, prev: PlaneSet, parallel_angle: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """All non-parallel pairs among plane associations ``ij`` (L, 2): (P, 2) and (P, 2)."""
     a, b = np.triu_indices(len(ij), 1)
@@ -131,7 +130,7 @@ class HeightElements:
 
 
 def height_elements(
-    prev: PlaneArrays, curr: PlaneArrays, ij: np.ndarray, max_tilt: float
+    prev: PlaneSet, curr: PlaneSet, ij: np.ndarray, max_tilt: float
 ) -> HeightElements:
     """Elements from the associations ``ij`` (L, 2) whose previous plane is ground-like:
     within ``max_tilt`` rad of horizontal and facing up (below the sensor, normal towards

@@ -21,25 +21,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
-from planodom.association import (
-    PairAssociations,
-    PlaneArrays,
-    as_plane_arrays,
-    lenient_association,
-    strict_association,
-)
+from planodom.association import PairAssociations, lenient_association, strict_association
 from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
-from planodom.errors import ConfigError
-from planodom.geometry import Plane, make_transform, rpy_from_rotation
-from planodom.odometry.propagate import (
-    pose_covariance,
-    rotation_covariance,
-    translation_covariance,
-)
+from planodom.geometry import Plane, make_transform
+from planodom.odometry.propagate import pose_covariance, rotation_covariance
+from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
 from planodom.odometry.rotation import (
     chord,
     chordal_mean_rotation,
@@ -48,12 +39,14 @@ from planodom.odometry.rotation import (
     rpy_of,
 )
 from planodom.odometry.translation import (
+    HeightElements,
     TranslationElements,
     height_elements,
     pairs_of_associations,
     solve_height,
     translation_elements,
 )
+from planodom.planes import PlaneSet, as_plane_set
 
 #: pipeline name -> (rotation method, translation method)
 PIPELINES: dict[str, tuple[str, str]] = {
@@ -63,109 +56,24 @@ PIPELINES: dict[str, tuple[str, str]] = {
     "mean": ("mean", "cog"),
 }
 
-STATUSES = ("ok", "unresolved", "degenerate")
 
+def config_for_gap(config: PlanodomConfig, gap: int) -> PlanodomConfig:
+    """``config`` with the association's motion bounds widened for ``gap`` epochs.
 
-@dataclass(frozen=True, eq=False)
-class RelativePose:
-    """The relative pose of epoch k + d with respect to epoch k, and how it was found.
-
-    Attributes:
-        T_prev_curr: (4, 4) maps the current base frame to the previous one.
-        status: "ok"; "unresolved" (no associated non-parallel pair: no measurement,
-            ``T_prev_curr`` is the prior or identity); "degenerate" (rotation measured,
-            horizontal translation not: no pair has a vertical-enough intersection, or
-            the translation found exceeds the motion bound; the translation is then the
-            prior's or zero).
-        pipeline: the pipeline name.
-        z_observed: whether the vertical translation was measured (ground plane).
-        covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 / m^2, plus
-            the floors ``min_sigma_*``. For consensus winners: first-order propagation
-            of the fit covariances of the winning rotation and translation pairs' planes,
-            jointly (:func:`planodom.odometry.propagate.pose_covariance`: the translation
-            includes the rotation's and the height's uncertainty, planes shared by the
-            two pairs count once, rotation and translation are correlated); block
-            diagonal (rotation, translation) otherwise; without plane covariances, the
-            weighted spread of the candidates that agree with the winner. For a mean:
-            the spread over the count. DoF that were not measured (unresolved,
-            degenerate) get the squared motion bound.
-        sigma_z: standard deviation of the vertical translation, metres (inf: unobserved).
-        lda: the LDA pair associations (indices into the input plane lists).
-        plane_associations: (L, 2) SDA associations (i, j) under the final pose.
-        rotation_consensus, translation_consensus: consensus results (None when not run).
-        n_translation_pairs: pairs that gave a reference point in both epochs.
-        used_prior: the LDA bounds were applied around the prior.
-        fallback: True when ``T_prev_curr`` is not measured (set by the streaming
-            odometry for unresolved epochs, which it bridges by constant velocity).
-        rotation_pair, translation_pair: (4,) ``(i1, i2, j1, j2)`` of the winning pair
-            association (None for a mean or when not measured).
+    The per-epoch bounds ``max_translation_m`` and ``max_rotation_deg`` times the gap
+    (rotation at most 180 deg); the prior bounds stay (the prior carries the gap).
     """
-
-    T_prev_curr: np.ndarray
-    status: str
-    pipeline: str
-    z_observed: bool
-    covariance: np.ndarray
-    sigma_z: float
-    lda: PairAssociations
-    plane_associations: np.ndarray
-    rotation_consensus: ConsensusResult | None = None
-    translation_consensus: ConsensusResult | None = None
-    n_translation_pairs: int = 0
-    used_prior: bool = False
-    fallback: bool = False
-    rotation_pair: np.ndarray | None = None
-    translation_pair: np.ndarray | None = None
-
-    @property
-    def rpy(self) -> np.ndarray:
-        """(roll, pitch, yaw) increments, rad."""
-        return rpy_from_rotation(self.T_prev_curr[:3, :3])
-
-    @property
-    def roll(self) -> float:
-        return float(self.rpy[0])
-
-    @property
-    def pitch(self) -> float:
-        return float(self.rpy[1])
-
-    @property
-    def yaw(self) -> float:
-        return float(self.rpy[2])
-
-    @property
-    def x(self) -> float:
-        return float(self.T_prev_curr[0, 3])
-
-    @property
-    def y(self) -> float:
-        return float(self.T_prev_curr[1, 3])
-
-    @property
-    def pose5(self) -> np.ndarray:
-        """(roll, pitch, yaw, x, y), rad and m."""
-        return np.concatenate([self.rpy, self.T_prev_curr[:2, 3]])
-
-    @property
-    def sigmas5(self) -> np.ndarray:
-        """(5,) standard deviations of (roll, pitch, yaw, x, y), rad and m."""
-        return np.sqrt(np.diag(self.covariance))
-
-    @property
-    def resolved(self) -> bool:
-        return self.status != "unresolved"
+    if gap <= 1:
+        return config
+    a = config.association
+    changes = {
+        "association.max_translation_m": a.max_translation_m * gap,
+        "association.max_rotation_deg": min(a.max_rotation_deg * gap, 180.0),
+    }
+    return config.updated(changes, source=f"bounds for a gap of {gap} epochs")
 
 
-def pipeline_methods(name: str) -> tuple[str, str]:
-    """(rotation method, translation method) of a pipeline name."""
-    try:
-        return PIPELINES[name]
-    except KeyError:
-        raise ConfigError(f"odometry.pipeline: unknown pipeline {name!r}") from None
-
-
-def _canonical_order(planes: PlaneArrays) -> np.ndarray:
+def _canonical_order(planes: PlaneSet) -> np.ndarray:
     """A permutation sorting planes by their values, so the input order cannot matter."""
     keys = np.column_stack(
         [planes.normals, planes.offsets, planes.weights, planes.centroids, planes.radii]
@@ -184,8 +92,8 @@ def _spread(d: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def estimate_relative_pose(
-    planes_prev: Sequence[Plane] | PlaneArrays,
-    planes_curr: Sequence[Plane] | PlaneArrays,
+    planes_prev: Sequence[Plane] | PlaneSet,
+    planes_curr: Sequence[Plane] | PlaneSet,
     config: PlanodomConfig | None = None,
     prior: np.ndarray | None = None,
 ) -> RelativePose:
@@ -202,130 +110,175 @@ def estimate_relative_pose(
             prior's z fills an unobserved height, its translation an unmeasured one.
 
     Returns:
-        :class:`RelativePose`; index arrays refer to the input lists.
+        :class:`RelativePose` (``prev``, ``curr`` unset); index arrays refer to the input
+        lists.
     """
     cfg = config or PlanodomConfig()
-    pipeline_methods(cfg.odometry.pipeline)  # validate early
-    prev_in, curr_in = as_plane_arrays(planes_prev), as_plane_arrays(planes_curr)
+    prev_in, curr_in = as_plane_set(planes_prev), as_plane_set(planes_curr)
     order_p, order_c = _canonical_order(prev_in), _canonical_order(curr_in)
     prev, curr = prev_in.take(order_p), curr_in.take(order_c)
     prior = None if prior is None else np.asarray(prior, dtype=np.float64)
 
     result = _solve(prev, curr, cfg, prior, bound_by_prior=prior is not None)
-    if result.status != "ok" and prior is not None and cfg.odometry.retry_without_prior:
+    if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
         free = _solve(prev, curr, cfg, prior, bound_by_prior=False)
-        if _rank(free) > _rank(result):
+        if free.status.rank > result.status.rank:
             result = free
-    ij = result.plane_associations
+    return _remapped(result, order_p, order_c)
+
+
+def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) -> RelativePose:
+    """``result`` with plane indices of the sorted sets mapped back to the input order, and
+    its sources."""
+    ij = result.associations
 
     def pair(q: np.ndarray | None) -> np.ndarray | None:
         return None if q is None else np.r_[order_p[q[:2]], order_c[q[2:]]]
 
+    info = result.diagnostics
+    assert info is not None
+    info = replace(
+        info,
+        lda=info.lda.remapped(order_p, order_c),
+        rotation_pair=pair(info.rotation_pair),
+        translation_pair=pair(info.translation_pair),
+    )
     return replace(
         result,
-        lda=result.lda.remapped(order_p, order_c),
-        plane_associations=np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]])
-        if len(ij)
-        else ij,
-        rotation_pair=pair(result.rotation_pair),
-        translation_pair=pair(result.translation_pair),
+        associations=np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]]) if len(ij) else ij,
+        sources=info.sources(result.status),
+        diagnostics=info,
     )
 
 
-def _rank(r: RelativePose) -> int:
-    return {"unresolved": 0, "degenerate": 1, "ok": 2}[r.status]
+class _Bounds(NamedTuple):
+    """The motion assumption of one pass: centre ``t0`` (3,) m, translation bound m,
+    rotation bound rad, and the height to use when z is not measured, m."""
+
+    t0: np.ndarray
+    translation: float
+    rotation: float
+    z_prior: float
+
+
+def _bounds(cfg: PlanodomConfig, prior: np.ndarray | None, bound_by_prior: bool) -> _Bounds:
+    a = cfg.association
+    if bound_by_prior:
+        assert prior is not None
+        t0, t, r = prior[:3, 3], a.prior_translation_m, a.prior_rotation_deg
+    else:
+        t0, t, r = np.zeros(3), a.max_translation_m, a.max_rotation_deg
+    return _Bounds(t0, t, np.radians(r), float(prior[2, 3]) if prior is not None else 0.0)
 
 
 def _solve(
-    prev: PlaneArrays,
-    curr: PlaneArrays,
+    prev: PlaneSet,
+    curr: PlaneSet,
     cfg: PlanodomConfig,
     prior: np.ndarray | None,
     bound_by_prior: bool,
 ) -> RelativePose:
     """One pass of the pipeline on canonically ordered planes (indices not remapped)."""
     ocfg, acfg = cfg.odometry, cfg.association
-    rot_method, trans_method = pipeline_methods(ocfg.pipeline)
+    rot_method, trans_method = PIPELINES[ocfg.pipeline]
     lda = lenient_association(prev, curr, acfg, prior if bound_by_prior else None)
-    t0 = prior[:3, 3] if bound_by_prior else np.zeros(3)
-    t_bound = acfg.prior_translation_m if bound_by_prior else acfg.max_translation_m
-    rot_bound = np.radians(acfg.prior_rotation_deg if bound_by_prior else acfg.max_rotation_deg)
-    z_prior = float(prior[2, 3]) if prior is not None else 0.0
-    common = {"pipeline": ocfg.pipeline, "lda": lda, "used_prior": bound_by_prior}
-
+    bounds = _bounds(cfg, prior, bound_by_prior)
+    info = SolverDiagnostics(ocfg.pipeline, lda, used_prior=bound_by_prior)
     if len(lda) == 0:
         T = prior.copy() if prior is not None else np.eye(4)
-        cov = np.diag([rot_bound**2] * 3 + [t_bound**2] * 2)
-        none = np.zeros((0, 2), dtype=np.intp)
-        return RelativePose(T, "unresolved", z_observed=False, covariance=cov, sigma_z=np.inf,
-                            plane_associations=none, **common)  # fmt: skip
+        cov = np.diag([bounds.rotation**2] * 3 + [bounds.translation**2] * 2)
+        return RelativePose(T, cov, Status.UNRESOLVED, diagnostics=info)
 
     R, cov_r, rot_cons = _rotation(prev, curr, lda, rot_method, ocfg)
-
-    parallel = np.radians(acfg.parallel_angle_deg)
-    if trans_method == "cog":
-        ij = strict_association(prev, curr, R, acfg, t0, t_bound)
-        pp, cp = pairs_of_associations(ij, prev, parallel)
-    else:  # LDA pairs whose both plane associations agree with R
-        c = chord(np.radians(ocfg.rotation_inlier_deg))
-        pp, cp = lda.prev_pairs, lda.curr_pairs
-        e1 = np.linalg.norm(prev.normals[pp[:, 0]] - curr.normals[cp[:, 0]] @ R.T, axis=1)
-        e2 = np.linalg.norm(prev.normals[pp[:, 1]] - curr.normals[cp[:, 1]] @ R.T, axis=1)
-        agree = (e1 <= c) & (e2 <= c)
-        ij, pp, cp = lda.plane_associations(agree), pp[agree], cp[agree]
+    ij, pp, cp = _translation_pairs(prev, curr, lda, R, trans_method, bounds, cfg)
     elems = translation_elements(
-        prev, curr, R, pp, cp, acfg.min_line_verticality, ocfg.condition_weights,
+        prev, curr, R, pp, cp, acfg.min_line_verticality,
         np.radians(ocfg.translation_min_angle_deg),
     )  # fmt: skip
     heights = height_elements(prev, curr, ij, np.radians(ocfg.z_plane_max_tilt_deg))
-
-    tr, status = None, "degenerate"
-    if len(elems):
-        use_heights = heights if ocfg.estimate_z and len(heights) else None
-        tr = _translation(prev, curr, elems, use_heights, z_prior, trans_method, ocfg)
-        # The result must respect the motion assumption that admitted its associations;
-        # beyond it (a wrong association, an artefact plane) it is not a measurement.
-        reach = t_bound + acfg.offset_tol_m
-        if tr.z_observed and abs(tr.z - t0[2]) > reach:
-            tr = _translation(prev, curr, elems, None, z_prior, trans_method, ocfg)
-        if np.linalg.norm(tr.txy - t0[:2]) <= reach:
-            status = "ok"
-    if status == "ok":
+    tr, measured = _measured_translation(prev, curr, elems, heights, trans_method, bounds, cfg)
+    if measured:
+        assert tr is not None
         txy, z, cov_t, sigma_z, z_observed = tr.txy, tr.z, tr.cov, tr.sigma_z, tr.z_observed
-        if tr.best >= 0:
-            cov_t = _propagated_translation_cov(
-                prev, curr, elems, tr, R, cov_r, acfg.min_line_verticality, cov_t
-            )
     else:
-        txy, z = t0[:2].copy(), z_prior
-        cov_t, sigma_z, z_observed = np.diag([t_bound**2] * 2), np.inf, False
-
+        txy, z = bounds.t0[:2].copy(), bounds.z_prior
+        cov_t, sigma_z, z_observed = np.diag([bounds.translation**2] * 2), np.inf, False
     T = make_transform(R, [txy[0], txy[1], z])
-    rot_pair = None
+
+    rot_pair = trans_pair = None
     if rot_cons is not None:
         rot_pair = np.r_[lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index]]
-    trans_pair = None
-    if status == "ok" and tr.best >= 0:
+    if measured and tr is not None and tr.best >= 0:
         trans_pair = np.r_[elems.prev_pairs[tr.best], elems.curr_pairs[tr.best]]
     cov = np.zeros((5, 5))
-    cov[:3, :3] = cov_r
-    cov[3:, 3:] = cov_t
+    cov[:3, :3], cov[3:, 3:] = cov_r, cov_t
     if rot_pair is not None and trans_pair is not None:
+        assert tr is not None
         cov = _joint_covariance(prev, curr, rot_pair, trans_pair, tr, cov)
-    rot_floor, trans_floor = np.radians(ocfg.min_sigma_rotation_deg), ocfg.min_sigma_translation_m
-    cov = cov + np.diag([rot_floor**2] * 3 + [trans_floor**2] * 2)
-    sda_bound = ocfg.translation_inlier_m if status == "ok" else t_bound
+    floors = np.radians(ocfg.min_sigma_rotation_deg), ocfg.min_sigma_translation_m
+    cov = cov + np.diag([floors[0] ** 2] * 3 + [floors[1] ** 2] * 2)
+    sda_bound = ocfg.translation_inlier_m if measured else bounds.translation
     final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
-    return RelativePose(
-        T, status, z_observed=z_observed, covariance=cov, sigma_z=sigma_z,
-        plane_associations=final_ij, rotation_consensus=rot_cons,
+    info = replace(
+        info, rotation_consensus=rot_cons, n_translation_pairs=len(elems),
         translation_consensus=tr.consensus if tr is not None else None,
-        n_translation_pairs=len(elems), rotation_pair=rot_pair, translation_pair=trans_pair,
-        **common,
+        rotation_pair=rot_pair, translation_pair=trans_pair,
     )  # fmt: skip
+    status = Status.OK if measured else Status.DEGENERATE
+    return RelativePose(
+        T, cov, status, final_ij, z_observed=z_observed, sigma_z=sigma_z, diagnostics=info
+    )
 
 
-def _rotation(prev: PlaneArrays, curr: PlaneArrays, lda: PairAssociations, method: str, ocfg):
+def _translation_pairs(
+    prev: PlaneSet,
+    curr: PlaneSet,
+    lda: PairAssociations,
+    R: np.ndarray,
+    method: str,
+    bounds: _Bounds,
+    cfg: PlanodomConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The plane associations (L, 2) and pair associations (P, 2), (P, 2) that give the
+    translation: for "cog" every non-parallel pair of the SDA associations under ``R``,
+    else the LDA pairs whose two plane associations both agree with ``R``."""
+    acfg = cfg.association
+    if method == "cog":
+        ij = strict_association(prev, curr, R, acfg, bounds.t0, bounds.translation)
+        pp, cp = pairs_of_associations(ij, prev, np.radians(acfg.parallel_angle_deg))
+        return ij, pp, cp
+    c = chord(np.radians(cfg.odometry.rotation_inlier_deg))
+    pp, cp = lda.prev_pairs, lda.curr_pairs
+    e1 = np.linalg.norm(prev.normals[pp[:, 0]] - curr.normals[cp[:, 0]] @ R.T, axis=1)
+    e2 = np.linalg.norm(prev.normals[pp[:, 1]] - curr.normals[cp[:, 1]] @ R.T, axis=1)
+    agree = (e1 <= c) & (e2 <= c)
+    return lda.plane_associations(agree), pp[agree], cp[agree]
+
+
+def _measured_translation(
+    prev: PlaneSet,
+    curr: PlaneSet,
+    elems: TranslationElements,
+    heights: HeightElements,
+    method: str,
+    bounds: _Bounds,
+    cfg: PlanodomConfig,
+) -> tuple[_Translation | None, bool]:
+    """The translation from the pair elements (None without elements) and whether it is a
+    measurement: not beyond the motion assumption that admitted its associations (a
+    wrong association, an artefact plane)."""
+    if not len(elems):
+        return None, False
+    ocfg = cfg.odometry
+    use_heights = heights if ocfg.estimate_z and len(heights) else None
+    tr = _translation(prev, curr, elems, use_heights, bounds.z_prior, method, ocfg)
+    reach = bounds.translation + cfg.association.offset_tol_m
+    if tr.z_observed and abs(tr.z - bounds.t0[2]) > reach:
+        tr = _translation(prev, curr, elems, None, bounds.z_prior, method, ocfg)
+    return tr, bool(np.linalg.norm(tr.txy - bounds.t0[:2]) <= reach)
+
+
+def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str, ocfg):
     """Rotation ``R`` (3, 3), its (roll, pitch, yaw) covariance (3, 3) and the consensus.
 
     Covariance: for a consensus winner, first-order propagation of its four planes' fit
@@ -337,12 +290,9 @@ def _rotation(prev: PlaneArrays, curr: PlaneArrays, lda: PairAssociations, metho
     if method == "mean":
         R, cons = chordal_mean_rotation(lda.rotations), None
     else:
-        truncate = ocfg.truncate_rotation_deg
         cons, _ = rotation_consensus(
-            prev, curr, lda, weighted=method == "wocsc", inlier_angle=inlier_angle,
-            truncate_angle=None if truncate is None else np.radians(truncate),
-            best_partner=ocfg.best_partner,
-        )  # fmt: skip
+            prev, curr, lda, weighted=method == "wocsc", inlier_angle=inlier_angle
+        )
         R = lda.rotations[cons.best_index]
         i, j = lda.prev_pairs[cons.best_index], lda.curr_pairs[cons.best_index]
         cp, cc = prev.covariances[i], curr.covariances[j]
@@ -390,8 +340,7 @@ def _translation(prev, curr, elems: TranslationElements, heights, z0: float, met
         cons = consensus(
             cands, elems.ref_prev, elems.targets(z0), apply_negative_translation,
             weights=elems.weights if method == "wocsc" else None,
-            inlier_tol=ocfg.translation_inlier_m, truncate=ocfg.truncate_translation_m,
-            groups=_pair_ids(elems.prev_pairs) if ocfg.best_partner else None,
+            inlier_tol=ocfg.translation_inlier_m, groups=_pair_ids(elems.prev_pairs),
         )  # fmt: skip
         best = cons.best_index
         a, g = a_all[best], g_all[best]
@@ -435,14 +384,3 @@ def _joint_covariance(prev, curr, rot_pair, trans_pair, tr: _Translation, fallba
         return fallback
     sigma_z = tr.sigma_z if tr.z_observed else 0.0
     return pose_covariance(prev, curr, rot_pair, trans_pair, tr.z, sigma_z)
-
-
-def _propagated_translation_cov(prev, curr, elems, tr: _Translation, R, cov_r, min_vert, fallback):
-    """Covariance (2, 2) of the winning pair's translation from its planes' covariances
-    (and the rotation's and height's), or ``fallback`` when a covariance is unknown."""
-    pp, cp = elems.prev_pairs[tr.best], elems.curr_pairs[tr.best]
-    c_p, c_c = prev.covariances[pp], curr.covariances[cp]
-    if not (np.all(np.isfinite(c_p)) and np.all(np.isfinite(c_c)) and np.all(np.isfinite(cov_r))):
-        return fallback
-    sigma_z = tr.sigma_z if tr.z_observed else 0.0
-    return translation_covariance(prev, curr, pp, cp, c_p, c_c, R, tr.z, cov_r, sigma_z, min_vert)
