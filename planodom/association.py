@@ -212,25 +212,10 @@ def lenient_association(
     cos_dev = (np.einsum("ij,mij->m", T0[:3, :3], R) - 1.0) / 2.0
     ok = cos_dev >= np.cos(min(rot_bound + normal_tol, np.pi))
 
-    # Translation bound on the pair's reference point (NaN when undefined: passes).
-    n1 = np.einsum("mij,mj->mi", R, curr.normals[j1])
-    n2 = np.einsum("mij,mj->mi", R, curr.normals[j2])
-    # Both epochs' reference points in one call: previous, then rotated current.
-    refs = horizontal_reference_points(
-        np.concatenate([prev.normals[i1], n1]),
-        np.concatenate([prev.offsets[i1], curr.offsets[j1] - n1[:, 2] * t0[2]]),
-        np.concatenate([prev.normals[i2], n2]),
-        np.concatenate([prev.offsets[i2], curr.offsets[j2] - n2[:, 2] * t0[2]]),
-        cfg.min_line_verticality,
-    )
-    ref_p, ref_c = refs[: len(i1)], refs[len(i1) :]
-    dev = np.linalg.norm(ref_p - ref_c - t0[:2], axis=1)
-    bound = (
-        t_bound
-        + cfg.offset_tol_m / np.sin(a_p)
-        + np.linalg.norm(ref_p, axis=1) * np.sin(normal_tol)
-    )
-    ok &= ~(dev > bound)
+    ok &= _reference_points_agree(
+        prev, curr, (i1, i2, j1, j2), R, t0, t_bound + cfg.offset_tol_m / np.sin(a_p),
+        normal_tol, cfg.min_line_verticality,
+    )  # fmt: skip
 
     w = prev.weights[i1] * prev.weights[i2] * curr.weights[j1] * curr.weights[j2]
     return PairAssociations(
@@ -239,6 +224,41 @@ def lenient_association(
         R[ok],
         w[ok],
     )
+
+
+def _reference_points_agree(
+    prev: PlaneSet,
+    curr: PlaneSet,
+    pairs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    R: np.ndarray,
+    t0: np.ndarray,
+    bound: np.ndarray,
+    normal_tol: float,
+    min_verticality: float,
+) -> np.ndarray:
+    """(M,) bool: the translation bound on each pair's reference point (NaN when
+    undefined: passes).
+
+    Args:
+        pairs: (i1, i2, j1, j2), each (M,): the pair association ``(i1, i2) -> (j1, j2)``.
+        R: (M, 3, 3) the candidate rotations; t0: (3,) the prior's translation, m.
+        bound: (M,) allowed deviation of the reference point from ``t0``, m, before the
+            rotation-noise margin (``|varpi| sin(normal_tol)``) is added.
+    """
+    i1, i2, j1, j2 = pairs
+    n1 = np.einsum("mij,mj->mi", R, curr.normals[j1])
+    n2 = np.einsum("mij,mj->mi", R, curr.normals[j2])
+    # Both epochs' reference points in one call: previous, then rotated current.
+    refs = horizontal_reference_points(
+        np.concatenate([prev.normals[i1], n1]),
+        np.concatenate([prev.offsets[i1], curr.offsets[j1] - n1[:, 2] * t0[2]]),
+        np.concatenate([prev.normals[i2], n2]),
+        np.concatenate([prev.offsets[i2], curr.offsets[j2] - n2[:, 2] * t0[2]]),
+        min_verticality,
+    )
+    ref_p, ref_c = refs[: len(i1)], refs[len(i1) :]
+    dev = np.linalg.norm(ref_p - ref_c - t0[:2], axis=1)
+    return ~(dev > bound + np.linalg.norm(ref_p, axis=1) * np.sin(normal_tol))
 
 
 def strict_association(
