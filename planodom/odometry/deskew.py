@@ -22,9 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from planodom.config import OdometryConfig
-from planodom.geometry import Plane
+from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status
-from planodom.odometry.twist import se3_log
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 

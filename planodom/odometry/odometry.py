@@ -22,11 +22,10 @@ from functools import partial
 import numpy as np
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, invert_transform
+from planodom.geometry import Plane, invert_transform, se3_exp, se3_log
 from planodom.odometry.deskew import EpochEstimate, register_deskewed, time_spread
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
-from planodom.odometry.twist import se3_exp, se3_log
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 

@@ -21,8 +21,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import block_diag
 
-from planodom.geometry import horizontal_reference_points, rotation_frames
-from planodom.odometry.rotation import rpy_of
+from planodom.geometry import horizontal_reference_points, rotation_frames, rpy_from_rotation
 from planodom.planes import PlaneSet
 
 _STEP = 1e-7
@@ -51,7 +50,7 @@ def rotation_covariance(
     def f(x: np.ndarray) -> np.ndarray:
         U_p = rotation_frames(x[:, 0:3], x[:, 3:6])
         U_c = rotation_frames(x[:, 6:9], x[:, 9:12])
-        return rpy_of(U_p @ np.swapaxes(U_c, 1, 2))
+        return rpy_from_rotation(U_p @ np.swapaxes(U_c, 1, 2))
 
     x = np.concatenate([prev_normals.ravel(), curr_normals.ravel()])
     J = _jacobian(f, x)
@@ -112,7 +111,7 @@ def pose_covariance(
         n2 = np.einsum("bij,bj->bi", R, k2)
         zb = b[:, -1]
         ref_c = horizontal_reference_points(n1, f1 - n1[:, 2] * zb, n2, f2 - n2[:, 2] * zb, 0.0)
-        return np.column_stack([rpy_of(R), ref_p - ref_c])
+        return np.column_stack([rpy_from_rotation(R), ref_p - ref_c])
 
     J = _jacobian(f, x)
     var_z = sigma_z**2 if np.isfinite(sigma_z) else 0.0

@@ -68,11 +68,3 @@ def rotation_angles_to(rotations: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Angles (M,), rad, between each of ``rotations`` (M, 3, 3) and ``R`` (3, 3)."""
     cos = (np.einsum("ij,mij->m", R, rotations) - 1.0) / 2.0
     return np.arccos(np.clip(cos, -1.0, 1.0))
-
-
-def rpy_of(rotations: np.ndarray) -> np.ndarray:
-    """(M, 3) (roll, pitch, yaw), rad, of rotations (M, 3, 3) = Rz(yaw) Ry(pitch) Rx(roll)."""
-    roll = np.arctan2(rotations[:, 2, 1], rotations[:, 2, 2])
-    pitch = -np.arcsin(np.clip(rotations[:, 2, 0], -1.0, 1.0))
-    yaw = np.arctan2(rotations[:, 1, 0], rotations[:, 0, 0])
-    return np.column_stack([roll, pitch, yaw])

@@ -28,7 +28,7 @@ import numpy as np
 from planodom.association import PairAssociations, lenient_association, strict_association
 from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
-from planodom.geometry import Plane, make_transform
+from planodom.geometry import Plane, make_transform, rpy_from_rotation
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
 from planodom.odometry.rotation import (
@@ -36,7 +36,6 @@ from planodom.odometry.rotation import (
     chordal_mean_rotation,
     rotation_angles_to,
     rotation_consensus,
-    rpy_of,
 )
 from planodom.odometry.translation import (
     HeightElements,
@@ -299,7 +298,7 @@ def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str
         if np.all(np.isfinite(cp)) and np.all(np.isfinite(cc)):
             return R, rotation_covariance(prev.normals[i], curr.normals[j], cp, cc), cons
     close = rotation_angles_to(lda.rotations, R) <= inlier_angle
-    d = rpy_of(lda.rotations[close]) - rpy_of(R[None])
+    d = rpy_from_rotation(lda.rotations[close]) - rpy_from_rotation(R[None])
     d = (d + np.pi) % (2.0 * np.pi) - np.pi
     cov = _spread(d, weights[close]) if close.any() else np.zeros((3, 3))
     if method == "mean":

@@ -12,7 +12,7 @@ import gtsam
 import numpy as np
 
 from planodom.config import SmoothingConfig
-from planodom.geometry import Plane, plane_tangent_covariance
+from planodom.geometry import Plane, plane_tangent_covariance, rpy_from_rotation
 from planodom.odometry.relative import RelativePose
 
 #: Default robust kernel parameters (95 % efficiency on Gaussian noise), in sigmas.
@@ -57,9 +57,7 @@ def between_covariance(rel: RelativePose, config: SmoothingConfig) -> np.ndarray
             [c.default_rotation_sigma_rad**2] * 3 + [c.default_translation_sigma_m**2] * 2
         )
     J = np.eye(5)
-    R = rel.T_prev_curr[:3, :3]  # roll and pitch of R = Rz Ry Rx, in closed form
-    roll_pitch = (np.arctan2(R[2, 1], R[2, 2]), -np.arcsin(np.clip(R[2, 0], -1.0, 1.0)))
-    J[:3, :3] = rpy_to_rotation_vector(roll_pitch)
+    J[:3, :3] = rpy_to_rotation_vector(rpy_from_rotation(rel.T_prev_curr[:3, :3]))
     floor = [c.min_rotation_sigma_rad**2] * 3 + [c.min_translation_sigma_m**2] * 2
     cov = J @ (0.5 * (cov + cov.T)) @ J.T + np.diag(floor)
     return cov if rel.translation_observed else cov[:3, :3]
