@@ -37,6 +37,8 @@ class EpochEstimate:
         twist: (6,) the twist the scan was deskewed with (None: not deskewed).
         relative: the relative pose to the reference epoch (``prev`` .. ``curr``).
         step: (4, 4) ``T_{k-1}_k`` it implies for the last step.
+        reference_planes: the reference epoch's planes it was estimated against (its
+            association indices refer to them).
     """
 
     planes: list[Plane]
@@ -44,6 +46,7 @@ class EpochEstimate:
     twist: np.ndarray | None
     relative: RelativePose
     step: np.ndarray
+    reference_planes: list[Plane]
 
 
 #: ``estimate(twist) -> EpochEstimate``: extract the epoch deskewed with ``twist`` (None:

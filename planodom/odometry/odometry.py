@@ -67,6 +67,10 @@ class PlaneOdometry:
         results: per epoch the :class:`RelativePose` from its reference epoch
             (``result.prev``: ``k - delta``, or, when that one has fewer than two planes,
             the latest earlier epoch that has) to it; None for the first epoch.
+        planes: the planes of every epoch (base frame), as last extracted: a reference
+            epoch that was never deskewed (the first) is extracted again with a twist.
+        superseded: epochs whose result indexes planes (its own or its reference's) that
+            were extracted again later, so not ``planes``.
         twist: (6,) constant-velocity body twist, rad/s and m/s, predicted for the next
             epoch (angular rate of the last step, median recent measured linear
             velocity); None before the second epoch.
@@ -84,6 +88,8 @@ class PlaneOdometry:
         self.poses: list[np.ndarray] = []
         self.times: list[float] = []
         self.results: list[RelativePose | None] = []
+        self.planes: list[list[Plane]] = []
+        self.superseded: set[int] = set()
         self.twist: np.ndarray | None = None
         # The last delta epochs, and the last one with two planes or more.
         self._history: deque[_Epoch] = deque(maxlen=self.config.odometry.delta)
@@ -187,7 +193,9 @@ class PlaneOdometry:
             result = replace(result, T_prev_curr=bridge)
         result = result.between(reference.index, epoch.index)
         step = _orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
-        return EpochEstimate(epoch.planes, epoch.plane_set, epoch.twist, result, step)
+        return EpochEstimate(
+            epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes
+        )
 
     def _config_for_gap(self, gap: int) -> PlanodomConfig:
         if gap not in self._gap_configs:
@@ -210,6 +218,9 @@ class PlaneOdometry:
         ref.planes = self._extract(ref.scan, twist)
         ref.plane_set = PlaneSet.from_planes(ref.planes)
         ref.twist = twist
+        self.planes[ref.index] = ref.planes
+        if self.results[ref.index] is not None:
+            self.superseded.add(ref.index)
         if len(ref.planes) >= 2 and (
             self._last_usable is None or self._last_usable.index <= ref.index
         ):
@@ -229,6 +240,8 @@ class PlaneOdometry:
             measured = best.relative.status is Status.OK
             self.twist = self._predicted_twist(se3_log(best.step) / dt, measured)
         T_world = _orthonormalised(self.poses[-1] @ best.step)
+        if best.reference_planes is not self.planes[best.relative.prev]:
+            self.superseded.add(epoch.index)
         self._append(epoch, T_world, best.step, best.relative, t)
         return T_world
 
@@ -244,6 +257,7 @@ class PlaneOdometry:
         self._steps.append(step)
         self.times.append(t)
         self.results.append(result)
+        self.planes.append(epoch.planes)
         self._history.append(epoch)
         if len(epoch.planes) >= 2:
             self._last_usable = epoch

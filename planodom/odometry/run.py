@@ -24,8 +24,11 @@ class OdometryRun:
         poses: (N, 4, 4) ``T_world_base`` per epoch (first is identity).
         times: (N,) seconds.
         results: per epoch the relative pose from its reference epoch (None for the first).
-        n_planes: (N,) planes extracted per epoch.
-        planes: the planes of every epoch (base frame), for smoothing and diagnostics.
+        n_planes: (N,) planes extracted per epoch (at its registration).
+        planes: the planes of every epoch (base frame), as last extracted
+            (:attr:`PlaneOdometry.planes`), for smoothing and diagnostics.
+        superseded: epochs whose result indexes planes extracted again later
+            (:attr:`PlaneOdometry.superseded`).
         seconds: wall time spent in extraction and in odometry, seconds.
         config: the configuration the run used (with a rig's motion bounds).
     """
@@ -35,6 +38,7 @@ class OdometryRun:
     results: list[RelativePose | None]
     n_planes: np.ndarray
     planes: list[list[Plane]] = field(default_factory=list)
+    superseded: list[int] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
     config: PlanodomConfig | None = None
 
@@ -103,7 +107,7 @@ def run_odometry(
     if times is None:
         times = getattr(source, "times", None)
     total = 0.0
-    all_planes: list[list[Plane]] = []
+    n_planes = np.zeros(n, dtype=int)
     for k in range(n):
         item = source[k]
         t_k = None if times is None else float(times[k])
@@ -113,15 +117,16 @@ def run_odometry(
         else:
             odo.register_planes(list(item), t_k)
         total += _time.perf_counter() - c0
-        all_planes.append(odo.last_planes)
+        n_planes[k] = len(odo.last_planes)
         if progress is not None:
             progress(k + 1, n)
     return OdometryRun(
         poses=np.array(odo.poses).reshape(-1, 4, 4),
         times=np.array(odo.times),
         results=odo.results,
-        n_planes=np.array([len(p) for p in all_planes], dtype=int),
-        planes=all_planes,
+        n_planes=n_planes,
+        planes=odo.planes,
+        superseded=sorted(odo.superseded),
         seconds={"extraction": timed.seconds, "odometry": total - timed.seconds},
         config=cfg,
     )

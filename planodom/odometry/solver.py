@@ -208,7 +208,7 @@ def _solve(
     if rot_cons is not None:
         rot_pair = np.r_[lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index]]
     if measured and tr is not None and tr.best >= 0:
-        trans_pair = np.r_[elems.prev_pairs[tr.best], elems.curr_pairs[tr.best]]
+        trans_pair = elems.pairs[tr.best]
     cov = np.zeros((5, 5))
     cov[:3, :3], cov[3:, 3:] = cov_r, cov_t
     if rot_pair is not None and trans_pair is not None:
@@ -339,7 +339,7 @@ def _translation(prev, curr, elems: TranslationElements, heights, z0: float, met
         cons = consensus(
             cands, elems.ref_prev, elems.targets(z0), apply_negative_translation,
             weights=elems.weights if method == "wocsc" else None,
-            inlier_tol=ocfg.translation_inlier_m, groups=_pair_ids(elems.prev_pairs),
+            inlier_tol=ocfg.translation_inlier_m, groups=_pair_ids(elems.pairs[:, :2]),
         )  # fmt: skip
         best = cons.best_index
         a, g = a_all[best], g_all[best]

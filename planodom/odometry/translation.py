@@ -26,25 +26,18 @@ from planodom.planes import PlaneSet
 
 @dataclass(frozen=True, eq=False)
 class TranslationElements:
-    """Reference points of associated pairs (only pairs defined in both epochs).
+    """Reference points of associated pairs (only pairs defined in both epochs)."""
 
-    Attributes:
-        prev_pairs, curr_pairs: (E, 2) plane indices.
-        ref_prev: (E, 2) previous reference points, metres.
-        ref_curr0: (E, 2) reference points of the rotated current pairs at height 0, m.
-        slope: (E, 2) ``g``: change of the current reference point per metre of height.
-        weights: (E,) confidence of each element (see :func:`translation_elements`).
-    """
-
-    prev_pairs: np.ndarray
-    curr_pairs: np.ndarray
+    pairs: np.ndarray
+    """(E, 4) int ``(i1, i2, j1, j2)``: previous planes i1, i2 associated with j1, j2."""
     ref_prev: np.ndarray
+    """(E, 2) previous reference points, metres."""
     ref_curr0: np.ndarray
+    """(E, 2) reference points of the rotated current pairs at height 0, metres."""
     slope: np.ndarray
+    """(E, 2) ``g``: change of the current reference point per metre of height."""
     weights: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.weights)
+    """(E,) confidence of each element (see :func:`translation_elements`)."""
 
     def targets(self, z: float) -> np.ndarray:
         """(E, 2) current reference points for a vertical translation ``z``, metres."""
@@ -53,6 +46,9 @@ class TranslationElements:
     def candidates(self, z: float) -> np.ndarray:
         """(E, 2) translation candidates ``varpi_k - varpi'(z)``, metres."""
         return self.ref_prev - self.targets(z)
+
+    def __len__(self) -> int:
+        return len(self.weights)
 
 
 def translation_elements(
@@ -93,9 +89,8 @@ def translation_elements(
     ok &= np.abs(cos_p) <= np.cos(min_angle)
     w = prev.weights[i1] * prev.weights[i2] * curr.weights[j1] * curr.weights[j2]
     w = w * (1.0 - cos_p**2) * (1.0 - cos_c**2)  # sin^2 = 1 - cos^2 for unit normals
-    return TranslationElements(
-        prev_pairs[ok], curr_pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok]
-    )
+    pairs = np.column_stack([prev_pairs, curr_pairs])
+    return TranslationElements(pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok])
 
 
 def pairs_of_associations(
@@ -111,22 +106,23 @@ def pairs_of_associations(
 
 @dataclass(frozen=True, eq=False)
 class HeightElements:
-    """Near-horizontal plane associations: ``t_z = b - m . (t_x, t_y)``.
-
-    Attributes: b (H,) metres, m (H, 2), weights (H,), ij (H, 2) plane associations.
-    """
+    """Near-horizontal plane associations: ``t_z = b - m . (t_x, t_y)``."""
 
     b: np.ndarray
+    """(H,) metres."""
     m: np.ndarray
+    """(H, 2) horizontal slope."""
     weights: np.ndarray
+    """(H,) confidences."""
     ij: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.b)
+    """(H, 2) the plane associations (previous, current)."""
 
     def heights(self, txy: np.ndarray) -> np.ndarray:
         """(H,) vertical translation each element gives for a horizontal one (2,), m."""
         return self.b - self.m @ txy
+
+    def __len__(self) -> int:
+        return len(self.b)
 
 
 def height_elements(

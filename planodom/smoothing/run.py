@@ -1,14 +1,16 @@
 """End to end: scans -> planes and odometry (delta = 1) -> relative poses delta = 2..D -> smoothing.
 
 The paper's odometry (:func:`planodom.odometry.run_odometry`, delta = 1) extracts each
-epoch's planes and gives the raw trajectory; the stored planes then give the relative
-poses between epochs ``k - delta`` and ``k`` for delta = 1..D
+epoch's planes, gives the raw trajectory and the relative pose of each epoch from its
+reference epoch (``k - 1``, or an earlier one when ``k - 1`` has too few planes): these
+are reused as they are (:func:`smoothing_relatives`). The stored planes then give the
+other relative poses between epochs ``k - delta`` and ``k`` for delta = 1..D
 (:func:`planodom.odometry.estimate_relative_pose`, with the odometry's chained motion as
-prior and association bounds widened with delta, as the streaming odometry does). The
-delta = 1 poses are recomputed rather than taken from the streaming run, whose reference
-epoch may be an earlier one when epoch ``k - 1`` has too few planes. Every
-resolved relative pose becomes a 5-DoF factor (a rotation-only factor when the odometry
-reports "degenerate": rotation measured, translation not), every SDA chain a landmark.
+prior and association bounds widened with delta, as the streaming odometry does); a
+streaming result whose planes were extracted again later (the first epoch, deskewed once
+a twist is known) is recomputed too. Every resolved relative pose becomes a 5-DoF factor
+(a rotation-only factor when the odometry reports "degenerate": rotation measured,
+translation not), every SDA chain a landmark.
 
 The odometry's own vertical estimate (from associated ground planes) is not used as a
 factor: the plane factors of the ground landmark carry the same information.
@@ -17,7 +19,7 @@ factor: the plane factors of the ground landmark carry the same information.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Sequence, Set
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -100,6 +102,7 @@ def relative_poses(
     deltas: Sequence[int],
     guess_poses: np.ndarray | None = None,
     progress: Progress | None = None,
+    skip: Set[tuple[int, int]] = frozenset(),
 ) -> list[RelativePose]:
     """Relative poses between epochs ``k - delta`` and ``k`` for each delta in ``deltas``.
 
@@ -110,23 +113,37 @@ def relative_poses(
         guess_poses: (E, 4, 4) a trajectory guess (the delta = 1 odometry); its relative
             motion is the prior of each estimate. None: no prior.
         progress: called as ``progress("relatives", done, total)``.
+        skip: ``(prev, curr)`` epoch pairs not to estimate (known already).
     """
+    pairs = [(k - d, k) for d in deltas for k in range(d, len(planes)) if (k - d, k) not in skip]
+    configs = {d: config_for_gap(config, d) for d in deltas}
     out: list[RelativePose] = []
-    n = len(planes)
-    total = sum(max(n - d, 0) for d in deltas)
-    done = 0
-    for delta in deltas:
-        cfg = config_for_gap(config, delta)
-        for k in range(delta, n):
-            prior = None
-            if guess_poses is not None:
-                prior = invert_transform(guess_poses[k - delta]) @ guess_poses[k]
-            rel = estimate_relative_pose(planes[k - delta], planes[k], cfg, prior)
-            out.append(_checked(rel.between(k - delta, k), planes[k]))
-            done += 1
-            if progress is not None:
-                progress("relatives", done, total)
+    for done, (prev, curr) in enumerate(pairs, start=1):
+        prior = None
+        if guess_poses is not None:
+            prior = invert_transform(guess_poses[prev]) @ guess_poses[curr]
+        rel = estimate_relative_pose(planes[prev], planes[curr], configs[curr - prev], prior)
+        out.append(_checked(rel.between(prev, curr), planes[curr]))
+        if progress is not None:
+            progress("relatives", done, len(pairs))
     return out
+
+
+def smoothing_relatives(
+    odometry: OdometryRun, config: PlanodomConfig, progress: Progress | None = None
+) -> list[RelativePose]:
+    """The relative poses for delta = 1..``smoothing.delta_max``: the streaming odometry's
+    own results (but those it superseded), then the others estimated from its planes
+    (:func:`relative_poses`, its poses as priors)."""
+    reused = [
+        _checked(r, odometry.planes[r.curr])
+        for r in odometry.results
+        if r is not None and r.curr not in odometry.superseded
+    ]
+    known = {(r.prev, r.curr) for r in reused}
+    deltas = range(1, config.smoothing.delta_max + 1)
+    rest = relative_poses(odometry.planes, config, deltas, odometry.poses, progress, known)
+    return reused + rest
 
 
 def run_smoothing(
@@ -175,9 +192,7 @@ def run_smoothing(
     seconds["extraction"] = odometry.seconds.get("extraction", 0.0)
     seconds["odometry"] = odometry.seconds.get("odometry", 0.0)
     start = time.perf_counter()
-    relatives = relative_poses(
-        odometry.planes, cfg, range(1, cfg.smoothing.delta_max + 1), odometry.poses, progress
-    )
+    relatives = smoothing_relatives(odometry, cfg, progress)
     seconds["relatives"] = time.perf_counter() - start
 
     smooth = smooth_batch if mode == "batch" else smooth_windowed

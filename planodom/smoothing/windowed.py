@@ -118,10 +118,10 @@ def smooth_windowed(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
     config: SmoothingConfig | PlanodomConfig | None = None,
-    T_world_first: np.ndarray | None = None,
 ) -> SmoothingResult:
-    """Run :class:`WindowedSmoother` over a whole sequence (same inputs as smooth_batch)."""
-    smoother = WindowedSmoother(config, T_world_first)
+    """Run :class:`WindowedSmoother` over a whole sequence (inputs as :func:`smooth_batch`;
+    the first pose at identity, else use the class)."""
+    smoother = WindowedSmoother(config)
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
     for k, planes in enumerate(epochs_planes):
         smoother.add_epoch(planes, by_epoch[k])

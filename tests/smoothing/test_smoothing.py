@@ -291,3 +291,22 @@ def test_rotation_needs_two_non_parallel_associated_planes() -> None:
     assert not rotation_determined([ground, wall], np.array([[0, 0]]))
     assert not rotation_determined([wall, parallel], np.array([[0, 0], [1, 1]]))
     assert not rotation_determined([ground], np.array([[0, 0], [1, 5]]))  # index out of range
+
+
+def test_smoothing_reuses_the_odometry_results_and_estimates_the_rest() -> None:
+    from planodom.odometry import run_odometry
+    from planodom.smoothing.run import smoothing_relatives
+
+    seq = make_sequence(12, seed=1, step_m=0.5)
+    cfg = PlanodomConfig()
+    odo = run_odometry(seq.planes, cfg, times=0.1 * np.arange(12))
+    assert odo.superseded == [] and all(r.measured for r in odo.results[1:])
+    relatives = smoothing_relatives(odo, cfg)
+    pairs = [(r.prev, r.curr) for r in relatives]
+    assert len(pairs) == len(set(pairs)) == 11 + 10 + 9  # delta = 1, 2, 3, once each
+    for k in range(1, 12):
+        assert relatives[k - 1] is odo.results[k]  # the streaming estimate itself
+    truth = [np.linalg.inv(seq.poses[r.prev]) @ seq.poses[r.curr] for r in relatives]
+    for r, T in zip(relatives, truth, strict=True):
+        np.testing.assert_allclose(r.T_prev_curr[:3, :3], T[:3, :3], atol=1e-9)
+        np.testing.assert_allclose(r.T_prev_curr[:2, 3], T[:2, 3], atol=1e-8)
