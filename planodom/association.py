@@ -31,7 +31,6 @@ plane only its best match.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,81 +38,15 @@ from scipy.optimize import linear_sum_assignment
 
 from planodom.config import AssociationConfig
 from planodom.geometry import (
-    Plane,
     dihedral_angles,
     horizontal_reference_points,
     make_transform,
-    plane_transform_jacobian,
     rotation_frames,
-    transform_planes,
-    transform_points,
 )
+from planodom.planes import PlaneSet
 
 #: Cost of a forbidden match in the SDA assignment (gated costs are at most 2).
 _FORBIDDEN = 1e6
-
-
-@dataclass(frozen=True, eq=False)
-class PlaneArrays:
-    """The planes of one epoch as arrays, what association and consensus need.
-
-    Attributes:
-        normals: (K, 3) unit normals. offsets: (K,) metres. weights: (K,) confidences.
-        centroids: (K, 3) support centroids, metres (NaN rows when unknown).
-        radii: (K,) largest distance from centroid to support polygon vertex, metres
-            (NaN when the polygon is unknown).
-        covariances: (K, 4, 4) covariances of ``(n, d)`` (NaN when unknown).
-    """
-
-    normals: np.ndarray
-    offsets: np.ndarray
-    weights: np.ndarray
-    centroids: np.ndarray
-    radii: np.ndarray
-    covariances: np.ndarray
-
-    @classmethod
-    def from_planes(cls, planes: Sequence[Plane]) -> PlaneArrays:
-        k = len(planes)
-        normals, offsets = np.zeros((k, 3)), np.zeros(k)
-        weights, centroids, radii = np.ones(k), np.full((k, 3), np.nan), np.full(k, np.nan)
-        covariances = np.full((k, 4, 4), np.nan)
-        for i, p in enumerate(planes):
-            normals[i], offsets[i], weights[i] = p.normal, p.offset, p.confidence
-            if p.covariance is not None:
-                covariances[i] = p.covariance
-            if p.support is not None:
-                centroids[i] = p.support.centroid
-                if len(p.support.polygon):
-                    radii[i] = np.max(np.linalg.norm(p.support.polygon - centroids[i], axis=1))
-        return cls(normals, offsets, weights, centroids, radii, covariances)
-
-    def __len__(self) -> int:
-        return len(self.offsets)
-
-    def transformed(self, T_a_b: np.ndarray) -> PlaneArrays:
-        """These planes (in frame b) expressed in frame a; covariances follow."""
-        n, d = transform_planes(T_a_b, self.normals, self.offsets)
-        J = plane_transform_jacobian(T_a_b)
-        cov = J @ self.covariances @ J.T
-        centroids = transform_points(T_a_b, self.centroids)
-        return PlaneArrays(n, d, self.weights, centroids, self.radii, cov)
-
-    def take(self, index: np.ndarray) -> PlaneArrays:
-        """The planes at ``index`` (int array or mask), in that order."""
-        return PlaneArrays(
-            self.normals[index],
-            self.offsets[index],
-            self.weights[index],
-            self.centroids[index],
-            self.radii[index],
-            self.covariances[index],
-        )
-
-
-def as_plane_arrays(planes: Sequence[Plane] | PlaneArrays) -> PlaneArrays:
-    """Accept a list of :class:`Plane` or ready :class:`PlaneArrays`."""
-    return planes if isinstance(planes, PlaneArrays) else PlaneArrays.from_planes(planes)
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,8 +106,8 @@ def nonparallel_pairs(normals: np.ndarray, parallel_angle: float) -> tuple[np.nd
 
 
 def _plane_gate(
-    prev: PlaneArrays,
-    curr_in_prev: PlaneArrays,
+    prev: PlaneSet,
+    curr_in_prev: PlaneSet,
     curr_ranges: np.ndarray,
     t_bound: float,
     t_prior: float,
@@ -213,8 +146,8 @@ def _gated_combinations(
 
 
 def lenient_association(
-    prev: Sequence[Plane] | PlaneArrays,
-    curr: Sequence[Plane] | PlaneArrays,
+    prev: PlaneSet,
+    curr: PlaneSet,
     config: AssociationConfig | None = None,
     prior: np.ndarray | None = None,
 ) -> PairAssociations:
@@ -232,7 +165,6 @@ def lenient_association(
         either epoch has no non-parallel pair).
     """
     cfg = config or AssociationConfig()
-    prev, curr = as_plane_arrays(prev), as_plane_arrays(curr)
     if len(prev) < 2 or len(curr) < 2:
         return PairAssociations.empty()
     if prior is None:
@@ -280,25 +212,10 @@ def lenient_association(
     cos_dev = (np.einsum("ij,mij->m", T0[:3, :3], R) - 1.0) / 2.0
     ok = cos_dev >= np.cos(min(rot_bound + normal_tol, np.pi))
 
-    # Translation bound on the pair's reference point (NaN when undefined: passes).
-    n1 = np.einsum("mij,mj->mi", R, curr.normals[j1])
-    n2 = np.einsum("mij,mj->mi", R, curr.normals[j2])
-    # Both epochs' reference points in one call: previous, then rotated current.
-    refs = horizontal_reference_points(
-        np.concatenate([prev.normals[i1], n1]),
-        np.concatenate([prev.offsets[i1], curr.offsets[j1] - n1[:, 2] * t0[2]]),
-        np.concatenate([prev.normals[i2], n2]),
-        np.concatenate([prev.offsets[i2], curr.offsets[j2] - n2[:, 2] * t0[2]]),
-        cfg.min_line_verticality,
-    )
-    ref_p, ref_c = refs[: len(i1)], refs[len(i1) :]
-    dev = np.linalg.norm(ref_p - ref_c - t0[:2], axis=1)
-    bound = (
-        t_bound
-        + cfg.offset_tol_m / np.sin(a_p)
-        + np.linalg.norm(ref_p, axis=1) * np.sin(normal_tol)
-    )
-    ok &= ~(dev > bound)
+    ok &= _reference_points_agree(
+        prev, curr, (i1, i2, j1, j2), R, t0, t_bound + cfg.offset_tol_m / np.sin(a_p),
+        normal_tol, cfg.min_line_verticality,
+    )  # fmt: skip
 
     w = prev.weights[i1] * prev.weights[i2] * curr.weights[j1] * curr.weights[j2]
     return PairAssociations(
@@ -309,9 +226,44 @@ def lenient_association(
     )
 
 
+def _reference_points_agree(
+    prev: PlaneSet,
+    curr: PlaneSet,
+    pairs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    R: np.ndarray,
+    t0: np.ndarray,
+    bound: np.ndarray,
+    normal_tol: float,
+    min_verticality: float,
+) -> np.ndarray:
+    """(M,) bool: the translation bound on each pair's reference point (NaN when
+    undefined: passes).
+
+    Args:
+        pairs: (i1, i2, j1, j2), each (M,): the pair association ``(i1, i2) -> (j1, j2)``.
+        R: (M, 3, 3) the candidate rotations; t0: (3,) the prior's translation, m.
+        bound: (M,) allowed deviation of the reference point from ``t0``, m, before the
+            rotation-noise margin (``|varpi| sin(normal_tol)``) is added.
+    """
+    i1, i2, j1, j2 = pairs
+    n1 = np.einsum("mij,mj->mi", R, curr.normals[j1])
+    n2 = np.einsum("mij,mj->mi", R, curr.normals[j2])
+    # Both epochs' reference points in one call: previous, then rotated current.
+    refs = horizontal_reference_points(
+        np.concatenate([prev.normals[i1], n1]),
+        np.concatenate([prev.offsets[i1], curr.offsets[j1] - n1[:, 2] * t0[2]]),
+        np.concatenate([prev.normals[i2], n2]),
+        np.concatenate([prev.offsets[i2], curr.offsets[j2] - n2[:, 2] * t0[2]]),
+        min_verticality,
+    )
+    ref_p, ref_c = refs[: len(i1)], refs[len(i1) :]
+    dev = np.linalg.norm(ref_p - ref_c - t0[:2], axis=1)
+    return ~(dev > bound + np.linalg.norm(ref_p, axis=1) * np.sin(normal_tol))
+
+
 def strict_association(
-    prev: Sequence[Plane] | PlaneArrays,
-    curr: Sequence[Plane] | PlaneArrays,
+    prev: PlaneSet,
+    curr: PlaneSet,
     rotation: np.ndarray,
     config: AssociationConfig | None = None,
     translation: np.ndarray | None = None,
@@ -337,7 +289,6 @@ def strict_association(
         appears at most once.
     """
     cfg = config or AssociationConfig()
-    prev, curr = as_plane_arrays(prev), as_plane_arrays(curr)
     if len(prev) == 0 or len(curr) == 0:
         return np.zeros((0, 2), dtype=np.intp)
     t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)

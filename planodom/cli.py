@@ -245,13 +245,13 @@ def run(
     metrics.json to --out, and prints a summary.
     """
     from planodom import results
-    from planodom.odometry import motion_assumption, run_odometry
-    from planodom.report import odometry_table
+    from planodom.odometry import run_odometry
+    from planodom.report import motion_assumption, odometry_table
 
     cfg = _load_config(config, {"odometry.pipeline": pipeline, "odometry.delta": delta})
     data = source.load(out)
     with _progress("odometry") as callback:
-        odo = run_odometry(data, cfg, progress=callback)
+        odo = run_odometry(data, cfg, data.rig, progress=callback)
     metrics = results.write_odometry_run(out, odo, data.gt_poses)
     console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
     console.print(odometry_table(odo, metrics, title=f"planodom run -> {out}"))
@@ -286,7 +286,7 @@ def smooth(
     data = source.load(out)
     with _progress("odometry and relative poses") as callback:
         sm = run_smoothing(
-            data, cfg, window=window, delta=delta, mode=mode,
+            data, cfg, data.rig, window=window, delta=delta, mode=mode,
             progress=lambda stage, k, n: callback(k, n),
         )  # fmt: skip
     odo_metrics = results.write_odometry_run(out, sm.odometry, data.gt_poses)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -132,14 +133,8 @@ def consensus(
     candidates = np.asarray(candidates, dtype=np.float64)
     source = np.asarray(source, dtype=np.float64)
     target = np.asarray(target, dtype=np.float64)
+    w = _checked_weights(candidates, source, target, weights)
     n_cand, n_elem = len(candidates), len(source)
-    if n_cand == 0:
-        raise ValueError("consensus needs at least one candidate")
-    if len(target) != n_elem:
-        raise ValueError(f"consensus: {n_elem} source elements but {len(target)} targets")
-    w = np.ones(n_elem) if weights is None else np.asarray(weights, dtype=np.float64)
-    if w.shape != (n_elem,) or np.any(w < 0) or not np.all(np.isfinite(w)):
-        raise ValueError(f"consensus: weights must be {n_elem} finite non-negative numbers")
     cap = np.inf if truncate is None else float(truncate) ** 2
 
     defined = np.isfinite(source.reshape(n_elem, -1)).all(axis=1)
@@ -147,31 +142,18 @@ def consensus(
     used = np.flatnonzero(defined & (w > 0))
     gid = np.arange(n_elem) if groups is None else np.asarray(groups)
     used = used[np.argsort(gid[used], kind="stable")]  # group members side by side
-
-    def totals_of(cand_index: np.ndarray, elems: np.ndarray) -> np.ndarray:
-        g = gid[elems]
-        starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1]]) if len(elems) else elems
-        out = np.zeros(len(cand_index))
-        block = max(1, _BLOCK // max(len(elems), 1))
-        for b in range(0, len(cand_index) if len(elems) else 0, block):
-            idx = cand_index[b : b + block]
-            e = error(apply(candidates[idx], source[elems]), target[elems])
-            e = np.minimum(np.where(np.isfinite(e), e, np.inf), cap) * w[elems]
-            if groups is not None:
-                e = np.minimum.reduceat(e, starts, axis=1)
-            out[b : b + block] = e.sum(axis=1)
-        return out
+    problem = _Problem(candidates, source, target, apply, error, w, cap, gid, groups is not None)
 
     everyone = np.arange(n_cand)
     if budget is not None and n_cand > shortlist and n_cand * len(used) > budget:
         group_rank = np.cumsum(np.r_[True, gid[used][1:] != gid[used][:-1]]) - 1
         stride = int(np.ceil(n_cand * len(used) / budget))
-        rough = totals_of(everyone, used[group_rank % stride == 0])
+        rough = _totals(problem, everyone, used[group_rank % stride == 0])
         chosen = np.sort(np.argsort(rough, kind="stable")[:shortlist])
         totals = np.full(n_cand, np.inf)
-        totals[chosen] = totals_of(chosen, used)
+        totals[chosen] = _totals(problem, chosen, used)
     else:
-        totals = totals_of(everyone, used)
+        totals = _totals(problem, everyone, used)
     best = int(np.argmin(totals))
 
     best_errors = error(apply(candidates[best : best + 1], source), target)[0]
@@ -180,3 +162,51 @@ def consensus(
     with np.errstate(invalid="ignore"):
         inliers = defined & (best_errors <= tol2)
     return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
+
+
+def _checked_weights(
+    candidates: np.ndarray, source: np.ndarray, target: np.ndarray, weights: np.ndarray | None
+) -> np.ndarray:
+    """The weights (E,) (ones for None) after checking the inputs' sizes."""
+    n_elem = len(source)
+    if len(candidates) == 0:
+        raise ValueError("consensus needs at least one candidate")
+    if len(target) != n_elem:
+        raise ValueError(f"consensus: {n_elem} source elements but {len(target)} targets")
+    w = np.ones(n_elem) if weights is None else np.asarray(weights, dtype=np.float64)
+    if w.shape != (n_elem,) or np.any(w < 0) or not np.all(np.isfinite(w)):
+        raise ValueError(f"consensus: weights must be {n_elem} finite non-negative numbers")
+    return w
+
+
+class _Problem(NamedTuple):
+    """What scoring candidates needs (see :func:`consensus`); ``cap`` is the truncation
+    of the squared error, ``gid`` the group id per element, ``grouped`` whether groups
+    were given."""
+
+    candidates: np.ndarray
+    source: np.ndarray
+    target: np.ndarray
+    apply: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    error: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    weights: np.ndarray
+    cap: float
+    gid: np.ndarray
+    grouped: bool
+
+
+def _totals(p: _Problem, cand_index: np.ndarray, elems: np.ndarray) -> np.ndarray:
+    """Consensus error (len(cand_index),) of the candidates over the elements ``elems``
+    (group members side by side), in blocks of at most ``_BLOCK`` evaluations."""
+    g = p.gid[elems]
+    starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1]]) if len(elems) else elems
+    out = np.zeros(len(cand_index))
+    block = max(1, _BLOCK // max(len(elems), 1))
+    for b in range(0, len(cand_index) if len(elems) else 0, block):
+        idx = cand_index[b : b + block]
+        e = p.error(p.apply(p.candidates[idx], p.source[elems]), p.target[elems])
+        e = np.minimum(np.where(np.isfinite(e), e, np.inf), p.cap) * p.weights[elems]
+        if p.grouped:
+            e = np.minimum.reduceat(e, starts, axis=1)
+        out[b : b + block] = e.sum(axis=1)
+    return out

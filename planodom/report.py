@@ -7,7 +7,19 @@ from collections.abc import Mapping
 import numpy as np
 from rich.table import Table
 
+from planodom.config import PlanodomConfig
 from planodom.simulation.simulate import SimulatedRun
+
+
+def motion_assumption(config: PlanodomConfig) -> str:
+    """One line stating what the absolute constraints of the association assume."""
+    a, d = config.association, config.odometry.delta
+    return (
+        f"association assumes at most {a.max_translation_m:g} m and {a.max_rotation_deg:g} deg "
+        f"of motion between consecutive epochs (x{d} for delta = {d}); with a "
+        f"constant-velocity prior, {a.prior_translation_m:g} m / {a.prior_rotation_deg:g} deg "
+        "around it (config association.max_*/prior_*, or motion_bounds in rig.yaml)"
+    )
 
 
 def simulation_table(run: SimulatedRun, title: str = "simulation") -> Table:

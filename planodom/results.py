@@ -24,7 +24,7 @@ from planodom.config import PlanodomConfig
 from planodom.datasets import write_tum
 
 __all__ = ["write_tum"]
-from planodom.odometry import OdometryRun
+from planodom.odometry import OdometryRun, epoch_rows
 
 
 def prepare_output(out: str | Path) -> Path:
@@ -108,7 +108,7 @@ def odometry_metrics(run: OdometryRun, gt_poses: np.ndarray | None) -> dict[str,
 def write_odometry_run(out: Path, run: OdometryRun, gt_poses: np.ndarray | None) -> dict:
     """Write every output of an odometry run to ``out``; returns the metrics."""
     write_trajectory(out, run.times, run.poses)
-    write_rows(out / "epochs.csv", run.rows())
+    write_rows(out / "epochs.csv", epoch_rows(run))
     if run.config is not None:
         write_config(out, run.config)
     stats = odometry_metrics(run, gt_poses)

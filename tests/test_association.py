@@ -10,16 +10,30 @@ from hypothesis import strategies as st
 from planes_factory import noisy, observe, random_motion, world_planes
 
 from planodom.association import (
-    PlaneArrays,
     lenient_association,
     strict_association,
 )
 from planodom.config import AssociationConfig
 from planodom.geometry import Plane, dihedral_angle, transform_from_rpy_xyz
+from planodom.planes import PlaneSet
 
 LOOSE = AssociationConfig(
     max_translation_m=1e3, max_rotation_deg=180.0, overlap_margin_m=1e3, offset_tol_m=1e3
 )
+
+
+def lda_of(prev, curr, *args, **kwargs):
+    """LDA of two plane lists."""
+    return lenient_association(
+        PlaneSet.from_planes(prev), PlaneSet.from_planes(curr), *args, **kwargs
+    )
+
+
+def sda_of(prev, curr, *args, **kwargs):
+    """SDA of two plane lists."""
+    return strict_association(
+        PlaneSet.from_planes(prev), PlaneSet.from_planes(curr), *args, **kwargs
+    )
 
 
 def two_epochs(seed: int, n_walls: int = 6, motion=None):
@@ -66,7 +80,7 @@ def brute_force_lda(prev, curr, parallel_deg, tol_deg) -> set:
 @given(st.integers(0, 10_000))
 def test_lda_relative_constraint_matches_brute_force(seed):
     _, prev, curr, _ = two_epochs(seed)
-    lda = lenient_association(prev, curr, LOOSE)
+    lda = lda_of(prev, curr, LOOSE)
     assert as_set(lda) == brute_force_lda(
         prev, curr, LOOSE.parallel_angle_deg, LOOSE.dihedral_tol_deg
     )
@@ -75,7 +89,7 @@ def test_lda_relative_constraint_matches_brute_force(seed):
 @given(st.integers(0, 10_000))
 def test_lda_keeps_every_true_pair_within_the_motion_bounds(seed):
     _, prev, curr, _ = two_epochs(seed)
-    lda = lenient_association(prev, curr)
+    lda = lda_of(prev, curr)
     found = as_set(lda)
     assert true_pairs(prev, curr, 15.0) <= found
     # The rotations of the true pairs are the true rotation.
@@ -86,8 +100,8 @@ def test_absolute_constraints_prune_the_ambiguous_pairs():
     loose = total = 0
     for seed in range(20):
         _, prev, curr, _ = two_epochs(seed, n_walls=8)
-        loose += len(lenient_association(prev, curr, LOOSE))
-        total += len(lenient_association(prev, curr))
+        loose += len(lda_of(prev, curr, LOOSE))
+        total += len(lda_of(prev, curr))
     assert total < 0.5 * loose
 
 
@@ -95,15 +109,15 @@ def test_motion_beyond_the_bounds_needs_a_prior_or_larger_bounds():
     big = transform_from_rpy_xyz(0.01, 0.0, np.radians(40.0), 3.0, -1.0)
     _, prev, curr, T = two_epochs(7, motion=big)
     want = true_pairs(prev, curr, 15.0)
-    assert not want & as_set(lenient_association(prev, curr))  # default: 20 deg, 1 m
-    assert want <= as_set(lenient_association(prev, curr, prior=T))
+    assert not want & as_set(lda_of(prev, curr))  # default: 20 deg, 1 m
+    assert want <= as_set(lda_of(prev, curr, prior=T))
     wide = AssociationConfig(max_rotation_deg=60.0, max_translation_m=4.0)
-    assert want <= as_set(lenient_association(prev, curr, wide))
+    assert want <= as_set(lda_of(prev, curr, wide))
 
 
 def test_rotations_of_true_pairs_are_exact():
     _, prev, curr, T = two_epochs(3)
-    lda = lenient_association(prev, curr)
+    lda = lda_of(prev, curr)
     want = true_pairs(prev, curr, 15.0)
     assert want
     for p, c, R in zip(lda.prev_pairs, lda.curr_pairs, lda.rotations, strict=True):
@@ -116,15 +130,15 @@ def test_rotations_of_true_pairs_are_exact():
 def test_lda_of_degenerate_inputs_is_empty():
     n = np.array([1.0, 0.0, 0.0])
     parallel = [Plane(n, 2.0), Plane(n, 5.0), Plane(-n, 3.0)]
-    assert len(lenient_association(parallel, parallel)) == 0
-    assert len(lenient_association(parallel[:1], parallel[:1])) == 0
-    assert len(lenient_association([], [])) == 0
-    assert lenient_association([], []).plane_associations().shape == (0, 2)
+    assert len(lda_of(parallel, parallel)) == 0
+    assert len(lda_of(parallel[:1], parallel[:1])) == 0
+    assert len(lda_of([], [])) == 0
+    assert lda_of([], []).plane_associations().shape == (0, 2)
 
 
 def test_plane_associations_are_unique_and_sorted():
     _, prev, curr, _ = two_epochs(5)
-    ij = lenient_association(prev, curr).plane_associations()
+    ij = lda_of(prev, curr).plane_associations()
     assert len(np.unique(ij, axis=0)) == len(ij)
     assert np.all(np.diff(ij[:, 0] * 1000 + ij[:, 1]) > 0)
 
@@ -135,7 +149,7 @@ def test_plane_associations_are_unique_and_sorted():
 @given(st.integers(0, 10_000))
 def test_sda_recovers_truth_and_is_injective(seed):
     _, prev, curr, T = two_epochs(seed)
-    ij = strict_association(prev, curr, T[:3, :3])
+    ij = sda_of(prev, curr, T[:3, :3])
     assert len(np.unique(ij[:, 0])) == len(ij) == len(np.unique(ij[:, 1]))
     truth = {
         (i, j) for i, p in enumerate(prev) for j, q in enumerate(curr) if p.truth_id == q.truth_id
@@ -148,7 +162,7 @@ def test_sda_stays_injective_with_duplicated_planes():
     _, prev, curr, T = two_epochs(2)
     # Near-copies of every current plane (5 mm and 0.2 deg away) compete for each match.
     curr2 = curr + noisy(curr, rng, np.radians(0.2), 0.005)
-    ij = strict_association(prev, curr2, T[:3, :3], translation=T[:3, 3], translation_bound=0.05)
+    ij = sda_of(prev, curr2, T[:3, :3], translation=T[:3, 3], translation_bound=0.05)
     assert len(np.unique(ij[:, 0])) == len(ij) == len(np.unique(ij[:, 1]))
     assert len(ij) == len(prev)
     assert all(prev[i].truth_id == curr2[j].truth_id for i, j in ij)
@@ -157,15 +171,6 @@ def test_sda_stays_injective_with_duplicated_planes():
 def test_sda_rejects_a_wrong_rotation():
     _, prev, curr, T = two_epochs(4)
     wrong = transform_from_rpy_xyz(0, 0, np.radians(10.0), 0, 0)[:3, :3] @ T[:3, :3]
-    ij = strict_association(prev, curr, wrong)
+    ij = sda_of(prev, curr, wrong)
     # Only planes whose normals are (nearly) vertical survive a 10 deg yaw error.
     assert all(abs(prev[i].normal[2]) > 0.9 for i, _ in ij)
-
-
-def test_plane_arrays_from_planes():
-    _, prev, _, _ = two_epochs(1)
-    arr = PlaneArrays.from_planes(prev)
-    assert arr.normals.shape == (len(prev), 3) and arr.radii.shape == (len(prev),)
-    assert np.all(arr.radii > 0)
-    bare = PlaneArrays.from_planes([Plane([0, 0, 1.0], 1.0)])
-    assert np.isnan(bare.radii[0]) and np.isnan(bare.centroids[0]).all()

@@ -2,8 +2,16 @@
 
 from __future__ import annotations
 
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from planodom.config.odometry import AngleDeg, Positive
 from planodom.config.section import Section
 from planodom.errors import ConfigError
+
+#: A probability or fraction in (0, 1].
+Fraction = Annotated[float, Field(gt=0, le=1)]
 
 
 class SmoothingConfig(Section):
@@ -14,73 +22,71 @@ class SmoothingConfig(Section):
     ``default_*`` fields stand in when an input carries no uncertainty at all.
     """
 
-    delta_max: int = 3
+    delta_max: Annotated[int, Field(ge=1)] = 3
     """D: relative poses (and associations) between epochs k - delta and k, delta = 1..D."""
-    window: int = 10
+    window: Annotated[int, Field(ge=2)] = 10
     """W: epochs kept by the fixed-lag smoother (windowed mode); needs W > D."""
-    windowed_backend: str = "incremental"
+    windowed_backend: Literal["incremental", "batch"] = "incremental"
     """"incremental" (gtsam.IncrementalFixedLagSmoother, iSAM2) or "batch"
     (gtsam.BatchFixedLagSmoother, Levenberg-Marquardt over the window)."""
-    plane_factor: str = "auto"
+    plane_factor: Literal["auto", "global", "anchored"] = "auto"
     """"global" (gtsam.OrientedPlane3Factor, world-frame landmark), "anchored"
     (LocalOrientedPlane3Factor, landmark in an anchor frame near its observations) or "auto":
     global for landmarks first seen within ``global_plane_max_distance_m`` of the world
     origin when no robust kernel is asked for planes, anchored otherwise."""
-    global_plane_max_distance_m: float = 30.0
+    global_plane_max_distance_m: Positive = 30.0
     """auto: farthest first-observing position (m) for a global plane factor."""
-    min_landmark_epochs: int = 2
+    min_landmark_epochs: Annotated[int, Field(ge=2)] = 2
     """A tracked plane enters the graph once seen in at least this many epochs."""
-    flipped_normals: str = "flip"
+    flipped_normals: Literal["flip", "reject"] = "flip"
     """A measured normal more than 90 deg from the predicted one: "flip" it or "reject" it."""
-    gate_normal_deg: float = 15.0
+    gate_normal_deg: AngleDeg = 15.0
     """After orientation, a plane observation whose normal is farther than this from its
     landmark's prediction (at the initial estimate) is a wrong association: not added."""
-    gate_offset_m: float = 2.0
+    gate_offset_m: Positive = 2.0
     """Same for the offset along the normal, metres (allows odometry drift along a track)."""
-    robust_kernel: str = "cauchy"
+    robust_kernel: Literal["none", "huber", "cauchy"] = "cauchy"
     """"none", "huber" or "cauchy", on the factors chosen by ``robust_between`` and
     ``robust_planes`` (outlier associations, wrongly extracted planes). Cauchy: its
     influence vanishes for gross outliers, while Huber's stays at threshold / sigma per
     factor, so one precise but wrong plane outweighs several less precise right ones (a
     ground plane 2.8 deg off with a 0.01 deg sigma turned a pose by 2 deg at 2 cm range
     noise, experiments/smoothing_consistency.py)."""
-    robust_threshold: float | None = None
+    robust_threshold: Positive | None = None
     """Kernel parameter in whitened units (sigmas); None: 1.345 (Huber), 2.3849 (Cauchy)."""
     robust_between: bool = True
     """Robust kernel on the 5-DoF between factors."""
     robust_planes: bool = True
     """Robust kernel on the plane factors (forces anchored plane factors in auto mode)."""
-    default_rotation_sigma_rad: float = 0.005
+    default_rotation_sigma_rad: Positive = 0.005
     """Per-axis rotation sigma of a relative pose without sigmas, rad."""
-    default_translation_sigma_m: float = 0.05
+    default_translation_sigma_m: Positive = 0.05
     """Per-axis horizontal translation sigma of a relative pose without sigmas, m."""
-    min_rotation_sigma_rad: float = 1e-6
+    min_rotation_sigma_rad: Positive = 1e-6
     """Floor of the between factors' rotation sigmas, rad (added in quadrature; the
     odometry floors its own sigmas, ``odometry.min_sigma_*``)."""
-    min_translation_sigma_m: float = 1e-5
+    min_translation_sigma_m: Positive = 1e-5
     """Floor of the between factors' translation sigmas, m."""
-    default_plane_normal_sigma_rad: float = 0.01
+    default_plane_normal_sigma_rad: Positive = 0.01
     """Normal sigma (per tangent axis) of a plane without covariance, rad."""
-    default_plane_offset_sigma_m: float = 0.02
+    default_plane_offset_sigma_m: Positive = 0.02
     """Offset sigma of a plane without covariance, m."""
-    min_plane_normal_sigma_rad: float = 1e-6
+    min_plane_normal_sigma_rad: Positive = 1e-6
     """Floor added (in quadrature) to the plane factors' normal sigmas, rad: a guard for
     planes without uncertainty (synthetic data). It must stay far below the fit's
     uncertainty: added to the diagonal, it spoils the fit's strong normal-offset
     correlation, and the former 1e-4 rad and 1 mm made the plane covariances (median
     NEES 0.7 against chi2(3)'s 2.4) and the smoothed poses three times too cautious at
     6 mm range noise."""
-    min_plane_offset_sigma_m: float = 1e-5
+    min_plane_offset_sigma_m: Positive = 1e-5
     """Floor added (in quadrature) to the plane factors' offset sigma, m."""
-    plane_covariance_scale: float = 1.0
-    """Multiplies every plane covariance (the extraction's TLS fit covariance)."""
     plane_confidence_scaling: bool = False
-    """Also divide a plane's covariance by its CPEF confidence. Off: the TLS covariance
-    already grows with the fit residual and shrinks with point count and extent, and on
-    the simulated loop it matches the planes' errors (median NEES 2.3 against chi2(3)'s
-    2.4 at 6 mm and 2 cm), while dividing by the confidence (median 0.4-0.5) made it two
-    to three times too cautious (experiments/smoothing_consistency.py)."""
-    between_factors: str = "untracked"
+    """Diagnostic (experiments/smoothing_consistency.py): also divide a plane's covariance
+    by its CPEF confidence. Off: the TLS covariance already grows with the fit residual and
+    shrinks with point count and extent, and on the simulated loop it matches the planes'
+    errors (median NEES 2.3 against chi2(3)'s 2.4 at 6 mm and 2 cm), while dividing by the
+    confidence (median 0.4-0.5) made it two to three times too cautious."""
+    between_factors: Literal["all", "untracked", "none"] = "untracked"
     """Which resolved relative poses become 5-DoF between factors. "all": every one.
     "untracked": only those whose source planes (the odometry's winning rotation and
     translation pairs, ``RelativeMeasurement.sources``) are not plane factors of a shared
@@ -90,27 +96,27 @@ class SmoothingConfig(Section):
     against 3.6 on the loop, 7.1 against 5.2 in the canyon at 2 cm) at the same or a
     worse ATE (experiments/smoothing_consistency.py). Relative poses without sources
     (independent sensors) are always factors. "none": no between factors (plane factors
-    only; a diagnostic), except the fallback factors."""
-    vertical_sigma_m: float = 0.05
+    only; a diagnostic of the consistency experiment), except the fallback factors."""
+    vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""
-    fallback_rotation_sigma_rad: float = 0.05
+    fallback_rotation_sigma_rad: Positive = 0.05
     """Constant-velocity between factor for an epoch whose horizontal translation no
     relative pose measured (unresolved or rotation-only), rad."""
-    fallback_translation_sigma_m: float = 0.5
+    fallback_translation_sigma_m: Positive = 0.5
     """Translation sigma of that fallback factor, m."""
-    prior_sigma: float = 1e-4
+    prior_sigma: Positive = 1e-4
     """Sigma of the prior fixing the first pose (gauge), rad and m."""
-    max_iterations: int = 100
+    max_iterations: Annotated[int, Field(ge=1)] = 100
     """Levenberg-Marquardt iterations (batch)."""
-    relative_error_tol: float = 1e-4
+    relative_error_tol: Annotated[float, Field(gt=0, lt=1)] = 1e-4
     """Levenberg-Marquardt stops when the error decreases by less than this fraction (with
     robust kernels the last iterations creep: 1e-6 triples the time for < 0.1 % of ATE)."""
-    relinearize_threshold: float = 0.01
+    relinearize_threshold: Positive = 0.01
     """iSAM2 relinearisation threshold (incremental windowed backend)."""
     compute_covariances: bool = True
     """Batch: marginal covariances of the poses (gtsam.Marginals)."""
-    covariance_inlier_quantile: float | None = 0.99
+    covariance_inlier_quantile: Fraction | None = 0.99
     """Batch covariances: a robust factor whose squared whitened error at the estimate is
     within this quantile of chi2(its dimension) counts with full (Gaussian) weight, others
     with the robust kernel's weight (planodom.smoothing.batch.covariance_graph); the
@@ -123,32 +129,15 @@ class SmoothingConfig(Section):
     distance in translation). False: gtsam's marginals with that prior."""
 
     def model_post_init(self, context: object, /) -> None:
-        choices = {
-            "windowed_backend": ("incremental", "batch"),
-            "plane_factor": ("auto", "global", "anchored"),
-            "flipped_normals": ("flip", "reject"),
-            "robust_kernel": ("none", "huber", "cauchy"),
-            "between_factors": ("all", "untracked", "none"),
-        }
-        for name, allowed in choices.items():
-            if getattr(self, name) not in allowed:
-                raise ConfigError(
-                    f"smoothing.{name}: expected one of {', '.join(allowed)}, "
-                    f"got {getattr(self, name)!r}"
-                )
-        if self.delta_max < 1:
-            raise ConfigError(f"smoothing.delta_max: must be >= 1, got {self.delta_max}")
+        """Cross-field checks (one-line :class:`ConfigError` naming the field)."""
         if self.window <= self.delta_max:
             raise ConfigError(
                 f"smoothing.window: must exceed delta_max ({self.delta_max}), got {self.window}"
             )
-        q = self.covariance_inlier_quantile
-        if q is not None and not 0.0 < q <= 1.0:
-            raise ConfigError(f"smoothing.covariance_inlier_quantile: must be in (0, 1], got {q}")
-        if self.min_landmark_epochs < 2:
+        robust_planes = self.robust_planes and self.robust_kernel != "none"
+        if self.plane_factor == "global" and robust_planes:
             raise ConfigError(
-                f"smoothing.min_landmark_epochs: must be >= 2, got {self.min_landmark_epochs}"
+                "smoothing.plane_factor: 'global' takes no robust kernel "
+                "(gtsam.OrientedPlane3Factor accepts only Gaussian noise): "
+                "set robust_planes to false or plane_factor to 'anchored' or 'auto'"
             )
-        for name, value in self:
-            if isinstance(value, float) and not value > 0:
-                raise ConfigError(f"smoothing.{name}: must be > 0, got {value!r}")

@@ -7,12 +7,12 @@ delta = 1..D are estimated (as :func:`planodom.smoothing.run.run_smoothing` does
 - **relative poses** (the odometry, per step): the 5-DoF error of each measured relative
   pose (``planodom_factors.pose5.pose5_error``: rotation vector, horizontal translation) against
   the true one, whitened by the covariance its between factor would get
-  (:meth:`GraphBuilder.between_covariance`: the propagated covariance of
+  (:func:`planodom.smoothing.noise.between_covariance`: the propagated covariance of
   :mod:`planodom.odometry.propagate` in the factor's tangent, plus the smoothing floors);
 - **planes**: the error of each extracted plane against its true surface (its
   ``truth_id``) in ``OrientedPlane3`` tangent coordinates (Unit3 basis of the measured
   normal (2), offset (1)), whitened by the TLS fit covariance and by the covariance the
-  plane factor uses (:meth:`GraphBuilder.plane_covariance`);
+  plane factor uses (:func:`planodom.smoothing.noise.plane_covariance`);
 - **smoothed poses** (batch, for each graph variant): per epoch k >= 1,
   ``xi = Log(T_k^-1 G_k)`` in gtsam's Pose3 tangent (rot x, y, z; x, y, z, body frame)
   with estimate and truth both relative to their first pose, whitened by the batch
@@ -50,8 +50,9 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.experiments.simulated import Simulation, simulate_level
 from planodom.geometry import Plane, plane_tangent_covariance
 from planodom.metrics import pose_nees, relative_to_first, summarize
+from planodom.odometry import RelativePose
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
-from planodom.smoothing.graph import GraphBuilder, RelativeMeasurement
+from planodom.smoothing.noise import between_covariance, plane_covariance
 from planodom_factors.pose5 import pose5_error
 
 #: Graph variants: smoothing config changes applied on top of the given config.
@@ -80,7 +81,7 @@ class ConsistencyInputs:
     noise: float
     seed: int
     planes: list[list[Plane]]
-    relatives: list[RelativeMeasurement]
+    relatives: list[RelativePose]
     gt_poses: np.ndarray
     T_world_first: np.ndarray
     surfaces: dict[int, np.ndarray]
@@ -107,17 +108,16 @@ def simulate_inputs(
 
 
 def relative_pose_nees(
-    relatives: Iterable[RelativeMeasurement], gt_poses: np.ndarray, config: SmoothingConfig
+    relatives: Iterable[RelativePose], gt_poses: np.ndarray, config: SmoothingConfig
 ) -> dict[int, np.ndarray]:
     """delta -> (M, 3) NEES of the measured 5-DoF relative poses: all 5 DoF, the rotation
     (3) and the translation (2), against their between factors' covariances."""
-    builder = GraphBuilder(config)
     out: dict[int, list[tuple[float, float, float]]] = {}
     for r in relatives:
-        if not (r.ok and r.translation_observed):
+        if not r.translation_observed:
             continue
         e, _, _ = pose5_error(np.asarray(r.T_prev_curr), gt_poses[r.prev], gt_poses[r.curr])
-        P = builder.between_covariance(r)
+        P = between_covariance(r, config)
         out.setdefault(r.delta, []).append(
             (
                 e @ np.linalg.solve(P, e),
@@ -145,7 +145,6 @@ def plane_errors(plane: Plane, true_plane: np.ndarray, T_world_base: np.ndarray)
 def plane_nees(inputs: ConsistencyInputs, config: SmoothingConfig) -> np.ndarray:
     """(M, 2) NEES (3 DoF) of every labelled plane: with the TLS covariance and with the
     plane factor's covariance."""
-    builder = GraphBuilder(config)
     rows = []
     for k, planes in enumerate(inputs.planes):
         T = inputs.T_world_first @ inputs.gt_poses[k]
@@ -154,7 +153,7 @@ def plane_nees(inputs: ConsistencyInputs, config: SmoothingConfig) -> np.ndarray
                 continue
             xi = plane_errors(p, inputs.surfaces[p.truth_id], T)
             tls = plane_tangent_covariance(p)
-            used = builder.plane_covariance(p)
+            used = plane_covariance(p, config)
             rows.append(
                 (
                     xi @ np.linalg.solve(0.5 * (tls + tls.T), xi),

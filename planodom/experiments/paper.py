@@ -194,7 +194,7 @@ def run_paper_experiment(
                 run = run_odometry(level.planes, cfg, times=sim.times.tolist())
                 seconds = {"extraction": level.extraction_s, "odometry": run.seconds["odometry"]}
             else:
-                run = run_odometry(sim, cfg)
+                run = run_odometry(sim, cfg, sim.rig)
                 seconds = dict(run.seconds)
             runs.append(_level_run(noise, method, run, sim.poses, sim.epoch_rate, seconds))
 

@@ -1,31 +1,29 @@
-"""Odometry from planar landmarks: rotation, translation, the pipelines, streaming.
+"""Odometry from planar landmarks: the relative-pose solver and the streaming odometry.
 
-- :func:`estimate_relative_pose`: the 5-DoF relative pose of two plane sets (paper V).
-- :class:`PlaneOdometry`: streaming, one epoch at a time; :func:`run_odometry`: a whole run.
+- :func:`estimate_relative_pose`: the 5-DoF relative pose of two plane sets (paper V):
+  rotation (:mod:`.rotation`), translation (:mod:`.translation`), covariance
+  (:mod:`.propagate`), put together in :mod:`.solver`.
+- :class:`RelativePose` (:mod:`.relative`): what it returns, shared with the smoother;
+  :class:`Status` ranks it.
+- :class:`PlaneOdometry` (:mod:`.odometry`): streaming, one epoch at a time, with the
+  deskewing policy of :mod:`.deskew`; :func:`run_odometry` (:mod:`.run`): a whole run.
 """
 
-from planodom.odometry.pipeline import (
-    PIPELINES,
-    RelativePose,
-    estimate_relative_pose,
-    pipeline_methods,
-)
-from planodom.odometry.streaming import (
-    OdometryRun,
-    PlaneOdometry,
-    motion_assumption,
-    run_odometry,
-    with_dataset_bounds,
-)
+from planodom.odometry.odometry import PlaneOdometry
+from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
+from planodom.odometry.run import OdometryRun, epoch_rows, run_odometry, with_motion_bounds
+from planodom.odometry.solver import PIPELINES, config_for_gap, estimate_relative_pose
 
 __all__ = [
     "PIPELINES",
     "OdometryRun",
     "PlaneOdometry",
     "RelativePose",
+    "SolverDiagnostics",
+    "Status",
+    "config_for_gap",
+    "epoch_rows",
     "estimate_relative_pose",
-    "motion_assumption",
-    "pipeline_methods",
     "run_odometry",
-    "with_dataset_bounds",
+    "with_motion_bounds",
 ]

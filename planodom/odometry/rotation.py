@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from planodom.association import PairAssociations, PlaneArrays
+from planodom.association import PairAssociations
 from planodom.consensus import ConsensusResult, apply_inverse_rotation, consensus
+from planodom.planes import PlaneSet
 
 
 def chord(angle: float) -> float:
@@ -21,21 +22,20 @@ def chord(angle: float) -> float:
 
 
 def rotation_consensus(
-    prev: PlaneArrays,
-    curr: PlaneArrays,
+    prev: PlaneSet,
+    curr: PlaneSet,
     lda: PairAssociations,
     weighted: bool = True,
     inlier_angle: float = np.radians(3.0),
-    truncate_angle: float | None = None,
-    best_partner: bool = True,
 ) -> tuple[ConsensusResult, np.ndarray]:
     """WOCSC (``weighted``) or OCSC over the LDA rotation candidates.
 
     Args:
         prev, curr: the planes of the two epochs. lda: non-empty LDA result.
-        inlier_angle, truncate_angle: rad, on the angle between ``R^-1 n_i`` and ``n_j``.
-        best_partner: a previous plane with several current partners counts once, with
-            its best partner (see :func:`planodom.consensus.consensus`, ``groups``).
+        inlier_angle: rad, on the angle between ``R^-1 n_i`` and ``n_j``.
+
+    A previous plane with several current partners counts once, with its best partner
+    (see :func:`planodom.consensus.consensus`, ``groups``).
 
     Returns:
         The consensus result (candidates are ``lda.rotations``) and the (E, 2) plane
@@ -50,8 +50,7 @@ def rotation_consensus(
         apply_inverse_rotation,
         weights=weights,
         inlier_tol=chord(inlier_angle),
-        truncate=None if truncate_angle is None else chord(truncate_angle),
-        groups=ij[:, 0] if best_partner else None,
+        groups=ij[:, 0],
     )
     return result, ij
 
@@ -69,11 +68,3 @@ def rotation_angles_to(rotations: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Angles (M,), rad, between each of ``rotations`` (M, 3, 3) and ``R`` (3, 3)."""
     cos = (np.einsum("ij,mij->m", R, rotations) - 1.0) / 2.0
     return np.arccos(np.clip(cos, -1.0, 1.0))
-
-
-def rpy_of(rotations: np.ndarray) -> np.ndarray:
-    """(M, 3) (roll, pitch, yaw), rad, of rotations (M, 3, 3) = Rz(yaw) Ry(pitch) Rx(roll)."""
-    roll = np.arctan2(rotations[:, 2, 1], rotations[:, 2, 2])
-    pitch = -np.arcsin(np.clip(rotations[:, 2, 0], -1.0, 1.0))
-    yaw = np.arctan2(rotations[:, 1, 0], rotations[:, 0, 0])
-    return np.column_stack([roll, pitch, yaw])

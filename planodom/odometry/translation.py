@@ -19,31 +19,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planodom.association import PlaneArrays, nonparallel_pairs
+from planodom.association import nonparallel_pairs
 from planodom.geometry import horizontal_reference_points
+from planodom.planes import PlaneSet
 
 
 @dataclass(frozen=True, eq=False)
 class TranslationElements:
-    """Reference points of associated pairs (only pairs defined in both epochs).
+    """Reference points of associated pairs (only pairs defined in both epochs)."""
 
-    Attributes:
-        prev_pairs, curr_pairs: (E, 2) plane indices.
-        ref_prev: (E, 2) previous reference points, metres.
-        ref_curr0: (E, 2) reference points of the rotated current pairs at height 0, m.
-        slope: (E, 2) ``g``: change of the current reference point per metre of height.
-        weights: (E,) confidence of each element (see :func:`translation_elements`).
-    """
-
-    prev_pairs: np.ndarray
-    curr_pairs: np.ndarray
+    pairs: np.ndarray
+    """(E, 4) int ``(i1, i2, j1, j2)``: previous planes i1, i2 associated with j1, j2."""
     ref_prev: np.ndarray
+    """(E, 2) previous reference points, metres."""
     ref_curr0: np.ndarray
+    """(E, 2) reference points of the rotated current pairs at height 0, metres."""
     slope: np.ndarray
+    """(E, 2) ``g``: change of the current reference point per metre of height."""
     weights: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.weights)
+    """(E,) confidence of each element (see :func:`translation_elements`)."""
 
     def targets(self, z: float) -> np.ndarray:
         """(E, 2) current reference points for a vertical translation ``z``, metres."""
@@ -53,15 +47,17 @@ class TranslationElements:
         """(E, 2) translation candidates ``varpi_k - varpi'(z)``, metres."""
         return self.ref_prev - self.targets(z)
 
+    def __len__(self) -> int:
+        return len(self.weights)
+
 
 def translation_elements(
-    prev: PlaneArrays,
-    curr: PlaneArrays,
+    prev: PlaneSet,
+    curr: PlaneSet,
     R: np.ndarray,
     prev_pairs: np.ndarray,
     curr_pairs: np.ndarray,
     min_verticality: float,
-    condition: bool = True,
     min_angle: float = 0.0,
 ) -> TranslationElements:
     """Reference points of the pairs ``prev_pairs[e] -> curr_pairs[e]`` (E, 2) under ``R``.
@@ -70,7 +66,7 @@ def translation_elements(
     min_verticality``) and cutting at ``min_angle`` rad or more from parallel are kept.
 
     Weights: the product of the four planes' confidences (paper), times
-    ``sin^2`` of each epoch's dihedral angle when ``condition``: a reference point's
+    ``sin^2`` of each epoch's dihedral angle: a reference point's
     confidence includes how well its two planes cut (offset noise sigma moves it by about
     sigma / sin(angle)).
     """
@@ -92,15 +88,13 @@ def translation_elements(
     cos_c = np.einsum("ij,ij->i", curr.normals[j1], curr.normals[j2])
     ok &= np.abs(cos_p) <= np.cos(min_angle)
     w = prev.weights[i1] * prev.weights[i2] * curr.weights[j1] * curr.weights[j2]
-    if condition:  # sin^2 = 1 - cos^2 for unit normals
-        w = w * (1.0 - cos_p**2) * (1.0 - cos_c**2)
-    return TranslationElements(
-        prev_pairs[ok], curr_pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok]
-    )
+    w = w * (1.0 - cos_p**2) * (1.0 - cos_c**2)  # sin^2 = 1 - cos^2 for unit normals
+    pairs = np.column_stack([prev_pairs, curr_pairs])
+    return TranslationElements(pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok])
 
 
 def pairs_of_associations(
-    ij: np.ndarray, prev: PlaneArrays, parallel_angle: float
+    ij: np.ndarray, prev: PlaneSet, parallel_angle: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """All non-parallel pairs among plane associations ``ij`` (L, 2): (P, 2) and (P, 2)."""
     a, b = np.triu_indices(len(ij), 1)
@@ -112,26 +106,27 @@ def pairs_of_associations(
 
 @dataclass(frozen=True, eq=False)
 class HeightElements:
-    """Near-horizontal plane associations: ``t_z = b - m . (t_x, t_y)``.
-
-    Attributes: b (H,) metres, m (H, 2), weights (H,), ij (H, 2) plane associations.
-    """
+    """Near-horizontal plane associations: ``t_z = b - m . (t_x, t_y)``."""
 
     b: np.ndarray
+    """(H,) metres."""
     m: np.ndarray
+    """(H, 2) horizontal slope."""
     weights: np.ndarray
+    """(H,) confidences."""
     ij: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.b)
+    """(H, 2) the plane associations (previous, current)."""
 
     def heights(self, txy: np.ndarray) -> np.ndarray:
         """(H,) vertical translation each element gives for a horizontal one (2,), m."""
         return self.b - self.m @ txy
 
+    def __len__(self) -> int:
+        return len(self.b)
+
 
 def height_elements(
-    prev: PlaneArrays, curr: PlaneArrays, ij: np.ndarray, max_tilt: float
+    prev: PlaneSet, curr: PlaneSet, ij: np.ndarray, max_tilt: float
 ) -> HeightElements:
     """Elements from the associations ``ij`` (L, 2) whose previous plane is ground-like:
     within ``max_tilt`` rad of horizontal and facing up (below the sensor, normal towards

@@ -2,14 +2,15 @@
 
 - :mod:`.landmarks`: plane tracks from strict associations (one landmark per plane).
 - :mod:`.graph`: factors and values epoch by epoch (5-DoF between factors, plane factors,
-  priors); gauge and observability notes.
+  priors); gauge and observability notes. :mod:`.noise`: their noise models.
+- :mod:`.run`: :func:`run_smoothing`, scans to smoothed trajectory.
 - :mod:`.batch`: :func:`smooth_batch`, Levenberg-Marquardt and marginal covariances.
 - :mod:`.windowed`: :class:`WindowedSmoother`, a fixed-lag smoother run online.
 - :mod:`.synthetic`: seeded synthetic problems for tests and benchmarks.
 """
 
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
-from planodom.smoothing.graph import GraphBuilder, GraphStats, RelativeMeasurement
+from planodom.smoothing.graph import GraphBuilder, GraphStats
 from planodom.smoothing.landmarks import LandmarkTracker
 from planodom.smoothing.windowed import WindowedSmoother, smooth_windowed
 
@@ -17,7 +18,6 @@ __all__ = [
     "GraphBuilder",
     "GraphStats",
     "LandmarkTracker",
-    "RelativeMeasurement",
     "SmoothingResult",
     "WindowedSmoother",
     "smooth_batch",

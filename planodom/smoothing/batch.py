@@ -12,13 +12,8 @@ from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
-from planodom.smoothing.graph import (
-    GraphBuilder,
-    GraphStats,
-    RelativeMeasurement,
-    X,
-    group_by_epoch,
-)
+from planodom.odometry.relative import RelativePose
+from planodom.smoothing.graph import GraphBuilder, GraphStats, X
 
 
 @dataclass
@@ -61,6 +56,17 @@ def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> Smoothi
     if config is None:
         return SmoothingConfig()
     return config.smoothing if isinstance(config, PlanodomConfig) else config
+
+
+def group_by_epoch(
+    relatives: Sequence[RelativePose], n_epochs: int
+) -> Mapping[int, list[RelativePose]]:
+    """Relative poses keyed by their ``curr`` epoch (0..n_epochs-1)."""
+    out: dict[int, list[RelativePose]] = {k: [] for k in range(n_epochs)}
+    for rel in relatives:
+        if 0 <= rel.curr < n_epochs:
+            out[rel.curr].append(rel)
+    return out
 
 
 #: For covariances relative to the first pose: its prior's sigma is divided by this.
@@ -207,7 +213,7 @@ def levenberg_marquardt(
 
 def smooth_batch(
     epochs_planes: Sequence[Sequence[Plane]],
-    relative_poses: Sequence[RelativeMeasurement],
+    relative_poses: Sequence[RelativePose],
     config: SmoothingConfig | PlanodomConfig | None = None,
     T_world_first: np.ndarray | None = None,
 ) -> SmoothingResult:

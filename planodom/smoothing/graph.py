@@ -32,7 +32,7 @@ outweighed wherever a non-vertical plane observes z.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 
@@ -40,13 +40,10 @@ import gtsam
 import numpy as np
 
 from planodom.config import SmoothingConfig
-from planodom.errors import ConfigError
-from planodom.geometry import (
-    Plane,
-    plane_tangent_covariance,
-    transform_planes,
-)
+from planodom.geometry import Plane, transform_planes
+from planodom.odometry.relative import RelativePose
 from planodom.smoothing.landmarks import LandmarkTracker
+from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
 from planodom_factors.planes import (
     anchor_pose,
     anchor_prior,
@@ -61,47 +58,6 @@ from planodom_factors.pose5 import pose5_factor, rotation_factor, vertical_facto
 X = gtsam.symbol_shorthand.X
 L = gtsam.symbol_shorthand.L
 A = gtsam.symbol_shorthand.A
-
-#: Default robust kernel parameters (95 % efficiency on Gaussian noise), in sigmas.
-ROBUST_DEFAULTS = {"huber": 1.345, "cauchy": 2.3849}
-
-
-@dataclass(frozen=True, eq=False)
-class RelativeMeasurement:
-    """A 5-DoF relative pose between epochs ``prev`` and ``curr`` (``curr > prev``).
-
-    Attributes:
-        prev, curr: epoch indices.
-        T_prev_curr: (4, 4) relative transform; its z is not used.
-        sigmas: (5,) standard deviations of (roll, pitch, yaw) rad and (x, y) m, or None.
-        associations: (M, 2) int, (plane index in ``prev``, plane index in ``curr``), the
-            strict associations that gave this relative pose.
-        ok: False for an unresolved pair: no factor (its associations, if any, still
-            track planes into landmarks).
-        covariance: (5, 5) covariance of (roll, pitch, yaw, x, y), rad^2 and m^2; when
-            given it replaces ``sigmas``.
-        translation_observed: False when only the rotation was measured (a rotation-only
-            factor is built).
-        sources: (S, 2) int, (plane index in ``prev``, plane index in ``curr``), the
-            associations the relative pose was computed from (the odometry's winning
-            rotation and translation pairs); None when it does not derive from the
-            epochs' planes (an independent sensor). See ``SmoothingConfig.between_factors``.
-    """
-
-    prev: int
-    curr: int
-    T_prev_curr: np.ndarray
-    sigmas: np.ndarray | None = None
-    associations: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=int))
-    ok: bool = True
-    covariance: np.ndarray | None = None
-    translation_observed: bool = True
-    sources: np.ndarray | None = None
-
-    @property
-    def delta(self) -> int:
-        """Epoch gap ``curr - prev``."""
-        return self.curr - self.prev
 
 
 @dataclass
@@ -153,18 +109,6 @@ class _Landmark:
     last_seen: tuple[int, np.ndarray] | None = None  # last accepted (epoch, (4,) base frame)
 
 
-def rpy_to_rotation_vector(rpy: np.ndarray) -> np.ndarray:
-    """(3, 3) Jacobian of the body-frame rotation error w.r.t. (roll, pitch, yaw) at ``rpy``.
-
-    For ``R = Rz(yaw) Ry(pitch) Rx(roll)``, ``R(rpy + d) = R Exp(J d)`` to first order; it
-    maps a covariance of rpy increments to the tangent of :func:`factors.pose5.pose5_factor`.
-    Only roll and pitch matter.
-    """
-    roll, pitch = rpy[0], rpy[1]
-    sr, cr, sp, cp = np.sin(roll), np.cos(roll), np.sin(pitch), np.cos(pitch)
-    return np.array([[1.0, 0.0, -sp], [0.0, cr, sr * cp], [0.0, -sr, cr * cp]])
-
-
 def plane_from_anchor(T_world_anchor: np.ndarray, plane_anchor: np.ndarray) -> np.ndarray:
     """(4,) world plane from a plane (4,) given in the anchor frame ``T_world_anchor``."""
     n, d = transform_planes(T_world_anchor, plane_anchor[None, :3], plane_anchor[3:])
@@ -180,13 +124,6 @@ class GraphBuilder:
     """
 
     def __init__(self, config: SmoothingConfig, T_world_first: np.ndarray | None = None) -> None:
-        robust_planes = config.robust_planes and config.robust_kernel != "none"
-        if config.plane_factor == "global" and robust_planes:
-            raise ConfigError(
-                "smoothing.plane_factor 'global' takes no robust kernel "
-                "(gtsam.OrientedPlane3Factor accepts only Gaussian noise): "
-                "set robust_planes to false or plane_factor to 'anchored' or 'auto'"
-            )
         self.config = config
         self.tracker = LandmarkTracker(config.min_landmark_epochs)
         self.poses: dict[int, np.ndarray] = {}
@@ -195,62 +132,14 @@ class GraphBuilder:
         self.stats = GraphStats()
         self.n_epochs = 0
         self._T_world_first = np.eye(4) if T_world_first is None else np.asarray(T_world_first)
-        self._robust_planes = robust_planes
+        self._robust_planes = config.robust_planes and config.robust_kernel != "none"
         self._last_step: np.ndarray | None = None
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
 
-    # ----------------------------------------------------------------- noise models
-
-    def _robust(self, base: gtsam.noiseModel.Base) -> gtsam.noiseModel.Base:
-        kernel = self.config.robust_kernel
-        k = self.config.robust_threshold or ROBUST_DEFAULTS[kernel]
-        if kernel == "huber":
-            return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(k), base)
-        return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(k), base)
-
-    def between_covariance(self, rel: RelativeMeasurement) -> np.ndarray:
-        """(5, 5) covariance of a relative pose's factor error, or (3, 3) rotation-only.
-
-        The covariance (or ``sigmas``) of (roll, pitch, yaw, x, y) is mapped to the
-        factor's rotation-vector tangent (:func:`rpy_to_rotation_vector`) and floored in
-        quadrature.
-        """
-        c = self.config
-        if rel.covariance is not None and np.all(np.isfinite(rel.covariance)):
-            cov = np.asarray(rel.covariance, dtype=float).reshape(5, 5)
-        elif rel.sigmas is not None and np.all(np.isfinite(rel.sigmas)):
-            cov = np.diag(np.asarray(rel.sigmas, dtype=float).reshape(5) ** 2)
-        else:
-            cov = np.diag(
-                [c.default_rotation_sigma_rad**2] * 3 + [c.default_translation_sigma_m**2] * 2
-            )
-        J = np.eye(5)
-        R = rel.T_prev_curr[:3, :3]  # roll and pitch of R = Rz Ry Rx, in closed form
-        roll_pitch = (np.arctan2(R[2, 1], R[2, 2]), -np.arcsin(np.clip(R[2, 0], -1.0, 1.0)))
-        J[:3, :3] = rpy_to_rotation_vector(roll_pitch)
-        floor = [c.min_rotation_sigma_rad**2] * 3 + [c.min_translation_sigma_m**2] * 2
-        cov = J @ (0.5 * (cov + cov.T)) @ J.T + np.diag(floor)
-        return cov if rel.translation_observed else cov[:3, :3]
-
-    def plane_covariance(self, plane: Plane) -> np.ndarray:
-        """(3, 3) covariance of a measured plane in OrientedPlane3 tangent coordinates."""
-        c = self.config
-        if plane.covariance is not None and np.all(np.isfinite(plane.covariance)):
-            cov = plane_tangent_covariance(plane)
-            cov = 0.5 * (cov + cov.T)
-        else:
-            n2, d2 = c.default_plane_normal_sigma_rad**2, c.default_plane_offset_sigma_m**2
-            cov = np.diag([n2, n2, d2])
-        floor = np.diag([c.min_plane_normal_sigma_rad**2] * 2 + [c.min_plane_offset_sigma_m**2])
-        scale = c.plane_covariance_scale
-        if c.plane_confidence_scaling:
-            scale /= plane.confidence
-        return cov * scale + floor
-
     # ----------------------------------------------------------------- building
 
-    def _initial_pose(self, k: int, resolved: list[RelativeMeasurement]) -> np.ndarray | None:
+    def _initial_pose(self, k: int, resolved: list[RelativePose]) -> np.ndarray | None:
         """Chained guess of ``T_world_k`` from the resolved relative poses, or None.
 
         Each full (5-DoF) relative pose chained from its earlier epoch is a candidate; with
@@ -284,7 +173,7 @@ class GraphBuilder:
     def add_epoch(
         self,
         planes: Sequence[Plane],
-        relatives: Sequence[RelativeMeasurement] = (),
+        relatives: Sequence[RelativePose] = (),
         min_epoch: int = 0,
     ) -> GraphUpdate:
         """Add the next epoch.
@@ -300,32 +189,45 @@ class GraphBuilder:
         Returns:
             The factors, values and timestamps (epoch index) this epoch adds.
         """
-        c = self.config
         k = self.n_epochs
         self.n_epochs += 1
         self.planes[k] = planes
-        graph, values, stamps = gtsam.NonlinearFactorGraph(), gtsam.Values(), {}
-        self._gaussian = {}
-        resolved = [
+        update = GraphUpdate(k, gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
+        self._gaussian = update.gaussian
+        usable = [
             r
             for r in relatives
-            if r.ok and r.curr == k and min_epoch <= r.prev < k and r.delta <= c.delta_max
+            if r.curr == k and min_epoch <= r.prev < k and r.delta <= self.config.delta_max
         ]
+        measured = [r for r in usable if r.measured]
+        self._add_pose(measured, min_epoch, update)
+        # Associations track planes even when their relative pose gave no factor.
+        associations = {r.delta: r.associations for r in usable}
+        roots = self.tracker.add_epoch(k, len(planes), associations)
+        for root in dict.fromkeys(roots):  # unique, in plane order
+            j = self.tracker.landmark(root)
+            if j is not None:
+                self._add_observations(j, root, min_epoch, update)
+        # Between factors last: whether a relative pose's planes are already plane
+        # factors is known once this epoch's observations are in.
+        self._add_between_factors(measured, update)
+        return update
+
+    def _add_pose(self, measured: list[RelativePose], min_epoch: int, update: GraphUpdate) -> None:
+        """The pose variable of epoch ``update.epoch`` with its initial guess, and its
+        prior (first epoch) or its fallback and vertical factors."""
+        c, k, graph = self.config, update.epoch, update.factors
         if k == 0:
             T = self._T_world_first
-            sigma = np.full(6, c.prior_sigma)
-            graph.add(
-                gtsam.PriorFactorPose3(
-                    X(0), gtsam.Pose3(T), gtsam.noiseModel.Diagonal.Sigmas(sigma)
-                )
-            )
+            noise = gtsam.noiseModel.Diagonal.Sigmas(np.full(6, c.prior_sigma))
+            graph.add(gtsam.PriorFactorPose3(X(0), gtsam.Pose3(T), noise))
         else:
-            T = self._initial_pose(k, resolved)
+            T = self._initial_pose(k, measured)
             T_rel = self._fallback_motion(k)
             if T is None:
                 T = self.poses[k - 1] @ T_rel
                 self.stats.unresolved_epochs.append(k)
-            if not any(r.translation_observed for r in resolved) and k - 1 >= min_epoch:
+            if not any(r.translation_observed for r in measured) and k - 1 >= min_epoch:
                 # Nothing measured the horizontal translation into epoch k (unresolved or
                 # rotation-only): a weak constant-velocity factor keeps the graph connected.
                 sigmas = np.array(
@@ -339,24 +241,15 @@ class GraphBuilder:
                 graph.add(vertical_factor(X(k - 1), X(k), 0.0, noise))
                 self.stats.vertical += 1
         self.poses[k] = T
-        values.insert(X(k), gtsam.Pose3(T))
-        stamps[X(k)] = float(k)
+        update.values.insert(X(k), gtsam.Pose3(T))
+        update.timestamps[X(k)] = float(k)
 
-        # Associations track planes even when their relative pose gave no factor.
-        tracked = [
-            r
-            for r in relatives
-            if r.curr == k and min_epoch <= r.prev < k and r.delta <= c.delta_max
-        ]
-        roots = self.tracker.add_epoch(k, len(planes), {r.delta: r.associations for r in tracked})
-        for root in dict.fromkeys(roots):  # unique, in plane order
-            j = self.tracker.landmark(root)
-            if j is not None:
-                self._add_observations(j, root, min_epoch, graph, values, stamps, k)
-
-        # Between factors last: whether a relative pose's planes are already plane
-        # factors is known once this epoch's observations are in.
-        for rel in resolved:
+    def _add_between_factors(self, measured: list[RelativePose], update: GraphUpdate) -> None:
+        """A 5-DoF (or rotation-only) factor per measured relative pose into this epoch,
+        unless ``between_factors`` leaves it out (see :meth:`in_plane_factors`)."""
+        c, k = self.config, update.epoch
+        robust = c.robust_between and c.robust_kernel != "none"
+        for rel in measured:
             if rel.delta == 1 and rel.translation_observed:
                 self._last_step = np.asarray(rel.T_prev_curr, dtype=float)
             if c.between_factors == "none" or (
@@ -365,11 +258,10 @@ class GraphBuilder:
                 self.stats.between_left_out += 1
                 continue
             make = pose5_factor if rel.translation_observed else rotation_factor
-            base = gtsam.noiseModel.Gaussian.Covariance(self.between_covariance(rel))
-            robust = c.robust_between and c.robust_kernel != "none"
-            self._add(graph, partial(make, X(rel.prev), X(k), rel.T_prev_curr), base, robust)
+            base = gtsam.noiseModel.Gaussian.Covariance(between_covariance(rel, c))
+            factor = partial(make, X(rel.prev), X(k), rel.T_prev_curr)
+            self._add(update.factors, factor, base, robust)
             self.stats.between += 1
-        return GraphUpdate(k, graph, values, stamps, self._gaussian)
 
     def _add(
         self,
@@ -385,9 +277,9 @@ class GraphBuilder:
             graph.add(make(base))
             return
         self._gaussian[graph.size()] = make(base)
-        graph.add(make(self._robust(base)))
+        graph.add(make(with_robust_kernel(base, self.config)))
 
-    def in_plane_factors(self, rel: RelativeMeasurement) -> bool:
+    def in_plane_factors(self, rel: RelativePose) -> bool:
         """Whether the planes a relative pose was computed from are plane factors already.
 
         True when ``rel.sources`` is known and non-empty and each source association
@@ -428,23 +320,17 @@ class GraphBuilder:
         T_wa = anchor_pose(origin)
         values.insert(A(j), gtsam.Pose3(T_wa))
         values.insert(L(j), gtsam.OrientedPlane3(predict_plane(T_wa, world)))
-        cov = self.plane_covariance(self.planes[epoch][index])
+        cov = plane_covariance(self.planes[epoch][index], c)
         sigma_n, sigma_d = np.sqrt(max(cov[0, 0], cov[1, 1])), np.sqrt(cov[2, 2])
         noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma_n] * 3 + [sigma_d] * 3))
         graph.add(anchor_prior(A(j), T_wa, noise))
         self.stats.anchored_landmarks += 1
         return _Landmark(L(j), A(j), T_wa, world, epoch)
 
-    def _add_observations(
-        self,
-        j: int,
-        root: int,
-        min_epoch: int,
-        graph: gtsam.NonlinearFactorGraph,
-        values: gtsam.Values,
-        stamps: dict[int, float],
-        k: int,
-    ) -> None:
+    def _add_observations(self, j: int, root: int, min_epoch: int, update: GraphUpdate) -> None:
+        """Plane factors for the pending observations of landmark ``j`` (track ``root``),
+        creating the landmark once its track spans ``min_landmark_epochs`` epochs."""
+        graph, k = update.factors, update.epoch
         usable = []
         for e, i in self.tracker.take_pending(root):
             if e < min_epoch or e not in self.poses:
@@ -460,7 +346,7 @@ class GraphBuilder:
             self.stats.dropped_observations += len(usable)
             return
         if lm is None:
-            lm = self.landmarks[j] = self._new_landmark(j, *usable[0], graph, values)
+            lm = self.landmarks[j] = self._new_landmark(j, *usable[0], graph, update.values)
         for e, i in usable:
             plane = self.planes[e][i]
             predicted = self._predict(lm, e)
@@ -475,7 +361,7 @@ class GraphBuilder:
                 self.stats.gated += 1
                 continue
             noise = plane_noise(
-                self.plane_covariance(plane), isotropic_normal=lm.anchor_key is None
+                plane_covariance(plane, self.config), isotropic_normal=lm.anchor_key is None
             )
             if lm.anchor_key is None:
                 graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
@@ -488,9 +374,9 @@ class GraphBuilder:
             self._factor_landmark[(e, i)] = j
             lm.last_seen = (e, plane.coefficients)
         lm.last_epoch = k
-        stamps[lm.key] = float(k)
+        update.timestamps[lm.key] = float(k)
         if lm.anchor_key is not None:
-            stamps[lm.anchor_key] = float(k)
+            update.timestamps[lm.anchor_key] = float(k)
 
     def _predict(self, lm: _Landmark, epoch: int) -> np.ndarray:
         """(4,) the landmark as epoch ``epoch`` should see it, for the flip and gate checks.
@@ -546,14 +432,3 @@ class GraphBuilder:
             del self.planes[e]
         for key in [key for key in self._factor_landmark if key[0] < before]:
             del self._factor_landmark[key]
-
-
-def group_by_epoch(
-    relatives: Sequence[RelativeMeasurement], n_epochs: int
-) -> Mapping[int, list[RelativeMeasurement]]:
-    """Relative poses keyed by their ``curr`` epoch (0..n_epochs-1)."""
-    out: dict[int, list[RelativeMeasurement]] = {k: [] for k in range(n_epochs)}
-    for rel in relatives:
-        if 0 <= rel.curr < n_epochs:
-            out[rel.curr].append(rel)
-    return out

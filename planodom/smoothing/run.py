@@ -1,14 +1,16 @@
 """End to end: scans -> planes and odometry (delta = 1) -> relative poses delta = 2..D -> smoothing.
 
 The paper's odometry (:func:`planodom.odometry.run_odometry`, delta = 1) extracts each
-epoch's planes and gives the raw trajectory; the stored planes then give the relative
-poses between epochs ``k - delta`` and ``k`` for delta = 1..D
+epoch's planes, gives the raw trajectory and the relative pose of each epoch from its
+reference epoch (``k - 1``, or an earlier one when ``k - 1`` has too few planes): these
+are reused as they are (:func:`smoothing_relatives`). The stored planes then give the
+other relative poses between epochs ``k - delta`` and ``k`` for delta = 1..D
 (:func:`planodom.odometry.estimate_relative_pose`, with the odometry's chained motion as
-prior and association bounds widened with delta, as the streaming odometry does). The
-delta = 1 poses are recomputed rather than taken from the streaming run, whose reference
-epoch may be an earlier one when epoch ``k - 1`` has too few planes. Every
-resolved relative pose becomes a 5-DoF factor (a rotation-only factor when the odometry
-reports "degenerate": rotation measured, translation not), every SDA chain a landmark.
+prior and association bounds widened with delta, as the streaming odometry does); a
+streaming result whose planes were extracted again later (the first epoch, deskewed once
+a twist is known) is recomputed too. Every resolved relative pose becomes a 5-DoF factor
+(a rotation-only factor when the odometry reports "degenerate": rotation measured,
+translation not), every SDA chain a landmark.
 
 The odometry's own vertical estimate (from associated ground planes) is not used as a
 factor: the plane factors of the ground landmark carry the same information.
@@ -17,7 +19,7 @@ factor: the plane factors of the ground landmark carry the same information.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Sequence, Set
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -25,9 +27,16 @@ import numpy as np
 from planodom.config import PlanodomConfig
 from planodom.errors import ConfigError
 from planodom.geometry import Plane, invert_transform
-from planodom.odometry import OdometryRun, RelativePose, estimate_relative_pose, run_odometry
+from planodom.odometry import (
+    OdometryRun,
+    RelativePose,
+    Status,
+    config_for_gap,
+    estimate_relative_pose,
+    run_odometry,
+)
+from planodom.rig import Rig
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
-from planodom.smoothing.graph import RelativeMeasurement
 from planodom.smoothing.windowed import smooth_windowed
 
 Progress = Callable[[str, int, int], None]
@@ -49,7 +58,7 @@ class SmoothingRun:
 
     result: SmoothingResult
     odometry: OdometryRun
-    relatives: list[RelativeMeasurement]
+    relatives: list[RelativePose]
     times: np.ndarray
     config: PlanodomConfig
     seconds: dict[str, float] = field(default_factory=dict)
@@ -58,38 +67,6 @@ class SmoothingRun:
     def poses(self) -> np.ndarray:
         """(E, 4, 4) smoothed ``T_world_base``."""
         return self.result.poses
-
-
-def from_relative_pose(rel: RelativePose, prev: int, curr: int) -> RelativeMeasurement:
-    """The graph's view of an odometry result between epochs ``prev`` and ``curr``."""
-    measured = rel.status in ("ok", "degenerate") and not rel.fallback
-    return RelativeMeasurement(
-        sources=source_associations(rel),
-        prev=prev,
-        curr=curr,
-        T_prev_curr=np.asarray(rel.T_prev_curr, dtype=float),
-        associations=np.asarray(rel.plane_associations, dtype=int).reshape(-1, 2),
-        ok=measured,
-        covariance=np.asarray(rel.covariance, dtype=float),
-        translation_observed=rel.status == "ok",
-    )
-
-
-def source_associations(rel: RelativePose) -> np.ndarray | None:
-    """(S, 2) the plane associations (prev, curr) a relative pose was computed from.
-
-    The winning rotation pair and translation pair of the consensus, ``(i1, i2, j1, j2)``
-    each, give the associations ``(i1, j1)`` and ``(i2, j2)``. None when a DoF measured
-    does not come from one pair (a mean over all pairs, or no winning pair recorded): the
-    relative pose is then always a factor.
-    """
-    pairs = [rel.rotation_pair]
-    if rel.status == "ok":
-        pairs.append(rel.translation_pair)
-    if any(p is None for p in pairs):
-        return None
-    rows = np.concatenate([np.asarray(p, dtype=int).reshape(2, 2).T for p in pairs])
-    return np.unique(rows, axis=0)
 
 
 def rotation_determined(
@@ -110,18 +87,13 @@ def rotation_determined(
     return bool(cross.max() >= np.sin(np.radians(min_angle_deg)))
 
 
-def config_for_delta(config: PlanodomConfig, delta: int) -> PlanodomConfig:
-    """Association bounds widened for a gap of ``delta`` epochs (as the streaming odometry)."""
-    if delta <= 1:
-        return config
-    a = config.association
-    widened = a.model_copy(
-        update={
-            "max_translation_m": a.max_translation_m * delta,
-            "max_rotation_deg": min(a.max_rotation_deg * delta, 180.0),
-        }
-    )
-    return config.model_copy(update={"association": widened})
+def _checked(rel: RelativePose, planes_curr: Sequence[Plane]) -> RelativePose:
+    """``rel``, unresolved when its rotation rests on fewer than two non-parallel
+    associated planes: then it is the prior's, not a measurement (the associations still
+    track planes)."""
+    if rel.measured and not rotation_determined(planes_curr, rel.associations):
+        return replace(rel, status=Status.UNRESOLVED)
+    return rel
 
 
 def relative_poses(
@@ -130,7 +102,8 @@ def relative_poses(
     deltas: Sequence[int],
     guess_poses: np.ndarray | None = None,
     progress: Progress | None = None,
-) -> list[RelativeMeasurement]:
+    skip: Set[tuple[int, int]] = frozenset(),
+) -> list[RelativePose]:
     """Relative poses between epochs ``k - delta`` and ``k`` for each delta in ``deltas``.
 
     Args:
@@ -140,33 +113,44 @@ def relative_poses(
         guess_poses: (E, 4, 4) a trajectory guess (the delta = 1 odometry); its relative
             motion is the prior of each estimate. None: no prior.
         progress: called as ``progress("relatives", done, total)``.
+        skip: ``(prev, curr)`` epoch pairs not to estimate (known already).
     """
-    out: list[RelativeMeasurement] = []
-    n = len(planes)
-    total = sum(max(n - d, 0) for d in deltas)
-    done = 0
-    for delta in deltas:
-        cfg = config_for_delta(config, delta)
-        for k in range(delta, n):
-            prior = None
-            if guess_poses is not None:
-                prior = invert_transform(guess_poses[k - delta]) @ guess_poses[k]
-            rel = estimate_relative_pose(planes[k - delta], planes[k], cfg, prior)
-            measurement = from_relative_pose(rel, k - delta, k)
-            if measurement.ok and not rotation_determined(planes[k], measurement.associations):
-                # A rotation from fewer than two non-parallel associated planes is the
-                # prior's, not a measurement: keep the associations, drop the factor.
-                measurement = replace(measurement, ok=False)
-            out.append(measurement)
-            done += 1
-            if progress is not None:
-                progress("relatives", done, total)
+    pairs = [(k - d, k) for d in deltas for k in range(d, len(planes)) if (k - d, k) not in skip]
+    configs = {d: config_for_gap(config, d) for d in deltas}
+    out: list[RelativePose] = []
+    for done, (prev, curr) in enumerate(pairs, start=1):
+        prior = None
+        if guess_poses is not None:
+            prior = invert_transform(guess_poses[prev]) @ guess_poses[curr]
+        rel = estimate_relative_pose(planes[prev], planes[curr], configs[curr - prev], prior)
+        out.append(_checked(rel.between(prev, curr), planes[curr]))
+        if progress is not None:
+            progress("relatives", done, len(pairs))
     return out
+
+
+def smoothing_relatives(
+    odometry: OdometryRun, config: PlanodomConfig, progress: Progress | None = None
+) -> list[RelativePose]:
+    """The relative poses for delta = 1..``smoothing.delta_max``: the streaming odometry's
+    own results (but those it superseded), then the others estimated from its planes
+    (:func:`relative_poses`, its poses as priors)."""
+    reused = [
+        _checked(r, odometry.planes[r.curr])
+        for r in odometry.results
+        if r is not None and r.curr not in odometry.superseded
+    ]
+    known = {(r.prev, r.curr) for r in reused}
+    deltas = range(1, config.smoothing.delta_max + 1)
+    rest = relative_poses(odometry.planes, config, deltas, odometry.poses, progress, known)
+    return reused + rest
 
 
 def run_smoothing(
     source: Sequence,
     config: PlanodomConfig | None = None,
+    rig: Rig | None = None,
+    *,
     window: int | None = None,
     delta: int | None = None,
     mode: str = "batch",
@@ -179,6 +163,8 @@ def run_smoothing(
         source: a sequence of :class:`planodom.scan.Scan` (a dataset or a simulated run),
             or of plane lists; ``source.times`` is used when present.
         config: pipeline configuration (default: defaults).
+        rig: the vehicle (sensor origins, motion bounds), see
+            :func:`planodom.odometry.run_odometry`.
         window: W, epochs of the fixed-lag smoother (default ``smoothing.window``).
         delta: D, relative poses for delta = 1..D (default ``smoothing.delta_max``).
         mode: "batch" (whole sequence, Levenberg-Marquardt, marginals) or "windowed"
@@ -192,27 +178,21 @@ def run_smoothing(
     """
     if mode not in ("batch", "windowed"):
         raise ConfigError(f"smoothing mode: expected batch or windowed, got {mode!r}")
-    cfg = config or PlanodomConfig()
-    smoothing = cfg.smoothing.model_dump()
+    changes: dict[str, object] = {"odometry.delta": 1}
     if window is not None:
-        smoothing["window"] = window
+        changes["smoothing.window"] = window
     if delta is not None:
-        smoothing["delta_max"] = delta
-    data = cfg.model_dump()
-    data["smoothing"] = smoothing
-    data["odometry"]["delta"] = 1
-    cfg = PlanodomConfig.from_dict(data, source="smoothing")
+        changes["smoothing.delta_max"] = delta
+    cfg = (config or PlanodomConfig()).updated(changes, source="smoothing")
     seconds: dict[str, float] = {}
 
     if odometry is None:
         step = None if progress is None else (lambda k, n: progress("odometry", k, n))
-        odometry = run_odometry(source, cfg, progress=step)
+        odometry = run_odometry(source, cfg, rig, progress=step)
     seconds["extraction"] = odometry.seconds.get("extraction", 0.0)
     seconds["odometry"] = odometry.seconds.get("odometry", 0.0)
     start = time.perf_counter()
-    relatives = relative_poses(
-        odometry.planes, cfg, range(1, cfg.smoothing.delta_max + 1), odometry.poses, progress
-    )
+    relatives = smoothing_relatives(odometry, cfg, progress)
     seconds["relatives"] = time.perf_counter() - start
 
     smooth = smooth_batch if mode == "batch" else smooth_windowed

@@ -17,7 +17,7 @@ import gtsam
 import numpy as np
 
 from planodom.geometry import Plane, invert_transform, make_transform, transform_from_rpy_xyz
-from planodom.smoothing.graph import RelativeMeasurement
+from planodom.odometry.relative import RelativePose
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,7 +35,7 @@ class SyntheticSequence:
 
     poses: np.ndarray
     planes: list[list[Plane]]
-    relatives: list[RelativeMeasurement]
+    relatives: list[RelativePose]
     walls: np.ndarray
     centres: np.ndarray
 
@@ -169,8 +169,12 @@ def make_sequence(
             t = np.append(T_true[:2, 3] + rng.normal(0.0, sigma_translation, 2), 0.0)
             common, i_prev, i_curr = np.intersect1d(ids[prev], ids[k], return_indices=True)
             relatives.append(
-                RelativeMeasurement(
-                    prev, k, make_transform(R, t), sigmas, np.column_stack([i_prev, i_curr])
+                RelativePose(
+                    make_transform(R, t),
+                    np.diag(sigmas**2),
+                    associations=np.column_stack([i_prev, i_curr]),
+                    prev=prev,
+                    curr=k,
                 )
             )
     return SyntheticSequence(poses, planes, relatives, walls, centres)

@@ -17,8 +17,9 @@ import numpy as np
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import PlanodomError
 from planodom.geometry import Plane
-from planodom.smoothing.batch import SmoothingResult, smoothing_config
-from planodom.smoothing.graph import GraphBuilder, RelativeMeasurement
+from planodom.odometry.relative import RelativePose
+from planodom.smoothing.batch import SmoothingResult, group_by_epoch, smoothing_config
+from planodom.smoothing.graph import GraphBuilder
 
 
 class WindowedSmoother:
@@ -65,7 +66,7 @@ class WindowedSmoother:
         return self.builder.n_epochs
 
     def add_epoch(
-        self, planes: Sequence[Plane], relatives: Sequence[RelativeMeasurement] = ()
+        self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = ()
     ) -> np.ndarray:
         """Add the next epoch and update the window.
 
@@ -115,15 +116,13 @@ class WindowedSmoother:
 
 def smooth_windowed(
     epochs_planes: Sequence[Sequence[Plane]],
-    relative_poses: Sequence[RelativeMeasurement],
+    relative_poses: Sequence[RelativePose],
     config: SmoothingConfig | PlanodomConfig | None = None,
-    T_world_first: np.ndarray | None = None,
 ) -> SmoothingResult:
-    """Run :class:`WindowedSmoother` over a whole sequence (same inputs as smooth_batch)."""
-    smoother = WindowedSmoother(config, T_world_first)
-    by_curr: dict[int, list[RelativeMeasurement]] = {}
-    for rel in relative_poses:
-        by_curr.setdefault(rel.curr, []).append(rel)
+    """Run :class:`WindowedSmoother` over a whole sequence (inputs as :func:`smooth_batch`;
+    the first pose at identity, else use the class)."""
+    smoother = WindowedSmoother(config)
+    by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
     for k, planes in enumerate(epochs_planes):
-        smoother.add_epoch(planes, by_curr.get(k, []))
+        smoother.add_epoch(planes, by_epoch[k])
     return smoother.result()

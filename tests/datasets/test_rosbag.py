@@ -265,7 +265,7 @@ def test_odometry_on_a_lidar_bag(tmp_path: Path) -> None:
     sensors = [Sensor("/velodyne_points", "lidar", 0, "velodyne")]
     write_bag(tmp_path / "bag", 2, sensors, STATIC_TF, T_BASE, duration_s=0.6)
     with open_bag(tmp_path / "bag", gt_topic="/odom") as ds:
-        run = run_odometry(ds, sensor_origins=ds.rig.sensor_origins)
+        run = run_odometry(ds, rig=ds.rig)
         assert run.statuses[1:] == ["ok"] * (len(ds) - 1)
         est = relative_motions(np.asarray(run.poses))
         gt = relative_motions(ds.gt_poses)

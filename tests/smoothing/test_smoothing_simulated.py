@@ -16,7 +16,7 @@ from planodom.simulation import simulate_named
 from planodom.smoothing.run import run_smoothing
 from planodom.smoothing.synthetic import make_sequence
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,6 @@ import pytest
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig, SmoothingConfig
-from planodom.errors import ConfigError
 from planodom.experiments.consistency import (
     chi2_interval,
     consistency_tables,
@@ -77,14 +76,6 @@ def test_inlier_factors_count_with_full_weight_in_the_covariances() -> None:
     ratio = trace(robust) / trace(gauss)
     assert np.all(ratio > 0.9) and np.all(ratio < 1.15), ratio
     assert np.median(trace(weighted) / trace(gauss)) > 1.2
-
-
-def test_config_choices() -> None:
-    with pytest.raises(ConfigError):
-        SmoothingConfig(between_factors="some")
-    with pytest.raises(ConfigError):
-        SmoothingConfig(covariance_inlier_quantile=1.5)
-    assert SmoothingConfig(covariance_inlier_quantile=None).covariance_inlier_quantile is None
 
 
 def test_chi2_interval_of_an_average() -> None:

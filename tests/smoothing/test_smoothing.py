@@ -13,8 +13,9 @@ from scipy.stats import chi2
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import ConfigError
 from planodom.geometry import Plane, make_transform, pose_error
+from planodom.odometry import Status
 from planodom.smoothing import LandmarkTracker, WindowedSmoother, smooth_batch, smooth_windowed
-from planodom.smoothing.graph import GraphBuilder, rpy_to_rotation_vector
+from planodom.smoothing.noise import rpy_to_rotation_vector
 from planodom.smoothing.run import rotation_determined
 from planodom.smoothing.synthetic import SyntheticSequence, make_sequence
 
@@ -200,7 +201,7 @@ def test_plane_seen_once_stays_out_of_the_graph() -> None:
 
 def test_unresolved_epoch_gets_a_fallback_and_planes_bridge_it() -> None:
     seq = make_sequence(20, seed=9, vertical_sigma=0.0)
-    relatives = [replace(r, ok=False) if r.curr == 10 else r for r in seq.relatives]
+    relatives = [replace(r, status=Status.UNRESOLVED) if r.curr == 10 else r for r in seq.relatives]
     result = smooth_batch(seq.planes, relatives, GAUSSIAN)
     assert result.stats.unresolved_epochs == [10] and result.stats.fallback == 1
     rot, trans = max_pose_errors(result.poses, seq.poses)
@@ -224,13 +225,36 @@ def test_robust_kernel_limits_an_outlier_relative_pose() -> None:
     assert err["huber"] < err["gaussian"] and err["cauchy"] < err["gaussian"], err
 
 
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("robust_kernel", "tukey"),
+        ("windowed_backend", "isam"),
+        ("plane_factor", "local"),
+        ("between_factors", "some"),
+        ("flipped_normals", "keep"),
+        ("gate_normal_deg", float("nan")),
+        ("prior_sigma", 0.0),
+        ("vertical_sigma_m", float("inf")),
+        ("covariance_inlier_quantile", 1.5),
+        ("min_landmark_epochs", 1),
+        ("relative_error_tol", 1.0),
+    ],
+)
+def test_wrong_values_fail_at_load_naming_the_field(field: str, value: object) -> None:
+    with pytest.raises(ConfigError, match=f"smoothing.{field}") as info:
+        PlanodomConfig.from_dict({"smoothing": {field: value}})
+    assert "\n" not in str(info.value)
+
+
 def test_config_validation() -> None:
-    with pytest.raises(ConfigError, match="window"):
-        SmoothingConfig(window=3, delta_max=3)
-    with pytest.raises(ConfigError, match="robust_kernel"):
-        SmoothingConfig(robust_kernel="tukey")
-    with pytest.raises(ConfigError, match="global"):
-        GraphBuilder(SmoothingConfig(plane_factor="global"))
+    with pytest.raises(ConfigError, match="smoothing.window"):
+        PlanodomConfig.from_dict({"smoothing": {"window": 3, "delta_max": 3}})
+    with pytest.raises(ConfigError, match="smoothing.plane_factor"):
+        PlanodomConfig.from_dict({"smoothing": {"plane_factor": "global"}})
+    with pytest.raises(ConfigError, match="smoothing.window"):
+        PlanodomConfig().updated({"smoothing.window": 1})
+    assert SmoothingConfig(plane_factor="global", robust_planes=False).plane_factor == "global"
     assert PlanodomConfig.from_dict({"smoothing": {"delta_max": 2}}).smoothing.delta_max == 2
 
 
@@ -267,3 +291,22 @@ def test_rotation_needs_two_non_parallel_associated_planes() -> None:
     assert not rotation_determined([ground, wall], np.array([[0, 0]]))
     assert not rotation_determined([wall, parallel], np.array([[0, 0], [1, 1]]))
     assert not rotation_determined([ground], np.array([[0, 0], [1, 5]]))  # index out of range
+
+
+def test_smoothing_reuses_the_odometry_results_and_estimates_the_rest() -> None:
+    from planodom.odometry import run_odometry
+    from planodom.smoothing.run import smoothing_relatives
+
+    seq = make_sequence(12, seed=1, step_m=0.5)
+    cfg = PlanodomConfig()
+    odo = run_odometry(seq.planes, cfg, times=0.1 * np.arange(12))
+    assert odo.superseded == [] and all(r.measured for r in odo.results[1:])
+    relatives = smoothing_relatives(odo, cfg)
+    pairs = [(r.prev, r.curr) for r in relatives]
+    assert len(pairs) == len(set(pairs)) == 11 + 10 + 9  # delta = 1, 2, 3, once each
+    for k in range(1, 12):
+        assert relatives[k - 1] is odo.results[k]  # the streaming estimate itself
+    truth = [np.linalg.inv(seq.poses[r.prev]) @ seq.poses[r.curr] for r in relatives]
+    for r, T in zip(relatives, truth, strict=True):
+        np.testing.assert_allclose(r.T_prev_curr[:3, :3], T[:3, :3], atol=1e-9)
+        np.testing.assert_allclose(r.T_prev_curr[:2, 3], T[:2, 3], atol=1e-8)

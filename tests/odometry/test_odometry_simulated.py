@@ -9,7 +9,7 @@ from planodom.config import PlanodomConfig
 from planodom.experiments.paper import run_paper_experiment
 from planodom.experiments.simulated import Simulation
 from planodom.metrics import per_epoch_errors, relative_motions
-from planodom.odometry import run_odometry
+from planodom.odometry import epoch_rows, run_odometry
 from planodom.simulation import simulate_named
 
 
@@ -20,7 +20,7 @@ def loop():
 
 
 def test_noise_free_loop_is_recovered(loop):
-    run = run_odometry(loop, PlanodomConfig())
+    run = run_odometry(loop, PlanodomConfig(), loop.rig)
     assert run.poses.shape == (25, 4, 4) and run.n_unresolved == 0
     gt = np.linalg.inv(loop.poses[0]) @ loop.poses
     e = per_epoch_errors(relative_motions(run.poses), relative_motions(gt))
@@ -30,7 +30,7 @@ def test_noise_free_loop_is_recovered(loop):
     # a wall); at least 90 % to 1e-6.
     assert np.mean(worst < 1e-6) >= 0.9
     assert np.median(worst) < 1e-9
-    rows = run.rows()
+    rows = epoch_rows(run)
     assert rows[0]["status"] == "first" and {"roll", "x", "sigma_y", "status"} <= set(rows[1])
 
 

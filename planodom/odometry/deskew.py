@@ -1,0 +1,112 @@
+"""When to extract an epoch again with a better twist: the deskewing policy.
+
+A scan whose points are spread in time is deskewed with a constant-velocity twist (body
+frame, rad/s and m/s). The twist of the last estimate is only a prediction; once the
+epoch's own relative pose is known, :func:`register_deskewed` decides whether to extract
+it again:
+
+1. deskewed with the prediction; when that leaves the epoch unresolved or degenerate,
+   also without deskewing (a wrong twist must not lock the odometry out), best kept;
+2. up to ``deskew_iterations`` times: with the epoch's own angular rate and (when its
+   translation was measured) velocity wherever they differ from the twist used by more
+   than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
+   epoch that was never deskewed (the first) is extracted again with it too. A new
+   estimate is kept while its status does not get worse.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from planodom.config import OdometryConfig
+from planodom.geometry import Plane, se3_log
+from planodom.odometry.relative import RelativePose, Status
+from planodom.planes import PlaneSet
+from planodom.scan import Scan
+
+
+@dataclass(frozen=True, eq=False)
+class EpochEstimate:
+    """One extraction of an epoch and the relative pose it gives.
+
+    Attributes:
+        planes: the extracted planes (base frame); plane_set: the same as arrays.
+        twist: (6,) the twist the scan was deskewed with (None: not deskewed).
+        relative: the relative pose to the reference epoch (``prev`` .. ``curr``).
+        step: (4, 4) ``T_{k-1}_k`` it implies for the last step.
+        reference_planes: the reference epoch's planes it was estimated against (its
+            association indices refer to them).
+    """
+
+    planes: list[Plane]
+    plane_set: PlaneSet
+    twist: np.ndarray | None
+    relative: RelativePose
+    step: np.ndarray
+    reference_planes: list[Plane]
+
+
+#: ``estimate(twist) -> EpochEstimate``: extract the epoch deskewed with ``twist`` (None:
+#: not deskewed) and estimate its relative pose.
+Estimator = Callable[[np.ndarray | None], EpochEstimate]
+#: ``refresh_reference(twist) -> bool``: extract the reference epoch again with ``twist``
+#: when it was never deskewed; returns whether it did.
+Refresher = Callable[[np.ndarray], bool]
+
+
+def time_spread(scan: Scan) -> bool:
+    """Whether the scan's points carry times that differ (deskewing can matter)."""
+    return bool(scan.t is not None and len(scan.t) and np.ptp(scan.t) > 0)
+
+
+def register_deskewed(
+    predicted: np.ndarray | None,
+    dt: float,
+    estimate: Estimator,
+    refresh_reference: Refresher,
+    config: OdometryConfig,
+) -> EpochEstimate:
+    """The best estimate of a time-spread epoch (module docstring).
+
+    Args:
+        predicted: (6,) the constant-velocity twist predicted for the epoch (None: none).
+        dt: seconds since the previous epoch.
+        estimate, refresh_reference: see :data:`Estimator`, :data:`Refresher`.
+        config: ``deskew_*`` fields.
+    """
+    best = estimate(predicted)
+    if dt > 0 and predicted is not None and best.relative.status is not Status.OK:
+        plain = estimate(None)
+        if plain.relative.status.rank > best.relative.status.rank:
+            best = plain
+    for _ in range(config.deskew_iterations if dt > 0 else 0):
+        if best.relative.status is Status.UNRESOLVED:
+            break
+        used = np.zeros(6) if best.twist is None else best.twist
+        measured = best.relative.status is Status.OK
+        new = refined_twist(se3_log(best.step) / dt, used, measured, config)
+        stale_reference = refresh_reference(new)
+        if not stale_reference and np.array_equal(new, used):
+            break
+        again = estimate(new)
+        if again.relative.status.rank < best.relative.status.rank:
+            break
+        best = again
+    return best
+
+
+def refined_twist(
+    own: np.ndarray, used: np.ndarray, measured: bool, config: OdometryConfig
+) -> np.ndarray:
+    """The twist (6,) to extract again with: the epoch's ``own`` angular rate and (when its
+    translation was ``measured``) linear velocity, each only where it differs from the
+    twist ``used`` by more than its tolerance; else ``used`` unchanged."""
+    new = used.copy()
+    if np.degrees(np.linalg.norm(own[:3] - used[:3])) > config.deskew_rate_tolerance_deg_s:
+        new[:3] = own[:3]
+    if measured and np.linalg.norm(own[3:] - used[3:]) > config.deskew_speed_tolerance_mps:
+        new[3:] = own[3:]
+    return new

@@ -1,0 +1,285 @@
+"""Streaming plane odometry: one epoch in, one pose out (:class:`PlaneOdometry`).
+
+Per epoch k: extract planes (deskewed with the constant-velocity twist of the last
+estimate, :mod:`planodom.odometry.deskew`), associate them with the planes of epoch
+``k - delta`` (a short history is kept), estimate the relative pose with the
+constant-velocity prediction as prior, and chain: ``T_world_k = T_world_{k-delta} @
+T_{k-delta}_k``. The first epoch defines the world frame (identity). When the reference
+epoch has fewer than two planes, the latest earlier epoch with two or more is used instead
+(bounds scaled by the gap). An unresolved epoch (no associated non-parallel pair) is
+bridged by constant velocity (the last increment's twist times the elapsed time; standing
+still before any motion is known): its result has ``status == Status.UNRESOLVED`` and that
+bridge as ``T_prev_curr``.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from functools import partial
+
+import numpy as np
+
+from planodom.config import PlanodomConfig
+from planodom.geometry import Plane, invert_transform, se3_exp, se3_log
+from planodom.odometry.deskew import EpochEstimate, register_deskewed, time_spread
+from planodom.odometry.relative import RelativePose, Status
+from planodom.odometry.solver import config_for_gap, estimate_relative_pose
+from planodom.planes import PlaneSet
+from planodom.scan import Scan
+
+#: ``extractor(scan, extraction_config, twist=..., [sensor_origins=...]) -> list[Plane]``
+Extractor = Callable[..., list[Plane]]
+
+
+def _default_extractor() -> Extractor:
+    from planodom.extraction import extract_planes
+
+    return extract_planes
+
+
+@dataclass
+class _Epoch:
+    """What the odometry keeps of a registered epoch: its planes (and their arrays), and,
+    for re-extraction, its scan and the twist it was deskewed with (None: not deskewed)."""
+
+    index: int
+    planes: list[Plane]
+    plane_set: PlaneSet
+    scan: Scan | None = None
+    twist: np.ndarray | None = None
+
+
+class PlaneOdometry:
+    """Streaming plane odometry (``register_epoch`` per scan, or ``register_planes``).
+
+    Args:
+        config: the pipeline configuration (default: defaults).
+        extractor: see :data:`Extractor`; default :func:`planodom.extraction.extract_planes`.
+        sensor_origins: sensor positions in the base frame, metres ((3,) or (S, 3) by
+            ring), passed to the extractor to orient normals; None: its default.
+
+    Attributes:
+        config: the pipeline configuration.
+        poses: ``T_world_base`` (4, 4) of every registered epoch (the first is identity).
+        times: reference time of every epoch, seconds.
+        results: per epoch the :class:`RelativePose` from its reference epoch
+            (``result.prev``: ``k - delta``, or, when that one has fewer than two planes,
+            the latest earlier epoch that has) to it; None for the first epoch.
+        planes: the planes of every epoch (base frame), as last extracted: a reference
+            epoch that was never deskewed (the first) is extracted again with a twist.
+        superseded: epochs whose result indexes planes (its own or its reference's) that
+            were extracted again later, so not ``planes``.
+        twist: (6,) constant-velocity body twist, rad/s and m/s, predicted for the next
+            epoch (angular rate of the last step, median recent measured linear
+            velocity); None before the second epoch.
+    """
+
+    def __init__(
+        self,
+        config: PlanodomConfig | None = None,
+        extractor: Extractor | None = None,
+        sensor_origins: np.ndarray | None = None,
+    ):
+        self.config = config or PlanodomConfig()
+        self.extractor = extractor
+        self.sensor_origins = sensor_origins
+        self.poses: list[np.ndarray] = []
+        self.times: list[float] = []
+        self.results: list[RelativePose | None] = []
+        self.planes: list[list[Plane]] = []
+        self.superseded: set[int] = set()
+        self.twist: np.ndarray | None = None
+        # The last delta epochs, and the last one with two planes or more.
+        self._history: deque[_Epoch] = deque(maxlen=self.config.odometry.delta)
+        self._last_usable: _Epoch | None = None
+        self._velocities: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
+        self._steps: list[np.ndarray] = []  # T_{k-1}_k per epoch (identity first)
+        self._gap_configs: dict[int, PlanodomConfig] = {1: self.config}
+
+    @property
+    def last_pose(self) -> np.ndarray | None:
+        """``T_world_base`` (4, 4) of the last epoch (None before the first)."""
+        return self.poses[-1] if self.poses else None
+
+    @property
+    def last_relative(self) -> RelativePose | None:
+        """The relative pose found for the last epoch (None before the second)."""
+        return self.results[-1] if self.results else None
+
+    @property
+    def last_planes(self) -> list[Plane]:
+        """The planes of the last epoch."""
+        return self._history[-1].planes if self._history else []
+
+    @property
+    def reference_index(self) -> list[int]:
+        """Per epoch the epoch it was associated with (``results[k].prev``); -1 first."""
+        return [-1 if r is None else r.prev for r in self.results]
+
+    def register_epoch(self, scan: Scan, time: float | None = None) -> np.ndarray:
+        """Extract the planes of one epoch and register them; returns ``T_world_base``.
+
+        Args:
+            scan: the epoch's points in the base frame (with per-point times if known).
+            time: the epoch's reference time, seconds (default: previous + epoch period).
+        """
+        t = self._next_time(time)
+        k = len(self.poses)
+        if k == 0:
+            return self._commit_first(self._new_epoch(0, scan, None), t)
+        estimate = partial(self._estimate_scan, scan, t)
+        if self.config.odometry.deskew and time_spread(scan):
+            dt = t - self.times[-1]
+            refresh = self._refresh_reference
+            best = register_deskewed(self.twist, dt, estimate, refresh, self.config.odometry)
+        else:
+            best = estimate(None)
+        return self._commit(_Epoch(k, best.planes, best.plane_set, scan, best.twist), best, t)
+
+    def register_planes(self, planes: Sequence[Plane], time: float | None = None) -> np.ndarray:
+        """Register an epoch given its planes (base frame); returns ``T_world_base`` (4, 4)."""
+        t = self._next_time(time)
+        epoch = _Epoch(len(self.poses), list(planes), PlaneSet.from_planes(planes))
+        if not self.poses:
+            return self._commit_first(epoch, t)
+        return self._commit(epoch, self._estimate(epoch, t), t)
+
+    # ------------------------------------------------------------------ one epoch
+
+    def _next_time(self, time: float | None) -> float:
+        if time is not None:
+            return float(time)
+        if not self.times:
+            return 0.0
+        return self.times[-1] + self.config.odometry.epoch_period_s
+
+    def _extract(self, scan: Scan, twist: np.ndarray | None) -> list[Plane]:
+        """The planes of ``scan`` deskewed with exactly ``twist`` (None: not deskewed)."""
+        if self.extractor is None:
+            self.extractor = _default_extractor()
+        kwargs = {} if self.sensor_origins is None else {"sensor_origins": self.sensor_origins}
+        return list(self.extractor(scan, self.config.extraction, twist=twist, **kwargs))
+
+    def _new_epoch(self, k: int, scan: Scan, twist: np.ndarray | None) -> _Epoch:
+        planes = self._extract(scan, twist)
+        return _Epoch(k, planes, PlaneSet.from_planes(planes), scan, twist)
+
+    def _estimate_scan(self, scan: Scan, t: float, twist: np.ndarray | None) -> EpochEstimate:
+        """Extract the scan deskewed with ``twist`` and estimate its relative pose."""
+        return self._estimate(self._new_epoch(len(self.poses), scan, twist), t)
+
+    def _estimate(self, epoch: _Epoch, t: float) -> EpochEstimate:
+        """The relative pose of ``epoch`` (at time ``t``) from the reference epoch, and the
+        step ``T_{k-1}_k`` it implies.
+
+        Poses are chained through steps (products of rigid transforms), never through the
+        inverse of a chained world pose, so rounding cannot grow from epoch to epoch.
+        """
+        reference = self._reference()
+        T_ref_last = np.eye(4)  # T_{ref}_{k-1}
+        for step in self._steps[reference.index + 1 :]:
+            T_ref_last = T_ref_last @ step
+        dt = t - self.times[-1]
+        prediction = None  # constant velocity: T_{ref}_k
+        if self.twist is not None and dt > 0:
+            prediction = T_ref_last @ se3_exp(self.twist * dt)
+        prior = prediction if self.config.odometry.use_motion_prior else None
+        config = self._config_for_gap(epoch.index - reference.index)
+        result = estimate_relative_pose(reference.plane_set, epoch.plane_set, config, prior)
+        if result.status is Status.UNRESOLVED:  # bridged by constant velocity
+            bridge = prediction if prediction is not None else T_ref_last
+            result = replace(result, T_prev_curr=bridge)
+        result = result.between(reference.index, epoch.index)
+        step = _orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
+        return EpochEstimate(
+            epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes
+        )
+
+    def _config_for_gap(self, gap: int) -> PlanodomConfig:
+        if gap not in self._gap_configs:
+            self._gap_configs[gap] = config_for_gap(self.config, gap)
+        return self._gap_configs[gap]
+
+    def _reference(self) -> _Epoch:
+        """The epoch the next one is associated with (see ``results``)."""
+        ref = self._history[0]
+        if len(ref.planes) < 2 and self._last_usable is not None:
+            ref = self._last_usable
+        return ref
+
+    def _refresh_reference(self, twist: np.ndarray) -> bool:
+        """Extract the reference epoch again with ``twist`` when it has a scan that was
+        never deskewed (its pose is not changed); returns whether it did."""
+        ref = self._reference()
+        if ref.scan is None or ref.twist is not None:
+            return False
+        ref.planes = self._extract(ref.scan, twist)
+        ref.plane_set = PlaneSet.from_planes(ref.planes)
+        ref.twist = twist
+        self.planes[ref.index] = ref.planes
+        if self.results[ref.index] is not None:
+            self.superseded.add(ref.index)
+        if len(ref.planes) >= 2 and (
+            self._last_usable is None or self._last_usable.index <= ref.index
+        ):
+            self._last_usable = ref
+        return True
+
+    # ------------------------------------------------------------------ state
+
+    def _commit_first(self, epoch: _Epoch, t: float) -> np.ndarray:
+        self._append(epoch, np.eye(4), np.eye(4), None, t)
+        return self.poses[-1]
+
+    def _commit(self, epoch: _Epoch, best: EpochEstimate, t: float) -> np.ndarray:
+        """Append the epoch with its pose from ``best.step``; update the twist."""
+        dt = t - self.times[-1]
+        if dt > 0:
+            measured = best.relative.status is Status.OK
+            self.twist = self._predicted_twist(se3_log(best.step) / dt, measured)
+        T_world = _orthonormalised(self.poses[-1] @ best.step)
+        if best.reference_planes is not self.planes[best.relative.prev]:
+            self.superseded.add(epoch.index)
+        self._append(epoch, T_world, best.step, best.relative, t)
+        return T_world
+
+    def _append(
+        self,
+        epoch: _Epoch,
+        T_world: np.ndarray,
+        step: np.ndarray,
+        result: RelativePose | None,
+        t: float,
+    ) -> None:
+        self.poses.append(T_world)
+        self._steps.append(step)
+        self.times.append(t)
+        self.results.append(result)
+        self.planes.append(epoch.planes)
+        self._history.append(epoch)
+        if len(epoch.planes) >= 2:
+            self._last_usable = epoch
+
+    def _predicted_twist(self, twist: np.ndarray, measured: bool) -> np.ndarray:
+        """The constant-velocity twist for the next epoch: the angular rate of the last
+        step, and the median linear velocity of the last ``velocity_window`` steps whose
+        translation was measured (one wrong translation must not steer the deskewing and
+        the prior of the following epochs; a degenerate step only repeats its prior)."""
+        if measured:
+            self._velocities.append(twist[3:])
+        if not self._velocities:
+            return twist
+        return np.r_[twist[:3], np.median(np.array(self._velocities), axis=0)]
+
+
+def _orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+    """``T`` (4, 4) with its rotation projected on SO(3) (SVD) once rounding exceeds ``tol``."""
+    R = T[:3, :3]
+    if np.max(np.abs(R.T @ R - np.eye(3))) <= tol:
+        return T
+    U, _, Vt = np.linalg.svd(R)
+    out = T.copy()
+    out[:3, :3] = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    return out

@@ -1,0 +1,191 @@
+"""A whole run of the streaming odometry over a sequence of epochs, and its per-epoch rows."""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planodom.config import PlanodomConfig
+from planodom.geometry import Plane
+from planodom.odometry.odometry import Extractor, PlaneOdometry, _default_extractor
+from planodom.odometry.relative import RelativePose, Status
+from planodom.rig import MotionBounds, Rig
+from planodom.scan import Scan
+
+
+@dataclass
+class OdometryRun:
+    """A whole run of the streaming odometry.
+
+    Attributes:
+        poses: (N, 4, 4) ``T_world_base`` per epoch (first is identity).
+        times: (N,) seconds.
+        results: per epoch the relative pose from its reference epoch (None for the first).
+        n_planes: (N,) planes extracted per epoch (at its registration).
+        planes: the planes of every epoch (base frame), as last extracted
+            (:attr:`PlaneOdometry.planes`), for smoothing and diagnostics.
+        superseded: epochs whose result indexes planes extracted again later
+            (:attr:`PlaneOdometry.superseded`).
+        seconds: wall time spent in extraction and in odometry, seconds.
+        config: the configuration the run used (with a rig's motion bounds).
+    """
+
+    poses: np.ndarray
+    times: np.ndarray
+    results: list[RelativePose | None]
+    n_planes: np.ndarray
+    planes: list[list[Plane]] = field(default_factory=list)
+    superseded: list[int] = field(default_factory=list)
+    seconds: dict[str, float] = field(default_factory=dict)
+    config: PlanodomConfig | None = None
+
+    @property
+    def statuses(self) -> list[str]:
+        """Per epoch "first" or the :class:`Status` value."""
+        return ["first" if r is None else str(r.status) for r in self.results]
+
+    @property
+    def n_unresolved(self) -> int:
+        return sum(r is not None and r.status is Status.UNRESOLVED for r in self.results)
+
+    @property
+    def n_degenerate(self) -> int:
+        return sum(r is not None and r.status is Status.DEGENERATE for r in self.results)
+
+
+def with_motion_bounds(config: PlanodomConfig, bounds: MotionBounds | None) -> PlanodomConfig:
+    """``config`` with the motion bounds a rig states (``rig.yaml``'s ``motion_bounds``).
+
+    Each bound becomes the larger of the config's and the rig's (both are assumptions of a
+    maximum, so the union is the safe one).
+    """
+    if bounds is None:
+        return config
+    a = config.association
+    changes = {
+        f"association.{key}": max(float(getattr(a, key)), float(value))
+        for key, value in (
+            ("max_translation_m", bounds.max_translation_m),
+            ("max_rotation_deg", bounds.max_rotation_deg),
+        )
+        if value is not None
+    }
+    return config.updated(changes, source="rig motion_bounds") if changes else config
+
+
+def run_odometry(
+    source: Sequence[Scan] | Sequence[Sequence[Plane]],
+    config: PlanodomConfig | None = None,
+    rig: Rig | None = None,
+    *,
+    times: Sequence[float] | np.ndarray | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    extractor: Extractor | None = None,
+) -> OdometryRun:
+    """Run :class:`PlaneOdometry` over a sequence of epochs.
+
+    Args:
+        source: a sequence (``len`` and indexing) of :class:`Scan`, e.g. a dataset, or of
+            plane lists (no extraction); its ``times`` attribute (N,) seconds is used when
+            present and ``times`` is None.
+        config: pipeline configuration.
+        rig: the vehicle: its ``sensor_origins`` orient the extracted normals, its
+            ``motion_bounds`` widen the association's (:func:`with_motion_bounds`);
+            default: ``source.rig`` when the source has one (a dataset), else ``Rig()``.
+        times: epoch reference times (N,), seconds.
+        progress: called as ``progress(k, n)`` after each epoch.
+        extractor: ``extractor(scan, extraction_config, twist=...) -> list[Plane]``;
+            default :func:`planodom.extraction.extract_planes`.
+    """
+    if rig is None:
+        rig = getattr(source, "rig", None) or Rig()
+    cfg = with_motion_bounds(config or PlanodomConfig(), rig.motion_bounds)
+    timed = _TimedExtractor(extractor)
+    odo = PlaneOdometry(cfg, timed, rig.sensor_origins)
+    n = len(source)
+    if times is None:
+        times = getattr(source, "times", None)
+    total = 0.0
+    n_planes = np.zeros(n, dtype=int)
+    for k in range(n):
+        item = source[k]
+        t_k = None if times is None else float(times[k])
+        c0 = _time.perf_counter()
+        if isinstance(item, Scan):
+            odo.register_epoch(item, t_k)
+        else:
+            odo.register_planes(list(item), t_k)
+        total += _time.perf_counter() - c0
+        n_planes[k] = len(odo.last_planes)
+        if progress is not None:
+            progress(k + 1, n)
+    return OdometryRun(
+        poses=np.array(odo.poses).reshape(-1, 4, 4),
+        times=np.array(odo.times),
+        results=odo.results,
+        n_planes=n_planes,
+        planes=odo.planes,
+        superseded=sorted(odo.superseded),
+        seconds={"extraction": timed.seconds, "odometry": total - timed.seconds},
+        config=cfg,
+    )
+
+
+class _TimedExtractor:
+    """An extractor that adds up the wall time spent in it (``seconds``)."""
+
+    def __init__(self, extractor: Extractor | None) -> None:
+        self.extractor = extractor
+        self.seconds = 0.0
+
+    def __call__(self, *args: object, **kwargs: object) -> list[Plane]:
+        if self.extractor is None:
+            self.extractor = _default_extractor()
+        c0 = _time.perf_counter()
+        out = self.extractor(*args, **kwargs)
+        self.seconds += _time.perf_counter() - c0
+        return out
+
+
+_POSE5 = ("roll", "pitch", "yaw", "x", "y")
+
+
+def epoch_rows(run: OdometryRun) -> list[dict[str, object]]:
+    """One dict per epoch (``epochs.csv``): time, status, the 5-DoF increment, sigmas and
+    the solver's diagnostics."""
+    out: list[dict[str, object]] = []
+    for k, r in enumerate(run.results):
+        row: dict[str, object] = {"epoch": k, "time": float(run.times[k])}
+        row["n_planes"] = int(run.n_planes[k])
+        if r is None:
+            row["status"] = "first"
+            out.append(row)
+            continue
+        row["status"] = str(r.status)
+        row |= {name: float(v) for name, v in zip(_POSE5, r.pose5, strict=True)}
+        row["z"] = float(r.T_prev_curr[2, 3])
+        row["z_observed"] = r.z_observed
+        row |= {f"sigma_{name}": float(v) for name, v in zip(_POSE5, r.sigmas5, strict=True)}
+        row |= _diagnostic_columns(r)
+        row["fallback"] = r.status is Status.UNRESOLVED
+        out.append(row)
+    return out
+
+
+def _diagnostic_columns(r: RelativePose) -> dict[str, object]:
+    info = r.diagnostics
+    rc = info.rotation_consensus if info else None
+    tc = info.translation_consensus if info else None
+    return {
+        "n_lda_pairs": len(info.lda) if info else 0,
+        "n_sda": len(r.associations),
+        "n_translation_pairs": info.n_translation_pairs if info else 0,
+        "rotation_error": rc.best_error if rc else float("nan"),
+        "rotation_inliers": rc.n_inliers if rc else 0,
+        "translation_error": tc.best_error if tc else float("nan"),
+        "translation_inliers": tc.n_inliers if tc else 0,
+        "used_prior": info.used_prior if info else False,
+    }

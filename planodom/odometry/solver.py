@@ -1,0 +1,385 @@
+"""The divide-and-conquer relative pose (paper V, Fig. 3): rotation first, then translation.
+
+Pipelines (``config.odometry.pipeline``):
+
+=========== ==================== ======================================
+name        rotation             translation
+=========== ==================== ======================================
+"wocsc"     LDA, WOCSC           WOCSC over rotation-consistent LDA pairs
+"sda-mean"  LDA, WOCSC           SDA, mean of the pairs' translations ("cog")
+"ocsc"      LDA, OCSC            OCSC over rotation-consistent LDA pairs
+"mean"      LDA, chordal mean    SDA, mean ("cog")  (ablation: no consensus)
+=========== ==================== ======================================
+
+The result is the 5-DoF increment (roll, pitch, yaw, x, y) of ``T_prev_curr``; the
+vertical translation comes from near-horizontal planes (the ground) when
+``estimate_z`` and one is associated, else from the prior (0 without one) and is marked
+unobserved.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+
+from planodom.association import PairAssociations, lenient_association, strict_association
+from planodom.config import PlanodomConfig
+from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
+from planodom.geometry import Plane, make_transform, rpy_from_rotation
+from planodom.odometry.propagate import pose_covariance, rotation_covariance
+from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
+from planodom.odometry.rotation import (
+    chord,
+    chordal_mean_rotation,
+    rotation_angles_to,
+    rotation_consensus,
+)
+from planodom.odometry.translation import (
+    HeightElements,
+    TranslationElements,
+    height_elements,
+    pairs_of_associations,
+    solve_height,
+    translation_elements,
+)
+from planodom.planes import PlaneSet, as_plane_set
+
+#: pipeline name -> (rotation method, translation method)
+PIPELINES: dict[str, tuple[str, str]] = {
+    "wocsc": ("wocsc", "wocsc"),
+    "sda-mean": ("wocsc", "cog"),
+    "ocsc": ("ocsc", "ocsc"),
+    "mean": ("mean", "cog"),
+}
+
+
+def config_for_gap(config: PlanodomConfig, gap: int) -> PlanodomConfig:
+    """``config`` with the association's motion bounds widened for ``gap`` epochs.
+
+    The per-epoch bounds ``max_translation_m`` and ``max_rotation_deg`` times the gap
+    (rotation at most 180 deg); the prior bounds stay (the prior carries the gap).
+    """
+    if gap <= 1:
+        return config
+    a = config.association
+    changes = {
+        "association.max_translation_m": a.max_translation_m * gap,
+        "association.max_rotation_deg": min(a.max_rotation_deg * gap, 180.0),
+    }
+    return config.updated(changes, source=f"bounds for a gap of {gap} epochs")
+
+
+def _canonical_order(planes: PlaneSet) -> np.ndarray:
+    """A permutation sorting planes by their values, so the input order cannot matter."""
+    keys = np.column_stack(
+        [planes.normals, planes.offsets, planes.weights, planes.centroids, planes.radii]
+    )
+    return np.lexsort(keys.T[::-1])
+
+
+def _pair_ids(pairs: np.ndarray) -> np.ndarray:
+    """(M,) one integer id per plane index pair (M, 2)."""
+    return pairs[:, 0].astype(np.int64) * (int(pairs.max(initial=0)) + 1) + pairs[:, 1]
+
+
+def _spread(d: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Weighted second moment (D, D) of deviations ``d`` (M, D)."""
+    return np.einsum("m,mi,mj->ij", w, d, d) / w.sum()
+
+
+def estimate_relative_pose(
+    planes_prev: Sequence[Plane] | PlaneSet,
+    planes_curr: Sequence[Plane] | PlaneSet,
+    config: PlanodomConfig | None = None,
+    prior: np.ndarray | None = None,
+) -> RelativePose:
+    """The relative pose ``T_prev_curr`` from the planes of two epochs.
+
+    Args:
+        planes_prev: planes of epoch k in its base frame (normals towards the sensor).
+        planes_curr: planes of epoch k + d in its base frame.
+        config: association and odometry sections are used.
+        prior: optional predicted ``T_prev_curr`` (4, 4), e.g. constant velocity. LDA
+            then bounds the motion around it; when that leaves the epoch unresolved or
+            degenerate and ``retry_without_prior`` is set, it is solved again with the
+            prior-free bounds (a wrong prior must not lock the odometry out). The
+            prior's z fills an unobserved height, its translation an unmeasured one.
+
+    Returns:
+        :class:`RelativePose` (``prev``, ``curr`` unset); index arrays refer to the input
+        lists.
+    """
+    cfg = config or PlanodomConfig()
+    prev_in, curr_in = as_plane_set(planes_prev), as_plane_set(planes_curr)
+    order_p, order_c = _canonical_order(prev_in), _canonical_order(curr_in)
+    prev, curr = prev_in.take(order_p), curr_in.take(order_c)
+    prior = None if prior is None else np.asarray(prior, dtype=np.float64)
+
+    result = _solve(prev, curr, cfg, prior, bound_by_prior=prior is not None)
+    if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
+        free = _solve(prev, curr, cfg, prior, bound_by_prior=False)
+        if free.status.rank > result.status.rank:
+            result = free
+    return _remapped(result, order_p, order_c)
+
+
+def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) -> RelativePose:
+    """``result`` with plane indices of the sorted sets mapped back to the input order, and
+    its sources."""
+    ij = result.associations
+
+    def pair(q: np.ndarray | None) -> np.ndarray | None:
+        return None if q is None else np.r_[order_p[q[:2]], order_c[q[2:]]]
+
+    info = result.diagnostics
+    assert info is not None
+    info = replace(
+        info,
+        lda=info.lda.remapped(order_p, order_c),
+        rotation_pair=pair(info.rotation_pair),
+        translation_pair=pair(info.translation_pair),
+    )
+    return replace(
+        result,
+        associations=np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]]) if len(ij) else ij,
+        sources=info.sources(result.status),
+        diagnostics=info,
+    )
+
+
+class _Bounds(NamedTuple):
+    """The motion assumption of one pass: centre ``t0`` (3,) m, translation bound m,
+    rotation bound rad, and the height to use when z is not measured, m."""
+
+    t0: np.ndarray
+    translation: float
+    rotation: float
+    z_prior: float
+
+
+def _bounds(cfg: PlanodomConfig, prior: np.ndarray | None, bound_by_prior: bool) -> _Bounds:
+    a = cfg.association
+    if bound_by_prior:
+        assert prior is not None
+        t0, t, r = prior[:3, 3], a.prior_translation_m, a.prior_rotation_deg
+    else:
+        t0, t, r = np.zeros(3), a.max_translation_m, a.max_rotation_deg
+    return _Bounds(t0, t, np.radians(r), float(prior[2, 3]) if prior is not None else 0.0)
+
+
+def _solve(
+    prev: PlaneSet,
+    curr: PlaneSet,
+    cfg: PlanodomConfig,
+    prior: np.ndarray | None,
+    bound_by_prior: bool,
+) -> RelativePose:
+    """One pass of the pipeline on canonically ordered planes (indices not remapped)."""
+    ocfg, acfg = cfg.odometry, cfg.association
+    rot_method, trans_method = PIPELINES[ocfg.pipeline]
+    lda = lenient_association(prev, curr, acfg, prior if bound_by_prior else None)
+    bounds = _bounds(cfg, prior, bound_by_prior)
+    info = SolverDiagnostics(ocfg.pipeline, lda, used_prior=bound_by_prior)
+    if len(lda) == 0:
+        T = prior.copy() if prior is not None else np.eye(4)
+        cov = np.diag([bounds.rotation**2] * 3 + [bounds.translation**2] * 2)
+        return RelativePose(T, cov, Status.UNRESOLVED, diagnostics=info)
+
+    R, cov_r, rot_cons = _rotation(prev, curr, lda, rot_method, ocfg)
+    ij, pp, cp = _translation_pairs(prev, curr, lda, R, trans_method, bounds, cfg)
+    elems = translation_elements(
+        prev, curr, R, pp, cp, acfg.min_line_verticality,
+        np.radians(ocfg.translation_min_angle_deg),
+    )  # fmt: skip
+    heights = height_elements(prev, curr, ij, np.radians(ocfg.z_plane_max_tilt_deg))
+    tr, measured = _measured_translation(prev, curr, elems, heights, trans_method, bounds, cfg)
+    if measured:
+        assert tr is not None
+        txy, z, cov_t, sigma_z, z_observed = tr.txy, tr.z, tr.cov, tr.sigma_z, tr.z_observed
+    else:
+        txy, z = bounds.t0[:2].copy(), bounds.z_prior
+        cov_t, sigma_z, z_observed = np.diag([bounds.translation**2] * 2), np.inf, False
+    T = make_transform(R, [txy[0], txy[1], z])
+
+    rot_pair = trans_pair = None
+    if rot_cons is not None:
+        rot_pair = np.r_[lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index]]
+    if measured and tr is not None and tr.best >= 0:
+        trans_pair = elems.pairs[tr.best]
+    cov = np.zeros((5, 5))
+    cov[:3, :3], cov[3:, 3:] = cov_r, cov_t
+    if rot_pair is not None and trans_pair is not None:
+        assert tr is not None
+        cov = _joint_covariance(prev, curr, rot_pair, trans_pair, tr, cov)
+    floors = np.radians(ocfg.min_sigma_rotation_deg), ocfg.min_sigma_translation_m
+    cov = cov + np.diag([floors[0] ** 2] * 3 + [floors[1] ** 2] * 2)
+    sda_bound = ocfg.translation_inlier_m if measured else bounds.translation
+    final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
+    info = replace(
+        info, rotation_consensus=rot_cons, n_translation_pairs=len(elems),
+        translation_consensus=tr.consensus if tr is not None else None,
+        rotation_pair=rot_pair, translation_pair=trans_pair,
+    )  # fmt: skip
+    status = Status.OK if measured else Status.DEGENERATE
+    return RelativePose(
+        T, cov, status, final_ij, z_observed=z_observed, sigma_z=sigma_z, diagnostics=info
+    )
+
+
+def _translation_pairs(
+    prev: PlaneSet,
+    curr: PlaneSet,
+    lda: PairAssociations,
+    R: np.ndarray,
+    method: str,
+    bounds: _Bounds,
+    cfg: PlanodomConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The plane associations (L, 2) and pair associations (P, 2), (P, 2) that give the
+    translation: for "cog" every non-parallel pair of the SDA associations under ``R``,
+    else the LDA pairs whose two plane associations both agree with ``R``."""
+    acfg = cfg.association
+    if method == "cog":
+        ij = strict_association(prev, curr, R, acfg, bounds.t0, bounds.translation)
+        pp, cp = pairs_of_associations(ij, prev, np.radians(acfg.parallel_angle_deg))
+        return ij, pp, cp
+    c = chord(np.radians(cfg.odometry.rotation_inlier_deg))
+    pp, cp = lda.prev_pairs, lda.curr_pairs
+    e1 = np.linalg.norm(prev.normals[pp[:, 0]] - curr.normals[cp[:, 0]] @ R.T, axis=1)
+    e2 = np.linalg.norm(prev.normals[pp[:, 1]] - curr.normals[cp[:, 1]] @ R.T, axis=1)
+    agree = (e1 <= c) & (e2 <= c)
+    return lda.plane_associations(agree), pp[agree], cp[agree]
+
+
+def _measured_translation(
+    prev: PlaneSet,
+    curr: PlaneSet,
+    elems: TranslationElements,
+    heights: HeightElements,
+    method: str,
+    bounds: _Bounds,
+    cfg: PlanodomConfig,
+) -> tuple[_Translation | None, bool]:
+    """The translation from the pair elements (None without elements) and whether it is a
+    measurement: not beyond the motion assumption that admitted its associations (a
+    wrong association, an artefact plane)."""
+    if not len(elems):
+        return None, False
+    ocfg = cfg.odometry
+    use_heights = heights if ocfg.estimate_z and len(heights) else None
+    tr = _translation(prev, curr, elems, use_heights, bounds.z_prior, method, ocfg)
+    reach = bounds.translation + cfg.association.offset_tol_m
+    if tr.z_observed and abs(tr.z - bounds.t0[2]) > reach:
+        tr = _translation(prev, curr, elems, None, bounds.z_prior, method, ocfg)
+    return tr, bool(np.linalg.norm(tr.txy - bounds.t0[:2]) <= reach)
+
+
+def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str, ocfg):
+    """Rotation ``R`` (3, 3), its (roll, pitch, yaw) covariance (3, 3) and the consensus.
+
+    Covariance: for a consensus winner, first-order propagation of its four planes' fit
+    covariances when they are known; otherwise, and for the mean, the weighted spread of
+    the candidates within ``rotation_inlier_deg`` (over their number for the mean).
+    """
+    inlier_angle = np.radians(ocfg.rotation_inlier_deg)
+    weights = lda.weights if method != "ocsc" else np.ones(len(lda))
+    if method == "mean":
+        R, cons = chordal_mean_rotation(lda.rotations), None
+    else:
+        cons, _ = rotation_consensus(
+            prev, curr, lda, weighted=method == "wocsc", inlier_angle=inlier_angle
+        )
+        R = lda.rotations[cons.best_index]
+        i, j = lda.prev_pairs[cons.best_index], lda.curr_pairs[cons.best_index]
+        cp, cc = prev.covariances[i], curr.covariances[j]
+        if np.all(np.isfinite(cp)) and np.all(np.isfinite(cc)):
+            return R, rotation_covariance(prev.normals[i], curr.normals[j], cp, cc), cons
+    close = rotation_angles_to(lda.rotations, R) <= inlier_angle
+    d = rpy_from_rotation(lda.rotations[close]) - rpy_from_rotation(R[None])
+    d = (d + np.pi) % (2.0 * np.pi) - np.pi
+    cov = _spread(d, weights[close]) if close.any() else np.zeros((3, 3))
+    if method == "mean":
+        cov = cov / max(int(close.sum()), 1)
+    return R, cov, cons
+
+
+@dataclass(frozen=True)
+class _Translation:
+    """Result of :func:`_translation`: horizontal translation (2,), height, covariance of
+    the horizontal part (spread based), consensus, sigma of z, whether z was measured,
+    and the indices of the winning pair element and height element (-1: a mean / none)."""
+
+    txy: np.ndarray
+    z: float
+    cov: np.ndarray
+    consensus: ConsensusResult | None
+    sigma_z: float
+    z_observed: bool
+    best: int = -1
+    height: int = -1
+
+
+def _translation(prev, curr, elems: TranslationElements, heights, z0: float, method, ocfg):
+    """Horizontal (and vertical) translation from the pair elements.
+
+    Every element gives ``t_xy(z) = a - z g``; the result is one element's (consensus) or
+    the mean of all (cog); then z comes from the height elements when there are any.
+    """
+    a_all, g_all = elems.candidates(0.0), elems.slope
+    cands = elems.candidates(z0)
+    if method == "cog":
+        cons, best = None, -1
+        a, g = a_all.mean(axis=0), g_all.mean(axis=0)
+        d = cands - (a - z0 * g)
+        cov = d.T @ d / len(d) ** 2
+    else:
+        cons = consensus(
+            cands, elems.ref_prev, elems.targets(z0), apply_negative_translation,
+            weights=elems.weights if method == "wocsc" else None,
+            inlier_tol=ocfg.translation_inlier_m, groups=_pair_ids(elems.pairs[:, :2]),
+        )  # fmt: skip
+        best = cons.best_index
+        a, g = a_all[best], g_all[best]
+        w = elems.weights if method == "wocsc" else np.ones(len(elems))
+        near = np.linalg.norm(cands - cands[best], axis=1) <= ocfg.translation_inlier_m
+        cov = _spread(cands[near] - cands[best], w[near])
+    txy = a - z0 * g
+    if heights is None:
+        return _Translation(txy, z0, cov, cons, np.inf, False, best)
+
+    hz = heights.heights(txy)
+    if method == "cog":
+        h, k_b, k_m = -1, float(heights.b.mean()), heights.m.mean(axis=0)
+        spread_z = float(np.sqrt(np.mean((hz - hz.mean()) ** 2) / len(hz)))
+    else:
+        zc = consensus(
+            hz[:, None], hz[:, None], np.zeros((len(hz), 1)), apply_negative_translation,
+            weights=heights.weights if method == "wocsc" else None,
+        )  # fmt: skip
+        h = zc.best_index
+        k_b, k_m = float(heights.b[h]), heights.m[h]
+        i, j = heights.ij[h]
+        var_d = prev.covariances[i, 3, 3] + curr.covariances[j, 3, 3]
+        spread_z = float(np.sqrt(var_d)) / abs(prev.normals[i, 2])
+        if not np.isfinite(spread_z):
+            spread_z = float(np.sqrt(np.mean((hz - hz[h]) ** 2)))
+    z = solve_height(a, g, k_b, k_m)
+    if z is None:
+        return _Translation(txy, z0, cov, cons, np.inf, False, best)
+    sigma_z = max(spread_z, ocfg.min_sigma_translation_m)
+    return _Translation(a - z * g, z, cov, cons, sigma_z, True, best, h)
+
+
+def _joint_covariance(prev, curr, rot_pair, trans_pair, tr: _Translation, fallback):
+    """(5, 5) covariance of (roll, pitch, yaw, x, y) propagated jointly from the planes of
+    the winning rotation and translation pairs (:func:`pose_covariance`: shared planes
+    counted once), or ``fallback`` when a plane covariance is unknown."""
+    c_p = prev.covariances[np.r_[rot_pair[:2], trans_pair[:2]]]
+    c_c = curr.covariances[np.r_[rot_pair[2:], trans_pair[2:]]]
+    if not (np.all(np.isfinite(c_p)) and np.all(np.isfinite(c_c))):
+        return fallback
+    sigma_z = tr.sigma_z if tr.z_observed else 0.0
+    return pose_covariance(prev, curr, rot_pair, trans_pair, tr.z, sigma_z)

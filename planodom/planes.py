@@ -1,0 +1,97 @@
+"""The planes of one epoch as one set of arrays: :class:`PlaneSet`.
+
+A plane is ``n . p + d = 0`` (unit normal n, offset d in metres; measured normals point
+towards the sensor), as ``gtsam.OrientedPlane3``. It appears in four forms, each where it
+serves, with these conversions:
+
+============================== ===================================== ======================
+form                           where                                 conversion
+============================== ===================================== ======================
+:class:`planodom.geometry.Plane` one measured plane with its quality  ``Plane.coefficients``
+                               (covariance, confidence, support)     -> (4,)
+:class:`PlaneSet`              all planes of an epoch as arrays      ``PlaneSet.from_planes``
+                               (association, consensus, odometry)    ``.coefficients`` (K, 4)
+(4,) ``[nx, ny, nz, d]``       the factor graph's bookkeeping        ``Plane(c[:3], c[3])``
+``gtsam.OrientedPlane3``       factor-graph variables and factors    ``OrientedPlane3(c)``,
+                                                                     ``.planeCoefficients()``
+============================== ===================================== ======================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planodom.geometry import Plane, plane_transform_jacobian, transform_planes, transform_points
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneSet:
+    """The planes of one epoch as arrays, what association, consensus and odometry need.
+
+    Attributes:
+        normals: (K, 3) float64 unit normals. offsets: (K,) metres.
+        weights: (K,) confidences in (0, 1].
+        centroids: (K, 3) support centroids, metres (NaN rows when unknown).
+        radii: (K,) largest distance from centroid to support polygon vertex, metres
+            (NaN when the polygon is unknown).
+        covariances: (K, 4, 4) covariances of ``(n, d)`` (NaN when unknown).
+    """
+
+    normals: np.ndarray
+    offsets: np.ndarray
+    weights: np.ndarray
+    centroids: np.ndarray
+    radii: np.ndarray
+    covariances: np.ndarray
+
+    @classmethod
+    def from_planes(cls, planes: Sequence[Plane]) -> PlaneSet:
+        """The arrays of a list of :class:`Plane` (in that order)."""
+        k = len(planes)
+        normals, offsets = np.zeros((k, 3)), np.zeros(k)
+        weights, centroids, radii = np.ones(k), np.full((k, 3), np.nan), np.full(k, np.nan)
+        covariances = np.full((k, 4, 4), np.nan)
+        for i, p in enumerate(planes):
+            normals[i], offsets[i], weights[i] = p.normal, p.offset, p.confidence
+            if p.covariance is not None:
+                covariances[i] = p.covariance
+            if p.support is not None:
+                centroids[i] = p.support.centroid
+                if len(p.support.polygon):
+                    radii[i] = np.max(np.linalg.norm(p.support.polygon - centroids[i], axis=1))
+        return cls(normals, offsets, weights, centroids, radii, covariances)
+
+    def __len__(self) -> int:
+        return len(self.offsets)
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        """(K, 4) ``[nx, ny, nz, d]`` per plane."""
+        return np.column_stack([self.normals, self.offsets])
+
+    def transformed(self, T_a_b: np.ndarray) -> PlaneSet:
+        """These planes (in frame b) expressed in frame a; covariances follow."""
+        n, d = transform_planes(T_a_b, self.normals, self.offsets)
+        J = plane_transform_jacobian(T_a_b)
+        cov = J @ self.covariances @ J.T
+        centroids = transform_points(T_a_b, self.centroids)
+        return PlaneSet(n, d, self.weights, centroids, self.radii, cov)
+
+    def take(self, index: np.ndarray) -> PlaneSet:
+        """The planes at ``index`` (int array or mask), in that order."""
+        return PlaneSet(
+            self.normals[index],
+            self.offsets[index],
+            self.weights[index],
+            self.centroids[index],
+            self.radii[index],
+            self.covariances[index],
+        )
+
+
+def as_plane_set(planes: Sequence[Plane] | PlaneSet) -> PlaneSet:
+    """A list of :class:`Plane` as a :class:`PlaneSet`; a ready set unchanged."""
+    return planes if isinstance(planes, PlaneSet) else PlaneSet.from_planes(planes)
