@@ -78,7 +78,11 @@ def evaluate(run, config: ExtractionConfig, twists=None, tol_deg=3.0, tol_m=0.15
         elapsed += time.perf_counter() - t0
         truth = true_planes(run, k)
         good_ids = set()
-        wall_points = np.bincount(scan.label[scan.label >= 0]) if scan.label is not None else []
+        wall_points = (
+            np.bincount(scan.label[scan.label >= 0])
+            if scan.label is not None
+            else np.zeros(0, dtype=int)
+        )
         for p, idx in zip(res.planes, res.inliers, strict=True):
             n_planes += 1
             if p.truth_id < 0:

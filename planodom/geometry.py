@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from planodom.errors import GeometryError
@@ -27,7 +28,7 @@ UP = np.array([0.0, 0.0, 1.0])
 # --------------------------------------------------------------------------- transforms
 
 
-def make_transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+def make_transform(R: np.ndarray, t: ArrayLike) -> np.ndarray:
     """Build ``T`` (4, 4) from a rotation ``R`` (3, 3) and a translation ``t`` (3,), metres."""
     T = np.eye(4)
     T[:3, :3] = R

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -57,3 +59,14 @@ class Scan:
             return None if a is None else a[mask]
 
         return Scan(self.points[mask], pick(self.ring), pick(self.t), pick(self.label))
+
+
+class ScanSequence(Protocol):
+    """A sequence of epochs as readers give them: ``len(source)``, ``source[k] -> Scan``
+    and iteration (which a reader may stream in one pass)."""
+
+    def __len__(self) -> int: ...
+
+    def __iter__(self) -> Iterator[Scan]: ...
+
+    def __getitem__(self, index: int, /) -> Scan: ...

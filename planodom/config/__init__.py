@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import yaml
 from pydantic import ValidationError
@@ -73,7 +74,7 @@ class PlanodomConfig(Section):
         data = self.model_dump(mode="python")
         for dotted, value in changes.items():
             *path, name = dotted.split(".")
-            node = data
+            node: Any = data
             for key in path:
                 node = node.get(key) if isinstance(node, dict) else None
             if not path or not isinstance(node, dict) or name not in node:

@@ -14,7 +14,7 @@ from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError
 from planodom.rig import Rig
-from planodom.scan import Scan
+from planodom.scan import Scan, ScanSequence
 
 SCANS_DIR = "scans"
 POSES_FILE = "poses.tum"
@@ -109,7 +109,7 @@ def load_dataset(path: str | Path) -> Dataset:
 
 def write_dataset(
     path: str | Path,
-    scans: Sequence[Scan],
+    scans: ScanSequence,
     times: np.ndarray,
     gt_poses: np.ndarray | None = None,
     rig: Rig | None = None,
@@ -173,7 +173,7 @@ def write_dataset(
 
     scans_dir.mkdir(parents=True, exist_ok=True)
     width = max(6, len(str(len(scans) - 1)))
-    for k, scan in enumerate(scans):
+    for k, scan in enumerate(scans):  # iteration: a bag streams its epochs in one pass
         write_scan(scans_dir / f"{k:0{width}d}{extension.lower()}", scan, points_dtype)
     if gt_poses is not None:
         write_tum(root / POSES_FILE, times, np.asarray(gt_poses, dtype=np.float64))

@@ -43,7 +43,8 @@ class Epoch:
         if self.origins is None:
             return np.array([0.0, 0.0, height_m])
         org = self.origins
-        view = org[0] if len(org) == 1 else org[self.scan.ring[idx]].mean(axis=0)
+        ring = self.scan.ring
+        view = org[0] if len(org) == 1 or ring is None else org[ring[idx]].mean(axis=0)
         if self.twist is not None and self.scan.t is not None:
             T_ref_t = se3_exp(float(self.scan.t[idx].mean()) * self.twist)
             view = T_ref_t[:3, :3] @ view + T_ref_t[:3, 3]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -14,6 +15,15 @@ from planodom.odometry.odometry import Extractor, PlaneOdometry, _default_extrac
 from planodom.odometry.relative import RelativePose, Status
 from planodom.rig import MotionBounds, Rig
 from planodom.scan import Scan
+
+
+class EpochSequence(Protocol):
+    """What the odometry runs over: ``len(source)`` epochs, ``source[k]`` a :class:`Scan`
+    or the epoch's planes (a dataset, a simulated run, a list)."""
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, index: int, /) -> Scan | Sequence[Plane]: ...
 
 
 @dataclass
@@ -77,7 +87,7 @@ def with_motion_bounds(config: PlanodomConfig, bounds: MotionBounds | None) -> P
 
 
 def run_odometry(
-    source: Sequence[Scan] | Sequence[Sequence[Plane]],
+    source: EpochSequence,
     config: PlanodomConfig | None = None,
     rig: Rig | None = None,
     *,

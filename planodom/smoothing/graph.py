@@ -222,11 +222,13 @@ class GraphBuilder:
             noise = gtsam.noiseModel.Diagonal.Sigmas(np.full(6, c.prior_sigma))
             graph.add(gtsam.PriorFactorPose3(X(0), gtsam.Pose3(T), noise))
         else:
-            T = self._initial_pose(k, measured)
+            guess = self._initial_pose(k, measured)
             T_rel = self._fallback_motion(k)
-            if T is None:
+            if guess is None:
                 T = self.poses[k - 1] @ T_rel
                 self.stats.unresolved_epochs.append(k)
+            else:
+                T = guess
             if not any(r.translation_observed for r in measured) and k - 1 >= min_epoch:
                 # Nothing measured the horizontal translation into epoch k (unresolved or
                 # rotation-only): a weak constant-velocity factor keeps the graph connected.
@@ -419,6 +421,7 @@ class GraphBuilder:
             if lm.anchor_key is not None:
                 if values.exists(lm.anchor_key):
                     lm.T_world_anchor = values.atPose3(lm.anchor_key).matrix()
+                assert lm.T_world_anchor is not None  # set with the anchor key
                 plane = plane_from_anchor(lm.T_world_anchor, plane)
             lm.plane_world = plane
 

@@ -50,7 +50,10 @@ def _trajectory(rng: np.random.Generator, n: int, step: float, vertical_sigma: f
     roll = 0.01 * np.sin(np.arange(n) * 0.3) * (np.arange(n) > 0)
     pitch = 0.015 * np.sin(np.arange(n) * 0.2 + 1.0) - 0.015 * np.sin(1.0)
     return np.stack(
-        [transform_from_rpy_xyz(roll[k], pitch[k], yaw[k], *xy[k], z[k]) for k in range(n)]
+        [
+            transform_from_rpy_xyz(roll[k], pitch[k], yaw[k], xy[k][0], xy[k][1], z[k])
+            for k in range(n)
+        ]
     )
 
 

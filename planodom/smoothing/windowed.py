@@ -38,6 +38,7 @@ class WindowedSmoother:
         self.config = smoothing_config(config)
         self.builder = GraphBuilder(self.config, T_world_first)
         lag = float(self.config.window - 1)
+        self.smoother: gtsam.FixedLagSmoother
         if self.config.windowed_backend == "incremental":
             params = gtsam.ISAM2Params()
             params.setRelinearizeThreshold(self.config.relinearize_threshold)
@@ -83,7 +84,7 @@ class WindowedSmoother:
         update = self.builder.add_epoch(planes, relatives, min_epoch=oldest)
         self.initial_poses.append(self.builder.poses[k])
         try:
-            self.smoother.update(update.factors, update.values, update.timestamps)
+            self.smoother.update(update.factors, update.values, update.timestamps)  # type: ignore[arg-type]  # gtsam stub: Mapping[SupportsInt, ...] rejects dict[int, float]
         except RuntimeError as exc:  # gtsam's IndeterminantLinearSystemException
             first = " ".join(str(exc).split()[:10])
             raise PlanodomError(

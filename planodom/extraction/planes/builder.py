@@ -132,7 +132,7 @@ def build_planes(
     incidence = np.ones(G) if fits.incidence is None else fits.incidence.copy()
     if fits.incidence is None or epoch.origins is not None:
         for g in kept:
-            idx = fits.members(g)
+            idx = fits.members(int(g))
             views[g] = epoch.viewpoint(idx, height)
             incidence[g] = mean_incidence(epoch.points[idx], views[g], normals[g])
     signs = orientation_sign(normals, fits.offset, fits.centroid, views)
@@ -147,7 +147,7 @@ def build_planes(
     planes, inliers = [], []
     labels = epoch.scan.label
     for g in kept:
-        idx = fits.members(g)
+        idx = fits.members(int(g))
         outline = epoch.points[idx][fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]
         polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
         plane = Plane(

@@ -69,7 +69,7 @@ class _SegmentMoments(NamedTuple):
     points: np.ndarray
     starts: np.ndarray
     ends: np.ndarray
-    count: np.ndarray
+    count: np.ndarray  # type: ignore[assignment]  # shadows tuple.count; numba reads it by name
     centroid: np.ndarray
     scatter: np.ndarray
 

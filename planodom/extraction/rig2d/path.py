@@ -26,6 +26,7 @@ from planodom.extraction.rig2d.segments import Segments, split_scan_lines
 def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     """The planes of a 2D-rig epoch (module docstring)."""
     scan = epoch.scan
+    assert scan.ring is not None  # the pipeline sends scans without rings to the lidar path
     segs, sigma = split_scan_lines(epoch.points, scan.ring, scan.t, config)
     tol, max_rms = member_tolerance(config, sigma), rms_limit(config, sigma)
     seed_floor = config.tolerance_floor_m

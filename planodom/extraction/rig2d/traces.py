@@ -48,7 +48,7 @@ class TraceSet(NamedTuple):
 
     label: np.ndarray
     ring: np.ndarray
-    count: np.ndarray
+    count: np.ndarray  # type: ignore[assignment]  # shadows tuple.count; numba reads it by name
     centroid: np.ndarray
     scatter: np.ndarray
     direction: np.ndarray
@@ -72,7 +72,7 @@ class _SegmentLines(NamedTuple):
     direction: np.ndarray
     length: np.ndarray
     err: np.ndarray
-    count: np.ndarray
+    count: np.ndarray  # type: ignore[assignment]  # shadows tuple.count; numba reads it by name
     scatter: np.ndarray
     end0: np.ndarray
     end1: np.ndarray

@@ -38,7 +38,8 @@ def is_windowed(scan: Scan, twist: np.ndarray | None, windows: TimeWindowConfig)
 
 
 def segment_times(scan: Scan, segs: Segments) -> tuple[np.ndarray, np.ndarray]:
-    """First and last acquisition time (s) of every segment, (S,) each."""
+    """First and last acquisition time (s) of every segment, (S,) each (scan with times)."""
+    assert scan.t is not None  # the time-window path runs only on scans with times
     tt = scan.t[segs.order]
     return tt[segs.starts], tt[segs.ends - 1]
 
@@ -63,6 +64,7 @@ def keep_one_per_wall(
     def adjust(kept: np.ndarray, n_or: np.ndarray, d_or: np.ndarray) -> np.ndarray:
         G = len(fits)
         cnt = np.maximum(fits.count, 1).astype(np.float64)
+        assert scan.t is not None
         tm = np.add.reduceat(scan.t[fits.inliers], fits.bounds[:-1]) / cnt
         gid = np.repeat(np.arange(G), np.diff(fits.bounds))[fits.outline]
         r_end = np.linalg.norm(points[fits.inliers[fits.outline]] - fits.centroid[gid], axis=1)
