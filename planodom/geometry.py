@@ -138,28 +138,6 @@ def se3_log(T: np.ndarray) -> np.ndarray:
     return np.concatenate([w, v], axis=1).reshape(T.shape[:-2] + (6,))
 
 
-def rotation_angle(R: np.ndarray) -> float:
-    """Angle (rad) of the rotation ``R`` (3, 3), robust near 0 and pi."""
-    return float(Rotation.from_matrix(R).magnitude())
-
-
-def pose_error(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
-    """Rotation error (rad) and translation error (m) of ``inv(T_true) @ T_est``."""
-    E = invert_transform(T_true) @ T_est
-    return rotation_angle(E[:3, :3]), float(np.linalg.norm(E[:3, 3]))
-
-
-def check_points(points: np.ndarray, name: str = "points") -> np.ndarray:
-    """Return ``points`` as a (N, 3) float64 array or raise :class:`GeometryError` naming it."""
-    arr = np.asarray(points, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise GeometryError(f"{name}: expected an (N, 3) array, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.count_nonzero(~np.isfinite(arr).all(axis=1)))
-        raise GeometryError(f"{name}: {bad} of {len(arr)} points have NaN or infinite coordinates")
-    return arr
-
-
 # --------------------------------------------------------------------------- planes
 
 
@@ -287,13 +265,6 @@ def plane_transform_jacobian(T_a_b: np.ndarray) -> np.ndarray:
     return J
 
 
-def stack_planes(planes: list[Plane]) -> tuple[np.ndarray, np.ndarray]:
-    """Normals (K, 3) and offsets (K,) of a list of planes (K may be 0)."""
-    if not planes:
-        return np.zeros((0, 3)), np.zeros(0)
-    return np.stack([p.normal for p in planes]), np.array([p.offset for p in planes])
-
-
 def dihedral_angles(normals: np.ndarray) -> np.ndarray:
     """(K, K) angles (rad, in [0, pi]) between every pair of oriented normals (K, 3).
 
@@ -303,16 +274,6 @@ def dihedral_angles(normals: np.ndarray) -> np.ndarray:
     """
     c = np.clip(normals @ normals.T, -1.0, 1.0)
     return np.arccos(c)
-
-
-def dihedral_angle(n1: np.ndarray, n2: np.ndarray) -> float:
-    """Angle (rad, in [0, pi]) between two unit normals (3,), computed stably with atan2."""
-    return float(np.arctan2(np.linalg.norm(np.cross(n1, n2)), np.dot(n1, n2)))
-
-
-def are_parallel(n1: np.ndarray, n2: np.ndarray, min_angle: float) -> bool:
-    """True when the (unoriented) angle between the normals is below ``min_angle`` rad."""
-    return float(np.linalg.norm(np.cross(n1, n2))) < np.sin(min_angle)
 
 
 def rotation_frame(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
@@ -354,31 +315,6 @@ def rotation_frames(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
     return np.stack([u1, cross_rows(u3, u1), u3], axis=2)
 
 
-def rotation_from_frames(U_a: np.ndarray, U_b: np.ndarray) -> np.ndarray:
-    """``R_a_b`` (3, 3) with ``U_a = R_a_b U_b`` (paper eq. 1, ``U_{k+d} = R_k^-1 U_k``).
-
-    ``U_a`` is built from a pair of planes seen in frame a, ``U_b`` from the same pair seen
-    in frame b. Works batched on (..., 3, 3).
-    """
-    return U_a @ np.swapaxes(U_b, -1, -2)
-
-
-def intersection_line(
-    n1: np.ndarray, d1: float, n2: np.ndarray, d2: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Intersection line of two planes: point closest to the origin (3,), unit direction (3,).
-
-    Raises :class:`GeometryError` when the planes are parallel.
-    """
-    v = np.cross(n1, n2)
-    s2 = float(v @ v)
-    if s2 < 1e-18:
-        raise GeometryError("parallel planes have no intersection line")
-    # Closed form of the point on both planes closest to the origin.
-    p = (np.cross(v, n1) * (-d2) + np.cross(n2, v) * (-d1)) / s2
-    return p, v / np.sqrt(s2)
-
-
 def horizontal_reference_points(
     n1: np.ndarray, d1: np.ndarray, n2: np.ndarray, d2: np.ndarray, min_verticality: float = 0.2
 ) -> np.ndarray:
@@ -416,57 +352,7 @@ def horizontal_reference_points(
     return out
 
 
-def horizontal_reference_point(
-    n1: np.ndarray, d1: float, n2: np.ndarray, d2: float, min_verticality: float = 0.2
-) -> np.ndarray:
-    """Single-pair :func:`horizontal_reference_points`: (2,) metres, NaN when undefined."""
-    return horizontal_reference_points(
-        n1[None], np.array([d1]), n2[None], np.array([d2]), min_verticality
-    )[0]
-
-
-def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
-    """Total-least-squares plane through ``points`` (N, 3), metres, N >= 3.
-
-    Returns:
-        normal (3,), offset d, and the singular values (3,) of the centred points
-        (the smallest one squared over N is the mean squared residual).
-    """
-    pts = check_points(points)
-    if len(pts) < 3:
-        raise GeometryError(f"a plane fit needs at least 3 points, got {len(pts)}")
-    c = pts.mean(axis=0)
-    _, s, vt = np.linalg.svd(pts - c, full_matrices=False)
-    n = vt[2]
-    return n, float(-n @ c), s
-
-
 # --------------------------------------------------------------------------- gtsam
-
-
-def plane_to_gtsam(plane: Plane):
-    """``gtsam.OrientedPlane3`` with the same ``(n, d)``."""
-    import gtsam
-
-    return gtsam.OrientedPlane3(plane.coefficients)
-
-
-def plane_from_gtsam(p, **kwargs) -> Plane:
-    """:class:`Plane` from a ``gtsam.OrientedPlane3``; ``kwargs`` fill the other fields."""
-    c = np.asarray(p.planeCoefficients(), dtype=float)
-    return Plane(c[:3], float(c[3]), **kwargs)
-
-
-def pose_to_gtsam(T: np.ndarray):
-    """``gtsam.Pose3`` from a 4x4 transform."""
-    import gtsam
-
-    return gtsam.Pose3(np.asarray(T, dtype=float))
-
-
-def pose_from_gtsam(pose) -> np.ndarray:
-    """4x4 transform from a ``gtsam.Pose3``."""
-    return np.asarray(pose.matrix(), dtype=float)
 
 
 def plane_tangent_covariance(plane: Plane) -> np.ndarray:

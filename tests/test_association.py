@@ -14,7 +14,7 @@ from planodom.association import (
     strict_association,
 )
 from planodom.config import AssociationConfig
-from planodom.geometry import Plane, dihedral_angle, transform_from_rpy_xyz
+from planodom.geometry import Plane, transform_from_rpy_xyz
 from planodom.planes import PlaneSet
 
 LOOSE = AssociationConfig(
@@ -34,6 +34,12 @@ def sda_of(prev, curr, *args, **kwargs):
     return strict_association(
         PlaneSet.from_planes(prev), PlaneSet.from_planes(curr), *args, **kwargs
     )
+
+
+def dihedral_angle(n1: np.ndarray, n2: np.ndarray) -> float:
+    """Angle (rad, in [0, pi]) between two normals, by atan2 of |n1 x n2| and n1 . n2: the
+    brute-force reference for the arccos of the vectorised association."""
+    return float(np.arctan2(np.linalg.norm(np.cross(n1, n2)), np.dot(n1, n2)))
 
 
 def two_epochs(seed: int, n_walls: int = 6, motion=None):

@@ -7,12 +7,13 @@ from dataclasses import replace
 import gtsam
 import numpy as np
 import pytest
+from pose_checks import pose_error
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import ConfigError
-from planodom.geometry import Plane, make_transform, pose_error
+from planodom.geometry import Plane, make_transform
 from planodom.odometry import Status
 from planodom.smoothing import LandmarkTracker, WindowedSmoother, smooth_batch, smooth_windowed
 from planodom.smoothing.noise import rpy_to_rotation_vector

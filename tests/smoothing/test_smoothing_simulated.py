@@ -7,11 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pose_checks import pose_error
 
 from planodom.config import PlanodomConfig
 from planodom.experiments.simulated import Simulation
 from planodom.experiments.smoothing import run_smoothing_experiment
-from planodom.geometry import invert_transform, pose_error
+from planodom.geometry import invert_transform
 from planodom.simulation import simulate_named
 from planodom.smoothing.run import run_smoothing
 from planodom.smoothing.synthetic import make_sequence
