@@ -276,22 +276,6 @@ def dihedral_angles(normals: np.ndarray) -> np.ndarray:
     return np.arccos(c)
 
 
-def rotation_frame(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
-    """The paper's frame ``U = [n1 n2 n1 x n2]``, orthonormalised, (3, 3), columns.
-
-    Columns: ``u1 = n1``, ``u3 = (n1 x n2) / |n1 x n2|``, ``u2 = u3 x u1`` (the part of n2
-    orthogonal to n1). Equal to the paper's U when n1 is orthogonal to n2. Raises
-    :class:`GeometryError` for (nearly) parallel normals.
-    """
-    c = np.cross(n1, n2)
-    s = np.linalg.norm(c)
-    if s < 1e-9:
-        raise GeometryError("rotation frame needs two non-parallel normals")
-    u1 = n1 / np.linalg.norm(n1)
-    u3 = c / s
-    return np.column_stack([u1, np.cross(u3, u1), u3])
-
-
 def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross products of (M, 3) arrays: ``np.cross`` without its axis handling,
     which costs more than the products for the few rows of a plane set."""
@@ -303,9 +287,10 @@ def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def rotation_frames(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
-    """Vectorised :func:`rotation_frame`: (M, 3) and (M, 3) normals to (M, 3, 3) frames.
-
-    Frames of (nearly) parallel pairs contain NaN.
+    """The paper's frames ``U = [n1 n2 n1 x n2]``, orthonormalised: (M, 3) and (M, 3) normals
+    to (M, 3, 3) frames with columns ``u1 = n1``, ``u3 = (n1 x n2) / |n1 x n2|``,
+    ``u2 = u3 x u1`` (the part of n2 orthogonal to n1; equal to the paper's U when n1 is
+    orthogonal to n2). Frames of (nearly) parallel pairs contain NaN.
     """
     c = cross_rows(n1, n2)
     s = np.sqrt(np.einsum("ij,ij->i", c, c))[:, None]
