@@ -45,3 +45,12 @@ class OutputExistsError(OutputError):
     def with_option(self, option: str) -> OutputExistsError:
         """The same error pointing at ``option`` (e.g. a CLI flag) instead."""
         return OutputExistsError(self.path, self.what, option)
+
+
+def yaml_problem(exc: Exception) -> str:
+    """A YAML parser error in one line: ``line L, column C: problem`` (PyYAML's own
+    message spans several lines and quotes the text around the mark)."""
+    mark = getattr(exc, "problem_mark", None)
+    problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+    return f"{where}{problem}"

@@ -59,19 +59,7 @@ def atomic_folder(
         OutputError: naming ``target``, for the rules above or when the folder cannot be
             created (an OS error on it: below a file, no permission, ``/proc``).
     """
-    target = Path(target)
-    if target.is_symlink() and target.is_dir():  # e.g. results/latest: its folder
-        target = target.resolve()
-    check_not_inputs(target, inputs)
-    existing = _entries(target)
-    if existing and not overwrite:
-        raise OutputExistsError(target, f"{what} ({existing[0]})")
-    foreign = [e for e in existing if owned is not None and not owned(target / e)]
-    if foreign:
-        raise OutputError(
-            f"{target}: holds '{foreign[0]}', which planodom does not write as {what}; "
-            "not replacing the folder (choose another output folder)"
-        )
+    target = check_target(target, overwrite=overwrite, inputs=inputs, owned=owned, what=what)
     created = _make_parents(target)
     try:
         partial = _sibling(target, "partial")
@@ -86,6 +74,32 @@ def atomic_folder(
         shutil.rmtree(partial, ignore_errors=True)
         _remove_empty(created)
         raise
+
+
+def check_target(
+    target: str | Path,
+    *,
+    overwrite: bool = False,
+    inputs: Sequence[str | Path] = (),
+    owned: Callable[[Path], bool] | None = None,
+    what: str = "results",
+) -> Path:
+    """The checks of :func:`atomic_folder` alone (nothing is created); returns the target
+    (a symbolic link to a folder, e.g. ``results/latest``, as that folder)."""
+    target = Path(target)
+    if target.is_symlink() and target.is_dir():
+        target = target.resolve()
+    check_not_inputs(target, inputs)
+    existing = _entries(target)
+    if existing and not overwrite:
+        raise OutputExistsError(target, f"{what} ({existing[0]})")
+    foreign = [e for e in existing if owned is not None and not owned(target / e)]
+    if foreign:
+        raise OutputError(
+            f"{target}: holds '{foreign[0]}', which planodom does not write as {what}; "
+            "not replacing the folder (choose another output folder)"
+        )
+    return target
 
 
 def check_not_inputs(target: str | Path, inputs: Sequence[str | Path]) -> None:

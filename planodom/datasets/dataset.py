@@ -12,7 +12,7 @@ import yaml
 
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
 from planodom.datasets.tum import read_tum, write_tum
-from planodom.errors import DatasetError
+from planodom.errors import DatasetError, yaml_problem
 from planodom.outputs import atomic_folder
 from planodom.rig import Rig
 from planodom.scan import Scan
@@ -181,7 +181,7 @@ def write_dataset(
     if extension.lower() not in (".ply", ".pcd"):
         raise DatasetError(f"{root}: cannot write scans as '{extension}' (use .ply or .pcd)")
 
-    with atomic_folder(root, overwrite=overwrite, owned=_dataset_entry, what="a dataset") as tmp:
+    with atomic_folder(root, overwrite=overwrite, owned=is_dataset_entry, what="a dataset") as tmp:
         scans_dir = tmp / SCANS_DIR
         scans_dir.mkdir()
         width = max(6, len(str(len(scans) - 1)))
@@ -211,8 +211,12 @@ def read_rig(path: str | Path) -> Rig:
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise DatasetError(f"{path}: cannot read rig file: {exc}") from None
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read rig file ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path}: not a rig file (not UTF-8 text)") from None
+    except yaml.YAMLError as exc:
+        raise DatasetError(f"{path}: not valid YAML ({yaml_problem(exc)})") from None
     return Rig.from_dict(data, source=str(path))
 
 
@@ -261,7 +265,7 @@ def _check_numbering(files: Sequence[Path]) -> None:
     )
 
 
-def _dataset_entry(path: Path) -> bool:
+def is_dataset_entry(path: Path) -> bool:
     """Whether ``path`` (an entry of a dataset folder) is one a dataset is made of."""
     if path.name in (POSES_FILE, RIG_FILE):
         return path.is_file()

@@ -161,7 +161,7 @@ def test_bad_datasets(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "text, message",
     [
-        ("a: [1, 2\n", "cannot read rig file"),
+        ("a: [1, 2\n", "not valid YAML"),
         ("- 1\n- 2\n", "must hold a mapping"),
         ("epoch_rate: -5\n", "field 'epoch_rate' must be positive"),
         ("epoch_rate: fast\n", "field 'epoch_rate' must be a positive number"),
