@@ -109,7 +109,8 @@ def _scan_from_fields(path: Path, fields: dict[str, np.ndarray]) -> Scan:
     missing = [c for c in "xyz" if c not in fields]
     if missing:
         raise DatasetError(f"{path}: no '{' '.join(missing)}' coordinates in the file")
-    points = np.column_stack([fields[c].astype(np.float64) for c in "xyz"]).reshape(-1, 3)
+    with np.errstate(invalid="ignore"):  # signalling NaNs of a corrupt file
+        points = np.column_stack([fields[c].astype(np.float64) for c in "xyz"]).reshape(-1, 3)
     bad = int(np.count_nonzero(~np.isfinite(points).all(axis=1)))
     if bad:
         raise DatasetError(

@@ -83,7 +83,8 @@ def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
                 f"{path}:{lines[far[0]]}: {what} beyond {limit:g} ({far.size} such lines)"
             )
 
-    norm = np.linalg.norm(quat, axis=1)
+    with np.errstate(over="ignore"):  # 1e300: inf, refused below
+        norm = np.linalg.norm(quat, axis=1)
     bad = np.flatnonzero(np.abs(norm - 1.0) > QUATERNION_NORM_TOL)
     if bad.size:
         raise DatasetError(
