@@ -208,10 +208,22 @@ def test_bad_values_in_binary_files(tmp_path: Path, ext: str, field: str, value:
     if ext == ".ply":
         write_ply_vertices(path, fields)
     else:
-        from planodom.datasets.pcd import write_pcd
-
-        write_pcd(path, fields)
+        _write_binary_pcd(path, fields)
     assert outcome(read_scan, path) is None
+
+
+def _write_binary_pcd(path: Path, fields: dict[str, np.ndarray]) -> None:
+    """A binary PCD written by hand (PCL's layout), whatever the values."""
+    table = np.empty(N, dtype=[(k, "<" + a.dtype.str[1:]) for k, a in fields.items()])
+    for name, a in fields.items():
+        table[name] = a
+    kinds = " ".join(a.dtype.kind.upper() for a in fields.values())
+    sizes = " ".join(str(a.dtype.itemsize) for a in fields.values())
+    header = (
+        f"VERSION 0.7\nFIELDS {' '.join(fields)}\nSIZE {sizes}\nTYPE {kinds}\n"
+        f"COUNT {' '.join('1' for _ in fields)}\nWIDTH {N}\nHEIGHT 1\nPOINTS {N}\nDATA binary\n"
+    )
+    path.write_bytes(header.encode() + table.tobytes())
 
 
 def test_kitti_bit_patterns(tmp_path: Path) -> None:
