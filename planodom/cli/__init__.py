@@ -9,6 +9,8 @@ all, never over the inputs or earlier results (:func:`planodom.results.results_f
 from __future__ import annotations
 
 import sys
+import typing
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated
 
@@ -193,7 +195,7 @@ def smooth(
         with progress_bar("odometry and relative poses") as callback, data.naming_errors():
             step = data.progress(callback)
             sm = run_smoothing(
-                data, cfg, window=window, delta=delta, mode=mode,
+                typing.cast(Sequence, data), cfg, window=window, delta=delta, mode=mode,
                 progress=lambda stage, k, n: step(k, n),
             )  # fmt: skip
         odo_metrics = results.odometry_metrics(sm.odometry, data.gt_poses)

@@ -73,11 +73,11 @@ def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     table = np.array(rows)
     lines = np.array(line_numbers)
     times, xyz, quat = table[:, 0], table[:, 1:4], table[:, 4:8]
-    for values, limit, what in (
+    for column, limit, what in (
         (times, MAX_TIME_S, "time (s)"),
         (xyz, MAX_POSITION_M, "position (m)"),
     ):
-        far = np.flatnonzero(np.abs(values.reshape(len(table), -1)).max(axis=1) > limit)
+        far = np.flatnonzero(np.abs(column.reshape(len(table), -1)).max(axis=1) > limit)
         if far.size:
             raise DatasetError(
                 f"{path}:{lines[far[0]]}: {what} beyond {limit:g} ({far.size} such lines)"
