@@ -272,3 +272,15 @@ def test_out_that_cannot_be_created(ds: Path) -> None:
     (ds.parent / "file").write_text("")
     fails(["run", ds, "--out", ds.parent / "file" / "o"], str(ds.parent / "file" / "o"))
     fails(["simulate", "--out", ds.parent / "file" / "o", "--epochs", "2"], "file")
+
+
+def test_a_real_bug_keeps_its_traceback(ds: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import planodom.odometry
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(planodom.odometry, "run_odometry", broken)
+    result = runner.invoke(app, ["run", str(ds), "--out", str(ds.parent / "o")])
+    assert result.exit_code == 1 and isinstance(result.exception, ZeroDivisionError)
+    assert not (ds.parent / "o").exists()
