@@ -52,7 +52,8 @@ def atomic_folder(
         inputs: files and folders the block reads: ``target`` may not be, lie in or contain
             any of them (:class:`OutputError`).
         owned: ``owned(entry) -> bool`` for each entry of an existing ``target``; an entry
-            it rejects makes the overwrite an :class:`OutputError` (None: any entry).
+            it rejects makes the overwrite an :class:`OutputError` (None: any entry). For a
+            rejected folder, the message names its first file ``owned`` rejects.
         what: what the folder holds, for messages ("results", "a dataset").
 
     Raises:
@@ -93,13 +94,24 @@ def check_target(
     existing = _entries(target)
     if existing and not overwrite:
         raise OutputExistsError(target, f"{what} ({existing[0]})")
-    foreign = [e for e in existing if owned is not None and not owned(target / e)]
+    foreign = [target / e for e in existing if owned is not None and not owned(target / e)]
     if foreign:
+        assert owned is not None
+        stray = _first_foreign(foreign[0], owned).relative_to(target)
         raise OutputError(
-            f"{target}: holds '{foreign[0]}', which planodom does not write as {what}; "
+            f"{target}: holds '{stray}', which planodom does not write as {what}; "
             "not replacing the folder (choose another output folder)"
         )
     return target
+
+
+def _first_foreign(path: Path, owned: Callable[[Path], bool]) -> Path:
+    """The entry to blame in a rejected folder ``path``: its first rejected file, if any."""
+    if path.is_dir() and not path.is_symlink():
+        for child in sorted(path.iterdir()):
+            if not owned(child):
+                return _first_foreign(child, owned)
+    return path
 
 
 def check_not_inputs(target: str | Path, inputs: Sequence[str | Path]) -> None:

@@ -266,12 +266,15 @@ def _check_numbering(files: Sequence[Path]) -> None:
 
 
 def is_dataset_entry(path: Path) -> bool:
-    """Whether ``path`` (an entry of a dataset folder) is one a dataset is made of."""
+    """Whether ``path`` (an entry of a dataset folder or of its ``scans/``) is one a
+    dataset is made of."""
+    if path.parent.name == SCANS_DIR and path.suffix.lower() in SCAN_EXTENSIONS:
+        return path.is_file()
     if path.name in (POSES_FILE, RIG_FILE):
         return path.is_file()
     if path.name != SCANS_DIR or not path.is_dir():
         return False
-    return all(f.is_file() and f.suffix.lower() in SCAN_EXTENSIONS for f in path.iterdir())
+    return all(is_dataset_entry(f) for f in path.iterdir())
 
 
 def _natural_key(path: Path) -> tuple:

@@ -90,7 +90,7 @@ def test_scenario_does_not_replace_an_existing_dataset(tmp_path: Path) -> None:
 def test_simulate_overwrite_checks_before_deleting(ds: Path) -> None:
     (ds / "scans" / "notes.txt").write_text("stray")
     before = _snapshot(ds)
-    fails(["simulate", "--out", ds, "--epochs", "3", "--overwrite"], str(ds), "scans")
+    fails(["simulate", "--out", ds, "--epochs", "3", "--overwrite"], str(ds), "scans/notes.txt")
     assert _snapshot(ds) == before
     (ds / "scans" / "notes.txt").unlink()
     ok(["simulate", "--out", ds, "--epochs", "3", "--overwrite"])
