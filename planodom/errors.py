@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 
 class PlanodomError(Exception):
     """Base of every error planodom raises on purpose (bad input, bad config, bad data)."""
@@ -20,3 +22,35 @@ class ConfigError(PlanodomError):
 
 class GeometryError(PlanodomError):
     """Input geometry is malformed (wrong shape, non-finite values, zero normals)."""
+
+
+class OutputError(PlanodomError):
+    """An output folder cannot be written, or writing it would destroy inputs or results.
+
+    The message names the output folder (and the input it would clobber).
+    """
+
+
+class OutputExistsError(OutputError):
+    """The output folder already holds data that only an explicit overwrite may replace.
+
+    ``option`` is how the caller asks for that: ``overwrite=True`` in the library, and the
+    CLI re-raises with ``--overwrite`` (:meth:`with_option`).
+    """
+
+    def __init__(self, path: Path, what: str, option: str = "overwrite=True") -> None:
+        self.path, self.what, self.option = Path(path), what, option
+        super().__init__(f"{path} already holds {what}; {option} replaces it")
+
+    def with_option(self, option: str) -> OutputExistsError:
+        """The same error pointing at ``option`` (e.g. a CLI flag) instead."""
+        return OutputExistsError(self.path, self.what, option)
+
+
+def yaml_problem(exc: Exception) -> str:
+    """A YAML parser error in one line: ``line L, column C: problem`` (PyYAML's own
+    message spans several lines and quotes the text around the mark)."""
+    mark = getattr(exc, "problem_mark", None)
+    problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+    return f"{where}{problem}"

@@ -7,14 +7,23 @@ Layout of ``<out>/``::
     epochs.csv         one row per epoch: 5-DoF increments, status, diagnostics
     config.yaml        the resolved configuration
     metrics.json       metrics against ground truth, when it is known
+    odometry.tum       (smoothing) the raw odometry beside the smoothed poses.tum
+    dataset/           (a simulated scenario) the dataset the run read
+
+A folder is written whole or not at all (:func:`results_folder`): into a hidden sibling
+renamed into place at the end, never over its inputs, replacing an earlier results folder
+only when asked; without a folder given, into ``results/<timestamp>/`` with a ``latest``
+link.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,16 +31,54 @@ import numpy as np
 from planodom import metrics
 from planodom.config import PlanodomConfig
 from planodom.datasets import write_tum
+from planodom.odometry import OdometryRun
+from planodom.outputs import atomic_folder, link_latest, timestamped_folder
 
 __all__ = ["write_tum"]
-from planodom.odometry import OdometryRun, epoch_rows
+from planodom.odometry import epoch_rows
+
+#: What a results folder may hold: ``--overwrite`` replaces only folders of these.
+RESULT_ENTRIES = frozenset(
+    {"poses.tum", "poses_kitti.txt", "epochs.csv", "config.yaml", "metrics.json"}
+    | {"odometry.tum", "dataset"}
+)
 
 
-def prepare_output(out: str | Path) -> Path:
-    """Create the output folder (parents too) and return it."""
-    path = Path(out)
-    path.mkdir(parents=True, exist_ok=True)
-    return path
+@dataclass(frozen=True)
+class ResultsFolder:
+    """Where a run writes (``tmp``) and where its results end up (``path``)."""
+
+    tmp: Path
+    path: Path
+
+
+@contextlib.contextmanager
+def results_folder(
+    out: str | Path | None,
+    *,
+    overwrite: bool = False,
+    inputs: Sequence[str | Path] = (),
+    root: str | Path = "results",
+) -> Iterator[ResultsFolder]:
+    """A results folder written whole or not at all (:func:`planodom.outputs.atomic_folder`).
+
+    Args:
+        out: the folder; None: a fresh ``root/<timestamp>/``, linked as ``root/latest``.
+        overwrite: replace an existing results folder ``out`` (one holding only
+            :data:`RESULT_ENTRIES`).
+        inputs: the run's input files and folders, which ``out`` may not be, lie in or
+            contain.
+    """
+    path = timestamped_folder(root) if out is None else Path(out)
+    owned = _is_result_entry
+    with atomic_folder(path, overwrite=overwrite, inputs=inputs, owned=owned) as tmp:
+        yield ResultsFolder(tmp, path)
+    if out is None:
+        link_latest(path)
+
+
+def _is_result_entry(path: Path) -> bool:
+    return path.name in RESULT_ENTRIES
 
 
 def write_kitti(path: str | Path, poses: np.ndarray) -> None:
@@ -105,15 +152,14 @@ def odometry_metrics(run: OdometryRun, gt_poses: np.ndarray | None) -> dict[str,
     return out | trajectory_metrics(run.poses, gt_poses)
 
 
-def write_odometry_run(out: Path, run: OdometryRun, gt_poses: np.ndarray | None) -> dict:
-    """Write every output of an odometry run to ``out``; returns the metrics."""
+def write_odometry_run(out: Path, run: OdometryRun, metrics: Mapping[str, object]) -> None:
+    """Write every output of an odometry run to ``out``, with its ``metrics``
+    (:func:`odometry_metrics`, plus whatever the caller adds)."""
     write_trajectory(out, run.times, run.poses)
     write_rows(out / "epochs.csv", epoch_rows(run))
     if run.config is not None:
         write_config(out, run.config)
-    stats = odometry_metrics(run, gt_poses)
-    write_metrics(out, stats)
-    return stats
+    write_metrics(out, metrics)
 
 
 def write_config(out: Path, config: PlanodomConfig) -> None:

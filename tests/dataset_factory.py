@@ -11,10 +11,11 @@ ALL_FIELDS = ("ring", "t", "label")
 
 
 def make_scan(rng: np.random.Generator, n: int = 50, fields=ALL_FIELDS) -> Scan:
-    """Random scan with values that catch lossy storage (tiny, huge, -0.0, int32 extremes)."""
-    pts = rng.normal(scale=20.0, size=(n, 3)) * 10.0 ** rng.integers(-8, 8, size=(n, 1))
+    """Random scan with values that catch lossy storage (tiny, large, -0.0, int32 extremes);
+    coordinates stay within the readers' 1e6 m."""
+    pts = rng.normal(scale=20.0, size=(n, 3)) * 10.0 ** rng.integers(-8, 4, size=(n, 1))
     if n >= 3:
-        pts[0, 0], pts[1, 1], pts[2, 2] = -0.0, 5e-324, 1e300
+        pts[0, 0], pts[1, 1], pts[2, 2] = -0.0, 5e-324, -987654.3210987654
     label = rng.integers(-1, 40, n).astype(np.int32)
     if n >= 2:
         label[:2] = [np.iinfo(np.int32).min, np.iinfo(np.int32).max]

@@ -12,7 +12,6 @@ from planodom.config import PlanodomConfig
 from planodom.datasets import read_tum
 from planodom.geometry import make_transform
 from planodom.results import (
-    prepare_output,
     write_config,
     write_metrics,
     write_rows,
@@ -29,7 +28,7 @@ def test_trajectory_files_round_trip(tmp_path) -> None:
         ]
     )
     times = np.arange(5) * 0.1
-    out = prepare_output(tmp_path / "a" / "b")
+    out = tmp_path
     write_trajectory(out, times, poses)
     t, P = read_tum(out / "poses.tum")
     np.testing.assert_array_equal(t, times)

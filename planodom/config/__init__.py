@@ -18,7 +18,7 @@ from planodom.config.extraction import ExtractionConfig
 from planodom.config.odometry import AssociationConfig, OdometryConfig
 from planodom.config.section import Section
 from planodom.config.smoothing import SmoothingConfig
-from planodom.errors import ConfigError
+from planodom.errors import ConfigError, yaml_problem
 
 __all__ = [
     "AssociationConfig",
@@ -43,22 +43,29 @@ class PlanodomConfig(Section):
         """Load a (partial) config; missing keys keep their defaults."""
         path = Path(path)
         try:
-            data = yaml.safe_load(path.read_text()) or {}
+            data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
         except OSError as exc:
-            raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from exc
+            raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from None
+        except UnicodeDecodeError:
+            raise ConfigError(f"{path}: not a config file (not UTF-8 text)") from None
         except yaml.YAMLError as exc:
-            raise ConfigError(f"{path}: not valid YAML ({exc})") from exc
+            raise ConfigError(f"{path}: not valid YAML ({yaml_problem(exc)})") from None
         return cls.from_dict(data, source=str(path))
 
     @classmethod
     def from_dict(cls, data: dict, source: str = "config") -> PlanodomConfig:
         """Validate a nested dict; errors name the source and the field."""
+        if not isinstance(data, Mapping):
+            raise ConfigError(
+                f"{source}: a config holds a mapping of sections, not {type(data).__name__}"
+            )
         try:
             return cls.model_validate(data)
         except ValidationError as exc:
             first = exc.errors()[0]
             loc = ".".join(str(x) for x in first["loc"])
-            raise ConfigError(f"{source}: field '{loc}': {first['msg']}") from exc
+            got = f", got {first['input']!r:.60}" if first["type"] != "missing" else ""
+            raise ConfigError(f"{source}: field '{loc}': {first['msg']}{got}") from None
         except ConfigError as exc:  # raised by a section's own cross-field checks
             raise ConfigError(f"{source}: {exc}") from exc
 

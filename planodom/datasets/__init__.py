@@ -18,6 +18,8 @@ Layout::
   reference time (the TUM format of evo).
 - Epoch times come from ``poses.tum`` when present, else ``k / epoch_rate`` with
   ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * 0.1`` s. There is no ``times.txt``.
+  Without ``poses.tum``, a gap in numbered scan files (``000001``, ``000003``) is an
+  error, not a guess: the epochs around it would be taken as consecutive.
 - ``rig.yaml`` is read and validated once, into ``Dataset.rig`` (a typed
   :class:`planodom.rig.Rig`: epoch rate, sensor origins per ring, motion bounds,
   extrinsics); keys it does not interpret (for simulated data the sensor models, the

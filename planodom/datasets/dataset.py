@@ -12,7 +12,8 @@ import yaml
 
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
 from planodom.datasets.tum import read_tum, write_tum
-from planodom.errors import DatasetError
+from planodom.errors import DatasetError, yaml_problem
+from planodom.outputs import atomic_folder
 from planodom.rig import Rig
 from planodom.scan import Scan, ScanSequence
 
@@ -60,11 +61,26 @@ class Dataset:
         n = len(self.scan_files)
         if not -n <= index < n:
             raise IndexError(f"epoch {index} out of range for {n} epochs")
-        return read_scan(self.scan_files[index])
+        file = self.scan_files[index]
+        scan = read_scan(file)
+        origins = self.rig.sensor_origins
+        if origins is not None and len(origins) > 1:  # per ring: the rings must index them
+            rig_file = self.path / RIG_FILE
+            if scan.ring is None:
+                raise DatasetError(
+                    f"{file}: no 'ring' field, but {rig_file} gives {len(origins)} "
+                    "sensor_origins (one per ring)"
+                )
+            if len(scan) and (scan.ring.min() < 0 or scan.ring.max() >= len(origins)):
+                raise DatasetError(
+                    f"{file}: ring ids {scan.ring.min()}..{scan.ring.max()} do not index the "
+                    f"{len(origins)} sensor_origins of {rig_file}"
+                )
+        return scan
 
     def __iter__(self) -> Iterator[Scan]:
-        for file in self.scan_files:
-            yield read_scan(file)
+        for k in range(len(self)):
+            yield self[k]
 
     def __repr__(self) -> str:
         gt = "with" if self.gt_poses is not None else "without"
@@ -103,6 +119,7 @@ def load_dataset(path: str | Path) -> Dataset:
                 f"in {scan_files[0].parent}"
             )
     else:
+        _check_numbering(scan_files)
         times = epoch_times(len(scan_files), rig)
     return Dataset(root, scan_files, times, gt_poses, rig)
 
@@ -129,9 +146,12 @@ def write_dataset(
         gt_poses: (E, 4, 4) ground truth ``T_world_base``, written to ``poses.tum``.
         rig: written to ``rig.yaml`` (None: no file; numpy values in ``rig.extra`` are
             stored as lists / numbers).
-        overwrite: replace the scan files, ``poses.tum`` and ``rig.yaml`` of an existing
-            dataset at ``path`` (other files are left alone). Without it an existing
-            dataset there is a DatasetError.
+        overwrite: replace an existing dataset at ``path``. Without it a non-empty folder
+            there is an :class:`OutputExistsError`; with it, a folder holding anything but
+            ``scans/`` (of scan files), ``poses.tum`` and ``rig.yaml`` is an
+            :class:`OutputError` (nothing is deleted). The new dataset is written beside it
+            and swapped in when complete (:func:`planodom.outputs.atomic_folder`): a failure
+            leaves the old one as it was.
         extension: ".ply" or ".pcd".
         points_dtype: np.float64 (exact) or np.float32 for the coordinates.
 
@@ -161,24 +181,16 @@ def write_dataset(
     if extension.lower() not in (".ply", ".pcd"):
         raise DatasetError(f"{root}: cannot write scans as '{extension}' (use .ply or .pcd)")
 
-    if root.exists() and not root.is_dir():
-        raise DatasetError(f"{root} exists and is not a directory")
-    scans_dir = root / SCANS_DIR
-    existing = [root / POSES_FILE, root / RIG_FILE]
-    existing = [f for f in existing if f.exists()] + _files(scans_dir, SCAN_EXTENSIONS)
-    if existing and not overwrite:
-        raise DatasetError(f"{root} already holds a dataset ({existing[0].name}); overwrite=True")
-    for file in existing:
-        file.unlink()
-
-    scans_dir.mkdir(parents=True, exist_ok=True)
-    width = max(6, len(str(len(scans) - 1)))
-    for k, scan in enumerate(scans):  # iteration: a bag streams its epochs in one pass
-        write_scan(scans_dir / f"{k:0{width}d}{extension.lower()}", scan, points_dtype)
-    if gt_poses is not None:
-        write_tum(root / POSES_FILE, times, np.asarray(gt_poses, dtype=np.float64))
-    if rig is not None:
-        write_rig(root / RIG_FILE, rig)
+    with atomic_folder(root, overwrite=overwrite, owned=is_dataset_entry, what="a dataset") as tmp:
+        scans_dir = tmp / SCANS_DIR
+        scans_dir.mkdir()
+        width = max(6, len(str(len(scans) - 1)))
+        for k, scan in enumerate(scans):  # iteration: a bag streams its epochs in one pass
+            write_scan(scans_dir / f"{k:0{width}d}{extension.lower()}", scan, points_dtype)
+        if gt_poses is not None:
+            write_tum(tmp / POSES_FILE, times, np.asarray(gt_poses, dtype=np.float64))
+        if rig is not None:
+            write_rig(tmp / RIG_FILE, rig)
     return load_dataset(root)
 
 
@@ -199,8 +211,12 @@ def read_rig(path: str | Path) -> Rig:
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise DatasetError(f"{path}: cannot read rig file: {exc}") from None
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read rig file ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path}: not a rig file (not UTF-8 text)") from None
+    except yaml.YAMLError as exc:
+        raise DatasetError(f"{path}: not valid YAML ({yaml_problem(exc)})") from None
     return Rig.from_dict(data, source=str(path))
 
 
@@ -219,6 +235,46 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.ndarray | np.generic):
         return value.tolist()
     return value
+
+
+def _check_numbering(files: Sequence[Path]) -> None:
+    """DatasetError at a gap in numbered scan files (when there is no ``poses.tum``).
+
+    Without ``poses.tum`` epoch k is taken at ``k / epoch_rate``: a missing file would make
+    the motion over two epochs look like one epoch's, beyond the association's bounds or
+    silently wrong. Rather than guess (e.g. times from the numbers, with bounds scaled by
+    the gap), a gap is an error naming the files; ``poses.tum`` gives the times. Files
+    count as numbered when each name has a digit run and the most common step between
+    consecutive numbers is 1 (names that are timestamps are not checked).
+    """
+    runs = [re.findall(r"\d+", f.stem) for f in files]
+    if len(files) < 2 or not all(runs):
+        return
+    numbers = np.array([int(r[-1]) for r in runs])
+    steps = np.diff(numbers)
+    values, counts = np.unique(steps, return_counts=True)
+    if values[np.argmax(counts)] != 1 or np.all(steps == 1):
+        return
+    k = int(np.flatnonzero(steps != 1)[0])
+    a, b, step = files[k], files[k + 1], int(steps[k])
+    problem = f"{step - 1} scan(s) missing" if step > 1 else "numbers out of order"
+    raise DatasetError(
+        f"{b}: follows {a.name} in the numbering ({problem}) and "
+        f"there is no {POSES_FILE} to give the epoch times (they would be taken as "
+        f"contiguous); add {POSES_FILE}, or renumber the scans if no epoch is missing"
+    )
+
+
+def is_dataset_entry(path: Path) -> bool:
+    """Whether ``path`` (an entry of a dataset folder or of its ``scans/``) is one a
+    dataset is made of."""
+    if path.parent.name == SCANS_DIR and path.suffix.lower() in SCAN_EXTENSIONS:
+        return path.is_file()
+    if path.name in (POSES_FILE, RIG_FILE):
+        return path.is_file()
+    if path.name != SCANS_DIR or not path.is_dir():
+        return False
+    return all(is_dataset_entry(f) for f in path.iterdir())
 
 
 def _natural_key(path: Path) -> tuple:

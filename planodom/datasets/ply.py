@@ -127,7 +127,7 @@ def read_ply_vertices(path: Path) -> dict[str, np.ndarray]:
     if not vertex.fixed_size:
         raise DatasetError(f"{path}: PLY vertex element has list properties (not a point cloud)")
     if fmt == "ascii":
-        return _read_ascii(path, data[offset:], elements[:index], vertex)
+        return _read_ascii(path, data, offset, elements, index)
     before = elements[:index]
     if not all(e.fixed_size for e in before):
         raise DatasetError(f"{path}: PLY elements with list properties precede 'vertex'")
@@ -145,35 +145,82 @@ def read_ply_vertices(path: Path) -> dict[str, np.ndarray]:
             f"{path}: truncated PLY file: {vertex.count} vertices need {need} bytes, "
             f"{max(len(data) - offset, 0)} present"
         )
+    if all(e.fixed_size for e in elements):  # the body's size is known: check it exactly
+        end = (
+            offset
+            + need
+            + sum(
+                e.count * sum(np.dtype(c).itemsize for _, c in e.props)
+                for e in elements[index + 1 :]
+            )
+        )
+        if len(data) > end:
+            raise DatasetError(
+                f"{path}: PLY file has {len(data) - end} bytes beyond its header's "
+                f"{vertex.count} vertices (a wrong count, or not this format)"
+            )
     table = np.frombuffer(data, dtype=dtype, count=vertex.count, offset=offset)
     return {n: table[n].astype(c) for n, c in vertex.props}
 
 
 def _read_ascii(
-    path: Path, body: bytes, before: list[_Element], vertex: _Element
+    path: Path, data: bytes, offset: int, elements: list[_Element], index: int
 ) -> dict[str, np.ndarray]:
+    """The vertex element of an ASCII body: one line per element item, checked line by line."""
     try:
-        lines = body.decode("ascii").splitlines()
-    except UnicodeDecodeError as exc:
-        raise DatasetError(f"{path}: ASCII PLY body is not text") from exc
-    start = sum(e.count for e in before)
-    rows = lines[start : start + vertex.count]
-    n_props = len(vertex.props)
-    tokens = " ".join(rows).split()
-    if len(rows) < vertex.count or len(tokens) != vertex.count * n_props:
+        lines = data[offset:].decode("ascii").splitlines()
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path}: ASCII PLY body is not text") from None
+    first = data[:offset].count(b"\n") + 1  # line number of the body's first line
+    numbers = [first + i for i, ln in enumerate(lines) if ln.strip()]
+    rows = [ln.split() for ln in lines if ln.strip()]
+    vertex = elements[index]
+    start = sum(e.count for e in elements[:index])
+    total = sum(e.count for e in elements)
+    if len(rows) < total or (len(rows) > total and all(e.fixed_size for e in elements)):
+        where = f"{path}:{numbers[total]}" if len(rows) > total else str(path)
         raise DatasetError(
-            f"{path}: truncated or malformed ASCII PLY: expected {vertex.count} vertex "
-            f"lines of {n_props} values"
+            f"{where}: ASCII PLY has {len(rows)} data lines, its header's elements {total}"
         )
-    table = np.array(tokens, dtype=str).reshape(vertex.count, n_props)
-    out = {}
+    n_props = len(vertex.props)
+    for i in range(start, start + vertex.count):
+        if len(rows[i]) != n_props:
+            raise DatasetError(
+                f"{path}:{numbers[i]}: {len(rows[i])} values, a vertex has {n_props}"
+            )
+    table = np.array(rows[start : start + vertex.count], dtype=str).reshape(-1, n_props)
+    numbers = numbers[start : start + vertex.count]
+    return {
+        name: parse_ascii_column(path, table[:, j], code, numbers)
+        for j, (name, code) in enumerate(vertex.props)
+    }
+
+
+def parse_ascii_column(path: Path, column: np.ndarray, code: str, numbers: list[int]) -> np.ndarray:
+    """ASCII values (strings, one per line ``numbers[i]``) as numbers of numpy type
+    ``code``; DatasetError ``path:line`` at the first that is not a number of that type."""
+    wide = np.float64 if code[0] == "f" else np.int64
     try:
-        for j, (name, code) in enumerate(vertex.props):
-            wide = np.float64 if code[0] == "f" else np.int64
-            out[name] = table[:, j].astype(wide).astype(code)
-    except ValueError as exc:
-        raise DatasetError(f"{path}: bad number in ASCII PLY: {exc}") from None
-    return out
+        values = column.astype(wide)
+        fits = code[0] == "f" or len(values) == 0 or _fits(values.min(), values.max(), code)
+    except (ValueError, OverflowError):
+        fits = False
+    if not fits:
+        for i, text in enumerate(column):  # the first bad line, for the message
+            try:
+                value = wide(text)
+                ok = code[0] == "f" or _fits(value, value, code)
+            except (ValueError, OverflowError):
+                ok = False
+            if not ok:
+                raise DatasetError(f"{path}:{numbers[i]}: '{text}' is not a {np.dtype(code)}")
+    with np.errstate(over="ignore"):
+        return values.astype(code)
+
+
+def _fits(low: object, high: object, code: str) -> bool:
+    info = np.iinfo(code)
+    return bool(info.min <= low and high <= info.max)  # type: ignore[operator]
 
 
 def write_ply_vertices(path: Path, fields: dict[str, np.ndarray]) -> None:

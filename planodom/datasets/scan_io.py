@@ -7,10 +7,12 @@ float32 ``x y z intensity`` rows and carry no optional field; points are taken a
 (in the scanner frame, which for KITTI is the base frame used here).
 
 - PLY goes through :mod:`planodom.datasets.ply` (see there why not open3d).
-- PCD goes through ``open3d.t.io``, which keeps int32 / float64 custom fields and uint16
-  ``ring`` exactly. A PCD header is still parsed here first: open3d neither reads nor
-  writes a zero-point PCD, and returns uninitialised points without any error for a
-  truncated ASCII PCD.
+- PCD goes through :mod:`planodom.datasets.pcd` (see there why not open3d).
+
+Every value is checked after reading, so that a file never yields a scan the pipeline
+would choke on later without naming the file: coordinates finite and within
+``MAX_COORDINATE_M``, point times finite and within ``MAX_POINT_TIME_S`` of the epoch's
+reference time, ``ring`` ids and labels integers that fit int32, rings >= 0.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planodom.datasets.pcd import read_pcd, write_pcd
 from planodom.datasets.ply import read_ply_vertices, write_ply_vertices
 from planodom.errors import DatasetError
 from planodom.scan import Scan
@@ -29,6 +32,13 @@ SCAN_EXTENSIONS = (".ply", ".pcd", ".bin")
 WRITABLE_EXTENSIONS = (".ply", ".pcd")
 #: Optional per-point fields and their dtypes in a :class:`Scan`.
 OPTIONAL_FIELDS = {"ring": np.int32, "t": np.float64, "label": np.int32}
+#: Largest coordinate magnitude (m) a scan file may hold; the extraction refuses larger
+#: ones too (``planodom.extraction.pipeline.MAX_COORDINATE_M``), but without the file.
+MAX_COORDINATE_M = 1e6
+#: Largest point time (s) from the epoch's reference time: an epoch lasts a fraction of a
+#: second; larger values are absolute timestamps or a unit error, which deskewing would
+#: turn into nonsense.
+MAX_POINT_TIME_S = 3600.0
 
 
 def read_scan(file: str | Path) -> Scan:
@@ -46,12 +56,11 @@ def read_scan(file: str | Path) -> Scan:
     suffix = _suffix(path, SCAN_EXTENSIONS, "unknown scan file extension")
     if not path.is_file():
         raise DatasetError(f"{path}: scan file does not exist")
-    if suffix == ".ply":
-        fields = read_ply_vertices(path)
-    elif suffix == ".pcd":
-        fields = _read_pcd(path)
-    else:
-        fields = _read_kitti_bin(path)
+    reader = {".ply": read_ply_vertices, ".pcd": read_pcd, ".bin": _read_kitti_bin}[suffix]
+    try:
+        fields = reader(path)
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read scan file ({exc.strerror})") from None
     return _scan_from_fields(path, fields)
 
 
@@ -83,7 +92,7 @@ def write_scan(file: str | Path, scan: Scan, points_dtype: type[np.floating] = n
     if suffix == ".ply":
         write_ply_vertices(path, fields)
     else:
-        _write_pcd(path, fields)
+        write_pcd(path, fields)
 
 
 def _suffix(path: Path, allowed: tuple[str, ...], problem: str) -> str:
@@ -100,20 +109,50 @@ def _scan_from_fields(path: Path, fields: dict[str, np.ndarray]) -> Scan:
     missing = [c for c in "xyz" if c not in fields]
     if missing:
         raise DatasetError(f"{path}: no '{' '.join(missing)}' coordinates in the file")
-    points = np.column_stack([fields[c].astype(np.float64) for c in "xyz"]).reshape(-1, 3)
+    with np.errstate(invalid="ignore"):  # signalling NaNs of a corrupt file
+        points = np.column_stack([fields[c].astype(np.float64) for c in "xyz"]).reshape(-1, 3)
     bad = int(np.count_nonzero(~np.isfinite(points).all(axis=1)))
     if bad:
         raise DatasetError(
             f"{path}: {bad} of {len(points)} points have NaN or infinite coordinates"
         )
-    extra = {n: fields[n].astype(dt) for n, dt in OPTIONAL_FIELDS.items() if n in fields}
-    if "t" in extra and not np.all(np.isfinite(extra["t"])):
-        bad = int(np.count_nonzero(~np.isfinite(extra["t"])))
-        raise DatasetError(f"{path}: {bad} of {len(points)} point times 't' are NaN or infinite")
+    if len(points) and np.abs(points).max() > MAX_COORDINATE_M:
+        raise DatasetError(
+            f"{path}: coordinates reach {np.abs(points).max():.3g} m, "
+            f"beyond {MAX_COORDINATE_M:g} m (not metres, or corrupt)"
+        )
+    extra = {}
+    if "t" in fields:
+        t = fields["t"].astype(np.float64)
+        if not np.all(np.abs(t) <= MAX_POINT_TIME_S):  # NaN too
+            bad = int(np.count_nonzero(~(np.abs(t) <= MAX_POINT_TIME_S)))
+            raise DatasetError(
+                f"{path}: {bad} of {len(points)} point times 't' are NaN, infinite or "
+                f"beyond {MAX_POINT_TIME_S:g} s from the epoch's reference time"
+            )
+        extra["t"] = t
+    for name in ("ring", "label"):
+        if name in fields:
+            extra[name] = _int32(path, name, fields[name], 0 if name == "ring" else None)
     return Scan(points, **extra)
 
 
+def _int32(path: Path, name: str, values: np.ndarray, lowest: int | None) -> np.ndarray:
+    """An integer field as int32, or DatasetError when a value is not an int32 integer."""
+    info = np.iinfo(np.int32)
+    low = info.min if lowest is None else lowest
+    with np.errstate(invalid="ignore"):
+        whole = values.dtype.kind in "iu" or bool(np.all(np.mod(values, 1) == 0))
+    if len(values) and (not whole or values.min() < low or values.max() > info.max):
+        raise DatasetError(
+            f"{path}: field '{name}' must hold integers in {low}..{info.max}, "
+            f"got values in {values.min()}..{values.max()}"
+        )
+    return values.astype(np.int32)
+
+
 def _read_kitti_bin(path: Path) -> dict[str, np.ndarray]:
+    """A KITTI velodyne file: float32 ``x y z intensity`` rows, nothing else."""
     raw = path.read_bytes()
     if len(raw) % 16:
         raise DatasetError(
@@ -122,100 +161,3 @@ def _read_kitti_bin(path: Path) -> dict[str, np.ndarray]:
         )
     rows = np.frombuffer(raw, dtype="<f4").reshape(-1, 4)
     return {"x": rows[:, 0], "y": rows[:, 1], "z": rows[:, 2]}
-
-
-# --------------------------------------------------------------------------- PCD
-
-_PCD_TYPES = {("F", 4): "f4", ("F", 8): "f8", ("I", 1): "i1", ("I", 2): "i2", ("I", 4): "i4"}
-_PCD_TYPES |= {("U", 1): "u1", ("U", 2): "u2", ("U", 4): "u4", ("I", 8): "i8", ("U", 8): "u8"}
-
-
-def _pcd_header(path: Path, data: bytes) -> tuple[dict[str, list[str]], int]:
-    """Header entries (key -> values) and the byte offset of the data."""
-    header: dict[str, list[str]] = {}
-    pos = 0
-    while "DATA" not in header:
-        end = data.find(b"\n", pos)
-        if end < 0 or pos > 4096:
-            raise DatasetError(f"{path}: not a PCD file (no 'DATA' header line)")
-        try:
-            line = data[pos:end].decode("ascii").strip()
-        except UnicodeDecodeError:
-            raise DatasetError(f"{path}: not a PCD file (binary bytes in the header)") from None
-        pos = end + 1
-        if line and not line.startswith("#"):
-            key, *values = line.split()
-            header[key.upper()] = values
-    for key in ("FIELDS", "SIZE", "TYPE", "POINTS"):
-        if key not in header:
-            raise DatasetError(f"{path}: PCD header has no {key} line")
-    return header, pos
-
-
-def _read_pcd(path: Path) -> dict[str, np.ndarray]:
-    data = path.read_bytes()
-    header, offset = _pcd_header(path, data)
-    names, mode = header["FIELDS"], header["DATA"][0] if header["DATA"] else ""
-    try:
-        n = int(header["POINTS"][0])
-        sizes = [int(s) for s in header["SIZE"]]
-        counts = [int(c) for c in header.get("COUNT", ["1"] * len(names))]
-        codes = [_PCD_TYPES[(t, s)] for t, s in zip(header["TYPE"], sizes, strict=True)]
-    except (ValueError, IndexError, KeyError):
-        raise DatasetError(f"{path}: bad PCD header (POINTS / SIZE / TYPE / COUNT)") from None
-    if not len(names) == len(sizes) == len(codes) == len(counts):
-        raise DatasetError(f"{path}: PCD header FIELDS / SIZE / TYPE / COUNT lengths differ")
-    if not {"x", "y", "z"} <= set(names):
-        raise DatasetError(f"{path}: PCD file has no 'x y z' fields (has {' '.join(names)})")
-    if mode not in ("ascii", "binary", "binary_compressed"):
-        raise DatasetError(f"{path}: unknown PCD DATA mode '{mode}'")
-    if n == 0:  # open3d cannot read a zero-point PCD
-        return {name: np.zeros(0, code) for name, code in zip(names, codes, strict=True)}
-    if mode == "ascii":
-        lines = [ln for ln in data[offset:].splitlines() if ln.strip()]
-        if len(lines) != n:
-            raise DatasetError(f"{path}: ASCII PCD has {len(lines)} point lines, header says {n}")
-    elif mode == "binary" and len(data) - offset < n * sum(np.multiply(sizes, counts)):
-        raise DatasetError(f"{path}: truncated binary PCD ({n} points in the header)")
-
-    from planodom._open3d import o3d  # imported here: open3d is slow to load, only PCD needs it
-
-    # Failures are reported below as a DatasetError; keep open3d's own log quiet.
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        cloud = o3d.t.io.read_point_cloud(str(path), remove_nan_points=False)
-    if "positions" not in cloud.point or len(cloud.point["positions"]) != n:
-        raise DatasetError(f"{path}: open3d could not parse this PCD file ({n} points expected)")
-    pos = cloud.point["positions"].numpy()
-    out = {"x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2]}
-    for name in OPTIONAL_FIELDS:
-        if name in cloud.point:
-            out[name] = cloud.point[name].numpy().reshape(-1)
-    return out
-
-
-def _write_pcd(path: Path, fields: dict[str, np.ndarray]) -> None:
-    n = len(fields["x"])
-    if n == 0:
-        # open3d refuses to write an empty cloud: write the header of a zero-point PCD.
-        names = list(fields)
-        sizes = [fields[k].dtype.itemsize for k in names]
-        types = [fields[k].dtype.kind.upper() for k in names]
-        text = (
-            "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n"
-            f"FIELDS {' '.join(names)}\nSIZE {' '.join(map(str, sizes))}\n"
-            f"TYPE {' '.join(types)}\nCOUNT {' '.join('1' for _ in names)}\n"
-            "WIDTH 0\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 0\nDATA binary\n"
-        )
-        path.write_text(text, encoding="ascii")
-        return
-
-    from planodom._open3d import o3d
-
-    cloud = o3d.t.geometry.PointCloud()
-    xyz = np.column_stack([fields["x"], fields["y"], fields["z"]])
-    cloud.point["positions"] = o3d.core.Tensor(np.ascontiguousarray(xyz))
-    for name in OPTIONAL_FIELDS:
-        if name in fields:
-            cloud.point[name] = o3d.core.Tensor(np.ascontiguousarray(fields[name][:, None]))
-    if not o3d.t.io.write_point_cloud(str(path), cloud, write_ascii=False, compressed=False):
-        raise DatasetError(f"{path}: open3d failed to write the PCD file")

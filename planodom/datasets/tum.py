@@ -23,6 +23,11 @@ from planodom.errors import DatasetError
 #: Largest accepted deviation of a quaternion's norm from 1 (files written with 6 decimals
 #: are off by ~1e-6); within it quaternions are normalised.
 QUATERNION_NORM_TOL = 1e-3
+#: Largest position magnitude (m): UTM northings (1e7 m) and ECEF positions fit; beyond it
+#: squared errors lose all precision and overflow (a 1e300 gives ATE inf).
+MAX_POSITION_M = 1e8
+#: Largest time magnitude (s): TUM times are seconds (nanosecond stamps, 1e18, are not).
+MAX_TIME_S = 1e11
 
 
 def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
@@ -42,8 +47,10 @@ def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         raise DatasetError(f"{path}: trajectory file does not exist")
     try:
         text = path.read_text(encoding="utf-8-sig")
-    except (UnicodeDecodeError, OSError) as exc:
-        raise DatasetError(f"{path}: cannot read as text: {exc}") from None
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read trajectory file ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path}: not a trajectory file (not UTF-8 text)") from None
     rows, line_numbers = [], []
     for number, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()
@@ -66,8 +73,18 @@ def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     table = np.array(rows)
     lines = np.array(line_numbers)
     times, xyz, quat = table[:, 0], table[:, 1:4], table[:, 4:8]
+    for column, limit, what in (
+        (times, MAX_TIME_S, "time (s)"),
+        (xyz, MAX_POSITION_M, "position (m)"),
+    ):
+        far = np.flatnonzero(np.abs(column.reshape(len(table), -1)).max(axis=1) > limit)
+        if far.size:
+            raise DatasetError(
+                f"{path}:{lines[far[0]]}: {what} beyond {limit:g} ({far.size} such lines)"
+            )
 
-    norm = np.linalg.norm(quat, axis=1)
+    with np.errstate(over="ignore"):  # 1e300: inf, refused below
+        norm = np.linalg.norm(quat, axis=1)
     bad = np.flatnonzero(np.abs(norm - 1.0) > QUATERNION_NORM_TOL)
     if bad.size:
         raise DatasetError(

@@ -35,6 +35,7 @@ from planodom.odometry import (
     estimate_relative_pose,
     run_odometry,
 )
+from planodom.odometry.run import EpochSequence
 from planodom.rig import Rig
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
 from planodom.smoothing.windowed import smooth_windowed
@@ -147,7 +148,7 @@ def smoothing_relatives(
 
 
 def run_smoothing(
-    source: Sequence,
+    source: EpochSequence,
     config: PlanodomConfig | None = None,
     rig: Rig | None = None,
     *,

@@ -17,7 +17,7 @@ from planodom.datasets import (
     write_scan,
     write_tum,
 )
-from planodom.errors import DatasetError
+from planodom.errors import DatasetError, OutputExistsError
 from planodom.rig import Rig
 from planodom.scan import Scan
 
@@ -27,11 +27,11 @@ from planodom.scan import Scan
 def test_dataset_round_trip(tmp_path: Path) -> None:
     rng = np.random.default_rng(7)
     scans = [make_scan(rng, n) for n in (30, 0, 12, 1)]
-    scans[2] = Scan(scans[2].points)  # epochs with and without optional fields
+    scans[2] = Scan(scans[2].points, ring=scans[2].ring)  # with and without t, label
     times = np.array([0.0, 0.1, 0.2, 0.35]) + 1234.5
     poses = random_poses(rng, 4)
     extra = {"T_base_scanner": np.eye(4)[:3], "fov_deg": 270.0, "scene": {"seed": np.int64(3)}}
-    origins = np.array([[1.0, 0.5, 0.8], [-1.0, -0.5, 0.8]])
+    origins = rng.normal(size=(64, 3))  # one per ring id of make_scan
     rig = Rig(sensor_origins=origins, extrinsics=(np.eye(4),), extra=extra)
     ds = write_dataset(tmp_path / "ds", scans, times, poses, rig)
     assert isinstance(ds, Dataset)
@@ -86,7 +86,7 @@ def test_write_refuses_then_overwrites_without_stale_files(tmp_path: Path) -> No
         rig=Rig(extra={"a": 1}),
     )
     fewer = [make_scan(rng, 5) for _ in range(3)]
-    with pytest.raises(DatasetError, match="already holds a dataset"):
+    with pytest.raises(OutputExistsError, match="already holds a dataset"):
         write_dataset(tmp_path, fewer, np.arange(3) * 0.1)
     ds = write_dataset(tmp_path, fewer, np.arange(3) * 0.1, overwrite=True)
     assert len(ds) == 3 and ds.gt_poses is None and ds.rig.to_dict() == {}
@@ -96,12 +96,12 @@ def test_write_refuses_then_overwrites_without_stale_files(tmp_path: Path) -> No
 def test_files_sorted_naturally_and_directory_given_directly(tmp_path: Path) -> None:
     rng = np.random.default_rng(9)
     rows = {}
-    for name in ("10", "2", "1", "0000003", "100"):
+    for name in ("10", "8", "9", "0000011", "12"):
         rows[name] = rng.normal(size=(4, 4)).astype(np.float32)
         rows[name].tofile(tmp_path / f"{name}.bin")
     (tmp_path / ".hidden").write_text("ignored")
     ds = load_dataset(tmp_path)
-    order = ["1", "2", "0000003", "10", "100"]
+    order = ["8", "9", "10", "0000011", "12"]
     assert [f.stem for f in ds.scan_files] == order
     for k, name in enumerate(order):
         assert np.array_equal(ds[k].points, rows[name][:, :3].astype(np.float64))
@@ -161,7 +161,7 @@ def test_bad_datasets(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "text, message",
     [
-        ("a: [1, 2\n", "cannot read rig file"),
+        ("a: [1, 2\n", "not valid YAML"),
         ("- 1\n- 2\n", "must hold a mapping"),
         ("epoch_rate: -5\n", "field 'epoch_rate' must be positive"),
         ("epoch_rate: fast\n", "field 'epoch_rate' must be a positive number"),

@@ -1,0 +1,256 @@
+"""The ``planodom`` command line: parses arguments, calls the library, prints tables.
+
+Known failures (:class:`planodom.errors.PlanodomError`, OS errors on a named file) are
+reported in one line, without a traceback, and exit with status 2
+(:func:`planodom.cli.common.reports_errors`). Results folders are written whole or not at
+all, never over the inputs or earlier results (:func:`planodom.results.results_folder`).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from planodom.cli import experiments as _experiments  # noqa: F401  (registers the commands)
+from planodom.cli.common import (
+    ConfigFile,
+    Epochs,
+    Motion,
+    Noise,
+    OutDir,
+    Overwrite,
+    RigName,
+    ScanEpochs,
+    Scene,
+    Seed,
+    SkipBadScans,
+    Source,
+    app,
+    console,
+    load_config,
+    progress_bar,
+    reports_errors,
+    simulate_scene,
+    takes_source,
+    warn,
+)
+from planodom.errors import ConfigError
+
+__all__ = ["app"]
+
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import version
+
+        console.print(f"planodom {version('planodom')}", highlight=False)
+        raise typer.Exit()
+
+
+@app.callback()
+def main_options(
+    version: Annotated[
+        bool | None,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
+    ] = None,
+) -> None:
+    """Odometry from planar landmarks, smoothed with factor graphs."""
+
+
+@app.command()
+@reports_errors
+def simulate(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Dataset folder to write.")],
+    scene: Scene = "paper-loop",
+    rig: RigName = "isoclinal",
+    noise: Noise = "0.0",
+    seed: Seed = 0,
+    epochs: Epochs = None,
+    motion: Motion = "continuous",
+    overwrite: Annotated[bool, typer.Option(help="Replace a dataset at --out.")] = False,
+) -> None:
+    """Simulate a built-in scene and write it as a dataset (scans, poses.tum, rig.yaml).
+
+    The dataset is written beside --out and moved into place when complete; --overwrite
+    replaces only a dataset (scans/, poses.tum, rig.yaml), never a folder of other files.
+    """
+    from planodom.datasets.dataset import is_dataset_entry
+    from planodom.outputs import check_target
+    from planodom.report import simulation_table
+    from planodom.simulation.export import write_simulated_dataset
+
+    # refuse an existing folder before simulating, not after (checked again when writing)
+    check_target(out, overwrite=overwrite, owned=is_dataset_entry, what="a dataset")
+    run = simulate_scene(scene, rig, noise, seed, epochs, motion)
+    with console.status(f"writing {len(run)} scans to {out}"):
+        write_simulated_dataset(run, out, scene_name=scene, overwrite=overwrite)
+    console.print(simulation_table(run, title=f"{scene} / {rig} -> {out}"))
+
+
+def _inputs(source: Source, config: Path | None) -> list[Path]:
+    """The files and folders a run reads, which its results may not touch."""
+    return [p for p in (source.dataset, config) if p is not None]
+
+
+def _report_skipped(data: ScanEpochs, metrics: dict) -> None:
+    if data.skipped:
+        warn(f"{len(data.skipped)} unreadable scan(s) skipped, listed in metrics.json")
+        metrics["skipped_scans"] = data.skipped
+
+
+@app.command()
+@reports_errors
+@takes_source
+def run(
+    source: Source,
+    out: OutDir = None,
+    overwrite: Overwrite = False,
+    skip_bad_scans: SkipBadScans = False,
+    config: ConfigFile = None,
+    pipeline: Annotated[
+        str | None, typer.Option(help="wocsc | sda-mean | ocsc | mean (default: config's).")
+    ] = None,
+    delta: Annotated[int | None, typer.Option(help="Associate epoch k with k - delta.")] = None,
+) -> None:
+    """Extract planes and run the paper's odometry over a dataset (or a built-in scenario).
+
+    Writes poses.tum, poses_kitti.txt, epochs.csv, config.yaml and, with ground truth,
+    metrics.json to --out, and prints a summary.
+    """
+    from planodom import results
+    from planodom.odometry import run_odometry
+    from planodom.report import motion_assumption, odometry_table
+
+    source.check()
+    cfg = load_config(config, {"odometry.pipeline": pipeline, "odometry.delta": delta})
+    inputs = _inputs(source, config)
+    with results.results_folder(out, overwrite=overwrite, inputs=inputs) as folder:
+        data = source.load(folder.tmp, skip_bad_scans)
+        with progress_bar("odometry") as callback, data.naming_errors():
+            odo = run_odometry(data, cfg, data.rig, progress=data.progress(callback))
+        metrics = results.odometry_metrics(odo, data.gt_poses)
+        _report_skipped(data, metrics)
+        results.write_odometry_run(folder.tmp, odo, metrics)
+    console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
+    console.print(odometry_table(odo, metrics, title=f"planodom run -> {folder.path}"))
+
+
+def _smoothing_delta(delta: int | None, window: int | None, mode: str, cfg, n: int):
+    """``(window, delta)`` to run with; ConfigError in terms of --delta / --window."""
+    if delta is None:
+        return window, delta
+    if not 1 <= delta < n:
+        raise ConfigError(f"--delta {delta}: relative poses need 1 <= delta < {n} (the epochs)")
+    w = cfg.smoothing.window if window is None else window
+    if delta < w:
+        return window, delta
+    if mode == "windowed":
+        raise ConfigError(
+            f"--delta {delta}: must be smaller than the fixed-lag window W = {w} "
+            "(--window, or smoothing.window in the config)"
+        )
+    return delta + 1, delta  # batch smoothing has no window: keep the config's check quiet
+
+
+@app.command()
+@reports_errors
+@takes_source
+def smooth(
+    source: Source,
+    out: OutDir = None,
+    overwrite: Overwrite = False,
+    skip_bad_scans: SkipBadScans = False,
+    mode: Annotated[str | None, typer.Option(help="batch | windowed.")] = None,
+    window: Annotated[
+        int | None, typer.Option(help="Fixed-lag window W in epochs (implies --mode windowed).")
+    ] = None,
+    delta: Annotated[
+        int | None, typer.Option(help="Relative poses for delta = 1..D (default: config's).")
+    ] = None,
+    config: ConfigFile = None,
+) -> None:
+    """Smooth the odometry with a factor graph (batch, or a fixed-lag window).
+
+    Writes the smoothed poses.tum / poses_kitti.txt, the raw odometry as odometry.tum,
+    config.yaml and, with ground truth, metrics.json for both.
+    """
+    from planodom import results
+    from planodom.report import comparison_table
+    from planodom.smoothing.run import run_smoothing
+
+    source.check()
+    cfg = load_config(config)  # before simulating: a bad file fails at once
+    mode = mode or ("windowed" if window is not None else "batch")
+    if mode not in ("batch", "windowed"):
+        raise ConfigError(f"--mode: expected batch or windowed, got '{mode}'")
+    inputs = _inputs(source, config)
+    with results.results_folder(out, overwrite=overwrite, inputs=inputs) as folder:
+        data = source.load(folder.tmp, skip_bad_scans)
+        window, delta = _smoothing_delta(delta, window, mode, cfg, len(data))
+        with progress_bar("odometry and relative poses") as callback, data.naming_errors():
+            step = data.progress(callback)
+            sm = run_smoothing(
+                data, cfg, data.rig, window=window, delta=delta, mode=mode,
+                progress=lambda stage, k, n: step(k, n),
+            )  # fmt: skip
+        odo_metrics = results.odometry_metrics(sm.odometry, data.gt_poses)
+        _report_skipped(data, odo_metrics)
+        results.write_odometry_run(folder.tmp, sm.odometry, odo_metrics)
+        results.write_trajectory(folder.tmp, sm.times, sm.poses)  # the smoothed: the output
+        results.write_tum(folder.tmp / "odometry.tum", sm.times, sm.odometry.poses)
+        results.write_config(folder.tmp, sm.config)
+        smoothed = results.trajectory_metrics(sm.poses, data.gt_poses)
+        results.write_metrics(folder.tmp, {"odometry": odo_metrics, f"smoothing_{mode}": smoothed})
+    rows = {"odometry": odo_metrics, f"{mode} smoothing": smoothed}
+    console.print(comparison_table(rows, title=f"planodom smooth -> {folder.path}"))
+
+
+@app.command("eval")
+@reports_errors
+def evaluate(
+    estimate: Annotated[Path, typer.Argument(help="Estimated trajectory, TUM format.")],
+    truth: Annotated[
+        Path, typer.Argument(help="Ground truth: a TUM file or a dataset with poses.tum.")
+    ],
+    delta: Annotated[int, typer.Option(help="RPE step in epochs.")] = 1,
+    align: Annotated[str, typer.Option(help="none | origin | se3 | 4dof")] = "origin",
+) -> None:
+    """ATE, RPE, drift and per-epoch 5-DoF errors of a trajectory against ground truth."""
+    import numpy as np
+
+    from planodom import metrics
+    from planodom.datasets import read_tum
+    from planodom.errors import DatasetError
+    from planodom.report import metrics_table
+
+    if align not in ("none", "origin", "se3", "4dof"):
+        raise ConfigError(f"--align: expected none, origin, se3 or 4dof, got '{align}'")
+    t_est, est = read_tum(estimate)
+    t_gt, gt = read_tum(truth / "poses.tum" if truth.is_dir() else truth)
+    if len(t_est) != len(t_gt) or not np.allclose(t_est, t_gt, atol=1e-6):
+        raise DatasetError(
+            f"{estimate}: {len(t_est)} poses whose times do not match the {len(t_gt)} of {truth}"
+        )
+    if not 1 <= delta < len(t_est):
+        raise ConfigError(
+            f"--delta {delta}: the RPE step needs 1 <= delta < {len(t_est)} (the poses)"
+        )
+    summary = metrics.summarize(est, gt, align=align, delta=delta)  # type: ignore[arg-type]
+    console.print(metrics_table(summary))
+
+
+@app.command("config")
+@reports_errors
+def show_config(config: ConfigFile = None) -> None:
+    """Print the resolved configuration (defaults, or a file over them) as YAML.
+
+    The output loads back unchanged: ``planodom config > my.yaml``, edit, ``--config my.yaml``.
+    """
+    typer.echo(load_config(config).to_yaml(), nl=False)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(app())

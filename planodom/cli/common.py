@@ -1,0 +1,279 @@
+"""What the commands share: the apps, the one error path, options, the epoch source.
+
+The one error path (:func:`reports_errors`): every :class:`PlanodomError` and every OS
+error on a named file ends as one line ``error: <file>: <what>`` on stderr and exit
+status 2. Anything else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import inspect
+import typing
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.text import Text
+
+from planodom.errors import DatasetError, OutputExistsError, PlanodomError
+
+app = typer.Typer(
+    help="Odometry from planar landmarks, smoothed with factor graphs.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+experiment_app = typer.Typer(help="Regenerate the paper's and the smoothing experiments.")
+app.add_typer(experiment_app, name="experiment")
+
+console = Console()
+err_console = Console(stderr=True)
+
+
+def one_line(exc: BaseException) -> str:
+    """The message of a known failure, in one line."""
+    if isinstance(exc, OutputExistsError):
+        exc = exc.with_option("--overwrite")
+    if isinstance(exc, OSError) and not isinstance(exc, PlanodomError):
+        text = f"{exc.filename}: {exc.strerror or exc}"
+    else:
+        text = str(exc)
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
+def reports_errors(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Turn known failures into a one-line message on stderr and exit status 2."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (PlanodomError, OSError) as exc:
+            if isinstance(exc, OSError) and exc.filename is None:
+                raise  # not about a file the user named: a bug, keep the traceback
+            error(one_line(exc))
+            raise typer.Exit(2) from None
+
+    return wrapper
+
+
+def error(message: str) -> None:
+    """``error: message`` on stderr, the message taken literally (no rich markup)."""
+    err_console.print(Text.assemble(("error: ", "bold red"), message), soft_wrap=True)
+
+
+def warn(message: str) -> None:
+    """``warning: message`` on stderr."""
+    err_console.print(Text.assemble(("warning: ", "bold yellow"), message), soft_wrap=True)
+
+
+OutDir = Annotated[
+    Path | None,
+    typer.Option(
+        "--out", "-o", help="Results folder (default: a new results/<timestamp>, linked as latest)."
+    ),
+]
+Overwrite = Annotated[
+    bool, typer.Option("--overwrite", help="Replace an existing results folder at --out.")
+]
+SkipBadScans = Annotated[
+    bool,
+    typer.Option(
+        "--skip-bad-scans",
+        help="An unreadable scan file becomes an epoch without planes (bridged at constant "
+        "velocity, listed in metrics.json) instead of an error.",
+    ),
+]
+Scene = Annotated[str, typer.Option(help="Built-in scene: paper-loop | urban-canyon.")]
+RigName = Annotated[
+    str, typer.Option("--rig", help="Built-in rig: isoclinal | lidar16 | lidar32 | lidar64.")
+]
+Noise = Annotated[
+    str,
+    typer.Option(help="Range noise sigma in metres, or a preset: none, lms221, low-cost, worst."),
+]
+Seed = Annotated[int, typer.Option(help="Noise seed.")]
+Epochs = Annotated[
+    int | None, typer.Option("--epochs", help="Number of epochs (default: one lap).")
+]
+Motion = Annotated[
+    str,
+    typer.Option(help="continuous: each point from the pose at its time; snapshot: one pose."),
+]
+ConfigFile = Annotated[
+    Path | None, typer.Option("--config", "-c", help="YAML file with config overrides.")
+]
+DatasetDir = Annotated[Path | None, typer.Argument(help="Dataset directory.")]
+Scenario = Annotated[
+    str | None,
+    typer.Option(help="Simulate this built-in scene (paper-loop, urban-canyon) instead."),
+]
+
+
+def simulate_scene(scene: str, rig: str, noise: str, seed: int, epochs: int | None, motion: str):
+    from planodom.simulation import simulate_named
+
+    try:
+        sigma: float | str = float(noise)
+    except ValueError:
+        sigma = noise  # a preset name
+    with console.status(f"simulating {scene} with the {rig} rig"):
+        return simulate_named(scene, rig, noise=sigma, seed=seed, n_epochs=epochs, motion=motion)
+
+
+class ScanEpochs:
+    """A dataset's epochs as the odometry reads them, naming the scan behind a failure.
+
+    ``len``, indexing, ``times``, ``gt_poses`` and ``rig`` are the dataset's. While an
+    epoch is being processed (from its reading to the progress call after it),
+    :meth:`naming_errors` turns a failure that names no file into one naming the scan.
+    With ``skip_bad`` a scan that cannot be read is an epoch without planes, which the
+    odometry bridges (an unresolved epoch); :attr:`skipped` lists them.
+    """
+
+    def __init__(self, dataset: Any, skip_bad: bool = False) -> None:
+        self.dataset, self.skip_bad = dataset, skip_bad
+        self.times, self.gt_poses, self.rig = dataset.times, dataset.gt_poses, dataset.rig
+        self.current: Path | None = None
+        self.skipped: list[str] = []
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, k: int) -> Any:
+        self.current = self.dataset.scan_files[k]
+        try:
+            return self.dataset[k]
+        except DatasetError as exc:
+            if not self.skip_bad:
+                raise
+            warn(f"{one_line(exc)} (skipped: epoch {k} has no planes)")
+            self.skipped.append(str(self.dataset.scan_files[k]))
+            return []  # a plane list: no extraction, an epoch without planes
+
+    def progress(self, callback: Callable[[int, int], None]) -> Callable[[int, int], None]:
+        """``callback`` for the odometry's ``progress(k, n)``, ending an epoch's span."""
+
+        def step(k: int, n: int) -> None:
+            self.current = None
+            callback(k, n)
+
+        return step
+
+    @contextlib.contextmanager
+    def naming_errors(self) -> Iterator[None]:
+        """Re-raise a PlanodomError naming no file, raised within an epoch, naming its scan."""
+        try:
+            yield
+        except PlanodomError as exc:
+            if self.current is None or isinstance(exc, DatasetError):
+                raise
+            raise DatasetError(f"{self.current}: {one_line(exc)}") from exc
+
+
+@dataclass(frozen=True)
+class Source:
+    """Where ``run`` and ``smooth`` take their epochs from: a dataset directory, or a
+    built-in scenario simulated with the given rig, noise, seed, length and motion."""
+
+    dataset: Path | None
+    scenario: str | None
+    rig: str
+    noise: str
+    seed: int
+    epochs: int | None
+    motion: str
+
+    def check(self) -> None:
+        from planodom.errors import ConfigError
+
+        if (self.dataset is None) == (self.scenario is None):
+            raise ConfigError("give either a DATASET directory or --scenario NAME")
+
+    def load(self, folder: Path, skip_bad: bool = False) -> ScanEpochs:
+        """The dataset, or the scenario simulated into ``folder/dataset`` and loaded."""
+        from planodom.datasets import load_dataset
+
+        self.check()
+        if self.dataset is not None:
+            return ScanEpochs(load_dataset(self.dataset), skip_bad)
+        from planodom.simulation.export import write_simulated_dataset
+
+        sim = (self.scenario, self.rig, self.noise, self.seed, self.epochs, self.motion)
+        run = simulate_scene(*sim)  # type: ignore[arg-type]
+        with console.status("writing the simulated dataset"):
+            data = write_simulated_dataset(run, folder / "dataset", self.scenario)
+        return ScanEpochs(data, skip_bad)
+
+
+#: The options of :class:`Source`, shared by ``run`` and ``smooth`` (:func:`takes_source`).
+_SOURCE_OPTIONS = (
+    ("dataset", DatasetDir, None),
+    ("scenario", Scenario, None),
+    ("rig", RigName, "isoclinal"),
+    ("noise", Noise, "lms221"),
+    ("seed", Seed, 0),
+    ("epochs", Epochs, None),
+    ("motion", Motion, "continuous"),
+)
+
+
+def bundles(name: str, make: Callable[..., Any], options: tuple) -> Callable:
+    """A decorator giving a command the typer ``options`` (name, annotation, default) and
+    passing them to it as one argument ``name`` = ``make(**options)``."""
+
+    def decorate(func: Callable[..., Any]) -> Callable[..., Any]:
+        keyword = inspect.Parameter.KEYWORD_ONLY
+        hints = typing.get_type_hints(func, include_extras=True)  # resolved, for typer
+        own = [
+            p.replace(kind=keyword, annotation=hints[p.name])
+            for p in inspect.signature(func).parameters.values()
+            if p.name != name
+        ]
+        shared = [inspect.Parameter(n, keyword, default=d, annotation=a) for n, a, d in options]
+
+        @functools.wraps(func)
+        def wrapper(**kwargs: Any) -> Any:
+            bundle = make(**{option: kwargs.pop(option) for option, _, _ in options})
+            return func(**{name: bundle}, **kwargs)
+
+        wrapper.__signature__ = inspect.Signature(own + shared)  # type: ignore[attr-defined]
+        return wrapper
+
+    return decorate
+
+
+#: ``run`` and ``smooth`` take their epochs from one :class:`Source` option set.
+takes_source = bundles("source", Source, _SOURCE_OPTIONS)
+
+
+def load_config(path: Path | None, changes: dict[str, object] | None = None):
+    """The config of ``path`` (defaults without), with the non-None ``changes`` (dotted
+    field names, e.g. ``odometry.delta``) applied through ``PlanodomConfig.updated``."""
+    from planodom.config import PlanodomConfig
+
+    cfg = PlanodomConfig() if path is None else PlanodomConfig.from_yaml(path)
+    changes = {k: v for k, v in (changes or {}).items() if v is not None}
+    return cfg.updated(changes, source="command line") if changes else cfg
+
+
+@contextlib.contextmanager
+def progress_bar(description: str) -> Iterator[Callable[[int, int], None]]:
+    """A rich progress bar in epochs while the block runs; yields ``callback(k, n)``."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    columns = (BarColumn(), MofNCompleteColumn(), TextColumn("epochs"), TimeRemainingColumn())
+    with Progress(TextColumn(description), *columns, console=err_console, transient=True) as bar:
+        task = bar.add_task(description, total=None)
+        yield lambda k, n: bar.update(task, completed=k, total=n)

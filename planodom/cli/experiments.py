@@ -1,0 +1,108 @@
+"""``planodom experiment paper | smoothing``: the experiments behind the paper's figures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from planodom.cli.common import (
+    ConfigFile,
+    Epochs,
+    bundles,
+    console,
+    err_console,
+    experiment_app,
+    load_config,
+    reports_errors,
+)
+
+Levels = Annotated[str, typer.Option(help="Comma-separated range noise sigmas in metres.")]
+ExpOut = Annotated[Path, typer.Option("--out", "-o", help="Output directory.")]
+ExpSeed = Annotated[int, typer.Option(help="Noise seed.")]
+ExpMotion = Annotated[str, typer.Option(help="snapshot (the paper's simulator) | continuous.")]
+
+
+def _levels(text: str) -> list[float]:
+    from planodom.errors import ConfigError
+
+    try:
+        levels = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ConfigError(f"--levels: expected comma-separated numbers, got '{text}'") from None
+    if not levels or any(not (x >= 0) for x in levels):
+        raise ConfigError(f"--levels: expected sigmas >= 0 in metres, got '{text}'")
+    return levels
+
+
+def _say(message: str) -> None:
+    err_console.print(f"[dim]{message}[/]", highlight=False)
+
+
+def _print_files(files: dict[str, Path]) -> None:
+    """The written files, Markdown tables rendered."""
+    from rich.markdown import Markdown
+
+    for name, path in files.items():
+        if path.suffix == ".md":
+            console.print(Markdown(path.read_text()))
+        console.print(f"{name}: {path}", highlight=False)
+
+
+def _simulation(epochs: int | None, seed: int, motion: str):
+    from planodom.experiments.simulated import Simulation
+
+    return Simulation(seed=seed, n_epochs=epochs, motion=motion)
+
+
+#: The experiments' simulation options, passed as one ``Simulation``.
+takes_simulation = bundles(
+    "simulation",
+    _simulation,
+    (("epochs", Epochs, None), ("seed", ExpSeed, 1), ("motion", ExpMotion, "snapshot")),
+)
+
+
+@experiment_app.command("paper")
+@reports_errors
+@takes_simulation
+def experiment_paper(
+    simulation: Any,
+    out: ExpOut = Path("results/paper"),
+    levels: Levels = "0,0.006,0.02,0.1",
+    config: ConfigFile = None,
+) -> None:
+    """The paper's section VI: Fig. 5 trajectories, Fig. 6 / 7 precision tables."""
+    from planodom.experiments.paper import run_paper_experiment
+
+    result = run_paper_experiment(
+        out, noise_levels=_levels(levels), simulation=simulation, config=load_config(config),
+        progress=_say,
+    )  # fmt: skip
+    _print_files(result.files)
+
+
+@experiment_app.command("smoothing")
+@reports_errors
+@takes_simulation
+def experiment_smoothing(
+    simulation: Any,
+    scenes: Annotated[str, typer.Option(help="Comma-separated built-in scenes.")] = (
+        "paper-loop,urban-canyon"
+    ),
+    levels: Levels = "0,0.006,0.02,0.1",
+    window: Annotated[int, typer.Option(help="Fixed-lag window W, epochs.")] = 10,
+    delta: Annotated[int, typer.Option(help="Relative poses for delta = 1..D.")] = 3,
+    out: ExpOut = Path("results/smoothing"),
+    config: ConfigFile = None,
+) -> None:
+    """Raw odometry vs delta > 1 vs windowed vs batch smoothing, with NEES."""
+    from planodom.experiments.smoothing import run_smoothing_experiment
+
+    result = run_smoothing_experiment(
+        out, noise_levels=_levels(levels), scenes=[x for x in scenes.split(",") if x],
+        window=window, delta=delta, simulation=simulation, config=load_config(config),
+        progress=_say,
+    )  # fmt: skip
+    _print_files(result.files)

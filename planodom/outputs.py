@@ -1,0 +1,230 @@
+"""Output folders written whole or not at all, never over their inputs.
+
+A results folder (or a simulated dataset) is written into a fresh hidden sibling,
+``.<name>.<pid>.<random>.partial``, and renamed into place once complete
+(:func:`atomic_folder`): a run that fails or is interrupted leaves neither a half-written
+folder nor an empty one (folders created for it are removed too), and an earlier folder it
+was to replace is untouched until the new one is complete.
+
+The rules, checked before anything is written:
+
+- the output folder may not be an input, lie inside one, or contain one
+  (``run DS --out DS`` would replace the dataset's ground truth by the estimate);
+- an existing non-empty folder is replaced only when asked (``overwrite``), and only when
+  every entry in it is one this kind of folder holds (``owned``): ``--overwrite`` on a
+  folder of other files is refused rather than deleting them;
+- without an output folder, results go to a fresh ``results/<timestamp>/`` and
+  ``results/latest`` links to it (:func:`timestamped_folder`, :func:`link_latest`), as
+  KISS-ICP does.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+import shutil
+from collections.abc import Callable, Iterator, Sequence
+from datetime import datetime
+from pathlib import Path
+
+from planodom.errors import OutputError, OutputExistsError
+
+LATEST = "latest"
+
+
+@contextlib.contextmanager
+def atomic_folder(
+    target: str | Path,
+    *,
+    overwrite: bool = False,
+    inputs: Sequence[str | Path] = (),
+    owned: Callable[[Path], bool] | None = None,
+    what: str = "results",
+) -> Iterator[Path]:
+    """Yield an empty folder to write into; on success it becomes ``target``.
+
+    Args:
+        target: the output folder (parents are created as needed, and removed again
+            when the block fails).
+        overwrite: replace an existing non-empty ``target``; without it that is an
+            :class:`OutputExistsError`.
+        inputs: files and folders the block reads: ``target`` may not be, lie in or contain
+            any of them (:class:`OutputError`).
+        owned: ``owned(entry) -> bool`` for each entry of an existing ``target``; an entry
+            it rejects makes the overwrite an :class:`OutputError` (None: any entry). For a
+            rejected folder, the message names its first file ``owned`` rejects.
+        what: what the folder holds, for messages ("results", "a dataset").
+
+    Raises:
+        OutputError: naming ``target``, for the rules above or when the folder cannot be
+            created (an OS error on it: below a file, no permission, ``/proc``).
+    """
+    target = check_target(target, overwrite=overwrite, inputs=inputs, owned=owned, what=what)
+    created = _make_parents(target)
+    try:
+        partial = _sibling(target, "partial")
+        os.mkdir(partial)
+    except OSError as exc:
+        _remove_empty(created)
+        raise OutputError(f"{target}: cannot create the output folder ({exc.strerror})") from None
+    try:
+        yield partial
+        _move_into_place(partial, target)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        _remove_empty(created)
+        raise
+
+
+def check_target(
+    target: str | Path,
+    *,
+    overwrite: bool = False,
+    inputs: Sequence[str | Path] = (),
+    owned: Callable[[Path], bool] | None = None,
+    what: str = "results",
+) -> Path:
+    """The checks of :func:`atomic_folder` alone (nothing is created); returns the target
+    (a symbolic link to a folder, e.g. ``results/latest``, as that folder)."""
+    target = Path(target)
+    if target.is_symlink() and target.is_dir():
+        target = target.resolve()
+    check_not_inputs(target, inputs)
+    existing = _entries(target)
+    if existing and not overwrite:
+        raise OutputExistsError(target, f"{what} ({existing[0]})")
+    foreign = [target / e for e in existing if owned is not None and not owned(target / e)]
+    if foreign:
+        assert owned is not None
+        stray = _first_foreign(foreign[0], owned).relative_to(target)
+        raise OutputError(
+            f"{target}: holds '{stray}', which planodom does not write as {what}; "
+            "not replacing the folder (choose another output folder)"
+        )
+    return target
+
+
+def _first_foreign(path: Path, owned: Callable[[Path], bool]) -> Path:
+    """The entry to blame in a rejected folder ``path``: its first rejected file, if any."""
+    if path.is_dir() and not path.is_symlink():
+        for child in sorted(path.iterdir()):
+            if not owned(child):
+                return _first_foreign(child, owned)
+    return path
+
+
+def check_not_inputs(target: str | Path, inputs: Sequence[str | Path]) -> None:
+    """:class:`OutputError` when ``target`` is, lies inside or contains one of ``inputs``."""
+    out = Path(target).resolve()
+    for given in inputs:
+        path = Path(given).resolve()
+        if out == path:
+            relation = "is"
+        elif out.is_relative_to(path):
+            relation = "lies inside"
+        elif path.is_relative_to(out):
+            relation = "contains"
+        else:
+            continue
+        raise OutputError(
+            f"{target}: the output folder {relation} the input {given}; "
+            "choose an output folder apart from the inputs"
+        )
+
+
+def timestamped_folder(root: str | Path = "results") -> Path:
+    """A not yet existing ``root/<YYYY-MM-DD_HH-MM-SS>`` (``_2``, ``_3``... if taken)."""
+    root = Path(root)
+    stamp = datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
+    folder, n = root / stamp, 1
+    while folder.exists() or folder.is_symlink():
+        n += 1
+        folder = root / f"{stamp}_{n}"
+    return folder
+
+
+def link_latest(folder: str | Path) -> Path | None:
+    """Point ``<parent>/latest`` at ``folder`` (a relative symlink, replaced atomically).
+
+    Returns the link, or None when it cannot be made (no symlinks on this file system, or
+    ``latest`` is a real file or folder, which is left alone).
+    """
+    folder = Path(folder)
+    link = folder.parent / LATEST
+    if link.exists() and not link.is_symlink():
+        return None
+    tmp = _sibling(link, "link")
+    try:
+        os.symlink(folder.name, tmp)
+        os.replace(tmp, link)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        return None
+    return link
+
+
+def _entries(target: Path) -> list[str]:
+    """The names in an existing folder ``target`` ([] when it does not exist)."""
+    if not target.exists():
+        if target.is_symlink():
+            raise OutputError(f"{target}: is a broken symbolic link")
+        return []
+    if not target.is_dir():
+        raise OutputError(f"{target}: exists and is not a folder")
+    try:
+        return sorted(os.listdir(target))
+    except OSError as exc:
+        raise OutputError(f"{target}: cannot list the output folder ({exc.strerror})") from None
+
+
+def _make_parents(target: Path) -> list[Path]:
+    """Create the missing parents of ``target``; returns them, deepest last."""
+    missing = []
+    parent = target.absolute().parent
+    while not parent.exists() and parent != parent.parent:
+        missing.append(parent)
+        parent = parent.parent
+    created: list[Path] = []
+    for folder in reversed(missing):
+        try:
+            os.mkdir(folder)
+        except OSError as exc:
+            _remove_empty(created)
+            raise OutputError(
+                f"{target}: cannot create the output folder ({folder}: {exc.strerror})"
+            ) from None
+        created.append(folder)
+    return created
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    for folder in reversed(folders):
+        with contextlib.suppress(OSError):
+            os.rmdir(folder)
+
+
+def _sibling(target: Path, kind: str) -> Path:
+    """A fresh hidden name beside ``target``: ``.<name>.<pid>.<random>.<kind>``."""
+    name = f".{target.name}.{os.getpid()}.{secrets.token_hex(4)}.{kind}"
+    return target.absolute().parent / name
+
+
+def _move_into_place(partial: Path, target: Path) -> None:
+    """Rename ``partial`` to ``target``, replacing what is there (checked beforehand)."""
+    if not target.exists():
+        os.rename(partial, target)
+        return
+    if not os.listdir(target):
+        os.rmdir(target)
+        os.rename(partial, target)
+        return
+    old = _sibling(target, "old")
+    os.rename(target, old)
+    try:
+        os.rename(partial, target)
+    except OSError:
+        os.rename(old, target)  # put the earlier folder back
+        raise
+    shutil.rmtree(old, ignore_errors=True)
