@@ -223,14 +223,21 @@ def simulate_world(
     n_epochs: int | None = None,
     seed: int | None = None,
     motion: str = "continuous",
+    all_fields: bool = False,
 ) -> SimulatedRun:
     """Simulate ``n_epochs`` (default one lap) of ``world`` with range noise ``noise`` (m or
     a preset name); noise seed ``seed`` (default the world's). The scans carry the world's
-    fields; the run's ``sensor_rig`` and ``trajectory`` are the world's."""
+    fields (all of them with ``all_fields``: what the oracle needs; :func:`world_fields`
+    drops the others later); the run's ``sensor_rig`` and ``trajectory`` are the world's."""
     run = simulate(world.scene, world.trajectory, world.sensor_rig,
                    n_epochs=world.lap_epochs if n_epochs is None else n_epochs,
                    epoch_rate=world.epoch_rate, noise_sigma=noise,
                    seed=world.seed if seed is None else seed, motion=motion)  # fmt: skip
+    return run if all_fields else world_fields(world, run)
+
+
+def world_fields(world: World, run: SimulatedRun) -> SimulatedRun:
+    """``run`` with only the point fields the world's data set has."""
     if world.ring_field and world.time_field:
         return run
     scans = tuple(with_fields(s, world.ring_field, world.time_field) for s in run.scans)
