@@ -67,7 +67,13 @@ def main_options(
 
 
 OutDir = Annotated[Path, typer.Option("--out", "-o", help="Output directory.")]
-Scene = Annotated[str, typer.Option(help="Built-in scene: paper-loop | urban-canyon.")]
+Scene = Annotated[
+    str,
+    typer.Option(
+        help="Built-in scene: paper-loop | urban-canyon, or a procedural world drawn from "
+        "--seed: random | random-outdoor | random-indoor."
+    ),
+]
 RigName = Annotated[
     str, typer.Option("--rig", help="Built-in rig: isoclinal | lidar16 | lidar32 | lidar64.")
 ]
@@ -89,18 +95,21 @@ ConfigFile = Annotated[
 DatasetDir = Annotated[Path | None, typer.Argument(help="Dataset directory.")]
 Scenario = Annotated[
     str | None,
-    typer.Option(help="Simulate this built-in scene (paper-loop, urban-canyon) instead."),
+    typer.Option(
+        help="Simulate this built-in scene (paper-loop, urban-canyon, random, random-outdoor, "
+        "random-indoor) instead."
+    ),
 ]
 
 
-def _simulate(scene: str, rig: str, noise: str, seed: int, epochs: int | None, motion: str):
+def _simulate(scene: str, rig: str | None, noise: str, seed: int, epochs: int | None, motion: str):
     from planodom.simulation import simulate_named
 
     try:
         sigma: float | str = float(noise)
     except ValueError:
         sigma = noise  # a preset name
-    with console.status(f"simulating {scene} with the {rig} rig"):
+    with console.status(f"simulating {scene} with the {rig or 'drawn'} rig"):
         return simulate_named(scene, rig, noise=sigma, seed=seed, n_epochs=epochs, motion=motion)
 
 
@@ -205,14 +214,25 @@ def _progress(description: str) -> Iterator[Callable[[int, int], None]]:
         yield lambda k, n: bar.update(task, completed=k, total=n)
 
 
+RandomRigName = Annotated[
+    str | None,
+    typer.Option(
+        "--rig",
+        help="Built-in rig: isoclinal | lidar16 | lidar32 | lidar64 (default isoclinal); for "
+        "a random scene also a family drawn from the seed: rig2d | lidar16 | lidar32 | "
+        "lidar64 (default: the world's own rig).",
+    ),
+]
+
+
 @app.command()
 @reports_errors
 def simulate(
     out: OutDir,
     scene: Scene = "paper-loop",
-    rig: RigName = "isoclinal",
+    rig: RandomRigName = None,
     noise: Noise = "0.0",
-    seed: Seed = 0,
+    seed: Annotated[int, typer.Option(help="Noise seed; for a random scene also the world.")] = 0,
     epochs: Epochs = None,
     motion: Motion = "continuous",
     overwrite: Annotated[bool, typer.Option(help="Replace a dataset at --out.")] = False,
@@ -220,11 +240,13 @@ def simulate(
     """Simulate a built-in scene and write it as a dataset (scans, poses.tum, rig.yaml)."""
     from planodom.report import simulation_table
     from planodom.simulation.export import write_simulated_dataset
+    from planodom.simulation.named import RANDOM_SCENES
 
+    rig = rig or (None if scene in RANDOM_SCENES else "isoclinal")
     run = _simulate(scene, rig, noise, seed, epochs, motion)
     with console.status(f"writing {len(run)} scans to {out}"):
         write_simulated_dataset(run, out, scene_name=scene, overwrite=overwrite)
-    console.print(simulation_table(run, title=f"{scene} / {rig} -> {out}"))
+    console.print(simulation_table(run, title=f"{run.scene.name} / {run.sensor_rig.name} -> {out}"))
 
 
 @app.command()
@@ -427,6 +449,34 @@ def experiment_smoothing(
         progress=_say,
     )  # fmt: skip
     _print_files(result.files)
+
+
+@experiment_app.command("generalisation")
+@reports_errors
+def experiment_generalisation(
+    worlds: Annotated[int, typer.Option(help="Random worlds 0 .. N-1 (even: 2D rig).")] = 20,
+    noise: Annotated[
+        list[float] | None,
+        typer.Option(help="Range noise sigma (m); repeat the option for several levels."),
+    ] = None,
+    epochs: Annotated[int, typer.Option(help="Epochs per run (0: one lap).")] = 300,
+    quick: Annotated[
+        bool, typer.Option(help="CI size: 2 worlds (2D rig, lidar), 25 epochs, 6 mm.")
+    ] = False,
+    out: ExpOut = Path("results/generalisation"),
+    config: ConfigFile = None,
+) -> None:
+    """Unseen worlds: planodom (wocsc, sda-mean) vs the oracle, KISS-ICP and open3d ICP."""
+    from planodom.experiments.generalisation import run_generalisation_experiment
+
+    levels = noise or [0.0, 0.006, 0.02, 0.1]
+    if quick:
+        worlds, epochs, levels = 2, 25, (noise or [0.006])
+    result = run_generalisation_experiment(
+        out, n_worlds=worlds, noise_levels=levels, n_epochs=epochs or None,
+        config=_load_config(config), progress=_say,
+    )  # fmt: skip
+    _print_files({k: v for k, v in result.files.items() if k != "runs_md"})
 
 
 if __name__ == "__main__":  # pragma: no cover

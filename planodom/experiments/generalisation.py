@@ -225,6 +225,34 @@ def summary_rows(runs: Sequence[MethodRun]) -> list[dict[str, object]]:
     return rows
 
 
+#: The summary's error columns: metric key, short name, scale to the printed unit.
+_SUMMARY_ERRORS = (("rot_rms_deg", "rot", 1.0), ("xy_rms_m", "xy", 100.0), ("ate_xy_m", "ate", 1.0))
+
+
+def summary_markdown(rows: Sequence[dict[str, object]]) -> str:
+    """The summary as a compact Markdown table: ratios to the oracle as "median / worst"."""
+    head = ["sigma mm", "rig", "method", "n", "rot rms deg (x oracle)", "xy rms cm (x oracle)",
+            "ATE m (x oracle)", "unres.", "gap*", "epochs/s (x KISS)"]  # fmt: skip
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+
+    def f(v: object, fmt: str = ".3g") -> str:
+        return "-" if not isinstance(v, float) or not np.isfinite(v) else format(v, fmt)
+
+    for r in rows:
+        cells = [f(1000 * float(r["noise_m"]), "g"), r["rig"], r["method"], r["worlds"]]  # type: ignore[arg-type]
+        for key, short, scale in _SUMMARY_ERRORS:
+            value = f(scale * float(r[f"{key}_median"]))  # type: ignore[arg-type]
+            med, worst = f(r[f"{short}_x_oracle_median"]), f(r[f"{short}_x_oracle_worst"])
+            cells.append(f"{value} ({med} / {worst})")
+        cells += [f(r["unresolved"], "g"), f(r["gap_oracle_worst"], "g"),
+                  f"{f(r['epochs_per_s_median'])} ({f(r['speed_x_kiss_median'])})"]  # fmt: skip
+        lines.append("| " + " | ".join(str(c) for c in cells) + " |")
+    note = ("\nMedians over the worlds; in brackets the ratio to the oracle's on the same "
+            "world, median / worst. gap*: longest run of unresolved epochs where the oracle "
+            "measures (worst world). ATE: xy, origin-aligned.\n")  # fmt: skip
+    return "\n".join(lines) + "\n" + note
+
+
 def _finite(reduce: Callable, values: Sequence[float]) -> float:
     """``reduce`` over the finite ``values``; NaN when there are none."""
     v = np.asarray(values, dtype=np.float64)
@@ -279,7 +307,7 @@ def run_generalisation_experiment(
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
-        files = write_tables(out, tables)
+        files = write_tables(out, tables, markdown={"summary": summary_markdown})
         files["config"] = out / "config.yaml"
         base.to_yaml(files["config"])
         if plot_worst(runs, out / "worst_world.png") is not None:

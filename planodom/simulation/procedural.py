@@ -250,10 +250,11 @@ def indoor_layout(rng: np.random.Generator) -> IndoorLayout:
     return IndoorLayout(poly, float(rng.uniform(3.0, 5.0)), float(rng.uniform(2.8, 4.0)))
 
 
-def indoor_route(layout: IndoorLayout, fillet: float = 1.5) -> np.ndarray:
+def indoor_route(layout: IndoorLayout, fillet: float = 1.5, step: float = 3.0) -> np.ndarray:
     """Waypoints (W, 2) along the corridors' centre line: each corner replaced by two points
-    ``fillet`` m before and after it and one 35 % of the way into the corner, so that the
-    spline through them stays within the corridor."""
+    ``fillet`` m before and after it and one 35 % of the way into the corner, and points
+    every ``step`` m along the legs, so that the spline through them stays within the
+    corridor."""
     poly, out = layout.polygon, []
     n = len(poly)
     for i in range(n):
@@ -262,7 +263,19 @@ def indoor_route(layout: IndoorLayout, fillet: float = 1.5) -> np.ndarray:
         u1 = (nxt - c) / np.linalg.norm(nxt - c)
         a, b = c - fillet * u0, c + fillet * u1
         out += [a, 0.65 * 0.5 * (a + b) + 0.35 * c, b]
+        leg = float(np.linalg.norm(nxt - c)) - 2 * fillet
+        k = int(leg // step)
+        out += [b + (j + 1) * leg / (k + 1) * u1 for j in range(k)]
     return np.array(out)
+
+
+def clearance(path_xy: np.ndarray, scene: Scene) -> float:
+    """Smallest horizontal distance (m) from the path (M, 2) to a wall or facade."""
+    return min(
+        float(segment_distance(path_xy, s.vertices[0, :2], s.vertices[1, :2]).min())
+        for s in scene.surfaces
+        if s.kind in ("wall", "facade")
+    )
 
 
 def _split(a: np.ndarray, b: np.ndarray, doors: list[float], width: float):

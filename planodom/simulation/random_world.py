@@ -22,6 +22,7 @@ from planodom.errors import ConfigError
 from planodom.scan import Scan
 from planodom.simulation.procedural import (
     Slope,
+    clearance,
     indoor_layout,
     indoor_route,
     indoor_scene,
@@ -35,6 +36,8 @@ from planodom.simulation.simulate import SimulatedRun, simulate
 from planodom.simulation.trajectory import RouteTrajectory, SpeedProfile, Sway
 
 KINDS = ("outdoor", "indoor")
+#: Smallest distance (m) of an indoor route to a wall (the rig reaches 1.1 m from the base).
+MIN_INDOOR_CLEARANCE_M = 1.2
 #: Typical vertical fields of view (lowest, highest elevation, deg) per beam count.
 LIDAR_VFOV = {16: (-15.0, 15.0), 32: (-25.0, 15.0), 64: (-24.8, 2.0)}
 
@@ -134,14 +137,20 @@ def random_rig(rng: np.random.Generator, family: str | None = None):
     return rig, rate, ring, time, desc
 
 
-def _sway(rng: np.random.Generator, amplitude_deg: float = 1.5) -> Sway:
+def _sway(rng: np.random.Generator, lap_s: float, amplitude_deg: float = 1.5) -> Sway:
+    """Roll and pitch up to +-``amplitude_deg`` and heave of 1-5 cm, each at a whole number
+    of cycles per lap (so that the route closes in all six DoF)."""
+
+    def hz(lo: float, hi: float) -> float:
+        return max(1, round(rng.uniform(lo, hi) * lap_s)) / lap_s
+
     return Sway(
         roll=np.deg2rad(rng.uniform(0.5, 1.0) * amplitude_deg),
-        roll_hz=rng.uniform(0.15, 0.6),
+        roll_hz=hz(0.15, 0.6),
         pitch=np.deg2rad(rng.uniform(0.5, 1.0) * amplitude_deg),
-        pitch_hz=rng.uniform(0.1, 0.5),
+        pitch_hz=hz(0.1, 0.5),
         heave=rng.uniform(0.01, 0.05),
-        heave_hz=rng.uniform(0.2, 0.8),
+        heave_hz=hz(0.2, 0.8),
     )
 
 
@@ -156,8 +165,8 @@ def _profile(rng: np.random.Generator, speed: float, lap_s: float, change: float
 
 def _route_trajectory(rng, waypoints, speed, slope: Slope, change=0.35) -> RouteTrajectory:
     """The closed route at ``speed`` m/s on average, with speed changes and sway."""
-    sway = _sway(rng)
-    lap = RouteTrajectory(waypoints, speed=speed, sway=sway).duration
+    lap = RouteTrajectory(waypoints, speed=speed).duration
+    sway = _sway(rng, lap)
     return RouteTrajectory(waypoints, speed=speed, sway=sway, gradient=(slope.gx, slope.gy),
                            profile=_profile(rng, speed, lap, change))  # fmt: skip
 
@@ -185,9 +194,12 @@ def random_world(seed: int, kind: str | None = None, rig: str | None = None) -> 
         scene = outdoor_scene(rng, _path_xy(traj), slope)
         world_desc = {"grade": grade, "speed_mps": traj.speed, "lap_m": traj.length}
     else:
-        layout = indoor_layout(rng)
-        traj = _route_trajectory(rng, indoor_route(layout), rng.uniform(0.8, 1.8), Slope(), 0.3)
-        scene = indoor_scene(rng, layout)
+        for _ in range(20):  # redraw the rare layout whose rooms come too near the route
+            layout = indoor_layout(rng)
+            traj = _route_trajectory(rng, indoor_route(layout), rng.uniform(0.8, 1.8), Slope(), 0.3)
+            scene = indoor_scene(rng, layout)
+            if clearance(_path_xy(traj, 0.2), scene) >= MIN_INDOOR_CLEARANCE_M:
+                break
         world_desc = {"width_m": layout.width, "ceiling_m": layout.ceiling,
                       "speed_mps": traj.speed, "lap_m": traj.length}  # fmt: skip
     desc = {"kind": kind, **world_desc, **rig_desc}
