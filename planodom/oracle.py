@@ -175,15 +175,26 @@ def relative_pose(
     p, c = prev.subset(ip), curr.subset(ic)
     roots = (_roots(p.scatter), _roots(c.scatter))
     pj, cj = p.judged(), c.judged()
-    basis, measured = _strong_subspace(_jacobian(T0, pj, cj, roots, _residuals(T0, pj, cj, roots)))
-    T = T0
-    for _ in range(iterations):
-        r0 = _residuals(T, p, c, roots)
-        A = _jacobian(T, p, c, roots, r0) @ basis
-        step = basis @ np.linalg.lstsq(A, -r0, rcond=None)[0]
-        T = T @ se3_exp(step)
-        if np.max(np.abs(step)) < 1e-12:
-            break
+
+    def subspace(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return _strong_subspace(_jacobian(T, pj, cj, roots, _residuals(T, pj, cj, roots)))
+
+    def solve(basis: np.ndarray) -> np.ndarray:
+        T = T0
+        for _ in range(iterations):
+            r0 = _residuals(T, p, c, roots)
+            A = _jacobian(T, p, c, roots, r0) @ basis
+            step = basis @ np.linalg.lstsq(A, -r0, rcond=None)[0]
+            T = T @ se3_exp(step)
+            if np.max(np.abs(step)) < 1e-12:
+                break
+        return T
+
+    # What is measured depends on the rotation (a corridor's direction in the current
+    # frame): judged at the start, solved, judged again at that solution, solved again.
+    basis, measured = subspace(T0)
+    basis, measured = subspace(solve(basis))
+    T = solve(basis)
     rot_ok, xy_ok = bool(measured[:3].all()), bool(measured[3:5].all())
     status = "ok" if rot_ok and xy_ok else "degenerate" if rot_ok else "unresolved"
     return OracleEstimate(T if status != "unresolved" else T0, status, len(common), measured)
