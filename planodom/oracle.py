@@ -67,9 +67,11 @@ class SurfaceMoments:
 
     def subset(self, idx: np.ndarray) -> SurfaceMoments:
         """The planes at ``idx`` (K',)."""
-        fields = (self.ids, self.count, self.centroid, self.scatter, self.normal, self.offset)
         truth = None if self.true_normal is None else self.true_normal[idx]
-        return SurfaceMoments(*(a[idx] for a in fields), true_normal=truth)
+        return SurfaceMoments(
+            self.ids[idx], self.count[idx], self.centroid[idx], self.scatter[idx],
+            self.normal[idx], self.offset[idx], truth,
+        )  # fmt: skip
 
     def judged(self) -> SurfaceMoments:
         """These planes with their true normals (when known) in place of the fitted ones:

@@ -31,7 +31,7 @@ import numpy as np
 from planodom.config import PlanodomConfig
 from planodom.experiments.peers import kiss_available, kiss_icp_poses, open3d_icp_poses
 from planodom.experiments.plots import plot_panels
-from planodom.experiments.tables import ExperimentResult, write_tables
+from planodom.experiments.tables import ExperimentResult, Rows, write_tables
 from planodom.geometry import invert_transform
 from planodom.metrics import ate, per_epoch_errors, relative_motions
 from planodom.odometry import run_odometry
@@ -229,7 +229,7 @@ def summary_rows(runs: Sequence[MethodRun]) -> list[dict[str, object]]:
 _SUMMARY_ERRORS = (("rot_rms_deg", "rot", 1.0), ("xy_rms_m", "xy", 100.0), ("ate_xy_m", "ate", 1.0))
 
 
-def summary_markdown(rows: Sequence[dict[str, object]]) -> str:
+def summary_markdown(rows: Rows) -> str:
     """The summary as a compact Markdown table: ratios to the oracle as "median / worst"."""
     head = ["sigma mm", "rig", "method", "n", "rot rms deg (x oracle)", "xy rms cm (x oracle)",
             "ATE m (x oracle)", "unres.", "gap*", "epochs/s (x KISS)"]  # fmt: skip

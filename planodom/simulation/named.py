@@ -54,7 +54,7 @@ def simulate_random(
 
 def simulate_named(
     scene: str | Scene = "paper-loop",
-    rig: str | SensorRig = "isoclinal",
+    rig: str | SensorRig | None = "isoclinal",
     noise: float | str = 0.0,
     seed: int = 0,
     n_epochs: int | None = None,
@@ -66,8 +66,9 @@ def simulate_named(
 ) -> SimulatedRun:
     """Simulate ``scene`` (``"paper-loop"`` | ``"urban-canyon"`` or a :class:`Scene`) with
     ``rig`` (``"isoclinal"`` | ``"lidar16"`` | ``"lidar32"`` | ``"lidar64"`` or a
-    :class:`SensorRig`); the procedural ``"random"`` / ``"random-outdoor"`` /
-    ``"random-indoor"`` scenes go to :func:`simulate_random` (``seed`` fixes the world).
+    :class:`SensorRig`; None: isoclinal, or a random world's own); the procedural
+    ``"random"`` / ``"random-outdoor"`` / ``"random-indoor"`` scenes go to
+    :func:`simulate_random` (``seed`` fixes the world).
 
     Args:
         noise: range noise sigma in metres, or a ``NOISE_PRESETS`` name ("none",
@@ -85,6 +86,6 @@ def simulate_named(
             raise ConfigError(f"unknown scene '{scene}' (choose from {', '.join(TRAJECTORIES)})")
         trajectory = TRAJECTORIES[scene](speed=speed)
     scene_obj = scene_from_name(scene) if isinstance(scene, str) else scene
-    rig_obj = rig_from_name(rig) if isinstance(rig, str) else rig
+    rig_obj = rig_from_name(rig or "isoclinal") if not isinstance(rig, SensorRig) else rig
     return simulate(scene_obj, trajectory, rig_obj, n_epochs=n_epochs, duration=duration,
                     epoch_rate=epoch_rate, noise_sigma=noise, seed=seed, motion=motion)  # fmt: skip

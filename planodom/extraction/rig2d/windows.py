@@ -56,7 +56,7 @@ def sweep_timing(scan: Scan, segs: Segments) -> SweepTiming:
     """:class:`SweepTiming` of the scan. Sweeps restart where a ring's scan angle jumps
     back (:func:`.scanlines._angle_reversals`): a time gap also opens where the beams see
     nothing (the sky), so the ``sweep`` ids of the segments count too many."""
-    if len(segs.order) < 3:
+    if len(segs.order) < 3 or scan.ring is None or scan.t is None:
         return SweepTiming(1, float("inf"), 0.0)
     ring, t = scan.ring[segs.order], scan.t[segs.order]
     new = np.ones(len(ring), dtype=bool)
