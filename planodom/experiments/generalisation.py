@@ -239,9 +239,9 @@ def summary_markdown(rows: Rows) -> str:
         return "-" if not isinstance(v, float) or not np.isfinite(v) else format(v, fmt)
 
     for r in rows:
-        cells = [f(1000 * float(r["noise_m"]), "g"), r["rig"], r["method"], r["worlds"]]  # type: ignore[arg-type]
+        cells = [f(1000 * float(r["noise_m"]), "g"), r["rig"], r["method"], r["worlds"]]
         for key, short, scale in _SUMMARY_ERRORS:
-            value = f(scale * float(r[f"{key}_median"]))  # type: ignore[arg-type]
+            value = f(scale * float(r[f"{key}_median"]))
             med, worst = f(r[f"{short}_x_oracle_median"]), f(r[f"{short}_x_oracle_worst"])
             cells.append(f"{value} ({med} / {worst})")
         cells += [f(r["unresolved"], "g"), f(r["gap_oracle_worst"], "g"),
