@@ -48,3 +48,23 @@ def test_cli_simulates_a_random_world(tmp_path):
     bad = CliRunner().invoke(app, ["simulate", "--out", str(tmp_path / "x"), "--scene",
                                    "random", "--rig", "sonar"])  # fmt: skip
     assert bad.exit_code == 2 and "unknown rig" in bad.output
+
+
+def test_cli_takes_noise_levels_as_in_the_issue(tmp_path, monkeypatch):
+    """``--noise 0 0.006 0.02 0.1`` (space-separated) reaches the experiment as four levels."""
+    import planodom.experiments.generalisation as generalisation
+    from planodom.experiments.tables import ExperimentResult
+
+    seen = {}
+
+    def fake(out, **kwargs):
+        seen.update(kwargs)
+        return ExperimentResult([], {}, {})
+
+    monkeypatch.setattr(generalisation, "run_generalisation_experiment", fake)
+    args = ["experiment", "generalisation", "--worlds", "3", "--out", str(tmp_path)]
+    result = CliRunner().invoke(app, [*args, "--noise", "0", "0.006", "0.02", "0.1"])
+    assert result.exit_code == 0, result.output
+    assert seen["noise_levels"] == [0.0, 0.006, 0.02, 0.1] and seen["n_worlds"] == 3
+    bad = CliRunner().invoke(app, [*args, "bogus"])
+    assert bad.exit_code == 2 and "unexpected arguments bogus" in bad.output
