@@ -5,13 +5,18 @@ frame, rad/s and m/s). The twist of the last estimate is only a prediction; once
 epoch's own relative pose is known, :func:`register_deskewed` decides whether to extract
 it again:
 
-1. deskewed with the prediction; when that leaves the epoch unresolved or degenerate,
-   also without deskewing (a wrong twist must not lock the odometry out), best kept;
+1. deskewed with the prediction; when that leaves the epoch unresolved or degenerate, or
+   finds far fewer planes than the epoch before (under half, or under two), also without
+   deskewing: a wrong twist must not lock the odometry out (on a random world at 2 cm, a
+   wrong early velocity deskewed every later epoch into zero planes for 16 epochs in a
+   row). The better of the two is kept: status first, then plane count;
 2. up to ``deskew_iterations`` times: with the epoch's own angular rate and (when its
    translation was measured) velocity wherever they differ from the twist used by more
    than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
-   epoch that was never deskewed (the first) is extracted again with it too. A new
-   estimate is kept while its status does not get worse.
+   epoch that was never deskewed (the first) is extracted again with it too. An epoch
+   kept without deskewing is refined only once its translation is measured (never with
+   a velocity of zero nobody measured). A new estimate is kept while its status does not
+   get worse.
 """
 
 from __future__ import annotations
@@ -68,6 +73,7 @@ def register_deskewed(
     estimate: Estimator,
     refresh_reference: Refresher,
     config: OdometryConfig,
+    previous_planes: int = 0,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -76,15 +82,20 @@ def register_deskewed(
         dt: seconds since the previous epoch.
         estimate, refresh_reference: see :data:`Estimator`, :data:`Refresher`.
         config: ``deskew_*`` fields.
+        previous_planes: planes of the previous epoch (fewer than half of them now is
+            suspect).
     """
     best = estimate(predicted)
-    if dt > 0 and predicted is not None and best.relative.status is not Status.OK:
+    few = len(best.planes) < max(2.0, 0.5 * previous_planes)
+    if dt > 0 and predicted is not None and (best.relative.status is not Status.OK or few):
         plain = estimate(None)
-        if plain.relative.status.rank > best.relative.status.rank:
+        if _score(plain) > _score(best):
             best = plain
     for _ in range(config.deskew_iterations if dt > 0 else 0):
         if best.relative.status is Status.UNRESOLVED:
             break
+        if best.twist is None and best.relative.status is not Status.OK:
+            break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
         new = refined_twist(se3_log(best.step) / dt, used, measured, config)
@@ -96,6 +107,11 @@ def register_deskewed(
             break
         best = again
     return best
+
+
+def _score(candidate: EpochEstimate) -> tuple[int, int]:
+    """How good one extraction of an epoch is: its status, then its plane count."""
+    return candidate.relative.status.rank, len(candidate.planes)
 
 
 def refined_twist(

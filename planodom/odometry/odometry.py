@@ -132,8 +132,11 @@ class PlaneOdometry:
         estimate = partial(self._estimate_scan, scan, t)
         if self.config.odometry.deskew and time_spread(scan):
             dt = t - self.times[-1]
-            refresh = self._refresh_reference
-            best = register_deskewed(self.twist, dt, estimate, refresh, self.config.odometry)
+            refresh, previous = self._refresh_reference, len(self.last_planes)
+            # a twist never outlives an unresolved epoch: until one is measured again, the
+            # epochs are extracted without it (it still serves as prior and bridge)
+            twist = None if self._unresolved_last() else self.twist
+            best = register_deskewed(twist, dt, estimate, refresh, self.config.odometry, previous)
         else:
             best = estimate(None)
         return self._commit(_Epoch(k, best.planes, best.plane_set, scan, best.twist), best, t)
@@ -236,6 +239,8 @@ class PlaneOdometry:
     def _commit(self, epoch: _Epoch, best: EpochEstimate, t: float) -> np.ndarray:
         """Append the epoch with its pose from ``best.step``; update the twist."""
         dt = t - self.times[-1]
+        if best.relative.status is Status.UNRESOLVED:
+            self._velocities.clear()  # stale velocities go with the twist (see register)
         if dt > 0:
             measured = best.relative.status is Status.OK
             self.twist = self._predicted_twist(se3_log(best.step) / dt, measured)
@@ -261,6 +266,10 @@ class PlaneOdometry:
         self._history.append(epoch)
         if len(epoch.planes) >= 2:
             self._last_usable = epoch
+
+    def _unresolved_last(self) -> bool:
+        last = self.last_relative
+        return last is not None and last.status is Status.UNRESOLVED
 
     def _predicted_twist(self, twist: np.ndarray, measured: bool) -> np.ndarray:
         """The constant-velocity twist for the next epoch: the angular rate of the last

@@ -373,6 +373,38 @@ def test_time_spread_epochs_are_extracted_again_with_their_own_twist():
     assert len(calls) == 5 and all(tw is None for _, tw in calls)
 
 
+def test_a_wrong_twist_never_outlives_one_epoch():
+    """Issue 11: a wrong velocity deskewed every later epoch of a random world into zero
+    planes. Here an extractor finds nothing with a twist 0.5 m/s off the truth and only one
+    plane without a twist at epoch 3: the epoch keeps that plane (more planes win a tie of
+    statuses), and once an epoch is unresolved the next is extracted without the twist
+    first, so the odometry recovers at once."""
+    from planodom.scan import Scan
+
+    world, poses = trajectory(8, seed=3)
+    planes = [observe(world, T) for T in poses]
+    truth = [se3_log(invert_transform(poses[max(k - 1, 0)]) @ poses[k]) / 0.1 for k in range(8)]
+    calls: list[tuple[int, np.ndarray | None]] = []
+
+    def extractor(scan, cfg, twist=None):
+        k = int(scan.points[0, 0])
+        calls.append((k, None if twist is None else twist.copy()))
+        if twist is not None and np.linalg.norm(twist[3:] - truth[k][3:]) > 0.5:
+            return []  # deskewed with a velocity 0.5 m/s off: no plane survives
+        return planes[k][:1] if (k == 3 and twist is None) else planes[k]
+
+    odo = PlaneOdometry(config(), extractor=extractor)
+    for k in range(8):
+        odo.register_epoch(Scan(np.full((2, 3), float(k)), t=[0.0, 0.05]), 0.1 * k)
+        if k == 2:
+            odo.twist = odo.twist + np.r_[0, 0, 0, 3.0, -3.0, 0]  # a wrong velocity
+    assert len(odo.planes[3]) == 1 and odo.results[3].status == "unresolved"
+    first_call_4 = next(tw for k, tw in calls if k == 4)
+    assert first_call_4 is None  # the twist did not outlive the unresolved epoch
+    assert all(r.status == "ok" for r in odo.results[4:])
+    assert all(len(odo.planes[k]) == len(planes[k]) for k in range(4, 8))
+
+
 @pytest.mark.parametrize(
     ("field", "value"),
     [
