@@ -27,6 +27,7 @@ def plot_errors(
     sigmas: np.ndarray | None = None,
     *,
     title: str = "per-epoch errors",
+    band_label: str = "±2σ (odometry)",
 ) -> Path:
     """Five panels (roll, pitch, yaw, x, y) of increment errors against time.
 
@@ -45,9 +46,11 @@ def plot_errors(
         label, scale = UNITS[name]
         if sigmas is not None and len(t):
             band = 2.0 * scale * np.asarray(sigmas)[:, j]
-            ax.fill_between(t, -band, band, color="tab:blue", alpha=0.18, lw=0, label="±2σ")
-        for series, values in errors.items():
-            ax.plot(t, scale * np.asarray(values[name]), lw=0.9, label=series)
+            ax.fill_between(t, -band, band, color="0.5", alpha=0.25, lw=0, label=band_label)
+        for (series, values), colour in zip(
+            errors.items(), ("tab:blue", "tab:orange"), strict=False
+        ):
+            ax.plot(t, scale * np.asarray(values[name]), lw=0.9, color=colour, label=series)
         ax.axhline(0.0, color="0.3", lw=0.6)
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)

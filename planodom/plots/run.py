@@ -39,7 +39,8 @@ def write_run_plots(
     panel shows the ±2σ bands of the odometry's covariances."""
     out = Path(out)
     best = odometry.poses if smoothed is None else smoothed
-    tracks = {"odometry": odometry.poses} | ({} if smoothed is None else {"smoothed": smoothed})
+    # the estimate first (blue in both pictures), the odometry beside the smoothed (orange)
+    tracks = ({} if smoothed is None else {"smoothed": smoothed}) | {"odometry": odometry.poses}
     errors: dict[str, dict[str, np.ndarray]] = {}
     shown = dict(tracks)
     if gt_poses is not None and len(best) > 1:

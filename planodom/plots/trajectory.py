@@ -38,9 +38,11 @@ def plot_trajectory(
     if reference is not None:
         ref = reference[:, :3, 3]
         ax.plot(ref[:, 0], ref[:, 1], "-", color="0.55", lw=3.0, alpha=0.6, label="reference")
-    for name, poses in others:
+    for (name, poses), colour in zip(
+        others, ("tab:orange", "tab:green", "tab:purple"), strict=False
+    ):
         p = poses[:, :3, 3]
-        ax.plot(p[:, 0], p[:, 1], "-", lw=1.0, label=name)
+        ax.plot(p[:, 0], p[:, 1], "-", color=colour, lw=1.0, label=name)
     p = estimate[:, :3, 3]
     ax.plot(p[:, 0], p[:, 1], "-", color="tab:blue", lw=1.4, label=label)
     ax.plot(p[0, 0], p[0, 1], "s", color="black", ms=7, label="start")
