@@ -23,10 +23,8 @@ from planodom.cli.common import (
     Noise,
     OutDir,
     Overwrite,
-    RigName,
     ScanEpochs,
     Scene,
-    Seed,
     SkipBadScans,
     Source,
     app,
@@ -61,14 +59,25 @@ def main_options(
     """Odometry from planar landmarks, smoothed with factor graphs."""
 
 
+RandomRigName = Annotated[
+    str | None,
+    typer.Option(
+        "--rig",
+        help="Built-in rig: isoclinal | lidar16 | lidar32 | lidar64 (default isoclinal); for "
+        "a random scene also a family drawn from the seed: rig2d | lidar16 | lidar32 | "
+        "lidar64 (default: the world's own rig).",
+    ),
+]
+
+
 @app.command()
 @reports_errors
 def simulate(
     out: Annotated[Path, typer.Option("--out", "-o", help="Dataset folder to write.")],
     scene: Scene = "paper-loop",
-    rig: RigName = "isoclinal",
+    rig: RandomRigName = None,
     noise: Noise = "0.0",
-    seed: Seed = 0,
+    seed: Annotated[int, typer.Option(help="Noise seed; for a random scene also the world.")] = 0,
     epochs: Epochs = None,
     motion: Motion = "continuous",
     overwrite: Annotated[bool, typer.Option(help="Replace a dataset at --out.")] = False,
@@ -82,13 +91,15 @@ def simulate(
     from planodom.outputs import check_target
     from planodom.report import simulation_table
     from planodom.simulation.export import write_simulated_dataset
+    from planodom.simulation.named import RANDOM_SCENES
 
     # refuse an existing folder before simulating, not after (checked again when writing)
     check_target(out, overwrite=overwrite, owned=is_dataset_entry, what="a dataset")
+    rig = rig or (None if scene in RANDOM_SCENES else "isoclinal")
     run = simulate_scene(scene, rig, noise, seed, epochs, motion)
     with console.status(f"writing {len(run)} scans to {out}"):
         write_simulated_dataset(run, out, scene_name=scene, overwrite=overwrite)
-    console.print(simulation_table(run, title=f"{scene} / {rig} -> {out}"))
+    console.print(simulation_table(run, title=f"{run.scene.name} / {run.sensor_rig.name} -> {out}"))
 
 
 def _inputs(source: Source, config: Path | None) -> list[Path]:

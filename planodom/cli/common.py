@@ -89,7 +89,13 @@ SkipBadScans = Annotated[
         "velocity, listed in metrics.json) instead of an error.",
     ),
 ]
-Scene = Annotated[str, typer.Option(help="Built-in scene: paper-loop | urban-canyon.")]
+Scene = Annotated[
+    str,
+    typer.Option(
+        help="Built-in scene: paper-loop | urban-canyon, or a procedural world drawn from "
+        "--seed: random | random-outdoor | random-indoor."
+    ),
+]
 RigName = Annotated[
     str, typer.Option("--rig", help="Built-in rig: isoclinal | lidar16 | lidar32 | lidar64.")
 ]
@@ -134,18 +140,23 @@ GtTopic = Annotated[
 ]
 Scenario = Annotated[
     str | None,
-    typer.Option(help="Simulate this built-in scene (paper-loop, urban-canyon) instead."),
+    typer.Option(
+        help="Simulate this built-in scene (paper-loop, urban-canyon, random, random-outdoor, "
+        "random-indoor) instead."
+    ),
 ]
 
 
-def simulate_scene(scene: str, rig: str, noise: str, seed: int, epochs: int | None, motion: str):
+def simulate_scene(
+    scene: str, rig: str | None, noise: str, seed: int, epochs: int | None, motion: str
+):
     from planodom.simulation import simulate_named
 
     try:
         sigma: float | str = float(noise)
     except ValueError:
         sigma = noise  # a preset name
-    with console.status(f"simulating {scene} with the {rig} rig"):
+    with console.status(f"simulating {scene} with the {rig or 'drawn'} rig"):
         return simulate_named(scene, rig, noise=sigma, seed=seed, n_epochs=epochs, motion=motion)
 
 

@@ -106,3 +106,42 @@ def experiment_smoothing(
         progress=_say,
     )  # fmt: skip
     _print_files(result.files)
+
+
+@experiment_app.command(
+    "generalisation", context_settings={"allow_extra_args": True, "ignore_unknown_options": True}
+)
+@reports_errors
+def experiment_generalisation(
+    ctx: typer.Context,
+    worlds: Annotated[int, typer.Option(help="Random worlds 0 .. N-1 (even: 2D rig).")] = 20,
+    noise: Annotated[
+        list[float] | None,
+        typer.Option(help="Range noise sigmas (m): --noise 0 0.006 0.02 0.1 (or repeated)."),
+    ] = None,
+    epochs: Annotated[int, typer.Option(help="Epochs per run (0: one lap).")] = 300,
+    quick: Annotated[
+        bool, typer.Option(help="CI size: 2 worlds (2D rig, lidar), 25 epochs, 6 mm.")
+    ] = False,
+    out: ExpOut = Path("results/generalisation"),
+    config: ConfigFile = None,
+) -> None:
+    """Unseen worlds: planodom (wocsc, sda-mean) vs the oracle, KISS-ICP and open3d ICP."""
+    from planodom.errors import ConfigError
+    from planodom.experiments.generalisation import run_generalisation_experiment
+
+    try:  # the values after the first of "--noise 0 0.006 0.02" arrive as extra arguments
+        extra = [float(x) for x in ctx.args]
+    except ValueError:
+        raise ConfigError(f"unexpected arguments {' '.join(ctx.args)}") from None
+    if extra and not noise:
+        raise ConfigError(f"unexpected arguments {' '.join(ctx.args)}")
+    noise = (noise or []) + extra
+    levels = noise or [0.0, 0.006, 0.02, 0.1]
+    if quick:
+        worlds, epochs, levels = 2, 25, (noise or [0.006])
+    result = run_generalisation_experiment(
+        out, n_worlds=worlds, noise_levels=levels, n_epochs=epochs or None,
+        config=load_config(config), progress=_say,
+    )  # fmt: skip
+    _print_files({k: v for k, v in result.files.items() if k != "runs_md"})

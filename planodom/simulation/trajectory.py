@@ -175,6 +175,59 @@ class WaypointTrajectory(Trajectory):
         return _assemble(*self.rotations_translations(t))
 
 
+@dataclass(frozen=True)
+class SpeedProfile:
+    """Speed changes over a lap: ``s(t) = v t + sum_m a_m (sin(2 pi m t / T + phi_m) -
+    sin(phi_m))`` (m) with ``T`` the lap time at the mean speed ``v``, so that a lap still
+    takes ``T`` and the profile repeats every lap. ``harmonics`` are (m, a_m in metres,
+    phi_m in rad); the speed stays positive when ``sum 2 pi m |a_m| / T < v``."""
+
+    harmonics: tuple[tuple[int, float, float], ...] = ()
+
+    def distance(self, t: np.ndarray, speed: float, lap_s: float) -> np.ndarray:
+        """Arc length (T,) in metres travelled at times ``t`` (T,), seconds."""
+        s = speed * t
+        for m, a, phi in self.harmonics:
+            s = s + a * (np.sin(2.0 * np.pi * m * t / lap_s + phi) - np.sin(phi))
+        return s
+
+
+class RouteTrajectory(WaypointTrajectory):
+    """A :class:`WaypointTrajectory` with speed changes (:class:`SpeedProfile`) and a sloped
+    ground: the base stays ``height`` m above the ground plane ``z = gx x + gy y`` and its
+    z axis follows the ground's normal (before the sway)."""
+
+    def __init__(
+        self,
+        waypoints: np.ndarray,
+        speed: float = 2.0,
+        height: float = 1.0,
+        sway: Sway | None = None,
+        profile: SpeedProfile | None = None,
+        gradient: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        super().__init__(waypoints, speed=speed, height=height, closed=True, sway=sway)
+        self.profile = profile or SpeedProfile()
+        self.gradient = (float(gradient[0]), float(gradient[1]))
+        n = np.array([-self.gradient[0], -self.gradient[1], 1.0])
+        n /= np.linalg.norm(n)
+        axis = np.cross([0.0, 0.0, 1.0], n)
+        angle = np.arcsin(min(1.0, float(np.linalg.norm(axis))))
+        w = axis / np.linalg.norm(axis) * angle if angle > 0 else np.zeros(3)
+        self._tilt = se3_exp(np.r_[w, 0.0, 0.0, 0.0])[:3, :3]  # takes +z to the normal
+
+    def _param(self, t: np.ndarray) -> np.ndarray:
+        s = np.mod(self.profile.distance(t, self.speed, self.duration), self.length)
+        u = _cubic(self._u_of_s.x, self._u_of_s.c, s, False)
+        return u + s * (self._u_span / self.length)
+
+    def rotations_translations(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations (T, 3, 3) and translations (T, 3), metres, at times ``t`` (T,), s."""
+        R, p = super().rotations_translations(t)
+        p[:, 2] += self.gradient[0] * p[:, 0] + self.gradient[1] * p[:, 1]
+        return np.matmul(self._tilt, R), p
+
+
 class TwistTrajectory(Trajectory):
     """``T_world_base(t) = T0 @ exp(t * xi)``: constant body twist ``xi = (w, v)`` (6,),
     rad/s and m/s, from ``T0`` (4, 4) at t = 0 (closed-form SE(3) exponential)."""

@@ -65,10 +65,23 @@ def test_bad_twist_raises(twist):
         extract_planes(scan_rig(default_scene()), twist=twist)
 
 
-@pytest.mark.parametrize("origins", [np.zeros(2), np.full(3, np.inf), np.zeros((2, 3))])
+@pytest.mark.parametrize(
+    "origins", [np.zeros(2), np.full(3, np.inf), np.array([[0.0, 0, 0], [1.0, 0, 0]])]
+)
 def test_bad_sensor_origins_raise(origins):
     with pytest.raises(GeometryError, match="sensor_origins"):
         extract_planes(scan_rig(default_scene()), sensor_origins=origins)
+
+
+def test_one_origin_per_ring_of_one_sensor_needs_no_ring():
+    """A lidar's rig states one origin per ring, all the same: a scan without the ring
+    field is extracted as with the single origin (it raised before)."""
+    scan = scan_rig(default_scene())
+    lidar_like = Scan(scan.points, t=scan.t, label=scan.label)
+    one = extract_planes(lidar_like, sensor_origins=np.array([0.0, 0.0, 1.0]))
+    per_ring = extract_planes(lidar_like, sensor_origins=np.tile([0.0, 0.0, 1.0], (32, 1)))
+    assert len(per_ring) == len(one) > 0
+    assert all(np.allclose(a.normal, b.normal) for a, b in zip(one, per_ring, strict=True))
 
 
 def test_bad_mode():

@@ -34,7 +34,9 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     windowed = windows.is_windowed(scan, epoch.twist, tw)
     seg_times, span = None, np.inf
     if windowed:
-        seg_times, span = windows.segment_times(scan, segs), tw.span_s
+        seg_times = windows.segment_times(scan, segs)
+        tw = windows.for_epoch(tw, scan, segs)
+        span = tw.span_s
         tol, max_rms, seed_floor = windows.windowed_tolerances(tol, max_rms, seed_floor, tw)
     params = GroupingParams(
         tol_m=float(tol),

@@ -13,7 +13,7 @@ acquired within one window of that span (about one sweep,
 - the tolerances grow by the motion within a window (:func:`windowed_tolerances`);
 - each wall then gives a plane per window: one is kept (:func:`drop_repeats`), its (n, d)
   extrapolated to the reference time, and only when it was found in ``min_windows``
-  windows.
+  windows, or in every sweep when the epoch has fewer (:func:`for_epoch`).
 
 Everything specific to this case is here; the other modules only see a finite
 ``max_span_s`` and the segment times.
@@ -21,10 +21,13 @@ Everything specific to this case is here; the other modules only see a finite
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from planodom.config.extraction import TimeWindowConfig
 from planodom.extraction.planes.builder import Adjust, PlaneFits
+from planodom.extraction.rig2d.scanlines import _angle_reversals
 from planodom.extraction.rig2d.segments import Segments
 from planodom.scan import Scan
 
@@ -35,6 +38,57 @@ def is_windowed(scan: Scan, twist: np.ndarray | None, windows: TimeWindowConfig)
     if twist is not None or scan.t is None or len(scan.t) == 0:
         return False
     return float(np.ptp(scan.t)) > windows.span_s
+
+
+@dataclass(frozen=True)
+class SweepTiming:
+    """The real sweeps of an epoch's scanners (not the runs between no-return gaps):
+    ``count`` the most sweeps of one ring, ``period`` (s) the median time between the
+    starts of successive sweeps of one ring (inf with one sweep each), ``duration`` (s) the
+    longest time span of one sweep."""
+
+    count: int
+    period: float
+    duration: float
+
+
+def sweep_timing(scan: Scan, segs: Segments) -> SweepTiming:
+    """:class:`SweepTiming` of the scan. Sweeps restart where a ring's scan angle jumps
+    back (:func:`.scanlines._angle_reversals`): a time gap also opens where the beams see
+    nothing (the sky), so the ``sweep`` ids of the segments count too many."""
+    if len(segs.order) < 3 or scan.ring is None or scan.t is None:
+        return SweepTiming(1, float("inf"), 0.0)
+    ring, t = scan.ring[segs.order], scan.t[segs.order]
+    new = np.ones(len(ring), dtype=bool)
+    new[1:] = (ring[1:] != ring[:-1]) | _angle_reversals(segs.points, ring.astype(np.int64))
+    start, end = t[new], np.maximum.reduceat(t, np.flatnonzero(new))
+    sweep_ring = ring[new]
+    counts = np.bincount(sweep_ring - sweep_ring.min())
+    steps = np.concatenate([np.diff(start[sweep_ring == r]) for r in np.unique(sweep_ring)])
+    period = float(np.median(steps)) if len(steps) else float("inf")
+    return SweepTiming(int(counts.max()), period, float(np.max(end - start)))
+
+
+def for_epoch(windows: TimeWindowConfig, scan: Scan, segs: Segments) -> TimeWindowConfig:
+    """``windows`` fitted to the epoch's scanners, whose sweeps the defaults assume to be
+    those of a 75 Hz LMS (7.5 per 10 Hz epoch, 180 deg in 6.7 ms, one every 13 ms; for it
+    nothing changes):
+
+    - ``span_s`` at least one sweep's duration (but below the sweep period, so that a
+      window holds one sweep of a ring), and ``motion_m`` grown in proportion: a trace of
+      a slower scanner (180 deg at 10 Hz take 50 ms; the ground's trace spans them) never
+      fits in a 15 ms window, so it could seed no plane;
+    - ``min_windows`` at most the epoch's sweeps per ring (at least 1): a wall is found
+      once per sweep, so an epoch of fewer sweeps could never give a plane.
+    """
+    timing = sweep_timing(scan, segs)
+    span = max(windows.span_s, min(1.05 * timing.duration, 0.95 * timing.period))
+    n = max(1, timing.count)
+    if windows.min_windows <= n and span == windows.span_s:
+        return windows
+    update = {"span_s": span, "motion_m": windows.motion_m * span / windows.span_s,
+              "min_windows": min(windows.min_windows, n)}  # fmt: skip
+    return windows.model_copy(update=update)
 
 
 def segment_times(scan: Scan, segs: Segments) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,70 @@
+"""The generalisation experiment at CI size: every method on a 2D-rig and a lidar world."""
+
+from __future__ import annotations
+
+import numpy as np
+from typer.testing import CliRunner
+
+from planodom.cli import app
+from planodom.experiments.generalisation import (
+    longest_run,
+    run_generalisation_experiment,
+    world_for,
+)
+from planodom.experiments.peers import kiss_available
+
+
+def test_longest_run():
+    assert longest_run(np.array([0, 1, 1, 0, 1, 1, 1, 0], bool)) == 3
+    assert longest_run(np.zeros(4, bool)) == 0
+
+
+def test_worlds_cover_both_kinds_of_rig():
+    families = [world_for(i).description["family"] for i in range(6)]
+    assert families == ["rig2d", "lidar16", "rig2d", "lidar32", "rig2d", "lidar64"]
+
+
+def test_quick_experiment(tmp_path):
+    res = run_generalisation_experiment(tmp_path, n_worlds=2, noise_levels=[0.006], n_epochs=10)
+    methods = {"planodom", "planodom-sda-mean", "oracle", "open3d-icp"}
+    methods |= {"kiss-icp"} if kiss_available() else set()
+    assert {r.method for r in res.runs} == methods and len(res.runs) == 2 * len(methods)
+    for r in res.runs:
+        assert r.poses.shape == (10, 4, 4) and np.isfinite(r.metrics["ate_xy_m"])
+        if r.method == "oracle":  # noise only: far below any estimator's error
+            assert r.metrics["rot_rms_deg"] < 0.05 and r.metrics["xy_rms_m"] < 0.02
+    oracle_rows = [row for row in res.tables["summary"] if row["method"] == "oracle"]
+    assert all(row["ate_x_oracle_median"] == 1.0 for row in oracle_rows)
+    for name in ("summary.md", "summary.csv", "runs.csv", "worst_world.png", "config.yaml"):
+        assert (tmp_path / name).is_file()
+
+
+def test_cli_simulates_a_random_world(tmp_path):
+    out = tmp_path / "sim"
+    args = ["simulate", "--out", str(out), "--scene", "random", "--seed", "4", "--epochs", "2"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert "random-" in result.output
+    bad = CliRunner().invoke(app, ["simulate", "--out", str(tmp_path / "x"), "--scene",
+                                   "random", "--rig", "sonar"])  # fmt: skip
+    assert bad.exit_code == 2 and "unknown rig" in bad.output
+
+
+def test_cli_takes_noise_levels_as_in_the_issue(tmp_path, monkeypatch):
+    """``--noise 0 0.006 0.02 0.1`` (space-separated) reaches the experiment as four levels."""
+    import planodom.experiments.generalisation as generalisation
+    from planodom.experiments.tables import ExperimentResult
+
+    seen = {}
+
+    def fake(out, **kwargs):
+        seen.update(kwargs)
+        return ExperimentResult([], {}, {})
+
+    monkeypatch.setattr(generalisation, "run_generalisation_experiment", fake)
+    args = ["experiment", "generalisation", "--worlds", "3", "--out", str(tmp_path)]
+    result = CliRunner().invoke(app, [*args, "--noise", "0", "0.006", "0.02", "0.1"])
+    assert result.exit_code == 0, result.output
+    assert seen["noise_levels"] == [0.0, 0.006, 0.02, 0.1] and seen["n_worlds"] == 3
+    bad = CliRunner().invoke(app, [*args, "bogus"])
+    assert bad.exit_code == 2 and "unexpected arguments bogus" in bad.output
