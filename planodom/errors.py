@@ -17,7 +17,8 @@ class DatasetError(PlanodomError):
 
 
 class ConfigError(PlanodomError):
-    """A configuration file or value is invalid."""
+    """A configuration file or value is invalid (the message names the file and field,
+    or the command-line option)."""
 
 
 class GeometryError(PlanodomError):

@@ -2,11 +2,19 @@
 
 Layout of ``<out>/``::
 
-    poses.tum          T_world_base per epoch (the first epoch's base frame is the world)
-    poses_kitti.txt    the same poses as KITTI rows (3x4 row-major, no time)
+    poses.tum          T_world_base per epoch (the first epoch's base frame is the world),
+                       at the recording's epoch times (a bag's: seconds since the Unix epoch)
+    poses_kitti.txt    the same poses as KITTI rows (3x4 row-major, no time); from a KITTI
+                       sequence in KITTI's camera convention (Tr T Tr^-1, as poses/NN.txt)
     epochs.csv         one row per epoch: 5-DoF increments, status, diagnostics
+    covariances.npz    per-epoch relative-pose and smoothed covariances
+                       (keys and units: :mod:`planodom.covariances`)
+    trajectory.png     top view of the estimate over the reference (:mod:`planodom.plots`)
+    errors.png         per-epoch 5-DoF errors with ±2σ bands
+    planes.png         planes, pair associations and consensus inliers per epoch
     config.yaml        the resolved configuration
-    metrics.json       metrics against ground truth, when it is known
+    metrics.json       metrics against ground truth, when it is known (with KITTI's
+                       segment errors when the reference is 100 m long or more)
     odometry.tum       (smoothing) the raw odometry beside the smoothed poses.tum
     dataset/           (a simulated scenario) the dataset the run read
 
@@ -31,16 +39,18 @@ import numpy as np
 from planodom import metrics
 from planodom.config import PlanodomConfig
 from planodom.datasets import write_tum
-from planodom.odometry import OdometryRun
+from planodom.datasets.kitti import write_kitti_camera_poses
+from planodom.metrics_kitti import kitti_segment_errors
+from planodom.odometry import OdometryRun, epoch_rows
 from planodom.outputs import atomic_folder, link_latest, timestamped_folder
 
 __all__ = ["write_tum"]
-from planodom.odometry import epoch_rows
 
 #: What a results folder may hold: ``--overwrite`` replaces only folders of these.
 RESULT_ENTRIES = frozenset(
     {"poses.tum", "poses_kitti.txt", "epochs.csv", "config.yaml", "metrics.json"}
-    | {"odometry.tum", "dataset"}
+    | {"odometry.tum", "dataset", "covariances.npz"}
+    | {"trajectory.png", "errors.png", "planes.png"}
 )
 
 
@@ -91,10 +101,38 @@ def write_kitti(path: str | Path, poses: np.ndarray) -> None:
     Path(path).write_text("\n".join(lines) + ("\n" if lines else ""))
 
 
-def write_trajectory(out: Path, times: np.ndarray, poses: np.ndarray) -> None:
-    """``poses.tum`` and ``poses_kitti.txt`` of ``poses`` (E, 4, 4) at ``times`` (E,) s."""
+def write_trajectory(
+    out: Path, times: np.ndarray, poses: np.ndarray, Tr: np.ndarray | None = None
+) -> None:
+    """``poses.tum`` and ``poses_kitti.txt`` of ``poses`` (E, 4, 4) at ``times`` (E,) s.
+
+    With ``Tr`` (4, 4) ``T_cam0_velo`` of a KITTI sequence, ``poses_kitti.txt`` is in
+    KITTI's camera convention (:func:`planodom.datasets.kitti.write_kitti_camera_poses`),
+    for ``evo_ape kitti`` and the devkit.
+    """
     write_tum(out / "poses.tum", times, poses)
-    write_kitti(out / "poses_kitti.txt", poses)
+    if Tr is None:
+        write_kitti(out / "poses_kitti.txt", poses)
+    else:
+        write_kitti_camera_poses(out / "poses_kitti.txt", poses, Tr)
+
+
+def kitti_metrics(
+    poses: np.ndarray, gt_poses: np.ndarray | None, Tr: np.ndarray | None = None
+) -> dict[str, float]:
+    """KITTI's segment errors (:func:`planodom.metrics_kitti.kitti_segment_errors`) as
+    ``kitti_translation_pct``, ``kitti_rotation_deg_per_100m`` and ``kitti_segments``;
+    empty without ground truth or when it is shorter than the shortest segment (100 m)."""
+    if gt_poses is None or len(poses) < 2:
+        return {}
+    seg = kitti_segment_errors(poses, gt_poses, Tr)
+    if seg["segments"] == 0:
+        return {}
+    return {
+        "kitti_translation_pct": float(seg["translation_pct"]),
+        "kitti_rotation_deg_per_100m": float(seg["rotation_deg_per_100m"]),
+        "kitti_segments": float(seg["segments"]),
+    }
 
 
 def write_rows(path: str | Path, rows: Sequence[Mapping[str, object]]) -> None:
@@ -152,10 +190,13 @@ def odometry_metrics(run: OdometryRun, gt_poses: np.ndarray | None) -> dict[str,
     return out | trajectory_metrics(run.poses, gt_poses)
 
 
-def write_odometry_run(out: Path, run: OdometryRun, metrics: Mapping[str, object]) -> None:
-    """Write every output of an odometry run to ``out``, with its ``metrics``
-    (:func:`odometry_metrics`, plus whatever the caller adds)."""
-    write_trajectory(out, run.times, run.poses)
+def write_odometry_run(
+    out: Path, run: OdometryRun, metrics: Mapping[str, object], Tr: np.ndarray | None = None
+) -> None:
+    """Write the trajectory, epoch rows, config and ``metrics`` of an odometry run to
+    ``out`` (``metrics``: :func:`odometry_metrics`, plus whatever the caller adds; ``Tr``:
+    see :func:`write_trajectory`)."""
+    write_trajectory(out, run.times, run.poses, Tr)
     write_rows(out / "epochs.csv", epoch_rows(run))
     if run.config is not None:
         write_config(out, run.config)

@@ -66,13 +66,17 @@ def test_eval_against_truth(tmp_path) -> None:
     est[4, 0, 3] += 0.3  # and one final error of 0.3 m
     write_tum(tmp_path / "gt.tum", times, gt)
     write_tum(tmp_path / "est.tum", times, est)
-    result = runner.invoke(app, ["eval", str(tmp_path / "est.tum"), str(tmp_path / "gt.tum")])
+    args = ["eval", str(tmp_path / "est.tum"), str(tmp_path / "gt.tum")]
+    result = runner.invoke(app, [*args, "--out", str(tmp_path / "e")])
     assert result.exit_code == 0, result.output
     line = next(x for x in result.output.splitlines() if "drift_m" in x)
     assert abs(float(line.split()[-2]) - 0.3) < 1e-9
-    write_tum(tmp_path / "short.tum", times[:3], gt[:3])
-    bad = runner.invoke(app, ["eval", str(tmp_path / "short.tum"), str(tmp_path / "gt.tum")])
-    assert bad.exit_code == 2 and "short.tum" in bad.output
+    assert abs(json.loads((tmp_path / "e" / "metrics.json").read_text())["drift_m"] - 0.3) < 1e-9
+    # times far from the reference's: nothing to associate, a one-line error
+    write_tum(tmp_path / "late.tum", times + 5.0, gt)
+    late = ["eval", str(tmp_path / "late.tum"), str(tmp_path / "gt.tum")]
+    bad = runner.invoke(app, [*late, "--out", str(tmp_path / "f")])
+    assert bad.exit_code == 2 and "late.tum" in bad.output and "--offset" in bad.output
 
 
 def test_smooth_noise_free_recovers_the_truth(tmp_path) -> None:

@@ -14,6 +14,7 @@ from typing import Annotated
 
 import typer
 
+from planodom.cli import evaluate as _evaluate  # noqa: F401  (registers eval and convert)
 from planodom.cli import experiments as _experiments  # noqa: F401  (registers the commands)
 from planodom.cli.common import (
     ConfigFile,
@@ -112,6 +113,22 @@ def _report_skipped(data: ScanEpochs, metrics: dict) -> None:
         metrics["skipped_scans"] = data.skipped
 
 
+def _write_pictures(folder: Path, data: ScanEpochs, odo, sm=None, name: str = "") -> None:
+    """``covariances.npz`` and the three pictures of a run (and of its smoothing ``sm``)."""
+    from planodom.covariances import FILE, odometry_covariances, write_covariances
+    from planodom.plots.run import write_run_plots
+
+    arrays = odometry_covariances(odo)
+    if sm is not None:
+        arrays[f"smoothed_{sm.result.mode}"] = sm.result.covariances
+        if sm.result.covariance_note:
+            warn(sm.result.covariance_note)
+    write_covariances(folder / FILE, arrays)
+    smoothed = None if sm is None else sm.poses
+    with console.status("drawing the plots"):
+        write_run_plots(folder, odo, data.gt_poses, smoothed, name=name)
+
+
 @app.command()
 @reports_errors
 @takes_source
@@ -128,8 +145,10 @@ def run(
 ) -> None:
     """Extract planes and run the paper's odometry over a dataset (or a built-in scenario).
 
-    Writes poses.tum, poses_kitti.txt, epochs.csv, config.yaml and, with ground truth,
-    metrics.json to --out, and prints a summary.
+    DATASET is a dataset directory, a ROS 1 .bag / ROS 2 bag folder (read with the bag
+    options) or a KITTI sequence folder. Writes poses.tum, poses_kitti.txt, epochs.csv,
+    covariances.npz, trajectory.png, errors.png, planes.png, config.yaml and, with ground
+    truth, metrics.json to --out, and prints a summary.
     """
     from planodom import results
     from planodom.odometry import run_odometry
@@ -142,9 +161,12 @@ def run(
         data = source.load(folder.tmp, skip_bad_scans)
         with progress_bar("odometry") as callback, data.naming_errors():
             odo = run_odometry(data, cfg, data.rig, progress=data.progress(callback))
+        data.close()
         metrics = results.odometry_metrics(odo, data.gt_poses)
+        metrics |= results.kitti_metrics(odo.poses, data.gt_poses, data.Tr)
         _report_skipped(data, metrics)
-        results.write_odometry_run(folder.tmp, odo, metrics)
+        results.write_odometry_run(folder.tmp, odo, metrics, data.Tr)
+        _write_pictures(folder.tmp, data, odo, name="planodom run")
     console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
     console.print(odometry_table(odo, metrics, title=f"planodom run -> {folder.path}"))
 
@@ -185,8 +207,10 @@ def smooth(
 ) -> None:
     """Smooth the odometry with a factor graph (batch, or a fixed-lag window).
 
-    Writes the smoothed poses.tum / poses_kitti.txt, the raw odometry as odometry.tum,
-    config.yaml and, with ground truth, metrics.json for both.
+    DATASET as for ``run``. Writes the smoothed poses.tum / poses_kitti.txt, the raw
+    odometry as odometry.tum, covariances.npz (the odometry's and the smoothed marginals),
+    trajectory.png, errors.png, planes.png, config.yaml and, with ground truth,
+    metrics.json for both.
     """
     from planodom import results
     from planodom.report import comparison_table
@@ -207,50 +231,20 @@ def smooth(
                 data, cfg, data.rig, window=window, delta=delta, mode=mode,
                 progress=lambda stage, k, n: step(k, n),
             )  # fmt: skip
+        data.close()
         odo_metrics = results.odometry_metrics(sm.odometry, data.gt_poses)
+        odo_metrics |= results.kitti_metrics(sm.odometry.poses, data.gt_poses, data.Tr)
         _report_skipped(data, odo_metrics)
-        results.write_odometry_run(folder.tmp, sm.odometry, odo_metrics)
-        results.write_trajectory(folder.tmp, sm.times, sm.poses)  # the smoothed: the output
+        results.write_odometry_run(folder.tmp, sm.odometry, odo_metrics, data.Tr)
+        results.write_trajectory(folder.tmp, sm.times, sm.poses, data.Tr)  # the output
         results.write_tum(folder.tmp / "odometry.tum", sm.times, sm.odometry.poses)
         results.write_config(folder.tmp, sm.config)
         smoothed = results.trajectory_metrics(sm.poses, data.gt_poses)
+        smoothed |= results.kitti_metrics(sm.poses, data.gt_poses, data.Tr)
+        _write_pictures(folder.tmp, data, sm.odometry, sm, name=f"planodom smooth ({mode})")
         results.write_metrics(folder.tmp, {"odometry": odo_metrics, f"smoothing_{mode}": smoothed})
     rows = {"odometry": odo_metrics, f"{mode} smoothing": smoothed}
     console.print(comparison_table(rows, title=f"planodom smooth -> {folder.path}"))
-
-
-@app.command("eval")
-@reports_errors
-def evaluate(
-    estimate: Annotated[Path, typer.Argument(help="Estimated trajectory, TUM format.")],
-    truth: Annotated[
-        Path, typer.Argument(help="Ground truth: a TUM file or a dataset with poses.tum.")
-    ],
-    delta: Annotated[int, typer.Option(help="RPE step in epochs.")] = 1,
-    align: Annotated[str, typer.Option(help="none | origin | se3 | 4dof")] = "origin",
-) -> None:
-    """ATE, RPE, drift and per-epoch 5-DoF errors of a trajectory against ground truth."""
-    import numpy as np
-
-    from planodom import metrics
-    from planodom.datasets import read_tum
-    from planodom.errors import DatasetError
-    from planodom.report import metrics_table
-
-    if align not in ("none", "origin", "se3", "4dof"):
-        raise ConfigError(f"--align: expected none, origin, se3 or 4dof, got '{align}'")
-    t_est, est = read_tum(estimate)
-    t_gt, gt = read_tum(truth / "poses.tum" if truth.is_dir() else truth)
-    if len(t_est) != len(t_gt) or not np.allclose(t_est, t_gt, atol=1e-6):
-        raise DatasetError(
-            f"{estimate}: {len(t_est)} poses whose times do not match the {len(t_gt)} of {truth}"
-        )
-    if not 1 <= delta < len(t_est):
-        raise ConfigError(
-            f"--delta {delta}: the RPE step needs 1 <= delta < {len(t_est)} (the poses)"
-        )
-    summary = metrics.summarize(est, gt, align=align, delta=delta)  # type: ignore[arg-type]
-    console.print(metrics_table(summary))
 
 
 @app.command("config")

@@ -114,7 +114,30 @@ Motion = Annotated[
 ConfigFile = Annotated[
     Path | None, typer.Option("--config", "-c", help="YAML file with config overrides.")
 ]
-DatasetDir = Annotated[Path | None, typer.Argument(help="Dataset directory.")]
+DatasetDir = Annotated[
+    Path | None,
+    typer.Argument(
+        help="A dataset directory, a ROS 1 .bag or ROS 2 bag folder, or a KITTI sequence folder."
+    ),
+]
+BaseFrame = Annotated[
+    str, typer.Option("--base-frame", help="Bags: tf frame of the vehicle (points, reference).")
+]
+EpochRate = Annotated[
+    float, typer.Option("--epoch-rate", help="Bags: epochs per second, Hz (sweeps per window).")
+]
+Topics = Annotated[
+    list[str] | None,
+    typer.Option("--topic", help="Bags: a scan topic, repeated in ring order (default: all)."),
+]
+GtTopic = Annotated[
+    str | None,
+    typer.Option(
+        "--gt-topic",
+        help="Bags: reference poses (Odometry, PoseStamped, PoseWithCovarianceStamped, "
+        "TransformStamped topic, or tf:PARENT:CHILD), interpolated at the epoch times.",
+    ),
+]
 Scenario = Annotated[
     str | None,
     typer.Option(
@@ -138,34 +161,51 @@ def simulate_scene(
 
 
 class ScanEpochs:
-    """A dataset's epochs as the odometry reads them, naming the scan behind a failure.
+    """A recording's epochs as the odometry reads them, naming the scan behind a failure.
 
-    ``len``, indexing, ``times``, ``gt_poses`` and ``rig`` are the dataset's. While an
-    epoch is being processed (from its reading to the progress call after it),
-    :meth:`naming_errors` turns a failure that names no file into one naming the scan.
-    With ``skip_bad`` a scan that cannot be read is an epoch without planes, which the
-    odometry bridges (an unresolved epoch); :attr:`skipped` lists them.
+    ``len``, indexing, ``times``, ``gt_poses`` and ``rig`` are the recording's (a dataset,
+    a bag or a KITTI sequence); ``Tr`` is a KITTI sequence's ``T_cam0_velo`` (None for
+    others). While an epoch is being processed (from its reading to the progress call
+    after it), :meth:`naming_errors` turns a failure that names no file into one naming
+    the scan (its file, or the bag and epoch). With ``skip_bad`` a scan that cannot be
+    read is an epoch without planes, which the odometry bridges (an unresolved epoch);
+    :attr:`skipped` lists them.
     """
 
     def __init__(self, dataset: Any, skip_bad: bool = False) -> None:
         self.dataset, self.skip_bad = dataset, skip_bad
         self.times, self.gt_poses, self.rig = dataset.times, dataset.gt_poses, dataset.rig
-        self.current: Path | None = None
+        self.Tr: Any = getattr(dataset, "Tr", None)
+        self.current: str | None = None
         self.skipped: list[str] = []
 
     def __len__(self) -> int:
         return len(self.dataset)
 
+    def scan_name(self, k: int) -> str:
+        """Where epoch ``k``'s scan comes from: its file, or ``<bag> epoch k (t = ... s)``."""
+        files = getattr(self.dataset, "scan_files", None)
+        if files is not None:
+            return str(files[k])
+        where = getattr(self.dataset, "path", "recording")
+        return f"{where} epoch {k} (t = {float(self.times[k]):.6f} s)"
+
     def __getitem__(self, k: int) -> Any:
-        self.current = self.dataset.scan_files[k]
+        self.current = self.scan_name(k)
         try:
             return self.dataset[k]
         except DatasetError as exc:
             if not self.skip_bad:
                 raise
             warn(f"{one_line(exc)} (skipped: epoch {k} has no planes)")
-            self.skipped.append(str(self.dataset.scan_files[k]))
+            self.skipped.append(self.scan_name(k))
             return []  # a plane list: no extraction, an epoch without planes
+
+    def close(self) -> None:
+        """Release the recording's files (a bag's reader)."""
+        close = getattr(self.dataset, "close", None)
+        if close is not None:
+            close()
 
     def progress(self, callback: Callable[[int, int], None]) -> Callable[[int, int], None]:
         """``callback`` for the odometry's ``progress(k, n)``, ending an epoch's span."""
@@ -189,8 +229,9 @@ class ScanEpochs:
 
 @dataclass(frozen=True)
 class Source:
-    """Where ``run`` and ``smooth`` take their epochs from: a dataset directory, or a
-    built-in scenario simulated with the given rig, noise, seed, length and motion."""
+    """Where ``run`` and ``smooth`` take their epochs from: a recording (a dataset
+    directory, a bag read with the bag options, a KITTI sequence), or a built-in scenario
+    simulated with the given rig, noise, seed, length and motion."""
 
     dataset: Path | None
     scenario: str | None
@@ -199,20 +240,34 @@ class Source:
     seed: int
     epochs: int | None
     motion: str
+    base_frame: str = "base_link"
+    epoch_rate: float = 10.0
+    topic: list[str] | None = None
+    gt_topic: str | None = None
+
+    def bag_options(self) -> Any:
+        """The :class:`~planodom.datasets.bag_options.BagOptions` of the bag options."""
+        from planodom.datasets.bag_options import BagOptions
+
+        return BagOptions.of(self.base_frame, self.epoch_rate, self.topic, self.gt_topic)
 
     def check(self) -> None:
         from planodom.errors import ConfigError
 
         if (self.dataset is None) == (self.scenario is None):
             raise ConfigError("give either a DATASET directory or --scenario NAME")
+        given = self.bag_options().given()
+        if self.scenario is not None and given:
+            flags = ", ".join("--" + g.replace("_", "-").replace("topics", "topic") for g in given)
+            raise ConfigError(f"{flags}: bag options, not for --scenario")
 
     def load(self, folder: Path, skip_bad: bool = False) -> ScanEpochs:
-        """The dataset, or the scenario simulated into ``folder/dataset`` and loaded."""
-        from planodom.datasets import load_dataset
+        """The recording, or the scenario simulated into ``folder/dataset`` and loaded."""
+        from planodom.datasets.recording import open_recording
 
         self.check()
         if self.dataset is not None:
-            return ScanEpochs(load_dataset(self.dataset), skip_bad)
+            return ScanEpochs(open_recording(self.dataset, self.bag_options()), skip_bad)
         from planodom.simulation.export import write_simulated_dataset
 
         sim = (self.scenario, self.rig, self.noise, self.seed, self.epochs, self.motion)
@@ -231,6 +286,10 @@ _SOURCE_OPTIONS = (
     ("seed", Seed, 0),
     ("epochs", Epochs, None),
     ("motion", Motion, "continuous"),
+    ("base_frame", BaseFrame, "base_link"),
+    ("epoch_rate", EpochRate, 10.0),
+    ("topic", Topics, None),
+    ("gt_topic", GtTopic, None),
 )
 
 

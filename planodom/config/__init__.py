@@ -31,7 +31,11 @@ __all__ = [
 
 
 class PlanodomConfig(Section):
-    """All sections of the pipeline."""
+    """All sections of the pipeline: ``extraction``, ``association``, ``odometry``,
+    ``smoothing`` (one typed, range-checked section each; SI units unless a field says
+    ``_deg``). ``PlanodomConfig.from_yaml(path)`` reads any subset over the defaults,
+    ``updated({"section.field": value})`` derives a changed copy, ``to_yaml()`` writes it.
+    """
 
     extraction: ExtractionConfig = ExtractionConfig()
     association: AssociationConfig = AssociationConfig()

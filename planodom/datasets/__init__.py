@@ -5,6 +5,7 @@ Layout::
     <dataset>/
         scans/000000.ply, 000001.ply, ...   one file per epoch, in time order
         poses.tum                           optional: ground truth T_world_base per epoch
+        times.txt                           optional: reference time per epoch (no poses.tum)
         rig.yaml                            optional: the rig (:class:`planodom.rig.Rig`)
 
 - Scan files hold the points of one epoch in the vehicle base frame at each point's
@@ -16,9 +17,13 @@ Layout::
   a dataset with a ``scans/`` folder.
 - ``poses.tum``: ``time tx ty tz qx qy qz qw`` per epoch, ``T_world_base`` at the epoch's
   reference time (the TUM format of evo).
-- Epoch times come from ``poses.tum`` when present, else ``k / epoch_rate`` with
-  ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * 0.1`` s. There is no ``times.txt``.
-  Without ``poses.tum``, a gap in numbered scan files (``000001``, ``000003``) is an
+- ``times.txt``: one reference time per epoch (seconds, one number per line, strictly
+  increasing; ``#`` comments and blank lines skipped), for a dataset without ground
+  truth, e.g. one converted from a bag without a reference (seconds since the Unix epoch,
+  the bag's clock). :func:`write_dataset` writes it whenever it writes no ``poses.tum``.
+- Epoch times come from ``poses.tum`` when present, else from ``times.txt``, else
+  ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * 0.1`` s.
+  Without either file, a gap in numbered scan files (``000001``, ``000003``) is an
   error, not a guess: the epochs around it would be taken as consecutive.
 - ``rig.yaml`` is read and validated once, into ``Dataset.rig`` (a typed
   :class:`planodom.rig.Rig`: epoch rate, sensor origins per ring, motion bounds,
@@ -34,8 +39,10 @@ from planodom.datasets.dataset import (
     epoch_times,
     load_dataset,
     read_rig,
+    read_times,
     write_dataset,
     write_rig,
+    write_times,
 )
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
 from planodom.datasets.tum import read_tum, write_tum
@@ -48,9 +55,11 @@ __all__ = [
     "load_dataset",
     "read_rig",
     "read_scan",
+    "read_times",
     "read_tum",
     "write_dataset",
     "write_rig",
     "write_scan",
+    "write_times",
     "write_tum",
 ]

@@ -1,4 +1,5 @@
-"""A dataset directory: scan files, optional ground truth ``poses.tum``, optional ``rig.yaml``."""
+"""A dataset directory: scan files, optional ground truth ``poses.tum``, optional epoch
+``times.txt``, optional ``rig.yaml``."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from planodom.scan import Scan, ScanSequence
 SCANS_DIR = "scans"
 POSES_FILE = "poses.tum"
 RIG_FILE = "rig.yaml"
+TIMES_FILE = "times.txt"
 #: Epoch period (s) when neither poses.tum nor rig.yaml's ``epoch_rate`` gives the times.
 DEFAULT_EPOCH_PERIOD = 0.1
 
@@ -95,13 +97,15 @@ def load_dataset(path: str | Path) -> Dataset:
     compared as numbers (``2.bin`` before ``10.bin``); hidden files are skipped. ``poses.tum``
     and ``rig.yaml`` are looked for in ``path``.
 
-    Epoch times: from ``poses.tum`` when present, else ``k / epoch_rate`` with
-    ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s).
+    Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else
+    ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else
+    ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s).
 
     Raises:
         DatasetError: naming the file, when ``path`` is missing, there are no scan files,
-            files have unknown or mixed extensions, ``poses.tum`` is malformed or has a
-            pose count different from the scan count, or ``rig.yaml`` is malformed.
+            files have unknown or mixed extensions, ``poses.tum`` or ``times.txt`` is
+            malformed or has a count different from the scan count, or ``rig.yaml`` is
+            malformed.
     """
     root = Path(path)
     if not root.exists():
@@ -118,10 +122,50 @@ def load_dataset(path: str | Path) -> Dataset:
                 f"{root / POSES_FILE}: {len(times)} poses for {len(scan_files)} scan files "
                 f"in {scan_files[0].parent}"
             )
+    elif (root / TIMES_FILE).exists():
+        times = read_times(root / TIMES_FILE, len(scan_files))
     else:
         _check_numbering(scan_files)
         times = epoch_times(len(scan_files), rig)
     return Dataset(root, scan_files, times, gt_poses, rig)
+
+
+def read_times(path: str | Path, n_epochs: int) -> np.ndarray:
+    """(E,) epoch times, seconds, from a ``times.txt`` (one number per line).
+
+    Raises:
+        DatasetError: naming ``path:line`` for a line that is not one finite number, or
+            the file when the count is not ``n_epochs`` or the times do not increase.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"{path}: cannot read epoch times ({exc})") from None
+    times = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        try:
+            value = float(line)
+        except ValueError:
+            value = float("nan")
+        if not np.isfinite(value):
+            raise DatasetError(f"{path}:{number}: expected one finite time in seconds")
+        times.append(value)
+    out = np.array(times, dtype=np.float64)
+    if len(out) != n_epochs:
+        raise DatasetError(f"{path}: {len(out)} times for {n_epochs} scan files")
+    if np.any(np.diff(out) <= 0):
+        k = int(np.flatnonzero(np.diff(out) <= 0)[0])
+        raise DatasetError(f"{path}: times must increase (epoch {k + 1} is not after {k})")
+    return out
+
+
+def write_times(path: str | Path, times: np.ndarray) -> None:
+    """Write epoch times (E,) seconds to a ``times.txt``, exact (``repr``) decimals."""
+    lines = [repr(float(t)) for t in np.asarray(times, dtype=np.float64).reshape(-1)]
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
 def write_dataset(
@@ -135,14 +179,14 @@ def write_dataset(
     extension: str = ".ply",
     points_dtype: type[np.floating] = np.float64,
 ) -> Dataset:
-    """Write a dataset directory: ``scans/000000.ply``, ..., ``poses.tum``, ``rig.yaml``.
+    """Write a dataset directory: ``scans/000000.ply``, ..., ``poses.tum`` or ``times.txt``,
+    ``rig.yaml``.
 
     Args:
         path: dataset directory (created if needed).
         scans: E scans in time order (scans with zero points are fine).
-        times: (E,) float64 seconds, strictly increasing. Without ``gt_poses`` they are not
-            stored, so they must equal the times :func:`load_dataset` will derive (from
-            ``rig.epoch_rate_hz`` or the 0.1 s default); otherwise DatasetError.
+        times: (E,) float64 seconds, strictly increasing: stored in ``poses.tum`` with
+            ``gt_poses``, else in ``times.txt``.
         gt_poses: (E, 4, 4) ground truth ``T_world_base``, written to ``poses.tum``.
         rig: written to ``rig.yaml`` (None: no file; numpy values in ``rig.extra`` are
             stored as lists / numbers).
@@ -166,15 +210,7 @@ def write_dataset(
         raise DatasetError(f"{root}: {len(times)} times for {len(scans)} scans")
     if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
         raise DatasetError(f"{root}: epoch times must be finite and strictly increasing")
-    if gt_poses is None:
-        implied = epoch_times(len(scans), rig)
-        if not np.allclose(times, implied, rtol=0.0, atol=1e-9):
-            raise DatasetError(
-                f"{root}: without gt_poses the epoch times are not stored and would load as "
-                f"k / epoch_rate ({implied[:3].tolist()}...), not the given times; "
-                "pass gt_poses or set rig.epoch_rate_hz"
-            )
-    elif np.shape(gt_poses) != (len(scans), 4, 4):
+    if gt_poses is not None and np.shape(gt_poses) != (len(scans), 4, 4):
         raise DatasetError(
             f"{root}: gt_poses must have shape ({len(scans)}, 4, 4), got {np.shape(gt_poses)}"
         )
@@ -189,6 +225,8 @@ def write_dataset(
             write_scan(scans_dir / f"{k:0{width}d}{extension.lower()}", scan, points_dtype)
         if gt_poses is not None:
             write_tum(tmp / POSES_FILE, times, np.asarray(gt_poses, dtype=np.float64))
+        else:
+            write_times(tmp / TIMES_FILE, times)
         if rig is not None:
             write_rig(tmp / RIG_FILE, rig)
     return load_dataset(root)
@@ -270,7 +308,7 @@ def is_dataset_entry(path: Path) -> bool:
     dataset is made of."""
     if path.parent.name == SCANS_DIR and path.suffix.lower() in SCAN_EXTENSIONS:
         return path.is_file()
-    if path.name in (POSES_FILE, RIG_FILE):
+    if path.name in (POSES_FILE, RIG_FILE, TIMES_FILE):
         return path.is_file()
     if path.name != SCANS_DIR or not path.is_dir():
         return False
@@ -303,7 +341,7 @@ def _scan_files(root: Path) -> list[Path]:
         if not files:
             raise DatasetError(f"{scans_dir} is empty: no scan files")
     else:
-        files = [f for f in _files(root) if f.name not in (POSES_FILE, RIG_FILE)]
+        files = [f for f in _files(root) if f.name not in (POSES_FILE, RIG_FILE, TIMES_FILE)]
         if not files:
             raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files")
     unknown = sorted(f.name for f in files if f.suffix.lower() not in SCAN_EXTENSIONS)

@@ -15,14 +15,14 @@ Every dataset returned has ``len(ds)``, ``ds[k] -> Scan``, ``times`` (E,), ``gt_
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal
 
 from planodom.datasets.bag_index import is_bag
+from planodom.datasets.bag_options import BagOptions
 from planodom.datasets.dataset import load_dataset
 from planodom.datasets.kitti import is_kitti_sequence, load_kitti_sequence
-from planodom.datasets.rosbag import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, open_bag
+from planodom.datasets.rosbag import open_bag
 from planodom.errors import DatasetError
 
 RecordingKind = Literal["bag", "kitti", "dataset"]
@@ -38,43 +38,22 @@ def recording_kind(path: str | Path) -> RecordingKind:
     return "dataset"
 
 
-def open_recording(
-    path: str | Path,
-    *,
-    base_frame: str = DEFAULT_BASE_FRAME,
-    epoch_rate: float = DEFAULT_EPOCH_RATE,
-    topics: Sequence[str] | None = None,
-    gt_topic: str | None = None,
-) -> Any:
+def open_recording(path: str | Path, options: BagOptions | None = None) -> Any:
     """Open a bag, a KITTI sequence or a dataset directory as a dataset.
 
     Args:
         path: the recording (see the module docstring).
-        base_frame: bags only: tf frame the points are expressed in (``--base-frame``).
-        epoch_rate: bags only: epochs per second, Hz (``--epoch-rate``).
-        topics: bags only: scan topics in ring order (repeated ``--topic``; None: all).
-        gt_topic: bags only: reference pose topic or ``"tf:PARENT:CHILD"`` (``--gt-topic``).
+        options: bags only: base frame, epoch rate (Hz), scan topics and reference
+            (:class:`~planodom.datasets.bag_options.BagOptions`; None: the defaults).
 
     Raises:
-        DatasetError: one line naming the file, topic or frame; also when a bag option is
-            given for a recording that is not a bag.
+        DatasetError: one line naming the file, topic or frame; also when a bag option
+            other than its default is given for a recording that is not a bag.
     """
-    topics = list(topics) if topics else None  # a CLI's empty repeated option: all topics
     kind = recording_kind(path)
     if kind == "bag":
-        return open_bag(
-            path, base_frame=base_frame, epoch_rate=epoch_rate, topics=topics, gt_topic=gt_topic
-        )
-    given = [
-        name
-        for name, value, default in (
-            ("base_frame", base_frame, DEFAULT_BASE_FRAME),
-            ("epoch_rate", epoch_rate, DEFAULT_EPOCH_RATE),
-            ("topics", topics, None),
-            ("gt_topic", gt_topic, None),
-        )
-        if value != default
-    ]
+        return open_bag(path, options)
+    given = options.given() if options is not None else []
     if given:
         raise DatasetError(f"{path} is not a bag: options {', '.join(given)} apply to bags only")
     if kind == "kitti":

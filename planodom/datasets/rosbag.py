@@ -29,7 +29,7 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,6 +46,7 @@ from planodom.datasets.bag_index import (
     open_reader,
 )
 from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
+from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
 from planodom.datasets.bag_tf import frame_name
 from planodom.datasets.dataset import write_dataset
 from planodom.errors import DatasetError
@@ -53,8 +54,16 @@ from planodom.geometry import transform_points
 from planodom.rig import Rig
 from planodom.scan import Scan
 
-DEFAULT_BASE_FRAME = "base_link"
-DEFAULT_EPOCH_RATE = 10.0
+__all__ = [
+    "DEFAULT_BASE_FRAME",
+    "DEFAULT_EPOCH_RATE",
+    "BagConversion",
+    "BagDataset",
+    "BagOptions",
+    "BagTopic",
+    "convert_bag",
+    "open_bag",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,43 +285,31 @@ def _bag_rig(ds: BagDataset) -> Rig:
     return Rig(ds.epoch_rate, origins, None, tuple(first_T), extra)
 
 
-def open_bag(
-    path: str | Path,
-    *,
-    base_frame: str = DEFAULT_BASE_FRAME,
-    epoch_rate: float = DEFAULT_EPOCH_RATE,
-    topics: Sequence[str] | None = None,
-    gt_topic: str | None = None,
-) -> BagDataset:
+def open_bag(path: str | Path, options: BagOptions | None = None) -> BagDataset:
     """Index a ROS 1 ``.bag`` or ROS 2 bag folder and return it as a lazy dataset.
 
     Args:
         path: a ``.bag`` file, a ROS 2 bag folder (with ``metadata.yaml``) or its ``.db3`` /
             ``.mcap`` file.
-        base_frame: tf frame of the vehicle the points are expressed in.
-        epoch_rate: epochs per second (Hz); an epoch gathers the sweeps of one window.
-        topics: scan topics to read, in ring order (None or empty: every LaserScan /
-            PointCloud2 topic with messages, sorted by name).
-        gt_topic: reference trajectory: a pose topic or ``"tf:PARENT:CHILD"`` (None: none).
+        options: base frame, epoch rate, scan topics and reference (:class:`BagOptions`;
+            None: the defaults, ``base_link`` at 10 Hz, every scan topic, no reference).
 
     Raises:
         DatasetError: one line naming the bag and the topic or frame: missing or corrupt
             bag, no scan topic, an unknown or non-scan topic, a scanner frame without a
-            transform to ``base_frame``, an unusable ``gt_topic``.
+            transform to the base frame, an unusable ``gt_topic``.
     """
-    if not (np.isfinite(epoch_rate) and epoch_rate > 0):
-        raise DatasetError(f"epoch rate must be a positive number of Hz, got {epoch_rate!r}")
-    topics = list(topics) if topics else None
+    opts = options or BagOptions()
     location = bag_location(path)
     reader = open_reader(location)
     try:
-        index = index_bag(reader, location, topics, gt_topic)
+        index = index_bag(reader, location, opts.topic_list, opts.gt_topic)
     finally:
         with bag_errors(location):
             reader.close()
     if len(index.sweep_stamp) == 0:
         raise DatasetError(f"{location}: no messages on the scan topics")
-    return BagDataset(location, base_frame, epoch_rate, index, gt_topic)
+    return BagDataset(location, opts.base_frame, opts.epoch_rate, index, opts.gt_topic)
 
 
 @dataclass(frozen=True)
@@ -342,35 +339,24 @@ class BagConversion:
 def convert_bag(
     bag_path: str | Path,
     out_dir: str | Path,
+    options: BagOptions | None = None,
     *,
-    base_frame: str = DEFAULT_BASE_FRAME,
-    epoch_rate: float = DEFAULT_EPOCH_RATE,
-    topics: Sequence[str] | None = None,
-    gt_topic: str | None = None,
     overwrite: bool = False,
 ) -> BagConversion:
-    """Convert a bag into a dataset directory (arguments as :func:`open_bag`).
+    """Convert a bag into a dataset directory (``options`` as :func:`open_bag`).
 
-    Writes ``scans/NNNNNN.ply`` (float64 ``x y z``, ``ring``, ``t``), ``rig.yaml`` and, with
-    ``gt_topic``, ``poses.tum`` with the bag's epoch times. The dataset format keeps epoch
-    times only in ``poses.tum``; without a reference they are stored in ``rig.yaml`` as
-    ``bag_epoch_times`` (seconds since the Unix epoch) and the dataset loads with
-    ``k / epoch_rate``. Scans are streamed: memory stays flat.
+    Writes ``scans/NNNNNN.ply`` (float64 ``x y z``, ``ring``, ``t``), ``rig.yaml`` and the
+    bag's epoch times (seconds since the Unix epoch): with a ``gt_topic`` in ``poses.tum``
+    beside the reference poses, else in ``times.txt``. Scans are streamed: memory stays
+    flat.
 
     Raises:
         DatasetError: see :func:`open_bag`; ``out_dir`` already holds a dataset and not
             ``overwrite``.
     """
-    with open_bag(
-        bag_path, base_frame=base_frame, epoch_rate=epoch_rate, topics=topics, gt_topic=gt_topic
-    ) as ds:
-        rig, times = ds.rig, ds.times
-        if ds.gt_poses is None:
-            extra = {**rig.extra, "bag_epoch_times": ds.times.tolist()}
-            rig = Rig.from_dict({**rig.to_dict(), **extra}, source=str(bag_path))
-            times = np.arange(len(ds)) / ds.epoch_rate
+    with open_bag(bag_path, options) as ds:
         counter = _CountingScans(ds)
-        write_dataset(out_dir, counter, times, ds.gt_poses, rig, overwrite=overwrite)
+        write_dataset(out_dir, counter, ds.times, ds.gt_poses, ds.rig, overwrite=overwrite)
         return BagConversion(
             ds.path,
             Path(out_dir),
@@ -380,7 +366,7 @@ def convert_bag(
             sum(t.rings for t in ds.topics) if all(t.rings for t in ds.topics) else 0,
             float(ds.times[0]),
             float(ds.times[-1]),
-            gt_topic,
+            ds.gt_topic,
             ds.dropped_epochs,
         )
 

@@ -19,7 +19,7 @@ from planodom.errors import PlanodomError
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch import SmoothingResult, group_by_epoch, smoothing_config
-from planodom.smoothing.graph import GraphBuilder
+from planodom.smoothing.graph import GraphBuilder, X
 
 
 class WindowedSmoother:
@@ -27,7 +27,13 @@ class WindowedSmoother:
 
     Call :meth:`add_epoch` once per epoch; :attr:`poses` holds, per epoch, the latest
     estimate while it was in the window (the lagged, smoothed output) and
-    :attr:`online_poses` the estimate when it was the newest epoch.
+    :attr:`online_poses` the estimate when it was the newest epoch. With
+    ``compute_covariances`` and the incremental backend, :attr:`covariances` holds each
+    pose's marginal covariance (6, 6) at the same moment as :attr:`poses`: the last
+    update before it leaves the window (``IncrementalFixedLagSmoother.marginalCovariance``),
+    in gtsam's Pose3 tangent ``[rot (rad), trans (m)]``, body frame. Unlike the batch
+    marginals they include the uncertainty of the first pose's prior (``prior_sigma``)
+    and of the marginalised past. The batch backend has no marginals (None).
     """
 
     def __init__(
@@ -59,7 +65,22 @@ class WindowedSmoother:
         self.poses: list[np.ndarray] = []
         self.online_poses: list[np.ndarray] = []
         self.initial_poses: list[np.ndarray] = []
+        self.covariances: list[np.ndarray] = []
         self.runtime_s = 0.0
+
+    @property
+    def has_marginals(self) -> bool:
+        """Whether :attr:`covariances` are computed (config and backend)."""
+        return self.config.compute_covariances and isinstance(
+            self.smoother, gtsam.IncrementalFixedLagSmoother
+        )
+
+    def _marginal(self, epoch: int) -> np.ndarray:
+        """(6, 6) the window's marginal covariance of pose ``epoch`` (NaN if gtsam fails)."""
+        try:
+            return np.asarray(self.smoother.marginalCovariance(X(epoch)))  # type: ignore[attr-defined]
+        except RuntimeError:
+            return np.full((6, 6), np.nan)
 
     @property
     def n_epochs(self) -> int:
@@ -98,15 +119,26 @@ class WindowedSmoother:
         for e in range(oldest, k + 1):
             self.poses[e] = self.builder.poses[e]
         self.online_poses.append(self.builder.poses[k])
+        if self.has_marginals:  # the oldest pose leaves the window at the next update
+            self.covariances.append(np.full((6, 6), np.nan))
+            self.covariances[oldest] = self._marginal(oldest)
         self.runtime_s += time.perf_counter() - start
         return self.builder.poses[k]
 
     def result(self) -> SmoothingResult:
-        """The smoothed trajectory so far (E, 4, 4) and the graph's statistics."""
+        """The smoothed trajectory so far (E, 4, 4), its marginal covariances (E, 6, 6)
+        (see the class; the poses still in the window at their current estimate) and the
+        graph's statistics."""
+        covariances = None
+        if self.has_marginals and self.covariances:
+            k = self.n_epochs - 1
+            for e in range(max(0, k - (self.config.window - 1)), k + 1):
+                self.covariances[e] = self._marginal(e)
+            covariances = np.stack(self.covariances)
         return SmoothingResult(
             poses=np.stack(self.poses),
             initial_poses=np.stack(self.initial_poses),
-            covariances=None,
+            covariances=covariances,
             landmarks=self.builder.landmark_planes(),
             stats=self.builder.stats,
             mode="windowed",

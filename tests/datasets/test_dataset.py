@@ -72,8 +72,20 @@ def test_epoch_times_without_poses(tmp_path: Path) -> None:
     np.testing.assert_array_equal(ds.times, np.arange(5) * 0.1)
     ds = write_dataset(tmp_path / "b", scans, np.arange(5) / 20.0, rig=Rig(epoch_rate_hz=20))
     np.testing.assert_array_equal(ds.times, np.arange(5) / 20.0)
-    with pytest.raises(DatasetError, match="epoch_rate"):
-        write_dataset(tmp_path / "c", scans, np.arange(5) * 0.5)
+    # any increasing times are kept in times.txt (e.g. a bag's clock), exactly
+    bag_times = 1.7e9 + np.array([0.0, 0.1003, 0.2001, 0.30007, 0.4])
+    ds = write_dataset(tmp_path / "c", scans, bag_times, rig=Rig(epoch_rate_hz=10))
+    np.testing.assert_array_equal(ds.times, bag_times)
+    # times.txt is read only without poses.tum, and checked line by line
+    (tmp_path / "c" / "times.txt").write_text("0\n0.1\nfast\n0.3\n0.4\n")
+    with pytest.raises(DatasetError, match=r"times.txt:3: expected one finite time"):
+        load_dataset(tmp_path / "c")
+    (tmp_path / "c" / "times.txt").write_text("0\n0.1\n0.1\n0.3\n0.4\n")
+    with pytest.raises(DatasetError, match=r"times.txt: times must increase \(epoch 2"):
+        load_dataset(tmp_path / "c")
+    (tmp_path / "c" / "times.txt").write_text("0\n0.1\n")
+    with pytest.raises(DatasetError, match=r"times.txt: 2 times for 5 scan files"):
+        load_dataset(tmp_path / "c")
 
 
 def test_write_refuses_then_overwrites_without_stale_files(tmp_path: Path) -> None:

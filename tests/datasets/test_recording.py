@@ -10,6 +10,7 @@ from bag_factory import SCANNERS, STATIC_TF, T_BASE, write_bag
 from kitti_factory import make_sequence
 
 from planodom.datasets import write_dataset
+from planodom.datasets.bag_options import BagOptions
 from planodom.datasets.kitti import KittiSequence
 from planodom.datasets.recording import open_recording, recording_kind
 from planodom.datasets.rosbag import BagDataset
@@ -27,7 +28,7 @@ def test_recognises_each_kind(tmp_path: Path) -> None:
     kinds = {p: recording_kind(p) for p in (tmp_path / "a.bag", tmp_path / "b", mcap, seq)}
     assert list(kinds.values()) == ["bag", "bag", "bag", "kitti"]
     assert recording_kind(tmp_path / "ds") == "dataset"
-    bag = open_recording(tmp_path / "b", gt_topic="/odom", topics=[])
+    bag = open_recording(tmp_path / "b", BagOptions(gt_topic="/odom", topics=[]))
     assert isinstance(bag, BagDataset) and len(bag) == 12 and bag.gt_poses is not None
     bag.close()
     assert isinstance(open_recording(seq), KittiSequence)
@@ -37,4 +38,4 @@ def test_recognises_each_kind(tmp_path: Path) -> None:
 def test_bag_options_on_other_recordings(tmp_path: Path) -> None:
     seq = make_sequence(tmp_path, poses_beside=True)
     with pytest.raises(DatasetError, match="gt_topic apply to bags only"):
-        open_recording(seq, gt_topic="/odom")
+        open_recording(seq, BagOptions(gt_topic="/odom"))

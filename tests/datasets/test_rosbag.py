@@ -21,6 +21,7 @@ from bag_factory import (
 from scipy.spatial import cKDTree
 
 from planodom.datasets import load_dataset
+from planodom.datasets.bag_options import BagOptions
 from planodom.datasets.rosbag import convert_bag, open_bag
 from planodom.errors import DatasetError
 from planodom.geometry import invert_transform
@@ -67,7 +68,7 @@ def ros1_bag(tmp_path: Path) -> tuple[Path, Truth]:
 
 def test_ros1_laser_scans_land_on_the_truth(ros1_bag: tuple[Path, Truth]) -> None:
     path, truth = ros1_bag
-    with open_bag(path, gt_topic="/odom") as ds:
+    with open_bag(path, BagOptions(gt_topic="/odom")) as ds:
         assert len(ds) == 12
         scans = list(ds)  # the streaming pass
         for scan in scans:
@@ -90,7 +91,7 @@ def test_ros1_laser_scans_land_on_the_truth(ros1_bag: tuple[Path, Truth]) -> Non
 def test_ros2_scans_and_lidar(tmp_path: Path, storage: str) -> None:
     sensors = [*SCANNERS[:2], Sensor("/velodyne_points", "lidar", 50_000_000, "velodyne")]
     truth = write_bag(tmp_path / "bag", 2, sensors, STATIC_TF, T_BASE, storage=storage)
-    with open_bag(tmp_path / "bag", gt_topic="/odom") as ds:
+    with open_bag(tmp_path / "bag", BagOptions(gt_topic="/odom")) as ds:
         # topics sorted by name: /scan_front, /scan_left, /velodyne_points
         assert [t.name for t in ds.topics] == ["/scan_front", "/scan_left", "/velodyne_points"]
         scans = [ds[k] for k in range(len(ds))]  # random access path
@@ -107,7 +108,7 @@ def test_ros2_scans_and_lidar(tmp_path: Path, storage: str) -> None:
 def test_organised_cloud_with_ns_time_and_tf_pair_reference(tmp_path: Path) -> None:
     sensors = [Sensor("/os/points", "lidar", 0, "ouster")]
     truth = write_bag(tmp_path / "bag", 2, sensors, STATIC_TF, T_BASE, odom=False, tf_odom=True)
-    with open_bag(tmp_path / "bag", gt_topic="tf:odom:base_link") as ds:
+    with open_bag(tmp_path / "bag", BagOptions(gt_topic="tf:odom:base_link")) as ds:
         scans = list(ds)
         check_against_truth(ds, scans, truth, {r: "/os/points" for r in range(16)})
         assert np.abs(ds.gt_poses - true_pose(ds.times)).max() < 1e-5
@@ -117,7 +118,7 @@ def test_organised_cloud_with_ns_time_and_tf_pair_reference(tmp_path: Path) -> N
 
 def test_chosen_topics_set_the_ring_order(ros1_bag: tuple[Path, Truth]) -> None:
     path, truth = ros1_bag
-    with open_bag(path, topics=["/scan_rear", "/scan_front"]) as ds:
+    with open_bag(path, BagOptions(topics=["/scan_rear", "/scan_front"])) as ds:
         assert ds.gt_poses is None
         assert np.allclose(ds.rig.sensor_origins[0], T_BASE["laser_rear"][:3, 3])
         rings = {0: "/scan_rear", 1: "/scan_front"}
@@ -130,7 +131,7 @@ def test_chosen_topics_set_the_ring_order(ros1_bag: tuple[Path, Truth]) -> None:
 def test_another_base_frame(ros1_bag: tuple[Path, Truth]) -> None:
     # base_footprint is 0.1 m below base_link: the extrinsics and the reference (whose child
     # frame is base_link) move with it
-    with open_bag(ros1_bag[0], base_frame="base_footprint", gt_topic="/odom") as ds:
+    with open_bag(ros1_bag[0], BagOptions(base_frame="base_footprint", gt_topic="/odom")) as ds:
         expected = true_pose(ds.times) @ invert_transform(T_FP_BL)
         assert np.abs(ds.gt_poses - expected).max() < 1e-5
         assert np.allclose(ds.rig.extrinsics[1], T_FP_BL @ T_BASE["laser_left"], atol=1e-9)
@@ -145,7 +146,7 @@ def test_another_base_frame(ros1_bag: tuple[Path, Truth]) -> None:
 
 def test_convert_bag_writes_a_dataset(ros1_bag: tuple[Path, Truth], tmp_path: Path) -> None:
     path, truth = ros1_bag
-    summary = convert_bag(path, tmp_path / "ds", gt_topic="/odom")
+    summary = convert_bag(path, tmp_path / "ds", BagOptions(gt_topic="/odom"))
     assert summary.epochs == 12 and summary.rings == 3
     assert summary.points == sum(len(x) for v in truth.times.values() for x in v)
     ds = load_dataset(tmp_path / "ds")
@@ -159,13 +160,14 @@ def test_convert_bag_writes_a_dataset(ros1_bag: tuple[Path, Truth], tmp_path: Pa
 
 def test_convert_without_reference_keeps_the_bag_times(ros1_bag, tmp_path: Path) -> None:
     path, truth = ros1_bag
-    convert_bag(path, tmp_path / "ds", epoch_rate=5.0)
+    convert_bag(path, tmp_path / "ds", BagOptions(epoch_rate=5.0))
     ds = load_dataset(tmp_path / "ds")
     # sweeps at 0, 33, 66 ms + 100 k ms; 200 ms windows start mid of the first largest phase
     # gap (66..100 ms): [-117, 83), [83, 283), ..., [1083, 1283) ms -> 7 epochs
     assert len(ds) == 7
     assert ds.gt_poses is None
-    bag_times = np.array(ds.rig.extra["bag_epoch_times"])
+    assert (tmp_path / "ds" / "times.txt").is_file() and "bag_epoch_times" not in ds.rig.extra
+    bag_times = ds.times  # from times.txt: the bag's own clock
     stamps = np.array(sorted(s for v in truth.stamps.values() for s in v)) / 1e9
     assert np.abs(bag_times[:, None] - stamps[None]).min(axis=1).max() < 1e-6
     assert all(len(set(s.ring.tolist())) == 3 for s in ds)
@@ -191,7 +193,7 @@ def test_missing_tf_names_frame_and_topic(tmp_path: Path) -> None:
 
 def test_unknown_base_frame(ros1_bag: tuple[Path, Truth]) -> None:
     with pytest.raises(DatasetError) as exc:
-        open_bag(ros1_bag[0], base_frame="chassis")
+        open_bag(ros1_bag[0], BagOptions(base_frame="chassis"))
     assert "'chassis'" in one_line(exc)
 
 
@@ -206,16 +208,16 @@ def test_bag_without_scan_topics(tmp_path: Path) -> None:
 @pytest.mark.parametrize("topic", ["/scan_top", "/odom"])
 def test_unknown_or_wrong_topic(ros1_bag: tuple[Path, Truth], topic: str) -> None:
     with pytest.raises(DatasetError) as exc:
-        open_bag(ros1_bag[0], topics=["/scan_front", topic])
+        open_bag(ros1_bag[0], BagOptions(topics=["/scan_front", topic]))
     assert f"'{topic}'" in one_line(exc)
 
 
 def test_unknown_gt_topic(ros1_bag: tuple[Path, Truth]) -> None:
     with pytest.raises(DatasetError) as exc:
-        open_bag(ros1_bag[0], gt_topic="/ground_truth")
+        open_bag(ros1_bag[0], BagOptions(gt_topic="/ground_truth"))
     assert "'/ground_truth'" in one_line(exc) and "/odom" in str(exc.value)
     with pytest.raises(DatasetError) as exc:
-        open_bag(ros1_bag[0], gt_topic="tf:map:base_link")
+        open_bag(ros1_bag[0], BagOptions(gt_topic="tf:map:base_link"))
     assert "'map' -> 'base_link'" in one_line(exc)
 
 
@@ -264,7 +266,7 @@ def test_odometry_on_a_lidar_bag(tmp_path: Path) -> None:
 
     sensors = [Sensor("/velodyne_points", "lidar", 0, "velodyne")]
     write_bag(tmp_path / "bag", 2, sensors, STATIC_TF, T_BASE, duration_s=0.6)
-    with open_bag(tmp_path / "bag", gt_topic="/odom") as ds:
+    with open_bag(tmp_path / "bag", BagOptions(gt_topic="/odom")) as ds:
         run = run_odometry(ds, rig=ds.rig)
         assert run.statuses[1:] == ["ok"] * (len(ds) - 1)
         est = relative_motions(np.asarray(run.poses))

@@ -1,0 +1,115 @@
+"""``planodom eval`` (a trajectory against a reference) and ``planodom convert`` (a bag
+into the dataset format)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from planodom.cli.common import (
+    BaseFrame,
+    EpochRate,
+    GtTopic,
+    OutDir,
+    Overwrite,
+    Topics,
+    app,
+    console,
+    reports_errors,
+)
+from planodom.errors import ConfigError
+
+ALIGNMENTS = ("none", "origin", "se3", "4dof")
+
+
+@app.command("eval")
+@reports_errors
+def evaluate(
+    estimate: Annotated[Path, typer.Argument(help="Estimated trajectory: TUM or KITTI file.")],
+    truth: Annotated[
+        Path, typer.Argument(help="Reference: a TUM or KITTI file, or a dataset with poses.tum.")
+    ],
+    delta: Annotated[int, typer.Option(help="RPE step in (associated) poses.")] = 1,
+    align: Annotated[
+        str,
+        typer.Option(
+            help="none | origin (first poses coincide) | se3 (Umeyama, no scale) | "
+            "4dof (yaw + translation)."
+        ),
+    ] = "origin",
+    max_diff: Annotated[
+        float, typer.Option("--max-diff", help="TUM: largest time difference of a pair, s.")
+    ] = 0.01,
+    offset: Annotated[float, typer.Option(help="TUM: added to the estimate's times, s.")] = 0.0,
+    out: OutDir = None,
+    overwrite: Overwrite = False,
+) -> None:
+    """ATE, RPE, drift and per-epoch 5-DoF errors of a trajectory against a reference.
+
+    Timestamps are associated (nearest within --max-diff), not required to be identical.
+    Writes metrics.json, trajectory.png and errors.png to --out and prints the table.
+    """
+    from planodom import results
+    from planodom.evaluation import associate, evaluate, read_trajectory
+    from planodom.plots.run import write_eval_plots
+    from planodom.report import metrics_table
+
+    if align not in ALIGNMENTS:
+        raise ConfigError(f"--align: expected one of {', '.join(ALIGNMENTS)}, got '{align}'")
+    if not max_diff >= 0:
+        raise ConfigError(f"--max-diff: expected seconds >= 0, got {max_diff}")
+    est, ref = read_trajectory(estimate), read_trajectory(truth)
+    times, est_poses, ref_poses = associate(est, ref, max_diff, offset)
+    if not 1 <= delta < len(times):
+        raise ConfigError(
+            f"--delta {delta}: the RPE step needs 1 <= delta < {len(times)} (the matched poses)"
+        )
+    summary = evaluate(est_poses, ref_poses, align, delta)  # type: ignore[arg-type]
+    info: dict[str, object] = {"estimate": str(est.path), "reference": str(ref.path)}
+    info |= {"align": align, "matched_poses": len(times), "estimate_poses": len(est.poses)}
+    info |= {"reference_poses": len(ref.poses)}
+    with results.results_folder(out, overwrite=overwrite, inputs=[estimate, truth]) as folder:
+        results.write_metrics(folder.tmp, info | summary)
+        with console.status("drawing the plots"):
+            write_eval_plots(folder.tmp, times, est_poses, ref_poses, align)  # type: ignore[arg-type]
+    title = f"{est.path.name} vs {ref.path.name}: {len(times)} poses matched -> {folder.path}"
+    console.print(metrics_table(summary, title=title))
+
+
+@app.command("convert")
+@reports_errors
+def convert(
+    bag: Annotated[Path, typer.Argument(help="A ROS 1 .bag file or a ROS 2 bag folder.")],
+    dataset: Annotated[Path, typer.Argument(help="Dataset directory to write.")],
+    base_frame: BaseFrame = "base_link",
+    epoch_rate: EpochRate = 10.0,
+    topic: Topics = None,
+    gt_topic: GtTopic = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace a dataset at DATASET.")] = False,
+) -> None:
+    """Convert a bag into the dataset format (scans/*.ply with ring and t, rig.yaml, and
+    the bag's epoch times in poses.tum with --gt-topic, else in times.txt)."""
+    from rich.table import Table
+
+    from planodom.datasets.bag_options import BagOptions
+    from planodom.datasets.rosbag import convert_bag
+
+    options = BagOptions.of(base_frame, epoch_rate, topic, gt_topic)
+    with console.status(f"converting {bag}"):
+        c = convert_bag(bag, dataset, options, overwrite=overwrite)
+    table = Table(title=f"{c.bag} -> {c.out_dir}", show_header=False)
+    rows = {
+        "epochs": f"{c.epochs} at {epoch_rate:g} Hz",
+        "points": f"{c.points}",
+        "scan topics (ring order)": ", ".join(c.topics),
+        "rings": f"{c.rings}",
+        "time span (s since the Unix epoch)": f"{c.start_time:.3f} .. {c.end_time:.3f}",
+        "reference": c.gt_topic or "none (times in times.txt)",
+    }
+    if c.dropped_epochs:
+        rows["epochs outside the reference"] = f"{c.dropped_epochs} (dropped)"
+    for key, value in rows.items():
+        table.add_row(key, value)
+    console.print(table)

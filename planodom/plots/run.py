@@ -1,0 +1,93 @@
+"""The pictures of a results folder: ``run`` / ``smooth`` (three) and ``eval`` (two)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from planodom.metrics import Alignment, aligned, per_epoch_errors, relative_motions
+from planodom.odometry import OdometryRun, epoch_rows
+from planodom.plots.errors import plot_errors
+from planodom.plots.planes import plot_planes
+from planodom.plots.trajectory import plot_trajectory
+
+#: The pictures' file names.
+TRAJECTORY_PNG, ERRORS_PNG, PLANES_PNG = "trajectory.png", "errors.png", "planes.png"
+
+
+def odometry_sigmas(run: OdometryRun) -> np.ndarray:
+    """(E-1, 5) standard deviations of the increments of epochs 1..E-1 (NaN: unknown)."""
+    return np.array([r.sigmas5 if r is not None else np.full(5, np.nan) for r in run.results[1:]])
+
+
+def increment_errors(est: np.ndarray, gt: np.ndarray) -> dict[str, np.ndarray]:
+    """Signed 5-DoF errors (E-1,) of the increments of ``est`` against ``gt`` (E, 4, 4)."""
+    return per_epoch_errors(relative_motions(est), relative_motions(gt))
+
+
+def write_run_plots(
+    out: str | Path,
+    odometry: OdometryRun,
+    gt_poses: np.ndarray | None,
+    smoothed: np.ndarray | None = None,
+    name: str = "planodom run",
+) -> list[Path]:
+    """``trajectory.png``, ``errors.png`` and ``planes.png`` of an odometry run (and, with
+    ``smoothed`` (E, 4, 4), of its smoothing: drawn as the estimate, the odometry beside
+    it) into ``out``. Without ``gt_poses`` the trajectory stands alone and the errors
+    panel shows the ±2σ bands of the odometry's covariances."""
+    out = Path(out)
+    best = odometry.poses if smoothed is None else smoothed
+    # the estimate first (blue in both pictures), the odometry beside the smoothed (orange)
+    tracks = ({} if smoothed is None else {"smoothed": smoothed}) | {"odometry": odometry.poses}
+    errors: dict[str, dict[str, np.ndarray]] = {}
+    shown = dict(tracks)
+    if gt_poses is not None and len(best) > 1:
+        shown = {k: aligned(v, gt_poses, "origin") for k, v in tracks.items()}
+        errors = {k: increment_errors(v, gt_poses) for k, v in tracks.items()}
+    label = "odometry" if smoothed is None else "smoothed"
+    others = [("odometry", shown["odometry"])] if smoothed is not None else []
+    files = [
+        plot_trajectory(
+            out / TRAJECTORY_PNG,
+            shown[label],
+            gt_poses,
+            statuses=odometry.statuses,
+            others=others,
+            title=f"{name}: top view",
+            label=label,
+        ),  # fmt: skip
+        plot_errors(
+            out / ERRORS_PNG,
+            odometry.times[1:],
+            errors,
+            odometry_sigmas(odometry),
+            title=f"{name}: per-epoch increment errors (estimate - reference)",
+        ),  # fmt: skip
+        plot_planes(out / PLANES_PNG, epoch_rows(odometry), title=f"{name}: planes per epoch"),
+    ]
+    return files
+
+
+def write_eval_plots(
+    out: str | Path,
+    times: np.ndarray,
+    estimate: np.ndarray,
+    reference: np.ndarray,
+    align: Alignment = "origin",
+    name: str = "planodom eval",
+) -> list[Path]:
+    """``trajectory.png`` and ``errors.png`` of two associated trajectories (E, 4, 4) at
+    ``times`` (E,) seconds, the estimate aligned by ``align``."""
+    out = Path(out)
+    shown = aligned(estimate, reference, align)
+    errors = {"estimate": increment_errors(estimate, reference)} if len(times) > 1 else {}
+    return [
+        plot_trajectory(
+            out / TRAJECTORY_PNG, shown, reference, title=f"{name}: top view ({align})"
+        ),
+        plot_errors(
+            out / ERRORS_PNG, times[1:], errors, title=f"{name}: per-epoch increment errors"
+        ),
+    ]

@@ -1,0 +1,86 @@
+"""planodom eval's reading and association: shifted and subsampled timestamps, KITTI files."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from plot_checks import assert_nontrivial_png
+from typer.testing import CliRunner
+
+from planodom.cli import app
+from planodom.datasets import write_tum
+from planodom.datasets.kitti import write_kitti_poses
+from planodom.errors import DatasetError
+from planodom.evaluation import Trajectory, associate, evaluate, read_trajectory
+from planodom.geometry import transform_from_rpy_xyz
+
+runner = CliRunner()
+TIMES = 1.7e9 + np.arange(40) * 0.1
+GT = np.stack(
+    [transform_from_rpy_xyz(0, 0, 0.05 * k, 0.5 * k, np.sin(0.2 * k), 0) for k in range(40)]
+)
+
+
+def test_association_pairs_nearest_times_within_max_diff(tmp_path) -> None:
+    # every other pose, 4 ms late, with a 0.2 m offset in y on pose 20 only
+    est = GT[::2].copy()
+    est[10, 1, 3] += 0.2
+    write_tum(tmp_path / "gt.tum", TIMES, GT)
+    write_tum(tmp_path / "est.tum", TIMES[::2] + 0.004, est)
+    times, e, g = associate(
+        read_trajectory(tmp_path / "est.tum"), read_trajectory(tmp_path / "gt.tum")
+    )
+    np.testing.assert_allclose(times, TIMES[::2])
+    np.testing.assert_allclose(g, GT[::2], atol=1e-12)  # through quaternions
+    m = evaluate(e, g, "none")
+    assert m["ate_max_m"] == pytest.approx(0.2, abs=1e-9) and m["epochs"] == 20
+    # 4 ms is beyond a 3 ms limit: nothing matches; --offset puts them back
+    with pytest.raises(DatasetError, match="no pose within 0.003 s"):
+        associate(
+            read_trajectory(tmp_path / "est.tum"), read_trajectory(tmp_path / "gt.tum"), 0.003
+        )
+    times, _, _ = associate(
+        read_trajectory(tmp_path / "est.tum"), read_trajectory(tmp_path / "gt.tum"), 0.003, -0.004
+    )
+    assert len(times) == 20
+
+
+def test_kitti_files_pair_by_index(tmp_path) -> None:
+    write_kitti_poses(tmp_path / "est.txt", GT)
+    write_tum(tmp_path / "gt.tum", TIMES, GT)
+    est = read_trajectory(tmp_path / "est.txt")
+    assert est.times is None and len(est.poses) == 40
+    times, e, g = associate(est, read_trajectory(tmp_path / "gt.tum"))
+    np.testing.assert_array_equal(times, TIMES)
+    short = Trajectory(tmp_path / "est.txt", GT[:5], None)
+    with pytest.raises(DatasetError, match="same count"):
+        associate(short, read_trajectory(tmp_path / "gt.tum"))
+    (tmp_path / "bad.txt").write_text("1 2 3\n")
+    with pytest.raises(DatasetError, match="bad.txt: not a TUM"):
+        read_trajectory(tmp_path / "bad.txt")
+
+
+def test_eval_command_aligns_and_writes_metrics_and_plots(tmp_path) -> None:
+    # the estimate in another world frame (yawed 0.7 rad, shifted): se3 and 4dof undo it
+    T = transform_from_rpy_xyz(0, 0, 0.7, 3.0, -2.0, 0.0)
+    write_tum(tmp_path / "gt.tum", TIMES, GT)
+    write_tum(tmp_path / "est.tum", TIMES + 0.002, T @ GT)
+    for align, ate in (("none", None), ("se3", 0.0), ("4dof", 0.0)):
+        out = tmp_path / align
+        args = ["eval", tmp_path / "est.tum", tmp_path / "gt.tum", "--align", align, "--out", out]
+        result = runner.invoke(app, [str(a) for a in args])
+        assert result.exit_code == 0, result.output
+        metrics = json.loads((out / "metrics.json").read_text())
+        assert metrics["matched_poses"] == 40 and metrics["align"] == align
+        if ate is None:
+            assert metrics["ate_rmse_m"] > 1.0
+        else:
+            assert metrics["ate_rmse_m"] == pytest.approx(ate, abs=1e-9)
+    assert_nontrivial_png(tmp_path / "se3" / "trajectory.png")
+    assert_nontrivial_png(tmp_path / "se3" / "errors.png")
+    bad = runner.invoke(
+        app, ["eval", str(tmp_path / "est.tum"), str(tmp_path / "gt.tum"), "--align", "sim3"]
+    )
+    assert bad.exit_code == 2 and "--align" in bad.output
