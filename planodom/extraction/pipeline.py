@@ -122,6 +122,8 @@ def _check_inputs(scan: Scan, sensor_origins: np.ndarray | None) -> np.ndarray |
         raise GeometryError(
             f"sensor_origins must be a finite (3,) or (R, 3) array, got shape {org.shape}"
         )
+    if len(org) > 1 and scan.ring is None and np.all(org == org[0]):
+        org = org[:1]  # one sensor's origin repeated per ring (a ring-less lidar scan)
     if len(org) > 1:
         if scan.ring is None:
             raise GeometryError("per-ring sensor_origins need the scan's ring field")
