@@ -16,7 +16,7 @@ image of square angular pixels.
 4. Pieces that region growing chained over a curved or bent surface (a cambered road, a
    bent facade) are cut by their two in-plane principal axes, recursively (a quadtree in
    the piece's own frame: no tile size to choose), until every part is flat to
-   ``max(max_rms_sigma_factor * sigma_pix, rms_floor_m)`` (:func:`split_curved`).
+   ``max(max_rms_sigma_factor * sigma, rms_floor_m)`` (:func:`split_curved`).
 5. Coplanar pieces are merged: grid neighbours (as :mod:`.rangeimage` step 3) and, anywhere
    in the scan, pieces whose bounding circles come within ``plane_gap_m`` (one facade cut
    by a tree, a car or a pole becomes one plane with one covariance): normals within
@@ -168,9 +168,9 @@ def organised_candidates(
     if C == 0:
         return empty
     Pf = P.reshape(-1, 3)
-    piece, C = split_curved(
-        Pf, piece, C, rms_limit(config, sigma_pix), config.min_plane_width_m, min_px
-    )
+    # Flat to the point noise (not the pixel noise: pixel means of a real wall keep the
+    # lasers' range biases, which averaging over a pixel does not remove).
+    piece, C = split_curved(Pf, piece, C, rms_limit(config, sigma), config.min_plane_width_m, min_px)
     if C == 0:
         return empty
     tol = member_tolerance(config, sigma)

@@ -122,7 +122,7 @@ def associate(
     g_d2 = 9 * (
         (s_t + s_r * lever[:, None]) ** 2 + cur.var_o[:, None] + vL + cur.sigma**2 + bias**2
     )
-    ok = (ang <= g_ang) & (e2 <= g_d2) & (sep**2 <= g_d2)
+    ok = (ang <= g_ang) & (e2 <= g_d2) & (sep <= np.sqrt(g_d2))
     cost = np.where(ok, e2, np.inf)
     best = np.argmin(cost, axis=1)
     has = np.isfinite(cost[np.arange(len(cur)), best])
