@@ -7,7 +7,7 @@ values were not tuned on any other recording and are marked so).
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from pydantic import Field
 
@@ -78,8 +78,24 @@ class PlanemapConfig(Section):
     lda_per_direction: Annotated[int, Field(ge=1)] = 3
     """...and at most this many of nearly one direction (ground patches say nothing about
     yaw; LDA needs the walls)."""
+    min_plane_points: int | None = Field(10, ge=3)
+    """Extraction limits while the map pipeline runs (None: the extraction section's):
+    fewest points of a plane. The moment cost weights every plane by its own information
+    (an exact point sum), so small planes (poles, kerbs, house fronts along a street) help
+    rather than hurt. Measured on KITTI 0005 (10 / 0.1 m / 10 deg against the extraction's
+    20 / 0.2 m / 1 deg: 0.081 deg 3.55 cm against 0.087 deg 4.12 cm): not tuned elsewhere."""
+    min_plane_width_m: float | None = Field(0.1, ge=0)
+    """Likewise the smallest plane width (m; see ``min_plane_points``)."""
+    max_normal_sigma_deg: float | None = Field(10.0, gt=0, le=180)
+    """Likewise the largest normal 1-sigma (deg) of a plane kept (see ``min_plane_points``)."""
     initial_rotation_deg: float = Field(5.0, gt=0, le=180)
     """Association gate (rotation) before any motion was measured: the first pair is
     also scored against the fallback hypotheses, so this only starts the search."""
     initial_translation_m: Positive = 1.0
     """Likewise for translation (m)."""
+
+    def extraction_changes(self) -> dict[str, Any]:
+        """The extraction fields this section overrides while the map pipeline runs, as
+        dotted changes for :meth:`planodom.config.PlanodomConfig.updated`."""
+        names = ("min_plane_points", "min_plane_width_m", "max_normal_sigma_deg")
+        return {f"extraction.{k}": getattr(self, k) for k in names if getattr(self, k) is not None}

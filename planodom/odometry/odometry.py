@@ -169,6 +169,9 @@ class PlaneOdometry:
         if use:
             from planodom.odometry.planemap import PlaneMapOdometry
 
+            changes = self.config.planemap.extraction_changes()
+            if changes:
+                self.config = self.config.updated(changes, source="planemap")
             self._map = PlaneMapOdometry(self.config)
 
     def _next_time(self, time: float | None) -> float:
