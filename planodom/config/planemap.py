@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from pydantic import Field
+from pydantic import ConfigDict, Field
 
 from planodom.config.section import Section
 
@@ -19,6 +19,8 @@ Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 class PlanemapConfig(Section):
     """The plane-landmark odometry against a local plane map
     (:mod:`planodom.odometry.planemap`)."""
+
+    model_config = ConfigDict(allow_inf_nan=False)
 
     laser_bias_m: float = Field(0.02, ge=0, le=1)
     """Per-laser range bias sigma (m), constant along one scan line: the datasheet range

@@ -4,7 +4,7 @@ image of square angular pixels.
 1. Rows: :func:`.rows.scan_rows` (ring-major runs of the azimuth, else modes of the
    elevation), seen from the sensor origin. H rows.
 2. Columns: azimuth bins of the same angular size as the mean row spacing
-   ``dv = (elevation span of the row medians) / (H - 1)``, ``W = round(2 pi / dv)`` (at
+   ``dv = (elevation span of the row means) / (H - 1)``, ``W = round(2 pi / dv)`` (at
    most the point count of the fullest row): square pixels in angle, so that the pixel
    normals' two tangents have similar lengths. A pixel is the mean of its points; its
    noise is ``sigma / sqrt(m)`` (m: median points per filled pixel), sigma measured along
@@ -91,10 +91,9 @@ def grid_of(points: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, int, int]
     r = np.linalg.norm(points, axis=1)
     el = np.arcsin(np.clip(points[:, 2] / np.maximum(r, 1e-9), -1.0, 1.0))
     counts = np.bincount(rows, minlength=H)
-    order = np.argsort(rows, kind="stable")
-    bounds = np.r_[0, np.cumsum(counts)]
-    med = np.array([np.median(el[order[bounds[i] : bounds[i + 1]]]) for i in range(H) if counts[i]])
-    dv = (med.max() - med.min()) / max(len(med) - 1, 1)
+    filled = counts > 0
+    mean = np.bincount(rows, el, minlength=H)[filled] / counts[filled]
+    dv = (mean.max() - mean.min()) / max(len(mean) - 1, 1)
     W = int(min(max(np.rint(2 * np.pi / max(dv, 1e-6)), 16), counts.max()))
     col = np.floor((azimuth(points) + np.pi) / (2 * np.pi) * W).astype(np.int64) % W
     return col, H, W
@@ -104,40 +103,36 @@ def split_curved(
     P: np.ndarray, piece: np.ndarray, C: int, max_rms: float, min_width: float, min_px: int
 ) -> tuple[np.ndarray, int]:
     """Step 4 on pixel points ``P`` (H * W, 3) labelled ``piece`` (H * W,) (C pieces):
-    the new labels (-1: none) numbered in piece order, and their count. Parts under
-    ``min_px`` pixels or thinner than ``min_width`` (m, ``2 sqrt(l2 / n)``: lines) are
-    dropped."""
-    order = np.argsort(piece, kind="stable")
-    starts = np.searchsorted(piece[order], np.arange(C + 1))
+    the new labels (-1: none) and their count. Parts under ``min_px`` pixels or thinner
+    than ``min_width`` (m, ``2 sqrt(l2 / n)``: lines) are dropped. Level by level: all
+    parts of a level are tested at once (one compiled moment pass, batched eigen-solver);
+    flat parts are numbered in the order of their level and their index in it."""
+    label = piece.copy()
     out = np.full(piece.shape[0], -1, dtype=np.int64)
-    # Most pieces are flat already: one batched test, the loop only for the others.
-    cnt, _, sc = _piece_moments(P, piece, C)
-    ev = np.linalg.eigvalsh(sc)
-    wide = 2.0 * np.sqrt(np.maximum(ev[:, 1], 0.0) / cnt) >= min_width
-    flat = (np.sqrt(np.maximum(ev[:, 0], 0.0) / cnt) <= max_rms) & wide & (cnt >= min_px)
-    n_out = 0
-    for g in range(C):
-        if flat[g]:
-            out[order[starts[g] : starts[g + 1]]] = n_out
-            n_out += 1
-            continue
-        if cnt[g] < min_px or not wide[g]:
-            continue
-        stack = [order[starts[g] : starts[g + 1]]]
-        while stack:
-            px = stack.pop()
-            if len(px) < min_px:
-                continue
-            d = P[px] - P[px].mean(axis=0)
-            ev, V = np.linalg.eigh(d.T @ d)
-            if 2.0 * np.sqrt(max(ev[1], 0.0) / len(px)) < min_width:
-                continue
-            if np.sqrt(max(ev[0], 0.0) / len(px)) <= max_rms:
-                out[px] = n_out
-                n_out += 1
-                continue
-            u, v = d @ V[:, 2] >= 0, d @ V[:, 1] >= 0
-            stack.extend([px[u & v], px[u & ~v], px[~u & v], px[~u & ~v]])
+    n, n_out = C, 0
+    while n > 0:
+        cnt, cen, sc = _piece_moments(P, label, n)
+        ev, V = np.linalg.eigh(sc)
+        safe = np.maximum(cnt, 1.0)
+        alive = (cnt >= min_px) & (2.0 * np.sqrt(np.maximum(ev[:, 1], 0.0) / safe) >= min_width)
+        flat = alive & (np.sqrt(np.maximum(ev[:, 0], 0.0) / safe) <= max_rms)
+        split = alive & ~flat
+        number = np.full(n + 1, -1, dtype=np.int64)  # index n: pixels without a part
+        number[:n][flat] = n_out + np.arange(np.count_nonzero(flat))
+        n_out += int(np.count_nonzero(flat))
+        part = np.where(label >= 0, label, n)
+        taken = number[part] >= 0
+        out[taken] = number[part[taken]]
+        idx = np.flatnonzero(np.r_[split, False][part])
+        g = label[idx]
+        d = P[idx] - cen[g]
+        quadrant = 2 * (np.einsum("ij,ij->i", d, V[g, :, 2]) >= 0) + (
+            np.einsum("ij,ij->i", d, V[g, :, 1]) >= 0
+        )
+        rank = np.cumsum(split) - 1
+        label = np.full(piece.shape[0], -1, dtype=np.int64)
+        label[idx] = 4 * rank[g] + quadrant
+        n = 4 * int(np.count_nonzero(split))
     return out, n_out
 
 
@@ -148,9 +143,11 @@ def organised_candidates(
     (N,) int64, seen from ``origin`` (3,) m (module docstring)."""
     rel = np.ascontiguousarray(points - origin, dtype=np.float64)
     rows = np.asarray(rows, dtype=np.int64)
-    az = azimuth(rel)
-    order = np.lexsort((az, rows))  # within a row in azimuth order, whatever the file order
-    sigma = effective_noise(config, ring_noise(rel[order], rows[order], config))
+    if np.all(rows[1:] >= rows[:-1]):  # ring-major: rows in file order, each in azimuth order
+        sigma = effective_noise(config, ring_noise(rel, rows, config))
+    else:  # within a row in azimuth order, whatever the file order
+        order = np.lexsort((azimuth(rel), rows))
+        sigma = effective_noise(config, ring_noise(rel[order], rows[order], config))
     col, H, W = grid_of(rel, rows)
     P, cnt_pix = _mean_grid(rel, rows * W + col, H * W)
     m = float(np.median(cnt_pix[cnt_pix > 0]))
@@ -170,7 +167,9 @@ def organised_candidates(
     Pf = P.reshape(-1, 3)
     # Flat to the point noise (not the pixel noise: pixel means of a real wall keep the
     # lasers' range biases, which averaging over a pixel does not remove).
-    piece, C = split_curved(Pf, piece, C, rms_limit(config, sigma), config.min_plane_width_m, min_px)
+    piece, C = split_curved(
+        Pf, piece, C, rms_limit(config, sigma), config.min_plane_width_m, min_px
+    )
     if C == 0:
         return empty
     tol = member_tolerance(config, sigma)
