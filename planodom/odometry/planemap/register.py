@@ -99,7 +99,8 @@ def plane_landmark_errors(
     ang = np.arccos(np.clip(nw @ M.n.T, -1.0, 1.0))
     off = cw @ M.n.T + M.d[None]
     Sw = R @ cur.m.S @ R.T
-    e2 = off**2 + np.einsum("li,jik,lk->jl", M.n, Sw, M.n) / cur.m.N[:, None]
+    nn = (M.n[:, :, None] * M.n[:, None, :]).reshape(-1, 9)  # n n^T per landmark
+    e2 = off**2 + (Sw.reshape(-1, 9) @ nn.T) / cur.m.N[:, None]
     radius = np.sqrt(3.0 * np.trace(cur.m.S, axis1=1, axis2=2) / cur.m.N)
     sep = np.linalg.norm(cw[:, None] - M.c[None], axis=2) - M.radius[None] - radius[:, None]
     return ang, e2, sep
@@ -115,8 +116,12 @@ def associate(
     var_nL = np.trace(M.cov_n, axis1=1, axis2=2) / 2
     g_ang = 3 * np.sqrt(s_r**2 + cur.var_n[:, None] + var_nL[None])
     cw = cur.m.c @ T[:3, :3].T + T[:3, 3]
-    dx = cw[:, None] - M.c[None]
-    vL = np.einsum("jli,lik,jlk->jl", dx, M.cov_n, dx) + M.var_o[None]
+    # (x - c)^T C (x - c) for every plane centroid x and landmark (c, C), as matrix products.
+    C = M.cov_n
+    Cc = np.einsum("lik,lk->li", C, M.c)
+    xx = (cw[:, :, None] * cw[:, None, :]).reshape(-1, 9)
+    quad = xx @ C.reshape(-1, 9).T - 2.0 * cw @ Cc.T + np.einsum("li,li->l", M.c, Cc)[None]
+    vL = quad + M.var_o[None]
     radius = np.sqrt(3.0 * np.trace(cur.m.S, axis1=1, axis2=2) / cur.m.N)
     lever = np.linalg.norm(cur.m.c, axis=1) + radius
     g_d2 = 9 * (
