@@ -64,7 +64,9 @@ def test_jacobians_match_finite_differences():
         dx[k] = h
         exp = Rotation.from_rotvec
         rp, _, _ = moment_residuals(exp(dx[:3]).as_matrix() @ R, t + dx[3:], n, d, m.N, m.c, lam, E)
-        rm, _, _ = moment_residuals(exp(-dx[:3]).as_matrix() @ R, t - dx[3:], n, d, m.N, m.c, lam, E)
+        rm, _, _ = moment_residuals(
+            exp(-dx[:3]).as_matrix() @ R, t - dx[3:], n, d, m.N, m.c, lam, E
+        )
         np.testing.assert_allclose((rp - rm) / (2 * h), J[:, :, k], rtol=1e-5, atol=1e-6)
 
 
