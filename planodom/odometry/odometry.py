@@ -103,6 +103,7 @@ class PlaneOdometry:
         self._gap_configs: dict[int, PlanodomConfig] = {1: self.config}
         # The plane-map odometry when the pipeline is (or resolves to) "map".
         self._map: PlaneMapOdometry | None = None
+        self._recent: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -139,9 +140,13 @@ class PlaneOdometry:
         estimate = partial(self._estimate_scan, scan, t)
         if self.config.odometry.deskew and time_spread(scan):
             dt = t - self.times[-1]
-            # The map keeps its own landmarks: the reference epoch is not extracted again.
-            refresh = self._refresh_reference if self._map is None else _no_refresh
-            best = register_deskewed(self.twist, dt, estimate, refresh, self.config.odometry)
+            refresh = self._refresh_reference
+            ocfg = self.config.odometry
+            if self._map is not None and self.twist is not None:
+                # The map deskews with the prediction only (see _predicted_twist); its
+                # first step is iterated, the first epoch seeded again with its twist.
+                ocfg = ocfg.model_copy(update={"deskew_iterations": 0})
+            best = register_deskewed(self.twist, dt, estimate, refresh, ocfg)
         else:
             best = estimate(None)
         return self._commit(_Epoch(k, best.planes, best.plane_set, scan, best.twist), best, t)
@@ -255,9 +260,13 @@ class PlaneOdometry:
         ref = self._reference()
         if ref.scan is None or ref.twist is not None:
             return False
+        if self._map is not None and ref.index != 0:
+            return False  # the map holds the epoch's planes: only the first is seeded again
         ref.planes = self._extract(ref.scan, twist)
         ref.plane_set = PlaneSet.from_planes(ref.planes)
         ref.twist = twist
+        if self._map is not None:
+            self._map.reseed(ref.planes)
         self.planes[ref.index] = ref.planes
         if self.results[ref.index] is not None:
             self.superseded.add(ref.index)
@@ -311,15 +320,22 @@ class PlaneOdometry:
         step, and the median linear velocity of the last ``velocity_window`` steps whose
         translation was measured (one wrong translation must not steer the deskewing and
         the prior of the following epochs; a degenerate step only repeats its prior)."""
+        rate = twist[:3]
+        if self._map is not None:
+            # The map pipeline registers a scan against a map, not against a scan deskewed
+            # the same way: a deskewing error e moves its estimate by about -e (a plane
+            # seen at time t moves by e t), so deskewing with the last step's twist, or
+            # extracting again with the epoch's own, oscillates from epoch to epoch (the
+            # simulated paper loop, lidar32: 4 cm rms). It deskews once, with the mean
+            # twist of the last velocity_window steps (0.44 cm there), and only its first
+            # step is iterated (register_epoch).
+            self._recent.append(twist.copy())
+            return np.mean(np.array(self._recent), axis=0)
         if measured:
             self._velocities.append(twist[3:])
         if not self._velocities:
-            return twist
-        return np.r_[twist[:3], np.median(np.array(self._velocities), axis=0)]
-
-
-def _no_refresh(twist: np.ndarray) -> bool:
-    return False
+            return np.r_[rate, twist[3:]]
+        return np.r_[rate, np.median(np.array(self._velocities), axis=0)]
 
 
 def _orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:

@@ -210,6 +210,14 @@ class PlaneMapOdometry:
 
     # ------------------------------------------------------------------ state
 
+    def reseed(self, planes: Sequence[Plane]) -> None:
+        """Build the map again from the first scan's ``planes`` (extracted again, e.g.
+        deskewed once a twist is known) while only that scan is in it; else nothing."""
+        if self.frame != 0:
+            return
+        self.__init__(self.config)  # type: ignore[misc]
+        self.commit(self.estimate(planes))
+
     def commit(self, est: MapEstimate) -> None:
         """Make ``est`` the scan's result: pose, velocity, deviation statistics, map."""
         first = self.frame < 0
