@@ -16,8 +16,9 @@ For each: per-scan rotation and translation error rms and p95 (the error of
 ``inv(T_ref_rel) @ T_est_rel`` per consecutive pair), horizontal drift (final position
 error over the distance travelled), bad epochs (planodom: unresolved or degenerate) and
 gross errors (over 1 deg or 20 cm, every method), epochs per second, and the resident
-memory at the start and end of the method's run (flat memory). Options for large-motion
-checks: ``step`` (every k-th scan), ``turn_deg`` (every scan turned a further angle about
+memory at the start (planodom: after a tenth of the epochs, its compiled kernels loaded)
+and end of the method's run (flat memory; the scans in memory are part of it). Options
+for large-motion checks: ``step`` (every k-th scan), ``turn_deg`` (every scan turned a further angle about
 the base z axis, or alternately +angle / 0 with ``alternate``). Writes ``baselines.md``,
 ``baselines.csv`` and ``trajectories.png`` (top views of all trajectories).
 """
@@ -106,14 +107,22 @@ def load_scans(path: Path, limit: int | None, step: int, turn_deg: float, altern
     return Scans(Path(path).name, scans, poses, times, ds.rig)
 
 
-def run_planodom(data: Scans, config: PlanodomConfig) -> tuple[np.ndarray, float, int]:
+def run_planodom(data: Scans, config: PlanodomConfig) -> tuple[np.ndarray, float, int, float]:
+    """Relative poses, seconds, bad epochs and the RSS (MB) after a tenth of the epochs
+    (compiled kernels loaded: the start of the flat-memory check)."""
     from planodom.odometry import run_odometry
 
+    early = [float("nan")]
+
+    def sample(k: int, n: int) -> None:
+        if k == max(1, n // 10):
+            early[0] = rss_mb()
+
     t0 = time.perf_counter()
-    run = run_odometry(data.scans, config, data.rig, times=data.times)  # type: ignore[arg-type]
+    run = run_odometry(data.scans, config, data.rig, times=data.times, progress=sample)  # type: ignore[arg-type]
     seconds = time.perf_counter() - t0
-    rel = np.array([r.T_prev_curr for r in run.results[1:]]).reshape(-1, 4, 4)
-    return rel, seconds, run.n_unresolved + run.n_degenerate
+    rel = np.array([r.T_prev_curr for r in run.results[1:] if r is not None]).reshape(-1, 4, 4)
+    return rel, seconds, run.n_unresolved + run.n_degenerate, early[0]
 
 
 def run_kiss(data: Scans) -> tuple[np.ndarray, float]:
@@ -231,7 +240,8 @@ def run_baselines_experiment(
                              "uv sync --extra baselines)")  # fmt: skip
                 continue
             bad = result[2] if len(result) > 2 else None
-            m = MethodRun(data.name, name, result[0], result[1], bad, (before, rss_mb()))
+            start = result[3] if len(result) > 3 else before
+            m = MethodRun(data.name, name, result[0], result[1], bad, (start, rss_mb()))
             runs.append(m)
             rows.append(row_of(m, ref))
             tracks.append((name, chain(m.relative), COLOURS.get(name)))
