@@ -18,8 +18,8 @@ error over the distance travelled), bad epochs (planodom: unresolved or degenera
 gross errors (over 1 deg or 20 cm, every method), epochs per second, and the resident
 memory at the start (planodom: after a tenth of the epochs, its compiled kernels loaded)
 and end of the method's run (flat memory; the scans in memory are part of it). Options
-for large-motion checks: ``step`` (every k-th scan), ``turn_deg`` (every scan turned a further angle about
-the base z axis, or alternately +angle / 0 with ``alternate``). Writes ``baselines.md``,
+for large-motion checks: ``step`` (every k-th scan), ``turn_deg`` (every scan turned a
+further angle about the base z axis, or alternately +angle / 0 with ``alternate``). Writes ``baselines.md``,
 ``baselines.csv`` and ``trajectories.png`` (top views of all trajectories).
 """
 
