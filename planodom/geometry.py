@@ -150,16 +150,27 @@ class PlaneSupport:
         polygon: (M, 3) float64, metres, convex hull of the inliers projected on the plane,
             vertices in order (M >= 3; empty (0, 3) when unknown).
         n_points: number of inlier points.
+        scatter: (3, 3) float64, m^2, centred scatter ``sum (p_i - c)(p_i - c)^T`` of the
+            inliers (with ``n_points`` and ``centroid`` their moments: what a
+            point-to-plane cost over all inliers needs,
+            :mod:`planodom.odometry.planemap.moments`), or None when unknown.
+        n_rows: number of distinct scan lines (rings or recovered rows) among the inliers
+            (0: unknown); a per-laser range bias is shared by the points of one line.
     """
 
     centroid: np.ndarray
     polygon: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     n_points: int = 0
+    scatter: np.ndarray | None = None
+    n_rows: int = 0
 
     def transformed(self, T_a_b: np.ndarray) -> PlaneSupport:
         """The same support in frame a, given it in frame b."""
         poly = transform_points(T_a_b, self.polygon) if len(self.polygon) else self.polygon
-        return PlaneSupport(transform_points(T_a_b, self.centroid[None])[0], poly, self.n_points)
+        R = T_a_b[:3, :3]
+        scatter = None if self.scatter is None else R @ self.scatter @ R.T
+        centroid = transform_points(T_a_b, self.centroid[None])[0]
+        return PlaneSupport(centroid, poly, self.n_points, scatter, self.n_rows)
 
     @property
     def area(self) -> float:

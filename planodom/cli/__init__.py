@@ -139,7 +139,8 @@ def run(
     skip_bad_scans: SkipBadScans = False,
     config: ConfigFile = None,
     pipeline: Annotated[
-        str | None, typer.Option(help="wocsc | sda-mean | ocsc | mean (default: config's).")
+        str | None,
+        typer.Option(help="auto | map | wocsc | sda-mean | ocsc | mean (default: config's)."),
     ] = None,
     delta: Annotated[int | None, typer.Option(help="Associate epoch k with k - delta.")] = None,
 ) -> None:

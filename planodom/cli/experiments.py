@@ -1,4 +1,5 @@
-"""``planodom experiment paper | smoothing``: the experiments behind the paper's figures."""
+"""``planodom experiment paper | smoothing | baselines``: the experiments behind the
+paper's figures, and planodom against point-based peers on recordings."""
 
 from __future__ import annotations
 
@@ -145,3 +146,25 @@ def experiment_generalisation(
         config=load_config(config), progress=_say,
     )  # fmt: skip
     _print_files({k: v for k, v in result.files.items() if k != "runs_md"})
+
+
+@experiment_app.command("baselines")
+@reports_errors
+def experiment_baselines(
+    datasets: Annotated[list[Path], typer.Argument(help="Recordings with poses.tum.")],
+    out: ExpOut = Path("results/baselines"),
+    wocsc: Annotated[bool, typer.Option(help="Also the paper's wocsc pipeline.")] = False,
+    limit: Annotated[int | None, typer.Option(help="Read at most this many scans.")] = None,
+    step: Annotated[int, typer.Option(min=1, help="Use every k-th scan.")] = 1,
+    turn: Annotated[float, typer.Option(help="Turn scan k by k * TURN deg about z.")] = 0.0,
+    alternate: Annotated[bool, typer.Option(help="Turn by (k % 2) * TURN instead.")] = False,
+    config: ConfigFile = None,
+) -> None:
+    """planodom's odometry vs KISS-ICP and open3d ICP on the same scans (one run)."""
+    from planodom.experiments.baselines import run_baselines_experiment
+
+    result = run_baselines_experiment(
+        datasets, out, load_config(config), wocsc=wocsc, limit=limit, step=step,
+        turn_deg=turn, alternate=alternate, progress=_say,
+    )  # fmt: skip
+    _print_files(result.files)

@@ -16,6 +16,7 @@ from pydantic import ValidationError
 
 from planodom.config.extraction import ExtractionConfig
 from planodom.config.odometry import AssociationConfig, OdometryConfig
+from planodom.config.planemap import PlanemapConfig
 from planodom.config.section import Section
 from planodom.config.smoothing import SmoothingConfig
 from planodom.errors import ConfigError, yaml_problem
@@ -24,6 +25,7 @@ __all__ = [
     "AssociationConfig",
     "ExtractionConfig",
     "OdometryConfig",
+    "PlanemapConfig",
     "PlanodomConfig",
     "Section",
     "SmoothingConfig",
@@ -40,6 +42,7 @@ class PlanodomConfig(Section):
     extraction: ExtractionConfig = ExtractionConfig()
     association: AssociationConfig = AssociationConfig()
     odometry: OdometryConfig = OdometryConfig()
+    planemap: PlanemapConfig = PlanemapConfig()
     smoothing: SmoothingConfig = SmoothingConfig()
 
     @classmethod

@@ -165,6 +165,12 @@ class ExtractionConfig(Section):
     """3D path with ``ring``: grow planes on the range image (ring x firing grid,
     planodom.extraction.lidar.rangeimage) instead of the RANSAC loop; RANSAC is still used
     without rings or when the pixel normals are too noisy (next field)."""
+    unorganised: Literal["rows", "ransac"] = "rows"
+    """3D path without ``ring`` (an unorganised cloud: most recorded PCD / PLY / KITTI
+    files). rows: recover the scan lines of the spinning lidar (ring-major file order or
+    elevation modes, :mod:`planodom.extraction.lidar.rows`) and grow planes on a range
+    image of square angular pixels (:mod:`planodom.extraction.lidar.organised`), RANSAC
+    when no rows are found; ransac: the RANSAC loop always."""
     region_max_normal_error_deg: float = Field(4.0, gt=0, le=90)
     """Range image: region growing only when the median predicted pixel-normal error
     (from sigma and the pixel spacing) is at most this (deg); else RANSAC. Walls meet the

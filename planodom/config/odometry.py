@@ -60,11 +60,17 @@ class OdometryConfig(Section):
     Pipelines (paper Fig. 3): ``"wocsc"`` = (LDA, WOCSC rotation, WOCSC translation);
     ``"sda-mean"`` = (LDA, WOCSC rotation, SDA, mean translation "cog"); ablations
     ``"ocsc"`` = unweighted consensus for both, ``"mean"`` = chordal mean rotation of all
-    LDA candidates, SDA and mean translation.
+    LDA candidates, SDA and mean translation. Beyond the paper: ``"map"`` = plane-landmark
+    odometry against a local plane map with point-to-plane costs from plane moments
+    (:mod:`planodom.odometry.planemap`, section ``planemap``); ``"auto"`` = "map" for
+    scans on the lidar extraction path, "wocsc" for the 2D rig (and for plane lists
+    without scans, and for ``delta`` > 1).
     """
 
-    pipeline: Literal["wocsc", "sda-mean", "ocsc", "mean"] = "wocsc"
-    """The pipeline (see the class docstring)."""
+    pipeline: Literal["auto", "map", "wocsc", "sda-mean", "ocsc", "mean"] = "auto"
+    """The pipeline (see the class docstring). Default auto: measured, the map pipeline
+    is far better on recorded and simulated lidar, the paper's wocsc on the 2D rig (see
+    docs/ARCHITECTURE.md)."""
     delta: Annotated[int, Field(ge=1)] = 1
     """Associate epoch k with epoch k - delta (paper's future work: delta > 1)."""
     rotation_inlier_deg: AngleDeg = 3.0

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,6 +32,9 @@ from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
+
+if TYPE_CHECKING:
+    from planodom.odometry.planemap import MapEstimate
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +48,8 @@ class EpochEstimate:
         step: (4, 4) ``T_{k-1}_k`` it implies for the last step.
         reference_planes: the reference epoch's planes it was estimated against (its
             association indices refer to them).
+        map_estimate: the plane-map odometry's registration to commit when this
+            estimate is kept (``pipeline: map``), else None.
     """
 
     planes: list[Plane]
@@ -52,6 +58,7 @@ class EpochEstimate:
     relative: RelativePose
     step: np.ndarray
     reference_planes: list[Plane]
+    map_estimate: MapEstimate | None = None
 
 
 #: ``estimate(twist) -> EpochEstimate``: extract the epoch deskewed with ``twist`` (None:

@@ -18,6 +18,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,6 +29,9 @@ from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
+
+if TYPE_CHECKING:
+    from planodom.odometry.planemap import PlaneMapOdometry
 
 #: ``extractor(scan, extraction_config, twist=..., [sensor_origins=...]) -> list[Plane]``
 Extractor = Callable[..., list[Plane]]
@@ -97,6 +101,9 @@ class PlaneOdometry:
         self._velocities: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
         self._steps: list[np.ndarray] = []  # T_{k-1}_k per epoch (identity first)
         self._gap_configs: dict[int, PlanodomConfig] = {1: self.config}
+        # The plane-map odometry when the pipeline is (or resolves to) "map".
+        self._map: PlaneMapOdometry | None = None
+        self._recent: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -128,15 +135,21 @@ class PlaneOdometry:
         t = self._next_time(time)
         k = len(self.poses)
         if k == 0:
+            self._start_map(scan)
             return self._commit_first(self._new_epoch(0, scan, None), t)
         estimate = partial(self._estimate_scan, scan, t)
         if self.config.odometry.deskew and time_spread(scan):
             dt = t - self.times[-1]
             refresh, previous = self._refresh_reference, len(self.last_planes)
+            ocfg = self.config.odometry
+            if self._map is not None and self.twist is not None:
+                # The map deskews with the prediction only (see _predicted_twist); its
+                # first step is iterated, the first epoch seeded again with its twist.
+                ocfg = ocfg.model_copy(update={"deskew_iterations": 0})
             # a twist never outlives an unresolved epoch: until one is measured again, the
             # epochs are extracted without it (it still serves as prior and bridge)
             twist = None if self._unresolved_last() else self.twist
-            best = register_deskewed(twist, dt, estimate, refresh, self.config.odometry, previous)
+            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous)
         else:
             best = estimate(None)
         return self._commit(_Epoch(k, best.planes, best.plane_set, scan, best.twist), best, t)
@@ -146,10 +159,28 @@ class PlaneOdometry:
         t = self._next_time(time)
         epoch = _Epoch(len(self.poses), list(planes), PlaneSet.from_planes(planes))
         if not self.poses:
+            self._start_map(None)
             return self._commit_first(epoch, t)
         return self._commit(epoch, self._estimate(epoch, t), t)
 
     # ------------------------------------------------------------------ one epoch
+
+    def _start_map(self, scan: Scan | None) -> None:
+        """Decide at the first epoch whether the plane-map odometry runs: pipeline "map",
+        or "auto" with delta 1 on a scan that takes the lidar extraction path."""
+        pipeline = self.config.odometry.pipeline
+        use = pipeline == "map"
+        if pipeline == "auto" and self.config.odometry.delta == 1 and scan is not None:
+            from planodom.extraction.pipeline import choose_mode
+
+            use = choose_mode(scan, self.config.extraction) == "lidar"
+        if use:
+            from planodom.odometry.planemap import PlaneMapOdometry
+
+            changes = self.config.planemap.extraction_changes()
+            if changes:
+                self.config = self.config.updated(changes, source="planemap")
+            self._map = PlaneMapOdometry(self.config)
 
     def _next_time(self, time: float | None) -> float:
         if time is not None:
@@ -180,6 +211,8 @@ class PlaneOdometry:
         Poses are chained through steps (products of rigid transforms), never through the
         inverse of a chained world pose, so rounding cannot grow from epoch to epoch.
         """
+        if self._map is not None:
+            return self._estimate_map(epoch)
         reference = self._reference()
         T_ref_last = np.eye(4)  # T_{ref}_{k-1}
         for step in self._steps[reference.index + 1 :]:
@@ -200,6 +233,18 @@ class PlaneOdometry:
             epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes
         )
 
+    def _estimate_map(self, epoch: _Epoch) -> EpochEstimate:
+        """The plane-map odometry's estimate of ``epoch`` against its map (the previous
+        epoch is the reference of the relative pose); committed in :meth:`_commit`."""
+        assert self._map is not None
+        reference = self._history[-1]
+        est = self._map.estimate(epoch.planes)
+        result = est.relative.between(reference.index, epoch.index)
+        step = _orthonormalised(result.T_prev_curr)
+        return EpochEstimate(
+            epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes, est
+        )
+
     def _config_for_gap(self, gap: int) -> PlanodomConfig:
         if gap not in self._gap_configs:
             self._gap_configs[gap] = config_for_gap(self.config, gap)
@@ -218,9 +263,13 @@ class PlaneOdometry:
         ref = self._reference()
         if ref.scan is None or ref.twist is not None:
             return False
+        if self._map is not None and ref.index != 0:
+            return False  # the map holds the epoch's planes: only the first is seeded again
         ref.planes = self._extract(ref.scan, twist)
         ref.plane_set = PlaneSet.from_planes(ref.planes)
         ref.twist = twist
+        if self._map is not None:
+            self._map.reseed(ref.planes)
         self.planes[ref.index] = ref.planes
         if self.results[ref.index] is not None:
             self.superseded.add(ref.index)
@@ -233,6 +282,8 @@ class PlaneOdometry:
     # ------------------------------------------------------------------ state
 
     def _commit_first(self, epoch: _Epoch, t: float) -> np.ndarray:
+        if self._map is not None:
+            self._map.commit(self._map.estimate(epoch.planes))
         self._append(epoch, np.eye(4), np.eye(4), None, t)
         return self.poses[-1]
 
@@ -244,6 +295,8 @@ class PlaneOdometry:
         if dt > 0:
             measured = best.relative.status is Status.OK
             self.twist = self._predicted_twist(se3_log(best.step) / dt, measured)
+        if best.map_estimate is not None and self._map is not None:
+            self._map.commit(best.map_estimate)
         T_world = _orthonormalised(self.poses[-1] @ best.step)
         if best.reference_planes is not self.planes[best.relative.prev]:
             self.superseded.add(epoch.index)
@@ -276,11 +329,22 @@ class PlaneOdometry:
         step, and the median linear velocity of the last ``velocity_window`` steps whose
         translation was measured (one wrong translation must not steer the deskewing and
         the prior of the following epochs; a degenerate step only repeats its prior)."""
+        rate = twist[:3]
+        if self._map is not None:
+            # The map pipeline registers a scan against a map, not against a scan deskewed
+            # the same way: a deskewing error e moves its estimate by about -e (a plane
+            # seen at time t moves by e t), so deskewing with the last step's twist, or
+            # extracting again with the epoch's own, oscillates from epoch to epoch (the
+            # simulated paper loop, lidar32: 4 cm rms). It deskews once, with the mean
+            # twist of the last velocity_window steps (0.44 cm there), and only its first
+            # step is iterated (register_epoch).
+            self._recent.append(twist.copy())
+            return np.mean(np.array(self._recent), axis=0)
         if measured:
             self._velocities.append(twist[3:])
         if not self._velocities:
-            return twist
-        return np.r_[twist[:3], np.median(np.array(self._velocities), axis=0)]
+            return np.r_[rate, twist[3:]]
+        return np.r_[rate, np.median(np.array(self._velocities), axis=0)]
 
 
 def _orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:

@@ -40,7 +40,8 @@ class OdometryRun:
         superseded: epochs whose result indexes planes extracted again later
             (:attr:`PlaneOdometry.superseded`).
         seconds: wall time spent in extraction and in odometry, seconds.
-        config: the configuration the run used (with a rig's motion bounds).
+        config: the configuration the run used (with a rig's motion bounds, and the
+            plane-map pipeline's extraction limits when it ran).
     """
 
     poses: np.ndarray
@@ -140,7 +141,7 @@ def run_odometry(
         planes=odo.planes,
         superseded=sorted(odo.superseded),
         seconds={"extraction": timed.seconds, "odometry": total - timed.seconds},
-        config=cfg,
+        config=odo.config,
     )
 
 

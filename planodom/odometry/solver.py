@@ -56,6 +56,13 @@ PIPELINES: dict[str, tuple[str, str]] = {
 }
 
 
+def pairwise_pipeline(name: str) -> str:
+    """The paper pipeline this solver runs for ``odometry.pipeline`` ``name``: itself, or
+    "wocsc" for "map" and "auto" (the plane-map odometry is streaming, not pairwise; a
+    pair of epochs, e.g. delta > 1 for smoothing, is solved the paper's way)."""
+    return "wocsc" if name in ("map", "auto") else name
+
+
 def config_for_gap(config: PlanodomConfig, gap: int) -> PlanodomConfig:
     """``config`` with the association's motion bounds widened for ``gap`` epochs.
 
@@ -179,10 +186,11 @@ def _solve(
 ) -> RelativePose:
     """One pass of the pipeline on canonically ordered planes (indices not remapped)."""
     ocfg, acfg = cfg.odometry, cfg.association
-    rot_method, trans_method = PIPELINES[ocfg.pipeline]
+    name = pairwise_pipeline(ocfg.pipeline)
+    rot_method, trans_method = PIPELINES[name]
     lda = lenient_association(prev, curr, acfg, prior if bound_by_prior else None)
     bounds = _bounds(cfg, prior, bound_by_prior)
-    info = SolverDiagnostics(ocfg.pipeline, lda, used_prior=bound_by_prior)
+    info = SolverDiagnostics(name, lda, used_prior=bound_by_prior)
     if len(lda) == 0:
         T = prior.copy() if prior is not None else np.eye(4)
         cov = np.diag([bounds.rotation**2] * 3 + [bounds.translation**2] * 2)

@@ -1,10 +1,21 @@
-"""The lidar (3D) path: candidate inlier sets, robust fits and planes.
+"""The lidar (3D) path: candidate inlier sets, fits and planes.
 
-1. candidate inlier sets: region growing on the range image, or the seeded RANSAC loop
-   (:func:`.candidates.lidar_candidates`);
-2. a robust TLS fit of each candidate (:func:`planodom.extraction.planes.fit.robust_plane_fit`,
-   iterated 1.4826 MAD inlier selection);
-3. the planes (:func:`planodom.extraction.planes.builder.build_planes`).
+1. candidate inlier sets:
+
+   - a scan with ``ring``: region growing on the range image, or the seeded RANSAC loop
+     (:func:`.candidates.lidar_candidates`);
+   - a scan without ``ring`` (an unorganised cloud) and ``unorganised == "rows"``: the
+     scan lines are recovered (:func:`.rows.scan_rows`, seen from the sensor origin) and
+     planes grow on a range image of square angular pixels
+     (:func:`.organised.organised_candidates`); RANSAC when no rows are found or they
+     give no plane (a cloud that is not a spinning lidar's);
+2. a fit of each candidate: robust TLS (:func:`planodom.extraction.planes.fit.
+   robust_plane_fit`, iterated 1.4826 MAD inlier selection) for the first, plain TLS of
+   the members for the organised candidates (their points were already selected within
+   the member tolerance of a plane grown on the image; trimming by the MAD would drop the
+   outer scan lines of a plane whose lasers carry range biases);
+3. the planes (:func:`planodom.extraction.planes.builder.build_planes`), with the number of
+   scan lines each spans.
 """
 
 from __future__ import annotations
@@ -14,18 +25,63 @@ import numpy as np
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.lidar.candidates import lidar_candidates
+from planodom.extraction.lidar.organised import organised_candidates
+from planodom.extraction.lidar.rows import scan_rows
 from planodom.extraction.planes.builder import PlaneFits, build_planes
-from planodom.extraction.planes.fit import robust_plane_fit
+from planodom.extraction.planes.fit import robust_plane_fit, tls_fit
 
 
 def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     """The planes of a 3D scan (module docstring)."""
     scan = epoch.scan
     view = epoch.scan_viewpoint(config.viewpoint_height_m)
+    if scan.ring is None and config.unorganised == "rows":
+        origin = np.zeros(3) if epoch.origins is None else epoch.origins.mean(axis=0)
+        found = scan_rows(epoch.points, origin)
+        if found is not None:
+            rows = found[0]
+            organised = organised_candidates(epoch.points, rows, origin, config)
+            fits = member_fits(organised.candidates, epoch.points, rows)
+            planes, inliers, n_rejected = build_planes(fits, epoch, organised.sigma_m, config)
+            n_cand = len(organised.candidates)
+            if planes:  # rows that gave no plane were no lidar's rows: RANSAC decides
+                return PathResult(planes, inliers, organised.sigma_m, 0, n_cand, n_rejected)
     candidates, sigma = lidar_candidates(epoch.points, config, scan.ring, view, scan.t)
     fits, n_small = fit_candidates(candidates, epoch.points, config)
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config)
     return PathResult(planes, inliers, sigma, 0, len(candidates), n_small + n_rejected)
+
+
+def member_fits(candidates: list[np.ndarray], points: np.ndarray, rows: np.ndarray) -> PlaneFits:
+    """Plain TLS fits of the candidate inlier sets (indices into ``points`` (N, 3), m,
+    three or more each) and the number of distinct ``rows`` (N,) each spans."""
+    fits = [tls_fit(points[c]) for c in candidates]
+    n_rows = np.array([len(np.unique(rows[c])) for c in candidates], dtype=np.int64)
+    return _pack(candidates, fits, n_rows)
+
+
+def _pack(
+    inliers: list[np.ndarray],
+    fits: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    n_rows: np.ndarray | None,
+) -> PlaneFits:
+    """:class:`PlaneFits` of (centroid, evals descending, evecs) per inlier set."""
+    bounds = np.zeros(len(fits) + 1, dtype=np.int64)
+    np.cumsum(np.array([len(i) for i in inliers], dtype=np.int64), out=bounds[1:])
+    flat = np.concatenate(inliers) if inliers else np.zeros(0, dtype=np.int64)
+    centroid = np.array([c for c, _, _ in fits]).reshape(-1, 3)
+    evecs = np.array([v for _, _, v in fits]).reshape(-1, 3, 3)
+    return PlaneFits(
+        count=np.diff(bounds),
+        centroid=centroid,
+        offset=-np.einsum("gi,gi->g", evecs[:, :, 2], centroid),
+        evals=np.array([e for _, e, _ in fits]).reshape(-1, 3),
+        evecs=evecs,
+        inliers=flat,
+        bounds=bounds,
+        outline=np.ones(len(flat), dtype=bool),
+        n_rows=n_rows,
+    )
 
 
 def fit_candidates(
@@ -33,25 +89,12 @@ def fit_candidates(
 ) -> tuple[PlaneFits, int]:
     """Robust TLS fits of the candidate inlier sets (indices into ``points`` (N, 3), m)
     that keep ``min_plane_points`` inliers, and the number of the others."""
-    fits = []
+    kept = []
     for cand in candidates:
         if len(cand) < config.min_plane_points:
             continue
         fit = robust_plane_fit(points[cand], config.inlier_sigma_factor)
         if fit is not None and len(fit.inliers) >= config.min_plane_points:
-            fits.append((cand[fit.inliers], fit))
-    inliers = [idx for idx, _ in fits]
-    bounds = np.zeros(len(fits) + 1, dtype=np.int64)
-    np.cumsum(np.array([len(i) for i in inliers], dtype=np.int64), out=bounds[1:])
-    flat = np.concatenate(inliers) if inliers else np.zeros(0, dtype=np.int64)
-    out = PlaneFits(
-        count=np.diff(bounds),
-        centroid=np.array([f.centroid for _, f in fits]).reshape(-1, 3),
-        offset=np.array([f.offset for _, f in fits]),
-        evals=np.array([f.evals for _, f in fits]).reshape(-1, 3),
-        evecs=np.array([f.evecs for _, f in fits]).reshape(-1, 3, 3),
-        inliers=flat,
-        bounds=bounds,
-        outline=np.ones(len(flat), dtype=bool),
-    )
-    return out, len(candidates) - len(fits)
+            kept.append((cand[fit.inliers], (fit.centroid, fit.evals, fit.evecs)))
+    out = _pack([i for i, _ in kept], [f for _, f in kept], None)
+    return out, len(candidates) - len(kept)

@@ -57,6 +57,9 @@ class PlaneFits:
             or only those that can be extreme, e.g. the ends of straight runs).
         incidence: (G,) CPEF ``w_incidence`` seen from ``(0, 0, viewpoint_height_m)``
             when the path computed it, or None (computed here from the viewpoints).
+        n_rows: (G,) int64 distinct scan lines among each fit's inliers when the path
+            knows them (recovered rows), or None (counted here from the scan's ``ring``
+            when it has one, else 0: unknown).
     """
 
     count: np.ndarray
@@ -68,6 +71,7 @@ class PlaneFits:
     bounds: np.ndarray
     outline: np.ndarray
     incidence: np.ndarray | None = None
+    n_rows: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.count)
@@ -145,9 +149,14 @@ def build_planes(
     if adjust is not None and len(kept):
         kept = adjust(kept, n_or, d_or)
     planes, inliers = [], []
-    labels = epoch.scan.label
+    labels, ring = epoch.scan.label, epoch.scan.ring
+    scatter = np.einsum("gik,gk,gjk->gij", fits.evecs, fits.evals, fits.evecs)
     for g in kept:
         idx = fits.members(int(g))
+        if fits.n_rows is not None:
+            n_rows = int(fits.n_rows[g])
+        else:
+            n_rows = 0 if ring is None else len(np.unique(ring[idx]))
         outline = epoch.points[idx][fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]
         polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
         plane = Plane(
@@ -155,7 +164,9 @@ def build_planes(
             offset=float(d_or[g]),
             covariance=covs[g],
             confidence=float(conf[g]),
-            support=PlaneSupport(fits.centroid[g].copy(), polygon, int(fits.count[g])),
+            support=PlaneSupport(
+                fits.centroid[g].copy(), polygon, int(fits.count[g]), scatter[g], n_rows
+            ),
             truth_id=majority_label(None if labels is None else labels[idx]),
         )
         planes.append(plane)

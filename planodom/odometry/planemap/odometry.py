@@ -1,0 +1,255 @@
+"""Streaming plane-landmark odometry against a local plane map (``pipeline: map``).
+
+Per scan (:meth:`PlaneMapOdometry.estimate`, then :meth:`PlaneMapOdometry.commit` of the
+estimate kept; estimating does not change the state, so an epoch may be extracted again
+with another twist and estimated again):
+
+1. prediction: constant velocity (the last relative motion);
+2. registration of the scan's plane moments against the map from the prediction, with
+   gates from the model's past deviations (:func:`.register.register`);
+3. when that is suspicious (the first pair; fewer than ``min_inliers`` inlier planes or
+   ``min_inlier_fraction`` of the planes; an inlier fraction below ``suspect_ratio``
+   times the recent median; a tilt change beyond ``max_tilt_change_deg``), other
+   hypotheses are registered too: zero velocity (gates by the size of the last motion),
+   the scan-to-scan registration with widening gates, LDA without motion bounds
+   (:mod:`.fallback`). The winner is the resolved hypothesis (if any) with the lowest
+   robust point-to-plane cost of ALL the scan's planes against the map
+   (:func:`.register.score`), not the one with the most inliers (a wrong pose can gather
+   many weak associations); hypotheses that flip the base's z axis are rejected;
+4. the 6x6 information gives the covariance; a rotation direction with a 1-sigma above
+   ``unobserved_rotation_deg`` makes the epoch UNRESOLVED (the prediction is kept), a
+   translation direction above ``unobserved_translation_m`` DEGENERATE (the prediction is
+   kept along it: Gauss-Newton leaves directions without information unchanged);
+5. the map is updated (:func:`.landmarks.update_map`); after a detected failure (an
+   unresolved epoch whose scan had enough planes) it is rebuilt from the current scan.
+
+Planes need their moments (``support.scatter``, ``n_points``, ``n_rows``); planes without
+them are not used.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planodom.config import PlanodomConfig
+from planodom.geometry import Plane, invert_transform
+from planodom.odometry.planemap import fallback
+from planodom.odometry.planemap.landmarks import PlaneMap, update_map
+from planodom.odometry.planemap.moments import Moments, scan_sigma
+from planodom.odometry.planemap.pose import relative_pose
+from planodom.odometry.planemap.register import Registration, ScanPlanes, register, score
+from planodom.odometry.relative import RelativePose, Status
+from planodom.planes import PlaneSet
+
+
+def _angle(R: np.ndarray) -> float:
+    return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
+
+
+def _orthonormalised(T: np.ndarray) -> np.ndarray:
+    """``T`` with its rotation projected on SO(3): poses are chained through closed-form
+    inverses (transposes), where a rotation off SO(3) would double its error per scan."""
+    U, _, Vt = np.linalg.svd(T[:3, :3])
+    out = T.copy()
+    out[:3, :3] = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    return out
+
+
+def _tilt(R: np.ndarray) -> float:
+    """Angle (rad) by which ``R`` turns the z axis."""
+    return float(np.arccos(np.clip(R[2, 2], -1.0, 1.0)))
+
+
+@dataclass(frozen=True, eq=False)
+class MapEstimate:
+    """One scan's registration, to be committed (:meth:`PlaneMapOdometry.commit`).
+
+    Attributes:
+        relative: the relative pose from the previous scan (``prev``/``curr`` unset).
+        T: (4, 4) world from scan. T_pred: the prediction it started from.
+        used: (K,) indices of the planes used (those with moments).
+        cur: their registration inputs (None without planes). reg: the winning
+            registration (None when there was nothing to register against).
+    """
+
+    relative: RelativePose
+    T: np.ndarray
+    T_pred: np.ndarray
+    used: np.ndarray
+    cur: ScanPlanes | None
+    reg: Registration | None
+    plane_set: PlaneSet
+
+
+class PlaneMapOdometry:
+    """Plane-landmark odometry (module docstring); ``config.planemap`` holds its settings."""
+
+    def __init__(self, config: PlanodomConfig | None = None) -> None:
+        self.config = config or PlanodomConfig()
+        self.map = PlaneMap()
+        self.pose = np.eye(4)
+        self.velocity = np.eye(4)
+        self.frame = -1
+        self._dev_sse = np.zeros(2)
+        self._dev_n = 0
+        self._fractions: list[float] = []
+        self._prev: PlaneSet | None = None
+
+    # ------------------------------------------------------------------ gates
+
+    def sigmas(self) -> tuple[float, float]:
+        """RMS rotation (rad) and translation (m) deviations of the prediction so far."""
+        if self._dev_n == 0:
+            pm = self.config.planemap
+            return np.radians(pm.initial_rotation_deg), pm.initial_translation_m
+        rms = np.sqrt(self._dev_sse / self._dev_n)
+        return float(rms[0]), float(rms[1])
+
+    # ------------------------------------------------------------------ one scan
+
+    def estimate(self, planes: Sequence[Plane]) -> MapEstimate:
+        """Register one scan's planes (base frame); the state is not changed."""
+        used = np.array(
+            [
+                k
+                for k, p in enumerate(planes)
+                if p.support is not None and p.support.scatter is not None
+            ],
+            dtype=np.intp,
+        )
+        plane_set = PlaneSet.from_planes(planes)
+        T_pred = self.pose @ self.velocity
+        cur = self._scan_planes(planes, used)
+        if self.frame < 0 or cur is None or len(self.map) == 0:
+            status = Status.OK if self.frame < 0 else Status.UNRESOLVED
+            rel = relative_pose(self, self.velocity, None, status)
+            T = self.pose if self.frame < 0 else T_pred
+            return MapEstimate(rel, T, T_pred, used, cur, None, plane_set)
+        reg = self._best_registration(T_pred, cur, plane_set)
+        ok = self._resolved(reg, cur)
+        rel, T = self._result(reg, ok, T_pred, cur, used)
+        return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set)
+
+    def _scan_planes(self, planes: Sequence[Plane], used: np.ndarray) -> ScanPlanes | None:
+        if len(used) == 0:
+            return None
+        m = Moments.of_planes([planes[k] for k in used])
+        normals = np.array([planes[k].normal for k in used])
+        sigma = scan_sigma(m, self.config.extraction.range_noise_m)
+        return ScanPlanes.of(m, normals, sigma, self.config.planemap.laser_bias_m)
+
+    def _resolved(self, reg: Registration, cur: ScanPlanes) -> bool:
+        """Enough inliers, and no flip of the z axis relative to the last pose."""
+        pm = self.config.planemap
+        n_inl = len(reg.inliers)
+        R_rel = self.pose[:3, :3].T @ reg.T[:3, :3]
+        tilt_ok = _tilt(R_rel) <= np.radians(pm.max_tilt_change_deg)
+        return n_inl >= pm.min_inliers and n_inl >= pm.min_inlier_fraction * len(cur) and tilt_ok
+
+    def _best_registration(
+        self, T_pred: np.ndarray, cur: ScanPlanes, plane_set: PlaneSet
+    ) -> Registration:
+        """Step 2, and step 3 when suspicious (module docstring)."""
+        pm = self.config.planemap
+        s_r, s_t = self.sigmas()
+        best = register(self.map, T_pred, cur, s_r, s_t, pm, "map")
+        frac = len(best.inliers) / max(len(cur), 1)
+        typical = float(np.median(self._fractions[-20:])) if self._fractions else 1.0
+        ok = self._resolved(best, cur)
+        suspicious = not ok or frac < pm.suspect_ratio * typical or self._dev_n == 0
+        if not (suspicious and pm.fallback and self._prev is not None):
+            return best
+        vr, vt = _angle(self.velocity[:3, :3]), float(np.linalg.norm(self.velocity[:3, 3]))
+        guesses = [(self.pose, max(s_r, vr), max(s_t, vt), "zero-velocity")]
+        wide_r, wide_t = max(s_r, np.radians(1.0)), max(s_t, 0.5)
+        for name, T_rel in (
+            ("widening", fallback.widening(self._prev, plane_set, cur.sigma, pm.min_inliers)),
+            ("lda", fallback.lda_hypothesis(self._prev, plane_set, cur.sigma, pm)),
+        ):
+            if T_rel is not None and _tilt(T_rel[:3, :3]) <= np.radians(pm.max_tilt_change_deg):
+                guesses.append((self.pose @ T_rel, wide_r, wide_t, name))
+        candidates = [best]
+        for T0, gr, gt, name in guesses:
+            candidates.append(register(self.map, T0, cur, gr, gt, pm, name))
+        keys = [(not self._resolved(c, cur), score(self.map, c.T, cur, pm)) for c in candidates]
+        return candidates[min(range(len(candidates)), key=lambda i: keys[i])]
+
+    def _result(
+        self, reg: Registration, ok: bool, T_pred: np.ndarray, cur: ScanPlanes, used: np.ndarray
+    ) -> tuple[RelativePose, np.ndarray]:
+        """Step 4: the relative pose and the world pose kept."""
+        status = Status.UNRESOLVED
+        T = T_pred
+        if ok:
+            T = reg.T
+            status = Status.OK
+        T_rel = invert_transform(self.pose) @ T
+        rel = relative_pose(self, T_rel, reg.H if ok else None, status)
+        if rel.status is Status.UNRESOLVED:
+            T = T_pred
+            rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
+        assoc = self._associations(reg, used) if ok else np.zeros((0, 2), dtype=np.intp)
+        return _with_associations(rel, assoc, reg.stage), T
+
+    def _associations(self, reg: Registration, used: np.ndarray) -> np.ndarray:
+        """(L, 2) (plane index in the previous scan, plane index in this scan) through the
+        landmarks the previous scan observed last; injective."""
+        inl = reg.weights > 0.5
+        lm, jj = reg.landmarks[inl], reg.planes[inl]
+        seen = (self.map.last_seen[lm] == self.frame) & (self.map.last_index[lm] >= 0)
+        pairs = np.column_stack([self.map.last_index[lm[seen]], used[jj[seen]]])
+        if len(pairs) == 0:
+            return np.zeros((0, 2), dtype=np.intp)
+        _, first_prev = np.unique(pairs[:, 0], return_index=True)
+        pairs = pairs[np.sort(first_prev)]
+        _, first_curr = np.unique(pairs[:, 1], return_index=True)
+        return pairs[np.sort(first_curr)].astype(np.intp)
+
+    # ------------------------------------------------------------------ state
+
+    def reseed(self, planes: Sequence[Plane]) -> None:
+        """Build the map again from the first scan's ``planes`` (extracted again, e.g.
+        deskewed once a twist is known) while only that scan is in it; else nothing."""
+        if self.frame != 0:
+            return
+        self.__init__(self.config)  # type: ignore[misc]
+        self.commit(self.estimate(planes))
+
+    def commit(self, est: MapEstimate) -> None:
+        """Make ``est`` the scan's result: pose, velocity, deviation statistics, map."""
+        first = self.frame < 0
+        self.frame += 1
+        T = _orthonormalised(est.T)
+        if not first:
+            dev = invert_transform(est.T_pred) @ T
+            self._dev_sse += [_angle(dev[:3, :3]) ** 2, float(dev[:3, 3] @ dev[:3, 3])]
+            self._dev_n += 1
+            self.velocity = _orthonormalised(invert_transform(self.pose) @ T)
+        self.pose = T
+        self._prev = est.plane_set
+        cur = est.cur
+        if cur is None:
+            return
+        pm = self.config.planemap
+        assoc, w = np.full(len(cur), -1), np.zeros(len(cur))
+        measured = est.relative.status is not Status.UNRESOLVED
+        if measured and est.reg is not None:
+            assoc[est.reg.planes], w[est.reg.planes] = est.reg.landmarks, est.reg.weights
+            self._fractions.append(len(est.reg.inliers) / max(len(cur), 1))
+        elif not first and len(cur) >= pm.min_inliers and len(self.map):
+            self.map = PlaneMap()  # a detected failure: rebuild from this scan
+        update_map(self.map, est.T, cur.m, cur.normals, assoc, w, self.frame, est.used,
+                   cur.sigma, pm)  # fmt: skip
+
+
+def _with_associations(rel: RelativePose, assoc: np.ndarray, stage: str) -> RelativePose:
+    from dataclasses import replace
+
+    from planodom.association import PairAssociations
+    from planodom.odometry.relative import SolverDiagnostics
+
+    info = SolverDiagnostics(f"map:{stage}", PairAssociations.empty())
+    return replace(rel, associations=assoc, diagnostics=info)

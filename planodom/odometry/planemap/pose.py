@@ -1,0 +1,75 @@
+"""The plane-map registration as a :class:`RelativePose`: 5x5 covariance and status.
+
+The registration's information ``H`` (6, 6) is of the world-frame perturbation ``R <-
+exp(w) R, t <- t + dt`` of the scan's pose, the previous pose held fixed. For ``T_rel =
+inv(P) T`` that is ``w_rel = R_P^T w``, ``dt_rel = R_P^T dt``. The covariance is ``(H +
+H_0)^-1`` with the weak prior ``H_0 = diag(1 / bound^2)`` of the association's motion bounds
+(so a direction nothing observes gets the squared bound, as the paper's solver reports
+unmeasured DoF), mapped to (roll, pitch, yaw, x, y) through the Jacobian of the Euler
+angles (central differences) and floored by ``odometry.min_sigma_*``.
+
+Status: a rotation direction with a 1-sigma above ``unobserved_rotation_deg`` -> UNRESOLVED;
+a horizontal translation direction above ``unobserved_translation_m`` -> DEGENERATE
+(rotation only); the vertical is ``z_observed`` when its sigma is within that limit.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planodom.geometry import rpy_from_rotation
+from planodom.odometry.relative import RelativePose, Status
+
+if TYPE_CHECKING:
+    from planodom.odometry.planemap.odometry import PlaneMapOdometry
+
+
+def rpy_jacobian(R: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """(3, 3) d(roll, pitch, yaw) / dw of ``exp(w) R`` at w = 0 (central differences)."""
+    J = np.zeros((3, 3))
+    for k in range(3):
+        w = np.zeros(3)
+        w[k] = h
+        plus = rpy_from_rotation(Rotation.from_rotvec(w).as_matrix() @ R)
+        minus = rpy_from_rotation(Rotation.from_rotvec(-w).as_matrix() @ R)
+        J[:, k] = (np.angle(np.exp(1j * (plus - minus)))) / (2 * h)
+    return J
+
+
+def relative_pose(
+    odo: PlaneMapOdometry, T_rel: np.ndarray, H: np.ndarray | None, status: Status
+) -> RelativePose:
+    """The :class:`RelativePose` of ``T_rel`` with information ``H`` (module docstring)."""
+    cfg = odo.config
+    rot_b = np.radians(cfg.association.max_rotation_deg)
+    tr_b = cfg.association.max_translation_m
+    if H is None or status is Status.UNRESOLVED:
+        cov5 = np.diag([rot_b**2] * 3 + [tr_b**2] * 2)
+        return RelativePose(T_rel.copy(), cov5, Status.UNRESOLVED)
+    cov6 = np.linalg.inv(H + np.diag([rot_b**-2] * 3 + [tr_b**-2] * 3))
+    Rp = odo.pose[:3, :3]
+    B = np.zeros((6, 6))
+    B[:3, :3] = B[3:, 3:] = Rp.T
+    cov = B @ cov6 @ B.T
+    pm = cfg.planemap
+    if np.sqrt(np.linalg.eigvalsh(cov[:3, :3]).max()) > np.radians(pm.unobserved_rotation_deg):
+        return relative_pose(odo, T_rel, None, Status.UNRESOLVED)
+    horizontal = np.sqrt(np.linalg.eigvalsh(cov[3:5, 3:5]).max())
+    status = Status.DEGENERATE if horizontal > pm.unobserved_translation_m else Status.OK
+    J = np.zeros((5, 6))
+    J[:3, :3] = rpy_jacobian(T_rel[:3, :3])
+    J[3, 3] = J[4, 4] = 1.0
+    cov5 = J @ cov @ J.T
+    floors = np.r_[
+        [np.radians(cfg.odometry.min_sigma_rotation_deg) ** 2] * 3,
+        [cfg.odometry.min_sigma_translation_m**2] * 2,
+    ]
+    cov5 = cov5 + np.diag(floors)
+    sigma_z = float(np.sqrt(cov[5, 5]))
+    z_observed = sigma_z <= pm.unobserved_translation_m
+    return RelativePose(
+        T_rel.copy(), cov5, status, z_observed=z_observed, sigma_z=sigma_z if z_observed else np.inf
+    )

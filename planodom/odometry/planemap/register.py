@@ -1,0 +1,224 @@
+"""Association of a scan's planes with the map, and the robust Gauss-Newton on moments.
+
+Gates (KISS-ICP's adaptive threshold, per plane). ``s_rot, s_t`` are the RMS of the
+constant-velocity model's deviations so far (``|log(inv(T_pred) T_est)|``): no hand-set
+speed. A scan plane may associate with a landmark when, under the pose being refined, the
+moved normal is within ``3 sqrt(s_rot^2 + var_n + var_n_landmark)``, the RMS distance of
+its points to the landmark plane (from the moments: ``e^2 = (n.(R c + t) + d)^2 + n^T R S
+R^T n / N``) within ``3 sqrt((s_t + s_rot |c|)^2 + var_offsets + sigma^2 + bias^2)``, and
+the supports (bounding circles) come within that distance. The landmark with the least
+``e^2`` wins (several planes may share one). Association and Gauss-Newton alternate (ICP's
+outer loop) with the gates fixed per scan.
+
+Gauss-Newton: the four moment residuals per association (:mod:`.moments`), each whitened
+by its variance (plane noise with the laser bias, plus the landmark's own uncertainty at
+the moved centroid / along the moved axes), Cauchy weights on the whitened chi of the
+offset and the two tilt residuals (the thickness residual is the plane's own noise and
+carries no pose information to first order: it stays in the sum, not in the kernel).
+The step is solved on the eigenvalues of the (length-scaled) information: a direction with
+no information keeps its value (the prediction).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planodom.config import PlanemapConfig
+from planodom.odometry.planemap.landmarks import PlaneMap
+from planodom.odometry.planemap.moments import Moments, moment_residuals, residual_variance
+
+
+@dataclass(frozen=True, eq=False)
+class ScanPlanes:
+    """A scan's planes as the registration needs them (scan frame).
+
+    Attributes:
+        m: their moments. normals: (K, 3) oriented normals.
+        var_n: (K,) normal variance per axis (rad^2), var_o: (K,) offset variance at the
+            centroid (m^2), laser bias included. lam, E: eigen-decomposition of the
+            scatters (ascending). sigma: point noise (m). s2: (K,) residual variances.
+    """
+
+    m: Moments
+    normals: np.ndarray
+    var_n: np.ndarray
+    var_o: np.ndarray
+    lam: np.ndarray
+    E: np.ndarray
+    sigma: float
+    s2: np.ndarray
+
+    @classmethod
+    def of(cls, m: Moments, normals: np.ndarray, sigma: float, bias: float) -> ScanPlanes:
+        lam, E = np.linalg.eigh(m.S)
+        rows = np.maximum(m.rows, 1.0)
+        var_n = (sigma**2 + bias**2 * m.N / rows) / np.maximum(lam[:, 1], 1e-12)
+        var_o = sigma**2 / np.maximum(m.N, 1.0) + bias**2 / rows
+        s2 = residual_variance(sigma, bias, m.N, m.rows)
+        return cls(m, normals, var_n, var_o, lam, E, sigma, s2)
+
+    def __len__(self) -> int:
+        return len(self.m)
+
+
+@dataclass(frozen=True, eq=False)
+class Registration:
+    """A pose of the scan against the map and how well it is supported.
+
+    Attributes:
+        T: (4, 4) world from scan. H: (6, 6) information of (rotation, translation) in
+            the perturbation ``R <- exp(w) R, t <- t + dt``.
+        landmarks, planes: (m,) associated landmark and scan plane indices.
+        weights: (m,) Cauchy weights. stage: which hypothesis it started from.
+    """
+
+    T: np.ndarray
+    H: np.ndarray
+    landmarks: np.ndarray
+    planes: np.ndarray
+    weights: np.ndarray
+    stage: str
+
+    @property
+    def inliers(self) -> np.ndarray:
+        """Scan plane indices of the inlier associations (weight above 0.5)."""
+        return self.planes[self.weights > 0.5]
+
+
+def plane_landmark_errors(
+    M: PlaneMap, T: np.ndarray, cur: ScanPlanes
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per (plane, landmark) under pose ``T``: normal angle (K, L) rad, mean squared
+    point distance ``e^2`` (K, L) m^2, and the support separation (K, L) m."""
+    R, t = T[:3, :3], T[:3, 3]
+    nw = cur.normals @ R.T
+    cw = cur.m.c @ R.T + t
+    ang = np.arccos(np.clip(nw @ M.n.T, -1.0, 1.0))
+    off = cw @ M.n.T + M.d[None]
+    Sw = R @ cur.m.S @ R.T
+    nn = (M.n[:, :, None] * M.n[:, None, :]).reshape(-1, 9)  # n n^T per landmark
+    e2 = off**2 + (Sw.reshape(-1, 9) @ nn.T) / cur.m.N[:, None]
+    radius = np.sqrt(3.0 * np.trace(cur.m.S, axis1=1, axis2=2) / cur.m.N)
+    sep = np.linalg.norm(cw[:, None] - M.c[None], axis=2) - M.radius[None] - radius[:, None]
+    return ang, e2, sep
+
+
+def associate(
+    M: PlaneMap, T: np.ndarray, cur: ScanPlanes, s_r: float, s_t: float, bias: float
+) -> np.ndarray:
+    """(K,) the best landmark of every scan plane under pose ``T`` (-1: none)."""
+    if len(M) == 0 or len(cur) == 0:
+        return np.full(len(cur), -1)
+    ang, e2, sep = plane_landmark_errors(M, T, cur)
+    var_nL = np.trace(M.cov_n, axis1=1, axis2=2) / 2
+    g_ang = 3 * np.sqrt(s_r**2 + cur.var_n[:, None] + var_nL[None])
+    cw = cur.m.c @ T[:3, :3].T + T[:3, 3]
+    # (x - c)^T C (x - c) for every plane centroid x and landmark (c, C), as matrix products.
+    C = M.cov_n
+    Cc = np.einsum("lik,lk->li", C, M.c)
+    xx = (cw[:, :, None] * cw[:, None, :]).reshape(-1, 9)
+    quad = xx @ C.reshape(-1, 9).T - 2.0 * cw @ Cc.T + np.einsum("li,li->l", M.c, Cc)[None]
+    vL = quad + M.var_o[None]
+    radius = np.sqrt(3.0 * np.trace(cur.m.S, axis1=1, axis2=2) / cur.m.N)
+    lever = np.linalg.norm(cur.m.c, axis=1) + radius
+    g_d2 = 9 * (
+        (s_t + s_r * lever[:, None]) ** 2 + cur.var_o[:, None] + vL + cur.sigma**2 + bias**2
+    )
+    ok = (ang <= g_ang) & (e2 <= g_d2) & (sep <= np.sqrt(g_d2))
+    cost = np.where(ok, e2, np.inf)
+    best = np.argmin(cost, axis=1)
+    has = np.isfinite(cost[np.arange(len(cur)), best])
+    return np.where(has, best, -1)
+
+
+def solve(
+    M: PlaneMap,
+    T0: np.ndarray,
+    cur: ScanPlanes,
+    lm: np.ndarray,
+    jj: np.ndarray,
+    config: PlanemapConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Robust Gauss-Newton of the associations (scan plane ``jj[k]`` -> landmark
+    ``lm[k]``) from ``T0``: the pose, its information (6, 6) and the Cauchy weights."""
+    R, t = T0[:3, :3].copy(), T0[:3, 3].copy()
+    n, d = M.n[lm], M.d[lm]
+    N, c, lam, E = cur.m.N[jj], cur.m.c[jj], cur.lam[jj], cur.E[jj]
+    s2 = cur.s2[jj]
+    H, w = np.eye(6), np.ones(len(lm))
+    # Length scale of the solve: rotation and translation steps of comparable size.
+    L = max(float(np.median(np.linalg.norm(c, axis=1))), 1.0)
+    scale = np.r_[np.ones(3), np.full(3, 1.0 / L)]
+    for _ in range(config.gn_iterations):
+        r, J, U = moment_residuals(R, t, n, d, N, c, lam, E)
+        x = c @ R.T + t
+        v = np.empty_like(r)
+        v[:, 0] = s2 + N * M.var_at(lm, x)
+        v[:, 1:] = s2[:, None] + lam * np.einsum("mak,mab,mbk->mk", U, M.cov_n[lm], U)
+        chi2 = (r[:, 0] ** 2 / v[:, 0] + r[:, 2] ** 2 / v[:, 2] + r[:, 3] ** 2 / v[:, 3]) / 3.0
+        w = 1.0 / (1.0 + chi2 / config.cauchy_scale**2)
+        Wr = w[:, None] / v
+        H = np.einsum("mk,mki,mkj->ij", Wr, J, J)
+        g = np.einsum("mk,mki,mk->i", Wr, J, r)
+        ev, V = np.linalg.eigh(H / np.outer(scale, scale))
+        inv = np.where(ev > 1e-9 * ev.max(), 1.0 / np.maximum(ev, 1e-300), 0.0)
+        dx = -((V * inv) @ V.T @ (g / scale)) / scale
+        R = Rotation.from_rotvec(dx[:3]).as_matrix() @ R
+        t = t + dx[3:]
+        if np.linalg.norm(dx[:3]) < 1e-9 and np.linalg.norm(dx[3:]) < 1e-8:
+            break
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T, H, w
+
+
+def register(
+    M: PlaneMap,
+    T0: np.ndarray,
+    cur: ScanPlanes,
+    s_r: float,
+    s_t: float,
+    config: PlanemapConfig,
+    stage: str,
+) -> Registration:
+    """Association and Gauss-Newton alternated from ``T0`` until the associations repeat
+    (at most ``association_rounds``)."""
+    T, H = T0, np.zeros((6, 6))
+    w = np.zeros(0)
+    lm = jj = np.zeros(0, dtype=np.intp)
+    seen = None
+    for _ in range(config.association_rounds):
+        a = associate(M, T, cur, s_r, s_t, config.laser_bias_m)
+        key = a.tobytes()
+        if key == seen:
+            break
+        seen = key
+        jj_new = np.flatnonzero(a >= 0)
+        if len(jj_new) < 3:
+            if len(jj) == 0:
+                lm, jj = a[jj_new], jj_new
+            break
+        jj, lm = jj_new, a[jj_new]
+        T, H, w = solve(M, T, cur, lm, jj, config)
+    if len(w) != len(jj):
+        w = np.zeros(len(jj))
+    return Registration(T, H, lm, jj, w, stage)
+
+
+def score(M: PlaneMap, T: np.ndarray, cur: ScanPlanes, config: PlanemapConfig) -> float:
+    """Robust point-to-plane cost of ALL the scan's planes against the map under ``T``
+    (lower is better): per plane the least whitened cost over landmarks with a normal
+    within 3 of its sigmas plus 3 deg, ``(N e^2 - lam_min) / s2`` (the plane's own
+    thickness removed: about chi^2 with 3 DoF), truncated at 3 residuals of
+    ``score_truncation`` sigmas; an unexplained plane costs the truncation."""
+    cap = 3.0 * config.score_truncation**2
+    if len(M) == 0 or len(cur) == 0:
+        return cap * len(cur)
+    ang, e2, _ = plane_landmark_errors(M, T, cur)
+    lim = np.radians(3.0) + 3 * np.sqrt(cur.var_n)
+    chi2 = (cur.m.N[:, None] * e2 - cur.lam[:, :1]) / cur.s2[:, None]
+    chi2 = np.where(ang <= lim[:, None], np.maximum(chi2, 0.0), np.inf)
+    return float(np.minimum(chi2.min(axis=1), cap).sum())

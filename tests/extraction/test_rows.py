@@ -1,0 +1,81 @@
+"""Unorganised lidar clouds (no ring, no time): scan rows recovered from the points, and
+planes on the recovered range image."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planodom.config import ExtractionConfig
+from planodom.extraction import extract
+from planodom.extraction.lidar.rows import elevation_rows, ring_major_rows, scan_rows
+from planodom.scan import Scan
+
+from .synth_scans import default_scene, planes_in_base, scan_lidar
+
+SCENE = default_scene()
+TRUTH = planes_in_base(SCENE)
+HEIGHT = 1.8  # the synthetic lidar's origin above the base origin
+
+
+def _same_partition(rows: np.ndarray, ring: np.ndarray) -> bool:
+    """Rows label the rings one to one (in any order)."""
+    pairs = np.unique(np.column_stack([rows, ring]), axis=0)
+    return len(pairs) == len(np.unique(rows)) == len(np.unique(ring))
+
+
+def test_elevation_rows_of_a_column_major_cloud_are_its_rings():
+    scan = scan_lidar(SCENE, n_azimuth=512)
+    found = scan_rows(scan.points, np.array([0, 0, HEIGHT]))
+    assert found is not None
+    rows, mode = found
+    assert mode == "elevation" and _same_partition(rows, scan.ring)
+    # Lowest beam first.
+    assert np.all(np.diff([np.median(scan.ring[rows == r]) for r in np.unique(rows)]) > 0)
+
+
+def test_rows_need_the_sensor_origin():
+    """Seen from the base origin, 1.8 m below the sensor, elevations are not constant per
+    beam and the modes smear: the rows found are not the rings."""
+    scan = scan_lidar(SCENE, n_azimuth=512)
+    found = scan_rows(scan.points)
+    assert found is None or not _same_partition(found[0], scan.ring)
+
+
+def test_ring_major_rows_follow_the_file_order():
+    scan = scan_lidar(SCENE, n_azimuth=512)
+    order = np.argsort(scan.ring, kind="stable")  # one beam's revolution after the other
+    pts = scan.points[order] - [0, 0, HEIGHT]
+    rows = ring_major_rows(pts)
+    assert rows is not None
+    assert _same_partition(rows, scan.ring[order]) and np.all(np.diff(rows) >= 0)
+    # A shuffled cloud is not ring-major, but its elevations still give the rings.
+    perm = np.random.default_rng(0).permutation(len(pts))
+    assert ring_major_rows(pts[perm]) is None
+    assert _same_partition(elevation_rows(pts[perm]), scan.ring[order][perm])
+
+
+def test_a_cloud_without_beams_has_no_rows():
+    rng = np.random.default_rng(1)
+    assert scan_rows(rng.normal(size=(5000, 3)) * 10) is None
+
+
+def test_unorganised_cloud_gives_the_walls_with_moments():
+    scan = scan_lidar(SCENE, n_azimuth=1024, with_ring=False)
+    bare = Scan(scan.points, None, None, scan.label)
+    res = extract(bare, ExtractionConfig(), sensor_origins=np.array([0, 0, HEIGHT]))
+    assert res.mode == "lidar"
+    assert {p.truth_id for p in res.planes} == set(TRUTH)
+    for p, idx in zip(res.planes, res.inliers, strict=True):
+        n, d = TRUTH[p.truth_id]
+        assert np.degrees(np.arccos(np.clip(p.normal @ n, -1, 1))) < 0.05
+        assert abs(p.offset - d) < 0.01
+        sup = p.support
+        P = bare.points[idx]
+        assert sup.n_points == len(idx) and sup.n_rows >= 2
+        np.testing.assert_allclose(sup.scatter, (P - P.mean(0)).T @ (P - P.mean(0)), atol=1e-6)
+    # One plane per wall: coplanar pieces merged.
+    ids = [p.truth_id for p in res.planes]
+    assert len(ids) == len(set(ids))
+    again = extract(bare, ExtractionConfig(), sensor_origins=np.array([0, 0, HEIGHT]))
+    for a, b in zip(res.planes, again.planes, strict=True):
+        np.testing.assert_array_equal(a.coefficients, b.coefficients)
