@@ -128,6 +128,28 @@ class SmoothingConfig(Section):
     its uncertainty would otherwise be added to every pose's (``prior_sigma`` times the
     distance in translation). False: gtsam's marginals with that prior."""
 
+    loop_closure: bool = True
+    """Batch: re-identify planes of a global map near the predicted pose and tie revisited
+    landmarks (planodom.smoothing.loops); off: landmarks only from the tracks (delta <= D)."""
+    loop_min_gap_epochs: Annotated[int, Field(ge=1)] = 50
+    """A map landmark is a re-identification candidate once unseen for this many epochs."""
+    loop_radius_m: Positive = 20.0
+    """Map landmarks whose support comes within this of the predicted position are
+    candidates, m."""
+    loop_drift_fraction: Positive = 0.05
+    """Translation bound of a re-identification: this fraction of the distance driven since
+    the candidates were last seen (plus ``loop_min_translation_m``)."""
+    loop_min_translation_m: Positive = 0.5
+    """Smallest translation bound of a re-identification, m."""
+    loop_rotation_deg_per_m: Positive = 0.1
+    """Rotation bound of a re-identification per metre driven since last seen (plus the
+    association's ``prior_rotation_deg``), degrees; at most 45."""
+    loop_min_matches: Annotated[int, Field(ge=2)] = 3
+    """Strict associations (non-parallel normals among them) a re-identification needs."""
+    loop_gate_quantile: Fraction = 0.999
+    """After optimisation, a re-identified observation whose squared whitened error exceeds
+    this quantile of chi2(3) is removed and the graph solved again."""
+
     def model_post_init(self, context: object, /) -> None:
         """Cross-field checks (one-line :class:`ConfigError` naming the field)."""
         if self.window <= self.delta_max:

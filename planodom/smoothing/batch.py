@@ -14,6 +14,11 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats, X
+from planodom.smoothing.loops import (
+    LoopClosingBuilder,
+    Reidentification,
+    gate_reidentifications,
+)
 
 
 @dataclass
@@ -35,6 +40,8 @@ class SmoothingResult:
         online_poses: (E, 4, 4) windowed only: each pose as estimated when its epoch was
             the newest (the real-time output); None for batch.
         errors: optimiser's error (0.5 sum of squared whitened residuals) per iteration.
+        reidentifications: loop closure: the observations tied to old landmarks
+            (:mod:`planodom.smoothing.loops`), with the gate's verdict and the truth.
         covariance_note: why ``covariances`` is None although asked for (a nearly
             indeterminant system, e.g. long stretches bridged only by fallback factors).
     """
@@ -49,6 +56,7 @@ class SmoothingResult:
     online_poses: np.ndarray | None = None
     errors: list[float] = field(default_factory=list)
     covariance_note: str | None = None
+    reidentifications: list[Reidentification] = field(default_factory=list)
 
 
 def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> SmoothingConfig:
@@ -128,6 +136,8 @@ def covariance_graph(
     out = gtsam.NonlinearFactorGraph()
     for i in range(graph.size()):
         twin = gaussian.get(i)
+        if graph.at(i) is None:  # removed (a re-identification refused by the gate)
+            continue
         if twin is not None and 2.0 * twin.error(values) <= chi2.ppf(inlier_quantile, twin.dim()):
             out.add(twin)
         else:
@@ -233,12 +243,18 @@ def smooth_batch(
     """
     cfg = smoothing_config(config)
     start = time.perf_counter()
-    builder = GraphBuilder(cfg, T_world_first)
+    builder: GraphBuilder = GraphBuilder(cfg, T_world_first)
+    if cfg.loop_closure:
+        full = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
+        builder = LoopClosingBuilder(full, T_world_first)
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     gaussian: dict[int, gtsam.NonlinearFactor] = {}
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
     for k, planes in enumerate(epochs_planes):
+        n_reids = len(getattr(builder, "reidentifications", ()))
         update = builder.add_epoch(planes, by_epoch[k])
+        for r in getattr(builder, "reidentifications", ())[n_reids:]:
+            r.factor += graph.size()
         gaussian |= {graph.size() + i: f for i, f in update.gaussian.items()}
         graph.push_back(update.factors)
         values.insert(update.values)
@@ -247,6 +263,15 @@ def smooth_batch(
     estimate, errors = levenberg_marquardt(
         graph, values, cfg.max_iterations, cfg.relative_error_tol
     )
+    for _ in range(3):  # re-identifications inconsistent with the estimate: out, solve again
+        if not isinstance(builder, LoopClosingBuilder):
+            break
+        if not gate_reidentifications(builder, graph, gaussian, estimate):
+            break
+        estimate, more = levenberg_marquardt(
+            graph, estimate, cfg.max_iterations, cfg.relative_error_tol
+        )
+        errors += more
     builder.update_estimates(estimate)
     covariances, note = None, None
     if cfg.compute_covariances:
@@ -271,4 +296,5 @@ def smooth_batch(
         runtime_s=time.perf_counter() - start,
         errors=errors,
         covariance_note=note,
+        reidentifications=list(getattr(builder, "reidentifications", [])),
     )

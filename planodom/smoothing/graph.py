@@ -95,6 +95,8 @@ class GraphStats:
     flipped: int = 0
     rejected_flips: int = 0
     gated: int = 0
+    reidentified: int = 0
+    reidentified_removed: int = 0
     dropped_observations: int = 0
     unresolved_epochs: list[int] = field(default_factory=list)
 
@@ -107,6 +109,7 @@ class _Landmark:
     plane_world: np.ndarray  # (4,) current estimate, world frame
     last_epoch: int  # latest epoch whose update touched the landmark (its timestamp)
     last_seen: tuple[int, np.ndarray] | None = None  # last accepted (epoch, (4,) base frame)
+    last_index: int = -1  # plane index of that observation
 
 
 def plane_from_anchor(T_world_anchor: np.ndarray, plane_anchor: np.ndarray) -> np.ndarray:
@@ -136,6 +139,7 @@ class GraphBuilder:
         self._last_step: np.ndarray | None = None
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
+        self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
 
     # ----------------------------------------------------------------- building
 
@@ -201,6 +205,7 @@ class GraphBuilder:
         ]
         measured = [r for r in usable if r.measured]
         self._add_pose(measured, min_epoch, update)
+        self._reidentify(update)
         # Associations track planes even when their relative pose gave no factor.
         associations = {r.delta: r.associations for r in usable}
         roots = self.tracker.add_epoch(k, len(planes), associations)
@@ -245,6 +250,10 @@ class GraphBuilder:
         self.poses[k] = T
         update.values.insert(X(k), gtsam.Pose3(T))
         update.timestamps[X(k)] = float(k)
+
+    def _reidentify(self, update: GraphUpdate) -> None:
+        """Hook: factors of this epoch's planes on older landmarks (see
+        :class:`planodom.smoothing.loops.LoopClosingBuilder`); none here."""
 
     def _add_between_factors(self, measured: list[RelativePose], update: GraphUpdate) -> None:
         """A 5-DoF (or rotation-only) factor per measured relative pose into this epoch,
@@ -335,6 +344,8 @@ class GraphBuilder:
         graph, k = update.factors, update.epoch
         usable = []
         for e, i in self.tracker.take_pending(root):
+            if (e, i) in self.reidentified:  # a factor on an older landmark already
+                continue
             if e < min_epoch or e not in self.poses:
                 self.stats.dropped_observations += 1
             else:
@@ -362,23 +373,27 @@ class GraphBuilder:
             if not self._within_gate(plane.coefficients, predicted):
                 self.stats.gated += 1
                 continue
-            noise = plane_noise(
-                plane_covariance(plane, self.config), isotropic_normal=lm.anchor_key is None
-            )
-            if lm.anchor_key is None:
-                graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
-            else:
-                make = partial(
-                    anchored_plane_factor, X(e), lm.anchor_key, lm.key, plane.coefficients
-                )
-                self._add(graph, make, noise, self._robust_planes)
-            self.stats.plane_factors += 1
+            self._plane_factor(lm, e, plane, graph, self._robust_planes)
             self._factor_landmark[(e, i)] = j
-            lm.last_seen = (e, plane.coefficients)
+            lm.last_seen, lm.last_index = (e, plane.coefficients), i
         lm.last_epoch = k
         update.timestamps[lm.key] = float(k)
         if lm.anchor_key is not None:
             update.timestamps[lm.anchor_key] = float(k)
+
+    def _plane_factor(
+        self, lm: _Landmark, e: int, plane: Plane, graph: gtsam.NonlinearFactorGraph, robust: bool
+    ) -> None:
+        """A plane factor of observation ``plane`` (oriented) from ``X(e)`` on ``lm``."""
+        noise = plane_noise(
+            plane_covariance(plane, self.config), isotropic_normal=lm.anchor_key is None
+        )
+        if lm.anchor_key is None:
+            graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
+        else:
+            make = partial(anchored_plane_factor, X(e), lm.anchor_key, lm.key, plane.coefficients)
+            self._add(graph, make, noise, robust)
+        self.stats.plane_factors += 1
 
     def _predict(self, lm: _Landmark, epoch: int) -> np.ndarray:
         """(4,) the landmark as epoch ``epoch`` should see it, for the flip and gate checks.
