@@ -146,6 +146,9 @@ class SmoothingConfig(Section):
     association's ``prior_rotation_deg``), degrees; at most 45."""
     loop_min_matches: Annotated[int, Field(ge=2)] = 3
     """Strict associations (non-parallel normals among them) a re-identification needs."""
+    loop_accept_degenerate: bool = True
+    """Also accept a match whose rotation only is determined (one old wall and the ground):
+    its strict associations tie the old landmarks (the gate checks them afterwards)."""
     loop_gate_quantile: Fraction = 0.999
     """After optimisation, a re-identified observation whose squared whitened error exceeds
     this quantile of chi2(3) is removed and the graph solved again."""
