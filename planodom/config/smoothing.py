@@ -136,14 +136,21 @@ class SmoothingConfig(Section):
     loop_radius_m: Positive = 20.0
     """Map landmarks whose support comes within this of the predicted position are
     candidates, m."""
+    loop_max_candidates: Annotated[int, Field(ge=2)] = 24
+    """At most this many candidates (the nearest) per epoch: LDA's cost grows with the
+    square of the plane pairs."""
     loop_drift_fraction: Positive = 0.05
-    """Translation bound of a re-identification: this fraction of the distance driven since
-    the candidates were last seen (plus ``loop_min_translation_m``)."""
+    """Largest translation bound of a re-identification: this fraction of the distance
+    driven since the candidates were last seen (plus ``loop_min_translation_m``)."""
+    loop_sigmas: Positive = 3.0
+    """Bounds of a re-identification: this many standard deviations of the odometry chained
+    since the candidates were last seen (its covariances; the fallback sigmas for an
+    epoch it did not measure), capped by the drift fraction / rotation per metre."""
     loop_min_translation_m: Positive = 0.5
     """Smallest translation bound of a re-identification, m."""
     loop_rotation_deg_per_m: Positive = 0.1
-    """Rotation bound of a re-identification per metre driven since last seen (plus the
-    association's ``prior_rotation_deg``), degrees; at most 45."""
+    """Largest rotation bound of a re-identification per metre driven since last seen (plus
+    the association's ``prior_rotation_deg``), degrees; at most 45."""
     loop_min_matches: Annotated[int, Field(ge=2)] = 3
     """Strict associations (non-parallel normals among them) a re-identification needs."""
     loop_accept_degenerate: bool = True

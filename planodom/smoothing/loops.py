@@ -26,6 +26,7 @@ planes' true surface ids (``truth_id``): :class:`Reidentification`.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import gtsam
@@ -39,6 +40,9 @@ from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
 GROUND_COS = 0.9
+#: Only walls (|z| of the normal at most this) are re-identified: they observe the
+#: horizontal position and yaw, what the 5-DoF odometry lets drift.
+WALL_SIN = 0.5
 #: Candidates closer than these (normals, offsets) are one plane seen by two tracks.
 DUPLICATE_COS, DUPLICATE_OFFSET_M = float(np.cos(np.radians(3.0))), 0.2
 #: Largest rotation bound of a re-identification, degrees.
@@ -119,6 +123,7 @@ class LoopClosingBuilder(GraphBuilder):
         self.reidentifications: list[Reidentification] = []
         self.attempts = 0
         self.travelled: list[float] = []
+        self.variances: list[tuple[float, float]] = []  # chained (xy, yaw) variance sums
         self._extents: dict[int, tuple[int, np.ndarray, float]] = {}  # j -> (epoch, c, r)
 
     def _extent_of(self, j: int) -> tuple[np.ndarray, float]:
@@ -150,12 +155,16 @@ class LoopClosingBuilder(GraphBuilder):
             centre, radius = self._extent_of(j)
             if np.linalg.norm(centre - position) - radius > c.loop_radius_m:
                 continue
-            e, horizontal = lm.last_seen[0], abs(lm.plane_world[2]) >= GROUND_COS
-            if horizontal and e > ground_epoch:
+            e, nz = lm.last_seen[0], abs(lm.plane_world[2])
+            if nz >= GROUND_COS and e > ground_epoch:
                 ground, ground_epoch = j, e
-            elif not horizontal and e <= k - c.loop_min_gap_epochs:
+            elif nz <= WALL_SIN and e <= k - c.loop_min_gap_epochs:
                 out.append(j)
-        return self._distinct(out), ground
+        out = self._distinct(out)
+        if len(out) > c.loop_max_candidates:  # the nearest ones
+            gap = {j: np.linalg.norm(self._extents[j][1] - position) - self._extents[j][2] for j in out}
+            out = sorted(sorted(out, key=lambda j: (gap[j], j))[: c.loop_max_candidates])
+        return out, ground
 
     def _distinct(self, candidates: list[int]) -> list[int]:
         """One landmark per physical plane: of candidates within 3 deg and 0.2 m of each
@@ -192,11 +201,34 @@ class LoopClosingBuilder(GraphBuilder):
         world = replace(world, support=PlaneSupport(centre, polygon, n_points))
         return world.transformed(T_pred_world)
 
-    def _match_config(self, distance: float) -> PlanodomConfig:
+    def add_epoch(self, planes, relatives=(), min_epoch=0):  # type: ignore[no-untyped-def]
+        """:meth:`GraphBuilder.add_epoch`, noting the variances of the step into the epoch
+        (the delta = 1 relative pose's, or the fallback's when it is not measured)."""
+        k, c = self.n_epochs, self.config
+        var_t, var_r = c.fallback_translation_sigma_m**2, c.fallback_rotation_sigma_rad**2
+        for r in relatives:
+            if r.curr == k and r.delta == 1 and r.translation_observed and r.covariance is not None:
+                cov = np.asarray(r.covariance, dtype=float).reshape(5, 5)
+                var_t, var_r = float(cov[3, 3] + cov[4, 4]), float(cov[2, 2])
+        last_t, last_r = self.variances[-1] if self.variances else (0.0, 0.0)
+        self.variances.append((last_t + var_t if k else 0.0, last_r + var_r if k else 0.0))
+        return super().add_epoch(planes, relatives, min_epoch)
+
+    def _match_config(self, oldest: int, k: int) -> PlanodomConfig:
+        """Association bounds around the prediction for candidates last seen at ``oldest``:
+        ``loop_sigmas`` standard deviations of the chained odometry between the two epochs
+        (translation, and rotation times the distance driven), at most the drift fraction
+        of that distance; plus the minima."""
         c, a = self.config, self.full_config.association
-        translation = c.loop_min_translation_m + c.loop_drift_fraction * distance
+        distance = self.travelled[k] - self.travelled[oldest]
+        sigma_t = np.sqrt(self.variances[k][0] - self.variances[oldest][0])
+        sigma_r = np.sqrt(self.variances[k][1] - self.variances[oldest][1])
+        grown = c.loop_sigmas * (sigma_t + sigma_r * distance)
+        translation = c.loop_min_translation_m + min(grown, c.loop_drift_fraction * distance)
+        rotation_deg = c.loop_sigmas * np.degrees(sigma_r)
         rotation = min(
-            a.prior_rotation_deg + c.loop_rotation_deg_per_m * distance, MAX_ROTATION_BOUND_DEG
+            a.prior_rotation_deg + min(rotation_deg, c.loop_rotation_deg_per_m * distance),
+            MAX_ROTATION_BOUND_DEG,
         )
         changes = {
             "association.prior_translation_m": translation,
@@ -218,7 +250,7 @@ class LoopClosingBuilder(GraphBuilder):
         self.attempts += 1
         T_pred_world = invert_transform(self.poses[k])
         oldest = min(self.landmarks[j].last_seen[0] for j in candidates)  # type: ignore[index]
-        cfg = self._match_config(self.travelled[k] - self.travelled[oldest])
+        cfg = self._match_config(oldest, k)
         context = [] if ground is None else [ground]
         map_planes = [self._map_plane(j, T_pred_world) for j in candidates + context]
         rel = estimate_relative_pose(map_planes, curr, cfg, prior=np.eye(4))
@@ -259,12 +291,13 @@ def gate_reidentifications(
     """Remove the re-identified factors inconsistent with ``values`` (see module
     docstring) from ``graph`` (and their Gaussian twins); returns how many."""
     limit = chi2.ppf(builder.config.loop_gate_quantile, 3)
+    failed = set()
+    for r in builder.reidentifications:
+        if not r.removed and 2.0 * gaussian.get(r.factor, graph.at(r.factor)).error(values) > limit:
+            failed.add(r.epoch)
     removed = 0
     for r in builder.reidentifications:
-        if r.removed:
-            continue
-        factor = gaussian.get(r.factor, graph.at(r.factor))
-        if 2.0 * factor.error(values) > limit:
+        if not r.removed and r.epoch in failed:  # one match, one hypothesis: all out
             graph.remove(r.factor)
             gaussian.pop(r.factor, None)
             r.removed = True
@@ -273,13 +306,25 @@ def gate_reidentifications(
     return removed
 
 
-def reidentification_counts(builder: GraphBuilder) -> dict[str, int]:
-    """Accepted, removed and (on simulated data) wrong re-identifications kept / removed."""
-    reids = getattr(builder, "reidentifications", [])
+def reidentification_counts(
+    reids: Sequence[Reidentification],
+    same_plane: Callable[[int, int], bool] | None = None,
+) -> dict[str, int]:
+    """Accepted, removed and (on simulated data) wrong re-identifications, kept / removed.
+
+    ``same_plane(a, b)``: whether true surfaces a and b lie in one plane (two segments of
+    one facade are one plane to a plane map); default: same surface id.
+    """
+
+    def wrong(r: Reidentification) -> bool:
+        if same_plane is None or min(r.truth_plane, r.truth_landmark) < 0:
+            return r.wrong
+        return not same_plane(r.truth_plane, r.truth_landmark)
+
     kept = [r for r in reids if not r.removed]
     return {
         "reidentified": len(kept),
         "reidentified_removed": len(reids) - len(kept),
-        "wrong_kept": sum(r.wrong for r in kept),
-        "wrong_removed": sum(r.wrong for r in reids if r.removed),
+        "wrong_kept": sum(wrong(r) for r in kept),
+        "wrong_removed": sum(wrong(r) for r in reids if r.removed),
     }
