@@ -95,8 +95,7 @@ class GraphStats:
     flipped: int = 0
     rejected_flips: int = 0
     gated: int = 0
-    reidentified: int = 0
-    reidentified_removed: int = 0
+    reidentified, reidentified_removed = 0, 0  # loop closure: ties, refused by the gate
     dropped_observations: int = 0
     unresolved_epochs: list[int] = field(default_factory=list)
 
@@ -252,8 +251,7 @@ class GraphBuilder:
         update.timestamps[X(k)] = float(k)
 
     def _reidentify(self, update: GraphUpdate) -> None:
-        """Hook: factors of this epoch's planes on older landmarks (see
-        :class:`planodom.smoothing.loops.LoopClosingBuilder`); none here."""
+        """Hook: ties to old landmarks (:class:`planodom.smoothing.loops.LoopClosingBuilder`)."""
 
     def _add_between_factors(self, measured: list[RelativePose], update: GraphUpdate) -> None:
         """A 5-DoF (or rotation-only) factor per measured relative pose into this epoch,

@@ -35,7 +35,7 @@ from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, PlaneSupport, invert_transform
-from planodom.odometry import Status, estimate_relative_pose
+from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
@@ -87,9 +87,7 @@ def _extent(plane: Plane, T_world_base: np.ndarray) -> tuple[np.ndarray, float]:
     return T_world_base[:3, :3] @ sup.centroid + T_world_base[:3, 3], radius
 
 
-def _sphere_union(
-    c1: np.ndarray, r1: float, c2: np.ndarray, r2: float
-) -> tuple[np.ndarray, float]:
+def _sphere_union(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -> tuple[np.ndarray, float]:
     """The smallest sphere holding spheres (c1, r1) and (c2, r2)."""
     dist = float(np.linalg.norm(c2 - c1))
     if dist + r2 <= r1:
@@ -146,7 +144,7 @@ class LoopClosingBuilder(GraphBuilder):
         but ground-like ones, and the most recently seen near ground-like landmark
         (context: it gives the walls' dihedral angles a horizontal partner; never tied:
         tying old ground pieces, tilted by their few observations, raised the ATE from
-        0.08 to 0.20 m on the issue world).""" 
+        0.08 to 0.20 m on the issue world)."""
         c, position = self.config, self.poses[k][:3, 3]
         out, ground, ground_epoch = [], None, -1
         for j, lm in self.landmarks.items():
@@ -162,7 +160,8 @@ class LoopClosingBuilder(GraphBuilder):
                 out.append(j)
         out = self._distinct(out)
         if len(out) > c.loop_max_candidates:  # the nearest ones
-            gap = {j: np.linalg.norm(self._extents[j][1] - position) - self._extents[j][2] for j in out}
+            ext = self._extents
+            gap = {j: np.linalg.norm(ext[j][1] - position) - ext[j][2] for j in out}
             out = sorted(sorted(out, key=lambda j: (gap[j], j))[: c.loop_max_candidates])
         return out, ground
 
@@ -201,7 +200,9 @@ class LoopClosingBuilder(GraphBuilder):
         world = replace(world, support=PlaneSupport(centre, polygon, n_points))
         return world.transformed(T_pred_world)
 
-    def add_epoch(self, planes, relatives=(), min_epoch=0):  # type: ignore[no-untyped-def]
+    def add_epoch(
+        self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
+    ) -> GraphUpdate:
         """:meth:`GraphBuilder.add_epoch`, noting the variances of the step into the epoch
         (the delta = 1 relative pose's, or the fallback's when it is not measured)."""
         k, c = self.n_epochs, self.config
@@ -239,8 +240,8 @@ class LoopClosingBuilder(GraphBuilder):
 
     def _reidentify(self, update: GraphUpdate) -> None:
         k, c = update.epoch, self.config
-        step = 0.0 if k == 0 else float(np.linalg.norm(self.poses[k][:2, 3] - self.poses[k - 1][:2, 3]))
-        self.travelled.append((self.travelled[-1] if self.travelled else 0.0) + step)
+        step = 0.0 if k == 0 else np.linalg.norm(self.poses[k][:2, 3] - self.poses[k - 1][:2, 3])
+        self.travelled.append((self.travelled[-1] if self.travelled else 0.0) + float(step))
         curr = self.planes[k]
         if not c.loop_closure or len(curr) < c.loop_min_matches:
             return
@@ -258,7 +259,10 @@ class LoopClosingBuilder(GraphBuilder):
         old = pairs[pairs[:, 0] < len(candidates)]
         full = rel.status is Status.OK and len(pairs) >= c.loop_min_matches and len(old) >= 2
         rotation = rel.status is Status.DEGENERATE and c.loop_accept_degenerate and len(old) >= 1
-        if not (full or rotation) or not non_parallel(np.stack([curr[i].normal for i in pairs[:, 1]])):
+        normals = (
+            np.stack([curr[i].normal for i in pairs[:, 1]]) if len(pairs) else np.zeros((0, 3))
+        )
+        if not (full or rotation) or not non_parallel(normals):
             return
         R = np.asarray(rel.T_prev_curr)[:3, :3]
         for m, i in old:
