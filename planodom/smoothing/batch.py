@@ -28,7 +28,8 @@ class SmoothingResult:
     Attributes:
         poses: (E, 4, 4) smoothed ``T_world_base``.
         initial_poses: (E, 4, 4) the initial guess (odometry chained with the smallest
-            resolved delta, constant velocity where unresolved).
+            resolved delta, constant velocity where unresolved; or the fixed-lag
+            smoother's estimate, ``smoothing.batch_initial``).
         covariances: (E, 6, 6) marginal covariances of the poses in gtsam's Pose3 tangent
             ``[rot (rad), trans (m)]`` at the estimate, right perturbation (body frame),
             relative to the first pose unless ``covariances_relative_to_first`` is off
@@ -247,6 +248,12 @@ def smooth_batch(
     if cfg.loop_closure:
         full = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
         builder = LoopClosingBuilder(full, T_world_first)
+    if cfg.batch_initial == "windowed":
+        from planodom.smoothing.windowed import smooth_windowed
+
+        builder.initial_poses = smooth_windowed(epochs_planes, relative_poses, cfg).poses
+        if T_world_first is not None:
+            builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     gaussian: dict[int, gtsam.NonlinearFactor] = {}
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))

@@ -95,7 +95,8 @@ class GraphStats:
     flipped: int = 0
     rejected_flips: int = 0
     gated: int = 0
-    reidentified, reidentified_removed = 0, 0  # loop closure: ties, refused by the gate
+    reidentified: int = 0  # loop closure: ties to old landmarks, and those the gate refused
+    reidentified_removed: int = 0
     dropped_observations: int = 0
     unresolved_epochs: list[int] = field(default_factory=list)
 
@@ -134,6 +135,7 @@ class GraphBuilder:
         self.stats = GraphStats()
         self.n_epochs = 0
         self._T_world_first = np.eye(4) if T_world_first is None else np.asarray(T_world_first)
+        self.initial_poses: np.ndarray | None = None  # (E, 4, 4) overrides the chained guess
         self._robust_planes = config.robust_planes and config.robust_kernel != "none"
         self._last_step: np.ndarray | None = None
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
@@ -205,8 +207,7 @@ class GraphBuilder:
         measured = [r for r in usable if r.measured]
         self._add_pose(measured, min_epoch, update)
         self._reidentify(update)
-        # Associations track planes even when their relative pose gave no factor.
-        associations = {r.delta: r.associations for r in usable}
+        associations = {r.delta: r.associations for r in usable}  # (tracked even unmeasured)
         roots = self.tracker.add_epoch(k, len(planes), associations)
         for root in dict.fromkeys(roots):  # unique, in plane order
             j = self.tracker.landmark(root)
@@ -229,10 +230,9 @@ class GraphBuilder:
             guess = self._initial_pose(k, measured)
             T_rel = self._fallback_motion(k)
             if guess is None:
-                T = self.poses[k - 1] @ T_rel
                 self.stats.unresolved_epochs.append(k)
-            else:
-                T = guess
+            T = self.poses[k - 1] @ T_rel if guess is None else guess
+            T = T if self.initial_poses is None else self.initial_poses[k]
             if not any(r.translation_observed for r in measured) and k - 1 >= min_epoch:
                 # Nothing measured the horizontal translation into epoch k (unresolved or
                 # rotation-only): a weak constant-velocity factor keeps the graph connected.
