@@ -275,8 +275,8 @@ def smooth_batch(
             break
         if not gate_reidentifications(builder, graph, gaussian, estimate):
             break
-        estimate, more = levenberg_marquardt(
-            graph, estimate, cfg.max_iterations, cfg.relative_error_tol
+        estimate, more = levenberg_marquardt(  # from the start: not from a pulled estimate
+            graph, values, cfg.max_iterations, cfg.relative_error_tol
         )
         errors += more
     builder.update_estimates(estimate)

@@ -18,9 +18,11 @@ radius). At every epoch k (:meth:`LoopClosingBuilder._reidentify`):
    so a revisited wall ties the loop (its track's own landmark then never forms, or
    keeps the observations before the re-identification).
 
-After optimisation (:func:`gate_reidentifications`) every re-identified factor whose
-squared whitened error exceeds the ``loop_gate_quantile`` of chi2(3) is removed and the
-graph solved again. On simulated data each re-identification is checked against the
+After optimisation (:func:`gate_reidentifications`) a match one of whose re-identified
+factors has a squared whitened error above the ``loop_gate_quantile`` of chi2(3), or of
+the tracked plane factors' own errors when larger (the plane covariances are too small
+on continuous-motion data: a fixed chi2 gate removed half the right ties), is removed
+whole and the graph solved again from the initial values. On simulated data each re-identification is checked against the
 planes' true surface ids (``truth_id``): :class:`Reidentification`.
 """
 
@@ -294,7 +296,10 @@ def gate_reidentifications(
 ) -> int:
     """Remove the re-identified factors inconsistent with ``values`` (see module
     docstring) from ``graph`` (and their Gaussian twins); returns how many."""
-    limit = chi2.ppf(builder.config.loop_gate_quantile, 3)
+    q = builder.config.loop_gate_quantile
+    ties = {r.factor for r in builder.reidentifications}
+    tracked = [2.0 * f.error(values) for i, f in gaussian.items() if i not in ties and f.dim() == 3]
+    limit = max(chi2.ppf(q, 3), float(np.quantile(tracked, q)) if tracked else 0.0)
     failed = set()
     for r in builder.reidentifications:
         if not r.removed and 2.0 * gaussian.get(r.factor, graph.at(r.factor)).error(values) > limit:

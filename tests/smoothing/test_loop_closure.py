@@ -78,6 +78,7 @@ def _config(loop_closure: bool) -> PlanodomConfig:
             "smoothing.loop_closure": loop_closure,
             "smoothing.loop_min_gap_epochs": 20,
             "smoothing.compute_covariances": False,
+            "smoothing.batch_initial": "odometry",  # the drifted chain, what the map must face
         }
     )
 
