@@ -22,8 +22,9 @@ After optimisation (:func:`gate_reidentifications`) a match one of whose re-iden
 factors has a squared whitened error above the ``loop_gate_quantile`` of chi2(3), or of
 the tracked plane factors' own errors when larger (the plane covariances are too small
 on continuous-motion data: a fixed chi2 gate removed half the right ties), is removed
-whole and the graph solved again from the initial values. On simulated data each re-identification is checked against the
-planes' true surface ids (``truth_id``): :class:`Reidentification`.
+whole and the graph solved again from the initial values. On simulated data each
+re-identification is checked against the planes' true surface ids (``truth_id``):
+:class:`Reidentification`.
 """
 
 from __future__ import annotations
