@@ -222,6 +222,27 @@ def levenberg_marquardt(
     return values, errors
 
 
+def _gated(
+    builder: LoopClosingBuilder,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    values: gtsam.Values,
+    estimate: gtsam.Values,
+    errors: list[float],
+) -> gtsam.Values:
+    """Re-identifications inconsistent with the estimate out, solved again from the initial
+    ``values`` (not from an estimate a wrong tie has pulled); at most three rounds."""
+    cfg = builder.config
+    for _ in range(3):
+        if not gate_reidentifications(builder, graph, gaussian, estimate):
+            break
+        estimate, more = levenberg_marquardt(
+            graph, values, cfg.max_iterations, cfg.relative_error_tol
+        )
+        errors += more
+    return estimate
+
+
 def smooth_batch(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
@@ -270,15 +291,8 @@ def smooth_batch(
     estimate, errors = levenberg_marquardt(
         graph, values, cfg.max_iterations, cfg.relative_error_tol
     )
-    for _ in range(3):  # re-identifications inconsistent with the estimate: out, solve again
-        if not isinstance(builder, LoopClosingBuilder):
-            break
-        if not gate_reidentifications(builder, graph, gaussian, estimate):
-            break
-        estimate, more = levenberg_marquardt(  # from the start: not from a pulled estimate
-            graph, values, cfg.max_iterations, cfg.relative_error_tol
-        )
-        errors += more
+    if isinstance(builder, LoopClosingBuilder):
+        estimate = _gated(builder, graph, gaussian, values, estimate, errors)
     builder.update_estimates(estimate)
     covariances, note = None, None
     if cfg.compute_covariances:
