@@ -136,6 +136,9 @@ class SmoothingConfig(Section):
     loop_closure: bool = True
     """Batch: re-identify planes of a global map near the predicted pose and tie revisited
     landmarks (planodom.smoothing.loops); off: landmarks only from the tracks (delta <= D)."""
+    loop_every_epochs: Annotated[int, Field(ge=1)] = 1
+    """Match against the map at every N-th epoch only (keyframes: less time and fewer ties
+    on dense lidar data)."""
     loop_min_gap_epochs: Annotated[int, Field(ge=1)] = 50
     """A map landmark is a re-identification candidate once unseen for this many epochs."""
     loop_radius_m: Positive = 20.0

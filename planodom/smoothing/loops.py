@@ -246,7 +246,7 @@ class LoopClosingBuilder(GraphBuilder):
         step = 0.0 if k == 0 else np.linalg.norm(self.poses[k][:2, 3] - self.poses[k - 1][:2, 3])
         self.travelled.append((self.travelled[-1] if self.travelled else 0.0) + float(step))
         curr = self.planes[k]
-        if not c.loop_closure or len(curr) < c.loop_min_matches:
+        if not c.loop_closure or len(curr) < c.loop_min_matches or k % c.loop_every_epochs:
             return
         candidates, ground = self._candidates(k)
         if len(candidates) < c.loop_min_matches - 1:
