@@ -204,6 +204,14 @@ def smooth(
     delta: Annotated[
         int | None, typer.Option(help="Relative poses for delta = 1..D (default: config's).")
     ] = None,
+    loop_closure: Annotated[
+        bool | None,
+        typer.Option(
+            "--loop-closure/--no-loop-closure",
+            help="Batch: re-identify revisited walls in a global plane map and close loops "
+            "(default: the config's smoothing.loop_closure, on).",
+        ),
+    ] = None,
     config: ConfigFile = None,
 ) -> None:
     """Smooth the odometry with a factor graph (batch, or a fixed-lag window).
@@ -219,6 +227,8 @@ def smooth(
 
     source.check()
     cfg = load_config(config)  # before simulating: a bad file fails at once
+    if loop_closure is not None:
+        cfg = cfg.updated({"smoothing.loop_closure": loop_closure}, source="--loop-closure")
     mode = mode or ("windowed" if window is not None else "batch")
     if mode not in ("batch", "windowed"):
         raise ConfigError(f"--mode: expected batch or windowed, got '{mode}'")

@@ -168,3 +168,24 @@ def experiment_baselines(
         turn_deg=turn, alternate=alternate, progress=_say,
     )  # fmt: skip
     _print_files(result.files)
+
+
+@experiment_app.command("loops")
+@reports_errors
+def experiment_loops(
+    worlds: Annotated[int, typer.Option(help="Procedural worlds 0 .. N-1 (even: 2D rig).")] = 6,
+    epochs: Annotated[int, typer.Option(help="Epochs per run (0: one lap).")] = 0,
+    quick: Annotated[bool, typer.Option(help="CI size: world 0, 120 epochs, 6 mm.")] = False,
+    out: ExpOut = Path("results/loops"),
+    config: ConfigFile = None,
+) -> None:
+    """Loop closure: odometry, fixed-lag, batch without and with loops, oracle (issue 14)."""
+    from planodom.experiments.loops import run_loop_experiment
+
+    levels: tuple[float, ...] = (0.006, 0.02)
+    if quick:
+        worlds, epochs, levels = 1, 120, (0.006,)
+    result = run_loop_experiment(
+        out, range(worlds), levels, epochs or None, load_config(config), progress=_say
+    )
+    _print_files(result.files)

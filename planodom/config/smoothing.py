@@ -128,6 +128,46 @@ class SmoothingConfig(Section):
     its uncertainty would otherwise be added to every pose's (``prior_sigma`` times the
     distance in translation). False: gtsam's marginals with that prior."""
 
+    batch_initial: Literal["odometry", "windowed"] = "windowed"
+    """Batch: initial guess (and loop closure's predicted poses) from the chained odometry,
+    or from the fixed-lag smoother run first (a few seconds; it follows the planes through
+    odometry failures, where Levenberg-Marquardt from the chained guess can stop in a
+    wrong minimum)."""
+    loop_closure: bool = True
+    """Batch: re-identify planes of a global map near the predicted pose and tie revisited
+    landmarks (planodom.smoothing.loops); off: landmarks only from the tracks (delta <= D)."""
+    loop_every_epochs: Annotated[int, Field(ge=1)] = 1
+    """Match against the map at every N-th epoch only (keyframes: less time and fewer ties
+    on dense lidar data)."""
+    loop_min_gap_epochs: Annotated[int, Field(ge=1)] = 50
+    """A map landmark is a re-identification candidate once unseen for this many epochs."""
+    loop_radius_m: Positive = 20.0
+    """Map landmarks whose support comes within this of the predicted position are
+    candidates, m."""
+    loop_max_candidates: Annotated[int, Field(ge=2)] = 24
+    """At most this many candidates (the nearest) per epoch: LDA's cost grows with the
+    square of the plane pairs."""
+    loop_drift_fraction: Positive = 0.05
+    """Largest translation bound of a re-identification: this fraction of the distance
+    driven since the candidates were last seen (plus ``loop_min_translation_m``)."""
+    loop_sigmas: Positive = 3.0
+    """Bounds of a re-identification: this many standard deviations of the odometry chained
+    since the candidates were last seen (its covariances; the fallback sigmas for an
+    epoch it did not measure), capped by the drift fraction / rotation per metre."""
+    loop_min_translation_m: Positive = 0.5
+    """Smallest translation bound of a re-identification, m."""
+    loop_rotation_deg_per_m: Positive = 0.1
+    """Largest rotation bound of a re-identification per metre driven since last seen (plus
+    the association's ``prior_rotation_deg``), degrees; at most 45."""
+    loop_min_matches: Annotated[int, Field(ge=2)] = 3
+    """Strict associations (non-parallel normals among them) a re-identification needs."""
+    loop_accept_degenerate: bool = True
+    """Also accept a match whose rotation only is determined (one old wall and the ground):
+    its strict associations tie the old landmarks (the gate checks them afterwards)."""
+    loop_gate_quantile: Fraction = 0.999
+    """After optimisation, a re-identified observation whose squared whitened error exceeds
+    this quantile of chi2(3) is removed and the graph solved again."""
+
     def model_post_init(self, context: object, /) -> None:
         """Cross-field checks (one-line :class:`ConfigError` naming the field)."""
         if self.window <= self.delta_max:

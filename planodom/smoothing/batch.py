@@ -14,6 +14,11 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats, X
+from planodom.smoothing.loops import (
+    LoopClosingBuilder,
+    Reidentification,
+    gate_reidentifications,
+)
 
 
 @dataclass
@@ -23,7 +28,8 @@ class SmoothingResult:
     Attributes:
         poses: (E, 4, 4) smoothed ``T_world_base``.
         initial_poses: (E, 4, 4) the initial guess (odometry chained with the smallest
-            resolved delta, constant velocity where unresolved).
+            resolved delta, constant velocity where unresolved; or the fixed-lag
+            smoother's estimate, ``smoothing.batch_initial``).
         covariances: (E, 6, 6) marginal covariances of the poses in gtsam's Pose3 tangent
             ``[rot (rad), trans (m)]`` at the estimate, right perturbation (body frame),
             relative to the first pose unless ``covariances_relative_to_first`` is off
@@ -35,6 +41,8 @@ class SmoothingResult:
         online_poses: (E, 4, 4) windowed only: each pose as estimated when its epoch was
             the newest (the real-time output); None for batch.
         errors: optimiser's error (0.5 sum of squared whitened residuals) per iteration.
+        reidentifications: loop closure: the observations tied to old landmarks
+            (:mod:`planodom.smoothing.loops`), with the gate's verdict and the truth.
         covariance_note: why ``covariances`` is None although asked for (a nearly
             indeterminant system, e.g. long stretches bridged only by fallback factors).
     """
@@ -49,6 +57,7 @@ class SmoothingResult:
     online_poses: np.ndarray | None = None
     errors: list[float] = field(default_factory=list)
     covariance_note: str | None = None
+    reidentifications: list[Reidentification] = field(default_factory=list)
 
 
 def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> SmoothingConfig:
@@ -128,6 +137,8 @@ def covariance_graph(
     out = gtsam.NonlinearFactorGraph()
     for i in range(graph.size()):
         twin = gaussian.get(i)
+        if graph.at(i) is None:  # removed (a re-identification refused by the gate)
+            continue
         if twin is not None and 2.0 * twin.error(values) <= chi2.ppf(inlier_quantile, twin.dim()):
             out.add(twin)
         else:
@@ -211,6 +222,27 @@ def levenberg_marquardt(
     return values, errors
 
 
+def _gated(
+    builder: LoopClosingBuilder,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    values: gtsam.Values,
+    estimate: gtsam.Values,
+    errors: list[float],
+) -> gtsam.Values:
+    """Re-identifications inconsistent with the estimate out, solved again from the initial
+    ``values`` (not from an estimate a wrong tie has pulled); at most three rounds."""
+    cfg = builder.config
+    for _ in range(3):
+        if not gate_reidentifications(builder, graph, gaussian, estimate):
+            break
+        estimate, more = levenberg_marquardt(
+            graph, values, cfg.max_iterations, cfg.relative_error_tol
+        )
+        errors += more
+    return estimate
+
+
 def smooth_batch(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
@@ -233,12 +265,24 @@ def smooth_batch(
     """
     cfg = smoothing_config(config)
     start = time.perf_counter()
-    builder = GraphBuilder(cfg, T_world_first)
+    builder: GraphBuilder = GraphBuilder(cfg, T_world_first)
+    if cfg.loop_closure:
+        full = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
+        builder = LoopClosingBuilder(full, T_world_first)
+    if cfg.batch_initial == "windowed":
+        from planodom.smoothing.windowed import smooth_windowed
+
+        builder.initial_poses = smooth_windowed(epochs_planes, relative_poses, cfg).poses
+        if T_world_first is not None:
+            builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     gaussian: dict[int, gtsam.NonlinearFactor] = {}
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
     for k, planes in enumerate(epochs_planes):
+        n_reids = len(getattr(builder, "reidentifications", ()))
         update = builder.add_epoch(planes, by_epoch[k])
+        for r in getattr(builder, "reidentifications", ())[n_reids:]:
+            r.factor += graph.size()
         gaussian |= {graph.size() + i: f for i, f in update.gaussian.items()}
         graph.push_back(update.factors)
         values.insert(update.values)
@@ -247,6 +291,8 @@ def smooth_batch(
     estimate, errors = levenberg_marquardt(
         graph, values, cfg.max_iterations, cfg.relative_error_tol
     )
+    if isinstance(builder, LoopClosingBuilder):
+        estimate = _gated(builder, graph, gaussian, values, estimate, errors)
     builder.update_estimates(estimate)
     covariances, note = None, None
     if cfg.compute_covariances:
@@ -271,4 +317,5 @@ def smooth_batch(
         runtime_s=time.perf_counter() - start,
         errors=errors,
         covariance_note=note,
+        reidentifications=list(getattr(builder, "reidentifications", [])),
     )

@@ -95,6 +95,8 @@ class GraphStats:
     flipped: int = 0
     rejected_flips: int = 0
     gated: int = 0
+    reidentified: int = 0  # loop closure: ties to old landmarks, and those the gate refused
+    reidentified_removed: int = 0
     dropped_observations: int = 0
     unresolved_epochs: list[int] = field(default_factory=list)
 
@@ -107,6 +109,7 @@ class _Landmark:
     plane_world: np.ndarray  # (4,) current estimate, world frame
     last_epoch: int  # latest epoch whose update touched the landmark (its timestamp)
     last_seen: tuple[int, np.ndarray] | None = None  # last accepted (epoch, (4,) base frame)
+    last_index: int = -1  # plane index of that observation
 
 
 def plane_from_anchor(T_world_anchor: np.ndarray, plane_anchor: np.ndarray) -> np.ndarray:
@@ -132,10 +135,12 @@ class GraphBuilder:
         self.stats = GraphStats()
         self.n_epochs = 0
         self._T_world_first = np.eye(4) if T_world_first is None else np.asarray(T_world_first)
+        self.initial_poses: np.ndarray | None = None  # (E, 4, 4) overrides the chained guess
         self._robust_planes = config.robust_planes and config.robust_kernel != "none"
         self._last_step: np.ndarray | None = None
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
+        self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
 
     # ----------------------------------------------------------------- building
 
@@ -201,8 +206,8 @@ class GraphBuilder:
         ]
         measured = [r for r in usable if r.measured]
         self._add_pose(measured, min_epoch, update)
-        # Associations track planes even when their relative pose gave no factor.
-        associations = {r.delta: r.associations for r in usable}
+        self._reidentify(update)
+        associations = {r.delta: r.associations for r in usable}  # (tracked even unmeasured)
         roots = self.tracker.add_epoch(k, len(planes), associations)
         for root in dict.fromkeys(roots):  # unique, in plane order
             j = self.tracker.landmark(root)
@@ -225,10 +230,9 @@ class GraphBuilder:
             guess = self._initial_pose(k, measured)
             T_rel = self._fallback_motion(k)
             if guess is None:
-                T = self.poses[k - 1] @ T_rel
                 self.stats.unresolved_epochs.append(k)
-            else:
-                T = guess
+            T = self.poses[k - 1] @ T_rel if guess is None else guess
+            T = T if self.initial_poses is None else self.initial_poses[k]
             if not any(r.translation_observed for r in measured) and k - 1 >= min_epoch:
                 # Nothing measured the horizontal translation into epoch k (unresolved or
                 # rotation-only): a weak constant-velocity factor keeps the graph connected.
@@ -245,6 +249,9 @@ class GraphBuilder:
         self.poses[k] = T
         update.values.insert(X(k), gtsam.Pose3(T))
         update.timestamps[X(k)] = float(k)
+
+    def _reidentify(self, update: GraphUpdate) -> None:
+        """Hook: ties to old landmarks (:class:`planodom.smoothing.loops.LoopClosingBuilder`)."""
 
     def _add_between_factors(self, measured: list[RelativePose], update: GraphUpdate) -> None:
         """A 5-DoF (or rotation-only) factor per measured relative pose into this epoch,
@@ -335,6 +342,8 @@ class GraphBuilder:
         graph, k = update.factors, update.epoch
         usable = []
         for e, i in self.tracker.take_pending(root):
+            if (e, i) in self.reidentified:  # a factor on an older landmark already
+                continue
             if e < min_epoch or e not in self.poses:
                 self.stats.dropped_observations += 1
             else:
@@ -362,23 +371,27 @@ class GraphBuilder:
             if not self._within_gate(plane.coefficients, predicted):
                 self.stats.gated += 1
                 continue
-            noise = plane_noise(
-                plane_covariance(plane, self.config), isotropic_normal=lm.anchor_key is None
-            )
-            if lm.anchor_key is None:
-                graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
-            else:
-                make = partial(
-                    anchored_plane_factor, X(e), lm.anchor_key, lm.key, plane.coefficients
-                )
-                self._add(graph, make, noise, self._robust_planes)
-            self.stats.plane_factors += 1
+            self._plane_factor(lm, e, plane, graph, self._robust_planes)
             self._factor_landmark[(e, i)] = j
-            lm.last_seen = (e, plane.coefficients)
+            lm.last_seen, lm.last_index = (e, plane.coefficients), i
         lm.last_epoch = k
         update.timestamps[lm.key] = float(k)
         if lm.anchor_key is not None:
             update.timestamps[lm.anchor_key] = float(k)
+
+    def _plane_factor(
+        self, lm: _Landmark, e: int, plane: Plane, graph: gtsam.NonlinearFactorGraph, robust: bool
+    ) -> None:
+        """A plane factor of observation ``plane`` (oriented) from ``X(e)`` on ``lm``."""
+        noise = plane_noise(
+            plane_covariance(plane, self.config), isotropic_normal=lm.anchor_key is None
+        )
+        if lm.anchor_key is None:
+            graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
+        else:
+            make = partial(anchored_plane_factor, X(e), lm.anchor_key, lm.key, plane.coefficients)
+            self._add(graph, make, noise, robust)
+        self.stats.plane_factors += 1
 
     def _predict(self, lm: _Landmark, epoch: int) -> np.ndarray:
         """(4,) the landmark as epoch ``epoch`` should see it, for the flip and gate checks.

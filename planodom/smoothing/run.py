@@ -197,6 +197,6 @@ def run_smoothing(
     seconds["relatives"] = time.perf_counter() - start
 
     smooth = smooth_batch if mode == "batch" else smooth_windowed
-    result = smooth(odometry.planes, relatives, cfg.smoothing)
+    result = smooth(odometry.planes, relatives, cfg if mode == "batch" else cfg.smoothing)
     seconds["smoothing"] = result.runtime_s
     return SmoothingRun(result, odometry, relatives, np.asarray(odometry.times), cfg, seconds)

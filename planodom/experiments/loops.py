@@ -1,0 +1,162 @@
+"""Loop closure on procedural worlds with closed routes (issue 14).
+
+For each world (:func:`planodom.experiments.generalisation.world_for`) and range noise, one
+lap is simulated (continuous motion) and compared, side by side:
+
+- ``odometry``: planodom's delta = 1 odometry, chained;
+- ``windowed``: the fixed-lag smoother, relative poses delta = 1..D;
+- ``batch``: the whole lap in one graph, no loop closure;
+- ``batch+loops``: the same with the global plane map (:mod:`planodom.smoothing.loops`);
+- ``oracle``: the oracle's pure odometry (:mod:`planodom.oracle`).
+
+Per run: ATE (xy, origin-aligned, rmse), the xy position error at the loop's end (the last
+epoch), for ``batch+loops`` the re-identifications kept, removed by the gate, and wrong
+(joining true surfaces that are not coplanar: two segments of one facade are one plane),
+the mean NEES of the 5 observed DoF (chi2(5): 95 % interval [0.83, 12.8]), and seconds.
+``summary`` gives per noise and method the median and worst over the worlds.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from planodom.config import PlanodomConfig
+from planodom.experiments.generalisation import world_for
+from planodom.experiments.tables import ExperimentResult, write_tables
+from planodom.geometry import Plane, invert_transform
+from planodom.metrics import ate, pose_nees
+from planodom.odometry import run_odometry
+from planodom.odometry.relative import RelativePose
+from planodom.oracle import run_oracle
+from planodom.simulation.random_world import simulate_world, world_fields
+from planodom.smoothing.batch import smooth_batch
+from planodom.smoothing.loops import reidentification_counts
+from planodom.smoothing.run import smoothing_relatives
+from planodom.smoothing.windowed import smooth_windowed
+
+METHODS = ("odometry", "windowed", "batch", "batch+loops", "oracle")
+Row = dict[str, object]
+
+
+def coplanar(scene, tol_deg: float = 2.0, tol_m: float = 0.1) -> Callable[[int, int], bool]:
+    """``same_plane(a, b)`` for true surface ids of ``scene`` (unknown ids: True)."""
+    planes = {s.id: np.append(s.normal, s.offset) for s in scene.surfaces}
+
+    def same(a: int, b: int) -> bool:
+        if a not in planes or b not in planes:
+            return True
+        pa, pb = planes[a], planes[b]
+        if pa[:3] @ pb[:3] < 0:
+            pb = -pb
+        return bool(pa[:3] @ pb[:3] >= np.cos(np.radians(tol_deg)) and abs(pa[3] - pb[3]) <= tol_m)
+
+    return same
+
+
+def _errors(poses: np.ndarray, gt: np.ndarray) -> dict[str, float]:
+    end = float(np.linalg.norm(poses[-1][:2, 3] - gt[-1][:2, 3]))
+    return {"ate_m": ate(poses, gt, xy_only=True)["rmse"], "loop_end_m": end}
+
+
+def compare_methods(
+    planes: Sequence[Sequence[Plane]],
+    relatives: Sequence[RelativePose],
+    gt: np.ndarray,
+    odometry_poses: np.ndarray,
+    oracle_poses: np.ndarray | None,
+    config: PlanodomConfig,
+    same_plane: Callable[[int, int], bool] | None = None,
+) -> list[Row]:
+    """One row per method (see the module docstring) on one run's planes and relatives."""
+    rows: list[Row] = [{"method": "odometry", **_errors(odometry_poses, gt)}]
+    runs = (
+        ("windowed", smooth_windowed, config.smoothing),
+        ("batch", smooth_batch, config.updated({"smoothing.loop_closure": False})),
+        ("batch+loops", smooth_batch, config.updated({"smoothing.loop_closure": True})),
+    )
+    for method, smooth, cfg in runs:
+        res = smooth(planes, relatives, cfg)
+        row: Row = {"method": method, **_errors(res.poses, gt), "seconds": res.runtime_s}
+        if method == "batch+loops":
+            row |= reidentification_counts(res.reidentifications, same_plane)
+            if res.covariances is not None:
+                nees = pose_nees(res.poses[1:], res.covariances[1:], gt[1:], range(5))
+                row["mean_nees5"] = float(np.nanmean(nees))
+        rows.append(row)
+    if oracle_poses is not None:
+        rows.append({"method": "oracle", **_errors(oracle_poses, gt)})
+    return rows
+
+
+def run_loop_world(
+    index: int, noise: float, n_epochs: int | None, config: PlanodomConfig
+) -> list[Row]:
+    """Every method on one lap of world ``index`` at range noise ``noise`` (m)."""
+    world = world_for(index)
+    full = simulate_world(world, noise, n_epochs=n_epochs, all_fields=True)
+    gt = invert_transform(full.poses[0])[None] @ full.poses
+    odo = run_odometry(world_fields(world, full), config)
+    relatives = smoothing_relatives(odo, config)
+    oracle = run_oracle(full.scans, full.times, world.trajectory, world.scene)
+    rows = compare_methods(odo.planes, relatives, gt, odo.poses, oracle.poses, config,
+                           coplanar(world.scene))  # fmt: skip
+    for row in rows:
+        row |= {"world": index, "family": world.description["family"], "noise_mm": noise * 1e3}
+    return rows
+
+
+def summary_rows(rows: Sequence[Row]) -> list[Row]:
+    """Per noise and method: median and worst ATE and loop-end error, wrong closures."""
+    out: list[Row] = []
+    for noise in sorted({float(r["noise_mm"]) for r in rows}):  # type: ignore[arg-type]
+        for method in METHODS:
+            sel = [r for r in rows if r["noise_mm"] == noise and r["method"] == method]
+            if not sel:
+                continue
+            a = np.array([r["ate_m"] for r in sel], dtype=float)
+            e = np.array([r["loop_end_m"] for r in sel], dtype=float)
+            wrong = sum(int(r.get("wrong_kept", 0)) for r in sel)  # type: ignore[call-overload]
+            out.append(
+                {
+                    "noise_mm": noise,
+                    "method": method,
+                    "worlds": len(sel),
+                    "median_ate_m": float(np.median(a)),
+                    "worst_ate_m": float(a.max()),
+                    "median_loop_end_m": float(np.median(e)),
+                    "worst_loop_end_m": float(e.max()),
+                    "wrong_kept": wrong,
+                }
+            )
+    return out
+
+
+def run_loop_experiment(
+    out: str | Path | None = None,
+    worlds: Sequence[int] = range(6),
+    noise_levels: Sequence[float] = (0.006, 0.02),
+    n_epochs: int | None = None,
+    config: PlanodomConfig | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> ExperimentResult[Row]:
+    """Run the comparison (``quick``: worlds 0 and 2, 6 mm, 300 epochs, from the CLI)."""
+    cfg = config or PlanodomConfig()
+    say = progress or (lambda msg: None)
+    rows: list[Row] = []
+    for index in worlds:
+        for noise in noise_levels:
+            say(f"world {index}, sigma {noise * 1e3:g} mm")
+            start = time.perf_counter()
+            rows += run_loop_world(index, noise, n_epochs, cfg)
+            say(f"  {time.perf_counter() - start:.0f} s")
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    table = [{k: r.get(k, "") for k in keys} for r in rows]
+    result = ExperimentResult(rows, {"runs": table, "summary": summary_rows(rows)})
+    if out is not None:
+        Path(out).mkdir(parents=True, exist_ok=True)
+        result.files = write_tables(Path(out), result.tables)
+    return result
