@@ -36,8 +36,6 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.lidar.candidates import ring_noise
@@ -47,6 +45,7 @@ from planodom.extraction.lidar.rangeimage import (
     _grow_pieces,
     _piece_moments,
     _pixel_normals,
+    merge_coplanar,
     moment_sums,
 )
 from planodom.extraction.lidar.rows import azimuth
@@ -209,14 +208,7 @@ def _merge_coplanar(
     if len(a) == 0:
         return label, normal, offset, C
     err = sigma_pix / np.sqrt(np.maximum(vals[:, 1], 1e-300))
-    cosang = np.abs(np.einsum("ij,ij->i", normal[a], normal[b]))
-    lim = np.radians(config.region_merge_deg) + 3.0 * (err[a] + err[b])
-    same = cosang >= np.cos(np.minimum(lim, np.pi / 2))
-    same &= np.abs(np.einsum("ij,ij->i", normal[a], cen[b]) + offset[a]) <= tol
-    same &= np.abs(np.einsum("ij,ij->i", normal[b], cen[a]) + offset[b]) <= tol
-    a, b = a[same], b[same]
-    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(C, C))
-    M, merged = connected_components(graph, directed=False)
+    M, merged = merge_coplanar(a, b, normal, offset, cen, err, tol, config.region_merge_deg)
     if M == C:
         return label, normal, offset, C
     cnt, cen, sc = moment_sums(merged, M, cnt, cen, sc)

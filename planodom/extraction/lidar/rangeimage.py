@@ -163,14 +163,7 @@ def _merge_pieces(
         return label, normal, offset, C
     a, b = pairs // C, pairs % C
     err = sigma / np.sqrt(np.maximum(vals[:, 1], 1e-300))
-    cosang = np.abs(np.einsum("ij,ij->i", normal[a], normal[b]))
-    lim = np.radians(config.region_merge_deg) + 3.0 * (err[a] + err[b])
-    same = cosang >= np.cos(np.minimum(lim, np.pi / 2))
-    same &= np.abs(np.einsum("ij,ij->i", normal[a], cen[b]) + offset[a]) <= tol
-    same &= np.abs(np.einsum("ij,ij->i", normal[b], cen[a]) + offset[b]) <= tol
-    a, b = a[same], b[same]
-    g = coo_matrix((np.ones(len(a)), (a, b)), shape=(C, C))
-    M, merged = connected_components(g, directed=False)
+    M, merged = merge_coplanar(a, b, normal, offset, cen, err, tol, config.region_merge_deg)
     if M == C:
         return label, normal, offset, C
     cnt, cen, sc = moment_sums(merged, M, cnt, cen, sc)
@@ -374,3 +367,32 @@ def _piece_moments(P, piece, n_pieces):  # pragma: no cover - compiled
         sc[g, 2, 0] = sc[g, 0, 2]
         sc[g, 2, 1] = sc[g, 1, 2]
     return cnt, cen, sc
+
+
+def merge_coplanar(
+    a: np.ndarray,
+    b: np.ndarray,
+    normal: np.ndarray,
+    offset: np.ndarray,
+    centroid: np.ndarray,
+    err: np.ndarray,
+    tol: float,
+    merge_deg: float,
+) -> tuple[int, np.ndarray]:
+    """Connected groups of coplanar pieces among the candidate pairs ``(a[i], b[i])``.
+
+    Two pieces are one plane when their normals (C, 3) differ by at most ``merge_deg``
+    plus three times the sum of their predicted normal errors ``err`` (C,), rad, and each
+    centroid (C, 3), m, lies within ``tol`` (m) of the other's plane (``offset`` (C,), m).
+    Returns the number of groups and the group of each piece (C,).
+    """
+    cosang = np.abs(np.einsum("ij,ij->i", normal[a], normal[b]))
+    lim = np.radians(merge_deg) + 3.0 * (err[a] + err[b])
+    same = cosang >= np.cos(np.minimum(lim, np.pi / 2))
+    same &= np.abs(np.einsum("ij,ij->i", normal[a], centroid[b]) + offset[a]) <= tol
+    same &= np.abs(np.einsum("ij,ij->i", normal[b], centroid[a]) + offset[b]) <= tol
+    a, b = a[same], b[same]
+    C = len(normal)
+    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(C, C))
+    M, merged = connected_components(graph, directed=False)
+    return int(M), merged
