@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
+
+import yaml
 
 
 class PlanodomError(Exception):
@@ -55,3 +58,16 @@ def yaml_problem(exc: Exception) -> str:
     problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
     where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
     return f"{where}{problem}"
+
+
+def read_yaml_file(path: Path, what: str, error: type[PlanodomError]) -> Any:
+    """The YAML document in ``path``; ``error`` naming the file in one line when it cannot
+    be read, is not UTF-8 text (``not a {what} file``) or is not valid YAML."""
+    try:
+        return yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what} file ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise error(f"{path}: not a {what} file (not UTF-8 text)") from None
+    except yaml.YAMLError as exc:
+        raise error(f"{path}: not valid YAML ({yaml_problem(exc)})") from None

@@ -19,7 +19,7 @@ from planodom.config.odometry import AssociationConfig, OdometryConfig
 from planodom.config.planemap import PlanemapConfig
 from planodom.config.section import Section
 from planodom.config.smoothing import SmoothingConfig
-from planodom.errors import ConfigError, yaml_problem
+from planodom.errors import ConfigError, read_yaml_file
 
 __all__ = [
     "AssociationConfig",
@@ -49,14 +49,7 @@ class PlanodomConfig(Section):
     def from_yaml(cls, path: str | Path) -> PlanodomConfig:
         """Load a (partial) config; missing keys keep their defaults."""
         path = Path(path)
-        try:
-            data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-        except OSError as exc:
-            raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from None
-        except UnicodeDecodeError:
-            raise ConfigError(f"{path}: not a config file (not UTF-8 text)") from None
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{path}: not valid YAML ({yaml_problem(exc)})") from None
+        data = read_yaml_file(path, "config", ConfigError) or {}
         return cls.from_dict(data, source=str(path))
 
     @classmethod

@@ -13,7 +13,7 @@ import yaml
 
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
 from planodom.datasets.tum import read_tum, write_tum
-from planodom.errors import DatasetError, yaml_problem
+from planodom.errors import DatasetError, read_yaml_file
 from planodom.outputs import atomic_folder
 from planodom.rig import Rig
 from planodom.scan import Scan, ScanSequence
@@ -247,14 +247,7 @@ def read_rig(path: str | Path) -> Rig:
             or a field fails :meth:`Rig.from_dict`'s checks.
     """
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise DatasetError(f"{path}: cannot read rig file ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise DatasetError(f"{path}: not a rig file (not UTF-8 text)") from None
-    except yaml.YAMLError as exc:
-        raise DatasetError(f"{path}: not valid YAML ({yaml_problem(exc)})") from None
+    data = read_yaml_file(path, "rig", DatasetError)
     return Rig.from_dict(data, source=str(path))
 
 

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from planodom.errors import ConfigError, DatasetError
+from planodom.errors import ConfigError, DatasetError, read_yaml_file
 from planodom.geometry import make_transform
 from planodom.rig import Rig
 from planodom.simulation.sensors import Scanner2D, Sensor, SpinningLidar
@@ -156,13 +156,11 @@ def save_sensor_rig(rig: SensorRig, path: str | Path) -> None:
 def load_sensor_rig(path: str | Path) -> SensorRig:
     """Read a sensor rig file; raises :class:`DatasetError` naming the file and field."""
     path = Path(path)
+    data = read_yaml_file(path, "rig", DatasetError)
     try:
-        data = yaml.safe_load(path.read_text())
         return SensorRig.from_dict(data, source=str(path))
-    except OSError as exc:
-        raise DatasetError(f"{path}: cannot read rig file ({exc.strerror})") from exc
-    except (yaml.YAMLError, ConfigError) as exc:
-        raise DatasetError(str(exc) if isinstance(exc, ConfigError) else f"{path}: {exc}") from exc
+    except ConfigError as exc:
+        raise DatasetError(str(exc)) from exc
 
 
 # --------------------------------------------------------------------------- geometry

@@ -39,7 +39,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from planodom.errors import DatasetError, GeometryError
+from planodom.errors import DatasetError, GeometryError, read_yaml_file
 
 Kind = Literal["wall", "facade", "ground", "polygon"]
 VERTICAL_KINDS = ("wall", "facade")
@@ -278,10 +278,5 @@ def save_scene(scene: Scene, path: str | Path) -> None:
 def load_scene(path: str | Path) -> Scene:
     """Read a scene YAML file; raises :class:`DatasetError` naming the file and field."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise DatasetError(f"{path}: cannot read scene file ({exc.strerror})") from exc
-    except yaml.YAMLError as exc:
-        raise DatasetError(f"{path}: not valid YAML ({exc})") from exc
+    data = read_yaml_file(path, "scene", DatasetError)
     return scene_from_dict(data, source=str(path))
