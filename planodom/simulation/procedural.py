@@ -179,20 +179,34 @@ def _fences(rng: np.random.Generator, samples: np.ndarray, slope: Slope) -> list
     out: list[Surface] = []
     for i in range(int(rng.integers(3, 9))):
         k = int(rng.integers(0, len(samples)))
-        tangent = samples[(k + 1) % len(samples)] - samples[k - 1]
-        tangent /= np.linalg.norm(tangent)
-        side = np.array([-tangent[1], tangent[0]]) * rng.choice([-1.0, 1.0])
-        a = rng.uniform(-np.pi / 6, np.pi / 6)
-        u = np.cos(a) * tangent + np.sin(a) * side
-        centre = samples[k] + rng.uniform(3.0, 8.0) * side
-        half = rng.uniform(2.0, 10.0) * u
-        p0, p1 = centre - half, centre + half
+        p0, p1, centre = _beside_route(rng, samples, k, np.pi / 6, (3.0, 8.0), (2.0, 10.0))
         if segment_distance(samples, p0, p1).min() < 2.5:
             continue
         z0 = float(slope.height(np.array([p0, p1])).min()) - 0.3
         top = float(slope.height(centre)) + rng.uniform(0.8, 2.0)
         out.append(wall(FENCE_ID0 + i, p0, p1, z0, top, kind="wall"))
     return out
+
+
+def _beside_route(
+    rng: np.random.Generator,
+    samples: np.ndarray,
+    k: int,
+    max_angle: float,
+    distance_m: tuple[float, float],
+    half_length_m: tuple[float, float],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A wall segment beside route sample ``k`` of ``samples`` (K, 2), m: on a random side,
+    at most ``max_angle`` (rad) off the route's direction, its centre a random distance
+    (m, range) away, a random half length (m, range). Returns its ends and centre (2,)."""
+    tangent = samples[(k + 1) % len(samples)] - samples[k - 1]
+    tangent /= np.linalg.norm(tangent)
+    side = np.array([-tangent[1], tangent[0]]) * rng.choice([-1.0, 1.0])
+    a = rng.uniform(-max_angle, max_angle)
+    u = np.cos(a) * tangent + np.sin(a) * side
+    centre = samples[k] + rng.uniform(*distance_m) * side
+    half = rng.uniform(*half_length_m) * u
+    return centre - half, centre + half, centre
 
 
 def _lone_walls(rng, samples: np.ndarray, is_open: np.ndarray, slope: Slope) -> list[Surface]:
@@ -203,14 +217,7 @@ def _lone_walls(rng, samples: np.ndarray, is_open: np.ndarray, slope: Slope) -> 
         return out
     for i in range(int(rng.integers(1, 3))):
         k = int(rng.choice(idx))
-        tangent = samples[(k + 1) % len(samples)] - samples[k - 1]
-        tangent /= np.linalg.norm(tangent)
-        side = np.array([-tangent[1], tangent[0]]) * rng.choice([-1.0, 1.0])
-        a = rng.uniform(-np.pi / 9, np.pi / 9)
-        u = np.cos(a) * tangent + np.sin(a) * side
-        centre = samples[k] + rng.uniform(6.0, 15.0) * side
-        half = rng.uniform(7.5, 20.0) * u
-        p0, p1 = centre - half, centre + half
+        p0, p1, _ = _beside_route(rng, samples, k, np.pi / 9, (6.0, 15.0), (7.5, 20.0))
         if segment_distance(samples, p0, p1).min() < 4.0:
             continue
         z0 = float(slope.height(np.array([p0, p1])).min()) - 0.5
