@@ -49,6 +49,15 @@ def test_lidar_planes_exact_and_deterministic():
         np.testing.assert_array_equal(a.coefficients, b.coefficients)
 
 
+def assert_within_five_sigma(planes) -> None:
+    """Each plane's normal and offset lie within 5 sigma (its own fit covariance, plus 1 mm
+    on the offset) of its true wall."""
+    for p in planes:
+        n, d = TRUTH[p.truth_id]
+        assert np.linalg.norm(np.cross(p.normal, n)) < 5 * np.sqrt(np.trace(p.covariance[:3, :3]))
+        assert abs(p.offset - d) < 5 * np.sqrt(p.covariance[3, 3]) + 1e-3
+
+
 def test_without_rings_is_3d_and_noisy_fit_is_close():
     sigma = 0.02
     scan = scan_lidar(SCENE, sigma=sigma, n_azimuth=512, with_ring=False)
@@ -56,10 +65,7 @@ def test_without_rings_is_3d_and_noisy_fit_is_close():
     assert res.mode == "lidar"
     big = [p for p in res.planes if p.support.n_points > 1000]
     assert {p.truth_id for p in big} == set(TRUTH)
-    for p in big:
-        n, d = TRUTH[p.truth_id]
-        assert np.linalg.norm(np.cross(p.normal, n)) < 5 * np.sqrt(np.trace(p.covariance[:3, :3]))
-        assert abs(p.offset - d) < 5 * np.sqrt(p.covariance[3, 3]) + 1e-3
+    assert_within_five_sigma(big)
 
 
 def test_coplanar_separate_walls_are_two_planes():
@@ -87,10 +93,7 @@ def test_range_image_matches_truth_with_noise_and_dropouts():
     assert res.mode == "lidar"
     big = [p for p in res.planes if p.support.n_points > 500]
     assert {p.truth_id for p in big} == set(TRUTH)
-    for p in big:
-        n, d = TRUTH[p.truth_id]
-        assert np.linalg.norm(np.cross(p.normal, n)) < 5 * np.sqrt(np.trace(p.covariance[:3, :3]))
-        assert abs(p.offset - d) < 5 * np.sqrt(p.covariance[3, 3]) + 1e-3
+    assert_within_five_sigma(big)
     ransac = extract(scan, ExtractionConfig(range_noise_m=0.02, range_image=False))
     assert {p.truth_id for p in ransac.planes if p.support.n_points > 500} == set(TRUTH)
 
