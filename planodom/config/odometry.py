@@ -100,6 +100,17 @@ class OdometryConfig(Section):
     deskew_speed_tolerance_mps: Positive = 0.5
     """Likewise for the linear velocity, m/s; larger than the noise of one epoch's
     velocity (a few cm per epoch at 6 mm), whose smear does not grow with range."""
+    deskew_passes: Annotated[int, Field(ge=0, le=5)] = 0
+    """Runs over a sequence (``run_odometry``): after the streaming pass, run the odometry
+    again this many times on scans with point times, each scan deskewed by the motion
+    interpolated through the poses of the pass before (epochs on both sides,
+    :mod:`planodom.odometry.interpolate`); 0: the streaming pass only. Off by default:
+    measured at sigma = 0 over 300 epochs, one pass cuts the per-epoch rotation error on
+    the built-in scenes 4x (paper loop 0.016 -> 0.0039 deg rms) but not on procedural
+    worlds, where bridged and wrong poses of the first pass deskew their neighbours."""
+    deskew_order: Literal[1, 3, 5] = 3
+    """Degree of the polynomial (in the tangent space of the epoch's pose) through the
+    ``deskew_order + 1`` neighbouring poses that a later pass deskews with."""
     velocity_window: Annotated[int, Field(ge=1)] = 5
     """Streaming: the predicted linear velocity is the median over this many recent
     measured steps (the angular rate is the last step's)."""

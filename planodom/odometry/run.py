@@ -11,6 +11,8 @@ import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane
+from planodom.odometry.deskew import time_spread
+from planodom.odometry.interpolate import deskew_with_poses, midpoint_nodes
 from planodom.odometry.odometry import Extractor, PlaneOdometry, _default_extractor
 from planodom.odometry.relative import RelativePose, Status
 from planodom.rig import MotionBounds, Rig
@@ -39,7 +41,8 @@ class OdometryRun:
             (:attr:`PlaneOdometry.planes`), for smoothing and diagnostics.
         superseded: epochs whose result indexes planes extracted again later
             (:attr:`PlaneOdometry.superseded`).
-        seconds: wall time spent in extraction and in odometry, seconds.
+        seconds: wall time spent in extraction and in odometry (over all passes), and
+            in deskewing through the poses (``deskew``, passes after the first), seconds.
         config: the configuration the run used (with a rig's motion bounds, and the
             plane-map pipeline's extraction limits when it ran).
     """
@@ -110,15 +113,105 @@ def run_odometry(
         progress: called as ``progress(k, n)`` after each epoch.
         extractor: ``extractor(scan, extraction_config, twist=...) -> list[Plane]``;
             default :func:`planodom.extraction.extract_planes`.
+
+    On scans with point times, the streaming pass is followed by ``odometry.deskew_passes``
+    passes on the scans deskewed through the poses of the pass before
+    (:func:`redeskewed_run`); ``progress`` then counts each pass's epochs anew.
     """
     if rig is None:
         rig = getattr(source, "rig", None) or Rig()
     cfg = with_motion_bounds(config or PlanodomConfig(), rig.motion_bounds)
+    if times is None:
+        times = getattr(source, "times", None)
+    run = _streaming_pass(source, cfg, rig, times, progress, extractor)
+    for _ in range(cfg.odometry.deskew_passes):
+        if not _any_time_spread(source):
+            break
+        run = redeskewed_run(source, run.times, run.poses, cfg, rig, progress, extractor, run)
+    return run
+
+
+def redeskewed_run(
+    source: EpochSequence,
+    times: np.ndarray,
+    poses: np.ndarray,
+    config: PlanodomConfig,
+    rig: Rig,
+    progress: Callable[[int, int], None] | None = None,
+    extractor: Extractor | None = None,
+    previous: OdometryRun | None = None,
+) -> OdometryRun:
+    """The streaming odometry again on the scans deskewed through given poses.
+
+    Each epoch's scan is deskewed with the motion interpolated through the poses of the
+    epochs around it (:func:`planodom.odometry.interpolate.deskew_with_poses`, order
+    ``odometry.deskew_order``) and registered as a scan without time spread (extracted
+    once, with no twist). The poses may come from an odometry run or a smoother.
+
+    Args:
+        source: the epochs (:class:`Scan`; plane lists are passed through).
+        times: (N,) epoch times, seconds. poses: (N, 4, 4) ``T_world_base``.
+        config, rig, progress, extractor: as :func:`run_odometry` (config with the rig's
+            motion bounds already applied).
+        previous: the run the poses came from: its wall times are added to the new run's.
+    """
+    deskewed = _DeskewedEpochs(source, np.asarray(times), np.asarray(poses), config)
+    run = _streaming_pass(deskewed, config, rig, times, progress, extractor)
+    run.seconds["deskew"] = deskewed.seconds
+    if previous is not None:
+        for key, value in previous.seconds.items():
+            run.seconds[key] = run.seconds.get(key, 0.0) + value
+    return run
+
+
+def _any_time_spread(source: EpochSequence) -> bool:
+    """Whether the first scans of ``source`` carry point times that differ (a recording
+    has them for all its epochs or for none)."""
+    for k in range(min(len(source), 2)):
+        item = source[k]
+        if isinstance(item, Scan) and time_spread(item):
+            return True
+    return False
+
+
+class _DeskewedEpochs:
+    """``source``'s epochs, each scan deskewed through ``poses`` (see :func:`redeskewed_run`);
+    ``seconds`` adds up the time spent deskewing."""
+
+    def __init__(
+        self, source: EpochSequence, times: np.ndarray, poses: np.ndarray, config: PlanodomConfig
+    ) -> None:
+        c0 = _time.perf_counter()
+        self.source, self.times = source, times
+        self.order = config.odometry.deskew_order
+        self.nodes = midpoint_nodes(times, poses, self.order)
+        self.seconds = _time.perf_counter() - c0
+
+    def __len__(self) -> int:
+        return len(self.source)
+
+    def __getitem__(self, k: int) -> Scan | Sequence[Plane]:
+        item = self.source[k]
+        if not isinstance(item, Scan):
+            return item
+        c0 = _time.perf_counter()
+        out = deskew_with_poses(item, *self.nodes, float(self.times[k]), self.order)
+        self.seconds += _time.perf_counter() - c0
+        return out
+
+
+def _streaming_pass(
+    source: EpochSequence,
+    cfg: PlanodomConfig,
+    rig: Rig,
+    times: Sequence[float] | np.ndarray | None,
+    progress: Callable[[int, int], None] | None,
+    extractor: Extractor | None,
+) -> OdometryRun:
+    """One pass of :class:`PlaneOdometry` over the epochs (see :func:`run_odometry`)."""
     timed = _TimedExtractor(extractor)
     odo = PlaneOdometry(cfg, timed, rig.sensor_origins)
     n = len(source)
-    if times is None:
-        times = getattr(source, "times", None)
     total = 0.0
     n_planes = np.zeros(n, dtype=int)
     for k in range(n):
