@@ -97,21 +97,42 @@ def midpoint_nodes(
     return mid, out.reshape(-1, 4, 4)
 
 
+def epoch_middles(times: np.ndarray) -> np.ndarray:
+    """The middle of every epoch (N,) s: halfway to the next epoch's time (the last one:
+    half its previous interval on; a single epoch: its time)."""
+    times = np.asarray(times, dtype=np.float64)
+    if len(times) < 2:
+        return times.copy()
+    step = np.diff(times)
+    return times + 0.5 * np.r_[step, step[-1]]
+
+
 def interpolated_motion(
-    node_times: np.ndarray, node_poses: np.ndarray, t_k: float, t: np.ndarray, order: int = 3
+    node_times: np.ndarray,
+    node_poses: np.ndarray,
+    t_ref: float,
+    t: np.ndarray,
+    order: int = 3,
 ) -> np.ndarray:
-    """``T_k_t`` (T, 4, 4): the base frame at ``t_k + t`` in the one at ``t_k`` on the
-    curve through the nodes (:func:`curve_poses`; ``t`` (T,) seconds)."""
-    around = t_k + 0.5 * float(np.max(t)) if len(t) else t_k
-    T = curve_poses(node_times, node_poses, around, np.r_[t_k, t_k + np.asarray(t)], order)
+    """``T_ref_t`` (T, 4, 4): the base frame at the absolute times ``t`` (T,) s in the one
+    at ``t_ref`` (s), on the curve through the nodes (:func:`curve_poses`)."""
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    around = 0.5 * (float(np.min(t)) + float(np.max(t))) if len(t) else t_ref
+    T = curve_poses(node_times, node_poses, around, np.r_[t_ref, t], order)
     return invert_transform(T[0]) @ T[1:]
 
 
 def deskew_with_poses(
-    scan: Scan, node_times: np.ndarray, node_poses: np.ndarray, t_k: float, order: int = 3
+    scan: Scan,
+    node_times: np.ndarray,
+    node_poses: np.ndarray,
+    t_k: float,
+    order: int = 3,
+    t_ref: float | None = None,
 ) -> Scan:
-    """A scan (at the epoch time ``t_k``, s) with every point brought to that time by the
-    motion on the curve through the nodes (:func:`interpolated_motion`; nodes from
+    """A scan of the epoch at ``t_k`` (s) with every point (seen at ``t_k + scan.t``)
+    brought to the base frame at ``t_ref`` (s, default ``t_k``) by the motion on the
+    curve through the nodes (:func:`interpolated_motion`; nodes from
     :func:`midpoint_nodes`); its times become zero (the points are deskewed). A scan
     without times is returned unchanged.
 
@@ -124,6 +145,8 @@ def deskew_with_poses(
     # one transform per distinct time: a 2D scanner's sweep shares none, but a spinning
     # lidar's column does
     t_unique, inverse = np.unique(scan.t, return_inverse=True)
-    T = interpolated_motion(node_times, node_poses, t_k, t_unique, order)[inverse.reshape(-1)]
+    reference = t_k if t_ref is None else t_ref
+    T = interpolated_motion(node_times, node_poses, reference, t_k + t_unique, order)
+    T = T[inverse.reshape(-1)]
     points = np.einsum("nij,nj->ni", T[:, :3, :3], scan.points) + T[:, :3, 3]
     return replace(scan, points=points, t=np.zeros_like(scan.t))
