@@ -116,6 +116,19 @@ def register_deskewed(
     return best
 
 
+def prefer_streaming(given: EpochEstimate, previous_planes: int) -> bool:
+    """Whether an epoch deskewed by a given motion (:func:`planodom.odometry.run.
+    redeskewed_run`) is suspect, as in step 1 of the module docstring: not OK, or far
+    fewer planes than the epoch before; then the streaming deskewing is tried too."""
+    few = len(given.planes) < max(2.0, 0.5 * previous_planes)
+    return given.relative.status is not Status.OK or few
+
+
+def keep_first(first: EpochEstimate, second: EpochEstimate) -> bool:
+    """Whether ``first`` is at least as good as ``second``: status, then plane count."""
+    return _score(first) >= _score(second)
+
+
 def _score(candidate: EpochEstimate) -> tuple[int, int]:
     """How good one extraction of an epoch is: its status, then its plane count."""
     return candidate.relative.status.rank, len(candidate.planes)

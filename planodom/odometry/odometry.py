@@ -24,7 +24,13 @@ import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, se3_exp, se3_log
-from planodom.odometry.deskew import EpochEstimate, register_deskewed, time_spread
+from planodom.odometry.deskew import (
+    EpochEstimate,
+    keep_first,
+    prefer_streaming,
+    register_deskewed,
+    time_spread,
+)
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.planes import PlaneSet
@@ -125,18 +131,31 @@ class PlaneOdometry:
         """Per epoch the epoch it was associated with (``results[k].prev``); -1 first."""
         return [-1 if r is None else r.prev for r in self.results]
 
-    def register_epoch(self, scan: Scan, time: float | None = None) -> np.ndarray:
+    def register_epoch(
+        self, scan: Scan, time: float | None = None, deskewed: Scan | None = None
+    ) -> np.ndarray:
         """Extract the planes of one epoch and register them; returns ``T_world_base``.
 
         Args:
             scan: the epoch's points in the base frame (with per-point times if known).
             time: the epoch's reference time, seconds (default: previous + epoch period).
+            deskewed: the same points already deskewed to ``time`` by a better motion
+                model (:func:`planodom.odometry.run.redeskewed_run`): extracted first,
+                and kept unless :func:`planodom.odometry.deskew.prefer_streaming` says
+                ``scan`` deskewed as usual might do better.
         """
         t = self._next_time(time)
         k = len(self.poses)
         if k == 0:
             self._start_map(scan)
+            if deskewed is not None:  # a zero twist: deskewed already (never refreshed)
+                return self._commit_first(self._new_epoch(0, deskewed, np.zeros(6)), t)
             return self._commit_first(self._new_epoch(0, scan, None), t)
+        if deskewed is not None:
+            given = self._estimate_scan(deskewed, t, None)
+            if not prefer_streaming(given, len(self.last_planes)):
+                epoch = _Epoch(k, given.planes, given.plane_set, deskewed, np.zeros(6))
+                return self._commit(epoch, given, t)
         estimate = partial(self._estimate_scan, scan, t)
         if self.config.odometry.deskew and time_spread(scan):
             dt = t - self.times[-1]
@@ -152,7 +171,10 @@ class PlaneOdometry:
             best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous)
         else:
             best = estimate(None)
-        return self._commit(_Epoch(k, best.planes, best.plane_set, scan, best.twist), best, t)
+        twist = best.twist
+        if deskewed is not None and keep_first(given, best):
+            best, scan, twist = given, deskewed, np.zeros(6)
+        return self._commit(_Epoch(k, best.planes, best.plane_set, scan, twist), best, t)
 
     def register_planes(self, planes: Sequence[Plane], time: float | None = None) -> np.ndarray:
         """Register an epoch given its planes (base frame); returns ``T_world_base`` (4, 4)."""

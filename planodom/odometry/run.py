@@ -220,6 +220,15 @@ def _any_time_spread(source: EpochSequence) -> bool:
     return False
 
 
+@dataclass(frozen=True)
+class _Deskewed:
+    """An epoch's scan (times relative to the pass's reference time) and the same points
+    deskewed along the curve (:meth:`PlaneOdometry.register_epoch`'s ``deskewed``)."""
+
+    scan: Scan
+    deskewed: Scan
+
+
 class _DeskewedEpochs:
     """``source``'s epochs, each scan (epoch k at ``times[k]``) deskewed to
     ``reference[k]`` along the curve through ``nodes`` where ``trusted[k]``, else with
@@ -242,23 +251,24 @@ class _DeskewedEpochs:
     def __len__(self) -> int:
         return len(self.source)
 
-    def __getitem__(self, k: int) -> Scan | Sequence[Plane]:
+    def __getitem__(self, k: int) -> Scan | Sequence[Plane] | _Deskewed:
         item = self.source[k]
         if not isinstance(item, Scan):
             return item
+        shift = float(self.reference[k] - self.times[k])
+        raw = item if item.t is None or shift == 0 else replace(item, t=item.t - shift)
         if not self.trusted[k]:  # the streaming deskewing, to the reference time
-            shift = float(self.reference[k] - self.times[k])
-            return item if item.t is None or shift == 0 else replace(item, t=item.t - shift)
+            return raw
         c0 = _time.perf_counter()
         out = deskew_with_poses(
             item, *self.nodes, float(self.times[k]), self.order, float(self.reference[k])
         )
         self.seconds += _time.perf_counter() - c0
-        return out
+        return _Deskewed(raw, out)
 
 
 def _streaming_pass(
-    source: EpochSequence,
+    source: EpochSequence | _DeskewedEpochs,
     cfg: PlanodomConfig,
     rig: Rig,
     times: Sequence[float] | np.ndarray | None,
@@ -275,7 +285,9 @@ def _streaming_pass(
         item = source[k]
         t_k = None if times is None else float(times[k])
         c0 = _time.perf_counter()
-        if isinstance(item, Scan):
+        if isinstance(item, _Deskewed):
+            odo.register_epoch(item.scan, t_k, item.deskewed)
+        elif isinstance(item, Scan):
             odo.register_epoch(item, t_k)
         else:
             odo.register_planes(list(item), t_k)

@@ -90,3 +90,20 @@ def test_snapshot_motion_is_exact_where_every_sweep_repeats_a_corner_point():
     rot, tr = _errors(run, sim)
     assert len(rot) == 5
     assert rot.max() < 1e-6 and tr.max() < 1e-6, (rot.max(), tr.max())
+
+
+def test_a_deskewed_scan_without_planes_falls_back_to_the_streaming_deskewing(continuous):
+    """register_epoch(scan, t, deskewed): a deskewed scan that finds no planes (here:
+    two of its points) is replaced by the scan deskewed as the streaming pass does."""
+    from planodom.odometry import PlaneOdometry
+    from planodom.scan import Scan
+
+    def two_points(scan: Scan) -> Scan:
+        return Scan(scan.points[:2], ring=scan.ring[:2], t=np.zeros(2))
+
+    sim = continuous
+    streaming = run_odometry(sim, PlanodomConfig(), sim.rig)
+    odo = PlaneOdometry(PlanodomConfig(), sensor_origins=sim.rig.sensor_origins)
+    for k in range(4):
+        odo.register_epoch(sim[k], float(sim.times[k]), two_points(sim[k]) if k else None)
+    np.testing.assert_allclose(np.array(odo.poses), streaming.poses[:4], atol=1e-12)
