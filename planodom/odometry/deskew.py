@@ -118,10 +118,12 @@ def register_deskewed(
 
 def prefer_streaming(given: EpochEstimate, previous_planes: int) -> bool:
     """Whether an epoch deskewed by a given motion (:func:`planodom.odometry.run.
-    redeskewed_run`) is suspect, as in step 1 of the module docstring: not OK, or far
-    fewer planes than the epoch before; then the streaming deskewing is tried too."""
+    redeskewed_run`) is suspect, as in step 1 of the module docstring: unresolved, or far
+    fewer planes than the epoch before; then the streaming deskewing is tried too. (A
+    degenerate epoch is not suspect: a straight street makes every epoch degenerate, and
+    the streaming deskewing, with as many planes, would be kept for no reason.)"""
     few = len(given.planes) < max(2.0, 0.5 * previous_planes)
-    return given.relative.status is not Status.OK or few
+    return given.relative.status is Status.UNRESOLVED or few
 
 
 def keep_first(first: EpochEstimate, second: EpochEstimate) -> bool:
