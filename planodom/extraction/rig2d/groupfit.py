@@ -122,26 +122,35 @@ def _interior(seg, s):  # pragma: no cover - compiled
 @numba.njit(cache=True)
 def _first_plane(seg, members):  # pragma: no cover - compiled
     """Step 1: unit normal (3,) and offset (m) of the interior points of the segments
-    ``members`` (K,) (two passes, centred)."""
+    ``members`` (K,) (two passes, centred; scalar loops, no per-point arrays)."""
     cnt = 0.0
-    c = np.zeros(3)
+    c0 = c1 = c2 = 0.0
     for s in members:
         lo, hi = _interior(seg, s)
         for i in range(lo, hi):
             cnt += 1.0
-            c += seg.points[i]
-    c /= max(cnt, 1e-300)
+            c0 += seg.points[i, 0]
+            c1 += seg.points[i, 1]
+            c2 += seg.points[i, 2]
+    cnt = max(cnt, 1e-300)
+    c = np.array([c0 / cnt, c1 / cnt, c2 / cnt])
     sc = np.zeros((3, 3))
     for s in members:
         lo, hi = _interior(seg, s)
         for i in range(lo, hi):
-            dc = seg.points[i] - c
-            for u in range(3):
-                for v in range(3):
-                    sc[u, v] += dc[u] * dc[v]
+            d0 = seg.points[i, 0] - c[0]
+            d1 = seg.points[i, 1] - c[1]
+            d2 = seg.points[i, 2] - c[2]
+            sc[0, 0] += d0 * d0
+            sc[0, 1] += d0 * d1
+            sc[0, 2] += d0 * d2
+            sc[1, 1] += d1 * d1
+            sc[1, 2] += d1 * d2
+            sc[2, 2] += d2 * d2
+    sc[1, 0], sc[2, 0], sc[2, 1] = sc[0, 1], sc[0, 2], sc[1, 2]
     _, vecs = np.linalg.eigh(sc)
     n = vecs[:, 0].copy()
-    return n, -(n @ c)
+    return n, -(n[0] * c[0] + n[1] * c[1] + n[2] * c[2])
 
 
 @numba.njit(cache=True)
@@ -153,7 +162,7 @@ def _robust_scale(seg, members, n, d):  # pragma: no cover - compiled
         lo, hi = _interior(seg, members[k])
         q = 0.0
         for i in range(lo, hi):
-            r = seg.points[i] @ n + d
+            r = seg.points[i, 0] * n[0] + seg.points[i, 1] * n[1] + seg.points[i, 2] * n[2] + d
             q += r * r
         rms[k] = np.sqrt(q / max(hi - lo, 1))
     rms.sort()
