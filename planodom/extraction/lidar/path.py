@@ -25,6 +25,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from planodom.config import ExtractionConfig
@@ -67,9 +69,12 @@ def _native_planes(
     int64 taken as the ring (module docstring); None without times or planes."""
     if epoch.scan.t is None:
         return None
-    candidates, sigma = lidar_candidates(epoch.points, config, rows, view, epoch.scan.t)
-    fits, n_small = fit_candidates(candidates, epoch.points, config, rows)
-    planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config)
+    # One origin for all rows: recovered rows are not the rig's ring ids.
+    origins = None if epoch.origins is None else epoch.origins.mean(axis=0, keepdims=True)
+    ringed = Epoch(replace(epoch.scan, ring=rows), epoch.points, origins, epoch.twist)
+    candidates, sigma = lidar_candidates(ringed.points, config, rows, view, ringed.scan.t)
+    fits, n_small = fit_candidates(candidates, ringed.points, config)
+    planes, inliers, n_rejected = build_planes(fits, ringed, sigma, config)
     if not planes:
         return None
     return PathResult(planes, inliers, sigma, 0, len(candidates), n_small + n_rejected)
@@ -108,14 +113,10 @@ def _pack(
 
 
 def fit_candidates(
-    candidates: list[np.ndarray],
-    points: np.ndarray,
-    config: ExtractionConfig,
-    rows: np.ndarray | None = None,
+    candidates: list[np.ndarray], points: np.ndarray, config: ExtractionConfig
 ) -> tuple[PlaneFits, int]:
     """Robust TLS fits of the candidate inlier sets (indices into ``points`` (N, 3), m)
-    that keep ``min_plane_points`` inliers, and the number of the others; with recovered
-    ``rows`` (N,) int64 the fits carry the scan lines each spans."""
+    that keep ``min_plane_points`` inliers, and the number of the others."""
     kept = []
     for cand in candidates:
         if len(cand) < config.min_plane_points:
@@ -123,9 +124,5 @@ def fit_candidates(
         fit = robust_plane_fit(points[cand], config.inlier_sigma_factor)
         if fit is not None and len(fit.inliers) >= config.min_plane_points:
             kept.append((cand[fit.inliers], (fit.centroid, fit.evals, fit.evecs)))
-    inliers = [i for i, _ in kept]
-    n_rows = None
-    if rows is not None:
-        n_rows = np.array([len(np.unique(rows[i])) for i in inliers], dtype=np.int64)
-    out = _pack(inliers, [f for _, f in kept], n_rows)
+    out = _pack([i for i, _ in kept], [f for _, f in kept], None)
     return out, len(candidates) - len(kept)
