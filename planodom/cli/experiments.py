@@ -127,7 +127,7 @@ def experiment_generalisation(
     out: ExpOut = Path("results/generalisation"),
     config: ConfigFile = None,
 ) -> None:
-    """Unseen worlds: planodom (wocsc, sda-mean) vs the oracle, KISS-ICP and open3d ICP."""
+    """Unseen worlds: planodom (default, and the paper's wocsc) vs the oracle and the peers."""
     from planodom.errors import ConfigError
     from planodom.experiments.generalisation import run_generalisation_experiment
 

@@ -79,3 +79,19 @@ def test_unorganised_cloud_gives_the_walls_with_moments():
     again = extract(bare, ExtractionConfig(), sensor_origins=np.array([0, 0, HEIGHT]))
     for a, b in zip(res.planes, again.planes, strict=True):
         np.testing.assert_array_equal(a.coefficients, b.coefficients)
+
+
+def test_a_cloud_with_times_but_no_ring_is_extracted_as_with_its_ring():
+    """Recovered rows and times are what a ring field gives: the same planes as the scan
+    with its ring (a sparse 16-beam lidar, whose square-pixel image is 2 deg wide)."""
+    scan = scan_lidar(SCENE, n_beams=16, n_azimuth=1024)
+    origin = np.array([0, 0, HEIGHT])
+    ringed = extract(scan, ExtractionConfig(), sensor_origins=origin)
+    bare = extract(Scan(scan.points, None, scan.t, scan.label), ExtractionConfig(),
+                   sensor_origins=origin)  # fmt: skip
+    assert {p.truth_id for p in ringed.planes} == set(TRUTH)
+    assert len(bare.planes) == len(ringed.planes)
+    for a, b in zip(ringed.planes, bare.planes, strict=True):
+        np.testing.assert_allclose(a.coefficients, b.coefficients, atol=1e-12)
+        # Elevation modes put a few of a beam's points (0.3 %) in the row below.
+        assert abs(a.support.n_rows - b.support.n_rows) <= 1 and b.support.n_rows >= 2

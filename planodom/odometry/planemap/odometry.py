@@ -82,6 +82,7 @@ class MapEstimate:
     cur: ScanPlanes | None
     reg: Registration | None
     plane_set: PlaneSet
+    against: tuple[PlaneMap, int] | None = None
 
 
 class PlaneMapOdometry:
@@ -120,18 +121,23 @@ class PlaneMapOdometry:
             ],
             dtype=np.intp,
         )
-        plane_set = PlaneSet.from_planes(planes)
+        return self._estimate(used, self._scan_planes(planes, used), PlaneSet.from_planes(planes))
+
+    def _estimate(
+        self, used: np.ndarray, cur: ScanPlanes | None, plane_set: PlaneSet
+    ) -> MapEstimate:
+        """:meth:`estimate` of the planes ``used`` of ``plane_set`` (inputs ``cur``)."""
         T_pred = self.pose @ self.velocity
-        cur = self._scan_planes(planes, used)
+        against = (self.map, self.frame)
         if self.frame < 0 or cur is None or len(self.map) == 0:
             status = Status.OK if self.frame < 0 else Status.UNRESOLVED
             rel = relative_pose(self, self.velocity, None, status)
             T = self.pose if self.frame < 0 else T_pred
-            return MapEstimate(rel, T, T_pred, used, cur, None, plane_set)
+            return MapEstimate(rel, T, T_pred, used, cur, None, plane_set, against)
         reg = self._best_registration(T_pred, cur, plane_set)
         ok = self._resolved(reg, cur)
         rel, T = self._result(reg, ok, T_pred, cur, used)
-        return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set)
+        return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set, against)
 
     def _scan_planes(self, planes: Sequence[Plane], used: np.ndarray) -> ScanPlanes | None:
         if len(used) == 0:
@@ -219,7 +225,15 @@ class PlaneMapOdometry:
         self.commit(self.estimate(planes))
 
     def commit(self, est: MapEstimate) -> None:
-        """Make ``est`` the scan's result: pose, velocity, deviation statistics, map."""
+        """Make ``est`` the scan's result: pose, velocity, deviation statistics, map.
+
+        An estimate made against another map (the first scan seeded again since, or
+        another scan committed) is registered again first: its associations index
+        landmarks of that map."""
+        if est.against is not None and (
+            est.against[0] is not self.map or est.against[1] != self.frame
+        ):
+            est = self._estimate(est.used, est.cur, est.plane_set)
         first = self.frame < 0
         self.frame += 1
         T = _orthonormalised(est.T)

@@ -77,3 +77,17 @@ def test_pipeline_map_runs_in_plane_odometry_on_plane_lists():
     # "auto" on plane lists (no scans) is the paper's pipeline.
     auto = run_odometry(_scans(poses), PlanodomConfig())
     assert all(r.diagnostics.pipeline == "wocsc" for r in auto.results[1:])
+
+
+def test_an_estimate_made_before_the_first_scan_is_seeded_again_commits_on_the_new_map():
+    """The streaming loop may seed the first scan again (deskewed) after estimating the
+    second one and still keep that estimate: its associations index the old map."""
+    T_true = pose([0.5, -1.0, 6.0], [0.8, 0.2, 0.05])
+    scans = _scans([np.eye(4), T_true])
+    odo = PlaneMapOdometry(PlanodomConfig().updated({"planemap.laser_bias_m": 0.0}))
+    odo.commit(odo.estimate(scans[0]))
+    stale = odo.estimate(scans[1])
+    odo.reseed(scans[0][:7])  # a smaller map: the stale associations point past its end
+    odo.commit(stale)
+    np.testing.assert_allclose(odo.pose, T_true, atol=1e-9)
+    assert odo.frame == 1 and len(odo.map) == 8
