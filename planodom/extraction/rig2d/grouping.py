@@ -3,7 +3,9 @@
 The traces (:mod:`.traces`) are the input.
 
 1. Seeds. Two traces seed a plane only when they come from different rings (scanners),
-   cross at ``min_cross_angle_deg`` or more, their predicted direction errors are at most
+   cross at ``min_cross_angle_deg`` or more (or, down to 2 deg, at an angle where their
+   predicted normal error is at most ``max_seed_normal_error_deg``: long traces of two
+   scanners on a side wall cross at a few degrees), their predicted direction errors are at most
    ``max_seed_direction_error_deg`` and they are coplanar: the gap between their lines is
    within the noise of their centroids, ``floor + 3 sigma sqrt(1 / N_i + 1 / N_j)`` (at
    most the member tolerance), plus the slack of their direction errors. A pair whose
@@ -48,6 +50,10 @@ from planodom.extraction.rig2d.traces import build_traces
 #: An L-shaped seed pair has its crossing within this (m), or 5 % of each trace's
 #: length, of an end of both.
 L_MARGIN_M = 0.2
+#: Sine of the narrowest crossing that may seed at all (2 deg): below it a trace's
+#: curvature and deskewing residue, which the predicted direction error does not hold,
+#: would dominate the pair's normal.
+SIN_MIN_CROSS_FLOOR = float(np.sin(np.radians(2.0)))
 
 
 class GroupingParams(NamedTuple):
@@ -56,7 +62,11 @@ class GroupingParams(NamedTuple):
     Attributes:
         tol_m: distance (m) within which a trace must lie of a plane to join it.
         sigma_m: noise sigma (m) of the points.
-        sin_min_cross: sine of the smallest angle between a seed pair's directions.
+        sin_min_cross: sine of the smallest angle between a seed pair's directions,
+            unless the pair's normal is known to ``max_seed_normal_err_rad``.
+        max_seed_normal_err_rad: a narrower pair (down to ``SIN_MIN_CROSS_FLOOR``) seeds
+            when its predicted normal error ``(err_i + err_j) / sin(angle)`` is at most
+            this (rad).
         max_seed_err_rad: largest predicted direction error of a seed trace (rad).
         min_points: fewest points of a group.
         max_rms_m: largest RMS residual (m) of a group's points to its plane.
@@ -79,6 +89,7 @@ class GroupingParams(NamedTuple):
     gap_m: float
     gap_ratio: float
     max_span_s: float
+    max_seed_normal_err_rad: float = 0.0
     margin_m: float = L_MARGIN_M
 
 
@@ -281,7 +292,10 @@ def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
             b0, b1, b2 = direction[j, 0], direction[j, 1], direction[j, 2]
             n0, n1, n2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
             sin_a = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-            if sin_a < p.sin_min_cross:
+            # A narrow crossing seeds too when the traces' directions are known well
+            # enough that the pair's normal is: error about (err_i + err_j) / sin(angle).
+            precise = (dir_err[i] + dir_err[j]) <= p.max_seed_normal_err_rad * sin_a
+            if sin_a < p.sin_min_cross and not (precise and sin_a >= SIN_MIN_CROSS_FLOOR):
                 continue
             n0, n1, n2 = n0 / sin_a, n1 / sin_a, n2 / sin_a
             e0 = centroid[i, 0] - centroid[j, 0]
