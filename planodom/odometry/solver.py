@@ -214,8 +214,10 @@ def _solve(
     refined = None
     if ocfg.refinement == "planes":
         refined = _refine(prev, curr, R, np.r_[txy, z], measured, bounds, cfg)
+        # The planes associated under the consensus pose decide: a consensus pair that
+        # SDA does not confirm (a far wall's normal off by degrees) measures nothing.
         R, fit = refined.R, refined.fit
-        measured = measured or fit.measured
+        measured = fit.measured
         if fit.n_planes:  # unmeasured directions stay near the initial value
             txy, z, cov_t = fit.t[:2], fit.t[2], fit.cov_xy
             if fit.z_observed:
