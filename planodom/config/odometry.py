@@ -80,11 +80,12 @@ class OdometryConfig(Section):
     translation_min_angle_deg: AcuteDeg = 20.0
     """Pairs closer than this to parallel give no reference point (its error grows as
     1 / sin(angle)); rotation uses every non-parallel pair."""
-    refinement: Literal["none", "planes"] = "planes"
-    """After the consensus: ``"planes"`` re-associates (SDA) and solves rotation and
+    refinement: Literal["none", "translation", "pose"] = "translation"
+    """After the consensus: ``"translation"`` re-associates (SDA) and solves the
     translation by weighted least squares over all associated planes
-    (:mod:`planodom.odometry.refine`), so walls a few degrees apart in yaw measure the
-    translation together; ``"none"``: the paper's single consensus candidate."""
+    (:mod:`planodom.odometry.refine`), so walls a few degrees apart in yaw measure it
+    together; ``"pose"`` the rotation too (weighted Procrustes); ``"none"``: the paper's
+    single consensus candidate."""
     refine_offset_floor_m: Positive = 0.003
     """Refinement: added (squared) to every plane association's offset sigma, m (what a
     fit's covariance misses: deskewing, bend)."""

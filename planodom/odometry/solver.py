@@ -212,7 +212,7 @@ def _solve(
         txy, z = bounds.t0[:2].copy(), bounds.z_prior
         cov_t, sigma_z, z_observed = np.diag([bounds.translation**2] * 2), np.inf, False
     refined = None
-    if ocfg.refinement == "planes":
+    if ocfg.refinement != "none":
         refined = _refine(prev, curr, R, np.r_[txy, z], measured, bounds, cfg)
         # The planes associated under the consensus pose decide: a consensus pair that
         # SDA does not confirm (a far wall's normal off by degrees) measures nothing.
@@ -319,7 +319,8 @@ def _refine(prev, curr, R, t, measured: bool, bounds: _Bounds, cfg: PlanodomConf
     fit = None
     for _ in range(2):
         ij = strict_association(prev, curr, R_c, acfg, t_c, bound)
-        R_c = plane_rotation(prev, curr, R_c, ij, floor_n, parallel)
+        if ocfg.refinement == "pose":
+            R_c = plane_rotation(prev, curr, R_c, ij, floor_n, parallel)
         fit = plane_translation(
             prev, curr, R_c, ij, t_c, z_min, ocfg.refine_offset_floor_m,
             ocfg.refine_max_sigma_m, bounds.translation**2,
