@@ -106,9 +106,11 @@ def plane_translation(
     A_xy = A[:2, :2] - np.outer(A[:2, 2], A[2, :2]) / A[2, 2] if z_observed else A[:2, :2]
     measured = bool(np.linalg.eigvalsh(A_xy)[0] * max_sigma_m**2 >= 1.0)
     free = 3 if z_observed else 2
-    # The initial value as a prior of variance ``unmeasured_var`` on x, y: what keeps a
-    # direction the planes do not measure where it was.
-    H = A[:free, :free] + np.diag([1.0 / unmeasured_var] * 2 + [0.0] * (free - 2))
+    # Unless the planes measure every direction, the initial value is a prior of
+    # variance ``unmeasured_var`` on x, y: what keeps an unmeasured direction where it was
+    # (when they do, it is left out: noise-free planes give the exact translation).
+    prior = 0.0 if measured else 1.0 / unmeasured_var
+    H = A[:free, :free] + np.diag([prior] * 2 + [0.0] * (free - 2))
     g = m[:, :free].T @ (w * (b - m @ t0))
     H_inv = np.linalg.inv(H)
     t = t0.copy()
