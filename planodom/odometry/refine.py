@@ -81,6 +81,7 @@ def plane_translation(
     offset_floor_m: float,
     max_sigma_m: float,
     unmeasured_var: float,
+    consensus_measured: bool = False,
 ) -> PlaneTranslation:
     """Translation by weighted least squares over the plane associations ``ij`` (L, 2).
 
@@ -92,6 +93,8 @@ def plane_translation(
         max_sigma_m: largest standard deviation of a measured horizontal direction, m.
         unmeasured_var: variance of ``t0``'s horizontal part, m^2 (a prior: the planes
             move the weak directions only as far as they measure them).
+        consensus_measured: the consensus measured the translation; it decides when a
+            plane's covariance is unknown (then the fallback variances are guesses).
     """
     t0 = np.asarray(t0, dtype=np.float64)
     if len(ij) == 0:
@@ -104,7 +107,12 @@ def plane_translation(
     A = np.einsum("l,li,lj->ij", w, m, m)
     # Horizontal information: the Schur complement of z when z is solved, else A_xy.
     A_xy = A[:2, :2] - np.outer(A[:2, 2], A[2, :2]) / A[2, 2] if z_observed else A[:2, :2]
-    measured = bool(np.linalg.eigvalsh(A_xy)[0] * max_sigma_m**2 >= 1.0)
+    lam = np.linalg.eigvalsh(A_xy)
+    measured = bool(lam[0] * max_sigma_m**2 >= 1.0)
+    i, j = ij[:, 0], ij[:, 1]
+    if not (np.isfinite(prev.covariances[i]).all() and np.isfinite(curr.covariances[j]).all()):
+        # Without the fits' covariances the precision is a guess: the consensus decides.
+        measured = (measured or consensus_measured) and lam[0] > 1e-9 * lam[1]
     free = 3 if z_observed else 2
     # Unless the planes measure every direction, the initial value is a prior of
     # variance ``unmeasured_var`` on x, y: what keeps an unmeasured direction where it was
