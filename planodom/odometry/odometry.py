@@ -166,9 +166,11 @@ class PlaneOdometry:
                 # first step is iterated, the first epoch seeded again with its twist.
                 ocfg = ocfg.model_copy(update={"deskew_iterations": 0})
             # a twist never outlives an unresolved epoch: until one is measured again, the
-            # epochs are extracted without it (it still serves as prior and bridge)
-            twist = None if self._unresolved_last() else self.twist
-            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous)
+            # epochs are extracted without it (it still serves as prior and bridge, and is
+            # tried when the extraction without it is suspect)
+            unresolved = self._unresolved_last()
+            twist, held = (None, self.twist) if unresolved else (self.twist, None)
+            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held)
         else:
             best = estimate(None)
         twist = best.twist
