@@ -37,7 +37,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, PlaneSupport, invert_transform
+from planodom.geometry import Plane, PlaneSupport, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 
@@ -79,6 +79,40 @@ class Reidentification:
         return min(self.truth_plane, self.truth_landmark) >= 0 and (
             self.truth_plane != self.truth_landmark
         )
+
+
+@dataclass
+class LoopMatch:
+    """One epoch's match against the map, accepted or refused by the verification.
+
+    Attributes:
+        epoch: the current epoch k. oldest: the earliest last-seen epoch of its candidates.
+        T_world_pred: (4, 4) the predicted pose of epoch k (the chained guess corrected
+            by the last accepted match).
+        T_pred_curr: (4, 4) the pose of epoch k in its predicted frame (the correction
+            the match implies; identity when the prediction is exact).
+        covariance: (5, 5) the match's own covariance (roll, pitch, yaw, x, y).
+        drift: (3, 3) covariance of the prediction's (yaw, x, y) error since ``oldest``.
+        mahalanobis: squared Mahalanobis distance of the correction's (yaw, x, y).
+        ties: (landmark, plane index) pairs. verdict: "accepted" or why refused.
+    """
+
+    epoch: int
+    oldest: int
+    T_world_pred: np.ndarray
+    T_pred_curr: np.ndarray
+    covariance: np.ndarray
+    drift: np.ndarray
+    mahalanobis: float
+    ties: list[tuple[int, int]]
+    verdict: str = "accepted"
+
+
+def _mahalanobis(T: np.ndarray, dofs: list[int], cov: np.ndarray) -> float:
+    """Squared Mahalanobis distance of the (roll, pitch, yaw, x, y) entries ``dofs`` of
+    transform ``T`` from zero under covariance ``cov`` (len(dofs) square)."""
+    v = pose5_from_transform(T)[dofs]
+    return float(v @ np.linalg.solve(cov, v))
 
 
 def _extent(plane: Plane, T_world_base: np.ndarray) -> tuple[np.ndarray, float]:
@@ -124,6 +158,12 @@ class LoopClosingBuilder(GraphBuilder):
         super().__init__(config.smoothing, T_world_first)
         self.full_config = config
         self.reidentifications: list[Reidentification] = []
+        self.matches: list[LoopMatch] = []
+        #: (4, 4) world-frame correction of the chained guess by the last accepted match:
+        #: the map places epoch k at ``correction @ poses[k]`` (identity before the first).
+        self.correction = np.eye(4)
+        self._reference: int | None = None  # epoch of the accepted correction
+        self._pending: list[tuple[int, np.ndarray]] = []  # agreeing unconfirmed corrections
         self.attempts = 0
         self.travelled: list[float] = []
         self.variances: list[tuple[float, float]] = []  # chained (xy, yaw) variance sums
@@ -220,6 +260,19 @@ class LoopClosingBuilder(GraphBuilder):
         self.variances.append((last_t + var_t if k else 0.0, last_r + var_r if k else 0.0))
         return super().add_epoch(planes, relatives, min_epoch)
 
+    def _drift_covariance(self, oldest: int, k: int) -> np.ndarray:
+        """(3, 3) covariance of the prediction's (yaw, x, y) error at k relative to the
+        map seen at ``oldest``: the chained odometry variances between the two epochs, the
+        yaw's lever arm over the distance driven, and the minimum translation bound's
+        share (``loop_min_translation_m / loop_sigmas``) for what they leave out."""
+        c = self.config
+        distance = self.travelled[k] - self.travelled[oldest]
+        var_t = self.variances[k][0] - self.variances[oldest][0]
+        var_r = self.variances[k][1] - self.variances[oldest][1]
+        var_xy = 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
+        floor_r = np.radians(self.full_config.association.prior_rotation_deg) / c.loop_sigmas
+        return np.diag([var_r + floor_r**2, var_xy, var_xy])
+
     def _match_config(self, oldest: int, k: int) -> PlanodomConfig:
         """Association bounds around the prediction for candidates last seen at ``oldest``:
         ``loop_sigmas`` standard deviations of the chained odometry between the two epochs
@@ -254,9 +307,11 @@ class LoopClosingBuilder(GraphBuilder):
         if len(candidates) < c.loop_min_matches - 1:
             return
         self.attempts += 1
-        T_pred_world = invert_transform(self.poses[k])
+        tracked = c.loop_verify == "tracked" and self._reference is not None
+        T_world_pred = self.correction @ self.poses[k] if tracked else self.poses[k]
+        T_pred_world = invert_transform(T_world_pred)
         oldest = min(self.landmarks[j].last_seen[0] for j in candidates)  # type: ignore[index]
-        cfg = self._match_config(oldest, k)
+        cfg = self._match_config(self._reference if tracked else oldest, k)  # type: ignore[arg-type]
         context = [] if ground is None else [ground]
         map_planes = [self._map_plane(j, T_pred_world) for j in candidates + context]
         rel = estimate_relative_pose(map_planes, curr, cfg, prior=np.eye(4))
@@ -269,9 +324,60 @@ class LoopClosingBuilder(GraphBuilder):
         )
         if not (full or rotation) or not non_parallel(normals):
             return
-        R = np.asarray(rel.T_prev_curr)[:3, :3]
+        T = np.asarray(rel.T_prev_curr, dtype=float)
+        cov = np.asarray(rel.covariance if rel.covariance is not None else np.eye(5), float)
+        match = LoopMatch(k, oldest, T_world_pred, T, cov.reshape(5, 5), np.zeros((3, 3)), np.nan,
+                          [(candidates[m], int(i)) for m, i in old])  # fmt: skip
+        self.matches.append(match)
+        if c.loop_verify != "off":
+            match.verdict = self._verify(match, T_world_pred @ T, full)
+        if match.verdict != "accepted":
+            return
         for m, i in old:
-            self._tie(update, candidates[m], int(i), map_planes[m].normal @ R)
+            self._tie(update, candidates[m], int(i), map_planes[m].normal @ T[:3, :3])
+
+    def _verify(self, match: LoopMatch, T_world_curr: np.ndarray, full: bool) -> str:
+        """Whether the correction a match implies (``T_world_curr``: epoch k as the map
+        places it) agrees with the accepted correction within the drift since it was
+        taken; else whether ``loop_confirmations`` successive matches agree on a new one
+        (see the module docstring). Returns "accepted" or why it is refused."""
+        c, k = self.config, match.epoch
+        limit = float(chi2.ppf(c.loop_gate_quantile, 3 if full else 1))
+        if self._reference is not None:
+            match.drift = self._drift_covariance(self._reference, k)
+            match.mahalanobis = self._disagreement(match, self.correction, T_world_curr, full)
+            if match.mahalanobis <= limit:
+                if full:
+                    self.correction = T_world_curr @ invert_transform(self.poses[k])
+                    self._reference = k
+                self._pending.clear()
+                return "accepted"
+        if not full:
+            return "rotation only, unverified"
+        if self._pending:
+            k_p, W_p = self._pending[-1]
+            match.drift = self._drift_covariance(k_p, k)
+            if self._disagreement(match, W_p, T_world_curr, full) > limit:
+                self._pending.clear()
+        self._pending.append((k, T_world_curr @ invert_transform(self.poses[k])))
+        if len(self._pending) < c.loop_confirmations:
+            return "awaiting confirmation" if self._reference is None else "inconsistent"
+        self.correction, self._reference = self._pending[-1][1], k
+        self._pending.clear()
+        return "accepted"
+
+    def _disagreement(
+        self, match: LoopMatch, W: np.ndarray, T_world_curr: np.ndarray, full: bool
+    ) -> float:
+        """Squared Mahalanobis distance between epoch k as the map places it and as the
+        correction ``W`` (4, 4) of the chained guess does, over (yaw, x, y) (yaw only for
+        a rotation-only match), under the match's covariance plus ``match.drift``."""
+        dofs = [2, 3, 4] if full else [2]
+        cov = np.zeros((5, 5))
+        cov[2:, 2:] = match.drift
+        cov = cov[np.ix_(dofs, dofs)] + match.covariance[np.ix_(dofs, dofs)]
+        T = invert_transform(W @ self.poses[match.epoch]) @ T_world_curr
+        return _mahalanobis(T, dofs, cov)
 
     def _tie(self, update: GraphUpdate, j: int, i: int, predicted_normal: np.ndarray) -> None:
         """Plane i of this epoch becomes a (robust) factor on old landmark j."""
