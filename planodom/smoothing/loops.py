@@ -18,6 +18,13 @@ radius). At every epoch k (:meth:`LoopClosingBuilder._reidentify`):
    so a revisited wall ties the loop (its track's own landmark then never forms, or
    keeps the observations before the re-identification).
 
+Verification (``loop_verify``, :meth:`LoopClosingBuilder._verify`): a match places epoch
+k in the map; that is a correction of the chained guess. It must agree with the last
+accepted correction (chi2 on yaw, x, y under the match's and the chained odometry's
+covariance since then), else it ties nothing; a new correction (the first, or after a
+refusal) needs ``loop_confirmations`` successive agreeing matches. "tracked" also matches
+around the corrected prediction with bounds grown from the accepted correction's epoch.
+
 After optimisation (:func:`gate_reidentifications`) a match one of whose re-identified
 factors has a squared whitened error above the ``loop_gate_quantile`` of chi2(3), or of
 the tracked plane factors' own errors when larger (the plane covariances are too small
@@ -87,13 +94,11 @@ class LoopMatch:
 
     Attributes:
         epoch: the current epoch k. oldest: the earliest last-seen epoch of its candidates.
-        T_world_pred: (4, 4) the predicted pose of epoch k (the chained guess corrected
-            by the last accepted match).
-        T_pred_curr: (4, 4) the pose of epoch k in its predicted frame (the correction
-            the match implies; identity when the prediction is exact).
+        T_world_pred: (4, 4) the predicted pose of epoch k. T_pred_curr: (4, 4) epoch k
+            in the predicted frame as the match places it (identity: prediction exact).
         covariance: (5, 5) the match's own covariance (roll, pitch, yaw, x, y).
-        drift: (3, 3) covariance of the prediction's (yaw, x, y) error since ``oldest``.
-        mahalanobis: squared Mahalanobis distance of the correction's (yaw, x, y).
+        drift: (3, 3) covariance of the (yaw, x, y) drift since the compared correction.
+        mahalanobis: squared Mahalanobis distance from the accepted correction.
         ties: (landmark, plane index) pairs. verdict: "accepted" or why refused.
     """
 
@@ -261,10 +266,9 @@ class LoopClosingBuilder(GraphBuilder):
         return super().add_epoch(planes, relatives, min_epoch)
 
     def _drift_covariance(self, oldest: int, k: int) -> np.ndarray:
-        """(3, 3) covariance of the prediction's (yaw, x, y) error at k relative to the
-        map seen at ``oldest``: the chained odometry variances between the two epochs, the
-        yaw's lever arm over the distance driven, and the minimum translation bound's
-        share (``loop_min_translation_m / loop_sigmas``) for what they leave out."""
+        """(3, 3) covariance of the chained guess's (yaw, x, y) drift from ``oldest`` to k:
+        the odometry's variances, the yaw's lever arm over the distance driven, and floors
+        (the minimum bounds over ``loop_sigmas``) for what they leave out."""
         c = self.config
         distance = self.travelled[k] - self.travelled[oldest]
         var_t = self.variances[k][0] - self.variances[oldest][0]
