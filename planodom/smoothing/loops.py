@@ -114,8 +114,7 @@ class LoopMatch:
 
 
 def _mahalanobis(T: np.ndarray, dofs: list[int], cov: np.ndarray) -> float:
-    """Squared Mahalanobis distance of the (roll, pitch, yaw, x, y) entries ``dofs`` of
-    transform ``T`` from zero under covariance ``cov`` (len(dofs) square)."""
+    """Squared Mahalanobis norm of entries ``dofs`` of ``T``'s (roll, pitch, yaw, x, y)."""
     v = pose5_from_transform(T)[dofs]
     return float(v @ np.linalg.solve(cov, v))
 
@@ -267,8 +266,7 @@ class LoopClosingBuilder(GraphBuilder):
 
     def _drift_covariance(self, oldest: int, k: int) -> np.ndarray:
         """(3, 3) covariance of the chained guess's (yaw, x, y) drift from ``oldest`` to k:
-        the odometry's variances, the yaw's lever arm over the distance driven, and floors
-        (the minimum bounds over ``loop_sigmas``) for what they leave out."""
+        the odometry's variances, the yaw's lever arm, and the minimum bounds' floors."""
         c = self.config
         distance = self.travelled[k] - self.travelled[oldest]
         var_t = self.variances[k][0] - self.variances[oldest][0]
