@@ -34,7 +34,7 @@ from planodom.odometry.relative import RelativePose
 from planodom.oracle import run_oracle
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.batch import smooth_batch
-from planodom.smoothing.loops import reidentification_counts
+from planodom.smoothing.loop_records import reidentification_counts
 from planodom.smoothing.run import smoothing_relatives
 from planodom.smoothing.windowed import smooth_windowed
 

@@ -14,11 +14,8 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats, X
-from planodom.smoothing.loops import (
-    LoopClosingBuilder,
-    Reidentification,
-    gate_reidentifications,
-)
+from planodom.smoothing.loop_records import Reidentification
+from planodom.smoothing.loops import LoopClosingBuilder, gate_reidentifications
 
 
 @dataclass

@@ -18,6 +18,7 @@ from planodom.geometry import Plane, PlaneSupport, invert_transform, make_transf
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing import loops
 from planodom.smoothing.batch import smooth_batch
+from planodom.smoothing.loop_records import reidentification_counts
 from planodom.smoothing.synthetic import _measure_plane
 from tests.planes_factory import square_polygon
 
@@ -100,7 +101,7 @@ def test_loop_closure_removes_the_drift_at_the_loop_end(problem):
     with_lc = smooth_batch(planes, relatives, _config(True))
     kept = [r for r in with_lc.reidentifications if not r.removed]
     assert len(kept) >= 30
-    assert loops.reidentification_counts(with_lc.reidentifications)["wrong_kept"] == 0
+    assert reidentification_counts(with_lc.reidentifications)["wrong_kept"] == 0
     assert _end_error(with_lc.initial_poses, truth) > 1.5  # the drift the loop must close
     assert _end_error(without.poses, truth) > 0.4  # noisy planes along the lap
     assert _end_error(with_lc.poses, truth) < 0.6 * _end_error(without.poses, truth)
@@ -146,7 +147,7 @@ def test_verified_loop_closure_still_closes_the_loop(problem, mode):
     truth, planes, relatives = problem
     without = smooth_batch(planes, relatives, _config(False))
     res = smooth_batch(planes, relatives, _verified(mode))
-    assert loops.reidentification_counts(res.reidentifications)["wrong_kept"] == 0
+    assert reidentification_counts(res.reidentifications)["wrong_kept"] == 0
     assert _end_error(res.poses, truth) < 0.6 * _end_error(without.poses, truth)
 
 
