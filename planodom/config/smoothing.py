@@ -164,7 +164,7 @@ class SmoothingConfig(Section):
     loop_accept_degenerate: bool = True
     """Also accept a match whose rotation only is determined (one old wall and the ground):
     its strict associations tie the old landmarks (the gate checks them afterwards)."""
-    loop_verify: Literal["off", "consistency", "tracked"] = "off"
+    loop_verify: Literal["off", "consistency", "tracked"] = "tracked"
     """Verification of every match against the map before tying (planodom.smoothing.loops):
     "consistency": the correction of the chained guess it implies must agree, within the
     chained odometry's covariance since then (chi2 at ``loop_gate_quantile``), with the
