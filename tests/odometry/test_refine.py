@@ -136,3 +136,22 @@ def test_refinement_keeps_exact_recovery_in_a_random_scene(refinement):
     r = estimate_relative_pose(prev, curr, cfg)
     assert r.status is Status.OK
     np.testing.assert_allclose(r.T_prev_curr, T_true, atol=1e-8)
+
+
+@pytest.mark.parametrize("shift_m", [0.05, -0.3])
+def test_an_association_to_a_coplanar_neighbour_does_not_move_the_translation(shift_m):
+    """Noise-free ground and four walls, one of them associated with a parallel plane
+    ``shift_m`` behind it (a neighbouring facade, or a fit across two surfaces): the
+    translation stays exact (the association is dropped as an outlier)."""
+    world = [_wall(0.1, 6.0, 0.0, 0), _wall(0.1 + np.radians(35.0), 9.0, 1.0, 1),
+             _wall(0.1 + np.radians(95.0), 7.0, -1.0, 2),
+             _wall(0.1 + np.radians(200.0), 11.0, 0.5, 3), _ground(4)]  # fmt: skip
+    T_true = transform_from_rpy_xyz(0.004, -0.003, 0.02, 0.45, -0.12, 0.01)
+    prev, curr = _epochs(world, T_true)
+    planes = [Plane(p.normal, p.offset + (shift_m if k == 1 else 0.0), covariance=_COV,
+                    support=p.support) for k, p in enumerate(curr)]  # fmt: skip
+    ij = np.array([[k, k] for k in range(5)])
+    fit = plane_translation(PlaneSet.from_planes(prev), PlaneSet.from_planes(planes), T_true[:3, :3], ij,
+                            np.zeros(3), 0.9, 0.003, 0.03, 1.0)  # fmt: skip
+    assert fit.measured and fit.n_planes == 4
+    np.testing.assert_allclose(fit.t, T_true[:3, 3], atol=1e-9)
