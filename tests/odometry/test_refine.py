@@ -151,7 +151,7 @@ def test_an_association_to_a_coplanar_neighbour_does_not_move_the_translation(sh
     planes = [Plane(p.normal, p.offset + (shift_m if k == 1 else 0.0), covariance=_COV,
                     support=p.support) for k, p in enumerate(curr)]  # fmt: skip
     ij = np.array([[k, k] for k in range(5)])
-    fit = plane_translation(PlaneSet.from_planes(prev), PlaneSet.from_planes(planes), T_true[:3, :3], ij,
-                            np.zeros(3), 0.9, 0.003, 0.03, 1.0)  # fmt: skip
+    p, c = PlaneSet.from_planes(prev), PlaneSet.from_planes(planes)
+    fit = plane_translation(p, c, T_true[:3, :3], ij, np.zeros(3), 0.9, 0.003, 0.03, 1.0)
     assert fit.measured and fit.n_planes == 4
     np.testing.assert_allclose(fit.t, T_true[:3, 3], atol=1e-9)
