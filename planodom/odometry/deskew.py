@@ -16,7 +16,8 @@ it again:
    epoch that was never deskewed (the first) is extracted again with it too. An epoch
    kept without deskewing is refined only once its translation is measured (never with
    a velocity of zero nobody measured). A new estimate is kept while its status does not
-   get worse.
+   get worse, and always once the reference was extracted again (the earlier estimate
+   was made against the reference's old planes).
 """
 
 from __future__ import annotations
@@ -110,8 +111,10 @@ def register_deskewed(
         if not stale_reference and np.array_equal(new, used):
             break
         again = estimate(new)
-        if again.relative.status.rank < best.relative.status.rank:
+        if not stale_reference and again.relative.status.rank < best.relative.status.rank:
             break
+        # once the reference was extracted again, an estimate made against its old
+        # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
 
