@@ -137,8 +137,8 @@ def _segment_tls(
     (G, 3), eigenvalues (G, 3) descending, eigenvectors (G, 3, 3); zeros for empty sets."""
     g, p = gid[mask], points[mask]
     n = np.maximum(np.bincount(g, minlength=n_sets), 1).astype(np.float64)
-    c = np.stack([np.bincount(g, weights=p[:, i], minlength=n_sets) for i in range(3)], 1)
-    c /= n[:, None]
+    sums = [np.bincount(g, weights=p[:, i], minlength=n_sets) for i in range(3)]
+    c = np.stack(sums, axis=1) / n[:, None]
     q = p - c[g]
     scatter = np.empty((n_sets, 3, 3))
     for i in range(3):
