@@ -11,7 +11,8 @@ it again:
    wrong early velocity deskewed every later epoch into zero planes for 16 epochs in a
    row). The better of the two is kept: status first, then plane count;
 2. up to ``deskew_iterations`` times: with the epoch's own angular rate and (when its
-   translation was measured) velocity wherever they differ from the twist used by more
+   translation was measured) velocity (against a plane map: their mean with the twist
+   used, see ``against_map``) wherever they differ from the twist used by more
    than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
    epoch that was never deskewed (the first) is extracted again with it too. An epoch
    kept without deskewing is refined only once its translation is measured (never with
@@ -82,6 +83,7 @@ def register_deskewed(
     refresh_reference: Refresher,
     config: OdometryConfig,
     previous_planes: int = 0,
+    against_map: bool = False,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -92,6 +94,10 @@ def register_deskewed(
         config: ``deskew_*`` fields.
         previous_planes: planes of the previous epoch (fewer than half of them now is
             suspect).
+        against_map: the estimate registers the epoch against a map (the plane-map
+            odometry), not against an epoch deskewed the same way: a deskewing error
+            ``e`` then moves the epoch's own twist by about ``-e`` (own = 2 true - used),
+            so it is extracted again with the mean of the twist used and its own.
     """
     best = estimate(predicted)
     few = len(best.planes) < max(2.0, 0.5 * previous_planes)
@@ -106,7 +112,10 @@ def register_deskewed(
             break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
-        new = refined_twist(se3_log(best.step) / dt, used, measured, config)
+        own = se3_log(best.step) / dt
+        if against_map:
+            own = 0.5 * (own + used)
+        new = refined_twist(own, used, measured, config)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break
