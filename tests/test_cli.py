@@ -105,7 +105,7 @@ def test_experiment_paper_small(tmp_path) -> None:
     for name in ("trajectories.png", "precision.csv", "precision.md", "summary.csv"):
         assert (out / name).exists(), name
     rows = list(csv.DictReader((out / "summary.csv").open()))
-    assert {r["method"] for r in rows} == {"sda-mean", "wocsc"}
+    assert {r["method"] for r in rows} == {"sda-mean", "wocsc", "planodom"}
     # Noise-free: the per-epoch errors against the simulator's truth vanish.
     assert all(float(r["xy_rms_m"]) < 1e-6 and float(r["rot_rms_deg"]) < 1e-6 for r in rows)
     bad = runner.invoke(app, ["experiment", "paper", "--out", str(out), "--levels", "-1"])

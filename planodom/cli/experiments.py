@@ -124,6 +124,9 @@ def experiment_generalisation(
     quick: Annotated[
         bool, typer.Option(help="CI size: 2 worlds (2D rig, lidar), 25 epochs, 6 mm.")
     ] = False,
+    rig: Annotated[
+        str, typer.Option(help="all | rig2d (even worlds only) | lidar (odd worlds only).")
+    ] = "all",
     out: ExpOut = Path("results/generalisation"),
     config: ConfigFile = None,
 ) -> None:
@@ -138,12 +141,15 @@ def experiment_generalisation(
     if extra and not noise:
         raise ConfigError(f"unexpected arguments {' '.join(ctx.args)}")
     noise = (noise or []) + extra
+    if rig not in ("all", "rig2d", "lidar"):
+        raise ConfigError(f"--rig {rig!r}: expected all, rig2d or lidar")
     levels = noise or [0.0, 0.006, 0.02, 0.1]
     if quick:
         worlds, epochs, levels = 2, 25, (noise or [0.006])
     result = run_generalisation_experiment(
         out, n_worlds=worlds, noise_levels=levels, n_epochs=epochs or None,
         config=load_config(config), progress=_say,
+        rigs=("rig2d", "lidar") if rig == "all" else (rig,),
     )  # fmt: skip
     _print_files({k: v for k, v in result.files.items() if k != "runs_md"})
 

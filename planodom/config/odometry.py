@@ -80,6 +80,22 @@ class OdometryConfig(Section):
     translation_min_angle_deg: AcuteDeg = 20.0
     """Pairs closer than this to parallel give no reference point (its error grows as
     1 / sin(angle)); rotation uses every non-parallel pair."""
+    refinement: Literal["none", "translation", "pose"] = "translation"
+    """After the consensus: ``"translation"`` re-associates (SDA) and solves the
+    translation by weighted least squares over all associated planes
+    (:mod:`planodom.odometry.refine`), so walls a few degrees apart in yaw measure it
+    together; ``"pose"`` the rotation too (weighted Procrustes); ``"none"``: the paper's
+    single consensus candidate."""
+    refine_offset_floor_m: Positive = 0.003
+    """Refinement: added (squared) to every plane association's offset sigma, m (what a
+    fit's covariance misses: deskewing, bend)."""
+    refine_normal_floor_deg: Positive = 0.05
+    """Refinement: added (squared) to every plane association's normal sigma, degrees."""
+    refine_max_sigma_m: Positive = 0.03
+    """Refinement: a horizontal direction of the translation is measured when its sigma
+    is at most this, m (else it keeps the consensus or prior value and the epoch is
+    degenerate); a few centimetres: what the constant-velocity prediction of a car
+    misses in one epoch."""
     estimate_z: bool = True
     """Estimate the vertical translation from associated ground-like planes."""
     z_plane_max_tilt_deg: AcuteDeg = 30.0

@@ -164,6 +164,17 @@ class SmoothingConfig(Section):
     loop_accept_degenerate: bool = True
     """Also accept a match whose rotation only is determined (one old wall and the ground):
     its strict associations tie the old landmarks (the gate checks them afterwards)."""
+    loop_verify: Literal["off", "consistency", "tracked"] = "tracked"
+    """Verification of every match against the map before tying (planodom.smoothing.loops):
+    "consistency": the correction of the chained guess it implies must agree, within the
+    chained odometry's covariance since then (chi2 at ``loop_gate_quantile``), with the
+    last accepted one; a new correction is taken only once ``loop_confirmations`` matches
+    agree on it. "tracked": the same, and once a correction is accepted the map is matched
+    around the corrected prediction with bounds grown from its epoch (not from the
+    candidates' last sighting). "off": every match of full rank ties."""
+    loop_confirmations: Annotated[int, Field(ge=1)] = 2
+    """Matches that must agree with each other before a new correction is accepted (and
+    before the first one)."""
     loop_gate_quantile: Fraction = 0.999
     """After optimisation, a re-identified observation whose squared whitened error exceeds
     this quantile of chi2(3) is removed and the graph solved again."""

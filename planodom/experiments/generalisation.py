@@ -298,11 +298,14 @@ def run_generalisation_experiment(
     methods: Sequence[str] = DEFAULT_METHODS,
     config: PlanodomConfig | None = None,
     progress: Callable[[str], None] | None = None,
+    rigs: Sequence[str] = ("rig2d", "lidar"),
 ) -> GeneralisationExperiment:
     """Run the experiment; write its tables and plot to ``out`` when given.
 
     Args:
-        n_worlds: worlds 0 .. n_worlds - 1 (:func:`world_for`). noise_levels: m.
+        n_worlds: worlds 0 .. n_worlds - 1 (:func:`world_for`), those whose rig class
+            (``"rig2d"`` for even worlds, ``"lidar"`` for odd ones) is in ``rigs``.
+        noise_levels: m.
         n_epochs: epochs per run (None: one lap of each world).
         methods: any of planodom, planodom-wocsc, planodom-sda-mean, oracle, kiss-icp,
             open3d-icp
@@ -313,10 +316,14 @@ def run_generalisation_experiment(
     say = progress or (lambda msg: None)
     if "kiss-icp" in methods and not kiss_available():
         say("kiss-icp is not installed (uv sync --extra baselines): skipped")
+    unknown = set(rigs) - {"rig2d", "lidar"}
+    if unknown or not rigs:
+        raise ValueError(f"rigs: {sorted(unknown) or 'none'}; expected rig2d and/or lidar")
+    indices = [i for i in range(n_worlds) if ("rig2d" if i % 2 == 0 else "lidar") in rigs]
     runs: list[MethodRun] = []
-    for i in range(min(2, n_worlds)):  # a 2D-rig and a lidar world
-        _warm_up(world_for(i), base, methods)
-    for i in range(n_worlds):
+    for i in indices[:2] if len(rigs) == 1 else range(min(2, n_worlds)):
+        _warm_up(world_for(i), base, methods)  # a 2D-rig and a lidar world
+    for i in indices:
         world = world_for(i)
         for noise in noise_levels:
             runs += run_world(world, float(noise), n_epochs, base, methods, say)

@@ -10,9 +10,11 @@ lap is simulated (continuous motion) and compared, side by side:
 - ``oracle``: the oracle's pure odometry (:mod:`planodom.oracle`).
 
 Per run: ATE (xy, origin-aligned, rmse), the xy position error at the loop's end (the last
-epoch), for ``batch+loops`` the re-identifications kept, removed by the gate, and wrong
-(joining true surfaces that are not coplanar: two segments of one facade are one plane),
-the mean NEES of the 5 observed DoF (chi2(5): 95 % interval [0.83, 12.8]), and seconds.
+epoch) and the height error there, for ``batch+loops`` the re-identifications kept,
+removed by the gate, and wrong (joining true surfaces that are not coplanar: two segments
+of one facade are one plane), the map matches the verification refused
+(``smoothing.loop_verify``), the mean NEES of the 5 observed DoF (chi2(5): 95 % interval
+[0.83, 12.8]), and seconds.
 ``summary`` gives per noise and method the median and worst over the worlds.
 """
 
@@ -34,7 +36,7 @@ from planodom.odometry.relative import RelativePose
 from planodom.oracle import run_oracle
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.batch import smooth_batch
-from planodom.smoothing.loops import reidentification_counts
+from planodom.smoothing.loop_records import reidentification_counts
 from planodom.smoothing.run import smoothing_relatives
 from planodom.smoothing.windowed import smooth_windowed
 
@@ -59,7 +61,8 @@ def coplanar(scene, tol_deg: float = 2.0, tol_m: float = 0.1) -> Callable[[int, 
 
 def _errors(poses: np.ndarray, gt: np.ndarray) -> dict[str, float]:
     end = float(np.linalg.norm(poses[-1][:2, 3] - gt[-1][:2, 3]))
-    return {"ate_m": ate(poses, gt, xy_only=True)["rmse"], "loop_end_m": end}
+    end_z = float(abs(poses[-1][2, 3] - gt[-1][2, 3]))
+    return {"ate_m": ate(poses, gt, xy_only=True)["rmse"], "loop_end_m": end, "loop_end_z_m": end_z}
 
 
 def compare_methods(
@@ -83,6 +86,7 @@ def compare_methods(
         row: Row = {"method": method, **_errors(res.poses, gt), "seconds": res.runtime_s}
         if method == "batch+loops":
             row |= reidentification_counts(res.reidentifications, same_plane)
+            row["matches_refused"] = sum(m.verdict != "accepted" for m in res.loop_matches)
             if res.covariances is not None:
                 nees = pose_nees(res.poses[1:], res.covariances[1:], gt[1:], range(5))
                 row["mean_nees5"] = float(np.nanmean(nees))

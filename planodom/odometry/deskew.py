@@ -9,7 +9,11 @@ it again:
    finds far fewer planes than the epoch before (under half, or under two), also without
    deskewing: a wrong twist must not lock the odometry out (on a random world at 2 cm, a
    wrong early velocity deskewed every later epoch into zero planes for 16 epochs in a
-   row). The better of the two is kept: status first, then plane count;
+   row). The better of the two is kept: status first, then plane count. After an
+   unresolved epoch no twist is predicted (a twist never outlives an unresolved epoch),
+   but the one held from before it is tried the same way when the epoch extracted
+   without deskewing is suspect: on a 2D-rig world a turn left only the ground without
+   it, and the gap went on for 7 epochs;
 2. up to ``deskew_iterations`` times: with the epoch's own angular rate and (when its
    translation was measured) velocity (against a plane map: their mean with the twist
    used, see ``against_map``) wherever they differ from the twist used by more
@@ -83,6 +87,7 @@ def register_deskewed(
     refresh_reference: Refresher,
     config: OdometryConfig,
     previous_planes: int = 0,
+    held: np.ndarray | None = None,
     against_map: bool = False,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
@@ -94,6 +99,8 @@ def register_deskewed(
         config: ``deskew_*`` fields.
         previous_planes: planes of the previous epoch (fewer than half of them now is
             suspect).
+        held: (6,) the twist held from before an unresolved epoch, tried only when
+            ``predicted`` is None and the epoch extracted without it is suspect.
         against_map: the estimate registers the epoch against a map (the plane-map
             odometry), not against an epoch deskewed the same way: a deskewing error
             ``e`` then moves the epoch's own twist by about ``-e`` (own = 2 true - used),
@@ -101,10 +108,12 @@ def register_deskewed(
     """
     best = estimate(predicted)
     few = len(best.planes) < max(2.0, 0.5 * previous_planes)
-    if dt > 0 and predicted is not None and (best.relative.status is not Status.OK or few):
-        plain = estimate(None)
-        if _score(plain) > _score(best):
-            best = plain
+    other = None if predicted is not None else held
+    if dt > 0 and (predicted is not None or held is not None):
+        if best.relative.status is not Status.OK or few:
+            alternative = estimate(other)
+            if _score(alternative) > _score(best):
+                best = alternative
     for _ in range(config.deskew_iterations if dt > 0 else 0):
         if best.relative.status is Status.UNRESOLVED:
             break

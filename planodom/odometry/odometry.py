@@ -162,16 +162,13 @@ class PlaneOdometry:
             refresh, previous = self._refresh_reference, len(self.last_planes)
             ocfg = self.config.odometry
             # a twist never outlives an unresolved epoch: until one is measured again, the
-            # epochs are extracted without it (it still serves as prior and bridge)
-            twist = None if self._unresolved_last() else self.twist
+            # epochs are extracted without it (it still serves as prior and bridge, and is
+            # tried when the extraction without it is suspect)
+            unresolved = self._unresolved_last()
+            twist, held = (None, self.twist) if unresolved else (self.twist, None)
+            against_map = self._map is not None and self.twist is not None
             best = register_deskewed(
-                twist,
-                dt,
-                estimate,
-                refresh,
-                ocfg,
-                previous,
-                self._map is not None and self.twist is not None,
+                twist, dt, estimate, refresh, ocfg, previous, held, against_map
             )
         else:
             best = estimate(None)

@@ -30,6 +30,7 @@ from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
 from planodom.geometry import Plane, make_transform, rpy_from_rotation
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
+from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
 from planodom.odometry.rotation import (
     chord,
@@ -210,6 +211,17 @@ def _solve(
     else:
         txy, z = bounds.t0[:2].copy(), bounds.z_prior
         cov_t, sigma_z, z_observed = np.diag([bounds.translation**2] * 2), np.inf, False
+    refined = None
+    if ocfg.refinement != "none":
+        refined = _refine(prev, curr, R, np.r_[txy, z], measured, bounds, cfg)
+        # The planes associated under the consensus pose decide: a consensus pair that
+        # SDA does not confirm (a far wall's normal off by degrees) measures nothing.
+        R, fit = refined.R, refined.fit
+        measured = fit.measured
+        if fit.n_planes:  # unmeasured directions stay near the initial value
+            txy, z, cov_t = fit.t[:2], fit.t[2], fit.cov_xy
+            if fit.z_observed:
+                sigma_z, z_observed = fit.sigma_z, True
     T = make_transform(R, [txy[0], txy[1], z])
 
     rot_pair = trans_pair = None
@@ -219,7 +231,7 @@ def _solve(
         trans_pair = elems.pairs[tr.best]
     cov = np.zeros((5, 5))
     cov[:3, :3], cov[3:, 3:] = cov_r, cov_t
-    if rot_pair is not None and trans_pair is not None:
+    if refined is None and rot_pair is not None and trans_pair is not None:
         assert tr is not None
         cov = _joint_covariance(prev, curr, rot_pair, trans_pair, tr, cov)
     floors = np.radians(ocfg.min_sigma_rotation_deg), ocfg.min_sigma_translation_m
@@ -283,6 +295,45 @@ def _measured_translation(
     if tr.z_observed and abs(tr.z - bounds.t0[2]) > reach:
         tr = _translation(prev, curr, elems, None, bounds.z_prior, method, ocfg)
     return tr, bool(np.linalg.norm(tr.txy - bounds.t0[:2]) <= reach)
+
+
+class _Refined(NamedTuple):
+    R: np.ndarray
+    fit: PlaneTranslation
+
+
+def _refine(prev, curr, R, t, measured: bool, bounds: _Bounds, cfg: PlanodomConfig) -> _Refined:
+    """Rotation and translation by weighted least squares over all planes SDA associates
+    around ``(R, t)`` (:mod:`planodom.odometry.refine`), twice: the second time with the
+    inlier bound around the first result when it measured the translation. A result
+    beyond the motion assumption (a wrong association) is not a measurement."""
+    ocfg, acfg = cfg.odometry, cfg.association
+    z_min = np.cos(np.radians(ocfg.z_plane_max_tilt_deg)) if ocfg.estimate_z else None
+    floor_n, parallel = (
+        np.radians(ocfg.refine_normal_floor_deg),
+        np.radians(acfg.parallel_angle_deg),
+    )
+    bound = ocfg.translation_inlier_m if measured else bounds.translation
+    reach = bounds.translation + acfg.offset_tol_m
+    R_c, t_c = R, np.asarray(t, dtype=np.float64)
+    fit = None
+    for _ in range(2):
+        ij = strict_association(prev, curr, R_c, acfg, t_c, bound)
+        if ocfg.refinement == "pose":
+            R_c = plane_rotation(prev, curr, R_c, ij, floor_n, parallel)
+        fit = plane_translation(
+            prev, curr, R_c, ij, t_c, z_min, ocfg.refine_offset_floor_m,
+            ocfg.refine_max_sigma_m, bounds.translation**2, measured,
+        )  # fmt: skip
+        if np.linalg.norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
+            fit = replace(fit, t=t_c.copy(), measured=False, z_observed=False, n_planes=0)
+            break
+        t_c = fit.t
+        if not fit.measured and not measured:
+            break
+        bound = ocfg.translation_inlier_m
+    assert fit is not None
+    return _Refined(R_c, fit)
 
 
 def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str, ocfg):

@@ -14,11 +14,8 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats, X
-from planodom.smoothing.loops import (
-    LoopClosingBuilder,
-    Reidentification,
-    gate_reidentifications,
-)
+from planodom.smoothing.loop_records import LoopMatch, Reidentification
+from planodom.smoothing.loops import LoopClosingBuilder, gate_reidentifications
 
 
 @dataclass
@@ -43,6 +40,8 @@ class SmoothingResult:
         errors: optimiser's error (0.5 sum of squared whitened residuals) per iteration.
         reidentifications: loop closure: the observations tied to old landmarks
             (:mod:`planodom.smoothing.loops`), with the gate's verdict and the truth.
+        loop_matches: loop closure: each epoch's match against the map, with the
+            verification's verdict.
         covariance_note: why ``covariances`` is None although asked for (a nearly
             indeterminant system, e.g. long stretches bridged only by fallback factors).
     """
@@ -58,6 +57,7 @@ class SmoothingResult:
     errors: list[float] = field(default_factory=list)
     covariance_note: str | None = None
     reidentifications: list[Reidentification] = field(default_factory=list)
+    loop_matches: list[LoopMatch] = field(default_factory=list)
 
 
 def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> SmoothingConfig:
@@ -318,4 +318,5 @@ def smooth_batch(
         errors=errors,
         covariance_note=note,
         reidentifications=list(getattr(builder, "reidentifications", [])),
+        loop_matches=list(getattr(builder, "matches", [])),
     )

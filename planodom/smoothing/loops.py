@@ -18,6 +18,13 @@ radius). At every epoch k (:meth:`LoopClosingBuilder._reidentify`):
    so a revisited wall ties the loop (its track's own landmark then never forms, or
    keeps the observations before the re-identification).
 
+Verification (``loop_verify``, :meth:`LoopClosingBuilder._verify`): a match places epoch
+k in the map; that is a correction of the chained guess. It must agree with the last
+accepted correction (chi2 on yaw, x, y under the match's and the chained odometry's
+covariance since then), else it ties nothing; a new correction (the first, or after a
+refusal) needs ``loop_confirmations`` successive agreeing matches. "tracked" also matches
+around the corrected prediction with bounds grown from the accepted correction's epoch.
+
 After optimisation (:func:`gate_reidentifications`) a match one of whose re-identified
 factors has a squared whitened error above the ``loop_gate_quantile`` of chi2(3), or of
 the tracked plane factors' own errors when larger (the plane covariances are too small
@@ -29,17 +36,18 @@ re-identification is checked against the planes' true surface ids (``truth_id``)
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Sequence
+from dataclasses import replace
 
 import gtsam
 import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, PlaneSupport, invert_transform
+from planodom.geometry import Plane, PlaneSupport, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
+from planodom.smoothing.loop_records import LoopMatch, Reidentification
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
 GROUND_COS = 0.9
@@ -52,33 +60,13 @@ WALL_SIN = 0.2
 DUPLICATE_COS, DUPLICATE_OFFSET_M = float(np.cos(np.radians(3.0))), 0.2
 #: Largest rotation bound of a re-identification, degrees.
 MAX_ROTATION_BOUND_DEG = 45.0
+Spans = list[tuple[int, int]]  # (epoch, epoch) pairs of the chained odometry
 
 
-@dataclass
-class Reidentification:
-    """One observation re-identified as an old landmark.
-
-    Attributes:
-        epoch, plane: the observation. landmark: the old landmark's id.
-        factor: index of its plane factor in the whole graph (set by the batch loop).
-        truth_plane, truth_landmark: true surface ids of the observation and of the
-            landmark's last observation (-1 unknown). removed: refused by the gate.
-    """
-
-    epoch: int
-    plane: int
-    landmark: int
-    factor: int
-    truth_plane: int = -1
-    truth_landmark: int = -1
-    removed: bool = False
-
-    @property
-    def wrong(self) -> bool:
-        """Known to join two different true surfaces."""
-        return min(self.truth_plane, self.truth_landmark) >= 0 and (
-            self.truth_plane != self.truth_landmark
-        )
+def _mahalanobis(T: np.ndarray, dofs: list[int], cov: np.ndarray) -> float:
+    """Squared Mahalanobis norm of entries ``dofs`` of ``T``'s (roll, pitch, yaw, x, y)."""
+    v = pose5_from_transform(T)[dofs]
+    return float(v @ np.linalg.solve(cov, v))
 
 
 def _extent(plane: Plane, T_world_base: np.ndarray) -> tuple[np.ndarray, float]:
@@ -124,6 +112,12 @@ class LoopClosingBuilder(GraphBuilder):
         super().__init__(config.smoothing, T_world_first)
         self.full_config = config
         self.reidentifications: list[Reidentification] = []
+        self.matches: list[LoopMatch] = []
+        #: (4, 4) world-frame correction of the chained guess by the last accepted match:
+        #: the map places epoch k at ``correction @ poses[k]`` (identity before the first).
+        self.correction = np.eye(4)
+        self._reference: tuple[int, int] | None = None  # (k, map epoch) of the correction
+        self._pending: list[tuple[int, int, np.ndarray]] = []  # agreeing, unconfirmed
         self.attempts = 0
         self.travelled: list[float] = []
         self.variances: list[tuple[float, float]] = []  # chained (xy, yaw) variance sums
@@ -220,15 +214,35 @@ class LoopClosingBuilder(GraphBuilder):
         self.variances.append((last_t + var_t if k else 0.0, last_r + var_r if k else 0.0))
         return super().add_epoch(planes, relatives, min_epoch)
 
-    def _match_config(self, oldest: int, k: int) -> PlanodomConfig:
-        """Association bounds around the prediction for candidates last seen at ``oldest``:
-        ``loop_sigmas`` standard deviations of the chained odometry between the two epochs
-        (translation, and rotation times the distance driven), at most the drift fraction
-        of that distance; plus the minima."""
+    def _chain(self, spans: Spans) -> tuple[float, float, float]:
+        """Distance driven (m) and summed translation and yaw variances (m^2, rad^2) of
+        the chained odometry over epoch ``spans`` ((a, b) pairs, in any order)."""
+        distance = var_t = var_r = 0.0
+        for a, b in spans:
+            a, b = min(a, b), max(a, b)
+            distance += self.travelled[b] - self.travelled[a]
+            var_t += self.variances[b][0] - self.variances[a][0]
+            var_r += self.variances[b][1] - self.variances[a][1]
+        return distance, var_t, var_r
+
+    def _drift_covariance(self, spans: Spans) -> np.ndarray:
+        """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans``:
+        the odometry's variances, the yaw's lever arm, and the minimum bounds' floors."""
+        c = self.config
+        distance, var_t, var_r = self._chain(spans)
+        var_xy = 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
+        floor_r = np.radians(self.full_config.association.prior_rotation_deg) / c.loop_sigmas
+        return np.diag([var_r + floor_r**2, var_xy, var_xy])
+
+    def _match_config(self, spans: Spans) -> PlanodomConfig:
+        """Association bounds around the prediction: ``loop_sigmas`` standard deviations of
+        the chained odometry over ``spans`` (from the candidates' last sighting to k, or
+        from the accepted correction's epochs, see :meth:`_reidentify`; translation, and
+        rotation times the distance driven), at most the drift fraction of that distance;
+        plus the minima."""
         c, a = self.config, self.full_config.association
-        distance = self.travelled[k] - self.travelled[oldest]
-        sigma_t = np.sqrt(self.variances[k][0] - self.variances[oldest][0])
-        sigma_r = np.sqrt(self.variances[k][1] - self.variances[oldest][1])
+        distance, var_t, var_r = self._chain(spans)
+        sigma_t, sigma_r = np.sqrt(var_t), np.sqrt(var_r)
         grown = c.loop_sigmas * (sigma_t + sigma_r * distance)
         translation = c.loop_min_translation_m + min(grown, c.loop_drift_fraction * distance)
         rotation_deg = c.loop_sigmas * np.degrees(sigma_r)
@@ -254,9 +268,12 @@ class LoopClosingBuilder(GraphBuilder):
         if len(candidates) < c.loop_min_matches - 1:
             return
         self.attempts += 1
-        T_pred_world = invert_transform(self.poses[k])
+        ref = self._reference if c.loop_verify == "tracked" else None
+        T_world_pred = self.poses[k] if ref is None else self.correction @ self.poses[k]
+        T_pred_world = invert_transform(T_world_pred)
         oldest = min(self.landmarks[j].last_seen[0] for j in candidates)  # type: ignore[index]
-        cfg = self._match_config(oldest, k)
+        # tracked: the drift since the accepted correction and between the map parts
+        cfg = self._match_config([(oldest, k)] if ref is None else [(ref[0], k), (ref[1], oldest)])
         context = [] if ground is None else [ground]
         map_planes = [self._map_plane(j, T_pred_world) for j in candidates + context]
         rel = estimate_relative_pose(map_planes, curr, cfg, prior=np.eye(4))
@@ -269,9 +286,63 @@ class LoopClosingBuilder(GraphBuilder):
         )
         if not (full or rotation) or not non_parallel(normals):
             return
-        R = np.asarray(rel.T_prev_curr)[:3, :3]
+        T = np.asarray(rel.T_prev_curr, dtype=float)
+        cov = np.asarray(rel.covariance if rel.covariance is not None else np.eye(5), float)
+        match = LoopMatch(k, oldest, T_world_pred, T, cov.reshape(5, 5), np.zeros((3, 3)), np.nan,
+                          [(candidates[m], int(i)) for m, i in old])  # fmt: skip
+        self.matches.append(match)
+        if c.loop_verify != "off":
+            match.verdict = self._verify(match, T_world_pred @ T, full)
+        if match.verdict != "accepted":
+            return
         for m, i in old:
-            self._tie(update, candidates[m], int(i), map_planes[m].normal @ R)
+            self._tie(update, candidates[m], int(i), map_planes[m].normal @ T[:3, :3])
+
+    def _verify(self, match: LoopMatch, T_world_curr: np.ndarray, full: bool) -> str:
+        """Whether the correction a match implies (``T_world_curr``: epoch k as the map
+        places it) agrees with the accepted correction within the drift since it was
+        taken and between the parts of the map they matched (the earliest last sighting
+        of their tied landmarks); else whether ``loop_confirmations`` successive matches
+        agree on a new one. Returns "accepted" or why it is refused."""
+        c, k = self.config, match.epoch
+        seen = min(self.landmarks[j].last_seen[0] for j, _ in match.ties)  # type: ignore[index]
+        W = T_world_curr @ invert_transform(self.poses[k])
+        limit = float(chi2.ppf(c.loop_gate_quantile, 3 if full else 1))
+        if self._reference is not None:
+            k_ref, seen_ref = self._reference
+            match.drift = self._drift_covariance([(k_ref, k), (seen_ref, seen)])
+            match.mahalanobis = self._disagreement(match, self.correction, T_world_curr, full)
+            if match.mahalanobis <= limit:
+                if full:
+                    self.correction, self._reference = W, (k, seen)
+                self._pending.clear()
+                return "accepted"
+        if not full:
+            return "rotation only, unverified"
+        if self._pending:
+            k_p, seen_p, W_p = self._pending[-1]
+            match.drift = self._drift_covariance([(k_p, k), (seen_p, seen)])
+            if self._disagreement(match, W_p, T_world_curr, full) > limit:
+                self._pending.clear()
+        self._pending.append((k, seen, W))
+        if len(self._pending) < c.loop_confirmations:
+            return "awaiting confirmation" if self._reference is None else "inconsistent"
+        self.correction, self._reference = W, (k, seen)
+        self._pending.clear()
+        return "accepted"
+
+    def _disagreement(
+        self, match: LoopMatch, W: np.ndarray, T_world_curr: np.ndarray, full: bool
+    ) -> float:
+        """Squared Mahalanobis distance between epoch k as the map places it and as the
+        correction ``W`` (4, 4) of the chained guess does, over (yaw, x, y) (yaw only for
+        a rotation-only match), under the match's covariance plus ``match.drift``."""
+        dofs = [2, 3, 4] if full else [2]
+        cov = np.zeros((5, 5))
+        cov[2:, 2:] = match.drift
+        cov = cov[np.ix_(dofs, dofs)] + match.covariance[np.ix_(dofs, dofs)]
+        T = invert_transform(W @ self.poses[match.epoch]) @ T_world_curr
+        return _mahalanobis(T, dofs, cov)
 
     def _tie(self, update: GraphUpdate, j: int, i: int, predicted_normal: np.ndarray) -> None:
         """Plane i of this epoch becomes a (robust) factor on old landmark j."""
@@ -316,27 +387,3 @@ def gate_reidentifications(
             removed += 1
     builder.stats.reidentified_removed += removed
     return removed
-
-
-def reidentification_counts(
-    reids: Sequence[Reidentification],
-    same_plane: Callable[[int, int], bool] | None = None,
-) -> dict[str, int]:
-    """Accepted, removed and (on simulated data) wrong re-identifications, kept / removed.
-
-    ``same_plane(a, b)``: whether true surfaces a and b lie in one plane (two segments of
-    one facade are one plane to a plane map); default: same surface id.
-    """
-
-    def wrong(r: Reidentification) -> bool:
-        if same_plane is None or min(r.truth_plane, r.truth_landmark) < 0:
-            return r.wrong
-        return not same_plane(r.truth_plane, r.truth_landmark)
-
-    kept = [r for r in reids if not r.removed]
-    return {
-        "reidentified": len(kept),
-        "reidentified_removed": len(reids) - len(kept),
-        "wrong_kept": sum(wrong(r) for r in kept),
-        "wrong_removed": sum(wrong(r) for r in reids if r.removed),
-    }

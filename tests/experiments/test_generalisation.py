@@ -68,3 +68,11 @@ def test_cli_takes_noise_levels_as_in_the_issue(tmp_path, monkeypatch):
     assert seen["noise_levels"] == [0.0, 0.006, 0.02, 0.1] and seen["n_worlds"] == 3
     bad = CliRunner().invoke(app, [*args, "bogus"])
     assert bad.exit_code == 2 and "unexpected arguments bogus" in bad.output
+
+
+def test_one_rig_class_runs_only_its_worlds():
+    res = run_generalisation_experiment(
+        None, n_worlds=4, noise_levels=[0.0], n_epochs=3, methods=("oracle",), rigs=("lidar",)
+    )
+    assert sorted({r.world for r in res.runs}) == [1, 3]
+    assert {r.family for r in res.runs} <= {"lidar16", "lidar32", "lidar64"}

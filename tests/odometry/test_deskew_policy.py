@@ -31,11 +31,15 @@ def _map_model(twist: np.ndarray | None) -> EpochEstimate:
 
 def test_against_a_map_the_mean_of_used_and_own_reaches_the_true_twist():
     config = OdometryConfig()
-    best = register_deskewed(PREDICTED, DT, _map_model, lambda t: False, config, 2, True)
+    best = register_deskewed(
+        PREDICTED, DT, _map_model, lambda t: False, config, 2, against_map=True
+    )
     assert best.twist is not None
     np.testing.assert_allclose(best.twist, TRUE, atol=1e-12)
     # Taking the own twist as it is swings between 2 true - predicted and predicted.
-    plain = register_deskewed(PREDICTED, DT, _map_model, lambda t: False, config, 2, False)
+    plain = register_deskewed(
+        PREDICTED, DT, _map_model, lambda t: False, config, 2, against_map=False
+    )
     assert plain.twist is not None
     assert np.linalg.norm(plain.twist - TRUE) > 0.5
 

@@ -138,14 +138,20 @@ def test_degenerate_scenes_are_unresolved():
 
 
 def test_no_vertical_intersection_is_degenerate():
-    """Ground and one wall: rotation resolved, the horizontal line gives no translation."""
+    """Ground and one wall: rotation resolved, the horizontal line gives no translation
+    along the wall; the wall measures the part across it (odometry.refinement)."""
     ground, wall = Plane([0, 0, 1.0], 1.5), Plane([1.0, 0, 0], 4.0)
     T = transform_from_rpy_xyz(0.01, 0.02, 0.1, 0.3, 0.1)
     curr = [p.transformed(invert_transform(T)) for p in (ground, wall)]
     r = estimate_relative_pose([ground, wall], curr, config())
     assert r.status == "degenerate"
     np.testing.assert_allclose(r.T_prev_curr[:3, :3], T[:3, :3], atol=1e-12)
-    np.testing.assert_array_equal(r.T_prev_curr[:2, 3], [0.0, 0.0])
+    # Across the wall (x): the truth up to the pull of the prior-free bound (1 m sigma)
+    # against the wall's guessed 1 cm offsets; along it (y): the centre of the bounds, 0.
+    assert abs(r.T_prev_curr[0, 3] - T[0, 3]) < 1e-3
+    assert abs(r.T_prev_curr[1, 3]) < 1e-12
+    none = estimate_relative_pose([ground, wall], curr, config(refinement="none"))
+    np.testing.assert_array_equal(none.T_prev_curr[:2, 3], [0.0, 0.0])
 
 
 # ----------------------------------------------------------------------------- streaming
@@ -294,8 +300,10 @@ def test_covariance_is_propagated_from_plane_covariances():
         return [Plane(p.normal, p.offset, covariance=C, confidence=p.confidence,
                       support=p.support) for p in planes]  # fmt: skip
 
-    small = estimate_relative_pose(with_cov(prev, 1e-4), with_cov(curr, 1e-4), config())
-    large = estimate_relative_pose(with_cov(prev, 1e-3), with_cov(curr, 1e-3), config())
+    # No floor on the refinement's offset sigmas: the sigmas then scale with the planes'.
+    cfg = config(refine_offset_floor_m=1e-9)
+    small = estimate_relative_pose(with_cov(prev, 1e-4), with_cov(curr, 1e-4), cfg)
+    large = estimate_relative_pose(with_cov(prev, 1e-3), with_cov(curr, 1e-3), cfg)
     assert small.sources is not None and len(small.sources) >= 2
     ratio = large.sigmas5 / small.sigmas5
     assert np.all(ratio > 5) and np.all(ratio < 11)

@@ -38,8 +38,8 @@ def test_paper_experiment_writes_its_figures_and_tables(tmp_path):
     res = run_paper_experiment(
         tmp_path, noise_levels=(0.0, 0.02), simulation=Simulation(n_epochs=6)
     )
-    assert {lr.method for lr in res.runs} == {"sda-mean", "wocsc"}
-    assert len(res.tables["precision"]) == 2 * 2 * 5 and len(res.tables["summary"]) == 4
+    assert {lr.method for lr in res.runs} == {"sda-mean", "wocsc", "planodom"}
+    assert len(res.tables["precision"]) == 2 * 3 * 5 and len(res.tables["summary"]) == 6
     for path in res.files.values():
         assert path.exists() and path.stat().st_size > 0
     text = (tmp_path / "precision.md").read_text()

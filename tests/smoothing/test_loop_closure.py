@@ -8,6 +8,8 @@ landmarks and the batch follows the drift; with it, they are one.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -16,6 +18,7 @@ from planodom.geometry import Plane, PlaneSupport, invert_transform, make_transf
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing import loops
 from planodom.smoothing.batch import smooth_batch
+from planodom.smoothing.loop_records import reidentification_counts
 from planodom.smoothing.synthetic import _measure_plane
 from tests.planes_factory import square_polygon
 
@@ -98,7 +101,7 @@ def test_loop_closure_removes_the_drift_at_the_loop_end(problem):
     with_lc = smooth_batch(planes, relatives, _config(True))
     kept = [r for r in with_lc.reidentifications if not r.removed]
     assert len(kept) >= 30
-    assert loops.reidentification_counts(with_lc.reidentifications)["wrong_kept"] == 0
+    assert reidentification_counts(with_lc.reidentifications)["wrong_kept"] == 0
     assert _end_error(with_lc.initial_poses, truth) > 1.5  # the drift the loop must close
     assert _end_error(without.poses, truth) > 0.4  # noisy planes along the lap
     assert _end_error(with_lc.poses, truth) < 0.6 * _end_error(without.poses, truth)
@@ -133,3 +136,52 @@ def test_the_map_is_deterministic(problem):
         (r.epoch, r.plane, r.landmark, r.removed) for r in b.reidentifications
     ]
     np.testing.assert_array_equal(a.poses, b.poses)
+
+
+def _verified(mode: str) -> PlanodomConfig:
+    return _config(True).updated({"smoothing.loop_verify": mode})
+
+
+@pytest.mark.parametrize("mode", ["consistency", "tracked"])
+def test_verified_loop_closure_still_closes_the_loop(problem, mode):
+    truth, planes, relatives = problem
+    without = smooth_batch(planes, relatives, _config(False))
+    res = smooth_batch(planes, relatives, _verified(mode))
+    assert reidentification_counts(res.reidentifications)["wrong_kept"] == 0
+    assert _end_error(res.poses, truth) < 0.6 * _end_error(without.poses, truth)
+
+
+def test_a_match_placing_the_pose_metres_off_is_refused(problem, monkeypatch):
+    """Matches whose pose is shifted 3 m (an aliased parallel wall) every other epoch after
+    the loop has been closed: the correction each implies disagrees with the accepted one
+    (the matches between confirm it), so they tie nothing; without the verification they
+    tie their planes."""
+    truth, planes, relatives = problem
+    planted = {N_LAP + 8, N_LAP + 10}
+    original = loops.estimate_relative_pose
+    builders = []
+
+    def shifted(map_planes, curr, cfg, prior):
+        rel = original(map_planes, curr, cfg, prior=prior)
+        if builders[-1].n_epochs - 1 in planted:
+            T = rel.T_prev_curr @ make_transform(np.eye(3), [3.0, 0.0, 0.0])
+            rel = replace(rel, T_prev_curr=T)
+        return rel
+
+    init = loops.LoopClosingBuilder.__init__
+
+    def remember(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        builders.append(self)
+
+    monkeypatch.setattr(loops, "estimate_relative_pose", shifted)
+    monkeypatch.setattr(loops.LoopClosingBuilder, "__init__", remember)
+    tied = {}
+    for mode in ("off", "tracked"):
+        res = smooth_batch(planes, relatives, _verified(mode))
+        tied[mode] = [r for r in res.reidentifications if r.epoch in planted]
+        matches = [m for m in builders[-1].matches if m.epoch in planted]
+        assert matches  # the planted epochs were matched against the map
+    assert tied["off"]
+    assert not tied["tracked"]
+    assert all(m.verdict == "inconsistent" for m in matches)

@@ -3,7 +3,8 @@
 The traces (:mod:`.traces`) are the input.
 
 1. Seeds. Two traces seed a plane only when they come from different rings (scanners),
-   cross at ``min_cross_angle_deg`` or more, their predicted direction errors are at most
+   cross at ``min_cross_angle_deg`` or more (or down to 2 deg when the pair's normal is
+   predicted to ``max_seed_normal_error_deg``), their predicted direction errors are at most
    ``max_seed_direction_error_deg`` and they are coplanar: the gap between their lines is
    within the noise of their centroids, ``floor + 3 sigma sqrt(1 / N_i + 1 / N_j)`` (at
    most the member tolerance), plus the slack of their direction errors. A pair whose
@@ -18,21 +19,19 @@ The traces (:mod:`.traces`) are the input.
    plane only if it still holds its seed pair, has ``min_points`` points and its RMS
    residual is at most ``max_rms_m``. Members of an accepted plane are not used again.
 
-So a plane always contains two non-parallel traces of two scanners: a set of parallel
-traces is never accepted, and a plane is never guessed from one trace.
+So a plane always contains two non-parallel traces of two scanners: a set of parallel traces is
+never accepted, and a plane is never guessed from one trace.
 
-Time windows (points not deskewed, ``max_span_s`` finite, :mod:`.windows`): two traces
-seed a plane only when their times lie within ``max_span_s`` (about one sweep), and a
-trace joins a seed's plane only when its times lie in the window of ``max_span_s`` centred
-on the seed's: every plane is fit to points taken within one window. L-shaped seeds are
-not used then (one sweep's L is two lines meeting at a corner, with nothing else to
-confirm it).
+Time windows (points not deskewed, ``max_span_s`` finite, :mod:`.windows`): two traces seed a
+plane only when their times lie within ``max_span_s`` (about one sweep), and a trace joins a
+seed's plane only when its times lie in the window of ``max_span_s`` centred on the seed's:
+every plane is fit to points taken within one window. L-shaped seeds are not used then (one
+sweep's L is two lines meeting at a corner, with nothing else to confirm it).
 
-The seeding and greedy growth are compiled with numba: loops over a few tens of traces
-with per-step decisions (a greedy loop whose every step refits a plane), where numpy pays
-its per-call overhead tens of times per step; no library implements this grouping. Their
-thresholds travel as one named tuple (:class:`GroupingParams`), the traces as another
-(:class:`.traces.TraceSet`).
+The seeding and greedy growth are compiled with numba: loops over a few tens of traces with
+per-step decisions (a greedy loop whose every step refits a plane), where numpy pays its
+per-call overhead tens of times per step; no library implements this grouping. Thresholds travel
+as one named tuple (:class:`GroupingParams`), the traces as another (:class:`.traces.TraceSet`).
 """
 
 from __future__ import annotations
@@ -48,6 +47,8 @@ from planodom.extraction.rig2d.traces import build_traces
 #: An L-shaped seed pair has its crossing within this (m), or 5 % of each trace's
 #: length, of an end of both.
 L_MARGIN_M = 0.2
+#: Sine of the narrowest seed crossing (2 deg; below, bends and deskew residue dominate).
+SIN_MIN_CROSS_FLOOR = float(np.sin(np.radians(2.0)))
 
 
 class GroupingParams(NamedTuple):
@@ -57,6 +58,7 @@ class GroupingParams(NamedTuple):
         tol_m: distance (m) within which a trace must lie of a plane to join it.
         sigma_m: noise sigma (m) of the points.
         sin_min_cross: sine of the smallest angle between a seed pair's directions.
+        max_seed_normal_err_rad: narrower pairs seed if (err_i + err_j) / sin <= this.
         max_seed_err_rad: largest predicted direction error of a seed trace (rad).
         min_points: fewest points of a group.
         max_rms_m: largest RMS residual (m) of a group's points to its plane.
@@ -79,6 +81,7 @@ class GroupingParams(NamedTuple):
     gap_m: float
     gap_ratio: float
     max_span_s: float
+    max_seed_normal_err_rad: float = 0.0
     margin_m: float = L_MARGIN_M
 
 
@@ -281,8 +284,9 @@ def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
             b0, b1, b2 = direction[j, 0], direction[j, 1], direction[j, 2]
             n0, n1, n2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
             sin_a = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-            if sin_a < p.sin_min_cross:
-                continue
+            precise = (dir_err[i] + dir_err[j]) <= p.max_seed_normal_err_rad * sin_a
+            if sin_a < p.sin_min_cross and not (precise and sin_a >= SIN_MIN_CROSS_FLOOR):
+                continue  # narrow crossings seed only when the pair's normal is known well
             n0, n1, n2 = n0 / sin_a, n1 / sin_a, n2 / sin_a
             e0 = centroid[i, 0] - centroid[j, 0]
             e1 = centroid[i, 1] - centroid[j, 1]

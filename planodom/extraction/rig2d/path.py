@@ -50,6 +50,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         gap_m=float(config.plane_gap_m),
         gap_ratio=float(config.gap_range_ratio),
         max_span_s=float(span),
+        max_seed_normal_err_rad=float(np.radians(config.max_seed_normal_error_deg)),
     )
     groups, n_lost = group_segments(
         segs, params, config.trace_parallel_deg, config.trace_step_m, seg_times

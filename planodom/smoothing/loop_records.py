@@ -1,0 +1,86 @@
+"""Records of loop closure (:mod:`planodom.smoothing.loops`): each epoch's match against
+the map with the verification's verdict, each re-identified observation with the gate's
+verdict and, on simulated data, the truth; and their counts."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Reidentification:
+    """One observation re-identified as an old landmark.
+
+    Attributes:
+        epoch, plane: the observation. landmark: the old landmark's id.
+        factor: index of its plane factor in the whole graph (set by the batch loop).
+        truth_plane, truth_landmark: true surface ids of the observation and of the
+            landmark's last observation (-1 unknown). removed: refused by the gate.
+    """
+
+    epoch: int
+    plane: int
+    landmark: int
+    factor: int
+    truth_plane: int = -1
+    truth_landmark: int = -1
+    removed: bool = False
+
+    @property
+    def wrong(self) -> bool:
+        """Known to join two different true surfaces."""
+        return min(self.truth_plane, self.truth_landmark) >= 0 and (
+            self.truth_plane != self.truth_landmark
+        )
+
+
+@dataclass
+class LoopMatch:
+    """One epoch's match against the map, accepted or refused by the verification.
+
+    Attributes:
+        epoch: the current epoch k. oldest: the earliest last-seen epoch of its candidates.
+        T_world_pred: (4, 4) the predicted pose of epoch k. T_pred_curr: (4, 4) epoch k
+            in the predicted frame as the match places it (identity: prediction exact).
+        covariance: (5, 5) the match's own covariance (roll, pitch, yaw, x, y).
+        drift: (3, 3) covariance of the (yaw, x, y) drift since the compared correction.
+        mahalanobis: squared Mahalanobis distance from the accepted correction.
+        ties: (landmark, plane index) pairs. verdict: "accepted" or why refused.
+    """
+
+    epoch: int
+    oldest: int
+    T_world_pred: np.ndarray
+    T_pred_curr: np.ndarray
+    covariance: np.ndarray
+    drift: np.ndarray
+    mahalanobis: float
+    ties: list[tuple[int, int]]
+    verdict: str = "accepted"
+
+
+def reidentification_counts(
+    reids: Sequence[Reidentification],
+    same_plane: Callable[[int, int], bool] | None = None,
+) -> dict[str, int]:
+    """Accepted, removed and (on simulated data) wrong re-identifications, kept / removed.
+
+    ``same_plane(a, b)``: whether true surfaces a and b lie in one plane (two segments of
+    one facade are one plane to a plane map); default: same surface id.
+    """
+
+    def wrong(r: Reidentification) -> bool:
+        if same_plane is None or min(r.truth_plane, r.truth_landmark) < 0:
+            return r.wrong
+        return not same_plane(r.truth_plane, r.truth_landmark)
+
+    kept = [r for r in reids if not r.removed]
+    return {
+        "reidentified": len(kept),
+        "reidentified_removed": len(reids) - len(kept),
+        "wrong_kept": sum(wrong(r) for r in kept),
+        "wrong_removed": sum(wrong(r) for r in reids if r.removed),
+    }
