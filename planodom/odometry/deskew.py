@@ -15,12 +15,14 @@ it again:
    without deskewing is suspect: on a 2D-rig world a turn left only the ground without
    it, and the gap went on for 7 epochs;
 2. up to ``deskew_iterations`` times: with the epoch's own angular rate and (when its
-   translation was measured) velocity wherever they differ from the twist used by more
+   translation was measured) velocity (against a plane map: their mean with the twist
+   used, see ``against_map``) wherever they differ from the twist used by more
    than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
    epoch that was never deskewed (the first) is extracted again with it too. An epoch
    kept without deskewing is refined only once its translation is measured (never with
    a velocity of zero nobody measured). A new estimate is kept while its status does not
-   get worse.
+   get worse, and always once the reference was extracted again (the earlier estimate
+   was made against the reference's old planes).
 """
 
 from __future__ import annotations
@@ -86,6 +88,7 @@ def register_deskewed(
     config: OdometryConfig,
     previous_planes: int = 0,
     held: np.ndarray | None = None,
+    against_map: bool = False,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -98,6 +101,10 @@ def register_deskewed(
             suspect).
         held: (6,) the twist held from before an unresolved epoch, tried only when
             ``predicted`` is None and the epoch extracted without it is suspect.
+        against_map: the estimate registers the epoch against a map (the plane-map
+            odometry), not against an epoch deskewed the same way: a deskewing error
+            ``e`` then moves the epoch's own twist by about ``-e`` (own = 2 true - used),
+            so it is extracted again with the mean of the twist used and its own.
     """
     best = estimate(predicted)
     few = len(best.planes) < max(2.0, 0.5 * previous_planes)
@@ -114,13 +121,18 @@ def register_deskewed(
             break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
-        new = refined_twist(se3_log(best.step) / dt, used, measured, config)
+        own = se3_log(best.step) / dt
+        if against_map:
+            own = 0.5 * (own + used)
+        new = refined_twist(own, used, measured, config)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break
         again = estimate(new)
-        if again.relative.status.rank < best.relative.status.rank:
+        if not stale_reference and again.relative.status.rank < best.relative.status.rank:
             break
+        # once the reference was extracted again, an estimate made against its old
+        # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
 

@@ -161,16 +161,15 @@ class PlaneOdometry:
             dt = t - self.times[-1]
             refresh, previous = self._refresh_reference, len(self.last_planes)
             ocfg = self.config.odometry
-            if self._map is not None and self.twist is not None:
-                # The map deskews with the prediction only (see _predicted_twist); its
-                # first step is iterated, the first epoch seeded again with its twist.
-                ocfg = ocfg.model_copy(update={"deskew_iterations": 0})
             # a twist never outlives an unresolved epoch: until one is measured again, the
             # epochs are extracted without it (it still serves as prior and bridge, and is
             # tried when the extraction without it is suspect)
             unresolved = self._unresolved_last()
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
-            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held)
+            against_map = self._map is not None and self.twist is not None
+            best = register_deskewed(
+                twist, dt, estimate, refresh, ocfg, previous, held, against_map
+            )
         else:
             best = estimate(None)
         twist = best.twist
@@ -359,9 +358,9 @@ class PlaneOdometry:
             # the same way: a deskewing error e moves its estimate by about -e (a plane
             # seen at time t moves by e t), so deskewing with the last step's twist, or
             # extracting again with the epoch's own, oscillates from epoch to epoch (the
-            # simulated paper loop, lidar32: 4 cm rms). It deskews once, with the mean
-            # twist of the last velocity_window steps (0.44 cm there), and only its first
-            # step is iterated (register_epoch).
+            # simulated paper loop, lidar32: 4 cm rms). It predicts the mean twist of the
+            # last velocity_window steps (0.44 cm there), and extracts again with the mean
+            # of the twist used and the epoch's own (register_deskewed, against_map).
             self._recent.append(twist.copy())
             return np.mean(np.array(self._recent), axis=0)
         if measured:

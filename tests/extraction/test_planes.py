@@ -7,7 +7,12 @@ import pytest
 
 from planodom.extraction.planes.builder import orientation_sign
 from planodom.extraction.planes.confidence import cpef, mean_incidence
-from planodom.extraction.planes.fit import robust_plane_fit, tls_covariance, tls_fit
+from planodom.extraction.planes.fit import (
+    robust_plane_fit,
+    robust_plane_fits,
+    tls_covariance,
+    tls_fit,
+)
 
 
 def _patch(n_pts: int, rng) -> tuple[np.ndarray, np.ndarray, float]:
@@ -52,6 +57,33 @@ def test_covariance_is_floored_for_exact_data():
     n = np.array([len(fit.inliers)])
     cov = tls_covariance(fit.evals[None], fit.evecs[None], fit.centroid[None], n, 1e-4)[0]
     assert np.all(np.isfinite(cov)) and np.linalg.matrix_rank(cov, tol=1e-20) == 3
+
+
+def test_batched_robust_fits_match_one_at_a_time():
+    """The batched robust fit against the per-set one: noisy patches with outliers, exact
+    data, a set that falls below three inliers and one that stops early."""
+    rng = np.random.default_rng(3)
+    sets = []
+    for k in range(12):
+        pts, n, _ = _patch(int(rng.integers(8, 400)), rng)
+        pts = pts + rng.uniform(0.0, 0.03) * rng.standard_normal(pts.shape) * (k % 3 > 0)
+        out = rng.random(len(pts)) < 0.2
+        pts[out] += rng.uniform(-1.0, 1.0, (int(out.sum()), 1)) * n
+        sets.append(pts)
+    sets.append(rng.standard_normal((3, 3)))  # three points: an exact plane
+    sets.append(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 50], [0, 0, -50.0]]))
+    bounds = np.r_[0, np.cumsum([len(s) for s in sets])]
+    inlier, ok, c, evals, evecs = robust_plane_fits(np.concatenate(sets), bounds, 3.5)
+    for g, pts in enumerate(sets):
+        one = robust_plane_fit(pts, 3.5)
+        assert ok[g] == (one is not None)
+        if one is None:
+            continue
+        mine = np.flatnonzero(inlier[bounds[g] : bounds[g + 1]])
+        np.testing.assert_array_equal(mine, one.inliers)
+        np.testing.assert_allclose(c[g], one.centroid, atol=1e-12)
+        np.testing.assert_allclose(evals[g], one.evals, rtol=1e-9, atol=1e-12)
+        assert abs(abs(evecs[g, :, 2] @ one.normal) - 1.0) < 1e-12
 
 
 def test_cpef_factors():

@@ -15,7 +15,7 @@
      19 true surfaces). RANSAC when no rows are found or they give no plane (a cloud
      that is not a spinning lidar's);
 2. a fit of each candidate: robust TLS (:func:`planodom.extraction.planes.fit.
-   robust_plane_fit`, iterated 1.4826 MAD inlier selection) for the first, plain TLS of
+   robust_plane_fits`, iterated 1.4826 MAD inlier selection) for the first, plain TLS of
    the members for the organised candidates (their points were already selected within
    the member tolerance of a plane grown on the image; trimming by the MAD would drop the
    outer scan lines of a plane whose lasers carry range biases);
@@ -35,7 +35,7 @@ from planodom.extraction.lidar.candidates import lidar_candidates
 from planodom.extraction.lidar.organised import organised_candidates
 from planodom.extraction.lidar.rows import scan_rows
 from planodom.extraction.planes.builder import PlaneFits, build_planes
-from planodom.extraction.planes.fit import robust_plane_fit, tls_fit
+from planodom.extraction.planes.fit import robust_plane_fits, tls_fit
 
 
 def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
@@ -116,13 +116,20 @@ def fit_candidates(
     candidates: list[np.ndarray], points: np.ndarray, config: ExtractionConfig
 ) -> tuple[PlaneFits, int]:
     """Robust TLS fits of the candidate inlier sets (indices into ``points`` (N, 3), m)
-    that keep ``min_plane_points`` inliers, and the number of the others."""
-    kept = []
-    for cand in candidates:
-        if len(cand) < config.min_plane_points:
-            continue
-        fit = robust_plane_fit(points[cand], config.inlier_sigma_factor)
-        if fit is not None and len(fit.inliers) >= config.min_plane_points:
-            kept.append((cand[fit.inliers], (fit.centroid, fit.evals, fit.evecs)))
-    out = _pack([i for i, _ in kept], [f for _, f in kept], None)
-    return out, len(candidates) - len(kept)
+    that keep ``min_plane_points`` inliers (all at once, :func:`robust_plane_fits`), and
+    the number of the others."""
+    big = [c for c in candidates if len(c) >= config.min_plane_points]
+    if not big:
+        return _pack([], [], None), len(candidates)
+    bounds = np.zeros(len(big) + 1, dtype=np.int64)
+    np.cumsum([len(c) for c in big], out=bounds[1:])
+    flat = np.concatenate(big)
+    inlier, ok, centroid, evals, evecs = robust_plane_fits(
+        points[flat], bounds, config.inlier_sigma_factor
+    )
+    count = np.add.reduceat(inlier, bounds[:-1]) if len(flat) else np.zeros(0, np.int64)
+    keep = ok & (count >= config.min_plane_points)
+    idx = np.flatnonzero(keep)
+    inliers = [flat[bounds[g] : bounds[g + 1]][inlier[bounds[g] : bounds[g + 1]]] for g in idx]
+    fits = [(centroid[g], evals[g], evecs[g]) for g in idx]
+    return _pack(inliers, fits, None), len(candidates) - len(idx)

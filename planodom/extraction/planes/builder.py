@@ -2,7 +2,7 @@
 
 Both paths end in TLS fits of candidate inlier sets (:class:`PlaneFits`): the 2D-rig
 path's group refits (:mod:`planodom.extraction.rig2d.groupfit`), the lidar path's robust
-fits of its candidates (:func:`.fit.robust_plane_fit`). :func:`build_planes` then, for all
+fits of its candidates (:func:`.fit.robust_plane_fits`). :func:`build_planes` then, for all
 fits at once:
 
 1. rejects fits with fewer than ``min_plane_points`` inliers, thinner than

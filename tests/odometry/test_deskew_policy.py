@@ -1,0 +1,60 @@
+"""The deskewing policy (:func:`planodom.odometry.deskew.register_deskewed`) on a linear
+model of how a deskewing error moves an epoch's estimate."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planodom.config import OdometryConfig
+from planodom.geometry import Plane, se3_exp
+from planodom.odometry.deskew import EpochEstimate, register_deskewed
+from planodom.odometry.relative import RelativePose, Status
+from planodom.planes import PlaneSet
+
+DT = 0.1
+TRUE = np.array([0.0, 0.0, 0.3, 3.0, 0.2, 0.0])  # rad/s, m/s
+PREDICTED = np.array([0.0, 0.0, 0.1, 2.0, 0.0, 0.0])
+
+
+def _estimate(twist: np.ndarray | None, own: np.ndarray, status: Status) -> EpochEstimate:
+    planes = [Plane(np.array([1.0, 0, 0]), -5.0), Plane(np.array([0, 0, 1.0]), 0.0)]
+    step = se3_exp(own * DT)
+    rel = RelativePose(step, None, status)
+    return EpochEstimate(planes, PlaneSet.from_planes(planes), twist, rel, step, planes)
+
+
+def _map_model(twist: np.ndarray | None) -> EpochEstimate:
+    """Against a map, an epoch deskewed with ``used`` gives the twist ``2 true - used``."""
+    used = np.zeros(6) if twist is None else twist
+    return _estimate(twist, 2.0 * TRUE - used, Status.OK)
+
+
+def test_against_a_map_the_mean_of_used_and_own_reaches_the_true_twist():
+    config = OdometryConfig()
+    best = register_deskewed(
+        PREDICTED, DT, _map_model, lambda t: False, config, 2, against_map=True
+    )
+    assert best.twist is not None
+    np.testing.assert_allclose(best.twist, TRUE, atol=1e-12)
+    # Taking the own twist as it is swings between 2 true - predicted and predicted.
+    plain = register_deskewed(
+        PREDICTED, DT, _map_model, lambda t: False, config, 2, against_map=False
+    )
+    assert plain.twist is not None
+    assert np.linalg.norm(plain.twist - TRUE) > 0.5
+
+
+def test_an_estimate_against_a_refreshed_reference_is_not_kept():
+    """Once the reference is extracted again, the first estimate (made against its old
+    planes) is dropped even when the new one's status is worse."""
+
+    def model(twist: np.ndarray | None) -> EpochEstimate:
+        if twist is None:
+            return _estimate(None, TRUE, Status.OK)
+        return _estimate(twist, TRUE, Status.DEGENERATE)
+
+    config = OdometryConfig(deskew_iterations=1)
+    refreshed = register_deskewed(None, DT, model, lambda t: True, config, 2)
+    assert refreshed.twist is not None and refreshed.relative.status is Status.DEGENERATE
+    kept = register_deskewed(None, DT, model, lambda t: False, config, 2)
+    assert kept.twist is None and kept.relative.status is Status.OK
