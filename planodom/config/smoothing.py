@@ -137,8 +137,11 @@ class SmoothingConfig(Section):
     """Batch: re-identify planes of a global map near the predicted pose and tie revisited
     landmarks (planodom.smoothing.loops); off: landmarks only from the tracks (delta <= D)."""
     loop_every_epochs: Annotated[int, Field(ge=1)] = 1
-    """Match against the map at every N-th epoch only (keyframes: less time and fewer ties
-    on dense lidar data)."""
+    """Match against the map at every N-th epoch only (keyframes: fewer ties on dense lidar
+    data). Default 1: on a 32-beam lidar lap (procedural world 3, 6 mm, 632 epochs, 50
+    planes an epoch) every 5th epoch tied 893 instead of 4 808 observations but saved no
+    time (matching is a tenth of it: the windowed initial guess and the pose covariances
+    dominate) and raised the ATE from 0.154 to 0.169 m."""
     loop_min_gap_epochs: Annotated[int, Field(ge=1)] = 50
     """A map landmark is a re-identification candidate once unseen for this many epochs."""
     loop_radius_m: Positive = 20.0

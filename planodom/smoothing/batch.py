@@ -91,8 +91,8 @@ def pose_covariances(
 ) -> np.ndarray:
     """(E, 6, 6) marginal covariances of ``X(0..E-1)`` at ``values``.
 
-    ``gtsam.Marginals`` (Cholesky), or the same from a QR elimination when Cholesky finds
-    the system indeterminant (see :func:`levenberg_marquardt`).
+    From a Bayes tree (Cholesky, METIS ordering), or the same from a QR elimination when
+    Cholesky finds the system indeterminant (see :func:`levenberg_marquardt`).
 
     With ``relative_to_first`` the covariances are conditioned on the first pose: a
     prior ``FIRST_POSE_TIGHTENING`` times stiffer than the gauge prior (sigma
@@ -107,10 +107,14 @@ def pose_covariances(
     if relative_to_first:
         stiff = FIRST_POSE_TIGHTENING / prior_sigma
         linear.add(X(0), stiff * np.eye(6), np.zeros(6), gtsam.noiseModel.Unit.Create(6))
-    ordering = gtsam.Ordering.ColamdNonlinearFactorGraph(graph)
+    # METIS (nested dissection), not gtsam.Marginals' COLAMD: a closed loop joins the
+    # lap's ends, and each pose's marginal walks the Bayes tree to its root; measured on
+    # a 32-beam lidar lap with loop closure (632 epochs): 44 s with COLAMD, 25 s with
+    # METIS, the same covariances to 2e-10.
+    ordering = gtsam.Ordering.MetisNonlinearFactorGraph(graph)
     try:
-        marginals = gtsam.Marginals(linear, values)  # Cholesky
-        return np.stack([marginals.marginalCovariance(X(k)) for k in range(n_epochs)])
+        tree = linear.eliminateMultifrontal(ordering)  # Cholesky
+        return np.stack([tree.marginalCovariance(X(k)) for k in range(n_epochs)])
     except RuntimeError:
         tree = linear.eliminateMultifrontal(ordering, gtsam.EliminateQR)
         return np.stack([tree.marginalCovariance(X(k)) for k in range(n_epochs)])

@@ -122,6 +122,9 @@ class LoopClosingBuilder(GraphBuilder):
         self.travelled: list[float] = []
         self.variances: list[tuple[float, float]] = []  # chained (xy, yaw) variance sums
         self._extents: dict[int, tuple[int, np.ndarray, float]] = {}  # j -> (epoch, c, r)
+        self._rows: dict[int, int] = {}  # landmark id -> row of the map arrays (_map)
+        self._ids, self._seen = np.zeros(0, int), np.zeros(0, int)
+        self._nz, self._radii, self._centres = np.zeros(0), np.zeros(0), np.zeros((0, 3))
 
     def _extent_of(self, j: int) -> tuple[np.ndarray, float]:
         """World centroid and radius of a sphere holding every accepted observation's
@@ -138,6 +141,33 @@ class LoopClosingBuilder(GraphBuilder):
         self._extents[j] = (e, c, r)
         return c, r
 
+    def _map(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The map's landmarks with an accepted observation, as arrays (refreshed where a
+        landmark was seen since): ids (L,), extent centres (L, 3) m, radii (L,) m, |z| of
+        the world normals (L,), last-seen epochs (L,). Arrays, not a loop per landmark and
+        epoch: a lidar lap holds thousands of landmarks (2 500 on a 32-beam lap)."""
+        rows = self._rows
+        for j, lm in self.landmarks.items():
+            if lm.last_seen is None:
+                continue
+            row = rows.get(j)
+            if row is not None and self._seen[row] == lm.last_seen[0]:
+                continue
+            if row is None:
+                row = rows[j] = len(rows)
+                if row == len(self._seen):  # grow the arrays (amortised doubling)
+                    self._ids, self._seen, self._nz, self._radii = (
+                        np.resize(a, 2 * len(a) + 16)
+                        for a in (self._ids, self._seen, self._nz, self._radii)
+                    )
+                    self._centres = np.resize(self._centres, (2 * len(self._centres) + 16, 3))
+            centre, radius = self._extent_of(j)
+            self._ids[row], self._seen[row], self._nz[row] = j, lm.last_seen[0], 0.0
+            self._centres[row], self._radii[row] = centre, radius
+            self._nz[row] = abs(lm.plane_world[2])
+        n = len(rows)
+        return self._ids[:n], self._centres[:n], self._radii[:n], self._nz[:n], self._seen[:n]
+
     def _candidates(self, k: int) -> tuple[list[int], int | None]:
         """Landmarks unseen for the minimum gap whose support is near the predicted pose,
         but ground-like ones, and the most recently seen near ground-like landmark
@@ -145,24 +175,20 @@ class LoopClosingBuilder(GraphBuilder):
         tying old ground pieces, tilted by their few observations, raised the ATE from
         0.08 to 0.20 m on the issue world)."""
         c, position = self.config, self.poses[k][:3, 3]
-        out, ground, ground_epoch = [], None, -1
-        for j, lm in self.landmarks.items():
-            if lm.last_seen is None:
-                continue
-            centre, radius = self._extent_of(j)
-            if np.linalg.norm(centre - position) - radius > c.loop_radius_m:
-                continue
-            e, nz = lm.last_seen[0], abs(lm.plane_world[2])
-            if nz >= GROUND_COS and e > ground_epoch:
-                ground, ground_epoch = j, e
-            elif nz <= WALL_SIN and e <= k - c.loop_min_gap_epochs:
-                out.append(j)
-        out = self._distinct(out)
+        ids, centres, radii, nz, seen = self._map()
+        gap = np.linalg.norm(centres - position, axis=1) - radii
+        near = gap <= c.loop_radius_m
+        ground, walls = near & (nz >= GROUND_COS), near & (nz <= WALL_SIN)
+        walls &= seen <= k - c.loop_min_gap_epochs
+        context = None
+        if ground.any():  # the latest seen (the first of them on ties)
+            rows = np.flatnonzero(ground)
+            context = int(ids[rows[np.argmax(seen[rows])]])
+        out = self._distinct(sorted(int(j) for j in ids[walls]))
         if len(out) > c.loop_max_candidates:  # the nearest ones
-            ext = self._extents
-            gap = {j: np.linalg.norm(ext[j][1] - position) - ext[j][2] for j in out}
-            out = sorted(sorted(out, key=lambda j: (gap[j], j))[: c.loop_max_candidates])
-        return out, ground
+            by_id = dict(zip(ids[walls].tolist(), gap[walls].tolist(), strict=True))
+            out = sorted(sorted(out, key=lambda j: (by_id[j], j))[: c.loop_max_candidates])
+        return out, context
 
     def _distinct(self, candidates: list[int]) -> list[int]:
         """One landmark per physical plane: of candidates within 3 deg and 0.2 m of each
@@ -254,6 +280,13 @@ class LoopClosingBuilder(GraphBuilder):
             "association.prior_translation_m": translation,
             "association.prior_rotation_deg": rotation,
             "odometry.retry_without_prior": False,
+            # The refinement measures a direction when its sigma is at most this: the
+            # odometry's few centimetres (one epoch's motion) refused every match of the
+            # synthetic loop (3 cm planes) as rotation only; a match that narrows the
+            # bounds' sigma (translation / loop_sigmas) measures the loop.
+            "odometry.refine_max_sigma_m": max(
+                self.full_config.odometry.refine_max_sigma_m, translation / c.loop_sigmas
+            ),
         }
         return self.full_config.updated(changes, source="loop closure bounds")
 

@@ -185,3 +185,41 @@ def test_a_match_placing_the_pose_metres_off_is_refused(problem, monkeypatch):
     assert tied["off"]
     assert not tied["tracked"]
     assert all(m.verdict == "inconsistent" for m in matches)
+
+
+def _brute_candidates(builder: loops.LoopClosingBuilder, k: int) -> tuple[list[int], int | None]:
+    """The candidate rule of :meth:`LoopClosingBuilder._candidates`, one landmark at a time."""
+    c, position = builder.config, builder.poses[k][:3, 3]
+    walls, ground, ground_epoch = {}, None, -1
+    for j, lm in builder.landmarks.items():
+        if lm.last_seen is None:
+            continue
+        centre, radius = builder._extent_of(j)
+        gap = float(np.linalg.norm(centre - position) - radius)
+        e, nz = lm.last_seen[0], abs(lm.plane_world[2])
+        if gap > c.loop_radius_m:
+            continue
+        if nz >= loops.GROUND_COS and e > ground_epoch:
+            ground, ground_epoch = j, e
+        elif nz <= loops.WALL_SIN and e <= k - c.loop_min_gap_epochs:
+            walls[j] = gap
+    kept = builder._distinct(sorted(walls))
+    return sorted(sorted(kept, key=lambda j: (walls[j], j))[: c.loop_max_candidates]), ground
+
+
+def test_the_candidates_are_those_of_the_rule(problem, monkeypatch):
+    """The map's arrays (refreshed as landmarks are seen) select what the rule does."""
+    _, planes, relatives = problem
+    original = loops.LoopClosingBuilder._candidates
+    compared = []
+
+    def checked(self, k):
+        out = original(self, k)
+        assert out == _brute_candidates(self, k), k
+        compared.append(len(out[0]))
+        return out
+
+    monkeypatch.setattr(loops.LoopClosingBuilder, "_candidates", checked)
+    cfg = _config(True).updated({"smoothing.loop_max_candidates": 3})
+    smooth_batch(planes, relatives, cfg)
+    assert max(compared) == 3 and min(compared) == 0  # truncated, and empty before the lap
