@@ -1,7 +1,8 @@
 """Small compiled (numba) helpers shared by the extraction kernels.
 
 - :func:`find_root`: union-find with path halving (trace linking, range-image growing);
-- :func:`range_moments`: centroid and centred scatter of a contiguous range of points.
+- :func:`range_moments`: centroid and centred scatter of a contiguous range of points;
+- :func:`add_outer`: add one centred point's outer product to a scatter's upper triangle.
 """
 
 from __future__ import annotations
@@ -40,3 +41,15 @@ def range_moments(pts, a, b, c, m):  # pragma: no cover - compiled
     m[0, 0], m[0, 1], m[0, 2] = s00, s01, s02
     m[1, 0], m[1, 1], m[1, 2] = s01, s11, s12
     m[2, 0], m[2, 1], m[2, 2] = s02, s12, s22
+
+
+@numba.njit(cache=True)
+def add_outer(S, x, y, z):  # pragma: no cover - compiled
+    """Add the upper triangle of ``(x, y, z)(x, y, z)^T`` to ``S`` (3, 3) (the caller
+    mirrors it once the sum is complete)."""
+    S[0, 0] += x * x
+    S[0, 1] += x * y
+    S[0, 2] += x * z
+    S[1, 1] += y * y
+    S[1, 2] += y * z
+    S[2, 2] += z * z

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from planodom.extraction.kernels import add_outer
+
 #: Residuals below this (m) always count as inliers (round-off of exact data).
 _EXACT_M = 1e-7
 
@@ -127,13 +129,7 @@ def _tls_kernel(p: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     c /= len(idx)
     S = np.zeros((3, 3))
     for i in idx:
-        x, y, z = p[i, 0] - c[0], p[i, 1] - c[1], p[i, 2] - c[2]
-        S[0, 0] += x * x
-        S[0, 1] += x * y
-        S[0, 2] += x * z
-        S[1, 1] += y * y
-        S[1, 2] += y * z
-        S[2, 2] += z * z
+        add_outer(S, p[i, 0] - c[0], p[i, 1] - c[1], p[i, 2] - c[2])
     S[1, 0], S[2, 0], S[2, 1] = S[0, 1], S[0, 2], S[1, 2]
     w, V = np.linalg.eigh(S)
     return c, w[::-1].copy(), V[:, ::-1].copy()

@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from planodom.extraction.kernels import range_moments
+from planodom.extraction.kernels import add_outer, range_moments
 from planodom.extraction.rig2d.segments import Segments
 
 #: Refits of a group after the first (module docstring, step 4).
@@ -138,15 +138,7 @@ def _first_plane(seg, members):  # pragma: no cover - compiled
     for s in members:
         lo, hi = _interior(seg, s)
         for i in range(lo, hi):
-            d0 = seg.points[i, 0] - c[0]
-            d1 = seg.points[i, 1] - c[1]
-            d2 = seg.points[i, 2] - c[2]
-            sc[0, 0] += d0 * d0
-            sc[0, 1] += d0 * d1
-            sc[0, 2] += d0 * d2
-            sc[1, 1] += d1 * d1
-            sc[1, 2] += d1 * d2
-            sc[2, 2] += d2 * d2
+            add_outer(sc, seg.points[i, 0] - c[0], seg.points[i, 1] - c[1], seg.points[i, 2] - c[2])
     sc[1, 0], sc[2, 0], sc[2, 1] = sc[0, 1], sc[0, 2], sc[1, 2]
     _, vecs = np.linalg.eigh(sc)
     n = vecs[:, 0].copy()
