@@ -2,7 +2,7 @@
 
 For each epoch of one lap of the default paper loop with the default isoclinal rig (noise
 free, continuous motion), counts the walls hit, the walls observable as planes (two
-traces, i.e. two rings, with directions more than 10 deg apart; see /work/shared/RIG.md
+traces, i.e. two rings, with directions more than 10 deg apart; see the brief's RIG.md
 and :mod:`planodom.simulation.observability`) and the pairs of observable walls with
 non-parallel normals, which is what the rotation and translation of the paper need (at
 least one pair per epoch). Prints min / median / max, a histogram and the fraction of

@@ -5,7 +5,7 @@ A *trace* is the set of points of one ring (one 2D scanner) on one surface in on
 frame at their own time, where every point of a 2D scanner lies in its scan plane, so a
 trace is a straight segment even while the vehicle moves. A surface is *observable as a
 plane* when it has two traces whose directions differ by more than ``min_angle_deg``
-(/work/shared/RIG.md). Walls are the surfaces of kind wall / facade; the ground is
+(the brief's RIG.md). Walls are the surfaces of kind wall / facade; the ground is
 reported on its own (it is also determined by two distinct parallel traces).
 """
 

@@ -7,7 +7,7 @@ rings, in sensor order (:attr:`SensorRig.ring_offsets`). What a dataset states a
 rig, recorded or simulated, is the typed :class:`planodom.rig.Rig`
 (:meth:`SensorRig.dataset_rig`: sensor origins per ring, extrinsics, epoch rate).
 
-Default isoclinal geometry (see /work/shared/RIG.md). A wall with horizontal normal n
+Default isoclinal geometry (see the brief's RIG.md). A wall with horizontal normal n
 gets non-parallel traces from two scan planes with normals m1, m2 iff ``n . h != 0``,
 ``h = m1 x m2`` being the direction in which the scan planes meet; for two planes rolled
 by +-theta about a horizontal h the traces cross at ``2 atan(tan(theta) |n . h| / |h|)``
