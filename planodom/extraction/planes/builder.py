@@ -32,7 +32,7 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch
-from planodom.extraction.planes.confidence import cpef, mean_incidence
+from planodom.extraction.planes.confidence import cpef, mean_incidences
 from planodom.extraction.planes.fit import tls_covariance
 from planodom.extraction.planes.support import majority_label, support_polygon
 from planodom.geometry import Plane, PlaneSupport
@@ -135,10 +135,9 @@ def build_planes(
     views = np.broadcast_to(np.array([0.0, 0.0, height]), (G, 3)).copy()
     incidence = np.ones(G) if fits.incidence is None else fits.incidence.copy()
     if fits.incidence is None or epoch.origins is not None:
-        for g in kept:
-            idx = fits.members(int(g))
-            views[g] = epoch.viewpoint(idx, height)
-            incidence[g] = mean_incidence(epoch.points[idx], views[g], normals[g])
+        inl, bnd = fits.inliers.astype(np.int64), fits.bounds.astype(np.int64)
+        views[kept] = epoch.viewpoints(inl, bnd, kept, height)
+        incidence[kept] = mean_incidences(epoch.points, inl, bnd, kept, views[kept], normals[kept])
     signs = orientation_sign(normals, fits.offset, fits.centroid, views)
     conf = cpef(
         rms, max(sigma_m, floor), fits.count, width, incidence,
