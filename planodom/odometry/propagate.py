@@ -19,7 +19,6 @@ two pairs are one.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import block_diag
 
 from planodom.geometry import horizontal_reference_points, rotation_frames, rpy_from_rotation
 from planodom.planes import PlaneSet
@@ -32,6 +31,18 @@ def _jacobian(f, x: np.ndarray) -> np.ndarray:
     h = _STEP * np.eye(len(x))
     out = f(np.concatenate([x + h, x - h]))
     return (out[: len(x)] - out[len(x) :]).T / (2 * _STEP)
+
+
+def _block_diag(blocks: list[np.ndarray]) -> np.ndarray:
+    """The block-diagonal matrix of square ``blocks`` (scipy's ``block_diag`` checks and
+    converts its arguments at a cost above this whole covariance's arithmetic)."""
+    sizes = [len(b) for b in blocks]
+    out = np.zeros((sum(sizes), sum(sizes)))
+    start = 0
+    for b, n in zip(blocks, sizes, strict=True):
+        out[start : start + n, start : start + n] = b
+        start += n
+    return out
 
 
 def rotation_covariance(
@@ -54,7 +65,7 @@ def rotation_covariance(
 
     x = np.concatenate([prev_normals.ravel(), curr_normals.ravel()])
     J = _jacobian(f, x)
-    S = block_diag(*(c[:3, :3] for c in (*prev_cov, *curr_cov)))
+    S = _block_diag([c[:3, :3] for c in (*prev_cov, *curr_cov)])
     return J @ S @ J.T
 
 
@@ -115,7 +126,8 @@ def pose_covariance(
 
     J = _jacobian(f, x)
     var_z = sigma_z**2 if np.isfinite(sigma_z) else 0.0
-    S = block_diag(
-        *(prev.covariances[i] for i in ids_p), *(curr.covariances[j] for j in ids_c), [[var_z]]
-    )
+    S = _block_diag(
+        [*(prev.covariances[i] for i in ids_p), *(curr.covariances[j] for j in ids_c),
+         np.array([[var_z]])]
+    )  # fmt: skip
     return J @ S @ J.T

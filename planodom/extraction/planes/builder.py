@@ -108,6 +108,13 @@ def orientation_sign(
     return np.where(np.abs(dist) >= 1e-3, np.where(dist > 0, 1.0, -1.0), on_plane)
 
 
+def _n_distinct(values: np.ndarray) -> int:
+    """Number of distinct values in ``values`` (K,) int (a counting pass for small ids)."""
+    if len(values) and values.min() >= 0 and values.max() < 1 << 16:
+        return int(np.count_nonzero(np.bincount(values)))
+    return len(np.unique(values))
+
+
 def build_planes(
     fits: PlaneFits,
     epoch: Epoch,
@@ -155,7 +162,7 @@ def build_planes(
         if fits.n_rows is not None:
             n_rows = int(fits.n_rows[g])
         else:
-            n_rows = 0 if ring is None else len(np.unique(ring[idx]))
+            n_rows = 0 if ring is None else _n_distinct(ring[idx])
         outline = epoch.points[idx][fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]
         polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
         plane = Plane(
