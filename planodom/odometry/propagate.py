@@ -45,6 +45,20 @@ def _block_diag(blocks: list[np.ndarray]) -> np.ndarray:
     return out
 
 
+def _rpy(R: np.ndarray) -> np.ndarray:
+    """(B, 3) roll, pitch, yaw of rotations ``R`` (B, 3, 3) = Rz(yaw) Ry(pitch) Rx(roll),
+    as :func:`planodom.geometry.rpy_from_rotation` (to rounding), in closed form: scipy's
+    general conversion costs more than the rest of :func:`rotation_covariance`, whose
+    relative rotations are far from gimbal lock (checked: otherwise scipy's)."""
+    if np.any(np.abs(R[:, 2, 0]) > 0.99):
+        return rpy_from_rotation(R)
+    out = np.empty((len(R), 3))
+    out[:, 0] = np.arctan2(R[:, 2, 1], R[:, 2, 2])
+    out[:, 1] = np.arctan2(-R[:, 2, 0], np.hypot(R[:, 0, 0], R[:, 1, 0]))
+    out[:, 2] = np.arctan2(R[:, 1, 0], R[:, 0, 0])
+    return out
+
+
 def rotation_covariance(
     prev_normals: np.ndarray,
     curr_normals: np.ndarray,
@@ -61,7 +75,7 @@ def rotation_covariance(
     def f(x: np.ndarray) -> np.ndarray:
         U_p = rotation_frames(x[:, 0:3], x[:, 3:6])
         U_c = rotation_frames(x[:, 6:9], x[:, 9:12])
-        return rpy_from_rotation(U_p @ np.swapaxes(U_c, 1, 2))
+        return _rpy(U_p @ np.swapaxes(U_c, 1, 2))
 
     x = np.concatenate([prev_normals.ravel(), curr_normals.ravel()])
     J = _jacobian(f, x)
