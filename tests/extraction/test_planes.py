@@ -112,3 +112,39 @@ def test_orientation_sign_faces_the_viewpoint_or_up():
     # ground, towards the base origin's side of the centroid for a wall.
     s = orientation_sign(normals, offsets, centroids, views)
     np.testing.assert_array_equal(s, [-1.0, 1.0, -1.0, -1.0])
+
+
+def test_batched_incidences_and_viewpoints_match_per_plane():
+    """The one-pass viewpoints and incidences of build_planes against each plane's own
+    computation: per-ring origins carried to the reference time with the twist."""
+    from planodom.extraction.epoch import Epoch
+    from planodom.extraction.planes.confidence import mean_incidences
+    from planodom.geometry import se3_exp
+    from planodom.scan import Scan
+
+    rng = np.random.default_rng(5)
+    pts = rng.normal(0, 5, (300, 3))
+    ring = rng.integers(0, 4, 300).astype(np.int32)
+    t = rng.uniform(-0.05, 0.05, 300)
+    origins = rng.normal(0, 1, (4, 3))
+    twist = np.array([0.02, -0.01, 0.3, 5.0, 0.2, 0.05])
+    epoch = Epoch(Scan(pts, ring, t), pts, origins, twist)
+    inliers = rng.permutation(300)[:240].astype(np.int64)
+    bounds = np.array([0, 50, 51, 130, 240], dtype=np.int64)
+    planes = np.array([0, 2, 3, 1])
+    normals = rng.normal(0, 1, (4, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    views = epoch.viewpoints(inliers, bounds, planes, 1.0)
+    inc = mean_incidences(pts, inliers, bounds, planes, views, normals)
+    for p, g in enumerate(planes):
+        idx = inliers[bounds[g] : bounds[g + 1]]
+        T = se3_exp(t[idx].mean() * twist)
+        view = T[:3, :3] @ origins[ring[idx]].mean(axis=0) + T[:3, 3]
+        np.testing.assert_allclose(views[p], view, rtol=0, atol=1e-12)
+        rays = pts[idx] - view
+        expected = np.mean(np.abs(rays @ normals[p]) / np.linalg.norm(rays, axis=1))
+        assert inc[p] == pytest.approx(expected, rel=1e-12)
+        assert inc[p] == pytest.approx(mean_incidence(pts[idx], view, normals[p]), rel=1e-12)
+    # Without origins: the point above the base origin for every plane.
+    bare = Epoch(Scan(pts, ring, t), pts, None, twist)
+    np.testing.assert_array_equal(bare.viewpoints(inliers, bounds, planes, 1.5), [[0, 0, 1.5]] * 4)
