@@ -338,15 +338,32 @@ def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
     centroids, :func:`_fits`) and lies in its time window."""
     P, T = seeds.i.shape[0], tr.ring.shape[0]
     member = np.zeros((P, T), dtype=np.bool_)
+    # The arrays taken out of the named tuples once: read through them in the P x T
+    # loop, the kernel spent ~0.5 us per pair (the same arithmetic as _fits).
+    centroid, scatter, direction, lo, hi = tr.centroid, tr.scatter, tr.direction, tr.lo, tr.hi
+    t_lo, t_hi, win_lo, win_hi = tr.t_lo, tr.t_hi, seeds.win_lo, seeds.win_hi
+    windowed = np.isfinite(p.max_span_s)
+    tol = p.tol_m
     for s in range(P):
         n = seeds.normal[s]
+        n0, n1, n2 = n[0], n[1], n[2]
         i, j = seeds.i[s], seeds.j[s]
         d = 0.0
         for u in range(3):
-            d -= 0.5 * n[u] * (tr.centroid[i, u] + tr.centroid[j, u])
+            d -= 0.5 * n[u] * (centroid[i, u] + centroid[j, u])
         for t in range(T):
-            if big[t] and _in_window(tr, seeds, p, s, t):
-                member[s, t] = _fits(tr, count, t, n, d, p.tol_m)
+            if not big[t]:
+                continue
+            if windowed and not (t_lo[t] >= win_lo[s] and t_hi[t] <= win_hi[s]):
+                continue
+            off = centroid[t, 0] * n0 + centroid[t, 1] * n1 + centroid[t, 2] * n2 + d
+            q = 0.0
+            for u in range(3):
+                for v in range(3):
+                    q += n[u] * scatter[t, u, v] * n[v]
+            slope = direction[t, 0] * n0 + direction[t, 1] * n1 + direction[t, 2] * n2
+            ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
+            member[s, t] = q / count[t] + off * off <= tol * tol and ends <= tol
     return member
 
 
