@@ -123,22 +123,23 @@ def _interior(seg, s):  # pragma: no cover - compiled
 def _first_plane(seg, members):  # pragma: no cover - compiled
     """Step 1: unit normal (3,) and offset (m) of the interior points of the segments
     ``members`` (K,) (two passes, centred; scalar loops, no per-point arrays)."""
+    pts = seg.points  # read once: through the named tuple in the loops it cost ~10x
     cnt = 0.0
     c0 = c1 = c2 = 0.0
     for s in members:
         lo, hi = _interior(seg, s)
         for i in range(lo, hi):
             cnt += 1.0
-            c0 += seg.points[i, 0]
-            c1 += seg.points[i, 1]
-            c2 += seg.points[i, 2]
+            c0 += pts[i, 0]
+            c1 += pts[i, 1]
+            c2 += pts[i, 2]
     cnt = max(cnt, 1e-300)
     c = np.array([c0 / cnt, c1 / cnt, c2 / cnt])
     sc = np.zeros((3, 3))
     for s in members:
         lo, hi = _interior(seg, s)
         for i in range(lo, hi):
-            add_outer(sc, seg.points[i, 0] - c[0], seg.points[i, 1] - c[1], seg.points[i, 2] - c[2])
+            add_outer(sc, pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2])
     sc[1, 0], sc[2, 0], sc[2, 1] = sc[0, 1], sc[0, 2], sc[1, 2]
     _, vecs = np.linalg.eigh(sc)
     n = vecs[:, 0].copy()
@@ -149,12 +150,13 @@ def _first_plane(seg, members):  # pragma: no cover - compiled
 def _robust_scale(seg, members, n, d):  # pragma: no cover - compiled
     """Step 2: the median (the lower middle value for an even count) of the segments'
     RMS distances (m) of their interior points to the plane (n, d)."""
+    pts = seg.points
     rms = np.empty(members.shape[0])
     for k in range(members.shape[0]):
         lo, hi = _interior(seg, members[k])
         q = 0.0
         for i in range(lo, hi):
-            r = seg.points[i, 0] * n[0] + seg.points[i, 1] * n[1] + seg.points[i, 2] * n[2] + d
+            r = pts[i, 0] * n[0] + pts[i, 1] * n[1] + pts[i, 2] * n[2] + d
             q += r * r
         rms[k] = np.sqrt(q / max(hi - lo, 1))
     rms.sort()
@@ -166,13 +168,14 @@ def _select(seg, members, n, d, thr, inl, buf, start):  # pragma: no cover - com
     """Step 3: write the points of the segments ``members`` within ``thr`` (m) of the
     plane (n, d) to ``inl`` (their positions) and ``buf`` (the points) from ``start`` on;
     returns the end."""
+    pts, starts, ends = seg.points, seg.starts, seg.ends
     K = start
     for s in members:
-        for i in range(seg.starts[s], seg.ends[s]):
-            p0, p1, p2 = seg.points[i, 0], seg.points[i, 1], seg.points[i, 2]
+        for i in range(starts[s], ends[s]):
+            p0, p1, p2 = pts[i, 0], pts[i, 1], pts[i, 2]
             if abs(p0 * n[0] + p1 * n[1] + p2 * n[2] + d) <= thr:
                 inl[K] = i
-                buf[K] = seg.points[i]
+                buf[K, 0], buf[K, 1], buf[K, 2] = p0, p1, p2
                 K += 1
     return K
 
@@ -210,6 +213,7 @@ def _fit_groups_kernel(seg, gseg, gb, k_sigma, view, use_view):  # pragma: no co
     """All groups (``gseg[gb[g]:gb[g + 1]]`` the segments of group g): the fields of
     :class:`GroupFits`, in order."""
     G = gb.shape[0] - 1
+    pts = seg.points
     total = 0
     for k in range(gseg.shape[0]):
         total += seg.ends[gseg[k]] - seg.starts[gseg[k]]
@@ -241,9 +245,9 @@ def _fit_groups_kernel(seg, gseg, gb, k_sigma, view, use_view):  # pragma: no co
             n0, n1, n2 = vecs2[0, 0], vecs2[1, 0], vecs2[2, 0]
             for j in range(start, K):
                 i = inl[j]
-                r0 = seg.points[i, 0] - view[0]
-                r1 = seg.points[i, 1] - view[1]
-                r2 = seg.points[i, 2] - view[2]
+                r0 = pts[i, 0] - view[0]
+                r1 = pts[i, 1] - view[1]
+                r2 = pts[i, 2] - view[2]
                 r = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
                 acc += abs(r0 * n0 + r1 * n1 + r2 * n2) / max(r, 1e-300)
             inc_out[g] = acc / m
