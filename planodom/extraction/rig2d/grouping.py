@@ -162,17 +162,18 @@ def _plane_of(members, count, centroid, scatter):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _fits(tr, count, t, n, d, tol):  # pragma: no cover - compiled
+def _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol):  # pragma: no cover
     """Trace ``t``'s RMS distance to the plane (n, d) and its end points (the ends of its
-    extent, at its centroid's offset) are within ``tol`` (``count``: (T,) float64)."""
-    centroid, scatter, direction = tr.centroid, tr.scatter, tr.direction
+    extent, at its centroid's offset) are within ``tol`` (the trace arrays of
+    :class:`.traces.TraceSet`, passed one by one: read through the named tuple in the
+    kernels' loops they cost ~10x the arithmetic; ``count``: (T,) float64)."""
     off = centroid[t, 0] * n[0] + centroid[t, 1] * n[1] + centroid[t, 2] * n[2] + d
     q = 0.0
     for u in range(3):
         for v in range(3):
             q += n[u] * scatter[t, u, v] * n[v]
     slope = direction[t, 0] * n[0] + direction[t, 1] * n[1] + direction[t, 2] * n[2]
-    ends = max(abs(off + slope * tr.lo[t]), abs(off + slope * tr.hi[t]))
+    ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
     return q / count[t] + off * off <= tol * tol and ends <= tol
 
 
@@ -338,15 +339,14 @@ def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
     centroids, :func:`_fits`) and lies in its time window."""
     P, T = seeds.i.shape[0], tr.ring.shape[0]
     member = np.zeros((P, T), dtype=np.bool_)
-    # The arrays taken out of the named tuples once: read through them in the P x T
-    # loop, the kernel spent ~0.5 us per pair (the same arithmetic as _fits).
+    # The arrays taken out of the named tuples once (see _fits): read through them in
+    # the P x T loop, the kernel spent ~0.5 us per pair.
     centroid, scatter, direction, lo, hi = tr.centroid, tr.scatter, tr.direction, tr.lo, tr.hi
     t_lo, t_hi, win_lo, win_hi = tr.t_lo, tr.t_hi, seeds.win_lo, seeds.win_hi
     windowed = np.isfinite(p.max_span_s)
     tol = p.tol_m
     for s in range(P):
         n = seeds.normal[s]
-        n0, n1, n2 = n[0], n[1], n[2]
         i, j = seeds.i[s], seeds.j[s]
         d = 0.0
         for u in range(3):
@@ -356,14 +356,7 @@ def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
                 continue
             if windowed and not (t_lo[t] >= win_lo[s] and t_hi[t] <= win_hi[s]):
                 continue
-            off = centroid[t, 0] * n0 + centroid[t, 1] * n1 + centroid[t, 2] * n2 + d
-            q = 0.0
-            for u in range(3):
-                for v in range(3):
-                    q += n[u] * scatter[t, u, v] * n[v]
-            slope = direction[t, 0] * n0 + direction[t, 1] * n1 + direction[t, 2] * n2
-            ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
-            member[s, t] = q / count[t] + off * off <= tol * tol and ends <= tol
+            member[s, t] = _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol)
     return member
 
 
@@ -373,16 +366,19 @@ def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - com
     the available traces in its window (at most three times), keep the piece connected
     to the seed. Returns the members and their plane's RMS residual (m) and point count."""
     T = tr.ring.shape[0]
+    centroid, scatter, direction, lo, hi = tr.centroid, tr.scatter, tr.direction, tr.lo, tr.hi
     in_window = available.copy()
     for t in range(T):
         in_window[t] = in_window[t] and _in_window(tr, seeds, p, s, t)
     for _ in range(3):
-        n, d, rms, total = _plane_of(members, count, tr.centroid, tr.scatter)
+        n, d, rms, total = _plane_of(members, count, centroid, scatter)
         new = np.zeros(T, dtype=np.bool_)
         n_new = 0
         same = True
         for t in range(T):
-            new[t] = in_window[t] and _fits(tr, count, t, n, d, p.tol_m)
+            new[t] = in_window[t] and _fits(
+                centroid, scatter, direction, lo, hi, count, t, n, d, p.tol_m
+            )
             n_new += new[t]
             same = same and new[t] == members[t]
         if same or n_new < 2:
