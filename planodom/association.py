@@ -31,6 +31,7 @@ plane only its best match.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -145,6 +146,15 @@ def _gated_combinations(
     return p, j1[s1[p] + u], j2[s2[p] + v]
 
 
+@functools.lru_cache(maxsize=64)
+def _pairs_of(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(n, 1)`` (read-only arrays, cached: building them cost more than
+    the rest of a small epoch's gate)."""
+    i1, i2 = np.triu_indices(n, 1)
+    i1.flags.writeable = i2.flags.writeable = False
+    return i1, i2
+
+
 def lenient_association(
     prev: PlaneSet,
     curr: PlaneSet,
@@ -190,7 +200,7 @@ def lenient_association(
     parallel = np.radians(cfg.parallel_angle_deg)
     ang_p, ok_p = nonparallel_pairs(prev.normals, parallel)
     ang_c, ok_c = nonparallel_pairs(curr.normals, parallel)
-    i1, i2 = np.triu_indices(len(prev), 1)
+    i1, i2 = _pairs_of(len(prev))
     keep = ok_p[i1, i2] & gate[i1].any(axis=1) & gate[i2].any(axis=1)
     i1, i2 = i1[keep], i2[keep]
     if len(i1) == 0:

@@ -133,8 +133,8 @@ def se3_log(T: np.ndarray) -> np.ndarray:
         1.0 / 12.0 + a * a / 720.0,
         1.0 / safe**2 - (1.0 + np.cos(safe)) / (2.0 * safe * np.sin(safe)),
     )
-    wxt = np.cross(w, t)
-    v = t - 0.5 * wxt + c[:, None] * np.cross(w, wxt)
+    wxt = cross_rows(w, t)
+    v = t - 0.5 * wxt + c[:, None] * cross_rows(w, wxt)
     return np.concatenate([w, v], axis=1).reshape(T.shape[:-2] + (6,))
 
 
