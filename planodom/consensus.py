@@ -146,7 +146,7 @@ def consensus(
 
     everyone = np.arange(n_cand)
     if budget is not None and n_cand > shortlist and n_cand * len(used) > budget:
-        group_rank = np.cumsum(np.r_[True, gid[used][1:] != gid[used][:-1]]) - 1
+        group_rank = np.cumsum(np.concatenate(([True], gid[used][1:] != gid[used][:-1]))) - 1
         stride = int(np.ceil(n_cand * len(used) / budget))
         rough = _totals(problem, everyone, used[group_rank % stride == 0])
         chosen = np.sort(np.argsort(rough, kind="stable")[:shortlist])
@@ -199,7 +199,7 @@ def _totals(p: _Problem, cand_index: np.ndarray, elems: np.ndarray) -> np.ndarra
     """Consensus error (len(cand_index),) of the candidates over the elements ``elems``
     (group members side by side), in blocks of at most ``_BLOCK`` evaluations."""
     g = p.gid[elems]
-    starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1]]) if len(elems) else elems
+    starts = np.flatnonzero(np.concatenate(([True], g[1:] != g[:-1]))) if len(elems) else elems
     out = np.zeros(len(cand_index))
     block = max(1, _BLOCK // max(len(elems), 1))
     for b in range(0, len(cand_index) if len(elems) else 0, block):

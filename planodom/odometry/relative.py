@@ -79,7 +79,7 @@ class SolverDiagnostics:
         rows = np.concatenate([np.asarray(p, dtype=int).reshape(2, 2).T for p in pairs])
         # np.unique(rows, axis=0) (sorted distinct rows), without its per-call overhead
         rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]
-        distinct = np.r_[True, np.any(rows[1:] != rows[:-1], axis=1)]
+        distinct = np.concatenate(([True], np.any(rows[1:] != rows[:-1], axis=1)))
         return rows[distinct]
 
 

@@ -140,7 +140,7 @@ def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) ->
     ij = result.associations
 
     def pair(q: np.ndarray | None) -> np.ndarray | None:
-        return None if q is None else np.r_[order_p[q[:2]], order_c[q[2:]]]
+        return None if q is None else np.concatenate((order_p[q[:2]], order_c[q[2:]]))
 
     info = result.diagnostics
     assert info is not None
@@ -213,7 +213,7 @@ def _solve(
         cov_t, sigma_z, z_observed = np.diag([bounds.translation**2] * 2), np.inf, False
     refined = None
     if ocfg.refinement != "none":
-        refined = _refine(prev, curr, R, np.r_[txy, z], measured, bounds, cfg)
+        refined = _refine(prev, curr, R, np.append(txy, z), measured, bounds, cfg)
         # The planes associated under the consensus pose decide: a consensus pair that
         # SDA does not confirm (a far wall's normal off by degrees) measures nothing.
         R, fit = refined.R, refined.fit
@@ -226,7 +226,9 @@ def _solve(
 
     rot_pair = trans_pair = None
     if rot_cons is not None:
-        rot_pair = np.r_[lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index]]
+        rot_pair = np.concatenate(
+            (lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index])
+        )
     if measured and tr is not None and tr.best >= 0:
         trans_pair = elems.pairs[tr.best]
     cov = np.zeros((5, 5))
