@@ -164,9 +164,8 @@ def _plane_of(members, count, centroid, scatter):  # pragma: no cover - compiled
 @numba.njit(cache=True)
 def _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol):  # pragma: no cover
     """Trace ``t``'s RMS distance to the plane (n, d) and its end points (the ends of its
-    extent, at its centroid's offset) are within ``tol`` (the trace arrays of
-    :class:`.traces.TraceSet`, passed one by one: read through the named tuple in the
-    kernels' loops they cost ~10x the arithmetic; ``count``: (T,) float64)."""
+    extent, at its centroid's offset) are within ``tol`` (``count``: (T,) float64; the
+    trace arrays one by one: read through the named tuple they cost ~10x the maths)."""
     off = centroid[t, 0] * n[0] + centroid[t, 1] * n[1] + centroid[t, 2] * n[2] + d
     q = 0.0
     for u in range(3):
@@ -326,25 +325,15 @@ def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _in_window(tr, seeds, p, s, t):  # pragma: no cover - compiled
-    """Trace ``t`` lies in seed ``s``'s time window (always, without windows)."""
-    if not np.isfinite(p.max_span_s):
-        return True
-    return tr.t_lo[t] >= seeds.win_lo[s] and tr.t_hi[t] <= seeds.win_hi[s]
-
-
-@numba.njit(cache=True)
 def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
     """(P, T) bool: trace t fits seed s's plane (through the midpoint of its pair's
     centroids, :func:`_fits`) and lies in its time window."""
     P, T = seeds.i.shape[0], tr.ring.shape[0]
     member = np.zeros((P, T), dtype=np.bool_)
-    # The arrays taken out of the named tuples once (see _fits): read through them in
-    # the P x T loop, the kernel spent ~0.5 us per pair.
+    # The arrays out of the named tuples once (see _fits): ~0.5 us per pair through them.
     centroid, scatter, direction, lo, hi = tr.centroid, tr.scatter, tr.direction, tr.lo, tr.hi
     t_lo, t_hi, win_lo, win_hi = tr.t_lo, tr.t_hi, seeds.win_lo, seeds.win_hi
-    windowed = np.isfinite(p.max_span_s)
-    tol = p.tol_m
+    windowed, tol = np.isfinite(p.max_span_s), p.tol_m
     for s in range(P):
         n = seeds.normal[s]
         i, j = seeds.i[s], seeds.j[s]
@@ -352,11 +341,9 @@ def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
         for u in range(3):
             d -= 0.5 * n[u] * (centroid[i, u] + centroid[j, u])
         for t in range(T):
-            if not big[t]:
-                continue
-            if windowed and not (t_lo[t] >= win_lo[s] and t_hi[t] <= win_hi[s]):
-                continue
-            member[s, t] = _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol)
+            # in its time window (always, without windows)
+            if big[t] and (not windowed or (t_lo[t] >= win_lo[s] and t_hi[t] <= win_hi[s])):
+                member[s, t] = _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol)
     return member
 
 
@@ -368,8 +355,8 @@ def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - com
     T = tr.ring.shape[0]
     centroid, scatter, direction, lo, hi = tr.centroid, tr.scatter, tr.direction, tr.lo, tr.hi
     in_window = available.copy()
-    for t in range(T):
-        in_window[t] = in_window[t] and _in_window(tr, seeds, p, s, t)
+    if np.isfinite(p.max_span_s):  # in its time window
+        in_window &= (tr.t_lo >= seeds.win_lo[s]) & (tr.t_hi <= seeds.win_hi[s])
     for _ in range(3):
         n, d, rms, total = _plane_of(members, count, centroid, scatter)
         new = np.zeros(T, dtype=np.bool_)
