@@ -122,11 +122,19 @@ def register_deskewed(
             ``e`` then moves the epoch's own twist by about ``-e`` (own = 2 true - used),
             so it is extracted again with the mean of the twist used and its own.
     """
-    first = _refined(estimate(predicted), dt, estimate, refresh_reference, config, against_map)
+    known = predicted if predicted is not None else held
+    velocity = None if known is None else known[3:]
+
+    def refined(twist: np.ndarray | None) -> _Refined:
+        return _refined(
+            estimate(twist), dt, estimate, refresh_reference, config, against_map, velocity
+        )
+
+    first = refined(predicted)
     other = None if predicted is not None else held
-    if dt <= 0 or (predicted is None and held is None) or not _suspect(first, previous_planes):
+    if dt <= 0 or known is None or not _suspect(first, previous_planes):
         return first.estimate
-    second = _refined(estimate(other), dt, estimate, refresh_reference, config, against_map)
+    second = refined(other)
     if second.refreshed or _score(second) > _score(first):
         return second.estimate  # (an estimate against a refreshed reference is stale)
     return first.estimate
@@ -150,6 +158,7 @@ def _refined(
     refresh_reference: Refresher,
     config: OdometryConfig,
     against_map: bool,
+    velocity: np.ndarray | None = None,
 ) -> _Refined:
     """Step 2 of the module docstring from ``start``.
 
@@ -173,8 +182,11 @@ def _refined(
             own = 0.5 * (own + used)
         new = refined_twist(own, used, measured, config)
         if best.twist is None and not measured:
-            # never deskew with a linear velocity nobody measured (v = 0)
-            return _Refined(best, not plain or np.array_equal(new[:3], used[:3]), refreshed)
+            # never deskew with a linear velocity nobody measured (v = 0): the one
+            # predicted or held, else none
+            if velocity is None or np.array_equal(new[:3], used[:3]):
+                return _Refined(best, not plain or np.array_equal(new[:3], used[:3]), refreshed)
+            new[3:] = velocity
         stale_reference = refresh_reference(new)
         refreshed = refreshed or stale_reference
         if not stale_reference and np.array_equal(new, used):
