@@ -105,7 +105,6 @@ def register_deskewed(
     previous_planes: int = 0,
     held: np.ndarray | None = None,
     against_map: bool = False,
-    bounds: tuple[float, float] | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -122,114 +121,36 @@ def register_deskewed(
             odometry), not against an epoch deskewed the same way: a deskewing error
             ``e`` then moves the epoch's own twist by about ``-e`` (own = 2 true - used),
             so it is extracted again with the mean of the twist used and its own.
-        bounds: (rad, m) how far a prediction may be off over one epoch (the
-            association's prior bounds): an epoch extracted again with its own twist must
-            give back that twist within them (:func:`_consistent`); None: not checked.
     """
-    known = predicted if predicted is not None else held
-    velocity = None if known is None else known[3:]
-
-    def refined(twist: np.ndarray | None) -> _Refined:
-        return _refined(
-            estimate(twist), dt, estimate, refresh_reference, config, against_map, velocity,
-            bounds,
-        )  # fmt: skip
-
-    first = refined(predicted)
+    best = estimate(predicted)
+    few = len(best.planes) < max(2.0, 0.5 * previous_planes)
     other = None if predicted is not None else held
-    if dt <= 0 or known is None or not _suspect(first, previous_planes):
-        return first.estimate
-    second = refined(other)
-    if second.refreshed or _score(second) > _score(first):
-        return second.estimate  # (an estimate against a refreshed reference is stale)
-    return first.estimate
-
-
-@dataclass(frozen=True, eq=False)
-class _Refined:
-    """An estimate after :func:`_refined`: whether it is ``confirmed`` (deskewed, or not
-    deskewed and consistent with that: see :func:`_refined`), and whether the reference
-    epoch was extracted again on the way (``refreshed``)."""
-
-    estimate: EpochEstimate
-    confirmed: bool = True
-    refreshed: bool = False
-
-
-def _refined(
-    start: EpochEstimate,
-    dt: float,
-    estimate: Estimator,
-    refresh_reference: Refresher,
-    config: OdometryConfig,
-    against_map: bool,
-    velocity: np.ndarray | None = None,
-    bounds: tuple[float, float] | None = None,
-) -> _Refined:
-    """Step 2 of the module docstring from ``start``.
-
-    An epoch extracted without deskewing (``start.twist`` None) gives a relative pose of
-    smeared planes: it is ``confirmed`` only when its own twist is within the tolerances
-    of no motion, or when the epoch extracted again with that twist does not get a worse
-    status. (Measured on procedural 2D-rig worlds at sigma = 0, 4 m/s in turns: the
-    extraction without deskewing has more planes than a slightly wrong prediction's,
-    was kept for that, and its pose was 30-40 cm and 1-2 deg off, its own twist 40 %
-    off; extracted again with that twist, the epoch collapsed to 0-1 planes.)
-    """
-    best, refreshed = start, False
-    plain = start.twist is None and dt > 0
+    if dt > 0 and (predicted is not None or held is not None):
+        if best.relative.status is not Status.OK or few:
+            alternative = estimate(other)
+            if _score(alternative) > _score(best):
+                best = alternative
     for _ in range(config.deskew_iterations if dt > 0 else 0):
         if best.relative.status is Status.UNRESOLVED:
             break
+        if best.twist is None and best.relative.status is not Status.OK:
+            break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
         own = best.own_twist(dt)
         if against_map:
             own = 0.5 * (own + used)
         new = refined_twist(own, used, measured, config)
-        if best.twist is None and not measured:
-            # never deskew with a linear velocity nobody measured (v = 0): the one
-            # predicted or held, else none
-            if velocity is None or np.array_equal(new[:3], used[:3]):
-                return _Refined(best, not plain or np.array_equal(new[:3], used[:3]), refreshed)
-            new[3:] = velocity
         stale_reference = refresh_reference(new)
-        refreshed = refreshed or stale_reference
         if not stale_reference and np.array_equal(new, used):
             break
         again = estimate(new)
-        worse = again.relative.status.rank < best.relative.status.rank
-        if not stale_reference and (worse or not _consistent(again, new, dt, bounds)):
-            return _Refined(best, not plain, refreshed)
+        if not stale_reference and again.relative.status.rank < best.relative.status.rank:
+            break
         # once the reference was extracted again, an estimate made against its old
         # extraction (or the map seeded with it) refers to planes that are gone
-        best, plain = again, False
-    return _Refined(best, True, refreshed)
-
-
-def _consistent(
-    candidate: EpochEstimate, used: np.ndarray, dt: float, bounds: tuple[float, float] | None
-) -> bool:
-    """Whether an epoch extracted again with the twist ``used`` (6,) gives back about that
-    twist: its own twist (:meth:`EpochEstimate.own_twist`) moves the epoch's pose from
-    the one ``used`` implies by at most ``bounds`` (rad, m: how far a prediction may be
-    off, the association's prior bounds) over ``dt``. (Measured on procedural 2D-rig
-    worlds: an epoch's pose 1-2 deg and 30-60 cm off gave a twist whose extraction moved
-    it back by as much, or to 100 deg and more.)"""
-    if bounds is None or candidate.relative.status is Status.UNRESOLVED:
-        return True
-    delta = (candidate.own_twist(dt) - used) * dt
-    if candidate.relative.status is not Status.OK:
-        delta[3:] = 0.0
-    return bool(np.linalg.norm(delta[:3]) <= bounds[0] and np.linalg.norm(delta[3:]) <= bounds[1])
-
-
-def _suspect(candidate: _Refined, previous_planes: int) -> bool:
-    """Step 1's test: not resolved, far fewer planes than the epoch before, or not
-    confirmed (:func:`_refined`)."""
-    few = len(candidate.estimate.planes) < max(2.0, 0.5 * previous_planes)
-    ok = candidate.estimate.relative.status is Status.OK
-    return not ok or few or not candidate.confirmed
+        best = again
+    return best
 
 
 def prefer_streaming(given: EpochEstimate, previous_planes: int) -> bool:
@@ -247,11 +168,8 @@ def keep_first(first: EpochEstimate, second: EpochEstimate) -> bool:
     return _score(first) >= _score(second)
 
 
-def _score(candidate: EpochEstimate | _Refined) -> tuple[int, ...]:
-    """How good one extraction of an epoch is: confirmed (:func:`_refined`) first, then
-    its status, then its plane count."""
-    if isinstance(candidate, _Refined):
-        return (int(candidate.confirmed), *_score(candidate.estimate))
+def _score(candidate: EpochEstimate) -> tuple[int, int]:
+    """How good one extraction of an epoch is: its status, then its plane count."""
     return candidate.relative.status.rank, len(candidate.planes)
 
 

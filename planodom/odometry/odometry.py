@@ -167,10 +167,8 @@ class PlaneOdometry:
             unresolved = self._unresolved_last()
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
-            acfg = self.config.association
-            bounds = (np.radians(acfg.prior_rotation_deg), acfg.prior_translation_m)
             best = register_deskewed(
-                twist, dt, estimate, refresh, ocfg, previous, held, against_map, bounds
+                twist, dt, estimate, refresh, ocfg, previous, held, against_map
             )
         else:
             best = estimate(None)
@@ -383,10 +381,12 @@ def _twist_offset(epoch: _Epoch, reference: _Epoch, dt: float) -> np.ndarray | N
     off by ``-e tm`` would put them. So the step from the reference epoch (deskewed with
     ``u_r``) to this one (``u``) is off by ``tm (e_r - e)``, and its twist by ``(tm / dt)
     (e_r - e)``; over the two epochs' equal true twist, that is ``(tm / dt) (u_r - u)``,
-    and the true twist is the step's plus ``(tm / dt) (u - u_r)``. (Measured on a 2D-rig
-    world at sigma = 0: an epoch extracted without deskewing, against a deskewed reference,
-    gave 14.6 deg/s and 5.4 m/s where the truth was 10.1 and 3.7, the offset gives 9.2 and
-    3.5; taken as it was, that twist left the next extractions with 0-1 planes.)
+    and the true twist is the step's plus ``(tm / dt) (u - u_r)``. Taken as it is, the
+    step's twist swings around the truth from one extraction to the next. (Measured on a
+    2D-rig world at sigma = 0, tm / dt = 0.48: an epoch deskewed with 14.6 deg/s and
+    5.4 m/s against a reference deskewed with 10.7 deg/s and 3.9 m/s, where the truth was
+    10.1 deg/s and 3.7 m/s, gave a step of 7.2 deg/s and 2.4 m/s; with the offset, 9.0
+    and 3.1.)
     """
     scan = epoch.scan
     if dt <= 0 or scan is None or scan.t is None or not len(scan.t):
@@ -394,8 +394,6 @@ def _twist_offset(epoch: _Epoch, reference: _Epoch, dt: float) -> np.ndarray | N
     if epoch.twist is None or reference.twist is None:
         # an epoch extracted without a twist is not "deskewed with zero": the 2D-rig path
         # then extrapolates each wall seen in several time windows to the epoch time
-        # (measured: such an epoch's own twist was within 0.5 deg/s of the truth on an
-        # indoor world, 45 % off on an outdoor one), so its offset is unknown
         return None
     tm = float(np.mean(scan.t))
     return (tm / dt) * (epoch.twist - reference.twist) if tm != 0.0 else None
