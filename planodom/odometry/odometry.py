@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, invert_transform, se3_exp, se3_log
+from planodom.geometry import Plane, invert_transform, se3_exp
 from planodom.odometry.deskew import (
     EpochEstimate,
     keep_first,
