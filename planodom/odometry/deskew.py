@@ -56,6 +56,8 @@ class EpochEstimate:
             association indices refer to them).
         map_estimate: the plane-map odometry's registration to commit when this
             estimate is kept (``pipeline: map``), else None.
+        twist_offset: (6,) what the deskewing of the two epochs took off the step's
+            twist, rad/s and m/s (:meth:`own_twist`); None: nothing.
     """
 
     planes: list[Plane]
@@ -65,6 +67,20 @@ class EpochEstimate:
     step: np.ndarray
     reference_planes: list[Plane]
     map_estimate: MapEstimate | None = None
+    twist_offset: np.ndarray | None = None
+
+    def own_twist(self, dt: float) -> np.ndarray:
+        """(6,) the epoch's twist, rad/s and m/s, over the ``dt`` seconds of its step: the
+        step's twist plus ``twist_offset`` where it was measured (all of it when the
+        status is OK, the angular rate when degenerate, nothing when unresolved: a
+        bridge)."""
+        own = se3_log(self.step) / dt
+        status = self.relative.status
+        if self.twist_offset is None or status is Status.UNRESOLVED:
+            return own
+        return own + (
+            self.twist_offset if status is Status.OK else np.r_[self.twist_offset[:3], 0, 0, 0]
+        )
 
 
 #: ``estimate(twist) -> EpochEstimate``: extract the epoch deskewed with ``twist`` (None:
@@ -121,7 +137,7 @@ def register_deskewed(
             break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
-        own = se3_log(best.step) / dt
+        own = best.own_twist(dt)
         if against_map:
             own = 0.5 * (own + used)
         new = refined_twist(own, used, measured, config)

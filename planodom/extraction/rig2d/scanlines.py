@@ -100,7 +100,8 @@ def _breaks_kernel(pts, ring, t, has_t, sweep_gap_factor, min_gap_m, gap_range_r
 
 @numba.njit(cache=True)
 def _angle_reversals(points, ring):  # pragma: no cover - compiled
-    """(M - 1,) bool: where the scan angle of a ring jumps back by more than 60 deg.
+    """(M - 1,) bool: where a ring's sweep restarts: its scan angle jumps back by more
+    than 60 deg, or has turned by more than 300 deg since the sweep began.
 
     Used when times do not separate the sweeps (no ``t``, or all equal). The angle is
     measured in each ring's best-fit plane (its scan plane) about the base origin, a
@@ -141,8 +142,16 @@ def _angle_reversals(points, ring):  # pragma: no cover - compiled
                 step[i - a - 1] = d
                 prev = ang
             sign = 1.0 if np.median(step) >= 0 else -1.0
+            turned = 0.0  # scan angle swept since the sweep began
             for k in range(b - a - 1):
-                out[a + k] = sign * step[k] < -lim
+                s = sign * step[k]
+                turned += s
+                # a reversal, or a full turn: a scanner whose mirror turns on (field of
+                # view above 240 deg) starts a sweep with a jump forward over its blind
+                # sector, the start angle passed again
+                if s < -lim or turned > 2.0 * np.pi - lim:
+                    out[a + k] = True
+                    turned = 0.0
         a = b
     return out
 

@@ -45,7 +45,7 @@ class SweepTiming:
     """The real sweeps of an epoch's scanners (not the runs between no-return gaps):
     ``count`` the most sweeps of one ring, ``period`` (s) the median time between the
     starts of successive sweeps of one ring (inf with one sweep each), ``duration`` (s) the
-    longest time span of one sweep."""
+    longest time span of one sweep (of those shorter than the period, when there are)."""
 
     count: int
     period: float
@@ -66,7 +66,11 @@ def sweep_timing(scan: Scan, segs: Segments) -> SweepTiming:
     counts = np.bincount(sweep_ring - sweep_ring.min())
     steps = np.concatenate([np.diff(start[sweep_ring == r]) for r in np.unique(sweep_ring)])
     period = float(np.median(steps)) if len(steps) else float("inf")
-    return SweepTiming(int(counts.max()), period, float(np.max(end - start)))
+    # a "sweep" longer than the period is two whose restart was not seen (a ring that
+    # sees only part of its field of view: the jump back is short)
+    spans = end - start
+    whole = spans[spans < period]
+    return SweepTiming(int(counts.max()), period, float(np.max(whole if len(whole) else spans)))
 
 
 def for_epoch(windows: TimeWindowConfig, scan: Scan, segs: Segments) -> TimeWindowConfig:
