@@ -154,7 +154,7 @@ def organised_candidates(
     P = P.reshape(H, W, 3)
     ks = float(config.region_normal_sigmas)
     tol_pix = member_tolerance(config, sigma_pix)
-    n, e, ok = _pixel_normals(P, max(1, int(config.region_window)), sigma_pix, tol_pix, ks)
+    n, e, ok = _pixel_normals(P, max(1, int(config.region_window)), 1, sigma_pix, tol_pix, ks)
     min_px = max(3, config.min_plane_points // 2 // max(int(m), 1))
     piece, C = _grow_pieces(
         P, n, e, ok, float(tol_pix), ks, float(np.radians(config.region_normal_floor_deg)),
