@@ -268,7 +268,9 @@ class _DeskewedEpochs:
             item, *self.nodes, float(self.times[k]), self.order, float(self.reference[k])
         )
         self.seconds += _time.perf_counter() - c0
-        return _Deskewed(raw, out)
+        # the times stay (extracted with a zero twist): a lidar's range image takes its
+        # columns from them (with zeros it has none and falls back to RANSAC fragments)
+        return _Deskewed(raw, replace(out, t=raw.t))
 
 
 def _streaming_pass(

@@ -25,11 +25,8 @@ from planodom.extraction.lidar.grid import (
     ring_order,
     ring_rows,
 )
-from planodom.extraction.lidar.rangeimage import (
-    _grow_pieces,
-    _pixel_normals,
-    range_image_candidates,
-)
+from planodom.extraction.lidar.normals import _pixel_normals
+from planodom.extraction.lidar.rangeimage import _grow_pieces, range_image_candidates
 from planodom.extraction.lidar.ransac import sample_triples, segment_plane
 
 from .synth_scans import default_scene, planes_in_base, rect, scan_lidar

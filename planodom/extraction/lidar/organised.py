@@ -40,11 +40,11 @@ import numpy as np
 from planodom.config import ExtractionConfig
 from planodom.extraction.lidar.candidates import ring_noise
 from planodom.extraction.lidar.grid import assign_points, near_pairs, plane_members
+from planodom.extraction.lidar.normals import _pixel_normals
 from planodom.extraction.lidar.rangeimage import (
     _NEIGHBOURS,
     _grow_pieces,
     _piece_moments,
-    _pixel_normals,
     merge_coplanar,
     moment_sums,
 )

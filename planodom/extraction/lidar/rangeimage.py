@@ -4,7 +4,8 @@ A spinning lidar's points form a grid, one row per ring and one column per firin
 (:mod:`.grid`; without usable times there are no columns and the caller uses RANSAC).
 
 1. Pixel normals: ``n = t_h x t_v`` with the row tangent ``t_h = sum_k k (p[c+k] - p[c-k])``,
-   ``k = 1..region_window`` (columns wrap) and the column tangent ``t_v = p[r+1] - p[r-1]``.
+   ``k = 1..region_window`` (columns wrap) and the column tangent ``t_v = p[r+S] - p[r-S]``
+   (``S`` = 1 unless too noisy, see below; :mod:`.normals`).
    Their predicted angular error is ``e = sigma sqrt(2 sum k^2 / |t_h|^2 + 2 / |t_v|^2)``.
 2. Grid edges (right and down neighbours) join two pixels when their normals are within
    ``region_normal_floor_deg + region_normal_sigmas * sqrt(e_i^2 + e_j^2)``, each point
@@ -58,6 +59,7 @@ from planodom.extraction.lidar.grid import (
     near_pairs,
     plane_members,
 )
+from planodom.extraction.lidar.normals import pixel_normals
 from planodom.extraction.noise import member_tolerance, rms_limit
 
 #: Step 4's pixel order, (row, column) offsets: own pixel, the 4, the diagonal neighbours.
@@ -87,7 +89,7 @@ def range_image_candidates(
     P = fill_grid(points, row * W + col, H * W).reshape(H, W, 3)
 
     # 1. Pixel normals and their predicted errors.
-    normals = pixel_normals(P, sigma, tol, config)
+    normals = pixel_normals(P, sigma, tol, config, viewpoint)
     if normals is None:
         return None
     n, e, ok = normals
@@ -116,29 +118,6 @@ def range_image_candidates(
     idx, bounds = plane_members(owner, C)
     sizes = np.diff(bounds)
     return [idx[bounds[k] : bounds[k + 1]] for k in range(C) if sizes[k] >= config.min_plane_points]
-
-
-def pixel_normals(
-    P: np.ndarray, sigma: float, tol: float, config: ExtractionConfig
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Step 1: the pixel normals (H, W, 3), their predicted errors (H, W) rad and ``ok``
-    (H, W) of the grid ``P`` (H, W, 3) m, with the column tangent between the rows
-    ``r +- S`` for the smallest row step ``S`` = 1, 2, ... (at most a quarter of the
-    rows) whose median predicted error is within ``region_max_normal_error_deg``; None
-    when none is. A dense lidar's rows are close (a 64-beam unit's 0.4 deg apart), so at
-    high noise the normals across neighbouring rows are too noisy to grow regions on,
-    while across rows two or three apart they are not (the error falls as ``1 / S``);
-    a wider stencil only loses the pixels within ``S`` rows of an edge."""
-    ks = float(config.region_normal_sigmas)
-    K = int(config.region_window)
-    limit = np.radians(config.region_max_normal_error_deg)
-    n_ok = 0
-    for S in range(1, max(1, P.shape[0] // 4) + 1):
-        n, e, ok = _pixel_normals(P, K, S, float(sigma), float(tol), ks)
-        n_ok = np.count_nonzero(ok)
-        if n_ok < config.min_plane_points or np.median(e[ok]) <= limit:
-            return n, e, ok
-    return None
 
 
 def _flat_pieces(
@@ -216,74 +195,6 @@ def moment_sums(
     full = scatter + count[:, None, None] * dc[:, :, None] * dc[:, None, :]
     sc = np.stack([np.bincount(label, full[:, i, j], n_lab) for i in range(3) for j in range(3)])
     return cnt, cen, sc.T.reshape(-1, 3, 3)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _pixel_normals(P, K, S, sigma, tol, ks):  # pragma: no cover - compiled
-    """Step 1 on the grid ``P`` (H, W, 3) (NaN: no point), window half-width ``K``,
-    column tangent between the rows ``r +- S``.
-
-    Returns the unit normals (H, W, 3) (0 where not ``ok``), their predicted errors
-    (H, W) (rad; inf where not ``ok``) and ``ok`` (H, W): the pixel has a normal, and the
-    ends of its window (the columns c +- K, the rows r +- S) lie within
-    ``tol + ks e |q - p|`` of its tangent plane (a window across an edge or a corner has
-    a mixed normal). A pixel without a point between pixels that have one gets a normal
-    too (counted in the median error); it joins no edge.
-    """
-    H, W = P.shape[0], P.shape[1]
-    normal = np.zeros((H, W, 3))
-    err = np.full((H, W), np.inf)
-    ok = np.zeros((H, W), dtype=np.bool_)
-    s2 = 0.0
-    for k in range(1, K + 1):
-        s2 += k * k
-    s2 *= 2.0
-    q = np.empty((4, 3))
-    wrap = np.arange(-K, W + K) % W  # column c + k is wrap[c + k + K]
-    for r in range(S, H - S):  # the first and last S rows have no column tangent
-        for c in range(W):
-            p0, p1, p2 = P[r, c, 0], P[r, c, 1], P[r, c, 2]
-            h0 = h1 = h2 = 0.0
-            for k in range(1, K + 1):
-                a = wrap[c + k + K]
-                b = wrap[c - k + K]
-                h0 += k * (P[r, a, 0] - P[r, b, 0])
-                h1 += k * (P[r, a, 1] - P[r, b, 1])
-                h2 += k * (P[r, a, 2] - P[r, b, 2])
-            v0 = P[r + S, c, 0] - P[r - S, c, 0]
-            v1 = P[r + S, c, 1] - P[r - S, c, 1]
-            v2 = P[r + S, c, 2] - P[r - S, c, 2]
-            n0 = h1 * v2 - h2 * v1
-            n1 = h2 * v0 - h0 * v2
-            n2 = h0 * v1 - h1 * v0
-            nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-            lh2 = h0 * h0 + h1 * h1 + h2 * h2
-            lv2 = v0 * v0 + v1 * v1 + v2 * v2
-            e = sigma * np.sqrt(s2 / lh2 + 2.0 / lv2)
-            if not (np.isfinite(nn) and nn > 0 and np.isfinite(e)):
-                continue
-            n0, n1, n2 = n0 / nn, n1 / nn, n2 / nn
-            a = wrap[c + 2 * K]
-            b = wrap[c]
-            for j in range(3):
-                q[0, j] = P[r, a, j]
-                q[1, j] = P[r, b, j]
-                q[2, j] = P[r + S, c, j]
-                q[3, j] = P[r - S, c, j]
-            good = True
-            for m in range(4):
-                d0, d1, d2 = q[m, 0] - p0, q[m, 1] - p1, q[m, 2] - p2
-                res = abs(d0 * n0 + d1 * n1 + d2 * n2)
-                if res > tol + ks * e * np.sqrt(d0 * d0 + d1 * d1 + d2 * d2):
-                    good = False
-                    break
-            if good:
-                ok[r, c] = True
-                err[r, c] = e
-                normal[r, c, 0] = n0
-                normal[r, c, 1] = n1
-                normal[r, c, 2] = n2
-    return normal, err, ok
 
 
 @numba.njit(cache=True, error_model="numpy")
