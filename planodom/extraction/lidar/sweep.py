@@ -16,9 +16,8 @@ no motion model is needed.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import replace
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -90,13 +89,22 @@ def rig_lidar_pose(rig: Rig | None) -> np.ndarray | None:
     return first
 
 
+class Epochs(Protocol):
+    """A sequence of epochs (``len``, ``[k]``: a :class:`Scan` or the epoch's planes), as
+    :class:`planodom.odometry.run.EpochSequence`."""
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, index: int, /) -> Any: ...
+
+
 class SweepTimedEpochs:
     """A sequence of epochs whose scans without times get them from the declared sweep
     convention (:func:`with_sweep_times`), lazily; plane lists and scans with times pass
     through. ``len``, indexing and the ``times`` / ``rig`` attributes of the source."""
 
     def __init__(
-        self, source: Sequence[Any], sweep: SweepConfig, T_base_sensor: np.ndarray | None
+        self, source: Epochs, sweep: SweepConfig, T_base_sensor: np.ndarray | None
     ) -> None:
         self.source, self.sweep, self.T_base_sensor = source, sweep, T_base_sensor
         self.times = getattr(source, "times", None)
@@ -112,7 +120,7 @@ class SweepTimedEpochs:
         return item
 
 
-def sweep_timed(source: Sequence[Any], sweep: SweepConfig, rig: Rig | None) -> Sequence[Any]:
+def sweep_timed(source: Epochs, sweep: SweepConfig, rig: Rig | None) -> Epochs:
     """``source`` itself without a declared convention, else :class:`SweepTimedEpochs`
     with the rig's lidar pose (:func:`rig_lidar_pose`)."""
     if sweep.rotation == "none":
