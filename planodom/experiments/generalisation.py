@@ -7,6 +7,11 @@ has seed ``i`` and, so that both kinds of rig are covered, a 2D rig for even ``i
 
 - ``planodom``: the configuration as given (by default ``odometry.pipeline: auto``, what a
   user gets: the plane-map odometry for lidars, the paper's "wocsc" for the 2D rig);
+  on a lidar world the lidar's sweep convention (counter-clockwise, first column at
+  -180 deg, one turn per ``1 / rate_hz``, epochs stamped at the sweep start) is declared
+  in ``extraction.sweep`` as a user declares their sensor (:func:`declared_sweep`), so
+  that clouds stored without times are deskewed with times from the azimuth (unless the
+  configuration given declares a convention itself);
   ``planodom-wocsc``: the paper's pipeline forced on every rig; ``planodom-sda-mean``
   (the paper's other pipeline) on request;
 - ``oracle`` (:mod:`planodom.oracle`: true planes, known associations, true deskewing);
@@ -41,6 +46,7 @@ from planodom.metrics import ate, per_epoch_errors, relative_motions
 from planodom.odometry import run_odometry
 from planodom.oracle import run_oracle
 from planodom.simulation.random_world import World, random_world, simulate_world, world_fields
+from planodom.simulation.sensors import SpinningLidar
 
 NOISE_LEVELS = (0.0, 0.006, 0.02, 0.1)
 #: planodom's methods: name -> ``odometry.pipeline`` (None: the configuration as given).
@@ -84,6 +90,20 @@ def world_for(index: int) -> World:
     the lidars in turn for odd ones."""
     family = "rig2d" if index % 2 == 0 else LIDARS[(index // 2) % len(LIDARS)]
     return random_world(index, rig=family)
+
+
+def declared_sweep(world: World, config: PlanodomConfig) -> PlanodomConfig:
+    """``config`` with the sweep convention of ``world``'s lidar declared
+    (``extraction.sweep``, :class:`planodom.simulation.sensors.SpinningLidar`: counter-
+    clockwise, column 0 at -180 deg, sweeps starting at the epoch times); unchanged for a
+    2D rig or when ``config`` declares one already."""
+    lidars = [s for s in world.sensor_rig.sensors if isinstance(s, SpinningLidar)]
+    if len(lidars) != 1 or config.extraction.sweep.rotation != "none":
+        return config
+    lidar = lidars[0]
+    sweep = {"rotation": "ccw", "start_azimuth_deg": float(np.degrees(lidar.azimuths[0])),
+             "period_s": 1.0 / lidar.rate_hz, "start_time_s": lidar.time_offset}  # fmt: skip
+    return config.updated({"extraction.sweep": sweep}, source="generalisation")
 
 
 def longest_run(mask: np.ndarray) -> int:
@@ -148,7 +168,7 @@ def run_world(
     for method, pipeline in PLANODOM_METHODS.items():
         if method in methods:
             say(f"world {world.seed} ({world.kind}, {fam}) sigma {noise * 1000:g} mm: {method}")
-            cfg = config
+            cfg = declared_sweep(world, config)
             if pipeline is not None:
                 cfg = config.updated({"odometry.pipeline": pipeline}, source="generalisation")
             odo = run_odometry(run, cfg)

@@ -152,7 +152,9 @@ class PlaneOdometry:
                 return self._commit_first(self._new_epoch(0, deskewed, np.zeros(6)), t)
             return self._commit_first(self._new_epoch(0, scan, None), t)
         if deskewed is not None:
-            given = self._estimate_scan(deskewed, t, None)
+            # a zero twist: deskewed already (its times kept give a lidar's range-image
+            # columns; with None a 2D rig's would be split in time windows)
+            given = self._estimate_scan(deskewed, t, np.zeros(6))
             if not prefer_streaming(given, len(self.last_planes)):
                 epoch = _Epoch(k, given.planes, given.plane_set, deskewed, np.zeros(6))
                 return self._commit(epoch, given, t)

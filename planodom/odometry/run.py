@@ -10,6 +10,7 @@ from typing import Protocol
 import numpy as np
 
 from planodom.config import PlanodomConfig
+from planodom.extraction.lidar.sweep import sweep_timed
 from planodom.geometry import Plane
 from planodom.odometry.deskew import time_spread
 from planodom.odometry.interpolate import deskew_with_poses, epoch_middles, midpoint_nodes
@@ -116,13 +117,16 @@ def run_odometry(
 
     On scans with point times and ``odometry.deskew_passes`` > 0, the streaming pass is
     followed by passes on the scans deskewed through the poses of the pass before
-    (:func:`redeskewed_run`); ``progress`` then counts each pass's epochs anew.
+    (:func:`redeskewed_run`); ``progress`` then counts each pass's epochs anew. Scans
+    without point times get them from the azimuth when ``extraction.sweep`` declares the
+    lidar's convention (:mod:`planodom.extraction.lidar.sweep`).
     """
     if rig is None:
         rig = getattr(source, "rig", None) or Rig()
     cfg = with_motion_bounds(config or PlanodomConfig(), rig.motion_bounds)
     if times is None:
         times = getattr(source, "times", None)
+    source = sweep_timed(source, cfg.extraction.sweep, rig)  # times from the azimuth
     run = _streaming_pass(source, cfg, rig, times, progress, extractor)
     if cfg.odometry.deskew_passes and _any_time_spread(source):
         run = redeskewed_run(source, run.times, run.poses, cfg, rig, progress, extractor, run)
@@ -264,7 +268,9 @@ class _DeskewedEpochs:
             item, *self.nodes, float(self.times[k]), self.order, float(self.reference[k])
         )
         self.seconds += _time.perf_counter() - c0
-        return _Deskewed(raw, out)
+        # the times stay (extracted with a zero twist): a lidar's range image takes its
+        # columns from them (with zeros it has none and falls back to RANSAC fragments)
+        return _Deskewed(raw, replace(out, t=raw.t))
 
 
 def _streaming_pass(

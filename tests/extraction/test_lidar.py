@@ -25,7 +25,8 @@ from planodom.extraction.lidar.grid import (
     ring_order,
     ring_rows,
 )
-from planodom.extraction.lidar.rangeimage import _grow_pieces, _pixel_normals
+from planodom.extraction.lidar.normals import _pixel_normals
+from planodom.extraction.lidar.rangeimage import _grow_pieces, range_image_candidates
 from planodom.extraction.lidar.ransac import sample_triples, segment_plane
 
 from .synth_scans import default_scene, planes_in_base, rect, scan_lidar
@@ -109,10 +110,11 @@ def _grid(sigma: float, seed: int, n_beams: int = 16, n_azimuth: int = 256):
     return fill_grid(scan.points, row * W + col, H * W).reshape(H, W, 3)
 
 
-def _normals_reference(P, K, sigma, tol, ks):
-    """Step 1 of :mod:`planodom.extraction.lidar.rangeimage` with whole-grid numpy shifts."""
+def _normals_reference(P, K, sigma, tol, ks, S=1):
+    """Step 1 of :mod:`planodom.extraction.lidar.rangeimage` with whole-grid numpy shifts
+    (column tangent between the rows r +- S)."""
     up, down = np.full_like(P, np.nan), np.full_like(P, np.nan)
-    up[:-1], down[1:] = P[1:], P[:-1]
+    up[:-S], down[S:] = P[S:], P[:-S]
     th = sum(k * (np.roll(P, -k, axis=1) - np.roll(P, k, axis=1)) for k in range(1, K + 1))
     tv = up - down
     n = np.cross(th, tv)
@@ -170,7 +172,7 @@ def _pieces_reference(P, n, e, ok, tol, ks, floor, min_gap, ratio, view, min_px)
 def test_region_growing_kernels_match_numpy_and_scipy(sigma):
     P = _grid(sigma, seed=int(sigma * 1000))
     K, ks, tol = 3, 3.0, max(3 * sigma, 0.02)
-    n, e, ok = _pixel_normals(P, K, max(sigma, 0.002), tol, ks)
+    n, e, ok = _pixel_normals(P, K, 1, max(sigma, 0.002), tol, ks)
     n_ref, e_ref, ok_ref = _normals_reference(P, K, max(sigma, 0.002), tol, ks)
     np.testing.assert_array_equal(ok, ok_ref)
     assert 0.3 * ok.size < np.count_nonzero(ok) < ok.size
@@ -182,6 +184,41 @@ def test_region_growing_kernels_match_numpy_and_scipy(sigma):
     ref = _pieces_reference(P, n, e, ok, *args)
     assert n_pieces >= 3
     np.testing.assert_array_equal(piece, ref)
+
+
+@pytest.mark.parametrize("S", [2, 3])
+def test_pixel_normals_across_rows_farther_apart_match_numpy(S):
+    P = _grid(0.02, seed=S, n_beams=32)
+    K, ks, tol = 3, 3.0, 0.06
+    n, e, ok = _pixel_normals(P, K, S, 0.02, tol, ks)
+    n_ref, e_ref, ok_ref = _normals_reference(P, K, 0.02, tol, ks, S)
+    np.testing.assert_array_equal(ok, ok_ref)
+    assert 0.2 * ok.size < np.count_nonzero(ok) < ok.size
+    np.testing.assert_allclose(n[ok], n_ref[ok], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(e[ok], e_ref[ok], rtol=1e-12)
+    # the predicted error falls with the row step (the column tangent dominates)
+    e1 = _pixel_normals(P, K, 1, 0.02, tol, ks)[1]
+    assert np.median(e[ok]) < 0.7 * np.median(e1[np.isfinite(e1)])
+
+
+def test_dense_lidar_at_high_noise_grows_regions_across_rows_farther_apart():
+    # 128 beams 0.24 deg apart at 2 cm: normals across neighbouring rows are too noisy
+    # (median predicted error above region_max_normal_error_deg), across rows farther
+    # apart they are not; the range image grows the true walls, within 5 sigma.
+    sigma = 0.02
+    scan = scan_lidar(SCENE, sigma=sigma, n_beams=128, n_azimuth=512, seed=5)
+    cfg = ExtractionConfig(range_noise_m=sigma, estimate_noise=False)
+    row, col, H, W = grid_indices(scan.ring, scan.t)
+    P = fill_grid(scan.points, row * W + col, H * W).reshape(H, W, 3)
+    e1 = _pixel_normals(P, cfg.region_window, 1, sigma, 0.06, 3.0)[1]
+    assert np.degrees(np.median(e1[np.isfinite(e1)])) > cfg.region_max_normal_error_deg
+    grown = range_image_candidates(scan.points, scan.ring, scan.t, sigma, cfg, np.zeros(3))
+    assert grown is not None
+    res = extract(scan, cfg)
+    big = [p for p in res.planes if p.support.n_points > 1000]
+    assert {p.truth_id for p in big} == set(TRUTH)
+    assert len(big) <= len(TRUTH) + 1  # about one plane per wall, not fragments
+    assert_within_five_sigma(big)
 
 
 def _pairs_reference(label, n_pieces, gap_cols):

@@ -40,11 +40,11 @@ import numpy as np
 from planodom.config import ExtractionConfig
 from planodom.extraction.lidar.candidates import ring_noise
 from planodom.extraction.lidar.grid import assign_points, near_pairs, plane_members
+from planodom.extraction.lidar.normals import _pixel_normals
 from planodom.extraction.lidar.rangeimage import (
     _NEIGHBOURS,
     _grow_pieces,
     _piece_moments,
-    _pixel_normals,
     merge_coplanar,
     moment_sums,
 )
@@ -154,7 +154,7 @@ def organised_candidates(
     P = P.reshape(H, W, 3)
     ks = float(config.region_normal_sigmas)
     tol_pix = member_tolerance(config, sigma_pix)
-    n, e, ok = _pixel_normals(P, max(1, int(config.region_window)), sigma_pix, tol_pix, ks)
+    n, e, ok = _pixel_normals(P, max(1, int(config.region_window)), 1, sigma_pix, tol_pix, ks)
     min_px = max(3, config.min_plane_points // 2 // max(int(m), 1))
     piece, C = _grow_pieces(
         P, n, e, ok, float(tol_pix), ks, float(np.radians(config.region_normal_floor_deg)),
