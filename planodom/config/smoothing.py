@@ -136,6 +136,13 @@ class SmoothingConfig(Section):
     loop_closure: bool = True
     """Batch: re-identify planes of a global map near the predicted pose and tie revisited
     landmarks (planodom.smoothing.loops); off: landmarks only from the tracks (delta <= D)."""
+    windowed_loop_closure: bool = False
+    """Fixed-lag smoothing: the same global map and matching at every
+    ``windowed_loop_every_epochs``-th epoch (the keyframes); a landmark that has left the
+    window re-enters it with its marginal as prior (planodom.smoothing.windowed_loops).
+    Also used by batch smoothing's windowed initial guess (``batch_initial``)."""
+    windowed_loop_every_epochs: Annotated[int, Field(ge=1)] = 1
+    """Keyframes of fixed-lag loop closure: match against the map every N-th epoch."""
     loop_every_epochs: Annotated[int, Field(ge=1)] = 1
     """Match against the map at every N-th epoch only (keyframes: fewer ties on dense lidar
     data). Default 1: on a 32-beam lidar lap (procedural world 3, 6 mm, 632 epochs, 50

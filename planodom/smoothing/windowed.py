@@ -20,6 +20,7 @@ from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch import SmoothingResult, group_by_epoch, smoothing_config
 from planodom.smoothing.graph import GraphBuilder, X
+from planodom.smoothing.windowed_loops import WindowedLoopBuilder
 
 
 class WindowedSmoother:
@@ -43,6 +44,17 @@ class WindowedSmoother:
     ) -> None:
         self.config = smoothing_config(config)
         self.builder = GraphBuilder(self.config, T_world_first)
+        self.loops: WindowedLoopBuilder | None = None
+        if self.config.windowed_loop_closure:
+            full = config if isinstance(config, PlanodomConfig) else None
+            full = (full or PlanodomConfig(smoothing=self.config)).updated(
+                {
+                    "smoothing.loop_every_epochs": self.config.windowed_loop_every_epochs,
+                    "smoothing.loop_closure": True,
+                },
+                source="fixed-lag loop closure",
+            )
+            self.builder = self.loops = WindowedLoopBuilder(full, T_world_first)
         lag = float(self.config.window - 1)
         self.smoother: gtsam.FixedLagSmoother
         if self.config.windowed_backend == "incremental":
@@ -115,6 +127,10 @@ class WindowedSmoother:
         estimate = self.smoother.calculateEstimate()
         self.builder.update_estimates(estimate, since=oldest)
         self.builder.forget(oldest)
+        if self.loops is not None:  # keep the marginals of the landmarks about to leave
+            isam = self.smoother.getISAM2()  # type: ignore[attr-defined]
+            for j in self.loops.leaving(oldest):
+                self.loops.keep_marginal(j, isam)
         self.poses.append(self.builder.poses[k])
         for e in range(oldest, k + 1):
             self.poses[e] = self.builder.poses[e]
