@@ -276,7 +276,10 @@ def smooth_batch(
     if cfg.batch_initial == "windowed":
         from planodom.smoothing.windowed import smooth_windowed
 
-        builder.initial_poses = smooth_windowed(epochs_planes, relative_poses, cfg).poses
+        # Its poses only: no marginals (a third of the fixed-lag smoother's time on lidar).
+        first = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
+        first = first.updated({"smoothing.compute_covariances": False}, source="initial guess")
+        builder.initial_poses = smooth_windowed(epochs_planes, relative_poses, first).poses
         if T_world_first is not None:
             builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
