@@ -114,7 +114,7 @@ class SmoothingConfig(Section):
     robust kernels the last iterations creep: 1e-6 triples the time for < 0.1 % of ATE)."""
     relinearize_threshold: Positive = 0.01
     """iSAM2 relinearisation threshold (incremental windowed backend)."""
-    windowed_factorization: Literal["auto", "QR"] = "QR"
+    windowed_factorization: Literal["auto", "QR"] = "auto"
     """iSAM2's factorisation (incremental windowed backend): "auto": Cholesky, and QR
     from the first update Cholesky finds indeterminant on (the smoother rebuilt from its
     state); "QR" throughout (see planodom.smoothing.windowed)."""
