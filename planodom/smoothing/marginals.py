@@ -109,7 +109,9 @@ def _eliminate_group(
             if key not in pose_index and key not in local:
                 local[key] = sum(dims[k] for k in local)
     m = sum(dims[k] for k in local)
-    poses = sorted({k for f in factors for k in f.keys() if k in pose_index}, key=pose_index.get)
+    poses = sorted(
+        {k for f in factors for k in f.keys() if k in pose_index}, key=pose_index.__getitem__
+    )
     for key in poses:
         local[key] = m + POSE_DIM * poses.index(key)
     size = m + POSE_DIM * len(poses)

@@ -97,13 +97,16 @@ class WindowedSmoother:
         factors (the marginals of the past among them, and the update that failed, which
         iSAM2 took in before eliminating), linearisation point and key timestamps."""
         old = self.smoother
+        assert isinstance(old, gtsam.IncrementalFixedLagSmoother)
+        held = old.getFactors()
         factors = gtsam.NonlinearFactorGraph()
-        for factor in (old.getFactors().at(i) for i in range(old.getFactors().size())):  # type: ignore[attr-defined]
+        for factor in (held.at(i) for i in range(held.size())):
             if factor is not None:  # removed factors leave empty slots
                 factors.add(factor)
+        timestamps: dict[int, float] = dict(old.timestamps())
         self.factorization = "QR"
         self.smoother = gtsam.IncrementalFixedLagSmoother(self.lag, self._isam_params())
-        self.smoother.update(factors, old.getLinearizationPoint(), old.timestamps())  # type: ignore[attr-defined]
+        self.smoother.update(factors, old.getLinearizationPoint(), timestamps)  # type: ignore[arg-type]  # gtsam stub, as in add_epoch
         self.qr_fallbacks += 1
 
     @property
