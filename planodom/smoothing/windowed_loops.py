@@ -44,7 +44,7 @@ from planodom.config import PlanodomConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphUpdate
-from planodom.smoothing.loops import LoopClosingBuilder
+from planodom.smoothing.loops import WALL_SIN, LoopClosingBuilder
 
 
 class WindowedLoopBuilder(LoopClosingBuilder):
@@ -70,8 +70,14 @@ class WindowedLoopBuilder(LoopClosingBuilder):
         return super().add_epoch(planes, relatives, min_epoch)
 
     def leaving(self, oldest: int) -> list[int]:
-        """Landmarks whose keys leave the window at the next update unless seen again."""
-        return [j for j, lm in self.landmarks.items() if lm.last_epoch == oldest]
+        """Wall landmarks whose keys leave the window at the next update unless seen
+        again: only walls are ever tied (:data:`planodom.smoothing.loops.WALL_SIN`), and
+        each kept marginal costs an iSAM2 joint marginal (most of the time on lidar)."""
+        return [
+            j
+            for j, lm in self.landmarks.items()
+            if lm.last_epoch == oldest and abs(lm.plane_world[2]) <= WALL_SIN
+        ]
 
     def keep_marginal(self, j: int, isam: gtsam.ISAM2) -> None:
         """Keep landmark j's joint marginal over its keys from the smoother's ``isam``:
