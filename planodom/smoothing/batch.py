@@ -16,7 +16,7 @@ from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats, X
 from planodom.smoothing.loop_records import LoopMatch, Reidentification
 from planodom.smoothing.loops import LoopClosingBuilder, gate_reidentifications
-from planodom.smoothing.marginals import pose_marginals
+from planodom.smoothing.marginals import pose_marginals, schur_preferred
 
 
 @dataclass
@@ -108,12 +108,13 @@ def pose_covariances(
     if relative_to_first:
         stiff = FIRST_POSE_TIGHTENING / prior_sigma
         linear.add(X(0), stiff * np.eye(6), np.zeros(6), gtsam.noiseModel.Unit.Create(6))
-    try:  # the Schur complement on the landmarks (planodom.smoothing.marginals): faster
-        zero = values.zeroVectors()
-        dims = {key: zero.at(key).size for key in values.keys()}
-        return pose_marginals(linear, [X(k) for k in range(n_epochs)], dims)
-    except np.linalg.LinAlgError:  # an undetermined direction: the Bayes tree with QR
-        pass
+    zero = values.zeroVectors()
+    dims = {key: zero.at(key).size for key in values.keys()}
+    if schur_preferred(n_epochs, dims):  # many landmarks (planodom.smoothing.marginals)
+        try:
+            return pose_marginals(linear, [X(k) for k in range(n_epochs)], dims)
+        except np.linalg.LinAlgError:  # an undetermined direction: the Bayes tree with QR
+            pass
     # METIS (nested dissection), not gtsam.Marginals' COLAMD: a closed loop joins the
     # lap's ends, and each pose's marginal walks the Bayes tree to its root; measured on
     # a 32-beam lidar lap with loop closure (632 epochs): 44 s with COLAMD, 25 s with

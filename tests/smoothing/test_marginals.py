@@ -9,7 +9,7 @@ import pytest
 from planodom.config import SmoothingConfig
 from planodom.smoothing.batch import group_by_epoch
 from planodom.smoothing.graph import GraphBuilder, X
-from planodom.smoothing.marginals import pose_marginals
+from planodom.smoothing.marginals import pose_marginals, schur_preferred
 from planodom.smoothing.synthetic import make_sequence
 
 NOISE = dict(sigma_rotation=1e-3, sigma_translation=0.01, sigma_normal=0.005, sigma_offset=0.01)
@@ -46,3 +46,11 @@ def test_an_undetermined_landmark_raises() -> None:
     linear.add(X(0), np.zeros((3, 6)), L, np.zeros((3, 3)), np.zeros(3), unit.Create(3))
     with pytest.raises(np.linalg.LinAlgError):
         pose_marginals(linear, [X(0)], {L: 3})
+
+
+def test_schur_is_preferred_where_the_landmarks_hold_most_dimensions() -> None:
+    poses = {X(k): 6 for k in range(10)}
+    few = poses | {gtsam.symbol_shorthand.L(j): 3 for j in range(5)}
+    many = poses | {gtsam.symbol_shorthand.L(j): 3 for j in range(25)}
+    assert not schur_preferred(10, few)
+    assert schur_preferred(10, many)
