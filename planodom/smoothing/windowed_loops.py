@@ -116,7 +116,9 @@ class WindowedLoopBuilder(LoopClosingBuilder):
         when it has left it (its marginal as prior, its last estimate as value)."""
         lm = self.landmarks[j]
         keys = [lm.key] if lm.anchor_key is None else [lm.anchor_key, lm.key]
-        if lm.last_epoch < self._min_epoch and not update.values.exists(lm.key):
+        # Keys stamped ``min_epoch - 1`` are still in the smoother: its update of this
+        # epoch would marginalise them, and the tie's new stamp keeps them instead.
+        if lm.last_epoch < self._min_epoch - 1 and not update.values.exists(lm.key):
             kept = self.marginals.get(j)
             if kept is None:  # never captured (left before any update): no prior
                 return
