@@ -114,6 +114,10 @@ class SmoothingConfig(Section):
     robust kernels the last iterations creep: 1e-6 triples the time for < 0.1 % of ATE)."""
     relinearize_threshold: Positive = 0.01
     """iSAM2 relinearisation threshold (incremental windowed backend)."""
+    windowed_factorization: Literal["auto", "QR"] = "auto"
+    """iSAM2's factorisation (incremental windowed backend): "auto": Cholesky, and QR
+    from the first update Cholesky finds indeterminant on (the smoother rebuilt from its
+    state); "QR" throughout (see planodom.smoothing.windowed)."""
     compute_covariances: bool = True
     """Batch: marginal covariances of the poses (gtsam.Marginals)."""
     covariance_inlier_quantile: Fraction | None = 0.99
@@ -136,6 +140,13 @@ class SmoothingConfig(Section):
     loop_closure: bool = True
     """Batch: re-identify planes of a global map near the predicted pose and tie revisited
     landmarks (planodom.smoothing.loops); off: landmarks only from the tracks (delta <= D)."""
+    windowed_loop_closure: bool = False
+    """Fixed-lag smoothing: the same global map and matching at every
+    ``windowed_loop_every_epochs``-th epoch (the keyframes); a landmark that has left the
+    window re-enters it with its marginal as prior (planodom.smoothing.windowed_loops).
+    Also used by batch smoothing's windowed initial guess (``batch_initial``)."""
+    windowed_loop_every_epochs: Annotated[int, Field(ge=1)] = 1
+    """Keyframes of fixed-lag loop closure: match against the map every N-th epoch."""
     loop_every_epochs: Annotated[int, Field(ge=1)] = 1
     """Match against the map at every N-th epoch only (keyframes: fewer ties on dense lidar
     data). Default 1: on a 32-beam lidar lap (procedural world 3, 6 mm, 632 epochs, 50

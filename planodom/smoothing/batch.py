@@ -16,6 +16,7 @@ from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats, X
 from planodom.smoothing.loop_records import LoopMatch, Reidentification
 from planodom.smoothing.loops import LoopClosingBuilder, gate_reidentifications
+from planodom.smoothing.marginals import pose_marginals, schur_preferred
 
 
 @dataclass
@@ -107,6 +108,13 @@ def pose_covariances(
     if relative_to_first:
         stiff = FIRST_POSE_TIGHTENING / prior_sigma
         linear.add(X(0), stiff * np.eye(6), np.zeros(6), gtsam.noiseModel.Unit.Create(6))
+    zero = values.zeroVectors()
+    dims = {key: zero.at(key).size for key in values.keys()}
+    if schur_preferred(n_epochs, dims):  # many landmarks (planodom.smoothing.marginals)
+        try:
+            return pose_marginals(linear, [X(k) for k in range(n_epochs)], dims)
+        except np.linalg.LinAlgError:  # an undetermined direction: the Bayes tree with QR
+            pass
     # METIS (nested dissection), not gtsam.Marginals' COLAMD: a closed loop joins the
     # lap's ends, and each pose's marginal walks the Bayes tree to its root; measured on
     # a 32-beam lidar lap with loop closure (632 epochs): 44 s with COLAMD, 25 s with
@@ -139,11 +147,14 @@ def covariance_graph(
     if inlier_quantile is None or not gaussian:
         return graph
     out = gtsam.NonlinearFactorGraph()
+    limits: dict[int, float] = {}  # dimension -> chi2 quantile (scipy's ppf is slow)
     for i in range(graph.size()):
         twin = gaussian.get(i)
         if graph.at(i) is None:  # removed (a re-identification refused by the gate)
             continue
-        if twin is not None and 2.0 * twin.error(values) <= chi2.ppf(inlier_quantile, twin.dim()):
+        if twin is not None and twin.dim() not in limits:
+            limits[twin.dim()] = float(chi2.ppf(inlier_quantile, twin.dim()))
+        if twin is not None and 2.0 * twin.error(values) <= limits[twin.dim()]:
             out.add(twin)
         else:
             out.add(graph.at(i))
@@ -276,7 +287,10 @@ def smooth_batch(
     if cfg.batch_initial == "windowed":
         from planodom.smoothing.windowed import smooth_windowed
 
-        builder.initial_poses = smooth_windowed(epochs_planes, relative_poses, cfg).poses
+        # Its poses only: no marginals (a third of the fixed-lag smoother's time on lidar).
+        first = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
+        first = first.updated({"smoothing.compute_covariances": False}, source="initial guess")
+        builder.initial_poses = smooth_windowed(epochs_planes, relative_poses, first).poses
         if T_world_first is not None:
             builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()

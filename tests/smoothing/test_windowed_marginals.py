@@ -51,3 +51,32 @@ def test_short_window_marginals_are_no_smaller_than_the_batch() -> None:
     batch_backend = replace(config, windowed_backend="batch")
     assert off.covariances is None
     assert smooth_windowed(seq.planes, seq.relatives, batch_backend).covariances is None
+
+
+def test_the_qr_fallback_continues_from_the_smoothers_state() -> None:
+    """Cholesky ("auto") gives QR's estimate; rebuilding the smoother with QR mid-run (what
+    "auto" does when Cholesky finds the system indeterminant) continues where it was: the
+    errors of a QR-only run (up to the relinearisation of every factor at the rebuild)."""
+    from planodom.smoothing.batch import group_by_epoch
+    from planodom.smoothing.windowed import WindowedSmoother
+
+    seq = make_sequence(30, seed=6, **NOISE)
+    config = replace(GAUSSIAN, window=5, delta_max=3)
+    by_epoch = group_by_epoch(seq.relatives, 30)
+    runs = [WindowedSmoother(replace(config, windowed_factorization=f)) for f in ("QR", "auto")]
+    rebuilt = WindowedSmoother(replace(config, windowed_factorization="auto"))
+    assert rebuilt.factorization == "CHOLESKY"
+    for k, planes in enumerate(seq.planes):
+        for smoother in [*runs, rebuilt]:
+            smoother.add_epoch(planes, by_epoch[k])
+        if k == 12:
+            rebuilt._fall_back_to_qr()
+    assert rebuilt.factorization == "QR" and rebuilt.qr_fallbacks == 1
+    qr, cholesky, after = (s.result() for s in [*runs, rebuilt])
+    np.testing.assert_allclose(cholesky.poses, qr.poses, atol=1e-9)
+    error = [np.abs(r.poses[:, :3, 3] - seq.poses[:, :3, 3]).max() for r in (qr, after)]
+    assert error[1] < 1.1 * error[0]
+    np.testing.assert_allclose(after.poses[:, :3, 3], qr.poses[:, :3, 3], atol=0.01)
+    assert after.covariances is not None and qr.covariances is not None
+    sigma = [np.sqrt(np.diagonal(r.covariances, axis1=1, axis2=2)) for r in (after, qr)]
+    np.testing.assert_allclose(sigma[0], sigma[1], rtol=0.05)
