@@ -14,7 +14,7 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats, X
-from planodom.smoothing.loop_candidates import CandidateLoopBuilder, gate_loop_factors
+from planodom.smoothing.loop_candidates import CandidateLoopBuilder, gate_loop_factors, loop_start
 from planodom.smoothing.loop_records import LoopFactor, LoopMatch, Reidentification
 from planodom.smoothing.loops import LoopClosingBuilder, gate_reidentifications
 
@@ -246,8 +246,9 @@ def _gated(
         removed = gate_reidentifications(builder, graph, gaussian, estimate)
         if not removed + gate_loop_factors(builder, graph, gaussian, estimate):
             break
+        start = loop_start(builder, graph, gaussian, values)
         estimate, more = levenberg_marquardt(
-            graph, values, cfg.max_iterations, cfg.relative_error_tol
+            graph, start, cfg.max_iterations, cfg.relative_error_tol
         )
         errors += more
     return estimate
@@ -300,8 +301,9 @@ def smooth_batch(
     initial = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
 
     estimate, errors = levenberg_marquardt(
-        graph, values, cfg.max_iterations, cfg.relative_error_tol
-    )
+        graph, loop_start(builder, graph, gaussian, values), cfg.max_iterations,
+        cfg.relative_error_tol,
+    )  # fmt: skip
     if isinstance(builder, LoopClosingBuilder):
         estimate = _gated(builder, graph, gaussian, values, estimate, errors)
     builder.update_estimates(estimate)

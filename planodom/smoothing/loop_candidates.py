@@ -37,7 +37,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, invert_transform
+from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphUpdate, X
 from planodom.smoothing.loop_records import LoopFactor
@@ -64,6 +64,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self.candidate_attempts = 0
         self._graph_size = 0  # factors added by the epochs before (batch pushes them all)
         self._positions: list[np.ndarray] = []
+        self._last_verified: RelativePose | None = None
 
     def add_epoch(
         self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
@@ -86,21 +87,41 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         tracked = self.config.loop_verify == "tracked" and self._reference is not None
         return self.correction @ self.poses[k] if tracked else self.poses[k]
 
-    def _spans(self, k: int, e: int) -> list[tuple[int, int]]:
-        """Epoch spans of the chained odometry whose drift separates k's prediction from e."""
-        tracked = self.config.loop_verify == "tracked" and self._reference is not None
-        if not tracked:
-            return [(e, k)]
-        assert self._reference is not None
-        return [(self._reference[0], k), (self._reference[1], e)]
-
-    def _translation_bound(self, k: int, e: int) -> float:
-        """Translation bound of the drift between k's prediction and old epoch e, m (the
-        one :meth:`LoopClosingBuilder._match_config` sets)."""
+    def _bounds(self, k: int, old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Translation (m) and rotation (deg) bounds (each like ``old``) of the drift
+        between k's prediction and the old epochs ``old`` (int array): ``loop_sigmas``
+        standard deviations of the odometry chained from e to k (or, tracked, from the
+        accepted correction's epoch to k and from its map epoch to e), translation and
+        rotation times the distance driven, plus the minima. Not capped by the drift
+        fraction as the map matches are: after an odometry failure the covariance, not
+        the typical drift, says how far off the prediction may be."""
         c = self.config
-        distance, var_t, var_r = self._chain(self._spans(k, e))
+        travelled, variances = np.asarray(self.travelled), np.asarray(self.variances)
+        tracked = c.loop_verify == "tracked" and self._reference is not None
+        a, b = (k, k) if not tracked else self._reference  # type: ignore[misc]
+        # spans (a, k) and (b, e): |cumulative(k) - cumulative(a)| + |cumulative(e) - ...(b)|
+        span = lambda v: np.abs(v[k] - v[a]) + np.abs(v[old] - v[b])  # noqa: E731
+        distance, var_t, var_r = span(travelled), span(variances[:, 0]), span(variances[:, 1])
         grown = c.loop_sigmas * (np.sqrt(var_t) + np.sqrt(var_r) * distance)
-        return c.loop_min_translation_m + min(grown, c.loop_drift_fraction * distance)
+        prior_deg = self.full_config.association.prior_rotation_deg
+        rotation = prior_deg + c.loop_sigmas * np.degrees(np.sqrt(var_r))
+        return c.loop_min_translation_m + grown, np.minimum(rotation, MAX_ROTATION_BOUND_DEG)
+
+    def _bounded(self, translation: float, rotation_deg: float) -> PlanodomConfig:
+        """The odometry's config with LDA bounds around the prior of ``translation`` (m)
+        and ``rotation_deg``."""
+        odometry = self.full_config.odometry
+        changes = {
+            "association.prior_translation_m": translation,
+            "association.prior_rotation_deg": rotation_deg,
+            "odometry.retry_without_prior": False,
+            # as for the map matches (LoopClosingBuilder._match_config): a direction is
+            # measured when the match narrows the bounds' sigma
+            "odometry.refine_max_sigma_m": max(
+                odometry.refine_max_sigma_m, translation / self.config.loop_sigmas
+            ),
+        }
+        return self.full_config.updated(changes, source="loop candidate bounds")
 
     def old_epoch_candidates(self, k: int) -> list[int]:
         """Old epochs within reach of epoch k's prediction, nearest first (module docstring)."""
@@ -108,19 +129,19 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         last = k - c.loop_min_gap_epochs
         if last < 0:
             return []
+        old = np.arange(last + 1)
         position = self._predicted(k)[:2, 3]
         dist = np.linalg.norm(np.asarray(self._positions[: last + 1]) - position, axis=1)
+        reach = c.loop_candidate_radius_m + self._bounds(k, old)[0]
         out: list[int] = []
-        for e in np.argsort(dist, kind="stable"):
-            if len(out) == c.loop_candidate_max or dist[e] > c.loop_candidate_radius_m + 50.0:
-                break
+        for e in np.flatnonzero(dist <= reach)[np.argsort(dist[dist <= reach], kind="stable")]:
             e = int(e)
             if len(self.planes[e]) < c.loop_candidate_min_inliers:
                 continue
-            if any(abs(e - o) < c.loop_candidate_every_epochs for o in out):
-                continue
-            if dist[e] <= c.loop_candidate_radius_m + self._translation_bound(k, e):
+            if all(abs(e - o) >= c.loop_candidate_every_epochs for o in out):
                 out.append(e)
+            if len(out) == c.loop_candidate_max:
+                break
         return out
 
     def match_old_epoch(self, k: int, e: int) -> RelativePose | None:
@@ -128,7 +149,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         the prediction, or None when its consensus does not verify it."""
         c = self.config
         prior = invert_transform(self.poses[e]) @ self._predicted(k)
-        cfg = self._match_config(self._spans(k, e))
+        translation, rotation = self._bounds(k, np.array([e]))
+        cfg = self._bounded(float(translation[0]), float(rotation[0]))
         rel = estimate_relative_pose(self.planes[e], self.planes[k], cfg, prior=prior)
         pairs = np.asarray(rel.associations, dtype=int).reshape(-1, 2)
         if rel.status is not Status.OK or len(pairs) < c.loop_candidate_min_inliers:
@@ -136,13 +158,15 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         normals = np.stack([self.planes[k][i].normal for i in pairs[:, 1]])
         if not non_parallel(normals):
             return None
-        assert cfg.association.prior_rotation_deg <= MAX_ROTATION_BOUND_DEG
         return RelativePose(
             np.asarray(rel.T_prev_curr, dtype=float), rel.covariance, rel.status,
             pairs, rel.sources, prev=e, curr=k,
         )  # fmt: skip
 
     def _close_to_old_epoch(self, update: GraphUpdate) -> None:
+        """Try the old-epoch candidates of this epoch; the first verified one is kept if it
+        agrees with the last verified one, at most ``loop_candidate_confirm_epochs`` before
+        (:meth:`_agrees`), which is then added too."""
         k, c = update.epoch, self.config
         candidates = self.old_epoch_candidates(k)
         if candidates:
@@ -151,21 +175,85 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             rel = self.match_old_epoch(k, e)
             if rel is None:
                 continue
-            cov = between_covariance(rel, c)
-            base = gtsam.noiseModel.Gaussian.Covariance(cov)
-            if c.robust_kernel != "none":
-                noise = with_robust_kernel(base, c)
-            else:
-                cauchy = gtsam.noiseModel.mEstimator.Cauchy.Create(CAUCHY_K)
-                noise = gtsam.noiseModel.Robust.Create(cauchy, base)
-            index = update.factors.size()
-            update.gaussian[index] = pose5_factor(X(e), X(k), rel.T_prev_curr, base)
-            update.factors.add(pose5_factor(X(e), X(k), rel.T_prev_curr, noise))
-            self.loop_factors.append(
-                LoopFactor(k, e, rel.T_prev_curr, cov, len(rel.associations),
-                           self._graph_size + index)
-            )  # fmt: skip
+            last, self._last_verified = self._last_verified, rel
+            if last is None or k - last.curr > c.loop_candidate_confirm_epochs:
+                return
+            if not self._agrees(last, rel):
+                return
+            if not self.loop_factors or (
+                self.loop_factors[-1].epoch,
+                self.loop_factors[-1].old,
+            ) != (
+                last.curr,
+                last.prev,
+            ):
+                self._add_loop_factor(update, last)
+            self._add_loop_factor(update, rel)
             return
+
+    def _correction(self, rel: RelativePose) -> np.ndarray:
+        """(4, 4) the world correction of the chained guess a loop pose implies: epoch
+        ``rel.curr`` placed at ``poses[prev] @ T_prev_curr`` instead of ``poses[curr]``."""
+        T_world_curr = self.poses[rel.prev] @ np.asarray(rel.T_prev_curr, dtype=float)
+        return T_world_curr @ invert_transform(self.poses[rel.curr])
+
+    def _agrees(self, first: RelativePose, second: RelativePose) -> bool:
+        """Whether two verified loop poses imply the same correction of the chained guess:
+        chi2(3) at ``loop_gate_quantile`` on (yaw, x, y) of epoch ``second.curr`` placed by
+        both, under their covariances and the chained odometry's between their epochs."""
+        drift = self._drift_covariance([(first.curr, second.curr), (first.prev, second.prev)])
+        cov = drift.copy()
+        for rel in (first, second):
+            if rel.covariance is None:
+                return False
+            cov += np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
+        T_a = self._correction(first) @ self.poses[second.curr]
+        T_b = self._correction(second) @ self.poses[second.curr]
+        v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
+        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+
+    def _add_loop_factor(self, update: GraphUpdate, rel: RelativePose) -> None:
+        """A robust 5-DoF factor ``X(prev) - X(curr)`` for a verified loop pose (its
+        Gaussian twin in ``update.gaussian``), recorded in :attr:`loop_factors`."""
+        c, e, k = self.config, rel.prev, rel.curr
+        cov = between_covariance(rel, c)
+        base = gtsam.noiseModel.Gaussian.Covariance(cov)
+        if c.robust_kernel != "none":
+            noise = with_robust_kernel(base, c)
+        else:
+            cauchy = gtsam.noiseModel.mEstimator.Cauchy.Create(CAUCHY_K)
+            noise = gtsam.noiseModel.Robust.Create(cauchy, base)
+        index = update.factors.size()
+        update.gaussian[index] = pose5_factor(X(e), X(k), rel.T_prev_curr, base)
+        update.factors.add(pose5_factor(X(e), X(k), rel.T_prev_curr, noise))
+        self.loop_factors.append(
+            LoopFactor(k, e, np.asarray(rel.T_prev_curr, dtype=float), cov,
+                       len(rel.associations), self._graph_size + index)
+        )  # fmt: skip
+
+
+def loop_start(
+    builder: object,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    values: gtsam.Values,
+) -> gtsam.Values:
+    """Starting values for the robust solve: ``values`` optimised with the kept loop
+    factors Gaussian (graduated: from a prediction metres off, a robust kernel would
+    treat right loop factors as outliers and never close the loop), or ``values`` as
+    they are without loop factors."""
+    from planodom.smoothing.batch import levenberg_marquardt  # (batch imports this module)
+
+    factors = [f.factor for f in getattr(builder, "loop_factors", []) if not f.removed]
+    if not factors:
+        return values
+    loops = set(factors)
+    convex = gtsam.NonlinearFactorGraph()
+    for i in range(graph.size()):
+        if graph.at(i) is not None:
+            convex.add(gaussian[i] if i in loops else graph.at(i))
+    cfg = builder.config  # type: ignore[attr-defined]
+    return levenberg_marquardt(convex, values, cfg.max_iterations, cfg.relative_error_tol)[0]
 
 
 def gate_loop_factors(
