@@ -240,11 +240,13 @@ def _gated(
 ) -> gtsam.Values:
     """Re-identifications and loop-candidate factors inconsistent with the estimate out,
     solved again from the initial ``values`` (not from an estimate a wrong tie has
-    pulled); at most three rounds."""
+    pulled); at most three rounds (four with loop factors)."""
     cfg = builder.config
-    for _ in range(3):
-        removed = gate_reidentifications(builder, graph, gaussian, estimate)
-        if not removed + gate_loop_factors(builder, graph, gaussian, estimate):
+    for _ in range(4 if getattr(builder, "loop_factors", None) else 3):
+        # loop factors first: the Gaussian start lets a wrong hypothesis pull the
+        # estimate, and re-identifications would fail by its pull
+        removed = gate_loop_factors(builder, graph, gaussian, estimate)
+        if not removed and not gate_reidentifications(builder, graph, gaussian, estimate):
             break
         start = loop_start(builder, graph, gaussian, values)
         estimate, more = levenberg_marquardt(

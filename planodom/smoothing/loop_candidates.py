@@ -22,8 +22,9 @@ prediction is metres off after an odometry failure, or the old landmarks never f
    kernel (``robust_kernel``, Cauchy when "none": a loop factor is never trusted blindly).
 
 After optimisation (:func:`gate_loop_factors`) a loop factor whose Gaussian twin's
-squared whitened error exceeds the ``loop_gate_quantile`` of chi2(5) is removed and the
-graph solved again (with the re-identification gate, :func:`planodom.smoothing.batch._gated`).
+squared whitened error exceeds the ``loop_gate_quantile`` of chi2(5) is removed with its
+hypothesis (the chain of agreeing loop poses it was confirmed with) and the graph solved
+again (with the re-identification gate, :func:`planodom.smoothing.batch._gated`).
 On simulated data each factor is compared with the true relative pose
 (:class:`planodom.smoothing.loop_records.LoopFactor`).
 """
@@ -65,6 +66,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._graph_size = 0  # factors added by the epochs before (batch pushes them all)
         self._positions: list[np.ndarray] = []
         self._last_verified: RelativePose | None = None
+        self._group = -1  # hypothesis of the latest loop factors (chained agreeing poses)
 
     def add_epoch(
         self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
@@ -180,13 +182,9 @@ class CandidateLoopBuilder(LoopClosingBuilder):
                 return
             if not self._agrees(last, rel):
                 return
-            if not self.loop_factors or (
-                self.loop_factors[-1].epoch,
-                self.loop_factors[-1].old,
-            ) != (
-                last.curr,
-                last.prev,
-            ):
+            previous = self.loop_factors[-1] if self.loop_factors else None
+            if previous is None or (previous.epoch, previous.old) != (last.curr, last.prev):
+                self._group += 1  # a new hypothesis: its first two agreeing poses
                 self._add_loop_factor(update, last)
             self._add_loop_factor(update, rel)
             return
@@ -228,7 +226,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         update.factors.add(pose5_factor(X(e), X(k), rel.T_prev_curr, noise))
         self.loop_factors.append(
             LoopFactor(k, e, np.asarray(rel.T_prev_curr, dtype=float), cov,
-                       len(rel.associations), self._graph_size + index)
+                       len(rel.associations), self._graph_size + index, self._group)
         )  # fmt: skip
 
 
@@ -265,17 +263,22 @@ def gate_loop_factors(
     """Remove the loop factors (of a :class:`CandidateLoopBuilder`; none for other
     builders) whose squared whitened error at ``values`` exceeds the
     ``loop_gate_quantile`` of chi2(5) from ``graph`` (and their Gaussian twins); returns
-    how many. Each factor's chi2 is recorded."""
+    how many, with every factor of their hypotheses (``LoopFactor.group``: chained
+    agreeing poses; a wrong hypothesis may fit in part once it has pulled the estimate).
+    Each factor's chi2 is recorded."""
     factors: list[LoopFactor] = getattr(builder, "loop_factors", [])
     if not factors:
         return 0
     limit = float(chi2.ppf(builder.config.loop_gate_quantile, 5))  # type: ignore[attr-defined]
+    failed = set()
+    for f in factors:
+        if not f.removed:
+            f.chi2 = 2.0 * float(gaussian.get(f.factor, graph.at(f.factor)).error(values))
+            if f.chi2 > limit:
+                failed.add(f.group)
     removed = 0
     for f in factors:
-        if f.removed:
-            continue
-        f.chi2 = 2.0 * float(gaussian.get(f.factor, graph.at(f.factor)).error(values))
-        if f.chi2 > limit:
+        if not f.removed and f.group in failed:  # one hypothesis: all its factors out
             graph.remove(f.factor)
             gaussian.pop(f.factor, None)
             f.removed = True

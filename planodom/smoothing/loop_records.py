@@ -100,6 +100,7 @@ class LoopFactor:
             x, y, m), the odometry's floored (:func:`planodom.smoothing.noise.between_covariance`).
         inliers: strict associations that verified it.
         factor: index of the factor in the whole graph.
+        group: its hypothesis: loop factors confirmed by each other in a chain share it.
         chi2: squared whitened error of its Gaussian twin at the last estimate (nan
             before optimisation). removed: refused by the gate after optimisation.
     """
@@ -110,6 +111,7 @@ class LoopFactor:
     covariance: np.ndarray
     inliers: int
     factor: int
+    group: int = 0
     chi2: float = float("nan")
     removed: bool = False
 
