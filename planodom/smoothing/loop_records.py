@@ -130,10 +130,13 @@ class LoopFactor:
 def loop_factor_counts(
     factors: Sequence[LoopFactor], gt_poses: np.ndarray | None
 ) -> dict[str, int]:
-    """Loop-candidate factors kept and removed, and (with the truth) the wrong ones."""
+    """Loop-candidate factors kept and removed, and with the truth the wrong ones
+    (:meth:`LoopFactor.wrong`) and the largest horizontal error of a kept one (cm)."""
     kept = [f for f in factors if not f.removed]
     out = {"loop_factors": len(kept), "loop_factors_removed": len(factors) - len(kept)}
     if gt_poses is not None:
         out["loop_factors_wrong_kept"] = sum(f.wrong(gt_poses) for f in kept)
         out["loop_factors_wrong_removed"] = sum(f.wrong(gt_poses) for f in factors if f.removed)
+        xy = [float(np.linalg.norm(f.truth_error(gt_poses)[3:])) for f in kept]
+        out["loop_factors_max_error_cm"] = round(100 * max(xy, default=0.0))
     return out
