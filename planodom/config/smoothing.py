@@ -195,6 +195,9 @@ class SmoothingConfig(Section):
     loop_candidate_min_inliers: Annotated[int, Field(ge=2)] = 3
     """Strict associations (with non-parallel normals) a loop candidate needs (3: the
     2D rig's epochs hold 4-6 planes; a revisit matches the ground and two walls)."""
+    loop_candidate_overlap_m: Positive = 1.0
+    """The supports (spheres of centroid and radius) of each plane pair a loop candidate
+    associates must come within this of each other under its relative pose, m."""
     loop_candidate_confirm_epochs: Annotated[int, Field(ge=1)] = 10
     """A verified loop candidate becomes a factor only when the previous verified one,
     at most this many epochs before, implies the same correction of the chained guess

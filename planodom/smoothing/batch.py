@@ -14,7 +14,12 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats, X
-from planodom.smoothing.loop_candidates import CandidateLoopBuilder, gate_loop_factors, loop_start
+from planodom.smoothing.loop_candidates import (
+    CandidateLoopBuilder,
+    gate_loop_factors,
+    loop_start,
+    test_hypotheses,
+)
 from planodom.smoothing.loop_records import LoopFactor, LoopMatch, Reidentification
 from planodom.smoothing.loops import LoopClosingBuilder, gate_reidentifications
 
@@ -238,7 +243,8 @@ def _gated(
     estimate: gtsam.Values,
     errors: list[float],
 ) -> gtsam.Values:
-    """Re-identifications and loop-candidate factors inconsistent with the estimate out,
+    """Re-identifications and loop-candidate factors inconsistent with the estimate out
+    (loop hypotheses also by what they cost the rest of the graph, once each),
     solved again from the initial ``values`` (not from an estimate a wrong tie has
     pulled); at most three rounds (four with loop factors)."""
     cfg = builder.config
@@ -246,6 +252,7 @@ def _gated(
         # loop factors first: the Gaussian start lets a wrong hypothesis pull the
         # estimate, and re-identifications would fail by its pull
         removed = gate_loop_factors(builder, graph, gaussian, estimate)
+        removed = removed or test_hypotheses(builder, graph, gaussian, values, estimate)
         if not removed and not gate_reidentifications(builder, graph, gaussian, estimate):
             break
         start = loop_start(builder, graph, gaussian, values)

@@ -16,7 +16,12 @@ prediction is metres off after an odometry failure, or the old landmarks never f
    grown bounds around the predicted ``T_e_k``, WOCSC, strict association) between the
    planes of e and k;
 3. verification by its consensus: status OK (5 DoF) and at least
-   ``loop_candidate_min_inliers`` strict associations spanning non-parallel normals;
+   ``loop_candidate_min_inliers`` strict associations spanning non-parallel normals,
+   each pair's supports (centroid and radius) within ``loop_candidate_overlap_m`` of each
+   other under the relative pose (the paper's overlap: aliased walls lie elsewhere); the
+   correction of the chained guess it implies must agree with the map's accepted one
+   (when the re-identification has one) and with the previous verified loop pose, at
+   most ``loop_candidate_confirm_epochs`` before (chi2(3) on yaw, x, y);
 4. the first verified one becomes a 5-DoF between factor ``X(e) - X(k)``
    (:func:`factors.pose5.pose5_factor`) with the odometry's covariance and a robust
    kernel (``robust_kernel``, Cauchy when "none": a loop factor is never trusted blindly).
@@ -42,7 +47,12 @@ from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphUpdate, X
 from planodom.smoothing.loop_records import LoopFactor
-from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder, non_parallel
+from planodom.smoothing.loops import (
+    MAX_ROTATION_BOUND_DEG,
+    LoopClosingBuilder,
+    _extent,
+    non_parallel,
+)
 from planodom.smoothing.noise import between_covariance, with_robust_kernel
 from planodom_factors.pose5 import pose5_factor
 
@@ -65,6 +75,9 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self.candidate_attempts = 0
         self._graph_size = 0  # factors added by the epochs before (batch pushes them all)
         self._positions: list[np.ndarray] = []
+        #: chained (xy, yaw) variance sums as :attr:`variances`, but with the measured yaw
+        #: of rotation-only epochs (the map's bounds take the fallback's for them)
+        self._variances: list[np.ndarray] = []
         self._last_verified: RelativePose | None = None
         self._group = -1  # hypothesis of the latest loop factors (chained agreeing poses)
 
@@ -73,6 +86,16 @@ class CandidateLoopBuilder(LoopClosingBuilder):
     ) -> GraphUpdate:
         """:meth:`LoopClosingBuilder.add_epoch`, keeping count of the graph's factors (the
         batch loop pushes every update whole, in order)."""
+        k, c = self.n_epochs, self.config
+        var_t, var_r = c.fallback_translation_sigma_m**2, c.fallback_rotation_sigma_rad**2
+        for r in relatives:  # the yaw of a rotation-only epoch is measured too
+            if r.curr == k and r.delta == 1 and r.measured and r.covariance is not None:
+                cov = np.asarray(r.covariance, dtype=float).reshape(5, 5)
+                var_r = float(cov[2, 2])
+                if r.translation_observed:
+                    var_t = float(cov[3, 3] + cov[4, 4])
+        last = self._variances[-1] if k else np.zeros(2)
+        self._variances.append(last + (var_t, var_r) if k else last)
         update = super().add_epoch(planes, relatives, min_epoch)
         self._graph_size += update.factors.size()
         return update
@@ -98,7 +121,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         fraction as the map matches are: after an odometry failure the covariance, not
         the typical drift, says how far off the prediction may be."""
         c = self.config
-        travelled, variances = np.asarray(self.travelled), np.asarray(self.variances)
+        travelled, variances = np.asarray(self.travelled), np.asarray(self._variances)
         tracked = c.loop_verify == "tracked" and self._reference is not None
         a, b = (k, k) if not tracked else self._reference  # type: ignore[misc]
         # spans (a, k) and (b, e): |cumulative(k) - cumulative(a)| + |cumulative(e) - ...(b)|
@@ -160,6 +183,12 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         normals = np.stack([self.planes[k][i].normal for i in pairs[:, 1]])
         if not non_parallel(normals):
             return None
+        T_k_e = invert_transform(np.asarray(rel.T_prev_curr, dtype=float))
+        for i, j in pairs:  # the paper's overlap: matched planes must share their extent
+            c_old, r_old = _extent(self.planes[e][i], T_k_e)
+            c_cur, r_cur = _extent(self.planes[k][j], np.eye(4))
+            if np.linalg.norm(c_old - c_cur) - r_old - r_cur > c.loop_candidate_overlap_m:
+                return None
         return RelativePose(
             np.asarray(rel.T_prev_curr, dtype=float), rel.covariance, rel.status,
             pairs, rel.sources, prev=e, curr=k,
@@ -176,6 +205,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         for e in candidates:
             rel = self.match_old_epoch(k, e)
             if rel is None:
+                continue
+            if not self._agrees_with_map(rel):
                 continue
             last, self._last_verified = self._last_verified, rel
             if last is None or k - last.curr > c.loop_candidate_confirm_epochs:
@@ -207,6 +238,21 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             cov += np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
         T_a = self._correction(first) @ self.poses[second.curr]
         T_b = self._correction(second) @ self.poses[second.curr]
+        v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
+        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+
+    def _agrees_with_map(self, rel: RelativePose) -> bool:
+        """Whether a verified loop pose agrees with the map's accepted correction (the
+        tracked re-identification, :meth:`LoopClosingBuilder._verify`) within the drift
+        since it was taken and between the map parts (chi2(3) at ``loop_gate_quantile``);
+        True while no correction is accepted."""
+        if self._reference is None or rel.covariance is None:
+            return self._reference is None
+        k_ref, seen_ref = self._reference
+        cov = self._drift_covariance([(k_ref, rel.curr), (seen_ref, rel.prev)])
+        cov = cov + np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
+        T_a = self.correction @ self.poses[rel.curr]
+        T_b = self._correction(rel) @ self.poses[rel.curr]
         v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
         return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
 
@@ -283,4 +329,57 @@ def gate_loop_factors(
             gaussian.pop(f.factor, None)
             f.removed = True
             removed += 1
+    return removed
+
+
+def _without(
+    graph: gtsam.NonlinearFactorGraph, drop: set[int], gaussian: dict[int, gtsam.NonlinearFactor]
+) -> gtsam.NonlinearFactorGraph:
+    """``graph`` without the factors ``drop`` (indices); Gaussian twins where given."""
+    out = gtsam.NonlinearFactorGraph()
+    for i in range(graph.size()):
+        if i not in drop and graph.at(i) is not None:
+            out.add(gaussian.get(i, graph.at(i)))
+    return out
+
+
+def test_hypotheses(
+    builder: object,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    values: gtsam.Values,
+    estimate: gtsam.Values,
+) -> int:
+    """A likelihood-ratio test of each kept loop hypothesis (``LoopFactor.group``).
+
+    The rest of the graph (every factor but the loop factors, with their robust kernels:
+    the Gaussian twins of outlier factors would swamp the difference) is evaluated at
+    ``estimate`` and at the optimum without the hypothesis. A right loop closure costs
+    the rest what the drift it corrects costs; a wrong one bends a well-measured map. The
+    hypothesis is removed (from ``graph``) when the increase, in squared whitened units,
+    exceeds the ``loop_gate_quantile`` of chi2(5 x its factors). Returns how many were."""
+    from planodom.smoothing.batch import levenberg_marquardt  # (batch imports this module)
+
+    factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
+    cfg = builder.config  # type: ignore[attr-defined]
+    loops = {f.factor for f in factors}
+    removed = 0
+    for group in sorted({f.group for f in factors if np.isnan(f.increase)}):  # once each
+        mine = {f.factor for f in factors if f.group == group}
+        rest = _without(graph, loops, {})
+        others = _without(graph, mine, {})
+        start = loop_start(builder, others, gaussian, values) if loops - mine else values
+        alone = levenberg_marquardt(others, start, cfg.max_iterations, cfg.relative_error_tol)[0]
+        increase = 2.0 * (rest.error(estimate) - rest.error(alone))
+        limit = chi2.ppf(cfg.loop_gate_quantile, 5 * len(mine))
+        for f in factors:
+            if f.group == group:
+                f.increase = float(increase)
+        if increase > limit:
+            for f in factors:
+                if f.group == group:
+                    graph.remove(f.factor)
+                    gaussian.pop(f.factor, None)
+                    f.removed = True
+                    removed += 1
     return removed

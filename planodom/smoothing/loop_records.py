@@ -102,7 +102,9 @@ class LoopFactor:
         factor: index of the factor in the whole graph.
         group: its hypothesis: loop factors confirmed by each other in a chain share it.
         chi2: squared whitened error of its Gaussian twin at the last estimate (nan
-            before optimisation). removed: refused by the gate after optimisation.
+            before optimisation). increase: what its hypothesis costs the rest of the
+            graph (:func:`planodom.smoothing.loop_candidates.test_hypotheses`).
+            removed: refused by the gate or that test after optimisation.
     """
 
     epoch: int
@@ -113,6 +115,7 @@ class LoopFactor:
     factor: int
     group: int = 0
     chi2: float = float("nan")
+    increase: float = float("nan")
     removed: bool = False
 
     def truth_error(self, gt_poses: np.ndarray) -> np.ndarray:

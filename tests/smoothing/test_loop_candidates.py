@@ -46,10 +46,11 @@ def test_loop_candidates_alone_close_the_loop(problem):
     assert _end_error(res.poses, truth) < 0.6 * _end_error(without.poses, truth)
 
 
-def test_planted_wrong_loop_poses_are_removed(problem, monkeypatch):
+def test_planted_wrong_loop_poses_are_refused_or_removed(problem, monkeypatch):
     """Loop poses shifted 3 m at every candidate after the lap (consistent with each
-    other, so they pass the confirmation): the map's ties disagree, the chi2(5) gate
-    removes them and the loop stays closed."""
+    other, so they pass the confirmation). With the map, they disagree with its accepted
+    correction and tie nothing; without it (candidates alone), the gate removes them and
+    the result is that of no loop closure."""
     truth, planes, relatives = problem
     original = loop_candidates.CandidateLoopBuilder.match_old_epoch
 
@@ -59,13 +60,17 @@ def test_planted_wrong_loop_poses_are_removed(problem, monkeypatch):
             return None
         return replace(rel, T_prev_curr=rel.T_prev_curr @ make_transform(np.eye(3), [3.0, 0, 0]))
 
+    plain = smooth_batch(planes, relatives, _candidates_only(False))
     monkeypatch.setattr(loop_candidates.CandidateLoopBuilder, "match_old_epoch", shifted)
-    res = smooth_batch(planes, relatives, _config(True))
-    assert res.loop_factors
-    counts = loop_factor_counts(res.loop_factors, truth)
+    with_map = smooth_batch(planes, relatives, _config(True))
+    assert not with_map.loop_factors
+    assert _end_error(with_map.poses, truth) < 0.3  # the map still closes the loop
+    alone = smooth_batch(planes, relatives, _candidates_only())
+    assert alone.loop_factors  # the shifted poses were verified and confirmed
+    counts = loop_factor_counts(alone.loop_factors, truth)
     assert counts["loop_factors_wrong_kept"] == 0
-    assert counts["loop_factors_wrong_removed"] == len(res.loop_factors)
-    assert _end_error(res.poses, truth) < 0.3
+    assert counts["loop_factors_wrong_removed"] == len(alone.loop_factors)
+    np.testing.assert_allclose(alone.poses[-1], plain.poses[-1], atol=0.05)
 
 
 def test_old_epoch_candidates_follow_the_rule(problem, monkeypatch):
