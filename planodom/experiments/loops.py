@@ -13,9 +13,13 @@ Per run: ATE (xy, origin-aligned, rmse), the xy position error at the loop's end
 epoch) and the height error there, for ``batch+loops`` the re-identifications kept,
 removed by the gate, and wrong (joining true surfaces that are not coplanar: two segments
 of one facade are one plane), the map matches the verification refused
-(``smoothing.loop_verify``), the mean NEES of the 5 observed DoF (chi2(5): 95 % interval
+(``smoothing.loop_verify``), the loop-candidate factors
+(:mod:`planodom.smoothing.loop_candidates`) kept and removed, the kept ones wrong by the
+truth (a component off by more than 3 of its sigmas) and the largest horizontal error of a
+kept one, the mean NEES of the 5 observed DoF (chi2(5): 95 % interval
 [0.83, 12.8]), and seconds.
-``summary`` gives per noise and method the median and worst over the worlds.
+``summary`` gives per noise and method the median and worst over the worlds, and the
+loop-candidate factors kept and wrong over all of them.
 """
 
 from __future__ import annotations

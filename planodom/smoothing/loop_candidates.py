@@ -354,8 +354,9 @@ def test_hypotheses(
 
     The rest of the graph (every factor but the loop factors, with their robust kernels:
     the Gaussian twins of outlier factors would swamp the difference) is evaluated at
-    ``estimate`` and at the optimum without the hypothesis. A right loop closure costs
-    the rest what the drift it corrects costs; a wrong one bends a well-measured map. The
+    ``estimate`` and at the optimum without the hypothesis (solved from ``estimate``). A
+    right loop closure costs the rest what the drift it corrects costs; a wrong one bends
+    a well-measured map. The
     hypothesis is removed (from ``graph``) when the increase, in squared whitened units,
     exceeds the ``loop_gate_quantile`` of chi2(5 x its factors). Returns how many were."""
     from planodom.smoothing.batch import levenberg_marquardt  # (batch imports this module)
@@ -368,8 +369,8 @@ def test_hypotheses(
         mine = {f.factor for f in factors if f.group == group}
         rest = _without(graph, loops, {})
         others = _without(graph, mine, {})
-        start = loop_start(builder, others, gaussian, values) if loops - mine else values
-        alone = levenberg_marquardt(others, start, cfg.max_iterations, cfg.relative_error_tol)[0]
+        # from the estimate: the hypothesis's removal relaxes it (one solve, not two)
+        alone = levenberg_marquardt(others, estimate, cfg.max_iterations, cfg.relative_error_tol)[0]
         increase = 2.0 * (rest.error(estimate) - rest.error(alone))
         limit = chi2.ppf(cfg.loop_gate_quantile, 5 * len(mine))
         for f in factors:
