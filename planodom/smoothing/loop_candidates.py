@@ -6,7 +6,8 @@ prediction is metres off after an odometry failure, or the old landmarks never f
 :class:`CandidateLoopBuilder` then compares whole epochs, at every
 ``loop_candidate_every_epochs``-th epoch k:
 
-1. candidates: old epochs e at least ``loop_min_gap_epochs`` before k whose (chained)
+1. candidates: old epochs e at least ``loop_min_gap_epochs`` before k, revisited (the
+   route between them at least ``REVISIT_RATIO`` times their distance), whose (chained)
    position lies within ``loop_candidate_radius_m`` plus the translation bound of the
    drift between them (``loop_sigmas`` standard deviations of the chained odometry, at
    most ``loop_drift_fraction`` of the distance driven, as for the map matches) of k's
@@ -56,6 +57,10 @@ from planodom.smoothing.loops import (
 from planodom.smoothing.noise import between_covariance, with_robust_kernel
 from planodom_factors.pose5 import pose5_factor
 
+#: An old epoch is a loop candidate only when the route between it and the current
+#: epoch is at least this many times as long as their predicted distance plus the
+#: candidate radius (a revisit, not a straight stretch).
+REVISIT_RATIO = 3.0
 #: Robust kernel of loop factors when the config asks for none, in sigmas (gtsam's
 #: Cauchy default at 95 % efficiency, as :data:`planodom.smoothing.noise.ROBUST_DEFAULTS`).
 CAUCHY_K = 2.3849
@@ -158,6 +163,11 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         position = self._predicted(k)[:2, 3]
         dist = np.linalg.norm(np.asarray(self._positions[: last + 1]) - position, axis=1)
         reach = c.loop_candidate_radius_m + self._bounds(k, old)[0]
+        # a revisit: the route left and came back (driven at least REVISIT_RATIO times
+        # as far as the places are apart); along a straight street an old epoch is no
+        # loop, and its long-baseline relative pose only repeats the odometry
+        driven = self.travelled[k] - np.asarray(self.travelled[: last + 1])
+        reach = np.where(driven >= REVISIT_RATIO * (dist + c.loop_candidate_radius_m), reach, -1.0)
         out: list[int] = []
         for e in np.flatnonzero(dist <= reach)[np.argsort(dist[dist <= reach], kind="stable")]:
             e = int(e)
