@@ -189,6 +189,31 @@ class SmoothingConfig(Section):
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree with each other before a new correction is accepted (and
     before the first one)."""
+    loop_candidates: bool = True
+    """Batch, with ``loop_closure``: also relative poses between the current epoch and old
+    epochs within reach of its predicted pose (planodom.smoothing.loop_candidates): the
+    paper's odometry under bounds grown from the chained covariance, verified by its
+    strict (consensus) associations, added as robust 5-DoF between factors and checked
+    by chi2(5) after optimisation."""
+    loop_candidate_every_epochs: Annotated[int, Field(ge=1)] = 1
+    """Look for loop candidates at every N-th epoch only."""
+    loop_candidate_radius_m: Positive = 4.0
+    """An old epoch is a candidate when its position is within this (the two epochs must
+    see the same walls) plus the translation bound of the drift since then, m."""
+    loop_candidate_max: Annotated[int, Field(ge=1)] = 5
+    """Old epochs tried per attempt (the nearest to the prediction, ``loop_candidate_every_epochs``
+    apart from each other); the first verified one becomes a factor."""
+    loop_candidate_min_inliers: Annotated[int, Field(ge=2)] = 3
+    """Strict associations (with non-parallel normals) a loop candidate needs (3: the
+    2D rig's epochs hold 4-6 planes; a revisit matches the ground and two walls)."""
+    loop_candidate_overlap_m: Positive = 1.0
+    """The supports (spheres of centroid and radius) of each plane pair a loop candidate
+    associates must come within this of each other under its relative pose, m."""
+    loop_candidate_confirm_epochs: Annotated[int, Field(ge=1)] = 10
+    """A verified loop candidate becomes a factor only when the previous verified one,
+    at most this many epochs before, implies the same correction of the chained guess
+    (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
+    the drift between them allows it."""
     loop_gate_quantile: Fraction = 0.999
     """After optimisation, a re-identified observation whose squared whitened error exceeds
     this quantile of chi2(3) is removed and the graph solved again."""

@@ -13,9 +13,13 @@ Per run: ATE (xy, origin-aligned, rmse), the xy position error at the loop's end
 epoch) and the height error there, for ``batch+loops`` the re-identifications kept,
 removed by the gate, and wrong (joining true surfaces that are not coplanar: two segments
 of one facade are one plane), the map matches the verification refused
-(``smoothing.loop_verify``), the mean NEES of the 5 observed DoF (chi2(5): 95 % interval
+(``smoothing.loop_verify``), the loop-candidate factors
+(:mod:`planodom.smoothing.loop_candidates`) kept and removed, the kept ones wrong by the
+truth (a component off by more than 3 of its sigmas) and the largest horizontal error of a
+kept one, the mean NEES of the 5 observed DoF (chi2(5): 95 % interval
 [0.83, 12.8]), and seconds.
-``summary`` gives per noise and method the median and worst over the worlds.
+``summary`` gives per noise and method the median and worst over the worlds, and the
+loop-candidate factors kept and wrong over all of them.
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ from planodom.odometry.relative import RelativePose
 from planodom.oracle import run_oracle
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.batch import smooth_batch
-from planodom.smoothing.loop_records import reidentification_counts
+from planodom.smoothing.loop_records import loop_factor_counts, reidentification_counts
 from planodom.smoothing.run import smoothing_relatives
 from planodom.smoothing.windowed import smooth_windowed
 
@@ -86,6 +90,7 @@ def compare_methods(
         row: Row = {"method": method, **_errors(res.poses, gt), "seconds": res.runtime_s}
         if method == "batch+loops":
             row |= reidentification_counts(res.reidentifications, same_plane)
+            row |= loop_factor_counts(res.loop_factors, gt)
             row["matches_refused"] = sum(m.verdict != "accepted" for m in res.loop_matches)
             if res.covariances is not None:
                 nees = pose_nees(res.poses[1:], res.covariances[1:], gt[1:], range(5))
@@ -124,6 +129,8 @@ def summary_rows(rows: Sequence[Row]) -> list[Row]:
             a = np.array([r["ate_m"] for r in sel], dtype=float)
             e = np.array([r["loop_end_m"] for r in sel], dtype=float)
             wrong = sum(int(r.get("wrong_kept", 0)) for r in sel)  # type: ignore[call-overload]
+            factors = sum(int(r.get("loop_factors", 0)) for r in sel)  # type: ignore[call-overload]
+            wrong_factors = sum(int(r.get("loop_factors_wrong_kept", 0)) for r in sel)  # type: ignore[call-overload]
             out.append(
                 {
                     "noise_mm": noise,
@@ -134,6 +141,8 @@ def summary_rows(rows: Sequence[Row]) -> list[Row]:
                     "median_loop_end_m": float(np.median(e)),
                     "worst_loop_end_m": float(e.max()),
                     "wrong_kept": wrong,
+                    "loop_factors": factors,
+                    "wrong_loop_factors": wrong_factors,
                 }
             )
     return out

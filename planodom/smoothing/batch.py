@@ -14,7 +14,13 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats, X
-from planodom.smoothing.loop_records import LoopMatch, Reidentification
+from planodom.smoothing.loop_candidates import (
+    CandidateLoopBuilder,
+    gate_loop_factors,
+    loop_start,
+    test_hypotheses,
+)
+from planodom.smoothing.loop_records import LoopFactor, LoopMatch, Reidentification
 from planodom.smoothing.loops import LoopClosingBuilder, gate_reidentifications
 from planodom.smoothing.marginals import pose_marginals, schur_preferred
 
@@ -45,6 +51,8 @@ class SmoothingResult:
             verification's verdict.
         covariance_note: why ``covariances`` is None although asked for (a nearly
             indeterminant system, e.g. long stretches bridged only by fallback factors).
+        loop_factors: loop closure: the 5-DoF loop-candidate factors
+            (:mod:`planodom.smoothing.loop_candidates`), with the gate's verdict.
     """
 
     poses: np.ndarray
@@ -59,6 +67,7 @@ class SmoothingResult:
     covariance_note: str | None = None
     reidentifications: list[Reidentification] = field(default_factory=list)
     loop_matches: list[LoopMatch] = field(default_factory=list)
+    loop_factors: list[LoopFactor] = field(default_factory=list)
 
 
 def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> SmoothingConfig:
@@ -245,14 +254,21 @@ def _gated(
     estimate: gtsam.Values,
     errors: list[float],
 ) -> gtsam.Values:
-    """Re-identifications inconsistent with the estimate out, solved again from the initial
-    ``values`` (not from an estimate a wrong tie has pulled); at most three rounds."""
+    """Re-identifications and loop-candidate factors inconsistent with the estimate out
+    (loop hypotheses also by what they cost the rest of the graph, once each),
+    solved again from the initial ``values`` (not from an estimate a wrong tie has
+    pulled); at most three rounds (four with loop factors)."""
     cfg = builder.config
-    for _ in range(3):
-        if not gate_reidentifications(builder, graph, gaussian, estimate):
+    for _ in range(4 if getattr(builder, "loop_factors", None) else 3):
+        # loop factors first: the Gaussian start lets a wrong hypothesis pull the
+        # estimate, and re-identifications would fail by its pull
+        removed = gate_loop_factors(builder, graph, gaussian, estimate)
+        removed = removed or test_hypotheses(builder, graph, gaussian, values, estimate)
+        if not removed and not gate_reidentifications(builder, graph, gaussian, estimate):
             break
+        start = loop_start(builder, graph, gaussian, values)
         estimate, more = levenberg_marquardt(
-            graph, values, cfg.max_iterations, cfg.relative_error_tol
+            graph, start, cfg.max_iterations, cfg.relative_error_tol
         )
         errors += more
     return estimate
@@ -283,7 +299,8 @@ def smooth_batch(
     builder: GraphBuilder = GraphBuilder(cfg, T_world_first)
     if cfg.loop_closure:
         full = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
-        builder = LoopClosingBuilder(full, T_world_first)
+        loop_builder = CandidateLoopBuilder if cfg.loop_candidates else LoopClosingBuilder
+        builder = loop_builder(full, T_world_first)
     if cfg.batch_initial == "windowed":
         from planodom.smoothing.windowed import smooth_windowed
 
@@ -307,8 +324,9 @@ def smooth_batch(
     initial = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
 
     estimate, errors = levenberg_marquardt(
-        graph, values, cfg.max_iterations, cfg.relative_error_tol
-    )
+        graph, loop_start(builder, graph, gaussian, values), cfg.max_iterations,
+        cfg.relative_error_tol,
+    )  # fmt: skip
     if isinstance(builder, LoopClosingBuilder):
         estimate = _gated(builder, graph, gaussian, values, estimate, errors)
     builder.update_estimates(estimate)
@@ -337,4 +355,5 @@ def smooth_batch(
         covariance_note=note,
         reidentifications=list(getattr(builder, "reidentifications", [])),
         loop_matches=list(getattr(builder, "matches", [])),
+        loop_factors=list(getattr(builder, "loop_factors", [])),
     )

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planodom_factors.pose5 import pose5_error
+
 
 @dataclass
 class Reidentification:
@@ -84,3 +86,60 @@ def reidentification_counts(
         "wrong_kept": sum(wrong(r) for r in kept),
         "wrong_removed": sum(wrong(r) for r in reids if r.removed),
     }
+
+
+@dataclass
+class LoopFactor:
+    """One loop candidate that became a 5-DoF between factor
+    (:mod:`planodom.smoothing.loop_candidates`).
+
+    Attributes:
+        epoch: the current epoch k. old: the old epoch e.
+        T_old_curr: (4, 4) the relative pose measured between them (its z unobserved).
+        covariance: (5, 5) the factor's covariance in its tangent (rotation vector, rad;
+            x, y, m), the odometry's floored (:func:`planodom.smoothing.noise.between_covariance`).
+        inliers: strict associations that verified it.
+        factor: index of the factor in the whole graph.
+        group: its hypothesis: loop factors confirmed by each other in a chain share it.
+        chi2: squared whitened error of its Gaussian twin at the last estimate (nan
+            before optimisation). increase: what its hypothesis costs the rest of the
+            graph (:func:`planodom.smoothing.loop_candidates.test_hypotheses`).
+            removed: refused by the gate or that test after optimisation.
+    """
+
+    epoch: int
+    old: int
+    T_old_curr: np.ndarray
+    covariance: np.ndarray
+    inliers: int
+    factor: int
+    group: int = 0
+    chi2: float = float("nan")
+    increase: float = float("nan")
+    removed: bool = False
+
+    def truth_error(self, gt_poses: np.ndarray) -> np.ndarray:
+        """(5,) the factor's error at the true poses ``gt_poses`` (E, 4, 4): rotation
+        vector (rad) and x, y (m) of the measured against the true relative pose."""
+        return pose5_error(self.T_old_curr, gt_poses[self.old], gt_poses[self.epoch])[0]
+
+    def wrong(self, gt_poses: np.ndarray, n_sigma: float = 3.0) -> bool:
+        """Whether it disagrees with the truth by more than ``n_sigma`` of its own
+        standard deviation in any of the 5 components."""
+        sigma = np.sqrt(np.diag(self.covariance))
+        return bool(np.any(np.abs(self.truth_error(gt_poses)) > n_sigma * sigma))
+
+
+def loop_factor_counts(
+    factors: Sequence[LoopFactor], gt_poses: np.ndarray | None
+) -> dict[str, int]:
+    """Loop-candidate factors kept and removed, and with the truth the wrong ones
+    (:meth:`LoopFactor.wrong`) and the largest horizontal error of a kept one (cm)."""
+    kept = [f for f in factors if not f.removed]
+    out = {"loop_factors": len(kept), "loop_factors_removed": len(factors) - len(kept)}
+    if gt_poses is not None:
+        out["loop_factors_wrong_kept"] = sum(f.wrong(gt_poses) for f in kept)
+        out["loop_factors_wrong_removed"] = sum(f.wrong(gt_poses) for f in factors if f.removed)
+        xy = [float(np.linalg.norm(f.truth_error(gt_poses)[3:])) for f in kept]
+        out["loop_factors_max_error_cm"] = round(100 * max(xy, default=0.0))
+    return out

@@ -1,0 +1,396 @@
+"""Loop candidates in batch smoothing: 5-DoF relative poses to old epochs (issue 14).
+
+Where the chained odometry's covariance has grown, the map re-identification
+(:mod:`planodom.smoothing.loops`) may find no landmark near the predicted pose (the
+prediction is metres off after an odometry failure, or the old landmarks never formed).
+:class:`CandidateLoopBuilder` then compares whole epochs, at every
+``loop_candidate_every_epochs``-th epoch k:
+
+1. candidates: old epochs e at least ``loop_min_gap_epochs`` before k, revisited (the
+   route between them at least ``REVISIT_RATIO`` times their distance), whose (chained)
+   position lies within ``loop_candidate_radius_m`` plus the translation bound of the
+   drift between them (``loop_sigmas`` standard deviations of the chained odometry, at
+   most ``loop_drift_fraction`` of the distance driven, as for the map matches) of k's
+   predicted position (the tracked correction applied, ``loop_verify`` "tracked"); the
+   nearest ``loop_candidate_max``, each ``loop_min_gap_epochs`` apart from the others;
+2. the paper's odometry (:func:`planodom.odometry.estimate_relative_pose`: LDA under the
+   grown bounds around the predicted ``T_e_k``, WOCSC, strict association) between the
+   planes of e and k;
+3. verification by its consensus: status OK (5 DoF) and at least
+   ``loop_candidate_min_inliers`` strict associations spanning non-parallel normals,
+   each pair's supports (centroid and radius) within ``loop_candidate_overlap_m`` of each
+   other under the relative pose (the paper's overlap: aliased walls lie elsewhere); the
+   correction of the chained guess it implies must agree with the map's accepted one
+   (when the re-identification has one) and with the previous verified loop pose, at
+   most ``loop_candidate_confirm_epochs`` before (chi2(3) on yaw, x, y);
+4. the first verified one becomes a 5-DoF between factor ``X(e) - X(k)``
+   (:func:`factors.pose5.pose5_factor`) with the odometry's covariance and a robust
+   kernel (``robust_kernel``, Cauchy when "none": a loop factor is never trusted blindly).
+
+After optimisation (:func:`gate_loop_factors`) a loop factor whose Gaussian twin's
+squared whitened error exceeds the ``loop_gate_quantile`` of chi2(5) is removed with its
+hypothesis (the chain of agreeing loop poses it was confirmed with) and the graph solved
+again (with the re-identification gate, :func:`planodom.smoothing.batch._gated`).
+On simulated data each factor is compared with the true relative pose
+(:class:`planodom.smoothing.loop_records.LoopFactor`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import gtsam
+import numpy as np
+from scipy.stats import chi2
+
+from planodom.config import PlanodomConfig
+from planodom.geometry import Plane, invert_transform, pose5_from_transform
+from planodom.odometry import RelativePose, Status, estimate_relative_pose
+from planodom.smoothing.graph import GraphUpdate, X
+from planodom.smoothing.loop_records import LoopFactor
+from planodom.smoothing.loops import (
+    MAX_ROTATION_BOUND_DEG,
+    LoopClosingBuilder,
+    _extent,
+    non_parallel,
+)
+from planodom.smoothing.noise import between_covariance, with_robust_kernel
+from planodom_factors.pose5 import pose5_factor
+
+#: An old epoch is a loop candidate only when the route between it and the current
+#: epoch is at least this many times as long as their predicted distance plus the
+#: candidate radius (a revisit, not a straight stretch).
+REVISIT_RATIO = 3.0
+#: Robust kernel of loop factors when the config asks for none, in sigmas (gtsam's
+#: Cauchy default at 95 % efficiency, as :data:`planodom.smoothing.noise.ROBUST_DEFAULTS`).
+CAUCHY_K = 2.3849
+
+
+class CandidateLoopBuilder(LoopClosingBuilder):
+    """:class:`LoopClosingBuilder` that also adds 5-DoF loop-candidate factors.
+
+    Attributes:
+        loop_factors: every loop factor added, in order (global factor indices).
+        candidate_attempts: epochs at which old epochs were tried.
+    """
+
+    def __init__(self, config: PlanodomConfig, T_world_first: np.ndarray | None = None) -> None:
+        super().__init__(config, T_world_first)
+        self.loop_factors: list[LoopFactor] = []
+        self.candidate_attempts = 0
+        self._graph_size = 0  # factors added by the epochs before (batch pushes them all)
+        self._positions: list[np.ndarray] = []
+        #: chained (xy, yaw) variance sums as :attr:`variances`, but with the measured yaw
+        #: of rotation-only epochs (the map's bounds take the fallback's for them)
+        self._variances: list[np.ndarray] = []
+        self._last_verified: RelativePose | None = None
+        self._group = -1  # hypothesis of the latest loop factors (chained agreeing poses)
+
+    def add_epoch(
+        self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
+    ) -> GraphUpdate:
+        """:meth:`LoopClosingBuilder.add_epoch`, keeping count of the graph's factors (the
+        batch loop pushes every update whole, in order)."""
+        k, c = self.n_epochs, self.config
+        var_t, var_r = c.fallback_translation_sigma_m**2, c.fallback_rotation_sigma_rad**2
+        for r in relatives:  # the yaw of a rotation-only epoch is measured too
+            if r.curr == k and r.delta == 1 and r.measured and r.covariance is not None:
+                cov = np.asarray(r.covariance, dtype=float).reshape(5, 5)
+                var_r = float(cov[2, 2])
+                if r.translation_observed:
+                    var_t = float(cov[3, 3] + cov[4, 4])
+        last = self._variances[-1] if k else np.zeros(2)
+        self._variances.append(last + (var_t, var_r) if k else last)
+        update = super().add_epoch(planes, relatives, min_epoch)
+        self._graph_size += update.factors.size()
+        return update
+
+    def _reidentify(self, update: GraphUpdate) -> None:
+        super()._reidentify(update)
+        k, c = update.epoch, self.config
+        self._positions.append(self.poses[k][:2, 3].copy())
+        if c.loop_candidates and k % c.loop_candidate_every_epochs == 0:
+            self._close_to_old_epoch(update)
+
+    def _predicted(self, k: int) -> np.ndarray:
+        """(4, 4) predicted ``T_world_k`` in the map's frame (the tracked correction)."""
+        tracked = self.config.loop_verify == "tracked" and self._reference is not None
+        return self.correction @ self.poses[k] if tracked else self.poses[k]
+
+    def _bounds(self, k: int, old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Translation (m) and rotation (deg) bounds (each like ``old``) of the drift
+        between k's prediction and the old epochs ``old`` (int array): ``loop_sigmas``
+        standard deviations of the odometry chained from e to k (or, tracked, from the
+        accepted correction's epoch to k and from its map epoch to e), translation and
+        rotation times the distance driven, plus the minima. Not capped by the drift
+        fraction as the map matches are: after an odometry failure the covariance, not
+        the typical drift, says how far off the prediction may be."""
+        c = self.config
+        travelled, variances = np.asarray(self.travelled), np.asarray(self._variances)
+        tracked = c.loop_verify == "tracked" and self._reference is not None
+        a, b = (k, k) if not tracked else self._reference  # type: ignore[misc]
+        # spans (a, k) and (b, e): |cumulative(k) - cumulative(a)| + |cumulative(e) - ...(b)|
+        span = lambda v: np.abs(v[k] - v[a]) + np.abs(v[old] - v[b])  # noqa: E731
+        distance, var_t, var_r = span(travelled), span(variances[:, 0]), span(variances[:, 1])
+        grown = c.loop_sigmas * (np.sqrt(var_t) + np.sqrt(var_r) * distance)
+        prior_deg = self.full_config.association.prior_rotation_deg
+        rotation = prior_deg + c.loop_sigmas * np.degrees(np.sqrt(var_r))
+        return c.loop_min_translation_m + grown, np.minimum(rotation, MAX_ROTATION_BOUND_DEG)
+
+    def _bounded(self, translation: float, rotation_deg: float) -> PlanodomConfig:
+        """The odometry's config with LDA bounds around the prior of ``translation`` (m)
+        and ``rotation_deg``."""
+        odometry = self.full_config.odometry
+        changes = {
+            "association.prior_translation_m": translation,
+            "association.prior_rotation_deg": rotation_deg,
+            "odometry.retry_without_prior": False,
+            # as for the map matches (LoopClosingBuilder._match_config): a direction is
+            # measured when the match narrows the bounds' sigma
+            "odometry.refine_max_sigma_m": max(
+                odometry.refine_max_sigma_m, translation / self.config.loop_sigmas
+            ),
+        }
+        return self.full_config.updated(changes, source="loop candidate bounds")
+
+    def old_epoch_candidates(self, k: int) -> list[int]:
+        """Old epochs within reach of epoch k's prediction, nearest first (module docstring)."""
+        c = self.config
+        last = k - c.loop_min_gap_epochs
+        if last < 0:
+            return []
+        old = np.arange(last + 1)
+        position = self._predicted(k)[:2, 3]
+        dist = np.linalg.norm(np.asarray(self._positions[: last + 1]) - position, axis=1)
+        reach = c.loop_candidate_radius_m + self._bounds(k, old)[0]
+        # a revisit: the route left and came back (driven at least REVISIT_RATIO times
+        # as far as the places are apart); along a straight street an old epoch is no
+        # loop, and its long-baseline relative pose only repeats the odometry
+        driven = self.travelled[k] - np.asarray(self.travelled[: last + 1])
+        reach = np.where(driven >= REVISIT_RATIO * (dist + c.loop_candidate_radius_m), reach, -1.0)
+        out: list[int] = []
+        for e in np.flatnonzero(dist <= reach)[np.argsort(dist[dist <= reach], kind="stable")]:
+            e = int(e)
+            if len(self.planes[e]) < c.loop_candidate_min_inliers:
+                continue
+            if all(abs(e - o) >= c.loop_candidate_every_epochs for o in out):
+                out.append(e)
+            if len(out) == c.loop_candidate_max:
+                break
+        return out
+
+    def match_old_epoch(self, k: int, e: int) -> RelativePose | None:
+        """The paper's odometry between old epoch e and k under the grown bounds around
+        the prediction, or None when its consensus does not verify it."""
+        c = self.config
+        prior = invert_transform(self.poses[e]) @ self._predicted(k)
+        translation, rotation = self._bounds(k, np.array([e]))
+        cfg = self._bounded(float(translation[0]), float(rotation[0]))
+        rel = estimate_relative_pose(self.planes[e], self.planes[k], cfg, prior=prior)
+        pairs = np.asarray(rel.associations, dtype=int).reshape(-1, 2)
+        if rel.status is not Status.OK or len(pairs) < c.loop_candidate_min_inliers:
+            return None
+        normals = np.stack([self.planes[k][i].normal for i in pairs[:, 1]])
+        if not non_parallel(normals):
+            return None
+        T_k_e = invert_transform(np.asarray(rel.T_prev_curr, dtype=float))
+        for i, j in pairs:  # the paper's overlap: matched planes must share their extent
+            c_old, r_old = _extent(self.planes[e][i], T_k_e)
+            c_cur, r_cur = _extent(self.planes[k][j], np.eye(4))
+            if np.linalg.norm(c_old - c_cur) - r_old - r_cur > c.loop_candidate_overlap_m:
+                return None
+        return RelativePose(
+            np.asarray(rel.T_prev_curr, dtype=float), rel.covariance, rel.status,
+            pairs, rel.sources, prev=e, curr=k,
+        )  # fmt: skip
+
+    def _close_to_old_epoch(self, update: GraphUpdate) -> None:
+        """Try the old-epoch candidates of this epoch; the first verified one is kept if it
+        agrees with the last verified one, at most ``loop_candidate_confirm_epochs`` before
+        (:meth:`_agrees`), which is then added too."""
+        k, c = update.epoch, self.config
+        candidates = self.old_epoch_candidates(k)
+        if candidates:
+            self.candidate_attempts += 1
+        for e in candidates:
+            rel = self.match_old_epoch(k, e)
+            if rel is None:
+                continue
+            if not self._agrees_with_map(rel):
+                continue
+            last, self._last_verified = self._last_verified, rel
+            if last is None or k - last.curr > c.loop_candidate_confirm_epochs:
+                return
+            if not self._agrees(last, rel):
+                return
+            previous = self.loop_factors[-1] if self.loop_factors else None
+            if previous is None or (previous.epoch, previous.old) != (last.curr, last.prev):
+                self._group += 1  # a new hypothesis: its first two agreeing poses
+                self._add_loop_factor(update, last)
+            self._add_loop_factor(update, rel)
+            return
+
+    def _correction(self, rel: RelativePose) -> np.ndarray:
+        """(4, 4) the world correction of the chained guess a loop pose implies: epoch
+        ``rel.curr`` placed at ``poses[prev] @ T_prev_curr`` instead of ``poses[curr]``."""
+        T_world_curr = self.poses[rel.prev] @ np.asarray(rel.T_prev_curr, dtype=float)
+        return T_world_curr @ invert_transform(self.poses[rel.curr])
+
+    def _agrees(self, first: RelativePose, second: RelativePose) -> bool:
+        """Whether two verified loop poses imply the same correction of the chained guess:
+        chi2(3) at ``loop_gate_quantile`` on (yaw, x, y) of epoch ``second.curr`` placed by
+        both, under their covariances and the chained odometry's between their epochs."""
+        drift = self._drift_covariance([(first.curr, second.curr), (first.prev, second.prev)])
+        cov = drift.copy()
+        for rel in (first, second):
+            if rel.covariance is None:
+                return False
+            cov += np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
+        T_a = self._correction(first) @ self.poses[second.curr]
+        T_b = self._correction(second) @ self.poses[second.curr]
+        v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
+        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+
+    def _agrees_with_map(self, rel: RelativePose) -> bool:
+        """Whether a verified loop pose agrees with the map's accepted correction (the
+        tracked re-identification, :meth:`LoopClosingBuilder._verify`) within the drift
+        since it was taken and between the map parts (chi2(3) at ``loop_gate_quantile``);
+        True while no correction is accepted."""
+        if self._reference is None or rel.covariance is None:
+            return self._reference is None
+        k_ref, seen_ref = self._reference
+        cov = self._drift_covariance([(k_ref, rel.curr), (seen_ref, rel.prev)])
+        cov = cov + np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
+        T_a = self.correction @ self.poses[rel.curr]
+        T_b = self._correction(rel) @ self.poses[rel.curr]
+        v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
+        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+
+    def _add_loop_factor(self, update: GraphUpdate, rel: RelativePose) -> None:
+        """A robust 5-DoF factor ``X(prev) - X(curr)`` for a verified loop pose (its
+        Gaussian twin in ``update.gaussian``), recorded in :attr:`loop_factors`."""
+        c, e, k = self.config, rel.prev, rel.curr
+        cov = between_covariance(rel, c)
+        base = gtsam.noiseModel.Gaussian.Covariance(cov)
+        if c.robust_kernel != "none":
+            noise = with_robust_kernel(base, c)
+        else:
+            cauchy = gtsam.noiseModel.mEstimator.Cauchy.Create(CAUCHY_K)
+            noise = gtsam.noiseModel.Robust.Create(cauchy, base)
+        index = update.factors.size()
+        update.gaussian[index] = pose5_factor(X(e), X(k), rel.T_prev_curr, base)
+        update.factors.add(pose5_factor(X(e), X(k), rel.T_prev_curr, noise))
+        self.loop_factors.append(
+            LoopFactor(k, e, np.asarray(rel.T_prev_curr, dtype=float), cov,
+                       len(rel.associations), self._graph_size + index, self._group)
+        )  # fmt: skip
+
+
+def loop_start(
+    builder: object,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    values: gtsam.Values,
+) -> gtsam.Values:
+    """Starting values for the robust solve: ``values`` optimised with the kept loop
+    factors Gaussian (graduated: from a prediction metres off, a robust kernel would
+    treat right loop factors as outliers and never close the loop), or ``values`` as
+    they are without loop factors."""
+    from planodom.smoothing.batch import levenberg_marquardt  # (batch imports this module)
+
+    factors = [f.factor for f in getattr(builder, "loop_factors", []) if not f.removed]
+    if not factors:
+        return values
+    loops = set(factors)
+    convex = gtsam.NonlinearFactorGraph()
+    for i in range(graph.size()):
+        if graph.at(i) is not None:
+            convex.add(gaussian[i] if i in loops else graph.at(i))
+    cfg = builder.config  # type: ignore[attr-defined]
+    return levenberg_marquardt(convex, values, cfg.max_iterations, cfg.relative_error_tol)[0]
+
+
+def gate_loop_factors(
+    builder: object,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    values: gtsam.Values,
+) -> int:
+    """Remove the loop factors (of a :class:`CandidateLoopBuilder`; none for other
+    builders) whose squared whitened error at ``values`` exceeds the
+    ``loop_gate_quantile`` of chi2(5) from ``graph`` (and their Gaussian twins); returns
+    how many, with every factor of their hypotheses (``LoopFactor.group``: chained
+    agreeing poses; a wrong hypothesis may fit in part once it has pulled the estimate).
+    Each factor's chi2 is recorded."""
+    factors: list[LoopFactor] = getattr(builder, "loop_factors", [])
+    if not factors:
+        return 0
+    limit = float(chi2.ppf(builder.config.loop_gate_quantile, 5))  # type: ignore[attr-defined]
+    failed = set()
+    for f in factors:
+        if not f.removed:
+            f.chi2 = 2.0 * float(gaussian.get(f.factor, graph.at(f.factor)).error(values))
+            if f.chi2 > limit:
+                failed.add(f.group)
+    removed = 0
+    for f in factors:
+        if not f.removed and f.group in failed:  # one hypothesis: all its factors out
+            graph.remove(f.factor)
+            gaussian.pop(f.factor, None)
+            f.removed = True
+            removed += 1
+    return removed
+
+
+def _without(
+    graph: gtsam.NonlinearFactorGraph, drop: set[int], gaussian: dict[int, gtsam.NonlinearFactor]
+) -> gtsam.NonlinearFactorGraph:
+    """``graph`` without the factors ``drop`` (indices); Gaussian twins where given."""
+    out = gtsam.NonlinearFactorGraph()
+    for i in range(graph.size()):
+        if i not in drop and graph.at(i) is not None:
+            out.add(gaussian.get(i, graph.at(i)))
+    return out
+
+
+def test_hypotheses(
+    builder: object,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    values: gtsam.Values,
+    estimate: gtsam.Values,
+) -> int:
+    """A likelihood-ratio test of each kept loop hypothesis (``LoopFactor.group``).
+
+    The rest of the graph (every factor but the loop factors, with their robust kernels:
+    the Gaussian twins of outlier factors would swamp the difference) is evaluated at
+    ``estimate`` and at the optimum without the hypothesis (solved from ``estimate``). A
+    right loop closure costs the rest what the drift it corrects costs; a wrong one bends
+    a well-measured map. The
+    hypothesis is removed (from ``graph``) when the increase, in squared whitened units,
+    exceeds the ``loop_gate_quantile`` of chi2(5 x its factors). Returns how many were."""
+    from planodom.smoothing.batch import levenberg_marquardt  # (batch imports this module)
+
+    factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
+    cfg = builder.config  # type: ignore[attr-defined]
+    loops = {f.factor for f in factors}
+    removed = 0
+    for group in sorted({f.group for f in factors if np.isnan(f.increase)}):  # once each
+        mine = {f.factor for f in factors if f.group == group}
+        rest = _without(graph, loops, {})
+        others = _without(graph, mine, {})
+        # from the estimate: the hypothesis's removal relaxes it (one solve, not two)
+        alone = levenberg_marquardt(others, estimate, cfg.max_iterations, cfg.relative_error_tol)[0]
+        increase = 2.0 * (rest.error(estimate) - rest.error(alone))
+        limit = chi2.ppf(cfg.loop_gate_quantile, 5 * len(mine))
+        for f in factors:
+            if f.group == group:
+                f.increase = float(increase)
+        if increase > limit:
+            for f in factors:
+                if f.group == group:
+                    graph.remove(f.factor)
+                    gaussian.pop(f.factor, None)
+                    f.removed = True
+                    removed += 1
+    return removed
