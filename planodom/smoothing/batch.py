@@ -274,6 +274,31 @@ def _gated(
     return estimate
 
 
+def _builder(
+    epochs_planes: Sequence[Sequence[Plane]],
+    relative_poses: Sequence[RelativePose],
+    config: SmoothingConfig | PlanodomConfig | None,
+    T_world_first: np.ndarray | None,
+) -> GraphBuilder:
+    """The batch's graph builder (with loop closure and candidates as configured), its
+    initial poses from the fixed-lag smoother when ``batch_initial`` is "windowed"."""
+    cfg = smoothing_config(config)
+    full = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
+    builder: GraphBuilder = GraphBuilder(cfg, T_world_first)
+    if cfg.loop_closure:
+        loop_builder = CandidateLoopBuilder if cfg.loop_candidates else LoopClosingBuilder
+        builder = loop_builder(full, T_world_first)
+    if cfg.batch_initial == "windowed":
+        from planodom.smoothing.windowed import smooth_windowed
+
+        # Its poses only: no marginals (a third of the fixed-lag smoother's time on lidar).
+        first = full.updated({"smoothing.compute_covariances": False}, source="initial guess")
+        builder.initial_poses = smooth_windowed(epochs_planes, relative_poses, first).poses
+        if T_world_first is not None:
+            builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
+    return builder
+
+
 def smooth_batch(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
@@ -296,20 +321,7 @@ def smooth_batch(
     """
     cfg = smoothing_config(config)
     start = time.perf_counter()
-    builder: GraphBuilder = GraphBuilder(cfg, T_world_first)
-    if cfg.loop_closure:
-        full = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
-        loop_builder = CandidateLoopBuilder if cfg.loop_candidates else LoopClosingBuilder
-        builder = loop_builder(full, T_world_first)
-    if cfg.batch_initial == "windowed":
-        from planodom.smoothing.windowed import smooth_windowed
-
-        # Its poses only: no marginals (a third of the fixed-lag smoother's time on lidar).
-        first = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
-        first = first.updated({"smoothing.compute_covariances": False}, source="initial guess")
-        builder.initial_poses = smooth_windowed(epochs_planes, relative_poses, first).poses
-        if T_world_first is not None:
-            builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
+    builder = _builder(epochs_planes, relative_poses, config, T_world_first)
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     gaussian: dict[int, gtsam.NonlinearFactor] = {}
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
