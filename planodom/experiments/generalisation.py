@@ -170,7 +170,7 @@ def run_world(
             say(f"world {world.seed} ({world.kind}, {fam}) sigma {noise * 1000:g} mm: {method}")
             cfg = declared_sweep(world, config)
             if pipeline is not None:
-                cfg = config.updated({"odometry.pipeline": pipeline}, source="generalisation")
+                cfg = cfg.updated({"odometry.pipeline": pipeline}, source="generalisation")
             odo = run_odometry(run, cfg)
             add(method, odo.poses, odo.statuses, sum(odo.seconds.values()), odo.n_planes)
     period = 1.0 / world.epoch_rate
