@@ -95,6 +95,25 @@ def test_smooth_noise_free_recovers_the_truth(tmp_path) -> None:
     assert set(metrics) == {"odometry", "smoothing_batch"}
 
 
+def test_smooth_loop_closure_switches_the_mode_run(tmp_path) -> None:
+    """--loop-closure sets batch loop closure in batch mode and fixed-lag loop closure with
+    --mode windowed, never the other mode's (read back from the written config.yaml)."""
+    import yaml
+
+    base = ["smooth", "--scenario", "paper-loop", "--epochs", "6", "--noise", "0"]
+    cases = (  # flags, (smoothing.loop_closure, smoothing.windowed_loop_closure)
+        (["--no-loop-closure"], (False, False)),
+        (["--window", "4", "--loop-closure"], (True, True)),
+        (["--mode", "windowed", "--no-loop-closure"], (True, False)),
+    )
+    for i, (flags, expected) in enumerate(cases):
+        out = tmp_path / f"s{i}"
+        result = runner.invoke(app, [*base, "--out", str(out), *flags])
+        assert result.exit_code == 0, result.output
+        smoothing = yaml.safe_load((out / "config.yaml").read_text())["smoothing"]
+        assert (smoothing["loop_closure"], smoothing["windowed_loop_closure"]) == expected, flags
+
+
 def test_experiment_paper_small(tmp_path) -> None:
     import csv
 

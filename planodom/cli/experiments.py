@@ -185,7 +185,7 @@ def experiment_loops(
     out: ExpOut = Path("results/loops"),
     config: ConfigFile = None,
 ) -> None:
-    """Loop closure: odometry, fixed-lag, batch without and with loops, oracle (issue 14)."""
+    """Loop closure: odometry, fixed-lag and batch without and with loops, oracle (issue 14)."""
     from planodom.experiments.loops import run_loop_experiment
 
     levels: tuple[float, ...] = (0.006, 0.02)

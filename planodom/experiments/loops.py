@@ -5,6 +5,8 @@ lap is simulated (continuous motion) and compared, side by side:
 
 - ``odometry``: planodom's delta = 1 odometry, chained;
 - ``windowed``: the fixed-lag smoother, relative poses delta = 1..D;
+- ``windowed+loops``: the same with fixed-lag loop closure
+  (:mod:`planodom.smoothing.windowed_loops`, ``smoothing.windowed_loop_closure``);
 - ``batch``: the whole lap in one graph, no loop closure;
 - ``batch+loops``: the same with the global plane map (:mod:`planodom.smoothing.loops`);
 - ``oracle``: the oracle's pure odometry (:mod:`planodom.oracle`).
@@ -19,7 +21,9 @@ truth (a component off by more than 3 of its sigmas) and the largest horizontal 
 kept one, the mean NEES of the 5 observed DoF (chi2(5): 95 % interval
 [0.83, 12.8]), and seconds.
 ``summary`` gives per noise and method the median and worst over the worlds, and the
-loop-candidate factors kept and wrong over all of them.
+loop-candidate factors kept and wrong over all of them, and the median epochs per second
+(``windowed+loops`` also counts its ties and wrong ones, and the landmarks that re-entered
+the window from their marginals).
 """
 
 from __future__ import annotations
@@ -39,12 +43,12 @@ from planodom.odometry import run_odometry
 from planodom.odometry.relative import RelativePose
 from planodom.oracle import run_oracle
 from planodom.simulation.random_world import simulate_world, world_fields
-from planodom.smoothing.batch import smooth_batch
+from planodom.smoothing.batch import group_by_epoch, smooth_batch
 from planodom.smoothing.loop_records import loop_factor_counts, reidentification_counts
 from planodom.smoothing.run import smoothing_relatives
-from planodom.smoothing.windowed import smooth_windowed
+from planodom.smoothing.windowed import WindowedSmoother, smooth_windowed
 
-METHODS = ("odometry", "windowed", "batch", "batch+loops", "oracle")
+METHODS = ("odometry", "windowed", "windowed+loops", "batch", "batch+loops", "oracle")
 Row = dict[str, object]
 
 
@@ -69,6 +73,27 @@ def _errors(poses: np.ndarray, gt: np.ndarray) -> dict[str, float]:
     return {"ate_m": ate(poses, gt, xy_only=True)["rmse"], "loop_end_m": end, "loop_end_z_m": end_z}
 
 
+def _windowed_loops(
+    planes: Sequence[Sequence[Plane]],
+    relatives: Sequence[RelativePose],
+    gt: np.ndarray,
+    config: PlanodomConfig,
+    same_plane: Callable[[int, int], bool] | None,
+) -> Row:
+    """The ``windowed+loops`` row: :func:`smooth_windowed` with fixed-lag loop closure, its
+    ties (kept: the fixed-lag smoother has no gate) and re-entered landmarks."""
+    smoother = WindowedSmoother(config.updated({"smoothing.windowed_loop_closure": True}))
+    by_epoch = group_by_epoch(relatives, len(planes))
+    for k, epoch_planes in enumerate(planes):
+        smoother.add_epoch(epoch_planes, by_epoch[k])
+    res = smoother.result()
+    row: Row = {"method": "windowed+loops", **_errors(res.poses, gt), "seconds": res.runtime_s}
+    if smoother.loops is not None:
+        row |= reidentification_counts(smoother.loops.reidentifications, same_plane)
+        row["reentered"] = smoother.loops.reentered
+    return row
+
+
 def compare_methods(
     planes: Sequence[Sequence[Plane]],
     relatives: Sequence[RelativePose],
@@ -81,7 +106,7 @@ def compare_methods(
     """One row per method (see the module docstring) on one run's planes and relatives."""
     rows: list[Row] = [{"method": "odometry", **_errors(odometry_poses, gt)}]
     runs = (
-        ("windowed", smooth_windowed, config.smoothing),
+        ("windowed", smooth_windowed, config.updated({"smoothing.windowed_loop_closure": False})),
         ("batch", smooth_batch, config.updated({"smoothing.loop_closure": False})),
         ("batch+loops", smooth_batch, config.updated({"smoothing.loop_closure": True})),
     )
@@ -96,6 +121,10 @@ def compare_methods(
                 nees = pose_nees(res.poses[1:], res.covariances[1:], gt[1:], range(5))
                 row["mean_nees5"] = float(np.nanmean(nees))
         rows.append(row)
+        if method == "windowed":
+            rows.append(_windowed_loops(planes, relatives, gt, config, same_plane))
+    for row in rows[1:]:
+        row["epochs_per_s"] = len(planes) / max(float(row["seconds"]), 1e-9)  # type: ignore[arg-type]
     if oracle_poses is not None:
         rows.append({"method": "oracle", **_errors(oracle_poses, gt)})
     return rows
@@ -129,8 +158,10 @@ def summary_rows(rows: Sequence[Row]) -> list[Row]:
             a = np.array([r["ate_m"] for r in sel], dtype=float)
             e = np.array([r["loop_end_m"] for r in sel], dtype=float)
             wrong = sum(int(r.get("wrong_kept", 0)) for r in sel)  # type: ignore[call-overload]
+            ties = sum(int(r.get("reidentified", 0)) for r in sel)  # type: ignore[call-overload]
             factors = sum(int(r.get("loop_factors", 0)) for r in sel)  # type: ignore[call-overload]
             wrong_factors = sum(int(r.get("loop_factors_wrong_kept", 0)) for r in sel)  # type: ignore[call-overload]
+            rates = [float(r["epochs_per_s"]) for r in sel if "epochs_per_s" in r]  # type: ignore[arg-type]
             out.append(
                 {
                     "noise_mm": noise,
@@ -140,9 +171,11 @@ def summary_rows(rows: Sequence[Row]) -> list[Row]:
                     "worst_ate_m": float(a.max()),
                     "median_loop_end_m": float(np.median(e)),
                     "worst_loop_end_m": float(e.max()),
+                    "ties_kept": ties,
                     "wrong_kept": wrong,
                     "loop_factors": factors,
                     "wrong_loop_factors": wrong_factors,
+                    "median_epochs_per_s": float(np.median(rates)) if rates else float("nan"),
                 }
             )
     return out

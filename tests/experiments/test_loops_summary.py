@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from planodom.experiments.loops import summary_rows
 
 
@@ -17,3 +19,16 @@ def test_summary_counts_loop_factors_and_wrong_ones_over_worlds():
     assert loops["worlds"] == 3 and loops["median_ate_m"] == 0.2 and loops["worst_ate_m"] == 0.3
     assert loops["loop_factors"] == 10 and loops["wrong_loop_factors"] == 1
     assert out["odometry"]["loop_factors"] == 0
+
+
+def test_summary_fixed_lag_loops_ties_and_median_rate():
+    rows = [
+        {"noise_mm": 20.0, "method": "windowed+loops", "ate_m": 0.5, "loop_end_m": 0.4,
+         "reidentified": n, "wrong_kept": w, "epochs_per_s": r}
+        for n, w, r in ((10, 0, 80.0), (30, 2, 100.0), (5, 0, 120.0))
+    ]  # fmt: skip
+    rows.append({"noise_mm": 20.0, "method": "oracle", "ate_m": 0.01, "loop_end_m": 0.01})
+    out = {r["method"]: r for r in summary_rows(rows)}
+    fl = out["windowed+loops"]
+    assert fl["ties_kept"] == 45 and fl["wrong_kept"] == 2 and fl["median_epochs_per_s"] == 100.0
+    assert np.isnan(out["oracle"]["median_epochs_per_s"]) and out["oracle"]["ties_kept"] == 0
