@@ -52,7 +52,7 @@ def test_a_slightly_wrong_twist_keeps_the_walls_when_its_uncertainty_is_given():
     twist = se3_log(invert_transform(T0) @ T1) / 0.01
     truth = epoch_moments(full.scans[k], world.trajectory, t0)
     exact = ExtractionConfig(twist_rate_sigma_deg_s=0.0, twist_speed_sigma_mps=0.0)
-    sure = ExtractionConfig()  # the default uncertainty: 0.5 deg/s, 0.5 m/s
+    sure = ExtractionConfig(twist_rate_sigma_deg_s=0.5, twist_speed_sigma_mps=0.5)
     n_true = _true_planes(extract(scan, exact, twist=twist).planes, truth)
     assert n_true >= 8
     assert _true_planes(extract(scan, sure, twist=twist).planes, truth) >= n_true
