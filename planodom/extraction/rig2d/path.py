@@ -6,7 +6,9 @@
 3. refit every group robustly on its points (:mod:`.groupfit`);
 4. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
 
-Without a twist on a moving epoch, all of this works in time windows (:mod:`.windows`).
+Without a twist on a moving epoch, all of this works in time windows (:mod:`.windows`);
+with one, the tolerances grow by the smear the twist's uncertainty leaves
+(``twist_rate_sigma_deg_s``, ``twist_speed_sigma_mps``, :func:`.windows.twist_smear`).
 """
 
 from __future__ import annotations
@@ -38,6 +40,10 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         tw = windows.for_epoch(tw, scan, segs)
         span = tw.span_s
         tol, max_rms, seed_floor = windows.windowed_tolerances(tol, max_rms, seed_floor, tw)
+    elif epoch.twist is not None:
+        rate = float(np.radians(config.twist_rate_sigma_deg_s))
+        smear = windows.twist_smear(scan, epoch.points, rate, config.twist_speed_sigma_mps)
+        tol, max_rms, seed_floor = windows.widened(tol, max_rms, seed_floor, smear)
     params = GroupingParams(
         tol_m=float(tol),
         sigma_m=float(sigma),

@@ -107,8 +107,28 @@ def windowed_tolerances(
 ) -> tuple[float, float, float]:
     """The member tolerance, RMS limit and seed floor (m) widened by the motion within a
     window: ``motion_m`` on the tolerance and the floor, half of it on the RMS limit."""
-    motion = windows.motion_m
-    return tol_m + motion, max_rms_m + 0.5 * motion, seed_floor_m + motion
+    return widened(tol_m, max_rms_m, seed_floor_m, windows.motion_m)
+
+
+def widened(
+    tol_m: float, max_rms_m: float, seed_floor_m: float, motion_m: float
+) -> tuple[float, float, float]:
+    """The member tolerance, RMS limit and seed floor (m) widened by a smear of the points
+    about their plane of ``motion_m`` (m): all of it on the tolerance and the floor, half
+    of it on the RMS limit (a smear spread evenly over +-m has an RMS of m / sqrt(3))."""
+    return tol_m + motion_m, max_rms_m + 0.5 * motion_m, seed_floor_m + motion_m
+
+
+def twist_smear(scan: Scan, points: np.ndarray, rate_rad_s: float, speed_m_s: float) -> float:
+    """The smear (m) about their plane of the points of one wall deskewed with a twist off
+    by ``rate_rad_s`` and ``speed_m_s``: a point acquired ``t`` after the reference time
+    moves by about ``(speed + rate * range) t``, linear in time, so over the epoch's time
+    span a plane fit to the wall's points leaves them within half of it either side. The
+    range is the median of the points' (``points`` (N, 3) m): walls at all ranges count."""
+    if scan.t is None or len(scan.t) == 0 or (rate_rad_s == 0 and speed_m_s == 0):
+        return 0.0
+    rng = float(np.median(np.linalg.norm(points, axis=1)))
+    return 0.5 * float(np.ptp(scan.t)) * (speed_m_s + rate_rad_s * rng)
 
 
 def keep_one_per_wall(
