@@ -77,6 +77,14 @@ def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> Smoothi
     return config.smoothing if isinstance(config, PlanodomConfig) else config
 
 
+def full_config(config: SmoothingConfig | PlanodomConfig | None) -> PlanodomConfig:
+    """The whole configuration: ``config`` itself, or the defaults with its smoothing
+    section (loop closure also reads the odometry's and extraction's sections)."""
+    if isinstance(config, PlanodomConfig):
+        return config
+    return PlanodomConfig(smoothing=smoothing_config(config))
+
+
 def group_by_epoch(
     relatives: Sequence[RelativePose], n_epochs: int
 ) -> Mapping[int, list[RelativePose]]:
@@ -283,7 +291,7 @@ def _builder(
     """The batch's graph builder (with loop closure and candidates as configured), its
     initial poses from the fixed-lag smoother when ``batch_initial`` is "windowed"."""
     cfg = smoothing_config(config)
-    full = config if isinstance(config, PlanodomConfig) else PlanodomConfig(smoothing=cfg)
+    full = full_config(config)
     builder: GraphBuilder = GraphBuilder(cfg, T_world_first)
     if cfg.loop_closure:
         loop_builder = CandidateLoopBuilder if cfg.loop_candidates else LoopClosingBuilder

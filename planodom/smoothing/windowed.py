@@ -18,7 +18,12 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import PlanodomError
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.batch import SmoothingResult, group_by_epoch, smoothing_config
+from planodom.smoothing.batch import (
+    SmoothingResult,
+    full_config,
+    group_by_epoch,
+    smoothing_config,
+)
 from planodom.smoothing.graph import GraphBuilder, X
 from planodom.smoothing.windowed_loops import WindowedLoopBuilder
 
@@ -46,8 +51,7 @@ class WindowedSmoother:
         self.builder = GraphBuilder(self.config, T_world_first)
         self.loops: WindowedLoopBuilder | None = None
         if self.config.windowed_loop_closure:
-            full = config if isinstance(config, PlanodomConfig) else None
-            full = (full or PlanodomConfig(smoothing=self.config)).updated(
+            full = full_config(config).updated(
                 {
                     "smoothing.loop_every_epochs": self.config.windowed_loop_every_epochs,
                     "smoothing.loop_closure": True,
