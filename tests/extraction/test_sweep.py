@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -133,6 +135,8 @@ def test_recovered_times_deskew_an_unorganised_cloud_without_changing_its_segmen
     sweep = SweepConfig(rotation="ccw", start_azimuth_deg=0.0, period_s=0.1)
     timed = with_sweep_times(bare, sweep)
     assert isinstance(timed, AzimuthTimedScan)
+    # the marker survives dataclasses.replace (the odometry's deskew passes use it)
+    assert isinstance(replace(timed, t=np.zeros_like(timed.t)), AzimuthTimedScan)
     np.testing.assert_allclose(timed.t, scan.t, atol=1e-12)  # the firing times
     origin = np.array([0.0, 0.0, 1.8])
     cfg = ExtractionConfig()
