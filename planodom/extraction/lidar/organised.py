@@ -136,26 +136,18 @@ def split_curved(
 
 
 def organised_candidates(
-    points: np.ndarray,
-    rows: np.ndarray,
-    origin: np.ndarray,
-    config: ExtractionConfig,
-    layout: np.ndarray | None = None,
+    points: np.ndarray, rows: np.ndarray, origin: np.ndarray, config: ExtractionConfig
 ) -> OrganisedCandidates:
     """Candidate inlier sets of the cloud ``points`` (N, 3), m, with recovered ``rows``
-    (N,) int64, seen from ``origin`` (3,) m (module docstring). ``layout`` (N, 3), m: the
-    cloud as recorded, whose azimuths give the columns (default ``points``); with
-    ``points`` deskewed, a pixel still holds the points of neighbouring firings (the
-    deskewing moves points by up to a few degrees of azimuth in a turn)."""
+    (N,) int64, seen from ``origin`` (3,) m (module docstring)."""
     rel = np.ascontiguousarray(points - origin, dtype=np.float64)
-    raw = rel if layout is None else np.asarray(layout, dtype=np.float64) - origin
     rows = np.asarray(rows, dtype=np.int64)
     if np.all(rows[1:] >= rows[:-1]):  # ring-major: rows in file order, each in azimuth order
         sigma = effective_noise(config, ring_noise(rel, rows, config))
     else:  # within a row in azimuth order, whatever the file order
-        order = np.lexsort((azimuth(raw), rows))
+        order = np.lexsort((azimuth(rel), rows))
         sigma = effective_noise(config, ring_noise(rel[order], rows[order], config))
-    col, H, W = grid_of(raw, rows)
+    col, H, W = grid_of(rel, rows)
     P, cnt_pix = _mean_grid(rel, rows * W + col, H * W)
     m = float(np.median(cnt_pix[cnt_pix > 0]))
     sigma_pix = sigma / np.sqrt(max(m, 1.0))

@@ -9,7 +9,8 @@
      With recorded per-point times, rows and times are what a ring field gives: the
      recovered rows are taken as the ring (the first case). Without times, or with times
      recovered from the azimuth (:class:`.sweep.AzimuthTimedScan`: they deskew the
-     points, and rows and columns stay those of the raw cloud), planes grow on a range
+     points; the rows are those of the raw cloud, the columns the azimuth bins of the
+     deskewed points), planes grow on a range
      image of square angular pixels (:func:`.organised.organised_candidates`), whose
      columns come from the azimuth and average several points: for a sparse lidar (16
      beams 2 deg apart) those pixels are 5-10 native columns wide and lose the small
@@ -47,14 +48,17 @@ def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     view = epoch.scan_viewpoint(config.viewpoint_height_m)
     if scan.ring is None and config.unorganised == "rows":
         origin = np.zeros(3) if epoch.origins is None else epoch.origins.mean(axis=0)
-        found = scan_rows(scan.points, origin)  # the raw cloud: the sensor's own rows
+        # Rows of the raw cloud (its file order and elevations are the sensor's); the
+        # image's columns are azimuth bins of the deskewed points (bins several native
+        # columns wide; bins of the raw azimuths measured no better on a lidar world).
+        found = scan_rows(scan.points, origin)
         if found is not None:
             rows = found[0]
             if not isinstance(scan, AzimuthTimedScan):
                 native = _native_planes(epoch, rows, view, config)
                 if native is not None:
                     return native
-            organised = organised_candidates(epoch.points, rows, origin, config, scan.points)
+            organised = organised_candidates(epoch.points, rows, origin, config)
             fits = member_fits(organised.candidates, epoch.points, rows)
             planes, inliers, n_rejected = build_planes(fits, epoch, organised.sigma_m, config)
             n_cand = len(organised.candidates)

@@ -15,8 +15,8 @@ no motion model is needed.
 
 Times recovered so are not a recording's: they deskew the cloud, but the cloud stays what
 it was, unorganised (:class:`AzimuthTimedScan`): the lidar path segments it exactly as
-without times, on rows and columns of the raw cloud, and fits the deskewed points
-(:mod:`planodom.extraction.lidar.path`). Taking the recovered rows as rings with these
+without times (rows of the raw cloud, a range image of the deskewed points,
+:mod:`planodom.extraction.lidar.path`). Taking the recovered rows as rings with these
 times instead (the path of a cloud that carries times) cut KITTI's walls into pieces:
 measured on raw drive 0005, 451 planes on a scan where the organised path finds 95, and
 0.40 deg rms rotation error per scan against 0.073 deg when only deskewing.
