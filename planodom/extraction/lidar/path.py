@@ -6,8 +6,11 @@
      (:func:`.candidates.lidar_candidates`);
    - a scan without ``ring`` (an unorganised cloud) and ``unorganised == "rows"``: the
      scan lines are recovered (:func:`.rows.scan_rows`, seen from the sensor origin).
-     With per-point times, rows and times are what a ring field gives: the recovered rows
-     are taken as the ring (the first case). Without times, planes grow on a range
+     With recorded per-point times, rows and times are what a ring field gives: the
+     recovered rows are taken as the ring (the first case). Without times, or with times
+     recovered from the azimuth (:class:`.sweep.AzimuthTimedScan`: they deskew the
+     points; the rows are those of the raw cloud, the columns the azimuth bins of the
+     deskewed points), planes grow on a range
      image of square angular pixels (:func:`.organised.organised_candidates`), whose
      columns come from the azimuth and average several points: for a sparse lidar (16
      beams 2 deg apart) those pixels are 5-10 native columns wide and lose the small
@@ -34,6 +37,7 @@ from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.lidar.candidates import lidar_candidates
 from planodom.extraction.lidar.organised import organised_candidates
 from planodom.extraction.lidar.rows import scan_rows
+from planodom.extraction.lidar.sweep import AzimuthTimedScan
 from planodom.extraction.planes.builder import PlaneFits, build_planes
 from planodom.extraction.planes.fit import robust_plane_fits, tls_fit
 
@@ -44,12 +48,16 @@ def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     view = epoch.scan_viewpoint(config.viewpoint_height_m)
     if scan.ring is None and config.unorganised == "rows":
         origin = np.zeros(3) if epoch.origins is None else epoch.origins.mean(axis=0)
-        found = scan_rows(epoch.points, origin)
+        # Rows of the raw cloud (its file order and elevations are the sensor's); the
+        # image's columns are azimuth bins of the deskewed points (bins several native
+        # columns wide; bins of the raw azimuths measured no better on a lidar world).
+        found = scan_rows(scan.points, origin)
         if found is not None:
             rows = found[0]
-            native = _native_planes(epoch, rows, view, config)
-            if native is not None:
-                return native
+            if not isinstance(scan, AzimuthTimedScan):
+                native = _native_planes(epoch, rows, view, config)
+                if native is not None:
+                    return native
             organised = organised_candidates(epoch.points, rows, origin, config)
             fits = member_fits(organised.candidates, epoch.points, rows)
             planes, inliers, n_rejected = build_planes(fits, epoch, organised.sigma_m, config)

@@ -12,11 +12,18 @@ the azimuth is taken in the sensor frame, ``p_sensor = T_base_sensor^-1 p_base``
 lidar mounted off the base origin or turned about z gets its own azimuths. Because each
 point is expressed at its own time, its azimuth is the azimuth the sensor fired it at:
 no motion model is needed.
+
+Times recovered so are not a recording's: they deskew the cloud, but the cloud stays what
+it was, unorganised (:class:`AzimuthTimedScan`): the lidar path segments it exactly as
+without times (rows of the raw cloud, a range image of the deskewed points,
+:mod:`planodom.extraction.lidar.path`). Taking the recovered rows as rings with these
+times instead (the path of a cloud that carries times) cut KITTI's walls into pieces:
+measured on raw drive 0005, 451 planes on a scan where the organised path finds 95, and
+0.40 deg rms rotation error per scan against 0.072 deg when only deskewing.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -31,6 +38,12 @@ from planodom.scan import Scan
 #: whose azimuth round-off crosses the seam (2 pi 1e-6 rad = 0.0004 deg, far below the
 #: column step of any lidar, ~0.1-0.4 deg) is not put a whole period late.
 SEAM_TOLERANCE = 1e-6
+
+
+class AzimuthTimedScan(Scan):
+    """A :class:`Scan` whose times ``t`` were recovered from the azimuth by a declared
+    sweep convention (:func:`with_sweep_times`), not recorded: they serve the deskewing
+    only (module docstring). Kept by ``dataclasses.replace``."""
 
 
 def sweep_times(
@@ -65,11 +78,12 @@ def sweep_times(
 def with_sweep_times(
     scan: Scan, sweep: SweepConfig, T_base_sensor: np.ndarray | None = None
 ) -> Scan:
-    """``scan`` with times from :func:`sweep_times` when it has none and a convention is
-    declared; else ``scan`` itself."""
+    """``scan`` as an :class:`AzimuthTimedScan` with times from :func:`sweep_times` when
+    it has none and a convention is declared; else ``scan`` itself."""
     if scan.t is not None or sweep.rotation == "none":
         return scan
-    return replace(scan, t=sweep_times(scan.points, sweep, T_base_sensor))
+    t = sweep_times(scan.points, sweep, T_base_sensor)
+    return AzimuthTimedScan(scan.points, scan.ring, t, scan.label)
 
 
 def rig_lidar_pose(rig: Rig | None) -> np.ndarray | None:
