@@ -18,6 +18,8 @@ the sigma of the twist it passes (``odometry.twist_sigma: per_epoch``), from thi
 - a refined twist (:meth:`TwistUncertainty.refined`): the step's error, one ``change``,
   and what the deskewing policy left of the difference (a component is only replaced when
   it differs by more than ``deskew_*_tolerance``, so the twist used may keep that much);
+  the velocity of a twist refined from a degenerate step is the prediction's (not
+  measured, kept), and so is its sigma;
 - a predicted twist (the last step's, :meth:`TwistUncertainty.predicted`): the last
   step's error and two ``change`` (one step older), plus one ``change`` per unresolved
   epoch since (a twist held over them);
@@ -113,6 +115,9 @@ class TwistUncertainty:
         sigma = np.where(np.isfinite(sigma), sigma, self._tolerance)
         left = np.array([np.linalg.norm(twist[:3] - own[:3]), np.linalg.norm(twist[3:] - own[3:])])
         s = sigma + self.change() + left
+        if source.relative.status is not Status.OK:
+            # its velocity is the prediction's, kept (not measured): so is its sigma
+            s[1] = self.predicted()[1]
         return float(s[0]), float(s[1])
 
 
