@@ -417,7 +417,9 @@ def _twist_offset(epoch: _Epoch, reference: _Epoch, dt: float) -> np.ndarray | N
     2D-rig world at sigma = 0, tm / dt = 0.48: an epoch deskewed with 14.6 deg/s and
     5.4 m/s against a reference deskewed with 10.7 deg/s and 3.9 m/s, where the truth was
     10.1 deg/s and 3.7 m/s, gave a step of 7.2 deg/s and 2.4 m/s; with the offset, 9.0
-    and 3.1.)
+    and 3.1. On the quick start, noise seeds 0-5, horizontal ATE with / without it: mean
+    0.039 / 0.038 m, each seed within 0.024-0.059 m either way (seed 0: 0.052 / 0.030),
+    3D 0.076 / 0.079 m: no bias, one draw's spread.)
     """
     scan = epoch.scan
     if dt <= 0 or scan is None or scan.t is None or not len(scan.t):
