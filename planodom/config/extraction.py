@@ -165,7 +165,9 @@ class ExtractionConfig(Section):
     36 -> 15 at 2 cm and 31 -> 11 at 6 mm, xy error lower on all worlds at 2 cm, rotation
     lower on 7 of 10 (world 2 at 2 cm: 0.79 -> 1.77 deg, world 6 at 6 mm: 0.23 -> 0.47
     deg); but the paper loop's quick start (10 Hz, its twist measured well) got worse,
-    ATE 0.071 -> 0.175 m (0.2 deg/s, 0.1 m/s: 0.097 m), so it is off by default."""
+    ATE 0.071 -> 0.175 m (0.2 deg/s, 0.1 m/s: 0.097 m), so it is off by default. The
+    streaming odometry passes its own per-epoch values instead where the extraction with
+    these loses an epoch (``odometry.twist_sigma``)."""
     twist_speed_sigma_mps: float = Field(0.0, ge=0)
     """Likewise for the linear velocity (m/s; a 0.2 m/s error deskews the walls of a 5 Hz
     epoch into 0-1 planes at the 2 cm tolerance floor). Default 0 (see above)."""

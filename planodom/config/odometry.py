@@ -132,6 +132,16 @@ class OdometryConfig(Section):
     ``deskew_order + 1`` nearest nodes that the passes deskew along. 3: converges in a
     couple of passes; 5 reaches a lower floor (sigma = 0, paper loop: 2e-5 against
     1.3e-4 deg rms) but needs about twice the passes."""
+    twist_sigma: Literal["lost", "always", "fixed"] = "lost"
+    """Streaming: how far off the twist an epoch is deskewed with is taken to be (the 2D-rig
+    extraction widens its tolerances by the smear that leaves, ``extraction.
+    twist_rate_sigma_deg_s`` / ``twist_speed_sigma_mps``). ``per_epoch``: from the model
+    in :mod:`planodom.odometry.twist_sigma` (large for a predicted or held twist, small
+    for one refined from the epoch's own estimate), never below the extraction's values.
+    ``lost``: only when the extraction with the extraction's values leaves the epoch
+    unresolved or with far fewer planes than the one before (then the better of the two is
+    kept); ``always``: every extraction with a twist; ``fixed``: never (the extraction's
+    values). Measured: see :func:`planodom.odometry.twist_sigma.widened_if_lost`."""
     velocity_window: Annotated[int, Field(ge=1)] = 5
     """Streaming: the predicted linear velocity is the median over this many recent
     measured steps (the angular rate is the last step's)."""

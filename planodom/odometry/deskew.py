@@ -83,9 +83,10 @@ class EpochEstimate:
         )
 
 
-#: ``estimate(twist) -> EpochEstimate``: extract the epoch deskewed with ``twist`` (None:
-#: not deskewed) and estimate its relative pose.
-Estimator = Callable[[np.ndarray | None], EpochEstimate]
+#: ``estimate(twist, source=None) -> EpochEstimate``: extract the epoch deskewed with
+#: ``twist`` (None: not deskewed) and estimate its relative pose; ``source``: the estimate
+#: whose own twist ``twist`` was refined from (None: predicted or held).
+Estimator = Callable[..., EpochEstimate]
 #: ``refresh_reference(twist) -> bool``: extract the reference epoch again with ``twist``
 #: when it was never deskewed; returns whether it did.
 Refresher = Callable[[np.ndarray], bool]
@@ -144,7 +145,7 @@ def register_deskewed(
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break
-        again = estimate(new)
+        again = estimate(new, best)
         if not stale_reference and again.relative.status.rank < best.relative.status.rank:
             break
         # once the reference was extracted again, an estimate made against its old

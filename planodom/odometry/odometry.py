@@ -33,6 +33,7 @@ from planodom.odometry.deskew import (
 )
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
+from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened_if_lost
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
@@ -110,6 +111,7 @@ class PlaneOdometry:
         # The plane-map odometry when the pipeline is (or resolves to) "map".
         self._map: PlaneMapOdometry | None = None
         self._recent: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
+        self._twist_sigma = TwistUncertainty(self.config.odometry)
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -158,7 +160,7 @@ class PlaneOdometry:
             if not prefer_streaming(given, len(self.last_planes)):
                 epoch = _Epoch(k, given.planes, given.plane_set, deskewed, np.zeros(6))
                 return self._commit(epoch, given, t)
-        estimate = partial(self._estimate_scan, scan, t)
+        estimate = partial(self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted())
         if self.config.odometry.deskew and time_spread(scan):
             dt = t - self.times[-1]
             refresh, previous = self._refresh_reference, len(self.last_planes)
@@ -214,20 +216,45 @@ class PlaneOdometry:
             return 0.0
         return self.times[-1] + self.config.odometry.epoch_period_s
 
-    def _extract(self, scan: Scan, twist: np.ndarray | None) -> list[Plane]:
-        """The planes of ``scan`` deskewed with exactly ``twist`` (None: not deskewed)."""
+    def _extract(
+        self, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None
+    ) -> list[Plane]:
+        """The planes of ``scan`` deskewed with exactly ``twist`` (None: not deskewed),
+        whose error is taken to be ``sigma`` (rad/s, m/s; None: the extraction config's)."""
         if self.extractor is None:
             self.extractor = _default_extractor()
         kwargs = {} if self.sensor_origins is None else {"sensor_origins": self.sensor_origins}
-        return list(self.extractor(scan, self.config.extraction, twist=twist, **kwargs))
+        config = self.config.extraction
+        if sigma is not None and twist is not None:
+            rate = max(config.twist_rate_sigma_deg_s, float(np.degrees(sigma[0])))
+            speed = max(config.twist_speed_sigma_mps, sigma[1])
+            update = {"twist_rate_sigma_deg_s": rate, "twist_speed_sigma_mps": speed}
+            config = config.model_copy(update=update)
+        return list(self.extractor(scan, config, twist=twist, **kwargs))
 
-    def _new_epoch(self, k: int, scan: Scan, twist: np.ndarray | None) -> _Epoch:
-        planes = self._extract(scan, twist)
+    def _new_epoch(
+        self, k: int, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None
+    ) -> _Epoch:
+        planes = self._extract(scan, twist, sigma)
         return _Epoch(k, planes, PlaneSet.from_planes(planes), scan, twist)
 
-    def _estimate_scan(self, scan: Scan, t: float, twist: np.ndarray | None) -> EpochEstimate:
-        """Extract the scan deskewed with ``twist`` and estimate its relative pose."""
-        return self._estimate(self._new_epoch(len(self.poses), scan, twist), t)
+    def _estimate_scan(
+        self,
+        scan: Scan,
+        t: float,
+        twist: np.ndarray | None,
+        source: EpochEstimate | None = None,
+        prior_sigma: TwistSigma | None = None,
+    ) -> EpochEstimate:
+        """Extract the scan deskewed with ``twist`` and estimate its relative pose; the
+        twist's sigma is ``prior_sigma`` (predicted or held), or from ``source`` when it
+        was refined from that estimate's own twist (:mod:`.twist_sigma`)."""
+        sigma = prior_sigma if twist is not None else None
+        if source is not None and twist is not None and self.times:
+            sigma = self._twist_sigma.refined(source, t - self.times[-1], twist)
+        k, mode = len(self.poses), self.config.odometry.twist_sigma
+        extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s), t)  # noqa: E731
+        return widened_if_lost(extract, sigma, mode, len(self.last_planes))
 
     def _estimate(self, epoch: _Epoch, t: float) -> EpochEstimate:
         """The relative pose of ``epoch`` (at time ``t``) from the reference epoch, and the
@@ -321,7 +348,9 @@ class PlaneOdometry:
             self._velocities.clear()  # stale velocities go with the twist (see register)
         if dt > 0:
             measured = best.relative.status is Status.OK
-            self.twist = self._predicted_twist(best.own_twist(dt), measured)
+            own = best.own_twist(dt)
+            self._twist_sigma.update(own, best.relative, dt)
+            self.twist = self._predicted_twist(own, measured)
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
         T_world = _orthonormalised(self.poses[-1] @ best.step)
@@ -388,7 +417,9 @@ def _twist_offset(epoch: _Epoch, reference: _Epoch, dt: float) -> np.ndarray | N
     2D-rig world at sigma = 0, tm / dt = 0.48: an epoch deskewed with 14.6 deg/s and
     5.4 m/s against a reference deskewed with 10.7 deg/s and 3.9 m/s, where the truth was
     10.1 deg/s and 3.7 m/s, gave a step of 7.2 deg/s and 2.4 m/s; with the offset, 9.0
-    and 3.1.)
+    and 3.1. On the quick start, noise seeds 0-5, horizontal ATE with / without it: mean
+    0.039 / 0.038 m, each seed within 0.024-0.059 m either way (seed 0: 0.052 / 0.030),
+    3D 0.076 / 0.079 m: no bias, one draw's spread.)
     """
     scan = epoch.scan
     if dt <= 0 or scan is None or scan.t is None or not len(scan.t):

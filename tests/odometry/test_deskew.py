@@ -21,7 +21,7 @@ def _estimate(twist: np.ndarray | None, status: Status, n_planes: int) -> EpochE
 
 
 def _scripted(outcomes: dict[str, tuple[Status, int]], calls: list[str]):
-    def estimate(twist: np.ndarray | None) -> EpochEstimate:
+    def estimate(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
         key = "none" if twist is None else ("held" if np.array_equal(twist, HELD) else "other")
         calls.append(key)
         return _estimate(twist, *outcomes[key])

@@ -23,7 +23,7 @@ def _estimate(twist: np.ndarray | None, own: np.ndarray, status: Status) -> Epoc
     return EpochEstimate(planes, PlaneSet.from_planes(planes), twist, rel, step, planes)
 
 
-def _map_model(twist: np.ndarray | None) -> EpochEstimate:
+def _map_model(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
     """Against a map, an epoch deskewed with ``used`` gives the twist ``2 true - used``."""
     used = np.zeros(6) if twist is None else twist
     return _estimate(twist, 2.0 * TRUE - used, Status.OK)
@@ -48,7 +48,7 @@ def test_an_estimate_against_a_refreshed_reference_is_not_kept():
     """Once the reference is extracted again, the first estimate (made against its old
     planes) is dropped even when the new one's status is worse."""
 
-    def model(twist: np.ndarray | None) -> EpochEstimate:
+    def model(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
         if twist is None:
             return _estimate(None, TRUE, Status.OK)
         return _estimate(twist, TRUE, Status.DEGENERATE)
@@ -74,7 +74,7 @@ def test_the_own_twist_removes_what_the_deskewing_of_both_epochs_put_in():
     reference = _Epoch(0, [], PlaneSet.from_planes([]), scan, used_ref)
     tm = float(np.mean(t))
 
-    def model(twist: np.ndarray | None) -> EpochEstimate:
+    def model(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
         assert twist is not None
         # the step from the reference: true motion, displaced by both deskewing errors
         step_twist = TRUE + (tm / DT) * ((used_ref - TRUE) - (twist - TRUE))

@@ -1,0 +1,145 @@
+"""How far off the twist an epoch is deskewed with may be: a per-epoch twist sigma.
+
+The 2D-rig extraction widens its grouping tolerances by the smear a twist error leaves
+over the epoch (``extraction.twist_rate_sigma_deg_s`` / ``twist_speed_sigma_mps``,
+:func:`planodom.extraction.rig2d.windows.twist_smear`). A fixed sigma large enough for a
+predicted twist also widens them for a twist refined from the epoch's own estimate, which
+is nearly exact, and lets other points into its planes (the paper loop's quick start:
+ATE 0.071 -> 0.175 m with 0.5 deg/s and 0.5 m/s). So the odometry gives each extraction
+the sigma of the twist it passes (``odometry.twist_sigma: per_epoch``), from this model:
+
+- a step measured over ``dt`` gives its twist with the error of the step itself: the
+  square roots of the traces of the rotation and translation blocks of its covariance
+  (and ``sigma_z`` when the vertical was measured), over ``dt``;
+- the twist of the epoch's points (acquired after its reference time) differs from the
+  twist of the step before it by the change of the twist over one epoch: the rms of the
+  differences of successive measured twists (measurement noise included, so it errs on
+  the large side), ``change``;
+- a refined twist (:meth:`TwistUncertainty.refined`): the step's error, one ``change``,
+  and what the deskewing policy left of the difference (a component is only replaced when
+  it differs by more than ``deskew_*_tolerance``, so the twist used may keep that much);
+  the velocity of a twist refined from a degenerate step is the prediction's (not
+  measured, kept), and so is its sigma;
+- a predicted twist (the last step's, :meth:`TwistUncertainty.predicted`): the last
+  step's error and two ``change`` (one step older), plus one ``change`` per unresolved
+  epoch since (a twist held over them);
+- until two successive twists were measured, ``change`` is unknown: the deskewing
+  tolerances stand in for it (the error the deskewing policy leaves anyway).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from typing import Literal
+
+import numpy as np
+
+from planodom.config import OdometryConfig
+from planodom.odometry.deskew import EpochEstimate, keep_first, prefer_streaming
+from planodom.odometry.relative import RelativePose, Status
+
+#: (angular rate sigma rad/s, linear velocity sigma m/s)
+TwistSigma = tuple[float, float]
+
+
+def step_sigma(relative: RelativePose, dt: float) -> np.ndarray:
+    """(2,) standard deviations of the twist a measured step gives over ``dt`` seconds:
+    angular rate (rad/s) and linear velocity (m/s), from its 5-DoF covariance (module
+    docstring); inf when unknown or not measured (degenerate: the velocity)."""
+    cov = relative.covariance
+    if cov is None or dt <= 0 or relative.status is Status.UNRESOLVED:
+        return np.full(2, np.inf)
+    rate = np.sqrt(max(float(np.trace(cov[:3, :3])), 0.0)) / dt
+    if relative.status is not Status.OK:
+        return np.array([rate, np.inf])
+    var_t = float(np.trace(cov[3:, 3:]))
+    if np.isfinite(relative.sigma_z):
+        var_t += relative.sigma_z**2
+    return np.array([rate, np.sqrt(max(var_t, 0.0)) / dt])
+
+
+class TwistUncertainty:
+    """The running state of the model (module docstring) in the streaming odometry."""
+
+    def __init__(self, config: OdometryConfig):
+        self._fallback = np.array(
+            [np.radians(config.deskew_rate_tolerance_deg_s), config.deskew_speed_tolerance_mps]
+        )
+        self._tolerance = self._fallback.copy()
+        # differences of successive measured twists (the change is a property of the
+        # motion: it is kept across unresolved epochs, only not measured over them)
+        self._changes: deque[np.ndarray] = deque(maxlen=config.velocity_window)
+        self._previous: np.ndarray | None = None  # the last measured twist, when the last
+        self._previous_var = np.zeros(2)  # and its step's variance
+        self._last = self._fallback.copy()  # the last measured step's sigma
+        self._unresolved = 0  # unresolved epochs since the last measured one
+
+    def update(self, own: np.ndarray, relative: RelativePose, dt: float) -> None:
+        """Record a committed epoch's own twist ``own`` (6,) and its step's ``relative``."""
+        if relative.status is Status.UNRESOLVED:
+            self._unresolved += 1
+            self._previous = None
+            return
+        self._unresolved = 0
+        sigma = step_sigma(relative, dt)
+        self._last = np.where(np.isfinite(sigma), sigma, self._fallback)
+        if relative.status is not Status.OK:
+            self._previous = None
+            return
+        own = np.asarray(own, dtype=float)
+        var = self._last**2
+        if self._previous is not None:
+            # the difference of two measured twists holds both their errors: what is left
+            # of its square is the change of the motion
+            d = own - self._previous
+            sq = np.array([d[:3] @ d[:3], d[3:] @ d[3:]]) - var - self._previous_var
+            self._changes.append(np.maximum(sq, 0.0))
+        self._previous, self._previous_var = own.copy(), var
+
+    def change(self) -> np.ndarray:
+        """(2,) rms change of the angular rate (rad/s) and velocity (m/s) over one epoch."""
+        if not self._changes:
+            return self._fallback
+        return np.sqrt(np.mean(np.array(self._changes), axis=0))
+
+    def predicted(self) -> TwistSigma:
+        """Sigma of the twist predicted (or held) for the next epoch."""
+        s = self._last + (2 + self._unresolved) * self.change()
+        return float(s[0]), float(s[1])
+
+    def refined(self, source: EpochEstimate, dt: float, twist: np.ndarray) -> TwistSigma:
+        """Sigma of ``twist`` (6,) refined from ``source``'s own twist over ``dt`` s."""
+        own = source.own_twist(dt)
+        sigma = step_sigma(source.relative, dt)
+        sigma = np.where(np.isfinite(sigma), sigma, self._tolerance)
+        left = np.array([np.linalg.norm(twist[:3] - own[:3]), np.linalg.norm(twist[3:] - own[3:])])
+        s = sigma + self.change() + left
+        if source.relative.status is not Status.OK:
+            # its velocity is the prediction's, kept (not measured): so is its sigma
+            s[1] = self.predicted()[1]
+        return float(s[0]), float(s[1])
+
+
+def widened_if_lost(
+    estimate: Callable[[TwistSigma | None], EpochEstimate],
+    sigma: TwistSigma | None,
+    mode: Literal["lost", "always", "fixed"],
+    previous_planes: int,
+) -> EpochEstimate:
+    """One extraction of an epoch with a twist of ``sigma`` (None: exact or no twist), as
+    ``odometry.twist_sigma`` says: ``lost``: first with the extraction's own tolerances,
+    and again widened by ``sigma`` only when that leaves the epoch unresolved or with far
+    fewer planes than the one before (:func:`.deskew.prefer_streaming`), the better of
+    the two kept; ``always``: widened; ``fixed``: the extraction's tolerances.
+    ``estimate(sigma)`` extracts with that sigma (None: the extraction config's) and
+    estimates the relative pose."""
+    if sigma is None or mode == "fixed":
+        return estimate(None)
+    if mode == "always":
+        return estimate(sigma)
+    tight = estimate(None)
+    if not prefer_streaming(tight, previous_planes):
+        return tight
+    wide = estimate(sigma)
+    return tight if keep_first(tight, wide) else wide

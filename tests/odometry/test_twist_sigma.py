@@ -1,0 +1,144 @@
+"""The per-epoch twist sigma (:mod:`planodom.odometry.twist_sigma`)."""
+
+from __future__ import annotations
+
+import numpy as np
+from planes_factory import observe, world_planes
+
+from planodom.config import PlanodomConfig
+from planodom.geometry import invert_transform, se3_log, transform_from_rpy_xyz
+from planodom.odometry import PlaneOdometry, RelativePose, Status
+from planodom.odometry.deskew import EpochEstimate
+from planodom.odometry.twist_sigma import TwistUncertainty, step_sigma
+from planodom.planes import PlaneSet
+from planodom.scan import Scan
+
+
+def _relative(status=Status.OK, sigma_z=np.inf, scale=1.0) -> RelativePose:
+    cov = scale * np.diag([1e-6, 4e-6, 4e-6, 9e-4, 16e-4])
+    return RelativePose(np.eye(4), cov, status, sigma_z=sigma_z)
+
+
+def test_step_sigma_is_the_step_error_over_dt():
+    s = step_sigma(_relative(), 0.1)
+    np.testing.assert_allclose(s, [3e-3 / 0.1, 5e-2 / 0.1])  # sqrt(9e-6), sqrt(25e-4)
+    s = step_sigma(_relative(sigma_z=0.0), 0.1)  # z measured exactly: no change
+    np.testing.assert_allclose(s, [0.03, 0.5])
+    s = step_sigma(_relative(Status.DEGENERATE), 0.1)
+    assert np.isclose(s[0], 0.03) and s[1] == np.inf
+    assert np.all(step_sigma(_relative(Status.UNRESOLVED), 0.1) == np.inf)
+
+
+def test_change_per_epoch_is_the_rms_of_successive_twist_differences_less_their_noise():
+    cfg = PlanodomConfig().odometry
+    model = TwistUncertainty(cfg)
+    fallback = [np.radians(cfg.deskew_rate_tolerance_deg_s), cfg.deskew_speed_tolerance_mps]
+    np.testing.assert_allclose(model.change(), fallback)  # nothing measured yet
+    exact = _relative(scale=0.0)
+    for v in ([0, 0, 0.1, 1.0, 0, 0], [0, 0, 0.1, 1.3, 0, 0], [0, 0, 0.14, 1.3, 0.4, 0]):
+        model.update(np.array(v, float), exact, 0.1)
+    # differences: (0, 0.3) then (0.04, 0.4) -> rms 0.02 * sqrt(2), 0.25 * sqrt(2)
+    change = np.array([np.sqrt(0.0008), np.sqrt(0.125)])
+    np.testing.assert_allclose(model.change(), change)
+    # after the step error (none), two changes; each unresolved epoch since adds one
+    np.testing.assert_allclose(model.predicted(), 2 * change)
+    model.update(np.zeros(6), _relative(Status.UNRESOLVED), 0.1)
+    model.update(np.zeros(6), _relative(Status.UNRESOLVED), 0.1)
+    np.testing.assert_allclose(model.predicted(), 4 * change)
+    # the twist across the bridge is no measured change
+    model.update(np.array([0, 0, 0.14, 1.3, 0.4, 0]) + 5.0, exact, 0.1)
+    np.testing.assert_allclose(model.change(), change)
+    # twists that differ by no more than their steps' errors (0.03 rad/s, 0.5 m/s each
+    # over 0.1 s) show no change
+    noisy = TwistUncertainty(cfg)
+    for v in ([0, 0, 0.1, 1.0, 0, 0], [0, 0, 0.14, 1.7, 0, 0]):
+        noisy.update(np.array(v, float), _relative(), 0.1)
+    np.testing.assert_allclose(noisy.change(), [0.0, 0.0])
+    np.testing.assert_allclose(noisy.predicted(), [0.03, 0.5])
+
+
+def test_a_refined_twist_is_given_its_step_error_and_what_was_left_of_the_difference():
+    model = TwistUncertainty(PlanodomConfig().odometry)
+    for v in ([0, 0, 0.1, 1.0, 0, 0], [0, 0, 0.1, 1.0, 0, 0]):
+        model.update(np.array(v, float), _relative(), 0.1)  # change 0 (known)
+    T = transform_from_rpy_xyz(0, 0, 0.01, 0.2, 0, 0)
+    source = EpochEstimate([], PlaneSet.from_planes([]), None, _relative(), T, [])
+    own = se3_log(T) / 0.1
+    np.testing.assert_allclose(model.refined(source, 0.1, own), [0.03, 0.5])
+    kept = own + np.r_[0, 0, 0, 0.2, 0, 0]  # a velocity within the tolerance kept
+    np.testing.assert_allclose(model.refined(source, 0.1, kept), [0.03, 0.7])
+
+
+def _run(mode: str, extractor_for, wrong=np.r_[0, 0, 0.05, 1.0, 0, 0]):
+    """Six epochs of an accelerating turn (times centred on the epoch time: the planes do not
+    move with the twist); after epoch 3 the prediction is made ``wrong``. Returns the
+    odometry, the calls (epoch, twist, (rate sigma deg/s, speed sigma m/s)) and poses."""
+    rng = np.random.default_rng(4)
+    world = world_planes(rng, 10)
+    poses = [
+        transform_from_rpy_xyz(0, 0, 0.003 * k**2, 0.1 * k + 0.01 * k**2, 0, 0) for k in range(6)
+    ]
+    planes = [observe(world, T) for T in poses]
+    calls: list = []
+    cfg = PlanodomConfig.from_dict({"odometry": {"twist_sigma": mode, "pipeline": "wocsc"}})
+    odo = PlaneOdometry(cfg, extractor=extractor_for(planes, poses, calls))
+    for k in range(6):
+        odo.register_epoch(Scan(np.full((2, 3), float(k)), t=[-0.05, 0.05]), 0.1 * k)
+        if k == 3:
+            odo.twist = odo.twist + wrong
+    return odo, calls, poses
+
+
+def _recording(planes, poses, calls):
+    def extractor(scan, cfg, twist=None):
+        sig = (cfg.twist_rate_sigma_deg_s, cfg.twist_speed_sigma_mps)
+        calls.append((int(scan.points[0, 0]), twist, sig))
+        return planes[int(scan.points[0, 0])]
+
+    return extractor
+
+
+def test_the_odometry_passes_each_twist_with_its_own_sigma():
+    """A wrong prediction is extracted with a larger sigma than the epoch's own twist
+    refined after it, whose sigma covers its true error; ``twist_sigma: fixed`` leaves the
+    extraction config as it is."""
+    _, calls, _ = _run("fixed", _recording)
+    assert all(sig == (0.0, 0.0) for _, _, sig in calls)
+    _, calls, poses = _run("always", _recording)
+    assert all(sig == (0.0, 0.0) for _, tw, sig in calls if tw is None)
+    last = [c for c in calls if c[0] == 4]
+    assert len(last) == 2  # the prediction, then the epoch's own twist
+    predicted, refined = last[0][2], last[1][2]
+    # the rate changes by 0.06 rad/s per epoch: two changes for the prediction, one for
+    # the refined twist (the speed's change is below the steps' errors here)
+    assert refined[0] < 0.6 * predicted[0]
+    true = se3_log(invert_transform(poses[3]) @ poses[4]) / 0.1
+    err = last[1][1] - true
+    assert np.degrees(np.linalg.norm(err[:3])) <= refined[0]
+    assert np.linalg.norm(err[3:]) <= refined[1]
+
+
+def test_an_epoch_lost_to_a_wrong_twist_is_extracted_again_with_its_sigma():
+    """From epoch 2 on, an extraction that finds the planes only with a twist whose
+    uncertainty is declared (a smear within the widened tolerance): with ``lost`` the epoch
+    after a wrong prediction is extracted again with the same twist and its sigma and
+    measured; with ``fixed`` it stays unresolved."""
+
+    def smeared(planes, poses, calls):
+        def extractor(scan, cfg, twist=None):
+            k = int(scan.points[0, 0])
+            sig = (cfg.twist_rate_sigma_deg_s, cfg.twist_speed_sigma_mps)
+            calls.append((k, twist, sig))
+            if k < 2 or (twist is not None and k != 4):
+                return planes[k]
+            return planes[k] if twist is not None and min(sig) > 0 else []
+
+        return extractor
+
+    odo, calls, _ = _run("lost", smeared)
+    assert odo.results[4].status == "ok"
+    first, second = [c for c in calls if c[0] == 4][:2]
+    np.testing.assert_array_equal(first[1], second[1])
+    assert first[2] == (0.0, 0.0) and min(second[2]) > 0
+    odo, _, _ = _run("fixed", smeared)
+    assert odo.results[4].status == "unresolved"
