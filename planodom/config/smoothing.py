@@ -97,6 +97,12 @@ class SmoothingConfig(Section):
     worse ATE (experiments/smoothing_consistency.py). Relative poses without sources
     (independent sensors) are always factors. "none": no between factors (plane factors
     only; a diagnostic of the consistency experiment), except the fallback factors."""
+    deskew_noise: Literal["none", "twist_change"] = "twist_change"
+    """"twist_change": the plane and between factors' covariances also hold the deskewing
+    error the fit's covariance misses, estimated from the run's own changes of motion from
+    one epoch to the next (planodom.smoothing.deskew_noise): with suspension sway on the
+    procedural worlds it was the dominant error of the planes' normals and the relative
+    poses' roll and pitch. "none": the fit's and the odometry's covariances alone."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""

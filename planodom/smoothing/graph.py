@@ -43,6 +43,7 @@ from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.landmarks import LandmarkTracker
+from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
 from planodom_factors.planes import (
     anchor_pose,
@@ -141,6 +142,7 @@ class GraphBuilder:
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
+        self.deskew = DeskewNoise() if config.deskew_noise == "twist_change" else None
 
     # ----------------------------------------------------------------- building
 
@@ -261,13 +263,15 @@ class GraphBuilder:
         for rel in measured:
             if rel.delta == 1 and rel.translation_observed:
                 self._last_step = np.asarray(rel.T_prev_curr, dtype=float)
+                if self.deskew is not None:
+                    self.deskew.add(rel)
             if c.between_factors == "none" or (
                 c.between_factors == "untracked" and self.in_plane_factors(rel)
             ):
                 self.stats.between_left_out += 1
                 continue
             make = pose5_factor if rel.translation_observed else rotation_factor
-            base = gtsam.noiseModel.Gaussian.Covariance(between_covariance(rel, c))
+            base = gtsam.noiseModel.Gaussian.Covariance(between_covariance(rel, c, self.deskew))
             factor = partial(make, X(rel.prev), X(k), rel.T_prev_curr)
             self._add(update.factors, factor, base, robust)
             self.stats.between += 1
@@ -329,7 +333,7 @@ class GraphBuilder:
         T_wa = anchor_pose(origin)
         values.insert(A(j), gtsam.Pose3(T_wa))
         values.insert(L(j), gtsam.OrientedPlane3(predict_plane(T_wa, world)))
-        cov = plane_covariance(self.planes[epoch][index], c)
+        cov = plane_covariance(self.planes[epoch][index], c, self.deskew)
         sigma_n, sigma_d = np.sqrt(max(cov[0, 0], cov[1, 1])), np.sqrt(cov[2, 2])
         noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma_n] * 3 + [sigma_d] * 3))
         graph.add(anchor_prior(A(j), T_wa, noise))
@@ -383,9 +387,8 @@ class GraphBuilder:
         self, lm: _Landmark, e: int, plane: Plane, graph: gtsam.NonlinearFactorGraph, robust: bool
     ) -> None:
         """A plane factor of observation ``plane`` (oriented) from ``X(e)`` on ``lm``."""
-        noise = plane_noise(
-            plane_covariance(plane, self.config), isotropic_normal=lm.anchor_key is None
-        )
+        cov = plane_covariance(plane, self.config, self.deskew)
+        noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
         if lm.anchor_key is None:
             graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
         else:
