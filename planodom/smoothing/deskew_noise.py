@@ -82,12 +82,13 @@ class DeskewNoise:
     def _robust_variance(self, weights: tuple[int, ...]) -> np.ndarray:
         """(6,) variance of ``sum_i weights[i] motion_{k+i}`` over every run of consecutive
         epochs (robust, less the odometry's share), zeros with too few of them."""
+        w = np.asarray(weights, dtype=float)[:, None]
         values, noise = [], []
         for k in self._steps:
-            run = [self._steps.get(k + i) for i in range(len(weights))]
-            if all(r is not None for r in run):
-                values.append(sum(w * r[0] for w, r in zip(weights, run)))  # type: ignore[index]
-                noise.append(sum(w * w * r[1] for w, r in zip(weights, run)))  # type: ignore[index]
+            run = [self._steps[k + i] for i in range(len(weights)) if k + i in self._steps]
+            if len(run) == len(weights):
+                values.append((w * np.array([r[0] for r in run])).sum(axis=0))
+                noise.append((w * w * np.array([r[1] for r in run])).sum(axis=0))
         if len(values) < MIN_DIFFERENCES:
             return np.zeros(6)
         d = np.array(values)

@@ -7,16 +7,15 @@ an anchored landmark (Pose3, see :mod:`factors.planes`).
 Factors per epoch k:
 
 - a 5-DoF between factor (:func:`factors.pose5.pose5_factor`) for every resolved relative
-  pose from epoch ``k - delta``, ``delta = 1..D``, with the odometry's covariance
-  (floored) as noise and an optional robust kernel; with ``between_factors`` "untracked"
-  (default) only for those whose source planes are not plane factors of shared
-  landmarks already (:meth:`GraphBuilder.in_plane_factors`): a relative pose is a
-  function of its planes, and both factors would count the same measurements twice;
+  pose from epoch ``k - delta``, ``delta = 1..D``, noise the odometry's covariance (floored,
+  plus the deskewing error, :mod:`.deskew_noise`), optional robust kernel; with
+  ``between_factors`` "untracked" (default) only for those whose source planes are not
+  plane factors of shared landmarks already (:meth:`GraphBuilder.in_plane_factors`): both
+  would count the same measurements twice;
 - a weak vertical factor between ``X(k-1)`` and ``X(k)`` (no vertical jumps);
 - a plane factor for every observation of a tracked plane (:mod:`.landmarks`) once its
-  track spans ``min_landmark_epochs`` epochs, noise from the plane's fit covariance in
-  OrientedPlane3 tangent coordinates (plus floors; divided by its confidence only with
-  ``plane_confidence_scaling``);
+  track spans ``min_landmark_epochs`` epochs, noise its fit covariance in OrientedPlane3
+  tangent coordinates plus floors and deskewing error (see :mod:`.noise`);
 - a prior on ``X(0)``; a weak constant-velocity between factor for an epoch that no
   resolved relative pose reaches, so the graph stays connected.
 
@@ -42,8 +41,8 @@ import numpy as np
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.landmarks import LandmarkTracker
 from planodom.smoothing.deskew_noise import DeskewNoise
+from planodom.smoothing.landmarks import LandmarkTracker
 from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
 from planodom_factors.planes import (
     anchor_pose,
@@ -79,12 +78,9 @@ class GraphUpdate:
 
 @dataclass
 class GraphStats:
-    """Counts of what went into the graph.
-
-    ``between`` counts the relative poses that became factors, ``between_left_out`` the
-    resolved ones left out by ``SmoothingConfig.between_factors`` (their source planes
-    are plane factors already, or "none").
-    """
+    """Counts of what went into the graph: ``between`` the relative poses that became
+    factors, ``between_left_out`` the resolved ones ``SmoothingConfig.between_factors``
+    left out (their source planes are plane factors already, or "none")."""
 
     between: int = 0
     between_left_out: int = 0
