@@ -62,12 +62,9 @@ A = gtsam.symbol_shorthand.A
 
 @dataclass
 class GraphUpdate:
-    """What one epoch adds: new factors, initial values of new variables, key timestamps.
-
-    ``gaussian`` maps the index (in ``factors``) of each factor with a robust kernel to
-    the same factor with its Gaussian noise model alone (for the batch covariances, see
-    :func:`planodom.smoothing.batch.covariance_graph`).
-    """
+    """What one epoch adds: new factors, initial values of new variables, key timestamps;
+    ``gaussian`` maps the index (in ``factors``) of each factor with a robust kernel to the
+    same factor with its Gaussian noise alone (batch covariances: ``batch.covariance_graph``)."""
 
     epoch: int
     factors: gtsam.NonlinearFactorGraph
@@ -267,7 +264,8 @@ class GraphBuilder:
                 self.stats.between_left_out += 1
                 continue
             make = pose5_factor if rel.translation_observed else rotation_factor
-            base = gtsam.noiseModel.Gaussian.Covariance(between_covariance(rel, c, self.deskew))
+            deskew = None if self.deskew is None else self.deskew.relative_covariance(rel.prev, k)
+            base = gtsam.noiseModel.Gaussian.Covariance(between_covariance(rel, c, deskew))
             factor = partial(make, X(rel.prev), X(k), rel.T_prev_curr)
             self._add(update.factors, factor, base, robust)
             self.stats.between += 1
@@ -329,7 +327,8 @@ class GraphBuilder:
         T_wa = anchor_pose(origin)
         values.insert(A(j), gtsam.Pose3(T_wa))
         values.insert(L(j), gtsam.OrientedPlane3(predict_plane(T_wa, world)))
-        cov = plane_covariance(self.planes[epoch][index], c, self.deskew)
+        deskew = None if self.deskew is None else self.deskew.pose_covariance(epoch)
+        cov = plane_covariance(self.planes[epoch][index], c, deskew)
         sigma_n, sigma_d = np.sqrt(max(cov[0, 0], cov[1, 1])), np.sqrt(cov[2, 2])
         noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma_n] * 3 + [sigma_d] * 3))
         graph.add(anchor_prior(A(j), T_wa, noise))
@@ -383,7 +382,8 @@ class GraphBuilder:
         self, lm: _Landmark, e: int, plane: Plane, graph: gtsam.NonlinearFactorGraph, robust: bool
     ) -> None:
         """A plane factor of observation ``plane`` (oriented) from ``X(e)`` on ``lm``."""
-        cov = plane_covariance(plane, self.config, self.deskew)
+        deskew = None if self.deskew is None else self.deskew.pose_covariance(e)
+        cov = plane_covariance(plane, self.config, deskew)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
         if lm.anchor_key is None:
             graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
