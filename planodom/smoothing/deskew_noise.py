@@ -35,6 +35,8 @@ that are. The half window (2 epochs) only averages a few changes; it is no tuned
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -61,6 +63,9 @@ class DeskewNoise:
         self._steps: dict[int, np.ndarray] = {}  # curr -> (6,) motion into it
         self._cache: dict[tuple[int, int], np.ndarray] = {}  # (last step, delta) -> cov
         self._max_delta = 0
+        # weights -> (steps when computed, run-wide mean square): refreshed as the run grows
+        # by a tenth (recomputing it at every epoch would cost the square of the run).
+        self._run_wide: dict[tuple[int, ...], tuple[int, np.ndarray]] = {}
 
     def add(self, rel: RelativePose) -> None:
         """Record a delta = 1 relative pose with its translation measured (others ignored)."""
@@ -79,17 +84,31 @@ class DeskewNoise:
             for delta in range(self._max_delta + 1):
                 self._cache.pop((last, delta), None)
 
-    def _local_variance(self, weights: tuple[int, ...], anchor: int) -> np.ndarray:
-        """(6,) mean over anchors ``a`` within ``half_window`` of ``anchor`` of the square
-        of ``sum_i weights[i] motion_{a+i}`` (zeros when no anchor has all its steps)."""
+    def _mean_square(self, weights: tuple[int, ...], anchors: Iterable[int]) -> np.ndarray | None:
+        """(6,) mean over ``anchors`` ``a`` of the square of ``sum_i weights[i]
+        motion_{a+i}``, over those whose steps are all known (None: none is)."""
         w = np.asarray(weights, dtype=float)[:, None]
         total, count = np.zeros(6), 0
-        for a in range(anchor - self.half_window, anchor + self.half_window + 1):
+        for a in anchors:
             run = [self._steps[a + i] for i in range(len(weights)) if a + i in self._steps]
             if len(run) == len(weights):
                 total += (w * np.array(run)).sum(axis=0) ** 2
                 count += 1
-        return total / max(count, 1)
+        return total / count if count else None
+
+    def _local_variance(self, weights: tuple[int, ...], anchor: int) -> np.ndarray:
+        """(6,) :meth:`_mean_square` over the anchors within ``half_window`` of ``anchor``;
+        where the odometry measured none of them (a gap of unresolved epochs), the run's
+        (so far): nothing is known there but what the run's motion does elsewhere."""
+        h = self.half_window
+        local = self._mean_square(weights, range(anchor - h, anchor + h + 1))
+        if local is not None:
+            return local
+        n = len(self._steps)
+        if weights not in self._run_wide or self._run_wide[weights][0] * 1.1 < n:
+            whole = self._mean_square(weights, list(self._steps))
+            self._run_wide[weights] = (n, np.zeros(6) if whole is None else whole)
+        return self._run_wide[weights][1]
 
     def pose_covariance(self, epoch: int) -> np.ndarray:
         """(6, 6) diagonal covariance of epoch ``epoch``'s deskewing perturbation,

@@ -124,3 +124,15 @@ def test_between_covariance_adds_the_relative_term():
     added = between_covariance(rel, cfg, deskew) - between_covariance(rel, cfg)
     np.testing.assert_allclose(added, deskew, atol=1e-15)
     assert np.all(np.diag(added) > 0)
+
+
+def test_a_gap_of_unmeasured_epochs_takes_the_run_wide_estimate():
+    motions = _random_walk_motions(np.random.default_rng(9), 80, np.full(6, 0.01))
+    rels = [r for r in _steps(motions) if not 30 <= r.curr < 50]  # epochs 30-49 unresolved
+    model = DeskewNoise()
+    for rel in rels:
+        model.add(rel)
+    m = {r.curr: motions[r.curr - 1] for r in rels}
+    changes = np.array([m[k + 1] - m[k] for k in m if k + 1 in m])
+    np.testing.assert_allclose(np.diag(model.pose_covariance(40)), np.mean(changes**2, 0) / 3)
+    assert np.all(np.diag(model.pose_covariance(40)) > 0)
