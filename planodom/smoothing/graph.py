@@ -200,6 +200,8 @@ class GraphBuilder:
             if r.curr == k and min_epoch <= r.prev < k and r.delta <= self.config.delta_max
         ]
         measured = [r for r in usable if r.measured]
+        for rel in measured if self.deskew is not None else ():
+            self.deskew.add(rel)  # type: ignore[union-attr]  # before this epoch's factors
         self._add_pose(measured, min_epoch, update)
         self._reidentify(update)
         associations = {r.delta: r.associations for r in usable}  # (tracked even unmeasured)
@@ -256,8 +258,6 @@ class GraphBuilder:
         for rel in measured:
             if rel.delta == 1 and rel.translation_observed:
                 self._last_step = np.asarray(rel.T_prev_curr, dtype=float)
-                if self.deskew is not None:
-                    self.deskew.add(rel)
             if c.between_factors == "none" or (
                 c.between_factors == "untracked" and self.in_plane_factors(rel)
             ):
