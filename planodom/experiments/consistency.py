@@ -114,7 +114,7 @@ def deskew_model(relatives: Iterable[RelativePose], config: SmoothingConfig) -> 
     None when ``deskew_noise`` is off."""
     if config.deskew_noise == "none":
         return None
-    model = DeskewNoise()
+    model = DeskewNoise(net=config.deskew_noise == "twist_change_net")
     for r in relatives:
         model.add(r)
     return model

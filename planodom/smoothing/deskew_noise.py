@@ -58,9 +58,10 @@ class DeskewNoise:
         half_window: epochs on each side of an epoch whose changes of motion are averaged.
     """
 
-    def __init__(self, half_window: int = 2) -> None:
+    def __init__(self, half_window: int = 2, net: bool = False) -> None:
         self.half_window = half_window
-        self._steps: dict[int, np.ndarray] = {}  # curr -> (6,) motion into it
+        self.net = net
+        self._steps: dict[int, np.ndarray] = {}  # curr -> (12,) motion into it, its variance
         self._cache: dict[tuple[int, int], np.ndarray] = {}  # (last step, delta) -> cov
         self._max_delta = 0
         # weights -> (steps when computed, run-wide mean square): refreshed as the run grows
@@ -72,7 +73,14 @@ class DeskewNoise:
         if rel.delta != 1 or not rel.translation_observed:
             return
         T = np.asarray(rel.T_prev_curr, dtype=float)
-        motion = np.concatenate([Rotation.from_matrix(T[:3, :3]).as_rotvec(), T[:3, 3]])
+        var = np.zeros(6)
+        if rel.covariance is not None and np.all(np.isfinite(rel.covariance)):
+            # (roll, pitch, yaw) increments are the rotation vector's to first order at
+            # the small roll and pitch of one epoch; z's when it was measured.
+            var[:5] = np.diag(np.asarray(rel.covariance, dtype=float).reshape(5, 5))
+            var[5] = rel.sigma_z**2 if rel.z_observed and np.isfinite(rel.sigma_z) else 0.0
+        rotvec = Rotation.from_matrix(T[:3, :3]).as_rotvec()
+        motion = np.concatenate([rotvec, T[:3, 3], var])
         known = self._steps.get(rel.curr)
         if known is not None and np.array_equal(known, motion):
             return  # the same step again (batch: fed before the graph is built, then again)
@@ -86,15 +94,18 @@ class DeskewNoise:
 
     def _mean_square(self, weights: tuple[int, ...], anchors: Iterable[int]) -> np.ndarray | None:
         """(6,) mean over ``anchors`` ``a`` of the square of ``sum_i weights[i]
-        motion_{a+i}``, over those whose steps are all known (None: none is)."""
+        motion_{a+i}``, over those whose steps are all known (None: none is); with ``net``
+        less the variance the odometry's covariances declare for it, at least 0."""
         w = np.asarray(weights, dtype=float)[:, None]
         total, count = np.zeros(6), 0
         for a in anchors:
             run = [self._steps[a + i] for i in range(len(weights)) if a + i in self._steps]
             if len(run) == len(weights):
-                total += (w * np.array(run)).sum(axis=0) ** 2
+                steps = np.array(run)
+                total += (w * steps[:, :6]).sum(axis=0) ** 2
+                total -= self.net * (w * w * steps[:, 6:]).sum(axis=0)
                 count += 1
-        return total / count if count else None
+        return np.maximum(total / count, 0.0) if count else None
 
     def _local_variance(self, weights: tuple[int, ...], anchor: int) -> np.ndarray:
         """(6,) :meth:`_mean_square` over the anchors within ``half_window`` of ``anchor``;

@@ -135,7 +135,8 @@ class GraphBuilder:
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
-        self.deskew = DeskewNoise() if config.deskew_noise == "twist_change" else None
+        net = config.deskew_noise == "twist_change_net"
+        self.deskew = None if config.deskew_noise == "none" else DeskewNoise(net=net)
 
     # ----------------------------------------------------------------- building
 
