@@ -6,10 +6,13 @@ import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from planodom.config import PlanodomConfig
+from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.odometry.relative import RelativePose
+from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.deskew_noise import DeskewNoise, plane_deskew_covariance
 from planodom.smoothing.noise import between_covariance
+from planodom.smoothing.synthetic import make_sequence
+from planodom.smoothing.windowed import smooth_windowed
 
 
 def _steps(motions: np.ndarray, sigma: float = 1e-9) -> list[RelativePose]:
@@ -136,3 +139,16 @@ def test_a_gap_of_unmeasured_epochs_takes_the_run_wide_estimate():
     changes = np.array([m[k + 1] - m[k] for k in m if k + 1 in m])
     np.testing.assert_allclose(np.diag(model.pose_covariance(40)), np.mean(changes**2, 0) / 3)
     assert np.all(np.diag(model.pose_covariance(40)) > 0)
+
+
+def test_the_graph_takes_the_term_in_batch_and_fixed_lag_smoothing():
+    seq = make_sequence(30, seed=2, sigma_rotation=1e-3, sigma_translation=0.01,
+                        sigma_normal=0.005, sigma_offset=0.01)  # fmt: skip
+    base = SmoothingConfig(robust_kernel="none", deskew_noise="none")
+    on = base.model_copy(update={"deskew_noise": "twist_change"})
+    for smooth in (smooth_batch, smooth_windowed):
+        off_cov = smooth(seq.planes, seq.relatives, base).covariances
+        on_cov = smooth(seq.planes, seq.relatives, on).covariances
+        assert off_cov is not None and on_cov is not None
+        # More noise on every factor: the last pose can only be less certain.
+        assert np.trace(on_cov[-1]) > np.trace(off_cov[-1])
