@@ -112,8 +112,9 @@ class SmoothingConfig(Section):
     1.12, 3.55 -> 3.51, 0.006 -> 0.007, 0.004 -> 0.007, 0.071 -> 0.074 m. Built-in scenes
     (continuous motion, 150 epochs): paper loop 40 -> 0.97 (6 mm), 7.5 -> 1.8 (2 cm), canyon
     15.9 -> 1.2 (6 mm), but the ATE rose: paper loop at 2 cm 3.7 -> 13 mm, canyon at 6 mm
-    40 -> 67 mm ("planodom smooth" on the canyon, 200 epochs: 6 -> 10 mm). Off by default
-    until it no longer costs accuracy on the built-in scenes. "twist_change_net" kept the
+    40 -> 67 mm ("planodom smooth" on the canyon, 200 epochs: 6 -> 10 mm; the planes'
+    rotation part does it: their translation part alone left 6 mm). Off by default until
+    it no longer costs accuracy on the built-in scenes. "twist_change_net" kept the
     built-in scenes in bounds at a smaller ATE cost (paper loop 7.3 / 2.4, canyon 3.9) but
     undid most of the gain on the lidar worlds and lost world 2 at 2 cm (ATE 3.5 -> 17 m):
     the odometry's declared covariances are not good enough to subtract."""
