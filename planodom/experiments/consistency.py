@@ -8,7 +8,8 @@ delta = 1..D are estimated (as :func:`planodom.smoothing.run.run_smoothing` does
   pose (``planodom_factors.pose5.pose5_error``: rotation vector, horizontal translation) against
   the true one, whitened by the covariance its between factor would get
   (:func:`planodom.smoothing.noise.between_covariance`: the propagated covariance of
-  :mod:`planodom.odometry.propagate` in the factor's tangent, plus the smoothing floors);
+  :mod:`planodom.odometry.propagate` in the factor's tangent, plus the smoothing floors
+  and the deskewing error, :mod:`planodom.smoothing.deskew_noise`);
 - **planes**: the error of each extracted plane against its true surface (its
   ``truth_id``) in ``OrientedPlane3`` tangent coordinates (Unit3 basis of the measured
   normal (2), offset (1)), whitened by the TLS fit covariance and by the covariance the
@@ -52,6 +53,7 @@ from planodom.geometry import Plane, plane_tangent_covariance
 from planodom.metrics import pose_nees, relative_to_first, summarize
 from planodom.odometry import RelativePose
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
+from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.noise import between_covariance, plane_covariance
 from planodom_factors.pose5 import pose5_error
 
@@ -107,17 +109,31 @@ def simulate_inputs(
     return ConsistencyInputs(scene, noise, seed, planes, relatives, level.gt_poses, first, surfaces)
 
 
+def deskew_model(relatives: Iterable[RelativePose], config: SmoothingConfig) -> DeskewNoise | None:
+    """The deskewing error model the graph builds from these relative poses (batch), or
+    None when ``deskew_noise`` is off."""
+    if config.deskew_noise == "none":
+        return None
+    model = DeskewNoise(net=config.deskew_noise == "twist_change_net")
+    for r in relatives:
+        model.add(r)
+    return model
+
+
 def relative_pose_nees(
     relatives: Iterable[RelativePose], gt_poses: np.ndarray, config: SmoothingConfig
 ) -> dict[int, np.ndarray]:
     """delta -> (M, 3) NEES of the measured 5-DoF relative poses: all 5 DoF, the rotation
     (3) and the translation (2), against their between factors' covariances."""
     out: dict[int, list[tuple[float, float, float]]] = {}
+    relatives = list(relatives)
+    deskew = deskew_model(relatives, config)
     for r in relatives:
         if not r.translation_observed:
             continue
         e, _, _ = pose5_error(np.asarray(r.T_prev_curr), gt_poses[r.prev], gt_poses[r.curr])
-        P = between_covariance(r, config)
+        dsk = None if deskew is None else deskew.relative_covariance(r.prev, r.curr)
+        P = between_covariance(r, config, dsk)
         out.setdefault(r.delta, []).append(
             (
                 e @ np.linalg.solve(P, e),
@@ -146,6 +162,7 @@ def plane_nees(inputs: ConsistencyInputs, config: SmoothingConfig) -> np.ndarray
     """(M, 2) NEES (3 DoF) of every labelled plane: with the TLS covariance and with the
     plane factor's covariance."""
     rows = []
+    deskew = deskew_model(inputs.relatives, config)
     for k, planes in enumerate(inputs.planes):
         T = inputs.T_world_first @ inputs.gt_poses[k]
         for p in planes:
@@ -153,7 +170,8 @@ def plane_nees(inputs: ConsistencyInputs, config: SmoothingConfig) -> np.ndarray
                 continue
             xi = plane_errors(p, inputs.surfaces[p.truth_id], T)
             tls = plane_tangent_covariance(p)
-            used = plane_covariance(p, config)
+            dsk = None if deskew is None else deskew.pose_covariance(k)
+            used = plane_covariance(p, config, dsk)
             rows.append(
                 (
                     xi @ np.linalg.solve(0.5 * (tls + tls.T), xi),

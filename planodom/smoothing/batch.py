@@ -296,6 +296,8 @@ def _builder(
     if cfg.loop_closure:
         loop_builder = CandidateLoopBuilder if cfg.loop_candidates else LoopClosingBuilder
         builder = loop_builder(full, T_world_first)
+    for rel in relative_poses if builder.deskew is not None else ():
+        builder.deskew.add(rel)  # type: ignore[union-attr]  # batch: the whole run's, at once
     if cfg.batch_initial == "windowed":
         from planodom.smoothing.windowed import smooth_windowed
 

@@ -7,16 +7,15 @@ an anchored landmark (Pose3, see :mod:`factors.planes`).
 Factors per epoch k:
 
 - a 5-DoF between factor (:func:`factors.pose5.pose5_factor`) for every resolved relative
-  pose from epoch ``k - delta``, ``delta = 1..D``, with the odometry's covariance
-  (floored) as noise and an optional robust kernel; with ``between_factors`` "untracked"
-  (default) only for those whose source planes are not plane factors of shared
-  landmarks already (:meth:`GraphBuilder.in_plane_factors`): a relative pose is a
-  function of its planes, and both factors would count the same measurements twice;
+  pose from epoch ``k - delta``, ``delta = 1..D``, noise the odometry's covariance (floored,
+  plus the deskewing error, :mod:`.deskew_noise`), optional robust kernel; with
+  ``between_factors`` "untracked" (default) only for those whose source planes are not
+  plane factors of shared landmarks already (:meth:`GraphBuilder.in_plane_factors`): both
+  would count the same measurements twice;
 - a weak vertical factor between ``X(k-1)`` and ``X(k)`` (no vertical jumps);
 - a plane factor for every observation of a tracked plane (:mod:`.landmarks`) once its
-  track spans ``min_landmark_epochs`` epochs, noise from the plane's fit covariance in
-  OrientedPlane3 tangent coordinates (plus floors; divided by its confidence only with
-  ``plane_confidence_scaling``);
+  track spans ``min_landmark_epochs`` epochs, noise its fit covariance in OrientedPlane3
+  tangent coordinates plus floors and deskewing error (see :mod:`.noise`);
 - a prior on ``X(0)``; a weak constant-velocity between factor for an epoch that no
   resolved relative pose reaches, so the graph stays connected.
 
@@ -42,6 +41,7 @@ import numpy as np
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
+from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.landmarks import LandmarkTracker
 from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
 from planodom_factors.planes import (
@@ -62,12 +62,9 @@ A = gtsam.symbol_shorthand.A
 
 @dataclass
 class GraphUpdate:
-    """What one epoch adds: new factors, initial values of new variables, key timestamps.
-
-    ``gaussian`` maps the index (in ``factors``) of each factor with a robust kernel to
-    the same factor with its Gaussian noise model alone (for the batch covariances, see
-    :func:`planodom.smoothing.batch.covariance_graph`).
-    """
+    """What one epoch adds: new factors, initial values of new variables, key timestamps;
+    ``gaussian`` maps the index (in ``factors``) of each factor with a robust kernel to the
+    same factor with its Gaussian noise alone (batch covariances: ``batch.covariance_graph``)."""
 
     epoch: int
     factors: gtsam.NonlinearFactorGraph
@@ -78,12 +75,9 @@ class GraphUpdate:
 
 @dataclass
 class GraphStats:
-    """Counts of what went into the graph.
-
-    ``between`` counts the relative poses that became factors, ``between_left_out`` the
-    resolved ones left out by ``SmoothingConfig.between_factors`` (their source planes
-    are plane factors already, or "none").
-    """
+    """Counts of what went into the graph: ``between`` the relative poses that became
+    factors, ``between_left_out`` the resolved ones ``SmoothingConfig.between_factors``
+    left out (their source planes are plane factors already, or "none")."""
 
     between: int = 0
     between_left_out: int = 0
@@ -141,6 +135,8 @@ class GraphBuilder:
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
+        net = config.deskew_noise == "twist_change_net"
+        self.deskew = None if config.deskew_noise == "none" else DeskewNoise(net=net)
 
     # ----------------------------------------------------------------- building
 
@@ -205,6 +201,8 @@ class GraphBuilder:
             if r.curr == k and min_epoch <= r.prev < k and r.delta <= self.config.delta_max
         ]
         measured = [r for r in usable if r.measured]
+        for rel in measured if self.deskew is not None else ():
+            self.deskew.add(rel)  # type: ignore[union-attr]  # before this epoch's factors
         self._add_pose(measured, min_epoch, update)
         self._reidentify(update)
         associations = {r.delta: r.associations for r in usable}  # (tracked even unmeasured)
@@ -267,7 +265,8 @@ class GraphBuilder:
                 self.stats.between_left_out += 1
                 continue
             make = pose5_factor if rel.translation_observed else rotation_factor
-            base = gtsam.noiseModel.Gaussian.Covariance(between_covariance(rel, c))
+            deskew = None if self.deskew is None else self.deskew.relative_covariance(rel.prev, k)
+            base = gtsam.noiseModel.Gaussian.Covariance(between_covariance(rel, c, deskew))
             factor = partial(make, X(rel.prev), X(k), rel.T_prev_curr)
             self._add(update.factors, factor, base, robust)
             self.stats.between += 1
@@ -329,7 +328,8 @@ class GraphBuilder:
         T_wa = anchor_pose(origin)
         values.insert(A(j), gtsam.Pose3(T_wa))
         values.insert(L(j), gtsam.OrientedPlane3(predict_plane(T_wa, world)))
-        cov = plane_covariance(self.planes[epoch][index], c)
+        deskew = None if self.deskew is None else self.deskew.pose_covariance(epoch)
+        cov = plane_covariance(self.planes[epoch][index], c, deskew)
         sigma_n, sigma_d = np.sqrt(max(cov[0, 0], cov[1, 1])), np.sqrt(cov[2, 2])
         noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma_n] * 3 + [sigma_d] * 3))
         graph.add(anchor_prior(A(j), T_wa, noise))
@@ -383,9 +383,9 @@ class GraphBuilder:
         self, lm: _Landmark, e: int, plane: Plane, graph: gtsam.NonlinearFactorGraph, robust: bool
     ) -> None:
         """A plane factor of observation ``plane`` (oriented) from ``X(e)`` on ``lm``."""
-        noise = plane_noise(
-            plane_covariance(plane, self.config), isotropic_normal=lm.anchor_key is None
-        )
+        deskew = None if self.deskew is None else self.deskew.pose_covariance(e)
+        cov = plane_covariance(plane, self.config, deskew)
+        noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
         if lm.anchor_key is None:
             graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
         else:

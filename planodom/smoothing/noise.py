@@ -14,6 +14,7 @@ import numpy as np
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, plane_tangent_covariance, rpy_from_rotation
 from planodom.odometry.relative import RelativePose
+from planodom.smoothing.deskew_noise import plane_deskew_covariance
 
 #: Default robust kernel parameters (95 % efficiency on Gaussian noise), in sigmas.
 ROBUST_DEFAULTS = {"huber": 1.345, "cauchy": 2.3849}
@@ -42,12 +43,15 @@ def rpy_to_rotation_vector(rpy: np.ndarray) -> np.ndarray:
     return np.array([[1.0, 0.0, -sp], [0.0, cr, sr * cp], [0.0, -sr, cr * cp]])
 
 
-def between_covariance(rel: RelativePose, config: SmoothingConfig) -> np.ndarray:
+def between_covariance(
+    rel: RelativePose, config: SmoothingConfig, deskew: np.ndarray | None = None
+) -> np.ndarray:
     """(5, 5) covariance of a relative pose's factor error, or (3, 3) rotation-only.
 
     The covariance of (roll, pitch, yaw, x, y) (``default_*`` sigmas when unknown) is
     mapped to the factor's rotation-vector tangent (:func:`rpy_to_rotation_vector`) and
-    floored in quadrature (``min_*_sigma_*``).
+    floored in quadrature (``min_*_sigma_*``); plus ``deskew`` (5, 5), the deskewing error
+    of its two epochs (:meth:`.deskew_noise.DeskewNoise.relative_covariance`).
     """
     c = config
     if rel.covariance is not None and np.all(np.isfinite(rel.covariance)):
@@ -60,13 +64,18 @@ def between_covariance(rel: RelativePose, config: SmoothingConfig) -> np.ndarray
     J[:3, :3] = rpy_to_rotation_vector(rpy_from_rotation(rel.T_prev_curr[:3, :3]))
     floor = [c.min_rotation_sigma_rad**2] * 3 + [c.min_translation_sigma_m**2] * 2
     cov = J @ (0.5 * (cov + cov.T)) @ J.T + np.diag(floor)
+    if deskew is not None:
+        cov = cov + deskew
     return cov if rel.translation_observed else cov[:3, :3]
 
 
-def plane_covariance(plane: Plane, config: SmoothingConfig) -> np.ndarray:
+def plane_covariance(
+    plane: Plane, config: SmoothingConfig, deskew: np.ndarray | None = None
+) -> np.ndarray:
     """(3, 3) covariance of a measured plane in OrientedPlane3 tangent coordinates: its fit
     covariance (``default_plane_*`` sigmas when unknown; divided by its confidence with
-    ``plane_confidence_scaling``), floored in quadrature."""
+    ``plane_confidence_scaling``), floored in quadrature, plus the share of ``deskew``
+    (6, 6), its epoch's deskewing perturbation (:func:`.deskew_noise.plane_deskew_covariance`)."""
     c = config
     if plane.covariance is not None and np.all(np.isfinite(plane.covariance)):
         cov = plane_tangent_covariance(plane)
@@ -77,4 +86,6 @@ def plane_covariance(plane: Plane, config: SmoothingConfig) -> np.ndarray:
     floor = np.diag([c.min_plane_normal_sigma_rad**2] * 2 + [c.min_plane_offset_sigma_m**2])
     if c.plane_confidence_scaling:
         cov = cov * (1.0 / plane.confidence)
+    if deskew is not None:
+        cov = cov + plane_deskew_covariance(plane.normal, deskew)
     return cov + floor

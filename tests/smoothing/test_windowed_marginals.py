@@ -8,7 +8,11 @@ from planodom.config import SmoothingConfig
 from planodom.smoothing import smooth_batch, smooth_windowed
 from planodom.smoothing.synthetic import make_sequence
 
-GAUSSIAN = SmoothingConfig(robust_kernel="none", covariances_relative_to_first=False)
+# Without the deskew noise: batch estimates it from the whole run, the fixed-lag smoother
+# from the epochs so far (smoothing.deskew_noise), and these tests compare the two.
+GAUSSIAN = SmoothingConfig(
+    robust_kernel="none", covariances_relative_to_first=False, deskew_noise="none"
+)
 
 
 def replace(config: SmoothingConfig, **changes: object) -> SmoothingConfig:

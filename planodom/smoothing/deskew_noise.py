@@ -1,0 +1,163 @@
+"""The deskewing error's share of the factors' noise, from the run's own changes of motion.
+
+An epoch's points are acquired over its time span and deskewed with a constant twist:
+the epoch's own relative pose from the epoch before (the deskewing policy,
+:mod:`planodom.odometry.deskew`), i.e. the mean twist of the *previous* interval, while the
+points were acquired during the *next* one. The twist they were deskewed with is off by
+about the change of the twist from one interval to the next, ``dxi_k = xi_{k+1} - xi_k``
+(body frame, per epoch: a relative pose's rotation vector and translation, so the epoch's
+duration cancels), and a point acquired ``t`` after the reference time (epoch start)
+moves by ``(t / dt) dxi_k``. A plane fitted to the epoch's points is then displaced by
+about that rigid perturbation at the points' times: with times spread uniformly over the
+epoch, ``E[(t / dt)^2] = 1 / 3``, so the epoch's frame is perturbed with covariance
+``Cov(dxi) / 3``. (A reference time in the middle of the epoch would give 1 / 12: one
+third is the bound.) The fit's covariance misses this (it sees only the range noise):
+on the procedural worlds with suspension sway (roll and pitch rates changing by
+0.02-0.04 rad/s from one 0.2 s epoch to the next on a 2D rig) the ground planes' normals
+were 1 mrad off against fit sigmas of 0.03 mrad, and the relative poses' roll 18 of its
+sigmas (``experiments.consistency``).
+
+``Cov(dxi_k)`` is estimated from the run's delta = 1 relative poses, locally: the mean
+square of the changes at the epochs within ``half_window`` of k, per component. Local,
+not one figure per run: the changes are sparse and heavy-tailed (turns, bumps), and on a
+lidar world the planes' NEES per epoch followed the epoch's change of yaw rate
+(correlation 0.76 of log NEES); a run-wide median missed the turns. The measured changes
+also hold the odometry's own noise (twice per change); it is not subtracted, because the
+odometry's declared covariances are not good enough to subtract (measured on the
+procedural worlds: the plane-map odometry's roll sigma 25 times its error on a lidar, the
+2D rig's ten times too small): the term errs on the cautious side, by two thirds of the
+odometry's error variance for a plane and 4 / 3 to 2 times it for a relative pose.
+Nothing here is fitted to a world: it is the measured non-constancy of the motion, and
+it vanishes for a constant twist or a scan acquired at one instant. In a fixed-lag
+smoother the changes after the newest epoch are not known yet: the window holds the ones
+that are. The half window (2 epochs) only averages a few changes; it is no tuned figure.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import gtsam
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planodom.odometry.relative import RelativePose
+
+#: ``E[(t / dt)^2]`` for times spread uniformly over the epoch from its reference time.
+TIME_SPREAD = 1.0 / 3.0
+
+
+class DeskewNoise:
+    """Local estimates of the covariance of an epoch's deskewing perturbation.
+
+    Its tangent is (rotation vector (rad), translation (m)), body frame. Feed it every
+    measured delta = 1 relative pose (:meth:`add`, any order of epochs); read
+    :meth:`pose_covariance` (a plane's epoch) and :meth:`relative_covariance`.
+
+    Args:
+        half_window: epochs on each side of an epoch whose changes of motion are averaged.
+    """
+
+    def __init__(self, half_window: int = 2, net: bool = False) -> None:
+        self.half_window = half_window
+        self.net = net
+        self._steps: dict[int, np.ndarray] = {}  # curr -> (12,) motion into it, its variance
+        self._cache: dict[tuple[int, int], np.ndarray] = {}  # (last step, delta) -> cov
+        self._max_delta = 0
+        # weights -> (steps when computed, run-wide mean square): refreshed as the run grows
+        # by a tenth (recomputing it at every epoch would cost the square of the run).
+        self._run_wide: dict[tuple[int, ...], tuple[int, np.ndarray]] = {}
+
+    def add(self, rel: RelativePose) -> None:
+        """Record a delta = 1 relative pose with its translation measured (others ignored)."""
+        if rel.delta != 1 or not rel.translation_observed:
+            return
+        T = np.asarray(rel.T_prev_curr, dtype=float)
+        var = np.zeros(6)
+        if rel.covariance is not None and np.all(np.isfinite(rel.covariance)):
+            # (roll, pitch, yaw) increments are the rotation vector's to first order at
+            # the small roll and pitch of one epoch; z's when it was measured.
+            var[:5] = np.diag(np.asarray(rel.covariance, dtype=float).reshape(5, 5))
+            var[5] = rel.sigma_z**2 if rel.z_observed and np.isfinite(rel.sigma_z) else 0.0
+        rotvec = Rotation.from_matrix(T[:3, :3]).as_rotvec()
+        motion = np.concatenate([rotvec, T[:3, 3], var])
+        known = self._steps.get(rel.curr)
+        if known is not None and np.array_equal(known, motion):
+            return  # the same step again (batch: fed before the graph is built, then again)
+        self._steps[rel.curr] = motion
+        # Estimates whose windows reach this step are stale (keyed by the last step their
+        # window reaches, which lies at most 2 half_window + 1 + delta after its first).
+        reach = 2 * self.half_window + 2 + self._max_delta
+        for last in range(rel.curr, rel.curr + reach + 1):
+            for delta in range(self._max_delta + 1):
+                self._cache.pop((last, delta), None)
+
+    def _mean_square(self, weights: tuple[int, ...], anchors: Iterable[int]) -> np.ndarray | None:
+        """(6,) mean over ``anchors`` ``a`` of the square of ``sum_i weights[i]
+        motion_{a+i}``, over those whose steps are all known (None: none is); with ``net``
+        less the variance the odometry's covariances declare for it, at least 0."""
+        w = np.asarray(weights, dtype=float)[:, None]
+        total, count = np.zeros(6), 0
+        for a in anchors:
+            run = [self._steps[a + i] for i in range(len(weights)) if a + i in self._steps]
+            if len(run) == len(weights):
+                steps = np.array(run)
+                total += (w * steps[:, :6]).sum(axis=0) ** 2
+                total -= self.net * (w * w * steps[:, 6:]).sum(axis=0)
+                count += 1
+        return np.maximum(total / count, 0.0) if count else None
+
+    def _local_variance(self, weights: tuple[int, ...], anchor: int) -> np.ndarray:
+        """(6,) :meth:`_mean_square` over the anchors within ``half_window`` of ``anchor``;
+        where the odometry measured none of them (a gap of unresolved epochs), the run's
+        (so far): nothing is known there but what the run's motion does elsewhere."""
+        h = self.half_window
+        local = self._mean_square(weights, range(anchor - h, anchor + h + 1))
+        if local is not None:
+            return local
+        n = len(self._steps)
+        if weights not in self._run_wide or self._run_wide[weights][0] * 1.1 < n:
+            whole = self._mean_square(weights, list(self._steps))
+            self._run_wide[weights] = (n, np.zeros(6) if whole is None else whole)
+        return self._run_wide[weights][1]
+
+    def pose_covariance(self, epoch: int) -> np.ndarray:
+        """(6, 6) diagonal covariance of epoch ``epoch``'s deskewing perturbation,
+        ``E[dxi dxi^T] / 3`` with ``dxi = motion_{k+1} - motion_k`` (the motion during its
+        acquisition less the one it was deskewed with); zeros without known changes."""
+        key = (epoch + self.half_window + 1, 0)  # the last step its window can reach
+        if key not in self._cache:
+            self._cache[key] = np.diag(TIME_SPREAD * self._local_variance((-1, 1), epoch))
+        return self._cache[key]
+
+    def relative_covariance(self, prev: int, curr: int) -> np.ndarray:
+        """(5, 5) covariance of the 5-DoF error (rotation vector, x, y) of the relative
+        pose from ``prev`` to ``curr`` due to the deskewing of its two epochs: the
+        difference of their perturbations, ``(dxi_curr - dxi_prev) / sqrt(3)``.
+        Consecutive changes of motion are strongly correlated (sway is slow against the
+        epoch rate), so this is far below the sum of the two epochs' covariances."""
+        delta = curr - prev
+        self._max_delta = max(self._max_delta, delta)
+        key = (curr + self.half_window + 1, delta)
+        if key not in self._cache:
+            weights = [0] * (delta + 2)
+            weights[0], weights[1] = 1, -1
+            weights[-2] -= 1
+            weights[-1] += 1
+            var = TIME_SPREAD * self._local_variance(tuple(weights), prev)
+            self._cache[key] = np.diag(var[:5])
+        return self._cache[key]
+
+
+def plane_deskew_covariance(normal: np.ndarray, pose_cov: np.ndarray) -> np.ndarray:
+    """(3, 3) covariance, in ``gtsam.OrientedPlane3`` tangent coordinates (Unit3 basis of
+    ``normal`` (2), offset (1)), of a plane (3,) ``normal`` whose frame is perturbed by
+    ``(w, v)`` with covariance ``pose_cov`` (6, 6): to first order the plane's points move
+    by ``w x p + v``, so ``dn = w x n`` and ``dd = -n . v``."""
+    n = np.asarray(normal, dtype=float)
+    B = np.asarray(gtsam.Unit3(n).basis())  # (3, 2)
+    skew = np.array([[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]])
+    J = np.zeros((3, 6))
+    J[:2, :3] = -B.T @ skew  # w x n = -[n]x w
+    J[2, 3:] = -n
+    return J @ pose_cov @ J.T

@@ -1,0 +1,154 @@
+"""The deskewing error's share of the factors' noise (planodom.smoothing.deskew_noise)."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.odometry.relative import RelativePose
+from planodom.smoothing.batch import smooth_batch
+from planodom.smoothing.deskew_noise import DeskewNoise, plane_deskew_covariance
+from planodom.smoothing.noise import between_covariance
+from planodom.smoothing.synthetic import make_sequence
+from planodom.smoothing.windowed import smooth_windowed
+
+
+def _steps(motions: np.ndarray, sigma: float = 1e-9) -> list[RelativePose]:
+    """delta = 1 relative poses with the given (rotation vector, translation) motions (K, 6):
+    the motion into epoch k + 1 is ``motions[k]``."""
+    out = []
+    for k, m in enumerate(motions):
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_rotvec(m[:3]).as_matrix()
+        T[:3, 3] = m[3:]
+        cov = np.eye(5) * sigma**2
+        out.append(RelativePose(T, cov, prev=k, curr=k + 1, z_observed=True, sigma_z=sigma))
+    return out
+
+
+def _random_walk_motions(rng: np.random.Generator, n: int, s: np.ndarray) -> np.ndarray:
+    """Motions whose changes from one epoch to the next are N(0, s^2) per component."""
+    base = np.array([0.0, 0.0, 0.05, 0.5, 0.0, 0.0])
+    return base + np.cumsum(rng.normal(0.0, 1.0, (n, 6)) * s, axis=0)
+
+
+def _fed(motions: np.ndarray) -> DeskewNoise:
+    model = DeskewNoise()
+    for rel in _steps(motions):
+        model.add(rel)
+    return model
+
+
+def test_pose_covariance_is_a_third_of_the_motion_change_variance():
+    rng = np.random.default_rng(3)
+    s = np.array([0.004, 0.002, 0.001, 0.01, 0.005, 0.003])
+    n = 3000
+    model = _fed(_random_walk_motions(rng, n, s))
+    epochs = range(10, n - 10)
+    # Closed form: the twist is off by the change dxi ~ N(0, s^2); E[(t / dt)^2] = 1 / 3.
+    expected = s**2 / 3.0
+    pose = np.mean([np.diag(model.pose_covariance(k)) for k in epochs], axis=0)
+    np.testing.assert_allclose(pose, expected, rtol=0.08)
+    # A relative pose: dxi_k - dxi_{k-delta}, independent changes: twice that.
+    for delta in (1, 3):
+        rel = np.mean([np.diag(model.relative_covariance(k - delta, k)) for k in epochs], axis=0)
+        np.testing.assert_allclose(rel, 2 * expected[:5], rtol=0.08)
+
+
+def test_white_odometry_noise_is_counted_twice_per_change():
+    rng = np.random.default_rng(4)
+    sigma, n = 0.002, 3000
+    motions = np.array([0.0, 0.0, 0.05, 0.5, 0.0, 0.0]) + rng.normal(0.0, sigma, (n, 6))
+    model = _fed(motions)
+    pose = np.mean([np.diag(model.pose_covariance(k)) for k in range(10, n - 10)], axis=0)
+    np.testing.assert_allclose(pose, np.full(6, 2 * sigma**2 / 3), rtol=0.08)
+
+
+def test_the_estimate_is_local_to_a_change_of_motion():
+    motions = np.tile([0.0, 0.0, 0.0, 0.5, 0.0, 0.0], (100, 1))
+    motions[50:, 2] = 0.03  # yaw rate changes once: motion into epoch 51 onwards
+    model = _fed(motions)
+    # The step into epoch k + 1 is motions[k]: the change dxi_k = m_{k+1} - m_k is nonzero
+    # at k = 50 only; a window of 5 anchors holds it once around there.
+    np.testing.assert_allclose(model.pose_covariance(50)[2, 2], 0.03**2 / 5 / 3)
+    assert model.pose_covariance(47)[2, 2] == 0.0 and model.pose_covariance(53)[2, 2] == 0.0
+    assert not np.any(model.pose_covariance(10)) and not np.any(model.pose_covariance(90))
+
+
+def test_streaming_estimates_follow_new_steps():
+    motions = _random_walk_motions(np.random.default_rng(5), 60, np.full(6, 0.01))
+    rels = _steps(motions)
+    streaming = DeskewNoise()
+    for rel in rels[:40]:
+        streaming.add(rel)
+    early = streaming.pose_covariance(38), streaming.relative_covariance(36, 38)
+    for rel in rels[40:]:
+        streaming.add(rel)
+    full = _fed(motions)
+    np.testing.assert_array_equal(streaming.pose_covariance(38), full.pose_covariance(38))
+    np.testing.assert_array_equal(
+        streaming.relative_covariance(36, 38), full.relative_covariance(36, 38)
+    )
+    assert not np.array_equal(early[0], full.pose_covariance(38))
+    assert not np.any(DeskewNoise().pose_covariance(3))
+
+
+def _perturbed_plane_tangent(n: np.ndarray, d: float, xi: np.ndarray) -> np.ndarray:
+    """Tangent (Unit3 basis of n (2), offset (1)) of the plane after its points moved by the
+    rigid motion Exp(xi) (p -> R p + t): independent of the first-order formula."""
+    R = Rotation.from_rotvec(xi[:3]).as_matrix()
+    n2 = R @ n
+    d2 = d - n2 @ xi[3:]
+    dn = np.asarray(gtsam.Unit3(n).localCoordinates(gtsam.Unit3(n2)))
+    return np.append(dn, d2 - d)
+
+
+def test_plane_deskew_covariance_matches_finite_differences():
+    rng = np.random.default_rng(6)
+    n = rng.normal(size=3)
+    n /= np.linalg.norm(n)
+    d = -3.2
+    A = rng.normal(size=(6, 6)) * 1e-3
+    pose_cov = A @ A.T
+    h = 1e-6
+    J = np.stack([_perturbed_plane_tangent(n, d, h * e) / h for e in np.eye(6)], axis=1)  # (3, 6)
+    np.testing.assert_allclose(
+        plane_deskew_covariance(n, pose_cov), J @ pose_cov @ J.T, rtol=1e-4, atol=1e-14
+    )
+
+
+def test_between_covariance_adds_the_relative_term():
+    cfg = PlanodomConfig().smoothing
+    model = _fed(_random_walk_motions(np.random.default_rng(7), 50, np.full(6, 0.01)))
+    rel = _steps(_random_walk_motions(np.random.default_rng(8), 12, np.full(6, 0.01)))[10]
+    deskew = model.relative_covariance(rel.prev, rel.curr)
+    added = between_covariance(rel, cfg, deskew) - between_covariance(rel, cfg)
+    np.testing.assert_allclose(added, deskew, atol=1e-15)
+    assert np.all(np.diag(added) > 0)
+
+
+def test_a_gap_of_unmeasured_epochs_takes_the_run_wide_estimate():
+    motions = _random_walk_motions(np.random.default_rng(9), 80, np.full(6, 0.01))
+    rels = [r for r in _steps(motions) if not 30 <= r.curr < 50]  # epochs 30-49 unresolved
+    model = DeskewNoise()
+    for rel in rels:
+        model.add(rel)
+    m = {r.curr: motions[r.curr - 1] for r in rels}
+    changes = np.array([m[k + 1] - m[k] for k in m if k + 1 in m])
+    np.testing.assert_allclose(np.diag(model.pose_covariance(40)), np.mean(changes**2, 0) / 3)
+    assert np.all(np.diag(model.pose_covariance(40)) > 0)
+
+
+def test_the_graph_takes_the_term_in_batch_and_fixed_lag_smoothing():
+    seq = make_sequence(30, seed=2, sigma_rotation=1e-3, sigma_translation=0.01,
+                        sigma_normal=0.005, sigma_offset=0.01)  # fmt: skip
+    base = SmoothingConfig(robust_kernel="none", deskew_noise="none")
+    on = base.model_copy(update={"deskew_noise": "twist_change"})
+    for smooth in (smooth_batch, smooth_windowed):
+        off_cov = smooth(seq.planes, seq.relatives, base).covariances
+        on_cov = smooth(seq.planes, seq.relatives, on).covariances
+        assert off_cov is not None and on_cov is not None
+        # More noise on every factor: the last pose can only be less certain.
+        assert np.trace(on_cov[-1]) > np.trace(off_cov[-1])
