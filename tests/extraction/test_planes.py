@@ -148,37 +148,3 @@ def test_batched_incidences_and_viewpoints_match_per_plane():
     # Without origins: the point above the base origin for every plane.
     bare = Epoch(Scan(pts, ring, t), pts, None, twist)
     np.testing.assert_array_equal(bare.viewpoints(inliers, bounds, planes, 1.5), [[0, 0, 1.5]] * 4)
-
-
-@pytest.mark.parametrize("big_labels", [False, True])
-def test_batched_labels_and_rows_match_per_plane(big_labels):
-    """The builder's one counting pass gives each plane the majority label and the number
-    of distinct scan lines that counting its own inliers gives (ties: smallest label)."""
-    from planodom.extraction.epoch import Epoch
-    from planodom.extraction.planes.builder import PlaneFits, _labels_and_rows
-    from planodom.scan import Scan
-
-    rng = np.random.default_rng(7)
-    N, G = 400, 9
-    label = rng.integers(-1, 6, N).astype(np.int32) + (2_000_000 if big_labels else 0)
-    label[:20] = -1  # plane 0 below: no labelled inlier
-    ring = rng.integers(0, 12, N).astype(np.int32)
-    scan = Scan(points=rng.normal(size=(N, 3)), ring=ring, label=label)
-    lens = np.r_[20, 0, rng.integers(1, 80, G - 2)]
-    inliers = np.r_[np.arange(20), rng.permutation(np.arange(20, N))[: lens[1:].sum()]]
-    bounds = np.r_[0, np.cumsum(lens)]
-    fits = PlaneFits(
-        np.asarray(lens), np.zeros((G, 3)), np.zeros(G), np.ones((G, 3)),
-        np.tile(np.eye(3), (G, 1, 1)), inliers, bounds, np.ones(len(inliers), bool),
-    )  # fmt: skip
-    kept = np.array([0, 1, 3, 4, 6, 8])
-    truth, rows = _labels_and_rows(Epoch(scan, scan.points, None, None), fits, kept)
-    for g, t, r in zip(kept, truth, rows, strict=True):
-        lab = label[fits.members(int(g))]
-        lab = lab[lab >= 0]
-        if len(lab) == 0:
-            assert t == -1
-        else:
-            values, counts = np.unique(lab, return_counts=True)
-            assert t == values[np.argmax(counts)]
-        assert r == len(set(ring[fits.members(int(g))].tolist()))

@@ -115,59 +115,6 @@ def _n_distinct(values: np.ndarray) -> int:
     return len(np.unique(values))
 
 
-#: Largest (planes x ids) table :func:`_id_counts` fills in one counting pass.
-_MAX_TABLE = 1 << 22
-
-
-def _id_counts(ids: np.ndarray, owner: np.ndarray, P: int) -> np.ndarray | None:
-    """(P, M) how often each id 0..M-1 of ``ids`` (K,) non-negative int occurs per plane
-    ``owner`` (K,) in 0..P-1; None when the table would exceed :data:`_MAX_TABLE`.
-
-    One counting pass for all planes: a per-plane ``bincount`` (or ``unique``) cost most
-    of the plane builder's time for the ~5 planes of a 2D-rig epoch.
-    """
-    M = int(ids.max()) + 1 if len(ids) else 1
-    if P * M > _MAX_TABLE:
-        return None
-    return np.bincount(owner * M + ids, minlength=P * M).reshape(P, M)
-
-
-def _labels_and_rows(
-    epoch: Epoch, fits: PlaneFits, kept: np.ndarray
-) -> tuple[list[int], list[int]]:
-    """Majority true label (:func:`majority_label`) and number of distinct scan lines
-    (``fits.n_rows``, else distinct ``ring`` values, else 0) of each kept plane, exactly
-    as plane by plane (ties go to the smallest label in both)."""
-    P = len(kept)
-    lens = fits.bounds[kept + 1] - fits.bounds[kept]
-    owner = np.repeat(np.arange(P), lens)
-    first = np.repeat(fits.bounds[kept] - (np.cumsum(lens) - lens), lens)
-    idx = fits.inliers[first + np.arange(len(owner))]
-    labels, ring = epoch.scan.label, epoch.scan.ring
-    truth: np.ndarray | list[int] = [-1] * P
-    if labels is not None:
-        lab = labels[idx]
-        ok = lab >= 0
-        counts = _id_counts(lab[ok], owner[ok], P) if lab[ok].max(initial=0) < 1e6 else None
-        if counts is None:
-            truth = [majority_label(labels[fits.members(int(g))]) for g in kept]
-        else:
-            truth = np.where(counts.any(axis=1), counts.argmax(axis=1), -1)
-    if fits.n_rows is not None:
-        rows: np.ndarray | list[int] = fits.n_rows[kept]
-    elif ring is None:
-        rows = [0] * P
-    else:
-        r = ring[idx]
-        small = len(r) == 0 or (r.min() >= 0 and r.max() < 1 << 16)
-        counts = _id_counts(r, owner, P) if small else None
-        if counts is None:
-            rows = [_n_distinct(ring[fits.members(int(g))]) for g in kept]
-        else:
-            rows = np.count_nonzero(counts, axis=1)
-    return [int(x) for x in truth], [int(x) for x in rows]
-
-
 def build_planes(
     fits: PlaneFits,
     epoch: Epoch,
@@ -208,10 +155,14 @@ def build_planes(
     if adjust is not None and len(kept):
         kept = adjust(kept, n_or, d_or)
     planes, inliers = [], []
-    truth, rows = _labels_and_rows(epoch, fits, kept)
+    labels, ring = epoch.scan.label, epoch.scan.ring
     scatter = np.einsum("gik,gk,gjk->gij", fits.evecs, fits.evals, fits.evecs)
-    for g, truth_id, n_rows in zip(kept, truth, rows, strict=True):
+    for g in kept:
         idx = fits.members(int(g))
+        if fits.n_rows is not None:
+            n_rows = int(fits.n_rows[g])
+        else:
+            n_rows = 0 if ring is None else _n_distinct(ring[idx])
         outline = epoch.points[idx][fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]
         polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
         plane = Plane(
@@ -222,7 +173,7 @@ def build_planes(
             support=PlaneSupport(
                 fits.centroid[g].copy(), polygon, int(fits.count[g]), scatter[g], n_rows
             ),
-            truth_id=truth_id,
+            truth_id=majority_label(None if labels is None else labels[idx]),
         )
         planes.append(plane)
         inliers.append(idx)
