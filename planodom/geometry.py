@@ -290,7 +290,8 @@ def dihedral_angles(normals: np.ndarray) -> np.ndarray:
 def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross products of (M, 3) arrays: ``np.cross`` without its axis handling,
     which costs more than the products for the few rows of a plane set."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    same = a.shape == b.shape  # the common case: skip broadcast_shapes' cost
+    out = np.empty(a.shape if same else np.broadcast_shapes(a.shape, b.shape))
     out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
     out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
     out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]

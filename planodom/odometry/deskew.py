@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -69,12 +70,19 @@ class EpochEstimate:
     map_estimate: MapEstimate | None = None
     twist_offset: np.ndarray | None = None
 
+    @cached_property
+    def _step_log(self) -> np.ndarray:
+        """(6,) ``se3_log(step)``, computed once: :meth:`own_twist` is asked for it again
+        after each deskewing pass, and a scipy rotation log per call cost a fifth of a
+        solve."""
+        return se3_log(self.step)
+
     def own_twist(self, dt: float) -> np.ndarray:
         """(6,) the epoch's twist, rad/s and m/s, over the ``dt`` seconds of its step: the
         step's twist plus ``twist_offset`` where it was measured (all of it when the
         status is OK, the angular rate when degenerate, nothing when unresolved: a
         bridge)."""
-        own = se3_log(self.step) / dt
+        own = self._step_log / dt
         status = self.relative.status
         if self.twist_offset is None or status is Status.UNRESOLVED:
             return own

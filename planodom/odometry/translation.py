@@ -82,7 +82,8 @@ def translation_elements(
         np.concatenate([prev.offsets[i2], curr.offsets[j2], -n2[:, 2]]),
         min_verticality,
     )
-    ref_p, ref_c, slope = np.split(refs, 3)
+    E = len(i1)  # slices: np.split costs more than the rest of this block
+    ref_p, ref_c, slope = refs[:E], refs[E : 2 * E], refs[2 * E :]
     ok = np.isfinite(ref_p).all(axis=1) & np.isfinite(ref_c).all(axis=1)
     cos_p = np.einsum("ij,ij->i", prev.normals[i1], prev.normals[i2])
     cos_c = np.einsum("ij,ij->i", curr.normals[j1], curr.normals[j2])

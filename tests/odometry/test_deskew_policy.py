@@ -91,3 +91,14 @@ def test_the_own_twist_removes_what_the_deskewing_of_both_epochs_put_in():
     # without a twist (the 2D rig's time windows) nothing is offset
     plain = _Epoch(1, [], PlaneSet.from_planes([]), scan, None)
     assert _twist_offset(plain, reference, DT) is None
+
+
+def test_the_own_twist_is_the_steps_twist_on_every_call():
+    """The step's log is computed once per estimate: later calls (another dt, a caller that
+    changed an earlier result in place) still give the step's twist over dt."""
+    est = _estimate(None, TRUE, Status.OK)  # step = exp(TRUE DT)
+    first = est.own_twist(DT)
+    np.testing.assert_allclose(first, TRUE, atol=1e-12)
+    first += 1.0
+    np.testing.assert_allclose(est.own_twist(DT), TRUE, atol=1e-12)
+    np.testing.assert_allclose(est.own_twist(2 * DT), TRUE / 2, atol=1e-12)
