@@ -126,6 +126,8 @@ class LoopClosingBuilder(GraphBuilder):
         self.travelled: list[float] = []
         self.variances: list[tuple[float, float]] = []  # chained (xy, yaw) variance sums
         self._extents: dict[int, tuple[int, np.ndarray, float]] = {}  # j -> (epoch, c, r)
+        #: j -> (last-seen epoch, world plane with its extent), see _map_plane
+        self._world_planes: dict[int, tuple[int, Plane]] = {}
         self._rows: dict[int, int] = {}  # landmark id -> row of the map arrays (_map)
         self._ids, self._seen = np.zeros(0, int), np.zeros(0, int)
         self._nz, self._radii, self._centres = np.zeros(0), np.zeros(0), np.zeros((0, 3))
@@ -215,6 +217,9 @@ class LoopClosingBuilder(GraphBuilder):
         lm = self.landmarks[j]
         assert lm.last_seen is not None
         e, coefficients = lm.last_seen
+        cached = self._world_planes.get(j)
+        if cached is not None and cached[0] == e:  # unchanged since its last sighting
+            return cached[1].transformed(T_pred_world)
         plane = self.planes[e][lm.last_index]
         if plane.normal @ coefficients[:3] < 0:
             plane = plane.flipped()
@@ -227,6 +232,7 @@ class LoopClosingBuilder(GraphBuilder):
         polygon = centre + radius * np.array([u, v, -u, -v])
         n_points = world.support.n_points if world.support is not None else 0
         world = replace(world, support=PlaneSupport(centre, polygon, n_points))
+        self._world_planes[j] = (e, world)
         return world.transformed(T_pred_world)
 
     def add_epoch(
