@@ -24,6 +24,9 @@ accepted correction (chi2 on yaw, x, y under the match's and the chained odometr
 covariance since then), else it ties nothing; a new correction (the first, or after a
 refusal) needs ``loop_confirmations`` successive agreeing matches. "tracked" also matches
 around the corrected prediction with bounds grown from the accepted correction's epoch.
+With ``loop_refuse_misfit`` a rotation-only match (verified on its yaw alone) is refused
+when its own pose leaves a tied plane metres off its old partner
+(:mod:`planodom.smoothing.match_fit`).
 
 After optimisation (:func:`gate_reidentifications`) a match one of whose re-identified
 factors has a squared whitened error above the ``loop_gate_quantile`` of chi2(3), or of
@@ -48,6 +51,7 @@ from planodom.geometry import Plane, PlaneSupport, invert_transform, pose5_from_
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 from planodom.smoothing.loop_records import LoopMatch, Reidentification
+from planodom.smoothing.match_fit import misfit
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
 GROUND_COS = 0.9
@@ -122,6 +126,8 @@ class LoopClosingBuilder(GraphBuilder):
         self.travelled: list[float] = []
         self.variances: list[tuple[float, float]] = []  # chained (xy, yaw) variance sums
         self._extents: dict[int, tuple[int, np.ndarray, float]] = {}  # j -> (epoch, c, r)
+        #: j -> (last-seen epoch, world plane with its extent), see _map_plane
+        self._world_planes: dict[int, tuple[int, Plane]] = {}
         self._rows: dict[int, int] = {}  # landmark id -> row of the map arrays (_map)
         self._ids, self._seen = np.zeros(0, int), np.zeros(0, int)
         self._nz, self._radii, self._centres = np.zeros(0), np.zeros(0), np.zeros((0, 3))
@@ -211,6 +217,9 @@ class LoopClosingBuilder(GraphBuilder):
         lm = self.landmarks[j]
         assert lm.last_seen is not None
         e, coefficients = lm.last_seen
+        cached = self._world_planes.get(j)
+        if cached is not None and cached[0] == e:  # unchanged since its last sighting
+            return cached[1].transformed(T_pred_world)
         plane = self.planes[e][lm.last_index]
         if plane.normal @ coefficients[:3] < 0:
             plane = plane.flipped()
@@ -223,6 +232,7 @@ class LoopClosingBuilder(GraphBuilder):
         polygon = centre + radius * np.array([u, v, -u, -v])
         n_points = world.support.n_points if world.support is not None else 0
         world = replace(world, support=PlaneSupport(centre, polygon, n_points))
+        self._world_planes[j] = (e, world)
         return world.transformed(T_pred_world)
 
     def add_epoch(
@@ -324,7 +334,13 @@ class LoopClosingBuilder(GraphBuilder):
         match = LoopMatch(k, oldest, T_world_pred, T, cov.reshape(5, 5), np.zeros((3, 3)), np.nan,
                           [(candidates[m], int(i)) for m, i in old])  # fmt: skip
         self.matches.append(match)
-        if c.loop_verify != "off":
+        if (
+            c.loop_refuse_misfit
+            and not full
+            and misfit(map_planes, curr, pairs, T) > c.loop_misfit_m
+        ):
+            match.verdict = "misfit"
+        elif c.loop_verify != "off":
             match.verdict = self._verify(match, T_world_pred @ T, full)
         if match.verdict != "accepted":
             return

@@ -151,6 +151,16 @@ def test_verified_loop_closure_still_closes_the_loop(problem, mode):
     assert _end_error(res.poses, truth) < 0.6 * _end_error(without.poses, truth)
 
 
+def test_refusing_misfit_rotation_only_matches_still_closes_the_loop(problem):
+    truth, planes, relatives = problem
+    without = smooth_batch(planes, relatives, _config(False))
+    res = smooth_batch(
+        planes, relatives, _config(True).updated({"smoothing.loop_refuse_misfit": True})
+    )
+    assert reidentification_counts(res.reidentifications)["wrong_kept"] == 0
+    assert _end_error(res.poses, truth) < 0.6 * _end_error(without.poses, truth)
+
+
 def test_a_match_placing_the_pose_metres_off_is_refused(problem, monkeypatch):
     """Matches whose pose is shifted 3 m (an aliased parallel wall) every other epoch after
     the loop has been closed: the correction each implies disagrees with the accepted one
