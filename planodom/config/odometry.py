@@ -142,6 +142,13 @@ class OdometryConfig(Section):
     unresolved or with far fewer planes than the one before (then the better of the two is
     kept); ``always``: every extraction with a twist; ``fixed``: never (the extraction's
     values). Measured: see :func:`planodom.odometry.twist_sigma.widened_if_lost`."""
+    rescue_gate_quantile: Annotated[float, Field(gt=0, le=1)] = 0.999
+    """Streaming, ``twist_sigma: lost``: a widened extraction replaces the epoch's own only
+    when its twist agrees with the constant-velocity prediction within the predicted twist
+    sigma and its step's error (chi2 at this quantile: 3 DoF for the angular rate, 3 more
+    for the velocity when measured; :meth:`planodom.odometry.twist_sigma.TwistUncertainty.
+    consistent`). 1: no gate. Widening admits other points into a plane, which can make a
+    wrong step the bridge then carries (issue 11's world 6, epoch 51)."""
     velocity_window: Annotated[int, Field(ge=1)] = 5
     """Streaming: the predicted linear velocity is the median over this many recent
     measured steps (the angular rate is the last step's)."""
