@@ -122,22 +122,30 @@ class TwistUncertainty:
         return float(s[0]), float(s[1])
 
     def consistent(
-        self, candidate: EpochEstimate, dt: float, prediction: np.ndarray | None, quantile: float
+        self,
+        candidate: EpochEstimate,
+        dt: float,
+        prediction: np.ndarray | None,
+        config: OdometryConfig,
     ) -> bool:
         """Whether ``candidate``'s own twist over ``dt`` s agrees with the constant-velocity
-        ``prediction`` (6,): the difference of each measured part (the angular rate; the
-        velocity too when the step is OK) holds the predicted twist's error and the step's
-        own, each sigma the root of a trace over 3 axes, so ``3 |d|^2 / (s_pred^2 +
-        s_step^2)`` summed is chi2 with 3 DoF a part, gated at ``quantile`` (1: no gate).
-        True when there is nothing to compare (no prediction, unresolved: a bridge)."""
+        ``prediction`` (6,), as ``config.rescue_gate`` says: the difference of each part
+        gated (the angular rate; with ``twist`` the velocity too when the step is OK) holds
+        the predicted twist's error and the step's own, each sigma the root of a trace
+        over 3 axes, so ``3 |d|^2 / (s_pred^2 + s_step^2)`` summed is chi2 with 3 DoF a
+        part, gated at ``config.rescue_gate_quantile``. True when there is nothing to
+        compare (gate off, no prediction, unresolved: a bridge)."""
         status = candidate.relative.status
-        if prediction is None or dt <= 0 or quantile >= 1 or status is Status.UNRESOLVED:
+        if config.rescue_gate == "off" or prediction is None or dt <= 0:
+            return True
+        if status is Status.UNRESOLVED:
             return True
         d = candidate.own_twist(dt) - prediction
         var = np.array(self.predicted()) ** 2 + step_sigma(candidate.relative, dt) ** 2
-        parts = 2 if status is Status.OK else 1
-        stat = 3 * (d[:3] @ d[:3]) / var[0] + (3 * (d[3:] @ d[3:]) / var[1] if parts == 2 else 0)
-        return bool(stat <= chi2.ppf(quantile, 3 * parts))
+        stat, dof = 3 * (d[:3] @ d[:3]) / var[0], 3
+        if config.rescue_gate == "twist" and status is Status.OK:
+            stat, dof = stat + 3 * (d[3:] @ d[3:]) / var[1], 6
+        return bool(stat <= chi2.ppf(config.rescue_gate_quantile, dof))
 
 
 def widened_if_lost(
