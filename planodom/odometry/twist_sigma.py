@@ -130,15 +130,18 @@ class TwistUncertainty:
     ) -> bool:
         """Whether ``candidate``'s own twist over ``dt`` s agrees with the constant-velocity
         ``prediction`` (6,), as ``config.rescue_gate`` says: the difference of each part
-        gated (the angular rate; with ``twist`` the velocity too when the step is OK) holds
+        gated (the angular rate, with ``degenerate`` only of a degenerate step; with
+        ``twist`` the velocity too when the step is OK) holds
         the predicted twist's error and the step's own, each sigma the root of a trace
         over 3 axes, so ``3 |d|^2 / (s_pred^2 + s_step^2)`` summed is chi2 with 3 DoF a
         part, gated at ``config.rescue_gate_quantile``. True when there is nothing to
-        compare (gate off, no prediction, unresolved: a bridge)."""
+        compare or not gated (off, no prediction, unresolved: a bridge)."""
         status = candidate.relative.status
         if config.rescue_gate == "off" or prediction is None or dt <= 0:
             return True
-        if status is Status.UNRESOLVED:
+        if status is Status.UNRESOLVED or (
+            config.rescue_gate == "degenerate" and status is Status.OK
+        ):
             return True
         d = candidate.own_twist(dt) - prediction
         var = np.array(self.predicted()) ** 2 + step_sigma(candidate.relative, dt) ** 2

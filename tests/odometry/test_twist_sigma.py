@@ -171,6 +171,12 @@ def test_a_step_is_consistent_with_the_prediction_within_both_errors_at_the_chi2
     assert model.consistent(candidate(0.0, 1.6), 0.1, prediction, twist)
     assert not model.consistent(candidate(0.0, 1.7), 0.1, prediction, twist)
     assert model.consistent(candidate(0.0, 1.7, Status.DEGENERATE), 0.1, prediction, twist)
+    # ``degenerate`` gates the rate of a degenerate step only
+    degenerate = rate.model_copy(update={"rescue_gate": "degenerate"})
+    assert model.consistent(candidate(limit + 2e-4, 0.0), 0.1, prediction, degenerate)
+    deg = Status.DEGENERATE
+    assert not model.consistent(candidate(limit + 2e-4, 0.0, deg), 0.1, prediction, degenerate)
+    assert model.consistent(candidate(limit - 2e-4, 9.0, deg), 0.1, prediction, degenerate)
     # no gate, no prediction, or a bridge: nothing to compare
     assert model.consistent(candidate(1.0, 9.0), 0.1, prediction, off)
     assert model.consistent(candidate(1.0, 9.0), 0.1, None, rate)
