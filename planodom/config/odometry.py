@@ -142,6 +142,24 @@ class OdometryConfig(Section):
     unresolved or with far fewer planes than the one before (then the better of the two is
     kept); ``always``: every extraction with a twist; ``fixed``: never (the extraction's
     values). Measured: see :func:`planodom.odometry.twist_sigma.widened_if_lost`."""
+    rescue_gate: Literal["degenerate", "rate", "twist", "off"] = "degenerate"
+    """Streaming, ``twist_sigma: lost``: a widened extraction replaces the epoch's own only
+    when its twist agrees with the constant-velocity prediction within the predicted twist
+    sigma and its step's error (chi2 at ``rescue_gate_quantile``, :meth:`planodom.odometry.
+    twist_sigma.TwistUncertainty.consistent`). Widening admits other points into a plane,
+    which can tilt the step and make a wrong one that the bridge then carries (issue 11's
+    world 6 at 6 mm, epoch 51: degenerate, 5.3 deg/s off a rate predicted to 1.1 deg/s).
+    ``rate``: the angular rate (3 DoF); ``twist``: the velocity too when the step measured
+    it (3 more); ``degenerate``: the rate of a degenerate step only; ``off``: no gate.
+    ``degenerate`` by default: an OK step has normals in three directions to check a tilted
+    plane against, a degenerate one not; and the predicted twist's sigma misses what the
+    prediction holds after a wrong or lost epoch in a changing turn (measured on the six
+    worlds of issue 11, 150 epochs: ``rate`` rejected a right OK rescue 28 deg/s off a
+    prediction held over two lost epochs, world 2 at 6 mm; ``twist`` right ones 3-5 sigma
+    off in velocity, a median over ``velocity_window`` lagging an acceleration, world 8 at
+    6 mm: ATE 0.23 -> 0.70 m)."""
+    rescue_gate_quantile: Annotated[float, Field(gt=0, lt=1)] = 0.999
+    """The chi2 quantile of ``rescue_gate`` (as ``smoothing.loop_gate_quantile``)."""
     velocity_window: Annotated[int, Field(ge=1)] = 5
     """Streaming: the predicted linear velocity is the median over this many recent
     measured steps (the angular rate is the last step's)."""

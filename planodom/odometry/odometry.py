@@ -254,7 +254,9 @@ class PlaneOdometry:
             sigma = self._twist_sigma.refined(source, t - self.times[-1], twist)
         k, mode = len(self.poses), self.config.odometry.twist_sigma
         extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s), t)  # noqa: E731
-        return widened_if_lost(extract, sigma, mode, len(self.last_planes))
+        dt, ocfg = t - self.times[-1], self.config.odometry
+        agrees = partial(self._twist_sigma.consistent, dt=dt, prediction=self.twist, config=ocfg)
+        return widened_if_lost(extract, sigma, mode, len(self.last_planes), agrees)
 
     def _estimate(self, epoch: _Epoch, t: float) -> EpochEstimate:
         """The relative pose of ``epoch`` (at time ``t``) from the reference epoch, and the

@@ -34,6 +34,7 @@ from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
+from scipy.stats import chi2
 
 from planodom.config import OdometryConfig
 from planodom.odometry.deskew import EpochEstimate, keep_first, prefer_streaming
@@ -120,18 +121,50 @@ class TwistUncertainty:
             s[1] = self.predicted()[1]
         return float(s[0]), float(s[1])
 
+    def consistent(
+        self,
+        candidate: EpochEstimate,
+        dt: float,
+        prediction: np.ndarray | None,
+        config: OdometryConfig,
+    ) -> bool:
+        """Whether ``candidate``'s own twist over ``dt`` s agrees with the constant-velocity
+        ``prediction`` (6,), as ``config.rescue_gate`` says: the difference of each part
+        gated (the angular rate, with ``degenerate`` only of a degenerate step; with
+        ``twist`` the velocity too when the step is OK) holds
+        the predicted twist's error and the step's own, each sigma the root of a trace
+        over 3 axes, so ``3 |d|^2 / (s_pred^2 + s_step^2)`` summed is chi2 with 3 DoF a
+        part, gated at ``config.rescue_gate_quantile``. True when there is nothing to
+        compare or not gated (off, no prediction, unresolved: a bridge)."""
+        status = candidate.relative.status
+        if config.rescue_gate == "off" or prediction is None or dt <= 0:
+            return True
+        if status is Status.UNRESOLVED or (
+            config.rescue_gate == "degenerate" and status is Status.OK
+        ):
+            return True
+        d = candidate.own_twist(dt) - prediction
+        var = np.array(self.predicted()) ** 2 + step_sigma(candidate.relative, dt) ** 2
+        stat, dof = 3 * (d[:3] @ d[:3]) / var[0], 3
+        if config.rescue_gate == "twist" and status is Status.OK:
+            stat, dof = stat + 3 * (d[3:] @ d[3:]) / var[1], 6
+        return bool(stat <= chi2.ppf(config.rescue_gate_quantile, dof))
+
 
 def widened_if_lost(
     estimate: Callable[[TwistSigma | None], EpochEstimate],
     sigma: TwistSigma | None,
     mode: Literal["lost", "always", "fixed"],
     previous_planes: int,
+    consistent: Callable[[EpochEstimate], bool] = lambda _: True,
 ) -> EpochEstimate:
     """One extraction of an epoch with a twist of ``sigma`` (None: exact or no twist), as
     ``odometry.twist_sigma`` says: ``lost``: first with the extraction's own tolerances,
     and again widened by ``sigma`` only when that leaves the epoch unresolved or with far
     fewer planes than the one before (:func:`.deskew.prefer_streaming`), the better of
-    the two kept; ``always``: widened; ``fixed``: the extraction's tolerances.
+    the two kept, the widened one only when ``consistent`` with the prediction
+    (:meth:`TwistUncertainty.consistent`); ``always``: widened; ``fixed``: the
+    extraction's tolerances.
     ``estimate(sigma)`` extracts with that sigma (None: the extraction config's) and
     estimates the relative pose."""
     if sigma is None or mode == "fixed":
@@ -142,4 +175,4 @@ def widened_if_lost(
     if not prefer_streaming(tight, previous_planes):
         return tight
     wide = estimate(sigma)
-    return tight if keep_first(tight, wide) else wide
+    return tight if keep_first(tight, wide) or not consistent(wide) else wide

@@ -9,7 +9,7 @@ from planodom.config import PlanodomConfig
 from planodom.geometry import invert_transform, se3_log, transform_from_rpy_xyz
 from planodom.odometry import PlaneOdometry, RelativePose, Status
 from planodom.odometry.deskew import EpochEstimate
-from planodom.odometry.twist_sigma import TwistUncertainty, step_sigma
+from planodom.odometry.twist_sigma import TwistUncertainty, step_sigma, widened_if_lost
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
@@ -142,3 +142,53 @@ def test_an_epoch_lost_to_a_wrong_twist_is_extracted_again_with_its_sigma():
     assert first[2] == (0.0, 0.0) and min(second[2]) > 0
     odo, _, _ = _run("fixed", smeared)
     assert odo.results[4].status == "unresolved"
+
+
+def test_a_step_is_consistent_with_the_prediction_within_both_errors_at_the_chi2_quantile():
+    """The rate differs from the prediction by d along one axis; predicted sigma 0.03 rad/s
+    (the last step's, no change) and the candidate step's 0.03 rad/s: the statistic is
+    3 d^2 / (2 * 0.03^2), chi2(3) at 0.99 is 11.345 (table), so d = 0.0825 rad/s passes and
+    d = 0.0826 does not; with ``twist`` an OK step's velocity counts too, against chi2(6)."""
+    base = PlanodomConfig().odometry
+    rate, off = (
+        base.model_copy(update={"rescue_gate_quantile": 0.99, "rescue_gate": g})
+        for g in ("rate", "off")
+    )
+    twist = rate.model_copy(update={"rescue_gate": "twist"})
+    model = TwistUncertainty(base)
+    for _ in range(2):
+        model.update(np.zeros(6), _relative(), 0.1)  # sigma (0.03, 0.5), change 0
+    limit = np.sqrt(11.345 * 2 * 0.03**2 / 3)  # 0.08250
+    prediction = np.zeros(6)
+
+    def candidate(rate, speed, status=Status.OK):
+        T = transform_from_rpy_xyz(0, 0, rate * 0.1, speed * 0.1, 0, 0)
+        return EpochEstimate([], PlaneSet.from_planes([]), None, _relative(status), T, [])
+
+    assert model.consistent(candidate(limit - 2e-4, 1.7), 0.1, prediction, rate)
+    assert not model.consistent(candidate(limit + 2e-4, 0.0), 0.1, prediction, rate)
+    # velocity: 3 v^2 / (2 * 0.5^2) = 17.34 beyond chi2(6) at 0.99 = 16.812 for v = 1.7 m/s
+    assert model.consistent(candidate(0.0, 1.6), 0.1, prediction, twist)
+    assert not model.consistent(candidate(0.0, 1.7), 0.1, prediction, twist)
+    assert model.consistent(candidate(0.0, 1.7, Status.DEGENERATE), 0.1, prediction, twist)
+    # ``degenerate`` gates the rate of a degenerate step only
+    degenerate = rate.model_copy(update={"rescue_gate": "degenerate"})
+    assert model.consistent(candidate(limit + 2e-4, 0.0), 0.1, prediction, degenerate)
+    deg = Status.DEGENERATE
+    assert not model.consistent(candidate(limit + 2e-4, 0.0, deg), 0.1, prediction, degenerate)
+    assert model.consistent(candidate(limit - 2e-4, 9.0, deg), 0.1, prediction, degenerate)
+    # no gate, no prediction, or a bridge: nothing to compare
+    assert model.consistent(candidate(1.0, 9.0), 0.1, prediction, off)
+    assert model.consistent(candidate(1.0, 9.0), 0.1, None, rate)
+    assert model.consistent(candidate(1.0, 9.0, Status.UNRESOLVED), 0.1, prediction, rate)
+
+
+def test_a_widened_rescue_that_disagrees_with_the_prediction_is_not_kept():
+    def estimate(status, planes):
+        rel = _relative(status)
+        return EpochEstimate([None] * planes, None, None, rel, np.eye(4), [])  # type: ignore[list-item]
+
+    tight, wide = estimate(Status.UNRESOLVED, 1), estimate(Status.OK, 6)
+    pick = lambda s: tight if s is None else wide  # noqa: E731
+    assert widened_if_lost(pick, (0.1, 1.0), "lost", 6) is wide
+    assert widened_if_lost(pick, (0.1, 1.0), "lost", 6, lambda e: e is not wide) is tight
