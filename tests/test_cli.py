@@ -155,3 +155,21 @@ def test_version_and_shared_source_options() -> None:
         text = runner.invoke(app, [command, "--help"], terminal_width=200).output
         for option in ("--scenario", "--rig", "--noise", "--seed", "--epochs", "--motion"):
             assert option in text, (command, option)
+
+
+def test_experiment_consistency_small(tmp_path) -> None:
+    import csv
+
+    from scipy.stats import chi2
+
+    out = tmp_path / "consistency"
+    args = ["experiment", "consistency", "--out", str(out), "--epochs", "20"]
+    result = runner.invoke(app, [*args, "--levels", "0.006"])
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader((out / "odometry.csv").open()))
+    assert [int(r["delta"]) for r in rows] == [1, 2, 3]
+    # The reference value is chi2(5)'s median, not what the code wrote before.
+    assert all(abs(float(r["chi2_median"]) - chi2.median(5)) < 1e-9 for r in rows)
+    assert {"planes.csv", "smoothed.csv"} <= {p.name for p in out.iterdir()}
+    bad = runner.invoke(app, [*args, "--levels", "x"])
+    assert bad.exit_code == 2 and "--levels" in bad.output

@@ -1,5 +1,6 @@
-"""``planodom experiment paper | smoothing | baselines``: the experiments behind the
-paper's figures, and planodom against point-based peers on recordings."""
+"""``planodom experiment paper | smoothing | consistency | generalisation | baselines |
+loops``: the experiments behind the paper's figures, the covariances' consistency,
+procedural worlds, planodom against point-based peers on recordings, loop closure."""
 
 from __future__ import annotations
 
@@ -195,3 +196,27 @@ def experiment_loops(
         out, range(worlds), levels, epochs or None, load_config(config), progress=_say
     )
     _print_files(result.files)
+
+
+@experiment_app.command("consistency")
+@reports_errors
+@takes_simulation
+def experiment_consistency(
+    simulation: Any,
+    scenes: Annotated[str, typer.Option(help="Comma-separated built-in scenes.")] = "paper-loop",
+    levels: Levels = "0.006,0.02,0.1",
+    out: ExpOut = Path("results/consistency"),
+    config: ConfigFile = None,
+) -> None:
+    """NEES of every factor kind (relative poses per delta, planes) and of the smoothed
+    poses against the truth, with the chi2 95 % interval of each mean."""
+    from planodom.experiments.consistency import run_consistency_experiment
+    from planodom.experiments.tables import write_tables
+
+    tables = run_consistency_experiment(
+        [x for x in scenes.split(",") if x], _levels(levels), (simulation.seed,),
+        simulation.n_epochs or 200, load_config(config), motion=simulation.motion,
+        progress=_say,
+    )  # fmt: skip
+    out.mkdir(parents=True, exist_ok=True)
+    _print_files(write_tables(out, tables))
