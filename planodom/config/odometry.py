@@ -159,7 +159,18 @@ class OdometryConfig(Section):
     off in velocity, a median over ``velocity_window`` lagging an acceleration, world 8 at
     6 mm: ATE 0.23 -> 0.70 m)."""
     rescue_gate_quantile: Annotated[float, Field(gt=0, lt=1)] = 0.999
-    """The chi2 quantile of ``rescue_gate`` (as ``smoothing.loop_gate_quantile``)."""
+    """The chi2 quantile of ``rescue_gate`` and ``degenerate_gate`` (as ``smoothing.
+    loop_gate_quantile``)."""
+    degenerate_gate: Literal["bridge", "off"] = "off"
+    """Streaming (pairwise pipelines, not the plane map): every degenerate step, from the
+    epoch's own extraction or a rescue, is checked as ``rescue_gate: degenerate`` checks a
+    rescue (its angular rate against the constant-velocity prediction, :meth:`planodom.
+    odometry.twist_sigma.TwistUncertainty.consistent`). ``bridge``: one that disagrees is
+    reported unresolved (``RelativePose.inconsistent``, the ``inconsistent`` column of
+    epochs.csv) and bridged by constant velocity, as the solver's unresolved steps are: a
+    degenerate step has no second normal direction to check its rotation against (issue
+    11's world 6 at 2 cm, epoch 113: 192 deg/s against 12 true, from the epoch's own
+    extraction). ``off``: not checked."""
     velocity_window: Annotated[int, Field(ge=1)] = 5
     """Streaming: the predicted linear velocity is the median over this many recent
     measured steps (the angular rate is the last step's)."""

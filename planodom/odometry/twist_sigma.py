@@ -31,12 +31,14 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import OdometryConfig
+from planodom.geometry import se3_exp
 from planodom.odometry.deskew import EpochEstimate, keep_first, prefer_streaming
 from planodom.odometry.relative import RelativePose, Status
 
@@ -127,6 +129,7 @@ class TwistUncertainty:
         dt: float,
         prediction: np.ndarray | None,
         config: OdometryConfig,
+        gate: Literal["degenerate", "rate", "twist", "off"] | None = None,
     ) -> bool:
         """Whether ``candidate``'s own twist over ``dt`` s agrees with the constant-velocity
         ``prediction`` (6,), as ``config.rescue_gate`` says: the difference of each part
@@ -135,20 +138,44 @@ class TwistUncertainty:
         the predicted twist's error and the step's own, each sigma the root of a trace
         over 3 axes, so ``3 |d|^2 / (s_pred^2 + s_step^2)`` summed is chi2 with 3 DoF a
         part, gated at ``config.rescue_gate_quantile``. True when there is nothing to
-        compare or not gated (off, no prediction, unresolved: a bridge)."""
+        compare or not gated (off, no prediction, unresolved: a bridge). ``gate`` stands
+        for ``config.rescue_gate`` when given."""
         status = candidate.relative.status
-        if config.rescue_gate == "off" or prediction is None or dt <= 0:
+        gate = config.rescue_gate if gate is None else gate
+        if gate == "off" or prediction is None or dt <= 0:
             return True
-        if status is Status.UNRESOLVED or (
-            config.rescue_gate == "degenerate" and status is Status.OK
-        ):
+        if status is Status.UNRESOLVED or (gate == "degenerate" and status is Status.OK):
             return True
         d = candidate.own_twist(dt) - prediction
         var = np.array(self.predicted()) ** 2 + step_sigma(candidate.relative, dt) ** 2
         stat, dof = 3 * (d[:3] @ d[:3]) / var[0], 3
-        if config.rescue_gate == "twist" and status is Status.OK:
+        if gate == "twist" and status is Status.OK:
             stat, dof = stat + 3 * (d[3:] @ d[3:]) / var[1], 6
         return bool(stat <= chi2.ppf(config.rescue_gate_quantile, dof))
+
+    def gated(
+        self,
+        estimate: EpochEstimate,
+        dt: float,
+        prediction: np.ndarray | None,
+        T_ref_last: np.ndarray,
+        config: OdometryConfig,
+    ) -> EpochEstimate:
+        """``estimate`` as ``config.degenerate_gate`` says: a degenerate step whose angular
+        rate disagrees with the constant-velocity ``prediction`` (6,) (:meth:`consistent`,
+        ``degenerate``) is reported unresolved and ``inconsistent`` and bridged as the
+        odometry bridges an unresolved one (``T_ref_last`` (4, 4): ``T_{ref}_{k-1}``)."""
+        if config.degenerate_gate == "off" or estimate.relative.status is not Status.DEGENERATE:
+            return estimate
+        if prediction is None or self.consistent(estimate, dt, prediction, config, "degenerate"):
+            return estimate
+        step = se3_exp(prediction * dt)
+        no_pairs = np.zeros((0, 2), dtype=np.intp)
+        relative = replace(
+            estimate.relative, T_prev_curr=T_ref_last @ step, status=Status.UNRESOLVED,
+            associations=no_pairs, sources=None, inconsistent=True,
+        )  # fmt: skip
+        return replace(estimate, relative=relative, step=step)
 
 
 def widened_if_lost(
