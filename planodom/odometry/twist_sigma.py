@@ -77,6 +77,9 @@ class TwistUncertainty:
         self._previous_var = np.zeros(2)  # and its step's variance
         self._last = self._fallback.copy()  # the last measured step's sigma
         self._unresolved = 0  # unresolved epochs since the last measured one
+        # the rate's change measured across degenerate steps too: with degenerate_gate
+        # only (alone it changes the sigma every extraction and rescue is given)
+        self._degenerate_rates = config.degenerate_gate != "off"
 
     def update(self, own: np.ndarray, relative: RelativePose, dt: float) -> None:
         """Record a committed epoch's own twist ``own`` (6,) and its step's ``relative``."""
@@ -87,24 +90,35 @@ class TwistUncertainty:
         self._unresolved = 0
         sigma = step_sigma(relative, dt)
         self._last = np.where(np.isfinite(sigma), sigma, self._fallback)
+        # a degenerate step measures the angular rate, not the velocity (NaN: its change
+        # is not measured across it); the rate's change is (on a rig whose roll and pitch
+        # rates shake from epoch to epoch, they change as much between degenerate steps:
+        # issue 11's world 0 at 2 cm, where few OK steps follow each other, saw 3-6 deg/s
+        # of roll rate change an epoch, and the gate bridged 15 right degenerate steps)
+        own = np.array(own, dtype=float)
         if relative.status is not Status.OK:
-            self._previous = None
-            return
-        own = np.asarray(own, dtype=float)
+            if not self._degenerate_rates:
+                self._previous = None
+                return
+            own[3:] = np.nan
         var = self._last**2
         if self._previous is not None:
             # the difference of two measured twists holds both their errors: what is left
             # of its square is the change of the motion
             d = own - self._previous
             sq = np.array([d[:3] @ d[:3], d[3:] @ d[3:]]) - var - self._previous_var
-            self._changes.append(np.maximum(sq, 0.0))
-        self._previous, self._previous_var = own.copy(), var
+            self._changes.append(np.maximum(sq, 0.0))  # NaN stays: not measured
+        self._previous, self._previous_var = own, var
 
     def change(self) -> np.ndarray:
         """(2,) rms change of the angular rate (rad/s) and velocity (m/s) over one epoch."""
         if not self._changes:
             return self._fallback
-        return np.sqrt(np.mean(np.array(self._changes), axis=0))
+        changes = np.array(self._changes)
+        measured = np.isfinite(changes)
+        n = measured.sum(axis=0)
+        mean = np.where(measured, changes, 0.0).sum(axis=0) / np.maximum(n, 1)
+        return np.where(n > 0, np.sqrt(mean), self._fallback)
 
     def predicted(self) -> TwistSigma:
         """Sigma of the twist predicted (or held) for the next epoch."""

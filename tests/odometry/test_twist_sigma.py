@@ -226,3 +226,19 @@ def test_a_degenerate_step_off_the_prediction_is_reported_inconsistent_and_bridg
     np.testing.assert_allclose(gated.step, expected, atol=1e-12)
     np.testing.assert_allclose(gated.relative.T_prev_curr, T_ref_last @ expected, atol=1e-12)
     assert len(gated.relative.associations) == 0 and gated.relative.sources is None
+
+
+def test_with_the_degenerate_gate_the_rate_change_is_measured_across_degenerate_steps_too():
+    """Exact steps: rates 0.1, 0.14 (degenerate), 0.11 rad/s change by 0.04 and 0.03 (rms
+    0.025 sqrt(2)); the velocity's change is measured only between OK steps (none here:
+    the fallback). Without the gate a degenerate step breaks the chain (as before)."""
+    cfg = PlanodomConfig().odometry
+    fallback_speed = cfg.deskew_speed_tolerance_mps
+    gated = TwistUncertainty(cfg.model_copy(update={"degenerate_gate": "bridge"}))
+    plain = TwistUncertainty(cfg)
+    steps = [(0.1, Status.OK), (0.14, Status.DEGENERATE), (0.11, Status.OK)]
+    for rate, status in steps:
+        for model in (gated, plain):
+            model.update(np.r_[0, 0, rate, 1.0, 0, 0], _relative(status, scale=0.0), 0.1)
+    np.testing.assert_allclose(gated.change(), [np.sqrt((0.04**2 + 0.03**2) / 2), fallback_speed])
+    np.testing.assert_allclose(plain.change(), plain._fallback)
