@@ -77,9 +77,8 @@ class TwistUncertainty:
         self._previous_var = np.zeros(2)  # and its step's variance
         self._last = self._fallback.copy()  # the last measured step's sigma
         self._unresolved = 0  # unresolved epochs since the last measured one
-        # the rate's change measured across degenerate steps too: with degenerate_gate
-        # only (alone it changes the sigma every extraction and rescue is given)
-        self._degenerate_rates = config.degenerate_gate != "off"
+        # the angular rate's change measured across degenerate steps too (for the gates)
+        self._rate_changes: deque[float] = deque(maxlen=config.velocity_window)
 
     def update(self, own: np.ndarray, relative: RelativePose, dt: float) -> None:
         """Record a committed epoch's own twist ``own`` (6,) and its step's ``relative``."""
@@ -90,39 +89,46 @@ class TwistUncertainty:
         self._unresolved = 0
         sigma = step_sigma(relative, dt)
         self._last = np.where(np.isfinite(sigma), sigma, self._fallback)
-        # a degenerate step measures the angular rate, not the velocity (NaN: its change
-        # is not measured across it); the rate's change is (on a rig whose roll and pitch
-        # rates shake from epoch to epoch, they change as much between degenerate steps:
-        # issue 11's world 0 at 2 cm, where few OK steps follow each other, saw 3-6 deg/s
-        # of roll rate change an epoch, and the gate bridged 15 right degenerate steps)
+        # a degenerate step measures the angular rate, not the velocity (NaN: not measured
+        # across it); the rate's change is, for the gates (:meth:`gate_change`)
         own = np.array(own, dtype=float)
         if relative.status is not Status.OK:
-            if not self._degenerate_rates:
-                self._previous = None
-                return
             own[3:] = np.nan
         var = self._last**2
         if self._previous is not None:
             # the difference of two measured twists holds both their errors: what is left
             # of its square is the change of the motion
             d = own - self._previous
-            sq = np.array([d[:3] @ d[:3], d[3:] @ d[3:]]) - var - self._previous_var
-            self._changes.append(np.maximum(sq, 0.0))  # NaN stays: not measured
+            sq = np.maximum(np.array([d[:3] @ d[:3], d[3:] @ d[3:]]) - var - self._previous_var, 0)
+            self._rate_changes.append(float(sq[0]))
+            if np.isfinite(sq[1]):  # two OK steps
+                self._changes.append(sq)
         self._previous, self._previous_var = own, var
 
     def change(self) -> np.ndarray:
-        """(2,) rms change of the angular rate (rad/s) and velocity (m/s) over one epoch."""
+        """(2,) rms change of the angular rate (rad/s) and velocity (m/s) over one epoch,
+        between OK steps."""
         if not self._changes:
             return self._fallback
-        changes = np.array(self._changes)
-        measured = np.isfinite(changes)
-        n = measured.sum(axis=0)
-        mean = np.where(measured, changes, 0.0).sum(axis=0) / np.maximum(n, 1)
-        return np.where(n > 0, np.sqrt(mean), self._fallback)
+        return np.sqrt(np.mean(np.array(self._changes), axis=0))
 
-    def predicted(self) -> TwistSigma:
-        """Sigma of the twist predicted (or held) for the next epoch."""
-        s = self._last + (2 + self._unresolved) * self.change()
+    def gate_change(self) -> np.ndarray:
+        """:meth:`change` with the angular rate's measured across degenerate steps too: on
+        a rig whose roll and pitch rates shake from epoch to epoch they change as much
+        between degenerate steps (issue 11's world 0 at 2 cm, where few OK steps follow
+        each other: 3-6 deg/s of roll rate an epoch; from OK steps alone, the degenerate
+        gate bridged 15 right degenerate steps there). Not given to the extraction: a
+        wider sigma there widens rescues too, measured worse on issue 11's worlds."""
+        change = self.change()
+        if self._rate_changes:
+            change = np.r_[np.sqrt(np.mean(self._rate_changes)), change[1]]
+        return change
+
+    def predicted(self, gate: bool = False) -> TwistSigma:
+        """Sigma of the twist predicted (or held) for the next epoch (``gate``: with
+        :meth:`gate_change`)."""
+        change = self.gate_change() if gate else self.change()
+        s = self._last + (2 + self._unresolved) * change
         return float(s[0]), float(s[1])
 
     def refined(self, source: EpochEstimate, dt: float, twist: np.ndarray) -> TwistSigma:
@@ -161,7 +167,8 @@ class TwistUncertainty:
         if status is Status.UNRESOLVED or (gate == "degenerate" and status is Status.OK):
             return True
         d = candidate.own_twist(dt) - prediction
-        var = np.array(self.predicted()) ** 2 + step_sigma(candidate.relative, dt) ** 2
+        gated = config.degenerate_gate != "off"  # its change model for the rescue gate too
+        var = np.array(self.predicted(gated)) ** 2 + step_sigma(candidate.relative, dt) ** 2
         stat, dof = 3 * (d[:3] @ d[:3]) / var[0], 3
         if gate == "twist" and status is Status.OK:
             stat, dof = stat + 3 * (d[3:] @ d[3:]) / var[1], 6

@@ -228,17 +228,17 @@ def test_a_degenerate_step_off_the_prediction_is_reported_inconsistent_and_bridg
     assert len(gated.relative.associations) == 0 and gated.relative.sources is None
 
 
-def test_with_the_degenerate_gate_the_rate_change_is_measured_across_degenerate_steps_too():
+def test_the_gates_measure_the_rate_change_across_degenerate_steps_too():
     """Exact steps: rates 0.1, 0.14 (degenerate), 0.11 rad/s change by 0.04 and 0.03 (rms
-    0.025 sqrt(2)); the velocity's change is measured only between OK steps (none here:
-    the fallback). Without the gate a degenerate step breaks the chain (as before)."""
+    0.025 sqrt(2)) for the gates; the extraction's change is measured only between OK
+    steps (none here: the fallback), and so is the velocity's."""
     cfg = PlanodomConfig().odometry
-    fallback_speed = cfg.deskew_speed_tolerance_mps
-    gated = TwistUncertainty(cfg.model_copy(update={"degenerate_gate": "bridge"}))
-    plain = TwistUncertainty(cfg)
+    model = TwistUncertainty(cfg)
     steps = [(0.1, Status.OK), (0.14, Status.DEGENERATE), (0.11, Status.OK)]
     for rate, status in steps:
-        for model in (gated, plain):
-            model.update(np.r_[0, 0, rate, 1.0, 0, 0], _relative(status, scale=0.0), 0.1)
-    np.testing.assert_allclose(gated.change(), [np.sqrt((0.04**2 + 0.03**2) / 2), fallback_speed])
-    np.testing.assert_allclose(plain.change(), plain._fallback)
+        model.update(np.r_[0, 0, rate, 1.0, 0, 0], _relative(status, scale=0.0), 0.1)
+    fallback = [np.radians(cfg.deskew_rate_tolerance_deg_s), cfg.deskew_speed_tolerance_mps]
+    np.testing.assert_allclose(model.change(), fallback)
+    np.testing.assert_allclose(model.gate_change(), [0.025 * np.sqrt(2), fallback[1]])
+    # exact last step: the prediction's sigma is two changes
+    np.testing.assert_allclose(model.predicted(gate=True), [0.05 * np.sqrt(2), 2 * fallback[1]])
