@@ -199,7 +199,8 @@ def test_a_degenerate_step_off_the_prediction_is_reported_inconsistent_and_bridg
     step with ``degenerate_gate: bridge``: beyond it the step becomes the constant-velocity
     bridge ``T_ref_last exp(prediction dt)``, unresolved and ``inconsistent``; OK steps and
     ``off`` are left as they are."""
-    base = PlanodomConfig().odometry.model_copy(update={"rescue_gate_quantile": 0.99})
+    odometry = PlanodomConfig().odometry
+    base = odometry.model_copy(update={"rescue_gate_quantile": 0.99, "degenerate_gate": "off"})
     bridge = base.model_copy(update={"degenerate_gate": "bridge"})
     model = TwistUncertainty(base)
     for _ in range(2):
