@@ -284,10 +284,12 @@ class PlaneOdometry:
         result = result.between(reference.index, epoch.index)
         step = _orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
         offset = _twist_offset(epoch, reference, dt)
-        return EpochEstimate(
+        estimate = EpochEstimate(
             epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes,
             twist_offset=offset,
         )  # fmt: skip
+        ocfg = self.config.odometry  # a degenerate step off the prediction: bridged
+        return self._twist_sigma.gated(estimate, dt, self.twist, T_ref_last, ocfg)
 
     def _estimate_map(self, epoch: _Epoch) -> EpochEstimate:
         """The plane-map odometry's estimate of ``epoch`` against its map (the previous

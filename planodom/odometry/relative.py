@@ -108,6 +108,10 @@ class RelativePose:
         z_observed: whether the vertical translation was measured (ground plane).
         sigma_z: standard deviation of the vertical translation, metres (inf: unobserved).
         diagnostics: how the solver found it (None for other sources).
+        inconsistent: the solver found it degenerate but its angular rate disagreed with
+            the constant-velocity prediction (``odometry.degenerate_gate``): the streaming
+            odometry reports it unresolved and bridges it (``T_prev_curr`` is the bridge,
+            ``covariance`` and ``diagnostics`` the solver's).
     """
 
     T_prev_curr: np.ndarray
@@ -120,6 +124,7 @@ class RelativePose:
     z_observed: bool = False
     sigma_z: float = np.inf
     diagnostics: SolverDiagnostics | None = None
+    inconsistent: bool = False
 
     def between(self, prev: int, curr: int) -> RelativePose:
         """The same relative pose labelled as between epochs ``prev`` and ``curr``."""

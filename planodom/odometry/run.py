@@ -350,6 +350,7 @@ def epoch_rows(run: OdometryRun) -> list[dict[str, object]]:
         row |= {f"sigma_{name}": float(v) for name, v in zip(_POSE5, r.sigmas5, strict=True)}
         row |= _diagnostic_columns(r)
         row["fallback"] = r.status is Status.UNRESOLVED
+        row["inconsistent"] = r.inconsistent
         out.append(row)
     return out
 

@@ -31,12 +31,14 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import OdometryConfig
+from planodom.geometry import se3_exp
 from planodom.odometry.deskew import EpochEstimate, keep_first, prefer_streaming
 from planodom.odometry.relative import RelativePose, Status
 
@@ -75,6 +77,8 @@ class TwistUncertainty:
         self._previous_var = np.zeros(2)  # and its step's variance
         self._last = self._fallback.copy()  # the last measured step's sigma
         self._unresolved = 0  # unresolved epochs since the last measured one
+        # the angular rate's change measured across degenerate steps too (for the gates)
+        self._rate_changes: deque[float] = deque(maxlen=config.velocity_window)
 
     def update(self, own: np.ndarray, relative: RelativePose, dt: float) -> None:
         """Record a committed epoch's own twist ``own`` (6,) and its step's ``relative``."""
@@ -85,28 +89,46 @@ class TwistUncertainty:
         self._unresolved = 0
         sigma = step_sigma(relative, dt)
         self._last = np.where(np.isfinite(sigma), sigma, self._fallback)
+        # a degenerate step measures the angular rate, not the velocity (NaN: not measured
+        # across it); the rate's change is, for the gates (:meth:`gate_change`)
+        own = np.array(own, dtype=float)
         if relative.status is not Status.OK:
-            self._previous = None
-            return
-        own = np.asarray(own, dtype=float)
+            own[3:] = np.nan
         var = self._last**2
         if self._previous is not None:
             # the difference of two measured twists holds both their errors: what is left
             # of its square is the change of the motion
             d = own - self._previous
-            sq = np.array([d[:3] @ d[:3], d[3:] @ d[3:]]) - var - self._previous_var
-            self._changes.append(np.maximum(sq, 0.0))
-        self._previous, self._previous_var = own.copy(), var
+            sq = np.maximum(np.array([d[:3] @ d[:3], d[3:] @ d[3:]]) - var - self._previous_var, 0)
+            self._rate_changes.append(float(sq[0]))
+            if np.isfinite(sq[1]):  # two OK steps
+                self._changes.append(sq)
+        self._previous, self._previous_var = own, var
 
     def change(self) -> np.ndarray:
-        """(2,) rms change of the angular rate (rad/s) and velocity (m/s) over one epoch."""
+        """(2,) rms change of the angular rate (rad/s) and velocity (m/s) over one epoch,
+        between OK steps."""
         if not self._changes:
             return self._fallback
         return np.sqrt(np.mean(np.array(self._changes), axis=0))
 
-    def predicted(self) -> TwistSigma:
-        """Sigma of the twist predicted (or held) for the next epoch."""
-        s = self._last + (2 + self._unresolved) * self.change()
+    def gate_change(self) -> np.ndarray:
+        """:meth:`change` with the angular rate's measured across degenerate steps too: on
+        a rig whose roll and pitch rates shake from epoch to epoch they change as much
+        between degenerate steps (issue 11's world 0 at 2 cm, where few OK steps follow
+        each other: 3-6 deg/s of roll rate an epoch; from OK steps alone, the degenerate
+        gate bridged 15 right degenerate steps there). Not given to the extraction: a
+        wider sigma there widens rescues too, measured worse on issue 11's worlds."""
+        change = self.change()
+        if self._rate_changes:
+            change = np.r_[np.sqrt(np.mean(self._rate_changes)), change[1]]
+        return change
+
+    def predicted(self, gate: bool = False) -> TwistSigma:
+        """Sigma of the twist predicted (or held) for the next epoch (``gate``: with
+        :meth:`gate_change`)."""
+        change = self.gate_change() if gate else self.change()
+        s = self._last + (2 + self._unresolved) * change
         return float(s[0]), float(s[1])
 
     def refined(self, source: EpochEstimate, dt: float, twist: np.ndarray) -> TwistSigma:
@@ -127,6 +149,7 @@ class TwistUncertainty:
         dt: float,
         prediction: np.ndarray | None,
         config: OdometryConfig,
+        gate: Literal["degenerate", "rate", "twist", "off"] | None = None,
     ) -> bool:
         """Whether ``candidate``'s own twist over ``dt`` s agrees with the constant-velocity
         ``prediction`` (6,), as ``config.rescue_gate`` says: the difference of each part
@@ -135,20 +158,45 @@ class TwistUncertainty:
         the predicted twist's error and the step's own, each sigma the root of a trace
         over 3 axes, so ``3 |d|^2 / (s_pred^2 + s_step^2)`` summed is chi2 with 3 DoF a
         part, gated at ``config.rescue_gate_quantile``. True when there is nothing to
-        compare or not gated (off, no prediction, unresolved: a bridge)."""
+        compare or not gated (off, no prediction, unresolved: a bridge). ``gate`` stands
+        for ``config.rescue_gate`` when given."""
         status = candidate.relative.status
-        if config.rescue_gate == "off" or prediction is None or dt <= 0:
+        gate = config.rescue_gate if gate is None else gate
+        if gate == "off" or prediction is None or dt <= 0:
             return True
-        if status is Status.UNRESOLVED or (
-            config.rescue_gate == "degenerate" and status is Status.OK
-        ):
+        if status is Status.UNRESOLVED or (gate == "degenerate" and status is Status.OK):
             return True
         d = candidate.own_twist(dt) - prediction
-        var = np.array(self.predicted()) ** 2 + step_sigma(candidate.relative, dt) ** 2
+        gated = config.degenerate_gate != "off"  # its change model for the rescue gate too
+        var = np.array(self.predicted(gated)) ** 2 + step_sigma(candidate.relative, dt) ** 2
         stat, dof = 3 * (d[:3] @ d[:3]) / var[0], 3
-        if config.rescue_gate == "twist" and status is Status.OK:
+        if gate == "twist" and status is Status.OK:
             stat, dof = stat + 3 * (d[3:] @ d[3:]) / var[1], 6
         return bool(stat <= chi2.ppf(config.rescue_gate_quantile, dof))
+
+    def gated(
+        self,
+        estimate: EpochEstimate,
+        dt: float,
+        prediction: np.ndarray | None,
+        T_ref_last: np.ndarray,
+        config: OdometryConfig,
+    ) -> EpochEstimate:
+        """``estimate`` as ``config.degenerate_gate`` says: a degenerate step whose angular
+        rate disagrees with the constant-velocity ``prediction`` (6,) (:meth:`consistent`,
+        ``degenerate``) is reported unresolved and ``inconsistent`` and bridged as the
+        odometry bridges an unresolved one (``T_ref_last`` (4, 4): ``T_{ref}_{k-1}``)."""
+        if config.degenerate_gate == "off" or estimate.relative.status is not Status.DEGENERATE:
+            return estimate
+        if prediction is None or self.consistent(estimate, dt, prediction, config, "degenerate"):
+            return estimate
+        step = se3_exp(prediction * dt)
+        no_pairs = np.zeros((0, 2), dtype=np.intp)
+        relative = replace(
+            estimate.relative, T_prev_curr=T_ref_last @ step, status=Status.UNRESOLVED,
+            associations=no_pairs, sources=None, inconsistent=True,
+        )  # fmt: skip
+        return replace(estimate, relative=relative, step=step)
 
 
 def widened_if_lost(

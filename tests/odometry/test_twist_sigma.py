@@ -192,3 +192,54 @@ def test_a_widened_rescue_that_disagrees_with_the_prediction_is_not_kept():
     pick = lambda s: tight if s is None else wide  # noqa: E731
     assert widened_if_lost(pick, (0.1, 1.0), "lost", 6) is wide
     assert widened_if_lost(pick, (0.1, 1.0), "lost", 6, lambda e: e is not wide) is tight
+
+
+def test_a_degenerate_step_off_the_prediction_is_reported_inconsistent_and_bridged():
+    """The same chi2 limit as above (0.0825 rad/s off the prediction) on every degenerate
+    step with ``degenerate_gate: bridge``: beyond it the step becomes the constant-velocity
+    bridge ``T_ref_last exp(prediction dt)``, unresolved and ``inconsistent``; OK steps and
+    ``off`` are left as they are."""
+    odometry = PlanodomConfig().odometry
+    base = odometry.model_copy(update={"rescue_gate_quantile": 0.99, "degenerate_gate": "off"})
+    bridge = base.model_copy(update={"degenerate_gate": "bridge"})
+    model = TwistUncertainty(base)
+    for _ in range(2):
+        model.update(np.zeros(6), _relative(), 0.1)  # sigma (0.03, 0.5), change 0
+    limit = np.sqrt(11.345 * 2 * 0.03**2 / 3)
+    prediction = np.r_[0.0, 0.0, 0.2, 2.0, 0.0, 0.0]  # 0.2 rad/s, 2 m/s forward
+    T_ref_last = transform_from_rpy_xyz(0, 0, 0.3, 1.0, -2.0, 0.0)
+
+    def candidate(rate, status=Status.DEGENERATE):
+        T = transform_from_rpy_xyz(0, 0, rate * 0.1, 0.0, 0, 0)
+        rel = _relative(status)
+        return EpochEstimate([], PlaneSet.from_planes([]), None, rel, T, [])
+
+    inside, outside = candidate(0.2 + limit - 2e-4), candidate(0.2 + limit + 2e-4)
+    assert model.gated(inside, 0.1, prediction, T_ref_last, bridge) is inside
+    assert model.gated(outside, 0.1, prediction, T_ref_last, base) is outside  # off
+    ok = candidate(0.2 + 1.0, Status.OK)
+    assert model.gated(ok, 0.1, prediction, T_ref_last, bridge) is ok
+    assert model.gated(outside, 0.1, None, T_ref_last, bridge) is outside
+    gated = model.gated(outside, 0.1, prediction, T_ref_last, bridge)
+    assert gated.relative.status is Status.UNRESOLVED and gated.relative.inconsistent
+    # the bridge: 0.02 rad of yaw and 0.2 m along the arc of a constant twist
+    expected = transform_from_rpy_xyz(0, 0, 0.02, 10 * np.sin(0.02), 10 * (1 - np.cos(0.02)), 0)
+    np.testing.assert_allclose(gated.step, expected, atol=1e-12)
+    np.testing.assert_allclose(gated.relative.T_prev_curr, T_ref_last @ expected, atol=1e-12)
+    assert len(gated.relative.associations) == 0 and gated.relative.sources is None
+
+
+def test_the_gates_measure_the_rate_change_across_degenerate_steps_too():
+    """Exact steps: rates 0.1, 0.14 (degenerate), 0.11 rad/s change by 0.04 and 0.03 (rms
+    0.025 sqrt(2)) for the gates; the extraction's change is measured only between OK
+    steps (none here: the fallback), and so is the velocity's."""
+    cfg = PlanodomConfig().odometry
+    model = TwistUncertainty(cfg)
+    steps = [(0.1, Status.OK), (0.14, Status.DEGENERATE), (0.11, Status.OK)]
+    for rate, status in steps:
+        model.update(np.r_[0, 0, rate, 1.0, 0, 0], _relative(status, scale=0.0), 0.1)
+    fallback = [np.radians(cfg.deskew_rate_tolerance_deg_s), cfg.deskew_speed_tolerance_mps]
+    np.testing.assert_allclose(model.change(), fallback)
+    np.testing.assert_allclose(model.gate_change(), [0.025 * np.sqrt(2), fallback[1]])
+    # exact last step: the prediction's sigma is two changes
+    np.testing.assert_allclose(model.predicted(gate=True), [0.05 * np.sqrt(2), 2 * fallback[1]])
