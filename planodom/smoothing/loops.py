@@ -24,9 +24,10 @@ accepted correction (chi2 on yaw, x, y under the match's and the chained odometr
 covariance since then), else it ties nothing; a new correction (the first, or after a
 refusal) needs ``loop_confirmations`` successive agreeing matches. "tracked" also matches
 around the corrected prediction with bounds grown from the accepted correction's epoch.
-With ``loop_refuse_misfit`` a rotation-only match (verified on its yaw alone) is refused
-when its own pose leaves a tied plane metres off its old partner
-(:mod:`planodom.smoothing.match_fit`).
+With ``loop_refuse_misfit`` a rotation-only match (verified on its yaw alone) is also
+refused when a tied wall's offset residual at its own pose exceeds chi2(1) at
+``loop_gate_quantile`` under the drift along the wall's normal plus both planes' offset
+variances (:mod:`planodom.smoothing.match_fit`).
 
 After optimisation (:func:`gate_reidentifications`) a match one of whose re-identified
 factors has a squared whitened error above the ``loop_gate_quantile`` of chi2(3), or of
@@ -51,7 +52,7 @@ from planodom.geometry import Plane, PlaneSupport, invert_transform, pose5_from_
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 from planodom.smoothing.loop_records import LoopMatch, Reidentification
-from planodom.smoothing.match_fit import misfit
+from planodom.smoothing.match_fit import offset_residuals, offset_statistic
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
 GROUND_COS = 0.9
@@ -334,13 +335,10 @@ class LoopClosingBuilder(GraphBuilder):
         match = LoopMatch(k, oldest, T_world_pred, T, cov.reshape(5, 5), np.zeros((3, 3)), np.nan,
                           [(candidates[m], int(i)) for m, i in old])  # fmt: skip
         self.matches.append(match)
-        if (
-            c.loop_refuse_misfit
-            and not full
-            and misfit(map_planes, curr, pairs, T) > c.loop_misfit_m
-        ):
-            match.verdict = "misfit"
-        elif c.loop_verify != "off":
+        if c.loop_refuse_misfit and not full:
+            sigma = c.default_plane_offset_sigma_m
+            match.offsets = offset_residuals(map_planes, curr, old, T, sigma)
+        if c.loop_verify != "off":
             match.verdict = self._verify(match, T_world_pred @ T, full)
         if match.verdict != "accepted":
             return
@@ -361,6 +359,10 @@ class LoopClosingBuilder(GraphBuilder):
             k_ref, seen_ref = self._reference
             match.drift = self._drift_covariance([(k_ref, k), (seen_ref, seen)])
             match.mahalanobis = self._disagreement(match, self.correction, T_world_curr, full)
+            if match.offsets is not None and match.mahalanobis <= limit:
+                match.misfit = offset_statistic(*match.offsets, match.drift[1:, 1:])
+                if match.misfit > limit:
+                    return "misfit"
             if match.mahalanobis <= limit:
                 if full:
                     self.correction, self._reference = W, (k, seen)

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 from planodom.geometry import Plane, invert_transform, transform_from_rpy_xyz
-from planodom.smoothing.match_fit import misfit
+from planodom.smoothing.match_fit import offset_residuals, offset_statistic
 
 
 def _walls() -> list[Plane]:
@@ -24,9 +25,12 @@ def test_planes_seen_from_the_matched_pose_fit_exactly():
     old = _walls()
     curr = _seen_from(T, old)
     pairs = np.array([[0, 0], [1, 1], [2, 2], [3, 3]])
-    assert misfit(old, curr, pairs, T) < 1e-9
+    r, normals, var = offset_residuals(old, curr, pairs, T, 0.02)
+    assert np.abs(r).max() < 1e-9
+    np.testing.assert_allclose(normals, [p.normal for p in old])
+    np.testing.assert_allclose(var, 2 * 0.02**2)  # no covariances: the default, twice
     flipped = [p.flipped() for p in curr]  # orientation does not matter
-    assert misfit(old, flipped, pairs, T) < 1e-9
+    assert np.abs(offset_residuals(old, flipped, pairs, T, 0.02)[0]).max() < 1e-9
 
 
 def test_a_wall_tied_to_a_parallel_wall_leaves_their_distance():
@@ -37,5 +41,19 @@ def test_a_wall_tied_to_a_parallel_wall_leaves_their_distance():
     curr = _seen_from(T, old)
     old.append(Plane(np.array([1.0, 0, 0]), 3.0 + 4.9))
     pairs = np.array([[4, 0], [1, 1], [2, 2], [3, 3]])
-    assert abs(misfit(old, curr, pairs, T) - 4.9) < 1e-9
-    assert misfit(old, curr, np.zeros((0, 2), int), T) == 0.0
+    r = offset_residuals(old, curr, pairs, T, 0.02)[0]
+    np.testing.assert_allclose(np.abs(r), [4.9, 0, 0, 0], atol=1e-9)
+    assert len(offset_residuals(old, curr, np.zeros((0, 2), int), T, 0.02)[0]) == 0
+
+
+def test_the_statistic_weighs_the_residual_by_the_drift_along_the_normal():
+    """Closed form: a residual r along normal n under drift covariance D and plane
+    variance v is chi2(1) distributed as r^2 / (n^T D n + v); drift across the normal
+    does not widen the bound."""
+    normals = np.array([[1.0, 0.0, 0.0]])
+    v = np.array([0.02**2])
+    along = np.diag([0.5**2, 1e-6])
+    across = np.diag([1e-6, 0.5**2])
+    assert np.isclose(offset_statistic(np.array([1.0]), normals, v, along), 1.0 / 0.2504)
+    assert offset_statistic(np.array([1.0]), normals, v, across) > chi2.ppf(0.999, 1)
+    assert offset_statistic(np.zeros(0), np.zeros((0, 3)), np.zeros(0), along) == 0.0
