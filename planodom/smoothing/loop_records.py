@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planodom.smoothing.match_fit import OffsetFit
 from planodom_factors.pose5 import pose5_error
 
 
@@ -52,7 +53,7 @@ class LoopMatch:
         mahalanobis: squared Mahalanobis distance from the accepted correction.
         ties: (landmark, plane index) pairs. verdict: "accepted" or why refused.
         offsets: of a rotation-only match with ``loop_refuse_misfit``, its ties' offset
-            residuals, normals and plane variances (:func:`.match_fit.offset_residuals`).
+            residuals against the parallel map walls (:func:`.match_fit.offset_residuals`).
         misfit: their largest squared whitened residual under ``drift`` (chi2(1)).
     """
 
@@ -65,7 +66,7 @@ class LoopMatch:
     mahalanobis: float
     ties: list[tuple[int, int]]
     verdict: str = "accepted"
-    offsets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    offsets: OffsetFit | None = None
     misfit: float = np.nan
 
 

@@ -52,7 +52,7 @@ from planodom.geometry import Plane, PlaneSupport, invert_transform, pose5_from_
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 from planodom.smoothing.loop_records import LoopMatch, Reidentification
-from planodom.smoothing.match_fit import offset_residuals, offset_statistic
+from planodom.smoothing.match_fit import offset_residuals, offset_verdict
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
 GROUND_COS = 0.9
@@ -336,8 +336,10 @@ class LoopClosingBuilder(GraphBuilder):
                           [(candidates[m], int(i)) for m, i in old])  # fmt: skip
         self.matches.append(match)
         if c.loop_refuse_misfit and not full:
-            sigma = c.default_plane_offset_sigma_m
-            match.offsets = offset_residuals(map_planes, curr, old, T, sigma)
+            sigma, angle = c.default_plane_offset_sigma_m, cfg.association.strict_normal_deg
+            match.offsets = offset_residuals(
+                map_planes[: len(candidates)], curr, old, T, sigma, angle
+            )
         if c.loop_verify != "off":
             match.verdict = self._verify(match, T_world_pred @ T, full)
         if match.verdict != "accepted":
@@ -360,9 +362,9 @@ class LoopClosingBuilder(GraphBuilder):
             match.drift = self._drift_covariance([(k_ref, k), (seen_ref, seen)])
             match.mahalanobis = self._disagreement(match, self.correction, T_world_curr, full)
             if match.offsets is not None and match.mahalanobis <= limit:
-                match.misfit = offset_statistic(*match.offsets, match.drift[1:, 1:])
-                if match.misfit > limit:
-                    return "misfit"
+                verdict, match.misfit = offset_verdict(match.offsets, match.drift[1:, 1:], limit)
+                if verdict:
+                    return verdict
             if match.mahalanobis <= limit:
                 if full:
                     self.correction, self._reference = W, (k, seen)

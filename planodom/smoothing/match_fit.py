@@ -7,7 +7,7 @@ translation is checked by nothing. On the 2D-rig world 2 at 6 mm, after the odom
 failure bent the map by about 37 degrees, 19 of its 20 wrong ties came from such
 matches, their walls 2.9 to 3.1 m off their old partners at the match's pose (a room's
 wall tied to a parallel wall 4.9 m away). :func:`offset_residuals` measures that
-residual, :func:`offset_statistic` weighs it against the drift of the predicted pose
+residual, :func:`offset_verdict` weighs it against the drift of the predicted pose
 (a fixed bound of 0.35 m refused 221 right matches on world 4 at 2 cm, where the chained
 guess drifts further between matches, and its ATE rose 0.025 -> 0.126 m).
 
@@ -17,10 +17,32 @@ Written here, not taken from a library: a residual of the paper's plane associat
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from planodom.geometry import Plane
+
+
+@dataclass
+class OffsetFit:
+    """The ties of a rotation-only match against every old plane parallel to them.
+
+    Attributes:
+        residuals: (M, N) ``d_old - d_curr`` (m) of tie m's current plane (at the match's
+            pose, oriented like old plane n) against old plane n; NaN where plane n is not
+            parallel to it (nor its tied partner).
+        normals: (N, 3) the old planes' unit normals, in the old frame.
+        old_variances: (N,) the old planes' offset variances, m^2.
+        curr_variances: (M,) the tied current planes' offset variances, m^2.
+        tied: (M,) int, index of each tie's old partner.
+    """
+
+    residuals: np.ndarray
+    normals: np.ndarray
+    old_variances: np.ndarray
+    curr_variances: np.ndarray
+    tied: np.ndarray
 
 
 def offset_residuals(
@@ -29,8 +51,10 @@ def offset_residuals(
     pairs: np.ndarray,
     T_old_curr: np.ndarray,
     default_sigma_m: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Offset residuals of the associated planes at the match's own pose.
+    parallel_deg: float,
+) -> OffsetFit:
+    """Offset residuals of the tied planes at the match's own pose, against their partners
+    and every other old plane within ``parallel_deg`` of the same orientation.
 
     Args:
         old: planes of the old side (map or old epoch), in its frame.
@@ -38,43 +62,58 @@ def offset_residuals(
         pairs: (M, 2) int, (index into ``old``, index into ``curr``).
         T_old_curr: (4, 4) the current frame in the old one as the match places it.
         default_sigma_m: offset sigma of a plane without covariance, m.
-
-    Returns:
-        residuals (M,) ``d_old - d_curr`` (m) with the current plane expressed in the old
-        frame and oriented like its partner; the old planes' unit normals (M, 3) in the
-        old frame; the summed offset variances of both planes (M,), m^2.
+        parallel_deg: largest angle between normals of an alternative partner, degrees.
     """
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
-    residuals, normals, variances = np.zeros(len(pairs)), np.zeros((len(pairs), 3)), []
+    normals = np.array([p.normal for p in old], dtype=float).reshape(-1, 3)
+    offsets = np.array([p.offset for p in old], dtype=float)
+    residuals = np.full((len(pairs), len(old)), np.nan)
+    curr_var = np.zeros(len(pairs))
     for row, (m, i) in enumerate(pairs):
         plane = curr[i].transformed(T_old_curr)
         sign = 1.0 if plane.normal @ old[m].normal >= 0 else -1.0
-        residuals[row], normals[row] = old[m].offset - sign * plane.offset, old[m].normal
-        variances.append(sum(_offset_variance(p, default_sigma_m) for p in (old[m], plane)))
-    return residuals, normals, np.asarray(variances, dtype=float)
+        parallel = normals @ (sign * plane.normal) >= np.cos(np.radians(parallel_deg))
+        parallel[m] = True
+        residuals[row, parallel] = offsets[parallel] - sign * plane.offset
+        curr_var[row] = _offset_variance(plane, default_sigma_m)
+    old_var = np.array([_offset_variance(p, default_sigma_m) for p in old], dtype=float)
+    return OffsetFit(residuals, normals, old_var, curr_var, pairs[:, 0].copy())
 
 
-def offset_statistic(
-    residuals: np.ndarray, normals: np.ndarray, variances: np.ndarray, drift_xy: np.ndarray
-) -> float:
-    """Largest squared whitened offset residual, chi2(1) per plane.
+def offset_verdict(fit: OffsetFit, drift_xy: np.ndarray, limit: float) -> tuple[str, float]:
+    """Whether each tie's offset residual passes chi2(1) at ``limit`` and is unique.
+
+    Each tie's squared whitened residual is ``r^2 / (n_xy^T drift_xy n_xy + v_old +
+    v_curr)`` (a position error t of the pose moves a plane's offset by n.t). A tie fails
+    ("misfit") above ``limit``; it is "ambiguous" when another parallel old plane whose
+    offset differs from its partner's (beyond ``limit`` under their offset variances: a
+    distinct surface, not a segment of the same one) passes the gate too - the drift
+    then admits an aliased wall, and the tie says nothing about the translation.
 
     Args:
-        residuals: (M,) offset residuals, m (:func:`offset_residuals`).
-        normals: (M, 3) the planes' unit normals in the frame of the residuals.
-        variances: (M,) the planes' summed offset variances, m^2.
-        drift_xy: (2, 2) covariance of the pose's horizontal position error, m^2 (in
-            the frame of the normals: a position error t moves a plane's offset by n.t).
+        fit: the residuals (:func:`offset_residuals`).
+        drift_xy: (2, 2) covariance of the pose's horizontal position error, m^2, in the
+            frame of the normals.
+        limit: chi2(1) quantile.
 
     Returns:
-        max over the planes of ``r^2 / (n_xy^T drift_xy n_xy + variances)``; 0 without
-        planes.
+        ("misfit" | "ambiguous" | "", largest squared whitened residual of the ties).
     """
-    if len(residuals) == 0:
-        return 0.0
-    n_xy = np.asarray(normals, dtype=float)[:, :2]
-    var = np.einsum("mi,ij,mj->m", n_xy, drift_xy, n_xy) + variances
-    return float(np.max(np.asarray(residuals) ** 2 / var))
+    if len(fit.tied) == 0:
+        return "", 0.0
+    n_xy = fit.normals[:, :2]
+    drift = np.einsum("ni,ij,nj->n", n_xy, drift_xy, n_xy)
+    var = drift[None, :] + fit.old_variances[None, :] + fit.curr_variances[:, None]
+    stat = fit.residuals**2 / var
+    rows = np.arange(len(fit.tied))
+    worst = float(np.max(stat[rows, fit.tied]))
+    if worst > limit:
+        return "misfit", worst
+    apart = fit.residuals - fit.residuals[rows, fit.tied][:, None]
+    apart_var = fit.old_variances[None, :] + fit.old_variances[fit.tied][:, None]
+    with np.errstate(invalid="ignore"):
+        alias = (stat <= limit) & (apart**2 / apart_var > limit)
+    return ("ambiguous" if alias.any() else ""), worst
 
 
 def _offset_variance(plane: Plane, default_sigma_m: float) -> float:
