@@ -36,6 +36,7 @@ class OffsetFit:
         old_variances: (N,) the old planes' offset variances, m^2.
         curr_variances: (M,) the tied current planes' offset variances, m^2.
         tied: (M,) int, index of each tie's old partner.
+        cos_parallel: cosine of the largest angle between parallel normals.
     """
 
     residuals: np.ndarray
@@ -43,6 +44,7 @@ class OffsetFit:
     old_variances: np.ndarray
     curr_variances: np.ndarray
     tied: np.ndarray
+    cos_parallel: float
 
 
 def offset_residuals(
@@ -77,18 +79,20 @@ def offset_residuals(
         residuals[row, parallel] = offsets[parallel] - sign * plane.offset
         curr_var[row] = _offset_variance(plane, default_sigma_m)
     old_var = np.array([_offset_variance(p, default_sigma_m) for p in old], dtype=float)
-    return OffsetFit(residuals, normals, old_var, curr_var, pairs[:, 0].copy())
+    cos = float(np.cos(np.radians(parallel_deg)))
+    return OffsetFit(residuals, normals, old_var, curr_var, pairs[:, 0].copy(), cos)
 
 
 def offset_verdict(fit: OffsetFit, drift_xy: np.ndarray, limit: float) -> tuple[str, float]:
-    """Whether each tie's offset residual passes chi2(1) at ``limit`` and is unique.
+    """Whether each tie's offset residual passes chi2(1) at ``limit``, and the ties agree.
 
     Each tie's squared whitened residual is ``r^2 / (n_xy^T drift_xy n_xy + v_old +
-    v_curr)`` (a position error t of the pose moves a plane's offset by n.t). A tie fails
-    ("misfit") above ``limit``; it is "ambiguous" when another parallel old plane whose
-    offset differs from its partner's (beyond ``limit`` under their offset variances: a
-    distinct surface, not a segment of the same one) passes the gate too - the drift
-    then admits an aliased wall, and the tie says nothing about the translation.
+    v_curr)`` (a position error t of the pose moves a plane's offset by n.t): a tie fails
+    ("misfit") above ``limit``. Two ties of parallel walls place the pose along the same
+    normal: the difference of their residuals must pass chi2(1) under the four planes'
+    offset variances, else "inconsistent ties" (on the 2D-rig world 2 at 6 mm, one
+    match tied three parallel walls with residuals 0, -1.8 and -2.9 m, under a drift of
+    2.4 m that let each pass alone).
 
     Args:
         fit: the residuals (:func:`offset_residuals`).
@@ -97,7 +101,7 @@ def offset_verdict(fit: OffsetFit, drift_xy: np.ndarray, limit: float) -> tuple[
         limit: chi2(1) quantile.
 
     Returns:
-        ("misfit" | "ambiguous" | "", largest squared whitened residual of the ties).
+        ("misfit" | "inconsistent ties" | "", largest squared whitened residual of the ties).
     """
     if len(fit.tied) == 0:
         return "", 0.0
@@ -109,11 +113,13 @@ def offset_verdict(fit: OffsetFit, drift_xy: np.ndarray, limit: float) -> tuple[
     worst = float(np.max(stat[rows, fit.tied]))
     if worst > limit:
         return "misfit", worst
-    apart = fit.residuals - fit.residuals[rows, fit.tied][:, None]
-    apart_var = fit.old_variances[None, :] + fit.old_variances[fit.tied][:, None]
-    with np.errstate(invalid="ignore"):
-        alias = (stat <= limit) & (apart**2 / apart_var > limit)
-    return ("ambiguous" if alias.any() else ""), worst
+    # parallel ties move together with the pose along their normal: the drift cancels
+    # from their difference, which only the planes' noise explains
+    tied_r = fit.residuals[rows, fit.tied]
+    tied_v = fit.old_variances[fit.tied] + fit.curr_variances
+    parallel = np.abs(fit.normals[fit.tied] @ fit.normals[fit.tied].T) >= fit.cos_parallel
+    apart = (tied_r[:, None] - tied_r[None, :]) ** 2 / (tied_v[:, None] + tied_v[None, :])
+    return ("inconsistent ties" if np.any(parallel & (apart > limit)) else ""), worst
 
 
 def _offset_variance(plane: Plane, default_sigma_m: float) -> float:
