@@ -117,8 +117,10 @@ def offset_verdict(fit: OffsetFit, drift_xy: np.ndarray, limit: float) -> tuple[
     # from their difference, which only the planes' noise explains
     tied_r = fit.residuals[rows, fit.tied]
     tied_v = fit.old_variances[fit.tied] + fit.curr_variances
-    parallel = np.abs(fit.normals[fit.tied] @ fit.normals[fit.tied].T) >= fit.cos_parallel
-    apart = (tied_r[:, None] - tied_r[None, :]) ** 2 / (tied_v[:, None] + tied_v[None, :])
+    dots = fit.normals[fit.tied] @ fit.normals[fit.tied].T
+    parallel = np.abs(dots) >= fit.cos_parallel  # facing walls: residuals of opposite sign
+    apart = (tied_r[:, None] - np.sign(dots) * tied_r[None, :]) ** 2
+    apart /= tied_v[:, None] + tied_v[None, :]
     return ("inconsistent ties" if np.any(parallel & (apart > limit)) else ""), worst
 
 
