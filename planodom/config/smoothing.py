@@ -220,10 +220,10 @@ class SmoothingConfig(Section):
     """Refuse a rotation-only re-identification (its translation unverified) when a tied
     wall's offset residual at the match's own pose exceeds chi2(1) at
     ``loop_gate_quantile`` under the drift since the accepted correction along the wall's
-    normal plus both planes' offset variances (planodom.smoothing.match_fit): the bound
-    grows with the drift. A fixed 0.35 m bound kept 1 instead of 20 wrong ties on the
-    2D-rig world 2 at 6 mm but refused 221 right matches on world 4 at 2 cm (ATE 0.025 ->
-    0.126 m)."""
+    normal plus both planes' offset variances, or when two ties of parallel walls
+    disagree on the pose along their normal (chi2(1) under the planes' variances alone:
+    the drift cancels) (planodom.smoothing.match_fit). A fixed 0.35 m bound refused 221
+    right matches on world 4 at 2 cm (ATE 0.025 -> 0.126 m); the drift-scaled one none."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree with each other before a new correction is accepted (and
     before the first one)."""

@@ -27,7 +27,8 @@ around the corrected prediction with bounds grown from the accepted correction's
 With ``loop_refuse_misfit`` a rotation-only match (verified on its yaw alone) is also
 refused when a tied wall's offset residual at its own pose exceeds chi2(1) at
 ``loop_gate_quantile`` under the drift along the wall's normal plus both planes' offset
-variances (:mod:`planodom.smoothing.match_fit`).
+variances, or when two ties of parallel walls disagree on the pose along their normal
+(:mod:`planodom.smoothing.match_fit`).
 
 After optimisation (:func:`gate_reidentifications`) a match one of whose re-identified
 factors has a squared whitened error above the ``loop_gate_quantile`` of chi2(3), or of
@@ -337,9 +338,11 @@ class LoopClosingBuilder(GraphBuilder):
         self.matches.append(match)
         if c.loop_refuse_misfit and not full:
             sigma, angle = c.default_plane_offset_sigma_m, cfg.association.strict_normal_deg
-            match.offsets = offset_residuals(
-                map_planes[: len(candidates)], curr, old, T, sigma, angle
-            )
+            # the map's walls agree to the bounds' floor (the chain's drift between their
+            # sightings, yaw's lever arm over the whole route, let world 2's 4.7 m pass)
+            var = np.full((len(old), len(old)), self._drift_covariance([])[1, 1])
+            walls = map_planes[: len(candidates)]
+            match.offsets = offset_residuals(walls, curr, old, T, sigma, angle, var)
         if c.loop_verify != "off":
             match.verdict = self._verify(match, T_world_pred @ T, full)
         if match.verdict != "accepted":

@@ -37,6 +37,8 @@ class OffsetFit:
         curr_variances: (M,) the tied current planes' offset variances, m^2.
         tied: (M,) int, index of each tie's old partner.
         cos_parallel: cosine of the largest angle between parallel normals.
+        between: (M, M) variance (m^2) of the horizontal position drift of the map
+            between the sightings of tie a's and tie b's old planes (per axis).
     """
 
     residuals: np.ndarray
@@ -45,6 +47,7 @@ class OffsetFit:
     curr_variances: np.ndarray
     tied: np.ndarray
     cos_parallel: float
+    between: np.ndarray
 
 
 def offset_residuals(
@@ -54,6 +57,7 @@ def offset_residuals(
     T_old_curr: np.ndarray,
     default_sigma_m: float,
     parallel_deg: float,
+    between: np.ndarray,
 ) -> OffsetFit:
     """Offset residuals of the tied planes at the match's own pose, against their partners
     and every other old plane within ``parallel_deg`` of the same orientation.
@@ -65,6 +69,7 @@ def offset_residuals(
         T_old_curr: (4, 4) the current frame in the old one as the match places it.
         default_sigma_m: offset sigma of a plane without covariance, m.
         parallel_deg: largest angle between normals of an alternative partner, degrees.
+        between: (M, M) see :class:`OffsetFit`.
     """
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
     normals = np.array([p.normal for p in old], dtype=float).reshape(-1, 3)
@@ -80,7 +85,7 @@ def offset_residuals(
         curr_var[row] = _offset_variance(plane, default_sigma_m)
     old_var = np.array([_offset_variance(p, default_sigma_m) for p in old], dtype=float)
     cos = float(np.cos(np.radians(parallel_deg)))
-    return OffsetFit(residuals, normals, old_var, curr_var, pairs[:, 0].copy(), cos)
+    return OffsetFit(residuals, normals, old_var, curr_var, pairs[:, 0].copy(), cos, between)
 
 
 def offset_verdict(fit: OffsetFit, drift_xy: np.ndarray, limit: float) -> tuple[str, float]:
@@ -90,9 +95,10 @@ def offset_verdict(fit: OffsetFit, drift_xy: np.ndarray, limit: float) -> tuple[
     v_curr)`` (a position error t of the pose moves a plane's offset by n.t): a tie fails
     ("misfit") above ``limit``. Two ties of parallel walls place the pose along the same
     normal: the difference of their residuals must pass chi2(1) under the four planes'
-    offset variances, else "inconsistent ties" (on the 2D-rig world 2 at 6 mm, one
-    match tied three parallel walls with residuals 0, -1.8 and -2.9 m, under a drift of
-    2.4 m that let each pass alone).
+    offset variances and the map's drift between the old planes' sightings (``between``:
+    only that part of the drift does not cancel), else "inconsistent ties" (on the 2D-rig
+    world 2 at 6 mm, matches tied two facing walls 1.8 and 2.9 m off in opposite
+    senses, under a drift of 2.4 m that let each pass alone).
 
     Args:
         fit: the residuals (:func:`offset_residuals`).
@@ -120,7 +126,7 @@ def offset_verdict(fit: OffsetFit, drift_xy: np.ndarray, limit: float) -> tuple[
     dots = fit.normals[fit.tied] @ fit.normals[fit.tied].T
     parallel = np.abs(dots) >= fit.cos_parallel  # facing walls: residuals of opposite sign
     apart = (tied_r[:, None] - np.sign(dots) * tied_r[None, :]) ** 2
-    apart /= tied_v[:, None] + tied_v[None, :]
+    apart /= tied_v[:, None] + tied_v[None, :] + fit.between
     return ("inconsistent ties" if np.any(parallel & (apart > limit)) else ""), worst
 
 
