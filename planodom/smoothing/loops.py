@@ -365,7 +365,8 @@ class LoopClosingBuilder(GraphBuilder):
             match.drift = self._drift_covariance([(k_ref, k), (seen_ref, seen)])
             match.mahalanobis = self._disagreement(match, self.correction, T_world_curr, full)
             if match.offsets is not None and match.mahalanobis <= limit:
-                verdict, match.misfit = offset_verdict(match.offsets, match.drift[1:, 1:], limit)
+                drift_xy = match.drift[1:, 1:]  # isotropic: the same in the predicted frame
+                verdict, match.misfit = offset_verdict(match.offsets, drift_xy, limit)
                 if verdict:
                     return verdict
             if match.mahalanobis <= limit:
