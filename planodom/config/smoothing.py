@@ -216,19 +216,16 @@ class SmoothingConfig(Section):
     agree on it. "tracked": the same, and once a correction is accepted the map is matched
     around the corrected prediction with bounds grown from its epoch (not from the
     candidates' last sighting). "off": every match of full rank ties."""
-    loop_refuse_misfit: bool = False
-    """Refuse a rotation-only re-identification (its translation unverified) when its own
-    pose leaves an associated plane's offset more than ``loop_misfit_m`` from its old
-    partner (planodom.smoothing.match_fit). Off: measured (``planodom experiment loops``
-    worlds 0, 2, 4, one lap) it keeps 1 instead of 20 wrong ties on the 2D-rig world 2 at
-    6 mm and its loop-end error falls 5.0 -> 0.015 m, but its ATE rises 2.8 -> 5.7 m (24
-    aliased loop-candidate factors 5 m off then survive), and on world 4 at 2 cm it
-    refuses 221 right matches (the chained guess drifts beyond the bound between
-    matches): ATE 0.025 -> 0.126 m. Worlds 0 (both) and 4 at 6 mm unchanged."""
-    loop_misfit_m: Positive = 0.35
-    """Bound of ``loop_refuse_misfit``, metres: the association's noise margin plus the
-    strict one (0.2 + 0.15 m; right matches on the 2D-rig world 0 at 6 mm leave at most
-    0.19 m, world 2's wrong ones 2.9 to 3.1 m)."""
+    loop_refuse_misfit: bool = True
+    """Refuse a rotation-only re-identification (its translation unverified) when a tied
+    wall's offset residual at the match's own pose exceeds chi2(1) at
+    ``loop_gate_quantile`` under the drift since the accepted correction along the wall's
+    normal plus both planes' offset variances, or when two ties of parallel walls
+    disagree on the pose along their normal (chi2(1) under the planes' variances alone:
+    the drift cancels) (planodom.smoothing.match_fit). A fixed 0.35 m bound refused 221
+    right matches on world 4 at 2 cm (ATE 0.025 -> 0.126 m); the drift-scaled one none.
+    Measured (batch, loop closure, worlds 0, 2, 4 at 6 mm and 2 cm, one lap): world 2 at
+    6 mm keeps 4 instead of 20 wrong ties (ATE 2.77 -> 2.68 m), the others unchanged."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree with each other before a new correction is accepted (and
     before the first one)."""

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planodom.smoothing.match_fit import OffsetFit
 from planodom_factors.pose5 import pose5_error
 
 
@@ -51,6 +52,9 @@ class LoopMatch:
         drift: (3, 3) covariance of the (yaw, x, y) drift since the compared correction.
         mahalanobis: squared Mahalanobis distance from the accepted correction.
         ties: (landmark, plane index) pairs. verdict: "accepted" or why refused.
+        offsets: of a rotation-only match with ``loop_refuse_misfit``, its ties' offset
+            residuals against the parallel map walls (:func:`.match_fit.offset_residuals`).
+        misfit: their largest squared whitened residual under ``drift`` (chi2(1)).
     """
 
     epoch: int
@@ -62,6 +66,8 @@ class LoopMatch:
     mahalanobis: float
     ties: list[tuple[int, int]]
     verdict: str = "accepted"
+    offsets: OffsetFit | None = None
+    misfit: float = np.nan
 
 
 def reidentification_counts(

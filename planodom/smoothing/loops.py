@@ -24,8 +24,10 @@ accepted correction (chi2 on yaw, x, y under the match's and the chained odometr
 covariance since then), else it ties nothing; a new correction (the first, or after a
 refusal) needs ``loop_confirmations`` successive agreeing matches. "tracked" also matches
 around the corrected prediction with bounds grown from the accepted correction's epoch.
-With ``loop_refuse_misfit`` a rotation-only match (verified on its yaw alone) is refused
-when its own pose leaves a tied plane metres off its old partner
+With ``loop_refuse_misfit`` a rotation-only match (verified on its yaw alone) is also
+refused when a tied wall's offset residual at its own pose exceeds chi2(1) at
+``loop_gate_quantile`` under the drift along the wall's normal plus both planes' offset
+variances, or when two ties of parallel walls disagree on the pose along their normal
 (:mod:`planodom.smoothing.match_fit`).
 
 After optimisation (:func:`gate_reidentifications`) a match one of whose re-identified
@@ -51,7 +53,7 @@ from planodom.geometry import Plane, PlaneSupport, invert_transform, pose5_from_
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 from planodom.smoothing.loop_records import LoopMatch, Reidentification
-from planodom.smoothing.match_fit import misfit
+from planodom.smoothing.match_fit import offset_residuals, offset_verdict
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
 GROUND_COS = 0.9
@@ -334,13 +336,14 @@ class LoopClosingBuilder(GraphBuilder):
         match = LoopMatch(k, oldest, T_world_pred, T, cov.reshape(5, 5), np.zeros((3, 3)), np.nan,
                           [(candidates[m], int(i)) for m, i in old])  # fmt: skip
         self.matches.append(match)
-        if (
-            c.loop_refuse_misfit
-            and not full
-            and misfit(map_planes, curr, pairs, T) > c.loop_misfit_m
-        ):
-            match.verdict = "misfit"
-        elif c.loop_verify != "off":
+        if c.loop_refuse_misfit and not full:
+            sigma, angle = c.default_plane_offset_sigma_m, cfg.association.strict_normal_deg
+            # the map's walls agree to the bounds' floor (the chain's drift between their
+            # sightings, yaw's lever arm over the whole route, let world 2's 4.7 m pass)
+            var = np.full((len(old), len(old)), self._drift_covariance([])[1, 1])
+            walls = map_planes[: len(candidates)]
+            match.offsets = offset_residuals(walls, curr, old, T, sigma, angle, var)
+        if c.loop_verify != "off":
             match.verdict = self._verify(match, T_world_pred @ T, full)
         if match.verdict != "accepted":
             return
@@ -361,6 +364,11 @@ class LoopClosingBuilder(GraphBuilder):
             k_ref, seen_ref = self._reference
             match.drift = self._drift_covariance([(k_ref, k), (seen_ref, seen)])
             match.mahalanobis = self._disagreement(match, self.correction, T_world_curr, full)
+            if match.offsets is not None and match.mahalanobis <= limit:
+                drift_xy = match.drift[1:, 1:]  # isotropic: the same in the predicted frame
+                verdict, match.misfit = offset_verdict(match.offsets, drift_xy, limit)
+                if verdict:
+                    return verdict
             if match.mahalanobis <= limit:
                 if full:
                     self.correction, self._reference = W, (k, seen)

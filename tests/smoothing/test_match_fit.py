@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
+from scipy.stats import chi2
 
 from planodom.geometry import Plane, invert_transform, transform_from_rpy_xyz
-from planodom.smoothing.match_fit import misfit
+from planodom.smoothing.match_fit import OffsetFit, offset_residuals, offset_verdict
 
 
 def _walls() -> list[Plane]:
@@ -24,9 +26,15 @@ def test_planes_seen_from_the_matched_pose_fit_exactly():
     old = _walls()
     curr = _seen_from(T, old)
     pairs = np.array([[0, 0], [1, 1], [2, 2], [3, 3]])
-    assert misfit(old, curr, pairs, T) < 1e-9
+    fit = offset_residuals(old, curr, pairs, T, 0.02, 3.0, np.zeros((4, 4)))
+    tied = fit.residuals[np.arange(4), fit.tied]
+    assert np.abs(tied).max() < 1e-9
+    assert np.isnan(fit.residuals[0, 1])  # opposite walls are no alternative partners
+    np.testing.assert_allclose(fit.normals, [p.normal for p in old])
+    np.testing.assert_allclose(fit.old_variances + fit.curr_variances, 2 * 0.02**2)
     flipped = [p.flipped() for p in curr]  # orientation does not matter
-    assert misfit(old, flipped, pairs, T) < 1e-9
+    fit = offset_residuals(old, flipped, pairs, T, 0.02, 3.0, np.zeros((4, 4)))
+    assert np.abs(fit.residuals[np.arange(4), fit.tied]).max() < 1e-9
 
 
 def test_a_wall_tied_to_a_parallel_wall_leaves_their_distance():
@@ -37,5 +45,54 @@ def test_a_wall_tied_to_a_parallel_wall_leaves_their_distance():
     curr = _seen_from(T, old)
     old.append(Plane(np.array([1.0, 0, 0]), 3.0 + 4.9))
     pairs = np.array([[4, 0], [1, 1], [2, 2], [3, 3]])
-    assert abs(misfit(old, curr, pairs, T) - 4.9) < 1e-9
-    assert misfit(old, curr, np.zeros((0, 2), int), T) == 0.0
+    fit = offset_residuals(old, curr, pairs, T, 0.02, 3.0, np.zeros((4, 4)))
+    r = fit.residuals[np.arange(4), fit.tied]
+    np.testing.assert_allclose(np.abs(r), [4.9, 0, 0, 0], atol=1e-9)
+    assert abs(fit.residuals[0, 0]) < 1e-9  # its true partner, parallel: an alternative
+    none = offset_residuals(old, curr, np.zeros((0, 2), int), T, 0.02, 3.0, np.zeros((0, 0)))
+    assert len(none.tied) == 0
+
+
+def _fit(residuals: list[float], normals: list[list[float]], between: float = 0.0) -> OffsetFit:
+    """Ties m -> old plane m with the given residuals, 1 cm planes, ``between`` m^2 of map
+    drift between every two of their sightings."""
+    n = len(residuals)
+    full = np.full((n, n), np.nan)
+    full[np.arange(n), np.arange(n)] = residuals
+    v = np.full(n, 0.01**2)
+    cos = np.cos(np.radians(3))
+    normals_ = np.array(normals, float)
+    return OffsetFit(full, normals_, v, v, np.arange(n), cos, np.full((n, n), between))
+
+
+def test_the_statistic_weighs_the_residual_by_the_drift_along_the_normal():
+    """Closed form: a residual r along normal n under drift covariance D and plane
+    variances v is chi2(1) distributed as r^2 / (n^T D n + v); drift across the normal
+    does not widen the bound."""
+    limit = float(chi2.ppf(0.999, 1))
+    along, across = np.diag([0.5**2, 1e-6]), np.diag([1e-6, 0.5**2])
+    fit = _fit([1.0], [[1.0, 0.0, 0.0]])
+    assert offset_verdict(fit, along, limit) == ("", pytest.approx(1.0 / (0.25 + 2e-4)))
+    assert offset_verdict(fit, across, limit)[0] == "misfit"
+    empty = OffsetFit(np.zeros((0, 0)), np.zeros((0, 3)), np.zeros(0), np.zeros(0),
+                      np.zeros(0, int), 1.0, np.zeros((0, 0)))  # fmt: skip
+    assert offset_verdict(empty, along, limit) == ("", 0.0)
+
+
+def test_parallel_ties_must_agree_whatever_the_drift():
+    """Two parallel walls 2 m apart in their residuals place the pose at two places along
+    their normal: a drift of 5 m lets each pass, not both; perpendicular walls are
+    independent, and parallel ties a few millimetres apart agree."""
+    limit = float(chi2.ppf(0.999, 1))
+    drift = np.eye(2) * 5.0**2
+    x, y = [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]
+    assert offset_verdict(_fit([0.0, -2.0], [x, x]), drift, limit)[0] == "inconsistent ties"
+    assert offset_verdict(_fit([0.0, -2.0], [x, y]), drift, limit)[0] == ""
+    assert offset_verdict(_fit([0.5, 0.51], [x, x]), drift, limit)[0] == ""
+    # facing walls: a shift along x moves their residuals by opposite amounts
+    facing = [x, [-1.0, 0.0, 0.0]]
+    assert offset_verdict(_fit([0.5, -0.5], facing), drift, limit)[0] == ""
+    assert offset_verdict(_fit([0.5, 0.5], facing), drift, limit)[0] == "inconsistent ties"
+    # the map's own drift between the two walls' sightings does not cancel: 1 m of it
+    # explains a metre's disagreement
+    assert offset_verdict(_fit([0.0, -1.0], [x, x], 1.0), drift, limit)[0] == ""
