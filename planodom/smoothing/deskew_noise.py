@@ -56,11 +56,17 @@ class DeskewNoise:
 
     Args:
         half_window: epochs on each side of an epoch whose changes of motion are averaged.
+        net: less the variance the odometry's covariances declare for the changes.
+        plane_rotation: whether :meth:`plane_pose_covariance` holds the perturbation's
+            rotation (the planes' normals) or its translation only (their offsets).
     """
 
-    def __init__(self, half_window: int = 2, net: bool = False) -> None:
+    def __init__(
+        self, half_window: int = 2, net: bool = False, plane_rotation: bool = True
+    ) -> None:
         self.half_window = half_window
         self.net = net
+        self.plane_rotation = plane_rotation
         self._steps: dict[int, np.ndarray] = {}  # curr -> (12,) motion into it, its variance
         self._cache: dict[tuple[int, int], np.ndarray] = {}  # (last step, delta) -> cov
         self._max_delta = 0
@@ -130,6 +136,20 @@ class DeskewNoise:
             self._cache[key] = np.diag(TIME_SPREAD * self._local_variance((-1, 1), epoch))
         return self._cache[key]
 
+    def plane_pose_covariance(self, epoch: int) -> np.ndarray:
+        """(6, 6) the share of :meth:`pose_covariance` given to epoch ``epoch``'s plane
+        factors: all of it, or without ``plane_rotation`` its translation block only (the
+        rotation block zero). The rotation part is one error shared by all the epoch's
+        planes; inflating every normal independently by it down-weights their geometry
+        (measured: the ATE rose on the built-in scenes, ``config.smoothing.deskew_noise``),
+        while the relative-pose factors keep it (their difference of two epochs')."""
+        cov = self.pose_covariance(epoch)
+        if self.plane_rotation:
+            return cov
+        out = np.zeros_like(cov)
+        out[3:, 3:] = cov[3:, 3:]
+        return out
+
     def relative_covariance(self, prev: int, curr: int) -> np.ndarray:
         """(5, 5) covariance of the 5-DoF error (rotation vector, x, y) of the relative
         pose from ``prev`` to ``curr`` due to the deskewing of its two epochs: the
@@ -147,6 +167,15 @@ class DeskewNoise:
             var = TIME_SPREAD * self._local_variance(tuple(weights), prev)
             self._cache[key] = np.diag(var[:5])
         return self._cache[key]
+
+
+def deskew_from_config(mode: str) -> DeskewNoise | None:
+    """The model ``smoothing.deskew_noise`` = ``mode`` selects (None for "none")."""
+    if mode == "none":
+        return None
+    return DeskewNoise(
+        net=mode == "twist_change_net", plane_rotation=mode != "twist_change_offsets"
+    )
 
 
 def plane_deskew_covariance(normal: np.ndarray, pose_cov: np.ndarray) -> np.ndarray:

@@ -41,7 +41,7 @@ import numpy as np
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.deskew_noise import DeskewNoise
+from planodom.smoothing.deskew_noise import deskew_from_config
 from planodom.smoothing.landmarks import LandmarkTracker
 from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
 from planodom_factors.planes import (
@@ -135,8 +135,7 @@ class GraphBuilder:
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
-        net = config.deskew_noise == "twist_change_net"
-        self.deskew = None if config.deskew_noise == "none" else DeskewNoise(net=net)
+        self.deskew = deskew_from_config(config.deskew_noise)
 
     # ----------------------------------------------------------------- building
 
@@ -328,7 +327,7 @@ class GraphBuilder:
         T_wa = anchor_pose(origin)
         values.insert(A(j), gtsam.Pose3(T_wa))
         values.insert(L(j), gtsam.OrientedPlane3(predict_plane(T_wa, world)))
-        deskew = None if self.deskew is None else self.deskew.pose_covariance(epoch)
+        deskew = None if self.deskew is None else self.deskew.plane_pose_covariance(epoch)
         cov = plane_covariance(self.planes[epoch][index], c, deskew)
         sigma_n, sigma_d = np.sqrt(max(cov[0, 0], cov[1, 1])), np.sqrt(cov[2, 2])
         noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma_n] * 3 + [sigma_d] * 3))
@@ -383,7 +382,7 @@ class GraphBuilder:
         self, lm: _Landmark, e: int, plane: Plane, graph: gtsam.NonlinearFactorGraph, robust: bool
     ) -> None:
         """A plane factor of observation ``plane`` (oriented) from ``X(e)`` on ``lm``."""
-        deskew = None if self.deskew is None else self.deskew.pose_covariance(e)
+        deskew = None if self.deskew is None else self.deskew.plane_pose_covariance(e)
         cov = plane_covariance(plane, self.config, deskew)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
         if lm.anchor_key is None:
