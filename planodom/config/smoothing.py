@@ -97,9 +97,9 @@ class SmoothingConfig(Section):
     worse ATE (experiments/smoothing_consistency.py). Relative poses without sources
     (independent sensors) are always factors. "none": no between factors (plane factors
     only; a diagnostic of the consistency experiment), except the fallback factors."""
-    deskew_noise: Literal["none", "twist_change", "twist_change_net", "twist_change_offsets"] = (
-        "none"
-    )
+    deskew_noise: Literal[
+        "none", "twist_change", "twist_change_net", "twist_change_offsets", "twist_change_frame"
+    ] = "none"
     """"twist_change": the plane and between factors' covariances also hold the deskewing
     error the fits' covariances miss, from the run's own changes of motion around each
     epoch (planodom.smoothing.deskew_noise; batch: the whole run's, fixed-lag: so far);

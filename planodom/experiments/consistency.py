@@ -170,7 +170,9 @@ def plane_nees(inputs: ConsistencyInputs, config: SmoothingConfig) -> np.ndarray
                 continue
             xi = plane_errors(p, inputs.surfaces[p.truth_id], T)
             tls = plane_tangent_covariance(p)
+            # a shared deskewed frame: a plane's marginal error holds all of it
             dsk = None if deskew is None else deskew.plane_pose_covariance(k)
+            dsk = deskew.pose_covariance(k) if deskew and deskew.shared_frame else dsk
             used = plane_covariance(p, config, dsk)
             rows.append(
                 (

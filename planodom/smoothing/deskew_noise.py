@@ -59,14 +59,21 @@ class DeskewNoise:
         net: less the variance the odometry's covariances declare for the changes.
         plane_rotation: whether :meth:`plane_pose_covariance` holds the perturbation's
             rotation (the planes' normals) or its translation only (their offsets).
+        shared_frame: the perturbation is one nuisance frame per epoch in the graph
+            (:func:`deskew_frame_factor`), none of it in the plane factors' covariances.
     """
 
     def __init__(
-        self, half_window: int = 2, net: bool = False, plane_rotation: bool = True
+        self,
+        half_window: int = 2,
+        net: bool = False,
+        plane_rotation: bool = True,
+        shared_frame: bool = False,
     ) -> None:
         self.half_window = half_window
         self.net = net
         self.plane_rotation = plane_rotation
+        self.shared_frame = shared_frame
         self._steps: dict[int, np.ndarray] = {}  # curr -> (12,) motion into it, its variance
         self._cache: dict[tuple[int, int], np.ndarray] = {}  # (last step, delta) -> cov
         self._max_delta = 0
@@ -144,6 +151,8 @@ class DeskewNoise:
         (measured: the ATE rose on the built-in scenes, ``config.smoothing.deskew_noise``),
         while the relative-pose factors keep it (their difference of two epochs')."""
         cov = self.pose_covariance(epoch)
+        if self.shared_frame:
+            return np.zeros_like(cov)  # in the graph's deskewed frames instead
         if self.plane_rotation:
             return cov
         out = np.zeros_like(cov)
@@ -174,8 +183,34 @@ def deskew_from_config(mode: str) -> DeskewNoise | None:
     if mode == "none":
         return None
     return DeskewNoise(
-        net=mode == "twist_change_net", plane_rotation=mode != "twist_change_offsets"
+        net=mode == "twist_change_net",
+        plane_rotation=mode != "twist_change_offsets",
+        shared_frame=mode == "twist_change_frame",
     )
+
+
+#: Sigma (rad, m) below which a component of a deskewed frame's factor is floored: a zero
+#: would make its noise model singular; far below any measured error (the frame then
+#: coincides with the pose in that component).
+FRAME_SIGMA_FLOOR = 1e-5
+
+
+def deskew_frame_factor(
+    pose_key: int, frame_key: int, pose_cov: np.ndarray
+) -> gtsam.NonlinearFactor | None:
+    """The factor tying an epoch's deskewed frame ``frame_key`` (Pose3, the frame its
+    planes were effectively measured in) to its pose ``pose_key``: ``Log(X^-1 F)`` ~ N(0,
+    ``pose_cov`` (6, 6), the epoch's deskewing perturbation, rotation then translation).
+    One perturbation shared by all the epoch's planes, as the deskewing error is: its
+    planes' factors on ``F`` are then correlated through it, where inflating each plane's
+    covariance by its share treats them as independent (and down-weights them all).
+    None when the perturbation is not known (all zero): the planes then see the pose."""
+    var = np.diag(np.asarray(pose_cov, dtype=float))
+    if not np.any(var > 0.0):
+        return None
+    sigmas = np.sqrt(np.maximum(var, FRAME_SIGMA_FLOOR**2))
+    noise = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+    return gtsam.BetweenFactorPose3(pose_key, frame_key, gtsam.Pose3(), noise)
 
 
 def plane_deskew_covariance(normal: np.ndarray, pose_cov: np.ndarray) -> np.ndarray:

@@ -41,7 +41,7 @@ import numpy as np
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.deskew_noise import deskew_from_config
+from planodom.smoothing.deskew_noise import deskew_frame_factor, deskew_from_config
 from planodom.smoothing.landmarks import LandmarkTracker
 from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
 from planodom_factors.planes import (
@@ -58,6 +58,7 @@ from planodom_factors.pose5 import pose5_factor, rotation_factor, vertical_facto
 X = gtsam.symbol_shorthand.X
 L = gtsam.symbol_shorthand.L
 A = gtsam.symbol_shorthand.A
+F = gtsam.symbol_shorthand.F  # an epoch's deskewed frame (smoothing.deskew_noise "..._frame")
 
 
 @dataclass
@@ -136,6 +137,7 @@ class GraphBuilder:
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
         self.deskew = deskew_from_config(config.deskew_noise)
+        self._frames: set[int] = set()  # epochs with a deskewed frame F(k)
 
     # ----------------------------------------------------------------- building
 
@@ -246,6 +248,13 @@ class GraphBuilder:
         self.poses[k] = T
         update.values.insert(X(k), gtsam.Pose3(T))
         update.timestamps[X(k)] = float(k)
+        if self.deskew is not None and self.deskew.shared_frame:
+            tie = deskew_frame_factor(X(k), F(k), self.deskew.pose_covariance(k))
+            if tie is not None:
+                graph.add(tie)
+                update.values.insert(F(k), gtsam.Pose3(T))
+                update.timestamps[F(k)] = float(k)
+                self._frames.add(k)
 
     def _reidentify(self, update: GraphUpdate) -> None:
         """Hook: ties to old landmarks (:class:`planodom.smoothing.loops.LoopClosingBuilder`)."""
@@ -385,10 +394,11 @@ class GraphBuilder:
         deskew = None if self.deskew is None else self.deskew.plane_pose_covariance(e)
         cov = plane_covariance(plane, self.config, deskew)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
+        key = F(e) if e in self._frames else X(e)
         if lm.anchor_key is None:
-            graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
+            graph.add(plane_factor(key, lm.key, plane.coefficients, noise))
         else:
-            make = partial(anchored_plane_factor, X(e), lm.anchor_key, lm.key, plane.coefficients)
+            make = partial(anchored_plane_factor, key, lm.anchor_key, lm.key, plane.coefficients)
             self._add(graph, make, noise, robust)
         self.stats.plane_factors += 1
 
