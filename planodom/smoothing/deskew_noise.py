@@ -36,12 +36,16 @@ that are. The half window (2 epochs) only averages a few changes; it is no tuned
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import TYPE_CHECKING
 
 import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from planodom.odometry.relative import RelativePose
+
+if TYPE_CHECKING:
+    from planodom.smoothing.graph import GraphUpdate
 
 #: ``E[(t / dt)^2]`` for times spread uniformly over the epoch from its reference time.
 TIME_SPREAD = 1.0 / 3.0
@@ -74,6 +78,7 @@ class DeskewNoise:
         self.net = net
         self.plane_rotation = plane_rotation
         self.shared_frame = shared_frame
+        self.frames: set[int] = set()  # epochs given a deskewed frame (:meth:`add_frame`)
         self._steps: dict[int, np.ndarray] = {}  # curr -> (12,) motion into it, its variance
         self._cache: dict[tuple[int, int], np.ndarray] = {}  # (last step, delta) -> cov
         self._max_delta = 0
@@ -159,6 +164,21 @@ class DeskewNoise:
         out[3:, 3:] = cov[3:, 3:]
         return out
 
+    def add_frame(
+        self, epoch: int, pose_key: int, frame_key: int, T: np.ndarray, update: GraphUpdate
+    ) -> None:
+        """With ``shared_frame``, epoch ``epoch``'s deskewed frame (Pose3 ``frame_key``, initial
+        guess ``T`` (4, 4)) and its :func:`deskew_frame_factor` into ``update`` (a
+        ``graph.GraphUpdate``: ``factors``, ``values``, ``timestamps``), unless the epoch's
+        perturbation is not known yet (then its planes see the pose)."""
+        tie = deskew_frame_factor(pose_key, frame_key, self.pose_covariance(epoch))
+        if not self.shared_frame or tie is None:
+            return
+        update.factors.add(tie)
+        update.values.insert(frame_key, gtsam.Pose3(T))
+        update.timestamps[frame_key] = float(epoch)
+        self.frames.add(epoch)
+
     def relative_covariance(self, prev: int, curr: int) -> np.ndarray:
         """(5, 5) covariance of the 5-DoF error (rotation vector, x, y) of the relative
         pose from ``prev`` to ``curr`` due to the deskewing of its two epochs: the
@@ -183,9 +203,9 @@ def deskew_from_config(mode: str) -> DeskewNoise | None:
     if mode == "none":
         return None
     return DeskewNoise(
-        net=mode == "twist_change_net",
+        net=mode.endswith("_net"),
         plane_rotation=mode != "twist_change_offsets",
-        shared_frame=mode == "twist_change_frame",
+        shared_frame=mode.startswith("twist_change_frame"),
     )
 
 

@@ -2,7 +2,8 @@
 
 Variables: ``X(k)`` the pose ``T_world_base`` of epoch k (Pose3), ``L(j)`` plane landmark j
 (OrientedPlane3, in the world frame or in its anchor frame), ``A(j)`` the anchor frame of
-an anchored landmark (Pose3, see :mod:`factors.planes`).
+an anchored landmark (Pose3, see :mod:`factors.planes`), ``F(k)`` epoch k's deskewed frame
+(Pose3, the one its plane factors are on; ``smoothing.deskew_noise`` "twist_change_frame*").
 
 Factors per epoch k:
 
@@ -41,7 +42,7 @@ import numpy as np
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.deskew_noise import deskew_frame_factor, deskew_from_config
+from planodom.smoothing.deskew_noise import deskew_from_config
 from planodom.smoothing.landmarks import LandmarkTracker
 from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
 from planodom_factors.planes import (
@@ -137,9 +138,6 @@ class GraphBuilder:
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
         self.deskew = deskew_from_config(config.deskew_noise)
-        self._frames: set[int] = set()  # epochs with a deskewed frame F(k)
-
-    # ----------------------------------------------------------------- building
 
     def _initial_pose(self, k: int, resolved: list[RelativePose]) -> np.ndarray | None:
         """Chained guess of ``T_world_k`` from the resolved relative poses, or None.
@@ -248,13 +246,8 @@ class GraphBuilder:
         self.poses[k] = T
         update.values.insert(X(k), gtsam.Pose3(T))
         update.timestamps[X(k)] = float(k)
-        if self.deskew is not None and self.deskew.shared_frame:
-            tie = deskew_frame_factor(X(k), F(k), self.deskew.pose_covariance(k))
-            if tie is not None:
-                graph.add(tie)
-                update.values.insert(F(k), gtsam.Pose3(T))
-                update.timestamps[F(k)] = float(k)
-                self._frames.add(k)
+        if self.deskew is not None:  # its deskewed frame F(k), with "..._frame"
+            self.deskew.add_frame(k, X(k), F(k), T, update)
 
     def _reidentify(self, update: GraphUpdate) -> None:
         """Hook: ties to old landmarks (:class:`planodom.smoothing.loops.LoopClosingBuilder`)."""
@@ -394,7 +387,7 @@ class GraphBuilder:
         deskew = None if self.deskew is None else self.deskew.plane_pose_covariance(e)
         cov = plane_covariance(plane, self.config, deskew)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
-        key = F(e) if e in self._frames else X(e)
+        key = F(e) if self.deskew is not None and e in self.deskew.frames else X(e)
         if lm.anchor_key is None:
             graph.add(plane_factor(key, lm.key, plane.coefficients, noise))
         else:
@@ -423,8 +416,6 @@ class GraphBuilder:
             np.degrees(np.arccos(cos_angle)) <= self.config.gate_normal_deg
             and abs(measured[3] - predicted[3]) <= self.config.gate_offset_m
         )
-
-    # ----------------------------------------------------------------- estimates
 
     def update_estimates(self, values: gtsam.Values, since: int = 0) -> None:
         """Refresh ``poses`` and the landmarks' world planes from an estimate.
