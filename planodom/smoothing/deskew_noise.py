@@ -213,7 +213,7 @@ def deskew_from_config(mode: str) -> DeskewNoise | None:
 #: would make its noise model singular; the stiffness of the first pose's gauge prior
 #: (``smoothing.prior_sigma``): 1e-5 made a fixed-lag smoother's system indeterminate
 #: (Cholesky and QR) on a synthetic sequence with "..._net" zeroing components.
-FRAME_SIGMA_FLOOR = 1e-3
+FRAME_SIGMA_FLOOR = 1e-4
 
 
 def deskew_frame_factor(
