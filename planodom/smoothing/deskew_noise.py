@@ -35,7 +35,7 @@ that are. The half window (2 epochs) only averages a few changes; it is no tuned
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING
 
 import gtsam
@@ -196,6 +196,25 @@ class DeskewNoise:
             var = TIME_SPREAD * self._local_variance(tuple(weights), prev)
             self._cache[key] = np.diag(var[:5])
         return self._cache[key]
+
+
+def between_keys(
+    model: DeskewNoise | None,
+    prev: int,
+    curr: int,
+    pose: Callable[[int], int],
+    frame: Callable[[int], int],
+) -> tuple[tuple[int, int], np.ndarray | None]:
+    """The keys and the deskewing covariance (5, 5) of a relative pose's between factor:
+    between the two epochs' deskewed frames, without it, where both have one (the
+    relative pose was measured from their planes: its deskewing error is the frames'
+    own); else between the poses, with :meth:`DeskewNoise.relative_covariance` (None
+    without a model)."""
+    if model is None:
+        return (pose(prev), pose(curr)), None
+    if prev in model.frames and curr in model.frames:
+        return (frame(prev), frame(curr)), None
+    return (pose(prev), pose(curr)), model.relative_covariance(prev, curr)
 
 
 def deskew_from_config(mode: str) -> DeskewNoise | None:

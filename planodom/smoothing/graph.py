@@ -42,7 +42,7 @@ import numpy as np
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.deskew_noise import deskew_from_config
+from planodom.smoothing.deskew_noise import between_keys, deskew_from_config
 from planodom.smoothing.landmarks import LandmarkTracker
 from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
 from planodom_factors.planes import (
@@ -266,9 +266,9 @@ class GraphBuilder:
                 self.stats.between_left_out += 1
                 continue
             make = pose5_factor if rel.translation_observed else rotation_factor
-            deskew = None if self.deskew is None else self.deskew.relative_covariance(rel.prev, k)
+            keys, deskew = between_keys(self.deskew, rel.prev, k, X, F)
             base = gtsam.noiseModel.Gaussian.Covariance(between_covariance(rel, c, deskew))
-            factor = partial(make, X(rel.prev), X(k), rel.T_prev_curr)
+            factor = partial(make, *keys, rel.T_prev_curr)
             self._add(update.factors, factor, base, robust)
             self.stats.between += 1
 
