@@ -110,29 +110,29 @@ class SmoothingConfig(Section):
     epoch (planodom.smoothing.deskew_noise; batch: the whole run's, fixed-lag: so far);
     "twist_change_net": the same less the variance the odometry's covariances declare;
     "twist_change_offsets": the planes get its translation part only (their offsets);
-    "twist_change_frame": the planes get none of it in their covariances: each epoch has a
+    "twist_change_frame": none of it in the plane factors' covariances: each epoch has a
     deskewed frame F(k) (Pose3) tied to its pose with the epoch's deskewing covariance,
-    and its plane factors are on F(k): one error shared by the epoch's planes, as the
-    deskewing error is (independent inflation of every plane down-weights good geometry
-    and cost ATE); the between factors as "twist_change"; "..._frame_net": the same, less
-    the odometry's declared variance; "none": the fits' and the odometry's covariances
-    alone. With suspension sway on the procedural worlds the deskewing was the dominant
-    error of the planes' normals (1 mrad against fit sigmas of 0.03 mrad) and of the
-    relative poses' roll (18 sigmas). Measured (batch, mean NEES5 of the smoothed poses /
-    ATE; chi2(5) 95 % per run [0.83, 12.8]), none -> twist_change -> frame -> frame_net:
-    procedural worlds (200 epochs, batch+loops, xy ATE m) 0 (2D rig) 6 mm 518 / 0.383 ->
-    2.7 / 0.313 -> 2.3 / 0.367 -> 3.6 / 0.371, 2 cm 147 / 0.528 -> 3.6 / 0.574 -> 2.8 /
-    0.531 -> 6.7 / 0.531; world 2 (2D rig) 6 mm n/a / 1.57 -> n/a / 0.86 -> 9.4 / 1.16 ->
-    9.4 / 1.16, 2 cm 2148 / 0.070 -> 9.3 / 0.290 -> 13.2 / 0.062 -> 22.9 / 0.062. Built-in
-    scenes (experiment consistency, continuous motion, 150 epochs, ATE mm): paper loop 6 mm
-    40 / 2.3 -> 0.97 / 2.1 -> 0.61 / 2.3 -> 7.2 / 2.3, 2 cm 7.5 / 3.7 -> 1.8 / 13 -> 0.15 /
-    3.8 -> 1.7 / 3.7; canyon 6 mm 15.9 / 40 -> 1.2 / 67 -> 0.28 / 40 -> 3.2 / 40 (canyon
-    2 cm: 8.2 / 199 in all). "offsets" left the NEES out (paper loop 37, canyon 15) and
-    cost ATE at 2 cm (paper loop 10 mm). "..._frame_net" is the default: in bounds but on
-    world 2 at 2 cm, no ATE cost; "twist_change_frame" errs on the cautious side (the
-    measured changes hold the odometry's noise, counted in full in a frame every plane
-    shares). Earlier (an older main, independent inflation): lidar worlds 1 and 3 stayed
-    far off (36-3386), "twist_change_net" lost world 2 at 2 cm (ATE 3.5 -> 17 m)."""
+    its plane factors and the between factors joining two such epochs are on the F's
+    (one error shared by the epoch's planes, as the deskewing error is; independent
+    inflation of every plane down-weights good geometry and cost ATE); "..._frame_net":
+    the same, less the odometry's declared variance; "none": the fits' and the
+    odometry's covariances alone. With suspension sway on the procedural worlds the
+    deskewing was the dominant error of the planes' normals (1 mrad against fit sigmas of
+    0.03 mrad) and of the relative poses' roll (18 sigmas). Measured (batch, mean NEES5 of
+    the smoothed poses / ATE; chi2(5) 95 % per run [0.83, 12.8]), none -> twist_change ->
+    twist_change_frame_net: procedural worlds (200 epochs, batch+loops, xy ATE m) 0 (2D
+    rig) 6 mm 518 / 0.383 -> 2.7 / 0.313 -> 1.9 / 0.377, 2 cm 147 / 0.528 -> 3.6 / 0.574 ->
+    5.5 / 0.531; world 2 (2D rig) 6 mm n/a / 1.57 -> n/a / 0.86 -> n/a / 1.09, 2 cm 2148 /
+    0.070 -> 9.3 / 0.290 -> 20.9 / 0.063. Built-in scenes (experiment consistency,
+    continuous motion, 150 epochs, ATE mm): paper loop 6 mm 40 / 2.3 -> 0.97 / 2.1 -> 2.3 /
+    2.3, 2 cm 7.5 / 3.7 -> 1.8 / 13 -> 0.68 / 3.7; canyon 6 mm 15.9 / 40 -> 1.2 / 67 -> 1.2
+    / 40 (2 cm: 8.2 / 199 in all); "planodom smooth" on the canyon (200 epochs) 4.0 mm in
+    none and frame_net. Hence the default. "twist_change_offsets" left the NEES out (paper
+    loop 37, canyon 15) and cost ATE (paper loop 2 cm 10 mm). "twist_change_frame" (plane
+    factors on the frames, between factors on the poses with the term) errs on the
+    cautious side (paper loop 0.61 / 0.15, canyon 0.28; its measured changes hold the
+    odometry's noise). Earlier (an older main, independent inflation): lidar worlds 1 and 3
+    stayed far off (36-3386); "twist_change_net" lost world 2 at 2 cm (ATE 3.5 -> 17 m)."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""

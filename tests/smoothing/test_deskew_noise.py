@@ -11,6 +11,7 @@ from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.deskew_noise import (
     DeskewNoise,
+    between_keys,
     deskew_frame_factor,
     plane_deskew_covariance,
 )
@@ -205,3 +206,14 @@ def test_a_shared_frame_adds_the_perturbation_once_to_the_pose():
         return np.asarray(gtsam.Marginals(graph, values).marginalCovariance(0))
 
     np.testing.assert_allclose(marginal(True), marginal(False) + pose_cov, rtol=1e-4, atol=1e-11)
+
+
+def test_relative_poses_between_deskewed_frames_take_no_separate_term():
+    model = _fed(_random_walk_motions(np.random.default_rng(13), 30, np.full(6, 0.01)))
+    model.frames.update({4, 5})
+    X, F = gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.F
+    assert between_keys(model, 4, 5, X, F) == ((F(4), F(5)), None)
+    keys, cov = between_keys(model, 5, 6, X, F)  # epoch 6 has no frame: the poses
+    assert keys == (X(5), X(6))
+    np.testing.assert_array_equal(cov, model.relative_covariance(5, 6))
+    assert between_keys(None, 4, 5, X, F) == ((X(4), X(5)), None)
