@@ -131,7 +131,8 @@ class SmoothingConfig(Section):
     loop 37, canyon 15) and cost ATE (paper loop 2 cm 10 mm). "twist_change_frame" (measured
     with the between factors still on the poses, with the term) erred on the cautious
     side (paper loop 0.61 / 0.15, canyon 0.28; its changes hold the odometry's noise).
-    Earlier (an older main, independent inflation): lidar worlds 1 and 3 stayed far off (36-3386); "twist_change_net" lost world 2 at 2 cm (ATE 3.5 -> 17 m)."""
+    Earlier (an older main, independent inflation): lidar worlds 1 and 3 stayed far off
+    (36-3386); "twist_change_net" lost world 2 at 2 cm (ATE 3.5 -> 17 m)."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""
