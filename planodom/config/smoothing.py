@@ -123,8 +123,8 @@ class SmoothingConfig(Section):
     twist_change_frame_net: procedural worlds (200 epochs, batch+loops, xy ATE m) 0 (2D
     rig) 6 mm 518 / 0.383 -> 2.7 / 0.313 -> 1.9 / 0.377, 2 cm 147 / 0.528 -> 3.6 / 0.574 ->
     5.5 / 0.531; world 2 (2D rig) 6 mm n/a / 1.57 -> n/a / 0.86 -> n/a / 1.09, 2 cm 2148 /
-    0.070 -> 9.3 / 0.290 -> 20.9 / 0.063; world 1 (lidar16, none -> frame_net) 6 mm 4736 /
-    0.0070 -> 273 / 0.0070, 2 cm 1286 / 0.0087 -> 33 / 0.0087. Built-in scenes (experiment consistency,
+    0.070 -> 9.3 / 0.290 -> 20.9 / 0.063; world 1 (lidar16, none -> frame_net) 6 mm
+    4736 / 0.0070 -> 273 / 0.0070, 2 cm 1286 / 0.0087 -> 33 / 0.0087. Built-in scenes (experiment consistency,
     continuous motion, 150 epochs, ATE mm): paper loop 6 mm 40 / 2.3 -> 0.97 / 2.1 -> 2.3 /
     2.3, 2 cm 7.5 / 3.7 -> 1.8 / 13 -> 0.68 / 3.7; canyon 6 mm 15.9 / 40 -> 1.2 / 67 -> 1.2
     / 40 (2 cm: 8.2 / 199 in all); "planodom smooth" on the canyon (200 epochs) 4.0 mm in
