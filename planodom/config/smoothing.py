@@ -124,16 +124,16 @@ class SmoothingConfig(Section):
     rig) 6 mm 518 / 0.383 -> 2.7 / 0.313 -> 1.9 / 0.377, 2 cm 147 / 0.528 -> 3.6 / 0.574 ->
     5.5 / 0.531; world 2 (2D rig) 6 mm n/a / 1.57 -> n/a / 0.86 -> n/a / 1.09, 2 cm 2148 /
     0.070 -> 9.3 / 0.290 -> 20.9 / 0.063; world 1 (lidar16, none -> frame_net) 6 mm
-    4736 / 0.0070 -> 273 / 0.0070, 2 cm 1286 / 0.0087 -> 33 / 0.0087. Built-in scenes (experiment consistency,
-    continuous motion, 150 epochs, ATE mm): paper loop 6 mm 40 / 2.3 -> 0.97 / 2.1 -> 2.3 /
-    2.3, 2 cm 7.5 / 3.7 -> 1.8 / 13 -> 0.68 / 3.7; canyon 6 mm 15.9 / 40 -> 1.2 / 67 -> 1.2
-    / 40 (2 cm: 8.2 / 199 in all); "planodom smooth" on the canyon (200 epochs) 4.0 mm in
-    none and frame_net. Hence the default. "twist_change_offsets" left the NEES out (paper
-    loop 37, canyon 15) and cost ATE (paper loop 2 cm 10 mm). "twist_change_frame" (measured
-    with the between factors still on the poses, with the term) erred on the cautious
-    side (paper loop 0.61 / 0.15, canyon 0.28; its changes hold the odometry's noise).
-    Earlier (an older main, independent inflation): lidar worlds 1 and 3 stayed far off
-    (36-3386); "twist_change_net" lost world 2 at 2 cm (ATE 3.5 -> 17 m)."""
+    4736 / 0.0070 -> 273 / 0.0070, 2 cm 1286 / 0.0087 -> 33 / 0.0087. Built-in scenes (experiment
+    consistency, continuous motion, 150 epochs, ATE mm): paper loop 6 mm 40 / 2.3 -> 0.97 / 2.1 ->
+    2.3 / 2.3, 2 cm 7.5 / 3.7 -> 1.8 / 13 -> 0.68 / 3.7; canyon 6 mm 15.9 / 40 -> 1.2 / 67 -> 1.2 /
+    40 (2 cm: 8.2 / 199 in all); "planodom smooth" on the canyon (200 epochs) 4.0 mm in none and
+    frame_net. Hence the default. "twist_change_offsets" left the NEES out (paper loop 37, canyon
+    15) and cost ATE (paper loop 2 cm 10 mm). "twist_change_frame" (measured with the between
+    factors still on the poses, with the term) erred on the cautious side (paper loop 0.61 / 0.15,
+    canyon 0.28; its changes hold the odometry's noise). Earlier (an older main, independent
+    inflation): lidar worlds 1 and 3 stayed far off (36-3386); "twist_change_net" lost world 2 at 2
+    cm (ATE 3.5 -> 17 m)."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""
