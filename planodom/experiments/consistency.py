@@ -53,7 +53,7 @@ from planodom.geometry import Plane, plane_tangent_covariance
 from planodom.metrics import pose_nees, relative_to_first, summarize
 from planodom.odometry import RelativePose
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
-from planodom.smoothing.deskew_noise import DeskewNoise
+from planodom.smoothing.deskew_noise import DeskewNoise, deskew_from_config
 from planodom.smoothing.noise import between_covariance, plane_covariance
 from planodom_factors.pose5 import pose5_error
 
@@ -112,9 +112,9 @@ def simulate_inputs(
 def deskew_model(relatives: Iterable[RelativePose], config: SmoothingConfig) -> DeskewNoise | None:
     """The deskewing error model the graph builds from these relative poses (batch), or
     None when ``deskew_noise`` is off."""
-    if config.deskew_noise == "none":
+    model = deskew_from_config(config.deskew_noise)
+    if model is None:
         return None
-    model = DeskewNoise(net=config.deskew_noise == "twist_change_net")
     for r in relatives:
         model.add(r)
     return model
@@ -170,7 +170,9 @@ def plane_nees(inputs: ConsistencyInputs, config: SmoothingConfig) -> np.ndarray
                 continue
             xi = plane_errors(p, inputs.surfaces[p.truth_id], T)
             tls = plane_tangent_covariance(p)
-            dsk = None if deskew is None else deskew.pose_covariance(k)
+            # a shared deskewed frame: a plane's marginal error holds all of it
+            dsk = None if deskew is None else deskew.plane_pose_covariance(k)
+            dsk = deskew.pose_covariance(k) if deskew and deskew.shared_frame else dsk
             used = plane_covariance(p, config, dsk)
             rows.append(
                 (

@@ -13,7 +13,7 @@ from scipy.stats import chi2
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.graph import GraphBuilder, GraphStats, X
+from planodom.smoothing.graph import F, GraphBuilder, GraphStats, X
 from planodom.smoothing.loop_candidates import (
     CandidateLoopBuilder,
     gate_loop_factors,
@@ -127,9 +127,13 @@ def pose_covariances(
         linear.add(X(0), stiff * np.eye(6), np.zeros(6), gtsam.noiseModel.Unit.Create(6))
     zero = values.zeroVectors()
     dims = {key: zero.at(key).size for key in values.keys()}
-    if schur_preferred(n_epochs, dims):  # many landmarks (planodom.smoothing.marginals)
+    # Deskewed frames join every landmark an epoch sees: eliminated with the poses, else
+    # the landmarks would make one group (a dense block of all of them).
+    frames = [F(k) for k in range(n_epochs) if values.exists(F(k))]
+    if schur_preferred(n_epochs + len(frames), dims):  # many landmarks (.marginals)
         try:
-            return pose_marginals(linear, [X(k) for k in range(n_epochs)], dims)
+            keys = [X(k) for k in range(n_epochs)] + frames
+            return pose_marginals(linear, keys, dims)[:n_epochs]
         except np.linalg.LinAlgError:  # an undetermined direction: the Bayes tree with QR
             pass
     # METIS (nested dissection), not gtsam.Marginals' COLAMD: a closed loop joins the

@@ -35,13 +35,17 @@ that are. The half window (2 epochs) only averages a few changes; it is no tuned
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING
 
 import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from planodom.odometry.relative import RelativePose
+
+if TYPE_CHECKING:
+    from planodom.smoothing.graph import GraphUpdate
 
 #: ``E[(t / dt)^2]`` for times spread uniformly over the epoch from its reference time.
 TIME_SPREAD = 1.0 / 3.0
@@ -56,11 +60,25 @@ class DeskewNoise:
 
     Args:
         half_window: epochs on each side of an epoch whose changes of motion are averaged.
+        net: less the variance the odometry's covariances declare for the changes.
+        plane_rotation: whether :meth:`plane_pose_covariance` holds the perturbation's
+            rotation (the planes' normals) or its translation only (their offsets).
+        shared_frame: the perturbation is one nuisance frame per epoch in the graph
+            (:func:`deskew_frame_factor`), none of it in the plane factors' covariances.
     """
 
-    def __init__(self, half_window: int = 2, net: bool = False) -> None:
+    def __init__(
+        self,
+        half_window: int = 2,
+        net: bool = False,
+        plane_rotation: bool = True,
+        shared_frame: bool = False,
+    ) -> None:
         self.half_window = half_window
         self.net = net
+        self.plane_rotation = plane_rotation
+        self.shared_frame = shared_frame
+        self.frames: set[int] = set()  # epochs given a deskewed frame (:meth:`add_frame`)
         self._steps: dict[int, np.ndarray] = {}  # curr -> (12,) motion into it, its variance
         self._cache: dict[tuple[int, int], np.ndarray] = {}  # (last step, delta) -> cov
         self._max_delta = 0
@@ -130,6 +148,37 @@ class DeskewNoise:
             self._cache[key] = np.diag(TIME_SPREAD * self._local_variance((-1, 1), epoch))
         return self._cache[key]
 
+    def plane_pose_covariance(self, epoch: int) -> np.ndarray:
+        """(6, 6) the share of :meth:`pose_covariance` given to epoch ``epoch``'s plane
+        factors: all of it, or without ``plane_rotation`` its translation block only (the
+        rotation block zero). The rotation part is one error shared by all the epoch's
+        planes; inflating every normal independently by it down-weights their geometry
+        (measured: the ATE rose on the built-in scenes, ``config.smoothing.deskew_noise``),
+        while the relative-pose factors keep it (their difference of two epochs')."""
+        cov = self.pose_covariance(epoch)
+        if self.shared_frame:
+            return np.zeros_like(cov)  # in the graph's deskewed frames instead
+        if self.plane_rotation:
+            return cov
+        out = np.zeros_like(cov)
+        out[3:, 3:] = cov[3:, 3:]
+        return out
+
+    def add_frame(
+        self, epoch: int, pose_key: int, frame_key: int, T: np.ndarray, update: GraphUpdate
+    ) -> None:
+        """With ``shared_frame``, epoch ``epoch``'s deskewed frame (Pose3 ``frame_key``, initial
+        guess ``T`` (4, 4)) and its :func:`deskew_frame_factor` into ``update`` (a
+        ``graph.GraphUpdate``: ``factors``, ``values``, ``timestamps``), unless the epoch's
+        perturbation is not known yet (then its planes see the pose)."""
+        tie = deskew_frame_factor(pose_key, frame_key, self.pose_covariance(epoch))
+        if not self.shared_frame or tie is None:
+            return
+        update.factors.add(tie)
+        update.values.insert(frame_key, gtsam.Pose3(T))
+        update.timestamps[frame_key] = float(epoch)
+        self.frames.add(epoch)
+
     def relative_covariance(self, prev: int, curr: int) -> np.ndarray:
         """(5, 5) covariance of the 5-DoF error (rotation vector, x, y) of the relative
         pose from ``prev`` to ``curr`` due to the deskewing of its two epochs: the
@@ -147,6 +196,61 @@ class DeskewNoise:
             var = TIME_SPREAD * self._local_variance(tuple(weights), prev)
             self._cache[key] = np.diag(var[:5])
         return self._cache[key]
+
+
+def between_keys(
+    model: DeskewNoise | None,
+    prev: int,
+    curr: int,
+    pose: Callable[[int], int],
+    frame: Callable[[int], int],
+) -> tuple[tuple[int, int], np.ndarray | None]:
+    """The keys and the deskewing covariance (5, 5) of a relative pose's between factor:
+    between the two epochs' deskewed frames, without it, where both have one (the
+    relative pose was measured from their planes: its deskewing error is the frames'
+    own); else between the poses, with :meth:`DeskewNoise.relative_covariance` (None
+    without a model)."""
+    if model is None:
+        return (pose(prev), pose(curr)), None
+    if prev in model.frames and curr in model.frames:
+        return (frame(prev), frame(curr)), None
+    return (pose(prev), pose(curr)), model.relative_covariance(prev, curr)
+
+
+def deskew_from_config(mode: str) -> DeskewNoise | None:
+    """The model ``smoothing.deskew_noise`` = ``mode`` selects (None for "none")."""
+    if mode == "none":
+        return None
+    return DeskewNoise(
+        net=mode.endswith("_net"),
+        plane_rotation=mode != "twist_change_offsets",
+        shared_frame=mode.startswith("twist_change_frame"),
+    )
+
+
+#: Sigma (rad, m) below which a component of a deskewed frame's factor is floored: a zero
+#: would make its noise model singular; the stiffness of the first pose's gauge prior
+#: (``smoothing.prior_sigma``): 1e-5 made a fixed-lag smoother's system indeterminate
+#: (Cholesky and QR) on a synthetic sequence with "..._net" zeroing components.
+FRAME_SIGMA_FLOOR = 1e-4
+
+
+def deskew_frame_factor(
+    pose_key: int, frame_key: int, pose_cov: np.ndarray
+) -> gtsam.NonlinearFactor | None:
+    """The factor tying an epoch's deskewed frame ``frame_key`` (Pose3, the frame its
+    planes were effectively measured in) to its pose ``pose_key``: ``Log(X^-1 F)`` ~ N(0,
+    ``pose_cov`` (6, 6), the epoch's deskewing perturbation, rotation then translation).
+    One perturbation shared by all the epoch's planes, as the deskewing error is: its
+    planes' factors on ``F`` are then correlated through it, where inflating each plane's
+    covariance by its share treats them as independent (and down-weights them all).
+    None when the perturbation is not known (all zero): the planes then see the pose."""
+    var = np.diag(np.asarray(pose_cov, dtype=float))
+    if not np.any(var > 0.0):
+        return None
+    sigmas = np.sqrt(np.maximum(var, FRAME_SIGMA_FLOOR**2))
+    noise = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+    return gtsam.BetweenFactorPose3(pose_key, frame_key, gtsam.Pose3(), noise)
 
 
 def plane_deskew_covariance(normal: np.ndarray, pose_cov: np.ndarray) -> np.ndarray:

@@ -2,7 +2,8 @@
 
 Variables: ``X(k)`` the pose ``T_world_base`` of epoch k (Pose3), ``L(j)`` plane landmark j
 (OrientedPlane3, in the world frame or in its anchor frame), ``A(j)`` the anchor frame of
-an anchored landmark (Pose3, see :mod:`factors.planes`).
+an anchored landmark (Pose3, see :mod:`factors.planes`), ``F(k)`` epoch k's deskewed frame
+(Pose3, the one its plane factors are on; ``smoothing.deskew_noise`` "twist_change_frame*").
 
 Factors per epoch k:
 
@@ -41,7 +42,7 @@ import numpy as np
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.deskew_noise import DeskewNoise
+from planodom.smoothing.deskew_noise import between_keys, deskew_from_config
 from planodom.smoothing.landmarks import LandmarkTracker
 from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
 from planodom_factors.planes import (
@@ -58,6 +59,7 @@ from planodom_factors.pose5 import pose5_factor, rotation_factor, vertical_facto
 X = gtsam.symbol_shorthand.X
 L = gtsam.symbol_shorthand.L
 A = gtsam.symbol_shorthand.A
+F = gtsam.symbol_shorthand.F  # an epoch's deskewed frame (smoothing.deskew_noise "..._frame")
 
 
 @dataclass
@@ -135,10 +137,7 @@ class GraphBuilder:
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
-        net = config.deskew_noise == "twist_change_net"
-        self.deskew = None if config.deskew_noise == "none" else DeskewNoise(net=net)
-
-    # ----------------------------------------------------------------- building
+        self.deskew = deskew_from_config(config.deskew_noise)
 
     def _initial_pose(self, k: int, resolved: list[RelativePose]) -> np.ndarray | None:
         """Chained guess of ``T_world_k`` from the resolved relative poses, or None.
@@ -247,6 +246,8 @@ class GraphBuilder:
         self.poses[k] = T
         update.values.insert(X(k), gtsam.Pose3(T))
         update.timestamps[X(k)] = float(k)
+        if self.deskew is not None:  # its deskewed frame F(k), with "..._frame"
+            self.deskew.add_frame(k, X(k), F(k), T, update)
 
     def _reidentify(self, update: GraphUpdate) -> None:
         """Hook: ties to old landmarks (:class:`planodom.smoothing.loops.LoopClosingBuilder`)."""
@@ -265,9 +266,9 @@ class GraphBuilder:
                 self.stats.between_left_out += 1
                 continue
             make = pose5_factor if rel.translation_observed else rotation_factor
-            deskew = None if self.deskew is None else self.deskew.relative_covariance(rel.prev, k)
+            keys, deskew = between_keys(self.deskew, rel.prev, k, X, F)
             base = gtsam.noiseModel.Gaussian.Covariance(between_covariance(rel, c, deskew))
-            factor = partial(make, X(rel.prev), X(k), rel.T_prev_curr)
+            factor = partial(make, *keys, rel.T_prev_curr)
             self._add(update.factors, factor, base, robust)
             self.stats.between += 1
 
@@ -328,7 +329,7 @@ class GraphBuilder:
         T_wa = anchor_pose(origin)
         values.insert(A(j), gtsam.Pose3(T_wa))
         values.insert(L(j), gtsam.OrientedPlane3(predict_plane(T_wa, world)))
-        deskew = None if self.deskew is None else self.deskew.pose_covariance(epoch)
+        deskew = None if self.deskew is None else self.deskew.plane_pose_covariance(epoch)
         cov = plane_covariance(self.planes[epoch][index], c, deskew)
         sigma_n, sigma_d = np.sqrt(max(cov[0, 0], cov[1, 1])), np.sqrt(cov[2, 2])
         noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma_n] * 3 + [sigma_d] * 3))
@@ -383,13 +384,14 @@ class GraphBuilder:
         self, lm: _Landmark, e: int, plane: Plane, graph: gtsam.NonlinearFactorGraph, robust: bool
     ) -> None:
         """A plane factor of observation ``plane`` (oriented) from ``X(e)`` on ``lm``."""
-        deskew = None if self.deskew is None else self.deskew.pose_covariance(e)
+        deskew = None if self.deskew is None else self.deskew.plane_pose_covariance(e)
         cov = plane_covariance(plane, self.config, deskew)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
+        key = F(e) if self.deskew is not None and e in self.deskew.frames else X(e)
         if lm.anchor_key is None:
-            graph.add(plane_factor(X(e), lm.key, plane.coefficients, noise))
+            graph.add(plane_factor(key, lm.key, plane.coefficients, noise))
         else:
-            make = partial(anchored_plane_factor, X(e), lm.anchor_key, lm.key, plane.coefficients)
+            make = partial(anchored_plane_factor, key, lm.anchor_key, lm.key, plane.coefficients)
             self._add(graph, make, noise, robust)
         self.stats.plane_factors += 1
 
@@ -414,8 +416,6 @@ class GraphBuilder:
             np.degrees(np.arccos(cos_angle)) <= self.config.gate_normal_deg
             and abs(measured[3] - predicted[3]) <= self.config.gate_offset_m
         )
-
-    # ----------------------------------------------------------------- estimates
 
     def update_estimates(self, values: gtsam.Values, since: int = 0) -> None:
         """Refresh ``poses`` and the landmarks' world planes from an estimate.

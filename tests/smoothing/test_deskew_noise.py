@@ -9,10 +9,16 @@ from scipy.spatial.transform import Rotation
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch import smooth_batch
-from planodom.smoothing.deskew_noise import DeskewNoise, plane_deskew_covariance
+from planodom.smoothing.deskew_noise import (
+    DeskewNoise,
+    between_keys,
+    deskew_frame_factor,
+    plane_deskew_covariance,
+)
 from planodom.smoothing.noise import between_covariance
 from planodom.smoothing.synthetic import make_sequence
 from planodom.smoothing.windowed import smooth_windowed
+from planodom_factors.planes import plane_factor
 
 
 def _steps(motions: np.ndarray, sigma: float = 1e-9) -> list[RelativePose]:
@@ -145,10 +151,69 @@ def test_the_graph_takes_the_term_in_batch_and_fixed_lag_smoothing():
     seq = make_sequence(30, seed=2, sigma_rotation=1e-3, sigma_translation=0.01,
                         sigma_normal=0.005, sigma_offset=0.01)  # fmt: skip
     base = SmoothingConfig(robust_kernel="none", deskew_noise="none")
-    on = base.model_copy(update={"deskew_noise": "twist_change"})
-    for smooth in (smooth_batch, smooth_windowed):
-        off_cov = smooth(seq.planes, seq.relatives, base).covariances
-        on_cov = smooth(seq.planes, seq.relatives, on).covariances
-        assert off_cov is not None and on_cov is not None
-        # More noise on every factor: the last pose can only be less certain.
-        assert np.trace(on_cov[-1]) > np.trace(off_cov[-1])
+    for mode in ("twist_change", "twist_change_frame"):
+        on = base.model_copy(update={"deskew_noise": mode})
+        for smooth in (smooth_batch, smooth_windowed):
+            off_cov = smooth(seq.planes, seq.relatives, base).covariances
+            on_cov = smooth(seq.planes, seq.relatives, on).covariances
+            assert off_cov is not None and on_cov is not None
+            # More noise on every factor: the last pose can only be less certain.
+            assert np.trace(on_cov[-1]) > np.trace(off_cov[-1])
+
+
+def test_deskew_frame_factor_whitens_by_the_pose_covariance():
+    rng = np.random.default_rng(11)
+    sig = np.array([2e-3, 1e-3, 5e-4, 0.01, 0.02, 0.005])
+    X = gtsam.Pose3(gtsam.Rot3.Rodrigues(*rng.normal(size=3)), rng.normal(size=3))
+    xi = rng.normal(size=6) * sig
+    values = gtsam.Values()
+    values.insert(1, X)
+    values.insert(2, X.compose(gtsam.Pose3.Expmap(xi)))
+    factor = deskew_frame_factor(1, 2, np.diag(sig**2))
+    assert factor is not None
+    # Closed form: the frame is the pose perturbed by xi; error 0.5 * sum((xi / sigma)^2).
+    np.testing.assert_allclose(factor.error(values), 0.5 * np.sum((xi / sig) ** 2), rtol=1e-6)
+    assert deskew_frame_factor(1, 2, np.zeros((6, 6))) is None
+
+
+def test_a_shared_frame_adds_the_perturbation_once_to_the_pose():
+    """The epoch's planes are measured in its deskewed frame: the pose's marginal is the
+    frame's (from the planes) plus the perturbation's covariance, however many planes
+    there are (independent inflation would shrink it with their number)."""
+    rng = np.random.default_rng(12)
+    normals = rng.normal(size=(8, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    planes = [np.append(n, -rng.uniform(2.0, 6.0)) for n in normals]  # world = base frame
+    pose_cov = np.diag([1e-5, 2e-5, 4e-6, 1e-4, 3e-4, 5e-5])
+    plane_cov = gtsam.noiseModel.Isotropic.Sigma(3, 1e-3)
+    tight = gtsam.noiseModel.Isotropic.Sigma(3, 1e-7)  # landmarks known (a fixed pose 50)
+
+    def marginal(frame: bool) -> np.ndarray:
+        graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+        values.insert(0, gtsam.Pose3())
+        values.insert(50, gtsam.Pose3())
+        graph.add(
+            gtsam.PriorFactorPose3(50, gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 1e-7))
+        )
+        key = 1 if frame else 0
+        if frame:
+            values.insert(1, gtsam.Pose3())
+            graph.add(deskew_frame_factor(0, 1, pose_cov))
+        for j, p in enumerate(planes):
+            values.insert(100 + j, gtsam.OrientedPlane3(p))
+            graph.add(plane_factor(50, 100 + j, p, tight))
+            graph.add(plane_factor(key, 100 + j, p, plane_cov))
+        return np.asarray(gtsam.Marginals(graph, values).marginalCovariance(0))
+
+    np.testing.assert_allclose(marginal(True), marginal(False) + pose_cov, rtol=1e-4, atol=1e-11)
+
+
+def test_relative_poses_between_deskewed_frames_take_no_separate_term():
+    model = _fed(_random_walk_motions(np.random.default_rng(13), 30, np.full(6, 0.01)))
+    model.frames.update({4, 5})
+    X, F = gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.F
+    assert between_keys(model, 4, 5, X, F) == ((F(4), F(5)), None)
+    keys, cov = between_keys(model, 5, 6, X, F)  # epoch 6 has no frame: the poses
+    assert keys == (X(5), X(6))
+    np.testing.assert_array_equal(cov, model.relative_covariance(5, 6))
+    assert between_keys(None, 4, 5, X, F) == ((X(4), X(5)), None)
