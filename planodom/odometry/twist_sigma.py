@@ -6,7 +6,8 @@ over the epoch (``extraction.twist_rate_sigma_deg_s`` / ``twist_speed_sigma_mps`
 predicted twist also widens them for a twist refined from the epoch's own estimate, which
 is nearly exact, and lets other points into its planes (the paper loop's quick start:
 ATE 0.071 -> 0.175 m with 0.5 deg/s and 0.5 m/s). So the odometry gives each extraction
-the sigma of the twist it passes (``odometry.twist_sigma: per_epoch``), from this model:
+the sigma of the twist it passes (``odometry.twist_sigma``: ``lost``, the default, widens
+only an epoch the tight extraction loses, :func:`widened_if_lost`), from this model:
 
 - a step measured over ``dt`` gives its twist with the error of the step itself: the
   square roots of the traces of the rotation and translation blocks of its covariance
