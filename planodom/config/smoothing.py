@@ -107,7 +107,10 @@ class SmoothingConfig(Section):
     ] = "twist_change_frame_net"
     """"twist_change": the plane and between factors' covariances also hold the deskewing
     error the fits' covariances miss, from the run's own changes of motion around each
-    epoch (planodom.smoothing.deskew_noise; batch: the whole run's, fixed-lag: so far);
+    epoch (planodom.smoothing.deskew_noise; batch: the whole run's, fixed-lag: so far).
+    Every mode but "none" assumes each epoch's points are spread over its time span and
+    deskewed with a constant twist (nothing here sees the scans' times): for scans taken
+    at one instant, or deskewed before planodom, it only adds caution - choose "none";
     "twist_change_net": the same less the variance the odometry's covariances declare;
     "twist_change_offsets": the planes get its translation part only (their offsets);
     "twist_change_frame": none of it in the plane factors' covariances: each epoch has a
