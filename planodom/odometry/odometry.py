@@ -371,6 +371,8 @@ class PlaneOdometry:
         result: RelativePose | None,
         t: float,
     ) -> None:
+        if result is not None and epoch.scan is not None:
+            result = replace(result, time_spread=time_spread(epoch.scan))
         self.poses.append(T_world)
         self._steps.append(step)
         self.times.append(t)

@@ -112,6 +112,9 @@ class RelativePose:
             the constant-velocity prediction (``odometry.degenerate_gate``): the streaming
             odometry reports it unresolved and bridges it (``T_prev_curr`` is the bridge,
             ``covariance`` and ``diagnostics`` the solver's).
+        time_spread: whether epoch ``curr``'s points were spread in time (its scan's times
+            differ; False: taken at one instant, nothing to deskew), as the streaming
+            odometry saw it; None: not known (planes given, other sources).
     """
 
     T_prev_curr: np.ndarray
@@ -125,6 +128,7 @@ class RelativePose:
     sigma_z: float = np.inf
     diagnostics: SolverDiagnostics | None = None
     inconsistent: bool = False
+    time_spread: bool | None = None
 
     def between(self, prev: int, curr: int) -> RelativePose:
         """The same relative pose labelled as between epochs ``prev`` and ``curr``."""

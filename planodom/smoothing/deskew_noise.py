@@ -79,6 +79,10 @@ class DeskewNoise:
         self.plane_rotation = plane_rotation
         self.shared_frame = shared_frame
         self.frames: set[int] = set()  # epochs given a deskewed frame (:meth:`add_frame`)
+        # epochs whose points were spread in time / taken at one instant, as the odometry
+        # saw them (RelativePose.time_spread): an instant has no deskewing error
+        self._spread: set[int] = set()
+        self._instant: set[int] = set()
         self._steps: dict[int, np.ndarray] = {}  # curr -> (12,) motion into it, its variance
         self._cache: dict[tuple[int, int], np.ndarray] = {}  # (last step, delta) -> cov
         self._max_delta = 0
@@ -87,7 +91,10 @@ class DeskewNoise:
         self._run_wide: dict[tuple[int, ...], tuple[int, np.ndarray]] = {}
 
     def add(self, rel: RelativePose) -> None:
-        """Record a delta = 1 relative pose with its translation measured (others ignored)."""
+        """Record a delta = 1 relative pose with its translation measured (others ignored;
+        any relative pose tells whether its epoch ``curr`` was spread in time)."""
+        if rel.time_spread is not None:
+            (self._spread if rel.time_spread else self._instant).add(rel.curr)
         if rel.delta != 1 or not rel.translation_observed:
             return
         T = np.asarray(rel.T_prev_curr, dtype=float)
@@ -143,10 +150,20 @@ class DeskewNoise:
         """(6, 6) diagonal covariance of epoch ``epoch``'s deskewing perturbation,
         ``E[dxi dxi^T] / 3`` with ``dxi = motion_{k+1} - motion_k`` (the motion during its
         acquisition less the one it was deskewed with); zeros without known changes."""
+        if self.instant(epoch):
+            return np.zeros((6, 6))
         key = (epoch + self.half_window + 1, 0)  # the last step its window can reach
         if key not in self._cache:
             self._cache[key] = np.diag(TIME_SPREAD * self._local_variance((-1, 1), epoch))
         return self._cache[key]
+
+    def instant(self, epoch: int) -> bool:
+        """Whether epoch ``epoch``'s points were taken at one instant (no deskewing error):
+        as the odometry saw it, or, where it is not known (the first epoch), as every
+        epoch known was (a run of snapshot scans)."""
+        if epoch in self._instant or epoch in self._spread:
+            return epoch in self._instant
+        return bool(self._instant) and not self._spread
 
     def plane_pose_covariance(self, epoch: int) -> np.ndarray:
         """(6, 6) the share of :meth:`pose_covariance` given to epoch ``epoch``'s plane
@@ -186,6 +203,8 @@ class DeskewNoise:
         Consecutive changes of motion are strongly correlated (sway is slow against the
         epoch rate), so this is far below the sum of the two epochs' covariances."""
         delta = curr - prev
+        if self.instant(prev) and self.instant(curr):
+            return np.zeros((5, 5))
         self._max_delta = max(self._max_delta, delta)
         key = (curr + self.half_window + 1, delta)
         if key not in self._cache:

@@ -46,3 +46,13 @@ def test_paper_experiment_writes_its_figures_and_tables(tmp_path):
     assert "roll rate" in text and "sigma 20 mm" in text
     exact = [r for r in res.tables["summary"] if r["noise_m"] == 0.0]
     assert all(r["unresolved"] == 0 for r in exact)
+
+
+def test_results_say_whether_their_epoch_was_spread_in_time(loop):
+    # The simulator's truth: snapshot scans carry one time per epoch, continuous ones not.
+    snap = run_odometry(loop, PlanodomConfig(), loop.rig)
+    assert all(r.time_spread is False for r in snap.results[1:])
+    moving = simulate_named("paper-loop", "isoclinal", noise=0.0, seed=1, n_epochs=4,
+                            motion="continuous")  # fmt: skip
+    cont = run_odometry(moving, PlanodomConfig(), moving.rig)
+    assert all(r.time_spread is True for r in cont.results[1:])

@@ -217,3 +217,26 @@ def test_relative_poses_between_deskewed_frames_take_no_separate_term():
     assert keys == (X(5), X(6))
     np.testing.assert_array_equal(cov, model.relative_covariance(5, 6))
     assert between_keys(None, 4, 5, X, F) == ((X(4), X(5)), None)
+
+
+def test_epochs_taken_at_one_instant_have_no_deskewing_error():
+    from dataclasses import replace
+
+    rng = np.random.default_rng(5)
+    s = np.array([0.004, 0.002, 0.001, 0.01, 0.005, 0.003])
+    motions = _random_walk_motions(rng, 200, s)
+    spread, instant = DeskewNoise(), DeskewNoise()
+    for rel in _steps(motions):
+        spread.add(replace(rel, time_spread=True))
+        instant.add(replace(rel, time_spread=False))
+    # The same changes of motion: an error only where the points were spread in time.
+    assert np.all(np.diag(spread.pose_covariance(100)) > 0)
+    for k in (0, 100):  # epoch 0 (no relative pose into it) as every known epoch was
+        assert not np.any(instant.pose_covariance(k))
+    assert not np.any(instant.relative_covariance(99, 100))
+    assert np.all(np.diag(spread.relative_covariance(99, 100)) > 0)
+    # A mixed run: an epoch of unknown spread keeps the model.
+    mixed = DeskewNoise()
+    for k, rel in enumerate(_steps(motions)):
+        mixed.add(replace(rel, time_spread=bool(k % 2)))
+    assert mixed.instant(1) and not mixed.instant(2) and not mixed.instant(0)
