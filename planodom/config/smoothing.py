@@ -109,8 +109,10 @@ class SmoothingConfig(Section):
     error the fits' covariances miss, from the run's own changes of motion around each
     epoch (planodom.smoothing.deskew_noise; batch: the whole run's, fixed-lag: so far).
     Every mode but "none" assumes each epoch's points are spread over its time span and
-    deskewed with a constant twist (nothing here sees the scans' times): for scans taken
-    at one instant, or deskewed before planodom, it only adds caution. Hence the default
+    deskewed with a constant twist. Epochs the streaming odometry saw taken at one instant
+    (``RelativePose.time_spread`` False) get none of it, but relative poses estimated from
+    planes alone (the smoothing experiment's, delta > 1) do not know their scans' times,
+    and scans deskewed before planodom look spread: there it only adds caution. Hence the default
     "none": on the built-in scenes' snapshot scans (``planodom experiment smoothing
     --levels 0.006,0.02 --epochs 300``) "twist_change_frame_net" brought the smoothed
     poses' mean NEES5 from 2.1-5.4 (inside the 95 % interval) to 0.49-2.0 (the paper loop
