@@ -96,6 +96,7 @@ def simulate_inputs(
     :class:`~planodom.experiments.simulated.Simulation`), extract and run the odometry
     (delta = 1..``smoothing.delta_max``)."""
     from planodom.odometry import run_odometry
+    from planodom.odometry.deskew import time_spread
     from planodom.smoothing.run import relative_poses
 
     level = simulate_level(scene, noise, config, Simulation(seed, **simulation))
@@ -103,7 +104,8 @@ def simulate_inputs(
     assert planes is not None
     odo = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times.tolist())
     D = config.smoothing.delta_max
-    relatives = relative_poses(planes, config, range(1, D + 1), odo.poses)
+    spread = [time_spread(scan) for scan in sim]
+    relatives = relative_poses(planes, config, range(1, D + 1), odo.poses, time_spread=spread)
     surfaces = {s.id: np.append(s.normal, s.offset) for s in sim.scene.surfaces}
     first = sim.poses[0]
     return ConsistencyInputs(scene, noise, seed, planes, relatives, level.gt_poses, first, surfaces)

@@ -45,6 +45,7 @@ from planodom.experiments.simulated import (
 from planodom.experiments.tables import ExperimentResult, write_tables
 from planodom.metrics import pose_nees, summarize
 from planodom.odometry import run_odometry
+from planodom.odometry.deskew import time_spread
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
 from planodom.smoothing.run import relative_poses
 from planodom.smoothing.windowed import smooth_windowed
@@ -164,7 +165,8 @@ def run_scene_level(
 
     say(f"{scene}: relative poses delta = 1..{D}")
     c0 = time.perf_counter()
-    relatives = relative_poses(planes, config, range(1, D + 1), odo1.poses)
+    spread = [time_spread(scan) for scan in level.sim]
+    relatives = relative_poses(planes, config, range(1, D + 1), odo1.poses, time_spread=spread)
     front = time.perf_counter() - c0  # shared by both smoothers
     for method, smooth in (("windowed", smooth_windowed), ("batch", smooth_batch)):
         say(f"{scene}: {method} smoothing")

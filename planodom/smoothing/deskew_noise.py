@@ -43,6 +43,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from planodom.odometry.relative import RelativePose
+from planodom_factors.pose5 import pose5_error
 
 if TYPE_CHECKING:
     from planodom.smoothing.graph import GraphUpdate
@@ -215,6 +216,19 @@ class DeskewNoise:
             var = TIME_SPREAD * self._local_variance(tuple(weights), prev)
             self._cache[key] = np.diag(var[:5])
         return self._cache[key]
+
+    def loop_covariance(self, old: int, curr: int, T_old_curr: np.ndarray) -> np.ndarray:
+        """(5, 5) covariance of a loop factor's 5-DoF error (rotation vector, x, y; its
+        tangent, :func:`planodom_factors.pose5.pose5_error`) due to the deskewing of its two
+        epochs ``old`` and ``curr`` (relative pose ``T_old_curr`` (4, 4)): each epoch's
+        :meth:`pose_covariance` through the factor's Jacobian. Independent, unlike
+        :meth:`relative_covariance`'s neighbours: a loop's epochs lie far apart in time,
+        and the sway's changes of motion are not correlated over a lap."""
+        T = np.asarray(T_old_curr, dtype=float)
+        _, H_old, H_curr = pose5_error(T, np.eye(4), T, jacobians=True)
+        assert H_old is not None and H_curr is not None
+        P_old, P_curr = self.pose_covariance(old), self.pose_covariance(curr)
+        return H_old @ P_old @ H_old.T + H_curr @ P_curr @ H_curr.T
 
 
 def between_keys(

@@ -286,7 +286,9 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         """A robust 5-DoF factor ``X(prev) - X(curr)`` for a verified loop pose (its
         Gaussian twin in ``update.gaussian``), recorded in :attr:`loop_factors`."""
         c, e, k = self.config, rel.prev, rel.curr
-        cov = between_covariance(rel, c)
+        # the deskewing error of both epochs (zero without a model or for instant scans)
+        dsk = None if self.deskew is None else self.deskew.loop_covariance(e, k, rel.T_prev_curr)
+        cov = between_covariance(rel, c, dsk)
         base = gtsam.noiseModel.Gaussian.Covariance(cov)
         if c.robust_kernel != "none":
             noise = with_robust_kernel(base, c)

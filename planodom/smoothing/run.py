@@ -104,6 +104,7 @@ def relative_poses(
     guess_poses: np.ndarray | None = None,
     progress: Progress | None = None,
     skip: Set[tuple[int, int]] = frozenset(),
+    time_spread: Sequence[bool | None] | None = None,
 ) -> list[RelativePose]:
     """Relative poses between epochs ``k - delta`` and ``k`` for each delta in ``deltas``.
 
@@ -115,6 +116,10 @@ def relative_poses(
             motion is the prior of each estimate. None: no prior.
         progress: called as ``progress("relatives", done, total)``.
         skip: ``(prev, curr)`` epoch pairs not to estimate (known already).
+        time_spread: (E,) per epoch whether its points were spread in time (None: not
+            known), given to each estimate as ``RelativePose.time_spread`` of its ``curr``
+            (planes alone do not tell; the deskew-noise model needs it,
+            :mod:`planodom.smoothing.deskew_noise`). None: all unknown.
     """
     pairs = [(k - d, k) for d in deltas for k in range(d, len(planes)) if (k - d, k) not in skip]
     configs = {d: config_for_gap(config, d) for d in deltas}
@@ -124,7 +129,10 @@ def relative_poses(
         if guess_poses is not None:
             prior = invert_transform(guess_poses[prev]) @ guess_poses[curr]
         rel = estimate_relative_pose(planes[prev], planes[curr], configs[curr - prev], prior)
-        out.append(_checked(rel.between(prev, curr), planes[curr]))
+        rel = rel.between(prev, curr)
+        if time_spread is not None:
+            rel = replace(rel, time_spread=time_spread[curr])
+        out.append(_checked(rel, planes[curr]))
         if progress is not None:
             progress("relatives", done, len(pairs))
     return out
@@ -135,7 +143,7 @@ def smoothing_relatives(
 ) -> list[RelativePose]:
     """The relative poses for delta = 1..``smoothing.delta_max``: the streaming odometry's
     own results (but those it superseded), then the others estimated from its planes
-    (:func:`relative_poses`, its poses as priors)."""
+    (:func:`relative_poses`, its poses as priors, its epochs' ``time_spread``)."""
     reused = [
         _checked(r, odometry.planes[r.curr])
         for r in odometry.results
@@ -143,8 +151,16 @@ def smoothing_relatives(
     ]
     known = {(r.prev, r.curr) for r in reused}
     deltas = range(1, config.smoothing.delta_max + 1)
-    rest = relative_poses(odometry.planes, config, deltas, odometry.poses, progress, known)
+    spread = epoch_time_spread(odometry)
+    rest = relative_poses(odometry.planes, config, deltas, odometry.poses, progress, known, spread)
     return reused + rest
+
+
+def epoch_time_spread(odometry: OdometryRun) -> list[bool | None]:
+    """(E,) per epoch whether its points were spread in time, as the streaming odometry
+    saw its scan (``RelativePose.time_spread`` of its result; None: not known, e.g. the
+    first epoch or a run on planes)."""
+    return [None if r is None else r.time_spread for r in odometry.results]
 
 
 def run_smoothing(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -19,6 +21,7 @@ from planodom.smoothing.noise import between_covariance
 from planodom.smoothing.synthetic import make_sequence
 from planodom.smoothing.windowed import smooth_windowed
 from planodom_factors.planes import plane_factor
+from planodom_factors.pose5 import pose5_error
 
 
 def _steps(motions: np.ndarray, sigma: float = 1e-9) -> list[RelativePose]:
@@ -220,8 +223,6 @@ def test_relative_poses_between_deskewed_frames_take_no_separate_term():
 
 
 def test_epochs_taken_at_one_instant_have_no_deskewing_error():
-    from dataclasses import replace
-
     rng = np.random.default_rng(5)
     s = np.array([0.004, 0.002, 0.001, 0.01, 0.005, 0.003])
     motions = _random_walk_motions(rng, 200, s)
@@ -240,3 +241,31 @@ def test_epochs_taken_at_one_instant_have_no_deskewing_error():
     for k, rel in enumerate(_steps(motions)):
         mixed.add(replace(rel, time_spread=bool(k % 2)))
     assert mixed.instant(1) and not mixed.instant(2) and not mixed.instant(0)
+
+
+def test_a_loop_factor_takes_the_deskewing_error_of_both_its_epochs():
+    """Monte Carlo against the factor's Jacobians: both epochs' frames perturbed by their
+    own independent deskewing errors, the 5-DoF error of the relative pose they give."""
+    rng = np.random.default_rng(21)
+    model = _fed(_random_walk_motions(rng, 300, np.array([3e-3, 2e-3, 1e-3, 0.01, 5e-3, 2e-3])))
+    old, curr = 20, 260  # a lap apart: independent errors
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec([0.01, -0.02, 2.5]).as_matrix()
+    T[:3, 3] = [3.0, -1.5, 0.1]
+    P_old, P_curr = model.pose_covariance(old), model.pose_covariance(curr)
+    assert np.all(np.diag(P_old) > 0) and np.all(np.diag(P_curr) > 0)
+    errors = []
+    for _ in range(20000):
+        F_old = gtsam.Pose3.Expmap(rng.multivariate_normal(np.zeros(6), P_old)).matrix()
+        F_curr = T @ gtsam.Pose3.Expmap(rng.multivariate_normal(np.zeros(6), P_curr)).matrix()
+        measured = np.linalg.inv(F_old) @ F_curr  # the planes were seen in the frames
+        errors.append(pose5_error(measured, np.eye(4), T)[0])
+    sample = np.cov(np.array(errors).T)
+    cov = model.loop_covariance(old, curr, T)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), np.sqrt(np.diag(sample)), rtol=0.03)
+    np.testing.assert_allclose(cov, sample, atol=0.05 * np.max(np.diag(sample)))
+    # Instant epochs: no deskewing error, and a loop between them none either.
+    instant = DeskewNoise()
+    for rel in _steps(_random_walk_motions(rng, 300, np.full(6, 0.01))):
+        instant.add(replace(rel, time_spread=False))
+    assert not np.any(instant.loop_covariance(old, curr, T))

@@ -319,3 +319,24 @@ def test_smoothing_reuses_the_odometry_results_and_estimates_the_rest() -> None:
     for r, T in zip(relatives, truth, strict=True):
         np.testing.assert_allclose(r.T_prev_curr[:3, :3], T[:3, :3], atol=1e-9)
         np.testing.assert_allclose(r.T_prev_curr[:2, 3], T[:2, 3], atol=1e-8)
+
+
+def test_every_relative_pose_knows_whether_its_epoch_was_spread_in_time() -> None:
+    """The streaming odometry's flag reaches the relative poses estimated from its planes
+    (delta > 1), and planes given with their scans' flags label them likewise."""
+    from dataclasses import replace
+
+    from planodom.odometry import run_odometry
+    from planodom.smoothing.run import relative_poses, smoothing_relatives
+
+    seq = make_sequence(12, seed=1, step_m=0.5)
+    cfg = PlanodomConfig()
+    odo = run_odometry(seq.planes, cfg, times=0.1 * np.arange(12))
+    flags = [k % 3 != 0 for k in range(12)]  # as if the odometry had seen these scans
+    odo.results = [None] + [replace(r, time_spread=flags[r.curr]) for r in odo.results[1:]]
+    relatives = smoothing_relatives(odo, cfg)
+    assert {r.delta for r in relatives} == {1, 2, 3}
+    assert all(r.time_spread is flags[r.curr] for r in relatives)
+    given = relative_poses(seq.planes, cfg, [2], odo.poses, time_spread=flags)
+    assert given and all(r.time_spread is flags[r.curr] for r in given)
+    assert all(r.time_spread is None for r in relative_poses(seq.planes, cfg, [2], odo.poses))
