@@ -109,16 +109,20 @@ class SmoothingConfig(Section):
     error the fits' covariances miss, from the run's own changes of motion around each
     epoch (planodom.smoothing.deskew_noise; batch: the whole run's, fixed-lag: so far).
     Every mode but "none" assumes each epoch's points are spread over its time span and
-    deskewed with a constant twist. Epochs the streaming odometry saw taken at one instant
-    (``RelativePose.time_spread`` False) get none of it, but relative poses estimated from
-    planes alone (the smoothing experiment's, delta > 1) do not know their scans' times,
-    and scans deskewed before planodom look spread: there it only adds caution. Hence the default
-    "none": on the built-in scenes' snapshot scans (``planodom experiment smoothing
-    --levels 0.006,0.02 --epochs 300``) "twist_change_frame_net" brought the smoothed
-    poses' mean NEES5 from 2.1-5.4 (inside the 95 % interval) to 0.49-2.0 (the paper loop
-    below it) and the canyon's fixed-lag ATE at 2 cm from 0.0098 to 0.030 m. Choose
-    "twist_change_frame_net" for scans spread in time that planodom deskews (the figures
-    below are for such scans);
+    deskewed with a constant twist. Epochs taken at one instant (``RelativePose.time_spread``
+    False: the scan's points share one time; every relative pose carries it, those
+    estimated from planes too when their scans were known, ``smoothing.run.relative_poses``)
+    get none of it; scans deskewed before planodom look spread: there it only adds caution.
+    On snapshot scans (``planodom experiment smoothing --levels 0.006,0.02 --epochs 300``)
+    every mode now gives what "none" gives (before the flag reached the relative poses
+    from planes, "twist_change_frame_net" brought the paper loop's mean NEES5 to 0.49 and
+    the canyon's fixed-lag ATE at 2 cm from 0.0098 to 0.030 m). A loop factor takes the
+    error of both its epochs (:meth:`.DeskewNoise.loop_covariance`). The default stays
+    "none" because on full laps of the 2D-rig worlds 0, 8, 14 (batch with loops) the ATE
+    moved both ways by millimetres (world 14 at 2 cm 17.4 -> 20.1 mm, 2000 epochs of world 0
+    at 6 mm 32.8 -> 34.3 mm; world 8 at 2 cm 92 -> 89 mm) while the mean NEES5 fell from
+    330-3050 to 9-48. Choose "twist_change_frame_net" for scans spread in time that
+    planodom deskews when the covariances matter (the figures below are for such scans);
     "twist_change_net": the same less the variance the odometry's covariances declare;
     "twist_change_offsets": the planes get its translation part only (their offsets);
     "twist_change_frame": none of it in the plane factors' covariances: each epoch has a

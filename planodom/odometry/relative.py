@@ -114,7 +114,8 @@ class RelativePose:
             ``covariance`` and ``diagnostics`` the solver's).
         time_spread: whether epoch ``curr``'s points were spread in time (its scan's times
             differ; False: taken at one instant, nothing to deskew), as the streaming
-            odometry saw it; None: not known (planes given, other sources).
+            odometry saw it, or as given to ``smoothing.run.relative_poses`` with the
+            planes; None: not known (planes given alone, other sources).
     """
 
     T_prev_curr: np.ndarray
