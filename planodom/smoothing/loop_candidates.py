@@ -24,7 +24,8 @@ prediction is metres off after an odometry failure, or the old landmarks never f
    (when the re-identification has one) and with the previous verified loop pose, at
    most ``loop_candidate_confirm_epochs`` before (chi2(3) on yaw, x, y);
 4. the first verified one becomes a 5-DoF between factor ``X(e) - X(k)``
-   (:func:`factors.pose5.pose5_factor`) with the odometry's covariance and a robust
+   (:func:`factors.pose5.pose5_factor`) with the odometry's covariance (plus both
+   epochs' deskewing error with ``smoothing.deskew_noise``) and a robust
    kernel (``robust_kernel``, Cauchy when "none": a loop factor is never trusted blindly).
 
 After optimisation (:func:`gate_loop_factors`) a loop factor whose Gaussian twin's

@@ -103,7 +103,8 @@ class LoopFactor:
         epoch: the current epoch k. old: the old epoch e.
         T_old_curr: (4, 4) the relative pose measured between them (its z unobserved).
         covariance: (5, 5) the factor's covariance in its tangent (rotation vector, rad;
-            x, y, m), the odometry's floored (:func:`planodom.smoothing.noise.between_covariance`).
+            x, y, m), the odometry's floored (:func:`planodom.smoothing.noise.between_covariance`)
+            plus both epochs' deskewing error (``smoothing.deskew_noise``).
         inliers: strict associations that verified it.
         factor: index of the factor in the whole graph.
         group: its hypothesis: loop factors confirmed by each other in a chain share it.
