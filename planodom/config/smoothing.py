@@ -253,6 +253,16 @@ class SmoothingConfig(Section):
     right matches on world 4 at 2 cm (ATE 0.025 -> 0.126 m); the drift-scaled one none.
     Measured (batch, loop closure, worlds 0, 2, 4 at 6 mm and 2 cm, one lap): world 2 at
     6 mm keeps 4 instead of 20 wrong ties (ATE 2.77 -> 2.68 m), the others unchanged."""
+    loop_refuse_ambiguous: bool = True
+    """Refuse a re-identification whose ties a competing hypothesis explains about as well:
+    one tie swapped for another old wall parallel to it (same orientation), the pose
+    shifted to fit within the association's translation bound (as ``loop_sigmas``
+    standard deviations); refused when that costs at most chi2(1) at
+    ``loop_gate_quantile`` more than the match's own ties (a likelihood ratio,
+    planodom.smoothing.match_fit.ambiguity). A match whose position only the aliased wall
+    measures cannot tell the two apart: on the 2D-rig world 16 at 2 cm one such tie (a
+    wall 4.2 m from its parallel twin, the match's position sigma 1.7 m) set the tracked
+    correction 6.8 m off and every later match followed it."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree with each other before a new correction is accepted (and
     before the first one)."""

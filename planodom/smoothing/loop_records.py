@@ -55,6 +55,8 @@ class LoopMatch:
         offsets: of a rotation-only match with ``loop_refuse_misfit``, its ties' offset
             residuals against the parallel map walls (:func:`.match_fit.offset_residuals`).
         misfit: their largest squared whitened residual under ``drift`` (chi2(1)).
+        ambiguity: chi2 by which the ties beat their best competing hypothesis (a tie
+            swapped for a parallel old plane; :func:`.match_fit.ambiguity`).
     """
 
     epoch: int
@@ -68,6 +70,7 @@ class LoopMatch:
     verdict: str = "accepted"
     offsets: OffsetFit | None = None
     misfit: float = np.nan
+    ambiguity: float = np.inf
 
 
 def reidentification_counts(

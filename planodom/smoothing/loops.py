@@ -53,7 +53,7 @@ from planodom.geometry import Plane, PlaneSupport, invert_transform, pose5_from_
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 from planodom.smoothing.loop_records import LoopMatch, Reidentification
-from planodom.smoothing.match_fit import offset_residuals, offset_verdict
+from planodom.smoothing.match_fit import ambiguity, offset_residuals, offset_verdict
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
 GROUND_COS = 0.9
@@ -336,12 +336,20 @@ class LoopClosingBuilder(GraphBuilder):
         match = LoopMatch(k, oldest, T_world_pred, T, cov.reshape(5, 5), np.zeros((3, 3)), np.nan,
                           [(candidates[m], int(i)) for m, i in old])  # fmt: skip
         self.matches.append(match)
+        sigma, angle = c.default_plane_offset_sigma_m, cfg.association.strict_normal_deg
+        walls = map_planes[: len(candidates)]
+        if c.loop_refuse_ambiguous:  # at the predicted position (match_fit.ambiguity)
+            T_pred = T.copy()
+            T_pred[:2, 3] = 0.0
+            fit = offset_residuals(walls, curr, old, T_pred, sigma, angle, np.zeros((0, 0)))
+            match.ambiguity = ambiguity(fit, self._prior_sigma(k, oldest, match.ties), sigma)
+            if match.ambiguity <= chi2.ppf(c.loop_gate_quantile, 1):
+                match.verdict = "ambiguous"
+                return
         if c.loop_refuse_misfit and not full:
-            sigma, angle = c.default_plane_offset_sigma_m, cfg.association.strict_normal_deg
             # the map's walls agree to the bounds' floor (the chain's drift between their
             # sightings, yaw's lever arm over the whole route, let world 2's 4.7 m pass)
             var = np.full((len(old), len(old)), self._drift_covariance([])[1, 1])
-            walls = map_planes[: len(candidates)]
             match.offsets = offset_residuals(walls, curr, old, T, sigma, angle, var)
         if c.loop_verify != "off":
             match.verdict = self._verify(match, T_world_pred @ T, full)
@@ -349,6 +357,18 @@ class LoopClosingBuilder(GraphBuilder):
             return
         for m, i in old:
             self._tie(update, candidates[m], int(i), map_planes[m].normal @ T[:3, :3])
+
+    def _prior_sigma(self, k: int, oldest: int, ties: list[tuple[int, int]]) -> float:
+        """Standard deviation (m, per horizontal axis) of the predicted position in the
+        map: the chained odometry's drift (:meth:`_drift_covariance`, not the association
+        bounds, which the drift fraction caps: through epochs whose translation nothing
+        measured, the prediction may be metres further off) since the accepted correction
+        and between the map parts (tracked), else since the candidates' last sighting."""
+        ref = self._reference if self.config.loop_verify == "tracked" else None
+        if ref is None:
+            return float(np.sqrt(self._drift_covariance([(oldest, k)])[1, 1]))
+        seen = min(self.landmarks[j].last_seen[0] for j, _ in ties)  # type: ignore[index]
+        return float(np.sqrt(self._drift_covariance([(ref[0], k), (ref[1], seen)])[1, 1]))
 
     def _verify(self, match: LoopMatch, T_world_curr: np.ndarray, full: bool) -> str:
         """Whether the correction a match implies (``T_world_curr``: epoch k as the map
