@@ -180,3 +180,33 @@ def ambiguity(fit: OffsetFit, sigma_prior_m: float, floor_m: float) -> float:
             w_alt[row] = 1.0 / (fit.old_variances[alt] + v_curr[row])
             best = min(best, _fit_shift(b_alt, n_xy, w_alt, prior) - accepted)
     return best
+
+
+def _extent(plane: Plane, T_world_base: np.ndarray) -> tuple[np.ndarray, float]:
+    """World centroid and radius of a plane's support (the plane's foot point, 0 m
+    radius, when it has none)."""
+    sup = plane.support
+    if sup is None:
+        centroid = -plane.offset * plane.normal
+        return T_world_base[:3, :3] @ centroid + T_world_base[:3, 3], 0.0
+    radius = float(np.max(np.linalg.norm(sup.polygon - sup.centroid, axis=1), initial=0.0))
+    return T_world_base[:3, :3] @ sup.centroid + T_world_base[:3, 3], radius
+
+
+def _sphere_union(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -> tuple[np.ndarray, float]:
+    """The smallest sphere holding spheres (c1, r1) and (c2, r2)."""
+    dist = float(np.linalg.norm(c2 - c1))
+    if dist + r2 <= r1:
+        return c1, r1
+    if dist + r1 <= r2:
+        return c2, r2
+    radius = 0.5 * (dist + r1 + r2)
+    return c1 + (radius - r1) / dist * (c2 - c1), radius
+
+
+def non_parallel(normals: np.ndarray, min_angle_deg: float = 10.0) -> bool:
+    """Whether two of the unit ``normals`` (N, 3) are at least ``min_angle_deg`` apart."""
+    if len(normals) < 2:
+        return False
+    cross = np.linalg.norm(np.cross(normals[:, None], normals[None]), axis=2)
+    return bool(cross.max() >= np.sin(np.radians(min_angle_deg)))
