@@ -211,7 +211,9 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             c_cur, r_cur = _extent(self.planes[k][j], np.eye(4))
             if np.linalg.norm(c_old - c_cur) - r_old - r_cur > c.loop_candidate_overlap_m:
                 return None
-        if c.loop_refuse_ambiguous and self._ambiguous(e, k, rel, pairs, prior, translation[0]):
+        if c.loop_refuse_ambiguous != "off" and self._ambiguous(
+            e, k, rel, pairs, prior, translation[0]
+        ):
             return None
         return RelativePose(
             np.asarray(rel.T_prev_curr, dtype=float), rel.covariance, rel.status,
@@ -270,7 +272,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         """Whether two verified loop poses imply the same correction of the chained guess:
         chi2(3) at ``loop_gate_quantile`` on (yaw, x, y) of epoch ``second.curr`` placed by
         both, under their covariances and the chained odometry's between their epochs."""
-        drift = self._drift_covariance([(first.curr, second.curr), (first.prev, second.prev)])
+        spans = [(first.curr, second.curr), (first.prev, second.prev)]
+        drift = self._drift_covariance(spans, self.config.loop_candidate_drift == "stated")
         cov = drift.copy()
         for rel in (first, second):
             if rel.covariance is None:
@@ -289,7 +292,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         if self._reference is None or rel.covariance is None:
             return self._reference is None
         k_ref, seen_ref = self._reference
-        cov = self._drift_covariance([(k_ref, rel.curr), (seen_ref, rel.prev)])
+        spans = [(k_ref, rel.curr), (seen_ref, rel.prev)]
+        cov = self._drift_covariance(spans, self.config.loop_candidate_drift == "stated")
         cov = cov + np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
         T_a = self.correction @ self.poses[rel.curr]
         T_b = self._correction(rel) @ self.poses[rel.curr]

@@ -57,10 +57,10 @@ from planodom.smoothing.loop_records import LoopMatch, Reidentification
 from planodom.smoothing.match_fit import (
     _extent,
     _sphere_union,
-    ambiguity,
     non_parallel,
     offset_residuals,
     offset_verdict,
+    tie_ambiguities,
 )
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
@@ -252,12 +252,16 @@ class LoopClosingBuilder(GraphBuilder):
             var_r += self.variances[b][1] - self.variances[a][1]
         return distance, var_t, var_r
 
-    def _drift_covariance(self, spans: Spans) -> np.ndarray:
+    def _drift_covariance(self, spans: Spans, stated: bool = False) -> np.ndarray:
         """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans``:
-        the odometry's variances, the yaw's lever arm, and the minimum bounds' floors."""
+        the odometry's variances (``stated``: as it states them, see :meth:`_prior_sigma`),
+        the yaw's lever arm, and the minimum bounds' floors."""
         c = self.config
         distance, var_t, var_r = self._chain(spans)
-        var_xy = 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
+        var_t *= 0.5
+        if stated:
+            var_t, var_r = np.sum([abs(self._stated[b] - self._stated[a]) for a, b in spans], 0)
+        var_xy = var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
         floor_r = np.radians(self.full_config.association.prior_rotation_deg) / c.loop_sigmas
         return np.diag([var_r + floor_r**2, var_xy, var_xy])
 
@@ -327,14 +331,20 @@ class LoopClosingBuilder(GraphBuilder):
         self.matches.append(match)
         sigma, angle = c.default_plane_offset_sigma_m, cfg.association.strict_normal_deg
         walls = map_planes[: len(candidates)]
-        if c.loop_refuse_ambiguous:  # at the predicted position (match_fit.ambiguity)
+        if c.loop_refuse_ambiguous != "off":  # at the predicted position (match_fit)
             T_pred = T.copy()
             T_pred[:2, 3] = 0.0
             fit = offset_residuals(walls, curr, old, T_pred, sigma, angle, np.zeros((0, 0)))
-            match.ambiguity = ambiguity(fit, self._prior_sigma(k, oldest, match.ties), sigma)
-            if match.ambiguity <= chi2.ppf(c.loop_gate_quantile, 1):
-                match.verdict = "ambiguous"
-                return
+            limit = float(chi2.ppf(c.loop_gate_quantile, 1))
+            prior = self._prior_sigma(k, oldest, match.ties)
+            rows = tie_ambiguities(fit, prior, sigma, (self._map_drift(candidates), limit))
+            match.ambiguity = float(np.min(rows, initial=np.inf))
+            if match.ambiguity <= limit:  # its pose rests on an alias: ties the clear walls
+                old, full, T = old[rows > limit], False, T_pred  # verified as rotation-only
+                match.ties = [(candidates[m], int(i)) for m, i in old]
+                if not len(old):
+                    match.verdict = "ambiguous"
+                    return
         if c.loop_refuse_misfit and not full:
             # the map's walls agree to the bounds' floor (the chain's drift between their
             # sightings, yaw's lever arm over the whole route, let world 2's 4.7 m pass)
@@ -349,24 +359,27 @@ class LoopClosingBuilder(GraphBuilder):
 
     def _prior_sigma(self, k: int, oldest: int, ties: list[tuple[int, int]]) -> float:
         """Standard deviation (m, per horizontal axis) of the predicted position in the
-        map as the odometry states it: since the accepted correction and between the map
-        parts (tracked), else since the candidates' last sighting; the translation
-        variances per axis, the yaw's over the distance driven, the bounds' floor. Not the
-        association bounds (capped by the drift fraction: through epochs whose translation
-        nothing measured, the prediction may be metres further off), nor
-        :meth:`_drift_covariance` (the fallback's yaw for rotation-only epochs, whose yaw
-        is measured: on the 2D-rig world 16 at 6 mm its 10 m refused every right match)."""
+        map since the accepted correction and between the map parts (tracked), else since
+        the candidates' last sighting: :meth:`_drift_covariance`, as the odometry states
+        it with ``loop_refuse_ambiguous`` "stated". Not the association bounds: capped by
+        the drift fraction, they are metres too tight after epochs whose translation
+        nothing measured (2D-rig world 16 at 2 cm)."""
         ref = self._reference if self.config.loop_verify == "tracked" else None
         spans = [(oldest, k)]
         if ref is not None:
             seen = min(self.landmarks[j].last_seen[0] for j, _ in ties)  # type: ignore[index]
             spans = [(ref[0], k), (ref[1], seen)]
-        var = self.config.loop_min_translation_m**2 / self.config.loop_sigmas**2
-        for a, b in spans:
-            a, b = min(a, b), max(a, b)
-            var_a, var_y = self._stated[b] - self._stated[a]
-            var += var_a + var_y * (self.travelled[b] - self.travelled[a]) ** 2
-        return float(np.sqrt(var))
+        stated = self.config.loop_refuse_ambiguous == "stated"
+        return float(np.sqrt(self._drift_covariance(spans, stated)[1, 1]))
+
+    def _map_drift(self, landmarks: list[int]) -> np.ndarray:
+        """(N, N) per-axis variance (m^2) of the map's drift between the last sightings of
+        ``landmarks``, as the odometry states it (see :meth:`_prior_sigma`)."""
+        seen = np.array([self.landmarks[j].last_seen[0] for j in landmarks])  # type: ignore[index]
+        stated, travelled = np.asarray(self._stated), np.asarray(self.travelled)
+        lo, hi = np.minimum.outer(seen, seen), np.maximum.outer(seen, seen)
+        var_a, var_y = (stated[hi] - stated[lo]).transpose(2, 0, 1)
+        return var_a + var_y * (travelled[hi] - travelled[lo]) ** 2
 
     def _verify(self, match: LoopMatch, T_world_curr: np.ndarray, full: bool) -> str:
         """Whether the correction a match implies (``T_world_curr``: epoch k as the map

@@ -146,14 +146,33 @@ def _fit_shift(b: np.ndarray, n_xy: np.ndarray, w: np.ndarray, prior: float) -> 
     return float(np.sum(w * (b + n_xy @ t) ** 2) + prior * t @ t)
 
 
-def ambiguity(fit: OffsetFit, sigma_prior_m: float, floor_m: float) -> float:
-    """How far the match's ties beat their best competing hypothesis: the smallest
-    increase of chi2 (a likelihood ratio) when one tie's old plane is swapped for a
+def ambiguity(
+    fit: OffsetFit,
+    sigma_prior_m: float,
+    floor_m: float,
+    same: tuple[np.ndarray, float] | None = None,
+) -> float:
+    """The smallest of :func:`tie_ambiguities` (inf without ties)."""
+    return float(np.min(tie_ambiguities(fit, sigma_prior_m, floor_m, same), initial=np.inf))
+
+
+def tie_ambiguities(
+    fit: OffsetFit,
+    sigma_prior_m: float,
+    floor_m: float,
+    same: tuple[np.ndarray, float] | None = None,
+) -> np.ndarray:
+    """(M,) how far the match's ties beat their best competing hypotheses: per tie, the
+    smallest increase of chi2 (a likelihood ratio) when one tie's old plane is swapped for a
     parallel old plane of the same orientation, the pose shifted to fit (least squares
     over every tie's offset residual under the planes' offset variances, and the
-    prediction's isotropic prior of ``sigma_prior_m``, m). Inf without alternatives.
+    prediction's isotropic prior of ``sigma_prior_m``, m); inf for a tie without
+    alternatives.
     ``floor_m`` is added in quadrature to every offset sigma (the map's planes agree to
-    its drift, not to their fits' centimetres or less).
+    its drift, not to their fits' centimetres or less). ``same``: (N, N) variances (m^2)
+    of the map's drift between the old planes' sightings, and a chi2(1) quantile: an
+    alternative whose offset its tied partner's explains within them is one plane to the
+    map (a wall seen twice, drifted), no competitor (either tie is as right as the map).
 
     ``fit`` must hold the residuals at the predicted position (the match's rotation, no
     translation): a match of full rank sits on its own ties, so at its pose an alias
@@ -162,23 +181,29 @@ def ambiguity(fit: OffsetFit, sigma_prior_m: float, floor_m: float) -> float:
     2 cm: a wall tied to a parallel one 4.2 m away, the match's position sigma 1.7 m).
     """
     rows = np.arange(len(fit.tied))
+    best = np.full(len(rows), np.inf)
     if not len(rows):
-        return np.inf
+        return best
     n_xy = fit.normals[fit.tied, :2]
     v_curr = fit.curr_variances + floor_m**2
     w = 1.0 / (fit.old_variances[fit.tied] + v_curr)
     b = fit.residuals[rows, fit.tied]
     prior = 1.0 / sigma_prior_m**2
     accepted = _fit_shift(b, n_xy, w, prior)
-    best = np.inf
     for row in rows:
         for alt in np.flatnonzero(np.isfinite(fit.residuals[row])):
             if alt == fit.tied[row]:
                 continue
+            if same is not None:
+                j, (between, limit) = fit.tied[row], same
+                apart = (fit.residuals[row, alt] - b[row]) ** 2
+                spread = between[j, alt] + fit.old_variances[[j, alt]].sum() + 2 * floor_m**2
+                if apart <= limit * spread:
+                    continue
             b_alt, w_alt = b.copy(), w.copy()
             b_alt[row] = fit.residuals[row, alt]
             w_alt[row] = 1.0 / (fit.old_variances[alt] + v_curr[row])
-            best = min(best, _fit_shift(b_alt, n_xy, w_alt, prior) - accepted)
+            best[row] = min(best[row], _fit_shift(b_alt, n_xy, w_alt, prior) - accepted)
     return best
 
 

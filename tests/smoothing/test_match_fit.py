@@ -7,7 +7,13 @@ import pytest
 from scipy.stats import chi2
 
 from planodom.geometry import Plane, invert_transform, transform_from_rpy_xyz
-from planodom.smoothing.match_fit import OffsetFit, ambiguity, offset_residuals, offset_verdict
+from planodom.smoothing.match_fit import (
+    OffsetFit,
+    ambiguity,
+    offset_residuals,
+    offset_verdict,
+    tie_ambiguities,
+)
 
 
 def _walls() -> list[Plane]:
@@ -159,3 +165,24 @@ def test_ambiguity_from_planes_at_the_predicted_position():
     sigma, floor = 1.0, 0.01
     v = sigma**2 + floor**2  # planes without covariance, default sigma 0: the floor alone
     assert ambiguity(fit, sigma, floor) == pytest.approx((1.2**2 - 0.3**2) / v, rel=1e-9)
+
+
+def test_a_twin_the_maps_drift_explains_is_the_same_wall():
+    # the twin 0.3 m from the tied wall, the map drifting 0.2 m (sigma) between their
+    # sightings: one wall seen twice, no competitor; 1.5 m away it competes
+    sigma, floor, limit = 2.0, 0.05, float(chi2.ppf(0.999, 1))
+    between = np.full((3, 3), 0.2**2)
+    near = _offsets([[0.0, 0.3, np.nan]], [[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]], [0])
+    assert ambiguity(near, sigma, floor, (between, limit)) == np.inf
+    assert ambiguity(near, sigma, floor) < limit  # without the map's drift it competes
+    far = _offsets([[0.0, 1.5, np.nan]], [[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]], [0])
+    assert ambiguity(far, sigma, floor, (between, limit)) == ambiguity(far, sigma, floor)
+
+
+def test_each_tie_has_its_own_ambiguity():
+    # tie 0 has a twin within the prior, tie 1 (across) none: only tie 0 is ambiguous
+    fit = _offsets([[0.0, 1.5, np.nan], [np.nan, np.nan, 0.0]],
+                   [[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]], [0, 2])  # fmt: skip
+    rows = tie_ambiguities(fit, 2.0, 0.05)
+    assert rows[0] == pytest.approx(1.5**2 / (2.0**2 + 0.05**2))
+    assert rows[1] == np.inf
