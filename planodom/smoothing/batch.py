@@ -20,8 +20,13 @@ from planodom.smoothing.loop_candidates import (
     loop_start,
     test_hypotheses,
 )
-from planodom.smoothing.loop_records import LoopFactor, LoopMatch, Reidentification
-from planodom.smoothing.loops import LoopClosingBuilder, gate_reidentifications
+from planodom.smoothing.loop_records import (
+    LoopFactor,
+    LoopMatch,
+    Reidentification,
+    gate_reidentifications,
+)
+from planodom.smoothing.loops import LoopClosingBuilder
 from planodom.smoothing.marginals import pose_marginals, schur_preferred
 
 

@@ -49,12 +49,8 @@ from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphUpdate, X
 from planodom.smoothing.loop_records import LoopFactor
-from planodom.smoothing.loops import (
-    MAX_ROTATION_BOUND_DEG,
-    LoopClosingBuilder,
-    _extent,
-    non_parallel,
-)
+from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
+from planodom.smoothing.match_fit import _extent, ambiguity, non_parallel, offset_residuals
 from planodom.smoothing.noise import between_covariance, with_robust_kernel
 from planodom_factors.pose5 import pose5_factor
 
@@ -216,10 +212,30 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             c_cur, r_cur = _extent(self.planes[k][j], np.eye(4))
             if np.linalg.norm(c_old - c_cur) - r_old - r_cur > c.loop_candidate_overlap_m:
                 return None
+        if c.loop_refuse_ambiguous != "off" and self._ambiguous(
+            e, k, rel, pairs, prior, translation[0]
+        ):
+            return None
         return RelativePose(
             np.asarray(rel.T_prev_curr, dtype=float), rel.covariance, rel.status,
             pairs, rel.sources, prev=e, curr=k,
         )  # fmt: skip
+
+    def _ambiguous(
+        self, e: int, k: int, rel: RelativePose, pairs: np.ndarray, prior: np.ndarray, bound: float
+    ) -> bool:
+        """Whether a competing hypothesis (one pair's old plane swapped for a parallel
+        plane of epoch e, the pose shifted to fit) explains the pairs about as well as
+        the match, within chi2(1) at ``loop_gate_quantile``, under the prediction's prior
+        (the bound ``bound`` m as ``loop_sigmas`` standard deviations: the chained
+        odometry's, not capped) (:func:`planodom.smoothing.match_fit.ambiguity`)."""
+        c = self.config
+        T = np.asarray(rel.T_prev_curr, dtype=float).copy()
+        T[:2, 3] = prior[:2, 3]  # the match's rotation at the predicted position
+        angle = self.full_config.association.strict_normal_deg
+        sigma = c.default_plane_offset_sigma_m
+        fit = offset_residuals(self.planes[e], self.planes[k], pairs, T, sigma, angle, np.zeros(0))
+        return ambiguity(fit, bound / c.loop_sigmas, sigma) <= chi2.ppf(c.loop_gate_quantile, 1)
 
     def _close_to_old_epoch(self, update: GraphUpdate) -> None:
         """Try the old-epoch candidates of this epoch; the first verified one is kept if it
@@ -257,7 +273,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         """Whether two verified loop poses imply the same correction of the chained guess:
         chi2(3) at ``loop_gate_quantile`` on (yaw, x, y) of epoch ``second.curr`` placed by
         both, under their covariances and the chained odometry's between their epochs."""
-        drift = self._drift_covariance([(first.curr, second.curr), (first.prev, second.prev)])
+        spans = [(first.curr, second.curr), (first.prev, second.prev)]
+        drift = self._drift_covariance(spans, self.config.loop_candidate_drift == "stated")
         cov = drift.copy()
         for rel in (first, second):
             if rel.covariance is None:
@@ -276,7 +293,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         if self._reference is None or rel.covariance is None:
             return self._reference is None
         k_ref, seen_ref = self._reference
-        cov = self._drift_covariance([(k_ref, rel.curr), (seen_ref, rel.prev)])
+        spans = [(k_ref, rel.curr), (seen_ref, rel.prev)]
+        cov = self._drift_covariance(spans, self.config.loop_candidate_drift == "stated")
         cov = cov + np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
         T_a = self.correction @ self.poses[rel.curr]
         T_b = self._correction(rel) @ self.poses[rel.curr]

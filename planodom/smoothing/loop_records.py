@@ -6,8 +6,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
+import gtsam
 import numpy as np
+from scipy.stats import chi2
 
 from planodom.smoothing.match_fit import OffsetFit
 from planodom_factors.pose5 import pose5_error
@@ -55,6 +58,8 @@ class LoopMatch:
         offsets: of a rotation-only match with ``loop_refuse_misfit``, its ties' offset
             residuals against the parallel map walls (:func:`.match_fit.offset_residuals`).
         misfit: their largest squared whitened residual under ``drift`` (chi2(1)).
+        ambiguity: chi2 by which the ties beat their best competing hypothesis (a tie
+            swapped for a parallel old plane; :func:`.match_fit.ambiguity`).
     """
 
     epoch: int
@@ -68,6 +73,7 @@ class LoopMatch:
     verdict: str = "accepted"
     offsets: OffsetFit | None = None
     misfit: float = np.nan
+    ambiguity: float = np.inf
 
 
 def reidentification_counts(
@@ -150,3 +156,30 @@ def loop_factor_counts(
         xy = [float(np.linalg.norm(f.truth_error(gt_poses)[3:])) for f in kept]
         out["loop_factors_max_error_cm"] = round(100 * max(xy, default=0.0))
     return out
+
+
+def gate_reidentifications(
+    builder: Any,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    values: gtsam.Values,
+) -> int:
+    """Remove the re-identified factors inconsistent with ``values`` (see module
+    docstring) from ``graph`` (and their Gaussian twins); returns how many."""
+    q = builder.config.loop_gate_quantile
+    ties = {r.factor for r in builder.reidentifications}
+    tracked = [2.0 * f.error(values) for i, f in gaussian.items() if i not in ties and f.dim() == 3]
+    limit = max(chi2.ppf(q, 3), float(np.quantile(tracked, q)) if tracked else 0.0)
+    failed = set()
+    for r in builder.reidentifications:
+        if not r.removed and 2.0 * gaussian.get(r.factor, graph.at(r.factor)).error(values) > limit:
+            failed.add(r.epoch)
+    removed = 0
+    for r in builder.reidentifications:
+        if not r.removed and r.epoch in failed:  # one match, one hypothesis: all out
+            graph.remove(r.factor)
+            gaussian.pop(r.factor, None)
+            r.removed = True
+            removed += 1
+    builder.stats.reidentified_removed += removed
+    return removed

@@ -28,15 +28,17 @@ With ``loop_refuse_misfit`` a rotation-only match (verified on its yaw alone) is
 refused when a tied wall's offset residual at its own pose exceeds chi2(1) at
 ``loop_gate_quantile`` under the drift along the wall's normal plus both planes' offset
 variances, or when two ties of parallel walls disagree on the pose along their normal
-(:mod:`planodom.smoothing.match_fit`).
+(:mod:`planodom.smoothing.match_fit`). With ``loop_refuse_ambiguous`` any match is refused
+when one tie swapped for a parallel old wall, the pose shifted to fit, explains the ties
+about as well under the chained odometry's stated uncertainty (a likelihood ratio).
 
-After optimisation (:func:`gate_reidentifications`) a match one of whose re-identified
-factors has a squared whitened error above the ``loop_gate_quantile`` of chi2(3), or of
-the tracked plane factors' own errors when larger (the plane covariances are too small
-on continuous-motion data: a fixed chi2 gate removed half the right ties), is removed
-whole and the graph solved again from the initial values. On simulated data each
-re-identification is checked against the planes' true surface ids (``truth_id``):
-:class:`Reidentification`.
+After optimisation (:func:`planodom.smoothing.loop_records.gate_reidentifications`) a
+match one of whose re-identified factors has a squared whitened error above the
+``loop_gate_quantile`` of chi2(3), or of the tracked plane factors' own errors when larger
+(the plane covariances are too small on continuous-motion data: a fixed chi2 gate removed
+half the right ties), is removed whole and the graph solved again from the initial
+values. On simulated data each re-identification is checked against the planes' true
+surface ids (``truth_id``): :class:`Reidentification`.
 """
 
 from __future__ import annotations
@@ -44,7 +46,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import replace
 
-import gtsam
 import numpy as np
 from scipy.stats import chi2
 
@@ -53,7 +54,14 @@ from planodom.geometry import Plane, PlaneSupport, invert_transform, pose5_from_
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 from planodom.smoothing.loop_records import LoopMatch, Reidentification
-from planodom.smoothing.match_fit import offset_residuals, offset_verdict
+from planodom.smoothing.match_fit import (
+    _extent,
+    _sphere_union,
+    non_parallel,
+    offset_residuals,
+    offset_verdict,
+    tie_ambiguities,
+)
 
 #: A landmark whose world normal has at least this |z| is ground-like (context).
 GROUND_COS = 0.9
@@ -73,36 +81,6 @@ def _mahalanobis(T: np.ndarray, dofs: list[int], cov: np.ndarray) -> float:
     """Squared Mahalanobis norm of entries ``dofs`` of ``T``'s (roll, pitch, yaw, x, y)."""
     v = pose5_from_transform(T)[dofs]
     return float(v @ np.linalg.solve(cov, v))
-
-
-def _extent(plane: Plane, T_world_base: np.ndarray) -> tuple[np.ndarray, float]:
-    """World centroid and radius of a plane's support (the plane's foot point, 0 m
-    radius, when it has none)."""
-    sup = plane.support
-    if sup is None:
-        centroid = -plane.offset * plane.normal
-        return T_world_base[:3, :3] @ centroid + T_world_base[:3, 3], 0.0
-    radius = float(np.max(np.linalg.norm(sup.polygon - sup.centroid, axis=1), initial=0.0))
-    return T_world_base[:3, :3] @ sup.centroid + T_world_base[:3, 3], radius
-
-
-def _sphere_union(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -> tuple[np.ndarray, float]:
-    """The smallest sphere holding spheres (c1, r1) and (c2, r2)."""
-    dist = float(np.linalg.norm(c2 - c1))
-    if dist + r2 <= r1:
-        return c1, r1
-    if dist + r1 <= r2:
-        return c2, r2
-    radius = 0.5 * (dist + r1 + r2)
-    return c1 + (radius - r1) / dist * (c2 - c1), radius
-
-
-def non_parallel(normals: np.ndarray, min_angle_deg: float = 10.0) -> bool:
-    """Whether two of the unit ``normals`` (N, 3) are at least ``min_angle_deg`` apart."""
-    if len(normals) < 2:
-        return False
-    cross = np.linalg.norm(np.cross(normals[:, None], normals[None]), axis=2)
-    return bool(cross.max() >= np.sin(np.radians(min_angle_deg)))
 
 
 class LoopClosingBuilder(GraphBuilder):
@@ -127,6 +105,7 @@ class LoopClosingBuilder(GraphBuilder):
         self.attempts = 0
         self.travelled: list[float] = []
         self.variances: list[tuple[float, float]] = []  # chained (xy, yaw) variance sums
+        self._stated: list[np.ndarray] = []  # the same per axis, as stated (_prior_sigma)
         self._extents: dict[int, tuple[int, np.ndarray, float]] = {}  # j -> (epoch, c, r)
         #: j -> (last-seen epoch, world plane with its extent), see _map_plane
         self._world_planes: dict[int, tuple[int, Plane]] = {}
@@ -250,6 +229,16 @@ class LoopClosingBuilder(GraphBuilder):
                 var_t, var_r = float(cov[3, 3] + cov[4, 4]), float(cov[2, 2])
         last_t, last_r = self.variances[-1] if self.variances else (0.0, 0.0)
         self.variances.append((last_t + var_t if k else 0.0, last_r + var_r if k else 0.0))
+        # the same as the odometry states it (_prior_sigma): per axis, the fallback factor's
+        # sigma on each axis, the yaw of a rotation-only epoch as measured
+        var_a, var_y = c.fallback_translation_sigma_m**2, c.fallback_rotation_sigma_rad**2
+        for r in relatives:
+            if r.curr == k and r.delta == 1 and r.measured and r.covariance is not None:
+                cov = np.asarray(r.covariance, dtype=float).reshape(5, 5)
+                var_y = float(cov[2, 2])
+                var_a = float(cov[3, 3] + cov[4, 4]) / 2 if r.translation_observed else var_a
+        last = self._stated[-1] if k else np.zeros(2)
+        self._stated.append(last + (var_a, var_y) if k else last)
         return super().add_epoch(planes, relatives, min_epoch)
 
     def _chain(self, spans: Spans) -> tuple[float, float, float]:
@@ -263,12 +252,16 @@ class LoopClosingBuilder(GraphBuilder):
             var_r += self.variances[b][1] - self.variances[a][1]
         return distance, var_t, var_r
 
-    def _drift_covariance(self, spans: Spans) -> np.ndarray:
+    def _drift_covariance(self, spans: Spans, stated: bool = False) -> np.ndarray:
         """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans``:
-        the odometry's variances, the yaw's lever arm, and the minimum bounds' floors."""
+        the odometry's variances (``stated``: as it states them, see :meth:`_prior_sigma`),
+        the yaw's lever arm, and the minimum bounds' floors."""
         c = self.config
         distance, var_t, var_r = self._chain(spans)
-        var_xy = 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
+        var_t *= 0.5
+        if stated:
+            var_t, var_r = np.sum([abs(self._stated[b] - self._stated[a]) for a, b in spans], 0)
+        var_xy = var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
         floor_r = np.radians(self.full_config.association.prior_rotation_deg) / c.loop_sigmas
         return np.diag([var_r + floor_r**2, var_xy, var_xy])
 
@@ -336,12 +329,26 @@ class LoopClosingBuilder(GraphBuilder):
         match = LoopMatch(k, oldest, T_world_pred, T, cov.reshape(5, 5), np.zeros((3, 3)), np.nan,
                           [(candidates[m], int(i)) for m, i in old])  # fmt: skip
         self.matches.append(match)
+        sigma, angle = c.default_plane_offset_sigma_m, cfg.association.strict_normal_deg
+        walls = map_planes[: len(candidates)]
+        if c.loop_refuse_ambiguous != "off":  # at the predicted position (match_fit)
+            T_pred = T.copy()
+            T_pred[:2, 3] = 0.0
+            fit = offset_residuals(walls, curr, old, T_pred, sigma, angle, np.zeros((0, 0)))
+            limit = float(chi2.ppf(c.loop_gate_quantile, 1))
+            prior = self._prior_sigma(k, oldest, match.ties)
+            rows = tie_ambiguities(fit, prior, sigma, (self._map_drift(candidates), limit))
+            match.ambiguity = float(np.min(rows, initial=np.inf))
+            if match.ambiguity <= limit:  # its pose rests on an alias: ties the clear walls
+                old, full, T = old[rows > limit], False, T_pred  # verified as rotation-only
+                match.ties = [(candidates[m], int(i)) for m, i in old]
+                if not len(old):
+                    match.verdict = "ambiguous"
+                    return
         if c.loop_refuse_misfit and not full:
-            sigma, angle = c.default_plane_offset_sigma_m, cfg.association.strict_normal_deg
             # the map's walls agree to the bounds' floor (the chain's drift between their
             # sightings, yaw's lever arm over the whole route, let world 2's 4.7 m pass)
             var = np.full((len(old), len(old)), self._drift_covariance([])[1, 1])
-            walls = map_planes[: len(candidates)]
             match.offsets = offset_residuals(walls, curr, old, T, sigma, angle, var)
         if c.loop_verify != "off":
             match.verdict = self._verify(match, T_world_pred @ T, full)
@@ -349,6 +356,30 @@ class LoopClosingBuilder(GraphBuilder):
             return
         for m, i in old:
             self._tie(update, candidates[m], int(i), map_planes[m].normal @ T[:3, :3])
+
+    def _prior_sigma(self, k: int, oldest: int, ties: list[tuple[int, int]]) -> float:
+        """Standard deviation (m, per horizontal axis) of the predicted position in the
+        map since the accepted correction and between the map parts (tracked), else since
+        the candidates' last sighting: :meth:`_drift_covariance`, as the odometry states
+        it with ``loop_refuse_ambiguous`` "stated". Not the association bounds: capped by
+        the drift fraction, they are metres too tight after epochs whose translation
+        nothing measured (2D-rig world 16 at 2 cm)."""
+        ref = self._reference if self.config.loop_verify == "tracked" else None
+        spans = [(oldest, k)]
+        if ref is not None:
+            seen = min(self.landmarks[j].last_seen[0] for j, _ in ties)  # type: ignore[index]
+            spans = [(ref[0], k), (ref[1], seen)]
+        stated = self.config.loop_refuse_ambiguous == "stated"
+        return float(np.sqrt(self._drift_covariance(spans, stated)[1, 1]))
+
+    def _map_drift(self, landmarks: list[int]) -> np.ndarray:
+        """(N, N) per-axis variance (m^2) of the map's drift between the last sightings of
+        ``landmarks``, as the odometry states it (see :meth:`_prior_sigma`)."""
+        seen = np.array([self.landmarks[j].last_seen[0] for j in landmarks])  # type: ignore[index]
+        stated, travelled = np.asarray(self._stated), np.asarray(self.travelled)
+        lo, hi = np.minimum.outer(seen, seen), np.maximum.outer(seen, seen)
+        var_a, var_y = (stated[hi] - stated[lo]).transpose(2, 0, 1)
+        return var_a + var_y * (travelled[hi] - travelled[lo]) ** 2
 
     def _verify(self, match: LoopMatch, T_world_curr: np.ndarray, full: bool) -> str:
         """Whether the correction a match implies (``T_world_curr``: epoch k as the map
@@ -417,30 +448,3 @@ class LoopClosingBuilder(GraphBuilder):
         self.reidentifications.append(
             Reidentification(k, i, j, index, self.planes[k][i].truth_id, truth_lm)
         )
-
-
-def gate_reidentifications(
-    builder: LoopClosingBuilder,
-    graph: gtsam.NonlinearFactorGraph,
-    gaussian: dict[int, gtsam.NonlinearFactor],
-    values: gtsam.Values,
-) -> int:
-    """Remove the re-identified factors inconsistent with ``values`` (see module
-    docstring) from ``graph`` (and their Gaussian twins); returns how many."""
-    q = builder.config.loop_gate_quantile
-    ties = {r.factor for r in builder.reidentifications}
-    tracked = [2.0 * f.error(values) for i, f in gaussian.items() if i not in ties and f.dim() == 3]
-    limit = max(chi2.ppf(q, 3), float(np.quantile(tracked, q)) if tracked else 0.0)
-    failed = set()
-    for r in builder.reidentifications:
-        if not r.removed and 2.0 * gaussian.get(r.factor, graph.at(r.factor)).error(values) > limit:
-            failed.add(r.epoch)
-    removed = 0
-    for r in builder.reidentifications:
-        if not r.removed and r.epoch in failed:  # one match, one hypothesis: all out
-            graph.remove(r.factor)
-            gaussian.pop(r.factor, None)
-            r.removed = True
-            removed += 1
-    builder.stats.reidentified_removed += removed
-    return removed

@@ -135,3 +135,103 @@ def _offset_variance(plane: Plane, default_sigma_m: float) -> float:
     if plane.covariance is None:
         return default_sigma_m**2
     return float(plane.covariance[3, 3])
+
+
+def _fit_shift(b: np.ndarray, n_xy: np.ndarray, w: np.ndarray, prior: float) -> float:
+    """Smallest chi2 of a horizontal shift t (2,) of the pose, m, laying every tie at
+    ``b + n_xy @ t = 0`` (offsets ``b`` (M,) m, normals ``n_xy`` (M, 2), weights ``w`` (M,)
+    1/m^2) under an isotropic prior of information ``prior`` (1/m^2) around no shift."""
+    H = np.einsum("m,mi,mj->ij", w, n_xy, n_xy) + prior * np.eye(2)
+    t = np.linalg.solve(H, -(n_xy.T @ (w * b)))
+    return float(np.sum(w * (b + n_xy @ t) ** 2) + prior * t @ t)
+
+
+def ambiguity(
+    fit: OffsetFit,
+    sigma_prior_m: float,
+    floor_m: float,
+    same: tuple[np.ndarray, float] | None = None,
+) -> float:
+    """The smallest of :func:`tie_ambiguities` (inf without ties)."""
+    return float(np.min(tie_ambiguities(fit, sigma_prior_m, floor_m, same), initial=np.inf))
+
+
+def tie_ambiguities(
+    fit: OffsetFit,
+    sigma_prior_m: float,
+    floor_m: float,
+    same: tuple[np.ndarray, float] | None = None,
+) -> np.ndarray:
+    """(M,) how far the match's ties beat their best competing hypotheses: per tie, the
+    smallest increase of chi2 (a likelihood ratio) when one tie's old plane is swapped for a
+    parallel old plane of the same orientation, the pose shifted to fit (least squares
+    over every tie's offset residual under the planes' offset variances, and the
+    prediction's isotropic prior of ``sigma_prior_m``, m); inf for a tie without
+    alternatives.
+    ``floor_m`` is added in quadrature to every offset sigma (the map's planes agree to
+    its drift, not to their fits' centimetres or less). ``same``: (N, N) variances (m^2)
+    of the map's drift between the old planes' sightings, and a chi2(1) quantile: an
+    alternative whose offset its tied partner's explains within them is one plane to the
+    map (a wall seen twice, drifted), no competitor (either tie is as right as the map).
+
+    ``fit`` must hold the residuals at the predicted position (the match's rotation, no
+    translation): a match of full rank sits on its own ties, so at its pose an alias
+    whose shift only the aliased tie measures looks as far off as the prior allows it to
+    be, and the alias tied wrong, the right partner looks as far (2D-rig world 16 at
+    2 cm: a wall tied to a parallel one 4.2 m away, the match's position sigma 1.7 m).
+    """
+    rows = np.arange(len(fit.tied))
+    best = np.full(len(rows), np.inf)
+    if not len(rows):
+        return best
+    n_xy = fit.normals[fit.tied, :2]
+    v_curr = fit.curr_variances + floor_m**2
+    w = 1.0 / (fit.old_variances[fit.tied] + v_curr)
+    b = fit.residuals[rows, fit.tied]
+    prior = 1.0 / sigma_prior_m**2
+    accepted = _fit_shift(b, n_xy, w, prior)
+    for row in rows:
+        for alt in np.flatnonzero(np.isfinite(fit.residuals[row])):
+            if alt == fit.tied[row]:
+                continue
+            if same is not None:
+                j, (between, limit) = fit.tied[row], same
+                apart = (fit.residuals[row, alt] - b[row]) ** 2
+                spread = between[j, alt] + fit.old_variances[[j, alt]].sum() + 2 * floor_m**2
+                if apart <= limit * spread:
+                    continue
+            b_alt, w_alt = b.copy(), w.copy()
+            b_alt[row] = fit.residuals[row, alt]
+            w_alt[row] = 1.0 / (fit.old_variances[alt] + v_curr[row])
+            best[row] = min(best[row], _fit_shift(b_alt, n_xy, w_alt, prior) - accepted)
+    return best
+
+
+def _extent(plane: Plane, T_world_base: np.ndarray) -> tuple[np.ndarray, float]:
+    """World centroid and radius of a plane's support (the plane's foot point, 0 m
+    radius, when it has none)."""
+    sup = plane.support
+    if sup is None:
+        centroid = -plane.offset * plane.normal
+        return T_world_base[:3, :3] @ centroid + T_world_base[:3, 3], 0.0
+    radius = float(np.max(np.linalg.norm(sup.polygon - sup.centroid, axis=1), initial=0.0))
+    return T_world_base[:3, :3] @ sup.centroid + T_world_base[:3, 3], radius
+
+
+def _sphere_union(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -> tuple[np.ndarray, float]:
+    """The smallest sphere holding spheres (c1, r1) and (c2, r2)."""
+    dist = float(np.linalg.norm(c2 - c1))
+    if dist + r2 <= r1:
+        return c1, r1
+    if dist + r1 <= r2:
+        return c2, r2
+    radius = 0.5 * (dist + r1 + r2)
+    return c1 + (radius - r1) / dist * (c2 - c1), radius
+
+
+def non_parallel(normals: np.ndarray, min_angle_deg: float = 10.0) -> bool:
+    """Whether two of the unit ``normals`` (N, 3) are at least ``min_angle_deg`` apart."""
+    if len(normals) < 2:
+        return False
+    cross = np.linalg.norm(np.cross(normals[:, None], normals[None]), axis=2)
+    return bool(cross.max() >= np.sin(np.radians(min_angle_deg)))

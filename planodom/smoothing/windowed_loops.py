@@ -29,8 +29,8 @@ correlation with the poses still in the window (through the marginalised past) i
 dropped, and the landmark's observations informed the window once already (through the
 marginalisation). Both are small where loop closure matters: the poses' drift since the
 landmark left dominates the landmark's own uncertainty. There is no gate after the fact
-(batch's :func:`planodom.smoothing.loops.gate_reidentifications`): the past is fixed once
-marginalised; the verification and the robust kernel on the ties stand for it.
+(batch's :func:`planodom.smoothing.loop_records.gate_reidentifications`): the past is
+fixed once marginalised; the verification and the robust kernel on the ties stand for it.
 """
 
 from __future__ import annotations

@@ -7,7 +7,13 @@ import pytest
 from scipy.stats import chi2
 
 from planodom.geometry import Plane, invert_transform, transform_from_rpy_xyz
-from planodom.smoothing.match_fit import OffsetFit, offset_residuals, offset_verdict
+from planodom.smoothing.match_fit import (
+    OffsetFit,
+    ambiguity,
+    offset_residuals,
+    offset_verdict,
+    tie_ambiguities,
+)
 
 
 def _walls() -> list[Plane]:
@@ -96,3 +102,87 @@ def test_parallel_ties_must_agree_whatever_the_drift():
     # the map's own drift between the two walls' sightings does not cancel: 1 m of it
     # explains a metre's disagreement
     assert offset_verdict(_fit([0.0, -1.0], [x, x], 1.0), drift, limit)[0] == ""
+
+
+def _offsets(
+    residuals: list[list[float]], normals: list[list[float]], tied: list[int]
+) -> OffsetFit:
+    """An offset fit of noise-free planes (variances zero) from its residuals."""
+    n = len(normals)
+    residual_array, normal_array = np.array(residuals, float), np.array(normals, float)
+    return OffsetFit(residual_array, normal_array, np.zeros(n), np.zeros(len(tied)),
+                     np.array(tied), 1.0, np.zeros((0, 0)))  # fmt: skip
+
+
+def test_a_lone_tie_with_a_parallel_twin_costs_only_the_prior():
+    # one wall measures x alone; its twin 1.5 m further: swapping them shifts the pose by
+    # 1.5 m, which costs r^2 / (sigma_prior^2 + both offset variances) (a Gaussian's
+    # marginal), nothing else
+    fit = _offsets([[0.0, 1.5, np.nan]], [[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]], [0])
+    sigma, floor = 2.0, 0.05
+    expected = 1.5**2 / (sigma**2 + floor**2)  # the old planes' variances are zero
+    assert ambiguity(fit, sigma, floor) == pytest.approx(expected, rel=1e-9)
+    assert ambiguity(fit, sigma, floor) < chi2.ppf(0.999, 1)  # the prior cannot choose
+    # a tight prediction tells them apart
+    assert ambiguity(fit, 0.2, floor) > chi2.ppf(0.999, 1)
+
+
+def test_a_second_tie_along_the_normal_pins_the_shift():
+    # two parallel walls measure x; one of them has a twin 1.5 m away: swapping it alone
+    # must move the pose against the other tie: w r^2 (w + p) / (2 w + p)
+    fit = _offsets([[0.0, 1.5, np.nan], [np.nan, np.nan, 0.0]],
+               [[1.0, 0, 0], [1.0, 0, 0], [1.0, 0, 0]], [0, 2])  # fmt: skip
+    fit.residuals[1, :2] = np.nan
+    sigma, floor = 2.0, 0.05
+    w, p = 1.0 / floor**2, 1.0 / sigma**2
+    expected = w * 1.5**2 * (w + p) / (2 * w + p)
+    assert ambiguity(fit, sigma, floor) == pytest.approx(expected, rel=1e-9)
+    assert ambiguity(fit, sigma, floor) > chi2.ppf(0.999, 1)
+
+
+def test_a_wall_across_the_twin_leaves_it_ambiguous():
+    # a perpendicular tie does not measure the shift along the twins' normal
+    fit = _offsets([[0.0, 1.5, np.nan], [np.nan, np.nan, 0.0]],
+               [[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]], [0, 2])  # fmt: skip
+    sigma, floor = 2.0, 0.05
+    assert ambiguity(fit, sigma, floor) == pytest.approx(1.5**2 / (sigma**2 + floor**2))
+    assert (
+        ambiguity(_offsets([[0.0, np.nan]], [[1.0, 0, 0], [0, 1.0, 0]], [0]), 2.0, 0.05) == np.inf
+    )
+
+
+def test_ambiguity_from_planes_at_the_predicted_position():
+    # two walls 1.5 m apart along x and a cross wall; the current epoch sees the near one
+    # from a pose 0.3 m off the prediction along x
+    old = [Plane(np.array([1.0, 0, 0]), 3.0), Plane(np.array([1.0, 0, 0]), 4.5),
+           Plane(np.array([0, 1.0, 0]), 2.0)]  # fmt: skip
+    T_true = transform_from_rpy_xyz(0.0, 0.0, 0.0, 0.3, 0.0, 0.0)
+    curr = _seen_from(T_true, old[:1] + old[2:])
+    fit = offset_residuals(old, curr, np.array([[0, 0], [2, 1]]), np.eye(4), 0.0, 3.0,
+                           np.zeros((0, 0)))  # fmt: skip
+    # at the prediction, the tie is 0.3 m off and its twin 1.5 - 0.3 = 1.2 m the other way
+    np.testing.assert_allclose(fit.residuals[0, :2], [-0.3, 1.2], atol=1e-12)
+    sigma, floor = 1.0, 0.01
+    v = sigma**2 + floor**2  # planes without covariance, default sigma 0: the floor alone
+    assert ambiguity(fit, sigma, floor) == pytest.approx((1.2**2 - 0.3**2) / v, rel=1e-9)
+
+
+def test_a_twin_the_maps_drift_explains_is_the_same_wall():
+    # the twin 0.3 m from the tied wall, the map drifting 0.2 m (sigma) between their
+    # sightings: one wall seen twice, no competitor; 1.5 m away it competes
+    sigma, floor, limit = 2.0, 0.05, float(chi2.ppf(0.999, 1))
+    between = np.full((3, 3), 0.2**2)
+    near = _offsets([[0.0, 0.3, np.nan]], [[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]], [0])
+    assert ambiguity(near, sigma, floor, (between, limit)) == np.inf
+    assert ambiguity(near, sigma, floor) < limit  # without the map's drift it competes
+    far = _offsets([[0.0, 1.5, np.nan]], [[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]], [0])
+    assert ambiguity(far, sigma, floor, (between, limit)) == ambiguity(far, sigma, floor)
+
+
+def test_each_tie_has_its_own_ambiguity():
+    # tie 0 has a twin within the prior, tie 1 (across) none: only tie 0 is ambiguous
+    fit = _offsets([[0.0, 1.5, np.nan], [np.nan, np.nan, 0.0]],
+                   [[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]], [0, 2])  # fmt: skip
+    rows = tie_ambiguities(fit, 2.0, 0.05)
+    assert rows[0] == pytest.approx(1.5**2 / (2.0**2 + 0.05**2))
+    assert rows[1] == np.inf
