@@ -208,7 +208,7 @@ class GraphBuilder:
         measured = [r for r in usable if r.measured]
         for rel in measured if self.deskew is not None else ():
             self.deskew.add(rel)  # type: ignore[union-attr]  # before this epoch's factors
-        step = next((r for r in usable if r.delta == 1), None)
+        step = next((r for r in usable if r.delta == 1 and not r.measured), None)
         self._add_pose(measured, min_epoch, update, step)
         self._reidentify(update)
         associations = {r.delta: r.associations for r in usable}  # (tracked even unmeasured)
