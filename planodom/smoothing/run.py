@@ -159,9 +159,7 @@ def smoothing_relatives(
     known = {(r.prev, r.curr) for r in reused}
     deltas = range(1, config.smoothing.delta_max + 1)
     bridged = {k for k, r in enumerate(odometry.results) if k and (r is None or not r.measured)}
-    rest = relative_poses(
-        odometry.planes, config, deltas, odometry.poses, progress, known, bridged
-    )
+    rest = relative_poses(odometry.planes, config, deltas, odometry.poses, progress, known, bridged)
     return reused + rest
 
 
