@@ -6,7 +6,8 @@ reference epoch (``k - 1``, or an earlier one when ``k - 1`` has too few planes)
 are reused as they are (:func:`smoothing_relatives`). The stored planes then give the
 other relative poses between epochs ``k - delta`` and ``k`` for delta = 1..D
 (:func:`planodom.odometry.estimate_relative_pose`, with the odometry's chained motion as
-prior and association bounds widened with delta, as the streaming odometry does); a
+prior and association bounds widened with delta, as the streaming odometry does; not
+solved again without the prior unless the chain crosses an epoch the odometry bridged); a
 streaming result whose planes were extracted again later (the first epoch, deskewed once
 a twist is known) is recomputed too. Every resolved relative pose becomes a 5-DoF factor
 (a rotation-only factor when the odometry reports "degenerate": rotation measured,
