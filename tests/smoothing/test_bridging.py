@@ -1,0 +1,64 @@
+"""Epochs the odometry could not measure, and relative poses with a measured prior."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.geometry import invert_transform, make_transform, se3_log
+from planodom.odometry import Status
+from planodom.smoothing import smooth_batch
+from planodom.smoothing.run import relative_poses
+from planodom.smoothing.synthetic import make_sequence
+
+GAUSSIAN = SmoothingConfig(robust_kernel="none", deskew_noise="none", batch_initial="odometry")
+
+
+def test_unresolved_epochs_follow_the_odometrys_prediction() -> None:
+    seq = make_sequence(20, seed=9, vertical_sigma=0.0)
+    # Nothing but delta = 1 relative poses, no planes: an unresolved epoch's pose rests on
+    # its fallback factor alone. Epochs 8..11 unresolved, their T_prev_curr the
+    # odometry's prediction (here the true step); epoch 15 has no relative pose at all.
+    relatives = [
+        replace(r, status=Status.UNRESOLVED) if 8 <= r.curr <= 11 else r
+        for r in seq.relatives
+        if r.delta == 1 and r.curr != 15
+    ]
+    steps = invert_transform(seq.poses[:-1]) @ seq.poses[1:]  # steps[k - 1]: into k
+    # the last measured step repeated (constant velocity) would be off by 0.7-1.5 deg
+    off = se3_log(invert_transform(steps[6])[None] @ steps[7:11])
+    assert np.all(np.linalg.norm(off[:, :3], axis=1) > 0.01)
+    result = smooth_batch([[] for _ in range(20)], relatives, GAUSSIAN)
+    assert result.stats.unresolved_epochs == [8, 9, 10, 11, 15]
+    est = invert_transform(result.poses[:-1]) @ result.poses[1:]
+    for k in range(1, 20):  # rotation and horizontal translation (5-DoF factors)
+        expected = steps[13] if k == 15 else steps[k - 1]  # 15: the last measured step
+        np.testing.assert_allclose(est[k - 1][:3, :3], expected[:3, :3], atol=1e-6)
+        np.testing.assert_allclose(est[k - 1][:2, 3], expected[:2, 3], atol=1e-6)
+
+
+def test_a_measured_prior_is_not_dropped_for_a_prior_free_consensus() -> None:
+    seq = make_sequence(12, seed=1, step_m=0.5)
+    config = PlanodomConfig()
+    guess = seq.poses.copy()  # a guess 1.5 m off from epoch 6 on (beyond the prior bounds)
+    guess[6:] = guess[6:] @ make_transform(np.eye(3), [1.5, 0.0, 0.0])[None]
+
+    def errors(bridged: set[int] | None) -> dict[tuple[int, int], tuple[Status, float]]:
+        out = {}
+        for r in relative_poses(seq.planes, config, [2], guess, bridged=bridged):
+            true = invert_transform(seq.poses[r.prev]) @ seq.poses[r.curr]
+            out[r.prev, r.curr] = (
+                r.status,
+                float(np.linalg.norm(r.T_prev_curr[:2, 3] - true[:2, 3])),
+            )
+        return out
+
+    measured, across_bridge, as_configured = errors(set()), errors({6}), errors(None)
+    for pair in ((4, 6), (5, 7)):  # spanning the jump
+        assert measured[pair][0] is not Status.OK  # the prior's bounds hold: no translation
+        assert across_bridge[pair][0] is Status.OK and across_bridge[pair][1] < 1e-9
+        assert as_configured[pair] == across_bridge[pair]
+    assert measured[(2, 4)] == across_bridge[(2, 4)] == (Status.OK, measured[(2, 4)][1])
+    assert measured[(2, 4)][1] < 1e-9
