@@ -181,6 +181,11 @@ class OdometryConfig(Section):
     velocity_window: Annotated[int, Field(ge=1)] = 5
     """Streaming: the predicted linear velocity is the median over this many recent
     measured steps (the angular rate is the last step's)."""
+    map_twist_prediction: Literal["mean", "trend"] = "mean"
+    """Streaming, plane-map pipeline: the twist predicted for the next epoch's deskewing.
+    ``mean``: the mean of the last ``velocity_window`` epochs' twists; ``trend``: their
+    straight-line fit over the epochs, extrapolated one epoch ahead (a constant change
+    of the twist, as in a turn that tightens: the mean lags it by half the window)."""
     epoch_period_s: Positive = 0.1
     """Epoch period used when epochs come without times, seconds."""
     min_sigma_rotation_deg: Positive = 0.001

@@ -401,7 +401,12 @@ class PlaneOdometry:
             # last velocity_window steps (0.44 cm there), and extracts again with the mean
             # of the twist used and the epoch's own (register_deskewed, against_map).
             self._recent.append(twist.copy())
-            return np.mean(np.array(self._recent), axis=0)
+            recent = np.array(self._recent)
+            if self.config.odometry.map_twist_prediction == "trend" and len(recent) >= 3:
+                x = np.arange(1 - len(recent), 1, dtype=float)  # the last epoch at 0
+                slope, intercept = np.polyfit(x, recent, 1)
+                return intercept + slope
+            return np.mean(recent, axis=0)
         if measured:
             self._velocities.append(twist[3:])
         if not self._velocities:
