@@ -186,6 +186,10 @@ class OdometryConfig(Section):
     ``mean``: the mean of the last ``velocity_window`` epochs' twists; ``trend``: their
     straight-line fit over the epochs, extrapolated one epoch ahead (a constant change
     of the twist, as in a turn that tightens: the mean lags it by half the window)."""
+    map_trend_rescue: bool = False
+    """Streaming, plane-map pipeline: when the epoch deskewed with the predicted twist is
+    suspect (not OK, or far fewer planes than the epoch before), extract it again with the
+    twist of ``map_twist_prediction: trend`` before trying it without deskewing."""
     epoch_period_s: Positive = 0.1
     """Epoch period used when epochs come without times, seconds."""
     min_sigma_rotation_deg: Positive = 0.001

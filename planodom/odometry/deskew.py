@@ -114,6 +114,7 @@ def register_deskewed(
     previous_planes: int = 0,
     held: np.ndarray | None = None,
     against_map: bool = False,
+    trend: np.ndarray | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -130,12 +131,17 @@ def register_deskewed(
             odometry), not against an epoch deskewed the same way: a deskewing error
             ``e`` then moves the epoch's own twist by about ``-e`` (own = 2 true - used),
             so it is extracted again with the mean of the twist used and its own.
+        trend: (6,) the twist extrapolated along the recent change of the twists (None:
+            none): tried first when the epoch deskewed with ``predicted`` is suspect (a
+            prediction that averages recent twists lags a turn that tightens).
     """
     best = estimate(predicted)
     few = len(best.planes) < max(2.0, 0.5 * previous_planes)
-    other = None if predicted is not None else held
-    if dt > 0 and (predicted is not None or held is not None):
-        if best.relative.status is not Status.OK or few:
+    others: list[np.ndarray | None] = [] if trend is None or predicted is None else [trend]
+    if predicted is not None or held is not None:
+        others.append(None if predicted is not None else held)
+    if dt > 0 and (best.relative.status is not Status.OK or few):
+        for other in others:
             alternative = estimate(other)
             if _score(alternative) > _score(best):
                 best = alternative
