@@ -102,3 +102,25 @@ def test_the_own_twist_is_the_steps_twist_on_every_call():
     first += 1.0
     np.testing.assert_allclose(est.own_twist(DT), TRUE, atol=1e-12)
     np.testing.assert_allclose(est.own_twist(2 * DT), TRUE / 2, atol=1e-12)
+
+
+def test_a_suspect_epoch_tries_the_trend_twist_before_none():
+    """Deskewed with a lagging prediction or without deskewing the epoch is lost; with the
+    trend's twist (close to the truth) it resolves, and that extraction is kept."""
+    tried: list[np.ndarray | None] = []
+
+    def model(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
+        tried.append(None if twist is None else twist.copy())
+        close = twist is not None and np.linalg.norm(twist - TRUE) < 0.2
+        return _estimate(twist, TRUE, Status.OK if close else Status.UNRESOLVED)
+
+    trend = TRUE + 0.05
+    config = OdometryConfig(deskew_iterations=0)
+    best = register_deskewed(PREDICTED, DT, model, lambda t: False, config, 2, trend=trend)
+    assert best.relative.status is Status.OK and best.twist is not None
+    np.testing.assert_array_equal(best.twist, trend)
+    assert tried[1] is not None and np.array_equal(tried[1], trend) and tried[2] is None
+    # an epoch that resolves with the prediction never tries it
+    tried.clear()
+    ok = register_deskewed(TRUE, DT, model, lambda t: False, config, 2, trend=trend)
+    assert ok.relative.status is Status.OK and len(tried) == 1
