@@ -181,24 +181,18 @@ class OdometryConfig(Section):
     velocity_window: Annotated[int, Field(ge=1)] = 5
     """Streaming: the predicted linear velocity is the median over this many recent
     measured steps (the angular rate is the last step's)."""
-    map_twist_prediction: Literal["mean", "trend"] = "mean"
-    """Streaming, plane-map pipeline: the twist predicted for the next epoch's deskewing.
-    ``mean``: the mean of the last ``velocity_window`` epochs' twists; ``trend``: their
-    straight-line fit over the epochs, extrapolated one epoch ahead (a constant change
-    of the twist, as in a turn that tightens: the mean lags it by half the window).
-    Measured on issue 11's lidar worlds 3, 5, 7, 9 (300 epochs, 6 mm and 2 cm): ATE
-    better on all (world 9: 0.55 -> 0.03 m), but the rotation error rms worse on world 7
-    (0.0072 -> 0.013 deg at 6 mm: an epoch whose prediction is within the deskewing
-    tolerances is not refined with its own twist), so ``mean``, with the trend as a
-    rescue (``map_trend_rescue``)."""
     map_trend_rescue: bool = True
     """Streaming, plane-map pipeline: when the epoch deskewed with the predicted twist is
     suspect (not OK, or far fewer planes than the epoch before), extract it again with the
-    twist of ``map_twist_prediction: trend`` before trying it without deskewing.
+    twist extrapolated along the trend of the recent twists (:func:`planodom.odometry.
+    deskew.trend_twist`) before trying it without deskewing: the prediction, the mean of
+    the last ``velocity_window`` twists, lags a turn that tightens by half the window.
     Measured on issue 11's lidar worlds 3, 5, 7, 9 (300 epochs, 6 mm and 2 cm): world 9
     (a tightening turn, 13 deg/s predicted for 23) ATE 0.55 / 0.69 -> 0.033 / 0.036 m,
     rotation 0.060 / 0.071 -> 0.022 / 0.024 deg rms, no epoch unresolved; the other
-    worlds identical (no epoch there was suspect)."""
+    worlds identical (no epoch there was suspect). The trend as the prediction of every
+    epoch instead: ATE better on all four, but rotation rms worse on world 7 (0.0072 ->
+    0.013 deg at 6 mm: a prediction within the deskewing tolerances is not refined)."""
     epoch_period_s: Positive = 0.1
     """Epoch period used when epochs come without times, seconds."""
     min_sigma_rotation_deg: Positive = 0.001

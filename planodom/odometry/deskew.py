@@ -33,7 +33,7 @@ it again:
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -206,3 +206,30 @@ def refined_twist(
     if measured and np.linalg.norm(own[3:] - used[3:]) > config.deskew_speed_tolerance_mps:
         new[3:] = own[3:]
     return new
+
+
+def trend_twist(recent: np.ndarray) -> np.ndarray:
+    """(6,) the twist one epoch after the last of ``recent`` (W, 6) (W >= 4, one an epoch),
+    along the straight-line fit of each component, its slope shrunk by how well the
+    fit's residuals determine it (``slope (1 - var_slope / slope^2)``, at least 0): a
+    turn that tightens steadily is followed, a rate that only shakes from epoch to epoch
+    (suspension roll and pitch) is averaged as by the mean. Least squares by hand: six
+    independent fits of a handful of points, with their residuals."""
+    w = len(recent)
+    x = np.arange(w, dtype=float) - 0.5 * (w - 1)
+    mean = recent.mean(axis=0)
+    sxx = float(x @ x)
+    slope = x @ (recent - mean) / sxx
+    resid = recent - mean - np.outer(x, slope)
+    var_slope = np.sum(resid**2, axis=0) / (w - 2) / sxx
+    shrink = np.clip(1.0 - var_slope / np.maximum(slope**2, 1e-300), 0.0, 1.0)
+    return mean + shrink * slope * (x[-1] + 1.0)
+
+
+def map_trend(recent: Sequence[np.ndarray], config: OdometryConfig) -> np.ndarray | None:
+    """(6,) the twist a plane-map epoch suspect with the mean of the ``recent`` twists
+    (6,) is tried with (``config.map_trend_rescue``, :func:`trend_twist`); None when off
+    or before 4 of them."""
+    if not config.map_trend_rescue or len(recent) < 4:
+        return None
+    return trend_twist(np.array(recent))

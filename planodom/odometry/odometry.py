@@ -27,6 +27,7 @@ from planodom.geometry import Plane, invert_transform, se3_exp
 from planodom.odometry.deskew import (
     EpochEstimate,
     keep_first,
+    map_trend,
     prefer_streaming,
     register_deskewed,
     time_spread,
@@ -162,16 +163,15 @@ class PlaneOdometry:
                 return self._commit(epoch, given, t)
         estimate = partial(self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted())
         if self.config.odometry.deskew and time_spread(scan):
-            dt = t - self.times[-1]
+            dt, ocfg = t - self.times[-1], self.config.odometry
             refresh, previous = self._refresh_reference, len(self.last_planes)
-            ocfg = self.config.odometry
             # a twist never outlives an unresolved epoch: until one is measured again, the
             # epochs are extracted without it (it still serves as prior and bridge, and is
             # tried when the extraction without it is suspect)
             unresolved = self._unresolved_last()
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
-            trend = self._trend_twist() if against_map and ocfg.map_trend_rescue else None
+            trend = map_trend(self._recent, ocfg) if against_map else None
             best = register_deskewed(
                 twist, dt, estimate, refresh, ocfg, previous, held, against_map, trend
             )
@@ -383,11 +383,6 @@ class PlaneOdometry:
         if len(epoch.planes) >= 2:
             self._last_usable = epoch
 
-    def _trend_twist(self) -> np.ndarray | None:
-        """(6,) the plane-map pipeline's twist extrapolated along the trend of the recent
-        twists (:func:`_trend`), None before ``4`` of them."""
-        return _trend(np.array(self._recent)) if len(self._recent) >= 4 else None
-
     def _unresolved_last(self) -> bool:
         last = self.last_relative
         return last is not None and last.status is Status.UNRESOLVED
@@ -407,10 +402,7 @@ class PlaneOdometry:
             # last velocity_window steps (0.44 cm there), and extracts again with the mean
             # of the twist used and the epoch's own (register_deskewed, against_map).
             self._recent.append(twist.copy())
-            recent = np.array(self._recent)
-            if self.config.odometry.map_twist_prediction == "trend" and len(recent) >= 4:
-                return _trend(recent)
-            return np.mean(recent, axis=0)
+            return np.mean(np.array(self._recent), axis=0)
         if measured:
             self._velocities.append(twist[3:])
         if not self._velocities:
@@ -445,24 +437,6 @@ def _twist_offset(epoch: _Epoch, reference: _Epoch, dt: float) -> np.ndarray | N
         return None
     tm = float(np.mean(scan.t))
     return (tm / dt) * (epoch.twist - reference.twist) if tm != 0.0 else None
-
-
-def _trend(recent: np.ndarray) -> np.ndarray:
-    """(6,) the twist one epoch after the last of ``recent`` (W, 6) (W >= 4, one a epoch),
-    along the straight-line fit of each component, its slope shrunk by how well the
-    fit's residuals determine it (``slope (1 - var_slope / slope^2)``, at least 0): a
-    turn that tightens steadily is followed, a rate that only shakes from epoch to epoch
-    (suspension roll and pitch) is averaged as by the mean. Least squares by hand: six
-    independent fits of a handful of points, with their residuals."""
-    w = len(recent)
-    x = np.arange(w, dtype=float) - 0.5 * (w - 1)
-    mean = recent.mean(axis=0)
-    sxx = float(x @ x)
-    slope = x @ (recent - mean) / sxx
-    resid = recent - mean - np.outer(x, slope)
-    var_slope = np.sum(resid**2, axis=0) / (w - 2) / sxx
-    shrink = np.clip(1.0 - var_slope / np.maximum(slope**2, 1e-300), 0.0, 1.0)
-    return mean + shrink * slope * (x[-1] + 1.0)
 
 
 def _orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:
