@@ -207,7 +207,10 @@ class OdometryConfig(Section):
     point times (7: 0.0072 / 0.0096 -> 0.0061 / 0.0076, 9: 0.022 / 0.024 -> 0.015 /
     0.016, 15: 0.0117 / 0.0130 -> 0.0091 / 0.0105), but it oscillates on the two whose
     times come from the azimuth (3: 0.029 -> 0.040 deg, xy 0.09 -> 2.2 cm; 5 at 6 mm:
-    ATE 0.009 -> 0.21 m): off until that is understood."""
+    ATE 0.009 -> 0.21 m). With that twist still averaged with the one used (damped;
+    not a setting), 6 mm: world 3 0.029 -> 0.026 deg (xy 0.088 -> 0.060 cm), 5 0.0093
+    -> 0.0095, 9 0.022 -> 0.023: no oscillation, and no gain on world 9. Off until the
+    oscillation is understood."""
     epoch_period_s: Positive = 0.1
     """Epoch period used when epochs come without times, seconds."""
     min_sigma_rotation_deg: Positive = 0.001
