@@ -181,6 +181,36 @@ class OdometryConfig(Section):
     velocity_window: Annotated[int, Field(ge=1)] = 5
     """Streaming: the predicted linear velocity is the median over this many recent
     measured steps (the angular rate is the last step's)."""
+    map_trend_rescue: bool = True
+    """Streaming, plane-map pipeline: when the epoch deskewed with the predicted twist is
+    suspect (not OK, or far fewer planes than the epoch before), extract it again with the
+    twist extrapolated along the trend of the recent twists (:func:`planodom.odometry.
+    deskew.trend_twist`) before trying it without deskewing: the prediction, the mean of
+    the last ``velocity_window`` twists, lags a turn that tightens by half the window.
+    Measured on issue 11's lidar worlds 3, 5, 7, 9 (300 epochs, 6 mm and 2 cm): world 9
+    (a tightening turn, 13 deg/s predicted for 23) ATE 0.55 / 0.69 -> 0.033 / 0.036 m,
+    rotation 0.060 / 0.071 -> 0.022 / 0.024 deg rms, no epoch unresolved; the other
+    worlds identical (no epoch there was suspect). The trend as the prediction of every
+    epoch instead: ATE better on all four, but rotation rms worse on world 7 (0.0072 ->
+    0.013 deg at 6 mm: a prediction within the deskewing tolerances is not refined)."""
+    map_twist_offset: bool = False
+    """Streaming, plane-map pipeline: the epoch's own twist (what it is extracted again
+    with) has the offset its and the previous epoch's deskewing put in the step taken off
+    (:func:`planodom.odometry.deskew.twist_offset`, as for the pairwise pipelines), and
+    is used as it is; off: the mean of the twist used and the step's own (see
+    :func:`planodom.odometry.deskew.register_deskewed`, ``against_map``). The deskewing
+    twist dominates the lidar rotation error (issue 11, 150 epochs at 6 mm, rotation rms
+    deg: deskewed along the true motion, world 3 / 9 / 15: 0.029 -> 0.0024, 0.026 ->
+    0.0047, 0.0105 -> 0.0033; with the true constant twist of each sweep 0.0052, 0.0085,
+    0.0047; segmented by the true labels, no better). Measured on the lidar worlds 3, 5,
+    7, 9, 15 (300 epochs, 6 mm / 2 cm): rotation rms better on the worlds with recorded
+    point times (7: 0.0072 / 0.0096 -> 0.0061 / 0.0076, 9: 0.022 / 0.024 -> 0.015 /
+    0.016, 15: 0.0117 / 0.0130 -> 0.0091 / 0.0105), but it oscillates on the two whose
+    times come from the azimuth (3: 0.029 -> 0.040 deg, xy 0.09 -> 2.2 cm; 5 at 6 mm:
+    ATE 0.009 -> 0.21 m). With that twist still averaged with the one used (damped;
+    not a setting), 6 mm: world 3 0.029 -> 0.026 deg (xy 0.088 -> 0.060 cm), 5 0.0093
+    -> 0.0095, 9 0.022 -> 0.023: no oscillation, and no gain on world 9. Off until the
+    oscillation is understood."""
     epoch_period_s: Positive = 0.1
     """Epoch period used when epochs come without times, seconds."""
     min_sigma_rotation_deg: Positive = 0.001

@@ -27,9 +27,11 @@ from planodom.geometry import Plane, invert_transform, se3_exp
 from planodom.odometry.deskew import (
     EpochEstimate,
     keep_first,
+    map_trend,
     prefer_streaming,
     register_deskewed,
     time_spread,
+    twist_offset,
 )
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
@@ -162,17 +164,17 @@ class PlaneOdometry:
                 return self._commit(epoch, given, t)
         estimate = partial(self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted())
         if self.config.odometry.deskew and time_spread(scan):
-            dt = t - self.times[-1]
+            dt, ocfg = t - self.times[-1], self.config.odometry
             refresh, previous = self._refresh_reference, len(self.last_planes)
-            ocfg = self.config.odometry
             # a twist never outlives an unresolved epoch: until one is measured again, the
             # epochs are extracted without it (it still serves as prior and bridge, and is
             # tried when the extraction without it is suspect)
             unresolved = self._unresolved_last()
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
+            trend = map_trend(self._recent, ocfg) if against_map else None
             best = register_deskewed(
-                twist, dt, estimate, refresh, ocfg, previous, held, against_map
+                twist, dt, estimate, refresh, ocfg, previous, held, against_map, trend
             )
         else:
             best = estimate(None)
@@ -266,7 +268,7 @@ class PlaneOdometry:
         inverse of a chained world pose, so rounding cannot grow from epoch to epoch.
         """
         if self._map is not None:
-            return self._estimate_map(epoch)
+            return self._estimate_map(epoch, t)
         reference = self._reference()
         T_ref_last = np.eye(4)  # T_{ref}_{k-1}
         for step in self._steps[reference.index + 1 :]:
@@ -283,7 +285,7 @@ class PlaneOdometry:
             result = replace(result, T_prev_curr=bridge)
         result = result.between(reference.index, epoch.index)
         step = _orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
-        offset = _twist_offset(epoch, reference, dt)
+        offset = twist_offset(epoch.scan, epoch.twist, reference.twist, dt)
         estimate = EpochEstimate(
             epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes,
             twist_offset=offset,
@@ -291,7 +293,7 @@ class PlaneOdometry:
         ocfg = self.config.odometry  # a degenerate step off the prediction: bridged
         return self._twist_sigma.gated(estimate, dt, self.twist, T_ref_last, ocfg)
 
-    def _estimate_map(self, epoch: _Epoch) -> EpochEstimate:
+    def _estimate_map(self, epoch: _Epoch, t: float) -> EpochEstimate:
         """The plane-map odometry's estimate of ``epoch`` against its map (the previous
         epoch is the reference of the relative pose); committed in :meth:`_commit`."""
         assert self._map is not None
@@ -299,8 +301,18 @@ class PlaneOdometry:
         est = self._map.estimate(epoch.planes)
         result = est.relative.between(reference.index, epoch.index)
         step = _orthonormalised(result.T_prev_curr)
+        offset = None  # the deskewing's offset of the step's twist (twist_offset)
+        if self.config.odometry.map_twist_offset and self.times:
+            offset = twist_offset(epoch.scan, epoch.twist, reference.twist, t - self.times[-1])
         return EpochEstimate(
-            epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes, est
+            epoch.planes,
+            epoch.plane_set,
+            epoch.twist,
+            result,
+            step,
+            reference.planes,
+            est,
+            twist_offset=offset,
         )
 
     def _config_for_gap(self, gap: int) -> PlanodomConfig:
@@ -407,35 +419,6 @@ class PlaneOdometry:
         if not self._velocities:
             return np.r_[rate, twist[3:]]
         return np.r_[rate, np.median(np.array(self._velocities), axis=0)]
-
-
-def _twist_offset(epoch: _Epoch, reference: _Epoch, dt: float) -> np.ndarray | None:
-    """(6,) the offset between the twist of the step an epoch's planes give and its true
-    twist (:meth:`EpochEstimate.own_twist`), rad/s and m/s; None when nothing is offset.
-
-    A plane's points are seen at about the mean point time ``tm`` after the epoch time;
-    deskewed with a twist ``u`` off the true one by ``e``, they sit where the epoch's pose
-    off by ``-e tm`` would put them. So the step from the reference epoch (deskewed with
-    ``u_r``) to this one (``u``) is off by ``tm (e_r - e)``, and its twist by ``(tm / dt)
-    (e_r - e)``; over the two epochs' equal true twist, that is ``(tm / dt) (u_r - u)``,
-    and the true twist is the step's plus ``(tm / dt) (u - u_r)``. Taken as it is, the
-    step's twist swings around the truth from one extraction to the next. (Measured on a
-    2D-rig world at sigma = 0, tm / dt = 0.48: an epoch deskewed with 14.6 deg/s and
-    5.4 m/s against a reference deskewed with 10.7 deg/s and 3.9 m/s, where the truth was
-    10.1 deg/s and 3.7 m/s, gave a step of 7.2 deg/s and 2.4 m/s; with the offset, 9.0
-    and 3.1. On the quick start, noise seeds 0-5, horizontal ATE with / without it: mean
-    0.039 / 0.038 m, each seed within 0.024-0.059 m either way (seed 0: 0.052 / 0.030),
-    3D 0.076 / 0.079 m: no bias, one draw's spread.)
-    """
-    scan = epoch.scan
-    if dt <= 0 or scan is None or scan.t is None or not len(scan.t):
-        return None
-    if epoch.twist is None or reference.twist is None:
-        # an epoch extracted without a twist is not "deskewed with zero": the 2D-rig path
-        # then extrapolates each wall seen in several time windows to the epoch time
-        return None
-    tm = float(np.mean(scan.t))
-    return (tm / dt) * (epoch.twist - reference.twist) if tm != 0.0 else None
 
 
 def _orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:

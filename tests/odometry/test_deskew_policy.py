@@ -65,13 +65,12 @@ def test_the_own_twist_removes_what_the_deskewing_of_both_epochs_put_in():
     e, the epoch looks displaced by -e tm. With the step of that model (the reference
     deskewed with its own twist), the epoch's own twist is the true one, and the policy
     extracts again with it."""
-    from planodom.odometry.odometry import _Epoch, _twist_offset
+    from planodom.odometry.deskew import twist_offset
     from planodom.scan import Scan
 
     t = np.linspace(0.0, DT, 11)  # tm = DT / 2
     scan = Scan(np.zeros((11, 3)), t=t)
     used_ref = np.array([0.0, 0.0, 0.25, 2.9, 0.1, 0.0])
-    reference = _Epoch(0, [], PlaneSet.from_planes([]), scan, used_ref)
     tm = float(np.mean(t))
 
     def model(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
@@ -79,8 +78,7 @@ def test_the_own_twist_removes_what_the_deskewing_of_both_epochs_put_in():
         # the step from the reference: true motion, displaced by both deskewing errors
         step_twist = TRUE + (tm / DT) * ((used_ref - TRUE) - (twist - TRUE))
         est = _estimate(twist, step_twist, Status.OK)
-        epoch = _Epoch(1, est.planes, est.plane_set, scan, twist)
-        offset = _twist_offset(epoch, reference, DT)
+        offset = twist_offset(scan, twist, used_ref, DT)
         return EpochEstimate(est.planes, est.plane_set, twist, est.relative, est.step,
                              est.reference_planes, twist_offset=offset)  # fmt: skip
 
@@ -88,9 +86,14 @@ def test_the_own_twist_removes_what_the_deskewing_of_both_epochs_put_in():
     best = register_deskewed(PREDICTED, DT, model, lambda t: False, OdometryConfig(), 2)
     assert best.twist is not None
     np.testing.assert_allclose(best.twist, TRUE, atol=1e-9)
+    # against a map with map_twist_offset the same own twist is used as it is (no mean
+    # with the twist used, which would stop halfway)
+    config = OdometryConfig(map_twist_offset=True, deskew_iterations=1)
+    mapped = register_deskewed(PREDICTED, DT, model, lambda t: False, config, 2, against_map=True)
+    assert mapped.twist is not None
+    np.testing.assert_allclose(mapped.twist, TRUE, atol=1e-9)
     # without a twist (the 2D rig's time windows) nothing is offset
-    plain = _Epoch(1, [], PlaneSet.from_planes([]), scan, None)
-    assert _twist_offset(plain, reference, DT) is None
+    assert twist_offset(scan, None, used_ref, DT) is None
 
 
 def test_the_own_twist_is_the_steps_twist_on_every_call():
@@ -102,3 +105,25 @@ def test_the_own_twist_is_the_steps_twist_on_every_call():
     first += 1.0
     np.testing.assert_allclose(est.own_twist(DT), TRUE, atol=1e-12)
     np.testing.assert_allclose(est.own_twist(2 * DT), TRUE / 2, atol=1e-12)
+
+
+def test_a_suspect_epoch_tries_the_trend_twist_before_none():
+    """Deskewed with a lagging prediction or without deskewing the epoch is lost; with the
+    trend's twist (close to the truth) it resolves, and that extraction is kept."""
+    tried: list[np.ndarray | None] = []
+
+    def model(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
+        tried.append(None if twist is None else twist.copy())
+        close = twist is not None and np.linalg.norm(twist - TRUE) < 0.2
+        return _estimate(twist, TRUE, Status.OK if close else Status.UNRESOLVED)
+
+    trend = TRUE + 0.05
+    config = OdometryConfig(deskew_iterations=0)
+    best = register_deskewed(PREDICTED, DT, model, lambda t: False, config, 2, trend=trend)
+    assert best.relative.status is Status.OK and best.twist is not None
+    np.testing.assert_array_equal(best.twist, trend)
+    assert tried[1] is not None and np.array_equal(tried[1], trend) and tried[2] is None
+    # an epoch that resolves with the prediction never tries it
+    tried.clear()
+    ok = register_deskewed(TRUE, DT, model, lambda t: False, config, 2, trend=trend)
+    assert ok.relative.status is Status.OK and len(tried) == 1

@@ -365,7 +365,7 @@ def test_time_spread_epochs_are_extracted_again_with_their_own_twist():
     def scans(spread: float):
         # times centred on the epoch time: the extractor's planes do not move with the
         # twist, which is what deskewing does to points seen at a mean time of 0 (no
-        # offset of the own twist, :func:`planodom.odometry.odometry._twist_offset`)
+        # offset of the own twist, :func:`planodom.odometry.deskew.twist_offset`)
         return [Scan(np.full((2, 3), float(k)), t=[-spread, spread]) for k in range(5)]
 
     run = run_odometry(scans(0.05), config(), extractor=extractor, times=0.1 * np.arange(5))
