@@ -35,6 +35,7 @@ import functools
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numba
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
@@ -42,7 +43,6 @@ from planodom.config import AssociationConfig
 from planodom.geometry import (
     dihedral_angles,
     horizontal_reference_points,
-    make_transform,
     rotation_frames,
     transform_planes,
     transform_points,
@@ -323,18 +323,47 @@ def strict_association(
         return np.zeros((0, 2), dtype=np.intp)
     t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
     t_bound = cfg.max_translation_m if translation_bound is None else float(translation_bound)
-    moved = _moved(curr, make_transform(rotation, t))
-
-    cos = np.clip(prev.normals @ moved.normals.T, -1.0, 1.0)
-    cos_max = np.cos(np.radians(cfg.strict_normal_deg))
-    d_bound = t_bound + cfg.strict_offset_m
-    dd = np.abs(prev.offsets[:, None] - moved.offsets[None, :])
-    dist = np.linalg.norm(prev.centroids[:, None, :] - moved.centroids[None], axis=2)
-    reach = prev.radii[:, None] + moved.radii[None] + t_bound + cfg.overlap_margin_m
-    ok = (cos >= cos_max) & (dd <= d_bound) & ~(dist > reach)
-
-    cost = (1.0 - cos) / (1.0 - cos_max) + (dd / d_bound) ** 2
-    cost = np.where(ok, cost, _FORBIDDEN)
+    ok, cost = _strict_costs(
+        prev.normals, prev.offsets, prev.centroids, prev.radii,
+        curr.normals, curr.offsets, curr.centroids, curr.radii,
+        np.ascontiguousarray(rotation, dtype=np.float64), t,
+        np.cos(np.radians(cfg.strict_normal_deg)), t_bound + cfg.strict_offset_m,
+        t_bound + cfg.overlap_margin_m,
+    )  # fmt: skip
     rows, cols = linear_sum_assignment(cost)
     keep = ok[rows, cols]
     return np.column_stack([rows[keep], cols[keep]]).astype(np.intp)
+
+
+@numba.njit(cache=True)
+def _strict_costs(
+    n_p, d_p, c_p, r_p, n_c, d_c, c_c, r_c, R, t, cos_max, d_bound, reach_add
+):  # pragma: no cover - compiled
+    """SDA's gate (Kp, Kc) bool and assignment costs (Kp, Kc) (:data:`_FORBIDDEN` where
+    gated out) of the current planes ``(n_c, d_c)`` with support centroids ``c_c`` and
+    radii ``r_c`` moved by ``(R, t)`` against the previous ones: the arithmetic of
+    :func:`planodom.geometry.transform_planes` and of the gates, compiled (a dozen numpy
+    calls on 5 x 5 arrays cost several times their arithmetic; SDA runs 3-4 times a
+    solve). Unknown supports (NaN) pass the overlap gate."""
+    Kp, Kc = len(d_p), len(d_c)
+    ok = np.zeros((Kp, Kc), dtype=np.bool_)
+    cost = np.full((Kp, Kc), _FORBIDDEN)
+    n = np.empty(3)
+    c = np.empty(3)
+    for j in range(Kc):
+        for a in range(3):
+            n[a] = R[a, 0] * n_c[j, 0] + R[a, 1] * n_c[j, 1] + R[a, 2] * n_c[j, 2]
+            c[a] = R[a, 0] * c_c[j, 0] + R[a, 1] * c_c[j, 1] + R[a, 2] * c_c[j, 2] + t[a]
+        d = d_c[j] - (n[0] * t[0] + n[1] * t[1] + n[2] * t[2])
+        for i in range(Kp):
+            cos = n_p[i, 0] * n[0] + n_p[i, 1] * n[1] + n_p[i, 2] * n[2]
+            cos = min(max(cos, -1.0), 1.0)
+            dd = abs(d_p[i] - d)
+            dist = np.sqrt(
+                (c_p[i, 0] - c[0]) ** 2 + (c_p[i, 1] - c[1]) ** 2 + (c_p[i, 2] - c[2]) ** 2
+            )
+            reach = r_p[i] + r_c[j] + reach_add
+            if cos >= cos_max and dd <= d_bound and not dist > reach:
+                ok[i, j] = True
+                cost[i, j] = (1.0 - cos) / (1.0 - cos_max) + (dd / d_bound) ** 2
+    return ok, cost
