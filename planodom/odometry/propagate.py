@@ -21,7 +21,12 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planodom.geometry import horizontal_reference_points, rotation_frames, rpy_from_rotation
+from planodom.geometry import (
+    horizontal_reference_points,
+    rotation_frame_into,
+    rotation_frames,
+    rpy_from_rotation,
+)
 from planodom.planes import PlaneSet
 
 _STEP = 1e-7
@@ -88,26 +93,6 @@ def rotation_covariance(
 
 
 @numba.njit(cache=True)
-def _frame(n1, n2, U):  # pragma: no cover - compiled
-    """:func:`planodom.geometry.rotation_frames` of one pair, into ``U`` (3, 3)."""
-    c0 = n1[1] * n2[2] - n1[2] * n2[1]
-    c1 = n1[2] * n2[0] - n1[0] * n2[2]
-    c2 = n1[0] * n2[1] - n1[1] * n2[0]
-    s = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
-    if s > 1e-9:
-        u3 = (c0 / s, c1 / s, c2 / s)
-    else:
-        u3 = (np.nan, np.nan, np.nan)
-    r = np.sqrt(n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2])
-    u1 = (n1[0] / r, n1[1] / r, n1[2] / r)
-    U[0, 0], U[1, 0], U[2, 0] = u1
-    U[0, 1] = u3[1] * u1[2] - u3[2] * u1[1]
-    U[1, 1] = u3[2] * u1[0] - u3[0] * u1[2]
-    U[2, 1] = u3[0] * u1[1] - u3[1] * u1[0]
-    U[0, 2], U[1, 2], U[2, 2] = u3
-
-
-@numba.njit(cache=True)
 def _rotation_jacobian(x, step):  # pragma: no cover - compiled
     """(3, 12) central-difference Jacobian of the pair rotation's (roll, pitch, yaw) with
     respect to the four normals ``x`` (12,) (:func:`rotation_covariance`), compiled: the
@@ -121,8 +106,8 @@ def _rotation_jacobian(x, step):  # pragma: no cover - compiled
         for side in range(2):
             y = x.copy()
             y[k] += step if side == 0 else -step
-            _frame(y[0:3], y[3:6], U_p)
-            _frame(y[6:9], y[9:12], U_c)
+            rotation_frame_into(y[0:3], y[3:6], U_p)
+            rotation_frame_into(y[6:9], y[9:12], U_c)
             R = U_p @ U_c.T
             if abs(R[2, 0]) > 0.99:
                 J[0, 0] = np.nan
