@@ -163,7 +163,7 @@ def build_planes(
             n_rows = int(fits.n_rows[g])
         else:
             n_rows = 0 if ring is None else _n_distinct(ring[idx])
-        outline = epoch.points[idx][fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]
+        outline = epoch.points[idx[fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]]
         polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
         plane = Plane(
             normal=n_or[g],
