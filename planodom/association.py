@@ -31,21 +31,17 @@ plane only its best match.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numba
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from planodom.config import AssociationConfig
 from planodom.geometry import (
     dihedral_angles,
-    horizontal_reference_points,
-    make_transform,
-    rotation_frames,
-    transform_planes,
-    transform_points,
+    rotation_frame_into,
 )
 from planodom.planes import PlaneSet
 
@@ -109,72 +105,6 @@ def nonparallel_pairs(normals: np.ndarray, parallel_angle: float) -> tuple[np.nd
     return angles, (angles >= parallel_angle) & (angles <= np.pi - parallel_angle)
 
 
-class _Moved(NamedTuple):
-    """The geometry of planes moved into another frame, what the gates compare:
-    normals (K, 3), offsets (K,) m, centroids (K, 3) m, radii (K,) m (unchanged)."""
-
-    normals: np.ndarray
-    offsets: np.ndarray
-    centroids: np.ndarray
-    radii: np.ndarray
-
-
-def _moved(planes: PlaneSet, T_a_b: np.ndarray) -> _Moved:
-    """``planes.transformed(T_a_b)`` without the covariances, which no gate reads (their
-    propagation was a third of each gate's cost), the same arithmetic otherwise."""
-    n, d = transform_planes(T_a_b, planes.normals, planes.offsets)
-    return _Moved(n, d, transform_points(T_a_b, planes.centroids), planes.radii)
-
-
-def _plane_gate(
-    prev: PlaneSet,
-    curr_in_prev: _Moved,
-    curr_ranges: np.ndarray,
-    t_bound: float,
-    t_prior: float,
-    rot_bound: float,
-    normal_tol: float,
-    offset_tol: float,
-    margin: float,
-) -> np.ndarray:
-    """(Kp, Kc) bool: plane i (prev) and plane j (current, moved by the prior) may match."""
-    cos = prev.normals @ curr_in_prev.normals.T
-    ok = cos >= np.cos(min(rot_bound + normal_tol, np.pi))
-    chord = 2.0 * np.sin(min(rot_bound, np.pi) / 2.0)
-    d_bound = t_bound + offset_tol + chord * t_prior
-    ok &= np.abs(prev.offsets[:, None] - curr_in_prev.offsets[None, :]) <= d_bound
-    dist = np.linalg.norm(prev.centroids[:, None, :] - curr_in_prev.centroids[None], axis=2)
-    reach = prev.radii[:, None] + curr_in_prev.radii[None] + chord * curr_ranges[None]
-    ok &= ~(dist > reach + t_bound + margin)  # unknown supports (NaN) pass
-    return ok
-
-
-def _gated_combinations(
-    gate1: np.ndarray, gate2: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """All (p, j1, j2) with ``gate1[p, j1]`` and ``gate2[p, j2]``, vectorised, ordered by
-    p, then j1, then j2. gate1, gate2: (P, K) bool. Returns three (M,) int arrays."""
-    p1, j1 = np.nonzero(gate1)
-    p2, j2 = np.nonzero(gate2)
-    n = len(gate1)
-    c1, c2 = np.bincount(p1, minlength=n), np.bincount(p2, minlength=n)
-    s1, s2 = np.cumsum(c1) - c1, np.cumsum(c2) - c2
-    per = c1 * c2
-    p = np.repeat(np.arange(n), per)
-    q = np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
-    u, v = q // c2[p], q % c2[p]
-    return p, j1[s1[p] + u], j2[s2[p] + v]
-
-
-@functools.lru_cache(maxsize=64)
-def _pairs_of(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """``np.triu_indices(n, 1)`` (read-only arrays, cached: building them cost more than
-    the rest of a small epoch's gate)."""
-    i1, i2 = np.triu_indices(n, 1)
-    i1.flags.writeable = i2.flags.writeable = False
-    return i1, i2
-
-
 def lenient_association(
     prev: PlaneSet,
     curr: PlaneSet,
@@ -203,92 +133,181 @@ def lenient_association(
     else:
         T0, t_bound = np.asarray(prior, dtype=np.float64), cfg.prior_translation_m
         rot_bound = np.radians(cfg.prior_rotation_deg)
-    normal_tol = np.radians(cfg.normal_tol_deg)
-    t0 = T0[:3, 3]
-
-    gate = _plane_gate(
-        prev,
-        _moved(curr, T0),
-        np.linalg.norm(curr.centroids, axis=1),
-        t_bound,
-        float(np.linalg.norm(t0)),
-        rot_bound,
-        normal_tol,
-        cfg.offset_tol_m,
-        cfg.overlap_margin_m,
-    )
-    parallel = np.radians(cfg.parallel_angle_deg)
-    ang_p, ok_p = nonparallel_pairs(prev.normals, parallel)
-    ang_c, ok_c = nonparallel_pairs(curr.normals, parallel)
-    i1, i2 = _pairs_of(len(prev))
-    keep = ok_p[i1, i2] & gate[i1].any(axis=1) & gate[i2].any(axis=1)
-    i1, i2 = i1[keep], i2[keep]
-    if len(i1) == 0:
-        return PairAssociations.empty()
-
-    # Prev pair p may map to the ordered current pair (j1, j2) with j1, j2 gated.
-    p, j1, j2 = _gated_combinations(gate[i1], gate[i2])
-    a_p = ang_p[i1, i2][p]
-    keep = ok_c[j1, j2] & (np.abs(a_p - ang_c[j1, j2]) <= np.radians(cfg.dihedral_tol_deg))
-    if not keep.any():
-        return PairAssociations.empty()
-    p, j1, j2, a_p = p[keep], j1[keep], j2[keep], a_p[keep]
-    i1, i2 = i1[p], i2[p]
-
-    U_p = rotation_frames(prev.normals[i1], prev.normals[i2])
-    U_c = rotation_frames(curr.normals[j1], curr.normals[j2])
-    R = U_p @ np.swapaxes(U_c, 1, 2)
-    # Rotation bound: angle of R0^T R from its trace.
-    cos_dev = (np.einsum("ij,mij->m", T0[:3, :3], R) - 1.0) / 2.0
-    ok = cos_dev >= np.cos(min(rot_bound + normal_tol, np.pi))
-
-    ok &= _reference_points_agree(
-        prev, curr, (i1, i2, j1, j2), R, t0, t_bound + cfg.offset_tol_m / np.sin(a_p),
-        normal_tol, cfg.min_line_verticality,
+    pp, cp, R, w = _lda_kernel(
+        prev.normals, prev.offsets, prev.centroids, prev.radii, prev.weights,
+        curr.normals, curr.offsets, curr.centroids, curr.radii, curr.weights,
+        T0, _LdaBounds(
+            t_bound, rot_bound, np.radians(cfg.normal_tol_deg), cfg.offset_tol_m,
+            cfg.overlap_margin_m, np.radians(cfg.parallel_angle_deg),
+            np.radians(cfg.dihedral_tol_deg), cfg.min_line_verticality,
+        ),
     )  # fmt: skip
-
-    w = prev.weights[i1] * prev.weights[i2] * curr.weights[j1] * curr.weights[j2]
-    return PairAssociations(
-        np.column_stack([i1, i2])[ok],
-        np.column_stack([j1, j2])[ok],
-        R[ok],
-        w[ok],
-    )
+    if len(w) == 0:
+        return PairAssociations.empty()
+    return PairAssociations(pp, cp, R, w)
 
 
-def _reference_points_agree(
-    prev: PlaneSet,
-    curr: PlaneSet,
-    pairs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    R: np.ndarray,
-    t0: np.ndarray,
-    bound: np.ndarray,
-    normal_tol: float,
-    min_verticality: float,
-) -> np.ndarray:
-    """(M,) bool: the translation bound on each pair's reference point (NaN when
-    undefined: passes).
+class _LdaBounds(NamedTuple):
+    """LDA's gates (:func:`lenient_association`): translation bound m, rotation bound rad,
+    normal tolerance rad, offset tolerance m, overlap margin m, parallel angle rad,
+    dihedral tolerance rad, minimum verticality of a reference point's line."""
 
-    Args:
-        pairs: (i1, i2, j1, j2), each (M,): the pair association ``(i1, i2) -> (j1, j2)``.
-        R: (M, 3, 3) the candidate rotations; t0: (3,) the prior's translation, m.
-        bound: (M,) allowed deviation of the reference point from ``t0``, m, before the
-            rotation-noise margin (``|varpi| sin(normal_tol)``) is added.
-    """
-    i1, i2, j1, j2 = pairs
-    n1 = np.einsum("mij,mj->mi", R, curr.normals[j1])
-    n2 = np.einsum("mij,mj->mi", R, curr.normals[j2])
-    # Both epochs' reference points in one call: previous, then rotated current.
-    refs = horizontal_reference_points(
-        np.concatenate([prev.normals[i1], n1]),
-        np.concatenate([prev.offsets[i1], curr.offsets[j1] - n1[:, 2] * t0[2]]),
-        np.concatenate([prev.normals[i2], n2]),
-        np.concatenate([prev.offsets[i2], curr.offsets[j2] - n2[:, 2] * t0[2]]),
-        min_verticality,
-    )
-    ref_p, ref_c = refs[: len(i1)], refs[len(i1) :]
-    dev = np.linalg.norm(ref_p - ref_c - t0[:2], axis=1)
-    return ~(dev > bound + np.linalg.norm(ref_p, axis=1) * np.sin(normal_tol))
+    t_bound: float
+    rot_bound: float
+    normal_tol: float
+    offset_tol: float
+    margin: float
+    parallel: float
+    dihedral_tol: float
+    min_verticality: float
+
+
+@numba.njit(cache=True)
+def _lda_kernel(n_p, d_p, c_p, r_p, w_p, n_c, d_c, c_c, r_c, w_c, T0, b):  # pragma: no cover
+    """LDA's candidates, compiled: (M, 2) previous pairs, (M, 2) current pairs, (M, 3, 3)
+    rotations, (M,) weights, in the order of the module docstring (previous pair, then
+    j1, then j2), with the gates of the module docstring: per plane (current planes moved
+    by ``T0``: normal within the rotation bound plus the normal tolerance, offset within
+    the translation bound plus the offset tolerance plus the chord of the rotation bound
+    times ``|t0|``, bounding circles within reach, unknown supports (NaN) passing), then
+    per pair of pairs (non-parallel, dihedral angles within tolerance, the pair rotation
+    within the rotation bound of ``T0``'s, :func:`_pair_moves_within`). Compiled: numpy
+    built them as arrays over all combinations, ~60 small calls a solve that cost ten
+    times the arithmetic."""
+    Kp, Kc = len(d_p), len(d_c)
+    R0, t0 = T0[:3, :3], T0[:3, 3]
+    cos_gate = np.cos(min(b.rot_bound + b.normal_tol, np.pi))
+    chord = 2.0 * np.sin(min(b.rot_bound, np.pi) / 2.0)
+    t_prior = np.sqrt(t0[0] ** 2 + t0[1] ** 2 + t0[2] ** 2)
+    d_bound = b.t_bound + b.offset_tol + chord * t_prior
+    gate = np.zeros((Kp, Kc), dtype=np.bool_)
+    for j in range(Kc):
+        n = np.empty(3)
+        c = np.empty(3)
+        for a in range(3):
+            n[a] = n_c[j, 0] * R0[a, 0] + n_c[j, 1] * R0[a, 1] + n_c[j, 2] * R0[a, 2]
+            c[a] = c_c[j, 0] * R0[a, 0] + c_c[j, 1] * R0[a, 1] + c_c[j, 2] * R0[a, 2] + t0[a]
+        d = d_c[j] - (n[0] * t0[0] + n[1] * t0[1] + n[2] * t0[2])
+        rng = np.sqrt(c_c[j, 0] ** 2 + c_c[j, 1] ** 2 + c_c[j, 2] ** 2)
+        for i in range(Kp):
+            cos = n_p[i, 0] * n[0] + n_p[i, 1] * n[1] + n_p[i, 2] * n[2]
+            dist = np.sqrt(
+                (c_p[i, 0] - c[0]) ** 2 + (c_p[i, 1] - c[1]) ** 2 + (c_p[i, 2] - c[2]) ** 2
+            )
+            reach = r_p[i] + r_c[j] + chord * rng
+            gate[i, j] = (
+                cos >= cos_gate
+                and abs(d_p[i] - d) <= d_bound
+                and not dist > reach + b.t_bound + b.margin
+            )
+    ang_p = _dihedral(n_p)
+    ang_c = _dihedral(n_c)
+    lo, hi = b.parallel, np.pi - b.parallel
+    cap = 64
+    out_p = np.empty((cap, 2), dtype=np.intp)
+    out_c = np.empty((cap, 2), dtype=np.intp)
+    out_R = np.empty((cap, 3, 3))
+    out_w = np.empty(cap)
+    m = 0
+    U_p = np.empty((3, 3))
+    U_c = np.empty((3, 3))
+    R = np.empty((3, 3))
+    for i1 in range(Kp):
+        for i2 in range(i1 + 1, Kp):
+            a_p = ang_p[i1, i2]
+            if not (a_p >= lo and a_p <= hi) or not gate[i1].any() or not gate[i2].any():
+                continue
+            rotation_frame_into(n_p[i1], n_p[i2], U_p)
+            ref_p = _reference_point(n_p[i1], d_p[i1], n_p[i2], d_p[i2], b.min_verticality)
+            bound = b.t_bound + b.offset_tol / np.sin(a_p)
+            bound += np.sqrt(ref_p[0] ** 2 + ref_p[1] ** 2) * np.sin(b.normal_tol)
+            for j1 in range(Kc):
+                if not gate[i1, j1]:
+                    continue
+                for j2 in range(Kc):
+                    a_c = ang_c[j1, j2]
+                    if not gate[i2, j2] or not (a_c >= lo and a_c <= hi):
+                        continue
+                    if not abs(a_p - a_c) <= b.dihedral_tol:
+                        continue
+                    rotation_frame_into(n_c[j1], n_c[j2], U_c)
+                    trace = 0.0
+                    for u in range(3):
+                        for v in range(3):
+                            acc = 0.0
+                            for k in range(3):
+                                acc += U_p[u, k] * U_c[v, k]
+                            R[u, v] = acc
+                            trace += R0[u, v] * acc
+                    if not (trace - 1.0) / 2.0 >= cos_gate:
+                        continue
+                    if not _pair_moves_within(
+                        R, n_c[j1], d_c[j1], n_c[j2], d_c[j2], t0, ref_p, bound, b.min_verticality
+                    ):
+                        continue
+                    if m == cap:
+                        cap *= 2
+                        out_p, out_c = _grown(out_p, cap), _grown(out_c, cap)
+                        out_R, out_w = _grown(out_R, cap), _grown(out_w, cap)
+                    out_p[m, 0], out_p[m, 1], out_c[m, 0], out_c[m, 1] = i1, i2, j1, j2
+                    out_R[m] = R
+                    out_w[m] = w_p[i1] * w_p[i2] * w_c[j1] * w_c[j2]
+                    m += 1
+    return out_p[:m].copy(), out_c[:m].copy(), out_R[:m].copy(), out_w[:m].copy()
+
+
+@numba.njit(cache=True)
+def _grown(x, cap):  # pragma: no cover - compiled
+    """``x`` copied into a buffer of ``cap`` rows (the rows beyond its own uninitialised)."""
+    out = np.empty((cap,) + x.shape[1:], dtype=x.dtype)
+    out[: len(x)] = x
+    return out
+
+
+@numba.njit(cache=True)
+def _dihedral(normals):  # pragma: no cover - compiled
+    """:func:`planodom.geometry.dihedral_angles` (K, K), rad."""
+    K = len(normals)
+    out = np.empty((K, K))
+    for i in range(K):
+        for j in range(K):
+            c = normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1]
+            c += normals[i, 2] * normals[j, 2]
+            out[i, j] = np.arccos(min(max(c, -1.0), 1.0))
+    return out
+
+
+@numba.njit(cache=True)
+def _reference_point(n1, d1, n2, d2, min_verticality):  # pragma: no cover - compiled
+    """:func:`planodom.geometry.horizontal_reference_points` of one pair: (2,), NaN when
+    the pair is parallel or its line too flat."""
+    v0 = n1[1] * n2[2] - n1[2] * n2[1]
+    v1 = n1[2] * n2[0] - n1[0] * n2[2]
+    v2 = n1[0] * n2[1] - n1[1] * n2[0]
+    norm_v = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    out = np.full(2, np.nan)
+    if norm_v > 1e-9 and abs(v2) / norm_v >= min_verticality:
+        det = n1[0] * n2[1] - n1[1] * n2[0]
+        out[0] = (-d1 * n2[1] + d2 * n1[1]) / det
+        out[1] = (-n1[0] * d2 + n2[0] * d1) / det
+    return out
+
+
+@numba.njit(cache=True)
+def _pair_moves_within(R, k1, f1, k2, f2, t0, ref_p, bound, min_verticality):  # pragma: no cover
+    """The translation bound on one candidate's reference points: the current pair
+    ``(k1, f1)``, ``(k2, f2)`` rotated by ``R`` (3, 3) and shifted to the height of ``t0``
+    has its reference point within ``bound`` of the previous one ``ref_p`` (2,) moved by
+    ``t0`` (``bound``: the translation bound plus ``offset_tol / sin(dihedral)`` plus the
+    rotation-noise margin ``|ref_p| sin(normal_tol)``, m); NaN (undefined) passes."""
+    n1 = np.empty(3)
+    n2 = np.empty(3)
+    for a in range(3):
+        n1[a] = R[a, 0] * k1[0] + R[a, 1] * k1[1] + R[a, 2] * k1[2]
+        n2[a] = R[a, 0] * k2[0] + R[a, 1] * k2[1] + R[a, 2] * k2[2]
+    ref_c = _reference_point(n1, f1 - n1[2] * t0[2], n2, f2 - n2[2] * t0[2], min_verticality)
+    dev = np.sqrt((ref_p[0] - ref_c[0] - t0[0]) ** 2 + (ref_p[1] - ref_c[1] - t0[1]) ** 2)
+    return not dev > bound
 
 
 def strict_association(
@@ -323,18 +342,47 @@ def strict_association(
         return np.zeros((0, 2), dtype=np.intp)
     t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
     t_bound = cfg.max_translation_m if translation_bound is None else float(translation_bound)
-    moved = _moved(curr, make_transform(rotation, t))
-
-    cos = np.clip(prev.normals @ moved.normals.T, -1.0, 1.0)
-    cos_max = np.cos(np.radians(cfg.strict_normal_deg))
-    d_bound = t_bound + cfg.strict_offset_m
-    dd = np.abs(prev.offsets[:, None] - moved.offsets[None, :])
-    dist = np.linalg.norm(prev.centroids[:, None, :] - moved.centroids[None], axis=2)
-    reach = prev.radii[:, None] + moved.radii[None] + t_bound + cfg.overlap_margin_m
-    ok = (cos >= cos_max) & (dd <= d_bound) & ~(dist > reach)
-
-    cost = (1.0 - cos) / (1.0 - cos_max) + (dd / d_bound) ** 2
-    cost = np.where(ok, cost, _FORBIDDEN)
+    ok, cost = _strict_costs(
+        prev.normals, prev.offsets, prev.centroids, prev.radii,
+        curr.normals, curr.offsets, curr.centroids, curr.radii,
+        np.ascontiguousarray(rotation, dtype=np.float64), t,
+        np.cos(np.radians(cfg.strict_normal_deg)), t_bound + cfg.strict_offset_m,
+        t_bound + cfg.overlap_margin_m,
+    )  # fmt: skip
     rows, cols = linear_sum_assignment(cost)
     keep = ok[rows, cols]
     return np.column_stack([rows[keep], cols[keep]]).astype(np.intp)
+
+
+@numba.njit(cache=True)
+def _strict_costs(
+    n_p, d_p, c_p, r_p, n_c, d_c, c_c, r_c, R, t, cos_max, d_bound, reach_add
+):  # pragma: no cover - compiled
+    """SDA's gate (Kp, Kc) bool and assignment costs (Kp, Kc) (:data:`_FORBIDDEN` where
+    gated out) of the current planes ``(n_c, d_c)`` with support centroids ``c_c`` and
+    radii ``r_c`` moved by ``(R, t)`` against the previous ones: the arithmetic of
+    :func:`planodom.geometry.transform_planes` and of the gates, compiled (a dozen numpy
+    calls on 5 x 5 arrays cost several times their arithmetic; SDA runs 3-4 times a
+    solve). Unknown supports (NaN) pass the overlap gate."""
+    Kp, Kc = len(d_p), len(d_c)
+    ok = np.zeros((Kp, Kc), dtype=np.bool_)
+    cost = np.full((Kp, Kc), _FORBIDDEN)
+    n = np.empty(3)
+    c = np.empty(3)
+    for j in range(Kc):
+        for a in range(3):
+            n[a] = R[a, 0] * n_c[j, 0] + R[a, 1] * n_c[j, 1] + R[a, 2] * n_c[j, 2]
+            c[a] = R[a, 0] * c_c[j, 0] + R[a, 1] * c_c[j, 1] + R[a, 2] * c_c[j, 2] + t[a]
+        d = d_c[j] - (n[0] * t[0] + n[1] * t[1] + n[2] * t[2])
+        for i in range(Kp):
+            cos = n_p[i, 0] * n[0] + n_p[i, 1] * n[1] + n_p[i, 2] * n[2]
+            cos = min(max(cos, -1.0), 1.0)
+            dd = abs(d_p[i] - d)
+            dist = np.sqrt(
+                (c_p[i, 0] - c[0]) ** 2 + (c_p[i, 1] - c[1]) ** 2 + (c_p[i, 2] - c[2]) ** 2
+            )
+            reach = r_p[i] + r_c[j] + reach_add
+            if cos >= cos_max and dd <= d_bound and not dist > reach:
+                ok[i, j] = True
+                cost[i, j] = (1.0 - cos) / (1.0 - cos_max) + (dd / d_bound) ** 2
+    return ok, cost

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
@@ -310,6 +311,27 @@ def rotation_frames(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:
         u3 = np.where(s > 1e-9, c / s, np.nan)
     u1 = n1 / np.sqrt(np.einsum("ij,ij->i", n1, n1))[:, None]
     return np.stack([u1, cross_rows(u3, u1), u3], axis=2)
+
+
+@numba.njit(cache=True)
+def rotation_frame_into(n1, n2, U):  # pragma: no cover - compiled
+    """:func:`rotation_frames` of one pair of normals (3,), (3,), written into ``U`` (3, 3),
+    for compiled callers (the same arithmetic, one pair)."""
+    c0 = n1[1] * n2[2] - n1[2] * n2[1]
+    c1 = n1[2] * n2[0] - n1[0] * n2[2]
+    c2 = n1[0] * n2[1] - n1[1] * n2[0]
+    s = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    if s > 1e-9:
+        u3 = (c0 / s, c1 / s, c2 / s)
+    else:
+        u3 = (np.nan, np.nan, np.nan)
+    r = np.sqrt(n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2])
+    u1 = (n1[0] / r, n1[1] / r, n1[2] / r)
+    U[0, 0], U[1, 0], U[2, 0] = u1
+    U[0, 1] = u3[1] * u1[2] - u3[2] * u1[1]
+    U[1, 1] = u3[2] * u1[0] - u3[0] * u1[2]
+    U[2, 1] = u3[0] * u1[1] - u3[1] * u1[0]
+    U[0, 2], U[1, 2], U[2, 2] = u3
 
 
 def horizontal_reference_points(

@@ -61,7 +61,8 @@ class PlaneSet:
             if p.support is not None:
                 centroids[i] = p.support.centroid
                 if len(p.support.polygon):
-                    radii[i] = np.max(np.linalg.norm(p.support.polygon - centroids[i], axis=1))
+                    q = p.support.polygon - centroids[i]  # np.linalg.norm's arithmetic
+                    radii[i] = np.sqrt((q * q).sum(axis=1).max())
         return cls(normals, offsets, weights, centroids, radii, covariances)
 
     def __len__(self) -> int:

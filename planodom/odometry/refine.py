@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -58,19 +59,6 @@ class PlaneTranslation:
     n_planes: int
 
 
-def _offset_variances(
-    prev: PlaneSet, curr: PlaneSet, R: np.ndarray, ij: np.ndarray, t: np.ndarray
-) -> np.ndarray:
-    """(L,) variance of ``d_i - d_j + m . t`` per association, first order, m^2."""
-    i, j = ij[:, 0], ij[:, 1]
-    a_i = np.append(0.5 * t, 1.0)  # np.r_ costs more than this function's arithmetic
-    a_j = np.append(0.5 * (R.T @ t), -1.0)
-    ci, cj = prev.covariances[i], curr.covariances[j]
-    fallback = _FALLBACK_VAR_N * float(t @ t) / 2.0 + 2.0 * _FALLBACK_VAR_D
-    var = np.einsum("a,lab,b->l", a_i, ci, a_i) + np.einsum("a,lab,b->l", a_j, cj, a_j)
-    return np.where(np.isfinite(var), var, fallback)
-
-
 def plane_translation(
     prev: PlaneSet,
     curr: PlaneSet,
@@ -84,6 +72,15 @@ def plane_translation(
     consensus_measured: bool = False,
 ) -> PlaneTranslation:
     """Translation by weighted least squares over the plane associations ``ij`` (L, 2).
+
+    Each association's weight is the inverse variance of ``d_i - d_j + m . t`` (first
+    order from both planes' ``(n, d)`` covariances, fallback variances where unknown) plus
+    ``offset_floor_m`` squared; the worst association is dropped while its normalised
+    residual exceeds :data:`_OUTLIER_CHI2` and three stay (a plane matched to a nearly
+    coplanar neighbour, or fitted across two surfaces, would otherwise bias every
+    direction it touches: on the noise-free paper loop one such association moved an epoch
+    by 1.4 mm). The arithmetic runs in one compiled kernel (:func:`_translation_kernel`):
+    with ~5 planes, the ~40 small numpy calls it replaces cost ten times its arithmetic.
 
     Args:
         R: (3, 3) ``R_prev_curr``. t0: (3,) initial translation, m.
@@ -99,34 +96,17 @@ def plane_translation(
     t0 = np.asarray(t0, dtype=np.float64)
     if len(ij) == 0:
         return PlaneTranslation(t0.copy(), np.eye(2) * unmeasured_var, np.inf, False, False, 0)
-    m = prev.normals[ij[:, 0]] + curr.normals[ij[:, 1]] @ R.T
-    m /= np.linalg.norm(m, axis=1, keepdims=True)
-    b = curr.offsets[ij[:, 1]] - prev.offsets[ij[:, 0]]
-    w = 1.0 / (_offset_variances(prev, curr, R, ij, t0) + offset_floor_m**2)
-    keep = _inliers(m, b, w, t0, z_normal_min)
-    ij, m, b, w = ij[keep], m[keep], b[keep], w[keep]
-    z_observed = z_normal_min is not None and bool(np.any(m[:, 2] >= z_normal_min))
-    A = np.einsum("l,li,lj->ij", w, m, m)
-    # Horizontal information: the Schur complement of z when z is solved, else A_xy.
-    A_xy = A[:2, :2] - np.outer(A[:2, 2], A[2, :2]) / A[2, 2] if z_observed else A[:2, :2]
-    lam = np.linalg.eigvalsh(A_xy)
-    measured = bool(lam[0] * max_sigma_m**2 >= 1.0)
     i, j = ij[:, 0], ij[:, 1]
-    if not (np.isfinite(prev.covariances[i]).all() and np.isfinite(curr.covariances[j]).all()):
-        # Without the fits' covariances the precision is a guess: the consensus decides.
-        measured = (measured or consensus_measured) and lam[0] > 1e-9 * lam[1]
-    free = 3 if z_observed else 2
-    # Unless the planes measure every direction, the initial value is a prior of
-    # variance ``unmeasured_var`` on x, y: what keeps an unmeasured direction where it was
-    # (when they do, it is left out: noise-free planes give the exact translation).
-    prior = 0.0 if measured else 1.0 / unmeasured_var
-    H = A[:free, :free] + np.diag([prior] * 2 + [0.0] * (free - 2))
-    g = m[:, :free].T @ (w * (b - m @ t0))
-    H_inv = np.linalg.inv(H)
-    t = t0.copy()
-    t[:free] += H_inv @ g
-    sigma_z = float(np.sqrt(H_inv[2, 2])) if z_observed else np.inf
-    return PlaneTranslation(t, H_inv[:2, :2], sigma_z, z_observed, measured, len(ij))
+    t, h_inv, flags, n_kept = _translation_kernel(
+        prev.normals[i], prev.offsets[i], prev.covariances[i],
+        curr.normals[j], curr.offsets[j], curr.covariances[j],
+        np.ascontiguousarray(R, dtype=np.float64), t0,
+        -np.inf if z_normal_min is None else float(z_normal_min), z_normal_min is not None,
+        offset_floor_m, max_sigma_m, unmeasured_var, consensus_measured,
+    )  # fmt: skip
+    z_observed, measured = bool(flags[0]), bool(flags[1])
+    sigma_z = float(np.sqrt(h_inv[2, 2])) if z_observed else np.inf
+    return PlaneTranslation(t, h_inv[:2, :2].copy(), sigma_z, z_observed, measured, n_kept)
 
 
 #: chi2(1) at 0.999: an association whose offset residual is beyond this (in its own
@@ -134,28 +114,132 @@ def plane_translation(
 _OUTLIER_CHI2 = 10.83
 
 
-def _inliers(
-    m: np.ndarray, b: np.ndarray, w: np.ndarray, t0: np.ndarray, z_normal_min: float | None
-) -> np.ndarray:
+@numba.njit(cache=True)
+def _translation_kernel(
+    n_i, d_i, c_i, n_j, d_j, c_j, R, t0, z_min, use_z, floor, max_sigma, unmeasured_var, measured0
+):  # pragma: no cover - compiled
+    """:func:`plane_translation` of the L associations given as their planes' normals
+    (L, 3), offsets (L,) and (n, d) covariances (L, 4, 4). Returns t (3,), the inverse
+    normal matrix (3, 3) (x, y block: the horizontal covariance; [2, 2]: var z when
+    observed), flags (z observed, measured) and the number of associations kept;
+    ``measured0``: the consensus measured the translation."""
+    L = len(d_i)
+    m = np.empty((L, 3))
+    b = np.empty(L)
+    w = np.empty(L)
+    a_i = np.empty(4)
+    a_j = np.empty(4)
+    for a in range(3):
+        a_i[a] = 0.5 * t0[a]
+        a_j[a] = 0.5 * (R[0, a] * t0[0] + R[1, a] * t0[1] + R[2, a] * t0[2])
+    a_i[3], a_j[3] = 1.0, -1.0
+    fallback = _FALLBACK_VAR_N * (t0[0] ** 2 + t0[1] ** 2 + t0[2] ** 2) / 2.0
+    fallback += 2.0 * _FALLBACK_VAR_D
+    finite = np.ones(L, dtype=np.bool_)
+    for k in range(L):
+        norm = 0.0
+        for a in range(3):
+            m[k, a] = n_i[k, a] + R[a, 0] * n_j[k, 0] + R[a, 1] * n_j[k, 1] + R[a, 2] * n_j[k, 2]
+            norm += m[k, a] ** 2
+        norm = np.sqrt(norm)
+        for a in range(3):
+            m[k, a] /= norm
+        b[k] = d_j[k] - d_i[k]
+        var = 0.0
+        for u in range(4):
+            for v in range(4):
+                var += a_i[u] * c_i[k, u, v] * a_i[v] + a_j[u] * c_j[k, u, v] * a_j[v]
+                finite[k] &= np.isfinite(c_i[k, u, v]) and np.isfinite(c_j[k, u, v])
+        if not np.isfinite(var):
+            var = fallback
+        w[k] = 1.0 / (var + floor**2)
+    ground = np.zeros(L, dtype=np.bool_)
+    for k in range(L):
+        ground[k] = use_z and m[k, 2] >= z_min
+    free = 3 if ground.any() else 2
+    keep = _inliers_kernel(m, b, w, t0, free)
+    A = np.zeros((3, 3))
+    all_finite = True
+    n_kept = 0
+    z_observed = False
+    for k in range(L):
+        if keep[k]:
+            n_kept += 1
+            all_finite &= finite[k]
+            z_observed |= ground[k]
+            for u in range(3):
+                for v in range(3):
+                    A[u, v] += w[k] * m[k, u] * m[k, v]
+    # Horizontal information: the Schur complement of z when z is solved, else A_xy.
+    A_xy = A[:2, :2].copy()
+    if z_observed:
+        for u in range(2):
+            for v in range(2):
+                A_xy[u, v] -= A[u, 2] * A[2, v] / A[2, 2]
+    lam = np.linalg.eigvalsh(A_xy)
+    measured = lam[0] * max_sigma**2 >= 1.0
+    if not all_finite:
+        # Without the fits' covariances the precision is a guess: the consensus decides.
+        measured = (measured or measured0) and lam[0] > 1e-9 * lam[1]
+    free = 3 if z_observed else 2
+    # Unless the planes measure every direction, the initial value is a prior of
+    # variance ``unmeasured_var`` on x, y: what keeps an unmeasured direction where it was
+    # (when they do, it is left out: noise-free planes give the exact translation).
+    prior = 0.0 if measured else 1.0 / unmeasured_var
+    H = A[:free, :free].copy()
+    H[0, 0] += prior
+    H[1, 1] += prior
+    g = np.zeros(free)
+    for k in range(L):
+        if keep[k]:
+            r = w[k] * (b[k] - (m[k, 0] * t0[0] + m[k, 1] * t0[1] + m[k, 2] * t0[2]))
+            for u in range(free):
+                g[u] += m[k, u] * r
+    H_inv = np.linalg.inv(H)
+    t = t0.copy()
+    h_out = np.full((3, 3), np.inf)
+    for u in range(free):
+        for v in range(free):
+            t[u] += H_inv[u, v] * g[v]
+            h_out[u, v] = H_inv[u, v]
+    flags = np.array([z_observed, measured])
+    return t, h_out, flags, n_kept
+
+
+@numba.njit(cache=True)
+def _inliers_kernel(m, b, w, t0, free):  # pragma: no cover - compiled
     """(L,) bool: the associations kept, dropping the worst one while its normalised
-    residual ``w (b - m . t)^2`` exceeds :data:`_OUTLIER_CHI2` and three stay (a plane
-    that was matched to a nearly coplanar neighbour, or fitted across two surfaces,
-    would otherwise bias every direction it touches: on the noise-free paper loop one
-    such association moved an epoch by 1.4 mm). Fitted as in :func:`plane_translation`,
-    without a prior (a direction no kept plane measures keeps ``t0``)."""
-    keep = np.ones(len(b), dtype=bool)
-    free = 3 if z_normal_min is not None and np.any(m[:, 2] >= z_normal_min) else 2
-    while keep.sum() > 3:
-        mk, wk = m[keep, :free], w[keep]
+    residual ``w (b - m . t)^2`` exceeds :data:`_OUTLIER_CHI2` and three stay. Fitted as
+    in :func:`plane_translation`, without a prior (a direction no kept plane measures
+    keeps ``t0``): least squares with singular values below 1e-9 of the largest cut."""
+    L = len(b)
+    keep = np.ones(L, dtype=np.bool_)
+    n_keep = L
+    e2 = np.empty(L)
+    while n_keep > 3:
+        A = np.empty((n_keep, free))
+        y = np.empty(n_keep)
+        r = 0
+        for k in range(L):
+            if keep[k]:
+                s = np.sqrt(w[k])
+                for u in range(free):
+                    A[r, u] = m[k, u] * s
+                y[r] = s * (b[k] - (m[k, 0] * t0[0] + m[k, 1] * t0[1] + m[k, 2] * t0[2]))
+                r += 1
+        x = np.linalg.lstsq(A, y, rcond=1e-9)[0]
         t = t0.copy()
-        t[:free] += np.linalg.lstsq(
-            mk * np.sqrt(wk)[:, None], np.sqrt(wk) * (b[keep] - m[keep] @ t0), rcond=1e-9
-        )[0]
-        e2 = w * (b - m @ t) ** 2
-        worst = int(np.argmax(np.where(keep, e2, -1.0)))
-        if e2[worst] <= _OUTLIER_CHI2:
+        for u in range(free):
+            t[u] += x[u]
+        worst, worst_e = -1, -1.0
+        for k in range(L):
+            e2[k] = w[k] * (b[k] - (m[k, 0] * t[0] + m[k, 1] * t[1] + m[k, 2] * t[2])) ** 2
+            if keep[k] and e2[k] > worst_e:
+                worst, worst_e = k, e2[k]
+        if worst_e <= _OUTLIER_CHI2:
             break
         keep[worst] = False
+        n_keep -= 1
     return keep
 
 

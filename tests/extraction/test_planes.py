@@ -13,6 +13,7 @@ from planodom.extraction.planes.fit import (
     tls_covariance,
     tls_fit,
 )
+from planodom.extraction.planes.support import distinct_and_majority
 
 
 def _patch(n_pts: int, rng) -> tuple[np.ndarray, np.ndarray, float]:
@@ -148,3 +149,32 @@ def test_batched_incidences_and_viewpoints_match_per_plane():
     # Without origins: the point above the base origin for every plane.
     bare = Epoch(Scan(pts, ring, t), pts, None, twist)
     np.testing.assert_array_equal(bare.viewpoints(inliers, bounds, planes, 1.5), [[0, 0, 1.5]] * 4)
+
+
+@pytest.mark.parametrize("big", [False, True])
+def test_distinct_rows_and_majority_labels_match_numpy(big):
+    """The compiled per-plane ring count and majority label against np.unique on each
+    plane's inliers (small ids: the counting branch; ids beyond 2^20: the sorting one),
+    with negative labels (unlabelled points) and ties (the smallest label wins)."""
+    rng = np.random.default_rng(3)
+    shift = (1 << 21) if big else 0
+    ring = rng.integers(0, 6, 500) + shift
+    labels = np.where(rng.random(500) < 0.2, -1, rng.integers(0, 4, 500) + shift)
+    inliers = rng.permutation(500)[:300]
+    bounds = np.array([0, 0, 1, 40, 41, 300])
+    labels[inliers[40]] = -1  # plane 3: one unlabelled point
+    # plane 2: a tie of 19 points each, the smaller label wins
+    labels[inliers[1:40]] = np.repeat([shift + 2, shift + 1, -1], [19, 19, 1])
+    planes = np.array([4, 2, 1, 3, 0])
+    rows, truth = distinct_and_majority(ring, labels, inliers, bounds, planes)
+    for p, g in enumerate(planes):
+        idx = inliers[bounds[g] : bounds[g + 1]]
+        assert rows[p] == len(np.unique(ring[idx]))
+        lab = labels[idx][labels[idx] >= 0]
+        if len(lab) == 0:
+            assert truth[p] == -1
+        else:
+            values, counts = np.unique(lab, return_counts=True)
+            assert truth[p] == values[np.argmax(counts)]
+    none_rows, none_truth = distinct_and_majority(None, None, inliers, bounds, planes)
+    assert not none_rows.any() and (none_truth == -1).all()

@@ -34,7 +34,7 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch
 from planodom.extraction.planes.confidence import cpef, mean_incidences
 from planodom.extraction.planes.fit import tls_covariance
-from planodom.extraction.planes.support import majority_label, support_polygon
+from planodom.extraction.planes.support import distinct_and_majority, support_polygon
 from planodom.geometry import Plane, PlaneSupport
 
 #: ``adjust(kept, normals, offsets) -> kept``: may change the oriented (G, 3) normals and
@@ -108,13 +108,6 @@ def orientation_sign(
     return np.where(np.abs(dist) >= 1e-3, np.where(dist > 0, 1.0, -1.0), on_plane)
 
 
-def _n_distinct(values: np.ndarray) -> int:
-    """Number of distinct values in ``values`` (K,) int (a counting pass for small ids)."""
-    if len(values) and values.min() >= 0 and values.max() < 1 << 16:
-        return int(np.count_nonzero(np.bincount(values)))
-    return len(np.unique(values))
-
-
 def build_planes(
     fits: PlaneFits,
     epoch: Epoch,
@@ -157,13 +150,13 @@ def build_planes(
     planes, inliers = [], []
     labels, ring = epoch.scan.label, epoch.scan.ring
     scatter = np.einsum("gik,gk,gjk->gij", fits.evecs, fits.evals, fits.evecs)
-    for g in kept:
+    rows, truth = distinct_and_majority(
+        ring if fits.n_rows is None else None, labels, fits.inliers, fits.bounds, kept
+    )
+    for k, g in enumerate(kept):
         idx = fits.members(int(g))
-        if fits.n_rows is not None:
-            n_rows = int(fits.n_rows[g])
-        else:
-            n_rows = 0 if ring is None else _n_distinct(ring[idx])
-        outline = epoch.points[idx][fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]
+        n_rows = int(fits.n_rows[g]) if fits.n_rows is not None else int(rows[k])
+        outline = epoch.points[idx[fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]]
         polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
         plane = Plane(
             normal=n_or[g],
@@ -173,7 +166,7 @@ def build_planes(
             support=PlaneSupport(
                 fits.centroid[g].copy(), polygon, int(fits.count[g]), scatter[g], n_rows
             ),
-            truth_id=majority_label(None if labels is None else labels[idx]),
+            truth_id=int(truth[k]),
         )
         planes.append(plane)
         inliers.append(idx)

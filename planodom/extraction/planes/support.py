@@ -95,3 +95,76 @@ def majority_label(labels: np.ndarray | None) -> int:
         return int(np.argmax(np.bincount(lab)))
     values, counts = np.unique(lab, return_counts=True)
     return int(values[np.argmax(counts)])
+
+
+def distinct_and_majority(
+    ring: np.ndarray | None,
+    labels: np.ndarray | None,
+    inliers: np.ndarray,
+    bounds: np.ndarray,
+    planes: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per plane g in ``planes`` (P,): the number of distinct ``ring`` values (0 without
+    rings) and :func:`majority_label` of ``labels`` (-1 without) over its inliers
+    ``inliers[bounds[g]:bounds[g + 1]]`` (scan indices), in one compiled pass (two numpy
+    gathers and counts per plane cost a tenth of a 2D-rig extraction). Returns (P,) int64
+    arrays."""
+    empty = np.zeros(0, dtype=np.int64)
+    return _distinct_majority_kernel(
+        empty if ring is None else ring, empty if labels is None else labels,
+        inliers.astype(np.int64), bounds.astype(np.int64), planes.astype(np.int64),
+        ring is not None, labels is not None,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _distinct_majority_kernel(
+    ring, labels, inliers, bounds, planes, has_ring, has_labels
+):  # pragma: no cover
+    P = len(planes)
+    n_rows = np.zeros(P, dtype=np.int64)
+    truth = np.full(P, -1, dtype=np.int64)
+    for p in range(P):
+        a, b = bounds[planes[p]], bounds[planes[p] + 1]
+        if has_ring and b > a:
+            counts = _counts(ring, inliers, a, b, False)
+            n_rows[p] = np.count_nonzero(counts[1]) if counts[0] else len(np.unique(counts[1]))
+        if has_labels and b > a:
+            counts = _counts(labels, inliers, a, b, True)
+            if counts[0]:  # the smallest of the most frequent non-negative labels
+                if len(counts[1]) and counts[1].max() > 0:
+                    truth[p] = np.argmax(counts[1])
+            else:
+                vals = np.sort(counts[1])
+                best, best_n, run = -1, 0, 0
+                for k in range(len(vals)):
+                    run = run + 1 if k > 0 and vals[k] == vals[k - 1] else 1
+                    if run > best_n:
+                        best, best_n = vals[k], run
+                truth[p] = best
+    return n_rows, truth
+
+
+@numba.njit(cache=True)
+def _counts(values, inliers, a, b, skip_negative):  # pragma: no cover - compiled
+    """``(True, counts)``: how often each small non-negative id (below 2^20) occurs among
+    ``values[inliers[a:b]]`` (negative ones ignored with ``skip_negative``); else
+    ``(False, ids)``: the ids themselves (the non-negative ones with ``skip_negative``)."""
+    hi, lo = -1, 0
+    for k in range(a, b):
+        hi = max(hi, values[inliers[k]])
+        lo = min(lo, values[inliers[k]])
+    if hi < 1 << 20 and (lo >= 0 or skip_negative):
+        counts = np.zeros(hi + 1, dtype=np.int64)
+        for k in range(a, b):
+            v = values[inliers[k]]
+            if v >= 0:
+                counts[v] += 1
+        return True, counts
+    ids = np.empty(b - a, dtype=np.int64)
+    m = 0
+    for k in range(a, b):
+        if values[inliers[k]] >= 0 or not skip_negative:
+            ids[m] = values[inliers[k]]
+            m += 1
+    return False, ids[:m].copy()
