@@ -104,6 +104,8 @@ class SmoothingConfig(Section):
         "twist_change_offsets",
         "twist_change_frame",
         "twist_change_frame_net",
+        "twist_change_jacobian",
+        "twist_change_jacobian_net",
     ] = "none"
     """"twist_change": the plane and between factors' covariances also hold the deskewing
     error the fits' covariances miss, from the run's own changes of motion around each
