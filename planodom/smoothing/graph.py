@@ -331,7 +331,8 @@ class GraphBuilder:
         T_wa = anchor_pose(origin)
         values.insert(A(j), gtsam.Pose3(T_wa))
         values.insert(L(j), gtsam.OrientedPlane3(predict_plane(T_wa, world)))
-        cov = plane_factor_covariance(self.planes[epoch][index], c, self.deskew, epoch)
+        # the anchor's prior is pure gauge: its scale from the fit, not the deskewing's
+        cov = plane_factor_covariance(self.planes[epoch][index], c, self.deskew, epoch, False)
         sigma_n, sigma_d = np.sqrt(max(cov[0, 0], cov[1, 1])), np.sqrt(cov[2, 2])
         noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma_n] * 3 + [sigma_d] * 3))
         graph.add(anchor_prior(A(j), T_wa, noise))

@@ -70,13 +70,20 @@ def between_covariance(
 
 
 def plane_factor_covariance(
-    plane: Plane, config: SmoothingConfig, model: DeskewNoise | None, epoch: int
+    plane: Plane,
+    config: SmoothingConfig,
+    model: DeskewNoise | None,
+    epoch: int,
+    jacobian: bool = True,
 ) -> np.ndarray:
     """(3, 3) :func:`plane_covariance` of ``plane`` seen at epoch ``epoch`` with the
-    deskewing error that ``model`` (None: none) gives its plane factors."""
+    deskewing error that ``model`` (None: none) gives its plane factors; without
+    ``jacobian`` not the change of motion through the plane's own Jacobian (the scale of
+    an anchor's prior, pure gauge: a plane whose deskewing leaves it barely known made
+    its anchor's marginal indeterminate, world 2)."""
     if model is None:
         return plane_covariance(plane, config)
-    change = model.plane_motion_change(epoch)
+    change = model.plane_motion_change(epoch) if jacobian else None
     return plane_covariance(plane, config, model.plane_pose_covariance(epoch), change)
 
 
