@@ -203,7 +203,7 @@ def test_deskew_jacobian_matches_refits_of_points_deskewed_with_another_twist(mo
     raw, t = _wall_seen_over_time(rng)
     twist = np.array([0.03, -0.06, 0.3, 4.0, 0.2, 0.05]) * moving
     pts = deskew_points(raw, t, twist)
-    c, _, evecs = tls_fit(pts)
+    c, evals, evecs = tls_fit(pts)
     n = evecs[:, 2]
     J = deskew_jacobian(pts, t, n)
     change = np.zeros((4, 6))
@@ -218,6 +218,7 @@ def test_deskew_jacobian_matches_refits_of_points_deskewed_with_another_twist(mo
     # exponential's left Jacobian changes it by up to t |w| / 2 and t |v| / 2 |p| (1.5 %)
     scale = np.abs(change).max(axis=1, keepdims=True)
     assert np.all(np.abs(J - change) <= (0.03 if moving else 1e-4) * scale)
+    np.testing.assert_allclose(deskew_jacobian(pts, t, n, (c, evals, evecs)), J, atol=1e-12)
 
 
 def test_planes_carry_the_deskew_jacobian_through_flips_and_transforms():

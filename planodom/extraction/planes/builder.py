@@ -162,7 +162,8 @@ def build_planes(
         idx = fits.members(int(g))
         dsk = None
         if t is not None and span > 0.0:
-            dsk = deskew_jacobian(epoch.points[idx], t[idx] / span, n_or[g])
+            fit = (fits.centroid[g], fits.evals[g], fits.evecs[g])
+            dsk = deskew_jacobian(epoch.points[idx], t[idx] / span, n_or[g], fit)
         n_rows = int(fits.n_rows[g]) if fits.n_rows is not None else int(rows[k])
         outline = epoch.points[idx[fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]]
         polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])

@@ -196,7 +196,12 @@ def tls_covariance(
     return cov
 
 
-def deskew_jacobian(points: np.ndarray, t: np.ndarray, normal: np.ndarray) -> np.ndarray:
+def deskew_jacobian(
+    points: np.ndarray,
+    t: np.ndarray,
+    normal: np.ndarray,
+    fit: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
     """(4, 6) first-order change of a TLS plane fit's ``(n, d)`` (as its covariance) when
     its points are deskewed with a twist off by ``dxi = (dw, dv)`` (rad and m per unit of
     ``t``).
@@ -215,12 +220,18 @@ def deskew_jacobian(points: np.ndarray, t: np.ndarray, normal: np.ndarray) -> np
             relative to the reference time. normal: (3,) the fit's unit normal (oriented).
         basis: (3, 2) orthonormal tangent basis of the normal (``gtsam.Unit3.basis``).
     """
-    c = points.mean(axis=0)
+    c, evals, evecs = tls_fit(points) if fit is None else fit
     q = points - c
-    evals, evecs = np.linalg.eigh(q.T @ q)
-    g = t[:, None] * np.hstack([np.cross(points, normal), np.broadcast_to(normal, points.shape)])
+    # sums of w_i g_i for the weights w_i = 1, e1 . q_i, e2 . q_i from the moments
+    # sum w t and sum w t p (3 x 3), not g_i point by point
+    w = np.empty((len(points), 3))
+    w[:, 0] = 1.0
+    w[:, 1:] = q @ evecs[:, :2]
+    w *= t[:, None]
+    m = w.T @ points
+    sums = np.hstack([np.cross(m, normal), w.sum(axis=0)[:, None] * normal])  # (3, 6)
     dn = np.zeros((3, 6))
-    for k in (2, 1):  # eigh: ascending, the normal's eigenvalue first
-        gap = max(float(evals[k] - evals[0]), 1e-300)
-        dn -= np.outer(evecs[:, k], (q @ evecs[:, k]) @ g) / gap
-    return np.vstack([dn, -(c @ dn) - g.mean(axis=0)])
+    for k in (0, 1):
+        gap = max(float(evals[k] - evals[2]), 1e-300)
+        dn -= np.outer(evecs[:, k], sums[k + 1]) / gap
+    return np.vstack([dn, -(c @ dn) - sums[0] / len(points)])
