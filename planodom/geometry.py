@@ -194,6 +194,10 @@ class Plane:
         confidence: weight in (0, 1]; higher is better (see :mod:`planodom.extraction`).
         support: inlier extent and centroid, or None.
         truth_id: id of the true surface in simulated data (-1 when unknown).
+        deskew_jacobian: (4, 6) float64 first-order change of ``(nx, ny, nz, d)`` when the
+            points were deskewed with a twist off by ``(dw, dv)`` over the epoch's time
+            span (rad, m: the motion change over the span), or None when unknown (points
+            without times) (:func:`planodom.extraction.planes.fit.deskew_jacobian`).
     """
 
     normal: np.ndarray
@@ -202,6 +206,7 @@ class Plane:
     confidence: float = 1.0
     support: PlaneSupport | None = None
     truth_id: int = -1
+    deskew_jacobian: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = np.asarray(self.normal, dtype=np.float64).reshape(-1)
@@ -229,16 +234,22 @@ class Plane:
     def transformed(self, T_a_b: np.ndarray) -> Plane:
         """This plane (given in frame b) expressed in frame a; covariance and support follow."""
         n, d = transform_planes(T_a_b, self.normal[None], np.array([self.offset]))
-        cov = None
+        cov, dsk = None, None
+        J = plane_transform_jacobian(T_a_b)
         if self.covariance is not None:
-            J = plane_transform_jacobian(T_a_b)
             cov = J @ self.covariance @ J.T
+        if self.deskew_jacobian is not None:
+            dsk = J @ self.deskew_jacobian
         support = self.support.transformed(T_a_b) if self.support is not None else None
-        return replace(self, normal=n[0], offset=float(d[0]), covariance=cov, support=support)
+        return replace(
+            self, normal=n[0], offset=float(d[0]), covariance=cov, support=support,
+            deskew_jacobian=dsk,
+        )  # fmt: skip
 
     def flipped(self) -> Plane:
         """The same plane with the opposite orientation (``-n, -d``)."""
-        return replace(self, normal=-self.normal, offset=-self.offset)
+        dsk = None if self.deskew_jacobian is None else -self.deskew_jacobian
+        return replace(self, normal=-self.normal, offset=-self.offset, deskew_jacobian=dsk)
 
     def oriented_towards(self, point: np.ndarray) -> Plane:
         """This plane with its normal turned so that ``point`` (3,) lies on its positive side."""

@@ -175,7 +175,8 @@ def plane_nees(inputs: ConsistencyInputs, config: SmoothingConfig) -> np.ndarray
             # a shared deskewed frame: a plane's marginal error holds all of it
             dsk = None if deskew is None else deskew.plane_pose_covariance(k)
             dsk = deskew.pose_covariance(k) if deskew and deskew.shared_frame else dsk
-            used = plane_covariance(p, config, dsk)
+            change = None if deskew is None else deskew.plane_motion_change(k)
+            used = plane_covariance(p, config, dsk, change)
             rows.append(
                 (
                     xi @ np.linalg.solve(0.5 * (tls + tls.T), xi),

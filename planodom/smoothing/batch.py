@@ -372,7 +372,7 @@ def smooth_batch(
                 cfg.prior_sigma,
             )
         except RuntimeError as exc:  # gtsam's IndeterminantLinearSystemException
-            note = "marginal covariances unavailable: " + " ".join(str(exc).split()[:8])
+            note = "marginal covariances unavailable: " + " ".join(str(exc).split()[:14])
     poses = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
     return SmoothingResult(
         poses=poses,

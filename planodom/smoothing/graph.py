@@ -44,7 +44,7 @@ from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.deskew_noise import between_keys, deskew_from_config
 from planodom.smoothing.landmarks import LandmarkTracker
-from planodom.smoothing.noise import between_covariance, plane_covariance, with_robust_kernel
+from planodom.smoothing.noise import between_covariance, plane_factor_covariance, with_robust_kernel
 from planodom_factors.planes import (
     anchor_pose,
     anchor_prior,
@@ -331,8 +331,8 @@ class GraphBuilder:
         T_wa = anchor_pose(origin)
         values.insert(A(j), gtsam.Pose3(T_wa))
         values.insert(L(j), gtsam.OrientedPlane3(predict_plane(T_wa, world)))
-        deskew = None if self.deskew is None else self.deskew.plane_pose_covariance(epoch)
-        cov = plane_covariance(self.planes[epoch][index], c, deskew)
+        # the anchor's prior is pure gauge: its scale from the fit, not the deskewing's
+        cov = plane_factor_covariance(self.planes[epoch][index], c, self.deskew, epoch, False)
         sigma_n, sigma_d = np.sqrt(max(cov[0, 0], cov[1, 1])), np.sqrt(cov[2, 2])
         noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma_n] * 3 + [sigma_d] * 3))
         graph.add(anchor_prior(A(j), T_wa, noise))
@@ -386,8 +386,7 @@ class GraphBuilder:
         self, lm: _Landmark, e: int, plane: Plane, graph: gtsam.NonlinearFactorGraph, robust: bool
     ) -> None:
         """A plane factor of observation ``plane`` (oriented) from ``X(e)`` on ``lm``."""
-        deskew = None if self.deskew is None else self.deskew.plane_pose_covariance(e)
-        cov = plane_covariance(plane, self.config, deskew)
+        cov = plane_factor_covariance(plane, self.config, self.deskew, e)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
         key = F(e) if self.deskew is not None and e in self.deskew.frames else X(e)
         if lm.anchor_key is None:

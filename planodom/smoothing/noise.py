@@ -14,7 +14,7 @@ import numpy as np
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, plane_tangent_covariance, rpy_from_rotation
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.deskew_noise import plane_deskew_covariance
+from planodom.smoothing.deskew_noise import TIME_SPREAD, DeskewNoise, plane_deskew_covariance
 
 #: Default robust kernel parameters (95 % efficiency on Gaussian noise), in sigmas.
 ROBUST_DEFAULTS = {"huber": 1.345, "cauchy": 2.3849}
@@ -69,13 +69,37 @@ def between_covariance(
     return cov if rel.translation_observed else cov[:3, :3]
 
 
+def plane_factor_covariance(
+    plane: Plane,
+    config: SmoothingConfig,
+    model: DeskewNoise | None,
+    epoch: int,
+    jacobian: bool = True,
+) -> np.ndarray:
+    """(3, 3) :func:`plane_covariance` of ``plane`` seen at epoch ``epoch`` with the
+    deskewing error that ``model`` (None: none) gives its plane factors; without
+    ``jacobian`` not the change of motion through the plane's own Jacobian (the scale of
+    an anchor's prior, pure gauge: a plane whose deskewing leaves it barely known made
+    its anchor's marginal indeterminate, world 2)."""
+    if model is None:
+        return plane_covariance(plane, config)
+    change = model.plane_motion_change(epoch) if jacobian else None
+    return plane_covariance(plane, config, model.plane_pose_covariance(epoch), change)
+
+
 def plane_covariance(
-    plane: Plane, config: SmoothingConfig, deskew: np.ndarray | None = None
+    plane: Plane,
+    config: SmoothingConfig,
+    deskew: np.ndarray | None = None,
+    motion_change: np.ndarray | None = None,
 ) -> np.ndarray:
     """(3, 3) covariance of a measured plane in OrientedPlane3 tangent coordinates: its fit
     covariance (``default_plane_*`` sigmas when unknown; divided by its confidence with
     ``plane_confidence_scaling``), floored in quadrature, plus the share of ``deskew``
-    (6, 6), its epoch's deskewing perturbation (:func:`.deskew_noise.plane_deskew_covariance`)."""
+    (6, 6), its epoch's deskewing perturbation (:func:`.deskew_noise.plane_deskew_covariance`),
+    plus ``motion_change`` (6, 6), the covariance of the change of motion over the epoch
+    its points were deskewed without, through the plane's own ``deskew_jacobian`` (a plane
+    without one: as a rigid perturbation of a third of it, ``deskew``'s model)."""
     c = config
     if plane.covariance is not None and np.all(np.isfinite(plane.covariance)):
         cov = plane_tangent_covariance(plane)
@@ -88,4 +112,12 @@ def plane_covariance(
         cov = cov * (1.0 / plane.confidence)
     if deskew is not None:
         cov = cov + plane_deskew_covariance(plane.normal, deskew)
+    if motion_change is not None and plane.deskew_jacobian is not None:
+        P = np.zeros((4, 3))  # (n, d) -> tangent, as plane_tangent_covariance
+        P[:3, :2] = np.asarray(gtsam.Unit3(plane.normal).basis())
+        P[3, 2] = 1.0
+        J = P.T @ plane.deskew_jacobian
+        cov = cov + J @ motion_change @ J.T
+    elif motion_change is not None:
+        cov = cov + plane_deskew_covariance(plane.normal, TIME_SPREAD * motion_change)
     return cov + floor

@@ -4,16 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
+from planodom.extraction.deskew import deskew_points
 from planodom.extraction.planes.builder import orientation_sign
 from planodom.extraction.planes.confidence import cpef, mean_incidence
 from planodom.extraction.planes.fit import (
+    deskew_jacobian,
     robust_plane_fit,
     robust_plane_fits,
     tls_covariance,
     tls_fit,
 )
 from planodom.extraction.planes.support import distinct_and_majority
+from planodom.geometry import Plane
 
 
 def _patch(n_pts: int, rng) -> tuple[np.ndarray, np.ndarray, float]:
@@ -178,3 +182,66 @@ def test_distinct_rows_and_majority_labels_match_numpy(big):
             assert truth[p] == values[np.argmax(counts)]
     none_rows, none_truth = distinct_and_majority(None, None, inliers, bounds, planes)
     assert not none_rows.any() and (none_truth == -1).all()
+
+
+def _wall_seen_over_time(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Points (N, 3) of a tilted wall about 8 m away, swept over 0.1 s (times (N,)): a
+    scanner line moving along it, so time and position along the wall are correlated."""
+    n = 600
+    t = np.sort(rng.uniform(0.0, 0.1, n))
+    u = -3.0 + 60.0 * t + rng.normal(0.0, 0.2, n)  # along the wall, with the sweep
+    v = rng.uniform(-1.0, 2.0, n)  # up the wall
+    e1 = np.array([1.0, 0.2, 0.0]) / np.hypot(1.0, 0.2)
+    e2 = np.array([0.0, 0.1, 1.0]) / np.hypot(0.1, 1.0)
+    origin = np.array([2.0, 8.0, 0.5])
+    return origin + u[:, None] * e1 + v[:, None] * e2, t
+
+
+@pytest.mark.parametrize("moving", [False, True])
+def test_deskew_jacobian_matches_refits_of_points_deskewed_with_another_twist(moving):
+    rng = np.random.default_rng(7)
+    raw, t = _wall_seen_over_time(rng)
+    twist = np.array([0.03, -0.06, 0.3, 4.0, 0.2, 0.05]) * moving
+    pts = deskew_points(raw, t, twist)
+    c, evals, evecs = tls_fit(pts)
+    n = evecs[:, 2]
+    J = deskew_jacobian(pts, t, n)
+    change = np.zeros((4, 6))
+    for k in range(6):
+        step = np.zeros(6)
+        step[k] = 1e-6
+        # independent: deskew again with the perturbed twist and refit
+        c2, _, ev2 = tls_fit(deskew_points(raw, t, twist + step))
+        n2 = ev2[:, 2] * np.sign(ev2[:, 2] @ n)
+        change[:, k] = np.append(n2 - n, -(n2 @ c2) + n @ c) / step[k]
+    # exact at a twist of zero; first order in t xi: at 0.3 rad/s and 4 m/s over 0.1 s the
+    # exponential's left Jacobian changes it by up to t |w| / 2 and t |v| / 2 |p| (1.5 %)
+    scale = np.abs(change).max(axis=1, keepdims=True)
+    assert np.all(np.abs(J - change) <= (0.03 if moving else 1e-4) * scale)
+    np.testing.assert_allclose(deskew_jacobian(pts, t, n, (c, evals, evecs)), J, atol=1e-12)
+
+
+def test_planes_carry_the_deskew_jacobian_through_flips_and_transforms():
+    rng = np.random.default_rng(8)
+    pts, t = _wall_seen_over_time(rng)
+    c, _, evecs = tls_fit(pts)
+    n = evecs[:, 2]
+    J = deskew_jacobian(pts, t, n)
+    plane = Plane(n, float(-n @ c), deskew_jacobian=J)
+    np.testing.assert_allclose(plane.flipped().deskew_jacobian, deskew_jacobian(pts, t, -n))
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec([0.1, -0.2, 0.7]).as_matrix()
+    T[:3, 3] = [3.0, -1.0, 0.4]
+    # independent: a perturbation of the points in frame b, seen in frame a, changes the
+    # fit in frame a by the fit's derivative there (a rigid map keeps the fit's geometry)
+    moved = pts @ T[:3, :3].T + T[:3, 3]
+    dxi = np.array([1e-3, -2e-3, 3e-3, 1e-2, -2e-2, 5e-3])
+    ours = plane.transformed(T).deskew_jacobian @ dxi
+    shifted = pts + t[:, None] * (np.cross(dxi[:3], pts) + dxi[3:])
+    c2, _, ev2 = tls_fit(shifted @ T[:3, :3].T + T[:3, 3])
+    ca, _, eva = tls_fit(moved)
+    na = eva[:, 2] * np.sign(eva[:, 2] @ (T[:3, :3] @ n))
+    n2 = ev2[:, 2] * np.sign(ev2[:, 2] @ na)
+    np.testing.assert_allclose(
+        ours, np.append(n2 - na, -(n2 @ c2) + na @ ca), atol=2e-3 * np.abs(ours).max()
+    )

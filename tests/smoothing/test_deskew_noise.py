@@ -9,6 +9,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.deskew_noise import (
@@ -17,7 +18,7 @@ from planodom.smoothing.deskew_noise import (
     deskew_frame_factor,
     plane_deskew_covariance,
 )
-from planodom.smoothing.noise import between_covariance
+from planodom.smoothing.noise import between_covariance, plane_covariance, plane_factor_covariance
 from planodom.smoothing.synthetic import make_sequence
 from planodom.smoothing.windowed import smooth_windowed
 from planodom_factors.planes import plane_factor
@@ -154,7 +155,7 @@ def test_the_graph_takes_the_term_in_batch_and_fixed_lag_smoothing():
     seq = make_sequence(30, seed=2, sigma_rotation=1e-3, sigma_translation=0.01,
                         sigma_normal=0.005, sigma_offset=0.01)  # fmt: skip
     base = SmoothingConfig(robust_kernel="none", deskew_noise="none")
-    for mode in ("twist_change", "twist_change_frame"):
+    for mode in ("twist_change", "twist_change_frame", "twist_change_jacobian"):
         on = base.model_copy(update={"deskew_noise": mode})
         for smooth in (smooth_batch, smooth_windowed):
             off_cov = smooth(seq.planes, seq.relatives, base).covariances
@@ -269,3 +270,57 @@ def test_a_loop_factor_takes_the_deskewing_error_of_both_its_epochs():
     for rel in _steps(_random_walk_motions(rng, 300, np.full(6, 0.01))):
         instant.add(replace(rel, time_spread=False))
     assert not np.any(instant.loop_covariance(old, curr, T))
+
+
+def test_plane_motion_change_is_the_change_of_motion_itself():
+    rng = np.random.default_rng(12)
+    s = np.array([0.004, 0.002, 0.001, 0.01, 0.005, 0.003])
+    n = 3000
+    model = DeskewNoise(plane_jacobian=True)
+    for rel in _steps(_random_walk_motions(rng, n, s)):
+        model.add(rel)
+    change = np.mean([np.diag(model.plane_motion_change(k)) for k in range(10, n - 10)], axis=0)
+    # Closed form: the twist is off by the change dxi ~ N(0, s^2) (no 1/3: the planes'
+    # own Jacobians weigh their points' times); the rigid share is then left out.
+    np.testing.assert_allclose(change, s**2, rtol=0.08)
+    assert not np.any(model.plane_pose_covariance(100))
+    assert DeskewNoise().plane_motion_change(100) is None
+
+
+def test_an_unmeasured_vertical_motion_takes_the_measured_ones_mean_square():
+    rng = np.random.default_rng(13)
+    motions = _random_walk_motions(rng, 60, np.full(6, 1e-4))
+    motions[:, 5] = 0.02 + rng.normal(0.0, 1e-4, 60)  # climbing: steps that hardly change
+    rels = _steps(motions)
+    free = {r.curr for r in rels if r.curr % 3 == 0}
+    model = DeskewNoise(plane_jacobian=True)
+    for r in rels:
+        model.add(replace(r, z_observed=r.curr not in free, sigma_z=1e-9))
+    measured = np.array([r.T_prev_curr[2, 3] for r in rels if r.curr not in free])
+    k = min(free - {0, 3, 57})
+    assert np.isclose(model.plane_motion_change(k)[5, 5], np.mean(measured**2))
+    assert model.plane_motion_change(k + 1)[5, 5] < 0.1 * np.mean(measured**2)
+
+
+def test_a_planes_jacobian_carries_the_motion_change_into_its_covariance():
+    cfg = SmoothingConfig(min_plane_normal_sigma_rad=1e-9, min_plane_offset_sigma_m=1e-9)
+    n = np.array([0.0, 0.6, 0.8])
+    J = np.zeros((4, 6))
+    J[3, 5] = -0.5  # the offset moves by half a vertical velocity error
+    J[:3, 0] = np.cross([1.0, 0.0, 0.0], n) * 2.0  # the normal turns about x by twice roll
+    plane = Plane(n, -4.0, covariance=np.zeros((4, 4)), deskew_jacobian=J)
+    change = np.diag([1e-4, 0, 0, 0, 0, 4e-4])
+    added = plane_covariance(plane, cfg, None, change) - plane_covariance(plane, cfg)
+    # closed form: offset variance 0.25 * 4e-4; the normal's tangent variance 4 * 1e-4 along
+    # one direction of the Unit3 basis (whatever its orientation), nothing across
+    np.testing.assert_allclose(added[2, 2], 1e-4, rtol=1e-9)
+    np.testing.assert_allclose(np.trace(added[:2, :2]), 4e-4, rtol=1e-9)
+    assert abs(np.linalg.det(added[:2, :2])) < 1e-20
+    # without a Jacobian: the rigid model on a third of it
+    rigid = replace(plane, deskew_jacobian=None)
+    expected = plane_covariance(rigid, cfg, change / 3.0)
+    np.testing.assert_allclose(plane_covariance(rigid, cfg, None, change), expected)
+    model = DeskewNoise(plane_jacobian=True)
+    assert np.allclose(
+        plane_factor_covariance(plane, cfg, model, 0, False), plane_covariance(plane, cfg)
+    )

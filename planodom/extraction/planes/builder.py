@@ -13,7 +13,10 @@ fits at once:
 3. weights them by CPEF (:mod:`.confidence`);
 4. lets the caller adjust the kept planes (the 2D rig's time windows keep one plane per
    wall, :mod:`planodom.extraction.rig2d.windows`);
-5. gives each its support polygon (:mod:`.support`) and majority true label.
+5. gives each its support polygon (:mod:`.support`) and majority true label, and, when
+   the scan has times, the fit's first-order change with the deskewing twist
+   (:func:`.fit.deskew_jacobian`, times divided by the epoch's span ``max |t|``: the
+   smoothing scales it by the change of motion over an epoch).
 
 Viewpoints: with sensor origins a plane is seen from the mean origin of the scanners that
 saw its inliers (carried to the reference time with the twist at their mean time);
@@ -33,7 +36,7 @@ import numpy as np
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch
 from planodom.extraction.planes.confidence import cpef, mean_incidences
-from planodom.extraction.planes.fit import tls_covariance
+from planodom.extraction.planes.fit import deskew_jacobian, tls_covariance
 from planodom.extraction.planes.support import distinct_and_majority, support_polygon
 from planodom.geometry import Plane, PlaneSupport
 
@@ -153,8 +156,14 @@ def build_planes(
     rows, truth = distinct_and_majority(
         ring if fits.n_rows is None else None, labels, fits.inliers, fits.bounds, kept
     )
+    t = epoch.scan.t
+    span = 0.0 if t is None or len(t) == 0 else float(np.max(np.abs(t)))
     for k, g in enumerate(kept):
         idx = fits.members(int(g))
+        dsk = None
+        if t is not None and span > 0.0:
+            fit = (fits.centroid[g], fits.evals[g], fits.evecs[g])
+            dsk = deskew_jacobian(epoch.points[idx], t[idx] / span, n_or[g], fit)
         n_rows = int(fits.n_rows[g]) if fits.n_rows is not None else int(rows[k])
         outline = epoch.points[idx[fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]]
         polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
@@ -167,6 +176,7 @@ def build_planes(
                 fits.centroid[g].copy(), polygon, int(fits.count[g]), scatter[g], n_rows
             ),
             truth_id=int(truth[k]),
+            deskew_jacobian=dsk,
         )
         planes.append(plane)
         inliers.append(idx)

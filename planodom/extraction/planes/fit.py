@@ -194,3 +194,44 @@ def tls_covariance(
     cov[:, 3, :3] = -cn
     cov[:, 3, 3] = np.einsum("gi,gi->g", centroids, cn) + sigma2 / n_pts
     return cov
+
+
+def deskew_jacobian(
+    points: np.ndarray,
+    t: np.ndarray,
+    normal: np.ndarray,
+    fit: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """(4, 6) first-order change of a TLS plane fit's ``(n, d)`` (as its covariance) when
+    its points are deskewed with a twist off by ``dxi = (dw, dv)`` (rad and m per unit of
+    ``t``).
+
+    A point seen ``t_i`` after the reference time moves by ``t_i (dw x p_i + dv)``, i.e.
+    along the normal by ``g_i . dxi`` with ``g_i = t_i (p_i x n, n)``. With the scatter's
+    eigen-decomposition (module docstring, ``l3`` the plane's own) the normal moves by
+    ``dn = -sum_{k=1,2} e_k sum_i (e_k . q_i) (g_i . dxi) / (l_k - l3)`` (``q_i = p_i - c``)
+    and ``d = -n . c`` by ``-c . dn - mean_i (g_i . dxi)``. Unlike a rigid perturbation of
+    the epoch's frame, this holds where along the plane, and when, its points were seen:
+    a wall swept over the epoch is tilted by a wrong rate, a plane seen at the start of
+    the epoch hardly moves.
+
+    Args:
+        points: (K, 3) the inliers as fitted (deskewed), metres. t: (K,) their times
+            relative to the reference time. normal: (3,) the fit's unit normal (oriented).
+        basis: (3, 2) orthonormal tangent basis of the normal (``gtsam.Unit3.basis``).
+    """
+    c, evals, evecs = tls_fit(points) if fit is None else fit
+    q = points - c
+    # sums of w_i g_i for the weights w_i = 1, e1 . q_i, e2 . q_i from the moments
+    # sum w t and sum w t p (3 x 3), not g_i point by point
+    w = np.empty((len(points), 3))
+    w[:, 0] = 1.0
+    w[:, 1:] = q @ evecs[:, :2]
+    w *= t[:, None]
+    m = w.T @ points
+    sums = np.hstack([np.cross(m, normal), w.sum(axis=0)[:, None] * normal])  # (3, 6)
+    dn = np.zeros((3, 6))
+    for k in (0, 1):
+        gap = max(float(evals[k] - evals[2]), 1e-300)
+        dn -= np.outer(evecs[:, k], sums[k + 1]) / gap
+    return np.vstack([dn, -(c @ dn) - sums[0] / len(points)])
