@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from pydantic import ValidationError
+from pydantic import ValidationError, model_validator
 
 from planodom.config.extraction import ExtractionConfig
 from planodom.config.odometry import AssociationConfig, OdometryConfig
@@ -44,6 +44,26 @@ class PlanodomConfig(Section):
     odometry: OdometryConfig = OdometryConfig()
     planemap: PlanemapConfig = PlanemapConfig()
     smoothing: SmoothingConfig = SmoothingConfig()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _planes_for_smoothing(cls, data: Any) -> Any:
+        """The deskew-noise modes that read each plane's deskewing Jacobian switch on its
+        computation in the extraction (``extraction.deskew_jacobian``)."""
+        if not isinstance(data, Mapping):
+            return data
+        smoothing = data.get("smoothing")
+        mode = getattr(smoothing, "deskew_noise", None)
+        if isinstance(smoothing, Mapping):
+            mode = smoothing.get("deskew_noise")
+        if not (isinstance(mode, str) and mode.startswith("twist_change_jacobian")):
+            return data
+        extraction = data.get("extraction", {})
+        if isinstance(extraction, ExtractionConfig):
+            extraction = extraction.model_dump()
+        if not isinstance(extraction, Mapping):
+            return data  # the section's own validation reports it
+        return {**data, "extraction": {**extraction, "deskew_jacobian": True}}
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> PlanodomConfig:

@@ -111,6 +111,11 @@ class ExtractionConfig(Section):
     """Expected range noise sigma of the sensor (m); default: SICK LMS 221 (paper, VI-A)."""
     estimate_noise: bool = True
     """Also estimate sigma from second differences along the scan lines; use the larger."""
+    deskew_jacobian: bool = False
+    """Give each plane of a scan with point times its first-order change with the
+    deskewing twist (``Plane.deskew_jacobian``). Only ``smoothing.deskew_noise:
+    twist_change_jacobian[_net]`` uses it, and that mode switches it on (PlanodomConfig);
+    off otherwise because it costs about 80 us per plane of 2 000 points."""
     tolerance_floor_m: float = Field(0.02, ge=0)
     """Smallest distance tolerance (m): trace curvature from motion within one sweep
     (about v / scan rate, 2 cm at 1.5 m/s and 75 Hz), deskew residue, float32 hits."""

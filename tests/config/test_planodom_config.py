@@ -37,3 +37,15 @@ def test_bad_files_name_file_and_field(tmp_path, text: str, match: str) -> None:
 def test_missing_file(tmp_path) -> None:
     with pytest.raises(ConfigError, match="missing.yaml: cannot read"):
         PlanodomConfig.from_yaml(tmp_path / "missing.yaml")
+
+
+def test_jacobian_deskew_noise_switches_on_the_planes_deskew_jacobian():
+    """The smoothing mode that reads Plane.deskew_jacobian makes the extraction compute it;
+    every other mode leaves it off (it costs time per plane)."""
+    assert PlanodomConfig().extraction.deskew_jacobian is False
+    for mode in ("twist_change_jacobian", "twist_change_jacobian_net"):
+        assert PlanodomConfig().updated({"smoothing.deskew_noise": mode}).extraction.deskew_jacobian
+        loaded = PlanodomConfig.from_dict({"smoothing": {"deskew_noise": mode}})
+        assert loaded.extraction.deskew_jacobian
+    other = PlanodomConfig.from_dict({"smoothing": {"deskew_noise": "twist_change_frame_net"}})
+    assert other.extraction.deskew_jacobian is False

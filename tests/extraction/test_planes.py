@@ -245,3 +245,22 @@ def test_planes_carry_the_deskew_jacobian_through_flips_and_transforms():
     np.testing.assert_allclose(
         ours, np.append(n2 - na, -(n2 @ c2) + na @ ca), atol=2e-3 * np.abs(ours).max()
     )
+
+
+def test_planes_carry_a_deskew_jacobian_only_when_asked():
+    """extraction.deskew_jacobian (switched on by the smoothing mode that reads it) gives
+    every plane of a time-spread scan its (4, 6) Jacobian; off, no plane pays for one."""
+    from planodom.config import ExtractionConfig
+    from planodom.extraction import extract
+    from planodom.simulation import simulate_named
+
+    run = simulate_named(
+        "paper-loop", "isoclinal", noise=0.006, seed=3, n_epochs=2, motion="continuous"
+    )
+    off = extract(run.scans[1], ExtractionConfig(range_noise_m=0.006)).planes
+    on = extract(run.scans[1], ExtractionConfig(range_noise_m=0.006, deskew_jacobian=True)).planes
+    assert len(off) >= 3 and all(p.deskew_jacobian is None for p in off)
+    assert len(on) == len(off)
+    for p in on:
+        assert p.deskew_jacobian is not None and p.deskew_jacobian.shape == (4, 6)
+        assert np.all(np.isfinite(p.deskew_jacobian)) and np.any(p.deskew_jacobian != 0)

@@ -14,9 +14,10 @@ fits at once:
 4. lets the caller adjust the kept planes (the 2D rig's time windows keep one plane per
    wall, :mod:`planodom.extraction.rig2d.windows`);
 5. gives each its support polygon (:mod:`.support`) and majority true label, and, when
-   the scan has times, the fit's first-order change with the deskewing twist
-   (:func:`.fit.deskew_jacobian`, times divided by the epoch's span ``max |t|``: the
-   smoothing scales it by the change of motion over an epoch).
+   the scan has times and ``extraction.deskew_jacobian`` asks, the fit's first-order
+   change with the deskewing twist (:func:`.fit.deskew_jacobian`, times divided by the
+   epoch's span ``max |t|``: the smoothing scales it by the change of motion over an
+   epoch).
 
 Viewpoints: with sensor origins a plane is seen from the mean origin of the scanners that
 saw its inliers (carried to the reference time with the twist at their mean time);
@@ -156,7 +157,7 @@ def build_planes(
     rows, truth = distinct_and_majority(
         ring if fits.n_rows is None else None, labels, fits.inliers, fits.bounds, kept
     )
-    t = epoch.scan.t
+    t = epoch.scan.t if config.deskew_jacobian else None
     span = 0.0 if t is None or len(t) == 0 else float(np.max(np.abs(t)))
     for k, g in enumerate(kept):
         idx = fits.members(int(g))
