@@ -171,7 +171,11 @@ class SmoothingConfig(Section):
     3.7 -> 0.161 / 3.8; "planodom smooth" canyon 200 epochs ATE 3 -> 3 -> 5 mm. Not the
     default: it costs millimetres on the canyon at 6 mm, and the batch without loops stays
     worse than the odometry on world 16 and 2, where degenerate and unresolved stretches
-    (along-track unobserved, a weak constant-velocity fallback) carry the error."""
+    (along-track unobserved, a weak constant-velocity fallback) carry the error. On full
+    laps of the ten 2D-rig worlds (batch with loops, none -> jacobian): mean NEES5 inside
+    the 95 % interval on 11 of 20 runs (none: 0), median ATE 0.053 -> 0.033 m (6 mm) and
+    0.085 -> 0.085 m (2 cm), but worse on 10 of the 20 runs, and the fixed-lag smoother
+    without loops at 2 cm 0.65 -> 1.75 m (median)."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""
