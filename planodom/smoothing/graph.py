@@ -134,6 +134,9 @@ class GraphBuilder:
         self.initial_poses: np.ndarray | None = None  # (E, 4, 4) overrides the chained guess
         self._robust_planes = config.robust_planes and config.robust_kernel != "none"
         self._last_step: np.ndarray | None = None
+        #: (4, 4) the fallback's step before any measured one (batch: the first measured
+        #: step, :func:`planodom.smoothing.batch.first_measured_step`); None: identity
+        self.first_step: np.ndarray | None = None
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
@@ -164,11 +167,15 @@ class GraphBuilder:
     def _fallback_motion(self, bridge: RelativePose | None) -> np.ndarray:
         """(4, 4) mean ``T_{k-1}_k`` of the fallback factor into an epoch nothing measured:
         the odometry's unresolved delta = 1 result ``bridge`` (its prediction), else the last
-        measured delta = 1 step repeated, identity before any; never from the estimates. (On
-        world 6's 2D-rig lap in a turn: prediction 0.1-0.8 deg off per epoch, step 1-2 deg.)"""
+        measured delta = 1 step repeated; before any, :attr:`first_step` (the batch's first
+        measured step: constant velocity backwards in time, ``smoothing.fallback_start``),
+        else identity; never from the estimates. (On world 6's 2D-rig lap in a turn:
+        prediction 0.1-0.8 deg off per epoch, step 1-2 deg.)"""
         if bridge is not None:
             return np.asarray(bridge.T_prev_curr, dtype=float)
-        return self._last_step if self._last_step is not None else np.eye(4)
+        if self._last_step is not None:
+            return self._last_step
+        return self.first_step if self.first_step is not None else np.eye(4)
 
     def add_epoch(
         self,
