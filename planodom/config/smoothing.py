@@ -161,8 +161,8 @@ class SmoothingConfig(Section):
     shared between them and the rotation-only epochs before the lap's end). Measured
     (ATE m, identity -> first_step): world 18 6 mm 0.660 -> 0.196, 2 cm 0.852 -> 0.377;
     world 6 2 cm 1.53 -> 1.69 (without loop closure 3.35 -> 3.05: 174 of its 204 epochs
-    are bridged, see the closing note of issue 14); worlds 0, 2, 16 at 6 mm and 2 cm and
-    6 at 6 mm within 1 mm (their first step is measured)."""
+    are bridged: its fallbacks' means decide little, the true step as every one gives
+    1.09); worlds 0, 2, 4, 8, 10, 16 at 6 mm and 2 cm, 6 and 12 at 6 mm within 1 mm."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""
