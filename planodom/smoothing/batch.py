@@ -291,6 +291,16 @@ def _gated(
     return estimate
 
 
+def first_measured_step(relative_poses: Sequence[RelativePose]) -> np.ndarray | None:
+    """(4, 4) ``T_prev_curr`` of the earliest delta = 1 relative pose that measured the
+    translation, or None: the batch's fallback before it (the odometry knew no velocity
+    there; the whole run is known, so the motion is carried back from its first
+    measurement, :meth:`.GraphBuilder._fallback_motion`)."""
+    steps = [r for r in relative_poses if r.delta == 1 and r.measured and r.translation_observed]
+    first = min(steps, key=lambda r: r.curr, default=None)
+    return None if first is None else np.asarray(first.T_prev_curr, dtype=float)
+
+
 def _builder(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
@@ -305,6 +315,8 @@ def _builder(
     if cfg.loop_closure:
         loop_builder = CandidateLoopBuilder if cfg.loop_candidates else LoopClosingBuilder
         builder = loop_builder(full, T_world_first)
+    if cfg.fallback_start == "first_step":
+        builder.first_step = first_measured_step(relative_poses)
     for rel in relative_poses if builder.deskew is not None else ():
         builder.deskew.add(rel)  # type: ignore[union-attr]  # batch: the whole run's, at once
     if cfg.batch_initial == "windowed":

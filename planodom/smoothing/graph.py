@@ -134,6 +134,7 @@ class GraphBuilder:
         self.initial_poses: np.ndarray | None = None  # (E, 4, 4) overrides the chained guess
         self._robust_planes = config.robust_planes and config.robust_kernel != "none"
         self._last_step: np.ndarray | None = None
+        self.first_step: np.ndarray | None = None  # fallback before any measured step
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
@@ -162,13 +163,13 @@ class GraphBuilder:
         return candidates[int(np.argmin(dist.sum(axis=1)))]
 
     def _fallback_motion(self, bridge: RelativePose | None) -> np.ndarray:
-        """(4, 4) mean ``T_{k-1}_k`` of the fallback factor into an epoch nothing measured:
-        the odometry's unresolved delta = 1 result ``bridge`` (its prediction), else the last
-        measured delta = 1 step repeated, identity before any; never from the estimates. (On
-        world 6's 2D-rig lap in a turn: prediction 0.1-0.8 deg off per epoch, step 1-2 deg.)"""
+        """(4, 4) mean ``T_{k-1}_k`` of the fallback into an epoch nothing measured: the
+        odometry's unresolved delta = 1 result ``bridge`` (its prediction; world 6 in a turn:
+        0.1-0.8 deg off, the last step 1-2 deg), else the last measured step repeated, else
+        ``first_step`` (``smoothing.fallback_start``), else identity; never the estimates."""
         if bridge is not None:
             return np.asarray(bridge.T_prev_curr, dtype=float)
-        return self._last_step if self._last_step is not None else np.eye(4)
+        return next((s for s in (self._last_step, self.first_step) if s is not None), np.eye(4))
 
     def add_epoch(
         self,

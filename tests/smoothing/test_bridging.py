@@ -62,3 +62,29 @@ def test_a_measured_prior_is_not_dropped_for_a_prior_free_consensus() -> None:
         assert as_configured[pair] == across_bridge[pair]
     assert measured[(2, 4)] == across_bridge[(2, 4)] == (Status.OK, measured[(2, 4)][1])
     assert measured[(2, 4)][1] < 1e-9
+
+
+def test_rotation_only_start_carries_the_first_measured_step_back() -> None:
+    seq = make_sequence(12, seed=4, vertical_sigma=0.0)
+    # A run that starts at speed with rotation-only epochs 1..3 (the odometry knew no
+    # velocity yet), no planes: their translation rests on the fallback factors alone.
+    relatives = [
+        replace(r, status=Status.DEGENERATE) if r.curr <= 3 else r
+        for r in seq.relatives
+        if r.delta == 1
+    ]
+    steps = invert_transform(seq.poses[:-1]) @ seq.poses[1:]  # steps[k - 1]: into k
+    first = smooth_batch([[] for _ in range(12)], relatives, GAUSSIAN)
+    still = smooth_batch(
+        [[] for _ in range(12)],
+        relatives,
+        SmoothingConfig.model_validate({**GAUSSIAN.model_dump(), "fallback_start": "identity"}),
+    )
+    for result, expected in ((first, steps[3][:2, 3]), (still, np.zeros(2))):
+        est = invert_transform(result.poses[:-1]) @ result.poses[1:]
+        for k in range(1, 4):  # the rotation measured, the translation the fallback's
+            np.testing.assert_allclose(est[k - 1][:3, :3], steps[k - 1][:3, :3], atol=1e-6)
+            np.testing.assert_allclose(est[k - 1][:2, 3], expected, atol=1e-6)
+        for k in range(4, 12):  # measured
+            np.testing.assert_allclose(est[k - 1][:2, 3], steps[k - 1][:2, 3], atol=1e-6)
+    assert np.linalg.norm(steps[3][:2, 3]) > 0.5  # identity is a wrong prediction here
