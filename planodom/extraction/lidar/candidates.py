@@ -343,7 +343,8 @@ def ransac_candidates(
         if len(inl) < min_vox:
             break
         for _ in range(2):  # RANSAC's plane is rough: refit it, select again
-            inl = _within(vox, rem, *_tls_normal(vox, inl), float(tol))
+            c, n = _tls_normal(vox, inl)
+            inl = _within(vox, rem, c, n, float(tol))
             if len(inl) < min_vox:
                 break
         if len(inl) < min_vox:
