@@ -16,7 +16,9 @@
 4. Each cluster is refit by total least squares, twice on the full-resolution points
    within the distance tolerance of it and inside its (dilated) cells and not taken by an
    earlier plane; these points are the candidate inlier set (the caller refits it
-   robustly). Voxel points that the refit plane explains are not searched again.
+   robustly). Voxel points that the refit plane explains are not searched again. The
+   refits and selections run compiled (numba, :func:`_refit_clusters`), one call per
+   RANSAC plane: sparse lidars give many small clusters.
 
 With rings (and ``range_image``) the candidates come from region growing on the range
 image instead (:mod:`.rangeimage`); the loop above is its fallback.
