@@ -36,6 +36,7 @@ import numpy as np
 
 from planodom._open3d import o3d
 from planodom.config import ExtractionConfig
+from planodom.extraction.kernels import add_outer, find_root
 from planodom.extraction.lidar.grid import ring_order, ring_rows
 from planodom.extraction.lidar.rangeimage import range_image_candidates
 from planodom.extraction.lidar.ransac import segment_plane
@@ -144,15 +145,6 @@ def _clusters(cells: np.ndarray, n_az: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @numba.njit(cache=True)
-def _root(parent, u):  # pragma: no cover - compiled
-    """Root of ``u`` in the union-find ``parent``, halving the path on the way."""
-    while parent[u] != u:
-        parent[u] = parent[parent[u]]
-        u = parent[u]
-    return u
-
-
-@numba.njit(cache=True)
 def _cluster_grid(az, el, n_az, n_el):  # pragma: no cover - compiled
     """``(lookup, merged)`` (n_az, n_el) int64 of :func:`_clusters` for the occupied cells
     ``(az, el)`` (K,): ``merged`` the cluster of each occupied cell (-1 free), ``lookup``
@@ -169,7 +161,7 @@ def _cluster_grid(az, el, n_az, n_el):  # pragma: no cover - compiled
             for da, de in ((-1, -1), (-1, 0), (-1, 1), (0, -1)):
                 b, f = (a + da) % n_az, e + de
                 if 0 <= f < n_el and occ[b, f]:
-                    ru, rv = _root(parent, a * n_el + e), _root(parent, b * n_el + f)
+                    ru, rv = find_root(parent, a * n_el + e), find_root(parent, b * n_el + f)
                     parent[max(ru, rv)] = min(ru, rv)
     merged = np.full((n_az, n_el), -1, dtype=np.int64)
     number = np.zeros(n_az * n_el, dtype=np.int64)
@@ -177,7 +169,7 @@ def _cluster_grid(az, el, n_az, n_el):  # pragma: no cover - compiled
     for a in range(n_az):  # numbered in the order of each cluster's first cell
         for e in range(n_el):
             if occ[a, e]:
-                r = _root(parent, a * n_el + e)
+                r = find_root(parent, a * n_el + e)
                 if number[r] == 0:
                     k += 1
                     number[r] = k
@@ -219,13 +211,7 @@ def _tls_normal(pts, idx):  # pragma: no cover - compiled
     c /= k
     s = np.zeros((3, 3))
     for i in range(k):
-        q0, q1, q2 = pts[idx[i], 0] - c[0], pts[idx[i], 1] - c[1], pts[idx[i], 2] - c[2]
-        s[0, 0] += q0 * q0
-        s[0, 1] += q0 * q1
-        s[0, 2] += q0 * q2
-        s[1, 1] += q1 * q1
-        s[1, 2] += q1 * q2
-        s[2, 2] += q2 * q2
+        add_outer(s, pts[idx[i], 0] - c[0], pts[idx[i], 1] - c[1], pts[idx[i], 2] - c[2])
     s[1, 0], s[2, 0], s[2, 1] = s[0, 1], s[0, 2], s[1, 2]
     _, v = np.linalg.eigh(s)
     return c, np.ascontiguousarray(v[:, 0])
