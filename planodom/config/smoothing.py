@@ -174,7 +174,7 @@ class SmoothingConfig(Section):
     (along-track unobserved, a weak constant-velocity fallback) carry the error. On full
     laps of the ten 2D-rig worlds (batch with loops, none -> jacobian): mean NEES5 inside
     the 95 % interval on 11 of 20 runs (none: 0), median ATE 0.053 -> 0.033 m (6 mm) and
-    0.085 -> 0.085 m (2 cm), but worse on 10 of the 20 runs, and the fixed-lag smoother
+    0.085 -> 0.085 m (2 cm), but worse on 8 of the 20 runs, and the fixed-lag smoother
     without loops at 2 cm 0.65 -> 1.75 m (median)."""
     fallback_start: Literal["first_step", "identity"] = "first_step"
     """Batch: the fallback factor's mean into an epoch before the odometry's first
