@@ -26,6 +26,17 @@ def test_round_trip(tmp_path) -> None:
         ("odometry: {no_such_field: 1}\n", r"c\.yaml: field 'odometry\.no_such_field'"),
         ("nonsense_section: 3\n", r"c\.yaml: field 'nonsense_section'"),
         ("odometry: [1, 2\n", r"c\.yaml: not valid YAML"),
+        ("smoothing: {fallback_start: backwards}\n", r"c\.yaml: field 'smoothing\.fallback_start'"),
+        (
+            "smoothing: {loop_refuse_ambiguous: maybe}\n",
+            r"c\.yaml: field 'smoothing\.loop_refuse_ambiguous'",
+        ),
+        ("odometry: {map_trend_rescue: perhaps}\n", r"c\.yaml: field 'odometry\.map_trend_rescue'"),
+        ("extraction: {deskew_jacobian: 3}\n", r"c\.yaml: field 'extraction\.deskew_jacobian'"),
+        (
+            "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
+            r"c\.yaml: field 'extraction'",
+        ),
     ],
 )
 def test_bad_files_name_file_and_field(tmp_path, text: str, match: str) -> None:
