@@ -30,6 +30,7 @@ _TYPES = {("F", 4): "f4", ("F", 8): "f8", ("I", 1): "i1", ("I", 2): "i2", ("I", 
 _TYPES |= {("U", 1): "u1", ("U", 2): "u2", ("U", 4): "u4", ("I", 8): "i8", ("U", 8): "u8"}
 _MODES = ("ascii", "binary", "binary_compressed")
 _MAX_HEADER_LINES = 64
+_PAGE_SIZES = (4096, 8192, 16384, 32768, 65536)
 
 
 @dataclass(frozen=True)
@@ -108,7 +109,7 @@ def read_pcd(path: Path) -> dict[str, np.ndarray]:
     if header.mode == "ascii":
         columns = _ascii(path, data[offset:], header)
     elif header.mode == "binary":
-        columns = _binary(path, data[offset:], header)
+        columns = _binary(path, data[offset:], header, offset)
     else:
         columns = _compressed(path, data[offset:], header)
     return {name: columns[name] for name in header.names if name in columns}
@@ -140,9 +141,11 @@ def _ascii(path: Path, body: bytes, header: _Header) -> dict[str, np.ndarray]:
     return out
 
 
-def _binary(path: Path, body: bytes, header: _Header) -> dict[str, np.ndarray]:
+def _binary(path: Path, body: bytes, header: _Header, offset: int) -> dict[str, np.ndarray]:
     dtype = header.dtype
     need = header.n_points * dtype.itemsize
+    if len(body) > need and _pcl_page_padding(offset, body[need:]):
+        body = body[:need]
     if len(body) != need:
         problem = "truncated" if len(body) < need else "longer than its header states"
         raise DatasetError(
@@ -151,6 +154,19 @@ def _binary(path: Path, body: bytes, header: _Header) -> dict[str, np.ndarray]:
         )
     table = np.frombuffer(body, dtype=dtype, count=header.n_points)
     return {name: table[name][:, 0].astype(table[name].dtype) for name in set(header.names)}
+
+
+def _pcl_page_padding(header_bytes: int, tail: bytes) -> bool:
+    """Whether ``tail`` (after the points) is the zero padding of PCL's binary writer.
+
+    PCL up to 1.8 sizes a binary PCD by seeking to ``page size + data size - 1`` before
+    mapping it (``PCDWriter::writeBinary``), so the file is exactly one page longer than
+    its points, the header included: the points are followed by ``page size - header size``
+    zero bytes (seen in VLP-16 scans saved by PCL 1.7). Only that tail, all zeros, for a
+    power-of-two page size of 4 to 64 KiB, is accepted; any other extra bytes stay an error.
+    """
+    page = header_bytes + len(tail)
+    return page in _PAGE_SIZES and not any(tail)
 
 
 def _compressed(path: Path, body: bytes, header: _Header) -> dict[str, np.ndarray]:

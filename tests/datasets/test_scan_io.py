@@ -186,3 +186,50 @@ def test_nan_points_are_rejected_with_count(tmp_path: Path, ext: str) -> None:
 def test_missing_scan_file(tmp_path: Path) -> None:
     with pytest.raises(DatasetError, match="nothere.ply"):
         read_scan(tmp_path / "nothere.ply")
+
+
+# --------------------------------------------------------------------------- PCL's layouts
+
+
+def _pcl17_binary_pcd(points: np.ndarray, ring: np.ndarray, page: int, tail: bytes | None) -> bytes:
+    """A binary PCD as PCL 1.7 writes velodyne_pointcloud's PointXYZIR: ``_`` padding
+    fields, and the file one page longer than its points (``tail`` replaces the zeros)."""
+    header = (
+        "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n"
+        "FIELDS x y z _ intensity ring _\nSIZE 4 4 4 1 4 2 1\nTYPE F F F U F U U\n"
+        f"COUNT 1 1 1 4 1 1 10\nWIDTH {len(points)}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n"
+        f"POINTS {len(points)}\nDATA binary\n"
+    ).encode()
+    rows = np.zeros(
+        len(points),
+        dtype=[("xyz", "<f4", 3), ("_a", "u1", 4), ("i", "<f4"), ("ring", "<u2"), ("_b", "u1", 10)],
+    )
+    rows["xyz"], rows["i"], rows["ring"] = points, 7.0, ring
+    rows["_a"], rows["_b"] = 0xAB, 0xCD  # padding bytes are not zero in the wild
+    pad = bytes(page - len(header)) if tail is None else tail
+    return header + rows.tobytes() + pad
+
+
+@pytest.mark.parametrize("page", [4096, 16384])
+def test_pcd_from_pcl17_with_page_padding_reads_the_points(tmp_path: Path, page: int) -> None:
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-30, 30, (50, 3)).astype(np.float32)
+    ring = rng.integers(0, 16, 50).astype(np.uint16)
+    (tmp_path / "v.pcd").write_bytes(_pcl17_binary_pcd(pts, ring, page, None))
+    scan = read_scan(tmp_path / "v.pcd")
+    assert np.array_equal(scan.points, pts.astype(np.float64))
+    assert np.array_equal(scan.ring, ring.astype(np.int32))
+
+
+@pytest.mark.parametrize("tail", ["short zeros", "one page, not all zeros", "ones"])
+def test_pcd_with_other_extra_bytes_is_still_refused(tmp_path: Path, tail: str) -> None:
+    pts = np.ones((5, 3), np.float32)
+    data = _pcl17_binary_pcd(pts, np.zeros(5, np.uint16), 4096, None)
+    header_end = data.index(b"DATA binary\n") + len(b"DATA binary\n")
+    page_tail = bytearray(4096 - header_end)
+    page_tail[-3] = 1
+    extra = {"short zeros": bytes(100), "one page, not all zeros": bytes(page_tail)}
+    body_end = header_end + 5 * 32
+    (tmp_path / "v.pcd").write_bytes(data[:body_end] + extra.get(tail, b"\x01" * 8))
+    with pytest.raises(DatasetError, match=r"v\.pcd: binary PCD longer than its header"):
+        read_scan(tmp_path / "v.pcd")
