@@ -11,7 +11,10 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
 - ``sensor_msgs/PointCloud2``: fields ``x y z`` (float32/float64); an optional ring field
   (:data:`RING_FIELDS`) and time field (:data:`TIME_FIELDS`, first present wins). Integer
   time fields are nanoseconds, float ones seconds; values above 1e15 ns / 1e8 s are absolute
-  times (since the Unix epoch), smaller ones offsets from the stamp. Points with a
+  times (since the Unix epoch), smaller ones offsets from the stamp; float values above
+  1e15 are absolute nanoseconds (livox_ros_driver2 stores its ``timestamp`` as a double of
+  nanoseconds). A sweep whose times then lie more than :data:`MAX_SWEEP_OFFSET_S` from its
+  stamp is refused: its field is in a unit these rules do not cover. Points with a
   non-finite coordinate or exactly at the origin (a common no-return marker) are dropped.
 """
 
@@ -37,6 +40,11 @@ TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 RING_FIELDS = ("ring", "line")
 #: Names of a per-point time field, first present wins.
 TIME_FIELDS = ("t", "time", "timestamp", "offset_time")
+#: Largest per-point time (s) from a sweep's stamp: a lidar sweep lasts a fraction of a
+#: second (a non-repetitive Livox integrates up to about one), and a driver stamps it at its
+#: start or end; times beyond this are a unit the rules above do not cover (milliseconds,
+#: microseconds, a clock of its own), which deskewing would turn into nonsense.
+MAX_SWEEP_OFFSET_S = 10.0
 #: PointField datatype codes -> numpy types.
 _POINT_FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 
@@ -126,6 +134,14 @@ def _decode_cloud(msg: Any) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, 
     dt = np.zeros(int(valid.sum()))
     if time_name is not None:
         dt = _relative_times(cloud[time_name][valid], stamp_ns(msg.header))
+        if not np.all(np.abs(dt) <= MAX_SWEEP_OFFSET_S):  # NaN too
+            bad = dt[~(np.abs(dt) <= MAX_SWEEP_OFFSET_S)]
+            worst = bad[np.argmax(np.nan_to_num(np.abs(bad), nan=np.inf))]
+            raise ValueError(
+                f"PointCloud2 time field '{time_name}' ({cloud[time_name].dtype}) puts a point "
+                f"{worst:.6g} s from the stamp, beyond {MAX_SWEEP_OFFSET_S:g} s: not seconds or "
+                "nanoseconds (offsets, or since the Unix epoch)"
+            )
     return points[valid], ring, dt, rings
 
 
@@ -137,6 +153,8 @@ def _relative_times(values: np.ndarray, stamp: int) -> np.ndarray:
             ns = ns - stamp
         return ns.astype(np.float64) * 1e-9
     seconds = values.astype(np.float64)
+    if len(seconds) and np.abs(seconds).max() > 1e15:  # absolute nanoseconds as a double
+        return (seconds - float(stamp)) * 1e-9
     if len(seconds) and np.abs(seconds).max() > 1e8:
         whole, frac = divmod(stamp, 1_000_000_000)
         seconds = (seconds - whole) - frac * 1e-9

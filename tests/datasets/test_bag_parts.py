@@ -100,6 +100,37 @@ def test_relative_ns_offsets_livox() -> None:
     assert dt.tolist() == [0.0, 0.012345678]
 
 
+def _livox2_cloud(timestamps: list[float], stamp: int) -> NS:
+    """livox_ros_driver2's PointCloud2 layout: ``line`` uint8, ``timestamp`` float64."""
+    dtype = np.dtype({"names": ["x", "y", "z", "intensity", "tag", "line", "timestamp"],
+                      "formats": ["<f4", "<f4", "<f4", "<f4", "u1", "u1", "<f8"],
+                      "offsets": [0, 4, 8, 12, 16, 17, 18], "itemsize": 26})  # fmt: skip
+    rows = np.zeros(len(timestamps), dtype=dtype)
+    rows["x"] = np.arange(1, len(timestamps) + 1)
+    rows["line"] = np.arange(len(timestamps)) % 6
+    rows["timestamp"] = timestamps
+    fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("tag", 16, 2),
+              ("line", 17, 2), ("timestamp", 18, 8)]  # fmt: skip
+    return cloud(fields, rows, 26, stamp)
+
+
+def test_absolute_double_nanoseconds_livox_driver2() -> None:
+    stamp = 1_700_000_000 * 10**9 + 250 * MS
+    ns = [stamp + 0.0, stamp + 40 * MS, stamp + 99 * MS]
+    pts, ring, dt, rings = decode_sweep(_livox2_cloud(ns, stamp), POINT_CLOUD2)
+    assert ring.tolist() == [0, 1, 2] and rings == 3
+    assert dt == pytest.approx([0.0, 0.040, 0.099], abs=1e-6)  # float64 ns: 256 ns steps
+
+
+@pytest.mark.parametrize(
+    "times, shown", [([0.0, 50.0, 99.0], "99 s"), ([0.0, np.nan, 0.01], "nan s")]
+)
+def test_times_in_another_unit_are_refused_naming_the_field(times: list, shown: str) -> None:
+    """Float milliseconds read as seconds would make a 99 s sweep; NaN times are no times."""
+    with pytest.raises(ValueError, match=rf"time field 'timestamp' \(float64\) .*{shown}"):
+        decode_sweep(_livox2_cloud(times, 10**18), POINT_CLOUD2)
+
+
 def test_cloud_that_does_not_fit_its_data() -> None:
     rows = np.zeros(2, dtype=np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4")]))
     msg = cloud([("x", 0, 7), ("y", 4, 7), ("z", 8, 7)], rows, 12, 0)
