@@ -2,7 +2,13 @@
 
 Stored per point: ``x y z`` (float32 or float64, metres), optional ``ring`` (int32),
 ``t`` (float64, seconds from the epoch's reference time) and ``label`` (int32). Other
-properties (intensity, colour, ...) are ignored on reading. KITTI ``.bin`` files hold
+properties (intensity, colour, ...) are ignored on reading. Files saved by other tools
+name these fields as the lidar drivers do: the ring may be ``ring`` or ``line`` (Livox),
+of any integer type; the time ``t``, ``time`` (Velodyne) or ``offset_time`` (Livox), first
+present wins, in seconds when a float and in nanoseconds when an integer (Ouster's ``t``,
+Livox's ``offset_time``), as in a ROS PointCloud2 (:mod:`planodom.datasets.bag_msgs`).
+Points whose three coordinates are all NaN are PCL's no-return marker of an organised
+cloud and are dropped; any other non-finite coordinate is an error. KITTI ``.bin`` files hold
 float32 ``x y z intensity`` rows and carry no optional field; points are taken as they are
 (in the scanner frame, which for KITTI is the base frame used here).
 
@@ -30,6 +36,10 @@ from planodom.scan import Scan
 SCAN_EXTENSIONS = (".ply", ".pcd", ".bin")
 #: File extensions of scan files that can be written.
 WRITABLE_EXTENSIONS = (".ply", ".pcd")
+#: Names of the ring field in a file, first present wins.
+RING_FIELDS = ("ring", "line")
+#: Names of the per-point time field in a file, first present wins.
+TIME_FIELDS = ("t", "time", "offset_time")
 #: Optional per-point fields and their dtypes in a :class:`Scan`.
 OPTIONAL_FIELDS = {"ring": np.int32, "t": np.float64, "label": np.int32}
 #: Largest coordinate magnitude (m) a scan file may hold; the extraction refuses larger
@@ -111,6 +121,10 @@ def _scan_from_fields(path: Path, fields: dict[str, np.ndarray]) -> Scan:
         raise DatasetError(f"{path}: no '{' '.join(missing)}' coordinates in the file")
     with np.errstate(invalid="ignore"):  # signalling NaNs of a corrupt file
         points = np.column_stack([fields[c].astype(np.float64) for c in "xyz"]).reshape(-1, 3)
+    returned = ~np.isnan(points).all(axis=1)  # PCL's no-return marker: all three NaN
+    if not returned.all():
+        points = points[returned]
+        fields = {name: values[returned] for name, values in fields.items()}
     bad = int(np.count_nonzero(~np.isfinite(points).all(axis=1)))
     if bad:
         raise DatasetError(
@@ -122,18 +136,24 @@ def _scan_from_fields(path: Path, fields: dict[str, np.ndarray]) -> Scan:
             f"beyond {MAX_COORDINATE_M:g} m (not metres, or corrupt)"
         )
     extra = {}
-    if "t" in fields:
-        t = fields["t"].astype(np.float64)
+    time_name = next((n for n in TIME_FIELDS if n in fields), None)
+    if time_name is not None:
+        raw = fields[time_name]
+        t = raw.astype(np.float64) * (1e-9 if raw.dtype.kind in "iu" else 1.0)
         if not np.all(np.abs(t) <= MAX_POINT_TIME_S):  # NaN too
             bad = int(np.count_nonzero(~(np.abs(t) <= MAX_POINT_TIME_S)))
+            unit = "ns" if raw.dtype.kind in "iu" else "s"
             raise DatasetError(
-                f"{path}: {bad} of {len(points)} point times 't' are NaN, infinite or "
-                f"beyond {MAX_POINT_TIME_S:g} s from the epoch's reference time"
+                f"{path}: {bad} of {len(points)} point times '{time_name}' (read as {unit}) "
+                f"are NaN, infinite or beyond {MAX_POINT_TIME_S:g} s from the epoch's "
+                "reference time"
             )
         extra["t"] = t
-    for name in ("ring", "label"):
-        if name in fields:
-            extra[name] = _int32(path, name, fields[name], 0 if name == "ring" else None)
+    ring_name = next((n for n in RING_FIELDS if n in fields), None)
+    if ring_name is not None:
+        extra["ring"] = _int32(path, ring_name, fields[ring_name], 0)
+    if "label" in fields:
+        extra["label"] = _int32(path, "label", fields["label"], None)
     return Scan(points, **extra)
 
 

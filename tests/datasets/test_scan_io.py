@@ -10,6 +10,7 @@ from dataset_factory import ALL_FIELDS, assert_same_scan, float32_safe, make_sca
 
 from planodom._open3d import o3d
 from planodom.datasets import read_scan, write_scan
+from planodom.datasets.pcd import write_pcd
 from planodom.datasets.ply import write_ply_vertices
 from planodom.errors import DatasetError
 from planodom.scan import Scan
@@ -233,3 +234,63 @@ def test_pcd_with_other_extra_bytes_is_still_refused(tmp_path: Path, tail: str) 
     (tmp_path / "v.pcd").write_bytes(data[:body_end] + extra.get(tail, b"\x01" * 8))
     with pytest.raises(DatasetError, match=r"v\.pcd: binary PCD longer than its header"):
         read_scan(tmp_path / "v.pcd")
+
+
+# ------------------------------------------------------------ fields as lidar drivers name them
+
+
+def _driver_fields(layout: str, n: int, rng: np.random.Generator) -> tuple[dict, np.ndarray]:
+    """Fields as a driver's cloud saved to a file has them, and the true times (s)."""
+    xyz = rng.uniform(-20, 20, (n, 3)).astype(np.float32)
+    t_true = np.sort(rng.uniform(0, 0.1, n))
+    fields = {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]}
+    fields["intensity"] = rng.uniform(0, 255, n).astype(np.float32)
+    if layout == "velodyne":  # ring uint16, time float32 s
+        fields["ring"] = rng.integers(0, 16, n).astype(np.uint16)
+        fields["time"] = t_true.astype(np.float32)
+        t_true = fields["time"].astype(np.float64)
+    elif layout == "ouster":  # t uint32 ns, ring uint16 (listed after t)
+        fields["t"] = np.round(t_true * 1e9).astype(np.uint32)
+        fields["ring"] = rng.integers(0, 128, n).astype(np.uint16)
+        t_true = fields["t"] * 1e-9
+    else:  # livox: line uint8, offset_time uint32 ns
+        fields["line"] = rng.integers(0, 6, n).astype(np.uint8)
+        fields["offset_time"] = np.round(t_true * 1e9).astype(np.uint32)
+        t_true = fields["offset_time"] * 1e-9
+    return fields, t_true
+
+
+@pytest.mark.parametrize("ext", [".pcd", ".ply"])
+@pytest.mark.parametrize("layout", ["velodyne", "ouster", "livox"])
+def test_time_and_ring_fields_named_as_drivers_do(tmp_path: Path, ext: str, layout: str) -> None:
+    fields, t_true = _driver_fields(layout, 40, np.random.default_rng(8))
+    file = tmp_path / f"scan{ext}"
+    write = write_pcd if ext == ".pcd" else write_ply_vertices
+    write(file, fields)
+    scan = read_scan(file)
+    ring = fields.get("ring", fields.get("line"))
+    assert np.array_equal(scan.ring, ring.astype(np.int32))
+    assert scan.t == pytest.approx(t_true, abs=1e-12)
+    assert np.array_equal(scan.points[:, 0], fields["x"].astype(np.float64))
+
+
+def test_all_nan_points_of_an_organised_cloud_are_no_returns(tmp_path: Path) -> None:
+    fields, t_true = _driver_fields("velodyne", 30, np.random.default_rng(9))
+    no_return = np.zeros(30, bool)
+    no_return[[0, 7, 29]] = True
+    for c in "xyz":
+        fields[c][no_return] = np.nan
+    write_pcd(tmp_path / "org.pcd", fields)
+    scan = read_scan(tmp_path / "org.pcd")
+    assert len(scan) == 27
+    assert np.array_equal(scan.points[:, 1], fields["y"][~no_return].astype(np.float64))
+    assert np.array_equal(scan.ring, fields["ring"][~no_return].astype(np.int32))
+    assert scan.t == pytest.approx(t_true[~no_return], abs=0)
+
+
+def test_times_in_another_unit_name_field_and_unit(tmp_path: Path) -> None:
+    fields, _ = _driver_fields("velodyne", 10, np.random.default_rng(2))
+    fields["time"] = fields["time"] * np.float32(1e6)  # microseconds in a float field
+    write_pcd(tmp_path / "us.pcd", fields)
+    with pytest.raises(DatasetError, match=r"us\.pcd: \d+ of 10 point times 'time' \(read as s\)"):
+        read_scan(tmp_path / "us.pcd")
