@@ -10,7 +10,8 @@ open3d (``o3d.t.io``, checked on 0.19 / 0.20), which guesses where it should ref
   is returned at full size, padded with garbage, with a log warning only;
 - it reads and writes no zero-point PCD (an epoch that saw nothing is valid here).
 
-So every count is checked here: ``WIDTH * HEIGHT`` against ``POINTS``, the number of
+So every count is checked here: ``WIDTH * HEIGHT`` against ``POINTS`` (``WIDTH 0``
+and ``HEIGHT 0``, left unset by some writers, read as an unorganised cloud), the number of
 ASCII lines and values per line, the binary body's size to the byte. Only
 ``binary_compressed`` (LZF) bodies are decoded by open3d, after the sizes stated in the
 file are checked against the header, and its point count is checked again.
@@ -88,6 +89,8 @@ def _header(path: Path, data: bytes) -> tuple[_Header, int]:
         ) from None
     if not len(names) == len(codes) == len(counts) or min(counts, default=0) < 1 or n < 0:
         raise DatasetError(f"{path}: PCD header FIELDS / SIZE / TYPE / COUNT do not match")
+    if width == height == 0:  # a writer that left them unset (nebula's scans): unorganised
+        width, height = n, 1
     if width * height != n:
         raise DatasetError(f"{path}: PCD header WIDTH {width} x HEIGHT {height} is not POINTS {n}")
     mode = entries["DATA"][0] if entries["DATA"] else ""

@@ -294,3 +294,22 @@ def test_times_in_another_unit_name_field_and_unit(tmp_path: Path) -> None:
     write_pcd(tmp_path / "us.pcd", fields)
     with pytest.raises(DatasetError, match=r"us\.pcd: \d+ of 10 point times 'time' \(read as s\)"):
         read_scan(tmp_path / "us.pcd")
+
+
+def test_pcd_with_width_and_height_left_unset_is_unorganised(tmp_path: Path) -> None:
+    """nebula (TIER IV's lidar drivers) saves scans with ``WIDTH 0`` / ``HEIGHT 0``."""
+    write_pcd(
+        tmp_path / "a.pcd", {c: np.arange(4, dtype=np.float32) + i for i, c in enumerate("xyz")}
+    )
+    data = (tmp_path / "a.pcd").read_bytes()
+    unset = data.replace(b"WIDTH 4\nHEIGHT 1\n", b"WIDTH 0\nHEIGHT 0\n")
+    assert unset != data
+    (tmp_path / "b.pcd").write_bytes(unset)
+    assert np.array_equal(
+        read_scan(tmp_path / "b.pcd").points, read_scan(tmp_path / "a.pcd").points
+    )
+    (tmp_path / "c.pcd").write_bytes(data.replace(b"WIDTH 4\nHEIGHT 1\n", b"WIDTH 0\nHEIGHT 1\n"))
+    with pytest.raises(
+        DatasetError, match=r"c\.pcd: PCD header WIDTH 0 x HEIGHT 1 is not POINTS 4"
+    ):
+        read_scan(tmp_path / "c.pcd")
