@@ -156,10 +156,11 @@ def select_topics(reader: AnyReader, path: Path, topics: Sequence[str] | None) -
     if topics is None:
         chosen = [name for name in scans if available[name].msgcount > 0]
         if not chosen:
-            shown = ", ".join(sorted(available)) or "none"
+            shown = ", ".join(f"{n} ({available[n].msgtype})" for n in sorted(available))
             raise DatasetError(
                 f"{path}: no sensor_msgs/LaserScan or sensor_msgs/PointCloud2 topic with "
-                f"messages (topics: {shown})"
+                f"messages (topics: {shown or 'none'}); raw packets or a vendor's point "
+                "message must first be decoded to PointCloud2 by the lidar's ROS driver"
             )
         return chosen
     for name in topics:

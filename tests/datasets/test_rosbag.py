@@ -202,7 +202,8 @@ def test_bag_without_scan_topics(tmp_path: Path) -> None:
     with pytest.raises(DatasetError) as exc:
         open_bag(tmp_path / "b")
     message = one_line(exc)
-    assert "no sensor_msgs/LaserScan" in message and "/odom" in message
+    assert "no sensor_msgs/LaserScan" in message and "/odom (nav_msgs/msg/Odometry)" in message
+    assert "decoded to PointCloud2" in message  # what a bag of raw lidar packets needs
 
 
 @pytest.mark.parametrize("topic", ["/scan_top", "/odom"])
