@@ -159,7 +159,13 @@ class TfTree:
             if any(frame_name(source) in e for e in self.moving)
             else "no static transform chain"
         )
+        hint = ""
+        if frame_name(target) not in known:  # e.g. a single lidar's bag without any tf
+            hint = (
+                f"; '{frame_name(target)}' is in no transform of the bag: choose another base "
+                f"frame (--base-frame), such as the sensor's own '{frame_name(source)}'"
+            )
         raise DatasetError(
             f"{where}: no transform from frame '{frame_name(source)}' to base frame "
-            f"'{frame_name(target)}' in /tf_static or /tf ({why}; frames: {shown or 'none'})"
+            f"'{frame_name(target)}' in /tf_static or /tf ({why}; frames: {shown or 'none'})" + hint
         )

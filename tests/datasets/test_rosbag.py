@@ -276,3 +276,26 @@ def test_odometry_on_a_lidar_bag(tmp_path: Path) -> None:
                          zip(est, gt, strict=True)])  # fmt: skip
         assert errors[:, :3].max() < np.deg2rad(0.1)  # roll, pitch, yaw
         assert errors[:, 3:].max() < 0.01  # x, y (m)
+
+
+def test_single_lidar_bag_without_tf_reads_in_the_sensor_frame(tmp_path: Path) -> None:
+    """A bag of one lidar and no tf (common from a bare driver): the error names the way out,
+    and with the sensor's frame as base frame its points are the sensor's own."""
+    lidar = [Sensor("/velodyne_points", "lidar", 0, "velodyne")]
+    write_bag(tmp_path / "tf", 2, lidar, STATIC_TF, T_BASE, odom=False)
+    write_bag(tmp_path / "notf", 2, lidar, [], T_BASE, odom=False)
+    with pytest.raises(DatasetError) as exc:
+        open_bag(tmp_path / "notf")
+    message = one_line(exc)
+    assert "'base_link' is in no transform of the bag" in message
+    assert "--base-frame" in message and "'lidar'" in message
+    with (
+        open_bag(tmp_path / "tf") as with_tf,
+        open_bag(tmp_path / "notf", BagOptions(base_frame="lidar")) as bare,
+    ):
+        assert len(bare) == len(with_tf) > 0
+        for k in range(len(bare)):
+            own, base = bare[k], with_tf[k]
+            in_base = own.points @ T_BASE["lidar"][:3, :3].T + T_BASE["lidar"][:3, 3]
+            assert np.abs(in_base - base.points).max() < 1e-9
+            assert np.array_equal(own.t, base.t) and np.array_equal(own.ring, base.ring)
