@@ -113,6 +113,33 @@ def _report_skipped(data: ScanEpochs, metrics: dict) -> None:
         metrics["skipped_scans"] = data.skipped
 
 
+def _report_beyond_bounds(odo, metrics: dict) -> None:
+    """Warn of (and list in metrics.json) epochs whose estimated step exceeds the motion
+    bounds the association assumed: there the odometry has most likely lost track, which
+    its statuses alone may not show (seen on a hand-held VLP-16 walk: 'ok' epochs of 9 m)."""
+    import numpy as np
+
+    from planodom.geometry import invert_transform, se3_log
+
+    if odo.config is None or len(odo.poses) < 2:
+        return
+    a = odo.config.association
+    steps = invert_transform(odo.poses[:-1]) @ odo.poses[1:]
+    metres = np.linalg.norm(steps[:, :3, 3], axis=1)
+    degrees = np.degrees(np.linalg.norm(se3_log(steps)[:, :3], axis=1))
+    beyond = np.flatnonzero((metres > a.max_translation_m) | (degrees > a.max_rotation_deg))
+    if len(beyond):
+        k = int(beyond[0])
+        warn(
+            f"{len(beyond)} epoch(s) moved more than the association's motion bounds "
+            f"({a.max_translation_m:g} m, {a.max_rotation_deg:g} deg; first: epoch {k + 1}, "
+            f"{metres[k]:.2f} m, {degrees[k]:.1f} deg): the odometry has probably lost track "
+            "there (listed in metrics.json); if the platform is that fast, raise "
+            "motion_bounds in rig.yaml"
+        )
+        metrics["epochs_beyond_motion_bounds"] = [int(e) + 1 for e in beyond]
+
+
 def _write_pictures(folder: Path, data: ScanEpochs, odo, sm=None, name: str = "") -> None:
     """``covariances.npz`` and the three pictures of a run (and of its smoothing ``sm``)."""
     from planodom.covariances import FILE, odometry_covariances, write_covariances
@@ -166,6 +193,7 @@ def run(
         metrics = results.odometry_metrics(odo, data.gt_poses)
         metrics |= results.kitti_metrics(odo.poses, data.gt_poses, data.Tr)
         _report_skipped(data, metrics)
+        _report_beyond_bounds(odo, metrics)
         results.write_odometry_run(folder.tmp, odo, metrics, data.Tr)
         _write_pictures(folder.tmp, data, odo, name="planodom run")
     console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
@@ -250,6 +278,7 @@ def smooth(
         odo_metrics = results.odometry_metrics(sm.odometry, data.gt_poses)
         odo_metrics |= results.kitti_metrics(sm.odometry.poses, data.gt_poses, data.Tr)
         _report_skipped(data, odo_metrics)
+        _report_beyond_bounds(sm.odometry, odo_metrics)
         results.write_odometry_run(folder.tmp, sm.odometry, odo_metrics, data.Tr)
         results.write_trajectory(folder.tmp, sm.times, sm.poses, data.Tr)  # the output
         results.write_tum(folder.tmp / "odometry.tum", sm.times, sm.odometry.poses)

@@ -1,0 +1,46 @@
+"""The CLI's warning for epochs whose estimated step exceeds the association's motion bounds."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from planodom.cli import _report_beyond_bounds
+from planodom.config import PlanodomConfig
+
+
+def _chain(steps: list[tuple[float, float]]) -> np.ndarray:
+    """Poses from steps of (metres along a tilted axis, degrees about another axis)."""
+    axis = np.array([0.6, 0.0, 0.8])
+    poses = [np.eye(4)]
+    for metres, degrees in steps:
+        step = np.eye(4)
+        step[:3, :3] = Rotation.from_rotvec(
+            np.radians(degrees) * np.array([0, 0.6, 0.8])
+        ).as_matrix()
+        step[:3, 3] = metres * axis
+        poses.append(poses[-1] @ step)
+    return np.array(poses)
+
+
+def test_epochs_beyond_the_bounds_are_listed_and_warned(capsys: pytest.CaptureFixture) -> None:
+    config = PlanodomConfig().updated(
+        {"association.max_translation_m": 1.0, "association.max_rotation_deg": 20.0}
+    )
+    # epochs 1..5: within, too far, too much turn, within (just), both
+    poses = _chain([(0.5, 5.0), (1.5, 0.0), (0.2, 25.0), (0.99, 19.9), (3.0, 40.0)])
+    metrics: dict = {}
+    _report_beyond_bounds(SimpleNamespace(poses=poses, config=config), metrics)
+    assert metrics["epochs_beyond_motion_bounds"] == [2, 3, 5]
+    err = capsys.readouterr().err
+    assert "3 epoch(s) moved more than" in err and "epoch 2, 1.50 m, 0.0 deg" in err
+
+
+def test_a_run_within_the_bounds_adds_nothing(capsys: pytest.CaptureFixture) -> None:
+    metrics: dict = {}
+    poses = _chain([(0.9, 10.0)] * 4)
+    _report_beyond_bounds(SimpleNamespace(poses=poses, config=PlanodomConfig()), metrics)
+    assert metrics == {} and capsys.readouterr().err == ""
