@@ -37,9 +37,9 @@ POSE_TYPES = (ODOMETRY, POSE_STAMPED, POSE_COV_STAMPED, TRANSFORM_STAMPED)
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 
 #: Names of a per-point ring (scan line) field, first present wins.
-RING_FIELDS = ("ring", "line")
+RING_FIELDS = ("ring", "line", "channel")
 #: Names of a per-point time field, first present wins.
-TIME_FIELDS = ("t", "time", "timestamp", "offset_time")
+TIME_FIELDS = ("t", "time", "timestamp", "offset_time", "time_stamp")  # last: nebula's
 #: Largest per-point time (s) from a sweep's stamp: a lidar sweep lasts a fraction of a
 #: second (a non-repetitive Livox integrates up to about one), and a driver stamps it at its
 #: start or end; times beyond this are a unit the rules above do not cover (milliseconds,

@@ -3,7 +3,8 @@
 Stored per point: ``x y z`` (float32 or float64, metres), optional ``ring`` (int32),
 ``t`` (float64, seconds from the epoch's reference time) and ``label`` (int32). Other
 properties (intensity, colour, ...) are ignored on reading. Files saved by other tools
-name these fields as the lidar drivers do: the ring may be ``ring`` or ``line`` (Livox),
+name these fields as the lidar drivers do: the ring may be ``ring``, ``line`` (Livox) or
+``channel`` (nebula),
 of any integer type; the time ``t``, ``time`` (Velodyne) or ``offset_time`` (Livox), first
 present wins, in seconds when a float and in nanoseconds when an integer (Ouster's ``t``,
 Livox's ``offset_time``), as in a ROS PointCloud2 (:mod:`planodom.datasets.bag_msgs`).
@@ -37,7 +38,7 @@ SCAN_EXTENSIONS = (".ply", ".pcd", ".bin")
 #: File extensions of scan files that can be written.
 WRITABLE_EXTENSIONS = (".ply", ".pcd")
 #: Names of the ring field in a file, first present wins.
-RING_FIELDS = ("ring", "line")
+RING_FIELDS = ("ring", "line", "channel")
 #: Names of the per-point time field in a file, first present wins.
 TIME_FIELDS = ("t", "time", "offset_time")
 #: Optional per-point fields and their dtypes in a :class:`Scan`.

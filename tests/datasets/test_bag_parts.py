@@ -131,6 +131,25 @@ def test_times_in_another_unit_are_refused_naming_the_field(times: list, shown: 
         decode_sweep(_livox2_cloud(times, 10**18), POINT_CLOUD2)
 
 
+@pytest.mark.parametrize("ring_name, code", [("ring", 8), ("channel", 6)])
+def test_nebula_time_stamp_field(ring_name: str, code: int) -> None:
+    """TIER IV's nebula drivers: XYZIRADT with ``ring`` and ``time_stamp`` absolute float64
+    seconds; XYZIRCAEDT with ``channel`` and ``time_stamp`` uint32 ns offsets."""
+    stamp = 1_673_400_472 * 10**9 + 138 * MS
+    fmt = "<f8" if code == 8 else "<u4"
+    dtype = np.dtype({"names": ["x", "y", "z", ring_name, "time_stamp"],
+                      "formats": ["<f4", "<f4", "<f4", "<u2", fmt],
+                      "offsets": [0, 4, 8, 12, 16], "itemsize": 24})  # fmt: skip
+    rows = np.zeros(2, dtype=dtype)
+    rows["x"], rows[ring_name] = [1.0, 2.0], [5, 9]
+    offsets_ns = np.array([1_000, 55_500_000])
+    rows["time_stamp"] = (stamp + offsets_ns) * 1e-9 if code == 8 else offsets_ns
+    fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), (ring_name, 12, 4), ("time_stamp", 16, code)]
+    _, ring, dt, rings = decode_sweep(cloud(fields, rows, 24, stamp), POINT_CLOUD2)
+    assert ring.tolist() == [5, 9] and rings == 10
+    assert dt == pytest.approx(offsets_ns * 1e-9, abs=1e-6)
+
+
 def test_cloud_that_does_not_fit_its_data() -> None:
     rows = np.zeros(2, dtype=np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4")]))
     msg = cloud([("x", 0, 7), ("y", 4, 7), ("z", 8, 7)], rows, 12, 0)

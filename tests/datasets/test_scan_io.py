@@ -239,7 +239,7 @@ def test_pcd_with_other_extra_bytes_is_still_refused(tmp_path: Path, tail: str) 
 # ------------------------------------------------------------ fields as lidar drivers name them
 
 
-def _driver_fields(layout: str, n: int, rng: np.random.Generator) -> tuple[dict, np.ndarray]:
+def _driver_fields(layout: str, n: int, rng: np.random.Generator) -> tuple[dict, np.ndarray | None]:
     """Fields as a driver's cloud saved to a file has them, and the true times (s)."""
     xyz = rng.uniform(-20, 20, (n, 3)).astype(np.float32)
     t_true = np.sort(rng.uniform(0, 0.1, n))
@@ -253,6 +253,10 @@ def _driver_fields(layout: str, n: int, rng: np.random.Generator) -> tuple[dict,
         fields["t"] = np.round(t_true * 1e9).astype(np.uint32)
         fields["ring"] = rng.integers(0, 128, n).astype(np.uint16)
         t_true = fields["t"] * 1e-9
+    elif layout == "nebula":  # channel uint16; its absolute time_stamp is not a time field
+        fields["channel"] = rng.integers(0, 32, n).astype(np.uint16)
+        fields["time_stamp"] = 1.5e9 + t_true
+        t_true = None
     else:  # livox: line uint8, offset_time uint32 ns
         fields["line"] = rng.integers(0, 6, n).astype(np.uint8)
         fields["offset_time"] = np.round(t_true * 1e9).astype(np.uint32)
@@ -261,16 +265,19 @@ def _driver_fields(layout: str, n: int, rng: np.random.Generator) -> tuple[dict,
 
 
 @pytest.mark.parametrize("ext", [".pcd", ".ply"])
-@pytest.mark.parametrize("layout", ["velodyne", "ouster", "livox"])
+@pytest.mark.parametrize("layout", ["velodyne", "ouster", "livox", "nebula"])
 def test_time_and_ring_fields_named_as_drivers_do(tmp_path: Path, ext: str, layout: str) -> None:
     fields, t_true = _driver_fields(layout, 40, np.random.default_rng(8))
     file = tmp_path / f"scan{ext}"
     write = write_pcd if ext == ".pcd" else write_ply_vertices
     write(file, fields)
     scan = read_scan(file)
-    ring = fields.get("ring", fields.get("line"))
+    ring = next(fields[n] for n in ("ring", "line", "channel") if n in fields)
     assert np.array_equal(scan.ring, ring.astype(np.int32))
-    assert scan.t == pytest.approx(t_true, abs=1e-12)
+    if t_true is None:
+        assert scan.t is None
+    else:
+        assert scan.t == pytest.approx(t_true, abs=1e-12)
     assert np.array_equal(scan.points[:, 0], fields["x"].astype(np.float64))
 
 
