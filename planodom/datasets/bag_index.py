@@ -25,6 +25,7 @@ from rosbags.rosbag2 import ReaderError as Reader2Error
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 
+from planodom.datasets.bag_livox import register_livox_types
 from planodom.datasets.bag_msgs import (
     LASER_SCAN,
     POSE_TYPES,
@@ -102,7 +103,9 @@ def bag_errors(path: Path, what: str = "cannot read bag") -> Iterator[None]:
 def open_reader(path: Path) -> AnyReader:
     """An opened AnyReader on the bag at ``path`` (from :func:`bag_location`)."""
     with bag_errors(path):
-        reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
+        typestore = get_typestore(Stores.LATEST)
+        register_livox_types(typestore)  # a ROS 2 bag may not carry their definitions
+        reader = AnyReader([path], default_typestore=typestore)
         reader.open()
     return reader
 

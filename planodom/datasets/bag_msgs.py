@@ -16,6 +16,8 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
   nanoseconds). A sweep whose times then lie more than :data:`MAX_SWEEP_OFFSET_S` from its
   stamp is refused: its field is in a unit these rules do not cover. Points with a
   non-finite coordinate or exactly at the origin (a common no-return marker) are dropped.
+- Livox's ``CustomMsg`` (:mod:`planodom.datasets.bag_livox`): ring ``line``, times from
+  ``timebase`` and ``offset_time``.
 """
 
 from __future__ import annotations
@@ -24,11 +26,12 @@ from typing import Any
 
 import numpy as np
 
+from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
-SCAN_TYPES = (LASER_SCAN, POINT_CLOUD2)
+SCAN_TYPES = (LASER_SCAN, POINT_CLOUD2, *LIVOX_CUSTOM)
 ODOMETRY = "nav_msgs/msg/Odometry"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 POSE_COV_STAMPED = "geometry_msgs/msg/PoseWithCovarianceStamped"
@@ -68,6 +71,8 @@ def decode_sweep(msg: Any, msgtype: str) -> tuple[np.ndarray, np.ndarray | None,
             return _decode_laser_scan(msg)
         if msgtype == POINT_CLOUD2:
             return _decode_cloud(msg)
+        if msgtype in LIVOX_CUSTOM:
+            return decode_livox(msg, stamp_ns(msg.header))
     raise ValueError(f"{msgtype} is not a scan message")
 
 
