@@ -138,6 +138,15 @@ GtTopic = Annotated[
         "TransformStamped topic, or tf:PARENT:CHILD), interpolated at the epoch times.",
     ),
 ]
+TimeField = Annotated[
+    str,
+    typer.Option(
+        "--time-field",
+        help="Bags: the clouds' per-point time field: auto (t, time, timestamp, offset_time, "
+        "time_stamp), none (ignore them: e.g. a sensor clock that is not the stamps'), or a "
+        "field name.",
+    ),
+]
 Scenario = Annotated[
     str | None,
     typer.Option(
@@ -244,12 +253,15 @@ class Source:
     epoch_rate: float = 10.0
     topic: list[str] | None = None
     gt_topic: str | None = None
+    time_field: str = "auto"
 
     def bag_options(self) -> Any:
         """The :class:`~planodom.datasets.bag_options.BagOptions` of the bag options."""
         from planodom.datasets.bag_options import BagOptions
 
-        return BagOptions.of(self.base_frame, self.epoch_rate, self.topic, self.gt_topic)
+        return BagOptions.of(
+            self.base_frame, self.epoch_rate, self.topic, self.gt_topic, self.time_field
+        )
 
     def check(self) -> None:
         from planodom.errors import ConfigError
@@ -290,6 +302,7 @@ _SOURCE_OPTIONS = (
     ("epoch_rate", EpochRate, 10.0),
     ("topic", Topics, None),
     ("gt_topic", GtTopic, None),
+    ("time_field", TimeField, "auto"),
 )
 
 

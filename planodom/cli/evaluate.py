@@ -14,6 +14,7 @@ from planodom.cli.common import (
     GtTopic,
     OutDir,
     Overwrite,
+    TimeField,
     Topics,
     app,
     console,
@@ -87,6 +88,7 @@ def convert(
     epoch_rate: EpochRate = 10.0,
     topic: Topics = None,
     gt_topic: GtTopic = None,
+    time_field: TimeField = "auto",
     overwrite: Annotated[bool, typer.Option(help="Replace a dataset at DATASET.")] = False,
 ) -> None:
     """Convert a bag into the dataset format (scans/*.ply with ring and t, rig.yaml, and
@@ -96,7 +98,7 @@ def convert(
     from planodom.datasets.bag_options import BagOptions
     from planodom.datasets.rosbag import convert_bag
 
-    options = BagOptions.of(base_frame, epoch_rate, topic, gt_topic)
+    options = BagOptions.of(base_frame, epoch_rate, topic, gt_topic, time_field)
     with console.status(f"converting {bag}"):
         c = convert_bag(bag, dataset, options, overwrite=overwrite)
     table = Table(title=f"{c.bag} -> {c.out_dir}", show_header=False)

@@ -206,7 +206,11 @@ def parse_gt(reader: AnyReader, path: Path, gt_topic: str | None) -> tuple[str, 
 
 
 def index_bag(
-    reader: AnyReader, path: Path, topics: Sequence[str] | None, gt_topic: str | None
+    reader: AnyReader,
+    path: Path,
+    topics: Sequence[str] | None,
+    gt_topic: str | None,
+    time_field: str = "auto",
 ) -> BagIndex:
     """One streaming pass over the scan, tf and reference messages of an opened bag."""
     names = select_topics(reader, path, topics)
@@ -228,7 +232,7 @@ def index_bag(
             elif conn.topic in topic_of:
                 k = topic_of[conn.topic]
                 rows.extend((k, bag_time, stamp_ns(msg.header) or bag_time))
-                _note_sweep(index[k], msg, path)
+                _note_sweep(index[k], msg, path, time_field)
             else:
                 with _message_errors(path, conn.topic):
                     stamp, T, _, child = decode_pose(msg, conn.msgtype)
@@ -274,7 +278,7 @@ def _message_errors(path: Path, topic: str) -> Iterator[None]:
         raise DatasetError(f"{path}: topic '{topic}': {exc}") from None
 
 
-def _note_sweep(topic: TopicIndex, msg: Any, path: Path) -> None:
+def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str) -> None:
     """Record a sweep's frame and, for a cloud, its largest ring."""
     frame = frame_name(msg.header.frame_id)
     if not frame:
@@ -285,5 +289,5 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path) -> None:
         topic.rings = 1
         return
     with _message_errors(path, topic.name):
-        _, _, _, rings = decode_sweep(msg, topic.msgtype)
+        _, _, _, rings = decode_sweep(msg, topic.msgtype, time_field)
     topic.rings = max(topic.rings, rings)

@@ -57,11 +57,15 @@ def stamp_ns(header: Any) -> int:
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
-def decode_sweep(msg: Any, msgtype: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
+def decode_sweep(
+    msg: Any, msgtype: str, time_field: str = "auto"
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
     """One sweep in its sensor frame: ``(points (n, 3), ring (n,) int32 or None, dt (n,), rings)``.
 
     ``dt`` is float64 seconds after ``header.stamp``; ``rings`` the ring count (1 for a
-    LaserScan, max ring + 1 for a cloud with a ring field, 0 without one).
+    LaserScan, max ring + 1 for a cloud with a ring field, 0 without one). ``time_field``
+    (:class:`~planodom.datasets.bag_options.BagOptions`): ``"auto"``, ``"none"`` (every
+    point at the stamp) or the name of a cloud's time field.
 
     Raises:
         ValueError: a malformed message (one line, the caller adds the topic).
@@ -70,9 +74,10 @@ def decode_sweep(msg: Any, msgtype: str) -> tuple[np.ndarray, np.ndarray | None,
         if msgtype == LASER_SCAN:
             return _decode_laser_scan(msg)
         if msgtype == POINT_CLOUD2:
-            return _decode_cloud(msg)
+            return _decode_cloud(msg, time_field)
         if msgtype in LIVOX_CUSTOM:
-            return decode_livox(msg, stamp_ns(msg.header))
+            points, ring, dt, rings = decode_livox(msg, stamp_ns(msg.header))
+            return points, ring, np.zeros_like(dt) if time_field == "none" else dt, rings
     raise ValueError(f"{msgtype} is not a scan message")
 
 
@@ -118,7 +123,9 @@ def _cloud_array(msg: Any) -> np.ndarray:
     return rows[0] if height == 1 else np.concatenate(rows)
 
 
-def _decode_cloud(msg: Any) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
+def _decode_cloud(
+    msg: Any, time_field: str
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
     cloud = _cloud_array(msg)
     names = cloud.dtype.names or ()
     missing = [c for c in "xyz" if c not in names]
@@ -135,7 +142,7 @@ def _decode_cloud(msg: Any) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, 
             raise ValueError(f"PointCloud2 field '{ring_name}' has negative values")
         rings = int(ring.max()) + 1 if len(ring) else 0
         ring = ring.astype(np.int32)
-    time_name = next((n for n in TIME_FIELDS if n in names), None)
+    time_name = _time_name(names, time_field)
     dt = np.zeros(int(valid.sum()))
     if time_name is not None:
         dt = _relative_times(cloud[time_name][valid], stamp_ns(msg.header))
@@ -145,9 +152,22 @@ def _decode_cloud(msg: Any) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, 
             raise ValueError(
                 f"PointCloud2 time field '{time_name}' ({cloud[time_name].dtype}) puts a point "
                 f"{worst:.6g} s from the stamp, beyond {MAX_SWEEP_OFFSET_S:g} s: not seconds or "
-                "nanoseconds (offsets, or since the Unix epoch)"
+                "nanoseconds (offsets, or since the Unix epoch); --time-field none ignores it"
             )
     return points[valid], ring, dt, rings
+
+
+def _time_name(names: tuple[str, ...], time_field: str) -> str | None:
+    """The cloud's time field to read (None: no per-point times)."""
+    if time_field == "none":
+        return None
+    if time_field == "auto":
+        return next((n for n in TIME_FIELDS if n in names), None)
+    if time_field not in names:
+        raise ValueError(
+            f"PointCloud2 has no time field '{time_field}' (fields: {', '.join(names)})"
+        )
+    return time_field
 
 
 def _relative_times(values: np.ndarray, stamp: int) -> np.ndarray:

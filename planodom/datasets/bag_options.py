@@ -1,6 +1,6 @@
 """How a bag is read: :class:`BagOptions`, shared by :func:`~planodom.datasets.rosbag.open_bag`,
 :func:`~planodom.datasets.rosbag.convert_bag`, :func:`~planodom.datasets.recording.open_recording`
-and the CLI (``--base-frame``, ``--epoch-rate``, ``--topic``, ``--gt-topic``)."""
+and the CLI (``--base-frame``, ``--epoch-rate``, ``--topic``, ``--gt-topic``, ``--time-field``)."""
 
 from __future__ import annotations
 
@@ -25,12 +25,16 @@ class BagOptions:
         topics: scan topics to read, in ring order (empty: every LaserScan / PointCloud2
             topic with messages, sorted by name).
         gt_topic: reference trajectory: a pose topic or ``"tf:PARENT:CHILD"`` (None: none).
+        time_field: the clouds' per-point time field: ``"auto"`` (the first of
+            :data:`~planodom.datasets.bag_msgs.TIME_FIELDS` present), ``"none"`` (ignore
+            per-point times, e.g. a sensor clock that is not the stamps'), or a field name.
     """
 
     base_frame: str = DEFAULT_BASE_FRAME
     epoch_rate: float = DEFAULT_EPOCH_RATE
     topics: tuple[str, ...] = field(default=())
     gt_topic: str | None = None
+    time_field: str = "auto"
 
     def __post_init__(self) -> None:
         # a list (or a CLI's repeated option) becomes a tuple: the options stay hashable
@@ -38,6 +42,10 @@ class BagOptions:
         rate = self.epoch_rate
         if not (isinstance(rate, int | float) and math.isfinite(rate) and rate > 0):
             raise DatasetError(f"epoch rate must be a positive number of Hz, got {rate!r}")
+        if not (isinstance(self.time_field, str) and self.time_field.strip()):
+            raise DatasetError(
+                f"time field must be auto, none or a field name, got {self.time_field!r}"
+            )
 
     @classmethod
     def of(
@@ -46,9 +54,10 @@ class BagOptions:
         epoch_rate: float = DEFAULT_EPOCH_RATE,
         topics: Sequence[str] | None = None,
         gt_topic: str | None = None,
+        time_field: str = "auto",
     ) -> BagOptions:
         """The options from possibly-None values (as a command line gives them)."""
-        return cls(base_frame, epoch_rate, tuple(topics or ()), gt_topic)
+        return cls(base_frame, epoch_rate, tuple(topics or ()), gt_topic, time_field)
 
     def given(self) -> list[str]:
         """Names of the options that differ from their defaults."""

@@ -107,9 +107,16 @@ class BagDataset:
     """
 
     def __init__(
-        self, path: Path, base_frame: str, epoch_rate: float, index: BagIndex, gt_topic: str | None
+        self,
+        path: Path,
+        base_frame: str,
+        epoch_rate: float,
+        index: BagIndex,
+        gt_topic: str | None,
+        time_field: str = "auto",
     ) -> None:
         self.path = path
+        self.time_field = time_field
         self.base_frame = frame_name(base_frame)
         self.epoch_rate = float(epoch_rate)
         self.gt_topic = gt_topic
@@ -225,7 +232,7 @@ class BagDataset:
         for k, stamp, msg in sorted(sweeps, key=lambda s: (s[0], s[1])):
             topic = self.topics[k]
             try:
-                pts, ring, dt, _ = decode_sweep(msg, topic.msgtype)
+                pts, ring, dt, _ = decode_sweep(msg, topic.msgtype, self.time_field)
             except ValueError as exc:
                 raise DatasetError(f"{self.path}: topic '{topic.name}': {exc}") from None
             if ring is not None:
@@ -303,13 +310,15 @@ def open_bag(path: str | Path, options: BagOptions | None = None) -> BagDataset:
     location = bag_location(path)
     reader = open_reader(location)
     try:
-        index = index_bag(reader, location, opts.topic_list, opts.gt_topic)
+        index = index_bag(reader, location, opts.topic_list, opts.gt_topic, opts.time_field)
     finally:
         with bag_errors(location):
             reader.close()
     if len(index.sweep_stamp) == 0:
         raise DatasetError(f"{location}: no messages on the scan topics")
-    return BagDataset(location, opts.base_frame, opts.epoch_rate, index, opts.gt_topic)
+    return BagDataset(
+        location, opts.base_frame, opts.epoch_rate, index, opts.gt_topic, opts.time_field
+    )
 
 
 @dataclass(frozen=True)

@@ -189,3 +189,23 @@ def test_files_dropped_beside_a_bag_are_not_bags(tmp_path: Path) -> None:
 
     (tmp_path / "x.db3").write_bytes(b"")
     assert not is_bag(tmp_path) and not is_bag(tmp_path / "x.db3")
+
+
+def test_time_field_option_none_named_and_missing() -> None:
+    """A sensor clock that is not the stamps' (nebula's Hesai scans: 1.7e8 s off) is refused
+    with the way out; ``none`` ignores it; a named field is read instead of the first."""
+    stamp = 1_673_401_196 * 10**9
+    dtype = np.dtype({"names": ["x", "y", "z", "t", "time_stamp"],
+                      "formats": ["<f4", "<f4", "<f4", "<f4", "<f8"],
+                      "offsets": [0, 4, 8, 12, 16], "itemsize": 24})  # fmt: skip
+    rows = np.zeros(2, dtype=dtype)
+    rows["x"], rows["t"] = [1.0, 2.0], [0.0, 0.05]
+    rows["time_stamp"] = [1_504_708_283.0, 1_504_708_283.02]  # the lidar's own clock
+    fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("t", 12, 7), ("time_stamp", 16, 8)]
+    msg = cloud(fields, rows, 24, stamp)
+    assert decode_sweep(msg, POINT_CLOUD2)[2] == pytest.approx([0.0, 0.05])  # auto: 't'
+    with pytest.raises(ValueError, match="'time_stamp' .*--time-field none ignores it"):
+        decode_sweep(msg, POINT_CLOUD2, "time_stamp")
+    assert decode_sweep(msg, POINT_CLOUD2, "none")[2].tolist() == [0.0, 0.0]
+    with pytest.raises(ValueError, match="no time field 'offset_time' .*x, y, z, t, time_stamp"):
+        decode_sweep(msg, POINT_CLOUD2, "offset_time")

@@ -299,3 +299,17 @@ def test_single_lidar_bag_without_tf_reads_in_the_sensor_frame(tmp_path: Path) -
             in_base = own.points @ T_BASE["lidar"][:3, :3].T + T_BASE["lidar"][:3, 3]
             assert np.abs(in_base - base.points).max() < 1e-9
             assert np.array_equal(own.t, base.t) and np.array_equal(own.ring, base.ring)
+
+
+def test_time_field_none_puts_every_point_at_its_sweep_stamp(tmp_path: Path) -> None:
+    lidar = [Sensor("/velodyne_points", "lidar", 0, "velodyne")]
+    write_bag(tmp_path / "b", 2, lidar, STATIC_TF, T_BASE, odom=False)
+    with (
+        open_bag(tmp_path / "b") as timed,
+        open_bag(tmp_path / "b", BagOptions(time_field="none")) as flat,
+    ):
+        for k in range(len(flat)):
+            assert np.array_equal(flat[k].points, timed[k].points)
+            assert np.ptp(timed[k].t) > 0.05 and np.ptp(flat[k].t) == 0.0
+    with pytest.raises(DatasetError, match="time field must be auto, none or a field name"):
+        BagOptions(time_field=" ")
