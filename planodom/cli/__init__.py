@@ -287,8 +287,14 @@ def smooth(
         smoothed |= results.kitti_metrics(sm.poses, data.gt_poses, data.Tr)
         _write_pictures(folder.tmp, data, sm.odometry, sm, name=f"planodom smooth ({mode})")
         results.write_metrics(folder.tmp, {"odometry": odo_metrics, f"smoothing_{mode}": smoothed})
+    title = f"planodom smooth -> {folder.path}"
+    if data.gt_poses is None:  # nothing to compare: what the odometry under it did
+        from planodom.report import odometry_table
+
+        console.print(odometry_table(sm.odometry, odo_metrics, title=f"{title} (no reference)"))
+        return
     rows = {"odometry": odo_metrics, f"{mode} smoothing": smoothed}
-    console.print(comparison_table(rows, title=f"planodom smooth -> {folder.path}"))
+    console.print(comparison_table(rows, title=title))
 
 
 @app.command("config")

@@ -111,3 +111,13 @@ def test_scan_names_of_each_recording(bag: Path, tmp_path: Path) -> None:
     epochs = ScanEpochs(open_recording(bag))
     assert epochs.scan_name(2).startswith(f"{bag} epoch 2 (t = 1700000000.")
     epochs.close()
+
+
+def test_smooth_without_reference_reports_the_odometry(bag: Path, tmp_path: Path) -> None:
+    """No reference: not a table of dashes but what the odometry under the smoothing did."""
+    result = runner.invoke(app, ["smooth", str(bag), "--out", str(tmp_path / "s")])
+    assert result.exit_code == 0, result.output
+    assert "(no reference)" in result.output and "unresolved epochs" in result.output
+    odometry = list(csv.DictReader((tmp_path / "s" / "epochs.csv").open()))
+    epochs_row = next(line for line in result.output.splitlines() if "│ epochs " in line)
+    assert epochs_row.split("│")[2].strip() == str(len(odometry))
