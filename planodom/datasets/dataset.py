@@ -24,6 +24,13 @@ RIG_FILE = "rig.yaml"
 TIMES_FILE = "times.txt"
 #: Epoch period (s) when neither poses.tum nor rig.yaml's ``epoch_rate`` gives the times.
 DEFAULT_EPOCH_PERIOD = 0.1
+#: Largest span of a scan's point times, in epoch periods (the longer of the gaps to its
+#: neighbouring epochs). A scan is recorded between its neighbours' times, several sweeps
+#: at most; a span of ten periods or more is a unit error (a sweep's 100 ms written as
+#: 100 milliseconds read as seconds is a thousand), which deskewing would turn into
+#: nonsense. Not from data: any factor between the sweep overlap (about 1) and a unit
+#: step (1000) separates them.
+MAX_TIME_SPAN_PERIODS = 10.0
 
 
 class Dataset:
@@ -78,7 +85,22 @@ class Dataset:
                     f"{file}: ring ids {scan.ring.min()}..{scan.ring.max()} do not index the "
                     f"{len(origins)} sensor_origins of {rig_file}"
                 )
+        self._check_time_span(index % n, scan)
         return scan
+
+    def _check_time_span(self, index: int, scan: Scan) -> None:
+        """Refuse point times spanning :data:`MAX_TIME_SPAN_PERIODS` epoch periods or more."""
+        if scan.t is None or len(scan.t) == 0 or len(self.times) < 2:
+            return
+        gaps = np.diff(self.times[max(index - 1, 0) : index + 2])
+        period = float(np.max(np.abs(gaps)))
+        span = float(np.ptp(scan.t))
+        if period > 0 and span >= MAX_TIME_SPAN_PERIODS * period:
+            raise DatasetError(
+                f"{self.scan_files[index]}: point times ('t') span {span:g} s, "
+                f"{span / period:.0f} epoch periods of {period:g} s: the time field is in "
+                "another unit (milliseconds?); convert it to seconds"
+            )
 
     def __iter__(self) -> Iterator[Scan]:
         for k in range(len(self)):

@@ -213,3 +213,19 @@ def test_malformed_poses_in_dataset(tmp_path: Path) -> None:
     (root / "poses.tum").write_text("\n".join(lines) + "\n")
     with pytest.raises(DatasetError, match=r"poses\.tum:3: expected 8"):
         load_dataset(root)
+
+
+def test_point_times_in_another_unit_are_refused(tmp_path: Path) -> None:
+    # A 0.1 s sweep written in milliseconds spans 100 "seconds": a thousand epoch periods.
+    points = np.random.default_rng(3).normal(size=(50, 3))
+    sweep_s = np.linspace(0.0, 0.099, 50)
+    good = Scan(points, t=sweep_s)
+    bad = Scan(points, t=sweep_s * 1e3)
+    ds = write_dataset(tmp_path / "ds", [good, bad, good], [0.0, 0.1, 0.2])
+    np.testing.assert_array_equal(ds[0].t, sweep_s)
+    with pytest.raises(DatasetError, match=r"000001\.ply: point times \('t'\) span 99 s"):
+        ds[1]
+    # Several sweeps accumulated into one epoch are within a few periods: read as they are.
+    long = Scan(points, t=np.linspace(0.0, 0.5, 50))
+    ds = write_dataset(tmp_path / "ds5", [good, long, good], [0.0, 0.1, 0.2])
+    np.testing.assert_array_equal(ds[1].t, long.t)
