@@ -29,7 +29,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planodom.extraction.kernels import add_outer, range_moments
+from planodom.extraction.kernels import add_outer, median_nonnegative, range_moments
 
 
 def run_breaks(
@@ -112,12 +112,18 @@ def _breaks_kernel(pts, ring, t, has_t, med, sweep_gap_factor, min_gap_m, gap_ra
             dt = t[i] - t[i - 1]
             new = new or dt < 0 or (med > 0 and dt > sweep_gap_factor * med)
         sweep_start[i] = new
+        if new:
+            continue  # run_start[i] is True already
         d0 = pts[i, 0] - pts[i - 1, 0]
         d1 = pts[i, 1] - pts[i - 1, 1]
         d2 = pts[i, 2] - pts[i - 1, 2]
         step = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        rng = np.sqrt(pts[i, 0] ** 2 + pts[i, 1] ** 2 + pts[i, 2] ** 2)
-        run_start[i] = new or step > max(min_gap_m, gap_range_ratio * rng)
+        # the range only where it can decide: a step within min_gap_m is never a gap
+        gap = step > min_gap_m
+        if gap:
+            rng = np.sqrt(pts[i, 0] ** 2 + pts[i, 1] ** 2 + pts[i, 2] ** 2)
+            gap = step > max(min_gap_m, gap_range_ratio * rng)
+        run_start[i] = gap
     return run_start, sweep_start
 
 
@@ -302,4 +308,4 @@ def estimate_line_noise_2d(x, y, run_start):  # pragma: no cover - compiled
         k += 1
     if k < 10:
         return 0.0
-    return np.median(across[:k]) / (0.6745 * np.sqrt(6.0))
+    return median_nonnegative(across, k) / (0.6745 * np.sqrt(6.0))
