@@ -158,18 +158,28 @@ def consensus(
     best = int(np.argmin(totals))
 
     tol2 = np.inf if inlier_tol is None else float(inlier_tol) ** 2
-    kind = _KINDS.get(apply, -1) if error is squared_distance else -1
-    if kind >= 0:  # the odometry's operators: one compiled pass, the same bits
-        best_errors, inliers = _best_errors_kernel(
-            kind, candidates[best].reshape(-1), source.reshape(n_elem, -1),
-            target.reshape(n_elem, -1), defined, tol2,
+    best_errors, inliers = _winner_errors(problem, best, defined, tol2)
+    return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
+
+
+def _winner_errors(
+    p: _Problem, best: int, defined: np.ndarray, tol2: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The winner's squared error (E,) of every element (NaN where not ``defined``) and
+    its inliers (E,) within ``tol2``; for the odometry's two operators in one compiled
+    pass (:func:`_best_errors_kernel`, the same bits)."""
+    kind = _KINDS.get(p.apply, -1) if p.error is squared_distance else -1
+    if kind >= 0:
+        n_elem = len(p.source)
+        return _best_errors_kernel(
+            kind, p.candidates[best].reshape(-1), p.source.reshape(n_elem, -1),
+            p.target.reshape(n_elem, -1), defined, tol2,
         )  # fmt: skip
-        return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
-    best_errors = error(apply(candidates[best : best + 1], source), target)[0]
+    best_errors = p.error(p.apply(p.candidates[best : best + 1], p.source), p.target)[0]
     best_errors = np.where(defined, best_errors, np.nan)
     with np.errstate(invalid="ignore"):
         inliers = defined & (best_errors <= tol2)
-    return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
+    return best_errors, inliers
 
 
 def _checked_weights(
