@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from planodom.errors import GeometryError
+from planodom.rotvec import rotation_vectors
 
 #: Unit vector of the vertical axis of a base frame (z up).
 UP = np.array([0.0, 0.0, 1.0])
@@ -124,7 +125,7 @@ def se3_log(T: np.ndarray) -> np.ndarray:
     """
     T = np.asarray(T, dtype=np.float64)
     flat = T.reshape(-1, 4, 4)
-    w = Rotation.from_matrix(flat[:, :3, :3]).as_rotvec()
+    w = rotation_vectors(flat[:, :3, :3])  # scipy's as_rotvec, compiled
     t = flat[:, :3, 3]
     a = np.linalg.norm(w, axis=1)
     small = a < 1e-6

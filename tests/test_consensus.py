@@ -178,3 +178,30 @@ def test_shortlist_beyond_the_budget_keeps_a_clear_winner():
     assert full.best_index == short.best_index == 417
     assert np.isfinite(short.errors).sum() == 16
     assert short.errors[417] == full.errors[417]
+
+
+@pytest.mark.parametrize("operator", ["rotation", "translation"])
+def test_compiled_winner_errors_equal_the_generic_operators(operator):
+    """The odometry's two operators score the winner's elements compiled; the same
+    operator wrapped (the generic numpy path) must give the same errors and inliers."""
+    from scipy.spatial.transform import Rotation
+
+    from planodom.consensus import apply_inverse_rotation, apply_negative_translation
+
+    rng = np.random.default_rng(11)
+    if operator == "rotation":
+        apply, cands = apply_inverse_rotation, Rotation.random(7, random_state=3).as_matrix()
+        src = rng.normal(size=(40, 3))
+    else:
+        apply, cands = apply_negative_translation, rng.normal(size=(7, 2))
+        src = rng.normal(size=(40, 2))
+    tgt = apply(cands[2:3], src)[0] + rng.normal(scale=0.05, size=src.shape)
+    src[5] = np.nan  # an undefined element
+    weights = rng.uniform(0.1, 1.0, 40)
+    fast = consensus(cands, src, tgt, apply, weights=weights, inlier_tol=0.08)
+    slow = consensus(cands, src, tgt, lambda c, x: apply(c, x), weights=weights, inlier_tol=0.08)
+    assert fast.best_index == slow.best_index == 2
+    np.testing.assert_array_equal(fast.element_errors, slow.element_errors)
+    np.testing.assert_array_equal(fast.inliers, slow.inliers)
+    assert np.isnan(fast.element_errors[5]) and not fast.inliers[5]
+    assert 0 < fast.n_inliers < 39

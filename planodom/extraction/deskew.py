@@ -85,21 +85,28 @@ def _deskew_kernel(points, t, xi):  # pragma: no cover - compiled
     # w x v and w x (w x v)
     a0, a1, a2 = w1 * v2 - w2 * v1, w2 * v0 - w0 * v2, w0 * v1 - w1 * v0
     b0, b1, b2 = w1 * a2 - w2 * a1, w2 * a0 - w0 * a2, w0 * a1 - w1 * a0
+    # the coefficients of a point's time, kept while the next point has the same time
+    # (scanners that fire together: a rig's synchronised 2D scanners, a lidar's columns);
+    # the same values as computing them again (zero, which may be signed, every time)
+    last = np.nan
+    sa = ca = f1 = f2 = 0.0
     for i in range(n):
         ti = t[i]
-        a = ti * speed
-        sa, ca = np.sin(a), np.cos(a)
+        if ti != last or ti == 0.0:
+            last = ti
+            a = ti * speed
+            sa, ca = np.sin(a), np.cos(a)
+            if abs(a) < 1e-4:
+                c1 = 0.5 - a * a / 24.0
+                c2 = 1.0 / 6.0 - a * a / 120.0
+            else:
+                c1 = (1.0 - ca) / (a * a)
+                c2 = (a - sa) / (a * a * a)
+            f1 = c1 * ti * ti
+            f2 = c2 * ti * ti * ti
         p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
         q0, q1, q2 = k1 * p2 - k2 * p1, k2 * p0 - k0 * p2, k0 * p1 - k1 * p0  # k x p
         r0, r1, r2 = k1 * q2 - k2 * q1, k2 * q0 - k0 * q2, k0 * q1 - k1 * q0  # k x (k x p)
-        if abs(a) < 1e-4:
-            c1 = 0.5 - a * a / 24.0
-            c2 = 1.0 / 6.0 - a * a / 120.0
-        else:
-            c1 = (1.0 - ca) / (a * a)
-            c2 = (a - sa) / (a * a * a)
-        f1 = c1 * ti * ti
-        f2 = c2 * ti * ti * ti
         out[i, 0] = p0 + sa * q0 + (1.0 - ca) * r0 + ti * v0 + f1 * a0 + f2 * b0
         out[i, 1] = p1 + sa * q1 + (1.0 - ca) * r1 + ti * v1 + f1 * a1 + f2 * b1
         out[i, 2] = p2 + sa * q2 + (1.0 - ca) * r2 + ti * v2 + f1 * a2 + f2 * b2

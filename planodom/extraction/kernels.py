@@ -2,12 +2,14 @@
 
 - :func:`find_root`: union-find with path halving (trace linking, range-image growing);
 - :func:`range_moments`: centroid and centred scatter of a contiguous range of points;
-- :func:`add_outer`: add one centred point's outer product to a scatter's upper triangle.
+- :func:`add_outer`: add one centred point's outer product to a scatter's upper triangle;
+- :func:`median_nonnegative`: ``np.median`` of non-negative values by radix selection.
 """
 
 from __future__ import annotations
 
 import numba
+import numpy as np
 
 
 @numba.njit(cache=True)
@@ -53,3 +55,76 @@ def add_outer(S, x, y, z):  # pragma: no cover - compiled
     S[1, 1] += y * y
     S[1, 2] += y * z
     S[2, 2] += z * z
+
+
+#: Radix digits of :func:`median_nonnegative`: 12 bits (sign and exponent first).
+_DIGIT_BITS = 12
+
+
+@numba.njit(cache=True)
+def _kth_smallest_bits(bits, k):  # pragma: no cover - compiled
+    """The ``k``-th smallest (0-based) of ``bits`` (n,) uint64 (a copy is consumed),
+    by radix selection over 12-bit digits from the top: per digit a histogram of the
+    candidates, the bucket holding rank k, and the candidates compacted to that bucket
+    (branch-free: counting and writing every element)."""
+    nb = 1 << _DIGIT_BITS
+    hist = np.zeros(nb + 1, dtype=np.int64)
+    cand = bits
+    m = cand.shape[0]
+    shift = 64 - _DIGIT_BITS
+    while m > 32 and shift >= 0:
+        hist[:] = 0
+        for i in range(m):
+            hist[(cand[i] >> shift) & (nb - 1)] += 1
+        below = 0
+        digit = 0
+        while below + hist[digit] <= k:
+            below += hist[digit]
+            digit += 1
+        if hist[digit] < m:  # else every candidate is in the bucket (ties)
+            j = 0
+            for i in range(m):
+                cand[j] = cand[i]
+                j += ((cand[i] >> shift) & (nb - 1)) == digit
+            m = j
+        k -= below
+        shift -= _DIGIT_BITS
+    if shift < 0:  # every candidate has the same bits: all equal
+        return cand[0]
+    return np.sort(cand[:m])[k]
+
+
+@numba.njit(cache=True)
+def median_nonnegative(values, n):  # pragma: no cover - compiled
+    """``np.median(values[:n])`` (the same value) of finite values >= 0, n >= 1.
+
+    The bits of non-negative floats order as the floats do, so the middle values are
+    found by radix selection on them (:func:`_kth_smallest_bits`): passes without
+    data-dependent branches, where quickselect's partitions mispredict about every other
+    comparison (numba's and numpy's median cost ~3x more on 10^4 noise residuals). For an
+    even count, ``(a + b) / 2`` of the two middle values, as numpy and numba.
+    """
+    v = values[:n].copy()
+    bits = v.view(np.uint64)
+    half = n >> 1
+    if n & 1:
+        return _as_float(_kth_smallest_bits(bits, half))
+    lo = _as_float(_kth_smallest_bits(bits.copy(), half - 1))
+    # the next order statistic: lo again when it repeats, else the least value above it
+    n_le = 0
+    above = np.inf
+    for i in range(n):
+        x = v[i]
+        n_le += x <= lo
+        if x > lo and x < above:
+            above = x
+    hi = lo if n_le >= half + 1 else above
+    return (lo + hi) / 2
+
+
+@numba.njit(cache=True)
+def _as_float(b):  # pragma: no cover - compiled
+    """The float64 whose bits are the uint64 ``b``."""
+    a = np.empty(1, dtype=np.uint64)
+    a[0] = b
+    return a.view(np.float64)[0]

@@ -25,6 +25,7 @@ from planodom.errors import GeometryError
 from planodom.extraction.deskew import check_twist, deskew_points
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.lidar.path import lidar_planes
+from planodom.extraction.memo import identity_memo
 from planodom.extraction.rig2d.path import rig2d_planes
 from planodom.geometry import Plane
 from planodom.scan import Scan
@@ -97,7 +98,17 @@ def _result(found: PathResult, mode: str, points: np.ndarray) -> ExtractionResul
 def _check_inputs(scan: Scan, sensor_origins: np.ndarray | None) -> np.ndarray | None:
     """``sensor_origins`` as an (S, 3) float64 array (None stays None) after checking the
     scan's points, times and the origins; raises :class:`GeometryError`."""
-    pts = scan.points
+    _check_points_times(scan.points, scan.t)
+    if sensor_origins is None:
+        return None
+    return _check_origins(scan, sensor_origins)
+
+
+@identity_memo
+def _check_points_times(pts: np.ndarray, t: np.ndarray | None) -> None:
+    """Raises :class:`GeometryError` for non-finite or absurdly large points (N, 3) or
+    non-finite times (N,); memoised (:mod:`.memo`): a scan extracted again is not checked
+    again."""
     if not np.isfinite(pts).all():
         finite = np.isfinite(pts).all(axis=1)
         raise GeometryError(
@@ -108,10 +119,12 @@ def _check_inputs(scan: Scan, sensor_origins: np.ndarray | None) -> np.ndarray |
         raise GeometryError(
             f"scan coordinates reach {np.abs(pts).max():.3g} m, beyond {MAX_COORDINATE_M:g} m"
         )
-    if scan.t is not None and not np.all(np.isfinite(scan.t)):
+    if t is not None and not np.all(np.isfinite(t)):
         raise GeometryError("scan times t contain NaN or infinite values")
-    if sensor_origins is None:
-        return None
+
+
+def _check_origins(scan: Scan, sensor_origins: object) -> np.ndarray:
+    """:func:`_check_inputs` for given origins."""
     try:
         org = np.asarray(sensor_origins, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -146,6 +159,7 @@ def choose_mode(scan: Scan, config: ExtractionConfig) -> str:
     return "rig2d" if count_rings(scan.ring) <= config.max_rig_rings else "lidar"
 
 
+@identity_memo
 def count_rings(ring: np.ndarray) -> int:
     """Number of distinct ring ids in ``ring`` (N,) (a counting pass for small ids)."""
     if len(ring) == 0:

@@ -40,6 +40,22 @@ def test_deskew_points_match_se3_exp(scale):
         )
 
 
+def test_points_with_the_same_time_are_deskewed_as_alone():
+    """Runs of equal times (scanners that fire together) reuse one time's coefficients:
+    every point must come out exactly as deskewed on its own, and as the closed form."""
+    rng = np.random.default_rng(4)
+    t = np.repeat(rng.uniform(-0.1, 0.2, 60), 4)
+    t[:4] = 0.0
+    t[8:12] = -0.0
+    p = rng.uniform(-60, 60, (len(t), 3))
+    out = deskew_points(p, t, XI)
+    alone = np.vstack([deskew_points(p[i : i + 1], t[i : i + 1], XI) for i in range(len(t))])
+    np.testing.assert_array_equal(out, alone)
+    T = se3_exp(t[:, None] * XI)
+    expected = np.einsum("nij,nj->ni", T[:, :3, :3], p) + T[:, :3, 3]
+    np.testing.assert_allclose(out, expected, atol=1e-12)
+
+
 def test_deskew_points_maps_to_reference_time():
     rng = np.random.default_rng(0)
     p_ref = rng.uniform(-10, 10, (50, 3))

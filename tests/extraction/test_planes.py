@@ -119,9 +119,11 @@ def test_orientation_sign_faces_the_viewpoint_or_up():
     np.testing.assert_array_equal(s, [-1.0, 1.0, -1.0, -1.0])
 
 
-def test_batched_incidences_and_viewpoints_match_per_plane():
+@pytest.mark.parametrize("rate", [1.0, 1e-3, 20.0])
+def test_batched_incidences_and_viewpoints_match_per_plane(rate):
     """The one-pass viewpoints and incidences of build_planes against each plane's own
-    computation: per-ring origins carried to the reference time with the twist."""
+    computation: per-ring origins carried to the reference time with the twist (its
+    angular part scaled by ``rate``: the series of the exponential and beyond)."""
     from planodom.extraction.epoch import Epoch
     from planodom.extraction.planes.confidence import mean_incidences
     from planodom.geometry import se3_exp
@@ -132,7 +134,7 @@ def test_batched_incidences_and_viewpoints_match_per_plane():
     ring = rng.integers(0, 4, 300).astype(np.int32)
     t = rng.uniform(-0.05, 0.05, 300)
     origins = rng.normal(0, 1, (4, 3))
-    twist = np.array([0.02, -0.01, 0.3, 5.0, 0.2, 0.05])
+    twist = np.array([0.02 * rate, -0.01 * rate, 0.3 * rate, 5.0, 0.2, 0.05])
     epoch = Epoch(Scan(pts, ring, t), pts, origins, twist)
     inliers = rng.permutation(300)[:240].astype(np.int64)
     bounds = np.array([0, 50, 51, 130, 240], dtype=np.int64)

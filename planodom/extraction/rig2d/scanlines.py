@@ -29,7 +29,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planodom.extraction.kernels import range_moments
+from planodom.extraction.kernels import add_outer, median_nonnegative, range_moments
 
 
 def run_breaks(
@@ -39,11 +39,14 @@ def run_breaks(
     sweep_gap_factor: float,
     min_gap_m: float,
     gap_range_ratio: float,
+    timing: tuple[float, bool] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Where runs start, for points sorted by ring in scan order.
 
     Args:
         points: (M, 3) metres. ring: (M,) ids. t: (M,) seconds or None.
+        timing: ``beam_timing(ring, t)`` when already known (it does not depend on the
+            points).
 
     Returns:
         ``run_start`` (M,) bool, True where a run starts (always at 0), and
@@ -53,8 +56,9 @@ def run_breaks(
     rg = np.ascontiguousarray(ring, dtype=np.int64)
     has_t = t is not None
     tt = np.ascontiguousarray(t, dtype=np.float64) if has_t else np.zeros(len(pts))
-    run_start, sweep_start, any_forward = _breaks_kernel(
-        pts, rg, tt, has_t, sweep_gap_factor, min_gap_m, gap_range_ratio
+    med, any_forward = _timing_kernel(rg, tt, has_t) if timing is None else timing
+    run_start, sweep_start = _breaks_kernel(
+        pts, rg, tt, has_t, med, sweep_gap_factor, min_gap_m, gap_range_ratio
     )
     if len(pts) > 1 and not any_forward:
         rev = _angle_reversals(pts, rg)
@@ -63,12 +67,22 @@ def run_breaks(
     return run_start, sweep_start
 
 
+def beam_timing(ring: np.ndarray, t: np.ndarray | None) -> tuple[float, bool]:
+    """The median beam interval (s; 0: unknown) of points sorted by ring in scan order,
+    ``ring`` (M,) ids and ``t`` (M,) seconds or None, and whether time ever moves forward
+    (what :func:`run_breaks` needs of the times)."""
+    rg = np.ascontiguousarray(ring, dtype=np.int64)
+    has_t = t is not None
+    tt = np.ascontiguousarray(t, dtype=np.float64) if has_t else np.zeros(len(rg))
+    med, any_forward = _timing_kernel(rg, tt, has_t)
+    return float(med), bool(any_forward)
+
+
 @numba.njit(cache=True)
-def _breaks_kernel(pts, ring, t, has_t, sweep_gap_factor, min_gap_m, gap_range_ratio):
-    """:func:`run_breaks` without the angle test; also whether time ever moves forward."""
-    m = pts.shape[0]
-    run_start = np.ones(m, dtype=np.bool_)
-    sweep_start = np.ones(m, dtype=np.bool_)
+def _timing_kernel(ring, t, has_t):  # pragma: no cover - compiled
+    """:func:`beam_timing`: the median of the positive time steps within a ring (0.0 when
+    none) and whether any time step is positive."""
+    m = ring.shape[0]
     med = 0.0
     any_forward = False
     if has_t and m > 1:
@@ -83,19 +97,34 @@ def _breaks_kernel(pts, ring, t, has_t, sweep_gap_factor, min_gap_m, gap_range_r
                     k += 1
         if k > 0:
             med = np.median(buf[:k])
+    return med, any_forward
+
+
+@numba.njit(cache=True)
+def _breaks_kernel(pts, ring, t, has_t, med, sweep_gap_factor, min_gap_m, gap_range_ratio):
+    """:func:`run_breaks` without the angle test, given the median beam interval."""
+    m = pts.shape[0]
+    run_start = np.ones(m, dtype=np.bool_)
+    sweep_start = np.ones(m, dtype=np.bool_)
     for i in range(1, m):
         new = ring[i] != ring[i - 1]
         if has_t:
             dt = t[i] - t[i - 1]
             new = new or dt < 0 or (med > 0 and dt > sweep_gap_factor * med)
         sweep_start[i] = new
+        if new:
+            continue  # run_start[i] is True already
         d0 = pts[i, 0] - pts[i - 1, 0]
         d1 = pts[i, 1] - pts[i - 1, 1]
         d2 = pts[i, 2] - pts[i - 1, 2]
         step = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        rng = np.sqrt(pts[i, 0] ** 2 + pts[i, 1] ** 2 + pts[i, 2] ** 2)
-        run_start[i] = new or step > max(min_gap_m, gap_range_ratio * rng)
-    return run_start, sweep_start, any_forward
+        # the range only where it can decide: a step within min_gap_m is never a gap
+        gap = step > min_gap_m
+        if gap:
+            rng = np.sqrt(pts[i, 0] ** 2 + pts[i, 1] ** 2 + pts[i, 2] ** 2)
+            gap = step > max(min_gap_m, gap_range_ratio * rng)
+        run_start[i] = gap
+    return run_start, sweep_start
 
 
 @numba.njit(cache=True)
@@ -233,18 +262,21 @@ def ring_plane_coordinates(pts, ring_sorted):  # pragma: no cover - compiled
         while b < m and ring_sorted[b] == ring_sorted[a]:
             b += 1
         step = max(1, (b - a) // 256)
-        c = np.zeros(3)
+        # scalar sums (no per-sample row arrays: those cost as much as the projection
+        # below); the same operations in the same order as a row-wise sum
+        c0 = c1 = c2 = 0.0
         ns = 0
         for i in range(a, b, step):
-            c += pts[i]
+            c0 += pts[i, 0]
+            c1 += pts[i, 1]
+            c2 += pts[i, 2]
             ns += 1
-        c /= ns
+        c = np.array([c0 / ns, c1 / ns, c2 / ns])
         sc = np.zeros((3, 3))
         for i in range(a, b, step):
-            q = pts[i] - c
-            for u in range(3):
-                for v in range(3):
-                    sc[u, v] += q[u] * q[v]
+            q0, q1, q2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]
+            add_outer(sc, q0, q1, q2)
+        sc[1, 0], sc[2, 0], sc[2, 1] = sc[0, 1], sc[0, 2], sc[1, 2]
         _, vecs = np.linalg.eigh(sc)
         for i in range(a, b):
             q0, q1, q2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]
@@ -276,4 +308,4 @@ def estimate_line_noise_2d(x, y, run_start):  # pragma: no cover - compiled
         k += 1
     if k < 10:
         return 0.0
-    return np.median(across[:k]) / (0.6745 * np.sqrt(6.0))
+    return median_nonnegative(across, k) / (0.6745 * np.sqrt(6.0))

@@ -18,8 +18,10 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.kernels import range_moments
+from planodom.extraction.memo import identity_memo, read_only
 from planodom.extraction.noise import effective_noise
 from planodom.extraction.rig2d.scanlines import (
+    beam_timing,
     estimate_line_noise_2d,
     ring_plane_coordinates,
     run_breaks,
@@ -85,6 +87,28 @@ def ranges(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     return np.arange(total, dtype=np.int64) + offs
 
 
+@identity_memo
+def ring_order(
+    ring: np.ndarray, t: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, tuple[float, bool]]:
+    """What :func:`split_scan_lines` needs of a scan's ``ring`` (N,) and ``t`` (N,) s or
+    None, which do not change when the scan is deskewed again with another twist
+    (memoised, :mod:`planodom.extraction.memo`): the stable order by ring (N,) int64, the
+    rings (int64) and times in that order, and :func:`.scanlines.beam_timing`."""
+    if len(ring) > 1 and np.any(ring[1:] < ring[:-1]):
+        key = ring - ring.min()
+        # A stable radix sort on small integer keys is ~10x faster than on int64.
+        key = key.astype(np.uint16) if key.max() < 65536 else key
+        order = np.argsort(key, kind="stable")
+    else:
+        order = np.arange(len(ring))
+    rg = np.take(ring, order).astype(np.int64)
+    tt = None if t is None else np.take(t, order)
+    timing = beam_timing(rg, tt)
+    frozen = tuple(read_only(a) for a in (order, rg) + (() if tt is None else (tt,)))
+    return frozen[0], frozen[1], (None if tt is None else frozen[2]), timing
+
+
 def split_scan_lines(
     points: np.ndarray, ring: np.ndarray, t: np.ndarray | None, config: ExtractionConfig
 ) -> tuple[Segments, float]:
@@ -103,20 +127,11 @@ def split_scan_lines(
         The kept :class:`Segments` and the effective noise sigma (m) used for the
         tolerances (:func:`planodom.extraction.noise.effective_noise`).
     """
-    ring = np.asarray(ring)
-    if len(ring) > 1 and np.any(ring[1:] < ring[:-1]):
-        key = ring - ring.min()
-        # A stable radix sort on small integer keys is ~10x faster than on int64.
-        key = key.astype(np.uint16) if key.max() < 65536 else key
-        order = np.argsort(key, kind="stable")
-    else:
-        order = np.arange(len(ring))
+    order, rg, tt, timing = ring_order(np.asarray(ring), t)
     # np.take: the same rows as points[order], at a third of fancy indexing's cost
     pts = np.take(np.asarray(points, dtype=np.float64), order, axis=0)
-    rg = np.take(ring, order).astype(np.int64)
-    tt = None if t is None else np.take(t, order)
     run_start, sweep_start = run_breaks(
-        pts, rg, tt, config.sweep_gap_factor, config.min_gap_m, config.gap_range_ratio
+        pts, rg, tt, config.sweep_gap_factor, config.min_gap_m, config.gap_range_ratio, timing
     )
     x, y = ring_plane_coordinates(pts, rg)
     estimate = estimate_line_noise_2d(x, y, run_start) if config.estimate_noise else 0.0

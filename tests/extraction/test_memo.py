@@ -1,0 +1,77 @@
+"""The identity memo (:mod:`planodom.extraction.memo`) and what it lets a re-extraction of
+the same scan reuse."""
+
+from __future__ import annotations
+
+import gc
+
+import numpy as np
+import pytest
+
+from planodom.extraction import extract
+from planodom.extraction.memo import identity_memo, read_only
+from planodom.scan import Scan
+
+from .synth_scans import default_scene, scan_rig
+
+
+def test_memo_returns_the_last_result_for_the_same_arrays_only():
+    calls = []
+
+    @identity_memo
+    def total(a, scale):
+        calls.append(1)
+        return float(a.sum()) * scale
+
+    a = np.arange(4.0)
+    assert total(a, 2.0) == 12.0
+    assert total(a, 2.0) == 12.0 and len(calls) == 1  # same array, same scalar
+    assert total(a.copy(), 2.0) == 12.0 and len(calls) == 2  # equal but another array
+    assert total(a, 3.0) == 18.0 and len(calls) == 3  # another scalar
+    assert total(a, 3) == 18.0 and len(calls) == 4  # another type
+    # a new array after the remembered one was freed is not mistaken for it
+    b = np.ones(3)
+    total(b, 1.0)
+    n = len(calls)
+    del b
+    gc.collect()
+    assert total(np.full(3, 2.0), 1.0) == 6.0 and len(calls) == n + 1
+
+
+def test_memo_does_not_remember_a_failure():
+    calls = []
+
+    @identity_memo
+    def check(a):
+        calls.append(1)
+        if not np.isfinite(a).all():
+            raise ValueError("not finite")
+
+    a = np.array([1.0, np.nan])
+    for _ in range(2):
+        with pytest.raises(ValueError):
+            check(a)
+    assert len(calls) == 2
+
+
+def test_read_only_results_cannot_be_changed_by_a_caller():
+    a = read_only(np.zeros(3))
+    with pytest.raises(ValueError):
+        a[0] = 1.0
+
+
+def test_a_second_extraction_of_the_same_scan_equals_one_of_a_fresh_copy():
+    """The odometry extracts a scan again with another twist: reusing what depends on the
+    rings and times alone must give what an extraction from scratch (new arrays) gives."""
+    scan = scan_rig(default_scene(), twist=np.array([0, 0, 0.4, 1.5, 0.2, 0]), sigma=0.005)
+    fresh = Scan(scan.points.copy(), scan.ring.copy(), scan.t.copy(), scan.label.copy())
+    twists = [np.array([0, 0, 0.3, 1.2, 0, 0]), np.array([0, 0, 0.4, 1.5, 0.2, 0])]
+    extract(scan, twist=twists[0])
+    again = extract(scan, twist=twists[1])  # rings and times as remembered
+    scratch = extract(fresh, twist=twists[1])
+    assert len(again.planes) == len(scratch.planes) > 0
+    for p, q in zip(again.planes, scratch.planes, strict=True):
+        np.testing.assert_array_equal(p.normal, q.normal)
+        assert p.offset == q.offset
+    for i, j in zip(again.inliers, scratch.inliers, strict=True):
+        np.testing.assert_array_equal(i, j)
