@@ -62,6 +62,7 @@ class _Epoch:
     plane_set: PlaneSet
     scan: Scan | None = None
     twist: np.ndarray | None = None
+    kept: bool = False  # extracted again with a twist that lost its planes: kept as it was
 
 
 class PlaneOdometry:
@@ -329,15 +330,24 @@ class PlaneOdometry:
 
     def _refresh_reference(self, twist: np.ndarray) -> bool:
         """Extract the reference epoch again with ``twist`` when it has a scan that was
-        never deskewed (its pose is not changed); returns whether it did."""
+        never deskewed and was not tried before (its pose is not changed); returns whether
+        its planes were replaced (not when ``odometry.reference_refresh_guard`` keeps them)."""
         ref = self._reference()
-        if ref.scan is None or ref.twist is not None:
+        if ref.scan is None or ref.twist is not None or ref.kept:
             return False
         if self._map is not None and ref.index != 0:
             return False  # the map holds the epoch's planes: only the first is seeded again
-        ref.planes = self._extract(ref.scan, twist)
+        planes = self._extract(ref.scan, twist)
+        ref.kept = True
+        guard = self.config.odometry.reference_refresh_guard
+        if guard and len(planes) < max(2.0, 0.5 * len(ref.planes)):
+            # far fewer planes than it had (as deskew.register_deskewed judges an epoch):
+            # the twist of the next epoch does not fit this one (2D rig at 2 cm: a wall
+            # group lost with it, the reference left with the ground alone and the next
+            # epoch unresolved); its planes stay, and it is not tried again
+            return False
+        ref.planes, ref.twist = planes, twist
         ref.plane_set = PlaneSet.from_planes(ref.planes)
-        ref.twist = twist
         if self._map is not None:
             self._map.reseed(ref.planes)
         self.planes[ref.index] = ref.planes
