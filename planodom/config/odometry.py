@@ -193,17 +193,24 @@ class OdometryConfig(Section):
     worlds identical (no epoch there was suspect). The trend as the prediction of every
     epoch instead: ATE better on all four, but rotation rms worse on world 7 (0.0072 ->
     0.013 deg at 6 mm: a prediction within the deskewing tolerances is not refined)."""
-    reference_refresh_guard: bool = True
+    reference_refresh_guard: bool = False
     """Streaming: a reference epoch that was never deskewed (the first, or one kept as
     extracted without a twist) is extracted again with the next epoch's refined twist
-    (:mod:`planodom.odometry.deskew`, step 2); that extraction replaces its planes only
-    when it does not find far fewer of them (under half, or under two: the test
+    (:mod:`planodom.odometry.deskew`, step 2). True: that extraction replaces its planes
+    only when it does not find far fewer of them (under half, or under two: the test
     :func:`planodom.odometry.deskew.register_deskewed` applies to an epoch), else the
     planes stay and it is not tried again. The next epoch's twist need not fit the
-    reference's scan: on issue 11's world 6 at 2 cm (2D rig, 300 epochs) every few epochs
-    of a straight stretch lost its walls that way, kept the ground alone and left the next
-    epoch unresolved (36 unresolved epochs, ATE 7.6 m; with the guard 22, 4.7 m). False:
-    the extraction always replaces them (the earlier behaviour)."""
+    reference's scan: on issue 11's world 6 at 2 cm (2D rig) every few epochs of a
+    straight stretch lost its walls that way, kept the ground alone and left the next
+    epoch unresolved. Off by default, not yet better everywhere; measured on the even
+    2D-rig worlds, 300 epochs (rot deg / xy cm / ATE m / unresolved / gap*, off -> on):
+    at 2 cm world 6 0.474 / 16.1 / 7.56 / 36 / 3 -> 0.561 / 16.5 / 4.70 / 22 / 5, world
+    12 0.358 / 13.9 / 5.58 / 7 / 2 -> 0.406 / 9.6 / 1.25 / 4 / 2, world 10 0.164 / 8.3 /
+    0.65 / 8 / 1 -> 0.160 / 8.7 / 0.59 / 1 / 1, world 0 unresolved 5 -> 4, worlds 2, 16
+    about the same; at 6 mm world 18 0.437 / 7.5 / 2.00 / 1 -> 0.339 / 7.3 / 1.98 / 0,
+    world 2 0.531 / 5.6 / 0.82 / 5 -> 0.530 / 5.3 / 0.74 / 4, world 8 0.118 / 2.35 /
+    0.276 -> 0.129 / 2.37 / 0.296, the others identical. (The rotation of the epochs it
+    measures instead of bridging is noisier: a reference extracted without a twist.)"""
     map_twist_offset: bool = False
     """Streaming, plane-map pipeline: the epoch's own twist (what it is extracted again
     with) has the offset its and the previous epoch's deskewing put in the step taken off
