@@ -193,6 +193,18 @@ class OdometryConfig(Section):
     worlds identical (no epoch there was suspect). The trend as the prediction of every
     epoch instead: ATE better on all four, but rotation rms worse on world 7 (0.0072 ->
     0.013 deg at 6 mm: a prediction within the deskewing tolerances is not refined)."""
+    pairwise_trend_rescue: bool = True
+    """Streaming, pairwise pipelines (the 2D rig's): an epoch still lost (unresolved, or
+    far fewer planes than the epoch before) once the predicted twist, none and the held
+    one were tried, is extracted again with the angular rate extrapolated along the trend
+    of the recent measured rates (:func:`planodom.odometry.deskew.pairwise_trend`; the
+    velocity stays the prediction's): the prediction, the last step's rate, lags a turn
+    that tightens, and deskewed with it a far wall tilts, gives a wrong rotation that
+    ``degenerate_gate`` bridges, and the epochs after the bridge lose their walls (issue
+    11's world 6 at 6 mm, epochs 51-54: 12.1 deg/s predicted where the turn tightened
+    from 12.5 to 16.8 deg/s). Only for lost epochs: tried on every degenerate one too,
+    the plane count picked other twists than the epoch's own rate and world 6 got worse
+    (ATE 1.07 -> 2.90 m)."""
     reference_refresh_guard: bool = False
     """Streaming: a reference epoch that was never deskewed (the first, or one kept as
     extracted without a twist) is extracted again with the next epoch's refined twist

@@ -28,6 +28,7 @@ from planodom.odometry.deskew import (
     EpochEstimate,
     keep_first,
     map_trend,
+    pairwise_trend,
     prefer_streaming,
     register_deskewed,
     time_spread,
@@ -114,6 +115,8 @@ class PlaneOdometry:
         # The plane-map odometry when the pipeline is (or resolves to) "map".
         self._map: PlaneMapOdometry | None = None
         self._recent: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
+        # pairwise pipelines: (epoch, own twist) of the last epochs that measured the rate
+        self._rates: deque[tuple[int, np.ndarray]] = deque(maxlen=self._recent.maxlen)
         self._twist_sigma = TwistUncertainty(self.config.odometry)
 
     @property
@@ -174,9 +177,13 @@ class PlaneOdometry:
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg) if against_map else None
+            lost_trend = None
+            if self._map is None:
+                lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg)
             best = register_deskewed(
-                twist, dt, estimate, refresh, ocfg, previous, held, against_map, trend
-            )
+                twist, dt, estimate, refresh, ocfg, previous, held, against_map, trend,
+                lost_trend,
+            )  # fmt: skip
         else:
             best = estimate(None)
         twist = best.twist
@@ -376,6 +383,8 @@ class PlaneOdometry:
             measured = best.relative.status is Status.OK
             own = best.own_twist(dt)
             self._twist_sigma.update(own, best.relative, dt)
+            if best.relative.status is not Status.UNRESOLVED:
+                self._rates.append((epoch.index, own))
             self.twist = self._predicted_twist(own, measured)
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
