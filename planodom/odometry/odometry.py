@@ -177,9 +177,8 @@ class PlaneOdometry:
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg) if against_map else None
-            lost_trend = None
-            if self._map is None:
-                lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg)
+            pairwise = self._map is None
+            lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg) if pairwise else None
             best = register_deskewed(
                 twist, dt, estimate, refresh, ocfg, previous, held, against_map, trend,
                 lost_trend,
