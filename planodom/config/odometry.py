@@ -193,18 +193,26 @@ class OdometryConfig(Section):
     worlds identical (no epoch there was suspect). The trend as the prediction of every
     epoch instead: ATE better on all four, but rotation rms worse on world 7 (0.0072 ->
     0.013 deg at 6 mm: a prediction within the deskewing tolerances is not refined)."""
-    pairwise_trend_rescue: bool = True
+    pairwise_trend_rescue: bool = False
     """Streaming, pairwise pipelines (the 2D rig's): an epoch still lost (unresolved, or
     far fewer planes than the epoch before) once the predicted twist, none and the held
     one were tried, is extracted again with the angular rate extrapolated along the trend
     of the recent measured rates (:func:`planodom.odometry.deskew.pairwise_trend`; the
     velocity stays the prediction's): the prediction, the last step's rate, lags a turn
-    that tightens, and deskewed with it a far wall tilts, gives a wrong rotation that
-    ``degenerate_gate`` bridges, and the epochs after the bridge lose their walls (issue
-    11's world 6 at 6 mm, epochs 51-54: 12.1 deg/s predicted where the turn tightened
-    from 12.5 to 16.8 deg/s). Only for lost epochs: tried on every degenerate one too,
-    the plane count picked other twists than the epoch's own rate and world 6 got worse
-    (ATE 1.07 -> 2.90 m)."""
+    that tightens, and deskewed with it a far wall tilts and gives a wrong rotation that
+    ``degenerate_gate`` bridges (issue 11's world 6 at 6 mm, epoch 51: 12.1 deg/s
+    predicted for 13.4, a wall 75 m away tilted 1.6 deg, the rotation 1.1 deg off; with
+    exact deskewing the same solver is 0.01 deg off). Off by default, not yet better
+    everywhere; measured on the even 2D-rig worlds, 300 epochs (rot deg / xy cm / ATE m
+    / unresolved / gap*, off -> on): at 6 mm world 6 0.294 / 7.2 / 1.07 / 9 / 4 -> 0.244
+    / 6.7 / 1.52 / 10 / 3, world 0 0.145 / 2.3 / 0.25 / 4 / 2 -> 0.149 / 2.9 / 0.44 / 4
+    / 1 (a degenerate stretch kept a stale velocity median where an unresolved epoch had
+    cleared it), the others identical; at 2 cm world 6 0.474 / 16.1 / 7.56 / 36 / 3 ->
+    0.713 / 19.1 / 3.92 / 28 / 6, world 2 0.582 / 10.0 / 0.99 / 12 -> 0.542 / 8.7 / 0.93
+    / 11, world 0 0.192 / 7.5 / 1.32 / 5 -> 0.181 / 7.3 / 1.13 / 1, world 16 0.476 /
+    5.46 -> 0.496 / 5.53, worlds 12, 14, 18 within a few per cent, 4, 8, 10 identical.
+    Tried on every suspect epoch (degenerate ones too), it was worse (world 6 at 6 mm:
+    ATE 1.07 -> 2.90 m): the plane count picked other twists than the epoch's own rate."""
     reference_refresh_guard: bool = False
     """Streaming: a reference epoch that was never deskewed (the first, or one kept as
     extracted without a twist) is extracted again with the next epoch's refined twist
