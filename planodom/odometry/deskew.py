@@ -19,12 +19,17 @@ it again:
    unresolved epoch no twist is predicted (a twist never outlives an unresolved epoch),
    but the one held from before it is tried the same way when the epoch extracted
    without deskewing is suspect: on a 2D-rig world a turn left only the ground without
-   it, and the gap went on for 7 epochs;
+   it, and the gap went on for 7 epochs. On the pairwise pipelines, an epoch still lost
+   (unresolved, or far fewer planes) is tried last with the angular rate along the
+   trend of the recent measured ones (``odometry.pairwise_trend_rescue``, off by
+   default);
 2. up to ``deskew_iterations`` times: with the epoch's own angular rate and (when its
    translation was measured) velocity (against a plane map: their mean with the twist
    used, see ``against_map``) wherever they differ from the twist used by more
    than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
-   epoch that was never deskewed (the first) is extracted again with it too. An epoch
+   epoch that was never deskewed (the first) is extracted again with it too (kept
+   only when it does not lose most of its planes with ``odometry.
+   reference_refresh_guard``, off by default). An epoch
    kept without deskewing is refined only once its translation is measured (never with
    a velocity of zero nobody measured). A new estimate is kept while its status does not
    get worse, and always once the reference was extracted again (the earlier estimate
