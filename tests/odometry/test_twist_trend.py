@@ -48,11 +48,11 @@ def test_the_pairwise_trend_takes_the_rate_from_the_trend_and_the_velocity_given
     rate = np.array([0.0, 0.0, 0.2, 0.0, 0.0, 0.0])
     recent = [(k, (0.1 + 0.01 * k) * rate / 0.2 + [0, 0, 0, 5.0, 0, 0]) for k in range(5)]
     base = np.array([0.0, 0.0, 0.0, 2.0, 0.1, 0.0])
-    got = pairwise_trend(recent, 7, base, OdometryConfig())
+    on = OdometryConfig(pairwise_trend_rescue=True)
+    got = pairwise_trend(recent, 7, base, on)
     assert got is not None
     np.testing.assert_allclose(got[:3], [0.0, 0.0, 0.17], atol=1e-12)
     np.testing.assert_array_equal(got[3:], base[3:])
-    assert pairwise_trend(recent[:3], 7, base, OdometryConfig()) is None
-    assert pairwise_trend(recent, 7, None, OdometryConfig()) is None
-    off = OdometryConfig(pairwise_trend_rescue=False)
-    assert pairwise_trend(recent, 7, base, off) is None
+    assert pairwise_trend(recent[:3], 7, base, on) is None
+    assert pairwise_trend(recent, 7, None, on) is None
+    assert pairwise_trend(recent, 7, base, OdometryConfig()) is None  # off by default
