@@ -214,23 +214,26 @@ class OdometryConfig(Section):
     Tried on every suspect epoch (degenerate ones too), it was worse (world 6 at 6 mm:
     ATE 1.07 -> 2.90 m): the plane count picked other twists than the epoch's own rate."""
     reference_refresh_guard: bool = False
-    """Streaming: a reference epoch that was never deskewed (the first, or one kept as
-    extracted without a twist) is extracted again with the next epoch's refined twist
-    (:mod:`planodom.odometry.deskew`, step 2). True: that extraction replaces its planes
-    only when it does not find far fewer of them (under half, or under two: the test
-    :func:`planodom.odometry.deskew.register_deskewed` applies to an epoch), else the
-    planes stay and it is not tried again. The next epoch's twist need not fit the
-    reference's scan: on issue 11's world 6 at 2 cm (2D rig) every few epochs of a
-    straight stretch lost its walls that way, kept the ground alone and left the next
-    epoch unresolved. Off by default, not yet better everywhere; measured on the even
-    2D-rig worlds, 300 epochs (rot deg / xy cm / ATE m / unresolved / gap*, off -> on):
-    at 2 cm world 6 0.474 / 16.1 / 7.56 / 36 / 3 -> 0.561 / 16.5 / 4.70 / 22 / 5, world
-    12 0.358 / 13.9 / 5.58 / 7 / 2 -> 0.406 / 9.6 / 1.25 / 4 / 2, world 10 0.164 / 8.3 /
-    0.65 / 8 / 1 -> 0.160 / 8.7 / 0.59 / 1 / 1, world 0 unresolved 5 -> 4, worlds 2, 16
-    about the same; at 6 mm world 18 0.437 / 7.5 / 2.00 / 1 -> 0.339 / 7.3 / 1.98 / 0,
-    world 2 0.531 / 5.6 / 0.82 / 5 -> 0.530 / 5.3 / 0.74 / 4, world 8 0.118 / 2.35 /
-    0.276 -> 0.129 / 2.37 / 0.296, the others identical. (The rotation of the epochs it
-    measures instead of bridging is noisier: a reference extracted without a twist.)"""
+    """Streaming, pairwise pipelines: a reference epoch that was never deskewed (the first,
+    or one kept as extracted without a twist) is extracted again with the next epoch's
+    refined twist (:mod:`planodom.odometry.deskew`, step 2), and the next epoch's estimate
+    against the new planes is kept even when its status is worse (the one against the old
+    planes refers to planes that are gone). True: then the old planes are brought back
+    instead, the estimate against them kept, and the epoch not extracted again. The next
+    epoch's twist need not fit the reference's scan: on issue 11's worlds at 2 cm (2D rig)
+    the reference lost walls or its ceiling that way and the next epoch was unresolved
+    (world 6: the ground alone left, every few epochs of a straight stretch; world 2,
+    epoch 64: two parallel corridor walls left of four planes). Off by default, not yet
+    better everywhere (a measured epoch's error replaces a bridge's, and the runs at 2 cm
+    are chaotic); measured on the even 2D-rig worlds, 300 epochs (rot deg / xy cm / ATE
+    m / unresolved / gap*, off -> on): at 2 cm world 6 0.474 / 16.1 / 7.56 / 36 / 3 ->
+    0.485 / 14.1 / 5.05 / 18 / 5, world 2 0.582 / 10.0 / 0.99 / 12 / 3 -> 0.476 / 6.3 /
+    3.75 / 6 / 1, world 12 0.358 / 13.9 / 5.58 / 7 -> 0.687 / 14.5 / 4.88 / 10, world 10
+    0.164 / 8.3 / 0.65 / 8 -> 0.210 / 8.5 / 1.61 / 1, world 16 0.476 / 5.5 / 1.01 / 6 ->
+    0.155 / 3.6 / 0.91 / 2, world 0 slightly better; at 6 mm world 6 0.294 / 7.2 / 1.07 /
+    9 / 4 -> 0.335 / 11.4 / 3.76 / 9 / 3, world 2 0.531 / 5.6 / 0.82 / 5 -> 0.472 / 4.1 /
+    1.22 / 4, world 18 0.437 / 7.5 / 2.00 / 1 -> 0.361 / 6.6 / 1.83 / 0, worlds 0 and 8
+    within a few per cent."""
     map_twist_offset: bool = False
     """Streaming, plane-map pipeline: the epoch's own twist (what it is extracted again
     with) has the offset its and the previous epoch's deskewing put in the step taken off

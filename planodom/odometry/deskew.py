@@ -27,9 +27,9 @@ it again:
    translation was measured) velocity (against a plane map: their mean with the twist
    used, see ``against_map``) wherever they differ from the twist used by more
    than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
-   epoch that was never deskewed (the first) is extracted again with it too (kept
-   only when it does not lose most of its planes with ``odometry.
-   reference_refresh_guard``, off by default). An epoch
+   epoch that was never deskewed (the first) is extracted again with it too (with
+   ``odometry.reference_refresh_guard``, off by default, its old planes are brought
+   back when the estimate against the new ones is worse). An epoch
    kept without deskewing is refined only once its translation is measured (never with
    a velocity of zero nobody measured). A new estimate is kept while its status does not
    get worse, and always once the reference was extracted again (the earlier estimate
@@ -159,6 +159,7 @@ def register_deskewed(
     against_map: bool = False,
     trend: np.ndarray | None = None,
     lost_trend: np.ndarray | None = None,
+    restore_reference: Callable[[], None] | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -184,6 +185,9 @@ def register_deskewed(
             far fewer planes than the epoch before) after those (None: none;
             :func:`pairwise_trend`): a degenerate epoch measured its angular rate, which
             step 2 deskews it with; an unresolved one has nothing better than a trend.
+        restore_reference: brings back the reference's planes a refresh replaced (None:
+            never): called, and the estimate against them kept, when the estimate against
+            the new ones is worse (``odometry.reference_refresh_guard``).
     """
     best = estimate(predicted)
     few = len(best.planes) < max(2.0, 0.5 * previous_planes)
@@ -214,7 +218,11 @@ def register_deskewed(
         if not stale_reference and np.array_equal(new, used):
             break
         again = estimate(new, best)
-        if not stale_reference and again.relative.status.rank < best.relative.status.rank:
+        worse = again.relative.status.rank < best.relative.status.rank
+        if worse and stale_reference and restore_reference is not None:
+            restore_reference()  # the estimate made against the old planes holds again
+            break
+        if worse and not stale_reference:
             break
         # once the reference was extracted again, an estimate made against its old
         # extraction (or the map seeded with it) refers to planes that are gone

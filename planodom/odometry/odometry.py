@@ -63,7 +63,7 @@ class _Epoch:
     plane_set: PlaneSet
     scan: Scan | None = None
     twist: np.ndarray | None = None
-    kept: bool = False  # extracted again with a twist that lost its planes: kept as it was
+    kept: bool = False  # its planes were brought back after extracting it again made it worse
 
 
 class PlaneOdometry:
@@ -118,6 +118,7 @@ class PlaneOdometry:
         # pairwise pipelines: (epoch, own twist) of the last epochs that measured the rate
         self._rates: deque[tuple[int, np.ndarray]] = deque(maxlen=self._recent.maxlen)
         self._twist_sigma = TwistUncertainty(self.config.odometry)
+        self._undo: tuple = ()  # what the last reference refresh replaced
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -170,19 +171,17 @@ class PlaneOdometry:
         if self.config.odometry.deskew and time_spread(scan):
             dt, ocfg = t - self.times[-1], self.config.odometry
             refresh, previous = self._refresh_reference, len(self.last_planes)
-            # a twist never outlives an unresolved epoch: until one is measured again, the
-            # epochs are extracted without it (it still serves as prior and bridge, and is
-            # tried when the extraction without it is suspect)
+            # a twist never outlives an unresolved epoch: until one is measured again, epochs are
+            # extracted without it (still the prior and bridge; tried when that is suspect)
             unresolved = self._unresolved_last()
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg) if against_map else None
             pairwise = self._map is None
             lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg) if pairwise else None
-            best = register_deskewed(
-                twist, dt, estimate, refresh, ocfg, previous, held, against_map, trend,
-                lost_trend,
-            )  # fmt: skip
+            restore = self._restore_reference if pairwise and ocfg.reference_refresh_guard else None
+            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held,
+                                     against_map, trend, lost_trend, restore)  # fmt: skip
         else:
             best = estimate(None)
         twist = best.twist
@@ -336,34 +335,35 @@ class PlaneOdometry:
 
     def _refresh_reference(self, twist: np.ndarray) -> bool:
         """Extract the reference epoch again with ``twist`` when it has a scan that was
-        never deskewed and was not tried before (its pose is not changed); returns whether
-        its planes were replaced (not when ``odometry.reference_refresh_guard`` keeps them)."""
+        never deskewed (its pose is not changed) and was not brought back before
+        (:meth:`_restore_reference`); returns whether it did."""
         ref = self._reference()
         if ref.scan is None or ref.twist is not None or ref.kept:
             return False
         if self._map is not None and ref.index != 0:
             return False  # the map holds the epoch's planes: only the first is seeded again
-        planes = self._extract(ref.scan, twist)
-        ref.kept = True
-        guard = self.config.odometry.reference_refresh_guard
-        if guard and len(planes) < max(2.0, 0.5 * len(ref.planes)):
-            # far fewer planes than it had (as deskew.register_deskewed judges an epoch):
-            # the twist of the next epoch does not fit this one (2D rig at 2 cm: a wall
-            # group lost with it, the reference left with the ground alone and the next
-            # epoch unresolved); its planes stay, and it is not tried again
-            return False
-        ref.planes, ref.twist = planes, twist
+        was = ref.index in self.superseded
+        self._undo = (ref, ref.planes, ref.plane_set, was, self._last_usable)
+        ref.planes, ref.twist = self._extract(ref.scan, twist), twist
         ref.plane_set = PlaneSet.from_planes(ref.planes)
         if self._map is not None:
             self._map.reseed(ref.planes)
         self.planes[ref.index] = ref.planes
         if self.results[ref.index] is not None:
             self.superseded.add(ref.index)
-        if len(ref.planes) >= 2 and (
-            self._last_usable is None or self._last_usable.index <= ref.index
-        ):
+        last = self._last_usable
+        if len(ref.planes) >= 2 and (last is None or last.index <= ref.index):
             self._last_usable = ref
         return True
+
+    def _restore_reference(self) -> None:
+        """Bring back the planes the last :meth:`_refresh_reference` replaced (the epoch's
+        estimate against the new ones was worse); the epoch is not extracted again."""
+        ref, planes, plane_set, superseded, last_usable = self._undo
+        ref.planes, ref.plane_set, ref.twist, ref.kept = planes, plane_set, None, True
+        self.planes[ref.index], self._last_usable = planes, last_usable
+        if not superseded:
+            self.superseded.discard(ref.index)
 
     # ------------------------------------------------------------------ state
 

@@ -27,9 +27,9 @@ def trajectory(n: int, seed: int):
 def test_a_reference_that_loses_its_planes_with_the_next_twist_keeps_them(guard):
     """Epoch 0 is extracted without a twist (the first); once epoch 1 is estimated, epoch 0
     is extracted again with epoch 1's twist. Here that extraction finds only the first
-    plane (the twist does not fit epoch 0): with the guard the reference keeps its planes
-    and epoch 1 is measured exactly; without it the reference is left with one plane and
-    epoch 1, estimated against it again, is unresolved."""
+    plane (the twist does not fit epoch 0), and epoch 1 against it is unresolved: with the
+    guard epoch 0's planes are brought back and epoch 1 keeps its exact estimate against
+    them; without it epoch 1 stays unresolved against the one plane."""
     world, poses = trajectory(3, seed=5)
     planes = [observe(world, T) for T in poses]
     calls: list[tuple[int, bool]] = []
