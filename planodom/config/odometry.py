@@ -193,6 +193,47 @@ class OdometryConfig(Section):
     worlds identical (no epoch there was suspect). The trend as the prediction of every
     epoch instead: ATE better on all four, but rotation rms worse on world 7 (0.0072 ->
     0.013 deg at 6 mm: a prediction within the deskewing tolerances is not refined)."""
+    pairwise_trend_rescue: bool = False
+    """Streaming, pairwise pipelines (the 2D rig's): an epoch still lost (unresolved, or
+    far fewer planes than the epoch before) once the predicted twist, none and the held
+    one were tried, is extracted again with the angular rate extrapolated along the trend
+    of the recent measured rates (:func:`planodom.odometry.deskew.pairwise_trend`; the
+    velocity stays the prediction's): the prediction, the last step's rate, lags a turn
+    that tightens, and deskewed with it a far wall tilts and gives a wrong rotation that
+    ``degenerate_gate`` bridges (issue 11's world 6 at 6 mm, epoch 51: 12.1 deg/s
+    predicted for 13.4, a wall 75 m away tilted 1.6 deg, the rotation 1.1 deg off; with
+    exact deskewing the same solver is 0.01 deg off). Off by default, not yet better
+    everywhere; measured on the even 2D-rig worlds, 300 epochs (rot deg / xy cm / ATE m
+    / unresolved / gap*, off -> on): at 6 mm world 6 0.294 / 7.2 / 1.07 / 9 / 4 -> 0.244
+    / 6.7 / 1.52 / 10 / 3, world 0 0.145 / 2.3 / 0.25 / 4 / 2 -> 0.149 / 2.9 / 0.44 / 4
+    / 1 (a degenerate stretch kept a stale velocity median where an unresolved epoch had
+    cleared it), the others identical; at 2 cm world 6 0.474 / 16.1 / 7.56 / 36 / 3 ->
+    0.713 / 19.1 / 3.92 / 28 / 6, world 2 0.582 / 10.0 / 0.99 / 12 -> 0.542 / 8.7 / 0.93
+    / 11, world 0 0.192 / 7.5 / 1.32 / 5 -> 0.181 / 7.3 / 1.13 / 1, world 16 0.476 /
+    5.46 -> 0.496 / 5.53, worlds 12, 14, 18 within a few per cent, 4, 8, 10 identical.
+    Tried on every suspect epoch (degenerate ones too), it was worse (world 6 at 6 mm:
+    ATE 1.07 -> 2.90 m): the plane count picked other twists than the epoch's own rate."""
+    reference_refresh_guard: bool = False
+    """Streaming, pairwise pipelines: a reference epoch that was never deskewed (the first,
+    or one kept as extracted without a twist) is extracted again with the next epoch's
+    refined twist (:mod:`planodom.odometry.deskew`, step 2), and the next epoch's estimate
+    against the new planes is kept even when its status is worse (the one against the old
+    planes refers to planes that are gone). True: then the old planes are brought back
+    instead, the estimate against them kept, and the epoch not extracted again. The next
+    epoch's twist need not fit the reference's scan: on issue 11's worlds at 2 cm (2D rig)
+    the reference lost walls or its ceiling that way and the next epoch was unresolved
+    (world 6: the ground alone left, every few epochs of a straight stretch; world 2,
+    epoch 64: two parallel corridor walls left of four planes). Off by default, not yet
+    better everywhere (a measured epoch's error replaces a bridge's, and the runs at 2 cm
+    are chaotic); measured on the even 2D-rig worlds, 300 epochs (rot deg / xy cm / ATE
+    m / unresolved / gap*, off -> on): at 2 cm world 6 0.474 / 16.1 / 7.56 / 36 / 3 ->
+    0.485 / 14.1 / 5.05 / 18 / 5, world 2 0.582 / 10.0 / 0.99 / 12 / 3 -> 0.476 / 6.3 /
+    3.75 / 6 / 1, world 12 0.358 / 13.9 / 5.58 / 7 -> 0.687 / 14.5 / 4.88 / 10, world 10
+    0.164 / 8.3 / 0.65 / 8 -> 0.210 / 8.5 / 1.61 / 1, world 16 0.476 / 5.5 / 1.01 / 6 ->
+    0.155 / 3.6 / 0.91 / 2, world 0 slightly better; at 6 mm world 6 0.294 / 7.2 / 1.07 /
+    9 / 4 -> 0.335 / 11.4 / 3.76 / 9 / 3, world 2 0.531 / 5.6 / 0.82 / 5 -> 0.472 / 4.1 /
+    1.22 / 4, world 18 0.437 / 7.5 / 2.00 / 1 -> 0.361 / 6.6 / 1.83 / 0, worlds 0 and 8
+    within a few per cent."""
     map_twist_offset: bool = False
     """Streaming, plane-map pipeline: the epoch's own twist (what it is extracted again
     with) has the offset its and the previous epoch's deskewing put in the step taken off

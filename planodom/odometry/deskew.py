@@ -19,12 +19,17 @@ it again:
    unresolved epoch no twist is predicted (a twist never outlives an unresolved epoch),
    but the one held from before it is tried the same way when the epoch extracted
    without deskewing is suspect: on a 2D-rig world a turn left only the ground without
-   it, and the gap went on for 7 epochs;
+   it, and the gap went on for 7 epochs. On the pairwise pipelines, an epoch still lost
+   (unresolved, or far fewer planes) is tried last with the angular rate along the
+   trend of the recent measured ones (``odometry.pairwise_trend_rescue``, off by
+   default);
 2. up to ``deskew_iterations`` times: with the epoch's own angular rate and (when its
    translation was measured) velocity (against a plane map: their mean with the twist
    used, see ``against_map``) wherever they differ from the twist used by more
    than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
-   epoch that was never deskewed (the first) is extracted again with it too. An epoch
+   epoch that was never deskewed (the first) is extracted again with it too (with
+   ``odometry.reference_refresh_guard``, off by default, its old planes are brought
+   back when the estimate against the new ones is worse). An epoch
    kept without deskewing is refined only once its translation is measured (never with
    a velocity of zero nobody measured). A new estimate is kept while its status does not
    get worse, and always once the reference was extracted again (the earlier estimate
@@ -153,6 +158,8 @@ def register_deskewed(
     held: np.ndarray | None = None,
     against_map: bool = False,
     trend: np.ndarray | None = None,
+    lost_trend: np.ndarray | None = None,
+    restore_reference: Callable[[], None] | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -174,6 +181,13 @@ def register_deskewed(
         trend: (6,) the twist extrapolated along the recent change of the twists (None:
             none): tried first when the epoch deskewed with ``predicted`` is suspect (a
             prediction that averages recent twists lags a turn that tightens).
+        lost_trend: (6,) a twist tried last when the epoch is still lost (unresolved, or
+            far fewer planes than the epoch before) after those (None: none;
+            :func:`pairwise_trend`): a degenerate epoch measured its angular rate, which
+            step 2 deskews it with; an unresolved one has nothing better than a trend.
+        restore_reference: brings back the reference's planes a refresh replaced (None:
+            never): called, and the estimate against them kept, when the estimate against
+            the new ones is worse (``odometry.reference_refresh_guard``).
     """
     best = estimate(predicted)
     few = len(best.planes) < max(2.0, 0.5 * previous_planes)
@@ -185,6 +199,10 @@ def register_deskewed(
             alternative = estimate(other)
             if _score(alternative) > _score(best):
                 best = alternative
+    if dt > 0 and lost_trend is not None and _lost(best, previous_planes):
+        alternative = estimate(lost_trend)
+        if _score(alternative) > _score(best):
+            best = alternative
     for _ in range(config.deskew_iterations if dt > 0 else 0):
         if best.relative.status is Status.UNRESOLVED:
             break
@@ -200,12 +218,22 @@ def register_deskewed(
         if not stale_reference and np.array_equal(new, used):
             break
         again = estimate(new, best)
-        if not stale_reference and again.relative.status.rank < best.relative.status.rank:
+        worse = again.relative.status.rank < best.relative.status.rank
+        if worse and stale_reference and restore_reference is not None:
+            restore_reference()  # the estimate made against the old planes holds again
+            break
+        if worse and not stale_reference:
             break
         # once the reference was extracted again, an estimate made against its old
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
+
+
+def _lost(candidate: EpochEstimate, previous_planes: int) -> bool:
+    """Unresolved, or far fewer planes than the epoch before (under half, or under two)."""
+    few = len(candidate.planes) < max(2.0, 0.5 * previous_planes)
+    return candidate.relative.status is Status.UNRESOLVED or few
 
 
 def prefer_streaming(given: EpochEstimate, previous_planes: int) -> bool:
@@ -242,22 +270,46 @@ def refined_twist(
     return new
 
 
-def trend_twist(recent: np.ndarray) -> np.ndarray:
-    """(6,) the twist one epoch after the last of ``recent`` (W, 6) (W >= 4, one an epoch),
-    along the straight-line fit of each component, its slope shrunk by how well the
+def trend_twist(
+    recent: np.ndarray, x: np.ndarray | None = None, at: float | None = None
+) -> np.ndarray:
+    """(6,) the twist one epoch after the last of ``recent`` (W, 6) (W >= 4, one an epoch;
+    or, given their epochs ``x`` (W,), at epoch ``at``), along the straight-line fit of
+    each component, its slope shrunk by how well the
     fit's residuals determine it (``slope (1 - var_slope / slope^2)``, at least 0): a
     turn that tightens steadily is followed, a rate that only shakes from epoch to epoch
     (suspension roll and pitch) is averaged as by the mean. Least squares by hand: six
     independent fits of a handful of points, with their residuals."""
     w = len(recent)
-    x = np.arange(w, dtype=float) - 0.5 * (w - 1)
+    x = np.arange(w, dtype=float) if x is None else np.asarray(x, dtype=float)
+    at = float(x[-1]) + 1.0 if at is None else float(at)
+    centre = float(x.mean())
+    x = x - centre
     mean = recent.mean(axis=0)
     sxx = float(x @ x)
     slope = x @ (recent - mean) / sxx
     resid = recent - mean - np.outer(x, slope)
     var_slope = np.sum(resid**2, axis=0) / (w - 2) / sxx
     shrink = np.clip(1.0 - var_slope / np.maximum(slope**2, 1e-300), 0.0, 1.0)
-    return mean + shrink * slope * (x[-1] + 1.0)
+    return mean + shrink * slope * (at - centre)
+
+
+def pairwise_trend(
+    recent: Sequence[tuple[int, np.ndarray]],
+    k: int,
+    base: np.ndarray | None,
+    config: OdometryConfig,
+) -> np.ndarray | None:
+    """(6,) the twist a lost epoch ``k`` of a pairwise pipeline is tried with last
+    (``config.pairwise_trend_rescue``): the angular rate along the trend of the
+    ``recent`` (epoch, own twist (6,)) of epochs that measured it, extrapolated to ``k``
+    (:func:`trend_twist`), the velocity ``base``'s (the predicted or held twist); None
+    when off, without ``base`` or before 4 of them."""
+    if not config.pairwise_trend_rescue or base is None or len(recent) < 4:
+        return None
+    x = np.array([j for j, _ in recent], dtype=float)
+    trend = trend_twist(np.array([tw for _, tw in recent]), x, float(k))
+    return np.r_[trend[:3], base[3:]]
 
 
 def map_trend(recent: Sequence[np.ndarray], config: OdometryConfig) -> np.ndarray | None:

@@ -28,6 +28,7 @@ from planodom.odometry.deskew import (
     EpochEstimate,
     keep_first,
     map_trend,
+    pairwise_trend,
     prefer_streaming,
     register_deskewed,
     time_spread,
@@ -62,6 +63,7 @@ class _Epoch:
     plane_set: PlaneSet
     scan: Scan | None = None
     twist: np.ndarray | None = None
+    kept: bool = False  # its planes were brought back after extracting it again made it worse
 
 
 class PlaneOdometry:
@@ -113,7 +115,10 @@ class PlaneOdometry:
         # The plane-map odometry when the pipeline is (or resolves to) "map".
         self._map: PlaneMapOdometry | None = None
         self._recent: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
+        # pairwise pipelines: (epoch, own twist) of the last epochs that measured the rate
+        self._rates: deque[tuple[int, np.ndarray]] = deque(maxlen=self._recent.maxlen)
         self._twist_sigma = TwistUncertainty(self.config.odometry)
+        self._undo: tuple = ()  # what the last reference refresh replaced
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -166,16 +171,17 @@ class PlaneOdometry:
         if self.config.odometry.deskew and time_spread(scan):
             dt, ocfg = t - self.times[-1], self.config.odometry
             refresh, previous = self._refresh_reference, len(self.last_planes)
-            # a twist never outlives an unresolved epoch: until one is measured again, the
-            # epochs are extracted without it (it still serves as prior and bridge, and is
-            # tried when the extraction without it is suspect)
+            # a twist never outlives an unresolved epoch: until one is measured again, epochs are
+            # extracted without it (still the prior and bridge; tried when that is suspect)
             unresolved = self._unresolved_last()
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg) if against_map else None
-            best = register_deskewed(
-                twist, dt, estimate, refresh, ocfg, previous, held, against_map, trend
-            )
+            pairwise = self._map is None
+            lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg) if pairwise else None
+            restore = self._restore_reference if pairwise and ocfg.reference_refresh_guard else None
+            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held,
+                                     against_map, trend, lost_trend, restore)  # fmt: skip
         else:
             best = estimate(None)
         twist = best.twist
@@ -329,25 +335,35 @@ class PlaneOdometry:
 
     def _refresh_reference(self, twist: np.ndarray) -> bool:
         """Extract the reference epoch again with ``twist`` when it has a scan that was
-        never deskewed (its pose is not changed); returns whether it did."""
+        never deskewed (its pose is not changed) and was not brought back before
+        (:meth:`_restore_reference`); returns whether it did."""
         ref = self._reference()
-        if ref.scan is None or ref.twist is not None:
+        if ref.scan is None or ref.twist is not None or ref.kept:
             return False
         if self._map is not None and ref.index != 0:
             return False  # the map holds the epoch's planes: only the first is seeded again
-        ref.planes = self._extract(ref.scan, twist)
+        was = ref.index in self.superseded
+        self._undo = (ref, ref.planes, ref.plane_set, was, self._last_usable)
+        ref.planes, ref.twist = self._extract(ref.scan, twist), twist
         ref.plane_set = PlaneSet.from_planes(ref.planes)
-        ref.twist = twist
         if self._map is not None:
             self._map.reseed(ref.planes)
         self.planes[ref.index] = ref.planes
         if self.results[ref.index] is not None:
             self.superseded.add(ref.index)
-        if len(ref.planes) >= 2 and (
-            self._last_usable is None or self._last_usable.index <= ref.index
-        ):
+        last = self._last_usable
+        if len(ref.planes) >= 2 and (last is None or last.index <= ref.index):
             self._last_usable = ref
         return True
+
+    def _restore_reference(self) -> None:
+        """Bring back the planes the last :meth:`_refresh_reference` replaced (the epoch's
+        estimate against the new ones was worse); the epoch is not extracted again."""
+        ref, planes, plane_set, superseded, last_usable = self._undo
+        ref.planes, ref.plane_set, ref.twist, ref.kept = planes, plane_set, None, True
+        self.planes[ref.index], self._last_usable = planes, last_usable
+        if not superseded:
+            self.superseded.discard(ref.index)
 
     # ------------------------------------------------------------------ state
 
@@ -366,6 +382,8 @@ class PlaneOdometry:
             measured = best.relative.status is Status.OK
             own = best.own_twist(dt)
             self._twist_sigma.update(own, best.relative, dt)
+            if best.relative.status is not Status.UNRESOLVED:
+                self._rates.append((epoch.index, own))
             self.twist = self._predicted_twist(own, measured)
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)

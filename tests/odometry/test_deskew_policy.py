@@ -127,3 +127,25 @@ def test_a_suspect_epoch_tries_the_trend_twist_before_none():
     tried.clear()
     ok = register_deskewed(TRUE, DT, model, lambda t: False, config, 2, trend=trend)
     assert ok.relative.status is Status.OK and len(tried) == 1
+
+
+def test_a_lost_trend_is_tried_last_and_only_for_a_lost_epoch():
+    """The pairwise pipelines' trend is tried after the prediction and none, and only while
+    the epoch is still unresolved; a degenerate epoch (its rate measured) does not try it."""
+    tried: list[np.ndarray | None] = []
+    trend = TRUE + 0.05
+
+    def model(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
+        tried.append(None if twist is None else twist.copy())
+        close = twist is not None and np.linalg.norm(twist - TRUE) < 0.2
+        return _estimate(twist, TRUE, Status.OK if close else status_far)
+
+    config = OdometryConfig(deskew_iterations=0)
+    status_far = Status.UNRESOLVED
+    best = register_deskewed(PREDICTED, DT, model, lambda t: False, config, 2, lost_trend=trend)
+    assert best.relative.status is Status.OK
+    assert tried[1] is None and np.array_equal(tried[2], trend) and len(tried) == 3
+    tried.clear()
+    status_far = Status.DEGENERATE
+    best = register_deskewed(PREDICTED, DT, model, lambda t: False, config, 2, lost_trend=trend)
+    assert best.relative.status is Status.DEGENERATE and len(tried) == 2

@@ -1,4 +1,4 @@
-"""The plane-map pipeline's trend twist (:func:`planodom.odometry.deskew.trend_twist`)."""
+"""The trend twist (:func:`planodom.odometry.deskew.trend_twist`): plane-map and pairwise."""
 
 from __future__ import annotations
 
@@ -27,3 +27,32 @@ def test_a_shaking_rate_is_averaged():
     got = trend_twist(recent)
     mean = recent.mean(axis=0)
     np.testing.assert_allclose(got, mean, atol=1e-12)
+
+
+def test_twists_at_given_epochs_are_extrapolated_to_the_asked_one():
+    """With the epochs they were measured at (a gap of unresolved epochs among them), a
+    steady change is extrapolated to the epoch asked for: the line through them there."""
+    step = np.array([0.0, 0.0, 0.02, 0.0, 0.0, 0.0])
+    x = np.array([3, 4, 6, 7, 8])
+    recent = np.outer(x, step) + np.array([0.0, 0.0, 0.2, 3.0, 0.0, 0.0])
+    got = trend_twist(recent, x, 11.0)
+    np.testing.assert_allclose(got, 11 * step + [0.0, 0.0, 0.2, 3.0, 0.0, 0.0], atol=1e-12)
+    # without epochs: one an epoch, the next one after the last
+    np.testing.assert_allclose(trend_twist(recent), trend_twist(recent, np.arange(5), 5.0))
+
+
+def test_the_pairwise_trend_takes_the_rate_from_the_trend_and_the_velocity_given():
+    from planodom.config import OdometryConfig
+    from planodom.odometry.deskew import pairwise_trend
+
+    rate = np.array([0.0, 0.0, 0.2, 0.0, 0.0, 0.0])
+    recent = [(k, (0.1 + 0.01 * k) * rate / 0.2 + [0, 0, 0, 5.0, 0, 0]) for k in range(5)]
+    base = np.array([0.0, 0.0, 0.0, 2.0, 0.1, 0.0])
+    on = OdometryConfig(pairwise_trend_rescue=True)
+    got = pairwise_trend(recent, 7, base, on)
+    assert got is not None
+    np.testing.assert_allclose(got[:3], [0.0, 0.0, 0.17], atol=1e-12)
+    np.testing.assert_array_equal(got[3:], base[3:])
+    assert pairwise_trend(recent[:3], 7, base, on) is None
+    assert pairwise_trend(recent, 7, None, on) is None
+    assert pairwise_trend(recent, 7, base, OdometryConfig()) is None  # off by default
