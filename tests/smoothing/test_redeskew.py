@@ -76,3 +76,18 @@ def test_trusted_poses_never_the_first_and_by_the_odometry_not_its_bridges() -> 
 def test_bad_redeskew_settings_are_refused(field: str, value: object) -> None:
     with pytest.raises(ConfigError, match=field):
         PlanodomConfig().updated({f"smoothing.{field}": value})
+
+
+def test_loop_experiment_adds_the_re_deskewed_batch_when_asked() -> None:
+    """``planodom experiment loops`` with ``redeskew_passes``: a ``batch+loops+redeskew``
+    row before the oracle's, in the summary too; on 60 epochs of world 0 at 6 mm its ATE
+    against the truth is below the odometry's (measured 0.020 against 0.22 m; batch+loops
+    0.025 m)."""
+    from planodom.experiments.loops import run_loop_world, summary_rows
+
+    rows = run_loop_world(0, 0.006, 60, PlanodomConfig().updated({"smoothing.redeskew_passes": 1}))
+    methods = [r["method"] for r in rows]
+    assert methods[-2:] == ["batch+loops+redeskew", "oracle"]
+    ate_of = {r["method"]: float(r["ate_m"]) for r in rows}  # type: ignore[arg-type]
+    assert ate_of["batch+loops+redeskew"] < 0.5 * ate_of["odometry"]
+    assert "batch+loops+redeskew" in [s["method"] for s in summary_rows(rows)]
