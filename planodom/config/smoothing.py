@@ -368,6 +368,12 @@ class SmoothingConfig(Section):
     the true poses with independent errors of 0.02 deg and 5 mm still 0.008 and 0.015 m.
     On the simulated urban canyon (200 epochs) one pass takes the batch's rotation RPE
     from 0.016 to 0.0067 deg (ATE 4.0 -> 3.5 mm)."""
+    first_epoch_refresh: Annotated[int, Field(ge=0, le=5)] = 0
+    """Batch, on scans with point times: after smoothing (and ``redeskew_passes``),
+    extract the first epoch again with the constant twist of its smoothed step to the
+    second, this many times (each with the step estimated on the planes before), estimate
+    the relative poses from it again and smooth again (0: off;
+    :func:`planodom.smoothing.redeskew.refresh_first_epoch`)."""
     redeskew_trust: Literal["smoothed", "odometry"] = "smoothed"
     """``redeskew_passes``: the smoothed poses a scan is deskewed along ("measured" in
     :func:`~planodom.odometry.run.redeskewed_run`; an epoch within ``odometry.deskew_order``

@@ -39,7 +39,7 @@ from planodom.odometry import (
 from planodom.odometry.run import EpochSequence
 from planodom.rig import Rig
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
-from planodom.smoothing.redeskew import redeskew_passes
+from planodom.smoothing.redeskew import redeskew_passes, refresh_first_epoch
 from planodom.smoothing.windowed import smooth_windowed
 
 Progress = Callable[[str, int, int], None]
@@ -57,10 +57,11 @@ class SmoothingRun:
         config: the resolved configuration (``smoothing.window`` / ``delta_max`` set).
         seconds: wall time of "extraction", "odometry" (the delta = 1 streaming run),
             "relatives" (delta = 1..D), "smoothing" (the first solve) and "redeskew" (all
-            of ``smoothing.redeskew_passes``).
-        redeskewed: with ``smoothing.redeskew_passes``, the odometry of the last pass (on
-            the scans deskewed along the smoothed poses): ``result`` and ``relatives``
-            come from its planes. None: they come from ``odometry``'s.
+            of ``smoothing.redeskew_passes`` and ``first_epoch_refresh``).
+        redeskewed: with ``smoothing.redeskew_passes`` or ``first_epoch_refresh``, the
+            odometry run whose planes ``result`` and ``relatives`` come from (the scans
+            deskewed along the smoothed poses, the first epoch extracted again). None:
+            they come from ``odometry``'s.
     """
 
     result: SmoothingResult
@@ -249,14 +250,17 @@ def run_smoothing(
 
 
 def _redeskew(run: SmoothingRun, source: EpochSequence, rig: Rig) -> None:
-    """``smoothing.redeskew_passes`` on ``run`` (batch), in place: its result, relative
-    poses and ``redeskewed`` become the last pass's (:mod:`planodom.smoothing.redeskew`)."""
+    """``smoothing.redeskew_passes``, then ``smoothing.first_epoch_refresh``, on ``run``
+    (batch), in place: its result, relative poses and ``redeskewed`` become the last
+    step's (:mod:`planodom.smoothing.redeskew`)."""
 
     def smooth(odometry: OdometryRun) -> tuple[list[RelativePose], SmoothingResult]:
         relatives = smoothing_relatives(odometry, run.config)
         return relatives, smooth_batch(odometry.planes, relatives, run.config)
 
-    out = redeskew_passes(source, run.odometry, run.result, run.config, rig, smooth)
-    if out is not None:
-        run.result, run.relatives, run.redeskewed = out.result, out.relatives, out.odometry
-        run.seconds["redeskew"] = out.seconds
+    for step in (redeskew_passes, refresh_first_epoch):
+        odometry = run.redeskewed or run.odometry
+        out = step(source, odometry, run.result, run.config, rig, smooth)
+        if out is not None:
+            run.result, run.relatives, run.redeskewed = out.result, out.relatives, out.odometry
+            run.seconds["redeskew"] = run.seconds.get("redeskew", 0.0) + out.seconds
