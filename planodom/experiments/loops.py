@@ -9,6 +9,9 @@ lap is simulated (continuous motion) and compared, side by side:
   (:mod:`planodom.smoothing.windowed_loops`, ``smoothing.windowed_loop_closure``);
 - ``batch``: the whole lap in one graph, no loop closure;
 - ``batch+loops``: the same with the global plane map (:mod:`planodom.smoothing.loops`);
+- ``batch+loops+redeskew``: with ``smoothing.redeskew_passes`` > 0 only, the same after
+  that many passes deskewing the scans along the smoothed poses
+  (:mod:`planodom.smoothing.redeskew`);
 - ``oracle``: the oracle's pure odometry (:mod:`planodom.oracle`).
 
 Per run: ATE (xy, origin-aligned, rmse), the xy position error at the loop's end (the last
@@ -45,10 +48,11 @@ from planodom.oracle import run_oracle
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.batch import group_by_epoch, smooth_batch
 from planodom.smoothing.loop_records import loop_factor_counts, reidentification_counts
-from planodom.smoothing.run import smoothing_relatives
+from planodom.smoothing.run import run_smoothing, smoothing_relatives
 from planodom.smoothing.windowed import WindowedSmoother, smooth_windowed
 
-METHODS = ("odometry", "windowed", "windowed+loops", "batch", "batch+loops", "oracle")
+METHODS = ("odometry", "windowed", "windowed+loops", "batch", "batch+loops",
+           "batch+loops+redeskew", "oracle")  # fmt: skip
 Row = dict[str, object]
 
 
@@ -140,8 +144,17 @@ def run_loop_world(
     odo = run_odometry(world_fields(world, full), config)
     relatives = smoothing_relatives(odo, config)
     oracle = run_oracle(full.scans, full.times, world.trajectory, world.scene)
-    rows = compare_methods(odo.planes, relatives, gt, odo.poses, oracle.poses, config,
-                           coplanar(world.scene))  # fmt: skip
+    same = coplanar(world.scene)
+    rows = compare_methods(odo.planes, relatives, gt, odo.poses, oracle.poses, config, same)
+    if config.smoothing.redeskew_passes:
+        cfg = config.updated({"smoothing.loop_closure": True})
+        run = run_smoothing(world_fields(world, full), cfg, mode="batch", odometry=odo)
+        row: Row = {"method": "batch+loops+redeskew", **_errors(run.poses, gt)}
+        seconds = sum(v for k, v in run.seconds.items() if k not in ("extraction", "odometry"))
+        row["seconds"], row["epochs_per_s"] = seconds, len(odo.planes) / max(seconds, 1e-9)
+        row |= reidentification_counts(run.result.reidentifications, same)
+        row |= loop_factor_counts(run.result.loop_factors, gt)
+        rows.insert(-1, row)
     for row in rows:
         row |= {"world": index, "family": world.description["family"], "noise_mm": noise * 1e3}
     return rows

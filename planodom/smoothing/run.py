@@ -39,6 +39,7 @@ from planodom.odometry import (
 from planodom.odometry.run import EpochSequence
 from planodom.rig import Rig
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
+from planodom.smoothing.redeskew import redeskew_passes, refresh_first_epoch
 from planodom.smoothing.windowed import smooth_windowed
 
 Progress = Callable[[str, int, int], None]
@@ -55,7 +56,12 @@ class SmoothingRun:
         times: (E,) epoch times, seconds.
         config: the resolved configuration (``smoothing.window`` / ``delta_max`` set).
         seconds: wall time of "extraction", "odometry" (the delta = 1 streaming run),
-            "relatives" (delta = 1..D) and "smoothing".
+            "relatives" (delta = 1..D), "smoothing" (the first solve) and "redeskew" (all
+            of ``smoothing.redeskew_passes`` and ``first_epoch_refresh``).
+        redeskewed: with ``smoothing.redeskew_passes`` or ``first_epoch_refresh``, the
+            odometry run whose planes ``result`` and ``relatives`` come from (the scans
+            deskewed along the smoothed poses, the first epoch extracted again). None:
+            they come from ``odometry``'s.
     """
 
     result: SmoothingResult
@@ -64,6 +70,7 @@ class SmoothingRun:
     times: np.ndarray
     config: PlanodomConfig
     seconds: dict[str, float] = field(default_factory=dict)
+    redeskewed: OdometryRun | None = None
 
     @property
     def poses(self) -> np.ndarray:
@@ -203,8 +210,8 @@ def run_smoothing(
             :func:`planodom.odometry.run_odometry`.
         window: W, epochs of the fixed-lag smoother (default ``smoothing.window``).
         delta: D, relative poses for delta = 1..D (default ``smoothing.delta_max``).
-        mode: "batch" (whole sequence, Levenberg-Marquardt, marginals) or "windowed"
-            (fixed-lag smoother, online).
+        mode: "batch" (whole sequence, Levenberg-Marquardt, marginals; then
+            ``smoothing.redeskew_passes``) or "windowed" (fixed-lag smoother, online).
         odometry: a delta = 1 odometry run of the same source to reuse (skips extraction).
         progress: called as ``progress(stage, done, total)``, stage "odometry",
             "relatives".
@@ -231,7 +238,29 @@ def run_smoothing(
     relatives = smoothing_relatives(odometry, cfg, progress)
     seconds["relatives"] = time.perf_counter() - start
 
-    smooth = smooth_batch if mode == "batch" else smooth_windowed
-    result = smooth(odometry.planes, relatives, cfg if mode == "batch" else cfg.smoothing)
+    if mode == "windowed":
+        result = smooth_windowed(odometry.planes, relatives, cfg.smoothing)
+    else:
+        result = smooth_batch(odometry.planes, relatives, cfg)
     seconds["smoothing"] = result.runtime_s
-    return SmoothingRun(result, odometry, relatives, np.asarray(odometry.times), cfg, seconds)
+    run = SmoothingRun(result, odometry, relatives, np.asarray(odometry.times), cfg, seconds)
+    if mode == "batch":
+        _redeskew(run, source, rig or getattr(source, "rig", None) or Rig())
+    return run
+
+
+def _redeskew(run: SmoothingRun, source: EpochSequence, rig: Rig) -> None:
+    """``smoothing.redeskew_passes``, then ``smoothing.first_epoch_refresh``, on ``run``
+    (batch), in place: its result, relative poses and ``redeskewed`` become the last
+    step's (:mod:`planodom.smoothing.redeskew`)."""
+
+    def smooth(odometry: OdometryRun) -> tuple[list[RelativePose], SmoothingResult]:
+        relatives = smoothing_relatives(odometry, run.config)
+        return relatives, smooth_batch(odometry.planes, relatives, run.config)
+
+    for step in (redeskew_passes, refresh_first_epoch):
+        odometry = run.redeskewed or run.odometry
+        out = step(source, odometry, run.result, run.config, rig, smooth)
+        if out is not None:
+            run.result, run.relatives, run.redeskewed = out.result, out.relatives, out.odometry
+            run.seconds["redeskew"] = run.seconds.get("redeskew", 0.0) + out.seconds
