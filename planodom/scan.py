@@ -37,17 +37,18 @@ class Scan:
                 pts = pts.reshape(0, 3)
             else:
                 raise GeometryError(f"scan points: expected (N, 3), got shape {pts.shape}")
-        object.__setattr__(self, "points", pts)
+        object.__setattr__(self, "points", _owned(pts, self.points, writeable=True))
         for name, dtype in (("ring", np.int32), ("t", np.float64), ("label", np.int32)):
             value = getattr(self, name)
             if value is None:
                 continue
-            arr = np.asarray(value, dtype=dtype).reshape(-1)
+            arr = np.asarray(value, dtype=dtype)
+            arr = arr if arr.ndim == 1 else arr.reshape(-1)  # the same object: see _owned
             if len(arr) != len(pts):
                 raise GeometryError(
                     f"scan field '{name}' has {len(arr)} values for {len(pts)} points"
                 )
-            object.__setattr__(self, name, arr)
+            object.__setattr__(self, name, _owned(arr, value))
 
     def __len__(self) -> int:
         return len(self.points)
@@ -59,6 +60,21 @@ class Scan:
             return None if a is None else a[mask]
 
         return Scan(self.points[mask], pick(self.ring), pick(self.t), pick(self.label))
+
+
+def _owned(arr: np.ndarray, given: object, writeable: bool = False) -> np.ndarray:
+    """``arr``, copied when it shares memory with the caller's ``given`` array, and
+    read-only unless ``writeable``: a scan's arrays never change after construction,
+    even when a driver refills one buffer for every message (the extraction memoises what
+    it derives from a scan's arrays by their identity, :mod:`planodom.extraction.memo`).
+    Points stay writeable because open3d's vectors take only writeable buffers; planodom
+    never writes into them. A copy costs about 0.1 ms for 130 000 points; a read-only
+    array (another scan's ring or times) is kept as it is, so the memo still knows it."""
+    if isinstance(given, np.ndarray) and given.flags.writeable and np.shares_memory(arr, given):
+        arr = arr.copy()  # another scan's read-only field is shared as it is
+    if not writeable:
+        arr.flags.writeable = False
+    return arr
 
 
 class ScanSequence(Protocol):
