@@ -19,7 +19,9 @@ with another twist and estimated again):
 4. the 6x6 information gives the covariance; a rotation direction with a 1-sigma above
    ``unobserved_rotation_deg`` makes the epoch UNRESOLVED (the prediction is kept), a
    translation direction above ``unobserved_translation_m`` DEGENERATE (the prediction is
-   kept along it: Gauss-Newton leaves directions without information unchanged);
+   kept along it, with its uncertainty: ``planemap.degenerate_translation``); a step
+   beyond the run's motion bounds is UNRESOLVED and ``inconsistent``, bridged by constant
+   velocity (``planemap.motion_bound_gate``);
 5. the map is updated (:func:`.landmarks.update_map`); after a detected failure (an
    unresolved epoch whose scan had enough planes) it is rebuilt from the current scan.
 
@@ -30,7 +32,7 @@ them are not used.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -194,11 +196,28 @@ class PlaneMapOdometry:
             status = Status.OK
         T_rel = invert_transform(self.pose) @ T
         rel = relative_pose(self, T_rel, reg.H if ok else None, status)
-        if rel.status is Status.UNRESOLVED:
+        inconsistent = rel.status is not Status.UNRESOLVED and self._beyond_bounds(rel)
+        if rel.status is Status.UNRESOLVED or inconsistent:
             T = T_pred
             rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
+            rel = replace(rel, inconsistent=inconsistent)
+            ok = False
+        elif rel.status is Status.DEGENERATE and self.config.planemap.degenerate_translation == (
+            "prediction"
+        ):
+            T = self.pose @ rel.T_prev_curr  # its unobserved translation: the prediction's
         assoc = self._associations(reg, used) if ok else np.zeros((0, 2), dtype=np.intp)
         return _with_associations(rel, assoc, reg.stage), T
+
+    def _beyond_bounds(self, rel: RelativePose) -> bool:
+        """Whether ``rel``'s step exceeds the motion bounds the run assumes
+        (``planemap.motion_bound_gate``): it contradicts them, so it is not a measurement."""
+        if not self.config.planemap.motion_bound_gate:
+            return False
+        a = self.config.association
+        step = rel.T_prev_curr
+        turned = _angle(step[:3, :3]) > np.radians(a.max_rotation_deg)
+        return turned or float(np.linalg.norm(step[:3, 3])) > a.max_translation_m
 
     def _associations(self, reg: Registration, used: np.ndarray) -> np.ndarray:
         """(L, 2) (plane index in the previous scan, plane index in this scan) through the
@@ -260,8 +279,6 @@ class PlaneMapOdometry:
 
 
 def _with_associations(rel: RelativePose, assoc: np.ndarray, stage: str) -> RelativePose:
-    from dataclasses import replace
-
     from planodom.association import PairAssociations
     from planodom.odometry.relative import SolverDiagnostics
 
