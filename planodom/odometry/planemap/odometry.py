@@ -97,19 +97,20 @@ class PlaneMapOdometry:
         self.velocity = np.eye(4)
         self.frame = -1
         self._dev_sse = np.zeros(2)
-        self._dev_n = 0
+        self._dev_n = np.zeros(2, dtype=int)  # deviations counted: rotation, translation
         self._fractions: list[float] = []
         self._prev: PlaneSet | None = None
 
     # ------------------------------------------------------------------ gates
 
     def sigmas(self) -> tuple[float, float]:
-        """RMS rotation (rad) and translation (m) deviations of the prediction so far."""
-        if self._dev_n == 0:
-            pm = self.config.planemap
+        """RMS rotation (rad) and translation (m) deviations of the prediction so far (the
+        translation's over the epochs that measured it, see :meth:`commit`)."""
+        pm = self.config.planemap
+        if self._dev_n[0] == 0:
             return np.radians(pm.initial_rotation_deg), pm.initial_translation_m
-        rms = np.sqrt(self._dev_sse / self._dev_n)
-        return float(rms[0]), float(rms[1])
+        rms = np.sqrt(self._dev_sse / np.maximum(self._dev_n, 1))
+        return float(rms[0]), float(rms[1]) if self._dev_n[1] else pm.initial_translation_m
 
     # ------------------------------------------------------------------ one scan
 
@@ -167,7 +168,7 @@ class PlaneMapOdometry:
         frac = len(best.inliers) / max(len(cur), 1)
         typical = float(np.median(self._fractions[-20:])) if self._fractions else 1.0
         ok = self._resolved(best, cur)
-        suspicious = not ok or frac < pm.suspect_ratio * typical or self._dev_n == 0
+        suspicious = not ok or frac < pm.suspect_ratio * typical or self._dev_n[0] == 0
         if not (suspicious and pm.fallback and self._prev is not None):
             return best
         vr, vt = _angle(self.velocity[:3, :3]), float(np.linalg.norm(self.velocity[:3, 3]))
@@ -202,12 +203,15 @@ class PlaneMapOdometry:
             rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
             rel = replace(rel, inconsistent=inconsistent)
             ok = False
-        elif rel.status is Status.DEGENERATE and self.config.planemap.degenerate_translation == (
-            "prediction"
-        ):
+        elif self._predicted_translation(rel):
             T = self.pose @ rel.T_prev_curr  # its unobserved translation: the prediction's
         assoc = self._associations(reg, used) if ok else np.zeros((0, 2), dtype=np.intp)
         return _with_associations(rel, assoc, reg.stage), T
+
+    def _predicted_translation(self, rel: RelativePose) -> bool:
+        """Whether ``rel``'s unobserved translation is the prediction's."""
+        prediction = self.config.planemap.degenerate_translation == "prediction"
+        return prediction and rel.status is Status.DEGENERATE
 
     def _beyond_bounds(self, rel: RelativePose) -> bool:
         """Whether ``rel``'s step exceeds the motion bounds the run assumes
@@ -258,8 +262,12 @@ class PlaneMapOdometry:
         T = _orthonormalised(est.T)
         if not first:
             dev = invert_transform(est.T_pred) @ T
-            self._dev_sse += [_angle(dev[:3, :3]) ** 2, float(dev[:3, 3] @ dev[:3, 3])]
-            self._dev_n += 1
+            # a degenerate epoch whose translation is the prediction's along its unobserved
+            # directions did not measure how far off the prediction is: counting its zero
+            # there would shrink the gates and the prediction's sigma it is given
+            counted = int(not self._predicted_translation(est.relative))
+            self._dev_sse += [_angle(dev[:3, :3]) ** 2, counted * float(dev[:3, 3] @ dev[:3, 3])]
+            self._dev_n += [1, counted]
             self.velocity = _orthonormalised(invert_transform(self.pose) @ T)
         self.pose = T
         self._prev = est.plane_set
