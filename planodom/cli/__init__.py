@@ -140,6 +140,25 @@ def _report_beyond_bounds(odo, metrics: dict) -> None:
         metrics["epochs_beyond_motion_bounds"] = [int(e) + 1 for e in beyond]
 
 
+def _report_inconsistent(odo, metrics: dict) -> None:
+    """Warn of (and list in metrics.json) epochs the odometry reported unresolved because
+    their estimate contradicted the motion assumption (``RelativePose.inconsistent``: a
+    step beyond the motion bounds, ``planemap.motion_bound_gate``, or a degenerate step
+    off the constant-velocity prediction, ``odometry.degenerate_gate``); bridged."""
+    epochs = [k for k, r in enumerate(odo.results) if r is not None and r.inconsistent]
+    if not epochs or odo.config is None:
+        return
+    a = odo.config.association
+    warn(
+        f"{len(epochs)} epoch(s) bridged by constant velocity (first: epoch {epochs[0]}): "
+        f"their estimate contradicted the motion assumption ({a.max_translation_m:g} m, "
+        f"{a.max_rotation_deg:g} deg an epoch, or the constant-velocity prediction) and "
+        "is not kept (listed in metrics.json); if the platform is that fast, raise "
+        "motion_bounds in rig.yaml"
+    )
+    metrics["inconsistent_epochs"] = epochs
+
+
 def _write_pictures(folder: Path, data: ScanEpochs, odo, sm=None, name: str = "") -> None:
     """``covariances.npz`` and the three pictures of a run (and of its smoothing ``sm``)."""
     from planodom.covariances import FILE, odometry_covariances, write_covariances
@@ -194,6 +213,7 @@ def run(
         metrics |= results.kitti_metrics(odo.poses, data.gt_poses, data.Tr)
         _report_skipped(data, metrics)
         _report_beyond_bounds(odo, metrics)
+        _report_inconsistent(odo, metrics)
         results.write_odometry_run(folder.tmp, odo, metrics, data.Tr)
         _write_pictures(folder.tmp, data, odo, name="planodom run")
     console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
@@ -279,6 +299,7 @@ def smooth(
         odo_metrics |= results.kitti_metrics(sm.odometry.poses, data.gt_poses, data.Tr)
         _report_skipped(data, odo_metrics)
         _report_beyond_bounds(sm.odometry, odo_metrics)
+        _report_inconsistent(sm.odometry, odo_metrics)
         results.write_odometry_run(folder.tmp, sm.odometry, odo_metrics, data.Tr)
         results.write_trajectory(folder.tmp, sm.times, sm.poses, data.Tr)  # the output
         results.write_tum(folder.tmp / "odometry.tum", sm.times, sm.odometry.poses)

@@ -7,7 +7,7 @@ values were not tuned on any other recording and are marked so).
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field
 
@@ -71,6 +71,21 @@ class PlanemapConfig(Section):
     """A translation direction with a larger 1-sigma (m) is unobserved (the prediction is
     kept there): the epoch is degenerate, e.g. along a straight street where nothing but
     parallel facades and the ground are seen."""
+    degenerate_translation: Literal["prediction", "registration"] = "prediction"
+    """Where a degenerate epoch's unobserved translation directions (1-sigma above
+    ``unobserved_translation_m``) come from: ``prediction``, the constant-velocity
+    prediction, with the prediction's uncertainty (the RMS deviation of the model so far):
+    the little information the planes give there (walls a degree apart along a corridor)
+    is not a measurement, yet Gauss-Newton moves along it as far as it says (a hand-held
+    VLP-16 corridor walk: 6.4 m in one epoch, 13 sigma off the prediction, where
+    KISS-ICP moves 0.5 m); ``registration``: where Gauss-Newton ended (before issue 11).
+    A rule of the estimator (the status's meaning), not tuned: OK epochs are unchanged."""
+    motion_bound_gate: bool = True
+    """A registration whose step exceeds the motion bounds the run assumes
+    (``association.max_translation_m``, ``max_rotation_deg``, the rig's motion_bounds)
+    contradicts that assumption: lost track, not a measurement. It is reported unresolved
+    and ``inconsistent`` and bridged by constant velocity (the map then rebuilt from the
+    scan). A rule of the estimator, not tuned; off: kept (``planodom run`` only warns)."""
     fallback: bool = True
     """Score other hypotheses when the map result is suspicious (zero velocity, the
     scan-to-scan registration with widening gates, LDA without motion bounds)."""

@@ -1,4 +1,5 @@
-"""The CLI's warning for epochs whose estimated step exceeds the association's motion bounds."""
+"""The CLI's warnings for epochs whose estimated step exceeds the association's motion bounds,
+and for epochs bridged because their estimate contradicted them (inconsistent)."""
 
 from __future__ import annotations
 
@@ -8,8 +9,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from planodom.cli import _report_beyond_bounds
+from planodom.cli import _report_beyond_bounds, _report_inconsistent
 from planodom.config import PlanodomConfig
+from planodom.odometry import RelativePose, Status
 
 
 def _chain(steps: list[tuple[float, float]]) -> np.ndarray:
@@ -43,4 +45,19 @@ def test_a_run_within_the_bounds_adds_nothing(capsys: pytest.CaptureFixture) -> 
     metrics: dict = {}
     poses = _chain([(0.9, 10.0)] * 4)
     _report_beyond_bounds(SimpleNamespace(poses=poses, config=PlanodomConfig()), metrics)
+    assert metrics == {} and capsys.readouterr().err == ""
+
+
+def test_inconsistent_epochs_are_listed_and_warned(capsys: pytest.CaptureFixture) -> None:
+    def rel(inconsistent: bool) -> RelativePose:
+        status = Status.UNRESOLVED if inconsistent else Status.OK
+        return RelativePose(np.eye(4), None, status, inconsistent=inconsistent)
+
+    results = [None, rel(False), rel(True), rel(False), rel(True)]
+    metrics: dict = {}
+    _report_inconsistent(SimpleNamespace(results=results, config=PlanodomConfig()), metrics)
+    assert metrics["inconsistent_epochs"] == [2, 4]
+    assert "2 epoch(s) bridged by constant velocity (first: epoch 2)" in capsys.readouterr().err
+    metrics = {}
+    _report_inconsistent(SimpleNamespace(results=results[:2], config=PlanodomConfig()), metrics)
     assert metrics == {} and capsys.readouterr().err == ""

@@ -19,7 +19,9 @@ with another twist and estimated again):
 4. the 6x6 information gives the covariance; a rotation direction with a 1-sigma above
    ``unobserved_rotation_deg`` makes the epoch UNRESOLVED (the prediction is kept), a
    translation direction above ``unobserved_translation_m`` DEGENERATE (the prediction is
-   kept along it: Gauss-Newton leaves directions without information unchanged);
+   kept along it, with its uncertainty: ``planemap.degenerate_translation``); a step
+   beyond the run's motion bounds is UNRESOLVED and ``inconsistent``, bridged by constant
+   velocity (``planemap.motion_bound_gate``);
 5. the map is updated (:func:`.landmarks.update_map`); after a detected failure (an
    unresolved epoch whose scan had enough planes) it is rebuilt from the current scan.
 
@@ -30,7 +32,7 @@ them are not used.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -95,19 +97,20 @@ class PlaneMapOdometry:
         self.velocity = np.eye(4)
         self.frame = -1
         self._dev_sse = np.zeros(2)
-        self._dev_n = 0
+        self._dev_n = np.zeros(2, dtype=int)  # deviations counted: rotation, translation
         self._fractions: list[float] = []
         self._prev: PlaneSet | None = None
 
     # ------------------------------------------------------------------ gates
 
     def sigmas(self) -> tuple[float, float]:
-        """RMS rotation (rad) and translation (m) deviations of the prediction so far."""
-        if self._dev_n == 0:
-            pm = self.config.planemap
+        """RMS rotation (rad) and translation (m) deviations of the prediction so far (the
+        translation's over the epochs that measured it, see :meth:`commit`)."""
+        pm = self.config.planemap
+        if self._dev_n[0] == 0:
             return np.radians(pm.initial_rotation_deg), pm.initial_translation_m
-        rms = np.sqrt(self._dev_sse / self._dev_n)
-        return float(rms[0]), float(rms[1])
+        rms = np.sqrt(self._dev_sse / np.maximum(self._dev_n, 1))
+        return float(rms[0]), float(rms[1]) if self._dev_n[1] else pm.initial_translation_m
 
     # ------------------------------------------------------------------ one scan
 
@@ -165,7 +168,7 @@ class PlaneMapOdometry:
         frac = len(best.inliers) / max(len(cur), 1)
         typical = float(np.median(self._fractions[-20:])) if self._fractions else 1.0
         ok = self._resolved(best, cur)
-        suspicious = not ok or frac < pm.suspect_ratio * typical or self._dev_n == 0
+        suspicious = not ok or frac < pm.suspect_ratio * typical or self._dev_n[0] == 0
         if not (suspicious and pm.fallback and self._prev is not None):
             return best
         vr, vt = _angle(self.velocity[:3, :3]), float(np.linalg.norm(self.velocity[:3, 3]))
@@ -194,11 +197,31 @@ class PlaneMapOdometry:
             status = Status.OK
         T_rel = invert_transform(self.pose) @ T
         rel = relative_pose(self, T_rel, reg.H if ok else None, status)
-        if rel.status is Status.UNRESOLVED:
+        inconsistent = rel.status is not Status.UNRESOLVED and self._beyond_bounds(rel)
+        if rel.status is Status.UNRESOLVED or inconsistent:
             T = T_pred
             rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
+            rel = replace(rel, inconsistent=inconsistent)
+            ok = False
+        elif self._predicted_translation(rel):
+            T = self.pose @ rel.T_prev_curr  # its unobserved translation: the prediction's
         assoc = self._associations(reg, used) if ok else np.zeros((0, 2), dtype=np.intp)
         return _with_associations(rel, assoc, reg.stage), T
+
+    def _predicted_translation(self, rel: RelativePose) -> bool:
+        """Whether ``rel``'s unobserved translation is the prediction's."""
+        prediction = self.config.planemap.degenerate_translation == "prediction"
+        return prediction and rel.status is Status.DEGENERATE
+
+    def _beyond_bounds(self, rel: RelativePose) -> bool:
+        """Whether ``rel``'s step exceeds the motion bounds the run assumes
+        (``planemap.motion_bound_gate``): it contradicts them, so it is not a measurement."""
+        if not self.config.planemap.motion_bound_gate:
+            return False
+        a = self.config.association
+        step = rel.T_prev_curr
+        turned = _angle(step[:3, :3]) > np.radians(a.max_rotation_deg)
+        return turned or float(np.linalg.norm(step[:3, 3])) > a.max_translation_m
 
     def _associations(self, reg: Registration, used: np.ndarray) -> np.ndarray:
         """(L, 2) (plane index in the previous scan, plane index in this scan) through the
@@ -239,8 +262,12 @@ class PlaneMapOdometry:
         T = _orthonormalised(est.T)
         if not first:
             dev = invert_transform(est.T_pred) @ T
-            self._dev_sse += [_angle(dev[:3, :3]) ** 2, float(dev[:3, 3] @ dev[:3, 3])]
-            self._dev_n += 1
+            # a degenerate epoch whose translation is the prediction's along its unobserved
+            # directions did not measure how far off the prediction is: counting its zero
+            # there would shrink the gates and the prediction's sigma it is given
+            counted = int(not self._predicted_translation(est.relative))
+            self._dev_sse += [_angle(dev[:3, :3]) ** 2, counted * float(dev[:3, 3] @ dev[:3, 3])]
+            self._dev_n += [1, counted]
             self.velocity = _orthonormalised(invert_transform(self.pose) @ T)
         self.pose = T
         self._prev = est.plane_set
@@ -260,8 +287,6 @@ class PlaneMapOdometry:
 
 
 def _with_associations(rel: RelativePose, assoc: np.ndarray, stage: str) -> RelativePose:
-    from dataclasses import replace
-
     from planodom.association import PairAssociations
     from planodom.odometry.relative import SolverDiagnostics
 

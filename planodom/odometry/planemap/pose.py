@@ -10,7 +10,10 @@ angles (central differences) and floored by ``odometry.min_sigma_*``.
 
 Status: a rotation direction with a 1-sigma above ``unobserved_rotation_deg`` -> UNRESOLVED;
 a horizontal translation direction above ``unobserved_translation_m`` -> DEGENERATE
-(rotation only); the vertical is ``z_observed`` when its sigma is within that limit.
+(rotation only; with ``planemap.degenerate_translation: prediction`` the translation along
+the directions above that limit is the constant-velocity prediction's, with its
+uncertainty, :func:`predicted_along_unobserved`); the vertical is ``z_observed`` when
+its sigma is within that limit.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from planodom.geometry import rpy_from_rotation
 from planodom.odometry.relative import RelativePose, Status
 
 if TYPE_CHECKING:
+    from planodom.config import PlanemapConfig
     from planodom.odometry.planemap.odometry import PlaneMapOdometry
 
 
@@ -59,6 +63,10 @@ def relative_pose(
         return relative_pose(odo, T_rel, None, Status.UNRESOLVED)
     horizontal = np.sqrt(np.linalg.eigvalsh(cov[3:5, 3:5]).max())
     status = Status.DEGENERATE if horizontal > pm.unobserved_translation_m else Status.OK
+    sigma_z = float(np.sqrt(cov[5, 5]))
+    z_observed = sigma_z <= pm.unobserved_translation_m
+    if status is Status.DEGENERATE and pm.degenerate_translation == "prediction":
+        T_rel, cov = predicted_along_unobserved(T_rel, cov, odo.velocity, odo.sigmas()[1], pm)
     J = np.zeros((5, 6))
     J[:3, :3] = rpy_jacobian(T_rel[:3, :3])
     J[3, 3] = J[4, 4] = 1.0
@@ -68,8 +76,31 @@ def relative_pose(
         [cfg.odometry.min_sigma_translation_m**2] * 2,
     ]
     cov5 = cov5 + np.diag(floors)
-    sigma_z = float(np.sqrt(cov[5, 5]))
-    z_observed = sigma_z <= pm.unobserved_translation_m
     return RelativePose(
         T_rel.copy(), cov5, status, z_observed=z_observed, sigma_z=sigma_z if z_observed else np.inf
     )
+
+
+def predicted_along_unobserved(
+    T_rel: np.ndarray,
+    cov: np.ndarray,
+    T_pred_rel: np.ndarray,
+    sigma_pred_m: float,
+    config: PlanemapConfig,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``T_rel`` (4, 4) with its translation along the unobserved directions (eigenvectors
+    of the translation block of ``cov`` with a 1-sigma above
+    ``config.unobserved_translation_m``) taken from the prediction ``T_pred_rel`` (4, 4),
+    and ``cov`` (6, 6, rotation then translation, previous frame) with those directions'
+    variance the prediction's, ``sigma_pred_m`` squared (the RMS deviation of the
+    constant-velocity model; rotation cross terms along them dropped with the value)."""
+    lam, V = np.linalg.eigh(cov[3:, 3:])
+    U = V[:, lam > config.unobserved_translation_m**2]  # (3, u)
+    P = U @ U.T  # projector on the unobserved directions
+    out = T_rel.copy()
+    out[:3, 3] = T_rel[:3, 3] + P @ (T_pred_rel[:3, 3] - T_rel[:3, 3])
+    A = np.eye(6)
+    A[3:, 3:] -= P
+    cov = A @ cov @ A.T
+    cov[3:, 3:] += sigma_pred_m**2 * P
+    return out, cov
