@@ -80,12 +80,18 @@ class PlanemapConfig(Section):
     VLP-16 corridor walk: 6.4 m in one epoch, 13 sigma off the prediction, where
     KISS-ICP moves 0.5 m); ``registration``: where Gauss-Newton ended (before issue 11).
     A rule of the estimator (the status's meaning), not tuned: OK epochs are unchanged."""
-    motion_bound_gate: bool = True
+    motion_bound_gate: bool = False
     """A registration whose step exceeds the motion bounds the run assumes
     (``association.max_translation_m``, ``max_rotation_deg``, the rig's motion_bounds)
-    contradicts that assumption: lost track, not a measurement. It is reported unresolved
-    and ``inconsistent`` and bridged by constant velocity (the map then rebuilt from the
-    scan). A rule of the estimator, not tuned; off: kept (``planodom run`` only warns)."""
+    contradicts that assumption: lost track, not a measurement. On: it is reported
+    unresolved and ``inconsistent`` and bridged by constant velocity (the map then rebuilt
+    from the scan). Off by default: the gate judges every registration attempt of an
+    epoch, and a wrong first attempt that the streaming odometry would have corrected by
+    extracting the epoch again is bridged instead (measured: procedural lidar world 19
+    at 6 mm, 300 epochs, ATE 0.0087 -> 0.19 m, 5 epochs bridged in the first sweeps; a
+    hand-held VLP-16 corridor walk against KISS-ICP 0.165 -> 0.242 m, a true 31 deg turn
+    bridged); on a room where both lose track it bridges 3-9 m "ok" steps. Off,
+    ``planodom run`` / ``smooth`` warn of steps beyond the bounds."""
     fallback: bool = True
     """Score other hypotheses when the map result is suspicious (zero velocity, the
     scan-to-scan registration with widening gates, LDA without motion bounds)."""

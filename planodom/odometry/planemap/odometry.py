@@ -20,8 +20,9 @@ with another twist and estimated again):
    ``unobserved_rotation_deg`` makes the epoch UNRESOLVED (the prediction is kept), a
    translation direction above ``unobserved_translation_m`` DEGENERATE (the prediction is
    kept along it, with its uncertainty: ``planemap.degenerate_translation``); a step
-   beyond the run's motion bounds is UNRESOLVED and ``inconsistent``, bridged by constant
-   velocity (``planemap.motion_bound_gate``);
+   beyond the run's motion bounds is, with ``planemap.motion_bound_gate`` (off), UNRESOLVED
+   and ``inconsistent``, bridged by constant
+   velocity;
 5. the map is updated (:func:`.landmarks.update_map`); after a detected failure (an
    unresolved epoch whose scan had enough planes) it is rebuilt from the current scan.
 
