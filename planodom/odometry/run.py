@@ -128,7 +128,7 @@ def run_odometry(
         times = getattr(source, "times", None)
     source = sweep_timed(source, cfg.extraction.sweep, rig)  # times from the azimuth
     run = _streaming_pass(source, cfg, rig, times, progress, extractor)
-    if cfg.odometry.deskew_passes and _any_time_spread(source):
+    if cfg.odometry.deskew_passes and any_time_spread(source):
         run = redeskewed_run(source, run.times, run.poses, cfg, rig, progress, extractor, run)
     return run
 
@@ -214,7 +214,7 @@ def _near_all_measured(measured: np.ndarray, reach: int) -> np.ndarray:
     return counts == 0
 
 
-def _any_time_spread(source: EpochSequence) -> bool:
+def any_time_spread(source: EpochSequence) -> bool:
     """Whether the first scans of ``source`` carry point times that differ (a recording
     has them for all its epochs or for none)."""
     for k in range(min(len(source), 2)):

@@ -32,8 +32,7 @@ from planodom.odometry import (
     estimate_relative_pose,
     with_motion_bounds,
 )
-from planodom.odometry.deskew import time_spread
-from planodom.odometry.run import EpochSequence, redeskewed_run
+from planodom.odometry.run import EpochSequence, any_time_spread, redeskewed_run
 from planodom.rig import Rig
 from planodom.scan import Scan
 from planodom.smoothing.batch import SmoothingResult
@@ -68,13 +67,6 @@ def trusted_poses(odometry: OdometryRun, trust: str) -> np.ndarray:
     return out
 
 
-def has_point_times(source: EpochSequence) -> bool:
-    """Whether the first scan of ``source`` carries point times that differ (a recording
-    has them for all its epochs or for none); plane lists have none."""
-    item = source[0] if len(source) else None
-    return isinstance(item, Scan) and time_spread(item)
-
-
 def redeskew_passes(
     source: EpochSequence,
     odometry: OdometryRun,
@@ -98,7 +90,7 @@ def redeskew_passes(
     """
     passes = config.smoothing.redeskew_passes
     source = sweep_timed(source, config.extraction.sweep, rig)
-    if not passes or not has_point_times(source):
+    if not passes or not any_time_spread(source):
         return None
     cfg = with_motion_bounds(config, rig.motion_bounds)
     start = time.perf_counter()
@@ -135,7 +127,7 @@ def refresh_first_epoch(
     """
     rounds = config.smoothing.first_epoch_refresh
     source = sweep_timed(source, config.extraction.sweep, rig)
-    if not rounds or len(source) < 2 or not has_point_times(source):
+    if not rounds or len(source) < 2 or not any_time_spread(source):
         return None
     start = time.perf_counter()
     cfg = with_motion_bounds(config, rig.motion_bounds)

@@ -13,11 +13,12 @@ from planodom.errors import ConfigError
 from planodom.geometry import invert_transform
 from planodom.metrics import ate
 from planodom.odometry import Status
+from planodom.odometry.run import any_time_spread
 from planodom.simulation.rigs import rig_from_name
 from planodom.simulation.simulate import simulate
 from planodom.simulation.trajectory import paper_loop_trajectory
 from planodom.simulation.worlds import scene_from_name
-from planodom.smoothing.redeskew import has_point_times, trusted_poses
+from planodom.smoothing.redeskew import trusted_poses
 from planodom.smoothing.run import run_smoothing
 
 
@@ -57,8 +58,8 @@ def test_windowed_smoothing_and_plane_lists_are_not_re_deskewed(loop):
     windowed = run_smoothing(loop, cfg, loop.rig, mode="windowed", window=6)
     assert windowed.redeskewed is None and "redeskew" not in windowed.seconds
     planes = run_smoothing(loop, PlanodomConfig(), loop.rig, mode="batch").odometry.planes
-    assert not has_point_times(planes)
-    assert has_point_times(loop)
+    assert not any_time_spread(planes)
+    assert any_time_spread(loop)
     on_planes = run_smoothing(planes, cfg, mode="batch")
     assert on_planes.redeskewed is None
 
