@@ -190,7 +190,7 @@ def register_deskewed(
             the new ones is worse (``odometry.reference_refresh_guard``).
     """
     best = estimate(predicted)
-    few = len(best.planes) < max(2.0, 0.5 * previous_planes)
+    few = _few(best, previous_planes)
     others: list[np.ndarray | None] = [] if trend is None or predicted is None else [trend]
     if predicted is not None or held is not None:
         others.append(None if predicted is not None else held)
@@ -230,10 +230,14 @@ def register_deskewed(
     return best
 
 
+def _few(candidate: EpochEstimate, previous_planes: int) -> bool:
+    """Far fewer planes than the epoch before (under half, or under two)."""
+    return len(candidate.planes) < max(2.0, 0.5 * previous_planes)
+
+
 def _lost(candidate: EpochEstimate, previous_planes: int) -> bool:
-    """Unresolved, or far fewer planes than the epoch before (under half, or under two)."""
-    few = len(candidate.planes) < max(2.0, 0.5 * previous_planes)
-    return candidate.relative.status is Status.UNRESOLVED or few
+    """Unresolved, or far fewer planes than the epoch before."""
+    return candidate.relative.status is Status.UNRESOLVED or _few(candidate, previous_planes)
 
 
 def prefer_streaming(given: EpochEstimate, previous_planes: int) -> bool:
@@ -242,8 +246,7 @@ def prefer_streaming(given: EpochEstimate, previous_planes: int) -> bool:
     fewer planes than the epoch before; then the streaming deskewing is tried too. (A
     degenerate epoch is not suspect: a straight street makes every epoch degenerate, and
     the streaming deskewing, with as many planes, would be kept for no reason.)"""
-    few = len(given.planes) < max(2.0, 0.5 * previous_planes)
-    return given.relative.status is Status.UNRESOLVED or few
+    return _lost(given, previous_planes)
 
 
 def keep_first(first: EpochEstimate, second: EpochEstimate) -> bool:
