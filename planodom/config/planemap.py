@@ -80,6 +80,15 @@ class PlanemapConfig(Section):
     VLP-16 corridor walk: 6.4 m in one epoch, 13 sigma off the prediction, where
     KISS-ICP moves 0.5 m); ``registration``: where Gauss-Newton ended (before issue 11).
     A rule of the estimator (the status's meaning), not tuned: OK epochs are unchanged."""
+    reference_time: Literal["epoch", "middle"] = "epoch"
+    """The time at which each scan is registered (:mod:`planodom.odometry.planemap.midtime`,
+    in :func:`planodom.odometry.run.run_odometry`): ``epoch``, the epoch's time (a lidar
+    stamped at the start of its sweep: the start); ``middle``, the middle of its points'
+    times, the poses then brought back to the epoch times along the curve through them,
+    and the epoch extracted again with its own twist as it is (not averaged with the one
+    used: a twist error no longer shifts the scan as a whole). A twist that lags the
+    sweep (it comes from the steps before) shifts a scan registered at its start by the
+    error times the points' mean time. Measured in the module's docstring."""
     motion_bound_gate: bool = False
     """A registration whose step exceeds the motion bounds the run assumes
     (``association.max_translation_m``, ``max_rotation_deg``, the rig's motion_bounds)

@@ -14,7 +14,12 @@ from planodom.extraction.lidar.sweep import sweep_timed
 from planodom.geometry import Plane
 from planodom.odometry.deskew import time_spread
 from planodom.odometry.interpolate import deskew_with_poses, epoch_middles, midpoint_nodes
-from planodom.odometry.odometry import Extractor, PlaneOdometry, _default_extractor
+from planodom.odometry.odometry import (
+    Extractor,
+    PlaneOdometry,
+    _default_extractor,
+    uses_plane_map,
+)
 from planodom.odometry.relative import RelativePose, Status
 from planodom.rig import MotionBounds, Rig
 from planodom.scan import Scan
@@ -127,7 +132,9 @@ def run_odometry(
     if times is None:
         times = getattr(source, "times", None)
     source = sweep_timed(source, cfg.extraction.sweep, rig)  # times from the azimuth
-    run = _streaming_pass(source, cfg, rig, times, progress, extractor)
+    run = _middle_timed_pass(source, cfg, rig, times, progress, extractor)
+    if run is None:
+        run = _streaming_pass(source, cfg, rig, times, progress, extractor)
     if cfg.odometry.deskew_passes and any_time_spread(source):
         run = redeskewed_run(source, run.times, run.poses, cfg, rig, progress, extractor, run)
     return run
@@ -271,6 +278,34 @@ class _DeskewedEpochs:
         # the times stay (extracted with a zero twist): a lidar's range image takes its
         # columns from them (with zeros it has none and falls back to RANSAC fragments)
         return _Deskewed(raw, replace(out, t=raw.t))
+
+
+def _middle_timed_pass(
+    source: EpochSequence,
+    cfg: PlanodomConfig,
+    rig: Rig,
+    times: Sequence[float] | np.ndarray | None,
+    progress: Callable[[int, int], None] | None,
+    extractor: Extractor | None,
+) -> OdometryRun | None:
+    """The streaming pass with each scan registered at its sweep's middle and brought
+    back to the epoch times (``planemap.reference_time: middle``,
+    :mod:`planodom.odometry.planemap.midtime`); None when that is off, the plane map
+    does not run, or no scan has point times."""
+    if cfg.planemap.reference_time != "middle" or len(source) == 0:
+        return None
+    first = source[0]
+    if not isinstance(first, Scan) or not uses_plane_map(cfg, first):
+        return None
+    if not any_time_spread(source):
+        return None
+    from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times
+
+    if times is None:
+        times = np.arange(len(source)) * cfg.odometry.epoch_period_s
+    middle = MiddleTimed(source, np.asarray(times, dtype=np.float64))
+    run = _streaming_pass(middle, cfg, rig, middle.times, progress, extractor)
+    return at_epoch_times(run, middle.epoch_times, cfg.odometry.deskew_order)
 
 
 def _streaming_pass(
