@@ -177,8 +177,7 @@ class PlaneOdometry:
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg) if against_map else None
-            # registered at the sweep's middle, a twist error no longer shifts the scan:
-            # the epoch's own twist is used as it is (planemap.reference_time)
+            # at the sweep's middle its own twist is used as it is (planemap.reference_time)
             damped = against_map and self.config.planemap.reference_time == "epoch"
             pairwise = self._map is None
             lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg) if pairwise else None
@@ -206,9 +205,9 @@ class PlaneOdometry:
     def _start_map(self, scan: Scan | None) -> None:
         """Decide at the first epoch whether the plane-map odometry runs: pipeline "map",
         or "auto" with delta 1 on a scan that takes the lidar extraction path."""
-        if uses_plane_map(self.config, scan):
-            from planodom.odometry.planemap import PlaneMapOdometry
+        from planodom.odometry.planemap import PlaneMapOdometry, uses_plane_map
 
+        if uses_plane_map(self.config, scan):
             changes = self.config.planemap.extraction_changes()
             if changes:
                 self.config = self.config.updated(changes, source="planemap")
@@ -434,17 +433,6 @@ class PlaneOdometry:
         if not self._velocities:
             return np.r_[rate, twist[3:]]
         return np.r_[rate, np.median(np.array(self._velocities), axis=0)]
-
-
-def uses_plane_map(config: PlanodomConfig, scan: Scan | None) -> bool:
-    """Whether the plane-map odometry runs on a sequence whose first epoch is ``scan``:
-    pipeline "map", or "auto" with delta 1 on a scan that takes the lidar extraction path."""
-    pipeline = config.odometry.pipeline
-    if pipeline == "auto" and config.odometry.delta == 1 and scan is not None:
-        from planodom.extraction.pipeline import choose_mode
-
-        return choose_mode(scan, config.extraction) == "lidar"
-    return pipeline == "map"
 
 
 def _orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:

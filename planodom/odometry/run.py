@@ -5,7 +5,7 @@ from __future__ import annotations
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Protocol
+from typing import Protocol, cast
 
 import numpy as np
 
@@ -14,12 +14,7 @@ from planodom.extraction.lidar.sweep import sweep_timed
 from planodom.geometry import Plane
 from planodom.odometry.deskew import time_spread
 from planodom.odometry.interpolate import deskew_with_poses, epoch_middles, midpoint_nodes
-from planodom.odometry.odometry import (
-    Extractor,
-    PlaneOdometry,
-    _default_extractor,
-    uses_plane_map,
-)
+from planodom.odometry.odometry import Extractor, PlaneOdometry, _default_extractor
 from planodom.odometry.relative import RelativePose, Status
 from planodom.rig import MotionBounds, Rig
 from planodom.scan import Scan
@@ -295,16 +290,20 @@ def _middle_timed_pass(
     if cfg.planemap.reference_time != "middle" or len(source) == 0:
         return None
     first = source[0]
+    from planodom.odometry.planemap import uses_plane_map
+    from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times
+
     if not isinstance(first, Scan) or not uses_plane_map(cfg, first):
         return None
     if not any_time_spread(source):
         return None
-    from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times
 
     if times is None:
         times = np.arange(len(source)) * cfg.odometry.epoch_period_s
     middle = MiddleTimed(source, np.asarray(times, dtype=np.float64))
-    run = _streaming_pass(middle, cfg, rig, middle.times, progress, extractor)
+    # the shifted times are only indexed, each after its epoch was read (MiddleTimed)
+    shifted = cast("Sequence[float]", middle.times)
+    run = _streaming_pass(middle, cfg, rig, shifted, progress, extractor)
     return at_epoch_times(run, middle.epoch_times, cfg.odometry.deskew_order)
 
 

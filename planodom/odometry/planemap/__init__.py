@@ -10,6 +10,6 @@ moments (``odometry.pipeline: map``; settings in ``PlanodomConfig.planemap``).
 """
 
 from planodom.odometry.planemap.moments import Moments
-from planodom.odometry.planemap.odometry import MapEstimate, PlaneMapOdometry
+from planodom.odometry.planemap.odometry import MapEstimate, PlaneMapOdometry, uses_plane_map
 
-__all__ = ["MapEstimate", "Moments", "PlaneMapOdometry"]
+__all__ = ["MapEstimate", "Moments", "PlaneMapOdometry", "uses_plane_map"]

@@ -23,12 +23,13 @@ one epoch later.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planodom.geometry import invert_transform
+from planodom.geometry import Plane, invert_transform
 from planodom.odometry.deskew import time_spread
 from planodom.odometry.interpolate import curve_poses
 from planodom.scan import Scan
@@ -55,7 +56,7 @@ class MiddleTimed:
     def __len__(self) -> int:
         return len(self.source)
 
-    def __getitem__(self, k: int) -> object:
+    def __getitem__(self, k: int) -> Scan | Sequence[Plane]:
         item = self.source[k]
         if not isinstance(item, Scan) or not time_spread(item):
             self.offsets[k] = 0.0

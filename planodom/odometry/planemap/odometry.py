@@ -46,6 +46,7 @@ from planodom.odometry.planemap.pose import relative_pose
 from planodom.odometry.planemap.register import Registration, ScanPlanes, register, score
 from planodom.odometry.relative import RelativePose, Status
 from planodom.planes import PlaneSet
+from planodom.scan import Scan
 
 
 def _angle(R: np.ndarray) -> float:
@@ -285,6 +286,17 @@ class PlaneMapOdometry:
             self.map = PlaneMap()  # a detected failure: rebuild from this scan
         update_map(self.map, est.T, cur.m, cur.normals, assoc, w, self.frame, est.used,
                    cur.sigma, pm)  # fmt: skip
+
+
+def uses_plane_map(config: PlanodomConfig, scan: Scan | None) -> bool:
+    """Whether the plane-map odometry runs on a sequence whose first epoch is ``scan``:
+    pipeline "map", or "auto" with delta 1 on a scan that takes the lidar extraction path."""
+    pipeline = config.odometry.pipeline
+    if pipeline == "auto" and config.odometry.delta == 1 and scan is not None:
+        from planodom.extraction.pipeline import choose_mode
+
+        return choose_mode(scan, config.extraction) == "lidar"
+    return pipeline == "map"
 
 
 def _with_associations(rel: RelativePose, assoc: np.ndarray, stage: str) -> RelativePose:
