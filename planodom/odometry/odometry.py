@@ -26,6 +26,7 @@ from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, se3_exp
 from planodom.odometry.deskew import (
     EpochEstimate,
+    centred_times,
     keep_first,
     map_trend,
     pairwise_trend,
@@ -177,8 +178,7 @@ class PlaneOdometry:
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg) if against_map else None
-            # at the sweep's middle its own twist is used as it is (planemap.reference_time)
-            damped = against_map and self.config.planemap.reference_time == "epoch"
+            damped = against_map and not centred_times(scan)  # see register_deskewed
             pairwise = self._map is None
             lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg) if pairwise else None
             restore = self._restore_reference if pairwise and ocfg.reference_refresh_guard else None

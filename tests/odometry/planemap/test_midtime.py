@@ -94,3 +94,12 @@ def test_middle_reference_on_a_continuous_lidar_run_is_closer_to_the_truth():
     assert at_middle.statuses[1:] == ["ok"] * 11
     assert np.allclose(at_middle.times, sim.times)
     assert _rotation_rms_deg(at_middle, sim) < 0.5 * _rotation_rms_deg(at_start, sim)
+
+
+def test_centred_times_tells_a_sweep_registered_at_its_middle():
+    from planodom.odometry.deskew import centred_times
+
+    pts = np.zeros((3, 3))
+    assert not centred_times(Scan(pts, None, np.array([0.0, 0.05, 0.1])))
+    assert centred_times(Scan(pts, None, np.array([-0.05, 0.0, 0.0499])))
+    assert not centred_times(Scan(pts, None, None))
