@@ -119,7 +119,10 @@ def time_spread(scan: Scan) -> bool:
 def centred_times(scan: Scan) -> bool:
     """Whether the scan's point times are centred on its reference time (their middle
     within 1 % of their span: a sweep registered at its middle, see
-    :mod:`planodom.odometry.planemap.midtime`, up to rounding and a column)."""
+    :mod:`planodom.odometry.planemap.midtime`, up to rounding and a column). A plane-map
+    epoch's own twist is then used as it is, not averaged with the one used
+    (:func:`register_deskewed`, ``against_map``): a deskewing error distorts such a scan
+    but does not shift it as a whole."""
     if scan.t is None or len(scan.t) == 0:
         return False
     lo, hi = float(np.min(scan.t)), float(np.max(scan.t))
@@ -187,10 +190,7 @@ def register_deskewed(
             ``e`` then moves the epoch's own twist by about ``-e`` (own = 2 true - used),
             so it is extracted again with the mean of the twist used and its own
             (unless ``config.map_twist_offset``: then its own twist has that offset
-            taken off, as for the pairwise pipelines, and is used as it is). Passed
-            False for a scan whose times are centred (:func:`centred_times`): a
-            deskewing error then distorts it but does not shift it as a whole, and its
-            own twist is used as it is (``planemap.reference_time: middle``).
+            taken off, as for the pairwise pipelines). Not for centred times (odometry.py).
         trend: (6,) the twist extrapolated along the recent change of the twists (None:
             none): tried first when the epoch deskewed with ``predicted`` is suspect (a
             prediction that averages recent twists lags a turn that tightens).
