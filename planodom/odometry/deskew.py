@@ -119,10 +119,12 @@ def time_spread(scan: Scan) -> bool:
 def centred_times(scan: Scan) -> bool:
     """Whether the scan's point times are centred on its reference time (their middle
     within 1 % of their span: a sweep registered at its middle, see
-    :mod:`planodom.odometry.planemap.midtime`, up to rounding and a column). A plane-map
-    epoch's own twist is then used as it is, not averaged with the one used
-    (:func:`register_deskewed`, ``against_map``): a deskewing error distorts such a scan
-    but does not shift it as a whole."""
+    :mod:`planodom.odometry.planemap.midtime`, up to rounding and a column). With
+    ``planemap.reference_time: middle``, a plane-map epoch's own twist is then used as it
+    is, not averaged with the one used (:func:`register_deskewed`, ``against_map``): a
+    deskewing error distorts such a scan but does not shift it as a whole. (Not for
+    other centred scans: on KITTI 0005 with its declared sweep, stamped mid-sweep, the
+    own twist as it is gave 0.0693 deg / 3.77 cm RPE against 0.0717 deg / 3.63 cm.)"""
     if scan.t is None or len(scan.t) == 0:
         return False
     lo, hi = float(np.min(scan.t)), float(np.max(scan.t))

@@ -178,7 +178,8 @@ class PlaneOdometry:
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg) if against_map else None
-            damped = against_map and not centred_times(scan)  # see register_deskewed
+            middle = self.config.planemap.reference_time == "middle" and centred_times(scan)
+            damped = against_map and not middle  # see centred_times
             pairwise = self._map is None
             lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg) if pairwise else None
             restore = self._restore_reference if pairwise and ocfg.reference_refresh_guard else None
