@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
@@ -42,6 +43,8 @@ class Dataset:
         times: (E,) float64 seconds, reference time of each epoch (see :func:`load_dataset`).
         gt_poses: (E, 4, 4) float64 ground truth ``T_world_base`` at ``times``, or None.
         rig: the typed ``rig.yaml`` (:class:`planodom.rig.Rig`; ``Rig()`` when there is none).
+        bin_layout: how ``.bin`` scans are read: ``auto``, ``kitti`` or ``nuscenes``
+            (:mod:`planodom.datasets.bin_scan`).
     """
 
     def __init__(
@@ -51,8 +54,10 @@ class Dataset:
         times: np.ndarray,
         gt_poses: np.ndarray | None = None,
         rig: Rig | None = None,
+        bin_layout: str = "auto",
     ) -> None:
         self.path = Path(path)
+        self.bin_layout = check_bin_layout(bin_layout)
         self.scan_files = list(scan_files)
         self.times = np.asarray(times, dtype=np.float64)
         self.gt_poses = gt_poses
@@ -71,7 +76,7 @@ class Dataset:
         if not -n <= index < n:
             raise IndexError(f"epoch {index} out of range for {n} epochs")
         file = self.scan_files[index]
-        scan = read_scan(file)
+        scan = read_scan(file, self.bin_layout)
         origins = self.rig.sensor_origins
         if origins is not None and len(origins) > 1:  # per ring: the rings must index them
             rig_file = self.path / RIG_FILE
@@ -111,7 +116,7 @@ class Dataset:
         return f"Dataset({str(self.path)!r}, {len(self)} epochs, {gt} ground truth)"
 
 
-def load_dataset(path: str | Path) -> Dataset:
+def load_dataset(path: str | Path, bin_layout: str = "auto") -> Dataset:
     """Open a dataset directory; scans are read only when indexed.
 
     ``path`` is either a dataset (scan files in ``path/scans/``) or a directory of scan
@@ -121,7 +126,8 @@ def load_dataset(path: str | Path) -> Dataset:
 
     Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else
     ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else
-    ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s).
+    ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s). ``bin_layout`` tells how ``.bin`` scans are read
+    (:mod:`planodom.datasets.bin_scan`).
 
     Raises:
         DatasetError: naming the file, when ``path`` is missing, there are no scan files,
@@ -149,7 +155,7 @@ def load_dataset(path: str | Path) -> Dataset:
     else:
         _check_numbering(scan_files)
         times = epoch_times(len(scan_files), rig)
-    return Dataset(root, scan_files, times, gt_poses, rig)
+    return Dataset(root, scan_files, times, gt_poses, rig, bin_layout)
 
 
 def read_times(path: str | Path, n_epochs: int) -> np.ndarray:

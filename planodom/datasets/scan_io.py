@@ -9,9 +9,10 @@ of any integer type; the time ``t``, ``time`` (Velodyne) or ``offset_time`` (Liv
 present wins, in seconds when a float and in nanoseconds when an integer (Ouster's ``t``,
 Livox's ``offset_time``), as in a ROS PointCloud2 (:mod:`planodom.datasets.bag_msgs`).
 Points whose three coordinates are all NaN are PCL's no-return marker of an organised
-cloud and are dropped; any other non-finite coordinate is an error. KITTI ``.bin`` files hold
-float32 ``x y z intensity`` rows and carry no optional field; points are taken as they are
-(in the scanner frame, which for KITTI is the base frame used here).
+cloud and are dropped; any other non-finite coordinate is an error. ``.bin`` files hold
+float32 ``x y z intensity`` rows (KITTI) or ``x y z intensity ring`` rows (nuScenes), told
+apart by :mod:`planodom.datasets.bin_scan`; points are taken as they are (in the scanner
+frame, which for KITTI is the base frame used here).
 
 - PLY goes through :mod:`planodom.datasets.ply` (see there why not open3d).
 - PCD goes through :mod:`planodom.datasets.pcd` (see there why not open3d).
@@ -28,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planodom.datasets.bin_scan import read_bin
 from planodom.datasets.pcd import read_pcd, write_pcd
 from planodom.datasets.ply import read_ply_vertices, write_ply_vertices
 from planodom.errors import DatasetError
@@ -52,8 +54,13 @@ MAX_COORDINATE_M = 1e6
 MAX_POINT_TIME_S = 3600.0
 
 
-def read_scan(file: str | Path) -> Scan:
-    """Read one scan file (``.ply``, ``.pcd`` or KITTI ``.bin``).
+def read_scan(file: str | Path, bin_layout: str = "auto") -> Scan:
+    """Read one scan file (``.ply``, ``.pcd`` or a KITTI / nuScenes ``.bin``).
+
+    Args:
+        file: the scan file; its extension picks the format.
+        bin_layout: ``.bin`` files only: ``kitti``, ``nuscenes`` or ``auto`` (from the
+            file's size and columns, :func:`planodom.datasets.bin_scan.read_bin`).
 
     Returns:
         A :class:`Scan`: points (N, 3) float64 (float32 files widened exactly), with
@@ -61,15 +68,18 @@ def read_scan(file: str | Path) -> Scan:
 
     Raises:
         DatasetError: naming the file, when it is missing, has an unknown extension,
-            does not parse, is truncated or has NaN / infinite coordinates or times.
+            does not parse, is truncated or has NaN / infinite coordinates or times,
+            or is a ``.bin`` of a layout ``auto`` cannot tell.
     """
     path = Path(file)
     suffix = _suffix(path, SCAN_EXTENSIONS, "unknown scan file extension")
     if not path.is_file():
         raise DatasetError(f"{path}: scan file does not exist")
-    reader = {".ply": read_ply_vertices, ".pcd": read_pcd, ".bin": _read_kitti_bin}[suffix]
     try:
-        fields = reader(path)
+        if suffix == ".bin":
+            fields = read_bin(path, bin_layout)
+        else:
+            fields = {".ply": read_ply_vertices, ".pcd": read_pcd}[suffix](path)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read scan file ({exc.strerror})") from None
     return _scan_from_fields(path, fields)
@@ -170,15 +180,3 @@ def _int32(path: Path, name: str, values: np.ndarray, lowest: int | None) -> np.
             f"got values in {values.min()}..{values.max()}"
         )
     return values.astype(np.int32)
-
-
-def _read_kitti_bin(path: Path) -> dict[str, np.ndarray]:
-    """A KITTI velodyne file: float32 ``x y z intensity`` rows, nothing else."""
-    raw = path.read_bytes()
-    if len(raw) % 16:
-        raise DatasetError(
-            f"{path}: KITTI .bin size {len(raw)} bytes is not a multiple of 16 "
-            "(float32 x y z intensity rows); truncated or not a KITTI scan"
-        )
-    rows = np.frombuffer(raw, dtype="<f4").reshape(-1, 4)
-    return {"x": rows[:, 0], "y": rows[:, 1], "z": rows[:, 2]}

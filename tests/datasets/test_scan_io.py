@@ -157,7 +157,12 @@ def _good_pcd(tmp_path: Path) -> bytes:
             ),
             "2 point lines, its header POINTS 3",
         ),
-        ("truncated.bin", lambda p: np.zeros(10, np.float32).tobytes(), "multiple of 16"),
+        ("truncated.bin", lambda p: np.zeros(9, np.float32).tobytes(), "multiple of neither 16"),
+        (
+            "truncated5.bin",  # 2 rows of 5 values whose 'rings' are not whole numbers
+            lambda p: np.random.default_rng(2).normal(size=10).astype(np.float32).tobytes(),
+            "fit only nuScenes rows",
+        ),
         ("scan.xyz", lambda p: b"1 2 3\n", "unknown scan file extension"),
     ],
 )
