@@ -76,7 +76,7 @@ class Dataset:
         if not -n <= index < n:
             raise IndexError(f"epoch {index} out of range for {n} epochs")
         file = self.scan_files[index]
-        scan = read_scan(file, self.bin_layout)
+        scan = read_scan(file, self.bin_layout, float(self.times[index]))
         origins = self.rig.sensor_origins
         if origins is not None and len(origins) > 1:  # per ring: the rings must index them
             rig_file = self.path / RIG_FILE
@@ -94,12 +94,20 @@ class Dataset:
         return scan
 
     def _check_time_span(self, index: int, scan: Scan) -> None:
-        """Refuse point times spanning :data:`MAX_TIME_SPAN_PERIODS` epoch periods or more."""
+        """Refuse point times spanning :data:`MAX_TIME_SPAN_PERIODS` epoch periods or more,
+        or as far from the epoch's reference time (e.g. integer Unix seconds read as ns)."""
         if scan.t is None or len(scan.t) == 0 or len(self.times) < 2:
             return
         gaps = np.diff(self.times[max(index - 1, 0) : index + 2])
         period = float(np.max(np.abs(gaps)))
         span = float(np.ptp(scan.t))
+        far = float(np.max(np.abs(scan.t)))
+        if period > 0 and far >= MAX_TIME_SPAN_PERIODS * period and span < far:
+            raise DatasetError(
+                f"{self.scan_files[index]}: point times ('t') reach {far:g} s from the epoch's "
+                f"reference time, {far / period:.0f} epoch periods of {period:g} s: another "
+                "clock or unit (integer Unix seconds read as nanoseconds?)"
+            )
         if period > 0 and span >= MAX_TIME_SPAN_PERIODS * period:
             raise DatasetError(
                 f"{self.scan_files[index]}: point times ('t') span {span:g} s, "
