@@ -30,6 +30,9 @@ Every value is checked after reading, so that a file never yields a scan the pip
 would choke on later without naming the file: coordinates finite and within
 ``MAX_COORDINATE_M``, point times finite and within ``MAX_POINT_TIME_S`` of the epoch's
 reference time, ``ring`` ids and labels integers that fit int32, rings >= 0.
+
+Multi-return clouds (two or three points per beam firing, or a ``return_type`` field) keep
+the last return of each firing (:mod:`planodom.datasets.returns`).
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ import numpy as np
 from planodom.datasets.bin_scan import read_bin
 from planodom.datasets.pcd import read_pcd, write_pcd
 from planodom.datasets.ply import read_ply_vertices, write_ply_vertices
+from planodom.datasets.returns import RETURN_FIELDS, last_returns
 from planodom.errors import DatasetError
 from planodom.scan import Scan
 
@@ -176,6 +180,15 @@ def _scan_from_fields(
         extra["ring"] = _int32(path, ring_name, fields[ring_name], 0)
     if "label" in fields:
         extra["label"] = _int32(path, "label", fields["label"], None)
+    return_name = next((n for n in RETURN_FIELDS if n in fields), None)
+    keep = last_returns(
+        points,
+        extra.get("ring"),
+        fields[time_name] if time_name is not None else None,
+        fields[return_name] if return_name is not None else None,
+    )
+    if keep is not None:  # a multi-return cloud: the last return of each beam firing
+        return Scan(points[keep], **{name: values[keep] for name, values in extra.items()})
     return Scan(points, **extra)
 
 
