@@ -39,7 +39,7 @@ it again:
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -228,6 +228,20 @@ def register_deskewed(
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
+
+
+def judged(best: EpochEstimate, judge: Callable[[MapEstimate], MapEstimate]) -> EpochEstimate:
+    """The epoch's final estimate ``best`` as the plane map ``judge`` s it (its
+    :meth:`~planodom.odometry.planemap.PlaneMapOdometry.judged`: a step beyond the motion
+    bounds bridged, with ``planemap.motion_bound_gate``). Only the estimate kept is judged,
+    not every extraction tried on the way: a wrong first attempt is what step 2 corrects."""
+    if best.map_estimate is None:
+        return best
+    final = judge(best.map_estimate)
+    if final is best.map_estimate:
+        return best
+    rel = final.relative.between(best.relative.prev, best.relative.curr)
+    return replace(best, relative=rel, step=rel.T_prev_curr, map_estimate=final)
 
 
 def _few(candidate: EpochEstimate, previous_planes: int) -> bool:
