@@ -66,7 +66,15 @@ class PlanemapConfig(Section):
     rejected: neither a vehicle nor a hand-held sensor tilts so much in one scan, while
     LDA's flips (a pair of walls matched to itself reversed) turn it by ~180 deg."""
     unobserved_rotation_deg: Positive = 1.0
-    """A rotation direction with a larger 1-sigma (deg) makes the epoch unresolved."""
+    """A rotation direction with a larger 1-sigma (deg) is unobserved: when all are, the
+    epoch is unresolved; when some are, see ``partial_rotation``."""
+    partial_rotation: Literal["unresolved", "prediction"] = "unresolved"
+    """An epoch whose planes fix only part of the rotation (one plane family: the ground
+    alone fixes roll and pitch, not yaw): ``unresolved``, bridged by constant velocity
+    (before issue 14); ``prediction``, measured where observed, with the rotation about
+    the unobserved axes the constant-velocity prediction's and its uncertainty (the RMS
+    rotation deviation of the model), reported ``rotation_partly_observed``, as
+    ``degenerate_translation: prediction`` does for translation."""
     unobserved_translation_m: Positive = 0.1
     """A translation direction with a larger 1-sigma (m) is unobserved (the prediction is
     kept there): the epoch is degenerate, e.g. along a straight street where nothing but
