@@ -68,13 +68,15 @@ class PlanemapConfig(Section):
     unobserved_rotation_deg: Positive = 1.0
     """A rotation direction with a larger 1-sigma (deg) is unobserved: when all are, the
     epoch is unresolved; when some are, see ``partial_rotation``."""
-    partial_rotation: Literal["unresolved", "prediction"] = "unresolved"
+    partial_rotation: Literal["unresolved", "prediction"] = "prediction"
     """An epoch whose planes fix only part of the rotation (one plane family: the ground
     alone fixes roll and pitch, not yaw): ``unresolved``, bridged by constant velocity
     (before issue 14); ``prediction``, measured where observed, with the rotation about
     the unobserved axes the constant-velocity prediction's and its uncertainty (the RMS
     rotation deviation of the model), reported ``rotation_partly_observed``, as
-    ``degenerate_translation: prediction`` does for translation."""
+    ``degenerate_translation: prediction`` does for translation. A rule of the estimator,
+    not tuned; measured: the ten procedural lidar worlds (300 epochs, 6 mm and 2 cm) and
+    KITTI raw 0005 have no such epoch and are bit-identical either way."""
     unobserved_translation_m: Positive = 0.1
     """A translation direction with a larger 1-sigma (m) is unobserved (the prediction is
     kept there): the epoch is degenerate, e.g. along a straight street where nothing but

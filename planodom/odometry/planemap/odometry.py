@@ -16,8 +16,10 @@ with another twist and estimated again):
    robust point-to-plane cost of ALL the scan's planes against the map
    (:func:`.register.score`), not the one with the most inliers (a wrong pose can gather
    many weak associations); hypotheses that flip the base's z axis are rejected;
-4. the 6x6 information gives the covariance; a rotation direction with a 1-sigma above
-   ``unobserved_rotation_deg`` makes the epoch UNRESOLVED (the prediction is kept), a
+4. the 6x6 information gives the covariance; rotation directions with a 1-sigma above
+   ``unobserved_rotation_deg`` make the epoch UNRESOLVED (the prediction is kept) when
+   all are, else take the prediction's rotation about them (``rotation_partly_observed``,
+   ``planemap.partial_rotation``); a
    translation direction above ``unobserved_translation_m`` DEGENERATE (the prediction is
    kept along it, with its uncertainty: ``planemap.degenerate_translation``); a step
    beyond the run's motion bounds is marked (``beyond_bounds``) and, with

@@ -54,7 +54,7 @@ def test_ground_only_measures_roll_and_predicts_yaw() -> None:
     assert np.sqrt(rel.covariance[0, 0]) < 0.1 * sigma_pred
 
 
-def test_default_bridges_the_epoch_as_before() -> None:
+def test_unresolved_bridges_the_epoch_as_before() -> None:
     rel, _ = _last("unresolved")
     assert rel.status is Status.UNRESOLVED and not rel.rotation_partly_observed
     roll = np.degrees(rpy_from_rotation(rel.T_prev_curr[:3, :3]))[0]
