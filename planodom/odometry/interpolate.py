@@ -54,14 +54,48 @@ def lagrange_weights(nodes: np.ndarray, t: np.ndarray) -> np.ndarray:
     return out
 
 
+def fit_weights(
+    nodes: np.ndarray, t: np.ndarray, order: int, weights: np.ndarray | None = None
+) -> np.ndarray:
+    """The linear smoother ``H`` (T, J) of the weighted least-squares polynomial of degree
+    ``order`` through the values at ``nodes`` (J,) s, evaluated at ``t`` (T,) s: the fit's
+    values are ``H @ y``. ``weights`` (J,) >= 0 (default all 1; at least ``order + 1``
+    positive). With ``J == order + 1`` nodes it is the interpolating polynomial
+    (:func:`lagrange_weights`) whatever the weights; either way it reproduces a polynomial of
+    degree <= ``order`` exactly."""
+    nodes = np.asarray(nodes, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    w = np.ones(len(nodes)) if weights is None else np.asarray(weights, dtype=np.float64)
+    if int(np.sum(w > 0)) < order + 1:
+        raise GeometryError(f"{int(np.sum(w > 0))} weighted nodes for a degree {order} fit")
+    scale = max(float(np.max(np.abs(nodes))), 1e-12)  # conditioning of the Vandermonde
+    B = np.vander(nodes / scale, order + 1, increasing=True)  # (J, p+1)
+    Bt = np.vander(t / scale, order + 1, increasing=True)  # (T, p+1)
+    sw = np.sqrt(w)[:, None]
+    # least squares of sqrt(W) B c = sqrt(W) y: c = pinv(sqrt(W) B) sqrt(W) y
+    return Bt @ (np.linalg.pinv(sw * B) * sw.T)
+
+
 def curve_poses(
-    node_times: np.ndarray, node_poses: np.ndarray, around: float, t: np.ndarray, order: int = 3
+    node_times: np.ndarray,
+    node_poses: np.ndarray,
+    around: float,
+    t: np.ndarray,
+    order: int = 3,
+    variances: np.ndarray | None = None,
+    n_fit: int | None = None,
 ) -> np.ndarray:
     """``T_world_base`` (T, 4, 4) at the absolute times ``t`` (T,) s on the polynomial
-    curve through the ``order + 1`` nodes nearest the time ``around`` (module docstring).
+    curve through the ``order + 1`` nodes nearest the time ``around`` (module docstring);
+    with ``n_fit`` > ``order + 1`` and ``variances``, the weighted least-squares
+    polynomial over the ``n_fit`` nearest nodes instead, each tangent component weighted
+    by the inverse of the node's variance of it (infinite: not used).
 
     Args:
         node_times: (J,) seconds, strictly increasing. node_poses: (J, 4, 4).
+        variances: (J, 6) of the nodes' tangent components (rotation rad^2, then
+            translation m^2), or None (interpolation through ``order + 1`` nodes).
+        n_fit: nodes in the fit's window (None or <= ``order + 1``: interpolation).
     """
     node_times = np.asarray(node_times, dtype=np.float64)
     if len(node_times) != len(node_poses) or len(node_times) == 0:
@@ -69,11 +103,34 @@ def curve_poses(
     if np.any(np.diff(node_times) <= 0):
         raise GeometryError("node times must increase strictly to interpolate between them")
     k = int(np.clip(np.searchsorted(node_times, around, side="right") - 1, 0, len(node_times) - 1))
-    idx = window(k, len(node_times), order)
+    fit = variances is not None and n_fit is not None and n_fit > order + 1
+    idx = window(k, len(node_times), (n_fit - 1) if fit and n_fit else order)
     anchor = node_poses[idx[len(idx) // 2]]
     xi = se3_log(invert_transform(anchor) @ node_poses[idx])  # (J, 6)
-    weights = lagrange_weights(node_times[idx] - around, np.asarray(t, np.float64) - around)
-    return anchor @ se3_exp(weights @ xi)
+    tn, tt = node_times[idx] - around, np.asarray(t, np.float64) - around
+    if not fit or variances is None or len(idx) <= order + 1:
+        return anchor @ se3_exp(lagrange_weights(tn, tt) @ xi)
+    w = _component_weights(np.asarray(variances, dtype=np.float64)[idx], order)
+    out = np.stack([fit_weights(tn, tt, order, w[:, c]) @ xi[:, c] for c in range(6)], axis=1)
+    return anchor @ se3_exp(out)
+
+
+def _component_weights(variances: np.ndarray, order: int) -> np.ndarray:
+    """(J, 6) weights ``1 / variance`` of a window's nodes, each component normalised to a
+    mean of 1 over its used nodes; a component with fewer than ``order + 1`` finite
+    positive variances gets equal weights on the nodes with a finite one (or all)."""
+    variances = variances.copy()
+    for c in range(variances.shape[1]):  # a variance of 0: as the smallest positive one
+        v = variances[:, c]
+        positive = v[np.isfinite(v) & (v > 0)]
+        v[v <= 0] = positive.min() if len(positive) else 1.0
+    w = np.where(np.isfinite(variances), 1.0 / variances, 0.0)
+    for c in range(w.shape[1]):
+        if np.sum(w[:, c] > 0) < order + 1:
+            finite = np.isfinite(variances[:, c])
+            w[:, c] = finite if finite.sum() >= order + 1 else 1.0
+        w[:, c] /= np.mean(w[w[:, c] > 0, c])
+    return w
 
 
 def midpoint_nodes(
@@ -113,12 +170,15 @@ def interpolated_motion(
     t_ref: float,
     t: np.ndarray,
     order: int = 3,
+    variances: np.ndarray | None = None,
+    n_fit: int | None = None,
 ) -> np.ndarray:
     """``T_ref_t`` (T, 4, 4): the base frame at the absolute times ``t`` (T,) s in the one
-    at ``t_ref`` (s), on the curve through the nodes (:func:`curve_poses`)."""
+    at ``t_ref`` (s), on the curve through the nodes (:func:`curve_poses`, with its
+    ``variances`` and ``n_fit``)."""
     t = np.asarray(t, dtype=np.float64).reshape(-1)
     around = 0.5 * (float(np.min(t)) + float(np.max(t))) if len(t) else t_ref
-    T = curve_poses(node_times, node_poses, around, np.r_[t_ref, t], order)
+    T = curve_poses(node_times, node_poses, around, np.r_[t_ref, t], order, variances, n_fit)
     return invert_transform(T[0]) @ T[1:]
 
 
@@ -129,6 +189,8 @@ def deskew_with_poses(
     t_k: float,
     order: int = 3,
     t_ref: float | None = None,
+    variances: np.ndarray | None = None,
+    n_fit: int | None = None,
 ) -> Scan:
     """A scan of the epoch at ``t_k`` (s) with every point (seen at ``t_k + scan.t``)
     brought to the base frame at ``t_ref`` (s, default ``t_k``) by the motion on the
@@ -139,6 +201,8 @@ def deskew_with_poses(
     Args:
         scan: the epoch's points, each in the base frame of its own time (``scan.t``).
         node_times: (J,) seconds. node_poses: (J, 4, 4) ``T_world_base``.
+        variances, n_fit: the least-squares fit instead of the interpolation
+            (:func:`curve_poses`).
     """
     if scan.t is None or len(scan.t) == 0:
         return scan
@@ -146,7 +210,9 @@ def deskew_with_poses(
     # lidar's column does
     t_unique, inverse = np.unique(scan.t, return_inverse=True)
     reference = t_k if t_ref is None else t_ref
-    T = interpolated_motion(node_times, node_poses, reference, t_k + t_unique, order)
+    T = interpolated_motion(
+        node_times, node_poses, reference, t_k + t_unique, order, variances, n_fit
+    )
     T = T[inverse.reshape(-1)]
     points = np.einsum("nij,nj->ni", T[:, :3, :3], scan.points) + T[:, :3, 3]
     return replace(scan, points=points, t=np.zeros_like(scan.t))
