@@ -132,13 +132,16 @@ class OdometryConfig(Section):
     ``deskew_order + 1`` nearest nodes that the passes deskew along. 3: converges in a
     couple of passes; 5 reaches a lower floor (sigma = 0, paper loop: 2e-5 against
     1.3e-4 deg rms) but needs about twice the passes."""
-    deskew_fit: Literal["interpolate", "weighted"] = "interpolate"
+    deskew_fit: Literal["interpolate", "weighted", "increments"] = "interpolate"
     """The passes' curve: "interpolate", the polynomial through the ``deskew_order + 1``
     nearest nodes (exact at the nodes: it follows their noise); "weighted", the weighted
     least-squares polynomial of degree ``deskew_order`` over the nodes within
     ``deskew_fit_span_s`` (at least ``deskew_order + 2``), each tangent component of a
     node weighted by the inverse variance of the odometry's steps beside it (an
-    unresolved step: not used), :func:`planodom.odometry.interpolate.curve_poses`."""
+    unresolved step: not used), :func:`planodom.odometry.interpolate.curve_poses`;
+    "increments", the same fit to the increments between the nodes (whose errors, unlike
+    the chained poses', are independent), :func:`planodom.odometry.interpolate.
+    increment_fit_weights`."""
     deskew_fit_span_s: Annotated[float, Field(gt=0, le=5, allow_inf_nan=False)] = 1.0
     """``deskew_fit: weighted``: the time the fit's window spans, s (nodes: one per epoch).
     From the vehicle, not a world: the fit's polynomial must follow the motion over the

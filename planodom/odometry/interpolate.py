@@ -76,6 +76,33 @@ def fit_weights(
     return Bt @ (np.linalg.pinv(sw * B) * sw.T)
 
 
+def increment_fit_weights(
+    nodes: np.ndarray, t: np.ndarray, order: int, weights: np.ndarray | None = None
+) -> np.ndarray:
+    """Like :func:`fit_weights`, but the polynomial's shape is fitted to the increments
+    between consecutive nodes ``y[j + 1] - y[j]`` (weighted by ``2 / (1 / w_j + 1 / w_j+1)``,
+    the inverse of their mean variance), and its constant to the nodes' mean. Why: the
+    nodes are poses chained from the odometry's steps, so their errors are a random walk
+    whose increments, not values, are independent; one wrong step shifts every later node,
+    which a fit to the values spreads over the window. Exact for a polynomial of degree
+    <= ``order``; with ``order + 1`` nodes the interpolating polynomial."""
+    nodes = np.asarray(nodes, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    w = np.ones(len(nodes)) if weights is None else np.asarray(weights, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        wi = np.where((w[1:] > 0) & (w[:-1] > 0), 2.0 / (1.0 / w[1:] + 1.0 / w[:-1]), 0.0)
+    if int(np.sum(wi > 0)) < order:
+        raise GeometryError(f"{int(np.sum(wi > 0))} weighted increments for a degree {order} fit")
+    scale = max(float(np.max(np.abs(nodes))), 1e-12)  # conditioning of the Vandermonde
+    B = np.vander(nodes / scale, order + 1, increasing=True)[:, 1:]  # (J, p): no constant
+    Bt = np.vander(t / scale, order + 1, increasing=True)[:, 1:]  # (T, p)
+    D = np.diff(np.eye(len(nodes)), axis=0)  # (J-1, J): increments
+    sw = np.sqrt(wi)[:, None]
+    A = np.linalg.pinv(sw * (D @ B)) @ (sw * D)  # (p, J): shape coefficients from y
+    mean = np.full((1, len(nodes)), 1.0 / len(nodes))
+    return Bt @ A + mean - mean @ B @ A  # constant: the nodes' mean less the shape's
+
+
 def curve_poses(
     node_times: np.ndarray,
     node_poses: np.ndarray,
@@ -84,6 +111,7 @@ def curve_poses(
     order: int = 3,
     variances: np.ndarray | None = None,
     n_fit: int | None = None,
+    increments: bool = False,
 ) -> np.ndarray:
     """``T_world_base`` (T, 4, 4) at the absolute times ``t`` (T,) s on the polynomial
     curve through the ``order + 1`` nodes nearest the time ``around`` (module docstring);
@@ -96,6 +124,7 @@ def curve_poses(
         variances: (J, 6) of the nodes' tangent components (rotation rad^2, then
             translation m^2), or None (interpolation through ``order + 1`` nodes).
         n_fit: nodes in the fit's window (None or <= ``order + 1``: interpolation).
+        increments: fit the shape to the nodes' increments (:func:`increment_fit_weights`).
     """
     node_times = np.asarray(node_times, dtype=np.float64)
     if len(node_times) != len(node_poses) or len(node_times) == 0:
@@ -111,7 +140,8 @@ def curve_poses(
     if not fit or variances is None or len(idx) <= order + 1:
         return anchor @ se3_exp(lagrange_weights(tn, tt) @ xi)
     w = _component_weights(np.asarray(variances, dtype=np.float64)[idx], order)
-    out = np.stack([fit_weights(tn, tt, order, w[:, c]) @ xi[:, c] for c in range(6)], axis=1)
+    smoother = increment_fit_weights if increments else fit_weights
+    out = np.stack([smoother(tn, tt, order, w[:, c]) @ xi[:, c] for c in range(6)], axis=1)
     return anchor @ se3_exp(out)
 
 
@@ -179,13 +209,16 @@ def interpolated_motion(
     order: int = 3,
     variances: np.ndarray | None = None,
     n_fit: int | None = None,
+    increments: bool = False,
 ) -> np.ndarray:
     """``T_ref_t`` (T, 4, 4): the base frame at the absolute times ``t`` (T,) s in the one
     at ``t_ref`` (s), on the curve through the nodes (:func:`curve_poses`, with its
-    ``variances`` and ``n_fit``)."""
+    ``variances``, ``n_fit`` and ``increments``)."""
     t = np.asarray(t, dtype=np.float64).reshape(-1)
     around = 0.5 * (float(np.min(t)) + float(np.max(t))) if len(t) else t_ref
-    T = curve_poses(node_times, node_poses, around, np.r_[t_ref, t], order, variances, n_fit)
+    T = curve_poses(
+        node_times, node_poses, around, np.r_[t_ref, t], order, variances, n_fit, increments
+    )
     return invert_transform(T[0]) @ T[1:]
 
 
@@ -198,6 +231,7 @@ def deskew_with_poses(
     t_ref: float | None = None,
     variances: np.ndarray | None = None,
     n_fit: int | None = None,
+    increments: bool = False,
 ) -> Scan:
     """A scan of the epoch at ``t_k`` (s) with every point (seen at ``t_k + scan.t``)
     brought to the base frame at ``t_ref`` (s, default ``t_k``) by the motion on the
@@ -208,7 +242,7 @@ def deskew_with_poses(
     Args:
         scan: the epoch's points, each in the base frame of its own time (``scan.t``).
         node_times: (J,) seconds. node_poses: (J, 4, 4) ``T_world_base``.
-        variances, n_fit: the least-squares fit instead of the interpolation
+        variances, n_fit, increments: the least-squares fit instead of the interpolation
             (:func:`curve_poses`).
     """
     if scan.t is None or len(scan.t) == 0:
@@ -218,7 +252,7 @@ def deskew_with_poses(
     t_unique, inverse = np.unique(scan.t, return_inverse=True)
     reference = t_k if t_ref is None else t_ref
     T = interpolated_motion(
-        node_times, node_poses, reference, t_k + t_unique, order, variances, n_fit
+        node_times, node_poses, reference, t_k + t_unique, order, variances, n_fit, increments
     )
     T = T[inverse.reshape(-1)]
     points = np.einsum("nij,nj->ni", T[:, :3, :3], scan.points) + T[:, :3, 3]

@@ -187,7 +187,8 @@ def redeskewed_run(
     middles = epoch_middles(times)
     for reference in [middles] * config.odometry.deskew_passes + [times]:
         trusted = _near_all_measured(measured, order)
-        curve = _Curve(*nodes, variances if n_fit else None, order, n_fit)
+        increments = config.odometry.deskew_fit == "increments"
+        curve = _Curve(*nodes, variances if n_fit else None, order, n_fit, increments)
         deskewed = _DeskewedEpochs(source, times, reference, curve, trusted)
         run = _streaming_pass(deskewed, config, rig, reference, progress, extractor)
         nodes, measured = (reference, run.poses), _measured(run)
@@ -207,7 +208,7 @@ def fit_nodes(config: PlanodomConfig, times: np.ndarray) -> int | None:
     weighted``): those within ``deskew_fit_span_s`` at the run's median epoch period, at
     least ``deskew_order + 2``; None for the interpolating curve."""
     odo = config.odometry
-    if odo.deskew_fit != "weighted" or len(times) < 2:
+    if odo.deskew_fit == "interpolate" or len(times) < 2:
         return None
     period = float(np.median(np.diff(times)))
     return max(odo.deskew_order + 2, int(round(odo.deskew_fit_span_s / period)) + 1)
@@ -269,6 +270,7 @@ class _Curve:
     variances: np.ndarray | None
     order: int
     n_fit: int | None
+    increments: bool = False
 
 
 @dataclass(frozen=True)
@@ -313,7 +315,7 @@ class _DeskewedEpochs:
         c = self.curve
         out = deskew_with_poses(
             item, c.times, c.poses, float(self.times[k]), c.order, float(self.reference[k]),
-            c.variances, c.n_fit,
+            c.variances, c.n_fit, c.increments,
         )  # fmt: skip
         self.seconds += _time.perf_counter() - c0
         # the times stay (extracted with a zero twist): a lidar's range image takes its
