@@ -141,20 +141,22 @@ class OdometryConfig(Section):
     unresolved step: not used), :func:`planodom.odometry.interpolate.curve_poses`;
     "increments", the same fit to the increments between the nodes (whose errors, unlike
     the chained poses', are independent), :func:`planodom.odometry.interpolate.
-    increment_fit_weights`. Measured on issue 11's worlds 0-9, 100 epochs (median over the
-    2D-rig / lidar worlds of the per-epoch rotation rms, deg; passes 2, fits over 0.5 s):
-    sigma = 0: default 0.122 / 0.0162, interpolate 0.276 / 0.0026, increments (degree 3)
-    0.133 / 0.0050; 6 mm: 0.208 / 0.0119, 0.225 / 0.0041, 0.127 / 0.0087; 2 cm: 0.142 /
-    0.0163, 0.221 / 0.0164, 0.473 / 0.0184 (40 epochs unresolved on the 2D rig against 22).
-    No curve is better than the streaming deskewing everywhere: the fits average the noise
-    down but miss the simulated routes' kinks of turn rate, and on a 5 Hz 2D rig at 2 cm
-    every pass loses epochs. Wide windows (1 s) were worse still."""
-    deskew_fit_span_s: Annotated[float, Field(gt=0, le=5, allow_inf_nan=False)] = 1.0
-    """``deskew_fit: weighted``: the time the fit's window spans, s (nodes: one per epoch).
-    From the vehicle, not a world: the fit's polynomial must follow the motion over the
-    window, and a car's turn rate and its suspension's roll and pitch (sway of 0.2-0.7 Hz in
-    the simulator, ~1 Hz on a real car) change over a second or more; a wider window
-    averages more noise down but misses more of that change."""
+    increment_fit_weights`. Measured on issue 11's worlds 0-9, 100 epochs, median over the
+    5 2D-rig / 5 lidar worlds of the per-epoch rotation rms (deg), streaming / 2 passes
+    "interpolate" / 2 passes "increments" (degree 3, 0.5 s): sigma = 0: 0.122 / 0.276 /
+    0.133 and 0.0162 / 0.0026 / 0.0050; 6 mm: 0.208 / 0.225 / 0.127 and 0.0166 / 0.0029 /
+    0.0054; 2 cm: 0.142 / 0.221 / 0.473 (22 / 17 / 40 epochs unresolved) and 0.0199 /
+    0.0146 / 0.0111 (lidar ATE 5.0 / 5.3 / 2.0 mm). So on lidars the passes help at every
+    level (the fit most at 2 cm), but not on the 64-beam world without point times (its
+    first epochs), and on the 5 Hz 2D rig at 2 cm every curve loses epochs; the fits miss
+    the simulated routes' kinks of turn rate, so 1 s windows were worse everywhere."""
+    deskew_fit_span_s: Annotated[float, Field(gt=0, le=5, allow_inf_nan=False)] = 0.5
+    """A least-squares ``deskew_fit``: the time its window spans, s (one node per epoch, at
+    least ``deskew_order + 2``). From the vehicle, not a world: the polynomial must follow
+    the motion over the window, and a car's turn rate and its suspension's roll and pitch
+    (0.2-0.7 Hz sway in the simulator, a quarter period of 0.35-1.2 s) change within a
+    second; a wider window averages more noise down but misses more of that change
+    (measured: 1 s worse than 0.5 s at every noise level, see ``deskew_fit``)."""
     twist_sigma: Literal["lost", "always", "fixed"] = "lost"
     """Streaming: how far off the twist an epoch is deskewed with is taken to be (the 2D-rig
     extraction widens its tolerances by the smear that leaves, ``extraction.

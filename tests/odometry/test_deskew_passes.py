@@ -145,8 +145,8 @@ def test_passes_along_the_least_squares_curve_converge_to_the_true_motion(contin
 def test_fit_nodes_follow_the_span_and_the_epoch_period():
     times = np.arange(50) * 0.1
     cfg = PlanodomConfig().updated({"odometry.deskew_fit": "weighted"})
-    assert fit_nodes(cfg, times) == 11  # 1 s at 10 Hz
-    assert fit_nodes(cfg, times * 2) == 6  # 1 s at 5 Hz
+    assert fit_nodes(cfg, times) == 6  # 0.5 s at 10 Hz
+    assert fit_nodes(cfg, times * 0.5) == 11  # 0.5 s at 20 Hz
     assert fit_nodes(cfg, times * 10) == 5  # at least deskew_order + 2
     assert fit_nodes(PlanodomConfig(), times) is None  # interpolation
 
