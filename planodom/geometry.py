@@ -13,6 +13,7 @@ Conventions (kept everywhere in planodom):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numba
@@ -211,12 +212,12 @@ class Plane:
 
     def __post_init__(self) -> None:
         n = np.asarray(self.normal, dtype=np.float64).reshape(-1)
-        if n.shape != (3,) or not np.all(np.isfinite(n)):
+        if n.shape != (3,) or not np.isfinite(n).all():
             raise GeometryError(f"plane normal must be 3 finite numbers, got {self.normal!r}")
-        norm = np.linalg.norm(n)
+        norm = math.sqrt(n.dot(n))  # np.linalg.norm's arithmetic, without its overhead
         if norm < 1e-12:
             raise GeometryError("plane normal has zero length")
-        if not np.isfinite(self.offset):
+        if not math.isfinite(self.offset):
             raise GeometryError(f"plane offset must be finite, got {self.offset!r}")
         if not 0.0 < self.confidence <= 1.0:
             raise GeometryError(f"plane confidence must lie in (0, 1], got {self.confidence!r}")
