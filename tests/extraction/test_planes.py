@@ -314,3 +314,34 @@ def test_planes_carry_a_deskew_jacobian_only_when_asked():
     for p in on:
         assert p.deskew_jacobian is not None and p.deskew_jacobian.shape == (4, 6)
         assert np.all(np.isfinite(p.deskew_jacobian)) and np.any(p.deskew_jacobian != 0)
+
+
+def test_batched_support_polygons_equal_each_planes_own():
+    """support_polygons over the kept planes of a fit set equals support_polygon of each
+    plane's outline points (gathered in numpy), degenerate ones (under three outline
+    points, collinear) included."""
+    from planodom.extraction.planes.support import support_polygon, support_polygons
+
+    rng = np.random.default_rng(8)
+    G, N = 6, 400
+    points = rng.normal(size=(N, 3)) * 3.0
+    points[50:60] = np.linspace(0, 1, 10)[:, None] * np.array([1.0, 2.0, 0.5])  # a line
+    inliers = np.concatenate(
+        [rng.permutation(N)[:k] for k in (40, 2, 0, 90, 30)] + [np.arange(50, 60)]
+    )
+    sizes = [40, 2, 0, 90, 30, 10]
+    bounds = np.r_[0, np.cumsum(sizes)]
+    outline = rng.uniform(size=len(inliers)) < 0.7
+    outline[bounds[5] : bounds[6]] = True
+    evecs = np.linalg.qr(rng.normal(size=(G, 3, 3)))[0]
+    centroids = rng.normal(size=(G, 3))
+    kept = np.array([5, 0, 1, 3, 2, 4])
+    got = support_polygons(points, inliers, bounds, outline, kept, centroids, evecs)
+    for poly, g in zip(got, kept, strict=True):
+        idx = inliers[bounds[g] : bounds[g + 1]]
+        own = support_polygon(
+            points[idx[outline[bounds[g] : bounds[g + 1]]]], centroids[g], evecs[g][:, :2]
+        )
+        np.testing.assert_array_equal(poly, own)
+    assert len(got[0]) == len(got[2]) == len(got[4]) == 0  # a line, 2 points, none
+    assert all(len(p) >= 3 for p in (got[1], got[3], got[5]))

@@ -39,7 +39,7 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch
 from planodom.extraction.planes.confidence import cpef, mean_incidences
 from planodom.extraction.planes.fit import deskew_jacobian, fit_arrays
-from planodom.extraction.planes.support import distinct_and_majority, support_polygon
+from planodom.extraction.planes.support import distinct_and_majority, support_polygons
 from planodom.geometry import Plane, PlaneSupport
 
 #: ``adjust(kept, normals, offsets) -> kept``: may change the oriented (G, 3) normals and
@@ -187,6 +187,9 @@ def build_planes(
     )
     t = epoch.scan.t if config.deskew_jacobian else None
     span = 0.0 if t is None or len(t) == 0 else float(np.max(np.abs(t)))
+    polygons = support_polygons(
+        epoch.points, fits.inliers, fits.bounds, fits.outline, kept, fits.centroid, fits.evecs
+    )
     for k, g in enumerate(kept):
         idx = fits.members(int(g))
         dsk = None
@@ -194,8 +197,7 @@ def build_planes(
             fit = (fits.centroid[g], fits.evals[g], fits.evecs[g])
             dsk = deskew_jacobian(epoch.points[idx], t[idx] / span, n_or[g], fit)
         n_rows = int(fits.n_rows[g]) if fits.n_rows is not None else int(rows[k])
-        outline = epoch.points[idx[fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]]
-        polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
+        polygon = polygons[k]
         plane = Plane(
             normal=n_or[g],
             offset=float(d_or[g]),
