@@ -141,10 +141,12 @@ def consensus(
     kind = _KINDS.get(apply, -1) if error is squared_distance else -1
     if kind >= 0:  # the odometry's two operators: one compiled pass (_consensus_kernel)
         gid = np.arange(n_elem) if groups is None else np.asarray(groups, dtype=np.int64)
-        flat = [np.ascontiguousarray(a.reshape(len(a), -1)) for a in (candidates, source, target)]
+        cand, src, tgt = (
+            np.ascontiguousarray(a.reshape(len(a), -1)) for a in (candidates, source, target)
+        )
         limit = -1 if budget is None else int(budget)
         ok, best, totals, best_errors, inliers = _consensus_kernel(
-            kind, *flat, w, cap, gid, tol2, shortlist, limit
+            kind, cand, src, tgt, w, cap, gid, tol2, shortlist, limit
         )
         if ok:
             return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
