@@ -140,16 +140,10 @@ def consensus(
     tol2 = np.inf if inlier_tol is None else float(inlier_tol) ** 2
     kind = _KINDS.get(apply, -1) if error is squared_distance else -1
     if kind >= 0:  # the odometry's two operators: one compiled pass (_consensus_kernel)
-        gid = np.arange(n_elem) if groups is None else np.asarray(groups, dtype=np.int64)
-        cand, src, tgt = (
-            np.ascontiguousarray(a.reshape(len(a), -1)) for a in (candidates, source, target)
-        )
-        limit = -1 if budget is None else int(budget)
-        ok, best, totals, best_errors, inliers = _consensus_kernel(
-            kind, cand, src, tgt, w, cap, gid, tol2, shortlist, limit
-        )
-        if ok:
-            return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
+        args = (candidates, source, target, w, cap, groups, tol2, shortlist, budget)
+        done = _compiled_consensus(kind, *args)
+        if done is not None:
+            return done
 
     defined = np.isfinite(source.reshape(n_elem, -1)).all(axis=1)
     defined &= np.isfinite(target.reshape(n_elem, -1)).all(axis=1)
@@ -170,6 +164,33 @@ def consensus(
         totals = _totals(problem, everyone, used)
     best = int(np.argmin(totals))
     best_errors, inliers = _winner_errors(problem, best, defined, tol2)
+    return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
+
+
+def _compiled_consensus(
+    kind: int,
+    candidates: np.ndarray,
+    source: np.ndarray,
+    target: np.ndarray,
+    w: np.ndarray,
+    cap: float,
+    groups: np.ndarray | None,
+    tol2: float,
+    shortlist: int,
+    budget: int | None,
+) -> ConsensusResult | None:
+    """:func:`consensus` by :func:`_consensus_kernel` (operator ``kind``); None when the
+    shortlist applies (the numpy form runs then)."""
+    gid = np.arange(len(source)) if groups is None else np.asarray(groups, dtype=np.int64)
+    cand, src, tgt = (
+        np.ascontiguousarray(a.reshape(len(a), -1)) for a in (candidates, source, target)
+    )
+    limit = -1 if budget is None else int(budget)
+    ok, best, totals, best_errors, inliers = _consensus_kernel(
+        kind, cand, src, tgt, w, cap, gid, tol2, shortlist, limit
+    )
+    if not ok:
+        return None
     return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
 
 
