@@ -165,7 +165,8 @@ def build_planes(
     )  # fmt: skip
     kept = np.flatnonzero(keep)
     height = config.viewpoint_height_m
-    views = np.broadcast_to(np.array([0.0, 0.0, height]), (G, 3)).copy()
+    views = np.zeros((G, 3))
+    views[:, 2] = height
     incidence = np.ones(G) if fits.incidence is None else fits.incidence.copy()
     if fits.incidence is None or epoch.origins is not None:
         inl, bnd = fits.inliers.astype(np.int64), fits.bounds.astype(np.int64)
