@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planodom.config import OdometryConfig
+from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status
 from planodom.planes import PlaneSet
@@ -113,7 +114,15 @@ Refresher = Callable[[np.ndarray], bool]
 
 def time_spread(scan: Scan) -> bool:
     """Whether the scan's points carry times that differ (deskewing can matter)."""
-    return bool(scan.t is not None and len(scan.t) and np.ptp(scan.t) > 0)
+    return bool(scan.t is not None and len(scan.t) and _spread_and_mean(scan.t)[0] > 0)
+
+
+@identity_memo
+def _spread_and_mean(t: np.ndarray) -> tuple[float, float]:
+    """``np.ptp(t)`` and ``np.mean(t)`` of a scan's times (N,), N >= 1, seconds; memoised
+    (:mod:`planodom.extraction.memo`: a scan's times are read-only): an epoch asks for
+    them with every estimate."""
+    return float(np.ptp(t)), float(np.mean(t))
 
 
 def twist_offset(
@@ -144,7 +153,7 @@ def twist_offset(
         # an epoch extracted without a twist is not "deskewed with zero": the 2D-rig path
         # then extrapolates each wall seen in several time windows to the epoch time
         return None
-    tm = float(np.mean(scan.t))
+    tm = _spread_and_mean(scan.t)[1]
     return (tm / dt) * (twist - reference_twist) if tm != 0.0 else None
 
 
