@@ -83,16 +83,33 @@ class PairAssociations:
         pp, cp = self.prev_pairs, self.curr_pairs
         if index is not None:
             pp, cp = pp[index], cp[index]
-        i, j = pp.T.reshape(-1), cp.T.reshape(-1)
-        base = int(j.max(initial=0)) + 1
-        code = np.unique(i.astype(np.int64) * base + j)
-        return np.column_stack([code // base, code % base]).astype(np.intp)
+        return _unique_pairs(pp.astype(np.int64), cp.astype(np.int64)).astype(np.intp)
 
     def remapped(self, prev_index: np.ndarray, curr_index: np.ndarray) -> PairAssociations:
         """The same associations with plane indices mapped through the given arrays."""
         return PairAssociations(
             prev_index[self.prev_pairs], curr_index[self.curr_pairs], self.rotations, self.weights
         )
+
+
+@numba.njit(cache=True)
+def _unique_pairs(pp, cp):  # pragma: no cover - compiled
+    """(L, 2) the distinct plane associations ``(i, j)`` of the pairs ``pp``, ``cp`` (M, 2),
+    sorted: codes ``i * base + j`` made unique (compiled: the numpy form's ten calls cost
+    more than sorting a few codes)."""
+    m = pp.shape[0]
+    base = 1
+    for q in range(m):
+        base = max(base, cp[q, 0] + 1, cp[q, 1] + 1)
+    code = np.empty(2 * m, dtype=np.int64)
+    for q in range(m):
+        code[q] = pp[q, 0] * base + cp[q, 0]
+        code[m + q] = pp[q, 1] * base + cp[q, 1]
+    code = np.unique(code)
+    out = np.empty((len(code), 2), dtype=np.int64)
+    for q in range(len(code)):
+        out[q, 0], out[q, 1] = code[q] // base, code[q] % base
+    return out
 
 
 def nonparallel_pairs(normals: np.ndarray, parallel_angle: float) -> tuple[np.ndarray, np.ndarray]:

@@ -137,6 +137,13 @@ def consensus(
     w = _checked_weights(candidates, source, target, weights)
     n_cand, n_elem = len(candidates), len(source)
     cap = np.inf if truncate is None else float(truncate) ** 2
+    tol2 = np.inf if inlier_tol is None else float(inlier_tol) ** 2
+    kind = _KINDS.get(apply, -1) if error is squared_distance else -1
+    if kind >= 0:  # the odometry's two operators: one compiled pass (_consensus_kernel)
+        args = (candidates, source, target, w, cap, groups, tol2, shortlist, budget)
+        done = _compiled_consensus(kind, *args)
+        if done is not None:
+            return done
 
     defined = np.isfinite(source.reshape(n_elem, -1)).all(axis=1)
     defined &= np.isfinite(target.reshape(n_elem, -1)).all(axis=1)
@@ -156,9 +163,34 @@ def consensus(
     else:
         totals = _totals(problem, everyone, used)
     best = int(np.argmin(totals))
-
-    tol2 = np.inf if inlier_tol is None else float(inlier_tol) ** 2
     best_errors, inliers = _winner_errors(problem, best, defined, tol2)
+    return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
+
+
+def _compiled_consensus(
+    kind: int,
+    candidates: np.ndarray,
+    source: np.ndarray,
+    target: np.ndarray,
+    w: np.ndarray,
+    cap: float,
+    groups: np.ndarray | None,
+    tol2: float,
+    shortlist: int,
+    budget: int | None,
+) -> ConsensusResult | None:
+    """:func:`consensus` by :func:`_consensus_kernel` (operator ``kind``); None when the
+    shortlist applies (the numpy form runs then)."""
+    gid = np.arange(len(source)) if groups is None else np.asarray(groups, dtype=np.int64)
+    cand, src, tgt = (
+        np.ascontiguousarray(a.reshape(len(a), -1)) for a in (candidates, source, target)
+    )
+    limit = -1 if budget is None else int(budget)
+    ok, best, totals, best_errors, inliers = _consensus_kernel(
+        kind, cand, src, tgt, w, cap, gid, tol2, shortlist, limit
+    )
+    if not ok:
+        return None
     return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
 
 
@@ -309,3 +341,47 @@ def _best_errors_kernel(kind, cand, src, tgt, defined, tol2):  # pragma: no cove
         errors[e] = err
         inliers[e] = err <= tol2
     return errors, inliers
+
+
+@numba.njit(cache=True)
+def _consensus_kernel(
+    kind, cand, src, tgt, w, cap, gid, tol2, shortlist, budget
+):  # pragma: no cover
+    """:func:`consensus` for the odometry's two operators (``kind``, :data:`_KINDS`) with
+    the squared distance, flattened to (C, 9) or (C, D) candidates and (E, D) elements,
+    in one compiled pass: the defined elements of positive weight, ordered by group id
+    (stable), every candidate's total (:func:`_totals_kernel`), the first least, and its
+    element errors (:func:`_best_errors_kernel`): the same steps as the numpy form, so the
+    same bits (its ~30 numpy calls cost more than the arithmetic on a few planes). The
+    first value is False, and nothing computed, when the shortlist would apply (``budget``
+    >= 0 and exceeded): the numpy form then runs."""
+    n_elem = src.shape[0]
+    defined = np.ones(n_elem, dtype=np.bool_)
+    n_used = 0
+    for e in range(n_elem):
+        for a in range(src.shape[1]):
+            if not np.isfinite(src[e, a]):
+                defined[e] = False
+        for a in range(tgt.shape[1]):
+            if not np.isfinite(tgt[e, a]):
+                defined[e] = False
+        if defined[e] and w[e] > 0:
+            n_used += 1
+    used = np.empty(n_used, dtype=np.int64)
+    k = 0
+    for e in range(n_elem):
+        if defined[e] and w[e] > 0:
+            used[k] = e
+            k += 1
+    used = used[np.argsort(gid[used], kind="mergesort")]  # stable: members side by side
+    n_cand = cand.shape[0]
+    empty = np.zeros(0)
+    if budget >= 0 and n_cand > shortlist and n_cand * n_used > budget:
+        return False, -1, empty, empty, np.zeros(0, dtype=np.bool_)
+    first = np.ones(n_used, dtype=np.bool_)
+    for q in range(1, n_used):
+        first[q] = gid[used[q]] != gid[used[q - 1]]
+    totals = _totals_kernel(kind, cand, src, tgt, w, cap, used, first)
+    best = int(np.argmin(totals))
+    errors, inliers = _best_errors_kernel(kind, cand[best], src, tgt, defined, tol2)
+    return True, best, totals, errors, inliers

@@ -51,18 +51,30 @@ class PlaneSet:
     def from_planes(cls, planes: Sequence[Plane]) -> PlaneSet:
         """The arrays of a list of :class:`Plane` (in that order)."""
         k = len(planes)
-        normals, offsets = np.zeros((k, 3)), np.zeros(k)
-        weights, centroids, radii = np.ones(k), np.full((k, 3), np.nan), np.full(k, np.nan)
+        if k == 0:
+            z = np.zeros(0)
+            return cls(
+                np.zeros((0, 3)), z, z.copy(), np.zeros((0, 3)), z.copy(), np.zeros((0, 4, 4))
+            )
+        normals = np.array([p.normal for p in planes], dtype=np.float64)
+        offsets = np.array([p.offset for p in planes], dtype=np.float64)
+        weights = np.array([p.confidence for p in planes], dtype=np.float64)
+        centroids, radii = np.full((k, 3), np.nan), np.full(k, np.nan)
         covariances = np.full((k, 4, 4), np.nan)
+        polygons, owners = [], []
         for i, p in enumerate(planes):
-            normals[i], offsets[i], weights[i] = p.normal, p.offset, p.confidence
             if p.covariance is not None:
                 covariances[i] = p.covariance
             if p.support is not None:
                 centroids[i] = p.support.centroid
                 if len(p.support.polygon):
-                    q = p.support.polygon - centroids[i]  # np.linalg.norm's arithmetic
-                    radii[i] = np.sqrt((q * q).sum(axis=1).max())
+                    polygons.append(p.support.polygon)
+                    owners.append(i)
+        if polygons:  # the farthest vertex, all planes at once (np.linalg.norm's arithmetic)
+            sizes = [len(q) for q in polygons]
+            q = np.concatenate(polygons) - np.repeat(centroids[owners], sizes, axis=0)
+            starts = np.cumsum([0] + sizes[:-1])
+            radii[owners] = np.sqrt(np.maximum.reduceat((q * q).sum(axis=1), starts))
         return cls(normals, offsets, weights, centroids, radii, covariances)
 
     def __len__(self) -> int:

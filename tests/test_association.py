@@ -144,9 +144,21 @@ def test_lda_of_degenerate_inputs_is_empty():
 
 def test_plane_associations_are_unique_and_sorted():
     _, prev, curr, _ = two_epochs(5)
-    ij = lda_of(prev, curr).plane_associations()
+    lda = lda_of(prev, curr)
+    ij = lda.plane_associations()
     assert len(np.unique(ij, axis=0)) == len(ij)
     assert np.all(np.diff(ij[:, 0] * 1000 + ij[:, 1]) > 0)
+    pp, cp = lda.prev_pairs, lda.curr_pairs  # every plane of every pair, nothing else
+
+    def distinct(p: np.ndarray, c: np.ndarray) -> list[tuple[int, int]]:
+        return sorted(
+            {(int(a), int(b)) for k in (0, 1) for a, b in zip(p[:, k], c[:, k], strict=False)}
+        )
+
+    assert [tuple(r) for r in ij.tolist()] == distinct(pp, cp) and ij.dtype == np.intp
+    some = np.arange(len(lda)) % 2 == 0
+    sub = lda.plane_associations(some).tolist()
+    assert [tuple(r) for r in sub] == distinct(pp[some], cp[some])
 
 
 # ----------------------------------------------------------------------------- SDA

@@ -182,8 +182,10 @@ def test_shortlist_beyond_the_budget_keeps_a_clear_winner():
 
 @pytest.mark.parametrize("operator", ["rotation", "translation"])
 def test_compiled_winner_errors_equal_the_generic_operators(operator):
-    """The odometry's two operators score the winner's elements compiled; the same
-    operator wrapped (the generic numpy path) must give the same errors and inliers."""
+    """The odometry's two operators run compiled (the candidates' totals and the winner's
+    elements); the same operator wrapped (the generic numpy path) must give the same
+    totals, errors and inliers, with groups, truncation, undefined and unweighted
+    elements."""
     from scipy.spatial.transform import Rotation
 
     from planodom.consensus import apply_inverse_rotation, apply_negative_translation
@@ -198,9 +200,14 @@ def test_compiled_winner_errors_equal_the_generic_operators(operator):
     tgt = apply(cands[2:3], src)[0] + rng.normal(scale=0.05, size=src.shape)
     src[5] = np.nan  # an undefined element
     weights = rng.uniform(0.1, 1.0, 40)
-    fast = consensus(cands, src, tgt, apply, weights=weights, inlier_tol=0.08)
-    slow = consensus(cands, src, tgt, lambda c, x: apply(c, x), weights=weights, inlier_tol=0.08)
+    weights[7] = 0.0  # ignored
+    groups = rng.integers(0, 30, 40)  # alternative associations, unsorted ids
+    kw = dict(weights=weights, inlier_tol=0.08, groups=groups, truncate=1.5)
+    fast = consensus(cands, src, tgt, apply, **kw)
+    slow = consensus(cands, src, tgt, lambda c, x: apply(c, x), **kw)
     assert fast.best_index == slow.best_index == 2
+    # the compiled totals add in element order, numpy's sum pairwise: rounding apart
+    np.testing.assert_allclose(fast.errors, slow.errors, rtol=1e-13)
     np.testing.assert_array_equal(fast.element_errors, slow.element_errors)
     np.testing.assert_array_equal(fast.inliers, slow.inliers)
     assert np.isnan(fast.element_errors[5]) and not fast.inliers[5]

@@ -261,3 +261,25 @@ def test_support_area_and_transform() -> None:
     assert s.area == pytest.approx(6.0)
     T = random_pose(np.random.default_rng(3))
     assert s.transformed(T).area == pytest.approx(6.0)
+
+
+def test_compiled_se3_log_matches_its_numpy_form_and_scipy_fallback():
+    """se3_log runs compiled; its numpy form (kept for rotations scipy orthogonalises
+    first) must give the same twists (the same bits where they were written: the same
+    operations in the same order), over rotation angles from 1e-9 rad (the series) to
+    3 rad, batched and one by one, with a non-orthonormal rotation in the batch."""
+    rng = np.random.default_rng(1)
+    n = 3000
+    angle = rng.choice([1e-9, 1e-7, 1e-5, 1e-3, 0.1, 1.0, 3.0], n)[:, None]
+    rv = rng.normal(size=(n, 3))
+    rv *= angle / np.linalg.norm(rv, axis=1, keepdims=True)
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, :3] = Rotation.from_rotvec(rv).as_matrix()
+    T[:, :3, 3] = rng.normal(size=(n, 3))
+    T[5, :3, :3] *= 1.001  # scipy orthogonalises it: the numpy form's row
+    batched = g.se3_log(T)
+    np.testing.assert_allclose(batched, g._se3_log_rows(T), rtol=1e-14, atol=1e-20)
+    one = np.array([g.se3_log(T[k]) for k in range(50)])
+    np.testing.assert_array_equal(one, batched[:50])
+    np.testing.assert_allclose(batched[:, :3], rv, rtol=1e-9, atol=1e-15)  # rows but 5
+    np.testing.assert_allclose(g.se3_exp(batched[10]), T[10], atol=1e-12)

@@ -24,6 +24,13 @@ def test_from_planes_keeps_order_values_and_unknowns():
     assert np.isnan(bare.radii[0]) and np.isnan(bare.centroids[0]).all()
     assert np.isnan(bare.covariances).all() and bare.weights[0] == 1.0
     assert as_plane_set(arr) is arr and len(as_plane_set([])) == 0
+    # radii: the farthest polygon vertex from the centroid, plane by plane, a bare plane
+    # among them (no support) keeping NaN
+    mixed = PlaneSet.from_planes([ps[0], Plane([0, 0, 1.0], 1.0), *ps[1:]])
+    for i, p in enumerate(ps):
+        far = np.max(np.linalg.norm(p.support.polygon - p.support.centroid, axis=1))
+        assert mixed.radii[i + (i > 0)] == far
+    assert np.isnan(mixed.radii[1]) and mixed.covariances.shape == (len(ps) + 1, 4, 4)
 
 
 def test_transformed_agrees_with_plane_transformed():

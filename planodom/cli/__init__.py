@@ -159,6 +159,15 @@ def _report_inconsistent(odo, metrics: dict) -> None:
     metrics["inconsistent_epochs"] = epochs
 
 
+def _report_partial_rotation(odo, metrics: dict) -> None:
+    """List in metrics.json the epochs whose planes fixed only part of the rotation, the
+    rest the prediction's (``RelativePose.rotation_partly_observed``,
+    ``planemap.partial_rotation: prediction``), as the degenerate epochs are counted."""
+    epochs = [k for k, r in enumerate(odo.results) if r is not None and r.rotation_partly_observed]
+    if epochs:
+        metrics["rotation_partly_observed_epochs"] = epochs
+
+
 def _write_pictures(folder: Path, data: ScanEpochs, odo, sm=None, name: str = "") -> None:
     """``covariances.npz`` and the three pictures of a run (and of its smoothing ``sm``)."""
     from planodom.covariances import FILE, odometry_covariances, write_covariances
@@ -214,6 +223,7 @@ def run(
         _report_skipped(data, metrics)
         _report_beyond_bounds(odo, metrics)
         _report_inconsistent(odo, metrics)
+        _report_partial_rotation(odo, metrics)
         results.write_odometry_run(folder.tmp, odo, metrics, data.Tr)
         _write_pictures(folder.tmp, data, odo, name="planodom run")
     console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
@@ -300,6 +310,7 @@ def smooth(
         _report_skipped(data, odo_metrics)
         _report_beyond_bounds(sm.odometry, odo_metrics)
         _report_inconsistent(sm.odometry, odo_metrics)
+        _report_partial_rotation(sm.odometry, odo_metrics)
         results.write_odometry_run(folder.tmp, sm.odometry, odo_metrics, data.Tr)
         results.write_trajectory(folder.tmp, sm.times, sm.poses, data.Tr)  # the output
         results.write_tum(folder.tmp / "odometry.tum", sm.times, sm.odometry.poses)

@@ -147,6 +147,14 @@ TimeField = Annotated[
         "field name.",
     ),
 ]
+BinLayoutOption = Annotated[
+    str,
+    typer.Option(
+        "--bin-layout",
+        help=".bin scan files: kitti (float32 x y z intensity), nuscenes (x y z intensity "
+        "ring) or auto (from each file's size and columns; KITTI sequences: kitti).",
+    ),
+]
 Scenario = Annotated[
     str | None,
     typer.Option(
@@ -254,6 +262,7 @@ class Source:
     topic: list[str] | None = None
     gt_topic: str | None = None
     time_field: str = "auto"
+    bin_layout: str = "auto"
 
     def bag_options(self) -> Any:
         """The :class:`~planodom.datasets.bag_options.BagOptions` of the bag options."""
@@ -272,6 +281,8 @@ class Source:
         if self.scenario is not None and given:
             flags = ", ".join("--" + g.replace("_", "-").replace("topics", "topic") for g in given)
             raise ConfigError(f"{flags}: bag options, not for --scenario")
+        if self.scenario is not None and self.bin_layout != "auto":
+            raise ConfigError("--bin-layout: for .bin scan files, not for --scenario")
 
     def load(self, folder: Path, skip_bad: bool = False) -> ScanEpochs:
         """The recording, or the scenario simulated into ``folder/dataset`` and loaded."""
@@ -279,7 +290,8 @@ class Source:
 
         self.check()
         if self.dataset is not None:
-            return ScanEpochs(open_recording(self.dataset, self.bag_options()), skip_bad)
+            recording = open_recording(self.dataset, self.bag_options(), self.bin_layout)
+            return ScanEpochs(recording, skip_bad)
         from planodom.simulation.export import write_simulated_dataset
 
         sim = (self.scenario, self.rig, self.noise, self.seed, self.epochs, self.motion)
@@ -303,6 +315,7 @@ _SOURCE_OPTIONS = (
     ("topic", Topics, None),
     ("gt_topic", GtTopic, None),
     ("time_field", TimeField, "auto"),
+    ("bin_layout", BinLayoutOption, "auto"),
 )
 
 

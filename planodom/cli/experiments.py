@@ -128,12 +128,24 @@ def experiment_generalisation(
     rig: Annotated[
         str, typer.Option(help="all | rig2d (even worlds only) | lidar (odd worlds only).")
     ] = "all",
+    methods: Annotated[
+        str,
+        typer.Option(
+            help="Comma-separated, of planodom, planodom-wocsc, planodom-sda-mean, "
+            "planodom-offline, oracle, kiss-icp, open3d-icp (default: all but sda-mean "
+            "and offline)."
+        ),
+    ] = "",
     out: ExpOut = Path("results/generalisation"),
     config: ConfigFile = None,
 ) -> None:
     """Unseen worlds: planodom (default, and the paper's wocsc) vs the oracle and the peers."""
     from planodom.errors import ConfigError
-    from planodom.experiments.generalisation import run_generalisation_experiment
+    from planodom.experiments.generalisation import (
+        DEFAULT_METHODS,
+        METHODS,
+        run_generalisation_experiment,
+    )
 
     try:  # the values after the first of "--noise 0 0.006 0.02" arrive as extra arguments
         extra = [float(x) for x in ctx.args]
@@ -144,12 +156,18 @@ def experiment_generalisation(
     noise = (noise or []) + extra
     if rig not in ("all", "rig2d", "lidar"):
         raise ConfigError(f"--rig {rig!r}: expected all, rig2d or lidar")
+    chosen = [m.strip() for m in methods.split(",") if m.strip()] or list(DEFAULT_METHODS)
+    strange = [m for m in chosen if m not in METHODS]
+    if strange:
+        raise ConfigError(
+            f"--methods: unknown {', '.join(strange)}; expected of {', '.join(METHODS)}"
+        )
     levels = noise or [0.0, 0.006, 0.02, 0.1]
     if quick:
         worlds, epochs, levels = 2, 25, (noise or [0.006])
     result = run_generalisation_experiment(
         out, n_worlds=worlds, noise_levels=levels, n_epochs=epochs or None,
-        config=load_config(config), progress=_say,
+        config=load_config(config), progress=_say, methods=chosen,
         rigs=("rig2d", "lidar") if rig == "all" else (rig,),
     )  # fmt: skip
     _print_files({k: v for k, v in result.files.items() if k != "runs_md"})

@@ -132,6 +132,31 @@ class OdometryConfig(Section):
     ``deskew_order + 1`` nearest nodes that the passes deskew along. 3: converges in a
     couple of passes; 5 reaches a lower floor (sigma = 0, paper loop: 2e-5 against
     1.3e-4 deg rms) but needs about twice the passes."""
+    deskew_fit: Literal["interpolate", "weighted", "increments"] = "interpolate"
+    """The passes' curve: "interpolate", the polynomial through the ``deskew_order + 1``
+    nearest nodes (exact at the nodes: it follows their noise); "weighted", the weighted
+    least-squares polynomial of degree ``deskew_order`` over the nodes within
+    ``deskew_fit_span_s`` (at least ``deskew_order + 2``), each tangent component of a
+    node weighted by the inverse variance of the odometry's steps beside it (an
+    unresolved step: not used), :func:`planodom.odometry.interpolate.curve_poses`;
+    "increments", the same fit to the increments between the nodes (whose errors, unlike
+    the chained poses', are independent), :func:`planodom.odometry.interpolate.
+    increment_fit_weights`. Measured on issue 11's worlds 0-9, 100 epochs, median over the
+    5 2D-rig / 5 lidar worlds of the per-epoch rotation rms (deg), streaming / 2 passes
+    "interpolate" / 2 passes "increments" (degree 3, 0.5 s): sigma = 0: 0.122 / 0.276 /
+    0.133 and 0.0162 / 0.0026 / 0.0050; 6 mm: 0.208 / 0.225 / 0.127 and 0.0166 / 0.0029 /
+    0.0054; 2 cm: 0.142 / 0.221 / 0.473 (22 / 17 / 40 epochs unresolved) and 0.0199 /
+    0.0146 / 0.0111 (lidar ATE 5.0 / 5.3 / 2.0 mm). So on lidars the passes help at every
+    level (the fit most at 2 cm), but not on the 64-beam world without point times (its
+    first epochs), and on the 5 Hz 2D rig at 2 cm every curve loses epochs; the fits miss
+    the simulated routes' kinks of turn rate, so 1 s windows were worse everywhere."""
+    deskew_fit_span_s: Annotated[float, Field(gt=0, le=5, allow_inf_nan=False)] = 0.5
+    """A least-squares ``deskew_fit``: the time its window spans, s (one node per epoch, at
+    least ``deskew_order + 2``). From the vehicle, not a world: the polynomial must follow
+    the motion over the window, and a car's turn rate and its suspension's roll and pitch
+    (0.2-0.7 Hz sway in the simulator, a quarter period of 0.35-1.2 s) change within a
+    second; a wider window averages more noise down but misses more of that change
+    (measured: 1 s worse than 0.5 s at every noise level, see ``deskew_fit``)."""
     twist_sigma: Literal["lost", "always", "fixed"] = "lost"
     """Streaming: how far off the twist an epoch is deskewed with is taken to be (the 2D-rig
     extraction widens its tolerances by the smear that leaves, ``extraction.

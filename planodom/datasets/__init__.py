@@ -12,9 +12,12 @@ Layout::
   acquisition time: PLY vertices ``x y z`` (float32 or float64, metres), optional ``ring``
   (int32 scan-line id), ``t`` (float64 s relative to the epoch's reference time) and, for
   simulated data, ``label`` (int32 true surface id). ``.pcd`` files with the same fields
-  and KITTI ``.bin`` files (float32 ``x y z intensity`` rows) are read too; all files of a
-  dataset share one extension. A directory of scan files can be given directly instead of
-  a dataset with a ``scans/`` folder.
+  and raw ``.bin`` files (float32 ``x y z intensity`` rows as KITTI's, or ``x y z
+  intensity ring`` as nuScenes', :mod:`planodom.datasets.bin_scan`) are read too; all
+  files of a dataset share one extension. Point times may be absolute (Unix) times, and
+  multi-return clouds keep one return per firing (:mod:`planodom.datasets.scan_io`). A
+  directory of scan files can be given directly instead of a dataset with a ``scans/``
+  folder.
 - ``poses.tum``: ``time tx ty tz qx qy qz qw`` per epoch, ``T_world_base`` at the epoch's
   reference time (the TUM format of evo).
 - ``times.txt``: one reference time per epoch (seconds, one number per line, strictly

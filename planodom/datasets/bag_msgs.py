@@ -16,6 +16,8 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
   nanoseconds). A sweep whose times then lie more than :data:`MAX_SWEEP_OFFSET_S` from its
   stamp is refused: its field is in a unit these rules do not cover. Points with a
   non-finite coordinate or exactly at the origin (a common no-return marker) are dropped.
+  A multi-return cloud keeps the last return of each beam firing
+  (:mod:`planodom.datasets.returns`).
 - Livox's ``CustomMsg`` (:mod:`planodom.datasets.bag_livox`): ring ``line``, times from
   ``timebase`` and ``offset_time``.
 """
@@ -28,6 +30,7 @@ import numpy as np
 
 from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
+from planodom.datasets.returns import RETURN_FIELDS, last_returns
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
@@ -143,7 +146,18 @@ def _decode_cloud(
         rings = int(ring.max()) + 1 if len(ring) else 0
         ring = ring.astype(np.int32)
     time_name = _time_name(names, time_field)
-    dt = np.zeros(int(valid.sum()))
+    return_name = next((n for n in RETURN_FIELDS if n in names), None)
+    keep = last_returns(
+        points[valid],
+        ring,
+        cloud[time_name][valid] if time_name is not None else None,
+        cloud[return_name][valid] if return_name is not None else None,
+    )
+    valid = np.flatnonzero(valid)
+    if keep is not None:  # a multi-return cloud: the last return of each beam firing
+        valid = valid[keep]
+        ring = ring[keep] if ring is not None else None
+    dt = np.zeros(len(valid))
     if time_name is not None:
         dt = _relative_times(cloud[time_name][valid], stamp_ns(msg.header))
         if not np.all(np.abs(dt) <= MAX_SWEEP_OFFSET_S):  # NaN too

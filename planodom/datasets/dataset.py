@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
@@ -42,6 +43,8 @@ class Dataset:
         times: (E,) float64 seconds, reference time of each epoch (see :func:`load_dataset`).
         gt_poses: (E, 4, 4) float64 ground truth ``T_world_base`` at ``times``, or None.
         rig: the typed ``rig.yaml`` (:class:`planodom.rig.Rig`; ``Rig()`` when there is none).
+        bin_layout: how ``.bin`` scans are read: ``auto``, ``kitti`` or ``nuscenes``
+            (:mod:`planodom.datasets.bin_scan`).
     """
 
     def __init__(
@@ -51,8 +54,10 @@ class Dataset:
         times: np.ndarray,
         gt_poses: np.ndarray | None = None,
         rig: Rig | None = None,
+        bin_layout: str = "auto",
     ) -> None:
         self.path = Path(path)
+        self.bin_layout = check_bin_layout(bin_layout)
         self.scan_files = list(scan_files)
         self.times = np.asarray(times, dtype=np.float64)
         self.gt_poses = gt_poses
@@ -71,7 +76,7 @@ class Dataset:
         if not -n <= index < n:
             raise IndexError(f"epoch {index} out of range for {n} epochs")
         file = self.scan_files[index]
-        scan = read_scan(file)
+        scan = read_scan(file, self.bin_layout, float(self.times[index]))
         origins = self.rig.sensor_origins
         if origins is not None and len(origins) > 1:  # per ring: the rings must index them
             rig_file = self.path / RIG_FILE
@@ -89,12 +94,20 @@ class Dataset:
         return scan
 
     def _check_time_span(self, index: int, scan: Scan) -> None:
-        """Refuse point times spanning :data:`MAX_TIME_SPAN_PERIODS` epoch periods or more."""
+        """Refuse point times spanning :data:`MAX_TIME_SPAN_PERIODS` epoch periods or more,
+        or as far from the epoch's reference time (e.g. integer Unix seconds read as ns)."""
         if scan.t is None or len(scan.t) == 0 or len(self.times) < 2:
             return
         gaps = np.diff(self.times[max(index - 1, 0) : index + 2])
         period = float(np.max(np.abs(gaps)))
         span = float(np.ptp(scan.t))
+        far = float(np.max(np.abs(scan.t)))
+        if period > 0 and far >= MAX_TIME_SPAN_PERIODS * period and span < far:
+            raise DatasetError(
+                f"{self.scan_files[index]}: point times ('t') reach {far:g} s from the epoch's "
+                f"reference time, {far / period:.0f} epoch periods of {period:g} s: another "
+                "clock or unit (integer Unix seconds read as nanoseconds?)"
+            )
         if period > 0 and span >= MAX_TIME_SPAN_PERIODS * period:
             raise DatasetError(
                 f"{self.scan_files[index]}: point times ('t') span {span:g} s, "
@@ -111,7 +124,7 @@ class Dataset:
         return f"Dataset({str(self.path)!r}, {len(self)} epochs, {gt} ground truth)"
 
 
-def load_dataset(path: str | Path) -> Dataset:
+def load_dataset(path: str | Path, bin_layout: str = "auto") -> Dataset:
     """Open a dataset directory; scans are read only when indexed.
 
     ``path`` is either a dataset (scan files in ``path/scans/``) or a directory of scan
@@ -121,7 +134,8 @@ def load_dataset(path: str | Path) -> Dataset:
 
     Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else
     ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else
-    ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s).
+    ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s). ``bin_layout`` tells how ``.bin`` scans are read
+    (:mod:`planodom.datasets.bin_scan`).
 
     Raises:
         DatasetError: naming the file, when ``path`` is missing, there are no scan files,
@@ -149,7 +163,7 @@ def load_dataset(path: str | Path) -> Dataset:
     else:
         _check_numbering(scan_files)
         times = epoch_times(len(scan_files), rig)
-    return Dataset(root, scan_files, times, gt_poses, rig)
+    return Dataset(root, scan_files, times, gt_poses, rig, bin_layout)
 
 
 def read_times(path: str | Path, n_epochs: int) -> np.ndarray:

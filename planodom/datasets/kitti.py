@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import read_scan
 from planodom.errors import DatasetError
 from planodom.rig import Rig
@@ -134,8 +135,10 @@ class KittiSequence:
         Tr: np.ndarray,
         gt_poses: np.ndarray | None,
         gt_file: Path | None,
+        bin_layout: str = "kitti",
     ) -> None:
         self.path = path
+        self.bin_layout = check_bin_layout(bin_layout)
         self.scan_files = scan_files
         self.times = times
         self.Tr = Tr
@@ -155,7 +158,7 @@ class KittiSequence:
         n = len(self)
         if not -n <= index < n:
             raise IndexError(f"epoch {index} out of range for {n} epochs")
-        return read_scan(self.scan_files[index])
+        return read_scan(self.scan_files[index], self.bin_layout)
 
     def __repr__(self) -> str:
         gt = "with" if self.gt_poses is not None else "without"
@@ -171,8 +174,11 @@ def kitti_pose_file(path: str | Path) -> Path | None:
     return None
 
 
-def load_kitti_sequence(path: str | Path) -> KittiSequence:
+def load_kitti_sequence(path: str | Path, bin_layout: str = "kitti") -> KittiSequence:
     """Open a KITTI odometry sequence folder (see the module docstring).
+
+    ``bin_layout``: how its ``.bin`` scans are read; KITTI's own layout unless told
+    otherwise (``auto`` or ``nuscenes``, :mod:`planodom.datasets.bin_scan`).
 
     Raises:
         DatasetError: naming the file: no ``velodyne/*.bin`` files, a bad ``calib.txt``,
@@ -204,7 +210,7 @@ def load_kitti_sequence(path: str | Path) -> KittiSequence:
         if len(P) != len(files):
             raise DatasetError(f"{gt_file}: {len(P)} poses for {len(files)} scans")
         gt = velo_poses_from_camera(P, Tr)
-    return KittiSequence(path, files, times, Tr, gt, gt_file)
+    return KittiSequence(path, files, times, Tr, gt, gt_file, bin_layout)
 
 
 def _homogeneous(M: np.ndarray) -> np.ndarray:

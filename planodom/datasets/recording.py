@@ -20,6 +20,7 @@ from typing import Any, Literal
 
 from planodom.datasets.bag_index import is_bag
 from planodom.datasets.bag_options import BagOptions
+from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.dataset import load_dataset
 from planodom.datasets.kitti import is_kitti_sequence, load_kitti_sequence
 from planodom.datasets.rosbag import open_bag
@@ -38,24 +39,32 @@ def recording_kind(path: str | Path) -> RecordingKind:
     return "dataset"
 
 
-def open_recording(path: str | Path, options: BagOptions | None = None) -> Any:
+def open_recording(
+    path: str | Path, options: BagOptions | None = None, bin_layout: str = "auto"
+) -> Any:
     """Open a bag, a KITTI sequence or a dataset directory as a dataset.
 
     Args:
         path: the recording (see the module docstring).
         options: bags only: base frame, epoch rate (Hz), scan topics and reference
             (:class:`~planodom.datasets.bag_options.BagOptions`; None: the defaults).
+        bin_layout: ``.bin`` scan files only: ``auto`` (from each file's size and columns;
+            a KITTI sequence is read in KITTI's layout), ``kitti`` or ``nuscenes``
+            (:mod:`planodom.datasets.bin_scan`).
 
     Raises:
         DatasetError: one line naming the file, topic or frame; also when a bag option
             other than its default is given for a recording that is not a bag.
     """
     kind = recording_kind(path)
+    check_bin_layout(bin_layout)
     if kind == "bag":
+        if bin_layout != "auto":
+            raise DatasetError(f"{path} is a bag: --bin-layout applies to .bin scan files only")
         return open_bag(path, options)
     given = options.given() if options is not None else []
     if given:
         raise DatasetError(f"{path} is not a bag: options {', '.join(given)} apply to bags only")
     if kind == "kitti":
-        return load_kitti_sequence(path)
-    return load_dataset(path)
+        return load_kitti_sequence(path, "kitti" if bin_layout == "auto" else bin_layout)
+    return load_dataset(path, bin_layout)

@@ -4,14 +4,24 @@ Stored per point: ``x y z`` (float32 or float64, metres), optional ``ring`` (int
 ``t`` (float64, seconds from the epoch's reference time) and ``label`` (int32). Other
 properties (intensity, colour, ...) are ignored on reading. Files saved by other tools
 name these fields as the lidar drivers do: the ring may be ``ring``, ``line`` (Livox) or
-``channel`` (nebula),
-of any integer type; the time ``t``, ``time`` (Velodyne) or ``offset_time`` (Livox), first
-present wins, in seconds when a float and in nanoseconds when an integer (Ouster's ``t``,
-Livox's ``offset_time``), as in a ROS PointCloud2 (:mod:`planodom.datasets.bag_msgs`).
+``channel`` (nebula), of any integer type; the time ``t``, ``time`` (Velodyne),
+``timestamp``, ``offset_time`` (Livox) or ``time_stamp`` (nebula), first present wins, in
+seconds when a float and in nanoseconds when an integer (Ouster's ``t``, Livox's
+``offset_time``), as in a ROS PointCloud2 (:mod:`planodom.datasets.bag_msgs`).
+
+Point times are offsets from the epoch's reference time, or absolute: Unix times (seconds
+as float64, nanoseconds as float64 or a 64-bit integer) between :data:`UNIX_TIME_RANGE_S`,
+as some drivers write them. Absolute times are made relative to the epoch's reference time
+when that is a Unix time too (the dataset's ``poses.tum`` / ``times.txt`` on the points'
+clock; more than ``MAX_SWEEP_OFFSET_S`` away is another clock and refused), else to the
+scan's earliest point (epoch times counted from 0: the sweep starts at its epoch's time,
+as a driver stamps it). Absolute times in float32 (128 s resolution today) are refused, as
+are times that are neither offsets within ``MAX_POINT_TIME_S`` nor Unix times.
 Points whose three coordinates are all NaN are PCL's no-return marker of an organised
-cloud and are dropped; any other non-finite coordinate is an error. KITTI ``.bin`` files hold
-float32 ``x y z intensity`` rows and carry no optional field; points are taken as they are
-(in the scanner frame, which for KITTI is the base frame used here).
+cloud and are dropped; any other non-finite coordinate is an error. ``.bin`` files hold
+float32 ``x y z intensity`` rows (KITTI) or ``x y z intensity ring`` rows (nuScenes), told
+apart by :mod:`planodom.datasets.bin_scan`; points are taken as they are (in the scanner
+frame, which for KITTI is the base frame used here).
 
 - PLY goes through :mod:`planodom.datasets.ply` (see there why not open3d).
 - PCD goes through :mod:`planodom.datasets.pcd` (see there why not open3d).
@@ -20,6 +30,9 @@ Every value is checked after reading, so that a file never yields a scan the pip
 would choke on later without naming the file: coordinates finite and within
 ``MAX_COORDINATE_M``, point times finite and within ``MAX_POINT_TIME_S`` of the epoch's
 reference time, ``ring`` ids and labels integers that fit int32, rings >= 0.
+
+Multi-return clouds (two or three points per beam firing, or a ``return_type`` field) keep
+the last return of each firing (:mod:`planodom.datasets.returns`).
 """
 
 from __future__ import annotations
@@ -28,8 +41,10 @@ from pathlib import Path
 
 import numpy as np
 
+from planodom.datasets.bin_scan import read_bin
 from planodom.datasets.pcd import read_pcd, write_pcd
 from planodom.datasets.ply import read_ply_vertices, write_ply_vertices
+from planodom.datasets.returns import RETURN_FIELDS, last_returns
 from planodom.errors import DatasetError
 from planodom.scan import Scan
 
@@ -40,7 +55,7 @@ WRITABLE_EXTENSIONS = (".ply", ".pcd")
 #: Names of the ring field in a file, first present wins.
 RING_FIELDS = ("ring", "line", "channel")
 #: Names of the per-point time field in a file, first present wins.
-TIME_FIELDS = ("t", "time", "offset_time")
+TIME_FIELDS = ("t", "time", "timestamp", "offset_time", "time_stamp")
 #: Optional per-point fields and their dtypes in a :class:`Scan`.
 OPTIONAL_FIELDS = {"ring": np.int32, "t": np.float64, "label": np.int32}
 #: Largest coordinate magnitude (m) a scan file may hold; the extraction refuses larger
@@ -50,10 +65,25 @@ MAX_COORDINATE_M = 1e6
 #: second; larger values are absolute timestamps or a unit error, which deskewing would
 #: turn into nonsense.
 MAX_POINT_TIME_S = 3600.0
+#: Point times (s) read as absolute Unix times: 1973-03 to 2103-02. Offsets are below
+#: MAX_POINT_TIME_S, so nothing is both; values between are refused.
+UNIX_TIME_RANGE_S = (1e8, 4.2e9)
+#: Largest distance (s) of absolute point times from their epoch's (absolute) reference time,
+#: as for bags (:data:`planodom.datasets.bag_msgs.MAX_SWEEP_OFFSET_S`).
+MAX_SWEEP_OFFSET_S = 10.0
 
 
-def read_scan(file: str | Path) -> Scan:
-    """Read one scan file (``.ply``, ``.pcd`` or KITTI ``.bin``).
+def read_scan(
+    file: str | Path, bin_layout: str = "auto", reference_time: float | None = None
+) -> Scan:
+    """Read one scan file (``.ply``, ``.pcd`` or a KITTI / nuScenes ``.bin``).
+
+    Args:
+        file: the scan file; its extension picks the format.
+        bin_layout: ``.bin`` files only: ``kitti``, ``nuscenes`` or ``auto`` (from the
+            file's size and columns, :func:`planodom.datasets.bin_scan.read_bin`).
+        reference_time: the epoch's reference time, s, which absolute point times are
+            made relative to when it is a Unix time too (see the module docstring).
 
     Returns:
         A :class:`Scan`: points (N, 3) float64 (float32 files widened exactly), with
@@ -61,18 +91,21 @@ def read_scan(file: str | Path) -> Scan:
 
     Raises:
         DatasetError: naming the file, when it is missing, has an unknown extension,
-            does not parse, is truncated or has NaN / infinite coordinates or times.
+            does not parse, is truncated or has NaN / infinite coordinates or times,
+            or is a ``.bin`` of a layout ``auto`` cannot tell.
     """
     path = Path(file)
     suffix = _suffix(path, SCAN_EXTENSIONS, "unknown scan file extension")
     if not path.is_file():
         raise DatasetError(f"{path}: scan file does not exist")
-    reader = {".ply": read_ply_vertices, ".pcd": read_pcd, ".bin": _read_kitti_bin}[suffix]
     try:
-        fields = reader(path)
+        if suffix == ".bin":
+            fields = read_bin(path, bin_layout)
+        else:
+            fields = {".ply": read_ply_vertices, ".pcd": read_pcd}[suffix](path)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read scan file ({exc.strerror})") from None
-    return _scan_from_fields(path, fields)
+    return _scan_from_fields(path, fields, reference_time)
 
 
 def write_scan(file: str | Path, scan: Scan, points_dtype: type[np.floating] = np.float64) -> None:
@@ -116,7 +149,9 @@ def _suffix(path: Path, allowed: tuple[str, ...], problem: str) -> str:
     return suffix
 
 
-def _scan_from_fields(path: Path, fields: dict[str, np.ndarray]) -> Scan:
+def _scan_from_fields(
+    path: Path, fields: dict[str, np.ndarray], reference_time: float | None = None
+) -> Scan:
     missing = [c for c in "xyz" if c not in fields]
     if missing:
         raise DatasetError(f"{path}: no '{' '.join(missing)}' coordinates in the file")
@@ -139,22 +174,21 @@ def _scan_from_fields(path: Path, fields: dict[str, np.ndarray]) -> Scan:
     extra = {}
     time_name = next((n for n in TIME_FIELDS if n in fields), None)
     if time_name is not None:
-        raw = fields[time_name]
-        t = raw.astype(np.float64) * (1e-9 if raw.dtype.kind in "iu" else 1.0)
-        if not np.all(np.abs(t) <= MAX_POINT_TIME_S):  # NaN too
-            bad = int(np.count_nonzero(~(np.abs(t) <= MAX_POINT_TIME_S)))
-            unit = "ns" if raw.dtype.kind in "iu" else "s"
-            raise DatasetError(
-                f"{path}: {bad} of {len(points)} point times '{time_name}' (read as {unit}) "
-                f"are NaN, infinite or beyond {MAX_POINT_TIME_S:g} s from the epoch's "
-                "reference time"
-            )
-        extra["t"] = t
+        extra["t"] = point_times(path, time_name, fields[time_name], reference_time)
     ring_name = next((n for n in RING_FIELDS if n in fields), None)
     if ring_name is not None:
         extra["ring"] = _int32(path, ring_name, fields[ring_name], 0)
     if "label" in fields:
         extra["label"] = _int32(path, "label", fields["label"], None)
+    return_name = next((n for n in RETURN_FIELDS if n in fields), None)
+    keep = last_returns(
+        points,
+        extra.get("ring"),
+        fields[time_name] if time_name is not None else None,
+        fields[return_name] if return_name is not None else None,
+    )
+    if keep is not None:  # a multi-return cloud: the last return of each beam firing
+        return Scan(points[keep], **{name: values[keep] for name, values in extra.items()})
     return Scan(points, **extra)
 
 
@@ -172,13 +206,66 @@ def _int32(path: Path, name: str, values: np.ndarray, lowest: int | None) -> np.
     return values.astype(np.int32)
 
 
-def _read_kitti_bin(path: Path) -> dict[str, np.ndarray]:
-    """A KITTI velodyne file: float32 ``x y z intensity`` rows, nothing else."""
-    raw = path.read_bytes()
-    if len(raw) % 16:
+def point_times(
+    path: Path, name: str, raw: np.ndarray, reference_time: float | None = None
+) -> np.ndarray:
+    """(N,) float64 seconds from the epoch's reference time, from a file's time field ``raw``
+    (offsets or absolute Unix times, see the module docstring).
+
+    Raises:
+        DatasetError: naming the file and the field, for times that are NaN, neither
+            offsets nor Unix times, absolute in float32, or absolute on another clock than
+            the epoch's.
+    """
+    integer = raw.dtype.kind in "iu"
+    unit = "ns" if integer else "s"
+    absolute = _absolute_ns(raw)
+    if absolute is not None:
+        if raw.dtype.itemsize < 8:
+            raise DatasetError(
+                f"{path}: point times '{name}' are absolute (Unix) times in {raw.dtype}, "
+                "whose resolution is seconds or worse; store offsets or 64-bit values"
+            )
+        low, high = UNIX_TIME_RANGE_S
+        if reference_time is None or not low <= abs(reference_time) <= high:
+            return (absolute - absolute.min()).astype(np.float64) * 1e-9  # from the first
+        t = (absolute - round(reference_time * 1e9)).astype(np.float64) * 1e-9
+        if np.abs(t).max() > MAX_SWEEP_OFFSET_S:
+            worst = float(t[np.argmax(np.abs(t))])
+            raise DatasetError(
+                f"{path}: absolute point times '{name}' put a point {worst:.6g} s from the "
+                f"epoch's reference time {reference_time:.6f} s, beyond {MAX_SWEEP_OFFSET_S:g}"
+                " s: the epoch times and the points are on different clocks"
+            )
+        return t
+    t = raw.astype(np.float64) * (1e-9 if integer else 1.0)
+    if not np.all(np.abs(t) <= MAX_POINT_TIME_S):  # NaN too
+        bad = int(np.count_nonzero(~(np.abs(t) <= MAX_POINT_TIME_S)))
         raise DatasetError(
-            f"{path}: KITTI .bin size {len(raw)} bytes is not a multiple of 16 "
-            "(float32 x y z intensity rows); truncated or not a KITTI scan"
+            f"{path}: {bad} of {len(t)} point times '{name}' (read as {unit}) are NaN, "
+            f"infinite, or neither within {MAX_POINT_TIME_S:g} s of the epoch's reference "
+            f"time nor Unix times ({UNIX_TIME_RANGE_S[0]:g} to {UNIX_TIME_RANGE_S[1]:g} s)"
         )
-    rows = np.frombuffer(raw, dtype="<f4").reshape(-1, 4)
-    return {"x": rows[:, 0], "y": rows[:, 1], "z": rows[:, 2]}
+    return t
+
+
+def _absolute_ns(raw: np.ndarray) -> np.ndarray | None:
+    """Integer nanoseconds (N,) int64 since the Unix epoch, when every value of ``raw`` is a
+    Unix time (seconds as a float, nanoseconds as a float or integer); else None."""
+    low, high = UNIX_TIME_RANGE_S
+    if len(raw) == 0:
+        return None
+    if raw.dtype.kind in "iu":
+        if raw.dtype.itemsize >= 4 and raw.min() >= low * 1e9 and raw.max() <= high * 1e9:
+            return raw.astype(np.int64)
+        return None
+    with np.errstate(invalid="ignore"):
+        values = raw.astype(np.float64)
+        if np.all((values >= low) & (values <= high)):  # seconds; ns exact to float64's ulp
+            whole = np.floor(values)
+            return whole.astype(np.int64) * 1_000_000_000 + np.round((values - whole) * 1e9).astype(
+                np.int64
+            )
+        if np.all((values >= low * 1e9) & (values <= high * 1e9)):
+            return values.astype(np.int64)
+    return None

@@ -31,6 +31,13 @@ def range_moments(pts, a, b, c, m):  # pragma: no cover - compiled
         for i in range(a, b):
             acc += pts[i, u]
         c[u] = acc / n
+    centred_scatter(pts, a, b, c, m)
+
+
+@numba.njit(cache=True)
+def centred_scatter(pts, a, b, c, m):  # pragma: no cover - compiled
+    """Fill ``m`` (3, 3) with ``sum (p - c)(p - c)^T`` over ``pts[a:b]`` ((M, 3) m) about
+    the given centroid ``c`` (3,) (:func:`range_moments`' second pass)."""
     s00 = s01 = s02 = s11 = s12 = s22 = 0.0
     for i in range(a, b):
         q0, q1, q2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]

@@ -25,7 +25,7 @@ from planodom.errors import GeometryError
 from planodom.extraction.deskew import check_twist, deskew_points
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.lidar.path import lidar_planes
-from planodom.extraction.memo import identity_memo
+from planodom.extraction.memo import identity_memo, read_only
 from planodom.extraction.rig2d.path import rig2d_planes
 from planodom.geometry import Plane
 from planodom.scan import Scan
@@ -101,7 +101,18 @@ def _check_inputs(scan: Scan, sensor_origins: np.ndarray | None) -> np.ndarray |
     _check_points_times(scan.points, scan.t)
     if sensor_origins is None:
         return None
-    return _check_origins(scan, sensor_origins)
+    if isinstance(sensor_origins, np.ndarray):  # a rig's: memoised by identity
+        return _checked_origins(scan.ring, sensor_origins)
+    return _check_origins(scan.ring, sensor_origins)
+
+
+@identity_memo
+def _checked_origins(ring: np.ndarray | None, sensor_origins: np.ndarray) -> np.ndarray:
+    """:func:`_check_origins` for a scan's ``ring`` and an array of origins, memoised
+    (:mod:`.memo`): a scan extracted again is not checked again (its ring's range is a
+    pass over the points); the result is a read-only copy."""
+    org = _check_origins(ring, sensor_origins)
+    return read_only(np.array(org))
 
 
 @identity_memo
@@ -123,8 +134,8 @@ def _check_points_times(pts: np.ndarray, t: np.ndarray | None) -> None:
         raise GeometryError("scan times t contain NaN or infinite values")
 
 
-def _check_origins(scan: Scan, sensor_origins: object) -> np.ndarray:
-    """:func:`_check_inputs` for given origins."""
+def _check_origins(ring: np.ndarray | None, sensor_origins: object) -> np.ndarray:
+    """:func:`_check_inputs` for given origins (``ring``: the scan's)."""
     try:
         org = np.asarray(sensor_origins, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -138,12 +149,11 @@ def _check_origins(scan: Scan, sensor_origins: object) -> np.ndarray:
     if len(org) > 1 and np.all(org == org[0]):
         org = org[:1]  # one sensor for every ring (a lidar): no ring field needed
     if len(org) > 1:
-        if scan.ring is None:
+        if ring is None:
             raise GeometryError("per-ring sensor_origins need the scan's ring field")
-        if len(scan.ring) and (scan.ring.min() < 0 or scan.ring.max() >= len(org)):
+        if len(ring) and (ring.min() < 0 or ring.max() >= len(org)):
             raise GeometryError(
-                f"ring ids {scan.ring.min()}..{scan.ring.max()} do not index the "
-                f"{len(org)} sensor_origins"
+                f"ring ids {ring.min()}..{ring.max()} do not index the {len(org)} sensor_origins"
             )
     return org
 

@@ -39,13 +39,14 @@ it again:
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planodom.config import OdometryConfig
+from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status
 from planodom.planes import PlaneSet
@@ -113,7 +114,15 @@ Refresher = Callable[[np.ndarray], bool]
 
 def time_spread(scan: Scan) -> bool:
     """Whether the scan's points carry times that differ (deskewing can matter)."""
-    return bool(scan.t is not None and len(scan.t) and np.ptp(scan.t) > 0)
+    return bool(scan.t is not None and len(scan.t) and _spread_and_mean(scan.t)[0] > 0)
+
+
+@identity_memo
+def _spread_and_mean(t: np.ndarray) -> tuple[float, float]:
+    """``np.ptp(t)`` and ``np.mean(t)`` of a scan's times (N,), N >= 1, seconds; memoised
+    (:mod:`planodom.extraction.memo`: a scan's times are read-only): an epoch asks for
+    them with every estimate."""
+    return float(np.ptp(t)), float(np.mean(t))
 
 
 def centred_times(scan: Scan) -> bool:
@@ -159,7 +168,7 @@ def twist_offset(
         # an epoch extracted without a twist is not "deskewed with zero": the 2D-rig path
         # then extrapolates each wall seen in several time windows to the epoch time
         return None
-    tm = float(np.mean(scan.t))
+    tm = _spread_and_mean(scan.t)[1]
     return (tm / dt) * (twist - reference_twist) if tm != 0.0 else None
 
 
@@ -243,6 +252,20 @@ def register_deskewed(
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
+
+
+def judged(best: EpochEstimate, judge: Callable[[MapEstimate], MapEstimate]) -> EpochEstimate:
+    """The epoch's final estimate ``best`` as the plane map ``judge`` s it (its
+    :meth:`~planodom.odometry.planemap.PlaneMapOdometry.judged`: a step beyond the motion
+    bounds bridged, with ``planemap.motion_bound_gate``). Only the estimate kept is judged,
+    not every extraction tried on the way: a wrong first attempt is what step 2 corrects."""
+    if best.map_estimate is None:
+        return best
+    final = judge(best.map_estimate)
+    if final is best.map_estimate:
+        return best
+    rel = final.relative.between(best.relative.prev, best.relative.curr)
+    return replace(best, relative=rel, step=rel.T_prev_curr, map_estimate=final)
 
 
 def _few(candidate: EpochEstimate, previous_planes: int) -> bool:

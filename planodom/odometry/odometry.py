@@ -27,6 +27,7 @@ from planodom.geometry import Plane, invert_transform, se3_exp
 from planodom.odometry.deskew import (
     EpochEstimate,
     centred_times,
+    judged,
     keep_first,
     map_trend,
     pairwise_trend,
@@ -307,16 +308,8 @@ class PlaneOdometry:
         offset = None  # the deskewing's offset of the step's twist (twist_offset)
         if self.config.odometry.map_twist_offset and self.times:
             offset = twist_offset(epoch.scan, epoch.twist, reference.twist, t - self.times[-1])
-        return EpochEstimate(
-            epoch.planes,
-            epoch.plane_set,
-            epoch.twist,
-            result,
-            step,
-            reference.planes,
-            est,
-            twist_offset=offset,
-        )
+        return EpochEstimate(epoch.planes, epoch.plane_set, epoch.twist, result, step,
+                             reference.planes, est, twist_offset=offset)  # fmt: skip
 
     def _config_for_gap(self, gap: int) -> PlanodomConfig:
         if gap not in self._gap_configs:
@@ -372,6 +365,8 @@ class PlaneOdometry:
 
     def _commit(self, epoch: _Epoch, best: EpochEstimate, t: float) -> np.ndarray:
         """Append the epoch with its pose from ``best.step``; update the twist."""
+        if self._map is not None:  # planemap.motion_bound_gate judges the final estimate
+            best = judged(best, self._map.judged)
         dt = t - self.times[-1]
         if best.relative.status is Status.UNRESOLVED:
             self._velocities.clear()  # stale velocities go with the twist (see register)

@@ -112,6 +112,9 @@ class RelativePose:
             the constant-velocity prediction (``odometry.degenerate_gate``): the streaming
             odometry reports it unresolved and bridges it (``T_prev_curr`` is the bridge,
             ``covariance`` and ``diagnostics`` the solver's).
+        rotation_partly_observed: the planes fixed only part of the rotation; about the
+            other axes it is the constant-velocity prediction's, with its uncertainty in
+            ``covariance`` (``planemap.partial_rotation``).
         time_spread: whether epoch ``curr``'s points were spread in time (its scan's times
             differ; False: taken at one instant, nothing to deskew), as the streaming
             odometry saw it, or as given to ``smoothing.run.relative_poses`` with the
@@ -130,6 +133,7 @@ class RelativePose:
     diagnostics: SolverDiagnostics | None = None
     inconsistent: bool = False
     time_spread: bool | None = None
+    rotation_partly_observed: bool = False
 
     def between(self, prev: int, curr: int) -> RelativePose:
         """The same relative pose labelled as between epochs ``prev`` and ``curr``."""

@@ -181,15 +181,21 @@ def redeskewed_run(
     if measured is None:
         measured = np.ones(len(times), bool) if previous is None else _measured(previous)
     order = config.odometry.deskew_order
+    n_fit = fit_nodes(config, times)
     c0 = _time.perf_counter()
     nodes = midpoint_nodes(times, np.asarray(poses), order)
+    variances = step_variances(previous, measured)[1:]  # node j (mid j, j + 1): step j -> j + 1
     seconds = {"deskew": _time.perf_counter() - c0}
     middles = epoch_middles(times)
     for reference in [middles] * config.odometry.deskew_passes + [times]:
         trusted = _near_all_measured(measured, order)
-        deskewed = _DeskewedEpochs(source, times, reference, nodes, order, trusted)
+        increments = config.odometry.deskew_fit == "increments"
+        curve = _Curve(*nodes, variances if n_fit else None, order, n_fit, increments)
+        deskewed = _DeskewedEpochs(source, times, reference, curve, trusted)
         run = _streaming_pass(deskewed, config, rig, reference, progress, extractor)
         nodes, measured = (reference, run.poses), _measured(run)
+        steps = step_variances(run, measured)  # node k, the middle of epoch k: its two steps
+        variances = 0.5 * (steps + np.r_[steps[1:], steps[-1:]])
         for key, value in (run.seconds | {"deskew": deskewed.seconds}).items():
             seconds[key] = seconds.get(key, 0.0) + value
     if previous is not None:
@@ -197,6 +203,35 @@ def redeskewed_run(
             seconds[key] = seconds.get(key, 0.0) + value
     run.seconds = seconds
     return run
+
+
+def fit_nodes(config: PlanodomConfig, times: np.ndarray) -> int | None:
+    """Nodes in the window of the passes' least-squares curve (``odometry.deskew_fit:
+    weighted``): those within ``deskew_fit_span_s`` at the run's median epoch period, at
+    least ``deskew_order + 2``; None for the interpolating curve."""
+    odo = config.odometry
+    if odo.deskew_fit == "interpolate" or len(times) < 2:
+        return None
+    period = float(np.median(np.diff(times)))
+    return max(odo.deskew_order + 2, int(round(odo.deskew_fit_span_s / period)) + 1)
+
+
+def step_variances(run: OdometryRun | None, measured: np.ndarray) -> np.ndarray:
+    """(N, 6) variances of the tangent components (rotation rad^2, translation m^2) of the
+    step into each epoch, from the odometry's 5x5 covariances (roll, pitch, yaw, x, y;
+    the vertical: the mean of x and y, which it does not carry): infinite where the
+    epoch is not ``measured`` (N,), 1 where no covariance is known (no run); the first
+    epoch's: the second's."""
+    n = len(measured)
+    out = np.ones((n, 6))
+    for k, r in enumerate(run.results if run is not None else []):
+        if r is not None and r.covariance is not None:
+            d = np.diag(r.covariance)
+            out[k] = np.r_[d, 0.5 * (d[3] + d[4])]
+    out[~np.asarray(measured, bool)] = np.inf
+    if n > 1:
+        out[0] = out[1]
+    return out
 
 
 def _measured(run: OdometryRun) -> np.ndarray:
@@ -227,6 +262,20 @@ def any_time_spread(source: EpochSequence) -> bool:
 
 
 @dataclass(frozen=True)
+class _Curve:
+    """The deskewing curve's nodes (times (J,) s, poses (J, 4, 4)), their variances
+    (J, 6) (None: interpolation), polynomial degree and fit window
+    (:func:`planodom.odometry.interpolate.curve_poses`)."""
+
+    times: np.ndarray
+    poses: np.ndarray
+    variances: np.ndarray | None
+    order: int
+    n_fit: int | None
+    increments: bool = False
+
+
+@dataclass(frozen=True)
 class _Deskewed:
     """An epoch's scan (times relative to the pass's reference time) and the same points
     deskewed along the curve (:meth:`PlaneOdometry.register_epoch`'s ``deskewed``)."""
@@ -237,7 +286,7 @@ class _Deskewed:
 
 class _DeskewedEpochs:
     """``source``'s epochs, each scan (epoch k at ``times[k]``) deskewed to
-    ``reference[k]`` along the curve through ``nodes`` where ``trusted[k]``, else with
+    ``reference[k]`` along ``curve`` where ``trusted[k]``, else with
     its times shifted to that reference (see :func:`redeskewed_run`); ``seconds`` adds up
     the time spent deskewing."""
 
@@ -246,12 +295,11 @@ class _DeskewedEpochs:
         source: EpochSequence,
         times: np.ndarray,
         reference: np.ndarray,
-        nodes: tuple[np.ndarray, np.ndarray],
-        order: int,
+        curve: _Curve,
         trusted: np.ndarray,
     ) -> None:
         self.source, self.times, self.reference = source, times, reference
-        self.nodes, self.order, self.trusted = nodes, order, trusted
+        self.curve, self.trusted = curve, trusted
         self.seconds = 0.0
 
     def __len__(self) -> int:
@@ -266,9 +314,11 @@ class _DeskewedEpochs:
         if not self.trusted[k]:  # the streaming deskewing, to the reference time
             return raw
         c0 = _time.perf_counter()
+        c = self.curve
         out = deskew_with_poses(
-            item, *self.nodes, float(self.times[k]), self.order, float(self.reference[k])
-        )
+            item, c.times, c.poses, float(self.times[k]), c.order, float(self.reference[k]),
+            c.variances, c.n_fit, c.increments,
+        )  # fmt: skip
         self.seconds += _time.perf_counter() - c0
         # the times stay (extracted with a zero twist): a lidar's range image takes its
         # columns from them (with zeros it has none and falls back to RANSAC fragments)
@@ -287,17 +337,12 @@ def _middle_timed_pass(
     back to the epoch times (``planemap.reference_time: middle``,
     :mod:`planodom.odometry.planemap.midtime`); None when that is off, the plane map
     does not run, or no scan has point times."""
-    if cfg.planemap.reference_time != "middle" or len(source) == 0:
-        return None
-    first = source[0]
     from planodom.odometry.planemap import uses_plane_map
     from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times
 
-    if not isinstance(first, Scan) or not uses_plane_map(cfg, first):
+    first = source[0] if cfg.planemap.reference_time == "middle" and len(source) else None
+    if not (isinstance(first, Scan) and uses_plane_map(cfg, first) and any_time_spread(source)):
         return None
-    if not any_time_spread(source):
-        return None
-
     if times is None:
         times = np.arange(len(source)) * cfg.odometry.epoch_period_s
     middle = MiddleTimed(source, np.asarray(times, dtype=np.float64))

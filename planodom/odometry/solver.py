@@ -29,6 +29,7 @@ from planodom.association import PairAssociations, lenient_association, strict_a
 from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
 from planodom.geometry import Plane, make_transform, rpy_from_rotation
+from planodom.odometry.canonical import canonical
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
@@ -80,14 +81,6 @@ def config_for_gap(config: PlanodomConfig, gap: int) -> PlanodomConfig:
     return config.updated(changes, source=f"bounds for a gap of {gap} epochs")
 
 
-def _canonical_order(planes: PlaneSet) -> np.ndarray:
-    """A permutation sorting planes by their values, so the input order cannot matter."""
-    keys = np.column_stack(
-        [planes.normals, planes.offsets, planes.weights, planes.centroids, planes.radii]
-    )
-    return np.lexsort(keys.T[::-1])
-
-
 def _pair_ids(pairs: np.ndarray) -> np.ndarray:
     """(M,) one integer id per plane index pair (M, 2)."""
     return pairs[:, 0].astype(np.int64) * (int(pairs.max(initial=0)) + 1) + pairs[:, 1]
@@ -121,9 +114,8 @@ def estimate_relative_pose(
         lists.
     """
     cfg = config or PlanodomConfig()
-    prev_in, curr_in = as_plane_set(planes_prev), as_plane_set(planes_curr)
-    order_p, order_c = _canonical_order(prev_in), _canonical_order(curr_in)
-    prev, curr = prev_in.take(order_p), curr_in.take(order_c)
+    order_p, prev = canonical(as_plane_set(planes_prev))
+    order_c, curr = canonical(as_plane_set(planes_curr))
     prior = None if prior is None else np.asarray(prior, dtype=np.float64)
 
     result = _solve(prev, curr, cfg, prior, bound_by_prior=prior is not None)

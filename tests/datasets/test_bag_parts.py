@@ -209,3 +209,22 @@ def test_time_field_option_none_named_and_missing() -> None:
     assert decode_sweep(msg, POINT_CLOUD2, "none")[2].tolist() == [0.0, 0.0]
     with pytest.raises(ValueError, match="no time field 'offset_time' .*x, y, z, t, time_stamp"):
         decode_sweep(msg, POINT_CLOUD2, "offset_time")
+
+
+def test_dual_return_cloud_keeps_the_last_return_of_each_firing() -> None:
+    """nebula's XYZIRCAEDT in dual-return mode: two points per channel and time_stamp, a
+    return_type field (3 strongest, 1 last); the last (farther) return of each is kept."""
+    dtype = np.dtype({"names": ["x", "y", "z", "channel", "return_type", "time_stamp"],
+                      "formats": ["<f4", "<f4", "<f4", "<u2", "<u1", "<u4"],
+                      "offsets": [0, 4, 8, 12, 14, 16], "itemsize": 20})  # fmt: skip
+    rows = np.zeros(6, dtype=dtype)
+    rows["x"] = [4.0, 9.0, 5.0, 5.0, 3.0, 7.0]  # firing 2: both returns on one wall
+    rows["channel"] = [0, 0, 1, 1, 0, 0]
+    rows["return_type"] = [3, 1, 3, 1, 3, 1]
+    rows["time_stamp"] = [100, 100, 200, 200, 300, 300]
+    fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("channel", 12, 4),
+              ("return_type", 14, 2), ("time_stamp", 16, 6)]  # fmt: skip
+    pts, ring, dt, rings = decode_sweep(cloud(fields, rows, 20, 10**18), POINT_CLOUD2)
+    assert pts[:, 0].tolist() == [9.0, 5.0, 7.0]
+    assert ring.tolist() == [0, 1, 0] and rings == 2
+    assert dt == pytest.approx([1e-7, 2e-7, 3e-7])

@@ -157,7 +157,12 @@ def _good_pcd(tmp_path: Path) -> bytes:
             ),
             "2 point lines, its header POINTS 3",
         ),
-        ("truncated.bin", lambda p: np.zeros(10, np.float32).tobytes(), "multiple of 16"),
+        ("truncated.bin", lambda p: np.zeros(9, np.float32).tobytes(), "multiple of neither 16"),
+        (
+            "truncated5.bin",  # 2 rows of 5 values whose 'rings' are not whole numbers
+            lambda p: np.random.default_rng(2).normal(size=10).astype(np.float32).tobytes(),
+            "fit only nuScenes rows",
+        ),
         ("scan.xyz", lambda p: b"1 2 3\n", "unknown scan file extension"),
     ],
 )
@@ -253,10 +258,10 @@ def _driver_fields(layout: str, n: int, rng: np.random.Generator) -> tuple[dict,
         fields["t"] = np.round(t_true * 1e9).astype(np.uint32)
         fields["ring"] = rng.integers(0, 128, n).astype(np.uint16)
         t_true = fields["t"] * 1e-9
-    elif layout == "nebula":  # channel uint16; its absolute time_stamp is not a time field
+    elif layout == "nebula":  # channel uint16; time_stamp absolute float64 Unix seconds
         fields["channel"] = rng.integers(0, 32, n).astype(np.uint16)
         fields["time_stamp"] = 1.5e9 + t_true
-        t_true = None
+        t_true = t_true - t_true[0]  # no epoch time given: from the first point
     else:  # livox: line uint8, offset_time uint32 ns
         fields["line"] = rng.integers(0, 6, n).astype(np.uint8)
         fields["offset_time"] = np.round(t_true * 1e9).astype(np.uint32)
@@ -276,8 +281,8 @@ def test_time_and_ring_fields_named_as_drivers_do(tmp_path: Path, ext: str, layo
     assert np.array_equal(scan.ring, ring.astype(np.int32))
     if t_true is None:
         assert scan.t is None
-    else:
-        assert scan.t == pytest.approx(t_true, abs=1e-12)
+    else:  # float64 Unix seconds resolve 0.24 us
+        assert scan.t == pytest.approx(t_true, abs=1e-6 if layout == "nebula" else 1e-12)
     assert np.array_equal(scan.points[:, 0], fields["x"].astype(np.float64))
 
 

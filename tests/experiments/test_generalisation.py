@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from planodom.cli import app
@@ -76,3 +77,54 @@ def test_one_rig_class_runs_only_its_worlds():
     )
     assert sorted({r.world for r in res.runs}) == [1, 3]
     assert {r.family for r in res.runs} <= {"lidar16", "lidar32", "lidar64"}
+
+
+def test_cli_chooses_methods(tmp_path, monkeypatch):
+    """``--methods`` reaches the experiment as a list; an unknown name is one line, exit 2."""
+    import planodom.experiments.generalisation as generalisation
+    from planodom.experiments.tables import ExperimentResult
+
+    seen = {}
+
+    def fake(out, **kwargs):
+        seen.update(kwargs)
+        return ExperimentResult([], {}, {})
+
+    monkeypatch.setattr(generalisation, "run_generalisation_experiment", fake)
+    args = ["experiment", "generalisation", "--worlds", "2", "--out", str(tmp_path)]
+    result = CliRunner().invoke(app, [*args, "--methods", "oracle, planodom-offline"])
+    assert result.exit_code == 0, result.output
+    assert seen["methods"] == ["oracle", "planodom-offline"]
+    bad = CliRunner().invoke(app, [*args, "--methods", "oracle,icp"])
+    assert bad.exit_code == 2 and "unknown icp" in bad.output
+
+
+def test_offline_method_runs_the_deskewing_passes(monkeypatch):
+    """planodom-offline is the configuration given with odometry.deskew_passes = 2; the
+    default planodom row keeps the configuration as given."""
+    import planodom.experiments.generalisation as generalisation
+
+    passes = {}
+    real = generalisation.run_odometry
+
+    def spy(run, cfg):
+        passes.setdefault(cfg.odometry.deskew_passes, 0)
+        passes[cfg.odometry.deskew_passes] += 1
+        return real(run, cfg)
+
+    monkeypatch.setattr(generalisation, "run_odometry", spy)
+    res = run_generalisation_experiment(
+        None, n_worlds=2, noise_levels=[0.0], n_epochs=4,
+        methods=("planodom", "planodom-offline"), rigs=("lidar",),
+    )  # fmt: skip
+    assert (
+        set(passes) == {0, 2}
+        and passes[0] == passes[2]
+        and {r.method for r in res.runs}
+        == {
+            "planodom",
+            "planodom-offline",
+        }
+    )
+    with pytest.raises(ValueError, match="icp"):
+        run_generalisation_experiment(None, n_worlds=1, methods=("icp",))

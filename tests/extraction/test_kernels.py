@@ -33,3 +33,37 @@ def test_median_of_tiny_values_and_subnormals():
     a = np.array([5e-324, 0.0, 1e-310, 3e-308, 2.5e-320, 1e300])
     for n in range(1, len(a) + 1):
         assert median_nonnegative(a, n) == np.median(a[:n])
+
+
+def test_group_refits_are_the_moments_of_their_inliers():
+    """The compiled group refit (its centroid summed while selecting the inliers) against
+    numpy on each group's final inliers: centroid, scatter eigenvalues and normal, the
+    inliers within k_sigma robust scales of that plane."""
+    from planodom.config import ExtractionConfig
+    from planodom.extraction.rig2d.groupfit import fit_groups
+    from planodom.extraction.rig2d.grouping import GroupingParams, group_segments
+    from planodom.extraction.rig2d.segments import split_scan_lines
+
+    from .synth_scans import default_scene, scan_rig
+
+    cfg = ExtractionConfig()
+    scan = scan_rig(default_scene(), sigma=0.01)
+    segs, sigma = split_scan_lines(scan.points, scan.ring, scan.t, cfg)
+    params = GroupingParams(
+        tol_m=0.05, sigma_m=float(sigma), sin_min_cross=float(np.sin(np.radians(20.0))),
+        max_seed_err_rad=float(np.radians(5.0)), min_points=30.0, max_rms_m=0.05,
+        min_trace_points=5, seed_floor_m=0.02, gap_m=1.0, gap_ratio=0.2, max_span_s=np.inf,
+        max_seed_normal_err_rad=float(np.radians(10.0)),
+    )  # fmt: skip
+    groups, _ = group_segments(segs, params, cfg.trace_parallel_deg, cfg.trace_step_m)
+    assert len(groups) >= 2
+    fits = fit_groups(segs, groups, cfg.inlier_sigma_factor, None)
+    for g in range(len(groups)):
+        pts = segs.points[fits.inliers[fits.bounds[g] : fits.bounds[g + 1]]]
+        assert len(pts) == fits.count[g] >= 3
+        c = pts.mean(axis=0)
+        q = pts - c
+        vals, vecs = np.linalg.eigh(q.T @ q)
+        np.testing.assert_allclose(fits.centroid[g], c, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(fits.evals[g], vals, rtol=1e-9, atol=1e-12)
+        assert abs(abs(fits.evecs[g][:, 0] @ vecs[:, 0]) - 1.0) < 1e-9

@@ -8,6 +8,7 @@ import gc
 import numpy as np
 import pytest
 
+from planodom.errors import GeometryError
 from planodom.extraction import extract
 from planodom.extraction.memo import identity_memo, read_only
 from planodom.scan import Scan
@@ -75,3 +76,21 @@ def test_a_second_extraction_of_the_same_scan_equals_one_of_a_fresh_copy():
         assert p.offset == q.offset
     for i, j in zip(again.inliers, scratch.inliers, strict=True):
         np.testing.assert_array_equal(i, j)
+
+
+def test_checked_origins_are_remembered_per_scan_and_array_only():
+    """The rig's origins are checked once per scan (memoised by identity): a second
+    extraction equals the first, the caller's array is left writeable, and other origins
+    for the same scan are checked anew (too few for its rings: refused)."""
+    scan = scan_rig(default_scene(), sigma=0.005)
+    n_rings = int(scan.ring.max()) + 1
+    origins = np.tile([0.0, 0.0, 0.5], (n_rings, 1))
+    origins[:, 0] = np.arange(n_rings) * 0.1  # distinct: per-ring origins
+    first = extract(scan, sensor_origins=origins)
+    second = extract(scan, sensor_origins=origins)
+    assert len(first.planes) == len(second.planes) > 0
+    for p, q in zip(first.planes, second.planes, strict=True):
+        np.testing.assert_array_equal(p.normal, q.normal)
+    assert origins.flags.writeable
+    with pytest.raises(GeometryError, match="do not index"):
+        extract(scan, sensor_origins=origins[:-1].copy())

@@ -7,10 +7,11 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from planodom.extraction.deskew import deskew_points
-from planodom.extraction.planes.builder import orientation_sign
+from planodom.extraction.planes.builder import _COS45, _orientation_kernel, orientation_sign
 from planodom.extraction.planes.confidence import cpef, mean_incidence
 from planodom.extraction.planes.fit import (
     deskew_jacobian,
+    fit_arrays,
     robust_plane_fit,
     robust_plane_fits,
     tls_covariance,
@@ -117,6 +118,53 @@ def test_orientation_sign_faces_the_viewpoint_or_up():
     # ground, towards the base origin's side of the centroid for a wall.
     s = orientation_sign(normals, offsets, centroids, views)
     np.testing.assert_array_equal(s, [-1.0, 1.0, -1.0, -1.0])
+    s = _orientation_kernel(normals, offsets, centroids, views, _COS45)
+    np.testing.assert_array_equal(s, [-1.0, 1.0, -1.0, -1.0])
+
+
+def test_compiled_fit_arrays_match_the_numpy_forms():
+    """The builder's one-pass arrays (covariance, widths, RMS, plane tests, scatters,
+    orientation) against tls_covariance, too_uncertain, orientation_sign and the scatter
+    V diag(l) V^T in numpy (the same operations: equal to the last bits on the machine
+    they were written on; allowed to round differently elsewhere), on random fits with
+    views near their planes, degenerate fits (zero eigenvalue gaps, 0 or 3 points) and
+    strided eigenvector columns as the 2D-rig path passes them."""
+    from planodom.config import ExtractionConfig
+    from planodom.extraction.planes.builder import too_uncertain
+
+    rng = np.random.default_rng(3)
+    G = 500
+    evecs = np.linalg.qr(rng.normal(size=(G, 3, 3)))[0][:, :, ::-1]  # strided columns
+    evals = np.sort(rng.uniform(0.0, 5.0, size=(G, 3)), axis=1)[:, ::-1]
+    evals[:5] = 0.0  # no spread: 0 / 0
+    centroids = rng.normal(size=(G, 3)) * 8.0
+    count = rng.integers(0, 300, G)
+    count[5:8] = [0, 3, 1]
+    cfg = ExtractionConfig()
+    floor = cfg.covariance_sigma_floor_m
+    max_var = float(np.radians(cfg.max_normal_sigma_deg) ** 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        covs, width, rms, keep, scatter = fit_arrays(
+            evals, evecs, centroids, count, floor**2, cfg.min_plane_points,
+            cfg.min_plane_width_m, max_var,
+        )  # fmt: skip
+        ref = tls_covariance(evals, evecs, centroids, count, floor)
+        cnt = np.maximum(count, 1).astype(float)
+        ref_width = 2.0 * np.sqrt(np.maximum(evals[:, 1], 0.0) / cnt)
+        ref_keep = (count >= cfg.min_plane_points) & (ref_width >= cfg.min_plane_width_m)
+        ref_keep &= ~too_uncertain(ref, cfg)
+    np.testing.assert_allclose(covs, ref, rtol=1e-12, atol=1e-300, equal_nan=True)
+    np.testing.assert_allclose(width, ref_width, rtol=1e-15)
+    np.testing.assert_allclose(rms, np.sqrt(np.maximum(evals[:, 2], 0.0) / cnt), rtol=1e-15)
+    np.testing.assert_array_equal(keep, ref_keep)
+    assert 0 < keep.sum() < G
+    ref_scatter = np.einsum("gik,gk,gjk->gij", evecs, evals, evecs)
+    np.testing.assert_allclose(scatter, ref_scatter, rtol=1e-12, atol=1e-12)
+    normals = evecs[:, :, 2]
+    offsets = -np.einsum("gi,gi->g", normals, centroids)
+    views = centroids + rng.normal(size=(G, 3)) * rng.choice([1e-4, 1.0], size=(G, 1))
+    signs = _orientation_kernel(normals, offsets, centroids, views, _COS45)
+    np.testing.assert_array_equal(signs, orientation_sign(normals, offsets, centroids, views))
 
 
 @pytest.mark.parametrize("rate", [1.0, 1e-3, 20.0])
@@ -266,3 +314,34 @@ def test_planes_carry_a_deskew_jacobian_only_when_asked():
     for p in on:
         assert p.deskew_jacobian is not None and p.deskew_jacobian.shape == (4, 6)
         assert np.all(np.isfinite(p.deskew_jacobian)) and np.any(p.deskew_jacobian != 0)
+
+
+def test_batched_support_polygons_equal_each_planes_own():
+    """support_polygons over the kept planes of a fit set equals support_polygon of each
+    plane's outline points (gathered in numpy), degenerate ones (under three outline
+    points, collinear) included."""
+    from planodom.extraction.planes.support import support_polygon, support_polygons
+
+    rng = np.random.default_rng(8)
+    G, N = 6, 400
+    points = rng.normal(size=(N, 3)) * 3.0
+    points[50:60] = np.linspace(0, 1, 10)[:, None] * np.array([1.0, 2.0, 0.5])  # a line
+    inliers = np.concatenate(
+        [rng.permutation(N)[:k] for k in (40, 2, 0, 90, 30)] + [np.arange(50, 60)]
+    )
+    sizes = [40, 2, 0, 90, 30, 10]
+    bounds = np.r_[0, np.cumsum(sizes)]
+    outline = rng.uniform(size=len(inliers)) < 0.7
+    outline[bounds[5] : bounds[6]] = True
+    evecs = np.linalg.qr(rng.normal(size=(G, 3, 3)))[0]
+    centroids = rng.normal(size=(G, 3))
+    kept = np.array([5, 0, 1, 3, 2, 4])
+    got = support_polygons(points, inliers, bounds, outline, kept, centroids, evecs)
+    for poly, g in zip(got, kept, strict=True):
+        idx = inliers[bounds[g] : bounds[g + 1]]
+        own = support_polygon(
+            points[idx[outline[bounds[g] : bounds[g + 1]]]], centroids[g], evecs[g][:, :2]
+        )
+        np.testing.assert_array_equal(poly, own)
+    assert len(got[0]) == len(got[2]) == len(got[4]) == 0  # a line, 2 points, none
+    assert all(len(p) >= 3 for p in (got[1], got[3], got[5]))

@@ -32,18 +32,21 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch
 from planodom.extraction.planes.confidence import cpef, mean_incidences
-from planodom.extraction.planes.fit import deskew_jacobian, tls_covariance
-from planodom.extraction.planes.support import distinct_and_majority, support_polygon
+from planodom.extraction.planes.fit import deskew_jacobian, fit_arrays
+from planodom.extraction.planes.support import distinct_and_majority, support_polygons
 from planodom.geometry import Plane, PlaneSupport
 
 #: ``adjust(kept, normals, offsets) -> kept``: may change the oriented (G, 3) normals and
 #: (G,) offsets of the kept planes in place and drop planes (step 4).
 Adjust = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+#: cos 45 deg: a plane through its viewpoint this close to horizontal gets its normal up.
+_COS45 = float(np.cos(np.radians(45.0)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,8 +111,33 @@ def orientation_sign(
     up = np.where(normals[:, 2] > 0, 1.0, -1.0)
     towards = -np.einsum("gi,gi->g", normals[:, :2], centroids[:, :2])
     side = np.where(towards < 0, -1.0, 1.0)
-    on_plane = np.where(np.abs(normals[:, 2]) >= np.cos(np.radians(45.0)), up, side)
+    on_plane = np.where(np.abs(normals[:, 2]) >= _COS45, up, side)
     return np.where(np.abs(dist) >= 1e-3, np.where(dist > 0, 1.0, -1.0), on_plane)
+
+
+@numba.njit(cache=True)
+def _orientation_kernel(normals, offsets, centroids, views, cos45):  # pragma: no cover
+    """:func:`orientation_sign` in one compiled pass (``cos45``: ``cos(radians(45))`` as
+    numpy gives it), its sums of products in numpy's order: the same signs."""
+    G = normals.shape[0]
+    signs = np.empty(G)
+    for g in range(G):
+        n0, n1, n2 = normals[g, 0], normals[g, 1], normals[g, 2]
+        dist = 0.0
+        dist += n0 * views[g, 0]
+        dist += n1 * views[g, 1]
+        dist += n2 * views[g, 2]
+        dist += offsets[g]
+        if abs(dist) >= 1e-3:
+            signs[g] = 1.0 if dist > 0 else -1.0
+        elif abs(n2) >= cos45:
+            signs[g] = 1.0 if n2 > 0 else -1.0
+        else:
+            towards = 0.0
+            towards += n0 * centroids[g, 0]
+            towards += n1 * centroids[g, 1]
+            signs[g] = -1.0 if -towards < 0 else 1.0
+    return signs
 
 
 def build_planes(
@@ -127,22 +155,24 @@ def build_planes(
     G = len(fits)
     if G == 0:
         return [], [], 0
-    cnt = np.maximum(fits.count, 1).astype(np.float64)
-    width = 2.0 * np.sqrt(np.maximum(fits.evals[:, 1], 0.0) / cnt)
-    rms = np.sqrt(np.maximum(fits.evals[:, 2], 0.0) / cnt)
     normals = fits.evecs[:, :, 2]
     floor = config.covariance_sigma_floor_m
-    covs = tls_covariance(fits.evals, fits.evecs, fits.centroid, fits.count, floor)
-    keep = (fits.count >= config.min_plane_points) & (width >= config.min_plane_width_m)
-    kept = np.flatnonzero(keep & ~too_uncertain(covs, config))
+    # tls_covariance, the widths, RMS, plane tests (too_uncertain) and scatters at once
+    max_var_n = float(np.radians(config.max_normal_sigma_deg) ** 2)
+    covs, width, rms, keep, scatter = fit_arrays(
+        fits.evals, fits.evecs, fits.centroid, fits.count, floor**2,
+        config.min_plane_points, config.min_plane_width_m, max_var_n,
+    )  # fmt: skip
+    kept = np.flatnonzero(keep)
     height = config.viewpoint_height_m
-    views = np.broadcast_to(np.array([0.0, 0.0, height]), (G, 3)).copy()
+    views = np.zeros((G, 3))
+    views[:, 2] = height
     incidence = np.ones(G) if fits.incidence is None else fits.incidence.copy()
     if fits.incidence is None or epoch.origins is not None:
         inl, bnd = fits.inliers.astype(np.int64), fits.bounds.astype(np.int64)
         views[kept] = epoch.viewpoints(inl, bnd, kept, height)
         incidence[kept] = mean_incidences(epoch.points, inl, bnd, kept, views[kept], normals[kept])
-    signs = orientation_sign(normals, fits.offset, fits.centroid, views)
+    signs = _orientation_kernel(normals, fits.offset, fits.centroid, views, _COS45)
     conf = cpef(
         rms, max(sigma_m, floor), fits.count, width, incidence,
         config.confidence_points_ref, config.confidence_width_ref_m,
@@ -153,12 +183,14 @@ def build_planes(
         kept = adjust(kept, n_or, d_or)
     planes, inliers = [], []
     labels, ring = epoch.scan.label, epoch.scan.ring
-    scatter = np.einsum("gik,gk,gjk->gij", fits.evecs, fits.evals, fits.evecs)
     rows, truth = distinct_and_majority(
         ring if fits.n_rows is None else None, labels, fits.inliers, fits.bounds, kept
     )
     t = epoch.scan.t if config.deskew_jacobian else None
     span = 0.0 if t is None or len(t) == 0 else float(np.max(np.abs(t)))
+    polygons = support_polygons(
+        epoch.points, fits.inliers, fits.bounds, fits.outline, kept, fits.centroid, fits.evecs
+    )
     for k, g in enumerate(kept):
         idx = fits.members(int(g))
         dsk = None
@@ -166,8 +198,7 @@ def build_planes(
             fit = (fits.centroid[g], fits.evals[g], fits.evecs[g])
             dsk = deskew_jacobian(epoch.points[idx], t[idx] / span, n_or[g], fit)
         n_rows = int(fits.n_rows[g]) if fits.n_rows is not None else int(rows[k])
-        outline = epoch.points[idx[fits.outline[fits.bounds[g] : fits.bounds[g + 1]]]]
-        polygon = support_polygon(outline, fits.centroid[g], fits.evecs[g][:, :2])
+        polygon = polygons[k]
         plane = Plane(
             normal=n_or[g],
             offset=float(d_or[g]),

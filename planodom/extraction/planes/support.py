@@ -84,6 +84,55 @@ def _polygon_kernel(points, centroid, basis, dirs):  # pragma: no cover - compil
     return out
 
 
+def support_polygons(
+    points: np.ndarray,
+    inliers: np.ndarray,
+    bounds: np.ndarray,
+    outline: np.ndarray,
+    planes: np.ndarray,
+    centroids: np.ndarray,
+    evecs: np.ndarray,
+) -> list[np.ndarray]:
+    """:func:`support_polygon` of each plane g in ``planes`` (P,) at once: of its outline
+    points ``points[inliers[k]]`` ((N, 3) m) for k in ``bounds[g]:bounds[g + 1]`` where
+    ``outline[k]`` ((K,) int64, (G + 1,) int64, (K,) bool), about ``centroids[g]`` (G, 3)
+    in the plane of the first two columns of ``evecs[g]`` (G, 3, 3). One compiled pass (a
+    numpy gather and three conversions per plane cost more than the polygon)."""
+    flat, vb = _polygons_kernel(
+        np.ascontiguousarray(points, dtype=np.float64), inliers.astype(np.int64),
+        bounds.astype(np.int64), outline, np.asarray(planes, dtype=np.int64),
+        np.ascontiguousarray(centroids, dtype=np.float64),
+        np.ascontiguousarray(evecs[:, :, :2], dtype=np.float64), _POLY_DIRS,
+    )  # fmt: skip
+    return [flat[vb[p] : vb[p + 1]].copy() for p in range(len(planes))]
+
+
+@numba.njit(cache=True)
+def _polygons_kernel(pts, inliers, bounds, outline, planes, cen, axes, dirs):  # pragma: no cover
+    """The polygons of :func:`support_polygons`, stacked, and (P + 1,) their bounds."""
+    P = planes.shape[0]
+    D = dirs.shape[1]
+    out = np.empty((P * D, 3))
+    vb = np.zeros(P + 1, dtype=np.int64)
+    for p in range(P):
+        g = planes[p]
+        a, b = bounds[g], bounds[g + 1]
+        buf = np.empty((b - a, 3))
+        n = 0
+        for k in range(a, b):
+            if outline[k]:
+                i = inliers[k]
+                buf[n, 0], buf[n, 1], buf[n, 2] = pts[i, 0], pts[i, 1], pts[i, 2]
+                n += 1
+        m = 0
+        if n >= 3:
+            poly = _polygon_kernel(buf[:n], cen[g].copy(), axes[g].copy(), dirs)
+            m = poly.shape[0]
+            out[vb[p] : vb[p] + m] = poly
+        vb[p + 1] = vb[p] + m
+    return out[: vb[P]].copy(), vb
+
+
 def majority_label(labels: np.ndarray | None) -> int:
     """Most frequent non-negative label among ``labels`` (K,), or -1."""
     if labels is None or len(labels) == 0:

@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from planodom.extraction.kernels import add_outer, range_moments
+from planodom.extraction.kernels import add_outer, centred_scatter
 from planodom.extraction.rig2d.segments import Segments
 
 #: Refits of a group after the first (module docstring, step 4).
@@ -164,19 +164,27 @@ def _robust_scale(seg, members, n, d):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _select(seg, members, n, d, thr, inl, buf, start):  # pragma: no cover - compiled
+def _select(seg, members, n, d, thr, inl, buf, start, centroid):  # pragma: no cover
     """Step 3: write the points of the segments ``members`` within ``thr`` (m) of the
     plane (n, d) to ``inl`` (their positions) and ``buf`` (the points) from ``start`` on;
-    returns the end."""
+    returns the end, and fills ``centroid`` (3,) with their mean (when any): the sums of
+    :func:`.kernels.range_moments`' first pass, in its order (so the same bits), taken here
+    instead of in three more passes over them."""
     pts, starts, ends = seg.points, seg.starts, seg.ends
     K = start
+    a0 = a1 = a2 = 0.0
     for s in members:
         for i in range(starts[s], ends[s]):
             p0, p1, p2 = pts[i, 0], pts[i, 1], pts[i, 2]
             if abs(p0 * n[0] + p1 * n[1] + p2 * n[2] + d) <= thr:
                 inl[K] = i
                 buf[K, 0], buf[K, 1], buf[K, 2] = p0, p1, p2
+                a0 += p0
+                a1 += p1
+                a2 += p2
                 K += 1
+    if K > start:
+        centroid[0], centroid[1], centroid[2] = a0 / (K - start), a1 / (K - start), a2 / (K - start)
     return K
 
 
@@ -192,13 +200,15 @@ def _refit(seg, members, k_sigma, inl, buf, start):  # pragma: no cover - compil
     sc2 = np.empty((3, 3))
     vals = np.zeros(3)
     vecs2 = np.eye(3)
+    mean = np.zeros(3)
     for it in range(MAX_REFITS + 1):
-        K = _select(seg, members, n, d, thr, inl, buf, start)
+        K = _select(seg, members, n, d, thr, inl, buf, start, mean)
         m_prev = m
         m = K - start
         if m < 3:
             return start + m, False, c2, vals, vecs2
-        range_moments(buf, start, K, c2, sc2)
+        c2[0], c2[1], c2[2] = mean[0], mean[1], mean[2]
+        centred_scatter(buf, start, K, c2, sc2)  # range_moments, its first pass done
         vals, vecs2 = np.linalg.eigh(sc2)
         if it > 0 and m == m_prev:
             break
@@ -218,7 +228,7 @@ def _fit_groups_kernel(seg, gseg, gb, k_sigma, view, use_view):  # pragma: no co
     for k in range(gseg.shape[0]):
         total += seg.ends[gseg[k]] - seg.starts[gseg[k]]
     inl = np.empty(total, dtype=np.int64)
-    buf = np.empty((total, 3))  # the inlier points, contiguous for range_moments
+    buf = np.empty((total, 3))  # the inlier points, contiguous for centred_scatter
     is_end = np.zeros(total, dtype=np.bool_)
     bounds = np.zeros(G + 1, dtype=np.int64)
     cnt_out = np.zeros(G, dtype=np.int64)

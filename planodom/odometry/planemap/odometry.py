@@ -16,13 +16,16 @@ with another twist and estimated again):
    robust point-to-plane cost of ALL the scan's planes against the map
    (:func:`.register.score`), not the one with the most inliers (a wrong pose can gather
    many weak associations); hypotheses that flip the base's z axis are rejected;
-4. the 6x6 information gives the covariance; a rotation direction with a 1-sigma above
-   ``unobserved_rotation_deg`` makes the epoch UNRESOLVED (the prediction is kept), a
+4. the 6x6 information gives the covariance; rotation directions with a 1-sigma above
+   ``unobserved_rotation_deg`` make the epoch UNRESOLVED (the prediction is kept) when
+   all are, else take the prediction's rotation about them (``rotation_partly_observed``,
+   ``planemap.partial_rotation``); a
    translation direction above ``unobserved_translation_m`` DEGENERATE (the prediction is
    kept along it, with its uncertainty: ``planemap.degenerate_translation``); a step
-   beyond the run's motion bounds is, with ``planemap.motion_bound_gate`` (off), UNRESOLVED
-   and ``inconsistent``, bridged by constant
-   velocity;
+   beyond the run's motion bounds is marked (``beyond_bounds``) and, with
+   ``planemap.motion_bound_gate``, made UNRESOLVED and ``inconsistent`` (bridged by
+   constant velocity) by :meth:`PlaneMapOdometry.judged`, once the epoch's final estimate
+   is chosen (not each extraction tried: the streaming odometry corrects wrong attempts);
 5. the map is updated (:func:`.landmarks.update_map`); after a detected failure (an
    unresolved epoch whose scan had enough planes) it is rebuilt from the current scan.
 
@@ -77,6 +80,8 @@ class MapEstimate:
         used: (K,) indices of the planes used (those with moments).
         cur: their registration inputs (None without planes). reg: the winning
             registration (None when there was nothing to register against).
+        beyond_bounds: its step exceeds the run's motion bounds (see
+            :meth:`PlaneMapOdometry.judged`).
     """
 
     relative: RelativePose
@@ -87,6 +92,7 @@ class MapEstimate:
     reg: Registration | None
     plane_set: PlaneSet
     against: tuple[PlaneMap, int] | None = None
+    beyond_bounds: bool = False
 
 
 class PlaneMapOdometry:
@@ -142,7 +148,21 @@ class PlaneMapOdometry:
         reg = self._best_registration(T_pred, cur, plane_set)
         ok = self._resolved(reg, cur)
         rel, T = self._result(reg, ok, T_pred, cur, used)
-        return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set, against)
+        beyond = rel.status is not Status.UNRESOLVED and self._beyond_bounds(rel)
+        return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set, against, beyond)
+
+    def judged(self, est: MapEstimate) -> MapEstimate:
+        """An epoch's final estimate, bridged by constant velocity (UNRESOLVED and
+        ``inconsistent``) when its step is beyond the motion bounds and
+        ``planemap.motion_bound_gate`` is on: it contradicts them, lost track rather than
+        a measurement (the map is then rebuilt from the scan, :meth:`commit`). Call
+        before committing it; ``est`` itself when nothing changes."""
+        if not (est.beyond_bounds and self.config.planemap.motion_bound_gate):
+            return est
+        rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
+        stage = est.reg.stage if est.reg is not None else ""
+        rel = _with_associations(replace(rel, inconsistent=True), np.zeros((0, 2), np.intp), stage)
+        return replace(est, relative=rel, T=est.T_pred, beyond_bounds=False)
 
     def _scan_planes(self, planes: Sequence[Plane], used: np.ndarray) -> ScanPlanes | None:
         if len(used) == 0:
@@ -199,11 +219,9 @@ class PlaneMapOdometry:
             status = Status.OK
         T_rel = invert_transform(self.pose) @ T
         rel = relative_pose(self, T_rel, reg.H if ok else None, status)
-        inconsistent = rel.status is not Status.UNRESOLVED and self._beyond_bounds(rel)
-        if rel.status is Status.UNRESOLVED or inconsistent:
+        if rel.status is Status.UNRESOLVED:
             T = T_pred
             rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
-            rel = replace(rel, inconsistent=inconsistent)
             ok = False
         elif self._predicted_translation(rel):
             T = self.pose @ rel.T_prev_curr  # its unobserved translation: the prediction's
@@ -216,10 +234,7 @@ class PlaneMapOdometry:
         return prediction and rel.status is Status.DEGENERATE
 
     def _beyond_bounds(self, rel: RelativePose) -> bool:
-        """Whether ``rel``'s step exceeds the motion bounds the run assumes
-        (``planemap.motion_bound_gate``): it contradicts them, so it is not a measurement."""
-        if not self.config.planemap.motion_bound_gate:
-            return False
+        """Whether ``rel``'s step exceeds the motion bounds the run assumes."""
         a = self.config.association
         step = rel.T_prev_curr
         turned = _angle(step[:3, :3]) > np.radians(a.max_rotation_deg)
@@ -258,7 +273,7 @@ class PlaneMapOdometry:
         if est.against is not None and (
             est.against[0] is not self.map or est.against[1] != self.frame
         ):
-            est = self._estimate(est.used, est.cur, est.plane_set)
+            est = self.judged(self._estimate(est.used, est.cur, est.plane_set))
         first = self.frame < 0
         self.frame += 1
         T = _orthonormalised(est.T)

@@ -8,7 +8,10 @@ H_0)^-1`` with the weak prior ``H_0 = diag(1 / bound^2)`` of the association's m
 unmeasured DoF), mapped to (roll, pitch, yaw, x, y) through the Jacobian of the Euler
 angles (central differences) and floored by ``odometry.min_sigma_*``.
 
-Status: a rotation direction with a 1-sigma above ``unobserved_rotation_deg`` -> UNRESOLVED;
+Status: rotation directions with a 1-sigma above ``unobserved_rotation_deg`` -> UNRESOLVED
+(all of them, or some with ``planemap.partial_rotation: unresolved``; with ``prediction``
+the rotation about those axes is the constant-velocity prediction's, with its uncertainty,
+and the pose is ``rotation_partly_observed``, :func:`predicted_about_unobserved`);
 a horizontal translation direction above ``unobserved_translation_m`` -> DEGENERATE
 (rotation only; with ``planemap.degenerate_translation: prediction`` the translation along
 the directions above that limit is the constant-velocity prediction's, with its
@@ -59,8 +62,12 @@ def relative_pose(
     B[:3, :3] = B[3:, 3:] = Rp.T
     cov = B @ cov6 @ B.T
     pm = cfg.planemap
-    if np.sqrt(np.linalg.eigvalsh(cov[:3, :3]).max()) > np.radians(pm.unobserved_rotation_deg):
+    unobserved = np.linalg.eigvalsh(cov[:3, :3]) > np.radians(pm.unobserved_rotation_deg) ** 2
+    partial = bool(unobserved.any()) and pm.partial_rotation == "prediction"
+    if unobserved.all() or (unobserved.any() and not partial):
         return relative_pose(odo, T_rel, None, Status.UNRESOLVED)
+    if partial:
+        T_rel, cov = predicted_about_unobserved(T_rel, cov, odo.velocity, odo.sigmas()[0], pm)
     horizontal = np.sqrt(np.linalg.eigvalsh(cov[3:5, 3:5]).max())
     status = Status.DEGENERATE if horizontal > pm.unobserved_translation_m else Status.OK
     sigma_z = float(np.sqrt(cov[5, 5]))
@@ -77,8 +84,37 @@ def relative_pose(
     ]
     cov5 = cov5 + np.diag(floors)
     return RelativePose(
-        T_rel.copy(), cov5, status, z_observed=z_observed, sigma_z=sigma_z if z_observed else np.inf
-    )
+        T_rel.copy(), cov5, status, z_observed=z_observed,
+        sigma_z=sigma_z if z_observed else np.inf, rotation_partly_observed=partial,
+    )  # fmt: skip
+
+
+def predicted_about_unobserved(
+    T_rel: np.ndarray,
+    cov: np.ndarray,
+    T_pred_rel: np.ndarray,
+    sigma_pred_rad: float,
+    config: PlanemapConfig,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``T_rel`` (4, 4) with its rotation about the unobserved axes (eigenvectors of the
+    rotation block of ``cov`` with a 1-sigma above ``config.unobserved_rotation_deg``) taken
+    from the prediction ``T_pred_rel`` (4, 4), and ``cov`` (6, 6, rotation then translation,
+    previous frame, left perturbation ``R <- exp(w) R``) with those axes' variance the
+    prediction's, ``sigma_pred_rad`` squared (cross terms along them dropped with the
+    value). The rotation counterpart of :func:`predicted_along_unobserved`: e.g. the ground
+    alone fixes roll and pitch; the yaw it leaves free is the prediction's, not wherever
+    Gauss-Newton stopped on the weak prior."""
+    lam, V = np.linalg.eigh(cov[:3, :3])
+    U = V[:, lam > np.radians(config.unobserved_rotation_deg) ** 2]
+    P = U @ U.T
+    w = Rotation.from_matrix(T_pred_rel[:3, :3] @ T_rel[:3, :3].T).as_rotvec()
+    out = T_rel.copy()
+    out[:3, :3] = Rotation.from_rotvec(P @ w).as_matrix() @ T_rel[:3, :3]
+    A = np.eye(6)
+    A[:3, :3] -= P
+    cov = A @ cov @ A.T
+    cov[:3, :3] += sigma_pred_rad**2 * P
+    return out, cov
 
 
 def predicted_along_unobserved(

@@ -114,3 +114,28 @@ def test_a_step_beyond_the_motion_bounds_is_inconsistent_and_bridged(jump: np.nd
     assert len(last.associations) == 0
     # bridged by constant velocity: the previous step repeated
     np.testing.assert_allclose(run.poses[-1], poses[2] @ step, atol=1e-6)
+
+
+def test_the_gate_judges_only_the_estimate_kept() -> None:
+    """An estimate (one extraction tried) beyond the bounds keeps its status, so that the
+    streaming odometry can still refine or replace it; the one kept is judged."""
+    step = pose([0, 0, 2], [0.3, 0.05, 0])
+    poses = [np.eye(4), step, step @ step]
+    poses.append(poses[-1] @ pose([0, 0, 2], [0.8, 0.1, 0]))  # beyond 0.5 m
+    scans = _scans(poses)
+    odo = PlaneMapOdometry(_bounded(gate=True))
+    for scan in scans[:3]:
+        est = odo.estimate(scan)
+        assert not est.beyond_bounds and odo.judged(est) is est
+        odo.commit(est)
+    attempt = odo.estimate(scans[3])
+    assert attempt.relative.status is Status.OK and attempt.beyond_bounds
+    np.testing.assert_allclose(attempt.T, poses[3], atol=1e-6)  # the registration's truth
+    kept = odo.judged(attempt)
+    assert kept.relative.status is Status.UNRESOLVED and kept.relative.inconsistent
+    np.testing.assert_allclose(kept.T, poses[2] @ step, atol=1e-6)  # constant velocity
+    off = PlaneMapOdometry(_bounded(gate=False))
+    for scan in scans[:3]:
+        off.commit(off.estimate(scan))
+    attempt = off.estimate(scans[3])
+    assert attempt.beyond_bounds and off.judged(attempt) is attempt  # off: reported only

@@ -1,0 +1,115 @@
+"""Raw float32 ``.bin`` scans: KITTI's 4 values per point or nuScenes' 5, told apart by evidence.
+
+A ``.bin`` file has no header, so its layout is not in the file:
+
+- ``kitti``: float32 ``x y z intensity`` rows (16 bytes a point; KITTI, and most tools
+  that copied it);
+- ``nuscenes``: float32 ``x y z intensity ring`` rows (20 bytes a point; nuScenes'
+  ``LIDAR_TOP`` files), the ring a small whole number stored as a float.
+
+A file of N points in one layout also divides into rows of the other whenever N is a
+multiple of 4 (nuScenes read as KITTI) or of 5 (KITTI read as nuScenes): read so, the
+columns interleave coordinates of different points, a cloud of garbage that nothing later
+refuses. ``auto`` therefore takes, of the layouts the size admits, the only one whose
+columns are plausible:
+
+- nuScenes: its ring column holds whole numbers in ``0..MAX_RING`` and its intensities are
+  finite and >= 0. Read from a KITTI file, that column cycles through x, y, z and intensity
+  of successive points, which are not all whole numbers unless every coordinate is.
+- KITTI: its intensities are finite and >= 0. Read from a nuScenes file, that column cycles
+  through every column of the 5 (4 and 5 are coprime), x and y included, which are
+  negative behind and beside the sensor.
+
+When neither is plausible, a size KITTI's rows fit is read as KITTI (intensities need
+not be >= 0 in every tool that writes such files; nothing points to rings); otherwise the
+file is refused in one line asking for the layout (``--bin-layout``). The tests are
+evidence about the columns, not tuned to a recording.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal, get_args
+
+import numpy as np
+
+from planodom.errors import DatasetError
+
+BinLayout = Literal["auto", "kitti", "nuscenes"]
+#: Values per point of each layout.
+BIN_COLUMNS = {"kitti": 4, "nuscenes": 5}
+#: Largest ring id a nuScenes-style file is taken to hold: lidars have at most 128 beams,
+#: so a ring column beyond this is not one (a generous bound, not from data).
+MAX_RING = 1023
+
+
+def check_bin_layout(layout: str) -> BinLayout:
+    """``layout`` if it is one of auto, kitti, nuscenes, else DatasetError naming it."""
+    if layout not in get_args(BinLayout):
+        raise DatasetError(f"bin layout must be auto, kitti or nuscenes, got {layout!r}")
+    return layout  # type: ignore[return-value]
+
+
+def read_bin(path: Path, layout: str = "auto") -> dict[str, np.ndarray]:
+    """The fields of a raw float32 ``.bin`` scan: ``x y z`` and, nuScenes-style, ``ring``.
+
+    Args:
+        path: the file.
+        layout: ``kitti``, ``nuscenes`` or ``auto`` (see the module docstring).
+
+    Raises:
+        DatasetError: naming the file, when its size fits no layout (or not the one given),
+            or ``auto`` cannot tell the layout.
+    """
+    layout = check_bin_layout(layout)
+    raw = path.read_bytes()
+    fits = [name for name, cols in BIN_COLUMNS.items() if len(raw) % (4 * cols) == 0]
+    if layout != "auto":
+        if layout not in fits:
+            cols = BIN_COLUMNS[layout]
+            raise DatasetError(
+                f"{path}: .bin size {len(raw)} bytes is not a multiple of {4 * cols} "
+                f"({cols} float32 values a point, --bin-layout {layout}); truncated or "
+                "another layout"
+            )
+        return _fields(np.frombuffer(raw, dtype="<f4").reshape(-1, BIN_COLUMNS[layout]))
+    if not fits:
+        raise DatasetError(
+            f"{path}: .bin size {len(raw)} bytes is a multiple of neither 16 (KITTI: x y z "
+            "intensity) nor 20 (nuScenes: x y z intensity ring) float32 rows; truncated"
+        )
+    values = np.frombuffer(raw, dtype="<f4")
+    if len(values) == 0:  # an epoch that saw nothing, in either layout
+        return _fields(values.reshape(0, 4))
+    plausible = [name for name in fits if _plausible(values.reshape(-1, BIN_COLUMNS[name]))]
+    if len(plausible) == 1:
+        return _fields(values.reshape(-1, BIN_COLUMNS[plausible[0]]))
+    if not plausible and "kitti" in fits:  # no evidence of rings: KITTI's rows, as before
+        return _fields(values.reshape(-1, 4))
+    if plausible:
+        problem = "read plausibly both as KITTI and as nuScenes rows"
+    else:  # rings not small whole numbers, and 16 bytes a point does not fit the size
+        problem = "fit only nuScenes rows (20 bytes), whose rings are not small whole numbers"
+    raise DatasetError(
+        f"{path}: cannot tell the .bin layout: its {len(values)} float32 values {problem}; "
+        "give --bin-layout kitti (x y z intensity) or nuscenes (x y z intensity ring)"
+    )
+
+
+def _plausible(rows: np.ndarray) -> bool:
+    """Whether the columns of ``rows`` (N, 4 or 5) are those of their layout."""
+    rows = rows[~np.isnan(rows[:, :3]).all(axis=1)]  # no-return points, as scan_io drops
+    with np.errstate(invalid="ignore"):
+        if not np.all(rows[:, 3] >= 0):  # NaN and infinities too
+            return False
+        if rows.shape[1] == 4:
+            return bool(np.all(np.isfinite(rows[:, 3])))
+        ring = rows[:, 4]
+        return bool(np.all((ring >= 0) & (ring <= MAX_RING) & (ring == np.round(ring))))
+
+
+def _fields(rows: np.ndarray) -> dict[str, np.ndarray]:
+    fields = {"x": rows[:, 0], "y": rows[:, 1], "z": rows[:, 2]}
+    if rows.shape[1] == 5:
+        fields["ring"] = rows[:, 4]
+    return fields

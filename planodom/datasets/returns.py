@@ -1,0 +1,76 @@
+"""Multi-return clouds (dual / triple return lidars) reduced to one return per beam firing.
+
+A lidar in dual-return mode reports up to two points per beam and firing (Ouster, Hesai,
+Velodyne, Robosense: strongest and last, or first and last), with the firing's ring and
+time, and often a field naming the return (nebula's ``return_type``). Kept as they are,
+every surface the beam hits squarely is counted twice (twice the weight of a plane seen
+in single-return mode, with half the noise it really has), and the two returns of a
+ring interleave, so the ring is no longer one run of increasing azimuth (the recovered
+rows of :mod:`planodom.extraction.lidar.rows`).
+
+Kept here: for every beam firing, the farthest of its returns, i.e. the **last return**
+(the hard surface behind glass, foliage or dust; on a plain wall both returns coincide).
+A firing is a ``(ring, time)`` pair: one beam fires once at one time, so two points that
+share both are returns of one pulse. This is done when
+
+- the cloud has a return field (:data:`RETURN_FIELDS`) with more than one value, or
+- without one, some firings have 2 or 3 points and none more (a dual or triple return
+  cloud; a driver whose times are per packet rather than per firing gives many points per
+  ``(ring, time)`` and is left alone).
+
+With a return field but no ring, no per-point time or times coarser than a firing, returns
+cannot be paired: the points of the return value whose median range is largest (the last
+return) are kept.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Names of a per-point return field (which return of its pulse a point is), first wins.
+RETURN_FIELDS = ("return_type", "return", "returns", "echo")
+#: Most returns a lidar reports per pulse (triple-return modes exist; none report more).
+MAX_RETURNS = 3
+
+
+def last_returns(
+    points: np.ndarray,
+    ring: np.ndarray | None,
+    t: np.ndarray | None,
+    returns: np.ndarray | None,
+) -> np.ndarray | None:
+    """Indices (M,) of the points to keep, in their order, or None to keep every point.
+
+    Args:
+        points: (N, 3) float64 metres in the sensor (or base) frame; ranges from the origin.
+        ring: (N,) ring ids or None.
+        t: (N,) per-point times (any unit; only equality is used), or None when the
+            cloud has none.
+        returns: (N,) the return field or None.
+    """
+    n = len(points)
+    labelled = returns is not None and len(np.unique(returns)) > 1
+    if n == 0 or (returns is not None and not labelled):
+        return None
+    dist = np.einsum("ij,ij->i", points, points)
+    if ring is not None and t is not None and np.ptp(t) > 0:  # constant: no firing times
+        _, firing, counts = np.unique(
+            np.column_stack([np.asarray(ring, np.float64), np.asarray(t, np.float64)]),
+            axis=0,
+            return_inverse=True,
+            return_counts=True,
+        )
+        if counts.max() == 1:
+            return None  # one point per firing: single return already
+        if counts.max() <= MAX_RETURNS:
+            # the farthest point of every firing: sorted by firing, then range; each last
+            firing = firing.reshape(-1)
+            order = np.lexsort((dist, firing))
+            ends = np.flatnonzero(np.diff(firing[order], append=firing[order][-1] + 1))
+            return np.sort(order[ends])
+    if not labelled:
+        return None  # times per packet, not per firing, and no return field: left alone
+    assert returns is not None
+    values = np.unique(returns)
+    medians = [np.median(dist[returns == v]) for v in values]
+    return np.flatnonzero(returns == values[int(np.argmax(medians))])

@@ -1,0 +1,77 @@
+"""Dual-return clouds: one point per beam firing (the last return), so that planes are not
+counted twice and a ring stays one run of azimuth; single-return clouds untouched."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planodom.datasets import read_scan
+from planodom.datasets.pcd import write_pcd
+from planodom.datasets.returns import last_returns
+
+RINGS, COLUMNS = 16, 90
+
+
+def _single() -> dict[str, np.ndarray]:
+    """A 16-beam sweep inside a 10 m x 10 m box of walls (ring-major order), single return."""
+    azimuth = np.linspace(-np.pi, np.pi, COLUMNS, endpoint=False)
+    elev = np.deg2rad(np.linspace(-15, 15, RINGS))
+    az, el = np.meshgrid(azimuth, elev)  # (RINGS, COLUMNS)
+    d = np.column_stack(
+        [(np.cos(el) * np.cos(az)).ravel(), (np.cos(el) * np.sin(az)).ravel(), np.sin(el).ravel()]
+    )
+    rng_m = 5.0 / np.max(np.abs(d[:, :2]), axis=1)  # walls at x = +-5 and y = +-5
+    pts = d * rng_m[:, None]
+    ring = np.repeat(np.arange(RINGS), COLUMNS).astype(np.uint16)
+    t = (np.tile(np.arange(COLUMNS), RINGS) * 1e-3 + ring * 2e-6).astype(np.float32)
+    return {"x": pts[:, 0], "y": pts[:, 1], "z": pts[:, 2], "ring": ring, "time": t}
+
+
+def _dual(single: dict[str, np.ndarray], labelled: bool) -> tuple[dict, np.ndarray]:
+    """Each firing twice, strongest then last; a third of the firings' first returns hit a
+    nearer object at 60 % of the range (foliage). Returns the fields and the last returns'
+    indices into the single cloud's points."""
+    n = len(single["x"])
+    near = np.arange(n) % 3 == 0
+    first = {k: v.copy() for k, v in single.items()}
+    for c in "xyz":
+        first[c] = np.where(near, 0.6 * single[c], single[c])
+    out = {k: np.column_stack([first[k], single[k]]).ravel() for k in single}  # interleaved
+    if labelled:
+        out["return_type"] = np.tile(np.array([3, 1], np.uint8), n)  # STRONGEST, LAST
+    return out, np.arange(n)
+
+
+@pytest.mark.parametrize("labelled", [True, False])
+def test_dual_return_pcd_keeps_the_last_return(tmp_path: Path, labelled: bool) -> None:
+    single = _single()
+    fields, _ = _dual(single, labelled)
+    write_pcd(tmp_path / "dual.pcd", fields)
+    scan = read_scan(tmp_path / "dual.pcd")
+    # exactly the single-return cloud: every firing once, the wall behind, in ring order
+    expected = np.column_stack([single[c] for c in "xyz"])
+    np.testing.assert_array_equal(scan.points, expected)
+    np.testing.assert_array_equal(scan.ring, single["ring"])
+    np.testing.assert_array_equal(scan.t, single["time"].astype(np.float64))
+
+
+def test_single_return_and_packet_times_untouched(tmp_path: Path) -> None:
+    single = _single()
+    write_pcd(tmp_path / "single.pcd", single)
+    assert len(read_scan(tmp_path / "single.pcd")) == RINGS * COLUMNS
+    coarse = dict(single, time=np.zeros(RINGS * COLUMNS, np.float32))  # one time a packet
+    write_pcd(tmp_path / "coarse.pcd", coarse)
+    assert len(read_scan(tmp_path / "coarse.pcd")) == RINGS * COLUMNS
+
+
+def test_return_field_without_ring_or_time_keeps_the_farther_return() -> None:
+    pts = np.array([[1.0, 0, 0], [3.0, 0, 0], [0, 2.0, 0], [0, 4.0, 0]])
+    returns = np.array([2, 1, 2, 1])  # FIRST, LAST
+    np.testing.assert_array_equal(last_returns(pts, None, None, returns), [1, 3])
+    assert last_returns(pts, None, None, np.ones(4)) is None
+    assert last_returns(pts, None, None, None) is None
+    few = np.array([[1.0, 0, 0], [3.0, 0, 0], [0, 2.0, 0], [0, 4.0, 0]])  # 2 points a ring
+    assert last_returns(few, np.array([0, 0, 1, 1]), np.zeros(4), None) is None  # snapshot
