@@ -18,9 +18,10 @@ share both are returns of one pulse. This is done when
   cloud; a driver whose times are per packet rather than per firing gives many points per
   ``(ring, time)`` and is left alone).
 
-With a return field but no ring, no per-point time or times coarser than a firing, returns
-cannot be paired: the points of the return value whose median range is largest (the last
-return) are kept.
+With a return field but no ring, no per-point time, times coarser than a firing, or times
+of each return's own (nebula's Hesai clouds: the returns of one pulse differ in time),
+returns cannot be paired, and every point is kept (see :func:`last_returns` why not one
+return value).
 """
 
 from __future__ import annotations
@@ -68,9 +69,9 @@ def last_returns(
             order = np.lexsort((dist, firing))
             ends = np.flatnonzero(np.diff(firing[order], append=firing[order][-1] + 1))
             return np.sort(order[ends])
-    if not labelled:
-        return None  # times per packet, not per firing, and no return field: left alone
-    assert returns is not None
-    values = np.unique(returns)
-    medians = [np.median(dist[returns == v]) for v in values]
-    return np.flatnonzero(returns == values[int(np.argmax(medians))])
+    # Returns that cannot be paired by firing are all kept (double weight on surfaces hit
+    # twice), not reduced to one return value: the values' meaning is the driver's (nebula
+    # labels returns that coincide as a class of their own, "identical"), and keeping the
+    # value of largest median range kept 112 of 14 673 points of a dual-return VLP-16
+    # scan and 354 of 108 663 of a Pandar40P one (nebula's test scans).
+    return None

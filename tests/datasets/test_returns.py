@@ -67,10 +67,14 @@ def test_single_return_and_packet_times_untouched(tmp_path: Path) -> None:
     assert len(read_scan(tmp_path / "coarse.pcd")) == RINGS * COLUMNS
 
 
-def test_return_field_without_ring_or_time_keeps_the_farther_return() -> None:
+def test_returns_that_cannot_be_paired_are_all_kept() -> None:
+    """Without ring and time no firing pairs its returns: no return value is dropped (a
+    driver's value may mean "both returns coincide", the bulk of a scan)."""
     pts = np.array([[1.0, 0, 0], [3.0, 0, 0], [0, 2.0, 0], [0, 4.0, 0]])
     returns = np.array([2, 1, 2, 1])  # FIRST, LAST
-    np.testing.assert_array_equal(last_returns(pts, None, None, returns), [1, 3])
+    assert last_returns(pts, None, None, returns) is None
+    own_times = np.array([0.0, 1e-6, 2e-6, 3e-6])  # each return its own time (nebula Hesai)
+    assert last_returns(pts, np.array([0, 0, 1, 1]), own_times, returns) is None
     assert last_returns(pts, None, None, np.ones(4)) is None
     assert last_returns(pts, None, None, None) is None
     few = np.array([[1.0, 0, 0], [3.0, 0, 0], [0, 2.0, 0], [0, 4.0, 0]])  # 2 points a ring
