@@ -11,7 +11,8 @@ rows of :mod:`planodom.extraction.lidar.rows`).
 Kept here: for every beam firing, the farthest of its returns, i.e. the **last return**
 (the hard surface behind glass, foliage or dust; on a plain wall both returns coincide).
 A firing is a ``(ring, time)`` pair: one beam fires once at one time, so two points that
-share both are returns of one pulse. This is done when
+share both are returns of one pulse, provided they lie on one ray (some drivers stamp two
+firings of a beam with one time; then nothing is dropped). This is done when
 
 - the cloud has a return field (:data:`RETURN_FIELDS`) with more than one value, or
 - without one, some firings have 2 or 3 points and none more (a dual or triple return
@@ -32,6 +33,11 @@ import numpy as np
 RETURN_FIELDS = ("return_type", "return", "returns", "echo")
 #: Most returns a lidar reports per pulse (triple-return modes exist; none report more).
 MAX_RETURNS = 3
+#: Largest angle (rad) between the directions of two points taken as returns of one pulse:
+#: they lie on one ray from the sensor (float32 coordinates: ~1e-6 rad apart), while the
+#: next firing of a beam is at least ~0.1 deg away on the spinning lidars we know of
+#: (AT128 0.1, VLP-16 0.2, Ouster 2048 0.18, QT64 0.6 deg). Not from data.
+RAY_TOLERANCE_RAD = np.deg2rad(0.02)
 
 
 def last_returns(
@@ -63,11 +69,10 @@ def last_returns(
         )
         if counts.max() == 1:
             return None  # one point per firing: single return already
-        if counts.max() <= MAX_RETURNS:
-            # the farthest point of every firing: sorted by firing, then range; each last
-            firing = firing.reshape(-1)
-            order = np.lexsort((dist, firing))
-            ends = np.flatnonzero(np.diff(firing[order], append=firing[order][-1] + 1))
+        firing = firing.reshape(-1)
+        order = np.lexsort((dist, firing))  # by firing, then range: each firing's last
+        ends = np.flatnonzero(np.diff(firing[order], append=firing[order][-1] + 1))
+        if counts.max() <= MAX_RETURNS and _one_ray_each(points, firing, order[ends]):
             return np.sort(order[ends])
     # Returns that cannot be paired by firing are all kept (double weight on surfaces hit
     # twice), not reduced to one return value: the values' meaning is the driver's (nebula
@@ -75,3 +80,15 @@ def last_returns(
     # value of largest median range kept 112 of 14 673 points of a dual-return VLP-16
     # scan and 354 of 108 663 of a Pandar40P one (nebula's test scans).
     return None
+
+
+def _one_ray_each(points: np.ndarray, firing: np.ndarray, last: np.ndarray) -> bool:
+    """Whether every point lies on the ray of its firing's last return (``last``: (F,)
+    indices of each firing's farthest point, in firing order), i.e. the ``(ring, time)``
+    groups are pulses. nebula's VLP-16 clouds give two firings 1.2 deg apart one time
+    stamp: those are not returns of one pulse, and the cloud is left whole. Points in a
+    base frame away from the sensor fail this too, and are left whole (the safe side)."""
+    norm = np.linalg.norm(points, axis=1)
+    unit = points / np.where(norm > 0, norm, 1.0)[:, None]
+    cos = np.einsum("ij,ij->i", unit, unit[last][firing])
+    return bool(np.all(cos >= np.cos(RAY_TOLERANCE_RAD)))

@@ -79,3 +79,18 @@ def test_returns_that_cannot_be_paired_are_all_kept() -> None:
     assert last_returns(pts, None, None, None) is None
     few = np.array([[1.0, 0, 0], [3.0, 0, 0], [0, 2.0, 0], [0, 4.0, 0]])  # 2 points a ring
     assert last_returns(few, np.array([0, 0, 1, 1]), np.zeros(4), None) is None  # snapshot
+
+
+def test_two_firings_with_one_time_stamp_are_not_returns_of_one_pulse() -> None:
+    """Points that share ring and time but not a ray (a driver stamping two firings of a
+    beam with one time, 1.2 deg apart) are different firings: all kept."""
+    az = np.deg2rad([0.0, 1.2, 10.0, 11.2])
+    pts = np.column_stack([np.cos(az), np.sin(az), np.zeros(4)]) * np.array(
+        [[2.0], [6.0], [3], [3]]
+    )
+    ring, t = np.zeros(4), np.array([0.0, 0.0, 1e-3, 1e-3])
+    assert last_returns(pts, ring, t, None) is None
+    same_ray = pts.copy()
+    same_ray[1] = pts[0] * 3.0  # now the far return of the first firing's pulse
+    same_ray[3] = pts[2] * 1.5
+    np.testing.assert_array_equal(last_returns(same_ray, ring, t, None), [1, 3])
