@@ -33,8 +33,8 @@ from planodom.odometry.deskew import (
     pairwise_trend,
     prefer_streaming,
     register_deskewed,
-    time_spread,
     significant_twist,
+    time_spread,
     twist_offset,
 )
 from planodom.odometry.relative import RelativePose, Status
