@@ -27,7 +27,10 @@ it again:
    translation was measured) velocity (against a plane map: their mean with the twist
    used, see ``against_map``) wherever they differ from the twist used by more
    than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
-   epoch that was never deskewed (the first) is extracted again with it too (with
+   epoch that was never deskewed (the first) is extracted again with it too; with
+   ``odometry.deskew_significance_gate`` (off by default) only what the step measured
+   beyond its noise counts (:func:`significant_twist`: a parked lidar's step is noise,
+   not a motion to deskew with) (with
    ``odometry.reference_refresh_guard``, off by default, its old planes are brought
    back when the estimate against the new ones is worse). An epoch
    kept without deskewing is refined only once its translation is measured (never with
