@@ -300,7 +300,7 @@ def lidar_candidates(
     ``config.range_image``) planes are grown on the range image
     (:func:`.rangeimage.range_image_candidates`, ``t`` (N,) s gives the columns); the
     RANSAC loop (:func:`ransac_candidates`) runs when that declines (noisy pixel normals,
-    no usable times).
+    no usable times) or grows no candidate.
     """
     sigma = effective_noise(config, ring_noise(points, ring, config))
     view = np.zeros(3) if viewpoint is None else np.asarray(viewpoint, dtype=np.float64)
