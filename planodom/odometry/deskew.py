@@ -27,7 +27,10 @@ it again:
    translation was measured) velocity (against a plane map: their mean with the twist
    used, see ``against_map``) wherever they differ from the twist used by more
    than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
-   epoch that was never deskewed (the first) is extracted again with it too (with
+   epoch that was never deskewed (the first) is extracted again with it too; with
+   ``odometry.deskew_significance_gate`` (off by default) only what the step measured
+   beyond its noise counts (:func:`significant_twist`: a parked lidar's step is noise,
+   not a motion to deskew with) (with
    ``odometry.reference_refresh_guard``, off by default, its old planes are brought
    back when the estimate against the new ones is worse). An epoch
    kept without deskewing is refined only once its translation is measured (never with
@@ -44,6 +47,7 @@ from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.stats import chi2
 
 from planodom.config import OdometryConfig
 from planodom.extraction.memo import identity_memo
@@ -234,7 +238,7 @@ def register_deskewed(
             break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
-        own = best.own_twist(dt)
+        own = significant_twist(best.own_twist(dt), best.relative, dt, config)
         if against_map and not config.map_twist_offset:
             own = 0.5 * (own + used)
         new = refined_twist(own, used, measured, config)
@@ -309,6 +313,34 @@ def refined_twist(
     if measured and np.linalg.norm(own[3:] - used[3:]) > config.deskew_speed_tolerance_mps:
         new[3:] = own[3:]
     return new
+
+
+def significant_twist(
+    twist: np.ndarray, relative: RelativePose, dt: float, config: OdometryConfig
+) -> np.ndarray:
+    """(6,) ``twist`` (rad/s, m/s) of a step of ``dt`` seconds with the blocks its step
+    did not measure beyond noise set to zero (``config.deskew_significance_gate``; else
+    ``twist`` as it is): the rotation ``twist[:3] dt`` when within the chi-square 95 %
+    bound (3 DoF) of zero given the rotation block of ``relative.covariance``, the linear
+    velocity when its horizontal step ``twist[3:5] dt`` is within the bound (2 DoF) of the
+    (x, y) block (the vertical is not in the covariance and goes with it). A parked
+    lidar's step is noise, and deskewing with it moves the next extraction by it: only a
+    twist told apart from zero is a motion."""
+    cov = relative.covariance
+    if not config.deskew_significance_gate or cov is None or dt <= 0:
+        return twist
+    out = np.array(twist, dtype=np.float64, copy=True)
+    for block, dims in ((slice(0, 3), slice(0, 3)), (slice(3, 6), slice(3, 5))):
+        step = out[dims] * dt
+        c = np.asarray(cov)[dims, dims]
+        m2 = float(step @ np.linalg.pinv(c) @ step) if np.all(np.isfinite(c)) else 0.0
+        if m2 <= _CHI2_95[len(step)]:
+            out[block] = 0.0
+    return out
+
+
+#: chi-square 95 % quantiles by degrees of freedom (scipy.stats.chi2.ppf(0.95, k)).
+_CHI2_95 = {2: float(chi2.ppf(0.95, 2)), 3: float(chi2.ppf(0.95, 3))}
 
 
 def trend_twist(

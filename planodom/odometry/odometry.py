@@ -33,6 +33,7 @@ from planodom.odometry.deskew import (
     pairwise_trend,
     prefer_streaming,
     register_deskewed,
+    significant_twist,
     time_spread,
     twist_offset,
 )
@@ -376,7 +377,8 @@ class PlaneOdometry:
             self._twist_sigma.update(own, best.relative, dt)
             if best.relative.status is not Status.UNRESOLVED:
                 self._rates.append((epoch.index, own))
-            self.twist = self._predicted_twist(own, measured)
+            significant = significant_twist(own, best.relative, dt, self.config.odometry)
+            self.twist = self._predicted_twist(significant, measured)
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
         T_world = _orthonormalised(self.poses[-1] @ best.step)

@@ -300,13 +300,17 @@ def lidar_candidates(
     ``config.range_image``) planes are grown on the range image
     (:func:`.rangeimage.range_image_candidates`, ``t`` (N,) s gives the columns); the
     RANSAC loop (:func:`ransac_candidates`) runs when that declines (noisy pixel normals,
-    no usable times).
+    no usable times) or grows no candidate.
     """
     sigma = effective_noise(config, ring_noise(points, ring, config))
     view = np.zeros(3) if viewpoint is None else np.asarray(viewpoint, dtype=np.float64)
     if ring is not None and config.range_image:
         grown = range_image_candidates(points, ring, t, sigma, config, view)
-        if grown is not None:
+        # a range image that gave no candidate at all is no evidence of no plane: a real
+        # cloud's grid can be too sparse for pixel normals (nebula's dual-return VLP-16
+        # scan: a third of the pixels filled, none grown in one of five scans, where
+        # RANSAC finds 51 planes); RANSAC decides, as for rows that gave no plane
+        if grown:
             return grown, sigma
     return ransac_candidates(points, config, view, member_tolerance(config, sigma)), sigma
 
