@@ -127,6 +127,13 @@ class OdometryConfig(Section):
     loop, urban canyon) and 4e-4 deg (issue 11's world), and at 6 mm by about a third on
     that world, but at 2 cm they interpolate the poses' noise: rms rotation error 0.36
     against 0.28 deg there (a fit weighing the poses' covariances would be needed)."""
+    deskew_pass_guard: Literal["streaming", "off"] = "streaming"
+    """The passes' result per epoch (``deskew_passes`` > 0): "streaming", kept only where
+    its step agrees with the streaming pass's within ``deskew_rate_tolerance_deg_s`` and
+    ``deskew_speed_tolerance_mps`` (as rates over the step) and is not newly unresolved,
+    elsewhere the streaming pass's estimate (:mod:`planodom.odometry.splice`: where the
+    poses are off, the curve through them deskews the scans wrongly); "off": the passes'
+    result everywhere. Measured: see ``deskew_passes``."""
     deskew_order: Literal[1, 3, 5] = 3
     """Degree of the polynomial (in the tangent space of a node's pose) through the
     ``deskew_order + 1`` nearest nodes that the passes deskew along. 3: converges in a
