@@ -129,11 +129,12 @@ class OdometryConfig(Section):
     against 0.28 deg there (a fit weighing the poses' covariances would be needed)."""
     deskew_pass_guard: Literal["streaming", "off"] = "streaming"
     """The passes' result per epoch (``deskew_passes`` > 0): "streaming", kept only where
-    its step agrees with the streaming pass's within ``deskew_rate_tolerance_deg_s`` and
-    ``deskew_speed_tolerance_mps`` (as rates over the step) and is not newly unresolved,
-    elsewhere the streaming pass's estimate (:mod:`planodom.odometry.splice`: where the
-    poses are off, the curve through them deskews the scans wrongly); "off": the passes'
-    result everywhere. Measured: see ``deskew_passes``."""
+    the last pass converged: the epoch was deskewed along the curve, is not unresolved
+    where the streaming pass resolved it, and its step agrees with the curve's within
+    ``deskew_rate_tolerance_deg_s`` and ``deskew_speed_tolerance_mps`` (as rates over the
+    step); elsewhere the streaming pass's estimate (:mod:`planodom.odometry.splice`: where
+    the poses are off, the curve through them deskews the scans wrongly); "off": the
+    passes' result everywhere. Measured: see ``deskew_passes``."""
     deskew_order: Literal[1, 3, 5] = 3
     """Degree of the polynomial (in the tangent space of a node's pose) through the
     ``deskew_order + 1`` nearest nodes that the passes deskew along. 3: converges in a
