@@ -129,8 +129,8 @@ class OdometryConfig(Section):
     against 0.28 deg there (a fit weighing the poses' covariances would be needed)."""
     deskew_pass_guard: Literal["streaming", "off"] = "streaming"
     """The passes' result per epoch (``deskew_passes`` > 0): "streaming", kept only where
-    the last pass converged: the epoch was deskewed along the curve, is not unresolved
-    where the streaming pass resolved it, and its step agrees with the curve's within
+    the last pass converged: the epoch was deskewed along the curve, its status is not
+    worse than in the streaming pass, and its step agrees with the curve's within
     ``deskew_rate_tolerance_deg_s`` and ``deskew_speed_tolerance_mps`` (as rates over the
     step); elsewhere the streaming pass's estimate (:mod:`planodom.odometry.splice`: where
     the poses are off, the curve through them deskews the scans wrongly); "off": the

@@ -58,8 +58,9 @@ def test_spliced_chains_each_epochs_step_from_its_own_run():
 
 def test_unconverged_where_the_step_leaves_the_curve_beyond_the_tolerances():
     """A step off the curve's by 0.6 deg/s in rotation (tolerance 0.5) is kept from the
-    streaming pass, 0.4 deg/s is not; 0.6 m/s in translation only when the pass's step is
-    OK; an epoch not deskewed along the curve and a newly unresolved one are kept."""
+    streaming pass, 0.4 deg/s is not; 0.6 m/s in translation (tolerance 0.5) is kept,
+    0.4 m/s is not; an epoch not deskewed along the curve, a newly unresolved one and one
+    degenerate where the streaming pass's is OK are kept."""
     cfg = PlanodomConfig()
     rng = np.random.default_rng(4)
     twists = rng.normal(scale=0.3, size=(7, 6))
@@ -68,19 +69,22 @@ def test_unconverged_where_the_step_leaves_the_curve_beyond_the_tolerances():
     off[1, 2] += np.radians(0.6)  # epoch 2: rotation rate off by 0.6 deg/s
     off[2, 0] += np.radians(0.4)  # epoch 3: 0.4 deg/s, within the tolerance
     off[3, 3] += 0.6  # epoch 4: 0.6 m/s, the pass's step OK
-    off[4, 4] += 0.6  # epoch 5: 0.6 m/s, but degenerate (translation not measured)
+    off[4, 4] += 0.4  # epoch 5: 0.4 m/s, within the tolerance
     statuses = [Status.OK] * 8
-    statuses[5] = Status.DEGENERATE
+    statuses[1] = Status.DEGENERATE
     statuses[7] = Status.UNRESOLVED
     passes = _run(_steps(off), statuses, 2)
-    streaming = _run(curve, [Status.OK] * 8, 1)
+    streaming_statuses = [Status.OK] * 8
+    streaming_statuses[5] = Status.DEGENERATE
+    streaming = _run(curve, streaming_statuses, 1)
     deskewed = np.ones(8, bool)
     deskewed[6] = False
     keep = unconverged(streaming, passes, curve, deskewed, cfg)
-    assert list(np.flatnonzero(keep)) == [2, 4, 6, 7]
-    # unresolved in both runs: nothing to gain from the streaming estimate
+    assert list(np.flatnonzero(keep)) == [1, 2, 4, 6, 7]
+    # as bad in both runs: nothing to gain from the streaming estimate
+    streaming.results[1] = passes.results[1]
     streaming.results[7] = passes.results[7]
-    assert not unconverged(streaming, passes, curve, deskewed, cfg)[7]
+    assert list(np.flatnonzero(unconverged(streaming, passes, curve, deskewed, cfg))) == [2, 4, 6]
 
 
 def test_curve_steps_of_nodes_on_a_constant_twist_are_that_twist():
