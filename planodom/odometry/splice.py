@@ -43,10 +43,11 @@ def unconverged(
     streaming estimate is kept: not ``deskewed`` (N,) along the curve (near an unresolved
     epoch the pass deskews as the streaming pass does, with a twist predicted from other
     poses), with a worse status than in the streaming pass (unresolved, or degenerate
-    where it was OK: its translation is then only predicted), or with a step that differs
-    from the curve's ``curve_steps`` (N - 1, 4, 4) ``T_{k-1}_k`` it was deskewed along by
-    more than ``odometry.deskew_rate_tolerance_deg_s`` in rotation or
-    ``deskew_speed_tolerance_mps`` in translation, as a rate over the step's time
+    where it was OK: its translation is then only predicted), not OK before the pass's
+    first OK step (its translation predicted from no velocity: standing still), or with
+    a step that differs from the curve's ``curve_steps`` (N - 1, 4, 4) ``T_{k-1}_k`` it
+    was deskewed along by more than ``odometry.deskew_rate_tolerance_deg_s`` in rotation
+    or ``deskew_speed_tolerance_mps`` in translation, as a rate over the step's time
     (measured on issue 11's world 6 at sigma = 0: the passes' first epochs came out
     degenerate with a predicted translation 46 cm off, where the streaming pass measured
     them to 3 cm)."""
@@ -65,6 +66,7 @@ def unconverged(
     out[1:] = (
         ~np.asarray(deskewed, dtype=bool)[1:]
         | (b < a)
+        | ((b < Status.OK.rank) & (np.cumsum(b == Status.OK.rank) == 0))
         | (rate > odo.deskew_rate_tolerance_deg_s)
         | (speed > odo.deskew_speed_tolerance_mps)
     )

@@ -1,6 +1,8 @@
 """The deskewing passes' result kept where it converged, the streaming pass's elsewhere
 (planodom.odometry.splice), on runs built from known steps."""
 
+from dataclasses import replace
+
 import numpy as np
 
 from planodom.config import PlanodomConfig
@@ -60,7 +62,8 @@ def test_unconverged_where_the_step_leaves_the_curve_beyond_the_tolerances():
     """A step off the curve's by 0.6 deg/s in rotation (tolerance 0.5) is kept from the
     streaming pass, 0.4 deg/s is not; 0.6 m/s in translation (tolerance 0.5) is kept,
     0.4 m/s is not; an epoch not deskewed along the curve, a newly unresolved one and one
-    degenerate where the streaming pass's is OK are kept."""
+    degenerate where the streaming pass's is OK are kept, as is a degenerate one before
+    the pass's first OK step."""
     cfg = PlanodomConfig()
     rng = np.random.default_rng(4)
     twists = rng.normal(scale=0.3, size=(7, 6))
@@ -81,10 +84,30 @@ def test_unconverged_where_the_step_leaves_the_curve_beyond_the_tolerances():
     deskewed[6] = False
     keep = unconverged(streaming, passes, curve, deskewed, cfg)
     assert list(np.flatnonzero(keep)) == [1, 2, 4, 6, 7]
-    # as bad in both runs: nothing to gain from the streaming estimate
-    streaming.results[1] = passes.results[1]
+
+    def kept() -> list[int]:
+        return list(np.flatnonzero(unconverged(streaming, passes, curve, deskewed, cfg)))
+
+    # unresolved in both runs: nothing to gain from the streaming estimate
     streaming.results[7] = passes.results[7]
-    assert list(np.flatnonzero(unconverged(streaming, passes, curve, deskewed, cfg))) == [2, 4, 6]
+    assert kept() == [
+        1,
+        2,
+        4,
+        6,
+    ]
+    # degenerate in both: kept before the pass's first OK step (1), not after it (3)
+    streaming.results[1] = passes.results[1]
+    passes.results[3] = replace(passes.results[3], status=Status.DEGENERATE)
+    streaming.results[3] = passes.results[3]
+    assert kept() == [
+        1,
+        2,
+        4,
+        6,
+    ]
+    passes.results[1] = replace(passes.results[1], status=Status.OK)
+    assert kept() == [2, 4, 6]
 
 
 def test_curve_steps_of_nodes_on_a_constant_twist_are_that_twist():
