@@ -48,9 +48,9 @@ def unconverged(
     a step that differs from the curve's ``curve_steps`` (N - 1, 4, 4) ``T_{k-1}_k`` it
     was deskewed along by more than ``odometry.deskew_rate_tolerance_deg_s`` in rotation
     or ``deskew_speed_tolerance_mps`` in translation, as a rate over the step's time
-    (measured on issue 11's world 6 at sigma = 0: the passes' first epochs came out
-    degenerate with a predicted translation 46 cm off, where the streaming pass measured
-    them to 3 cm)."""
+    (measured on issue 11's world 6 at 6 mm: the passes' epochs 1-3 came out degenerate
+    with a translation 45 cm off, where the streaming pass's, degenerate too, were 4-6 cm
+    off)."""
     n = len(passes.poses)
     out = np.zeros(n, dtype=bool)
     if n < 2 or len(streaming.poses) != n:
