@@ -268,3 +268,25 @@ def deskew_with_poses(
     T = T[inverse.reshape(-1)]
     points = np.einsum("nij,nj->ni", T[:, :3, :3], scan.points) + T[:, :3, 3]
     return replace(scan, points=points, t=np.zeros_like(scan.t))
+
+
+def curve_steps(
+    node_times: np.ndarray,
+    node_poses: np.ndarray,
+    times: np.ndarray,
+    order: int = 3,
+    variances: np.ndarray | None = None,
+    n_fit: int | None = None,
+    increments: bool = False,
+) -> np.ndarray:
+    """The steps ``T_{k-1}_k`` (N - 1, 4, 4) between consecutive ``times`` (N,) s along
+    the curve through the nodes (:func:`curve_poses`, with its ``variances``, ``n_fit``
+    and ``increments``), each from the one polynomial around the middle of its interval."""
+    times = np.asarray(times, dtype=np.float64)
+    out = np.empty((max(len(times) - 1, 0), 4, 4))
+    for k in range(1, len(times)):
+        pair = times[k - 1 : k + 1]
+        T = curve_poses(node_times, node_poses, float(pair.mean()), pair, order, variances,
+                        n_fit, increments)  # fmt: skip
+        out[k - 1] = invert_transform(T[0]) @ T[1]
+    return out

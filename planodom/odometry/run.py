@@ -13,9 +13,15 @@ from planodom.config import PlanodomConfig
 from planodom.extraction.lidar.sweep import sweep_timed
 from planodom.geometry import Plane
 from planodom.odometry.deskew import time_spread
-from planodom.odometry.interpolate import deskew_with_poses, epoch_middles, midpoint_nodes
+from planodom.odometry.interpolate import (
+    curve_steps,
+    deskew_with_poses,
+    epoch_middles,
+    midpoint_nodes,
+)
 from planodom.odometry.odometry import Extractor, PlaneOdometry, _default_extractor
 from planodom.odometry.relative import RelativePose, Status
+from planodom.odometry.splice import spliced, unconverged
 from planodom.rig import MotionBounds, Rig
 from planodom.scan import Scan
 
@@ -172,8 +178,10 @@ def redeskewed_run(
         times: (N,) epoch times, seconds. poses: (N, 4, 4) ``T_world_base``.
         config, rig, progress, extractor: as :func:`run_odometry` (config with the rig's
             motion bounds already applied).
-        previous: the run the poses came from: its wall times are added to the new run's,
-            and its statuses give ``measured`` when that is None.
+        previous: the run the poses came from (at the epoch times): its wall times are
+            added to the new run's, its statuses give ``measured`` when that is None, and
+            with ``odometry.deskew_pass_guard: streaming`` an epoch whose step in the last
+            pass disagrees with its own keeps its estimate (:mod:`planodom.odometry.splice`).
         measured: (N,) bool, whether each pose was measured (default: all, or from
             ``previous``).
     """
@@ -198,6 +206,10 @@ def redeskewed_run(
         variances = 0.5 * (steps + np.r_[steps[1:], steps[-1:]])
         for key, value in (run.seconds | {"deskew": deskewed.seconds}).items():
             seconds[key] = seconds.get(key, 0.0) + value
+    if previous is not None and config.odometry.deskew_pass_guard == "streaming":
+        steps = curve_steps(curve.times, curve.poses, times, curve.order,
+                            curve.variances, curve.n_fit, curve.increments)  # fmt: skip
+        run = spliced(previous, run, unconverged(previous, run, steps, trusted, config))
     if previous is not None:
         for key, value in previous.seconds.items():
             seconds[key] = seconds.get(key, 0.0) + value
