@@ -11,7 +11,8 @@
 
 from planodom.odometry.odometry import PlaneOdometry
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
-from planodom.odometry.run import OdometryRun, epoch_rows, run_odometry, with_motion_bounds
+from planodom.odometry.rows import epoch_rows
+from planodom.odometry.run import OdometryRun, run_odometry, with_motion_bounds
 from planodom.odometry.solver import PIPELINES, config_for_gap, estimate_relative_pose
 
 __all__ = [
