@@ -128,7 +128,11 @@ class OdometryConfig(Section):
     9.1/4.6/11.1/1.8 cm; a Pandar40P's 23.8/16.2/20.2/2.2 -> 3.3/3.1/4.2/9.7 cm). Off by
     default: on issue 11's lidar worlds 1-7 (100 epochs, 6 mm and 2 cm) it changes only
     world 1 (indoor, 16 beams), rotation rms 0.0166 -> 0.0185 deg at 6 mm and 0.0212 ->
-    0.0230 deg at 2 cm, ATE 5.9 mm either way; KITTI 0005 (no point times) unchanged."""
+    0.0230 deg at 2 cm, ATE 5.9 mm either way; KITTI 0005 (no point times) unchanged. On
+    the 2D rig it is harmful (worlds 0-18 even, 150 epochs: world 0 at 6 mm ATE 0.27 ->
+    3.08 m, world 2 at 2 cm 1.19 -> 10.1 m; median rotation 0.146 -> 0.204 deg at 2 cm):
+    a twist within the noise of one step still smears a 2D scanner's sweep. For a lidar
+    recording with stops, turn it on."""
     deskew_passes: Annotated[int, Field(ge=0, le=5)] = 0
     """Runs over a sequence (``run_odometry``) of scans with point times: after the
     streaming pass, run the odometry this many times on the scans deskewed to the middle
