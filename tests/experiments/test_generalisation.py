@@ -15,6 +15,22 @@ from planodom.experiments.generalisation import (
 from planodom.experiments.peers import kiss_available
 
 
+@pytest.fixture
+def seen(monkeypatch):
+    """The keyword arguments the CLI passes to the experiment (which is not run)."""
+    import planodom.experiments.generalisation as generalisation
+    from planodom.experiments.tables import ExperimentResult
+
+    kwargs_seen: dict = {}
+
+    def fake(out, **kwargs):
+        kwargs_seen.update(kwargs)
+        return ExperimentResult([], {}, {})
+
+    monkeypatch.setattr(generalisation, "run_generalisation_experiment", fake)
+    return kwargs_seen
+
+
 def test_longest_run():
     assert longest_run(np.array([0, 1, 1, 0, 1, 1, 1, 0], bool)) == 3
     assert longest_run(np.zeros(4, bool)) == 0
@@ -51,18 +67,8 @@ def test_cli_simulates_a_random_world(tmp_path):
     assert bad.exit_code == 2 and "unknown rig" in bad.output
 
 
-def test_cli_takes_noise_levels_as_in_the_issue(tmp_path, monkeypatch):
+def test_cli_takes_noise_levels_as_in_the_issue(tmp_path, seen):
     """``--noise 0 0.006 0.02 0.1`` (space-separated) reaches the experiment as four levels."""
-    import planodom.experiments.generalisation as generalisation
-    from planodom.experiments.tables import ExperimentResult
-
-    seen = {}
-
-    def fake(out, **kwargs):
-        seen.update(kwargs)
-        return ExperimentResult([], {}, {})
-
-    monkeypatch.setattr(generalisation, "run_generalisation_experiment", fake)
     args = ["experiment", "generalisation", "--worlds", "3", "--out", str(tmp_path)]
     result = CliRunner().invoke(app, [*args, "--noise", "0", "0.006", "0.02", "0.1"])
     assert result.exit_code == 0, result.output
@@ -79,18 +85,8 @@ def test_one_rig_class_runs_only_its_worlds():
     assert {r.family for r in res.runs} <= {"lidar16", "lidar32", "lidar64"}
 
 
-def test_cli_chooses_methods(tmp_path, monkeypatch):
+def test_cli_chooses_methods(tmp_path, seen):
     """``--methods`` reaches the experiment as a list; an unknown name is one line, exit 2."""
-    import planodom.experiments.generalisation as generalisation
-    from planodom.experiments.tables import ExperimentResult
-
-    seen = {}
-
-    def fake(out, **kwargs):
-        seen.update(kwargs)
-        return ExperimentResult([], {}, {})
-
-    monkeypatch.setattr(generalisation, "run_generalisation_experiment", fake)
     args = ["experiment", "generalisation", "--worlds", "2", "--out", str(tmp_path)]
     result = CliRunner().invoke(app, [*args, "--methods", "oracle, planodom-offline"])
     assert result.exit_code == 0, result.output
