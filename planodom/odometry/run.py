@@ -196,9 +196,9 @@ def redeskewed_run(
     variances = step_variances(previous, measured)[1:]  # node j (mid j, j + 1): step j -> j + 1
     seconds = {"deskew": _time.perf_counter() - c0}
     middles = epoch_middles(times)
+    increments = config.odometry.deskew_fit == "increments"
     for reference in [middles] * config.odometry.deskew_passes + [times]:
         trusted = _near_all_measured(measured, order)
-        increments = config.odometry.deskew_fit == "increments"
         curve = _Curve(*nodes, variances if n_fit else None, order, n_fit, increments)
         deskewed = _DeskewedEpochs(source, times, reference, curve, trusted)
         run = _streaming_pass(deskewed, config, rig, reference, progress, extractor)
