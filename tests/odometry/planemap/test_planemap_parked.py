@@ -8,7 +8,6 @@ from __future__ import annotations
 import numpy as np
 from planemap_factory import plane_points, planes_of
 
-from planodom.config import PlanodomConfig
 from planodom.odometry import Status
 from planodom.odometry.planemap import PlaneMapOdometry
 from planodom.odometry.planemap.register import ScanPlanes, solve
