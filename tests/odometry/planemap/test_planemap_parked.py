@@ -5,12 +5,15 @@ wrong associations of such fragments are outliers, not measurements (issue 11)."
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+import pytest
 from planemap_factory import plane_points, planes_of
 
 from planodom.odometry import Status
 from planodom.odometry.planemap import PlaneMapOdometry
-from planodom.odometry.planemap.register import ScanPlanes, solve
+from planodom.odometry.planemap.register import ScanPlanes, residual_scale, solve
 
 #: Range noise of the well-measured surfaces (m).
 NOISE = 0.005
@@ -96,3 +99,31 @@ def test_outliers_do_not_pull_and_get_no_weight() -> None:
     np.testing.assert_allclose(T, T_good, atol=1e-6)  # Gauss-Newton from another start
     np.testing.assert_allclose(H, H_good, rtol=1e-6)
     assert np.linalg.norm(T[:3, 3]) < 0.01
+
+
+def test_residual_scale_is_one_for_the_model_and_the_excess_beyond() -> None:
+    rng = np.random.default_rng(3)
+    chi2 = rng.chisquare(3, 20001) / 3.0  # mean squared whitened residual, model right
+    assert residual_scale(chi2) == pytest.approx(1.0, abs=0.05)
+    assert residual_scale(25.0 * chi2) == pytest.approx(25.0, rel=0.05)
+    assert residual_scale(0.01 * chi2) == 1.0  # never shrunk
+    assert residual_scale(np.zeros(0)) == 1.0
+
+
+def test_a_scan_off_everywhere_keeps_its_planes() -> None:
+    """Every plane 3-6 cm off its landmark at model sigmas of millimetres (a distorted
+    scan, not outliers): the residual scale keeps them all, none is dropped."""
+    rng = np.random.default_rng(11)
+    odo = PlaneMapOdometry()
+    odo.commit(odo.estimate(_surfaces(rng)))
+    cur_planes = []
+    for p in _surfaces(np.random.default_rng(12)):
+        shift = rng.choice([-1.0, 1.0]) * rng.uniform(0.03, 0.06)
+        s = p.support
+        moved = replace(s, centroid=s.centroid - shift * p.normal)
+        cur_planes.append(replace(p, offset=p.offset + shift, support=moved))
+    m = odo.estimate(cur_planes).cur
+    assert isinstance(m, ScanPlanes)
+    idx = np.arange(len(cur_planes))
+    _, _, w = solve(odo.map, np.eye(4), m, idx, idx, odo.config.planemap)
+    assert np.all(w > 0.5)
