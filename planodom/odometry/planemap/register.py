@@ -149,20 +149,23 @@ def solve(
     """Robust Gauss-Newton of the associations (scan plane ``jj[k]`` -> landmark
     ``lm[k]``) from ``T0``: the pose, its information (6, 6) and the weights (m,).
 
-    The associations it ends with a Cauchy weight of at most 0.5 (outliers: whitened
-    residuals, in units of the scan's residual scale, beyond twice the kernel scale; what
+    With ``config.outliers`` ``dropped`` (``PlanemapConfig.outliers``), the associations
+    it ends with a Cauchy weight of at most 0.5 (outliers: whitened residuals, in units
+    of the scan's residual scale, beyond twice the kernel scale; what
     :attr:`Registration.inliers` and the map update leave out) are dropped and the rest
     solved again, until the set repeats (at most ``association_rounds``); the dropped
-    ones get weight 0. The Cauchy kernel alone
-    lets every outlier keep a pull of ``c^2 / chi`` (as much as an inlier at chi ~ 1 for
-    chi ~ 4 c): on a parked lidar a handful of wrong associations (fragments of curved
-    surfaces at a few metres, matched through the wide gates of their poorly defined
-    normals) moved it 5-24 cm along the one direction only they observe, at 7 of the
-    information's sigmas; and the information (the covariance reported) must be that of
-    the associations the pose rests on. Without the residual scale the same rule dropped
-    the walls of a hand-held corridor walk (5 cm off at 0.5 cm model sigmas, all of them)
-    and left it degenerate; with it that walk is as before or better."""
+    ones get weight 0. The Cauchy kernel alone lets every outlier keep a pull of ``c^2 /
+    chi`` (as much as an inlier at chi ~ 1 for chi ~ 4 c): on a parked lidar a handful
+    of wrong associations (fragments of curved surfaces at a few metres, matched through
+    the wide gates of their poorly defined normals) moved it 5-24 cm along the one
+    direction only they observe, at 7 of the information's sigmas; and the information
+    (the covariance reported) must be that of the associations the pose rests on.
+    Without the residual scale the same rule dropped the walls of a hand-held corridor
+    walk (5 cm off at 0.5 cm model sigmas, all of them) and left it degenerate; with it
+    that walk is as before or better."""
     T, H, w = _gauss_newton(M, T0, cur, lm, jj, config)
+    if config.outliers == "kernel":
+        return T, H, w
     keep = w > 0.5
     for _ in range(config.association_rounds):
         if keep.all() or np.count_nonzero(keep) < 3:

@@ -99,6 +99,11 @@ def test_outliers_do_not_pull_and_get_no_weight() -> None:
     np.testing.assert_allclose(T, T_good, atol=1e-6)  # Gauss-Newton from another start
     np.testing.assert_allclose(H, H_good, rtol=1e-6)
     assert np.linalg.norm(T[:3, 3]) < 0.01
+    # with outliers: kernel (before issue 11) it keeps a weight and pulls the pose
+    kernel = odo.config.planemap.model_copy(update={"outliers": "kernel"})
+    T_k, _, w_k = solve(odo.map, np.eye(4), m, lm, jj, kernel)
+    assert 0.0 < w_k[4] <= 0.5
+    assert np.linalg.norm(T_k[:3, 3] - T_good[:3, 3]) > 0.01  # 1.7 cm along y
 
 
 def test_residual_scale_is_one_for_the_model_and_the_excess_beyond() -> None:
