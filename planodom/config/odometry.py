@@ -109,6 +109,17 @@ class OdometryConfig(Section):
     deskew_iterations: Annotated[int, Field(ge=0)] = 2
     """Streaming: extract a time-spread epoch again with its own estimate's twist, at most
     this many times (see the two tolerances below); 0: the prediction only."""
+    deskew_twist: Literal["predicted", "coplanar"] = "predicted"
+    """Streaming: the twist an epoch is deskewed with. "predicted": the one given
+    (constant velocity, or refined from the epoch's step, see ``deskew_iterations``);
+    "coplanar": that one as the prior of the twist that makes each extracted plane's
+    inliers coplanar (:func:`planodom.extraction.twist_fit.fit_twist`, the epoch's own
+    points, :mod:`planodom.odometry.coplanar`), and the epoch extracted again with it
+    (default extractor only)."""
+    coplanar_iterations: Annotated[int, Field(ge=1, le=20)] = 3
+    """``deskew_twist: coplanar``: Gauss-Newton steps of each twist fit."""
+    coplanar_passes: Annotated[int, Field(ge=1, le=5)] = 1
+    """``deskew_twist: coplanar``: extract, fit the twist, and extract again this many times."""
     deskew_rate_tolerance_deg_s: Positive = 0.5
     """Re-extract when the epoch's own angular rate differs from the one it was deskewed
     with by more than this, deg/s (0.5 deg/s smears a point 20 m away by 1.7 cm at 10 Hz;
