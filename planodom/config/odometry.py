@@ -120,6 +120,10 @@ class OdometryConfig(Section):
     """``deskew_twist: coplanar``: Gauss-Newton steps of each twist fit."""
     coplanar_passes: Annotated[int, Field(ge=1, le=5)] = 1
     """``deskew_twist: coplanar``: extract, fit the twist, and extract again this many times."""
+    coplanar_planes: Literal["extract", "refit"] = "extract"
+    """``deskew_twist: coplanar``: the planes with the fitted twist. "extract": the epoch
+    extracted again; "refit": the planes found with the twist given fit again to their
+    inliers deskewed with it (:func:`planodom.extraction.pipeline.refit`)."""
     deskew_rate_tolerance_deg_s: Positive = 0.5
     """Re-extract when the epoch's own angular rate differs from the one it was deskewed
     with by more than this, deg/s (0.5 deg/s smears a point 20 m away by 1.7 cm at 10 Hz;
