@@ -124,8 +124,8 @@ class OdometryConfig(Section):
     at sigma = 0, 60 epochs, worlds 0 / 4 / 8: 0.078 / 0.0093 / 0.076 deg -> 0.014 /
     0.0023 / 0.011 (the twist constant over the epoch is the limit: deskewed with the
     best constant fit to the true motion, world 0 gives 0.013 deg). Off by default: it
-    is slower (epochs/s median 3.6x fewer, 1.3-20x; 0.97 -> 0.21 times KISS-ICP's), and some worlds get
-    worse: world 12's rotation 0.039 -> 0.055 deg at 6 mm and 0.115 -> 0.184 at 2 cm,
+    is slower (epochs/s 3.6x fewer, median, 1.3-20x; 0.97 -> 0.21 times KISS-ICP's),
+    and some worlds get worse: world 12's rotation 0.039 -> 0.055 deg at 6 mm and 0.115 -> 0.184 at 2 cm,
     world 4's 0.016 -> 0.023 at 6 mm (on both, deskewed with the true motion's best
     constant twist is no better: 0.022 and 0.055 deg; the predicted twist's errors,
     alike in successive epochs, cancel in their step), world 2's (indoor) ATE 0.25 ->
