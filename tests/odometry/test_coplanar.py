@@ -111,11 +111,11 @@ def _run(mode: str) -> tuple[float, np.ndarray]:
 
 
 def test_the_odometry_on_a_constant_twist_follows_the_truth():
-    # Deskewed with the fitted twist (the MAP with the prediction's prior: within 2e-3 of
+    # Deskewed with the fitted twist (the MAP with the prediction's prior: within 5e-3 of
     # the truth), the poses are closer to the truth than with the predicted twist.
     predicted, _ = _run("predicted")
     coplanar, used = _run("coplanar")
-    np.testing.assert_allclose(used, XI, atol=2e-3)
+    np.testing.assert_allclose(used, XI, atol=5e-3)
     assert coplanar < min(0.5 * predicted, 5e-4)
 
 
