@@ -9,7 +9,8 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
   the stamp is the first beam's time). Beams with a non-finite range or one outside
   ``[range_min, range_max]`` are no returns and are dropped.
 - ``sensor_msgs/PointCloud2``: fields ``x y z`` (float32/float64); an optional ring field
-  (:data:`RING_FIELDS`) and time field (:data:`TIME_FIELDS`, first present wins). Integer
+  (:data:`RING_FIELDS`) and time field (:data:`~planodom.datasets.scan_io.TIME_FIELDS`,
+  first present wins). Integer
   time fields are nanoseconds, float ones seconds; values above 1e15 ns / 1e8 s are absolute
   times (since the Unix epoch), smaller ones offsets from the stamp; float values above
   1e15 are absolute nanoseconds (livox_ros_driver2 stores its ``timestamp`` as a double of
@@ -31,6 +32,7 @@ import numpy as np
 from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
 from planodom.datasets.returns import RETURN_FIELDS, last_returns
+from planodom.datasets.scan_io import time_field_name
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
@@ -44,8 +46,6 @@ TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 
 #: Names of a per-point ring (scan line) field, first present wins.
 RING_FIELDS = ("ring", "line", "channel")
-#: Names of a per-point time field, first present wins.
-TIME_FIELDS = ("t", "time", "timestamp", "offset_time", "time_stamp")  # last: nebula's
 #: Largest per-point time (s) from a sweep's stamp: a lidar sweep lasts a fraction of a
 #: second (a non-repetitive Livox integrates up to about one), and a driver stamps it at its
 #: start or end; times beyond this are a unit the rules above do not cover (milliseconds,
@@ -173,15 +173,10 @@ def _decode_cloud(
 
 def _time_name(names: tuple[str, ...], time_field: str) -> str | None:
     """The cloud's time field to read (None: no per-point times)."""
-    if time_field == "none":
-        return None
-    if time_field == "auto":
-        return next((n for n in TIME_FIELDS if n in names), None)
-    if time_field not in names:
-        raise ValueError(
-            f"PointCloud2 has no time field '{time_field}' (fields: {', '.join(names)})"
-        )
-    return time_field
+    try:
+        return time_field_name(names, time_field)
+    except ValueError as exc:
+        raise ValueError(f"PointCloud2 has {exc}") from None
 
 
 def _relative_times(values: np.ndarray, stamp: int) -> np.ndarray:

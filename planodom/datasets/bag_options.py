@@ -26,7 +26,7 @@ class BagOptions:
             topic with messages, sorted by name).
         gt_topic: reference trajectory: a pose topic or ``"tf:PARENT:CHILD"`` (None: none).
         time_field: the clouds' per-point time field: ``"auto"`` (the first of
-            :data:`~planodom.datasets.bag_msgs.TIME_FIELDS` present), ``"none"`` (ignore
+            :data:`~planodom.datasets.scan_io.TIME_FIELDS` present), ``"none"`` (ignore
             per-point times, e.g. a sensor clock that is not the stamps'), or a field name.
     """
 

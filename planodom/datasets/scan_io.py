@@ -37,6 +37,7 @@ the last return of each firing (:mod:`planodom.datasets.returns`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -190,7 +191,10 @@ def _scan_from_fields(
             f"beyond {MAX_COORDINATE_M:g} m (not metres, or corrupt)"
         )
     extra = {}
-    time_name = _time_name(path, fields, time_field)
+    try:
+        time_name = time_field_name(tuple(fields), time_field)
+    except ValueError as exc:
+        raise DatasetError(f"{path}: {exc}; --time-field auto or none") from None
     if time_name is not None:
         extra["t"] = point_times(path, time_name, fields[time_name], reference_time)
     ring_name = next((n for n in RING_FIELDS if n in fields), None)
@@ -210,17 +214,16 @@ def _scan_from_fields(
     return Scan(points, **extra)
 
 
-def _time_name(path: Path, fields: dict[str, np.ndarray], time_field: str) -> str | None:
-    """The field read as point times (``time_field``: auto, none or a name), or None."""
+def time_field_name(names: Sequence[str], time_field: str) -> str | None:
+    """The field of ``names`` read as point times for ``time_field`` (``auto``: the first
+    of :data:`TIME_FIELDS` present, ``none``: None, else that name), or None; ValueError
+    ``no time field ...`` when a named field is absent (the caller names the cloud)."""
     if time_field == "none":
         return None
     if time_field == "auto":
-        return next((n for n in TIME_FIELDS if n in fields), None)
-    if time_field not in fields:
-        raise DatasetError(
-            f"{path}: no time field '{time_field}' (fields: {', '.join(fields)}); "
-            "--time-field auto or none"
-        )
+        return next((n for n in TIME_FIELDS if n in names), None)
+    if time_field not in names:
+        raise ValueError(f"no time field '{time_field}' (fields: {', '.join(names)})")
     return time_field
 
 
