@@ -175,3 +175,15 @@ def scan_lidar(
 def planes_in_base(rects: list[Rect]) -> dict[int, tuple[np.ndarray, float]]:
     """True (n, d) of each wall in the base frame at t = 0 (the world frame here)."""
     return {k: (r.normal, r.offset) for k, r in enumerate(rects)}
+
+
+def plane_errors(planes, truth: dict[int, tuple[np.ndarray, float]]) -> tuple[float, float]:
+    """Largest angle (rad) and offset error (m) of extracted ``planes`` against the true
+    planes ``truth`` (by ``truth_id``, as :func:`planes_in_base` gives them), sign-free."""
+    ang = off = 0.0
+    for p in planes:
+        n, d = truth[p.truth_id]
+        s = np.sign(p.normal @ n)
+        ang = max(ang, float(np.arccos(min(1.0, abs(p.normal @ n)))))
+        off = max(off, abs(s * p.offset - d))
+    return ang, off

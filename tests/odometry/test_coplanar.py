@@ -14,7 +14,7 @@ from planodom.odometry.coplanar import (
     coplanar_extraction,
     prior_information,
 )
-from tests.extraction.synth_scans import Rect, default_scene, planes_in_base, scan_rig
+from tests.extraction.synth_scans import Rect, default_scene, plane_errors, planes_in_base, scan_rig
 
 XI = np.array([0.05, -0.04, 0.6, 3.0, 0.4, 0.1])  # rad/s, m/s: a brisk turn
 #: a prediction's error: 2 deg/s of yaw rate, 0.15 m/s (twice that, only the ground is
@@ -38,16 +38,6 @@ def test_prior_information_is_a_third_of_the_vector_variance_per_axis():
     )
 
 
-def _plane_errors(planes, truth):
-    ang = off = 0.0
-    for p in planes:
-        n, d = truth[p.truth_id]
-        s = np.sign(p.normal @ n)
-        ang = max(ang, float(np.arccos(min(1.0, abs(p.normal @ n)))))
-        off = max(off, abs(s * p.offset - d))
-    return ang, off
-
-
 def test_a_rig_epoch_extracted_with_a_wrong_twist_gets_the_true_one():
     # A constant twist (the model is exact): from a prediction 2 deg/s and 0.15 m/s off,
     # the fitted twist is the truth and the planes the true walls (ground truth). No
@@ -59,7 +49,7 @@ def test_a_rig_epoch_extracted_with_a_wrong_twist_gets_the_true_one():
     assert got.fit is not None
     np.testing.assert_allclose(got.twist, XI, atol=1e-7)
     assert len(got.planes) >= 3
-    ang, off = _plane_errors(got.planes, planes_in_base(scene))
+    ang, off = plane_errors(got.planes, planes_in_base(scene))
     assert ang < 1e-7 and off < 1e-7
 
 
