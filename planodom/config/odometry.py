@@ -143,6 +143,16 @@ class OdometryConfig(Section):
     (``coplanar_passes`` 1, as ``deskew_twist``): refit is no faster (0.35 against 0.39
     times KISS-ICP at 6 mm) and worse, rotation 0.052 against 0.046 deg at 6 mm, ATE
     0.49 against 0.39 m at 2 cm (walls a wrong twist lost are not found again)."""
+    coplanar_prior_scale: Annotated[float, Field(ge=0.1, le=100.0)] = 1.0
+    """``deskew_twist: coplanar``: the prior's sigmas (:mod:`planodom.odometry.twist_sigma`)
+    times this. On the lidar worlds the constant-velocity prediction lags an angular
+    acceleration by several epochs, and its yaw-rate error is 2-3x the sigma the model
+    gives it (world 1, 20 Hz indoor: 10-14 deg/s off in the first pass against a sigma of
+    ~5; world 5: ~1 deg/s against 0.3), so the fit keeps much of it. Measured on the lidar
+    worlds 1 / 3 / 5 / 7 at sigma = 0, 60 epochs (``coplanar_iterations`` 1): rotation rms
+    0.023 / 0.0043 / 0.0092 / 0.0042 deg with 1, 0.0058 / 0.0041 / 0.0113 / 0.0028 with 3
+    (default pipeline: 0.020 / 0.030 / 0.0075 / 0.0031); world 3's ATE 2.9 -> 7.7 mm.
+    Not measured with noise: 1 until it is."""
     deskew_rate_tolerance_deg_s: Positive = 0.5
     """Re-extract when the epoch's own angular rate differs from the one it was deskewed
     with by more than this, deg/s (0.5 deg/s smears a point 20 m away by 1.7 cm at 10 Hz;

@@ -52,17 +52,19 @@ class CoplanarExtraction:
     fit: TwistFit | None
 
 
-def prior_information(sigma: tuple[float, float] | None) -> np.ndarray:
+def prior_information(sigma: tuple[float, float] | None, scale: float = 1.0) -> np.ndarray:
     """(6, 6) diagonal information of a twist whose angular rate and linear velocity are
     off by ``sigma`` (rad/s, m/s) per the model of :mod:`.twist_sigma` (the sigma of the
-    vector: a third of its square per axis); zeros for an unknown (inf or None) sigma."""
+    vector: a third of its square per axis), both sigmas times ``scale`` (> 0,
+    ``odometry.coplanar_prior_scale``) after their floors; zeros for an unknown (inf or
+    None) sigma."""
     info = np.zeros(6)
     if sigma is None:
         return np.diag(info)
     for block, s, floor in ((slice(0, 3), sigma[0], PRIOR_SIGMA_FLOOR[0]),
                             (slice(3, 6), sigma[1], PRIOR_SIGMA_FLOOR[1])):  # fmt: skip
         if np.isfinite(s):
-            info[block] = 3.0 / max(float(s), floor) ** 2
+            info[block] = 3.0 / (scale * max(float(s), floor)) ** 2
     return np.diag(info)
 
 
@@ -84,7 +86,7 @@ def coplanar_extraction(
     found = extract(scan, ecfg, twist, sensor_origins)
     if scan.t is None:
         return CoplanarExtraction(found.planes, np.asarray(twist, dtype=float), None)
-    P = prior_information(sigma)
+    P = prior_information(sigma, ocfg.coplanar_prior_scale)
     used, fit = np.asarray(twist, dtype=float), None
     for _ in range(ocfg.coplanar_passes):
         if not found.inliers:

@@ -124,3 +124,10 @@ def _moved(scene, xi, t):
     T = invert_transform(se3_exp(t * xi))
     R, p = T[:3, :3], T[:3, 3]
     return [Rect(R @ r.center + p, R @ r.normal, R @ r.u, r.half_u, r.half_v) for r in scene]
+
+
+def test_prior_information_scale_multiplies_the_sigmas():
+    base = np.diag(prior_information((0.02, 0.5)))
+    np.testing.assert_allclose(np.diag(prior_information((0.02, 0.5), 3.0)), base / 9.0)
+    floored = np.diag(prior_information((0.0, 0.0), 2.0))
+    np.testing.assert_allclose(floored[:3], 3 / (2 * PRIOR_SIGMA_FLOOR[0]) ** 2)
