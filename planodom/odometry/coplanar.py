@@ -36,6 +36,11 @@ from planodom.scan import Scan
 POINT_SIGMA_FLOOR_M = 1e-3
 #: Floor of the prior's sigmas (rad/s, m/s): a twist refined from a step is not exact.
 PRIOR_SIGMA_FLOOR = (np.radians(0.05), 0.01)
+#: ``odometry.coplanar_axes: tilt``: the twist's components kept at the prior (yaw rate,
+#: horizontal velocity, base frame z up) and the information that holds them there
+#: (rad/s, m/s)^-2: far above any the planes give.
+HELD_AXES = (2, 3, 4)
+HELD_INFORMATION = 1e12
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,6 +92,8 @@ def coplanar_extraction(
     if scan.t is None:
         return CoplanarExtraction(found.planes, np.asarray(twist, dtype=float), None)
     P = prior_information(sigma, ocfg.coplanar_prior_scale)
+    if ocfg.coplanar_axes == "tilt":
+        P[HELD_AXES, HELD_AXES] = HELD_INFORMATION
     used, fit = np.asarray(twist, dtype=float), None
     for _ in range(ocfg.coplanar_passes):
         if not found.inliers:
