@@ -152,7 +152,9 @@ class OdometryConfig(Section):
     worlds 1 / 3 / 5 / 7 at sigma = 0, 60 epochs (``coplanar_iterations`` 1): rotation rms
     0.023 / 0.0043 / 0.0092 / 0.0042 deg with 1, 0.0058 / 0.0041 / 0.0113 / 0.0028 with 3
     (default pipeline: 0.020 / 0.030 / 0.0075 / 0.0031); world 3's ATE 2.9 -> 7.7 mm.
-    Not measured with noise: 1 until it is."""
+    At 6 mm 3 is far worse: 0.161 / 0.054 / 0.100 / 0.166 deg against 0.058 / 0.028 /
+    0.023 / 0.018 with 1 (world 3's ATE 0.28 m): with noise the yaw rate and horizontal
+    velocity the planes give are off (``coplanar_axes``), so 1 stays."""
     coplanar_axes: Literal["all", "tilt"] = "all"
     """``deskew_twist: coplanar``: the twist components the fit moves. "all": the six;
     "tilt": the roll and pitch rates and the vertical velocity (what the ground, seen all
