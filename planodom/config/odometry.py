@@ -143,6 +143,36 @@ class OdometryConfig(Section):
     (``coplanar_passes`` 1, as ``deskew_twist``): refit is no faster (0.35 against 0.39
     times KISS-ICP at 6 mm) and worse, rotation 0.052 against 0.046 deg at 6 mm, ATE
     0.49 against 0.39 m at 2 cm (walls a wrong twist lost are not found again)."""
+    coplanar_prior_scale: Annotated[float, Field(ge=0.1, le=100.0)] = 1.0
+    """``deskew_twist: coplanar``: the prior's sigmas (:mod:`planodom.odometry.twist_sigma`)
+    times this. On the lidar worlds the constant-velocity prediction lags an angular
+    acceleration by several epochs, and its yaw-rate error is 2-3x the sigma the model
+    gives it (world 1, 20 Hz indoor: 10-14 deg/s off in the first pass against a sigma of
+    ~5; world 5: ~1 deg/s against 0.3), so the fit keeps much of it. Measured on the lidar
+    worlds 1 / 3 / 5 / 7 at sigma = 0, 60 epochs (``coplanar_iterations`` 1): rotation rms
+    0.023 / 0.0043 / 0.0092 / 0.0042 deg with 1, 0.0058 / 0.0041 / 0.0113 / 0.0028 with 3
+    (default pipeline: 0.020 / 0.030 / 0.0075 / 0.0031); world 3's ATE 2.9 -> 7.7 mm.
+    At 6 mm 3 is far worse: 0.161 / 0.054 / 0.100 / 0.166 deg against 0.058 / 0.028 /
+    0.023 / 0.018 with 1 (world 3's ATE 0.28 m): with noise the yaw rate and horizontal
+    velocity the planes give are off (``coplanar_axes``), so 1 stays."""
+    coplanar_axes: Literal["all", "tilt"] = "all"
+    """``deskew_twist: coplanar``: the twist components the fit moves. "all": the six;
+    "tilt": the roll and pitch rates and the vertical velocity (what the ground, seen all
+    around a spinning lidar, observes), the yaw rate and horizontal velocity kept at the
+    prior (base frame z up): a wall swept across azimuth is sheared by them but stays
+    nearly planar, and with noise their fit is off (lidar world 3, 6 mm: yaw-rate error
+    0.15 deg/s predicted -> 0.48 fitted, forward speed 0.08 -> 0.30 m/s; roll rate 2.4 ->
+    0.03 deg/s). Measured on the lidar worlds 1 / 3 / 5 / 7, 60 epochs, ``coplanar_iterations``
+    1, rotation rms deg: at 6 mm predicted 0.020 / 0.031 / 0.0083 / 0.0038, coplanar all
+    0.058 / 0.028 / 0.023 / 0.018, tilt 0.112 / 0.0050 / 0.0058 / 0.0138; at sigma = 0
+    predicted 0.020 / 0.030 / 0.0075 / 0.0031, tilt 0.086 / 0.0041 / 0.0057 / 0.0050 (the
+    outdoor worlds 3, 5 better, the indoor 16-beam ones 1, 7 worse). Lidar worlds 1-19
+    odd, 150 epochs, rotation rms median deg (median / worst x the oracle): at 6 mm
+    predicted 0.0116 (21 / 133), all 0.031 (34 / 242), tilt 0.0157 (27 / 129); at 2 cm
+    0.0156 (11 / 40), 0.049 (27 / 181), 0.020 (11 / 42); ATE 14.5x / 46x / 25x (6 mm),
+    7.7x / 32x / 8.5x (2 cm). Tilt: outdoor worlds better (6 mm: world 3 0.029 -> 0.0049
+    deg, 11 0.0034 -> 0.0011, 15 0.0105 -> 0.0043, 17 0.022 -> 0.0062), the indoor 16-beam
+    ones worse (1 0.015 -> 0.072, 13 0.0052 -> 0.055, 19 0.013 -> 0.111)."""
     deskew_rate_tolerance_deg_s: Positive = 0.5
     """Re-extract when the epoch's own angular rate differs from the one it was deskewed
     with by more than this, deg/s (0.5 deg/s smears a point 20 m away by 1.7 cm at 10 Hz;

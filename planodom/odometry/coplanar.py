@@ -36,6 +36,11 @@ from planodom.scan import Scan
 POINT_SIGMA_FLOOR_M = 1e-3
 #: Floor of the prior's sigmas (rad/s, m/s): a twist refined from a step is not exact.
 PRIOR_SIGMA_FLOOR = (np.radians(0.05), 0.01)
+#: ``odometry.coplanar_axes: tilt``: the twist's components kept at the prior (yaw rate,
+#: horizontal velocity, base frame z up) and the information that holds them there
+#: (rad/s, m/s)^-2: far above any the planes give.
+HELD_AXES = (2, 3, 4)
+HELD_INFORMATION = 1e12
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,17 +57,19 @@ class CoplanarExtraction:
     fit: TwistFit | None
 
 
-def prior_information(sigma: tuple[float, float] | None) -> np.ndarray:
+def prior_information(sigma: tuple[float, float] | None, scale: float = 1.0) -> np.ndarray:
     """(6, 6) diagonal information of a twist whose angular rate and linear velocity are
     off by ``sigma`` (rad/s, m/s) per the model of :mod:`.twist_sigma` (the sigma of the
-    vector: a third of its square per axis); zeros for an unknown (inf or None) sigma."""
+    vector: a third of its square per axis), both sigmas times ``scale`` (> 0,
+    ``odometry.coplanar_prior_scale``) after their floors; zeros for an unknown (inf or
+    None) sigma."""
     info = np.zeros(6)
     if sigma is None:
         return np.diag(info)
     for block, s, floor in ((slice(0, 3), sigma[0], PRIOR_SIGMA_FLOOR[0]),
                             (slice(3, 6), sigma[1], PRIOR_SIGMA_FLOOR[1])):  # fmt: skip
         if np.isfinite(s):
-            info[block] = 3.0 / max(float(s), floor) ** 2
+            info[block] = 3.0 / (scale * max(float(s), floor)) ** 2
     return np.diag(info)
 
 
@@ -84,7 +91,9 @@ def coplanar_extraction(
     found = extract(scan, ecfg, twist, sensor_origins)
     if scan.t is None:
         return CoplanarExtraction(found.planes, np.asarray(twist, dtype=float), None)
-    P = prior_information(sigma)
+    P = prior_information(sigma, ocfg.coplanar_prior_scale)
+    if ocfg.coplanar_axes == "tilt":
+        P[HELD_AXES, HELD_AXES] = HELD_INFORMATION
     used, fit = np.asarray(twist, dtype=float), None
     for _ in range(ocfg.coplanar_passes):
         if not found.inliers:

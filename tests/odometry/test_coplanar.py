@@ -114,3 +114,24 @@ def _moved(scene, xi, t):
     T = invert_transform(se3_exp(t * xi))
     R, p = T[:3, :3], T[:3, 3]
     return [Rect(R @ r.center + p, R @ r.normal, R @ r.u, r.half_u, r.half_v) for r in scene]
+
+
+def test_prior_information_scale_multiplies_the_sigmas():
+    base = np.diag(prior_information((0.02, 0.5)))
+    np.testing.assert_allclose(np.diag(prior_information((0.02, 0.5), 3.0)), base / 9.0)
+    floored = np.diag(prior_information((0.0, 0.0), 2.0))
+    np.testing.assert_allclose(floored[:3], 3 / (2 * PRIOR_SIGMA_FLOOR[0]) ** 2)
+
+
+def test_tilt_axes_keep_the_yaw_rate_and_horizontal_velocity_of_the_prior():
+    # The rig's scan at sigma = 0 from a prediction OFF away: with coplanar_axes "tilt" the
+    # yaw rate and horizontal velocity stay the prediction's, the other three are fit
+    # towards the truth XI (closer than the prediction); with "all" all six move.
+    scan = scan_rig(default_scene(), twist=XI)
+    sigma = (np.radians(5.0), 0.5)
+    tilt = COPLANAR.updated({"odometry.coplanar_axes": "tilt"})
+    got = coplanar_extraction(scan, tilt, XI + OFF, sigma).twist
+    np.testing.assert_allclose(got[[2, 3, 4]], (XI + OFF)[[2, 3, 4]], atol=1e-6)
+    assert np.all(np.abs(got - XI)[[0, 1, 5]] < np.abs(OFF[[0, 1, 5]]))
+    free = coplanar_extraction(scan, COPLANAR, XI + OFF, sigma).twist
+    assert np.all(np.abs(free - XI)[[2, 3, 4]] < 0.5 * np.abs(OFF[[2, 3, 4]]))
