@@ -352,6 +352,11 @@ class SmoothingConfig(Section):
     loop_gate_quantile: Fraction = 0.999
     """After optimisation, a re-identified observation whose squared whitened error exceeds
     this quantile of chi2(3) is removed and the graph solved again."""
+    odometry_deskew_twist: Literal["coplanar", "odometry"] = "odometry"
+    """Batch (offline, ``planodom smooth``): the twist the odometry it runs deskews each
+    epoch with. "coplanar": ``odometry.deskew_twist: coplanar`` (the twist fit to the
+    epoch's own planes, slower); "odometry": as ``odometry.deskew_twist`` says (the
+    streaming default). The fixed-lag smoother (online) always keeps the odometry's."""
     redeskew_passes: Annotated[int, Field(ge=0, le=3)] = 0
     """Batch, on scans with point times: after smoothing, deskew every scan again along a
     curve through the smoothed poses (:func:`planodom.odometry.run.redeskewed_run`), run
