@@ -3,7 +3,8 @@
 For each world (:func:`planodom.experiments.generalisation.world_for`) and range noise, one
 lap is simulated (continuous motion) and compared, side by side:
 
-- ``odometry``: planodom's delta = 1 odometry, chained;
+- ``odometry``: planodom's delta = 1 odometry, chained, as the batch smoothing runs it
+  (``smoothing.odometry_deskew_twist``; every smoothing row uses its planes and steps);
 - ``windowed``: the fixed-lag smoother, relative poses delta = 1..D;
 - ``windowed+loops``: the same with fixed-lag loop closure
   (:mod:`planodom.smoothing.windowed_loops`, ``smoothing.windowed_loop_closure``);
@@ -48,7 +49,7 @@ from planodom.oracle import run_oracle
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.batch import group_by_epoch, smooth_batch
 from planodom.smoothing.loop_records import loop_factor_counts, reidentification_counts
-from planodom.smoothing.run import run_smoothing, smoothing_relatives
+from planodom.smoothing.run import run_smoothing, smoothing_config, smoothing_relatives
 from planodom.smoothing.windowed import WindowedSmoother, smooth_windowed
 
 METHODS = ("odometry", "windowed", "windowed+loops", "batch", "batch+loops",
@@ -141,7 +142,7 @@ def run_loop_world(
     world = world_for(index)
     full = simulate_world(world, noise, n_epochs=n_epochs, all_fields=True)
     gt = invert_transform(full.poses[0])[None] @ full.poses
-    odo = run_odometry(world_fields(world, full), config)
+    odo = run_odometry(world_fields(world, full), smoothing_config(config))
     relatives = smoothing_relatives(odo, config)
     oracle = run_oracle(full.scans, full.times, world.trajectory, world.scene)
     same = coplanar(world.scene)

@@ -49,11 +49,12 @@ class CoplanarExtraction:
 
     Attributes:
         planes: the planes of the last extraction. twist: (6,) the twist it was
-            deskewed with (rad/s, m/s). fit: the last twist fit (None: none was made).
+            deskewed with (rad/s, m/s; None: not deskewed). fit: the last twist fit
+            (None: none was made).
     """
 
     planes: list[Plane]
-    twist: np.ndarray
+    twist: np.ndarray | None
     fit: TwistFit | None
 
 
@@ -76,7 +77,7 @@ def prior_information(sigma: tuple[float, float] | None, scale: float = 1.0) -> 
 def coplanar_extraction(
     scan: Scan,
     config: PlanodomConfig,
-    twist: np.ndarray,
+    twist: np.ndarray | None,
     sigma: tuple[float, float] | None,
     sensor_origins: np.ndarray | None = None,
     extraction: ExtractionConfig | None = None,
@@ -84,22 +85,25 @@ def coplanar_extraction(
     """Extract ``scan`` deskewed with ``twist`` (6,), fit the twist to its planes with
     ``twist`` as the prior of sigma ``sigma`` (rad/s, m/s; :func:`prior_information`),
     and extract again with the fit, ``odometry.coplanar_passes`` times (module
-    docstring). ``extraction``: the extraction config to use (default
+    docstring). ``twist`` None (the first epoch, no motion known yet): the first
+    extraction is not deskewed and the prior is a zero twist (``sigma``, e.g.
+    :data:`FIRST_EPOCH_SIGMA`). ``extraction``: the extraction config to use (default
     ``config.extraction``; the odometry may widen its tolerances)."""
     ecfg = config.extraction if extraction is None else extraction
     ocfg = config.odometry
     found = extract(scan, ecfg, twist, sensor_origins)
+    used = None if twist is None else np.asarray(twist, dtype=float)
     if scan.t is None:
-        return CoplanarExtraction(found.planes, np.asarray(twist, dtype=float), None)
+        return CoplanarExtraction(found.planes, used, None)
     P = prior_information(sigma, ocfg.coplanar_prior_scale)
     if ocfg.coplanar_axes == "tilt":
         P[HELD_AXES, HELD_AXES] = HELD_INFORMATION
-    used, fit = np.asarray(twist, dtype=float), None
+    prior, fit = np.zeros(6) if used is None else used, None
     for _ in range(ocfg.coplanar_passes):
         if not found.inliers:
             break
         s = max(found.sigma_m, POINT_SIGMA_FLOOR_M)
-        fit = fit_twist(scan.points, scan.t, found.inliers, twist, P, s, ocfg.coplanar_iterations)
+        fit = fit_twist(scan.points, scan.t, found.inliers, prior, P, s, ocfg.coplanar_iterations)
         used = fit.twist
         if ocfg.coplanar_planes == "refit":
             found = refit(found, scan, ecfg, used, sensor_origins)
@@ -113,7 +117,7 @@ def coplanar_by(
     scan: Scan,
     config: PlanodomConfig,
     extraction: ExtractionConfig,
-    twist: np.ndarray,
+    twist: np.ndarray | None,
     sigma: tuple[float, float] | None,
     sensor_origins: np.ndarray | None,
 ) -> CoplanarExtraction | None:

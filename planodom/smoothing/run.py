@@ -189,6 +189,14 @@ def epoch_time_spread(odometry: OdometryRun) -> list[bool | None]:
     return [None if r is None else r.time_spread for r in odometry.results]
 
 
+def smoothing_config(config: PlanodomConfig, mode: str = "batch") -> PlanodomConfig:
+    """``config`` with the odometry the smoothing in ``mode`` runs: in batch, deskewed as
+    ``smoothing.odometry_deskew_twist`` says."""
+    if mode == "batch" and config.smoothing.odometry_deskew_twist == "coplanar":
+        return config.updated({"odometry.deskew_twist": "coplanar"}, source="smoothing")
+    return config
+
+
 def run_smoothing(
     source: EpochSequence,
     config: PlanodomConfig | None = None,
@@ -226,7 +234,7 @@ def run_smoothing(
         changes["smoothing.window"] = window
     if delta is not None:
         changes["smoothing.delta_max"] = delta
-    cfg = (config or PlanodomConfig()).updated(changes, source="smoothing")
+    cfg = smoothing_config((config or PlanodomConfig()).updated(changes, source="smoothing"), mode)
     seconds: dict[str, float] = {}
 
     if odometry is None:

@@ -135,3 +135,15 @@ def test_tilt_axes_keep_the_yaw_rate_and_horizontal_velocity_of_the_prior():
     assert np.all(np.abs(got - XI)[[0, 1, 5]] < np.abs(OFF[[0, 1, 5]]))
     free = coplanar_extraction(scan, COPLANAR, XI + OFF, sigma).twist
     assert np.all(np.abs(free - XI)[[2, 3, 4]] < 0.5 * np.abs(OFF[[2, 3, 4]]))
+
+
+def test_without_a_twist_the_first_extraction_is_not_deskewed_and_the_prior_is_zero():
+    # The first epoch (no motion known): extracted in time windows, then fit from a zero
+    # twist with a weak prior (30 deg/s, 10 m/s). The roll and pitch rates are found
+    # (ground truth); the brisk turn's yaw rate (34 deg/s) is not, from zero.
+    scene = default_scene()
+    scan = scan_rig(scene, twist=XI, sigma=0.006, seed=3)
+    got = coplanar_extraction(scan, COPLANAR, None, (np.radians(30.0), 10.0))
+    assert got.fit is not None and got.twist is not None
+    np.testing.assert_allclose(got.twist[:2], XI[:2], atol=0.005)
+    assert coplanar_extraction(scan_rig(scene), COPLANAR, None, None).twist is not None
