@@ -72,7 +72,7 @@ def relative_pose(
     status = Status.DEGENERATE if horizontal > pm.unobserved_translation_m else Status.OK
     sigma_z = float(np.sqrt(cov[5, 5]))
     z_observed = sigma_z <= pm.unobserved_translation_m
-    if status is Status.DEGENERATE and pm.degenerate_translation == "prediction":
+    if (status is Status.DEGENERATE or not z_observed) and pm.degenerate_translation == "prediction":
         T_rel, cov = predicted_along_unobserved(T_rel, cov, odo.velocity, odo.sigmas()[1], pm)
     J = np.zeros((5, 6))
     J[:3, :3] = rpy_jacobian(T_rel[:3, :3])
