@@ -103,7 +103,7 @@ def at_epoch_times(run: OdometryRun, epoch_times: np.ndarray, order: int) -> Odo
     if len(middles) < 2 or np.allclose(middles, epoch_times, rtol=0.0, atol=1e-12):
         return replace(run, times=epoch_times)
     M = run.poses
-    T = np.array([curve_poses(middles, M, t, np.array([t]), order)[0] for t in epoch_times])
+    T = np.array([_pose_at(middles, M, t, order) for t in epoch_times])
     D = invert_transform(M) @ T  # (N, 4, 4) T_mid_epoch
     D_inv = invert_transform(D)
     T = invert_transform(T[0])[None] @ T  # the first pose stays the identity
@@ -114,3 +114,16 @@ def at_epoch_times(run: OdometryRun, epoch_times: np.ndarray, order: int) -> Odo
         results.append(r)
     planes = [[p.transformed(D_inv[k]) for p in ps] for k, ps in enumerate(run.planes)]
     return replace(run, poses=T, times=epoch_times, results=results, planes=planes)
+
+
+def _pose_at(middles: np.ndarray, poses: np.ndarray, t: float, order: int) -> np.ndarray:
+    """``T_world_base`` (4, 4) at the time ``t`` s on the curve through the ``poses``
+    (N, 4, 4) at the ``middles`` (N,) s: of ``order`` between the first and the last
+    middle, the geodesic through the two nearest poses beyond them (the first epoch's
+    time comes before its middle). A polynomial extrapolated outside its nodes multiplies
+    their errors (cubic Lagrange weights half a node spacing before the first node: 2.19,
+    -2.19, 1.31, -0.31, noise gain 3.4 against 1.0 for the geodesic's 1.5, -0.5) and the
+    first pose's error turns the whole run, whose first pose is the identity (issue 11's
+    lidar worlds 7 and 19: ATE 3.4 -> 9.9 mm and 8.7 -> 41 mm with the cubic)."""
+    inside = middles[0] <= t <= middles[-1]
+    return curve_poses(middles, poses, t, np.array([t]), order if inside else 1)[0]
