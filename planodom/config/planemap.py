@@ -90,7 +90,7 @@ class PlanemapConfig(Section):
     VLP-16 corridor walk: 6.4 m in one epoch, 13 sigma off the prediction, where
     KISS-ICP moves 0.5 m); ``registration``: where Gauss-Newton ended (before issue 11).
     A rule of the estimator (the status's meaning), not tuned: OK epochs are unchanged."""
-    reference_time: Literal["epoch", "middle"] = "epoch"
+    reference_time: Literal["epoch", "middle"] = "middle"
     """The time at which each scan is registered (:mod:`planodom.odometry.planemap.midtime`,
     in :func:`planodom.odometry.run.run_odometry`): ``epoch``, the epoch's time (a lidar
     stamped at the start of its sweep: the start); ``middle``, the middle of its points'
