@@ -98,7 +98,14 @@ class PlanemapConfig(Section):
     and the epoch extracted again with its own twist as it is (not averaged with the one
     used: a twist error no longer shifts the scan as a whole). A twist that lags the
     sweep (it comes from the steps before) shifts a scan registered at its start by the
-    error times the points' mean time. Measured in the module's docstring."""
+    error times the points' mean time. Applies only to scans with point times (given, or
+    from a declared ``extraction.sweep``); the 2D rig's pipelines never run it. Measured
+    (``planodom experiment generalisation --worlds 20 --rig lidar --epochs 300``, the
+    ten lidar worlds): better on every world in rotation, xy and ATE at 6 mm and 2 cm;
+    medians 6 mm rotation 21.8x -> 7.0x the oracle (worst 118x -> 52x), xy 2.9x -> 1.7x,
+    ATE 6.4 -> 2.0 mm; 2 cm rotation 9.8x -> 5.6x, xy 2.0x -> 1.2x, ATE 6.9 -> 2.5 mm;
+    front end 2.3x -> 2.0x KISS-ICP's epochs/s (more epochs extracted twice). KITTI raw
+    0005 with its declared sweep: see the module's docstring."""
     motion_bound_gate: bool = False
     """A registration whose step exceeds the motion bounds the run assumes
     (``association.max_translation_m``, ``max_rotation_deg``, the rig's motion_bounds)
