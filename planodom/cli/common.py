@@ -142,9 +142,9 @@ TimeField = Annotated[
     str,
     typer.Option(
         "--time-field",
-        help="Bags: the clouds' per-point time field: auto (t, time, timestamp, offset_time, "
-        "time_stamp), none (ignore them: e.g. a sensor clock that is not the stamps'), or a "
-        "field name.",
+        help="Bags and scan files: the per-point time field: auto (t, time, timestamp, "
+        "offset_time, time_stamp), none (ignore them: e.g. a sensor clock that is not the "
+        "stamps'), or a field name.",
     ),
 ]
 BinLayoutOption = Annotated[

@@ -12,7 +12,7 @@ import numpy as np
 import yaml
 
 from planodom.datasets.bin_scan import check_bin_layout
-from planodom.datasets.scan_io import SCAN_EXTENSIONS, read_scan, write_scan
+from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
 from planodom.outputs import atomic_folder
@@ -45,6 +45,8 @@ class Dataset:
         rig: the typed ``rig.yaml`` (:class:`planodom.rig.Rig`; ``Rig()`` when there is none).
         bin_layout: how ``.bin`` scans are read: ``auto``, ``kitti`` or ``nuscenes``
             (:mod:`planodom.datasets.bin_scan`).
+        time_field: the scans' per-point time field: ``auto``, ``none`` (ignored) or a
+            field name (:func:`planodom.datasets.scan_io.read_scan`).
     """
 
     def __init__(
@@ -55,9 +57,11 @@ class Dataset:
         gt_poses: np.ndarray | None = None,
         rig: Rig | None = None,
         bin_layout: str = "auto",
+        time_field: str = "auto",
     ) -> None:
         self.path = Path(path)
         self.bin_layout = check_bin_layout(bin_layout)
+        self.time_field = check_time_field(time_field)
         self.scan_files = list(scan_files)
         self.times = np.asarray(times, dtype=np.float64)
         self.gt_poses = gt_poses
@@ -76,7 +80,7 @@ class Dataset:
         if not -n <= index < n:
             raise IndexError(f"epoch {index} out of range for {n} epochs")
         file = self.scan_files[index]
-        scan = read_scan(file, self.bin_layout, float(self.times[index]))
+        scan = read_scan(file, self.bin_layout, float(self.times[index]), self.time_field)
         origins = self.rig.sensor_origins
         if origins is not None and len(origins) > 1:  # per ring: the rings must index them
             rig_file = self.path / RIG_FILE
@@ -106,13 +110,14 @@ class Dataset:
             raise DatasetError(
                 f"{self.scan_files[index]}: point times ('t') reach {far:g} s from the epoch's "
                 f"reference time, {far / period:.0f} epoch periods of {period:g} s: another "
-                "clock or unit (integer Unix seconds read as nanoseconds?)"
+                "clock or unit (integer Unix seconds read as nanoseconds?; --time-field none "
+                "ignores them)"
             )
         if period > 0 and span >= MAX_TIME_SPAN_PERIODS * period:
             raise DatasetError(
                 f"{self.scan_files[index]}: point times ('t') span {span:g} s, "
                 f"{span / period:.0f} epoch periods of {period:g} s: the time field is in "
-                "another unit (milliseconds?); convert it to seconds"
+                "another unit (milliseconds?); convert it to seconds (or --time-field none)"
             )
 
     def __iter__(self) -> Iterator[Scan]:
@@ -124,7 +129,7 @@ class Dataset:
         return f"Dataset({str(self.path)!r}, {len(self)} epochs, {gt} ground truth)"
 
 
-def load_dataset(path: str | Path, bin_layout: str = "auto") -> Dataset:
+def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "auto") -> Dataset:
     """Open a dataset directory; scans are read only when indexed.
 
     ``path`` is either a dataset (scan files in ``path/scans/``) or a directory of scan
@@ -135,7 +140,8 @@ def load_dataset(path: str | Path, bin_layout: str = "auto") -> Dataset:
     Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else
     ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else
     ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s). ``bin_layout`` tells how ``.bin`` scans are read
-    (:mod:`planodom.datasets.bin_scan`).
+    (:mod:`planodom.datasets.bin_scan`), ``time_field`` which field holds the point times
+    (``auto``, ``none`` or a name, :func:`planodom.datasets.scan_io.read_scan`).
 
     Raises:
         DatasetError: naming the file, when ``path`` is missing, there are no scan files,
@@ -163,7 +169,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto") -> Dataset:
     else:
         _check_numbering(scan_files)
         times = epoch_times(len(scan_files), rig)
-    return Dataset(root, scan_files, times, gt_poses, rig, bin_layout)
+    return Dataset(root, scan_files, times, gt_poses, rig, bin_layout, time_field)
 
 
 def read_times(path: str | Path, n_epochs: int) -> np.ndarray:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from planodom.datasets.bin_scan import check_bin_layout
-from planodom.datasets.scan_io import read_scan
+from planodom.datasets.scan_io import check_time_field, read_scan
 from planodom.errors import DatasetError
 from planodom.rig import Rig
 from planodom.scan import Scan
@@ -136,9 +136,11 @@ class KittiSequence:
         gt_poses: np.ndarray | None,
         gt_file: Path | None,
         bin_layout: str = "kitti",
+        time_field: str = "auto",
     ) -> None:
         self.path = path
         self.bin_layout = check_bin_layout(bin_layout)
+        self.time_field = check_time_field(time_field)
         self.scan_files = scan_files
         self.times = times
         self.Tr = Tr
@@ -158,7 +160,7 @@ class KittiSequence:
         n = len(self)
         if not -n <= index < n:
             raise IndexError(f"epoch {index} out of range for {n} epochs")
-        return read_scan(self.scan_files[index], self.bin_layout)
+        return read_scan(self.scan_files[index], self.bin_layout, time_field=self.time_field)
 
     def __repr__(self) -> str:
         gt = "with" if self.gt_poses is not None else "without"
@@ -174,11 +176,14 @@ def kitti_pose_file(path: str | Path) -> Path | None:
     return None
 
 
-def load_kitti_sequence(path: str | Path, bin_layout: str = "kitti") -> KittiSequence:
+def load_kitti_sequence(
+    path: str | Path, bin_layout: str = "kitti", time_field: str = "auto"
+) -> KittiSequence:
     """Open a KITTI odometry sequence folder (see the module docstring).
 
     ``bin_layout``: how its ``.bin`` scans are read; KITTI's own layout unless told
-    otherwise (``auto`` or ``nuscenes``, :mod:`planodom.datasets.bin_scan`).
+    otherwise (``auto`` or ``nuscenes``, :mod:`planodom.datasets.bin_scan`); ``time_field``:
+    the scans' point time field (:func:`planodom.datasets.scan_io.read_scan`).
 
     Raises:
         DatasetError: naming the file: no ``velodyne/*.bin`` files, a bad ``calib.txt``,
@@ -210,7 +215,7 @@ def load_kitti_sequence(path: str | Path, bin_layout: str = "kitti") -> KittiSeq
         if len(P) != len(files):
             raise DatasetError(f"{gt_file}: {len(P)} poses for {len(files)} scans")
         gt = velo_poses_from_camera(P, Tr)
-    return KittiSequence(path, files, times, Tr, gt, gt_file, bin_layout)
+    return KittiSequence(path, files, times, Tr, gt, gt_file, bin_layout, time_field)
 
 
 def _homogeneous(M: np.ndarray) -> np.ndarray:

@@ -46,8 +46,9 @@ def open_recording(
 
     Args:
         path: the recording (see the module docstring).
-        options: bags only: base frame, epoch rate (Hz), scan topics and reference
-            (:class:`~planodom.datasets.bag_options.BagOptions`; None: the defaults).
+        options: bags: base frame, epoch rate (Hz), scan topics and reference
+            (:class:`~planodom.datasets.bag_options.BagOptions`; None: the defaults); its
+            ``time_field`` applies to scan files too (``none``: their point times ignored).
         bin_layout: ``.bin`` scan files only: ``auto`` (from each file's size and columns;
             a KITTI sequence is read in KITTI's layout), ``kitti`` or ``nuscenes``
             (:mod:`planodom.datasets.bin_scan`).
@@ -62,9 +63,11 @@ def open_recording(
         if bin_layout != "auto":
             raise DatasetError(f"{path} is a bag: --bin-layout applies to .bin scan files only")
         return open_bag(path, options)
-    given = options.given() if options is not None else []
+    given = [g for g in (options.given() if options is not None else []) if g != "time_field"]
+    time_field = options.time_field if options is not None else "auto"
     if given:
         raise DatasetError(f"{path} is not a bag: options {', '.join(given)} apply to bags only")
     if kind == "kitti":
-        return load_kitti_sequence(path, "kitti" if bin_layout == "auto" else bin_layout)
-    return load_dataset(path, bin_layout)
+        layout = "kitti" if bin_layout == "auto" else bin_layout
+        return load_kitti_sequence(path, layout, time_field)
+    return load_dataset(path, bin_layout, time_field)

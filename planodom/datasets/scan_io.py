@@ -73,8 +73,18 @@ UNIX_TIME_RANGE_S = (1e8, 4.2e9)
 MAX_SWEEP_OFFSET_S = 10.0
 
 
+def check_time_field(time_field: str) -> str:
+    """``time_field`` (``auto``, ``none`` or a field name), or DatasetError naming it."""
+    if not (isinstance(time_field, str) and time_field.strip()):
+        raise DatasetError(f"time field must be auto, none or a field name, got {time_field!r}")
+    return time_field
+
+
 def read_scan(
-    file: str | Path, bin_layout: str = "auto", reference_time: float | None = None
+    file: str | Path,
+    bin_layout: str = "auto",
+    reference_time: float | None = None,
+    time_field: str = "auto",
 ) -> Scan:
     """Read one scan file (``.ply``, ``.pcd`` or a KITTI / nuScenes ``.bin``).
 
@@ -84,6 +94,9 @@ def read_scan(
             file's size and columns, :func:`planodom.datasets.bin_scan.read_bin`).
         reference_time: the epoch's reference time, s, which absolute point times are
             made relative to when it is a Unix time too (see the module docstring).
+        time_field: the per-point time field: ``auto`` (the first of :data:`TIME_FIELDS`
+            present), ``none`` (ignore the file's point times: a driver's clock that is not
+            the epochs', or times nobody trusts) or a field name the file must have.
 
     Returns:
         A :class:`Scan`: points (N, 3) float64 (float32 files widened exactly), with
@@ -92,9 +105,11 @@ def read_scan(
     Raises:
         DatasetError: naming the file, when it is missing, has an unknown extension,
             does not parse, is truncated or has NaN / infinite coordinates or times,
-            or is a ``.bin`` of a layout ``auto`` cannot tell.
+            or is a ``.bin`` of a layout ``auto`` cannot tell; or has no field
+            ``time_field``.
     """
     path = Path(file)
+    check_time_field(time_field)
     suffix = _suffix(path, SCAN_EXTENSIONS, "unknown scan file extension")
     if not path.is_file():
         raise DatasetError(f"{path}: scan file does not exist")
@@ -105,7 +120,7 @@ def read_scan(
             fields = {".ply": read_ply_vertices, ".pcd": read_pcd}[suffix](path)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read scan file ({exc.strerror})") from None
-    return _scan_from_fields(path, fields, reference_time)
+    return _scan_from_fields(path, fields, reference_time, time_field)
 
 
 def write_scan(file: str | Path, scan: Scan, points_dtype: type[np.floating] = np.float64) -> None:
@@ -150,7 +165,10 @@ def _suffix(path: Path, allowed: tuple[str, ...], problem: str) -> str:
 
 
 def _scan_from_fields(
-    path: Path, fields: dict[str, np.ndarray], reference_time: float | None = None
+    path: Path,
+    fields: dict[str, np.ndarray],
+    reference_time: float | None = None,
+    time_field: str = "auto",
 ) -> Scan:
     missing = [c for c in "xyz" if c not in fields]
     if missing:
@@ -172,7 +190,7 @@ def _scan_from_fields(
             f"beyond {MAX_COORDINATE_M:g} m (not metres, or corrupt)"
         )
     extra = {}
-    time_name = next((n for n in TIME_FIELDS if n in fields), None)
+    time_name = _time_name(path, fields, time_field)
     if time_name is not None:
         extra["t"] = point_times(path, time_name, fields[time_name], reference_time)
     ring_name = next((n for n in RING_FIELDS if n in fields), None)
@@ -190,6 +208,20 @@ def _scan_from_fields(
     if keep is not None:  # a multi-return cloud: the last return of each beam firing
         return Scan(points[keep], **{name: values[keep] for name, values in extra.items()})
     return Scan(points, **extra)
+
+
+def _time_name(path: Path, fields: dict[str, np.ndarray], time_field: str) -> str | None:
+    """The field read as point times (``time_field``: auto, none or a name), or None."""
+    if time_field == "none":
+        return None
+    if time_field == "auto":
+        return next((n for n in TIME_FIELDS if n in fields), None)
+    if time_field not in fields:
+        raise DatasetError(
+            f"{path}: no time field '{time_field}' (fields: {', '.join(fields)}); "
+            "--time-field auto or none"
+        )
+    return time_field
 
 
 def _int32(path: Path, name: str, values: np.ndarray, lowest: int | None) -> np.ndarray:
@@ -224,7 +256,8 @@ def point_times(
         if raw.dtype.itemsize < 8:
             raise DatasetError(
                 f"{path}: point times '{name}' are absolute (Unix) times in {raw.dtype}, "
-                "whose resolution is seconds or worse; store offsets or 64-bit values"
+                "whose resolution is seconds or worse; store offsets or 64-bit values "
+                "(--time-field none ignores them)"
             )
         low, high = UNIX_TIME_RANGE_S
         if reference_time is None or not low <= abs(reference_time) <= high:
@@ -235,7 +268,8 @@ def point_times(
             raise DatasetError(
                 f"{path}: absolute point times '{name}' put a point {worst:.6g} s from the "
                 f"epoch's reference time {reference_time:.6f} s, beyond {MAX_SWEEP_OFFSET_S:g}"
-                " s: the epoch times and the points are on different clocks"
+                " s: the epoch times and the points are on different clocks (--time-field none "
+                "ignores them)"
             )
         return t
     t = raw.astype(np.float64) * (1e-9 if integer else 1.0)
@@ -244,7 +278,8 @@ def point_times(
         raise DatasetError(
             f"{path}: {bad} of {len(t)} point times '{name}' (read as {unit}) are NaN, "
             f"infinite, or neither within {MAX_POINT_TIME_S:g} s of the epoch's reference "
-            f"time nor Unix times ({UNIX_TIME_RANGE_S[0]:g} to {UNIX_TIME_RANGE_S[1]:g} s)"
+            f"time nor Unix times ({UNIX_TIME_RANGE_S[0]:g} to {UNIX_TIME_RANGE_S[1]:g} s; "
+            "--time-field none ignores them)"
         )
     return t
 

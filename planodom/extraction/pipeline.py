@@ -26,6 +26,8 @@ from planodom.extraction.deskew import check_twist, deskew_points
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.lidar.path import lidar_planes
 from planodom.extraction.memo import identity_memo, read_only
+from planodom.extraction.planes.builder import PlaneFits, build_planes
+from planodom.extraction.planes.fit import tls_fit
 from planodom.extraction.rig2d.path import rig2d_planes
 from planodom.geometry import Plane
 from planodom.scan import Scan
@@ -78,6 +80,45 @@ def extract(
     epoch = Epoch(scan, points, origins, xi)
     found = rig2d_planes(epoch, config) if mode == "rig2d" else lidar_planes(epoch, config)
     return _result(found, mode, points)
+
+
+def refit(
+    found: ExtractionResult,
+    scan: Scan,
+    config: ExtractionConfig,
+    twist: np.ndarray,
+    sensor_origins: np.ndarray | None = None,
+) -> ExtractionResult:
+    """The planes of ``found`` (an extraction of ``scan``) fit again to their inliers
+    deskewed with ``twist`` (6,): no new segmentation, the same inlier sets, each plane
+    built as an extraction builds it (plane tests, covariance, orientation, confidence,
+    support; :func:`.planes.builder.build_planes`, without a path's adjustment). For a
+    twist close to the one ``found`` was extracted with (the twist fit to its own planes,
+    :mod:`planodom.extraction.twist_fit`): an extraction again costs its segmentation."""
+    origins = _check_inputs(scan, sensor_origins)
+    xi = check_twist(twist)
+    if not found.inliers or scan.t is None or xi is None:
+        return found
+    points = deskew_points(scan.points, scan.t, xi)
+    sets = [np.asarray(i, dtype=np.int64) for i in found.inliers]
+    fits = [tls_fit(points[i]) for i in sets]
+    centroid = np.array([f[0] for f in fits])
+    evecs = np.array([f[2] for f in fits])
+    inliers = np.concatenate(sets)
+    plane_fits = PlaneFits(
+        count=np.array([len(i) for i in sets], dtype=np.int64),
+        centroid=centroid,
+        offset=-np.einsum("gi,gi->g", evecs[:, :, 2], centroid),
+        evals=np.array([f[1] for f in fits]),
+        evecs=evecs,
+        inliers=inliers,
+        bounds=np.cumsum([0] + [len(i) for i in sets]).astype(np.int64),
+        outline=np.ones(len(inliers), dtype=bool),
+    )
+    epoch = Epoch(scan, points, origins, xi)
+    planes, kept, n_rejected = build_planes(plane_fits, epoch, found.sigma_m, config)
+    path = PathResult(planes, kept, found.sigma_m, found.n_segments, len(sets), n_rejected)
+    return _result(path, found.mode, points)
 
 
 def _result(found: PathResult, mode: str, points: np.ndarray) -> ExtractionResult:

@@ -24,6 +24,7 @@ import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, se3_exp
+from planodom.odometry.coplanar import coplanar_by
 from planodom.odometry.deskew import (
     EpochEstimate,
     centred_times,
@@ -39,7 +40,7 @@ from planodom.odometry.deskew import (
 )
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
-from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened_if_lost
+from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
@@ -224,26 +225,31 @@ class PlaneOdometry:
         return self.times[-1] + self.config.odometry.epoch_period_s
 
     def _extract(
-        self, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None
-    ) -> list[Plane]:
-        """The planes of ``scan`` deskewed with exactly ``twist`` (None: not deskewed),
-        whose error is taken to be ``sigma`` (rad/s, m/s; None: the extraction config's)."""
+        self, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,
+        prior: TwistSigma | None = None,
+    ) -> tuple[list[Plane], np.ndarray | None]:  # fmt: skip
+        """The planes of ``scan`` deskewed with ``twist`` (None: not deskewed), whose error
+        is taken to be ``sigma`` (rad/s, m/s; None: the extraction config's), and the twist
+        used: ``twist``, or with ``odometry.deskew_twist: coplanar`` the one fit to the
+        planes with ``twist`` as the prior of sigma ``prior`` (:mod:`.coplanar`)."""
         if self.extractor is None:
             self.extractor = _default_extractor()
+        config = widened(self.config.extraction, twist, sigma)
+        if twist is not None and self.config.odometry.deskew_twist == "coplanar":
+            got = coplanar_by(
+                self.extractor, scan, self.config, config, twist, prior, self.sensor_origins
+            )
+            if got is not None:  # None: not the default extractor
+                return got.planes, got.twist
         kwargs = {} if self.sensor_origins is None else {"sensor_origins": self.sensor_origins}
-        config = self.config.extraction
-        if sigma is not None and twist is not None:
-            rate = max(config.twist_rate_sigma_deg_s, float(np.degrees(sigma[0])))
-            speed = max(config.twist_speed_sigma_mps, sigma[1])
-            update = {"twist_rate_sigma_deg_s": rate, "twist_speed_sigma_mps": speed}
-            config = config.model_copy(update=update)
-        return list(self.extractor(scan, config, twist=twist, **kwargs))
+        return list(self.extractor(scan, config, twist=twist, **kwargs)), twist
 
     def _new_epoch(
-        self, k: int, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None
-    ) -> _Epoch:
-        planes = self._extract(scan, twist, sigma)
-        return _Epoch(k, planes, PlaneSet.from_planes(planes), scan, twist)
+        self, k: int, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,
+        prior: TwistSigma | None = None,
+    ) -> _Epoch:  # fmt: skip
+        planes, used = self._extract(scan, twist, sigma, prior)
+        return _Epoch(k, planes, PlaneSet.from_planes(planes), scan, used)
 
     def _estimate_scan(
         self,
@@ -260,7 +266,7 @@ class PlaneOdometry:
         if source is not None and twist is not None and self.times:
             sigma = self._twist_sigma.refined(source, t - self.times[-1], twist)
         k, mode = len(self.poses), self.config.odometry.twist_sigma
-        extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s), t)  # noqa: E731
+        extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s, sigma), t)  # noqa: E731
         dt, ocfg = t - self.times[-1], self.config.odometry
         agrees = partial(self._twist_sigma.consistent, dt=dt, prediction=self.twist, config=ocfg)
         return widened_if_lost(extract, sigma, mode, len(self.last_planes), agrees)
@@ -335,7 +341,7 @@ class PlaneOdometry:
             return False  # the map holds the epoch's planes: only the first is seeded again
         was = ref.index in self.superseded
         self._undo = (ref, ref.planes, ref.plane_set, was, self._last_usable)
-        ref.planes, ref.twist = self._extract(ref.scan, twist), twist
+        ref.planes, ref.twist = self._extract(ref.scan, twist, prior=self._twist_sigma.predicted())
         ref.plane_set = PlaneSet.from_planes(ref.planes)
         if self._map is not None:
             self._map.reseed(ref.planes)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Protocol, cast
+from typing import Protocol, TypeVar, cast
 
 import numpy as np
 
@@ -25,6 +25,8 @@ from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.splice import spliced, unconverged
 from planodom.rig import MotionBounds, Rig
 from planodom.scan import Scan
+
+T = TypeVar("T")
 
 
 class EpochSequence(Protocol):
@@ -415,7 +417,12 @@ class _TimedExtractor:
     def __call__(self, *args: object, **kwargs: object) -> list[Plane]:
         if self.extractor is None:
             self.extractor = _default_extractor()
+        return self.timed(self.extractor, *args, **kwargs)
+
+    def timed(self, function: Callable[..., T], *args: object, **kwargs: object) -> T:
+        """``function(*args, **kwargs)``, its wall time added to ``seconds`` (the
+        odometry's own extractions, ``odometry.deskew_twist: coplanar``)."""
         c0 = _time.perf_counter()
-        out = self.extractor(*args, **kwargs)
+        out = function(*args, **kwargs)
         self.seconds += _time.perf_counter() - c0
         return out

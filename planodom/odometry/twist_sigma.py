@@ -39,7 +39,7 @@ from typing import Literal
 import numpy as np
 from scipy.stats import chi2
 
-from planodom.config import OdometryConfig
+from planodom.config import ExtractionConfig, OdometryConfig
 from planodom.geometry import se3_exp
 from planodom.odometry.deskew import EpochEstimate, keep_first, prefer_streaming
 from planodom.odometry.relative import RelativePose, Status
@@ -233,3 +233,17 @@ def widened_if_lost(
         return tight
     wide = estimate(sigma)
     return tight if keep_first(tight, wide) or not consistent(wide) else wide
+
+
+def widened(
+    config: ExtractionConfig, twist: np.ndarray | None, sigma: TwistSigma | None
+) -> ExtractionConfig:
+    """``config`` with its twist sigmas raised to ``sigma`` (rad/s, m/s) for an extraction
+    deskewed with ``twist`` (unchanged without either): the 2D-rig path widens its
+    tolerances by the smear they leave."""
+    if sigma is None or twist is None:
+        return config
+    rate = max(config.twist_rate_sigma_deg_s, float(np.degrees(sigma[0])))
+    speed = max(config.twist_speed_sigma_mps, sigma[1])
+    update = {"twist_rate_sigma_deg_s": rate, "twist_speed_sigma_mps": speed}
+    return config.model_copy(update=update)

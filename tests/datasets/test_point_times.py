@@ -98,3 +98,29 @@ def test_integer_unix_seconds_read_as_nanoseconds_refused(tmp_path: Path) -> Non
     _dataset(tmp_path, [np.full(50, int(T0), np.uint32)] * 2, None)
     with pytest.raises(DatasetError, match=r"000000\.pcd: point times .*another clock or unit"):
         load_dataset(tmp_path)[0]
+
+
+def test_time_field_none_ignores_refused_times(tmp_path: Path) -> None:
+    # the times of another clock are refused by default; --time-field none reads the points
+    # (the same coordinates as the file) without them
+    _dataset(tmp_path, [T0 + 3600 + OFFSETS, T0 + 3600.1 + OFFSETS], [T0, T0 + 0.1])
+    with pytest.raises(DatasetError, match=r"--time-field none ignores them"):
+        load_dataset(tmp_path)[0]
+    scan = load_dataset(tmp_path, time_field="none")[0]
+    assert scan.t is None
+    expected = np.random.default_rng(0).uniform(-10, 10, (len(OFFSETS), 3))  # as _pcd drew
+    np.testing.assert_array_equal(scan.points, expected)
+
+
+def test_time_field_by_name(tmp_path: Path) -> None:
+    # two time-like fields: auto takes the first of TIME_FIELDS ('t'), a name picks the other
+    rng = np.random.default_rng(1)
+    xyz = rng.uniform(-10, 10, (len(OFFSETS), 3))
+    fields = {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "t": OFFSETS, "stamp_rel": -OFFSETS}
+    write_pcd(tmp_path / "a.pcd", fields)
+    np.testing.assert_array_equal(read_scan(tmp_path / "a.pcd").t, OFFSETS)
+    np.testing.assert_array_equal(read_scan(tmp_path / "a.pcd", time_field="stamp_rel").t, -OFFSETS)
+    with pytest.raises(DatasetError, match=r"a\.pcd: no time field 'offset'.*fields: x, y, z"):
+        read_scan(tmp_path / "a.pcd", time_field="offset")
+    with pytest.raises(DatasetError, match="time field must be auto, none or a field name"):
+        read_scan(tmp_path / "a.pcd", time_field=" ")

@@ -39,3 +39,12 @@ def test_bag_options_on_other_recordings(tmp_path: Path) -> None:
     seq = make_sequence(tmp_path, poses_beside=True)
     with pytest.raises(DatasetError, match="gt_topic apply to bags only"):
         open_recording(seq, BagOptions(gt_topic="/odom"))
+
+
+def test_time_field_reaches_scan_files(tmp_path: Path) -> None:
+    # --time-field is a bag option that scan-file recordings honour too
+    seq = make_sequence(tmp_path, poses_beside=True)
+    with pytest.raises(DatasetError, match=r"\.bin: no time field 'time'"):
+        open_recording(seq, BagOptions(time_field="time"))[0]
+    plain, ignored = open_recording(seq)[0], open_recording(seq, BagOptions(time_field="none"))[0]
+    np.testing.assert_array_equal(plain.points, ignored.points)

@@ -12,9 +12,13 @@ outer loop) with the gates fixed per scan.
 
 Gauss-Newton: the four moment residuals per association (:mod:`.moments`), each whitened
 by its variance (plane noise with the laser bias, plus the landmark's own uncertainty at
-the moved centroid / along the moved axes), Cauchy weights on the whitened chi of the
+the moved centroid / along the moved axes) times the scan's robust residual scale
+(:func:`residual_scale`, at least 1: the variances honest when the whole scan disagrees
+more than its model says), Cauchy weights on the whitened chi of the
 offset and the two tilt residuals (the thickness residual is the plane's own noise and
-carries no pose information to first order: it stays in the sum, not in the kernel).
+carries no pose information to first order: it stays in the sum, not in the kernel);
+the associations that end as outliers (weight at most 0.5) are then dropped and the rest
+solved again (:func:`solve`).
 The step is solved on the eigenvalues of the (length-scaled) information: a direction with
 no information keeps its value (the prediction).
 """
@@ -143,7 +147,65 @@ def solve(
     config: PlanemapConfig,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Robust Gauss-Newton of the associations (scan plane ``jj[k]`` -> landmark
-    ``lm[k]``) from ``T0``: the pose, its information (6, 6) and the Cauchy weights."""
+    ``lm[k]``) from ``T0``: the pose, its information (6, 6) and the weights (m,).
+
+    With ``config.outliers`` ``dropped`` (``PlanemapConfig.outliers``), the associations
+    it ends with a Cauchy weight of at most 0.5 (outliers: whitened residuals, in units
+    of the scan's residual scale, beyond twice the kernel scale; what
+    :attr:`Registration.inliers` and the map update leave out) are dropped and the rest
+    solved again, until the set repeats (at most ``association_rounds``); the dropped
+    ones get weight 0. The Cauchy kernel alone lets every outlier keep a pull of ``c^2 /
+    chi`` (as much as an inlier at chi ~ 1 for chi ~ 4 c): on a parked lidar a handful
+    of wrong associations (fragments of curved surfaces at a few metres, matched through
+    the wide gates of their poorly defined normals) moved it 5-24 cm along the one
+    direction only they observe, at 7 of the information's sigmas; and the information
+    (the covariance reported) must be that of the associations the pose rests on.
+    Without the residual scale the same rule dropped the walls of a hand-held corridor
+    walk (5 cm off at 0.5 cm model sigmas, all of them) and left it degenerate; with it
+    that walk is as before or better."""
+    T, H, w = _gauss_newton(M, T0, cur, lm, jj, config)
+    if config.outliers == "kernel":
+        return T, H, w
+    keep = w > 0.5
+    for _ in range(config.association_rounds):
+        if keep.all() or np.count_nonzero(keep) < 3:
+            break
+        T, H, w_kept = _gauss_newton(M, T, cur, lm[keep], jj[keep], config)
+        w = np.zeros(len(lm))
+        w[keep] = w_kept
+        if np.array_equal(w > 0.5, keep):
+            break
+        keep = w > 0.5
+    return T, H, w
+
+
+#: Median of a chi-square variable with 3 degrees of freedom, divided by 3: the median of
+#: an association's mean squared whitened residual (offset and two tilts) when its model
+#: variances are right (scipy.stats.chi2.median(3) / 3).
+_MEDIAN_CHI2_3 = 2.3659738843753377 / 3.0
+
+
+def residual_scale(chi2: np.ndarray) -> float:
+    """The factor (at least 1) by which the associations' residuals (m,) mean squared
+    whitened residuals ``chi2`` exceed their model variances, robustly: ``median(chi2)``
+    over the median it has when the model is right. A scan whose planes all disagree more
+    than their noise model says (a fast hand-held walk deskewed by a twist a few percent
+    off, map lag) makes every plane less certain, not its best-measured planes outliers;
+    the model variances are never shrunk."""
+    if len(chi2) == 0:
+        return 1.0
+    return max(1.0, float(np.median(chi2)) / _MEDIAN_CHI2_3)
+
+
+def _gauss_newton(
+    M: PlaneMap,
+    T0: np.ndarray,
+    cur: ScanPlanes,
+    lm: np.ndarray,
+    jj: np.ndarray,
+    config: PlanemapConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cauchy-weighted Gauss-Newton of all the associations given (see :func:`solve`)."""
     R, t = T0[:3, :3].copy(), T0[:3, 3].copy()
     n, d = M.n[lm], M.d[lm]
     N, c, lam, E = cur.m.N[jj], cur.m.c[jj], cur.lam[jj], cur.E[jj]
@@ -159,8 +221,9 @@ def solve(
         v[:, 0] = s2 + N * M.var_at(lm, x)
         v[:, 1:] = s2[:, None] + lam * np.einsum("mak,mab,mbk->mk", U, M.cov_n[lm], U)
         chi2 = (r[:, 0] ** 2 / v[:, 0] + r[:, 2] ** 2 / v[:, 2] + r[:, 3] ** 2 / v[:, 3]) / 3.0
-        w = 1.0 / (1.0 + chi2 / config.cauchy_scale**2)
-        Wr = w[:, None] / v
+        k2 = residual_scale(chi2)
+        w = 1.0 / (1.0 + chi2 / (k2 * config.cauchy_scale**2))
+        Wr = w[:, None] / (k2 * v)
         H = np.einsum("mk,mki,mkj->ij", Wr, J, J)
         g = np.einsum("mk,mki,mk->i", Wr, J, r)
         ev, V = np.linalg.eigh(H / np.outer(scale, scale))

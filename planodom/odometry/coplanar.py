@@ -1,0 +1,120 @@
+"""An epoch deskewed with the twist its own planes give (``odometry.deskew_twist: coplanar``).
+
+The twist the odometry passes (predicted by constant velocity, or refined from the
+epoch's step) describes the steps around the epoch, not the time its points cover: the
+2D rig's sweeps come after the epoch's reference time, and a route that accelerates, or
+whose yaw rate changes, leaves a deskewing error that is the whole of the 2D rig's error
+at sigma = 0 (issue 11). Here the epoch is extracted with the twist passed, the twist
+that makes each plane's inliers coplanar is fit with the one passed as its prior
+(:func:`planodom.extraction.twist_fit.fit_twist`), and the epoch is extracted again
+with it.
+
+The prior's information is that of the twist sigma the odometry's model gives the twist
+passed (:mod:`planodom.odometry.twist_sigma`: the error of the step it was measured
+from plus the change of the twist between epochs, rms of the run's successive twists);
+an unknown sigma (inf) gives no information. The points' noise is the extraction's
+(``extraction.range_noise_m``, or the epoch's own estimate when larger), at least 1 mm:
+below it the model's own error, a twist constant over the epoch, dominates (0.2-0.9 mm
+rms on the 2D-rig world 0 at sigma = 0, the true surfaces deskewed with the best
+constant twist of each epoch).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from planodom.config import ExtractionConfig, PlanodomConfig
+from planodom.extraction.pipeline import extract, extract_planes, refit
+from planodom.extraction.twist_fit import TwistFit, fit_twist
+from planodom.geometry import Plane
+from planodom.scan import Scan
+
+#: Floor of the point noise of the twist fit, m (module docstring).
+POINT_SIGMA_FLOOR_M = 1e-3
+#: Floor of the prior's sigmas (rad/s, m/s): a twist refined from a step is not exact.
+PRIOR_SIGMA_FLOOR = (np.radians(0.05), 0.01)
+
+
+@dataclass(frozen=True, eq=False)
+class CoplanarExtraction:
+    """The planes of an epoch deskewed with its fitted twist.
+
+    Attributes:
+        planes: the planes of the last extraction. twist: (6,) the twist it was
+            deskewed with (rad/s, m/s). fit: the last twist fit (None: none was made).
+    """
+
+    planes: list[Plane]
+    twist: np.ndarray
+    fit: TwistFit | None
+
+
+def prior_information(sigma: tuple[float, float] | None) -> np.ndarray:
+    """(6, 6) diagonal information of a twist whose angular rate and linear velocity are
+    off by ``sigma`` (rad/s, m/s) per the model of :mod:`.twist_sigma` (the sigma of the
+    vector: a third of its square per axis); zeros for an unknown (inf or None) sigma."""
+    info = np.zeros(6)
+    if sigma is None:
+        return np.diag(info)
+    for block, s, floor in ((slice(0, 3), sigma[0], PRIOR_SIGMA_FLOOR[0]),
+                            (slice(3, 6), sigma[1], PRIOR_SIGMA_FLOOR[1])):  # fmt: skip
+        if np.isfinite(s):
+            info[block] = 3.0 / max(float(s), floor) ** 2
+    return np.diag(info)
+
+
+def coplanar_extraction(
+    scan: Scan,
+    config: PlanodomConfig,
+    twist: np.ndarray,
+    sigma: tuple[float, float] | None,
+    sensor_origins: np.ndarray | None = None,
+    extraction: ExtractionConfig | None = None,
+) -> CoplanarExtraction:
+    """Extract ``scan`` deskewed with ``twist`` (6,), fit the twist to its planes with
+    ``twist`` as the prior of sigma ``sigma`` (rad/s, m/s; :func:`prior_information`),
+    and extract again with the fit, ``odometry.coplanar_passes`` times (module
+    docstring). ``extraction``: the extraction config to use (default
+    ``config.extraction``; the odometry may widen its tolerances)."""
+    ecfg = config.extraction if extraction is None else extraction
+    ocfg = config.odometry
+    found = extract(scan, ecfg, twist, sensor_origins)
+    if scan.t is None:
+        return CoplanarExtraction(found.planes, np.asarray(twist, dtype=float), None)
+    P = prior_information(sigma)
+    used, fit = np.asarray(twist, dtype=float), None
+    for _ in range(ocfg.coplanar_passes):
+        if not found.inliers:
+            break
+        s = max(found.sigma_m, POINT_SIGMA_FLOOR_M)
+        fit = fit_twist(scan.points, scan.t, found.inliers, twist, P, s, ocfg.coplanar_iterations)
+        used = fit.twist
+        if ocfg.coplanar_planes == "refit":
+            found = refit(found, scan, ecfg, used, sensor_origins)
+        else:
+            found = extract(scan, ecfg, used, sensor_origins)
+    return CoplanarExtraction(found.planes, used, fit)
+
+
+def coplanar_by(
+    extractor: Callable[..., object] | None,
+    scan: Scan,
+    config: PlanodomConfig,
+    extraction: ExtractionConfig,
+    twist: np.ndarray,
+    sigma: tuple[float, float] | None,
+    sensor_origins: np.ndarray | None,
+) -> CoplanarExtraction | None:
+    """:func:`coplanar_extraction` when ``extractor`` is the default one
+    (:func:`planodom.extraction.extract_planes`, or a wrapper of it with a ``timed``
+    method that adds up its time, as :func:`planodom.odometry.run.run_odometry` s);
+    None for any other extractor (the fit needs the planes' inliers)."""
+    base = getattr(extractor, "extractor", extractor)
+    if base is not None and base is not extract_planes:
+        return None
+    timed = getattr(extractor, "timed", None)
+    args = (scan, config, twist, sigma, sensor_origins, extraction)
+    return timed(coplanar_extraction, *args) if timed is not None else coplanar_extraction(*args)
