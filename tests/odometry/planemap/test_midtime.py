@@ -116,7 +116,7 @@ def test_middle_reference_on_a_continuous_lidar_run_is_closer_to_the_truth():
     sim = simulate_named("urban-canyon", "lidar32", noise=0.0, seed=1, n_epochs=12,
                          motion="continuous")  # fmt: skip
     base = PlanodomConfig().updated({"planemap.reference_time": "epoch"})
-    middle = PlanodomConfig()  # the default
+    middle = PlanodomConfig().updated({"planemap.reference_time": "middle"})
     at_start = run_odometry(sim.scans, base, sim.rig, times=sim.times)
     at_middle = run_odometry(sim.scans, middle, sim.rig, times=sim.times)
     assert at_middle.statuses[1:] == ["ok"] * 11
