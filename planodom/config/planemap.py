@@ -115,7 +115,17 @@ class PlanemapConfig(Section):
     and the epoch extracted again with its own twist as it is (not averaged with the one
     used: a twist error no longer shifts the scan as a whole). A twist that lags the
     sweep (it comes from the steps before) shifts a scan registered at its start by the
-    error times the points' mean time. Measured in the module's docstring."""
+    error times the points' mean time. Applies only to scans with point times (given, or
+    from a declared ``extraction.sweep``); the 2D rig's pipelines never run it. Measured
+    (``planodom experiment generalisation --worlds 20 --rig lidar --epochs 300``, the
+    ten lidar worlds, ``epoch`` -> ``middle``): better on every world in rotation, xy
+    and ATE at 6 mm and 2 cm; medians 6 mm rotation 21.8x -> 6.5x the oracle (worst 139x
+    -> 51x), xy 2.9x -> 1.7x, ATE 6.5 -> 2.0 mm (28x -> 10x, worst 250x -> 102x); 2 cm
+    rotation 8.5x -> 5.1x, xy 1.9x -> 1.2x, ATE 6.7 -> 2.5 mm (7.6x -> 3.4x); front end
+    2.2x -> 1.9x KISS-ICP's epochs/s (more epochs extracted twice). KITTI raw 0005 with
+    its declared sweep (stamped mid-sweep): RPE rotation 0.0743 -> 0.0760 deg,
+    translation 0.0367 -> 0.0375 m, ATE 1.514 -> 1.515 m (2 % worse); without a sweep
+    (no point times) unchanged. Still off by default for KITTI."""
     motion_bound_gate: bool = False
     """A registration whose step exceeds the motion bounds the run assumes
     (``association.max_translation_m``, ``max_rotation_deg``, the rig's motion_bounds)
