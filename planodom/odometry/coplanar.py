@@ -86,8 +86,9 @@ def coplanar_extraction(
     ``twist`` as the prior of sigma ``sigma`` (rad/s, m/s; :func:`prior_information`),
     and extract again with the fit, ``odometry.coplanar_passes`` times (module
     docstring). ``twist`` None (the first epoch, no motion known yet): the first
-    extraction is not deskewed and the prior is a zero twist (``sigma``, e.g.
-    :data:`FIRST_EPOCH_SIGMA`). ``extraction``: the extraction config to use (default
+    extraction is not deskewed and the prior is a zero twist of sigma ``sigma`` (a
+    vehicle's plausible rates; not used by the odometry, see ``smoothing.
+    odometry_deskew_twist``'s figures). ``extraction``: the extraction config to use (default
     ``config.extraction``; the odometry may widen its tolerances)."""
     ecfg = config.extraction if extraction is None else extraction
     ocfg = config.odometry
