@@ -41,6 +41,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from planodom.extraction.deskew import check_twist, deskew_points
@@ -173,35 +174,97 @@ def normal_equations(
     from times ``t`` (M,, seconds), plane g holding ``p[bounds[g]:bounds[g + 1]]``
     ((G + 1,) int64), and their rms residual (m) after each plane's TLS refit. ``b`` is
     half the gradient of the planes' summed TLS residuals (smallest scatter eigenvalues)
-    with the twist, ``H`` their Gauss-Newton half Hessian."""
-    starts = bounds[:-1]
-    count = np.diff(bounds).astype(np.float64)
-    seg = np.repeat(np.arange(len(count)), np.diff(bounds))
-    c = np.add.reduceat(p, starts, axis=0) / count[:, None]
-    q = p - c[seg]
-    # per-plane sums as small products over each plane's slice (a loop over the planes,
-    # not the points): several times faster than np.add.reduceat over (M, 3, k) outer
-    # products, which dominated the coplanar deskewing's time on a 64-beam lidar
-    slices = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-    scatter = np.stack([q[s].T @ q[s] for s in slices])
+    with the twist, ``H`` their Gauss-Newton half Hessian.
+
+    Two compiled passes over the points (numba, as the extraction's kernels: the numpy
+    form made ~20 passes with (M, 6) temporaries and was most of the coplanar deskewing's
+    time, ~5 fits per 2D-rig epoch): the planes' centroids and scatters, then, with
+    their eigen-decompositions (numpy, batched), the sums ``g g^T``, ``G`` and ``b``."""
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    t = np.ascontiguousarray(t, dtype=np.float64).reshape(-1)
+    bounds = np.ascontiguousarray(bounds, dtype=np.int64)
+    c, scatter = _moments_kernel(p, bounds)
     lam, vec = np.linalg.eigh(scatter)  # ascending: n = vec[..., 0]
-    ns = vec[:, :, 0][seg]
-    r = np.einsum("mi,mi->m", q, ns)
-    g0 = np.hstack([np.cross(p, ns), ns])  # (M, 6): (p x n, n)
-    # g = t J_l(t xi)^T g0, J_l ~ I + A / 2 + A^2 / 6, A = t ad(xi): rows g0 @ J_l.
-    # einsum, not matmul: (M, 6) @ (6, 6) through BLAS is several times slower
-    ad = ad_matrix(xi)
-    g1 = np.einsum("mi,ij->mj", g0, ad)
-    g2 = np.einsum("mi,ij->mj", g1, ad)
-    tc = t[:, None]
-    g = tc * (g0 + tc * (0.5 * g1 + (tc / 6.0) * g2))
-    E = vec[:, :, 2:0:-1]  # (P, 3, 2): the tangent axes e1 (largest), e2
-    G = np.empty((len(slices), 3, 6))  # sum phi_i g_i^T, phi_i = (1, e1 . q_i, e2 . q_i)
-    for k, s in enumerate(slices):
-        G[k, 0] = g[s].sum(axis=0)
-        G[k, 1:] = (q[s] @ E[k]).T @ g[s]
-    A = np.stack([count, lam[:, 2], lam[:, 1]], axis=1)
-    A = np.maximum(A, 1e-300)
-    H = g.T @ g - np.einsum("pki,pk,pkj->ij", G, 1.0 / A, G)
-    b = g.T @ r
-    return 0.5 * (H + H.T), b, float(np.sqrt(np.mean(r**2)))
+    count = np.diff(bounds).astype(np.float64)
+    A = np.maximum(np.stack([count, lam[:, 2], lam[:, 1]], axis=1), 1e-300)
+    ad = np.ascontiguousarray(ad_matrix(xi))
+    H, b, G, ss = _sums_kernel(p, t, bounds, c, np.ascontiguousarray(vec), ad)
+    H = H - np.einsum("pki,pk,pkj->ij", G, 1.0 / A, G)
+    return 0.5 * (H + H.T), b, float(np.sqrt(ss / max(len(p), 1)))
+
+
+@numba.njit(cache=True)
+def _moments_kernel(p, bounds):  # pragma: no cover - compiled
+    """(P, 3) centroids and (P, 3, 3) centred scatters of the planes' points."""
+    n_planes = len(bounds) - 1
+    c = np.zeros((n_planes, 3))
+    S = np.zeros((n_planes, 3, 3))
+    for k in range(n_planes):
+        a, e = bounds[k], bounds[k + 1]
+        for i in range(a, e):
+            for j in range(3):
+                c[k, j] += p[i, j]
+        for j in range(3):
+            c[k, j] /= max(e - a, 1)
+        for i in range(a, e):
+            q0, q1, q2 = p[i, 0] - c[k, 0], p[i, 1] - c[k, 1], p[i, 2] - c[k, 2]
+            S[k, 0, 0] += q0 * q0
+            S[k, 0, 1] += q0 * q1
+            S[k, 0, 2] += q0 * q2
+            S[k, 1, 1] += q1 * q1
+            S[k, 1, 2] += q1 * q2
+            S[k, 2, 2] += q2 * q2
+        S[k, 1, 0], S[k, 2, 0], S[k, 2, 1] = S[k, 0, 1], S[k, 0, 2], S[k, 1, 2]
+    return c, S
+
+
+@numba.njit(cache=True)
+def _sums_kernel(p, t, bounds, c, vec, ad):  # pragma: no cover - compiled
+    """``sum g g^T`` (6, 6), ``b = sum r g`` (6,), per plane ``G = sum phi g^T`` (P, 3, 6)
+    and ``sum r^2`` (module docstring; ``g = t (g0 + t (g0 ad / 2 + t g0 ad ad / 6))``,
+    ``g0 = (p x n, n)``, the plane's normal ``vec[k, :, 0]``, tangents ``vec[k, :, 2]``,
+    ``vec[k, :, 1]``)."""
+    n_planes = len(bounds) - 1
+    H = np.zeros((6, 6))
+    b = np.zeros(6)
+    G = np.zeros((n_planes, 3, 6))
+    g0 = np.empty(6)
+    g1 = np.empty(6)
+    g2 = np.empty(6)
+    g = np.empty(6)
+    ss = 0.0
+    for k in range(n_planes):
+        n0, n1, n2 = vec[k, 0, 0], vec[k, 1, 0], vec[k, 2, 0]
+        for i in range(bounds[k], bounds[k + 1]):
+            x, y, z = p[i, 0], p[i, 1], p[i, 2]
+            q0, q1, q2 = x - c[k, 0], y - c[k, 1], z - c[k, 2]
+            r = q0 * n0 + q1 * n1 + q2 * n2
+            ss += r * r
+            g0[0], g0[1], g0[2] = y * n2 - z * n1, z * n0 - x * n2, x * n1 - y * n0
+            g0[3], g0[4], g0[5] = n0, n1, n2
+            for j in range(6):
+                s = 0.0
+                for m in range(6):
+                    s += g0[m] * ad[m, j]
+                g1[j] = s
+            for j in range(6):
+                s = 0.0
+                for m in range(6):
+                    s += g1[m] * ad[m, j]
+                g2[j] = s
+            ti = t[i]
+            for j in range(6):
+                g[j] = ti * (g0[j] + ti * (0.5 * g1[j] + (ti / 6.0) * g2[j]))
+            e1 = q0 * vec[k, 0, 2] + q1 * vec[k, 1, 2] + q2 * vec[k, 2, 2]
+            e2 = q0 * vec[k, 0, 1] + q1 * vec[k, 1, 1] + q2 * vec[k, 2, 1]
+            for j in range(6):
+                b[j] += r * g[j]
+                G[k, 0, j] += g[j]
+                G[k, 1, j] += e1 * g[j]
+                G[k, 2, j] += e2 * g[j]
+                for m in range(j, 6):
+                    H[j, m] += g[j] * g[m]
+    for j in range(6):
+        for m in range(j):
+            H[j, m] = H[m, j]
+    return H, b, G, ss
