@@ -143,6 +143,12 @@ class OdometryConfig(Section):
     (``coplanar_passes`` 1, as ``deskew_twist``): refit is no faster (0.35 against 0.39
     times KISS-ICP at 6 mm) and worse, rotation 0.052 against 0.046 deg at 6 mm, ATE
     0.49 against 0.39 m at 2 cm (walls a wrong twist lost are not found again)."""
+    coplanar_reextract: Literal["always", "moved"] = "always"
+    """``deskew_twist: coplanar``: when a pass extracts the epoch again. "always": after
+    every fit; "moved": only when the fitted twist moves the planes' inliers by more than
+    their noise (summed over all of them, see :mod:`planodom.odometry.coplanar`) from the
+    twist they were extracted with, and each fit after the first starts from the twist
+    of the last extraction and stops at a step under a tenth of its sigma."""
     coplanar_prior_scale: Annotated[float, Field(ge=0.1, le=100.0)] = 1.0
     """``deskew_twist: coplanar``: the prior's sigmas (:mod:`planodom.odometry.twist_sigma`)
     times this. On the lidar worlds the constant-velocity prediction lags an angular

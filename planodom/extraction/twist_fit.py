@@ -62,6 +62,10 @@ class TwistFit:
         observed: (6,) bool, the eigen-directions of the data information that it
             determines better than the prior (eigenvalue above that of the prior along
             it), counted per axis of the eigenbasis; its sum is the observed rank.
+        displacement_information: (6, 6) ``sum g g^T / s^2`` over the inliers: a change
+            ``dxi`` of the twist moves them along their normals by ``dxi^T M dxi`` noise
+            variances summed (the planes' own motion included, which ``data_information``
+            leaves out). Zeros without planes.
     """
 
     twist: np.ndarray
@@ -71,6 +75,7 @@ class TwistFit:
     converged: bool
     rms_m: float
     observed: np.ndarray
+    displacement_information: np.ndarray
 
     @property
     def rank(self) -> int:
@@ -87,6 +92,9 @@ def fit_twist(
     sigma_m: float,
     max_iterations: int = 4,
     tolerance: float = 1e-10,
+    start: np.ndarray | None = None,
+    step_sigmas: float = 0.0,
+    evaluate_solution: bool = True,
 ) -> TwistFit:
     """The twist that makes each plane's inliers coplanar (module docstring).
 
@@ -100,6 +108,14 @@ def fit_twist(
         sigma_m: point noise along the normals, metres (> 0).
         max_iterations: at most this many Gauss-Newton steps.
         tolerance: stop when the step's norm (rad/s and m/s together) is below this.
+        start: (6,) the first linearisation point (default: the prior), e.g. the twist a
+            previous fit of nearly the same planes gave.
+        step_sigmas: also stop when the step is below this many standard deviations of
+            the twist (its Mahalanobis norm under the information; 0: never).
+        evaluate_solution: linearise once more at the solution for the information and
+            rms returned; False: they are those of the last linearisation point, one
+            step before it (first order the same once the steps are small; saves one
+            pass over the inliers; the twist is the same either way).
 
     Returns:
         :class:`TwistFit`. Without usable planes, the prior with its information.
@@ -110,10 +126,11 @@ def fit_twist(
     if not sigma_m > 0:
         raise ValueError(f"sigma_m must be > 0, got {sigma_m}")
     sets = [np.asarray(i, dtype=np.int64) for i in inliers if len(i) >= 3]
-    xi = xi_p.copy()
+    xi = xi_p.copy() if start is None else np.asarray(check_twist(start)).copy()
     empty = np.zeros((6, 6))
     if not sets:
-        return TwistFit(xi, P.copy(), empty, 0, True, 0.0, np.zeros(6, dtype=bool))
+        none = np.zeros(6, dtype=bool)
+        return TwistFit(xi_p.copy(), P.copy(), empty, 0, True, 0.0, none, empty)
     idx = np.concatenate(sets)
     bounds = np.cumsum([0] + [len(s) for s in sets])
     raw = np.ascontiguousarray(np.asarray(points, dtype=np.float64)[idx])
@@ -121,9 +138,8 @@ def fit_twist(
     w2 = 1.0 / sigma_m**2
     converged = False
     it = 0
-    H = empty
     while True:
-        H, b, rms = normal_equations(deskew_points(raw, ti, xi), ti, bounds, xi)
+        H, b, rms, M = _equations(deskew_points(raw, ti, xi), ti, bounds, xi)
         if converged or it >= max_iterations:
             break
         lhs = H * w2 + P
@@ -132,8 +148,12 @@ def fit_twist(
         xi = xi + dxi
         it += 1
         converged = bool(np.linalg.norm(dxi) < tolerance)
+        converged |= bool(dxi @ lhs @ dxi < step_sigmas**2)
+        if not evaluate_solution and (converged or it >= max_iterations):
+            break
     info = H * w2
-    return TwistFit(xi, info + P, info, it, converged, rms, _observed(info, P))
+    observed = _observed(info, P)
+    return TwistFit(xi, info + P, info, it, converged, rms, observed, M * w2)
 
 
 def _solve(lhs: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -180,6 +200,14 @@ def normal_equations(
     form made ~20 passes with (M, 6) temporaries and was most of the coplanar deskewing's
     time, ~5 fits per 2D-rig epoch): the planes' centroids and scatters, then, with
     their eigen-decompositions (numpy, batched), the sums ``g g^T``, ``G`` and ``b``."""
+    H, b, rms, _ = _equations(p, t, bounds, xi)
+    return H, b, rms
+
+
+def _equations(
+    p: np.ndarray, t: np.ndarray, bounds: np.ndarray, xi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """:func:`normal_equations` and ``sum g g^T`` (6, 6) (before the planes' elimination)."""
     p = np.ascontiguousarray(p, dtype=np.float64)
     t = np.ascontiguousarray(t, dtype=np.float64).reshape(-1)
     bounds = np.ascontiguousarray(bounds, dtype=np.int64)
@@ -188,9 +216,9 @@ def normal_equations(
     count = np.diff(bounds).astype(np.float64)
     A = np.maximum(np.stack([count, lam[:, 2], lam[:, 1]], axis=1), 1e-300)
     ad = np.ascontiguousarray(ad_matrix(xi))
-    H, b, G, ss = _sums_kernel(p, t, bounds, c, np.ascontiguousarray(vec), ad)
-    H = H - np.einsum("pki,pk,pkj->ij", G, 1.0 / A, G)
-    return 0.5 * (H + H.T), b, float(np.sqrt(ss / max(len(p), 1)))
+    gg, b, G, ss = _sums_kernel(p, t, bounds, c, np.ascontiguousarray(vec), ad)
+    H = gg - np.einsum("pki,pk,pkj->ij", G, 1.0 / A, G)
+    return 0.5 * (H + H.T), b, float(np.sqrt(ss / max(len(p), 1))), gg
 
 
 @numba.njit(cache=True)

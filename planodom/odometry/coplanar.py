@@ -41,6 +41,10 @@ PRIOR_SIGMA_FLOOR = (np.radians(0.05), 0.01)
 #: (rad/s, m/s)^-2: far above any the planes give.
 HELD_AXES = (2, 3, 4)
 HELD_INFORMATION = 1e12
+#: ``odometry.coplanar_reextract: moved``: a Gauss-Newton step below this many standard
+#: deviations of the twist ends the fit (the rest of the nonlinearity is far inside the
+#: twist's own uncertainty).
+STEP_SIGMAS = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,17 +104,36 @@ def coplanar_extraction(
     if ocfg.coplanar_axes == "tilt":
         P[HELD_AXES, HELD_AXES] = HELD_INFORMATION
     prior, fit = np.zeros(6) if used is None else used, None
+    moved_only = ocfg.coplanar_reextract == "moved"
     for _ in range(ocfg.coplanar_passes):
         if not found.inliers:
             break
         s = max(found.sigma_m, POINT_SIGMA_FLOOR_M)
-        fit = fit_twist(scan.points, scan.t, found.inliers, prior, P, s, ocfg.coplanar_iterations)
+        start = used if moved_only else None
+        fit = fit_twist(
+            scan.points, scan.t, found.inliers, prior, P, s, ocfg.coplanar_iterations,
+            start=start, step_sigmas=STEP_SIGMAS if moved_only else 0.0,
+            evaluate_solution=not moved_only,
+        )  # fmt: skip
+        if moved_only and not _moves(fit, used):
+            break  # the planes found with ``used`` are those the fit's twist would give
         used = fit.twist
         if ocfg.coplanar_planes == "refit":
             found = refit(found, scan, ecfg, used, sensor_origins)
         else:
             found = extract(scan, ecfg, used, sensor_origins)
     return CoplanarExtraction(found.planes, used, fit)
+
+
+def _moves(fit: TwistFit, used: np.ndarray | None) -> bool:
+    """Whether deskewing with ``fit.twist`` instead of ``used`` (None: not deskewed)
+    moves the fit's inliers along their normals by more than their noise, summed over
+    all of them (``fit.displacement_information``): below that no plane the epoch's
+    extraction builds from them moves by a standard deviation of its own fit (each
+    plane's share of the sum is smaller), and extracting the epoch again would give the
+    same planes within their noise."""
+    d = fit.twist - (np.zeros(6) if used is None else used)
+    return bool(d @ fit.displacement_information @ d > 1.0)
 
 
 def coplanar_by(

@@ -147,3 +147,32 @@ def test_without_a_twist_the_first_extraction_is_not_deskewed_and_the_prior_is_z
     assert got.fit is not None and got.twist is not None
     np.testing.assert_allclose(got.twist[:2], XI[:2], atol=0.005)
     assert coplanar_extraction(scan_rig(scene), COPLANAR, None, None).twist is not None
+
+
+def test_moved_extracts_again_only_when_the_fit_moves_the_points(monkeypatch):
+    # odometry.coplanar_reextract: moved. From a wrong prediction the epoch is extracted
+    # again and gets the truth (as "always"); from the true twist (sigma = 0: the fit
+    # stays there) the first extraction is kept: one extraction, not three.
+    import planodom.odometry.coplanar as coplanar
+
+    calls = []
+    real = coplanar.extract
+    monkeypatch.setattr(coplanar, "extract", lambda *a: calls.append(1) or real(*a))
+    moved = COPLANAR.updated({"odometry.coplanar_reextract": "moved"})
+    scene = default_scene()
+    scan = scan_rig(scene, twist=XI)
+    got = coplanar_extraction(scan, moved, XI + OFF, None)
+    # kept once the truth (the last fit, to 1e-7) moves the inliers by less than their
+    # noise (the 1 mm floor at sigma = 0), summed: within that of the truth
+    assert got.fit is not None and got.twist is not None
+    np.testing.assert_allclose(got.fit.twist, XI, atol=1e-7)
+    e = got.twist - XI
+    assert 0 < float(e @ got.fit.displacement_information @ e) <= 1.0 and len(calls) >= 2
+    ang, off = plane_errors(got.planes, planes_in_base(scene))
+    assert ang < np.radians(0.01) and off < 1e-3
+    calls.clear()
+    kept = coplanar_extraction(scan, moved, XI, None)
+    assert len(calls) == 1
+    np.testing.assert_array_equal(kept.twist, XI)
+    ang, off = plane_errors(kept.planes, planes_in_base(scene))
+    assert ang < 1e-7 and off < 1e-7
