@@ -149,6 +149,11 @@ class OdometryConfig(Section):
     their noise (summed over all of them, see :mod:`planodom.odometry.coplanar`) from the
     twist they were extracted with, and each fit after the first starts from the twist
     of the last extraction and stops at a step under a tenth of its sigma."""
+    coplanar_reuse: bool = False
+    """``coplanar_reextract: moved``: an epoch extracted again by the deskewing policy
+    starts from its last extraction (its planes and twist), not from an extraction with
+    the refined twist: the fit on them with the refined twist as the prior says whether
+    an extraction is needed."""
     coplanar_prior_scale: Annotated[float, Field(ge=0.1, le=100.0)] = 1.0
     """``deskew_twist: coplanar``: the prior's sigmas (:mod:`planodom.odometry.twist_sigma`)
     times this. On the lidar worlds the constant-velocity prediction lags an angular

@@ -21,13 +21,14 @@ constant twist of each epoch).
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from planodom.config import ExtractionConfig, PlanodomConfig
-from planodom.extraction.pipeline import extract, extract_planes, refit
+from planodom.config import ExtractionConfig, OdometryConfig, PlanodomConfig
+from planodom.extraction.pipeline import ExtractionResult, extract, extract_planes, refit
 from planodom.extraction.twist_fit import TwistFit, fit_twist
 from planodom.geometry import Plane
 from planodom.scan import Scan
@@ -96,15 +97,36 @@ def coplanar_extraction(
     ``config.extraction``; the odometry may widen its tolerances)."""
     ecfg = config.extraction if extraction is None else extraction
     ocfg = config.odometry
-    found = extract(scan, ecfg, twist, sensor_origins)
-    used = None if twist is None else np.asarray(twist, dtype=float)
+    moved_only = ocfg.coplanar_reextract == "moved"
+    prior = None if twist is None else np.asarray(twist, dtype=float)
+    reuse = moved_only and ocfg.coplanar_reuse and prior is not None
+    last = _LAST.get(scan, ecfg, sensor_origins) if reuse else None
+    if last is not None:  # the epoch again (the deskewing policy): start from its planes
+        found, used = last
+    else:
+        found, used = extract(scan, ecfg, twist, sensor_origins), prior
     if scan.t is None:
         return CoplanarExtraction(found.planes, used, None)
     P = prior_information(sigma, ocfg.coplanar_prior_scale)
     if ocfg.coplanar_axes == "tilt":
         P[HELD_AXES, HELD_AXES] = HELD_INFORMATION
-    prior, fit = np.zeros(6) if used is None else used, None
-    moved_only = ocfg.coplanar_reextract == "moved"
+    prior, fit = np.zeros(6) if prior is None else prior, None
+    found, used, fit = _passes(scan, ecfg, ocfg, found, used, prior, P, sensor_origins)
+    if moved_only and ocfg.coplanar_reuse:
+        _LAST.put(scan, ecfg, sensor_origins, found, used)
+    return CoplanarExtraction(found.planes, used, fit)
+
+
+def _passes(
+    scan: Scan, ecfg: ExtractionConfig, ocfg: OdometryConfig, found: ExtractionResult,
+    used: np.ndarray | None, prior: np.ndarray, P: np.ndarray,
+    sensor_origins: np.ndarray | None,
+) -> tuple[ExtractionResult, np.ndarray | None, TwistFit | None]:  # fmt: skip
+    """``odometry.coplanar_passes`` of: fit the twist to the planes ``found`` (extracted
+    with ``used``) with the prior ``prior`` (6,) of information ``P`` (6, 6), extract
+    again with it; the last extraction, its twist and the last fit."""
+    assert scan.t is not None
+    moved_only, fit = ocfg.coplanar_reextract == "moved", None
     for _ in range(ocfg.coplanar_passes):
         if not found.inliers:
             break
@@ -122,7 +144,40 @@ def coplanar_extraction(
             found = refit(found, scan, ecfg, used, sensor_origins)
         else:
             found = extract(scan, ecfg, used, sensor_origins)
-    return CoplanarExtraction(found.planes, used, fit)
+    return found, used, fit
+
+
+class _LastExtraction:
+    """The last extraction made by :func:`coplanar_extraction` (``coplanar_reextract:
+    moved``) and the twist it was deskewed with, for the same scan (the identity of its
+    points, held weakly as :mod:`planodom.extraction.memo`), an equal extraction config
+    and the same sensor origins: the deskewing policy extracts an epoch again with a
+    refined twist, and the fit on these planes with that twist as its prior says whether
+    an extraction is needed at all (the planes only change where the twist moves them)."""
+
+    def __init__(self) -> None:
+        self._key: tuple[weakref.ref[np.ndarray], ExtractionConfig, object] | None = None
+        self._value: tuple[ExtractionResult, np.ndarray | None] | None = None
+
+    def get(
+        self, scan: Scan, ecfg: ExtractionConfig, origins: np.ndarray | None
+    ) -> tuple[ExtractionResult, np.ndarray | None] | None:
+        if self._key is None:
+            return None
+        ref, cfg, org = self._key
+        if ref() is scan.points and org is origins and cfg == ecfg:
+            return self._value
+        return None
+
+    def put(
+        self, scan: Scan, ecfg: ExtractionConfig, origins: np.ndarray | None,
+        found: ExtractionResult, used: np.ndarray | None,
+    ) -> None:  # fmt: skip
+        self._key = (weakref.ref(scan.points), ecfg, origins)
+        self._value = (found, used)
+
+
+_LAST = _LastExtraction()
 
 
 def _moves(fit: TwistFit, used: np.ndarray | None) -> bool:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from planodom.config import PlanodomConfig
@@ -171,8 +173,36 @@ def test_moved_extracts_again_only_when_the_fit_moves_the_points(monkeypatch):
     ang, off = plane_errors(got.planes, planes_in_base(scene))
     assert ang < np.radians(0.01) and off < 1e-3
     calls.clear()
-    kept = coplanar_extraction(scan, moved, XI, None)
+    kept = coplanar_extraction(scan_rig(scene, twist=XI), moved, XI, None)
     assert len(calls) == 1
     np.testing.assert_array_equal(kept.twist, XI)
     ang, off = plane_errors(kept.planes, planes_in_base(scene))
     assert ang < 1e-7 and off < 1e-7
+
+
+def test_reuse_starts_an_epoch_extracted_again_from_its_last_planes(monkeypatch):
+    # odometry.coplanar_reuse: the same scan again (the deskewing policy's refined twist,
+    # here a wrong one: the planes observe every direction, so the fit leaves it) needs
+    # no extraction when the fit on the last planes stays at their twist; another scan
+    # (a copy of its points), or another extraction config, is extracted.
+    import planodom.odometry.coplanar as coplanar
+
+    calls = []
+    real = coplanar.extract
+    monkeypatch.setattr(coplanar, "extract", lambda *a: calls.append(1) or real(*a))
+    reuse = COPLANAR.updated(
+        {"odometry.coplanar_reextract": "moved", "odometry.coplanar_reuse": True}
+    )
+    scene = default_scene()
+    scan = scan_rig(scene, twist=XI)
+    first = coplanar_extraction(scan, reuse, XI, None)
+    assert len(calls) == 1
+    again = coplanar_extraction(scan, reuse, XI + 0.1 * OFF, None)
+    assert len(calls) == 1 and again.planes is first.planes
+    np.testing.assert_array_equal(again.twist, XI)
+    copy = replace(scan, points=scan.points.copy())
+    coplanar_extraction(copy, reuse, XI, None)
+    assert len(calls) == 2
+    wider = reuse.extraction.model_copy(update={"min_plane_points": 25})
+    coplanar_extraction(copy, reuse, XI, None, extraction=wider)
+    assert len(calls) == 3
