@@ -31,9 +31,8 @@ the planes do not observe (one wall, a corridor's length) have no information be
 prior and keep it. The information returned, ``sum H / s^2 + P`` at the solution, is the
 twist's inverse covariance (first order).
 
-Vectorised over points: per-plane moments by ``np.add.reduceat`` over the concatenated
-inliers, and a batched 3x3 eigen-decomposition per plane (the planes' refit), no loop
-over points.
+Two compiled passes over the concatenated inliers (numba, :func:`normal_equations`) and
+a batched 3x3 eigen-decomposition per plane (the planes' refit) between them.
 """
 
 from __future__ import annotations
