@@ -158,9 +158,12 @@ class OdometryConfig(Section):
     the 2D-rig worlds 0-18 even, 150 epochs (medians, in brackets median / worst ratio to
     the oracle): the same figures within 1 % (6 mm: rotation 0.0402 deg (22 / 204) ->
     0.0401 (22 / 204), ATE 0.0748 m -> 0.0743 (13 / 332); 2 cm: 0.116 deg and 0.237 ->
-    0.236 m; every world's rotation within 2 %), and epochs/s 0.21 -> 0.43 times
-    KISS-ICP's at 6 mm, 0.19 -> 0.37 at 2 cm; lidar worlds 1 / 3 / 5 / 7, 60 epochs, 6
-    mm: rotation rms unchanged to 4 digits."""
+    0.236 m; every world's rotation within 2.1 %), and epochs/s 0.21 -> 0.43 times
+    KISS-ICP's at 6 mm, 0.19 -> 0.37 at 2 cm (with the compiled normal equations of
+    :mod:`planodom.extraction.twist_fit`, which "always" has too: about 1.4x of it is
+    this mode's, mostly its warm-started fits; the extraction it saves is rare, 2 % on
+    world 8, whose passes move the planes beyond their noise); lidar worlds 1 / 3 / 5 /
+    7, 60 epochs, 6 mm: rotation rms unchanged to 4 digits."""
     coplanar_reuse: bool = False
     """``coplanar_reextract: moved``: an epoch extracted again by the deskewing policy
     starts from its last extraction (its planes and twist), not from an extraction with
