@@ -31,9 +31,8 @@ the planes do not observe (one wall, a corridor's length) have no information be
 prior and keep it. The information returned, ``sum H / s^2 + P`` at the solution, is the
 twist's inverse covariance (first order).
 
-Vectorised over points: per-plane moments by ``np.add.reduceat`` over the concatenated
-inliers, and a batched 3x3 eigen-decomposition per plane (the planes' refit), no loop
-over points.
+Two compiled passes over the concatenated inliers (numba, :func:`normal_equations`) and
+a batched 3x3 eigen-decomposition per plane (the planes' refit) between them.
 """
 
 from __future__ import annotations
@@ -41,6 +40,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from planodom.extraction.deskew import check_twist, deskew_points
@@ -61,6 +61,10 @@ class TwistFit:
         observed: (6,) bool, the eigen-directions of the data information that it
             determines better than the prior (eigenvalue above that of the prior along
             it), counted per axis of the eigenbasis; its sum is the observed rank.
+        displacement_information: (6, 6) ``sum g g^T / s^2`` over the inliers: a change
+            ``dxi`` of the twist moves them along their normals by ``dxi^T M dxi`` noise
+            variances summed (the planes' own motion included, which ``data_information``
+            leaves out). Zeros without planes.
     """
 
     twist: np.ndarray
@@ -70,6 +74,7 @@ class TwistFit:
     converged: bool
     rms_m: float
     observed: np.ndarray
+    displacement_information: np.ndarray
 
     @property
     def rank(self) -> int:
@@ -86,6 +91,9 @@ def fit_twist(
     sigma_m: float,
     max_iterations: int = 4,
     tolerance: float = 1e-10,
+    start: np.ndarray | None = None,
+    step_sigmas: float = 0.0,
+    evaluate_solution: bool = True,
 ) -> TwistFit:
     """The twist that makes each plane's inliers coplanar (module docstring).
 
@@ -99,6 +107,14 @@ def fit_twist(
         sigma_m: point noise along the normals, metres (> 0).
         max_iterations: at most this many Gauss-Newton steps.
         tolerance: stop when the step's norm (rad/s and m/s together) is below this.
+        start: (6,) the first linearisation point (default: the prior), e.g. the twist a
+            previous fit of nearly the same planes gave.
+        step_sigmas: also stop when the step is below this many standard deviations of
+            the twist (its Mahalanobis norm under the information; 0: never).
+        evaluate_solution: linearise once more at the solution for the information and
+            rms returned; False: they are those of the last linearisation point, one
+            step before it (first order the same once the steps are small; saves one
+            pass over the inliers; the twist is the same either way).
 
     Returns:
         :class:`TwistFit`. Without usable planes, the prior with its information.
@@ -109,10 +125,11 @@ def fit_twist(
     if not sigma_m > 0:
         raise ValueError(f"sigma_m must be > 0, got {sigma_m}")
     sets = [np.asarray(i, dtype=np.int64) for i in inliers if len(i) >= 3]
-    xi = xi_p.copy()
+    xi = xi_p.copy() if start is None else np.asarray(check_twist(start)).copy()
     empty = np.zeros((6, 6))
     if not sets:
-        return TwistFit(xi, P.copy(), empty, 0, True, 0.0, np.zeros(6, dtype=bool))
+        none = np.zeros(6, dtype=bool)
+        return TwistFit(xi_p.copy(), P.copy(), empty, 0, True, 0.0, none, empty)
     idx = np.concatenate(sets)
     bounds = np.cumsum([0] + [len(s) for s in sets])
     raw = np.ascontiguousarray(np.asarray(points, dtype=np.float64)[idx])
@@ -120,9 +137,8 @@ def fit_twist(
     w2 = 1.0 / sigma_m**2
     converged = False
     it = 0
-    H = empty
     while True:
-        H, b, rms = normal_equations(deskew_points(raw, ti, xi), ti, bounds, xi)
+        H, b, rms, M = _equations(deskew_points(raw, ti, xi), ti, bounds, xi)
         if converged or it >= max_iterations:
             break
         lhs = H * w2 + P
@@ -131,8 +147,12 @@ def fit_twist(
         xi = xi + dxi
         it += 1
         converged = bool(np.linalg.norm(dxi) < tolerance)
+        converged |= bool(dxi @ lhs @ dxi < step_sigmas**2)
+        if not evaluate_solution and (converged or it >= max_iterations):
+            break
     info = H * w2
-    return TwistFit(xi, info + P, info, it, converged, rms, _observed(info, P))
+    observed = _observed(info, P)
+    return TwistFit(xi, info + P, info, it, converged, rms, observed, M * w2)
 
 
 def _solve(lhs: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -173,35 +193,105 @@ def normal_equations(
     from times ``t`` (M,, seconds), plane g holding ``p[bounds[g]:bounds[g + 1]]``
     ((G + 1,) int64), and their rms residual (m) after each plane's TLS refit. ``b`` is
     half the gradient of the planes' summed TLS residuals (smallest scatter eigenvalues)
-    with the twist, ``H`` their Gauss-Newton half Hessian."""
-    starts = bounds[:-1]
-    count = np.diff(bounds).astype(np.float64)
-    seg = np.repeat(np.arange(len(count)), np.diff(bounds))
-    c = np.add.reduceat(p, starts, axis=0) / count[:, None]
-    q = p - c[seg]
-    # per-plane sums as small products over each plane's slice (a loop over the planes,
-    # not the points): several times faster than np.add.reduceat over (M, 3, k) outer
-    # products, which dominated the coplanar deskewing's time on a 64-beam lidar
-    slices = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-    scatter = np.stack([q[s].T @ q[s] for s in slices])
+    with the twist, ``H`` their Gauss-Newton half Hessian.
+
+    Two compiled passes over the points (numba, as the extraction's kernels: the numpy
+    form made ~20 passes with (M, 6) temporaries and was most of the coplanar deskewing's
+    time, ~5 fits per 2D-rig epoch): the planes' centroids and scatters, then, with
+    their eigen-decompositions (numpy, batched), the sums ``g g^T``, ``G`` and ``b``."""
+    H, b, rms, _ = _equations(p, t, bounds, xi)
+    return H, b, rms
+
+
+def _equations(
+    p: np.ndarray, t: np.ndarray, bounds: np.ndarray, xi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """:func:`normal_equations` and ``sum g g^T`` (6, 6) (before the planes' elimination)."""
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    t = np.ascontiguousarray(t, dtype=np.float64).reshape(-1)
+    bounds = np.ascontiguousarray(bounds, dtype=np.int64)
+    c, scatter = _moments_kernel(p, bounds)
     lam, vec = np.linalg.eigh(scatter)  # ascending: n = vec[..., 0]
-    ns = vec[:, :, 0][seg]
-    r = np.einsum("mi,mi->m", q, ns)
-    g0 = np.hstack([np.cross(p, ns), ns])  # (M, 6): (p x n, n)
-    # g = t J_l(t xi)^T g0, J_l ~ I + A / 2 + A^2 / 6, A = t ad(xi): rows g0 @ J_l.
-    # einsum, not matmul: (M, 6) @ (6, 6) through BLAS is several times slower
-    ad = ad_matrix(xi)
-    g1 = np.einsum("mi,ij->mj", g0, ad)
-    g2 = np.einsum("mi,ij->mj", g1, ad)
-    tc = t[:, None]
-    g = tc * (g0 + tc * (0.5 * g1 + (tc / 6.0) * g2))
-    E = vec[:, :, 2:0:-1]  # (P, 3, 2): the tangent axes e1 (largest), e2
-    G = np.empty((len(slices), 3, 6))  # sum phi_i g_i^T, phi_i = (1, e1 . q_i, e2 . q_i)
-    for k, s in enumerate(slices):
-        G[k, 0] = g[s].sum(axis=0)
-        G[k, 1:] = (q[s] @ E[k]).T @ g[s]
-    A = np.stack([count, lam[:, 2], lam[:, 1]], axis=1)
-    A = np.maximum(A, 1e-300)
-    H = g.T @ g - np.einsum("pki,pk,pkj->ij", G, 1.0 / A, G)
-    b = g.T @ r
-    return 0.5 * (H + H.T), b, float(np.sqrt(np.mean(r**2)))
+    count = np.diff(bounds).astype(np.float64)
+    A = np.maximum(np.stack([count, lam[:, 2], lam[:, 1]], axis=1), 1e-300)
+    ad = np.ascontiguousarray(ad_matrix(xi))
+    gg, b, G, ss = _sums_kernel(p, t, bounds, c, np.ascontiguousarray(vec), ad)
+    H = gg - np.einsum("pki,pk,pkj->ij", G, 1.0 / A, G)
+    return 0.5 * (H + H.T), b, float(np.sqrt(ss / max(len(p), 1))), gg
+
+
+@numba.njit(cache=True)
+def _moments_kernel(p, bounds):  # pragma: no cover - compiled
+    """(P, 3) centroids and (P, 3, 3) centred scatters of the planes' points."""
+    n_planes = len(bounds) - 1
+    c = np.zeros((n_planes, 3))
+    S = np.zeros((n_planes, 3, 3))
+    for k in range(n_planes):
+        a, e = bounds[k], bounds[k + 1]
+        for i in range(a, e):
+            for j in range(3):
+                c[k, j] += p[i, j]
+        for j in range(3):
+            c[k, j] /= max(e - a, 1)
+        for i in range(a, e):
+            q0, q1, q2 = p[i, 0] - c[k, 0], p[i, 1] - c[k, 1], p[i, 2] - c[k, 2]
+            S[k, 0, 0] += q0 * q0
+            S[k, 0, 1] += q0 * q1
+            S[k, 0, 2] += q0 * q2
+            S[k, 1, 1] += q1 * q1
+            S[k, 1, 2] += q1 * q2
+            S[k, 2, 2] += q2 * q2
+        S[k, 1, 0], S[k, 2, 0], S[k, 2, 1] = S[k, 0, 1], S[k, 0, 2], S[k, 1, 2]
+    return c, S
+
+
+@numba.njit(cache=True)
+def _sums_kernel(p, t, bounds, c, vec, ad):  # pragma: no cover - compiled
+    """``sum g g^T`` (6, 6), ``b = sum r g`` (6,), per plane ``G = sum phi g^T`` (P, 3, 6)
+    and ``sum r^2`` (module docstring; ``g = t (g0 + t (g0 ad / 2 + t g0 ad ad / 6))``,
+    ``g0 = (p x n, n)``, the plane's normal ``vec[k, :, 0]``, tangents ``vec[k, :, 2]``,
+    ``vec[k, :, 1]``)."""
+    n_planes = len(bounds) - 1
+    H = np.zeros((6, 6))
+    b = np.zeros(6)
+    G = np.zeros((n_planes, 3, 6))
+    g0 = np.empty(6)
+    g1 = np.empty(6)
+    g2 = np.empty(6)
+    g = np.empty(6)
+    ss = 0.0
+    for k in range(n_planes):
+        n0, n1, n2 = vec[k, 0, 0], vec[k, 1, 0], vec[k, 2, 0]
+        for i in range(bounds[k], bounds[k + 1]):
+            x, y, z = p[i, 0], p[i, 1], p[i, 2]
+            q0, q1, q2 = x - c[k, 0], y - c[k, 1], z - c[k, 2]
+            r = q0 * n0 + q1 * n1 + q2 * n2
+            ss += r * r
+            g0[0], g0[1], g0[2] = y * n2 - z * n1, z * n0 - x * n2, x * n1 - y * n0
+            g0[3], g0[4], g0[5] = n0, n1, n2
+            for j in range(6):
+                s = 0.0
+                for m in range(6):
+                    s += g0[m] * ad[m, j]
+                g1[j] = s
+            for j in range(6):
+                s = 0.0
+                for m in range(6):
+                    s += g1[m] * ad[m, j]
+                g2[j] = s
+            ti = t[i]
+            for j in range(6):
+                g[j] = ti * (g0[j] + ti * (0.5 * g1[j] + (ti / 6.0) * g2[j]))
+            e1 = q0 * vec[k, 0, 2] + q1 * vec[k, 1, 2] + q2 * vec[k, 2, 2]
+            e2 = q0 * vec[k, 0, 1] + q1 * vec[k, 1, 1] + q2 * vec[k, 2, 1]
+            for j in range(6):
+                b[j] += r * g[j]
+                G[k, 0, j] += g[j]
+                G[k, 1, j] += e1 * g[j]
+                G[k, 2, j] += e2 * g[j]
+                for m in range(j, 6):
+                    H[j, m] += g[j] * g[m]
+    for j in range(6):
+        for m in range(j):
+            H[j, m] = H[m, j]
+    return H, b, G, ss

@@ -175,3 +175,42 @@ def test_information_matches_the_cost_curvature_at_the_truth():
         ]
     )
     np.testing.assert_allclose(2 * H, num, rtol=2e-3, atol=1e-3 * np.abs(H).max())
+
+
+def test_warm_start_and_sigma_stop_reach_the_truth_in_fewer_steps():
+    # Started from a twist near the answer, the fit ends at the truth (sigma = 0) and
+    # stops once its step is under a tenth of a sigma; the prior's value, not the start,
+    # is what the prior pulls towards (no prior information here).
+    rng = np.random.default_rng(6)
+    raw, t, inl = seen(box_room(rng), XI, rng)
+    prior = XI + np.array([0.1, -0.05, -0.3, -1.0, 0.5, 0.2])
+    near = XI + 1e-4
+    cold = fit_twist(raw, t, inl, prior, np.eye(6) * 1e-6, 1e-4, max_iterations=10)
+    warm = fit_twist(
+        raw, t, inl, prior, np.eye(6) * 1e-6, 1e-4, max_iterations=10, start=near,
+        step_sigmas=0.1, evaluate_solution=False,
+    )  # fmt: skip
+    np.testing.assert_allclose(warm.twist, XI, atol=1e-9)
+    assert warm.converged and warm.iterations < cold.iterations
+
+
+def test_displacement_information_is_the_points_motion_along_their_normals():
+    # d^T M d against an independent computation: the inliers deskewed with xi + d and
+    # with xi, their difference along each true plane's normal, squared, summed, over
+    # sigma^2 (first order: d small).
+    from planodom.extraction.deskew import deskew_points
+
+    rng = np.random.default_rng(7)
+    planes = box_room(rng, 100)
+    raw, t, inl = seen(planes, XI, rng)
+    sigma = 0.01
+    fit = fit_twist(raw, t, inl, XI, np.zeros((6, 6)), sigma, max_iterations=1)
+    normals = []
+    for p in planes:
+        q = p - p.mean(axis=0)
+        normals.append(np.linalg.eigh(q.T @ q)[1][:, 0])
+    for d in (1e-5 * rng.standard_normal(6), 1e-5 * np.eye(6)[2], 1e-5 * np.eye(6)[3]):
+        moved = deskew_points(raw, t, XI + d) - deskew_points(raw, t, XI)
+        along = np.concatenate([moved[i] @ n for i, n in zip(inl, normals, strict=True)])
+        expected = float(np.sum(along**2)) / sigma**2
+        assert d @ fit.displacement_information @ d == pytest.approx(expected, rel=1e-3)

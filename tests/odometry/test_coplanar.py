@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from planodom.config import PlanodomConfig
@@ -20,8 +22,14 @@ XI = np.array([0.05, -0.04, 0.6, 3.0, 0.4, 0.1])  # rad/s, m/s: a brisk turn
 #: a prediction's error: 2 deg/s of yaw rate, 0.15 m/s (twice that, only the ground is
 #: extracted, and it observes no yaw rate nor horizontal velocity: they keep the prior)
 OFF = np.array([np.radians(0.5), np.radians(-0.5), np.radians(2.0), 0.15, -0.1, 0.025])
+#: every pass extracts again (exact at sigma = 0; "moved", the default, stops within the
+#: points' noise: its own tests below)
 COPLANAR = PlanodomConfig().updated(
-    {"odometry.deskew_twist": "coplanar", "odometry.coplanar_passes": 2}
+    {
+        "odometry.deskew_twist": "coplanar",
+        "odometry.coplanar_passes": 2,
+        "odometry.coplanar_reextract": "always",
+    }
 )
 
 
@@ -147,3 +155,60 @@ def test_without_a_twist_the_first_extraction_is_not_deskewed_and_the_prior_is_z
     assert got.fit is not None and got.twist is not None
     np.testing.assert_allclose(got.twist[:2], XI[:2], atol=0.005)
     assert coplanar_extraction(scan_rig(scene), COPLANAR, None, None).twist is not None
+
+
+def test_moved_extracts_again_only_when_the_fit_moves_the_points(monkeypatch):
+    # odometry.coplanar_reextract: moved. From a wrong prediction the epoch is extracted
+    # again and gets the truth (as "always"); from the true twist (sigma = 0: the fit
+    # stays there) the first extraction is kept: one extraction, not three.
+    import planodom.odometry.coplanar as coplanar
+
+    calls = []
+    real = coplanar.extract
+    monkeypatch.setattr(coplanar, "extract", lambda *a: calls.append(1) or real(*a))
+    moved = COPLANAR.updated({"odometry.coplanar_reextract": "moved"})
+    scene = default_scene()
+    scan = scan_rig(scene, twist=XI)
+    got = coplanar_extraction(scan, moved, XI + OFF, None)
+    # kept once the truth (the last fit, to 1e-7) moves the inliers by less than their
+    # noise (the 1 mm floor at sigma = 0), summed: within that of the truth
+    assert got.fit is not None and got.twist is not None
+    np.testing.assert_allclose(got.fit.twist, XI, atol=1e-7)
+    e = got.twist - XI
+    assert 0 < float(e @ got.fit.displacement_information @ e) <= 1.0 and len(calls) >= 2
+    ang, off = plane_errors(got.planes, planes_in_base(scene))
+    assert ang < np.radians(0.01) and off < 1e-3
+    calls.clear()
+    kept = coplanar_extraction(scan_rig(scene, twist=XI), moved, XI, None)
+    assert len(calls) == 1
+    np.testing.assert_array_equal(kept.twist, XI)
+    ang, off = plane_errors(kept.planes, planes_in_base(scene))
+    assert ang < 1e-7 and off < 1e-7
+
+
+def test_reuse_starts_an_epoch_extracted_again_from_its_last_planes(monkeypatch):
+    # odometry.coplanar_reuse: the same scan again (the deskewing policy's refined twist,
+    # here a wrong one: the planes observe every direction, so the fit leaves it) needs
+    # no extraction when the fit on the last planes stays at their twist; another scan
+    # (a copy of its points), or another extraction config, is extracted.
+    import planodom.odometry.coplanar as coplanar
+
+    calls = []
+    real = coplanar.extract
+    monkeypatch.setattr(coplanar, "extract", lambda *a: calls.append(1) or real(*a))
+    reuse = COPLANAR.updated(
+        {"odometry.coplanar_reextract": "moved", "odometry.coplanar_reuse": True}
+    )
+    scene = default_scene()
+    scan = scan_rig(scene, twist=XI)
+    first = coplanar_extraction(scan, reuse, XI, None)
+    assert len(calls) == 1
+    again = coplanar_extraction(scan, reuse, XI + 0.1 * OFF, None)
+    assert len(calls) == 1 and again.planes is first.planes
+    np.testing.assert_array_equal(again.twist, XI)
+    copy = replace(scan, points=scan.points.copy())
+    coplanar_extraction(copy, reuse, XI, None)
+    assert len(calls) == 2
+    wider = reuse.extraction.model_copy(update={"min_plane_points": 25})
+    coplanar_extraction(copy, reuse, XI, None, extraction=wider)
+    assert len(calls) == 3
