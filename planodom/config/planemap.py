@@ -57,7 +57,7 @@ class PlanemapConfig(Section):
     """Rounds of association and Gauss-Newton (ICP's outer loop)."""
     cauchy_scale: Positive = 2.0
     """Cauchy kernel scale on an association's whitened residual (sigmas)."""
-    outliers: Literal["dropped", "kernel"] = "dropped"
+    outliers: Literal["dropped", "kernel", "deleted"] = "dropped"
     """What the registration does with the associations it ends with a Cauchy weight of
     at most 0.5 (the outliers the inlier counts and the map update already leave out):
     ``dropped``, solved again without them, until the set repeats
