@@ -73,7 +73,17 @@ class PlanemapConfig(Section):
     against KISS-ICP 0.268 -> 0.250 m; the eight procedural lidar worlds (150 epochs, 6 mm
     and 2 cm) within +-0.1 cm of ATE; KITTI raw 0005 rotation 0.077 -> 0.087 deg rms
     (translation 3.58 -> 3.59 cm): there it drops a few true planes whose model is off
-    (the cambered ground at chi 3-5), not wrong associations."""
+    (the cambered ground at chi 3-5), not wrong associations. ``deleted`` (not the
+    default, experimental): one association at a time, the one with the largest deleted
+    chi-square (its residual under the pose of the others and the prediction, whose
+    per-axis variance is the gates' RMS deviation squared over 3) is dropped while that
+    would give it a Cauchy weight of at most 0.5 (the kernel's own outlier definition: no
+    other number) (:mod:`planodom.odometry.planemap.outliers`). Measured on planes cached
+    from the runs (replays of the registration): KITTI 0005 rotation 0.087 deg as
+    ``dropped`` (its cambered ground patches are many, each of little leverage, so the
+    deleted residual is the fitted one); parked largest steps without point times QT64
+    6.3, 40P 4.7 -> 9.3, AT128 8.4 -> 9.7, XT32M 3.1, VLP-16 1.9 cm: worse, hence not the
+    default."""
     score_truncation: Positive = 3.0
     """Candidate poses are scored by the sum over all the scan's planes of their whitened
     point-to-plane residual to the best landmark, truncated at this many sigmas per
