@@ -175,16 +175,22 @@ def solve(
         return T, H, w
     if config.outliers == "deleted":
         return _drop_deleted(M, T, H, w, cur, lm, jj, config, prior or (T0, np.pi, 1e3))
-    keep = w > 0.5
+    # ``doubtful``: only an association whose scan plane has an ill-defined normal can be
+    # wrong (the others are the surface they match; an excess residual is model error)
+    certain = np.zeros(len(lm), dtype=bool)
+    if config.outliers == "doubtful":
+        certain = np.sqrt(cur.var_n[jj]) <= np.radians(config.doubtful_normal_deg)
+    keep = (w > 0.5) | certain
     for _ in range(config.association_rounds):
         if keep.all() or np.count_nonzero(keep) < 3:
             break
         T, H, w_kept = _gauss_newton(M, T, cur, lm[keep], jj[keep], config)
         w = np.zeros(len(lm))
         w[keep] = w_kept
-        if np.array_equal(w > 0.5, keep):
+        new = (w > 0.5) | (certain & keep)
+        if np.array_equal(new, keep):
             break
-        keep = w > 0.5
+        keep = new
     return T, H, w
 
 

@@ -251,3 +251,38 @@ def test_a_parked_sensor_among_clutter_stays_put_with_deleted() -> None:
         t = rel.T_prev_curr[:3, 3]  # the truth is zero
         assert abs(t[0]) < 0.005 and abs(t[2]) < 0.005
         assert abs(t[1]) < 3 * rel.sigmas5[4] and abs(t[1]) < 0.05
+
+
+def _with_planted(rows: int, extent: float, n_points: int) -> tuple:
+    """The map of a first scan of the surfaces; a second scan whose fifth plane (a panel)
+    is 30 cm off along its normal, measured over ``rows`` lines on a patch of
+    ``extent``: a different surface, or the same surface with a model error."""
+    rng = np.random.default_rng(7)
+    odo = PlaneMapOdometry()
+    odo.commit(odo.estimate(_surfaces(rng)))
+    cur_planes = _surfaces(np.random.default_rng(8))
+    P = plane_points(rng, [0.0, -0.35, 0.94], 2.3, [1.5, 5.0, -0.2], extent, n_points, NOISE)
+    cur_planes[4] = planes_of([P], rows=rows, sigma=NOISE)[0]
+    m = odo.estimate(cur_planes).cur
+    assert isinstance(m, ScanPlanes)
+    return odo, m, np.arange(len(cur_planes))
+
+
+def test_doubtful_drops_only_planes_whose_normal_is_ill_defined() -> None:
+    """``outliers: doubtful``: a 30 cm offset on a plane with a well-defined normal (20
+    lines over 3 m: sigma below 1 deg) is kept with its small Cauchy weight; the same
+    offset on a fragment of one line over 20 cm (normal sigma of degrees) is dropped."""
+    for rows, extent, n_points, dropped in ((20, 3.0, 800, False), (1, 0.2, 25, True)):
+        odo, m, idx = _with_planted(rows, extent, n_points)
+        sigma_n = np.degrees(np.sqrt(m.var_n[4]))
+        assert (sigma_n > 1.0) == dropped  # the default doubtful_normal_deg
+        pm = odo.config.planemap.model_copy(update={"outliers": "doubtful"})
+        T, _, w = solve(odo.map, np.eye(4), m, idx, idx, pm)
+        assert np.all(w[idx != 4] > 0.5)
+        if dropped:
+            assert w[4] == 0.0 and np.linalg.norm(T[:3, 3]) < 0.01
+        else:
+            assert 0.0 < w[4] <= 0.5  # kept, down-weighted by the kernel, not dropped
+            kernel = pm.model_copy(update={"outliers": "kernel"})
+            T_k, _, _ = solve(odo.map, np.eye(4), m, idx, idx, kernel)
+            np.testing.assert_allclose(T, T_k, atol=1e-9)
