@@ -78,23 +78,28 @@ class PlanemapConfig(Section):
     chi-square (its residual under the pose of the others and the prediction, whose
     per-axis variance is the gates' RMS deviation squared over 3) is dropped while that
     would give it a Cauchy weight of at most 0.5 (the kernel's own outlier definition: no
-    other number) (:mod:`planodom.odometry.planemap.outliers`). Measured on planes cached
-    from the runs (replays of the registration): KITTI 0005 rotation 0.087 deg as
-    ``dropped`` (its cambered ground patches are many, each of little leverage, so the
-    deleted residual is the fitted one); parked largest steps without point times QT64
-    6.3, 40P 4.7 -> 9.3, AT128 8.4 -> 9.7, XT32M 3.1, VLP-16 1.9 cm: worse, hence not the
-    default. ``doubtful`` (not the default): as ``dropped``, but only
-    associations whose scan plane's normal sigma exceeds ``doubtful_normal_deg`` may be
+    other number) (:mod:`planodom.odometry.planemap.outliers`). Measured (full runs):
+    KITTI 0005 rotation RPE 0.087 deg as ``dropped`` (its cambered ground patches are
+    many, each of little leverage, so the deleted residual is the fitted one); parked
+    largest steps
+    without / with point times QT64 4.0 / 8.2 cm, 40P 9.3 / 9.2, AT128 8.4 / 6.6, XT32M
+    3.1 / 1.9, VLP-16 1.2 / 6.3 (``dropped``: 4.1 / 5.8, 4.7 / 15.7, 8.4 / 4.3, 3.1 / 1.9,
+    1.2 / 3.2): not better, hence not the default.
+    ``doubtful`` (not the default): as ``dropped``, but only associations whose scan plane's normal sigma exceeds ``doubtful_normal_deg`` may be
     dropped; the others keep their Cauchy weight (a well-defined plane matched through the
     gates is that surface; its excess residual is the map's model error, as on a cambered
-    road, and the kernel's down-weighting is the right treatment). Replays as above:
-    KITTI 0005 rotation 0.087 -> 0.079 deg (translation rms unchanged), the parked steps
-    identical to ``dropped``."""
+    road, and the kernel's down-weighting is the right treatment). Measured (full runs):
+    KITTI 0005 rotation RPE 0.087 -> 0.079 deg, translation 3.59 cm either way, ATE 1.39
+    -> 1.36 m; parked largest steps without point times as ``dropped``, with them QT64
+    5.8 -> 15.9 cm (one well-defined ceiling patch, 47 points over 8 lines, kept at chi^2
+    5 moved the first step 4 -> 6 cm, and the deskew compounds it), 40P 15.7 -> 10.9,
+    AT128 4.3 -> 2.2, XT32M and VLP-16 unchanged; a hand-held VLP-16 walk (replay) ATE
+    against KISS-ICP 0.25 -> 0.32 m. Hence not the default."""
     doubtful_normal_deg: float = Field(1.0, gt=0, le=90)
     """``outliers: doubtful``: scan planes whose normal sigma (the bias model's, per axis)
     exceeds this may be dropped as outliers. Measured on KITTI 0005 and the five parked
-    recordings (replays on cached planes), not derived: 1 deg keeps every parked step as
-    ``dropped`` and gives KITTI 0.079 deg; 2 deg gives KITTI 0.075 but Pandar40P's parked
+    recordings (replays on cached planes), not derived: 1 deg keeps every parked step (no
+    point times) as ``dropped`` and gives KITTI 0.079 deg; 2 deg KITTI 0.075 but Pandar40P's parked
     step 4.7 -> 7.7 cm; 3 deg 0.078 / 7.9 cm; 5 deg 0.076 / 10.8 cm (the parked wrong
     associations are fragments of 1-3 rows whose normal sigmas are several degrees)."""
     score_truncation: Positive = 3.0
