@@ -85,16 +85,17 @@ class PlanemapConfig(Section):
     without / with point times QT64 4.0 / 8.2 cm, 40P 9.3 / 9.2, AT128 8.4 / 6.6, XT32M
     3.1 / 1.9, VLP-16 1.2 / 6.3 (``dropped``: 4.1 / 5.8, 4.7 / 15.7, 8.4 / 4.3, 3.1 / 1.9,
     1.2 / 3.2): not better, hence not the default.
-    ``doubtful`` (not the default): as ``dropped``, but only associations whose scan plane's normal sigma exceeds ``doubtful_normal_deg`` may be
-    dropped; the others keep their Cauchy weight (a well-defined plane matched through the
-    gates is that surface; its excess residual is the map's model error, as on a cambered
-    road, and the kernel's down-weighting is the right treatment). Measured (full runs):
-    KITTI 0005 rotation RPE 0.087 -> 0.079 deg, translation 3.59 cm either way, ATE 1.39
-    -> 1.36 m; parked largest steps without point times as ``dropped``, with them QT64
-    5.8 -> 15.9 cm (one well-defined ceiling patch, 47 points over 8 lines, kept at chi^2
-    5 moved the first step 4 -> 6 cm, and the deskew compounds it), 40P 15.7 -> 10.9,
-    AT128 4.3 -> 2.2, XT32M and VLP-16 unchanged; a hand-held VLP-16 walk (replay) ATE
-    against KISS-ICP 0.25 -> 0.32 m. Hence not the default."""
+    ``doubtful`` (not the default): as ``dropped``, but only associations whose scan plane's
+    normal sigma exceeds ``doubtful_normal_deg`` may be dropped; the others keep their
+    Cauchy weight (a well-defined plane matched through the gates is that surface; its
+    excess residual is the map's model error, as on a cambered road, and the kernel's
+    down-weighting is the right treatment). Measured (full runs): KITTI 0005 rotation RPE
+    0.087 -> 0.079 deg, translation 3.59 cm either way, ATE 1.39 -> 1.36 m; parked largest
+    steps without point times as ``dropped``, with them QT64 5.8 -> 15.9 cm (one
+    well-defined ceiling patch, 47 points over 8 lines, kept at chi^2 5 moved the first step
+    4 -> 6 cm, and the deskew compounds it), 40P 15.7 -> 10.9, AT128 4.3 -> 2.2, XT32M and
+    VLP-16 unchanged; a hand-held VLP-16 walk (replay) ATE against KISS-ICP 0.25 -> 0.32 m.
+    Hence not the default."""
     doubtful_normal_deg: float = Field(1.0, gt=0, le=90)
     """``outliers: doubtful``: scan planes whose normal sigma (the bias model's, per axis)
     exceeds this may be dropped as outliers. Measured on KITTI 0005 and the five parked
