@@ -169,7 +169,11 @@ def solve(
     (the covariance reported) must be that of the associations the pose rests on.
     Without the residual scale the same rule dropped the walls of a hand-held corridor
     walk (5 cm off at 0.5 cm model sigmas, all of them) and left it degenerate; with it
-    that walk is as before or better."""
+    that walk is as before or better. ``doubtful``: the same, but only associations whose
+    scan plane's normal sigma exceeds ``config.doubtful_normal_deg`` can be dropped.
+    ``deleted``: :func:`_drop_deleted` (the leave-one-out test of :mod:`.outliers`
+    against the other associations and the prediction ``prior = (T_pred, s_rot, s_t)``;
+    without a prior, an uninformative one about ``T0``)."""
     T, H, w = _gauss_newton(M, T0, cur, lm, jj, config)
     if config.outliers == "kernel":
         return T, H, w
