@@ -57,7 +57,7 @@ class PlanemapConfig(Section):
     """Rounds of association and Gauss-Newton (ICP's outer loop)."""
     cauchy_scale: Positive = 2.0
     """Cauchy kernel scale on an association's whitened residual (sigmas)."""
-    outliers: Literal["dropped", "kernel"] = "dropped"
+    outliers: Literal["dropped", "kernel", "deleted", "doubtful"] = "dropped"
     """What the registration does with the associations it ends with a Cauchy weight of
     at most 0.5 (the outliers the inlier counts and the map update already leave out):
     ``dropped``, solved again without them, until the set repeats
@@ -73,7 +73,36 @@ class PlanemapConfig(Section):
     against KISS-ICP 0.268 -> 0.250 m; the eight procedural lidar worlds (150 epochs, 6 mm
     and 2 cm) within +-0.1 cm of ATE; KITTI raw 0005 rotation 0.077 -> 0.087 deg rms
     (translation 3.58 -> 3.59 cm): there it drops a few true planes whose model is off
-    (the cambered ground at chi 3-5), not wrong associations."""
+    (the cambered ground at chi 3-5), not wrong associations. ``deleted`` (not the
+    default, experimental): one association at a time, the one with the largest deleted
+    chi-square (its residual under the pose of the others and the prediction, whose
+    per-axis variance is the gates' RMS deviation squared over 3) is dropped while that
+    would give it a Cauchy weight of at most 0.5 (the kernel's own outlier definition: no
+    other number) (:mod:`planodom.odometry.planemap.outliers`). Measured (full runs):
+    KITTI 0005 rotation RPE 0.087 deg as ``dropped`` (its cambered ground patches are
+    many, each of little leverage, so the deleted residual is the fitted one); parked
+    largest steps
+    without / with point times QT64 4.0 / 8.2 cm, 40P 9.3 / 9.2, AT128 8.4 / 6.6, XT32M
+    3.1 / 1.9, VLP-16 1.2 / 6.3 (``dropped``: 4.1 / 5.8, 4.7 / 15.7, 8.4 / 4.3, 3.1 / 1.9,
+    1.2 / 3.2): not better, hence not the default.
+    ``doubtful`` (not the default): as ``dropped``, but only associations whose scan plane's
+    normal sigma exceeds ``doubtful_normal_deg`` may be dropped; the others keep their
+    Cauchy weight (a well-defined plane matched through the gates is that surface; its
+    excess residual is the map's model error, as on a cambered road, and the kernel's
+    down-weighting is the right treatment). Measured (full runs): KITTI 0005 rotation RPE
+    0.087 -> 0.079 deg, translation 3.59 cm either way, ATE 1.39 -> 1.36 m; parked largest
+    steps without point times as ``dropped``, with them QT64 5.8 -> 15.9 cm (one
+    well-defined ceiling patch, 47 points over 8 lines, kept at chi^2 5 moved the first step
+    4 -> 6 cm, and the deskew compounds it), 40P 15.7 -> 10.9, AT128 4.3 -> 2.2, XT32M and
+    VLP-16 unchanged; a hand-held VLP-16 walk (replay) ATE against KISS-ICP 0.25 -> 0.32 m.
+    Hence not the default."""
+    doubtful_normal_deg: float = Field(1.0, gt=0, le=90)
+    """``outliers: doubtful``: scan planes whose normal sigma (the bias model's, per axis)
+    exceeds this may be dropped as outliers. Measured on KITTI 0005 and the five parked
+    recordings (replays on cached planes), not derived: 1 deg keeps every parked step (no
+    point times) as ``dropped`` and gives KITTI 0.079 deg; 2 deg KITTI 0.075 but Pandar40P's parked
+    step 4.7 -> 7.7 cm; 3 deg 0.078 / 7.9 cm; 5 deg 0.076 / 10.8 cm (the parked wrong
+    associations are fragments of 1-3 rows whose normal sigmas are several degrees)."""
     score_truncation: Positive = 3.0
     """Candidate poses are scored by the sum over all the scan's planes of their whitened
     point-to-plane residual to the best landmark, truncated at this many sigmas per

@@ -32,7 +32,13 @@ from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanemapConfig
 from planodom.odometry.planemap.landmarks import PlaneMap
-from planodom.odometry.planemap.moments import Moments, moment_residuals, residual_variance
+from planodom.odometry.planemap.moments import Moments, residual_variance
+from planodom.odometry.planemap.outliers import (
+    deleted_chi2,
+    pose_deviation,
+    residual_scale,
+    whitened,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,6 +151,7 @@ def solve(
     lm: np.ndarray,
     jj: np.ndarray,
     config: PlanemapConfig,
+    prior: tuple[np.ndarray, float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Robust Gauss-Newton of the associations (scan plane ``jj[k]`` -> landmark
     ``lm[k]``) from ``T0``: the pose, its information (6, 6) and the weights (m,).
@@ -162,39 +169,73 @@ def solve(
     (the covariance reported) must be that of the associations the pose rests on.
     Without the residual scale the same rule dropped the walls of a hand-held corridor
     walk (5 cm off at 0.5 cm model sigmas, all of them) and left it degenerate; with it
-    that walk is as before or better."""
+    that walk is as before or better. ``doubtful``: the same, but only associations whose
+    scan plane's normal sigma exceeds ``config.doubtful_normal_deg`` can be dropped.
+    ``deleted``: :func:`_drop_deleted` (the leave-one-out test of :mod:`.outliers`
+    against the other associations and the prediction ``prior = (T_pred, s_rot, s_t)``;
+    without a prior, an uninformative one about ``T0``)."""
     T, H, w = _gauss_newton(M, T0, cur, lm, jj, config)
     if config.outliers == "kernel":
         return T, H, w
-    keep = w > 0.5
+    if config.outliers == "deleted":
+        return _drop_deleted(M, T, H, w, cur, lm, jj, config, prior or (T0, np.pi, 1e3))
+    # ``doubtful``: only an association whose scan plane has an ill-defined normal can be
+    # wrong (the others are the surface they match; an excess residual is model error)
+    certain = np.zeros(len(lm), dtype=bool)
+    if config.outliers == "doubtful":
+        certain = np.sqrt(cur.var_n[jj]) <= np.radians(config.doubtful_normal_deg)
+    keep = (w > 0.5) | certain
     for _ in range(config.association_rounds):
         if keep.all() or np.count_nonzero(keep) < 3:
             break
         T, H, w_kept = _gauss_newton(M, T, cur, lm[keep], jj[keep], config)
         w = np.zeros(len(lm))
         w[keep] = w_kept
-        if np.array_equal(w > 0.5, keep):
+        new = (w > 0.5) | (certain & keep)
+        if np.array_equal(new, keep):
             break
-        keep = w > 0.5
+        keep = new
     return T, H, w
 
 
-#: Median of a chi-square variable with 3 degrees of freedom, divided by 3: the median of
-#: an association's mean squared whitened residual (offset and two tilts) when its model
-#: variances are right (scipy.stats.chi2.median(3) / 3).
-_MEDIAN_CHI2_3 = 2.3659738843753377 / 3.0
-
-
-def residual_scale(chi2: np.ndarray) -> float:
-    """The factor (at least 1) by which the associations' residuals (m,) mean squared
-    whitened residuals ``chi2`` exceed their model variances, robustly: ``median(chi2)``
-    over the median it has when the model is right. A scan whose planes all disagree more
-    than their noise model says (a fast hand-held walk deskewed by a twist a few percent
-    off, map lag) makes every plane less certain, not its best-measured planes outliers;
-    the model variances are never shrunk."""
-    if len(chi2) == 0:
-        return 1.0
-    return max(1.0, float(np.median(chi2)) / _MEDIAN_CHI2_3)
+def _drop_deleted(
+    M: PlaneMap,
+    T: np.ndarray,
+    H: np.ndarray,
+    w: np.ndarray,
+    cur: ScanPlanes,
+    lm: np.ndarray,
+    jj: np.ndarray,
+    config: PlanemapConfig,
+    prior: tuple[np.ndarray, float, float],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``outliers: deleted`` (:mod:`.outliers`): while the association with the largest
+    deleted chi-square (its residual under the pose of the others and the prediction
+    ``prior = (T_pred, s_rot, s_t)``) is an outlier by the kernel's own definition (the
+    Cauchy weight it would get at most 0.5: mean squared whitened residual at least
+    ``c^2``), drop it and solve again; one at a time, as data snooping does, so that a
+    gross outlier does not make its neighbours look bad (swamping). Dropped ones get
+    weight 0."""
+    T_pred, s_r, s_t = prior
+    # the deviations are RMS of 3D vectors: per axis their variance is a third
+    info = np.r_[np.full(3, 3.0 / max(s_r, 1e-9) ** 2), np.full(3, 3.0 / max(s_t, 1e-9) ** 2)]
+    keep = np.ones(len(lm), dtype=bool)
+    limit = 3.0 * config.cauchy_scale**2
+    while np.count_nonzero(keep) > 3:
+        idx = np.flatnonzero(keep)
+        N, c, lam, E = cur.m.N[jj[idx]], cur.m.c[jj[idx]], cur.lam[jj[idx]], cur.E[jj[idx]]
+        r, J, v, chi2 = whitened(M, T[:3, :3], T[:3, 3], N, c, lam, E, cur.s2[jj[idx]], lm[idx])
+        k2 = residual_scale(chi2)
+        wk = 1.0 / (1.0 + chi2 / (k2 * config.cauchy_scale**2))
+        stat = deleted_chi2(r, J, k2 * v, wk, pose_deviation(T, T_pred), info)
+        worst = int(np.argmax(stat))
+        if stat[worst] < limit:
+            break
+        keep[idx[worst]] = False
+        T, H, w_kept = _gauss_newton(M, T, cur, lm[keep], jj[keep], config)
+        w = np.zeros(len(lm))
+        w[keep] = w_kept
+    return T, H, w
 
 
 def _gauss_newton(
@@ -207,7 +248,6 @@ def _gauss_newton(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cauchy-weighted Gauss-Newton of all the associations given (see :func:`solve`)."""
     R, t = T0[:3, :3].copy(), T0[:3, 3].copy()
-    n, d = M.n[lm], M.d[lm]
     N, c, lam, E = cur.m.N[jj], cur.m.c[jj], cur.lam[jj], cur.E[jj]
     s2 = cur.s2[jj]
     H, w = np.eye(6), np.ones(len(lm))
@@ -215,12 +255,7 @@ def _gauss_newton(
     L = max(float(np.median(np.linalg.norm(c, axis=1))), 1.0)
     scale = np.r_[np.ones(3), np.full(3, 1.0 / L)]
     for _ in range(config.gn_iterations):
-        r, J, U = moment_residuals(R, t, n, d, N, c, lam, E)
-        x = c @ R.T + t
-        v = np.empty_like(r)
-        v[:, 0] = s2 + N * M.var_at(lm, x)
-        v[:, 1:] = s2[:, None] + lam * np.einsum("mak,mab,mbk->mk", U, M.cov_n[lm], U)
-        chi2 = (r[:, 0] ** 2 / v[:, 0] + r[:, 2] ** 2 / v[:, 2] + r[:, 3] ** 2 / v[:, 3]) / 3.0
+        r, J, v, chi2 = whitened(M, R, t, N, c, lam, E, s2, lm)
         k2 = residual_scale(chi2)
         w = 1.0 / (1.0 + chi2 / (k2 * config.cauchy_scale**2))
         Wr = w[:, None] / (k2 * v)
@@ -265,7 +300,7 @@ def register(
                 lm, jj = a[jj_new], jj_new
             break
         jj, lm = jj_new, a[jj_new]
-        T, H, w = solve(M, T, cur, lm, jj, config)
+        T, H, w = solve(M, T, cur, lm, jj, config, (T0, s_r, s_t))
     if len(w) != len(jj):
         w = np.zeros(len(jj))
     return Registration(T, H, lm, jj, w, stage)
