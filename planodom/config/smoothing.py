@@ -324,7 +324,7 @@ class SmoothingConfig(Section):
     paper's odometry under bounds grown from the chained covariance, verified by its
     strict (consensus) associations, added as robust 5-DoF between factors and checked
     by chi2(5) after optimisation."""
-    loop_candidate_drift: Literal["chained", "stated"] = "chained"
+    loop_candidate_drift: Literal["chained", "stated", "run"] = "chained"
     """The drift a loop candidate must agree within, with the previous verified one and with
     the map's accepted correction (chi2(3)): "chained" as the map matches' verification
     (the fallback's yaw variance for rotation-only epochs, a half of the fallback's
