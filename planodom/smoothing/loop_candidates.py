@@ -300,7 +300,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             rel = self.match_old_epoch(k, e)
             if rel is None:
                 continue
-            if not self._agrees_with_map(rel):
+            if not self._agrees_with_map(rel) or not self._plausible(rel):
                 continue
             last, self._last_verified = self._last_verified, rel
             if last is None or k - last.curr > c.loop_candidate_confirm_epochs:
@@ -349,6 +349,22 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         T_a = self.correction @ self.poses[rel.curr]
         T_b = self._correction(rel) @ self.poses[rel.curr]
         v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
+        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+
+    def _plausible(self, rel: RelativePose) -> bool:
+        """``loop_candidate_drift`` "run", no correction accepted by the map: whether the
+        correction of the chained guess a verified loop pose implies is within the drift
+        of the chained odometry between its epochs (chi2(3) at ``loop_gate_quantile``):
+        an aliased place farther off than the run can have drifted is no loop. True
+        otherwise (the map's correction is compared by :meth:`_agrees_with_map`; the
+        other modes rely on the association bounds alone)."""
+        if self.config.loop_candidate_drift != "run" or self._reference is not None:
+            return True
+        if rel.covariance is None:
+            return False
+        own = np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
+        cov = self._candidate_drift([(rel.prev, rel.curr)]) + own
+        v = pose5_from_transform(self._correction(rel))[2:]
         return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
 
     def _add_loop_factor(self, update: GraphUpdate, rel: RelativePose) -> None:
