@@ -190,6 +190,11 @@ class SmoothingConfig(Section):
     world 6 2 cm 1.53 -> 1.69 (without loop closure 3.35 -> 3.05: 174 of its 204 epochs
     are bridged: its fallbacks' means decide little, the true step as every one gives
     1.09); worlds 0, 2, 4, 8, 10, 16 at 6 mm and 2 cm, 6 and 12 at 6 mm within 1 mm."""
+    fallback_step: Literal["last", "medoid"] = "last"
+    """The fallback factor's mean into an epoch whose translation nothing measured, when the
+    odometry gave no unresolved prediction for it (rotation-only epochs): "last": the last
+    measured delta = 1 step repeated; "medoid": the medoid of the last five measured steps
+    (:func:`planodom.smoothing.motion.medoid_transform`), so that one wrong step is not repeated."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""

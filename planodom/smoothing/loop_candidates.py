@@ -85,7 +85,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._group = -1  # hypothesis of the latest loop factors (chained agreeing poses)
         # loop_candidate_drift "run": epochs bridged in a row, the last measured step's xy
         # (None after a bridged epoch), and the sum and count of squared step changes
-        self._bridged, self._step = 0, None
+        self._bridged = 0
+        self._step: np.ndarray | None = None
         self._change = np.zeros(2)
 
     def add_epoch(
