@@ -170,7 +170,8 @@ def test_an_aliased_place_after_a_bridged_stretch_is_refused(problem, monkeypatc
         return replace(rel, T_prev_curr=rel.T_prev_curr @ make_transform(np.eye(3), [8.0, 0, 0]))
 
     monkeypatch.setattr(loop_candidates.CandidateLoopBuilder, "match_old_epoch", aliased)
-    chained = smooth_batch(planes, relatives, _candidates_only())
+    chained_cfg = _candidates_only().updated({"smoothing.loop_candidate_drift": "chained"})
+    chained = smooth_batch(planes, relatives, chained_cfg)
     assert chained.loop_factors and all(f.wrong(truth) for f in chained.loop_factors)
     run = smooth_batch(planes, relatives, run_cfg)
     assert not run.loop_factors
