@@ -14,12 +14,8 @@ from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import F, GraphBuilder, GraphStats, X
-from planodom.smoothing.loop_candidates import (
-    CandidateLoopBuilder,
-    gate_loop_factors,
-    loop_start,
-    test_hypotheses,
-)
+from planodom.smoothing.loop_candidates import CandidateLoopBuilder
+from planodom.smoothing.loop_gate import gate_loop_factors, loop_start, test_hypotheses
 from planodom.smoothing.loop_records import (
     LoopFactor,
     LoopMatch,

@@ -44,6 +44,7 @@ from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.deskew_noise import between_keys, deskew_from_config
 from planodom.smoothing.landmarks import LandmarkTracker
+from planodom.smoothing.motion import FALLBACK_STEPS, medoid_transform
 from planodom.smoothing.noise import between_covariance, plane_factor_covariance, with_robust_kernel
 from planodom_factors.planes import (
     anchor_pose,
@@ -134,6 +135,7 @@ class GraphBuilder:
         self.initial_poses: np.ndarray | None = None  # (E, 4, 4) overrides the chained guess
         self._robust_planes = config.robust_planes and config.robust_kernel != "none"
         self._last_step: np.ndarray | None = None
+        self._steps: list[np.ndarray] = []  # the last FALLBACK_STEPS measured steps
         self.first_step: np.ndarray | None = None  # fallback before any measured step
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
@@ -156,11 +158,7 @@ class GraphBuilder:
         candidates = [self.poses[r.prev] @ np.asarray(r.T_prev_curr, dtype=float) for r in pool]
         if len(candidates) < 3:
             return candidates[0]
-        t = np.stack([c[:3, 3] for c in candidates])
-        R = np.stack([c[:3, :3] for c in candidates])
-        cos = np.clip((np.einsum("aij,bij->ab", R, R) - 1.0) / 2.0, -1.0, 1.0)
-        dist = np.linalg.norm(t[:, None] - t[None], axis=2) + 10.0 * np.arccos(cos)
-        return candidates[int(np.argmin(dist.sum(axis=1)))]
+        return medoid_transform(candidates)
 
     def _fallback_motion(self, bridge: RelativePose | None) -> np.ndarray:
         """(4, 4) mean ``T_{k-1}_k`` of the fallback into an epoch nothing measured: the
@@ -169,6 +167,8 @@ class GraphBuilder:
         ``first_step`` (``smoothing.fallback_start``), else identity; never the estimates."""
         if bridge is not None:
             return np.asarray(bridge.T_prev_curr, dtype=float)
+        if self.config.fallback_step == "medoid" and len(self._steps) >= 3:
+            return medoid_transform(self._steps)
         return next((s for s in (self._last_step, self.first_step) if s is not None), np.eye(4))
 
     def add_epoch(
@@ -263,6 +263,7 @@ class GraphBuilder:
         for rel in measured:
             if rel.delta == 1 and rel.translation_observed:
                 self._last_step = np.asarray(rel.T_prev_curr, dtype=float)
+                self._steps = [*self._steps[1 - FALLBACK_STEPS :], self._last_step]
             if c.between_factors == "none" or (
                 c.between_factors == "untracked" and self.in_plane_factors(rel)
             ):

@@ -116,7 +116,7 @@ class LoopFactor:
         group: its hypothesis: loop factors confirmed by each other in a chain share it.
         chi2: squared whitened error of its Gaussian twin at the last estimate (nan
             before optimisation). increase: what its hypothesis costs the rest of the
-            graph (:func:`planodom.smoothing.loop_candidates.test_hypotheses`).
+            graph (:func:`planodom.smoothing.loop_gate.test_hypotheses`).
             removed: refused by the gate or that test after optimisation.
     """
 

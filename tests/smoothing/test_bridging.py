@@ -30,7 +30,8 @@ def test_unresolved_epochs_follow_the_odometrys_prediction() -> None:
     # the last measured step repeated (constant velocity) would be off by 0.7-1.5 deg
     off = se3_log(invert_transform(steps[6])[None] @ steps[7:11])
     assert np.all(np.linalg.norm(off[:, :3], axis=1) > 0.01)
-    result = smooth_batch([[] for _ in range(20)], relatives, GAUSSIAN)
+    last = GAUSSIAN.model_copy(update={"fallback_step": "last"})
+    result = smooth_batch([[] for _ in range(20)], relatives, last)
     assert result.stats.unresolved_epochs == [8, 9, 10, 11, 15]
     est = invert_transform(result.poses[:-1]) @ result.poses[1:]
     for k in range(1, 20):  # rotation and horizontal translation (5-DoF factors)
@@ -88,3 +89,31 @@ def test_rotation_only_start_carries_the_first_measured_step_back() -> None:
         for k in range(4, 12):  # measured
             np.testing.assert_allclose(est[k - 1][:2, 3], steps[k - 1][:2, 3], atol=1e-6)
     assert np.linalg.norm(steps[3][:2, 3]) > 0.5  # identity is a wrong prediction here
+
+
+def test_one_wrong_step_before_a_rotation_only_stretch_is_not_repeated() -> None:
+    """Constant velocity along x; epoch 6's measured step 0.25 m too long, epochs 7..18
+    rotation-only (translation unmeasured). "last" repeats the wrong step in every
+    fallback (12 x 0.25 m along the track, the true error of the chained guess), "medoid"
+    takes the true step from the last five measured ones: only epoch 6's own error
+    remains (ground truth: the true poses)."""
+    seq = make_sequence(26, seed=3, vertical_sigma=0.0)
+    steps = invert_transform(seq.poses[:-1]) @ seq.poses[1:]
+    relatives = []
+    for r in seq.relatives:
+        if r.delta != 1:
+            continue
+        if r.curr == 6:
+            r = replace(r, T_prev_curr=r.T_prev_curr @ make_transform(np.eye(3), [0.25, 0, 0]))
+        elif 7 <= r.curr <= 18:
+            r = replace(r, status=Status.DEGENERATE)
+        relatives.append(r)
+    # the sequence's steps barely change: the medoid of any five is within 5 cm of each
+    assert np.ptp(np.linalg.norm(steps[:, :2, 3], axis=1)) < 0.05
+    end = {}
+    for mode in ("last", "medoid"):
+        config = GAUSSIAN.model_copy(update={"fallback_step": mode})
+        result = smooth_batch([[] for _ in range(26)], relatives, config)
+        end[mode] = float(np.linalg.norm(result.poses[-1][:2, 3] - seq.poses[-1][:2, 3]))
+    assert end["last"] > 2.5
+    assert end["medoid"] < 0.25 + 12 * 0.05

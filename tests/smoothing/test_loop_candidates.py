@@ -10,6 +10,7 @@ import pytest
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import invert_transform, make_transform, pose5_from_transform
+from planodom.odometry import RelativePose, Status
 from planodom.smoothing import loop_candidates
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.loop_records import LoopFactor, loop_factor_counts
@@ -109,3 +110,69 @@ def test_a_loop_factor_is_wrong_beyond_three_sigma():
         # the factor error is the true (predicted) minus the measured translation
         np.testing.assert_allclose(f.truth_error(gt), [0, 0, 0, -shift, 0], atol=1e-12)
         assert f.wrong(gt) is wrong
+
+
+def _step(k: int, xy, status: Status = Status.OK) -> RelativePose:
+    T = make_transform(np.eye(3), [xy[0], xy[1], 0.0])
+    cov = np.diag([1e-6, 1e-6, 1e-6, 1e-4, 1e-4])
+    return RelativePose(T, cov, status, prev=k - 1, curr=k)
+
+
+def test_run_drift_of_bridged_epochs_grows_as_a_velocity_random_walk():
+    """loop_candidate_drift "run": measured steps add their own variance; the n-th bridged
+    epoch in a row adds (n^3 - (n-1)^3) / 3 times the mean squared change of consecutive
+    measured steps (closed form), at most the fallback's variance, and the count restarts
+    after a measured step."""
+    cfg = _candidates_only().updated({"smoothing.loop_candidate_drift": "run"})
+    builder = loop_candidates.CandidateLoopBuilder(cfg)
+    steps = [(0.30, 0.00), (0.32, 0.01), (0.29, -0.01), (0.31, 0.00)]  # epochs 1..4 measured
+    plan = [None] + steps + [None] * 4 + [(0.3, 0.0), None, None]
+    for k, xy in enumerate(plan):
+        rel = [] if k == 0 else [_step(k, xy or (0.3, 0.0), Status.OK if xy else Status.DEGENERATE)]
+        builder.add_epoch([], rel)
+    changes = np.diff(np.array(steps), axis=0)
+    sigma2 = float(np.mean(np.sum(changes**2, axis=1)))  # x plus y, per epoch
+    added = np.diff(np.array(builder._variances)[:, 0])
+    np.testing.assert_allclose(added[:4], 2e-4)  # measured: x plus y of their covariance
+    n = np.arange(1, 5)
+    np.testing.assert_allclose(added[4:8], sigma2 * (n**3 - (n - 1) ** 3) / 3.0)
+    assert added[8] == pytest.approx(2e-4)
+    # the step after the bridge has no measured predecessor: no change recorded
+    np.testing.assert_allclose(added[9:], sigma2 * np.array([1.0, 7.0]) / 3.0)
+    capped = loop_candidates.CandidateLoopBuilder(cfg)
+    capped._change[:] = (1.0, 1.0)  # a change of 1 m per epoch: the fallback caps it
+    assert capped._run_variance(None, 0.25) == 0.25
+
+
+def test_an_aliased_place_after_a_bridged_stretch_is_refused(problem, monkeypatch):
+    """The lap with its epochs 30-59 bridged (translation not measured: the fallback's
+    0.5 m per epoch; the trajectory keeps its speed), and every old-epoch match after
+    the lap shifted 8 m (an aliased corridor: consistent with each other, they pass the
+    confirmation). The chained drift (the fallback's variance) verifies them, to be
+    removed after optimisation only; the run's own ("run": the measured steps do not
+    change, so the bridge adds nothing) refuses every one before the graph, while the
+    true loop poses still verify and close the loop."""
+    truth, planes, relatives = problem
+    relatives = [replace(r, status=Status.DEGENERATE) if 30 <= r.curr < 60 else r
+                 for r in relatives]  # fmt: skip
+    run_cfg = _candidates_only().updated({"smoothing.loop_candidate_drift": "run"})
+    plain = smooth_batch(planes, relatives, _candidates_only(False))
+    right = smooth_batch(planes, relatives, run_cfg)
+    counts = loop_factor_counts(right.loop_factors, truth)
+    assert counts["loop_factors"] >= 10 and counts["loop_factors_wrong_kept"] == 0
+    assert _end_error(right.poses, truth) < 0.5 * _end_error(plain.poses, truth)
+    original = loop_candidates.CandidateLoopBuilder.match_old_epoch
+
+    def aliased(self, k, e):
+        rel = original(self, k, e)
+        if rel is None:
+            return None
+        return replace(rel, T_prev_curr=rel.T_prev_curr @ make_transform(np.eye(3), [8.0, 0, 0]))
+
+    monkeypatch.setattr(loop_candidates.CandidateLoopBuilder, "match_old_epoch", aliased)
+    chained_cfg = _candidates_only().updated({"smoothing.loop_candidate_drift": "chained"})
+    chained = smooth_batch(planes, relatives, chained_cfg)
+    assert chained.loop_factors and all(f.wrong(truth) for f in chained.loop_factors)
+    run = smooth_batch(planes, relatives, run_cfg)
+    assert not run.loop_factors
+    np.testing.assert_allclose(run.poses, plain.poses, atol=1e-9)
