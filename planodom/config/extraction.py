@@ -267,6 +267,17 @@ class ExtractionConfig(Section):
     """Range image: two grown pieces near in the grid are one plane when their TLS normals
     differ by at most this (deg) plus 3 sigma / sqrt(l2) of each (their predicted
     errors) and each centroid lies within the member tolerance of the other's plane."""
+    region_gap: Literal["incidence", "range"] = "incidence"
+    """Range image: the gap rule between neighbouring pixels. range: ``max(min_gap_m,
+    gap_range_ratio * range)`` in every direction; incidence: the ratio scaled by the
+    angle between the two rays over the native column step (the incidence limit the rule
+    gives a scan line's consecutive points; a sparse lidar's rows 2 deg apart no longer
+    cut its floor, planodom.extraction.lidar.rangeimage)."""
+    region_merge: Literal["grid", "reach"] = "grid"
+    """Range image of a ringed scan (or rows with times): grid: coplanar pieces merge
+    when near in the grid; reach: also when their bounding circles come within
+    ``plane_gap_m`` (a floor seen between the walls of a corridor, ahead and behind, is
+    one plane; as the image of an unorganised cloud does)."""
 
     @model_validator(mode="after")
     def _cross_checks(self) -> ExtractionConfig:
