@@ -162,10 +162,11 @@ def organised_candidates(
     tol_pix = member_tolerance(config, sigma_pix)
     n, e, ok = _pixel_normals(P, max(1, int(config.region_window)), 1, sigma_pix, tol_pix, ks)
     min_px = max(3, config.min_plane_points // 2 // max(int(m), 1))
+    native_step = 2.0 * np.pi / float(np.bincount(rows).max())  # rad, a native column
     piece, C = _grow_pieces(
         P, n, e, ok, float(tol_pix), ks, float(np.radians(config.region_normal_floor_deg)),
         float(config.min_gap_m), float(config.gap_range_ratio), np.zeros(3), min_px,
-        2.0 * np.pi / float(np.bincount(rows).max()) if config.region_gap == "incidence" else 0.0,
+        native_step if config.organised_gap == "incidence" else 0.0,
     )  # fmt: skip
     empty = OrganisedCandidates([], sigma, (H, W))
     if C == 0:
