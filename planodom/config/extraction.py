@@ -272,8 +272,9 @@ class ExtractionConfig(Section):
     gap_range_ratio * range)`` in every direction; incidence: the ratio scaled by the
     angle between the two rays over the native column step (the incidence limit the rule
     gives a scan line's consecutive points; a sparse lidar's rows 2 deg apart no longer
-    cut its floor, planodom.extraction.lidar.rangeimage). For the image of a ringed scan
-    (or recovered rows with recorded times)."""
+    cut its floor, planodom.extraction.lidar.rangeimage; a grown piece over the RMS limit
+    is then trimmed to its plane once instead of dropped). For the image of a ringed
+    scan (or recovered rows with recorded times)."""
     organised_gap: Literal["range", "incidence"] = "range"
     """The same for the square-pixel image of an unorganised cloud
     (planodom.extraction.lidar.organised; the step: the native column step). incidence

@@ -40,7 +40,10 @@ unit's rows are 2 deg apart against 0.7 deg columns (512), so on a floor 1.8 m b
 the sensor, rows 8 and 9.5 m away are 1.4 m apart, over the 1 m limit, and the floor
 grew one piece per row, each a line (measured on an indoor 16-beam world at 6 mm: floor
 and ceiling missing from 10 planes of 11 true surfaces; with the scaling both found).
-Dense lidars (rows closer than the columns) are unchanged.
+Dense lidars (rows closer than the columns) are unchanged. Long edges admit more (their
+tangent-plane allowance grows with the length), so with this rule a piece over the RMS
+limit is trimmed to its plane once (:func:`_trim_pieces`) before the test, not dropped.
+``region_gap: range`` keeps the unscaled rule (and no trim).
 
 Region growing needs pixel normals better than the angle between two surfaces; when the
 median predicted pixel normal error exceeds ``region_max_normal_error_deg`` (high noise,
