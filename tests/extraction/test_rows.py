@@ -123,11 +123,13 @@ def test_a_sparse_ringless_lidar_keeps_floor_and_ceiling(times):
     apart (1.2 m between the second and third row here), more than the gap rule allows
     consecutive points of a scan line at that range. Floor and ceiling are still found,
     with their normals towards the sensor, with times (recovered rows as the ring) and
-    without (square-pixel image)."""
+    without (square-pixel image, ``organised_gap: incidence``)."""
     walls = _corridor()
     scan = scan_lidar(walls, sigma=0.006, n_beams=16, n_azimuth=1024, with_ring=False)
     bare = Scan(scan.points, None, scan.t if times else None, scan.label)
-    res = extract(bare, ExtractionConfig(), sensor_origins=np.array([0, 0, HEIGHT]))
+    # without times: the square-pixel image, whose incidence rule is not the default
+    cfg = ExtractionConfig() if times else ExtractionConfig(organised_gap="incidence")
+    res = extract(bare, cfg, sensor_origins=np.array([0, 0, HEIGHT]))
     truth = planes_in_base(walls)
     found = {p.truth_id for p in res.planes}
     assert {0, 1, 2, 3} <= found  # floor, ceiling, both long walls

@@ -40,10 +40,10 @@ unit's rows are 2 deg apart against 0.7 deg columns (512), so on a floor 1.8 m b
 the sensor, rows 8 and 9.5 m away are 1.4 m apart, over the 1 m limit, and the floor
 grew one piece per row, each a line (measured on an indoor 16-beam world at 6 mm: floor
 and ceiling missing from 10 planes of 11 true surfaces; with the scaling both found).
-Dense lidars (rows closer than the columns) are unchanged. Long edges admit more (their
-tangent-plane allowance grows with the length), so with this rule a piece over the RMS
-limit is trimmed to its plane once (:func:`_trim_pieces`) before the test, not dropped.
-``region_gap: range`` keeps the unscaled rule (and no trim).
+Dense lidars (rows closer than the columns, :func:`row_spacing`) are unchanged. Long
+edges admit more (their tangent-plane allowance grows with the length), so on a sparse
+grid a piece over the RMS limit is trimmed to its plane once (:func:`_trim_pieces`)
+before the test, not dropped. ``region_gap: range`` keeps the unscaled rule (no trim).
 
 Region growing needs pixel normals better than the angle between two surfaces; when the
 median predicted pixel normal error exceeds ``region_max_normal_error_deg`` (high noise,
@@ -117,13 +117,15 @@ def range_image_candidates(
         return []
 
     # 2. Edges between right and lower neighbours, connected components, flat pieces.
+    step = 2.0 * np.pi / W  # rad, a column
+    sparse = config.region_gap == "incidence" and row_spacing(P, viewpoint) > step
     piece, C = _grow_pieces(
         P, n, e, ok, float(tol), ks, float(np.radians(config.region_normal_floor_deg)),
         float(config.min_gap_m), float(config.gap_range_ratio),
         np.ascontiguousarray(viewpoint, dtype=np.float64), max(3, config.min_plane_points // 2),
-        2.0 * np.pi / W if config.region_gap == "incidence" else 0.0,
+        step if sparse else 0.0,
     )  # fmt: skip
-    pieces = _flat_pieces(P, piece, C, sigma, config)
+    pieces = _flat_pieces(P, piece, C, sigma, config, sparse)
     if pieces is None:
         return []
     # 3. Merge pieces that are near in the grid and agree on their plane.
@@ -140,13 +142,30 @@ def range_image_candidates(
     return [idx[bounds[k] : bounds[k + 1]] for k in range(C) if sizes[k] >= config.min_plane_points]
 
 
+def row_spacing(P: np.ndarray, viewpoint: np.ndarray) -> float:
+    """Median angle (rad) between the rays of vertically neighbouring pixels of the grid
+    ``P`` (H, W, 3) (NaN: none) seen from ``viewpoint`` (3,): the beam spacing."""
+    ray = P - viewpoint
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ray = ray / np.linalg.norm(ray, axis=2, keepdims=True)
+    chord = np.linalg.norm(ray[1:] - ray[:-1], axis=2)
+    chord = chord[np.isfinite(chord)]
+    return float(2.0 * np.arcsin(min(np.median(chord) / 2.0, 1.0))) if len(chord) else 0.0
+
+
 def _flat_pieces(
-    P: np.ndarray, piece: np.ndarray, C: int, sigma: float, config: ExtractionConfig
+    P: np.ndarray,
+    piece: np.ndarray,
+    C: int,
+    sigma: float,
+    config: ExtractionConfig,
+    trim: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """End of step 2: the pieces that are planes (RMS within the limit, not lines), as
     their pixel labels (H, W) (renumbered 0..C'-1, -1 for none), counts (C',), centroids
     (C', 3), scatters (C', 3, 3), eigenvalues (C', 3) and eigenvectors (C', 3, 3)
-    (ascending); None when there is none."""
+    (ascending); None when there is none. With ``trim`` a piece over the RMS limit is
+    first trimmed to its plane (:func:`_trim_pieces`)."""
     if C == 0:
         return None
     H, W = P.shape[0], P.shape[1]
@@ -154,7 +173,7 @@ def _flat_pieces(
     vals, vecs = np.linalg.eigh(sc)
     rms = np.sqrt(np.maximum(vals[:, 0], 0.0) / cnt)
     rough = rms > rms_limit(config, sigma)
-    if config.region_gap == "incidence" and np.any(rough):
+    if trim and np.any(rough):
         tol = member_tolerance(config, sigma)
         piece = _trim_pieces(P.reshape(-1, 3), piece, rough, cen, vecs[:, :, 0], tol)
         cnt, cen, sc = _piece_moments(P.reshape(-1, 3), piece, C)
