@@ -26,7 +26,11 @@ from planodom.extraction.lidar.grid import (
     ring_rows,
 )
 from planodom.extraction.lidar.normals import _pixel_normals
-from planodom.extraction.lidar.rangeimage import _grow_pieces, range_image_candidates
+from planodom.extraction.lidar.rangeimage import (
+    _flat_pieces,
+    _grow_pieces,
+    range_image_candidates,
+)
 from planodom.extraction.lidar.ransac import sample_triples, segment_plane
 
 from .synth_scans import default_scene, planes_in_base, rect, scan_lidar
@@ -131,9 +135,10 @@ def _normals_reference(P, K, sigma, tol, ks, S=1):
     return n, e, ok
 
 
-def _pieces_reference(P, n, e, ok, tol, ks, floor, min_gap, ratio, view, min_px):
+def _pieces_reference(P, n, e, ok, tol, ks, floor, min_gap, ratio, view, min_px, step):
     """Step 2: edge tests in numpy, scipy's connected components, pieces of min_px
-    pixels or more numbered by their first pixel."""
+    pixels or more numbered by their first pixel; the gap ratio scaled by the angle
+    between the rays over ``step`` (0: unscaled)."""
     H, W = ok.shape
     idx = np.arange(H * W).reshape(H, W)
     below = np.vstack([idx[1:], np.full((1, W), -1)])
@@ -153,7 +158,13 @@ def _pieces_reference(P, n, e, ok, tol, ks, floor, min_gap, ratio, view, min_px)
         keep &= np.abs(np.sum(nf[i] * dp, axis=1)) <= tol + ks * ef[i] * dist
         keep &= np.abs(np.sum(nf[j] * dp, axis=1)) <= tol + ks * ef[j] * dist
         rng = np.linalg.norm(Pf[i] - view, axis=1)
-        keep &= dist <= np.maximum(min_gap, ratio * rng)
+        scale = np.ones(len(i))
+        if step > 0:
+            ui = (Pf[i] - view) / rng[:, None]
+            uj = (Pf[j] - view) / np.linalg.norm(Pf[j] - view, axis=1)[:, None]
+            angle = np.arccos(np.clip(np.sum(ui * uj, axis=1), -1.0, 1.0))
+            scale = np.maximum(1.0, angle / step)
+        keep &= dist <= np.maximum(min_gap, ratio * rng * scale)
         src.append(i[keep])
         dst.append(j[keep])
     src, dst = np.concatenate(src), np.concatenate(dst)
@@ -168,8 +179,8 @@ def _pieces_reference(P, n, e, ok, tol, ks, floor, min_gap, ratio, view, min_px)
     return out
 
 
-@pytest.mark.parametrize("sigma", [0.0, 0.006, 0.02])
-def test_region_growing_kernels_match_numpy_and_scipy(sigma):
+@pytest.mark.parametrize(("sigma", "step"), [(0.0, 0.0), (0.006, 0.0), (0.02, 0.0), (0.006, 0.02)])
+def test_region_growing_kernels_match_numpy_and_scipy(sigma, step):
     P = _grid(sigma, seed=int(sigma * 1000))
     K, ks, tol = 3, 3.0, max(3 * sigma, 0.02)
     n, e, ok = _pixel_normals(P, K, 1, max(sigma, 0.002), tol, ks)
@@ -179,11 +190,35 @@ def test_region_growing_kernels_match_numpy_and_scipy(sigma):
     np.testing.assert_allclose(n[ok], n_ref[ok], rtol=0, atol=1e-12)
     np.testing.assert_allclose(e[ok], e_ref[ok], rtol=1e-12)
     # A short gap limit (0.1 m + 3 % of the range) so that the gap test also cuts edges.
-    args = (tol, ks, np.radians(2.0), 0.1, 0.03, np.array([0.0, 0.0, 1.8]), 10)
+    # step > 0: rows 2 deg apart against a 0.02 rad (1.1 deg) step scale it across rows.
+    args = (tol, ks, np.radians(2.0), 0.1, 0.03, np.array([0.0, 0.0, 1.8]), 10, step)
     piece, n_pieces = _grow_pieces(P, n, e, ok, *args)
     ref = _pieces_reference(P, n, e, ok, *args)
     assert n_pieces >= 3
+    if step > 0:  # the scaled gap joins rows the unscaled one cuts
+        assert n_pieces < _grow_pieces(P, n, e, ok, *args[:-1], 0.0)[1]
     np.testing.assert_array_equal(piece, ref)
+
+
+@pytest.mark.parametrize("gap", ["incidence", "range"])
+def test_a_grown_piece_with_a_few_pixels_off_its_plane(gap):
+    """A ground piece (z = 0) that took in 10 pixels of a low object 0.3 m high fails the
+    RMS test as a whole; with the incidence gap rule on a sparse grid (whose long edges
+    let such pixels in) it is trimmed: the piece keeps its ground pixels."""
+    H, W = 8, 64
+    r, c = np.meshgrid(np.arange(H), np.arange(W), indexing="ij")
+    P = np.stack([5.0 + 0.5 * r, 0.1 * c, np.zeros((H, W))], axis=2)
+    P[3, 10:20, 2] = 0.3
+    piece = np.zeros(H * W, dtype=np.int64)
+    out = _flat_pieces(P, piece, 1, 0.006, ExtractionConfig(), trim=gap == "incidence")
+    if gap == "range":
+        assert out is None
+        return
+    assert out is not None
+    label, cnt, cen, _, vals, vecs = out
+    assert cnt.tolist() == [H * W - 10]
+    assert np.all(label[3, 10:20] == -1) and np.count_nonzero(label == 0) == H * W - 10
+    assert abs(abs(vecs[0, 2, 0]) - 1.0) < 1e-12 and abs(cen[0, 2]) < 1e-12
 
 
 @pytest.mark.parametrize("S", [2, 3])

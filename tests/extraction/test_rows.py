@@ -4,13 +4,14 @@ planes on the recovered range image."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract
 from planodom.extraction.lidar.rows import elevation_rows, ring_major_rows, scan_rows
 from planodom.scan import Scan
 
-from .synth_scans import default_scene, planes_in_base, scan_lidar
+from .synth_scans import default_scene, planes_in_base, rect, scan_lidar
 
 SCENE = default_scene()
 TRUTH = planes_in_base(SCENE)
@@ -86,12 +87,53 @@ def test_a_cloud_with_times_but_no_ring_is_extracted_as_with_its_ring():
     with its ring (a sparse 16-beam lidar, whose square-pixel image is 2 deg wide)."""
     scan = scan_lidar(SCENE, n_beams=16, n_azimuth=1024)
     origin = np.array([0, 0, HEIGHT])
-    ringed = extract(scan, ExtractionConfig(), sensor_origins=origin)
-    bare = extract(Scan(scan.points, None, scan.t, scan.label), ExtractionConfig(),
-                   sensor_origins=origin)  # fmt: skip
+    # Coplanar pieces merged across the walls between them (region_merge: reach): the
+    # ground's stretches between the walls are one plane in both; elevation modes move a
+    # few ground points to another row, so its size, and the order, may differ.
+    cfg = ExtractionConfig(region_merge="reach")
+    ringed = extract(scan, cfg, sensor_origins=origin)
+    bare = extract(Scan(scan.points, None, scan.t, scan.label), cfg, sensor_origins=origin)
     assert {p.truth_id for p in ringed.planes} == set(TRUTH)
-    assert len(bare.planes) == len(ringed.planes)
-    for a, b in zip(ringed.planes, bare.planes, strict=True):
+    assert sorted(p.truth_id for p in bare.planes) == sorted(TRUTH)
+    assert len(ringed.planes) == len(TRUTH)
+    by_id = {p.truth_id: p for p in bare.planes}
+    for a in ringed.planes:
+        b = by_id[a.truth_id]
         np.testing.assert_allclose(a.coefficients, b.coefficients, atol=1e-12)
         # Elevation modes put a few of a beam's points (0.3 %) in the row below.
         assert abs(a.support.n_rows - b.support.n_rows) <= 1 and b.support.n_rows >= 2
+
+
+def _corridor() -> list:
+    """A corridor 4 m wide and 40 m long, floor z = 0 (id 0), ceiling z = 3.6 (id 1),
+    for a lidar 1.8 m above the floor (the base origin on it)."""
+    return [
+        rect([0, 0, 0], [0, 0, 1], up=[1, 0, 0], half_u=2, half_v=20),
+        rect([0, 0, 3.6], [0, 0, -1], up=[1, 0, 0], half_u=2, half_v=20),
+        rect([0, 2, 1.8], [0, -1, 0], half_u=20, half_v=1.8),
+        rect([0, -2, 1.8], [0, 1, 0], half_u=20, half_v=1.8),
+        rect([20, 0, 1.8], [-1, 0, 0], half_u=2, half_v=1.8),
+        rect([-20, 0, 1.8], [1, 0, 0], half_u=2, half_v=1.8),
+    ]
+
+
+@pytest.mark.parametrize("times", [True, False])
+def test_a_sparse_ringless_lidar_keeps_floor_and_ceiling(times):
+    """A 16-beam lidar's rows are 2 deg apart: on the floor of a corridor they are metres
+    apart (1.2 m between the second and third row here), more than the gap rule allows
+    consecutive points of a scan line at that range. Floor and ceiling are still found,
+    with their normals towards the sensor, with times (recovered rows as the ring) and
+    without (square-pixel image, ``organised_gap: incidence``)."""
+    walls = _corridor()
+    scan = scan_lidar(walls, sigma=0.006, n_beams=16, n_azimuth=1024, with_ring=False)
+    bare = Scan(scan.points, None, scan.t if times else None, scan.label)
+    # without times: the square-pixel image, whose incidence rule is not the default
+    cfg = ExtractionConfig() if times else ExtractionConfig(organised_gap="incidence")
+    res = extract(bare, cfg, sensor_origins=np.array([0, 0, HEIGHT]))
+    truth = planes_in_base(walls)
+    found = {p.truth_id for p in res.planes}
+    assert {0, 1, 2, 3} <= found  # floor, ceiling, both long walls
+    for p in res.planes:  # the true normals point towards the sensor already
+        n, d = truth[p.truth_id]
+        assert np.degrees(np.arccos(np.clip(p.normal @ n, -1, 1))) < 0.5
+        assert abs(p.offset - d) < 0.02

@@ -11,7 +11,8 @@ A spinning lidar's points form a grid, one row per ring and one column per firin
    ``region_normal_floor_deg + region_normal_sigmas * sqrt(e_i^2 + e_j^2)``, each point
    lies within ``tol + region_normal_sigmas * e * |p_i - p_j|`` of the other's tangent
    plane (``tol = max(member_sigma_factor * sigma, tolerance_floor_m)``) and the points
-   are at most ``max(min_gap_m, gap_range_ratio * range)`` apart. Connected components of
+   are at most ``max(min_gap_m, gap_range_ratio * range * max(1, a / step))`` apart (the
+   gap rule, below). Connected components of
    the pixel graph (union-find) with ``min_plane_points / 2`` pixels or more,
    an RMS residual within ``max(max_rms_sigma_factor * sigma, rms_floor_m)`` of their
    TLS plane (two-pass centred moments, batched eigen-solver) and a minor width of
@@ -21,10 +22,28 @@ A spinning lidar's points form a grid, one row per ring and one column per firin
    other in the grid (so that
    a pole in front of a wall does not split it) and whose planes agree (normals within
    ``region_merge_deg + 3 (sigma / sqrt(l2_a) + sigma / sqrt(l2_b))``, each centroid within
-   ``tol`` of the other's plane) are merged, and refit from their moments.
+   ``tol`` of the other's plane) are merged, and refit from their moments; with
+   ``region_merge: reach`` also pieces anywhere whose bounding circles come within
+   ``plane_gap_m`` (:func:`within_reach`): the floor of a corridor, seen ahead and behind
+   between its walls, is one plane (as in :mod:`.organised`), not one per stretch.
 4. Every point (also points that shared a pixel, or had no normal) joins the plane of
    its pixel, or else of its 4, or else of its diagonal grid neighbours, that it lies
    within ``tol`` of. These sets are the candidates (the caller refits them robustly).
+
+The gap rule is a scan line's (``min_gap_m``, ``gap_range_ratio``): consecutive points
+one native column ``step`` apart in angle (``2 pi / W``) on a plane seen at incidence
+``i`` are ``range * step / sin(i)`` apart, so the ratio joins planes seen at more than
+``asin(step / gap_range_ratio)`` (3.5 deg at 1024 columns). Two neighbouring pixels whose
+rays are ``a`` apart (rows: the beam spacing) get the same incidence limit: the ratio
+scaled by ``a / step``. Unscaled, a sparse lidar lost its floor and ceiling: a 16-beam
+unit's rows are 2 deg apart against 0.7 deg columns (512), so on a floor 1.8 m below
+the sensor, rows 8 and 9.5 m away are 1.4 m apart, over the 1 m limit, and the floor
+grew one piece per row, each a line (measured on an indoor 16-beam world at 6 mm: floor
+and ceiling missing from 10 planes of 11 true surfaces; with the scaling both found).
+Dense lidars (rows closer than the columns, :func:`row_spacing`) are unchanged. Long
+edges admit more (their tangent-plane allowance grows with the length), so on a sparse
+grid a piece over the RMS limit is trimmed to its plane once (:func:`_trim_pieces`)
+before the test, not dropped. ``region_gap: range`` keeps the unscaled rule (no trim).
 
 Region growing needs pixel normals better than the angle between two surfaces; when the
 median predicted pixel normal error exceeds ``region_max_normal_error_deg`` (high noise,
@@ -98,12 +117,15 @@ def range_image_candidates(
         return []
 
     # 2. Edges between right and lower neighbours, connected components, flat pieces.
+    step = 2.0 * np.pi / W  # rad, a column
+    sparse = config.region_gap == "incidence" and row_spacing(P, viewpoint) > step
     piece, C = _grow_pieces(
         P, n, e, ok, float(tol), ks, float(np.radians(config.region_normal_floor_deg)),
         float(config.min_gap_m), float(config.gap_range_ratio),
         np.ascontiguousarray(viewpoint, dtype=np.float64), max(3, config.min_plane_points // 2),
+        step if sparse else 0.0,
     )  # fmt: skip
-    pieces = _flat_pieces(P, piece, C, sigma, config)
+    pieces = _flat_pieces(P, piece, C, sigma, config, sparse)
     if pieces is None:
         return []
     # 3. Merge pieces that are near in the grid and agree on their plane.
@@ -120,23 +142,49 @@ def range_image_candidates(
     return [idx[bounds[k] : bounds[k + 1]] for k in range(C) if sizes[k] >= config.min_plane_points]
 
 
+def row_spacing(P: np.ndarray, viewpoint: np.ndarray) -> float:
+    """Median angle (rad) between the rays of vertically neighbouring pixels of the grid
+    ``P`` (H, W, 3) (NaN: none) seen from ``viewpoint`` (3,): the beam spacing."""
+    ray = P - viewpoint
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ray = ray / np.linalg.norm(ray, axis=2, keepdims=True)
+    chord = np.linalg.norm(ray[1:] - ray[:-1], axis=2)
+    chord = chord[np.isfinite(chord)]
+    return float(2.0 * np.arcsin(min(np.median(chord) / 2.0, 1.0))) if len(chord) else 0.0
+
+
 def _flat_pieces(
-    P: np.ndarray, piece: np.ndarray, C: int, sigma: float, config: ExtractionConfig
+    P: np.ndarray,
+    piece: np.ndarray,
+    C: int,
+    sigma: float,
+    config: ExtractionConfig,
+    trim: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """End of step 2: the pieces that are planes (RMS within the limit, not lines), as
     their pixel labels (H, W) (renumbered 0..C'-1, -1 for none), counts (C',), centroids
     (C', 3), scatters (C', 3, 3), eigenvalues (C', 3) and eigenvectors (C', 3, 3)
-    (ascending); None when there is none."""
+    (ascending); None when there is none. With ``trim`` a piece over the RMS limit is
+    first trimmed to its plane (:func:`_trim_pieces`)."""
     if C == 0:
         return None
     H, W = P.shape[0], P.shape[1]
     cnt, cen, sc = _piece_moments(P.reshape(-1, 3), piece, C)
     vals, vecs = np.linalg.eigh(sc)
     rms = np.sqrt(np.maximum(vals[:, 0], 0.0) / cnt)
+    rough = rms > rms_limit(config, sigma)
+    if trim and np.any(rough):
+        tol = member_tolerance(config, sigma)
+        piece = _trim_pieces(P.reshape(-1, 3), piece, rough, cen, vecs[:, :, 0], tol)
+        cnt, cen, sc = _piece_moments(P.reshape(-1, 3), piece, C)
+        vals, vecs = np.linalg.eigh(sc)
+        cnt = np.where(cnt >= max(3, config.min_plane_points // 2), cnt, 0.0)
     # Pieces must be planes, not lines (a ring's stretch of ground has a free normal and
     # would chain-merge the ground with a wall): minor width as in min_plane_width_m.
-    width = 2.0 * np.sqrt(np.maximum(vals[:, 1], 0.0) / cnt)
-    flat_ok = (rms <= rms_limit(config, sigma)) & (width >= config.min_plane_width_m)
+    safe = np.maximum(cnt, 1.0)
+    rms = np.sqrt(np.maximum(vals[:, 0], 0.0) / safe)
+    width = 2.0 * np.sqrt(np.maximum(vals[:, 1], 0.0) / safe)
+    flat_ok = (cnt > 0) & (rms <= rms_limit(config, sigma)) & (width >= config.min_plane_width_m)
     if not np.any(flat_ok):
         return None
     # Renumber the flat pieces 0..C'-1 (-1 for the others, kept at index C).
@@ -144,6 +192,34 @@ def _flat_pieces(
     new[:C][flat_ok] = np.arange(np.count_nonzero(flat_ok))
     label = new[piece].reshape(H, W)
     return label, cnt[flat_ok], cen[flat_ok], sc[flat_ok], vals[flat_ok], vecs[flat_ok]
+
+
+def _trim_pieces(
+    Pf: np.ndarray,
+    piece: np.ndarray,
+    rough: np.ndarray,
+    cen: np.ndarray,
+    normal: np.ndarray,
+    tol: float,
+) -> np.ndarray:
+    """``piece`` (H * W,) without the pixels (``Pf`` (H * W, 3)) of the ``rough`` (C,)
+    pieces farther than ``tol`` (m) from their piece's TLS plane (centroids ``cen``
+    (C, 3), unit normals (C, 3)).
+
+    With the incidence gap rule a sparse lidar's far rows on the ground, metres apart,
+    join; a few pixels of a low object among them (a kerb, a box) then pass the edge
+    tests (whose tangent-plane allowance grows with the edge length) and the ground
+    piece fails the RMS test as a whole (measured on an outdoor 32-beam world: the whole
+    ground, 15 000 points, lost in 2 scans of 10, 21 pixels of a low object in it). One
+    trim of the pixels off the plane, then the RMS test again: a curved surface keeps
+    only a band within the member tolerance, which the test then judges."""
+    out = piece.copy()
+    idx = np.flatnonzero(piece >= 0)
+    idx = idx[rough[piece[idx]]]
+    g = piece[idx]
+    res = np.abs(np.einsum("ij,ij->i", Pf[idx] - cen[g], normal[g]))
+    out[idx[~(res <= tol)]] = -1
+    return out
 
 
 def _merge_pieces(
@@ -165,9 +241,11 @@ def _merge_pieces(
     offset = -np.einsum("ij,ij->i", normal, cen)
     gap_cols = max(1, int(np.ceil(np.radians(config.cluster_gap_deg) / (2 * np.pi / W))))
     pairs = np.unique(near_pairs(label, C, gap_cols))
-    if len(pairs) == 0:
-        return label, normal, offset, C
     a, b = pairs // C, pairs % C
+    if config.region_merge == "reach":
+        a, b = within_reach(a, b, cnt, cen, vals, config.plane_gap_m)
+    if len(a) == 0:
+        return label, normal, offset, C
     err = sigma / np.sqrt(np.maximum(vals[:, 1], 1e-300))
     M, merged = merge_coplanar(a, b, normal, offset, cen, err, tol, config.region_merge_deg)
     if M == C:
@@ -178,6 +256,24 @@ def _merge_pieces(
     offset = -np.einsum("ij,ij->i", normal, cen)
     label = np.where(label >= 0, merged[np.maximum(label, 0)], -1)
     return label, normal, offset, M
+
+
+def within_reach(
+    a: np.ndarray,
+    b: np.ndarray,
+    cnt: np.ndarray,
+    cen: np.ndarray,
+    vals: np.ndarray,
+    gap_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The candidate pairs ``(a, b)`` and every pair of pieces (count (C,), centroid
+    (C, 3), scatter eigenvalues (C, 3) ascending) whose bounding circles (radius
+    ``sqrt(3 (l1 + l2) / n)``, a uniform disc's edge) come within ``gap_m`` (m)."""
+    radius = np.sqrt(3.0 * (vals[:, 2] + vals[:, 1]) / np.maximum(cnt, 1.0))
+    ia, ib = np.triu_indices(len(cnt), 1)
+    reach = radius[ia] + radius[ib] + gap_m
+    near = np.linalg.norm(cen[ia] - cen[ib], axis=1) <= reach
+    return np.r_[a, ia[near]], np.r_[b, ib[near]]
 
 
 def moment_sums(
@@ -198,10 +294,11 @@ def moment_sums(
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _grow_pieces(P, normal, err, ok, tol, ks, floor, min_gap, gap_ratio, view, min_px):
+def _grow_pieces(P, normal, err, ok, tol, ks, floor, min_gap, gap_ratio, view, min_px, step):
     # pragma: no cover - compiled
     """Step 2's edges (each pixel with its right and lower neighbour) and connected
-    components by union-find.
+    components by union-find. ``step`` (rad): the angular step the gap ratio refers to
+    (0: none; module docstring).
 
     Returns the piece (H * W,) int64 of every pixel (-1 unless its component has
     ``min_px`` pixels or more), pieces numbered 0.. in the order of their first pixel
@@ -245,7 +342,17 @@ def _grow_pieces(P, normal, err, ok, tol, ks, floor, min_gap, gap_ratio, view, m
                 g1 = P[r, c, 1] - view[1]
                 g2 = P[r, c, 2] - view[2]
                 rng = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-                if not dist <= max(min_gap, gap_ratio * rng):
+                gap = max(min_gap, gap_ratio * rng)
+                if not dist <= gap and step > 0:
+                    h0 = P[r2, c2, 0] - view[0]
+                    h1 = P[r2, c2, 1] - view[1]
+                    h2 = P[r2, c2, 2] - view[2]
+                    rng2 = np.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
+                    # the angle between the two rays (chord of the unit rays)
+                    u0, u1, u2 = g0 / rng - h0 / rng2, g1 / rng - h1 / rng2, g2 / rng - h2 / rng2
+                    ang = 2.0 * np.arcsin(min(0.5 * np.sqrt(u0 * u0 + u1 * u1 + u2 * u2), 1.0))
+                    gap = max(min_gap, gap_ratio * rng * max(1.0, ang / step))
+                if not dist <= gap:
                     continue
                 a = find_root(parent, i)
                 b = find_root(parent, r2 * W + c2)
