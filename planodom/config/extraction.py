@@ -274,7 +274,13 @@ class ExtractionConfig(Section):
     gives a scan line's consecutive points; a sparse lidar's rows 2 deg apart no longer
     cut its floor, planodom.extraction.lidar.rangeimage; a grown piece over the RMS limit
     is then trimmed to its plane once instead of dropped). For the image of a ringed
-    scan (or recovered rows with recorded times)."""
+    scan (or recovered rows with recorded times). Applied only where rows lie farther
+    apart than columns. Measured on the procedural lidar worlds (10 worlds, 150 epochs,
+    range -> incidence): the indoor 16-beam world 19 at 6 mm keeps floor and ceiling
+    (true surfaces found 67 -> 96 %), rotation rms 0.0122 -> 0.0045 deg, ATE 9.4 -> 0.5 mm;
+    median rotation 6.2 -> 5.8x the oracle at 6 mm, unchanged at 2 cm; the 32-beam
+    worlds 9 and 15 lose up to a fifth of their rotation (at most 0.0007 deg). KITTI
+    0005 (no ring: the organised image) and nebula's parked recordings: unchanged."""
     organised_gap: Literal["range", "incidence"] = "range"
     """The same for the square-pixel image of an unorganised cloud
     (planodom.extraction.lidar.organised; the step: the native column step). incidence
