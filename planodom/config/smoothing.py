@@ -185,21 +185,22 @@ class SmoothingConfig(Section):
     a wrong prediction that the fallback's sigma does not cover: on the 2D-rig procedural
     world 18 (full lap, batch with loop closure) epochs 1-2 are rotation-only, identity
     was 0.75 m off per epoch and the whole lap kept that offset (the loop's correction
-    shared between them and the rotation-only epochs before the lap's end). Measured
-    (ATE m, identity -> first_step): world 18 6 mm 0.660 -> 0.196, 2 cm 0.852 -> 0.377;
-    world 6 2 cm 1.53 -> 1.69 (without loop closure 3.35 -> 3.05: 174 of its 204 epochs
-    are bridged: its fallbacks' means decide little, the true step as every one gives
-    1.09); worlds 0, 2, 4, 8, 10, 16 at 6 mm and 2 cm, 6 and 12 at 6 mm within 1 mm."""
+    shared between them and the rotation-only epochs before the lap's end). ATE m,
+    identity -> first_step: world 18 6 mm 0.660 -> 0.196, 2 cm 0.852 -> 0.377; world 6 2 cm
+    1.53 -> 1.69 (174 of its 204 epochs bridged); 0, 2, 4, 8, 10, 16 within 1 mm."""
     fallback_step: Literal["last", "medoid"] = "medoid"
     """The fallback factor's mean into an epoch whose translation nothing measured, when the
     odometry gave no unresolved prediction for it (rotation-only epochs): "last": the last
     measured delta = 1 step repeated; "medoid": the medoid of the last five measured steps
     (:func:`planodom.smoothing.motion.medoid_transform`), so that one wrong step is not repeated.
     On 2D-rig world 4 at 2 cm (batch with loops, coplanar deskewing) one measured step 22 cm
-    off before a corridor's 14 rotation-only epochs was repeated by every fallback (3.3 m
-    along the track in the odometry) and the lap ended 0.84 m off: "medoid" 0.67 -> 0.069 m
-    ATE, loop end 0.027 m (world 16 at 6 mm 0.019 -> 0.025 m); the default with
-    ``loop_candidate_drift: run`` and ``odometry_deskew_twist: coplanar`` (figures there)."""
+    off before 14 rotation-only epochs was repeated by every fallback: "medoid" 0.67 ->
+    0.069 m ATE (world 16 at 6 mm 0.019 -> 0.025 m; figures at ``odometry_deskew_twist``)."""
+    relative_prior: Literal["odometry", "measured_steps"] = "odometry"
+    """Prior of the relative poses delta = 2..D (``smoothing.run.smoothing_relatives``): the
+    odometry's chain, or with "measured_steps" each step it did not measure the translation
+    of given the medoid translation of the last measured steps (``motion.measured_step_prior``;
+    a rotation-only result's translation is no measurement; figures in the README)."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""
