@@ -360,6 +360,9 @@ class SmoothingConfig(Section):
     loop_candidate_max: Annotated[int, Field(ge=1)] = 5
     """Old epochs tried per attempt (the nearest to the prediction, ``loop_candidate_every_epochs``
     apart from each other); the first verified one becomes a factor."""
+    loop_candidate_old: Literal["any", "translated"] = "any"
+    """Old epochs a loop candidate may tie to: "translated": those whose planes gave a measured
+    translation with a neighbour (delta <= D), not one they agreed with none of (see README)."""
     loop_candidate_min_inliers: Annotated[int, Field(ge=2)] = 3
     """Strict associations (with non-parallel normals) a loop candidate needs (3: the
     2D rig's epochs hold 4-6 planes; a revisit matches the ground and two walls)."""
@@ -385,16 +388,15 @@ class SmoothingConfig(Section):
     5 runs of 10 either way; better on 17 of the 20 runs (world 8 at 6 mm 0.077 -> 0.011,
     world 18 0.196 -> 0.051, world 6 at 2 cm 1.69 -> 0.24), but world 16 at 6 mm 0.107 ->
     3.06 m (21 of its 28 loop-candidate factors wrong, up to 4.6 m, kept: aliased along
-    its corridor) and world 4 at 2 cm 0.013 -> 0.67 m (loop end 0.84 m); world 18's loop
-    end stays 10.4 cm (its first epoch, extracted before any twist is known).
-    Both failures were the loop closure's and the graph's (``loop_candidate_drift``
-    "run", ``fallback_step`` "medoid"); with them, the default (the same lap, old default
-    -> now): median ATE 0.053 -> 0.013 m at 6 mm and 0.085 -> 0.051 m at 2 cm, worst 0.20
-    -> 0.078 m and 1.69 -> 0.25 m, below the oracle's odometry on 5 and 5 runs of 10,
-    better on 18 of the 20 runs, no wrong plane tie kept; worse on world 4 at 2 cm
-    (0.013 -> 0.069 m: the batch bends 0.18 m between epochs 150 and 300, cause not found)
-    and world 0 at 2 cm (0.138 -> 0.148 m); loop end median 1.1 -> 0.6 cm and 1.7 -> 1.0
-    cm, world 18's 10.5 and 11.5 cm. The odometry takes 1.2-2.5 times as long."""
+    its corridor) and world 4 at 2 cm 0.013 -> 0.67 m (loop end 0.84 m). Both failures
+    were the loop closure's and the graph's (``loop_candidate_drift`` "run",
+    ``fallback_step`` "medoid"); with them, the default (the same lap, old default -> now):
+    median ATE 0.053 -> 0.013 m at 6 mm and 0.085 -> 0.051 m at 2 cm, worst 0.20 -> 0.078 m
+    and 1.69 -> 0.25 m, below the oracle's odometry on 5 and 5 runs of 10, better on 18 of
+    the 20 runs, no wrong plane tie kept; worse on world 4 at 2 cm (0.013 -> 0.069 m, see
+    ``relative_prior``) and world 0 at 2 cm (0.138 -> 0.148 m); loop end median 1.1 -> 0.6
+    and 1.7 -> 1.0 cm, world 18's 10.5 and 11.5 cm (see ``loop_candidate_old``). The
+    odometry takes 1.2-2.5 times as long."""
     redeskew_passes: Annotated[int, Field(ge=0, le=3)] = 0
     """Batch, on scans with point times: after smoothing, deskew every scan again along a
     curve through the smoothed poses (:func:`planodom.odometry.run.redeskewed_run`), run
