@@ -185,21 +185,22 @@ class SmoothingConfig(Section):
     a wrong prediction that the fallback's sigma does not cover: on the 2D-rig procedural
     world 18 (full lap, batch with loop closure) epochs 1-2 are rotation-only, identity
     was 0.75 m off per epoch and the whole lap kept that offset (the loop's correction
-    shared between them and the rotation-only epochs before the lap's end). Measured
-    (ATE m, identity -> first_step): world 18 6 mm 0.660 -> 0.196, 2 cm 0.852 -> 0.377;
-    world 6 2 cm 1.53 -> 1.69 (without loop closure 3.35 -> 3.05: 174 of its 204 epochs
-    are bridged: its fallbacks' means decide little, the true step as every one gives
-    1.09); worlds 0, 2, 4, 8, 10, 16 at 6 mm and 2 cm, 6 and 12 at 6 mm within 1 mm."""
+    shared between them and the rotation-only epochs before the lap's end). ATE m,
+    identity -> first_step: world 18 6 mm 0.660 -> 0.196, 2 cm 0.852 -> 0.377; world 6 2 cm
+    1.53 -> 1.69 (174 of its 204 epochs bridged); 0, 2, 4, 8, 10, 16 within 1 mm."""
     fallback_step: Literal["last", "medoid"] = "medoid"
     """The fallback factor's mean into an epoch whose translation nothing measured, when the
     odometry gave no unresolved prediction for it (rotation-only epochs): "last": the last
     measured delta = 1 step repeated; "medoid": the medoid of the last five measured steps
     (:func:`planodom.smoothing.motion.medoid_transform`), so that one wrong step is not repeated.
     On 2D-rig world 4 at 2 cm (batch with loops, coplanar deskewing) one measured step 22 cm
-    off before a corridor's 14 rotation-only epochs was repeated by every fallback (3.3 m
-    along the track in the odometry) and the lap ended 0.84 m off: "medoid" 0.67 -> 0.069 m
-    ATE, loop end 0.027 m (world 16 at 6 mm 0.019 -> 0.025 m); the default with
-    ``loop_candidate_drift: run`` and ``odometry_deskew_twist: coplanar`` (figures there)."""
+    off before 14 rotation-only epochs was repeated by every fallback: "medoid" 0.67 ->
+    0.069 m ATE (world 16 at 6 mm 0.019 -> 0.025 m; figures at ``odometry_deskew_twist``)."""
+    relative_prior: Literal["odometry", "measured_steps"] = "odometry"
+    """Prior of the relative poses delta = 2..D (``smoothing.run.smoothing_relatives``): the
+    odometry's chain, or with "measured_steps" each step it did not measure the translation
+    of given the medoid translation of the last measured steps (``motion.measured_step_prior``;
+    a rotation-only result's translation is no measurement; figures in the README)."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""
@@ -359,6 +360,9 @@ class SmoothingConfig(Section):
     loop_candidate_max: Annotated[int, Field(ge=1)] = 5
     """Old epochs tried per attempt (the nearest to the prediction, ``loop_candidate_every_epochs``
     apart from each other); the first verified one becomes a factor."""
+    loop_candidate_old: Literal["any", "translated"] = "any"
+    """Old epochs a loop candidate may tie to: "translated": those whose planes gave a measured
+    translation with a neighbour (delta <= D), not one they agreed with none of (see README)."""
     loop_candidate_min_inliers: Annotated[int, Field(ge=2)] = 3
     """Strict associations (with non-parallel normals) a loop candidate needs (3: the
     2D rig's epochs hold 4-6 planes; a revisit matches the ground and two walls)."""
@@ -384,16 +388,15 @@ class SmoothingConfig(Section):
     5 runs of 10 either way; better on 17 of the 20 runs (world 8 at 6 mm 0.077 -> 0.011,
     world 18 0.196 -> 0.051, world 6 at 2 cm 1.69 -> 0.24), but world 16 at 6 mm 0.107 ->
     3.06 m (21 of its 28 loop-candidate factors wrong, up to 4.6 m, kept: aliased along
-    its corridor) and world 4 at 2 cm 0.013 -> 0.67 m (loop end 0.84 m); world 18's loop
-    end stays 10.4 cm (its first epoch, extracted before any twist is known).
-    Both failures were the loop closure's and the graph's (``loop_candidate_drift``
-    "run", ``fallback_step`` "medoid"); with them, the default (the same lap, old default
-    -> now): median ATE 0.053 -> 0.013 m at 6 mm and 0.085 -> 0.051 m at 2 cm, worst 0.20
-    -> 0.078 m and 1.69 -> 0.25 m, below the oracle's odometry on 5 and 5 runs of 10,
-    better on 18 of the 20 runs, no wrong plane tie kept; worse on world 4 at 2 cm
-    (0.013 -> 0.069 m: the batch bends 0.18 m between epochs 150 and 300, cause not found)
-    and world 0 at 2 cm (0.138 -> 0.148 m); loop end median 1.1 -> 0.6 cm and 1.7 -> 1.0
-    cm, world 18's 10.5 and 11.5 cm. The odometry takes 1.2-2.5 times as long."""
+    its corridor) and world 4 at 2 cm 0.013 -> 0.67 m (loop end 0.84 m). Both failures
+    were the loop closure's and the graph's (``loop_candidate_drift`` "run",
+    ``fallback_step`` "medoid"); with them, the default (the same lap, old default -> now):
+    median ATE 0.053 -> 0.013 m at 6 mm and 0.085 -> 0.051 m at 2 cm, worst 0.20 -> 0.078 m
+    and 1.69 -> 0.25 m, below the oracle's odometry on 5 and 5 runs of 10, better on 18 of
+    the 20 runs, no wrong plane tie kept; worse on world 4 at 2 cm (0.013 -> 0.069 m, see
+    ``relative_prior``) and world 0 at 2 cm (0.138 -> 0.148 m); loop end median 1.1 -> 0.6
+    and 1.7 -> 1.0 cm, world 18's 10.5 and 11.5 cm (see ``loop_candidate_old``). The
+    odometry takes 1.2-2.5 times as long."""
     redeskew_passes: Annotated[int, Field(ge=0, le=3)] = 0
     """Batch, on scans with point times: after smoothing, deskew every scan again along a
     curve through the smoothed poses (:func:`planodom.odometry.run.redeskewed_run`), run

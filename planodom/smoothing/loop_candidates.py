@@ -6,7 +6,10 @@ prediction is metres off after an odometry failure, or the old landmarks never f
 :class:`CandidateLoopBuilder` then compares whole epochs, at every
 ``loop_candidate_every_epochs``-th epoch k:
 
-1. candidates: old epochs e at least ``loop_min_gap_epochs`` before k, revisited (the
+1. candidates: old epochs e at least ``loop_min_gap_epochs`` before k (with
+   ``loop_candidate_old`` "translated" only those with a measured translation to or from
+   a neighbour: the first epoch, extracted before any motion was known, may have planes
+   centimetres off that no neighbour confirmed), revisited (the
    route between them at least ``REVISIT_RATIO`` times their distance), whose (chained)
    position lies within ``loop_candidate_radius_m`` plus the translation bound of the
    drift between them (``loop_sigmas`` standard deviations of the chained odometry, at
@@ -88,6 +91,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._bridged = 0
         self._step: np.ndarray | None = None
         self._change = np.zeros(2)
+        #: epochs a measured relative pose (delta <= D) fixed the translation to or from
+        self._translated: set[int] = set()
 
     def add_epoch(
         self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
@@ -97,6 +102,9 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         k, c = self.n_epochs, self.config
         var_t, var_r = c.fallback_translation_sigma_m**2, c.fallback_rotation_sigma_rad**2
         step = None
+        for r in relatives:
+            if r.curr == k and r.delta <= c.delta_max and r.measured and r.translation_observed:
+                self._translated |= {r.prev, r.curr}
         for r in relatives:  # the yaw of a rotation-only epoch is measured too
             if r.curr == k and r.delta == 1 and r.measured and r.covariance is not None:
                 cov = np.asarray(r.covariance, dtype=float).reshape(5, 5)
@@ -238,6 +246,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             e = int(e)
             if len(self.planes[e]) < c.loop_candidate_min_inliers:
                 continue
+            if c.loop_candidate_old == "translated" and e not in self._translated:
+                continue  # its planes agreed with no neighbour's (loop_candidate_old)
             if all(abs(e - o) >= c.loop_candidate_every_epochs for o in out):
                 out.append(e)
             if len(out) == c.loop_candidate_max:

@@ -39,6 +39,7 @@ from planodom.odometry import (
 from planodom.odometry.run import EpochSequence
 from planodom.rig import Rig
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
+from planodom.smoothing.motion import measured_step_prior
 from planodom.smoothing.redeskew import redeskew_passes, refresh_first_epoch
 from planodom.smoothing.windowed import smooth_windowed
 
@@ -166,7 +167,8 @@ def smoothing_relatives(
 ) -> list[RelativePose]:
     """The relative poses for delta = 1..``smoothing.delta_max``: the streaming odometry's
     own results (but those it superseded), then the others estimated from its planes
-    (:func:`relative_poses`, its poses as priors, its epochs' ``time_spread``)."""
+    (:func:`relative_poses`, its poses as priors, with ``smoothing.relative_prior``
+    "measured_steps" the unmeasured translations replaced, its epochs' ``time_spread``)."""
     reused = [
         _checked(r, odometry.planes[r.curr])
         for r in odometry.results
@@ -176,9 +178,13 @@ def smoothing_relatives(
     deltas = range(1, config.smoothing.delta_max + 1)
     spread = epoch_time_spread(odometry)
     bridged = {k for k, r in enumerate(odometry.results) if k and (r is None or not r.measured)}
-    rest = relative_poses(
-        odometry.planes, config, deltas, odometry.poses, progress, known, spread, bridged
-    )
+    prior = odometry.poses
+    if config.smoothing.relative_prior == "measured_steps":
+        measured = [
+            r is not None and r.measured and r.translation_observed for r in odometry.results
+        ]
+        prior = measured_step_prior(np.asarray(odometry.poses), measured)
+    rest = relative_poses(odometry.planes, config, deltas, prior, progress, known, spread, bridged)
     return reused + rest
 
 

@@ -176,3 +176,23 @@ def test_an_aliased_place_after_a_bridged_stretch_is_refused(problem, monkeypatc
     run = smooth_batch(planes, relatives, run_cfg)
     assert not run.loop_factors
     np.testing.assert_allclose(run.poses, plain.poses, atol=1e-9)
+
+
+def test_an_old_epoch_no_neighbour_confirmed_is_passed_over(problem):
+    """The first epoch's planes 0.3 m off (extracted before any motion was known) and its
+    relative poses to its neighbours rotation-only (its planes agreed with none): with
+    ``loop_candidate_old`` "any" the lap's end ties to it, with "translated" to later
+    epochs only, every kept loop factor within 3 sigma of the truth."""
+    truth, planes, relatives = problem
+    planes = list(planes)
+    planes[0] = [replace(p, offset=p.offset - 0.3) if abs(p.normal[2]) < 0.5 else p
+                 for p in planes[0]]  # fmt: skip
+    relatives = [replace(r, status=Status.DEGENERATE) if r.prev == 0 else r for r in relatives]
+    tie = {}
+    for old in ("any", "translated"):
+        cfg = _candidates_only().updated({"smoothing.loop_candidate_old": old})
+        tie[old] = smooth_batch(planes, relatives, cfg).loop_factors
+    assert any(f.old == 0 for f in tie["any"])
+    assert any(f.wrong(truth) for f in tie["any"] if f.old == 0)
+    assert tie["translated"] and all(f.old > 0 for f in tie["translated"])
+    assert not any(f.wrong(truth) for f in tie["translated"] if not f.removed)
