@@ -129,12 +129,12 @@ class OdometryConfig(Section):
     deskewed with the true motion's best constant twist is no better: 0.022 and 0.055 deg;
     the predicted twist's errors, alike in successive epochs, cancel in their step), world
     2's (indoor) ATE 0.25 -> 0.58 m at 6 mm, world 6's 1.5 -> 2.0 m at 2 cm. With
-    ``coplanar_reextract: moved`` (the default since) the same figures at 0.43 (6 mm) and
-    0.37 (2 cm) times KISS-ICP's epochs/s against the default's 0.99 and 0.74 in the same
-    runs. Neither the prior's weight (``coplanar_prior_scale`` 0.5 or 2: world 12's
-    rotation 0.054 deg with either) nor keeping the prediction's extraction when the fit
-    differs from it beyond their joint sigma (chi-square 99.9 %: world 2's ATE at 6 mm
-    0.58 -> 0.44 m, at 2 cm 0.90 -> 4.2 m) removes these regressions."""
+    ``coplanar_reextract: moved`` the same figures at 0.43 (6 mm) and 0.37 (2 cm) times
+    KISS-ICP's epochs/s against the default's 0.99 and 0.74 in the same runs. Neither the
+    prior's weight (``coplanar_prior_scale`` 0.5 or 2: world 12's rotation 0.054 deg with
+    either) nor keeping the prediction's extraction when the fit differs from it beyond
+    their joint sigma (chi-square 99.9 %: world 2's ATE at 6 mm 0.58 -> 0.44 m, at 2 cm
+    0.90 -> 4.2 m) removes these regressions."""
     coplanar_iterations: Annotated[int, Field(ge=1, le=20)] = 3
     """``deskew_twist: coplanar``: Gauss-Newton steps of each twist fit."""
     coplanar_passes: Annotated[int, Field(ge=1, le=5)] = 2
@@ -149,7 +149,7 @@ class OdometryConfig(Section):
     (``coplanar_passes`` 1, as ``deskew_twist``): refit is no faster (0.35 against 0.39
     times KISS-ICP at 6 mm) and worse, rotation 0.052 against 0.046 deg at 6 mm, ATE
     0.49 against 0.39 m at 2 cm (walls a wrong twist lost are not found again)."""
-    coplanar_reextract: Literal["always", "moved"] = "moved"
+    coplanar_reextract: Literal["always", "moved"] = "always"
     """``deskew_twist: coplanar``: when a pass extracts the epoch again. "always": after
     every fit; "moved": only when the fitted twist moves the planes' inliers by more than
     their noise (summed over all of them, see :mod:`planodom.odometry.coplanar`) from the
@@ -163,7 +163,15 @@ class OdometryConfig(Section):
     :mod:`planodom.extraction.twist_fit`, which "always" has too: about 1.4x of it is
     this mode's, mostly its warm-started fits; the extraction it saves is rare, 2 % on
     world 8, whose passes move the planes beyond their noise); lidar worlds 1 / 3 / 5 /
-    7, 60 epochs, 6 mm: rotation rms unchanged to 4 digits."""
+    7, 60 epochs, 6 mm: rotation rms unchanged to 4 digits. "always" is the default because
+    the coplanar twist's default user is ``planodom smooth``'s batch
+    (``smoothing.odometry_deskew_twist``), offline, where the loop closure turned the small
+    differences of "moved" into large ones: one lap of the 2D-rig worlds 0-18 even, batch
+    with loops, always -> moved: world 16 at 2 cm 0.021 -> 3.02 m (19 of 46 loop factors
+    wrong), world 6 at 6 mm 0.078 -> 0.108 m (loop end 3.7 -> 25 cm), world 6 at 2 cm 0.253
+    -> 0.165 m, world 2 at 2 cm 0.068 -> 0.047 m, the others within 5 mm; medians 0.0133 ->
+    0.0132 m (6 mm), 0.0505 -> 0.0561 m (2 cm). The fragility is the loop closure's; "moved"
+    is the faster choice for the streaming coplanar twist."""
     coplanar_reuse: bool = False
     """``coplanar_reextract: moved``: an epoch extracted again by the deskewing policy
     starts from its last extraction (its planes and twist), not from an extraction with

@@ -22,7 +22,7 @@ XI = np.array([0.05, -0.04, 0.6, 3.0, 0.4, 0.1])  # rad/s, m/s: a brisk turn
 #: a prediction's error: 2 deg/s of yaw rate, 0.15 m/s (twice that, only the ground is
 #: extracted, and it observes no yaw rate nor horizontal velocity: they keep the prior)
 OFF = np.array([np.radians(0.5), np.radians(-0.5), np.radians(2.0), 0.15, -0.1, 0.025])
-#: every pass extracts again (exact at sigma = 0; "moved", the default, stops within the
+#: every pass extracts again (exact at sigma = 0; "moved" stops within the
 #: points' noise: its own tests below)
 COPLANAR = PlanodomConfig().updated(
     {
