@@ -335,7 +335,7 @@ class OdometryConfig(Section):
     """Streaming, plane-map pipeline: when the epoch deskewed with the predicted twist is
     suspect (not OK, or far fewer planes than the epoch before), extract it again with the
     twist extrapolated along the trend of the recent twists (:func:`planodom.odometry.
-    deskew.trend_twist`) before trying it without deskewing: the prediction, the mean of
+    trend.trend_twist`) before trying it without deskewing: the prediction, the mean of
     the last ``velocity_window`` twists, lags a turn that tightens by half the window.
     Measured on issue 11's lidar worlds 3, 5, 7, 9 (300 epochs, 6 mm and 2 cm): world 9
     (a tightening turn, 13 deg/s predicted for 23) ATE 0.55 / 0.69 -> 0.033 / 0.036 m,
@@ -347,7 +347,7 @@ class OdometryConfig(Section):
     """Streaming, pairwise pipelines (the 2D rig's): an epoch still lost (unresolved, or
     far fewer planes than the epoch before) once the predicted twist, none and the held
     one were tried, is extracted again with the angular rate extrapolated along the trend
-    of the recent measured rates (:func:`planodom.odometry.deskew.pairwise_trend`; the
+    of the recent measured rates (:func:`planodom.odometry.trend.pairwise_trend`; the
     velocity stays the prediction's): the prediction, the last step's rate, lags a turn
     that tightens, and deskewed with it a far wall tilts and gives a wrong rotation that
     ``degenerate_gate`` bridges (issue 11's world 6 at 6 mm, epoch 51: 12.1 deg/s
@@ -402,6 +402,14 @@ class OdometryConfig(Section):
     not a setting), 6 mm: world 3 0.029 -> 0.026 deg (xy 0.088 -> 0.060 cm), 5 0.0093
     -> 0.0095, 9 0.022 -> 0.023: no oscillation, and no gain on world 9. Off until the
     oscillation is understood."""
+    map_twist_lead: Literal["off", "rate", "twist"] = "off"
+    """Streaming, plane-map pipeline with each sweep registered at its middle
+    (``planemap.reference_time: middle``): the epoch's own twist, the mean over its step
+    between the two sweeps' middles (the twist half an epoch before this sweep's middle),
+    is led by half an epoch along its change since the previous epoch's own
+    (:func:`planodom.odometry.trend.led_twist`, second order) before the epoch is extracted
+    again with it. "rate": the angular rate only; "twist": the velocity too (when both
+    steps measured it); "off": the own twist as it is. FIGURES"""
     epoch_period_s: Positive = 0.1
     """Epoch period used when epochs come without times, seconds."""
     min_sigma_rotation_deg: Positive = 0.001
