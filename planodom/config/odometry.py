@@ -410,6 +410,13 @@ class OdometryConfig(Section):
     (:func:`planodom.odometry.trend.led_twist`, second order) before the epoch is extracted
     again with it. "rate": the angular rate only; "twist": the velocity too (when both
     steps measured it); "off": the own twist as it is. FIGURES"""
+    map_lead_rate_tolerance_deg_s: Positive = 0.1
+    """``map_twist_lead`` on: replaces ``deskew_rate_tolerance_deg_s`` for those epochs.
+    FIGURES"""
+    map_lead_speed_tolerance_mps: Positive = 0.05
+    """``map_twist_lead`` on: replaces ``deskew_speed_tolerance_mps`` for those epochs."""
+    map_lead_iterations: Annotated[int, Field(ge=0, le=10)] = 3
+    """``map_twist_lead`` on: replaces ``deskew_iterations`` for those epochs."""
     epoch_period_s: Positive = 0.1
     """Epoch period used when epochs come without times, seconds."""
     min_sigma_rotation_deg: Positive = 0.001

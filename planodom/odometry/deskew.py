@@ -53,12 +53,12 @@ from planodom.config import OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status
-from planodom.odometry.trend import led_twist
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
 if TYPE_CHECKING:
     from planodom.odometry.planemap import MapEstimate
+    from planodom.odometry.trend import Lead
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,7 +189,7 @@ def register_deskewed(
     trend: np.ndarray | None = None,
     lost_trend: np.ndarray | None = None,
     restore_reference: Callable[[], None] | None = None,
-    lead: tuple[np.ndarray, float] | None = None,
+    lead: Lead | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -219,11 +219,12 @@ def register_deskewed(
         restore_reference: brings back the reference's planes a refresh replaced (None:
             never): called, and the estimate against them kept, when the estimate against
             the new ones is worse (``odometry.reference_refresh_guard``).
-        lead: the previous epoch's own twist and step (:mod:`.trend`, ``map_lead``)
-            the epoch's own is led along (``led_twist``) before it is extracted again; None: none.
+        lead: the lead of the epoch's own twist and the tolerances and iterations
+            that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
     """
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
-    for _ in range(config.deskew_iterations if dt > 0 else 0):
+    iterations = config.deskew_iterations if lead is None else lead.iterations
+    for _ in range(iterations if dt > 0 else 0):
         if best.relative.status is Status.UNRESOLVED:
             break
         if best.twist is None and best.relative.status is not Status.OK:
@@ -234,8 +235,8 @@ def register_deskewed(
         if against_map and not config.map_twist_offset:
             own = 0.5 * (own + used)
         elif lead is not None:
-            own = led_twist(own, measured, dt, *lead)
-        new = refined_twist(own, used, measured, config)
+            own = lead.led(own, measured, dt)
+        new = refined_twist(own, used, measured, config, lead)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break
@@ -325,15 +326,23 @@ def _score(candidate: EpochEstimate) -> tuple[int, int]:
 
 
 def refined_twist(
-    own: np.ndarray, used: np.ndarray, measured: bool, config: OdometryConfig
+    own: np.ndarray,
+    used: np.ndarray,
+    measured: bool,
+    config: OdometryConfig,
+    lead: Lead | None = None,
 ) -> np.ndarray:
     """The twist (6,) to extract again with: the epoch's ``own`` angular rate and (when its
     translation was ``measured``) linear velocity, each only where it differs from the
-    twist ``used`` by more than its tolerance; else ``used`` unchanged."""
+    twist ``used`` by more than its tolerance (``config``'s, or ``lead``'s); else ``used``
+    unchanged."""
+    rate_tol, speed_tol = config.deskew_rate_tolerance_deg_s, config.deskew_speed_tolerance_mps
+    if lead is not None:
+        rate_tol, speed_tol = lead.rate_tolerance_deg_s, lead.speed_tolerance_mps
     new = used.copy()
-    if np.degrees(np.linalg.norm(own[:3] - used[:3])) > config.deskew_rate_tolerance_deg_s:
+    if np.degrees(np.linalg.norm(own[:3] - used[:3])) > rate_tol:
         new[:3] = own[:3]
-    if measured and np.linalg.norm(own[3:] - used[3:]) > config.deskew_speed_tolerance_mps:
+    if measured and np.linalg.norm(own[3:] - used[3:]) > speed_tol:
         new[3:] = own[3:]
     return new
 

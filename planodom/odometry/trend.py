@@ -6,6 +6,7 @@ epoch's own twist to its sweep's middle (``odometry.map_twist_lead``)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -64,25 +65,57 @@ def map_trend(recent: Sequence[np.ndarray], config: OdometryConfig) -> np.ndarra
     return trend_twist(np.array(recent))
 
 
+@dataclass(frozen=True)
+class Lead:
+    """How a plane-map epoch registered at its sweep's middle is extracted again
+    (``config.map_twist_lead``, :func:`map_lead`).
+
+    Attributes:
+        previous: (6,) the previous epoch's own twist, rad/s and m/s, its velocity NaN
+            where not led (None: not measured, nothing is led).
+        previous_dt: the previous step's seconds.
+        rate_tolerance_deg_s, speed_tolerance_mps, iterations: replace ``odometry.
+            deskew_rate_tolerance_deg_s``, ``deskew_speed_tolerance_mps`` and
+            ``deskew_iterations`` (``odometry.map_lead_*``).
+    """
+
+    previous: np.ndarray | None
+    previous_dt: float
+    rate_tolerance_deg_s: float
+    speed_tolerance_mps: float
+    iterations: int
+
+    def led(self, own: np.ndarray, measured: bool, dt: float) -> np.ndarray:
+        """(6,) ``own`` led along its change since ``previous`` (:func:`led_twist`)."""
+        if self.previous is None:
+            return own
+        return led_twist(own, measured, dt, self.previous, self.previous_dt)
+
+
 def map_lead(
     recent: Sequence[tuple[int, np.ndarray]],
     k: int,
     times: Sequence[float],
     last: RelativePose | None,
     config: OdometryConfig,
-) -> tuple[np.ndarray, float] | None:
-    """What epoch ``k``'s own twist is led along (``config.map_twist_lead``): the previous
-    epoch's own twist (6,), rad/s and m/s, from ``recent`` (epoch, own twist) of the epochs
-    that measured their rate, its velocity NaN unless the lead covers it and that step
-    (``last``) measured it, and the previous step's seconds (from ``times``, the epochs'
-    so far); None when off or the previous epoch did not measure its rate."""
+) -> Lead | None:
+    """How epoch ``k`` of a plane map registered at its sweep's middle is extracted again
+    (``config.map_twist_lead``; None when off): its own twist led along the change from
+    the previous epoch's, taken from ``recent`` (epoch, own twist) of the epochs that
+    measured their rate (none when the previous epoch is not among them), its velocity
+    only when the lead covers it and that step (``last``) measured it; ``times``: the
+    epochs' so far, seconds."""
     mode = config.map_twist_lead
-    if mode == "off" or not recent or recent[-1][0] != k - 1 or len(times) < 2 or last is None:
+    if mode == "off":
         return None
-    previous = np.array(recent[-1][1], dtype=np.float64, copy=True)
-    if mode == "rate" or last.status is not Status.OK:
-        previous[3:] = np.nan
-    return previous, float(times[-1] - times[-2])
+    previous, previous_dt = None, 0.0
+    if recent and recent[-1][0] == k - 1 and len(times) >= 2 and last is not None:
+        previous = np.array(recent[-1][1], dtype=np.float64, copy=True)
+        previous_dt = float(times[-1] - times[-2])
+        if mode == "rate" or last.status is not Status.OK:
+            previous[3:] = np.nan
+    return Lead(previous, previous_dt, config.map_lead_rate_tolerance_deg_s,
+                config.map_lead_speed_tolerance_mps, config.map_lead_iterations)  # fmt: skip
 
 
 def led_twist(

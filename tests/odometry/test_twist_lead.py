@@ -64,20 +64,41 @@ def _relative(status: Status) -> RelativePose:
 
 @pytest.mark.parametrize("mode", ["rate", "twist"])
 def test_map_lead_takes_the_previous_epochs_own_twist(mode: str):
-    config = OdometryConfig(map_twist_lead=mode)
+    config = OdometryConfig(map_twist_lead=mode, map_lead_iterations=4)
     twist = np.arange(6.0)
     recent = [(3, twist + 1), (4, twist)]
     times = [0.0, 0.1, 0.25]
     got = map_lead(recent, 5, times, _relative(Status.OK), config)
-    assert got is not None
-    np.testing.assert_allclose(got[0][:3], twist[:3])
-    assert got[1] == pytest.approx(0.15)
+    assert got is not None and got.previous is not None
+    np.testing.assert_allclose(got.previous[:3], twist[:3])
+    assert got.previous_dt == pytest.approx(0.15)
+    assert got.iterations == 4
+    assert got.rate_tolerance_deg_s == config.map_lead_rate_tolerance_deg_s
     if mode == "rate":
-        assert np.all(np.isnan(got[0][3:]))
+        assert np.all(np.isnan(got.previous[3:]))
     else:
-        np.testing.assert_allclose(got[0][3:], twist[3:])
+        np.testing.assert_allclose(got.previous[3:], twist[3:])
     degenerate = map_lead(recent, 5, times, _relative(Status.DEGENERATE), config)
-    assert degenerate is not None and np.all(np.isnan(degenerate[0][3:]))
-    assert map_lead(recent, 6, times, _relative(Status.OK), config) is None  # not the last
-    assert map_lead([], 5, times, _relative(Status.OK), config) is None
+    assert degenerate is not None and degenerate.previous is not None
+    assert np.all(np.isnan(degenerate.previous[3:]))
+    # the previous epoch did not measure its rate: nothing led, the tolerances still hold
+    for lost in (map_lead(recent, 6, times, _relative(Status.OK), config),
+                 map_lead([], 5, times, _relative(Status.OK), config)):  # fmt: skip
+        assert lost is not None and lost.previous is None
+        own = np.ones(6)
+        np.testing.assert_array_equal(lost.led(own, True, 0.1), own)
     assert map_lead(recent, 5, times, _relative(Status.OK), OdometryConfig()) is None
+
+
+def test_the_lead_refines_with_its_own_tolerances():
+    """An own twist 0.3 deg/s and 0.1 m/s off the one used is within the general
+    tolerances (0.5 each, unchanged) but beyond the lead's (0.1 deg/s, 0.05 m/s)."""
+    from planodom.odometry.deskew import refined_twist
+
+    used = np.zeros(6)
+    own = np.r_[np.radians([0.3, 0.0, 0.0]), 0.1, 0.0, 0.0]
+    config = OdometryConfig(map_twist_lead="rate")
+    np.testing.assert_array_equal(refined_twist(own, used, True, config), used)
+    lead = map_lead([], 1, [0.0], None, config)
+    np.testing.assert_array_equal(refined_twist(own, used, True, config, lead), own)
+    np.testing.assert_array_equal(refined_twist(own, used, False, config, lead)[3:], 0.0)
