@@ -403,52 +403,45 @@ class OdometryConfig(Section):
     -> 0.0095, 9 0.022 -> 0.023: no oscillation, and no gain on world 9. Off until the
     oscillation is understood."""
     map_twist_lead: Literal["off", "rate", "twist"] = "off"
-    """Streaming, plane-map pipeline with each sweep registered at its middle
-    (``planemap.reference_time: middle``): the epoch's own twist, the mean over its step
-    between the two sweeps' middles (the twist half an epoch before this sweep's middle),
-    is led by half an epoch along its change since the previous epoch's own
-    (:func:`planodom.odometry.trend.led_twist`, second order) before the epoch is extracted
-    again with it. "rate": the angular rate only; "twist": the velocity too (when both
-    steps measured it); "off": the own twist as it is. Why: on issue 11's lidar worlds
-    (150 epochs, 6 mm), the twist each epoch was finally deskewed with was off the true
-    constant twist of its sweep by 0.80 / 0.59 / 0.23 / 1.00 deg/s rms (worlds 1 / 3 / 5
-    / 9), nearly all of it that lag (the true step's twist against the sweep's: 0.69 /
-    0.58 / 0.16 / 0.95 deg/s; the own twist's noise: 0.14 / 0.06 / 0.03 / 0.07 deg/s; the
-    velocity 0.03-0.13 m/s off, from the prediction, a mean over ``velocity_window``,
-    never refined within ``deskew_speed_tolerance_mps``). Deskewed with the true constant
-    twist of each sweep (and the first epoch with it), rotation rms 0.0049 / 0.0055 /
-    0.0030 / 0.0071 -> 0.0038 / 0.0038 / 0.0013 / 0.0052 deg: the twist is no longer what
-    dominates (the oracle: about 0.0003 deg). Measured (``planodom experiment
-    generalisation --worlds 20 --rig lidar --noise 0.006 0.02 --epochs 150``, the 10
-    lidar worlds; "rate" with the ``map_lead_*`` defaults): median rotation rms 0.00376
-    -> 0.00327 deg at 6 mm (5.8 -> 5.8x the oracle, worst 50 -> 31x), 0.00789 -> 0.00675
-    at 2 cm (5.1 -> 4.8x, worst 15.4 -> 10.6x); ATE median 1.01 -> 0.63 mm (4.5 -> 2.9x)
-    and 2.45 -> 1.91 mm (3.5 -> 2.8x); world 17 0.0127 -> 0.0038 deg, world 5 0.0030 ->
-    0.0013; epochs/s 26.2 -> 25.7 and 22.2 -> 19.4. Off by default: some worlds get
-    worse, world 9's ATE at 6 mm 1.12 -> 1.69 cm (its rotation 0.0071 -> 0.0060 deg),
-    world 19's at 2 cm 1.43 -> 1.90 mm, world 11's 0.66 -> 0.83 mm and its rotation at
-    6 mm 0.0009 -> 0.0011 deg, world 7's at 2 cm 0.0064 -> 0.0070 deg. The lead's
-    tolerances as the general ones (0.5 deg/s, 0.5 m/s, 2 iterations) gain only a third as
-    much at 6 mm on worlds 1 / 3 / 5 / 9 (0.0044 / 0.0049 / 0.0028 / 0.0063 deg); "twist"
-    is worse than "rate" (the own velocity's noise, 0.01-0.03 m/s, is as large as its lag,
-    0.005-0.017)."""
+    """Streaming, plane map with each sweep registered at its middle (``planemap.
+    reference_time: middle``): the epoch's own twist, the mean over its step between the
+    sweeps' middles (the twist half an epoch before this sweep's middle), led by half an
+    epoch along its change since the previous epoch's own (:func:`planodom.odometry.trend.
+    led_twist`) before the epoch is extracted again with it. "rate": the angular rate;
+    "twist": the velocity too (when both steps measured it); "off": not led. Why: on issue
+    11's lidar worlds 1 / 3 / 5 / 9 (150 epochs, 6 mm) the twist each epoch was finally
+    deskewed with was off its sweep's true constant twist by 0.80 / 0.59 / 0.23 / 1.00
+    deg/s rms, nearly all of it that lag (true step twist against the sweep's: 0.69 / 0.58
+    / 0.16 / 0.95; the own twist's noise 0.14 / 0.06 / 0.03 / 0.07 deg/s; the velocity
+    0.03-0.13 m/s off, the prediction's, never refined within ``deskew_speed_tolerance_mps``).
+    Deskewed with each sweep's true constant twist, rotation rms 0.0049 / 0.0055 / 0.0030
+    / 0.0071 -> 0.0038 / 0.0038 / 0.0013 / 0.0052 deg: the twist no longer dominates (the
+    oracle: about 0.0003). Measured (``planodom experiment generalisation --worlds 20 --rig
+    lidar --noise 0.006 0.02 --epochs 150``, 10 lidar worlds; "rate", ``map_lead_*``
+    defaults): median rotation rms 0.00376 -> 0.00327 deg at 6 mm (5.8 -> 5.8x the oracle,
+    worst 50 -> 31x), 0.00789 -> 0.00675 at 2 cm (5.1 -> 4.8x, worst 15.4 -> 10.6x); ATE
+    1.01 -> 0.63 mm (4.5 -> 2.9x), 2.45 -> 1.91 mm (3.5 -> 2.8x); world 17 0.0127 -> 0.0038
+    deg, 5 0.0030 -> 0.0013; epochs/s 26.2 -> 25.7, 22.2 -> 19.4. Off by default, some
+    worlds worse: world 9's ATE at 6 mm 1.12 -> 1.69 cm (rotation 0.0071 -> 0.0060 deg), 19's
+    at 2 cm 1.43 -> 1.90 mm, 11's 0.66 -> 0.83 mm (rotation at 6 mm 0.0009 -> 0.0011 deg),
+    7's rotation at 2 cm 0.0064 -> 0.0070 deg. With the general tolerances (0.5 deg/s, 0.5
+    m/s, 2 iterations) it gains a third as much (6 mm, worlds 1 / 3 / 5 / 9: 0.0044 / 0.0049
+    / 0.0028 / 0.0063 deg); "twist" is worse than "rate" (the own velocity's noise, 0.01-0.03
+    m/s, is as large as its lag, 0.005-0.017)."""
     map_lead_rate_tolerance_deg_s: Positive = 0.2
-    """``map_twist_lead`` on: replaces ``deskew_rate_tolerance_deg_s`` for those epochs
-    (the lag left within 0.5 deg/s was most of what the lead gains). Measured on the lidar
-    worlds 1 / 3 / 5 / 9, 150 epochs, "rate", rotation rms deg at 6 mm and 2 cm: 0.1:
-    0.0047 / 0.0040 / 0.0010 / 0.0042 and 0.0149 / 0.0065 / 0.0101 / 0.0063 (world 5 at 2
-    cm: an epoch's own vertical velocity 1 m/s off, deskewed with, the steps after it
-    wrong); 0.2: 0.0048 / 0.0041 / 0.0013 / 0.0060 and 0.0150 / 0.0067 / 0.0026 / 0.0069;
-    the default's 0.0049 / 0.0055 / 0.0030 / 0.0071 and 0.0145 / 0.0072 / 0.0032 /
-    0.0086."""
+    """``map_twist_lead`` on: replaces ``deskew_rate_tolerance_deg_s``. Worlds 1 / 3 / 5 / 9,
+    150 epochs, "rate", rotation rms deg at 6 mm and 2 cm: 0.1: 0.0047 / 0.0040 / 0.0010 /
+    0.0042 and 0.0149 / 0.0065 / 0.0101 / 0.0063 (world 5 at 2 cm: an own vertical velocity
+    1 m/s off, deskewed with, the steps after it wrong); 0.2: 0.0048 / 0.0041 / 0.0013 /
+    0.0060 and 0.0150 / 0.0067 / 0.0026 / 0.0069; off: 0.0049 / 0.0055 / 0.0030 / 0.0071
+    and 0.0145 / 0.0072 / 0.0032 / 0.0086."""
     map_lead_speed_tolerance_mps: Positive = 0.05
-    """``map_twist_lead`` on: replaces ``deskew_speed_tolerance_mps`` for those epochs. At
-    0.5 m/s the velocity of the prediction stays (on the 10 lidar worlds, as in
-    ``map_twist_lead``, with 0.2 deg/s: world 17 at 6 mm 0.0127 deg against 0.0038 with
-    0.05 m/s; medians 0.00333 / 0.00660 deg, ATE worse at 2 cm on worlds 1 and 13)."""
+    """``map_twist_lead`` on: replaces ``deskew_speed_tolerance_mps``. 0.5 (the prediction's
+    velocity stays; 10 lidar worlds as in ``map_twist_lead``): world 17 at 6 mm 0.0127 deg
+    against 0.0038; medians 0.00333 / 0.00660 deg; ATE worse at 2 cm on worlds 1 and 13."""
     map_lead_iterations: Annotated[int, Field(ge=0, le=10)] = 3
-    """``map_twist_lead`` on: replaces ``deskew_iterations`` for those epochs (2, with 0.1
-    deg/s: worlds 3 / 9 at 6 mm 0.0054 / 0.0061 deg against 0.0040 / 0.0042 with 3)."""
+    """``map_twist_lead`` on: replaces ``deskew_iterations`` (2, at 0.1 deg/s: worlds 3 / 9
+    at 6 mm 0.0054 / 0.0061 deg against 0.0040 / 0.0042 with 3)."""
     epoch_period_s: Positive = 0.1
     """Epoch period used when epochs come without times, seconds."""
     min_sigma_rotation_deg: Positive = 0.001
