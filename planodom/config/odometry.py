@@ -343,7 +343,7 @@ class OdometryConfig(Section):
     """Streaming, plane-map pipeline: when the epoch deskewed with the predicted twist is
     suspect (not OK, or far fewer planes than the epoch before), extract it again with the
     twist extrapolated along the trend of the recent twists (:func:`planodom.odometry.
-    deskew.trend_twist`) before trying it without deskewing: the prediction, the mean of
+    trend.trend_twist`) before trying it without deskewing: the prediction, the mean of
     the last ``velocity_window`` twists, lags a turn that tightens by half the window.
     Measured on issue 11's lidar worlds 3, 5, 7, 9 (300 epochs, 6 mm and 2 cm): world 9
     (a tightening turn, 13 deg/s predicted for 23) ATE 0.55 / 0.69 -> 0.033 / 0.036 m,
@@ -355,7 +355,7 @@ class OdometryConfig(Section):
     """Streaming, pairwise pipelines (the 2D rig's): an epoch still lost (unresolved, or
     far fewer planes than the epoch before) once the predicted twist, none and the held
     one were tried, is extracted again with the angular rate extrapolated along the trend
-    of the recent measured rates (:func:`planodom.odometry.deskew.pairwise_trend`; the
+    of the recent measured rates (:func:`planodom.odometry.trend.pairwise_trend`; the
     velocity stays the prediction's): the prediction, the last step's rate, lags a turn
     that tightens, and deskewed with it a far wall tilts and gives a wrong rotation that
     ``degenerate_gate`` bridges (issue 11's world 6 at 6 mm, epoch 51: 12.1 deg/s
@@ -410,6 +410,46 @@ class OdometryConfig(Section):
     not a setting), 6 mm: world 3 0.029 -> 0.026 deg (xy 0.088 -> 0.060 cm), 5 0.0093
     -> 0.0095, 9 0.022 -> 0.023: no oscillation, and no gain on world 9. Off until the
     oscillation is understood."""
+    map_twist_lead: Literal["off", "rate", "twist"] = "off"
+    """Streaming, plane map with each sweep registered at its middle (``planemap.
+    reference_time: middle``): the epoch's own twist, the mean over its step between the
+    sweeps' middles (the twist half an epoch before this sweep's middle), led by half an
+    epoch along its change since the previous epoch's own (:func:`planodom.odometry.trend.
+    led_twist`) before the epoch is extracted again with it. "rate": the angular rate;
+    "twist": the velocity too (when both steps measured it); "off": not led. Why: on issue
+    11's lidar worlds 1 / 3 / 5 / 9 (150 epochs, 6 mm) the twist each epoch was finally
+    deskewed with was off its sweep's true constant twist by 0.80 / 0.59 / 0.23 / 1.00
+    deg/s rms, nearly all of it that lag (true step twist against the sweep's: 0.69 / 0.58
+    / 0.16 / 0.95; the own twist's noise 0.14 / 0.06 / 0.03 / 0.07 deg/s; the velocity
+    0.03-0.13 m/s off, the prediction's, never refined within ``deskew_speed_tolerance_mps``).
+    Deskewed with each sweep's true constant twist, rotation rms 0.0049 / 0.0055 / 0.0030
+    / 0.0071 -> 0.0038 / 0.0038 / 0.0013 / 0.0052 deg: the twist no longer dominates (the
+    oracle: about 0.0003). Measured (``planodom experiment generalisation --worlds 20 --rig
+    lidar --noise 0.006 0.02 --epochs 150``, 10 lidar worlds; "rate", ``map_lead_*``
+    defaults): median rotation rms 0.00376 -> 0.00327 deg at 6 mm (5.8 -> 5.8x the oracle,
+    worst 50 -> 31x), 0.00789 -> 0.00675 at 2 cm (5.1 -> 4.8x, worst 15.4 -> 10.6x); ATE
+    1.01 -> 0.63 mm (4.5 -> 2.9x), 2.45 -> 1.91 mm (3.5 -> 2.8x); world 17 0.0127 -> 0.0038
+    deg, 5 0.0030 -> 0.0013; epochs/s 26.2 -> 25.7, 22.2 -> 19.4. Off by default, some
+    worlds worse: world 9's ATE at 6 mm 1.12 -> 1.69 cm (rotation 0.0071 -> 0.0060 deg), 19's
+    at 2 cm 1.43 -> 1.90 mm, 11's 0.66 -> 0.83 mm (rotation at 6 mm 0.0009 -> 0.0011 deg),
+    7's rotation at 2 cm 0.0064 -> 0.0070 deg. With the general tolerances (0.5 deg/s, 0.5
+    m/s, 2 iterations) it gains a third as much (6 mm, worlds 1 / 3 / 5 / 9: 0.0044 / 0.0049
+    / 0.0028 / 0.0063 deg); "twist" is worse than "rate" (the own velocity's noise, 0.01-0.03
+    m/s, is as large as its lag, 0.005-0.017)."""
+    map_lead_rate_tolerance_deg_s: Positive = 0.2
+    """``map_twist_lead`` on: replaces ``deskew_rate_tolerance_deg_s``. Worlds 1 / 3 / 5 / 9,
+    150 epochs, "rate", rotation rms deg at 6 mm and 2 cm: 0.1: 0.0047 / 0.0040 / 0.0010 /
+    0.0042 and 0.0149 / 0.0065 / 0.0101 / 0.0063 (world 5 at 2 cm: an own vertical velocity
+    1 m/s off, deskewed with, the steps after it wrong); 0.2: 0.0048 / 0.0041 / 0.0013 /
+    0.0060 and 0.0150 / 0.0067 / 0.0026 / 0.0069; off: 0.0049 / 0.0055 / 0.0030 / 0.0071
+    and 0.0145 / 0.0072 / 0.0032 / 0.0086."""
+    map_lead_speed_tolerance_mps: Positive = 0.05
+    """``map_twist_lead`` on: replaces ``deskew_speed_tolerance_mps``. 0.5 (the prediction's
+    velocity stays; 10 lidar worlds as in ``map_twist_lead``): world 17 at 6 mm 0.0127 deg
+    against 0.0038; medians 0.00333 / 0.00660 deg; ATE worse at 2 cm on worlds 1 and 13."""
+    map_lead_iterations: Annotated[int, Field(ge=0, le=10)] = 3
+    """``map_twist_lead`` on: replaces ``deskew_iterations`` (2, at 0.1 deg/s: worlds 3 / 9
+    at 6 mm 0.0054 / 0.0061 deg against 0.0040 / 0.0042 with 3)."""
     epoch_period_s: Positive = 0.1
     """Epoch period used when epochs come without times, seconds."""
     min_sigma_rotation_deg: Positive = 0.001

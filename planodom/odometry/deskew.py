@@ -41,7 +41,7 @@ it again:
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -58,6 +58,7 @@ from planodom.scan import Scan
 
 if TYPE_CHECKING:
     from planodom.odometry.planemap import MapEstimate
+    from planodom.odometry.trend import Lead
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,6 +189,7 @@ def register_deskewed(
     trend: np.ndarray | None = None,
     lost_trend: np.ndarray | None = None,
     restore_reference: Callable[[], None] | None = None,
+    lead: Lead | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -211,12 +213,58 @@ def register_deskewed(
             prediction that averages recent twists lags a turn that tightens).
         lost_trend: (6,) a twist tried last when the epoch is still lost (unresolved, or
             far fewer planes than the epoch before) after those (None: none;
-            :func:`pairwise_trend`): a degenerate epoch measured its angular rate, which
-            step 2 deskews it with; an unresolved one has nothing better than a trend.
+            :func:`planodom.odometry.trend.pairwise_trend`): a degenerate epoch measured
+            its angular rate, which step 2 deskews it with; an unresolved one has nothing
+            better than a trend.
         restore_reference: brings back the reference's planes a refresh replaced (None:
             never): called, and the estimate against them kept, when the estimate against
             the new ones is worse (``odometry.reference_refresh_guard``).
+        lead: the lead of the epoch's own twist and the tolerances and iterations
+            that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
     """
+    best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
+    iterations = config.deskew_iterations if lead is None else lead.iterations
+    for _ in range(iterations if dt > 0 else 0):
+        if best.relative.status is Status.UNRESOLVED:
+            break
+        if best.twist is None and best.relative.status is not Status.OK:
+            break  # never deskew with a linear velocity nobody measured (v = 0)
+        used = np.zeros(6) if best.twist is None else best.twist
+        measured = best.relative.status is Status.OK
+        own = significant_twist(best.own_twist(dt), best.relative, dt, config)
+        if against_map and not config.map_twist_offset:
+            own = 0.5 * (own + used)
+        elif lead is not None:
+            own = lead.led(own, measured, dt)
+        new = refined_twist(own, used, measured, config, lead)
+        stale_reference = refresh_reference(new)
+        if not stale_reference and np.array_equal(new, used):
+            break
+        again = estimate(new, best)
+        worse = again.relative.status.rank < best.relative.status.rank
+        if worse and stale_reference and restore_reference is not None:
+            restore_reference()  # the estimate made against the old planes holds again
+            break
+        if worse and not stale_reference:
+            break
+        # once the reference was extracted again, an estimate made against its old
+        # extraction (or the map seeded with it) refers to planes that are gone
+        best = again
+    return best
+
+
+def _first_estimate(
+    predicted: np.ndarray | None,
+    dt: float,
+    estimate: Estimator,
+    previous_planes: int,
+    held: np.ndarray | None,
+    trend: np.ndarray | None,
+    lost_trend: np.ndarray | None,
+) -> EpochEstimate:
+    """Step 1 of the module docstring: the best of the epoch deskewed with ``predicted``
+    and, when that is suspect, with ``trend``, none or ``held`` and ``lost_trend`` (see
+    :func:`register_deskewed`)."""
     best = estimate(predicted)
     few = _few(best, previous_planes)
     others: list[np.ndarray | None] = [] if trend is None or predicted is None else [trend]
@@ -231,30 +279,6 @@ def register_deskewed(
         alternative = estimate(lost_trend)
         if _score(alternative) > _score(best):
             best = alternative
-    for _ in range(config.deskew_iterations if dt > 0 else 0):
-        if best.relative.status is Status.UNRESOLVED:
-            break
-        if best.twist is None and best.relative.status is not Status.OK:
-            break  # never deskew with a linear velocity nobody measured (v = 0)
-        used = np.zeros(6) if best.twist is None else best.twist
-        measured = best.relative.status is Status.OK
-        own = significant_twist(best.own_twist(dt), best.relative, dt, config)
-        if against_map and not config.map_twist_offset:
-            own = 0.5 * (own + used)
-        new = refined_twist(own, used, measured, config)
-        stale_reference = refresh_reference(new)
-        if not stale_reference and np.array_equal(new, used):
-            break
-        again = estimate(new, best)
-        worse = again.relative.status.rank < best.relative.status.rank
-        if worse and stale_reference and restore_reference is not None:
-            restore_reference()  # the estimate made against the old planes holds again
-            break
-        if worse and not stale_reference:
-            break
-        # once the reference was extracted again, an estimate made against its old
-        # extraction (or the map seeded with it) refers to planes that are gone
-        best = again
     return best
 
 
@@ -302,15 +326,23 @@ def _score(candidate: EpochEstimate) -> tuple[int, int]:
 
 
 def refined_twist(
-    own: np.ndarray, used: np.ndarray, measured: bool, config: OdometryConfig
+    own: np.ndarray,
+    used: np.ndarray,
+    measured: bool,
+    config: OdometryConfig,
+    lead: Lead | None = None,
 ) -> np.ndarray:
     """The twist (6,) to extract again with: the epoch's ``own`` angular rate and (when its
     translation was ``measured``) linear velocity, each only where it differs from the
-    twist ``used`` by more than its tolerance; else ``used`` unchanged."""
+    twist ``used`` by more than its tolerance (``config``'s, or ``lead``'s); else ``used``
+    unchanged."""
+    rate_tol, speed_tol = config.deskew_rate_tolerance_deg_s, config.deskew_speed_tolerance_mps
+    if lead is not None:
+        rate_tol, speed_tol = lead.rate_tolerance_deg_s, lead.speed_tolerance_mps
     new = used.copy()
-    if np.degrees(np.linalg.norm(own[:3] - used[:3])) > config.deskew_rate_tolerance_deg_s:
+    if np.degrees(np.linalg.norm(own[:3] - used[:3])) > rate_tol:
         new[:3] = own[:3]
-    if measured and np.linalg.norm(own[3:] - used[3:]) > config.deskew_speed_tolerance_mps:
+    if measured and np.linalg.norm(own[3:] - used[3:]) > speed_tol:
         new[3:] = own[3:]
     return new
 
@@ -341,54 +373,3 @@ def significant_twist(
 
 #: chi-square 95 % quantiles by degrees of freedom (scipy.stats.chi2.ppf(0.95, k)).
 _CHI2_95 = {2: float(chi2.ppf(0.95, 2)), 3: float(chi2.ppf(0.95, 3))}
-
-
-def trend_twist(
-    recent: np.ndarray, x: np.ndarray | None = None, at: float | None = None
-) -> np.ndarray:
-    """(6,) the twist one epoch after the last of ``recent`` (W, 6) (W >= 4, one an epoch;
-    or, given their epochs ``x`` (W,), at epoch ``at``), along the straight-line fit of
-    each component, its slope shrunk by how well the
-    fit's residuals determine it (``slope (1 - var_slope / slope^2)``, at least 0): a
-    turn that tightens steadily is followed, a rate that only shakes from epoch to epoch
-    (suspension roll and pitch) is averaged as by the mean. Least squares by hand: six
-    independent fits of a handful of points, with their residuals."""
-    w = len(recent)
-    x = np.arange(w, dtype=float) if x is None else np.asarray(x, dtype=float)
-    at = float(x[-1]) + 1.0 if at is None else float(at)
-    centre = float(x.mean())
-    x = x - centre
-    mean = recent.mean(axis=0)
-    sxx = float(x @ x)
-    slope = x @ (recent - mean) / sxx
-    resid = recent - mean - np.outer(x, slope)
-    var_slope = np.sum(resid**2, axis=0) / (w - 2) / sxx
-    shrink = np.clip(1.0 - var_slope / np.maximum(slope**2, 1e-300), 0.0, 1.0)
-    return mean + shrink * slope * (at - centre)
-
-
-def pairwise_trend(
-    recent: Sequence[tuple[int, np.ndarray]],
-    k: int,
-    base: np.ndarray | None,
-    config: OdometryConfig,
-) -> np.ndarray | None:
-    """(6,) the twist a lost epoch ``k`` of a pairwise pipeline is tried with last
-    (``config.pairwise_trend_rescue``): the angular rate along the trend of the
-    ``recent`` (epoch, own twist (6,)) of epochs that measured it, extrapolated to ``k``
-    (:func:`trend_twist`), the velocity ``base``'s (the predicted or held twist); None
-    when off, without ``base`` or before 4 of them."""
-    if not config.pairwise_trend_rescue or base is None or len(recent) < 4:
-        return None
-    x = np.array([j for j, _ in recent], dtype=float)
-    trend = trend_twist(np.array([tw for _, tw in recent]), x, float(k))
-    return np.r_[trend[:3], base[3:]]
-
-
-def map_trend(recent: Sequence[np.ndarray], config: OdometryConfig) -> np.ndarray | None:
-    """(6,) the twist a plane-map epoch suspect with the mean of the ``recent`` twists
-    (6,) is tried with (``config.map_trend_rescue``, :func:`trend_twist`); None when off
-    or before 4 of them."""
-    if not config.map_trend_rescue or len(recent) < 4:
-        return None
-    return trend_twist(np.array(recent))

@@ -30,8 +30,6 @@ from planodom.odometry.deskew import (
     centred_times,
     judged,
     keep_first,
-    map_trend,
-    pairwise_trend,
     prefer_streaming,
     register_deskewed,
     significant_twist,
@@ -40,6 +38,7 @@ from planodom.odometry.deskew import (
 )
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
+from planodom.odometry.trend import map_lead, map_trend, pairwise_trend
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -182,12 +181,13 @@ class PlaneOdometry:
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg) if against_map else None
             middle = self.config.planemap.reference_time == "middle" and centred_times(scan)
+            pairwise, middle = self._map is None, middle and self._map is not None
             damped = against_map and not middle  # see centred_times
-            pairwise = self._map is None
             lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg) if pairwise else None
             restore = self._restore_reference if pairwise and ocfg.reference_refresh_guard else None
+            lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg) if middle else None
             best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held,
-                                     damped, trend, lost_trend, restore)  # fmt: skip
+                                     damped, trend, lost_trend, restore, lead)  # fmt: skip
         else:
             best = estimate(None)
         twist = best.twist

@@ -1,10 +1,10 @@
-"""The trend twist (:func:`planodom.odometry.deskew.trend_twist`): plane-map and pairwise."""
+"""The trend twist (:func:`planodom.odometry.trend.trend_twist`): plane-map and pairwise."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from planodom.odometry.deskew import trend_twist
+from planodom.odometry.trend import trend_twist
 
 
 def test_a_steady_change_is_extrapolated_one_epoch():
@@ -43,7 +43,7 @@ def test_twists_at_given_epochs_are_extrapolated_to_the_asked_one():
 
 def test_the_pairwise_trend_takes_the_rate_from_the_trend_and_the_velocity_given():
     from planodom.config import OdometryConfig
-    from planodom.odometry.deskew import pairwise_trend
+    from planodom.odometry.trend import pairwise_trend
 
     rate = np.array([0.0, 0.0, 0.2, 0.0, 0.0, 0.0])
     recent = [(k, (0.1 + 0.01 * k) * rate / 0.2 + [0, 0, 0, 5.0, 0, 0]) for k in range(5)]

@@ -1,0 +1,139 @@
+"""Twists extrapolated along their recent change (the streaming deskewing's, see
+:mod:`planodom.odometry.deskew`): the trend tried for a suspect epoch (``odometry.
+map_trend_rescue``, ``odometry.pairwise_trend_rescue``) and the lead of a plane-map
+epoch's own twist to its sweep's middle (``odometry.map_twist_lead``)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planodom.config import OdometryConfig
+from planodom.odometry.relative import RelativePose, Status
+
+
+def trend_twist(
+    recent: np.ndarray, x: np.ndarray | None = None, at: float | None = None
+) -> np.ndarray:
+    """(6,) the twist one epoch after the last of ``recent`` (W, 6) (W >= 4, one an epoch;
+    or, given their epochs ``x`` (W,), at epoch ``at``), along the straight-line fit of
+    each component, its slope shrunk by how well the
+    fit's residuals determine it (``slope (1 - var_slope / slope^2)``, at least 0): a
+    turn that tightens steadily is followed, a rate that only shakes from epoch to epoch
+    (suspension roll and pitch) is averaged as by the mean. Least squares by hand: six
+    independent fits of a handful of points, with their residuals."""
+    w = len(recent)
+    x = np.arange(w, dtype=float) if x is None else np.asarray(x, dtype=float)
+    at = float(x[-1]) + 1.0 if at is None else float(at)
+    centre = float(x.mean())
+    x = x - centre
+    mean = recent.mean(axis=0)
+    sxx = float(x @ x)
+    slope = x @ (recent - mean) / sxx
+    resid = recent - mean - np.outer(x, slope)
+    var_slope = np.sum(resid**2, axis=0) / (w - 2) / sxx
+    shrink = np.clip(1.0 - var_slope / np.maximum(slope**2, 1e-300), 0.0, 1.0)
+    return mean + shrink * slope * (at - centre)
+
+
+def pairwise_trend(
+    recent: Sequence[tuple[int, np.ndarray]],
+    k: int,
+    base: np.ndarray | None,
+    config: OdometryConfig,
+) -> np.ndarray | None:
+    """(6,) the twist a lost epoch ``k`` of a pairwise pipeline is tried with last
+    (``config.pairwise_trend_rescue``): the angular rate along the trend of the
+    ``recent`` (epoch, own twist (6,)) of epochs that measured it, extrapolated to ``k``
+    (:func:`trend_twist`), the velocity ``base``'s (the predicted or held twist); None
+    when off, without ``base`` or before 4 of them."""
+    if not config.pairwise_trend_rescue or base is None or len(recent) < 4:
+        return None
+    x = np.array([j for j, _ in recent], dtype=float)
+    trend = trend_twist(np.array([tw for _, tw in recent]), x, float(k))
+    return np.r_[trend[:3], base[3:]]
+
+
+def map_trend(recent: Sequence[np.ndarray], config: OdometryConfig) -> np.ndarray | None:
+    """(6,) the twist a plane-map epoch suspect with the mean of the ``recent`` twists
+    (6,) is tried with (``config.map_trend_rescue``, :func:`trend_twist`); None when off
+    or before 4 of them."""
+    if not config.map_trend_rescue or len(recent) < 4:
+        return None
+    return trend_twist(np.array(recent))
+
+
+@dataclass(frozen=True)
+class Lead:
+    """How a plane-map epoch registered at its sweep's middle is extracted again
+    (``config.map_twist_lead``, :func:`map_lead`).
+
+    Attributes:
+        previous: (6,) the previous epoch's own twist, rad/s and m/s, its velocity NaN
+            where not led (None: not measured, nothing is led).
+        previous_dt: the previous step's seconds.
+        rate_tolerance_deg_s, speed_tolerance_mps, iterations: replace ``odometry.
+            deskew_rate_tolerance_deg_s``, ``deskew_speed_tolerance_mps`` and
+            ``deskew_iterations`` (``odometry.map_lead_*``).
+    """
+
+    previous: np.ndarray | None
+    previous_dt: float
+    rate_tolerance_deg_s: float
+    speed_tolerance_mps: float
+    iterations: int
+
+    def led(self, own: np.ndarray, measured: bool, dt: float) -> np.ndarray:
+        """(6,) ``own`` led along its change since ``previous`` (:func:`led_twist`)."""
+        if self.previous is None:
+            return own
+        return led_twist(own, measured, dt, self.previous, self.previous_dt)
+
+
+def map_lead(
+    recent: Sequence[tuple[int, np.ndarray]],
+    k: int,
+    times: Sequence[float],
+    last: RelativePose | None,
+    config: OdometryConfig,
+) -> Lead | None:
+    """How epoch ``k`` of a plane map registered at its sweep's middle is extracted again
+    (``config.map_twist_lead``; None when off): its own twist led along the change from
+    the previous epoch's, taken from ``recent`` (epoch, own twist) of the epochs that
+    measured their rate (none when the previous epoch is not among them), its velocity
+    only when the lead covers it and that step (``last``) measured it; ``times``: the
+    epochs' so far, seconds."""
+    mode = config.map_twist_lead
+    if mode == "off":
+        return None
+    previous, previous_dt = None, 0.0
+    if recent and recent[-1][0] == k - 1 and len(times) >= 2 and last is not None:
+        previous = np.array(recent[-1][1], dtype=np.float64, copy=True)
+        previous_dt = float(times[-1] - times[-2])
+        if mode == "rate" or last.status is not Status.OK:
+            previous[3:] = np.nan
+    return Lead(previous, previous_dt, config.map_lead_rate_tolerance_deg_s,
+                config.map_lead_speed_tolerance_mps, config.map_lead_iterations)  # fmt: skip
+
+
+def led_twist(
+    own: np.ndarray, measured: bool, dt: float, previous: np.ndarray, previous_dt: float
+) -> np.ndarray:
+    """(6,) an epoch's ``own`` twist (rad/s, m/s; the mean over its step of ``dt`` seconds,
+    i.e. the twist ``dt / 2`` before the epoch's time) led to the epoch's time along its
+    change since ``previous`` (6,), the mean over the step of ``previous_dt`` seconds
+    before: ``own + dt / (dt + previous_dt) (own - previous)`` (the two means are
+    ``(dt + previous_dt) / 2`` apart; exact under a constant acceleration to second
+    order). Components where ``previous`` is NaN, and the velocity unless ``measured``,
+    stay ``own``'s."""
+    out = np.array(own, dtype=np.float64, copy=True)
+    if dt <= 0 or previous_dt <= 0:
+        return out
+    change = (dt / (dt + previous_dt)) * (out - previous)
+    use = np.isfinite(change)
+    if not measured:
+        use[3:] = False
+    out[use] += change[use]
+    return out
