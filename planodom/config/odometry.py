@@ -151,27 +151,18 @@ class OdometryConfig(Section):
     0.49 against 0.39 m at 2 cm (walls a wrong twist lost are not found again)."""
     coplanar_reextract: Literal["always", "moved"] = "always"
     """``deskew_twist: coplanar``: when a pass extracts the epoch again. "always": after
-    every fit; "moved": only when the fitted twist moves the planes' inliers by more than
-    their noise (summed over all of them, see :mod:`planodom.odometry.coplanar`) from the
-    twist they were extracted with, and each fit after the first starts from the twist
-    of the last extraction and stops at a step under a tenth of its sigma. Measured on
-    the 2D-rig worlds 0-18 even, 150 epochs (medians, in brackets median / worst ratio to
-    the oracle): the same figures within 1 % (6 mm: rotation 0.0402 deg (22 / 204) ->
-    0.0401 (22 / 204), ATE 0.0748 m -> 0.0743 (13 / 332); 2 cm: 0.116 deg and 0.237 ->
-    0.236 m; every world's rotation within 2.1 %), and epochs/s 0.21 -> 0.43 times
-    KISS-ICP's at 6 mm, 0.19 -> 0.37 at 2 cm (with the compiled normal equations of
-    :mod:`planodom.extraction.twist_fit`, which "always" has too: about 1.4x of it is
-    this mode's, mostly its warm-started fits; the extraction it saves is rare, 2 % on
-    world 8, whose passes move the planes beyond their noise); lidar worlds 1 / 3 / 5 /
-    7, 60 epochs, 6 mm: rotation rms unchanged to 4 digits. "always" is the default because
-    the coplanar twist's default user is ``planodom smooth``'s batch
-    (``smoothing.odometry_deskew_twist``), offline, where the loop closure turned the small
-    differences of "moved" into large ones: one lap of the 2D-rig worlds 0-18 even, batch
-    with loops, always -> moved: world 16 at 2 cm 0.021 -> 3.02 m (19 of 46 loop factors
-    wrong), world 6 at 6 mm 0.078 -> 0.108 m (loop end 3.7 -> 25 cm), world 6 at 2 cm 0.253
-    -> 0.165 m, world 2 at 2 cm 0.068 -> 0.047 m, the others within 5 mm; medians 0.0133 ->
-    0.0132 m (6 mm), 0.0505 -> 0.0561 m (2 cm). The fragility is the loop closure's; "moved"
-    is the faster choice for the streaming coplanar twist."""
+    every fit; "moved": when the fitted twist moves the planes' inliers beyond their noise
+    from the twist they were extracted with (:mod:`planodom.odometry.coplanar`; warm-started
+    fits that stop at a step under a tenth of a sigma). Measured, always -> moved: 2D-rig
+    worlds 0-18 even, 150 epochs, odometry within 1 % (6 mm rotation 0.0402 -> 0.0401 deg,
+    ATE 0.0748 -> 0.0743 m; 2 cm 0.116 deg, 0.237 -> 0.236 m), epochs/s 0.21 -> 0.43 times
+    KISS-ICP's at 6 mm, 0.19 -> 0.37 at 2 cm; lidar worlds 1 / 3 / 5 / 7 unchanged. But
+    ``planodom smooth``'s batch with loops (``smoothing.odometry_deskew_twist``, the
+    default user of this twist; one lap of the same worlds) turned the small differences
+    into large ones: world 16 at 2 cm 0.021 -> 3.02 m (19 of 46 loop factors wrong), world 6
+    at 6 mm 0.078 -> 0.108 m (loop end 3.7 -> 25 cm), world 6 and 2 at 2 cm better (0.253
+    -> 0.165, 0.068 -> 0.047 m), medians 0.0133 -> 0.0132 m and 0.0505 -> 0.0561 m. Hence
+    "always", for the offline batch; "moved" is the faster choice when streaming."""
     coplanar_reuse: bool = False
     """``coplanar_reextract: moved``: an epoch extracted again by the deskewing policy
     starts from its last extraction (its planes and twist), not from an extraction with
