@@ -340,20 +340,15 @@ class SmoothingConfig(Section):
     the map's accepted correction (chi2(3)): "chained" as the map matches' verification
     (the fallback's yaw variance for rotation-only epochs, a half of the fallback's
     translation variance per axis), "stated" as the odometry states it (their measured
-    yaw, the fallback's sigma on each axis), "run": as "chained", but a bridged epoch (its
-    translation unmeasured) adds the error of the run's own constant velocity (a velocity
-    random walk as large per epoch as the run's measured consecutive steps changed: the
-    n-th bridged epoch in a row n^3 - (n - 1)^3 thirds of it, at most the fallback's
-    variance; :meth:`.CandidateLoopBuilder._run_variance`), in the candidates' association
-    bounds too, and a loop pose's correction of the chained guess must lie within it
-    before the map has accepted one. The fallback factor's 0.5 m per epoch lets the graph
-    recover from a wrong step, but as the drift a loop pose is checked against it lets
-    aliased places through: on 2D-rig world 16 at 6 mm (with the coplanar deskewing) 72
-    bridged epochs, whose true drift was 0.45 m, made room for a corridor aliased 4.6 m
-    along; 21 wrong loop factors were kept and the graph bent to them at almost no cost
-    (ATE 3.06 m; "run": 0.019 m)."""
-    loop_candidate_every_epochs: Annotated[int, Field(ge=1)] = 1
-    """Look for loop candidates at every N-th epoch only."""
+    yaw, the fallback's sigma on each axis), "run": as "chained", but a bridged epoch adds
+    the error of the run's own constant velocity (a random walk as large per epoch as the
+    run's measured consecutive steps changed, :meth:`.CandidateLoopBuilder._run_variance`),
+    in the candidates' bounds too, and before the map has accepted a correction a loop
+    pose's must lie within it. As that drift the fallback factor's 0.5 m per epoch let
+    aliased places through: on 2D-rig world 16 at 6 mm (coplanar deskewing) 72 bridged
+    epochs (true drift 0.45 m) made room for a corridor aliased 4.6 m along, 21 wrong
+    loop factors were kept (ATE 3.06 m; "run": 0.019 m)."""
+    loop_candidate_every_epochs: Annotated[int, Field(ge=1)] = 1  # every N-th epoch only
     loop_candidate_radius_m: Positive = 4.0
     """An old epoch is a candidate when its position is within this (the two epochs must
     see the same walls) plus the translation bound of the drift since then, m."""
@@ -361,8 +356,8 @@ class SmoothingConfig(Section):
     """Old epochs tried per attempt (the nearest to the prediction, ``loop_candidate_every_epochs``
     apart from each other); the first verified one becomes a factor."""
     loop_candidate_old: Literal["any", "translated"] = "any"
-    """Old epochs a loop candidate may tie to: "translated": those whose planes gave a measured
-    translation with a neighbour (delta <= D), not one they agreed with none of (see README)."""
+    """Old epochs a loop candidate may tie to; "translated": only those whose planes gave a
+    measured translation with a neighbour (delta <= D) (see README)."""
     loop_candidate_min_inliers: Annotated[int, Field(ge=2)] = 3
     """Strict associations (with non-parallel normals) a loop candidate needs (3: the
     2D rig's epochs hold 4-6 planes; a revisit matches the ground and two walls)."""
@@ -374,6 +369,11 @@ class SmoothingConfig(Section):
     at most this many epochs before, implies the same correction of the chained guess
     (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
     the drift between them allows it."""
+    loop_consistency: Literal["off", "hypotheses"] = "off"
+    """Batch: "hypotheses" keeps, before optimisation, the largest set (in factors) of loop
+    hypotheses that agree pairwise (their nearest factors' corrections of the chained guess
+    within the drift between them, chi2(3)); the others are removed (PCM,
+    :func:`planodom.smoothing.loop_gate.consistent_hypotheses`)."""
     loop_gate_quantile: Fraction = 0.999
     """After optimisation, a re-identified observation whose squared whitened error exceeds
     this quantile of chi2(3) is removed and the graph solved again."""

@@ -346,6 +346,21 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
         return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
 
+    def factors_agree(self, a: LoopFactor, b: LoopFactor) -> bool:
+        """Whether two loop factors imply the same correction of the chained guess, as
+        :meth:`_agrees` (chi2(3) on yaw, x, y under their covariances and the chained
+        odometry's drift between their current and between their old epochs): pairwise
+        consistency, :func:`planodom.smoothing.loop_gate.consistent_hypotheses`."""
+        cov = self._candidate_drift([(a.epoch, b.epoch), (a.old, b.old)])
+        cov = cov + a.covariance[2:, 2:] + b.covariance[2:, 2:]
+        T = [
+            self.poses[f.old] @ f.T_old_curr @ invert_transform(self.poses[f.epoch])
+            @ self.poses[b.epoch]
+            for f in (a, b)
+        ]  # fmt: skip
+        v = pose5_from_transform(invert_transform(T[0]) @ T[1])[2:]
+        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+
     def _agrees_with_map(self, rel: RelativePose) -> bool:
         """Whether a verified loop pose agrees with the map's accepted correction (the
         tracked re-identification, :meth:`LoopClosingBuilder._verify`) within the drift
