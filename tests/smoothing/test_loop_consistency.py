@@ -7,14 +7,17 @@ from __future__ import annotations
 from dataclasses import replace
 from itertools import combinations
 
+import gtsam
 import numpy as np
 import pytest
 
-from planodom.geometry import make_transform
+from planodom.geometry import invert_transform, make_transform
+from planodom.odometry import RelativePose, Status
 from planodom.smoothing import loop_candidates
 from planodom.smoothing.batch import smooth_batch
-from planodom.smoothing.loop_gate import max_weight_clique
-from planodom.smoothing.loop_records import loop_factor_counts
+from planodom.smoothing.graph import X
+from planodom.smoothing.loop_gate import consistent_hypotheses, max_weight_clique
+from planodom.smoothing.loop_records import LoopFactor, loop_factor_counts
 from tests.smoothing.test_loop_candidates import _candidates_only
 from tests.smoothing.test_loop_closure import N_LAP, _end_error, _loop_problem
 
@@ -79,3 +82,50 @@ def test_an_aliased_hypothesis_before_the_right_one_is_refused(problem, monkeypa
     assert counts["loop_factors_wrong_kept"] == 0 and counts["loop_factors"] >= 4
     assert _end_error(res.poses, truth) < 0.6 * _end_error(res.initial_poses, truth)
     assert _end_error(res.poses, truth) == pytest.approx(_end_error(right.poses, truth), abs=0.05)
+
+
+def _corridor_builder(truth: np.ndarray) -> loop_candidates.CandidateLoopBuilder:
+    """A builder that has chained the steps of ``truth`` (each 2 mm long and 0.01 deg off:
+    a drifting odometry) with measured 5-DoF covariances, and no planes."""
+    cfg = _candidates_only().updated({"smoothing.loop_consistency": "hypotheses"})
+    builder = loop_candidates.CandidateLoopBuilder(cfg)
+    bias = make_transform(
+        np.array([[np.cos(2e-4), -np.sin(2e-4), 0], [np.sin(2e-4), np.cos(2e-4), 0], [0, 0, 1]]),
+        [0.002, 0.0, 0.0],
+    )
+    cov = np.diag([1e-6, 1e-6, 1e-6, 1e-5, 1e-5])
+    for k in range(len(truth)):
+        step = [] if k == 0 else [invert_transform(truth[k - 1]) @ truth[k] @ bias]
+        builder.add_epoch([], [RelativePose(T, cov, Status.OK, prev=k - 1, curr=k) for T in step])
+    return builder
+
+
+def test_an_aliased_corridor_hypothesis_interleaved_with_the_right_one_is_refused():
+    """A corridor along x driven out and back (0.18 m per epoch), its end revisited: loop
+    factors to epoch 0 aliased 4.6 m along the corridor (one cross wall mistaken for the
+    next: consistent with each other, three hypotheses, 18 factors) interleaved with right
+    ones (two hypotheses, 27 factors), as on 2D-rig world 16 at 2 cm. Each pair of nearest
+    factors of an aliased and a right hypothesis disagrees far beyond the drift of the few
+    epochs between them: the aliased ones are removed, the right ones kept (by the truth)."""
+    n_out = 60
+    x = np.concatenate([np.arange(n_out) * 0.18, (n_out - np.arange(n_out + 1)) * 0.18])
+    truth = np.stack([make_transform(np.eye(3), [v, 0.02 * np.sin(k / 7), 0.0])
+                      for k, v in enumerate(x)])  # fmt: skip
+    builder = _corridor_builder(truth)
+    cov = np.diag([1e-6, 1e-6, 1e-6, 0.015**2, 0.004**2])
+    plan = [(range(80, 84), True), (range(86, 98), True), (range(98, 102), False),
+            (range(102, 104), True), (range(104, 121), False)]  # fmt: skip
+    graph = gtsam.NonlinearFactorGraph()
+    for group, (epochs, aliased) in enumerate(plan):
+        for k in epochs:
+            T = invert_transform(truth[0]) @ truth[k]
+            if aliased:
+                T = make_transform(np.eye(3), [4.6, 0.0, 0.0]) @ T
+            builder.loop_factors.append(LoopFactor(k, 0, T, cov, 3, graph.size(), group))
+            graph.add(gtsam.PriorFactorPose3(X(k), gtsam.Pose3(), gtsam.noiseModel.Unit.Create(6)))
+    assert sum(f.wrong(truth) for f in builder.loop_factors) == 18
+    removed = consistent_hypotheses(builder, graph, {})
+    assert removed == 18
+    for f in builder.loop_factors:
+        assert f.removed is f.wrong(truth)
+        assert (graph.at(f.factor) is None) is f.removed
