@@ -327,8 +327,7 @@ class SmoothingConfig(Section):
     because the chained guess through rotation-only epochs is metres off (their relative
     poses' translation, not the constant velocity), not because two walls compete."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
-    """Matches that must agree with each other before a new correction is accepted (and
-    before the first one)."""
+    """Matches that must agree before a new (or the first) correction is accepted."""
     loop_candidates: bool = True
     """Batch, with ``loop_closure``: also relative poses between the current epoch and old
     epochs within reach of its predicted pose (planodom.smoothing.loop_candidates): the
@@ -353,8 +352,7 @@ class SmoothingConfig(Section):
     """An old epoch is a candidate when its position is within this (the two epochs must
     see the same walls) plus the translation bound of the drift since then, m."""
     loop_candidate_max: Annotated[int, Field(ge=1)] = 5
-    """Old epochs tried per attempt (the nearest to the prediction, ``loop_candidate_every_epochs``
-    apart from each other); the first verified one becomes a factor."""
+    """Old epochs tried per attempt (the nearest, ``loop_candidate_every_epochs`` apart)."""
     loop_candidate_old: Literal["any", "translated"] = "any"
     """Old epochs a loop candidate may tie to; "translated": only those whose planes gave a
     measured translation with a neighbour (delta <= D) (see README)."""
@@ -374,6 +372,8 @@ class SmoothingConfig(Section):
     hypotheses that agree pairwise (their nearest factors' corrections of the chained guess
     within the drift between them, chi2(3)); the others are removed (PCM,
     :func:`planodom.smoothing.loop_gate.consistent_hypotheses`)."""
+    loop_gate_removes: Literal["hypothesis", "factor"] = "hypothesis"
+    """The chi2(5) gate removes a failing loop factor with its hypothesis, or alone."""
     loop_gate_quantile: Fraction = 0.999
     """After optimisation, a re-identified observation whose squared whitened error exceeds
     this quantile of chi2(3) is removed and the graph solved again."""

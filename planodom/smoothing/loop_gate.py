@@ -118,21 +118,22 @@ def gate_loop_factors(
     builders) whose squared whitened error at ``values`` exceeds the
     ``loop_gate_quantile`` of chi2(5) from ``graph`` (and their Gaussian twins); returns
     how many, with every factor of their hypotheses (``LoopFactor.group``: chained
-    agreeing poses; a wrong hypothesis may fit in part once it has pulled the estimate).
-    Each factor's chi2 is recorded."""
+    agreeing poses; a wrong hypothesis may fit in part once it has pulled the estimate),
+    or alone with ``loop_gate_removes`` "factor". Each factor's chi2 is recorded."""
     factors: list[LoopFactor] = getattr(builder, "loop_factors", [])
     if not factors:
         return 0
     limit = float(chi2.ppf(builder.config.loop_gate_quantile, 5))  # type: ignore[attr-defined]
+    alone = builder.config.loop_gate_removes == "factor"  # type: ignore[attr-defined]
     failed = set()
     for f in factors:
         if not f.removed:
             f.chi2 = 2.0 * float(gaussian.get(f.factor, graph.at(f.factor)).error(values))
             if f.chi2 > limit:
-                failed.add(f.group)
+                failed.add(f.factor if alone else f.group)
     removed = 0
     for f in factors:
-        if not f.removed and f.group in failed:  # one hypothesis: all its factors out
+        if not f.removed and (f.factor if alone else f.group) in failed:
             graph.remove(f.factor)
             gaussian.pop(f.factor, None)
             f.removed = True

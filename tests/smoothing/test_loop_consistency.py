@@ -16,7 +16,11 @@ from planodom.odometry import RelativePose, Status
 from planodom.smoothing import loop_candidates
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.graph import X
-from planodom.smoothing.loop_gate import consistent_hypotheses, max_weight_clique
+from planodom.smoothing.loop_gate import (
+    consistent_hypotheses,
+    gate_loop_factors,
+    max_weight_clique,
+)
 from planodom.smoothing.loop_records import LoopFactor, loop_factor_counts
 from tests.smoothing.test_loop_candidates import _candidates_only
 from tests.smoothing.test_loop_closure import N_LAP, _end_error, _loop_problem
@@ -129,3 +133,20 @@ def test_an_aliased_corridor_hypothesis_interleaved_with_the_right_one_is_refuse
     for f in builder.loop_factors:
         assert f.removed is f.wrong(truth)
         assert (graph.at(f.factor) is None) is f.removed
+
+
+@pytest.mark.parametrize("removes", ["hypothesis", "factor"])
+def test_the_gate_removes_a_failing_factor_with_its_hypothesis_or_alone(removes):
+    """Three loop factors of one hypothesis, priors on X(0) at 0, 0 and 100 m from the value
+    (unit noise: chi2 0, 0 and 1e4 against chi2(5)'s 0.999 quantile, 20.5)."""
+    cfg = _candidates_only().updated({"smoothing.loop_gate_removes": removes})
+    builder = loop_candidates.CandidateLoopBuilder(cfg)
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    values.insert(X(0), gtsam.Pose3())
+    for i, x in enumerate((0.0, 0.0, 100.0)):
+        prior = gtsam.Pose3(gtsam.Rot3(), np.array([x, 0.0, 0.0]))
+        graph.add(gtsam.PriorFactorPose3(X(0), prior, gtsam.noiseModel.Unit.Create(6)))
+        builder.loop_factors.append(LoopFactor(i + 1, 0, np.eye(4), np.eye(5), 3, i, 0))
+    assert gate_loop_factors(builder, graph, {}, values) == (3 if removes == "hypothesis" else 1)
+    np.testing.assert_allclose([f.chi2 for f in builder.loop_factors], [0.0, 0.0, 1e4])
+    assert [f.removed for f in builder.loop_factors] == [removes == "hypothesis"] * 2 + [True]
