@@ -31,6 +31,8 @@ prediction is metres off after an odometry failure, or the old landmarks never f
    epochs' deskewing error with ``smoothing.deskew_noise``) and a robust
    kernel (``robust_kernel``, Cauchy when "none": a loop factor is never trusted blindly).
 
+Before optimisation (``loop_consistency``, :func:`.loop_gate.consistent_hypotheses`) only
+the largest set of pairwise agreeing hypotheses is kept (:meth:`.factors_agree`).
 After optimisation (:func:`planodom.smoothing.loop_gate.gate_loop_factors`) a loop factor
 whose Gaussian twin's squared whitened error exceeds the ``loop_gate_quantile`` of chi2(5)
 is removed with its hypothesis (the chain of agreeing loop poses it was confirmed with) and
