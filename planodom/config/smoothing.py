@@ -286,11 +286,9 @@ class SmoothingConfig(Section):
     loop_rotation_deg_per_m: Positive = 0.1
     """Largest rotation bound of a re-identification per metre driven since last seen (plus
     the association's ``prior_rotation_deg``), degrees; at most 45."""
-    loop_min_matches: Annotated[int, Field(ge=2)] = 3
-    """Strict associations (non-parallel normals among them) a re-identification needs."""
+    loop_min_matches: Annotated[int, Field(ge=2)] = 3  # strict associations of a re-identification
     loop_accept_degenerate: bool = True
-    """Also accept a match whose rotation only is determined (one old wall and the ground):
-    its strict associations tie the old landmarks (the gate checks them afterwards)."""
+    """Also accept a match of rotation only (one old wall and the ground; gated after)."""
     loop_verify: Literal["off", "consistency", "tracked"] = "tracked"
     """Verification of every match against the map before tying (planodom.smoothing.loops):
     "consistency": the correction of the chained guess it implies must agree, within the
@@ -327,8 +325,7 @@ class SmoothingConfig(Section):
     because the chained guess through rotation-only epochs is metres off (their relative
     poses' translation, not the constant velocity), not because two walls compete."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
-    """Matches that must agree with each other before a new correction is accepted (and
-    before the first one)."""
+    """Matches that must agree before a new (or the first) correction is accepted."""
     loop_candidates: bool = True
     """Batch, with ``loop_closure``: also relative poses between the current epoch and old
     epochs within reach of its predicted pose (planodom.smoothing.loop_candidates): the
@@ -340,29 +337,22 @@ class SmoothingConfig(Section):
     the map's accepted correction (chi2(3)): "chained" as the map matches' verification
     (the fallback's yaw variance for rotation-only epochs, a half of the fallback's
     translation variance per axis), "stated" as the odometry states it (their measured
-    yaw, the fallback's sigma on each axis), "run": as "chained", but a bridged epoch (its
-    translation unmeasured) adds the error of the run's own constant velocity (a velocity
-    random walk as large per epoch as the run's measured consecutive steps changed: the
-    n-th bridged epoch in a row n^3 - (n - 1)^3 thirds of it, at most the fallback's
-    variance; :meth:`.CandidateLoopBuilder._run_variance`), in the candidates' association
-    bounds too, and a loop pose's correction of the chained guess must lie within it
-    before the map has accepted one. The fallback factor's 0.5 m per epoch lets the graph
-    recover from a wrong step, but as the drift a loop pose is checked against it lets
-    aliased places through: on 2D-rig world 16 at 6 mm (with the coplanar deskewing) 72
-    bridged epochs, whose true drift was 0.45 m, made room for a corridor aliased 4.6 m
-    along; 21 wrong loop factors were kept and the graph bent to them at almost no cost
-    (ATE 3.06 m; "run": 0.019 m)."""
-    loop_candidate_every_epochs: Annotated[int, Field(ge=1)] = 1
-    """Look for loop candidates at every N-th epoch only."""
+    yaw, the fallback's sigma on each axis), "run": as "chained", but a bridged epoch adds
+    the error of the run's own constant velocity (a random walk as large per epoch as the
+    run's measured consecutive steps changed, :meth:`.CandidateLoopBuilder._run_variance`),
+    in the candidates' bounds too, and before the map has accepted a correction a loop
+    pose's must lie within it. As that drift the fallback factor's 0.5 m per epoch let
+    aliased places through: on 2D-rig world 16 at 6 mm (coplanar deskewing) 72 bridged
+    epochs (true drift 0.45 m) made room for a corridor aliased 4.6 m along, 21 wrong
+    loop factors were kept (ATE 3.06 m; "run": 0.019 m)."""
+    loop_candidate_every_epochs: Annotated[int, Field(ge=1)] = 1  # every N-th epoch only
     loop_candidate_radius_m: Positive = 4.0
-    """An old epoch is a candidate when its position is within this (the two epochs must
-    see the same walls) plus the translation bound of the drift since then, m."""
+    """An old epoch is a candidate within this (m) plus the drift's translation bound."""
     loop_candidate_max: Annotated[int, Field(ge=1)] = 5
-    """Old epochs tried per attempt (the nearest to the prediction, ``loop_candidate_every_epochs``
-    apart from each other); the first verified one becomes a factor."""
+    """Old epochs tried per attempt (the nearest, ``loop_candidate_every_epochs`` apart)."""
     loop_candidate_old: Literal["any", "translated"] = "any"
-    """Old epochs a loop candidate may tie to: "translated": those whose planes gave a measured
-    translation with a neighbour (delta <= D), not one they agreed with none of (see README)."""
+    """Old epochs a loop candidate may tie to; "translated": only those whose planes gave a
+    measured translation with a neighbour (delta <= D) (see README)."""
     loop_candidate_min_inliers: Annotated[int, Field(ge=2)] = 3
     """Strict associations (with non-parallel normals) a loop candidate needs (3: the
     2D rig's epochs hold 4-6 planes; a revisit matches the ground and two walls)."""
@@ -374,6 +364,16 @@ class SmoothingConfig(Section):
     at most this many epochs before, implies the same correction of the chained guess
     (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
     the drift between them allows it."""
+    loop_consistency: Literal["off", "hypotheses"] = "hypotheses"
+    """Batch: keep, before optimisation, the loop hypotheses of the largest set (in factors)
+    that agree pairwise, PCM (:func:`.loop_gate.consistent_hypotheses`). On the 2D-rig worlds
+    0, 2, .., 18 it changes no run; with ``odometry.coplanar_reextract: moved`` world 16 at
+    2 cm 3.02 -> 0.019 m (18 factors aliased 4.6 m along a corridor, interleaved with 27
+    right ones, all fit after optimisation: the graph tore between neighbours)."""
+    loop_gate_removes: Literal["hypothesis", "factor"] = "factor"
+    """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
+    on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``
+    world 6 at 6 mm 0.108 -> 0.048 m (loop end 25 -> 3.8 cm: 10 right factors had gone)."""
     loop_gate_quantile: Fraction = 0.999
     """After optimisation, a re-identified observation whose squared whitened error exceeds
     this quantile of chi2(3) is removed and the graph solved again."""

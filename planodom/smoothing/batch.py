@@ -15,7 +15,12 @@ from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import F, GraphBuilder, GraphStats, X
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
-from planodom.smoothing.loop_gate import gate_loop_factors, loop_start, test_hypotheses
+from planodom.smoothing.loop_gate import (
+    consistent_hypotheses,
+    gate_loop_factors,
+    loop_start,
+    test_hypotheses,
+)
 from planodom.smoothing.loop_records import (
     LoopFactor,
     LoopMatch,
@@ -361,6 +366,7 @@ def smooth_batch(
         graph.push_back(update.factors)
         values.insert(update.values)
     initial = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
+    consistent_hypotheses(builder, graph, gaussian)
 
     estimate, errors = levenberg_marquardt(
         graph, loop_start(builder, graph, gaussian, values), cfg.max_iterations,

@@ -31,6 +31,8 @@ prediction is metres off after an odometry failure, or the old landmarks never f
    epochs' deskewing error with ``smoothing.deskew_noise``) and a robust
    kernel (``robust_kernel``, Cauchy when "none": a loop factor is never trusted blindly).
 
+Before optimisation (``loop_consistency``, :func:`.loop_gate.consistent_hypotheses`) only
+the largest set of pairwise agreeing hypotheses is kept (:meth:`.factors_agree`).
 After optimisation (:func:`planodom.smoothing.loop_gate.gate_loop_factors`) a loop factor
 whose Gaussian twin's squared whitened error exceeds the ``loop_gate_quantile`` of chi2(5)
 is removed with its hypothesis (the chain of agreeing loop poses it was confirmed with) and
@@ -344,6 +346,21 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         T_a = self._correction(first) @ self.poses[second.curr]
         T_b = self._correction(second) @ self.poses[second.curr]
         v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
+        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+
+    def factors_agree(self, a: LoopFactor, b: LoopFactor) -> bool:
+        """Whether two loop factors imply the same correction of the chained guess, as
+        :meth:`_agrees` (chi2(3) on yaw, x, y under their covariances and the chained
+        odometry's drift between their current and between their old epochs): pairwise
+        consistency, :func:`planodom.smoothing.loop_gate.consistent_hypotheses`."""
+        cov = self._candidate_drift([(a.epoch, b.epoch), (a.old, b.old)])
+        cov = cov + a.covariance[2:, 2:] + b.covariance[2:, 2:]
+        T = [
+            self.poses[f.old] @ f.T_old_curr @ invert_transform(self.poses[f.epoch])
+            @ self.poses[b.epoch]
+            for f in (a, b)
+        ]  # fmt: skip
+        v = pose5_from_transform(invert_transform(T[0]) @ T[1])[2:]
         return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
 
     def _agrees_with_map(self, rel: RelativePose) -> bool:
