@@ -68,8 +68,9 @@ class PlanemapConfig(Section):
     default: the median fits 0 where most planes agree, and the few with larger errors
     (the deskewing twist's lag as run; an extraction's fragment) then become the kernel's
     outliers and are dropped: as run (150 epochs, 6 mm) world 9 lost track (ATE 11 mm ->
-    6.2 m), world 1 0.0049 -> 0.0059 deg, world 5 with true deskewing lost an epoch
-    (0.012 deg). On KITTI raw 0005 the lines' own offsets (per recovered row, against
+    6.2 m), world 1 0.0049 -> 0.0059 deg; with the offline passes
+    (``odometry.deskew_passes: 2``: world 3 / 9 0.0020 / 0.0032 deg) too (0.014 / 0.015
+    deg). On KITTI raw 0005 the lines' own offsets (per recovered row, against
     each plane) measure 5-7 mm where its fixed bias wants 2 cm (1 cm: 0.138 deg); fitted,
     its RPE is 0.0868 -> 0.0858 deg, 3.59 -> 3.60 cm."""
     memory_scans: float = Field(5.0, ge=0)
