@@ -48,15 +48,22 @@ class PlanodomConfig(Section):
     @model_validator(mode="before")
     @classmethod
     def _planes_for_smoothing(cls, data: Any) -> Any:
-        """The deskew-noise modes that read each plane's deskewing Jacobian switch on its
-        computation in the extraction (``extraction.deskew_jacobian``)."""
+        """The deskew-noise modes that read each plane's deskewing Jacobian
+        (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
+        ``planemap.deskew_variance: twist_change``) switch on its computation in the
+        extraction (``extraction.deskew_jacobian``)."""
         if not isinstance(data, Mapping):
             return data
         smoothing = data.get("smoothing")
         mode = getattr(smoothing, "deskew_noise", None)
         if isinstance(smoothing, Mapping):
             mode = smoothing.get("deskew_noise")
-        if not (isinstance(mode, str) and mode.startswith("twist_change_jacobian")):
+        planemap = data.get("planemap")
+        deskew = getattr(planemap, "deskew_variance", None)
+        if isinstance(planemap, Mapping):
+            deskew = planemap.get("deskew_variance")
+        wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
+        if not (wanted or deskew == "twist_change"):
             return data
         extraction = data.get("extraction", {})
         if isinstance(extraction, ExtractionConfig):

@@ -27,7 +27,52 @@ class PlanemapConfig(Section):
     accuracy (Velodyne HDL-64E <= 2 cm; VLP-16 and Ouster OS1 about 3 cm). A plane's
     information then grows with the scan lines it spans, not with its points. On KITTI
     0005 0.01 / 0.02 / 0.03 gave 0.138 / 0.079 / 0.077 deg rms (the term also absorbs map
-    lag and scan skew); 0 makes every gate too tight (all epochs lost)."""
+    lag and scan skew); 0 makes every gate too tight (all epochs lost). With
+    ``laser_bias: fitted``, the upper bound of the fitted bias."""
+    deskew_variance: Literal["off", "twist_change"] = "off"
+    """The registration's variances of a scan's planes: ``off``, the point noise and the
+    laser bias; ``twist_change``, plus what the deskewing twist's error does to each
+    plane through its own first-order change with the twist (``Plane.deskew_jacobian``,
+    switched on in the extraction), the error's covariance per axis the mean square of the
+    constant-velocity model's deviations so far (rotation and translation over 3, per
+    epoch span: the change of motion from one epoch to the next, as
+    ``smoothing.deskew_noise: twist_change_jacobian`` takes it; cautious, as the final
+    twist's lag is about half of it). A plane swept while the twist was off is tilted and
+    moved by it; a scan plane seen in an instant is not. Measured (the ten lidar worlds of
+    ``planodom experiment generalisation --worlds 20 --rig lidar --epochs 300``, off ->
+    twist_change, medians): 6 mm rotation 0.0037 -> 0.0034 deg (worst 51x -> 45x the
+    oracle), ATE 1.32 -> 0.90 mm, better on worlds 1, 3, 5, 7, 9, 17 (world 9 0.0068 ->
+    0.0039 deg), worse on 11 (0.0010 -> 0.0012 deg) and the ATE of 15 (0.63 -> 1.40 mm)
+    and 19 (0.46 -> 0.56 mm); 2 cm rotation 0.0075 -> 0.0077 deg, ATE 3.0 -> 3.2 mm,
+    rotation worse on worlds 1, 3, 5, 11, 13, 15, 19 (13: 0.021 -> 0.028 deg), ATE on 1,
+    3, 11, 17 (3: 1.6 -> 5.0 mm), better on 9 (0.0082 -> 0.0063 deg). At sigma 0 (150
+    epochs) world 3 / 9 0.0052 / 0.0073 -> 0.0043 / 0.0040 deg. KITTI raw 0005 (no point
+    times, no Jacobians) unchanged. Off: mixed at 2 cm, where the deviations it is scaled
+    by also hold the odometry's own noise."""
+    laser_bias: Literal["fixed", "fitted"] = "fixed"
+    """Where the registration's laser bias comes from (:mod:`planodom.odometry.planemap.bias`):
+    ``fixed``, ``laser_bias_m``; ``fitted`` (experimental), fitted to each scan's
+    registration residuals (variance components by the median: the bias at which the
+    associations' median whitened residual is that of a right model), between 0 and
+    ``laser_bias_m``, and used for the next scan and the map. The bias sets the planes'
+    relative weights: with 2 cm a plane's information grows with its scan lines, without
+    bias with its points. It is the procedural lidars' second floor (issue 11; their range
+    noise has no per-laser bias): substituting the truth one stage at a time (150 epochs,
+    6 mm, rotation rms per epoch), with the points deskewed along the true motion the
+    default leaves world 1 / 3 / 9 at 0.0065 / 0.0023 / 0.0026 deg (oracle 0.0024 /
+    0.0003 / 0.0002), with a 0.1 mm bias 0.0032 / 0.0011 / 0.0004, and with one plane per
+    true surface as well 0.0023 / 0.0003 / 0.0002: the oracle (known associations change
+    nothing more; at sigma 0 both are exact). Fitted, on those truth-deskewed points:
+    world 1 / 9 0.0031 / 0.0003 (world 3, 60 epochs: 0.0021 -> 0.0006), the fitted bias
+    0 throughout. Not the
+    default: the median fits 0 where most planes agree, and the few with larger errors
+    (the deskewing twist's lag as run; an extraction's fragment) then become the kernel's
+    outliers and are dropped: as run (150 epochs, 6 mm) world 9 lost track (ATE 11 mm ->
+    6.2 m), world 1 0.0049 -> 0.0059 deg; with the offline passes
+    (``odometry.deskew_passes: 2``: world 3 / 9 0.0020 / 0.0032 deg) too (0.014 / 0.015
+    deg). On KITTI raw 0005 the lines' own offsets (per recovered row, against
+    each plane) measure 5-7 mm where its fixed bias wants 2 cm (1 cm: 0.138 deg); fitted,
+    its RPE is 0.0868 -> 0.0858 deg, 3.59 -> 3.60 cm."""
     memory_scans: float = Field(5.0, ge=0)
     """Time constant (scans) of the exponential fading of landmark moments; 0: no fading.
     Old observations carry the drift accumulated since. Measured on KITTI 0005 (best of

@@ -41,6 +41,10 @@ class PlaneMap:
         n, d, lam: refit planes (L, 3), (L,) and scatter eigenvalues (L, 3), ascending.
         cov_n: (L, 3, 3) normal covariance, var_o: (L,) offset variance at the centroid,
             radius: (L,) bounding-circle radius (m). All set by :meth:`refit`.
+        cov_n_bias, var_o_bias: (L, 3, 3), (L,) the parts of ``cov_n`` and ``var_o`` per
+            unit squared laser bias (1/m^2 times m^2): both are linear in it, so the
+            variances under another bias are ``cov_n + (b^2 - b_0^2) cov_n_bias``
+            (:mod:`.bias`). bias_m: the bias ``b_0`` (m) of the last :meth:`refit`.
     """
 
     N: np.ndarray = field(default_factory=lambda: _empty())
@@ -56,6 +60,9 @@ class PlaneMap:
     cov_n: np.ndarray = field(default_factory=lambda: _empty(3, 3))
     var_o: np.ndarray = field(default_factory=lambda: _empty())
     radius: np.ndarray = field(default_factory=lambda: _empty())
+    cov_n_bias: np.ndarray = field(default_factory=lambda: _empty(3, 3))
+    var_o_bias: np.ndarray = field(default_factory=lambda: _empty())
+    bias_m: float = 0.0
 
     _STORED = ("N", "c", "S", "rows", "orient", "last_seen", "last_index")
 
@@ -92,6 +99,10 @@ class PlaneMap:
         e12 = E[:, :, 1:]
         self.cov_n = np.einsum("mik,mk,mjk->mij", e12, v, e12)
         self.var_o = sigma**2 / self.N + bias_m**2 / rows
+        vb = (self.N / rows)[:, None] / lam12
+        self.cov_n_bias = np.einsum("mik,mk,mjk->mij", e12, vb, e12)
+        self.var_o_bias = 1.0 / rows
+        self.bias_m = bias_m
         self.radius = np.sqrt(3.0 * (lam[:, 1] + lam[:, 2]) / self.N)
 
     def var_at(self, idx: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -111,15 +122,17 @@ def update_map(
     plane_index: np.ndarray,
     sigma: float,
     config: PlanemapConfig,
+    bias_m: float | None = None,
 ) -> None:
     """Fade, merge the scan's planes (moments ``cur``, ``normals`` (K, 3), scan frame;
     ``assoc`` (K,) landmark or -1, robust ``weight`` (K,), ``plane_index`` (K,) their
     indices in the scan's plane list) seen at pose ``T`` (world from scan) in scan
-    ``frame``, prune and refit (module docstring)."""
+    ``frame``, prune and refit (module docstring) with the laser bias ``bias_m`` (m;
+    None: ``config.laser_bias_m``)."""
     R, t = T[:3, :3], T[:3, 3]
     mw = cur.transformed(R, t)
     nw = normals @ R.T
-    bias = config.laser_bias_m
+    bias = config.laser_bias_m if bias_m is None else bias_m
     if len(M) and config.memory_scans > 0:
         decay = float(np.exp(-1.0 / config.memory_scans))
         M.N, M.S, M.rows = M.N * decay, M.S * decay, M.rows * decay

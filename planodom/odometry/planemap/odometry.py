@@ -43,6 +43,7 @@ import numpy as np
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform
 from planodom.odometry.planemap import fallback
+from planodom.odometry.planemap.bias import fitted_bias
 from planodom.odometry.planemap.landmarks import PlaneMap, update_map
 from planodom.odometry.planemap.moments import Moments, scan_sigma
 from planodom.odometry.planemap.pose import relative_pose
@@ -82,6 +83,8 @@ class MapEstimate:
             registration (None when there was nothing to register against).
         beyond_bounds: its step exceeds the run's motion bounds (see
             :meth:`PlaneMapOdometry.judged`).
+        bias_m: the laser bias fitted to its inlier residuals (m; ``planemap.laser_bias:
+            fitted``), None when not fitted.
     """
 
     relative: RelativePose
@@ -93,6 +96,7 @@ class MapEstimate:
     plane_set: PlaneSet
     against: tuple[PlaneMap, int] | None = None
     beyond_bounds: bool = False
+    bias_m: float | None = None
 
 
 class PlaneMapOdometry:
@@ -108,6 +112,7 @@ class PlaneMapOdometry:
         self._dev_n = np.zeros(2, dtype=int)  # deviations counted: rotation, translation
         self._fractions: list[float] = []
         self._prev: PlaneSet | None = None
+        self.bias_m = self.config.planemap.laser_bias_m  # the fitted one, when fitted
 
     # ------------------------------------------------------------------ gates
 
@@ -148,8 +153,14 @@ class PlaneMapOdometry:
         reg = self._best_registration(T_pred, cur, plane_set)
         ok = self._resolved(reg, cur)
         rel, T = self._result(reg, ok, T_pred, cur, used)
-        beyond = rel.status is not Status.UNRESOLVED and self._beyond_bounds(rel)
-        return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set, against, beyond)
+        measured = rel.status is not Status.UNRESOLVED
+        beyond = measured and self._beyond_bounds(rel)
+        bias = None
+        if measured and self.config.planemap.laser_bias == "fitted":
+            inl = reg.weights > 0.5
+            upper = self.config.planemap.laser_bias_m
+            bias = fitted_bias(self.map, reg.T, cur, reg.landmarks[inl], reg.planes[inl], upper)
+        return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set, against, beyond, bias)
 
     def judged(self, est: MapEstimate) -> MapEstimate:
         """An epoch's final estimate, bridged by constant velocity (UNRESOLVED and
@@ -162,7 +173,7 @@ class PlaneMapOdometry:
         rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
         stage = est.reg.stage if est.reg is not None else ""
         rel = _with_associations(replace(rel, inconsistent=True), np.zeros((0, 2), np.intp), stage)
-        return replace(est, relative=rel, T=est.T_pred, beyond_bounds=False)
+        return replace(est, relative=rel, T=est.T_pred, beyond_bounds=False, bias_m=None)
 
     def _scan_planes(self, planes: Sequence[Plane], used: np.ndarray) -> ScanPlanes | None:
         if len(used) == 0:
@@ -170,7 +181,21 @@ class PlaneMapOdometry:
         m = Moments.of_planes([planes[k] for k in used])
         normals = np.array([planes[k].normal for k in used])
         sigma = scan_sigma(m, self.config.extraction.range_noise_m)
-        return ScanPlanes.of(m, normals, sigma, self.config.planemap.laser_bias_m)
+        return ScanPlanes.of(m, normals, sigma, self.bias_m, self._deskew_cov(planes, used))
+
+    def _deskew_cov(self, planes: Sequence[Plane], used: np.ndarray) -> np.ndarray | None:
+        """(K, 4, 4) covariance of the ``used`` planes' ``(n, d)`` from the deskewing
+        twist's error (``planemap.deskew_variance``), None when off or before any motion
+        was measured; zero for a plane without its deskewing Jacobian."""
+        if self.config.planemap.deskew_variance == "off" or self._dev_n[0] == 0:
+            return None
+        rms = np.sqrt(self._dev_sse / np.maximum(self._dev_n, 1))
+        per_axis = np.r_[np.full(3, rms[0] ** 2), np.full(3, rms[1] ** 2)] / 3.0
+        J = np.zeros((len(used), 4, 6))
+        for i, k in enumerate(used):
+            if planes[k].deskew_jacobian is not None:
+                J[i] = planes[k].deskew_jacobian
+        return np.einsum("kia,a,kja->kij", J, per_axis, J)
 
     def _resolved(self, reg: Registration, cur: ScanPlanes) -> bool:
         """Enough inliers, and no flip of the z axis relative to the last pose."""
@@ -299,8 +324,10 @@ class PlaneMapOdometry:
             self._fractions.append(len(est.reg.inliers) / max(len(cur), 1))
         elif not first and len(cur) >= pm.min_inliers and len(self.map):
             self.map = PlaneMap()  # a detected failure: rebuild from this scan
+        if est.bias_m is not None:
+            self.bias_m = est.bias_m
         update_map(self.map, est.T, cur.m, cur.normals, assoc, w, self.frame, est.used,
-                   cur.sigma, pm)  # fmt: skip
+                   cur.sigma, pm, self.bias_m)  # fmt: skip
 
 
 def uses_plane_map(config: PlanodomConfig, scan: Scan | None) -> bool:

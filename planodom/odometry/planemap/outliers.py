@@ -34,11 +34,11 @@ from planodom.odometry.planemap.moments import moment_residuals
 #: Median of a chi-square variable with 3 degrees of freedom, divided by 3: the median of
 #: an association's mean squared whitened residual (offset and two tilts) when its model
 #: variances are right (scipy.stats.chi2.median(3) / 3).
-_MEDIAN_CHI2_3 = 2.3659738843753377 / 3.0
+MEDIAN_CHI2_3 = 2.3659738843753377 / 3.0
 
 #: The residuals that carry pose information and are tested: the offset and the two
 #: tilts; the thickness residual (index 1) is the plane's own noise.
-_TESTED = np.array([0, 2, 3])
+TESTED = np.array([0, 2, 3])
 
 
 def residual_scale(chi2: np.ndarray) -> float:
@@ -50,7 +50,7 @@ def residual_scale(chi2: np.ndarray) -> float:
     the model variances are never shrunk."""
     if len(chi2) == 0:
         return 1.0
-    return max(1.0, float(np.median(chi2)) / _MEDIAN_CHI2_3)
+    return max(1.0, float(np.median(chi2)) / MEDIAN_CHI2_3)
 
 
 def whitened(
@@ -65,15 +65,17 @@ def whitened(
     lm: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Moment residuals of m associations under ``(R, t)``: ``r`` (m, 4), ``J`` (m, 4, 6),
-    their variances ``v`` (m, 4) (the plane's noise ``s2`` plus the landmark's
+    their variances ``v`` (m, 4) (the plane's noise ``s2``, (m,) for all four residuals
+    alike or (m, 4) each its own, plus the landmark's
     uncertainty at the moved centroid / along the moved axes) and each association's mean
     squared whitened residual ``chi2`` (m,) over the offset and the two tilts."""
     r, J, U = moment_residuals(R, t, M.n[lm], M.d[lm], m_N, m_c, lam, E)
     x = m_c @ R.T + t
     v = np.empty_like(r)
-    v[:, 0] = s2 + m_N * M.var_at(lm, x)
-    v[:, 1:] = s2[:, None] + lam * np.einsum("mak,mab,mbk->mk", U, M.cov_n[lm], U)
-    chi2 = np.sum(r[:, _TESTED] ** 2 / v[:, _TESTED], axis=1) / 3.0
+    s_off, s_tilt = (s2[:, 0], s2[:, 1:]) if s2.ndim == 2 else (s2, s2[:, None])
+    v[:, 0] = s_off + m_N * M.var_at(lm, x)
+    v[:, 1:] = s_tilt + lam * np.einsum("mak,mab,mbk->mk", U, M.cov_n[lm], U)
+    chi2 = np.sum(r[:, TESTED] ** 2 / v[:, TESTED], axis=1) / 3.0
     return r, J, v, chi2
 
 
@@ -111,10 +113,10 @@ def deleted_chi2(
     g_i = gk.sum(axis=0)[None] - gk + (P @ dev)[None]
     # H_i is positive definite (the prior): Cholesky-based solves stay well conditioned
     # with scaled columns (rotation in rad, translation in m, lever arms of metres)
-    Ht = A[:, _TESTED]  # (m, 3, 6)
+    Ht = A[:, TESTED]  # (m, 3, 6)
     sol = np.linalg.solve(H_i, np.concatenate([g_i[:, :, None], np.swapaxes(Ht, 1, 2)], axis=2))
     step, HiAt = -sol[:, :, 0], sol[:, :, 1:]
-    e_del = e[:, _TESTED] + np.einsum("mki,mi->mk", Ht, step)
+    e_del = e[:, TESTED] + np.einsum("mki,mi->mk", Ht, step)
     C = np.eye(3)[None] + np.einsum("mki,mil->mkl", Ht, HiAt)
     return np.einsum("mk,mk->m", e_del, np.linalg.solve(C, e_del[:, :, None])[:, :, 0])
 

@@ -50,6 +50,9 @@ class ScanPlanes:
         var_n: (K,) normal variance per axis (rad^2), var_o: (K,) offset variance at the
             centroid (m^2), laser bias included. lam, E: eigen-decomposition of the
             scatters (ascending). sigma: point noise (m). s2: (K,) residual variances.
+            bias: the laser bias (m) they were computed with. deskew: (K, 4) the
+            variance each moment residual gains from the deskewing twist's error
+            (``planemap.deskew_variance``, :func:`deskew_variances`), or None.
     """
 
     m: Moments
@@ -60,18 +63,47 @@ class ScanPlanes:
     E: np.ndarray
     sigma: float
     s2: np.ndarray
+    bias: float = 0.0
+    deskew: np.ndarray | None = None
 
     @classmethod
-    def of(cls, m: Moments, normals: np.ndarray, sigma: float, bias: float) -> ScanPlanes:
+    def of(
+        cls,
+        m: Moments,
+        normals: np.ndarray,
+        sigma: float,
+        bias: float,
+        deskew_cov: np.ndarray | None = None,
+    ) -> ScanPlanes:
+        """The registration inputs of planes with moments ``m``; ``deskew_cov`` (K, 4, 4):
+        the covariance of each plane's ``(n, d)`` from the deskewing twist's error."""
         lam, E = np.linalg.eigh(m.S)
         rows = np.maximum(m.rows, 1.0)
         var_n = (sigma**2 + bias**2 * m.N / rows) / np.maximum(lam[:, 1], 1e-12)
         var_o = sigma**2 / np.maximum(m.N, 1.0) + bias**2 / rows
         s2 = residual_variance(sigma, bias, m.N, m.rows)
-        return cls(m, normals, var_n, var_o, lam, E, sigma, s2)
+        deskew = None if deskew_cov is None else deskew_variances(m, lam, E, deskew_cov)
+        return cls(m, normals, var_n, var_o, lam, E, sigma, s2, bias, deskew)
+
+    def variances(self, jj: np.ndarray) -> np.ndarray:
+        """The plane noise of the moment residuals of planes ``jj`` (m,): (m,) alike for
+        all four, or (m, 4) with the deskewing error."""
+        return self.s2[jj] if self.deskew is None else self.s2[jj][:, None] + self.deskew[jj]
 
     def __len__(self) -> int:
         return len(self.m)
+
+
+def deskew_variances(m: Moments, lam: np.ndarray, E: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """(K, 4) variance of each moment residual (offset, then along e_0 (the normal), e_1,
+    e_2) from a covariance ``cov`` (K, 4, 4) of the planes' ``(n, d)``: the points' mean
+    offset at the centroid ``-(c . dn + dd)`` times ``sqrt(N)``, and ``sqrt(lam_k) e_k .
+    dn`` (the scatter's axes turn with the normal)."""
+    cd = np.concatenate([m.c, np.ones((len(m), 1))], axis=1)
+    out = np.empty((len(m), 4))
+    out[:, 0] = m.N * np.einsum("ki,kij,kj->k", cd, cov, cd)
+    out[:, 1:] = lam * np.einsum("kai,kab,kbi->ki", E, cov[:, :3, :3], E)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -224,7 +256,9 @@ def _drop_deleted(
     while np.count_nonzero(keep) > 3:
         idx = np.flatnonzero(keep)
         N, c, lam, E = cur.m.N[jj[idx]], cur.m.c[jj[idx]], cur.lam[jj[idx]], cur.E[jj[idx]]
-        r, J, v, chi2 = whitened(M, T[:3, :3], T[:3, 3], N, c, lam, E, cur.s2[jj[idx]], lm[idx])
+        r, J, v, chi2 = whitened(
+            M, T[:3, :3], T[:3, 3], N, c, lam, E, cur.variances(jj[idx]), lm[idx]
+        )
         k2 = residual_scale(chi2)
         wk = 1.0 / (1.0 + chi2 / (k2 * config.cauchy_scale**2))
         stat = deleted_chi2(r, J, k2 * v, wk, pose_deviation(T, T_pred), info)
@@ -249,7 +283,7 @@ def _gauss_newton(
     """Cauchy-weighted Gauss-Newton of all the associations given (see :func:`solve`)."""
     R, t = T0[:3, :3].copy(), T0[:3, 3].copy()
     N, c, lam, E = cur.m.N[jj], cur.m.c[jj], cur.lam[jj], cur.E[jj]
-    s2 = cur.s2[jj]
+    s2 = cur.variances(jj)
     H, w = np.eye(6), np.ones(len(lm))
     # Length scale of the solve: rotation and translation steps of comparable size.
     L = max(float(np.median(np.linalg.norm(c, axis=1))), 1.0)
@@ -289,7 +323,7 @@ def register(
     lm = jj = np.zeros(0, dtype=np.intp)
     seen = None
     for _ in range(config.association_rounds):
-        a = associate(M, T, cur, s_r, s_t, config.laser_bias_m)
+        a = associate(M, T, cur, s_r, s_t, cur.bias)
         key = a.tobytes()
         if key == seen:
             break
