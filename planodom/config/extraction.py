@@ -157,6 +157,12 @@ class ExtractionConfig(Section):
     trace_step_m: float = Field(0.1, ge=0)
     """...and when one's centroid lies within this (m) plus the member tolerance of the
     other's line: the displacement of a trace between sweeps (0.1 m at 75 Hz is 7.5 m/s)."""
+    single_scanner_min_sweeps: int = Field(0, ge=0)
+    """2D rig, deskewed points: a wall seen by one scanner only is a plane when that
+    scanner's lines of at least this many sweeps lie in it (parallel lines displaced by
+    the motion between the sweeps, :mod:`planodom.extraction.rig2d.sweeplines`); 0: never
+    (a plane needs two crossing scanners). At least 3 when on: two parallel lines are
+    always coplanar. DECIDED-BY-MEASUREMENT"""
     twist_rate_sigma_deg_s: float = Field(0.0, ge=0)
     """2D-rig path with a twist: how far (deg/s) the angular rate the points were
     deskewed with may be off. A twist off by ``e`` moves a point acquired ``t`` after the
@@ -189,6 +195,12 @@ class ExtractionConfig(Section):
     crossing traces of one wall often meet only where their lines are extended (on the
     paper loop at 6 mm, recall with 4 / 6 / 10 m / no limit: 81 / 90 / 91 / 91 %; without a
     twist 10 m raised precision from 96 % to 99 %)."""
+    seed_spans_gap: bool = False
+    """2D rig: a plane keeps the traces connected (``plane_gap_m``) to either trace of its
+    seed pair, not only to the first: two long crossing traces found coplanar within
+    their noise stay one plane when they lie farther apart than the gap (an indoor floor
+    seen by a scanner ahead and one behind, 14 m apart, was dropped in most epochs: the
+    seed lost its second trace). DECIDED-BY-MEASUREMENT"""
     member_sigma_factor: float = Field(3.0, gt=0)
     """A segment joins a plane when its centroid and its ends lie within this many sigma."""
     max_rms_sigma_factor: float = Field(1.5, gt=0)
@@ -305,6 +317,11 @@ class ExtractionConfig(Section):
             ("min_segment_points", "min_plane_points", "a trace fits in a plane"),
             ("min_gap_m", "plane_gap_m", "a scan-line run fits in one plane piece"),
         )
+        if self.single_scanner_min_sweeps in (1, 2):
+            raise ConfigError(
+                "extraction.single_scanner_min_sweeps: must be 0 (off) or at least 3 (two "
+                f"parallel lines are always coplanar), got {self.single_scanner_min_sweeps!r}"
+            )
         for small, large, why in pairs:
             a, b = getattr(self, small), getattr(self, large)
             if a > b:
