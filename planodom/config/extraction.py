@@ -197,10 +197,11 @@ class ExtractionConfig(Section):
     twist 10 m raised precision from 96 % to 99 %)."""
     seed_spans_gap: bool = False
     """2D rig: a plane keeps the traces connected (``plane_gap_m``) to either trace of its
-    seed pair, not only to the first: two long crossing traces found coplanar within
-    their noise stay one plane when they lie farther apart than the gap (an indoor floor
-    seen by a scanner ahead and one behind, 14 m apart, was dropped in most epochs: the
-    seed lost its second trace). DECIDED-BY-MEASUREMENT"""
+    seed pair, not only to the first, when the two are coplanar within their own noise
+    (``3 sigma sqrt(1 / N_i + 1 / N_j)`` plus the slack of their direction errors,
+    without ``tolerance_floor_m``): two long crossing traces stay one plane when they lie
+    farther apart than the gap (an indoor floor seen by a scanner ahead and one behind,
+    14 m apart, was dropped: the seed lost its second trace). DECIDED-BY-MEASUREMENT"""
     member_sigma_factor: float = Field(3.0, gt=0)
     """A segment joins a plane when its centroid and its ends lie within this many sigma."""
     max_rms_sigma_factor: float = Field(1.5, gt=0)
