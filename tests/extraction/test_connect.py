@@ -44,10 +44,11 @@ def test_piece_of_one_seed_or_of_either_seed():
     assert again.tolist() == [True, True, False, False]
 
 
-def _floor_scan(apart_m: float) -> Scan:
-    """Two scanners' lines on the floor z = 0, crossing at 60 deg, ``apart_m`` apart."""
+def _floor_scan(apart_m: float, n: int = 60) -> Scan:
+    """Two scanners' lines of ``n`` points each on the floor z = 0, crossing at 60 deg,
+    ``apart_m`` apart."""
     rng = np.random.default_rng(1)
-    s = np.linspace(-4.0, 4.0, 60)
+    s = np.linspace(-4.0, 4.0, n)
     a = np.column_stack([3.0 + s, np.zeros_like(s), rng.normal(0, 0.003, len(s))])
     u = np.array([np.cos(np.radians(60.0)), np.sin(np.radians(60.0)), 0.0])
     b = np.array([-apart_m, 0.0, 0.0]) + s[:, None] * u
@@ -69,3 +70,13 @@ def test_a_floor_seen_by_two_scanners_far_apart():
             for p in planes:
                 assert p.normal[2] > np.cos(np.radians(0.5))
                 assert abs(p.offset) < 0.01
+
+
+def test_short_traces_far_apart_are_not_one_plane():
+    """Two traces of 12 points (fewer than ``min_plane_points`` each) 20 m apart: no plane
+    even with ``seed_spans_gap`` (two short traces of two walls far apart can be
+    coplanar by chance); 4 m apart they are one."""
+    for apart, expected in ((20.0, 0), (4.0, 1)):
+        cfg = ExtractionConfig(range_noise_m=0.003, seed_spans_gap=True)
+        planes = extract(_floor_scan(apart, n=12), cfg, twist=np.zeros(6)).planes
+        assert len(planes) == expected, apart
