@@ -216,7 +216,7 @@ class ExtractionConfig(Section):
     14 m apart, was dropped: the seed lost its second trace). Off by default, measured on
     the ten even 2D-rig worlds (300 epochs): the floor of indoor world 2 at 6 mm is
     extracted in 267 instead of 105 of 300 epochs (the planes it adds, with the true twist:
-    all of true surfaces, 0.018 deg median normal error); unresolved epochs 19 -> 23 at 6 mm
+    all true surfaces, 0.018 deg median normal error); unresolved epochs 19 -> 23 at 6 mm
     and 76 -> 58 at 2 cm, the longest gap where the oracle measures 4 -> 4 and 3 -> 5
     (world 6 at 2 cm), median rotation rms 0.116 -> 0.104 and 0.211 -> 0.204 deg, xy
     2.06 -> 2.29 and 7.9 -> 6.4 cm, ATE 0.19 -> 0.32 and 1.01 -> 0.94 m. World 2 at 6 mm:
