@@ -157,6 +157,24 @@ class ExtractionConfig(Section):
     trace_step_m: float = Field(0.1, ge=0)
     """...and when one's centroid lies within this (m) plus the member tolerance of the
     other's line: the displacement of a trace between sweeps (0.1 m at 75 Hz is 7.5 m/s)."""
+    single_scanner_min_sweeps: int = Field(0, ge=0)
+    """2D rig, deskewed points: a wall seen by one scanner only is a plane when that
+    scanner's lines of at least this many sweeps lie in it (parallel lines displaced by
+    the motion between the sweeps, :mod:`planodom.extraction.rig2d.sweeplines`); 0: never
+    (a plane needs two crossing scanners). At least 3 when on: two parallel lines are
+    always coplanar. Off by default, measured: in world 6's gap at 6 mm (the even 2D-rig
+    worlds of ``planodom experiment generalisation``, epochs 51-54) almost every wall the
+    oracle fits is seen by one scanner only (a far wall in a turn); with the points
+    deskewed along the true motion this finds 9-10 planes per epoch, all true walls,
+    where the two-scanner rule finds 1-5. But such a plane's tilt about its lines is set
+    by the deskewing, not by the wall: a turn rate off by 1 deg/s tilts it by 4-8 deg
+    (walls at 30-70 m), the constant twist of the true motion by up to 0.8 deg. In the
+    streaming odometry world 6 at 6 mm (150 epochs) went from 6 to 8 unresolved epochs,
+    rotation rms 0.37 -> 3.1 deg, ATE 0.75 -> 13 m; on the ten even 2D-rig worlds (300
+    epochs) unresolved 19 -> 37 at 6 mm and 76 -> 67 at 2 cm, median rotation rms 0.116
+    -> 0.504 and 0.211 -> 0.332 deg, median ATE 0.19 -> 0.92 and 1.01 -> 1.61 m (world 8
+    at 6 mm 0.28 -> 10 m). A use needs the motion within an epoch known to a few
+    hundredths of a deg/s."""
     twist_rate_sigma_deg_s: float = Field(0.0, ge=0)
     """2D-rig path with a twist: how far (deg/s) the angular rate the points were
     deskewed with may be off. A twist off by ``e`` moves a point acquired ``t`` after the
@@ -189,6 +207,24 @@ class ExtractionConfig(Section):
     crossing traces of one wall often meet only where their lines are extended (on the
     paper loop at 6 mm, recall with 4 / 6 / 10 m / no limit: 81 / 90 / 91 / 91 %; without a
     twist 10 m raised precision from 96 % to 99 %)."""
+    seed_spans_gap: bool = False
+    """2D rig: a plane keeps the traces connected (``plane_gap_m``) to either trace of its
+    seed pair, not only to the first, when the two are coplanar within their own noise
+    (``3 sigma sqrt(1 / N_i + 1 / N_j)`` plus the slack of their direction errors,
+    without ``tolerance_floor_m``): two long crossing traces stay one plane when they lie
+    farther apart than the gap (an indoor floor seen by a scanner ahead and one behind,
+    14 m apart, was dropped: the seed lost its second trace). Off by default, measured on
+    the ten even 2D-rig worlds (300 epochs): the floor of indoor world 2 at 6 mm is
+    extracted in 267 instead of 105 of 300 epochs (the planes it adds, with the true twist:
+    all true surfaces, 0.018 deg median normal error); unresolved epochs 19 -> 23 at 6 mm
+    and 76 -> 58 at 2 cm, the longest gap where the oracle measures 4 -> 4 and 3 -> 5
+    (world 6 at 2 cm), median rotation rms 0.116 -> 0.104 and 0.211 -> 0.204 deg, xy
+    2.06 -> 2.29 and 7.9 -> 6.4 cm, ATE 0.19 -> 0.32 and 1.01 -> 0.94 m. World 2 at 6 mm:
+    rotation 0.53 -> 0.35 deg, xy 5.6 -> 4.6 cm but ATE 0.82 -> 3.3 m, its x error summed
+    over the epochs the odometry calls degenerate (rotation only, the corridor's length
+    bridged) 2 cm -> 1.5 m. Without the count test short traces of two walls 20 m apart
+    (11-21 points) were taken for one plane; at 2 cm two long wall traces at one height
+    still are (a horizontal plane: 5 of 100 epochs of world 12)."""
     member_sigma_factor: float = Field(3.0, gt=0)
     """A segment joins a plane when its centroid and its ends lie within this many sigma."""
     max_rms_sigma_factor: float = Field(1.5, gt=0)
@@ -305,6 +341,11 @@ class ExtractionConfig(Section):
             ("min_segment_points", "min_plane_points", "a trace fits in a plane"),
             ("min_gap_m", "plane_gap_m", "a scan-line run fits in one plane piece"),
         )
+        if self.single_scanner_min_sweeps in (1, 2):
+            raise ConfigError(
+                "extraction.single_scanner_min_sweeps: must be 0 (off) or at least 3 (two "
+                f"parallel lines are always coplanar), got {self.single_scanner_min_sweeps!r}"
+            )
         for small, large, why in pairs:
             a, b = getattr(self, small), getattr(self, large)
             if a > b:

@@ -26,6 +26,7 @@ from planodom.errors import ConfigError
         ({"rms_floor_m": 0.05}, "extraction.rms_floor_m"),
         ({"trace_parallel_deg": 20.0}, "extraction.trace_parallel_deg"),
         ({"min_segment_points": 30}, "extraction.min_segment_points"),
+        ({"single_scanner_min_sweeps": 2}, "extraction.single_scanner_min_sweeps"),
         ({"region_azimuth_columns": True}, "extraction.region_azimuth_columns"),  # gone
         ({"max_unskewed_span_s": 0.1}, "extraction.max_unskewed_span_s"),  # now nested
     ],

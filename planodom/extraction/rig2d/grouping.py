@@ -41,7 +41,9 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from planodom.extraction.rig2d.connect import connected_piece
 from planodom.extraction.rig2d.segments import Segments
+from planodom.extraction.rig2d.sweeplines import distinct_lines, sweep_seed_pairs
 from planodom.extraction.rig2d.traces import build_traces
 
 #: An L-shaped seed pair has its crossing within this (m), or 5 % of each trace's
@@ -65,9 +67,13 @@ class GroupingParams(NamedTuple):
         min_trace_points: fewest points of a trace that seeds or joins a plane.
         seed_floor_m: floor of the gap allowed between a seed pair's lines (m).
         gap_m, gap_ratio: traces connect when less than ``max(gap_m, gap_ratio * range)``
-            apart (:func:`_connected_piece`); ``gap_m`` inf: no limit.
+            apart (:func:`.connect.connected_piece`); ``gap_m`` inf: no limit.
         max_span_s: longest time span (s) of a trace, seed or plane; inf: no windows.
         margin_m: an L-shaped seed pair has its crossing within this (m) of both ends.
+        min_sweep_lines: 0, or the fewest distinct lines of one scanner's sweeps of a
+            plane seeded by them (:mod:`.sweeplines`); parallel_rad: their parallelism.
+        seed_spans_gap: the piece kept is the one connected to either seed trace when
+            they are coplanar within their own noise (``extraction.seed_spans_gap``).
     """
 
     tol_m: float
@@ -83,6 +89,9 @@ class GroupingParams(NamedTuple):
     max_span_s: float
     max_seed_normal_err_rad: float = 0.0
     margin_m: float = L_MARGIN_M
+    min_sweep_lines: int = 0
+    parallel_rad: float = 0.0
+    seed_spans_gap: bool = False
 
 
 def group_segments(
@@ -174,85 +183,6 @@ def _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol):  # pragma:
     slope = direction[t, 0] * n[0] + direction[t, 1] * n[1] + direction[t, 2] * n[2]
     ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
     return q / count[t] + off * off <= tol * tol and ends <= tol
-
-
-@numba.njit(cache=True)
-def _segment_distance(p0, p1, q0, q1):  # pragma: no cover - compiled
-    """Closest distance between 3D segments [p0, p1] and [q0, q1]: the closest points of
-    the two lines clamped to the first segment, then alternately re-projected and clamped
-    on each (exact unless both clamps bind, then within a negligible margin for the gap
-    test)."""
-    u0, u1, u2 = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
-    v0, v1, v2 = q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2]
-    w0, w1, w2 = p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]
-    a = u0 * u0 + u1 * u1 + u2 * u2
-    b = u0 * v0 + u1 * v1 + u2 * v2
-    c = v0 * v0 + v1 * v1 + v2 * v2
-    d = u0 * w0 + u1 * w1 + u2 * w2
-    e = v0 * w0 + v1 * w1 + v2 * w2
-    den = a * c - b * b
-    sc = (b * e - c * d) / den if den > 1e-12 * max(a * c, 1e-300) else 0.0
-    sc = min(max(sc, 0.0), 1.0)
-    tc = min(max((b * sc + e) / max(c, 1e-300), 0.0), 1.0)
-    sc = min(max((b * tc - d) / max(a, 1e-300), 0.0), 1.0)
-    x0 = w0 + sc * u0 - tc * v0
-    x1 = w1 + sc * u1 - tc * v1
-    x2 = w2 + sc * u2 - tc * v2
-    return np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-
-
-@numba.njit(cache=True)
-def _connected_piece(members, seed, centroid, direction, lo, hi, gap_m, gap_ratio):
-    """The traces among ``members`` (bool (T,)) connected to trace ``seed``: two traces
-    are linked when the 3D distance between their centre lines (centroid + direction *
-    [lo, hi]) is at most ``max(gap_m, gap_ratio * r)``, ``r`` the range (distance from
-    the base origin) of the nearer centroid: the rule that splits scan lines into runs
-    (:func:`.scanlines.run_breaks`)."""
-    idx = np.flatnonzero(members)
-    K = idx.shape[0]
-    if K <= 1 or not members[seed]:
-        return members
-    a0 = np.empty((K, 3))
-    a1 = np.empty((K, 3))
-    bmin = np.full(3, np.inf)
-    bmax = np.full(3, -np.inf)
-    for k in range(K):
-        t = idx[k]
-        a0[k] = centroid[t] + lo[t] * direction[t]
-        a1[k] = centroid[t] + hi[t] * direction[t]
-        for u in range(3):
-            bmin[u] = min(bmin[u], a0[k, u], a1[k, u])
-            bmax[u] = max(bmax[u], a0[k, u], a1[k, u])
-    span = bmax - bmin
-    if np.sqrt(span @ span) <= gap_m:  # all within one gap: connected
-        return members
-    rng = np.empty(K)
-    for k in range(K):
-        rng[k] = np.sqrt(centroid[idx[k]] @ centroid[idx[k]])
-    reach = np.zeros(K, dtype=np.bool_)
-    queue = np.empty(K, dtype=np.int64)
-    s = 0
-    while idx[s] != seed:
-        s += 1
-    reach[s] = True
-    queue[0] = s
-    head, tail = 0, 1
-    while head < tail:  # breadth-first growth
-        i = queue[head]
-        head += 1
-        for j in range(K):
-            if reach[j]:
-                continue
-            lim = max(gap_m, gap_ratio * min(rng[i], rng[j]))
-            if _segment_distance(a0[i], a1[i], a0[j], a1[j]) <= lim:
-                reach[j] = True
-                queue[tail] = j
-                tail += 1
-    out = np.zeros_like(members)
-    for k in range(K):
-        if reach[k]:
-            out[idx[k]] = True
-    return out
 
 
 @numba.njit(cache=True)
@@ -348,6 +278,26 @@ def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
+def _tight(tr, count, seeds, s, p):  # pragma: no cover - compiled
+    """Seed ``s``'s two traces hold a plane's worth of points each (``min_points``) and
+    are coplanar within their own noise (the gap between their lines within ``3 sigma
+    sqrt(1 / N_i + 1 / N_j)`` plus the slack of their direction errors, :func:`_seed_pairs`
+    without its floor): not a coincidence of two far traces (short traces of two walls
+    20 m apart passed the test with its slack)."""
+    i, j = seeds.i[s], seeds.j[s]
+    if count[i] < p.min_points or count[j] < p.min_points:
+        return False
+    n = seeds.normal[s]
+    e = tr.centroid[i] - tr.centroid[j]
+    gap = abs(n[0] * e[0] + n[1] * e[1] + n[2] * e[2])
+    a, b = tr.direction[i], tr.direction[j]
+    c = np.cross(a, b)
+    sin_a = np.sqrt(c @ c)
+    slack = np.sqrt(e @ e) * 2.0 * (tr.dir_err[i] + tr.dir_err[j]) / max(sin_a, 1e-12)
+    return gap <= 3.0 * p.sigma_m * np.sqrt(1.0 / count[i] + 1.0 / count[j]) + slack
+
+
+@numba.njit(cache=True)
 def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - compiled
     """Step 2 for seed ``s`` from its initial ``members`` (T,) bool: refit and re-collect
     the available traces in its window (at most three times), keep the piece connected
@@ -372,26 +322,47 @@ def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - com
             break
         members = new
     if np.isfinite(p.gap_m):  # only the piece of the plane that holds the seed
-        members = _connected_piece(
-            members, seeds.i[s], tr.centroid, tr.direction, tr.lo, tr.hi, p.gap_m, p.gap_ratio
-        )
+        seed2 = seeds.j[s] if p.seed_spans_gap and _tight(tr, count, seeds, s, p) else -1
+        members = connected_piece(members, seeds.i[s], tr.centroid, tr.direction, tr.lo,
+                                  tr.hi, p.gap_m, p.gap_ratio, seed2)  # fmt: skip
     n, d, rms, total = _plane_of(members, count, tr.centroid, tr.scatter)
     return members, rms, total
 
 
 @numba.njit(cache=True)
 def _grow_kernel(tr, p):  # pragma: no cover - compiled
-    """Seeds, membership and greedy growth (module docstring). Returns the group of
+    """Seeds, membership and greedy growth (module docstring); then, with
+    ``min_sweep_lines`` (deskewed points only), the same on the traces left, seeded by
+    one scanner's lines of different sweeps (:mod:`.sweeplines`). Returns the group of
     every trace (-1: none), the number of groups and of rejected seeds."""
     T = tr.ring.shape[0]
     count = tr.count.astype(np.float64)
     big = tr.count >= p.min_trace_points
-    seeds = _seed_pairs(tr, p, count, big & (tr.dir_err <= p.max_seed_err_rad))
-    P = seeds.i.shape[0]
-    iu, ju = seeds.i, seeds.j
+    ok = big & (tr.dir_err <= p.max_seed_err_rad)
     group = np.full(T, -1, dtype=np.int64)
+    available = big.copy()
+    seeds = _seed_pairs(tr, p, count, ok)
+    n_groups, rejected = _greedy(tr, p, count, big, seeds, available, group, 0, 0, False)
+    if p.min_sweep_lines > 0 and not np.isfinite(p.max_span_s):
+        i, j, normal = sweep_seed_pairs(tr, p, count, ok & available)
+        no = np.zeros(i.shape[0])
+        one_ring = _Seeds(i, j, normal, np.zeros(i.shape[0], dtype=np.bool_), no, no)
+        n_groups, rejected = _greedy(
+            tr, p, count, big, one_ring, available, group, n_groups, rejected, True
+        )
+    return group, n_groups, rejected
+
+
+@numba.njit(cache=True)
+def _greedy(tr, p, count, big, seeds, available, group, n_groups, rejected, one_ring):
+    """Greedy growth from ``seeds`` over the ``available`` traces (both updated in place
+    with ``group``); ``one_ring``: seeds of one scanner's sweeps, a group kept only with
+    ``min_sweep_lines`` distinct lines of that scanner. Returns the counts of groups and
+    of rejected seeds so far."""
+    T, P = tr.ring.shape[0], seeds.i.shape[0]
     if P == 0:
-        return group, 0, 0
+        return n_groups, rejected
+    iu, ju = seeds.i, seeds.j
     member = _membership(tr, p, count, big, seeds)
     weight_sum = count.sum()
     # L seeds come last: the traces of a wall that meets another at a corner are taken
@@ -403,13 +374,10 @@ def _grow_kernel(tr, p):  # pragma: no cover - compiled
         tier[s] = 0.0 if seeds.is_l[s] else 2.0 * weight_sum + 1.0
         sc = 0.0
         for t in range(T):
-            if member[s, t]:
+            if member[s, t] and available[t]:
                 sc += count[t]
         scores[s] = sc + tier[s]
     alive = np.ones(P, dtype=np.bool_)
-    available = big.copy()
-    n_groups = 0
-    rejected = 0
     while True:
         best = -1
         best_score = -np.inf
@@ -430,7 +398,11 @@ def _grow_kernel(tr, p):  # pragma: no cover - compiled
         members[iu[s]] = True
         members[ju[s]] = True
         members, rms, total = _grow(tr, p, count, seeds, s, members, available)
-        if not (members[iu[s]] and members[ju[s]]) or total < p.min_points or rms > p.max_rms_m:
+        good = members[iu[s]] and members[ju[s]] and total >= p.min_points
+        good = good and rms <= p.max_rms_m
+        if good and one_ring:
+            good = distinct_lines(tr, members, iu[s], p.tol_m) >= p.min_sweep_lines
+        if not good:
             rejected += 1
             # Seeds that both fall in this rejected set would grow into it again.
             for q in range(P):
@@ -447,4 +419,4 @@ def _grow_kernel(tr, p):  # pragma: no cover - compiled
         n_groups += 1
         for q in range(P):
             alive[q] = alive[q] and available[iu[q]] and available[ju[q]]
-    return group, n_groups, rejected
+    return n_groups, rejected

@@ -2,7 +2,9 @@
 
 1. split the scan lines into straight segments (:mod:`.segments`, :mod:`.scanlines`);
 2. merge each scanner's segments over its sweeps into traces and group traces of
-   different scanners into planes (:mod:`.traces`, :mod:`.grouping`);
+   different scanners into planes (:mod:`.traces`, :mod:`.grouping`), and, with
+   ``single_scanner_min_sweeps``, one scanner's lines of several sweeps
+   (:mod:`.sweeplines`);
 3. refit every group robustly on its points (:mod:`.groupfit`);
 4. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
 
@@ -41,6 +43,8 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         span = tw.span_s
         tol, max_rms, seed_floor = windows.windowed_tolerances(tol, max_rms, seed_floor, tw)
     elif epoch.twist is not None:
+        if config.single_scanner_min_sweeps and scan.t is not None:
+            seg_times = windows.segment_times(scan, segs)  # which sweep a trace is of
         rate = float(np.radians(config.twist_rate_sigma_deg_s))
         smear = windows.twist_smear(scan, epoch.points, rate, config.twist_speed_sigma_mps)
         tol, max_rms, seed_floor = windows.widened(tol, max_rms, seed_floor, smear)
@@ -57,6 +61,9 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         gap_ratio=float(config.gap_range_ratio),
         max_span_s=float(span),
         max_seed_normal_err_rad=float(np.radians(config.max_seed_normal_error_deg)),
+        min_sweep_lines=int(config.single_scanner_min_sweeps),
+        parallel_rad=float(np.radians(config.trace_parallel_deg)),
+        seed_spans_gap=bool(config.seed_spans_gap),
     )
     groups, n_lost = group_segments(
         segs, params, config.trace_parallel_deg, config.trace_step_m, seg_times
