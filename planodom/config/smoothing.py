@@ -6,20 +6,18 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
+from planodom.config.loop_candidates import Fraction, LoopCandidateConfig
 from planodom.config.odometry import AngleDeg, Positive
-from planodom.config.section import Section
 from planodom.errors import ConfigError
 
-#: A probability or fraction in (0, 1].
-Fraction = Annotated[float, Field(gt=0, le=1)]
 
-
-class SmoothingConfig(Section):
+class SmoothingConfig(LoopCandidateConfig):
     """Factor-graph smoothing (planodom.smoothing).
 
     Noise models come from the data (odometry sigmas, plane fit covariances, confidences);
     the ``*_min_*`` fields are floors (noiseless simulations report zero covariances), the
-    ``default_*`` fields stand in when an input carries no uncertainty at all.
+    ``default_*`` fields stand in when an input carries no uncertainty at all. The loop
+    candidates' and loop hypotheses' fields are :class:`.LoopCandidateConfig`'s.
     """
 
     delta_max: Annotated[int, Field(ge=1)] = 3
@@ -326,57 +324,6 @@ class SmoothingConfig(Section):
     poses' translation, not the constant velocity), not because two walls compete."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree before a new (or the first) correction is accepted."""
-    loop_candidates: bool = True
-    """Batch, with ``loop_closure``: also relative poses between the current epoch and old
-    epochs within reach of its predicted pose (planodom.smoothing.loop_candidates): the
-    paper's odometry under bounds grown from the chained covariance, verified by its
-    strict (consensus) associations, added as robust 5-DoF between factors and checked
-    by chi2(5) after optimisation."""
-    loop_candidate_drift: Literal["chained", "stated", "run"] = "run"
-    """The drift a loop candidate must agree within, with the previous verified one and with
-    the map's accepted correction (chi2(3)): "chained" as the map matches' verification
-    (the fallback's yaw variance for rotation-only epochs, a half of the fallback's
-    translation variance per axis), "stated" as the odometry states it (their measured
-    yaw, the fallback's sigma on each axis), "run": as "chained", but a bridged epoch adds
-    the error of the run's own constant velocity (a random walk as large per epoch as the
-    run's measured consecutive steps changed, :meth:`.CandidateLoopBuilder._run_variance`),
-    in the candidates' bounds too, and before the map has accepted a correction a loop
-    pose's must lie within it. As that drift the fallback factor's 0.5 m per epoch let
-    aliased places through: on 2D-rig world 16 at 6 mm (coplanar deskewing) 72 bridged
-    epochs (true drift 0.45 m) made room for a corridor aliased 4.6 m along, 21 wrong
-    loop factors were kept (ATE 3.06 m; "run": 0.019 m)."""
-    loop_candidate_every_epochs: Annotated[int, Field(ge=1)] = 1  # every N-th epoch only
-    loop_candidate_radius_m: Positive = 4.0
-    """An old epoch is a candidate within this (m) plus the drift's translation bound."""
-    loop_candidate_max: Annotated[int, Field(ge=1)] = 5
-    """Old epochs tried per attempt (the nearest, ``loop_candidate_every_epochs`` apart)."""
-    loop_candidate_old: Literal["any", "translated"] = "any"
-    """Old epochs a loop candidate may tie to; "translated": only those whose planes gave a
-    measured translation with a neighbour (delta <= D) (see README)."""
-    loop_candidate_min_inliers: Annotated[int, Field(ge=2)] = 3
-    """Strict associations (with non-parallel normals) a loop candidate needs (3: the
-    2D rig's epochs hold 4-6 planes; a revisit matches the ground and two walls)."""
-    loop_candidate_overlap_m: Positive = 1.0
-    """The supports (spheres of centroid and radius) of each plane pair a loop candidate
-    associates must come within this of each other under its relative pose, m."""
-    loop_candidate_confirm_epochs: Annotated[int, Field(ge=1)] = 10
-    """A verified loop candidate becomes a factor only when the previous verified one,
-    at most this many epochs before, implies the same correction of the chained guess
-    (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
-    the drift between them allows it."""
-    loop_consistency: Literal["off", "hypotheses"] = "hypotheses"
-    """Batch: keep, before optimisation, the loop hypotheses of the largest set (in factors)
-    that agree pairwise, PCM (:func:`.loop_gate.consistent_hypotheses`). On the 2D-rig worlds
-    0, 2, .., 18 it changes no run; with ``odometry.coplanar_reextract: moved`` world 16 at
-    2 cm 3.02 -> 0.019 m (18 factors aliased 4.6 m along a corridor, interleaved with 27
-    right ones, all fit after optimisation: the graph tore between neighbours)."""
-    loop_gate_removes: Literal["hypothesis", "factor"] = "factor"
-    """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
-    on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``
-    world 6 at 6 mm 0.108 -> 0.048 m (loop end 25 -> 3.8 cm: 10 right factors had gone)."""
-    loop_gate_quantile: Fraction = 0.999
-    """After optimisation, a re-identified observation whose squared whitened error exceeds
-    this quantile of chi2(3) is removed and the graph solved again."""
     odometry_deskew_twist: Literal["coplanar", "odometry"] = "coplanar"
     """Batch (offline, ``planodom smooth``): the twist the odometry it runs deskews each
     epoch with. "coplanar": ``odometry.deskew_twist: coplanar`` (the twist fit to the
@@ -437,6 +384,7 @@ class SmoothingConfig(Section):
 
     def model_post_init(self, context: object, /) -> None:
         """Cross-field checks (one-line :class:`ConfigError` naming the field)."""
+        self.check_loop_drift()
         if self.window <= self.delta_max:
             raise ConfigError(
                 f"smoothing.window: must exceed delta_max ({self.delta_max}), got {self.window}"
