@@ -198,7 +198,15 @@ class SmoothingConfig(LoopCandidateConfig):
     """Prior of the relative poses delta = 2..D (``smoothing.run.smoothing_relatives``): the
     odometry's chain, or with "measured_steps" each step it did not measure the translation
     of given the medoid translation of the last measured steps (``motion.measured_step_prior``;
-    a rotation-only result's translation is no measurement; figures in the README)."""
+    a rotation-only result's translation is no measurement; figures in the README).
+    Measured again on one lap of the 2D-rig worlds 0, 2, .., 18 (batch with loops, this
+    default otherwise): median ATE 0.0133 -> 0.0134 m at 6 mm, 0.0506 -> 0.0313 m at 2 cm
+    (world 4 0.069 -> 0.027), but world 2 at 6 mm 0.035 -> 3.64 m (a map match 2.3 m off
+    along a corridor passed the chained drift, the tracked correction walked 5 m: 89 wrong
+    ties kept), world 6 0.078 -> 0.099 (6 mm) and 0.253 -> 0.327 m (2 cm). With
+    ``loop_verify_drift`` and ``loop_drift_yaw`` "run": world 2 at 6 mm 0.035 m, medians
+    0.0134 and 0.0315 m, better on 4 runs of 20, worse on world 6 at 6 mm (0.078 -> 0.129 m;
+    chaotic there: 0.05-0.14 m across these switches): off."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""
@@ -354,10 +362,13 @@ class SmoothingConfig(LoopCandidateConfig):
     (batch with loops, one pass): median ATE 0.053 -> 0.047 m at 6 mm, 0.085 -> 0.111 m
     at 2 cm, below the oracle's odometry on 7 runs of 20 instead of 9, worst 2.4 m
     (world 16 at 2 cm, from 0.045 m), about 2.7 times the time; two passes kept 148 wrong
-    ties. On worlds 8 and 18 at 6 mm the smoothed poses' step errors were no smaller than
-    the odometry's (0.073 against 0.067 deg rms, 0.38 against 0.25), where deskewing
-    along the true poses gives 0.0015 and 0.011 m (today 0.077 and 0.196 m), and along
-    the true poses with independent errors of 0.02 deg and 5 mm still 0.008 and 0.015 m.
+    ties. Again on the coplanar default (worlds 0, 2, 4 only, one pass): world 2 at 6 mm
+    0.035 -> 2.99 m (42 wrong ties), at 2 cm 0.068 -> 2.83 m, world 4 at 6 mm 0.007 ->
+    0.138 m, world 0 at 2 cm 0.148 -> 0.130 m. On worlds 8 and 18 at 6 mm the smoothed poses'
+    step errors were no smaller than the odometry's (0.073 against 0.067 deg rms, 0.38
+    against 0.25), where deskewing along the true poses gives 0.0015 and 0.011 m (today
+    0.077 and 0.196 m), and along the true poses with independent errors of 0.02 deg and
+    5 mm still 0.008 and 0.015 m.
     On the simulated urban canyon (200 epochs) one pass takes the batch's rotation RPE
     from 0.016 to 0.0067 deg (ATE 4.0 -> 3.5 mm)."""
     first_epoch_refresh: Annotated[int, Field(ge=0, le=5)] = 0
@@ -372,7 +383,15 @@ class SmoothingConfig(LoopCandidateConfig):
     0.012 m), but world 16 at 6 mm 0.107 -> 2.2 m (103 wrong ties kept) and world 2 at
     2 cm 0.34 -> 0.71 m; below the oracle's odometry on 8 runs of 20 instead of 9; about
     2.5 times the time (a second solve with loops). On the simulated paper loop at
-    sigma = 0 it changes nothing (the first epoch already has its planes)."""
+    sigma = 0 it changes nothing (the first epoch already has its planes). Measured again
+    on the coplanar default with the loop hypotheses' clique (same laps): 6 mm median ATE
+    0.0133 -> 0.0104 m, loop end below 10 cm on every world (world 18 0.0496 -> 0.0164 m,
+    loop end 10.5 -> 0.7 cm; world 6 0.078 -> 0.051), below the oracle on 6 of 10; 2 cm
+    median 0.0506 -> 0.0522 m (world 18 0.065 -> 0.024, loop end 11.5 -> 2.0 cm), but world
+    16 at 2 cm 0.021 -> 4.62 m: two loop hypotheses aliased 4.6 m along its corridor (23
+    factors) outnumber the right one (4) in the clique, and the map's accepted correction
+    (0.76 m off in truth) does not refuse them (their drift spans the whole lap); world 2
+    0.035 -> 0.049 (6 mm), 0.068 -> 0.098 m (2 cm). Off until that clique counts the map."""
     redeskew_trust: Literal["smoothed", "odometry"] = "smoothed"
     """``redeskew_passes``: the smoothed poses a scan is deskewed along ("measured" in
     :func:`~planodom.odometry.run.redeskewed_run`; an epoch within ``odometry.deskew_order``

@@ -46,7 +46,7 @@ class RunWalk:
 
 def run_drift(
     travelled: Sequence[float] | np.ndarray,
-    variances: Sequence[Sequence[float]] | np.ndarray,
+    variances: Sequence[Sequence[float]] | Sequence[np.ndarray] | np.ndarray,
     spans: Sequence[tuple[int, int]],
     config: PlanodomConfig,
 ) -> np.ndarray:
