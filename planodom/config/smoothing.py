@@ -6,20 +6,18 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
+from planodom.config.loop_candidates import Fraction, LoopCandidateConfig
 from planodom.config.odometry import AngleDeg, Positive
-from planodom.config.section import Section
 from planodom.errors import ConfigError
 
-#: A probability or fraction in (0, 1].
-Fraction = Annotated[float, Field(gt=0, le=1)]
 
-
-class SmoothingConfig(Section):
+class SmoothingConfig(LoopCandidateConfig):
     """Factor-graph smoothing (planodom.smoothing).
 
     Noise models come from the data (odometry sigmas, plane fit covariances, confidences);
     the ``*_min_*`` fields are floors (noiseless simulations report zero covariances), the
-    ``default_*`` fields stand in when an input carries no uncertainty at all.
+    ``default_*`` fields stand in when an input carries no uncertainty at all. The loop
+    candidates' and loop hypotheses' fields are :class:`.LoopCandidateConfig`'s.
     """
 
     delta_max: Annotated[int, Field(ge=1)] = 3
@@ -200,7 +198,15 @@ class SmoothingConfig(Section):
     """Prior of the relative poses delta = 2..D (``smoothing.run.smoothing_relatives``): the
     odometry's chain, or with "measured_steps" each step it did not measure the translation
     of given the medoid translation of the last measured steps (``motion.measured_step_prior``;
-    a rotation-only result's translation is no measurement; figures in the README)."""
+    a rotation-only result's translation is no measurement; figures in the README).
+    Measured again on one lap of the 2D-rig worlds 0, 2, .., 18 (batch with loops, this
+    default otherwise): median ATE 0.0133 -> 0.0134 m at 6 mm, 0.0506 -> 0.0313 m at 2 cm
+    (world 4 0.069 -> 0.027), but world 2 at 6 mm 0.035 -> 3.64 m (a map match 2.3 m off
+    along a corridor passed the chained drift, the tracked correction walked 5 m: 89 wrong
+    ties kept), world 6 0.078 -> 0.099 (6 mm) and 0.253 -> 0.327 m (2 cm). With
+    ``loop_verify_drift`` and ``loop_drift_yaw`` "run": world 2 at 6 mm 0.035 m, medians
+    0.0134 and 0.0315 m, better on 4 runs of 20, worse on world 6 at 6 mm (0.078 -> 0.129 m;
+    chaotic there: 0.05-0.14 m across these switches): off."""
     vertical_sigma_m: Positive = 0.05
     """Weak prior on the change of height between consecutive epochs, m (z is unobserved
     by the 5-DoF factors; see planodom.smoothing.graph)."""
@@ -326,57 +332,6 @@ class SmoothingConfig(Section):
     poses' translation, not the constant velocity), not because two walls compete."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree before a new (or the first) correction is accepted."""
-    loop_candidates: bool = True
-    """Batch, with ``loop_closure``: also relative poses between the current epoch and old
-    epochs within reach of its predicted pose (planodom.smoothing.loop_candidates): the
-    paper's odometry under bounds grown from the chained covariance, verified by its
-    strict (consensus) associations, added as robust 5-DoF between factors and checked
-    by chi2(5) after optimisation."""
-    loop_candidate_drift: Literal["chained", "stated", "run"] = "run"
-    """The drift a loop candidate must agree within, with the previous verified one and with
-    the map's accepted correction (chi2(3)): "chained" as the map matches' verification
-    (the fallback's yaw variance for rotation-only epochs, a half of the fallback's
-    translation variance per axis), "stated" as the odometry states it (their measured
-    yaw, the fallback's sigma on each axis), "run": as "chained", but a bridged epoch adds
-    the error of the run's own constant velocity (a random walk as large per epoch as the
-    run's measured consecutive steps changed, :meth:`.CandidateLoopBuilder._run_variance`),
-    in the candidates' bounds too, and before the map has accepted a correction a loop
-    pose's must lie within it. As that drift the fallback factor's 0.5 m per epoch let
-    aliased places through: on 2D-rig world 16 at 6 mm (coplanar deskewing) 72 bridged
-    epochs (true drift 0.45 m) made room for a corridor aliased 4.6 m along, 21 wrong
-    loop factors were kept (ATE 3.06 m; "run": 0.019 m)."""
-    loop_candidate_every_epochs: Annotated[int, Field(ge=1)] = 1  # every N-th epoch only
-    loop_candidate_radius_m: Positive = 4.0
-    """An old epoch is a candidate within this (m) plus the drift's translation bound."""
-    loop_candidate_max: Annotated[int, Field(ge=1)] = 5
-    """Old epochs tried per attempt (the nearest, ``loop_candidate_every_epochs`` apart)."""
-    loop_candidate_old: Literal["any", "translated"] = "any"
-    """Old epochs a loop candidate may tie to; "translated": only those whose planes gave a
-    measured translation with a neighbour (delta <= D) (see README)."""
-    loop_candidate_min_inliers: Annotated[int, Field(ge=2)] = 3
-    """Strict associations (with non-parallel normals) a loop candidate needs (3: the
-    2D rig's epochs hold 4-6 planes; a revisit matches the ground and two walls)."""
-    loop_candidate_overlap_m: Positive = 1.0
-    """The supports (spheres of centroid and radius) of each plane pair a loop candidate
-    associates must come within this of each other under its relative pose, m."""
-    loop_candidate_confirm_epochs: Annotated[int, Field(ge=1)] = 10
-    """A verified loop candidate becomes a factor only when the previous verified one,
-    at most this many epochs before, implies the same correction of the chained guess
-    (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
-    the drift between them allows it."""
-    loop_consistency: Literal["off", "hypotheses"] = "hypotheses"
-    """Batch: keep, before optimisation, the loop hypotheses of the largest set (in factors)
-    that agree pairwise, PCM (:func:`.loop_gate.consistent_hypotheses`). On the 2D-rig worlds
-    0, 2, .., 18 it changes no run; with ``odometry.coplanar_reextract: moved`` world 16 at
-    2 cm 3.02 -> 0.019 m (18 factors aliased 4.6 m along a corridor, interleaved with 27
-    right ones, all fit after optimisation: the graph tore between neighbours)."""
-    loop_gate_removes: Literal["hypothesis", "factor"] = "factor"
-    """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
-    on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``
-    world 6 at 6 mm 0.108 -> 0.048 m (loop end 25 -> 3.8 cm: 10 right factors had gone)."""
-    loop_gate_quantile: Fraction = 0.999
-    """After optimisation, a re-identified observation whose squared whitened error exceeds
-    this quantile of chi2(3) is removed and the graph solved again."""
     odometry_deskew_twist: Literal["coplanar", "odometry"] = "coplanar"
     """Batch (offline, ``planodom smooth``): the twist the odometry it runs deskews each
     epoch with. "coplanar": ``odometry.deskew_twist: coplanar`` (the twist fit to the
@@ -407,10 +362,13 @@ class SmoothingConfig(Section):
     (batch with loops, one pass): median ATE 0.053 -> 0.047 m at 6 mm, 0.085 -> 0.111 m
     at 2 cm, below the oracle's odometry on 7 runs of 20 instead of 9, worst 2.4 m
     (world 16 at 2 cm, from 0.045 m), about 2.7 times the time; two passes kept 148 wrong
-    ties. On worlds 8 and 18 at 6 mm the smoothed poses' step errors were no smaller than
-    the odometry's (0.073 against 0.067 deg rms, 0.38 against 0.25), where deskewing
-    along the true poses gives 0.0015 and 0.011 m (today 0.077 and 0.196 m), and along
-    the true poses with independent errors of 0.02 deg and 5 mm still 0.008 and 0.015 m.
+    ties. Again on the coplanar default (worlds 0, 2, 4 only, one pass): world 2 at 6 mm
+    0.035 -> 2.99 m (42 wrong ties), at 2 cm 0.068 -> 2.83 m, world 4 at 6 mm 0.007 ->
+    0.138 m, world 0 at 2 cm 0.148 -> 0.130 m. On worlds 8 and 18 at 6 mm the smoothed poses'
+    step errors were no smaller than the odometry's (0.073 against 0.067 deg rms, 0.38
+    against 0.25), where deskewing along the true poses gives 0.0015 and 0.011 m (today
+    0.077 and 0.196 m), and along the true poses with independent errors of 0.02 deg and
+    5 mm still 0.008 and 0.015 m.
     On the simulated urban canyon (200 epochs) one pass takes the batch's rotation RPE
     from 0.016 to 0.0067 deg (ATE 4.0 -> 3.5 mm)."""
     first_epoch_refresh: Annotated[int, Field(ge=0, le=5)] = 0
@@ -425,7 +383,15 @@ class SmoothingConfig(Section):
     0.012 m), but world 16 at 6 mm 0.107 -> 2.2 m (103 wrong ties kept) and world 2 at
     2 cm 0.34 -> 0.71 m; below the oracle's odometry on 8 runs of 20 instead of 9; about
     2.5 times the time (a second solve with loops). On the simulated paper loop at
-    sigma = 0 it changes nothing (the first epoch already has its planes)."""
+    sigma = 0 it changes nothing (the first epoch already has its planes). Measured again
+    on the coplanar default with the loop hypotheses' clique (same laps): 6 mm median ATE
+    0.0133 -> 0.0104 m, loop end below 10 cm on every world (world 18 0.0496 -> 0.0164 m,
+    loop end 10.5 -> 0.7 cm; world 6 0.078 -> 0.051), below the oracle on 6 of 10; 2 cm
+    median 0.0506 -> 0.0522 m (world 18 0.065 -> 0.024, loop end 11.5 -> 2.0 cm), but world
+    16 at 2 cm 0.021 -> 4.62 m: two loop hypotheses aliased 4.6 m along its corridor (23
+    factors) outnumber the right one (4) in the clique, and the map's accepted correction
+    (0.76 m off in truth) does not refuse them (their drift spans the whole lap); world 2
+    0.035 -> 0.049 (6 mm), 0.068 -> 0.098 m (2 cm). Off until that clique counts the map."""
     redeskew_trust: Literal["smoothed", "odometry"] = "smoothed"
     """``redeskew_passes``: the smoothed poses a scan is deskewed along ("measured" in
     :func:`~planodom.odometry.run.redeskewed_run`; an epoch within ``odometry.deskew_order``
@@ -437,6 +403,7 @@ class SmoothingConfig(Section):
 
     def model_post_init(self, context: object, /) -> None:
         """Cross-field checks (one-line :class:`ConfigError` naming the field)."""
+        self.check_loop_drift()
         if self.window <= self.delta_max:
             raise ConfigError(
                 f"smoothing.window: must exceed delta_max ({self.delta_max}), got {self.window}"

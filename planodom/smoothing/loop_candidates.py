@@ -53,6 +53,7 @@ from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphUpdate, X
+from planodom.smoothing.loop_drift import RunWalk, run_drift
 from planodom.smoothing.loop_records import LoopFactor
 from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
 from planodom.smoothing.match_fit import _extent, ambiguity, non_parallel, offset_residuals
@@ -88,11 +89,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._arrays = (np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))  # see _history
         self._last_verified: RelativePose | None = None
         self._group = -1  # hypothesis of the latest loop factors (chained agreeing poses)
-        # loop_candidate_drift "run": epochs bridged in a row, the last measured step's xy
-        # (None after a bridged epoch), and the sum and count of squared step changes
-        self._bridged = 0
-        self._step: np.ndarray | None = None
-        self._change = np.zeros(2)
+        # loop_candidate_drift "run": the bridged epochs' xy and (loop_drift_yaw) yaw error
+        self._walk, self._yaw_walk = RunWalk(), RunWalk()
         #: epochs a measured relative pose (delta <= D) fixed the translation to or from
         self._translated: set[int] = set()
 
@@ -103,7 +101,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         batch loop pushes every update whole, in order)."""
         k, c = self.n_epochs, self.config
         var_t, var_r = c.fallback_translation_sigma_m**2, c.fallback_rotation_sigma_rad**2
-        step = None
+        step = yaw = None
         for r in relatives:
             if r.curr == k and r.delta <= c.delta_max and r.measured and r.translation_observed:
                 self._translated |= {r.prev, r.curr}
@@ -111,11 +109,14 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             if r.curr == k and r.delta == 1 and r.measured and r.covariance is not None:
                 cov = np.asarray(r.covariance, dtype=float).reshape(5, 5)
                 var_r = float(cov[2, 2])
+                yaw = pose5_from_transform(np.asarray(r.T_prev_curr, dtype=float))[2:3]
                 if r.translation_observed:
                     var_t = float(cov[3, 3] + cov[4, 4])
                     step = np.asarray(r.T_prev_curr, dtype=float)[:2, 3]
         if c.loop_candidate_drift == "run" and k:
             var_t = self._run_variance(step, var_t)
+            if c.loop_drift_yaw == "run":
+                var_r = self._yaw_walk.variance(yaw, var_r)
         last = self._variances[-1] if k else np.zeros(2)
         self._variances.append(last + (var_t, var_r) if k else last)
         update = super().add_epoch(planes, relatives, min_epoch)
@@ -135,17 +136,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         step; as the drift a loop pose must agree with it let a corridor aliased 4.6 m
         along pass after 72 bridged epochs whose true drift was 0.45 m (2D-rig world 16
         at 6 mm with the coplanar twist: 21 wrong loop factors kept, ATE 3.06 m)."""
-        if step is None:
-            self._step, self._bridged = None, self._bridged + 1
-            if self._change[1] == 0:
-                return var_t
-            n = self._bridged
-            share = (self._change[0] / self._change[1]) * (n**3 - (n - 1) ** 3) / 3.0
-            return min(var_t, float(share))
-        if self._step is not None:
-            self._change += (float(np.sum((step - self._step) ** 2)), 1.0)
-        self._step, self._bridged = step, 0
-        return var_t
+        return self._walk.variance(step, var_t)
 
     def _candidate_drift(self, spans: list[tuple[int, int]]) -> np.ndarray:
         """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans`` for
@@ -156,14 +147,15 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         if c.loop_candidate_drift != "run":
             return self._drift_covariance(spans, c.loop_candidate_drift == "stated")
         travelled, variances, _ = self._history()
-        distance = var_t = var_r = 0.0
-        for a, b in spans:
-            distance += abs(travelled[b] - travelled[a])
-            var_t += abs(variances[b, 0] - variances[a, 0])
-            var_r += abs(variances[b, 1] - variances[a, 1])
-        var_xy = 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
-        floor_r = np.radians(self.full_config.association.prior_rotation_deg) / c.loop_sigmas
-        return np.diag([var_r + floor_r**2, var_xy, var_xy])
+        return run_drift(travelled, variances, spans, self.full_config)
+
+    def _drift_covariance(self, spans: list[tuple[int, int]], stated: bool = False) -> np.ndarray:
+        """:meth:`LoopClosingBuilder._drift_covariance`, with ``loop_verify_drift`` "run"
+        (and not ``stated``) the run's (:func:`.loop_drift.run_drift`): the map matches'
+        verification then allows the drift the loop candidates allow."""
+        if stated or self.config.loop_verify_drift != "run":
+            return super()._drift_covariance(spans, stated)
+        return run_drift(self.travelled, self._variances, spans, self.full_config)
 
     def _reidentify(self, update: GraphUpdate) -> None:
         super()._reidentify(update)

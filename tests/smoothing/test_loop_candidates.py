@@ -7,13 +7,17 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanodomConfig
+from planodom.errors import ConfigError
 from planodom.geometry import invert_transform, make_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status
 from planodom.smoothing import loop_candidates
 from planodom.smoothing.batch import smooth_batch
+from planodom.smoothing.loop_drift import run_drift
 from planodom.smoothing.loop_records import LoopFactor, loop_factor_counts
+from planodom.smoothing.loops import LoopClosingBuilder
 from tests.smoothing.test_loop_closure import N_LAP, _config, _end_error, _loop_problem
 
 
@@ -140,7 +144,7 @@ def test_run_drift_of_bridged_epochs_grows_as_a_velocity_random_walk():
     # the step after the bridge has no measured predecessor: no change recorded
     np.testing.assert_allclose(added[9:], sigma2 * np.array([1.0, 7.0]) / 3.0)
     capped = loop_candidates.CandidateLoopBuilder(cfg)
-    capped._change[:] = (1.0, 1.0)  # a change of 1 m per epoch: the fallback caps it
+    capped._walk.change[:] = (1.0, 1.0)  # a change of 1 m per epoch: the fallback caps it
     assert capped._run_variance(None, 0.25) == 0.25
 
 
@@ -196,3 +200,44 @@ def test_an_old_epoch_no_neighbour_confirmed_is_passed_over(problem):
     assert any(f.wrong(truth) for f in tie["any"] if f.old == 0)
     assert tie["translated"] and all(f.old > 0 for f in tie["translated"])
     assert not any(f.wrong(truth) for f in tie["translated"] if not f.removed)
+
+
+def _turn(k: int, yaw: float | None) -> RelativePose:
+    """A delta = 1 step of 0.3 m turning by ``yaw`` (rad); None: unresolved (bridged)."""
+    T = make_transform(Rotation.from_euler("z", yaw or 0.0).as_matrix(), [0.3, 0.0, 0.0])
+    cov = np.diag([1e-6, 1e-6, 1e-6, 1e-4, 1e-4])
+    return RelativePose(T, cov, Status.OK if yaw is not None else Status.UNRESOLVED,
+                        prev=k - 1, curr=k)  # fmt: skip
+
+
+def test_bridged_yaw_drift_is_the_run_yaw_rate_random_walk():
+    """loop_drift_yaw "run": the n-th bridged epoch in a row adds (n^3 - (n-1)^3) / 3 times
+    the mean squared change of consecutive measured yaw steps (closed form); "fallback" the
+    fallback factor's variance; the map's verification takes that drift with
+    loop_verify_drift "run" (run_drift of the builder's own sums), else the chained one."""
+    yaws = [0.010, 0.014, 0.009, 0.012]  # epochs 1..4 measured, 5..7 bridged
+    plan = [None, *yaws, None, None, None]
+    added = {}
+    for mode in ("fallback", "run"):
+        cfg = _candidates_only().updated(
+            {"smoothing.loop_drift_yaw": mode, "smoothing.loop_verify_drift": "run"}
+        )
+        builder = loop_candidates.CandidateLoopBuilder(cfg)
+        for k, yaw in enumerate(plan):
+            builder.add_epoch([], [] if k == 0 else [_turn(k, yaw)])
+        added[mode] = np.diff(np.array(builder._variances)[:, 1])
+        spans = [(2, 7), (0, 1)]
+        expected = run_drift(builder.travelled, builder._variances, spans, cfg)
+        np.testing.assert_allclose(builder._drift_covariance(spans), expected)
+        chained = LoopClosingBuilder._drift_covariance(builder, spans)
+        assert chained[1, 1] > expected[1, 1]  # the fallback's 0.5 m per bridged epoch
+    np.testing.assert_allclose(added["fallback"][:4], 1e-6)
+    np.testing.assert_allclose(added["fallback"][4:], 0.05**2)
+    sigma2 = float(np.mean(np.diff(yaws) ** 2))
+    n = np.arange(1, 4)
+    np.testing.assert_allclose(added["run"][:4], 1e-6)
+    np.testing.assert_allclose(added["run"][4:], sigma2 * (n**3 - (n - 1) ** 3) / 3.0)
+    with pytest.raises(ConfigError, match="loop_verify_drift"):
+        PlanodomConfig().updated(
+            {"smoothing.loop_verify_drift": "run", "smoothing.loop_candidate_drift": "chained"}
+        )

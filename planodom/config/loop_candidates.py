@@ -1,0 +1,110 @@
+"""Configuration of batch loop closure's loop candidates and loop hypotheses (a part of
+:class:`planodom.config.smoothing.SmoothingConfig`, planodom.smoothing.loop_candidates)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from planodom.config.odometry import Positive
+from planodom.config.section import Section
+from planodom.errors import ConfigError
+
+#: A probability or fraction in (0, 1].
+Fraction = Annotated[float, Field(gt=0, le=1)]
+
+
+class LoopCandidateConfig(Section):
+    """Loop candidates (5-DoF loop factors between revisited epochs), their hypotheses and
+    the gate after optimisation; fields of the ``smoothing`` section."""
+
+    loop_candidates: bool = True
+    """Batch, with ``loop_closure``: also relative poses between the current epoch and old
+    epochs within reach of its predicted pose (planodom.smoothing.loop_candidates): the
+    paper's odometry under bounds grown from the chained covariance, verified by its
+    strict (consensus) associations, added as robust 5-DoF between factors and checked
+    by chi2(5) after optimisation."""
+    loop_candidate_drift: Literal["chained", "stated", "run"] = "run"
+    """The drift a loop candidate must agree within, with the previous verified one and with
+    the map's accepted correction (chi2(3)): "chained" as the map matches' verification
+    (the fallback's yaw variance for rotation-only epochs, a half of the fallback's
+    translation variance per axis), "stated" as the odometry states it (their measured
+    yaw, the fallback's sigma on each axis), "run": as "chained", but a bridged epoch adds
+    the error of the run's own constant velocity (a random walk as large per epoch as the
+    run's measured consecutive steps changed, :meth:`.CandidateLoopBuilder._run_variance`),
+    in the candidates' bounds too, and before the map has accepted a correction a loop
+    pose's must lie within it. As that drift the fallback factor's 0.5 m per epoch let
+    aliased places through: on 2D-rig world 16 at 6 mm (coplanar deskewing) 72 bridged
+    epochs (true drift 0.45 m) made room for a corridor aliased 4.6 m along, 21 wrong
+    loop factors were kept (ATE 3.06 m; "run": 0.019 m)."""
+    loop_drift_yaw: Literal["fallback", "run"] = "fallback"
+    """With ``loop_candidate_drift`` "run": the yaw variance a bridged epoch (no relative
+    pose measured even its rotation) adds to that drift: "fallback" the fallback factor's
+    (``fallback_rotation_sigma_rad``, 2.9 deg per epoch), "run" the error of the run's own
+    constant yaw rate, a random walk as large per epoch as its measured consecutive yaw
+    steps changed (:class:`planodom.smoothing.loop_drift.RunWalk`), at most the fallback's.
+    Alone (one lap of the 2D-rig worlds 0, 2, .., 18, batch with loops): world 6 at 6 mm
+    0.078 -> 0.053 m, the other 19 runs within 1 mm (world 12 at 2 cm 0.0359 -> 0.0361 m)
+    (loop end of world 6 3.7 -> 4.2 and 0.5 -> 2.8 cm). Off: one run of 20 is weak evidence."""
+    loop_verify_drift: Literal["chained", "run"] = "chained"
+    """The drift a map match's correction must agree within (``loop_verify``, chi2(3) with
+    the accepted correction or the pending one): "chained" the chained odometry's, the
+    fallback factor's sigmas for a bridged epoch; "run" the loop candidates' (needs
+    ``loop_candidate_drift`` "run" and ``loop_candidates``; with ``loop_drift_yaw``). Why:
+    with ``relative_prior: measured_steps`` on 2D-rig world 2 at 6 mm a match 2.3 m off
+    along a corridor (its along-track sigma 0.19 m) passed under the chained drift (1.79 m:
+    the fallback's 0.05 rad per bridged epoch over 14 m; the guess was 0.19 m off), and the
+    tracked correction then walked to 5.5 m: 89 wrong ties and 6 loop factors 7.8 m off
+    kept, ATE 3.64 m; under the run's (0.26 m, both "run") it is refused: 0.035 m. Both
+    "run" on the ten laps at 6 mm and 2 cm: world 4 at 2 cm 0.069 -> 0.052 m, world 16 at
+    6 mm 0.025 -> 0.021, world 2 at 6 mm 0.0347 -> 0.0343, but world 6 at 6 mm 0.078 ->
+    0.110 m (its last epoch's map match, 3.1 m off along a corridor, is refused; a loop
+    factor 18 cm off comes instead, gated, and the solve ends elsewhere); medians 0.0133 ->
+    0.0133 and 0.0506 -> 0.0441 m, no wrong tie either way. Off: world 6."""
+    loop_candidate_every_epochs: Annotated[int, Field(ge=1)] = 1  # every N-th epoch only
+    loop_candidate_radius_m: Positive = 4.0
+    """An old epoch is a candidate within this (m) plus the drift's translation bound."""
+    loop_candidate_max: Annotated[int, Field(ge=1)] = 5
+    """Old epochs tried per attempt (the nearest, ``loop_candidate_every_epochs`` apart)."""
+    loop_candidate_old: Literal["any", "translated"] = "any"
+    """Old epochs a loop candidate may tie to; "translated": only those whose planes gave a
+    measured translation with a neighbour (delta <= D) (see README). Measured again on one
+    lap of the 2D-rig worlds 0, 2, .., 18 (batch with loops, this default otherwise): loop
+    end below 10 cm on every world at 6 mm (world 18 10.5 -> 2.1 cm, ATE 0.050 -> 0.025 m;
+    at 2 cm 11.5 -> 3.5 cm, 0.065 -> 0.048 m), the rest within 1 mm at 6 mm; but at 2 cm
+    world 6 0.253 -> 3.02 m and world 10 0.024 -> 0.102 m (no loop factor: every old epoch
+    their loop poses verify at is untranslated). Off (unchanged with ``loop_verify_drift``)."""
+    loop_candidate_min_inliers: Annotated[int, Field(ge=2)] = 3
+    """Strict associations (with non-parallel normals) a loop candidate needs (3: the
+    2D rig's epochs hold 4-6 planes; a revisit matches the ground and two walls)."""
+    loop_candidate_overlap_m: Positive = 1.0
+    """The supports (spheres of centroid and radius) of each plane pair a loop candidate
+    associates must come within this of each other under its relative pose, m."""
+    loop_candidate_confirm_epochs: Annotated[int, Field(ge=1)] = 10
+    """A verified loop candidate becomes a factor only when the previous verified one,
+    at most this many epochs before, implies the same correction of the chained guess
+    (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
+    the drift between them allows it."""
+    loop_consistency: Literal["off", "hypotheses"] = "hypotheses"
+    """Batch: keep, before optimisation, the loop hypotheses of the largest set (in factors)
+    that agree pairwise, PCM (:func:`.loop_gate.consistent_hypotheses`). On the 2D-rig worlds
+    0, 2, .., 18 it changes no run; with ``odometry.coplanar_reextract: moved`` world 16 at
+    2 cm 3.02 -> 0.019 m (18 factors aliased 4.6 m along a corridor, interleaved with 27
+    right ones, all fit after optimisation: the graph tore between neighbours)."""
+    loop_gate_removes: Literal["hypothesis", "factor"] = "factor"
+    """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
+    on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``
+    world 6 at 6 mm 0.108 -> 0.048 m (loop end 25 -> 3.8 cm: 10 right factors had gone)."""
+    loop_gate_quantile: Fraction = 0.999
+    """After optimisation, a re-identified observation whose squared whitened error exceeds
+    this quantile of chi2(3) is removed and the graph solved again."""
+
+    def check_loop_drift(self) -> None:
+        """``loop_verify_drift`` and ``loop_drift_yaw`` "run" need the run's drift."""
+        for name in ("loop_verify_drift", "loop_drift_yaw"):
+            if getattr(self, name) == "run" and self.loop_candidate_drift != "run":
+                raise ConfigError(
+                    f"smoothing.{name}: 'run' needs loop_candidate_drift 'run', "
+                    f"got {self.loop_candidate_drift!r}"
+                )

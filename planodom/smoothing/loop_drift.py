@@ -1,0 +1,67 @@
+"""The drift of the chained guess as the run itself bounds it (``smoothing.loop_candidate_drift``
+"run"): a bridged epoch (its step not measured, constant velocity) adds the error of a
+velocity that changes by a random walk as large as the run's measured steps changed
+(:class:`RunWalk`), and the (yaw, x, y) drift covariance over spans of epochs
+(:func:`run_drift`) of :class:`planodom.smoothing.loop_candidates.CandidateLoopBuilder`."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from planodom.config import PlanodomConfig
+
+
+class RunWalk:
+    """Variance one epoch adds to a chained quantity (a step's xy, or its yaw) that the run
+    bridges by constant velocity where no step is measured.
+
+    Measured (``step``, its components): the measurement's own ``var``. Bridged (None),
+    the n-th in a row: the error of a velocity that changes by a random walk, as much per
+    epoch as the run's measured consecutive steps changed so far (mean square over their
+    components; their measurement noise makes it cautious): the bridge's variance grows as
+    n^3 / 3 times it, so this epoch adds its n^3 - (n - 1)^3 share; at most ``var`` (the
+    fallback's variance), and ``var`` itself before two measured steps."""
+
+    def __init__(self) -> None:
+        self.bridged = 0  # epochs bridged in a row
+        self.step: np.ndarray | None = None  # the last measured step (None: after a bridge)
+        self.change = np.zeros(2)  # sum and count of squared step changes
+
+    def variance(self, step: np.ndarray | None, var: float) -> float:
+        """The variance the step into this epoch adds (see the class docstring)."""
+        if step is None:
+            self.step, self.bridged = None, self.bridged + 1
+            if self.change[1] == 0:
+                return var
+            n = self.bridged
+            share = (self.change[0] / self.change[1]) * (n**3 - (n - 1) ** 3) / 3.0
+            return min(var, float(share))
+        if self.step is not None:
+            self.change += (float(np.sum((step - self.step) ** 2)), 1.0)
+        self.step, self.bridged = step, 0
+        return var
+
+
+def run_drift(
+    travelled: Sequence[float] | np.ndarray,
+    variances: Sequence[Sequence[float]] | Sequence[np.ndarray] | np.ndarray,
+    spans: Sequence[tuple[int, int]],
+    config: PlanodomConfig,
+) -> np.ndarray:
+    """(3, 3) covariance of the chained guess's (yaw, x, y) drift over epoch ``spans``
+    ((a, b) pairs, in any order): ``travelled`` (E,) cumulative distance, m, ``variances``
+    (E, 2) cumulative (xy, yaw) variances of the steps, m^2 and rad^2 (the run's, see
+    :class:`RunWalk`); half the xy variance per axis, the yaw's lever arm over the
+    distance driven, and the minimum bounds' floors (``loop_min_translation_m``, the
+    association's ``prior_rotation_deg``, over ``loop_sigmas``)."""
+    c = config.smoothing
+    distance = var_t = var_r = 0.0
+    for a, b in spans:
+        distance += abs(travelled[b] - travelled[a])
+        var_t += abs(variances[b][0] - variances[a][0])
+        var_r += abs(variances[b][1] - variances[a][1])
+    var_xy = 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
+    floor_r = np.radians(config.association.prior_rotation_deg) / c.loop_sigmas
+    return np.diag([var_r + floor_r**2, var_xy, var_xy])
