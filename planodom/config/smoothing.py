@@ -7,14 +7,14 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from planodom.config.odometry import AngleDeg, Positive
-from planodom.config.section import Section
+from planodom.config.smoothing_scale import CovarianceScaleConfig
 from planodom.errors import ConfigError
 
 #: A probability or fraction in (0, 1].
 Fraction = Annotated[float, Field(gt=0, le=1)]
 
 
-class SmoothingConfig(Section):
+class SmoothingConfig(CovarianceScaleConfig):
     """Factor-graph smoothing (planodom.smoothing).
 
     Noise models come from the data (odometry sigmas, plane fit covariances, confidences);
