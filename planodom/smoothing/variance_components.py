@@ -63,7 +63,8 @@ class VarianceComponents:
         redundancy: component -> redundancy ``r_c`` at the end.
         rows: component -> number of rows.
         iterations: Foerstner iterations run; converged: whether the ratios reached 1.
-        delta: the weighted linear solution at the end (tangent step from the estimate).
+        delta: the weighted linear solution at the end (tangent step from the estimate);
+            step: its largest component.
     """
 
     scales: dict[str, float] = field(default_factory=dict)
@@ -73,6 +74,7 @@ class VarianceComponents:
     iterations: int = 0
     converged: bool = False
     delta: gtsam.VectorValues | None = None
+    step: float = 0.0
 
 
 def _symbol(key: int) -> str:
@@ -91,8 +93,9 @@ def factor_groups(
     :func:`.batch.covariance_graph`'s output): "loop" (``loop_factors`` indices),
     "fallback" (``fallback_factors``), "outlier" (a robust factor whose Gaussian twin's
     squared whitened error exceeds chi2(dim) at ``inlier_quantile``; None: none, the
-    covariances keep every kernel's weight), "plane" (on a landmark ``L``), "prior" (one key), "vertical" (one row),
-    "between" (two pose keys, 5 or 3 rows), "other" (anything else, e.g. frame ties)."""
+    covariances keep every kernel's weight), "plane" (on a landmark ``L``), "prior" (one
+    key), "vertical" (one row), "between" (two pose keys, 5 or 3 rows), "other" (anything
+    else, e.g. frame ties)."""
     loops, fallbacks = set(loop_factors), set(fallback_factors)
     labels: list[str] = []
     for i in range(graph.size()):
@@ -171,7 +174,7 @@ def _solver(A: sp.csr_matrix) -> Callable[[np.ndarray], np.ndarray]:
     if H.shape[0] <= EXACT_MAX_DIM:
         factor = cho_factor(H.toarray())
         return lambda x: cho_solve(factor, x)
-    return splu(H, permc_spec="MMD_AT_PLUS_A").solve  # type: ignore[no-any-return]
+    return splu(H, permc_spec="MMD_AT_PLUS_A").solve
 
 
 def leverages(
@@ -238,6 +241,7 @@ def estimate_components(
             break
         for c, r in ratios.items():
             out.scales[c] *= r
+    out.step = float(np.abs(delta).max()) if len(delta) else 0.0
     out.delta = gtsam.VectorValues()
     for key, (start, dim) in system.columns.items():
         out.delta.insert(key, delta[start : start + dim])
@@ -302,7 +306,7 @@ def scale_noise(
             break
         assert out.delta is not None
         values = values.retract(out.delta)
-        if max(float(np.abs(out.delta.at(k)).max()) for k in out.delta.keys()) < 1e-9:
+        if out.step < 1e-9:
             break
     if resolve:  # the components at the final estimate
         linear = graph.linearize(values)

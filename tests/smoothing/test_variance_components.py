@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import gtsam
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from planodom.config import SmoothingConfig
+from planodom.geometry import Plane
+from planodom.smoothing import smooth_batch
+from planodom.smoothing.synthetic import make_sequence
 from planodom.smoothing.variance_components import (
     EXACT_MAX_DIM,
     PROBES,
@@ -37,7 +43,9 @@ def _chain(n: int, k_odo: float, k_loop: float, seed: int = 0):
     labels.append(None)
     for i in range(n - 1):
         z = _noisy(truth[i].between(truth[i + 1]), k_odo * s_o, rng)
-        graph.add(gtsam.BetweenFactorPose3(X(i), X(i + 1), z, gtsam.noiseModel.Diagonal.Sigmas(s_o)))
+        graph.add(
+            gtsam.BetweenFactorPose3(X(i), X(i + 1), z, gtsam.noiseModel.Diagonal.Sigmas(s_o))
+        )
         labels.append("odo")
     for i, j in [(i, i + d) for d in (3, 7) for i in range(n - d)]:
         z = _noisy(truth[i].between(truth[j]), k_loop * s_l, rng)
@@ -104,3 +112,60 @@ def test_scaled_linear_scales_the_information() -> None:
     for i in range(linear.size()):
         factor = 0.25 if labels[i] == "odo" else 1.0
         np.testing.assert_allclose(scaled.at(i).information(), factor * linear.at(i).information())
+
+
+def _understated(k_planes: float, k_relatives: float, seed: int = 7):
+    """A synthetic sequence whose declared covariances are the sampling ones divided by
+    ``k**2`` (the noise is ``k`` times its model), planes and relative poses apart."""
+    seq = make_sequence(
+        60, seed=seed, sigma_rotation=1e-3, sigma_translation=0.01, sigma_normal=0.005,
+        sigma_offset=0.01,
+    )  # fmt: skip
+    planes = [
+        [Plane(p.normal, p.offset, covariance=p.covariance / k_planes**2) for p in epoch]
+        for epoch in seq.planes
+    ]
+    relatives = [replace(r, covariance=r.covariance / k_relatives**2) for r in seq.relatives]
+    return planes, relatives
+
+
+# Gaussian, every relative pose a factor (the synthetic ones are sampled apart from the
+# planes: no double counting), no deskewing error (the epochs are instants).
+BATCH = SmoothingConfig(
+    robust_kernel="none", between_factors="all", deskew_noise="none", loop_closure=False
+)
+
+
+def test_batch_groups_find_the_understated_group() -> None:
+    planes, relatives = _understated(k_planes=3.0, k_relatives=1.0)
+    config = BATCH.model_copy(update={"covariance_scale": "groups"})
+    result = smooth_batch(planes, relatives, config)
+    out = result.variance_components
+    assert out is not None and out.converged
+    # every plane factor (3 rows) and relative pose (5 rows) in its group, nothing else
+    assert out.rows == {
+        "plane": 3 * result.stats.plane_factors,
+        "between": 5 * result.stats.between,
+    }
+    for group, k in (("plane", 3.0), ("between", 1.0)):
+        spread = _spread(k**2, out.redundancy[group])
+        assert abs(out.scales[group] - k**2) < 4 * spread, (group, out.scales, out.redundancy)
+
+
+def test_batch_posterior_scales_the_covariances() -> None:
+    planes, relatives = _understated(k_planes=2.0, k_relatives=2.0, seed=8)
+    plain = smooth_batch(planes, relatives, BATCH)
+    config = BATCH.model_copy(update={"covariance_scale": "posterior"})
+    scaled = smooth_batch(planes, relatives, config)
+    out = scaled.variance_components
+    assert out is not None
+    s = out.scales["measurements"]
+    assert abs(s - 4.0) < 4 * _spread(4.0, out.redundancy["measurements"])
+    np.testing.assert_allclose(scaled.poses, plain.poses)  # "keep": the same estimate
+    assert plain.covariances is not None and scaled.covariances is not None
+    # x, y, roll, pitch, yaw: observed by the measurements alone (z mostly by the
+    # vertical pseudo-observations, which keep their weight)
+    keep = np.ix_([0, 1, 2, 3, 4], [0, 1, 2, 3, 4])
+    pairs = zip(scaled.covariances[1:], plain.covariances[1:], strict=True)
+    ratio = [np.trace(a[keep]) / np.trace(b[keep]) for a, b in pairs]
+    np.testing.assert_allclose(ratio, s, rtol=0.05)
