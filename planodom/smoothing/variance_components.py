@@ -12,10 +12,15 @@ is the variance factor of its component ``c``. With the weighted solution
 ``h_ii = a_i^T H^-1 a_i`` the row's leverage (diagonal of the hat matrix; ``1 - h_ii`` its
 redundancy number, summing to ``m - n`` over the whole graph), iterated until every ratio
 is 1 within ``tol`` (Foerstner's iteration; one component: the a posteriori variance
-factor ``v^T P v / (m - n)`` restricted to the measurements). Leverages are exact (a
+factor ``v^T P v / (m - n)`` restricted to the measurements). A stiff group with few
+rows (the loop factors) can cycle: its redundancy collapses as its weight grows (loop
+factors 1.0 <-> 5.6 on a 2 cm lap); a component whose ratio crosses 1 takes only a power
+of it from then on (halved at each crossing). Leverages are exact (a
 dense inverse) for ``n <= EXACT_MAX_DIM`` and otherwise Hutchinson's estimate with
 ``PROBES`` seeded Rademacher vectors ``z``: ``h_ii ~ mean_z (A_w H^-1 z)_i (A_w z)_i``,
-unbiased; the per-row noise averages out over a group's rows.
+unbiased; the per-row noise averages out over a large group's rows, and a group of at
+most ``EXACT_ROWS`` rows (the loop factors) gets them exactly (its Hutchinson sum came
+out negative on a 2D-rig lap).
 
 Which rows take part (:func:`factor_groups`): relative poses ("between", the 5-DoF and
 rotation-only factors between epochs), plane factors ("plane", re-identifications
@@ -48,6 +53,8 @@ EXACT_MAX_DIM = 1500
 #: Hutchinson probes: the sampling spread of a group's redundancy is at most
 #: sqrt(2 u / PROBES), u its rows' summed leverage (every h_ii lies in [0, 1]).
 PROBES = 100
+#: Groups with at most this many rows get exact leverages (one solve per row).
+EXACT_ROWS = 600
 #: A component with less redundancy than this is not estimated (keeps its factor).
 MIN_REDUNDANCY = 2.0
 
@@ -178,18 +185,26 @@ def _solver(A: sp.csr_matrix) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def leverages(
-    A: sp.csr_matrix, solve: Callable[[np.ndarray], np.ndarray] | None = None, seed: int = 0
+    A: sp.csr_matrix,
+    solve: Callable[[np.ndarray], np.ndarray] | None = None,
+    exact: np.ndarray | None = None,
+    seed: int = 0,
 ) -> np.ndarray:
     """(m,) diagonal of the hat matrix ``A (A^T A)^-1 A^T``: exact for at most
     ``EXACT_MAX_DIM`` columns, else Hutchinson's estimate with ``PROBES`` seeded
-    Rademacher vectors (see the module docstring). ``solve``: :func:`_solver` of ``A``."""
+    Rademacher vectors (see the module docstring), and exact for the rows ``exact``
+    (indices; one solve each). ``solve``: :func:`_solver` of ``A``."""
     solve = solve or _solver(A)
     n = A.shape[1]
     if n <= EXACT_MAX_DIM:
         dense = A.toarray()
         return np.einsum("ij,ji->i", dense, solve(dense.T))
     Z = np.random.default_rng(seed).choice([-1.0, 1.0], size=(n, PROBES))
-    return np.asarray(np.mean(np.asarray(A @ solve(Z)) * np.asarray(A @ Z), axis=1))
+    h = np.asarray(np.mean(np.asarray(A @ solve(Z)) * np.asarray(A @ Z), axis=1))
+    if exact is not None and len(exact):
+        rows = A[exact].toarray()
+        h[exact] = np.einsum("ij,ji->i", rows, solve(rows.T))
+    return h
 
 
 def estimate_components(
@@ -216,18 +231,28 @@ def estimate_components(
     names = sorted({c for c in components if c})
     out = VarianceComponents(scales={c: float((initial or {}).get(c, 1.0)) for c in names})
     out.rows = {c: int(np.sum(label == c)) for c in names}
+    # small groups' leverages exactly (Hutchinson's noise does not average out over them)
+    small = np.flatnonzero(np.isin(label, [c for c in names if out.rows[c] <= EXACT_ROWS]))
     delta = np.zeros(system.A.shape[1])
+    power = dict.fromkeys(names, 1.0)  # damping: halved when a component's ratio flips side
+    last: dict[str, float] = {}
     for it in range(1, max_iterations + 1):
         scale = np.ones(len(label))
         for c in names:
             scale[label == c] = out.scales[c]
         w = 1.0 / np.sqrt(scale)
-        Aw = (sp.diags(w) @ system.A).tocsr()
+        # Columns scaled to unit norm (the hat matrix is unchanged): stiff landmarks next
+        # to poses held by 0.5 m fallback factors leave H = A^T A otherwise too
+        # ill-conditioned for its LU (negative leverage sums on a 2D-rig lap).
+        Aw = (sp.diags(w) @ system.A).tocsc()
+        norms = np.sqrt(np.asarray(Aw.multiply(Aw).sum(axis=0))).ravel()
+        Aw = (Aw @ sp.diags(1.0 / np.where(norms > 0.0, norms, 1.0))).tocsr()
         bw = w * system.b
         solve = _solver(Aw)
         delta = solve(Aw.T @ bw)
         e = Aw @ delta - bw
-        h = leverages(Aw, solve)  # the same probes throughout: a deterministic fixed point
+        delta = delta / np.where(norms > 0.0, norms, 1.0)
+        h = leverages(Aw, solve, small)  # the same probes throughout: a fixed point
         ratios = {}
         for c in names:
             sel = label == c
@@ -240,7 +265,10 @@ def estimate_components(
             out.converged = True
             break
         for c, r in ratios.items():
-            out.scales[c] *= r
+            if c in last and (r - 1.0) * (last[c] - 1.0) < 0.0:
+                power[c] /= 2.0
+            last[c] = r
+            out.scales[c] *= r ** power[c]
     out.step = float(np.abs(delta).max()) if len(delta) else 0.0
     out.delta = gtsam.VectorValues()
     for key, (start, dim) in system.columns.items():
@@ -311,4 +339,9 @@ def scale_noise(
     if resolve:  # the components at the final estimate
         linear = graph.linearize(values)
         out = estimate_components(linear, dims, components, scales)
-    return values, scaled_linear(linear, components, out.scales), out
+    # The gauge priors (first pose, anchors) follow the planes: they leave the poses'
+    # marginals alone, and kept at their weight beside reweighted planes they made gtsam
+    # find the system indeterminant near an anchor (2D-rig lap at 6 mm, planes x 1 / 0.64).
+    plane = "plane" if mode == "groups" else "measurements"
+    scaling = [plane if c == "prior" else k for c, k in zip(labels, components, strict=True)]
+    return values, scaled_linear(linear, scaling, out.scales), out
