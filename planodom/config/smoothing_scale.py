@@ -21,14 +21,16 @@ class CovarianceScaleConfig(Section):
     the reweighted graph (planodom.smoothing.variance_components).
 
     "none" by default: the residuals do not see the excess. Ten 2D-rig laps, batch with
-    loops, 6 mm: the posterior factor is 0.63-1.01, per group planes 0.81-1.13, relative
-    poses 0.26-0.98, loop factors 0.18-1.07 (a relative pose or loop factor shares planes
-    with the plane factors, so its residual is small), while the mean NEES5 is 58-5900
-    (none inside a run's [0.83, 12.8]); with the factors 58-9200 (posterior) and
-    59-10200 (groups). On world 0 the excess is roll and pitch (13 and 11 sigmas rms),
-    about as large from one epoch to the next as in total: an error of each epoch's
-    deskewing that tilts all its planes alike, which its pose absorbs whole, leaving no
-    residual. Built-in scenes (``planodom experiment consistency``, 200 epochs): snapshot
+    loops: the posterior factor is 0.63-1.01 at 6 mm and 0.71-1.17 at 2 cm; per group
+    planes 0.81-1.2, relative poses 0.14-0.98, loop factors 0.18-1.07 (a relative pose or
+    loop factor shares planes with the plane factors, so its residual is small), while
+    the mean NEES5 is 58-5900 at 6 mm (no covariances on 4 laps) and 8.4-955 at 2 cm
+    (inside a run's [0.83, 12.8] on 1 of 16); with the factors 57-9200 / 7.2-1250
+    (posterior) and 59-10200 / 7.5-1290 (groups), still 1 inside. The excess is an error
+    a pose takes whole, which leaves no residual: on world 0 (6 mm) roll and pitch (13
+    and 11 sigmas rms), as large from one epoch to the next as in total, each epoch's
+    deskewing tilting all its planes alike; on world 2 the whole lap turned against its
+    first pose (yaw 0.060 deg mean error, sigma 0.001 deg). Built-in scenes (``planodom experiment consistency``, 200 epochs): snapshot
     paper-loop at 6 mm / 2 cm / 10 cm NEES5 1.94 / 2.25 / 2.20 -> 2.02 / 2.27 / 2.01
     (posterior; the models are honest there and the factor stays near 1); continuous
     paper-loop 39 / 7.9 -> 51 / 7.9, urban-canyon 6 mm 17 -> 26."""
@@ -36,6 +38,7 @@ class CovarianceScaleConfig(Section):
     """With ``covariance_scale``: "keep" the estimate (only the covariances change);
     "resolve" Gauss-Newton on the reweighted graph (the covariance graph: robust inliers
     with their Gaussian twin, outliers under the kernel) from the estimate, the variance
-    factors estimated again at each step. Ten laps at 6 mm with "groups": ATE better on
-    six (world 6 0.078 -> 0.066 m), worse on four (world 16 0.025 -> 0.048 m, world 2
-    0.035 -> 0.036 m); urban-canyon continuous 6 mm 0.035 -> 0.040 m."""
+    factors estimated again at each step. Ten laps with "groups": ATE better on 10 of 20
+    runs (world 6 at 6 mm 0.078 -> 0.066 m, world 4 at 2 cm 0.069 -> 0.057 m), worse on
+    10 (world 16 at 6 mm 0.025 -> 0.048 m, world 0 at 2 cm 0.148 -> 0.184 m, world 10 at
+    2 cm 0.024 -> 0.037 m); urban-canyon continuous 6 mm 0.035 -> 0.040 m. Off."""

@@ -339,6 +339,41 @@ def _builder(
     return builder
 
 
+def _covariances(
+    builder: GraphBuilder,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    fallback: list[int],
+    estimate: gtsam.Values,
+    n_epochs: int,
+) -> tuple[gtsam.Values, np.ndarray | None, str | None, VarianceComponents | None]:
+    """The poses' marginal covariances at ``estimate`` (:func:`covariance_graph`), from
+    the graph reweighted by its variance components with ``smoothing.covariance_scale``
+    (then also the estimate it was resolved to); a note instead when gtsam finds the
+    system indeterminant. Returns (estimate, covariances, note, components)."""
+    cfg = builder.config
+    cov_graph = covariance_graph(graph, gaussian, estimate, cfg.covariance_inlier_quantile)
+    linear, components = None, None
+    try:
+        if cfg.covariance_scale != "none":
+            loops = [f.factor for f in getattr(builder, "loop_factors", ())]
+            labels = factor_groups(
+                graph, gaussian, estimate, loops, fallback, cfg.covariance_inlier_quantile
+            )
+            resolve = cfg.covariance_scale_estimate == "resolve"
+            estimate, linear, components = scale_noise(
+                cov_graph, labels, estimate, cfg.covariance_scale, resolve
+            )
+        covariances = pose_covariances(
+            cov_graph, estimate, n_epochs, cfg.covariances_relative_to_first, cfg.prior_sigma,
+            linear,
+        )  # fmt: skip
+    except RuntimeError as exc:  # gtsam's IndeterminantLinearSystemException
+        note = "marginal covariances unavailable: " + " ".join(str(exc).split()[:14])
+        return estimate, None, note, components
+    return estimate, covariances, None, components
+
+
 def smooth_batch(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
@@ -386,24 +421,9 @@ def smooth_batch(
         estimate = _gated(builder, graph, gaussian, values, estimate, errors)
     covariances, note, components = None, None, None
     if cfg.compute_covariances:
-        cov_graph = covariance_graph(graph, gaussian, estimate, cfg.covariance_inlier_quantile)
-        linear = None
-        try:
-            if cfg.covariance_scale != "none":
-                loops = [f.factor for f in getattr(builder, "loop_factors", ())]
-                labels = factor_groups(
-                    graph, gaussian, estimate, loops, fallback, cfg.covariance_inlier_quantile
-                )
-                resolve = cfg.covariance_scale_estimate == "resolve"
-                estimate, linear, components = scale_noise(
-                    cov_graph, labels, estimate, cfg.covariance_scale, resolve
-                )
-            covariances = pose_covariances(
-                cov_graph, estimate, len(epochs_planes), cfg.covariances_relative_to_first,
-                cfg.prior_sigma, linear,
-            )  # fmt: skip
-        except RuntimeError as exc:  # gtsam's IndeterminantLinearSystemException
-            note = "marginal covariances unavailable: " + " ".join(str(exc).split()[:14])
+        estimate, covariances, note, components = _covariances(
+            builder, graph, gaussian, fallback, estimate, len(epochs_planes)
+        )
     builder.update_estimates(estimate)
     poses = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
     return SmoothingResult(
