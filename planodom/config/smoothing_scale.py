@@ -30,10 +30,11 @@ class CovarianceScaleConfig(Section):
     a pose takes whole, which leaves no residual: on world 0 (6 mm) roll and pitch (13
     and 11 sigmas rms), as large from one epoch to the next as in total, each epoch's
     deskewing tilting all its planes alike; on world 2 the whole lap turned against its
-    first pose (yaw 0.060 deg mean error, sigma 0.001 deg). Built-in scenes (``planodom experiment consistency``, 200 epochs): snapshot
-    paper-loop at 6 mm / 2 cm / 10 cm NEES5 1.94 / 2.25 / 2.20 -> 2.02 / 2.27 / 2.01
-    (posterior; the models are honest there and the factor stays near 1); continuous
-    paper-loop 39 / 7.9 -> 51 / 7.9, urban-canyon 6 mm 17 -> 26."""
+    first pose (yaw 0.060 deg mean error, sigma 0.001 deg). Built-in scenes (``planodom
+    experiment consistency``, 200 epochs): snapshot paper-loop at 6 mm / 2 cm / 10 cm
+    NEES5 1.94 / 2.25 / 2.20 -> 2.02 / 2.27 / 2.01 (posterior; the models are honest
+    there and the factor stays near 1); continuous paper-loop 39 / 7.9 -> 51 / 7.9,
+    urban-canyon 6 mm 17 -> 26."""
     covariance_scale_estimate: Literal["keep", "resolve"] = "keep"
     """With ``covariance_scale``: "keep" the estimate (only the covariances change);
     "resolve" Gauss-Newton on the reweighted graph (the covariance graph: robust inliers
