@@ -32,7 +32,8 @@ class CovarianceScaleConfig(Section):
     deskewing tilting all its planes alike; on world 2 the whole lap turned against its
     first pose (yaw 0.060 deg mean error, sigma 0.001 deg). With ``deskew_noise``
     "twist_change_jacobian" (which models that error; 6 mm, 8 of 10 inside) the factor is
-    0.06-0.29, and it takes 4 of those 8 out (world 2 5.5 -> 44). Built-in scenes (``planodom
+    0.06-0.29: 3 of those 8 out (world 2 5.5 -> 44), world 4 without covariances (gtsam
+    finds the reweighted system indeterminant). Built-in scenes (``planodom
     experiment consistency``, 200 epochs): snapshot paper-loop at 6 mm / 2 cm / 10 cm
     NEES5 1.94 / 2.25 / 2.20 -> 2.02 / 2.27 / 2.01 (posterior; the models are honest
     there and the factor stays near 1); continuous paper-loop 39 / 7.9 -> 51 / 7.9,
