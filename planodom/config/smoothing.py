@@ -8,10 +8,11 @@ from pydantic import Field
 
 from planodom.config.loop_candidates import Fraction, LoopCandidateConfig
 from planodom.config.odometry import AngleDeg, Positive
+from planodom.config.smoothing_scale import CovarianceScaleConfig
 from planodom.errors import ConfigError
 
 
-class SmoothingConfig(LoopCandidateConfig):
+class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     """Factor-graph smoothing (planodom.smoothing).
 
     Noise models come from the data (odometry sigmas, plane fit covariances, confidences);

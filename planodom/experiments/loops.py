@@ -23,7 +23,8 @@ of one facade are one plane), the map matches the verification refused
 (:mod:`planodom.smoothing.loop_candidates`) kept and removed, the kept ones wrong by the
 truth (a component off by more than 3 of its sigmas) and the largest horizontal error of a
 kept one, the mean NEES of the 5 observed DoF (chi2(5): 95 % interval
-[0.83, 12.8]), and seconds.
+[0.83, 12.8]), the variance factors with ``smoothing.covariance_scale``
+(:mod:`planodom.smoothing.variance_components`), and seconds.
 ``summary`` gives per noise and method the median and worst over the worlds, and the
 loop-candidate factors kept and wrong over all of them, and the median epochs per second
 (``windowed+loops`` also counts its ties and wrong ones, and the landmarks that re-entered
@@ -125,6 +126,9 @@ def compare_methods(
             if res.covariances is not None:
                 nees = pose_nees(res.poses[1:], res.covariances[1:], gt[1:], range(5))
                 row["mean_nees5"] = float(np.nanmean(nees))
+            if res.variance_components is not None:  # smoothing.covariance_scale
+                scales = res.variance_components.scales.items()
+                row["variance_factors"] = " ".join(f"{k}={v:.3g}" for k, v in scales)
         rows.append(row)
         if method == "windowed":
             rows.append(_windowed_loops(planes, relatives, gt, config, same_plane))

@@ -29,6 +29,7 @@ from planodom.smoothing.loop_records import (
 )
 from planodom.smoothing.loops import LoopClosingBuilder
 from planodom.smoothing.marginals import pose_marginals, schur_preferred
+from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
 
 
 @dataclass
@@ -59,6 +60,8 @@ class SmoothingResult:
             indeterminant system, e.g. long stretches bridged only by fallback factors).
         loop_factors: loop closure: the 5-DoF loop-candidate factors
             (:mod:`planodom.smoothing.loop_candidates`), with the gate's verdict.
+        variance_components: ``smoothing.covariance_scale``: the noise models' variance
+            factors estimated from the residuals (:mod:`.variance_components`).
     """
 
     poses: np.ndarray
@@ -74,6 +77,7 @@ class SmoothingResult:
     reidentifications: list[Reidentification] = field(default_factory=list)
     loop_matches: list[LoopMatch] = field(default_factory=list)
     loop_factors: list[LoopFactor] = field(default_factory=list)
+    variance_components: VarianceComponents | None = None
 
 
 def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> SmoothingConfig:
@@ -112,6 +116,7 @@ def pose_covariances(
     n_epochs: int,
     relative_to_first: bool = False,
     prior_sigma: float = 1e-4,
+    linear: gtsam.GaussianFactorGraph | None = None,
 ) -> np.ndarray:
     """(E, 6, 6) marginal covariances of ``X(0..E-1)`` at ``values``.
 
@@ -126,8 +131,11 @@ def pose_covariances(
     more), without the gauge prior's uncertainty: a rotation of ``prior_sigma`` rad of
     the first pose would add ``prior_sigma`` times the distance to every translation
     sigma (2 mm at 20 m, more than the smoothed error at 6 mm range noise).
+
+    ``linear``: the linearised graph to take them from (reweighted by
+    ``smoothing.covariance_scale``, :mod:`.variance_components`); default ``graph``'s.
     """
-    linear = graph.linearize(values)
+    linear = graph.linearize(values) if linear is None else linear
     if relative_to_first:
         stiff = FIRST_POSE_TIGHTENING / prior_sigma
         linear.add(X(0), stiff * np.eye(6), np.zeros(6), gtsam.noiseModel.Unit.Create(6))
@@ -331,6 +339,41 @@ def _builder(
     return builder
 
 
+def _covariances(
+    builder: GraphBuilder,
+    graph: gtsam.NonlinearFactorGraph,
+    gaussian: dict[int, gtsam.NonlinearFactor],
+    fallback: list[int],
+    estimate: gtsam.Values,
+    n_epochs: int,
+) -> tuple[gtsam.Values, np.ndarray | None, str | None, VarianceComponents | None]:
+    """The poses' marginal covariances at ``estimate`` (:func:`covariance_graph`), from
+    the graph reweighted by its variance components with ``smoothing.covariance_scale``
+    (then also the estimate it was resolved to); a note instead when gtsam finds the
+    system indeterminant. Returns (estimate, covariances, note, components)."""
+    cfg = builder.config
+    cov_graph = covariance_graph(graph, gaussian, estimate, cfg.covariance_inlier_quantile)
+    linear, components = None, None
+    try:
+        if cfg.covariance_scale != "none":
+            loops = [f.factor for f in getattr(builder, "loop_factors", ())]
+            labels = factor_groups(
+                graph, gaussian, estimate, loops, fallback, cfg.covariance_inlier_quantile
+            )
+            resolve = cfg.covariance_scale_estimate == "resolve"
+            estimate, linear, components = scale_noise(
+                cov_graph, labels, estimate, cfg.covariance_scale, resolve
+            )
+        covariances = pose_covariances(
+            cov_graph, estimate, n_epochs, cfg.covariances_relative_to_first, cfg.prior_sigma,
+            linear,
+        )  # fmt: skip
+    except RuntimeError as exc:  # gtsam's IndeterminantLinearSystemException
+        note = "marginal covariances unavailable: " + " ".join(str(exc).split()[:14])
+        return estimate, None, note, components
+    return estimate, covariances, None, components
+
+
 def smooth_batch(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
@@ -356,6 +399,7 @@ def smooth_batch(
     builder = _builder(epochs_planes, relative_poses, config, T_world_first)
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     gaussian: dict[int, gtsam.NonlinearFactor] = {}
+    fallback: list[int] = []  # indices of the fallback factors
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
     for k, planes in enumerate(epochs_planes):
         n_reids = len(getattr(builder, "reidentifications", ()))
@@ -363,6 +407,7 @@ def smooth_batch(
         for r in getattr(builder, "reidentifications", ())[n_reids:]:
             r.factor += graph.size()
         gaussian |= {graph.size() + i: f for i, f in update.gaussian.items()}
+        fallback += [graph.size() + i for i in update.fallback]
         graph.push_back(update.factors)
         values.insert(update.values)
     initial = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
@@ -374,19 +419,12 @@ def smooth_batch(
     )  # fmt: skip
     if isinstance(builder, LoopClosingBuilder):
         estimate = _gated(builder, graph, gaussian, values, estimate, errors)
-    builder.update_estimates(estimate)
-    covariances, note = None, None
+    covariances, note, components = None, None, None
     if cfg.compute_covariances:
-        try:
-            covariances = pose_covariances(
-                covariance_graph(graph, gaussian, estimate, cfg.covariance_inlier_quantile),
-                estimate,
-                len(epochs_planes),
-                cfg.covariances_relative_to_first,
-                cfg.prior_sigma,
-            )
-        except RuntimeError as exc:  # gtsam's IndeterminantLinearSystemException
-            note = "marginal covariances unavailable: " + " ".join(str(exc).split()[:14])
+        estimate, covariances, note, components = _covariances(
+            builder, graph, gaussian, fallback, estimate, len(epochs_planes)
+        )
+    builder.update_estimates(estimate)
     poses = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
     return SmoothingResult(
         poses=poses,
@@ -401,4 +439,5 @@ def smooth_batch(
         reidentifications=list(getattr(builder, "reidentifications", [])),
         loop_matches=list(getattr(builder, "matches", [])),
         loop_factors=list(getattr(builder, "loop_factors", [])),
+        variance_components=components,
     )

@@ -14,11 +14,11 @@ Factors per epoch k:
   plane factors of shared landmarks already (:meth:`GraphBuilder.in_plane_factors`): both
   would count the same measurements twice;
 - a weak vertical factor between ``X(k-1)`` and ``X(k)`` (no vertical jumps);
-- a plane factor for every observation of a tracked plane (:mod:`.landmarks`) once its
-  track spans ``min_landmark_epochs`` epochs, noise its fit covariance in OrientedPlane3
-  tangent coordinates plus floors and deskewing error (see :mod:`.noise`);
-- a prior on ``X(0)``; a weak fallback between factor (the odometry's prediction, else
-  constant velocity) for an epoch no resolved relative pose reaches (graph connected).
+- a plane factor for every observation of a tracked plane (:mod:`.landmarks`) once its track
+  spans ``min_landmark_epochs`` epochs, noise its fit covariance in OrientedPlane3 tangent
+  coordinates plus floors and deskewing error (see :mod:`.noise`); a prior on ``X(0)``; a
+  weak fallback between factor (the odometry's prediction, else constant velocity) for an
+  epoch no resolved relative pose reaches (graph connected).
 
 Gauge and observability. The first-pose prior fixes the 6-DoF gauge; anchor priors fix
 the anchors' (pure gauge) freedom. The 5-DoF factors observe relative roll, pitch, yaw
@@ -66,14 +66,15 @@ F = gtsam.symbol_shorthand.F  # an epoch's deskewed frame (smoothing.deskew_nois
 @dataclass
 class GraphUpdate:
     """What one epoch adds: new factors, initial values of new variables, key timestamps;
-    ``gaussian`` maps the index (in ``factors``) of each factor with a robust kernel to the
-    same factor with its Gaussian noise alone (batch covariances: ``batch.covariance_graph``)."""
+    ``gaussian`` maps the index (in ``factors``) of each robust factor to its Gaussian twin
+    (``batch.covariance_graph``); ``fallback`` the fallback factors' indices."""
 
     epoch: int
     factors: gtsam.NonlinearFactorGraph
     values: gtsam.Values
     timestamps: dict[int, float]
     gaussian: dict[int, gtsam.NonlinearFactor] = field(default_factory=dict)
+    fallback: list[int] = field(default_factory=list)
 
 
 @dataclass
@@ -240,6 +241,7 @@ class GraphBuilder:
                     [c.fallback_rotation_sigma_rad] * 3 + [c.fallback_translation_sigma_m] * 2
                 )
                 noise = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+                update.fallback.append(graph.size())
                 graph.add(pose5_factor(X(k - 1), X(k), T_rel, noise))
                 self.stats.fallback += 1
             if k - 1 >= min_epoch:
@@ -253,7 +255,7 @@ class GraphBuilder:
             self.deskew.add_frame(k, X(k), F(k), T, update)
 
     def _reidentify(self, update: GraphUpdate) -> None:
-        """Hook: ties to old landmarks (:class:`planodom.smoothing.loops.LoopClosingBuilder`)."""
+        """Hook: ties to old landmarks (:class:`.loops.LoopClosingBuilder`)."""
 
     def _add_between_factors(self, measured: list[RelativePose], update: GraphUpdate) -> None:
         """A 5-DoF (or rotation-only) factor per measured relative pose into this epoch,
@@ -283,9 +285,8 @@ class GraphBuilder:
         base: gtsam.noiseModel.Gaussian,
         robust: bool,
     ) -> None:
-        """Add the factor ``make(noise)``: ``base`` wrapped in the robust kernel when
-        ``robust`` (its Gaussian twin ``make(base)`` is then kept under its index in
-        ``graph``, see :class:`GraphUpdate`), else ``base``."""
+        """Add the factor ``make(noise)``: ``base`` wrapped in the robust kernel when ``robust``
+        (its Gaussian twin ``make(base)`` kept under its index, :class:`GraphUpdate`)."""
         if not robust:
             graph.add(make(base))
             return
@@ -399,13 +400,10 @@ class GraphBuilder:
         self.stats.plane_factors += 1
 
     def _predict(self, lm: _Landmark, epoch: int) -> np.ndarray:
-        """(4,) the landmark as epoch ``epoch`` should see it, for the flip and gate checks.
-
-        From the track's last accepted observation carried over the (short) gap between
-        the two epochs, so that drift of the initial estimate along a long track does not
-        turn good observations into "wrong associations"; from the landmark's estimate
-        before the first one.
-        """
+        """(4,) the landmark as epoch ``epoch`` should see it, for the flip and gate checks:
+        from the track's last accepted observation carried over the (short) gap between the
+        two epochs, so that drift of the initial estimate along a long track does not turn
+        good observations into "wrong associations"; the landmark's estimate before it."""
         if lm.last_seen is None:
             return predict_plane(self.poses[epoch], lm.plane_world)
         e_last, seen = lm.last_seen

@@ -1,0 +1,48 @@
+"""Configuration of the batch covariances' noise scale (planodom.smoothing.variance_components)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from planodom.config.section import Section
+
+
+class CovarianceScaleConfig(Section):
+    """The scale of the batch graph's noise models estimated from its own residuals
+    (a part of :class:`~planodom.config.smoothing.SmoothingConfig`)."""
+
+    covariance_scale: Literal["none", "posterior", "groups"] = "none"
+    """Batch covariances: "none" the noise models as built; "posterior" one a posteriori
+    variance factor of the measurements (relative poses, planes, loop factors: weighted
+    squared residuals over their redundancy; the priors, vertical and fallback
+    pseudo-observations and the robust outliers keep their weight) multiplies their
+    covariances; "groups" one factor per group (relative poses, planes, loop factors:
+    Foerstner's variance component estimation). The poses' covariances are then those of
+    the reweighted graph (planodom.smoothing.variance_components).
+
+    "none" by default: the residuals do not see the excess. Ten 2D-rig laps, batch with
+    loops: the posterior factor is 0.63-1.01 at 6 mm and 0.71-1.17 at 2 cm; per group
+    planes 0.81-1.2, relative poses 0.14-0.98, loop factors 0.18-1.07 (a relative pose or
+    loop factor shares planes with the plane factors, so its residual is small), while
+    the mean NEES5 is 58-5900 at 6 mm (no covariances on 4 laps) and 8.4-955 at 2 cm
+    (inside a run's [0.83, 12.8] on 1 of 16); with the factors 57-9200 / 7.2-1250
+    (posterior) and 59-10200 / 7.5-1290 (groups), still 1 inside. The excess is an error
+    a pose takes whole, which leaves no residual: on world 0 (6 mm) roll and pitch (13
+    and 11 sigmas rms), as large from one epoch to the next as in total, each epoch's
+    deskewing tilting all its planes alike; on world 2 the whole lap turned against its
+    first pose (yaw 0.060 deg mean error, sigma 0.001 deg). With ``deskew_noise``
+    "twist_change_jacobian" (which models that error; 6 mm, 8 of 10 inside) the factor is
+    0.06-0.29: 3 of those 8 out (world 2 5.5 -> 44), world 4 without covariances (gtsam
+    finds the reweighted system indeterminant). Built-in scenes (``planodom
+    experiment consistency``, 200 epochs): snapshot paper-loop at 6 mm / 2 cm / 10 cm
+    NEES5 1.94 / 2.25 / 2.20 -> 2.02 / 2.27 / 2.01 (posterior; the models are honest
+    there and the factor stays near 1); continuous paper-loop 39 / 7.9 -> 51 / 7.9,
+    urban-canyon 6 mm 17 -> 26."""
+    covariance_scale_estimate: Literal["keep", "resolve"] = "keep"
+    """With ``covariance_scale``: "keep" the estimate (only the covariances change);
+    "resolve" Gauss-Newton on the reweighted graph (the covariance graph: robust inliers
+    with their Gaussian twin, outliers under the kernel) from the estimate, the variance
+    factors estimated again at each step. Ten laps with "groups": ATE better on 10 of 20
+    runs (world 6 at 6 mm 0.078 -> 0.066 m, world 4 at 2 cm 0.069 -> 0.057 m), worse on
+    10 (world 16 at 6 mm 0.025 -> 0.048 m, world 0 at 2 cm 0.148 -> 0.184 m, world 10 at
+    2 cm 0.024 -> 0.037 m); urban-canyon continuous 6 mm 0.035 -> 0.040 m. Off."""
