@@ -86,7 +86,7 @@ class LoopCandidateConfig(Section):
     at most this many epochs before, implies the same correction of the chained guess
     (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
     the drift between them allows it."""
-    loop_consistency: Literal["off", "hypotheses"] = "hypotheses"
+    loop_consistency: Literal["off", "hypotheses", "hypotheses_and_map"] = "hypotheses"
     """Batch: keep, before optimisation, the loop hypotheses of the largest set (in factors)
     that agree pairwise, PCM (:func:`.loop_gate.consistent_hypotheses`). On the 2D-rig worlds
     0, 2, .., 18 it changes no run; with ``odometry.coplanar_reextract: moved`` world 16 at
