@@ -89,7 +89,6 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._arrays = (np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))  # see _history
         self._last_verified: RelativePose | None = None
         self._group = -1  # hypothesis of the latest loop factors (chained agreeing poses)
-        self._map_group = -1  # map hypothesis of the latest accepted match (_verify)
         # loop_candidate_drift "run": the bridged epochs' xy and (loop_drift_yaw) yaw error
         self._walk, self._yaw_walk = RunWalk(), RunWalk()
         #: epochs a measured relative pose (delta <= D) fixed the translation to or from
@@ -362,18 +361,11 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
 
     def _verify(self, match: LoopMatch, T_world_curr: np.ndarray, full: bool) -> str:
-        """:meth:`LoopClosingBuilder._verify`, noting on ``match`` its map epoch
-        (``seen``), rank and map hypothesis (``group``: a new one unless it agreed with the
-        accepted correction), for ``loop_consistency`` "hypotheses_and_map"."""
-        before = self._reference
+        """:meth:`LoopClosingBuilder._verify`, noting on ``match`` its map epoch (``seen``)
+        and rank, for ``loop_consistency`` "hypotheses_and_map"."""
         match.seen = min(self.landmarks[j].last_seen[0] for j, _ in match.ties)  # type: ignore[index]
         match.full = full
-        verdict = super()._verify(match, T_world_curr, full)
-        if verdict == "accepted":
-            limit = chi2.ppf(self.config.loop_gate_quantile, 3 if full else 1)
-            self._map_group += 0 if before is not None and match.mahalanobis <= limit else 1
-            match.group = self._map_group
-        return verdict
+        return super()._verify(match, T_world_curr, full)
 
     def _agrees_with_map(self, rel: RelativePose) -> bool:
         """Whether a verified loop pose agrees with the map's accepted correction (the

@@ -61,12 +61,16 @@ def consistent_hypotheses(
     little (2D-rig world 16 at 2 cm with ``odometry.coplanar_reextract: moved``: 18 factors
     aliased 4.6 m along its corridor, and 27 right ones, all with chi2 below 5).
 
-    "hypotheses_and_map": the map's accepted matches are hypotheses too (``LoopMatch.group``,
-    weighed by their kept plane ties; compared through their full-rank matches, each placing
-    epoch k against its tied walls' earliest last sighting ``seen``, so the nearest is the
-    one whose walls were seen nearest the loop's old epoch: walls seen long after it allow
-    a large drift and agree with anything). A map hypothesis left out of the clique loses
-    its ties. (World 16 at 2 cm with ``first_epoch_refresh``: two hypotheses aliased 4.6 m
+    "hypotheses_and_map": the map's accepted matches are one hypothesis too, weighed by their
+    kept plane ties (the map verifies its matches in a chain, :meth:`LoopClosingBuilder._verify`;
+    after an odometry failure it confirms a new correction, and its parts then disagree with
+    each other though every tie is right: on 2D-rig world 16 at 6 mm five such parts, 1 171
+    right ties, three of them pairwise inconsistent). A loop hypothesis is compared with the
+    full-rank accepted match of least drift between them (:func:`_sharpest`: over the spans
+    between their current epochs and between its old epoch and the match's ``seen``, the
+    earliest last sighting of its tied walls; walls seen long after the loop's old epoch
+    allow a large drift and agree with anything). Left out of the clique, the map loses its
+    ties. (World 16 at 2 cm with ``first_epoch_refresh``: two hypotheses aliased 4.6 m
     along the corridor, 23 factors, outnumber the right one, 4, while the map's ties imply
     a correction 4-5 m from theirs.)"""
     factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
@@ -77,20 +81,22 @@ def consistent_hypotheses(
     groups = sorted({f.group for f in factors})
     members = [[Correction.of_factor(f, poses) for f in factors if f.group == g] for g in groups]
     weights = [float(len(m)) for m in members]
-    ties: list[list[Reidentification]] = [[] for _ in groups]  # of the map hypotheses
-    if mode == "hypotheses_and_map":
-        for _group, full, mine in map_hypotheses(builder):
-            members.append([Correction.of_match(m, poses) for m in full])
-            weights.append(float(len(mine)))
-            ties.append(mine)
-    adjacent = np.ones((len(members), len(members)), dtype=bool)
-    for i in range(len(members)):
-        for j in range(i + 1, len(members)):
+    matches, ties = map_hypothesis(builder) if mode == "hypotheses_and_map" else ([], [])
+    n = len(groups) + bool(matches)
+    adjacent = np.ones((n, n), dtype=bool)
+    for i in range(len(groups)):
+        for j in range(i + 1, len(groups)):
             a, b = min(
                 ((a, b) for a in members[i] for b in members[j]),
                 key=lambda p: abs(p[0].epoch - p[1].epoch) + abs(p[0].old - p[1].old),
             )
             adjacent[i, j] = adjacent[j, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
+        if matches:
+            mine = [Correction.of_match(m, poses) for m in matches]
+            a, b = _sharpest(builder, members[i], mine)
+            adjacent[i, -1] = adjacent[-1, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
+    if matches:
+        weights.append(float(len(ties)))
     kept = set(max_weight_clique(adjacent, np.array(weights)))
     removed = 0
     for i, g in enumerate(groups):
@@ -99,33 +105,35 @@ def consistent_hypotheses(
                 _remove(graph, gaussian, f.factor)
                 f.removed = True
                 removed += 1
-    for i in range(len(groups), len(members)):
-        for r in ties[i] if i not in kept else ():
-            _remove(graph, gaussian, r.factor)
-            r.removed = True
-            removed += 1
-            builder.stats.reidentified_removed += 1  # type: ignore[attr-defined]
+    for r in ties if matches and n - 1 not in kept else ():
+        _remove(graph, gaussian, r.factor)
+        r.removed = True
+        removed += 1
+        builder.stats.reidentified_removed += 1  # type: ignore[attr-defined]
     return removed
 
 
-def map_hypotheses(
-    builder: object,
-) -> list[tuple[int, list[LoopMatch], list[Reidentification]]]:
-    """The map's hypotheses (``LoopMatch.group``) with a full-rank accepted match and a kept
-    plane tie: (group, its full-rank accepted matches, its kept ties)."""
-    accepted = [m for m in getattr(builder, "matches", []) if m.group >= 0]
-    epochs = {m.epoch: m.group for m in accepted}
-    out = []
-    for g in sorted({m.group for m in accepted}):
-        full = [m for m in accepted if m.group == g and m.full]
-        mine = [
-            r
-            for r in getattr(builder, "reidentifications", [])
-            if not r.removed and epochs.get(r.epoch) == g
-        ]
-        if full and mine:
-            out.append((g, full, mine))
-    return out
+def map_hypothesis(builder: object) -> tuple[list[LoopMatch], list[Reidentification]]:
+    """The map's hypothesis: its full-rank accepted matches (``LoopMatch.full``) and every
+    kept plane tie of its accepted matches; none without a full-rank match or a tie."""
+    accepted = {m.epoch for m in getattr(builder, "matches", []) if m.verdict == "accepted"}
+    full = [m for m in getattr(builder, "matches", []) if m.verdict == "accepted" and m.full]
+    reids = getattr(builder, "reidentifications", [])
+    ties = [r for r in reids if not r.removed and r.epoch in accepted]
+    return (full, ties) if full and ties else ([], [])
+
+
+def _sharpest(
+    builder: object, loops: list[Correction], matches: list[Correction]
+) -> tuple[Correction, Correction]:
+    """The (loop, map) pair of corrections whose drift between them (the chained guess's
+    horizontal variance over the spans between their current and between their old epochs,
+    ``loop_candidate_drift``) is least."""
+    drift = builder._candidate_drift  # type: ignore[attr-defined]
+    return min(
+        ((a, b) for a in loops for b in matches),
+        key=lambda p: float(drift([(p[0].epoch, p[1].epoch), (p[0].old, p[1].old)])[1, 1]),
+    )
 
 
 def _remove(

@@ -62,10 +62,8 @@ class LoopMatch:
         ambiguity: chi2 by which the ties beat their best competing hypothesis (a tie
             swapped for a parallel old plane; :func:`.match_fit.ambiguity`).
         seen: the earliest last sighting of its tied walls (the map epoch it places k
-            against; -1 before verification). full: verified on (yaw, x, y), not on yaw.
-        group: its map hypothesis (-1 unaccepted): accepted matches that agreed with the
-            accepted correction in a row share it; a correction confirmed anew starts one
-            (:meth:`.CandidateLoopBuilder._verify`, ``loop_consistency``).
+            against; -1 before verification). full: verified on (yaw, x, y), not on yaw
+            (both noted by :meth:`.CandidateLoopBuilder._verify`, ``loop_consistency``).
     """
 
     epoch: int
@@ -82,7 +80,6 @@ class LoopMatch:
     ambiguity: float = np.inf
     seen: int = -1
     full: bool = False
-    group: int = -1
 
 
 @dataclass(frozen=True)
