@@ -86,12 +86,24 @@ class LoopCandidateConfig(Section):
     at most this many epochs before, implies the same correction of the chained guess
     (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
     the drift between them allows it."""
-    loop_consistency: Literal["off", "hypotheses"] = "hypotheses"
+    loop_consistency: Literal["off", "hypotheses", "hypotheses_and_map"] = "hypotheses"
     """Batch: keep, before optimisation, the loop hypotheses of the largest set (in factors)
     that agree pairwise, PCM (:func:`.loop_gate.consistent_hypotheses`). On the 2D-rig worlds
     0, 2, .., 18 it changes no run; with ``odometry.coplanar_reextract: moved`` world 16 at
     2 cm 3.02 -> 0.019 m (18 factors aliased 4.6 m along a corridor, interleaved with 27
-    right ones, all fit after optimisation: the graph tore between neighbours)."""
+    right ones, all fit after optimisation: the graph tore between neighbours).
+    "hypotheses_and_map": the map's accepted matches (their plane ties) are one more
+    hypothesis, weighed by their ties and compared with each loop hypothesis through the
+    full-rank match of least drift between them (walls seen nearest the loop's old epoch).
+    Why: with ``first_epoch_refresh`` 1 on world 16 at 2 cm two hypotheses aliased 4.6 m
+    along its corridor (23 factors) outnumber the right one (4), 4.62 m ATE; the map's 995
+    right ties disagree with them: 0.034 m. On the ten laps (batch with loops) it changes
+    no run alone (all 20 as "hypotheses"); with ``first_epoch_refresh`` 1 against this
+    default: median ATE 0.0133 -> 0.0104 m at 6 mm, 0.0506 -> 0.0347 m at 2 cm, every loop
+    end below 10 cm (world 18 10.5 -> 0.7 and 11.5 -> 2.0 cm), no wrong tie; worse: world 2
+    0.035 -> 0.049 (6 mm) and 0.068 -> 0.098 m (2 cm), world 16 at 2 cm 0.021 -> 0.034 m,
+    world 14 0.002 -> 0.003 and 0.006 -> 0.007 m. Not the default: it only matters with
+    ``first_epoch_refresh``, whose default is the lead's call."""
     loop_gate_removes: Literal["hypothesis", "factor"] = "factor"
     """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
     on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``

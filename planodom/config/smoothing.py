@@ -392,7 +392,9 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     16 at 2 cm 0.021 -> 4.62 m: two loop hypotheses aliased 4.6 m along its corridor (23
     factors) outnumber the right one (4) in the clique, and the map's accepted correction
     (0.76 m off in truth) does not refuse them (their drift spans the whole lap); world 2
-    0.035 -> 0.049 (6 mm), 0.068 -> 0.098 m (2 cm). Off until that clique counts the map."""
+    0.035 -> 0.049 (6 mm), 0.068 -> 0.098 m (2 cm). With ``loop_consistency:
+    hypotheses_and_map`` (the clique weighs the map's ties) world 16 at 2 cm is 0.034 m and
+    the 2 cm median 0.0347 m, the rest as above (see that field)."""
     redeskew_trust: Literal["smoothed", "odometry"] = "smoothed"
     """``redeskew_passes``: the smoothed poses a scan is deskewed along ("measured" in
     :func:`~planodom.odometry.run.redeskewed_run`; an epoch within ``odometry.deskew_order``

@@ -54,7 +54,7 @@ from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphUpdate, X
 from planodom.smoothing.loop_drift import RunWalk, run_drift
-from planodom.smoothing.loop_records import LoopFactor
+from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch
 from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
 from planodom.smoothing.match_fit import _extent, ambiguity, non_parallel, offset_residuals
 from planodom.smoothing.noise import between_covariance, with_robust_kernel
@@ -341,19 +341,31 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
 
     def factors_agree(self, a: LoopFactor, b: LoopFactor) -> bool:
-        """Whether two loop factors imply the same correction of the chained guess, as
-        :meth:`_agrees` (chi2(3) on yaw, x, y under their covariances and the chained
-        odometry's drift between their current and between their old epochs): pairwise
-        consistency, :func:`planodom.smoothing.loop_gate.consistent_hypotheses`."""
+        """Whether two loop factors imply the same correction of the chained guess
+        (:meth:`corrections_agree`): pairwise consistency,
+        :func:`planodom.smoothing.loop_gate.consistent_hypotheses`."""
+        return self.corrections_agree(
+            Correction.of_factor(a, self.poses), Correction.of_factor(b, self.poses)
+        )
+
+    def corrections_agree(self, a: Correction, b: Correction) -> bool:
+        """Whether two corrections of the chained guess (of loop factors or accepted map
+        matches) agree, as :meth:`_agrees`: chi2(3) at ``loop_gate_quantile`` on (yaw, x, y)
+        of epoch ``b.epoch`` placed by both, under their covariances and the chained
+        odometry's drift (``loop_candidate_drift``) between their current and between
+        their old epochs."""
         cov = self._candidate_drift([(a.epoch, b.epoch), (a.old, b.old)])
-        cov = cov + a.covariance[2:, 2:] + b.covariance[2:, 2:]
-        T = [
-            self.poses[f.old] @ f.T_old_curr @ invert_transform(self.poses[f.epoch])
-            @ self.poses[b.epoch]
-            for f in (a, b)
-        ]  # fmt: skip
-        v = pose5_from_transform(invert_transform(T[0]) @ T[1])[2:]
+        cov = cov + a.covariance + b.covariance
+        T_b = self.poses[b.epoch]
+        v = pose5_from_transform(invert_transform(a.W @ T_b) @ b.W @ T_b)[2:]
         return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+
+    def _verify(self, match: LoopMatch, T_world_curr: np.ndarray, full: bool) -> str:
+        """:meth:`LoopClosingBuilder._verify`, noting on ``match`` its map epoch (``seen``)
+        and rank, for ``loop_consistency`` "hypotheses_and_map"."""
+        match.seen = min(self.landmarks[j].last_seen[0] for j, _ in match.ties)  # type: ignore[index]
+        match.full = full
+        return super()._verify(match, T_world_curr, full)
 
     def _agrees_with_map(self, rel: RelativePose) -> bool:
         """Whether a verified loop pose agrees with the map's accepted correction (the

@@ -8,7 +8,7 @@ import gtsam
 import numpy as np
 from scipy.stats import chi2
 
-from planodom.smoothing.loop_records import LoopFactor
+from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch, Reidentification
 
 #: Branches the maximum-weight clique search may open before it keeps the best clique found
 #: (a safeguard: a lap's hypotheses are a few dozen at most, searched in far fewer).
@@ -48,40 +48,100 @@ def consistent_hypotheses(
     """``smoothing.loop_consistency`` "hypotheses": keep the loop hypotheses
     (``LoopFactor.group``) of a :class:`CandidateLoopBuilder` that agree pairwise, remove the
     rest (from ``graph``, with their Gaussian twins) before optimisation; returns how many
-    factors were removed.
+    factors were removed (loop factors and, "hypotheses_and_map", plane ties).
 
     Two hypotheses agree when their nearest factors (in current plus old epochs: the least
     drift between them, the sharpest test) imply the same correction of the chained guess
-    (:meth:`CandidateLoopBuilder.factors_agree`); the kept set is the clique of mutually
+    (:meth:`CandidateLoopBuilder.corrections_agree`); the kept set is the clique of mutually
     agreeing hypotheses with the most factors (pairwise consistency maximisation, PCM: a
     right hypothesis agrees with every other right one, an aliased one only with those
     aliased alike). Why before the optimisation: after it the gate and the likelihood-ratio
     test see an estimate that has torn apart to fit both (the plane factors' robust kernels
     give in along a corridor), so every factor fits and every hypothesis costs the rest
     little (2D-rig world 16 at 2 cm with ``odometry.coplanar_reextract: moved``: 18 factors
-    aliased 4.6 m along its corridor, and 27 right ones, all with chi2 below 5)."""
+    aliased 4.6 m along its corridor, and 27 right ones, all with chi2 below 5).
+
+    "hypotheses_and_map": the map's accepted matches are one hypothesis too, weighed by their
+    kept plane ties (the map verifies its matches in a chain, :meth:`LoopClosingBuilder._verify`;
+    after an odometry failure it confirms a new correction, and its parts then disagree with
+    each other though every tie is right: on 2D-rig world 16 at 6 mm five such parts, 1 171
+    right ties, three of them pairwise inconsistent). A loop hypothesis is compared with the
+    full-rank accepted match of least drift between them (:func:`_sharpest`: over the spans
+    between their current epochs and between its old epoch and the match's ``seen``, the
+    earliest last sighting of its tied walls; walls seen long after the loop's old epoch
+    allow a large drift and agree with anything). Left out of the clique, the map loses its
+    ties. (World 16 at 2 cm with ``first_epoch_refresh``: two hypotheses aliased 4.6 m
+    along the corridor, 23 factors, outnumber the right one, 4, while the map's ties imply
+    a correction 4-5 m from theirs.)"""
     factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
-    if builder.config.loop_consistency == "off" or not factors:  # type: ignore[attr-defined]
+    mode = builder.config.loop_consistency  # type: ignore[attr-defined]
+    if mode == "off" or not factors:
         return 0
+    poses = builder.poses  # type: ignore[attr-defined]
     groups = sorted({f.group for f in factors})
-    members = [[f for f in factors if f.group == g] for g in groups]
-    adjacent = np.ones((len(groups), len(groups)), dtype=bool)
+    members = [[Correction.of_factor(f, poses) for f in factors if f.group == g] for g in groups]
+    weights = [float(len(m)) for m in members]
+    matches, ties = map_hypothesis(builder) if mode == "hypotheses_and_map" else ([], [])
+    n = len(groups) + bool(matches)
+    adjacent = np.ones((n, n), dtype=bool)
     for i in range(len(groups)):
         for j in range(i + 1, len(groups)):
             a, b = min(
                 ((a, b) for a in members[i] for b in members[j]),
                 key=lambda p: abs(p[0].epoch - p[1].epoch) + abs(p[0].old - p[1].old),
             )
-            adjacent[i, j] = adjacent[j, i] = builder.factors_agree(a, b)  # type: ignore[attr-defined]
-    kept = set(max_weight_clique(adjacent, np.array([len(m) for m in members], dtype=float)))
+            adjacent[i, j] = adjacent[j, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
+        if matches:
+            mine = [Correction.of_match(m, poses) for m in matches]
+            a, b = _sharpest(builder, members[i], mine)
+            adjacent[i, -1] = adjacent[-1, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
+    if matches:
+        weights.append(float(len(ties)))
+    kept = set(max_weight_clique(adjacent, np.array(weights)))
     removed = 0
-    for i, mine in enumerate(members):
-        for f in mine if i not in kept else ():
-            graph.remove(f.factor)
-            gaussian.pop(f.factor, None)
-            f.removed = True
-            removed += 1
+    for i, g in enumerate(groups):
+        for f in factors if i not in kept else ():
+            if f.group == g:
+                _remove(graph, gaussian, f.factor)
+                f.removed = True
+                removed += 1
+    for r in ties if matches and n - 1 not in kept else ():
+        _remove(graph, gaussian, r.factor)
+        r.removed = True
+        removed += 1
+        builder.stats.reidentified_removed += 1  # type: ignore[attr-defined]
     return removed
+
+
+def map_hypothesis(builder: object) -> tuple[list[LoopMatch], list[Reidentification]]:
+    """The map's hypothesis: its full-rank accepted matches (``LoopMatch.full``) and every
+    kept plane tie of its accepted matches; none without a full-rank match or a tie."""
+    accepted = {m.epoch for m in getattr(builder, "matches", []) if m.verdict == "accepted"}
+    full = [m for m in getattr(builder, "matches", []) if m.verdict == "accepted" and m.full]
+    reids = getattr(builder, "reidentifications", [])
+    ties = [r for r in reids if not r.removed and r.epoch in accepted]
+    return (full, ties) if full and ties else ([], [])
+
+
+def _sharpest(
+    builder: object, loops: list[Correction], matches: list[Correction]
+) -> tuple[Correction, Correction]:
+    """The (loop, map) pair of corrections whose drift between them (the chained guess's
+    horizontal variance over the spans between their current and between their old epochs,
+    ``loop_candidate_drift``) is least."""
+    drift = builder._candidate_drift  # type: ignore[attr-defined]
+    return min(
+        ((a, b) for a in loops for b in matches),
+        key=lambda p: float(drift([(p[0].epoch, p[1].epoch), (p[0].old, p[1].old)])[1, 1]),
+    )
+
+
+def _remove(
+    graph: gtsam.NonlinearFactorGraph, gaussian: dict[int, gtsam.NonlinearFactor], index: int
+) -> None:
+    """Factor ``index`` out of ``graph`` and its Gaussian twin out of ``gaussian``."""
+    graph.remove(index)
+    gaussian.pop(index, None)
 
 
 def loop_start(

@@ -12,6 +12,7 @@ import gtsam
 import numpy as np
 from scipy.stats import chi2
 
+from planodom.geometry import invert_transform
 from planodom.smoothing.match_fit import OffsetFit
 from planodom_factors.pose5 import pose5_error
 
@@ -60,6 +61,9 @@ class LoopMatch:
         misfit: their largest squared whitened residual under ``drift`` (chi2(1)).
         ambiguity: chi2 by which the ties beat their best competing hypothesis (a tie
             swapped for a parallel old plane; :func:`.match_fit.ambiguity`).
+        seen: the earliest last sighting of its tied walls (the map epoch it places k
+            against; -1 before verification). full: verified on (yaw, x, y), not on yaw
+            (both noted by :meth:`.CandidateLoopBuilder._verify`, ``loop_consistency``).
     """
 
     epoch: int
@@ -74,6 +78,38 @@ class LoopMatch:
     offsets: OffsetFit | None = None
     misfit: float = np.nan
     ambiguity: float = np.inf
+    seen: int = -1
+    full: bool = False
+
+
+@dataclass(frozen=True)
+class Correction:
+    """The correction of the chained guess one loop factor or accepted map match implies,
+    for pairwise consistency (:meth:`.CandidateLoopBuilder.corrections_agree`).
+
+    Attributes:
+        epoch: the current epoch k. old: the old epoch it places k against (a loop
+            factor's old epoch; a map match's ``seen``).
+        W: (4, 4) world correction: epoch k at ``W @ poses[k]`` (chained guess poses).
+        covariance: (3, 3) of its (yaw, x, y), rad^2 and m^2.
+    """
+
+    epoch: int
+    old: int
+    W: np.ndarray
+    covariance: np.ndarray
+
+    @staticmethod
+    def of_factor(f: LoopFactor, poses: dict[int, np.ndarray]) -> Correction:
+        """A loop factor's: epoch k at ``poses[old] @ T_old_curr``."""
+        W = poses[f.old] @ f.T_old_curr @ invert_transform(poses[f.epoch])
+        return Correction(f.epoch, f.old, W, f.covariance[2:, 2:])
+
+    @staticmethod
+    def of_match(m: LoopMatch, poses: dict[int, np.ndarray]) -> Correction:
+        """An accepted map match's: epoch k where the map places it."""
+        W = m.T_world_pred @ m.T_pred_curr @ invert_transform(poses[m.epoch])
+        return Correction(m.epoch, m.seen, W, m.covariance[2:, 2:])
 
 
 def reidentification_counts(

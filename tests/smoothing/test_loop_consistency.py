@@ -21,7 +21,12 @@ from planodom.smoothing.loop_gate import (
     gate_loop_factors,
     max_weight_clique,
 )
-from planodom.smoothing.loop_records import LoopFactor, loop_factor_counts
+from planodom.smoothing.loop_records import (
+    LoopFactor,
+    LoopMatch,
+    Reidentification,
+    loop_factor_counts,
+)
 from tests.smoothing.test_loop_candidates import _candidates_only
 from tests.smoothing.test_loop_closure import N_LAP, _end_error, _loop_problem
 
@@ -88,10 +93,12 @@ def test_an_aliased_hypothesis_before_the_right_one_is_refused(problem, monkeypa
     assert _end_error(res.poses, truth) == pytest.approx(_end_error(right.poses, truth), abs=0.05)
 
 
-def _corridor_builder(truth: np.ndarray) -> loop_candidates.CandidateLoopBuilder:
+def _corridor_builder(
+    truth: np.ndarray, consistency: str = "hypotheses"
+) -> loop_candidates.CandidateLoopBuilder:
     """A builder that has chained the steps of ``truth`` (each 2 mm long and 0.01 deg off:
     a drifting odometry) with measured 5-DoF covariances, and no planes."""
-    cfg = _candidates_only().updated({"smoothing.loop_consistency": "hypotheses"})
+    cfg = _candidates_only().updated({"smoothing.loop_consistency": consistency})
     builder = loop_candidates.CandidateLoopBuilder(cfg)
     bias = make_transform(
         np.array([[np.cos(2e-4), -np.sin(2e-4), 0], [np.sin(2e-4), np.cos(2e-4), 0], [0, 0, 1]]),
@@ -150,3 +157,76 @@ def test_the_gate_removes_a_failing_factor_with_its_hypothesis_or_alone(removes)
     assert gate_loop_factors(builder, graph, {}, values) == (3 if removes == "hypothesis" else 1)
     np.testing.assert_allclose([f.chi2 for f in builder.loop_factors], [0.0, 0.0, 1e4])
     assert [f.removed for f in builder.loop_factors] == [removes == "hypothesis"] * 2 + [True]
+
+
+def _corridor_with_map(
+    map_shift_m: float, map_epochs: range, plan: list[tuple[range, bool]], consistency: str
+):
+    """The out-and-back corridor of the test above with loop factors to epoch 0 (``plan``:
+    epochs and whether aliased 4.6 m along, one hypothesis each) and one map hypothesis:
+    accepted full-rank matches at ``map_epochs``, each placing epoch k against its walls
+    last seen at epoch 0 (shifted ``map_shift_m`` along the corridor), with three plane
+    ties each. Returns the truth, builder, graph and the number of factors removed."""
+    n_out = 60
+    x = np.concatenate([np.arange(n_out) * 0.18, (n_out - np.arange(n_out + 1)) * 0.18])
+    truth = np.stack([make_transform(np.eye(3), [v, 0.02 * np.sin(k / 7), 0.0])
+                      for k, v in enumerate(x)])  # fmt: skip
+    builder = _corridor_builder(truth, consistency)
+    cov = np.diag([1e-6, 1e-6, 1e-6, 0.015**2, 0.004**2])
+    graph = gtsam.NonlinearFactorGraph()
+    unit = gtsam.noiseModel.Unit.Create(6)
+    for group, (epochs, aliased) in enumerate(plan):
+        for k in epochs:
+            T = invert_transform(truth[0]) @ truth[k]
+            if aliased:
+                T = make_transform(np.eye(3), [4.6, 0.0, 0.0]) @ T
+            builder.loop_factors.append(LoopFactor(k, 0, T, cov, 3, graph.size(), group))
+            graph.add(gtsam.PriorFactorPose3(X(k), gtsam.Pose3(), unit))
+    shift = make_transform(np.eye(3), [map_shift_m, 0.0, 0.0])
+    for k in map_epochs:
+        T_world_curr = builder.poses[0] @ shift @ invert_transform(truth[0]) @ truth[k]
+        T_world_pred = builder.poses[k]
+        T_pred_curr = invert_transform(T_world_pred) @ T_world_curr
+        ties = [(100 + i, i) for i in range(3)]
+        builder.matches.append(
+            LoopMatch(k, 0, T_world_pred, T_pred_curr, cov, np.zeros((3, 3)), 0.0, ties,
+                      seen=0, full=True)
+        )  # fmt: skip
+        for j, i in ties:
+            builder.reidentifications.append(Reidentification(k, i, j, graph.size()))
+            graph.add(gtsam.PriorFactorPose3(X(k), gtsam.Pose3(), unit))
+    return truth, builder, graph, consistent_hypotheses(builder, graph, {})
+
+
+def test_map_ties_outweigh_an_aliased_majority_of_loop_factors():
+    """Loop factors aliased 4.6 m along the corridor (two hypotheses, 23 factors) outnumber
+    the right ones (4): "hypotheses" keeps the aliased ones; "hypotheses_and_map" weighs the
+    map's 60 right ties too (they imply the true correction) and keeps the right loop
+    factors and every tie, removing the aliased ones (by the truth)."""
+    plan = [(range(80, 92), True), (range(95, 106), True), (range(110, 114), False)]
+    truth, builder, graph, removed = _corridor_with_map(0.0, range(100, 120), plan, "hypotheses")
+    assert removed == 4 and all(f.removed is not f.wrong(truth) for f in builder.loop_factors)
+    truth, builder, graph, removed = _corridor_with_map(
+        0.0, range(100, 120), plan, "hypotheses_and_map"
+    )
+    assert sum(f.wrong(truth) for f in builder.loop_factors) == 23
+    assert removed == 23
+    for f in builder.loop_factors:
+        assert f.removed is f.wrong(truth)
+        assert (graph.at(f.factor) is None) is f.removed
+    assert not any(r.removed for r in builder.reidentifications)
+    assert builder.stats.reidentified_removed == 0
+
+
+def test_an_aliased_map_hypothesis_outweighed_by_loop_factors_loses_its_ties():
+    """The map's matches placed 4.6 m along the corridor with few ties (two matches, six
+    ties) against 27 right loop factors: the map hypothesis is left out of the clique and
+    its ties are removed from the graph; no loop factor is."""
+    plan = [(range(80, 94), False), (range(96, 109), False)]
+    truth, builder, graph, removed = _corridor_with_map(
+        4.6, range(100, 102), plan, "hypotheses_and_map"
+    )
+    assert sum(f.wrong(truth) for f in builder.loop_factors) == 0
+    assert removed == 6 and not any(f.removed for f in builder.loop_factors)
+    assert all(r.removed and graph.at(r.factor) is None for r in builder.reidentifications)
+    assert builder.stats.reidentified_removed == 6
