@@ -70,6 +70,7 @@ def plane_translation(
     max_sigma_m: float,
     unmeasured_var: float,
     consensus_measured: bool = False,
+    keep_weak: bool = False,
 ) -> PlaneTranslation:
     """Translation by weighted least squares over the plane associations ``ij`` (L, 2).
 
@@ -92,6 +93,10 @@ def plane_translation(
             move the weak directions only as far as they measure them).
         consensus_measured: the consensus measured the translation; it decides when a
             plane's covariance is unknown (then the fallback variances are guesses).
+        keep_weak: when not every horizontal direction is measured, those that are not
+            (sigma above ``max_sigma_m``) keep ``t0`` exactly, the others (and z) are
+            solved with them held (``odometry.refine_unmeasured: kept``); False: the
+            planes' weak information pulls them from ``t0`` against the prior.
     """
     t0 = np.asarray(t0, dtype=np.float64)
     if len(ij) == 0:
@@ -102,7 +107,7 @@ def plane_translation(
         curr.normals[j], curr.offsets[j], curr.covariances[j],
         np.ascontiguousarray(R, dtype=np.float64), t0,
         -np.inf if z_normal_min is None else float(z_normal_min), z_normal_min is not None,
-        offset_floor_m, max_sigma_m, unmeasured_var, consensus_measured,
+        offset_floor_m, max_sigma_m, unmeasured_var, consensus_measured, keep_weak,
     )  # fmt: skip
     z_observed, measured = bool(flags[0]), bool(flags[1])
     sigma_z = float(np.sqrt(h_inv[2, 2])) if z_observed else np.inf
@@ -116,13 +121,15 @@ _OUTLIER_CHI2 = 10.83
 
 @numba.njit(cache=True)
 def _translation_kernel(
-    n_i, d_i, c_i, n_j, d_j, c_j, R, t0, z_min, use_z, floor, max_sigma, unmeasured_var, measured0
+    n_i, d_i, c_i, n_j, d_j, c_j, R, t0, z_min, use_z, floor, max_sigma, unmeasured_var, measured0,
+    keep_weak,
 ):  # pragma: no cover - compiled
     """:func:`plane_translation` of the L associations given as their planes' normals
     (L, 3), offsets (L,) and (n, d) covariances (L, 4, 4). Returns t (3,), the inverse
     normal matrix (3, 3) (x, y block: the horizontal covariance; [2, 2]: var z when
     observed), flags (z observed, measured) and the number of associations kept;
-    ``measured0``: the consensus measured the translation."""
+    ``measured0``: the consensus measured the translation; ``keep_weak``: see
+    :func:`plane_translation`."""
     L = len(d_i)
     m = np.empty((L, 3))
     b = np.empty(L)
@@ -202,6 +209,34 @@ def _translation_kernel(
         for v in range(free):
             t[u] += H_inv[u, v] * g[v]
             h_out[u, v] = H_inv[u, v]
+    if keep_weak and not measured:
+        # The unmeasured horizontal directions keep t0 exactly: the update is solved in the
+        # span of the measured ones (and z when solved), where the planes' information is.
+        lam_w, V = np.linalg.eigh(A_xy)
+        cols = 0
+        B = np.zeros((free, free))
+        for c in range(2):
+            if lam_w[c] * max_sigma**2 >= 1.0:
+                B[0, cols], B[1, cols] = V[0, c], V[1, c]
+                cols += 1
+        if free == 3:
+            B[2, cols] = 1.0
+            cols += 1
+        t = t0.copy()
+        if cols:
+            M = np.zeros((cols, cols))
+            y = np.zeros(cols)
+            for c in range(cols):
+                for e in range(cols):
+                    for u in range(free):
+                        for v in range(free):
+                            M[c, e] += B[u, c] * A[u, v] * B[v, e]
+                for u in range(free):
+                    y[c] += B[u, c] * g[u]
+            x = np.linalg.solve(M, y)
+            for u in range(free):
+                for c in range(cols):
+                    t[u] += B[u, c] * x[c]
     flags = np.array([z_observed, measured])
     return t, h_out, flags, n_kept
 

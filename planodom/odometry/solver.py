@@ -318,6 +318,7 @@ def _refine(prev, curr, R, t, measured: bool, bounds: _Bounds, cfg: PlanodomConf
         fit = plane_translation(
             prev, curr, R_c, ij, t_c, z_min, ocfg.refine_offset_floor_m,
             ocfg.refine_max_sigma_m, bounds.translation**2, measured,
+            ocfg.refine_unmeasured == "kept",
         )  # fmt: skip
         if np.linalg.norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
             fit = replace(fit, t=t_c.copy(), measured=False, z_observed=False, n_planes=0)
