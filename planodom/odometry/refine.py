@@ -121,8 +121,7 @@ _OUTLIER_CHI2 = 10.83
 
 @numba.njit(cache=True)
 def _translation_kernel(
-    n_i, d_i, c_i, n_j, d_j, c_j, R, t0, z_min, use_z, floor, max_sigma, unmeasured_var, measured0,
-    keep_weak,
+    n_i, d_i, c_i, n_j, d_j, c_j, R, t0, z_min, use_z, floor, max_sigma, var0, measured0, keep_weak
 ):  # pragma: no cover - compiled
     """:func:`plane_translation` of the L associations given as their planes' normals
     (L, 3), offsets (L,) and (n, d) covariances (L, 4, 4). Returns t (3,), the inverse
@@ -190,9 +189,9 @@ def _translation_kernel(
         measured = (measured or measured0) and lam[0] > 1e-9 * lam[1]
     free = 3 if z_observed else 2
     # Unless the planes measure every direction, the initial value is a prior of
-    # variance ``unmeasured_var`` on x, y: what keeps an unmeasured direction where it was
+    # variance ``var0`` (``unmeasured_var``) on x, y: what keeps an unmeasured direction where it was
     # (when they do, it is left out: noise-free planes give the exact translation).
-    prior = 0.0 if measured else 1.0 / unmeasured_var
+    prior = 0.0 if measured else 1.0 / var0
     H = A[:free, :free].copy()
     H[0, 0] += prior
     H[1, 1] += prior
