@@ -54,14 +54,16 @@ class OdometryConfig(Section):
     is at most this, m (else it keeps the consensus or prior value and the epoch is
     degenerate); a few centimetres: what the constant-velocity prediction of a car
     misses in one epoch."""
-    refine_unmeasured: Literal["prior", "kept"] = "prior"
+    refine_unmeasured: Literal["prior", "kept", "walls"] = "prior"
     """Refinement of a degenerate epoch (a horizontal direction's sigma above
     ``refine_max_sigma_m``): ``"prior"``: the unmeasured direction is solved with the
     initial value (the consensus's or the prediction's) as a prior of sigma
     ``prior_translation_m``, so the planes' weak information on it (a tilted floor or
     ceiling, walls a few degrees from the corridor's axis) pulls it; ``"kept"``: it keeps
     the initial value exactly and the measured directions (and z) are solved with it held
-    (:func:`planodom.odometry.refine.plane_translation`, ``keep_weak``)."""
+    ; ``"walls"``: x, y from the planes that are not level (tilted less than
+    ``z_plane_max_tilt_deg`` from horizontal) and the prior, z then with them held
+    (:func:`planodom.odometry.refine.plane_translation`)."""
     estimate_z: bool = True
     """Estimate the vertical translation from associated ground-like planes."""
     z_plane_max_tilt_deg: AcuteDeg = 30.0

@@ -186,7 +186,7 @@ def test_kept_holds_the_unmeasured_direction_and_solves_the_others(bias_m):
     p, c, T_true = _corridor(bias_m)
     ij = np.array([[k, k] for k in range(4)])
     t0 = np.array([0.3, 0.0, 0.0])
-    kept = plane_translation(p, c, np.eye(3), ij, t0, 0.9, 0.003, 0.03, 0.09, keep_weak=True)
+    kept = plane_translation(p, c, np.eye(3), ij, t0, 0.9, 0.003, 0.03, 0.09, unmeasured="kept")
     assert not kept.measured and kept.z_observed
     assert kept.t[0] == t0[0]
     assert abs(kept.t[1] - T_true[1, 3]) < 1e-9
@@ -210,7 +210,7 @@ def test_kept_changes_nothing_when_every_direction_is_measured():
     ij = np.array([[0, 0], [1, 1], [2, 2]])
     a = plane_translation(p, c, T_true[:3, :3], ij, np.zeros(3), 0.9, 0.003, 0.03, 0.09)
     b = plane_translation(p, c, T_true[:3, :3], ij, np.zeros(3), 0.9, 0.003, 0.03, 0.09,
-                          keep_weak=True)  # fmt: skip
+                          unmeasured="kept")  # fmt: skip
     assert a.measured and b.measured
     np.testing.assert_array_equal(a.t, b.t)
 
@@ -225,3 +225,31 @@ def test_a_degenerate_epoch_keeps_the_prediction_along_the_corridor():
     assert r.status is Status.DEGENERATE
     assert abs(r.T_prev_curr[0, 3] - 0.3) < 1e-12
     assert abs(r.T_prev_curr[1, 3] - T_true[1, 3]) < 1e-6
+
+
+def test_walls_takes_x_from_the_walls_not_the_sloping_ceiling():
+    """``unmeasured="walls"``: a wall 5 deg off the corridor's axis measures x weakly
+    (noise-free: x moves from t0 towards the truth); the ceiling's 3 mm bias leaves x, y
+    unchanged, where it moves the default's x by more than twice the bias."""
+    ij = np.array([[k, k] for k in range(5)])
+    t0 = np.array([0.3, 0.0, 0.0])
+    fits = {}
+    for bias in (0.0, 0.003):
+        p, c, T_true = _corridor(bias)
+        extra = _wall(np.pi / 2 + np.radians(5.0), 2.5, 4.0, 4)
+        pe, ce = observe([extra], np.eye(4)), observe([extra], T_true)
+        p = PlaneSet.from_planes([*_planes_of(p), *pe])
+        c = PlaneSet.from_planes([*_planes_of(c), *ce])
+        for mode in ("prior", "walls"):
+            fits[mode, bias] = plane_translation(p, c, np.eye(3), ij, t0, 0.9, 0.003, 0.03,
+                                                 0.09, unmeasured=mode)  # fmt: skip
+    walls = fits["walls", 0.0]
+    assert not walls.measured
+    assert 0.0 < walls.t[0] - t0[0] < T_true[0, 3] - t0[0]
+    assert abs(walls.t[1] - T_true[1, 3]) < 1e-3
+    np.testing.assert_allclose(fits["walls", 0.003].t[:2], walls.t[:2], atol=1e-12)
+    assert abs(fits["prior", 0.003].t[0] - fits["prior", 0.0].t[0]) > 2 * 0.003
+
+
+def _planes_of(s: PlaneSet) -> list[Plane]:
+    return [Plane(s.normals[k], float(s.offsets[k]), covariance=_COV) for k in range(len(s))]
