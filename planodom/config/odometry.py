@@ -63,7 +63,19 @@ class OdometryConfig(Section):
     the initial value exactly and the measured directions (and z) are solved with it held
     ; ``"walls"``: x, y from the planes that are not level (tilted less than
     ``z_plane_max_tilt_deg`` from horizontal) and the prior, z then with them held
-    (:func:`planodom.odometry.refine.plane_translation`)."""
+    (:func:`planodom.odometry.refine.plane_translation`). A level plane measures x, y
+    only through its tilt, with ~1 / sin(tilt) times its offset's error: in issue 11's
+    indoor world 2 (6 mm) "prior" put corridor epochs 0.26-0.43 m off along the corridor
+    (x rms over its degenerate epochs 17 cm; kept, walls 8 cm: one epoch is 0.40 m off in
+    every mode, a wrong association). Measured, 2D-rig
+    worlds 0-18 even, 300 epochs, prior -> walls: 6 mm ATE world 2 0.82 -> 0.50 m, 6
+    1.07 -> 0.98, others within 1 mm (median 0.186 m both); 2 cm median xy 7.9 -> 6.1 cm,
+    ATE 1.01 -> 0.98 m (world 4 1.01 -> 0.15, 16 1.01 -> 0.23; worse: world 2 0.99 ->
+    4.37, a degenerate first epoch with no velocity yet then a turn lost bridged, 6 7.56
+    -> 7.64); with ``extraction.seed_spans_gap`` world 2 3.27 -> 2.45 m (6 mm), 5.49 ->
+    3.77 (2 cm). "kept" was worse (2 cm: world 0 1.3 -> 21.6 m, where walls a few
+    degrees off a street's axis do measure it). Default prior until smoothing and the
+    built-in scenes are measured with walls."""
     estimate_z: bool = True
     """Estimate the vertical translation from associated ground-like planes."""
     z_plane_max_tilt_deg: AcuteDeg = 30.0
