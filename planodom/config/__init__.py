@@ -14,8 +14,9 @@ from typing import Any
 import yaml
 from pydantic import ValidationError, model_validator
 
+from planodom.config.association import AssociationConfig
 from planodom.config.extraction import ExtractionConfig
-from planodom.config.odometry import AssociationConfig, OdometryConfig
+from planodom.config.odometry import OdometryConfig
 from planodom.config.planemap import PlanemapConfig
 from planodom.config.section import Section
 from planodom.config.smoothing import SmoothingConfig

@@ -1,4 +1,4 @@
-"""Configuration of association, consensus and the streaming odometry."""
+"""Configuration of consensus and the streaming odometry (association: :mod:`.association`)."""
 
 from __future__ import annotations
 
@@ -6,52 +6,10 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
+from planodom.config.association import AcuteDeg, AngleDeg, AssociationConfig, Positive
 from planodom.config.section import Section
 
-#: A finite number > 0 (NaN and inf fail).
-Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-#: An angle in (0, 180] degrees.
-AngleDeg = Annotated[float, Field(gt=0, le=180)]
-#: An angle in (0, 90) degrees (from horizontal, or between two directions up to sign).
-AcuteDeg = Annotated[float, Field(gt=0, lt=90)]
-
-
-class AssociationConfig(Section):
-    """Lenient and strict data association (planodom.association).
-
-    The absolute constraints assume a maximum motion between two consecutive epochs:
-    ``max_translation_m`` and ``max_rotation_deg`` (the defaults allow 10 m/s and 200 deg/s
-    at 10 Hz epochs). With a motion prior (the constant-velocity prediction) the bounds
-    are ``prior_translation_m`` / ``prior_rotation_deg`` around the prior instead. A
-    dataset with faster motion or a lower epoch rate must raise them (config file or
-    ``rig.yaml``); when epoch k is associated with epoch k - delta, the streaming
-    odometry multiplies the per-epoch bounds by delta.
-    """
-
-    parallel_angle_deg: AcuteDeg = 15.0
-    """Plane pairs whose normals are closer than this (or to its opposite) are parallel."""
-    dihedral_tol_deg: AngleDeg = 5.0
-    """LDA: two pairs are candidates when their dihedral angles differ by at most this."""
-    max_translation_m: Positive = 1.0
-    """Assumed maximum translation between consecutive epochs, metres (no prior)."""
-    max_rotation_deg: AngleDeg = 20.0
-    """Assumed maximum rotation angle between consecutive epochs, degrees (no prior)."""
-    prior_translation_m: Positive = 0.3
-    """Allowed deviation from the motion prior's translation, metres."""
-    prior_rotation_deg: AngleDeg = 5.0
-    """Allowed deviation from the motion prior's rotation, degrees."""
-    normal_tol_deg: AngleDeg = 5.0
-    """Margin for noise on a plane normal's direction, degrees (added to rotation bounds)."""
-    offset_tol_m: Positive = 0.2
-    """Margin for noise on plane offsets and pair reference points, metres."""
-    overlap_margin_m: Positive = 1.0
-    """Margin of the support-overlap test (bounding circles of the support polygons), m."""
-    strict_normal_deg: AngleDeg = 3.0
-    """SDA: maximum angle between a previous normal and a rotated current normal, degrees."""
-    strict_offset_m: Positive = 0.15
-    """SDA: margin on offset differences beyond the translation bound, metres."""
-    min_line_verticality: Annotated[float, Field(gt=0, le=1)] = 0.2
-    """Minimum |v_z| of a pair's unit intersection direction to define a reference point."""
+__all__ = ["AcuteDeg", "AngleDeg", "AssociationConfig", "OdometryConfig", "Positive"]
 
 
 class OdometryConfig(Section):
@@ -96,6 +54,28 @@ class OdometryConfig(Section):
     is at most this, m (else it keeps the consensus or prior value and the epoch is
     degenerate); a few centimetres: what the constant-velocity prediction of a car
     misses in one epoch."""
+    refine_unmeasured: Literal["prior", "kept", "walls"] = "prior"
+    """Refinement of a degenerate epoch (a horizontal direction's sigma above
+    ``refine_max_sigma_m``): ``"prior"``: the unmeasured direction is solved with the
+    initial value (the consensus's or the prediction's) as a prior of sigma
+    ``prior_translation_m``, so the planes' weak information on it (a tilted floor or
+    ceiling, walls a few degrees from the corridor's axis) pulls it; ``"kept"``: it keeps
+    the initial value exactly and the measured directions (and z) are solved with it held
+    ; ``"walls"``: x, y from the planes that are not level (tilted less than
+    ``z_plane_max_tilt_deg`` from horizontal) and the prior, z then with them held
+    (:func:`planodom.odometry.refine.plane_translation`). A level plane measures x, y
+    only through its tilt, with ~1 / sin(tilt) times its offset's error: in issue 11's
+    indoor world 2 (6 mm) "prior" put corridor epochs 0.26-0.43 m off along the corridor
+    (x rms over its degenerate epochs 17 cm; kept, walls 8 cm: one epoch is 0.40 m off in
+    every mode, a wrong association). Measured, 2D-rig
+    worlds 0-18 even, 300 epochs, prior -> walls: 6 mm ATE world 2 0.82 -> 0.50 m, 6
+    1.07 -> 0.98, others within 1 mm (median 0.186 m both); 2 cm median xy 7.9 -> 6.1 cm,
+    ATE 1.01 -> 0.98 m (world 4 1.01 -> 0.15, 16 1.01 -> 0.23; worse: world 2 0.99 ->
+    4.37, a degenerate first epoch with no velocity yet then a turn lost bridged, 6 7.56
+    -> 7.64); with ``extraction.seed_spans_gap`` world 2 3.27 -> 2.45 m (6 mm), 5.49 ->
+    3.77 (2 cm). "kept" was worse (2 cm: world 0 1.3 -> 21.6 m, where walls a few
+    degrees off a street's axis do measure it). Default prior until smoothing and the
+    built-in scenes are measured with walls."""
     estimate_z: bool = True
     """Estimate the vertical translation from associated ground-like planes."""
     z_plane_max_tilt_deg: AcuteDeg = 30.0

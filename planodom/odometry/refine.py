@@ -70,6 +70,8 @@ def plane_translation(
     max_sigma_m: float,
     unmeasured_var: float,
     consensus_measured: bool = False,
+    unmeasured: str = "prior",
+    level_min: float = 0.866,
 ) -> PlaneTranslation:
     """Translation by weighted least squares over the plane associations ``ij`` (L, 2).
 
@@ -92,6 +94,12 @@ def plane_translation(
             move the weak directions only as far as they measure them).
         consensus_measured: the consensus measured the translation; it decides when a
             plane's covariance is unknown (then the fallback variances are guesses).
+        unmeasured: when not every horizontal direction is measured (``odometry.
+            refine_unmeasured``): "prior": the planes' weak information pulls the
+            unmeasured ones from ``t0`` against the prior; "kept": they keep ``t0``
+            exactly, the others (and z) are solved with them held; "walls": x, y from
+            the planes that are not level (and the prior), then z with x, y held.
+        level_min: a plane is level (floor, ceiling) when ``|m_z|`` is at least this.
     """
     t0 = np.asarray(t0, dtype=np.float64)
     if len(ij) == 0:
@@ -103,11 +111,15 @@ def plane_translation(
         np.ascontiguousarray(R, dtype=np.float64), t0,
         -np.inf if z_normal_min is None else float(z_normal_min), z_normal_min is not None,
         offset_floor_m, max_sigma_m, unmeasured_var, consensus_measured,
+        _UNMEASURED[unmeasured], level_min,
     )  # fmt: skip
     z_observed, measured = bool(flags[0]), bool(flags[1])
     sigma_z = float(np.sqrt(h_inv[2, 2])) if z_observed else np.inf
     return PlaneTranslation(t, h_inv[:2, :2].copy(), sigma_z, z_observed, measured, n_kept)
 
+
+#: ``unmeasured`` of :func:`plane_translation` as the kernel's code.
+_UNMEASURED = {"prior": 0, "kept": 1, "walls": 2}
 
 #: chi2(1) at 0.999: an association whose offset residual is beyond this (in its own
 #: sigmas) after the others are fitted is not kept.
@@ -116,13 +128,16 @@ _OUTLIER_CHI2 = 10.83
 
 @numba.njit(cache=True)
 def _translation_kernel(
-    n_i, d_i, c_i, n_j, d_j, c_j, R, t0, z_min, use_z, floor, max_sigma, unmeasured_var, measured0
-):  # pragma: no cover - compiled
+    n_i, d_i, c_i, n_j, d_j, c_j, R, t0, z_min, use_z, floor, max_sigma, var0, measured0,
+    weak, level,
+):  # fmt: skip  # pragma: no cover - compiled
     """:func:`plane_translation` of the L associations given as their planes' normals
     (L, 3), offsets (L,) and (n, d) covariances (L, 4, 4). Returns t (3,), the inverse
     normal matrix (3, 3) (x, y block: the horizontal covariance; [2, 2]: var z when
     observed), flags (z observed, measured) and the number of associations kept;
-    ``measured0``: the consensus measured the translation."""
+    ``measured0``: the consensus measured the translation; ``weak``: ``unmeasured`` of
+    :func:`plane_translation` as 0 / 1 / 2 (prior / kept / walls), ``level``: its
+    ``level_min``."""
     L = len(d_i)
     m = np.empty((L, 3))
     b = np.empty(L)
@@ -182,10 +197,10 @@ def _translation_kernel(
         # Without the fits' covariances the precision is a guess: the consensus decides.
         measured = (measured or measured0) and lam[0] > 1e-9 * lam[1]
     free = 3 if z_observed else 2
-    # Unless the planes measure every direction, the initial value is a prior of
-    # variance ``unmeasured_var`` on x, y: what keeps an unmeasured direction where it was
-    # (when they do, it is left out: noise-free planes give the exact translation).
-    prior = 0.0 if measured else 1.0 / unmeasured_var
+    # Unless the planes measure every direction, the initial value is a prior of variance
+    # ``var0`` (``unmeasured_var``) on x, y: what keeps an unmeasured direction where it
+    # was (when they do, it is left out: noise-free planes give the exact translation).
+    prior = 0.0 if measured else 1.0 / var0
     H = A[:free, :free].copy()
     H[0, 0] += prior
     H[1, 1] += prior
@@ -202,6 +217,61 @@ def _translation_kernel(
         for v in range(free):
             t[u] += H_inv[u, v] * g[v]
             h_out[u, v] = H_inv[u, v]
+    if weak == 1 and not measured:
+        # The unmeasured horizontal directions keep t0 exactly: the update is solved in the
+        # span of the measured ones (and z when solved), where the planes' information is.
+        lam_w, V = np.linalg.eigh(A_xy)
+        cols = 0
+        B = np.zeros((free, free))
+        for c in range(2):
+            if lam_w[c] * max_sigma**2 >= 1.0:
+                B[0, cols], B[1, cols] = V[0, c], V[1, c]
+                cols += 1
+        if free == 3:
+            B[2, cols] = 1.0
+            cols += 1
+        t = t0.copy()
+        if cols:
+            M = np.zeros((cols, cols))
+            y = np.zeros(cols)
+            for c in range(cols):
+                for e in range(cols):
+                    for u in range(free):
+                        for v in range(free):
+                            M[c, e] += B[u, c] * A[u, v] * B[v, e]
+                for u in range(free):
+                    y[c] += B[u, c] * g[u]
+            x = np.linalg.solve(M, y)
+            for u in range(free):
+                for c in range(cols):
+                    t[u] += B[u, c] * x[c]
+    if weak == 2 and not measured:
+        # Level planes (|m_z| >= level: floor, ceiling) inform x, y only through their tilt,
+        # with ~1 / sin(tilt) times their offset's error: here x, y come from the other
+        # planes and the prior, then z from all of them with x, y held.
+        A_w = np.zeros((2, 2))
+        g_w = np.zeros(2)
+        for k in range(L):
+            if keep[k] and abs(m[k, 2]) < level:
+                r = w[k] * (b[k] - (m[k, 0] * t0[0] + m[k, 1] * t0[1] + m[k, 2] * t0[2]))
+                for u in range(2):
+                    g_w[u] += m[k, u] * r
+                    for v in range(2):
+                        A_w[u, v] += w[k] * m[k, u] * m[k, v]
+        A_w[0, 0] += 1.0 / var0
+        A_w[1, 1] += 1.0 / var0
+        d_xy = np.linalg.solve(A_w, g_w)
+        t = t0.copy()
+        t[0] += d_xy[0]
+        t[1] += d_xy[1]
+        if z_observed:
+            num, den = 0.0, 0.0
+            for k in range(L):
+                if keep[k]:
+                    r = b[k] - (m[k, 0] * t[0] + m[k, 1] * t[1] + m[k, 2] * t0[2])
+                    num += w[k] * m[k, 2] * r
+                    den += w[k] * m[k, 2] ** 2
+            t[2] = t0[2] + num / den
     flags = np.array([z_observed, measured])
     return t, h_out, flags, n_kept
 

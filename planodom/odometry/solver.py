@@ -302,7 +302,8 @@ def _refine(prev, curr, R, t, measured: bool, bounds: _Bounds, cfg: PlanodomConf
     inlier bound around the first result when it measured the translation. A result
     beyond the motion assumption (a wrong association) is not a measurement."""
     ocfg, acfg = cfg.odometry, cfg.association
-    z_min = np.cos(np.radians(ocfg.z_plane_max_tilt_deg)) if ocfg.estimate_z else None
+    level = float(np.cos(np.radians(ocfg.z_plane_max_tilt_deg)))
+    z_min = level if ocfg.estimate_z else None
     floor_n, parallel = (
         np.radians(ocfg.refine_normal_floor_deg),
         np.radians(acfg.parallel_angle_deg),
@@ -318,6 +319,7 @@ def _refine(prev, curr, R, t, measured: bool, bounds: _Bounds, cfg: PlanodomConf
         fit = plane_translation(
             prev, curr, R_c, ij, t_c, z_min, ocfg.refine_offset_floor_m,
             ocfg.refine_max_sigma_m, bounds.translation**2, measured,
+            ocfg.refine_unmeasured, level,
         )  # fmt: skip
         if np.linalg.norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
             fit = replace(fit, t=t_c.copy(), measured=False, z_observed=False, n_planes=0)

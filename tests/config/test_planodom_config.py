@@ -34,6 +34,10 @@ def test_round_trip(tmp_path) -> None:
         ("odometry: {map_trend_rescue: perhaps}\n", r"c\.yaml: field 'odometry\.map_trend_rescue'"),
         ("extraction: {deskew_jacobian: 3}\n", r"c\.yaml: field 'extraction\.deskew_jacobian'"),
         (
+            "odometry: {refine_unmeasured: blended}\n",
+            r"c\.yaml: field 'odometry\.refine_unmeasured'",
+        ),
+        (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",
         ),

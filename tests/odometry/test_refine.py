@@ -155,3 +155,101 @@ def test_an_association_to_a_coplanar_neighbour_does_not_move_the_translation(sh
     fit = plane_translation(p, c, T_true[:3, :3], ij, np.zeros(3), 0.9, 0.003, 0.03, 1.0)
     assert fit.measured and fit.n_planes == 4
     np.testing.assert_allclose(fit.t, T_true[:3, 3], atol=1e-9)
+
+
+def _tilted(normal: np.ndarray, point: np.ndarray, truth_id: int) -> Plane:
+    n = normal / np.linalg.norm(normal)
+    return Plane(n, float(-n @ point), covariance=_COV, truth_id=truth_id,
+                 support=PlaneSupport(point, square_polygon(point, n, 8.0), 500))  # fmt: skip
+
+
+def _corridor(bias_m: float):
+    """A corridor along x (walls at y = +-1.5 m), a level floor and a ceiling sloping
+    2 deg along x (its normal's x part measures x only to ~9 cm with 3 mm offsets): the
+    ceiling of the current epoch is ``bias_m`` off. Returns (prev, curr, T_true)."""
+    world = [_wall(np.pi / 2, 1.5, 0.0, 0), _wall(-np.pi / 2, 1.5, 0.0, 1), _ground(2),
+             _tilted(np.array([np.sin(np.radians(2.0)), 0.0, -1.0]),
+                     np.array([0.0, 0.0, 1.5]), 3)]  # fmt: skip
+    T_true = transform_from_rpy_xyz(0.0, 0.0, 0.0, 0.4, 0.03, 0.01)
+    T_w_a = np.eye(4)
+    prev, curr = observe(world, T_w_a), observe(world, T_w_a @ T_true)
+    curr[3] = Plane(curr[3].normal, curr[3].offset + bias_m, covariance=_COV,
+                    support=curr[3].support)  # fmt: skip
+    return PlaneSet.from_planes(prev), PlaneSet.from_planes(curr), T_true
+
+
+@pytest.mark.parametrize("bias_m", [0.0, 0.003])
+def test_kept_holds_the_unmeasured_direction_and_solves_the_others(bias_m):
+    """keep_weak: along the corridor x stays at t0 exactly whatever the sloping ceiling
+    says, y (the walls) is exact; without it the ceiling's 3 mm bias moves x by
+    centimetres (about bias / sin 2 deg, shrunk by the prior)."""
+    p, c, T_true = _corridor(bias_m)
+    ij = np.array([[k, k] for k in range(4)])
+    t0 = np.array([0.3, 0.0, 0.0])
+    kept = plane_translation(p, c, np.eye(3), ij, t0, 0.9, 0.003, 0.03, 0.09, unmeasured="kept")
+    assert not kept.measured and kept.z_observed
+    assert kept.t[0] == t0[0]
+    assert abs(kept.t[1] - T_true[1, 3]) < 1e-9
+    assert abs(kept.t[2] - T_true[2, 3]) < 0.002 + bias_m  # the ceiling's share of z
+    blended = plane_translation(p, c, np.eye(3), ij, t0, 0.9, 0.003, 0.03, 0.09)
+    assert not blended.measured
+    if bias_m == 0.0:  # noise-free, the weak information is right: x moves to the truth
+        assert abs(blended.t[0] - T_true[0, 3]) < abs(t0[0] - T_true[0, 3])
+    else:  # 3 mm on the ceiling move x by more than it (the prior's share aside)
+        exact = plane_translation(*_corridor(0.0)[:2], np.eye(3), ij, t0, 0.9, 0.003, 0.03,
+                                  0.09)  # fmt: skip
+        assert abs(blended.t[0] - exact.t[0]) > 0.02
+
+
+def test_kept_changes_nothing_when_every_direction_is_measured():
+    rng = np.random.default_rng(3)
+    world = [_wall(0.2, 6.0, 0.0, 0), _wall(1.5, 9.0, 1.0, 1), _ground(2)]
+    T_true = transform_from_rpy_xyz(0.0, 0.0, 0.0, 0.4, 0.1, 0.0)
+    prev, curr = _epochs(world, T_true, yaw0=0.0)
+    p, c = _noisy(prev, rng, 0.002), _noisy(curr, rng, 0.002)
+    ij = np.array([[0, 0], [1, 1], [2, 2]])
+    a = plane_translation(p, c, T_true[:3, :3], ij, np.zeros(3), 0.9, 0.003, 0.03, 0.09)
+    b = plane_translation(p, c, T_true[:3, :3], ij, np.zeros(3), 0.9, 0.003, 0.03, 0.09,
+                          unmeasured="kept")  # fmt: skip
+    assert a.measured and b.measured
+    np.testing.assert_array_equal(a.t, b.t)
+
+
+def test_a_degenerate_epoch_keeps_the_prediction_along_the_corridor():
+    """Through the solver with ``odometry.refine_unmeasured: kept``: the corridor epoch is
+    degenerate and its x is the prior's."""
+    p, c, T_true = _corridor(0.003)
+    prior = transform_from_rpy_xyz(0.0, 0.0, 0.0, 0.3, 0.0, 0.0)
+    cfg = PlanodomConfig().updated({"odometry.refine_unmeasured": "kept"})
+    r = estimate_relative_pose(p, c, cfg, prior)
+    assert r.status is Status.DEGENERATE
+    assert abs(r.T_prev_curr[0, 3] - 0.3) < 1e-12
+    assert abs(r.T_prev_curr[1, 3] - T_true[1, 3]) < 1e-6
+
+
+def test_walls_takes_x_from_the_walls_not_the_sloping_ceiling():
+    """``unmeasured="walls"``: a wall 5 deg off the corridor's axis measures x weakly
+    (noise-free: x moves from t0 towards the truth); the ceiling's 3 mm bias leaves x, y
+    unchanged, where it moves the default's x by more than twice the bias."""
+    ij = np.array([[k, k] for k in range(5)])
+    t0 = np.array([0.3, 0.0, 0.0])
+    fits = {}
+    for bias in (0.0, 0.003):
+        p, c, T_true = _corridor(bias)
+        extra = _wall(np.pi / 2 + np.radians(5.0), 2.5, 4.0, 4)
+        pe, ce = observe([extra], np.eye(4)), observe([extra], T_true)
+        p = PlaneSet.from_planes([*_planes_of(p), *pe])
+        c = PlaneSet.from_planes([*_planes_of(c), *ce])
+        for mode in ("prior", "walls"):
+            fits[mode, bias] = plane_translation(p, c, np.eye(3), ij, t0, 0.9, 0.003, 0.03,
+                                                 0.09, unmeasured=mode)  # fmt: skip
+    walls = fits["walls", 0.0]
+    assert not walls.measured
+    assert 0.0 < walls.t[0] - t0[0] < T_true[0, 3] - t0[0]
+    assert abs(walls.t[1] - T_true[1, 3]) < 1e-3
+    np.testing.assert_allclose(fits["walls", 0.003].t[:2], walls.t[:2], atol=1e-12)
+    assert abs(fits["prior", 0.003].t[0] - fits["prior", 0.0].t[0]) > 2 * 0.003
+
+
+def _planes_of(s: PlaneSet) -> list[Plane]:
+    return [Plane(s.normals[k], float(s.offsets[k]), covariance=_COV) for k in range(len(s))]
