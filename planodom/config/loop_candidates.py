@@ -86,7 +86,7 @@ class LoopCandidateConfig(Section):
     at most this many epochs before, implies the same correction of the chained guess
     (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
     the drift between them allows it."""
-    loop_consistency: Literal["off", "hypotheses", "hypotheses_and_map"] = "hypotheses"
+    loop_consistency: Literal["off", "hypotheses", "hypotheses_and_map"] = "hypotheses_and_map"
     """Batch: keep, before optimisation, the loop hypotheses of the largest set (in factors)
     that agree pairwise, PCM (:func:`.loop_gate.consistent_hypotheses`). On the 2D-rig worlds
     0, 2, .., 18 it changes no run; with ``odometry.coplanar_reextract: moved`` world 16 at
@@ -102,8 +102,8 @@ class LoopCandidateConfig(Section):
     default: median ATE 0.0133 -> 0.0104 m at 6 mm, 0.0506 -> 0.0347 m at 2 cm, every loop
     end below 10 cm (world 18 10.5 -> 0.7 and 11.5 -> 2.0 cm), no wrong tie; worse: world 2
     0.035 -> 0.049 (6 mm) and 0.068 -> 0.098 m (2 cm), world 16 at 2 cm 0.021 -> 0.034 m,
-    world 14 0.002 -> 0.003 and 0.006 -> 0.007 m. Not the default: it only matters with
-    ``first_epoch_refresh``, whose default is the lead's call."""
+    world 14 0.002 -> 0.003 and 0.006 -> 0.007 m. The default: it changes no lap alone and
+    keeps the map's word where an aliased set outnumbers the right loop hypothesis."""
     loop_gate_removes: Literal["hypothesis", "factor"] = "factor"
     """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
     on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``
