@@ -118,22 +118,12 @@ def test_an_aliased_corridor_hypothesis_interleaved_with_the_right_one_is_refuse
     ones (two hypotheses, 27 factors), as on 2D-rig world 16 at 2 cm. Each pair of nearest
     factors of an aliased and a right hypothesis disagrees far beyond the drift of the few
     epochs between them: the aliased ones are removed, the right ones kept (by the truth)."""
-    n_out = 60
-    x = np.concatenate([np.arange(n_out) * 0.18, (n_out - np.arange(n_out + 1)) * 0.18])
-    truth = np.stack([make_transform(np.eye(3), [v, 0.02 * np.sin(k / 7), 0.0])
-                      for k, v in enumerate(x)])  # fmt: skip
+    truth = _out_and_back()
     builder = _corridor_builder(truth)
-    cov = np.diag([1e-6, 1e-6, 1e-6, 0.015**2, 0.004**2])
     plan = [(range(80, 84), True), (range(86, 98), True), (range(98, 102), False),
             (range(102, 104), True), (range(104, 121), False)]  # fmt: skip
     graph = gtsam.NonlinearFactorGraph()
-    for group, (epochs, aliased) in enumerate(plan):
-        for k in epochs:
-            T = invert_transform(truth[0]) @ truth[k]
-            if aliased:
-                T = make_transform(np.eye(3), [4.6, 0.0, 0.0]) @ T
-            builder.loop_factors.append(LoopFactor(k, 0, T, cov, 3, graph.size(), group))
-            graph.add(gtsam.PriorFactorPose3(X(k), gtsam.Pose3(), gtsam.noiseModel.Unit.Create(6)))
+    _add_loop_factors(builder, graph, truth, plan)
     assert sum(f.wrong(truth) for f in builder.loop_factors) == 18
     removed = consistent_hypotheses(builder, graph, {})
     assert removed == 18
@@ -167,21 +157,11 @@ def _corridor_with_map(
     accepted full-rank matches at ``map_epochs``, each placing epoch k against its walls
     last seen at epoch 0 (shifted ``map_shift_m`` along the corridor), with three plane
     ties each. Returns the truth, builder, graph and the number of factors removed."""
-    n_out = 60
-    x = np.concatenate([np.arange(n_out) * 0.18, (n_out - np.arange(n_out + 1)) * 0.18])
-    truth = np.stack([make_transform(np.eye(3), [v, 0.02 * np.sin(k / 7), 0.0])
-                      for k, v in enumerate(x)])  # fmt: skip
+    truth = _out_and_back()
     builder = _corridor_builder(truth, consistency)
-    cov = np.diag([1e-6, 1e-6, 1e-6, 0.015**2, 0.004**2])
     graph = gtsam.NonlinearFactorGraph()
-    unit = gtsam.noiseModel.Unit.Create(6)
-    for group, (epochs, aliased) in enumerate(plan):
-        for k in epochs:
-            T = invert_transform(truth[0]) @ truth[k]
-            if aliased:
-                T = make_transform(np.eye(3), [4.6, 0.0, 0.0]) @ T
-            builder.loop_factors.append(LoopFactor(k, 0, T, cov, 3, graph.size(), group))
-            graph.add(gtsam.PriorFactorPose3(X(k), gtsam.Pose3(), unit))
+    _add_loop_factors(builder, graph, truth, plan)
+    cov, unit = LOOP_COV, gtsam.noiseModel.Unit.Create(6)
     shift = make_transform(np.eye(3), [map_shift_m, 0.0, 0.0])
     for k in map_epochs:
         T_world_curr = builder.poses[0] @ shift @ invert_transform(truth[0]) @ truth[k]
@@ -230,3 +210,26 @@ def test_an_aliased_map_hypothesis_outweighed_by_loop_factors_loses_its_ties():
     assert removed == 6 and not any(f.removed for f in builder.loop_factors)
     assert all(r.removed and graph.at(r.factor) is None for r in builder.reidentifications)
     assert builder.stats.reidentified_removed == 6
+
+
+LOOP_COV = np.diag([1e-6, 1e-6, 1e-6, 0.015**2, 0.004**2])  # a loop factor's (5, 5)
+
+
+def _out_and_back() -> np.ndarray:
+    """(121, 4, 4) true poses: 60 steps of 0.18 m along a corridor and back, swaying."""
+    n_out = 60
+    x = np.concatenate([np.arange(n_out) * 0.18, (n_out - np.arange(n_out + 1)) * 0.18])
+    return np.stack([make_transform(np.eye(3), [v, 0.02 * np.sin(k / 7), 0.0])
+                     for k, v in enumerate(x)])  # fmt: skip
+
+
+def _add_loop_factors(builder, graph, truth, plan) -> None:
+    """Loop factors to epoch 0 from the truth (``plan``: epochs and whether aliased 4.6 m
+    along the corridor, one hypothesis each), each with a unit prior in ``graph``."""
+    for group, (epochs, aliased) in enumerate(plan):
+        for k in epochs:
+            T = invert_transform(truth[0]) @ truth[k]
+            if aliased:
+                T = make_transform(np.eye(3), [4.6, 0.0, 0.0]) @ T
+            builder.loop_factors.append(LoopFactor(k, 0, T, LOOP_COV, 3, graph.size(), group))
+            graph.add(gtsam.PriorFactorPose3(X(k), gtsam.Pose3(), gtsam.noiseModel.Unit.Create(6)))
