@@ -82,6 +82,7 @@ def consistent_hypotheses(
     members = [[Correction.of_factor(f, poses) for f in factors if f.group == g] for g in groups]
     weights = [float(len(m)) for m in members]
     matches, ties = map_hypothesis(builder) if mode == "hypotheses_and_map" else ([], [])
+    mine = [Correction.of_match(m, poses) for m in matches]
     n = len(groups) + bool(matches)
     adjacent = np.ones((n, n), dtype=bool)
     for i in range(len(groups)):
@@ -92,7 +93,6 @@ def consistent_hypotheses(
             )
             adjacent[i, j] = adjacent[j, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
         if matches:
-            mine = [Correction.of_match(m, poses) for m in matches]
             a, b = _sharpest(builder, members[i], mine)
             adjacent[i, -1] = adjacent[-1, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
     if matches:
@@ -194,8 +194,7 @@ def gate_loop_factors(
     removed = 0
     for f in factors:
         if not f.removed and (f.factor if alone else f.group) in failed:
-            graph.remove(f.factor)
-            gaussian.pop(f.factor, None)
+            _remove(graph, gaussian, f.factor)
             f.removed = True
             removed += 1
     return removed
@@ -248,8 +247,7 @@ def test_hypotheses(
         if increase > limit:
             for f in factors:
                 if f.group == group:
-                    graph.remove(f.factor)
-                    gaussian.pop(f.factor, None)
+                    _remove(graph, gaussian, f.factor)
                     f.removed = True
                     removed += 1
     return removed
