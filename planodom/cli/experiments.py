@@ -117,6 +117,9 @@ def experiment_smoothing(
 def experiment_generalisation(
     ctx: typer.Context,
     worlds: Annotated[int, typer.Option(help="Random worlds 0 .. N-1 (even: 2D rig).")] = 20,
+    first_world: Annotated[
+        int, typer.Option(min=0, help="Index of the first world (20 on: held out).")
+    ] = 0,
     noise: Annotated[
         list[float] | None,
         typer.Option(help="Range noise sigmas (m): --noise 0 0.006 0.02 0.1 (or repeated)."),
@@ -168,7 +171,7 @@ def experiment_generalisation(
     result = run_generalisation_experiment(
         out, n_worlds=worlds, noise_levels=levels, n_epochs=epochs or None,
         config=load_config(config), progress=_say, methods=chosen,
-        rigs=("rig2d", "lidar") if rig == "all" else (rig,),
+        rigs=("rig2d", "lidar") if rig == "all" else (rig,), first_world=first_world,
     )  # fmt: skip
     _print_files({k: v for k, v in result.files.items() if k != "runs_md"})
 
@@ -199,6 +202,9 @@ def experiment_baselines(
 @reports_errors
 def experiment_loops(
     worlds: Annotated[int, typer.Option(help="Procedural worlds 0 .. N-1 (even: 2D rig).")] = 6,
+    first_world: Annotated[
+        int, typer.Option(min=0, help="Index of the first world (20 on: held out).")
+    ] = 0,
     epochs: Annotated[int, typer.Option(help="Epochs per run (0: one lap).")] = 0,
     quick: Annotated[bool, typer.Option(help="CI size: world 0, 120 epochs, 6 mm.")] = False,
     out: ExpOut = Path("results/loops"),
@@ -211,8 +217,9 @@ def experiment_loops(
     if quick:
         worlds, epochs, levels = 1, 120, (0.006,)
     result = run_loop_experiment(
-        out, range(worlds), levels, epochs or None, load_config(config), progress=_say
-    )
+        out, range(first_world, first_world + worlds), levels, epochs or None,
+        load_config(config), progress=_say,
+    )  # fmt: skip
     _print_files(result.files)
 
 

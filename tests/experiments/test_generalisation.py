@@ -85,6 +85,21 @@ def test_one_rig_class_runs_only_its_worlds():
     assert {r.family for r in res.runs} <= {"lidar16", "lidar32", "lidar64"}
 
 
+def test_held_out_worlds_start_at_first_world(tmp_path, seen):
+    """``first_world`` shifts the span: worlds 20 and 22 run as worlds (not seeds 0, 2)."""
+    res = run_generalisation_experiment(
+        None, n_worlds=4, noise_levels=[0.0], n_epochs=2, methods=("oracle",),
+        rigs=("rig2d",), first_world=20,
+    )  # fmt: skip
+    assert sorted({r.world for r in res.runs}) == [20, 22]
+    with pytest.raises(ValueError, match="first_world"):
+        run_generalisation_experiment(None, n_worlds=1, methods=("oracle",), first_world=-1)
+    args = ["experiment", "generalisation", "--worlds", "2", "--out", str(tmp_path)]
+    result = CliRunner().invoke(app, [*args, "--first-world", "30"])
+    assert result.exit_code == 0, result.output
+    assert seen["first_world"] == 30
+
+
 def test_cli_chooses_methods(tmp_path, seen):
     """``--methods`` reaches the experiment as a list; an unknown name is one line, exit 2."""
     args = ["experiment", "generalisation", "--worlds", "2", "--out", str(tmp_path)]
