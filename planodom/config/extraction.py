@@ -317,12 +317,21 @@ class ExtractionConfig(Section):
     median rotation 6.2 -> 5.8x the oracle at 6 mm, unchanged at 2 cm; the 32-beam
     worlds 9 and 15 lose up to a fifth of their rotation (at most 0.0007 deg). KITTI
     0005 (no ring: the organised image) and nebula's parked recordings: unchanged."""
-    organised_gap: Literal["range", "incidence"] = "range"
+    organised_gap: Literal["range", "incidence", "grazing"] = "range"
     """The same for the square-pixel image of an unorganised cloud
     (planodom.extraction.lidar.organised; the step: the native column step). incidence
     finds a 16-beam room's floor and ceiling, but measured on KITTI 0005 (HDL-64E, pixels
     ~2.3 native columns wide) it made RPE rotation 0.0967 deg and translation 3.63 cm
-    against 0.0868 and 3.59 with range: off by default."""
+    against 0.0868 and 3.59 with range: off by default. grazing: the ratio scaled only as
+    far as needed to keep whole a plane seen at ``organised_min_incidence_deg`` or more
+    (the step the ratio refers to is ``gap_range_ratio * sin(organised_min_incidence_deg)``,
+    not the native column): pixels finer than that step (KITTI's 0.4 deg against 1 deg at
+    10 deg) keep the unscaled rule."""
+    organised_min_incidence_deg: float = Field(10.0, gt=0, lt=90)
+    """``organised_gap: grazing``: the smallest incidence (deg, between the ray and the
+    plane) at which the gap rule still keeps a plane whole. 10 deg: a floor 1 m below the
+    sensor stays one plane out to 5.7 m (a room's or corridor's floor, ceiling and walls
+    within a few metres); not fitted to a world."""
     region_merge: Literal["grid", "reach"] = "grid"
     """Range image of a ringed scan (or rows with times): grid: coplanar pieces merge
     when near in the grid; reach: also when their bounding circles come within

@@ -219,6 +219,15 @@ class PlanemapConfig(Section):
     the earlier gate; the turn is beyond the bounds either way), while on a room where both
     lose track it bridges 3-9 m "ok" steps. Off, ``planodom run`` / ``smooth`` warn of
     steps beyond the bounds."""
+    hypothesis_bounds: Literal["score", "prefer_within"] = "score"
+    """How the hypotheses of a suspicious registration are ranked (module
+    :mod:`planodom.odometry.planemap.odometry`, step 3): "score", resolved first, then by
+    the robust cost of all the scan's planes against the map; "prefer_within", resolved
+    first, then those whose step is within the motion bounds (``association.
+    max_translation_m``, ``max_rotation_deg``), then the cost. A symmetric room or
+    corridor (a box seen from inside) fits as well turned by 180 deg as not; the motion
+    bounds break that tie, and a hypothesis beyond them still wins when none within them
+    is resolved (a platform that truly turns faster than its bounds keeps its step)."""
     fallback: bool = True
     """Score other hypotheses when the map result is suspicious (zero velocity, the
     scan-to-scan registration with widening gates, LDA without motion bounds)."""

@@ -478,3 +478,35 @@ def test_sample_triples_distinct_and_uniform():
     _, counts = np.unique(tri, axis=0, return_counts=True)
     assert len(counts) == 24  # the 4 * 3 * 2 ordered triples, 2000 expected each
     assert np.all(np.abs(counts - 2000) < 5 * np.sqrt(2000))
+
+
+def _floor_grid(step_deg: float, height: float = 1.8) -> np.ndarray:
+    """(H, W, 3) a level floor ``height`` m below the sensor on square pixels ``step_deg``
+    apart, elevations -17 to -10.5 deg (incidence 10.5-17 deg), azimuths +-30 deg."""
+    el = np.radians(np.arange(-17.0, -10.5 + 1e-9, step_deg))
+    az = np.radians(np.arange(-30.0, 30.0 + 1e-9, step_deg))
+    E, A = np.meshgrid(el, az, indexing="ij")
+    d = np.stack([np.cos(E) * np.cos(A), np.cos(E) * np.sin(A), np.sin(E)], axis=2)
+    P = d * (height / -d[..., 2:3])
+    P[..., 2] = -height
+    return np.ascontiguousarray(P)
+
+
+def test_grazing_gap_keeps_a_sparse_floor_and_leaves_fine_pixels_unscaled():
+    """``organised_gap: grazing`` on 2 deg pixels (a 16-beam lidar's rows): a floor seen at
+    10.5-17 deg incidence is one piece, where the unscaled rule cuts it (rows 8 and 9.4 m
+    away are 1.4 m apart, over the 1 m limit); on 0.4 deg pixels (a 64-beam lidar's) the
+    step it scales by lies beyond a pixel's diagonal, so the rule is the unscaled one."""
+    from planodom.extraction.lidar.organised import _gap_step
+
+    cfg = ExtractionConfig(organised_gap="grazing")
+    step = _gap_step(cfg, np.radians(0.7))
+    assert step == pytest.approx(0.1 * np.sin(np.radians(10.0)), rel=1e-12)
+    assert step > np.sqrt(2) * np.radians(0.4)
+    assert _gap_step(ExtractionConfig(), np.radians(0.7)) == 0.0
+    P = _floor_grid(2.0)
+    n, e, ok = _pixel_normals(P, 3, 1, 0.002, 0.02, 3.0)
+    args = (0.02, 3.0, np.radians(cfg.region_normal_floor_deg), cfg.min_gap_m,
+            cfg.gap_range_ratio, np.zeros(3), 3)  # fmt: skip
+    assert _grow_pieces(P, n, e, ok, *args, 0.0)[1] == 2
+    assert _grow_pieces(P, n, e, ok, *args, step)[1] == 1

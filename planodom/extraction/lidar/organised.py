@@ -169,7 +169,7 @@ def organised_candidates(
     piece, C = _grow_pieces(
         P, n, e, ok, float(tol_pix), ks, float(np.radians(config.region_normal_floor_deg)),
         float(config.min_gap_m), float(config.gap_range_ratio), np.zeros(3), min_px,
-        native_step if config.organised_gap == "incidence" else 0.0,
+        _gap_step(config, native_step),
     )  # fmt: skip
     empty = OrganisedCandidates([], sigma, (H, W))
     if C == 0:
@@ -191,6 +191,19 @@ def organised_candidates(
     idx, bounds = plane_members(owner, C)
     sets = [idx[bounds[k] : bounds[k + 1]] for k in range(C)]
     return OrganisedCandidates([s for s in sets if len(s) >= 3], sigma, (H, W))
+
+
+def _gap_step(config: ExtractionConfig, native_step: float) -> float:
+    """The angular step (rad) the gap ratio refers to (``organised_gap``; 0: unscaled).
+    grazing: pixels ``a`` apart get the ratio ``max(1, a / step)`` times, which keeps
+    whole a plane seen at more than ``organised_min_incidence_deg`` (pixel neighbours
+    on it are ``range * a / sin(incidence)`` apart, :mod:`.rangeimage`)."""
+    if config.organised_gap == "incidence":
+        return native_step
+    if config.organised_gap == "grazing":
+        incidence = np.radians(config.organised_min_incidence_deg)
+        return config.gap_range_ratio * float(np.sin(incidence))
+    return 0.0
 
 
 def _merge_coplanar(

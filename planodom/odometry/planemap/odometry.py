@@ -230,7 +230,8 @@ class PlaneMapOdometry:
         candidates = [best]
         for T0, gr, gt, name in guesses:
             candidates.append(register(self.map, T0, cur, gr, gt, pm, name))
-        keys = [(not self._resolved(c, cur), score(self.map, c.T, cur, pm)) for c in candidates]
+        keys = [(not self._resolved(c, cur), self._beyond(c.T), score(self.map, c.T, cur, pm))
+                for c in candidates]  # fmt: skip
         return candidates[min(range(len(candidates)), key=lambda i: keys[i])]
 
     def _result(
@@ -257,6 +258,16 @@ class PlaneMapOdometry:
         """Whether ``rel``'s unobserved translation is the prediction's."""
         prediction = self.config.planemap.degenerate_translation == "prediction"
         return prediction and rel.status is Status.DEGENERATE
+
+    def _beyond(self, T: np.ndarray) -> bool:
+        """Whether the step to the world pose ``T`` (4, 4) exceeds the motion bounds (a
+        hypothesis beyond them wins only when none within them is resolved)."""
+        if self.config.planemap.hypothesis_bounds == "score":
+            return False
+        a = self.config.association
+        step = invert_transform(self.pose) @ T
+        turned = _angle(step[:3, :3]) > np.radians(a.max_rotation_deg)
+        return turned or float(np.linalg.norm(step[:3, 3])) > a.max_translation_m
 
     def _beyond_bounds(self, rel: RelativePose) -> bool:
         """Whether ``rel``'s step exceeds the motion bounds the run assumes."""
