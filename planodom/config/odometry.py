@@ -363,6 +363,12 @@ class OdometryConfig(Section):
     9 / 4 -> 0.335 / 11.4 / 3.76 / 9 / 3, world 2 0.531 / 5.6 / 0.82 / 5 -> 0.472 / 4.1 /
     1.22 / 4, world 18 0.437 / 7.5 / 2.00 / 1 -> 0.361 / 6.6 / 1.83 / 0, worlds 0 and 8
     within a few per cent."""
+    first_epoch_reextract: Annotated[int, Field(ge=0, le=5)] = 0
+    """Streaming, scans with point times: once the step from the first epoch to the second
+    is measured, extract the first epoch again deskewed with that step's own twist and
+    estimate the step again on its new planes, this many rounds, each kept while the step
+    stays measured and its status no worse (:mod:`planodom.odometry.first_epoch`; 0: off,
+    the first epoch is extracted again at most once, by the deskewing policy)."""
     map_twist_offset: bool = False
     """Streaming, plane-map pipeline: the epoch's own twist (what it is extracted again
     with) has the offset its and the previous epoch's deskewing put in the step taken off
