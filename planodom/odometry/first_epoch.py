@@ -16,6 +16,20 @@ the second epoch's step estimated again against the new planes. A round is kept 
 step stays measured and its status no worse; otherwise the first epoch's planes before it
 are brought back and the rounds end. They end too when the twist no longer changes.
 
+What one step can tell: a plane of an epoch deskewed with a twist off by ``e`` sits where
+the pose off by ``-e tm`` puts it (``tm`` the mean point time, :func:`.deskew.twist_offset`),
+so with both epochs deskewed with the same twist ``w`` the step's twist is, to first order,
+``v0 + (tm / dt) (v1 - v0)`` whatever ``w`` is (``v0``, ``v1``: the true twists over the
+two epochs' points): the rounds converge at once to the twist the deskewing policy's own
+refresh already used, off the first epoch's own by the change of the motion times
+``tm / dt`` (about half), and a second epoch's twist is not known before the third
+epoch. What they change is the extraction's answer to a twist a little different (on the
+2D rig's first epoch, extracted without a twist, each wall is extrapolated from its own
+time windows). On the simulated paper loop at sigma = 0, 2D rig at 8 m/s, the first
+epoch's planes were 0.5 mm off the true surfaces (median) after the policy's refresh and
+3.0 mm after three rounds (the yaw rate ended 0.0034 rad/s off the first step's, the
+change from it to the second's times 0.46); with 16 beams 5.0 -> 4.7 mm.
+
 The step is reported once, after the rounds (the outputs stay causal). With the plane-map
 odometry the map, which then holds only the first epoch, is seeded again with the new
 planes; with ``planemap.reference_time: middle`` the epochs' times and the step are those
