@@ -82,6 +82,17 @@ def pose5_from_transform(T: np.ndarray) -> np.ndarray:
     return np.concatenate([rpy_from_rotation(T[..., :3, :3]), T[..., :2, 3]], axis=-1)
 
 
+def orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+    """``T`` (4, 4) with its rotation projected on SO(3) (SVD) once rounding exceeds ``tol``."""
+    R = T[:3, :3]
+    if np.max(np.abs(R.T @ R - np.eye(3))) <= tol:
+        return T
+    U, _, Vt = np.linalg.svd(R)
+    out = T.copy()
+    out[:3, :3] = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    return out
+
+
 def _skew(w: np.ndarray) -> np.ndarray:
     """Skew-symmetric matrices (N, 3, 3) of vectors ``w`` (N, 3): ``skew(w) @ v = w x v``."""
     K = np.zeros((len(w), 3, 3))

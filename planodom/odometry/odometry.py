@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, invert_transform, se3_exp
+from planodom.geometry import Plane, invert_transform, orthonormalised, se3_exp
 from planodom.odometry.coplanar import coplanar_by
 from planodom.odometry.deskew import (
     EpochEstimate,
@@ -36,9 +36,10 @@ from planodom.odometry.deskew import (
     time_spread,
     twist_offset,
 )
+from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
-from planodom.odometry.trend import map_lead, map_trend, pairwise_trend
+from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -188,6 +189,10 @@ class PlaneOdometry:
             lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg) if middle else None
             best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held,
                                      damped, trend, lost_trend, restore, lead)  # fmt: skip
+            if k == 1 and ocfg.first_epoch_reextract:  # the second epoch: the first's rounds
+                best = reextracted_first(
+                    best, dt, ocfg, self._history[0], partial(self._first_round, scan, t)
+                )
         else:
             best = estimate(None)
         twist = best.twist
@@ -295,7 +300,7 @@ class PlaneOdometry:
             bridge = prediction if prediction is not None else T_ref_last
             result = replace(result, T_prev_curr=bridge)
         result = result.between(reference.index, epoch.index)
-        step = _orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
+        step = orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
         offset = twist_offset(epoch.scan, epoch.twist, reference.twist, dt)
         estimate = EpochEstimate(
             epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes,
@@ -311,7 +316,7 @@ class PlaneOdometry:
         reference = self._history[-1]
         est = self._map.estimate(epoch.planes)
         result = est.relative.between(reference.index, epoch.index)
-        step = _orthonormalised(result.T_prev_curr)
+        step = orthonormalised(result.T_prev_curr)
         offset = None  # the deskewing's offset of the step's twist (twist_offset)
         if self.config.odometry.map_twist_offset and self.times:
             offset = twist_offset(epoch.scan, epoch.twist, reference.twist, t - self.times[-1])
@@ -341,11 +346,7 @@ class PlaneOdometry:
             return False  # the map holds the epoch's planes: only the first is seeded again
         was = ref.index in self.superseded
         self._undo = (ref, ref.planes, ref.plane_set, was, self._last_usable)
-        ref.planes, ref.twist = self._extract(ref.scan, twist, prior=self._twist_sigma.predicted())
-        ref.plane_set = PlaneSet.from_planes(ref.planes)
-        if self._map is not None:
-            self._map.reseed(ref.planes)
-        self.planes[ref.index] = ref.planes
+        self._set_planes(ref, *self._extract(ref.scan, twist, prior=self._twist_sigma.predicted()))
         if self.results[ref.index] is not None:
             self.superseded.add(ref.index)
         last = self._last_usable
@@ -357,10 +358,39 @@ class PlaneOdometry:
         """Bring back the planes the last :meth:`_refresh_reference` replaced (the epoch's
         estimate against the new ones was worse); the epoch is not extracted again."""
         ref, planes, plane_set, superseded, last_usable = self._undo
-        ref.planes, ref.plane_set, ref.twist, ref.kept = planes, plane_set, None, True
-        self.planes[ref.index], self._last_usable = planes, last_usable
+        self._set_planes(ref, planes, None, plane_set)
+        ref.kept, self._last_usable = True, last_usable
         if not superseded:
             self.superseded.discard(ref.index)
+
+    def _set_planes(
+        self, ref: _Epoch, planes: list[Plane], twist: np.ndarray | None,
+        plane_set: PlaneSet | None = None,
+    ) -> None:  # fmt: skip
+        """Give ``ref`` its planes extracted again with ``twist`` (the map seeded again)."""
+        ref.planes, ref.twist = planes, twist
+        ref.plane_set = PlaneSet.from_planes(planes) if plane_set is None else plane_set
+        self.planes[ref.index] = planes
+        if self._map is not None and ref.index == 0:
+            self._map.reseed(planes)
+
+    def _first_round(
+        self, scan: Scan, t: float, twist: np.ndarray, best: EpochEstimate
+    ) -> tuple[EpochEstimate, Callable[[], None]]:
+        """:data:`planodom.odometry.first_epoch.Round` for the second epoch (``scan`` at
+        ``t``, estimated as ``best``)."""
+        first, last = self._history[0], self._last_usable
+        old = (first.planes, first.twist, first.plane_set)
+        assert first.scan is not None and first.index == 0
+        prior = self._twist_sigma.refined(best, t - self.times[-1], twist)
+        self._set_planes(first, *self._extract(first.scan, twist, prior=prior))
+        self._last_usable = first if len(first.planes) >= 2 else None
+
+        def undo() -> None:
+            self._set_planes(first, *old)
+            self._last_usable = last
+
+        return self._estimate_scan(scan, t, twist, source=best), undo
 
     # ------------------------------------------------------------------ state
 
@@ -384,10 +414,12 @@ class PlaneOdometry:
             if best.relative.status is not Status.UNRESOLVED:
                 self._rates.append((epoch.index, own))
             significant = significant_twist(own, best.relative, dt, self.config.odometry)
-            self.twist = self._predicted_twist(significant, measured)
+            self.twist = predicted_twist(
+                significant, measured, self._recent, self._velocities, self._map is not None
+            )
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
-        T_world = _orthonormalised(self.poses[-1] @ best.step)
+        T_world = orthonormalised(self.poses[-1] @ best.step)
         if best.reference_planes is not self.planes[best.relative.prev]:
             self.superseded.add(epoch.index)
         self._append(epoch, T_world, best.step, best.relative, t)
@@ -415,36 +447,3 @@ class PlaneOdometry:
     def _unresolved_last(self) -> bool:
         last = self.last_relative
         return last is not None and last.status is Status.UNRESOLVED
-
-    def _predicted_twist(self, twist: np.ndarray, measured: bool) -> np.ndarray:
-        """The constant-velocity twist for the next epoch: the angular rate of the last
-        step, and the median linear velocity of the last ``velocity_window`` steps whose
-        translation was measured (one wrong translation must not steer the deskewing and
-        the prior of the following epochs; a degenerate step only repeats its prior)."""
-        rate = twist[:3]
-        if self._map is not None:
-            # The map pipeline registers a scan against a map, not against a scan deskewed
-            # the same way: a deskewing error e moves its estimate by about -e (a plane
-            # seen at time t moves by e t), so deskewing with the last step's twist, or
-            # extracting again with the epoch's own, oscillates from epoch to epoch (the
-            # simulated paper loop, lidar32: 4 cm rms). It predicts the mean twist of the
-            # last velocity_window steps (0.44 cm there), and extracts again with the mean
-            # of the twist used and the epoch's own (register_deskewed, against_map).
-            self._recent.append(twist.copy())
-            return np.mean(np.array(self._recent), axis=0)
-        if measured:
-            self._velocities.append(twist[3:])
-        if not self._velocities:
-            return np.r_[rate, twist[3:]]
-        return np.r_[rate, np.median(np.array(self._velocities), axis=0)]
-
-
-def _orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:
-    """``T`` (4, 4) with its rotation projected on SO(3) (SVD) once rounding exceeds ``tol``."""
-    R = T[:3, :3]
-    if np.max(np.abs(R.T @ R - np.eye(3))) <= tol:
-        return T
-    U, _, Vt = np.linalg.svd(R)
-    out = T.copy()
-    out[:3, :3] = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
-    return out
