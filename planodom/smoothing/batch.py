@@ -56,8 +56,9 @@ class SmoothingResult:
             (:mod:`planodom.smoothing.loops`), with the gate's verdict and the truth.
         loop_matches: loop closure: each epoch's match against the map, with the
             verification's verdict.
-        covariance_note: why ``covariances`` is None although asked for (a nearly
-            indeterminant system, e.g. long stretches bridged only by fallback factors).
+        covariance_note: why ``covariances`` is None although asked for, or what the
+            graph leaves undetermined (variables left out, poses' axes NaN; see
+            :func:`.marginals.pose_covariances`).
         loop_factors: loop closure: the 5-DoF loop-candidate factors
             (:mod:`planodom.smoothing.loop_candidates`), with the gate's verdict.
         variance_components: ``smoothing.covariance_scale``: the noise models' variance
