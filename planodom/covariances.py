@@ -14,7 +14,7 @@ Keys (numpy arrays; E epochs; NaN where a value is unknown):
 - ``smoothed_batch`` / ``smoothed_windowed`` (E, 6, 6) float64, after ``planodom smooth``:
   marginal covariance of each smoothed pose ``T_world_base`` in gtsam's Pose3 tangent
   ``[rot (rad), trans (m)]``, right perturbation (body frame). Batch: relative to the
-  first pose (see :func:`planodom.smoothing.batch.pose_covariances`); fixed-lag: as the
+  first pose (see :func:`planodom.smoothing.marginals.pose_covariances`); fixed-lag: as the
   pose left the window (see :class:`planodom.smoothing.WindowedSmoother`).
 
 Stored without pickling: ``np.load(path)`` reads it.

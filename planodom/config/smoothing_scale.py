@@ -24,7 +24,7 @@ class CovarianceScaleConfig(Section):
     loops: the posterior factor is 0.63-1.01 at 6 mm and 0.71-1.17 at 2 cm; per group
     planes 0.81-1.2, relative poses 0.14-0.98, loop factors 0.18-1.07 (a relative pose or
     loop factor shares planes with the plane factors, so its residual is small), while
-    the mean NEES5 is 58-5900 at 6 mm (no covariances on 4 laps) and 8.4-955 at 2 cm
+    the mean NEES5 is 58-5900 at 6 mm (no covariances on 4 laps then) and 8.4-955 at 2 cm
     (inside a run's [0.83, 12.8] on 1 of 16); with the factors 57-9200 / 7.2-1250
     (posterior) and 59-10200 / 7.5-1290 (groups), still 1 inside. The excess is an error
     a pose takes whole, which leaves no residual: on world 0 (6 mm) roll and pitch (13

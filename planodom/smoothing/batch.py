@@ -13,7 +13,7 @@ from scipy.stats import chi2
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.graph import F, GraphBuilder, GraphStats, X
+from planodom.smoothing.graph import GraphBuilder, GraphStats
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
 from planodom.smoothing.loop_gate import (
     consistent_hypotheses,
@@ -28,7 +28,7 @@ from planodom.smoothing.loop_records import (
     gate_reidentifications,
 )
 from planodom.smoothing.loops import LoopClosingBuilder
-from planodom.smoothing.marginals import pose_marginals, schur_preferred
+from planodom.smoothing.marginals import pose_covariances
 from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
 
 
@@ -44,7 +44,7 @@ class SmoothingResult:
         covariances: (E, 6, 6) marginal covariances of the poses in gtsam's Pose3 tangent
             ``[rot (rad), trans (m)]`` at the estimate, right perturbation (body frame),
             relative to the first pose unless ``covariances_relative_to_first`` is off
-            (see :func:`pose_covariances`), or None when not computed.
+            (see :func:`.marginals.pose_covariances`), or None when not computed.
         landmarks: landmark id -> (4,) world plane ``(n, d)``.
         stats: counts of factors, landmarks, flips, unresolved epochs.
         mode: "batch" or "windowed".
@@ -56,8 +56,9 @@ class SmoothingResult:
             (:mod:`planodom.smoothing.loops`), with the gate's verdict and the truth.
         loop_matches: loop closure: each epoch's match against the map, with the
             verification's verdict.
-        covariance_note: why ``covariances`` is None although asked for (a nearly
-            indeterminant system, e.g. long stretches bridged only by fallback factors).
+        covariance_note: why ``covariances`` is None although asked for, or what the
+            graph leaves undetermined (variables left out, poses' axes NaN; see
+            :func:`.marginals.pose_covariances`).
         loop_factors: loop closure: the 5-DoF loop-candidate factors
             (:mod:`planodom.smoothing.loop_candidates`), with the gate's verdict.
         variance_components: ``smoothing.covariance_scale``: the noise models' variance
@@ -104,63 +105,6 @@ def group_by_epoch(
         if 0 <= rel.curr < n_epochs:
             out[rel.curr].append(rel)
     return out
-
-
-#: For covariances relative to the first pose: its prior's sigma is divided by this.
-FIRST_POSE_TIGHTENING = 1e4
-
-
-def pose_covariances(
-    graph: gtsam.NonlinearFactorGraph,
-    values: gtsam.Values,
-    n_epochs: int,
-    relative_to_first: bool = False,
-    prior_sigma: float = 1e-4,
-    linear: gtsam.GaussianFactorGraph | None = None,
-) -> np.ndarray:
-    """(E, 6, 6) marginal covariances of ``X(0..E-1)`` at ``values``.
-
-    From a Bayes tree (Cholesky, METIS ordering), or the same from a QR elimination when
-    Cholesky finds the system indeterminant (see :func:`levenberg_marquardt`).
-
-    With ``relative_to_first`` the covariances are conditioned on the first pose: a
-    prior ``FIRST_POSE_TIGHTENING`` times stiffer than the gauge prior (sigma
-    ``prior_sigma``) is added to ``X(0)`` in the linearised graph. That is the
-    covariance of ``X(0)^-1 X(k)`` (checked against the exact joint marginals of X(0) and
-    X(k) to 1e-6 of the standard deviations on the paper loop, where those cost 100 times
-    more), without the gauge prior's uncertainty: a rotation of ``prior_sigma`` rad of
-    the first pose would add ``prior_sigma`` times the distance to every translation
-    sigma (2 mm at 20 m, more than the smoothed error at 6 mm range noise).
-
-    ``linear``: the linearised graph to take them from (reweighted by
-    ``smoothing.covariance_scale``, :mod:`.variance_components`); default ``graph``'s.
-    """
-    linear = graph.linearize(values) if linear is None else linear
-    if relative_to_first:
-        stiff = FIRST_POSE_TIGHTENING / prior_sigma
-        linear.add(X(0), stiff * np.eye(6), np.zeros(6), gtsam.noiseModel.Unit.Create(6))
-    zero = values.zeroVectors()
-    dims = {key: zero.at(key).size for key in values.keys()}
-    # Deskewed frames join every landmark an epoch sees: eliminated with the poses, else
-    # the landmarks would make one group (a dense block of all of them).
-    frames = [F(k) for k in range(n_epochs) if values.exists(F(k))]
-    if schur_preferred(n_epochs + len(frames), dims):  # many landmarks (.marginals)
-        try:
-            keys = [X(k) for k in range(n_epochs)] + frames
-            return pose_marginals(linear, keys, dims)[:n_epochs]
-        except np.linalg.LinAlgError:  # an undetermined direction: the Bayes tree with QR
-            pass
-    # METIS (nested dissection), not gtsam.Marginals' COLAMD: a closed loop joins the
-    # lap's ends, and each pose's marginal walks the Bayes tree to its root; measured on
-    # a 32-beam lidar lap with loop closure (632 epochs): 44 s with COLAMD, 25 s with
-    # METIS, the same covariances to 2e-10.
-    ordering = gtsam.Ordering.MetisNonlinearFactorGraph(graph)
-    try:
-        tree = linear.eliminateMultifrontal(ordering)  # Cholesky
-        return np.stack([tree.marginalCovariance(X(k)) for k in range(n_epochs)])
-    except RuntimeError:
-        tree = linear.eliminateMultifrontal(ordering, gtsam.EliminateQR)
-        return np.stack([tree.marginalCovariance(X(k)) for k in range(n_epochs)])
 
 
 def covariance_graph(
@@ -364,14 +308,14 @@ def _covariances(
             estimate, linear, components = scale_noise(
                 cov_graph, labels, estimate, cfg.covariance_scale, resolve
             )
-        covariances = pose_covariances(
+        covariances, note = pose_covariances(
             cov_graph, estimate, n_epochs, cfg.covariances_relative_to_first, cfg.prior_sigma,
             linear,
         )  # fmt: skip
-    except RuntimeError as exc:  # gtsam's IndeterminantLinearSystemException
+    except (RuntimeError, np.linalg.LinAlgError) as exc:  # e.g. in the variance components
         note = "marginal covariances unavailable: " + " ".join(str(exc).split()[:14])
         return estimate, None, note, components
-    return estimate, covariances, None, components
+    return estimate, covariances, note, components
 
 
 def smooth_batch(

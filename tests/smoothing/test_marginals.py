@@ -1,4 +1,5 @@
-"""Pose marginals by the Schur complement (planodom.smoothing.marginals) against gtsam."""
+"""Pose marginals by the Schur complement (planodom.smoothing.marginals) against gtsam, and
+with undetermined variables against a numpy inverse of the determined ones."""
 
 from __future__ import annotations
 
@@ -9,8 +10,15 @@ import pytest
 from planodom.config import SmoothingConfig
 from planodom.smoothing.batch import group_by_epoch
 from planodom.smoothing.graph import GraphBuilder, X
-from planodom.smoothing.marginals import pose_marginals, schur_preferred
+from planodom.smoothing.marginals import (
+    FIRST_POSE_TIGHTENING,
+    determined_pose_marginals,
+    pose_covariances,
+    pose_marginals,
+    schur_preferred,
+)
 from planodom.smoothing.synthetic import make_sequence
+from planodom_factors.pose5 import pose5_factor
 
 NOISE = dict(sigma_rotation=1e-3, sigma_translation=0.01, sigma_normal=0.005, sigma_offset=0.01)
 
@@ -54,3 +62,86 @@ def test_schur_is_preferred_where_the_landmarks_hold_most_dimensions() -> None:
     many = poses | {gtsam.symbol_shorthand.L(j): 3 for j in range(25)}
     assert not schur_preferred(10, few)
     assert schur_preferred(10, many)
+
+
+def _dense(linear: gtsam.GaussianFactorGraph, keys: list[int]) -> np.ndarray:
+    """The information matrix of ``linear`` in the order of ``keys`` (numpy, dense)."""
+    ordering = gtsam.Ordering()
+    for key in keys:
+        ordering.push_back(key)
+    A, _ = linear.jacobian(ordering)
+    return A.T @ A
+
+
+def _builder_graph(n: int) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    seq = make_sequence(n, seed=5, **NOISE)
+    builder = GraphBuilder(SmoothingConfig(plane_factor="anchored", robust_planes=False))
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    by_epoch = group_by_epoch(seq.relatives, len(seq.planes))
+    for k, planes in enumerate(seq.planes):
+        update = builder.add_epoch(planes, by_epoch[k])
+        graph.push_back(update.factors)
+        values.insert(update.values)
+    return graph, values
+
+
+def test_an_undetermined_landmark_is_left_out_exactly() -> None:
+    """A landmark whose third direction no factor observes: it is named, and the poses'
+    marginals are those of a numpy inverse of the information without that direction."""
+    graph, values = _builder_graph(12)
+    linear = graph.linearize(values)
+    zero = values.zeroVectors()
+    dims = {key: zero.at(key).size for key in values.keys()}
+    rng = np.random.default_rng(0)
+    L = gtsam.symbol_shorthand.L(99)
+    A_l = np.zeros((2, 3))
+    A_l[:, :2] = 400.0 * np.eye(2)  # observes directions 0 and 1 only
+    for k in (3, 7):
+        A_x = 400.0 * rng.normal(size=(2, 6))
+        linear.add(X(k), A_x, L, A_l, np.zeros(2), gtsam.noiseModel.Unit.Create(2))
+    dims[L] = 3
+    poses = [X(k) for k in range(12)]
+    ours = determined_pose_marginals(linear, poses, dims)
+    assert ours.dropped == [L] and not ours.undetermined
+    others = [key for key in values.keys() if key not in poses]
+    H = _dense(linear, poses + others + [L])
+    keep = np.arange(len(H) - 1)  # L's undetermined direction is its last coordinate
+    cov = np.linalg.inv(H[np.ix_(keep, keep)])
+    theirs = np.stack([cov[6 * k : 6 * k + 6, 6 * k : 6 * k + 6] for k in range(12)])
+    scale = np.linalg.norm(theirs, axis=(1, 2))[:, None, None]
+    np.testing.assert_allclose(ours.covariances / scale, theirs / scale, atol=1e-8)
+    with pytest.raises(np.linalg.LinAlgError):  # the plain Schur path refuses it
+        pose_marginals(linear, poses, dims)
+
+
+def test_an_undetermined_pose_axis_is_nan_and_named() -> None:
+    """A pose tied by a 5-DoF factor only (no vertical factor): its height is free (its
+    column of the Jacobian exactly zero: no rotation to the first pose, the identity);
+    gtsam's elimination fails, the covariances come from the fallback with NaN on that
+    axis, and every other pose's marginal is a numpy inverse's without that axis."""
+    graph, values = _builder_graph(8)
+    last = X(8)
+    step = gtsam.Pose3(gtsam.Rot3(), np.array([0.5, 0.2, 0.0]))
+    assert np.array_equal(values.atPose3(X(0)).matrix(), np.eye(4))
+    values.insert(last, step)
+    graph.add(pose5_factor(X(0), last, step))
+    covariances, note = pose_covariances(graph, values, 9, relative_to_first=True)
+    assert note is not None and "epochs 8 (axes [5])" in note
+    assert np.isnan(covariances[8][5]).all() and np.isnan(covariances[8][:, 5]).all()
+    assert np.isfinite(covariances[:8]).all() and np.isfinite(covariances[8][:5, :5]).all()
+    linear = graph.linearize(values)
+    linear.add(X(0), FIRST_POSE_TIGHTENING / 1e-4 * np.eye(6), np.zeros(6),
+               gtsam.noiseModel.Unit.Create(6))  # fmt: skip
+    with pytest.raises(RuntimeError):  # what the batch reported before: no covariances
+        linear.eliminateMultifrontal(gtsam.Ordering.MetisNonlinearFactorGraph(graph))
+    poses = [X(k) for k in range(9)]
+    others = [key for key in values.keys() if key not in poses]
+    H = _dense(linear, poses + others)
+    keep = np.delete(np.arange(len(H)), 6 * 8 + 5)  # the free height
+    cov = np.linalg.inv(H[np.ix_(keep, keep)])
+    theirs = np.stack([cov[6 * k : 6 * k + 6, 6 * k : 6 * k + 6] for k in range(8)])
+    scale = np.linalg.norm(theirs, axis=(1, 2))[:, None, None]
+    np.testing.assert_allclose(covariances[1:8] / scale[1:], theirs[1:] / scale[1:], atol=1e-6)
+    free = cov[48:53, 48:53]
+    scale8 = np.linalg.norm(free)
+    np.testing.assert_allclose(covariances[8][:5, :5] / scale8, free / scale8, atol=1e-8)
