@@ -277,6 +277,14 @@ def determined_pose_marginals(
 FIRST_POSE_TIGHTENING = 1e4
 
 
+#: The dense fallback's largest pose system (dimensions; 1 500 epochs of 6): it holds a
+#: few dense copies of it, 8 n^2 bytes each (650 MB at this size), and takes about the
+#: cube of n in time (world 4's 8 190 dimensions: about 50 s on a loaded 2-core
+#: machine). A resource limit, not fitted to a run: beyond it the covariances are
+#: reported unavailable, as before the fallback.
+DENSE_MAX_POSE_DIM = 9000
+
+
 def pose_covariances(
     graph: gtsam.NonlinearFactorGraph,
     values: gtsam.Values,
@@ -339,6 +347,12 @@ def pose_covariances(
     except RuntimeError:
         pass
     keys = [X(k) for k in range(n_epochs)] + frames
+    pose_dim = sum(dims[k] for k in keys)
+    if pose_dim > DENSE_MAX_POSE_DIM:
+        raise RuntimeError(
+            f"gtsam found the system indeterminant, and its {pose_dim} pose dimensions are "
+            f"over the dense fallback's {DENSE_MAX_POSE_DIM}"
+        )
     marginals = determined_pose_marginals(linear, keys, dims)
     return marginals.covariances[:n_epochs], undetermined_note(marginals, n_epochs)
 

@@ -145,3 +145,20 @@ def test_an_undetermined_pose_axis_is_nan_and_named() -> None:
     free = cov[48:53, 48:53]
     scale8 = np.linalg.norm(free)
     np.testing.assert_allclose(covariances[8][:5, :5] / scale8, free / scale8, atol=1e-8)
+
+
+def test_the_dense_fallback_is_bounded_in_size(monkeypatch) -> None:
+    """Over ``DENSE_MAX_POSE_DIM`` pose dimensions the fallback is not tried: the error
+    says so (the batch then reports the covariances unavailable, as before it)."""
+    import planodom.smoothing.marginals as marginals
+
+    graph, values = _builder_graph(8)
+    step = gtsam.Pose3(gtsam.Rot3(), np.array([0.5, 0.2, 0.0]))
+    values.insert(X(8), step)
+    graph.add(pose5_factor(X(0), X(8), step))
+    monkeypatch.setattr(marginals, "DENSE_MAX_POSE_DIM", 6 * 9 - 1)
+    with pytest.raises(RuntimeError, match="54 pose dimensions are over"):
+        pose_covariances(graph, values, 9, relative_to_first=True)
+    monkeypatch.setattr(marginals, "DENSE_MAX_POSE_DIM", 6 * 9)
+    covariances, note = pose_covariances(graph, values, 9, relative_to_first=True)
+    assert note is not None and np.isfinite(covariances[:8]).all()
