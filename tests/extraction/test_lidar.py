@@ -503,7 +503,7 @@ def test_grazing_gap_keeps_a_sparse_floor_and_leaves_fine_pixels_unscaled():
     step = _gap_step(cfg, np.radians(0.7))
     assert step == pytest.approx(0.1 * np.sin(np.radians(10.0)), rel=1e-12)
     assert step > np.sqrt(2) * np.radians(0.4)
-    assert _gap_step(ExtractionConfig(), np.radians(0.7)) == 0.0
+    assert _gap_step(ExtractionConfig(organised_gap="range"), np.radians(0.7)) == 0.0
     P = _floor_grid(2.0)
     n, e, ok = _pixel_normals(P, 3, 1, 0.002, 0.02, 3.0)
     args = (0.02, 3.0, np.radians(cfg.region_normal_floor_deg), cfg.min_gap_m,
