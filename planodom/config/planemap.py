@@ -228,8 +228,9 @@ class PlanemapConfig(Section):
     corridor (a box seen from inside) fits as well turned by 180 deg as not; the motion
     bounds break that tie, and a hypothesis beyond them still wins when none within them
     is resolved (a platform that truly turns faster than its bounds keeps its step).
-    Measured on the lidar worlds 1-39 (odd, 300 epochs, 6 mm and 2 cm) and KITTI 0005:
-    bit-identical but for world 37 (a corridor entered in a 13-25 deg/s turn, with
+    Measured together with ``extraction.organised_gap: grazing`` on the lidar worlds 1-39
+    (odd, 300 epochs, 6 mm and 2 cm) and KITTI 0005: unchanged (world 5 within 1e-6 of its
+    figures) but for world 37 (a corridor entered in a 13-25 deg/s turn, with
     ``extraction.organised_gap: grazing``: its first steps 146, 70 and 96 deg off, then
     within 0.03 deg; see that field for the run's figures). Not measured: a platform
     turning beyond its bounds while a wrong hypothesis within them resolves (the
