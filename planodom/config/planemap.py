@@ -88,11 +88,6 @@ class PlanemapConfig(Section):
     flat_sigmas: Positive = 3.0
     """A plane joins its landmark only while the merged moments stay flat: RMS to the
     refit plane within this many point sigmas (the extraction's member_sigma_factor)."""
-    merge_landmarks: Literal["off", "coplanar"] = "off"
-    """``coplanar``: after each scan's update, pairs of landmarks whose bounding circles
-    overlap and whose union stays flat by the ``flat_sigmas`` rule are merged
-    (:func:`planodom.odometry.planemap.landmarks.merge_coplanar`); ``off``: a landmark
-    only grows by the scan planes associated with it."""
     min_rows: Annotated[int, Field(ge=1)] = 1
     """Scan planes spanning fewer scan lines than this (when their lines are known:
     ``PlaneSupport.n_rows`` above 0) are not used (neither registered nor mapped)."""

@@ -150,8 +150,6 @@ def update_map(
         M.last_seen[assoc[inlier]] = frame
         M.last_index[assoc[inlier]] = plane_index[inlier]
     M.add(mw.take(new), nw[new], frame, plane_index[new])
-    if config.merge_landmarks == "coplanar":
-        merge_coplanar(M, tol2)
     keep = frame - M.last_seen <= config.max_age_scans
     keep &= np.linalg.norm(M.c - t, axis=1) <= config.max_range_m
     if np.count_nonzero(keep) > config.max_landmarks:
@@ -161,49 +159,3 @@ def update_map(
         keep &= recent
     M.keep(keep)
     M.refit(sigma, bias)
-
-
-def merge_coplanar(M: PlaneMap, tol2: float) -> int:
-    """Merge pairs of landmarks that are one flat surface: normals on the same side
-    (oriented normals with a positive dot product), bounding circles (of the moments, as
-    :meth:`PlaneMap.refit` sets them) overlapping, and the union of their moments flat
-    (mean squared distance to its refit plane within ``tol2``, m^2: the rule a scan plane
-    joins a landmark by). Greedy, flattest union first, each landmark in at most one merge
-    per call (a surface shattered into many fragments consolidates over a few scans). The
-    merged landmark keeps the larger one's orientation and the later observation. Returns
-    the number of merges; call :meth:`PlaneMap.refit` after (``update_map`` does)."""
-    L = len(M)
-    if L < 2:
-        return 0
-    lam, E = np.linalg.eigh(M.S)
-    n = E[:, :, 0] * np.where(np.einsum("ij,ij->i", E[:, :, 0], M.orient) < 0, -1.0, 1.0)[:, None]
-    radius = np.sqrt(3.0 * (lam[:, 1] + lam[:, 2]) / np.maximum(M.N, 1e-12))
-    i, j = np.triu_indices(L, k=1)
-    dist = np.linalg.norm(M.c[i] - M.c[j], axis=1)
-    cand = (np.einsum("ij,ij->i", n[i], n[j]) > 0) & (dist <= radius[i] + radius[j])
-    i, j = i[cand], j[cand]
-    if len(i) == 0:
-        return 0
-    N, _, S = merge_moments(M.N[i], M.c[i], M.S[i], M.N[j], M.c[j], M.S[j])
-    thick = np.linalg.eigvalsh(S)[:, 0] / N
-    flat = thick <= tol2
-    i, j, thick = i[flat], j[flat], thick[flat]
-    used = np.zeros(L, dtype=bool)
-    drop = np.zeros(L, dtype=bool)
-    merges = 0
-    for k in np.argsort(thick, kind="stable"):
-        a, b = int(i[k]), int(j[k])
-        if used[a] or used[b]:
-            continue
-        used[a] = used[b] = True
-        if M.N[b] > M.N[a]:
-            a, b = b, a
-        M.N[a], M.c[a], M.S[a] = merge_moments(M.N[a], M.c[a], M.S[a], M.N[b], M.c[b], M.S[b])
-        M.rows[a] += M.rows[b]
-        if M.last_seen[b] > M.last_seen[a]:
-            M.last_seen[a], M.last_index[a] = M.last_seen[b], M.last_index[b]
-        drop[b] = True
-        merges += 1
-    if merges:
-        M.keep(~drop)
-    return merges
