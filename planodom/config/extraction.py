@@ -225,6 +225,13 @@ class ExtractionConfig(Section):
     bridged) 2 cm -> 1.5 m. Without the count test short traces of two walls 20 m apart
     (11-21 points) were taken for one plane; at 2 cm two long wall traces at one height
     still are (a horizontal plane: 5 of 100 epochs of world 12)."""
+    viewpoint_planes: Literal["kept", "rejected"] = "kept"
+    """``rejected``: a fit whose inliers are as flat about a plane through their viewpoint
+    as a plane must be about its own (RMS within ``member_sigma_factor`` noise sigmas) is
+    not a plane (:func:`planodom.extraction.planes.builder.through_viewpoint`): a scan
+    line lies on its laser's cone, so near-level lines across facades at several depths
+    fit a thin level "plane" fixed to the sensor, which holds the odometry's roll and
+    pitch still."""
     member_sigma_factor: float = Field(3.0, gt=0)
     """A segment joins a plane when its centroid and its ends lie within this many sigma."""
     max_rms_sigma_factor: float = Field(1.5, gt=0)
