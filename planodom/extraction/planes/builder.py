@@ -140,6 +140,30 @@ def _orientation_kernel(normals, offsets, centroids, views, cos45):  # pragma: n
     return signs
 
 
+def through_viewpoint(
+    fits: PlaneFits,
+    scatter: np.ndarray,
+    kept: np.ndarray,
+    views: np.ndarray,
+    sigma_m: float,
+    config: ExtractionConfig,
+) -> np.ndarray:
+    """(K,) whether the inliers of fits ``kept`` (K,) are as flat about a plane through
+    their viewpoint ``views`` (K, 3) as a plane must be about its own (RMS within
+    ``member_sigma_factor`` times the noise ``sigma_m``): then the set cannot be told from
+    the lidar's own beams (the points of one scan line lie on its laser's cone through
+    the viewpoint, range noise moving them along their rays, within it; near-level lines
+    across facades at several depths fit a thin, level "plane" fixed to the sensor), and a
+    surface through the viewpoint is one the sensor sees edge-on. From the scatter about
+    the viewpoint, ``S + N (c - o)(c - o)^T`` (parallel axes)."""
+    N = fits.count[kept].astype(np.float64)
+    dc = fits.centroid[kept] - views
+    S_o = scatter[kept] + N[:, None, None] * dc[:, :, None] * dc[:, None, :]
+    rms2 = np.linalg.eigvalsh(S_o)[:, 0] / N
+    sigma = max(sigma_m, config.covariance_sigma_floor_m)
+    return rms2 <= (config.member_sigma_factor * sigma) ** 2
+
+
 def build_planes(
     fits: PlaneFits,
     epoch: Epoch,
@@ -172,6 +196,8 @@ def build_planes(
         inl, bnd = fits.inliers.astype(np.int64), fits.bounds.astype(np.int64)
         views[kept] = epoch.viewpoints(inl, bnd, kept, height)
         incidence[kept] = mean_incidences(epoch.points, inl, bnd, kept, views[kept], normals[kept])
+    if config.viewpoint_planes == "rejected" and len(kept):
+        kept = kept[~through_viewpoint(fits, scatter, kept, views[kept], sigma_m, config)]
     signs = _orientation_kernel(normals, fits.offset, fits.centroid, views, _COS45)
     conf = cpef(
         rms, max(sigma_m, floor), fits.count, width, incidence,

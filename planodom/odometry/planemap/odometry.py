@@ -133,7 +133,9 @@ class PlaneMapOdometry:
             [
                 k
                 for k, p in enumerate(planes)
-                if p.support is not None and p.support.scatter is not None
+                if p.support is not None
+                and p.support.scatter is not None
+                and not 0 < p.support.n_rows < self.config.planemap.min_rows
             ],
             dtype=np.intp,
         )
