@@ -225,7 +225,7 @@ class ExtractionConfig(Section):
     bridged) 2 cm -> 1.5 m. Without the count test short traces of two walls 20 m apart
     (11-21 points) were taken for one plane; at 2 cm two long wall traces at one height
     still are (a horizontal plane: 5 of 100 epochs of world 12)."""
-    viewpoint_planes: Literal["kept", "rejected"] = "kept"
+    viewpoint_planes: Literal["kept", "rejected", "ransac"] = "kept"
     """``rejected``: a fit whose inliers are as flat about a plane through their viewpoint
     as a plane must be about its own (RMS within ``member_sigma_factor`` noise sigmas) is
     not a plane (:func:`planodom.extraction.planes.builder.through_viewpoint`): a scan

@@ -81,3 +81,16 @@ def test_kept_by_default_the_line_fits_a_level_plane_through_the_sensor():
     line = planes[0]
     # Its "plane" is the laser's cone: nearly level, passing within cm of the sensor.
     assert abs(line.normal[2]) > 0.99 and abs(line.offset) < 0.5
+
+
+def test_ransac_mode_rejects_only_the_ransac_loops_fits():
+    """``viewpoint_planes: ransac`` is "rejected" for the RANSAC loop's candidates and
+    "kept" for the range image's (an unorganised cloud's image, KITTI's path, untouched),
+    and the builder then keeps what that rule keeps."""
+    from planodom.config import ExtractionConfig
+    from planodom.extraction.lidar.path import _fit_config
+
+    cfg = ExtractionConfig(viewpoint_planes="ransac")
+    assert _fit_config(cfg, ransac=True).viewpoint_planes == "rejected"
+    assert _fit_config(cfg, ransac=False).viewpoint_planes == "kept"
+    assert _fit_config(ExtractionConfig(), ransac=True).viewpoint_planes == "kept"

@@ -293,7 +293,21 @@ def lidar_candidates(
     viewpoint: np.ndarray | None = None,
     t: np.ndarray | None = None,
 ) -> tuple[list[np.ndarray], float]:
-    """Candidate inlier sets (indices into ``points`` (N, 3), metres) and the sigma used (m).
+    """Candidate inlier sets (indices into ``points`` (N, 3), metres) and the sigma used
+    (m): :func:`lidar_candidates_from` without saying which path found them."""
+    candidates, sigma, _ = lidar_candidates_from(points, config, ring, viewpoint, t)
+    return candidates, sigma
+
+
+def lidar_candidates_from(
+    points: np.ndarray,
+    config: ExtractionConfig,
+    ring: np.ndarray | None = None,
+    viewpoint: np.ndarray | None = None,
+    t: np.ndarray | None = None,
+) -> tuple[list[np.ndarray], float, bool]:
+    """Candidate inlier sets (indices into ``points`` (N, 3), metres), the sigma used (m),
+    and whether the RANSAC loop found them (else the range image).
 
     ``viewpoint`` (3,), metres: where the scan was taken from (clusters are separated by
     angular gaps as seen from there); the base origin if None. With ``ring`` (and
@@ -311,8 +325,8 @@ def lidar_candidates(
         # scan: a third of the pixels filled, none grown in one of five scans, where
         # RANSAC finds 51 planes); RANSAC decides, as for rows that gave no plane
         if grown:
-            return grown, sigma
-    return ransac_candidates(points, config, view, member_tolerance(config, sigma)), sigma
+            return grown, sigma, False
+    return ransac_candidates(points, config, view, member_tolerance(config, sigma)), sigma, True
 
 
 def ransac_candidates(
