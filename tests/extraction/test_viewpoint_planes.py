@@ -93,4 +93,7 @@ def test_ransac_mode_rejects_only_the_ransac_loops_fits():
     cfg = ExtractionConfig(viewpoint_planes="ransac")
     assert _fit_config(cfg, ransac=True).viewpoint_planes == "rejected"
     assert _fit_config(cfg, ransac=False).viewpoint_planes == "kept"
-    assert _fit_config(ExtractionConfig(), ransac=True).viewpoint_planes == "kept"
+    assert (
+        _fit_config(ExtractionConfig(viewpoint_planes="kept"), ransac=True).viewpoint_planes
+        == "kept"
+    )
