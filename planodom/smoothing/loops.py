@@ -337,7 +337,12 @@ class LoopClosingBuilder(GraphBuilder):
             fit = offset_residuals(walls, curr, old, T_pred, sigma, angle, np.zeros((0, 0)))
             limit = float(chi2.ppf(c.loop_gate_quantile, 1))
             prior = self._prior_sigma(k, oldest, match.ties)
-            rows = tie_ambiguities(fit, prior, sigma, (self._map_drift(candidates), limit))
+            between = self._map_drift(candidates)
+            loose = None
+            if c.loop_refuse_ambiguous == "parts" and len(old) > 1:
+                tied = between[np.ix_(old[:, 0], old[:, 0])] + np.diag(np.full(len(old), np.inf))
+                loose = tied.min(axis=1)  # the drift to the nearest other tie's map part
+            rows = tie_ambiguities(fit, prior, sigma, (between, limit), loose)
             match.ambiguity = float(np.min(rows, initial=np.inf))
             if match.ambiguity <= limit:  # its pose rests on an alias: ties the clear walls
                 old, full, T = old[rows > limit], False, T_pred  # verified as rotation-only
