@@ -330,7 +330,15 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     3.52 -> 3.43 (143 -> 143), worlds 0, 6 and world 2 at 2 cm within 5 mm. Off by
     default: it makes world 16 at 6 mm worse. On world 16 a wrong tie passes every check
     because the chained guess through rotation-only epochs is metres off (their relative
-    poses' translation, not the constant velocity), not because two walls compete."""
+    poses' translation, not the constant velocity), not because two walls compete.
+    "parts": as "drift", and each tie's offset variance also holds the map's drift
+    between its wall's sighting and the nearest other tied wall's (a wall of another
+    map part shares no frame with the other ties, so they cannot confirm an alias of
+    it). Why: on held-out world 32 (indoor, 3.17 m between parallel walls) 43 epochs
+    with the translation unobserved shifted the map's early part 3.2-3.8 m along a
+    corridor, one wall spacing; a wall of that part tied one spacing off then fits the
+    ties to the later parts exactly (competitor's chi2 4478), and the map took it.
+    Measured (one lap, batch+loops ATE m, off -> parts): MEASURED_PARTS"""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree before a new (or the first) correction is accepted."""
     odometry_deskew_twist: Literal["coplanar", "odometry"] = "coplanar"
