@@ -190,8 +190,8 @@ def test_each_tie_has_its_own_ambiguity():
 
 def test_a_tie_from_another_map_part_confirms_no_alias():
     # two parallel ties pin the shift along x (test above); their walls were seen in map
-    # parts 2 m (sigma) apart, the twin with the first: each weighs w = 1 / (floor^2 + 4), and the swap costs
-    # w r^2 (w + p) / (2 w + p), within chi2(1): ambiguous again
+    # parts 2 m (sigma) apart, the twin with the first: each weighs w = 1 / (floor^2 + 4),
+    # and the swap costs w r^2 (w + p) / (2 w + p), within chi2(1): ambiguous again
     fit = _offsets([[0.0, 1.5, np.nan], [np.nan, np.nan, 0.0]],
                [[1.0, 0, 0], [1.0, 0, 0], [1.0, 0, 0]], [0, 2])  # fmt: skip
     fit.residuals[1, :2] = np.nan
