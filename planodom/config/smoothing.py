@@ -342,7 +342,9 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     6 mm 3.61 -> 3.05 (29 -> 17), at 2 cm 3.28 -> 2.82 (118 -> 23, loop end 3.46 -> 0.16
     m); world 26 identical; world 0 at 2 cm 0.148 -> 0.130; worse: world 16 at 6 mm
     0.025 -> 0.042, at 2 cm 0.021 -> 0.071 (its 9 right loop factors refused), world 4
-    at 2 cm 0.069 -> 0.128 (world 0 and 4 at 6 mm within 0.3 mm). Off by default."""
+    at 2 cm 0.069 -> 0.128 (world 0 and 4 at 6 mm within 0.3 mm). "drift" alone: world
+    32 at 6 mm 3.61, world 16 0.034 and 0.021, world 4 at 2 cm 0.128 (the test's, not the
+    parts'). Off by default."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree before a new (or the first) correction is accepted."""
     odometry_deskew_twist: Literal["coplanar", "odometry"] = "coplanar"
