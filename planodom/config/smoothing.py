@@ -314,7 +314,7 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     right matches on world 4 at 2 cm (ATE 0.025 -> 0.126 m); the drift-scaled one none.
     Measured (batch, loop closure, worlds 0, 2, 4 at 6 mm and 2 cm, one lap): world 2 at
     6 mm keeps 4 instead of 20 wrong ties (ATE 2.77 -> 2.68 m), the others unchanged."""
-    loop_refuse_ambiguous: Literal["off", "drift", "stated"] = "off"
+    loop_refuse_ambiguous: Literal["off", "drift", "stated", "parts"] = "off"
     """Test each re-identification against its competing hypotheses: one tie swapped for
     another old wall parallel to it (same orientation), the pose shifted to fit, under the
     prediction's uncertainty; a tie whose competitor costs at most chi2(1) at
@@ -330,7 +330,21 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     3.52 -> 3.43 (143 -> 143), worlds 0, 6 and world 2 at 2 cm within 5 mm. Off by
     default: it makes world 16 at 6 mm worse. On world 16 a wrong tie passes every check
     because the chained guess through rotation-only epochs is metres off (their relative
-    poses' translation, not the constant velocity), not because two walls compete."""
+    poses' translation, not the constant velocity), not because two walls compete.
+    "parts": as "drift", and each tie's offset variance also holds the map's drift
+    between its wall's sighting and the nearest other tied wall's (a wall of another
+    map part shares no frame with the other ties, so they cannot confirm an alias of
+    it). Why: on held-out world 32 (indoor, 3.17 m between parallel walls) 43 epochs
+    with the translation unobserved shifted the map's early part 3.2-3.8 m along a
+    corridor, one wall spacing; a wall of that part tied one spacing off then fits the
+    ties to the later parts exactly (competitor's chi2 4478), and the map took it.
+    Measured (one lap, batch+loops ATE m, off -> parts, wrong ties kept): world 32 at
+    6 mm 3.61 -> 3.05 (29 -> 17), at 2 cm 3.28 -> 2.82 (118 -> 23, loop end 3.46 -> 0.16
+    m); world 26 identical; world 0 at 2 cm 0.148 -> 0.130; worse: world 16 at 6 mm
+    0.025 -> 0.042, at 2 cm 0.021 -> 0.071 (its 9 right loop factors refused), world 4
+    at 2 cm 0.069 -> 0.128 (world 0 and 4 at 6 mm within 0.3 mm). "drift" alone: world
+    32 at 6 mm 3.61, world 16 0.034 and 0.021, world 4 at 2 cm 0.128 (the test's, not the
+    parts'). Off by default."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree before a new (or the first) correction is accepted."""
     odometry_deskew_twist: Literal["coplanar", "odometry"] = "coplanar"

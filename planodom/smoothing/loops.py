@@ -219,8 +219,7 @@ class LoopClosingBuilder(GraphBuilder):
     def add_epoch(
         self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
     ) -> GraphUpdate:
-        """:meth:`GraphBuilder.add_epoch`, noting the variances of the step into the epoch
-        (the delta = 1 relative pose's, or the fallback's when it is not measured)."""
+        """:meth:`GraphBuilder.add_epoch`, noting the variances of the step into the epoch."""
         k, c = self.n_epochs, self.config
         var_t, var_r = c.fallback_translation_sigma_m**2, c.fallback_rotation_sigma_rad**2
         for r in relatives:
@@ -337,7 +336,8 @@ class LoopClosingBuilder(GraphBuilder):
             fit = offset_residuals(walls, curr, old, T_pred, sigma, angle, np.zeros((0, 0)))
             limit = float(chi2.ppf(c.loop_gate_quantile, 1))
             prior = self._prior_sigma(k, oldest, match.ties)
-            rows = tie_ambiguities(fit, prior, sigma, (self._map_drift(candidates), limit))
+            same = (self._map_drift(candidates), limit)
+            rows = tie_ambiguities(fit, prior, sigma, same, c.loop_refuse_ambiguous == "parts")
             match.ambiguity = float(np.min(rows, initial=np.inf))
             if match.ambiguity <= limit:  # its pose rests on an alias: ties the clear walls
                 old, full, T = old[rows > limit], False, T_pred  # verified as rotation-only

@@ -161,6 +161,7 @@ def tie_ambiguities(
     sigma_prior_m: float,
     floor_m: float,
     same: tuple[np.ndarray, float] | None = None,
+    parts: bool = False,
 ) -> np.ndarray:
     """(M,) how far the match's ties beat their best competing hypotheses: per tie, the
     smallest increase of chi2 (a likelihood ratio) when one tie's old plane is swapped for a
@@ -173,6 +174,9 @@ def tie_ambiguities(
     of the map's drift between the old planes' sightings, and a chi2(1) quantile: an
     alternative whose offset its tied partner's explains within them is one plane to the
     map (a wall seen twice, drifted), no competitor (either tie is as right as the map).
+    ``parts`` (with ``same``): each tie's offset variance also holds the map's drift
+    between its old plane's sighting and the nearest other tied plane's (a wall of
+    another map part shares no frame with the other ties: they confirm no alias of it).
 
     ``fit`` must hold the residuals at the predicted position (the match's rotation, no
     translation): a match of full rank sits on its own ties, so at its pose an alias
@@ -186,6 +190,9 @@ def tie_ambiguities(
         return best
     n_xy = fit.normals[fit.tied, :2]
     v_curr = fit.curr_variances + floor_m**2
+    if parts and same is not None and len(rows) > 1:
+        between = same[0][np.ix_(fit.tied, fit.tied)] + np.diag(np.full(len(rows), np.inf))
+        v_curr = v_curr + between.min(axis=1)
     w = 1.0 / (fit.old_variances[fit.tied] + v_curr)
     b = fit.residuals[rows, fit.tied]
     prior = 1.0 / sigma_prior_m**2

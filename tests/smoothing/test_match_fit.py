@@ -186,3 +186,24 @@ def test_each_tie_has_its_own_ambiguity():
     rows = tie_ambiguities(fit, 2.0, 0.05)
     assert rows[0] == pytest.approx(1.5**2 / (2.0**2 + 0.05**2))
     assert rows[1] == np.inf
+
+
+def test_a_tie_from_another_map_part_confirms_no_alias():
+    # two parallel ties pin the shift along x (test above); their walls were seen in map
+    # parts 2 m (sigma) apart, the twin with the first: each weighs w = 1 / (floor^2 + 4),
+    # and the swap costs w r^2 (w + p) / (2 w + p), within chi2(1): ambiguous again
+    fit = _offsets([[0.0, 1.5, np.nan], [np.nan, np.nan, 0.0]],
+               [[1.0, 0, 0], [1.0, 0, 0], [1.0, 0, 0]], [0, 2])  # fmt: skip
+    fit.residuals[1, :2] = np.nan
+    sigma, floor, limit = 2.0, 0.05, float(chi2.ppf(0.999, 1))
+    between = np.full((3, 3), 2.0**2)  # old planes 0 and 1 (the twins) seen together
+    between[:2, :2] = 0.0
+    between[2, 2] = 0.0
+    w, p = 1.0 / (floor**2 + 4.0), 1.0 / sigma**2
+    expected = w * 1.5**2 * (w + p) / (2 * w + p)
+    rows = tie_ambiguities(fit, sigma, floor, (between, limit), parts=True)
+    assert rows[0] == pytest.approx(expected, rel=1e-9)
+    assert rows[0] < limit
+    assert tie_ambiguities(fit, sigma, floor, (between, limit))[0] > limit  # one frame
+    one_part = (np.zeros((3, 3)), limit)  # seen together: the other tie pins it
+    assert tie_ambiguities(fit, sigma, floor, one_part, parts=True)[0] > limit
