@@ -262,19 +262,19 @@ class PlaneMapOdometry:
         return prediction and rel.status is Status.DEGENERATE
 
     def _beyond(self, T: np.ndarray) -> bool:
-        """Whether the step to the world pose ``T`` (4, 4) exceeds the motion bounds (a
-        hypothesis beyond them wins only when none within them is resolved)."""
+        """Whether the step to the world pose ``T`` (4, 4) exceeds the motion bounds, for
+        ranking hypotheses (``planemap.hypothesis_bounds``; "score": never)."""
         if self.config.planemap.hypothesis_bounds == "score":
             return False
-        a = self.config.association
-        step = invert_transform(self.pose) @ T
-        turned = _angle(step[:3, :3]) > np.radians(a.max_rotation_deg)
-        return turned or float(np.linalg.norm(step[:3, 3])) > a.max_translation_m
+        return self._step_beyond_bounds(invert_transform(self.pose) @ T)
 
     def _beyond_bounds(self, rel: RelativePose) -> bool:
         """Whether ``rel``'s step exceeds the motion bounds the run assumes."""
+        return self._step_beyond_bounds(rel.T_prev_curr)
+
+    def _step_beyond_bounds(self, step: np.ndarray) -> bool:
+        """Whether ``step`` (4, 4), T_prev_curr, exceeds the association's motion bounds."""
         a = self.config.association
-        step = rel.T_prev_curr
         turned = _angle(step[:3, :3]) > np.radians(a.max_rotation_deg)
         return turned or float(np.linalg.norm(step[:3, 3])) > a.max_translation_m
 
