@@ -398,8 +398,8 @@ def test_ransac_fallback_is_reproducible_across_processes():
 def test_ransac_fallback_same_seed_same_candidates_other_seed_same_walls():
     scan = scan_lidar(SCENE, sigma=0.006, n_azimuth=512, seed=2, with_ring=False)
     cfg = ExtractionConfig(range_noise_m=0.006)
-    a, sa = lidar_candidates(scan.points, cfg)
-    b, sb = lidar_candidates(scan.points, cfg)
+    a, sa, _ = lidar_candidates(scan.points, cfg)
+    b, sb, _ = lidar_candidates(scan.points, cfg)
     assert sa == sb and len(a) == len(b)
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x, y)

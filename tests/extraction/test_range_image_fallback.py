@@ -23,7 +23,7 @@ def test_no_grown_candidate_falls_back_to_ransac(monkeypatch):
     ring = np.zeros(len(pts), dtype=np.int64)
     t = np.linspace(0.0, 0.1, len(pts))
     monkeypatch.setattr(cand, "range_image_candidates", lambda *a, **k: [])
-    found, _ = cand.lidar_candidates(pts, PlanodomConfig().extraction, ring, None, t)
+    found, _, _ = cand.lidar_candidates(pts, PlanodomConfig().extraction, ring, None, t)
     # the two true planes, by their points' membership (independent of the fit)
     sets = sorted(found, key=len, reverse=True)[:2]
     assert len(sets) == 2

@@ -25,15 +25,7 @@ NOISE = dict(sigma_rotation=1e-3, sigma_translation=0.01, sigma_normal=0.005, si
 
 @pytest.mark.parametrize("plane_factor", ["anchored", "global"])
 def test_schur_marginals_are_gtsams(plane_factor: str) -> None:
-    seq = make_sequence(25, seed=3, **NOISE)
-    config = SmoothingConfig(plane_factor=plane_factor, robust_planes=False)
-    builder = GraphBuilder(config)
-    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-    by_epoch = group_by_epoch(seq.relatives, len(seq.planes))
-    for k, planes in enumerate(seq.planes):
-        update = builder.add_epoch(planes, by_epoch[k])
-        graph.push_back(update.factors)
-        values.insert(update.values)
+    graph, values, builder = _built(25, 3, plane_factor)
     assert builder.stats.plane_factors > 50
     zero = values.zeroVectors()
     dims = {key: zero.at(key).size for key in values.keys()}
@@ -73,15 +65,23 @@ def _dense(linear: gtsam.GaussianFactorGraph, keys: list[int]) -> np.ndarray:
     return A.T @ A
 
 
-def _builder_graph(n: int) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
-    seq = make_sequence(n, seed=5, **NOISE)
-    builder = GraphBuilder(SmoothingConfig(plane_factor="anchored", robust_planes=False))
+def _built(
+    n: int, seed: int, plane_factor: str
+) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, GraphBuilder]:
+    """The graph, values and builder of a simulated sequence of ``n`` epochs."""
+    seq = make_sequence(n, seed=seed, **NOISE)
+    builder = GraphBuilder(SmoothingConfig(plane_factor=plane_factor, robust_planes=False))
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     by_epoch = group_by_epoch(seq.relatives, len(seq.planes))
     for k, planes in enumerate(seq.planes):
         update = builder.add_epoch(planes, by_epoch[k])
         graph.push_back(update.factors)
         values.insert(update.values)
+    return graph, values, builder
+
+
+def _builder_graph(n: int) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    graph, values, _ = _built(n, 5, "anchored")
     return graph, values
 
 

@@ -292,19 +292,6 @@ def lidar_candidates(
     ring: np.ndarray | None = None,
     viewpoint: np.ndarray | None = None,
     t: np.ndarray | None = None,
-) -> tuple[list[np.ndarray], float]:
-    """Candidate inlier sets (indices into ``points`` (N, 3), metres) and the sigma used
-    (m): :func:`lidar_candidates_from` without saying which path found them."""
-    candidates, sigma, _ = lidar_candidates_from(points, config, ring, viewpoint, t)
-    return candidates, sigma
-
-
-def lidar_candidates_from(
-    points: np.ndarray,
-    config: ExtractionConfig,
-    ring: np.ndarray | None = None,
-    viewpoint: np.ndarray | None = None,
-    t: np.ndarray | None = None,
 ) -> tuple[list[np.ndarray], float, bool]:
     """Candidate inlier sets (indices into ``points`` (N, 3), metres), the sigma used (m),
     and whether the RANSAC loop found them (else the range image).

@@ -34,7 +34,7 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
-from planodom.extraction.lidar.candidates import lidar_candidates_from
+from planodom.extraction.lidar.candidates import lidar_candidates
 from planodom.extraction.lidar.organised import organised_candidates
 from planodom.extraction.lidar.rows import scan_rows
 from planodom.extraction.lidar.sweep import AzimuthTimedScan
@@ -64,7 +64,7 @@ def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
             n_cand = len(organised.candidates)
             if planes:  # rows that gave no plane were no lidar's rows: RANSAC decides
                 return PathResult(planes, inliers, organised.sigma_m, 0, n_cand, n_rejected)
-    candidates, sigma, ransac = lidar_candidates_from(epoch.points, config, scan.ring, view, scan.t)
+    candidates, sigma, ransac = lidar_candidates(epoch.points, config, scan.ring, view, scan.t)
     fits, n_small = fit_candidates(candidates, epoch.points, config)
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, _fit_config(config, ransac))
     return PathResult(planes, inliers, sigma, 0, len(candidates), n_small + n_rejected)
@@ -80,9 +80,7 @@ def _native_planes(
     # One origin for all rows: recovered rows are not the rig's ring ids.
     origins = None if epoch.origins is None else epoch.origins.mean(axis=0, keepdims=True)
     ringed = Epoch(replace(epoch.scan, ring=rows), epoch.points, origins, epoch.twist)
-    candidates, sigma, ransac = lidar_candidates_from(
-        ringed.points, config, rows, view, ringed.scan.t
-    )
+    candidates, sigma, ransac = lidar_candidates(ringed.points, config, rows, view, ringed.scan.t)
     fits, n_small = fit_candidates(candidates, ringed.points, config)
     planes, inliers, n_rejected = build_planes(fits, ringed, sigma, _fit_config(config, ransac))
     if not planes:
