@@ -91,3 +91,39 @@ def test_an_estimate_made_before_the_first_scan_is_seeded_again_commits_on_the_n
     odo.commit(stale)
     np.testing.assert_allclose(odo.pose, T_true, atol=1e-9)
     assert odo.frame == 1 and len(odo.map) == 8
+
+
+def test_five_planes_that_fix_every_direction_resolve_the_step():
+    """A corridor seen by a sparse lidar: floor, ceiling, the two long walls and one end
+    wall. Each plane fixes up to three of the six degrees of freedom, so five planes with
+    normals in all three directions determine the step; with ``min_inliers: 6`` (the
+    earlier default, one plane per degree of freedom) the epoch was left unresolved."""
+    rng = np.random.default_rng(3)
+    from planemap_factory import plane_points
+
+    def corridor(T):
+        inv = np.linalg.inv(T)
+        sets = [
+            plane_points(rng, [0, 0, 1.0], 1.8, [0, 0, -1.8], 16, 600),  # floor
+            plane_points(rng, [0, 0, -1.0], 2.0, [0, 0, 2.0], 16, 600),  # ceiling
+            plane_points(rng, [0, 1.0, 0], 2.3, [0, -2.3, 0], 16, 500),  # walls
+            plane_points(rng, [0, -1.0, 0], 2.3, [0, 2.3, 0], 16, 500),
+            plane_points(rng, [-1.0, 0, 0], 15.0, [15, 0, 0], 3, 150),  # end wall
+        ]
+        return planes_of([S @ inv[:3, :3].T + inv[:3, 3] for S in sets])
+
+    T_true = pose([0.3, -0.2, 2.0], [0.9, 0.05, 0.01])
+    for min_inliers, status in ((4, Status.OK), (6, Status.UNRESOLVED)):
+        cfg = PlanodomConfig().updated(
+            {"planemap.laser_bias_m": 0.0, "planemap.min_inliers": min_inliers}
+        )
+        odo = PlaneMapOdometry(cfg)
+        odo.commit(odo.estimate(corridor(np.eye(4))))
+        rel = odo.estimate(corridor(T_true)).relative
+        assert rel.status is status
+    np.testing.assert_allclose(rel.T_prev_curr, np.eye(4), atol=1e-12)  # the prediction
+    odo = PlaneMapOdometry(PlanodomConfig().updated({"planemap.laser_bias_m": 0.0}))
+    odo.commit(odo.estimate(corridor(np.eye(4))))
+    rel = odo.estimate(corridor(T_true)).relative
+    assert rel.status is Status.OK
+    np.testing.assert_allclose(rel.T_prev_curr, T_true, atol=1e-9)
