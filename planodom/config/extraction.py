@@ -362,6 +362,14 @@ class ExtractionConfig(Section):
     plane) at which the gap rule still keeps a plane whole. 10 deg: a floor 1 m below the
     sensor stays one plane out to 5.7 m (a room's or corridor's floor, ceiling and walls
     within a few metres); not fitted to a world."""
+    organised_window: Literal["region", "square"] = "region"
+    """Pixel normals of the square-pixel image of an unorganised cloud
+    (planodom.extraction.lidar.organised). region: the row tangent over +-
+    ``region_window`` pixels, as on a ringed image, where columns are native firings
+    (0.2-0.7 deg); on square pixels (a 16-beam lidar's are 2 deg) that stencil is three
+    times as wide as it is tall: a far wall a few pixels wide gets no normal, and the
+    room had 5 planes where the oracle sees 8-10 distinct ones. square: +- 1 pixel, as
+    wide as the column tangent between the rows +- 1 is tall."""
     region_merge: Literal["grid", "reach"] = "grid"
     """Range image of a ringed scan (or rows with times): grid: coplanar pieces merge
     when near in the grid; reach: also when their bounding circles come within

@@ -12,7 +12,9 @@ image of square angular pixels.
    pixel normals of real lidars are too noisy: at 0.18 deg azimuth steps and 1 cm noise a
    7-point window's normal is off by ~7 deg at 10 m.
 3. Region growing: the kernels of :mod:`.rangeimage` (pixel normals, edges, union-find)
-   on this grid. The gap rule (:mod:`.rangeimage`) with ``organised_gap: range`` (the
+   on this grid; the pixel normals' row tangent spans +- ``region_window`` pixels, or
+   with ``organised_window: square`` +- 1 pixel (the column tangent's rows +- 1: a
+   square stencil on square pixels, which keeps a far wall a few pixels wide). The gap rule (:mod:`.rangeimage`) with ``organised_gap: range`` (the
    default) is unscaled: a 16-beam lidar's 2 deg pixels then cut every plane seen at
    under 20 deg, the floor and ceiling of a room beyond 5 m (measured on an indoor
    16-beam world at 6 mm without times: 4 planes, no floor or ceiling). With
@@ -163,7 +165,7 @@ def organised_candidates(
     P = P.reshape(H, W, 3)
     ks = float(config.region_normal_sigmas)
     tol_pix = member_tolerance(config, sigma_pix)
-    n, e, ok = _pixel_normals(P, max(1, int(config.region_window)), 1, sigma_pix, tol_pix, ks)
+    n, e, ok = _pixel_normals(P, _window(config), 1, sigma_pix, tol_pix, ks)
     min_px = max(3, config.min_plane_points // 2 // max(int(m), 1))
     native_step = 2.0 * np.pi / float(np.bincount(rows).max())  # rad, a native column
     piece, C = _grow_pieces(
@@ -191,6 +193,12 @@ def organised_candidates(
     idx, bounds = plane_members(owner, C)
     sets = [idx[bounds[k] : bounds[k + 1]] for k in range(C)]
     return OrganisedCandidates([s for s in sets if len(s) >= 3], sigma, (H, W))
+
+
+def _window(config: ExtractionConfig) -> int:
+    """Half-width (pixels) of the pixel normals' row tangent (``organised_window``): the
+    column tangent spans the rows +- 1, so on square pixels a square stencil is +- 1."""
+    return 1 if config.organised_window == "square" else max(1, int(config.region_window))
 
 
 def _gap_step(config: ExtractionConfig, native_step: float) -> float:
