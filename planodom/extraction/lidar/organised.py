@@ -14,10 +14,11 @@ image of square angular pixels.
 3. Region growing: the kernels of :mod:`.rangeimage` (pixel normals, edges, union-find)
    on this grid; the pixel normals' row tangent spans +- ``region_window`` pixels, or
    with ``organised_window: square`` +- 1 pixel (the column tangent's rows +- 1: a
-   square stencil on square pixels, which keeps a far wall a few pixels wide). The gap rule (:mod:`.rangeimage`) with ``organised_gap: range`` (the
-   default) is unscaled: a 16-beam lidar's 2 deg pixels then cut every plane seen at
-   under 20 deg, the floor and ceiling of a room beyond 5 m (measured on an indoor
-   16-beam world at 6 mm without times: 4 planes, no floor or ceiling). With
+   square stencil on square pixels, which keeps a far wall a few pixels wide). The gap
+   rule (:mod:`.rangeimage`) with ``organised_gap: range`` is unscaled: a 16-beam
+   lidar's 2 deg pixels then cut every plane seen at under 20 deg, the floor and
+   ceiling of a room beyond 5 m (measured on an indoor 16-beam world at 6 mm without
+   times: 4 planes, no floor or ceiling). With
    ``incidence`` its step is the native column step (``2 pi / n``, n: the point count of
    the fullest row): pixels ``dv`` apart on a plane get the incidence limit the rule
    gives consecutive points of a scan line (there: 7 planes, floor and ceiling found),
