@@ -362,21 +362,25 @@ class ExtractionConfig(Section):
     plane) at which the gap rule still keeps a plane whole. 10 deg: a floor 1 m below the
     sensor stays one plane out to 5.7 m (a room's or corridor's floor, ceiling and walls
     within a few metres); not fitted to a world."""
-    organised_window: Literal["region", "square"] = "region"
-    """Pixel normals of the square-pixel image of an unorganised cloud
-    (planodom.extraction.lidar.organised). region: the row tangent over +-
-    ``region_window`` pixels, as on a ringed image, where columns are native firings
-    (0.2-0.7 deg); on square pixels (a 16-beam lidar's are 2 deg) that stencil is three
-    times as wide as it is tall: a far wall a few pixels wide gets no normal, and the
-    room had 5 planes where the oracle sees 8-10 distinct ones. square: +- 1 pixel, as
-    wide as the column tangent between the rows +- 1 is tall; it finds those walls (7-8
-    planes an epoch on procedural world 37) but measured mixed (300 epochs, with
-    ``planemap.min_inliers: 4``; only worlds 5 and 37 of the lidar worlds 1-39 take this
-    path): world 37 rotation rms 0.017 -> 0.016 deg at 6 mm, 0.020 -> 0.022 at 2 cm, ATE
-    2.3 -> 2.9 mm and 3.9 -> 3.9 mm; world 5 0.0038 -> 0.0030 and 0.0044 -> 0.0048 deg,
-    xy rms worse at both noises (0.066 -> 0.076, 0.076 -> 0.095 cm), ATE 3.07 -> 2.84,
-    3.24 -> 3.13 mm; KITTI raw 0005 RPE rotation 0.0868 -> 0.0797 deg, translation 3.59
-    -> 3.59 cm, ATE 1.39 -> 1.45 m. Off by default."""
+    organised_window_deg: float | None = Field(1.5, gt=0, le=90)
+    """The square-pixel image of an unorganised cloud: the row tangent's half-width is
+    ``region_window`` pixels, but at most this angle (deg; at least one pixel; None: no
+    cap). A window counted in pixels spans an angle that grows with the pixel, and the
+    pixel is the lidar's row spacing: 0.42 deg for a 64-beam unit, where 3 pixels span
+    1.3 deg, but 2 deg for a 16-beam one, where 3 pixels span 6 deg and every plane under
+    about 14 deg of azimuth is left without pixel normals (an outdoor 16-beam world at 6
+    mm, walls 10-20 m wide at 25-40 m: 5 candidates of the ~20 surfaces the oracle fits;
+    capped, one pixel: 13). 1.5 deg keeps the window that was measured on KITTI 0005
+    (three 0.42 deg pixels; its poses byte-identical) and caps the sparse lidars' at one
+    pixel. Measured on the procedural lidar worlds without ring or time fields (300
+    epochs; rotation deg per epoch, ATE, unresolved, uncapped -> capped): world 43
+    (outdoor, 16 beams, never used while the defaults were chosen) 0.060 -> 0.0043,
+    0.19 m -> 7.6 mm, 26 -> 0 at 6 mm and 0.120 -> 0.0060, 2.04 m -> 8.8 mm, 56 -> 0 at
+    2 cm (KISS-ICP 0.57 / 0.44 m); world 55 (the same kind) 0.98 m -> 4.5 mm and 1.50 m ->
+    4.5 mm; world 37 (indoor, 16 beams) 0.074 -> 0.016, 60 -> 2.9 mm, 9 -> 0 and 0.087
+    -> 0.022, 136 -> 3.9 mm, 18 -> 0; world 5 (64 beams on 512 columns: 0.7 deg pixels,
+    two instead of three) ATE 3.07 -> 2.89 and 3.24 -> 2.81 mm, but xy per epoch 0.066
+    -> 0.070 and 0.076 -> 0.085 cm; world 59 (64 beams, 1024 columns) unchanged."""
     region_merge: Literal["grid", "reach"] = "grid"
     """Range image of a ringed scan (or rows with times): grid: coplanar pieces merge
     when near in the grid; reach: also when their bounding circles come within

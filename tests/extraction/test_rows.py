@@ -137,27 +137,3 @@ def test_a_sparse_ringless_lidar_keeps_floor_and_ceiling(times):
         n, d = truth[p.truth_id]
         assert np.degrees(np.arccos(np.clip(p.normal @ n, -1, 1))) < 0.5
         assert abs(p.offset - d) < 0.02
-
-
-@pytest.mark.parametrize("sigma", [0.006, 0.02])
-def test_a_sparse_ringless_lidar_sees_the_end_walls_with_a_square_stencil(sigma):
-    """The 16-beam lidar's square pixels are 2 deg wide: a corridor's end walls 20 m away
-    (4 m wide) span about six pixels, where the ringed image's window (+- 3 pixels) leaves
-    none of them a normal, and only those walls fix the position along the corridor.
-    With ``organised_window: square`` (+- 1 pixel, as tall as wide) both are found, with
-    their true planes; the window of the ringed image loses them."""
-    walls = _corridor()
-    scan = scan_lidar(walls, sigma=sigma, n_beams=16, n_azimuth=512, with_ring=False)
-    bare = Scan(scan.points, None, None, scan.label)
-    origin = np.array([0, 0, HEIGHT])
-    truth = planes_in_base(walls)
-    found = {}
-    for window in ("region", "square"):
-        res = extract(bare, ExtractionConfig(organised_window=window), sensor_origins=origin)
-        found[window] = {p.truth_id for p in res.planes}
-        for p in res.planes:
-            n, d = truth[p.truth_id]
-            assert np.degrees(np.arccos(np.clip(p.normal @ n, -1, 1))) < 25 * sigma
-            assert abs(p.offset - d) < sigma
-    assert found["square"] == set(range(6))
-    assert not {4, 5} & found["region"]

@@ -12,13 +12,13 @@ image of square angular pixels.
    pixel normals of real lidars are too noisy: at 0.18 deg azimuth steps and 1 cm noise a
    7-point window's normal is off by ~7 deg at 10 m.
 3. Region growing: the kernels of :mod:`.rangeimage` (pixel normals, edges, union-find)
-   on this grid; the pixel normals' row tangent spans +- ``region_window`` pixels, or
-   with ``organised_window: square`` +- 1 pixel (the column tangent's rows +- 1: a
-   square stencil on square pixels, which keeps a far wall a few pixels wide). The gap
-   rule (:mod:`.rangeimage`) with ``organised_gap: range`` is unscaled: a 16-beam
-   lidar's 2 deg pixels then cut every plane seen at under 20 deg, the floor and
-   ceiling of a room beyond 5 m (measured on an indoor 16-beam world at 6 mm without
-   times: 4 planes, no floor or ceiling). With
+   on this grid; the pixel normals' window is ``region_window`` pixels wide but at most
+   ``organised_window_deg`` of azimuth (:func:`organised_window`: a 16-beam lidar's 2 deg
+   pixels would otherwise make it 6 deg on each side). The gap rule (:mod:`.rangeimage`)
+   with ``organised_gap: range`` is unscaled: a 16-beam lidar's 2 deg pixels then cut
+   every plane seen at under 20 deg, the floor and ceiling of a room beyond 5 m
+   (measured on an indoor 16-beam world at 6 mm without times: 4 planes, no floor or
+   ceiling). With
    ``incidence`` its step is the native column step (``2 pi / n``, n: the point count of
    the fullest row): pixels ``dv`` apart on a plane get the incidence limit the rule
    gives consecutive points of a scan line (there: 7 planes, floor and ceiling found),
@@ -166,7 +166,7 @@ def organised_candidates(
     P = P.reshape(H, W, 3)
     ks = float(config.region_normal_sigmas)
     tol_pix = member_tolerance(config, sigma_pix)
-    n, e, ok = _pixel_normals(P, _window(config), 1, sigma_pix, tol_pix, ks)
+    n, e, ok = _pixel_normals(P, organised_window(config, W), 1, sigma_pix, tol_pix, ks)
     min_px = max(3, config.min_plane_points // 2 // max(int(m), 1))
     native_step = 2.0 * np.pi / float(np.bincount(rows).max())  # rad, a native column
     piece, C = _grow_pieces(
@@ -196,10 +196,14 @@ def organised_candidates(
     return OrganisedCandidates([s for s in sets if len(s) >= 3], sigma, (H, W))
 
 
-def _window(config: ExtractionConfig) -> int:
-    """Half-width (pixels) of the pixel normals' row tangent (``organised_window``): the
-    column tangent spans the rows +- 1, so on square pixels a square stencil is +- 1."""
-    return 1 if config.organised_window == "square" else max(1, int(config.region_window))
+def organised_window(config: ExtractionConfig, W: int) -> int:
+    """Half-width (pixels, at least 1) of the row tangent on a grid of ``W`` columns:
+    ``region_window``, capped at ``organised_window_deg`` of azimuth."""
+    K = max(1, int(config.region_window))
+    if config.organised_window_deg is None:
+        return K
+    pixel_deg = 360.0 / W
+    return max(1, min(K, int(np.floor(config.organised_window_deg / pixel_deg + 1e-9))))
 
 
 def _gap_step(config: ExtractionConfig, native_step: float) -> float:
