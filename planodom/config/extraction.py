@@ -311,6 +311,18 @@ class ExtractionConfig(Section):
     """Range image: region growing only when the median predicted pixel-normal error
     (from sigma and the pixel spacing) is at most this (deg); else RANSAC. Walls meet the
     ground and each other at tens of degrees; a few degrees of noise keeps them apart."""
+    ransac_normal_agreement_deg: float | None = Field(None, gt=0, lt=90)
+    """3D path, a ringed scan (or recovered rows with times) whose range image is too
+    noisy to grow regions on: a RANSAC plane is refused when more than half of its
+    inliers that have a pixel normal differ from it by more than this (deg): a cut through
+    the scan lines of several facades, not a surface
+    (:mod:`planodom.extraction.lidar.agreement`). None: off. EXPERIMENT."""
+    region_noisy_pixels: Literal["ransac", "masked"] = "ransac"
+    """Range image whose median pixel-normal error stays over
+    ``region_max_normal_error_deg`` at every row step: "ransac" hands the scan to the
+    RANSAC loop; "masked" grows regions on the pixels whose own predicted error is within
+    it (far surfaces, where the rows are far apart), at the tallest row step tried, the
+    others joining planes only through the member tolerance. EXPERIMENT."""
     region_window: int = Field(3, ge=1)
     """Range image: half-width (columns) of the row tangent of a pixel normal; its error
     falls as 1 / (window^1.5) while pixels within it of an edge get no normal."""

@@ -39,19 +39,28 @@ def pixel_normals(
     with np.errstate(invalid="ignore", divide="ignore"):
         e_row = sigma * np.sqrt(2.0 * sum(k * k for k in range(1, K + 1)) / np.sum(th * th, axis=2))
     finite = np.isfinite(e_row)
-    if np.any(finite) and np.median(e_row[finite]) > limit:
+    masked = config.region_noisy_pixels == "masked"
+    if np.any(finite) and np.median(e_row[finite]) > limit and not masked:
         return None
     ray = P - viewpoint
     with np.errstate(invalid="ignore", divide="ignore"):
         ray = ray / np.linalg.norm(ray, axis=2, keepdims=True)
     width = np.linalg.norm(np.roll(ray, -K, axis=1) - np.roll(ray, K, axis=1), axis=2)
+    tallest = None
     for S in range(1, max(1, P.shape[0] // 4) + 1):
         if S > 1 and not _stencil_within_width(ray, S, width):
-            return None
+            break
         n, e, ok = _pixel_normals(P, K, S, float(sigma), float(tol), ks)
         if np.count_nonzero(ok) < config.min_plane_points or np.median(e[ok]) <= limit:
             return n, e, ok
-    return None
+        tallest = (n, e, ok)
+    if not masked or tallest is None:
+        return None
+    n, e, ok = tallest
+    ok = ok & (e <= limit)
+    if np.count_nonzero(ok) < config.min_plane_points:
+        return None
+    return n, np.where(ok, e, np.inf), ok
 
 
 def _stencil_within_width(ray: np.ndarray, S: int, width: np.ndarray) -> bool:

@@ -34,11 +34,12 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
+from planodom.extraction.lidar.agreement import cutting_planes, point_normals
 from planodom.extraction.lidar.candidates import lidar_candidates
 from planodom.extraction.lidar.organised import organised_candidates
 from planodom.extraction.lidar.rows import scan_rows
 from planodom.extraction.lidar.sweep import AzimuthTimedScan
-from planodom.extraction.planes.builder import PlaneFits, build_planes
+from planodom.extraction.planes.builder import Adjust, PlaneFits, build_planes
 from planodom.extraction.planes.fit import robust_plane_fits, tls_fit
 
 
@@ -66,8 +67,31 @@ def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
                 return PathResult(planes, inliers, organised.sigma_m, 0, n_cand, n_rejected)
     candidates, sigma, ransac = lidar_candidates(epoch.points, config, scan.ring, view, scan.t)
     fits, n_small = fit_candidates(candidates, epoch.points, config)
-    planes, inliers, n_rejected = build_planes(fits, epoch, sigma, _fit_config(config, ransac))
+    adjust = _agreement(epoch, scan.ring, sigma, config, fits) if ransac else None
+    planes, inliers, n_rejected = build_planes(
+        fits, epoch, sigma, _fit_config(config, ransac), adjust
+    )
     return PathResult(planes, inliers, sigma, 0, len(candidates), n_small + n_rejected)
+
+
+def _agreement(
+    epoch: Epoch, ring: np.ndarray | None, sigma: float, config: ExtractionConfig, fits: PlaneFits
+) -> Adjust | None:
+    """The plane builder's hook that refuses RANSAC fits across other surfaces
+    (``ransac_normal_agreement_deg``, :mod:`.agreement`); None when off or without a grid."""
+    if config.ransac_normal_agreement_deg is None or ring is None:
+        return None
+    found = point_normals(epoch.points, ring, epoch.scan.t, sigma, config)
+    if found is None:
+        return None
+    point_normal, has_normal = found
+
+    def adjust(kept: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        members = [fits.members(int(g)) for g in kept]
+        refused = cutting_planes(normals[kept], members, point_normal, has_normal, config)
+        return kept[~refused]
+
+    return adjust
 
 
 def _native_planes(
@@ -82,7 +106,10 @@ def _native_planes(
     ringed = Epoch(replace(epoch.scan, ring=rows), epoch.points, origins, epoch.twist)
     candidates, sigma, ransac = lidar_candidates(ringed.points, config, rows, view, ringed.scan.t)
     fits, n_small = fit_candidates(candidates, ringed.points, config)
-    planes, inliers, n_rejected = build_planes(fits, ringed, sigma, _fit_config(config, ransac))
+    adjust = _agreement(ringed, rows, sigma, config, fits) if ransac else None
+    planes, inliers, n_rejected = build_planes(
+        fits, ringed, sigma, _fit_config(config, ransac), adjust
+    )
     if not planes:
         return None
     return PathResult(planes, inliers, sigma, 0, len(candidates), n_small + n_rejected)
