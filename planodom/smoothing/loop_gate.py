@@ -71,9 +71,9 @@ def consistent_hypotheses(
     earliest last sighting of its tied walls, or with ``loop_map_epoch`` "spanning" the
     last sighting by which its tied walls span two non-parallel normals; walls seen long
     after the loop's old epoch allow a large drift and agree with anything). Left out of
-    the clique, the map loses its ties. (World 16 at 2 cm with ``first_epoch_refresh``: two hypotheses aliased 4.6 m
-    along the corridor, 23 factors, outnumber the right one, 4, while the map's ties imply
-    a correction 4-5 m from theirs.)"""
+    the clique, the map loses its ties. (World 16 at 2 cm with ``first_epoch_refresh``:
+    two hypotheses aliased 4.6 m along the corridor, 23 factors, outnumber the right one,
+    4, while the map's ties imply a correction 4-5 m from theirs.)"""
     factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
     mode = builder.config.loop_consistency  # type: ignore[attr-defined]
     if mode == "off" or not factors:
