@@ -110,9 +110,7 @@ class Correction:
         return Correction(f.epoch, f.old, W, f.covariance[2:, 2:])
 
     @staticmethod
-    def of_match(
-        m: LoopMatch, poses: dict[int, np.ndarray], spanning: bool = False
-    ) -> Correction:
+    def of_match(m: LoopMatch, poses: dict[int, np.ndarray], spanning: bool = False) -> Correction:
         """An accepted map match's: epoch k where the map places it, against its ``seen``
         (``spanning``: its ``spanning``)."""
         W = m.T_world_pred @ m.T_pred_curr @ invert_transform(poses[m.epoch])
