@@ -112,9 +112,10 @@ class Correction:
     @staticmethod
     def of_match(m: LoopMatch, poses: dict[int, np.ndarray], spanning: bool = False) -> Correction:
         """An accepted map match's: epoch k where the map places it, against its ``seen``
-        (``spanning``: its ``spanning``)."""
+        (``spanning``: its ``spanning`` where noted)."""
         W = m.T_world_pred @ m.T_pred_curr @ invert_transform(poses[m.epoch])
-        return Correction(m.epoch, m.spanning if spanning else m.seen, W, m.covariance[2:, 2:])
+        old = m.spanning if spanning and m.spanning >= 0 else m.seen
+        return Correction(m.epoch, old, W, m.covariance[2:, 2:])
 
 
 def reidentification_counts(

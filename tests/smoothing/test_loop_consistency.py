@@ -22,6 +22,7 @@ from planodom.smoothing.loop_gate import (
     max_weight_clique,
 )
 from planodom.smoothing.loop_records import (
+    Correction,
     LoopFactor,
     LoopMatch,
     Reidentification,
@@ -288,3 +289,15 @@ def test_a_map_match_is_compared_where_its_walls_place_it():
     truth, builder, removed = _drifted_map("spanning")
     assert removed == 0 and not any(f.removed for f in builder.loop_factors)
     assert not any(r.removed for r in builder.reidentifications)
+
+
+def test_a_match_without_a_spanning_sighting_is_compared_at_its_earliest():
+    """Correction.of_match: "spanning" uses the match's ``spanning`` when noted, else
+    its ``seen``; the correction itself is the same (epoch k where the map places it)."""
+    T_pred = make_transform(np.eye(3), [1.0, 2.0, 0.0])
+    poses = {7: make_transform(np.eye(3), [0.5, 0.0, 0.0])}
+    match = LoopMatch(7, 3, T_pred, np.eye(4), LOOP_COV, np.zeros((3, 3)), 0.0, [], seen=3)
+    assert Correction.of_match(match, poses, spanning=True).old == 3
+    noted = Correction.of_match(replace(match, spanning=5), poses, spanning=True)
+    assert noted.old == 5 and Correction.of_match(replace(match, spanning=5), poses).old == 3
+    np.testing.assert_allclose(noted.W[:2, 3], [0.5, 2.0])
