@@ -104,6 +104,25 @@ class LoopCandidateConfig(Section):
     0.035 -> 0.049 (6 mm) and 0.068 -> 0.098 m (2 cm), world 16 at 2 cm 0.021 -> 0.034 m,
     world 14 0.002 -> 0.003 and 0.006 -> 0.007 m. The default: it changes no lap alone and
     keeps the map's word where an aliased set outnumbers the right loop hypothesis."""
+    loop_map_epoch: Literal["earliest", "spanning"] = "spanning"
+    """``loop_consistency`` "hypotheses_and_map": the map epoch an accepted full-rank match
+    places its epoch against when compared with a loop hypothesis (the old end of the
+    drift between them, :func:`.loop_gate._sharpest`). "earliest": the earliest last
+    sighting of its tied walls. "spanning": the last sighting by which its tied walls span
+    two non-parallel normals (:func:`.match_fit.spanning_epoch`): a match tying one early
+    wall and later ones is placed by the early wall along that wall's normal only, the
+    rest rests on the later walls and the map's chain. Why (2D-rig world 32 at 6 mm,
+    held out): the matches at epochs 766-783 tie a wall last seen at 64 and walls seen
+    after 700; "earliest" compares them with the right loop hypotheses (751-787 against
+    epoch 4) over the drift from 4 to 64 only, they disagree by 3 m, and the map's 1 483
+    ties outvote them (ATE 3.61 m). "spanning": no match contradicts a loop hypothesis
+    there, ATE 1.46 m (wrong ties kept 29 -> 3), but the clique then keeps two loop
+    hypotheses aliased by a wall spacing (28 factors) over the right two (15): loop end
+    3.43 -> 4.24 m. Measured on one lap of every even world 0-38, 6 mm and 2 cm (batch
+    with loops): every other run unchanged to the digit (world 32 at 2 cm keeps 3.28 m:
+    the right hypothesis is kept by the clique but fails the chi2 gate against the 118
+    wrong ties). The default: it changes no lap but world 32 at 6 mm, better in ATE.
+    """
     loop_gate_removes: Literal["hypothesis", "factor"] = "hypothesis"
     """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
     on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``

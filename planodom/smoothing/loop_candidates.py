@@ -56,7 +56,13 @@ from planodom.smoothing.graph import GraphUpdate, X
 from planodom.smoothing.loop_drift import RunWalk, run_drift
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch
 from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
-from planodom.smoothing.match_fit import _extent, ambiguity, non_parallel, offset_residuals
+from planodom.smoothing.match_fit import (
+    _extent,
+    ambiguity,
+    non_parallel,
+    offset_residuals,
+    spanning_epoch,
+)
 from planodom.smoothing.noise import between_covariance, with_robust_kernel
 from planodom_factors.pose5 import pose5_factor
 
@@ -361,10 +367,12 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
 
     def _verify(self, match: LoopMatch, T_world_curr: np.ndarray, full: bool) -> str:
-        """:meth:`LoopClosingBuilder._verify`, noting on ``match`` its map epoch (``seen``)
-        and rank, for ``loop_consistency`` "hypotheses_and_map"."""
-        match.seen = min(self.landmarks[j].last_seen[0] for j, _ in match.ties)  # type: ignore[index]
-        match.full = full
+        """:meth:`LoopClosingBuilder._verify`, noting on ``match`` its map epochs (``seen``,
+        ``spanning``) and rank, for ``loop_consistency`` "hypotheses_and_map"."""
+        seen = [self.landmarks[j].last_seen[0] for j, _ in match.ties]  # type: ignore[index]
+        match.seen, match.full = min(seen), full
+        normals = np.array([self.landmarks[j].plane_world[:3] for j, _ in match.ties])
+        match.spanning = spanning_epoch(seen, normals)
         return super()._verify(match, T_world_curr, full)
 
     def _agrees_with_map(self, rel: RelativePose) -> bool:

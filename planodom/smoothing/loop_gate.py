@@ -68,11 +68,12 @@ def consistent_hypotheses(
     right ties, three of them pairwise inconsistent). A loop hypothesis is compared with the
     full-rank accepted match of least drift between them (:func:`_sharpest`: over the spans
     between their current epochs and between its old epoch and the match's ``seen``, the
-    earliest last sighting of its tied walls; walls seen long after the loop's old epoch
-    allow a large drift and agree with anything). Left out of the clique, the map loses its
-    ties. (World 16 at 2 cm with ``first_epoch_refresh``: two hypotheses aliased 4.6 m
-    along the corridor, 23 factors, outnumber the right one, 4, while the map's ties imply
-    a correction 4-5 m from theirs.)"""
+    earliest last sighting of its tied walls, or with ``loop_map_epoch`` "spanning" the
+    last sighting by which its tied walls span two non-parallel normals; walls seen long
+    after the loop's old epoch allow a large drift and agree with anything). Left out of
+    the clique, the map loses its ties. (World 16 at 2 cm with ``first_epoch_refresh``:
+    two hypotheses aliased 4.6 m along the corridor, 23 factors, outnumber the right one,
+    4, while the map's ties imply a correction 4-5 m from theirs.)"""
     factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
     mode = builder.config.loop_consistency  # type: ignore[attr-defined]
     if mode == "off" or not factors:
@@ -82,7 +83,8 @@ def consistent_hypotheses(
     members = [[Correction.of_factor(f, poses) for f in factors if f.group == g] for g in groups]
     weights = [float(len(m)) for m in members]
     matches, ties = map_hypothesis(builder) if mode == "hypotheses_and_map" else ([], [])
-    mine = [Correction.of_match(m, poses) for m in matches]
+    spanning = builder.config.loop_map_epoch == "spanning"  # type: ignore[attr-defined]
+    mine = [Correction.of_match(m, poses, spanning) for m in matches]
     n = len(groups) + bool(matches)
     adjacent = np.ones((n, n), dtype=bool)
     for i in range(len(groups)):

@@ -64,6 +64,9 @@ class LoopMatch:
         seen: the earliest last sighting of its tied walls (the map epoch it places k
             against; -1 before verification). full: verified on (yaw, x, y), not on yaw
             (both noted by :meth:`.CandidateLoopBuilder._verify`, ``loop_consistency``).
+        spanning: the last sighting by which its tied walls span two non-parallel
+            normals (:func:`.match_fit.spanning_epoch`; -1 before verification), the map
+            epoch it places k against with ``loop_map_epoch`` "spanning".
     """
 
     epoch: int
@@ -80,6 +83,7 @@ class LoopMatch:
     ambiguity: float = np.inf
     seen: int = -1
     full: bool = False
+    spanning: int = -1
 
 
 @dataclass(frozen=True)
@@ -89,7 +93,7 @@ class Correction:
 
     Attributes:
         epoch: the current epoch k. old: the old epoch it places k against (a loop
-            factor's old epoch; a map match's ``seen``).
+            factor's old epoch; a map match's ``seen``, or its ``spanning``).
         W: (4, 4) world correction: epoch k at ``W @ poses[k]`` (chained guess poses).
         covariance: (3, 3) of its (yaw, x, y), rad^2 and m^2.
     """
@@ -106,10 +110,12 @@ class Correction:
         return Correction(f.epoch, f.old, W, f.covariance[2:, 2:])
 
     @staticmethod
-    def of_match(m: LoopMatch, poses: dict[int, np.ndarray]) -> Correction:
-        """An accepted map match's: epoch k where the map places it."""
+    def of_match(m: LoopMatch, poses: dict[int, np.ndarray], spanning: bool = False) -> Correction:
+        """An accepted map match's: epoch k where the map places it, against its ``seen``
+        (``spanning``: its ``spanning`` where noted)."""
         W = m.T_world_pred @ m.T_pred_curr @ invert_transform(poses[m.epoch])
-        return Correction(m.epoch, m.seen, W, m.covariance[2:, 2:])
+        old = m.spanning if spanning and m.spanning >= 0 else m.seen
+        return Correction(m.epoch, old, W, m.covariance[2:, 2:])
 
 
 def reidentification_counts(

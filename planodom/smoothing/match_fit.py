@@ -242,3 +242,17 @@ def non_parallel(normals: np.ndarray, min_angle_deg: float = 10.0) -> bool:
         return False
     cross = np.linalg.norm(np.cross(normals[:, None], normals[None]), axis=2)
     return bool(cross.max() >= np.sin(np.radians(min_angle_deg)))
+
+
+def spanning_epoch(seen: Sequence[int], normals: np.ndarray, min_angle_deg: float = 10.0) -> int:
+    """The last sighting by which a match's tied walls span two non-parallel normals: the
+    map part that places the matched epoch in full (both horizontal axes), not along one
+    wall's normal only. ``seen`` (N,) last-seen epochs of the tied walls, ``normals``
+    (N, 3) their unit world normals; the latest of ``seen`` when all are parallel (the
+    wall first seen fixes one axis, the pose along it rests on later ones). N >= 1."""
+    order = np.argsort(np.asarray(seen), kind="stable")
+    epochs, stacked = np.asarray(seen)[order], np.asarray(normals, dtype=float)[order]
+    for n in range(2, len(order) + 1):
+        if non_parallel(stacked[:n], min_angle_deg):
+            return int(epochs[n - 1])
+    return int(epochs[-1])

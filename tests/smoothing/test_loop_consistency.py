@@ -22,6 +22,7 @@ from planodom.smoothing.loop_gate import (
     max_weight_clique,
 )
 from planodom.smoothing.loop_records import (
+    Correction,
     LoopFactor,
     LoopMatch,
     Reidentification,
@@ -233,3 +234,70 @@ def _add_loop_factors(builder, graph, truth, plan) -> None:
                 T = make_transform(np.eye(3), [4.6, 0.0, 0.0]) @ T
             builder.loop_factors.append(LoopFactor(k, 0, T, LOOP_COV, 3, graph.size(), group))
             graph.add(gtsam.PriorFactorPose3(X(k), gtsam.Pose3(), gtsam.noiseModel.Unit.Create(6)))
+
+
+def _drifted_map(map_epoch: str):
+    """World 32's case: the out-and-back corridor chained by an odometry that measures
+    every step but those of epochs 20-39 (0.5 m standard deviation per axis, each 0.15 m
+    too long: the chained guess's late part lies 3 m from its early part), right loop
+    factors of epochs 100-103 to epoch 0 (one hypothesis, 4 factors), and the map's
+    accepted matches at epochs 95-114 (20 matches, 60 ties) placing each epoch where the
+    chained guess has it: the late walls (last seen 5 epochs before) place it, one early
+    wall (last seen at epoch 10) only along its own normal. Returns the truth, builder and
+    number of factors removed by the clique."""
+    truth = _out_and_back()
+    cfg = _candidates_only().updated(
+        {"smoothing.loop_consistency": "hypotheses_and_map", "smoothing.loop_map_epoch": map_epoch}
+    )
+    builder = loop_candidates.CandidateLoopBuilder(cfg)
+    measured, unmeasured = np.diag([1e-6] * 3 + [1e-5] * 2), np.diag([1e-6] * 3 + [0.25] * 2)
+    for k in range(len(truth)):
+        steps = []
+        if k:
+            step = invert_transform(truth[k - 1]) @ truth[k]
+            drifting = 20 <= k < 40
+            if drifting:
+                step = step @ make_transform(np.eye(3), [0.15, 0.0, 0.0])
+            cov = unmeasured if drifting else measured
+            steps = [RelativePose(step, cov, Status.OK, prev=k - 1, curr=k)]
+        builder.add_epoch([], steps)
+    graph = gtsam.NonlinearFactorGraph()
+    _add_loop_factors(builder, graph, truth, [(range(100, 104), False)])
+    unit = gtsam.noiseModel.Unit.Create(6)
+    for k in range(95, 115):
+        ties = [(100 + i, i) for i in range(3)]
+        builder.matches.append(
+            LoopMatch(k, 10, builder.poses[k], np.eye(4), LOOP_COV, np.zeros((3, 3)), 0.0, ties,
+                      seen=10, full=True, spanning=k - 5)
+        )  # fmt: skip
+        for j, i in ties:
+            builder.reidentifications.append(Reidentification(k, i, j, graph.size()))
+            graph.add(gtsam.PriorFactorPose3(X(k), gtsam.Pose3(), unit))
+    return truth, builder, consistent_hypotheses(builder, graph, {})
+
+
+def test_a_map_match_is_compared_where_its_walls_place_it():
+    """The right loop factors disagree with the map's matches by the 3 m of drift: against
+    the early wall's sighting ("earliest") that drift is not allowed, and the map's 60 ties
+    outvote the 4 factors; against the sighting that places the matches in full
+    ("spanning", after the drifting stretch) it is, and both are kept (by the truth)."""
+    truth, builder, removed = _drifted_map("earliest")
+    drift = invert_transform(builder.poses[100]) @ builder.poses[0] @ invert_transform(truth[0])
+    assert np.linalg.norm((drift @ truth[100])[:2, 3]) == pytest.approx(3.0, abs=0.05)
+    assert not any(f.wrong(truth) for f in builder.loop_factors)
+    assert removed == 4 and all(f.removed for f in builder.loop_factors)
+    truth, builder, removed = _drifted_map("spanning")
+    assert removed == 0 and not any(f.removed for f in builder.loop_factors)
+    assert not any(r.removed for r in builder.reidentifications)
+
+
+def test_a_match_without_a_spanning_sighting_is_compared_at_its_earliest():
+    """Correction.of_match: "spanning" uses the match's ``spanning`` when noted, else
+    its ``seen``; the correction itself is the same (epoch k where the map places it)."""
+    T_pred = make_transform(np.eye(3), [1.0, 2.0, 0.0])
+    poses = {7: make_transform(np.eye(3), [0.5, 0.0, 0.0])}
+    match = LoopMatch(7, 3, T_pred, np.eye(4), LOOP_COV, np.zeros((3, 3)), 0.0, [], seen=3)
+    assert Correction.of_match(match, poses, spanning=True).old == 3
+    noted = Correction.of_match(replace(match, spanning=5), poses, spanning=True)
+    assert noted.old == 5 and Correction.of_match(replace(match, spanning=5), poses).old == 3
+    np.testing.assert_allclose(noted.W[:2, 3], [0.5, 2.0])

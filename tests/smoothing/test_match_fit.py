@@ -12,6 +12,7 @@ from planodom.smoothing.match_fit import (
     ambiguity,
     offset_residuals,
     offset_verdict,
+    spanning_epoch,
     tie_ambiguities,
 )
 
@@ -207,3 +208,20 @@ def test_a_tie_from_another_map_part_confirms_no_alias():
     assert tie_ambiguities(fit, sigma, floor, (between, limit))[0] > limit  # one frame
     one_part = (np.zeros((3, 3)), limit)  # seen together: the other tie pins it
     assert tie_ambiguities(fit, sigma, floor, one_part, parts=True)[0] > limit
+
+
+def test_spanning_epoch_is_the_first_sighting_with_two_non_parallel_walls():
+    """Walls last seen at 64 (normal x), 700 (-x, parallel), 710 (normal at 30 deg from x)
+    and 705 (y), in any order: x and -x place nothing along y; with the y wall (705) they
+    do. All parallel: the latest sighting. One wall: its own."""
+    x, y = np.array([1.0, 0, 0]), np.array([0, 1.0, 0])
+    slanted = np.array([np.cos(np.radians(30)), np.sin(np.radians(30)), 0])
+    normals = np.stack([slanted, -x, y, x])
+    assert spanning_epoch([710, 700, 705, 64], normals) == 705
+    assert spanning_epoch([710, 700, 64], normals[[0, 1, 3]]) == 710
+    assert spanning_epoch([700, 64], np.stack([-x, x])) == 700
+    # 5 deg apart counts as parallel at the 10 deg default, not at 3 deg
+    tilted = np.array([np.cos(np.radians(5)), np.sin(np.radians(5)), 0])
+    assert spanning_epoch([64, 80, 90], np.stack([x, tilted, y])) == 90
+    assert spanning_epoch([64, 80, 90], np.stack([x, tilted, y]), min_angle_deg=3.0) == 80
+    assert spanning_epoch([12], x[None]) == 12
