@@ -63,9 +63,12 @@ def cutting_planes(
     """(G,) bool: whether each plane (unit ``normals`` (G, 3), inlier indices ``members``)
     is refused: more than half of its inliers that have a pixel normal (``point_normal``
     (N, 3), ``has_normal`` (N,)) differ from it by more than
-    ``config.ransac_normal_agreement_deg`` (sign-free). A plane with fewer than
-    ``min_plane_points`` such inliers is kept: there is nothing to judge it by."""
-    limit = np.cos(np.radians(config.ransac_normal_agreement_deg))
+    ``config.ransac_normal_agreement_deg`` (sign-free; None: none is). A plane with
+    fewer than :data:`MIN_JUDGED` such inliers is kept: there is nothing to judge it by."""
+    angle = config.ransac_normal_agreement_deg
+    if angle is None:
+        return np.zeros(len(members), dtype=bool)
+    limit = np.cos(np.radians(angle))
     out = np.zeros(len(members), dtype=bool)
     for g, idx in enumerate(members):
         own = idx[has_normal[idx]]
