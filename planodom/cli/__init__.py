@@ -80,6 +80,10 @@ def simulate(
     seed: Annotated[int, typer.Option(help="Noise seed; for a random scene also the world.")] = 0,
     epochs: Epochs = None,
     motion: Motion = "continuous",
+    handheld: Annotated[
+        bool,
+        typer.Option(help="A random scene's route walked with a hand-held lidar (yaw swings)."),
+    ] = False,
     overwrite: Annotated[bool, typer.Option(help="Replace a dataset at --out.")] = False,
 ) -> None:
     """Simulate a built-in scene and write it as a dataset (scans, poses.tum, rig.yaml).
@@ -96,7 +100,7 @@ def simulate(
     # refuse an existing folder before simulating, not after (checked again when writing)
     check_target(out, overwrite=overwrite, owned=is_dataset_entry, what="a dataset")
     rig = rig or (None if scene in RANDOM_SCENES else "isoclinal")
-    run = simulate_scene(scene, rig, noise, seed, epochs, motion)
+    run = simulate_scene(scene, rig, noise, seed, epochs, motion, handheld)
     with console.status(f"writing {len(run)} scans to {out}"):
         write_simulated_dataset(run, out, scene_name=scene, overwrite=overwrite)
     console.print(simulation_table(run, title=f"{run.scene.name} / {run.sensor_rig.name} -> {out}"))

@@ -165,7 +165,13 @@ Scenario = Annotated[
 
 
 def simulate_scene(
-    scene: str, rig: str | None, noise: str, seed: int, epochs: int | None, motion: str
+    scene: str,
+    rig: str | None,
+    noise: str,
+    seed: int,
+    epochs: int | None,
+    motion: str,
+    handheld: bool = False,
 ):
     from planodom.simulation import simulate_named
 
@@ -174,7 +180,8 @@ def simulate_scene(
     except ValueError:
         sigma = noise  # a preset name
     with console.status(f"simulating {scene} with the {rig or 'drawn'} rig"):
-        return simulate_named(scene, rig, noise=sigma, seed=seed, n_epochs=epochs, motion=motion)
+        return simulate_named(scene, rig, noise=sigma, seed=seed, n_epochs=epochs, motion=motion,
+                              handheld=handheld)  # fmt: skip
 
 
 class ScanEpochs:

@@ -139,6 +139,9 @@ def experiment_generalisation(
             "and offline)."
         ),
     ] = "",
+    motion: Annotated[
+        str, typer.Option(help="vehicle | handheld (every world a hand-held lidar's walk).")
+    ] = "vehicle",
     out: ExpOut = Path("results/generalisation"),
     config: ConfigFile = None,
 ) -> None:
@@ -159,6 +162,8 @@ def experiment_generalisation(
     noise = (noise or []) + extra
     if rig not in ("all", "rig2d", "lidar"):
         raise ConfigError(f"--rig {rig!r}: expected all, rig2d or lidar")
+    if motion not in ("vehicle", "handheld"):
+        raise ConfigError(f"--motion {motion!r}: expected vehicle or handheld")
     chosen = [m.strip() for m in methods.split(",") if m.strip()] or list(DEFAULT_METHODS)
     strange = [m for m in chosen if m not in METHODS]
     if strange:
@@ -172,6 +177,7 @@ def experiment_generalisation(
         out, n_worlds=worlds, noise_levels=levels, n_epochs=epochs or None,
         config=load_config(config), progress=_say, methods=chosen,
         rigs=("rig2d", "lidar") if rig == "all" else (rig,), first_world=first_world,
+        motion=motion,
     )  # fmt: skip
     _print_files({k: v for k, v in result.files.items() if k != "runs_md"})
 

@@ -97,11 +97,19 @@ class MethodRun:
 GeneralisationExperiment = ExperimentResult[MethodRun]
 
 
-def world_for(index: int) -> World:
+def world_for(index: int, motion: str = "vehicle") -> World:
     """World ``index`` of the experiment: seed ``index``, a 2D rig for even indices and
-    the lidars in turn for odd ones."""
+    the lidars in turn for odd ones; with ``motion`` "handheld" the hand-held world of seed
+    ``index`` (a lidar drawn from the seed, :func:`random_world`) for every index."""
+    if motion == "handheld":
+        return random_world(index, motion="handheld")
     family = "rig2d" if index % 2 == 0 else LIDARS[(index // 2) % len(LIDARS)]
     return random_world(index, rig=family)
+
+
+def rig_class(index: int, motion: str = "vehicle") -> str:
+    """ "rig2d" or "lidar": the rig class of world ``index`` (:func:`world_for`)."""
+    return "rig2d" if index % 2 == 0 and motion != "handheld" else "lidar"
 
 
 def declared_sweep(world: World, config: PlanodomConfig) -> PlanodomConfig:
@@ -332,6 +340,7 @@ def run_generalisation_experiment(
     progress: Callable[[str], None] | None = None,
     rigs: Sequence[str] = ("rig2d", "lidar"),
     first_world: int = 0,
+    motion: str = "vehicle",
 ) -> GeneralisationExperiment:
     """Run the experiment; write its tables and plot to ``out`` when given.
 
@@ -347,6 +356,7 @@ def run_generalisation_experiment(
         config: planodom's base configuration. progress: called with short messages.
         first_world: the first world's index (worlds from 20 on were never looked at
             while planodom's defaults were chosen: a held-out set).
+        motion: "vehicle" or "handheld" (every world a hand-held lidar's, :func:`world_for`).
     """
     base = config or PlanodomConfig()
     say = progress or (lambda msg: None)
@@ -361,12 +371,12 @@ def run_generalisation_experiment(
     if first_world < 0:
         raise ValueError(f"first_world: {first_world}; expected >= 0")
     span = range(first_world, first_world + n_worlds)
-    indices = [i for i in span if ("rig2d" if i % 2 == 0 else "lidar") in rigs]
+    indices = [i for i in span if rig_class(i, motion) in rigs]
     runs: list[MethodRun] = []
     for i in indices[:2]:  # the first two worlds run: one of each rig class with both
-        _warm_up(world_for(i), base, methods)
+        _warm_up(world_for(i, motion), base, methods)
     for i in indices:
-        world = world_for(i)
+        world = world_for(i, motion)
         for noise in noise_levels:
             runs += run_world(world, float(noise), n_epochs, base, methods, say)
     tables = {"runs": run_rows(runs), "summary": summary_rows(runs)}

@@ -32,16 +32,18 @@ def simulate_random(
     seed: int = 0,
     n_epochs: int | None = None,
     motion: str = "continuous",
+    handheld: bool = False,
 ) -> SimulatedRun:
     """Simulate the procedural world of ``seed`` (:func:`random_world`): ``scene`` one of
     :data:`RANDOM_SCENES`; ``rig`` None (the world's own, drawn), a family of
     :data:`RANDOM_RIG_FAMILIES` (drawn within it), or a built-in rig name / a
-    :class:`SensorRig` replacing the world's. One lap by default; noise seed ``seed``."""
+    :class:`SensorRig` replacing the world's. One lap by default; noise seed ``seed``.
+    ``handheld``: the route walked with a hand-held lidar (a lidar family only)."""
     if scene not in RANDOM_SCENES:
         names = ", ".join(RANDOM_SCENES)
         raise ConfigError(f"unknown random scene '{scene}' (choose from {names})")
     family = rig if isinstance(rig, str) and rig in RANDOM_RIG_FAMILIES else None
-    world = random_world(seed, RANDOM_SCENES[scene], family)
+    world = random_world(seed, RANDOM_SCENES[scene], family, "handheld" if handheld else "vehicle")
     if isinstance(rig, SensorRig) or (isinstance(rig, str) and rig in RIGS):
         sensor_rig = rig if isinstance(rig, SensorRig) else rig_from_name(rig)
         world = replace(world, sensor_rig=sensor_rig, epoch_rate=10.0, ring_field=True,
@@ -63,6 +65,7 @@ def simulate_named(
     epoch_rate: float = 10.0,
     speed: float = 2.0,
     trajectory: Trajectory | None = None,
+    handheld: bool = False,
 ) -> SimulatedRun:
     """Simulate ``scene`` (``"paper-loop"`` | ``"urban-canyon"`` or a :class:`Scene`) with
     ``rig`` (``"isoclinal"`` | ``"lidar16"`` | ``"lidar32"`` | ``"lidar64"`` or a
@@ -76,9 +79,12 @@ def simulate_named(
         n_epochs / duration (s): length; default one lap / the whole street.
         motion: "continuous" or "snapshot". epoch_rate: Hz. speed: m/s of the built-in
             trajectory. trajectory: overrides it (required for a custom :class:`Scene`).
+        handheld: a random scene's route walked with a hand-held lidar (random scenes only).
     """
     if isinstance(scene, str) and scene in RANDOM_SCENES and trajectory is None:
-        return simulate_random(scene, rig, noise, seed, n_epochs, motion)
+        return simulate_random(scene, rig, noise, seed, n_epochs, motion, handheld)
+    if handheld:
+        raise ConfigError("--handheld: only with a random scene (random, random-outdoor, ...)")
     if trajectory is None:
         if not isinstance(scene, str):
             raise ConfigError("simulate_named: a custom scene needs a trajectory")

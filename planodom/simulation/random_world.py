@@ -20,6 +20,7 @@ import numpy as np
 
 from planodom.errors import ConfigError
 from planodom.scan import Scan
+from planodom.simulation.handheld import random_handheld
 from planodom.simulation.procedural import (
     Slope,
     clearance,
@@ -36,6 +37,8 @@ from planodom.simulation.simulate import SimulatedRun, simulate
 from planodom.simulation.trajectory import RouteTrajectory, SpeedProfile, Sway
 
 KINDS = ("outdoor", "indoor")
+#: How the route is travelled (:func:`random_world`).
+MOTIONS = ("vehicle", "handheld")
 #: Smallest distance (m) of an indoor route to a wall (the rig reaches 1.1 m from the base).
 MIN_INDOOR_CLEARANCE_M = 1.2
 #: Typical vertical fields of view (lowest, highest elevation, deg) per beam count.
@@ -56,7 +59,7 @@ class World:
     seed: int
     kind: str
     scene: Scene
-    trajectory: RouteTrajectory
+    trajectory: RouteTrajectory  # a HandheldTrajectory (a subclass) for a hand-held world
     sensor_rig: SensorRig
     epoch_rate: float
     ring_field: bool = True
@@ -177,9 +180,24 @@ def _path_xy(traj: RouteTrajectory, step_m: float = 1.0) -> np.ndarray:
     return traj.rotations_translations(t)[1][:, :2]
 
 
-def random_world(seed: int, kind: str | None = None, rig: str | None = None) -> World:
+def random_world(
+    seed: int, kind: str | None = None, rig: str | None = None, motion: str = "vehicle"
+) -> World:
     """The world of ``seed``: ``kind`` "outdoor" / "indoor" (None: indoor one time in four)
-    and ``rig`` family (see :func:`random_rig`; None: drawn)."""
+    and ``rig`` family (see :func:`random_rig`; None: drawn).
+
+    ``motion``: "vehicle" (the route driven, speed changes, +-1.5 deg sway) or "handheld"
+    (:func:`planodom.simulation.handheld.random_handheld`: the same route walked with a
+    hand-held lidar, its yaw swinging about the heading; drawn from an rng stream of its
+    own, so the scene is the vehicle world's with the same rig; lidar families only, None
+    drawing one of the three from that stream)."""
+    if motion not in MOTIONS:
+        raise ConfigError(f"unknown world motion '{motion}' (choose from {', '.join(MOTIONS)})")
+    walk = np.random.default_rng([int(seed), 11, 2]) if motion == "handheld" else None
+    if walk is not None:
+        rig = rig or f"lidar{walk.choice([16, 32, 64])}"
+        if rig == "rig2d":
+            raise ConfigError("a hand-held world carries a lidar (lidar16, lidar32, lidar64)")
     rng = np.random.default_rng([int(seed), 11])
     if kind is None:
         kind = "indoor" if rng.random() < 0.25 else "outdoor"
@@ -190,20 +208,27 @@ def random_world(seed: int, kind: str | None = None, rig: str | None = None) -> 
         grade = rng.uniform(0.0, 0.04)
         heading = rng.uniform(0, 2 * np.pi)
         slope = Slope(grade * np.cos(heading), grade * np.sin(heading))
-        traj = _route_trajectory(rng, random_route(rng), rng.uniform(1.5, 4.0), slope)
+        route = random_route(rng)
+        traj = _route_trajectory(rng, route, rng.uniform(1.5, 4.0), slope)
         scene = outdoor_scene(rng, _path_xy(traj), slope)
         world_desc = {"grade": grade, "speed_mps": traj.speed, "lap_m": traj.length}
     else:
         for _ in range(20):  # redraw the rare layout whose rooms come too near the route
             layout = indoor_layout(rng)
-            traj = _route_trajectory(rng, indoor_route(layout), rng.uniform(0.8, 1.8), Slope(), 0.3)
+            route = indoor_route(layout)
+            traj = _route_trajectory(rng, route, rng.uniform(0.8, 1.8), Slope(), 0.3)
             scene = indoor_scene(rng, layout)
             if clearance(_path_xy(traj, 0.2), scene) >= MIN_INDOOR_CLEARANCE_M:
                 break
+        slope = Slope()
         world_desc = {"width_m": layout.width, "ceiling_m": layout.ceiling,
                       "speed_mps": traj.speed, "lap_m": traj.length}  # fmt: skip
+    if walk is not None:  # same path (same clearance), walked by hand
+        traj, walk_desc = random_handheld(walk, route, (slope.gx, slope.gy))
+        world_desc |= walk_desc
     desc = {"kind": kind, **world_desc, **rig_desc}
-    return World(int(seed), kind, replace(scene, name=f"random-{kind}-{seed}"), traj,
+    name = f"random-{kind}-{seed}" + ("-handheld" if walk is not None else "")
+    return World(int(seed), kind, replace(scene, name=name), traj,
                  sensor_rig, epoch_rate, ring, time, desc)  # fmt: skip
 
 

@@ -159,12 +159,20 @@ class WaypointTrajectory(Trajectory):
             )
         return _cubic(self._u_of_s.x, self._u_of_s.c, np.clip(s, 0.0, self.length), False)
 
+    def _heading(self, dxy: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """(cos yaw, sin yaw) (T, 2) from the path's tangents ``dxy`` (T, 2) at times ``t``."""
+        return dxy / np.hypot(dxy[:, 0], dxy[:, 1])[:, None]
+
+    def _sway_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """roll, pitch (rad) and heave (m), each (T,), at times ``t`` (T,), s."""
+        return self.sway.at(t)
+
     def rotations_translations(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rotations (T, 3, 3) and translations (T, 3), metres, at times ``t`` (T,), s."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64))
         xy, dxy = _cubic(self._path.x, self._path.c, self._param(t))
-        heading = dxy / np.hypot(dxy[:, 0], dxy[:, 1])[:, None]  # (cos yaw, sin yaw)
-        roll, pitch, heave = self.sway.at(t)
+        heading = self._heading(dxy, t)
+        roll, pitch, heave = self._sway_at(t)
         sr, sp = np.sin(roll), np.sin(pitch)  # |roll|, |pitch| < pi / 2: cos = sqrt(1 - sin^2)
         cr, cp = np.sqrt(1.0 - sr * sr), np.sqrt(1.0 - sp * sp)
         R = _rotations(cr, sr, cp, sp, heading[:, 0], heading[:, 1])

@@ -1,0 +1,25 @@
+"""Simulating a random world by name: the hand-held walk of a seed, and where it is refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planodom.errors import ConfigError
+from planodom.simulation import simulate_named
+from planodom.simulation.handheld import HandheldTrajectory
+from planodom.simulation.random_world import random_world
+
+
+def test_handheld_random_scene_walks_the_worlds_route():
+    run = simulate_named("random", None, noise=0.0, seed=41, n_epochs=2, handheld=True)
+    world = random_world(41, motion="handheld")
+    assert isinstance(run.trajectory, HandheldTrajectory)
+    assert np.allclose(run.poses, world.trajectory.poses(run.times))
+    assert run.sensor_rig.to_dict() == world.sensor_rig.to_dict()
+    assert len(run.scans[0]) > 1000
+
+
+def test_handheld_refused_outside_random_scenes():
+    with pytest.raises(ConfigError):
+        simulate_named("paper-loop", handheld=True, n_epochs=2)
