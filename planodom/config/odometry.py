@@ -376,6 +376,15 @@ class OdometryConfig(Section):
     loops (batch+loops) median ATE 0.0133 -> 0.0120 m at 6 mm, 0.0505 -> 0.0531 m at 2 cm
     (world 16 0.021 -> 0.041 m), world 18 unchanged (its first step is degenerate: no
     velocity); quick start ATE 0.071 -> 0.076 m (xy 0.052 -> 0.050)."""
+    pairwise_reference_time: Literal["epoch", "middle"] = "epoch"
+    """The pairwise pipelines (the 2D rig's), scans with point times: the time at which
+    each scan is registered, as ``planemap.reference_time`` does for the plane map
+    (:mod:`planodom.odometry.planemap.midtime`): ``epoch``, the epoch's time (a 2D rig
+    stamped at the start of its sweeps); ``middle``, the middle of its points' times, the
+    poses brought back to the epoch times along the curve through them. The twist an
+    epoch is deskewed with comes from the step before it and lags its sweeps by an epoch;
+    registered at the start, the error shifts the whole scan by it times the points' mean
+    time, registered at the middle it only distorts the scan."""
     map_twist_offset: bool = False
     """Streaming, plane-map pipeline: the epoch's own twist (what it is extracted again
     with) has the offset its and the previous epoch's deskewing put in the step taken off

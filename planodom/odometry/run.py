@@ -355,8 +355,13 @@ def _middle_timed_pass(
     from planodom.odometry.planemap import uses_plane_map
     from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times
 
-    first = source[0] if cfg.planemap.reference_time == "middle" and len(source) else None
-    if not (isinstance(first, Scan) and uses_plane_map(cfg, first) and any_time_spread(source)):
+    first = source[0] if len(source) else None
+    if not (isinstance(first, Scan) and any_time_spread(source)):
+        return None
+    if uses_plane_map(cfg, first):
+        if cfg.planemap.reference_time != "middle":
+            return None
+    elif cfg.odometry.pairwise_reference_time != "middle":
         return None
     if times is None:
         times = np.arange(len(source)) * cfg.odometry.epoch_period_s
