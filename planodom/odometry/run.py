@@ -349,9 +349,10 @@ def _middle_timed_pass(
     extractor: Extractor | None,
 ) -> OdometryRun | None:
     """The streaming pass with each scan registered at its sweep's middle and brought
-    back to the epoch times (``planemap.reference_time: middle``,
-    :mod:`planodom.odometry.planemap.midtime`); None when that is off, the plane map
-    does not run, or no scan has point times."""
+    back to the epoch times (:mod:`planodom.odometry.planemap.midtime`): for the plane map
+    with ``planemap.reference_time: middle``, for the pairwise pipelines with
+    ``odometry.pairwise_reference_time: middle``; None when the pipeline's field is off
+    or no scan has point times."""
     from planodom.odometry.planemap import uses_plane_map
     from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times
 
