@@ -377,28 +377,8 @@ class OdometryConfig(Section):
     (world 16 0.021 -> 0.041 m), world 18 unchanged (its first step is degenerate: no
     velocity); quick start ATE 0.071 -> 0.076 m (xy 0.052 -> 0.050)."""
     pairwise_reference_time: Literal["epoch", "middle"] = "epoch"
-    """The pairwise pipelines (the 2D rig's), scans with point times: the time at which
-    each scan is registered, as ``planemap.reference_time`` does for the plane map
-    (:mod:`planodom.odometry.planemap.midtime`): ``epoch``, the epoch's time (a 2D rig
-    stamped at the start of its sweeps); ``middle``, the middle of its points' times, the
-    poses brought back to the epoch times along the curve through them. The twist an
-    epoch is deskewed with comes from the step before it and lags its sweeps by an epoch;
-    registered at the start, the error shifts the whole scan by it times the points' mean
-    time, registered at the middle it only distorts the scan. On the 2D-rig worlds 40-58
-    the rig rolls by up to a degree per 0.2 s epoch (world 46: rate oscillating with a
-    1.6 s period); registered at the start, the roll per epoch came out about 10 % short
-    (0.1 deg) at sigma 0, against 0.01-0.03 deg at the middle (0.12 deg from the
-    snapshot simulation, no motion within an epoch, with either). Measured
-    (generalisation worlds 0-58 even, the 2D rig, 300 epochs, planodom only, epoch ->
-    middle): 6 mm median rotation 0.072 -> 0.052 deg (better on 23 of 30 worlds), xy
-    1.62 -> 1.30 cm, ATE 0.148 -> 0.121 m (15 of 30 better; worse world 8 0.28 -> 2.38 m
-    (its first epoch lost: extracted without deskewing it kept one plane), 6 1.07 -> 3.38,
-    22 0.46 -> 1.02, 0 0.25 -> 0.43, 28 0.54 -> 0.80, 14 0.08 -> 0.20), unresolved 75 ->
-    89; 2 cm rotation 0.199 -> 0.168 deg (23 of 30), ATE 0.78 -> 0.41 m (22 of 30; worse
-    world 6 7.6 -> 19.1 m, 18's rotation 0.23 -> 0.54 deg), unresolved 201 -> 155; world
-    46 at 6 mm 0.590 -> 0.396 deg, ATE 1.53 -> 0.70 m. Quick start: RPE 2.7 -> 1.6 mm,
-    0.0175 -> 0.0140 deg, ATE 0.071 -> 0.084 m (xy 0.052 -> 0.051). Off by default: ATE
-    at 6 mm is mixed (geometric mean of the ratios 1.00) and the quick start's ATE worse."""
+    """``planemap.reference_time`` for the pairwise pipelines (the 2D rig's): ``epoch`` or
+    ``middle``; measured in :mod:`planodom.odometry.planemap.midtime` (off: 6 mm ATE mixed)."""
     map_twist_offset: bool = False
     """Streaming, plane-map pipeline: the epoch's own twist (what it is extracted again
     with) has the offset its and the previous epoch's deskewing put in the step taken off
