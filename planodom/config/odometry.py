@@ -376,6 +376,9 @@ class OdometryConfig(Section):
     loops (batch+loops) median ATE 0.0133 -> 0.0120 m at 6 mm, 0.0505 -> 0.0531 m at 2 cm
     (world 16 0.021 -> 0.041 m), world 18 unchanged (its first step is degenerate: no
     velocity); quick start ATE 0.071 -> 0.076 m (xy 0.052 -> 0.050)."""
+    pairwise_reference_time: Literal["epoch", "middle"] = "epoch"
+    """``planemap.reference_time`` for the pairwise pipelines (the 2D rig's): ``epoch`` or
+    ``middle``; measured in :mod:`planodom.odometry.planemap.midtime` (off: 6 mm ATE mixed)."""
     map_twist_offset: bool = False
     """Streaming, plane-map pipeline: the epoch's own twist (what it is extracted again
     with) has the offset its and the previous epoch's deskewing put in the step taken off

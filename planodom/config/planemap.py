@@ -220,7 +220,7 @@ class PlanemapConfig(Section):
     used: a twist error no longer shifts the scan as a whole). A twist that lags the
     sweep (it comes from the steps before) shifts a scan registered at its start by the
     error times the points' mean time. Applies only to scans with point times (given, or
-    from a declared ``extraction.sweep``); the 2D rig's pipelines never run it. Measured
+    from a declared ``extraction.sweep``); pairwise: ``odometry.pairwise_reference_time``. Measured
     (``planodom experiment generalisation --worlds 20 --rig lidar --epochs 300``, the
     ten lidar worlds, ``epoch`` -> ``middle``): better on every world in rotation, xy
     and ATE at 6 mm and 2 cm; medians 6 mm rotation 21.8x -> 6.5x the oracle (worst 139x

@@ -349,14 +349,20 @@ def _middle_timed_pass(
     extractor: Extractor | None,
 ) -> OdometryRun | None:
     """The streaming pass with each scan registered at its sweep's middle and brought
-    back to the epoch times (``planemap.reference_time: middle``,
-    :mod:`planodom.odometry.planemap.midtime`); None when that is off, the plane map
-    does not run, or no scan has point times."""
+    back to the epoch times (:mod:`planodom.odometry.planemap.midtime`): for the plane map
+    with ``planemap.reference_time: middle``, for the pairwise pipelines with
+    ``odometry.pairwise_reference_time: middle``; None when the pipeline's field is off
+    or no scan has point times."""
     from planodom.odometry.planemap import uses_plane_map
     from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times
 
-    first = source[0] if cfg.planemap.reference_time == "middle" and len(source) else None
-    if not (isinstance(first, Scan) and uses_plane_map(cfg, first) and any_time_spread(source)):
+    first = source[0] if len(source) else None
+    if not (isinstance(first, Scan) and any_time_spread(source)):
+        return None
+    if uses_plane_map(cfg, first):
+        if cfg.planemap.reference_time != "middle":
+            return None
+    elif cfg.odometry.pairwise_reference_time != "middle":
         return None
     if times is None:
         times = np.arange(len(source)) * cfg.odometry.epoch_period_s
