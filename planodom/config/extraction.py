@@ -329,7 +329,14 @@ class ExtractionConfig(Section):
     ``region_max_normal_error_deg`` at every row step: "ransac" hands the scan to the
     RANSAC loop; "masked" grows regions on the pixels whose own predicted error is within
     it (far surfaces, where the rows are far apart), at the tallest row step tried, the
-    others joining planes only through the member tolerance. EXPERIMENT."""
+    others joining planes only through the member tolerance. Measured (lidar worlds, 300
+    epochs, 2 cm, rotation deg per epoch, ransac -> masked): worlds 29 / 47 / 41 (64
+    beams) 0.121 / 0.175 / 0.062 -> 0.0021 / 0.0118 / 0.0013, ATE 31 / 34 / 131 -> 3.0 /
+    1.6 / 2.3 mm, but world 1's ATE 1.4 -> 4.7 mm and world 13's 1.0 -> 2.9 mm, and on a
+    synthetic 64-beam scan at 3 cm with walls 25-35 m away every wall pixel is over the
+    limit and only the ground is found (RANSAC finds all seven planes): a scene whose
+    surfaces are all near and noisy loses them. Off: the RANSAC loop with
+    ``ransac_normal_agreement_deg`` keeps its recall."""
     region_window: int = Field(3, ge=1)
     """Range image: half-width (columns) of the row tangent of a pixel normal; its error
     falls as 1 / (window^1.5) while pixels within it of an edge get no normal."""
