@@ -32,7 +32,9 @@ def test_cutting_planes_by_the_share_of_agreeing_pixel_normals():
     normals = np.tile(up, (len(members), 1))
     refused = cutting_planes(normals, members, point_normal, has, cfg)
     assert refused.tolist() == [False, True, True, False, False, False]
-    off = cutting_planes(normals, members, point_normal, has, ExtractionConfig())
+    off = cutting_planes(
+        normals, members, point_normal, has, ExtractionConfig(ransac_normal_agreement_deg=None)
+    )
     assert not off.any()
 
 
@@ -64,8 +66,9 @@ def test_dense_lidar_at_high_noise_keeps_the_facades_and_drops_the_cuts():
         return sum(abs(p.normal @ truth[p.truth_id][0]) < np.cos(np.radians(20.0)) for p in planes)
 
     base = ExtractionConfig(range_noise_m=0.02, estimate_noise=False)
-    without = extract(scan, base).planes
+    assert base.ransac_normal_agreement_deg == 45.0
+    without = extract(scan, base.model_copy(update={"ransac_normal_agreement_deg": None})).planes
     assert off_truth(without) >= 3
-    planes = extract(scan, base.model_copy(update={"ransac_normal_agreement_deg": 45.0})).planes
+    planes = extract(scan, base).planes
     assert off_truth(planes) == 0
     assert seen <= {p.truth_id for p in planes}
