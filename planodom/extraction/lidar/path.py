@@ -65,9 +65,17 @@ def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
             n_cand = len(organised.candidates)
             if planes:  # rows that gave no plane were no lidar's rows: RANSAC decides
                 return PathResult(planes, inliers, organised.sigma_m, 0, n_cand, n_rejected)
-    candidates, sigma, ransac = lidar_candidates(epoch.points, config, scan.ring, view, scan.t)
+    return _candidate_planes(epoch, scan.ring, view, config)
+
+
+def _candidate_planes(
+    epoch: Epoch, ring: np.ndarray | None, view: np.ndarray, config: ExtractionConfig
+) -> PathResult:
+    """The planes of the range image's or the RANSAC loop's candidates of ``epoch`` with
+    ``ring`` (N,) (None: RANSAC) seen from ``view`` (3,) m."""
+    candidates, sigma, ransac = lidar_candidates(epoch.points, config, ring, view, epoch.scan.t)
     fits, n_small = fit_candidates(candidates, epoch.points, config)
-    adjust = _agreement(epoch, scan.ring, sigma, config, fits) if ransac else None
+    adjust = _agreement(epoch, ring, sigma, config, fits) if ransac else None
     planes, inliers, n_rejected = build_planes(
         fits, epoch, sigma, _fit_config(config, ransac), adjust
     )
@@ -104,15 +112,8 @@ def _native_planes(
     # One origin for all rows: recovered rows are not the rig's ring ids.
     origins = None if epoch.origins is None else epoch.origins.mean(axis=0, keepdims=True)
     ringed = Epoch(replace(epoch.scan, ring=rows), epoch.points, origins, epoch.twist)
-    candidates, sigma, ransac = lidar_candidates(ringed.points, config, rows, view, ringed.scan.t)
-    fits, n_small = fit_candidates(candidates, ringed.points, config)
-    adjust = _agreement(ringed, rows, sigma, config, fits) if ransac else None
-    planes, inliers, n_rejected = build_planes(
-        fits, ringed, sigma, _fit_config(config, ransac), adjust
-    )
-    if not planes:
-        return None
-    return PathResult(planes, inliers, sigma, 0, len(candidates), n_small + n_rejected)
+    found = _candidate_planes(ringed, rows, view, config)
+    return found if found.planes else None
 
 
 def _fit_config(config: ExtractionConfig, ransac: bool) -> ExtractionConfig:
