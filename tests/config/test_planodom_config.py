@@ -32,6 +32,11 @@ def test_round_trip(tmp_path) -> None:
             r"c\.yaml: field 'smoothing\.loop_refuse_ambiguous'",
         ),
         ("odometry: {map_trend_rescue: perhaps}\n", r"c\.yaml: field 'odometry\.map_trend_rescue'"),
+        ("smoothing: {loop_map_epoch: latest}\n", r"c\.yaml: field 'smoothing\.loop_map_epoch'"),
+        (
+            "odometry: {pairwise_reference_time: start}\n",
+            r"c\.yaml: field 'odometry\.pairwise_reference_time'",
+        ),
         ("extraction: {deskew_jacobian: 3}\n", r"c\.yaml: field 'extraction\.deskew_jacobian'"),
         (
             "odometry: {refine_unmeasured: blended}\n",

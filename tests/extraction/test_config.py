@@ -29,6 +29,9 @@ from planodom.errors import ConfigError
         ({"single_scanner_min_sweeps": 2}, "extraction.single_scanner_min_sweeps"),
         ({"region_azimuth_columns": True}, "extraction.region_azimuth_columns"),  # gone
         ({"max_unskewed_span_s": 0.1}, "extraction.max_unskewed_span_s"),  # now nested
+        ({"organised_window_deg": 0.0}, "extraction.organised_window_deg"),
+        ({"ransac_normal_agreement_deg": 90.0}, "extraction.ransac_normal_agreement_deg"),
+        ({"region_noisy_pixels": "grown"}, "extraction.region_noisy_pixels"),
     ],
 )
 def test_bad_values_fail_at_load_naming_the_field(section, field) -> None:
