@@ -37,7 +37,7 @@ import numpy as np
 from planodom._open3d import o3d
 from planodom.config import ExtractionConfig
 from planodom.extraction.kernels import add_outer, find_root
-from planodom.extraction.lidar.grid import ring_order, ring_rows
+from planodom.extraction.lidar.grid import ring_layout
 from planodom.extraction.lidar.rangeimage import range_image_candidates
 from planodom.extraction.lidar.ransac import segment_plane
 from planodom.extraction.noise import effective_noise, member_tolerance
@@ -56,10 +56,10 @@ def ring_noise(points: np.ndarray, ring: np.ndarray | None, config: ExtractionCo
     """
     if ring is None or not config.estimate_noise or len(points) < 15:
         return 0.0
-    row, n_rows = ring_rows(ring)
+    row, _, order = ring_layout(ring)  # memoised: the scan's ring alone
     across = _ring_noise_terms(
         np.ascontiguousarray(points, dtype=np.float64),
-        ring_order(row, n_rows),
+        order,
         row,
         float(config.min_gap_m),
         float(config.gap_range_ratio),
