@@ -36,6 +36,7 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.lidar.agreement import cutting_planes, point_normals
 from planodom.extraction.lidar.candidates import lidar_candidates
+from planodom.extraction.lidar.decimate import kept_points, subset_scan
 from planodom.extraction.lidar.organised import organised_candidates
 from planodom.extraction.lidar.rows import scan_rows
 from planodom.extraction.lidar.sweep import AzimuthTimedScan
@@ -74,7 +75,18 @@ def _candidate_planes(
     epoch: Epoch, ring: np.ndarray | None, view: np.ndarray, config: ExtractionConfig
 ) -> PathResult:
     """The planes of the range image's or the RANSAC loop's candidates of ``epoch`` with
-    ``ring`` (N,) (None: RANSAC) seen from ``view`` (3,) m."""
+    ``ring`` (N,) (None: RANSAC) seen from ``view`` (3,) m; of a decimated grid when it
+    is denser than ``grid_max_columns`` / ``grid_max_rows`` (:mod:`.decimate`), inliers
+    as indices of the whole scan."""
+    keep = None
+    if ring is not None:
+        keep = kept_points(ring, epoch.scan.t, config.grid_max_columns, config.grid_max_rows)
+    if ring is not None and keep is not None:
+        sub_scan, sub_ring = subset_scan(epoch.scan, ring, keep)
+        sub = Epoch(sub_scan, epoch.points[keep], epoch.origins, epoch.twist)
+        found = _candidate_planes(sub, sub_ring, view, config.model_copy(
+            update={"grid_max_columns": None, "grid_max_rows": None}))  # fmt: skip
+        return replace(found, inliers=[keep[i] for i in found.inliers])
     candidates, sigma, ransac = lidar_candidates(epoch.points, config, ring, view, epoch.scan.t)
     fits, n_small = fit_candidates(candidates, epoch.points, config)
     adjust = _agreement(epoch, ring, sigma, config, fits) if ransac else None
