@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import ConfigDict, Field, model_validator
 
 from planodom.config.section import Section
+from planodom.config.sweep import SweepConfig
 from planodom.errors import ConfigError
 
 
@@ -44,48 +45,6 @@ class TimeWindowConfig(Section):
     repeat_deg: float = Field(5.0, gt=0, le=90)
     """Normal angle (deg) within which planes of two windows may be one wall (the turn of
     the vehicle over an epoch plus the fit error of one sweep's traces)."""
-
-
-class SweepConfig(Section):
-    """The declared sweep convention of a spinning lidar, to recover per-point times from
-    the azimuth when a cloud has none (:mod:`planodom.extraction.lidar.sweep`).
-
-    A spinning lidar fires its columns at a constant rate while it turns, so a point's time
-    is a function of its azimuth in the sensor frame once the convention is declared: the
-    sense of rotation, the azimuth where the sweep starts (its seam) and the sweep period.
-    Nothing is guessed: with ``rotation: none`` (the default) a cloud without times stays
-    without them (and is not deskewed). KISS-ICP recovers KITTI's times the same way.
-    A point at azimuth ``a`` (sensor frame, from x towards y) gets
-    ``t = start_time_s + period_s * f``, ``f`` in [0, 1) the fraction of a turn from
-    ``start_azimuth_deg`` to ``a`` in the sense of rotation. Clouds that carry times keep
-    them.
-    """
-
-    model_config = ConfigDict(allow_inf_nan=False)
-
-    rotation: Literal["none", "ccw", "cw"] = "none"
-    """Sense of rotation about the sensor's z axis seen from above: ccw (counter-clockwise,
-    azimuth increasing), cw (clockwise); none: no convention declared (times are not
-    recovered)."""
-    start_azimuth_deg: float = Field(-180.0, ge=-360.0, le=360.0)
-    """Azimuth (deg, sensor frame, from x towards y) of the first column of a sweep.
-    Default: behind the sensor (-180 deg), where most units put the seam."""
-    period_s: float = Field(0.1, gt=0.0, le=10.0)
-    """Seconds per revolution (0.1 s: a 10 Hz unit)."""
-    start_time_s: float = Field(0.0, ge=-10.0, le=10.0)
-    """Time (s) of the sweep's first column relative to the epoch's reference time: 0 when
-    the epoch is stamped at the start of the sweep, ``-period_s / 2`` when it is stamped
-    half a turn later (KITTI: when the sensor faces forward)."""
-
-    @model_validator(mode="after")
-    def _cross_checks(self) -> SweepConfig:
-        """The sweep covers the reference time or lies next to it (raises ConfigError)."""
-        if abs(self.start_time_s) > self.period_s:
-            raise ConfigError(
-                "extraction.sweep.start_time_s: must be within one period_s "
-                f"({self.period_s!r}) of the epoch's reference time, got {self.start_time_s!r}"
-            )
-        return self
 
 
 class ExtractionConfig(Section):
@@ -417,6 +376,24 @@ class ExtractionConfig(Section):
     -> 0.022, 136 -> 3.9 mm, 18 -> 0; world 5 (64 beams on 512 columns: 0.7 deg pixels,
     two instead of three) ATE 3.07 -> 2.89 and 3.24 -> 2.81 mm, but xy per epoch 0.066
     -> 0.070 and 0.076 -> 0.085 cm; world 59 (64 beams, 1024 columns) unchanged."""
+    grid_max_columns: int | None = Field(1024, ge=16)
+    """Lidar path with a grid (a ring field or recovered rows, and usable times): a scan
+    of more columns than this keeps every k-th column, ``k = ceil(W / grid_max_columns)``,
+    before extraction (:mod:`planodom.extraction.lidar.decimate`); None: every column.
+    1024 (and 64 rows): the densest grid of the worlds every default was measured on, so
+    none of them (nor KITTI 0005, organised path) changes; a denser unit's pixel normals
+    over ``region_window`` columns were too short to grow regions on (RANSAC ran instead,
+    at several times the cost). Measured (128 x 2048 lidar on worlds 1, 3, 41, 45, 47,
+    6 mm, 60 epochs; rot deg / xy cm per epoch, ATE mm, all columns -> 1024 x 64):
+    w1 0.0063 / 0.031 / 1.6 -> 0.0067 / 0.034 / 1.9; w3 0.0064 / 0.012 / 0.46 -> 0.0071
+    / 0.022 / 0.37; w41 0.0011 / 0.036 / 2.5 -> 0.0014 / 0.027 / 1.8; w45 0.56 / 0.57 /
+    261 -> 0.20 / 0.37 / 91; w47 0.044 / 133 / 9085 -> 0.0046 / 0.025 / 0.86; 2-3x the
+    epochs per second; 64 x 2048 (w1, w47) rot 0.0065 -> 0.0079 and xy 0.021 -> 0.026 cm
+    but ATE 2.0 -> 1.7 and 0.70 -> 0.82 mm, 1.4-1.6x the epochs per second. 512 columns
+    was faster still (w45 36 mm ATE) but would change the 1024-column worlds."""
+    grid_max_rows: int | None = Field(64, ge=4)
+    """As ``grid_max_columns`` for the rows (beams): more rows than this keep every k-th
+    row, ``k = ceil(H / grid_max_rows)``; None: every row. 64: as ``grid_max_columns``."""
     region_merge: Literal["grid", "reach"] = "grid"
     """Range image of a ringed scan (or rows with times): grid: coplanar pieces merge
     when near in the grid; reach: also when their bounding circles come within

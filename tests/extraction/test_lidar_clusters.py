@@ -7,7 +7,13 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from planodom.extraction.lidar.candidates import _buckets, _clusters, _tls_normal, _within
+from planodom.extraction.lidar.candidates import (
+    _buckets,
+    _clusters,
+    _region_buckets,
+    _tls_normal,
+    _within,
+)
 from planodom.extraction.planes.fit import tls_fit
 
 
@@ -56,6 +62,24 @@ def test_buckets_equal_one_selection_per_label():
     members, bounds = _buckets(idx[:0], label[:0], 3)
     assert len(members) == 0
     np.testing.assert_array_equal(bounds, [0, 0, 0, 0])
+
+
+def test_region_buckets_equal_the_numpy_gather_and_buckets():
+    """The compiled counting sort gives the RANSAC loop's (members, bounds) of the points
+    not taken by their dilated cluster exactly as the numpy gather and _buckets did."""
+    rng = np.random.default_rng(6)
+    for _ in range(20):
+        n_az, n_el, n = 40, int(rng.integers(3, 9)), 2000
+        lookup = rng.integers(-1, 5, (n_az, n_el))
+        az, el = rng.integers(0, n_az, n), rng.integers(0, n_el + 4, n)  # some above top
+        taken = rng.random(n) < 0.3
+        n_lab = int(lookup.max()) + 1
+        free = np.flatnonzero(~taken)
+        top = n_el - 1
+        expected = _buckets(free, lookup[az[free], np.minimum(el[free], top)], n_lab)
+        got = _region_buckets(az, el, taken, lookup, n_lab)
+        np.testing.assert_array_equal(got[0], expected[0])
+        np.testing.assert_array_equal(got[1], expected[1])
 
 
 def test_compiled_fit_and_selection_match_numpy():

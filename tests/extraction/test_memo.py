@@ -13,7 +13,7 @@ from planodom.extraction import extract
 from planodom.extraction.memo import identity_memo, read_only
 from planodom.scan import Scan
 
-from .synth_scans import default_scene, scan_rig
+from .synth_scans import default_scene, scan_lidar, scan_rig
 
 
 def test_memo_returns_the_last_result_for_the_same_arrays_only():
@@ -94,3 +94,23 @@ def test_checked_origins_are_remembered_per_scan_and_array_only():
     assert origins.flags.writeable
     with pytest.raises(GeometryError, match="do not index"):
         extract(scan, sensor_origins=origins[:-1].copy())
+
+
+@pytest.mark.parametrize("with_ring", [True, False])
+def test_a_lidar_scan_extracted_again_equals_a_fresh_copy(with_ring):
+    """The lidar path reuses its grid, ring order and (without a ring field) recovered rows
+    across an epoch's extractions: the second of two extractions with different twists
+    equals an extraction of new arrays with the second twist."""
+    scan = scan_lidar(default_scene(), np.array([0, 0, 0.3, 1.5, 0, 0]), 0.005, n_azimuth=512,
+                      with_ring=with_ring)  # fmt: skip
+    fresh = Scan(scan.points.copy(), None if scan.ring is None else scan.ring.copy(),
+                 scan.t.copy(), scan.label.copy())  # fmt: skip
+    twists = [np.array([0, 0, 0.2, 1.0, 0, 0]), np.array([0, 0, 0.3, 1.5, 0, 0])]
+    extract(scan, twist=twists[0])
+    again = extract(scan, twist=twists[1])
+    scratch = extract(fresh, twist=twists[1])
+    assert len(again.planes) == len(scratch.planes) > 0
+    for p, q in zip(again.planes, scratch.planes, strict=True):
+        np.testing.assert_array_equal(p.coefficients, q.coefficients)
+    for i, j in zip(again.inliers, scratch.inliers, strict=True):
+        np.testing.assert_array_equal(i, j)

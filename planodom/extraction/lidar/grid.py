@@ -19,6 +19,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from planodom.extraction.memo import identity_memo, read_only
+
 
 def ring_rows(ring: np.ndarray) -> tuple[np.ndarray, int]:
     """Row (N,) int64 of every point and the number of rows H: the rank of its ring id
@@ -63,24 +65,36 @@ def _ring_time_steps(t, order, row):  # pragma: no cover - compiled
     return out[:k]
 
 
+@identity_memo
+def ring_layout(ring: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
+    """:func:`ring_rows` and :func:`ring_order` of ``ring`` (N,): ``(row, H, order)``,
+    read-only, memoised (:mod:`planodom.extraction.memo`): they depend on the scan's
+    ring field alone, not on the deskewed points, so an epoch's extractions of one scan
+    (up to three with ``odometry.deskew_iterations``) compute them once."""
+    row, H = ring_rows(ring)
+    return read_only(row), H, read_only(ring_order(row, H))
+
+
+@identity_memo
 def grid_indices(
     ring: np.ndarray, t: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray | None, int, int]:
     """Row (N,) and column (N,) of every point and the grid size (H, W) (module
-    docstring); column None (W = 0) when the times are unusable."""
-    row, H = ring_rows(ring)
+    docstring); column None (W = 0) when the times are unusable. Read-only and memoised
+    (:mod:`planodom.extraction.memo`): they depend on the scan's ring and times alone."""
+    row, H, order = ring_layout(ring)
     counts = np.bincount(row, minlength=H)
     if t is None or len(t) <= 1:
         return row, None, H, 0
     t = np.ascontiguousarray(t, dtype=np.float64)
-    pos = _ring_time_steps(t, ring_order(row, H), row)
+    pos = _ring_time_steps(t, order, row)
     if len(pos) < len(ring) // 4:
         return row, None, H, 0
     step = float(np.median(pos))
     col = np.rint((t - t.min()) / step).astype(np.int64)
     if col.max() >= 4 * counts.max() + 16:
         return row, None, H, 0
-    return row, col, H, int(col.max()) + 1
+    return row, read_only(col), H, int(col.max()) + 1
 
 
 @numba.njit(cache=True)

@@ -36,11 +36,14 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.lidar.agreement import cutting_planes, point_normals
 from planodom.extraction.lidar.candidates import lidar_candidates
+from planodom.extraction.lidar.decimate import kept_points, subset_scan
 from planodom.extraction.lidar.organised import organised_candidates
 from planodom.extraction.lidar.rows import scan_rows
 from planodom.extraction.lidar.sweep import AzimuthTimedScan
+from planodom.extraction.memo import identity_memo, read_only
 from planodom.extraction.planes.builder import Adjust, PlaneFits, build_planes
 from planodom.extraction.planes.fit import robust_plane_fits, tls_fit
+from planodom.scan import Scan
 
 
 def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
@@ -52,7 +55,7 @@ def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         # Rows of the raw cloud (its file order and elevations are the sensor's); the
         # image's columns are azimuth bins of the deskewed points (bins several native
         # columns wide; bins of the raw azimuths measured no better on a lidar world).
-        found = scan_rows(scan.points, origin)
+        found = _scan_rows(scan.points, *(float(v) for v in origin))
         if found is not None:
             rows = found[0]
             if not isinstance(scan, AzimuthTimedScan):
@@ -72,7 +75,18 @@ def _candidate_planes(
     epoch: Epoch, ring: np.ndarray | None, view: np.ndarray, config: ExtractionConfig
 ) -> PathResult:
     """The planes of the range image's or the RANSAC loop's candidates of ``epoch`` with
-    ``ring`` (N,) (None: RANSAC) seen from ``view`` (3,) m."""
+    ``ring`` (N,) (None: RANSAC) seen from ``view`` (3,) m; of a decimated grid when it
+    is denser than ``grid_max_columns`` / ``grid_max_rows`` (:mod:`.decimate`), inliers
+    as indices of the whole scan."""
+    keep = None
+    if ring is not None:
+        keep = kept_points(ring, epoch.scan.t, config.grid_max_columns, config.grid_max_rows)
+    if ring is not None and keep is not None:
+        sub_scan, sub_ring = subset_scan(epoch.scan, ring, keep)
+        sub = Epoch(sub_scan, epoch.points[keep], epoch.origins, epoch.twist)
+        found = _candidate_planes(sub, sub_ring, view, config.model_copy(
+            update={"grid_max_columns": None, "grid_max_rows": None}))  # fmt: skip
+        return replace(found, inliers=[keep[i] for i in found.inliers])
     candidates, sigma, ransac = lidar_candidates(epoch.points, config, ring, view, epoch.scan.t)
     fits, n_small = fit_candidates(candidates, epoch.points, config)
     adjust = _agreement(epoch, ring, sigma, config, fits) if ransac else None
@@ -111,9 +125,35 @@ def _native_planes(
         return None
     # One origin for all rows: recovered rows are not the rig's ring ids.
     origins = None if epoch.origins is None else epoch.origins.mean(axis=0, keepdims=True)
-    ringed = Epoch(replace(epoch.scan, ring=rows), epoch.points, origins, epoch.twist)
+    ringed = Epoch(_ringed(epoch.scan, rows), epoch.points, origins, epoch.twist)
     found = _candidate_planes(ringed, rows, view, config)
     return found if found.planes else None
+
+
+@identity_memo
+def _scan_rows(points: np.ndarray, x: float, y: float, z: float) -> tuple[np.ndarray, str] | None:
+    """:func:`.rows.scan_rows` of the raw ``points`` (N, 3) seen from ``(x, y, z)`` m,
+    rows read-only and memoised (:mod:`planodom.extraction.memo`): an epoch's
+    extractions of one scan (with the predicted twist, then its own) share them."""
+    found = scan_rows(points, np.array([x, y, z]))
+    return None if found is None else (read_only(found[0]), found[1])
+
+
+def _ringed(scan: Scan, rows: np.ndarray) -> Scan:
+    """``scan`` with its recovered ``rows`` (N,) as the ring; for a plain :class:`Scan`
+    the same object for the same arrays (memoised on them), so that what later steps
+    memoise on the ring field is computed once per scan (and the copies are made once)."""
+    if type(scan) is not Scan:
+        return replace(scan, ring=rows)
+    return _ringed_fields(scan.points, rows, scan.t, scan.label)
+
+
+@identity_memo
+def _ringed_fields(
+    points: np.ndarray, rows: np.ndarray, t: np.ndarray | None, label: np.ndarray | None
+) -> Scan:
+    """A :class:`Scan` of these fields (memoised, :func:`_ringed`)."""
+    return Scan(points, ring=rows, t=t, label=label)
 
 
 def _fit_config(config: ExtractionConfig, ransac: bool) -> ExtractionConfig:
