@@ -54,7 +54,7 @@ class OdometryConfig(Section):
     is at most this, m (else it keeps the consensus or prior value and the epoch is
     degenerate); a few centimetres: what the constant-velocity prediction of a car
     misses in one epoch."""
-    refine_unmeasured: Literal["prior", "kept", "walls"] = "prior"
+    refine_unmeasured: Literal["prior", "kept", "walls", "prediction"] = "prior"
     """Refinement of a degenerate epoch (a horizontal direction's sigma above
     ``refine_max_sigma_m``): ``"prior"``: the unmeasured direction is solved with the
     initial value (the consensus's or the prediction's) as a prior of sigma
@@ -75,7 +75,12 @@ class OdometryConfig(Section):
     -> 7.64); with ``extraction.seed_spans_gap`` world 2 3.27 -> 2.45 m (6 mm), 5.49 ->
     3.77 (2 cm). "kept" was worse (2 cm: world 0 1.3 -> 21.6 m, where walls a few
     degrees off a street's axis do measure it). Default prior until smoothing and the
-    built-in scenes are measured with walls."""
+    built-in scenes are measured with walls. ``"prediction"``: in the streaming odometry
+    (a constant-velocity prediction of known sigma, :mod:`planodom.odometry.twist_sigma`)
+    as ``"kept"``, the unmeasured directions keeping the prediction with its variance
+    (the velocity's predicted sigma times the epoch's dt, squared) in the step's
+    covariance; without a prediction (first step, the retry without the prior, other
+    callers) as ``"prior"``. MEASURED_PLACEHOLDER"""
     estimate_z: bool = True
     """Estimate the vertical translation from associated ground-like planes."""
     z_plane_max_tilt_deg: AcuteDeg = 30.0
