@@ -30,6 +30,7 @@ from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
 from planodom.geometry import Plane, make_transform, rpy_from_rotation
 from planodom.odometry.canonical import canonical
+from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
@@ -153,36 +154,6 @@ def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) ->
     )
 
 
-class _Bounds(NamedTuple):
-    """The motion assumption of one pass: centre ``t0`` (3,) m, translation bound m,
-    rotation bound rad, the height to use when z is not measured, m, and, for
-    ``refine_unmeasured: prediction`` with a prior of known sigma, the prior's translation
-    (3,) m and its horizontal variance m^2, what an unmeasured direction keeps (else None)."""
-
-    t0: np.ndarray
-    translation: float
-    rotation: float
-    z_prior: float
-    prediction: np.ndarray | None = None
-    prediction_var: float | None = None
-
-
-def _bounds(
-    cfg: PlanodomConfig, prior: np.ndarray | None, bound_by_prior: bool, sigma: float | None
-) -> _Bounds:
-    a, t_pred, var = cfg.association, None, None
-    if cfg.odometry.refine_unmeasured == "prediction" and prior is not None:
-        if sigma is not None and np.isfinite(sigma):
-            t_pred, var = prior[:3, 3], sigma**2
-    if bound_by_prior:
-        assert prior is not None
-        t0, t, r = prior[:3, 3], a.prior_translation_m, a.prior_rotation_deg
-    else:
-        t0, t, r = np.zeros(3), a.max_translation_m, a.max_rotation_deg
-    z = float(prior[2, 3]) if prior is not None else 0.0
-    return _Bounds(t0, t, np.radians(r), z, t_pred, var)
-
-
 def _solve(
     prev: PlaneSet,
     curr: PlaneSet,
@@ -196,7 +167,7 @@ def _solve(
     name = pairwise_pipeline(ocfg.pipeline)
     rot_method, trans_method = PIPELINES[name]
     lda = lenient_association(prev, curr, acfg, prior if bound_by_prior else None)
-    bounds = _bounds(cfg, prior, bound_by_prior, prior_sigma_m)
+    bounds = pass_bounds(cfg, prior, bound_by_prior, prior_sigma_m)
     info = SolverDiagnostics(name, lda, used_prior=bound_by_prior)
     if len(lda) == 0:
         T = prior.copy() if prior is not None else np.eye(4)
@@ -264,7 +235,7 @@ def _translation_pairs(
     lda: PairAssociations,
     R: np.ndarray,
     method: str,
-    bounds: _Bounds,
+    bounds: PassBounds,
     cfg: PlanodomConfig,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The plane associations (L, 2) and pair associations (P, 2), (P, 2) that give the
@@ -289,7 +260,7 @@ def _measured_translation(
     elems: TranslationElements,
     heights: HeightElements,
     method: str,
-    bounds: _Bounds,
+    bounds: PassBounds,
     cfg: PlanodomConfig,
 ) -> tuple[_Translation | None, bool]:
     """The translation from the pair elements (None without elements) and whether it is a
@@ -311,7 +282,7 @@ class _Refined(NamedTuple):
     fit: PlaneTranslation
 
 
-def _refine(prev, curr, R, t, measured: bool, bounds: _Bounds, cfg: PlanodomConfig) -> _Refined:
+def _refine(prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomConfig) -> _Refined:
     """Rotation and translation by weighted least squares over all planes SDA associates
     around ``(R, t)`` (:mod:`planodom.odometry.refine`), twice: the second time with the
     inlier bound around the first result when it measured the translation. A result
