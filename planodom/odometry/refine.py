@@ -111,13 +111,9 @@ def plane_translation(
         predicted: (3,) the predicted translation, m (its x, y are what "prediction"
             keeps; ``t0`` stays the consensus's, around which the planes associated).
     """
-    keep_sigma, prediction = max_sigma_m, None
-    if unmeasured == "prediction":
-        unmeasured = "prior"
-        if prediction_var is not None and predicted is not None:
-            unmeasured_var = min(prediction_var, unmeasured_var)
-            prediction = np.asarray(predicted, dtype=np.float64)
-            unmeasured, keep_sigma = "kept", float(np.sqrt(unmeasured_var))
+    unmeasured, unmeasured_var, keep_sigma, prediction = _mode(
+        unmeasured, unmeasured_var, max_sigma_m, prediction_var, predicted
+    )
     t0 = np.asarray(t0, dtype=np.float64)
     if len(ij) == 0:
         return PlaneTranslation(t0.copy(), np.eye(2) * unmeasured_var, np.inf, False, False, 0)
@@ -141,6 +137,25 @@ def plane_translation(
     z_observed, measured = bool(flags[0]), bool(flags[1])
     sigma_z = float(np.sqrt(h_inv[2, 2])) if z_observed else np.inf
     return PlaneTranslation(t, h_inv[:2, :2].copy(), sigma_z, z_observed, measured, n_kept)
+
+
+def _mode(
+    unmeasured: str,
+    var: float,
+    max_sigma_m: float,
+    prediction_var: float | None,
+    predicted: np.ndarray | None,
+) -> tuple[str, float, float, np.ndarray | None]:
+    """:func:`plane_translation`'s ``unmeasured`` as the kernel runs it: the mode, the
+    prior's variance, the sigma above which a direction is kept, and the prediction (3,)
+    (None: not solved again from it). "prediction" is "kept" with the prediction's sigma
+    (at most ``var``'s) as the threshold, or "prior" without a prediction."""
+    if unmeasured != "prediction":
+        return unmeasured, var, max_sigma_m, None
+    if prediction_var is None or predicted is None:
+        return "prior", var, max_sigma_m, None
+    var = min(prediction_var, var)
+    return "kept", var, float(np.sqrt(var)), np.asarray(predicted, dtype=np.float64)
 
 
 #: ``unmeasured`` of :func:`plane_translation` as the kernel's code.
