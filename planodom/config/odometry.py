@@ -54,28 +54,27 @@ class OdometryConfig(Section):
     is at most this, m (else it keeps the consensus or prior value and the epoch is
     degenerate); a few centimetres: what the constant-velocity prediction of a car
     misses in one epoch."""
-    refine_unmeasured: Literal["prior", "kept", "walls"] = "prior"
+    refine_unmeasured: Literal["prior", "kept", "walls", "prediction"] = "prediction"
     """Refinement of a degenerate epoch (a horizontal direction's sigma above
-    ``refine_max_sigma_m``): ``"prior"``: the unmeasured direction is solved with the
-    initial value (the consensus's or the prediction's) as a prior of sigma
-    ``prior_translation_m``, so the planes' weak information on it (a tilted floor or
-    ceiling, walls a few degrees from the corridor's axis) pulls it; ``"kept"``: it keeps
-    the initial value exactly and the measured directions (and z) are solved with it held
-    ; ``"walls"``: x, y from the planes that are not level (tilted less than
-    ``z_plane_max_tilt_deg`` from horizontal) and the prior, z then with them held
-    (:func:`planodom.odometry.refine.plane_translation`). A level plane measures x, y
-    only through its tilt, with ~1 / sin(tilt) times its offset's error: in issue 11's
-    indoor world 2 (6 mm) "prior" put corridor epochs 0.26-0.43 m off along the corridor
-    (x rms over its degenerate epochs 17 cm; kept, walls 8 cm: one epoch is 0.40 m off in
-    every mode, a wrong association). Measured, 2D-rig
-    worlds 0-18 even, 300 epochs, prior -> walls: 6 mm ATE world 2 0.82 -> 0.50 m, 6
-    1.07 -> 0.98, others within 1 mm (median 0.186 m both); 2 cm median xy 7.9 -> 6.1 cm,
-    ATE 1.01 -> 0.98 m (world 4 1.01 -> 0.15, 16 1.01 -> 0.23; worse: world 2 0.99 ->
-    4.37, a degenerate first epoch with no velocity yet then a turn lost bridged, 6 7.56
-    -> 7.64); with ``extraction.seed_spans_gap`` world 2 3.27 -> 2.45 m (6 mm), 5.49 ->
-    3.77 (2 cm). "kept" was worse (2 cm: world 0 1.3 -> 21.6 m, where walls a few
-    degrees off a street's axis do measure it). Default prior until smoothing and the
-    built-in scenes are measured with walls."""
+    ``refine_max_sigma_m``, :func:`planodom.odometry.refine.plane_translation`): ``"prior"``:
+    the unmeasured direction is solved with the initial value (consensus's or prediction's) as
+    a prior of sigma ``prior_translation_m``, the planes' weak information (a tilted ceiling,
+    walls a few degrees off a corridor's axis) pulling it; ``"kept"``: it keeps the initial
+    value exactly, the others (and z) solved with it held; ``"walls"``: x, y from the planes
+    that are not level and the prior, then z (a level plane measures x, y through its tilt
+    only, ~1 / sin(tilt) times its offset's error). ``"prediction"`` (default; streaming
+    pairwise odometry): a direction the planes measure less well than the prediction (the
+    predicted velocity sigma of :mod:`planodom.odometry.twist_sigma` times dt, at most
+    ``prior_translation_m``) keeps the prediction exactly with that sigma, also in the retry
+    without the prior's bounds, the others solved as "kept"; without a prediction's sigma as
+    "prior". (World 52, 6 mm: with "prior" a far wall's weak pull set one step 0.19 m off along
+    the only wall; the prediction carried it 20 epochs.) 2D-rig worlds 0-58 even, 150 epochs,
+    prior -> prediction: ATE median 6 mm 0.070 -> 0.069 m, 2 cm 0.307 -> 0.296 (geometric mean
+    of the ratios 0.84 / 0.85; 10 / 16 worlds better, 9 / 5 worse), xy per epoch median 0.95 ->
+    0.89 / 3.50 -> 2.57 cm; world 52 3.83 -> 0.063 m, 6 0.75 -> 0.46 / 1.53 -> 1.01, 26 (2 cm)
+    4.57 -> 2.29. Worse: 6 mm world 26 8.68 -> 9.90, 48 0.074 -> 0.131, 28 0.065 -> 0.082; 2 cm
+    world 20 0.166 -> 0.337, 2 1.19 -> 1.27; rotation median at 2 cm 0.141 -> 0.147 deg (world
+    6 0.42 -> 0.74). "kept": 2 cm world 0 0.79 -> 20.8 m."""
     estimate_z: bool = True
     """Estimate the vertical translation from associated ground-like planes."""
     z_plane_max_tilt_deg: AcuteDeg = 30.0

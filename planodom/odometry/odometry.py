@@ -281,8 +281,7 @@ class PlaneOdometry:
         step ``T_{k-1}_k`` it implies.
 
         Poses are chained through steps (products of rigid transforms), never through the
-        inverse of a chained world pose, so rounding cannot grow from epoch to epoch.
-        """
+        inverse of a chained world pose, so rounding cannot grow from epoch to epoch."""
         if self._map is not None:
             return self._estimate_map(epoch, t)
         reference = self._reference()
@@ -293,9 +292,10 @@ class PlaneOdometry:
         prediction = None  # constant velocity: T_{ref}_k
         if self.twist is not None and dt > 0:
             prediction = T_ref_last @ se3_exp(self.twist * dt)
+        sigma = self._twist_sigma.predicted()[1] * dt  # the prediction's translation, m
         prior = prediction if self.config.odometry.use_motion_prior else None
         config = self._config_for_gap(epoch.index - reference.index)
-        result = estimate_relative_pose(reference.plane_set, epoch.plane_set, config, prior)
+        result = estimate_relative_pose(reference.plane_set, epoch.plane_set, config, prior, sigma)
         if result.status is Status.UNRESOLVED:  # bridged by constant velocity
             bridge = prediction if prediction is not None else T_ref_last
             result = replace(result, T_prev_curr=bridge)

@@ -72,6 +72,8 @@ def plane_translation(
     consensus_measured: bool = False,
     unmeasured: str = "prior",
     level_min: float = 0.866,
+    prediction_var: float | None = None,
+    predicted: np.ndarray | None = None,
 ) -> PlaneTranslation:
     """Translation by weighted least squares over the plane associations ``ij`` (L, 2).
 
@@ -98,24 +100,62 @@ def plane_translation(
             refine_unmeasured``): "prior": the planes' weak information pulls the
             unmeasured ones from ``t0`` against the prior; "kept": they keep ``t0``
             exactly, the others (and z) are solved with them held; "walls": x, y from
-            the planes that are not level (and the prior), then z with x, y held.
+            the planes that are not level (and the prior), then z with x, y held;
+            "prediction" (with ``predicted`` and ``prediction_var``, else "prior"): a
+            horizontal direction the planes measure less well than the prediction
+            (sigma above ``sqrt(prediction_var)``, capped at ``unmeasured_var``) keeps
+            the prediction's value exactly, the others (and z) are solved with it held;
+            ``cov_xy`` is the planes' information with the prediction's as the prior.
         level_min: a plane is level (floor, ceiling) when ``|m_z|`` is at least this.
+        prediction_var: variance of the prediction's horizontal part, m^2.
+        predicted: (3,) the predicted translation, m (its x, y are what "prediction"
+            keeps; ``t0`` stays the consensus's, around which the planes associated).
     """
+    unmeasured, unmeasured_var, keep_sigma, prediction = _mode(
+        unmeasured, unmeasured_var, max_sigma_m, prediction_var, predicted
+    )
     t0 = np.asarray(t0, dtype=np.float64)
     if len(ij) == 0:
         return PlaneTranslation(t0.copy(), np.eye(2) * unmeasured_var, np.inf, False, False, 0)
     i, j = ij[:, 0], ij[:, 1]
-    t, h_inv, flags, n_kept = _translation_kernel(
+    args = (
         prev.normals[i], prev.offsets[i], prev.covariances[i],
         curr.normals[j], curr.offsets[j], curr.covariances[j],
-        np.ascontiguousarray(R, dtype=np.float64), t0,
+        np.ascontiguousarray(R, dtype=np.float64),
+    )  # fmt: skip
+    rest = (
         -np.inf if z_normal_min is None else float(z_normal_min), z_normal_min is not None,
         offset_floor_m, max_sigma_m, unmeasured_var, consensus_measured,
-        _UNMEASURED[unmeasured], level_min,
+        _UNMEASURED[unmeasured], level_min, keep_sigma,
     )  # fmt: skip
+    t, h_inv, flags, n_kept = _translation_kernel(*args, t0, *rest)
+    if prediction is not None and not flags[1]:
+        # degenerate: solved again from the prediction's x, y (the prior's centre, what
+        # an unmeasured direction keeps); the measured ones do not depend on it
+        t0 = np.array([prediction[0], prediction[1], t0[2]])
+        t, h_inv, flags, n_kept = _translation_kernel(*args, t0, *rest)
     z_observed, measured = bool(flags[0]), bool(flags[1])
     sigma_z = float(np.sqrt(h_inv[2, 2])) if z_observed else np.inf
     return PlaneTranslation(t, h_inv[:2, :2].copy(), sigma_z, z_observed, measured, n_kept)
+
+
+def _mode(
+    unmeasured: str,
+    var: float,
+    max_sigma_m: float,
+    prediction_var: float | None,
+    predicted: np.ndarray | None,
+) -> tuple[str, float, float, np.ndarray | None]:
+    """:func:`plane_translation`'s ``unmeasured`` as the kernel runs it: the mode, the
+    prior's variance, the sigma above which a direction is kept, and the prediction (3,)
+    (None: not solved again from it). "prediction" is "kept" with the prediction's sigma
+    (at most ``var``'s) as the threshold, or "prior" without a prediction."""
+    if unmeasured != "prediction":
+        return unmeasured, var, max_sigma_m, None
+    if prediction_var is None or predicted is None:
+        return "prior", var, max_sigma_m, None
+    var = min(prediction_var, var)
+    return "kept", var, float(np.sqrt(var)), np.asarray(predicted, dtype=np.float64)
 
 
 #: ``unmeasured`` of :func:`plane_translation` as the kernel's code.
@@ -129,7 +169,7 @@ _OUTLIER_CHI2 = 10.83
 @numba.njit(cache=True)
 def _translation_kernel(
     n_i, d_i, c_i, n_j, d_j, c_j, R, t0, z_min, use_z, floor, max_sigma, var0, measured0,
-    weak, level,
+    weak, level, keep_sigma,
 ):  # fmt: skip  # pragma: no cover - compiled
     """:func:`plane_translation` of the L associations given as their planes' normals
     (L, 3), offsets (L,) and (n, d) covariances (L, 4, 4). Returns t (3,), the inverse
@@ -224,7 +264,7 @@ def _translation_kernel(
         cols = 0
         B = np.zeros((free, free))
         for c in range(2):
-            if lam_w[c] * max_sigma**2 >= 1.0:
+            if lam_w[c] * keep_sigma**2 >= 1.0:
                 B[0, cols], B[1, cols] = V[0, c], V[1, c]
                 cols += 1
         if free == 3:

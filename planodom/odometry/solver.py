@@ -30,6 +30,7 @@ from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
 from planodom.geometry import Plane, make_transform, rpy_from_rotation
 from planodom.odometry.canonical import canonical
+from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
@@ -96,6 +97,7 @@ def estimate_relative_pose(
     planes_curr: Sequence[Plane] | PlaneSet,
     config: PlanodomConfig | None = None,
     prior: np.ndarray | None = None,
+    prior_sigma_m: float | None = None,
 ) -> RelativePose:
     """The relative pose ``T_prev_curr`` from the planes of two epochs.
 
@@ -108,6 +110,8 @@ def estimate_relative_pose(
             degenerate and ``retry_without_prior`` is set, it is solved again with the
             prior-free bounds (a wrong prior must not lock the odometry out). The
             prior's z fills an unobserved height, its translation an unmeasured one.
+        prior_sigma_m: sigma of the prior's translation, m (a prediction's), for
+            ``odometry.refine_unmeasured: prediction`` (the directions planes miss).
 
     Returns:
         :class:`RelativePose` (``prev``, ``curr`` unset); index arrays refer to the input
@@ -118,9 +122,9 @@ def estimate_relative_pose(
     order_c, curr = canonical(as_plane_set(planes_curr))
     prior = None if prior is None else np.asarray(prior, dtype=np.float64)
 
-    result = _solve(prev, curr, cfg, prior, bound_by_prior=prior is not None)
+    result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m)
     if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
-        free = _solve(prev, curr, cfg, prior, bound_by_prior=False)
+        free = _solve(prev, curr, cfg, prior, False, prior_sigma_m)
         if free.status.rank > result.status.rank:
             result = free
     return _remapped(result, order_p, order_c)
@@ -150,39 +154,20 @@ def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) ->
     )
 
 
-class _Bounds(NamedTuple):
-    """The motion assumption of one pass: centre ``t0`` (3,) m, translation bound m,
-    rotation bound rad, and the height to use when z is not measured, m."""
-
-    t0: np.ndarray
-    translation: float
-    rotation: float
-    z_prior: float
-
-
-def _bounds(cfg: PlanodomConfig, prior: np.ndarray | None, bound_by_prior: bool) -> _Bounds:
-    a = cfg.association
-    if bound_by_prior:
-        assert prior is not None
-        t0, t, r = prior[:3, 3], a.prior_translation_m, a.prior_rotation_deg
-    else:
-        t0, t, r = np.zeros(3), a.max_translation_m, a.max_rotation_deg
-    return _Bounds(t0, t, np.radians(r), float(prior[2, 3]) if prior is not None else 0.0)
-
-
 def _solve(
     prev: PlaneSet,
     curr: PlaneSet,
     cfg: PlanodomConfig,
     prior: np.ndarray | None,
     bound_by_prior: bool,
+    prior_sigma_m: float | None = None,
 ) -> RelativePose:
     """One pass of the pipeline on canonically ordered planes (indices not remapped)."""
     ocfg, acfg = cfg.odometry, cfg.association
     name = pairwise_pipeline(ocfg.pipeline)
     rot_method, trans_method = PIPELINES[name]
     lda = lenient_association(prev, curr, acfg, prior if bound_by_prior else None)
-    bounds = _bounds(cfg, prior, bound_by_prior)
+    bounds = pass_bounds(cfg, prior, bound_by_prior, prior_sigma_m)
     info = SolverDiagnostics(name, lda, used_prior=bound_by_prior)
     if len(lda) == 0:
         T = prior.copy() if prior is not None else np.eye(4)
@@ -201,7 +186,8 @@ def _solve(
         assert tr is not None
         txy, z, cov_t, sigma_z, z_observed = tr.txy, tr.z, tr.cov, tr.sigma_z, tr.z_observed
     else:
-        txy, z = bounds.t0[:2].copy(), bounds.z_prior
+        kept = bounds.t0 if bounds.prediction is None else bounds.prediction
+        txy, z = kept[:2].copy(), bounds.z_prior
         cov_t, sigma_z, z_observed = np.diag([bounds.translation**2] * 2), np.inf, False
     refined = None
     if ocfg.refinement != "none":
@@ -249,7 +235,7 @@ def _translation_pairs(
     lda: PairAssociations,
     R: np.ndarray,
     method: str,
-    bounds: _Bounds,
+    bounds: PassBounds,
     cfg: PlanodomConfig,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The plane associations (L, 2) and pair associations (P, 2), (P, 2) that give the
@@ -274,7 +260,7 @@ def _measured_translation(
     elems: TranslationElements,
     heights: HeightElements,
     method: str,
-    bounds: _Bounds,
+    bounds: PassBounds,
     cfg: PlanodomConfig,
 ) -> tuple[_Translation | None, bool]:
     """The translation from the pair elements (None without elements) and whether it is a
@@ -296,7 +282,7 @@ class _Refined(NamedTuple):
     fit: PlaneTranslation
 
 
-def _refine(prev, curr, R, t, measured: bool, bounds: _Bounds, cfg: PlanodomConfig) -> _Refined:
+def _refine(prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomConfig) -> _Refined:
     """Rotation and translation by weighted least squares over all planes SDA associates
     around ``(R, t)`` (:mod:`planodom.odometry.refine`), twice: the second time with the
     inlier bound around the first result when it measured the translation. A result
@@ -319,7 +305,7 @@ def _refine(prev, curr, R, t, measured: bool, bounds: _Bounds, cfg: PlanodomConf
         fit = plane_translation(
             prev, curr, R_c, ij, t_c, z_min, ocfg.refine_offset_floor_m,
             ocfg.refine_max_sigma_m, bounds.translation**2, measured,
-            ocfg.refine_unmeasured, level,
+            ocfg.refine_unmeasured, level, bounds.prediction_var, bounds.prediction,
         )  # fmt: skip
         if np.linalg.norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
             fit = replace(fit, t=t_c.copy(), measured=False, z_observed=False, n_planes=0)

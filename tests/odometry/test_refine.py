@@ -253,3 +253,86 @@ def test_walls_takes_x_from_the_walls_not_the_sloping_ceiling():
 
 def _planes_of(s: PlaneSet) -> list[Plane]:
     return [Plane(s.normals[k], float(s.offsets[k]), covariance=_COV) for k in range(len(s))]
+
+
+def _ground_and_wall(far_bias_m: float | None = None):
+    """The 2D rig's degenerate epoch: the ground and one wall (normal azimuth 0.4 rad +
+    180 deg); with ``far_bias_m``, a far wall 33 deg from it whose offsets have a 3 cm
+    sigma, the current one that far off. Returns (prev, curr, T_true, along) with
+    ``along`` (2,) the along-wall unit vector."""
+    world = [_ground(0), _wall(0.4, 8.0, 0.0, 1)]
+    if far_bias_m is not None:
+        far = _wall(0.4 + np.radians(147.0), 40.0, 0.0, 2)
+        world.append(Plane(far.normal, far.offset, covariance=np.diag([1e-8] * 3 + [0.03**2]),
+                           support=far.support))  # fmt: skip
+    T_true = transform_from_rpy_xyz(0.0, 0.0, 0.01, 0.113, 0.02, 0.004)
+    prev, curr = observe(world, np.eye(4)), observe(world, T_true)
+    if far_bias_m is not None:
+        curr[2] = Plane(curr[2].normal, curr[2].offset + far_bias_m,
+                        covariance=curr[2].covariance, support=curr[2].support)  # fmt: skip
+    along = np.array([-np.sin(0.4), np.cos(0.4)])
+    return PlaneSet.from_planes(prev), PlaneSet.from_planes(curr), T_true, along
+
+
+def test_prediction_keeps_the_along_wall_step_and_measures_the_others():
+    """Ground and one wall: the along-wall step is the prediction's exactly, with the
+    prediction's variance; across the wall and z the truth's (noise-free planes); "prior"
+    keeps the consensus's value there instead."""
+    p, c, T_true, along = _ground_and_wall()
+    ij = np.array([[0, 0], [1, 1]])
+    t_true = T_true[:3, 3]
+    t0 = t_true + np.r_[0.10 * along, 0.0]  # the consensus's (an unmeasured value)
+    pred = t_true + np.r_[-0.07 * along, 0.0]
+    R = T_true[:3, :3]
+    fit = plane_translation(p, c, R, ij, t0, 0.9, 0.003, 0.03, 0.09, unmeasured="prediction",
+                            prediction_var=0.02**2, predicted=pred)  # fmt: skip
+    assert not fit.measured and fit.z_observed
+    assert abs(fit.t[:2] @ along - pred[:2] @ along) < 1e-12
+    normal = np.array([along[1], -along[0]])
+    assert abs(fit.t[:2] @ normal - t_true[:2] @ normal) < 1e-6
+    assert abs(fit.t[2] - t_true[2]) < 1e-6
+    assert along @ fit.cov_xy @ along == pytest.approx(0.02**2, rel=1e-3)
+    prior = plane_translation(p, c, R, ij, t0, 0.9, 0.003, 0.03, 0.09)
+    assert abs(prior.t[:2] @ along - t0[:2] @ along) < 1e-6
+    none = plane_translation(p, c, R, ij, t0, 0.9, 0.003, 0.03, 0.09, unmeasured="prediction")
+    np.testing.assert_array_equal(none.t, prior.t)  # no prediction: "prior"
+
+
+@pytest.mark.parametrize("bias_m", [0.0, 0.05])
+def test_a_weak_far_wall_does_not_move_the_kept_direction(bias_m):
+    """A far wall measuring the along-wall direction to ~0.1 m (less than a 2 cm
+    prediction): "prediction" keeps the prediction's along-wall step whatever its offset
+    says; "prior" (the motion bound's 0.3 m) follows the far wall's 5 cm bias by more."""
+    p, c, T_true, along = _ground_and_wall(bias_m)
+    ij = np.array([[0, 0], [1, 1], [2, 2]])
+    pred = T_true[:3, 3] + np.r_[0.03 * along, 0.0]
+    args = (p, c, T_true[:3, :3], ij, pred, 0.9, 0.003, 0.03, 0.09)
+    fit = plane_translation(*args, unmeasured="prediction", prediction_var=0.02**2,
+                            predicted=pred)  # fmt: skip
+    assert not fit.measured  # kept: the planes' weak direction, within 2 deg of the wall's
+    assert abs((fit.t[:2] - pred[:2]) @ along) < 1e-3
+    if bias_m:
+        exact = plane_translation(*_ground_and_wall(0.0)[:2], *args[2:])
+        prior = plane_translation(*args)
+        assert abs((prior.t[:2] - exact.t[:2]) @ along) > 0.05
+
+
+def test_a_degenerate_epoch_keeps_the_prediction_through_the_solver():
+    """``odometry.refine_unmeasured: prediction`` through the solver with the prior's
+    sigma: degenerate, the along-wall step the prior's, across the wall the truth's, and
+    the step's covariance along the wall the prior's sigma squared plus the floor;
+    without the sigma, as "prior"."""
+    p, c, T_true, along = _ground_and_wall()
+    prior = T_true.copy()
+    prior[:2, 3] += 0.05 * along
+    cfg = PlanodomConfig().updated({"odometry.refine_unmeasured": "prediction"})
+    r = estimate_relative_pose(p, c, cfg, prior, prior_sigma_m=0.02)
+    assert r.status is Status.DEGENERATE
+    assert abs((r.T_prev_curr[:2, 3] - prior[:2, 3]) @ along) < 1e-12
+    normal = np.array([along[1], -along[0]])
+    assert abs((r.T_prev_curr[:2, 3] - T_true[:2, 3]) @ normal) < 1e-6
+    floor = cfg.odometry.min_sigma_translation_m
+    assert along @ r.covariance[3:, 3:] @ along == pytest.approx(0.02**2 + floor**2, rel=1e-3)
+    a = estimate_relative_pose(p, c, cfg, prior)
+    b = estimate_relative_pose(p, c, cfg.updated({"odometry.refine_unmeasured": "prior"}), prior)
+    np.testing.assert_array_equal(a.T_prev_curr, b.T_prev_curr)

@@ -24,9 +24,13 @@ def test_middle_reference_on_a_rolling_2d_rig_is_closer_to_the_truth():
     world = random_world(46, rig="rig2d")
     sim = simulate_world(world, 0.0, n_epochs=16)
     truth = invert_transform(sim.poses[0])[None] @ sim.poses
+    # the reference time alone: with ``refine_unmeasured: prediction`` (the default) the
+    # degenerate first step's velocity is kept, not pulled by the noise-free planes' weak
+    # information, and epochs 3-6 err 0.1-0.8 deg either way (rms middle 0.136 -> 0.313)
     runs = {}
     for when in ("epoch", "middle"):
-        cfg = PlanodomConfig().updated({"odometry.pairwise_reference_time": when})
+        change = {"odometry.pairwise_reference_time": when, "odometry.refine_unmeasured": "prior"}
+        cfg = PlanodomConfig().updated(change)
         runs[when] = run_odometry(sim, cfg)
         assert np.allclose(runs[when].times, sim.times)  # poses at the epoch times
     start, middle = (_rotation_errors_deg(runs[w].poses, truth)[2:] for w in ("epoch", "middle"))
