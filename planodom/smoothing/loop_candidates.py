@@ -59,6 +59,7 @@ from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
 from planodom.smoothing.match_fit import (
     _extent,
     ambiguity,
+    epoch_ambiguity,
     non_parallel,
     offset_residuals,
     spanning_epoch,
@@ -274,9 +275,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             c_cur, r_cur = _extent(self.planes[k][j], np.eye(4))
             if np.linalg.norm(c_old - c_cur) - r_old - r_cur > c.loop_candidate_overlap_m:
                 return None
-        if c.loop_refuse_ambiguous != "off" and self._ambiguous(
-            e, k, rel, pairs, prior, translation[0]
-        ):
+        test = c.loop_refuse_ambiguous != "off" or c.loop_candidate_aliases != "off"
+        if test and self._ambiguous(e, k, rel, pairs, prior, translation[0]):
             return None
         return RelativePose(
             np.asarray(rel.T_prev_curr, dtype=float), rel.covariance, rel.status,
@@ -290,14 +290,25 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         plane of epoch e, the pose shifted to fit) explains the pairs about as well as
         the match, within chi2(1) at ``loop_gate_quantile``, under the prediction's prior
         (the bound ``bound`` m as ``loop_sigmas`` standard deviations: the chained
-        odometry's, not capped) (:func:`planodom.smoothing.match_fit.ambiguity`)."""
+        odometry's, not capped) (:func:`planodom.smoothing.match_fit.ambiguity`); with
+        ``loop_candidate_aliases`` "both_epochs" (the test alone when
+        ``loop_refuse_ambiguous`` is "off"), also a parallel plane of epoch k, and a
+        parallel plane within the noise of the tied one is no competitor
+        (:func:`planodom.smoothing.match_fit.epoch_ambiguity`)."""
         c = self.config
         T = np.asarray(rel.T_prev_curr, dtype=float).copy()
         T[:2, 3] = prior[:2, 3]  # the match's rotation at the predicted position
         angle = self.full_config.association.strict_normal_deg
-        sigma = c.default_plane_offset_sigma_m
+        sigma, limit = c.default_plane_offset_sigma_m, float(chi2.ppf(c.loop_gate_quantile, 1))
+        if c.loop_candidate_aliases == "both_epochs":
+            old, curr = self.planes[e], self.planes[k]
+            args = (bound / c.loop_sigmas, sigma, angle, limit)
+            if epoch_ambiguity(old, curr, pairs, T, *args) <= limit:
+                return True
+            if c.loop_refuse_ambiguous == "off":
+                return False
         fit = offset_residuals(self.planes[e], self.planes[k], pairs, T, sigma, angle, np.zeros(0))
-        return ambiguity(fit, bound / c.loop_sigmas, sigma) <= chi2.ppf(c.loop_gate_quantile, 1)
+        return ambiguity(fit, bound / c.loop_sigmas, sigma) <= limit
 
     def _close_to_old_epoch(self, update: GraphUpdate) -> None:
         """Try the old-epoch candidates of this epoch; the first verified one is kept if it

@@ -256,3 +256,45 @@ def spanning_epoch(seen: Sequence[int], normals: np.ndarray, min_angle_deg: floa
         if non_parallel(stacked[:n], min_angle_deg):
             return int(epochs[n - 1])
     return int(epochs[-1])
+
+
+def epoch_ambiguity(
+    old: Sequence[Plane],
+    curr: Sequence[Plane],
+    pairs: np.ndarray,
+    T_old_curr: np.ndarray,
+    sigma_prior_m: float,
+    floor_m: float,
+    parallel_deg: float,
+    limit: float,
+) -> float:
+    """How far an epoch-to-epoch match's ties beat their best competing association in
+    either epoch: :func:`ambiguity` with one tie's old plane swapped for another parallel
+    old plane, and with its current plane swapped for another parallel current plane (the
+    roles exchanged, ``T_old_curr`` inverted); inf without alternatives.
+
+    Two planes of one epoch are one frame's: an alternative whose offset lies within
+    chi2(1) at ``limit`` of the tied plane's (their offset variances and ``floor_m`` twice,
+    in quadrature) is the same wall extracted twice, no competitor; one farther off is
+    another wall, which the prediction may have mistaken for the tied one when its
+    prior ``sigma_prior_m`` (m) does not tell the two apart.
+
+    Args:
+        old, curr: the two epochs' planes, each in its own frame.
+        pairs: (M, 2) int, (index into ``old``, index into ``curr``).
+        T_old_curr: (4, 4) the match's rotation at the predicted position (see
+            :func:`tie_ambiguities`: at the match's own pose an alias looks as far off
+            as the prior allows).
+        sigma_prior_m: isotropic sigma of the predicted position, m.
+        floor_m: offset sigma added in quadrature to every plane's, m.
+        parallel_deg: largest angle between normals of an alternative, degrees.
+        limit: chi2(1) quantile that tells a duplicate from another wall.
+    """
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+    T_curr_old = np.linalg.inv(T_old_curr)
+    best = np.inf
+    for a, b, T, p in ((old, curr, T_old_curr, pairs), (curr, old, T_curr_old, pairs[:, ::-1])):
+        n = len(a)
+        fit = offset_residuals(a, b, p, T, floor_m, parallel_deg, np.zeros((n, n)))
+        best = min(best, ambiguity(fit, sigma_prior_m, floor_m, (np.zeros((n, n)), limit)))
+    return best
