@@ -81,14 +81,16 @@ class LoopCandidateConfig(Section):
     loop_candidate_overlap_m: Positive = 1.0
     """The supports (spheres of centroid and radius) of each plane pair a loop candidate
     associates must come within this of each other under its relative pose, m."""
-    loop_candidate_aliases: Literal["off", "both_epochs"] = "off"
+    loop_candidate_aliases: Literal["off", "both_epochs", "spacing"] = "off"
     """Refuse a loop candidate whose association is ambiguous: "both_epochs" when one
     tie's plane swapped for another wall parallel to it (same orientation, its offset
     beyond the two planes' noise: not the wall extracted twice) in the old or in the
     current epoch, the pose shifted to fit, costs at most chi2(1) at
     ``loop_gate_quantile`` more under the prediction's prior (``loop_sigmas`` of the
     candidate's drift bound) (:func:`.match_fit.epoch_ambiguity`). The chained guess's
-    drift, not the planes, then decides which wall it is. "off": no test (with
+    drift, not the planes, then decides which wall it is. "spacing": as "both_epochs",
+    and also the tie moved by that spacing the other way (a wall the epochs do not show,
+    where parallel walls repeat). "off": no test (with
     ``loop_refuse_ambiguous`` not "off" the old epoch's walls are tried as before)."""
     loop_candidate_confirm_epochs: Annotated[int, Field(ge=1)] = 10
     """A verified loop candidate becomes a factor only when the previous verified one,

@@ -300,9 +300,11 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         T[:2, 3] = prior[:2, 3]  # the match's rotation at the predicted position
         angle = self.full_config.association.strict_normal_deg
         sigma, limit = c.default_plane_offset_sigma_m, float(chi2.ppf(c.loop_gate_quantile, 1))
-        if c.loop_candidate_aliases == "both_epochs":
+        if c.loop_candidate_aliases != "off":
             old, curr = self.planes[e], self.planes[k]
-            args = (bound / c.loop_sigmas, sigma, angle, limit)
+            spacing = c.loop_candidate_aliases == "spacing"
+            level = self.full_config.odometry.z_plane_max_tilt_deg
+            args = (bound / c.loop_sigmas, sigma, angle, limit, spacing, level)
             if epoch_ambiguity(old, curr, pairs, T, *args) <= limit:
                 return True
             if c.loop_refuse_ambiguous == "off":
