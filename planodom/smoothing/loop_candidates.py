@@ -100,6 +100,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._walk, self._yaw_walk = RunWalk(), RunWalk()
         #: epochs a measured relative pose (delta <= D) fixed the translation to or from
         self._translated: set[int] = set()
+        self._aliased = -1  # the last epoch ``loop_candidate_aliases`` found ambiguous
 
     def add_epoch(
         self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
@@ -306,6 +307,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             level = self.full_config.odometry.z_plane_max_tilt_deg
             args = (bound / c.loop_sigmas, sigma, angle, limit, spacing, level)
             if epoch_ambiguity(old, curr, pairs, T, *args) <= limit:
+                self._aliased = k
                 return True
             if c.loop_refuse_ambiguous == "off":
                 return False
@@ -322,6 +324,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             self.candidate_attempts += 1
         for e in candidates:
             rel = self.match_old_epoch(k, e)
+            if rel is None and self._aliased == k:
+                return  # an aliased place: other old epochs show less of it, not more
             if rel is None:
                 continue
             if not self._agrees_with_map(rel) or not self._plausible(rel):
