@@ -247,9 +247,11 @@ def test_loop_candidate_aliases_keep_every_loop_pose_where_no_wall_repeats(probl
     """``loop_candidate_aliases``: the lap's walls are not repeated (no two parallel), so
     the test refuses no loop pose: the same loop factors as without it."""
     truth, planes, relatives = problem
+    off_cfg = _candidates_only().updated({"smoothing.loop_candidate_aliases": "off"})
+    off = smooth_batch(planes, relatives, off_cfg)
     for mode in ("both_epochs", "spacing"):
         on = _candidates_only().updated({"smoothing.loop_candidate_aliases": mode})
-        off, res = (smooth_batch(planes, relatives, c) for c in (_candidates_only(), on))
+        res = smooth_batch(planes, relatives, on)
         assert len(res.loop_factors) >= 2
         assert [(f.epoch, f.old) for f in res.loop_factors] == [
             (f.epoch, f.old) for f in off.loop_factors
@@ -280,5 +282,6 @@ def test_an_aliased_place_tries_no_further_old_epoch(problem, monkeypatch):
     refused = [events[i][1] for i in range(len(events) - 1) if events[i][0] == "ambiguous"]
     assert all(b != ("try", k) for b, k in zip(nexts, refused, strict=True))
     # without the test, those epochs give loop factors
-    plain = smooth_batch(planes, relatives, _candidates_only())
+    off = _candidates_only().updated({"smoothing.loop_candidate_aliases": "off"})
+    plain = smooth_batch(planes, relatives, off)
     assert {f.epoch for f in plain.loop_factors} & set(refused)
