@@ -25,7 +25,9 @@ prediction is metres off after an odometry failure, or the old landmarks never f
    other under the relative pose (the paper's overlap: aliased walls lie elsewhere); the
    correction of the chained guess it implies must agree with the map's accepted one
    (when the re-identification has one) and with the previous verified loop pose, at
-   most ``loop_candidate_confirm_epochs`` before (chi2(3) on yaw, x, y);
+   most ``loop_candidate_confirm_epochs`` before (chi2(3) on yaw, x, y); with
+   ``loop_candidate_aliases`` no tie may have a competing parallel wall in either epoch
+   that the prediction cannot tell from it (:meth:`_ambiguous`);
 4. the first verified one becomes a 5-DoF between factor ``X(e) - X(k)``
    (:func:`factors.pose5.pose5_factor`) with the odometry's covariance (plus both
    epochs' deskewing error with ``smoothing.deskew_noise``) and a robust
