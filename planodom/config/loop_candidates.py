@@ -103,7 +103,8 @@ class LoopCandidateConfig(Section):
     the even worlds 0-38 at 6 mm and 2 cm (batch with loops) is unchanged to the digit,
     loop factors included; world 32 at 2 cm stays 3.28 m (its 118 wrong map ties).
     Where it falls short: a match neither of whose epochs shows a second wall of the
-    row passes (world 32's 792-795, 4 factors 3.8 m off, removed by the clique)."""
+    row passes (world 32's 792-795, 4 factors 3.8 m off, removed by the clique).
+    "spacing" gives the same 40 runs to the digit: no gain for more refusals."""
     loop_candidate_confirm_epochs: Annotated[int, Field(ge=1)] = 10
     """A verified loop candidate becomes a factor only when the previous verified one,
     at most this many epochs before, implies the same correction of the chained guess
