@@ -81,6 +81,30 @@ class LoopCandidateConfig(Section):
     loop_candidate_overlap_m: Positive = 1.0
     """The supports (spheres of centroid and radius) of each plane pair a loop candidate
     associates must come within this of each other under its relative pose, m."""
+    loop_candidate_aliases: Literal["off", "both_epochs", "spacing"] = "both_epochs"
+    """Refuse a loop candidate whose association is ambiguous: "both_epochs" when one
+    tie's plane swapped for another wall parallel to it (same orientation, its offset
+    beyond the two planes' noise: not the wall extracted twice) in the old or in the
+    current epoch, the pose shifted to fit, costs at most chi2(1) at
+    ``loop_gate_quantile`` more under the prediction's prior (``loop_sigmas`` of the
+    candidate's drift bound), level planes left out (they place x, y by their tilt only)
+    (:func:`.match_fit.epoch_ambiguity`); that epoch then tries no further old epochs
+    (they see less of the place, not more). "spacing": also the tie moved by that
+    spacing the other way (a wall neither epoch shows, where parallel walls repeat).
+    "off": no test (``loop_refuse_ambiguous`` not "off" tries the old epoch's walls).
+    Why (2D-rig world 32, held out, 6 mm): the loop pose's position along a corridor
+    rests on one wall across it, one of a row 3.05-3.17 m apart, and the prediction is
+    4.5-4.7 m off (sd 3.2-7 m): at 788 the current epoch sees the right wall and its
+    neighbour and tied the neighbour (3.8 m off), at 851-873 epoch 0 shows two of the
+    row and the tie went to the wrong one (3.5 m off); 28 such factors outnumbered the
+    right 15 in the clique (ATE 1.456 m, loop end 4.24 m). "both_epochs": 0.304 m, loop
+    end 1.41 m, wrong plane ties kept 3 -> 0, loop factors kept all within 2 cm (the
+    right closures at 785-787, ambiguous too, go as well). Every other run of one lap of
+    the even worlds 0-38 at 6 mm and 2 cm (batch with loops) is unchanged to the digit,
+    loop factors included; world 32 at 2 cm stays 3.28 m (its 118 wrong map ties).
+    Where it falls short: a match neither of whose epochs shows a second wall of the
+    row passes (world 32's 792-795, 4 factors 3.8 m off, removed by the clique).
+    "spacing" gives the same 40 runs to the digit: no gain for more refusals."""
     loop_candidate_confirm_epochs: Annotated[int, Field(ge=1)] = 10
     """A verified loop candidate becomes a factor only when the previous verified one,
     at most this many epochs before, implies the same correction of the chained guess

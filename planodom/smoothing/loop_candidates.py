@@ -25,7 +25,9 @@ prediction is metres off after an odometry failure, or the old landmarks never f
    other under the relative pose (the paper's overlap: aliased walls lie elsewhere); the
    correction of the chained guess it implies must agree with the map's accepted one
    (when the re-identification has one) and with the previous verified loop pose, at
-   most ``loop_candidate_confirm_epochs`` before (chi2(3) on yaw, x, y);
+   most ``loop_candidate_confirm_epochs`` before (chi2(3) on yaw, x, y); with
+   ``loop_candidate_aliases`` no tie may have a competing parallel wall in either epoch
+   that the prediction cannot tell from it (:meth:`_ambiguous`);
 4. the first verified one becomes a 5-DoF between factor ``X(e) - X(k)``
    (:func:`factors.pose5.pose5_factor`) with the odometry's covariance (plus both
    epochs' deskewing error with ``smoothing.deskew_noise``) and a robust
@@ -59,6 +61,7 @@ from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
 from planodom.smoothing.match_fit import (
     _extent,
     ambiguity,
+    epoch_ambiguity,
     non_parallel,
     offset_residuals,
     spanning_epoch,
@@ -99,6 +102,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._walk, self._yaw_walk = RunWalk(), RunWalk()
         #: epochs a measured relative pose (delta <= D) fixed the translation to or from
         self._translated: set[int] = set()
+        self._aliased = -1  # the last epoch ``loop_candidate_aliases`` found ambiguous
 
     def add_epoch(
         self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
@@ -274,9 +278,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             c_cur, r_cur = _extent(self.planes[k][j], np.eye(4))
             if np.linalg.norm(c_old - c_cur) - r_old - r_cur > c.loop_candidate_overlap_m:
                 return None
-        if c.loop_refuse_ambiguous != "off" and self._ambiguous(
-            e, k, rel, pairs, prior, translation[0]
-        ):
+        test = c.loop_refuse_ambiguous != "off" or c.loop_candidate_aliases != "off"
+        if test and self._ambiguous(e, k, rel, pairs, prior, translation[0]):
             return None
         return RelativePose(
             np.asarray(rel.T_prev_curr, dtype=float), rel.covariance, rel.status,
@@ -290,14 +293,28 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         plane of epoch e, the pose shifted to fit) explains the pairs about as well as
         the match, within chi2(1) at ``loop_gate_quantile``, under the prediction's prior
         (the bound ``bound`` m as ``loop_sigmas`` standard deviations: the chained
-        odometry's, not capped) (:func:`planodom.smoothing.match_fit.ambiguity`)."""
+        odometry's, not capped) (:func:`planodom.smoothing.match_fit.ambiguity`); with
+        ``loop_candidate_aliases`` "both_epochs" (the test alone when
+        ``loop_refuse_ambiguous`` is "off"), also a parallel plane of epoch k, and a
+        parallel plane within the noise of the tied one is no competitor
+        (:func:`planodom.smoothing.match_fit.epoch_ambiguity`)."""
         c = self.config
         T = np.asarray(rel.T_prev_curr, dtype=float).copy()
         T[:2, 3] = prior[:2, 3]  # the match's rotation at the predicted position
         angle = self.full_config.association.strict_normal_deg
-        sigma = c.default_plane_offset_sigma_m
+        sigma, limit = c.default_plane_offset_sigma_m, float(chi2.ppf(c.loop_gate_quantile, 1))
+        if c.loop_candidate_aliases != "off":
+            old, curr = self.planes[e], self.planes[k]
+            spacing = c.loop_candidate_aliases == "spacing"
+            level = self.full_config.odometry.z_plane_max_tilt_deg
+            args = (bound / c.loop_sigmas, sigma, angle, limit, spacing, level)
+            if epoch_ambiguity(old, curr, pairs, T, *args) <= limit:
+                self._aliased = k
+                return True
+            if c.loop_refuse_ambiguous == "off":
+                return False
         fit = offset_residuals(self.planes[e], self.planes[k], pairs, T, sigma, angle, np.zeros(0))
-        return ambiguity(fit, bound / c.loop_sigmas, sigma) <= chi2.ppf(c.loop_gate_quantile, 1)
+        return ambiguity(fit, bound / c.loop_sigmas, sigma) <= limit
 
     def _close_to_old_epoch(self, update: GraphUpdate) -> None:
         """Try the old-epoch candidates of this epoch; the first verified one is kept if it
@@ -309,6 +326,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             self.candidate_attempts += 1
         for e in candidates:
             rel = self.match_old_epoch(k, e)
+            if rel is None and self._aliased == k:
+                return  # an aliased place: other old epochs show less of it, not more
             if rel is None:
                 continue
             if not self._agrees_with_map(rel) or not self._plausible(rel):

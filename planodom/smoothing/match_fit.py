@@ -151,9 +151,11 @@ def ambiguity(
     sigma_prior_m: float,
     floor_m: float,
     same: tuple[np.ndarray, float] | None = None,
+    spacing: bool = False,
 ) -> float:
     """The smallest of :func:`tie_ambiguities` (inf without ties)."""
-    return float(np.min(tie_ambiguities(fit, sigma_prior_m, floor_m, same), initial=np.inf))
+    rows = tie_ambiguities(fit, sigma_prior_m, floor_m, same, spacing=spacing)
+    return float(np.min(rows, initial=np.inf))
 
 
 def tie_ambiguities(
@@ -162,6 +164,7 @@ def tie_ambiguities(
     floor_m: float,
     same: tuple[np.ndarray, float] | None = None,
     parts: bool = False,
+    spacing: bool = False,
 ) -> np.ndarray:
     """(M,) how far the match's ties beat their best competing hypotheses: per tie, the
     smallest increase of chi2 (a likelihood ratio) when one tie's old plane is swapped for a
@@ -177,6 +180,8 @@ def tie_ambiguities(
     ``parts`` (with ``same``): each tie's offset variance also holds the map's drift
     between its old plane's sighting and the nearest other tied plane's (a wall of
     another map part shares no frame with the other ties: they confirm no alias of it).
+    ``spacing``: also the tie moved by the same spacing the other way (a wall one spacing
+    beyond the tied one, on the side no old plane shows: parallel walls that repeat).
 
     ``fit`` must hold the residuals at the predicted position (the match's rotation, no
     translation): a match of full rank sits on its own ties, so at its pose an alias
@@ -207,10 +212,15 @@ def tie_ambiguities(
                 spread = between[j, alt] + fit.old_variances[[j, alt]].sum() + 2 * floor_m**2
                 if apart <= limit * spread:
                     continue
-            b_alt, w_alt = b.copy(), w.copy()
-            b_alt[row] = fit.residuals[row, alt]
+            w_alt = w.copy()
             w_alt[row] = 1.0 / (fit.old_variances[alt] + v_curr[row])
-            best[row] = min(best[row], _fit_shift(b_alt, n_xy, w_alt, prior) - accepted)
+            shifts = [fit.residuals[row, alt]]
+            if spacing:
+                shifts.append(2 * b[row] - fit.residuals[row, alt])
+            for shift in shifts:
+                b_alt = b.copy()
+                b_alt[row] = shift
+                best[row] = min(best[row], _fit_shift(b_alt, n_xy, w_alt, prior) - accepted)
     return best
 
 
@@ -256,3 +266,55 @@ def spanning_epoch(seen: Sequence[int], normals: np.ndarray, min_angle_deg: floa
         if non_parallel(stacked[:n], min_angle_deg):
             return int(epochs[n - 1])
     return int(epochs[-1])
+
+
+def epoch_ambiguity(
+    old: Sequence[Plane],
+    curr: Sequence[Plane],
+    pairs: np.ndarray,
+    T_old_curr: np.ndarray,
+    sigma_prior_m: float,
+    floor_m: float,
+    parallel_deg: float,
+    limit: float,
+    spacing: bool = False,
+    level_deg: float = 30.0,
+) -> float:
+    """How far an epoch-to-epoch match's ties beat their best competing association in
+    either epoch: :func:`ambiguity` with one tie's old plane swapped for another parallel
+    old plane, and with its current plane swapped for another parallel current plane (the
+    roles exchanged, ``T_old_curr`` inverted); inf without alternatives.
+
+    Two planes of one epoch are one frame's: an alternative whose offset lies within
+    chi2(1) at ``limit`` of the tied plane's (their offset variances and ``floor_m`` twice,
+    in quadrature) is the same wall extracted twice, no competitor; one farther off is
+    another wall, which the prediction may have mistaken for the tied one when its
+    prior ``sigma_prior_m`` (m) does not tell the two apart.
+
+    Args:
+        old, curr: the two epochs' planes, each in its own frame.
+        pairs: (M, 2) int, (index into ``old``, index into ``curr``).
+        T_old_curr: (4, 4) the match's rotation at the predicted position (see
+            :func:`tie_ambiguities`: at the match's own pose an alias looks as far off
+            as the prior allows).
+        sigma_prior_m: isotropic sigma of the predicted position, m.
+        floor_m: offset sigma added in quadrature to every plane's, m.
+        parallel_deg: largest angle between normals of an alternative, degrees.
+        limit: chi2(1) quantile that tells a duplicate from another wall.
+        spacing: also each alternative's spacing the other way (:func:`tie_ambiguities`).
+        level_deg: ties of planes tilted less than this from horizontal are left out: a
+            level plane places x, y only through its tilt (2D-rig world 32: a floor and
+            ceiling 1 deg off level, their offsets 0.11 m apart at a prediction 5 m off,
+            held the fit's x as firmly as a wall).
+    """
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+    level = float(np.cos(np.radians(level_deg)))
+    pairs = pairs[[abs(old[i].normal[2]) < level for i in pairs[:, 0]]]
+    T_curr_old = np.linalg.inv(T_old_curr)
+    best = np.inf
+    for a, b, T, p in ((old, curr, T_old_curr, pairs), (curr, old, T_curr_old, pairs[:, ::-1])):
+        n = len(a)
+        fit = offset_residuals(a, b, p, T, floor_m, parallel_deg, np.zeros((n, n)))
+        same = (np.zeros((n, n)), limit)
+        best = min(best, ambiguity(fit, sigma_prior_m, floor_m, same, spacing))
+    return best

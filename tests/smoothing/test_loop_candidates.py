@@ -241,3 +241,47 @@ def test_bridged_yaw_drift_is_the_run_yaw_rate_random_walk():
         PlanodomConfig().updated(
             {"smoothing.loop_verify_drift": "run", "smoothing.loop_candidate_drift": "chained"}
         )
+
+
+def test_loop_candidate_aliases_keep_every_loop_pose_where_no_wall_repeats(problem):
+    """``loop_candidate_aliases``: the lap's walls are not repeated (no two parallel), so
+    the test refuses no loop pose: the same loop factors as without it."""
+    truth, planes, relatives = problem
+    off_cfg = _candidates_only().updated({"smoothing.loop_candidate_aliases": "off"})
+    off = smooth_batch(planes, relatives, off_cfg)
+    for mode in ("both_epochs", "spacing"):
+        on = _candidates_only().updated({"smoothing.loop_candidate_aliases": mode})
+        res = smooth_batch(planes, relatives, on)
+        assert len(res.loop_factors) >= 2
+        assert [(f.epoch, f.old) for f in res.loop_factors] == [
+            (f.epoch, f.old) for f in off.loop_factors
+        ]
+
+
+def test_an_aliased_place_tries_no_further_old_epoch(problem, monkeypatch):
+    """An epoch whose match is ambiguous is refused, and no other old epoch is tried for
+    it (they see less of the place, not more); without the test one is."""
+    truth, planes, relatives = problem
+    events: list[tuple[str, int]] = []
+    original = loop_candidates.CandidateLoopBuilder.match_old_epoch
+
+    def recorded(self, k, e):
+        events.append(("try", k))
+        return original(self, k, e)
+
+    def ambiguous(*args, **kwargs):
+        events.append(("ambiguous", events[-1][1]))
+        return -np.inf
+
+    monkeypatch.setattr(loop_candidates.CandidateLoopBuilder, "match_old_epoch", recorded)
+    monkeypatch.setattr(loop_candidates, "epoch_ambiguity", ambiguous)
+    on = _candidates_only().updated({"smoothing.loop_candidate_aliases": "both_epochs"})
+    res = smooth_batch(planes, relatives, on)
+    assert any(a == "ambiguous" for a, _ in events) and not res.loop_factors
+    nexts = [events[i + 1] for i in range(len(events) - 1) if events[i][0] == "ambiguous"]
+    refused = [events[i][1] for i in range(len(events) - 1) if events[i][0] == "ambiguous"]
+    assert all(b != ("try", k) for b, k in zip(nexts, refused, strict=True))
+    # without the test, those epochs give loop factors
+    off = _candidates_only().updated({"smoothing.loop_candidate_aliases": "off"})
+    plain = smooth_batch(planes, relatives, off)
+    assert {f.epoch for f in plain.loop_factors} & set(refused)

@@ -10,6 +10,7 @@ from planodom.geometry import Plane, invert_transform, transform_from_rpy_xyz
 from planodom.smoothing.match_fit import (
     OffsetFit,
     ambiguity,
+    epoch_ambiguity,
     offset_residuals,
     offset_verdict,
     spanning_epoch,
@@ -225,3 +226,78 @@ def test_spanning_epoch_is_the_first_sighting_with_two_non_parallel_walls():
     assert spanning_epoch([64, 80, 90], np.stack([x, tilted, y])) == 90
     assert spanning_epoch([64, 80, 90], np.stack([x, tilted, y]), min_angle_deg=3.0) == 80
     assert spanning_epoch([12], x[None]) == 12
+
+
+LIMIT = float(chi2.ppf(0.999, 1))
+
+
+def _corridor(cross: list[float]) -> list[Plane]:
+    """A corridor along x seen from the origin: side walls at y = +-1.5 m, the floor, and
+    walls across it at x = each of ``cross`` (m, ahead), all facing the sensor."""
+    planes = [Plane(np.array([0, -1.0, 0]), 1.5), Plane(np.array([0, 1.0, 0]), 1.5),
+              Plane(np.array([0, 0, 1.0]), 1.2)]  # fmt: skip
+    return planes + [Plane(np.array([-1.0, 0, 0]), x) for x in cross]
+
+
+def _epoch_ambiguity(old, curr, pairs, predicted_x: float, sigma: float, spacing=False):
+    """:func:`epoch_ambiguity` at a prediction ``predicted_x`` m along the corridor (the
+    true relative pose is the identity: the same place, revisited)."""
+    T = transform_from_rpy_xyz(0.0, 0.0, 0.0, predicted_x, 0.0, 0.0)
+    return epoch_ambiguity(old, curr, np.array(pairs), T, sigma, 0.02, 3.0, LIMIT, spacing)
+
+
+def test_a_corridor_of_evenly_spaced_walls_leaves_the_loop_pose_ambiguous():
+    # walls across the corridor every 3 m; the old epoch sees two of them, the current
+    # one (the truth: the same place), and the prediction is 2 m off along the corridor
+    # (sigma 3 m): tied to the farther wall the pose is 3 m off, tied to the nearer it is
+    # right, and the prediction cannot tell which
+    old, curr = _corridor([4.0, 7.0]), _corridor([4.0])
+    T_true = np.eye(4)
+    assert curr[3].transformed(T_true).offset == pytest.approx(old[3].offset)  # the truth
+    aliased = [[0, 0], [1, 1], [2, 2], [4, 3]]  # the current cross wall tied to x = 7
+    right = [[0, 0], [1, 1], [2, 2], [3, 3]]
+    for pairs in (aliased, right):  # either way, the other one competes
+        assert _epoch_ambiguity(old, curr, pairs, -2.0, 3.0) <= LIMIT
+    # a prediction sharp to a fraction of the spacing tells them apart (0.3 m off)
+    assert _epoch_ambiguity(old, curr, right, 0.3, 0.3) > LIMIT
+
+
+def test_a_corridor_with_one_end_wall_gives_an_unambiguous_loop_pose():
+    # the same corridor closed by one end wall: the match's position along it is the end
+    # wall's, with no parallel wall to confuse it with in either epoch (the floor tells
+    # nothing along x: a level plane is left out)
+    old, curr = _corridor([4.0]), _corridor([4.0])
+    pairs = [[0, 0], [1, 1], [2, 2], [3, 3]]
+    assert _epoch_ambiguity(old, curr, pairs, -2.0, 3.0) == np.inf
+    assert _epoch_ambiguity(old, curr, pairs, -2.0, 3.0, spacing=True) == np.inf
+
+
+def test_the_current_epochs_second_wall_is_a_competitor_too():
+    # the old epoch sees one cross wall, the current two: the old planes alone show no
+    # alternative (world 32's case), the current epoch's do
+    old, curr = _corridor([4.0]), _corridor([4.0, 7.0])
+    aliased = [[0, 0], [1, 1], [2, 2], [3, 4]]  # the current wall at x = 7 tied to x = 4
+    T = transform_from_rpy_xyz(0.0, 0.0, 0.0, -2.0, 0.0, 0.0)
+    only_old = offset_residuals(old, curr, np.array(aliased), T, 0.02, 3.0, np.zeros((0, 0)))
+    assert ambiguity(only_old, 3.0, 0.02) == np.inf
+    assert _epoch_ambiguity(old, curr, aliased, -2.0, 3.0) <= LIMIT
+
+
+def test_a_wall_extracted_twice_is_no_competitor():
+    # the old epoch holds the end wall twice, 5 mm apart (two segments of one wall)
+    old, curr = _corridor([4.0, 4.005]), _corridor([4.0])
+    pairs = [[0, 0], [1, 1], [2, 2], [3, 3]]
+    assert _epoch_ambiguity(old, curr, pairs, -2.0, 3.0) == np.inf
+
+
+def test_spacing_tries_the_wall_beyond_that_no_epoch_shows():
+    # walls across every 3 m at x = 1, 4, 7; the old epoch sees 4 and 7, the current
+    # (truly at the same place) only the one at 1 (the others hidden): tied to 4, the
+    # pose 3 m off; the prediction halfway (1.5 m off, sigma 1 m) fits the right wall
+    # (x = 1, unseen by the old epoch) as well as the tied one, the wall at 7 far worse:
+    # only "spacing" (the 3 m the other way) finds the competitor
+    old = _corridor([4.0, 7.0])
+    curr = _corridor([1.0])
+    aliased = [[0, 0], [1, 1], [2, 2], [3, 3]]
+    assert _epoch_ambiguity(old, curr, aliased, 1.5, 1.0) > LIMIT
+    assert _epoch_ambiguity(old, curr, aliased, 1.5, 1.0, spacing=True) == pytest.approx(0.0)
