@@ -203,6 +203,11 @@ class PlaneSupport:
             :mod:`planodom.odometry.planemap.moments`), or None when unknown.
         n_rows: number of distinct scan lines (rings or recovered rows) among the inliers
             (0: unknown); a per-laser range bias is shared by the points of one line.
+        time_moments: (5, 4, 4) float64 ``sum_i t_i^k h_i h_i^T``, k = 0..4, over the
+            inliers, ``h_i = (p_i - centroid, 1)`` (m, s: ``t_i`` the point's time relative
+            to the epoch's reference time), or None when unknown (points without times, or
+            ``extraction.time_moments`` off): what the continuous-time registration needs
+            (:mod:`planodom.odometry.planemap.ctreg`).
     """
 
     centroid: np.ndarray
@@ -210,6 +215,7 @@ class PlaneSupport:
     n_points: int = 0
     scatter: np.ndarray | None = None
     n_rows: int = 0
+    time_moments: np.ndarray | None = None
 
     def transformed(self, T_a_b: np.ndarray) -> PlaneSupport:
         """The same support in frame a, given it in frame b."""
@@ -217,7 +223,12 @@ class PlaneSupport:
         R = T_a_b[:3, :3]
         scatter = None if self.scatter is None else R @ self.scatter @ R.T
         centroid = transform_points(T_a_b, self.centroid[None])[0]
-        return PlaneSupport(centroid, poly, self.n_points, scatter, self.n_rows)
+        moments = None
+        if self.time_moments is not None:  # centred: only the rotation acts
+            A = np.eye(4)
+            A[:3, :3] = R
+            moments = A @ self.time_moments @ A.T
+        return PlaneSupport(centroid, poly, self.n_points, scatter, self.n_rows, moments)
 
     @property
     def area(self) -> float:

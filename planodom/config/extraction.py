@@ -116,6 +116,11 @@ class ExtractionConfig(Section):
     deskewing twist (``Plane.deskew_jacobian``). Only ``smoothing.deskew_noise:
     twist_change_jacobian[_net]`` uses it, and that mode switches it on (PlanodomConfig);
     off otherwise because it costs about 80 us per plane of 2 000 points."""
+    time_moments: bool = False
+    """Give each plane of a scan with point times its time-weighted moments
+    (``PlaneSupport.time_moments``: ``sum t^k h h^T``, k = 0..4). Only the plane map's
+    continuous-time registration reads them (``planemap.twist_estimation``), and that
+    switches it on (PlanodomConfig); off otherwise (a few 4x4 products per plane)."""
     tolerance_floor_m: float = Field(0.02, ge=0)
     """Smallest distance tolerance (m): trace curvature from motion within one sweep
     (about v / scan rate, 2 cm at 1.5 m/s and 75 Hz), deskew residue, float32 hits."""

@@ -49,6 +49,26 @@ class PlanemapConfig(Section):
     epochs) world 3 / 9 0.0052 / 0.0073 -> 0.0043 / 0.0040 deg. KITTI raw 0005 (no point
     times, no Jacobians) unchanged. Off: mixed at 2 cm, where the deviations it is scaled
     by also hold the odometry's own noise."""
+    twist_estimation: Literal["none", "registered", "registered_acceleration"] = "none"
+    """Whether a scan's own twist is measured in its registration against the map
+    (continuous time, :mod:`planodom.odometry.planemap.ctreg`; needs point times, and
+    switches on ``extraction.time_moments``): ``none``, the scan is registered with the
+    twist it was deskewed with (predicted from the steps before: it lags the sweep);
+    ``registered``, after the registration a Gauss-Newton over the inlier associations
+    solves the pose and a correction of the deskewing twist together, from each plane's
+    time-weighted moments (the exact point-to-plane cost of the points moved by the
+    correction); the corrected twist is the epoch's own twist (what it is extracted again
+    with, :func:`planodom.odometry.deskew.register_deskewed`) and the next epoch's
+    prediction; ``registered_acceleration``, also the twist's rate of change within the
+    sweep (moments up to ``t^4``), which the next epoch's prediction extrapolates by
+    (the deskewing itself stays a constant twist). Scans without point times are
+    unchanged."""
+    twist_map_update: Literal["deskewed", "corrected"] = "corrected"
+    """With ``twist_estimation``: the map is updated with the scan's planes as deskewed
+    (``deskewed``) or moved by the twist correction its registration measured, from
+    their time moments (``corrected``; the epoch is usually extracted again with the
+    corrected twist anyway, but not when the correction is within the deskewing
+    tolerances)."""
     laser_bias: Literal["fixed", "fitted"] = "fixed"
     """Where the registration's laser bias comes from (:mod:`planodom.odometry.planemap.bias`):
     ``fixed``, ``laser_bias_m``; ``fitted`` (experimental), fitted to each scan's

@@ -164,6 +164,16 @@ def through_viewpoint(
     return rms2 <= (config.member_sigma_factor * sigma) ** 2
 
 
+def time_moments(points: np.ndarray, t: np.ndarray, centroid: np.ndarray) -> np.ndarray:
+    """(5, 4, 4) ``sum_i t_i^k h_i h_i^T``, k = 0..4, ``h_i = (p_i - centroid, 1)``, of
+    points (M, 3) m seen at times ``t`` (M,) s (``PlaneSupport.time_moments``)."""
+    h = np.empty((len(points), 4))
+    h[:, :3] = points - centroid
+    h[:, 3] = 1.0
+    powers = np.asarray(t, dtype=np.float64)[None, :] ** np.arange(5)[:, None]  # (5, M)
+    return np.einsum("km,mi,mj->kij", powers, h, h)
+
+
 def build_planes(
     fits: PlaneFits,
     epoch: Epoch,
@@ -213,6 +223,7 @@ def build_planes(
         ring if fits.n_rows is None else None, labels, fits.inliers, fits.bounds, kept
     )
     t = epoch.scan.t if config.deskew_jacobian else None
+    tt = epoch.scan.t if config.time_moments and epoch.scan.t is not None else None
     span = 0.0 if t is None or len(t) == 0 else float(np.max(np.abs(t)))
     polygons = support_polygons(
         epoch.points, fits.inliers, fits.bounds, fits.outline, kept, fits.centroid, fits.evecs
@@ -231,7 +242,12 @@ def build_planes(
             covariance=covs[g],
             confidence=float(conf[g]),
             support=PlaneSupport(
-                fits.centroid[g].copy(), polygon, int(fits.count[g]), scatter[g], n_rows
+                fits.centroid[g].copy(),
+                polygon,
+                int(fits.count[g]),
+                scatter[g],
+                n_rows,
+                None if tt is None else time_moments(epoch.points[idx], tt[idx], fits.centroid[g]),
             ),
             truth_id=int(truth[k]),
             deskew_jacobian=dsk,
