@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 from planodom.extraction.deskew import deskew_points
 from planodom.extraction.planes.builder import time_moments
 from planodom.geometry import invert_transform, se3_exp, transform_points
-from planodom.odometry.planemap.ctreg import ct_cost, register_twist, stacked
+from planodom.odometry.planemap.ctreg import corrected_moments, ct_cost, register_twist, stacked
 from planodom.odometry.planemap.landmarks import PlaneMap
 from planodom.odometry.planemap.moments import Moments
 from planodom.odometry.planemap.register import Registration, ScanPlanes
@@ -155,3 +155,32 @@ def test_prior_keeps_an_unobserved_correction():
     assert got is not None
     np.testing.assert_allclose(got.correction, 0.0, atol=1e-12)
     np.testing.assert_allclose(got.T, T_true, atol=1e-9)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_corrected_moments_are_those_of_the_moved_points(order):
+    rng = np.random.default_rng(5)
+    sets = [rng.normal(size=(80, 3)) * [3, 2, 0.1] + rng.normal(size=3) * 10 for _ in range(4)]
+    taus = [rng.uniform(-0.05, 0.05, 80) for _ in sets]
+    c = np.array([p.mean(axis=0) for p in sets])
+    tm = np.array([time_moments(p, t, ci) for p, t, ci in zip(sets, taus, c, strict=True)])
+    x = rng.normal(size=6 * order)
+    N, cx, S = corrected_moments(c, tm, x)
+    moved = []
+    for p, t in zip(sets, taus, strict=True):
+        q = p + t[:, None] * (np.cross(x[:3], p) + x[3:6])
+        if order == 2:
+            q += 0.5 * t[:, None] ** 2 * (np.cross(x[6:9], p) + x[9:12])
+        moved.append(q)
+    want = Moments.of_points(moved)
+    np.testing.assert_allclose(N, want.N)
+    np.testing.assert_allclose(cx, want.c, atol=1e-10)
+    np.testing.assert_allclose(S, want.S, rtol=1e-9, atol=1e-9)
+
+
+def test_twist_estimation_switches_on_time_moments():
+    from planodom.config import PlanodomConfig
+
+    assert not PlanodomConfig().extraction.time_moments
+    on = PlanodomConfig.model_validate({"planemap": {"twist_estimation": "registered"}})
+    assert on.extraction.time_moments and not on.extraction.deskew_jacobian
