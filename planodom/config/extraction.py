@@ -16,8 +16,7 @@ class TimeWindowConfig(Section):
     With per-point times spread over more than ``span_s`` the 2D-rig path only combines
     points acquired within one window of ``span_s`` (:mod:`planodom.extraction.rig2d.windows`):
     traces, seeds and planes are built per window, and one plane per wall is kept. With a
-    twist none of this is used.
-    """
+    twist none of this is used."""
 
     model_config = ConfigDict(allow_inf_nan=False)
 
@@ -55,11 +54,9 @@ class SweepConfig(Section):
     sense of rotation, the azimuth where the sweep starts (its seam) and the sweep period.
     Nothing is guessed: with ``rotation: none`` (the default) a cloud without times stays
     without them (and is not deskewed). KISS-ICP recovers KITTI's times the same way.
-    A point at azimuth ``a`` (sensor frame, from x towards y) gets
-    ``t = start_time_s + period_s * f``, ``f`` in [0, 1) the fraction of a turn from
-    ``start_azimuth_deg`` to ``a`` in the sense of rotation. Clouds that carry times keep
-    them.
-    """
+    A point at azimuth ``a`` (sensor frame, from x towards y) gets ``t = start_time_s +
+    period_s * f``, ``f`` in [0, 1) the fraction of a turn from ``start_azimuth_deg`` to
+    ``a`` in the sense of rotation. Clouds that carry times keep them."""
 
     model_config = ConfigDict(allow_inf_nan=False)
 
@@ -117,10 +114,8 @@ class ExtractionConfig(Section):
     twist_change_jacobian[_net]`` uses it, and that mode switches it on (PlanodomConfig);
     off otherwise because it costs about 80 us per plane of 2 000 points."""
     time_moments: bool = False
-    """Give each plane of a scan with point times its time-weighted moments
-    (``PlaneSupport.time_moments``: ``sum t^k h h^T``, k = 0..4). Only the plane map's
-    continuous-time registration reads them (``planemap.twist_estimation``), and that
-    switches it on (PlanodomConfig); off otherwise (a few 4x4 products per plane)."""
+    """Give each plane of a scan with point times its time moments (``PlaneSupport.
+    time_moments``); ``planemap.twist_estimation`` reads them and switches this on."""
     tolerance_floor_m: float = Field(0.02, ge=0)
     """Smallest distance tolerance (m): trace curvature from motion within one sweep
     (about v / scan rate, 2 cm at 1.5 m/s and 75 Hz), deskew residue, float32 hits."""

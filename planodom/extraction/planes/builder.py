@@ -174,6 +174,18 @@ def time_moments(points: np.ndarray, t: np.ndarray, centroid: np.ndarray) -> np.
     return np.einsum("km,mi,mj->kij", powers, h, h)
 
 
+def _moments_of(
+    epoch: Epoch, config: ExtractionConfig, idx: np.ndarray, centroid: np.ndarray
+) -> np.ndarray | None:
+    """The time moments of the points ``idx`` (``extraction.time_moments``), or None."""
+    t = epoch.scan.t
+    return (
+        time_moments(epoch.points[idx], t[idx], centroid)
+        if config.time_moments and t is not None
+        else None
+    )
+
+
 def build_planes(
     fits: PlaneFits,
     epoch: Epoch,
@@ -223,7 +235,6 @@ def build_planes(
         ring if fits.n_rows is None else None, labels, fits.inliers, fits.bounds, kept
     )
     t = epoch.scan.t if config.deskew_jacobian else None
-    tt = epoch.scan.t if config.time_moments and epoch.scan.t is not None else None
     span = 0.0 if t is None or len(t) == 0 else float(np.max(np.abs(t)))
     polygons = support_polygons(
         epoch.points, fits.inliers, fits.bounds, fits.outline, kept, fits.centroid, fits.evecs
@@ -236,19 +247,13 @@ def build_planes(
             dsk = deskew_jacobian(epoch.points[idx], t[idx] / span, n_or[g], fit)
         n_rows = int(fits.n_rows[g]) if fits.n_rows is not None else int(rows[k])
         polygon = polygons[k]
+        seen = (fits.centroid[g].copy(), polygon, int(fits.count[g]), scatter[g], n_rows)
         plane = Plane(
             normal=n_or[g],
             offset=float(d_or[g]),
             covariance=covs[g],
             confidence=float(conf[g]),
-            support=PlaneSupport(
-                fits.centroid[g].copy(),
-                polygon,
-                int(fits.count[g]),
-                scatter[g],
-                n_rows,
-                None if tt is None else time_moments(epoch.points[idx], tt[idx], fits.centroid[g]),
-            ),
+            support=PlaneSupport(*seen, _moments_of(epoch, config, idx, fits.centroid[g])),
             truth_id=int(truth[k]),
             deskew_jacobian=dsk,
         )
