@@ -52,7 +52,8 @@ class PlanodomConfig(Section):
         """The deskew-noise modes that read each plane's deskewing Jacobian
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
         ``planemap.deskew_variance: twist_change``) switch on its computation in the
-        extraction (``extraction.deskew_jacobian``)."""
+        extraction (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other
+        than ``none`` switches on the planes' time moments (``extraction.time_moments``)."""
         if not isinstance(data, Mapping):
             return data
         smoothing = data.get("smoothing")
@@ -63,15 +64,22 @@ class PlanodomConfig(Section):
         deskew = getattr(planemap, "deskew_variance", None)
         if isinstance(planemap, Mapping):
             deskew = planemap.get("deskew_variance")
+        twist = getattr(planemap, "twist_estimation", None)
+        if isinstance(planemap, Mapping):
+            twist = planemap.get("twist_estimation")
         wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
-        if not (wanted or deskew == "twist_change"):
+        moments = isinstance(twist, str) and twist != "none"
+        if not (wanted or deskew == "twist_change" or moments):
             return data
         extraction = data.get("extraction", {})
         if isinstance(extraction, ExtractionConfig):
             extraction = extraction.model_dump()
         if not isinstance(extraction, Mapping):
             return data  # the section's own validation reports it
-        return {**data, "extraction": {**extraction, "deskew_jacobian": True}}
+        switched = {"time_moments": True} if moments else {}
+        if wanted or deskew == "twist_change":
+            switched["deskew_jacobian"] = True
+        return {**data, "extraction": {**extraction, **switched}}
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> PlanodomConfig:

@@ -17,8 +17,7 @@ class TimeWindowConfig(Section):
     With per-point times spread over more than ``span_s`` the 2D-rig path only combines
     points acquired within one window of ``span_s`` (:mod:`planodom.extraction.rig2d.windows`):
     traces, seeds and planes are built per window, and one plane per wall is kept. With a
-    twist none of this is used.
-    """
+    twist none of this is used."""
 
     model_config = ConfigDict(allow_inf_nan=False)
 
@@ -75,6 +74,9 @@ class ExtractionConfig(Section):
     deskewing twist (``Plane.deskew_jacobian``). Only ``smoothing.deskew_noise:
     twist_change_jacobian[_net]`` uses it, and that mode switches it on (PlanodomConfig);
     off otherwise because it costs about 80 us per plane of 2 000 points."""
+    time_moments: bool = False
+    """Give each plane of a scan with point times its time moments (``PlaneSupport.
+    time_moments``); ``planemap.twist_estimation`` reads them and switches this on."""
     tolerance_floor_m: float = Field(0.02, ge=0)
     """Smallest distance tolerance (m): trace curvature from motion within one sweep
     (about v / scan rate, 2 cm at 1.5 m/s and 75 Hz), deskew residue, float32 hits."""

@@ -49,6 +49,36 @@ class PlanemapConfig(Section):
     epochs) world 3 / 9 0.0052 / 0.0073 -> 0.0043 / 0.0040 deg. KITTI raw 0005 (no point
     times, no Jacobians) unchanged. Off: mixed at 2 cm, where the deviations it is scaled
     by also hold the odometry's own noise."""
+    twist_estimation: Literal["none", "registered", "registered_acceleration"] = "none"
+    """Whether a scan's own twist is measured in its registration against the map
+    (continuous time, :mod:`planodom.odometry.planemap.ctreg`; needs point times, and
+    switches on ``extraction.time_moments``): ``none``, the scan is registered with the
+    twist it was deskewed with (predicted from the steps before: it lags the sweep);
+    ``registered``, after the registration a Gauss-Newton over the inlier associations
+    solves the pose and a correction of the deskewing twist together, from each plane's
+    time-weighted moments (the exact point-to-plane cost of the points moved by the
+    correction); the corrected twist is the epoch's own twist (what it is extracted again
+    with, :func:`planodom.odometry.deskew.register_deskewed`) and the next epoch's
+    prediction; ``registered_acceleration``, also the twist's rate of change within the
+    sweep (moments up to ``t^4``), which the next epoch's prediction extrapolates by
+    (the deskewing itself stays a constant twist). Scans without point times are
+    unchanged. Measured ``registered_acceleration`` against the default (full runs,
+    planodom only): hand-held worlds 40-47 (150 epochs) rotation geometric-mean ratio
+    1.02 at 6 mm (better on 5 of 8), 1.23 at 2 cm (4 of 8); ATE 0.82 / 1.03 (4 / 3 of 8
+    better); better on the 32- and 64-beam worlds (41 6 mm ATE 0.046 -> 0.023 m, 45
+    11.9 -> 0.40 m), worse on the 16-beam 20 Hz worlds 44 and 46 (44 6 mm 0.27 -> 1.44
+    deg, 46 0.21 -> 0.45 deg: few planes, the twist and its change poorly observed).
+    Vehicle lidar worlds 1-39 odd (300 epochs): rotation ratio 1.66 at 6 mm (4 of 20
+    better), 1.11 at 2 cm (4 of 20); ATE 1.47 / 1.23; worlds 41-59 odd: rotation 2.05 /
+    1.32, ATE 1.53 / 1.31. At sigma 0 it helps (world 1, 60 epochs: 0.0063 -> 0.0036 deg
+    with ``registered``), at 6 mm its per-scan twist noise costs more than the lag it
+    removes. Hence off. KITTI raw 0005 (no point times) byte-identical."""
+    twist_map_update: Literal["deskewed", "corrected"] = "corrected"
+    """With ``twist_estimation``: the map is updated with the scan's planes as deskewed
+    (``deskewed``) or moved by the twist correction its registration measured, from
+    their time moments (``corrected``; the epoch is usually extracted again with the
+    corrected twist anyway, but not when the correction is within the deskewing
+    tolerances)."""
     laser_bias: Literal["fixed", "fitted"] = "fixed"
     """Where the registration's laser bias comes from (:mod:`planodom.odometry.planemap.bias`):
     ``fixed``, ``laser_bias_m``; ``fitted`` (experimental), fitted to each scan's

@@ -98,9 +98,13 @@ class EpochEstimate:
         """(6,) the epoch's twist, rad/s and m/s, over the ``dt`` seconds of its step: the
         step's twist plus ``twist_offset`` where it was measured (all of it when the
         status is OK, the angular rate when degenerate, nothing when unresolved: a
-        bridge)."""
-        own = self._step_log / dt
+        bridge); with ``planemap.twist_estimation``, the twist its registration measured
+        (unless unresolved)."""
         status = self.relative.status
+        registered = None if self.map_estimate is None else self.map_estimate.twist
+        if registered is not None and status is not Status.UNRESOLVED:
+            return registered  # planemap.twist_estimation: measured in the registration
+        own = self._step_log / dt
         if self.twist_offset is None or status is Status.UNRESOLVED:
             return own
         return own + (
@@ -115,6 +119,18 @@ Estimator = Callable[..., EpochEstimate]
 #: ``refresh_reference(twist) -> bool``: extract the reference epoch again with ``twist``
 #: when it was never deskewed; returns whether it did.
 Refresher = Callable[[np.ndarray], bool]
+
+
+def registered_prediction(best: EpochEstimate, dt: float, predicted: np.ndarray) -> np.ndarray:
+    """(6,) the twist predicted for the next epoch when the plane map measured the epoch's
+    own twist (``planemap.twist_estimation``, ``best.map_estimate.twist``, unless
+    unresolved): that twist, extrapolated by its measured acceleration over ``dt`` s
+    (the step's, ``registered_acceleration``), not the mean of the recent twists, which
+    lags a swing; else ``predicted``."""
+    est = best.map_estimate
+    if est is None or est.twist is None or best.relative.status is Status.UNRESOLVED:
+        return predicted
+    return est.twist if est.acceleration is None else est.twist + est.acceleration * dt
 
 
 def time_spread(scan: Scan) -> bool:

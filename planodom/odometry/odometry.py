@@ -32,6 +32,7 @@ from planodom.odometry.deskew import (
     keep_first,
     prefer_streaming,
     register_deskewed,
+    registered_prediction,
     significant_twist,
     time_spread,
     twist_offset,
@@ -314,7 +315,7 @@ class PlaneOdometry:
         epoch is the reference of the relative pose); committed in :meth:`_commit`."""
         assert self._map is not None
         reference = self._history[-1]
-        est = self._map.estimate(epoch.planes)
+        est = self._map.estimate(epoch.planes, epoch.twist, t - self.times[-1])
         result = est.relative.between(reference.index, epoch.index)
         step = orthonormalised(result.T_prev_curr)
         offset = None  # the deskewing's offset of the step's twist (twist_offset)
@@ -414,9 +415,8 @@ class PlaneOdometry:
             if best.relative.status is not Status.UNRESOLVED:
                 self._rates.append((epoch.index, own))
             significant = significant_twist(own, best.relative, dt, self.config.odometry)
-            self.twist = predicted_twist(
-                significant, measured, self._recent, self._velocities, self._map is not None
-            )
+            args = (significant, measured, self._recent, self._velocities, self._map is not None)
+            self.twist = registered_prediction(best, dt, predicted_twist(*args))
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
         T_world = orthonormalised(self.poses[-1] @ best.step)

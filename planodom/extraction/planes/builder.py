@@ -164,6 +164,28 @@ def through_viewpoint(
     return rms2 <= (config.member_sigma_factor * sigma) ** 2
 
 
+def time_moments(points: np.ndarray, t: np.ndarray, centroid: np.ndarray) -> np.ndarray:
+    """(5, 4, 4) ``sum_i t_i^k h_i h_i^T``, k = 0..4, ``h_i = (p_i - centroid, 1)``, of
+    points (M, 3) m seen at times ``t`` (M,) s (``PlaneSupport.time_moments``)."""
+    h = np.empty((len(points), 4))
+    h[:, :3] = points - centroid
+    h[:, 3] = 1.0
+    powers = np.asarray(t, dtype=np.float64)[None, :] ** np.arange(5)[:, None]  # (5, M)
+    return np.einsum("km,mi,mj->kij", powers, h, h)
+
+
+def _moments_of(
+    epoch: Epoch, config: ExtractionConfig, idx: np.ndarray, centroid: np.ndarray
+) -> np.ndarray | None:
+    """The time moments of the points ``idx`` (``extraction.time_moments``), or None."""
+    t = epoch.scan.t
+    return (
+        time_moments(epoch.points[idx], t[idx], centroid)
+        if config.time_moments and t is not None
+        else None
+    )
+
+
 def build_planes(
     fits: PlaneFits,
     epoch: Epoch,
@@ -225,14 +247,13 @@ def build_planes(
             dsk = deskew_jacobian(epoch.points[idx], t[idx] / span, n_or[g], fit)
         n_rows = int(fits.n_rows[g]) if fits.n_rows is not None else int(rows[k])
         polygon = polygons[k]
+        seen = (fits.centroid[g].copy(), polygon, int(fits.count[g]), scatter[g], n_rows)
         plane = Plane(
             normal=n_or[g],
             offset=float(d_or[g]),
             covariance=covs[g],
             confidence=float(conf[g]),
-            support=PlaneSupport(
-                fits.centroid[g].copy(), polygon, int(fits.count[g]), scatter[g], n_rows
-            ),
+            support=PlaneSupport(*seen, _moments_of(epoch, config, idx, fits.centroid[g])),
             truth_id=int(truth[k]),
             deskew_jacobian=dsk,
         )

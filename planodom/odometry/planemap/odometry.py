@@ -39,11 +39,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform
 from planodom.odometry.planemap import fallback
 from planodom.odometry.planemap.bias import fitted_bias
+from planodom.odometry.planemap.ctreg import TwistRegistration, corrected_planes, register_twist
 from planodom.odometry.planemap.landmarks import PlaneMap, update_map
 from planodom.odometry.planemap.moments import Moments, scan_sigma
 from planodom.odometry.planemap.pose import relative_pose
@@ -85,6 +87,12 @@ class MapEstimate:
             :meth:`PlaneMapOdometry.judged`).
         bias_m: the laser bias fitted to its inlier residuals (m; ``planemap.laser_bias:
             fitted``), None when not fitted.
+        deskew: (the twist (6,) the planes were deskewed with, None: not deskewed; the
+            seconds since the previous scan), as given to :meth:`PlaneMapOdometry.estimate`.
+        twist: (6,) the scan's own twist measured by the continuous-time registration
+            (``planemap.twist_estimation``, :mod:`.ctreg`), rad/s and m/s, at its
+            reference time; None when not measured. acceleration: (6,) its rate of
+            change, rad/s^2 and m/s^2 (``registered_acceleration``), else None.
     """
 
     relative: RelativePose
@@ -97,6 +105,9 @@ class MapEstimate:
     against: tuple[PlaneMap, int] | None = None
     beyond_bounds: bool = False
     bias_m: float | None = None
+    deskew: tuple[np.ndarray | None, float | None] = (None, None)
+    twist: np.ndarray | None = None
+    acceleration: np.ndarray | None = None
 
 
 class PlaneMapOdometry:
@@ -110,6 +121,7 @@ class PlaneMapOdometry:
         self.frame = -1
         self._dev_sse = np.zeros(2)
         self._dev_n = np.zeros(2, dtype=int)  # deviations counted: rotation, translation
+        self._dev_axes = np.zeros(6)  # their squared components (rotation vector, translation)
         self._fractions: list[float] = []
         self._prev: PlaneSet | None = None
         self.bias_m = self.config.planemap.laser_bias_m  # the fitted one, when fitted
@@ -127,8 +139,12 @@ class PlaneMapOdometry:
 
     # ------------------------------------------------------------------ one scan
 
-    def estimate(self, planes: Sequence[Plane]) -> MapEstimate:
-        """Register one scan's planes (base frame); the state is not changed."""
+    def estimate(
+        self, planes: Sequence[Plane], twist: np.ndarray | None = None, dt: float | None = None
+    ) -> MapEstimate:
+        """Register one scan's planes (base frame); the state is not changed. ``twist``
+        (6,): the one they were deskewed with (None: not deskewed), ``dt``: seconds since
+        the previous scan; both only for ``planemap.twist_estimation``."""
         used = np.array(
             [
                 k
@@ -139,10 +155,15 @@ class PlaneMapOdometry:
             ],
             dtype=np.intp,
         )
-        return self._estimate(used, self._scan_planes(planes, used), PlaneSet.from_planes(planes))
+        cur = self._scan_planes(planes, used)
+        return self._estimate(used, cur, PlaneSet.from_planes(planes), (twist, dt))
 
     def _estimate(
-        self, used: np.ndarray, cur: ScanPlanes | None, plane_set: PlaneSet
+        self,
+        used: np.ndarray,
+        cur: ScanPlanes | None,
+        plane_set: PlaneSet,
+        deskew: tuple[np.ndarray | None, float | None] = (None, None),
     ) -> MapEstimate:
         """:meth:`estimate` of the planes ``used`` of ``plane_set`` (inputs ``cur``)."""
         T_pred = self.pose @ self.velocity
@@ -154,6 +175,11 @@ class PlaneMapOdometry:
             return MapEstimate(rel, T, T_pred, used, cur, None, plane_set, against)
         reg = self._best_registration(T_pred, cur, plane_set)
         ok = self._resolved(reg, cur)
+        ct = self._registered_twist(reg, cur, deskew[1]) if ok else None
+        if ct is not None:
+            reg = replace(reg, T=ct.T)
+            if self.config.planemap.twist_map_update == "corrected":
+                cur = corrected_planes(cur, ct)
         rel, T = self._result(reg, ok, T_pred, cur, used)
         measured = rel.status is not Status.UNRESOLVED
         beyond = measured and self._beyond_bounds(rel)
@@ -162,7 +188,38 @@ class PlaneMapOdometry:
             inl = reg.weights > 0.5
             upper = self.config.planemap.laser_bias_m
             bias = fitted_bias(self.map, reg.T, cur, reg.landmarks[inl], reg.planes[inl], upper)
-        return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set, against, beyond, bias)
+        twist = acceleration = None
+        if ct is not None and measured:
+            twist = (np.zeros(6) if deskew[0] is None else deskew[0]) + ct.correction
+            if self.config.planemap.twist_estimation == "registered_acceleration":
+                acceleration = ct.acceleration
+        return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set, against, beyond, bias,
+                           deskew, twist, acceleration)  # fmt: skip
+
+    def _registered_twist(
+        self, reg: Registration, cur: ScanPlanes, dt: float | None
+    ) -> TwistRegistration | None:
+        """The continuous-time registration from ``reg`` (``planemap.twist_estimation``,
+        :mod:`.ctreg`); None when off, without time moments, before any motion was
+        measured or without the step's ``dt``. Its prior: the twist's error per axis the
+        constant-velocity model's RMS deviation so far along that axis (rotation vector
+        and translation components, scan frame) over ``dt`` (the twist deskewed with is
+        the last one measured: it is off by the change of the twist over a step), the
+        acceleration's twice that over ``dt`` (the rate may change by the twist's error
+        within half an epoch)."""
+        mode = self.config.planemap.twist_estimation
+        if mode == "none" or cur.time_moments is None or self._dev_n[0] == 0:
+            return None
+        if dt is None or dt <= 0:
+            return None
+        rms = np.sqrt(self._dev_axes / np.repeat(np.maximum(self._dev_n, 1), 3))
+        if self._dev_n[1] == 0:
+            rms[3:] = self.config.planemap.initial_translation_m
+        sd = np.maximum(rms / dt, 1e-9)
+        if mode == "registered_acceleration":
+            sd = np.r_[sd, 2.0 * sd / dt]
+        iterations = self.config.planemap.gn_iterations
+        return register_twist(self.map, reg, cur, cur.time_moments, sd, iterations)
 
     def judged(self, est: MapEstimate) -> MapEstimate:
         """An epoch's final estimate, bridged by constant velocity (UNRESOLVED and
@@ -183,7 +240,13 @@ class PlaneMapOdometry:
         m = Moments.of_planes([planes[k] for k in used])
         normals = np.array([planes[k].normal for k in used])
         sigma = scan_sigma(m, self.config.extraction.range_noise_m)
-        return ScanPlanes.of(m, normals, sigma, self.bias_m, self._deskew_cov(planes, used))
+        cur = ScanPlanes.of(m, normals, sigma, self.bias_m, self._deskew_cov(planes, used))
+        if self.config.planemap.twist_estimation == "none":
+            return cur
+        tm = [planes[k].support.time_moments for k in used]
+        if any(x is None for x in tm):
+            return cur
+        return replace(cur, time_moments=np.array(tm))
 
     def _deskew_cov(self, planes: Sequence[Plane], used: np.ndarray) -> np.ndarray | None:
         """(K, 4, 4) covariance of the ``used`` planes' ``(n, d)`` from the deskewing
@@ -311,7 +374,7 @@ class PlaneMapOdometry:
         if est.against is not None and (
             est.against[0] is not self.map or est.against[1] != self.frame
         ):
-            est = self.judged(self._estimate(est.used, est.cur, est.plane_set))
+            est = self.judged(self._estimate(est.used, est.cur, est.plane_set, est.deskew))
         first = self.frame < 0
         self.frame += 1
         T = _orthonormalised(est.T)
@@ -323,6 +386,8 @@ class PlaneMapOdometry:
             counted = int(not self._predicted_translation(est.relative))
             self._dev_sse += [_angle(dev[:3, :3]) ** 2, counted * float(dev[:3, 3] @ dev[:3, 3])]
             self._dev_n += [1, counted]
+            rotvec = Rotation.from_matrix(dev[:3, :3]).as_rotvec()
+            self._dev_axes += np.r_[rotvec**2, counted * dev[:3, 3] ** 2]
             self.velocity = _orthonormalised(invert_transform(self.pose) @ T)
         self.pose = T
         self._prev = est.plane_set

@@ -53,6 +53,8 @@ class ScanPlanes:
             bias: the laser bias (m) they were computed with. deskew: (K, 4) the
             variance each moment residual gains from the deskewing twist's error
             (``planemap.deskew_variance``, :func:`deskew_variances`), or None.
+        time_moments: (K, 5, 4, 4) the planes' time moments (``PlaneSupport.
+            time_moments``) for the continuous-time registration (:mod:`.ctreg`), or None.
     """
 
     m: Moments
@@ -65,6 +67,7 @@ class ScanPlanes:
     s2: np.ndarray
     bias: float = 0.0
     deskew: np.ndarray | None = None
+    time_moments: np.ndarray | None = None
 
     @classmethod
     def of(
