@@ -37,7 +37,7 @@ import numpy as np
 from planodom._open3d import o3d
 from planodom.config import ExtractionConfig
 from planodom.extraction.kernels import add_outer, find_root
-from planodom.extraction.lidar.grid import ring_layout
+from planodom.extraction.lidar.grid import plane_members, ring_layout
 from planodom.extraction.lidar.rangeimage import range_image_candidates
 from planodom.extraction.lidar.ransac import segment_plane
 from planodom.extraction.noise import effective_noise, member_tolerance
@@ -207,23 +207,12 @@ def _region_buckets(az, el, taken, lookup, n_lab):  # pragma: no cover - compile
     RANSAC plane on a 128-beam scan."""
     top = lookup.shape[1] - 1
     lab = np.full(az.shape[0], -1, dtype=np.int64)
-    bounds = np.zeros(n_lab + 1, dtype=np.int64)
     for i in range(az.shape[0]):
         if not taken[i]:
             g = lookup[az[i], min(el[i], top)]
             if 0 <= g < n_lab:
                 lab[i] = g
-                bounds[g + 1] += 1
-    for g in range(n_lab):
-        bounds[g + 1] += bounds[g]
-    fill = bounds[:-1].copy()
-    members = np.empty(bounds[n_lab], dtype=np.int64)
-    for i in range(az.shape[0]):
-        g = lab[i]
-        if g >= 0:
-            members[fill[g]] = i
-            fill[g] += 1
-    return members, bounds
+    return plane_members(lab, n_lab)
 
 
 @numba.njit(cache=True)

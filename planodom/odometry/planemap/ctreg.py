@@ -43,7 +43,7 @@ from scipy.spatial.transform import Rotation
 from planodom.odometry.planemap.landmarks import PlaneMap
 from planodom.odometry.planemap.moments import Moments
 from planodom.odometry.planemap.outliers import TESTED, residual_scale, whitened
-from planodom.odometry.planemap.register import Registration, ScanPlanes
+from planodom.odometry.planemap.register import Registration, ScanPlanes, newton_step
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,9 +232,7 @@ def _solve(
         Wr = 1.0 / var
         H = np.einsum("m,mki,mkj->ij", Wr, J, J) + np.diag(P)
         g = np.einsum("m,mki,mk->i", Wr, J, r) + np.r_[np.zeros(6), P[6:] * x]
-        evs, U = np.linalg.eigh(H / np.outer(scale, scale))
-        inv = np.where(evs > 1e-9 * evs.max(), 1.0 / np.maximum(evs, 1e-300), 0.0)
-        dx = -((U * inv) @ U.T @ (g / scale)) / scale
+        dx = newton_step(H, g, scale)
         R = Rotation.from_rotvec(dx[:3]).as_matrix() @ R
         t = t + dx[3:6]
         x = x + dx[6:]

@@ -275,6 +275,16 @@ def _drop_deleted(
     return T, H, w
 
 
+def newton_step(H: np.ndarray, g: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The Gauss-Newton step ``-H^+ g`` (n,) of the normal equations ``H`` (n, n) and
+    gradient ``g`` (n,), solved on ``H`` scaled by ``scale`` (n,) (Jacobi) with the
+    pseudo-inverse's eigenvalues below 1e-9 of the largest dropped (an unobserved
+    direction does not move)."""
+    ev, V = np.linalg.eigh(H / np.outer(scale, scale))
+    inv = np.where(ev > 1e-9 * ev.max(), 1.0 / np.maximum(ev, 1e-300), 0.0)
+    return -((V * inv) @ V.T @ (g / scale)) / scale
+
+
 def _gauss_newton(
     M: PlaneMap,
     T0: np.ndarray,
@@ -298,9 +308,7 @@ def _gauss_newton(
         Wr = w[:, None] / (k2 * v)
         H = np.einsum("mk,mki,mkj->ij", Wr, J, J)
         g = np.einsum("mk,mki,mk->i", Wr, J, r)
-        ev, V = np.linalg.eigh(H / np.outer(scale, scale))
-        inv = np.where(ev > 1e-9 * ev.max(), 1.0 / np.maximum(ev, 1e-300), 0.0)
-        dx = -((V * inv) @ V.T @ (g / scale)) / scale
+        dx = newton_step(H, g, scale)
         R = Rotation.from_rotvec(dx[:3]).as_matrix() @ R
         t = t + dx[3:]
         if np.linalg.norm(dx[:3]) < 1e-9 and np.linalg.norm(dx[3:]) < 1e-8:
