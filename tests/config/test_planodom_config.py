@@ -46,6 +46,11 @@ def test_round_trip(tmp_path) -> None:
             "odometry: {refine_unmeasured: blended}\n",
             r"c\.yaml: field 'odometry\.refine_unmeasured'",
         ),
+        ("extraction: {grid_max_columns: 8}\n", r"c\.yaml: field 'extraction\.grid_max_columns'"),
+        ("extraction: {grid_max_rows: 2}\n", r"c\.yaml: field 'extraction\.grid_max_rows'"),
+        ("extraction: {time_moments: 3}\n", r"c\.yaml: field 'extraction\.time_moments'"),
+        ("planemap: {twist_estimation: yes}\n", r"c\.yaml: field 'planemap\.twist_estimation'"),
+        ("planemap: {twist_map_update: raw}\n", r"c\.yaml: field 'planemap\.twist_map_update'"),
         (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",
