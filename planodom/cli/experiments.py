@@ -4,6 +4,8 @@ procedural worlds, planodom against point-based peers on recordings, loop closur
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -21,7 +23,21 @@ from planodom.cli.common import (
 )
 
 Levels = Annotated[str, typer.Option(help="Comma-separated range noise sigmas in metres.")]
-ExpOut = Annotated[Path, typer.Option("--out", "-o", help="Output directory.")]
+ExpOut = Annotated[
+    Path | None,
+    typer.Option(
+        "--out",
+        "-o",
+        help="Output folder (default: a new results/<experiment>/<timestamp>, linked as "
+        "results/<experiment>/latest).",
+    ),
+]
+ExpOverwrite = Annotated[
+    bool,
+    typer.Option("--overwrite", help="Replace an earlier experiment's tables and plots at --out."),
+]
+#: What an experiment writes: a folder holding anything else is never written into.
+EXPERIMENT_SUFFIXES = (".md", ".csv", ".png", ".yaml")
 ExpSeed = Annotated[int, typer.Option(help="Noise seed.")]
 ExpMotion = Annotated[str, typer.Option(help="snapshot (the paper's simulator) | continuous.")]
 
@@ -52,6 +68,43 @@ def _print_files(files: dict[str, Path]) -> None:
         console.print(f"{name}: {path}", highlight=False)
 
 
+def _is_experiment_file(entry: Path) -> bool:
+    return entry.is_file() and not entry.is_symlink() and entry.suffix in EXPERIMENT_SUFFIXES
+
+
+@contextlib.contextmanager
+def _out_folder(
+    name: str, out: Path | None, overwrite: bool, inputs: tuple[Path, ...] = ()
+) -> Iterator[Path]:
+    """The folder experiment ``name`` writes into, made before it runs (so that a long
+    experiment can write its tables as it goes, and a taken folder is refused before
+    hours of work, not after): ``out``, which must be new or empty, or with
+    ``overwrite`` hold only an earlier experiment's files (removed first); by default a
+    new ``results/<name>/<timestamp>``, linked as ``results/<name>/latest`` once it holds
+    anything. Nothing an earlier run or the user left is ever written over unasked; a
+    folder made for a run that failed before writing anything is removed again."""
+    from planodom.outputs import check_target, link_latest, timestamped_folder
+
+    if out is None:
+        folder = timestamped_folder(Path("results") / name)
+    else:
+        folder = check_target(
+            out, overwrite=overwrite, inputs=inputs, owned=_is_experiment_file,
+            what="experiment results",
+        )  # fmt: skip
+    made = not folder.exists()
+    for entry in [] if made else sorted(folder.iterdir()):
+        entry.unlink()  # --overwrite, every entry an experiment's file (checked above)
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        yield folder
+    finally:
+        if made and not any(folder.iterdir()):
+            folder.rmdir()
+        elif out is None:
+            link_latest(folder)
+
+
 def _simulation(epochs: int | None, seed: int, motion: str):
     from planodom.experiments.simulated import Simulation
 
@@ -71,17 +124,19 @@ takes_simulation = bundles(
 @takes_simulation
 def experiment_paper(
     simulation: Any,
-    out: ExpOut = Path("results/paper"),
+    out: ExpOut = None,
+    overwrite: ExpOverwrite = False,
     levels: Levels = "0,0.006,0.02,0.1",
     config: ConfigFile = None,
 ) -> None:
     """The paper's section VI: Fig. 5 trajectories, Fig. 6 / 7 precision tables."""
     from planodom.experiments.paper import run_paper_experiment
 
-    result = run_paper_experiment(
-        out, noise_levels=_levels(levels), simulation=simulation, config=load_config(config),
-        progress=_say,
-    )  # fmt: skip
+    noise_levels, cfg = _levels(levels), load_config(config)
+    with _out_folder("paper", out, overwrite) as folder:
+        result = run_paper_experiment(
+            folder, noise_levels=noise_levels, simulation=simulation, config=cfg, progress=_say
+        )
     _print_files(result.files)
 
 
@@ -96,17 +151,20 @@ def experiment_smoothing(
     levels: Levels = "0,0.006,0.02,0.1",
     window: Annotated[int, typer.Option(help="Fixed-lag window W, epochs.")] = 10,
     delta: Annotated[int, typer.Option(help="Relative poses for delta = 1..D.")] = 3,
-    out: ExpOut = Path("results/smoothing"),
+    out: ExpOut = None,
+    overwrite: ExpOverwrite = False,
     config: ConfigFile = None,
 ) -> None:
     """Raw odometry vs delta > 1 vs windowed vs batch smoothing, with NEES."""
     from planodom.experiments.smoothing import run_smoothing_experiment
 
-    result = run_smoothing_experiment(
-        out, noise_levels=_levels(levels), scenes=[x for x in scenes.split(",") if x],
-        window=window, delta=delta, simulation=simulation, config=load_config(config),
-        progress=_say,
-    )  # fmt: skip
+    noise_levels, cfg = _levels(levels), load_config(config)
+    chosen = [x for x in scenes.split(",") if x]
+    with _out_folder("smoothing", out, overwrite) as folder:
+        result = run_smoothing_experiment(
+            folder, noise_levels=noise_levels, scenes=chosen, window=window, delta=delta,
+            simulation=simulation, config=cfg, progress=_say,
+        )  # fmt: skip
     _print_files(result.files)
 
 
@@ -142,7 +200,8 @@ def experiment_generalisation(
     motion: Annotated[
         str, typer.Option(help="vehicle | handheld (every world a hand-held lidar's walk).")
     ] = "vehicle",
-    out: ExpOut = Path("results/generalisation"),
+    out: ExpOut = None,
+    overwrite: ExpOverwrite = False,
     config: ConfigFile = None,
 ) -> None:
     """Unseen worlds: planodom (default, and the paper's wocsc) vs the oracle and the peers."""
@@ -173,12 +232,14 @@ def experiment_generalisation(
     levels = noise or [0.0, 0.006, 0.02, 0.1]
     if quick:
         worlds, epochs, levels = 2, 25, (noise or [0.006])
-    result = run_generalisation_experiment(
-        out, n_worlds=worlds, noise_levels=levels, n_epochs=epochs or None,
-        config=load_config(config), progress=_say, methods=chosen,
-        rigs=("rig2d", "lidar") if rig == "all" else (rig,), first_world=first_world,
-        motion=motion,
-    )  # fmt: skip
+    cfg = load_config(config)
+    with _out_folder("generalisation", out, overwrite) as folder:
+        result = run_generalisation_experiment(
+            folder, n_worlds=worlds, noise_levels=levels, n_epochs=epochs or None, config=cfg,
+            progress=_say, methods=chosen,
+            rigs=("rig2d", "lidar") if rig == "all" else (rig,), first_world=first_world,
+            motion=motion,
+        )  # fmt: skip
     _print_files({k: v for k, v in result.files.items() if k != "runs_md"})
 
 
@@ -186,7 +247,8 @@ def experiment_generalisation(
 @reports_errors
 def experiment_baselines(
     datasets: Annotated[list[Path], typer.Argument(help="Recordings with poses.tum.")],
-    out: ExpOut = Path("results/baselines"),
+    out: ExpOut = None,
+    overwrite: ExpOverwrite = False,
     wocsc: Annotated[bool, typer.Option(help="Also the paper's wocsc pipeline.")] = False,
     limit: Annotated[int | None, typer.Option(help="Read at most this many scans.")] = None,
     step: Annotated[int, typer.Option(min=1, help="Use every k-th scan.")] = 1,
@@ -197,10 +259,12 @@ def experiment_baselines(
     """planodom's odometry vs KISS-ICP and open3d ICP on the same scans (one run)."""
     from planodom.experiments.baselines import run_baselines_experiment
 
-    result = run_baselines_experiment(
-        datasets, out, load_config(config), wocsc=wocsc, limit=limit, step=step,
-        turn_deg=turn, alternate=alternate, progress=_say,
-    )  # fmt: skip
+    cfg = load_config(config)
+    with _out_folder("baselines", out, overwrite, inputs=tuple(datasets)) as folder:
+        result = run_baselines_experiment(
+            datasets, folder, cfg, wocsc=wocsc, limit=limit, step=step, turn_deg=turn,
+            alternate=alternate, progress=_say,
+        )  # fmt: skip
     _print_files(result.files)
 
 
@@ -213,7 +277,8 @@ def experiment_loops(
     ] = 0,
     epochs: Annotated[int, typer.Option(help="Epochs per run (0: one lap).")] = 0,
     quick: Annotated[bool, typer.Option(help="CI size: world 0, 120 epochs, 6 mm.")] = False,
-    out: ExpOut = Path("results/loops"),
+    out: ExpOut = None,
+    overwrite: ExpOverwrite = False,
     config: ConfigFile = None,
 ) -> None:
     """Loop closure: odometry, fixed-lag and batch without and with loops, oracle (issue 14)."""
@@ -222,10 +287,12 @@ def experiment_loops(
     levels: tuple[float, ...] = (0.006, 0.02)
     if quick:
         worlds, epochs, levels = 1, 120, (0.006,)
-    result = run_loop_experiment(
-        out, range(first_world, first_world + worlds), levels, epochs or None,
-        load_config(config), progress=_say,
-    )  # fmt: skip
+    cfg = load_config(config)
+    with _out_folder("loops", out, overwrite) as folder:
+        result = run_loop_experiment(
+            folder, range(first_world, first_world + worlds), levels, epochs or None, cfg,
+            progress=_say,
+        )  # fmt: skip
     _print_files(result.files)
 
 
@@ -236,7 +303,8 @@ def experiment_consistency(
     simulation: Any,
     scenes: Annotated[str, typer.Option(help="Comma-separated built-in scenes.")] = "paper-loop",
     levels: Levels = "0.006,0.02,0.1",
-    out: ExpOut = Path("results/consistency"),
+    out: ExpOut = None,
+    overwrite: ExpOverwrite = False,
     config: ConfigFile = None,
 ) -> None:
     """NEES of every factor kind (relative poses per delta, planes) and of the smoothed
@@ -244,10 +312,11 @@ def experiment_consistency(
     from planodom.experiments.consistency import run_consistency_experiment
     from planodom.experiments.tables import write_tables
 
-    tables = run_consistency_experiment(
-        [x for x in scenes.split(",") if x], _levels(levels), (simulation.seed,),
-        simulation.n_epochs or 200, load_config(config), motion=simulation.motion,
-        progress=_say,
-    )  # fmt: skip
-    out.mkdir(parents=True, exist_ok=True)
-    _print_files(write_tables(out, tables))
+    noise_levels, cfg = _levels(levels), load_config(config)
+    with _out_folder("consistency", out, overwrite) as folder:
+        tables = run_consistency_experiment(
+            [x for x in scenes.split(",") if x], noise_levels, (simulation.seed,),
+            simulation.n_epochs or 200, cfg, motion=simulation.motion, progress=_say,
+        )  # fmt: skip
+        files = write_tables(folder, tables)
+    _print_files(files)

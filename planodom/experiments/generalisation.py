@@ -33,7 +33,7 @@ multiple of the oracle's) and ``config.yaml``.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -375,19 +375,26 @@ def run_generalisation_experiment(
     runs: list[MethodRun] = []
     for i in indices[:2]:  # the first two worlds run: one of each rig class with both
         _warm_up(world_for(i, motion), base, methods)
+    result = GeneralisationExperiment(runs, {})
     for i in indices:
         world = world_for(i, motion)
         for noise in noise_levels:
             runs += run_world(world, float(noise), n_epochs, base, methods, say)
-    tables = {"runs": run_rows(runs), "summary": summary_rows(runs)}
-    result = GeneralisationExperiment(runs, tables)
+        # the tables so far after every world: an interrupted run keeps what it measured
+        result.tables = {"runs": run_rows(runs), "summary": summary_rows(runs)}
+        if out is not None:
+            result.files = _write(Path(out), result.tables, base)
     if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        files = write_tables(out, tables, markdown={"summary": summary_markdown})
-        files["config"] = out / "config.yaml"
-        base.to_yaml(files["config"])
-        if plot_worst(runs, out / "worst_world.png") is not None:
-            files["worst_world"] = out / "worst_world.png"
-        result.files = files
+        result.files = _write(Path(out), result.tables, base)
+        if plot_worst(runs, Path(out) / "worst_world.png") is not None:
+            result.files["worst_world"] = Path(out) / "worst_world.png"
     return result
+
+
+def _write(out: Path, tables: Mapping[str, Rows], config: PlanodomConfig) -> dict[str, Path]:
+    """The tables and the configuration in ``out``; their paths."""
+    out.mkdir(parents=True, exist_ok=True)
+    files = write_tables(out, tables, markdown={"summary": summary_markdown})
+    files["config"] = out / "config.yaml"
+    config.to_yaml(files["config"])
+    return files

@@ -217,10 +217,17 @@ def run_loop_experiment(
             start = time.perf_counter()
             rows += run_loop_world(index, noise, n_epochs, cfg)
             say(f"  {time.perf_counter() - start:.0f} s")
+        if out is not None:  # the tables so far: an interrupted run keeps what it measured
+            _tabulated(rows, Path(out))
+    return _tabulated(rows, None if out is None else Path(out))
+
+
+def _tabulated(rows: list[Row], out: Path | None) -> ExperimentResult[Row]:
+    """The experiment's result from its rows so far, its tables written to ``out``."""
     keys = list(dict.fromkeys(k for r in rows for k in r))
     table = [{k: r.get(k, "") for k in keys} for r in rows]
     result = ExperimentResult(rows, {"runs": table, "summary": summary_rows(rows)})
     if out is not None:
-        Path(out).mkdir(parents=True, exist_ok=True)
-        result.files = write_tables(Path(out), result.tables)
+        out.mkdir(parents=True, exist_ok=True)
+        result.files = write_tables(out, result.tables)
     return result
