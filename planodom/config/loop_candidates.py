@@ -69,7 +69,7 @@ class LoopCandidateConfig(Section):
     """Old epochs tried per attempt (the nearest, ``loop_candidate_every_epochs`` apart)."""
     loop_candidate_old: Literal["any", "translated"] = "any"
     """Old epochs a loop candidate may tie to; "translated": only those whose planes gave a
-    measured translation with a neighbour (delta <= D) (see README). Measured again on one
+    measured translation with a neighbour (delta <= D) (see docs/RESULTS.md). Measured again on one
     lap of the 2D-rig worlds 0, 2, .., 18 (batch with loops, this default otherwise): loop
     end below 10 cm on every world at 6 mm (world 18 10.5 -> 2.1 cm, ATE 0.050 -> 0.025 m;
     at 2 cm 11.5 -> 3.5 cm, 0.065 -> 0.048 m), the rest within 1 mm at 6 mm; but at 2 cm

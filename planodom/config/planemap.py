@@ -294,7 +294,7 @@ class PlanemapConfig(Section):
     ``extraction.organised_gap: grazing``: its first steps 146, 70 and 96 deg off, then
     within 0.03 deg; see that field for the run's figures). Not measured: a platform
     turning beyond its bounds while a wrong hypothesis within them resolves (the
-    hand-held VLP-16 corridor of the README is not on the machine any more); such a
+    hand-held VLP-16 corridor of docs/RESULTS.md is not on the machine any more); such a
     recording should state its bounds (``rig.yaml`` motion_bounds)."""
     fallback: bool = True
     """Score other hypotheses when the map result is suspicious (zero velocity, the

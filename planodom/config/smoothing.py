@@ -199,7 +199,7 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     """Prior of the relative poses delta = 2..D (``smoothing.run.smoothing_relatives``): the
     odometry's chain, or with "measured_steps" each step it did not measure the translation
     of given the medoid translation of the last measured steps (``motion.measured_step_prior``;
-    a rotation-only result's translation is no measurement; figures in the README).
+    a rotation-only result's translation is no measurement; figures in docs/RESULTS.md).
     Measured again on one lap of the 2D-rig worlds 0, 2, .., 18 (batch with loops, this
     default otherwise): median ATE 0.0133 -> 0.0134 m at 6 mm, 0.0506 -> 0.0313 m at 2 cm
     (world 4 0.069 -> 0.027), but world 2 at 6 mm 0.035 -> 3.64 m (a map match 2.3 m off
