@@ -14,6 +14,7 @@ import numba
 import numpy as np
 
 from planodom.config import ExtractionConfig
+from planodom.extraction.memo import identity_memo, read_only
 
 
 def pixel_normals(
@@ -45,7 +46,10 @@ def pixel_normals(
     for S in range(1, max(1, P.shape[0] // 4) + 1):
         if S > 1 and not _stencil_within_width(ray, S, width):
             break
-        n, e, ok = _pixel_normals(P, K, S, float(sigma), float(tol), ks)
+        if S == 1:
+            n, e, ok = first_row_step(P, K, float(sigma), float(tol), ks)
+        else:
+            n, e, ok = _pixel_normals(P, K, S, float(sigma), float(tol), ks)
         if np.count_nonzero(ok) < config.min_plane_points or np.median(e[ok]) <= limit:
             return n, e, ok
         tallest = (n, e, ok)
@@ -56,6 +60,18 @@ def pixel_normals(
     if np.count_nonzero(ok) < config.min_plane_points:
         return None
     return n, np.where(ok, e, np.inf), ok
+
+
+@identity_memo
+def first_row_step(
+    P: np.ndarray, K: int, sigma: float, tol: float, ks: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_pixel_normals` of the grid ``P`` (H, W, 3) with the row step 1, read-only
+    and memoised (:mod:`planodom.extraction.memo`): on a grid too noisy to grow regions on,
+    the RANSAC agreement check (:mod:`.agreement`) asks for these very normals of the
+    same grid (:func:`.grid.point_grid`) again."""
+    n, e, ok = _pixel_normals(P, K, 1, sigma, tol, ks)
+    return read_only(n), read_only(e), read_only(ok)
 
 
 def _stencil_within_width(ray: np.ndarray, S: int, width: np.ndarray) -> bool:
@@ -84,11 +100,12 @@ def _row_errors(P, K, sigma):  # pragma: no cover - compiled
     s2 *= 2.0
     out = np.empty(H * W)
     m = 0
+    wrap = np.arange(-K, W + K) % W  # column c + k is wrap[c + k + K]
     for r in range(H):
         for c in range(W):
             h0 = h1 = h2 = 0.0
             for k in range(1, K + 1):
-                a, b = (c + k) % W, (c - k + W) % W
+                a, b = wrap[c + k + K], wrap[c - k + K]
                 h0 += k * (P[r, a, 0] - P[r, b, 0])
                 h1 += k * (P[r, a, 1] - P[r, b, 1])
                 h2 += k * (P[r, a, 2] - P[r, b, 2])

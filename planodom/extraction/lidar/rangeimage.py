@@ -73,10 +73,10 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.kernels import find_root
 from planodom.extraction.lidar.grid import (
     assign_points,
-    fill_grid,
     grid_indices,
     near_pairs,
     plane_members,
+    point_grid,
 )
 from planodom.extraction.lidar.normals import pixel_normals
 from planodom.extraction.noise import member_tolerance, rms_limit
@@ -105,7 +105,7 @@ def range_image_candidates(
         return None
     points = np.ascontiguousarray(points, dtype=np.float64)
     # One point per pixel (the first in scan order); the others join in step 4.
-    P = fill_grid(points, row * W + col, H * W).reshape(H, W, 3)
+    P = point_grid(points, row, col, H, W)
 
     # 1. Pixel normals and their predicted errors.
     normals = pixel_normals(P, sigma, tol, config, viewpoint)
