@@ -60,7 +60,13 @@ def _random_grid(seed: int, H: int = 16, W: int = 64) -> np.ndarray:
 def test_row_errors_rays_and_stencil_ratios_match_numpy_bit_for_bit():
     """The compiled parts of :func:`pixel_normals`' decisions equal the whole-grid numpy
     expressions (rolled grids, norms) to the bit, so the decisions are the same."""
-    from planodom.extraction.lidar.normals import _rays_and_widths, _row_errors, _stencil_ratios
+    from planodom.extraction.lidar.normals import (
+        _chord_widths,
+        _row_errors,
+        _stencil_ratios,
+        row_chords,
+        unit_rays,
+    )
 
     for seed, K, S in ((0, 3, 2), (1, 1, 1), (2, 5, 3)):
         P, view, sigma = _random_grid(seed), np.array([0.3, -0.2, 0.8]), 0.006
@@ -76,7 +82,11 @@ def test_row_errors_rays_and_stencil_ratios_match_numpy_bit_for_bit():
         ratio = tall[both] / np.maximum(width[both], 1e-12)
 
         got_e = _row_errors(P, K, sigma)
-        got_ray, got_width = _rays_and_widths(P, view, K)
+        got_ray = unit_rays(P, view)
+        got_width = _chord_widths(got_ray, K)
+        chord = np.linalg.norm(ray[1:] - ray[:-1], axis=2)
+        assert np.array_equal(row_chords(got_ray), chord[np.isfinite(chord)])
+        assert unit_rays(P, view) is got_ray
         assert np.array_equal(got_e, e_row[np.isfinite(e_row)])
         assert np.array_equal(got_ray, ray, equal_nan=True)
         assert np.array_equal(got_width, width, equal_nan=True)

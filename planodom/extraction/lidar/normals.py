@@ -41,7 +41,8 @@ def pixel_normals(
         e_row = _row_errors(P, K, float(sigma))
         if len(e_row) and np.median(e_row) > limit:
             return None
-    ray, width = _rays_and_widths(P, np.ascontiguousarray(viewpoint, dtype=np.float64), K)
+    ray = unit_rays(P, np.ascontiguousarray(viewpoint, dtype=np.float64))
+    width = _chord_widths(ray, K)
     tallest = None
     for S in range(1, max(1, P.shape[0] // 4) + 1):
         if S > 1 and not _stencil_within_width(ray, S, width):
@@ -116,11 +117,18 @@ def _row_errors(P, K, sigma):  # pragma: no cover - compiled
     return out[:m]
 
 
+@identity_memo
+def unit_rays(P: np.ndarray, viewpoint: np.ndarray) -> np.ndarray:
+    """(H, W, 3) the unit rays from ``viewpoint`` (3,) float64 to the pixels of ``P``
+    (H, W, 3) (NaN: no point), as numpy's norms compute them (sums in axis order);
+    read-only and memoised (:mod:`planodom.extraction.memo`): the pixel normals' stencil
+    test and the range image's row spacing take them from one grid."""
+    return read_only(_unit_rays(P, viewpoint))
+
+
 @numba.njit(cache=True, error_model="numpy")
-def _rays_and_widths(P, viewpoint, K):  # pragma: no cover - compiled
-    """The unit rays (H, W, 3) from ``viewpoint`` (3,) to the pixels of ``P`` (H, W, 3)
-    (NaN: no point) and the chords ``|u[c+K] - u[c-K]|`` (H, W) of the row tangent's
-    window (columns wrap), as numpy's norms compute them (sums in axis order)."""
+def _unit_rays(P, viewpoint):  # pragma: no cover - compiled
+    """The rays of :func:`unit_rays`."""
     H, W = P.shape[0], P.shape[1]
     ray = np.empty((H, W, 3))
     for r in range(H):
@@ -130,6 +138,14 @@ def _rays_and_widths(P, viewpoint, K):  # pragma: no cover - compiled
             x2 = P[r, c, 2] - viewpoint[2]
             nrm = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
             ray[r, c, 0], ray[r, c, 1], ray[r, c, 2] = x0 / nrm, x1 / nrm, x2 / nrm
+    return ray
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _chord_widths(ray, K):  # pragma: no cover - compiled
+    """(H, W) the chords ``|u[c+K] - u[c-K]|`` of the unit rays ``ray`` (H, W, 3) over the
+    row tangent's window (columns wrap), summed in axis order as numpy's norm."""
+    H, W = ray.shape[0], ray.shape[1]
     width = np.empty((H, W))
     for r in range(H):
         for c in range(W):
@@ -138,7 +154,26 @@ def _rays_and_widths(P, viewpoint, K):  # pragma: no cover - compiled
             d1 = ray[r, a, 1] - ray[r, b, 1]
             d2 = ray[r, a, 2] - ray[r, b, 2]
             width[r, c] = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-    return ray, width
+    return width
+
+
+@numba.njit(cache=True, error_model="numpy")
+def row_chords(ray):  # pragma: no cover - compiled
+    """(M,) the finite chords ``|u[r+1] - u[r]|`` (row-major) between the unit rays
+    ``ray`` (H, W, 3) of vertically neighbouring pixels, as numpy's norm."""
+    H, W = ray.shape[0], ray.shape[1]
+    out = np.empty(max(H - 1, 0) * W)
+    m = 0
+    for r in range(H - 1):
+        for c in range(W):
+            d0 = ray[r + 1, c, 0] - ray[r, c, 0]
+            d1 = ray[r + 1, c, 1] - ray[r, c, 1]
+            d2 = ray[r + 1, c, 2] - ray[r, c, 2]
+            chord = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            if np.isfinite(chord):
+                out[m] = chord
+                m += 1
+    return out[:m]
 
 
 @numba.njit(cache=True, error_model="numpy")
