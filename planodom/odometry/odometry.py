@@ -416,7 +416,8 @@ class PlaneOdometry:
                 self._rates.append((epoch.index, own))
             significant = significant_twist(own, best.relative, dt, self.config.odometry)
             args = (significant, measured, self._recent, self._velocities, self._map is not None)
-            self.twist = registered_prediction(best, dt, predicted_twist(*args))
+            last = self.config.planemap.prediction == "last"
+            self.twist = registered_prediction(best, dt, predicted_twist(*args, last=last))
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
         T_world = orthonormalised(self.poses[-1] @ best.step)

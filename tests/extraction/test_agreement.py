@@ -72,3 +72,32 @@ def test_dense_lidar_at_high_noise_keeps_the_facades_and_drops_the_cuts():
     planes = extract(scan, base).planes
     assert off_truth(planes) == 0
     assert seen <= {p.truth_id for p in planes}
+
+
+def test_point_normals_share_the_range_images_grid_and_first_row_step():
+    """The agreement check's pixel normals of a grid the range image declined are the
+    range image's own (memoised, :func:`.grid.point_grid`, :func:`.normals.first_row_step`)
+    and equal the kernel on a grid filled afresh."""
+    from planodom.extraction.lidar.agreement import point_normals
+    from planodom.extraction.lidar.grid import fill_grid, grid_indices, point_grid
+    from planodom.extraction.lidar.normals import _pixel_normals, first_row_step, pixel_normals
+    from planodom.extraction.noise import member_tolerance
+
+    scan = scan_lidar(_facades(), sigma=0.02, seed=3, n_beams=64, n_azimuth=1024, height=1.8)
+    cfg = ExtractionConfig(range_noise_m=0.02, estimate_noise=False)
+    points = np.ascontiguousarray(scan.points, dtype=np.float64)
+    row, col, H, W = grid_indices(scan.ring, scan.t)
+    assert col is not None
+    P = point_grid(points, row, col, H, W)
+    fresh = fill_grid(points.copy(), row * W + col, H * W).reshape(H, W, 3)
+    assert point_grid(points, row, col, H, W) is P and not P.flags.writeable
+    assert np.array_equal(P, fresh, equal_nan=True)
+    tol = member_tolerance(cfg, 0.02)
+    pixel_normals(P, 0.02, tol, cfg, np.array([0.0, 0.0, 1.8]))  # the range image's step 1
+    shared = first_row_step(P, cfg.region_window, 0.02, tol, cfg.region_normal_sigmas)
+    n, has = point_normals(points, scan.ring, scan.t, 0.02, cfg)
+    assert first_row_step(P, cfg.region_window, 0.02, tol, cfg.region_normal_sigmas) is shared
+    n0, _, ok0 = _pixel_normals(fresh, cfg.region_window, 1, 0.02, tol, cfg.region_normal_sigmas)
+    flat = row * W + col
+    assert np.array_equal(n, n0.reshape(-1, 3)[flat]) and np.array_equal(has, ok0.reshape(-1)[flat])
+    assert has.any()

@@ -47,3 +47,47 @@ def test_masked_keeps_only_pixels_within_the_limit_and_their_normals_are_true():
     truth = np.array([s.normal for s in scene])[label[ok]]
     angle = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", n[ok], truth)), 0.0, 1.0))
     assert np.median(angle / e[ok]) < 1.5
+
+
+def _random_grid(seed: int, H: int = 16, W: int = 64) -> np.ndarray:
+    """(H, W, 3) random points 1-60 m away, a tenth of the pixels empty (NaN)."""
+    rng = np.random.default_rng(seed)
+    P = rng.normal(size=(H, W, 3)) * rng.uniform(1.0, 60.0, size=(H, W, 1))
+    P[rng.random((H, W)) < 0.1] = np.nan
+    return P
+
+
+def test_row_errors_rays_and_stencil_ratios_match_numpy_bit_for_bit():
+    """The compiled parts of :func:`pixel_normals`' decisions equal the whole-grid numpy
+    expressions (rolled grids, norms) to the bit, so the decisions are the same."""
+    from planodom.extraction.lidar.normals import (
+        _chord_widths,
+        _row_errors,
+        _stencil_ratios,
+        row_chords,
+        unit_rays,
+    )
+
+    for seed, K, S in ((0, 3, 2), (1, 1, 1), (2, 5, 3)):
+        P, view, sigma = _random_grid(seed), np.array([0.3, -0.2, 0.8]), 0.006
+        th = sum(k * (np.roll(P, -k, axis=1) - np.roll(P, k, axis=1)) for k in range(1, K + 1))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s2 = 2.0 * sum(k * k for k in range(1, K + 1))
+            e_row = sigma * np.sqrt(s2 / np.sum(th * th, axis=2))
+            ray = (P - view) / np.linalg.norm(P - view, axis=2, keepdims=True)
+        width = np.linalg.norm(np.roll(ray, -K, axis=1) - np.roll(ray, K, axis=1), axis=2)
+        tall = np.full(width.shape, np.nan)
+        tall[S:-S] = np.linalg.norm(ray[2 * S :] - ray[: -2 * S], axis=2)
+        both = np.isfinite(tall) & np.isfinite(width)
+        ratio = tall[both] / np.maximum(width[both], 1e-12)
+
+        got_e = _row_errors(P, K, sigma)
+        got_ray = unit_rays(P, view)
+        got_width = _chord_widths(got_ray, K)
+        chord = np.linalg.norm(ray[1:] - ray[:-1], axis=2)
+        assert np.array_equal(row_chords(got_ray), chord[np.isfinite(chord)])
+        assert unit_rays(P, view) is got_ray
+        assert np.array_equal(got_e, e_row[np.isfinite(e_row)])
+        assert np.array_equal(got_ray, ray, equal_nan=True)
+        assert np.array_equal(got_width, width, equal_nan=True)
+        assert np.array_equal(_stencil_ratios(got_ray, S, got_width), ratio)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
-from planodom.odometry.trend import trend_twist
+from planodom.odometry.trend import predicted_twist, trend_twist
 
 
 def test_a_steady_change_is_extrapolated_one_epoch():
@@ -56,3 +58,20 @@ def test_the_pairwise_trend_takes_the_rate_from_the_trend_and_the_velocity_given
     assert pairwise_trend(recent[:3], 7, base, on) is None
     assert pairwise_trend(recent, 7, None, on) is None
     assert pairwise_trend(recent, 7, base, OdometryConfig()) is None  # off by default
+
+
+def test_the_plane_maps_prediction_is_the_mean_of_the_recent_twists_or_the_last():
+    """Against a plane map the prediction is the mean of the recent twists
+    (``planemap.prediction: mean``) or the last one (``last``); either way the twist joins
+    the recent ones (the trend rescue reads them) and no velocity is kept."""
+    rng = np.random.default_rng(7)
+    twists = rng.standard_normal((4, 6))
+    for last in (False, True):
+        recent: deque[np.ndarray] = deque(maxlen=3)
+        velocities: deque[np.ndarray] = deque(maxlen=3)
+        for tw in twists:
+            got = predicted_twist(tw, True, recent, velocities, True, last=last)
+        expected = twists[-1] if last else twists[-3:].mean(axis=0)
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-15)
+        assert len(recent) == 3 and not velocities
+        assert got is not twists[-1]

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from planodom.config import ExtractionConfig
-from planodom.extraction.lidar.grid import fill_grid, grid_indices
-from planodom.extraction.lidar.normals import _pixel_normals
+from planodom.extraction.lidar.grid import grid_indices, point_grid
+from planodom.extraction.lidar.normals import first_row_step
 from planodom.extraction.noise import member_tolerance
 
 #: Fewest inliers with a pixel normal that judge a plane (a cut through other surfaces'
@@ -44,12 +44,10 @@ def point_normals(
     if col is None or H < 3:
         return None
     flat = row * W + col
-    P = fill_grid(np.ascontiguousarray(points, dtype=np.float64), flat, H * W).reshape(H, W, 3)
+    P = point_grid(np.ascontiguousarray(points, dtype=np.float64), row, col, H, W)
     tol = member_tolerance(config, sigma)
-    n, _, ok = _pixel_normals(
-        P, max(1, int(config.region_window)), 1, float(sigma), float(tol),
-        float(config.region_normal_sigmas),
-    )  # fmt: skip
+    K = max(1, int(config.region_window))
+    n, _, ok = first_row_step(P, K, float(sigma), float(tol), float(config.region_normal_sigmas))
     return n.reshape(-1, 3)[flat], ok.reshape(-1)[flat]
 
 

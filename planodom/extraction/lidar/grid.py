@@ -97,6 +97,15 @@ def grid_indices(
     return row, read_only(col), H, int(col.max()) + 1
 
 
+@identity_memo
+def point_grid(points: np.ndarray, row: np.ndarray, col: np.ndarray, H: int, W: int) -> np.ndarray:
+    """(H, W, 3) the grid of ``points`` (N, 3) float64 at the pixels ``(row, col)`` (N,)
+    (:func:`grid_indices`; :func:`fill_grid`), read-only and memoised
+    (:mod:`planodom.extraction.memo`): an extraction's range image and the RANSAC
+    agreement check of the same points (:mod:`.agreement`) share it."""
+    return read_only(fill_grid(points, row * W + col, H * W).reshape(H, W, 3))
+
+
 @numba.njit(cache=True)
 def fill_grid(points, flat, n_pix):  # pragma: no cover - compiled
     """(n_pix, 3) the point of every pixel ``flat`` (N,): the first in scan order; NaN

@@ -14,6 +14,7 @@ import numba
 import numpy as np
 
 from planodom.config import ExtractionConfig
+from planodom.extraction.memo import identity_memo, read_only
 
 
 def pixel_normals(
@@ -35,22 +36,21 @@ def pixel_normals(
     # The row tangent's part of the error does not depend on S: when it alone is over the
     # limit (short column spacing, a sparse lidar close to its walls), no S helps (and a
     # wide S would only pass the test on the pixels far from every edge).
-    th = sum(k * (np.roll(P, -k, axis=1) - np.roll(P, k, axis=1)) for k in range(1, K + 1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        e_row = sigma * np.sqrt(2.0 * sum(k * k for k in range(1, K + 1)) / np.sum(th * th, axis=2))
-    finite = np.isfinite(e_row)
     masked = config.region_noisy_pixels == "masked"
-    if np.any(finite) and np.median(e_row[finite]) > limit and not masked:
-        return None
-    ray = P - viewpoint
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ray = ray / np.linalg.norm(ray, axis=2, keepdims=True)
-    width = np.linalg.norm(np.roll(ray, -K, axis=1) - np.roll(ray, K, axis=1), axis=2)
+    if not masked:
+        e_row = _row_errors(P, K, float(sigma))
+        if len(e_row) and np.median(e_row) > limit:
+            return None
+    ray = unit_rays(P, np.ascontiguousarray(viewpoint, dtype=np.float64))
+    width = _chord_widths(ray, K)
     tallest = None
     for S in range(1, max(1, P.shape[0] // 4) + 1):
         if S > 1 and not _stencil_within_width(ray, S, width):
             break
-        n, e, ok = _pixel_normals(P, K, S, float(sigma), float(tol), ks)
+        if S == 1:
+            n, e, ok = first_row_step(P, K, float(sigma), float(tol), ks)
+        else:
+            n, e, ok = _pixel_normals(P, K, S, float(sigma), float(tol), ks)
         if np.count_nonzero(ok) < config.min_plane_points or np.median(e[ok]) <= limit:
             return n, e, ok
         tallest = (n, e, ok)
@@ -63,6 +63,18 @@ def pixel_normals(
     return n, np.where(ok, e, np.inf), ok
 
 
+@identity_memo
+def first_row_step(
+    P: np.ndarray, K: int, sigma: float, tol: float, ks: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_pixel_normals` of the grid ``P`` (H, W, 3) with the row step 1, read-only
+    and memoised (:mod:`planodom.extraction.memo`): on a grid too noisy to grow regions on,
+    the RANSAC agreement check (:mod:`.agreement`) asks for these very normals of the
+    same grid (:func:`.grid.point_grid`) again."""
+    n, e, ok = _pixel_normals(P, K, 1, sigma, tol, ks)
+    return read_only(n), read_only(e), read_only(ok)
+
+
 def _stencil_within_width(ray: np.ndarray, S: int, width: np.ndarray) -> bool:
     """Whether the column tangent between the rows ``r +- S`` spans at most the angle the
     row tangent does as seen from the sensor (``ray`` (H, W, 3): the pixels' unit
@@ -72,12 +84,116 @@ def _stencil_within_width(ray: np.ndarray, S: int, width: np.ndarray) -> bool:
     16-beam lidar's rows are 2 deg apart: rows 4 apart span 8 deg where 2 x 3 columns of
     1024 span 2; measured on an indoor lidar16 world at 6 mm, such stencils gave 10
     planes instead of 15 and 0.9 deg errors)."""
-    tall = np.full(width.shape, np.nan)
-    tall[S:-S] = np.linalg.norm(ray[2 * S :] - ray[: -2 * S], axis=2)
-    both = np.isfinite(tall) & np.isfinite(width)
-    return (
-        bool(np.any(both)) and float(np.median(tall[both] / np.maximum(width[both], 1e-12))) <= 1.0
-    )
+    ratio = _stencil_ratios(ray, S, width)
+    return len(ratio) > 0 and float(np.median(ratio)) <= 1.0
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _row_errors(P, K, sigma):  # pragma: no cover - compiled
+    """(M,) the row tangent's part of the predicted error (rad), ``sigma sqrt(2 sum k^2 /
+    |t_h|^2)``, at the pixels of ``P`` (H, W, 3) (NaN: no point; window half-width ``K``,
+    columns wrap) where it is finite, row-major: the terms of :func:`_pixel_normals`'s
+    ``t_h``, in its order (one pass instead of the grid rolled 2K times)."""
+    H, W = P.shape[0], P.shape[1]
+    s2 = 0.0
+    for k in range(1, K + 1):
+        s2 += k * k
+    s2 *= 2.0
+    out = np.empty(H * W)
+    m = 0
+    wrap = np.arange(-K, W + K) % W  # column c + k is wrap[c + k + K]
+    for r in range(H):
+        for c in range(W):
+            h0 = h1 = h2 = 0.0
+            for k in range(1, K + 1):
+                a, b = wrap[c + k + K], wrap[c - k + K]
+                h0 += k * (P[r, a, 0] - P[r, b, 0])
+                h1 += k * (P[r, a, 1] - P[r, b, 1])
+                h2 += k * (P[r, a, 2] - P[r, b, 2])
+            e = sigma * np.sqrt(s2 / (h0 * h0 + h1 * h1 + h2 * h2))
+            if np.isfinite(e):
+                out[m] = e
+                m += 1
+    return out[:m]
+
+
+@identity_memo
+def unit_rays(P: np.ndarray, viewpoint: np.ndarray) -> np.ndarray:
+    """(H, W, 3) the unit rays from ``viewpoint`` (3,) float64 to the pixels of ``P``
+    (H, W, 3) (NaN: no point), as numpy's norms compute them (sums in axis order);
+    read-only and memoised (:mod:`planodom.extraction.memo`): the pixel normals' stencil
+    test and the range image's row spacing take them from one grid."""
+    return read_only(_unit_rays(P, viewpoint))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _unit_rays(P, viewpoint):  # pragma: no cover - compiled
+    """The rays of :func:`unit_rays`."""
+    H, W = P.shape[0], P.shape[1]
+    ray = np.empty((H, W, 3))
+    for r in range(H):
+        for c in range(W):
+            x0 = P[r, c, 0] - viewpoint[0]
+            x1 = P[r, c, 1] - viewpoint[1]
+            x2 = P[r, c, 2] - viewpoint[2]
+            nrm = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+            ray[r, c, 0], ray[r, c, 1], ray[r, c, 2] = x0 / nrm, x1 / nrm, x2 / nrm
+    return ray
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _chord_widths(ray, K):  # pragma: no cover - compiled
+    """(H, W) the chords ``|u[c+K] - u[c-K]|`` of the unit rays ``ray`` (H, W, 3) over the
+    row tangent's window (columns wrap), summed in axis order as numpy's norm."""
+    H, W = ray.shape[0], ray.shape[1]
+    width = np.empty((H, W))
+    for r in range(H):
+        for c in range(W):
+            a, b = (c + K) % W, (c - K + W) % W
+            d0 = ray[r, a, 0] - ray[r, b, 0]
+            d1 = ray[r, a, 1] - ray[r, b, 1]
+            d2 = ray[r, a, 2] - ray[r, b, 2]
+            width[r, c] = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    return width
+
+
+@numba.njit(cache=True, error_model="numpy")
+def row_chords(ray):  # pragma: no cover - compiled
+    """(M,) the finite chords ``|u[r+1] - u[r]|`` (row-major) between the unit rays
+    ``ray`` (H, W, 3) of vertically neighbouring pixels, as numpy's norm."""
+    H, W = ray.shape[0], ray.shape[1]
+    out = np.empty(max(H - 1, 0) * W)
+    m = 0
+    for r in range(H - 1):
+        for c in range(W):
+            d0 = ray[r + 1, c, 0] - ray[r, c, 0]
+            d1 = ray[r + 1, c, 1] - ray[r, c, 1]
+            d2 = ray[r + 1, c, 2] - ray[r, c, 2]
+            chord = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            if np.isfinite(chord):
+                out[m] = chord
+                m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _stencil_ratios(ray, S, width):  # pragma: no cover - compiled
+    """(M,) ``|u[r+S] - u[r-S]| / max(width, 1e-12)`` at the pixels (row-major) where
+    both are finite (:func:`_stencil_within_width`)."""
+    H, W = ray.shape[0], ray.shape[1]
+    out = np.empty(H * W)
+    m = 0
+    for r in range(S, H - S):
+        for c in range(W):
+            d0 = ray[r + S, c, 0] - ray[r - S, c, 0]
+            d1 = ray[r + S, c, 1] - ray[r - S, c, 1]
+            d2 = ray[r + S, c, 2] - ray[r - S, c, 2]
+            tall = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            w = width[r, c]
+            if np.isfinite(tall) and np.isfinite(w):
+                out[m] = tall / max(w, 1e-12)
+                m += 1
+    return out[:m]
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -73,12 +73,12 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.kernels import find_root
 from planodom.extraction.lidar.grid import (
     assign_points,
-    fill_grid,
     grid_indices,
     near_pairs,
     plane_members,
+    point_grid,
 )
-from planodom.extraction.lidar.normals import pixel_normals
+from planodom.extraction.lidar.normals import pixel_normals, row_chords, unit_rays
 from planodom.extraction.noise import member_tolerance, rms_limit
 
 #: Step 4's pixel order, (row, column) offsets: own pixel, the 4, the diagonal neighbours.
@@ -105,7 +105,7 @@ def range_image_candidates(
         return None
     points = np.ascontiguousarray(points, dtype=np.float64)
     # One point per pixel (the first in scan order); the others join in step 4.
-    P = fill_grid(points, row * W + col, H * W).reshape(H, W, 3)
+    P = point_grid(points, row, col, H, W)
 
     # 1. Pixel normals and their predicted errors.
     normals = pixel_normals(P, sigma, tol, config, viewpoint)
@@ -145,11 +145,7 @@ def range_image_candidates(
 def row_spacing(P: np.ndarray, viewpoint: np.ndarray) -> float:
     """Median angle (rad) between the rays of vertically neighbouring pixels of the grid
     ``P`` (H, W, 3) (NaN: none) seen from ``viewpoint`` (3,): the beam spacing."""
-    ray = P - viewpoint
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ray = ray / np.linalg.norm(ray, axis=2, keepdims=True)
-    chord = np.linalg.norm(ray[1:] - ray[:-1], axis=2)
-    chord = chord[np.isfinite(chord)]
+    chord = row_chords(unit_rays(P, np.ascontiguousarray(viewpoint, dtype=np.float64)))
     return float(2.0 * np.arcsin(min(np.median(chord) / 2.0, 1.0))) if len(chord) else 0.0
 
 
