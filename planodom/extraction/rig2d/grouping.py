@@ -176,13 +176,15 @@ def _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol):  # pragma:
     extent, at its centroid's offset) are within ``tol`` (``count``: (T,) float64; the
     trace arrays one by one: read through the named tuple they cost ~10x the maths)."""
     off = centroid[t, 0] * n[0] + centroid[t, 1] * n[1] + centroid[t, 2] * n[2] + d
+    slope = direction[t, 0] * n[0] + direction[t, 1] * n[1] + direction[t, 2] * n[2]
+    ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
+    if not ends <= tol:  # most (seed, trace) pairs end here: the scatter's form is skipped
+        return False
     q = 0.0
     for u in range(3):
         for v in range(3):
             q += n[u] * scatter[t, u, v] * n[v]
-    slope = direction[t, 0] * n[0] + direction[t, 1] * n[1] + direction[t, 2] * n[2]
-    ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
-    return q / count[t] + off * off <= tol * tol and ends <= tol
+    return q / count[t] + off * off <= tol * tol
 
 
 @numba.njit(cache=True)
