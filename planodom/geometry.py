@@ -27,6 +27,7 @@ from planodom.errors import GeometryError
 from planodom.se3 import cross_rows as cross_rows
 from planodom.se3 import se3_exp as se3_exp
 from planodom.se3 import se3_log as se3_log
+from planodom.se3 import twist_step as twist_step
 
 #: Unit vector of the vertical axis of a base frame (z up).
 UP = np.array([0.0, 0.0, 1.0])

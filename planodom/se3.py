@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
@@ -42,6 +44,21 @@ def se3_exp(xi: np.ndarray) -> np.ndarray:
     out[:, :3, 3] = np.einsum("tij,tj->ti", V, v)
     out[:, 3, 3] = 1.0
     return out.reshape(xi.shape[:-1] + (4, 4))
+
+
+def twist_step(twist: np.ndarray, dt: float) -> np.ndarray:
+    """(4, 4) ``se3_exp(twist * dt)`` of a twist (6,) (rad/s, m/s) over ``dt`` seconds,
+    remembered for the last few (twist, dt) (by the twist's bytes: the same bits): the
+    streaming odometry asks for its constant-velocity prediction with every extraction
+    of an epoch. Read-only: shared."""
+    return _twist_step(np.asarray(twist, dtype=np.float64).tobytes(), float(dt))
+
+
+@functools.lru_cache(maxsize=4)
+def _twist_step(twist: bytes, dt: float) -> np.ndarray:
+    step = se3_exp(np.frombuffer(twist, dtype=np.float64) * dt)
+    step.flags.writeable = False
+    return step
 
 
 def se3_log(T: np.ndarray) -> np.ndarray:

@@ -284,3 +284,16 @@ def test_compiled_se3_log_matches_its_numpy_form_and_scipy_fallback():
     np.testing.assert_array_equal(one, batched[:50])
     np.testing.assert_allclose(batched[:, :3], rv, rtol=1e-9, atol=1e-15)  # rows but 5
     np.testing.assert_allclose(g.se3_exp(batched[10]), T[10], atol=1e-12)
+
+
+def test_twist_step_is_the_exponential_of_the_twist_over_dt_bit_for_bit():
+    """The remembered constant-velocity step equals ``se3_exp(twist * dt)`` exactly, for a
+    new twist and for one asked again, and cannot be changed by a caller."""
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        twist, dt = rng.normal(size=6), float(rng.uniform(0.01, 0.2))
+        for _again in range(2):
+            step = g.twist_step(twist.copy(), dt)
+            assert step.tobytes() == g.se3_exp(twist * dt).tobytes()
+        assert not step.flags.writeable
+    assert g.twist_step(twist, dt + 1e-9).tobytes() == g.se3_exp(twist * (dt + 1e-9)).tobytes()

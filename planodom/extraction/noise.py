@@ -13,9 +13,12 @@ from planodom.config import ExtractionConfig
 def effective_noise(config: ExtractionConfig, estimate_m: float) -> float:
     """The noise sigma (m) the tolerances scale with: the configured range noise, or the
     noise estimated from the data when that is larger (and ``config.estimate_noise``)."""
-    if config.estimate_noise:
-        return max(config.range_noise_m, estimate_m)
-    return config.range_noise_m
+    return noise_sigma(config.estimate_noise, config.range_noise_m, estimate_m)
+
+
+def noise_sigma(estimate_noise: bool, range_noise_m: float, estimate_m: float) -> float:
+    """:func:`effective_noise` from the two config fields it reads (m)."""
+    return max(range_noise_m, estimate_m) if estimate_noise else range_noise_m
 
 
 def member_tolerance(config: ExtractionConfig, sigma_m: float) -> float:

@@ -76,10 +76,23 @@ def extract(
     mode = choose_mode(scan, config)
     points = scan.points
     if xi is not None and scan.t is not None:
-        points = deskew_points(points, scan.t, xi)
+        if mode == "rig2d":  # shared, read-only (the lidar path writes its points)
+            points = _deskewed(points, scan.t, xi.tobytes())
+        else:
+            points = deskew_points(points, scan.t, xi)
     epoch = Epoch(scan, points, origins, xi)
     found = rig2d_planes(epoch, config) if mode == "rig2d" else lidar_planes(epoch, config)
     return _result(found, mode, points)
+
+
+@identity_memo
+def _deskewed(points: np.ndarray, t: np.ndarray, twist: bytes) -> np.ndarray:
+    """(N, 3) ``points`` (N, 3) deskewed with the twist of bytes ``twist`` (6 float64),
+    memoised (:mod:`.memo`) for the 2D-rig path: an epoch lost with its tolerances is
+    extracted again with the same twist (:func:`planodom.odometry.twist_sigma.widened_if_lost`),
+    and the path then reuses its segments (keyed by these points' identity). Read-only:
+    shared."""
+    return read_only(deskew_points(points, t, np.frombuffer(twist, dtype=np.float64)))
 
 
 def refit(

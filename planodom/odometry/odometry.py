@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, invert_transform, orthonormalised, se3_exp
+from planodom.geometry import Plane, invert_transform, orthonormalised, twist_step
 from planodom.odometry.coplanar import coplanar_by
 from planodom.odometry.deskew import (
     EpochEstimate,
@@ -292,7 +292,7 @@ class PlaneOdometry:
         dt = t - self.times[-1]
         prediction = None  # constant velocity: T_{ref}_k
         if self.twist is not None and dt > 0:
-            prediction = T_ref_last @ se3_exp(self.twist * dt)
+            prediction = T_ref_last @ twist_step(self.twist, dt)
         sigma = self._twist_sigma.predicted()[1] * dt  # the prediction's translation, m
         prior = prediction if self.config.odometry.use_motion_prior else None
         config = self._config_for_gap(epoch.index - reference.index)

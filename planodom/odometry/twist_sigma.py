@@ -34,7 +34,7 @@ import functools
 from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 from scipy.stats import chi2
@@ -88,9 +88,13 @@ class TwistUncertainty:
         self._unresolved = 0  # unresolved epochs since the last measured one
         # the angular rate's change measured across degenerate steps too (for the gates)
         self._rate_changes: deque[float] = deque(maxlen=config.velocity_window)
+        # what change() and predicted() return until the next update (asked for with
+        # every extraction of an epoch)
+        self._memo: dict[object, object] = {}
 
     def update(self, own: np.ndarray, relative: RelativePose, dt: float) -> None:
         """Record a committed epoch's own twist ``own`` (6,) and its step's ``relative``."""
+        self._memo.clear()
         if relative.status is Status.UNRESOLVED:
             self._unresolved += 1
             self._previous = None
@@ -117,9 +121,11 @@ class TwistUncertainty:
     def change(self) -> np.ndarray:
         """(2,) rms change of the angular rate (rad/s) and velocity (m/s) over one epoch,
         between OK steps."""
-        if not self._changes:
-            return self._fallback
-        return np.sqrt(np.mean(np.array(self._changes), axis=0))
+        if "change" not in self._memo:
+            changes = self._changes
+            mean = np.sqrt(np.mean(np.array(changes), axis=0)) if changes else self._fallback
+            self._memo["change"] = mean
+        return cast("np.ndarray", self._memo["change"])
 
     def gate_change(self) -> np.ndarray:
         """:meth:`change` with the angular rate's measured across degenerate steps too: on
@@ -136,9 +142,11 @@ class TwistUncertainty:
     def predicted(self, gate: bool = False) -> TwistSigma:
         """Sigma of the twist predicted (or held) for the next epoch (``gate``: with
         :meth:`gate_change`)."""
-        change = self.gate_change() if gate else self.change()
-        s = self._last + (2 + self._unresolved) * change
-        return float(s[0]), float(s[1])
+        if gate not in self._memo:
+            change = self.gate_change() if gate else self.change()
+            s = self._last + (2 + self._unresolved) * change
+            self._memo[gate] = (float(s[0]), float(s[1]))
+        return cast("TwistSigma", self._memo[gate])
 
     def refined(self, source: EpochEstimate, dt: float, twist: np.ndarray) -> TwistSigma:
         """Sigma of ``twist`` (6,) refined from ``source``'s own twist over ``dt`` s."""

@@ -8,6 +8,7 @@ import gc
 import numpy as np
 import pytest
 
+from planodom.config import ExtractionConfig
 from planodom.errors import GeometryError
 from planodom.extraction import extract
 from planodom.extraction.memo import identity_memo, read_only
@@ -76,6 +77,35 @@ def test_a_second_extraction_of_the_same_scan_equals_one_of_a_fresh_copy():
         assert p.offset == q.offset
     for i, j in zip(again.inliers, scratch.inliers, strict=True):
         np.testing.assert_array_equal(i, j)
+
+
+def _same_planes(a, b) -> None:
+    assert len(a.planes) == len(b.planes) > 0
+    for p, q in zip(a.planes, b.planes, strict=True):
+        np.testing.assert_array_equal(p.normal, q.normal)
+        assert p.offset == q.offset
+        np.testing.assert_array_equal(p.covariance, q.covariance)
+    for i, j in zip(a.inliers, b.inliers, strict=True):
+        np.testing.assert_array_equal(i, j)
+
+
+@pytest.mark.parametrize(
+    "change", [{"twist_rate_sigma_deg_s": 6.0}, {"split_sigma_factor": 2.0, "min_gap_m": 0.3}]
+)
+def test_a_rig_scan_extracted_again_with_the_same_twist_equals_a_fresh_copy(change):
+    """An epoch lost with its tolerances is extracted again with the same twist and wider
+    ones (the odometry's ``widened_if_lost``): the deskewed points are reused (the same
+    array), and the segments only when the fields they depend on are the same; either
+    way the planes are those of an extraction of new arrays with that config."""
+    scan = scan_rig(default_scene(), twist=np.array([0, 0, 0.4, 1.5, 0.2, 0]), sigma=0.005)
+    fresh = Scan(scan.points.copy(), scan.ring.copy(), scan.t.copy(), scan.label.copy())
+    twist, cfg = np.array([0, 0, 0.3, 1.2, 0, 0]), ExtractionConfig()
+    other = cfg.model_copy(update=change)
+    first = extract(scan, cfg, twist=twist)
+    again = extract(scan, other, twist=twist.copy())
+    assert again.points is first.points and not again.points.flags.writeable
+    _same_planes(again, extract(fresh, other, twist=twist))
+    _same_planes(extract(scan, cfg, twist=twist), extract(fresh, cfg, twist=twist))
 
 
 def test_checked_origins_are_remembered_per_scan_and_array_only():

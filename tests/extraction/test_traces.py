@@ -96,3 +96,15 @@ def test_segment_end_point_off_the_line_is_trimmed():
     assert (segs.starts[0], segs.ends[0]) == (0, 10)
     assert abs(abs(segs.direction[0] @ u) - 1.0) < 1e-12
     assert segs.rms[0] < 1e-7  # sqrt of round-off
+
+
+def test_gather_rows_is_numpys_row_indexing():
+    """The compiled reorder of the points by ring (:func:`.segments.gather_rows`) against
+    ``points[order]`` on random points and orders (a permutation, repeats, empty)."""
+    from planodom.extraction.rig2d.segments import gather_rows
+
+    rng = np.random.default_rng(2)
+    pts = rng.normal(size=(500, 3)) * 30.0
+    for order in (rng.permutation(500), rng.integers(0, 500, size=77), np.zeros(0, np.int64)):
+        got = gather_rows(pts, order.astype(np.int64))
+        assert got.shape == (len(order), 3) and got.tobytes() == pts[order].tobytes()

@@ -141,3 +141,17 @@ def test_no_twist_planes_of_a_wide_scanner_rig_are_at_the_epoch_time():
             errors.append(abs(p.offset - s * truth.offset[j]))
     assert len(errors) >= 5
     assert np.median(errors) <= 0.01
+
+
+def test_median_range_is_numpys_median_of_the_point_norms_bit_for_bit():
+    """The compiled median range (:func:`.windows.median_range`, the twist smear's range)
+    against ``np.median(np.linalg.norm(points, axis=1))`` on random clouds of odd and
+    even sizes, with repeated values."""
+    from planodom.extraction.rig2d.windows import median_range
+
+    rng = np.random.default_rng(11)
+    for n in [1, 2, 3, 4, 7, 10, 101, 1000, 5001]:
+        pts = rng.normal(size=(n, 3)) * rng.uniform(0.5, 40.0, size=(n, 1))
+        if n > 4:
+            pts[: n // 4] = pts[0]  # ties
+        assert median_range(pts) == np.median(np.linalg.norm(pts, axis=1))

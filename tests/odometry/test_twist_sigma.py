@@ -243,3 +243,20 @@ def test_the_gates_measure_the_rate_change_across_degenerate_steps_too():
     np.testing.assert_allclose(model.gate_change(), [0.025 * np.sqrt(2), fallback[1]])
     # exact last step: the prediction's sigma is two changes
     np.testing.assert_allclose(model.predicted(gate=True), [0.05 * np.sqrt(2), 2 * fallback[1]])
+
+
+def test_remembered_sigmas_are_those_of_a_model_asked_only_at_the_end():
+    """change() and predicted() are remembered until the next update: asked after every
+    update, they equal a model fed the same updates and asked once."""
+    cfg = PlanodomConfig().odometry
+    asked, fresh = TwistUncertainty(cfg), TwistUncertainty(cfg)
+    rng = np.random.default_rng(3)
+    statuses = [Status.OK, Status.OK, Status.DEGENERATE, Status.UNRESOLVED, Status.OK, Status.OK]
+    for status in statuses:
+        own, relative = rng.normal(size=6), _relative(status, scale=rng.uniform(0.1, 2.0))
+        asked.predicted(), asked.predicted(gate=True), asked.change()
+        asked.update(own, relative, 0.1)
+        fresh.update(own, relative, 0.1)
+    assert asked.predicted() == fresh.predicted()
+    assert asked.predicted(gate=True) == fresh.predicted(gate=True)
+    np.testing.assert_array_equal(asked.change(), fresh.change())

@@ -176,13 +176,15 @@ def _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol):  # pragma:
     extent, at its centroid's offset) are within ``tol`` (``count``: (T,) float64; the
     trace arrays one by one: read through the named tuple they cost ~10x the maths)."""
     off = centroid[t, 0] * n[0] + centroid[t, 1] * n[1] + centroid[t, 2] * n[2] + d
+    slope = direction[t, 0] * n[0] + direction[t, 1] * n[1] + direction[t, 2] * n[2]
+    ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
+    if not ends <= tol:  # most (seed, trace) pairs end here: the scatter's form is skipped
+        return False
     q = 0.0
     for u in range(3):
         for v in range(3):
             q += n[u] * scatter[t, u, v] * n[v]
-    slope = direction[t, 0] * n[0] + direction[t, 1] * n[1] + direction[t, 2] * n[2]
-    ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
-    return q / count[t] + off * off <= tol * tol and ends <= tol
+    return q / count[t] + off * off <= tol * tol
 
 
 @numba.njit(cache=True)
@@ -264,16 +266,27 @@ def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
     centroid, scatter, direction, lo, hi = tr.centroid, tr.scatter, tr.direction, tr.lo, tr.hi
     t_lo, t_hi, win_lo, win_hi = tr.t_lo, tr.t_hi, seeds.win_lo, seeds.win_hi
     windowed, tol = np.isfinite(p.max_span_s), p.tol_m
+    # the columns contiguous, for the branch-free first pass below
+    c0, c1, c2 = centroid[:, 0].copy(), centroid[:, 1].copy(), centroid[:, 2].copy()
+    a0, a1, a2 = direction[:, 0].copy(), direction[:, 1].copy(), direction[:, 2].copy()
+    ends_ok = np.empty(T, dtype=np.bool_)
     for s in range(P):
         n = seeds.normal[s]
+        n0, n1, n2 = n[0], n[1], n[2]
         i, j = seeds.i[s], seeds.j[s]
         d = 0.0
         for u in range(3):
             d -= 0.5 * n[u] * (centroid[i, u] + centroid[j, u])
+        # _fits' end-point test for every trace first (its arithmetic, in its order)
+        for t in range(T):
+            off = c0[t] * n0 + c1[t] * n1 + c2[t] * n2 + d
+            slope = a0[t] * n0 + a1[t] * n1 + a2[t] * n2
+            ends_ok[t] = max(abs(off + slope * lo[t]), abs(off + slope * hi[t])) <= tol
         for t in range(T):
             # in its time window (always, without windows)
-            if big[t] and (not windowed or (t_lo[t] >= win_lo[s] and t_hi[t] <= win_hi[s])):
-                member[s, t] = _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol)
+            if ends_ok[t] and big[t]:
+                if not windowed or (t_lo[t] >= win_lo[s] and t_hi[t] <= win_hi[s]):
+                    member[s, t] = _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol)
     return member
 
 

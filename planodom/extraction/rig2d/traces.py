@@ -162,18 +162,19 @@ def _link_segments(g, p):  # pragma: no cover - compiled
                 + direction[i, 1] * direction[j, 1]
                 + direction[i, 2] * direction[j, 2]
             )
-            if np.sqrt(max(1.0 - cosang * cosang, 0.0)) > np.sin(
-                parallel_rad + 3.0 * (err[i] + err[j])
-            ):
-                continue
+            # the distance tests first: most pairs fail them, and they need no sine
             s0 = centroid[j, 0] - centroid[i, 0]
             s1 = centroid[j, 1] - centroid[i, 1]
             s2 = centroid[j, 2] - centroid[i, 2]
             along = s0 * direction[i, 0] + s1 * direction[i, 1] + s2 * direction[i, 2]
-            lateral = np.sqrt(max(s0 * s0 + s1 * s1 + s2 * s2 - along * along, 0.0))
             if abs(along) > 0.5 * length[i] + 0.5 * length[j] * cosang + tol_m:
                 continue
+            lateral = np.sqrt(max(s0 * s0 + s1 * s1 + s2 * s2 - along * along, 0.0))
             if lateral > tol_m + step_m:
+                continue
+            if np.sqrt(max(1.0 - cosang * cosang, 0.0)) > np.sin(
+                parallel_rad + 3.0 * (err[i] + err[j])
+            ):
                 continue
             ri, rj = find_root(parent, i), find_root(parent, j)
             if ri != rj:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from planodom.config.extraction import TimeWindowConfig
@@ -127,8 +128,22 @@ def twist_smear(scan: Scan, points: np.ndarray, rate_rad_s: float, speed_m_s: fl
     range is the median of the points' (``points`` (N, 3) m): walls at all ranges count."""
     if scan.t is None or len(scan.t) == 0 or (rate_rad_s == 0 and speed_m_s == 0):
         return 0.0
-    rng = float(np.median(np.linalg.norm(points, axis=1)))
+    rng = float(median_range(np.ascontiguousarray(points, dtype=np.float64)))
     return 0.5 * float(np.ptp(scan.t)) * (speed_m_s + rate_rad_s * rng)
+
+
+@numba.njit(cache=True)
+def median_range(points):  # pragma: no cover - compiled
+    """``np.median(np.linalg.norm(points, axis=1))`` of points (N, 3), N >= 1, metres,
+    with the same bits (a sum of the three squares in order, then the median), in one
+    compiled pass: numpy's reduction along the short axis cost ~1 ms on a 2D-rig epoch's
+    points, a quarter of its extraction."""
+    n = points.shape[0]
+    r = np.empty(n)
+    for i in range(n):
+        p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
+        r[i] = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+    return np.median(r)
 
 
 def keep_one_per_wall(
