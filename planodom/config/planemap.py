@@ -73,6 +73,14 @@ class PlanemapConfig(Section):
     1.32, ATE 1.53 / 1.31. At sigma 0 it helps (world 1, 60 epochs: 0.0063 -> 0.0036 deg
     with ``registered``), at 6 mm its per-scan twist noise costs more than the lag it
     removes. Hence off. KITTI raw 0005 (no point times) byte-identical."""
+    twist_filter: Literal["off", "kalman"] = "off"
+    """With ``twist_estimation``: ``off``, each scan's registered twist is its own;
+    ``kalman``, the registered twists are fused over time by a Kalman filter on the
+    twist and its rate (:mod:`planodom.odometry.planemap.twist_filter`): the filter's
+    prediction is the registration's prior on the twist correction, its posterior the
+    epoch's twist (extracted again with) and, carried on by its rate, the next epoch's
+    deskewing twist; the rate's random walk (process noise) is estimated from the
+    innovations (covariance matching), not set."""
     twist_map_update: Literal["deskewed", "corrected"] = "corrected"
     """With ``twist_estimation``: the map is updated with the scan's planes as deskewed
     (``deskewed``) or moved by the twist correction its registration measured, from
