@@ -85,9 +85,10 @@ class PlanemapConfig(Section):
     with) and, carried on by its rate, the next epoch's deskewing twist. Measured with
     ``registered_acceleration`` (60 epochs, planodom only; geometric means of the
     per-world ratios to the default, 6 mm / 2 cm): hand-held worlds 40-47 rotation rms
-    1.04 / 1.05, ATE 0.72 / 1.23 (``registered_acceleration`` alone 0.76 / 1.07, ATE
+    1.04 / 1.28, ATE 0.72 / 1.15 (``registered_acceleration`` alone 0.76 / 1.07, ATE
     0.61 / 0.83); worse on the 16-beam 20 Hz worlds 44 and 46 (44 at 6 mm 0.20 -> 0.99
-    deg, its registered poses' steps themselves 23 deg/s off in yaw); vehicle lidar
+    deg, its registered poses' steps themselves 23 deg/s off in yaw) and at 2 cm on
+    world 47 (lost in every configuration: 18 -> 33 deg); vehicle lidar
     worlds 1-9 odd rotation 1.10 / 1.01, ATE 0.74 / 0.87 (alone 1.09 / 1.09, 0.65 /
     0.82); 41-49 odd rotation 1.17 / 1.09, ATE 0.83 / 1.03 (alone 1.61 / 1.13, 1.11 /
     0.99). Against the simulator's true twist (60 epochs, 6 mm) its yaw-rate error is
