@@ -73,6 +73,28 @@ class PlanemapConfig(Section):
     1.32, ATE 1.53 / 1.31. At sigma 0 it helps (world 1, 60 epochs: 0.0063 -> 0.0036 deg
     with ``registered``), at 6 mm its per-scan twist noise costs more than the lag it
     removes. Hence off. KITTI raw 0005 (no point times) byte-identical."""
+    twist_filter: Literal["off", "kalman"] = "off"
+    """With ``twist_estimation``: ``off``, each scan's registered twist is its own;
+    ``kalman``, a Kalman filter on the twist and its rate
+    (:mod:`planodom.odometry.planemap.twist_filter`) fuses each scan's step from the last
+    registered pose (its mean twist: precise, half a step late) with its registered
+    twist (current, noisier; its covariance scaled until its innovations' median is
+    chi-square's, gated at the 99.9 % point); the rate's random walk is estimated from
+    the steps' innovations, not set. The filter's prediction is the registration's
+    prior on the twist correction; its posterior the epoch's twist (extracted again
+    with) and, carried on by its rate, the next epoch's deskewing twist. Measured with
+    ``registered_acceleration`` (60 epochs, planodom only; geometric means of the
+    per-world ratios to the default, 6 mm / 2 cm): hand-held worlds 40-47 rotation rms
+    1.04 / 1.28, ATE 0.72 / 1.15 (``registered_acceleration`` alone 0.76 / 1.07, ATE
+    0.61 / 0.83); worse on the 16-beam 20 Hz worlds 44 and 46 (44 at 6 mm 0.20 -> 0.99
+    deg, its registered poses' steps themselves 23 deg/s off in yaw) and at 2 cm on
+    world 47 (lost in every configuration: 18 -> 33 deg); vehicle lidar
+    worlds 1-9 odd rotation 1.10 / 1.01, ATE 0.74 / 0.87 (alone 1.09 / 1.09, 0.65 /
+    0.82); 41-49 odd rotation 1.17 / 1.09, ATE 0.83 / 1.03 (alone 1.61 / 1.13, 1.11 /
+    0.99). Against the simulator's true twist (60 epochs, 6 mm) its yaw-rate error is
+    0.52 deg/s on vehicle world 1 (the registered twists alone 7.5) and 2.6 deg/s on
+    hand-held world 41 (alone 7.8, NEES 5.4 where 6 is expected). Not better than the
+    default in rotation overall: off."""
     twist_map_update: Literal["deskewed", "corrected"] = "corrected"
     """With ``twist_estimation``: the map is updated with the scan's planes as deskewed
     (``deskewed``) or moved by the twist correction its registration measured, from

@@ -52,6 +52,7 @@ def test_round_trip(tmp_path) -> None:
         ("planemap: {twist_estimation: yes}\n", r"c\.yaml: field 'planemap\.twist_estimation'"),
         ("planemap: {twist_map_update: raw}\n", r"c\.yaml: field 'planemap\.twist_map_update'"),
         ("planemap: {prediction: median}\n", r"c\.yaml: field 'planemap\.prediction'"),
+        ("planemap: {twist_filter: yes}\n", r"c\.yaml: field 'planemap\.twist_filter'"),
         (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",

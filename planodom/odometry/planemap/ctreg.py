@@ -173,6 +173,7 @@ def register_twist(
     prior_sd: np.ndarray,
     iterations: int,
     rounds: int = 2,
+    prior: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> TwistRegistration | None:
     """The pose and twist correction of the scan (module docstring) from the
     registration ``reg`` (its inlier associations, weights and pose), the scan planes
@@ -180,7 +181,9 @@ def register_twist(
     sigma of the correction (and acceleration) per axis. ``rounds``: solves, each with
     the residual scale of the planes as the last one corrected them (a scan deskewed far
     off disagrees with the map by far more than its noise until corrected: with the scale
-    of its uncorrected planes the prior would hold the correction back). None without 3
+    of its uncorrected planes the prior would hold the correction back). ``prior``:
+    (mean (n,), information (n, n)) of the correction instead (``planemap.twist_filter``:
+    the filter's prediction, :mod:`.twist_filter`), n = len(prior_sd). None without 3
     inliers."""
     keep = reg.weights > 0.5
     if np.count_nonzero(keep) < 3:
@@ -188,6 +191,8 @@ def register_twist(
     lm, jj, w = reg.landmarks[keep], reg.planes[keep], reg.weights[keep]
     c = cur.m.c[jj]
     order = len(prior_sd) // 6
+    if prior is None:
+        prior = (np.zeros(6 * order), np.diag(1.0 / prior_sd**2))
     x = np.zeros(6 * order)
     T, H = reg.T, np.eye(6 * (order + 1))
     for _ in range(rounds):
@@ -196,7 +201,7 @@ def register_twist(
         lam, E = np.linalg.eigh(Sx)
         _, _, v, chi2 = whitened(M, T[:3, :3], T[:3, 3], Nx, cx, lam, E, cur.variances(jj), lm)
         var = residual_scale(chi2) * v[:, TESTED].mean(axis=1) / w
-        T, x, H = _solve(M, T, lm, c, moments[jj], var, x, prior_sd, iterations)
+        T, x, H = _solve(M, T, lm, c, moments[jj], var, x, prior, iterations)
     acc = x[6:12] if order == 2 else np.zeros(6)
     return TwistRegistration(T, x[:6].copy(), acc.copy(), H)
 
@@ -209,29 +214,32 @@ def _solve(
     moments: np.ndarray,
     var: np.ndarray,
     x: np.ndarray,
-    prior_sd: np.ndarray,
+    prior: tuple[np.ndarray, np.ndarray],
     iterations: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Gauss-Newton of the pose and the correction from ``T0`` and ``x`` (module
-    docstring), associations whitened by ``var`` (m,): pose, correction, information."""
-    order = len(prior_sd) // 6
+    docstring), associations whitened by ``var`` (m,), the correction's prior (mean,
+    information): pose, correction, information."""
+    order = len(x) // 6
     R, t = T0[:3, :3].copy(), T0[:3, 3].copy()
     x = x.copy()
     Q = block_moments(moments, order)
     ev, V = np.linalg.eigh(Q)
     L = np.sqrt(np.maximum(ev, 0.0))[:, :, None] * np.swapaxes(V, 1, 2)  # rows: residuals
     n, d = M.n[lm], M.d[lm]
-    P = np.r_[np.zeros(6), 1.0 / prior_sd**2]
+    x0, P = prior
+    Pfull = np.zeros((6 * (order + 1), 6 * (order + 1)))
+    Pfull[6:, 6:] = P
     size = max(float(np.median(np.linalg.norm(c, axis=1))), 1.0)
     scale = np.r_[np.ones(3), np.full(3, 1.0 / size), np.ones(6 * order)]
-    H = np.diag(P)
+    H = Pfull
     for _ in range(iterations):
         z, Jz = stacked(R, t, n, d, c, x)
         r = np.einsum("mij,mj->mi", L, z)
         J = np.einsum("mij,mjk->mik", L, Jz)
         Wr = 1.0 / var
-        H = np.einsum("m,mki,mkj->ij", Wr, J, J) + np.diag(P)
-        g = np.einsum("m,mki,mk->i", Wr, J, r) + np.r_[np.zeros(6), P[6:] * x]
+        H = np.einsum("m,mki,mkj->ij", Wr, J, J) + Pfull
+        g = np.einsum("m,mki,mk->i", Wr, J, r) + np.r_[np.zeros(6), P @ (x - x0)]
         dx = newton_step(H, g, scale)
         R = Rotation.from_rotvec(dx[:3]).as_matrix() @ R
         t = t + dx[3:6]

@@ -50,6 +50,7 @@ from planodom.odometry.planemap.landmarks import PlaneMap, update_map
 from planodom.odometry.planemap.moments import Moments, scan_sigma
 from planodom.odometry.planemap.pose import relative_pose
 from planodom.odometry.planemap.register import Registration, ScanPlanes, register, score
+from planodom.odometry.planemap.twist_filter import TwistFilter, filtered_registration
 from planodom.odometry.relative import RelativePose, Status
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -92,7 +93,9 @@ class MapEstimate:
         twist: (6,) the scan's own twist measured by the continuous-time registration
             (``planemap.twist_estimation``, :mod:`.ctreg`), rad/s and m/s, at its
             reference time; None when not measured. acceleration: (6,) its rate of
-            change, rad/s^2 and m/s^2 (``registered_acceleration``), else None.
+            change, rad/s^2 and m/s^2 (``registered_acceleration``, or the filter's
+            with ``planemap.twist_filter``), else None. twist_filter: the filter after
+            the scan (:mod:`.twist_filter`; None: not updated).
     """
 
     relative: RelativePose
@@ -108,6 +111,7 @@ class MapEstimate:
     deskew: tuple[np.ndarray | None, float | None] = (None, None)
     twist: np.ndarray | None = None
     acceleration: np.ndarray | None = None
+    twist_filter: TwistFilter | None = None
 
 
 class PlaneMapOdometry:
@@ -125,6 +129,7 @@ class PlaneMapOdometry:
         self._fractions: list[float] = []
         self._prev: PlaneSet | None = None
         self.bias_m = self.config.planemap.laser_bias_m  # the fitted one, when fitted
+        self._twist_filter = TwistFilter()
 
     # ------------------------------------------------------------------ gates
 
@@ -175,7 +180,7 @@ class PlaneMapOdometry:
             return MapEstimate(rel, T, T_pred, used, cur, None, plane_set, against)
         reg = self._best_registration(T_pred, cur, plane_set)
         ok = self._resolved(reg, cur)
-        ct = self._registered_twist(reg, cur, deskew[1]) if ok else None
+        ct, filt = self._registered_twist(reg, cur, deskew) if ok else (None, None)
         if ct is not None:
             reg = replace(reg, T=ct.T)
             if self.config.planemap.twist_map_update == "corrected":
@@ -193,12 +198,14 @@ class PlaneMapOdometry:
             twist = (np.zeros(6) if deskew[0] is None else deskew[0]) + ct.correction
             if self.config.planemap.twist_estimation == "registered_acceleration":
                 acceleration = ct.acceleration
+            if filt is not None and filt.state is not None:
+                twist, acceleration = filt.state.mean[:6].copy(), filt.state.mean[6:].copy()
         return MapEstimate(rel, T, T_pred, used, cur, reg, plane_set, against, beyond, bias,
-                           deskew, twist, acceleration)  # fmt: skip
+                           deskew, twist, acceleration, filt)  # fmt: skip
 
     def _registered_twist(
-        self, reg: Registration, cur: ScanPlanes, dt: float | None
-    ) -> TwistRegistration | None:
+        self, reg: Registration, cur: ScanPlanes, deskew: tuple[np.ndarray | None, float | None]
+    ) -> tuple[TwistRegistration | None, TwistFilter | None]:
         """The continuous-time registration from ``reg`` (``planemap.twist_estimation``,
         :mod:`.ctreg`); None when off, without time moments, before any motion was
         measured or without the step's ``dt``. Its prior: the twist's error per axis the
@@ -206,20 +213,26 @@ class PlaneMapOdometry:
         and translation components, scan frame) over ``dt`` (the twist deskewed with is
         the last one measured: it is off by the change of the twist over a step), the
         acceleration's twice that over ``dt`` (the rate may change by the twist's error
-        within half an epoch)."""
-        mode = self.config.planemap.twist_estimation
+        within half an epoch). With ``planemap.twist_filter``, the filter's prediction
+        instead, and the filter after the scan (else None)."""
+        mode, dt = self.config.planemap.twist_estimation, deskew[1]
         if mode == "none" or cur.time_moments is None or self._dev_n[0] == 0:
-            return None
+            return None, None
         if dt is None or dt <= 0:
-            return None
+            return None, None
         rms = np.sqrt(self._dev_axes / np.repeat(np.maximum(self._dev_n, 1), 3))
         if self._dev_n[1] == 0:
             rms[3:] = self.config.planemap.initial_translation_m
         sd = np.maximum(rms / dt, 1e-9)
+        iterations = self.config.planemap.gn_iterations
+        if self.config.planemap.twist_filter == "kalman":
+            used = np.zeros(6) if deskew[0] is None else deskew[0]
+            order, filt = 2 if mode == "registered_acceleration" else 1, self._twist_filter
+            its = iterations
+            return filtered_registration(self.map, reg, cur, (used, dt), sd, order, filt, its)
         if mode == "registered_acceleration":
             sd = np.r_[sd, 2.0 * sd / dt]
-        iterations = self.config.planemap.gn_iterations
-        return register_twist(self.map, reg, cur, cur.time_moments, sd, iterations)
+        return register_twist(self.map, reg, cur, cur.time_moments, sd, iterations), None
 
     def judged(self, est: MapEstimate) -> MapEstimate:
         """An epoch's final estimate, bridged by constant velocity (UNRESOLVED and
@@ -391,6 +404,8 @@ class PlaneMapOdometry:
             self.velocity = _orthonormalised(invert_transform(self.pose) @ T)
         self.pose = T
         self._prev = est.plane_set
+        unresolved = est.relative.status is Status.UNRESOLVED
+        self._twist_filter = self._twist_filter.after(unresolved, est.twist_filter, est.deskew[1])
         cur = est.cur
         if cur is None:
             return
