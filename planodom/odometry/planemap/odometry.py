@@ -314,8 +314,11 @@ class PlaneMapOdometry:
             T = T_pred
             rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
             ok = False
-        elif self._predicted_translation(rel):
-            T = self.pose @ rel.T_prev_curr  # its unobserved translation: the prediction's
+        elif not np.array_equal(rel.T_prev_curr, T_rel):
+            # what it did not observe (a horizontal or the vertical translation, rotation
+            # about some axes) is the prediction's: the pose kept, whence the map update and
+            # the next prediction, must be that one too, not Gauss-Newton's drift along it
+            T = self.pose @ rel.T_prev_curr
         assoc = self._associations(reg, used) if ok else np.zeros((0, 2), dtype=np.intp)
         return _with_associations(rel, assoc, reg.stage), T
 
