@@ -51,6 +51,7 @@ def test_round_trip(tmp_path) -> None:
         ("extraction: {time_moments: 3}\n", r"c\.yaml: field 'extraction\.time_moments'"),
         ("planemap: {twist_estimation: yes}\n", r"c\.yaml: field 'planemap\.twist_estimation'"),
         ("planemap: {twist_map_update: raw}\n", r"c\.yaml: field 'planemap\.twist_map_update'"),
+        ("planemap: {kept_pose: predicted}\n", r"c\.yaml: field 'planemap\.kept_pose'"),
         (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",

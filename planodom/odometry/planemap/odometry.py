@@ -314,10 +314,13 @@ class PlaneMapOdometry:
             T = T_pred
             rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
             ok = False
-        elif not np.array_equal(rel.T_prev_curr, T_rel):
-            # what it did not observe (a horizontal or the vertical translation, rotation
-            # about some axes) is the prediction's: the pose kept, whence the map update and
-            # the next prediction, must be that one too, not Gauss-Newton's drift along it
+        elif self._predicted_translation(rel) or (
+            self.config.planemap.kept_pose == "reported"
+            and not np.array_equal(rel.T_prev_curr, T_rel)
+        ):
+            # its unobserved translation: the prediction's; with ``kept_pose: reported``
+            # whatever of it came from the prediction (the vertical, rotation about some
+            # axes): the map update and the next prediction rest on the pose reported
             T = self.pose @ rel.T_prev_curr
         assoc = self._associations(reg, used) if ok else np.zeros((0, 2), dtype=np.intp)
         return _with_associations(rel, assoc, reg.stage), T

@@ -23,13 +23,11 @@ patch twice in its first scans) drifted 1.27 m vertically in its second scan, an
 25 m/s vertical twist that step gave deskewed the next ones (ATE 41 -> 3.9 mm at 6 mm,
 sweeps registered at their middle); with ``epoch``, whose averaged own twist damps it,
 world 3 at 2 cm went 4.5 -> 63 mm with it, so there the vertical stays as registered.
-The pose the odometry keeps (its map update and next prediction) is the one reported,
-whatever of it came from the prediction (:meth:`PlaneMapOdometry._result`): generalisation
-world 75 (6 mm) tied its ground plane to a stale 25-point ground landmark, the vertical
-went unobserved, the relative pose took the prediction's, but the pose kept Gauss-Newton's
-0.36 m drift along it: the map's ground moved with it, the next prediction and twist
-carried it, and the next epochs went 10 m off vertically and 5 cm horizontally (ATE
-0.144 -> 0.002 m once the pose kept follows).
+The pose the odometry keeps (its map update and next prediction) is the registration's
+but for a degenerate epoch's unobserved translation; with ``planemap.kept_pose:
+reported`` (off by default; figures there) it is the one reported, whatever of it came
+from the prediction (generalisation world 75 at 6 mm: the vertical predicted here, the
+pose kept 0.36 m off along it, the next epochs 10 m off vertically).
 """
 
 from __future__ import annotations
