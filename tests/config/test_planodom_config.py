@@ -53,6 +53,7 @@ def test_round_trip(tmp_path) -> None:
         ("planemap: {twist_map_update: raw}\n", r"c\.yaml: field 'planemap\.twist_map_update'"),
         ("planemap: {prediction: median}\n", r"c\.yaml: field 'planemap\.prediction'"),
         ("planemap: {twist_filter: yes}\n", r"c\.yaml: field 'planemap\.twist_filter'"),
+        ("planemap: {kept_pose: predicted}\n", r"c\.yaml: field 'planemap\.kept_pose'"),
         (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",

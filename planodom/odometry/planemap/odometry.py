@@ -327,8 +327,14 @@ class PlaneMapOdometry:
             T = T_pred
             rel = relative_pose(self, self.velocity, None, Status.UNRESOLVED)
             ok = False
-        elif self._predicted_translation(rel):
-            T = self.pose @ rel.T_prev_curr  # its unobserved translation: the prediction's
+        elif self._predicted_translation(rel) or (
+            self.config.planemap.kept_pose == "reported"
+            and not np.array_equal(rel.T_prev_curr, T_rel)
+        ):
+            # its unobserved translation: the prediction's; with ``kept_pose: reported``
+            # whatever of it came from the prediction (the vertical, rotation about some
+            # axes): the map update and the next prediction rest on the pose reported
+            T = self.pose @ rel.T_prev_curr
         assoc = self._associations(reg, used) if ok else np.zeros((0, 2), dtype=np.intp)
         return _with_associations(rel, assoc, reg.stage), T
 

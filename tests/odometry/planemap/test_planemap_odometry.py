@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from planemap_factory import planes_of, pose, scene_points
 
 from planodom.config import PlanodomConfig
@@ -124,3 +125,33 @@ def test_five_planes_that_fix_every_direction_resolve_the_step_with_min_inliers_
         if status is Status.OK:
             np.testing.assert_allclose(rel.T_prev_curr, T_true, atol=1e-9)
     np.testing.assert_allclose(rel.T_prev_curr, np.eye(4), atol=1e-12)  # the prediction
+
+
+@pytest.mark.parametrize("kept", ["reported", "registration"])
+def test_the_pose_kept_is_the_one_reported_when_the_vertical_is_the_predictions(kept):
+    """World 75 (6 mm): a ground plane tied to a stale 25-point ground landmark left the
+    vertical nearly unobserved; the relative pose took the prediction's vertical, but the
+    pose kept (map update, next prediction) kept Gauss-Newton's 0.36 m drift along it,
+    and the next steps went 10 m off vertically, 5 cm horizontally."""
+    from planodom.odometry.planemap.register import Registration
+
+    odo = PlaneMapOdometry(PlanodomConfig().updated({"planemap.kept_pose": kept}))
+    odo.frame = 3
+    odo.pose = pose([0.0, 0.0, 0.3], [4.0, 1.0, 0.2])
+    odo.velocity = pose([0.0, 0.0, 0.01], [0.4, 0.0, 0.002])
+    T_pred = odo.pose @ odo.velocity
+    drifted = T_pred.copy()
+    drifted[:3, 3] += [0.002, -0.001, 0.36]  # the vertical drifted, the horizontal measured
+    H = np.diag([1e8, 1e8, 1e8, 1e6, 1e6, 1e-2])  # the vertical (world z) observed by nothing
+    empty = np.zeros(0, dtype=np.intp)
+    reg = Registration(drifted, H, empty, empty, np.zeros(0), "map")
+    rel, T = odo._result(reg, True, T_pred, None, empty)  # type: ignore[arg-type]
+    assert rel.status is Status.OK and not rel.z_observed
+    np.testing.assert_allclose(rel.T_prev_curr[2, 3], odo.velocity[2, 3], atol=1e-9)
+    if kept == "registration":  # the registration's drift kept (before the option)
+        np.testing.assert_allclose(T, drifted, atol=1e-12)
+        return
+    np.testing.assert_allclose(T, odo.pose @ rel.T_prev_curr, atol=1e-12)
+    # the vertical is the prediction's, the measured horizontal the registration's
+    np.testing.assert_allclose(T[2, 3], T_pred[2, 3], atol=1e-9)
+    np.testing.assert_allclose(T[:2, 3], drifted[:2, 3], atol=1e-9)
