@@ -227,9 +227,10 @@ class PlaneMapOdometry:
         iterations = self.config.planemap.gn_iterations
         if self.config.planemap.twist_filter == "kalman":
             used = np.zeros(6) if deskew[0] is None else deskew[0]
-            order, filt = 2 if mode == "registered_acceleration" else 1, self._twist_filter
-            its = iterations
-            return filtered_registration(self.map, reg, cur, (used, dt), sd, order, filt, its)
+            order = 2 if mode == "registered_acceleration" else 1
+            return filtered_registration(
+                self.map, reg, cur, (used, dt), sd, order, self._twist_filter, iterations
+            )
         if mode == "registered_acceleration":
             sd = np.r_[sd, 2.0 * sd / dt]
         return register_twist(self.map, reg, cur, cur.time_moments, sd, iterations), None

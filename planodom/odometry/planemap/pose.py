@@ -23,11 +23,11 @@ patch twice in its first scans) drifted 1.27 m vertically in its second scan, an
 25 m/s vertical twist that step gave deskewed the next ones (ATE 41 -> 3.9 mm at 6 mm,
 sweeps registered at their middle); with ``epoch``, whose averaged own twist damps it,
 world 3 at 2 cm went 4.5 -> 63 mm with it, so there the vertical stays as registered.
-The pose the odometry keeps (its map update and next prediction) is the registration's
-but for a degenerate epoch's unobserved translation; with ``planemap.kept_pose:
-reported`` (off by default; figures there) it is the one reported, whatever of it came
-from the prediction (generalisation world 75 at 6 mm: the vertical predicted here, the
-pose kept 0.36 m off along it, the next epochs 10 m off vertically).
+The pose the odometry keeps (its map update and next prediction) is the one reported,
+whatever of it came from the prediction (``planemap.kept_pose: reported``, the default;
+figures there); with ``registration`` it is where Gauss-Newton ended but for a
+degenerate epoch's unobserved translation (generalisation world 75 at 6 mm: the vertical
+predicted here, the pose kept 0.36 m off along it, the next epochs 10 m off vertically).
 """
 
 from __future__ import annotations
