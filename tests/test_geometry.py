@@ -297,3 +297,12 @@ def test_twist_step_is_the_exponential_of_the_twist_over_dt_bit_for_bit():
             assert step.tobytes() == g.se3_exp(twist * dt).tobytes()
         assert not step.flags.writeable
     assert g.twist_step(twist, dt + 1e-9).tobytes() == g.se3_exp(twist * (dt + 1e-9)).tobytes()
+
+
+def test_cross_rows_equals_numpy_cross_bit_for_bit_when_broadcast():
+    """:func:`cross_rows` gives numpy's bits, broadcast over leading axes too (the plane
+    map's moment Jacobians cross (M, 3, 3) with (M, 1, 3))."""
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(40, 3, 3)) * 7.0, rng.normal(size=(40, 1, 3))
+    assert np.array_equal(g.cross_rows(a, b), np.cross(a, b))
+    assert np.array_equal(g.cross_rows(a[:, 0], b[:, 0]), np.cross(a[:, 0], b[:, 0]))

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planodom.geometry import Plane
+from planodom.geometry import Plane, cross_rows
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,19 +138,10 @@ def moment_residuals(
     rk = sl * np.einsum("ma,mak->mk", n, U)
     r = np.concatenate([r0[:, None], rk], axis=1)
     J = np.zeros((m, 4, 6))
-    J[:, 0, :3] = sN[:, None] * cross(x, n)
+    J[:, 0, :3] = sN[:, None] * cross_rows(x, n)
     J[:, 0, 3:] = sN[:, None] * n
-    J[:, 1:, :3] = sl[:, :, None] * cross(np.swapaxes(U, 1, 2), n[:, None, :])
+    J[:, 1:, :3] = sl[:, :, None] * cross_rows(np.swapaxes(U, 1, 2), n[:, None, :])
     return r, J, U
-
-
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.cross(a, b)`` of vectors on the last axis (..., 3), broadcast, term by term
-    as numpy computes it (``a1 b2 - a2 b1``, ...: the same bits) without its axis moves
-    and temporaries, which cost more than the products for a few planes an epoch."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def residual_variance(sigma: float, bias_m: float, N: np.ndarray, rows: np.ndarray) -> np.ndarray:

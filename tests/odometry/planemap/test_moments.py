@@ -8,7 +8,6 @@ from scipy.spatial.transform import Rotation
 
 from planodom.odometry.planemap.moments import (
     Moments,
-    cross,
     merge_moments,
     moment_residuals,
     p2p_cost_moments,
@@ -86,11 +85,3 @@ def test_normal_equations_equal_point_to_plane_icp():
     Jp = np.concatenate([np.cross(q, n), np.tile(n, (len(P), 1))], axis=1)
     np.testing.assert_allclose(J[0].T @ J[0], Jp.T @ Jp, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(J[0].T @ r[0], Jp.T @ rp, rtol=1e-9, atol=1e-9)
-
-
-def test_cross_equals_numpy_cross_bit_for_bit():
-    """:func:`cross` gives numpy's bits, broadcast over leading axes."""
-    rng = np.random.default_rng(3)
-    a, b = rng.normal(size=(40, 3, 3)) * 7.0, rng.normal(size=(40, 1, 3))
-    assert np.array_equal(cross(a, b), np.cross(a, b))
-    assert np.array_equal(cross(a[:, 0], b[:, 0]), np.cross(a[:, 0], b[:, 0]))
