@@ -341,6 +341,17 @@ class OdometryConfig(Section):
     5.46 -> 0.496 / 5.53, worlds 12, 14, 18 within a few per cent, 4, 8, 10 identical.
     Tried on every suspect epoch (degenerate ones too), it was worse (world 6 at 6 mm:
     ATE 1.07 -> 2.90 m): the plane count picked other twists than the epoch's own rate."""
+    degenerate_rescue: Literal["always", "fewer"] = "always"
+    """Streaming, pairwise pipelines (the 2D rig's): which degenerate epochs, deskewed with
+    the predicted (or held) twist, are extracted again without deskewing (step 1 of
+    :mod:`planodom.odometry.deskew`; unresolved epochs and those with far fewer planes
+    than the epoch before always are). ``always``: every degenerate one; ``fewer``: only
+    one with fewer planes than the epoch before (a deskewed extraction that lost none of
+    the previous epoch's plane count rarely loses to the one without deskewing). Counted
+    on issue 11's worlds 44, 46, 52, 56 (150 epochs): of the degenerate epochs with at
+    least as many planes, the rescue was kept 20 of 147 times at 2 cm and 3 of 32 at 6 mm;
+    of those with fewer, 94 of 134 and 11 of 26. A gate for speed (each rescue is a whole
+    extraction)."""
     reference_refresh_guard: bool = False
     """Streaming, pairwise pipelines: a reference epoch that was never deskewed (the first,
     or one kept as extracted without a twist) is extracted again with the next epoch's
