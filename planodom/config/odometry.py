@@ -341,26 +341,6 @@ class OdometryConfig(Section):
     5.46 -> 0.496 / 5.53, worlds 12, 14, 18 within a few per cent, 4, 8, 10 identical.
     Tried on every suspect epoch (degenerate ones too), it was worse (world 6 at 6 mm:
     ATE 1.07 -> 2.90 m): the plane count picked other twists than the epoch's own rate."""
-    degenerate_rescue: Literal["always", "fewer"] = "always"
-    """Streaming, pairwise pipelines (the 2D rig's): which degenerate epochs, deskewed with
-    the predicted (or held) twist, are extracted again without deskewing (step 1 of
-    :mod:`planodom.odometry.deskew`; unresolved epochs and those with far fewer planes
-    than the epoch before always are). ``always``: every degenerate one; ``fewer``: only
-    one with fewer planes than the epoch before (a deskewed extraction that lost none of
-    the previous epoch's plane count rarely loses to the one without deskewing). Counted
-    on issue 11's worlds 44, 46, 52, 56 (150 epochs): of the degenerate epochs with at
-    least as many planes, the rescue was kept 20 of 147 times at 2 cm and 3 of 32 at 6 mm;
-    of those with fewer, 94 of 134 and 11 of 26. A gate for speed (each rescue is a whole
-    extraction). Off (``always``) by default: measured worse. On issue 11's 2D-rig worlds,
-    150 epochs, always -> fewer: extractions an epoch on worlds 40-58 even 2.20 -> 2.17 at
-    6 mm and 2.70 -> 2.55 at 2 cm (planodom's CPU time 0.94x / 0.89x; 0-18 even 2.46 ->
-    2.35 and 2.66 -> 2.51), 8 of 10 runs identical at 6 mm; medians over worlds 40-58
-    rotation 0.064 -> 0.062 / 0.135 -> 0.126 deg, ATE 0.044 -> 0.038 / 0.207 -> 0.214 m,
-    but world 54's ATE at 2 cm 0.23 -> 0.37 m (an epoch unresolved more); on worlds 0-18
-    even world 6 at 6 mm 0.24 -> 0.68 deg, ATE 0.46 -> 1.97 m, unresolved 6 -> 14, world
-    18 at 6 mm 0.25 -> 0.48 deg, ATE at 2 cm 1.14x (geometric mean, worst 1.76x). A rescue
-    it drops can resolve the epoch (world 54 at 2 cm: the poses part at epoch 4, epoch 5
-    stays degenerate where the rescue made it OK, epoch 7 is unresolved)."""
     reference_refresh_guard: bool = False
     """Streaming, pairwise pipelines: a reference epoch that was never deskewed (the first,
     or one kept as extracted without a twist) is extracted again with the next epoch's

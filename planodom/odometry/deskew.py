@@ -206,7 +206,6 @@ def register_deskewed(
     lost_trend: np.ndarray | None = None,
     restore_reference: Callable[[], None] | None = None,
     lead: Lead | None = None,
-    degenerate_rescue: bool = True,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -238,13 +237,8 @@ def register_deskewed(
             the new ones is worse (``odometry.reference_refresh_guard``).
         lead: the lead of the epoch's own twist and the tolerances and iterations
             that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
-        degenerate_rescue: whether a degenerate epoch with at least ``previous_planes``
-            planes is suspect too (``odometry.degenerate_rescue: always``); else only
-            unresolved epochs, those with fewer planes and those with far fewer are.
     """
-    best = _first_estimate(
-        predicted, dt, estimate, previous_planes, held, trend, lost_trend, degenerate_rescue
-    )
+    best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
     iterations = config.deskew_iterations if lead is None else lead.iterations
     for _ in range(iterations if dt > 0 else 0):
         if best.relative.status is Status.UNRESOLVED:
@@ -283,21 +277,16 @@ def _first_estimate(
     held: np.ndarray | None,
     trend: np.ndarray | None,
     lost_trend: np.ndarray | None,
-    degenerate_rescue: bool = True,
 ) -> EpochEstimate:
     """Step 1 of the module docstring: the best of the epoch deskewed with ``predicted``
     and, when that is suspect, with ``trend``, none or ``held`` and ``lost_trend`` (see
     :func:`register_deskewed`)."""
     best = estimate(predicted)
-    status = best.relative.status
-    degenerate = status is Status.DEGENERATE and (
-        degenerate_rescue or len(best.planes) < previous_planes
-    )
-    suspect = status is Status.UNRESOLVED or degenerate or _few(best, previous_planes)
+    few = _few(best, previous_planes)
     others: list[np.ndarray | None] = [] if trend is None or predicted is None else [trend]
     if predicted is not None or held is not None:
         others.append(None if predicted is not None else held)
-    if dt > 0 and suspect:
+    if dt > 0 and (best.relative.status is not Status.OK or few):
         for other in others:
             alternative = estimate(other)
             if _score(alternative) > _score(best):

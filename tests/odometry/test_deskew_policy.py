@@ -149,29 +149,3 @@ def test_a_lost_trend_is_tried_last_and_only_for_a_lost_epoch():
     status_far = Status.DEGENERATE
     best = register_deskewed(PREDICTED, DT, model, lambda t: False, config, 2, lost_trend=trend)
     assert best.relative.status is Status.DEGENERATE and len(tried) == 2
-
-
-def test_a_degenerate_epoch_with_as_many_planes_skips_the_rescue_when_gated():
-    """``degenerate_rescue=False`` (``odometry.degenerate_rescue: fewer``): a degenerate
-    epoch deskewed with the prediction is extracted again without deskewing only when it
-    has fewer planes than the epoch before (here 2); unresolved ones always are."""
-
-    def run(status: Status, previous: int, rescue_all: bool) -> list[np.ndarray | None]:
-        tried: list[np.ndarray | None] = []
-
-        def model(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
-            tried.append(None if twist is None else twist.copy())
-            return _estimate(twist, TRUE, status)  # two planes
-
-        config = OdometryConfig(deskew_iterations=0)
-        register_deskewed(PREDICTED, DT, model, lambda t: False, config, previous,
-                          degenerate_rescue=rescue_all)  # fmt: skip
-        return tried
-
-    assert len(run(Status.DEGENERATE, 2, True)) == 2  # always: rescued
-    assert len(run(Status.DEGENERATE, 2, False)) == 1  # as many planes: not
-    assert len(run(Status.DEGENERATE, 1, False)) == 1
-    rescued = run(Status.DEGENERATE, 3, False)  # fewer planes than before
-    assert len(rescued) == 2 and rescued[1] is None
-    assert len(run(Status.UNRESOLVED, 2, False)) == 2
-    assert len(run(Status.OK, 2, False)) == 1
