@@ -79,6 +79,41 @@ def test_eval_against_truth(tmp_path) -> None:
     assert bad.exit_code == 2 and "late.tum" in bad.output and "--offset" in bad.output
 
 
+def _error_line(result) -> str:
+    """The one ``error:`` line of a refused command (exit status 2, nothing else)."""
+    assert result.exit_code == 2 and result.exception is not None, result.output
+    assert isinstance(result.exception, SystemExit), result.exception  # not a traceback
+    lines = [x for x in result.output.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
+    return lines[0]
+
+
+def test_eval_refuses_what_it_cannot_evaluate_in_one_line(tmp_path) -> None:
+    """A non-finite --offset (inf leaked a numpy warning and blamed the files), one matched
+    pose ('needs 1 <= delta < 1'), and se3 on poses along a line (evo's message naming
+    neither file nor option)."""
+    from planodom.datasets import write_tum
+    from planodom.geometry import transform_from_rpy_xyz
+
+    times = np.arange(5) * 0.1
+    line = np.stack([transform_from_rpy_xyz(0, 0, 0, k, 0) for k in range(5)])
+    write_tum(tmp_path / "gt.tum", times, line)
+    write_tum(tmp_path / "one.tum", times[:1], line[:1])
+    gt = str(tmp_path / "gt.tum")
+    for value in ("nan", "inf"):
+        args = ["eval", gt, gt, "--offset", value, "--out", str(tmp_path / "o")]
+        message = _error_line(runner.invoke(app, args))
+        assert message == f"error: --offset: expected a finite number of seconds, got {value}"
+    args = ["eval", str(tmp_path / "one.tum"), gt, "--out", str(tmp_path / "o")]
+    message = _error_line(runner.invoke(app, args))
+    assert "one.tum: 1 pose matched with" in message and "2 or more" in message
+    args = ["eval", gt, gt, "--align", "se3", "--out", str(tmp_path / "o")]
+    message = _error_line(runner.invoke(app, args))
+    assert message.startswith("error: --align se3: ") and "5 matched poses of" in message
+    assert "gt.tum" in message
+    assert not (tmp_path / "o").exists()
+
+
 def test_smooth_noise_free_recovers_the_truth(tmp_path) -> None:
     out = tmp_path / "smooth"
     args = ["smooth", "--scenario", "paper-loop", "--out", str(out), "--epochs", "10"]
