@@ -14,6 +14,7 @@ bridge as ``T_prev_curr``.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -23,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planodom.config import PlanodomConfig
+from planodom.errors import GeometryError
 from planodom.geometry import Plane, invert_transform, orthonormalised, twist_step
 from planodom.odometry.coplanar import coplanar_by
 from planodom.odometry.deskew import (
@@ -43,7 +45,7 @@ from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
 from planodom.planes import PlaneSet
-from planodom.scan import Scan
+from planodom.scan import Scan, check_is_scan
 
 if TYPE_CHECKING:
     from planodom.odometry.planemap import PlaneMapOdometry
@@ -158,6 +160,7 @@ class PlaneOdometry:
                 and kept unless :func:`planodom.odometry.deskew.prefer_streaming` says
                 ``scan`` deskewed as usual might do better.
         """
+        check_is_scan(scan)
         t = self._next_time(time)
         k = len(self.poses)
         if k == 0:
@@ -224,8 +227,22 @@ class PlaneOdometry:
             self._map = PlaneMapOdometry(self.config)
 
     def _next_time(self, time: float | None) -> float:
+        """The epoch's time: ``time``, or the previous one plus the epoch period.
+
+        Raises:
+            GeometryError: a ``time`` that is not finite, or not after the previous
+                epoch's (a step over zero or negative time has no velocity: the
+                deskewing and the constant-velocity bridge would be silently wrong).
+        """
         if time is not None:
-            return float(time)
+            t = float(time)
+            if not math.isfinite(t) or (self.times and not t > self.times[-1]):
+                after = f" after the previous epoch's {self.times[-1]!r} s" if self.times else ""
+                raise GeometryError(
+                    f"epoch {len(self.poses)}: time {t!r} s is not a finite time{after}; "
+                    "epoch times must increase"
+                )
+            return t
         if not self.times:
             return 0.0
         return self.times[-1] + self.config.odometry.epoch_period_s
