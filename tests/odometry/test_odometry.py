@@ -180,8 +180,11 @@ def test_epoch_time_not_after_the_previous_is_refused(bad):
     odo = PlaneOdometry(config())
     odo.register_planes(observe(world, poses[0]), time=0.0)
     odo.register_planes(observe(world, poses[1]), time=0.1)
-    with pytest.raises(GeometryError, match=rf"^epoch 2: time {bad!r} s is not a finite time "
-                       r"after the previous epoch's 0.1 s; epoch times must increase$"):  # fmt: skip
+    expected = (
+        rf"^epoch 2: time {bad!r} s is not a finite time after the previous epoch's 0.1 s; "
+        "epoch times must increase$"
+    )
+    with pytest.raises(GeometryError, match=expected):
         odo.register_planes(observe(world, poses[2]), time=bad)
     assert len(odo.poses) == len(odo.times) == len(odo.results) == 2
     first = PlaneOdometry(config())
