@@ -114,6 +114,22 @@ def test_eval_refuses_what_it_cannot_evaluate_in_one_line(tmp_path) -> None:
     assert not (tmp_path / "o").exists()
 
 
+def test_zero_epochs_name_the_option_not_a_temporary_folder(tmp_path) -> None:
+    """``run --scenario ... --epochs 0`` said '<out's hidden .partial folder>/dataset: no
+    scans to write'; a trajectory file that is missing or binary quoted Python's error."""
+    for command in (["run", "--scenario", "paper-loop"], ["simulate"]):
+        args = [*command, "--epochs", "0", "--out", str(tmp_path / "o")]
+        message = _error_line(runner.invoke(app, args))
+        assert message == "error: --epochs 0: expected 1 or more (default: one lap)"
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "scan.bin").write_bytes(bytes(range(256)))
+    for name, problem in (("missing.tum", "cannot read trajectory (No such file or directory)"),
+                          ("scan.bin", "not a trajectory file (not UTF-8 text)")):  # fmt: skip
+        path = tmp_path / name
+        message = _error_line(runner.invoke(app, ["eval", str(path), str(path)]))
+        assert message == f"error: {path}: {problem}"
+
+
 def test_smooth_noise_free_recovers_the_truth(tmp_path) -> None:
     out = tmp_path / "smooth"
     args = ["smooth", "--scenario", "paper-loop", "--out", str(out), "--epochs", "10"]
