@@ -130,6 +130,19 @@ def test_zero_epochs_name_the_option_not_a_temporary_folder(tmp_path) -> None:
         assert message == f"error: {path}: {problem}"
 
 
+def test_results_never_land_in_the_folder_of_a_ros2_bag_given_by_its_file(tmp_path) -> None:
+    """``run BAG/data.db3 --out BAG/res`` wrote the results into the bag's folder (only
+    the .db3 file counted as the input)."""
+    from bag_factory import SCANNERS, STATIC_TF, T_BASE, write_bag
+
+    write_bag(tmp_path / "bag", 2, SCANNERS[:1], STATIC_TF, T_BASE, duration_s=0.3)
+    (data,) = [p for p in (tmp_path / "bag").iterdir() if p.suffix == ".db3"]
+    for command in ("run", "smooth"):
+        result = runner.invoke(app, [command, str(data), "--out", str(tmp_path / "bag" / "res")])
+        assert "lies inside the input" in _error_line(result)
+    assert sorted(p.name for p in (tmp_path / "bag").iterdir()) == ["bag.db3", "metadata.yaml"]
+
+
 def test_smooth_noise_free_recovers_the_truth(tmp_path) -> None:
     out = tmp_path / "smooth"
     args = ["smooth", "--scenario", "paper-loop", "--out", str(out), "--epochs", "10"]

@@ -220,6 +220,7 @@ def write_dataset(
     *,
     extension: str = ".ply",
     points_dtype: type[np.floating] = np.float64,
+    inputs: Sequence[str | Path] = (),
 ) -> Dataset:
     """Write a dataset directory: ``scans/000000.ply``, ..., ``poses.tum`` or ``times.txt``,
     ``rig.yaml``.
@@ -240,6 +241,8 @@ def write_dataset(
             leaves the old one as it was.
         extension: ".ply" or ".pcd".
         points_dtype: np.float64 (exact) or np.float32 for the coordinates.
+        inputs: files and folders ``scans`` are read from (a bag): ``path`` may not be,
+            lie in or contain them (:class:`OutputError`, before anything is written).
 
     Returns:
         The written dataset, loaded back.
@@ -259,7 +262,9 @@ def write_dataset(
     if extension.lower() not in (".ply", ".pcd"):
         raise DatasetError(f"{root}: cannot write scans as '{extension}' (use .ply or .pcd)")
 
-    with atomic_folder(root, overwrite=overwrite, owned=is_dataset_entry, what="a dataset") as tmp:
+    with atomic_folder(
+        root, overwrite=overwrite, inputs=inputs, owned=is_dataset_entry, what="a dataset"
+    ) as tmp:
         scans_dir = tmp / SCANS_DIR
         scans_dir.mkdir()
         width = max(6, len(str(len(scans) - 1)))
