@@ -382,6 +382,12 @@ def _scan_files(root: Path) -> list[Path]:
             raise DatasetError(f"{scans_dir} is empty: no scan files")
     else:
         files = [f for f in _files(root) if f.name not in (POSES_FILE, RIG_FILE, TIMES_FILE)]
+        scans = [f for f in files if f.suffix.lower() in SCAN_EXTENSIONS]
+        if not scans and (root / "velodyne").is_dir():  # a KITTI sequence but for calib.txt
+            raise DatasetError(
+                f"{root} has velodyne/ but no calib.txt: a KITTI sequence needs both (or give "
+                "velodyne/ itself, a folder of scans, without the KITTI camera frame)"
+            )
         if not files:
             raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files")
     unknown = sorted(f.name for f in files if f.suffix.lower() not in SCAN_EXTENSIONS)

@@ -17,6 +17,7 @@ from planodom.datasets.kitti import (
     read_kitti_poses,
     write_kitti_camera_poses,
 )
+from planodom.datasets.recording import open_recording
 from planodom.errors import DatasetError
 from planodom.metrics_kitti import kitti_segment_errors
 
@@ -71,6 +72,14 @@ def test_sequence_errors(tmp_path: Path) -> None:
 
 
 KITTI_IDENTITY = "1 0 0 0 0 1 0 0 0 0 1 0"
+
+
+def test_sequence_without_calib_says_so(tmp_path: Path) -> None:
+    """It said '<seq> has no scans/ directory and no scan files' (read as a dataset)."""
+    seq = make_sequence(tmp_path, poses_beside=True)
+    (seq / "calib.txt").unlink()
+    with pytest.raises(DatasetError, match=r"07 has velodyne/ but no calib.txt: a KITTI"):
+        open_recording(seq)
 
 
 @pytest.mark.parametrize(
