@@ -14,7 +14,6 @@ bridge as ``T_prev_curr``.
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -24,7 +23,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planodom.config import PlanodomConfig
-from planodom.errors import GeometryError
 from planodom.geometry import Plane, invert_transform, orthonormalised, twist_step
 from planodom.odometry.coplanar import coplanar_by
 from planodom.odometry.deskew import (
@@ -39,6 +37,7 @@ from planodom.odometry.deskew import (
     time_spread,
     twist_offset,
 )
+from planodom.odometry.epoch_time import next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
@@ -227,25 +226,8 @@ class PlaneOdometry:
             self._map = PlaneMapOdometry(self.config)
 
     def _next_time(self, time: float | None) -> float:
-        """The epoch's time: ``time``, or the previous one plus the epoch period.
-
-        Raises:
-            GeometryError: a ``time`` that is not finite, or not after the previous
-                epoch's (a step over zero or negative time has no velocity: the
-                deskewing and the constant-velocity bridge would be silently wrong).
-        """
-        if time is not None:
-            t = float(time)
-            if not math.isfinite(t) or (self.times and not t > self.times[-1]):
-                after = f" after the previous epoch's {self.times[-1]!r} s" if self.times else ""
-                raise GeometryError(
-                    f"epoch {len(self.poses)}: time {t!r} s is not a finite time{after}; "
-                    "epoch times must increase"
-                )
-            return t
-        if not self.times:
-            return 0.0
-        return self.times[-1] + self.config.odometry.epoch_period_s
+        """:func:`.epoch_time.next_epoch_time` of this odometry's epochs."""
+        return next_epoch_time(time, self.times, self.config.odometry.epoch_period_s)
 
     def _extract(
         self, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,
