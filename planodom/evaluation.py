@@ -46,8 +46,10 @@ def read_trajectory(path: str | Path) -> Trajectory:
         path = path / "poses.tum"
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DatasetError(f"{path}: cannot read trajectory ({exc})") from None
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read trajectory ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path}: not a trajectory file (not UTF-8 text)") from None
     first = next((x.split() for x in lines if x.strip() and not x.startswith("#")), [])
     if len(first) == 12:
         return Trajectory(path, read_kitti_poses(path), None)

@@ -92,8 +92,8 @@ def check_target(
         target = target.resolve()
     check_not_inputs(target, inputs)
     existing = _entries(target)
-    if existing and not overwrite:
-        raise OutputExistsError(target, f"{what} ({existing[0]})")
+    # a folder of other files first: "already holds results (notes.txt); --overwrite
+    # replaces it" was untrue, and --overwrite then refused it
     foreign = [target / e for e in existing if owned is not None and not owned(target / e)]
     if foreign:
         assert owned is not None
@@ -102,6 +102,8 @@ def check_target(
             f"{target}: holds '{stray}', which planodom does not write as {what}; "
             "not replacing the folder (choose another output folder)"
         )
+    if existing and not overwrite:
+        raise OutputExistsError(target, f"{what} ({existing[0]})")
     return target
 
 

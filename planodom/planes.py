@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planodom.errors import GeometryError
 from planodom.geometry import Plane, plane_transform_jacobian, transform_planes, transform_points
 
 
@@ -49,7 +50,15 @@ class PlaneSet:
 
     @classmethod
     def from_planes(cls, planes: Sequence[Plane]) -> PlaneSet:
-        """The arrays of a list of :class:`Plane` (in that order)."""
+        """The arrays of a list of :class:`Plane` (in that order); GeometryError for an
+        item that is no Plane (e.g. the rows of an (N, 3) array of points given as an
+        epoch, which ended in an AttributeError)."""
+        bad = next((p for p in planes if not isinstance(p, Plane)), None)
+        if bad is not None:
+            raise GeometryError(
+                f"expected planodom.Plane objects, got {type(bad).__name__}; an epoch's "
+                "points go in as a planodom.Scan (register_epoch, run_odometry)"
+            )
         k = len(planes)
         if k == 0:
             z = np.zeros(0)

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from planodom.errors import DatasetError
+from planodom.errors import DatasetError, GeometryError
 
 _KNOWN = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics")
 
@@ -64,10 +64,21 @@ class Rig:
 
     def __post_init__(self) -> None:
         # Built in code (a simulated rig) as well as from YAML: hold arrays of one form.
+        # A (3,) origin is one sensor; any other shape than (S, 3) is refused, not
+        # reshaped: a (3, 2) array read as (2, 3) was two made-up origins.
         if self.sensor_origins is not None:
-            origins = np.asarray(self.sensor_origins, dtype=np.float64).reshape(-1, 3)
+            origins = _numbers(self.sensor_origins, "sensor_origins")
+            if origins.shape == (3,) or origins.size == 0:
+                origins = origins.reshape(-1, 3)
+            if origins.ndim != 2 or origins.shape[1] != 3:
+                raise GeometryError(
+                    f"Rig: sensor_origins must have shape (S, 3) or (3,), got {origins.shape}"
+                )
             object.__setattr__(self, "sensor_origins", origins)
-        extrinsics = tuple(np.asarray(T, dtype=np.float64) for T in self.extrinsics)
+        extrinsics = tuple(_numbers(T, "extrinsics") for T in self.extrinsics)
+        shapes = [T.shape for T in extrinsics if T.shape != (4, 4)]
+        if shapes:
+            raise GeometryError(f"Rig: extrinsics must be (4, 4) each, got {shapes[0]}")
         object.__setattr__(self, "extrinsics", extrinsics)
 
     @classmethod
@@ -105,6 +116,17 @@ class Rig:
         if self.extrinsics:
             out["extrinsics"] = [np.asarray(T).tolist() for T in self.extrinsics]
         return out
+
+
+def _numbers(value: Any, name: str) -> np.ndarray:
+    """``value`` as a finite float64 array, or GeometryError naming the field."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise GeometryError(f"Rig: {name} must be numbers, got {type(value).__name__}") from None
+    if not np.all(np.isfinite(array)):
+        raise GeometryError(f"Rig: {name} must be finite")
+    return array
 
 
 def _motion_bounds(bounds: Any, source: str) -> MotionBounds | None:

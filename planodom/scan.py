@@ -31,7 +31,12 @@ class Scan:
     label: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        pts = np.asarray(self.points, dtype=np.float64)
+        try:
+            pts = np.asarray(self.points, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise GeometryError(
+                f"scan points: expected (N, 3) numbers, got {type(self.points).__name__}"
+            ) from None
         if pts.ndim != 2 or pts.shape[1] != 3:
             if pts.size == 0:
                 pts = pts.reshape(0, 3)
@@ -42,7 +47,7 @@ class Scan:
             value = getattr(self, name)
             if value is None:
                 continue
-            arr = np.asarray(value, dtype=dtype)
+            arr = _int32_ids(name, value) if dtype is np.int32 else _floats(name, value)
             arr = arr if arr.ndim == 1 else arr.reshape(-1)  # the same object: see _owned
             if len(arr) != len(pts):
                 raise GeometryError(
@@ -60,6 +65,59 @@ class Scan:
             return None if a is None else a[mask]
 
         return Scan(self.points[mask], pick(self.ring), pick(self.t), pick(self.label))
+
+
+def check_is_scan(scan: object) -> None:
+    """GeometryError unless ``scan`` is a :class:`Scan` (or has its fields): an (N, 3)
+    array handed over as is ended in an AttributeError deep in the extraction."""
+    if not all(hasattr(scan, name) for name in ("points", "ring", "t")):
+        raise GeometryError(
+            f"expected a planodom.Scan, got {type(scan).__name__}; wrap (N, 3) points "
+            "in metres as planodom.Scan(points) (with ring= and t= when known)"
+        )
+
+
+def _floats(name: str, value: object) -> np.ndarray:
+    """``value`` as a float64 array (the same object when it is one already)."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise GeometryError(
+            f"scan field '{name}': expected numbers, got {type(value).__name__}"
+        ) from None
+
+
+def _int32_ids(name: str, value: object) -> np.ndarray:
+    """``value`` (ring or label ids) as an int32 array, the same object when it is one
+    already; GeometryError for values a cast would change (0.7 truncated to ring 0, 2**32
+    wrapped to 0): not whole numbers, or beyond int32. Checked only when a cast is due."""
+    try:
+        raw = np.asarray(value)
+        if raw.dtype == np.int32:
+            return raw
+        if raw.dtype.kind not in "biuf":
+            raise TypeError
+    except (TypeError, ValueError):
+        raise GeometryError(
+            f"scan field '{name}': expected integer ids, got {type(value).__name__}"
+        ) from None
+    info = np.iinfo(np.int32)
+    if raw.dtype.kind in "iu":  # a range check, no cast needed to compare
+        if raw.size and (raw.min() < info.min or raw.max() > info.max):
+            raise GeometryError(
+                f"scan field '{name}': ids {raw.min()}..{raw.max()} are beyond int32"
+            )
+        return raw.astype(np.int32)
+    with np.errstate(invalid="ignore"):
+        arr = raw.astype(np.int32)
+        changed = (arr != raw).reshape(-1)
+    if raw.dtype.kind == "f" and np.any(changed):
+        k = int(np.flatnonzero(changed)[0])
+        raise GeometryError(
+            f"scan field '{name}': {np.count_nonzero(changed)} values are not int32 "
+            f"integers (first: {raw.reshape(-1)[k]!s} at point {k})"
+        )
+    return arr
 
 
 def _owned(arr: np.ndarray, given: object, writeable: bool = False) -> np.ndarray:

@@ -79,6 +79,70 @@ def test_eval_against_truth(tmp_path) -> None:
     assert bad.exit_code == 2 and "late.tum" in bad.output and "--offset" in bad.output
 
 
+def _error_line(result) -> str:
+    """The one ``error:`` line of a refused command (exit status 2, nothing else)."""
+    assert result.exit_code == 2 and result.exception is not None, result.output
+    assert isinstance(result.exception, SystemExit), result.exception  # not a traceback
+    lines = [x for x in result.output.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
+    return lines[0]
+
+
+def test_eval_refuses_what_it_cannot_evaluate_in_one_line(tmp_path) -> None:
+    """A non-finite --offset (inf leaked a numpy warning and blamed the files), one matched
+    pose ('needs 1 <= delta < 1'), and se3 on poses along a line (evo's message naming
+    neither file nor option)."""
+    from planodom.datasets import write_tum
+    from planodom.geometry import transform_from_rpy_xyz
+
+    times = np.arange(5) * 0.1
+    line = np.stack([transform_from_rpy_xyz(0, 0, 0, k, 0) for k in range(5)])
+    write_tum(tmp_path / "gt.tum", times, line)
+    write_tum(tmp_path / "one.tum", times[:1], line[:1])
+    gt = str(tmp_path / "gt.tum")
+    for value in ("nan", "inf"):
+        args = ["eval", gt, gt, "--offset", value, "--out", str(tmp_path / "o")]
+        message = _error_line(runner.invoke(app, args))
+        assert message == f"error: --offset: expected a finite number of seconds, got {value}"
+    args = ["eval", str(tmp_path / "one.tum"), gt, "--out", str(tmp_path / "o")]
+    message = _error_line(runner.invoke(app, args))
+    assert "one.tum: 1 pose matched with" in message and "2 or more" in message
+    args = ["eval", gt, gt, "--align", "se3", "--out", str(tmp_path / "o")]
+    message = _error_line(runner.invoke(app, args))
+    assert message.startswith("error: --align se3: ") and "5 matched poses of" in message
+    assert "gt.tum" in message
+    assert not (tmp_path / "o").exists()
+
+
+def test_zero_epochs_name_the_option_not_a_temporary_folder(tmp_path) -> None:
+    """``run --scenario ... --epochs 0`` said '<out's hidden .partial folder>/dataset: no
+    scans to write'; a trajectory file that is missing or binary quoted Python's error."""
+    for command in (["run", "--scenario", "paper-loop"], ["simulate"]):
+        args = [*command, "--epochs", "0", "--out", str(tmp_path / "o")]
+        message = _error_line(runner.invoke(app, args))
+        assert message == "error: --epochs 0: expected 1 or more (default: one lap)"
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "scan.bin").write_bytes(bytes(range(256)))
+    for name, problem in (("missing.tum", "cannot read trajectory (No such file or directory)"),
+                          ("scan.bin", "not a trajectory file (not UTF-8 text)")):  # fmt: skip
+        path = tmp_path / name
+        message = _error_line(runner.invoke(app, ["eval", str(path), str(path)]))
+        assert message == f"error: {path}: {problem}"
+
+
+def test_results_never_land_in_the_folder_of_a_ros2_bag_given_by_its_file(tmp_path) -> None:
+    """``run BAG/data.db3 --out BAG/res`` wrote the results into the bag's folder (only
+    the .db3 file counted as the input)."""
+    from bag_factory import SCANNERS, STATIC_TF, T_BASE, write_bag
+
+    write_bag(tmp_path / "bag", 2, SCANNERS[:1], STATIC_TF, T_BASE, duration_s=0.3)
+    (data,) = [p for p in (tmp_path / "bag").iterdir() if p.suffix == ".db3"]
+    for command in ("run", "smooth"):
+        result = runner.invoke(app, [command, str(data), "--out", str(tmp_path / "bag" / "res")])
+        assert "lies inside the input" in _error_line(result)
+    assert sorted(p.name for p in (tmp_path / "bag").iterdir()) == ["bag.db3", "metadata.yaml"]
+
+
 def test_smooth_noise_free_recovers_the_truth(tmp_path) -> None:
     out = tmp_path / "smooth"
     args = ["smooth", "--scenario", "paper-loop", "--out", str(out), "--epochs", "10"]

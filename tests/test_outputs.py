@@ -38,6 +38,20 @@ def test_success_moves_into_place_and_overwrite_replaces_whole(tmp_path: Path) -
     assert (target / "new.tum").exists()
 
 
+def test_a_folder_of_other_files_is_named_as_such_without_overwrite_too(tmp_path: Path) -> None:
+    """It was 'already holds results (notes.txt); overwrite=True replaces it', and with
+    overwrite=True then refused: now the true reason at once, the file untouched."""
+    target = tmp_path / "out"
+    target.mkdir()
+    (target / "notes.txt").write_text("mine")
+    for overwrite in (False, True):
+        with pytest.raises(OutputError, match="holds 'notes.txt', which planodom does not") as err:
+            with atomic_folder(target, overwrite=overwrite, owned=lambda p: p.suffix == ".tum"):
+                pass
+        assert not isinstance(err.value, OutputExistsError)
+    assert [p.name for p in target.iterdir()] == ["notes.txt"]
+
+
 def test_inputs_are_never_outputs(tmp_path: Path) -> None:
     (tmp_path / "ds" / "scans").mkdir(parents=True)
     for out, relation in [("ds", "is"), ("ds/scans", "lies inside"), (".", "contains")]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planodom.errors import DatasetError
+from planodom.errors import DatasetError, GeometryError
 from planodom.rig import MotionBounds, Rig
 from planodom.simulation import isoclinal_rig, lidar_rig
 
@@ -49,6 +49,27 @@ def test_bad_fields_fail_in_one_line_naming_source_and_field(data, message) -> N
     with pytest.raises(DatasetError, match=message) as err:
         Rig.from_dict(data, source="my/rig.yaml")
     assert str(err.value).startswith("my/rig.yaml: ") and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        (
+            {"sensor_origins": np.zeros((3, 2))},
+            r"sensor_origins must have shape \(S, 3\) or \(3,\)",
+        ),
+        ({"sensor_origins": np.zeros((2, 2))}, r"sensor_origins must have shape .* got \(2, 2\)"),
+        ({"sensor_origins": [[0, 0, np.inf]]}, "sensor_origins must be finite"),
+        ({"sensor_origins": "front"}, "sensor_origins must be numbers, got str"),
+        ({"extrinsics": (np.eye(3),)}, r"extrinsics must be \(4, 4\) each, got \(3, 3\)"),
+    ],
+)
+def test_a_rig_built_in_code_refuses_what_it_cannot_hold(fields, message) -> None:
+    """A (3, 2) array of origins was reshaped to (2, 3), two made-up sensor positions; a
+    (2, 2) one ended in numpy's reshape ValueError."""
+    with pytest.raises(GeometryError, match=rf"^Rig: {message}"):
+        Rig(**fields)
+    assert Rig(sensor_origins=np.zeros((0, 3))).sensor_origins.shape == (0, 3)
 
 
 @pytest.mark.parametrize("sensors", [isoclinal_rig(), lidar_rig(16)])

@@ -107,8 +107,15 @@ def simulate(
 
 
 def _inputs(source: Source, config: Path | None) -> list[Path]:
-    """The files and folders a run reads, which its results may not touch."""
-    return [p for p in (source.dataset, config) if p is not None]
+    """The files and folders a run reads, which its results may not touch (for a ROS 2
+    bag's .db3 / .mcap file, its bag folder: results were written into it)."""
+    from planodom.datasets.bag_index import is_bag
+
+    inputs = [p for p in (source.dataset, config) if p is not None]
+    given = source.dataset
+    if given is not None and given.suffix in (".db3", ".mcap") and is_bag(given.parent):
+        inputs.append(given.parent)
+    return inputs
 
 
 def _report_skipped(data: ScanEpochs, metrics: dict) -> None:

@@ -173,8 +173,11 @@ def simulate_scene(
     motion: str,
     handheld: bool = False,
 ):
+    from planodom.errors import ConfigError
     from planodom.simulation import simulate_named
 
+    if epochs is not None and epochs < 1:  # before simulating; it named a temporary folder
+        raise ConfigError(f"--epochs {epochs}: expected 1 or more (default: one lap)")
     try:
         sigma: float | str = float(noise)
     except ValueError:

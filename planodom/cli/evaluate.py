@@ -3,6 +3,7 @@ into the dataset format)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -20,7 +21,7 @@ from planodom.cli.common import (
     console,
     reports_errors,
 )
-from planodom.errors import ConfigError
+from planodom.errors import ConfigError, DatasetError, GeometryError
 
 ALIGNMENTS = ("none", "origin", "se3", "4dof")
 
@@ -61,13 +62,26 @@ def evaluate(
         raise ConfigError(f"--align: expected one of {', '.join(ALIGNMENTS)}, got '{align}'")
     if not max_diff >= 0:
         raise ConfigError(f"--max-diff: expected seconds >= 0, got {max_diff}")
+    if not math.isfinite(offset):
+        raise ConfigError(f"--offset: expected a finite number of seconds, got {offset}")
     est, ref = read_trajectory(estimate), read_trajectory(truth)
     times, est_poses, ref_poses = associate(est, ref, max_diff, offset)
+    if len(times) < 2:
+        raise DatasetError(
+            f"{est.path}: {len(times)} pose matched with {ref.path}; errors over the "
+            "trajectory need 2 or more (see --max-diff and --offset)"
+        )
     if not 1 <= delta < len(times):
         raise ConfigError(
             f"--delta {delta}: the RPE step needs 1 <= delta < {len(times)} (the matched poses)"
         )
-    summary = evaluate(est_poses, ref_poses, align, delta)  # type: ignore[arg-type]
+    try:
+        summary = evaluate(est_poses, ref_poses, align, delta)  # type: ignore[arg-type]
+    except GeometryError as exc:  # e.g. se3 on poses along a line: name what was aligned
+        raise GeometryError(
+            f"--align {align}: {exc} ({len(times)} matched poses of {est.path} and "
+            f"{ref.path}; --align origin needs no spread)"
+        ) from None
     info: dict[str, object] = {"estimate": str(est.path), "reference": str(ref.path)}
     info |= {"align": align, "matched_poses": len(times), "estimate_poses": len(est.poses)}
     info |= {"reference_poses": len(ref.poses)}

@@ -54,6 +54,27 @@ def _levels(text: str) -> list[float]:
     return levels
 
 
+def _worlds(worlds: int) -> int:
+    """``--worlds``, or ConfigError: none (or fewer) ran nothing and wrote empty tables."""
+    from planodom.errors import ConfigError
+
+    if worlds < 1:
+        raise ConfigError(f"--worlds {worlds}: expected 1 or more worlds")
+    return worlds
+
+
+def _lap_epochs(epochs: int) -> int | None:
+    """``--epochs`` of a procedural-world experiment: None for 0 (one lap), or ConfigError
+    for a negative count or 1 (its errors are of steps between epochs)."""
+    from planodom.errors import ConfigError
+
+    if epochs == 0:
+        return None
+    if epochs < 2:
+        raise ConfigError(f"--epochs {epochs}: expected 0 (one lap) or 2 or more")
+    return epochs
+
+
 def _say(message: str) -> None:
     err_console.print(f"[dim]{message}[/]", highlight=False)
 
@@ -232,10 +253,11 @@ def experiment_generalisation(
     levels = noise or [0.0, 0.006, 0.02, 0.1]
     if quick:
         worlds, epochs, levels = 2, 25, (noise or [0.006])
+    worlds, n_epochs = _worlds(worlds), _lap_epochs(epochs)
     cfg = load_config(config)
     with _out_folder("generalisation", out, overwrite) as folder:
         result = run_generalisation_experiment(
-            folder, n_worlds=worlds, noise_levels=levels, n_epochs=epochs or None, config=cfg,
+            folder, n_worlds=worlds, noise_levels=levels, n_epochs=n_epochs, config=cfg,
             progress=_say, methods=chosen,
             rigs=("rig2d", "lidar") if rig == "all" else (rig,), first_world=first_world,
             motion=motion,
@@ -287,10 +309,11 @@ def experiment_loops(
     levels: tuple[float, ...] = (0.006, 0.02)
     if quick:
         worlds, epochs, levels = 1, 120, (0.006,)
+    worlds, n_epochs = _worlds(worlds), _lap_epochs(epochs)
     cfg = load_config(config)
     with _out_folder("loops", out, overwrite) as folder:
         result = run_loop_experiment(
-            folder, range(first_world, first_world + worlds), levels, epochs or None, cfg,
+            folder, range(first_world, first_world + worlds), levels, n_epochs, cfg,
             progress=_say,
         )  # fmt: skip
     _print_files(result.files)

@@ -32,7 +32,7 @@ import numpy as np
 from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
 from planodom.datasets.returns import RETURN_FIELDS, last_returns
-from planodom.datasets.scan_io import time_field_name
+from planodom.datasets.scan_io import integer_coordinates, time_field_name
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
@@ -134,6 +134,9 @@ def _decode_cloud(
     missing = [c for c in "xyz" if c not in names]
     if missing:
         raise ValueError(f"PointCloud2 without field(s) {', '.join(missing)}")
+    problem = integer_coordinates(cloud.dtype.fields)
+    if problem:
+        raise ValueError(f"PointCloud2 {problem}")
     points = np.column_stack([cloud[c].astype(np.float64) for c in "xyz"])
     valid = np.all(np.isfinite(points), axis=1) & np.any(points != 0.0, axis=1)
     ring_name = next((n for n in RING_FIELDS if n in names), None)

@@ -220,6 +220,7 @@ def write_dataset(
     *,
     extension: str = ".ply",
     points_dtype: type[np.floating] = np.float64,
+    inputs: Sequence[str | Path] = (),
 ) -> Dataset:
     """Write a dataset directory: ``scans/000000.ply``, ..., ``poses.tum`` or ``times.txt``,
     ``rig.yaml``.
@@ -240,6 +241,8 @@ def write_dataset(
             leaves the old one as it was.
         extension: ".ply" or ".pcd".
         points_dtype: np.float64 (exact) or np.float32 for the coordinates.
+        inputs: files and folders ``scans`` are read from (a bag): ``path`` may not be,
+            lie in or contain them (:class:`OutputError`, before anything is written).
 
     Returns:
         The written dataset, loaded back.
@@ -259,7 +262,9 @@ def write_dataset(
     if extension.lower() not in (".ply", ".pcd"):
         raise DatasetError(f"{root}: cannot write scans as '{extension}' (use .ply or .pcd)")
 
-    with atomic_folder(root, overwrite=overwrite, owned=is_dataset_entry, what="a dataset") as tmp:
+    with atomic_folder(
+        root, overwrite=overwrite, inputs=inputs, owned=is_dataset_entry, what="a dataset"
+    ) as tmp:
         scans_dir = tmp / SCANS_DIR
         scans_dir.mkdir()
         width = max(6, len(str(len(scans) - 1)))
@@ -377,6 +382,12 @@ def _scan_files(root: Path) -> list[Path]:
             raise DatasetError(f"{scans_dir} is empty: no scan files")
     else:
         files = [f for f in _files(root) if f.name not in (POSES_FILE, RIG_FILE, TIMES_FILE)]
+        scans = [f for f in files if f.suffix.lower() in SCAN_EXTENSIONS]
+        if not scans and (root / "velodyne").is_dir():  # a KITTI sequence but for calib.txt
+            raise DatasetError(
+                f"{root} has velodyne/ but no calib.txt: a KITTI sequence needs both (or give "
+                "velodyne/ itself, a folder of scans, without the KITTI camera frame)"
+            )
         if not files:
             raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files")
     unknown = sorted(f.name for f in files if f.suffix.lower() not in SCAN_EXTENSIONS)

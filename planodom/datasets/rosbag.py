@@ -362,10 +362,14 @@ def convert_bag(
     Raises:
         DatasetError: see :func:`open_bag`; ``out_dir`` already holds a dataset and not
             ``overwrite``.
+        OutputError: ``out_dir`` is, lies in or contains the bag (a ROS 2 bag's folder).
     """
     with open_bag(bag_path, options) as ds:
         counter = _CountingScans(ds)
-        write_dataset(out_dir, counter, ds.times, ds.gt_poses, ds.rig, overwrite=overwrite)
+        inputs = (bag_path, ds.path)  # a ROS 2 bag's .db3 / .mcap stands for its folder
+        write_dataset(
+            out_dir, counter, ds.times, ds.gt_poses, ds.rig, overwrite=overwrite, inputs=inputs
+        )
         return BagConversion(
             ds.path,
             Path(out_dir),

@@ -37,8 +37,9 @@ the last return of each firing (:mod:`planodom.datasets.returns`).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -174,6 +175,9 @@ def _scan_from_fields(
     missing = [c for c in "xyz" if c not in fields]
     if missing:
         raise DatasetError(f"{path}: no '{' '.join(missing)}' coordinates in the file")
+    problem = integer_coordinates({c: (fields[c].dtype,) for c in "xyz"})
+    if problem:
+        raise DatasetError(f"{path}: {problem}")
     with np.errstate(invalid="ignore"):  # signalling NaNs of a corrupt file
         points = np.column_stack([fields[c].astype(np.float64) for c in "xyz"]).reshape(-1, 3)
     returned = ~np.isnan(points).all(axis=1)  # PCL's no-return marker: all three NaN
@@ -212,6 +216,21 @@ def _scan_from_fields(
     if keep is not None:  # a multi-return cloud: the last return of each beam firing
         return Scan(points[keep], **{name: values[keep] for name, values in extra.items()})
     return Scan(points, **extra)
+
+
+def integer_coordinates(fields: Mapping[str, Any] | None) -> str | None:
+    """Why coordinates ``x y z`` of these fields (``{name: (dtype, ...)}``, as numpy's
+    ``dtype.fields``) cannot be read as metres, or None: integer types carry a scale the
+    file does not state (millimetres? a driver's fixed point?), and a ``uchar x`` is no
+    metre at all; read as metres they gave a cloud of garbage that nothing refused."""
+    kinds = {c: np.dtype(fields[c][0]) for c in "xyz" if fields and c in fields}
+    ints = [c for c, dtype in kinds.items() if dtype.kind not in "f"]
+    if not ints:
+        return None
+    return (
+        f"coordinate field '{ints[0]}' is {kinds[ints[0]]}, not a float: planodom reads x y "
+        "z as float32 or float64 metres (convert integer coordinates with their scale)"
+    )
 
 
 def time_field_name(names: Sequence[str], time_field: str) -> str | None:

@@ -94,8 +94,8 @@ def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     back = np.flatnonzero(np.diff(times) <= 0)
     if back.size:
         raise DatasetError(
-            f"{path}:{lines[back[0] + 1]}: time {times[back[0] + 1]!r} does not increase "
-            f"(previous {times[back[0]]!r})"
+            f"{path}:{lines[back[0] + 1]}: time {float(times[back[0] + 1])!r} does not "
+            f"increase (previous {float(times[back[0]])!r})"
         )
     poses = np.tile(np.eye(4), (len(times), 1, 1))
     poses[:, :3, :3] = Rotation.from_quat(quat / norm[:, None]).as_matrix()

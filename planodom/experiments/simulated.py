@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planodom.config import PlanodomConfig
+from planodom.errors import ConfigError
 from planodom.geometry import Plane, invert_transform
 from planodom.simulation import SimulatedRun, simulate_named
 
@@ -30,6 +31,14 @@ class Simulation:
     seed: int = 1
     n_epochs: int | None = None
     motion: str = "snapshot"
+
+    def __post_init__(self) -> None:
+        # 0 epochs ended in an IndexError, 1 in tables of NaN: the errors are of steps
+        if self.n_epochs is not None and not self.n_epochs >= 2:
+            raise ConfigError(
+                f"--epochs {self.n_epochs}: an experiment measures the steps between "
+                "epochs, so it needs 2 or more"
+            )
 
 
 @dataclass(frozen=True, eq=False)

@@ -30,7 +30,7 @@ from planodom.extraction.planes.builder import PlaneFits, build_planes
 from planodom.extraction.planes.fit import tls_fit
 from planodom.extraction.rig2d.path import rig2d_planes
 from planodom.geometry import Plane
-from planodom.scan import Scan
+from planodom.scan import Scan, check_is_scan
 
 #: Largest coordinate (m) accepted; beyond it squares lose all precision.
 MAX_COORDINATE_M = 1e6
@@ -152,6 +152,7 @@ def _result(found: PathResult, mode: str, points: np.ndarray) -> ExtractionResul
 def _check_inputs(scan: Scan, sensor_origins: np.ndarray | None) -> np.ndarray | None:
     """``sensor_origins`` as an (S, 3) float64 array (None stays None) after checking the
     scan's points, times and the origins; raises :class:`GeometryError`."""
+    check_is_scan(scan)
     _check_points_times(scan.points, scan.t)
     if sensor_origins is None:
         return None

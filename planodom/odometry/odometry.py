@@ -37,13 +37,14 @@ from planodom.odometry.deskew import (
     time_spread,
     twist_offset,
 )
+from planodom.odometry.epoch_time import next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
 from planodom.planes import PlaneSet
-from planodom.scan import Scan
+from planodom.scan import Scan, check_is_scan
 
 if TYPE_CHECKING:
     from planodom.odometry.planemap import PlaneMapOdometry
@@ -158,6 +159,7 @@ class PlaneOdometry:
                 and kept unless :func:`planodom.odometry.deskew.prefer_streaming` says
                 ``scan`` deskewed as usual might do better.
         """
+        check_is_scan(scan)
         t = self._next_time(time)
         k = len(self.poses)
         if k == 0:
@@ -224,11 +226,8 @@ class PlaneOdometry:
             self._map = PlaneMapOdometry(self.config)
 
     def _next_time(self, time: float | None) -> float:
-        if time is not None:
-            return float(time)
-        if not self.times:
-            return 0.0
-        return self.times[-1] + self.config.odometry.epoch_period_s
+        """:func:`.epoch_time.next_epoch_time` of this odometry's epochs."""
+        return next_epoch_time(time, self.times, self.config.odometry.epoch_period_s)
 
     def _extract(
         self, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,

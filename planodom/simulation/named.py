@@ -8,7 +8,7 @@ from planodom.errors import ConfigError
 from planodom.simulation.random_world import random_world, simulate_world
 from planodom.simulation.rigs import RIGS, SensorRig, rig_from_name
 from planodom.simulation.scene import Scene
-from planodom.simulation.simulate import SimulatedRun, simulate
+from planodom.simulation.simulate import SimulatedRun, check_seed, simulate
 from planodom.simulation.trajectory import (
     Trajectory,
     paper_loop_trajectory,
@@ -81,6 +81,7 @@ def simulate_named(
             trajectory. trajectory: overrides it (required for a custom :class:`Scene`).
         handheld: a random scene's route walked with a hand-held lidar (random scenes only).
     """
+    check_seed(seed)
     if isinstance(scene, str) and scene in RANDOM_SCENES and trajectory is None:
         return simulate_random(scene, rig, noise, seed, n_epochs, motion, handheld)
     if handheld:

@@ -12,6 +12,7 @@ All rays of an epoch go to Embree in one call.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -226,6 +227,13 @@ def resolve_noise(noise: float | str | None, rig: SensorRig) -> SensorRig:
     return rig.with_noise(float(noise))
 
 
+def check_seed(seed: object) -> int:
+    """``seed`` if it is an integer >= 0 (what numpy's generators take), else ConfigError."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise ConfigError(f"seed: expected an integer >= 0, got {seed!r} (--seed)")
+    return int(seed)
+
+
 def simulate(
     scene: Scene,
     trajectory: Trajectory,
@@ -248,6 +256,7 @@ def simulate(
         start_time: t_0, seconds.
     """
     rig = resolve_noise(noise_sigma, rig)
+    check_seed(seed)
     if n_epochs is None:
         span = duration if duration is not None else trajectory.duration
         n_epochs = int(np.floor(span * epoch_rate + 1e-9))

@@ -11,6 +11,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.errors import GeometryError
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats
@@ -318,6 +319,20 @@ def _covariances(
     return estimate, covariances, note, components
 
 
+def _check_epochs(epochs_planes: Sequence[Sequence[Plane]]) -> None:
+    """GeometryError for no epochs (numpy's 'need at least one array to stack') or an
+    epoch that is not a list of planes (an (E, 3) array was smoothed as planes of floats)."""
+    if len(epochs_planes) == 0:
+        raise GeometryError("smooth_batch: no epochs to smooth")
+    for k, planes in enumerate(epochs_planes):
+        bad = next((p for p in planes if not isinstance(p, Plane)), None)
+        if bad is not None:
+            raise GeometryError(
+                f"smooth_batch: epoch {k} holds a {type(bad).__name__}, not planodom.Plane "
+                "objects (epochs_planes: one list of planes per epoch)"
+            )
+
+
 def smooth_batch(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
@@ -339,6 +354,7 @@ def smooth_batch(
         landmarks and the graph's statistics.
     """
     cfg = smoothing_config(config)
+    _check_epochs(epochs_planes)
     start = time.perf_counter()
     builder = _builder(epochs_planes, relative_poses, config, T_world_first)
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()

@@ -23,13 +23,37 @@ def test_a_folder_with_other_files_is_refused_before_running(tmp_path):
     result = runner.invoke(app, [*PAPER, "--out", str(out)])
     assert result.exit_code == 2
     message = result.output.strip()
-    assert message.startswith("error:") and str(out) in message and "--overwrite" in message
+    assert message.startswith("error:") and str(out) in message and "notes.txt" in message
+    assert "--overwrite" not in message  # it would refuse the folder too
     assert [p.name for p in out.iterdir()] == ["notes.txt"]
     assert (out / "notes.txt").read_text() == "keep me"
     # --overwrite does not delete a file no experiment writes
     result = runner.invoke(app, [*PAPER, "--out", str(out), "--overwrite"])
     assert result.exit_code == 2 and "notes.txt" in result.output
     assert (out / "notes.txt").read_text() == "keep me"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["paper", "--epochs", "0", "--levels", "0"], "--epochs 0: an experiment measures"),
+        (["paper", "--epochs", "1", "--levels", "0"], "--epochs 1: an experiment measures"),
+        (["smoothing", "--epochs", "1"], "--epochs 1: an experiment measures the steps"),
+        (["consistency", "--epochs", "0"], "--epochs 0: an experiment measures the steps"),
+        (["generalisation", "--worlds", "0"], "--worlds 0: expected 1 or more worlds"),
+        (["generalisation", "--epochs", "1"], "--epochs 1: expected 0 (one lap) or 2 or more"),
+        (["loops", "--worlds", "-2"], "--worlds -2: expected 1 or more worlds"),
+        (["loops", "--epochs", "-3"], "--epochs -3: expected 0 (one lap) or 2 or more"),
+    ],
+)
+def test_counts_that_measure_nothing_are_refused_before_a_folder_is_made(tmp_path, args, message):
+    """--epochs 0 ended in an IndexError traceback, --epochs 1 in tables of NaN, and
+    --worlds 0 (or fewer) wrote empty tables with exit status 0."""
+    out = tmp_path / "e"
+    result = runner.invoke(app, ["experiment", *args, "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    assert result.output.strip().startswith(f"error: {message}")
+    assert len(result.output.strip().splitlines()) == 1 and not out.exists()
 
 
 def test_overwrite_replaces_an_earlier_experiment(tmp_path):

@@ -158,6 +158,15 @@ def test_cloud_that_does_not_fit_its_data() -> None:
         decode_sweep(msg, POINT_CLOUD2)
 
 
+def test_cloud_with_integer_coordinates_is_refused_naming_the_field() -> None:
+    """int16 millimetres (or a uint8 x) were read as metres, a cloud of garbage."""
+    rows = np.zeros(2, dtype=np.dtype([("x", "<f4"), ("y", "<i2"), ("z", "<f4")]))
+    rows["y"] = [1200, -300]
+    msg = cloud([("x", 0, 7), ("y", 4, 3), ("z", 6, 7)], rows, 10, 0)
+    with pytest.raises(ValueError, match=r"^PointCloud2 coordinate field 'y' is int16, not a"):
+        decode_sweep(msg, POINT_CLOUD2)
+
+
 def tf_msg(parent: str, child: str, xyz: tuple[float, float, float], yaw: float = 0.0) -> NS:
     q = Rotation.from_euler("z", yaw).as_quat()
     tr = NS(translation=NS(x=xyz[0], y=xyz[1], z=xyz[2]),

@@ -17,6 +17,7 @@ from planodom.datasets.kitti import (
     read_kitti_poses,
     write_kitti_camera_poses,
 )
+from planodom.datasets.recording import open_recording
 from planodom.errors import DatasetError
 from planodom.metrics_kitti import kitti_segment_errors
 
@@ -68,6 +69,55 @@ def test_sequence_errors(tmp_path: Path) -> None:
     (seq / "calib.txt").write_text("Tr: 1 2 3\n")
     with pytest.raises(DatasetError, match=r"calib.txt:1: 'Tr' must hold 12"):
         load_kitti_sequence(seq)
+
+
+KITTI_IDENTITY = "1 0 0 0 0 1 0 0 0 0 1 0"
+
+
+def test_sequence_without_calib_says_so(tmp_path: Path) -> None:
+    """It said '<seq> has no scans/ directory and no scan files' (read as a dataset)."""
+    seq = make_sequence(tmp_path, poses_beside=True)
+    (seq / "calib.txt").unlink()
+    with pytest.raises(DatasetError, match=r"07 has velodyne/ but no calib.txt: a KITTI"):
+        open_recording(seq)
+
+
+@pytest.mark.parametrize(
+    ("rotation", "problem"),
+    [
+        ("0 0 0 0 0 0 0 0 0", "column norms 0, 0, 0, not 1"),  # was a LinAlgError traceback
+        ("2 0 0 0 1 0 0 0 1", "column norms 2, 1, 1, not 1"),  # was used as a pose
+        ("-1 0 0 0 1 0 0 0 1", "a reflection"),
+        ("1 0.6 0 0 0.8 0 0 0 1", "not orthogonal"),
+    ],
+)
+def test_calib_tr_that_is_no_rigid_transform_is_refused(
+    tmp_path: Path, rotation: str, problem: str
+) -> None:
+    seq = make_sequence(tmp_path, poses_beside=True)
+    r = rotation.split()
+    tr = " ".join(r[0:3] + ["0.1"] + r[3:6] + ["0.2"] + r[6:9] + ["0.3"])
+    (seq / "calib.txt").write_text(f"P0: {KITTI_IDENTITY}\nTr: {tr}\n")
+    with pytest.raises(
+        DatasetError, match=rf"calib.txt:2: 'Tr' is not a rigid transform .*{problem}"
+    ):
+        load_kitti_sequence(seq)
+
+
+def test_pose_file_line_that_is_no_rigid_pose_is_refused(tmp_path: Path) -> None:
+    """A scaled rotation block (a typo, a projection matrix) was read as a pose: every
+    metric against it silently wrong. KITTI's own 6-digit rotations stay accepted."""
+    path = tmp_path / "poses.txt"
+    six_digits = (  # a rotation in KITTI's %e with 7 significant digits: R^T R off by ~1e-6
+        "9.999978e-01 5.272628e-04 -2.066935e-03 -4.690294e-02 -5.296506e-04 "
+        "9.999992e-01 -1.154865e-03 -2.839928e-02 2.066324e-03 1.155958e-03 9.999971e-01 "
+        "8.586941e-01"
+    )
+    path.write_text(f"{KITTI_IDENTITY}\n{six_digits}\n\n1.5 0 0 0 0 1 0 0 0 0 1 0\n")
+    with pytest.raises(DatasetError, match=r"poses.txt:4: not a rigid pose .*1.5, 1, 1.*1 such"):
+        read_kitti_poses(path)
+    path.write_text(f"{KITTI_IDENTITY}\n{six_digits}\n")
+    assert read_kitti_poses(path)[1, 2, 3] == 8.586941e-01
 
 
 # ------------------------------------------------------------------ segment errors

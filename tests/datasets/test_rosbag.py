@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 from planodom.datasets import load_dataset
 from planodom.datasets.bag_options import BagOptions
 from planodom.datasets.rosbag import convert_bag, open_bag
-from planodom.errors import DatasetError
+from planodom.errors import DatasetError, OutputError
 from planodom.geometry import invert_transform
 
 
@@ -156,6 +156,19 @@ def test_convert_bag_writes_a_dataset(ros1_bag: tuple[Path, Truth], tmp_path: Pa
     rings = {0: "/scan_front", 1: "/scan_left", 2: "/scan_rear"}
     check_against_truth(ds, list(ds), truth, rings)
     assert np.allclose(ds.rig.sensor_origins[2], T_BASE["laser_rear"][:3, 3])
+
+
+def test_convert_refuses_to_write_into_a_ros2_bag_folder(tmp_path: Path) -> None:
+    """``convert BAG BAG/out`` (or ``BAG/data.db3 BAG/out``) wrote the dataset into the
+    bag's own folder; ``run`` refused the same, as the README says."""
+    write_bag(tmp_path / "bag", 2, SCANNERS[:1], STATIC_TF, T_BASE, duration_s=0.3)
+    before = sorted(p.name for p in (tmp_path / "bag").iterdir())
+    (data,) = [p for p in (tmp_path / "bag").iterdir() if p.suffix == ".db3"]
+    for given in (tmp_path / "bag", data):
+        with pytest.raises(OutputError, match=r"bag/out: the output folder lies inside the input"):
+            convert_bag(given, tmp_path / "bag" / "out")
+    assert sorted(p.name for p in (tmp_path / "bag").iterdir()) == before
+    assert convert_bag(data, tmp_path / "ds").epochs == 3  # beside it: fine
 
 
 def test_convert_without_reference_keeps_the_bag_times(ros1_bag, tmp_path: Path) -> None:

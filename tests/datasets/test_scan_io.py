@@ -189,6 +189,21 @@ def test_nan_points_are_rejected_with_count(tmp_path: Path, ext: str) -> None:
         read_scan(tmp_path / f"nan{ext}")
 
 
+@pytest.mark.parametrize("ext", [".ply", ".pcd"])
+@pytest.mark.parametrize("dtype", [np.uint8, np.int16, np.int32])
+def test_integer_coordinates_are_refused_naming_field_and_type(
+    tmp_path: Path, ext: str, dtype: type
+) -> None:
+    """A ``uchar x`` (or millimetres as int32) was read as metres: a cloud of garbage
+    that nothing refused."""
+    xyz = {"x": np.arange(5, dtype=dtype), "y": np.ones(5, np.float32)}
+    xyz["z"] = np.zeros(5, np.float32)
+    (write_ply_vertices if ext == ".ply" else write_pcd)(tmp_path / f"i{ext}", xyz)
+    expected = rf"i\{ext}: coordinate field 'x' is {np.dtype(dtype)}, not a float: "
+    with pytest.raises(DatasetError, match=expected):
+        read_scan(tmp_path / f"i{ext}")
+
+
 def test_missing_scan_file(tmp_path: Path) -> None:
     with pytest.raises(DatasetError, match="nothere.ply"):
         read_scan(tmp_path / "nothere.ply")

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from planes_factory import noisy, observe, random_motion, world_planes
 
 from planodom.config import PlanodomConfig
+from planodom.errors import GeometryError
 from planodom.geometry import (
     Plane,
     invert_transform,
@@ -167,6 +168,28 @@ def trajectory(n: int, seed: int = 0):
         poses.append(transform_from_rpy_xyz(0.01 * np.sin(k), 0.01 * np.cos(0.7 * k), yaw,
                                             0.1 * k, 0.002 * k**2, 0.0))  # fmt: skip
     return world, poses
+
+
+@pytest.mark.parametrize("bad", [0.1, 0.05, float("nan"), float("inf")])
+def test_epoch_time_not_after_the_previous_is_refused(bad):
+    """An epoch at the previous epoch's time, before it, or at a non-finite time was
+    registered as if nothing were wrong (a zero or negative step has no velocity: the
+    deskewing and the constant-velocity bridge silently wrong); now a GeometryError naming
+    the epoch and both times, and nothing is registered."""
+    world, poses = trajectory(3)
+    odo = PlaneOdometry(config())
+    odo.register_planes(observe(world, poses[0]), time=0.0)
+    odo.register_planes(observe(world, poses[1]), time=0.1)
+    expected = (
+        rf"^epoch 2: time {bad!r} s is not a finite time after the previous epoch's 0.1 s; "
+        "epoch times must increase$"
+    )
+    with pytest.raises(GeometryError, match=expected):
+        odo.register_planes(observe(world, poses[2]), time=bad)
+    assert len(odo.poses) == len(odo.times) == len(odo.results) == 2
+    first = PlaneOdometry(config())
+    with pytest.raises(GeometryError, match="epoch 0: time nan s is not a finite time; "):
+        first.register_planes(observe(world, poses[0]), time=float("nan"))
 
 
 def test_streaming_chain_equals_truth_and_cv_bridges_unresolved_epochs():

@@ -23,3 +23,12 @@ def test_handheld_random_scene_walks_the_worlds_route():
 def test_handheld_refused_outside_random_scenes():
     with pytest.raises(ConfigError):
         simulate_named("paper-loop", handheld=True, n_epochs=2)
+
+
+@pytest.mark.parametrize("scene", ["paper-loop", "random"])
+@pytest.mark.parametrize("seed", [-1, 1.5, True])
+def test_seed_that_numpy_refuses_is_a_config_error_naming_it(scene, seed):
+    """numpy's generators take integers >= 0 only: a negative seed used to end in a
+    ValueError traceback from deep inside numpy (``simulate --scene random --seed -1``)."""
+    with pytest.raises(ConfigError, match=r"^seed: expected an integer >= 0, got .*--seed"):
+        simulate_named(scene, None, seed=seed, n_epochs=2)

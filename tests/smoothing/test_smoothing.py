@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig, SmoothingConfig
-from planodom.errors import ConfigError
+from planodom.errors import ConfigError, GeometryError
 from planodom.geometry import Plane, make_transform
 from planodom.odometry import Status
 from planodom.smoothing import LandmarkTracker, WindowedSmoother, smooth_batch, smooth_windowed
@@ -340,3 +340,12 @@ def test_every_relative_pose_knows_whether_its_epoch_was_spread_in_time() -> Non
     given = relative_poses(seq.planes, cfg, [2], odo.poses, time_spread=flags)
     assert given and all(r.time_spread is flags[r.curr] for r in given)
     assert all(r.time_spread is None for r in relative_poses(seq.planes, cfg, [2], odo.poses))
+
+
+def test_smooth_batch_refuses_no_epochs_and_epochs_that_are_no_plane_lists() -> None:
+    """No epochs ended in numpy's 'need at least one array to stack'; an (E, 3) array
+    given as the epochs' planes was smoothed as planes of floats, without a word."""
+    with pytest.raises(GeometryError, match=r"^smooth_batch: no epochs to smooth$"):
+        smooth_batch([], [])
+    with pytest.raises(GeometryError, match=r"^smooth_batch: epoch 0 holds a float64, not "):
+        smooth_batch(np.zeros((3, 3)), [])
