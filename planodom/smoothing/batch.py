@@ -13,6 +13,7 @@ from scipy.stats import chi2
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
+from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.graph import GraphBuilder, GraphStats
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
 from planodom.smoothing.loop_gate import (
@@ -29,6 +30,7 @@ from planodom.smoothing.loop_records import (
 )
 from planodom.smoothing.loops import LoopClosingBuilder
 from planodom.smoothing.marginals import pose_covariances
+from planodom.smoothing.sandwich import sandwich_covariances
 from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
 
 
@@ -63,6 +65,7 @@ class SmoothingResult:
             (:mod:`planodom.smoothing.loop_candidates`), with the gate's verdict.
         variance_components: ``smoothing.covariance_scale``: the noise models' variance
             factors estimated from the residuals (:mod:`.variance_components`).
+        covariance_s: wall time of the covariances (part of ``runtime_s``), seconds.
     """
 
     poses: np.ndarray
@@ -79,6 +82,7 @@ class SmoothingResult:
     loop_matches: list[LoopMatch] = field(default_factory=list)
     loop_factors: list[LoopFactor] = field(default_factory=list)
     variance_components: VarianceComponents | None = None
+    covariance_s: float = 0.0
 
 
 def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> SmoothingConfig:
@@ -283,6 +287,52 @@ def _builder(
     return builder
 
 
+def covariance_graph_index(
+    graph: gtsam.NonlinearFactorGraph, cov_graph: gtsam.NonlinearFactorGraph
+) -> dict[int, int]:
+    """Index in ``graph`` -> index in its :func:`covariance_graph` ``cov_graph`` (which
+    leaves out removed factors, unless it is ``graph`` itself)."""
+    if cov_graph is graph:
+        return {i: i for i in range(graph.size())}
+    kept = [i for i in range(graph.size()) if graph.at(i) is not None]
+    return {i: j for j, i in enumerate(kept)}
+
+
+def deskew_motion_change(
+    relative_poses: Sequence[RelativePose], n_epochs: int, half_window: int = 2
+) -> np.ndarray:
+    """(E, 6, 6) each epoch's covariance of its change of motion over its span
+    (:meth:`.DeskewNoise.plane_motion_change`, from the run's own delta = 1 steps; zero for
+    an epoch taken at one instant)."""
+    model = DeskewNoise(half_window=half_window, plane_jacobian=True)
+    for rel in relative_poses:
+        model.add(rel)
+    out = [model.plane_motion_change(k) for k in range(n_epochs)]
+    return np.stack([np.zeros((6, 6)) if q is None else q for q in out])
+
+
+def _sandwich(
+    builder: GraphBuilder,
+    graph: gtsam.NonlinearFactorGraph,
+    cov_graph: gtsam.NonlinearFactorGraph,
+    planes: Mapping[int, tuple[int, Plane]],
+    relative_poses: Sequence[RelativePose],
+    estimate: gtsam.Values,
+    n_epochs: int,
+) -> tuple[np.ndarray, str | None]:
+    """``smoothing.covariance_model`` "sandwich": (E, 6, 6) and a note
+    (:func:`.sandwich.sandwich_covariances`)."""
+    cfg = builder.config
+    index = covariance_graph_index(graph, cov_graph)
+    mapped = {index[i]: obs for i, obs in planes.items() if i in index}
+    Q = deskew_motion_change(relative_poses, n_epochs)
+    out, note = sandwich_covariances(
+        cov_graph, estimate, n_epochs, mapped, Q, cfg.covariances_relative_to_first,
+        cfg.prior_sigma,
+    )  # fmt: skip
+    return out.covariances, note
+
+
 def _covariances(
     builder: GraphBuilder,
     graph: gtsam.NonlinearFactorGraph,
@@ -290,14 +340,28 @@ def _covariances(
     fallback: list[int],
     estimate: gtsam.Values,
     n_epochs: int,
+    planes: Mapping[int, tuple[int, Plane]] | None = None,
+    relative_poses: Sequence[RelativePose] = (),
 ) -> tuple[gtsam.Values, np.ndarray | None, str | None, VarianceComponents | None]:
     """The poses' marginal covariances at ``estimate`` (:func:`covariance_graph`), from
     the graph reweighted by its variance components with ``smoothing.covariance_scale``
-    (then also the estimate it was resolved to); a note instead when gtsam finds the
-    system indeterminant. Returns (estimate, covariances, note, components)."""
+    (then also the estimate it was resolved to), or the sandwich covariances with
+    ``smoothing.covariance_model`` "sandwich" (``planes``: the plane factors' epochs and
+    planes, ``relative_poses``: the run's, for the changes of motion); a note instead when
+    gtsam finds the system indeterminant. Returns (estimate, covariances, note,
+    components)."""
     cfg = builder.config
     cov_graph = covariance_graph(graph, gaussian, estimate, cfg.covariance_inlier_quantile)
     linear, components = None, None
+    if cfg.covariance_model == "sandwich":
+        try:
+            covariances, note = _sandwich(
+                builder, graph, cov_graph, planes or {}, relative_poses, estimate, n_epochs
+            )
+        except np.linalg.LinAlgError as exc:
+            note = "sandwich covariances unavailable: " + " ".join(str(exc).split()[:14])
+            return estimate, None, note, None
+        return estimate, covariances, note, None
     try:
         if cfg.covariance_scale != "none":
             loops = [f.factor for f in getattr(builder, "loop_factors", ())]
@@ -344,6 +408,7 @@ def smooth_batch(
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     gaussian: dict[int, gtsam.NonlinearFactor] = {}
     fallback: list[int] = []  # indices of the fallback factors
+    plane_factors: dict[int, tuple[int, Plane]] = {}  # their epochs and planes
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
     for k, planes in enumerate(epochs_planes):
         n_reids = len(getattr(builder, "reidentifications", ()))
@@ -352,6 +417,7 @@ def smooth_batch(
             r.factor += graph.size()
         gaussian |= {graph.size() + i: f for i, f in update.gaussian.items()}
         fallback += [graph.size() + i for i in update.fallback]
+        plane_factors |= {graph.size() + i: obs for i, obs in update.planes.items()}
         graph.push_back(update.factors)
         values.insert(update.values)
     initial = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
@@ -363,11 +429,14 @@ def smooth_batch(
     )  # fmt: skip
     if isinstance(builder, LoopClosingBuilder):
         estimate = _gated(builder, graph, gaussian, values, estimate, errors)
-    covariances, note, components = None, None, None
+    covariances, note, components, covariance_s = None, None, None, 0.0
     if cfg.compute_covariances:
+        cov_start = time.perf_counter()
         estimate, covariances, note, components = _covariances(
-            builder, graph, gaussian, fallback, estimate, len(epochs_planes)
-        )
+            builder, graph, gaussian, fallback, estimate, len(epochs_planes), plane_factors,
+            relative_poses,
+        )  # fmt: skip
+        covariance_s = time.perf_counter() - cov_start
     builder.update_estimates(estimate)
     poses = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
     return SmoothingResult(
@@ -384,4 +453,5 @@ def smooth_batch(
         loop_matches=list(getattr(builder, "matches", [])),
         loop_factors=list(getattr(builder, "loop_factors", [])),
         variance_components=components,
+        covariance_s=covariance_s,
     )

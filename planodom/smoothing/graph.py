@@ -67,7 +67,9 @@ F = gtsam.symbol_shorthand.F  # an epoch's deskewed frame (smoothing.deskew_nois
 class GraphUpdate:
     """What one epoch adds: new factors, initial values of new variables, key timestamps;
     ``gaussian`` maps the index (in ``factors``) of each robust factor to its Gaussian twin
-    (``batch.covariance_graph``); ``fallback`` the fallback factors' indices."""
+    (``batch.covariance_graph``); ``fallback`` the fallback factors' indices; ``planes``
+    maps the index of each plane factor to its epoch and its (oriented) measured plane
+    (``smoothing.covariance_model`` "sandwich", :mod:`.sandwich`)."""
 
     epoch: int
     factors: gtsam.NonlinearFactorGraph
@@ -75,6 +77,7 @@ class GraphUpdate:
     timestamps: dict[int, float]
     gaussian: dict[int, gtsam.NonlinearFactor] = field(default_factory=dict)
     fallback: list[int] = field(default_factory=list)
+    planes: dict[int, tuple[int, Plane]] = field(default_factory=dict)
 
 
 @dataclass
@@ -140,6 +143,7 @@ class GraphBuilder:
         self.first_step: np.ndarray | None = None  # fallback before any measured step
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
         self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
+        self._plane_factors: dict[int, tuple[int, Plane]] = {}  # this epoch's (GraphUpdate)
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
         self.deskew = deskew_from_config(config.deskew_noise)
 
@@ -196,6 +200,7 @@ class GraphBuilder:
         self.planes[k] = planes
         update = GraphUpdate(k, gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
         self._gaussian = update.gaussian
+        self._plane_factors = update.planes
         usable = [
             r
             for r in relatives
@@ -392,6 +397,7 @@ class GraphBuilder:
         cov = plane_factor_covariance(plane, self.config, self.deskew, e)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
         key = F(e) if self.deskew is not None and e in self.deskew.frames else X(e)
+        self._plane_factors[graph.size()] = (e, plane)
         if lm.anchor_key is None:
             graph.add(plane_factor(key, lm.key, plane.coefficients, noise))
         else:
