@@ -316,18 +316,17 @@ def _sandwich(
     graph: gtsam.NonlinearFactorGraph,
     cov_graph: gtsam.NonlinearFactorGraph,
     planes: Mapping[int, tuple[int, Plane]],
-    relative_poses: Sequence[RelativePose],
+    Q: np.ndarray,
     estimate: gtsam.Values,
-    n_epochs: int,
 ) -> tuple[np.ndarray, str | None]:
     """``smoothing.covariance_model`` "sandwich": (E, 6, 6) and a note
-    (:func:`.sandwich.sandwich_covariances`)."""
+    (:func:`.sandwich.sandwich_covariances`; ``Q`` (E, 6, 6) the epochs' changes of
+    motion, :func:`deskew_motion_change`)."""
     cfg = builder.config
     index = covariance_graph_index(graph, cov_graph)
     mapped = {index[i]: obs for i, obs in planes.items() if i in index}
-    Q = deskew_motion_change(relative_poses, n_epochs)
     out, note = sandwich_covariances(
-        cov_graph, estimate, n_epochs, mapped, Q, cfg.covariances_relative_to_first,
+        cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
         cfg.prior_sigma,
     )  # fmt: skip
     return out.covariances, note
@@ -347,17 +346,21 @@ def _covariances(
     the graph reweighted by its variance components with ``smoothing.covariance_scale``
     (then also the estimate it was resolved to), or the sandwich covariances with
     ``smoothing.covariance_model`` "sandwich" (``planes``: the plane factors' epochs and
-    planes, ``relative_poses``: the run's, for the changes of motion); a note instead when
+    planes, ``relative_poses``: the run's, for the changes of motion; where no epoch has
+    one, e.g. scans taken at one instant, the fitted ones as they are); a note instead when
     gtsam finds the system indeterminant. Returns (estimate, covariances, note,
     components)."""
     cfg = builder.config
     cov_graph = covariance_graph(graph, gaussian, estimate, cfg.covariance_inlier_quantile)
     linear, components = None, None
-    if cfg.covariance_model == "sandwich":
+    Q = (
+        deskew_motion_change(relative_poses, n_epochs)
+        if cfg.covariance_model == "sandwich"
+        else None
+    )
+    if Q is not None and np.any(Q):  # (no change of motion, e.g. snapshot scans: fitted)
         try:
-            covariances, note = _sandwich(
-                builder, graph, cov_graph, planes or {}, relative_poses, estimate, n_epochs
-            )
+            covariances, note = _sandwich(builder, graph, cov_graph, planes or {}, Q, estimate)
         except np.linalg.LinAlgError as exc:
             note = "sandwich covariances unavailable: " + " ".join(str(exc).split()[:14])
             return estimate, None, note, None

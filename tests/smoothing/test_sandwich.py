@@ -3,11 +3,16 @@ inverse and the Monte-Carlo covariance of the estimator."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import gtsam
 import numpy as np
 import pytest
 
+from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.errors import ConfigError
 from planodom.geometry import Plane
+from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.graph import A, L, X
 from planodom.smoothing.marginals import pose_marginals
 from planodom.smoothing.sandwich import (
@@ -15,6 +20,7 @@ from planodom.smoothing.sandwich import (
     sandwich_covariances,
     sandwich_pose_covariances,
 )
+from planodom.smoothing.synthetic import make_sequence
 from planodom_factors.planes import (
     anchored_plane_factor,
     plane_factor,
@@ -195,3 +201,40 @@ def test_sandwich_is_the_estimators_monte_carlo_covariance() -> None:
         var_mc, var_sw = np.diag(mc[k]), np.diag(out.covariances[k])
         np.testing.assert_allclose(var_mc, var_sw, rtol=0.2)
         assert np.all(var_mc > 2.0 * np.diag(out.fitted[k]))
+
+
+@pytest.mark.parametrize("spread", [True, False])
+def test_batch_sandwich_keeps_the_poses(spread: bool) -> None:
+    """smooth_batch with covariance_model "sandwich": the same poses as "fitted"; the
+    covariances grow where the epochs' motion changes (scans spread in time) and are the
+    fitted ones, bit for bit, for scans taken at one instant."""
+    seq = make_sequence(30, seed=4, sigma_rotation=2e-4, sigma_translation=5e-3,
+                        sigma_normal=1e-3, sigma_offset=5e-3)  # fmt: skip
+    rng = np.random.default_rng(5)
+    planes = [[replace(p, deskew_jacobian=rng.normal(scale=0.2, size=(4, 6))) for p in ps]
+              for ps in seq.planes]  # fmt: skip
+    relatives = [replace(r, time_spread=spread) for r in seq.relatives]
+    base = SmoothingConfig(loop_closure=False)
+    fitted = smooth_batch(planes, relatives, base)
+    sandwich = smooth_batch(
+        planes, relatives, base.model_copy(update={"covariance_model": "sandwich"})
+    )
+    assert np.array_equal(fitted.poses, sandwich.poses)
+    assert fitted.covariances is not None and sandwich.covariances is not None
+    grown = np.diagonal(sandwich.covariances - fitted.covariances, axis1=1, axis2=2)[1:]
+    if spread:
+        assert np.all(grown > -1e-9 * np.diagonal(fitted.covariances, axis1=1, axis2=2)[1:])
+        assert np.median(grown / np.diagonal(fitted.covariances, axis1=1, axis2=2)[1:]) > 0.1
+    else:
+        assert np.array_equal(fitted.covariances, sandwich.covariances)
+
+
+def test_sandwich_config() -> None:
+    """The sandwich switches the planes' deskewing Jacobians on and refuses noise models
+    that already hold the deskewing error or are rescaled."""
+    cfg = PlanodomConfig().updated({"smoothing.covariance_model": "sandwich"})
+    assert cfg.extraction.deskew_jacobian
+    assert not PlanodomConfig().extraction.deskew_jacobian
+    for field, value in (("deskew_noise", "twist_change_jacobian"), ("covariance_scale", "groups")):
+        with pytest.raises(ConfigError, match="covariance_model"):
+            SmoothingConfig(covariance_model="sandwich", **{field: value})
