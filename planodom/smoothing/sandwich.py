@@ -58,6 +58,11 @@ ERROR_SIGN = {gtsam.OrientedPlane3Factor: 1.0, gtsam_unstable.LocalOrientedPlane
 #: Pose rows per chunk of ``Sigma B~`` (memory: chunk times the poses' dimension).
 CHUNK_ROWS = 1200
 
+#: ``B~`` is multiplied in dense form (BLAS) when more than this share of it is non-zero
+#: (a ground plane seen by every epoch fills it; scipy's sparse product is single-threaded
+#: and several times slower per non-zero than a dense one).
+DENSE_FRACTION = 0.1
+
 
 def plane_error_map(factor: gtsam.NonlinearFactor, plane: Plane) -> np.ndarray | None:
     """(3, 6) first-order change of a plane factor's whitened error with its epoch's change
@@ -180,19 +185,21 @@ def sandwich_pose_covariances(
         raise np.linalg.LinAlgError(f"pose information not invertible ({info})")
     sigma = np.triu(sigma)
     sigma += np.triu(sigma, 1).T  # the scaled Sigma, full
-    Bs = sp.diags(1.0 / d) @ Bt  # rows scaled: Sigma B~ = D^-1 Sigma_s D^-1 B~
-    BsT = Bs.T.tocsr()
+    # Q_k = L_k L_k^T folded into B~'s columns: the extra term's block i is then
+    # (Sigma B~ L)_i (Sigma B~ L)_i^T, one batched product per chunk of poses.
+    roots = [_psd_root(q) for q in np.asarray(motion_change, dtype=float)]
+    Bs = sp.diags(1.0 / d) @ Bt @ sp.block_diag(roots, format="csr")
+    if Bs.nnz > DENSE_FRACTION * n * n_cols:  # BLAS on the dense form is faster
+        Bs = Bs.toarray()
     E = len(pose_keys)
     fitted = np.empty((E, POSE_DIM, POSE_DIM))
     extra = np.empty((E, POSE_DIM, POSE_DIM))
-    Q = np.asarray(motion_change, dtype=float)
     for start in range(0, n, CHUNK_ROWS):
         stop = min(start + CHUNK_ROWS, n)
-        block = sigma[start:stop]  # (r, n)
-        T = (BsT @ block.T).T  # (r, 6K): scaled rows of Sigma B~
-        T3 = T.reshape((stop - start) // POSE_DIM, POSE_DIM, len(Q), POSE_DIM)
-        TQ = np.einsum("pakx,kxy->paky", T3, Q)
-        extra[start // POSE_DIM : stop // POSE_DIM] = np.einsum("paky,pbky->pab", TQ, T3)
+        block = sigma[start:stop]  # (r, n), the scaled Sigma's rows
+        T = np.asarray(Bs.T @ block.T).T  # (r, 6K): scaled rows of Sigma B~ L
+        T3 = T.reshape((stop - start) // POSE_DIM, POSE_DIM, n_cols)
+        extra[start // POSE_DIM : stop // POSE_DIM] = T3 @ T3.transpose(0, 2, 1)
         diag = block.reshape(-1, POSE_DIM, n // POSE_DIM, POSE_DIM)
         idx = np.arange(start // POSE_DIM, stop // POSE_DIM)
         fitted[idx] = diag[np.arange(len(idx)), :, idx, :]
@@ -205,6 +212,12 @@ def sandwich_pose_covariances(
             blocks[pose][axes, :] = np.nan
             blocks[pose][:, axes] = np.nan
     return SandwichMarginals(covariances, fitted, undetermined, len(error_maps))
+
+
+def _psd_root(q: np.ndarray) -> np.ndarray:
+    """(6, 6) ``L`` with ``L L^T = q`` for a positive semi-definite ``q``."""
+    w, V = np.linalg.eigh(0.5 * (q + q.T))
+    return V * np.sqrt(np.maximum(w, 0.0))
 
 
 def _eliminate(
