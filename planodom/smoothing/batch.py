@@ -13,7 +13,6 @@ from scipy.stats import chi2
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.graph import GraphBuilder, GraphStats
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
 from planodom.smoothing.loop_gate import (
@@ -30,7 +29,7 @@ from planodom.smoothing.loop_records import (
 )
 from planodom.smoothing.loops import LoopClosingBuilder
 from planodom.smoothing.marginals import pose_covariances
-from planodom.smoothing.sandwich import sandwich_covariances
+from planodom.smoothing.sandwich import batch_sandwich, deskew_motion_change
 from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
 
 
@@ -287,51 +286,6 @@ def _builder(
     return builder
 
 
-def covariance_graph_index(
-    graph: gtsam.NonlinearFactorGraph, cov_graph: gtsam.NonlinearFactorGraph
-) -> dict[int, int]:
-    """Index in ``graph`` -> index in its :func:`covariance_graph` ``cov_graph`` (which
-    leaves out removed factors, unless it is ``graph`` itself)."""
-    if cov_graph is graph:
-        return {i: i for i in range(graph.size())}
-    kept = [i for i in range(graph.size()) if graph.at(i) is not None]
-    return {i: j for j, i in enumerate(kept)}
-
-
-def deskew_motion_change(
-    relative_poses: Sequence[RelativePose], n_epochs: int, half_window: int = 2
-) -> np.ndarray:
-    """(E, 6, 6) each epoch's covariance of its change of motion over its span
-    (:meth:`.DeskewNoise.plane_motion_change`, from the run's own delta = 1 steps; zero for
-    an epoch taken at one instant)."""
-    model = DeskewNoise(half_window=half_window, plane_jacobian=True)
-    for rel in relative_poses:
-        model.add(rel)
-    out = [model.plane_motion_change(k) for k in range(n_epochs)]
-    return np.stack([np.zeros((6, 6)) if q is None else q for q in out])
-
-
-def _sandwich(
-    builder: GraphBuilder,
-    graph: gtsam.NonlinearFactorGraph,
-    cov_graph: gtsam.NonlinearFactorGraph,
-    planes: Mapping[int, tuple[int, Plane]],
-    Q: np.ndarray,
-    estimate: gtsam.Values,
-) -> tuple[np.ndarray, str | None]:
-    """``smoothing.covariance_model`` "sandwich": (E, 6, 6) and a note
-    (:func:`.sandwich.sandwich_covariances`; ``Q`` (E, 6, 6) the epochs' changes of
-    motion, :func:`deskew_motion_change`)."""
-    cfg = builder.config
-    index = covariance_graph_index(graph, cov_graph)
-    mapped = {index[i]: obs for i, obs in planes.items() if i in index}
-    out, note = sandwich_covariances(
-        cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
-        cfg.prior_sigma,
-    )  # fmt: skip
-    return out.covariances, note
-
-
 def _covariances(
     builder: GraphBuilder,
     graph: gtsam.NonlinearFactorGraph,
@@ -360,7 +314,7 @@ def _covariances(
     )
     if Q is not None and np.any(Q):  # (no change of motion, e.g. snapshot scans: fitted)
         try:
-            covariances, note = _sandwich(builder, graph, cov_graph, planes or {}, Q, estimate)
+            covariances, note = batch_sandwich(cfg, graph, cov_graph, planes or {}, Q, estimate)
         except np.linalg.LinAlgError as exc:
             note = "sandwich covariances unavailable: " + " ".join(str(exc).split()[:14])
             return estimate, None, note, None

@@ -68,8 +68,7 @@ class GraphUpdate:
     """What one epoch adds: new factors, initial values of new variables, key timestamps;
     ``gaussian`` maps the index (in ``factors``) of each robust factor to its Gaussian twin
     (``batch.covariance_graph``); ``fallback`` the fallback factors' indices; ``planes``
-    maps the index of each plane factor to its epoch and its (oriented) measured plane
-    (``smoothing.covariance_model`` "sandwich", :mod:`.sandwich`)."""
+    each plane factor's epoch and oriented measured plane (:mod:`.sandwich`)."""
 
     epoch: int
     factors: gtsam.NonlinearFactorGraph
@@ -142,8 +141,7 @@ class GraphBuilder:
         self._steps: list[np.ndarray] = []  # the last FALLBACK_STEPS measured steps
         self.first_step: np.ndarray | None = None  # fallback before any measured step
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
-        self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
-        self._plane_factors: dict[int, tuple[int, Plane]] = {}  # this epoch's (GraphUpdate)
+        self._update = GraphUpdate(-1, gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
         self.deskew = deskew_from_config(config.deskew_noise)
 
@@ -199,8 +197,7 @@ class GraphBuilder:
         self.n_epochs += 1
         self.planes[k] = planes
         update = GraphUpdate(k, gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
-        self._gaussian = update.gaussian
-        self._plane_factors = update.planes
+        self._update = update  # its Gaussian twins and plane factors are recorded there
         usable = [
             r
             for r in relatives
@@ -292,11 +289,9 @@ class GraphBuilder:
     ) -> None:
         """Add the factor ``make(noise)``: ``base`` wrapped in the robust kernel when ``robust``
         (its Gaussian twin ``make(base)`` kept under its index, :class:`GraphUpdate`)."""
-        if not robust:
-            graph.add(make(base))
-            return
-        self._gaussian[graph.size()] = make(base)
-        graph.add(make(with_robust_kernel(base, self.config)))
+        if robust:
+            self._update.gaussian[graph.size()] = make(base)
+        graph.add(make(with_robust_kernel(base, self.config) if robust else base))
 
     def in_plane_factors(self, rel: RelativePose) -> bool:
         """Whether the planes a relative pose was computed from are plane factors already.
@@ -397,7 +392,7 @@ class GraphBuilder:
         cov = plane_factor_covariance(plane, self.config, self.deskew, e)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
         key = F(e) if self.deskew is not None and e in self.deskew.frames else X(e)
-        self._plane_factors[graph.size()] = (e, plane)
+        self._update.planes[graph.size()] = (e, plane)
         if lm.anchor_key is None:
             graph.add(plane_factor(key, lm.key, plane.coefficients, noise))
         else:

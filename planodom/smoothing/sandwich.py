@@ -40,7 +40,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack, solve_triangular
 
+from planodom.config import SmoothingConfig
 from planodom.geometry import Plane
+from planodom.odometry.relative import RelativePose
+from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.graph import X
 from planodom.smoothing.marginals import (
     FIRST_POSE_TIGHTENING,
@@ -160,6 +163,55 @@ def sandwich_pose_covariances(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n_cols)
     ) if vals else sp.csr_matrix((n, n_cols))  # fmt: skip
 
+    sigma, d, undetermined = _scaled_inverse(S)
+    del S
+    # Q_k = L_k L_k^T folded into B~'s columns: the extra term's block i is then
+    # (Sigma B~ L)_i (Sigma B~ L)_i^T, one batched product per chunk of poses.
+    roots = [_psd_root(q) for q in np.asarray(motion_change, dtype=float)]
+    Bs = sp.diags(1.0 / d) @ Bt @ sp.block_diag(roots, format="csr")
+    if Bs.nnz > DENSE_FRACTION * n * n_cols:  # BLAS on the dense form is faster
+        Bs = Bs.toarray()
+    E = len(pose_keys)
+    fitted, extra = _pose_blocks(sigma, Bs)
+    scale = d.reshape(E, POSE_DIM)
+    outer = scale[:, :, None] * scale[:, None, :]
+    fitted /= outer
+    covariances = fitted + extra / outer
+    for pose, axes in undetermined.items():
+        for blocks in (covariances, fitted):
+            blocks[pose][axes, :] = np.nan
+            blocks[pose][:, axes] = np.nan
+    return SandwichMarginals(covariances, fitted, undetermined, len(error_maps))
+
+
+def _pose_blocks(sigma: np.ndarray, Bs: np.ndarray | sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
+    """(E, 6, 6) twice: the diagonal blocks of the scaled ``sigma`` (n, n) and of
+    ``(sigma Bs)(sigma Bs)^T`` (``Bs`` (n, 6K)), a chunk of rows at a time."""
+    n, E = len(sigma), len(sigma) // POSE_DIM
+    fitted = np.empty((E, POSE_DIM, POSE_DIM))
+    extra = np.empty((E, POSE_DIM, POSE_DIM))
+    for start in range(0, n, CHUNK_ROWS):
+        stop = min(start + CHUNK_ROWS, n)
+        block = sigma[start:stop]  # (r, n), the scaled Sigma's rows
+        T = np.asarray(Bs.T @ block.T).T  # (r, 6K): scaled rows of Sigma B~ L
+        T3 = T.reshape((stop - start) // POSE_DIM, POSE_DIM, -1)
+        extra[start // POSE_DIM : stop // POSE_DIM] = T3 @ T3.transpose(0, 2, 1)
+        diag = block.reshape(-1, POSE_DIM, E, POSE_DIM)
+        idx = np.arange(start // POSE_DIM, stop // POSE_DIM)
+        fitted[idx] = diag[np.arange(len(idx)), :, idx, :]
+    return fitted, extra
+
+
+def _scaled_inverse(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[int, list[int]]]:
+    """The inverse of the Jacobi-scaled poses' information ``S`` (n, n; overwritten), full,
+    the scales ``d`` (n,) (``S^-1 = D^-1 Sigma_s D^-1``) and the poses' undetermined
+    axes: as :func:`.marginals.determined_pose_marginals`, ``S + N N^T`` inverted where
+    ``S`` has a null space ``N`` (the same covariance for every determined combination).
+
+    Raises:
+        numpy.linalg.LinAlgError: not positive definite on its determined directions.
+    """
+    n = len(S)
     d = np.sqrt(np.diag(S))
     d[d == 0.0] = 1.0
     S /= np.outer(d, d)
@@ -179,39 +231,12 @@ def sandwich_pose_covariances(
         chol, info = lapack.dpotrf(S + N @ N.T, lower=False)
         if info != 0:
             raise np.linalg.LinAlgError(f"pose information not positive definite ({info})")
-    del S
     sigma, info = lapack.dpotri(chol, lower=False, overwrite_c=True)
     if info != 0:
         raise np.linalg.LinAlgError(f"pose information not invertible ({info})")
     sigma = np.triu(sigma)
     sigma += np.triu(sigma, 1).T  # the scaled Sigma, full
-    # Q_k = L_k L_k^T folded into B~'s columns: the extra term's block i is then
-    # (Sigma B~ L)_i (Sigma B~ L)_i^T, one batched product per chunk of poses.
-    roots = [_psd_root(q) for q in np.asarray(motion_change, dtype=float)]
-    Bs = sp.diags(1.0 / d) @ Bt @ sp.block_diag(roots, format="csr")
-    if Bs.nnz > DENSE_FRACTION * n * n_cols:  # BLAS on the dense form is faster
-        Bs = Bs.toarray()
-    E = len(pose_keys)
-    fitted = np.empty((E, POSE_DIM, POSE_DIM))
-    extra = np.empty((E, POSE_DIM, POSE_DIM))
-    for start in range(0, n, CHUNK_ROWS):
-        stop = min(start + CHUNK_ROWS, n)
-        block = sigma[start:stop]  # (r, n), the scaled Sigma's rows
-        T = np.asarray(Bs.T @ block.T).T  # (r, 6K): scaled rows of Sigma B~ L
-        T3 = T.reshape((stop - start) // POSE_DIM, POSE_DIM, n_cols)
-        extra[start // POSE_DIM : stop // POSE_DIM] = T3 @ T3.transpose(0, 2, 1)
-        diag = block.reshape(-1, POSE_DIM, n // POSE_DIM, POSE_DIM)
-        idx = np.arange(start // POSE_DIM, stop // POSE_DIM)
-        fitted[idx] = diag[np.arange(len(idx)), :, idx, :]
-    scale = d.reshape(E, POSE_DIM)
-    outer = scale[:, :, None] * scale[:, None, :]
-    fitted /= outer
-    covariances = fitted + extra / outer
-    for pose, axes in undetermined.items():
-        for blocks in (covariances, fitted):
-            blocks[pose][axes, :] = np.nan
-            blocks[pose][:, axes] = np.nan
-    return SandwichMarginals(covariances, fitted, undetermined, len(error_maps))
+    return sigma, d, undetermined
 
 
 def _psd_root(q: np.ndarray) -> np.ndarray:
@@ -315,3 +340,48 @@ def sandwich_covariances(
         epochs = ", ".join(f"{k} (axes {out.undetermined[k]})" for k in poses)
         note = "undetermined pose axes, covariance NaN there: epochs " + epochs
     return out, note
+
+
+def covariance_graph_index(
+    graph: gtsam.NonlinearFactorGraph, cov_graph: gtsam.NonlinearFactorGraph
+) -> dict[int, int]:
+    """Index in ``graph`` -> index in its :func:`.batch.covariance_graph` ``cov_graph`` (which
+    leaves out removed factors, unless it is ``graph`` itself)."""
+    if cov_graph is graph:
+        return {i: i for i in range(graph.size())}
+    kept = [i for i in range(graph.size()) if graph.at(i) is not None]
+    return {i: j for j, i in enumerate(kept)}
+
+
+def deskew_motion_change(
+    relative_poses: Sequence[RelativePose], n_epochs: int, half_window: int = 2
+) -> np.ndarray:
+    """(E, 6, 6) each epoch's covariance of its change of motion over its span
+    (:meth:`.DeskewNoise.plane_motion_change`, from the run's own delta = 1 steps; zero for
+    an epoch taken at one instant)."""
+    model = DeskewNoise(half_window=half_window, plane_jacobian=True)
+    for rel in relative_poses:
+        model.add(rel)
+    out = [model.plane_motion_change(k) for k in range(n_epochs)]
+    return np.stack([np.zeros((6, 6)) if q is None else q for q in out])
+
+
+def batch_sandwich(
+    cfg: SmoothingConfig,
+    graph: gtsam.NonlinearFactorGraph,
+    cov_graph: gtsam.NonlinearFactorGraph,
+    planes: Mapping[int, tuple[int, Plane]],
+    Q: np.ndarray,
+    estimate: gtsam.Values,
+) -> tuple[np.ndarray, str | None]:
+    """``smoothing.covariance_model`` "sandwich" of the batch (``graph``, its covariance
+    graph ``cov_graph``, :func:`.batch.covariance_graph`): (E, 6, 6) and a note
+    (:func:`sandwich_covariances`; ``Q`` (E, 6, 6) the epochs' changes of
+    motion, :func:`deskew_motion_change`)."""
+    index = covariance_graph_index(graph, cov_graph)
+    mapped = {index[i]: obs for i, obs in planes.items() if i in index}
+    out, note = sandwich_covariances(
+        cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
+        cfg.prior_sigma,
+    )  # fmt: skip
+    return out.covariances, note
