@@ -51,7 +51,8 @@ class PlanodomConfig(Section):
     def _planes_for_smoothing(cls, data: Any) -> Any:
         """The deskew-noise modes that read each plane's deskewing Jacobian
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
-        ``planemap.deskew_variance: twist_change``) switch on its computation in the
+        ``smoothing.covariance_model: sandwich``, ``planemap.deskew_variance:
+        twist_change``) switch on its computation in the
         extraction (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other
         than ``none`` switches on the planes' time moments (``extraction.time_moments``)."""
         if not isinstance(data, Mapping):
@@ -67,7 +68,11 @@ class PlanodomConfig(Section):
         twist = getattr(planemap, "twist_estimation", None)
         if isinstance(planemap, Mapping):
             twist = planemap.get("twist_estimation")
+        model = getattr(smoothing, "covariance_model", None)
+        if isinstance(smoothing, Mapping):
+            model = smoothing.get("covariance_model")
         wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
+        wanted = wanted or model == "sandwich"
         moments = isinstance(twist, str) and twist != "none"
         if not (wanted or deskew == "twist_change" or moments):
             return data

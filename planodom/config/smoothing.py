@@ -425,6 +425,13 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
             raise ConfigError(
                 f"smoothing.window: must exceed delta_max ({self.delta_max}), got {self.window}"
             )
+        if self.covariance_model == "sandwich" and (
+            self.deskew_noise != "none" or self.covariance_scale != "none"
+        ):
+            raise ConfigError(
+                "smoothing.covariance_model: 'sandwich' models the deskewing error the noise "
+                "models leave out: needs deskew_noise and covariance_scale 'none'"
+            )
         robust_planes = self.robust_planes and self.robust_kernel != "none"
         if self.plane_factor == "global" and robust_planes:
             raise ConfigError(

@@ -30,6 +30,7 @@ from planodom.smoothing.loop_records import (
 )
 from planodom.smoothing.loops import LoopClosingBuilder
 from planodom.smoothing.marginals import pose_covariances
+from planodom.smoothing.sandwich import batch_sandwich, deskew_motion_change
 from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
 
 
@@ -64,6 +65,7 @@ class SmoothingResult:
             (:mod:`planodom.smoothing.loop_candidates`), with the gate's verdict.
         variance_components: ``smoothing.covariance_scale``: the noise models' variance
             factors estimated from the residuals (:mod:`.variance_components`).
+        covariance_s: wall time of the covariances (part of ``runtime_s``), seconds.
     """
 
     poses: np.ndarray
@@ -80,6 +82,7 @@ class SmoothingResult:
     loop_matches: list[LoopMatch] = field(default_factory=list)
     loop_factors: list[LoopFactor] = field(default_factory=list)
     variance_components: VarianceComponents | None = None
+    covariance_s: float = 0.0
 
 
 def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> SmoothingConfig:
@@ -291,14 +294,32 @@ def _covariances(
     fallback: list[int],
     estimate: gtsam.Values,
     n_epochs: int,
+    planes: Mapping[int, tuple[int, Plane]] | None = None,
+    relative_poses: Sequence[RelativePose] = (),
 ) -> tuple[gtsam.Values, np.ndarray | None, str | None, VarianceComponents | None]:
     """The poses' marginal covariances at ``estimate`` (:func:`covariance_graph`), from
     the graph reweighted by its variance components with ``smoothing.covariance_scale``
-    (then also the estimate it was resolved to); a note instead when gtsam finds the
-    system indeterminant. Returns (estimate, covariances, note, components)."""
+    (then also the estimate it was resolved to), or the sandwich covariances with
+    ``smoothing.covariance_model`` "sandwich" (``planes``: the plane factors' epochs and
+    planes, ``relative_poses``: the run's, for the changes of motion; where no epoch has
+    one, e.g. scans taken at one instant, the fitted ones as they are); a note instead when
+    gtsam finds the system indeterminant. Returns (estimate, covariances, note,
+    components)."""
     cfg = builder.config
     cov_graph = covariance_graph(graph, gaussian, estimate, cfg.covariance_inlier_quantile)
     linear, components = None, None
+    Q = (
+        deskew_motion_change(relative_poses, n_epochs)
+        if cfg.covariance_model == "sandwich"
+        else None
+    )
+    if Q is not None and np.any(Q):  # (no change of motion, e.g. snapshot scans: fitted)
+        try:
+            covariances, note = batch_sandwich(cfg, graph, cov_graph, planes or {}, Q, estimate)
+        except np.linalg.LinAlgError as exc:
+            note = "sandwich covariances unavailable: " + " ".join(str(exc).split()[:14])
+            return estimate, None, note, None
+        return estimate, covariances, note, None
     try:
         if cfg.covariance_scale != "none":
             loops = [f.factor for f in getattr(builder, "loop_factors", ())]
@@ -360,6 +381,7 @@ def smooth_batch(
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     gaussian: dict[int, gtsam.NonlinearFactor] = {}
     fallback: list[int] = []  # indices of the fallback factors
+    plane_factors: dict[int, tuple[int, Plane]] = {}  # their epochs and planes
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
     for k, planes in enumerate(epochs_planes):
         n_reids = len(getattr(builder, "reidentifications", ()))
@@ -368,6 +390,7 @@ def smooth_batch(
             r.factor += graph.size()
         gaussian |= {graph.size() + i: f for i, f in update.gaussian.items()}
         fallback += [graph.size() + i for i in update.fallback]
+        plane_factors |= {graph.size() + i: obs for i, obs in update.planes.items()}
         graph.push_back(update.factors)
         values.insert(update.values)
     initial = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
@@ -379,11 +402,14 @@ def smooth_batch(
     )  # fmt: skip
     if isinstance(builder, LoopClosingBuilder):
         estimate = _gated(builder, graph, gaussian, values, estimate, errors)
-    covariances, note, components = None, None, None
+    covariances, note, components, covariance_s = None, None, None, 0.0
     if cfg.compute_covariances:
+        cov_start = time.perf_counter()
         estimate, covariances, note, components = _covariances(
-            builder, graph, gaussian, fallback, estimate, len(epochs_planes)
-        )
+            builder, graph, gaussian, fallback, estimate, len(epochs_planes), plane_factors,
+            relative_poses,
+        )  # fmt: skip
+        covariance_s = time.perf_counter() - cov_start
     builder.update_estimates(estimate)
     poses = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
     return SmoothingResult(
@@ -400,4 +426,5 @@ def smooth_batch(
         loop_matches=list(getattr(builder, "matches", [])),
         loop_factors=list(getattr(builder, "loop_factors", [])),
         variance_components=components,
+        covariance_s=covariance_s,
     )

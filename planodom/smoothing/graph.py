@@ -67,7 +67,8 @@ F = gtsam.symbol_shorthand.F  # an epoch's deskewed frame (smoothing.deskew_nois
 class GraphUpdate:
     """What one epoch adds: new factors, initial values of new variables, key timestamps;
     ``gaussian`` maps the index (in ``factors``) of each robust factor to its Gaussian twin
-    (``batch.covariance_graph``); ``fallback`` the fallback factors' indices."""
+    (``batch.covariance_graph``); ``fallback`` the fallback factors' indices; ``planes``
+    each plane factor's epoch and oriented measured plane (:mod:`.sandwich`)."""
 
     epoch: int
     factors: gtsam.NonlinearFactorGraph
@@ -75,6 +76,7 @@ class GraphUpdate:
     timestamps: dict[int, float]
     gaussian: dict[int, gtsam.NonlinearFactor] = field(default_factory=dict)
     fallback: list[int] = field(default_factory=list)
+    planes: dict[int, tuple[int, Plane]] = field(default_factory=dict)
 
 
 @dataclass
@@ -139,7 +141,7 @@ class GraphBuilder:
         self._steps: list[np.ndarray] = []  # the last FALLBACK_STEPS measured steps
         self.first_step: np.ndarray | None = None  # fallback before any measured step
         self._factor_landmark: dict[tuple[int, int], int] = {}  # (epoch, plane) -> landmark
-        self._gaussian: dict[int, gtsam.NonlinearFactor] = {}  # this epoch's twins
+        self._update = GraphUpdate(-1, gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
         self.deskew = deskew_from_config(config.deskew_noise)
 
@@ -195,7 +197,7 @@ class GraphBuilder:
         self.n_epochs += 1
         self.planes[k] = planes
         update = GraphUpdate(k, gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
-        self._gaussian = update.gaussian
+        self._update = update  # its Gaussian twins and plane factors are recorded there
         usable = [
             r
             for r in relatives
@@ -287,11 +289,9 @@ class GraphBuilder:
     ) -> None:
         """Add the factor ``make(noise)``: ``base`` wrapped in the robust kernel when ``robust``
         (its Gaussian twin ``make(base)`` kept under its index, :class:`GraphUpdate`)."""
-        if not robust:
-            graph.add(make(base))
-            return
-        self._gaussian[graph.size()] = make(base)
-        graph.add(make(with_robust_kernel(base, self.config)))
+        if robust:
+            self._update.gaussian[graph.size()] = make(base)
+        graph.add(make(with_robust_kernel(base, self.config) if robust else base))
 
     def in_plane_factors(self, rel: RelativePose) -> bool:
         """Whether the planes a relative pose was computed from are plane factors already.
@@ -392,6 +392,7 @@ class GraphBuilder:
         cov = plane_factor_covariance(plane, self.config, self.deskew, e)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
         key = F(e) if self.deskew is not None and e in self.deskew.frames else X(e)
+        self._update.planes[graph.size()] = (e, plane)
         if lm.anchor_key is None:
             graph.add(plane_factor(key, lm.key, plane.coefficients, noise))
         else:

@@ -1,0 +1,387 @@
+"""Sandwich (misspecified-model) covariances of the batch poses: the deskewing error.
+
+The batch estimate minimises the whitened residuals of the graph's noise models. At the
+solution, with ``J`` the whitened Jacobian of the linearised graph and ``A = J^T J`` its
+information, the fitted covariance is ``A^-1``: right if the whitened measurements' error
+has covariance ``I``. Scans spread in time are deskewed with the twist of the previous
+interval, and the change of motion ``dxi_k`` over epoch k (twist, per epoch span) moves
+every plane of that epoch through its own first-order change with the deskewing twist
+(``Plane.deskew_jacobian``, (4, 6)): one error shared by all the epoch's planes, which
+each pose takes whole and no residual shows (``config.smoothing.covariance_scale``). The
+whitened measurements' error is then ``I + S``, ``S = G Q G^T``: per epoch k a (6, 6)
+covariance ``Q_k`` of ``dxi_k`` (:meth:`.DeskewNoise.plane_motion_change`, from the run's
+own changes of motion) and ``G`` mapping it to each plane factor of that epoch (its
+whitening times the plane's Jacobian in the factor's error coordinates). The estimator's
+covariance (the same estimate) is
+
+    Cov(x) = A^-1 J^T (I + S) J A^-1 = A^-1 + C Q C^T,   C = A^-1 J^T G.
+
+Only the poses' diagonal blocks are wanted. With the landmarks eliminated as for the
+fitted marginals (:mod:`.marginals`: the poses' Schur complement ``P``, one landmark group
+at a time), the pose rows of ``A^-1 B`` (``B = J^T G``) are ``P^-1 B~`` with
+``B~ = B_p - H_pl H_ll^+ B_l``; so with ``Sigma = P^-1`` (one dense inversion, as the
+fitted path's) the pose block i is ``Sigma_ii + sum_k (Sigma B~)_ik Q_k (Sigma B~)_ik^T``.
+``B~`` is sparse (an epoch's columns reach the poses that share its landmarks).
+
+Not modelled: the deskewing error of the relative-pose and loop-candidate factors (they
+enter only where planes are not plane factors, ``smoothing.between_factors``) and of
+factors the robust kernel down-weights at the estimate (outliers of
+:func:`.batch.covariance_graph`); both would only add.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import gtsam
+import gtsam_unstable
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg import lapack, solve_triangular
+
+from planodom.config import SmoothingConfig
+from planodom.geometry import Plane
+from planodom.odometry.relative import RelativePose
+from planodom.smoothing.deskew_noise import DeskewNoise
+from planodom.smoothing.graph import X
+from planodom.smoothing.marginals import (
+    FIRST_POSE_TIGHTENING,
+    POSE_DIM,
+    UNDETERMINED_RTOL,
+    _groups,
+)
+
+#: ``OrientedPlane3::errorVector``'s first-order change with the measured plane's tangent
+#: coordinates ``delta`` (Unit3 basis (2), d) is ``sign * diag(1, 1, -1) delta`` at a
+#: vanishing residual: +1 for the global factor, -1 for the anchored one (which takes the
+#: difference the other way round; checked numerically in tests/smoothing/test_sandwich.py).
+ERROR_SIGN = {gtsam.OrientedPlane3Factor: 1.0, gtsam_unstable.LocalOrientedPlane3Factor: -1.0}
+
+#: Pose rows per chunk of ``Sigma B~`` (memory: chunk times the poses' dimension).
+CHUNK_ROWS = 1200
+
+#: ``B~`` is multiplied in dense form (BLAS) when more than this share of it is non-zero
+#: (a ground plane seen by every epoch fills it; scipy's sparse product is single-threaded
+#: and several times slower per non-zero than a dense one).
+DENSE_FRACTION = 0.1
+
+
+def plane_error_map(factor: gtsam.NonlinearFactor, plane: Plane) -> np.ndarray | None:
+    """(3, 6) first-order change of a plane factor's whitened error with its epoch's change
+    of motion ``dxi`` (rotation (rad), translation (m) per epoch span), through the
+    measured ``plane``'s ``deskew_jacobian`` (as oriented in the factor); None for a plane
+    without it or a factor whose noise model is not Gaussian (a robust outlier)."""
+    if plane.deskew_jacobian is None:
+        return None
+    sign = next((s for t, s in ERROR_SIGN.items() if isinstance(factor, t)), None)
+    noise = factor.noiseModel()  # type: ignore[attr-defined]  # a NoiseModelFactor
+    if sign is None or not isinstance(noise, gtsam.noiseModel.Gaussian):
+        return None
+    P = np.zeros((3, 4))  # (n, d) -> tangent, as plane_tangent_covariance
+    P[:2, :3] = np.asarray(gtsam.Unit3(plane.normal).basis()).T
+    P[2, 3] = 1.0
+    tangent = P @ np.asarray(plane.deskew_jacobian, dtype=float)
+    tangent[2] *= -1.0  # errorVector's offset part (planodom_factors.planes.plane_noise)
+    return sign * np.asarray(noise.R()) @ tangent
+
+
+@dataclass
+class SandwichMarginals:
+    """Pose covariances of :func:`sandwich_pose_covariances`.
+
+    Attributes:
+        covariances: (E, 6, 6) the sandwich covariances (NaN on undetermined axes).
+        fitted: (E, 6, 6) ``A^-1``'s blocks from the same factorisation (the fitted ones).
+        undetermined: pose index -> its tangent axes the graph does not determine.
+        columns: plane factors that carried a deskewing error into ``S``.
+    """
+
+    covariances: np.ndarray
+    fitted: np.ndarray
+    undetermined: dict[int, list[int]]
+    columns: int
+
+
+def sandwich_pose_covariances(
+    linear: gtsam.GaussianFactorGraph,
+    pose_keys: Sequence[int],
+    dims: Mapping[int, int],
+    error_maps: Mapping[int, tuple[int, np.ndarray]],
+    motion_change: np.ndarray,
+) -> SandwichMarginals:
+    """The poses' sandwich covariances (module docstring) of a linearised graph.
+
+    Args:
+        linear: the linearised (whitened) graph at the estimate.
+        pose_keys: the E pose keys, in output order.
+        dims: tangent dimension of every key of ``linear``.
+        error_maps: index of a factor in ``linear`` -> (its epoch column k, (m, 6) change
+            of its whitened error with ``dxi_k``, m its dimension).
+        motion_change: (K, 6, 6) ``Q_k``, the covariance of ``dxi_k`` per epoch column.
+
+    Raises:
+        numpy.linalg.LinAlgError: the poses' information is not positive definite even on
+            its determined directions.
+    """
+    pose_index = {key: i for i, key in enumerate(pose_keys)}
+    n = POSE_DIM * len(pose_keys)
+    n_cols = POSE_DIM * len(motion_change)
+    S = np.zeros((n, n))
+    rows: list[np.ndarray] = []  # B~ as triplets
+    cols: list[np.ndarray] = []
+    vals: list[np.ndarray] = []
+
+    def add_block(pose_cols: np.ndarray, col_of: dict[int, int], block: np.ndarray) -> None:
+        for k, c in col_of.items():
+            part = block[:, c : c + POSE_DIM]
+            r, q = np.meshgrid(pose_cols, POSE_DIM * k + np.arange(POSE_DIM), indexing="ij")
+            rows.append(r.ravel())
+            cols.append(q.ravel())
+            vals.append(part.ravel())
+
+    group_of = _groups(linear, pose_index)
+    by_group: dict[int, list[int]] = {}
+    for i in range(linear.size()):
+        factor = linear.at(i)
+        if factor is None:
+            continue
+        keys = list(factor.keys())
+        others = [key for key in keys if key not in pose_index]
+        if others:
+            by_group.setdefault(group_of[others[0]], []).append(i)
+            continue
+        A = factor.jacobian()[0]
+        pcols = np.concatenate([POSE_DIM * pose_index[k] + np.arange(POSE_DIM) for k in keys])
+        S[np.ix_(pcols, pcols)] += A.T @ A
+        if i in error_maps:
+            k, g = error_maps[i]
+            add_block(pcols, {k: 0}, A.T @ g)
+    for members in by_group.values():
+        _eliminate(linear, members, pose_index, dims, error_maps, S, add_block)
+    Bt = sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n_cols)
+    ) if vals else sp.csr_matrix((n, n_cols))  # fmt: skip
+
+    sigma, d, undetermined = _scaled_inverse(S)
+    del S
+    # Q_k = L_k L_k^T folded into B~'s columns: the extra term's block i is then
+    # (Sigma B~ L)_i (Sigma B~ L)_i^T, one batched product per chunk of poses.
+    roots = [_psd_root(q) for q in np.asarray(motion_change, dtype=float)]
+    Bs = sp.diags(1.0 / d) @ Bt @ sp.block_diag(roots, format="csr")
+    if Bs.nnz > DENSE_FRACTION * n * n_cols:  # BLAS on the dense form is faster
+        Bs = Bs.toarray()
+    E = len(pose_keys)
+    fitted, extra = _pose_blocks(sigma, Bs)
+    scale = d.reshape(E, POSE_DIM)
+    outer = scale[:, :, None] * scale[:, None, :]
+    fitted /= outer
+    covariances = fitted + extra / outer
+    for pose, axes in undetermined.items():
+        for blocks in (covariances, fitted):
+            blocks[pose][axes, :] = np.nan
+            blocks[pose][:, axes] = np.nan
+    return SandwichMarginals(covariances, fitted, undetermined, len(error_maps))
+
+
+def _pose_blocks(sigma: np.ndarray, Bs: np.ndarray | sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
+    """(E, 6, 6) twice: the diagonal blocks of the scaled ``sigma`` (n, n) and of
+    ``(sigma Bs)(sigma Bs)^T`` (``Bs`` (n, 6K)), a chunk of rows at a time."""
+    n, E = len(sigma), len(sigma) // POSE_DIM
+    fitted = np.empty((E, POSE_DIM, POSE_DIM))
+    extra = np.empty((E, POSE_DIM, POSE_DIM))
+    for start in range(0, n, CHUNK_ROWS):
+        stop = min(start + CHUNK_ROWS, n)
+        block = sigma[start:stop]  # (r, n), the scaled Sigma's rows
+        T = np.asarray(Bs.T @ block.T).T  # (r, 6K): scaled rows of Sigma B~ L
+        T3 = T.reshape((stop - start) // POSE_DIM, POSE_DIM, -1)
+        extra[start // POSE_DIM : stop // POSE_DIM] = T3 @ T3.transpose(0, 2, 1)
+        diag = block.reshape(-1, POSE_DIM, E, POSE_DIM)
+        idx = np.arange(start // POSE_DIM, stop // POSE_DIM)
+        fitted[idx] = diag[np.arange(len(idx)), :, idx, :]
+    return fitted, extra
+
+
+def _scaled_inverse(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[int, list[int]]]:
+    """The inverse of the Jacobi-scaled poses' information ``S`` (n, n; overwritten), full,
+    the scales ``d`` (n,) (``S^-1 = D^-1 Sigma_s D^-1``) and the poses' undetermined
+    axes: as :func:`.marginals.determined_pose_marginals`, ``S + N N^T`` inverted where
+    ``S`` has a null space ``N`` (the same covariance for every determined combination).
+
+    Raises:
+        numpy.linalg.LinAlgError: not positive definite on its determined directions.
+    """
+    n = len(S)
+    d = np.sqrt(np.diag(S))
+    d[d == 0.0] = 1.0
+    S /= np.outer(d, d)
+    undetermined: dict[int, list[int]] = {}
+    chol, info = lapack.dpotrf(S, lower=False)
+    if info != 0:  # as determined_pose_marginals: S + N N^T on the null space N
+        tol = UNDETERMINED_RTOL * float(np.max(np.diag(S)))
+        U, piv, rank, _ = lapack.dpstrf(S, tol=tol, lower=False)
+        perm = piv - 1
+        U11, U12 = np.triu(U[:rank, :rank]), U[:rank, rank:]
+        null = np.zeros((n, n - rank))
+        null[perm[:rank]] = -solve_triangular(U11, U12)
+        null[perm[rank:]] = np.eye(n - rank)
+        N, _ = np.linalg.qr(null)
+        for axis in np.flatnonzero((N**2).sum(axis=1) > 1e-9):
+            undetermined.setdefault(int(axis) // POSE_DIM, []).append(int(axis) % POSE_DIM)
+        chol, info = lapack.dpotrf(S + N @ N.T, lower=False)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"pose information not positive definite ({info})")
+    sigma, info = lapack.dpotri(chol, lower=False, overwrite_c=True)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"pose information not invertible ({info})")
+    sigma = np.triu(sigma)
+    sigma += np.triu(sigma, 1).T  # the scaled Sigma, full
+    return sigma, d, undetermined
+
+
+def _psd_root(q: np.ndarray) -> np.ndarray:
+    """(6, 6) ``L`` with ``L L^T = q`` for a positive semi-definite ``q``."""
+    w, V = np.linalg.eigh(0.5 * (q + q.T))
+    return V * np.sqrt(np.maximum(w, 0.0))
+
+
+def _eliminate(
+    linear: gtsam.GaussianFactorGraph,
+    members: list[int],
+    pose_index: dict[int, int],
+    dims: Mapping[int, int],
+    error_maps: Mapping[int, tuple[int, np.ndarray]],
+    S: np.ndarray,
+    add_block,  # noqa: ANN001  (the closure of sandwich_pose_covariances)
+) -> None:
+    """One landmark group's factors (indices ``members`` of ``linear``) into the poses'
+    information ``S`` and into ``B~``, the landmark variables eliminated; their
+    undetermined directions (Jacobi-scaled eigenvalues below ``UNDETERMINED_RTOL``) left
+    out, as :func:`.marginals._reduce_determined` (no information on the poses)."""
+    factors = [linear.at(i) for i in members]
+    local: dict[int, int] = {}
+    for factor in factors:
+        for key in factor.keys():
+            if key not in pose_index and key not in local:
+                local[key] = sum(dims[k] for k in local)
+    m = sum(dims[k] for k in local)
+    poses = sorted(
+        {k for f in factors for k in f.keys() if k in pose_index}, key=pose_index.__getitem__
+    )
+    for key in poses:
+        local[key] = m + POSE_DIM * poses.index(key)
+    size = m + POSE_DIM * len(poses)
+    epochs = sorted({error_maps[i][0] for i in members if i in error_maps})
+    col_of = {k: POSE_DIM * j for j, k in enumerate(epochs)}
+    H = np.zeros((size, size))
+    B = np.zeros((size, POSE_DIM * len(epochs)))
+    for i, factor in zip(members, factors, strict=True):
+        idx = np.concatenate(
+            [local[k] + np.arange(POSE_DIM if k in pose_index else dims[k]) for k in factor.keys()]
+        )
+        A = factor.jacobian()[0]
+        H[np.ix_(idx, idx)] += A.T @ A
+        if i in error_maps:
+            k, g = error_maps[i]
+            B[idx, col_of[k] : col_of[k] + POSE_DIM] += A.T @ g
+    H_ll, H_lp, H_pp = H[:m, :m], H[:m, m:], H[m:, m:]
+    dl = np.sqrt(np.diag(H_ll))
+    dl[dl == 0.0] = 1.0
+    w, V = np.linalg.eigh(H_ll / np.outer(dl, dl))
+    keep = w > UNDETERMINED_RTOL * max(float(w[-1]), 1.0)
+    W = V[:, keep] / np.sqrt(w[keep])  # H_ll^+ = D^-1 W W^T D^-1
+    Cp = W.T @ (H_lp / dl[:, None])
+    pose_cols = np.concatenate([POSE_DIM * pose_index[k] + np.arange(POSE_DIM) for k in poses])
+    S[np.ix_(pose_cols, pose_cols)] += H_pp - Cp.T @ Cp
+    if epochs:
+        Cb = W.T @ (B[:m] / dl[:, None])
+        add_block(pose_cols, col_of, B[m:] - Cp.T @ Cb)
+
+
+def sandwich_covariances(
+    graph: gtsam.NonlinearFactorGraph,
+    values: gtsam.Values,
+    n_epochs: int,
+    planes: Mapping[int, tuple[int, Plane]],
+    motion_change: np.ndarray,
+    relative_to_first: bool = True,
+    prior_sigma: float = 1e-4,
+) -> tuple[SandwichMarginals, str | None]:
+    """(E, 6, 6) sandwich covariances of ``X(0..E-1)`` at ``values`` and a note naming
+    undetermined pose axes (None when none).
+
+    Args:
+        graph: the covariance graph (:func:`.batch.covariance_graph`).
+        values: the estimate.
+        n_epochs: E.
+        planes: index of a plane factor in ``graph`` -> (its epoch, its oriented measured
+            plane) (``GraphUpdate.planes``, re-indexed to ``graph``).
+        motion_change: (E, 6, 6) each epoch's ``Q_k``
+            (:meth:`.DeskewNoise.plane_motion_change`).
+        relative_to_first, prior_sigma: conditioned on the first pose as
+            :func:`.marginals.pose_covariances`.
+    """
+    linear = graph.linearize(values)
+    if relative_to_first:
+        stiff = FIRST_POSE_TIGHTENING / prior_sigma
+        linear.add(X(0), stiff * np.eye(6), np.zeros(6), gtsam.noiseModel.Unit.Create(6))
+    zero = values.zeroVectors()
+    dims = {key: zero.at(key).size for key in values.keys()}
+    maps: dict[int, tuple[int, np.ndarray]] = {}
+    for i, (epoch, plane) in planes.items():
+        g = plane_error_map(graph.at(i), plane)
+        if g is not None and np.any(motion_change[epoch]):
+            maps[i] = (epoch, g)
+    keys = [X(k) for k in range(n_epochs)]
+    out = sandwich_pose_covariances(linear, keys, dims, maps, motion_change)
+    poses = sorted(out.undetermined)
+    note = None
+    if poses:
+        epochs = ", ".join(f"{k} (axes {out.undetermined[k]})" for k in poses)
+        note = "undetermined pose axes, covariance NaN there: epochs " + epochs
+    return out, note
+
+
+def covariance_graph_index(
+    graph: gtsam.NonlinearFactorGraph, cov_graph: gtsam.NonlinearFactorGraph
+) -> dict[int, int]:
+    """Index in ``graph`` -> index in its :func:`.batch.covariance_graph` ``cov_graph`` (which
+    leaves out removed factors, unless it is ``graph`` itself)."""
+    if cov_graph is graph:
+        return {i: i for i in range(graph.size())}
+    kept = [i for i in range(graph.size()) if graph.at(i) is not None]
+    return {i: j for j, i in enumerate(kept)}
+
+
+def deskew_motion_change(
+    relative_poses: Sequence[RelativePose], n_epochs: int, half_window: int = 2
+) -> np.ndarray:
+    """(E, 6, 6) each epoch's covariance of its change of motion over its span
+    (:meth:`.DeskewNoise.plane_motion_change`, from the run's own delta = 1 steps; zero for
+    an epoch taken at one instant)."""
+    model = DeskewNoise(half_window=half_window, plane_jacobian=True)
+    for rel in relative_poses:
+        model.add(rel)
+    out = [model.plane_motion_change(k) for k in range(n_epochs)]
+    return np.stack([np.zeros((6, 6)) if q is None else q for q in out])
+
+
+def batch_sandwich(
+    cfg: SmoothingConfig,
+    graph: gtsam.NonlinearFactorGraph,
+    cov_graph: gtsam.NonlinearFactorGraph,
+    planes: Mapping[int, tuple[int, Plane]],
+    Q: np.ndarray,
+    estimate: gtsam.Values,
+) -> tuple[np.ndarray, str | None]:
+    """``smoothing.covariance_model`` "sandwich" of the batch (``graph``, its covariance
+    graph ``cov_graph``, :func:`.batch.covariance_graph`): (E, 6, 6) and a note
+    (:func:`sandwich_covariances`; ``Q`` (E, 6, 6) the epochs' changes of
+    motion, :func:`deskew_motion_change`)."""
+    index = covariance_graph_index(graph, cov_graph)
+    mapped = {index[i]: obs for i, obs in planes.items() if i in index}
+    out, note = sandwich_covariances(
+        cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
+        cfg.prior_sigma,
+    )  # fmt: skip
+    return out.covariances, note
