@@ -182,6 +182,8 @@ class PlaneOdometry:
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg) if against_map else None
+            if trend is not None and self.config.planemap.prediction == "trend":
+                trend = np.mean(np.array(self._recent), axis=0)  # the other rescue: the mean
             middle = self.config.planemap.reference_time == "middle" and centred_times(scan)
             pairwise, middle = self._map is None, middle and self._map is not None
             damped = against_map and not middle  # see centred_times
@@ -416,8 +418,8 @@ class PlaneOdometry:
                 self._rates.append((epoch.index, own))
             significant = significant_twist(own, best.relative, dt, self.config.odometry)
             args = (significant, measured, self._recent, self._velocities, self._map is not None)
-            last = self.config.planemap.prediction == "last"
-            self.twist = registered_prediction(best, dt, predicted_twist(*args, last=last))
+            prediction = self.config.planemap.prediction
+            self.twist = registered_prediction(best, dt, predicted_twist(*args, prediction))
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
         T_world = orthonormalised(self.poses[-1] @ best.step)

@@ -21,7 +21,7 @@ def predicted_twist(
     recent: deque[np.ndarray],
     velocities: deque[np.ndarray],
     against_map: bool,
-    last: bool = False,
+    prediction: str = "mean",
 ) -> np.ndarray:
     """(6,) the constant-velocity twist (rad/s, m/s) for the next epoch after a step of own
     twist ``twist`` (6,) whose translation was ``measured`` or not: the angular rate of the
@@ -29,8 +29,9 @@ def predicted_twist(
     translation was measured (``velocities``, appended to: one wrong translation must not
     steer the deskewing and the prior of the following epochs; a degenerate step only
     repeats its prior). ``against_map``: the plane-map pipeline, see below (``recent``,
-    appended to); ``last``: there the last twist, not the mean of the recent ones
-    (``planemap.prediction: last``)."""
+    appended to); ``prediction`` (``planemap.prediction``): there the mean of the recent
+    twists ("mean"), the last one ("last"), or the recent ones extrapolated one epoch
+    along their trend ("trend", :func:`trend_twist`; the mean before 4 of them)."""
     rate = twist[:3]
     if against_map:
         # The map pipeline registers a scan against a map, not against a scan deskewed
@@ -41,7 +42,11 @@ def predicted_twist(
         # last velocity_window steps (0.44 cm there), and extracts again with the mean
         # of the twist used and the epoch's own (register_deskewed, against_map).
         recent.append(twist.copy())
-        return twist.copy() if last else np.mean(np.array(recent), axis=0)
+        if prediction == "last":
+            return twist.copy()
+        if prediction == "trend" and len(recent) >= 4:
+            return trend_twist(np.array(recent))
+        return np.mean(np.array(recent), axis=0)
     if measured:
         velocities.append(twist[3:])
     if not velocities:
