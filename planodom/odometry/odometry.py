@@ -174,16 +174,14 @@ class PlaneOdometry:
                 return self._commit(epoch, given, t)
         estimate = partial(self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted())
         if self.config.odometry.deskew and time_spread(scan):
-            dt, ocfg = t - self.times[-1], self.config.odometry
+            dt, ocfg, pm = t - self.times[-1], self.config.odometry, self.config.planemap
             refresh, previous = self._refresh_reference, len(self.last_planes)
             # a twist never outlives an unresolved epoch: until one is measured again, epochs are
             # extracted without it (still the prior and bridge; tried when that is suspect)
             unresolved = self._unresolved_last()
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
-            trend = map_trend(self._recent, ocfg) if against_map else None
-            if trend is not None and self.config.planemap.prediction == "trend":
-                trend = np.mean(np.array(self._recent), axis=0)  # the other rescue: the mean
+            trend = map_trend(self._recent, ocfg, pm.prediction) if against_map else None
             middle = self.config.planemap.reference_time == "middle" and centred_times(scan)
             pairwise, middle = self._map is None, middle and self._map is not None
             damped = against_map and not middle  # see centred_times

@@ -96,12 +96,17 @@ def pairwise_trend(
     return np.r_[trend[:3], base[3:]]
 
 
-def map_trend(recent: Sequence[np.ndarray], config: OdometryConfig) -> np.ndarray | None:
+def map_trend(
+    recent: Sequence[np.ndarray], config: OdometryConfig, prediction: str = "mean"
+) -> np.ndarray | None:
     """(6,) the twist a plane-map epoch suspect with the mean of the ``recent`` twists
-    (6,) is tried with (``config.map_trend_rescue``, :func:`trend_twist`); None when off
-    or before 4 of them."""
+    (6,) is tried with (``config.map_trend_rescue``, :func:`trend_twist`); with
+    ``prediction`` "trend" (``planemap.prediction``: the epoch was deskewed with that
+    trend) their mean instead; None when off or before 4 of them."""
     if not config.map_trend_rescue or len(recent) < 4:
         return None
+    if prediction == "trend":
+        return np.mean(np.array(recent), axis=0)
     return trend_twist(np.array(recent))
 
 

@@ -92,3 +92,16 @@ def test_the_plane_maps_trend_prediction_extrapolates_a_steady_change():
         else:
             np.testing.assert_allclose(got, start + (k + 1) * step, rtol=0, atol=1e-12)
     assert len(recent) == 5 and not velocities
+
+
+def test_the_map_trend_rescue_tries_the_mean_when_the_trend_is_the_prediction():
+    """With ``planemap.prediction: trend`` the epoch was first deskewed with the trend:
+    the rescue then tries the recent twists' mean (with ``mean``, the trend)."""
+    from planodom.config import OdometryConfig
+    from planodom.odometry.trend import map_trend
+
+    recent = [np.r_[0.0, 0.0, 0.1 * k, 1.0, 0.0, 0.0] for k in range(5)]
+    config = OdometryConfig()
+    np.testing.assert_allclose(map_trend(recent, config, "trend"), np.mean(recent, axis=0))
+    np.testing.assert_allclose(map_trend(recent, config, "mean"), trend_twist(np.array(recent)))
+    assert map_trend(recent[:3], config, "trend") is None
