@@ -312,7 +312,7 @@ class PlanemapConfig(Section):
     (no point times) unchanged. The default since issue 11: every procedural lidar world
     better against a 2 % loss on one drive with a sweep declared by hand (what a run-to-run
     change of unrelated settings moves there)."""
-    prediction: Literal["mean", "last"] = "mean"
+    prediction: Literal["mean", "last", "trend"] = "trend"
     """The twist each epoch is first deskewed with (the streaming odometry's constant-
     velocity prediction, :func:`planodom.odometry.trend.predicted_twist`): "mean", the
     mean of the last ``odometry.velocity_window`` epochs' own twists; "last", the last
@@ -325,7 +325,22 @@ class PlanemapConfig(Section):
     world 9 0.0071 -> 0.0056, world 45's ATE at 2 cm 190 -> 93 mm; worse: world 15 at
     6 mm 0.0030 -> 0.0038 deg, ATE 0.59 -> 1.84 mm, world 5's ATE 2.6 -> 4.1 mm (rotation
     better), world 57's 0.84 -> 1.12 mm, world 13's rotation at 2 cm 0.0070 -> 0.0084:
-    off (the faster choice, not worse in the median)."""
+    off (the faster choice, not worse in the median). "trend" (the default): the recent
+    twists extrapolated one epoch along the straight line through them, its slope shrunk
+    by how well their residuals determine it (:func:`planodom.odometry.trend.trend_twist`,
+    the mean before 4 of them; the twist the trend rescue tries, ``odometry.
+    map_trend_rescue``, is then the mean). An epoch's own twist changes smoothly (a turn,
+    the sway), and the mean lags it by half the window. Offline over the own twists of a
+    "mean" run (150 epochs), the median rotation-rate error of the mean / the last / the
+    trend: world 7 (indoor) 0.61 / 0.22 / 0.07 deg/s at 6 mm, 0.64 / 0.29 / 0.24 at 2 cm;
+    world 13 (indoor) 1.66 / 0.55 / 0.25 and 1.65 / 0.57 / 0.31; world 15 (outdoor) 1.26
+    / 0.43 / 0.27 and 1.28 / 0.43 / 0.28 (over the tolerance in 75-100 % of the epochs
+    with the mean, 0-17 % with the trend; the line through the last two, unshrunk:
+    0.08-0.14 deg/s at 6 mm but 0.22-0.43 at 2 cm). Measured mean -> trend (150 epochs,
+    6 mm and 2 cm; docs/RESULTS.md, LIDARSPEED): extractions an epoch on the indoor lidar
+    worlds 1, 7, 13, 19, 65, 71 1.5-2.6 -> 1.0-1.5, planodom's CPU time 1.2-2.0x less;
+    lidar worlds 1-19 and 61-79 odd: see docs/RESULTS.md for the per-world figures and
+    the worlds that got worse. KITTI raw 0005 (no point times) byte-identical."""
     motion_bound_gate: bool = False
     """A registration whose step exceeds the motion bounds the run assumes
     (``association.max_translation_m``, ``max_rotation_deg``, the rig's motion_bounds)

@@ -9,12 +9,13 @@ it again:
    finds far fewer planes than the epoch before (under half, or under two), also without
    deskewing: a wrong twist must not lock the odometry out (on a random world at 2 cm, a
    wrong early velocity deskewed every later epoch into zero planes for 16 epochs in a
-   row). Against a plane map (whose prediction is the mean of the recent twists, see
-   :meth:`planodom.odometry.odometry.PlaneOdometry._predicted_twist`), the twist
-   extrapolated along their trend is tried first (``odometry.map_trend_rescue``): the
-   mean lags a turn that tightens (issue 11's world 9, 32 beams: 13 deg/s predicted
+   row). Against a plane map whose prediction is the mean of the recent twists
+   (``planemap.prediction: mean``, :func:`planodom.odometry.trend.predicted_twist`), the
+   twist extrapolated along their trend is tried first (``odometry.map_trend_rescue``):
+   the mean lags a turn that tightens (issue 11's world 9, 32 beams: 13 deg/s predicted
    where the sweep turned at 23, the epoch lost with it and without deskewing, ATE 0.55
-   m; resolved with the trend's 21 deg/s, ATE 0.033 m). The best of them is kept:
+   m; resolved with the trend's 21 deg/s, ATE 0.033 m); with the trend as the prediction
+   (``trend``, the default), the mean is tried instead. The best of them is kept:
    status first, then plane count. After an
    unresolved epoch no twist is predicted (a twist never outlives an unresolved epoch),
    but the one held from before it is tried the same way when the epoch extracted

@@ -176,14 +176,14 @@ class PlaneOdometry:
                 return self._commit(epoch, given, t)
         estimate = partial(self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted())
         if self.config.odometry.deskew and time_spread(scan):
-            dt, ocfg = t - self.times[-1], self.config.odometry
+            dt, ocfg, pm = t - self.times[-1], self.config.odometry, self.config.planemap
             refresh, previous = self._refresh_reference, len(self.last_planes)
             # a twist never outlives an unresolved epoch: until one is measured again, epochs are
             # extracted without it (still the prior and bridge; tried when that is suspect)
             unresolved = self._unresolved_last()
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             against_map = self._map is not None and self.twist is not None
-            trend = map_trend(self._recent, ocfg) if against_map else None
+            trend = map_trend(self._recent, ocfg, pm.prediction) if against_map else None
             middle = self.config.planemap.reference_time == "middle" and centred_times(scan)
             pairwise, middle = self._map is None, middle and self._map is not None
             damped = against_map and not middle  # see centred_times
@@ -415,8 +415,8 @@ class PlaneOdometry:
                 self._rates.append((epoch.index, own))
             significant = significant_twist(own, best.relative, dt, self.config.odometry)
             args = (significant, measured, self._recent, self._velocities, self._map is not None)
-            last = self.config.planemap.prediction == "last"
-            self.twist = registered_prediction(best, dt, predicted_twist(*args, last=last))
+            prediction = self.config.planemap.prediction
+            self.twist = registered_prediction(best, dt, predicted_twist(*args, prediction))
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
         T_world = orthonormalised(self.poses[-1] @ best.step)

@@ -21,7 +21,7 @@ def predicted_twist(
     recent: deque[np.ndarray],
     velocities: deque[np.ndarray],
     against_map: bool,
-    last: bool = False,
+    prediction: str = "mean",
 ) -> np.ndarray:
     """(6,) the constant-velocity twist (rad/s, m/s) for the next epoch after a step of own
     twist ``twist`` (6,) whose translation was ``measured`` or not: the angular rate of the
@@ -29,8 +29,9 @@ def predicted_twist(
     translation was measured (``velocities``, appended to: one wrong translation must not
     steer the deskewing and the prior of the following epochs; a degenerate step only
     repeats its prior). ``against_map``: the plane-map pipeline, see below (``recent``,
-    appended to); ``last``: there the last twist, not the mean of the recent ones
-    (``planemap.prediction: last``)."""
+    appended to); ``prediction`` (``planemap.prediction``): there the mean of the recent
+    twists ("mean"), the last one ("last"), or the recent ones extrapolated one epoch
+    along their trend ("trend", :func:`trend_twist`; the mean before 4 of them)."""
     rate = twist[:3]
     if against_map:
         # The map pipeline registers a scan against a map, not against a scan deskewed
@@ -41,7 +42,11 @@ def predicted_twist(
         # last velocity_window steps (0.44 cm there), and extracts again with the mean
         # of the twist used and the epoch's own (register_deskewed, against_map).
         recent.append(twist.copy())
-        return twist.copy() if last else np.mean(np.array(recent), axis=0)
+        if prediction == "last":
+            return twist.copy()
+        if prediction == "trend" and len(recent) >= 4:
+            return trend_twist(np.array(recent))
+        return np.mean(np.array(recent), axis=0)
     if measured:
         velocities.append(twist[3:])
     if not velocities:
@@ -91,12 +96,17 @@ def pairwise_trend(
     return np.r_[trend[:3], base[3:]]
 
 
-def map_trend(recent: Sequence[np.ndarray], config: OdometryConfig) -> np.ndarray | None:
+def map_trend(
+    recent: Sequence[np.ndarray], config: OdometryConfig, prediction: str = "mean"
+) -> np.ndarray | None:
     """(6,) the twist a plane-map epoch suspect with the mean of the ``recent`` twists
-    (6,) is tried with (``config.map_trend_rescue``, :func:`trend_twist`); None when off
-    or before 4 of them."""
+    (6,) is tried with (``config.map_trend_rescue``, :func:`trend_twist`); with
+    ``prediction`` "trend" (``planemap.prediction``: the epoch was deskewed with that
+    trend) their mean instead; None when off or before 4 of them."""
     if not config.map_trend_rescue or len(recent) < 4:
         return None
+    if prediction == "trend":
+        return np.mean(np.array(recent), axis=0)
     return trend_twist(np.array(recent))
 
 

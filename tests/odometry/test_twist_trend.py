@@ -70,8 +70,38 @@ def test_the_plane_maps_prediction_is_the_mean_of_the_recent_twists_or_the_last(
         recent: deque[np.ndarray] = deque(maxlen=3)
         velocities: deque[np.ndarray] = deque(maxlen=3)
         for tw in twists:
-            got = predicted_twist(tw, True, recent, velocities, True, last=last)
+            got = predicted_twist(tw, True, recent, velocities, True, "last" if last else "mean")
         expected = twists[-1] if last else twists[-3:].mean(axis=0)
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-15)
         assert len(recent) == 3 and not velocities
         assert got is not twists[-1]
+
+
+def test_the_plane_maps_trend_prediction_extrapolates_a_steady_change():
+    """``planemap.prediction: trend``: twists changing by the same amount each epoch (a
+    sway's rate through its zero) give the next one exactly (a line's residuals are zero:
+    no shrinking), where the mean lags by half the window; before 4 twists, the mean."""
+    step = np.array([0.01, -0.02, 0.03, 0.1, 0.0, -0.05])  # per epoch
+    start = np.array([0.1, 0.0, -0.2, 2.0, 0.1, 0.0])
+    recent: deque[np.ndarray] = deque(maxlen=5)
+    velocities: deque[np.ndarray] = deque(maxlen=5)
+    for k in range(7):
+        got = predicted_twist(start + k * step, True, recent, velocities, True, "trend")
+        if k < 3:
+            np.testing.assert_allclose(got, start + 0.5 * k * step, rtol=0, atol=1e-15)
+        else:
+            np.testing.assert_allclose(got, start + (k + 1) * step, rtol=0, atol=1e-12)
+    assert len(recent) == 5 and not velocities
+
+
+def test_the_map_trend_rescue_tries_the_mean_when_the_trend_is_the_prediction():
+    """With ``planemap.prediction: trend`` the epoch was first deskewed with the trend:
+    the rescue then tries the recent twists' mean (with ``mean``, the trend)."""
+    from planodom.config import OdometryConfig
+    from planodom.odometry.trend import map_trend
+
+    recent = [np.r_[0.0, 0.0, 0.1 * k, 1.0, 0.0, 0.0] for k in range(5)]
+    config = OdometryConfig()
+    np.testing.assert_allclose(map_trend(recent, config, "trend"), np.mean(recent, axis=0))
+    np.testing.assert_allclose(map_trend(recent, config, "mean"), trend_twist(np.array(recent)))
+    assert map_trend(recent[:3], config, "trend") is None
