@@ -210,9 +210,7 @@ def tie_cost(c: Candidates, rule: str) -> np.ndarray:
     if rule == "distance":
         cost = c.e2
     else:
-        cost = (
-            c.e2 / c.var_d + np.log(c.var_d) + c.ang**2 / c.var_ang + 2.0 * np.log(c.var_ang)
-        )
+        cost = c.e2 / c.var_d + np.log(c.var_d) + c.ang**2 / c.var_ang + 2.0 * np.log(c.var_ang)
     return np.where(c.ok, cost, np.inf)
 
 
