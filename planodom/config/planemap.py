@@ -223,7 +223,7 @@ class PlanemapConfig(Section):
     4 -> 6 cm, and the deskew compounds it), 40P 15.7 -> 10.9, AT128 4.3 -> 2.2, XT32M and
     VLP-16 unchanged; a hand-held VLP-16 walk (replay) ATE against KISS-ICP 0.25 -> 0.32 m.
     Hence not the default."""
-    tie_rule: Literal["distance", "likelihood"] = "distance"
+    tie_rule: Literal["distance", "likelihood", "informative"] = "distance"
     """Which of the landmarks that pass a scan plane's gates it is associated with
     (:func:`planodom.odometry.planemap.register.tie_cost`): ``distance``, the least mean
     squared distance of its points; ``likelihood``, the largest Gaussian likelihood of
@@ -231,7 +231,10 @@ class PlanemapConfig(Section):
     landmark's own uncertainty at the plane), so that a stale, far, weak landmark of the
     same surface, whose extrapolated uncertainty lets it pass the gates, does not win
     over the live one by a millimetre of distance (generalisation world 75, 6 mm: the
-    ground, 8310 points, tied to a 25-point ground landmark 35 m away, 7 vs 8 mm)."""
+    ground, 8310 points, tied to a 25-point ground landmark 35 m away, 7 vs 8 mm);
+    ``informative``, the least distance among the landmarks that know the plane's
+    offset at least as well as the prediction (offset variance at the plane at most
+    the prediction's), the others only when no such landmark passes."""
     doubtful_normal_deg: float = Field(1.0, gt=0, le=90)
     """``outliers: doubtful``: scan planes whose normal sigma (the bias model's, per axis)
     exceeds this may be dropped as outliers. Measured on KITTI 0005 and the five parked

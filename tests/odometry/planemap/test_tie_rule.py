@@ -46,7 +46,8 @@ def test_a_stale_weak_duplicate_passes_the_gate_but_the_live_landmark_wins() -> 
     x = cur.m.c
     assert M.var_at(np.array([1]), x)[0] > 100 * M.var_at(np.array([0]), x)[0]
     assert associate(M, np.eye(4), cur, np.radians(0.05), 0.01, BIAS, "distance")[0] == 1
-    assert associate(M, np.eye(4), cur, np.radians(0.05), 0.01, BIAS, "likelihood")[0] == 0
+    for rule in ("likelihood", "informative"):
+        assert associate(M, np.eye(4), cur, np.radians(0.05), 0.01, BIAS, rule)[0] == 0
 
 
 def test_two_surfaces_alike_known_the_nearer_wins_either_way() -> None:
@@ -60,5 +61,5 @@ def test_two_surfaces_alike_known_the_nearer_wins_either_way() -> None:
     cur = _scan(plane_points(rng, UP, 1.8, [0, 0, 0], 8, 5000, SIGMA), 20)
     c = candidates(M, np.eye(4), cur, np.radians(0.5), 0.05, BIAS)
     assert c.ok[0].all()
-    for rule in ("distance", "likelihood"):
+    for rule in ("distance", "likelihood", "informative"):
         assert associate(M, np.eye(4), cur, np.radians(0.5), 0.05, BIAS, rule)[0] == 0
