@@ -243,9 +243,10 @@ class PlanemapConfig(Section):
     1.01 / 1.08, median ATE 1.41 -> 1.41 / 2.28 -> 2.61 mm; world 71 at 6 mm ATE 17.1 ->
     6.4 mm, but world 77 at 2 cm rotation 0.0066 -> 0.0157 deg, world 1 at 2 cm ATE 1.5
     -> 3.3 mm, 65 at 6 mm 0.48 -> 1.02 mm; KITTI raw 0005 rotation RPE 0.087 -> 0.069
-    deg, translation 3.59 -> 3.64 cm, ATE 1.39 -> 1.43 m; hand-held 40-47 rotation better
-    on 5 / 6 of 8, world 45 at 6 mm 2.1 -> 4.1 deg. ``informative``: rotation 0.99 / 0.96, ATE 1.01 /
-    1.01, KITTI 0.088 deg, 3.61 cm, 1.35 m. Neither is no worse overall: ``distance``
+    deg, translation 3.59 -> 3.64 cm, ATE 1.39 -> 1.43 m; hand-held 40-47 rotation
+    better on 5 / 6 of 8, world 45 at 6 mm 2.1 -> 4.1 deg. ``informative``: rotation
+    0.99 / 0.96, ATE 1.01 / 1.01, KITTI 0.088 deg, 3.61 cm, 1.35 m. Neither is no worse
+    overall: ``distance``
     stays the default."""
     doubtful_normal_deg: float = Field(1.0, gt=0, le=90)
     """``outliers: doubtful``: scan planes whose normal sigma (the bias model's, per axis)
