@@ -246,8 +246,7 @@ class PlanemapConfig(Section):
     deg, translation 3.59 -> 3.64 cm, ATE 1.39 -> 1.43 m; hand-held 40-47 rotation
     better on 5 / 6 of 8, world 45 at 6 mm 2.1 -> 4.1 deg. ``informative``: rotation
     0.99 / 0.96, ATE 1.01 / 1.01, KITTI 0.088 deg, 3.61 cm, 1.35 m. Neither is no worse
-    overall: ``distance``
-    stays the default."""
+    overall: ``distance`` stays the default."""
     doubtful_normal_deg: float = Field(1.0, gt=0, le=90)
     """``outliers: doubtful``: scan planes whose normal sigma (the bias model's, per axis)
     exceeds this may be dropped as outliers. Measured on KITTI 0005 and the five parked
