@@ -7,7 +7,8 @@ moved normal is within ``3 sqrt(s_rot^2 + var_n + var_n_landmark)``, the RMS dis
 its points to the landmark plane (from the moments: ``e^2 = (n.(R c + t) + d)^2 + n^T R S
 R^T n / N``) within ``3 sqrt((s_t + s_rot |c|)^2 + var_offsets + sigma^2 + bias^2)``, and
 the supports (bounding circles) come within that distance. The landmark with the least
-``e^2`` wins (several planes may share one). Association and Gauss-Newton alternate (ICP's
+``e^2`` wins (``planemap.tie_rule: distance``; the other rules in :func:`tie_cost`);
+several planes may share one. Association and Gauss-Newton alternate (ICP's
 outer loop) with the gates fixed per scan.
 
 Gauss-Newton: the four moment residuals per association (:mod:`.moments`), each whitened
@@ -151,15 +152,41 @@ def plane_landmark_errors(
     return ang, e2, sep
 
 
-def associate(
+@dataclass(frozen=True, eq=False)
+class Candidates:
+    """Every (scan plane, landmark) pair under one pose and the gates (module docstring).
+
+    Attributes:
+        ok: (K, L) the pair passes the normal, distance and support gates.
+        ang: (K, L) angle between the moved normal and the landmark's (rad).
+        e2: (K, L) mean squared distance of the plane's points to the landmark (m^2).
+        var_ang: (K, L) variance per axis of that angle (rad^2): the gate's over 9.
+        var_d: (K, L) variance of the distance (m^2): the gate's over 9 (pose, scan
+            plane, the landmark's offset at the moved centroid, point noise and bias).
+        var_landmark: (K, L) the landmark's offset variance at the moved centroid (m^2).
+        var_pose: (K, 1) the prediction's offset variance at the plane (m^2): ``(s_t +
+            s_r lever)^2``.
+    """
+
+    ok: np.ndarray
+    ang: np.ndarray
+    e2: np.ndarray
+    var_ang: np.ndarray
+    var_d: np.ndarray
+    var_landmark: np.ndarray
+    var_pose: np.ndarray
+
+
+def candidates(
     M: PlaneMap, T: np.ndarray, cur: ScanPlanes, s_r: float, s_t: float, bias: float
-) -> np.ndarray:
-    """(K,) the best landmark of every scan plane under pose ``T`` (-1: none)."""
-    if len(M) == 0 or len(cur) == 0:
-        return np.full(len(cur), -1)
+) -> Candidates:
+    """The gated pairs of the scan's planes and the map's landmarks under pose ``T``
+    (world from scan), with the gates' RMS deviations ``s_r`` (rad) and ``s_t`` (m) and
+    the laser bias ``bias`` (m); the map must not be empty."""
     ang, e2, sep = plane_landmark_errors(M, T, cur)
     var_nL = np.trace(M.cov_n, axis1=1, axis2=2) / 2
-    g_ang = 3 * np.sqrt(s_r**2 + cur.var_n[:, None] + var_nL[None])
+    var_ang = s_r**2 + cur.var_n[:, None] + var_nL[None]
+    g_ang = 3 * np.sqrt(var_ang)
     cw = cur.m.c @ T[:3, :3].T + T[:3, 3]
     # (x - c)^T C (x - c) for every plane centroid x and landmark (c, C), as matrix products.
     C = M.cov_n
@@ -169,11 +196,48 @@ def associate(
     vL = quad + M.var_o[None]
     radius = np.sqrt(3.0 * np.trace(cur.m.S, axis1=1, axis2=2) / cur.m.N)
     lever = np.linalg.norm(cur.m.c, axis=1) + radius
-    g_d2 = 9 * (
-        (s_t + s_r * lever[:, None]) ** 2 + cur.var_o[:, None] + vL + cur.sigma**2 + bias**2
-    )
+    v_pose = (s_t + s_r * lever[:, None]) ** 2
+    g_d2 = 9 * (v_pose + cur.var_o[:, None] + vL + cur.sigma**2 + bias**2)
     ok = (ang <= g_ang) & (e2 <= g_d2) & (sep <= np.sqrt(g_d2))
-    cost = np.where(ok, e2, np.inf)
+    return Candidates(ok, ang, e2, var_ang, g_d2 / 9, vL, v_pose)
+
+
+def tie_cost(c: Candidates, rule: str) -> np.ndarray:
+    """(K, L) the cost by which a scan plane chooses among its gated landmarks (the least
+    wins; inf: not gated; ``PlanemapConfig.tie_rule``). ``distance``: the mean squared
+    distance ``e^2``. ``likelihood``: minus twice the Gaussian log-likelihood of the
+    pair's distance and normal angle under the gates' variances, ``e^2 / var_d + log
+    var_d + ang^2 / var_ang + 2 log var_ang`` (two normal axes): a landmark whose own
+    uncertainty at the plane is large (a few points fading far away, extrapolated)
+    explains any distance, so its whitened distance is small, but its density is low.
+    ``informative``: ``e^2``, but a landmark that knows the plane's offset less well
+    than the prediction does (its offset variance at the plane above the prediction's,
+    ``var_landmark > var_pose``) only among the plane's candidates when no other is
+    informative (:func:`associate`): it could not correct the pose there, only drag it."""
+    if rule == "likelihood":
+        cost = c.e2 / c.var_d + np.log(c.var_d) + c.ang**2 / c.var_ang + 2.0 * np.log(c.var_ang)
+        return np.where(c.ok, cost, np.inf)
+    if rule == "informative":
+        useful = c.ok & (c.var_landmark <= c.var_pose)
+        use = np.where(useful.any(axis=1, keepdims=True), useful, c.ok)
+        return np.where(use, c.e2, np.inf)
+    return np.where(c.ok, c.e2, np.inf)
+
+
+def associate(
+    M: PlaneMap,
+    T: np.ndarray,
+    cur: ScanPlanes,
+    s_r: float,
+    s_t: float,
+    bias: float,
+    rule: str = "distance",
+) -> np.ndarray:
+    """(K,) the best landmark of every scan plane under pose ``T`` (-1: none), the tie
+    between gated landmarks broken by ``rule`` (:func:`tie_cost`)."""
+    if len(M) == 0 or len(cur) == 0:
+        return np.full(len(cur), -1)
+    cost = tie_cost(candidates(M, T, cur, s_r, s_t, bias), rule)
     best = np.argmin(cost, axis=1)
     has = np.isfinite(cost[np.arange(len(cur)), best])
     return np.where(has, best, -1)
@@ -334,7 +398,7 @@ def register(
     lm = jj = np.zeros(0, dtype=np.intp)
     seen = None
     for _ in range(config.association_rounds):
-        a = associate(M, T, cur, s_r, s_t, cur.bias)
+        a = associate(M, T, cur, s_r, s_t, cur.bias, config.tie_rule)
         key = a.tobytes()
         if key == seen:
             break
