@@ -19,7 +19,7 @@ the number of poses: with few landmarks the Bayes tree is faster (:func:`schur_p
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import gtsam
@@ -129,17 +129,14 @@ def _blocks(cov: np.ndarray, n: int) -> np.ndarray:
     return np.where(upper, blocks, np.swapaxes(blocks, 1, 2))
 
 
-def _eliminate_group(
-    factors: list[gtsam.GaussianFactor],
-    pose_index: dict[int, int],
-    dims: dict[int, int],
-    S: np.ndarray,
-    dropped: list[int] | None = None,
-) -> None:
-    """Add one landmark's factors to the poses' information ``S`` with the landmark's
-    variables eliminated (its Schur complement), in place; ``dropped``: see
-    :func:`pose_information`."""
-    local: dict[int, int] = {}  # key -> offset in the local matrix, landmark keys first
+def local_layout(
+    factors: list[gtsam.GaussianFactor], pose_index: dict[int, int], dims: Mapping[int, int]
+) -> tuple[dict[int, int], int, list[int], int]:
+    """The local matrix of one landmark group's ``factors``: ``(local, m, poses, size)``,
+    ``local`` each key's offset (the landmark keys first, their ``dims``, then the poses
+    in ``pose_index`` order, 6 each), ``m`` the landmarks' dimension, ``poses`` the pose
+    keys in order, ``size`` the whole dimension."""
+    local: dict[int, int] = {}
     for factor in factors:
         for key in factor.keys():
             if key not in pose_index and key not in local:
@@ -150,7 +147,20 @@ def _eliminate_group(
     )
     for key in poses:
         local[key] = m + POSE_DIM * poses.index(key)
-    size = m + POSE_DIM * len(poses)
+    return local, m, poses, m + POSE_DIM * len(poses)
+
+
+def _eliminate_group(
+    factors: list[gtsam.GaussianFactor],
+    pose_index: dict[int, int],
+    dims: dict[int, int],
+    S: np.ndarray,
+    dropped: list[int] | None = None,
+) -> None:
+    """Add one landmark's factors to the poses' information ``S`` with the landmark's
+    variables eliminated (its Schur complement), in place; ``dropped``: see
+    :func:`pose_information`."""
+    local, m, poses, size = local_layout(factors, pose_index, dims)
     H = np.zeros((size, size))
     for factor in factors:
         cols = np.concatenate(

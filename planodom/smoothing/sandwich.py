@@ -50,6 +50,7 @@ from planodom.smoothing.marginals import (
     POSE_DIM,
     UNDETERMINED_RTOL,
     _groups,
+    local_layout,
 )
 
 #: ``OrientedPlane3::errorVector``'s first-order change with the measured plane's tangent
@@ -259,18 +260,7 @@ def _eliminate(
     undetermined directions (Jacobi-scaled eigenvalues below ``UNDETERMINED_RTOL``) left
     out, as :func:`.marginals._reduce_determined` (no information on the poses)."""
     factors = [linear.at(i) for i in members]
-    local: dict[int, int] = {}
-    for factor in factors:
-        for key in factor.keys():
-            if key not in pose_index and key not in local:
-                local[key] = sum(dims[k] for k in local)
-    m = sum(dims[k] for k in local)
-    poses = sorted(
-        {k for f in factors for k in f.keys() if k in pose_index}, key=pose_index.__getitem__
-    )
-    for key in poses:
-        local[key] = m + POSE_DIM * poses.index(key)
-    size = m + POSE_DIM * len(poses)
+    local, m, poses, size = local_layout(factors, pose_index, dims)
     epochs = sorted({error_maps[i][0] for i in members if i in error_maps})
     col_of = {k: POSE_DIM * j for j, k in enumerate(epochs)}
     H = np.zeros((size, size))
