@@ -49,7 +49,7 @@ def run(
             {"smoothing.loop_closure": True, "smoothing.covariance_model": "sandwich"}
         ),
     }
-    inputs = {}
+    inputs: dict[str, tuple] = {}
     for name, cfg in reversed(configs.items()):
         if name == "fitted" and single_odometry:  # the sandwich's (its planes' Jacobians)
             inputs[name] = inputs["sandwich"]

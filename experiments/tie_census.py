@@ -86,12 +86,14 @@ def main(argv: list[str]) -> None:
         current["truth"] = truth
         M, r = self.map, est.reg
         if r is not None and est.cur is not None and len(M) and len(r.planes):
-            _count(M, est, truth, *self.sigmas(), stats)
+            s_r, s_t = self.sigmas()
+            _count(M, est, truth, s_r, s_t, stats)
         commit(self, est)
 
-    lmk.PlaneMap.add, lmk.PlaneMap.keep = add_labelled, keep_labelled
-    odm.PlaneMapOdometry.estimate = estimate_labelled
-    odm.PlaneMapOdometry.commit = commit_counted
+    # instrumentation of this process only: the map and the odometry carry the labels
+    lmk.PlaneMap.add, lmk.PlaneMap.keep = add_labelled, keep_labelled  # type: ignore[method-assign]
+    odm.PlaneMapOdometry.estimate = estimate_labelled  # type: ignore[method-assign]
+    odm.PlaneMapOdometry.commit = commit_counted  # type: ignore[method-assign]
 
     full = simulate_world(world, noise, n_epochs=epochs, all_fields=True)
     cfg = declared_sweep(world, PlanodomConfig()).updated({"planemap.tie_rule": rule})
