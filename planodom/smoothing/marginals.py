@@ -102,23 +102,39 @@ def pose_information(
     pose_index = {key: i for i, key in enumerate(pose_keys)}
     n = POSE_DIM * len(pose_keys)
     S = np.zeros((n, n))
+    pose_only, by_group = split_factors(linear, pose_index)
+    for i in pose_only:
+        factor = linear.at(i)
+        cols = pose_columns(factor.keys(), pose_index)
+        S[np.ix_(cols, cols)] += factor.information()
+    for members in by_group.values():
+        _eliminate_group([linear.at(i) for i in members], pose_index, dims, S, dropped)
+    return S
+
+
+def split_factors(
+    linear: gtsam.GaussianFactorGraph, pose_index: dict[int, int]
+) -> tuple[list[int], dict[int, list[int]]]:
+    """The indices of ``linear``'s factors on poses only, and of the others by landmark
+    group (:func:`_groups`; a group's factors in index order)."""
     group_of = _groups(linear, pose_index)
-    by_group: dict[int, list[gtsam.GaussianFactor]] = {}
+    pose_only: list[int] = []
+    by_group: dict[int, list[int]] = {}
     for i in range(linear.size()):
         factor = linear.at(i)
         if factor is None:
             continue
-        keys = list(factor.keys())
-        others = [key for key in keys if key not in pose_index]
+        others = [key for key in factor.keys() if key not in pose_index]
         if others:
-            by_group.setdefault(group_of[others[0]], []).append(factor)
-            continue
-        info = factor.information()
-        cols = np.concatenate([POSE_DIM * pose_index[k] + np.arange(POSE_DIM) for k in keys])
-        S[np.ix_(cols, cols)] += info
-    for factors in by_group.values():
-        _eliminate_group(factors, pose_index, dims, S, dropped)
-    return S
+            by_group.setdefault(group_of[others[0]], []).append(i)
+        else:
+            pose_only.append(i)
+    return pose_only, by_group
+
+
+def pose_columns(keys: Sequence[int], pose_index: dict[int, int]) -> np.ndarray:
+    """The columns of the poses ``keys`` in the poses' information (6 each)."""
+    return np.concatenate([POSE_DIM * pose_index[k] + np.arange(POSE_DIM) for k in keys])
 
 
 def _blocks(cov: np.ndarray, n: int) -> np.ndarray:
@@ -173,7 +189,7 @@ def _eliminate_group(
     else:
         reduced = H_pp - _reduce_determined(H_ll, H_lp, list(local)[: len(local) - len(poses)],
                                             dims, dropped)  # fmt: skip
-    cols = np.concatenate([POSE_DIM * pose_index[k] + np.arange(POSE_DIM) for k in poses])
+    cols = pose_columns(poses, pose_index)
     S[np.ix_(cols, cols)] += reduced
 
 

@@ -49,8 +49,9 @@ from planodom.smoothing.marginals import (
     FIRST_POSE_TIGHTENING,
     POSE_DIM,
     UNDETERMINED_RTOL,
-    _groups,
     local_layout,
+    pose_columns,
+    split_factors,
 )
 
 #: ``OrientedPlane3::errorVector``'s first-order change with the measured plane's tangent
@@ -141,19 +142,11 @@ def sandwich_pose_covariances(
             cols.append(q.ravel())
             vals.append(part.ravel())
 
-    group_of = _groups(linear, pose_index)
-    by_group: dict[int, list[int]] = {}
-    for i in range(linear.size()):
+    pose_only, by_group = split_factors(linear, pose_index)
+    for i in pose_only:
         factor = linear.at(i)
-        if factor is None:
-            continue
-        keys = list(factor.keys())
-        others = [key for key in keys if key not in pose_index]
-        if others:
-            by_group.setdefault(group_of[others[0]], []).append(i)
-            continue
         A = factor.jacobian()[0]
-        pcols = np.concatenate([POSE_DIM * pose_index[k] + np.arange(POSE_DIM) for k in keys])
+        pcols = pose_columns(factor.keys(), pose_index)
         S[np.ix_(pcols, pcols)] += A.T @ A
         if i in error_maps:
             k, g = error_maps[i]
@@ -281,7 +274,7 @@ def _eliminate(
     keep = w > UNDETERMINED_RTOL * max(float(w[-1]), 1.0)
     W = V[:, keep] / np.sqrt(w[keep])  # H_ll^+ = D^-1 W W^T D^-1
     Cp = W.T @ (H_lp / dl[:, None])
-    pose_cols = np.concatenate([POSE_DIM * pose_index[k] + np.arange(POSE_DIM) for k in poses])
+    pose_cols = pose_columns(poses, pose_index)
     S[np.ix_(pose_cols, pose_cols)] += H_pp - Cp.T @ Cp
     if epochs:
         Cb = W.T @ (B[:m] / dl[:, None])
