@@ -24,6 +24,14 @@ class ConfigError(PlanodomError):
     or the command-line option)."""
 
 
+class ConfigValueError(ConfigError, ValueError):
+    """A config section built in code, or a field assigned, got an invalid value.
+
+    Also a ``ValueError`` (as pydantic's ``ValidationError``, which it replaces by one line
+    naming the section and the field), so ``except ValueError`` keeps catching it.
+    """
+
+
 class GeometryError(PlanodomError):
     """Input geometry is malformed (wrong shape, non-finite values, zero normals)."""
 

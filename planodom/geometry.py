@@ -32,6 +32,15 @@ from planodom.se3 import twist_step as twist_step
 #: Unit vector of the vertical axis of a base frame (z up).
 UP = np.array([0.0, 0.0, 1.0])
 
+#: Largest deviation of ``R^T R`` from the identity (per entry) of a 3x3 block that counts as
+#: a rotation where one is read from a file or given in code (a KITTI pose or ``Tr``, a
+#: ``rig.yaml`` extrinsic, a simulated sensor's ``T_base_sensor``). Files written with 6
+#: decimals are off by ~1e-6 (KITTI writes 6 to 12 significant digits), four decimals
+#: (0.7071) by ~1e-4; the same bound as a TUM quaternion's norm
+#: (``planodom.datasets.tum.QUATERNION_NORM_TOL``). A scaled, sheared or singular block (a
+#: projection matrix, a typo) is refused, not used as a pose.
+ROTATION_TOL = 1e-3
+
 
 # --------------------------------------------------------------------------- transforms
 
@@ -42,6 +51,34 @@ def make_transform(R: np.ndarray, t: ArrayLike) -> np.ndarray:
     T[:3, :3] = R
     T[:3, 3] = np.asarray(t, dtype=float).reshape(3)
     return T
+
+
+def non_rotations(R: ArrayLike) -> np.ndarray:
+    """Indices of the (E, 3, 3) blocks ``R`` that are no rotation: ``R^T R`` off the identity
+    by more than :data:`ROTATION_TOL` in an entry, a reflection (determinant < 0), or not
+    finite."""
+    R = np.asarray(R, dtype=np.float64).reshape(-1, 3, 3)
+    finite = np.all(np.isfinite(R), axis=(1, 2))
+    R = np.where(finite[:, None, None], R, 0.0)
+    gram = np.einsum("eji,ejk->eik", R, R) - np.eye(3)
+    off = np.abs(gram).max(axis=(1, 2)) > ROTATION_TOL
+    return np.flatnonzero(off | (np.linalg.det(R) < 0) | ~finite)
+
+
+def rotation_problem(R: ArrayLike) -> str | None:
+    """Why the (3, 3) ``R`` is no rotation (see :func:`non_rotations`), in a few words; None
+    for a rotation."""
+    R = np.asarray(R, dtype=np.float64)
+    if not len(non_rotations(R)):
+        return None
+    if not np.all(np.isfinite(R)):
+        return "its 3x3 part is not finite"
+    scales = np.linalg.norm(R, axis=0)
+    if not np.allclose(scales, 1.0, rtol=0.0, atol=ROTATION_TOL):
+        return f"its 3x3 part has column norms {', '.join(f'{v:.6g}' for v in scales)}, not 1"
+    if np.linalg.det(R) < 0:
+        return "its 3x3 part is a reflection, determinant < 0"
+    return "the columns of its 3x3 part are not orthogonal"
 
 
 def invert_transform(T: np.ndarray) -> np.ndarray:

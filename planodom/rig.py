@@ -24,7 +24,9 @@ from typing import Any
 
 import numpy as np
 
+from planodom.config.section import holds_bool
 from planodom.errors import DatasetError, GeometryError
+from planodom.geometry import non_rotations, rotation_problem
 
 _KNOWN = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics")
 
@@ -156,6 +158,13 @@ def _extrinsics(value: Any, source: str) -> tuple[np.ndarray, ...]:
     arr = _array(value, source, "extrinsics", (-1, 4, 4))
     if not np.allclose(arr[:, 3], [0.0, 0.0, 0.0, 1.0]):
         raise DatasetError(f"{source}: field 'extrinsics': last row of each must be 0 0 0 1")
+    bad = non_rotations(arr[:, :3, :3])
+    if len(bad):
+        k = int(bad[0])
+        raise DatasetError(
+            f"{source}: field 'extrinsics.{k}': not a rigid transform "
+            f"({rotation_problem(arr[k, :3, :3])})"
+        )
     return tuple(arr)
 
 
@@ -169,7 +178,10 @@ def _positive(value: Any, source: str, name: str) -> float:
 
 
 def _array(value: Any, source: str, name: str, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` as a finite float64 array of ``shape`` (-1: any length), or DatasetError."""
+    """``value`` as a finite float64 array of ``shape`` (-1: any length), or DatasetError
+    (also for ``true`` / ``false`` among the numbers, which numpy would read as 1 / 0)."""
+    if holds_bool(value):
+        raise DatasetError(f"{source}: field '{name}' must be numbers, not booleans")
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):

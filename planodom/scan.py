@@ -67,6 +67,22 @@ class Scan:
         return Scan(self.points[mask], pick(self.ring), pick(self.t), pick(self.label))
 
 
+#: Farthest a point may lie from the base origin and still be a sensor's return, metres.
+#: The longest-range vehicle lidars reach 200 to 500 m by their data sheets (Velodyne
+#: HDL-64E 120 m, Ouster OS2 240 m, Livox Tele-15 500 m); twice the longest leaves room for
+#: sensors mounted off the base origin. Points beyond it are in another frame (a map-frame
+#: export, a UTM offset): their planes face away from no sensor and their range-scaled
+#: gaps are kilometres, so such epochs end unresolved.
+MAX_RANGE_M = 1000.0
+
+
+def points_beyond_range(scan: Scan, max_range_m: float = MAX_RANGE_M) -> int:
+    """How many of ``scan``'s points lie more than ``max_range_m`` (m) from the base origin."""
+    if len(scan) == 0:
+        return 0
+    return int(np.count_nonzero(np.einsum("ij,ij->i", scan.points, scan.points) > max_range_m**2))
+
+
 def check_is_scan(scan: object) -> None:
     """GeometryError unless ``scan`` is a :class:`Scan` (or has its fields): an (N, 3)
     array handed over as is ended in an AttributeError deep in the extraction."""

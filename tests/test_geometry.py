@@ -306,3 +306,31 @@ def test_cross_rows_equals_numpy_cross_bit_for_bit_when_broadcast():
     a, b = rng.normal(size=(40, 3, 3)) * 7.0, rng.normal(size=(40, 1, 3))
     assert np.array_equal(g.cross_rows(a, b), np.cross(a, b))
     assert np.array_equal(g.cross_rows(a[:, 0], b[:, 0]), np.cross(a[:, 0], b[:, 0]))
+
+
+def test_one_rotation_check_with_a_documented_bound() -> None:
+    """planodom.geometry.non_rotations / rotation_problem, the check every reader of a
+    rotation block shares (KITTI poses and Tr, rig.yaml extrinsics, simulated sensors)."""
+    rng = np.random.default_rng(5)
+    R = Rotation.random(4, random_state=rng).as_matrix()
+    assert len(g.non_rotations(R)) == 0
+    assert g.rotation_problem(R[0]) is None
+    # six and four written decimals are rotations (off by ~1e-6 and ~1e-4)
+    assert len(g.non_rotations(np.round(R, 6))) == 0
+    assert len(g.non_rotations(np.round(R, 4))) == 0
+    # the bound: a column scaled by s moves (R^T R)_00 to s^2
+    within, beyond = R[0].copy(), R[0].copy()
+    within[:, 0] *= np.sqrt(1 + 0.9e-3)
+    beyond[:, 0] *= np.sqrt(1 + 1.1e-3)
+    assert len(g.non_rotations(within)) == 0 and list(g.non_rotations(beyond)) == [0]
+    bad = R.copy()
+    bad[1][:, 0] *= 1.002
+    bad[2] = np.diag([1.0, 1.0, -1.0])  # reflection
+    bad[3, :, 0] = bad[3, :, 0] + 0.1 * bad[3, :, 1]  # shear, unit columns kept
+    bad[3, :, 0] /= np.linalg.norm(bad[3, :, 0])
+    assert list(g.non_rotations(bad)) == [1, 2, 3]
+    assert "column norms" in (g.rotation_problem(bad[1]) or "")
+    assert "reflection" in (g.rotation_problem(bad[2]) or "")
+    assert "not orthogonal" in (g.rotation_problem(bad[3]) or "")
+    assert "not finite" in (g.rotation_problem(np.full((3, 3), np.nan)) or "")
+    assert g.ROTATION_TOL == 1e-3

@@ -43,6 +43,12 @@ def test_one_origin_for_all_rings_is_one_row() -> None:
         ({"motion_bounds": {"max_rotation_deg": -1}}, "motion_bounds.max_rotation_deg"),
         ({"extrinsics": [(2 * np.eye(4)).tolist()]}, "last row of each must be 0 0 0 1"),
         ({"extrinsics": [[1, 2, 3]]}, "field 'extrinsics' must have shape Nx4x4"),
+        # true / false were read as 1 / 0
+        ({"sensor_origins": [[True, 0, 0]]}, "field 'sensor_origins' must be numbers, not"),
+        ({"extrinsics": [np.eye(4).tolist()[:3] + [[0, 0, 0, True]]]}, "'extrinsics' must be"),
+        # no rotation: accepted as a sensor's pose before
+        ({"extrinsics": [np.diag([2.0, 2, 2, 1]).tolist()]}, "'extrinsics.0': not a rigid"),
+        ({"extrinsics": [np.diag([1.0, 1, -1, 1]).tolist()]}, "'extrinsics.0'.*reflection"),
     ],
 )
 def test_bad_fields_fail_in_one_line_naming_source_and_field(data, message) -> None:

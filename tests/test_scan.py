@@ -87,3 +87,13 @@ def test_an_array_where_a_scan_or_planes_belong_is_refused_by_the_public_api() -
         planodom.run_odometry([points, points])
     with pytest.raises(GeometryError, match=r"^expected planodom.Plane objects, got ndarray; "):
         planodom.estimate_relative_pose(points, points)
+
+
+def test_points_beyond_any_sensor_range_are_counted() -> None:
+    from planodom.scan import MAX_RANGE_M, points_beyond_range
+
+    points = np.array([[0.0, 0.0, 0.0], [600.0, 800.0, 0.0], [600.0, 800.0, 1.0], [5e5, 0, 0]])
+    assert MAX_RANGE_M == 1000.0
+    assert points_beyond_range(Scan(points)) == 2  # |(600, 800, 0)| = 1000 exactly is within
+    assert points_beyond_range(Scan(points), max_range_m=2e6) == 0
+    assert points_beyond_range(Scan(np.zeros((0, 3)))) == 0

@@ -124,6 +124,21 @@ def _report_skipped(data: ScanEpochs, metrics: dict) -> None:
         metrics["skipped_scans"] = data.skipped
 
 
+def _report_far_points(data: ScanEpochs, metrics: dict) -> None:
+    """Warn of (and list in metrics.json) scans with points beyond any sensor's range."""
+    from planodom.scan import MAX_RANGE_M
+
+    if data.far:
+        name, (far, total) = next(iter(data.far.items()))
+        warn(
+            f"{len(data.far)} scan(s) hold points more than {MAX_RANGE_M:g} m from the base "
+            f"origin, farther than any lidar measures (first: {name}, {far} of {total} "
+            "points): not in the vehicle's frame (a map-frame export?); their epochs are "
+            "likely unresolved (listed in metrics.json)"
+        )
+        metrics["scans_beyond_sensor_range"] = list(data.far)
+
+
 def _report_beyond_bounds(odo, metrics: dict) -> None:
     """Warn of (and list in metrics.json) epochs whose estimated step exceeds the motion
     bounds the association assumed: there the odometry has most likely lost track, which
@@ -226,12 +241,14 @@ def run(
     inputs = _inputs(source, config)
     with results.results_folder(out, overwrite=overwrite, inputs=inputs) as folder:
         data = source.load(folder.tmp, skip_bad_scans)
+        _check_run_delta(cfg.odometry.delta, delta is not None, len(data))
         with progress_bar("odometry") as callback, data.naming_errors():
             odo = run_odometry(data, cfg, data.rig, progress=data.progress(callback))
         data.close()
         metrics = results.odometry_metrics(odo, data.gt_poses)
         metrics |= results.kitti_metrics(odo.poses, data.gt_poses, data.Tr)
         _report_skipped(data, metrics)
+        _report_far_points(data, metrics)
         _report_beyond_bounds(odo, metrics)
         _report_inconsistent(odo, metrics)
         _report_partial_rotation(odo, metrics)
@@ -239,6 +256,18 @@ def run(
         _write_pictures(folder.tmp, data, odo, name="planodom run")
     console.print(f"[dim]{motion_assumption(odo.config or cfg)}[/]", highlight=False)
     console.print(odometry_table(odo, metrics, title=f"planodom run -> {folder.path}"))
+
+
+def _check_run_delta(delta: int, given: bool, n: int) -> None:
+    """Refuse a delta no epoch can use: with ``delta >= n`` no epoch has an epoch k - delta
+    (the streaming odometry would associate every epoch with the first, under bounds
+    widened delta-fold)."""
+    if delta > 1 and delta >= n:
+        name = "--delta" if given else "odometry.delta"
+        raise ConfigError(
+            f"{name} {delta}: epoch k is associated with epoch k - delta, so the "
+            f"{n} epoch(s) need delta < {n}"
+        )
 
 
 def _smoothing_delta(delta: int | None, window: int | None, mode: str, cfg, n: int):
@@ -319,6 +348,7 @@ def smooth(
         odo_metrics = results.odometry_metrics(sm.odometry, data.gt_poses)
         odo_metrics |= results.kitti_metrics(sm.odometry.poses, data.gt_poses, data.Tr)
         _report_skipped(data, odo_metrics)
+        _report_far_points(data, odo_metrics)
         _report_beyond_bounds(sm.odometry, odo_metrics)
         _report_inconsistent(sm.odometry, odo_metrics)
         _report_partial_rotation(sm.odometry, odo_metrics)

@@ -21,6 +21,7 @@ from rich.console import Console
 from rich.text import Text
 
 from planodom.errors import DatasetError, OutputExistsError, PlanodomError
+from planodom.scan import Scan, points_beyond_range
 
 app = typer.Typer(
     help="Odometry from planar landmarks, smoothed with factor graphs.",
@@ -205,6 +206,7 @@ class ScanEpochs:
         self.Tr: Any = getattr(dataset, "Tr", None)
         self.current: str | None = None
         self.skipped: list[str] = []
+        self.far: dict[str, tuple[int, int]] = {}  # scan -> (points beyond MAX_RANGE_M, all)
 
     def __len__(self) -> int:
         return len(self.dataset)
@@ -220,13 +222,18 @@ class ScanEpochs:
     def __getitem__(self, k: int) -> Any:
         self.current = self.scan_name(k)
         try:
-            return self.dataset[k]
+            scan = self.dataset[k]
         except DatasetError as exc:
             if not self.skip_bad:
                 raise
             warn(f"{one_line(exc)} (skipped: epoch {k} has no planes)")
             self.skipped.append(self.scan_name(k))
             return []  # a plane list: no extraction, an epoch without planes
+        if isinstance(scan, Scan):
+            far = points_beyond_range(scan)
+            if far:
+                self.far[self.current] = (far, len(scan))
+        return scan
 
     def close(self) -> None:
         """Release the recording's files (a bag's reader)."""

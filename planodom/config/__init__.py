@@ -18,7 +18,7 @@ from planodom.config.association import AssociationConfig
 from planodom.config.extraction import ExtractionConfig
 from planodom.config.odometry import OdometryConfig
 from planodom.config.planemap import PlanemapConfig
-from planodom.config.section import Section
+from planodom.config.section import Section, one_line
 from planodom.config.smoothing import SmoothingConfig
 from planodom.errors import ConfigError, read_yaml_file
 
@@ -103,10 +103,7 @@ class PlanodomConfig(Section):
         try:
             return cls.model_validate(data)
         except ValidationError as exc:
-            first = exc.errors()[0]
-            loc = ".".join(str(x) for x in first["loc"])
-            got = f", got {first['input']!r:.60}" if first["type"] != "missing" else ""
-            raise ConfigError(f"{source}: field '{loc}': {first['msg']}{got}") from None
+            raise ConfigError(one_line(exc, source)) from None
         except ConfigError as exc:  # raised by a section's own cross-field checks
             raise ConfigError(f"{source}: {exc}") from exc
 

@@ -2,10 +2,85 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+import typing
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, ValidationError, ValidationInfo, field_validator
+
+from planodom.errors import ConfigValueError
+
+
+def admits_bool(annotation: Any) -> bool:
+    """Whether a field of this type may hold ``True`` / ``False``: it names ``bool``, ``Any``,
+    a ``Literal`` of a boolean, a nested model (which checks its own fields), or no number
+    type at all (pydantic then refuses a boolean by itself where it should)."""
+
+    def names(tp: Any) -> tuple[bool, bool]:  # (admits a bool, is or holds a number)
+        if tp is bool or tp is Any or isinstance(tp, bool):
+            return True, False
+        if isinstance(tp, type) and issubclass(tp, BaseModel):
+            return True, False
+        if tp is int or tp is float:
+            return False, True
+        found = [names(arg) for arg in typing.get_args(tp)]
+        return any(b for b, _ in found), any(n for _, n in found)
+
+    admits, numeric = names(annotation)
+    return admits or not numeric
+
+
+def holds_bool(value: Any) -> bool:
+    """Whether ``value`` is a boolean or a list / tuple holding one (at any depth)."""
+    if isinstance(value, bool):
+        return True
+    if isinstance(value, list | tuple):
+        return any(holds_bool(v) for v in value)
+    return False
+
+
+def one_line(exc: ValidationError, source: str) -> str:
+    """pydantic's first error in one line: ``source: field 'a.b': problem, got value``."""
+    first = exc.errors()[0]
+    loc = ".".join(str(x) for x in first["loc"]) or "(document)"
+    got = f", got {first['input']!r:.60}" if first["type"] != "missing" else ""
+    return f"{source}: field '{loc}': {first['msg']}{got}"
 
 
 class Section(BaseModel):
-    """Base of every config section: unknown keys are errors, values are validated."""
+    """Base of every config section: unknown keys are errors, values are validated.
+
+    A number field refuses ``true`` / ``false`` (pydantic's lax mode would read them as
+    1 / 0). A section built in code (``ExtractionConfig(mode="magic")``) or a field
+    assigned a bad value raises :class:`planodom.errors.ConfigValueError` in one line
+    naming the section and field; it is a ``ConfigError`` and a ``ValueError``, as
+    pydantic's ``ValidationError`` is.
+    """
 
     model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+    def __init__(self, **data: Any) -> None:
+        try:
+            super().__init__(**data)
+        except ValidationError as exc:
+            raise ConfigValueError(one_line(exc, type(self).__name__)) from None
+
+    # Validation of a loaded file (``model_validate``) must not pass through this
+    # ``__init__``: pydantic would wrap the one-line error into a nested ValidationError.
+    # The mark tells pydantic this is its own ``__init__``, as its RootModel does.
+    __init__.__pydantic_base_init__ = True  # type: ignore[attr-defined]
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        try:
+            super().__setattr__(name, value)
+        except ValidationError as exc:
+            raise ConfigValueError(one_line(exc, type(self).__name__)) from None
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_for_numbers(cls, value: Any, info: ValidationInfo) -> Any:
+        """Refuse ``true`` / ``false`` where the field holds numbers."""
+        if info.field_name is None or not holds_bool(value):
+            return value
+        if not admits_bool(cls.model_fields[info.field_name].annotation):
+            raise ValueError("expected a number, not a boolean")
+        return value

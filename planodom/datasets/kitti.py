@@ -24,20 +24,13 @@ import numpy as np
 
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import check_time_field, read_scan
-from planodom.datasets.tum import QUATERNION_NORM_TOL
 from planodom.errors import DatasetError
+from planodom.geometry import non_rotations, rotation_problem
 from planodom.rig import Rig
 from planodom.scan import Scan
 
 #: KITTI's Velodyne HDL-64E turns at 10 Hz.
 KITTI_RATE_HZ = 10.0
-
-
-#: Largest deviation of ``R^T R`` from the identity (per entry) of a pose's or ``Tr``'s
-#: rotation block: KITTI writes 6 to 12 significant digits (off by ~1e-6); the same bound
-#: as a TUM quaternion's norm (:data:`planodom.datasets.tum.QUATERNION_NORM_TOL`). A scaled,
-#: sheared or singular block (a projection matrix, a typo) is refused, not used as a pose.
-ROTATION_TOL = QUATERNION_NORM_TOL
 
 
 def is_kitti_sequence(path: str | Path) -> bool:
@@ -68,10 +61,10 @@ def read_kitti_calib(path: str | Path) -> np.ndarray:
         if len(values) != 12 or not np.all(np.isfinite(values)):
             raise DatasetError(f"{path}:{number}: 'Tr' must hold 12 finite numbers")
         Tr = _homogeneous(values.reshape(3, 4))
-        bad = _not_rotation(Tr[None, :3, :3])
+        bad = non_rotations(Tr[None, :3, :3])
         if len(bad):
             raise DatasetError(
-                f"{path}:{number}: 'Tr' is not a rigid transform ({_rotation_problem(Tr[:3, :3])})"
+                f"{path}:{number}: 'Tr' is not a rigid transform ({rotation_problem(Tr[:3, :3])})"
             )
         return Tr
     raise DatasetError(f"{path}: no 'Tr:' line (the Velodyne-to-camera transform)")
@@ -103,11 +96,11 @@ def read_kitti_poses(path: str | Path) -> np.ndarray:
     if not rows:
         raise DatasetError(f"{path}: no poses")
     poses = _homogeneous(np.array(rows).reshape(-1, 3, 4))
-    bad = _not_rotation(poses[:, :3, :3])
+    bad = non_rotations(poses[:, :3, :3])
     if len(bad):
         k = int(bad[0])
         raise DatasetError(
-            f"{path}:{numbers[k]}: not a rigid pose ({_rotation_problem(poses[k, :3, :3])}; "
+            f"{path}:{numbers[k]}: not a rigid pose ({rotation_problem(poses[k, :3, :3])}; "
             f"{len(bad)} such lines)"
         )
     return poses
@@ -247,21 +240,3 @@ def _homogeneous(M: np.ndarray) -> np.ndarray:
     out[..., :3, :] = M
     out[..., 3, 3] = 1.0
     return out
-
-
-def _not_rotation(R: np.ndarray) -> np.ndarray:
-    """Indices of the (E, 3, 3) blocks that are no rotation: ``R^T R`` off the identity by
-    more than :data:`ROTATION_TOL` in an entry, or a reflection (determinant < 0)."""
-    gram = np.einsum("eji,ejk->eik", R, R) - np.eye(3)
-    off = np.abs(gram).max(axis=(1, 2)) > ROTATION_TOL
-    return np.flatnonzero(off | (np.linalg.det(R) < 0))
-
-
-def _rotation_problem(R: np.ndarray) -> str:
-    """Why the (3, 3) ``R`` is no rotation, in a few words."""
-    scales = np.linalg.norm(R, axis=0)
-    if not np.allclose(scales, 1.0, atol=ROTATION_TOL):
-        return f"its 3x3 part has column norms {', '.join(f'{v:.6g}' for v in scales)}, not 1"
-    if np.linalg.det(R) < 0:
-        return "its 3x3 part is a reflection, determinant < 0"
-    return "the columns of its 3x3 part are not orthogonal"

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from planodom.config.section import holds_bool
 from planodom.errors import ConfigError, DatasetError, read_yaml_file
 from planodom.geometry import make_transform
 from planodom.rig import Rig
@@ -140,6 +141,9 @@ def _sensor_from_dict(d: object, source: str, field: str) -> Sensor:
     unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
     if unknown:
         raise ConfigError(f"{source}: field '{field}.{unknown[0]}': unknown field")
+    flags = sorted(k for k, v in kwargs.items() if k != "name" and holds_bool(v))
+    if flags:  # every other field is numeric: true / false would be read as 1 / 0
+        raise ConfigError(f"{source}: field '{field}.{flags[0]}': expected a number, not a boolean")
     if "vfov_deg" in kwargs:
         kwargs["vfov_deg"] = tuple(kwargs["vfov_deg"])
     try:

@@ -33,12 +33,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from planodom.config.section import admits_bool, holds_bool
 from planodom.errors import DatasetError, GeometryError, read_yaml_file
 
 Kind = Literal["wall", "facade", "ground", "polygon"]
@@ -180,6 +181,17 @@ class Scene:
 class _Spec(BaseModel):
     model_config = ConfigDict(extra="forbid")
     id: int
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_bool_for_numbers(cls, data: Any) -> Any:
+        """Refuse ``true`` / ``false`` for a number (pydantic would read 1 / 0)."""
+        if isinstance(data, dict):
+            for name, value in data.items():
+                known = cls.model_fields.get(name)
+                if known is not None and holds_bool(value) and not admits_bool(known.annotation):
+                    raise ValueError(f"'{name}' expects numbers, not a boolean ({value!r})")
+        return data
 
 
 class _WallSpec(_Spec):

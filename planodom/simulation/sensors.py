@@ -23,15 +23,16 @@ from typing import Any, ClassVar
 import numpy as np
 
 from planodom.errors import ConfigError
+from planodom.geometry import rotation_problem
 
 
 def _check_transform(T: np.ndarray, name: str) -> np.ndarray:
     T = np.asarray(T, dtype=np.float64)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise ConfigError(f"sensor '{name}': T_base_sensor must be a finite 4x4 matrix")
-    R = T[:3, :3]
-    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise ConfigError(f"sensor '{name}': T_base_sensor rotation is not a rotation")
+    problem = rotation_problem(T[:3, :3])
+    if problem is not None:
+        raise ConfigError(f"sensor '{name}': T_base_sensor is not a rigid transform ({problem})")
     if not np.allclose(T[3], [0, 0, 0, 1]):
         raise ConfigError(f"sensor '{name}': T_base_sensor last row must be [0, 0, 0, 1]")
     return T

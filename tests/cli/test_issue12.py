@@ -284,3 +284,28 @@ def test_a_real_bug_keeps_its_traceback(ds: Path, monkeypatch: pytest.MonkeyPatc
     result = runner.invoke(app, ["run", str(ds), "--out", str(ds.parent / "o")])
     assert result.exit_code == 1 and isinstance(result.exception, ZeroDivisionError)
     assert not (ds.parent / "o").exists()
+
+
+def test_run_refuses_a_delta_no_epoch_can_use(ds: Path) -> None:
+    """--delta 50 on 5 epochs ran, every epoch associated with the first under bounds
+    widened 50-fold; smooth refused it already."""
+    out = ds.parent / "out"
+    fails(["run", ds, "--out", out, "--delta", "50"], "--delta 50", "delta < 5")
+    (ds.parent / "c.yaml").write_text("odometry: {delta: 5}\n")
+    fails(["run", ds, "--out", out, "--config", ds.parent / "c.yaml"], "odometry.delta 5")
+    assert not out.exists()
+
+
+def test_points_beyond_any_sensor_range_are_reported(ds: Path) -> None:
+    """Scans 5e5 m from the base origin (a map-frame export) ran with every epoch
+    unresolved and no word why."""
+    for path in sorted((ds / "scans").iterdir()):
+        scan = read_scan(path)
+        write_scan(path, type(scan)(scan.points + [5e5, 0.0, 0.0], scan.ring, scan.t))
+    out = ds.parent / "out"
+    result = runner.invoke(app, ["run", str(ds), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    warning = [line for line in result.stderr.splitlines() if "1000 m" in line]
+    assert len(warning) == 1 and "000000" in warning[0] and "of" in warning[0], result.stderr
+    listed = json.loads((out / "metrics.json").read_text())["scans_beyond_sensor_range"]
+    assert len(listed) == len(list((ds / "scans").iterdir()))

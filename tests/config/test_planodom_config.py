@@ -81,3 +81,80 @@ def test_jacobian_deskew_noise_switches_on_the_planes_deskew_jacobian():
         assert loaded.extraction.deskew_jacobian
     other = PlanodomConfig.from_dict({"smoothing": {"deskew_noise": "twist_change_frame_net"}})
     assert other.extraction.deskew_jacobian is False
+
+
+def _number_fields(model: type, prefix: str = "") -> list[tuple[str, bool]]:
+    """(dotted name, admits a boolean) of every leaf field of ``model`` and its sections,
+    read from the annotations independently of the validator under test."""
+    import typing
+
+    from pydantic import BaseModel
+
+    out = []
+    for name, info in model.model_fields.items():
+        tp = info.annotation
+        if isinstance(tp, type) and issubclass(tp, BaseModel):
+            out += _number_fields(tp, f"{prefix}{name}.")
+            continue
+        flat, stack = [], [tp]
+        while stack:
+            t = stack.pop()
+            flat.append(t)
+            stack += list(typing.get_args(t))
+        if int in flat or float in flat:
+            out.append((f"{prefix}{name}", bool in flat or True in flat or False in flat))
+    return out
+
+
+def test_a_boolean_is_refused_for_every_number_field(tmp_path) -> None:
+    """`true` for an int or float field was read as 1 (pydantic's lax mode)."""
+    fields = _number_fields(PlanodomConfig)
+    numbers = [name for name, admits in fields if not admits]
+    assert len(numbers) > 50  # the walk found the sections' fields
+    for name in numbers:
+        *path, leaf = name.split(".")
+        nested: dict = {leaf: True}
+        for key in reversed(path):
+            nested = {key: nested}
+        with pytest.raises(ConfigError, match=rf"^c\.yaml: field '{name}': .*boolean"):
+            PlanodomConfig.from_dict(nested, source="c.yaml")
+    (tmp_path / "c.yaml").write_text("association: {max_translation_m: true}\n")
+    with pytest.raises(ConfigError, match=r"field 'association\.max_translation_m'.*boolean"):
+        PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    (tmp_path / "c.yaml").write_text("association: {max_translation_m: 2}\n")
+    assert PlanodomConfig.from_yaml(tmp_path / "c.yaml").association.max_translation_m == 2.0
+
+
+def test_boolean_fields_still_take_booleans() -> None:
+    defaults = PlanodomConfig().model_dump()
+    flags = []
+    for section, values in defaults.items():
+        flags += [(section, k, v) for k, v in values.items() if isinstance(v, bool)]
+    assert len(flags) > 5
+    for section, key, value in flags:
+        cfg = PlanodomConfig.from_dict({section: {key: not value}})
+        assert getattr(getattr(cfg, section), key) is (not value)
+
+
+def test_a_section_built_in_code_raises_one_line() -> None:
+    """pydantic's ValidationError spans several lines; the library's error is one line naming
+    the section and field, and still a ValueError for callers that catch that."""
+    from planodom.config import AssociationConfig, ExtractionConfig
+    from planodom.errors import ConfigValueError
+
+    with pytest.raises(ConfigValueError) as info:
+        AssociationConfig(max_translation_m=-1.0)
+    assert isinstance(info.value, ValueError) and isinstance(info.value, ConfigError)
+    assert "\n" not in str(info.value)
+    assert str(info.value).startswith("AssociationConfig: field 'max_translation_m': ")
+    with pytest.raises(ConfigValueError, match=r"^ExtractionConfig: field 'foo'"):
+        ExtractionConfig(foo=1)
+    with pytest.raises(ConfigValueError, match=r"^PlanodomConfig: field 'odometry\.x'"):
+        PlanodomConfig(odometry={"x": 1})
+    cfg = AssociationConfig()
+    with pytest.raises(ConfigValueError, match=r"^AssociationConfig: field 'max_translation_m'"):
+        cfg.max_translation_m = True
+    assert cfg.max_translation_m == AssociationConfig().max_translation_m
+    # a file's errors keep naming the file, not the class
+    with pytest.raises(ConfigError, match=r"^c\.yaml: field 'association\.max_translation_m'"):
+        PlanodomConfig.from_dict({"association": {"max_translation_m": -1}}, source="c.yaml")

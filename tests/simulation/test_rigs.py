@@ -97,6 +97,29 @@ def test_rig_yaml_round_trip(tmp_path, rig):
     )
 
 
+def _scaled(sensor: dict, factor: float) -> list:
+    T = np.array(sensor["T_base_sensor"])
+    T[:3, :3] *= factor
+    return T.tolist()
+
+
+def test_a_rotation_written_with_four_decimals_is_a_rotation(tmp_path):
+    """A hand-written rig file's 0.7071 (off by ~1e-4) was refused by a 1e-6 bound that no
+    other reader of rotations used; the shared bound (planodom.geometry.ROTATION_TOL) takes
+    it, as it takes a KITTI pose written with as many digits."""
+    data = isoclinal_rig().to_dict()
+    c = round(float(np.cos(np.pi / 4)), 4)
+    data["sensors"][0]["T_base_sensor"] = [
+        [c, -c, 0.0, 1.0],
+        [c, c, 0.0, 0.5],
+        [0.0, 0.0, 1.0, 0.8],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump(data))
+    assert load_sensor_rig(path).sensors[0].T_base_sensor[0, 0] == c
+
+
 @pytest.mark.parametrize(
     ("mutate", "message"),
     [
@@ -106,6 +129,14 @@ def test_rig_yaml_round_trip(tmp_path, rig):
         (lambda d: d["sensors"][2].update(T_base_sensor=np.eye(3).tolist()), "sensors.2.*4x4"),
         (lambda d: d["sensors"][3].update(T_base_sensor=(2 * np.eye(4)).tolist()), "sensors.3"),
         (lambda d: d.pop("sensors"), "sensors"),
+        # true / false were read as 1 / 0
+        (lambda d: d["sensors"][0].update(max_range=True), "sensors.0.max_range.*boolean"),
+        (lambda d: d["sensors"][1].update(noise_sigma=False), "sensors.1.noise_sigma.*boolean"),
+        # a scaled rotation block (the shared check of planodom.geometry)
+        (
+            lambda d: d["sensors"][0].update(T_base_sensor=_scaled(d["sensors"][0], 1.01)),
+            "sensors.0.*not a rigid transform.*column norms",
+        ),
     ],
 )
 def test_bad_rig_files_name_file_and_field(tmp_path, mutate, message):

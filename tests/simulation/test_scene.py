@@ -130,6 +130,10 @@ GOOD = {
         (lambda d: d["surfaces"][0].update(colour="red"), "surfaces.0.wall.colour"),
         (lambda d: d.update(surfaces=[]), "surfaces"),
         (lambda d: d["surfaces"].append(dict(d["surfaces"][0])), "surfaces"),
+        # true / false were read as 1 / 0
+        (lambda d: d["surfaces"][0].update(top=True), "surfaces.0.wall': Value error, 'top"),
+        (lambda d: d["surfaces"][0].update(id=False), "surfaces.0.wall': Value error, 'id"),
+        (lambda d: d["surfaces"][0].update(end=[5, True]), "surfaces.0.wall': Value error, 'end"),
     ],
 )
 def test_bad_scene_file_names_file_and_field(tmp_path, mutate, field):
