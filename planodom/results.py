@@ -13,6 +13,8 @@ Layout of ``<out>/``::
     errors.png         per-epoch 5-DoF errors with ±2σ bands
     planes.png         planes, pair associations and consensus inliers per epoch
     config.yaml        the resolved configuration
+    timing.json        the front end's speed (epochs_per_second): measured by the clock, it
+                       is the one file that differs between two runs of the same command
     metrics.json       metrics against ground truth, when it is known (with KITTI's
                        segment errors when the reference is 100 m long or more)
     odometry.tum       (smoothing) the raw odometry beside the smoothed poses.tum
@@ -48,7 +50,7 @@ __all__ = ["write_tum"]
 
 #: What a results folder may hold: ``--overwrite`` replaces only folders of these.
 RESULT_ENTRIES = frozenset(
-    {"poses.tum", "poses_kitti.txt", "epochs.csv", "config.yaml", "metrics.json"}
+    {"poses.tum", "poses_kitti.txt", "epochs.csv", "config.yaml", "metrics.json", "timing.json"}
     | {"odometry.tum", "dataset", "covariances.npz"}
     | {"trajectory.png", "errors.png", "planes.png"}
 )
@@ -158,9 +160,34 @@ def _json_safe(value: object) -> object:
     return value
 
 
+#: Metrics measured by the clock, written to ``timing.json`` (at any depth of the
+#: metrics), so that ``metrics.json`` is the same bytes for the same command and input.
+TIMING_KEYS = frozenset({"epochs_per_second"})
+
+
+def _split_timing(metrics: Mapping[str, object]) -> tuple[dict, dict]:
+    """``metrics`` without, and only with, the :data:`TIMING_KEYS` (nesting kept)."""
+    rest: dict = {}
+    timing: dict = {}
+    for key, value in metrics.items():
+        if key in TIMING_KEYS:
+            timing[key] = value
+        elif isinstance(value, Mapping):
+            rest[key], inner = _split_timing(value)
+            if inner:
+                timing[key] = inner
+        else:
+            rest[key] = value
+    return rest, timing
+
+
 def write_metrics(out: Path, metrics: Mapping[str, object]) -> None:
-    """``metrics.json`` (NaN and inf written as null)."""
-    (out / "metrics.json").write_text(json.dumps(_json_safe(metrics), indent=2) + "\n")
+    """``metrics.json`` (NaN and inf written as null); clock measurements
+    (:data:`TIMING_KEYS`) go to ``timing.json`` instead."""
+    rest, timing = _split_timing(metrics)
+    (out / "metrics.json").write_text(json.dumps(_json_safe(rest), indent=2) + "\n")
+    if timing:
+        (out / "timing.json").write_text(json.dumps(_json_safe(timing), indent=2) + "\n")
 
 
 def trajectory_metrics(poses: np.ndarray, gt_poses: np.ndarray | None) -> dict[str, float]:

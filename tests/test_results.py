@@ -46,3 +46,23 @@ def test_rows_metrics_and_config(tmp_path) -> None:
     cfg = PlanodomConfig()
     write_config(tmp_path, cfg)
     assert PlanodomConfig.from_yaml(tmp_path / "config.yaml") == cfg
+
+
+def test_clock_measurements_go_to_timing_json(tmp_path) -> None:
+    """metrics.json held epochs_per_second, so two runs of one command differed in it."""
+    import json
+
+    from planodom.results import write_metrics
+
+    metrics = {"ate_rmse_m": 0.5, "epochs_per_second": 3.0}
+    metrics |= {"odometry": {"epochs_per_second": float("nan"), "epochs": 4.0}}
+    write_metrics(tmp_path, metrics)
+    assert json.loads((tmp_path / "metrics.json").read_text()) == {
+        "ate_rmse_m": 0.5,
+        "odometry": {"epochs": 4.0},
+    }
+    timing = json.loads((tmp_path / "timing.json").read_text())
+    assert timing == {"epochs_per_second": 3.0, "odometry": {"epochs_per_second": None}}
+    (tmp_path / "timing.json").unlink()
+    write_metrics(tmp_path, {"ate_rmse_m": 0.5})
+    assert not (tmp_path / "timing.json").exists()

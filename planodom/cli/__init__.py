@@ -153,12 +153,21 @@ def _report_beyond_bounds(odo, metrics: dict) -> None:
     steps = invert_transform(odo.poses[:-1]) @ odo.poses[1:]
     metres = np.linalg.norm(steps[:, :3, 3], axis=1)
     degrees = np.degrees(np.linalg.norm(se3_log(steps)[:, :3], axis=1))
-    beyond = np.flatnonzero((metres > a.max_translation_m) | (degrees > a.max_rotation_deg))
+    # the bounds are per epoch period: a step over a gap in the recording (dropped scans)
+    # spans as many periods (the lower quartile of the time steps, which a few gaps leave
+    # alone) and may move as many times more
+    dt = np.diff(np.asarray(odo.times, dtype=np.float64))
+    period = float(np.percentile(dt, 25))
+    periods = np.maximum(1.0, np.rint(dt / period)) if period > 0 else np.ones(len(dt))
+    beyond = np.flatnonzero(
+        (metres > a.max_translation_m * periods) | (degrees > a.max_rotation_deg * periods)
+    )
     if len(beyond):
         k = int(beyond[0])
         warn(
             f"{len(beyond)} epoch(s) moved more than the association's motion bounds "
-            f"({a.max_translation_m:g} m, {a.max_rotation_deg:g} deg; first: epoch {k + 1}, "
+            f"({a.max_translation_m:g} m, {a.max_rotation_deg:g} deg an epoch period; first: "
+            f"epoch {k + 1}, "
             f"{metres[k]:.2f} m, {degrees[k]:.1f} deg): the odometry has probably lost track "
             "there (listed in metrics.json); if the platform is that fast, raise "
             "motion_bounds in rig.yaml"
@@ -273,6 +282,12 @@ def _check_run_delta(delta: int, given: bool, n: int) -> None:
 def _smoothing_delta(delta: int | None, window: int | None, mode: str, cfg, n: int):
     """``(window, delta)`` to run with; ConfigError in terms of --delta / --window."""
     if delta is None:
+        d = cfg.smoothing.delta_max
+        if window is not None and window <= d:
+            raise ConfigError(
+                f"--window {window}: the fixed-lag window must exceed the largest delta "
+                f"D = {d} (--delta, or smoothing.delta_max in the config)"
+            )
         return window, delta
     if not 1 <= delta < n:
         raise ConfigError(f"--delta {delta}: relative poses need 1 <= delta < {n} (the epochs)")

@@ -36,6 +36,7 @@ observable count drops to 1/5/9 at 20 deg), 35 deg reaches fewer walls; meeting 
 
 from __future__ import annotations
 
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
@@ -120,6 +121,8 @@ class SensorRig:
         unknown = sorted(set(data) - {"name", "sensors"})
         if unknown:
             raise ConfigError(f"{source}: field '{unknown[0]}': unknown field")
+        if not data["sensors"]:  # the file's name was lost in the rig's own error
+            raise ConfigError(f"{source}: field 'sensors': the list is empty")
         sensors = [
             _sensor_from_dict(d, source, f"sensors.{i}") for i, d in enumerate(data["sensors"])
         ]
@@ -141,15 +144,36 @@ def _sensor_from_dict(d: object, source: str, field: str) -> Sensor:
     unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
     if unknown:
         raise ConfigError(f"{source}: field '{field}.{unknown[0]}': unknown field")
-    flags = sorted(k for k, v in kwargs.items() if k != "name" and holds_bool(v))
-    if flags:  # every other field is numeric: true / false would be read as 1 / 0
-        raise ConfigError(f"{source}: field '{field}.{flags[0]}': expected a number, not a boolean")
+    for key, value in sorted(kwargs.items()):
+        problem = _not_a_number(cls, key, value)
+        if problem:
+            raise ConfigError(f"{source}: field '{field}.{key}': {problem}")
     if "vfov_deg" in kwargs:
         kwargs["vfov_deg"] = tuple(kwargs["vfov_deg"])
     try:
         return cls(**kwargs)
     except (TypeError, ValueError, ConfigError) as exc:
         raise ConfigError(f"{source}: field '{field}': {exc}") from exc
+
+
+def _not_a_number(cls: type, key: str, value: Any) -> str | None:
+    """What is wrong with ``value`` for the numeric field ``key`` of sensor class ``cls``
+    (every field but ``name`` is numeric), or None: true / false (read as 1 / 0 before), a
+    string (a bare ``'>' not supported`` before), a fraction for a count (``n_beams: 2.5``
+    failed deep in the simulator)."""
+    if key == "name":
+        return None
+    if holds_bool(value):
+        return f"expected a number, not a boolean ({value!r})"
+    if typing.get_type_hints(cls).get(key) is int:
+        if not isinstance(value, int | np.integer):
+            return f"expected a whole number, got {value!r}"
+        return None
+    try:
+        np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return f"expected numbers, got {value!r:.60}"
+    return None
 
 
 def save_sensor_rig(rig: SensorRig, path: str | Path) -> None:

@@ -261,6 +261,8 @@ def test_delta_errors_speak_of_delta(ds: Path) -> None:
     out = ds.parent / "o"
     fails(["smooth", ds, "--out", out, "--delta", "1000"], "--delta 1000", absent=("window",))
     fails(["smooth", ds, "--out", out, "--delta", "3", "--window", "3"], "--delta 3", "window")
+    # --window alone named the config field smoothing.window, not the option
+    fails(["smooth", ds, "--out", out, "--window", "3"], "--window 3", "D = 3", "--delta")
     assert not out.exists()
 
 
@@ -309,3 +311,19 @@ def test_points_beyond_any_sensor_range_are_reported(ds: Path) -> None:
     assert len(warning) == 1 and "000000" in warning[0] and "of" in warning[0], result.stderr
     listed = json.loads((out / "metrics.json").read_text())["scans_beyond_sensor_range"]
     assert len(listed) == len(list((ds / "scans").iterdir()))
+
+
+def test_the_same_run_twice_writes_the_same_bytes(ds: Path) -> None:
+    """Everything but timing.json (the clock's speed): metrics.json held the speed."""
+    for name in ("a", "b"):
+        ok(["run", ds, "--out", ds.parent / name])
+    a, b = _snapshot(ds.parent / "a"), _snapshot(ds.parent / "b")
+    assert set(a) == set(b) and "timing.json" in a and "metrics.json" in a
+    assert [k for k in a if a[k] != b[k] and k != "timing.json"] == []
+
+
+def test_simulate_refuses_epochs_that_cannot_fit_in_memory(tmp_path: Path) -> None:
+    """--epochs 10**12 failed after a while with a MemoryError traceback."""
+    out = tmp_path / "sim"
+    fails(["simulate", "--out", out, "--epochs", 10**12], "--epochs 1000000000000", "GB")
+    assert not out.exists()

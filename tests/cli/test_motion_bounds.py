@@ -35,7 +35,8 @@ def test_epochs_beyond_the_bounds_are_listed_and_warned(capsys: pytest.CaptureFi
     # epochs 1..5: within, too far, too much turn, within (just), both
     poses = _chain([(0.5, 5.0), (1.5, 0.0), (0.2, 25.0), (0.99, 19.9), (3.0, 40.0)])
     metrics: dict = {}
-    _report_beyond_bounds(SimpleNamespace(poses=poses, config=config), metrics)
+    times = 0.1 * np.arange(len(poses))
+    _report_beyond_bounds(SimpleNamespace(poses=poses, times=times, config=config), metrics)
     assert metrics["epochs_beyond_motion_bounds"] == [2, 3, 5]
     err = capsys.readouterr().err
     assert "3 epoch(s) moved more than" in err and "epoch 2, 1.50 m, 0.0 deg" in err
@@ -44,8 +45,22 @@ def test_epochs_beyond_the_bounds_are_listed_and_warned(capsys: pytest.CaptureFi
 def test_a_run_within_the_bounds_adds_nothing(capsys: pytest.CaptureFixture) -> None:
     metrics: dict = {}
     poses = _chain([(0.9, 10.0)] * 4)
-    _report_beyond_bounds(SimpleNamespace(poses=poses, config=PlanodomConfig()), metrics)
+    run = SimpleNamespace(poses=poses, times=0.1 * np.arange(5), config=PlanodomConfig())
+    _report_beyond_bounds(run, metrics)
     assert metrics == {} and capsys.readouterr().err == ""
+
+
+def test_a_gap_in_the_recording_widens_the_bounds(capsys: pytest.CaptureFixture) -> None:
+    """Two scans dropped (0.3 s between epochs 1 and 2 at 10 Hz): a 2.5 m step over three
+    periods is within 3 x 1 m; before, it was warned of as a lost track."""
+    poses = _chain([(0.9, 5.0), (2.5, 15.0), (0.9, 5.0), (3.5, 0.0)])
+    times = np.array([0.0, 0.1, 0.4, 0.5, 0.8])
+    metrics: dict = {}
+    _report_beyond_bounds(
+        SimpleNamespace(poses=poses, times=times, config=PlanodomConfig()), metrics
+    )
+    assert metrics["epochs_beyond_motion_bounds"] == [4]  # 3.5 m over 3 periods: beyond
+    assert "1 epoch(s) moved more than" in capsys.readouterr().err
 
 
 def test_inconsistent_epochs_are_listed_and_warned(capsys: pytest.CaptureFixture) -> None:

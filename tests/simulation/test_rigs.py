@@ -132,6 +132,9 @@ def test_a_rotation_written_with_four_decimals_is_a_rotation(tmp_path):
         # true / false were read as 1 / 0
         (lambda d: d["sensors"][0].update(max_range=True), "sensors.0.max_range.*boolean"),
         (lambda d: d["sensors"][1].update(noise_sigma=False), "sensors.1.noise_sigma.*boolean"),
+        # a string: Python's "'>' not supported between ..." before; no sensors: no file named
+        (lambda d: d["sensors"][0].update(rate_hz="fast"), "sensors.0.rate_hz': expected numbers"),
+        (lambda d: d.update(sensors=[]), "'sensors': the list is empty"),
         # a scaled rotation block (the shared check of planodom.geometry)
         (
             lambda d: d["sensors"][0].update(T_base_sensor=_scaled(d["sensors"][0], 1.01)),
@@ -173,3 +176,15 @@ def test_isoclinal_trace_crossing_angle(meet_deg, inclination_deg, wall_azimuth_
     expected = 2 * np.arctan(np.tan(np.deg2rad(inclination_deg)) * abs(n @ h))
     expected = min(expected, np.pi - expected)  # lines: the acute angle
     assert np.arccos(min(1.0, abs(t[0] @ t[1]))) == pytest.approx(expected, abs=1e-6)
+
+
+def test_a_fractional_beam_count_is_refused(tmp_path):
+    """n_beams: 2.5 loaded, then failed deep in the simulator with a TypeError."""
+    data = lidar_rig().to_dict()
+    data["sensors"][0]["n_beams"] = 2.5
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(
+        DatasetError, match=r"rig\.yaml: field 'sensors\.0\.n_beams': expected a whole"
+    ):
+        load_sensor_rig(path)
