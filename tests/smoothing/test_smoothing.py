@@ -349,3 +349,22 @@ def test_smooth_batch_refuses_no_epochs_and_epochs_that_are_no_plane_lists() -> 
         smooth_batch([], [])
     with pytest.raises(GeometryError, match=r"^smooth_batch: epoch 0 holds a float64, not "):
         smooth_batch(np.zeros((3, 3)), [])
+
+
+def test_smooth_windowed_refuses_no_epochs() -> None:
+    """smooth_windowed([], []) ended in numpy's 'need at least one array to stack'."""
+    with pytest.raises(GeometryError, match=r"^smooth_windowed: no epochs to smooth$"):
+        smooth_windowed([], [])
+
+
+@pytest.mark.parametrize(
+    ("T", "problem"),
+    [
+        (np.eye(3), r"shape \(3, 3\)"),  # a traceback from matmul before
+        (np.full((4, 4), np.nan), "not finite"),  # 'plane normal must be 3 finite numbers'
+        (np.diag([2.0, 2.0, 2.0, 1.0]), "column norms 2, 2, 2"),  # a traceback before
+    ],
+)
+def test_smooth_batch_refuses_a_first_pose_that_is_no_rigid_transform(T, problem) -> None:
+    with pytest.raises(GeometryError, match=rf"^smooth_batch: T_world_first .*{problem}"):
+        smooth_batch([[], []], [], T_world_first=T)
