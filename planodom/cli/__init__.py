@@ -125,8 +125,17 @@ def _report_skipped(data: ScanEpochs, metrics: dict) -> None:
 
 
 def _report_far_points(data: ScanEpochs, metrics: dict) -> None:
-    """Warn of (and list in metrics.json) scans with points beyond any sensor's range."""
+    """Warn of (and list in metrics.json) scans with points beyond any sensor's range, and
+    of scans without points: the two reasons for an unresolved epoch nothing else names."""
     from planodom.scan import MAX_RANGE_M
+
+    if data.empty:
+        warn(
+            f"{len(data.empty)} scan(s) hold no points (first: {next(iter(data.empty))}): "
+            "no planes, so their epochs are bridged at constant velocity (listed in "
+            "metrics.json)"
+        )
+        metrics["scans_without_points"] = list(data.empty)
 
     if data.far:
         name, (far, total) = next(iter(data.far.items()))

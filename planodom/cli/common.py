@@ -235,6 +235,7 @@ class ScanEpochs:
         self.current: str | None = None
         self.skipped: list[str] = []
         self.far: dict[str, tuple[int, int]] = {}  # scan -> (points beyond MAX_RANGE_M, all)
+        self.empty: dict[str, None] = {}  # scans without points (kept in order, once each)
 
     def __len__(self) -> int:
         return len(self.dataset)
@@ -261,6 +262,8 @@ class ScanEpochs:
             far = points_beyond_range(scan)
             if far:
                 self.far[self.current] = (far, len(scan))
+            if len(scan) == 0:
+                self.empty[self.current] = None
         return scan
 
     def close(self) -> None:

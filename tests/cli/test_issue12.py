@@ -327,3 +327,20 @@ def test_simulate_refuses_epochs_that_cannot_fit_in_memory(tmp_path: Path) -> No
     out = tmp_path / "sim"
     fails(["simulate", "--out", out, "--epochs", 10**12], "--epochs 1000000000000", "GB")
     assert not out.exists()
+
+
+def test_scans_without_points_are_reported(ds: Path) -> None:
+    """An empty scan made an unresolved epoch that nothing named."""
+    import numpy as np
+
+    from planodom.scan import Scan
+
+    empty = Scan(np.zeros((0, 3)), np.zeros(0, np.int32), np.zeros(0))
+    write_scan(sorted((ds / "scans").iterdir())[2], empty)
+    out = ds.parent / "out"
+    result = runner.invoke(app, ["run", str(ds), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    warning = [line for line in result.stderr.splitlines() if "hold no points" in line]
+    assert len(warning) == 1 and "000002" in warning[0], result.stderr
+    listed = json.loads((out / "metrics.json").read_text())["scans_without_points"]
+    assert [Path(p).name for p in listed] == [sorted((ds / "scans").iterdir())[2].name]
