@@ -11,10 +11,10 @@ import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig, SmoothingConfig
-from planodom.errors import GeometryError
-from planodom.geometry import Plane, rotation_problem
+from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.graph import GraphBuilder, GraphStats
+from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
 from planodom.smoothing.loop_gate import (
     consistent_hypotheses,
@@ -340,36 +340,6 @@ def _covariances(
     return estimate, covariances, note, components
 
 
-def check_epochs(
-    epochs_planes: Sequence[Sequence[Plane]],
-    T_world_first: object = None,
-    name: str = "smooth_batch",
-) -> None:
-    """GeometryError for no epochs (numpy's 'need at least one array to stack'), an epoch
-    that is not a list of planes (an (E, 3) array was smoothed as planes of floats), or a
-    ``T_world_first`` that is no rigid (4, 4) transform (a traceback deep in the graph, or
-    an error about plane normals for NaN)."""
-    if len(epochs_planes) == 0:
-        raise GeometryError(f"{name}: no epochs to smooth")
-    for k, planes in enumerate(epochs_planes):
-        bad = next((p for p in planes if not isinstance(p, Plane)), None)
-        if bad is not None:
-            raise GeometryError(
-                f"{name}: epoch {k} holds a {type(bad).__name__}, not planodom.Plane "
-                "objects (epochs_planes: one list of planes per epoch)"
-            )
-    if T_world_first is not None:
-        T = np.asarray(T_world_first, dtype=np.float64)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            problem: str | None = f"shape {T.shape}" if T.shape != (4, 4) else "not finite"
-        elif not np.array_equal(T[3], [0.0, 0.0, 0.0, 1.0]):
-            problem = "its last row is not 0 0 0 1"
-        else:
-            problem = rotation_problem(T[:3, :3])
-        if problem is not None:
-            raise GeometryError(f"{name}: T_world_first is no rigid (4, 4) transform ({problem})")
-
-
 def smooth_batch(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
@@ -391,7 +361,7 @@ def smooth_batch(
         landmarks and the graph's statistics.
     """
     cfg = smoothing_config(config)
-    check_epochs(epochs_planes, T_world_first)
+    check_epochs(epochs_planes, relative_poses, T_world_first)
     start = time.perf_counter()
     builder = _builder(epochs_planes, relative_poses, config, T_world_first)
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()

@@ -20,12 +20,12 @@ from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch import (
     SmoothingResult,
-    check_epochs,
     full_config,
     group_by_epoch,
     smoothing_config,
 )
 from planodom.smoothing.graph import GraphBuilder, X
+from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.windowed_loops import WindowedLoopBuilder
 
 
@@ -209,7 +209,7 @@ def smooth_windowed(
 ) -> SmoothingResult:
     """Run :class:`WindowedSmoother` over a whole sequence (inputs as :func:`smooth_batch`;
     the first pose at identity, else use the class)."""
-    check_epochs(epochs_planes, name="smooth_windowed")
+    check_epochs(epochs_planes, relative_poses, name="smooth_windowed")
     smoother = WindowedSmoother(config)
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
     for k, planes in enumerate(epochs_planes):

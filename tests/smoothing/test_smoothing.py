@@ -368,3 +368,13 @@ def test_smooth_windowed_refuses_no_epochs() -> None:
 def test_smooth_batch_refuses_a_first_pose_that_is_no_rigid_transform(T, problem) -> None:
     with pytest.raises(GeometryError, match=rf"^smooth_batch: T_world_first .*{problem}"):
         smooth_batch([[], []], [], T_world_first=T)
+
+
+@pytest.mark.parametrize("smoother", [smooth_batch, smooth_windowed])
+@pytest.mark.parametrize(("prev", "curr"), [(-1, -1), (2, 1), (1, 1)])
+def test_smoothers_refuse_relative_poses_whose_epochs_are_not_ordered(smoother, prev, curr):
+    """An unset (-1) or reversed relative pose was left out of the graph without a word."""
+    seq = make_sequence(n_epochs=4, seed=3)
+    rel = replace(seq.relatives[0], prev=prev, curr=curr)
+    with pytest.raises(GeometryError, match=rf"relative pose 0 links epoch {prev} to epoch {curr}"):
+        smoother(seq.planes, [rel, *seq.relatives[1:]])
