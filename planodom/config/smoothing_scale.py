@@ -55,6 +55,11 @@ class CovarianceScaleConfig(Section):
     cautious on 8 of the 20 (down to 0.11: the batch's coplanar deskewing errs far less than
     the change of motion taken as its error) and 5-17 times the fitted covariances' time in
     median (dense in the poses; docs/RESULTS.md)."""
+    sandwich_motion_scale: Literal["none", "run"] = "none"
+    """With ``covariance_model`` "sandwich": "none" each epoch's deskewing error has the
+    covariance of the run's changes of motion around it; "run" that covariance scaled per
+    axis by one factor each, estimated from the run (the twists the epochs were deskewed
+    with against the odometry's steps out of them; :mod:`planodom.smoothing.deskew_scale`)."""
     covariance_scale_estimate: Literal["keep", "resolve"] = "keep"
     """With ``covariance_scale``: "keep" the estimate (only the covariances change);
     "resolve" Gauss-Newton on the reweighted graph (the covariance graph: robust inliers
