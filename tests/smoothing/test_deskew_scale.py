@@ -42,8 +42,15 @@ def _run(
             twist = xi[k] + err[k] / SPAN
         rels.append(
             RelativePose(
-                T, cov, prev=k - 1, curr=k, z_observed=True, sigma_z=step_sigma * DT / SPAN,
-                time_spread=True, deskew_twist=twist, deskew_span=SPAN if k < n else 0.0,
+                T,
+                cov,
+                prev=k - 1,
+                curr=k,
+                z_observed=True,
+                sigma_z=step_sigma * DT / SPAN,
+                time_spread=True,
+                deskew_twist=twist,
+                deskew_span=SPAN if k < n else 0.0,
                 interval_s=DT,
             )  # fmt: skip
         )
