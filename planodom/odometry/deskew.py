@@ -143,16 +143,16 @@ def with_deskew(
     result: RelativePose, scan: Scan, twist: np.ndarray | None, interval_s: float
 ) -> RelativePose:
     """``result`` with its epoch's ``time_spread`` (``scan``'s), the ``twist`` (6,) (rad/s,
-    m/s; None: not deskewed) its points were deskewed with, their span ``max |t|`` (s) and
-    the ``interval_s`` (s) since its reference epoch."""
+    m/s; None: not deskewed) its points were deskewed with, their first and last time
+    (s) and the ``interval_s`` (s) since its reference epoch."""
     spread = time_spread(scan)
     if not spread or twist is None:
         return replace(result, time_spread=spread, interval_s=interval_s)
     assert scan.t is not None
-    span = float(np.max(np.abs(scan.t)))
+    times = (float(np.min(scan.t)), float(np.max(scan.t)))
     return replace(
         result, time_spread=spread, deskew_twist=np.array(twist, dtype=float),
-        deskew_span=span, interval_s=interval_s,
+        deskew_times=times, interval_s=interval_s,
     )  # fmt: skip
 
 

@@ -39,34 +39,46 @@ def deskew_differences(
     relative_poses: Sequence[RelativePose], n_epochs: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """(E, 6) per epoch ``d_k`` of the module docstring (rad, m; NaN where epoch k has no
-    recorded deskewing twist or no measured delta = 1 step out of it; the vertical
-    velocity NaN where that step did not measure z) and (E, 6) the variance the step's
-    covariance declares for its part of ``d_k`` (rad^2, m^2; 0 where it has none)."""
-    twist: dict[int, RelativePose] = {}
-    step: dict[int, RelativePose] = {}
+    recorded deskewing twist or a step its points' times reach was not measured; the
+    vertical velocity NaN where such a step did not measure z) and (E, 6) the variance
+    the steps' covariances declare for their part of ``d_k`` (rad^2, m^2).
+
+    The steps' twist is that over the points' times ``[lo, hi]`` (relative to the
+    epoch's): the steps into and out of the epoch weighted by the share of ``[lo, hi]``
+    before and after it (the simulated scans: all after; a sweep stamped at its middle:
+    half each)."""
+    own: dict[int, RelativePose] = {}
+    step: dict[int, RelativePose] = {}  # curr -> the measured delta = 1 step into it
     for rel in relative_poses:
         if rel.delta != 1:
             continue
-        if rel.deskew_twist is not None and rel.deskew_span > 0.0:
-            twist.setdefault(rel.curr, rel)
+        if rel.deskew_twist is not None and rel.deskew_times is not None:
+            own.setdefault(rel.curr, rel)
         if rel.translation_observed and np.isfinite(rel.interval_s) and rel.interval_s > 0:
-            step.setdefault(rel.prev, rel)
+            step.setdefault(rel.curr, rel)
     out = np.full((n_epochs, 6), np.nan)
     var = np.zeros((n_epochs, 6))
-    for k, own in twist.items():
-        nxt = step.get(k)
-        if nxt is None or not 0 <= k < n_epochs:
+    for k, rel in own.items():
+        assert rel.deskew_twist is not None and rel.deskew_times is not None
+        lo, hi = rel.deskew_times
+        span = max(abs(lo), abs(hi))
+        shares = {k: max(-lo, 0.0) / (hi - lo), k + 1: max(hi, 0.0) / (hi - lo)}
+        used = [(step.get(j), w) for j, w in shares.items() if w > 0.0]
+        if not 0 <= k < n_epochs or hi <= lo or any(s is None for s, _ in used):
             continue
-        assert own.deskew_twist is not None
-        ratio = own.deskew_span / nxt.interval_s
-        rate = se3_log(np.asarray(nxt.T_prev_curr, dtype=float))
-        out[k] = own.deskew_span * np.asarray(own.deskew_twist, dtype=float) - ratio * rate
-        if nxt.covariance is not None and np.all(np.isfinite(nxt.covariance)):
-            var[k, :5] = ratio**2 * np.diag(np.asarray(nxt.covariance, dtype=float))
-        if nxt.z_observed and np.isfinite(nxt.sigma_z):
-            var[k, 5] = (ratio * nxt.sigma_z) ** 2
-        else:
-            out[k, 5] = np.nan
+        d = span * np.asarray(rel.deskew_twist, dtype=float)
+        z_known = True
+        for s, w in used:
+            assert s is not None
+            ratio = span * w / s.interval_s
+            d = d - ratio * se3_log(np.asarray(s.T_prev_curr, dtype=float))
+            if s.covariance is not None and np.all(np.isfinite(s.covariance)):
+                var[k, :5] += ratio**2 * np.diag(np.asarray(s.covariance, dtype=float))
+            z_known = z_known and s.z_observed and bool(np.isfinite(s.sigma_z))
+            var[k, 5] += (ratio * s.sigma_z) ** 2 if z_known else 0.0
+        out[k] = d
+        if not z_known:
+            out[k, 5], var[k, 5] = np.nan, 0.0
     return out, var
 
 

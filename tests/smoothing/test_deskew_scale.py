@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from planodom.odometry.relative import RelativePose
-from planodom.se3 import se3_exp
+from planodom.se3 import se3_exp, se3_log
 from planodom.smoothing.deskew_scale import (
     axis_scales,
     deskew_differences,
@@ -50,7 +50,7 @@ def _run(
                 sigma_z=step_sigma * DT / SPAN,
                 time_spread=True,
                 deskew_twist=twist,
-                deskew_span=SPAN if k < n else 0.0,
+                deskew_times=(0.0, SPAN) if k < n else None,
                 interval_s=DT,
             )  # fmt: skip
         )
@@ -65,6 +65,18 @@ def test_differences_are_the_errors_for_exact_steps():
     assert np.all(var == 0.0)
     # the step out of an epoch is its true twist over DT: d is the twist's error per span
     np.testing.assert_allclose(d[1:50], err[1:50], rtol=0, atol=1e-12)
+
+
+def test_centred_sweep_takes_the_steps_into_and_out_of_the_epoch():
+    rels, _, _ = _run(np.ones(6), n=20)
+    twist = np.arange(1.0, 7.0) * 0.1
+    rels[9] = RelativePose(
+        **{**rels[9].__dict__, "deskew_twist": twist, "deskew_times": (-0.04, 0.04)}
+    )
+    d, _ = deskew_differences(rels, 21)
+    rate_in = se3_log(rels[9].T_prev_curr) / DT  # the step into epoch 10
+    rate_out = se3_log(rels[10].T_prev_curr) / DT
+    np.testing.assert_allclose(d[10], 0.04 * (twist - 0.5 * (rate_in + rate_out)), atol=1e-15)
 
 
 @pytest.mark.parametrize("seed", [0, 1])
