@@ -3,16 +3,22 @@ against seeded draws with a known scale."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
+from planodom.config import SmoothingConfig
 from planodom.odometry.relative import RelativePose
 from planodom.se3 import se3_exp, se3_log
+from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.deskew_scale import (
     axis_scales,
     deskew_differences,
     scaled_motion_change,
 )
+from planodom.smoothing.sandwich import deskew_motion_change
+from planodom.smoothing.synthetic import make_sequence
 
 DT = 0.1  # s between epochs
 SPAN = 0.09  # s, the points' span
@@ -107,3 +113,47 @@ def test_unmeasured_vertical_keeps_the_changes_and_q_is_scaled():
     assert s[5] == 1.0
     np.testing.assert_allclose(s[:5], truth[:5], rtol=0.2)
     np.testing.assert_allclose(scaled, Q * np.outer(s, s)[None])
+
+
+def test_batch_scales_the_sandwich_part_by_the_estimate():
+    """smooth_batch with ``sandwich_motion_scale`` "run", the deskewing twists off the
+    steps by exactly ``s`` times each epoch's changes' sigma: the sandwich's excess over
+    the fitted covariances is ``s^2`` times that of "none" (the sandwich is linear in Q);
+    the poses are the same."""
+    seq = make_sequence(30, seed=4, sigma_rotation=2e-4, sigma_translation=5e-3,
+                        sigma_normal=1e-3, sigma_offset=5e-3)  # fmt: skip
+    rng = np.random.default_rng(5)
+    planes = [[replace(p, deskew_jacobian=rng.normal(scale=0.2, size=(4, 6))) for p in ps]
+              for ps in seq.planes]  # fmt: skip
+    rels = [
+        replace(r, time_spread=True, z_observed=True, sigma_z=1e-3, interval_s=DT)
+        for r in seq.relatives
+    ]
+    Q = deskew_motion_change(rels, len(planes))
+    s = 0.3
+    steps = {r.prev: r for r in rels if r.delta == 1}
+    out = []
+    for r in rels:
+        k = r.curr
+        if r.delta == 1 and k in steps and np.any(Q[k]):
+            rate = se3_log(steps[k].T_prev_curr) / DT
+            offset = s * np.sqrt(np.diagonal(Q[k])) * np.where(k % 2, 1.0, -1.0)
+            r = replace(r, deskew_twist=rate + offset / SPAN, deskew_times=(0.0, SPAN))
+        out.append(r)
+    _, scales = scaled_motion_change(Q, out)
+    known = np.any(np.diagonal(Q, axis1=1, axis2=2) > 0.0, axis=0)  # (no vertical motion)
+    assert np.sum(known) >= 5
+    np.testing.assert_allclose(scales[known], s, rtol=1e-6)
+    base = SmoothingConfig(loop_closure=False, covariance_model="sandwich")
+    none = smooth_batch(planes, out, base)
+    run = smooth_batch(planes, out, base.model_copy(update={"sandwich_motion_scale": "run"}))
+    fitted = smooth_batch(planes, out, base.model_copy(update={"covariance_model": "fitted"}))
+    assert np.array_equal(none.poses, run.poses) and np.array_equal(none.poses, fitted.poses)
+    assert none.covariances is not None and run.covariances is not None
+    assert fitted.covariances is not None
+    np.testing.assert_allclose(
+        run.covariances - fitted.covariances,
+        s**2 * (none.covariances - fitted.covariances),
+        rtol=1e-5,
+        atol=1e-9 * np.max(np.abs(fitted.covariances)),
+    )
