@@ -144,7 +144,9 @@ def test_batch_scales_the_sandwich_part_by_the_estimate():
     known = np.any(np.diagonal(Q, axis1=1, axis2=2) > 0.0, axis=0)  # (no vertical motion)
     assert np.sum(known) >= 5
     np.testing.assert_allclose(scales[known], s, rtol=1e-6)
-    base = SmoothingConfig(loop_closure=False, covariance_model="sandwich")
+    base = SmoothingConfig(
+        loop_closure=False, covariance_model="sandwich", sandwich_motion_scale="none"
+    )
     none = smooth_batch(planes, out, base)
     run = smooth_batch(planes, out, base.model_copy(update={"sandwich_motion_scale": "run"}))
     fitted = smooth_batch(planes, out, base.model_copy(update={"covariance_model": "fitted"}))
