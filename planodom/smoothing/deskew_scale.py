@@ -6,8 +6,8 @@ the covariance ``Q_k`` of the run's changes of motion around it
 (:meth:`.DeskewNoise.plane_motion_change`). That shape follows the motion (large in turns,
 small on straights), but its size is not the error's: the batch's odometry deskews with
 the twist fit to the epoch's own planes (``smoothing.odometry_deskew_twist``), which errs
-a fraction of a change of motion (on the 2D-rig laps the true errors' rms is 0.1-0.4 of
-the changes' per axis).
+a fraction of a change of motion (on four 2D-rig laps the true errors' rms is 0.04-0.8 of
+the changes' sigma per axis).
 
 Here the size is estimated from the run itself, one factor per axis ``i``,
 ``Q_k -> s_i s_j (Q_k)_ij`` with
