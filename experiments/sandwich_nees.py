@@ -7,7 +7,8 @@ whose extraction also computes ``Plane.deskew_jacobian``; once with
 closure run on each. Per run: whether the odometry's and the smoothed poses are
 bit-identical, ATE (xy, origin-aligned) of both, mean NEES of the 5 observed DoF
 (chi2(5), 95 % per run [0.83, 12.8]) of both, and the covariances' wall time of both
-(the two batch runs alternate their order from one run to the next).
+(the two batch runs alternate their order from one run to the next). ``--motion-scale``:
+the sandwich's ``smoothing.sandwich_motion_scale`` (default "run").
 
     uv run python experiments/sandwich_nees.py --worlds 0,2,4 --levels 0.006 -o OUT.csv
 """
@@ -38,7 +39,7 @@ def _nees(res, gt: np.ndarray) -> float:  # noqa: ANN001
 
 def run(
     world_index: int, noise: float, n_epochs: int | None, order: int, single_odometry: bool,
-    motion_scale: str = "none",
+    motion_scale: str = "run",
 ) -> dict:  # fmt: skip
     """One lap: both odometries (or the sandwich's for both) and both batch runs."""
     world = world_for(world_index)
@@ -109,9 +110,9 @@ def main() -> None:
     )
     parser.add_argument(
         "--motion-scale",
-        default="none",
+        default="run",
         choices=["none", "run"],
-        help="smoothing.sandwich_motion_scale of the sandwich run",
+        help="smoothing.sandwich_motion_scale of the sandwich run (none: the changes of motion)",
     )
     parser.add_argument("-o", "--out", required=True)
     args = parser.parse_args()
