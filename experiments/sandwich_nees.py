@@ -7,7 +7,8 @@ whose extraction also computes ``Plane.deskew_jacobian``; once with
 closure run on each. Per run: whether the odometry's and the smoothed poses are
 bit-identical, ATE (xy, origin-aligned) of both, mean NEES of the 5 observed DoF
 (chi2(5), 95 % per run [0.83, 12.8]) of both, and the covariances' wall time of both
-(the two batch runs alternate their order from one run to the next).
+(the two batch runs alternate their order from one run to the next). ``--motion-scale``:
+the sandwich's ``smoothing.sandwich_motion_scale`` (default "run").
 
     uv run python experiments/sandwich_nees.py --worlds 0,2,4 --levels 0.006 -o OUT.csv
 """
@@ -37,8 +38,9 @@ def _nees(res, gt: np.ndarray) -> float:  # noqa: ANN001
 
 
 def run(
-    world_index: int, noise: float, n_epochs: int | None, order: int, single_odometry: bool
-) -> dict:
+    world_index: int, noise: float, n_epochs: int | None, order: int, single_odometry: bool,
+    motion_scale: str = "run",
+) -> dict:  # fmt: skip
     """One lap: both odometries (or the sandwich's for both) and both batch runs."""
     world = world_for(world_index)
     full = simulate_world(world, noise, n_epochs=n_epochs, all_fields=True)
@@ -46,7 +48,11 @@ def run(
     configs = {
         "fitted": PlanodomConfig().updated({"smoothing.loop_closure": True}),
         "sandwich": PlanodomConfig().updated(
-            {"smoothing.loop_closure": True, "smoothing.covariance_model": "sandwich"}
+            {
+                "smoothing.loop_closure": True,
+                "smoothing.covariance_model": "sandwich",
+                "smoothing.sandwich_motion_scale": motion_scale,
+            }
         ),
     }
     inputs: dict[str, tuple] = {}
@@ -74,6 +80,7 @@ def run(
         "ate_sandwich_m": _ate(s.poses, gt),
         "nees5_fitted": _nees(f, gt),
         "nees5_sandwich": _nees(s, gt),
+        "motion_scale": configs["sandwich"].smoothing.sandwich_motion_scale,
         "cov_s_fitted": f.covariance_s,
         "cov_s_sandwich": s.covariance_s,
         "batch_s_fitted": f.runtime_s,
@@ -101,13 +108,19 @@ def main() -> None:
         action="store_true",
         help="run the odometry once (with the planes' deskewing Jacobians)",
     )
+    parser.add_argument(
+        "--motion-scale",
+        default="run",
+        choices=["none", "run"],
+        help="smoothing.sandwich_motion_scale of the sandwich run (none: the changes of motion)",
+    )
     parser.add_argument("-o", "--out", required=True)
     args = parser.parse_args()
     rows = []
     order = 0
     for w in [int(x) for x in args.worlds.split(",")]:
         for noise in [float(x) for x in args.levels.split(",")]:
-            row = run(w, noise, args.epochs, order, args.single_odometry)
+            row = run(w, noise, args.epochs, order, args.single_odometry, args.motion_scale)
             order += 1
             rows.append(row)
             print({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()},

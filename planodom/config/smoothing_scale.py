@@ -54,7 +54,23 @@ class CovarianceScaleConfig(Section):
     6 mm (fitted 0; median 203 -> 1.02) and 4 of 10 at 2 cm (median 108 -> 1.07), but too
     cautious on 8 of the 20 (down to 0.11: the batch's coplanar deskewing errs far less than
     the change of motion taken as its error) and 5-17 times the fitted covariances' time in
-    median (dense in the poses; docs/RESULTS.md)."""
+    median (dense in the poses; docs/RESULTS.md). With ``sandwich_motion_scale`` "run"
+    (this release) inside on 14 of 18 (world 4 not run), none too cautious, 4 above."""
+    sandwich_motion_scale: Literal["none", "run"] = "run"
+    """With ``covariance_model`` "sandwich": "none" each epoch's deskewing error has the
+    covariance of the run's changes of motion around it; "run" that covariance scaled per
+    axis by one factor each, estimated from the run by the method of moments (the twists
+    the epochs were deskewed with against the odometry's steps over their points' times;
+    :mod:`planodom.smoothing.deskew_scale`; an axis without any such epoch keeps the
+    changes). "run" by default: the changes' shape follows the motion, their size is not
+    the coplanar deskewing's error (0.04-0.8 of its sigma per axis on four laps). Ten laps,
+    batch with loops (world 4 not run), mean NEES5 inside [0.83, 12.8] on 14 of 18 runs
+    against 8 (6 mm 8 of 9, median 0.98 -> 6.0; 2 cm 6 of 9, 0.70 -> 3.4); none too
+    cautious any more (lowest 1.46 against 0.11), but 4 above, 2 of them inside before
+    (2 cm: world 16 9.5 -> 20, 18 12.2 -> 71), and the two above before rise (world 18 at
+    6 mm 25 -> 207, world 0 at 2 cm 19.5 -> 47; with the true deskewing errors' scale, a
+    diagnostic, 255 and 65: their excess is not the deskewing; docs/RESULTS.md). The
+    same cost as "none"."""
     covariance_scale_estimate: Literal["keep", "resolve"] = "keep"
     """With ``covariance_scale``: "keep" the estimate (only the covariances change);
     "resolve" Gauss-Newton on the reweighted graph (the covariance graph: robust inliers

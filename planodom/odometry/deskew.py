@@ -139,6 +139,23 @@ def time_spread(scan: Scan) -> bool:
     return bool(scan.t is not None and len(scan.t) and _spread_and_mean(scan.t)[0] > 0)
 
 
+def with_deskew(
+    result: RelativePose, scan: Scan, twist: np.ndarray | None, interval_s: float
+) -> RelativePose:
+    """``result`` with its epoch's ``time_spread`` (``scan``'s), the ``twist`` (6,) (rad/s,
+    m/s; None: not deskewed) its points were deskewed with, their first and last time
+    (s) and the ``interval_s`` (s) since its reference epoch."""
+    spread = time_spread(scan)
+    if not spread or twist is None:
+        return replace(result, time_spread=spread, interval_s=interval_s)
+    assert scan.t is not None
+    times = (float(np.min(scan.t)), float(np.max(scan.t)))
+    return replace(
+        result, time_spread=spread, deskew_twist=np.array(twist, dtype=float),
+        deskew_times=times, interval_s=interval_s,
+    )  # fmt: skip
+
+
 @identity_memo
 def _spread_and_mean(t: np.ndarray) -> tuple[float, float]:
     """``np.ptp(t)`` and ``np.mean(t)`` of a scan's times (N,), N >= 1, seconds; memoised

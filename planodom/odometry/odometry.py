@@ -36,6 +36,7 @@ from planodom.odometry.deskew import (
     significant_twist,
     time_spread,
     twist_offset,
+    with_deskew,
 )
 from planodom.odometry.epoch_time import next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
@@ -434,7 +435,7 @@ class PlaneOdometry:
         t: float,
     ) -> None:
         if result is not None and epoch.scan is not None:
-            result = replace(result, time_spread=time_spread(epoch.scan))
+            result = with_deskew(result, epoch.scan, epoch.twist, t - self.times[result.prev])
         self.poses.append(T_world)
         self._steps.append(step)
         self.times.append(t)

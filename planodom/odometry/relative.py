@@ -119,6 +119,11 @@ class RelativePose:
             differ; False: taken at one instant, nothing to deskew), as the streaming
             odometry saw it, or as given to ``smoothing.run.relative_poses`` with the
             planes; None: not known (planes given alone, other sources).
+        deskew_twist: (6,) the twist epoch ``curr``'s points were deskewed with (rad/s,
+            m/s; None: not deskewed or not known); ``deskew_times``: (first, last) of its
+            points' times relative to the epoch's (s); ``interval_s``: ``curr``'s time less
+            ``prev``'s (s; NaN: not known). The sandwich covariances estimate the
+            deskewing error from them (:mod:`planodom.smoothing.deskew_scale`).
     """
 
     T_prev_curr: np.ndarray
@@ -134,6 +139,9 @@ class RelativePose:
     inconsistent: bool = False
     time_spread: bool | None = None
     rotation_partly_observed: bool = False
+    deskew_twist: np.ndarray | None = None
+    deskew_times: tuple[float, float] | None = None
+    interval_s: float = np.nan
 
     def between(self, prev: int, curr: int) -> RelativePose:
         """The same relative pose labelled as between epochs ``prev`` and ``curr``."""

@@ -13,6 +13,7 @@ from scipy.stats import chi2
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
+from planodom.smoothing.deskew_scale import scaled_motion_change
 from planodom.smoothing.graph import GraphBuilder, GraphStats
 from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
@@ -313,6 +314,8 @@ def _covariances(
         if cfg.covariance_model == "sandwich"
         else None
     )
+    if Q is not None and cfg.sandwich_motion_scale == "run":
+        Q = scaled_motion_change(Q, relative_poses)[0]
     if Q is not None and np.any(Q):  # (no change of motion, e.g. snapshot scans: fitted)
         try:
             covariances, note = batch_sandwich(cfg, graph, cov_graph, planes or {}, Q, estimate)

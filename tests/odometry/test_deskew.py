@@ -7,9 +7,10 @@ import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane
-from planodom.odometry.deskew import EpochEstimate, register_deskewed
+from planodom.odometry.deskew import EpochEstimate, register_deskewed, with_deskew
 from planodom.odometry.relative import RelativePose, Status
 from planodom.planes import PlaneSet
+from planodom.scan import Scan
 
 HELD = np.array([0.0, 0.0, 0.1, 1.0, 0.0, 0.0])
 
@@ -62,3 +63,19 @@ def test_a_predicted_twist_that_fails_is_replaced_by_no_deskewing():
     best, calls = _register(outcomes, HELD, None)
     assert calls == ["held", "none"]
     assert best.twist is None and best.relative.status is Status.DEGENERATE
+
+
+def test_with_deskew_records_the_twist_its_times_and_the_interval():
+    rel = RelativePose(np.eye(4), None, prev=3, curr=4)
+    pts = np.zeros((4, 3))
+    twist = np.array([0.1, 0.0, 0.2, 1.0, 0.0, 0.0])
+    out = with_deskew(rel, Scan(points=pts, t=np.array([-0.05, 0.0, 0.02, 0.05])), twist, 0.1)
+    assert out.time_spread and out.interval_s == 0.1
+    assert out.deskew_times == (-0.05, 0.05)
+    assert out.deskew_twist is not None and np.array_equal(out.deskew_twist, twist)
+    assert out.deskew_twist is not twist  # a copy: the odometry's own twist may change
+    instant = with_deskew(rel, Scan(points=pts, t=np.zeros(4)), twist, 0.1)
+    assert instant.time_spread is False and instant.deskew_twist is None
+    assert instant.deskew_times is None and instant.interval_s == 0.1
+    undeskewed = with_deskew(rel, Scan(points=pts, t=np.array([0.0, 0.1, 0.2, 0.3])), None, 0.1)
+    assert undeskewed.time_spread and undeskewed.deskew_twist is None
