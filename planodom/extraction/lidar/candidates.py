@@ -39,7 +39,7 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.kernels import add_outer, find_root
 from planodom.extraction.lidar.grid import plane_members, ring_layout
 from planodom.extraction.lidar.rangeimage import range_image_candidates
-from planodom.extraction.lidar.ransac import segment_plane
+from planodom.extraction.lidar.ransac import draw_samples, log_fail, segment_drawn
 from planodom.extraction.noise import effective_noise, member_tolerance
 
 
@@ -138,10 +138,27 @@ def _clusters(cells: np.ndarray, n_az: int) -> tuple[np.ndarray, np.ndarray]:
     :func:`_cluster_grid`) because ``ndimage.label``, the seam join and
     ``ndimage.grey_dilation`` cost ~0.15 ms per RANSAC plane in small calls.
     """
-    n_el = int(cells[:, 1].max()) + 2
-    az = cells[:, 0] % n_az
-    lookup, merged = _cluster_grid(az, cells[:, 1], n_az, n_el)
-    return merged[az, cells[:, 1]], lookup
+    labels, window, lo = _cluster_cells(cells[:, 0] % n_az, np.ascontiguousarray(cells[:, 1]), n_az)
+    lookup = np.full((n_az, lo + window.shape[1]), -1, dtype=np.int64)
+    lookup[:, lo:] = window
+    return labels, lookup
+
+
+@numba.njit(cache=True)
+def _cluster_cells(az, el, n_az):  # pragma: no cover - compiled
+    """:func:`_clusters` of the occupied cells ``(az, el)`` (K,) (``az`` in [0, n_az)):
+    ``(labels (K,), window, lo)``, the lookup grid's rows ``lo ..`` only (the rows below
+    the lowest occupied one but one are free and far from every cluster: all -1).
+    Cells are compared in the same (azimuth-major) order as on the full grid, so the
+    labels are the same."""
+    lo = max(el.min() - 1, 0)
+    n_el = el.max() + 2 - lo
+    e = el - lo
+    lookup, merged = _cluster_grid(az, e, n_az, n_el)
+    labels = np.empty(az.shape[0], dtype=np.int64)
+    for i in range(az.shape[0]):
+        labels[i] = merged[az[i], e[i]]
+    return labels, lookup, lo
 
 
 @numba.njit(cache=True)
@@ -205,11 +222,18 @@ def _region_buckets(az, el, taken, lookup, n_lab):  # pragma: no cover - compile
     ``(members, bounds)`` (each bucket ascending) by a counting sort in two compiled
     passes; numpy's gather, mask and stable argsort over every point cost ~1 ms per
     RANSAC plane on a 128-beam scan."""
-    top = lookup.shape[1] - 1
+    return _window_buckets(az, el, taken, lookup, 0, n_lab)
+
+
+@numba.njit(cache=True)
+def _window_buckets(az, el, taken, window, lo, n_lab):  # pragma: no cover - compiled
+    """:func:`_region_buckets` with the lookup grid's rows ``lo ..`` only (``window``;
+    the rows below all -1)."""
+    top = lo + window.shape[1] - 1
     lab = np.full(az.shape[0], -1, dtype=np.int64)
     for i in range(az.shape[0]):
-        if not taken[i]:
-            g = lookup[az[i], min(el[i], top)]
+        if not taken[i] and el[i] >= lo:
+            g = window[az[i], min(el[i], top) - lo]
             if 0 <= g < n_lab:
                 lab[i] = g
     return plane_members(lab, n_lab)
@@ -351,7 +375,6 @@ def ransac_candidates(
     cells = angular_cells(points, view, config.cluster_gap_deg)
     vox_az, pt_az = vox_cells[:, 0] % n_az, cells[:, 0] % n_az
     pt_el, vox_el = np.ascontiguousarray(cells[:, 1]), np.ascontiguousarray(vox_cells[:, 1])
-    no_voxel_taken = np.zeros(len(vox), dtype=bool)
     remaining = np.ones(len(vox), dtype=bool)
     taken = np.zeros(len(points), dtype=bool)
     min_vox = max(3, config.min_plane_points // 4)
@@ -360,39 +383,85 @@ def ransac_candidates(
     # (isl-org/Open3D#7270). One generator per scan: the same scan and seed give the same
     # planes.
     rng = np.random.default_rng(config.seed)
+    fail = log_fail(config.ransac_probability)
     out: list[np.ndarray] = []
+    n_rem = len(vox)
     for _ in range(config.max_planes):
-        rem = np.flatnonzero(remaining)
-        if len(rem) < min_vox:
+        if n_rem < min_vox:
             break
-        _, inl = segment_plane(
-            vox[rem], tol, config.ransac_iterations, config.ransac_probability, rng
-        )
-        inl = rem[inl]
-        if len(inl) < min_vox:
-            break
-        for _ in range(2):  # RANSAC's plane is rough: refit it, select again
-            c, n = _tls_normal(vox, inl)
-            inl = _within(vox, rem, c, n, float(tol))
-            if len(inl) < min_vox:
-                break
-        if len(inl) < min_vox:
-            remaining[rem] = False
-            break
-        remaining[inl] = False
-        labels, lookup = _clusters(vox_cells[inl], n_az)
-        # The (dilated) cluster of every point and voxel (-1: none).
-        # The regions of the clusters are disjoint (one label per cell), so that `taken`,
-        # updated cluster by cluster below, never changes another cluster's region: they
-        # are grouped once, over the points not yet taken (stable sorts keep each group
-        # ascending, as one flatnonzero per cluster did).
-        n_lab = int(lookup.max()) + 1
-        pt_idx, pt_b = _region_buckets(pt_az, pt_el, taken, lookup, n_lab)
-        vx_idx, vx_b = _region_buckets(vox_az, vox_el, no_voxel_taken, lookup, n_lab)
-        mem_idx, mem_b = _buckets(inl, labels, n_lab)
-        cand, bounds = _refit_clusters(
-            points, vox, float(tol), min_vox, int(config.min_plane_points), np.unique(labels),
-            mem_idx, mem_b, pt_idx, pt_b, vx_idx, vx_b, remaining, taken,
+        samples = draw_samples(rng, n_rem, config.ransac_iterations)
+        n_rem, cand, bounds = _ransac_plane(
+            points, vox, float(tol), fail, min_vox, int(config.min_plane_points), n_az,
+            samples, vox_az, vox_el, pt_az, pt_el, remaining, taken,
         )  # fmt: skip
+        if n_rem < 0:
+            break
         out.extend(cand[bounds[k] : bounds[k + 1]] for k in range(len(bounds) - 1))
     return out
+
+
+@numba.njit(cache=True)
+def _ransac_plane(  # noqa: PLR0913 - one RANSAC plane's step, flat for numba
+    points,
+    vox,
+    tol,
+    fail,
+    min_vox,
+    min_points,
+    n_az,
+    samples,
+    vox_az,
+    vox_el,
+    pt_az,
+    pt_el,
+    remaining,
+    taken,
+):  # pragma: no cover - compiled
+    """Steps 2 to 4 of the module docstring for one RANSAC plane of the voxels
+    ``vox`` (V, 3) still ``remaining`` (V,), with the raw draws ``samples`` (T, 3) of
+    :func:`.ransac.draw_samples`: ``(n_remaining, indices, bounds)``, the candidates as
+    :func:`_refit_clusters` returns them and the number of voxels left (-1: the loop
+    ends). Updates ``remaining`` and ``taken`` (N,). Compiled, one call per plane: the
+    dozen numpy and numba calls per plane it replaces cost more than their work on the
+    small scans of sparse indoor lidars; the same steps in the same order, so the same
+    candidates bit for bit."""
+    none = np.zeros(0, dtype=np.int64)
+    rem = np.flatnonzero(remaining)
+    xyz = np.empty((3, rem.shape[0]))
+    for i in range(rem.shape[0]):
+        for a in range(3):
+            xyz[a, i] = vox[rem[i], a]
+    _, local = segment_drawn(xyz, samples, tol, fail)
+    inl = rem[local]
+    if inl.shape[0] < min_vox:
+        return -1, none, np.zeros(1, dtype=np.int64)
+    for _ in range(2):  # RANSAC's plane is rough: refit it, select again
+        c, n = _tls_normal(vox, inl)
+        inl = _within(vox, rem, c, n, tol)
+        if inl.shape[0] < min_vox:
+            break
+    if inl.shape[0] < min_vox:
+        for j in rem:
+            remaining[j] = False
+        return -1, none, np.zeros(1, dtype=np.int64)
+    for j in inl:
+        remaining[j] = False
+    labels, window, lo = _cluster_cells(vox_az[inl], vox_el[inl], n_az)
+    n_lab = window.max() + 1
+    # The (dilated) cluster of every point and voxel (-1: none). The regions of the
+    # clusters are disjoint (one label per cell), so that `taken`, updated cluster by
+    # cluster in _refit_clusters, never changes another cluster's region: they are
+    # grouped once, over the points not yet taken (each group ascending).
+    pt_idx, pt_b = _window_buckets(pt_az, pt_el, taken, window, lo, n_lab)
+    # only the voxels still remaining: the others have nothing left to clear
+    vx_idx, vx_b = _window_buckets(vox_az, vox_el, ~remaining, window, lo, n_lab)
+    pos, mem_b = plane_members(labels, n_lab)  # labels in [1, n_lab): all kept
+    mem_idx = inl[pos]
+    cand, bounds = _refit_clusters(
+        points, vox, tol, min_vox, min_points, np.unique(labels),
+        mem_idx, mem_b, pt_idx, pt_b, vx_idx, vx_b, remaining, taken,
+    )  # fmt: skip
+    n_rem = 0
+    for j in range(remaining.shape[0]):
+        n_rem += remaining[j]
+    return n_rem, cand, bounds
