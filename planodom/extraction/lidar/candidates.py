@@ -240,6 +240,42 @@ def _window_buckets(az, el, taken, window, lo, n_lab):  # pragma: no cover - com
 
 
 @numba.njit(cache=True)
+def _column_buckets(col_idx, col_b, el, taken, window, lo, n_lab):  # pragma: no cover
+    """:func:`_window_buckets` of the points grouped by azimuth cell (``col_idx``,
+    ``col_b``: :func:`.grid.plane_members` of their azimuth cells): only the azimuth
+    cells in which ``window`` has a cluster are visited (a wall's clusters cover a few of
+    them), then each bucket is sorted (ascending, as there)."""
+    n_az = window.shape[0]
+    top = lo + window.shape[1] - 1
+    used = np.zeros(n_az, dtype=np.bool_)
+    for a in range(n_az):
+        for e in range(window.shape[1]):
+            g = window[a, e]
+            if 0 <= g < n_lab:
+                used[a] = True
+                break
+    hit = np.empty(col_idx.shape[0], dtype=np.int64)
+    lab = np.empty(col_idx.shape[0], dtype=np.int64)
+    k = 0
+    for a in range(n_az):
+        if not used[a]:
+            continue
+        for q in range(col_b[a], col_b[a + 1]):
+            i = col_idx[q]
+            if not taken[i] and el[i] >= lo:
+                g = window[a, min(el[i], top) - lo]
+                if 0 <= g < n_lab:
+                    hit[k] = i
+                    lab[k] = g
+                    k += 1
+    pos, bounds = plane_members(lab[:k], n_lab)
+    idx = hit[:k][pos]
+    for g in range(n_lab):
+        idx[bounds[g] : bounds[g + 1]].sort()
+    return idx, bounds
+
+
+@numba.njit(cache=True)
 def _tls_normal(pts, idx):  # pragma: no cover - compiled
     """Centroid (3,) and unit normal (3,) (the scatter's least eigenvector) of the points
     ``pts[idx]``: :func:`planodom.extraction.planes.fit.tls_fit` compiled, equal to it to
@@ -382,6 +418,8 @@ def ransac_candidates(
     # planes in two processes despite o3d.utility.random.seed and one thread
     # (isl-org/Open3D#7270). One generator per scan: the same scan and seed give the same
     # planes.
+    # the points and voxels of each azimuth cell (ascending)
+    vox_col, pt_col = plane_members(vox_az, n_az), plane_members(pt_az, n_az)
     rng = np.random.default_rng(config.seed)
     fail = log_fail(config.ransac_probability)
     out: list[np.ndarray] = []
@@ -392,7 +430,7 @@ def ransac_candidates(
         samples = draw_samples(rng, n_rem, config.ransac_iterations)
         n_rem, cand, bounds = _ransac_plane(
             points, vox, float(tol), fail, min_vox, int(config.min_plane_points), n_az,
-            samples, vox_az, vox_el, pt_az, pt_el, remaining, taken,
+            samples, vox_az, vox_el, pt_az, pt_el, remaining, taken, *vox_col, *pt_col,
         )  # fmt: skip
         if n_rem < 0:
             break
@@ -416,6 +454,10 @@ def _ransac_plane(  # noqa: PLR0913 - one RANSAC plane's step, flat for numba
     pt_el,
     remaining,
     taken,
+    vox_col,
+    vox_col_b,
+    pt_col,
+    pt_col_b,
 ):  # pragma: no cover - compiled
     """Steps 2 to 4 of the module docstring for one RANSAC plane of the voxels
     ``vox`` (V, 3) still ``remaining`` (V,), with the raw draws ``samples`` (T, 3) of
@@ -452,9 +494,9 @@ def _ransac_plane(  # noqa: PLR0913 - one RANSAC plane's step, flat for numba
     # clusters are disjoint (one label per cell), so that `taken`, updated cluster by
     # cluster in _refit_clusters, never changes another cluster's region: they are
     # grouped once, over the points not yet taken (each group ascending).
-    pt_idx, pt_b = _window_buckets(pt_az, pt_el, taken, window, lo, n_lab)
+    pt_idx, pt_b = _column_buckets(pt_col, pt_col_b, pt_el, taken, window, lo, n_lab)
     # only the voxels still remaining: the others have nothing left to clear
-    vx_idx, vx_b = _window_buckets(vox_az, vox_el, ~remaining, window, lo, n_lab)
+    vx_idx, vx_b = _column_buckets(vox_col, vox_col_b, vox_el, ~remaining, window, lo, n_lab)
     pos, mem_b = plane_members(labels, n_lab)  # labels in [1, n_lab): all kept
     mem_idx = inl[pos]
     cand, bounds = _refit_clusters(
