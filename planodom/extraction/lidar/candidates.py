@@ -503,7 +503,4 @@ def _ransac_plane(  # noqa: PLR0913 - one RANSAC plane's step, flat for numba
         points, vox, tol, min_vox, min_points, np.unique(labels),
         mem_idx, mem_b, pt_idx, pt_b, vx_idx, vx_b, remaining, taken,
     )  # fmt: skip
-    n_rem = 0
-    for j in range(remaining.shape[0]):
-        n_rem += remaining[j]
-    return n_rem, cand, bounds
+    return np.count_nonzero(remaining), cand, bounds
