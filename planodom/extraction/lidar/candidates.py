@@ -16,9 +16,12 @@
 4. Each cluster is refit by total least squares, twice on the full-resolution points
    within the distance tolerance of it and inside its (dilated) cells and not taken by an
    earlier plane; these points are the candidate inlier set (the caller refits it
-   robustly). Voxel points that the refit plane explains are not searched again. The
-   refits and selections run compiled (numba, :func:`_refit_clusters`), one call per
-   RANSAC plane: sparse lidars give many small clusters.
+   robustly). Voxel points that the refit plane explains are not searched again.
+
+Steps 2 to 4 run compiled (numba, :func:`_ransac_plane`), one call per RANSAC plane (only
+the samples are drawn in Python, numpy's ``Generator.integers``): sparse lidars give many
+small planes and clusters, and the dozen numpy and numba calls per plane cost more than
+their work (an indoor 16-beam scan at 2 cm: ~18 planes, ~40 clusters).
 
 With rings (and ``range_image``) the candidates come from region growing on the range
 image instead (:mod:`.rangeimage`); the loop above is its fallback.
