@@ -7,13 +7,15 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from planodom.extraction.lidar.candidates import (
-    _buckets,
-    _clusters,
-    _region_buckets,
-    _tls_normal,
-    _within,
+from planodom.extraction.lidar.candidates import _tls_normal, _within
+from planodom.extraction.lidar.clusters import (
+    buckets,
+    clusters,
+    column_buckets,
+    region_buckets,
 )
+from planodom.extraction.lidar.grid import plane_members
+from planodom.extraction.lidar.ransac import distinct_triples
 from planodom.extraction.planes.fit import tls_fit
 
 
@@ -44,7 +46,22 @@ def test_clusters_match_scipy():
         n_az = int(rng.integers(4, 40))
         k = int(rng.integers(1, 200))
         cells = np.column_stack([rng.integers(-n_az, 2 * n_az, k), rng.integers(0, 12, k)])
-        labels, lookup = _clusters(cells, n_az)
+        labels, lookup = clusters(cells, n_az)
+        expected_labels, expected_lookup = _clusters_scipy(cells, n_az)
+        np.testing.assert_array_equal(labels, expected_labels)
+        np.testing.assert_array_equal(lookup, expected_lookup)
+
+
+def test_clusters_match_scipy_away_from_the_lowest_elevation():
+    """The grid is built from the lowest occupied elevation cell on (a window): the same
+    labels and lookup as scipy's on the whole grid."""
+    rng = np.random.default_rng(8)
+    for _ in range(200):
+        n_az = int(rng.integers(4, 40))
+        k = int(rng.integers(1, 120))
+        low = int(rng.integers(0, 30))
+        cells = np.column_stack([rng.integers(0, n_az, k), low + rng.integers(0, 6, k)])
+        labels, lookup = clusters(cells, n_az)
         expected_labels, expected_lookup = _clusters_scipy(cells, n_az)
         np.testing.assert_array_equal(labels, expected_labels)
         np.testing.assert_array_equal(lookup, expected_lookup)
@@ -54,12 +71,12 @@ def test_buckets_equal_one_selection_per_label():
     rng = np.random.default_rng(4)
     label = rng.integers(-1, 6, 300)
     idx = np.flatnonzero(rng.random(300) < 0.7)
-    members, bounds = _buckets(idx, label[idx], 7)
+    members, bounds = buckets(idx, label[idx], 7)
     assert len(bounds) == 8
     for lab in range(7):
         got = members[bounds[lab] : bounds[lab + 1]]
         np.testing.assert_array_equal(got, idx[label[idx] == lab])
-    members, bounds = _buckets(idx[:0], label[:0], 3)
+    members, bounds = buckets(idx[:0], label[:0], 3)
     assert len(members) == 0
     np.testing.assert_array_equal(bounds, [0, 0, 0, 0])
 
@@ -76,10 +93,44 @@ def test_region_buckets_equal_the_numpy_gather_and_buckets():
         n_lab = int(lookup.max()) + 1
         free = np.flatnonzero(~taken)
         top = n_el - 1
-        expected = _buckets(free, lookup[az[free], np.minimum(el[free], top)], n_lab)
-        got = _region_buckets(az, el, taken, lookup, n_lab)
+        expected = buckets(free, lookup[az[free], np.minimum(el[free], top)], n_lab)
+        got = region_buckets(az, el, taken, lookup, n_lab)
         np.testing.assert_array_equal(got[0], expected[0])
         np.testing.assert_array_equal(got[1], expected[1])
+
+
+def test_column_buckets_equal_the_numpy_gather_and_buckets():
+    """Visiting only the azimuth cells with a cluster gives the same (members, bounds) as
+    the numpy gather over every point, with the lookup grid's rows from ``lo`` on."""
+    rng = np.random.default_rng(9)
+    for _ in range(30):
+        n_az, n_el, n, lo = 40, int(rng.integers(3, 9)), 2000, int(rng.integers(0, 5))
+        window = rng.integers(-1, 5, (n_az, n_el))
+        window[rng.random(n_az) < 0.6] = -1  # most azimuth cells without a cluster
+        az, el = rng.integers(0, n_az, n), rng.integers(0, lo + n_el + 4, n)
+        taken = rng.random(n) < 0.3
+        n_lab = int(window.max()) + 1
+        lookup = np.hstack([np.full((n_az, lo), -1), window])  # rows below lo free
+        free = np.flatnonzero(~taken)
+        top = lo + n_el - 1
+        expected = buckets(free, lookup[az[free], np.minimum(el[free], top)], n_lab)
+        col_idx, col_b = plane_members(az, n_az)
+        got = column_buckets(col_idx, col_b, el, taken, window, lo, n_lab)
+        np.testing.assert_array_equal(got[0], expected[0])
+        np.testing.assert_array_equal(got[1], expected[1])
+
+
+def test_distinct_triples_cover_every_ordered_triple_once():
+    """Every raw draw (a < m, b < m - 1, c < m - 2) gives a triple of distinct indices,
+    and all m (m - 1) (m - 2) ordered triples come out once (so each is uniform)."""
+    for m in (3, 4, 7):
+        raw = np.array(
+            [(a, b, c) for a in range(m) for b in range(m - 1) for c in range(m - 2)],
+            dtype=np.int64,
+        )
+        out = distinct_triples(raw)
+        assert all(len(set(t)) == 3 and max(t) < m for t in out.tolist())
+        assert len({tuple(t) for t in out.tolist()}) == m * (m - 1) * (m - 2)
 
 
 def test_compiled_fit_and_selection_match_numpy():

@@ -16,9 +16,12 @@
 4. Each cluster is refit by total least squares, twice on the full-resolution points
    within the distance tolerance of it and inside its (dilated) cells and not taken by an
    earlier plane; these points are the candidate inlier set (the caller refits it
-   robustly). Voxel points that the refit plane explains are not searched again. The
-   refits and selections run compiled (numba, :func:`_refit_clusters`), one call per
-   RANSAC plane: sparse lidars give many small clusters.
+   robustly). Voxel points that the refit plane explains are not searched again.
+
+Steps 2 to 4 run compiled (numba, :func:`_ransac_plane`), one call per RANSAC plane (only
+the samples are drawn in Python, numpy's ``Generator.integers``): sparse lidars give many
+small planes and clusters, and the dozen numpy and numba calls per plane cost more than
+their work (an indoor 16-beam scan at 2 cm: ~18 planes, ~40 clusters).
 
 With rings (and ``range_image``) the candidates come from region growing on the range
 image instead (:mod:`.rangeimage`); the loop above is its fallback.
@@ -36,10 +39,11 @@ import numpy as np
 
 from planodom._open3d import o3d
 from planodom.config import ExtractionConfig
-from planodom.extraction.kernels import add_outer, find_root
+from planodom.extraction.kernels import add_outer
+from planodom.extraction.lidar.clusters import cluster_cells, column_buckets
 from planodom.extraction.lidar.grid import plane_members, ring_layout
 from planodom.extraction.lidar.rangeimage import range_image_candidates
-from planodom.extraction.lidar.ransac import segment_plane
+from planodom.extraction.lidar.ransac import draw_samples, log_fail, segment_drawn
 from planodom.extraction.noise import effective_noise, member_tolerance
 
 
@@ -126,93 +130,6 @@ def angular_cells(points: np.ndarray, viewpoint: np.ndarray, cell_deg: float) ->
     return np.floor(np.column_stack([(az + np.pi) / cell, (el + np.pi / 2) / cell])).astype(
         np.int64
     )
-
-
-def _clusters(cells: np.ndarray, n_az: int) -> tuple[np.ndarray, np.ndarray]:
-    """8-connected clusters of occupied angular cells (K, 2), azimuth wrapping at n_az.
-
-    Returns the label (K,) of every point (0-based) and a lookup grid (n_az, n_el) of
-    the labels dilated by one cell (-1 = free): a free cell takes the largest label of
-    its 8 neighbours. The clusters are numbered from 1 in the order of their first cell
-    (azimuth-major), as scipy's ``ndimage.label`` numbers them; compiled (numba,
-    :func:`_cluster_grid`) because ``ndimage.label``, the seam join and
-    ``ndimage.grey_dilation`` cost ~0.15 ms per RANSAC plane in small calls.
-    """
-    n_el = int(cells[:, 1].max()) + 2
-    az = cells[:, 0] % n_az
-    lookup, merged = _cluster_grid(az, cells[:, 1], n_az, n_el)
-    return merged[az, cells[:, 1]], lookup
-
-
-@numba.njit(cache=True)
-def _cluster_grid(az, el, n_az, n_el):  # pragma: no cover - compiled
-    """``(lookup, merged)`` (n_az, n_el) int64 of :func:`_clusters` for the occupied cells
-    ``(az, el)`` (K,): ``merged`` the cluster of each occupied cell (-1 free), ``lookup``
-    the same with each free cell given its neighbours' largest cluster."""
-    occ = np.zeros((n_az, n_el), dtype=np.bool_)
-    for i in range(az.shape[0]):
-        occ[az[i], el[i]] = True
-    parent = np.arange(n_az * n_el)
-    for a in range(n_az):
-        for e in range(n_el):
-            if not occ[a, e]:
-                continue
-            # the neighbours of an earlier row (wrapping) and the previous column
-            for da, de in ((-1, -1), (-1, 0), (-1, 1), (0, -1)):
-                b, f = (a + da) % n_az, e + de
-                if 0 <= f < n_el and occ[b, f]:
-                    ru, rv = find_root(parent, a * n_el + e), find_root(parent, b * n_el + f)
-                    parent[max(ru, rv)] = min(ru, rv)
-    merged = np.full((n_az, n_el), -1, dtype=np.int64)
-    number = np.zeros(n_az * n_el, dtype=np.int64)
-    k = 0
-    for a in range(n_az):  # numbered in the order of each cluster's first cell
-        for e in range(n_el):
-            if occ[a, e]:
-                r = find_root(parent, a * n_el + e)
-                if number[r] == 0:
-                    k += 1
-                    number[r] = k
-                merged[a, e] = number[r]
-    lookup = merged.copy()
-    for a in range(n_az):
-        for e in range(n_el):
-            if occ[a, e]:
-                continue
-            for da in (-1, 0, 1):
-                for de in (-1, 0, 1):
-                    f = e + de
-                    if 0 <= f < n_el:
-                        lookup[a, e] = max(lookup[a, e], merged[(a + da) % n_az, f])
-    return lookup, merged
-
-
-def _buckets(idx: np.ndarray, lab: np.ndarray, n_lab: int) -> tuple[np.ndarray, np.ndarray]:
-    """The indices ``idx`` (K,) ascending, bucketed by their labels ``lab`` (K,) (those
-    in [0, n_lab)): ``(members, bounds)``, bucket ``l`` being ``members[bounds[l]:bounds[l
-    + 1]]`` (ascending: a stable sort), ``bounds`` (n_lab + 1,); one sort instead of one
-    pass over every point per label."""
-    keep = (lab >= 0) & (lab < n_lab)
-    idx, lab = idx[keep], lab[keep]
-    order = np.argsort(lab, kind="stable")
-    return idx[order], np.searchsorted(lab[order], np.arange(n_lab + 1))
-
-
-@numba.njit(cache=True)
-def _region_buckets(az, el, taken, lookup, n_lab):  # pragma: no cover - compiled
-    """:func:`_buckets` of the indices i not ``taken`` (K,) by their (dilated) cluster
-    ``lookup[az[i], min(el[i], top)]`` (``lookup`` (n_az, top + 1), -1: none): the same
-    ``(members, bounds)`` (each bucket ascending) by a counting sort in two compiled
-    passes; numpy's gather, mask and stable argsort over every point cost ~1 ms per
-    RANSAC plane on a 128-beam scan."""
-    top = lookup.shape[1] - 1
-    lab = np.full(az.shape[0], -1, dtype=np.int64)
-    for i in range(az.shape[0]):
-        if not taken[i]:
-            g = lookup[az[i], min(el[i], top)]
-            if 0 <= g < n_lab:
-                lab[i] = g
-    return plane_members(lab, n_lab)
 
 
 @numba.njit(cache=True)
@@ -351,7 +268,6 @@ def ransac_candidates(
     cells = angular_cells(points, view, config.cluster_gap_deg)
     vox_az, pt_az = vox_cells[:, 0] % n_az, cells[:, 0] % n_az
     pt_el, vox_el = np.ascontiguousarray(cells[:, 1]), np.ascontiguousarray(vox_cells[:, 1])
-    no_voxel_taken = np.zeros(len(vox), dtype=bool)
     remaining = np.ones(len(vox), dtype=bool)
     taken = np.zeros(len(points), dtype=bool)
     min_vox = max(3, config.min_plane_points // 4)
@@ -359,40 +275,89 @@ def ransac_candidates(
     # planes in two processes despite o3d.utility.random.seed and one thread
     # (isl-org/Open3D#7270). One generator per scan: the same scan and seed give the same
     # planes.
+    # the points and voxels of each azimuth cell (ascending)
+    vox_col, pt_col = plane_members(vox_az, n_az), plane_members(pt_az, n_az)
     rng = np.random.default_rng(config.seed)
+    fail = log_fail(config.ransac_probability)
     out: list[np.ndarray] = []
+    n_rem = len(vox)
     for _ in range(config.max_planes):
-        rem = np.flatnonzero(remaining)
-        if len(rem) < min_vox:
+        if n_rem < min_vox:
             break
-        _, inl = segment_plane(
-            vox[rem], tol, config.ransac_iterations, config.ransac_probability, rng
-        )
-        inl = rem[inl]
-        if len(inl) < min_vox:
-            break
-        for _ in range(2):  # RANSAC's plane is rough: refit it, select again
-            c, n = _tls_normal(vox, inl)
-            inl = _within(vox, rem, c, n, float(tol))
-            if len(inl) < min_vox:
-                break
-        if len(inl) < min_vox:
-            remaining[rem] = False
-            break
-        remaining[inl] = False
-        labels, lookup = _clusters(vox_cells[inl], n_az)
-        # The (dilated) cluster of every point and voxel (-1: none).
-        # The regions of the clusters are disjoint (one label per cell), so that `taken`,
-        # updated cluster by cluster below, never changes another cluster's region: they
-        # are grouped once, over the points not yet taken (stable sorts keep each group
-        # ascending, as one flatnonzero per cluster did).
-        n_lab = int(lookup.max()) + 1
-        pt_idx, pt_b = _region_buckets(pt_az, pt_el, taken, lookup, n_lab)
-        vx_idx, vx_b = _region_buckets(vox_az, vox_el, no_voxel_taken, lookup, n_lab)
-        mem_idx, mem_b = _buckets(inl, labels, n_lab)
-        cand, bounds = _refit_clusters(
-            points, vox, float(tol), min_vox, int(config.min_plane_points), np.unique(labels),
-            mem_idx, mem_b, pt_idx, pt_b, vx_idx, vx_b, remaining, taken,
+        samples = draw_samples(rng, n_rem, config.ransac_iterations)
+        n_rem, cand, bounds = _ransac_plane(
+            points, vox, float(tol), fail, min_vox, int(config.min_plane_points), n_az,
+            samples, vox_az, vox_el, pt_az, pt_el, remaining, taken, *vox_col, *pt_col,
         )  # fmt: skip
+        if n_rem < 0:
+            break
         out.extend(cand[bounds[k] : bounds[k + 1]] for k in range(len(bounds) - 1))
     return out
+
+
+@numba.njit(cache=True)
+def _ransac_plane(  # noqa: PLR0913 - one RANSAC plane's step, flat for numba
+    points,
+    vox,
+    tol,
+    fail,
+    min_vox,
+    min_points,
+    n_az,
+    samples,
+    vox_az,
+    vox_el,
+    pt_az,
+    pt_el,
+    remaining,
+    taken,
+    vox_col,
+    vox_col_b,
+    pt_col,
+    pt_col_b,
+):  # pragma: no cover - compiled
+    """Steps 2 to 4 of the module docstring for one RANSAC plane of the voxels
+    ``vox`` (V, 3) still ``remaining`` (V,), with the raw draws ``samples`` (T, 3) of
+    :func:`.ransac.draw_samples`: ``(n_remaining, indices, bounds)``, the candidates as
+    :func:`_refit_clusters` returns them and the number of voxels left (-1: the loop
+    ends). Updates ``remaining`` and ``taken`` (N,). Compiled, one call per plane: the
+    dozen numpy and numba calls per plane it replaces cost more than their work on the
+    small scans of sparse indoor lidars; the same steps in the same order, so the same
+    candidates bit for bit."""
+    none = np.zeros(0, dtype=np.int64)
+    rem = np.flatnonzero(remaining)
+    xyz = np.empty((3, rem.shape[0]))
+    for i in range(rem.shape[0]):
+        for a in range(3):
+            xyz[a, i] = vox[rem[i], a]
+    _, local = segment_drawn(xyz, samples, tol, fail)
+    inl = rem[local]
+    if inl.shape[0] < min_vox:
+        return -1, none, np.zeros(1, dtype=np.int64)
+    for _ in range(2):  # RANSAC's plane is rough: refit it, select again
+        c, n = _tls_normal(vox, inl)
+        inl = _within(vox, rem, c, n, tol)
+        if inl.shape[0] < min_vox:
+            break
+    if inl.shape[0] < min_vox:
+        for j in rem:
+            remaining[j] = False
+        return -1, none, np.zeros(1, dtype=np.int64)
+    for j in inl:
+        remaining[j] = False
+    labels, window, lo = cluster_cells(vox_az[inl], vox_el[inl], n_az)
+    n_lab = window.max() + 1
+    # The (dilated) cluster of every point and voxel (-1: none). The regions of the
+    # clusters are disjoint (one label per cell), so that `taken`, updated cluster by
+    # cluster in _refit_clusters, never changes another cluster's region: they are
+    # grouped once, over the points not yet taken (each group ascending).
+    pt_idx, pt_b = column_buckets(pt_col, pt_col_b, pt_el, taken, window, lo, n_lab)
+    # only the voxels still remaining: the others have nothing left to clear
+    vx_idx, vx_b = column_buckets(vox_col, vox_col_b, vox_el, ~remaining, window, lo, n_lab)
+    pos, mem_b = plane_members(labels, n_lab)  # labels in [1, n_lab): all kept
+    mem_idx = inl[pos]
+    cand, bounds = _refit_clusters(
+        points, vox, tol, min_vox, min_points, np.unique(labels),
+        mem_idx, mem_b, pt_idx, pt_b, vx_idx, vx_b, remaining, taken,
+    )  # fmt: skip
+    return np.count_nonzero(remaining), cand, bounds

@@ -38,13 +38,31 @@ _BLOCK = 512
 def sample_triples(rng: np.random.Generator, m: int, n: int) -> np.ndarray:
     """(n, 3) int64: n triples of distinct indices in [0, m) (m >= 3), each triple uniform
     over the m (m - 1) (m - 2) ordered ones; one ``rng.integers`` call."""
-    s = rng.integers(0, [m, m - 1, m - 2], size=(n, 3), dtype=np.int64)
-    a, b, c = s[:, 0], s[:, 1], s[:, 2]
-    b = b + (b >= a)  # skip a
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    c = c + (c >= lo)  # skip the smaller of a, b, then the larger
-    c = c + (c >= hi)
-    return np.column_stack([a, b, c])
+    return distinct_triples(draw_samples(rng, m, n))
+
+
+def draw_samples(rng: np.random.Generator, m: int, n: int) -> np.ndarray:
+    """(n, 3) int64: the raw draws of :func:`sample_triples`, column k uniform in
+    [0, m - k) (m >= 3); made distinct by :func:`distinct_triples`."""
+    return rng.integers(0, [m, m - 1, m - 2], size=(n, 3), dtype=np.int64)
+
+
+@numba.njit(cache=True)
+def distinct_triples(s):  # pragma: no cover - compiled
+    """(n, 3) int64 triples of distinct indices from the raw draws ``s`` (n, 3) of
+    :func:`draw_samples`: the second skips the first, the third skips both."""
+    out = np.empty_like(s)
+    for r in range(s.shape[0]):
+        a, b, c = s[r, 0], s[r, 1], s[r, 2]
+        if b >= a:  # skip a
+            b += 1
+        lo, hi = min(a, b), max(a, b)
+        if c >= lo:  # skip the smaller of a, b, then the larger
+            c += 1
+        if c >= hi:
+            c += 1
+        out[r, 0], out[r, 1], out[r, 2] = a, b, c
+    return out
 
 
 def segment_plane(
@@ -64,13 +82,24 @@ def segment_plane(
     m = len(points)
     if m < 3 or num_iterations < 1:
         return np.zeros(4), np.zeros(0, dtype=np.int64)
-    triples = sample_triples(rng, m, num_iterations)
-    log_fail = np.log1p(-probability) if probability < 1.0 else -np.inf
+    samples = draw_samples(rng, m, num_iterations)
     xyz = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)
-    plane = _best_plane(xyz, triples, float(distance_threshold), float(log_fail))
-    if not np.any(plane):
+    return segment_drawn(xyz, samples, float(distance_threshold), log_fail(probability))
+
+
+def log_fail(probability: float) -> float:
+    """``log(1 - probability)`` of the early stop (-inf: none, at ``probability`` 1)."""
+    return float(np.log1p(-probability)) if probability < 1.0 else -np.inf
+
+
+@numba.njit(cache=True)
+def segment_drawn(xyz, samples, tol, log_fail):  # pragma: no cover - compiled
+    """:func:`segment_plane` of the points ``xyz`` (3, M) with the raw draws ``samples``
+    (T, 3) of :func:`draw_samples` already made: ``(plane (4,), inliers (K,) int64)``."""
+    plane = _best_plane(xyz, distinct_triples(samples), tol, log_fail)
+    if plane[0] == 0.0 and plane[1] == 0.0 and plane[2] == 0.0 and plane[3] == 0.0:
         return plane, np.zeros(0, dtype=np.int64)
-    return plane, _inliers(xyz, plane, float(distance_threshold))
+    return plane, _inliers(xyz, plane, tol)
 
 
 @numba.njit(cache=True)
