@@ -406,7 +406,8 @@ class PlaneOdometry:
         if best.relative.status is Status.UNRESOLVED or gap:
             self._velocities.clear()  # stale velocities go with the twist (see register)
         if gap:
-            _ = self._recent.clear(), self._rates.clear()
+            self._recent.clear()
+            self._rates.clear()
         elif dt > 0:
             measured = best.relative.status is Status.OK
             own = best.own_twist(dt)
