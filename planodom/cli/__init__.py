@@ -150,14 +150,15 @@ def _report_far_points(data: ScanEpochs, metrics: dict) -> None:
 
 def _report_gaps(odo, metrics: dict) -> None:
     """Warn of (and list in metrics.json) gaps in the epoch times (scans missing,
-    :func:`planodom.odometry.epoch_time.is_gap`): the odometry carries no motion across
-    one, so the epoch after it is registered without a prediction (a recording with an
-    hour cut out had run 'ok' with 14 cm errors after the cut, and no word)."""
+    :data:`planodom.odometry.epoch_time.GAP_PERIODS`); across a long one
+    (:func:`planodom.odometry.epoch_time.is_gap`) the odometry carries no motion, so the
+    epoch after it is registered without a prediction (a recording with an hour cut out
+    had run 'ok' with 14 cm errors after the cut, and no word)."""
     import numpy as np
 
     if len(odo.times) < 3:
         return
-    from planodom.odometry.epoch_time import GAP_PERIODS, epoch_periods
+    from planodom.odometry.epoch_time import GAP_PERIODS, RESET_PERIODS, epoch_periods
 
     periods = epoch_periods(odo.times)
     gaps = np.flatnonzero(periods >= GAP_PERIODS)
@@ -166,9 +167,9 @@ def _report_gaps(odo, metrics: dict) -> None:
         seconds = float(odo.times[k + 1] - odo.times[k])
         warn(
             f"{len(gaps)} gap(s) in the epoch times (first: before epoch {k + 1}, {seconds:g} s "
-            f"= {periods[k]:.0f} epoch periods): the odometry carries no motion across a gap, "
-            "so the epoch after it is registered without a prediction; check the epochs "
-            "after it (listed in metrics.json)"
+            f"= {periods[k]:.0f} epoch periods): the odometry predicts across short gaps at "
+            f"constant velocity and carries no motion across gaps of {RESET_PERIODS} periods "
+            "or more; check the epochs after them (listed in metrics.json)"
         )
         metrics["epochs_after_gaps"] = [int(e) + 1 for e in gaps]
 

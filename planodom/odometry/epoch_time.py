@@ -34,19 +34,28 @@ def next_epoch_time(time: float | None, times: Sequence[float], period_s: float)
 
 #: A step of this many epoch periods or more (rounded, :func:`epoch_periods`) is a gap in
 #: the epoch times (a scan missing, a paused or cut recording): the run warns of it
-#: (``epochs_after_gaps`` in metrics.json) and the streaming odometry
-#: (:class:`planodom.odometry.odometry.PlaneOdometry`) carries no motion across it. The
-#: epoch after a gap is registered without a prediction (standing still; the plane map's
-#: too, its twist filter started again), deskewed with the twist held from before the gap
-#: and not extracted again, and its step gives no twist (the recent twists are dropped;
-#: the one held goes on to the next epoch, whose own step is measured again). Not without
-#: deskewing, as after an unresolved epoch: there the epoch's own step then refines the
-#: twist, but a step across a gap measures none, and nothing marks the skewed epoch as
-#: suspect. A recording of a random world (lidar16, 3.4 m/s) with an hour cut out before
-#: epoch 20: that epoch 19 cm off before (the step's twist over 3600 s deskewed it as
-#: standing still), 0.6 cm after; 18 cm extracted without deskewing (the held twist only
-#: a rescue, as after an unresolved epoch).
+#: (``epochs_after_gaps`` in metrics.json).
 GAP_PERIODS = 2
+
+#: Across a gap of this many epoch periods or more (:func:`is_gap`) the streaming odometry
+#: (:class:`planodom.odometry.odometry.PlaneOdometry`) carries no motion. Shorter gaps (a scan or a
+#: few dropped) keep the constant-velocity prediction, which is still right over them (two scans
+#: dropped from a lidar16 world at 3.4 m/s: that epoch 0.4 cm off with it, 1.0 cm without). Ten
+#: periods (a second at 10 Hz, long enough for a vehicle to stop or turn) is a judgment, not fitted
+#: to data. The epoch after a gap is registered without a prediction (standing still; the plane
+#: map's too, its twist filter started again), deskewed with the twist held from before the gap and
+#: not extracted again, and its step gives no twist (the recent twists are dropped; the one held
+#: goes on to the next epoch, whose own step is measured again). Not without deskewing, as after an
+#: unresolved epoch: there the epoch's own step then refines the twist, but a step across a gap
+#: measures none, and nothing marks the skewed epoch as suspect. A recording of a random world
+#: (lidar16, 3.4 m/s) with an hour cut out before epoch 20: that epoch 19 cm off before (the step's
+#: twist over 3600 s deskewed it as standing still), 0.6 cm after; 18 cm extracted without deskewing
+#: (the held twist only a rescue, as after an unresolved epoch).
+RESET_PERIODS = 10
+
+#: The steps :func:`is_gap` judges the period by: the last ones only (a percentile over a
+#: whole run at every epoch would cost its length squared).
+_RECENT_STEPS = 100
 
 
 def epoch_periods(times: Sequence[float]) -> np.ndarray:
@@ -59,10 +68,11 @@ def epoch_periods(times: Sequence[float]) -> np.ndarray:
 
 
 def is_gap(times: Sequence[float], t: float) -> bool:
-    """Whether the step from the last of ``times`` (s) to ``t`` (s) is a gap
-    (:data:`GAP_PERIODS`), judged as the streaming odometry can: by the steps so far
-    (``times`` then ``t``). Never within the first two steps (no period to judge by: the
-    warning, judged on the whole recording, may still list them)."""
+    """Whether the step from the last of ``times`` (s) to ``t`` (s) is a gap the odometry
+    carries no motion across (:data:`RESET_PERIODS`), judged as the streaming odometry
+    can: by the recent steps so far (``times`` then ``t``). Never within the first two
+    steps (no period to judge by)."""
     if len(times) < 2:
         return False
-    return bool(epoch_periods([*times, t])[-1] >= GAP_PERIODS)
+    recent = list(times[-(_RECENT_STEPS + 1) :])
+    return bool(epoch_periods([*recent, t])[-1] >= RESET_PERIODS)

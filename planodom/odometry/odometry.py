@@ -10,7 +10,7 @@ epoch has fewer than two planes, the latest earlier epoch with two or more is us
 bridged by constant velocity (the last increment's twist times the elapsed time; standing
 still before any motion is known): its result has ``status == Status.UNRESOLVED`` and that
 bridge as ``T_prev_curr``. No motion is carried across a gap in the epoch times: see
-:data:`.epoch_time.GAP_PERIODS`.
+:data:`.epoch_time.RESET_PERIODS`.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from planodom.config import PlanodomConfig
 from planodom.errors import GeometryError
 from planodom.geometry import invert_transform
 from planodom.odometry import run_odometry
-from planodom.odometry.epoch_time import GAP_PERIODS, epoch_periods, is_gap, next_epoch_time
+from planodom.odometry.epoch_time import RESET_PERIODS, epoch_periods, is_gap, next_epoch_time
 from planodom.simulation import simulate_named
 
 
@@ -32,7 +32,11 @@ def test_epoch_periods_by_the_lower_quartile_of_the_steps():
 def test_is_gap_judged_by_the_steps_so_far():
     times = [0.0, 0.1, 0.2]
     assert not is_gap(times, 0.3) and not is_gap(times, 0.349)  # 1.49 periods
-    assert is_gap(times, 0.2 + 0.1 * GAP_PERIODS) and is_gap(times, 3600.0)
+    assert is_gap(times, 0.2 + 0.1 * RESET_PERIODS) and is_gap(times, 3600.0)
+    assert not is_gap(times, 0.2 + 0.1 * (RESET_PERIODS - 1))  # a few scans dropped
+    # judged by the recent steps: an early slow stretch does not hide a later gap
+    slow_then_fast = [*np.arange(0.0, 100.0, 1.0), *np.arange(100.0, 120.0, 0.1)]
+    assert is_gap(slow_then_fast, slow_then_fast[-1] + 0.1 * RESET_PERIODS)
     assert not is_gap([0.0], 3600.0)  # one step: no period to judge it by
     assert not is_gap([0.0, 0.1, 0.2, 0.3], 0.31)  # a short step is no gap
 
