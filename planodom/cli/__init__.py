@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import typer
 
@@ -148,34 +148,28 @@ def _report_far_points(data: ScanEpochs, metrics: dict) -> None:
         metrics["scans_beyond_sensor_range"] = list(data.far)
 
 
-def _epoch_periods(times) -> Any:
-    """(E - 1,) the time steps in epoch periods, rounded (the period: the lower quartile of
-    the steps, which a few gaps leave alone); ones when the steps are not positive."""
-    import numpy as np
-
-    dt = np.diff(np.asarray(times, dtype=np.float64))
-    period = float(np.percentile(dt, 25)) if len(dt) else 0.0
-    return np.rint(dt / period) if period > 0 else np.ones(len(dt))
-
-
 def _report_gaps(odo, metrics: dict) -> None:
-    """Warn of (and list in metrics.json) gaps in the epoch times (scans missing): the
-    odometry predicts and deskews across a gap at constant velocity (a recording with an
-    hour cut out ran 'ok' with 14 cm errors after the cut, and no word)."""
+    """Warn of (and list in metrics.json) gaps in the epoch times (scans missing,
+    :data:`planodom.odometry.epoch_time.GAP_PERIODS`); across a long one
+    (:func:`planodom.odometry.epoch_time.is_gap`) the odometry carries no motion, so the
+    epoch after it is registered without a prediction (a recording with an hour cut out
+    had run 'ok' with 14 cm errors after the cut, and no word)."""
     import numpy as np
 
     if len(odo.times) < 3:
         return
-    periods = _epoch_periods(odo.times)
-    gaps = np.flatnonzero(periods >= 2)
+    from planodom.odometry.epoch_time import GAP_PERIODS, RESET_PERIODS, epoch_periods
+
+    periods = epoch_periods(odo.times)
+    gaps = np.flatnonzero(periods >= GAP_PERIODS)
     if len(gaps):
         k = int(gaps[0])
         seconds = float(odo.times[k + 1] - odo.times[k])
         warn(
             f"{len(gaps)} gap(s) in the epoch times (first: before epoch {k + 1}, {seconds:g} s "
-            f"= {periods[k]:.0f} epoch periods): the odometry predicts and deskews across a "
-            "gap at constant velocity, which a stop or a cut does not follow; check the "
-            "epochs after it (listed in metrics.json)"
+            f"= {periods[k]:.0f} epoch periods): the odometry predicts across short gaps at "
+            f"constant velocity and carries no motion across gaps of {RESET_PERIODS} periods "
+            "or more; check the epochs after them (listed in metrics.json)"
         )
         metrics["epochs_after_gaps"] = [int(e) + 1 for e in gaps]
 
@@ -187,6 +181,7 @@ def _report_beyond_bounds(odo, metrics: dict) -> None:
     import numpy as np
 
     from planodom.geometry import invert_transform, se3_log
+    from planodom.odometry.epoch_time import epoch_periods
 
     if odo.config is None or len(odo.poses) < 2:
         return
@@ -196,7 +191,7 @@ def _report_beyond_bounds(odo, metrics: dict) -> None:
     degrees = np.degrees(np.linalg.norm(se3_log(steps)[:, :3], axis=1))
     # the bounds are per epoch period: a step over a gap in the recording (dropped scans)
     # spans as many periods and may move as many times more
-    periods = np.maximum(1.0, _epoch_periods(odo.times))
+    periods = np.maximum(1.0, epoch_periods(odo.times))
     beyond = np.flatnonzero(
         (metres > a.max_translation_m * periods) | (degrees > a.max_rotation_deg * periods)
     )

@@ -9,14 +9,15 @@ epoch has fewer than two planes, the latest earlier epoch with two or more is us
 (bounds scaled by the gap). An unresolved epoch (no associated non-parallel pair) is
 bridged by constant velocity (the last increment's twist times the elapsed time; standing
 still before any motion is known): its result has ``status == Status.UNRESOLVED`` and that
-bridge as ``T_prev_curr``.
+bridge as ``T_prev_curr``. No motion is carried across a gap in the epoch times: see
+:data:`.epoch_time.RESET_PERIODS`.
 """
 
 from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -38,8 +39,9 @@ from planodom.odometry.deskew import (
     twist_offset,
     with_deskew,
 )
-from planodom.odometry.epoch_time import next_epoch_time
+from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
+from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
@@ -58,19 +60,6 @@ def _default_extractor() -> Extractor:
     from planodom.extraction import extract_planes
 
     return extract_planes
-
-
-@dataclass
-class _Epoch:
-    """What the odometry keeps of a registered epoch: its planes (and their arrays), and,
-    for re-extraction, its scan and the twist it was deskewed with (None: not deskewed)."""
-
-    index: int
-    planes: list[Plane]
-    plane_set: PlaneSet
-    scan: Scan | None = None
-    twist: np.ndarray | None = None
-    kept: bool = False  # its planes were brought back after extracting it again made it worse
 
 
 class PlaneOdometry:
@@ -126,6 +115,7 @@ class PlaneOdometry:
         self._rates: deque[tuple[int, np.ndarray]] = deque(maxlen=self._recent.maxlen)
         self._twist_sigma = TwistUncertainty(self.config.odometry)
         self._undo: tuple = ()  # what the last reference refresh replaced
+        self._gaps: set[int] = set()  # epochs after a gap in the epoch times (is_gap)
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -183,6 +173,8 @@ class PlaneOdometry:
             # extracted without it (still the prior and bridge; tried when that is suspect)
             unresolved = self._unresolved_last()
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
+            if k in self._gaps:  # its step across the gap gives no twist to refine with
+                ocfg = ocfg.model_copy(update={"deskew_iterations": 0})
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg, pm.prediction) if against_map else None
             middle = self.config.planemap.reference_time == "middle" and centred_times(scan)
@@ -227,8 +219,14 @@ class PlaneOdometry:
             self._map = PlaneMapOdometry(self.config)
 
     def _next_time(self, time: float | None) -> float:
-        """:func:`.epoch_time.next_epoch_time` of this odometry's epochs."""
-        return next_epoch_time(time, self.times, self.config.odometry.epoch_period_s)
+        """:func:`.epoch_time.next_epoch_time` of this odometry's epochs; the epoch noted as
+        after a gap when it is one (:func:`.epoch_time.is_gap`), the map's motion forgotten."""
+        t = next_epoch_time(time, self.times, self.config.odometry.epoch_period_s)
+        if is_gap(self.times, t):
+            self._gaps.add(len(self.poses))
+            if self._map is not None:
+                self._map.velocity = np.eye(4)  # predicted standing still
+        return t
 
     def _extract(
         self, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,
@@ -258,13 +256,9 @@ class PlaneOdometry:
         return _Epoch(k, planes, PlaneSet.from_planes(planes), scan, used)
 
     def _estimate_scan(
-        self,
-        scan: Scan,
-        t: float,
-        twist: np.ndarray | None,
-        source: EpochEstimate | None = None,
-        prior_sigma: TwistSigma | None = None,
-    ) -> EpochEstimate:
+        self, scan: Scan, t: float, twist: np.ndarray | None,
+        source: EpochEstimate | None = None, prior_sigma: TwistSigma | None = None,
+    ) -> EpochEstimate:  # fmt: skip
         """Extract the scan deskewed with ``twist`` and estimate its relative pose; the
         twist's sigma is ``prior_sigma`` (predicted or held), or from ``source`` when it
         was refined from that estimate's own twist (:mod:`.twist_sigma`)."""
@@ -291,7 +285,7 @@ class PlaneOdometry:
             T_ref_last = T_ref_last @ step
         dt = t - self.times[-1]
         prediction = None  # constant velocity: T_{ref}_k
-        if self.twist is not None and dt > 0:
+        if self.twist is not None and dt > 0 and epoch.index not in self._gaps:
             prediction = T_ref_last @ twist_step(self.twist, dt)
         sigma = self._twist_sigma.predicted()[1] * dt  # the prediction's translation, m
         prior = prediction if self.config.odometry.use_motion_prior else None
@@ -308,14 +302,16 @@ class PlaneOdometry:
             twist_offset=offset,
         )  # fmt: skip
         ocfg = self.config.odometry  # a degenerate step off the prediction: bridged
-        return self._twist_sigma.gated(estimate, dt, self.twist, T_ref_last, ocfg)
+        predicted = None if epoch.index in self._gaps else self.twist  # none across a gap
+        return self._twist_sigma.gated(estimate, dt, predicted, T_ref_last, ocfg)
 
     def _estimate_map(self, epoch: _Epoch, t: float) -> EpochEstimate:
         """The plane-map odometry's estimate of ``epoch`` against its map (the previous
         epoch is the reference of the relative pose); committed in :meth:`_commit`."""
         assert self._map is not None
         reference = self._history[-1]
-        est = self._map.estimate(epoch.planes, epoch.twist, t - self.times[-1])
+        dt = None if epoch.index in self._gaps else t - self.times[-1]  # no twist measured
+        est = self._map.estimate(epoch.planes, epoch.twist, dt)
         result = est.relative.between(reference.index, epoch.index)
         step = orthonormalised(result.T_prev_curr)
         offset = None  # the deskewing's offset of the step's twist (twist_offset)
@@ -406,9 +402,13 @@ class PlaneOdometry:
         if self._map is not None:  # planemap.motion_bound_gate judges the final estimate
             best = judged(best, self._map.judged)
         dt = t - self.times[-1]
-        if best.relative.status is Status.UNRESOLVED:
+        gap = epoch.index in self._gaps  # no twist from its step: the one before is held
+        if best.relative.status is Status.UNRESOLVED or gap:
             self._velocities.clear()  # stale velocities go with the twist (see register)
-        if dt > 0:
+        if gap:
+            self._recent.clear()
+            self._rates.clear()
+        elif dt > 0:
             measured = best.relative.status is Status.OK
             own = best.own_twist(dt)
             self._twist_sigma.update(own, best.relative, dt)
@@ -420,6 +420,8 @@ class PlaneOdometry:
             self.twist = registered_prediction(best, dt, predicted_twist(*args, prediction))
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
+            if gap:
+                self._map.velocity = np.eye(4)  # not the motion across the gap
         T_world = orthonormalised(self.poses[-1] @ best.step)
         if best.reference_planes is not self.planes[best.relative.prev]:
             self.superseded.add(epoch.index)
@@ -427,13 +429,9 @@ class PlaneOdometry:
         return T_world
 
     def _append(
-        self,
-        epoch: _Epoch,
-        T_world: np.ndarray,
-        step: np.ndarray,
-        result: RelativePose | None,
+        self, epoch: _Epoch, T_world: np.ndarray, step: np.ndarray, result: RelativePose | None,
         t: float,
-    ) -> None:
+    ) -> None:  # fmt: skip
         if result is not None and epoch.scan is not None:
             result = with_deskew(result, epoch.scan, epoch.twist, t - self.times[result.prev])
         self.poses.append(T_world)

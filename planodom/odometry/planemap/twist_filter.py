@@ -283,14 +283,15 @@ class TwistFilter:
         return (nu**2 - np.diag(base.cov)[:6] - lam * np.diag(R)[:6]) / (span**3 / 3.0)
 
     def after(self, unresolved: bool, new: TwistFilter | None, dt: float | None) -> TwistFilter:
-        """The filter once a scan ``dt`` s on (None: unknown) is committed: started
-        again after an unresolved scan (a twist never outlives one); ``new``, its update,
-        when it measured its twist; else carried on."""
-        if unresolved:
+        """The filter once a scan ``dt`` s on (None: unknown, or after a gap in the scan
+        times, :func:`planodom.odometry.epoch_time.is_gap`) is committed: started again
+        after an unresolved scan (a twist never outlives one) or an unknown ``dt``;
+        ``new``, its update, when it measured its twist; else carried on."""
+        if unresolved or dt is None:
             return TwistFilter()
         if new is not None:
             return new
-        if dt is None or self.state is None:
+        if self.state is None:
             return self
         return replace(self, elapsed=self.elapsed + dt)
 
