@@ -208,7 +208,8 @@ def _scaled_inverse(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[int, li
     n = len(S)
     d = np.sqrt(np.diag(S))
     d[d == 0.0] = 1.0
-    S /= np.outer(d, d)
+    for start in range(0, n, CHUNK_ROWS):  # S /= outer(d, d), without an (n, n) temporary
+        S[start : start + CHUNK_ROWS] /= np.outer(d[start : start + CHUNK_ROWS], d)
     undetermined: dict[int, list[int]] = {}
     chol, info = lapack.dpotrf(S, lower=False)
     if info != 0:  # as determined_pose_marginals: S + N N^T on the null space N
@@ -228,9 +229,19 @@ def _scaled_inverse(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[int, li
     sigma, info = lapack.dpotri(chol, lower=False, overwrite_c=True)
     if info != 0:
         raise np.linalg.LinAlgError(f"pose information not invertible ({info})")
-    sigma = np.triu(sigma)
-    sigma += np.triu(sigma, 1).T  # the scaled Sigma, full
+    _mirror_upper(sigma)  # the scaled Sigma, full
     return sigma, d, undetermined
+
+
+def _mirror_upper(a: np.ndarray) -> None:
+    """Copy the upper triangle of the square ``a`` onto its lower one, in place, a block
+    of columns at a time (no (n, n) temporaries)."""
+    n = len(a)
+    for start in range(0, n, CHUNK_ROWS):
+        stop = min(start + CHUNK_ROWS, n)
+        block = a[start:stop, start:stop]
+        block[...] = np.triu(block) + np.triu(block, 1).T
+        a[stop:, start:stop] = a[start:stop, stop:].T
 
 
 def _psd_root(q: np.ndarray) -> np.ndarray:
@@ -275,7 +286,13 @@ def _eliminate(
     W = V[:, keep] / np.sqrt(w[keep])  # H_ll^+ = D^-1 W W^T D^-1
     Cp = W.T @ (H_lp / dl[:, None])
     pose_cols = pose_columns(poses, pose_index)
-    S[np.ix_(pose_cols, pose_cols)] += H_pp - Cp.T @ Cp
+    reduced = Cp.T @ Cp
+    np.subtract(H_pp, reduced, out=reduced)  # H_pp - Cp^T Cp, one (P, P) temporary
+    first = int(pose_cols[0])
+    if np.array_equal(pose_cols, np.arange(first, first + len(pose_cols))):  # in place
+        S[first : first + len(pose_cols), first : first + len(pose_cols)] += reduced
+    else:
+        S[np.ix_(pose_cols, pose_cols)] += reduced
     if epochs:
         Cb = W.T @ (B[:m] / dl[:, None])
         add_block(pose_cols, col_of, B[m:] - Cp.T @ Cb)

@@ -16,6 +16,8 @@ from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.graph import A, L, X
 from planodom.smoothing.marginals import pose_marginals
 from planodom.smoothing.sandwich import (
+    CHUNK_ROWS,
+    _mirror_upper,
     plane_error_map,
     sandwich_covariances,
     sandwich_pose_covariances,
@@ -120,13 +122,17 @@ def _jacobians() -> np.ndarray:
     return np.random.default_rng(7).normal(scale=0.5, size=(5, 4, 6))
 
 
-def test_pose_space_equals_dense_sandwich() -> None:
+@pytest.mark.parametrize("gaps", [False, True])
+def test_pose_space_equals_dense_sandwich(gaps: bool) -> None:
     """The pose blocks from the landmarks' Schur complement equal the dense
     ``A^-1 (A + B Q B^T) A^-1`` of the whole linearised system; the fitted blocks equal
-    pose_marginals'."""
+    pose_marginals'. ``gaps``: two walls not seen by a middle pose (a landmark's poses
+    not contiguous in the poses' information)."""
     poses, walls = _world()
     measured = {(k, j): predict_plane(T.matrix(), w) for k, T in enumerate(poses)
                 for j, w in enumerate(walls)}  # fmt: skip
+    if gaps:
+        del measured[(1, 0)], measured[(3, 2)]
     between = [poses[k].between(poses[k + 1]) for k in range(len(poses) - 1)]
     graph, planes, values = _graph(
         poses, walls, measured, between, np.array([1e-3, 1e-3, 5e-3]), 0.05
@@ -238,3 +244,11 @@ def test_sandwich_config() -> None:
     for field, value in (("deskew_noise", "twist_change_jacobian"), ("covariance_scale", "groups")):
         with pytest.raises(ConfigError, match="covariance_model"):
             SmoothingConfig(covariance_model="sandwich", **{field: value})
+
+
+def test_mirror_upper_over_several_chunks() -> None:
+    """The in-place mirror equals the upper triangle and its transpose (n over two chunks)."""
+    a = np.random.default_rng(5).normal(size=(2 * CHUNK_ROWS + 7, 2 * CHUNK_ROWS + 7))
+    expected = np.triu(a) + np.triu(a, 1).T
+    _mirror_upper(a)
+    assert np.array_equal(a, expected)
