@@ -128,19 +128,11 @@ def sandwich_pose_covariances(
     """
     pose_index = {key: i for i, key in enumerate(pose_keys)}
     n = POSE_DIM * len(pose_keys)
-    n_cols = POSE_DIM * len(motion_change)
     S = np.zeros((n, n))
-    rows: list[np.ndarray] = []  # B~ as triplets
-    cols: list[np.ndarray] = []
-    vals: list[np.ndarray] = []
+    parts: list[tuple[np.ndarray, dict[int, int], np.ndarray]] = []  # B~'s blocks
 
     def add_block(pose_cols: np.ndarray, col_of: dict[int, int], block: np.ndarray) -> None:
-        for k, c in col_of.items():
-            part = block[:, c : c + POSE_DIM]
-            r, q = np.meshgrid(pose_cols, POSE_DIM * k + np.arange(POSE_DIM), indexing="ij")
-            rows.append(r.ravel())
-            cols.append(q.ravel())
-            vals.append(part.ravel())
+        parts.append((pose_cols, dict(col_of), block))
 
     pose_only, by_group = split_factors(linear, pose_index)
     for i in pose_only:
@@ -153,18 +145,12 @@ def sandwich_pose_covariances(
             add_block(pcols, {k: 0}, A.T @ g)
     for members in by_group.values():
         _eliminate(linear, members, pose_index, dims, error_maps, S, add_block)
-    Bt = sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n_cols)
-    ) if vals else sp.csr_matrix((n, n_cols))  # fmt: skip
-
     sigma, d, undetermined = _scaled_inverse(S)
     del S
     # Q_k = L_k L_k^T folded into B~'s columns: the extra term's block i is then
     # (Sigma B~ L)_i (Sigma B~ L)_i^T, one batched product per chunk of poses.
     roots = [_psd_root(q) for q in np.asarray(motion_change, dtype=float)]
-    Bs = sp.diags(1.0 / d) @ Bt @ sp.block_diag(roots, format="csr")
-    if Bs.nnz > DENSE_FRACTION * n * n_cols:  # BLAS on the dense form is faster
-        Bs = Bs.toarray()
+    Bs = _scaled_columns(parts, n, roots, 1.0 / d)
     E = len(pose_keys)
     fitted, extra = _pose_blocks(sigma, Bs)
     scale = d.reshape(E, POSE_DIM)
@@ -178,7 +164,44 @@ def sandwich_pose_covariances(
     return SandwichMarginals(covariances, fitted, undetermined, len(error_maps))
 
 
-def _pose_blocks(sigma: np.ndarray, Bs: np.ndarray | sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
+def _scaled_columns(
+    parts: list[tuple[np.ndarray, dict[int, int], np.ndarray]],
+    n: int,
+    roots: list[np.ndarray],
+    row_scale: np.ndarray,
+) -> np.ndarray | sp.spmatrix:
+    """``diag(row_scale) B~ blockdiag(roots)`` (n, 6K) from ``B~``'s blocks ``parts``
+    (pose columns, epoch column k -> column of the block, block), summed where they meet;
+    dense (filled in place, no triplets) when more than ``DENSE_FRACTION`` of it is
+    written, else sparse."""
+    n_cols = POSE_DIM * len(roots)
+    written = sum(len(rows) * POSE_DIM * len(col_of) for rows, col_of, _ in parts)
+    if written > DENSE_FRACTION * n * n_cols:  # BLAS on the dense form is faster
+        out = np.zeros((n, n_cols))
+        for rows, col_of, block in parts:
+            for k, c in col_of.items():
+                out[rows, POSE_DIM * k : POSE_DIM * (k + 1)] += block[:, c : c + POSE_DIM]
+        out *= row_scale[:, None]
+        for k, root in enumerate(roots):
+            cols = slice(POSE_DIM * k, POSE_DIM * (k + 1))
+            out[:, cols] = out[:, cols] @ root
+        return out
+    if not parts:
+        return sp.csr_matrix((n, n_cols))
+    triplets: tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]] = ([], [], [])
+    for rows, col_of, block in parts:
+        for k, c in col_of.items():
+            r, q = np.meshgrid(rows, POSE_DIM * k + np.arange(POSE_DIM), indexing="ij")
+            for store, values in zip(triplets, (r, q, block[:, c : c + POSE_DIM]), strict=True):
+                store.append(values.ravel())
+    r, q, v = (np.concatenate(t) for t in triplets)
+    Bt = sp.csr_matrix((v, (r, q)), shape=(n, n_cols))
+    return sp.diags(row_scale) @ Bt @ sp.block_diag(roots, format="csr")
+
+
+def _pose_blocks(
+    sigma: np.ndarray, Bs: np.ndarray | sp.csr_matrix
+) -> tuple[np.ndarray, np.ndarray]:
     """(E, 6, 6) twice: the diagonal blocks of the scaled ``sigma`` (n, n) and of
     ``(sigma Bs)(sigma Bs)^T`` (``Bs`` (n, 6K)), a chunk of rows at a time."""
     n, E = len(sigma), len(sigma) // POSE_DIM

@@ -9,6 +9,7 @@ import gtsam
 import numpy as np
 import pytest
 
+import planodom.smoothing.sandwich as sandwich_module
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import ConfigError
 from planodom.geometry import Plane
@@ -18,6 +19,7 @@ from planodom.smoothing.marginals import pose_marginals
 from planodom.smoothing.sandwich import (
     CHUNK_ROWS,
     _mirror_upper,
+    _scaled_columns,
     plane_error_map,
     sandwich_covariances,
     sandwich_pose_covariances,
@@ -252,3 +254,33 @@ def test_mirror_upper_over_several_chunks() -> None:
     expected = np.triu(a) + np.triu(a, 1).T
     _mirror_upper(a)
     assert np.array_equal(a, expected)
+
+
+@pytest.mark.parametrize("dense_fraction", [0.0, 2.0])
+def test_scaled_columns_dense_and_sparse(
+    dense_fraction: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``diag(s) B~ blockdiag(L)`` from overlapping blocks, in the dense and the sparse
+    form, equals the product of the explicitly summed matrices."""
+    rng = np.random.default_rng(11)
+    n_poses, n_epochs = 5, 4
+    parts, B = [], np.zeros((6 * n_poses, 6 * n_epochs))
+    for _ in range(7):
+        poses = np.sort(rng.choice(n_poses, size=rng.integers(1, 4), replace=False))
+        rows = np.concatenate([6 * p + np.arange(6) for p in poses])
+        epochs = rng.choice(n_epochs, size=rng.integers(1, 3), replace=False)
+        block = rng.normal(size=(len(rows), 6 * len(epochs)))
+        col_of = {int(k): 6 * j for j, k in enumerate(epochs)}
+        parts.append((rows, col_of, block))
+        for k, c in col_of.items():
+            B[np.ix_(rows, 6 * k + np.arange(6))] += block[:, c : c + 6]
+    roots = [rng.normal(size=(6, 6)) for _ in range(n_epochs)]
+    scale = rng.uniform(0.5, 2.0, size=6 * n_poses)
+    R = np.zeros((6 * n_epochs, 6 * n_epochs))
+    for k, root in enumerate(roots):
+        R[6 * k : 6 * k + 6, 6 * k : 6 * k + 6] = root
+    monkeypatch.setattr(sandwich_module, "DENSE_FRACTION", dense_fraction)
+    out = _scaled_columns(parts, 6 * n_poses, roots, scale)
+    assert isinstance(out, np.ndarray) == (dense_fraction < 1.0)
+    dense = out if isinstance(out, np.ndarray) else out.toarray()
+    np.testing.assert_allclose(dense, (scale[:, None] * B) @ R, rtol=1e-12, atol=1e-12)
