@@ -81,6 +81,18 @@ def rotation_problem(R: ArrayLike) -> str | None:
     return "the columns of its 3x3 part are not orthogonal"
 
 
+def first_non_rotation(R: ArrayLike) -> tuple[int, str, int] | None:
+    """Of the (E, 3, 3) blocks ``R``, the index of the first that is no rotation
+    (:func:`non_rotations`), why (:func:`rotation_problem`) and how many are not; None
+    when all are rotations."""
+    R = np.asarray(R, dtype=np.float64).reshape(-1, 3, 3)
+    bad = non_rotations(R)
+    if not len(bad):
+        return None
+    k = int(bad[0])
+    return k, rotation_problem(R[k]) or "", len(bad)
+
+
 def invert_transform(T: np.ndarray) -> np.ndarray:
     """Inverse of rigid transforms ``T`` (..., 4, 4) (``T_b_a`` from ``T_a_b``) in closed form."""
     T = np.asarray(T, dtype=np.float64)

@@ -26,7 +26,7 @@ import numpy as np
 
 from planodom.config.section import holds_bool
 from planodom.errors import DatasetError, GeometryError
-from planodom.geometry import non_rotations, rotation_problem
+from planodom.geometry import first_non_rotation
 
 _KNOWN = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics")
 
@@ -158,12 +158,10 @@ def _extrinsics(value: Any, source: str) -> tuple[np.ndarray, ...]:
     arr = _array(value, source, "extrinsics", (-1, 4, 4))
     if not np.allclose(arr[:, 3], [0.0, 0.0, 0.0, 1.0]):
         raise DatasetError(f"{source}: field 'extrinsics': last row of each must be 0 0 0 1")
-    bad = non_rotations(arr[:, :3, :3])
-    if len(bad):
-        k = int(bad[0])
+    bad = first_non_rotation(arr[:, :3, :3])
+    if bad is not None:
         raise DatasetError(
-            f"{source}: field 'extrinsics.{k}': not a rigid transform "
-            f"({rotation_problem(arr[k, :3, :3])})"
+            f"{source}: field 'extrinsics.{bad[0]}': not a rigid transform ({bad[1]})"
         )
     return tuple(arr)
 

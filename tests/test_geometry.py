@@ -334,3 +334,7 @@ def test_one_rotation_check_with_a_documented_bound() -> None:
     assert "not orthogonal" in (g.rotation_problem(bad[3]) or "")
     assert "not finite" in (g.rotation_problem(np.full((3, 3), np.nan)) or "")
     assert g.ROTATION_TOL == 1e-3
+    # the first block that is none, why, and how many are not (the readers' one message)
+    assert g.first_non_rotation(R) is None
+    first = g.first_non_rotation(bad)
+    assert first is not None and first[0] == 1 and "column norms" in first[1] and first[2] == 3

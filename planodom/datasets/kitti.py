@@ -25,7 +25,7 @@ import numpy as np
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import check_time_field, read_scan
 from planodom.errors import DatasetError
-from planodom.geometry import non_rotations, rotation_problem
+from planodom.geometry import first_non_rotation, rotation_problem
 from planodom.rig import Rig
 from planodom.scan import Scan
 
@@ -61,11 +61,9 @@ def read_kitti_calib(path: str | Path) -> np.ndarray:
         if len(values) != 12 or not np.all(np.isfinite(values)):
             raise DatasetError(f"{path}:{number}: 'Tr' must hold 12 finite numbers")
         Tr = _homogeneous(values.reshape(3, 4))
-        bad = non_rotations(Tr[None, :3, :3])
-        if len(bad):
-            raise DatasetError(
-                f"{path}:{number}: 'Tr' is not a rigid transform ({rotation_problem(Tr[:3, :3])})"
-            )
+        problem = rotation_problem(Tr[:3, :3])
+        if problem is not None:
+            raise DatasetError(f"{path}:{number}: 'Tr' is not a rigid transform ({problem})")
         return Tr
     raise DatasetError(f"{path}: no 'Tr:' line (the Velodyne-to-camera transform)")
 
@@ -96,13 +94,10 @@ def read_kitti_poses(path: str | Path) -> np.ndarray:
     if not rows:
         raise DatasetError(f"{path}: no poses")
     poses = _homogeneous(np.array(rows).reshape(-1, 3, 4))
-    bad = non_rotations(poses[:, :3, :3])
-    if len(bad):
-        k = int(bad[0])
-        raise DatasetError(
-            f"{path}:{numbers[k]}: not a rigid pose ({rotation_problem(poses[k, :3, :3])}; "
-            f"{len(bad)} such lines)"
-        )
+    bad = first_non_rotation(poses[:, :3, :3])
+    if bad is not None:
+        k, problem, count = bad
+        raise DatasetError(f"{path}:{numbers[k]}: not a rigid pose ({problem}; {count} such lines)")
     return poses
 
 
