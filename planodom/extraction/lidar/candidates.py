@@ -45,6 +45,7 @@ from planodom.extraction.lidar.grid import plane_members, ring_layout
 from planodom.extraction.lidar.rangeimage import range_image_candidates
 from planodom.extraction.lidar.ransac import draw_samples, log_fail, segment_drawn
 from planodom.extraction.noise import effective_noise, member_tolerance
+from planodom.median import median
 
 
 def ring_noise(points: np.ndarray, ring: np.ndarray | None, config: ExtractionConfig) -> float:
@@ -70,7 +71,7 @@ def ring_noise(points: np.ndarray, ring: np.ndarray | None, config: ExtractionCo
     )
     if len(across) < 10:
         return 0.0
-    return float(np.median(across) / (0.6745 * np.sqrt(6.0)))
+    return float(median(across) / (0.6745 * np.sqrt(6.0)))
 
 
 @numba.njit(cache=True)

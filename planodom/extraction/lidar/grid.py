@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 from planodom.extraction.memo import identity_memo, read_only
+from planodom.median import median
 
 
 def ring_rows(ring: np.ndarray) -> tuple[np.ndarray, int]:
@@ -90,7 +91,7 @@ def grid_indices(
     pos = _ring_time_steps(t, order, row)
     if len(pos) < len(ring) // 4:
         return row, None, H, 0
-    step = float(np.median(pos))
+    step = median(pos)
     col = np.rint((t - t.min()) / step).astype(np.int64)
     if col.max() >= 4 * counts.max() + 16:
         return row, None, H, 0

@@ -15,6 +15,7 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.memo import identity_memo, read_only
+from planodom.median import median
 
 
 def pixel_normals(
@@ -39,7 +40,7 @@ def pixel_normals(
     masked = config.region_noisy_pixels == "masked"
     if not masked:
         e_row = _row_errors(P, K, float(sigma))
-        if len(e_row) and np.median(e_row) > limit:
+        if len(e_row) and median(e_row) > limit:
             return None
     ray = unit_rays(P, np.ascontiguousarray(viewpoint, dtype=np.float64))
     width = _chord_widths(ray, K)
@@ -51,7 +52,7 @@ def pixel_normals(
             n, e, ok = first_row_step(P, K, float(sigma), float(tol), ks)
         else:
             n, e, ok = _pixel_normals(P, K, S, float(sigma), float(tol), ks)
-        if np.count_nonzero(ok) < config.min_plane_points or np.median(e[ok]) <= limit:
+        if np.count_nonzero(ok) < config.min_plane_points or median(e[ok]) <= limit:
             return n, e, ok
         tallest = (n, e, ok)
     if not masked or tallest is None:

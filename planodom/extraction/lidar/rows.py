@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from planodom.median import median
+
 #: Runs shorter than this fraction of the median run join their neighbour (ring-major).
 MIN_RUN_FRACTION = 0.05
 #: Elevation histogram resolution, degrees: a tenth of the finest beam spacing (0.2 deg
@@ -57,7 +59,7 @@ def ring_major_rows(points: np.ndarray) -> np.ndarray | None:
     dphi = np.diff(phase)
     # Within a run the phase grows (or shrinks) slowly; a ring change jumps by ~ -2 pi (or
     # +2 pi): the direction is the median step's.
-    med = float(np.median(dphi))
+    med = median(dphi)
     if abs(med) > np.radians(2.0) or med == 0.0:
         return None
     jumps = np.flatnonzero(-np.sign(med) * dphi > np.pi)
@@ -65,7 +67,7 @@ def ring_major_rows(points: np.ndarray) -> np.ndarray | None:
         return None
     starts = np.r_[0, jumps + 1]
     lengths = np.diff(np.r_[starts, len(points)])
-    short = lengths < MIN_RUN_FRACTION * np.median(lengths)
+    short = lengths < MIN_RUN_FRACTION * median(lengths)
     starts = starts[~short | (np.arange(len(starts)) == 0)]
     row = np.zeros(len(points), dtype=np.int64)
     row[starts[1:]] = 1

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planodom.median import median
 from planodom.odometry.planemap.landmarks import PlaneMap
 from planodom.odometry.planemap.moments import moment_residuals
 from planodom.odometry.planemap.outliers import MEDIAN_CHI2_3, TESTED
@@ -71,7 +72,7 @@ def median_chi2(r: np.ndarray, A: np.ndarray, B: np.ndarray, b: float) -> float:
     """Median over the associations of the mean squared whitened residual (offset and
     tilts) with the bias ``b`` (m)."""
     v = A[:, TESTED] + b**2 * B[:, TESTED]
-    return float(np.median(np.sum(r[:, TESTED] ** 2 / v, axis=1) / 3.0))
+    return median(np.sum(r[:, TESTED] ** 2 / v, axis=1) / 3.0)
 
 
 def fitted_bias(

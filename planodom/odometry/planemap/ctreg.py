@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from planodom.median import median
 from planodom.odometry.planemap.landmarks import PlaneMap
 from planodom.odometry.planemap.moments import Moments
 from planodom.odometry.planemap.outliers import TESTED, residual_scale, whitened
@@ -230,7 +231,7 @@ def _solve(
     x0, P = prior
     Pfull = np.zeros((6 * (order + 1), 6 * (order + 1)))
     Pfull[6:, 6:] = P
-    size = max(float(np.median(np.linalg.norm(c, axis=1))), 1.0)
+    size = max(median(np.linalg.norm(c, axis=1)), 1.0)
     scale = np.r_[np.ones(3), np.full(3, 1.0 / size), np.ones(6 * order)]
     H = Pfull
     for _ in range(iterations):

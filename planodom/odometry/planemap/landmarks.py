@@ -139,13 +139,7 @@ def update_map(
     new = np.ones(len(cur), dtype=bool)
     inlier = (assoc >= 0) & (weight > 0.5)
     tol2 = config.flat_sigmas**2 * (sigma**2 + bias**2)
-    for j in np.flatnonzero(inlier):
-        k = assoc[j]
-        N, c, S = merge_moments(M.N[k], M.c[k], M.S[k], mw.N[j], mw.c[j], mw.S[j])
-        if np.linalg.eigvalsh(S)[0] / N <= tol2:
-            M.N[k], M.c[k], M.S[k] = N, c, S
-            M.rows[k] += mw.rows[j]
-            new[j] = False
+    _merge_flat(M, mw, np.flatnonzero(inlier), assoc, tol2, new)
     if len(M) and inlier.any():
         M.last_seen[assoc[inlier]] = frame
         M.last_index[assoc[inlier]] = plane_index[inlier]
@@ -159,3 +153,31 @@ def update_map(
         keep &= recent
     M.keep(keep)
     M.refit(sigma, bias)
+
+
+def _merge_flat(
+    M: PlaneMap, mw: Moments, js: np.ndarray, assoc: np.ndarray, tol2: float, new: np.ndarray
+) -> None:
+    """Merge the scan planes ``js`` (m,) (world-frame moments ``mw``) into their
+    landmarks ``assoc[js]`` where the union stays flat (least eigenvalue over N at most
+    ``tol2``, m^2), in order; clears ``new`` of the merged ones. Landmarks matched once
+    (the rule) are merged all at once (the same elementwise arithmetic and one LAPACK
+    call per matrix, batched: the same numbers as one by one); a landmark matched twice
+    takes its planes one after the other, each on the moments the last one left."""
+    if len(js) == 0:
+        return
+    ks = assoc[js]
+    if len(np.unique(ks)) == len(ks):
+        N, c, S = merge_moments(M.N[ks], M.c[ks], M.S[ks], mw.N[js], mw.c[js], mw.S[js])
+        flat = np.linalg.eigvalsh(S)[:, 0] / N <= tol2
+        k, j = ks[flat], js[flat]
+        M.N[k], M.c[k], M.S[k] = N[flat], c[flat], S[flat]
+        M.rows[k] += mw.rows[j]
+        new[j] = False
+        return
+    for j, k in zip(js, ks, strict=True):
+        N1, c1, S1 = merge_moments(M.N[k], M.c[k], M.S[k], mw.N[j], mw.c[j], mw.S[j])
+        if np.linalg.eigvalsh(S1)[0] / N1 <= tol2:
+            M.N[k], M.c[k], M.S[k] = N1, c1, S1
+            M.rows[k] += mw.rows[j]
+            new[j] = False

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planodom.geometry import Plane, cross_rows
+from planodom.median import median
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,4 +157,4 @@ def scan_sigma(m: Moments, floor_m: float) -> float:
     if len(m) == 0:
         return floor_m
     lam = np.linalg.eigvalsh(m.S)[:, 0]
-    return max(float(np.median(np.sqrt(np.maximum(lam, 0.0) / m.N))), floor_m)
+    return max(median(np.sqrt(np.maximum(lam, 0.0) / m.N)), floor_m)

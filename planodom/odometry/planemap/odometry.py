@@ -43,6 +43,7 @@ from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform
+from planodom.median import median
 from planodom.odometry.planemap import fallback
 from planodom.odometry.planemap.bias import fitted_bias
 from planodom.odometry.planemap.ctreg import TwistRegistration, corrected_planes, register_twist
@@ -292,7 +293,7 @@ class PlaneMapOdometry:
         s_r, s_t = self.sigmas()
         best = register(self.map, T_pred, cur, s_r, s_t, pm, "map")
         frac = len(best.inliers) / max(len(cur), 1)
-        typical = float(np.median(self._fractions[-20:])) if self._fractions else 1.0
+        typical = median(np.array(self._fractions[-20:])) if self._fractions else 1.0
         ok = self._resolved(best, cur)
         suspicious = not ok or frac < pm.suspect_ratio * typical or self._dev_n[0] == 0
         if not (suspicious and pm.fallback and self._prev is not None):

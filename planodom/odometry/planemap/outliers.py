@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from planodom.median import median
 from planodom.odometry.planemap.landmarks import PlaneMap
 from planodom.odometry.planemap.moments import moment_residuals
 
@@ -50,7 +51,7 @@ def residual_scale(chi2: np.ndarray) -> float:
     the model variances are never shrunk."""
     if len(chi2) == 0:
         return 1.0
-    return max(1.0, float(np.median(chi2)) / MEDIAN_CHI2_3)
+    return max(1.0, median(chi2) / MEDIAN_CHI2_3)
 
 
 def whitened(

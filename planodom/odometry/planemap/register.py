@@ -32,6 +32,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanemapConfig
+from planodom.median import median
 from planodom.odometry.planemap.landmarks import PlaneMap
 from planodom.odometry.planemap.moments import Moments, residual_variance
 from planodom.odometry.planemap.outliers import (
@@ -363,7 +364,7 @@ def _gauss_newton(
     s2 = cur.variances(jj)
     H, w = np.eye(6), np.ones(len(lm))
     # Length scale of the solve: rotation and translation steps of comparable size.
-    L = max(float(np.median(np.linalg.norm(c, axis=1))), 1.0)
+    L = max(median(np.linalg.norm(c, axis=1)), 1.0)
     scale = np.r_[np.ones(3), np.full(3, 1.0 / L)]
     for _ in range(config.gn_iterations):
         r, J, v, chi2 = whitened(M, R, t, N, c, lam, E, s2, lm)
