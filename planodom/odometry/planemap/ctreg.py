@@ -38,13 +38,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planodom.median import median
 from planodom.odometry.planemap.landmarks import PlaneMap
 from planodom.odometry.planemap.moments import Moments
 from planodom.odometry.planemap.outliers import TESTED, residual_scale, whitened
 from planodom.odometry.planemap.register import Registration, ScanPlanes, newton_step
+from planodom.rotvec import rotation_matrices
 
 
 @dataclass(frozen=True, eq=False)
@@ -242,7 +242,7 @@ def _solve(
         H = np.einsum("m,mki,mkj->ij", Wr, J, J) + Pfull
         g = np.einsum("m,mki,mk->i", Wr, J, r) + np.r_[np.zeros(6), P @ (x - x0)]
         dx = newton_step(H, g, scale)
-        R = Rotation.from_rotvec(dx[:3]).as_matrix() @ R
+        R = rotation_matrices(dx[:3]) @ R
         t = t + dx[3:6]
         x = x + dx[6:]
         if np.linalg.norm(dx[:3]) < 1e-10 and np.linalg.norm(dx[3:]) < 1e-9:

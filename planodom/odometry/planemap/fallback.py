@@ -24,13 +24,13 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from scipy.spatial.transform import Rotation
 
 from planodom.association import lenient_association
 from planodom.config import AssociationConfig, PlanemapConfig
 from planodom.consensus import consensus
 from planodom.geometry import cross_rows, rotation_frames
 from planodom.planes import PlaneSet
+from planodom.rotvec import rotation_matrices
 
 #: Most plane pairs whose rotations WOCSC scores (best-conditioned first).
 MAX_PAIRS = 4000
@@ -141,7 +141,7 @@ def refine(prev: PlaneSet, curr: PlaneSet, ij: np.ndarray, T0: np.ndarray, sigma
         ev, V = np.linalg.eigh(H)
         inv = np.where(ev > 4e-3, 1.0 / np.maximum(ev, 1e-300), 0.0)
         dx = -(V * inv) @ V.T @ g
-        R = Rotation.from_rotvec(dx[:3]).as_matrix() @ R
+        R = rotation_matrices(dx[:3]) @ R
         t = t + dx[3:]
         if np.linalg.norm(dx) < 1e-9:
             break

@@ -39,7 +39,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform
@@ -54,6 +53,7 @@ from planodom.odometry.planemap.register import Registration, ScanPlanes, regist
 from planodom.odometry.planemap.twist_filter import TwistFilter, filtered_registration
 from planodom.odometry.relative import RelativePose, Status
 from planodom.planes import PlaneSet
+from planodom.rotvec import rotation_vectors
 from planodom.scan import Scan
 
 
@@ -407,7 +407,7 @@ class PlaneMapOdometry:
             counted = int(not self._predicted_translation(est.relative))
             self._dev_sse += [_angle(dev[:3, :3]) ** 2, counted * float(dev[:3, 3] @ dev[:3, 3])]
             self._dev_n += [1, counted]
-            rotvec = Rotation.from_matrix(dev[:3, :3]).as_rotvec()
+            rotvec = rotation_vectors(dev[None, :3, :3])[0]
             self._dev_axes += np.r_[rotvec**2, counted * dev[:3, 3] ** 2]
             self.velocity = _orthonormalised(invert_transform(self.pose) @ T)
         self.pose = T

@@ -26,11 +26,11 @@ its pull, ``H_(-i)^-1 w_i J_i^T e_i``, in closed form for all associations at on
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planodom.median import median
 from planodom.odometry.planemap.landmarks import PlaneMap
 from planodom.odometry.planemap.moments import moment_residuals
+from planodom.rotvec import rotation_vectors
 
 #: Median of a chi-square variable with 3 degrees of freedom, divided by 3: the median of
 #: an association's mean squared whitened residual (offset and two tilts) when its model
@@ -125,5 +125,5 @@ def deleted_chi2(
 def pose_deviation(T: np.ndarray, T_pred: np.ndarray) -> np.ndarray:
     """(6,) ``T`` minus ``T_pred`` in the registration's perturbation ``R <- exp(w) R,
     t <- t + dt``: the rotation vector of ``R R_pred^T`` and ``t - t_pred``."""
-    rot = Rotation.from_matrix(T[:3, :3] @ T_pred[:3, :3].T).as_rotvec()
+    rot = rotation_vectors((T[:3, :3] @ T_pred[:3, :3].T)[None])[0]
     return np.r_[rot, T[:3, 3] - T_pred[:3, 3]]

@@ -35,10 +35,10 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planodom.geometry import rpy_from_rotation
 from planodom.odometry.relative import RelativePose, Status
+from planodom.rotvec import rotation_matrices, rotation_vectors
 
 if TYPE_CHECKING:
     from planodom.config import PlanemapConfig
@@ -50,7 +50,7 @@ def rpy_jacobian(R: np.ndarray, h: float = 1e-6) -> np.ndarray:
     the six rotations go through scipy in one call each way (per rotation the same
     values as one call each)."""
     w = np.concatenate([np.eye(3) * h, -np.eye(3) * h])  # +h e_k, then -h e_k
-    moved = np.array([M @ R for M in Rotation.from_rotvec(w).as_matrix()])
+    moved = np.array([M @ R for M in rotation_matrices(w)])
     rpy = rpy_from_rotation(moved)
     return np.angle(np.exp(1j * (rpy[:3] - rpy[3:]))).T / (2 * h)
 
@@ -121,9 +121,9 @@ def predicted_about_unobserved(
     lam, V = np.linalg.eigh(cov[:3, :3])
     U = V[:, lam > np.radians(config.unobserved_rotation_deg) ** 2]
     P = U @ U.T
-    w = Rotation.from_matrix(T_pred_rel[:3, :3] @ T_rel[:3, :3].T).as_rotvec()
+    w = rotation_vectors((T_pred_rel[:3, :3] @ T_rel[:3, :3].T)[None])[0]
     out = T_rel.copy()
-    out[:3, :3] = Rotation.from_rotvec(P @ w).as_matrix() @ T_rel[:3, :3]
+    out[:3, :3] = rotation_matrices(P @ w) @ T_rel[:3, :3]
     A = np.eye(6)
     A[:3, :3] -= P
     cov = A @ cov @ A.T

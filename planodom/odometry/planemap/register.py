@@ -29,7 +29,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanemapConfig
 from planodom.median import median
@@ -41,6 +40,7 @@ from planodom.odometry.planemap.outliers import (
     residual_scale,
     whitened,
 )
+from planodom.rotvec import rotation_matrices
 
 
 @dataclass(frozen=True, eq=False)
@@ -374,7 +374,7 @@ def _gauss_newton(
         H = np.einsum("mk,mki,mkj->ij", Wr, J, J)
         g = np.einsum("mk,mki,mk->i", Wr, J, r)
         dx = newton_step(H, g, scale)
-        R = Rotation.from_rotvec(dx[:3]).as_matrix() @ R
+        R = rotation_matrices(dx[:3]) @ R
         t = t + dx[3:]
         if np.linalg.norm(dx[:3]) < 1e-9 and np.linalg.norm(dx[3:]) < 1e-8:
             break
