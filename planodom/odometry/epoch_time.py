@@ -74,5 +74,25 @@ def is_gap(times: Sequence[float], t: float) -> bool:
     steps (no period to judge by)."""
     if len(times) < 2:
         return False
-    recent = list(times[-(_RECENT_STEPS + 1) :])
-    return bool(epoch_periods([*recent, t])[-1] >= RESET_PERIODS)
+    # epoch_periods(...)[-1] in plain floats (asked once an epoch; numpy's percentile
+    # costs more than the rest of the test): the same steps, quartile and rounding
+    recent = [*times[-(_RECENT_STEPS + 1) :], t]
+    steps = [float(b) - float(a) for a, b in zip(recent[:-1], recent[1:], strict=True)]
+    period = lower_quartile(steps)
+    return period > 0 and round(steps[-1] / period) >= RESET_PERIODS
+
+
+def lower_quartile(values: Sequence[float]) -> float:
+    """``np.percentile(values, 25)`` (the same value, default linear method) of finite
+    ``values`` (n >= 1) without numpy: the two order statistics around ``(n - 1) / 4``
+    and numpy's interpolation between them, ``a + (b - a) g`` below ``g = 0.5``, else
+    ``b - (b - a)(1 - g)``."""
+    s = sorted(values)
+    if len(s) == 1:
+        return s[0]
+    virtual = (len(s) - 1) * 0.25
+    i = math.floor(virtual)
+    g = virtual - i
+    a, b = s[i], s[i + 1]
+    d = b - a
+    return b - d * (1 - g) if g >= 0.5 else a + d * g

@@ -10,7 +10,13 @@ from planodom.config import PlanodomConfig
 from planodom.errors import GeometryError
 from planodom.geometry import invert_transform
 from planodom.odometry import run_odometry
-from planodom.odometry.epoch_time import RESET_PERIODS, epoch_periods, is_gap, next_epoch_time
+from planodom.odometry.epoch_time import (
+    RESET_PERIODS,
+    epoch_periods,
+    is_gap,
+    lower_quartile,
+    next_epoch_time,
+)
 from planodom.simulation import simulate_named
 
 
@@ -63,3 +69,26 @@ def test_no_motion_carried_across_an_hour_cut_out_of_a_recording():
     e_cut, e_whole = _step_errors_m(run, cut.poses), _step_errors_m(run, whole.poses)
     assert e_whole.max() < 0.005  # the recording without the cut: a few mm
     assert e_cut.max() < 0.01, e_cut  # 13 cm before
+
+
+def test_lower_quartile_is_numpys_percentile_bit_for_bit():
+    rng = np.random.default_rng(7)
+    for n in [1, 2, 3, 4, 5, 8, 9, 100, 101]:
+        for _ in range(50):
+            v = rng.exponential(0.1, n) * rng.choice([1.0, 1e-6, 1e6])
+            if n > 3:
+                v[rng.integers(0, n, 2)] = v[0]  # ties
+            assert lower_quartile(list(v)) == float(np.percentile(v, 25))
+
+
+def test_is_gap_as_the_periods_of_the_recent_steps():
+    """is_gap against epoch_periods over the same recent steps (numpy's percentile)."""
+    rng = np.random.default_rng(3)
+    for n in [2, 3, 10, 150]:
+        for _ in range(40):
+            steps = rng.choice([0.1, 0.1, 0.1, 0.2, 0.3], n) * rng.uniform(0.9, 1.1, n)
+            times = list(np.cumsum(steps))
+            for t in times[-1] + 0.1 * np.array([1.0, 9.4, 9.5, 9.6, 10.0, 10.5, 11.0, 1e4]):
+                recent = [*times[-101:], t]
+                expected = bool(epoch_periods(recent)[-1] >= RESET_PERIODS)
+                assert is_gap(times, float(t)) == expected

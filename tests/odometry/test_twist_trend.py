@@ -6,7 +6,7 @@ from collections import deque
 
 import numpy as np
 
-from planodom.odometry.trend import predicted_twist, trend_twist
+from planodom.odometry.trend import column_median, predicted_twist, trend_twist
 
 
 def test_a_steady_change_is_extrapolated_one_epoch():
@@ -105,3 +105,26 @@ def test_the_map_trend_rescue_tries_the_mean_when_the_trend_is_the_prediction():
     np.testing.assert_allclose(map_trend(recent, config, "trend"), np.mean(recent, axis=0))
     np.testing.assert_allclose(map_trend(recent, config, "mean"), trend_twist(np.array(recent)))
     assert map_trend(recent[:3], config, "trend") is None
+
+
+def test_column_median_is_numpys_median_bit_for_bit():
+    rng = np.random.default_rng(11)
+    for w in range(1, 9):
+        for _ in range(200):
+            rows = rng.normal(0.0, 3.0, (w, 3)) * rng.choice([1.0, 1e-9, 1e9])
+            if w > 2:
+                rows[rng.integers(0, w), :] = rows[0]  # ties
+                rows[rng.integers(0, w), 1] = 0.0
+            np.testing.assert_array_equal(column_median(rows), np.median(rows, axis=0))
+            assert column_median(rows).tobytes() == np.median(rows, axis=0).tobytes()
+
+
+def test_predicted_twist_median_velocity_of_the_measured_steps():
+    """The rate of the step and the per-axis median of the measured velocities (numpy's)."""
+    velocities: deque[np.ndarray] = deque(maxlen=5)
+    rng = np.random.default_rng(5)
+    for k in range(8):
+        twist = rng.normal(0.0, 1.0, 6)
+        got = predicted_twist(twist, k != 3, deque(), velocities, against_map=False)
+        want = np.concatenate((twist[:3], np.median(np.array(velocities), axis=0)))
+        assert got.tobytes() == want.tobytes()
