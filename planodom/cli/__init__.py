@@ -119,6 +119,9 @@ def _inputs(source: Source, config: Path | None) -> list[Path]:
 
 
 def _report_skipped(data: ScanEpochs, metrics: dict) -> None:
+    """List in metrics.json the scans skipped and the recording's notes (warned of)."""
+    if data.notes:
+        metrics["recording_notes"] = data.notes
     if data.skipped:
         warn(f"{len(data.skipped)} unreadable scan(s) skipped, listed in metrics.json")
         metrics["skipped_scans"] = data.skipped

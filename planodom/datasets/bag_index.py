@@ -28,13 +28,17 @@ from rosbags.typesys import Stores, TypesysError, get_typestore
 from planodom.datasets.bag_livox import register_livox_types
 from planodom.datasets.bag_msgs import (
     LASER_SCAN,
+    POINT_CLOUD2,
     POSE_TYPES,
     SCAN_TYPES,
+    check_offsets,
     decode_pose,
     decode_sweep,
     stamp_ns,
+    sweep_times,
 )
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
+from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit
 from planodom.errors import DatasetError
 
 #: Prefix of a ``gt_topic`` naming a tf frame pair: ``"tf:PARENT:CHILD"``.
@@ -120,12 +124,17 @@ class TopicIndex:
         frames: the ``header.frame_id`` values of its messages (first seen first).
         rings: ring count: 1 for a LaserScan, max ring + 1 for a cloud with a ring field,
             0 for a cloud without one.
+        times: a PointCloud2's relative per-point times (their spans per sweep).
+        time_unit: the unit chosen for them (:mod:`planodom.datasets.bag_time_units`),
+            None without relative per-point times.
     """
 
     name: str
     msgtype: str
     frames: list[str] = field(default_factory=list)
     rings: int = 0
+    times: TopicTimes = field(default_factory=TopicTimes)
+    time_unit: TimeUnit | None = None
 
 
 @dataclass
@@ -244,6 +253,8 @@ def index_bag(
         what = f"/tf transform '{gt[0]}' -> '{gt[1]}'" if isinstance(gt, tuple) else gt
         raise DatasetError(f"{path}: no reference poses in gt {what}")
     table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 3).copy()
+    for k, topic in enumerate(index):
+        _choose_time_unit(topic, table[table[:, 0] == k, 2], path)
     gt_times, gt_poses = gt_log.arrays()
     return BagIndex(
         index,
@@ -289,5 +300,23 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str) -> Non
         topic.rings = 1
         return
     with _message_errors(path, topic.name):
-        _, _, _, rings = decode_sweep(msg, topic.msgtype, time_field)
+        if topic.msgtype == POINT_CLOUD2:
+            rings, name, offsets = sweep_times(msg, time_field)
+            if name is not None and offsets is not None:
+                topic.times.add(name, offsets)
+        else:
+            _, _, _, rings = decode_sweep(msg, topic.msgtype, time_field)
     topic.rings = max(topic.rings, rings)
+
+
+def _choose_time_unit(topic: TopicIndex, stamps: np.ndarray, path: Path) -> None:
+    """Set ``topic.time_unit`` from its sweeps' spans and ``stamps`` (ns); DatasetError when
+    a time then lies too far from its stamp."""
+    times = topic.times
+    if not times.name:
+        return
+    topic.time_unit = unit = choose_unit(times, stamps)
+    with _message_errors(path, topic.name):
+        check_offsets(
+            np.array([times.largest * unit.scale]), times.name, np.dtype(times.dtype), unit.scale
+        )

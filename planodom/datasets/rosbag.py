@@ -45,7 +45,7 @@ from planodom.datasets.bag_index import (
     index_bag,
     open_reader,
 )
-from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
+from planodom.datasets.bag_msgs import LASER_SCAN, decode_sweep, stamp_ns
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
 from planodom.datasets.bag_tf import frame_name
 from planodom.datasets.dataset import write_dataset
@@ -77,6 +77,8 @@ class BagTopic:
         rings: number of rings (1 for a LaserScan; 0: a cloud without ring field).
         T_base_sensor: (frame -> (4, 4)) extrinsics of the frames its messages name.
         sweeps: number of messages.
+        time_scale: seconds per unit of a cloud's per-point time offsets
+            (:mod:`planodom.datasets.bag_time_units`), None: the documented reading.
     """
 
     name: str
@@ -85,6 +87,7 @@ class BagTopic:
     rings: int
     T_base_sensor: dict[str, np.ndarray]
     sweeps: int
+    time_scale: float | None = None
 
 
 class BagDataset:
@@ -102,6 +105,9 @@ class BagDataset:
             (the sensors' positions, m, base frame), ``extrinsics`` per topic (its first
             frame) and ``extra`` describing the source (bag, base frame, topics).
         dropped_epochs: epochs left out for lying outside the reference's time span.
+        notes: one line each on how the bag was read that a user should check (a time
+            unit other than the documented one, several point-cloud topics merged); the
+            CLI prints them as warnings.
 
     Use as a context manager (or call :meth:`close`) to release the bag's file handles.
     """
@@ -114,6 +120,7 @@ class BagDataset:
         index: BagIndex,
         gt_topic: str | None,
         time_field: str = "auto",
+        topics_chosen: bool = False,
     ) -> None:
         self.path = path
         self.time_field = time_field
@@ -140,6 +147,7 @@ class BagDataset:
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
         self.rig = _bag_rig(self)
+        self.notes = _notes(index, self.topics, topics_chosen)
         self._reader: AnyReader | None = None
 
     def _child_to_base(self, child: str) -> np.ndarray:
@@ -232,7 +240,9 @@ class BagDataset:
         for k, stamp, msg in sorted(sweeps, key=lambda s: (s[0], s[1])):
             topic = self.topics[k]
             try:
-                pts, ring, dt, _ = decode_sweep(msg, topic.msgtype, self.time_field)
+                pts, ring, dt, _ = decode_sweep(
+                    msg, topic.msgtype, self.time_field, topic.time_scale
+                )
             except ValueError as exc:
                 raise DatasetError(f"{self.path}: topic '{topic.name}': {exc}") from None
             if ring is not None:
@@ -257,9 +267,30 @@ def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
     for k, t in enumerate(index.topics):
         where = f"{path}: topic '{t.name}'"
         extr = {f: index.tf.require(base_frame, f, where) for f in t.frames}
-        topics.append(BagTopic(t.name, t.msgtype, first, t.rings, extr, int(counts[k])))
+        scale = None if t.time_unit is None else t.time_unit.scale
+        topics.append(BagTopic(t.name, t.msgtype, first, t.rings, extr, int(counts[k]), scale))
         first += t.rings
     return topics
+
+
+def _notes(index: BagIndex, topics: list[BagTopic], chosen: bool) -> list[str]:
+    """The lines a user should check (see :attr:`BagDataset.notes`)."""
+    notes = [
+        f"topic '{t.name}': {t.time_unit.note}"
+        for t in index.topics
+        if t.time_unit is not None and t.time_unit.note
+    ]
+    clouds = [t for t in topics if t.msgtype != LASER_SCAN]
+    if not chosen and len(clouds) > 1:
+        shown = ", ".join(
+            f"'{t.name}' ({next(iter(t.T_base_sensor))}, {t.sweeps} sweeps)" for t in clouds
+        )
+        notes.append(
+            f"{len(clouds)} point-cloud topics read and merged into each epoch: {shown}; if "
+            "they are not separate lidars (one is the other filtered or deskewed), choose "
+            "with --topic"
+        )
+    return notes
 
 
 def _bag_rig(ds: BagDataset) -> Rig:
@@ -317,7 +348,13 @@ def open_bag(path: str | Path, options: BagOptions | None = None) -> BagDataset:
     if len(index.sweep_stamp) == 0:
         raise DatasetError(f"{location}: no messages on the scan topics")
     return BagDataset(
-        location, opts.base_frame, opts.epoch_rate, index, opts.gt_topic, opts.time_field
+        location,
+        opts.base_frame,
+        opts.epoch_rate,
+        index,
+        opts.gt_topic,
+        opts.time_field,
+        topics_chosen=bool(opts.topics),
     )
 
 
@@ -331,6 +368,7 @@ class BagConversion:
         topics: the scan topics, in ring order; rings: total ring count (0: no rings).
         start_time, end_time: first and last epoch time, seconds since the Unix epoch.
         gt_topic: the reference source, or None; dropped_epochs: epochs outside its span.
+        notes: :attr:`BagDataset.notes`.
     """
 
     bag: Path
@@ -343,6 +381,7 @@ class BagConversion:
     end_time: float
     gt_topic: str | None
     dropped_epochs: int
+    notes: tuple[str, ...] = ()
 
 
 def convert_bag(
@@ -381,6 +420,7 @@ def convert_bag(
             float(ds.times[-1]),
             ds.gt_topic,
             ds.dropped_epochs,
+            tuple(ds.notes),
         )
 
 

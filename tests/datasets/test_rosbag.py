@@ -326,3 +326,41 @@ def test_time_field_none_puts_every_point_at_its_sweep_stamp(tmp_path: Path) -> 
             assert np.ptp(timed[k].t) > 0.05 and np.ptp(flat[k].t) == 0.0
     with pytest.raises(DatasetError, match="time field must be auto, none or a field name"):
         BagOptions(time_field=" ")
+
+
+@pytest.mark.parametrize(
+    "ros, layout, unit", [(1, "ouster_us", "microseconds"), (2, "velodyne_ms", "milliseconds")]
+)
+def test_time_offsets_in_another_unit_are_read_by_the_sweep_period(
+    tmp_path: Path, ros: int, layout: str, unit: str
+) -> None:
+    """Integer microseconds were read as nanoseconds (a 0.1 s sweep taken as 0.1 ms, so
+    deskewed as one instant, without a word) and float milliseconds refused: only one
+    reading makes a sweep span the 0.1 s between its messages."""
+    path = tmp_path / ("b.bag" if ros == 1 else "b")
+    truth = write_bag(path, ros, [Sensor("/points", "lidar", 0, layout)], STATIC_TF, T_BASE)
+    with open_bag(path, BagOptions(gt_topic="/odom")) as ds:
+        check_against_truth(ds, list(ds), truth, {r: "/points" for r in range(16)})
+        assert len(ds.notes) == 1
+        assert f"topic '/points': time field '{'t' if ros == 1 else 'time'}'" in ds.notes[0]
+        assert f"read as {unit}" in ds.notes[0]
+
+
+def test_documented_units_and_one_cloud_topic_give_no_notes(tmp_path: Path) -> None:
+    sensors = [Sensor("/os", "lidar", 0, "ouster"), *SCANNERS[:2]]
+    write_bag(tmp_path / "b", 2, sensors, STATIC_TF, T_BASE, odom=False)
+    with open_bag(tmp_path / "b") as ds:
+        assert ds.notes == []
+
+
+def test_several_cloud_topics_read_are_said(tmp_path: Path) -> None:
+    """Every cloud topic is merged into the epochs; a raw and a filtered topic of one lidar
+    were merged without a word (the points twice, in two frames of time)."""
+    sensors = [Sensor("/points", "lidar", 0, "velodyne"), Sensor("/filtered", "lidar", 0, "ouster")]
+    write_bag(tmp_path / "b", 2, sensors, STATIC_TF, T_BASE, odom=False)
+    with open_bag(tmp_path / "b") as ds:
+        assert len(ds.notes) == 1
+        assert "2 point-cloud topics read and merged" in ds.notes[0]
+        assert "'/filtered' (lidar, 12 sweeps), '/points' (lidar, 12 sweeps)" in ds.notes[0]
+    with open_bag(tmp_path / "b", BagOptions(topics=("/points", "/filtered"))) as ds:
+        assert ds.notes == []  # chosen
