@@ -235,7 +235,8 @@ class ScanEpochs:
         self.Tr: Any = getattr(dataset, "Tr", None)
         self.current: str | None = None
         self.skipped: list[str] = []
-        self.far: dict[str, tuple[int, int]] = {}  # scan -> (points beyond MAX_RANGE_M, all)
+        # scan -> (points beyond MAX_RANGE_M, all points, the scan's widest extent, m)
+        self.far: dict[str, tuple[int, int, float]] = {}
         self.empty: dict[str, None] = {}  # scans without points (kept in order, once each)
         self.notes: list[str] = list(getattr(dataset, "notes", []))
         for note in self.notes:
@@ -265,7 +266,8 @@ class ScanEpochs:
         if isinstance(scan, Scan):
             far = points_beyond_range(scan)
             if far:
-                self.far[self.current] = (far, len(scan))
+                extent = float((scan.points.max(axis=0) - scan.points.min(axis=0)).max())
+                self.far[self.current] = (far, len(scan), extent)
             if len(scan) == 0:
                 self.empty[self.current] = None
         return scan
