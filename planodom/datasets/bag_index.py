@@ -150,6 +150,8 @@ class TopicIndex:
         times: a PointCloud2's relative per-point times (their spans per sweep).
         time_unit: the unit chosen for them (:mod:`planodom.datasets.bag_time_units`),
             None without relative per-point times.
+        unstamped: messages whose header stamp is 0 (their record time stands for it).
+        empty: messages without a point (clouds, Livox messages; 0 for a LaserScan).
     """
 
     name: str
@@ -158,6 +160,8 @@ class TopicIndex:
     rings: int = 0
     times: TopicTimes = field(default_factory=TopicTimes)
     time_unit: TimeUnit | None = None
+    unstamped: int = 0
+    empty: int = 0
 
 
 @dataclass
@@ -313,23 +317,27 @@ def _message_errors(path: Path, topic: str) -> Iterator[None]:
 
 
 def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str) -> None:
-    """Record a sweep's frame and, for a cloud, its largest ring."""
+    """Record a sweep's frame, whether it is stamped and, for a cloud, its largest ring,
+    whether it has points and its time offsets."""
     frame = frame_name(msg.header.frame_id)
     if not frame:
         raise DatasetError(f"{path}: topic '{topic.name}' has a message without frame_id")
     if frame not in topic.frames:
         topic.frames.append(frame)
+    topic.unstamped += stamp_ns(msg.header) == 0
     if topic.msgtype == LASER_SCAN:
         topic.rings = 1
         return
     with _message_errors(path, topic.name):
         if topic.msgtype == POINT_CLOUD2:
-            rings, name, offsets = sweep_times(msg, time_field)
+            rings, points, name, offsets = sweep_times(msg, time_field)
             if name is not None and offsets is not None:
                 topic.times.add(name, offsets)
         else:
-            _, _, _, rings = decode_sweep(msg, topic.msgtype, time_field)
+            xyz, _, _, rings = decode_sweep(msg, topic.msgtype, time_field)
+            points = len(xyz)
     topic.rings = max(topic.rings, rings)
+    topic.empty += points == 0
 
 
 def _choose_time_unit(topic: TopicIndex, stamps: np.ndarray, path: Path) -> None:

@@ -181,10 +181,12 @@ def _decode_cloud(
     return points, ring, dt, rings
 
 
-def sweep_times(msg: Any, time_field: str = "auto") -> tuple[int, str | None, np.ndarray | None]:
-    """A cloud's ring count, time field and raw relative times, for the index pass.
+def sweep_times(
+    msg: Any, time_field: str = "auto"
+) -> tuple[int, int, str | None, np.ndarray | None]:
+    """A cloud's ring count, point count, time field and raw relative times, for the index.
 
-    Returns ``(rings, time field or None, values)``: ``values`` (n,) in the field's own
+    Returns ``(rings, n, time field or None, values)``: ``values`` (n,) in the field's own
     type and unit when the times are offsets (whose unit
     :func:`planodom.datasets.bag_time_units.choose_unit` decides over the topic), None
     without a time field or for absolute times, which are checked here.
@@ -192,18 +194,18 @@ def sweep_times(msg: Any, time_field: str = "auto") -> tuple[int, str | None, np
     Raises:
         ValueError: a malformed cloud, non-finite times, absolute times far off the stamp.
     """
-    _, _, rings, time_name, raw = _cloud_parts(msg, time_field)
+    points, _, rings, time_name, raw = _cloud_parts(msg, time_field)
     if time_name is None or raw is None:
-        return rings, None, None
+        return rings, len(points), None, None
     if _is_absolute(raw):
         dt = _relative_times(raw, stamp_ns(msg.header))
         check_offsets(dt, time_name, raw.dtype)
-        return rings, time_name, None
+        return rings, len(points), time_name, None
     with np.errstate(invalid="ignore"):
         finite = np.isfinite(raw.astype(np.float64))
     if not finite.all():
         check_offsets(np.where(finite, 0.0, np.nan), time_name, raw.dtype)
-    return rings, time_name, raw
+    return rings, len(points), time_name, raw
 
 
 def check_offsets(

@@ -45,7 +45,8 @@ from planodom.datasets.bag_index import (
     index_bag,
     open_reader,
 )
-from planodom.datasets.bag_msgs import LASER_SCAN, decode_sweep, stamp_ns
+from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
+from planodom.datasets.bag_notes import bag_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
 from planodom.datasets.bag_tf import frame_name
 from planodom.datasets.dataset import write_dataset
@@ -137,7 +138,9 @@ class BagDataset:
             if not inside.any():
                 raise DatasetError(
                     f"{path}: gt '{gt_topic}' spans no epoch time (reference poses from "
-                    f"{index.gt_times.min() / NS:.3f} to {index.gt_times.max() / NS:.3f} s)"
+                    f"{index.gt_times.min() / NS:.3f} to {index.gt_times.max() / NS:.3f} s, "
+                    f"epochs from {ref.min() / NS:.3f} to {ref.max() / NS:.3f} s: the "
+                    "scans' header stamps on another clock, such as the sensor's own?)"
                 )
             members = [m for m, keep in zip(members, inside, strict=True) if keep]
             ref = ref[inside]
@@ -147,7 +150,7 @@ class BagDataset:
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
         self.rig = _bag_rig(self)
-        self.notes = _notes(index, self.topics, topics_chosen)
+        self.notes = bag_notes(index, topics_chosen)
         self._reader: AnyReader | None = None
 
     def _child_to_base(self, child: str) -> np.ndarray:
@@ -271,26 +274,6 @@ def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
         topics.append(BagTopic(t.name, t.msgtype, first, t.rings, extr, int(counts[k]), scale))
         first += t.rings
     return topics
-
-
-def _notes(index: BagIndex, topics: list[BagTopic], chosen: bool) -> list[str]:
-    """The lines a user should check (see :attr:`BagDataset.notes`)."""
-    notes = [
-        f"topic '{t.name}': {t.time_unit.note}"
-        for t in index.topics
-        if t.time_unit is not None and t.time_unit.note
-    ]
-    clouds = [t for t in topics if t.msgtype != LASER_SCAN]
-    if not chosen and len(clouds) > 1:
-        shown = ", ".join(
-            f"'{t.name}' ({next(iter(t.T_base_sensor))}, {t.sweeps} sweeps)" for t in clouds
-        )
-        notes.append(
-            f"{len(clouds)} point-cloud topics read and merged into each epoch: {shown}; if "
-            "they are not separate lidars (one is the other filtered or deskewed), choose "
-            "with --topic"
-        )
-    return notes
 
 
 def _bag_rig(ds: BagDataset) -> Rig:

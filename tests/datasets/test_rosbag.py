@@ -364,3 +364,55 @@ def test_several_cloud_topics_read_are_said(tmp_path: Path) -> None:
         assert "'/filtered' (lidar, 12 sweeps), '/points' (lidar, 12 sweeps)" in ds.notes[0]
     with open_bag(tmp_path / "b", BagOptions(topics=("/points", "/filtered"))) as ds:
         assert ds.notes == []  # chosen
+
+
+def test_unstamped_messages_and_a_topic_without_points_are_noted(tmp_path: Path) -> None:
+    """Messages stamped 0 took their record time without a word; a cloud topic that never
+    held a point made every scan ringless without a word."""
+    from dataclasses import replace
+
+    from bag_factory import BagWriter, lidar_cloud
+
+    truth = Truth(T_base_sensor=T_BASE)
+    with BagWriter(tmp_path / "b.bag", 1) as bw:
+        tf = [bw.transform_stamped(T0_NS, p, c, T) for p, c, T in STATIC_TF]
+        bw.write("/tf_static", bw.tf(tf), T0_NS)
+        for k in range(5):
+            stamp = T0_NS + k * 100_000_000
+            msg = lidar_cloud(bw, truth, "/points", "lidar", stamp)
+            off = replace(msg, header=bw.header(stamp, "lidar"), width=0, row_step=0,
+                          data=np.zeros(0, np.uint8))  # fmt: skip
+            if k < 2:
+                msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0
+            bw.write("/points", msg, stamp + 2_000_000)
+            bw.write("/off", off, stamp + 3_000_000)
+    with open_bag(tmp_path / "b.bag", BagOptions(topics=("/points", "/off"))) as ds:
+        assert len(ds.notes) == 2
+        assert ds.notes[0].startswith("topic '/points': 2 of 5 messages have no header stamp")
+        assert ds.notes[1].startswith("topic '/off': none of its 5 messages holds a point")
+        assert "so the scans carry no rings" in ds.notes[1]
+        assert ds[0].ring is None and len(ds[0]) > 0
+    with open_bag(tmp_path / "b.bag", BagOptions(topics=("/points",))) as ds:
+        assert ds[0].ring is not None and len(ds.notes) == 1
+
+
+def test_scans_on_another_clock_than_the_reference_name_both_spans(tmp_path: Path) -> None:
+    """A driver stamping with the sensor's clock (seconds since boot): the error gave the
+    reference's span only, not the epochs'."""
+    from bag_factory import BagWriter, lidar_cloud
+
+    truth = Truth(T_base_sensor=T_BASE)
+    with BagWriter(tmp_path / "b.bag", 1) as bw:
+        tf = [bw.transform_stamped(T0_NS, p, c, T) for p, c, T in STATIC_TF]
+        bw.write("/tf_static", bw.tf(tf), T0_NS)
+        for k in range(5):
+            stamp = T0_NS + k * 100_000_000
+            msg = lidar_cloud(bw, truth, "/points", "lidar", stamp)
+            msg.header.stamp.sec = 1234  # since boot
+            bw.write("/points", msg, stamp + 2_000_000)
+            bw.write("/odom", bw.odometry(stamp, true_pose(stamp / 1e9)), stamp)
+    with pytest.raises(DatasetError) as exc:
+        open_bag(tmp_path / "b.bag", BagOptions(gt_topic="/odom"))
+    message = str(exc.value)
+    assert "reference poses from 1700000000.000 to 1700000000.400 s" in message
+    assert "epochs from 1234.000 to 1234.400 s" in message and "another clock" in message
