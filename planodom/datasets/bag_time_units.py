@@ -95,12 +95,13 @@ def period_s(stamps_ns: np.ndarray) -> float | None:
     return float(np.median(steps)) * 1e-9 if len(steps) else None
 
 
-def choose_unit(times: TopicTimes, stamps_ns: np.ndarray) -> TimeUnit:
+def choose_unit(times: TopicTimes, stamps_ns: np.ndarray, between: str = "messages") -> TimeUnit:
     """The unit of a topic's relative times (see the module docstring).
 
     Args:
         times: the spans of its sweeps (:class:`TopicTimes`).
         stamps_ns: (n,) int64 its messages' stamps, ns.
+        between: what the stamps are of, for the note (``messages``, ``epochs``).
     """
     (doc, doc_scale), (alt, alt_scale) = UNITS[times.kind]
     spans = np.frombuffer(times.spans, dtype=np.float64)
@@ -120,7 +121,7 @@ def choose_unit(times: TopicTimes, stamps_ns: np.ndarray) -> TimeUnit:
     other_scale = doc_scale if unit == alt else alt_scale
     spread = (
         f"as {UNIT_WORDS[other]} a sweep would span {_duration(median * other_scale)} of the "
-        f"{_duration(period)} between messages, as {UNIT_WORDS[unit]} "
+        f"{_duration(period)} between {between}, as {UNIT_WORDS[unit]} "
         f"{_duration(median * scale)} (median)"
     )
     against = votes_doc if unit == alt else votes_alt
