@@ -33,12 +33,11 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
                 f"topic '{t.name}': {t.unstamped} of {sweeps} messages have no header stamp "
                 "(0): the bag's record time stands for it, late by the message's transport"
             )
-        if t.empty == sweeps:
-            others = any(o.rings for o in index.topics if o is not t)
-            rings = ", so the scans carry no rings" if others else ""
+        if t.msgtype != LASER_SCAN and t.empty == sweeps:
             notes.append(
                 f"topic '{t.name}': none of its {sweeps} messages holds a point (the sensor "
-                f"off, or everything filtered out?){rings}; --topic leaves it out"
+                "off, or everything filtered out?); its stamps still place the epochs: "
+                "--topic leaves it out"
             )
     clouds = [(t, n) for t, n in zip(index.topics, counts, strict=True) if t.msgtype != LASER_SCAN]
     if not chosen and len(clouds) > 1:

@@ -45,7 +45,7 @@ from planodom.datasets.bag_index import (
     index_bag,
     open_reader,
 )
-from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
+from planodom.datasets.bag_msgs import LASER_SCAN, decode_sweep, stamp_ns
 from planodom.datasets.bag_notes import bag_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
 from planodom.datasets.bag_tf import frame_name
@@ -80,6 +80,7 @@ class BagTopic:
         sweeps: number of messages.
         time_scale: seconds per unit of a cloud's per-point time offsets
             (:mod:`planodom.datasets.bag_time_units`), None: the documented reading.
+        empty: no message holds a point (its lack of rings costs the others none).
     """
 
     name: str
@@ -89,6 +90,12 @@ class BagTopic:
     T_base_sensor: dict[str, np.ndarray]
     sweeps: int
     time_scale: float | None = None
+    empty: bool = False
+
+    @property
+    def ringless(self) -> bool:
+        """Its points carry no ring (a topic without any point has none to carry)."""
+        return self.rings == 0 and not self.empty
 
 
 class BagDataset:
@@ -255,7 +262,7 @@ class BagDataset:
             T = topic.T_base_sensor[frame_name(msg.header.frame_id)]
             points.append(transform_points(T, pts))
             times.append((stamp - ref) / NS + dt)
-        has_rings = all(t.rings > 0 for t in self.topics)
+        has_rings = not any(t.ringless for t in self.topics)
         return Scan(
             np.concatenate(points) if points else np.zeros((0, 3)),
             np.concatenate(rings).astype(np.int32) if has_rings and rings else None,
@@ -271,7 +278,10 @@ def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
         where = f"{path}: topic '{t.name}'"
         extr = {f: index.tf.require(base_frame, f, where) for f in t.frames}
         scale = None if t.time_unit is None else t.time_unit.scale
-        topics.append(BagTopic(t.name, t.msgtype, first, t.rings, extr, int(counts[k]), scale))
+        empty = t.msgtype != LASER_SCAN and t.empty == counts[k]
+        topics.append(
+            BagTopic(t.name, t.msgtype, first, t.rings, extr, int(counts[k]), scale, empty)
+        )
         first += t.rings
     return topics
 
@@ -280,7 +290,7 @@ def _bag_rig(ds: BagDataset) -> Rig:
     """The typed rig of a bag: rate, per-ring sensor origins, per-topic extrinsics, source."""
     first_T = [next(iter(t.T_base_sensor.values())) for t in ds.topics]
     origins = None
-    if all(t.rings > 0 for t in ds.topics):
+    if not any(t.ringless for t in ds.topics):
         origins = np.concatenate(
             [np.tile(T[:3, 3], (t.rings, 1)) for t, T in zip(ds.topics, first_T, strict=True)]
         )
@@ -398,7 +408,7 @@ def convert_bag(
             len(ds),
             counter.points,
             tuple(t.name for t in ds.topics),
-            sum(t.rings for t in ds.topics) if all(t.rings for t in ds.topics) else 0,
+            0 if any(t.ringless for t in ds.topics) else sum(t.rings for t in ds.topics),
             float(ds.times[0]),
             float(ds.times[-1]),
             ds.gt_topic,
