@@ -262,12 +262,18 @@ class BagDataset:
             T = topic.T_base_sensor[frame_name(msg.header.frame_id)]
             points.append(transform_points(T, pts))
             times.append((stamp - ref) / NS + dt)
-        has_rings = not any(t.ringless for t in self.topics)
+        has_rings = _has_rings(self.topics)
         return Scan(
             np.concatenate(points) if points else np.zeros((0, 3)),
             np.concatenate(rings).astype(np.int32) if has_rings and rings else None,
             np.concatenate(times) if times else np.zeros(0),
         )
+
+
+def _has_rings(topics: list[BagTopic]) -> bool:
+    """Whether the scans carry rings: some topic has rings and every other one too, or no
+    point at all (a topic that never held a point takes no rings away)."""
+    return any(t.rings > 0 for t in topics) and not any(t.ringless for t in topics)
 
 
 def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
@@ -290,7 +296,7 @@ def _bag_rig(ds: BagDataset) -> Rig:
     """The typed rig of a bag: rate, per-ring sensor origins, per-topic extrinsics, source."""
     first_T = [next(iter(t.T_base_sensor.values())) for t in ds.topics]
     origins = None
-    if not any(t.ringless for t in ds.topics):
+    if _has_rings(ds.topics):
         origins = np.concatenate(
             [np.tile(T[:3, 3], (t.rings, 1)) for t, T in zip(ds.topics, first_T, strict=True)]
         )
@@ -408,7 +414,7 @@ def convert_bag(
             len(ds),
             counter.points,
             tuple(t.name for t in ds.topics),
-            0 if any(t.ringless for t in ds.topics) else sum(t.rings for t in ds.topics),
+            sum(t.rings for t in ds.topics) if _has_rings(ds.topics) else 0,
             float(ds.times[0]),
             float(ds.times[-1]),
             ds.gt_topic,
