@@ -39,9 +39,14 @@ def read_trajectory(path: str | Path) -> Trajectory:
     data line; a directory is a dataset and its ``poses.tum`` is read.
 
     Raises:
-        DatasetError: naming the file (and line) when it is neither.
+        DatasetError: naming the file (and line) when it is neither (or a ROS bag).
     """
     path = Path(path)
+    if path.suffix in (".bag", ".db3", ".mcap") or (path / "metadata.yaml").is_file():
+        raise DatasetError(
+            f"{path} is a ROS bag: eval reads TUM or KITTI trajectory files; `planodom "
+            "convert BAG OUT --gt-topic TOPIC` writes a bag's reference to OUT/poses.tum"
+        )
     if path.is_dir():
         path = path / "poses.tum"
     try:

@@ -182,12 +182,16 @@ def lidar_cloud(
     bw: BagWriter, truth: Truth, topic: str, frame: str, stamp: int, layout: str = "velodyne"
 ) -> Any:
     """A 16-ring PointCloud2 sweep. ``velodyne``: unorganised, ``time`` float32 s, 22-byte
-    points; ``ouster``: organised 16 rows with row padding, ``t`` uint32 ns."""
+    points; ``ouster``: organised 16 rows with row padding, ``t`` uint32 ns. With the suffix
+    ``_ms`` / ``_us`` the time field is in milliseconds / microseconds instead (the columns
+    then whole microseconds apart)."""
+    layout, _, unit = layout.partition("_")
     rings, cols = 16, 240
     elev = np.deg2rad(np.linspace(-15, 15, rings))
     az = np.arange(cols) * 2 * np.pi / cols
     E, A = np.meshgrid(elev, az, indexing="ij")  # (rings, cols)
-    col_dt_ns = np.broadcast_to((np.arange(cols) * (100_000_000 // cols))[None], E.shape)
+    step_ns = 100_000_000 // cols // 1000 * 1000 if unit == "us" else 100_000_000 // cols
+    col_dt_ns = np.broadcast_to((np.arange(cols) * step_ns)[None], E.shape)
     times = (stamp + col_dt_ns) / 1e9
     T_ws = true_pose(times.ravel()) @ truth.T_base_sensor[frame]
     dirs_s = np.stack([np.cos(E) * np.cos(A), np.cos(E) * np.sin(A), np.sin(E)], -1).reshape(-1, 3)
@@ -207,13 +211,13 @@ def lidar_cloud(
         names = ["x", "y", "z", "intensity", "ring", "time"]
         fmts = ["<f4", "<f4", "<f4", "<f4", "<u2", "<f4"]
         codes, offsets, step = [7, 7, 7, 7, 4, 7], [0, 4, 8, 12, 16, 18], 22
-        tvals = (col_dt_ns.ravel() / 1e9).astype(np.float32)
+        tvals = (col_dt_ns.ravel() / (1e6 if unit == "ms" else 1e9)).astype(np.float32)
         height, width, pad = 1, rings * cols, 0
     else:
         names = ["x", "y", "z", "t", "ring"]
         fmts = ["<f4", "<f4", "<f4", "<u4", "<u2"]
         codes, offsets, step = [7, 7, 7, 6, 4], [0, 4, 8, 16, 20], 24
-        tvals = col_dt_ns.ravel().astype(np.uint32)
+        tvals = (col_dt_ns.ravel() // (1000 if unit == "us" else 1)).astype(np.uint32)
         height, width, pad = rings, cols, 8
     dtype = np.dtype({"names": names, "formats": fmts, "offsets": offsets, "itemsize": step})
     arr = np.zeros(rings * cols, dtype=dtype)
@@ -248,7 +252,7 @@ class Sensor:
     topic: str
     frame: str
     phase_ns: int
-    kind: str = "scan"  # "scan" | "velodyne" | "ouster"
+    kind: str = "scan"  # "scan" | "velodyne" | "ouster" (| "_ms" / "_us", lidar_cloud)
 
 
 def write_bag(

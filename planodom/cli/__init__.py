@@ -119,6 +119,9 @@ def _inputs(source: Source, config: Path | None) -> list[Path]:
 
 
 def _report_skipped(data: ScanEpochs, metrics: dict) -> None:
+    """List in metrics.json the scans skipped and the recording's notes (warned of)."""
+    if data.notes:
+        metrics["recording_notes"] = data.notes
     if data.skipped:
         warn(f"{len(data.skipped)} unreadable scan(s) skipped, listed in metrics.json")
         metrics["skipped_scans"] = data.skipped
@@ -138,12 +141,18 @@ def _report_far_points(data: ScanEpochs, metrics: dict) -> None:
         metrics["scans_without_points"] = list(data.empty)
 
     if data.far:
-        name, (far, total) = next(iter(data.far.items()))
+        name, (far, total, extent) = next(iter(data.far.items()))
+        # one sweep spans at most twice the sensor's range: a wider scan is not in metres
+        why = (
+            f"the scan itself spans {extent:.3g} m, more than any lidar sees: not metres "
+            "(millimetres? scale the coordinates to metres)"
+            if extent > 2 * MAX_RANGE_M
+            else "not in the vehicle's frame (a map-frame export?)"
+        )
         warn(
             f"{len(data.far)} scan(s) hold points more than {MAX_RANGE_M:g} m from the base "
             f"origin, farther than any lidar measures (first: {name}, {far} of {total} "
-            "points): not in the vehicle's frame (a map-frame export?); their epochs are "
-            "likely unresolved (listed in metrics.json)"
+            f"points): {why}; their epochs are likely unresolved (listed in metrics.json)"
         )
         metrics["scans_beyond_sensor_range"] = list(data.far)
 

@@ -225,7 +225,8 @@ class ScanEpochs:
     after it), :meth:`naming_errors` turns a failure that names no file into one naming
     the scan (its file, or the bag and epoch). With ``skip_bad`` a scan that cannot be
     read is an epoch without planes, which the odometry bridges (an unresolved epoch);
-    :attr:`skipped` lists them.
+    :attr:`skipped` lists them. The recording's :attr:`notes` (a bag's: how it was read,
+    e.g. a time unit other than the documented one) are warned of when it is opened.
     """
 
     def __init__(self, dataset: Any, skip_bad: bool = False) -> None:
@@ -234,8 +235,12 @@ class ScanEpochs:
         self.Tr: Any = getattr(dataset, "Tr", None)
         self.current: str | None = None
         self.skipped: list[str] = []
-        self.far: dict[str, tuple[int, int]] = {}  # scan -> (points beyond MAX_RANGE_M, all)
+        # scan -> (points beyond MAX_RANGE_M, all points, the scan's widest extent, m)
+        self.far: dict[str, tuple[int, int, float]] = {}
         self.empty: dict[str, None] = {}  # scans without points (kept in order, once each)
+        self.notes: list[str] = list(getattr(dataset, "notes", []))
+        for note in self.notes:
+            warn(note)
 
     def __len__(self) -> int:
         return len(self.dataset)
@@ -261,7 +266,8 @@ class ScanEpochs:
         if isinstance(scan, Scan):
             far = points_beyond_range(scan)
             if far:
-                self.far[self.current] = (far, len(scan))
+                extent = float((scan.points.max(axis=0) - scan.points.min(axis=0)).max())
+                self.far[self.current] = (far, len(scan), extent)
             if len(scan) == 0:
                 self.empty[self.current] = None
         return scan

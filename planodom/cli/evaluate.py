@@ -20,6 +20,7 @@ from planodom.cli.common import (
     app,
     console,
     reports_errors,
+    warn,
 )
 from planodom.errors import ConfigError, DatasetError, GeometryError
 
@@ -115,6 +116,8 @@ def convert(
     options = BagOptions.of(base_frame, epoch_rate, topic, gt_topic, time_field)
     with console.status(f"converting {bag}"):
         c = convert_bag(bag, dataset, options, overwrite=overwrite)
+    for note in c.notes:
+        warn(note)
     table = Table(title=f"{c.bag} -> {c.out_dir}", show_header=False)
     rows = {
         "epochs": f"{c.epochs} at {epoch_rate:g} Hz",

@@ -28,13 +28,17 @@ from rosbags.typesys import Stores, TypesysError, get_typestore
 from planodom.datasets.bag_livox import register_livox_types
 from planodom.datasets.bag_msgs import (
     LASER_SCAN,
+    POINT_CLOUD2,
     POSE_TYPES,
     SCAN_TYPES,
+    check_offsets,
     decode_pose,
     decode_sweep,
     stamp_ns,
+    sweep_times,
 )
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
+from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit
 from planodom.errors import DatasetError
 
 #: Prefix of a ``gt_topic`` naming a tf frame pair: ``"tf:PARENT:CHILD"``.
@@ -73,6 +77,26 @@ def is_bag(path: str | Path) -> bool:
     return path.is_dir() and (path / "metadata.yaml").is_file()
 
 
+def unfinished_bag(path: str | Path) -> str | None:
+    """Why ``path`` looks like a bag whose recording was not closed, or None: a ROS 1
+    ``.bag.active`` file (no index yet) or ROS 2 storage files without ``metadata.yaml``
+    (written when the recorder closes); the reader needs what closing writes."""
+    path = Path(path)
+    if path.is_file() and path.name.endswith(".bag.active"):
+        return (
+            f"{path} is an unfinished ROS 1 recording (.bag.active: the recorder was not "
+            "closed, the bag has no index): `rosbag reindex` it and rename it to .bag"
+        )
+    folder = path.parent if path.is_file() and path.suffix in (".db3", ".mcap") else path
+    storage = folder.is_dir() and (any(folder.glob("*.db3")) or any(folder.glob("*.mcap")))
+    if storage and not (folder / "metadata.yaml").is_file():
+        return (
+            f"{folder} holds ROS 2 bag storage (.db3 / .mcap) but no metadata.yaml (the "
+            f"recorder was not closed?): `ros2 bag reindex {folder}` writes it"
+        )
+    return None
+
+
 def bag_location(path: str | Path) -> Path:
     """The path rosbags opens: the ``.bag`` file or the ROS 2 folder (also from its file)."""
     path = Path(path)
@@ -82,7 +106,8 @@ def bag_location(path: str | Path) -> Path:
         return path.parent
     if not is_bag(path):
         raise DatasetError(
-            f"{path} is not a bag: neither a ROS 1 .bag file nor a ROS 2 bag folder with "
+            unfinished_bag(path)
+            or f"{path} is not a bag: neither a ROS 1 .bag file nor a ROS 2 bag folder with "
             "metadata.yaml"
         )
     return path
@@ -96,8 +121,10 @@ def bag_errors(path: Path, what: str = "cannot read bag") -> Iterator[None]:
     except DatasetError:
         raise
     except BAG_ERRORS as exc:
-        detail = " ".join(str(exc).split()) or type(exc).__name__
-        raise DatasetError(f"{path}: {what} (truncated or corrupt?): {detail[:200]}") from None
+        detail = (" ".join(str(exc).split()) or type(exc).__name__)[:200]
+        if path.suffix == ".bag" and "index" in detail.lower():  # rosbags reads indexed bags
+            detail += "; a ROS 1 recording cut short has no index: `rosbag reindex` rebuilds it"
+        raise DatasetError(f"{path}: {what} (truncated or corrupt?): {detail}") from None
 
 
 def open_reader(path: Path) -> AnyReader:
@@ -120,12 +147,21 @@ class TopicIndex:
         frames: the ``header.frame_id`` values of its messages (first seen first).
         rings: ring count: 1 for a LaserScan, max ring + 1 for a cloud with a ring field,
             0 for a cloud without one.
+        times: a PointCloud2's relative per-point times (their spans per sweep).
+        time_unit: the unit chosen for them (:mod:`planodom.datasets.bag_time_units`),
+            None without relative per-point times.
+        unstamped: messages whose header stamp is 0 (their record time stands for it).
+        empty: messages without a point (clouds, Livox messages; 0 for a LaserScan).
     """
 
     name: str
     msgtype: str
     frames: list[str] = field(default_factory=list)
     rings: int = 0
+    times: TopicTimes = field(default_factory=TopicTimes)
+    time_unit: TimeUnit | None = None
+    unstamped: int = 0
+    empty: int = 0
 
 
 @dataclass
@@ -244,6 +280,8 @@ def index_bag(
         what = f"/tf transform '{gt[0]}' -> '{gt[1]}'" if isinstance(gt, tuple) else gt
         raise DatasetError(f"{path}: no reference poses in gt {what}")
     table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 3).copy()
+    for k, topic in enumerate(index):
+        _choose_time_unit(topic, table[table[:, 0] == k, 2], path)
     gt_times, gt_poses = gt_log.arrays()
     return BagIndex(
         index,
@@ -279,15 +317,37 @@ def _message_errors(path: Path, topic: str) -> Iterator[None]:
 
 
 def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str) -> None:
-    """Record a sweep's frame and, for a cloud, its largest ring."""
+    """Record a sweep's frame, whether it is stamped and, for a cloud, its largest ring,
+    whether it has points and its time offsets."""
     frame = frame_name(msg.header.frame_id)
     if not frame:
         raise DatasetError(f"{path}: topic '{topic.name}' has a message without frame_id")
     if frame not in topic.frames:
         topic.frames.append(frame)
+    topic.unstamped += stamp_ns(msg.header) == 0
     if topic.msgtype == LASER_SCAN:
         topic.rings = 1
         return
     with _message_errors(path, topic.name):
-        _, _, _, rings = decode_sweep(msg, topic.msgtype, time_field)
+        if topic.msgtype == POINT_CLOUD2:
+            rings, points, name, offsets = sweep_times(msg, time_field)
+            if name is not None and offsets is not None:
+                topic.times.add(name, offsets)
+        else:
+            xyz, _, _, rings = decode_sweep(msg, topic.msgtype, time_field)
+            points = len(xyz)
     topic.rings = max(topic.rings, rings)
+    topic.empty += points == 0
+
+
+def _choose_time_unit(topic: TopicIndex, stamps: np.ndarray, path: Path) -> None:
+    """Set ``topic.time_unit`` from its sweeps' spans and ``stamps`` (ns); DatasetError when
+    a time then lies too far from its stamp."""
+    times = topic.times
+    if not times.name:
+        return
+    topic.time_unit = unit = choose_unit(times, stamps)
+    with _message_errors(path, topic.name):
+        check_offsets(
+            np.array([times.largest * unit.scale]), times.name, np.dtype(times.dtype), unit.scale
+        )

@@ -11,7 +11,9 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
 - ``sensor_msgs/PointCloud2``: fields ``x y z`` (float32/float64); an optional ring field
   (:data:`RING_FIELDS`) and time field (:data:`~planodom.datasets.scan_io.TIME_FIELDS`,
   first present wins). Integer
-  time fields are nanoseconds, float ones seconds; values above 1e15 ns / 1e8 s are absolute
+  time fields are nanoseconds, float ones seconds (offsets: unless a topic's sweeps span
+  its period between messages as microseconds / milliseconds instead,
+  :mod:`planodom.datasets.bag_time_units`); values above 1e15 ns / 1e8 s are absolute
   times (since the Unix epoch), smaller ones offsets from the stamp; float values above
   1e15 are absolute nanoseconds (livox_ros_driver2 stores its ``timestamp`` as a double of
   nanoseconds). A sweep whose times then lie more than :data:`MAX_SWEEP_OFFSET_S` from its
@@ -61,14 +63,16 @@ def stamp_ns(header: Any) -> int:
 
 
 def decode_sweep(
-    msg: Any, msgtype: str, time_field: str = "auto"
+    msg: Any, msgtype: str, time_field: str = "auto", time_scale: float | None = None
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
     """One sweep in its sensor frame: ``(points (n, 3), ring (n,) int32 or None, dt (n,), rings)``.
 
     ``dt`` is float64 seconds after ``header.stamp``; ``rings`` the ring count (1 for a
     LaserScan, max ring + 1 for a cloud with a ring field, 0 without one). ``time_field``
     (:class:`~planodom.datasets.bag_options.BagOptions`): ``"auto"``, ``"none"`` (every
-    point at the stamp) or the name of a cloud's time field.
+    point at the stamp) or the name of a cloud's time field. ``time_scale``: seconds per
+    unit of a cloud's time offsets (:mod:`planodom.datasets.bag_time_units`; None: the
+    documented reading, integers ns and floats s).
 
     Raises:
         ValueError: a malformed message (one line, the caller adds the topic).
@@ -77,7 +81,7 @@ def decode_sweep(
         if msgtype == LASER_SCAN:
             return _decode_laser_scan(msg)
         if msgtype == POINT_CLOUD2:
-            return _decode_cloud(msg, time_field)
+            return _decode_cloud(msg, time_field, time_scale)
         if msgtype in LIVOX_CUSTOM:
             points, ring, dt, rings = decode_livox(msg, stamp_ns(msg.header))
             return points, ring, np.zeros_like(dt) if time_field == "none" else dt, rings
@@ -126,9 +130,11 @@ def _cloud_array(msg: Any) -> np.ndarray:
     return rows[0] if height == 1 else np.concatenate(rows)
 
 
-def _decode_cloud(
+def _cloud_parts(
     msg: Any, time_field: str
-) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
+) -> tuple[np.ndarray, np.ndarray | None, int, str | None, np.ndarray | None]:
+    """A cloud's kept points (n, 3), their ring (or None), the ring count, the time field
+    read (or None) and its raw values (n,) at the kept points (or None)."""
     cloud = _cloud_array(msg)
     names = cloud.dtype.names or ()
     missing = [c for c in "xyz" if c not in names]
@@ -160,18 +166,69 @@ def _decode_cloud(
     if keep is not None:  # a multi-return cloud: the last return of each beam firing
         valid = valid[keep]
         ring = ring[keep] if ring is not None else None
-    dt = np.zeros(len(valid))
-    if time_name is not None:
-        dt = _relative_times(cloud[time_name][valid], stamp_ns(msg.header))
-        if not np.all(np.abs(dt) <= MAX_SWEEP_OFFSET_S):  # NaN too
-            bad = dt[~(np.abs(dt) <= MAX_SWEEP_OFFSET_S)]
-            worst = bad[np.argmax(np.nan_to_num(np.abs(bad), nan=np.inf))]
-            raise ValueError(
-                f"PointCloud2 time field '{time_name}' ({cloud[time_name].dtype}) puts a point "
-                f"{worst:.6g} s from the stamp, beyond {MAX_SWEEP_OFFSET_S:g} s: not seconds or "
-                "nanoseconds (offsets, or since the Unix epoch); --time-field none ignores it"
-            )
-    return points[valid], ring, dt, rings
+    raw = cloud[time_name][valid] if time_name is not None else None
+    return points[valid], ring, rings, time_name, raw
+
+
+def _decode_cloud(
+    msg: Any, time_field: str, time_scale: float | None = None
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
+    points, ring, rings, time_name, raw = _cloud_parts(msg, time_field)
+    dt = np.zeros(len(points))
+    if time_name is not None and raw is not None:
+        dt = _relative_times(raw, stamp_ns(msg.header), time_scale)
+        check_offsets(dt, time_name, raw.dtype, time_scale)
+    return points, ring, dt, rings
+
+
+def sweep_times(
+    msg: Any, time_field: str = "auto"
+) -> tuple[int, int, str | None, np.ndarray | None]:
+    """A cloud's ring count, point count, time field and raw relative times, for the index.
+
+    Returns ``(rings, n, time field or None, values)``: ``values`` (n,) in the field's own
+    type and unit when the times are offsets (whose unit
+    :func:`planodom.datasets.bag_time_units.choose_unit` decides over the topic), None
+    without a time field or for absolute times, which are checked here.
+
+    Raises:
+        ValueError: a malformed cloud, non-finite times, absolute times far off the stamp.
+    """
+    points, _, rings, time_name, raw = _cloud_parts(msg, time_field)
+    if time_name is None or raw is None:
+        return rings, len(points), None, None
+    if _is_absolute(raw):
+        dt = _relative_times(raw, stamp_ns(msg.header))
+        check_offsets(dt, time_name, raw.dtype)
+        return rings, len(points), time_name, None
+    with np.errstate(invalid="ignore"):
+        finite = np.isfinite(raw.astype(np.float64))
+    if not finite.all():
+        check_offsets(np.where(finite, 0.0, np.nan), time_name, raw.dtype)
+    return rings, len(points), time_name, raw
+
+
+def check_offsets(
+    dt: np.ndarray, time_name: str, dtype: np.dtype, time_scale: float | None = None
+) -> None:
+    """ValueError naming the field ``time_name`` of type ``dtype`` when a time ``dt`` (s
+    from the stamp, read with ``time_scale`` as :func:`decode_sweep`) is NaN or beyond
+    :data:`MAX_SWEEP_OFFSET_S`."""
+    if np.all(np.abs(dt) <= MAX_SWEEP_OFFSET_S):
+        return
+    bad = dt[~(np.abs(dt) <= MAX_SWEEP_OFFSET_S)]
+    worst = bad[np.argmax(np.nan_to_num(np.abs(bad), nan=np.inf))]
+    words = {1e-9: "nanoseconds", 1e-6: "microseconds", 1e-3: "milliseconds", 1.0: "seconds"}
+    read = (
+        "seconds or nanoseconds (offsets, or since the Unix epoch)"
+        if time_scale is None
+        else f"offsets in {words.get(time_scale, f'units of {time_scale:g} s')}"
+    )
+    raise ValueError(
+        f"PointCloud2 time field '{time_name}' ({dtype.name}) puts a point "
+        f"{worst:.6g} s from the stamp, beyond {MAX_SWEEP_OFFSET_S:g} s: not {read}; "
+        "--time-field none ignores it"
+    )
 
 
 def _time_name(names: tuple[str, ...], time_field: str) -> str | None:
@@ -182,20 +239,32 @@ def _time_name(names: tuple[str, ...], time_field: str) -> str | None:
         raise ValueError(f"PointCloud2 has {exc}") from None
 
 
-def _relative_times(values: np.ndarray, stamp: int) -> np.ndarray:
-    """Per-point times (see the module docstring) as float64 seconds after ``stamp`` (ns)."""
+def _is_absolute(values: np.ndarray) -> bool:
+    """True when ``values`` are absolute times by the module docstring's rules."""
+    if len(values) == 0:
+        return False
+    with np.errstate(invalid="ignore"):
+        magnitude = np.abs(values.astype(np.float64))
+    largest = float(np.max(np.where(np.isfinite(magnitude), magnitude, 0.0)))
+    limit = 1e15 if np.issubdtype(values.dtype, np.integer) else 1e8
+    return bool(largest > limit)
+
+
+def _relative_times(values: np.ndarray, stamp: int, scale: float | None = None) -> np.ndarray:
+    """Per-point times (see the module docstring) as float64 seconds after ``stamp`` (ns);
+    ``scale``: seconds per unit of offsets (None: 1e-9 for integers, 1 for floats)."""
     if np.issubdtype(values.dtype, np.integer):
         ns = values.astype(np.int64)
         if len(ns) and np.abs(ns).max() > 10**15:
-            ns = ns - stamp
-        return ns.astype(np.float64) * 1e-9
+            return (ns - stamp).astype(np.float64) * 1e-9
+        return ns.astype(np.float64) * (1e-9 if scale is None else scale)
     seconds = values.astype(np.float64)
     if len(seconds) and np.abs(seconds).max() > 1e15:  # absolute nanoseconds as a double
         return (seconds - float(stamp)) * 1e-9
     if len(seconds) and np.abs(seconds).max() > 1e8:
         whole, frac = divmod(stamp, 1_000_000_000)
-        seconds = (seconds - whole) - frac * 1e-9
-    return seconds
+        return (seconds - whole) - frac * 1e-9
+    return seconds if scale is None else seconds * scale
 
 
 def decode_pose(msg: Any, msgtype: str) -> tuple[int, np.ndarray, str, str]:

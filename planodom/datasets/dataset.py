@@ -13,6 +13,7 @@ import yaml
 
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
+from planodom.datasets.scan_time_units import scan_time_unit
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
 from planodom.outputs import atomic_folder
@@ -47,6 +48,10 @@ class Dataset:
             (:mod:`planodom.datasets.bin_scan`).
         time_field: the scans' per-point time field: ``auto``, ``none`` (ignored) or a
             field name (:func:`planodom.datasets.scan_io.read_scan`).
+        time_scale: seconds per unit of integer time offsets (None: nanoseconds), set by
+            :func:`load_dataset` (:mod:`planodom.datasets.scan_time_units`).
+        notes: one line each on how the scans are read that a user should check (a time
+            unit other than the documented one); the CLI prints them as warnings.
     """
 
     def __init__(
@@ -66,6 +71,8 @@ class Dataset:
         self.times = np.asarray(times, dtype=np.float64)
         self.gt_poses = gt_poses
         self.rig = rig if rig is not None else Rig()
+        self.time_scale: float | None = None
+        self.notes: list[str] = []
         if len(self.times) != len(self.scan_files):
             raise DatasetError(
                 f"{self.path}: {len(self.times)} epoch times for {len(self.scan_files)} scans"
@@ -80,7 +87,9 @@ class Dataset:
         if not -n <= index < n:
             raise IndexError(f"epoch {index} out of range for {n} epochs")
         file = self.scan_files[index]
-        scan = read_scan(file, self.bin_layout, float(self.times[index]), self.time_field)
+        scan = read_scan(
+            file, self.bin_layout, float(self.times[index]), self.time_field, self.time_scale
+        )
         origins = self.rig.sensor_origins
         if origins is not None and len(origins) > 1:  # per ring: the rings must index them
             rig_file = self.path / RIG_FILE
@@ -141,7 +150,9 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else
     ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s). ``bin_layout`` tells how ``.bin`` scans are read
     (:mod:`planodom.datasets.bin_scan`), ``time_field`` which field holds the point times
-    (``auto``, ``none`` or a name, :func:`planodom.datasets.scan_io.read_scan`).
+    (``auto``, ``none`` or a name, :func:`planodom.datasets.scan_io.read_scan`); integer
+    time offsets in microseconds are told from nanoseconds by the first scans' spans
+    against the epoch period (:mod:`planodom.datasets.scan_time_units`; ``notes`` says so).
 
     Raises:
         DatasetError: naming the file, when ``path`` is missing, there are no scan files,
@@ -169,7 +180,12 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     else:
         _check_numbering(scan_files)
         times = epoch_times(len(scan_files), rig)
-    return Dataset(root, scan_files, times, gt_poses, rig, bin_layout, time_field)
+    ds = Dataset(root, scan_files, times, gt_poses, rig, bin_layout, time_field)
+    unit = scan_time_unit(scan_files, times, time_field)
+    if unit is not None:
+        ds.time_scale = unit.scale
+        ds.notes = [f"{root}: {unit.note}"] if unit.note else []
+    return ds
 
 
 def read_times(path: str | Path, n_epochs: int) -> np.ndarray:

@@ -18,7 +18,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Literal
 
-from planodom.datasets.bag_index import is_bag
+from planodom.datasets.bag_index import is_bag, unfinished_bag
 from planodom.datasets.bag_options import BagOptions
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.dataset import load_dataset
@@ -63,6 +63,9 @@ def open_recording(
         if bin_layout != "auto":
             raise DatasetError(f"{path} is a bag: --bin-layout applies to .bin scan files only")
         return open_bag(path, options)
+    unfinished = unfinished_bag(path)
+    if unfinished:
+        raise DatasetError(unfinished)
     given = [g for g in (options.given() if options is not None else []) if g != "time_field"]
     time_field = options.time_field if options is not None else "auto"
     if given:

@@ -45,7 +45,8 @@ from planodom.datasets.bag_index import (
     index_bag,
     open_reader,
 )
-from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
+from planodom.datasets.bag_msgs import LASER_SCAN, decode_sweep, stamp_ns
+from planodom.datasets.bag_notes import bag_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
 from planodom.datasets.bag_tf import frame_name
 from planodom.datasets.dataset import write_dataset
@@ -77,6 +78,9 @@ class BagTopic:
         rings: number of rings (1 for a LaserScan; 0: a cloud without ring field).
         T_base_sensor: (frame -> (4, 4)) extrinsics of the frames its messages name.
         sweeps: number of messages.
+        time_scale: seconds per unit of a cloud's per-point time offsets
+            (:mod:`planodom.datasets.bag_time_units`), None: the documented reading.
+        empty: no message holds a point (its lack of rings costs the others none).
     """
 
     name: str
@@ -85,6 +89,13 @@ class BagTopic:
     rings: int
     T_base_sensor: dict[str, np.ndarray]
     sweeps: int
+    time_scale: float | None = None
+    empty: bool = False
+
+    @property
+    def ringless(self) -> bool:
+        """Its points carry no ring (a topic without any point has none to carry)."""
+        return self.rings == 0 and not self.empty
 
 
 class BagDataset:
@@ -102,6 +113,9 @@ class BagDataset:
             (the sensors' positions, m, base frame), ``extrinsics`` per topic (its first
             frame) and ``extra`` describing the source (bag, base frame, topics).
         dropped_epochs: epochs left out for lying outside the reference's time span.
+        notes: one line each on how the bag was read that a user should check (a time
+            unit other than the documented one, several point-cloud topics merged); the
+            CLI prints them as warnings.
 
     Use as a context manager (or call :meth:`close`) to release the bag's file handles.
     """
@@ -114,6 +128,7 @@ class BagDataset:
         index: BagIndex,
         gt_topic: str | None,
         time_field: str = "auto",
+        topics_chosen: bool = False,
     ) -> None:
         self.path = path
         self.time_field = time_field
@@ -130,7 +145,9 @@ class BagDataset:
             if not inside.any():
                 raise DatasetError(
                     f"{path}: gt '{gt_topic}' spans no epoch time (reference poses from "
-                    f"{index.gt_times.min() / NS:.3f} to {index.gt_times.max() / NS:.3f} s)"
+                    f"{index.gt_times.min() / NS:.3f} to {index.gt_times.max() / NS:.3f} s, "
+                    f"epochs from {ref.min() / NS:.3f} to {ref.max() / NS:.3f} s: the "
+                    "scans' header stamps on another clock, such as the sensor's own?)"
                 )
             members = [m for m, keep in zip(members, inside, strict=True) if keep]
             ref = ref[inside]
@@ -140,6 +157,7 @@ class BagDataset:
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
         self.rig = _bag_rig(self)
+        self.notes = bag_notes(index, topics_chosen)
         self._reader: AnyReader | None = None
 
     def _child_to_base(self, child: str) -> np.ndarray:
@@ -232,7 +250,9 @@ class BagDataset:
         for k, stamp, msg in sorted(sweeps, key=lambda s: (s[0], s[1])):
             topic = self.topics[k]
             try:
-                pts, ring, dt, _ = decode_sweep(msg, topic.msgtype, self.time_field)
+                pts, ring, dt, _ = decode_sweep(
+                    msg, topic.msgtype, self.time_field, topic.time_scale
+                )
             except ValueError as exc:
                 raise DatasetError(f"{self.path}: topic '{topic.name}': {exc}") from None
             if ring is not None:
@@ -242,12 +262,18 @@ class BagDataset:
             T = topic.T_base_sensor[frame_name(msg.header.frame_id)]
             points.append(transform_points(T, pts))
             times.append((stamp - ref) / NS + dt)
-        has_rings = all(t.rings > 0 for t in self.topics)
+        has_rings = _has_rings(self.topics)
         return Scan(
             np.concatenate(points) if points else np.zeros((0, 3)),
             np.concatenate(rings).astype(np.int32) if has_rings and rings else None,
             np.concatenate(times) if times else np.zeros(0),
         )
+
+
+def _has_rings(topics: list[BagTopic]) -> bool:
+    """Whether the scans carry rings: some topic has rings and every other one too, or no
+    point at all (a topic that never held a point takes no rings away)."""
+    return any(t.rings > 0 for t in topics) and not any(t.ringless for t in topics)
 
 
 def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
@@ -257,7 +283,11 @@ def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
     for k, t in enumerate(index.topics):
         where = f"{path}: topic '{t.name}'"
         extr = {f: index.tf.require(base_frame, f, where) for f in t.frames}
-        topics.append(BagTopic(t.name, t.msgtype, first, t.rings, extr, int(counts[k])))
+        scale = None if t.time_unit is None else t.time_unit.scale
+        empty = t.msgtype != LASER_SCAN and t.empty == counts[k]
+        topics.append(
+            BagTopic(t.name, t.msgtype, first, t.rings, extr, int(counts[k]), scale, empty)
+        )
         first += t.rings
     return topics
 
@@ -266,7 +296,7 @@ def _bag_rig(ds: BagDataset) -> Rig:
     """The typed rig of a bag: rate, per-ring sensor origins, per-topic extrinsics, source."""
     first_T = [next(iter(t.T_base_sensor.values())) for t in ds.topics]
     origins = None
-    if all(t.rings > 0 for t in ds.topics):
+    if _has_rings(ds.topics):
         origins = np.concatenate(
             [np.tile(T[:3, 3], (t.rings, 1)) for t, T in zip(ds.topics, first_T, strict=True)]
         )
@@ -317,7 +347,13 @@ def open_bag(path: str | Path, options: BagOptions | None = None) -> BagDataset:
     if len(index.sweep_stamp) == 0:
         raise DatasetError(f"{location}: no messages on the scan topics")
     return BagDataset(
-        location, opts.base_frame, opts.epoch_rate, index, opts.gt_topic, opts.time_field
+        location,
+        opts.base_frame,
+        opts.epoch_rate,
+        index,
+        opts.gt_topic,
+        opts.time_field,
+        topics_chosen=bool(opts.topics),
     )
 
 
@@ -331,6 +367,7 @@ class BagConversion:
         topics: the scan topics, in ring order; rings: total ring count (0: no rings).
         start_time, end_time: first and last epoch time, seconds since the Unix epoch.
         gt_topic: the reference source, or None; dropped_epochs: epochs outside its span.
+        notes: :attr:`BagDataset.notes`.
     """
 
     bag: Path
@@ -343,6 +380,7 @@ class BagConversion:
     end_time: float
     gt_topic: str | None
     dropped_epochs: int
+    notes: tuple[str, ...] = ()
 
 
 def convert_bag(
@@ -376,11 +414,12 @@ def convert_bag(
             len(ds),
             counter.points,
             tuple(t.name for t in ds.topics),
-            sum(t.rings for t in ds.topics) if all(t.rings for t in ds.topics) else 0,
+            sum(t.rings for t in ds.topics) if _has_rings(ds.topics) else 0,
             float(ds.times[0]),
             float(ds.times[-1]),
             ds.gt_topic,
             ds.dropped_epochs,
+            tuple(ds.notes),
         )
 
 

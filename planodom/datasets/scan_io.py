@@ -87,6 +87,7 @@ def read_scan(
     bin_layout: str = "auto",
     reference_time: float | None = None,
     time_field: str = "auto",
+    time_scale: float | None = None,
 ) -> Scan:
     """Read one scan file (``.ply``, ``.pcd`` or a KITTI / nuScenes ``.bin``).
 
@@ -99,6 +100,8 @@ def read_scan(
         time_field: the per-point time field: ``auto`` (the first of :data:`TIME_FIELDS`
             present), ``none`` (ignore the file's point times: a driver's clock that is not
             the epochs', or times nobody trusts) or a field name the file must have.
+        time_scale: seconds per unit of integer time offsets (None: nanoseconds; a
+            dataset's unit, :mod:`planodom.datasets.scan_time_units`).
 
     Returns:
         A :class:`Scan`: points (N, 3) float64 (float32 files widened exactly), with
@@ -122,7 +125,7 @@ def read_scan(
             fields = {".ply": read_ply_vertices, ".pcd": read_pcd}[suffix](path)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read scan file ({exc.strerror})") from None
-    return _scan_from_fields(path, fields, reference_time, time_field)
+    return _scan_from_fields(path, fields, reference_time, time_field, time_scale)
 
 
 def write_scan(file: str | Path, scan: Scan, points_dtype: type[np.floating] = np.float64) -> None:
@@ -171,6 +174,7 @@ def _scan_from_fields(
     fields: dict[str, np.ndarray],
     reference_time: float | None = None,
     time_field: str = "auto",
+    time_scale: float | None = None,
 ) -> Scan:
     missing = [c for c in "xyz" if c not in fields]
     if missing:
@@ -200,7 +204,8 @@ def _scan_from_fields(
     except ValueError as exc:
         raise DatasetError(f"{path}: {exc}; --time-field auto or none") from None
     if time_name is not None:
-        extra["t"] = point_times(path, time_name, fields[time_name], reference_time)
+        raw = fields[time_name]
+        extra["t"] = point_times(path, time_name, raw, reference_time, time_scale)
     ring_name = next((n for n in RING_FIELDS if n in fields), None)
     if ring_name is not None:
         extra["ring"] = _int32(path, ring_name, fields[ring_name], 0)
@@ -261,10 +266,15 @@ def _int32(path: Path, name: str, values: np.ndarray, lowest: int | None) -> np.
 
 
 def point_times(
-    path: Path, name: str, raw: np.ndarray, reference_time: float | None = None
+    path: Path,
+    name: str,
+    raw: np.ndarray,
+    reference_time: float | None = None,
+    time_scale: float | None = None,
 ) -> np.ndarray:
     """(N,) float64 seconds from the epoch's reference time, from a file's time field ``raw``
-    (offsets or absolute Unix times, see the module docstring).
+    (offsets or absolute Unix times, see the module docstring; ``time_scale``: seconds per
+    unit of integer offsets, None: nanoseconds).
 
     Raises:
         DatasetError: naming the file and the field, for times that are NaN, neither
@@ -272,7 +282,8 @@ def point_times(
             the epoch's.
     """
     integer = raw.dtype.kind in "iu"
-    unit = "ns" if integer else "s"
+    scale = (1e-9 if time_scale is None else time_scale) if integer else 1.0
+    unit = {1e-9: "ns", 1e-6: "us"}.get(scale, "s") if integer else "s"
     absolute = _absolute_ns(raw)
     if absolute is not None:
         if raw.dtype.itemsize < 8:
@@ -294,7 +305,7 @@ def point_times(
                 "ignores them)"
             )
         return t
-    t = raw.astype(np.float64) * (1e-9 if integer else 1.0)
+    t = raw.astype(np.float64) * scale
     if not np.all(np.abs(t) <= MAX_POINT_TIME_S):  # NaN too
         bad = int(np.count_nonzero(~(np.abs(t) <= MAX_POINT_TIME_S)))
         raise DatasetError(

@@ -344,3 +344,16 @@ def test_scans_without_points_are_reported(ds: Path) -> None:
     assert len(warning) == 1 and "000002" in warning[0], result.stderr
     listed = json.loads((out / "metrics.json").read_text())["scans_without_points"]
     assert [Path(p).name for p in listed] == [sorted((ds / "scans").iterdir())[2].name]
+
+
+def test_scans_in_millimetres_are_named_as_such(ds: Path) -> None:
+    """float millimetres were warned of as 'a map-frame export?': a scan that itself spans
+    more than twice any sensor's range is no metres at all."""
+    for path in sorted((ds / "scans").iterdir()):
+        scan = read_scan(path)
+        write_scan(path, type(scan)(scan.points * 1000.0, scan.ring, scan.t))
+    result = runner.invoke(app, ["run", str(ds), "--out", str(ds.parent / "out")])
+    assert result.exit_code == 0, result.output
+    warning = [line for line in result.stderr.splitlines() if "1000 m" in line]
+    assert len(warning) == 1 and "not metres (millimetres?" in warning[0], result.stderr
+    assert "map-frame" not in warning[0]

@@ -124,3 +124,20 @@ def test_time_field_by_name(tmp_path: Path) -> None:
         read_scan(tmp_path / "a.pcd", time_field="offset")
     with pytest.raises(DatasetError, match="time field must be auto, none or a field name"):
         read_scan(tmp_path / "a.pcd", time_field=" ")
+
+
+@pytest.mark.parametrize("per_unit_ns", [1, 1000], ids=["ns", "us"])
+def test_integer_offsets_in_us_are_told_from_ns_by_the_epoch_period(
+    tmp_path: Path, per_unit_ns: int
+) -> None:
+    """Integer microseconds were read as nanoseconds: a 0.1 s sweep taken as 0.1 ms."""
+    offsets_ns = np.arange(0, 100_000_000, 400_000)  # a 0.1 s sweep, 250 points
+    _dataset(tmp_path, [(offsets_ns // per_unit_ns).astype(np.uint32)] * 3, [0.0, 0.1, 0.2])
+    ds = load_dataset(tmp_path)
+    np.testing.assert_allclose(ds[1].t, offsets_ns * 1e-9, rtol=0, atol=1e-12)
+    if per_unit_ns == 1:
+        assert ds.notes == []
+    else:
+        assert len(ds.notes) == 1
+        assert "time field 'timestamp' (uint32) read as microseconds" in ds.notes[0]
+        assert "100 ms between epochs" in ds.notes[0]

@@ -326,3 +326,95 @@ def test_time_field_none_puts_every_point_at_its_sweep_stamp(tmp_path: Path) -> 
             assert np.ptp(timed[k].t) > 0.05 and np.ptp(flat[k].t) == 0.0
     with pytest.raises(DatasetError, match="time field must be auto, none or a field name"):
         BagOptions(time_field=" ")
+
+
+@pytest.mark.parametrize(
+    "ros, layout, unit", [(1, "ouster_us", "microseconds"), (2, "velodyne_ms", "milliseconds")]
+)
+def test_time_offsets_in_another_unit_are_read_by_the_sweep_period(
+    tmp_path: Path, ros: int, layout: str, unit: str
+) -> None:
+    """Integer microseconds were read as nanoseconds (a 0.1 s sweep taken as 0.1 ms, so
+    deskewed as one instant, without a word) and float milliseconds refused: only one
+    reading makes a sweep span the 0.1 s between its messages."""
+    path = tmp_path / ("b.bag" if ros == 1 else "b")
+    truth = write_bag(path, ros, [Sensor("/points", "lidar", 0, layout)], STATIC_TF, T_BASE)
+    with open_bag(path, BagOptions(gt_topic="/odom")) as ds:
+        check_against_truth(ds, list(ds), truth, {r: "/points" for r in range(16)})
+        assert len(ds.notes) == 1
+        assert f"topic '/points': time field '{'t' if ros == 1 else 'time'}'" in ds.notes[0]
+        assert f"read as {unit}" in ds.notes[0]
+
+
+def test_documented_units_and_one_cloud_topic_give_no_notes(tmp_path: Path) -> None:
+    sensors = [Sensor("/os", "lidar", 0, "ouster"), *SCANNERS[:2]]
+    write_bag(tmp_path / "b", 2, sensors, STATIC_TF, T_BASE, odom=False)
+    with open_bag(tmp_path / "b") as ds:
+        assert ds.notes == []
+
+
+def test_several_cloud_topics_read_are_said(tmp_path: Path) -> None:
+    """Every cloud topic is merged into the epochs; a raw and a filtered topic of one lidar
+    were merged without a word (the points twice, in two frames of time)."""
+    sensors = [Sensor("/points", "lidar", 0, "velodyne"), Sensor("/filtered", "lidar", 0, "ouster")]
+    write_bag(tmp_path / "b", 2, sensors, STATIC_TF, T_BASE, odom=False)
+    with open_bag(tmp_path / "b") as ds:
+        assert len(ds.notes) == 1
+        assert "2 point-cloud topics read and merged" in ds.notes[0]
+        assert "'/filtered' (lidar, 12 sweeps), '/points' (lidar, 12 sweeps)" in ds.notes[0]
+    with open_bag(tmp_path / "b", BagOptions(topics=("/points", "/filtered"))) as ds:
+        assert ds.notes == []  # chosen
+
+
+def test_unstamped_messages_and_a_topic_without_points_are_noted(tmp_path: Path) -> None:
+    """Messages stamped 0 took their record time without a word; a cloud topic that never
+    held a point made every scan ringless without a word (its rings: none, not unknown)."""
+    from dataclasses import replace
+
+    from bag_factory import BagWriter, lidar_cloud
+
+    truth = Truth(T_base_sensor=T_BASE)
+    with BagWriter(tmp_path / "b.bag", 1) as bw:
+        tf = [bw.transform_stamped(T0_NS, p, c, T) for p, c, T in STATIC_TF]
+        bw.write("/tf_static", bw.tf(tf), T0_NS)
+        for k in range(5):
+            stamp = T0_NS + k * 100_000_000
+            msg = lidar_cloud(bw, truth, "/points", "lidar", stamp)
+            off = replace(msg, header=bw.header(stamp, "lidar"), width=0, row_step=0,
+                          data=np.zeros(0, np.uint8))  # fmt: skip
+            if k < 2:
+                msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0
+            bw.write("/points", msg, stamp + 2_000_000)
+            bw.write("/off", off, stamp + 3_000_000)
+    with open_bag(tmp_path / "b.bag", BagOptions(topics=("/points", "/off"))) as ds:
+        assert len(ds.notes) == 2
+        assert ds.notes[0].startswith("topic '/points': 2 of 5 messages have no header stamp")
+        assert ds.notes[1].startswith("topic '/off': none of its 5 messages holds a point")
+        assert ds.rig.sensor_origins.shape == (16, 3)
+        with open_bag(tmp_path / "b.bag", BagOptions(topics=("/points",))) as alone:
+            assert len(alone.notes) == 1
+            for k in range(len(ds)):
+                np.testing.assert_array_equal(ds[k].ring, alone[k].ring)
+                np.testing.assert_array_equal(ds[k].points, alone[k].points)
+
+
+def test_scans_on_another_clock_than_the_reference_name_both_spans(tmp_path: Path) -> None:
+    """A driver stamping with the sensor's clock (seconds since boot): the error gave the
+    reference's span only, not the epochs'."""
+    from bag_factory import BagWriter, lidar_cloud
+
+    truth = Truth(T_base_sensor=T_BASE)
+    with BagWriter(tmp_path / "b.bag", 1) as bw:
+        tf = [bw.transform_stamped(T0_NS, p, c, T) for p, c, T in STATIC_TF]
+        bw.write("/tf_static", bw.tf(tf), T0_NS)
+        for k in range(5):
+            stamp = T0_NS + k * 100_000_000
+            msg = lidar_cloud(bw, truth, "/points", "lidar", stamp)
+            msg.header.stamp.sec = 1234  # since boot
+            bw.write("/points", msg, stamp + 2_000_000)
+            bw.write("/odom", bw.odometry(stamp, true_pose(stamp / 1e9)), stamp)
+    with pytest.raises(DatasetError) as exc:
+        open_bag(tmp_path / "b.bag", BagOptions(gt_topic="/odom"))
+    message = str(exc.value)
+    assert "reference poses from 1700000000.000 to 1700000000.400 s" in message
+    assert "epochs from 1234.000 to 1234.400 s" in message and "another clock" in message

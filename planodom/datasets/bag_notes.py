@@ -1,0 +1,50 @@
+"""How a bag was read, in the lines a user should check: :func:`bag_notes`.
+
+None of these stops the reading (the data may be right), but each changes what the
+odometry gets without the user having asked for it, so the CLI warns of each and lists
+them in ``metrics.json``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planodom.datasets.bag_index import BagIndex
+from planodom.datasets.bag_msgs import LASER_SCAN
+
+
+def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
+    """One line each (see the module docstring), naming the topic and what to do.
+
+    - a cloud topic's time offsets read in a unit other than the documented one, or not
+      clear-cut (:mod:`planodom.datasets.bag_time_units`);
+    - messages without a header stamp (0), for which the bag's record time stands;
+    - a scan topic none of whose messages holds a point;
+    - several point-cloud topics merged into each epoch when none was ``chosen``
+      (``--topic``): a raw and a filtered cloud of one lidar would be read twice.
+    """
+    counts = np.bincount(index.sweep_topic, minlength=len(index.topics))
+    notes = []
+    for t, sweeps in zip(index.topics, counts, strict=True):
+        if t.time_unit is not None and t.time_unit.note:
+            notes.append(f"topic '{t.name}': {t.time_unit.note}")
+        if t.unstamped:
+            notes.append(
+                f"topic '{t.name}': {t.unstamped} of {sweeps} messages have no header stamp "
+                "(0): the bag's record time stands for it, late by the message's transport"
+            )
+        if t.msgtype != LASER_SCAN and t.empty == sweeps:
+            notes.append(
+                f"topic '{t.name}': none of its {sweeps} messages holds a point (the sensor "
+                "off, or everything filtered out?); its stamps still place the epochs: "
+                "--topic leaves it out"
+            )
+    clouds = [(t, n) for t, n in zip(index.topics, counts, strict=True) if t.msgtype != LASER_SCAN]
+    if not chosen and len(clouds) > 1:
+        shown = ", ".join(f"'{t.name}' ({t.frames[0]}, {n} sweeps)" for t, n in clouds)
+        notes.append(
+            f"{len(clouds)} point-cloud topics read and merged into each epoch: {shown}; if "
+            "they are not separate lidars (one is the other filtered or deskewed), choose "
+            "with --topic"
+        )
+    return notes

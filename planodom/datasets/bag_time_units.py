@@ -1,0 +1,141 @@
+"""The unit of a cloud topic's per-point time offsets, from the sweeps' spans and the period.
+
+A ``sensor_msgs/PointField`` has a type but no unit. The documented reading takes integer
+offsets as nanoseconds and float ones as seconds (Ouster's ``t``, Livox's ``offset_time``;
+Velodyne's ``time``), but a driver may write integer microseconds or float milliseconds.
+Read a thousand times too small, the times hardly move (a 0.1 s sweep spans 0.1 ms, so the
+sweep is deskewed as if taken at one instant: centimetres of error, and no word); read a
+thousand times too large, a sweep spans 100 s and is refused.
+
+The rule needs no threshold fitted to data: a sweep lasts about the period between its
+topic's messages (a spinning lidar turns once per message, a Livox integrates for the
+period, a driver publishing parts of a turn publishes them as often), so of the two
+readings a thousandfold apart the one whose span lies nearer the period (on a log scale:
+the boundary is their geometric mean, a factor ``sqrt(1000)``, about 32, either way) is
+the unit. Each sweep with a span votes; the majority is the topic's unit, the documented
+unit on a tie. A note (one line, for the CLI to warn) says so when the unit is not the
+documented one, or when some sweeps voted for the other (a cloud cropped to a sliver of
+the turn, a paused driver): there the choice is not clear-cut. Without a period (fewer
+than two distinct stamps) or spans, the documented unit is kept. Absolute times (Unix
+times, :mod:`planodom.datasets.bag_msgs`) carry their unit in their size and are not
+concerned.
+"""
+
+from __future__ import annotations
+
+from array import array
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: The two readings of relative times by field kind: (unit, seconds per unit), documented first.
+UNITS: dict[str, tuple[tuple[str, float], tuple[str, float]]] = {
+    "integer": (("ns", 1e-9), ("us", 1e-6)),
+    "float": (("s", 1.0), ("ms", 1e-3)),
+}
+UNIT_WORDS = {"ns": "nanoseconds", "us": "microseconds", "s": "seconds", "ms": "milliseconds"}
+
+
+@dataclass
+class TopicTimes:
+    """What the index pass learnt of one cloud topic's relative per-point times.
+
+    Attributes:
+        name: the time field read ("" until a sweep with relative times is seen).
+        dtype: its type (numpy's name, e.g. ``uint32``).
+        spans: per such sweep, its times' span (max - min) in the field's own unit.
+        largest: the largest ``|time|`` of any sweep, in the field's own unit.
+    """
+
+    name: str = ""
+    dtype: str = ""
+    spans: array = field(default_factory=lambda: array("d"))
+    largest: float = 0.0
+
+    def add(self, name: str, values: np.ndarray) -> None:
+        """Add one sweep's relative times ``values`` (n,) (finite, the field's own type)."""
+        self.name, self.dtype = name, values.dtype.name
+        if len(values):
+            low, high = float(values.min()), float(values.max())
+            self.spans.append(high - low)
+            self.largest = max(self.largest, abs(low), abs(high))
+
+    @property
+    def kind(self) -> str:
+        """``integer`` or ``float``."""
+        return "integer" if np.dtype(self.dtype).kind in "iu" else "float"
+
+
+@dataclass(frozen=True)
+class TimeUnit:
+    """The reading chosen for a topic's relative times.
+
+    Attributes:
+        unit: ``ns``, ``us``, ``s`` or ``ms``; scale: seconds per unit.
+        note: one line when the unit is not the documented one or the sweeps disagree
+            (else None); the caller adds the topic.
+    """
+
+    unit: str
+    scale: float
+    note: str | None = None
+
+
+def _duration(seconds: float) -> str:
+    """``seconds`` in the unit that reads best (``0.1 ms``, ``99.6 ms``, ``12 s``)."""
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9)):
+        if abs(seconds) >= scale or unit == "ns":
+            return f"{seconds / scale:.3g} {unit}"
+    return f"{seconds:g} s"  # pragma: no cover
+
+
+def period_s(stamps_ns: np.ndarray) -> float | None:
+    """The median step (s) between a topic's distinct message stamps, None below two."""
+    steps = np.diff(np.unique(np.asarray(stamps_ns, dtype=np.int64)))
+    return float(np.median(steps)) * 1e-9 if len(steps) else None
+
+
+def choose_unit(times: TopicTimes, stamps_ns: np.ndarray, between: str = "messages") -> TimeUnit:
+    """The unit of a topic's relative times (see the module docstring).
+
+    Args:
+        times: the spans of its sweeps (:class:`TopicTimes`).
+        stamps_ns: (n,) int64 its messages' stamps, ns.
+        between: what the stamps are of, for the note (``messages``, ``epochs``).
+    """
+    (doc, doc_scale), (alt, alt_scale) = UNITS[times.kind]
+    spans = np.frombuffer(times.spans, dtype=np.float64)
+    spans = spans[spans > 0]
+    period = period_s(stamps_ns)
+    if period is None or len(spans) == 0:
+        return TimeUnit(doc, doc_scale)
+    # log distance of each sweep's span from the period under either reading
+    off_doc = np.abs(np.log(spans * doc_scale / period))
+    off_alt = np.abs(np.log(spans * alt_scale / period))
+    votes_alt = int(np.count_nonzero(off_alt < off_doc))
+    votes_doc = len(spans) - votes_alt
+    unit, scale = (alt, alt_scale) if votes_alt > votes_doc else (doc, doc_scale)
+    median = float(np.median(spans))
+    what = f"time field '{times.name}' ({times.dtype})"
+    other = doc if unit == alt else alt
+    other_scale = doc_scale if unit == alt else alt_scale
+    spread = (
+        f"as {UNIT_WORDS[other]} a sweep would span {_duration(median * other_scale)} of the "
+        f"{_duration(period)} between {between}, as {UNIT_WORDS[unit]} "
+        f"{_duration(median * scale)} (median)"
+    )
+    against = votes_doc if unit == alt else votes_alt
+    if against:
+        note = (
+            f"{what} read as {UNIT_WORDS[unit]}, but not clear-cut: {against} of "
+            f"{len(spans)} sweeps span nearer the period as {UNIT_WORDS[other]}; {spread}; "
+            "--time-field none ignores the times"
+        )
+        return TimeUnit(unit, scale, note)
+    if unit == alt:
+        note = (
+            f"{what} read as {UNIT_WORDS[unit]}, not {UNIT_WORDS[doc]}: {spread}; "
+            "--time-field none ignores the times"
+        )
+        return TimeUnit(unit, scale, note)
+    return TimeUnit(unit, scale)

@@ -1,0 +1,77 @@
+"""The CLI on bags as other drivers and recorders leave them: per-point times in another
+unit, several point-cloud topics, unfinished recordings, a bag where a trajectory belongs.
+Each case a warning naming the topic and field, or one error line naming the way out."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from bag_factory import STATIC_TF, T_BASE, Sensor, write_bag
+from typer.testing import CliRunner
+
+from planodom.cli import app
+
+runner = CliRunner()
+
+
+def fails(args: list[object], *words: str) -> str:
+    """Run, expect exit status 2 and one line on stderr holding ``words``; return it."""
+    result = runner.invoke(app, [str(a) for a in args])
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    for word in words:
+        assert word in lines[0], (word, lines[0])
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def us_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A ROS 1 bag of an Ouster-like cloud whose uint32 ``t`` is in microseconds."""
+    path = tmp_path_factory.mktemp("bags") / "us.bag"
+    write_bag(path, 1, [Sensor("/points", "lidar", 0, "ouster_us")], STATIC_TF, T_BASE)
+    return path
+
+
+def test_run_and_convert_say_the_time_unit_chosen(us_bag: Path, tmp_path: Path) -> None:
+    """Integer microseconds were read as nanoseconds without a word."""
+    result = runner.invoke(app, ["run", str(us_bag), "--out", str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    warning = [line for line in result.stderr.splitlines() if "time field" in line]
+    assert len(warning) == 1, result.stderr
+    assert warning[0].startswith("warning: topic '/points': time field 't' (uint32) read as ")
+    assert "microseconds, not nanoseconds" in warning[0]
+    notes = json.loads((tmp_path / "run" / "metrics.json").read_text())["recording_notes"]
+    assert notes == [warning[0].removeprefix("warning: ")]
+    result = runner.invoke(app, ["convert", str(us_bag), str(tmp_path / "ds")])
+    assert result.exit_code == 0, result.output
+    assert "read as microseconds" in result.stderr
+
+
+def test_unfinished_recordings_name_the_reindex(us_bag: Path, tmp_path: Path) -> None:
+    """A .bag.active file was 'not a directory'; ROS 2 storage without metadata.yaml
+    'files with unknown extensions'; a ROS 1 bag cut short a damaged index, no way out."""
+    active = tmp_path / "rec.bag.active"
+    shutil.copy(us_bag, active)
+    fails(["run", active, "--out", tmp_path / "o"], "unfinished ROS 1", "rosbag reindex")
+    fails(["convert", active, tmp_path / "o"], "unfinished ROS 1", "rosbag reindex")
+    ros2 = tmp_path / "ros2"
+    write_bag(ros2, 2, [Sensor("/points", "lidar", 0, "velodyne")], STATIC_TF, T_BASE)
+    (ros2 / "metadata.yaml").unlink()
+    for given in (ros2, next(ros2.glob("*.db3"))):
+        fails(["run", given, "--out", tmp_path / "o"], "no metadata.yaml", "ros2 bag reindex")
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(us_bag.read_bytes()[:5000])
+    fails(["run", cut, "--out", tmp_path / "o"], "cut.bag: cannot read bag", "rosbag reindex")
+    assert not (tmp_path / "o").exists()
+
+
+def test_eval_against_a_bag_names_the_conversion(us_bag: Path, tmp_path: Path) -> None:
+    """A bag as the reference was 'not a trajectory file (not UTF-8 text)'."""
+    est = tmp_path / "est.tum"
+    est.write_text("0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n")
+    fails(["eval", est, us_bag], "us.bag is a ROS bag", "convert BAG OUT --gt-topic")
