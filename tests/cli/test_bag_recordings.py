@@ -10,23 +10,12 @@ from pathlib import Path
 
 import pytest
 from bag_factory import STATIC_TF, T_BASE, Sensor, write_bag
+from cli_checks import fails
 from typer.testing import CliRunner
 
 from planodom.cli import app
 
 runner = CliRunner()
-
-
-def fails(args: list[object], *words: str) -> str:
-    """Run, expect exit status 2 and one line on stderr holding ``words``; return it."""
-    result = runner.invoke(app, [str(a) for a in args])
-    assert result.exit_code == 2, result.output
-    assert "Traceback" not in result.output
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    for word in words:
-        assert word in lines[0], (word, lines[0])
-    return lines[0]
 
 
 @pytest.fixture(scope="module")

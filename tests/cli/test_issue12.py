@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from cli_checks import fails
 from typer.testing import CliRunner
 
 from planodom.cli import app
@@ -34,20 +35,6 @@ def ds(simulated: Path, tmp_path: Path) -> Path:
 def ok(args: list[str]) -> None:
     result = runner.invoke(app, [str(a) for a in args])
     assert result.exit_code == 0, result.output
-
-
-def fails(args: list[str], *words: str, absent: tuple[str, ...] = ()) -> str:
-    """Run, expect exit status 2 and one line on stderr holding ``words``; return it."""
-    result = runner.invoke(app, [str(a) for a in args])
-    assert result.exit_code == 2, result.output
-    assert "Traceback" not in result.output
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    for word in words:
-        assert str(word) in lines[0], (word, lines[0])
-    for word in absent:
-        assert str(word) not in lines[0], (word, lines[0])
-    return lines[0]
 
 
 def _snapshot(folder: Path) -> dict[str, bytes]:
