@@ -22,7 +22,7 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
     - a scan topic none of whose messages holds a point (left out of the epochs when
       another topic has points);
     - messages recorded twice (same topic, stamp and content), read once;
-    - several point-cloud topics merged into each epoch when none was ``chosen``
+    - several point-cloud topics with points merged into each epoch when none was ``chosen``
       (``--topic``): a raw and a filtered cloud of one lidar would be read twice.
     """
     counts = np.bincount(index.sweep_topic, minlength=len(index.topics))
@@ -48,7 +48,11 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
                 "stamp and content of an earlier one: merged or overlapping recordings?), "
                 "read once"
             )
-    clouds = [(t, n) for t, n in zip(index.topics, counts, strict=True) if t.msgtype != LASER_SCAN]
+    clouds = [
+        (t, n)
+        for t, n in zip(index.topics, counts, strict=True)
+        if t.msgtype != LASER_SCAN and not t.pointless  # a topic without points adds none
+    ]
     if not chosen and len(clouds) > 1:
         shown = ", ".join(f"'{t.name}' ({t.frames[0]}, {n} sweeps)" for t, n in clouds)
         notes.append(
