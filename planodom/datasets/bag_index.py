@@ -280,7 +280,7 @@ def index_bag(
     index = [TopicIndex(name, str(reader.topics[name].msgtype)) for name in names]
     wanted = {*names, TF_TOPIC, TF_STATIC_TOPIC} | ({gt} if isinstance(gt, str) else set())
     conns = [c for c in reader.connections if c.topic in wanted]
-    rows = array("q")  # topic, bag time, stamp, content digest per sweep: 32 bytes each
+    rows = array("q")  # topic, bag time, stamp per sweep: 24 bytes each
     gt_log = PoseLog()
     gt_child = gt[1] if isinstance(gt, tuple) else ""
     with bag_errors(path):
@@ -292,7 +292,6 @@ def index_bag(
             elif conn.topic in topic_of:
                 k = topic_of[conn.topic]
                 rows.extend((k, bag_time, stamp_ns(msg.header) or bag_time))
-                rows.append(_digest(raw, ros1=not reader.is2))
                 _note_sweep(index[k], msg, path, time_field)
             else:
                 with _message_errors(path, conn.topic):
@@ -304,8 +303,8 @@ def index_bag(
     if gt is not None and not len(gt_log):
         what = f"/tf transform '{gt[0]}' -> '{gt[1]}'" if isinstance(gt, tuple) else gt
         raise DatasetError(f"{path}: no reference poses in gt {what}")
-    table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 4).copy()
-    duplicate = _duplicates(table)
+    table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 3).copy()
+    duplicate = _duplicates(reader, path, topic_of, table)
     for k, topic in enumerate(index):
         _choose_time_unit(topic, table[table[:, 0] == k, 2], path)
         topic.sweeps = int((table[:, 0] == k).sum())
@@ -331,15 +330,39 @@ def _digest(raw: bytes, ros1: bool) -> int:
     return int.from_bytes(hashlib.blake2b(body, digest_size=8).digest(), "little", signed=True)
 
 
-def _duplicates(table: np.ndarray) -> np.ndarray:
-    """(n,) bool, the rows of ``table`` (topic, bag time, stamp, digest) repeating an
-    earlier row's topic, stamp and digest (the first in bag order is not one)."""
+def _duplicates(
+    reader: AnyReader, path: Path, topic_of: dict[str, int], table: np.ndarray
+) -> np.ndarray:
+    """(n,) bool, the sweeps of ``table`` (topic, bag time, stamp per row, in bag order)
+    repeating an earlier one's topic, stamp and content (the first is not one). Only rows
+    sharing a topic and stamp are read again, for their content's digest: usually none."""
     n = len(table)
-    order = np.lexsort((np.arange(n), table[:, 3], table[:, 2], table[:, 0]))
-    key = table[order][:, [0, 2, 3]]
-    repeat = np.all(key[1:] == key[:-1], axis=1)
     duplicate = np.zeros(n, dtype=bool)
-    duplicate[order[1:][repeat]] = True
+    order = np.lexsort((np.arange(n), table[:, 2], table[:, 0]))
+    key = table[order][:, [0, 2]]
+    same = np.flatnonzero(np.all(key[1:] == key[:-1], axis=1))
+    if not len(same):
+        return duplicate
+    suspects = np.union1d(order[same], order[same + 1])  # ascending: bag order
+    at = {(int(table[s, 0]), int(table[s, 1])) for s in suspects}
+    rows_at: dict[tuple[int, int], list[int]] = {}
+    for s in range(n):  # every row of those (topic, bag time): the messages come in row order
+        if (k := (int(table[s, 0]), int(table[s, 1]))) in at:
+            rows_at.setdefault(k, []).append(s)
+    digest: dict[int, int] = {}
+    conns = [c for c in reader.connections if c.topic in topic_of]
+    with bag_errors(path):
+        for conn, bag_time, raw in reader.messages(connections=conns):
+            waiting = rows_at.get((topic_of[conn.topic], bag_time))
+            if waiting:
+                digest[waiting.pop(0)] = _digest(raw, ros1=not reader.is2)
+    seen: set[tuple[int, int, int]] = set()
+    for s in suspects:
+        if s not in digest:  # pragma: no cover - every suspect is read again
+            continue
+        content = (int(table[s, 0]), int(table[s, 2]), digest[s])
+        duplicate[s] = content in seen
+        seen.add(content)
     return duplicate
 
 
