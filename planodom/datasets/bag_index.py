@@ -8,6 +8,7 @@ the bag and, where it applies, the topic or frame.
 
 from __future__ import annotations
 
+import hashlib
 import sqlite3
 import struct
 from array import array
@@ -152,6 +153,9 @@ class TopicIndex:
             None without relative per-point times.
         unstamped: messages whose header stamp is 0 (their record time stands for it).
         empty: messages without a point (clouds, Livox messages; 0 for a LaserScan).
+        sweeps: its messages (duplicates included).
+        duplicates: messages recorded again (same stamp and content as an earlier one,
+            ROS 1's ``header.seq`` aside), left out of the epochs.
     """
 
     name: str
@@ -162,6 +166,13 @@ class TopicIndex:
     time_unit: TimeUnit | None = None
     unstamped: int = 0
     empty: int = 0
+    duplicates: int = 0
+    sweeps: int = 0
+
+    @property
+    def pointless(self) -> bool:
+        """A cloud topic none of whose messages holds a point."""
+        return self.msgtype != LASER_SCAN and self.empty == self.sweeps
 
 
 @dataclass
@@ -173,6 +184,8 @@ class BagIndex:
         sweep_topic: (n,) int32 index into ``topics``.
         sweep_bag_time: (n,) int64 ns, the bag's record time of the message.
         sweep_stamp: (n,) int64 ns, the header stamp (the record time when the stamp is 0).
+        sweep_duplicate: (n,) bool, a message recorded again: same topic, stamp and
+            content as an earlier one (the first is kept).
         tf: the bag's transform tree.
         gt_times: (M,) int64 ns and ``gt_poses`` (M, 4, 4) ``T_parent_child`` of the
             reference trajectory (empty without ``gt_topic``); ``gt_child`` its child frame.
@@ -182,10 +195,21 @@ class BagIndex:
     sweep_topic: np.ndarray
     sweep_bag_time: np.ndarray
     sweep_stamp: np.ndarray
+    sweep_duplicate: np.ndarray
     tf: TfTree
     gt_times: np.ndarray
     gt_poses: np.ndarray
     gt_child: str
+
+    def in_epochs(self) -> np.ndarray:
+        """(n,) bool, the sweeps that make the epochs: not a duplicate, and not of a topic
+        without any point while another topic has points (its stamps alone would move the
+        epochs' windows and reference times; a recording without any point keeps them)."""
+        keep = ~self.sweep_duplicate
+        pointless = [k for k, t in enumerate(self.topics) if t.pointless]
+        if len(pointless) < len(self.topics):
+            keep &= ~np.isin(self.sweep_topic, pointless)
+        return keep
 
 
 def select_topics(reader: AnyReader, path: Path, topics: Sequence[str] | None) -> list[str]:
@@ -280,19 +304,66 @@ def index_bag(
         what = f"/tf transform '{gt[0]}' -> '{gt[1]}'" if isinstance(gt, tuple) else gt
         raise DatasetError(f"{path}: no reference poses in gt {what}")
     table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 3).copy()
+    duplicate = _duplicates(reader, path, topic_of, table)
     for k, topic in enumerate(index):
         _choose_time_unit(topic, table[table[:, 0] == k, 2], path)
+        topic.sweeps = int((table[:, 0] == k).sum())
+        topic.duplicates = int(duplicate[table[:, 0] == k].sum())
     gt_times, gt_poses = gt_log.arrays()
     return BagIndex(
         index,
         table[:, 0].astype(np.int32),
         table[:, 1],
         table[:, 2],
+        duplicate,
         tree,
         gt_times,
         gt_poses,
         gt_child,
     )
+
+
+def _digest(raw: bytes, ros1: bool) -> int:
+    """A 64-bit digest of a scan message's serialized content. A ROS 1 message starts with
+    its header's ``seq`` (4 bytes), a publisher's counter, not content: it is left out."""
+    body = memoryview(raw)[4:] if ros1 else raw
+    return int.from_bytes(hashlib.blake2b(body, digest_size=8).digest(), "little", signed=True)
+
+
+def _duplicates(
+    reader: AnyReader, path: Path, topic_of: dict[str, int], table: np.ndarray
+) -> np.ndarray:
+    """(n,) bool, the sweeps of ``table`` (topic, bag time, stamp per row, in bag order)
+    repeating an earlier one's topic, stamp and content (the first is not one). Only rows
+    sharing a topic and stamp are read again, for their content's digest: usually none."""
+    n = len(table)
+    duplicate = np.zeros(n, dtype=bool)
+    order = np.lexsort((np.arange(n), table[:, 2], table[:, 0]))
+    key = table[order][:, [0, 2]]
+    same = np.flatnonzero(np.all(key[1:] == key[:-1], axis=1))
+    if not len(same):
+        return duplicate
+    suspects = np.union1d(order[same], order[same + 1])  # ascending: bag order
+    at = {(int(table[s, 0]), int(table[s, 1])) for s in suspects}
+    rows_at: dict[tuple[int, int], list[int]] = {}
+    for s in range(n):  # every row of those (topic, bag time): the messages come in row order
+        if (k := (int(table[s, 0]), int(table[s, 1]))) in at:
+            rows_at.setdefault(k, []).append(s)
+    digest: dict[int, int] = {}
+    conns = [c for c in reader.connections if c.topic in topic_of]
+    with bag_errors(path):
+        for conn, bag_time, raw in reader.messages(connections=conns):
+            waiting = rows_at.get((topic_of[conn.topic], bag_time))
+            if waiting:
+                digest[waiting.pop(0)] = _digest(raw, ros1=not reader.is2)
+    seen: set[tuple[int, int, int]] = set()
+    for s in suspects:
+        if s not in digest:  # pragma: no cover - every suspect is read again
+            continue
+        content = (int(table[s, 0]), int(table[s, 2]), digest[s])
+        duplicate[s] = content in seen
+        seen.add(content)
+    return duplicate
 
 
 def _deserialize(reader: AnyReader, path: Path, conn: Connection, raw: bytes) -> Any:

@@ -19,11 +19,14 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
     - a cloud topic's time offsets read in a unit other than the documented one, or not
       clear-cut (:mod:`planodom.datasets.bag_time_units`);
     - messages without a header stamp (0), for which the bag's record time stands;
-    - a scan topic none of whose messages holds a point;
-    - several point-cloud topics merged into each epoch when none was ``chosen``
+    - a scan topic none of whose messages holds a point (left out of the epochs when
+      another topic has points);
+    - messages recorded twice (same topic, stamp and content), read once;
+    - several point-cloud topics with points merged into each epoch when none was ``chosen``
       (``--topic``): a raw and a filtered cloud of one lidar would be read twice.
     """
     counts = np.bincount(index.sweep_topic, minlength=len(index.topics))
+    some_points = not all(t.pointless for t in index.topics)
     notes = []
     for t, sweeps in zip(index.topics, counts, strict=True):
         if t.time_unit is not None and t.time_unit.note:
@@ -33,13 +36,23 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
                 f"topic '{t.name}': {t.unstamped} of {sweeps} messages have no header stamp "
                 "(0): the bag's record time stands for it, late by the message's transport"
             )
-        if t.msgtype != LASER_SCAN and t.empty == sweeps:
+        if t.pointless:
             notes.append(
                 f"topic '{t.name}': none of its {sweeps} messages holds a point (the sensor "
-                "off, or everything filtered out?); its stamps still place the epochs: "
-                "--topic leaves it out"
+                "off, or everything filtered out?)"
+                + ("; left out of the epochs" if some_points else "")
             )
-    clouds = [(t, n) for t, n in zip(index.topics, counts, strict=True) if t.msgtype != LASER_SCAN]
+        if t.duplicates:
+            notes.append(
+                f"topic '{t.name}': {t.duplicates} of {sweeps} messages recorded twice (the "
+                "stamp and content of an earlier one: merged or overlapping recordings?), "
+                "read once"
+            )
+    clouds = [
+        (t, n)
+        for t, n in zip(index.topics, counts, strict=True)
+        if t.msgtype != LASER_SCAN and not t.pointless  # a topic without points adds none
+    ]
     if not chosen and len(clouds) > 1:
         shown = ", ".join(f"'{t.name}' ({t.frames[0]}, {n} sweeps)" for t, n in clouds)
         notes.append(

@@ -14,11 +14,14 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
 - Extrinsics: ``T_base_sensor`` of each message's ``header.frame_id``, chained through
   ``/tf_static`` and the rigid ``/tf`` edges (see :mod:`planodom.datasets.bag_tf`).
 - Epochs: the sweeps inside each ``1 / epoch_rate`` window (see
-  :mod:`planodom.datasets.bag_epochs`); ``times`` are the epochs' reference stamps in
-  seconds since the Unix epoch (the bag's own clock). A point's ``t`` is its acquisition
-  time minus its epoch's reference time (see :mod:`planodom.datasets.bag_msgs` for the
-  per-beam and per-point times). Points are in the base frame at their own time: the
-  extrinsics are applied, the vehicle's motion within the epoch is not removed.
+  :mod:`planodom.datasets.bag_epochs`), leaving out a message recorded twice (same topic,
+  stamp and content: the first is read) and the messages of a topic that never holds a
+  point while another one does (``BagIndex.in_epochs``); ``times`` are the epochs'
+  reference stamps in seconds since the Unix epoch (the bag's own clock). A point's ``t``
+  is its acquisition time minus its epoch's reference time (see
+  :mod:`planodom.datasets.bag_msgs` for the per-beam and per-point times). Points are in
+  the base frame at their own time: the extrinsics are applied, the vehicle's motion
+  within the epoch is not removed.
 - Reference: ``gt_topic`` is a ``nav_msgs/Odometry``, ``geometry_msgs/PoseStamped``,
   ``PoseWithCovarianceStamped`` or ``TransformStamped`` topic, or ``"tf:PARENT:CHILD"`` (a
   direct /tf edge). Poses are interpolated at the epoch times (linear + Slerp); when the
@@ -45,7 +48,7 @@ from planodom.datasets.bag_index import (
     index_bag,
     open_reader,
 )
-from planodom.datasets.bag_msgs import LASER_SCAN, decode_sweep, stamp_ns
+from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
 from planodom.datasets.bag_notes import bag_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
 from planodom.datasets.bag_tf import frame_name
@@ -80,7 +83,8 @@ class BagTopic:
         sweeps: number of messages.
         time_scale: seconds per unit of a cloud's per-point time offsets
             (:mod:`planodom.datasets.bag_time_units`), None: the documented reading.
-        empty: no message holds a point (its lack of rings costs the others none).
+        empty: no message holds a point (its lack of rings costs the others none, its
+            stamps place no epoch when another topic has points).
     """
 
     name: str
@@ -137,7 +141,9 @@ class BagDataset:
         self.gt_topic = gt_topic
         self._index = index
         self.topics = _bag_topics(path, self.base_frame, index)
-        members, ref = group_epochs(index.sweep_stamp, round(NS / self.epoch_rate))
+        used = np.flatnonzero(index.in_epochs())
+        grouped, ref = group_epochs(index.sweep_stamp[used], round(NS / self.epoch_rate))
+        members = [used[m] for m in grouped]
         self.gt_poses: np.ndarray | None = None
         self.dropped_epochs = 0
         if gt_topic is not None:
@@ -279,14 +285,12 @@ def _has_rings(topics: list[BagTopic]) -> bool:
 def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
     """The topics with their ring numbering and extrinsics (every frame must resolve)."""
     topics, first = [], 0
-    counts = np.bincount(index.sweep_topic, minlength=len(index.topics))
-    for k, t in enumerate(index.topics):
+    for t in index.topics:
         where = f"{path}: topic '{t.name}'"
         extr = {f: index.tf.require(base_frame, f, where) for f in t.frames}
         scale = None if t.time_unit is None else t.time_unit.scale
-        empty = t.msgtype != LASER_SCAN and t.empty == counts[k]
         topics.append(
-            BagTopic(t.name, t.msgtype, first, t.rings, extr, int(counts[k]), scale, empty)
+            BagTopic(t.name, t.msgtype, first, t.rings, extr, t.sweeps, scale, t.pointless)
         )
         first += t.rings
     return topics
