@@ -306,9 +306,10 @@ def index_bag(
     table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 3).copy()
     duplicate = _duplicates(reader, path, topic_of, table)
     for k, topic in enumerate(index):
-        _choose_time_unit(topic, table[table[:, 0] == k, 2], path)
-        topic.sweeps = int((table[:, 0] == k).sum())
-        topic.duplicates = int(duplicate[table[:, 0] == k].sum())
+        rows = table[:, 0] == k
+        _choose_time_unit(topic, table[rows, 2], path)
+        topic.sweeps = int(rows.sum())
+        topic.duplicates = int(duplicate[rows].sum())
     gt_times, gt_poses = gt_log.arrays()
     return BagIndex(
         index,

@@ -33,6 +33,7 @@ import numpy as np
 
 from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
+from planodom.datasets.bag_time_units import UNIT_WORDS, unit_of
 from planodom.datasets.returns import RETURN_FIELDS, last_returns
 from planodom.datasets.scan_io import integer_coordinates, time_field_name
 
@@ -218,12 +219,11 @@ def check_offsets(
         return
     bad = dt[~(np.abs(dt) <= MAX_SWEEP_OFFSET_S)]
     worst = bad[np.argmax(np.nan_to_num(np.abs(bad), nan=np.inf))]
-    words = {1e-9: "nanoseconds", 1e-6: "microseconds", 1e-3: "milliseconds", 1.0: "seconds"}
-    read = (
-        "seconds or nanoseconds (offsets, or since the Unix epoch)"
-        if time_scale is None
-        else f"offsets in {words.get(time_scale, f'units of {time_scale:g} s')}"
-    )
+    unit = None if time_scale is None else unit_of(time_scale)
+    if time_scale is None:
+        read = "seconds or nanoseconds (offsets, or since the Unix epoch)"
+    else:
+        read = f"offsets in {UNIT_WORDS[unit] if unit else f'units of {time_scale:g} s'}"
     raise ValueError(
         f"PointCloud2 time field '{time_name}' ({dtype.name}) puts a point "
         f"{worst:.6g} s from the stamp, beyond {MAX_SWEEP_OFFSET_S:g} s: not {read}; "

@@ -36,6 +36,11 @@ UNITS: dict[str, tuple[tuple[str, float], tuple[str, float]]] = {
 UNIT_WORDS = {"ns": "nanoseconds", "us": "microseconds", "s": "seconds", "ms": "milliseconds"}
 
 
+def unit_of(scale: float) -> str | None:
+    """The unit of :data:`UNITS` whose seconds per unit are ``scale``, None for another."""
+    return next((unit for pair in UNITS.values() for unit, s in pair if s == scale), None)
+
+
 @dataclass
 class TopicTimes:
     """What the index pass learnt of one cloud topic's relative per-point times.

@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from planodom.datasets.bag_time_units import unit_of
 from planodom.datasets.bin_scan import read_bin
 from planodom.datasets.pcd import read_pcd, write_pcd
 from planodom.datasets.ply import read_ply_vertices, write_ply_vertices
@@ -283,7 +284,7 @@ def point_times(
     """
     integer = raw.dtype.kind in "iu"
     scale = (1e-9 if time_scale is None else time_scale) if integer else 1.0
-    unit = {1e-9: "ns", 1e-6: "us"}.get(scale, "s") if integer else "s"
+    unit = (unit_of(scale) or "s") if integer else "s"
     absolute = _absolute_ns(raw)
     if absolute is not None:
         if raw.dtype.itemsize < 8:
