@@ -78,7 +78,7 @@ def split(poses: np.ndarray, cov: np.ndarray | None, gt: np.ndarray, status: lis
     n5 = mean_nees(xi, P, range(5))
     world_rot = np.einsum("kij,kj->ki", poses[1:, :3, :3], xi[:, :3])
     theta = world_rot.mean(axis=0)
-    row = {"nees5": float(np.nanmean(n5))}
+    row: dict[str, float | int | str] = {"nees5": float(np.nanmean(n5))}
     for name in ("ok", "degenerate", "unresolved"):
         mask = st == name
         row[f"n_{name}"] = int(mask.sum())
