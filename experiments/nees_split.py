@@ -13,6 +13,7 @@ the fitted and the sandwich covariances (the same poses). Per run and covariance
 - ``tilt``: the mean over the lap of the poses' rotation errors in the world frame
   (mrad; one rotation between the first pose, the gauge, and the rest), its value at
   epoch 1, and the rms about the mean;
+- ``ate_m``: xy ATE (rmse, origin-aligned, as ``planodom experiment loops``);
 - the NEES5 once that one rotation is taken out of every pose (rotation error and the
   position error it causes about the first pose; a diagnostic, not an estimator).
 
@@ -31,10 +32,11 @@ import numpy as np
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import world_for
 from planodom.geometry import invert_transform
+from planodom.metrics import ate
 from planodom.odometry import run_odometry
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.batch import smooth_batch
-from planodom.smoothing.run import smoothing_config, smoothing_relatives
+from planodom.smoothing.run import run_smoothing, smoothing_config, smoothing_relatives
 
 
 def pose_errors(poses: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -94,24 +96,40 @@ def split(poses: np.ndarray, cov: np.ndarray | None, gt: np.ndarray, status: lis
     return row
 
 
-def run(world_index: int, noise: float, motion: str) -> list[dict]:
-    """One lap: the odometry once, the batch with loops with both covariance models."""
+def run(world_index: int, noise: float, motion: str, refresh: int = 0) -> list[dict]:
+    """One lap: the odometry once, the batch with loops with both covariance models
+    (``refresh``: ``smoothing.first_epoch_refresh``, through :func:`run_smoothing`)."""
     world = world_for(world_index)
     full = simulate_world(world, noise, all_fields=True, motion=motion)
     gt = invert_transform(full.poses[0])[None] @ full.poses
     configs = {
         model: PlanodomConfig().updated(
-            {"smoothing.loop_closure": True, "smoothing.covariance_model": model}
+            {
+                "smoothing.loop_closure": True,
+                "smoothing.covariance_model": model,
+                "smoothing.first_epoch_refresh": refresh,
+            }
         )
         for model in ("fitted", "sandwich")
     }
-    odo = run_odometry(world_fields(world, full), smoothing_config(configs["sandwich"]))
+    source = world_fields(world, full)
+    odo = run_odometry(source, smoothing_config(configs["sandwich"]))
     rel = smoothing_relatives(odo, configs["sandwich"])
     status = ["none"] + [("none" if r is None else str(r.status)) for r in odo.results[1:]]
     rows = []
     for model, cfg in configs.items():
-        res = smooth_batch(odo.planes, rel, cfg)
-        row = {"world": world_index, "noise_mm": noise * 1e3, "motion": motion, "model": model}
+        if refresh:
+            res = run_smoothing(source, cfg, odometry=odo).result
+        else:
+            res = smooth_batch(odo.planes, rel, cfg)
+        row = {
+            "world": world_index,
+            "noise_mm": noise * 1e3,
+            "motion": motion,
+            "first_epoch_refresh": refresh,
+            "model": model,
+            "ate_m": float(ate(res.poses, gt, xy_only=True)["rmse"]),
+        }
         rows.append(row | split(res.poses, res.covariances, gt, status))
     return rows
 
@@ -121,12 +139,18 @@ def main() -> None:
     parser.add_argument("--worlds", default="18,0,16")
     parser.add_argument("--levels", default="0.006,0.02")
     parser.add_argument("--motion", default="continuous", choices=["continuous", "snapshot"])
+    parser.add_argument(
+        "--first-epoch-refresh",
+        type=int,
+        default=0,
+        help="smoothing.first_epoch_refresh of both batch runs (0: off, the default)",
+    )
     parser.add_argument("-o", "--out", required=True)
     args = parser.parse_args()
     rows: list[dict] = []
     for w in [int(x) for x in args.worlds.split(",")]:
         for noise in [float(x) for x in args.levels.split(",")]:
-            for row in run(w, noise, args.motion):
+            for row in run(w, noise, args.motion, args.first_epoch_refresh):
                 rows.append(row)
                 print({k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()},
                       flush=True)  # fmt: skip
