@@ -14,6 +14,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def _script():
     spec = importlib.util.spec_from_file_location("nees_split", ROOT / "experiments/nees_split.py")
+    assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -56,5 +57,7 @@ def test_nees_over_chosen_components_against_a_direct_solve():
     A = rng.normal(size=(5, 6, 6))
     cov = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(6)
     dofs = (3, 4)
-    expect = [e[[3, 4]] @ np.linalg.inv(P[3:5, 3:5]) @ e[[3, 4]] for e, P in zip(errors, cov)]
+    expect = [
+        e[[3, 4]] @ np.linalg.inv(P[3:5, 3:5]) @ e[[3, 4]] for e, P in zip(errors, cov, strict=True)
+    ]
     np.testing.assert_allclose(script.mean_nees(errors, cov, dofs), expect, rtol=1e-10)
