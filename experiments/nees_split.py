@@ -15,7 +15,10 @@ the fitted and the sandwich covariances (the same poses). Per run and covariance
   epoch 1, and the rms about the mean;
 - ``ate_m``: xy ATE (rmse, origin-aligned, as ``planodom experiment loops``);
 - the NEES5 once that one rotation is taken out of every pose (rotation error and the
-  position error it causes about the first pose; a diagnostic, not an estimator).
+  position error it causes about the first pose; a diagnostic, not an estimator), and
+  once the mean horizontal position error in the world frame (``shift_cm``) is taken out
+  too (``nees5_unshifted``: what one rigid offset of the whole lap against its first pose
+  leaves).
 
     uv run python experiments/nees_split.py --worlds 18,0,16 --levels 0.006,0.02 -o OUT.csv
 """
@@ -93,6 +96,11 @@ def split(poses: np.ndarray, cov: np.ndarray | None, gt: np.ndarray, status: lis
     fixed = without_rotation(poses[1:], xi, theta)
     row["nees5_untilted"] = float(np.nanmean(mean_nees(fixed, P, range(5))))
     row["nees_rot3_untilted"] = float(np.nanmean(mean_nees(fixed, P, range(3))))
+    world_pos = np.einsum("kij,kj->ki", poses[1:, :3, :3], fixed[:, 3:])
+    shift = np.append(world_pos[:, :2].mean(axis=0), 0.0)
+    fixed[:, 3:] -= np.einsum("kji,j->ki", poses[1:, :3, :3], shift)
+    row["shift_cm"] = " ".join(f"{v:.1f}" for v in shift[:2] * 1e2)
+    row["nees5_unshifted"] = float(np.nanmean(mean_nees(fixed, P, range(5))))
     return row
 
 
