@@ -1,0 +1,63 @@
+"""experiments/nees_split.py: the one world-frame rotation it takes out of a lap's errors,
+and its NEES, against closed forms."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import gtsam
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("nees_split", ROOT / "experiments/nees_split.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _lap(n: int = 24, radius: float = 10.0) -> np.ndarray:
+    """(n, 4, 4) true poses on a circle, heading along it, the first at the origin."""
+    out = []
+    for k in range(n):
+        a = 2 * np.pi * k / n
+        T = np.eye(4)
+        T[:3, :3] = gtsam.Rot3.Yaw(a).matrix()
+        T[:3, 3] = [radius * np.sin(a), radius * (1 - np.cos(a)), 0.0]
+        out.append(T)
+    return np.stack(out)
+
+
+def test_one_world_rotation_about_the_first_pose_is_taken_out_whole():
+    script = _script()
+    truth = _lap()
+    theta = np.array([2e-3, -1e-3, 5e-4])  # rad, world frame
+    R = gtsam.Rot3.Expmap(theta).matrix()
+    est = truth.copy()
+    est[:, :3, :3] = R[None] @ truth[:, :3, :3]
+    est[:, :3, 3] = truth[:, :3, 3] @ R.T  # the whole lap turned about the first pose
+    errors = script.pose_errors(est, truth)
+    # xi = Local(est, truth): the truth is the estimate turned back by theta in the world
+    world = np.einsum("kij,kj->ki", est[:, :3, :3], errors[:, :3])
+    np.testing.assert_allclose(world, -np.tile(theta, (len(truth), 1)), atol=1e-8)
+    left = script.without_rotation(est, errors, world.mean(axis=0))
+    # what stays is second order in theta (|theta| 2.3 mrad, lap radius 10 m)
+    assert np.abs(left[:, :3]).max() < 1e-8
+    assert np.abs(left[:, 3:]).max() < 10.0 * 2.3e-3**2 * 2
+
+
+def test_nees_over_chosen_components_against_a_direct_solve():
+    script = _script()
+    rng = np.random.default_rng(4)
+    errors = rng.normal(size=(5, 6))
+    A = rng.normal(size=(5, 6, 6))
+    cov = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(6)
+    dofs = (3, 4)
+    expect = [
+        e[[3, 4]] @ np.linalg.inv(P[3:5, 3:5]) @ e[[3, 4]] for e, P in zip(errors, cov, strict=True)
+    ]
+    np.testing.assert_allclose(script.mean_nees(errors, cov, dofs), expect, rtol=1e-10)
