@@ -8,6 +8,8 @@ import pytest
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract, extract_planes
+from planodom.extraction.rig2d.path import spans_own_scan_plane
+from planodom.extraction.rig2d.segments import Segments
 from planodom.geometry import transform_from_rpy_xyz
 
 from .synth_scans import default_rig, default_scene, planes_in_base, rect, scan_rig
@@ -107,3 +109,39 @@ def test_majority_label_and_no_labels():
 @pytest.mark.parametrize("mode", ["auto", "rig2d"])
 def test_modes(mode):
     assert extract(scan_rig(SCENE), ExtractionConfig(mode=mode)).mode == "rig2d"
+
+
+def _segments(ring, direction, count, length):
+    """Segments with only what :func:`spans_own_scan_plane` reads (ring, direction, count,
+    length); the rest empty."""
+    s = len(ring)
+    z3, zi = np.zeros((s, 3)), np.zeros(s, dtype=np.int64)
+    u = np.asarray(direction, dtype=np.float64)
+    return Segments(
+        points=np.zeros((0, 3)), order=np.zeros(0, dtype=np.int64), starts=zi, ends=zi,
+        ring=np.asarray(ring, dtype=np.int64), sweep=zi, count=np.asarray(count, dtype=np.int64),
+        centroid=z3, scatter=np.zeros((s, 3, 3)), direction=u / np.linalg.norm(u, axis=1)[:, None],
+        length=np.asarray(length, dtype=np.float64), rms=np.zeros(s), end0=z3, end1=z3,
+    )  # fmt: skip
+
+
+def _dir(deg):
+    return [np.cos(np.radians(deg)), np.sin(np.radians(deg)), 0.0]
+
+
+def test_a_ring_spanning_two_directions_is_its_own_scan_plane():
+    sin10, sigma = np.sin(np.radians(10.0)), 0.02
+    every = np.arange(3)
+    # one ring's lines on a wall and on the floor (60 deg apart in its scan plane), plus a
+    # short trace of another ring: the scan plane, not a wall
+    ghost = _segments([2, 2, 1], [_dir(0), _dir(60), _dir(100)], [200, 200, 20], [2.0, 2.0, 0.3])
+    assert spans_own_scan_plane(ghost, every, sin10, sigma)
+    # a wall: two rings crossing, each ring's lines parallel (two sweeps, displaced)
+    wall = _segments([0, 0, 1], [_dir(0), _dir(0.5), _dir(40)], [200, 200, 200], [2.0, 2.0, 2.0])
+    assert not spans_own_scan_plane(wall, every, sin10, sigma)
+    # 12 deg apart: long lines (0.09 deg direction error) differ, short noisy ones
+    # (sigma sqrt(12 / 10) / 0.2 m = 6.3 deg each) do not
+    long_ = _segments([0, 0, 1], [_dir(0), _dir(12), _dir(50)], [400, 400, 400], [3.0] * 3)
+    short = _segments([0, 0, 1], [_dir(0), _dir(12), _dir(50)], [10, 10, 400], [0.2, 0.2, 3.0])
+    assert spans_own_scan_plane(long_, every, sin10, sigma)
+    assert not spans_own_scan_plane(short, every, sin10, sigma)

@@ -25,6 +25,7 @@ from planodom.extraction.rig2d import windows
 from planodom.extraction.rig2d.groupfit import fit_groups
 from planodom.extraction.rig2d.grouping import GroupingParams, group_segments
 from planodom.extraction.rig2d.segments import Segments, split_scan_lines
+from planodom.extraction.rig2d.traces import direction_error
 
 
 def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
@@ -68,12 +69,41 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     groups, n_lost = group_segments(
         segs, params, config.trace_parallel_deg, config.trace_step_m, seg_times
     )
+    n_groups = len(groups)
+    groups = [g for g in groups if not spans_own_scan_plane(segs, g, params.sin_min_cross, sigma)]
+    n_lost += n_groups - len(groups)
     if not groups:
         return PathResult([], [], sigma, len(segs), 0, n_lost)
     fits = _group_fits(segs, groups, epoch, config)
     adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw) if windowed else None
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
     return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)
+
+
+def spans_own_scan_plane(
+    segs: Segments, group: np.ndarray, sin_min_cross: float, sigma_m: float
+) -> bool:
+    """Whether two segments of one ring in ``group`` (K,) segment indices cross at
+    ``min_cross_angle_deg`` or more, beyond three times their predicted direction errors
+    (``sigma_m`` m range noise). A ring's lines on one wall are parallel (its scan plane
+    cuts the wall in one direction, up to the turn between sweeps), so a ring spanning
+    two directions lies in its own scan plane: a plane of the scanner, fixed in the base
+    frame, that reports no motion along its normal (world 32 at 2 cm: a ring's lines on
+    five walls, the floor and the ceiling, grown from a short trace of another scanner
+    within the wider tolerances).
+    """
+    rings = segs.ring[group]
+    for r in np.unique(rings):
+        mine = group[rings == r]
+        if len(mine) < 2:
+            continue
+        u = segs.direction[mine]
+        err = direction_error(sigma_m, segs.count[mine], segs.length[mine])
+        sin = np.linalg.norm(np.cross(u[:, None, :], u[None, :, :]), axis=-1)
+        lim = np.sin(np.minimum(np.arcsin(sin_min_cross) + 3.0 * (err[:, None] + err[None, :]), np.pi / 2))
+        if (sin > lim).any():
+            return True
+    return False
 
 
 def _group_fits(
