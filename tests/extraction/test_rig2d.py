@@ -111,37 +111,67 @@ def test_modes(mode):
     assert extract(scan_rig(SCENE), ExtractionConfig(mode=mode)).mode == "rig2d"
 
 
-def _segments(ring, direction, count, length):
-    """Segments with only what :func:`spans_own_scan_plane` reads (ring, direction, count,
-    length); the rest empty."""
+def _segments(ring, centroid, direction, count, length):
+    """Segments of ``count`` points spread evenly over ``length`` m along ``direction``
+    about ``centroid``: what :func:`spans_own_scan_plane` reads (points and ends empty)."""
     s = len(ring)
-    z3, zi = np.zeros((s, 3)), np.zeros(s, dtype=np.int64)
     u = np.asarray(direction, dtype=np.float64)
+    u = u / np.linalg.norm(u, axis=1)[:, None]
+    n, ln = np.asarray(count, dtype=np.int64), np.asarray(length, dtype=np.float64)
+    scatter = (n * ln**2 / 12.0)[:, None, None] * np.einsum("ki,kj->kij", u, u)
+    z3, zi = np.zeros((s, 3)), np.zeros(s, dtype=np.int64)
     return Segments(
         points=np.zeros((0, 3)), order=np.zeros(0, dtype=np.int64), starts=zi, ends=zi,
-        ring=np.asarray(ring, dtype=np.int64), sweep=zi, count=np.asarray(count, dtype=np.int64),
-        centroid=z3, scatter=np.zeros((s, 3, 3)), direction=u / np.linalg.norm(u, axis=1)[:, None],
-        length=np.asarray(length, dtype=np.float64), rms=np.zeros(s), end0=z3, end1=z3,
+        ring=np.asarray(ring, dtype=np.int64), sweep=zi, count=n,
+        centroid=np.asarray(centroid, dtype=np.float64), scatter=scatter, direction=u,
+        length=ln, rms=np.zeros(s), end0=z3, end1=z3,
     )  # fmt: skip
 
 
-def _dir(deg):
-    return [np.cos(np.radians(deg)), np.sin(np.radians(deg)), 0.0]
+SIN10, SIGMA = np.sin(np.radians(10.0)), 0.02
+EVERY = np.arange(3)
+# ring 2's lines on two walls (x = 4, y = 3) in its scan plane z = 0.8, and a short
+# trace of ring 1 in that plane
+SCAN_PLANE = _segments(
+    [2, 2, 1], [[4.0, 0.0, 0.8], [1.0, 3.0, 0.8], [3.0, 2.0, 0.8]],
+    [[0, 1, 0], [1, 0, 0], [1, 1, 0]], [200, 200, 20], [2.0, 2.0, 0.3],
+)  # fmt: skip
 
 
-def test_a_ring_spanning_two_directions_is_its_own_scan_plane():
-    sin10, sigma = np.sin(np.radians(10.0)), 0.02
-    every = np.arange(3)
-    # one ring's lines on a wall and on the floor (60 deg apart in its scan plane), plus a
-    # short trace of another ring: the scan plane, not a wall
-    ghost = _segments([2, 2, 1], [_dir(0), _dir(60), _dir(100)], [200, 200, 20], [2.0, 2.0, 0.3])
-    assert spans_own_scan_plane(ghost, every, sin10, sigma)
-    # a wall: two rings crossing, each ring's lines parallel (two sweeps, displaced)
-    wall = _segments([0, 0, 1], [_dir(0), _dir(0.5), _dir(40)], [200, 200, 200], [2.0, 2.0, 2.0])
-    assert not spans_own_scan_plane(wall, every, sin10, sigma)
-    # 12 deg apart: long lines (0.09 deg direction error) differ, short noisy ones
-    # (sigma sqrt(12 / 10) / 0.2 m = 6.3 deg each) do not
-    long_ = _segments([0, 0, 1], [_dir(0), _dir(12), _dir(50)], [400, 400, 400], [3.0] * 3)
-    short = _segments([0, 0, 1], [_dir(0), _dir(12), _dir(50)], [10, 10, 400], [0.2, 0.2, 3.0])
-    assert spans_own_scan_plane(long_, every, sin10, sigma)
-    assert not spans_own_scan_plane(short, every, sin10, sigma)
+def test_a_scanners_own_plane_is_not_a_wall():
+    on_plane = np.array([[1.0, 0.5, 0.8], [1.0, -0.5, 0.8], [0.0, 0.0, 0.8]])
+    assert spans_own_scan_plane(SCAN_PLANE, EVERY, SIN10, SIGMA, on_plane)
+    # the same lines seen from 2.2 m above their plane: the rays cross it, a real floor
+    above = on_plane + [0.0, 0.0, 2.2]
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN10, SIGMA, above)
+    # no origins per ring: never
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN10, SIGMA, None)
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN10, SIGMA, on_plane[:1])
+
+
+def test_parallel_lines_of_one_ring_are_not_its_scan_plane():
+    # ring 0's lines of two sweeps (0.5 deg apart, displaced) with ring 1 crossing them,
+    # all in the plane z = 0.8 that holds the sensors: the lines do not cross
+    segs = _segments(
+        [0, 0, 1], [[4.0, 0.0, 0.8], [4.2, 0.1, 0.8], [4.1, 0.0, 0.8]],
+        [[0, 1, 0], [np.sin(np.radians(0.5)), 1, 0], [1, 1, 0]], [200] * 3, [2.0] * 3,
+    )  # fmt: skip
+    origins = np.array([[0.0, 0.0, 0.8], [0.0, 1.0, 0.8]])
+    assert not spans_own_scan_plane(segs, EVERY, SIN10, SIGMA, origins)
+
+
+def test_crossing_beyond_the_direction_errors():
+    # two lines of ring 0, 12 deg apart, in the plane of its sensor: long lines (0.09 deg
+    # direction error) cross, short noisy ones (SIGMA sqrt(12 / 10) / 0.2 m = 6.3 deg
+    # each, 10 + 3 (6.3 + 6.3) > 12 deg) do not
+    def lines(count, length):
+        return _segments(
+            [0, 0, 1], [[4.0, 0.0, 0.8], [4.0, 1.0, 0.8], [3.0, 3.0, 0.8]],
+            [[0, 1, 0], [np.sin(np.radians(12)), np.cos(np.radians(12)), 0], [1, 0, 0]],
+            count, length,
+        )  # fmt: skip
+
+    origins = np.array([[0.0, 0.0, 0.8], [0.0, 1.0, 0.8]])
+    assert spans_own_scan_plane(lines([400, 400, 400], [3.0] * 3), EVERY, SIN10, SIGMA, origins)
+    short = lines([10, 10, 400], [0.2, 0.2, 3.0])
+    assert not spans_own_scan_plane(short, EVERY, SIN10, SIGMA, origins)
