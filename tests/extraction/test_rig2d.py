@@ -8,7 +8,6 @@ import pytest
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract, extract_planes
-from planodom.extraction.rig2d.grouping import GroupingParams
 from planodom.extraction.rig2d.path import spans_own_scan_plane
 from planodom.extraction.rig2d.segments import Segments
 from planodom.geometry import transform_from_rpy_xyz
@@ -129,13 +128,7 @@ def _segments(ring, centroid, direction, count, length):
     )  # fmt: skip
 
 
-SIGMA = 0.02
-# min_cross_angle_deg 10, trace_parallel_deg 2 (the defaults); the rest unused here
-PARAMS = GroupingParams(
-    tol_m=0.04, sigma_m=SIGMA, sin_min_cross=np.sin(np.radians(10.0)), max_seed_err_rad=0.1,
-    min_points=20, max_rms_m=0.1, min_trace_points=10, seed_floor_m=0.05, gap_m=0.5,
-    gap_ratio=0.1, max_span_s=np.inf, parallel_rad=np.radians(2.0),
-)  # fmt: skip
+SIN2 = np.sin(np.radians(2.0))  # trace_parallel_deg
 EVERY = np.arange(3)
 # ring 2's lines on two walls (x = 4, y = 3) in its scan plane z = 0.8, and a short
 # trace of ring 1 in that plane
@@ -147,42 +140,32 @@ SCAN_PLANE = _segments(
 
 def test_a_scanners_own_plane_is_not_a_wall():
     on_plane = np.array([[1.0, 0.5, 0.8], [1.0, -0.5, 0.8], [0.0, 0.0, 0.8]])
-    assert spans_own_scan_plane(SCAN_PLANE, EVERY, PARAMS, SIGMA, on_plane)
+    assert spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane)
     # the same lines seen from 2.2 m above their plane: the rays cross it, a real floor;
     # 0.1 m above: rays at 1.6 deg (0.1 m over a mean range of 3.6 m), within 2 deg of
     # parallel; 0.3 m above: 4.8 deg, not
-    above = on_plane + [0.0, 0.0, 2.2]
-    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, PARAMS, SIGMA, above)
-    assert spans_own_scan_plane(SCAN_PLANE, EVERY, PARAMS, SIGMA, on_plane + [0, 0, 0.1])
-    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, PARAMS, SIGMA, on_plane + [0, 0, 0.3])
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane + [0, 0, 2.2])
+    assert spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane + [0, 0, 0.1])
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane + [0, 0, 0.3])
     # no origins per ring: never
-    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, PARAMS, SIGMA, None)
-    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, PARAMS, SIGMA, on_plane[:1])
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, None)
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane[:1])
+    # ring 1 alone with one segment in the plane of its sensor: not enough to tell
+    assert not spans_own_scan_plane(SCAN_PLANE, np.array([2]), SIN2, on_plane)
 
 
-def test_parallel_lines_of_one_ring_are_not_its_scan_plane():
-    # ring 0's lines of two sweeps (0.5 deg apart, displaced) with ring 1 crossing them,
-    # all in the plane z = 0.8 that holds the sensors: the lines do not cross
-    segs = _segments(
-        [0, 0, 1], [[4.0, 0.0, 0.8], [4.2, 0.1, 0.8], [4.1, 0.0, 0.8]],
-        [[0, 1, 0], [np.sin(np.radians(0.5)), 1, 0], [1, 1, 0]], [200] * 3, [2.0] * 3,
+def test_a_corridors_two_walls_in_one_scan_plane():
+    # ring 0's parallel lines on the two walls of a corridor (y = -1.5, y = 1.5) lie in its
+    # scan plane z = 0.8 (coplanar, any two parallel lines are) with its sensor: dropped;
+    # ring 0's lines of two sweeps on the wall x = 4, seen from 4 m: kept
+    corridor = _segments(
+        [0, 0, 1], [[3.0, -1.5, 0.8], [3.0, 1.5, 0.8], [2.0, 0.0, 0.8]],
+        [[1, 0, 0], [1, 0, 0], [1, 1, 0]], [200] * 3, [2.0] * 3,
     )  # fmt: skip
     origins = np.array([[0.0, 0.0, 0.8], [0.0, 1.0, 0.8]])
-    assert not spans_own_scan_plane(segs, EVERY, PARAMS, SIGMA, origins)
-
-
-def test_crossing_beyond_the_direction_errors():
-    # two lines of ring 0, 12 deg apart, in the plane of its sensor: long lines (0.09 deg
-    # direction error) cross, short noisy ones (SIGMA sqrt(12 / 10) / 0.2 m = 6.3 deg
-    # each, 10 + 3 (6.3 + 6.3) > 12 deg) do not
-    def lines(count, length):
-        return _segments(
-            [0, 0, 1], [[4.0, 0.0, 0.8], [4.0, 1.0, 0.8], [3.0, 3.0, 0.8]],
-            [[0, 1, 0], [np.sin(np.radians(12)), np.cos(np.radians(12)), 0], [1, 0, 0]],
-            count, length,
-        )  # fmt: skip
-
-    origins = np.array([[0.0, 0.0, 0.8], [0.0, 1.0, 0.8]])
-    assert spans_own_scan_plane(lines([400, 400, 400], [3.0] * 3), EVERY, PARAMS, SIGMA, origins)
-    short = lines([10, 10, 400], [0.2, 0.2, 3.0])
-    assert not spans_own_scan_plane(short, EVERY, PARAMS, SIGMA, origins)
+    assert spans_own_scan_plane(corridor, EVERY, SIN2, origins)
+    wall = _segments(
+        [0, 0, 1], [[4.0, 0.0, 0.8], [4.0, 0.0, 1.0], [4.0, 0.5, 0.9]],
+        [[0, 1, 0.3], [0, 1, 0.3], [0, 1, -0.3]], [200] * 3, [2.0] * 3,
+    )  # fmt: skip
+    assert not spans_own_scan_plane(wall, EVERY, SIN2, origins)
