@@ -8,6 +8,8 @@ import pytest
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract, extract_planes
+from planodom.extraction.rig2d.path import spans_own_scan_plane
+from planodom.extraction.rig2d.segments import Segments
 from planodom.geometry import transform_from_rpy_xyz
 
 from .synth_scans import default_rig, default_scene, planes_in_base, rect, scan_rig
@@ -107,3 +109,63 @@ def test_majority_label_and_no_labels():
 @pytest.mark.parametrize("mode", ["auto", "rig2d"])
 def test_modes(mode):
     assert extract(scan_rig(SCENE), ExtractionConfig(mode=mode)).mode == "rig2d"
+
+
+def _segments(ring, centroid, direction, count, length):
+    """Segments of ``count`` points spread evenly over ``length`` m along ``direction``
+    about ``centroid``: what :func:`spans_own_scan_plane` reads (points and ends empty)."""
+    s = len(ring)
+    u = np.asarray(direction, dtype=np.float64)
+    u = u / np.linalg.norm(u, axis=1)[:, None]
+    n, ln = np.asarray(count, dtype=np.int64), np.asarray(length, dtype=np.float64)
+    scatter = (n * ln**2 / 12.0)[:, None, None] * np.einsum("ki,kj->kij", u, u)
+    z3, zi = np.zeros((s, 3)), np.zeros(s, dtype=np.int64)
+    return Segments(
+        points=np.zeros((0, 3)), order=np.zeros(0, dtype=np.int64), starts=zi, ends=zi,
+        ring=np.asarray(ring, dtype=np.int64), sweep=zi, count=n,
+        centroid=np.asarray(centroid, dtype=np.float64), scatter=scatter, direction=u,
+        length=ln, rms=np.zeros(s), end0=z3, end1=z3,
+    )  # fmt: skip
+
+
+SIN2 = np.sin(np.radians(2.0))  # trace_parallel_deg
+EVERY = np.arange(3)
+# ring 2's lines on two walls (x = 4, y = 3) in its scan plane z = 0.8, and a short
+# trace of ring 1 in that plane
+SCAN_PLANE = _segments(
+    [2, 2, 1], [[4.0, 0.0, 0.8], [1.0, 3.0, 0.8], [3.0, 2.0, 0.8]],
+    [[0, 1, 0], [1, 0, 0], [1, 1, 0]], [200, 200, 20], [2.0, 2.0, 0.3],
+)  # fmt: skip
+
+
+def test_a_scanners_own_plane_is_not_a_wall():
+    on_plane = np.array([[1.0, 0.5, 0.8], [1.0, -0.5, 0.8], [0.0, 0.0, 0.8]])
+    assert spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane)
+    # the same lines seen from 2.2 m above their plane: the rays cross it, a real floor;
+    # 0.1 m above: rays at 1.6 deg (0.1 m over a mean range of 3.6 m), within 2 deg of
+    # parallel; 0.3 m above: 4.8 deg, not
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane + [0, 0, 2.2])
+    assert spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane + [0, 0, 0.1])
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane + [0, 0, 0.3])
+    # no origins per ring: never
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, None)
+    assert not spans_own_scan_plane(SCAN_PLANE, EVERY, SIN2, on_plane[:1])
+    # ring 1 alone with one segment in the plane of its sensor: not enough to tell
+    assert not spans_own_scan_plane(SCAN_PLANE, np.array([2]), SIN2, on_plane)
+
+
+def test_a_corridors_two_walls_in_one_scan_plane():
+    # ring 0's parallel lines on the two walls of a corridor (y = -1.5, y = 1.5) lie in its
+    # scan plane z = 0.8 (coplanar, any two parallel lines are) with its sensor: dropped;
+    # ring 0's lines of two sweeps on the wall x = 4, seen from 4 m: kept
+    corridor = _segments(
+        [0, 0, 1], [[3.0, -1.5, 0.8], [3.0, 1.5, 0.8], [2.0, 0.0, 0.8]],
+        [[1, 0, 0], [1, 0, 0], [1, 1, 0]], [200] * 3, [2.0] * 3,
+    )  # fmt: skip
+    origins = np.array([[0.0, 0.0, 0.8], [0.0, 1.0, 0.8]])
+    assert spans_own_scan_plane(corridor, EVERY, SIN2, origins)
+    wall = _segments(
+        [0, 0, 1], [[4.0, 0.0, 0.8], [4.0, 0.0, 1.0], [4.0, 0.5, 0.9]],
+        [[0, 1, 0.3], [0, 1, 0.3], [0, 1, -0.3]], [200] * 3, [2.0] * 3,
+    )  # fmt: skip
+    assert not spans_own_scan_plane(wall, EVERY, SIN2, origins)
