@@ -314,7 +314,7 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     right matches on world 4 at 2 cm (ATE 0.025 -> 0.126 m); the drift-scaled one none.
     Measured (batch, loop closure, worlds 0, 2, 4 at 6 mm and 2 cm, one lap): world 2 at
     6 mm keeps 4 instead of 20 wrong ties (ATE 2.77 -> 2.68 m), the others unchanged."""
-    loop_refuse_ambiguous: Literal["off", "drift", "stated", "parts"] = "off"
+    loop_refuse_ambiguous: Literal["off", "drift", "stated", "parts", "run"] = "off"
     """Test each re-identification against its competing hypotheses: one tie swapped for
     another old wall parallel to it (same orientation), the pose shifted to fit, under the
     prediction's uncertainty; a tie whose competitor costs at most chi2(1) at

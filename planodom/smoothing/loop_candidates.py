@@ -167,6 +167,27 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             return super()._drift_covariance(spans, stated)
         return run_drift(self.travelled, self._variances, spans, self.full_config)
 
+    def _prior_sigma(self, k: int, oldest: int, ties: list[tuple[int, int]]) -> float:
+        """:meth:`LoopClosingBuilder._prior_sigma`; with ``loop_refuse_ambiguous`` "run"
+        the run's drift over the same spans (:func:`.loop_drift.run_drift`)."""
+        if self.config.loop_refuse_ambiguous != "run":
+            return super()._prior_sigma(k, oldest, ties)
+        spans = self._prior_spans(k, oldest, ties)
+        drift = run_drift(self.travelled, self._variances, spans, self.full_config)
+        return float(np.sqrt(drift[1, 1]))
+
+    def _map_drift(self, landmarks: list[int]) -> np.ndarray:
+        """:meth:`LoopClosingBuilder._map_drift`; with ``loop_refuse_ambiguous`` "run" the
+        run's (half its xy variance per axis and the yaw's lever arm, no floors)."""
+        if self.config.loop_refuse_ambiguous != "run":
+            return super()._map_drift(landmarks)
+        # this epoch's map match: its own step is in the lists, not yet in _history's arrays
+        travelled, variances = np.asarray(self.travelled), np.asarray(self._variances)
+        seen = np.array([self.landmarks[j].last_seen[0] for j in landmarks])  # type: ignore[index]
+        lo, hi = np.minimum.outer(seen, seen), np.maximum.outer(seen, seen)
+        var_t, var_r = (variances[hi] - variances[lo]).transpose(2, 0, 1)
+        return 0.5 * var_t + var_r * (travelled[hi] - travelled[lo]) ** 2
+
     def _reidentify(self, update: GraphUpdate) -> None:
         super()._reidentify(update)
         k, c = update.epoch, self.config
@@ -278,7 +299,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             c_cur, r_cur = _extent(self.planes[k][j], np.eye(4))
             if np.linalg.norm(c_old - c_cur) - r_old - r_cur > c.loop_candidate_overlap_m:
                 return None
-        test = c.loop_refuse_ambiguous != "off" or c.loop_candidate_aliases != "off"
+        maps = c.loop_refuse_ambiguous not in ("off", "run")  # "run": the map matches only
+        test = maps or c.loop_candidate_aliases != "off"
         if test and self._ambiguous(e, k, rel, pairs, prior, translation[0]):
             return None
         return RelativePose(
@@ -311,7 +333,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             if epoch_ambiguity(old, curr, pairs, T, *args) <= limit:
                 self._aliased = k
                 return True
-            if c.loop_refuse_ambiguous == "off":
+            if c.loop_refuse_ambiguous in ("off", "run"):
                 return False
         fit = offset_residuals(self.planes[e], self.planes[k], pairs, T, sigma, angle, np.zeros(0))
         return ambiguity(fit, bound / c.loop_sigmas, sigma) <= limit

@@ -337,7 +337,10 @@ class LoopClosingBuilder(GraphBuilder):
             limit = float(chi2.ppf(c.loop_gate_quantile, 1))
             prior = self._prior_sigma(k, oldest, match.ties)
             same = (self._map_drift(candidates), limit)
-            rows = tie_ambiguities(fit, prior, sigma, same, c.loop_refuse_ambiguous == "parts")
+            if c.loop_refuse_ambiguous == "run":  # parts' drift, no "same wall" exclusion
+                rows = tie_ambiguities(fit, prior, sigma, same, parts=True, exclude_same=False)
+            else:
+                rows = tie_ambiguities(fit, prior, sigma, same, c.loop_refuse_ambiguous == "parts")
             match.ambiguity = float(np.min(rows, initial=np.inf))
             if match.ambiguity <= limit:  # its pose rests on an alias: ties the clear walls
                 old, full, T = old[rows > limit], False, T_pred  # verified as rotation-only
@@ -364,13 +367,17 @@ class LoopClosingBuilder(GraphBuilder):
         it with ``loop_refuse_ambiguous`` "stated". Not the association bounds: capped by
         the drift fraction, they are metres too tight after epochs whose translation
         nothing measured (2D-rig world 16 at 2 cm)."""
-        ref = self._reference if self.config.loop_verify == "tracked" else None
-        spans = [(oldest, k)]
-        if ref is not None:
-            seen = min(self.landmarks[j].last_seen[0] for j, _ in ties)  # type: ignore[index]
-            spans = [(ref[0], k), (ref[1], seen)]
         stated = self.config.loop_refuse_ambiguous == "stated"
+        spans = self._prior_spans(k, oldest, ties)
         return float(np.sqrt(self._drift_covariance(spans, stated)[1, 1]))
+
+    def _prior_spans(self, k: int, oldest: int, ties: list[tuple[int, int]]) -> Spans:
+        """The epoch spans of :meth:`_prior_sigma`'s drift."""
+        ref = self._reference if self.config.loop_verify == "tracked" else None
+        if ref is None:
+            return [(oldest, k)]
+        seen = min(self.landmarks[j].last_seen[0] for j, _ in ties)  # type: ignore[index]
+        return [(ref[0], k), (ref[1], seen)]
 
     def _map_drift(self, landmarks: list[int]) -> np.ndarray:
         """(N, N) per-axis variance (m^2) of the map's drift between the last sightings of

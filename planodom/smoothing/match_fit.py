@@ -165,6 +165,7 @@ def tie_ambiguities(
     same: tuple[np.ndarray, float] | None = None,
     parts: bool = False,
     spacing: bool = False,
+    exclude_same: bool = True,
 ) -> np.ndarray:
     """(M,) how far the match's ties beat their best competing hypotheses: per tie, the
     smallest increase of chi2 (a likelihood ratio) when one tie's old plane is swapped for a
@@ -206,7 +207,7 @@ def tie_ambiguities(
         for alt in np.flatnonzero(np.isfinite(fit.residuals[row])):
             if alt == fit.tied[row]:
                 continue
-            if same is not None:
+            if same is not None and exclude_same:
                 j, (between, limit) = fit.tied[row], same
                 apart = (fit.residuals[row, alt] - b[row]) ** 2
                 spread = between[j, alt] + fit.old_variances[[j, alt]].sum() + 2 * floor_m**2
