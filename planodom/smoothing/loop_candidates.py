@@ -55,7 +55,7 @@ from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphUpdate, X
-from planodom.smoothing.loop_drift import RunWalk, YawLever, run_drift
+from planodom.smoothing.loop_drift import RunWalk, run_drift
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch
 from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
 from planodom.smoothing.match_fit import (
@@ -103,7 +103,6 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         #: epochs a measured relative pose (delta <= D) fixed the translation to or from
         self._translated: set[int] = set()
         self._aliased = -1  # the last epoch ``loop_candidate_aliases`` found ambiguous
-        self._lever = YawLever()  # loop_refuse_ambiguous "run" (_lever_arms)
 
     def add_epoch(
         self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
@@ -168,38 +167,26 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             return super()._drift_covariance(spans, stated)
         return run_drift(self.travelled, self._variances, spans, self.full_config)
 
-    def _lever_arms(self) -> YawLever:
-        """:class:`.loop_drift.YawLever` over the epochs so far (the run's yaw variances,
-        the chained positions), extended by those added since the last call."""
-        lever = self._lever
-        for j in range(len(lever), len(self._variances)):
-            var_yaw = self._variances[j][1] - self._variances[j - 1][1] if j else 0.0
-            lever.add(float(var_yaw), self.poses[j][:2, 3])
-        return lever
-
     def _prior_sigma(self, k: int, oldest: int, ties: list[tuple[int, int]]) -> float:
         """:meth:`LoopClosingBuilder._prior_sigma`; with ``loop_refuse_ambiguous`` "run"
-        the run's drift over the same spans: half its xy variance per axis, the yaw's
-        error through its lever arm (:class:`.loop_drift.YawLever`: the whole of it on
-        each axis, an upper bound along any wall's normal) and the translation floor."""
+        the run's drift over the same spans (:func:`.loop_drift.run_drift`)."""
         if self.config.loop_refuse_ambiguous != "run":
             return super()._prior_sigma(k, oldest, ties)
-        lever, c = self._lever_arms(), self.config
-        var = (c.loop_min_translation_m / c.loop_sigmas) ** 2
-        for a, b in self._prior_spans(k, oldest, ties):
-            var += 0.5 * abs(self._variances[b][0] - self._variances[a][0])
-            var += float(lever.variance(a, b))
-        return float(np.sqrt(var))
+        spans = self._prior_spans(k, oldest, ties)
+        drift = run_drift(self.travelled, self._variances, spans, self.full_config)
+        return float(np.sqrt(drift[1, 1]))
 
     def _map_drift(self, landmarks: list[int]) -> np.ndarray:
         """:meth:`LoopClosingBuilder._map_drift`; with ``loop_refuse_ambiguous`` "run" the
-        run's, as :meth:`_prior_sigma` (no floor)."""
+        run's (half its xy variance per axis and the yaw's lever arm, no floors)."""
         if self.config.loop_refuse_ambiguous != "run":
             return super()._map_drift(landmarks)
-        lever, variances = self._lever_arms(), np.asarray(self._variances)
+        # this epoch's map match: its own step is in the lists, not yet in _history's arrays
+        travelled, variances = np.asarray(self.travelled), np.asarray(self._variances)
         seen = np.array([self.landmarks[j].last_seen[0] for j in landmarks])  # type: ignore[index]
         lo, hi = np.minimum.outer(seen, seen), np.maximum.outer(seen, seen)
-        return 0.5 * (variances[hi, 0] - variances[lo, 0]) + lever.variance(lo, hi)
+        var_t, var_r = (variances[hi] - variances[lo]).transpose(2, 0, 1)
+        return 0.5 * var_t + var_r * (travelled[hi] - travelled[lo]) ** 2
 
     def _reidentify(self, update: GraphUpdate) -> None:
         super()._reidentify(update)

@@ -65,39 +65,3 @@ def run_drift(
     var_xy = 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
     floor_r = np.radians(config.association.prior_rotation_deg) / c.loop_sigmas
     return np.diag([var_r + floor_r**2, var_xy, var_xy])
-
-
-class YawLever:
-    """The position error a chained yaw error causes, through its true lever arm: a yaw
-    error of variance v_j taken at epoch j moves epoch b by v_j |p_b - p_j|^2 (first
-    order; p the chained xy positions), not by the distance driven since j (which on a lap
-    that returns grows without bound while the lever arm stays within the lap's size).
-
-    Prefix sums over the epochs added so far (:meth:`add`, in order): of v, v p and
-    v |p|^2, so a span's sum is |p_b|^2 S0 - 2 p_b . S1 + S2 over it."""
-
-    def __init__(self) -> None:
-        self._sums: list[np.ndarray] = []  # per epoch: cumulative (S0, S1x, S1y, S2)
-        self.positions: list[np.ndarray] = []  # (2,) chained xy position per epoch, m
-
-    def __len__(self) -> int:
-        return len(self._sums)
-
-    def add(self, var_yaw: float, position: np.ndarray) -> None:
-        """The next epoch: the yaw variance its step adds (rad^2), its xy position (m)."""
-        p = np.asarray(position, dtype=float)[:2]
-        row = np.array([var_yaw, var_yaw * p[0], var_yaw * p[1], var_yaw * float(p @ p)])
-        self._sums.append(row + (self._sums[-1] if self._sums else 0.0))
-        self.positions.append(p)
-
-    def variance(self, a: np.ndarray | int, b: np.ndarray | int) -> np.ndarray:
-        """Position variance (m^2, x plus y) at epoch max(a, b) from the yaw errors of the
-        steps after min(a, b) up to it (elementwise over arrays of epochs)."""
-        sums, positions = np.asarray(self._sums), np.asarray(self.positions)
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        d = sums[hi] - sums[lo]
-        p = positions[hi]
-        return np.maximum(
-            np.sum(p * p, axis=-1) * d[..., 0] - 2 * np.sum(p * d[..., 1:3], axis=-1) + d[..., 3],
-            0.0,
-        )

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from planodom.config import PlanodomConfig
-from planodom.smoothing.loop_drift import RunWalk, YawLever, run_drift
+from planodom.smoothing.loop_drift import RunWalk, run_drift
 
 
 def test_run_walk_grows_as_a_velocity_random_walk_and_restarts():
@@ -33,21 +33,3 @@ def test_run_drift_closed_form():
     floor_r = np.radians(cfg.association.prior_rotation_deg) / s.loop_sigmas
     var_xy = var_t / 2 + var_r * distance**2 + floor_t
     np.testing.assert_allclose(cov, np.diag([var_r + floor_r**2, var_xy, var_xy]))
-
-
-def test_yaw_lever_arm_is_the_distance_to_the_epoch_not_the_route():
-    """A square lap of 10 m sides back to its start, a yaw error of 1e-4 rad^2 at each
-    corner: at the lap's end each corner's error acts through its straight distance to
-    the start (10, 14.1, 10 m and 0 for the last: 400 m^2 in all), not the 40 m driven
-    (the run_drift bound: 4 * 1e-4 * 40^2); any span, any order, and arrays of spans."""
-    corners = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0], [0.0, 0.0]])
-    lever = YawLever()
-    for k, p in enumerate(corners):
-        lever.add(1e-4 if k else 0.0, p)
-    assert lever.variance(0, 4) == pytest.approx(1e-4 * (100 + 200 + 100 + 0))
-    assert lever.variance(4, 0) == lever.variance(0, 4)
-    assert lever.variance(1, 3) == pytest.approx(1e-4 * (100 + 0))  # corners 2 and 3 to 3
-    assert lever.variance(2, 2) == 0.0
-    np.testing.assert_allclose(lever.variance(np.array([0, 1]), np.array([4, 3])),
-                               [0.04, 0.01])  # fmt: skip
-    assert lever.variance(0, 4) < 4 * 1e-4 * 40.0**2
