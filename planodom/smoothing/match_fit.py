@@ -183,6 +183,9 @@ def tie_ambiguities(
     another map part shares no frame with the other ties: they confirm no alias of it).
     ``spacing``: also the tie moved by the same spacing the other way (a wall one spacing
     beyond the tied one, on the side no old plane shows: parallel walls that repeat).
+    ``exclude_same`` False: ``same`` only for ``parts``, no alternative excluded as the
+    same wall (``loop_refuse_ambiguous`` "run": under metres of map drift two walls of a
+    row a spacing apart pass as one).
 
     ``fit`` must hold the residuals at the predicted position (the match's rotation, no
     translation): a match of full rank sits on its own ties, so at its pose an alias
