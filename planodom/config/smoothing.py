@@ -344,22 +344,15 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     0.025 -> 0.042, at 2 cm 0.021 -> 0.071 (its 9 right loop factors refused), world 4
     at 2 cm 0.069 -> 0.128 (world 0 and 4 at 6 mm within 0.3 mm). "drift" alone: world
     32 at 6 mm 3.61, world 16 0.034 and 0.021, world 4 at 2 cm 0.128 (the test's, not the
-    parts'). "run" (needs ``loop_candidate_drift`` "run"; the loop candidates keep their
-    own test): the prediction's and the map's drift the run's (the bridged epochs' error
-    a random walk of the run's own velocity, :func:`.loop_drift.run_drift`, not the
-    fallback's 0.5 m per epoch), each tie's variance with the drift to the nearest other
-    tied wall's map part ("parts"), and no "same wall" exclusion (a broken track within 3
-    deg and 0.2 m is one candidate already). Why: on held-out world 32 at 2 cm the
-    chained sigma of the first wrong ties is 3.7-10.6 m, the run's 2.2-3.7 m, their true
-    wall 2.6-3.8 m off along its normal (0.9-1.7 run sigmas); under the chained drift the
-    map explains walls a spacing apart as one wall and drops the competitor. Measured (one
-    lap, batch+loops, off -> run, docs/RESULTS.md "ALIAS"): world 32 at 2 cm wrong ties
-    kept 17 -> 8, loop end 3.71 -> 0.04 m, but ATE 2.80 -> 3.85 m (the 3.8 m the odometry
-    lost at epochs 60-100 is as far as a wall spacing: with the ties refused nothing
-    corrects it before the lap's end); at 6 mm 0.142 -> 0.128 m; worse at 2 cm: world 4
-    0.017 -> 0.065 (147 right ties refused: the same wall mapped twice 0.3 m apart
-    competes), world 16 0.023 -> 0.035, world 0 0.142 -> 0.148, world 20 0.065 -> 0.069.
-    Off by default."""
+    parts'). "run" (needs ``loop_candidate_drift`` "run"; loop candidates unchanged): the
+    prior and map drift the run's (:func:`.loop_drift.run_drift`), "parts", and no "same
+    wall" exclusion. Why: world 32 at 2 cm, its first wrong ties' true wall 2.6-3.8 m off,
+    chained sigma 3.7-10.6 m (a spacing apart passes as one wall), the run's 2.2-3.7 m.
+    Measured (docs/RESULTS.md "An honest alias test"; ATE m, off -> run): world 32 at 2 cm
+    wrong ties kept 17 -> 8, loop end 3.71 -> 0.04 m, but 2.80 -> 3.85 (the odometry's
+    3.8 m loss exceeds a wall spacing: every tie undoing it is ambiguous); 6 mm 0.142 ->
+    0.128; world 4 at 2 cm 0.017 -> 0.065 (one wall mapped twice 0.3 m apart competes with
+    itself), world 16 0.023 -> 0.035. Off by default."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree before a new (or the first) correction is accepted."""
     odometry_deskew_twist: Literal["coplanar", "odometry"] = "coplanar"

@@ -149,46 +149,27 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         return self._walk.variance(step, var_t)
 
     def _candidate_drift(self, spans: list[tuple[int, int]]) -> np.ndarray:
-        """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans`` for
-        the loop candidates' agreement (``loop_candidate_drift``): as the map's
-        verification (:meth:`LoopClosingBuilder._drift_covariance`), for "run" with the
-        bridged epochs' variance from the run (:meth:`_run_variance`)."""
+        """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans`` for the
+        loop candidates' agreement (``loop_candidate_drift``): as the map's verification's
+        (:meth:`LoopClosingBuilder._drift_covariance`), "run" the run's (:meth:`_run_variance`)."""
         c = self.config
         if c.loop_candidate_drift != "run":
             return self._drift_covariance(spans, c.loop_candidate_drift == "stated")
         travelled, variances, _ = self._history()
         return run_drift(travelled, variances, spans, self.full_config)
 
-    def _drift_covariance(self, spans: list[tuple[int, int]], stated: bool = False) -> np.ndarray:
-        """:meth:`LoopClosingBuilder._drift_covariance`, with ``loop_verify_drift`` "run"
-        (and not ``stated``) the run's (:func:`.loop_drift.run_drift`): the map matches'
-        verification then allows the drift the loop candidates allow."""
-        if stated or self.config.loop_verify_drift != "run":
+    def _drift_covariance(
+        self, spans: list[tuple[int, int]], stated: bool = False, run: bool = False
+    ) -> np.ndarray:
+        """:meth:`LoopClosingBuilder._drift_covariance`; not ``stated``, with ``run`` or
+        ``loop_verify_drift`` "run" the run's, as the loop candidates' (:func:`.run_drift`)."""
+        if stated or not (run or self.config.loop_verify_drift == "run"):
             return super()._drift_covariance(spans, stated)
         return run_drift(self.travelled, self._variances, spans, self.full_config)
 
-    def _prior_sigma(self, k: int, oldest: int, ties: list[tuple[int, int]]) -> float:
-        """:meth:`LoopClosingBuilder._prior_sigma`; with ``loop_refuse_ambiguous`` "run"
-        the run's drift over the same spans (:func:`.loop_drift.run_drift`)."""
-        if self.config.loop_refuse_ambiguous != "run":
-            return super()._prior_sigma(k, oldest, ties)
-        spans = self._prior_spans(k, oldest, ties)
-        drift = run_drift(self.travelled, self._variances, spans, self.full_config)
-        return float(np.sqrt(drift[1, 1]))
-
-    def _map_drift(self, landmarks: list[int]) -> np.ndarray:
-        """:meth:`LoopClosingBuilder._map_drift`; with ``loop_refuse_ambiguous`` "run" the
-        run's (half its xy variance per axis and the yaw's lever arm, no floors)."""
-        if self.config.loop_refuse_ambiguous != "run":
-            return super()._map_drift(landmarks)
-        # this epoch's map match: its own step is in the lists, not yet in _history's arrays
-        travelled, variances = np.asarray(self.travelled), np.asarray(self._variances)
-        seen = np.array([self.landmarks[j].last_seen[0] for j in landmarks])  # type: ignore[index]
-        lo, hi = np.minimum.outer(seen, seen), np.maximum.outer(seen, seen)
-        var_t, var_r = (variances[hi] - variances[lo]).transpose(2, 0, 1)
-        return 0.5 * var_t + var_r * (travelled[hi] - travelled[lo]) ** 2
-
     def _reidentify(self, update: GraphUpdate) -> None:
+        if self.config.loop_refuse_ambiguous == "run":  # the alias test's map drift: the run's
+            self._stated[-1] = self._variances[-1] * (0.5, 1.0)  # (the stated ones unused)
         super()._reidentify(update)
         k, c = update.epoch, self.config
         self._positions.append(self.poses[k][:2, 3].copy())
@@ -299,8 +280,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             c_cur, r_cur = _extent(self.planes[k][j], np.eye(4))
             if np.linalg.norm(c_old - c_cur) - r_old - r_cur > c.loop_candidate_overlap_m:
                 return None
-        maps = c.loop_refuse_ambiguous not in ("off", "run")  # "run": the map matches only
-        test = maps or c.loop_candidate_aliases != "off"
+        test = c.loop_refuse_ambiguous not in ("off", "run") or c.loop_candidate_aliases != "off"
         if test and self._ambiguous(e, k, rel, pairs, prior, translation[0]):
             return None
         return RelativePose(

@@ -165,7 +165,6 @@ def tie_ambiguities(
     same: tuple[np.ndarray, float] | None = None,
     parts: bool = False,
     spacing: bool = False,
-    exclude_same: bool = True,
 ) -> np.ndarray:
     """(M,) how far the match's ties beat their best competing hypotheses: per tie, the
     smallest increase of chi2 (a likelihood ratio) when one tie's old plane is swapped for a
@@ -183,9 +182,6 @@ def tie_ambiguities(
     another map part shares no frame with the other ties: they confirm no alias of it).
     ``spacing``: also the tie moved by the same spacing the other way (a wall one spacing
     beyond the tied one, on the side no old plane shows: parallel walls that repeat).
-    ``exclude_same`` False: ``same`` only for ``parts``, no alternative excluded as the
-    same wall (``loop_refuse_ambiguous`` "run": under metres of map drift two walls of a
-    row a spacing apart pass as one).
 
     ``fit`` must hold the residuals at the predicted position (the match's rotation, no
     translation): a match of full rank sits on its own ties, so at its pose an alias
@@ -210,7 +206,7 @@ def tie_ambiguities(
         for alt in np.flatnonzero(np.isfinite(fit.residuals[row])):
             if alt == fit.tied[row]:
                 continue
-            if same is not None and exclude_same:
+            if same is not None:
                 j, (between, limit) = fit.tied[row], same
                 apart = (fit.residuals[row, alt] - b[row]) ** 2
                 spread = between[j, alt] + fit.old_variances[[j, alt]].sum() + 2 * floor_m**2

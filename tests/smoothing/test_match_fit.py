@@ -330,7 +330,8 @@ def test_a_row_wall_tied_a_spacing_off_is_refused_under_an_honest_prior():
     sigma, floor = 1.5, 0.05
     between = np.full((4, 4), 3.0**2)
     np.fill_diagonal(between, 0.0)
-    rows = tie_ambiguities(fit, sigma, floor, (between, LIMIT), parts=True, exclude_same=False)
+    # "run": the map's drift for "parts" only, no "same wall" exclusion (its quantile 0)
+    rows = tie_ambiguities(fit, sigma, floor, (between, 0.0), parts=True)
     # nothing else places the pose along x: the swap costs the prior's and the tie's own
     # variance (the floor, and the drift to the other tie's map part: parts)
     v = sigma**2 + floor**2 + 3.0**2
@@ -345,6 +346,6 @@ def test_a_well_predicted_tie_in_the_row_is_kept():
     since then at the bounds' floor, 0.17 m): tied to the right wall, its neighbours 3.1
     and 6.2 m away cost far more than chi2(1) at 0.999: the tie is kept."""
     fit = _row_of_walls(0.1, tied=0)
-    rows = tie_ambiguities(fit, 0.17, 0.05, (np.zeros((4, 4)), LIMIT), True, exclude_same=False)
+    rows = tie_ambiguities(fit, 0.17, 0.05, (np.zeros((4, 4)), 0.0), parts=True)
     assert rows[0] > LIMIT
     assert rows[0] == pytest.approx((3.2**2 - 0.1**2) / (0.17**2 + 0.05**2), rel=1e-9)
