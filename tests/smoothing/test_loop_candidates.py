@@ -298,7 +298,12 @@ def test_refuse_ambiguous_run_takes_the_runs_drift():
         builder.add_epoch([], [] if k == 0 else [_turn(k, yaw)])
     expected = run_drift(builder.travelled, builder._variances, [(2, 7)], cfg)
     assert builder._prior_sigma(7, 2, []) == pytest.approx(np.sqrt(expected[1, 1]))
-    assert builder._prior_sigma(7, 2, []) < LoopClosingBuilder._prior_sigma(builder, 7, 2, [])
+    chained = LoopClosingBuilder._drift_covariance(builder, [(2, 7)])
+    assert builder._prior_sigma(7, 2, []) < np.sqrt(chained[1, 1])
+    off = loop_candidates.CandidateLoopBuilder(_candidates_only())  # the chained one
+    for k, yaw in enumerate(plan):
+        off.add_epoch([], [] if k == 0 else [_turn(k, yaw)])
+    assert off._prior_sigma(7, 2, []) == pytest.approx(np.sqrt(chained[1, 1]))
     with pytest.raises(ConfigError, match="loop_refuse_ambiguous"):
         PlanodomConfig().updated(
             {"smoothing.loop_refuse_ambiguous": "run", "smoothing.loop_candidate_drift": "chained"}
