@@ -194,6 +194,16 @@ class ExtractionConfig(Section):
     0.193 deg, ATE 0.148 -> 0.196 and 0.78 -> 0.63 m (worse at 6 mm: world 2 0.82 -> 3.27,
     16 0.07 -> 0.48, 56 0.14 -> 0.86 m; with ``odometry.pairwise_reference_time: middle``
     rotation 0.047 / 0.165 deg, ATE 0.207 / 0.58 m): still off."""
+    own_scan_plane: Literal["kept", "dropped", "trimmed"] = "trimmed"
+    """2D rig with a sensor origin per ring: what becomes of a group whose plane holds the
+    sensor of one of its rings with two or more segments in it (that ring's rays within
+    ``trace_parallel_deg`` of the plane), a tilted scanner's own scan plane taken for a
+    wall (:mod:`planodom.extraction.rig2d.path`). ``trimmed``: that ring's segments leave
+    the group, which stays a plane only if the rest still is one by the grouping's rules
+    (two rings crossing at ``min_cross_angle_deg``, ``min_plane_points``, the RMS limit)
+    and is refit on it (:func:`.rig2d.path.without_own_scan_plane`); ``dropped``: the
+    whole group goes (:func:`.rig2d.path.spans_own_scan_plane`), grazing real floors and
+    walls with it; ``kept``: no test."""
     viewpoint_planes: Literal["kept", "rejected", "ransac"] = "ransac"
     """``rejected``: a fit whose inliers are as flat about a plane through their viewpoint
     as a plane must be about its own (RMS within ``member_sigma_factor`` noise sigmas) is
