@@ -242,8 +242,8 @@ def test_what_is_left_must_still_be_a_plane():
         FLOOR.direction, [100, 100, 100, 100, 60, 60], [2.0, 2.0, 2.0, 2.0, 3.0, 3.0],
     )  # fmt: skip
     assert without_own_scan_plane(bent, np.arange(6), RULES, FLOOR_ORIGINS) is None
-    assert without_own_scan_plane(bent, np.arange(6), RULES._replace(max_rms_m=0.06),
-                                  FLOOR_ORIGINS).tolist() == [0, 1, 2, 3]  # fmt: skip
+    rest = without_own_scan_plane(bent, np.arange(6), RULES._replace(max_rms_m=0.06), FLOOR_ORIGINS)
+    assert rest is not None and rest.tolist() == [0, 1, 2, 3]
 
 
 def test_a_wall_seen_from_4_m_is_kept_whole():
@@ -264,4 +264,6 @@ def test_real_walls_with_sensor_origins_are_kept(mode):
     res = extract(scan_rig(SCENE), ExtractionConfig(own_scan_plane=mode), sensor_origins=origins)
     assert {p.truth_id for p in ref.planes} >= DETERMINED
     assert [p.truth_id for p in res.planes] == [p.truth_id for p in ref.planes]
-    assert all(np.array_equal(a.normal, b.normal) for a, b in zip(res.planes, ref.planes))
+    assert all(
+        np.array_equal(a.normal, b.normal) for a, b in zip(res.planes, ref.planes, strict=True)
+    )
