@@ -5,8 +5,11 @@
    different scanners into planes (:mod:`.traces`, :mod:`.grouping`), and, with
    ``single_scanner_min_sweeps``, one scanner's lines of several sweeps
    (:mod:`.sweeplines`);
-3. refit every group robustly on its points (:mod:`.groupfit`);
-4. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
+3. with a sensor origin per ring, take a ring whose sensor lies on a group's plane out of
+   the group, a tilted scanner's own scan plane taken for a wall
+   (``extraction.own_scan_plane``, :func:`without_own_scan_plane`);
+4. refit every group robustly on its points (:mod:`.groupfit`);
+5. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
 
 Without a twist on a moving epoch, all of this works in time windows (:mod:`.windows`);
 with one, the tolerances grow by the smear the twist's uncertainty leaves
