@@ -55,7 +55,7 @@ def test_group_refits_are_the_moments_of_their_inliers():
         min_trace_points=5, seed_floor_m=0.02, gap_m=1.0, gap_ratio=0.2, max_span_s=np.inf,
         max_seed_normal_err_rad=float(np.radians(10.0)),
     )  # fmt: skip
-    groups, _, _ = group_segments(segs, params, cfg.trace_parallel_deg, cfg.trace_step_m)
+    groups, _ = group_segments(segs, params, cfg.trace_parallel_deg, cfg.trace_step_m)
     assert len(groups) >= 2
     fits = fit_groups(segs, groups, cfg.inlier_sigma_factor, None)
     for g in range(len(groups)):

@@ -246,27 +246,6 @@ def test_what_is_left_must_still_be_a_plane():
     assert rest is not None and rest.tolist() == [0, 1, 2, 3]
 
 
-def test_a_wall_seen_by_a_grazing_ring_keeps_its_one_line():
-    # the wall x = 4: ring 0 crosses it from 4 m (two sweeps), ring 1's sensor 0.1 m off
-    # it, 8 m along (rays 0.7 deg off the wall), with one line of it in two sweeps: one
-    # trace, a grazing view of a real wall, kept whole; the same two segments taken as two
-    # lines (no traces given, or two traces) make ring 1 a scan-plane ring, and ring 0's
-    # parallel lines alone are no plane
-    wall = _segments(
-        [1, 1, 0, 0], [[4.0, 0.0, 0.8], [4.0, 0.01, 0.8], [4.0, 0.5, 0.9], [4.0, 0.51, 0.9]],
-        [[0, 1, 0.3], [0, 1, 0.3], [0, 1, -1.0], [0, 1, -1.0]], [100] * 4, [2.0] * 4,
-    )  # fmt: skip
-    origins = np.array([[0.0, 0.5, 0.9], [3.9, -8.0, 1.0]])
-    group = np.arange(4)
-    one_line = np.array([0, 0, 1, 1])
-    assert without_own_scan_plane(wall, group, RULES, origins, one_line) is group
-    assert without_own_scan_plane(wall, group, RULES, origins) is None
-    assert without_own_scan_plane(wall, group, RULES, origins, np.array([0, 1, 2, 2])) is None
-    # the ghost: ring 2's lines on two walls are two traces
-    on_plane = np.array([[1.0, 0.5, 0.8], [1.0, -0.5, 0.8], [0.0, 0.0, 0.8]])
-    assert without_own_scan_plane(SCAN_PLANE, EVERY, RULES, on_plane, np.arange(3)) is None
-
-
 def test_a_wall_seen_from_4_m_is_kept_whole():
     wall = _segments(
         [0, 0, 1], [[4.0, 0.0, 0.8], [4.0, 0.0, 1.0], [4.0, 0.5, 0.9]],

@@ -100,7 +100,7 @@ def group_segments(
     parallel_deg: float,
     step_m: float,
     seg_times: tuple[np.ndarray, np.ndarray] | None = None,
-) -> tuple[list[np.ndarray], int, np.ndarray]:
+) -> tuple[list[np.ndarray], int]:
     """Segments grouped into planes (module docstring).
 
     Args:
@@ -111,12 +111,11 @@ def group_segments(
         seg_times: first and last time (s) of each segment, (S,) each, in time windows.
 
     Returns:
-        A list of (K,) int64 arrays of segment indices, one per plane, the number of
-        seeds rejected after refitting, and the trace of every segment, (S,) int64 (one
-        label per line a ring saw over its sweeps, :func:`.traces.build_traces`).
+        A list of (K,) int64 arrays of segment indices, one per plane, and the number of
+        seeds rejected after refitting.
     """
     if len(segs) < 2:
-        return [], 0, np.arange(len(segs), dtype=np.int64)
+        return [], 0
     tr = build_traces(
         segs, params.tol_m, params.sigma_m, parallel_deg, step_m, seg_times, params.max_span_s
     )
@@ -125,7 +124,7 @@ def group_segments(
     order = np.argsort(group_of_seg, kind="stable")
     bounds = np.searchsorted(group_of_seg[order], np.arange(n_groups + 1))
     groups = [order[bounds[g] : bounds[g + 1]] for g in range(n_groups)]
-    return groups, int(rejected), np.asarray(tr.label, dtype=np.int64)
+    return groups, int(rejected)
 
 
 class _Seeds(NamedTuple):

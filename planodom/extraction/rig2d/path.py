@@ -68,7 +68,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         parallel_rad=float(np.radians(config.trace_parallel_deg)),
         seed_spans_gap=bool(config.seed_spans_gap),
     )
-    groups, n_lost, trace = group_segments(
+    groups, n_lost = group_segments(
         segs, params, config.trace_parallel_deg, config.trace_step_m, seg_times
     )
     n_groups = len(groups)
@@ -77,7 +77,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         sin_parallel = float(np.sin(params.parallel_rad))
         groups = [g for g in groups if not spans_own_scan_plane(segs, g, sin_parallel, origins)]
     elif origins is not None and config.own_scan_plane == "trimmed":
-        trimmed = [without_own_scan_plane(segs, g, params, origins, trace) for g in groups]
+        trimmed = [without_own_scan_plane(segs, g, params, origins) for g in groups]
         groups = [g for g in trimmed if g is not None]
     n_lost += n_groups - len(groups)
     if not groups:
@@ -89,36 +89,27 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
 
 
 def without_own_scan_plane(
-    segs: Segments,
-    group: np.ndarray,
-    params: GroupingParams,
-    origins: np.ndarray,
-    trace: np.ndarray | None = None,
+    segs: Segments, group: np.ndarray, params: GroupingParams, origins: np.ndarray
 ) -> np.ndarray | None:
     """``group`` (K,) segment indices without the segments of the rings whose sensor lies
-    on the group's plane and that put two or more distinct lines in it
-    (:func:`on_plane_rings`: segments of two traces, ``trace`` (S,) the trace of every
-    segment, :func:`.grouping.group_segments`, or two segments without it; the ring's rays
-    parallel to the plane within ``params.parallel_rad``), or None when what is left is not
-    a plane by the grouping's own rules (:mod:`.grouping`): segments of two rings crossing
-    at ``params.sin_min_cross`` or more, ``params.min_points`` points and an RMS residual
-    about their plane (least squares over the segments' moments) within
+    on the group's plane (:func:`on_plane_rings`: two or more of the ring's segments in
+    it, its rays parallel to it within ``params.parallel_rad``), or None when what is left
+    is not a plane by the grouping's own rules (:mod:`.grouping`): segments of two rings
+    crossing at ``params.sin_min_cross`` or more, ``params.min_points`` points and an RMS
+    residual about their plane (least squares over the segments' moments) within
     ``params.max_rms_m``. The group is returned unchanged (the same array) when no ring
     lies on its plane. ``origins`` (R, 3) m: each ring's sensor origin, base frame.
 
-    A scanner's own scan plane holds its rays and its lines on every surface it sees
-    (several traces: lines on different walls, the floor, the ceiling); such a group is
-    that ring's lines plus a short trace of another ring that seeded it, and without the
-    ring it is not a plane (world 32 at 2 cm: odometry ATE 3.23 -> 0.84 m over 200
-    epochs). A real wall or floor seen at grazing incidence by one ring holds one line of
-    it (one trace over the sweeps) and keeps it; with two such lines (a floor seen by
-    four rings, one of them far away at a grazing angle) it loses only that ring and is
-    refit without it. Dropping the whole group (:func:`spans_own_scan_plane`) also lost
-    real walls seen by a second ring at a grazing angle (worlds 42, 46, 60 at 2 cm). No
-    new threshold: the parallelism is ``trace_parallel_deg``, the lines are the traces,
-    the rest is the grouping's.
+    A scanner's own scan plane holds its rays and its lines on every surface it sees; such
+    a group is that ring's lines plus a short trace of another ring that seeded it, and
+    without the ring it is not a plane (world 32 at 2 cm: odometry ATE 3.23 -> 0.84 m
+    over 200 epochs, :func:`spans_own_scan_plane`). A real floor or wall seen by several
+    rings, one of them at grazing incidence from far away, loses only that ring's lines
+    (dropping the whole plane, as :func:`spans_own_scan_plane` does, cost world 46 a
+    6376-point floor) and is refit without them. No new threshold: the parallelism is
+    ``trace_parallel_deg``, the rest the grouping's.
     """
-    bad = on_plane_rings(segs, group, float(np.sin(params.parallel_rad)), origins, trace)
+    bad = on_plane_rings(segs, group, float(np.sin(params.parallel_rad)), origins)
     if not bad:
         return group
     rest = group[~np.isin(segs.ring[group], bad)]
@@ -139,14 +130,9 @@ def without_own_scan_plane(
 
 
 def on_plane_rings(
-    segs: Segments,
-    group: np.ndarray,
-    sin_parallel: float,
-    origins: np.ndarray,
-    trace: np.ndarray | None = None,
+    segs: Segments, group: np.ndarray, sin_parallel: float, origins: np.ndarray
 ) -> list[int]:
-    """The rings of ``group`` (K,) segment indices with two or more lines in it (segments
-    of two traces, ``trace`` (S,) the trace of every segment; None: two segments) whose
+    """The rings of ``group`` (K,) segment indices with two or more segments in it whose
     sensor origin (``origins`` (R, 3) m, base frame, by ring) lies on the group's plane
     (least squares over its segments' moments): the origin's distance to the plane is at
     most ``sin_parallel`` times the ring's mean range to those segments (weighted by
@@ -163,8 +149,7 @@ def on_plane_rings(
     bad = []
     for r in np.unique(rings):
         mine = group[rings == r]
-        lines = len(mine) if trace is None else len(np.unique(trace[mine]))
-        if lines < 2 or r >= len(origins):
+        if len(mine) < 2 or r >= len(origins):
             continue
         rng = np.linalg.norm(segs.centroid[mine] - origins[r], axis=1)
         w = segs.count[mine].astype(np.float64)
