@@ -5,9 +5,9 @@
    different scanners into planes (:mod:`.traces`, :mod:`.grouping`), and, with
    ``single_scanner_min_sweeps``, one scanner's lines of several sweeps
    (:mod:`.sweeplines`);
-3. with a sensor origin per ring, take a ring whose sensor lies on a group's plane out of
-   the group, a tilted scanner's own scan plane taken for a wall
-   (``extraction.own_scan_plane``, :func:`without_own_scan_plane`);
+3. with a sensor origin per ring and ``extraction.own_scan_plane`` on (off by default),
+   take a ring whose sensor lies on a group's plane out of the group, a tilted scanner's
+   own scan plane taken for a wall (:func:`without_own_scan_plane`), or drop the group;
 4. refit every group robustly on its points (:mod:`.groupfit`);
 5. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
 
