@@ -160,8 +160,9 @@ class LoopCandidateConfig(Section):
     this quantile of chi2(3) is removed and the graph solved again."""
 
     def check_loop_drift(self) -> None:
-        """``loop_verify_drift`` and ``loop_drift_yaw`` "run" need the run's drift."""
-        for name in ("loop_verify_drift", "loop_drift_yaw"):
+        """``loop_verify_drift``, ``loop_drift_yaw`` and ``loop_refuse_ambiguous`` "run" need
+        the run's drift."""
+        for name in ("loop_verify_drift", "loop_drift_yaw", "loop_refuse_ambiguous"):
             if getattr(self, name) == "run" and self.loop_candidate_drift != "run":
                 raise ConfigError(
                     f"smoothing.{name}: 'run' needs loop_candidate_drift 'run', "

@@ -314,7 +314,7 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     right matches on world 4 at 2 cm (ATE 0.025 -> 0.126 m); the drift-scaled one none.
     Measured (batch, loop closure, worlds 0, 2, 4 at 6 mm and 2 cm, one lap): world 2 at
     6 mm keeps 4 instead of 20 wrong ties (ATE 2.77 -> 2.68 m), the others unchanged."""
-    loop_refuse_ambiguous: Literal["off", "drift", "stated", "parts"] = "off"
+    loop_refuse_ambiguous: Literal["off", "drift", "stated", "parts", "run"] = "off"
     """Test each re-identification against its competing hypotheses: one tie swapped for
     another old wall parallel to it (same orientation), the pose shifted to fit, under the
     prediction's uncertainty; a tie whose competitor costs at most chi2(1) at
@@ -344,7 +344,15 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     0.025 -> 0.042, at 2 cm 0.021 -> 0.071 (its 9 right loop factors refused), world 4
     at 2 cm 0.069 -> 0.128 (world 0 and 4 at 6 mm within 0.3 mm). "drift" alone: world
     32 at 6 mm 3.61, world 16 0.034 and 0.021, world 4 at 2 cm 0.128 (the test's, not the
-    parts'). Off by default."""
+    parts'). "run" (needs ``loop_candidate_drift`` "run"; loop candidates unchanged): the
+    prior and map drift the run's (:func:`.loop_drift.run_drift`), "parts", and no "same
+    wall" exclusion. Why: world 32 at 2 cm, its first wrong ties' true wall 2.6-3.8 m off,
+    chained sigma 3.7-10.6 m (a spacing apart passes as one wall), the run's 2.2-3.7 m.
+    Measured (docs/RESULTS.md "An honest alias test"; ATE m, off -> run): world 32 at 2 cm
+    wrong ties kept 17 -> 8, loop end 3.71 -> 0.04 m, but 2.80 -> 3.85 (the odometry's
+    3.8 m loss exceeds a wall spacing: every tie undoing it is ambiguous); 6 mm 0.142 ->
+    0.128; world 4 at 2 cm 0.017 -> 0.065 (one wall mapped twice 0.3 m apart competes with
+    itself), world 16 0.023 -> 0.035. Off by default."""
     loop_confirmations: Annotated[int, Field(ge=1)] = 2
     """Matches that must agree before a new (or the first) correction is accepted."""
     odometry_deskew_twist: Literal["coplanar", "odometry"] = "coplanar"

@@ -149,25 +149,27 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         return self._walk.variance(step, var_t)
 
     def _candidate_drift(self, spans: list[tuple[int, int]]) -> np.ndarray:
-        """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans`` for
-        the loop candidates' agreement (``loop_candidate_drift``): as the map's
-        verification (:meth:`LoopClosingBuilder._drift_covariance`), for "run" with the
-        bridged epochs' variance from the run (:meth:`_run_variance`)."""
+        """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans`` for the
+        loop candidates' agreement (``loop_candidate_drift``): as the map's verification's
+        (:meth:`LoopClosingBuilder._drift_covariance`), "run" the run's (:meth:`_run_variance`)."""
         c = self.config
         if c.loop_candidate_drift != "run":
             return self._drift_covariance(spans, c.loop_candidate_drift == "stated")
         travelled, variances, _ = self._history()
         return run_drift(travelled, variances, spans, self.full_config)
 
-    def _drift_covariance(self, spans: list[tuple[int, int]], stated: bool = False) -> np.ndarray:
-        """:meth:`LoopClosingBuilder._drift_covariance`, with ``loop_verify_drift`` "run"
-        (and not ``stated``) the run's (:func:`.loop_drift.run_drift`): the map matches'
-        verification then allows the drift the loop candidates allow."""
-        if stated or self.config.loop_verify_drift != "run":
+    def _drift_covariance(
+        self, spans: list[tuple[int, int]], stated: bool = False, run: bool = False
+    ) -> np.ndarray:
+        """:meth:`LoopClosingBuilder._drift_covariance`; not ``stated``, with ``run`` or
+        ``loop_verify_drift`` "run" the run's, as the loop candidates' (:func:`.run_drift`)."""
+        if stated or not (run or self.config.loop_verify_drift == "run"):
             return super()._drift_covariance(spans, stated)
         return run_drift(self.travelled, self._variances, spans, self.full_config)
 
     def _reidentify(self, update: GraphUpdate) -> None:
+        if self.config.loop_refuse_ambiguous == "run":  # the alias test's map drift: the run's
+            self._stated[-1] = self._variances[-1] * (0.5, 1.0)  # (the stated ones unused)
         super()._reidentify(update)
         k, c = update.epoch, self.config
         self._positions.append(self.poses[k][:2, 3].copy())
@@ -278,7 +280,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             c_cur, r_cur = _extent(self.planes[k][j], np.eye(4))
             if np.linalg.norm(c_old - c_cur) - r_old - r_cur > c.loop_candidate_overlap_m:
                 return None
-        test = c.loop_refuse_ambiguous != "off" or c.loop_candidate_aliases != "off"
+        test = c.loop_refuse_ambiguous not in ("off", "run") or c.loop_candidate_aliases != "off"
         if test and self._ambiguous(e, k, rel, pairs, prior, translation[0]):
             return None
         return RelativePose(
@@ -311,7 +313,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             if epoch_ambiguity(old, curr, pairs, T, *args) <= limit:
                 self._aliased = k
                 return True
-            if c.loop_refuse_ambiguous == "off":
+            if c.loop_refuse_ambiguous in ("off", "run"):
                 return False
         fit = offset_residuals(self.planes[e], self.planes[k], pairs, T, sigma, angle, np.zeros(0))
         return ambiguity(fit, bound / c.loop_sigmas, sigma) <= limit

@@ -28,9 +28,8 @@ With ``loop_refuse_misfit`` a rotation-only match (verified on its yaw alone) is
 refused when a tied wall's offset residual at its own pose exceeds chi2(1) at
 ``loop_gate_quantile`` under the drift along the wall's normal plus both planes' offset
 variances, or when two ties of parallel walls disagree on the pose along their normal
-(:mod:`planodom.smoothing.match_fit`). With ``loop_refuse_ambiguous`` any match is refused
-when one tie swapped for a parallel old wall, the pose shifted to fit, explains the ties
-about as well under the chained odometry's stated uncertainty (a likelihood ratio).
+(:mod:`planodom.smoothing.match_fit`). With ``loop_refuse_ambiguous`` a tie is refused when
+swapped for a parallel old wall it explains the match about as well (a likelihood ratio).
 
 After optimisation (:func:`planodom.smoothing.loop_records.gate_reidentifications`) a
 match one of whose re-identified factors has a squared whitened error above the
@@ -251,10 +250,12 @@ class LoopClosingBuilder(GraphBuilder):
             var_r += self.variances[b][1] - self.variances[a][1]
         return distance, var_t, var_r
 
-    def _drift_covariance(self, spans: Spans, stated: bool = False) -> np.ndarray:
-        """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans``:
-        the odometry's variances (``stated``: as it states them, see :meth:`_prior_sigma`),
-        the yaw's lever arm, and the minimum bounds' floors."""
+    def _drift_covariance(
+        self, spans: Spans, stated: bool = False, run: bool = False
+    ) -> np.ndarray:
+        """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans``: the
+        odometry's variances (``stated``: as it states them, ``run``: the run's where kept,
+        see :meth:`_prior_sigma`), the yaw's lever arm, and the minimum bounds' floors."""
         c = self.config
         distance, var_t, var_r = self._chain(spans)
         var_t *= 0.5
@@ -336,8 +337,9 @@ class LoopClosingBuilder(GraphBuilder):
             fit = offset_residuals(walls, curr, old, T_pred, sigma, angle, np.zeros((0, 0)))
             limit = float(chi2.ppf(c.loop_gate_quantile, 1))
             prior = self._prior_sigma(k, oldest, match.ties)
-            same = (self._map_drift(candidates), limit)
-            rows = tie_ambiguities(fit, prior, sigma, same, c.loop_refuse_ambiguous == "parts")
+            mode = c.loop_refuse_ambiguous  # "run": as "parts", no "same wall" exclusion
+            same = (self._map_drift(candidates), 0.0 if mode == "run" else limit)
+            rows = tie_ambiguities(fit, prior, sigma, same, mode in ("parts", "run"))
             match.ambiguity = float(np.min(rows, initial=np.inf))
             if match.ambiguity <= limit:  # its pose rests on an alias: ties the clear walls
                 old, full, T = old[rows > limit], False, T_pred  # verified as rotation-only
@@ -358,19 +360,17 @@ class LoopClosingBuilder(GraphBuilder):
             self._tie(update, candidates[m], int(i), map_planes[m].normal @ T[:3, :3])
 
     def _prior_sigma(self, k: int, oldest: int, ties: list[tuple[int, int]]) -> float:
-        """Standard deviation (m, per horizontal axis) of the predicted position in the
-        map since the accepted correction and between the map parts (tracked), else since
-        the candidates' last sighting: :meth:`_drift_covariance`, as the odometry states
-        it with ``loop_refuse_ambiguous`` "stated". Not the association bounds: capped by
-        the drift fraction, they are metres too tight after epochs whose translation
-        nothing measured (2D-rig world 16 at 2 cm)."""
+        """Sigma (m, per axis) of the predicted position in the map since the accepted
+        correction and between the map parts (tracked), else since the candidates' last
+        sighting (:meth:`_drift_covariance`; ``loop_refuse_ambiguous`` "stated", "run"), not
+        the association bounds (capped, metres too tight: 2D-rig world 16 at 2 cm)."""
         ref = self._reference if self.config.loop_verify == "tracked" else None
         spans = [(oldest, k)]
         if ref is not None:
             seen = min(self.landmarks[j].last_seen[0] for j, _ in ties)  # type: ignore[index]
             spans = [(ref[0], k), (ref[1], seen)]
-        stated = self.config.loop_refuse_ambiguous == "stated"
-        return float(np.sqrt(self._drift_covariance(spans, stated)[1, 1]))
+        mode = self.config.loop_refuse_ambiguous
+        return float(np.sqrt(self._drift_covariance(spans, mode == "stated", mode == "run")[1, 1]))
 
     def _map_drift(self, landmarks: list[int]) -> np.ndarray:
         """(N, N) per-axis variance (m^2) of the map's drift between the last sightings of

@@ -285,3 +285,26 @@ def test_an_aliased_place_tries_no_further_old_epoch(problem, monkeypatch):
     off = _candidates_only().updated({"smoothing.loop_candidate_aliases": "off"})
     plain = smooth_batch(planes, relatives, off)
     assert {f.epoch for f in plain.loop_factors} & set(refused)
+
+
+def test_refuse_ambiguous_run_takes_the_runs_drift():
+    """loop_refuse_ambiguous "run": the alias test's prior is the run's drift since the
+    candidates' sighting (run_drift of the builder's own sums, before any correction),
+    tighter than the chained one over bridged epochs; it needs loop_candidate_drift "run"."""
+    plan = [None, 0.010, 0.014, 0.009, 0.012, None, None, None]
+    cfg = _candidates_only().updated({"smoothing.loop_refuse_ambiguous": "run"})
+    builder = loop_candidates.CandidateLoopBuilder(cfg)
+    for k, yaw in enumerate(plan):
+        builder.add_epoch([], [] if k == 0 else [_turn(k, yaw)])
+    expected = run_drift(builder.travelled, builder._variances, [(2, 7)], cfg)
+    assert builder._prior_sigma(7, 2, []) == pytest.approx(np.sqrt(expected[1, 1]))
+    chained = LoopClosingBuilder._drift_covariance(builder, [(2, 7)])
+    assert builder._prior_sigma(7, 2, []) < np.sqrt(chained[1, 1])
+    off = loop_candidates.CandidateLoopBuilder(_candidates_only())  # the chained one
+    for k, yaw in enumerate(plan):
+        off.add_epoch([], [] if k == 0 else [_turn(k, yaw)])
+    assert off._prior_sigma(7, 2, []) == pytest.approx(np.sqrt(chained[1, 1]))
+    with pytest.raises(ConfigError, match="loop_refuse_ambiguous"):
+        PlanodomConfig().updated(
+            {"smoothing.loop_refuse_ambiguous": "run", "smoothing.loop_candidate_drift": "chained"}
+        )

@@ -301,3 +301,51 @@ def test_spacing_tries_the_wall_beyond_that_no_epoch_shows():
     aliased = [[0, 0], [1, 1], [2, 2], [3, 3]]
     assert _epoch_ambiguity(old, curr, aliased, 1.5, 1.0) > LIMIT
     assert _epoch_ambiguity(old, curr, aliased, 1.5, 1.0, spacing=True) == pytest.approx(0.0)
+
+
+def _row_of_walls(predicted_x: float, tied: int) -> OffsetFit:
+    """A row of parallel walls across x at 2.0, 5.1 and 8.2 m (3.1 m apart) and a wall
+    along it (normal y); the current epoch, truly at the map's origin, sees the first wall
+    and the wall along the row; the prediction is ``predicted_x`` m off along the row, and
+    the wall the current epoch sees is tied to row wall ``tied`` (the wall along the row to
+    its own). Offsets at the predicted position (:func:`tie_ambiguities`)."""
+    old = [Plane(np.array([1.0, 0, 0]), x) for x in (2.0, 5.1, 8.2)]
+    old.append(Plane(np.array([0, 1.0, 0]), 1.5))
+    curr = _seen_from(np.eye(4), [old[0], old[3]])
+    T_pred = transform_from_rpy_xyz(0.0, 0.0, 0.0, predicted_x, 0.0, 0.0)
+    pairs = np.array([[tied, 0], [3, 1]])
+    return offset_residuals(old, curr, pairs, T_pred, 0.0, 3.0, np.zeros((0, 0)))
+
+
+def test_a_row_wall_tied_a_spacing_off_is_refused_under_an_honest_prior():
+    """loop_refuse_ambiguous "run": the prediction one spacing off along the row, so the
+    seen wall fits its neighbour exactly and is tied to it; the run's drift says the
+    prediction is good to 1.5 m (sigma): the right wall, 3.1 m away (2 sigma), competes
+    and the tie is refused. The wall along the row says nothing along it (the shift is
+    the prior's alone: closed form). Under the map's drift between the row walls'
+    sightings (3 m sigma) the old "same wall" exclusion drops the competitor (the two
+    walls a spacing apart look like one wall seen twice) and the alias passes."""
+    fit = _row_of_walls(-3.1, tied=1)
+    np.testing.assert_allclose(fit.residuals[0, :3], [-3.1, 0.0, 3.1], atol=1e-12)
+    sigma, floor = 1.5, 0.05
+    between = np.full((4, 4), 3.0**2)
+    np.fill_diagonal(between, 0.0)
+    # "run": the map's drift for "parts" only, no "same wall" exclusion (its quantile 0)
+    rows = tie_ambiguities(fit, sigma, floor, (between, 0.0), parts=True)
+    # nothing else places the pose along x: the swap costs the prior's and the tie's own
+    # variance (the floor, and the drift to the other tie's map part: parts)
+    v = sigma**2 + floor**2 + 3.0**2
+    assert rows[0] == pytest.approx(3.1**2 / v, rel=1e-9)
+    assert rows[0] <= LIMIT  # refused
+    assert rows[1] == np.inf  # the wall along the row has no parallel competitor
+    assert tie_ambiguities(fit, sigma, floor, (between, LIMIT))[0] == np.inf  # "same wall"
+
+
+def test_a_well_predicted_tie_in_the_row_is_kept():
+    """The same row, the prediction 0.1 m off after an accepted correction (the run's drift
+    since then at the bounds' floor, 0.17 m): tied to the right wall, its neighbours 3.1
+    and 6.2 m away cost far more than chi2(1) at 0.999: the tie is kept."""
+    fit = _row_of_walls(0.1, tied=0)
+    rows = tie_ambiguities(fit, 0.17, 0.05, (np.zeros((4, 4)), 0.0), parts=True)
+    assert rows[0] > LIMIT
+    assert rows[0] == pytest.approx((3.2**2 - 0.1**2) / (0.17**2 + 0.05**2), rel=1e-9)

@@ -5,8 +5,11 @@
    different scanners into planes (:mod:`.traces`, :mod:`.grouping`), and, with
    ``single_scanner_min_sweeps``, one scanner's lines of several sweeps
    (:mod:`.sweeplines`);
-3. refit every group robustly on its points (:mod:`.groupfit`);
-4. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
+3. with a sensor origin per ring and ``extraction.own_scan_plane`` on (off by default),
+   take a ring whose sensor lies on a group's plane out of the group, a tilted scanner's
+   own scan plane taken for a wall (:func:`without_own_scan_plane`), or drop the group;
+4. refit every group robustly on its points (:mod:`.groupfit`);
+5. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
 
 Without a twist on a moving epoch, all of this works in time windows (:mod:`.windows`);
 with one, the tolerances grow by the smear the twist's uncertainty leaves
@@ -68,12 +71,121 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     groups, n_lost = group_segments(
         segs, params, config.trace_parallel_deg, config.trace_step_m, seg_times
     )
+    n_groups = len(groups)
+    origins = epoch.origins if epoch.origins is not None and len(epoch.origins) > 1 else None
+    if origins is not None and config.own_scan_plane == "dropped":
+        sin_parallel = float(np.sin(params.parallel_rad))
+        groups = [g for g in groups if not spans_own_scan_plane(segs, g, sin_parallel, origins)]
+    elif origins is not None and config.own_scan_plane == "trimmed":
+        trimmed = [without_own_scan_plane(segs, g, params, origins) for g in groups]
+        groups = [g for g in trimmed if g is not None]
+    n_lost += n_groups - len(groups)
     if not groups:
         return PathResult([], [], sigma, len(segs), 0, n_lost)
     fits = _group_fits(segs, groups, epoch, config)
     adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw) if windowed else None
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
     return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)
+
+
+def without_own_scan_plane(
+    segs: Segments, group: np.ndarray, params: GroupingParams, origins: np.ndarray
+) -> np.ndarray | None:
+    """``group`` (K,) segment indices without the segments of the rings whose sensor lies
+    on the group's plane (:func:`on_plane_rings`: two or more of the ring's segments in
+    it, its rays parallel to it within ``params.parallel_rad``), or None when what is left
+    is not a plane by the grouping's own rules (:mod:`.grouping`): segments of two rings
+    crossing at ``params.sin_min_cross`` or more, ``params.min_points`` points and an RMS
+    residual about their plane (least squares over the segments' moments) within
+    ``params.max_rms_m``. The group is returned unchanged (the same array) when no ring
+    lies on its plane. ``origins`` (R, 3) m: each ring's sensor origin, base frame.
+
+    A scanner's own scan plane holds its rays and its lines on every surface it sees; such
+    a group is that ring's lines plus a short trace of another ring that seeded it, and
+    without the ring it is not a plane (world 32 at 2 cm: odometry ATE 3.23 -> 0.84 m
+    over 200 epochs, world 2 3.08 -> 1.27 m). A real floor or wall seen by several rings,
+    one of them at grazing incidence from far away, loses only that ring's lines and is
+    refit without them (world 46 at 2 cm keeps a 6376-point floor seen by four rings that
+    :func:`spans_own_scan_plane` drops whole). A wall seen by one other ring only, in
+    parallel lines of its sweeps, still goes: its tilt about those lines is then set by
+    the grazing ring alone, which its own scan plane would set the same way (counting a
+    ring only with two distinct lines, traces, in the group kept such walls but also
+    world 2's ghost: one sparse line of a ring on a wall, its sensor on a plane through
+    another ring's floor lines 19.6 deg off the floor; ATE 1.27 -> 3.08 m). No new
+    threshold: the parallelism is ``trace_parallel_deg``, the rest the grouping's.
+    """
+    bad = on_plane_rings(segs, group, float(np.sin(params.parallel_rad)), origins)
+    if not bad:
+        return group
+    rest = group[~np.isin(segs.ring[group], bad)]
+    if len(np.unique(segs.ring[rest])) < 2:
+        return None
+    n_k = segs.count[rest].astype(np.float64)
+    if n_k.sum() < params.min_points:
+        return None
+    c = (n_k[:, None] * segs.centroid[rest]).sum(axis=0) / n_k.sum()
+    dc = segs.centroid[rest] - c
+    scatter = segs.scatter[rest].sum(axis=0) + np.einsum("k,ki,kj->ij", n_k, dc, dc)
+    if np.sqrt(max(float(np.linalg.eigvalsh(scatter)[0]), 0.0) / n_k.sum()) > params.max_rms_m:
+        return None
+    u, ring = segs.direction[rest], segs.ring[rest]
+    sines = np.linalg.norm(np.cross(u[:, None, :], u[None, :, :]), axis=-1)
+    crossing = (sines >= params.sin_min_cross) & (ring[:, None] != ring[None, :])
+    return rest if bool(crossing.any()) else None
+
+
+def on_plane_rings(
+    segs: Segments, group: np.ndarray, sin_parallel: float, origins: np.ndarray
+) -> list[int]:
+    """The rings of ``group`` (K,) segment indices with two or more segments in it whose
+    sensor origin (``origins`` (R, 3) m, base frame, by ring) lies on the group's plane
+    (least squares over its segments' moments): the origin's distance to the plane is at
+    most ``sin_parallel`` times the ring's mean range to those segments (weighted by
+    points), i.e. the ring's rays are parallel to the plane within that angle on average.
+    Measured: a scanner's own plane lies at 0-1.5 deg from its ring's rays (world 32, 2
+    cm and 6 mm), real planes that a ring cuts in two directions from 7 deg (worlds 4, 16,
+    18 at 2 cm)."""
+    rings = segs.ring[group]
+    n_k = segs.count[group].astype(np.float64)
+    c = (n_k[:, None] * segs.centroid[group]).sum(axis=0) / n_k.sum()
+    dc = segs.centroid[group] - c
+    scatter = segs.scatter[group].sum(axis=0) + np.einsum("k,ki,kj->ij", n_k, dc, dc)
+    normal = np.linalg.eigh(scatter)[1][:, 0]
+    bad = []
+    for r in np.unique(rings):
+        mine = group[rings == r]
+        if len(mine) < 2 or r >= len(origins):
+            continue
+        rng = np.linalg.norm(segs.centroid[mine] - origins[r], axis=1)
+        w = segs.count[mine].astype(np.float64)
+        if abs(normal @ (origins[r] - c)) <= sin_parallel * float(w @ rng / w.sum()):
+            bad.append(int(r))
+    return bad
+
+
+def spans_own_scan_plane(
+    segs: Segments, group: np.ndarray, sin_parallel: float, origins: np.ndarray | None
+) -> bool:
+    """Whether ``group`` (K,) segment indices is the scan plane of one of its rings: two or
+    more of the ring's segments in it, and the ring's rays to them (from its sensor origin,
+    ``origins`` (R, 3) m, base frame, by ring; None, as for one origin for all: never)
+    parallel to the group's plane (least squares over its segments' moments) within the
+    angle of sine ``sin_parallel`` (``trace_parallel_deg``), on average over the ring's
+    points (the origin's distance to the plane over the segments' mean range).
+
+    A real plane never holds the scanner that sees it (its points would be at grazing
+    incidence); a scanner's own plane holds its rays and its lines on every surface (the
+    two walls of a corridor, the floor, the ceiling). Fixed in the base frame, such a
+    plane reports no motion along its normal: on world 32 at 2 cm one grown from a short
+    trace of another scanner took the odometry's along-row motion to 0.01 m a step
+    instead of 0.07 m for 60 epochs. Measured: such planes lie at 0-1.5 deg from their
+    ring's rays (world 32, 2 cm and 6 mm), real planes that a ring cuts in two directions
+    from 7 deg (worlds 4, 16, 18 at 2 cm); a bound of ``min_cross_angle_deg`` (10 deg)
+    dropped the floor of world 18 (ATE 1.16 -> 3.19 m over 200 epochs).
+    """
+    if origins is None or len(origins) < 2:
+        return False
+    return bool(on_plane_rings(segs, group, sin_parallel, origins))
 
 
 def _group_fits(
