@@ -152,7 +152,8 @@ class TopicIndex:
         time_unit: the unit chosen for them (:mod:`planodom.datasets.bag_time_units`),
             None without relative per-point times.
         unstamped: messages whose header stamp is 0 (their record time stands for it).
-        empty: messages without a point (clouds, Livox messages; 0 for a LaserScan).
+        empty: messages without a point (clouds, Livox messages; 0 for a LaserScan, whose
+            points are not decoded here), left out of the epochs when some topic has points.
         sweeps: its messages (duplicates included).
         duplicates: messages recorded again (same stamp and content as an earlier one,
             ROS 1's ``header.seq`` aside), left out of the epochs.
@@ -186,6 +187,8 @@ class BagIndex:
         sweep_stamp: (n,) int64 ns, the header stamp (the record time when the stamp is 0).
         sweep_duplicate: (n,) bool, a message recorded again: same topic, stamp and
             content as an earlier one (the first is kept).
+        sweep_empty: (n,) bool, a cloud (or Livox) message without a point (never set for
+            a LaserScan).
         tf: the bag's transform tree.
         gt_times: (M,) int64 ns and ``gt_poses`` (M, 4, 4) ``T_parent_child`` of the
             reference trajectory (empty without ``gt_topic``); ``gt_child`` its child frame.
@@ -196,19 +199,22 @@ class BagIndex:
     sweep_bag_time: np.ndarray
     sweep_stamp: np.ndarray
     sweep_duplicate: np.ndarray
+    sweep_empty: np.ndarray
     tf: TfTree
     gt_times: np.ndarray
     gt_poses: np.ndarray
     gt_child: str
 
     def in_epochs(self) -> np.ndarray:
-        """(n,) bool, the sweeps that make the epochs: not a duplicate, and not of a topic
-        without any point while another topic has points (its stamps alone would move the
-        epochs' windows and reference times; a recording without any point keeps them)."""
+        """(n,) bool, the sweeps that make the epochs: not a duplicate, and not a cloud
+        message without any point while some topic has points: it adds nothing to its
+        epoch, and its stamp alone would place an epoch without points (bridged by the
+        odometry) or move the epochs' windows and reference times; a recording without any
+        point keeps them all. A LaserScan is always kept: an empty one is normal in a 2D rig,
+        whose other scanners fill the epoch, and its stamp keeps the rig's timing."""
         keep = ~self.sweep_duplicate
-        pointless = [k for k, t in enumerate(self.topics) if t.pointless]
-        if len(pointless) < len(self.topics):
-            keep &= ~np.isin(self.sweep_topic, pointless)
+        if not all(t.pointless for t in self.topics):
+            keep &= ~self.sweep_empty
         return keep
 
 
@@ -281,6 +287,8 @@ def index_bag(
     wanted = {*names, TF_TOPIC, TF_STATIC_TOPIC} | ({gt} if isinstance(gt, str) else set())
     conns = [c for c in reader.connections if c.topic in wanted]
     rows = array("q")  # topic, bag time, stamp per sweep: 24 bytes each
+    empty = array("b")  # per sweep: a message without a point
+    seen = [0] * len(names)  # messages per topic so far
     gt_log = PoseLog()
     gt_child = gt[1] if isinstance(gt, tuple) else ""
     with bag_errors(path):
@@ -292,7 +300,8 @@ def index_bag(
             elif conn.topic in topic_of:
                 k = topic_of[conn.topic]
                 rows.extend((k, bag_time, stamp_ns(msg.header) or bag_time))
-                _note_sweep(index[k], msg, path, time_field)
+                empty.append(_note_sweep(index[k], msg, path, time_field, seen[k]))
+                seen[k] += 1
             else:
                 with _message_errors(path, conn.topic):
                     stamp, T, _, child = decode_pose(msg, conn.msgtype)
@@ -307,7 +316,7 @@ def index_bag(
     duplicate = _duplicates(reader, path, topic_of, table)
     for k, topic in enumerate(index):
         rows = table[:, 0] == k
-        _choose_time_unit(topic, table[rows, 2], path)
+        _choose_time_unit(topic, table[rows, 2], path, np.flatnonzero(duplicate[rows]))
         topic.sweeps = int(rows.sum())
         topic.duplicates = int(duplicate[rows].sum())
     gt_times, gt_poses = gt_log.arrays()
@@ -317,6 +326,7 @@ def index_bag(
         table[:, 1],
         table[:, 2],
         duplicate,
+        np.frombuffer(empty, dtype=np.int8).astype(bool),
         tree,
         gt_times,
         gt_poses,
@@ -388,9 +398,10 @@ def _message_errors(path: Path, topic: str) -> Iterator[None]:
         raise DatasetError(f"{path}: topic '{topic}': {exc}") from None
 
 
-def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str) -> None:
+def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep: int) -> bool:
     """Record a sweep's frame, whether it is stamped and, for a cloud, its largest ring,
-    whether it has points and its time offsets."""
+    whether it has points and its time offsets (``sweep``: its ordinal in the topic).
+    True for a cloud without a point."""
     frame = frame_name(msg.header.frame_id)
     if not frame:
         raise DatasetError(f"{path}: topic '{topic.name}' has a message without frame_id")
@@ -399,26 +410,30 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str) -> Non
     topic.unstamped += stamp_ns(msg.header) == 0
     if topic.msgtype == LASER_SCAN:
         topic.rings = 1
-        return
+        return False
     with _message_errors(path, topic.name):
         if topic.msgtype == POINT_CLOUD2:
             rings, points, name, offsets = sweep_times(msg, time_field)
             if name is not None and offsets is not None:
-                topic.times.add(name, offsets)
+                topic.times.add(name, offsets, sweep)
         else:
             xyz, _, _, rings = decode_sweep(msg, topic.msgtype, time_field)
             points = len(xyz)
     topic.rings = max(topic.rings, rings)
     topic.empty += points == 0
+    return points == 0
 
 
-def _choose_time_unit(topic: TopicIndex, stamps: np.ndarray, path: Path) -> None:
-    """Set ``topic.time_unit`` from its sweeps' spans and ``stamps`` (ns); DatasetError when
-    a time then lies too far from its stamp."""
+def _choose_time_unit(
+    topic: TopicIndex, stamps: np.ndarray, path: Path, duplicates: np.ndarray
+) -> None:
+    """Set ``topic.time_unit`` from its sweeps' spans and ``stamps`` (ns), each sweep voting
+    once (``duplicates``: the ordinals of its messages recorded again, which do not vote);
+    DatasetError when a time then lies too far from its stamp."""
     times = topic.times
     if not times.name:
         return
-    topic.time_unit = unit = choose_unit(times, stamps)
+    topic.time_unit = unit = choose_unit(times.without(duplicates), stamps)
     with _message_errors(path, topic.name):
         check_offsets(
             np.array([times.largest * unit.scale]), times.name, np.dtype(times.dtype), unit.scale

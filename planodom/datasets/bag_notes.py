@@ -20,7 +20,8 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
       clear-cut (:mod:`planodom.datasets.bag_time_units`);
     - messages without a header stamp (0), for which the bag's record time stands;
     - a scan topic none of whose messages holds a point (left out of the epochs when
-      another topic has points);
+      another topic has points), or some of whose messages hold none (left out of the
+      epochs: they would place epochs without points);
     - messages recorded twice (same topic, stamp and content), read once;
     - several point-cloud topics with points merged into each epoch when none was ``chosen``
       (``--topic``): a raw and a filtered cloud of one lidar would be read twice.
@@ -41,6 +42,11 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
                 f"topic '{t.name}': none of its {sweeps} messages holds a point (the sensor "
                 "off, or everything filtered out?)"
                 + ("; left out of the epochs" if some_points else "")
+            )
+        elif t.empty:
+            notes.append(
+                f"topic '{t.name}': {t.empty} of {sweeps} messages hold no point (dropouts, "
+                "or everything filtered out?); left out of the epochs"
             )
         if t.duplicates:
             notes.append(

@@ -49,21 +49,41 @@ class TopicTimes:
         name: the time field read ("" until a sweep with relative times is seen).
         dtype: its type (numpy's name, e.g. ``uint32``).
         spans: per such sweep, its times' span (max - min) in the field's own unit.
+        sweeps: per span, the caller's number for its sweep (-1 without one).
         largest: the largest ``|time|`` of any sweep, in the field's own unit.
     """
 
     name: str = ""
     dtype: str = ""
     spans: array = field(default_factory=lambda: array("d"))
+    sweeps: array = field(default_factory=lambda: array("q"))
     largest: float = 0.0
 
-    def add(self, name: str, values: np.ndarray) -> None:
-        """Add one sweep's relative times ``values`` (n,) (finite, the field's own type)."""
+    def add(self, name: str, values: np.ndarray, sweep: int = -1) -> None:
+        """Add one sweep's relative times ``values`` (n,) (finite, the field's own type);
+        ``sweep``: a number for it, which :meth:`without` can name."""
         self.name, self.dtype = name, values.dtype.name
         if len(values):
             low, high = float(values.min()), float(values.max())
             self.spans.append(high - low)
+            self.sweeps.append(sweep)
             self.largest = max(self.largest, abs(low), abs(high))
+
+    def without(self, sweeps: np.ndarray) -> TopicTimes:
+        """These times without the spans of the sweeps numbered ``sweeps`` (k,) (so that a
+        message recorded twice votes once); itself when there are none."""
+        if not len(sweeps):
+            return self
+        keep = ~np.isin(np.frombuffer(self.sweeps, dtype=np.int64), sweeps)
+        spans = np.frombuffer(self.spans, dtype=np.float64)[keep]
+        numbers = np.frombuffer(self.sweeps, dtype=np.int64)[keep]
+        return TopicTimes(
+            self.name,
+            self.dtype,
+            array("d", spans.tolist()),
+            array("q", numbers.tolist()),
+            self.largest,
+        )
 
     @property
     def kind(self) -> str:

@@ -15,10 +15,10 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
   ``/tf_static`` and the rigid ``/tf`` edges (see :mod:`planodom.datasets.bag_tf`).
 - Epochs: the sweeps inside each ``1 / epoch_rate`` window (see
   :mod:`planodom.datasets.bag_epochs`), leaving out a message recorded twice (same topic,
-  stamp and content: the first is read) and the messages of a topic that never holds a
-  point while another one does (``BagIndex.in_epochs``); ``times`` are the epochs'
-  reference stamps in seconds since the Unix epoch (the bag's own clock). A point's ``t``
-  is its acquisition time minus its epoch's reference time (see
+  stamp and content: the first is read) and the cloud messages without a point while some
+  topic has points (``BagIndex.in_epochs``; a LaserScan is always kept); ``times`` are the
+  epochs' reference stamps in seconds since the Unix epoch (the bag's own clock). A
+  point's ``t`` is its acquisition time minus its epoch's reference time (see
   :mod:`planodom.datasets.bag_msgs` for the per-beam and per-point times). Points are in
   the base frame at their own time: the extrinsics are applied, the vehicle's motion
   within the epoch is not removed.
@@ -83,8 +83,8 @@ class BagTopic:
         sweeps: number of messages.
         time_scale: seconds per unit of a cloud's per-point time offsets
             (:mod:`planodom.datasets.bag_time_units`), None: the documented reading.
-        empty: no message holds a point (its lack of rings costs the others none, its
-            stamps place no epoch when another topic has points).
+        empty: no message holds a point (its lack of rings costs the others none; a
+            cloud message without a point places no epoch when some topic has points).
     """
 
     name: str

@@ -68,3 +68,15 @@ def test_without_a_period_or_a_span_the_documented_unit() -> None:
     assert choose_unit(_times("t", "uint32", [[0, 99_000]]), _stamps(1)).unit == "ns"
     assert choose_unit(_times("t", "float32", [[0.5, 0.5]] * 3), _stamps(3)).unit == "s"
     assert choose_unit(_times("t", "uint32", [[]] * 3), _stamps(3)).unit == "ns"
+
+
+def test_times_without_some_sweeps_drop_only_their_spans() -> None:
+    times = TopicTimes()
+    for sweep, span in [(0, 99_000), (1, 99_000_000), (3, 98_000), (4, 0)]:  # 2: no times
+        times.add("t", np.array([5, 5 + span], dtype="uint32"), sweep)
+    assert times.without(np.array([], dtype=np.int64)) is times
+    kept = times.without(np.array([0, 2]))
+    assert list(kept.spans) == [99_000_000.0, 98_000.0, 0.0]
+    assert list(kept.sweeps) == [1, 3, 4]
+    assert (kept.name, kept.dtype, kept.largest) == ("t", "uint32", 99_000_005.0)
+    assert list(times.spans) == [99_000.0, 99_000_000.0, 98_000.0, 0.0]  # itself untouched

@@ -424,9 +424,10 @@ def bag_path(folder: Path, ros: int, name: str) -> Path:
     return folder / (f"{name}.bag" if ros == 1 else name)
 
 
-def _cloud_bag(path: Path, ros: int, extra=None) -> None:
-    """Five 10 Hz sweeps on /points (stamps on the 100 ms grid) and /odom; ``extra(bw, k,
-    stamp, msg)`` writes more messages after sweep ``k``."""
+def _cloud_bag(path: Path, ros: int, extra=None, layout="velodyne", sweep=None) -> None:
+    """Five 10 Hz sweeps on /points (stamps on the 100 ms grid, ``layout`` of
+    :func:`lidar_cloud`) and /odom; ``sweep(k, msg)`` gives the message written for sweep
+    ``k`` (None: none), ``extra(bw, k, stamp, msg)`` writes more messages after it."""
     from bag_factory import BagWriter, lidar_cloud
 
     truth = Truth(T_base_sensor=T_BASE)
@@ -438,7 +439,9 @@ def _cloud_bag(path: Path, ros: int, extra=None) -> None:
             bw.write("/odom", bw.odometry(odom, true_pose(odom / 1e9)), odom)
         for k in range(5):
             stamp = T0_NS + k * 100_000_000
-            msg = lidar_cloud(bw, truth, "/points", "lidar", stamp)
+            msg = lidar_cloud(bw, truth, "/points", "lidar", stamp, layout)
+            if sweep is not None and (msg := sweep(k, msg)) is None:
+                continue
             bw.write("/points", msg, stamp + 2_000_000)
             if extra is not None:
                 extra(bw, k, stamp, msg)
@@ -524,3 +527,110 @@ def test_a_message_recorded_twice_is_read_once(tmp_path: Path, ros: int) -> None
         whole, with_half = clean[2], ds[2]
         assert 1.4 * len(whole) < len(with_half) < 1.6 * len(whole)
         assert [len(ds[k]) for k in (0, 1, 3, 4)] == [len(clean[k]) for k in (0, 1, 3, 4)]
+
+
+def _without_points(msg):
+    from dataclasses import replace
+
+    return replace(msg, width=0, row_step=0, data=np.zeros(0, np.uint8))
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_messages_without_points_place_no_epoch(tmp_path: Path, ros: int) -> None:
+    """Sweeps without a point (a dropout) inside a topic with points placed epochs of their
+    own, without points, which the odometry bridged: they are left out and noted, so the
+    bag reads as the one without those messages."""
+
+    def gap(k, msg):
+        return _without_points(msg) if k == 2 else msg
+
+    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros, sweep=lambda k, m: None if k == 2 else m)
+    _cloud_bag(bag_path(tmp_path, ros, "gap"), ros, sweep=gap)
+    opts = BagOptions(gt_topic="/odom")
+    with (
+        open_bag(bag_path(tmp_path, ros, "gap"), opts) as ds,
+        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
+    ):
+        assert len(ds) == 4
+        _assert_same_reading(ds, clean)
+        assert ds.notes == [
+            "topic '/points': 1 of 5 messages hold no point (dropouts, or everything filtered "
+            "out?); left out of the epochs"
+        ]
+
+
+def test_an_empty_laser_scan_keeps_its_place_in_a_2d_rig(tmp_path: Path) -> None:
+    """A LaserScan without a return is normal in a 2D rig (open space): its epoch keeps the
+    other scanners' points and its stamp, which stays the epoch's reference time."""
+    from dataclasses import replace
+
+    from bag_factory import BagWriter, laser_scan
+
+    def rig(path: Path, blind: bool) -> None:
+        truth = Truth(T_base_sensor=T_BASE)
+        with BagWriter(path, 1) as bw:
+            tf = [bw.transform_stamped(T0_NS, p, c, T) for p, c, T in STATIC_TF]
+            bw.write("/tf_static", bw.tf(tf), T0_NS)
+            for k in range(4):
+                for s in SCANNERS:
+                    stamp = T0_NS + k * 100_000_000 + s.phase_ns
+                    msg = laser_scan(bw, truth, s.topic, s.frame, stamp)
+                    if blind and k == 2 and s.topic == "/scan_left":
+                        msg = replace(msg, ranges=np.full_like(msg.ranges, np.inf))
+                    bw.write(s.topic, msg, stamp + 2_000_000)
+
+    rig(tmp_path / "clean.bag", False)
+    rig(tmp_path / "blind.bag", True)
+    with open_bag(tmp_path / "blind.bag") as ds, open_bag(tmp_path / "clean.bag") as clean:
+        np.testing.assert_array_equal(ds.times, clean.times)  # epoch 2's still /scan_left's
+        assert ds.notes == []
+        scans = list(ds)
+        assert sorted(set(scans[2].ring.tolist())) == [0, 2]
+        assert sorted(set(scans[1].ring.tolist())) == [0, 1, 2]
+
+
+def _sliver(msg):
+    """The first two columns (0.4 ms) of an organised ``ouster`` sweep: a cloud cropped to
+    a sliver of the turn, whose span lies nearer the 0.1 s period read as microseconds."""
+    from dataclasses import replace
+
+    rows = np.asarray(msg.data, np.uint8).reshape(msg.height, msg.row_step)
+    data = np.ascontiguousarray(rows[:, : 2 * msg.point_step]).ravel()
+    return replace(msg, width=2, row_step=2 * msg.point_step, data=data)
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_sweep_recorded_twice_votes_once_for_the_time_unit(tmp_path: Path, ros: int) -> None:
+    """Three whole sweeps vote nanoseconds, two slivers microseconds: nanoseconds, not
+    clear-cut. Each sliver recorded twice voted twice, so microseconds won 4 to 3 and the
+    whole sweeps' 0.1 s read as 100 s were refused: each sweep votes once."""
+    from dataclasses import replace
+
+    def twice(bw, k, stamp, msg):
+        if k in (1, 3):
+            if ros == 1:
+                msg = replace(msg, header=replace(msg.header, seq=k + 100))
+            bw.write("/points", msg, stamp + 60_000_000)
+
+    def slivers(k, msg):
+        return _sliver(msg) if k in (1, 3) else msg
+
+    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros, layout="ouster", sweep=slivers)
+    _cloud_bag(bag_path(tmp_path, ros, "twice"), ros, twice, "ouster", slivers)
+    opts = BagOptions(gt_topic="/odom")
+    with (
+        open_bag(bag_path(tmp_path, ros, "twice"), opts) as ds,
+        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
+    ):
+        assert clean.notes == [
+            "topic '/points': time field 't' (uint32) read as nanoseconds, but not clear-cut: "
+            "2 of 5 sweeps span nearer the period as microseconds; as microseconds a sweep "
+            "would span 99.6 s of the 100 ms between messages, as nanoseconds 99.6 ms "
+            "(median); --time-field none ignores the times"
+        ]
+        _assert_same_reading(ds, clean)
+        assert ds.notes == [
+            clean.notes[0],
+            "topic '/points': 2 of 7 messages recorded twice (the stamp and content of an "
+            "earlier one: merged or overlapping recordings?), read once",
+        ]
