@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -54,9 +55,8 @@ def odometry_covariances(run: OdometryRun) -> dict[str, np.ndarray]:
             relative[k] = r.covariance
     status = np.array(run.statuses, dtype="<U10")
     config = run.config if run.config is not None else PlanodomConfig()
-    chained = chained_covariances(
-        run.poses, relative, prev, status, config.odometry.refine_max_sigma_m
-    )
+    sigma = config.odometry.refine_max_sigma_m
+    chained = chained_covariances(run.poses, run.times, relative, prev, status, sigma)
     return {
         "times": np.asarray(run.times, dtype=np.float64),
         "relative": relative,
@@ -68,11 +68,12 @@ def odometry_covariances(run: OdometryRun) -> dict[str, np.ndarray]:
 
 def chained_covariances(
     poses: np.ndarray,
+    times: np.ndarray,
     relative: np.ndarray,
     relative_prev: np.ndarray,
     relative_status: np.ndarray | list[str],
     bridged_sigma_m: float,
-    shared: bool = True,
+    velocity: Literal["measured", "stated", "none"] = "measured",
 ) -> np.ndarray:
     """(E, 6, 6) covariance of each odometry pose, chained from its relative poses.
 
@@ -82,26 +83,31 @@ def chained_covariances(
     covariance taken as (rot, trans) with the translation turned into epoch k's frame, the
     vertical's variance the mean of x's and y's (the odometry does not carry it).
 
-    A step that is not "ok" (degenerate, unresolved) is bridged along the horizontal
-    directions its translation did not measure: the eigen-directions of its (x, y) block
-    whose sigma exceeds ``bridged_sigma_m`` (``odometry.refine_max_sigma_m``, the bound
-    above which the refinement does not measure a direction). There its stated variance is
-    the constant-velocity prediction's (velocity sigma times dt, squared), and the steps of
-    one run of consecutive bridged steps all carry the same velocity error: with
-    ``shared`` (default) that part is one error ``z ~ N(0, I)`` for the run,
-    ``w_k = L_k z + u_k``, ``L_k`` the symmetric square root of the bridged part and
-    ``u_k`` the rest (independent; the covariance between the two parts is dropped), so a
-    run of n equal bridged steps of sigma s along one direction adds (n s)^2, i.e. the
-    velocity's variance times the run's elapsed time squared, instead of n s^2. This
-    replaces the independent per-step terms rather than adding to them: the stated sigma
-    is that velocity error, counted once. The run's term stops growing at the next "ok"
-    step (the velocity is measured again) and is carried on from there. ``shared=False``
-    chains every step independently.
+    A step that is not "ok" (degenerate, unresolved) is bridged by constant velocity along
+    the horizontal directions its translation did not measure: the eigen-directions of its
+    (x, y) block with a sigma above ``bridged_sigma_m`` (``odometry.refine_max_sigma_m``,
+    above which the refinement does not measure a direction). The steps of one run of
+    consecutive bridged steps share one velocity error e: ``w_k = P_k e dt_k + u_k``
+    (``P_k`` the projector on step k's bridged directions), so the run adds e's variance
+    times its elapsed time squared along them, where independent terms add n per-step
+    variances. ``velocity`` says what e is:
+
+    - ``"measured"`` (default): the error of the velocity the bridge carries, the last
+      "ok" step's translation over its interval (its covariance over dt^2, turned with
+      the body); on top of the bridged steps' own terms ``u_k`` (their stated variance:
+      what the prediction misses in one epoch, independent from step to step);
+    - ``"stated"``: the bridged steps' stated variance taken as the velocity error itself,
+      instead of independent terms (shared root: its symmetric square root); measured far
+      too large (see docs/RESULTS.md);
+    - ``"none"``: every step independent.
+
+    The run's term stops growing at the next "ok" step and is carried on from there.
 
     Args:
-        poses: (E, 4, 4) ``T_world_base``. relative: (E, 5, 5) step covariances (rad^2,
-            m^2; row 0 and unknown ones NaN). relative_prev: (E,) reference epochs (-1 for
-            the first). relative_status: (E,) "first", "ok", "degenerate", "unresolved".
+        poses: (E, 4, 4) ``T_world_base``. times: (E,) s. relative: (E, 5, 5) step
+            covariances (rad^2, m^2; row 0 and unknown ones NaN). relative_prev: (E,)
+            reference epochs (-1 for the first). relative_status: (E,) "first", "ok",
+            "degenerate", "unresolved".
         bridged_sigma_m: a direction with a larger sigma is bridged, m.
 
     Returns:
@@ -110,23 +116,39 @@ def chained_covariances(
     n = len(poses)
     closed = np.zeros((n, 6, 6))  # per epoch: the covariance without the open run's term
     run = np.zeros((n, 6, 6))  # per epoch: the open run's shared term G (covariance G G^T)
+    root = np.zeros((n, 2, 2))  # per epoch: B, the carried velocity's error B z, body frame
     for k in range(1, n):
         p = int(relative_prev[k])
         p = k - 1 if p < 0 else p
         S = np.linalg.solve(poses[p], poses[k])  # T_p_k
         A = _adjoint(np.linalg.inv(S))
         Q, L = _step_tangent(relative[k]), np.zeros((6, 6))
-        if shared and str(relative_status[k]) in ("degenerate", "unresolved"):
-            Q, L = _bridged_split(Q, bridged_sigma_m)
+        dt, R2 = float(times[k] - times[p]), S[:2, :2]
+        bridged = str(relative_status[k]) in ("degenerate", "unresolved")
+        if bridged and velocity != "none" and np.all(np.isfinite(Q)):
+            lam, V = np.linalg.eigh(Q[3:5, 3:5])
+            Vb = V[:, lam > bridged_sigma_m**2]
+            Pb = Vb @ Vb.T  # projector on the bridged directions (2, 2)
+            if velocity == "stated":
+                M = np.eye(6)
+                M[3:5, 3:5] -= Pb
+                L[3:5, 3:5] = Vb @ np.diag(np.sqrt(lam[lam > bridged_sigma_m**2])) @ Vb.T
+                Q = M @ Q @ M.T
+            else:
+                L[3:5, 3:5] = dt * Pb @ root[p]
         J = np.eye(6)  # the translation from the previous frame into epoch k's
         J[3:, 3:] = S[:3, :3].T
         Q, L = J @ Q @ J.T, J @ L @ J.T
         G = run[p]
-        if L.any():  # the run goes on (or starts): one velocity error
+        if bridged:  # the run goes on (or starts): one velocity error
             run[k] = A @ G + L
             closed[k] = A @ closed[p] @ A.T + Q
+            root[k] = R2.T @ root[p]
         else:  # measured: the run's term is carried on, no longer shared
             closed[k] = A @ (closed[p] + G @ G.T) @ A.T + Q
+            if dt > 0 and np.all(np.isfinite(relative[k])):
+                lam, V = np.linalg.eigh(relative[k, 3:, 3:])
+                root[k] = R2.T @ V @ np.diag(np.sqrt(np.clip(lam, 0, None))) @ V.T / dt
     return closed + run @ np.transpose(run, (0, 2, 1))
 
 
@@ -148,22 +170,6 @@ def _step_tangent(cov5: np.ndarray) -> np.ndarray:
     Q[:5, :5] = cov5
     Q[5, 5] = 0.5 * (cov5[3, 3] + cov5[4, 4])
     return Q
-
-
-def _bridged_split(Q: np.ndarray, sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """``Q`` (6, 6) of a bridged step split into its independent part (6, 6) and the
-    symmetric square root ``L`` (6, 6) of its part along the translation's horizontal
-    eigen-directions with a sigma above ``sigma_m`` (see :func:`chained_covariances`)."""
-    if not np.all(np.isfinite(Q)):
-        return Q, np.zeros((6, 6))
-    lam, V = np.linalg.eigh(Q[3:5, 3:5])
-    bridged = lam > sigma_m**2
-    Pb = V[:, bridged] @ V[:, bridged].T  # projector on the bridged directions (2, 2)
-    M = np.eye(6)
-    M[3:5, 3:5] -= Pb
-    L = np.zeros((6, 6))
-    L[3:5, 3:5] = V[:, bridged] @ np.diag(np.sqrt(lam[bridged])) @ V[:, bridged].T
-    return M @ Q @ M.T, L
 
 
 def write_covariances(path: str | Path, arrays: Mapping[str, np.ndarray | None]) -> None:
