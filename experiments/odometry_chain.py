@@ -10,8 +10,8 @@ velocity, on top of its steps' own terms) and ``stated`` (the bridged steps' sta
 taken as one shared velocity error). Per world and model: mean and median NEES5 of the
 poses against the truth (chi2(5); body z left out), and of the horizontal position alone
 (NEES2, chi2(2)); per bridged run of ``--min-run`` or more epochs: its error along its
-bridged direction (that of the largest variance of its first step) over the chained sigma
-of its relative pose, ``z``, under each model.
+bridged direction (that of the largest variance of its first step) over the sigma along
+it of the covariance chained over the run alone (:func:`run_z`), ``z``, under each model.
 
     uv run python experiments/odometry_chain.py --worlds 0,2,6,14,18,32 --levels 0.02 -o OUT.csv
 """
@@ -52,17 +52,34 @@ def bridged_runs(status: np.ndarray, min_run: int) -> list[tuple[int, int]]:
     return runs
 
 
-def run_z(poses: np.ndarray, truth: np.ndarray, cov: np.ndarray, run: tuple[int, int]) -> float:
-    """The run's horizontal error along its bridged direction (body frame of the epoch
-    before it) over the sigma there of the chained covariance's growth across it."""
+def run_z(
+    poses: np.ndarray,
+    truth: np.ndarray,
+    arrays: dict[str, np.ndarray],
+    run: tuple[int, int],
+    sigma_m: float,
+    velocity: Literal["none", "measured", "stated"],
+) -> float:
+    """The run's horizontal error, from the epoch j two before it (so that the ok step
+    into it, whose velocity the bridge carries, is in) to its last, along its bridged
+    direction (the largest variance of its first step's), over the sigma along it of the
+    covariance chained over the same epochs alone."""
     a, b = run
-    rel = invert_transform(poses[a - 1]) @ poses[b]
-    err = rel[:2, 3] - (invert_transform(truth[a - 1]) @ truth[b])[:2, 3]
-    # the growth of the chained covariance across the run, in frame a - 1 (translation)
-    R = rel[:3, :3]
-    grown = R @ cov[b][3:, 3:] @ R.T - cov[a - 1][3:, 3:]
-    v = np.linalg.eigh(grown[:2, :2])[1][:, -1]
-    return float(abs(err @ v) / np.sqrt(max(v @ grown[:2, :2] @ v, 1e-12)))
+    j = max(a - 2, 0)
+    part = slice(j, b + 1)
+    local = invert_transform(poses[j]) @ poses[part]
+    status = arrays["relative_status"][part].copy()
+    status[0] = "first"
+    prev = arrays["relative_prev"][part] - j
+    prev[0] = -1
+    cov = chained_covariances(
+        local, arrays["times"][part], arrays["relative"][part], prev, status, sigma_m, velocity
+    )
+    R = local[-1][:3, :3]  # the last pose's translation covariance, in frame j
+    P = (R @ cov[-1][3:, 3:] @ R.T)[:2, :2]
+    err = local[-1][:2, 3] - (invert_transform(truth[j]) @ truth[b])[:2, 3]
+    v = local[a - 1 - j][:2, :2] @ np.linalg.eigh(arrays["relative"][a][3:, 3:])[1][:, -1]
+    return float(abs(err @ v) / np.sqrt(v @ P @ v))
 
 
 def main() -> None:
@@ -94,7 +111,7 @@ def main() -> None:
                 )  # fmt: skip
                 n5 = pose_nees(odo.poses[1:], cov[1:], truth[1:], range(5))
                 n2 = pose_nees(odo.poses[1:], cov[1:], truth[1:], [3, 4])
-                zs = [run_z(odo.poses, truth, cov, r) for r in runs]
+                zs = [run_z(odo.poses, truth, arr, r, sigma, mode) for r in runs]
                 row = {
                     "world": w, "noise_m": noise, "model": mode,
                     "nees5_mean": float(np.nanmean(n5)), "nees5_median": float(np.nanmedian(n5)),
