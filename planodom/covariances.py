@@ -122,20 +122,11 @@ def chained_covariances(
         p = k - 1 if p < 0 else p
         S = np.linalg.solve(poses[p], poses[k])  # T_p_k
         A = _adjoint(np.linalg.inv(S))
-        Q, L = _step_tangent(relative[k]), np.zeros((6, 6))
+        Q, L = _step_tangent(relative[k]), np.zeros((6, 6))  # L: the shared part's root
         dt, R2 = float(times[k] - times[p]), S[:2, :2]
         bridged = str(relative_status[k]) in ("degenerate", "unresolved")
         if bridged and velocity != "none" and np.all(np.isfinite(Q)):
-            lam, V = np.linalg.eigh(Q[3:5, 3:5])
-            Vb = V[:, lam > bridged_sigma_m**2]
-            Pb = Vb @ Vb.T  # projector on the bridged directions (2, 2)
-            if velocity == "stated":
-                M = np.eye(6)
-                M[3:5, 3:5] -= Pb
-                L[3:5, 3:5] = Vb @ np.diag(np.sqrt(lam[lam > bridged_sigma_m**2])) @ Vb.T
-                Q = M @ Q @ M.T
-            else:
-                L[3:5, 3:5] = dt * Pb @ root[p]
+            Q, L = _shared(Q, bridged_sigma_m, velocity == "stated", dt * root[p])
         J = np.eye(6)  # the translation from the previous frame into epoch k's
         J[3:, 3:] = S[:3, :3].T
         Q, L = J @ Q @ J.T, J @ L @ J.T
@@ -150,6 +141,27 @@ def chained_covariances(
                 lam, V = np.linalg.eigh(relative[k, 3:, 3:])
                 root[k] = R2.T @ V @ np.diag(np.sqrt(np.clip(lam, 0, None))) @ V.T / dt
     return closed + run @ np.transpose(run, (0, 2, 1))
+
+
+def _shared(
+    Q: np.ndarray, sigma_m: float, stated: bool, velocity_root: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A bridged step's independent covariance (6, 6) and the root ``L`` (6, 6) of its
+    shared part along its bridged directions (``Q``'s horizontal eigen-directions with a
+    sigma above ``sigma_m``): ``stated``: the symmetric root of ``Q`` there, taken out of
+    ``Q``; else ``velocity_root`` (2, 2, the carried velocity's error root times dt)
+    projected on them, ``Q`` kept."""
+    lam, V = np.linalg.eigh(Q[3:5, 3:5])
+    Vb = V[:, lam > sigma_m**2]
+    Pb = Vb @ Vb.T  # projector on the bridged directions (2, 2)
+    L = np.zeros((6, 6))
+    if not stated:
+        L[3:5, 3:5] = Pb @ velocity_root
+        return Q, L
+    M = np.eye(6)
+    M[3:5, 3:5] -= Pb
+    L[3:5, 3:5] = Vb @ np.diag(np.sqrt(lam[lam > sigma_m**2])) @ Vb.T
+    return M @ Q @ M.T, L
 
 
 def _adjoint(T: np.ndarray) -> np.ndarray:
