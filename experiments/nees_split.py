@@ -27,39 +27,17 @@ from __future__ import annotations
 
 import argparse
 import csv
-from collections.abc import Sequence
 
-import gtsam
 import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import world_for
 from planodom.geometry import invert_transform
-from planodom.metrics import ate
+from planodom.metrics import ate, errors_nees, pose_errors
 from planodom.odometry import run_odometry
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.run import run_smoothing, smoothing_config, smoothing_relatives
-
-
-def pose_errors(poses: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    """(E, 6) ``Local(T_est, T_true)`` in gtsam's Pose3 tangent at the estimate (rad, m)."""
-    return np.array(
-        [gtsam.Pose3(T).localCoordinates(gtsam.Pose3(G)) for T, G in zip(poses, truth, strict=True)]
-    )
-
-
-def mean_nees(errors: np.ndarray, covariances: np.ndarray, dofs: Sequence[int]) -> np.ndarray:
-    """(E,) NEES over the tangent components ``dofs`` (NaN where the block is singular)."""
-    block = np.ix_(list(dofs), list(dofs))
-    out = np.full(len(errors), np.nan)
-    for k, (xi, P) in enumerate(zip(errors, covariances, strict=True)):
-        e = xi[list(dofs)]
-        try:
-            out[k] = e @ np.linalg.solve(P[block], e)
-        except np.linalg.LinAlgError:
-            continue
-    return out
 
 
 def without_rotation(poses: np.ndarray, errors: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -80,7 +58,7 @@ def split(poses: np.ndarray, cov: np.ndarray | None, gt: np.ndarray, status: lis
         return {}
     xi = pose_errors(poses, gt)[1:]
     P, st = cov[1:], np.array(status[1:])
-    n5 = mean_nees(xi, P, range(5))
+    n5 = errors_nees(xi, P, range(5))
     world_rot = np.einsum("kij,kj->ki", poses[1:, :3, :3], xi[:, :3])
     theta = world_rot.mean(axis=0)
     row: dict[str, float | int | str] = {"nees5": float(np.nanmean(n5))}
@@ -88,19 +66,19 @@ def split(poses: np.ndarray, cov: np.ndarray | None, gt: np.ndarray, status: lis
         mask = st == name
         row[f"n_{name}"] = int(mask.sum())
         row[f"nees5_{name}"] = float(np.nanmean(n5[mask])) if mask.any() else np.nan
-    row["nees_rot3"] = float(np.nanmean(mean_nees(xi, P, range(3))))
-    row["nees_xy2"] = float(np.nanmean(mean_nees(xi, P, (3, 4))))
+    row["nees_rot3"] = float(np.nanmean(errors_nees(xi, P, range(3))))
+    row["nees_xy2"] = float(np.nanmean(errors_nees(xi, P, (3, 4))))
     row["tilt_mrad"] = " ".join(f"{v:.2f}" for v in theta * 1e3)
     row["tilt_epoch1_mrad"] = " ".join(f"{v:.2f}" for v in world_rot[0] * 1e3)
     row["tilt_rms_about_mrad"] = " ".join(f"{v:.2f}" for v in world_rot.std(axis=0) * 1e3)
     fixed = without_rotation(poses[1:], xi, theta)
-    row["nees5_untilted"] = float(np.nanmean(mean_nees(fixed, P, range(5))))
-    row["nees_rot3_untilted"] = float(np.nanmean(mean_nees(fixed, P, range(3))))
+    row["nees5_untilted"] = float(np.nanmean(errors_nees(fixed, P, range(5))))
+    row["nees_rot3_untilted"] = float(np.nanmean(errors_nees(fixed, P, range(3))))
     world_pos = np.einsum("kij,kj->ki", poses[1:, :3, :3], fixed[:, 3:])
     shift = np.append(world_pos[:, :2].mean(axis=0), 0.0)
     fixed[:, 3:] -= np.einsum("kji,j->ki", poses[1:, :3, :3], shift)
     row["shift_cm"] = " ".join(f"{v:.1f}" for v in shift[:2] * 1e2)
-    row["nees5_unshifted"] = float(np.nanmean(mean_nees(fixed, P, range(5))))
+    row["nees5_unshifted"] = float(np.nanmean(errors_nees(fixed, P, range(5))))
     return row
 
 

@@ -237,13 +237,43 @@ def pose_nees(
     Returns:
         (E,) float64; NaN where ``P_dd`` is singular.
     """
+    return errors_nees(pose_errors(poses, gt_poses), covariances, dofs)
+
+
+def pose_errors(poses: np.ndarray, gt_poses: np.ndarray) -> np.ndarray:
+    """(E, 6) ``Local(T_est, T_true)`` in gtsam's Pose3 tangent at the estimate.
+
+    Rot x, y, z in rad, then x, y, z in m, body frame (the tangent of :func:`pose_nees`).
+
+    Args:
+        poses: (E, 4, 4) estimates. gt_poses: (E, 4, 4) the truth, in the same frame.
+    """
+    return np.array(
+        [
+            np.asarray(gtsam.Pose3(T).localCoordinates(gtsam.Pose3(G)))
+            for T, G in zip(poses, gt_poses, strict=True)
+        ]
+    ).reshape(len(poses), 6)
+
+
+def errors_nees(
+    errors: np.ndarray, covariances: np.ndarray, dofs: Sequence[int] = range(6)
+) -> np.ndarray:
+    """(E,) NEES ``xi_d^T P_dd^-1 xi_d`` of tangent errors over the components ``dofs``.
+
+    Args:
+        errors: (E, 6) as :func:`pose_errors` gives them. covariances: (E, 6, 6).
+
+    Returns:
+        (E,) float64; NaN where ``P_dd`` is singular.
+    """
     keep = list(dofs)
     block = np.ix_(keep, keep)
-    out = np.full(len(poses), np.nan)
-    for k, (T, P, G) in enumerate(zip(poses, covariances, gt_poses, strict=True)):
-        xi = np.asarray(gtsam.Pose3(T).localCoordinates(gtsam.Pose3(G)))[keep]
+    out = np.full(len(errors), np.nan)
+    for k, (xi, P) in enumerate(zip(errors, covariances, strict=True)):
+        e = xi[keep]
         try:
-            out[k] = xi @ np.linalg.solve(P[block], xi)
+            out[k] = e @ np.linalg.solve(P[block], e)
         except np.linalg.LinAlgError:
             continue
     return out

@@ -253,3 +253,15 @@ def test_inputs_are_not_modified() -> None:
         m.ate(est, gt, align=align, xy_only=True)
     m.summarize(est, gt)
     assert np.array_equal(gt, gt0) and np.array_equal(est, est0)
+
+
+def test_errors_nees_over_chosen_components_against_a_direct_solve() -> None:
+    rng = np.random.default_rng(4)
+    errors = rng.normal(size=(5, 6))
+    A = rng.normal(size=(5, 6, 6))
+    cov = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(6)
+    dofs = (3, 4)
+    expect = [
+        e[[3, 4]] @ np.linalg.inv(P[3:5, 3:5]) @ e[[3, 4]] for e, P in zip(errors, cov, strict=True)
+    ]
+    np.testing.assert_allclose(m.errors_nees(errors, cov, dofs), expect, rtol=1e-10)

@@ -1,5 +1,5 @@
 """experiments/nees_split.py: the one world-frame rotation it takes out of a lap's errors,
-and its NEES, against closed forms."""
+against the closed form."""
 
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ from pathlib import Path
 
 import gtsam
 import numpy as np
+
+from planodom.metrics import pose_errors
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -40,7 +42,7 @@ def test_one_world_rotation_about_the_first_pose_is_taken_out_whole():
     est = truth.copy()
     est[:, :3, :3] = R[None] @ truth[:, :3, :3]
     est[:, :3, 3] = truth[:, :3, 3] @ R.T  # the whole lap turned about the first pose
-    errors = script.pose_errors(est, truth)
+    errors = pose_errors(est, truth)
     # xi = Local(est, truth): the truth is the estimate turned back by theta in the world
     world = np.einsum("kij,kj->ki", est[:, :3, :3], errors[:, :3])
     np.testing.assert_allclose(world, -np.tile(theta, (len(truth), 1)), atol=1e-8)
@@ -48,16 +50,3 @@ def test_one_world_rotation_about_the_first_pose_is_taken_out_whole():
     # what stays is second order in theta (|theta| 2.3 mrad, lap radius 10 m)
     assert np.abs(left[:, :3]).max() < 1e-8
     assert np.abs(left[:, 3:]).max() < 10.0 * 2.3e-3**2 * 2
-
-
-def test_nees_over_chosen_components_against_a_direct_solve():
-    script = _script()
-    rng = np.random.default_rng(4)
-    errors = rng.normal(size=(5, 6))
-    A = rng.normal(size=(5, 6, 6))
-    cov = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(6)
-    dofs = (3, 4)
-    expect = [
-        e[[3, 4]] @ np.linalg.inv(P[3:5, 3:5]) @ e[[3, 4]] for e, P in zip(errors, cov, strict=True)
-    ]
-    np.testing.assert_allclose(script.mean_nees(errors, cov, dofs), expect, rtol=1e-10)
