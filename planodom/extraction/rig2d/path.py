@@ -120,13 +120,11 @@ def without_own_scan_plane(
     rest = group[~np.isin(segs.ring[group], bad)]
     if len(np.unique(segs.ring[rest])) < 2:
         return None
-    n_k = segs.count[rest].astype(np.float64)
-    if n_k.sum() < params.min_points:
+    n_points = float(segs.count[rest].sum())
+    if n_points < params.min_points:
         return None
-    c = (n_k[:, None] * segs.centroid[rest]).sum(axis=0) / n_k.sum()
-    dc = segs.centroid[rest] - c
-    scatter = segs.scatter[rest].sum(axis=0) + np.einsum("k,ki,kj->ij", n_k, dc, dc)
-    if np.sqrt(max(float(np.linalg.eigvalsh(scatter)[0]), 0.0) / n_k.sum()) > params.max_rms_m:
+    scatter = _moments(segs, rest)[1]
+    if np.sqrt(max(float(np.linalg.eigvalsh(scatter)[0]), 0.0) / n_points) > params.max_rms_m:
         return None
     u, ring = segs.direction[rest], segs.ring[rest]
     sines = np.linalg.norm(np.cross(u[:, None, :], u[None, :, :]), axis=-1)
@@ -146,10 +144,7 @@ def on_plane_rings(
     cm and 6 mm), real planes that a ring cuts in two directions from 7 deg (worlds 4, 16,
     18 at 2 cm)."""
     rings = segs.ring[group]
-    n_k = segs.count[group].astype(np.float64)
-    c = (n_k[:, None] * segs.centroid[group]).sum(axis=0) / n_k.sum()
-    dc = segs.centroid[group] - c
-    scatter = segs.scatter[group].sum(axis=0) + np.einsum("k,ki,kj->ij", n_k, dc, dc)
+    c, scatter = _moments(segs, group)
     normal = np.linalg.eigh(scatter)[1][:, 0]
     bad = []
     for r in np.unique(rings):
@@ -161,6 +156,15 @@ def on_plane_rings(
         if abs(normal @ (origins[r] - c)) <= sin_parallel * float(w @ rng / w.sum()):
             bad.append(int(r))
     return bad
+
+
+def _moments(segs: Segments, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centroid (3,) m and scatter (3, 3) m^2 of the points of segments ``idx`` (K,), from
+    their moments (the grouping's compiled ``_plane_of`` does the same over traces)."""
+    n_k = segs.count[idx].astype(np.float64)
+    c = (n_k[:, None] * segs.centroid[idx]).sum(axis=0) / n_k.sum()
+    dc = segs.centroid[idx] - c
+    return c, segs.scatter[idx].sum(axis=0) + np.einsum("k,ki,kj->ij", n_k, dc, dc)
 
 
 def spans_own_scan_plane(
