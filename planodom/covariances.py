@@ -31,6 +31,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Literal
 
+import gtsam
 import numpy as np
 
 from planodom.config import PlanodomConfig
@@ -121,7 +122,7 @@ def chained_covariances(
         p = int(relative_prev[k])
         p = k - 1 if p < 0 else p
         S = np.linalg.solve(poses[p], poses[k])  # T_p_k
-        A = _adjoint(np.linalg.inv(S))
+        A = gtsam.Pose3(S).inverse().AdjointMap()  # Ad(S^-1)
         Q, L = _step_tangent(relative[k]), np.zeros((6, 6))  # L: the shared part's root
         dt, R2 = float(times[k] - times[p]), S[:2, :2]
         bridged = str(relative_status[k]) in ("degenerate", "unresolved")
@@ -162,17 +163,6 @@ def _shared(
     M[3:5, 3:5] -= Pb
     L[3:5, 3:5] = Vb @ np.diag(np.sqrt(lam[lam > sigma_m**2])) @ Vb.T
     return M @ Q @ M.T, L
-
-
-def _adjoint(T: np.ndarray) -> np.ndarray:
-    """(6, 6) adjoint of ``T`` (4, 4) on Pose3's tangent [rot, trans]:
-    ``[[R, 0], [t^ R, R]]``."""
-    R, t = T[:3, :3], T[:3, 3]
-    hat = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
-    Ad = np.zeros((6, 6))
-    Ad[:3, :3] = Ad[3:, 3:] = R
-    Ad[3:, :3] = hat @ R
-    return Ad
 
 
 def _step_tangent(cov5: np.ndarray) -> np.ndarray:
