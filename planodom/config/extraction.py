@@ -213,6 +213,14 @@ class ExtractionConfig(Section):
     (one scan line of one ring, a 0.46 m segment of another, each seeing it at 5 deg)
     makes one step 0.10 m off, and the bridge carries it through a corridor.
     ``dropped`` gives the same poses on all of these but worlds 64 and 76 (< 0.1 mm)."""
+    refit_keeps_cross: bool = False
+    """2D rig: drop a group of segments of two or more rings whose robust refit
+    (:mod:`.rig2d.groupfit`) keeps fewer than ``min_segment_points`` inliers in all its rings
+    but one (:func:`.rig2d.path.lost_cross`): the refit dropped the crossing line, and the
+    plane's tilt about the line that is left rests on a few stray points, its stated
+    normal sigma right for their noise but not for which surface they are on. Off by
+    default (world 32 at 6 mm, epoch 71: one line of ring 3 and 1 point of ring 2 out of
+    15, a plane 0.74 deg from the previous epoch's against 0.012 deg stated)."""
     viewpoint_planes: Literal["kept", "rejected", "ransac"] = "ransac"
     """``rejected``: a fit whose inliers are as flat about a plane through their viewpoint
     as a plane must be about its own (RMS within ``member_sigma_factor`` noise sigmas) is

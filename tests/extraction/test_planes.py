@@ -56,6 +56,33 @@ def test_covariance_matches_monte_carlo():
     assert abs(n_true @ pred[:3, :3] @ n_true) < 1e-3 * np.trace(pred[:3, :3])
 
 
+def test_covariance_of_a_line_crossed_by_a_short_segment():
+    """A long line (30 points, 8 m along x at y = 0) crossed at 90 deg by a 0.46 m,
+    10-point segment 3.8 m from it, in z = 0, with noise along the normal of the plane
+    (grazing rays: the range noise times |cos| of the incidence): the tilt about the line
+    rests on the segment's lever arms, sigma / sqrt(sum (y - mean y)^2) in closed form
+    (x and y decouple: the line is centred on x = 0 and the segment sits at x = 0). The
+    stated sigma, from each fit's own residuals, matches it; so does the spread of the
+    fitted normals (the 2D rig's chance plane of world 32 at 6 mm, epoch 70: stated
+    7e-5 rad, rays at 5 deg)."""
+    rng = np.random.default_rng(3)
+    sigma, trials = 0.006 * np.sin(np.radians(5.0)), 2000
+    line = np.column_stack([np.linspace(-4, 4, 30), np.zeros(30), np.zeros(30)])
+    seg = np.column_stack([np.zeros(10), 3.8 + np.linspace(-0.23, 0.23, 10), np.zeros(10)])
+    pts = np.vstack([line, seg])
+    sigma_tilt = sigma / np.sqrt(np.sum((pts[:, 1] - pts[:, 1].mean()) ** 2))
+    noisy = np.repeat(pts[None], trials, axis=0)
+    noisy[:, :, 2] += sigma * rng.standard_normal((trials, len(pts)))
+    tilts, stated = np.empty(trials), np.empty(trials)
+    for k in range(trials):
+        c, ev, V = tls_fit(noisy[k])
+        cov = tls_covariance(ev[None], V[None], c[None], np.array([len(pts)]), 1e-9)[0]
+        tilts[k] = V[1, 2] * np.sign(V[2, 2])  # the normal's y: the tilt about the line
+        stated[k] = np.sqrt(cov[1, 1])
+    assert np.sqrt(np.mean(stated**2)) == pytest.approx(sigma_tilt, rel=0.03)
+    assert np.sqrt(np.mean(tilts**2)) == pytest.approx(sigma_tilt, rel=0.05)
+
+
 def test_covariance_is_floored_for_exact_data():
     rng = np.random.default_rng(1)
     pts, _, _ = _patch(30, rng)

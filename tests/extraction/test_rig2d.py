@@ -10,7 +10,11 @@ import pytest
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract, extract_planes
 from planodom.extraction.rig2d.grouping import GroupingParams
-from planodom.extraction.rig2d.path import spans_own_scan_plane, without_own_scan_plane
+from planodom.extraction.rig2d.path import (
+    lost_cross,
+    spans_own_scan_plane,
+    without_own_scan_plane,
+)
 from planodom.extraction.rig2d.segments import Segments
 from planodom.geometry import transform_from_rpy_xyz
 
@@ -267,3 +271,21 @@ def test_real_walls_with_sensor_origins_are_kept(mode):
     assert all(
         np.array_equal(a.normal, b.normal) for a, b in zip(res.planes, ref.planes, strict=True)
     )
+
+
+def test_a_refit_that_loses_the_crossing_line():
+    # ring 3's line in two pieces (9 and 22 points) crossed by ring 2's two segments (10
+    # and 5 points): world 32 at 6 mm, epoch 71, where the refit kept 1 point of ring 2
+    segs = _segments(
+        [3, 3, 2, 2], [[0, 0, 0], [6, 0, 0], [3, 3, 0], [3, 4, 0]],
+        [[1, 0, 0], [1, 0, 0], [0, 1, 0], [0, 1, 0]], [9, 22, 10, 5], [4.6, 2.9, 0.9, 0.2],
+    )  # fmt: skip
+    group = np.arange(4)
+    rings = lambda n3, n2: np.array([3] * n3 + [2] * n2)  # noqa: E731
+    assert lost_cross(segs, group, rings(31, 1), 3)
+    assert lost_cross(segs, group, rings(31, 2), 3)
+    assert lost_cross(segs, group, rings(31, 0), 3)
+    assert not lost_cross(segs, group, rings(31, 3), 3)
+    assert not lost_cross(segs, group, rings(20, 15), 3)
+    # one scanner's lines of several sweeps: no crossing to lose
+    assert not lost_cross(segs, group[:2], rings(31, 0), 3)

@@ -83,6 +83,16 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     if not groups:
         return PathResult([], [], sigma, len(segs), 0, n_lost)
     fits = _group_fits(segs, groups, epoch, config)
+    if config.refit_keeps_cross:
+        ring = scan.ring
+        lost = [lost_cross(segs, g, ring[fits.members(k)], config.min_segment_points)
+                for k, g in enumerate(groups)]  # fmt: skip
+        if any(lost):
+            groups = [g for g, drop in zip(groups, lost, strict=True) if not drop]
+            n_lost += len(lost) - len(groups)
+            if not groups:
+                return PathResult([], [], sigma, len(segs), 0, n_lost)
+            fits = _group_fits(segs, groups, epoch, config)
     adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw) if windowed else None
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
     return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)
@@ -190,6 +200,24 @@ def spans_own_scan_plane(
     if origins is None or len(origins) < 2:
         return False
     return bool(on_plane_rings(segs, group, sin_parallel, origins))
+
+
+def lost_cross(
+    segs: Segments, group: np.ndarray, inlier_rings: np.ndarray, min_points: int
+) -> bool:
+    """True when the group's segments are of two or more rings but its refit's inliers
+    hold ``min_points`` or more in one ring at most: the crossing line is gone, and the
+    tilt about the remaining line rests on a few stray points.
+
+    Args:
+        segs: the epoch's segments. group: (S_g,) its segment indices.
+        inlier_rings: (K,) the ring of each inlier of the group's refit.
+        min_points: the fewest inliers a ring needs to count (``min_segment_points``).
+    """
+    if len(np.unique(segs.ring[group])) < 2:
+        return False  # one scanner's lines of several sweeps: no crossing to lose
+    _, counts = np.unique(inlier_rings, return_counts=True)
+    return int(np.count_nonzero(counts >= min_points)) < 2
 
 
 def _group_fits(
