@@ -209,24 +209,11 @@ class ExtractionConfig(Section):
     2D-rig worlds (200 epochs) and 25 (22-30, 40-78 even, 150 epochs) within 1 cm
     (world 50 -5.3 cm); but world 32 at 6 mm gets worse, 2.23 -> 2.89 m over 200 epochs
     (whole lap 2.95 -> 3.67 m), and with batch smoothing and loops 0.14 -> 3.55 m (loop
-    end 6 mm -> 7.1 m): with the scan planes gone a chance plane of two crossing lines
-    (one scan line of one ring, a 0.46 m segment of another, each seeing it at 5 deg)
-    makes one step 0.10 m off, and the bridge carries it through a corridor.
-    ``dropped`` gives the same poses on all of these but worlds 64 and 76 (< 0.1 mm)."""
+    end 6 mm -> 7.1 m): one step 0.10 m off (``refit_keeps_cross``), carried by the bridge
+    through a corridor. ``dropped`` gives the same poses but on worlds 64, 76 (< 0.1 mm)."""
     refit_keeps_cross: bool = False
-    """2D rig: drop a group of segments of two or more rings whose robust refit
-    (:mod:`.rig2d.groupfit`) keeps fewer than ``min_segment_points`` inliers in all its rings
-    but one (:func:`.rig2d.path.lost_cross`): the refit dropped the crossing line, and the
-    plane's tilt about the line that is left rests on a few stray points, its stated
-    normal sigma right for their noise but not for which surface they are on (world 32 at
-    6 mm, epoch 71: one line of ring 3 and 1 point of ring 2 out of 15, a plane 0.74 deg
-    from the previous epoch's against 0.012 deg stated; step 71 0.104 -> 0.004 m off).
-    No new threshold. Off by default, measured (streaming odometry, 200 epochs, ATE): with
-    ``own_scan_plane: dropped`` world 32 at 6 mm 2.89 -> 0.21 m (whole lap 3.67 -> 0.33
-    m), the 15 other runs (worlds 0-20 even and 32 at 2 cm, 0, 2 and 16 at 6 mm) within
-    9.3 mm; but with batch smoothing and loops world 32 at 6 mm stays at 3.6 m (3.55 ->
-    3.60; main 0.14), and with ``kept`` (the default) world 32 gets worse: 2.23 -> 2.38 m
-    at 6 mm, batch + loops 2.80 -> 3.09 m at 2 cm."""
+    """2D rig: drop a group of two or more rings whose robust refit keeps one ring's line
+    alone (:func:`.rig2d.path.lost_cross`, which gives the measurements). Off."""
     viewpoint_planes: Literal["kept", "rejected", "ransac"] = "ransac"
     """``rejected``: a fit whose inliers are as flat about a plane through their viewpoint
     as a plane must be about its own (RMS within ``member_sigma_factor`` noise sigmas) is

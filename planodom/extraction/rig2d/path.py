@@ -207,7 +207,19 @@ def lost_cross(
 ) -> bool:
     """True when the group's segments are of two or more rings but its refit's inliers
     hold ``min_points`` or more in one ring at most: the crossing line is gone, and the
-    tilt about the remaining line rests on a few stray points.
+    tilt about the remaining line rests on a few stray points, its stated normal sigma
+    right for their noise but not for which surface they are on
+    (``extraction.refit_keeps_cross``).
+
+    World 32 at 6 mm, epoch 71: the grouping joins one line of ring 3 and 15 points of
+    ring 2, the refit (scale 0.7 mm, ring 3's) keeps 1 of them; the plane is 0.74 deg from
+    the previous epoch's against 0.012 deg stated, and step 71 is 0.104 m off (0.004 m
+    with the group dropped). Off by default, measured (streaming odometry, 200 epochs, ATE): with
+    ``own_scan_plane: dropped`` world 32 at 6 mm 2.89 -> 0.21 m (whole lap 3.67 -> 0.33
+    m), the 15 other runs (worlds 0-20 even and 32 at 2 cm, 0, 2 and 16 at 6 mm) within
+    9.3 mm; but with batch smoothing and loops world 32 at 6 mm stays at 3.6 m (3.55 ->
+    3.60; main 0.14), and with ``kept`` (the default) world 32 gets worse: 2.23 -> 2.38 m
+    at 6 mm, batch + loops 2.80 -> 3.09 m at 2 cm.
 
     Args:
         segs: the epoch's segments. group: (S_g,) its segment indices.
