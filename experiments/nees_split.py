@@ -26,7 +26,6 @@ the fitted and the sandwich covariances (the same poses). Per run and covariance
 from __future__ import annotations
 
 import argparse
-import csv
 
 import numpy as np
 
@@ -35,6 +34,7 @@ from planodom.experiments.generalisation import world_for
 from planodom.geometry import invert_transform
 from planodom.metrics import ate, errors_nees, pose_errors
 from planodom.odometry import run_odometry
+from planodom.results import write_rows
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.run import run_smoothing, smoothing_config, smoothing_relatives
@@ -140,11 +140,7 @@ def main() -> None:
                 rows.append(row)
                 print({k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()},
                       flush=True)  # fmt: skip
-            fields = list(dict.fromkeys(k for r in rows for k in r))
-            with open(args.out, "w", newline="") as fh:
-                writer = csv.DictWriter(fh, fieldnames=fields)
-                writer.writeheader()
-                writer.writerows(rows)
+            write_rows(args.out, rows)
 
 
 if __name__ == "__main__":

@@ -19,7 +19,6 @@ it of the covariance chained over the run alone (:func:`run_z`), ``z``, under ea
 from __future__ import annotations
 
 import argparse
-import csv
 from typing import Literal
 
 import numpy as np
@@ -30,6 +29,7 @@ from planodom.experiments.generalisation import world_for
 from planodom.geometry import invert_transform
 from planodom.metrics import pose_nees
 from planodom.odometry import run_odometry
+from planodom.results import write_rows
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.run import smoothing_config
 
@@ -121,10 +121,7 @@ def main() -> None:
                 }  # fmt: skip
                 rows.append(row)
                 print(row, flush=True)
-    with open(args.out, "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_rows(args.out, rows)
 
 
 if __name__ == "__main__":

@@ -16,7 +16,6 @@ the sandwich's ``smoothing.sandwich_motion_scale`` (default "run").
 from __future__ import annotations
 
 import argparse
-import csv
 import time
 
 import numpy as np
@@ -26,6 +25,7 @@ from planodom.experiments.generalisation import world_for
 from planodom.geometry import invert_transform
 from planodom.metrics import ate, pose_nees
 from planodom.odometry import run_odometry
+from planodom.results import write_rows
 from planodom.simulation.random_world import simulate_world, world_fields
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.run import smoothing_config, smoothing_relatives
@@ -125,10 +125,7 @@ def main() -> None:
             rows.append(row)
             print({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()},
                   flush=True)  # fmt: skip
-            with open(args.out, "w", newline="") as fh:
-                writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-                writer.writeheader()
-                writer.writerows(rows)
+            write_rows(args.out, rows)
 
 
 if __name__ == "__main__":
