@@ -35,6 +35,7 @@ from planodom.datasets.bag_msgs import (
     check_offsets,
     decode_pose,
     decode_sweep,
+    laser_scan_returns,
     stamp_ns,
     sweep_times,
 )
@@ -152,8 +153,10 @@ class TopicIndex:
         time_unit: the unit chosen for them (:mod:`planodom.datasets.bag_time_units`),
             None without relative per-point times.
         unstamped: messages whose header stamp is 0 (their record time stands for it).
-        empty: messages without a point (clouds, Livox messages; 0 for a LaserScan, whose
-            points are not decoded here), left out of the epochs when some topic has points.
+        empty: messages without a point (clouds, Livox messages; 0 for a LaserScan), left
+            out of the epochs when some topic has points.
+        blank: LaserScans without a return, left out of the epochs when theirs is the only
+            scan topic and some of its scans have returns.
         sweeps: its messages (duplicates included).
         duplicates: messages recorded again (same stamp and content as an earlier one,
             ROS 1's ``header.seq`` aside), left out of the epochs.
@@ -167,6 +170,7 @@ class TopicIndex:
     time_unit: TimeUnit | None = None
     unstamped: int = 0
     empty: int = 0
+    blank: int = 0
     duplicates: int = 0
     sweeps: int = 0
 
@@ -174,6 +178,35 @@ class TopicIndex:
     def pointless(self) -> bool:
         """A cloud topic none of whose messages holds a point."""
         return self.msgtype != LASER_SCAN and self.empty == self.sweeps
+
+
+@dataclass
+class GtReading:
+    """How the reference poses of a gt topic read.
+
+    Attributes:
+        messages: its poses (messages, or tf values of the tracked edge).
+        invalid_example: the first invalid pose's reason (a list of at most one).
+        invalid: poses left out: a NaN or infinite value, or a zero quaternion.
+        repeated: poses whose stamp and pose repeat an earlier one's (read once).
+        conflicting: poses whose stamp repeats an earlier one's with another pose (the last
+            of a stamp is used, :func:`planodom.datasets.bag_epochs.interpolate_poses`).
+    """
+
+    messages: int
+    invalid_example: list[str] = field(default_factory=list)
+    invalid: int = 0
+    repeated: int = 0
+    conflicting: int = 0
+
+    def count_repeats(self, times: np.ndarray, poses: np.ndarray) -> None:
+        """Count the repeated and conflicting stamps of ``times`` (M,) ns, ``poses`` (M, 4, 4)."""
+        order = np.argsort(times, kind="stable")
+        t, P = times[order], poses[order]
+        again = np.flatnonzero(t[1:] == t[:-1]) + 1
+        same = np.all(P[again] == P[again - 1], axis=(1, 2))
+        self.repeated = int(same.sum())
+        self.conflicting = int((~same).sum())
 
 
 @dataclass
@@ -187,11 +220,11 @@ class BagIndex:
         sweep_stamp: (n,) int64 ns, the header stamp (the record time when the stamp is 0).
         sweep_duplicate: (n,) bool, a message recorded again: same topic, stamp and
             content as an earlier one (the first is kept).
-        sweep_empty: (n,) bool, a cloud (or Livox) message without a point (never set for
-            a LaserScan).
+        sweep_empty: (n,) bool, a message without a point (a LaserScan: without a return).
         tf: the bag's transform tree.
         gt_times: (M,) int64 ns and ``gt_poses`` (M, 4, 4) ``T_parent_child`` of the
             reference trajectory (empty without ``gt_topic``); ``gt_child`` its child frame.
+        gt_read: what reading the reference left out or found repeated.
     """
 
     topics: list[TopicIndex]
@@ -204,18 +237,23 @@ class BagIndex:
     gt_times: np.ndarray
     gt_poses: np.ndarray
     gt_child: str
+    gt_read: GtReading = field(default_factory=lambda: GtReading(0))
 
     def in_epochs(self) -> np.ndarray:
         """(n,) bool, the sweeps that make the epochs: not a duplicate, and not a cloud
         message without any point while some topic has points: it adds nothing to its
         epoch, and its stamp alone would place an epoch without points (bridged by the
         odometry) or move the epochs' windows and reference times; a recording without any
-        point keeps them all. A LaserScan is always kept: an empty one is normal in a 2D rig,
-        whose other scanners fill the epoch, and its stamp keeps the rig's timing."""
+        point keeps them all. A LaserScan without a return is kept in a rig of several scan
+        topics: it is normal in a 2D rig, whose other scanners fill the epoch, and its stamp
+        keeps the rig's timing; the only scan topic's is left out as a cloud's is."""
         keep = ~self.sweep_duplicate
-        if not all(t.pointless for t in self.topics):
-            keep &= ~self.sweep_empty
-        return keep
+        if all(t.pointless for t in self.topics):
+            return keep
+        scan = np.array([t.msgtype == LASER_SCAN for t in self.topics], dtype=bool)
+        if len(self.topics) > 1 or self.topics[0].blank == self.topics[0].sweeps:
+            return keep & ~(self.sweep_empty & ~scan[self.sweep_topic])
+        return keep & ~self.sweep_empty
 
 
 def select_topics(reader: AnyReader, path: Path, topics: Sequence[str] | None) -> list[str]:
@@ -290,6 +328,7 @@ def index_bag(
     empty = array("b")  # per sweep: a message without a point
     seen = [0] * len(names)  # messages per topic so far
     gt_log = PoseLog()
+    gt_invalid: list[str] = []  # why each reference pose left out was
     gt_child = gt[1] if isinstance(gt, tuple) else ""
     with bag_errors(path):
         for conn, bag_time, raw in reader.messages(connections=conns):
@@ -303,15 +342,19 @@ def index_bag(
                 empty.append(_note_sweep(index[k], msg, path, time_field, seen[k]))
                 seen[k] += 1
             else:
-                with _message_errors(path, conn.topic):
+                try:
                     stamp, T, _, child = decode_pose(msg, conn.msgtype)
+                except ValueError as exc:  # NaN, or a zero quaternion: left out, noted
+                    gt_invalid.append(str(exc))
+                    continue
                 gt_log.append(stamp or bag_time, T)
                 gt_child = gt_child or child
     if isinstance(gt, tuple):
         gt_log = tree.track
     if gt is not None and not len(gt_log):
         what = f"/tf transform '{gt[0]}' -> '{gt[1]}'" if isinstance(gt, tuple) else gt
-        raise DatasetError(f"{path}: no reference poses in gt {what}")
+        why = f" (all {len(gt_invalid)} invalid: {gt_invalid[0]})" if gt_invalid else ""
+        raise DatasetError(f"{path}: no reference poses in gt {what}{why}")
     table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 3).copy()
     duplicate = _duplicates(reader, path, topic_of, table)
     for k, topic in enumerate(index):
@@ -320,6 +363,8 @@ def index_bag(
         topic.sweeps = int(rows.sum())
         topic.duplicates = int(duplicate[rows].sum())
     gt_times, gt_poses = gt_log.arrays()
+    gt_read = GtReading(len(gt_times) + len(gt_invalid), gt_invalid[:1], len(gt_invalid))
+    gt_read.count_repeats(gt_times, gt_poses)
     return BagIndex(
         index,
         table[:, 0].astype(np.int32),
@@ -331,6 +376,7 @@ def index_bag(
         gt_times,
         gt_poses,
         gt_child,
+        gt_read,
     )
 
 
@@ -410,7 +456,9 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
     topic.unstamped += stamp_ns(msg.header) == 0
     if topic.msgtype == LASER_SCAN:
         topic.rings = 1
-        return False
+        blank = not laser_scan_returns(msg)
+        topic.blank += blank
+        return blank
     with _message_errors(path, topic.name):
         if topic.msgtype == POINT_CLOUD2:
             rings, points, name, offsets = sweep_times(msg, time_field)

@@ -89,13 +89,26 @@ def decode_sweep(
     raise ValueError(f"{msgtype} is not a scan message")
 
 
+def _laser_scan_valid(msg: Any) -> np.ndarray:
+    """(n,) bool, the LaserScan's ranges that are returns: finite, in its range limits."""
+    ranges = np.asarray(msg.ranges, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(ranges) & (ranges >= float(msg.range_min))
+        if float(msg.range_max) > 0:
+            valid &= ranges <= float(msg.range_max)
+    return valid
+
+
+def laser_scan_returns(msg: Any) -> int:
+    """The number of returns of a ``sensor_msgs/LaserScan`` (the points it decodes to)."""
+    return int(np.count_nonzero(_laser_scan_valid(msg)))
+
+
 def _decode_laser_scan(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     ranges = np.asarray(msg.ranges, dtype=np.float64)
     index = np.arange(len(ranges), dtype=np.float64)
     angles = float(msg.angle_min) + index * float(msg.angle_increment)
-    valid = np.isfinite(ranges) & (ranges >= float(msg.range_min))
-    if float(msg.range_max) > 0:
-        valid &= ranges <= float(msg.range_max)
+    valid = _laser_scan_valid(msg)
     r, a = ranges[valid], angles[valid]
     points = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)])
     dt = index[valid] * float(msg.time_increment)

@@ -13,7 +13,7 @@ from planodom.datasets.bag_index import BagIndex
 from planodom.datasets.bag_msgs import LASER_SCAN
 
 
-def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
+def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> list[str]:
     """One line each (see the module docstring), naming the topic and what to do.
 
     - a cloud topic's time offsets read in a unit other than the documented one, or not
@@ -21,10 +21,14 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
     - messages without a header stamp (0), for which the bag's record time stands;
     - a scan topic none of whose messages holds a point (left out of the epochs when
       another topic has points), or some of whose messages hold none (left out of the
-      epochs: they would place epochs without points);
+      epochs: they would place epochs without points), or the only scan topic some of
+      whose LaserScans hold no return (left out likewise);
     - messages recorded twice (same topic, stamp and content), read once;
     - several point-cloud topics with points merged into each epoch when none was ``chosen``
-      (``--topic``): a raw and a filtered cloud of one lidar would be read twice.
+      (``--topic``): a raw and a filtered cloud of one lidar would be read twice (each with
+      the sweeps it gives the epochs);
+    - reference poses (``gt_topic``) left out for a NaN, infinite or zero-quaternion value,
+      recorded twice (read once), or repeating a stamp with another pose (the last is used).
     """
     counts = np.bincount(index.sweep_topic, minlength=len(index.topics))
     some_points = not all(t.pointless for t in index.topics)
@@ -48,15 +52,21 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
                 f"topic '{t.name}': {t.empty} of {sweeps} messages hold no point (dropouts, "
                 "or everything filtered out?); left out of the epochs"
             )
+        elif t.blank and len(index.topics) == 1 and t.blank < sweeps:
+            notes.append(
+                f"topic '{t.name}': {t.blank} of {sweeps} scans hold no return (open space, "
+                "or everything beyond range_max?); left out of the epochs"
+            )
         if t.duplicates:
             notes.append(
                 f"topic '{t.name}': {t.duplicates} of {sweeps} messages recorded twice (the "
                 "stamp and content of an earlier one: merged or overlapping recordings?), "
                 "read once"
             )
+    read = np.bincount(index.sweep_topic[index.in_epochs()], minlength=len(index.topics))
     clouds = [
         (t, n)
-        for t, n in zip(index.topics, counts, strict=True)
+        for t, n in zip(index.topics, read, strict=True)
         if t.msgtype != LASER_SCAN and not t.pointless  # a topic without points adds none
     ]
     if not chosen and len(clouds) > 1:
@@ -65,5 +75,27 @@ def bag_notes(index: BagIndex, chosen: bool) -> list[str]:
             f"{len(clouds)} point-cloud topics read and merged into each epoch: {shown}; if "
             "they are not separate lidars (one is the other filtered or deskewed), choose "
             "with --topic"
+        )
+    return notes + _gt_notes(index, gt_topic)
+
+
+def _gt_notes(index: BagIndex, gt_topic: str | None) -> list[str]:
+    """The notes on the reference poses (see :func:`bag_notes`)."""
+    gt, notes = index.gt_read, []
+    if gt.invalid:
+        notes.append(
+            f"gt '{gt_topic}': {gt.invalid} of {gt.messages} poses invalid (the first: "
+            f"{gt.invalid_example[0]}), left out: the reference is interpolated across them"
+        )
+    if gt.repeated:
+        notes.append(
+            f"gt '{gt_topic}': {gt.repeated} of {gt.messages} poses recorded twice (the stamp "
+            "and pose of an earlier one), read once"
+        )
+    if gt.conflicting:
+        notes.append(
+            f"gt '{gt_topic}': {gt.conflicting} of {gt.messages} poses repeat an earlier "
+            "stamp with another pose (two publishers on one topic?); the last of each "
+            "stamp is used"
         )
     return notes

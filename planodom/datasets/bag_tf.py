@@ -36,15 +36,18 @@ def transform_from_msg(translation: Any, rotation: Any) -> np.ndarray:
     """``T`` (4, 4) from a ROS ``Vector3``/``Point`` and a ``Quaternion`` (normalised).
 
     Raises:
-        ValueError: the quaternion is zero or not finite.
+        ValueError: the quaternion is zero or not finite, or the translation not finite.
     """
     q = np.array([rotation.x, rotation.y, rotation.z, rotation.w], dtype=np.float64)
     norm = float(np.linalg.norm(q))
     if not np.isfinite(norm) or norm < 1e-9:
         raise ValueError(f"invalid quaternion {q.tolist()}")
+    t = np.array([translation.x, translation.y, translation.z], dtype=np.float64)
+    if not np.isfinite(t).all():
+        raise ValueError(f"invalid translation {t.tolist()}")
     T = np.eye(4)
     T[:3, :3] = Rotation.from_quat(q / norm).as_matrix()
-    T[:3, 3] = [translation.x, translation.y, translation.z]
+    T[:3, 3] = t
     return T
 
 

@@ -85,6 +85,9 @@ class BagTopic:
             (:mod:`planodom.datasets.bag_time_units`), None: the documented reading.
         empty: no message holds a point (its lack of rings costs the others none; a
             cloud message without a point places no epoch when some topic has points).
+        frame: the first frame its messages name.
+        read: its messages that go into the epochs (``BagIndex.in_epochs``: not recorded
+            twice, not a cloud without a point while some topic has points).
     """
 
     name: str
@@ -95,6 +98,13 @@ class BagTopic:
     sweeps: int
     time_scale: float | None = None
     empty: bool = False
+    read: int = 0
+    frame: str = ""
+
+    @property
+    def left_out(self) -> bool:
+        """None of its messages goes into the epochs: it needs no extrinsic and gives none."""
+        return self.read == 0 and self.sweeps > 0
 
     @property
     def ringless(self) -> bool:
@@ -163,7 +173,7 @@ class BagDataset:
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
         self.rig = _bag_rig(self)
-        self.notes = bag_notes(index, topics_chosen)
+        self.notes = bag_notes(index, topics_chosen, gt_topic)
         self._reader: AnyReader | None = None
 
     def _child_to_base(self, child: str) -> np.ndarray:
@@ -283,26 +293,43 @@ def _has_rings(topics: list[BagTopic]) -> bool:
 
 
 def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
-    """The topics with their ring numbering and extrinsics (every frame must resolve)."""
+    """The topics with their ring numbering and extrinsics: every frame of a topic that
+    goes into the epochs must resolve; a topic none of whose messages does (a cloud topic
+    without any point beside one with points) needs no transform and gets none."""
+    read = np.bincount(index.sweep_topic[index.in_epochs()], minlength=len(index.topics)).tolist()
     topics, first = [], 0
-    for t in index.topics:
+    for t, n in zip(index.topics, read, strict=True):
         where = f"{path}: topic '{t.name}'"
-        extr = {f: index.tf.require(base_frame, f, where) for f in t.frames}
+        extr = {f: index.tf.require(base_frame, f, where) for f in t.frames} if n else {}
         scale = None if t.time_unit is None else t.time_unit.scale
         topics.append(
-            BagTopic(t.name, t.msgtype, first, t.rings, extr, t.sweeps, scale, t.pointless)
+            BagTopic(
+                t.name,
+                t.msgtype,
+                first,
+                t.rings,
+                extr,
+                t.sweeps,
+                scale,
+                t.pointless,
+                n,
+                t.frames[0],
+            )
         )
         first += t.rings
     return topics
 
 
 def _bag_rig(ds: BagDataset) -> Rig:
-    """The typed rig of a bag: rate, per-ring sensor origins, per-topic extrinsics, source."""
-    first_T = [next(iter(t.T_base_sensor.values())) for t in ds.topics]
+    """The typed rig of a bag: rate, per-ring sensor origins, extrinsics of the topics read
+    (a topic left out of the epochs gives none), source. ``extra``'s per-topic ``sweeps``
+    counts the messages read into the epochs, ``left_out`` (when any) the others."""
+    used = [t for t in ds.topics if not t.left_out]
+    first_T = [next(iter(t.T_base_sensor.values())) for t in used]
     origins = None
     if _has_rings(ds.topics):
         origins = np.concatenate(
-            [np.tile(T[:3, 3], (t.rings, 1)) for t, T in zip(ds.topics, first_T, strict=True)]
+            [np.tile(T[:3, 3], (t.rings, 1)) for t, T in zip(used, first_T, strict=True)]
         )
     elif len(ds.topics) == 1:
         origins = first_T[0][:3, 3][None]
@@ -311,19 +338,24 @@ def _bag_rig(ds: BagDataset) -> Rig:
         "bag": str(ds.path),
         "base_frame": ds.base_frame,
         "gt_topic": ds.gt_topic,
-        "topics": [
-            {
-                "topic": t.name,
-                "type": t.msgtype.split("/")[-1],
-                "frame": next(iter(t.T_base_sensor)),
-                "first_ring": t.first_ring,
-                "rings": t.rings,
-                "sweeps": t.sweeps,
-            }
-            for t in ds.topics
-        ],
+        "topics": [_topic_extra(t) for t in ds.topics],
     }
     return Rig(ds.epoch_rate, origins, None, tuple(first_T), extra)
+
+
+def _topic_extra(t: BagTopic) -> dict[str, Any]:
+    """A topic's entry in ``rig.extra['topics']``."""
+    out: dict[str, Any] = {
+        "topic": t.name,
+        "type": t.msgtype.split("/")[-1],
+        "frame": t.frame,
+        "first_ring": t.first_ring,
+        "rings": t.rings,
+        "sweeps": t.read,
+    }
+    if t.read != t.sweeps:
+        out["left_out"] = t.sweeps - t.read
+    return out
 
 
 def open_bag(path: str | Path, options: BagOptions | None = None) -> BagDataset:
