@@ -26,11 +26,11 @@ from rosbags.rosbag2 import ReaderError as Reader2Error
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 
+from planodom.datasets.bag_gt import GtReading, parse_gt
 from planodom.datasets.bag_livox import register_livox_types
 from planodom.datasets.bag_msgs import (
     LASER_SCAN,
     POINT_CLOUD2,
-    POSE_TYPES,
     SCAN_TYPES,
     check_offsets,
     decode_pose,
@@ -43,8 +43,6 @@ from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree,
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit
 from planodom.errors import DatasetError
 
-#: Prefix of a ``gt_topic`` naming a tf frame pair: ``"tf:PARENT:CHILD"``.
-TF_PAIR_PREFIX = "tf:"
 #: Exceptions of rosbags and the storage libraries that mean a broken or unreadable bag.
 BAG_ERRORS: tuple[type[BaseException], ...] = (
     AnyReaderError,
@@ -181,35 +179,6 @@ class TopicIndex:
 
 
 @dataclass
-class GtReading:
-    """How the reference poses of a gt topic read.
-
-    Attributes:
-        messages: its poses (messages, or tf values of the tracked edge).
-        invalid_example: the first invalid pose's reason (a list of at most one).
-        invalid: poses left out: a NaN or infinite value, or a zero quaternion.
-        repeated: poses whose stamp and pose repeat an earlier one's (read once).
-        conflicting: poses whose stamp repeats an earlier one's with another pose (the last
-            of a stamp is used, :func:`planodom.datasets.bag_epochs.interpolate_poses`).
-    """
-
-    messages: int
-    invalid_example: list[str] = field(default_factory=list)
-    invalid: int = 0
-    repeated: int = 0
-    conflicting: int = 0
-
-    def count_repeats(self, times: np.ndarray, poses: np.ndarray) -> None:
-        """Count the repeated and conflicting stamps of ``times`` (M,) ns, ``poses`` (M, 4, 4)."""
-        order = np.argsort(times, kind="stable")
-        t, P = times[order], poses[order]
-        again = np.flatnonzero(t[1:] == t[:-1]) + 1
-        same = np.all(P[again] == P[again - 1], axis=(1, 2))
-        self.repeated = int(same.sum())
-        self.conflicting = int((~same).sum())
-
-
-@dataclass
 class BagIndex:
     """The sweeps (one row each, in the order the bag yields them), tf and reference poses.
 
@@ -285,28 +254,6 @@ def select_topics(reader: AnyReader, path: Path, topics: Sequence[str] | None) -
     if len(set(topics)) != len(topics):
         raise DatasetError(f"{path}: topics given more than once: {list(topics)}")
     return list(topics)
-
-
-def parse_gt(reader: AnyReader, path: Path, gt_topic: str | None) -> tuple[str, str] | str | None:
-    """The reference source: None, a pose topic name, or a ``(parent, child)`` tf pair."""
-    if gt_topic is None:
-        return None
-    if gt_topic.startswith(TF_PAIR_PREFIX):
-        parts = gt_topic[len(TF_PAIR_PREFIX) :].split(":")
-        if len(parts) != 2 or not all(parts):
-            raise DatasetError(f"{path}: gt '{gt_topic}' must read 'tf:PARENT:CHILD'")
-        return frame_name(parts[0]), frame_name(parts[1])
-    info = reader.topics.get(gt_topic)
-    if info is None:
-        poses = sorted(n for n, i in reader.topics.items() if i.msgtype in POSE_TYPES)
-        raise DatasetError(
-            f"{path}: no gt topic '{gt_topic}' (pose topics: {', '.join(poses) or 'none'})"
-        )
-    if info.msgtype not in POSE_TYPES:
-        raise DatasetError(
-            f"{path}: gt topic '{gt_topic}' is {info.msgtype}, not one of {', '.join(POSE_TYPES)}"
-        )
-    return gt_topic
 
 
 def index_bag(

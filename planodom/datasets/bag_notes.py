@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from planodom.datasets.bag_gt import gt_notes
 from planodom.datasets.bag_index import BagIndex
 from planodom.datasets.bag_msgs import LASER_SCAN
 
@@ -76,26 +77,4 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
             "they are not separate lidars (one is the other filtered or deskewed), choose "
             "with --topic"
         )
-    return notes + _gt_notes(index, gt_topic)
-
-
-def _gt_notes(index: BagIndex, gt_topic: str | None) -> list[str]:
-    """The notes on the reference poses (see :func:`bag_notes`)."""
-    gt, notes = index.gt_read, []
-    if gt.invalid:
-        notes.append(
-            f"gt '{gt_topic}': {gt.invalid} of {gt.messages} poses invalid (the first: "
-            f"{gt.invalid_example[0]}), left out: the reference is interpolated across them"
-        )
-    if gt.repeated:
-        notes.append(
-            f"gt '{gt_topic}': {gt.repeated} of {gt.messages} poses recorded twice (the stamp "
-            "and pose of an earlier one), read once"
-        )
-    if gt.conflicting:
-        notes.append(
-            f"gt '{gt_topic}': {gt.conflicting} of {gt.messages} poses repeat an earlier "
-            "stamp with another pose (two publishers on one topic?); the last of each "
-            "stamp is used"
-        )
-    return notes
+    return notes + gt_notes(index.gt_read, gt_topic)

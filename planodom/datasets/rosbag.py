@@ -52,10 +52,10 @@ from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
 from planodom.datasets.bag_notes import bag_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
 from planodom.datasets.bag_tf import frame_name
+from planodom.datasets.bag_topics import BagTopic, bag_rig, bag_topics, has_rings
 from planodom.datasets.dataset import write_dataset
 from planodom.errors import DatasetError
 from planodom.geometry import transform_points
-from planodom.rig import Rig
 from planodom.scan import Scan
 
 __all__ = [
@@ -68,48 +68,6 @@ __all__ = [
     "convert_bag",
     "open_bag",
 ]
-
-
-@dataclass(frozen=True, eq=False)
-class BagTopic:
-    """A scan topic as read.
-
-    Attributes:
-        name: the topic.
-        msgtype: ``sensor_msgs/msg/LaserScan`` or ``sensor_msgs/msg/PointCloud2``.
-        first_ring: ring id of the topic's ring 0 in the scans.
-        rings: number of rings (1 for a LaserScan; 0: a cloud without ring field).
-        T_base_sensor: (frame -> (4, 4)) extrinsics of the frames its messages name.
-        sweeps: number of messages.
-        time_scale: seconds per unit of a cloud's per-point time offsets
-            (:mod:`planodom.datasets.bag_time_units`), None: the documented reading.
-        empty: no message holds a point (its lack of rings costs the others none; a
-            cloud message without a point places no epoch when some topic has points).
-        frame: the first frame its messages name.
-        read: its messages that go into the epochs (``BagIndex.in_epochs``: not recorded
-            twice, not a cloud without a point while some topic has points).
-    """
-
-    name: str
-    msgtype: str
-    first_ring: int
-    rings: int
-    T_base_sensor: dict[str, np.ndarray]
-    sweeps: int
-    time_scale: float | None = None
-    empty: bool = False
-    read: int = 0
-    frame: str = ""
-
-    @property
-    def left_out(self) -> bool:
-        """None of its messages goes into the epochs: it needs no extrinsic and gives none."""
-        return self.read == 0 and self.sweeps > 0
-
-    @property
-    def ringless(self) -> bool:
-        """Its points carry no ring (a topic without any point has none to carry)."""
-        return self.rings == 0 and not self.empty
 
 
 class BagDataset:
@@ -150,7 +108,7 @@ class BagDataset:
         self.epoch_rate = float(epoch_rate)
         self.gt_topic = gt_topic
         self._index = index
-        self.topics = _bag_topics(path, self.base_frame, index)
+        self.topics = bag_topics(path, self.base_frame, index)
         used = np.flatnonzero(index.in_epochs())
         grouped, ref = group_epochs(index.sweep_stamp[used], round(NS / self.epoch_rate))
         members = [used[m] for m in grouped]
@@ -172,7 +130,7 @@ class BagDataset:
         self._members = members
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
-        self.rig = _bag_rig(self)
+        self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
         self.notes = bag_notes(index, topics_chosen, gt_topic)
         self._reader: AnyReader | None = None
 
@@ -278,84 +236,12 @@ class BagDataset:
             T = topic.T_base_sensor[frame_name(msg.header.frame_id)]
             points.append(transform_points(T, pts))
             times.append((stamp - ref) / NS + dt)
-        has_rings = _has_rings(self.topics)
+        ringed = has_rings(self.topics)
         return Scan(
             np.concatenate(points) if points else np.zeros((0, 3)),
-            np.concatenate(rings).astype(np.int32) if has_rings and rings else None,
+            np.concatenate(rings).astype(np.int32) if ringed and rings else None,
             np.concatenate(times) if times else np.zeros(0),
         )
-
-
-def _has_rings(topics: list[BagTopic]) -> bool:
-    """Whether the scans carry rings: some topic has rings and every other one too, or no
-    point at all (a topic that never held a point takes no rings away)."""
-    return any(t.rings > 0 for t in topics) and not any(t.ringless for t in topics)
-
-
-def _bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
-    """The topics with their ring numbering and extrinsics: every frame of a topic that
-    goes into the epochs must resolve; a topic none of whose messages does (a cloud topic
-    without any point beside one with points) needs no transform and gets none."""
-    read = np.bincount(index.sweep_topic[index.in_epochs()], minlength=len(index.topics)).tolist()
-    topics, first = [], 0
-    for t, n in zip(index.topics, read, strict=True):
-        where = f"{path}: topic '{t.name}'"
-        extr = {f: index.tf.require(base_frame, f, where) for f in t.frames} if n else {}
-        scale = None if t.time_unit is None else t.time_unit.scale
-        topics.append(
-            BagTopic(
-                t.name,
-                t.msgtype,
-                first,
-                t.rings,
-                extr,
-                t.sweeps,
-                scale,
-                t.pointless,
-                n,
-                t.frames[0],
-            )
-        )
-        first += t.rings
-    return topics
-
-
-def _bag_rig(ds: BagDataset) -> Rig:
-    """The typed rig of a bag: rate, per-ring sensor origins, extrinsics of the topics read
-    (a topic left out of the epochs gives none), source. ``extra``'s per-topic ``sweeps``
-    counts the messages read into the epochs, ``left_out`` (when any) the others."""
-    used = [t for t in ds.topics if not t.left_out]
-    first_T = [next(iter(t.T_base_sensor.values())) for t in used]
-    origins = None
-    if _has_rings(ds.topics):
-        origins = np.concatenate(
-            [np.tile(T[:3, 3], (t.rings, 1)) for t, T in zip(used, first_T, strict=True)]
-        )
-    elif len(ds.topics) == 1:
-        origins = first_T[0][:3, 3][None]
-    extra = {
-        "source": "rosbag",
-        "bag": str(ds.path),
-        "base_frame": ds.base_frame,
-        "gt_topic": ds.gt_topic,
-        "topics": [_topic_extra(t) for t in ds.topics],
-    }
-    return Rig(ds.epoch_rate, origins, None, tuple(first_T), extra)
-
-
-def _topic_extra(t: BagTopic) -> dict[str, Any]:
-    """A topic's entry in ``rig.extra['topics']``."""
-    out: dict[str, Any] = {
-        "topic": t.name,
-        "type": t.msgtype.split("/")[-1],
-        "frame": t.frame,
-        "first_ring": t.first_ring,
-        "rings": t.rings,
-        "sweeps": t.read,
-    }
-    if t.read != t.sweeps:
-        out["left_out"] = t.sweeps - t.read
-    return out
 
 
 def open_bag(path: str | Path, options: BagOptions | None = None) -> BagDataset:
@@ -450,7 +336,7 @@ def convert_bag(
             len(ds),
             counter.points,
             tuple(t.name for t in ds.topics),
-            sum(t.rings for t in ds.topics) if _has_rings(ds.topics) else 0,
+            sum(t.rings for t in ds.topics) if has_rings(ds.topics) else 0,
             float(ds.times[0]),
             float(ds.times[-1]),
             ds.gt_topic,

@@ -1,0 +1,96 @@
+"""The reference (ground-truth) source of a bag: which it is, and how its poses read.
+
+``gt_topic`` is a pose topic or ``"tf:PARENT:CHILD"`` (:func:`parse_gt`); reading it
+(:mod:`planodom.datasets.bag_index`) leaves out a pose with a NaN or infinite value or a
+zero quaternion and counts the stamps given twice (:class:`GtReading`), which
+:func:`gt_notes` says.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from rosbags.highlevel import AnyReader
+
+from planodom.datasets.bag_msgs import POSE_TYPES
+from planodom.datasets.bag_tf import frame_name
+from planodom.errors import DatasetError
+
+#: Prefix of a ``gt_topic`` naming a tf frame pair: ``"tf:PARENT:CHILD"``.
+TF_PAIR_PREFIX = "tf:"
+
+
+@dataclass
+class GtReading:
+    """How the reference poses of a gt topic read.
+
+    Attributes:
+        messages: its poses (messages, or tf values of the tracked edge).
+        invalid_example: the first invalid pose's reason (a list of at most one).
+        invalid: poses left out: a NaN or infinite value, or a zero quaternion.
+        repeated: poses whose stamp and pose repeat an earlier one's (read once).
+        conflicting: poses whose stamp repeats an earlier one's with another pose (the last
+            of a stamp is used, :func:`planodom.datasets.bag_epochs.interpolate_poses`).
+    """
+
+    messages: int
+    invalid_example: list[str] = field(default_factory=list)
+    invalid: int = 0
+    repeated: int = 0
+    conflicting: int = 0
+
+    def count_repeats(self, times: np.ndarray, poses: np.ndarray) -> None:
+        """Count the repeated and conflicting stamps of ``times`` (M,) ns, ``poses`` (M, 4, 4)."""
+        order = np.argsort(times, kind="stable")
+        t, P = times[order], poses[order]
+        again = np.flatnonzero(t[1:] == t[:-1]) + 1
+        same = np.all(P[again] == P[again - 1], axis=(1, 2))
+        self.repeated = int(same.sum())
+        self.conflicting = int((~same).sum())
+
+
+def parse_gt(reader: AnyReader, path: Path, gt_topic: str | None) -> tuple[str, str] | str | None:
+    """The reference source: None, a pose topic name, or a ``(parent, child)`` tf pair."""
+    if gt_topic is None:
+        return None
+    if gt_topic.startswith(TF_PAIR_PREFIX):
+        parts = gt_topic[len(TF_PAIR_PREFIX) :].split(":")
+        if len(parts) != 2 or not all(parts):
+            raise DatasetError(f"{path}: gt '{gt_topic}' must read 'tf:PARENT:CHILD'")
+        return frame_name(parts[0]), frame_name(parts[1])
+    info = reader.topics.get(gt_topic)
+    if info is None:
+        poses = sorted(n for n, i in reader.topics.items() if i.msgtype in POSE_TYPES)
+        raise DatasetError(
+            f"{path}: no gt topic '{gt_topic}' (pose topics: {', '.join(poses) or 'none'})"
+        )
+    if info.msgtype not in POSE_TYPES:
+        raise DatasetError(
+            f"{path}: gt topic '{gt_topic}' is {info.msgtype}, not one of {', '.join(POSE_TYPES)}"
+        )
+    return gt_topic
+
+
+def gt_notes(gt: GtReading, gt_topic: str | None) -> list[str]:
+    """One line each on the reference poses a user should check (see
+    :func:`planodom.datasets.bag_notes.bag_notes`)."""
+    notes = []
+    if gt.invalid:
+        notes.append(
+            f"gt '{gt_topic}': {gt.invalid} of {gt.messages} poses invalid (the first: "
+            f"{gt.invalid_example[0]}), left out: the reference is interpolated across them"
+        )
+    if gt.repeated:
+        notes.append(
+            f"gt '{gt_topic}': {gt.repeated} of {gt.messages} poses recorded twice (the stamp "
+            "and pose of an earlier one), read once"
+        )
+    if gt.conflicting:
+        notes.append(
+            f"gt '{gt_topic}': {gt.conflicting} of {gt.messages} poses repeat an earlier "
+            "stamp with another pose (two publishers on one topic?); the last of each "
+            "stamp is used"
+        )
+    return notes
