@@ -15,6 +15,7 @@ from bag_factory import (
     Sensor,
     Truth,
     distance_to_room,
+    pose,
     true_pose,
     write_bag,
 )
@@ -633,4 +634,152 @@ def test_a_sweep_recorded_twice_votes_once_for_the_time_unit(tmp_path: Path, ros
             clean.notes[0],
             "topic '/points': 2 of 7 messages recorded twice (the stamp and content of an "
             "earlier one: merged or overlapping recordings?), read once",
+        ]
+
+
+def _recorded_twice(ros: int, bw, msg, stamp: int) -> None:
+    """``msg`` written again 60 ms later (ROS 1: another header ``seq``)."""
+    from dataclasses import replace
+
+    if ros == 1:
+        msg = replace(msg, header=replace(msg.header, seq=77))
+    bw.write("/points", msg, stamp + 60_000_000)
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_rig_counts_the_sweeps_read(tmp_path: Path, ros: int) -> None:
+    """``rig.extra``'s per-topic ``sweeps`` and the "merged" note counted every message,
+    the empty one and the one recorded twice too (6 for /points): they count the sweeps
+    read into the epochs (4), and ``left_out`` the others."""
+    from dataclasses import replace
+
+    def more(bw, k, stamp, msg):
+        if k == 1:
+            _recorded_twice(ros, bw, msg, stamp)
+        if msg.width:
+            other = replace(msg, header=bw.header(stamp + 50_000_000, "lidar"))
+            bw.write("/points_b", other, stamp + 52_000_000)
+
+    def gap(k, msg):
+        return _without_points(msg) if k == 2 else msg
+
+    _cloud_bag(bag_path(tmp_path, ros, "b"), ros, more, sweep=gap)
+    with open_bag(bag_path(tmp_path, ros, "b")) as ds:
+        points, points_b = ds.rig.extra["topics"]
+        assert (points["topic"], points["sweeps"], points["left_out"]) == ("/points", 4, 2)
+        assert (points_b["topic"], points_b["sweeps"]) == ("/points_b", 4)
+        assert "left_out" not in points_b
+        assert ds.notes[-1].startswith(
+            "2 point-cloud topics read and merged into each epoch: '/points' (lidar, 4 "
+            "sweeps), '/points_b' (lidar, 4 sweeps)"
+        )
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_topic_without_points_needs_no_transform(tmp_path: Path, ros: int) -> None:
+    """A cloud topic that never held a point (a sensor switched off) on a frame the tf tree
+    does not know refused the bag, though it adds nothing to the epochs: it needs no
+    transform now, and gives the rig no extrinsic."""
+    from dataclasses import replace
+
+    def off(bw, k, stamp, msg):
+        empty = replace(_without_points(msg), header=bw.header(stamp + 50_000_000, "radar"))
+        bw.write("/off", empty, stamp + 52_000_000)
+
+    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros)
+    _cloud_bag(bag_path(tmp_path, ros, "off"), ros, off)
+    opts = BagOptions(gt_topic="/odom")
+    with (
+        open_bag(bag_path(tmp_path, ros, "off"), opts) as ds,
+        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
+    ):
+        _assert_same_reading(ds, clean)
+        assert len(ds.rig.extrinsics) == 1
+        np.testing.assert_array_equal(ds.rig.extrinsics[0], clean.rig.extrinsics[0])
+        np.testing.assert_array_equal(ds.rig.sensor_origins, clean.rig.sensor_origins)
+        off_topic = ds.rig.extra["topics"][0]
+        assert (off_topic["frame"], off_topic["sweeps"], off_topic["left_out"]) == ("radar", 0, 5)
+    with pytest.raises(DatasetError, match="topic '/off': no transform from frame 'radar'"):
+        open_bag(bag_path(tmp_path, ros, "off"), BagOptions(topics=("/off",)))
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_reference_poses_invalid_or_given_twice(tmp_path: Path, ros: int) -> None:
+    """Reference poses between the clean ones: one with a NaN position (read as NaN into the
+    epochs' reference), one with a zero quaternion (refused the bag), one recorded twice
+    and two of one stamp with different poses (silently the last). The invalid ones are
+    left out and the others noted; the epochs' reference poses are the clean bag's."""
+    from dataclasses import replace
+
+    def odom(bw, k, stamp, msg):
+        at = stamp + 50_000_000
+        if k == 1:
+            T = true_pose(at / 1e9)
+            T[0, 3] = np.nan
+            bw.write("/odom", bw.odometry(at, T), at)
+        if k == 3:
+            good = bw.odometry(at, true_pose(at / 1e9))
+            q = bw.T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=0.0)
+            zero = replace(good.pose.pose, orientation=q)
+            bw.write("/odom", replace(good, pose=replace(good.pose, pose=zero)), at)
+        if k == 2:  # the clean bag's pose at this stamp, again
+            bw.write("/odom", bw.odometry(stamp, true_pose(stamp / 1e9)), stamp + 1)
+        if k == 4:  # after the last epoch, another pose at the last pose's stamp
+            later = stamp + 200_000_000
+            bw.write("/odom", bw.odometry(later, pose(0, 0, 0, (5.0, 0.0, 0.0))), later)
+
+    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros)
+    _cloud_bag(bag_path(tmp_path, ros, "gt"), ros, odom)
+    opts = BagOptions(gt_topic="/odom")
+    with (
+        open_bag(bag_path(tmp_path, ros, "gt"), opts) as ds,
+        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
+    ):
+        np.testing.assert_array_equal(ds.times, clean.times)
+        np.testing.assert_array_equal(ds.gt_poses, clean.gt_poses)
+        assert ds.notes[0].startswith(
+            "gt '/odom': 2 of 12 poses invalid (the first: invalid translation [nan, "
+        )
+        assert ds.notes[0].endswith("]), left out: the reference is interpolated across them")
+        assert ds.notes[1:] == [
+            "gt '/odom': 1 of 12 poses recorded twice (the stamp and pose of an earlier one), "
+            "read once",
+            "gt '/odom': 1 of 12 poses repeat an earlier stamp with another pose (two "
+            "publishers on one topic?); the last of each stamp is used",
+        ]
+
+
+def test_a_single_laser_scan_without_a_return_places_no_epoch(tmp_path: Path) -> None:
+    """A bag of one 2D scanner: a scan without any return placed an epoch without points,
+    bridged by the odometry. No other scanner fills it: it is left out as a cloud's empty
+    message is, and noted; the bag reads as the one without that message."""
+    from dataclasses import replace
+
+    from bag_factory import BagWriter, laser_scan
+
+    def scanner(path: Path, blind: bool | None) -> None:
+        truth = Truth(T_base_sensor=T_BASE)
+        with BagWriter(path, 1) as bw:
+            tf = [bw.transform_stamped(T0_NS, p, c, T) for p, c, T in STATIC_TF]
+            bw.write("/tf_static", bw.tf(tf), T0_NS)
+            for k in range(5):
+                stamp = T0_NS + k * 100_000_000
+                msg = laser_scan(bw, truth, "/scan_front", "laser_front", stamp)
+                if k == 2 and blind is None:
+                    continue
+                if k == 2 and blind:
+                    msg = replace(msg, ranges=np.full_like(msg.ranges, np.inf))
+                bw.write("/scan_front", msg, stamp + 2_000_000)
+
+    scanner(tmp_path / "clean.bag", None)
+    scanner(tmp_path / "blind.bag", True)
+    with open_bag(tmp_path / "blind.bag") as ds, open_bag(tmp_path / "clean.bag") as clean:
+        assert len(ds) == 4
+        np.testing.assert_array_equal(ds.times, clean.times)
+        for scan, truth in zip(ds, clean, strict=True):
+            np.testing.assert_array_equal(scan.points, truth.points)
+            np.testing.assert_array_equal(scan.t, truth.t)
+        assert ds.notes == [
+            "topic '/scan_front': 1 of 5 scans hold no return (open space, or everything "
+            "beyond range_max?); left out of the epochs"
         ]
