@@ -387,6 +387,11 @@ def _files(directory: Path, extensions: Sequence[str] | None = None) -> list[Pat
     return files
 
 
+def _is_results_folder(root: Path) -> bool:
+    """What ``planodom run`` and ``smooth`` both write (a dataset holds neither)."""
+    return (root / "config.yaml").is_file() and (root / "covariances.npz").is_file()
+
+
 def _scan_files(root: Path) -> list[Path]:
     """The scan files of a dataset, checked for a single known extension and sorted."""
     scans_dir = root / SCANS_DIR
@@ -403,6 +408,13 @@ def _scan_files(root: Path) -> list[Path]:
             raise DatasetError(
                 f"{root} has velodyne/ but no calib.txt: a KITTI sequence needs both (or give "
                 "velodyne/ itself, a folder of scans, without the KITTI camera frame)"
+            )
+        if not scans and _is_results_folder(root):
+            inner = " (its dataset/ is the one it ran on)" if (root / "dataset").is_dir() else ""
+            raise DatasetError(
+                f"{root} is a results folder of planodom run or smooth (config.yaml, "
+                f"covariances.npz), not a recording: give the recording it ran on{inner}; "
+                f"`planodom eval` reads its {POSES_FILE}"
             )
         if not files:
             raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files")

@@ -229,3 +229,21 @@ def test_point_times_in_another_unit_are_refused(tmp_path: Path) -> None:
     long = Scan(points, t=np.linspace(0.0, 0.5, 50))
     ds = write_dataset(tmp_path / "ds5", [good, long, good], [0.0, 0.1, 0.2])
     np.testing.assert_array_equal(ds[1].t, long.t)
+
+
+def test_a_results_folder_is_named_as_one(tmp_path: Path) -> None:
+    """``run`` / ``smooth`` given a results folder (a run's output, say) answered "files with
+    unknown extensions: config.yaml, covariances.npz, ..."; it is named as a results folder,
+    with the way to the recording and to ``eval``."""
+    names = "poses.tum poses_kitti.txt epochs.csv covariances.npz config.yaml metrics.json"
+    names += " timing.json trajectory.png errors.png planes.png"
+    for name in names.split():
+        (tmp_path / name).write_text("x")
+    (tmp_path / "dataset").mkdir()
+    with pytest.raises(DatasetError) as exc:
+        load_dataset(tmp_path)
+    assert str(exc.value) == (
+        f"{tmp_path} is a results folder of planodom run or smooth (config.yaml, "
+        "covariances.npz), not a recording: give the recording it ran on (its dataset/ is "
+        "the one it ran on); `planodom eval` reads its poses.tum"
+    )
