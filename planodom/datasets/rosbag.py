@@ -132,7 +132,19 @@ class BagDataset:
         self.times = ref.astype(np.float64) / NS
         self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
         self.notes = bag_notes(index, topics_chosen, gt_topic)
+        if self.dropped_epochs:
+            self.notes.append(self._dropped_note(len(self) + self.dropped_epochs))
         self._reader: AnyReader | None = None
+
+    def _dropped_note(self, epochs: int) -> str:
+        """The note on the epochs left out for lying outside the reference's time span."""
+        gt = self._index.gt_times
+        return (
+            f"gt '{self.gt_topic}' spans {len(self)} of the {epochs} epochs (reference poses "
+            f"from {gt.min() / NS:.3f} to {gt.max() / NS:.3f} s, epochs read from "
+            f"{self.times[0]:.3f} to {self.times[-1]:.3f} s): the {self.dropped_epochs} "
+            "outside it are left out (without --gt-topic every epoch is read)"
+        )
 
     def _child_to_base(self, child: str) -> np.ndarray:
         """``T_child_base`` when the reference's child frame is rigidly linked, else identity."""

@@ -783,3 +783,31 @@ def test_a_single_laser_scan_without_a_return_places_no_epoch(tmp_path: Path) ->
             "topic '/scan_front': 1 of 5 scans hold no return (open space, or everything "
             "beyond range_max?); left out of the epochs"
         ]
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_reference_over_part_of_the_run_is_said(tmp_path: Path, ros: int) -> None:
+    """A reference that stops half-way (odometry recorded for the first 0.25 s) made ``run``
+    read only the epochs it spans, without a word: the rest of the recording was lost to
+    the odometry. It is noted, with the spans and the way to read every epoch."""
+    from bag_factory import BagWriter, lidar_cloud
+
+    truth = Truth(T_base_sensor=T_BASE)
+    with BagWriter(bag_path(tmp_path, ros, "half"), ros) as bw:
+        tf = [bw.transform_stamped(T0_NS, p, c, T) for p, c, T in STATIC_TF]
+        bw.write("/tf_static", bw.tf(tf), T0_NS)
+        for k in range(5):
+            stamp = T0_NS + k * 100_000_000
+            bw.write("/points", lidar_cloud(bw, truth, "/points", "lidar", stamp), stamp + 1)
+            odom = stamp + 50_000_000
+            if k < 2:
+                bw.write("/odom", bw.odometry(odom, true_pose(odom / 1e9)), odom)
+    with open_bag(bag_path(tmp_path, ros, "half"), BagOptions(gt_topic="/odom")) as ds:
+        assert (len(ds), ds.dropped_epochs) == (1, 4)
+        assert ds.notes == [
+            "gt '/odom' spans 1 of the 5 epochs (reference poses from 1700000000.050 to "
+            "1700000000.150 s, epochs read from 1700000000.100 to 1700000000.100 s): the 4 "
+            "outside it are left out (without --gt-topic every epoch is read)"
+        ]
+    with open_bag(bag_path(tmp_path, ros, "half")) as ds:
+        assert len(ds) == 5
