@@ -127,6 +127,13 @@ def _cloud_array(msg: Any) -> np.ndarray:
         formats.append(order + code if int(f.count) <= 1 else (order + code, int(f.count)))
         offsets.append(int(f.offset))
     step, width, height = int(msg.point_step), int(msg.width), int(msg.height)
+    for name, form, offset in zip(names, formats, offsets, strict=True):
+        size = np.dtype(form).itemsize
+        if offset < 0 or offset + size > step:
+            raise ValueError(
+                f"PointCloud2 field '{name}' ({size} bytes at offset {offset}) does not fit "
+                f"its point_step of {step} bytes"
+            )
     dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": step})
     data = np.asarray(msg.data, dtype=np.uint8).reshape(-1)
     row_step = int(msg.row_step) if int(msg.row_step) > 0 else width * step
@@ -151,6 +158,13 @@ def _cloud_parts(
     read (or None) and its raw values (n,) at the kept points (or None)."""
     cloud = _cloud_array(msg)
     names = cloud.dtype.names or ()
+    ring_name = next((n for n in RING_FIELDS if n in names), None)
+    time_name = _time_name(names, time_field)
+    return_name = next((n for n in RETURN_FIELDS if n in names), None)
+    for name in ("x", "y", "z", ring_name, time_name, return_name):
+        if name in names and cloud.dtype.fields[name][0].shape:  # type: ignore[index]
+            count = cloud.dtype.fields[name][0].shape[0]  # type: ignore[index]
+            raise ValueError(f"PointCloud2 field '{name}' has count {count}, not 1 value a point")
     missing = [c for c in "xyz" if c not in names]
     if missing:
         raise ValueError(f"PointCloud2 without field(s) {', '.join(missing)}")
@@ -159,7 +173,6 @@ def _cloud_parts(
         raise ValueError(f"PointCloud2 {problem}")
     points = np.column_stack([cloud[c].astype(np.float64) for c in "xyz"])
     valid = np.all(np.isfinite(points), axis=1) & np.any(points != 0.0, axis=1)
-    ring_name = next((n for n in RING_FIELDS if n in names), None)
     ring = None
     rings = 0
     if ring_name is not None:
@@ -168,8 +181,6 @@ def _cloud_parts(
             raise ValueError(f"PointCloud2 field '{ring_name}' has negative values")
         rings = int(ring.max()) + 1 if len(ring) else 0
         ring = ring.astype(np.int32)
-    time_name = _time_name(names, time_field)
-    return_name = next((n for n in RETURN_FIELDS if n in names), None)
     keep = last_returns(
         points[valid],
         ring,
@@ -231,6 +242,11 @@ def check_offsets(
     if np.all(np.abs(dt) <= MAX_SWEEP_OFFSET_S):
         return
     bad = dt[~(np.abs(dt) <= MAX_SWEEP_OFFSET_S)]
+    if np.isnan(bad).any():
+        raise ValueError(
+            f"PointCloud2 time field '{time_name}' ({dtype.name}) is NaN at "
+            f"{int(np.isnan(bad).sum())} of {len(dt)} points; --time-field none ignores it"
+        )
     worst = bad[np.argmax(np.nan_to_num(np.abs(bad), nan=np.inf))]
     unit = None if time_scale is None else unit_of(time_scale)
     if time_scale is None:

@@ -123,11 +123,13 @@ def test_absolute_double_nanoseconds_livox_driver2() -> None:
 
 
 @pytest.mark.parametrize(
-    "times, shown", [([0.0, 50.0, 99.0], "99 s"), ([0.0, np.nan, 0.01], "nan s")]
+    "times, shown",
+    [([0.0, 50.0, 99.0], "puts a point 99 s"), ([0.0, np.nan, 0.01], "is NaN at 1 of 3 points")],
 )
 def test_times_in_another_unit_are_refused_naming_the_field(times: list, shown: str) -> None:
-    """Float milliseconds read as seconds would make a 99 s sweep; NaN times are no times."""
-    with pytest.raises(ValueError, match=rf"time field 'timestamp' \(float64\) .*{shown}"):
+    """Float milliseconds read as seconds would make a 99 s sweep; NaN times are no times
+    (said as such: "puts a point nan s from the stamp ... not seconds" blamed the unit)."""
+    with pytest.raises(ValueError, match=rf"time field 'timestamp' \(float64\) {shown}"):
         decode_sweep(_livox2_cloud(times, 10**18), POINT_CLOUD2)
 
 
@@ -155,6 +157,26 @@ def test_cloud_that_does_not_fit_its_data() -> None:
     msg = cloud([("x", 0, 7), ("y", 4, 7), ("z", 8, 7)], rows, 12, 0)
     msg.width = 5
     with pytest.raises(ValueError, match="does not fit"):
+        decode_sweep(msg, POINT_CLOUD2)
+
+
+def test_a_field_of_several_values_or_beyond_the_point_is_refused_naming_it() -> None:
+    """A time field of count 2 gave twice as many times as points, refused deep in ``Scan``
+    without the bag, topic or field ("scan field 't' has 6 values for 3 points"); a field
+    past the point's end, in numpy's words ("dtype descriptor requires 24 bytes")."""
+    dtype = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("time", "<f4", 2)])
+    rows = np.zeros(3, dtype=dtype)
+    rows["x"] = [1.0, 2.0, 3.0]
+    msg = cloud([("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("time", 12, 7)], rows, 20, 0)
+    msg.fields[3].count = 2
+    with pytest.raises(ValueError, match=r"^PointCloud2 field 'time' has count 2, not 1 value"):
+        decode_sweep(msg, POINT_CLOUD2)
+    msg.fields[3].count = 1  # a single time is read
+    assert decode_sweep(msg, POINT_CLOUD2)[2].tolist() == [0.0, 0.0, 0.0]
+    msg.fields[3].offset = 18
+    with pytest.raises(
+        ValueError, match=r"^PointCloud2 field 'time' \(4 bytes at offset 18\) does not fit its"
+    ):
         decode_sweep(msg, POINT_CLOUD2)
 
 
