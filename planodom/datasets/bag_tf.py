@@ -25,6 +25,9 @@ TF_TOPIC = "/tf"
 TF_STATIC_TOPIC = "/tf_static"
 #: Largest change of a /tf edge (metres, radians) for which it still counts as rigid.
 RIGID_TOL = 1e-6
+#: Largest disagreement (metres, radians) of two rigid chains between two frames that is
+#: not reported as a loop: 1 mm / 1 mrad, a hand-written extrinsic's rounding.
+LOOP_TOL = 1e-3
 
 
 def frame_name(name: str) -> str:
@@ -131,24 +134,52 @@ class TfTree:
         return sorted(names)
 
     def lookup(self, target: str, source: str) -> np.ndarray | None:
-        """``T_target_source`` (4, 4) through rigid edges, or None when they do not connect."""
+        """``T_target_source`` (4, 4) through rigid edges, or None when they do not connect
+        (through a loop, the chain of fewest links: :meth:`loops` says whether they agree)."""
         target, source = frame_name(target), frame_name(source)
         if target == source:
             return np.eye(4)
+        return self._reach(target)[0].get(source)
+
+    def loops(self, target: str) -> list[str]:
+        """One line for each rigid edge among the frames joined to ``target`` that closes a
+        loop whose chains disagree by more than 1 mm or 1 mrad (tf2 refuses a loop; here
+        the chain of fewest links from ``target`` is used)."""
+        return [
+            f"/tf_static or /tf: frames '{a}' and '{b}' are joined by a transform and by "
+            f"another chain that differ by {dist:.3f} m and {np.degrees(angle):.2f} deg (a "
+            "loop in the tf tree: a frame published under two parents?); transforms from "
+            f"'{frame_name(target)}' take the chain of fewest links"
+            for a, b, dist, angle in self._reach(frame_name(target))[1]
+        ]
+
+    def _reach(
+        self, target: str
+    ) -> tuple[dict[str, np.ndarray], list[tuple[str, str, float, float]]]:
+        """Breadth-first from ``target``: ``T_target_frame`` of every frame reached, and the
+        edges between reached frames that disagree with them (frames, metres, radians)."""
         neighbours: dict[str, list[tuple[str, np.ndarray]]] = {}
         for (parent, child), T in self.rigid.items():
             neighbours.setdefault(parent, []).append((child, T))
             neighbours.setdefault(child, []).append((parent, invert_transform(T)))
-        # breadth-first from the target: T_target_frame for every reached frame
         reached = {target: np.eye(4)}
         queue = deque([target])
+        tree: set[frozenset[str]] = set()
+        loops: dict[frozenset[str], tuple[str, str, float, float]] = {}
         while queue:
             frame = queue.popleft()
             for other, T_frame_other in neighbours.get(frame, []):
                 if other not in reached:
                     reached[other] = reached[frame] @ T_frame_other
+                    tree.add(frozenset((frame, other)))
                     queue.append(other)
-        return reached.get(source)
+                elif frozenset((frame, other)) not in tree | loops.keys():
+                    D = invert_transform(reached[other]) @ reached[frame] @ T_frame_other
+                    dist = float(np.linalg.norm(D[:3, 3]))
+                    angle = float(np.arccos(np.clip((np.trace(D[:3, :3]) - 1) / 2, -1, 1)))
+                    if dist > LOOP_TOL or angle > LOOP_TOL:
+                        loops[frozenset((frame, other))] = (frame, other, dist, angle)
+        return reached, list(loops.values())
 
     def require(self, target: str, source: str, where: str) -> np.ndarray:
         """:meth:`lookup`, or a one-line DatasetError naming both frames and ``where``."""

@@ -131,7 +131,7 @@ class BagDataset:
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
         self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
-        self.notes = bag_notes(index, topics_chosen, gt_topic)
+        self.notes = index.tf.loops(self.base_frame) + bag_notes(index, topics_chosen, gt_topic)
         if self.dropped_epochs:
             self.notes.append(self._dropped_note(len(self) + self.dropped_epochs))
         self._reader: AnyReader | None = None

@@ -215,6 +215,28 @@ def test_tf_chain_up_and_down_and_moving_edges() -> None:
         tree.require("base_link", "odom", "bag: topic '/x'")
 
 
+def test_a_loop_in_the_tf_tree_is_said_with_its_disagreement() -> None:
+    """A frame published under a second parent closes a loop: the extrinsic silently took
+    one of the two chains. The chains' disagreement is said (a loop that agrees is not)."""
+    tree = TfTree()
+    tree.add(tf_msg("base_link", "mount", (0.0, 0.0, 1.0)), static=True)
+    tree.add(tf_msg("mount", "lidar", (0.5, 0.0, 0.0)), static=True)
+    assert tree.loops("base_link") == []
+    tree.add(tf_msg("base_link", "lidar", (0.5, 0.0, 1.0005)), static=True)  # agrees to 0.5 mm
+    assert tree.loops("base_link") == []
+    tree.add(tf_msg("base_link", "lidar", (0.5, 0.0, 0.9), 0.1), static=True)
+    T = tree.lookup("base_link", "lidar")  # the direct edge: the chain of fewest links
+    assert np.allclose(T[:3, 3], [0.5, 0.0, 0.9])
+    (line,) = tree.loops("base_link")
+    assert line == (
+        "/tf_static or /tf: frames 'mount' and 'lidar' are joined by a transform and by "
+        "another chain that differ by 0.100 m and 5.73 deg (a loop in the tf tree: a frame "
+        "published under two parents?); transforms from 'base_link' take the chain of fewest "
+        "links"
+    )
+    assert tree.loops("elsewhere") == []  # not joined to base_link's frames
+
+
 def test_files_dropped_beside_a_bag_are_not_bags(tmp_path: Path) -> None:
     from planodom.datasets.bag_index import is_bag
 
