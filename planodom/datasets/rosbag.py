@@ -12,13 +12,16 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
   is one ring; a cloud with a ring field takes ``max ring + 1`` rings. If a cloud has no
   ring field the scans carry no ``ring``.
 - Extrinsics: ``T_base_sensor`` of each message's ``header.frame_id``, chained through
-  ``/tf_static`` and the rigid ``/tf`` edges (see :mod:`planodom.datasets.bag_tf`).
+  ``/tf_static`` and the rigid ``/tf`` edges (see :mod:`planodom.datasets.bag_tf`; a loop
+  whose chains disagree is noted); a topic none of whose messages goes into the epochs
+  needs none.
 - Epochs: the sweeps inside each ``1 / epoch_rate`` window (see
   :mod:`planodom.datasets.bag_epochs`), leaving out a message recorded twice (same topic,
   stamp and content: the first is read) and the cloud messages without a point while some
-  topic has points (``BagIndex.in_epochs``; a LaserScan is always kept); ``times`` are the
-  epochs' reference stamps in seconds since the Unix epoch (the bag's own clock). A
-  point's ``t`` is its acquisition time minus its epoch's reference time (see
+  topic has points (``BagIndex.in_epochs``), and the LaserScans without a return when
+  theirs is the only scan topic (in a rig of several, the other scanners fill the epoch:
+  kept); ``times`` are the epochs' reference stamps in seconds since the Unix epoch (the
+  bag's own clock). A point's ``t`` is its acquisition time minus its epoch's reference time (see
   :mod:`planodom.datasets.bag_msgs` for the per-beam and per-point times). Points are in
   the base frame at their own time: the extrinsics are applied, the vehicle's motion
   within the epoch is not removed.
@@ -26,7 +29,8 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
   ``PoseWithCovarianceStamped`` or ``TransformStamped`` topic, or ``"tf:PARENT:CHILD"`` (a
   direct /tf edge). Poses are interpolated at the epoch times (linear + Slerp); when the
   message's child frame is not the base frame but is rigidly linked to it, the result is
-  ``T_world_child @ T_child_base``. Epochs outside the reference's time span are dropped.
+  ``T_world_child @ T_child_base``. Epochs outside the reference's time span are dropped
+  (and noted); a pose with a NaN or infinite value or a zero quaternion is left out (noted).
 """
 
 from __future__ import annotations
