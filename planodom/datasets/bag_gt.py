@@ -2,8 +2,8 @@
 
 ``gt_topic`` is a pose topic or ``"tf:PARENT:CHILD"`` (:func:`parse_gt`); reading it
 (:mod:`planodom.datasets.bag_index`) leaves out a pose with a NaN or infinite value or a
-zero quaternion and counts the stamps given twice (:class:`GtReading`), which
-:func:`gt_notes` says.
+zero quaternion and counts the stamps given twice and the frame pairs its poses name
+(:class:`GtReading`), which :func:`gt_notes` says.
 """
 
 from __future__ import annotations
@@ -33,6 +33,8 @@ class GtReading:
         repeated: poses whose stamp and pose repeat an earlier one's (read once).
         conflicting: poses whose stamp repeats an earlier one's with another pose (the last
             of a stamp is used, :func:`planodom.datasets.bag_epochs.interpolate_poses`).
+        frames: a pose topic's poses per ``(frame_id, child frame)`` (child "" for the
+            pose types without one), in the order first seen.
     """
 
     messages: int
@@ -40,6 +42,7 @@ class GtReading:
     invalid: int = 0
     repeated: int = 0
     conflicting: int = 0
+    frames: dict[tuple[str, str], int] = field(default_factory=dict)
 
     def count_repeats(self, times: np.ndarray, poses: np.ndarray) -> None:
         """Count the repeated and conflicting stamps of ``times`` (M,) ns, ``poses`` (M, 4, 4)."""
@@ -81,6 +84,15 @@ def gt_notes(gt: GtReading, gt_topic: str | None) -> list[str]:
         notes.append(
             f"gt '{gt_topic}': {gt.invalid} of {gt.messages} poses invalid (the first: "
             f"{gt.invalid_example[0]}), left out: the reference is interpolated across them"
+        )
+    if len(gt.frames) > 1:
+        shown = ", ".join(
+            f"{parent} -> {child or '(no child frame)'} ({n})"
+            for (parent, child), n in gt.frames.items()
+        )
+        notes.append(
+            f"gt '{gt_topic}': its poses name {len(gt.frames)} frame pairs, {shown} (two "
+            "publishers on one topic?); they are read as one trajectory"
         )
     if gt.repeated:
         notes.append(

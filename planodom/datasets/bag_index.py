@@ -276,6 +276,7 @@ def index_bag(
     seen = [0] * len(names)  # messages per topic so far
     gt_log = PoseLog()
     gt_invalid: list[str] = []  # why each reference pose left out was
+    gt_frames: dict[tuple[str, str], int] = {}  # poses per (frame_id, child frame)
     gt_child = gt[1] if isinstance(gt, tuple) else ""
     with bag_errors(path):
         for conn, bag_time, raw in reader.messages(connections=conns):
@@ -290,12 +291,13 @@ def index_bag(
                 seen[k] += 1
             else:
                 try:
-                    stamp, T, _, child = decode_pose(msg, conn.msgtype)
+                    stamp, T, parent, child = decode_pose(msg, conn.msgtype)
                 except ValueError as exc:  # NaN, or a zero quaternion: left out, noted
                     gt_invalid.append(str(exc))
                     continue
                 gt_log.append(stamp or bag_time, T)
                 gt_child = gt_child or child
+                gt_frames[(parent, child)] = gt_frames.get((parent, child), 0) + 1
     if isinstance(gt, tuple):
         gt_log = tree.track
     if gt is not None and not len(gt_log):
@@ -310,7 +312,9 @@ def index_bag(
         topic.sweeps = int(rows.sum())
         topic.duplicates = int(duplicate[rows].sum())
     gt_times, gt_poses = gt_log.arrays()
-    gt_read = GtReading(len(gt_times) + len(gt_invalid), gt_invalid[:1], len(gt_invalid))
+    gt_read = GtReading(
+        len(gt_times) + len(gt_invalid), gt_invalid[:1], len(gt_invalid), frames=gt_frames
+    )
     gt_read.count_repeats(gt_times, gt_poses)
     return BagIndex(
         index,

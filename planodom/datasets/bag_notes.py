@@ -29,7 +29,8 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
       (``--topic``): a raw and a filtered cloud of one lidar would be read twice (each with
       the sweeps it gives the epochs);
     - reference poses (``gt_topic``) left out for a NaN, infinite or zero-quaternion value,
-      recorded twice (read once), or repeating a stamp with another pose (the last is used).
+      naming several frame pairs, recorded twice (read once), or repeating a stamp with
+      another pose (the last is used).
     """
     counts = np.bincount(index.sweep_topic, minlength=len(index.topics))
     some_points = not all(t.pointless for t in index.topics)

@@ -811,3 +811,29 @@ def test_a_reference_over_part_of_the_run_is_said(tmp_path: Path, ros: int) -> N
         ]
     with open_bag(bag_path(tmp_path, ros, "half")) as ds:
         assert len(ds) == 5
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_reference_poses_of_two_publishers_are_said(tmp_path: Path, ros: int) -> None:
+    """Two publishers on the gt topic (a wheel odometry and a localisation, say: frames
+    ``odom`` and ``map``) made one trajectory of two without a word: it is said."""
+    from dataclasses import replace
+
+    def second(bw, k, stamp, msg):
+        if k == 4:  # after the last epoch: the reading stays the clean bag's
+            at = stamp + 250_000_000
+            odom = bw.odometry(at, true_pose(at / 1e9))
+            bw.write("/odom", replace(odom, header=bw.header(at, "map")), at)
+
+    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros)
+    _cloud_bag(bag_path(tmp_path, ros, "two"), ros, second)
+    opts = BagOptions(gt_topic="/odom")
+    with (
+        open_bag(bag_path(tmp_path, ros, "two"), opts) as ds,
+        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
+    ):
+        _assert_same_reading(ds, clean)
+        assert ds.notes == [
+            "gt '/odom': its poses name 2 frame pairs, odom -> base_link (8), map -> "
+            "base_link (1) (two publishers on one topic?); they are read as one trajectory"
+        ]
