@@ -146,8 +146,9 @@ class BagDataset:
         return (
             f"gt '{self.gt_topic}' spans {len(self)} of the {epochs} epochs (reference poses "
             f"from {gt.min() / NS:.3f} to {gt.max() / NS:.3f} s, epochs read from "
-            f"{self.times[0]:.3f} to {self.times[-1]:.3f} s): the {self.dropped_epochs} "
-            "outside it are left out (without --gt-topic every epoch is read)"
+            f"{self.times[0]:.3f} to {self.times[-1]:.3f} s): "
+            + ("the epoch" if self.dropped_epochs == 1 else f"the {self.dropped_epochs} epochs")
+            + " outside it left out (without --gt-topic every epoch is read)"
         )
 
     def _child_to_base(self, child: str) -> np.ndarray:

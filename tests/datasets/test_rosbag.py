@@ -807,7 +807,7 @@ def test_a_reference_over_part_of_the_run_is_said(tmp_path: Path, ros: int) -> N
         assert ds.notes == [
             "gt '/odom' spans 1 of the 5 epochs (reference poses from 1700000000.050 to "
             "1700000000.150 s, epochs read from 1700000000.100 to 1700000000.100 s): the 4 "
-            "outside it are left out (without --gt-topic every epoch is read)"
+            "epochs outside it left out (without --gt-topic every epoch is read)"
         ]
     with open_bag(bag_path(tmp_path, ros, "half")) as ds:
         assert len(ds) == 5
