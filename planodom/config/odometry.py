@@ -82,7 +82,8 @@ class OdometryConfig(Section):
     use_motion_prior: bool = True
     """Streaming: use the constant-velocity prediction as prior for association."""
     retry_without_prior: bool = True
-    """Repeat LDA with the prior-free bounds when the prior leaves no candidate."""
+    """Solve again with the prior-free bounds when the solve under the prior is unresolved or
+    degenerate (a wrong prior must not lock the odometry out); the better status is kept."""
     deskew: bool = True
     """Streaming: deskew each epoch with the constant-velocity twist of the last estimate."""
     deskew_iterations: Annotated[int, Field(ge=0)] = 2
