@@ -27,7 +27,7 @@ from scipy.optimize import linear_sum_assignment
 
 from planodom.association import lenient_association
 from planodom.config import AssociationConfig, PlanemapConfig
-from planodom.consensus import consensus
+from planodom.consensus import apply_inverse_rotation, consensus
 from planodom.geometry import cross_rows, rotation_frames
 from planodom.planes import PlaneSet
 from planodom.rotvec import rotation_matrices
@@ -65,14 +65,6 @@ def normal_info(p: PlaneSet) -> np.ndarray:
     return 1.0 / np.maximum(np.trace(p.covariances[:, :3, :3], axis1=1, axis2=2), 1e-12)
 
 
-def inverse_rotated(rotations: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """``R_c^T n_e`` for candidate rotations (C, 3, 3) and normals (E, 3): (C, E, 3), as
-    :func:`planodom.consensus.apply_inverse_rotation` but one batched matrix product
-    (``n^T R``): its unoptimised einsum took ~0.1 s per LDA fallback (hundreds of
-    candidates), a tenth of a 16-beam lidar run of 100 epochs."""
-    return np.matmul(normals, rotations)
-
-
 def rotation_wocsc(
     prev: PlaneSet, curr: PlaneSet, ij: np.ndarray, inlier_angle: float
 ) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -93,7 +85,7 @@ def rotation_wocsc(
         a, b = a[sel], b[sel]
     R = rotation_frames(n_p[a], n_p[b]) @ np.swapaxes(rotation_frames(n_c[a], n_c[b]), 1, 2)
     chord = 2 * np.sin(inlier_angle / 2)
-    res = consensus(R, n_p, n_c, inverse_rotated, weights=ww, inlier_tol=chord,
+    res = consensus(R, n_p, n_c, apply_inverse_rotation, weights=ww, inlier_tol=chord,
                     truncate=chord, budget=None)  # fmt: skip
     return res.best_candidate, res.inliers
 
@@ -190,7 +182,7 @@ def lda_hypothesis(prev: PlaneSet, curr: PlaneSet, sigma: float,
     ij = lda.plane_associations()
     res = consensus(
         lda.rotations, prev.take(ip).normals[ij[:, 0]], curr.take(ic).normals[ij[:, 1]],
-        inverse_rotated, inlier_tol=2 * np.sin(np.radians(1.5)),
+        apply_inverse_rotation, inlier_tol=2 * np.sin(np.radians(1.5)),
         truncate=2 * np.sin(np.radians(3)), groups=ij[:, 0],
     )  # fmt: skip
     T0 = np.eye(4)
