@@ -224,11 +224,9 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     """Levenberg-Marquardt stops when the error decreases by less than this fraction (with
     robust kernels the last iterations creep: 1e-6 triples the time for < 0.1 % of ATE)."""
     relinearize_threshold: Positive = 0.01
-    """iSAM2 relinearisation threshold (incremental windowed backend), of the plane
-    landmarks too unless ``relinearize_threshold_planes`` is set."""
+    """iSAM2 relinearisation threshold (incremental windowed backend)."""
     relinearize_threshold_planes: Positive | None = None
-    """iSAM2's threshold of the plane landmarks (tangent: normal rad, offset m); see
-    RESULTS "The fixed-lag smoother in a corridor" (measured; off: mixed)."""
+    """Its plane landmarks' own (None: the same); 1e-5 measured mixed (RESULTS, LAGWALL)."""
     windowed_factorization: Literal["auto", "QR"] = "auto"
     """iSAM2's factorisation: "auto" Cholesky, QR from the first update Cholesky finds
     indeterminant on (rebuilt from its state); "QR" throughout (planodom.smoothing.windowed)."""
