@@ -24,7 +24,7 @@ from planodom.smoothing.batch import (
     group_by_epoch,
     smoothing_config,
 )
-from planodom.smoothing.graph import A, F, L, GraphBuilder, X
+from planodom.smoothing.graph import A, F, GraphBuilder, L, X
 from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.windowed_loops import WindowedLoopBuilder
 
