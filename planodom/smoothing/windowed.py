@@ -34,11 +34,15 @@ def relinearize_thresholds(config: SmoothingConfig) -> float | gtsam.ISAM2Thresh
     per kind of key (poses, anchors, deskewed frames; plane landmarks) when
     ``relinearize_threshold_planes`` is set.
 
-    A plane landmark is known far better than the 0.01 (rad, m) that suits a pose: a
-    corridor wall's normal to ~1e-4 rad, its offset to ~1 mm. Under that threshold its
-    linearisation point can stay 4 mrad and 5 mm off the estimate for the whole corridor
-    (world 32 at 2 cm, epochs 65-107), where the walls observe nothing along the travel
-    and a small linearisation error moves the window along it.
+    A plane landmark is known far better than the 0.01 (rad, m) that suits a pose (a
+    corridor wall's normal to ~1e-4 rad, its offset to ~1 mm): under 0.01 its
+    linearisation point stayed 3-4 mrad and 3-5 mm off the estimate through a corridor
+    (world 32 at 2 cm, epochs 69-114), whose walls observe nothing along the travel, and
+    that linearisation error alone moved the window 6-7 m along it (measured against the
+    batch from the chained odometry: with the planes at 1e-5 and no marginalisation the
+    two agree). With marginalisation, relinearising the landmarks makes the marginals
+    (linearised where each landmark was) inconsistent instead: mixed, off by default
+    (docs/RESULTS.md, LAGWALL).
     """
     if config.relinearize_threshold_planes is None:
         return config.relinearize_threshold
