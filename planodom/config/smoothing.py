@@ -225,10 +225,11 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     robust kernels the last iterations creep: 1e-6 triples the time for < 0.1 % of ATE)."""
     relinearize_threshold: Positive = 0.01
     """iSAM2 relinearisation threshold (incremental windowed backend)."""
+    relinearize_threshold_planes: Positive | None = None
+    """Its plane landmarks' own (None: the same); 1e-5 measured mixed (RESULTS, LAGWALL)."""
     windowed_factorization: Literal["auto", "QR"] = "auto"
-    """iSAM2's factorisation (incremental windowed backend): "auto": Cholesky, and QR
-    from the first update Cholesky finds indeterminant on (the smoother rebuilt from its
-    state); "QR" throughout (see planodom.smoothing.windowed)."""
+    """iSAM2's factorisation: "auto" Cholesky, QR from the first update Cholesky finds
+    indeterminant on (rebuilt from its state); "QR" throughout (planodom.smoothing.windowed)."""
     compute_covariances: bool = True
     """Batch: marginal covariances of the poses (gtsam.Marginals)."""
     covariance_inlier_quantile: Fraction | None = 0.99

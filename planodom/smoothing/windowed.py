@@ -24,9 +24,37 @@ from planodom.smoothing.batch import (
     group_by_epoch,
     smoothing_config,
 )
-from planodom.smoothing.graph import GraphBuilder, X
+from planodom.smoothing.graph import A, F, GraphBuilder, L, X
 from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.windowed_loops import WindowedLoopBuilder
+
+
+def relinearize_thresholds(config: SmoothingConfig) -> float | gtsam.ISAM2ThresholdMap:
+    """iSAM2's relinearisation threshold: ``relinearize_threshold`` for every variable, or
+    per kind of key (poses, anchors, deskewed frames; plane landmarks) when
+    ``relinearize_threshold_planes`` is set.
+
+    A plane landmark is known far better than the 0.01 (rad, m) that suits a pose (a
+    corridor wall's normal to ~1e-4 rad, its offset to ~1 mm): under 0.01 its
+    linearisation point stayed 3-4 mrad and 3-5 mm off the estimate through a corridor
+    (world 32 at 2 cm, epochs 69-114), whose walls observe nothing along the travel, and
+    that linearisation error alone moved the window 6-7 m along it (measured against the
+    batch from the chained odometry: with the planes at 1e-5 and no marginalisation the
+    two agree). With marginalisation, relinearising the landmarks makes the marginals
+    (linearised where each landmark was) inconsistent instead: mixed, off by default
+    (docs/RESULTS.md, LAGWALL).
+    """
+    if config.relinearize_threshold_planes is None:
+        return config.relinearize_threshold
+    thresholds = gtsam.ISAM2ThresholdMap()
+    for key, dim in ((X, 6), (A, 6), (F, 6)):
+        thresholds.insert(
+            (chr(gtsam.Symbol(key(0)).chr()), np.full(dim, config.relinearize_threshold))
+        )
+    thresholds.insert(
+        (chr(gtsam.Symbol(L(0)).chr()), np.full(3, config.relinearize_threshold_planes))
+    )
+    return thresholds
 
 
 class WindowedSmoother:
@@ -89,7 +117,7 @@ class WindowedSmoother:
         planes an epoch: 2.4 times faster, the same trajectory to 1 mm).
         """
         params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(self.config.relinearize_threshold)
+        params.setRelinearizeThreshold(relinearize_thresholds(self.config))
         params.relinearizeSkip = 1
         params.setFactorization(self.factorization)
         # Dogleg (a trust region) rather than Gauss-Newton bounds each step where a

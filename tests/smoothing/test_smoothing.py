@@ -138,6 +138,23 @@ def test_windowed_agrees_with_batch_when_the_window_covers_the_sequence() -> Non
         assert max_pose_errors(backend_result.poses, batch.poses)[1] < 1e-4
 
 
+@pytest.mark.parametrize("seed", [4, 5, 6])
+def test_plane_relinearisation_threshold_takes_the_window_to_the_batch_minimum(seed: int) -> None:
+    # Poses at the default 0.01, the plane landmarks' own threshold far below it: the
+    # window covering the sequence reaches the batch's minimum (poses < 0.1 mm apart);
+    # with the planes at 0.01 too it stops 0.19-0.51 mm short (seeds 4-6).
+    seq = make_sequence(20, seed=seed, **NOISE)
+    config = replace_config(GAUSSIAN, window=25, deskew_noise="none")
+    batch = smooth_batch(seq.planes, seq.relatives, config)
+    planes = replace_config(config, relinearize_threshold_planes=1e-6)
+    assert (
+        max_pose_errors(smooth_windowed(seq.planes, seq.relatives, planes).poses, batch.poses)[1]
+        < 1e-4
+    )
+    default = smooth_windowed(seq.planes, seq.relatives, config)
+    assert max_pose_errors(default.poses, batch.poses)[1] > 1.5e-4
+
+
 def test_short_window_runs_online_and_stays_close() -> None:
     seq = make_sequence(50, seed=6, **NOISE)
     config = replace_config(GAUSSIAN, window=6, delta_max=3)
