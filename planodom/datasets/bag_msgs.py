@@ -10,7 +10,10 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
   ``[range_min, range_max]`` are no returns and are dropped.
 - ``sensor_msgs/PointCloud2``: fields ``x y z`` (float32/float64); an optional ring field
   (:data:`RING_FIELDS`) and time field (:data:`~planodom.datasets.scan_io.TIME_FIELDS`,
-  first present wins). Integer
+  first present wins). A ring id of its integer field's largest value (65535 in a uint16)
+  is a driver's "no ring": its point is left out (and noted); a float ring field must
+  hold whole ids, and a field that is read must not be given twice with two layouts (each
+  refused otherwise). Integer
   time fields are nanoseconds, float ones seconds (offsets: unless a topic's sweeps span
   its period between messages as microseconds / milliseconds instead,
   :mod:`planodom.datasets.bag_time_units`); values above 1e15 ns / 1e8 s are absolute

@@ -63,7 +63,7 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
         if t.no_ring:
             notes.append(
                 f"topic '{t.name}': {t.no_ring} points carry their ring field type's largest "
-                "value (65535 in a uint16) as ring id, a driver's \"no ring\"?; left out"
+                'value (65535 in a uint16) as ring id, a driver\'s "no ring"?; left out'
             )
         if t.duplicates:
             notes.append(

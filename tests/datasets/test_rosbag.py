@@ -872,9 +872,10 @@ def test_a_no_ring_id_leaves_its_points_out_with_a_note(tmp_path: Path, ros: int
 
     _cloud_bag(bag_path(tmp_path, ros, "nan"), ros, sweep=mark("x"))
     _cloud_bag(bag_path(tmp_path, ros, "stray"), ros, sweep=mark("ring"))
-    with open_bag(bag_path(tmp_path, ros, "stray")) as ds, open_bag(
-        bag_path(tmp_path, ros, "nan")
-    ) as clean:
+    with (
+        open_bag(bag_path(tmp_path, ros, "stray")) as ds,
+        open_bag(bag_path(tmp_path, ros, "nan")) as clean,
+    ):
         _assert_same_reading(ds, clean)
         assert len(ds.rig.sensor_origins) == 16
         assert clean.notes == []
