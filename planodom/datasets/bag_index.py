@@ -158,6 +158,7 @@ class TopicIndex:
         sweeps: its messages (duplicates included).
         duplicates: messages recorded again (same stamp and content as an earlier one,
             ROS 1's ``header.seq`` aside), left out of the epochs.
+        no_ring: points left out for a "no ring" id (its type's largest value).
     """
 
     name: str
@@ -171,6 +172,7 @@ class TopicIndex:
     blank: int = 0
     duplicates: int = 0
     sweeps: int = 0
+    no_ring: int = 0
 
     @property
     def pointless(self) -> bool:
@@ -412,7 +414,8 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
         return blank
     with _message_errors(path, topic.name):
         if topic.msgtype == POINT_CLOUD2:
-            rings, points, name, offsets = sweep_times(msg, time_field)
+            rings, points, name, offsets, no_ring = sweep_times(msg, time_field)
+            topic.no_ring += no_ring
             if name is not None and offsets is not None:
                 topic.times.add(name, offsets, sweep)
         else:

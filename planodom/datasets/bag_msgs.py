@@ -10,7 +10,10 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
   ``[range_min, range_max]`` are no returns and are dropped.
 - ``sensor_msgs/PointCloud2``: fields ``x y z`` (float32/float64); an optional ring field
   (:data:`RING_FIELDS`) and time field (:data:`~planodom.datasets.scan_io.TIME_FIELDS`,
-  first present wins). Integer
+  first present wins). A ring id of its integer field's largest value (65535 in a uint16)
+  is a driver's "no ring": its point is left out (and noted); a float ring field must
+  hold whole ids, and a field that is read must not be given twice with two layouts (each
+  refused otherwise). Integer
   time fields are nanoseconds, float ones seconds (offsets: unless a topic's sweeps span
   its period between messages as microseconds / milliseconds instead,
   :mod:`planodom.datasets.bag_time_units`); values above 1e15 ns / 1e8 s are absolute
@@ -115,14 +118,25 @@ def _decode_laser_scan(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, in
     return points, np.zeros(len(r), dtype=np.int32), dt, 1
 
 
-def _cloud_array(msg: Any) -> np.ndarray:
-    """The points of a PointCloud2 as a flat structured array (only the known fields)."""
+def _cloud_array(msg: Any) -> tuple[np.ndarray, dict[str, str]]:
+    """The points of a PointCloud2 as a flat structured array (only the known fields, the
+    first of a name) and the names given twice with another layout (name -> both)."""
     order = ">" if msg.is_bigendian else "<"
     names, formats, offsets = [], [], []
+    seen: dict[str, str] = {}
+    twice: dict[str, str] = {}
     for f in msg.fields:
         code = _POINT_FIELD_TYPES.get(int(f.datatype))
-        if code is None or f.name in names:
+        if code is None:
             continue
+        layout = f"{np.dtype(code).name} at offset {int(f.offset)}" + (
+            f" count {int(f.count)}" if int(f.count) > 1 else ""
+        )
+        if f.name in seen:
+            if layout != seen[f.name] and f.name not in twice:
+                twice[f.name] = f"{seen[f.name]} and {layout}"
+            continue
+        seen[f.name] = layout
         names.append(f.name)
         formats.append(order + code if int(f.count) <= 1 else (order + code, int(f.count)))
         offsets.append(int(f.offset))
@@ -138,7 +152,7 @@ def _cloud_array(msg: Any) -> np.ndarray:
     data = np.asarray(msg.data, dtype=np.uint8).reshape(-1)
     row_step = int(msg.row_step) if int(msg.row_step) > 0 else width * step
     if width * height == 0:
-        return np.zeros(0, dtype=dtype)
+        return np.zeros(0, dtype=dtype), twice
     if step <= 0 or row_step < width * step or len(data) < row_step * (height - 1) + width * step:
         raise ValueError(
             f"PointCloud2 of {height}x{width} points with point_step {step} and row_step "
@@ -148,20 +162,50 @@ def _cloud_array(msg: Any) -> np.ndarray:
         np.frombuffer(data[r * row_step : r * row_step + width * step].tobytes(), dtype=dtype)
         for r in range(height)
     ]
-    return rows[0] if height == 1 else np.concatenate(rows)
+    return (rows[0] if height == 1 else np.concatenate(rows)), twice
+
+
+def _ring_ids(values: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """A ring field's values (n,) as int64 ids and a mask (n,) of its "no ring" points:
+    the largest value of an integer field's type (65535 in a uint16 field), which drivers
+    write for a point of no scan line and which would otherwise count as that many rings.
+
+    Raises:
+        ValueError: a negative id, or a float field holding a fraction or a non-finite
+            value (not a ring id; it was truncated).
+    """
+    if values.dtype.kind == "f":
+        bad = ~np.isfinite(values) | (values != np.floor(values))
+        if bad.any():
+            raise ValueError(
+                f"PointCloud2 ring field '{name}' ({values.dtype.name}) holds "
+                f"{values[bad][0]:g} at {int(bad.sum())} of {len(values)} points, not a "
+                "whole ring id"
+            )
+        return values.astype(np.int64), np.zeros(len(values), dtype=bool)
+    ids = values.astype(np.int64)
+    if len(ids) and ids.min() < 0:
+        raise ValueError(f"PointCloud2 field '{name}' has negative values")
+    return ids, ids == np.iinfo(values.dtype).max
 
 
 def _cloud_parts(
     msg: Any, time_field: str
-) -> tuple[np.ndarray, np.ndarray | None, int, str | None, np.ndarray | None]:
+) -> tuple[np.ndarray, np.ndarray | None, int, str | None, np.ndarray | None, int]:
     """A cloud's kept points (n, 3), their ring (or None), the ring count, the time field
-    read (or None) and its raw values (n,) at the kept points (or None)."""
-    cloud = _cloud_array(msg)
+    read (or None), its raw values (n,) at the kept points (or None) and the number of
+    points left out for a "no ring" id (:func:`_ring_ids`)."""
+    cloud, twice = _cloud_array(msg)
     names = cloud.dtype.names or ()
     ring_name = next((n for n in RING_FIELDS if n in names), None)
     time_name = _time_name(names, time_field)
     return_name = next((n for n in RETURN_FIELDS if n in names), None)
     for name in ("x", "y", "z", ring_name, time_name, return_name):
+        if name in twice:
+            raise ValueError(
+                f"PointCloud2 field '{name}' given twice ({twice[name]}): which one holds "
+                "its values is unknown"
+            )
         if name in names and cloud.dtype.fields[name][0].shape:  # type: ignore[index]
             count = cloud.dtype.fields[name][0].shape[0]  # type: ignore[index]
             raise ValueError(f"PointCloud2 field '{name}' has count {count}, not 1 value a point")
@@ -175,10 +219,14 @@ def _cloud_parts(
     valid = np.all(np.isfinite(points), axis=1) & np.any(points != 0.0, axis=1)
     ring = None
     rings = 0
+    no_ring = 0
     if ring_name is not None:
-        ring = cloud[ring_name].astype(np.int64)[valid]
-        if len(ring) and ring.min() < 0:
-            raise ValueError(f"PointCloud2 field '{ring_name}' has negative values")
+        ids, stray = _ring_ids(cloud[ring_name][valid], ring_name)
+        no_ring = int(stray.sum())
+        if no_ring:
+            ids = ids[~stray]
+            valid[np.flatnonzero(valid)[stray]] = False
+        ring = ids
         rings = int(ring.max()) + 1 if len(ring) else 0
         ring = ring.astype(np.int32)
     keep = last_returns(
@@ -192,13 +240,13 @@ def _cloud_parts(
         valid = valid[keep]
         ring = ring[keep] if ring is not None else None
     raw = cloud[time_name][valid] if time_name is not None else None
-    return points[valid], ring, rings, time_name, raw
+    return points[valid], ring, rings, time_name, raw, no_ring
 
 
 def _decode_cloud(
     msg: Any, time_field: str, time_scale: float | None = None
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
-    points, ring, rings, time_name, raw = _cloud_parts(msg, time_field)
+    points, ring, rings, time_name, raw, _ = _cloud_parts(msg, time_field)
     dt = np.zeros(len(points))
     if time_name is not None and raw is not None:
         dt = _relative_times(raw, stamp_ns(msg.header), time_scale)
@@ -208,29 +256,30 @@ def _decode_cloud(
 
 def sweep_times(
     msg: Any, time_field: str = "auto"
-) -> tuple[int, int, str | None, np.ndarray | None]:
+) -> tuple[int, int, str | None, np.ndarray | None, int]:
     """A cloud's ring count, point count, time field and raw relative times, for the index.
 
-    Returns ``(rings, n, time field or None, values)``: ``values`` (n,) in the field's own
-    type and unit when the times are offsets (whose unit
+    Returns ``(rings, n, time field or None, values, no ring)``: ``values`` (n,) in the
+    field's own type and unit when the times are offsets (whose unit
     :func:`planodom.datasets.bag_time_units.choose_unit` decides over the topic), None
-    without a time field or for absolute times, which are checked here.
+    without a time field or for absolute times, which are checked here; ``no ring`` the
+    points left out for a "no ring" id (:func:`_ring_ids`).
 
     Raises:
         ValueError: a malformed cloud, non-finite times, absolute times far off the stamp.
     """
-    points, _, rings, time_name, raw = _cloud_parts(msg, time_field)
+    points, _, rings, time_name, raw, no_ring = _cloud_parts(msg, time_field)
     if time_name is None or raw is None:
-        return rings, len(points), None, None
+        return rings, len(points), None, None, no_ring
     if _is_absolute(raw):
         dt = _relative_times(raw, stamp_ns(msg.header))
         check_offsets(dt, time_name, raw.dtype)
-        return rings, len(points), time_name, None
+        return rings, len(points), time_name, None, no_ring
     with np.errstate(invalid="ignore"):
         finite = np.isfinite(raw.astype(np.float64))
     if not finite.all():
         check_offsets(np.where(finite, 0.0, np.nan), time_name, raw.dtype)
-    return rings, len(points), time_name, raw
+    return rings, len(points), time_name, raw, no_ring
 
 
 def check_offsets(

@@ -24,6 +24,7 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
       another topic has points), or some of whose messages hold none (left out of the
       epochs: they would place epochs without points), or the only scan topic some of
       whose LaserScans hold no return (left out likewise);
+    - points whose ring id is their ring field type's largest value ("no ring"), left out;
     - messages recorded twice (same topic, stamp and content), read once;
     - several point-cloud topics with points merged into each epoch when none was ``chosen``
       (``--topic``): a raw and a filtered cloud of one lidar would be read twice (each with
@@ -58,6 +59,11 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
             notes.append(
                 f"topic '{t.name}': {t.blank} of {sweeps} scans hold no return (open space, "
                 "or everything beyond range_max?); left out of the epochs"
+            )
+        if t.no_ring:
+            notes.append(
+                f"topic '{t.name}': {t.no_ring} points carry their ring field type's largest "
+                'value (65535 in a uint16) as ring id, a driver\'s "no ring"?; left out'
             )
         if t.duplicates:
             notes.append(

@@ -281,3 +281,19 @@ def test_dual_return_cloud_keeps_the_last_return_of_each_firing() -> None:
     assert pts[:, 0].tolist() == [9.0, 5.0, 7.0]
     assert ring.tolist() == [0, 1, 0] and rings == 2
     assert dt == pytest.approx([1e-7, 2e-7, 3e-7])
+
+
+def test_fields_given_twice_and_ring_ids_that_are_no_ring() -> None:
+    """A name given twice with one layout is read once; given twice with two, it is refused
+    only when read (a second 'intensity' is not). A uint8 ring of 255 (its type's largest)
+    is no ring: its point is left out, and the ring count is that of the others."""
+    dtype = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("ring", "u1"), ("i", "<f4")])
+    rows = np.zeros(3, dtype=dtype)
+    rows["x"], rows["ring"] = [1.0, 2.0, 3.0], [0, 255, 4]
+    fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("ring", 12, 2), ("intensity", 13, 7)]
+    msg = cloud([*fields, ("x", 0, 7), ("intensity", 0, 7)], rows, 17, 0)
+    pts, ring, _, rings = decode_sweep(msg, POINT_CLOUD2)
+    assert pts[:, 0].tolist() == [1.0, 3.0] and ring.tolist() == [0, 4] and rings == 5
+    msg = cloud([*fields, ("ring", 4, 7)], rows, 17, 0)
+    with pytest.raises(ValueError, match=r"^PointCloud2 field 'ring' given twice \(uint8 at off"):
+        decode_sweep(msg, POINT_CLOUD2)

@@ -837,3 +837,81 @@ def test_reference_poses_of_two_publishers_are_said(tmp_path: Path, ros: int) ->
             "gt '/odom': its poses name 2 frame pairs, odom -> base_link (8), map -> "
             "base_link (1) (two publishers on one topic?); they are read as one trajectory"
         ]
+
+
+def _velodyne_rows(msg) -> np.ndarray:
+    """A velodyne-layout cloud's points (:func:`lidar_cloud`) as a writable structured array."""
+    dtype = np.dtype({"names": ["x", "intensity", "ring"], "formats": ["<f4", "<f4", "<u2"],
+                      "offsets": [0, 12, 16], "itemsize": 22})  # fmt: skip
+    return np.frombuffer(bytearray(bytes(msg.data)), dtype=dtype)  # the other bytes kept
+
+
+def _with_rows(msg, rows: np.ndarray, fields=None):
+    from dataclasses import replace
+
+    data = np.frombuffer(rows.tobytes(), np.uint8)
+    return replace(msg, data=data, fields=msg.fields if fields is None else fields)
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_no_ring_id_leaves_its_points_out_with_a_note(tmp_path: Path, ros: int) -> None:
+    """Ten points of one sweep with ring 65535 (uint16's largest, a driver's "no ring") made
+    a rig of 65536 rings (sensor origins) without a word. They are left out and noted: the
+    bag reads as the one whose ten points are no returns (NaN), with 16 rings."""
+    stray = np.arange(110, 120)  # no point among them is a no return (every 53rd)
+
+    def mark(field: str):
+        def sweep(k, msg):
+            if k != 2:
+                return msg
+            rows = _velodyne_rows(msg)
+            rows[field][stray] = 65535 if field == "ring" else np.nan
+            return _with_rows(msg, rows)
+
+        return sweep
+
+    _cloud_bag(bag_path(tmp_path, ros, "nan"), ros, sweep=mark("x"))
+    _cloud_bag(bag_path(tmp_path, ros, "stray"), ros, sweep=mark("ring"))
+    with (
+        open_bag(bag_path(tmp_path, ros, "stray")) as ds,
+        open_bag(bag_path(tmp_path, ros, "nan")) as clean,
+    ):
+        _assert_same_reading(ds, clean)
+        assert len(ds.rig.sensor_origins) == 16
+        assert clean.notes == []
+        assert ds.notes == [
+            "topic '/points': 10 points carry their ring field type's largest value (65535 "
+            'in a uint16) as ring id, a driver\'s "no ring"?; left out'
+        ]
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+@pytest.mark.parametrize("case", ["fraction", "twice"])
+def test_a_fractional_ring_or_a_field_given_twice_is_refused_naming_it(
+    tmp_path: Path, ros: int, case: str
+) -> None:
+    """A float ring of 3.5 was truncated to ring 3; of two fields named ``x`` (at offsets 0
+    and 12) the first was read. Both silently: each is refused, naming topic and field."""
+
+    def sweep(k, msg):
+        rows = _velodyne_rows(msg)
+        fields = list(msg.fields)
+        if case == "fraction":  # the ring as float32 in the intensity's place, plus 0.5
+            rows["intensity"] = rows["ring"] + 0.5
+            ring = next(i for i, f in enumerate(fields) if f.name == "ring")
+            fields[ring] = type(fields[ring])(name="ring", offset=12, datatype=7, count=1)
+        else:
+            fields.append(type(fields[0])(name="x", offset=12, datatype=7, count=1))
+        return _with_rows(msg, rows, fields)
+
+    _cloud_bag(bag_path(tmp_path, ros, case), ros, sweep=sweep)
+    with pytest.raises(DatasetError) as exc:
+        open_bag(bag_path(tmp_path, ros, case))
+    expected = {
+        # 3840 points, every 53rd a no return (73): 3767 points with a ring
+        "fraction": "PointCloud2 ring field 'ring' (float32) holds 0.5 at 3767 of 3767 "
+        "points, not a whole ring id",
+        "twice": "PointCloud2 field 'x' given twice (float32 at offset 0 and float32 at "
+        "offset 12): which one holds its values is unknown",
+    }[case]
+    assert one_line(exc).endswith(f"topic '/points': {expected}")
