@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -448,6 +450,20 @@ def _cloud_bag(path: Path, ros: int, extra=None, layout="velodyne", sweep=None) 
                 extra(bw, k, stamp, msg)
 
 
+@contextmanager
+def _beside_clean(tmp_path: Path, ros: int, name: str, extra) -> Iterator[tuple]:
+    """The bag ``name`` (:func:`_cloud_bag` with ``extra``) and the clean one, both read with
+    the /odom reference: ``(ds, clean)``."""
+    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros)
+    _cloud_bag(bag_path(tmp_path, ros, name), ros, extra)
+    opts = BagOptions(gt_topic="/odom")
+    with (
+        open_bag(bag_path(tmp_path, ros, name), opts) as ds,
+        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
+    ):
+        yield ds, clean
+
+
 def _assert_same_reading(ds, clean) -> None:
     """The same epochs, reference poses and scans as the clean bag's, to the bit."""
     np.testing.assert_array_equal(ds.times, clean.times)
@@ -470,13 +486,7 @@ def test_a_topic_without_points_places_no_epoch(tmp_path: Path, ros: int) -> Non
                         row_step=0, data=np.zeros(0, np.uint8))  # fmt: skip
         bw.write("/off", empty, stamp + 52_000_000)
 
-    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros)
-    _cloud_bag(bag_path(tmp_path, ros, "off"), ros, off)
-    opts = BagOptions(gt_topic="/odom")
-    with (
-        open_bag(bag_path(tmp_path, ros, "off"), opts) as ds,
-        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
-    ):
+    with _beside_clean(tmp_path, ros, "off", off) as (ds, clean):
         assert [t.name for t in ds.topics] == ["/off", "/points"]
         _assert_same_reading(ds, clean)
         assert ds.notes == [  # and no two cloud topics merged: /off adds no point
@@ -686,13 +696,7 @@ def test_a_topic_without_points_needs_no_transform(tmp_path: Path, ros: int) -> 
         empty = replace(_without_points(msg), header=bw.header(stamp + 50_000_000, "radar"))
         bw.write("/off", empty, stamp + 52_000_000)
 
-    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros)
-    _cloud_bag(bag_path(tmp_path, ros, "off"), ros, off)
-    opts = BagOptions(gt_topic="/odom")
-    with (
-        open_bag(bag_path(tmp_path, ros, "off"), opts) as ds,
-        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
-    ):
+    with _beside_clean(tmp_path, ros, "off", off) as (ds, clean):
         _assert_same_reading(ds, clean)
         assert len(ds.rig.extrinsics) == 1
         np.testing.assert_array_equal(ds.rig.extrinsics[0], clean.rig.extrinsics[0])
@@ -728,13 +732,7 @@ def test_reference_poses_invalid_or_given_twice(tmp_path: Path, ros: int) -> Non
             later = stamp + 200_000_000
             bw.write("/odom", bw.odometry(later, pose(0, 0, 0, (5.0, 0.0, 0.0))), later)
 
-    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros)
-    _cloud_bag(bag_path(tmp_path, ros, "gt"), ros, odom)
-    opts = BagOptions(gt_topic="/odom")
-    with (
-        open_bag(bag_path(tmp_path, ros, "gt"), opts) as ds,
-        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
-    ):
+    with _beside_clean(tmp_path, ros, "gt", odom) as (ds, clean):
         np.testing.assert_array_equal(ds.times, clean.times)
         np.testing.assert_array_equal(ds.gt_poses, clean.gt_poses)
         assert ds.notes[0].startswith(
@@ -825,13 +823,7 @@ def test_reference_poses_of_two_publishers_are_said(tmp_path: Path, ros: int) ->
             odom = bw.odometry(at, true_pose(at / 1e9))
             bw.write("/odom", replace(odom, header=bw.header(at, "map")), at)
 
-    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros)
-    _cloud_bag(bag_path(tmp_path, ros, "two"), ros, second)
-    opts = BagOptions(gt_topic="/odom")
-    with (
-        open_bag(bag_path(tmp_path, ros, "two"), opts) as ds,
-        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
-    ):
+    with _beside_clean(tmp_path, ros, "two", second) as (ds, clean):
         _assert_same_reading(ds, clean)
         assert ds.notes == [
             "gt '/odom': its poses name 2 frame pairs, odom -> base_link (8), map -> "
