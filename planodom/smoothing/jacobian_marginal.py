@@ -4,15 +4,16 @@ iSAM2 with Cholesky keeps the marginals of what it marginalised as
 ``LinearContainerFactor`` s holding a ``HessianFactor`` (information form). QR eliminates
 Jacobian factors only, so a smoother rebuilt with QR from such a state (the windowed
 smoother's Cholesky -> QR fallback) converts each marginal by a Cholesky of its
-information matrix alone, which fails whenever the marginal leaves a direction
+information matrix alone, which can fail where the marginal leaves a direction
 unobserved that other factors fix: an anchored plane landmark's gauge (anchor and
 plane turned together, fixed by the anchor's own prior, not part of the marginal). Its
 eigenvalues there are zero but come out of the marginalisation as round-off of either
 sign, about ``eps * max eigenvalue``: on urban-canyon at 0 mm (plane factors at their
-floors, information to 1e14) -0.03, below gtsam's negative-pivot threshold (-0.1 on a
-pivot) and the fixed-lag smoother stopped (epoch 395). Here the information matrix is
-split by its eigendecomposition instead, the directions within round-off of zero
-dropped (a rank-deficient Jacobian, which QR takes), nothing added.
+floors, information to 9e13) down to -0.03, and gtsam's conversion (a Cholesky that
+takes zero pivots but not negative ones) refused it: the fixed-lag smoother stopped at
+epoch 395. Here the information matrix is split by its eigendecomposition instead, the
+directions within round-off of zero dropped (a rank-deficient Jacobian, which QR
+takes); nothing is added.
 """
 
 from __future__ import annotations
@@ -49,7 +50,9 @@ def jacobian_from_information(
     top = max(float(w[-1]), 0.0)
     tol = eps * G.shape[0] * np.finfo(float).eps * top
     if w[0] < -tol:
-        raise ValueError(f"information matrix indefinite beyond round-off ({w[0]:.3g}, tol {tol:.3g})")
+        raise ValueError(
+            f"information matrix indefinite beyond round-off ({w[0]:.3g}, tol {tol:.3g})"
+        )
     keep = w > tol
     root = np.sqrt(w[keep])
     A = root[:, None] * V[:, keep].T
@@ -91,11 +94,14 @@ def jacobian_marginal(
     starts = np.concatenate([[0], np.cumsum(dims)])
     blocks = [A[:, starts[i] : starts[i + 1]] for i in range(len(keys))]
     x0 = gtsam.Values()
-    for key in keys:
-        x0.insert(key, point.atOrientedPlane3(key) if _is_plane(point, key) else point.atPose3(key))
+    for key, plane in zip(keys, planes, strict=True):
+        x0.insert(key, point.atOrientedPlane3(key) if plane else point.atPose3(key))
+    pairs = list(zip(keys, planes, strict=True))
 
-    def error(this: gtsam.CustomFactor, values: gtsam.Values, H: list[np.ndarray] | None) -> np.ndarray:
-        delta = np.concatenate([_local(x0, values, k, p) for k, p in zip(keys, planes, strict=True)])
+    def error(
+        this: gtsam.CustomFactor, values: gtsam.Values, H: list[np.ndarray] | None
+    ) -> np.ndarray:
+        delta = np.concatenate([_local(x0, values, key, plane) for key, plane in pairs])
         if H is not None:
             for i, block in enumerate(blocks):
                 H[i] = block
