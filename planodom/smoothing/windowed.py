@@ -26,6 +26,7 @@ from planodom.smoothing.batch import (
 )
 from planodom.smoothing.graph import A, F, GraphBuilder, L, X
 from planodom.smoothing.inputs import check_epochs
+from planodom.smoothing.jacobian_marginal import jacobian_marginal
 from planodom.smoothing.windowed_loops import WindowedLoopBuilder
 
 
@@ -128,18 +129,23 @@ class WindowedSmoother:
     def _fall_back_to_qr(self) -> None:
         """Rebuild the incremental smoother with QR from the failed one's state: its
         factors (the marginals of the past among them, and the update that failed, which
-        iSAM2 took in before eliminating), linearisation point and key timestamps."""
+        iSAM2 took in before eliminating), linearisation point and key timestamps. The
+        marginals, Hessians under Cholesky, are split into Jacobian factors first
+        (:mod:`.jacobian_marginal`: QR's own conversion fails on their round-off)."""
         old = self.smoother
         assert isinstance(old, gtsam.IncrementalFixedLagSmoother)
         held = old.getFactors()
+        point = old.getLinearizationPoint()
         factors = gtsam.NonlinearFactorGraph()
         for factor in (held.at(i) for i in range(held.size())):
-            if factor is not None:  # removed factors leave empty slots
+            if isinstance(factor, gtsam.LinearContainerFactor) and not factor.isJacobian():
+                factors.add(jacobian_marginal(factor, point))
+            elif factor is not None:  # removed factors leave empty slots
                 factors.add(factor)
         timestamps: dict[int, float] = dict(old.timestamps())
         self.factorization = "QR"
         self.smoother = gtsam.IncrementalFixedLagSmoother(self.lag, self._isam_params())
-        self.smoother.update(factors, old.getLinearizationPoint(), timestamps)  # type: ignore[arg-type]  # gtsam stub, as in add_epoch
+        self.smoother.update(factors, point, timestamps)  # type: ignore[arg-type]  # gtsam stub, as in add_epoch
         self.qr_fallbacks += 1
 
     @property
