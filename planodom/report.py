@@ -61,6 +61,7 @@ def odometry_table(run: object, metrics: Mapping[str, float], title: str = "odom
     """Summary of an odometry run: statuses, speed and, with ground truth, the errors."""
     rows = [
         ("epochs", "epochs", "{:.0f}"),
+        ("epochs with a reference (the errors' span)", "evaluated_epochs", "{:.0f}"),
         ("unresolved epochs (fallback: constant velocity)", "unresolved_epochs", "{:.0f}"),
         ("degenerate epochs (translation not observed)", "degenerate_epochs", "{:.0f}"),
         ("planes per epoch (median)", "planes_per_epoch_median", "{:.0f}"),

@@ -125,6 +125,7 @@ def kitti_metrics(
     """KITTI's segment errors (:func:`planodom.metrics_kitti.kitti_segment_errors`) as
     ``kitti_translation_pct``, ``kitti_rotation_deg_per_100m`` and ``kitti_segments``;
     empty without ground truth or when it is shorter than the shortest segment (100 m)."""
+    poses, gt_poses = referenced(poses, gt_poses)
     if gt_poses is None or len(poses) < 2:
         return {}
     seg = kitti_segment_errors(poses, gt_poses, Tr)
@@ -194,13 +195,34 @@ def trajectory_metrics(poses: np.ndarray, gt_poses: np.ndarray | None) -> dict[s
     """ATE / RPE / drift / per-epoch errors, plus horizontal ATE and drift (``_xy``).
 
     The odometry observes 5 DoF, so z is only known where the planes constrain it; the
-    horizontal figures are the ones to compare. Empty without ground truth.
+    horizontal figures are the ones to compare. Empty without ground truth. Over the epochs
+    with a reference pose (:func:`referenced`): when some have none, ``epochs`` counts all
+    and ``evaluated_epochs`` those.
     """
+    epochs = len(poses)
+    poses, gt_poses = referenced(poses, gt_poses)
     if gt_poses is None or len(poses) < 2:
         return {}
     out = metrics.summarize(poses, gt_poses)
     flat = metrics.summarize(poses, gt_poses, xy_only=True)
-    return out | {f"{k}_xy": flat[k] for k in ("ate_rmse_m", "drift_m", "drift_percent")}
+    out |= {f"{k}_xy": flat[k] for k in ("ate_rmse_m", "drift_m", "drift_percent")}
+    if len(poses) < epochs:
+        out = {"epochs": float(epochs), "evaluated_epochs": out.pop("epochs")} | out
+    return out
+
+
+def referenced(
+    poses: np.ndarray, gt_poses: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """``poses`` (E, 4, 4) and ``gt_poses`` at the epochs with a reference pose: a bag's
+    reference that spans only part of the run is NaN at the others
+    (:class:`planodom.datasets.rosbag.BagDataset`); the whole arrays when none is NaN."""
+    if gt_poses is None:
+        return poses, None
+    known = np.all(np.isfinite(gt_poses), axis=(1, 2))
+    if known.all():
+        return poses, gt_poses
+    return np.asarray(poses)[known], np.asarray(gt_poses)[known]
 
 
 def odometry_metrics(run: OdometryRun, gt_poses: np.ndarray | None) -> dict[str, float]:

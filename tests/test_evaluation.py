@@ -84,3 +84,21 @@ def test_eval_command_aligns_and_writes_metrics_and_plots(tmp_path) -> None:
         app, ["eval", str(tmp_path / "est.tum"), str(tmp_path / "gt.tum"), "--align", "sim3"]
     )
     assert bad.exit_code == 2 and "--align" in bad.output
+
+
+def test_eval_against_a_reference_over_part_of_the_run_says_so(tmp_path) -> None:
+    """A reference for the first 15 of 40 poses gave errors over 15 poses, said only in the
+    table's title and ``matched_poses``: a warning names the 25 without a reference."""
+    write_tum(tmp_path / "gt.tum", TIMES[:15], GT[:15])
+    write_tum(tmp_path / "est.tum", TIMES, GT)
+    args = ["eval", tmp_path / "est.tum", tmp_path / "gt.tum", "--out", tmp_path / "e"]
+    result = runner.invoke(app, [str(a) for a in args])
+    assert result.exit_code == 0, result.output
+    assert result.stderr.startswith(
+        f"warning: 25 of the 40 poses of {tmp_path / 'est.tum'} have no reference pose "
+        "within 0.01 s (the reference spans part of the run?): the errors are over the 15 "
+        "matched"
+    )
+    metrics = json.loads((tmp_path / "e" / "metrics.json").read_text())
+    assert (metrics["matched_poses"], metrics["estimate_poses"]) == (15, 40)
+    assert metrics["ate_rmse_m"] == pytest.approx(0.0, abs=1e-9)

@@ -72,6 +72,12 @@ def evaluate(
             f"{est.path}: {len(times)} pose matched with {ref.path}; errors over the "
             "trajectory need 2 or more (see --max-diff and --offset)"
         )
+    if len(times) < len(est.poses):  # a reference over part of the run: said, not silent
+        warn(
+            f"{len(est.poses) - len(times)} of the {len(est.poses)} poses of {est.path} have "
+            f"no reference pose within {max_diff:g} s (the reference spans part of the run?): "
+            f"the errors are over the {len(times)} matched"
+        )
     if not 1 <= delta < len(times):
         raise ConfigError(
             f"--delta {delta}: the RPE step needs 1 <= delta < {len(times)} (the matched poses)"

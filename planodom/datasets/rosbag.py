@@ -29,8 +29,10 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
   ``PoseWithCovarianceStamped`` or ``TransformStamped`` topic, or ``"tf:PARENT:CHILD"`` (a
   direct /tf edge). Poses are interpolated at the epoch times (linear + Slerp); when the
   message's child frame is not the base frame but is rigidly linked to it, the result is
-  ``T_world_child @ T_child_base``. Epochs outside the reference's time span are dropped
-  (and noted); a pose with a NaN or infinite value or a zero quaternion is left out (noted).
+  ``T_world_child @ T_child_base``. Epochs outside the reference's time span are read, their
+  reference poses NaN (noted; the CLI's metrics are over the others; :func:`convert_bag`
+  leaves them out); a pose with a NaN or infinite value or a zero quaternion is left out
+  (noted).
 """
 
 from __future__ import annotations
@@ -83,12 +85,13 @@ class BagDataset:
         epoch_rate: epochs per second (Hz) of the windows.
         topics: the scan topics (:class:`BagTopic`), in ring order.
         times: (E,) float64 seconds since the Unix epoch, each epoch's reference time.
-        gt_poses: (E, 4, 4) ``T_world_base`` at ``times`` from ``gt_topic``, or None.
+        gt_poses: (E, 4, 4) ``T_world_base`` at ``times`` from ``gt_topic``, or None; NaN
+            at the epochs outside the reference's time span (it is not extrapolated).
         gt_topic: the reference source as given, or None.
         rig: :class:`~planodom.rig.Rig` with ``epoch_rate_hz``, ``sensor_origins`` per ring
             (the sensors' positions, m, base frame), ``extrinsics`` per topic (its first
             frame) and ``extra`` describing the source (bag, base frame, topics).
-        dropped_epochs: epochs left out for lying outside the reference's time span.
+        epochs_without_gt: epochs outside the reference's time span (NaN in ``gt_poses``).
         notes: one line each on how the bag was read that a user should check (a time
             unit other than the documented one, several point-cloud topics merged); the
             CLI prints them as warnings.
@@ -117,7 +120,7 @@ class BagDataset:
         grouped, ref = group_epochs(index.sweep_stamp[used], round(NS / self.epoch_rate))
         members = [used[m] for m in grouped]
         self.gt_poses: np.ndarray | None = None
-        self.dropped_epochs = 0
+        self.epochs_without_gt = 0
         if gt_topic is not None:
             inside, poses = interpolate_poses(index.gt_times, index.gt_poses, ref)
             if not inside.any():
@@ -127,28 +130,28 @@ class BagDataset:
                     f"epochs from {ref.min() / NS:.3f} to {ref.max() / NS:.3f} s: the "
                     "scans' header stamps on another clock, such as the sensor's own?)"
                 )
-            members = [m for m, keep in zip(members, inside, strict=True) if keep]
-            ref = ref[inside]
-            self.dropped_epochs = int((~inside).sum())
-            self.gt_poses = poses @ self._child_to_base(index.gt_child)
+            self.epochs_without_gt = int((~inside).sum())
+            self.gt_poses = np.full((len(ref), 4, 4), np.nan)
+            self.gt_poses[inside] = poses @ self._child_to_base(index.gt_child)
         self._members = members
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
         self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
         self.notes = index.tf.loops(self.base_frame) + bag_notes(index, topics_chosen, gt_topic)
-        if self.dropped_epochs:
-            self.notes.append(self._dropped_note(len(self) + self.dropped_epochs))
+        if self.epochs_without_gt:
+            self.notes.append(
+                self.partial_gt_note("every epoch is read; the metrics are over the epochs it spans")
+            )
         self._reader: AnyReader | None = None
 
-    def _dropped_note(self, epochs: int) -> str:
-        """The note on the epochs left out for lying outside the reference's time span."""
+    def partial_gt_note(self, what: str) -> str:
+        """The note on a reference that spans only some of the epochs, ending in ``what``."""
         gt = self._index.gt_times
+        spanned = len(self) - self.epochs_without_gt
         return (
-            f"gt '{self.gt_topic}' spans {len(self)} of the {epochs} epochs (reference poses "
-            f"from {gt.min() / NS:.3f} to {gt.max() / NS:.3f} s, epochs read from "
-            f"{self.times[0]:.3f} to {self.times[-1]:.3f} s): "
-            + ("the epoch" if self.dropped_epochs == 1 else f"the {self.dropped_epochs} epochs")
-            + " outside it left out (without --gt-topic every epoch is read)"
+            f"gt '{self.gt_topic}' spans {spanned} of the {len(self)} epochs (reference poses "
+            f"from {gt.min() / NS:.3f} to {gt.max() / NS:.3f} s, epochs from "
+            f"{self.times[0]:.3f} to {self.times[-1]:.3f} s): {what}"
         )
 
     def _child_to_base(self, child: str) -> np.ndarray:
@@ -334,7 +337,8 @@ def convert_bag(
     Writes ``scans/NNNNNN.ply`` (float64 ``x y z``, ``ring``, ``t``), ``rig.yaml`` and the
     bag's epoch times (seconds since the Unix epoch): with a ``gt_topic`` in ``poses.tum``
     beside the reference poses, else in ``times.txt``. Scans are streamed: memory stays
-    flat.
+    flat. The epochs outside the reference's time span are left out (``poses.tum`` holds
+    a reference pose for each scan) and noted.
 
     Raises:
         DatasetError: see :func:`open_bag`; ``out_dir`` already holds a dataset and not
@@ -342,40 +346,52 @@ def convert_bag(
         OutputError: ``out_dir`` is, lies in or contains the bag (a ROS 2 bag's folder).
     """
     with open_bag(bag_path, options) as ds:
-        counter = _CountingScans(ds)
+        spanned = np.ones(len(ds), dtype=bool)
+        notes = list(ds.notes)
+        if ds.gt_poses is not None and ds.epochs_without_gt:
+            spanned = np.isfinite(ds.gt_poses[:, 0, 0])
+            left = "the epoch" if ds.epochs_without_gt == 1 else f"the {ds.epochs_without_gt} epochs"
+            notes[-1] = ds.partial_gt_note(
+                f"{left} outside it left out (without --gt-topic every epoch is written)"
+            )
+        counter = _CountingScans(ds, spanned)
         inputs = (bag_path, ds.path)  # a ROS 2 bag's .db3 / .mcap stands for its folder
-        write_dataset(
-            out_dir, counter, ds.times, ds.gt_poses, ds.rig, overwrite=overwrite, inputs=inputs
-        )
+        gt = None if ds.gt_poses is None else ds.gt_poses[spanned]
+        times = ds.times[spanned]
+        write_dataset(out_dir, counter, times, gt, ds.rig, overwrite=overwrite, inputs=inputs)
         return BagConversion(
             ds.path,
             Path(out_dir),
-            len(ds),
+            len(counter),
             counter.points,
             tuple(t.name for t in ds.topics),
             sum(t.rings for t in ds.topics) if has_rings(ds.topics) else 0,
-            float(ds.times[0]),
-            float(ds.times[-1]),
+            float(times[0]),
+            float(times[-1]),
             ds.gt_topic,
-            ds.dropped_epochs,
-            tuple(ds.notes),
+            ds.epochs_without_gt,
+            tuple(notes),
         )
 
 
 class _CountingScans:
-    """A dataset's scans as a streamed sequence for ``write_dataset``, counting the points."""
+    """The ``spanned`` (E,) bool epochs of a dataset as a streamed sequence for
+    ``write_dataset``, counting the points."""
 
-    def __init__(self, ds: BagDataset) -> None:
+    def __init__(self, ds: BagDataset, spanned: np.ndarray) -> None:
         self.ds = ds
+        self.epochs = np.flatnonzero(spanned)
+        self.spanned = spanned
         self.points = 0
 
     def __len__(self) -> int:
-        return len(self.ds)
+        return len(self.epochs)
 
     def __getitem__(self, index: int) -> Scan:
-        return self.ds[index]
+        return self.ds[int(self.epochs[index])]
 
     def __iter__(self) -> Iterator[Scan]:
-        for scan in self.ds:
-            self.points += len(scan)
-            yield scan
+        for scan, keep in zip(self.ds, self.spanned, strict=True):
+            if keep:
+                self.points += len(scan)
+                yield scan

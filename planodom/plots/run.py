@@ -6,7 +6,14 @@ from pathlib import Path
 
 import numpy as np
 
-from planodom.metrics import Alignment, aligned, per_epoch_errors, relative_motions
+from planodom.geometry import invert_transform
+from planodom.metrics import (
+    POSE5_NAMES,
+    Alignment,
+    aligned,
+    per_epoch_errors,
+    relative_motions,
+)
 from planodom.odometry import OdometryRun, epoch_rows
 from planodom.plots.errors import plot_errors
 from planodom.plots.planes import plot_planes
@@ -24,6 +31,32 @@ def odometry_sigmas(run: OdometryRun) -> np.ndarray:
 def increment_errors(est: np.ndarray, gt: np.ndarray) -> dict[str, np.ndarray]:
     """Signed 5-DoF errors (E-1,) of the increments of ``est`` against ``gt`` (E, 4, 4)."""
     return per_epoch_errors(relative_motions(est), relative_motions(gt))
+
+
+def _origin_aligned(est: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """The estimate (E, 4, 4) on the reference (E, 4, 4) at its first epoch with a reference
+    pose (:func:`~planodom.metrics.aligned` "origin" when every epoch has one; NaN rows of a
+    reference that spans part of the run, :func:`planodom.results.referenced`)."""
+    known = np.flatnonzero(np.all(np.isfinite(gt), axis=(1, 2)))
+    if len(known) == len(gt):
+        return aligned(est, gt, "origin")
+    k = known[0]
+    return gt[k] @ invert_transform(est[k]) @ est
+
+
+def _increment_errors(est: np.ndarray, gt: np.ndarray) -> dict[str, np.ndarray]:
+    """:func:`increment_errors`, NaN at the increments from or to an epoch without a
+    reference pose (NaN in ``gt``)."""
+    known = np.all(np.isfinite(gt), axis=(1, 2))
+    if known.all():
+        return increment_errors(est, gt)
+    both = known[:-1] & known[1:]
+    out = {name: np.full(len(est) - 1, np.nan) for name in POSE5_NAMES}
+    if both.any():
+        rel_gt = invert_transform(gt[:-1][both]) @ gt[1:][both]
+        for name, e in per_epoch_errors(relative_motions(est)[both], rel_gt).items():
+            out[name][both] = e
+    return out
 
 
 def write_run_plots(
@@ -44,8 +77,9 @@ def write_run_plots(
     errors: dict[str, dict[str, np.ndarray]] = {}
     shown = dict(tracks)
     if gt_poses is not None and len(best) > 1:
-        shown = {k: aligned(v, gt_poses, "origin") for k, v in tracks.items()}
-        errors = {k: increment_errors(v, gt_poses) for k, v in tracks.items()}
+        shown = {k: _origin_aligned(v, gt_poses) for k, v in tracks.items()}
+        errors = {k: _increment_errors(v, gt_poses) for k, v in tracks.items()}
+        gt_poses = gt_poses[np.all(np.isfinite(gt_poses), axis=(1, 2))]
     label = "odometry" if smoothed is None else "smoothed"
     others = [("odometry", shown["odometry"])] if smoothed is not None else []
     files = [

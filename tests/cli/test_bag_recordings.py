@@ -64,3 +64,35 @@ def test_eval_against_a_bag_names_the_conversion(us_bag: Path, tmp_path: Path) -
     est = tmp_path / "est.tum"
     est.write_text("0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n")
     fails(["eval", est, us_bag], "us.bag is a ROS bag", "convert BAG OUT --gt-topic")
+
+
+def test_run_on_a_reference_over_part_of_the_run_estimates_every_epoch(tmp_path: Path) -> None:
+    """``run`` with a reference recorded for the first 0.25 s of a 0.6 s lidar bag wrote the
+    poses of the 3 epochs it spans only. Every epoch is estimated, as without a reference
+    (the same poses.tum to the byte); the metrics are over those 3 and say so."""
+    from bag_factory import T0_NS, true_pose
+
+    from planodom.datasets.tum import read_tum
+    from planodom.metrics import summarize
+
+    def odom(bw) -> None:
+        for k in range(71):  # 200 Hz from 0.1 s before the first sweep to 0.25 s after it
+            stamp = T0_NS - 100_000_000 + k * 5_000_000
+            bw.write("/odom", bw.odometry(stamp, true_pose(stamp / 1e9)), stamp)
+
+    bag = tmp_path / "half.bag"
+    lidar = [Sensor("/points", "lidar", 0, "velodyne")]
+    write_bag(bag, 1, lidar, STATIC_TF, T_BASE, duration_s=0.6, odom=False, extra=odom)
+    for name, more in (("half", ["--gt-topic", "/odom"]), ("none", [])):
+        result = runner.invoke(app, ["run", str(bag), "--out", str(tmp_path / name), *more])
+        assert result.exit_code == 0, result.output
+    poses = (tmp_path / "half" / "poses.tum").read_bytes()
+    assert poses == (tmp_path / "none" / "poses.tum").read_bytes()
+    times, est = read_tum(tmp_path / "half" / "poses.tum")
+    assert len(times) == 6
+    metrics = json.loads((tmp_path / "half" / "metrics.json").read_text())
+    assert (metrics["epochs"], metrics["evaluated_epochs"]) == (6, 3)
+    truth = summarize(est[:3], true_pose(times[:3]))  # the epochs at 0, 0.1, 0.2 s
+    for key in ("ate_rmse_m", "rpe_trans_rmse_m", "drift_m"):
+        assert metrics[key] == pytest.approx(truth[key], abs=1e-4)
+    assert "spans 3 of the 6 epochs" in metrics["recording_notes"][0]

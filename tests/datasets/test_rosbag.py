@@ -784,10 +784,11 @@ def test_a_single_laser_scan_without_a_return_places_no_epoch(tmp_path: Path) ->
 
 
 @pytest.mark.parametrize("ros", [1, 2])
-def test_a_reference_over_part_of_the_run_is_said(tmp_path: Path, ros: int) -> None:
+def test_a_reference_over_part_of_the_run_keeps_every_epoch(tmp_path: Path, ros: int) -> None:
     """A reference that stops half-way (odometry recorded for the first 0.25 s) made ``run``
-    read only the epochs it spans, without a word: the rest of the recording was lost to
-    the odometry. It is noted, with the spans and the way to read every epoch."""
+    read only the epochs it spans (the sixth pass noted it): the rest of the recording was
+    lost to the odometry. Every epoch is read, as without a reference, its reference pose
+    NaN outside the span; ``convert`` still leaves those out (a pose a scan), and says so."""
     from bag_factory import BagWriter, lidar_cloud
 
     truth = Truth(T_base_sensor=T_BASE)
@@ -800,15 +801,36 @@ def test_a_reference_over_part_of_the_run_is_said(tmp_path: Path, ros: int) -> N
             odom = stamp + 50_000_000
             if k < 2:
                 bw.write("/odom", bw.odometry(odom, true_pose(odom / 1e9)), odom)
-    with open_bag(bag_path(tmp_path, ros, "half"), BagOptions(gt_topic="/odom")) as ds:
-        assert (len(ds), ds.dropped_epochs) == (1, 4)
-        assert ds.notes == [
-            "gt '/odom' spans 1 of the 5 epochs (reference poses from 1700000000.050 to "
-            "1700000000.150 s, epochs read from 1700000000.100 to 1700000000.100 s): the 4 "
-            "epochs outside it left out (without --gt-topic every epoch is read)"
-        ]
-    with open_bag(bag_path(tmp_path, ros, "half")) as ds:
-        assert len(ds) == 5
+    span = (
+        "gt '/odom' spans 1 of the 5 epochs (reference poses from 1700000000.050 to "
+        "1700000000.150 s, epochs from 1700000000.000 to 1700000000.400 s): "
+    )
+    with (
+        open_bag(bag_path(tmp_path, ros, "half"), BagOptions(gt_topic="/odom")) as ds,
+        open_bag(bag_path(tmp_path, ros, "half")) as every,
+    ):
+        assert (len(ds), ds.epochs_without_gt) == (5, 4)
+        _assert_same_scans(ds, every)
+        assert ds.gt_poses is not None
+        np.testing.assert_allclose(ds.gt_poses[1], true_pose(ds.times[1]), atol=1e-4)  # interpolated
+        assert np.isnan(ds.gt_poses[[0, 2, 3, 4]]).all()
+        assert ds.notes == [span + "every epoch is read; the metrics are over the epochs it spans"]
+    c = convert_bag(bag_path(tmp_path, ros, "half"), tmp_path / "ds", BagOptions(gt_topic="/odom"))
+    assert (c.epochs, c.dropped_epochs) == (1, 4)
+    assert c.notes == (
+        span + "the 4 epochs outside it left out (without --gt-topic every epoch is written)",
+    )
+    written = load_dataset(tmp_path / "ds")
+    np.testing.assert_allclose(written.times, [T0_NS / 1e9 + 0.1])
+
+
+def _assert_same_scans(ds, other) -> None:
+    """The same epoch times and scans, to the bit."""
+    np.testing.assert_array_equal(ds.times, other.times)
+    for scan, truth in zip(ds, other, strict=True):
+        np.testing.assert_array_equal(scan.points, truth.points)
+        np.testing.assert_array_equal(scan.ring, truth.ring)
+        np.testing.assert_array_equal(scan.t, truth.t)
 
 
 @pytest.mark.parametrize("ros", [1, 2])
