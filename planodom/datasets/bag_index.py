@@ -39,6 +39,7 @@ from planodom.datasets.bag_msgs import (
     stamp_ns,
     sweep_times,
 )
+from planodom.datasets.bag_rings import stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit
 from planodom.errors import DatasetError
@@ -145,11 +146,9 @@ class TopicIndex:
         name: the topic.
         msgtype: ``sensor_msgs/msg/LaserScan`` or ``sensor_msgs/msg/PointCloud2``.
         frames: the ``header.frame_id`` values of its messages (first seen first).
-        rings: ring count: 1 for a LaserScan, max ring + 1 for a cloud with a ring field,
-            0 for a cloud without one.
+        rings: 1 for a LaserScan, max ring + 1 for a cloud with a ring field, else 0.
         times: a PointCloud2's relative per-point times (their spans per sweep).
-        time_unit: the unit chosen for them (:mod:`planodom.datasets.bag_time_units`),
-            None without relative per-point times.
+        time_unit: their unit (:mod:`planodom.datasets.bag_time_units`), or None.
         unstamped: messages whose header stamp is 0 (their record time stands for it).
         empty: messages without a point (clouds, Livox messages; 0 for a LaserScan), left
             out of the epochs when some topic has points.
@@ -159,6 +158,8 @@ class TopicIndex:
         duplicates: messages recorded again (same stamp and content as an earlier one,
             ROS 1's ``header.seq`` aside), left out of the epochs.
         no_ring: points left out for a "no ring" id (its type's largest value).
+        ring_points: points per ring id; ring_span: the ids kept, ``(first, last)``, when
+            some are not (:mod:`planodom.datasets.bag_rings`; None: all).
     """
 
     name: str
@@ -173,6 +174,8 @@ class TopicIndex:
     duplicates: int = 0
     sweeps: int = 0
     no_ring: int = 0
+    ring_points: dict[int, int] = field(default_factory=dict)
+    ring_span: tuple[int, int] | None = None
 
     @property
     def pointless(self) -> bool:
@@ -313,6 +316,8 @@ def index_bag(
         _choose_time_unit(topic, table[rows, 2], path, np.flatnonzero(duplicate[rows]))
         topic.sweeps = int(rows.sum())
         topic.duplicates = int(duplicate[rows].sum())
+        if (span := stray_span(topic.ring_points)) is not None:
+            topic.ring_span, topic.rings = span, span[1] + 1
     gt_times, gt_poses = gt_log.arrays()
     gt_read = GtReading(
         len(gt_times) + len(gt_invalid), gt_invalid[:1], len(gt_invalid), frames=gt_frames
@@ -414,13 +419,16 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
         return blank
     with _message_errors(path, topic.name):
         if topic.msgtype == POINT_CLOUD2:
-            rings, points, name, offsets, no_ring = sweep_times(msg, time_field)
+            rings, points, name, offsets, no_ring, ring = sweep_times(msg, time_field)
             topic.no_ring += no_ring
             if name is not None and offsets is not None:
                 topic.times.add(name, offsets, sweep)
         else:
-            xyz, _, _, rings = decode_sweep(msg, topic.msgtype, time_field)
+            xyz, ring, _, rings = decode_sweep(msg, topic.msgtype, time_field)
             points = len(xyz)
+    if ring is not None and len(ring):
+        for i, n in zip(*np.unique(ring, return_counts=True), strict=True):
+            topic.ring_points[int(i)] = topic.ring_points.get(int(i), 0) + int(n)
     topic.rings = max(topic.rings, rings)
     topic.empty += points == 0
     return points == 0

@@ -11,7 +11,8 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
 - ``sensor_msgs/PointCloud2``: fields ``x y z`` (float32/float64); an optional ring field
   (:data:`RING_FIELDS`) and time field (:data:`~planodom.datasets.scan_io.TIME_FIELDS`,
   first present wins). A ring id of its integer field's largest value (65535 in a uint16)
-  is a driver's "no ring": its point is left out (and noted); a float ring field must
+  is a driver's "no ring": its point is left out (and noted; negative and stray ids are
+  left out over a whole topic, :mod:`planodom.datasets.bag_rings`); a float ring field must
   hold whole ids, and a field that is read must not be given twice with two layouts (each
   refused otherwise). Integer
   time fields are nanoseconds, float ones seconds (offsets: unless a topic's sweeps span
@@ -171,8 +172,8 @@ def _ring_ids(values: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]:
     write for a point of no scan line and which would otherwise count as that many rings.
 
     Raises:
-        ValueError: a negative id, or a float field holding a fraction or a non-finite
-            value (not a ring id; it was truncated).
+        ValueError: a float field holding a fraction or a non-finite value (not a ring
+            id; it was truncated).
     """
     if values.dtype.kind == "f":
         bad = ~np.isfinite(values) | (values != np.floor(values))
@@ -183,9 +184,7 @@ def _ring_ids(values: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]:
                 "whole ring id"
             )
         return values.astype(np.int64), np.zeros(len(values), dtype=bool)
-    ids = values.astype(np.int64)
-    if len(ids) and ids.min() < 0:
-        raise ValueError(f"PointCloud2 field '{name}' has negative values")
+    ids = values.astype(np.int64)  # negative ids: left out over the topic (bag_rings)
     return ids, ids == np.iinfo(values.dtype).max
 
 
@@ -227,7 +226,7 @@ def _cloud_parts(
             ids = ids[~stray]
             valid[np.flatnonzero(valid)[stray]] = False
         ring = ids
-        rings = int(ring.max()) + 1 if len(ring) else 0
+        rings = max(int(ring.max()) + 1, 0) if len(ring) else 0
         ring = ring.astype(np.int32)
     keep = last_returns(
         points[valid],
@@ -256,30 +255,31 @@ def _decode_cloud(
 
 def sweep_times(
     msg: Any, time_field: str = "auto"
-) -> tuple[int, int, str | None, np.ndarray | None, int]:
+) -> tuple[int, int, str | None, np.ndarray | None, int, np.ndarray | None]:
     """A cloud's ring count, point count, time field and raw relative times, for the index.
 
-    Returns ``(rings, n, time field or None, values, no ring)``: ``values`` (n,) in the
+    Returns ``(rings, n, time field or None, values, no ring, ring)``: ``values`` (n,) in the
     field's own type and unit when the times are offsets (whose unit
     :func:`planodom.datasets.bag_time_units.choose_unit` decides over the topic), None
     without a time field or for absolute times, which are checked here; ``no ring`` the
-    points left out for a "no ring" id (:func:`_ring_ids`).
+    points left out for a "no ring" id (:func:`_ring_ids`); ``ring`` (n,) the points' ring
+    ids (None without a ring field).
 
     Raises:
         ValueError: a malformed cloud, non-finite times, absolute times far off the stamp.
     """
-    points, _, rings, time_name, raw, no_ring = _cloud_parts(msg, time_field)
+    points, ring, rings, time_name, raw, no_ring = _cloud_parts(msg, time_field)
     if time_name is None or raw is None:
-        return rings, len(points), None, None, no_ring
+        return rings, len(points), None, None, no_ring, ring
     if _is_absolute(raw):
         dt = _relative_times(raw, stamp_ns(msg.header))
         check_offsets(dt, time_name, raw.dtype)
-        return rings, len(points), time_name, None, no_ring
+        return rings, len(points), time_name, None, no_ring, ring
     with np.errstate(invalid="ignore"):
         finite = np.isfinite(raw.astype(np.float64))
     if not finite.all():
         check_offsets(np.where(finite, 0.0, np.nan), time_name, raw.dtype)
-    return rings, len(points), time_name, raw, no_ring
+    return rings, len(points), time_name, raw, no_ring, ring
 
 
 def check_offsets(

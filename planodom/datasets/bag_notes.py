@@ -12,6 +12,7 @@ import numpy as np
 from planodom.datasets.bag_gt import gt_notes
 from planodom.datasets.bag_index import BagIndex
 from planodom.datasets.bag_msgs import LASER_SCAN
+from planodom.datasets.bag_rings import stray_note
 
 
 def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> list[str]:
@@ -24,7 +25,8 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
       another topic has points), or some of whose messages hold none (left out of the
       epochs: they would place epochs without points), or the only scan topic some of
       whose LaserScans hold no return (left out likewise);
-    - points whose ring id is their ring field type's largest value ("no ring"), left out;
+    - points whose ring id is their ring field type's largest value ("no ring"), or no ring
+      of the lidar's numbering (:mod:`planodom.datasets.bag_rings`), left out;
     - messages recorded twice (same topic, stamp and content), read once;
     - several point-cloud topics with points merged into each epoch when none was ``chosen``
       (``--topic``): a raw and a filtered cloud of one lidar would be read twice (each with
@@ -65,6 +67,8 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
                 f"topic '{t.name}': {t.no_ring} points carry their ring field type's largest "
                 'value (65535 in a uint16) as ring id, a driver\'s "no ring"?; left out'
             )
+        if t.ring_span is not None:
+            notes.append(stray_note(t.name, t.ring_points, t.ring_span))
         if t.duplicates:
             notes.append(
                 f"topic '{t.name}': {t.duplicates} of {sweeps} messages recorded twice (the "

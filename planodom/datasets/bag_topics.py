@@ -32,6 +32,8 @@ class BagTopic:
         read: its messages that go into the epochs (``BagIndex.in_epochs``: not recorded
             twice, not a cloud without a point while some topic has points).
         frame: the first frame its messages name.
+        ring_span: the ring ids read, ``(first, last)``, when some ids are not rings
+            (:mod:`planodom.datasets.bag_rings`); None: every id.
     """
 
     name: str
@@ -44,6 +46,7 @@ class BagTopic:
     empty: bool = False
     read: int = 0
     frame: str = ""
+    ring_span: tuple[int, int] | None = None
 
     @property
     def left_out(self) -> bool:
@@ -84,6 +87,7 @@ def bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
                 t.pointless,
                 n,
                 t.frames[0],
+                t.ring_span,
             )
         )
         first += t.rings

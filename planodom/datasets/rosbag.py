@@ -140,7 +140,9 @@ class BagDataset:
         self.notes = index.tf.loops(self.base_frame) + bag_notes(index, topics_chosen, gt_topic)
         if self.epochs_without_gt:
             self.notes.append(
-                self.partial_gt_note("every epoch is read; the metrics are over the epochs it spans")
+                self.partial_gt_note(
+                    "every epoch is read; the metrics are over the epochs it spans"
+                )
             )
         self._reader: AnyReader | None = None
 
@@ -249,6 +251,9 @@ class BagDataset:
                 )
             except ValueError as exc:
                 raise DatasetError(f"{self.path}: topic '{topic.name}': {exc}") from None
+            if ring is not None and topic.ring_span is not None:  # ids that are no ring
+                keep = (ring >= topic.ring_span[0]) & (ring <= topic.ring_span[1])
+                pts, ring, dt = pts[keep], ring[keep], dt[keep]
             if ring is not None:
                 order = np.argsort(ring, kind="stable")
                 pts, ring, dt = pts[order], ring[order], dt[order]
@@ -350,7 +355,9 @@ def convert_bag(
         notes = list(ds.notes)
         if ds.gt_poses is not None and ds.epochs_without_gt:
             spanned = np.isfinite(ds.gt_poses[:, 0, 0])
-            left = "the epoch" if ds.epochs_without_gt == 1 else f"the {ds.epochs_without_gt} epochs"
+            left = (
+                "the epoch" if ds.epochs_without_gt == 1 else f"the {ds.epochs_without_gt} epochs"
+            )
             notes[-1] = ds.partial_gt_note(
                 f"{left} outside it left out (without --gt-topic every epoch is written)"
             )

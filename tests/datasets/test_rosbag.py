@@ -812,7 +812,9 @@ def test_a_reference_over_part_of_the_run_keeps_every_epoch(tmp_path: Path, ros:
         assert (len(ds), ds.epochs_without_gt) == (5, 4)
         _assert_same_scans(ds, every)
         assert ds.gt_poses is not None
-        np.testing.assert_allclose(ds.gt_poses[1], true_pose(ds.times[1]), atol=1e-4)  # interpolated
+        np.testing.assert_allclose(
+            ds.gt_poses[1], true_pose(ds.times[1]), atol=1e-4
+        )  # interpolated
         assert np.isnan(ds.gt_poses[[0, 2, 3, 4]]).all()
         assert ds.notes == [span + "every epoch is read; the metrics are over the epochs it spans"]
     c = convert_bag(bag_path(tmp_path, ros, "half"), tmp_path / "ds", BagOptions(gt_topic="/odom"))
@@ -929,3 +931,53 @@ def test_a_fractional_ring_or_a_field_given_twice_is_refused_naming_it(
         "offset 12): which one holds its values is unknown",
     }[case]
     assert one_line(exc).endswith(f"topic '/points': {expected}")
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+@pytest.mark.parametrize("case", ["float_65535", "ring_200", "int16_negative"])
+def test_ring_ids_that_are_no_ring_are_left_out(tmp_path: Path, ros: int, case: str) -> None:
+    """Ten points of one sweep whose ring id is no ring of the 16: a float field's 65535.0
+    (a float has no type maximum to be the "no ring" by), a stray 200, or -1 in an int16
+    field. The first two made a rig of 65 536 and 201 rings without a word, the third
+    refused the bag. Each is left out and noted: the bag reads as the one whose ten
+    points are no returns (NaN), with 16 rings (:mod:`planodom.datasets.bag_rings`)."""
+    stray = np.arange(110, 120)  # no point among them is a no return (every 53rd)
+
+    def sweep(k, msg):
+        rows = _velodyne_rows(msg)
+        fields = list(msg.fields)
+        ring = next(i for i, f in enumerate(fields) if f.name == "ring")
+        if case == "float_65535":  # the ring as float32 in the intensity's place
+            rows["intensity"] = rows["ring"]
+            fields[ring] = type(fields[ring])(name="ring", offset=12, datatype=7, count=1)
+            if k == 2:
+                rows["intensity"][stray] = 65535.0
+        elif case == "int16_negative":  # uint16 65535 read as int16 is -1
+            fields[ring] = type(fields[ring])(name="ring", offset=16, datatype=3, count=1)
+            if k == 2:
+                rows["ring"][stray] = 65535
+        elif k == 2:
+            rows["ring"][stray] = 200
+        return _with_rows(msg, rows, fields)
+
+    def nan(k, msg):
+        if k != 2:
+            return msg
+        rows = _velodyne_rows(msg)
+        rows["x"][stray] = np.nan
+        return _with_rows(msg, rows)
+
+    _cloud_bag(bag_path(tmp_path, ros, "nan"), ros, sweep=nan)
+    _cloud_bag(bag_path(tmp_path, ros, case), ros, sweep=sweep)
+    with (
+        open_bag(bag_path(tmp_path, ros, case)) as ds,
+        open_bag(bag_path(tmp_path, ros, "nan")) as clean,
+    ):
+        _assert_same_scans(ds, clean)
+        assert len(ds.rig.sensor_origins) == 16
+        value = {"float_65535": 65535, "ring_200": 200, "int16_negative": -1}[case]
+        assert ds.notes == [
+            "topic '/points': 10 points carry ring ids that are no ring of its lidar's "
+            f"numbering beside its rings 0..15 (1 id: {value}; negative, or apart from the "
+            "others by more unused ids than they count); left out"
+        ]
