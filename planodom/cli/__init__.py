@@ -109,7 +109,7 @@ def simulate(
 def _inputs(source: Source, config: Path | None) -> list[Path]:
     """The files and folders a run reads, which its results may not touch (for a ROS 2
     bag's .db3 / .mcap file, its bag folder: results were written into it)."""
-    from planodom.datasets.bag_index import is_bag
+    from planodom.datasets.bag_paths import is_bag
 
     inputs = [p for p in (source.dataset, config) if p is not None]
     given = source.dataset

@@ -38,6 +38,7 @@ from planodom.datasets.bag_msgs import (
     laser_scan_returns,
     stamp_ns,
     sweep_times,
+    tagged_noise,
 )
 from planodom.datasets.bag_rings import stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
@@ -70,50 +71,6 @@ except ImportError:  # pragma: no cover
     pass
 
 
-def is_bag(path: str | Path) -> bool:
-    """True for a ROS 1 ``.bag`` file or a ROS 2 bag (a folder with ``metadata.yaml``)."""
-    path = Path(path)
-    if path.is_file():
-        return path.suffix == ".bag"
-    return path.is_dir() and (path / "metadata.yaml").is_file()
-
-
-def unfinished_bag(path: str | Path) -> str | None:
-    """Why ``path`` looks like a bag whose recording was not closed, or None: a ROS 1
-    ``.bag.active`` file (no index yet) or ROS 2 storage files without ``metadata.yaml``
-    (written when the recorder closes); the reader needs what closing writes."""
-    path = Path(path)
-    if path.is_file() and path.name.endswith(".bag.active"):
-        return (
-            f"{path} is an unfinished ROS 1 recording (.bag.active: the recorder was not "
-            "closed, the bag has no index): `rosbag reindex` it and rename it to .bag"
-        )
-    folder = path.parent if path.is_file() and path.suffix in (".db3", ".mcap") else path
-    storage = folder.is_dir() and (any(folder.glob("*.db3")) or any(folder.glob("*.mcap")))
-    if storage and not (folder / "metadata.yaml").is_file():
-        return (
-            f"{folder} holds ROS 2 bag storage (.db3 / .mcap) but no metadata.yaml (the "
-            f"recorder was not closed?): `ros2 bag reindex {folder}` writes it"
-        )
-    return None
-
-
-def bag_location(path: str | Path) -> Path:
-    """The path rosbags opens: the ``.bag`` file or the ROS 2 folder (also from its file)."""
-    path = Path(path)
-    if not path.exists():
-        raise DatasetError(f"bag {path} does not exist")
-    if path.is_file() and path.suffix in (".db3", ".mcap") and is_bag(path.parent):
-        return path.parent
-    if not is_bag(path):
-        raise DatasetError(
-            unfinished_bag(path)
-            or f"{path} is not a bag: neither a ROS 1 .bag file nor a ROS 2 bag folder with "
-            "metadata.yaml"
-        )
-    return path
-
-
 @contextmanager
 def bag_errors(path: Path, what: str = "cannot read bag") -> Iterator[None]:
     """Turn the exceptions of a broken bag into a one-line DatasetError naming ``path``."""
@@ -129,7 +86,7 @@ def bag_errors(path: Path, what: str = "cannot read bag") -> Iterator[None]:
 
 
 def open_reader(path: Path) -> AnyReader:
-    """An opened AnyReader on the bag at ``path`` (from :func:`bag_location`)."""
+    """An opened AnyReader on the bag at ``path`` (a ``bag_paths.bag_location``)."""
     with bag_errors(path):
         typestore = get_typestore(Stores.LATEST)
         register_livox_types(typestore)  # a ROS 2 bag may not carry their definitions
@@ -158,6 +115,7 @@ class TopicIndex:
         duplicates: messages recorded again (same stamp and content as an earlier one,
             ROS 1's ``header.seq`` aside), left out of the epochs.
         no_ring: points left out for a "no ring" id (its type's largest value).
+        noise: points left out as a Livox lidar's high confidence noise (their ``tag``).
         ring_points: points per ring id; ring_span: the ids kept, ``(first, last)``, when
             some are not (:mod:`planodom.datasets.bag_rings`; None: all).
     """
@@ -174,6 +132,7 @@ class TopicIndex:
     duplicates: int = 0
     sweeps: int = 0
     no_ring: int = 0
+    noise: int = 0
     ring_points: dict[int, int] = field(default_factory=dict)
     ring_span: tuple[int, int] | None = None
 
@@ -426,6 +385,7 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
         else:
             xyz, ring, _, rings = decode_sweep(msg, topic.msgtype, time_field)
             points = len(xyz)
+    topic.noise += tagged_noise(msg, topic.msgtype)
     if ring is not None and len(ring):
         for i, n in zip(*np.unique(ring, return_counts=True), strict=True):
             topic.ring_points[int(i)] = topic.ring_points.get(int(i), 0) + int(n)

@@ -6,8 +6,9 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
 
 - ``sensor_msgs/LaserScan``: beam ``i`` at angle ``angle_min + i angle_increment`` in the
   sensor's x-y plane, seen at ``i time_increment`` after the stamp (the ROS convention:
-  the stamp is the first beam's time). Beams with a non-finite range or one outside
-  ``[range_min, range_max]`` are no returns and are dropped.
+  the stamp is the first beam's time). Beams with a non-finite range, one outside
+  ``[range_min, range_max]`` or 0 (a driver's "no echo" beside a ``range_min`` of 0) are
+  no returns and are dropped.
 - ``sensor_msgs/PointCloud2``: fields ``x y z`` (float32/float64); an optional ring field
   (:data:`RING_FIELDS`) and time field (:data:`~planodom.datasets.scan_io.TIME_FIELDS`,
   first present wins). A ring id of its integer field's largest value (65535 in a uint16)
@@ -26,7 +27,8 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
   A multi-return cloud keeps the last return of each beam firing
   (:mod:`planodom.datasets.returns`).
 - Livox's ``CustomMsg`` (:mod:`planodom.datasets.bag_livox`): ring ``line``, times from
-  ``timebase`` and ``offset_time``.
+  ``timebase`` and ``offset_time``; a point its ``tag`` marks as high confidence noise is
+  left out, in a PointCloud2 with Livox's ``tag`` and ``line`` fields too.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox
+from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox, livox_noise
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
 from planodom.datasets.bag_time_units import UNIT_WORDS, unit_of
 from planodom.datasets.returns import RETURN_FIELDS, last_returns
@@ -97,7 +99,7 @@ def _laser_scan_valid(msg: Any) -> np.ndarray:
     """(n,) bool, the LaserScan's ranges that are returns: finite, in its range limits."""
     ranges = np.asarray(msg.ranges, dtype=np.float64)
     with np.errstate(invalid="ignore"):
-        valid = np.isfinite(ranges) & (ranges >= float(msg.range_min))
+        valid = np.isfinite(ranges) & (ranges >= float(msg.range_min)) & (ranges > 0.0)
         if float(msg.range_max) > 0:
             valid &= ranges <= float(msg.range_max)
     return valid
@@ -216,6 +218,8 @@ def _cloud_parts(
         raise ValueError(f"PointCloud2 {problem}")
     points = np.column_stack([cloud[c].astype(np.float64) for c in "xyz"])
     valid = np.all(np.isfinite(points), axis=1) & np.any(points != 0.0, axis=1)
+    if "tag" in names and "line" in names:  # Livox's layout: the lidar's noise verdict
+        valid &= ~livox_noise(cloud["tag"])
     ring = None
     rings = 0
     no_ring = 0
@@ -240,6 +244,22 @@ def _cloud_parts(
         ring = ring[keep] if ring is not None else None
     raw = cloud[time_name][valid] if time_name is not None else None
     return points[valid], ring, rings, time_name, raw, no_ring
+
+
+def tagged_noise(msg: Any, msgtype: str) -> int:
+    """The points of a Livox message (CustomMsg, or a PointCloud2 with ``tag`` and ``line``
+    fields) that :func:`decode_sweep` leaves out as the lidar's high confidence noise."""
+    if msgtype in LIVOX_CUSTOM:
+        xyz = np.array([(p.x, p.y, p.z) for p in msg.points], dtype=np.float64).reshape(-1, 3)
+        tag = np.array([p.tag for p in msg.points], dtype=np.int64)
+    elif msgtype == POINT_CLOUD2 and {"tag", "line"} <= {f.name for f in msg.fields}:
+        cloud, _ = _cloud_array(msg)
+        xyz = np.column_stack([cloud[c].astype(np.float64) for c in "xyz"])
+        tag = cloud["tag"]
+    else:
+        return 0
+    returned = np.all(np.isfinite(xyz), axis=1) & np.any(xyz != 0.0, axis=1)
+    return int(np.count_nonzero(returned & livox_noise(tag)))
 
 
 def _decode_cloud(

@@ -27,6 +27,7 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
       whose LaserScans hold no return (left out likewise);
     - points whose ring id is their ring field type's largest value ("no ring"), or no ring
       of the lidar's numbering (:mod:`planodom.datasets.bag_rings`), left out;
+    - points a Livox lidar marks as high confidence noise (their ``tag``), left out;
     - messages recorded twice (same topic, stamp and content), read once;
     - several point-cloud topics with points merged into each epoch when none was ``chosen``
       (``--topic``): a raw and a filtered cloud of one lidar would be read twice (each with
@@ -66,6 +67,11 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
             notes.append(
                 f"topic '{t.name}': {t.no_ring} points carry their ring field type's largest "
                 'value (65535 in a uint16) as ring id, a driver\'s "no ring"?; left out'
+            )
+        if t.noise:
+            notes.append(
+                f"topic '{t.name}': {t.noise} points the Livox lidar marks as high confidence "
+                "noise (its tag: rain, dust, a return on the window?); left out"
             )
         if t.ring_span is not None:
             notes.append(stray_note(t.name, t.ring_points, t.ring_span))

@@ -18,8 +18,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Literal
 
-from planodom.datasets.bag_index import is_bag, unfinished_bag
 from planodom.datasets.bag_options import BagOptions
+from planodom.datasets.bag_paths import is_bag, unfinished_bag
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.dataset import load_dataset
 from planodom.datasets.kitti import is_kitti_sequence, load_kitti_sequence

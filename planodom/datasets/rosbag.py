@@ -50,13 +50,13 @@ from planodom.datasets.bag_epochs import NS, group_epochs, interpolate_poses
 from planodom.datasets.bag_index import (
     BagIndex,
     bag_errors,
-    bag_location,
     index_bag,
     open_reader,
 )
 from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
 from planodom.datasets.bag_notes import bag_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
+from planodom.datasets.bag_paths import bag_location
 from planodom.datasets.bag_tf import frame_name
 from planodom.datasets.bag_topics import BagTopic, bag_rig, bag_topics, has_rings
 from planodom.datasets.dataset import write_dataset

@@ -11,7 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from planodom.datasets.bag_epochs import group_epochs, interpolate_poses, window_phase
-from planodom.datasets.bag_msgs import POINT_CLOUD2, decode_sweep
+from planodom.datasets.bag_msgs import POINT_CLOUD2, decode_sweep, tagged_noise
 from planodom.datasets.bag_tf import TfTree
 from planodom.errors import DatasetError
 
@@ -100,7 +100,7 @@ def test_relative_ns_offsets_livox() -> None:
     assert dt.tolist() == [0.0, 0.012345678]
 
 
-def _livox2_cloud(timestamps: list[float], stamp: int) -> NS:
+def _livox2_cloud(timestamps: list[float], stamp: int, tags=None) -> NS:
     """livox_ros_driver2's PointCloud2 layout: ``line`` uint8, ``timestamp`` float64."""
     dtype = np.dtype({"names": ["x", "y", "z", "intensity", "tag", "line", "timestamp"],
                       "formats": ["<f4", "<f4", "<f4", "<f4", "u1", "u1", "<f8"],
@@ -109,6 +109,7 @@ def _livox2_cloud(timestamps: list[float], stamp: int) -> NS:
     rows["x"] = np.arange(1, len(timestamps) + 1)
     rows["line"] = np.arange(len(timestamps)) % 6
     rows["timestamp"] = timestamps
+    rows["tag"] = 0 if tags is None else tags
     fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("tag", 16, 2),
               ("line", 17, 2), ("timestamp", 18, 8)]  # fmt: skip
     return cloud(fields, rows, 26, stamp)
@@ -120,6 +121,16 @@ def test_absolute_double_nanoseconds_livox_driver2() -> None:
     pts, ring, dt, rings = decode_sweep(_livox2_cloud(ns, stamp), POINT_CLOUD2)
     assert ring.tolist() == [0, 1, 2] and rings == 3
     assert dt == pytest.approx([0.0, 0.040, 0.099], abs=1e-6)  # float64 ns: 256 ns steps
+
+
+def test_livox_pointcloud2_points_marked_noise_are_left_out() -> None:
+    """The tag of livox_ros_driver2's PointCloud2 as of its CustomMsg: high confidence
+    noise (01 in bits 1-0 or 3-2) left out, moderate noise (10) kept."""
+    stamp = 1_700_000_000 * 10**9
+    msg = _livox2_cloud([stamp + k * MS for k in range(5)], stamp, [0, 0b01, 0b10, 0b0100, 0])
+    pts, ring, _, _ = decode_sweep(msg, POINT_CLOUD2)
+    assert pts[:, 0].tolist() == [1.0, 3.0, 5.0] and ring.tolist() == [0, 2, 4]
+    assert tagged_noise(msg, POINT_CLOUD2) == 2
 
 
 @pytest.mark.parametrize(
@@ -238,7 +249,7 @@ def test_a_loop_in_the_tf_tree_is_said_with_its_disagreement() -> None:
 
 
 def test_files_dropped_beside_a_bag_are_not_bags(tmp_path: Path) -> None:
-    from planodom.datasets.bag_index import is_bag
+    from planodom.datasets.bag_paths import is_bag
 
     (tmp_path / "x.db3").write_bytes(b"")
     assert not is_bag(tmp_path) and not is_bag(tmp_path / "x.db3")

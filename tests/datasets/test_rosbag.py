@@ -784,6 +784,37 @@ def test_a_single_laser_scan_without_a_return_places_no_epoch(tmp_path: Path) ->
 
 
 @pytest.mark.parametrize("ros", [1, 2])
+def test_zero_ranges_of_a_laser_scan_with_range_min_0_are_no_returns(
+    tmp_path: Path, ros: int
+) -> None:
+    """Drivers write a beam without an echo as range 0 (and leave range_min 0): each became
+    a point at the scanner's origin, a cluster the extraction took for a wall's hit. A
+    range of 0 is no return, as inf is: the bag reads as the one with inf there."""
+    from dataclasses import replace
+
+    from bag_factory import BagWriter, laser_scan
+
+    def scanner(path: Path, none: float) -> None:
+        truth = Truth(T_base_sensor=T_BASE)
+        with BagWriter(path, ros) as bw:
+            tf = [bw.transform_stamped(T0_NS, p, c, T) for p, c, T in STATIC_TF]
+            bw.write("/tf_static", bw.tf(tf), T0_NS)
+            for k in range(3):
+                stamp = T0_NS + k * 100_000_000
+                msg = laser_scan(bw, truth, "/scan_front", "laser_front", stamp)
+                ranges = np.where(np.isfinite(msg.ranges), msg.ranges, none).astype(np.float32)
+                msg = replace(msg, ranges=ranges, range_min=0.0)
+                bw.write("/scan_front", msg, stamp + 2_000_000)
+
+    scanner(bag_path(tmp_path, ros, "zero"), 0.0)
+    scanner(bag_path(tmp_path, ros, "inf"), np.inf)
+    with open_bag(bag_path(tmp_path, ros, "zero")) as ds:
+        with open_bag(bag_path(tmp_path, ros, "inf")) as clean:
+            _assert_same_scans(ds, clean)
+            assert all(len(scan) == 389 for scan in ds)  # 400 beams, 11 without an echo
+
+
+@pytest.mark.parametrize("ros", [1, 2])
 def test_a_reference_over_part_of_the_run_keeps_every_epoch(tmp_path: Path, ros: int) -> None:
     """A reference that stops half-way (odometry recorded for the first 0.25 s) made ``run``
     read only the epochs it spans (the sixth pass noted it): the rest of the recording was

@@ -1,0 +1,51 @@
+"""Where a bag is: a ROS 1 ``.bag`` file or a ROS 2 folder, and a recording left unclosed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from planodom.errors import DatasetError
+
+
+def is_bag(path: str | Path) -> bool:
+    """True for a ROS 1 ``.bag`` file or a ROS 2 bag (a folder with ``metadata.yaml``)."""
+    path = Path(path)
+    if path.is_file():
+        return path.suffix == ".bag"
+    return path.is_dir() and (path / "metadata.yaml").is_file()
+
+
+def unfinished_bag(path: str | Path) -> str | None:
+    """Why ``path`` looks like a bag whose recording was not closed, or None: a ROS 1
+    ``.bag.active`` file (no index yet) or ROS 2 storage files without ``metadata.yaml``
+    (written when the recorder closes); the reader needs what closing writes."""
+    path = Path(path)
+    if path.is_file() and path.name.endswith(".bag.active"):
+        return (
+            f"{path} is an unfinished ROS 1 recording (.bag.active: the recorder was not "
+            "closed, the bag has no index): `rosbag reindex` it and rename it to .bag"
+        )
+    folder = path.parent if path.is_file() and path.suffix in (".db3", ".mcap") else path
+    storage = folder.is_dir() and (any(folder.glob("*.db3")) or any(folder.glob("*.mcap")))
+    if storage and not (folder / "metadata.yaml").is_file():
+        return (
+            f"{folder} holds ROS 2 bag storage (.db3 / .mcap) but no metadata.yaml (the "
+            f"recorder was not closed?): `ros2 bag reindex {folder}` writes it"
+        )
+    return None
+
+
+def bag_location(path: str | Path) -> Path:
+    """The path rosbags opens: the ``.bag`` file or the ROS 2 folder (also from its file)."""
+    path = Path(path)
+    if not path.exists():
+        raise DatasetError(f"bag {path} does not exist")
+    if path.is_file() and path.suffix in (".db3", ".mcap") and is_bag(path.parent):
+        return path.parent
+    if not is_bag(path):
+        raise DatasetError(
+            unfinished_bag(path)
+            or f"{path} is not a bag: neither a ROS 1 .bag file nor a ROS 2 bag folder with "
+            "metadata.yaml"
+        )
+    return path
