@@ -17,8 +17,9 @@ clock; more than ``MAX_SWEEP_OFFSET_S`` away is another clock and refused), else
 scan's earliest point (epoch times counted from 0: the sweep starts at its epoch's time,
 as a driver stamps it). Absolute times in float32 (128 s resolution today) are refused, as
 are times that are neither offsets within ``MAX_POINT_TIME_S`` nor Unix times.
-Points whose three coordinates are all NaN are PCL's no-return marker of an organised
-cloud and are dropped; any other non-finite coordinate is an error. ``.bin`` files hold
+Points whose three coordinates are all NaN, or all exactly 0 (the origin, no lidar's
+return), are the no-return markers of an organised cloud (PCL's, Ouster's) and are
+dropped; any other non-finite coordinate is an error. ``.bin`` files hold
 float32 ``x y z intensity`` rows (KITTI) or ``x y z intensity ring`` rows (nuScenes), told
 apart by :mod:`planodom.datasets.bin_scan`; points are taken as they are (in the scanner
 frame, which for KITTI is the base frame used here).
@@ -185,7 +186,8 @@ def _scan_from_fields(
         raise DatasetError(f"{path}: {problem}")
     with np.errstate(invalid="ignore"):  # signalling NaNs of a corrupt file
         points = np.column_stack([fields[c].astype(np.float64) for c in "xyz"]).reshape(-1, 3)
-    returned = ~np.isnan(points).all(axis=1)  # PCL's no-return marker: all three NaN
+    # no returns: PCL's all three NaN, and the origin (0, 0, 0) of organised clouds
+    returned = ~np.isnan(points).all(axis=1) & (points != 0.0).any(axis=1)
     if not returned.all():
         points = points[returned]
         fields = {name: values[returned] for name, values in fields.items()}

@@ -301,12 +301,16 @@ def test_time_and_ring_fields_named_as_drivers_do(tmp_path: Path, ext: str, layo
     assert np.array_equal(scan.points[:, 0], fields["x"].astype(np.float64))
 
 
-def test_all_nan_points_of_an_organised_cloud_are_no_returns(tmp_path: Path) -> None:
+@pytest.mark.parametrize("marker", [np.nan, 0.0])
+def test_all_nan_points_of_an_organised_cloud_are_no_returns(tmp_path: Path, marker) -> None:
+    """PCL marks a no return all NaN, Ouster's driver (0, 0, 0): the latter were kept, a
+    cluster at the sensor's origin (KITTI raw 0005's PCD scans hold one a scan)."""
     fields, t_true = _driver_fields("velodyne", 30, np.random.default_rng(9))
     no_return = np.zeros(30, bool)
     no_return[[0, 7, 29]] = True
     for c in "xyz":
-        fields[c][no_return] = np.nan
+        fields[c][no_return] = marker
+    fields["x"][3] = 0.0  # one coordinate 0 is a return
     write_pcd(tmp_path / "org.pcd", fields)
     scan = read_scan(tmp_path / "org.pcd")
     assert len(scan) == 27
