@@ -20,6 +20,8 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
 
     - a cloud topic's time offsets read in a unit other than the documented one, or not
       clear-cut (:mod:`planodom.datasets.bag_time_units`);
+    - messages stamped before the one recorded before them on their topic (a clock reset:
+      the epochs are in stamp order, not the recording's);
     - messages without a header stamp (0), for which the bag's record time stands;
     - a scan topic none of whose messages holds a point (left out of the epochs when
       another topic has points), or some of whose messages hold none (left out of the
@@ -39,9 +41,12 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
     counts = np.bincount(index.sweep_topic, minlength=len(index.topics))
     some_points = not all(t.pointless for t in index.topics)
     notes = []
-    for t, sweeps in zip(index.topics, counts, strict=True):
+    for k, (t, sweeps) in enumerate(zip(index.topics, counts, strict=True)):
         if t.time_unit is not None and t.time_unit.note:
             notes.append(f"topic '{t.name}': {t.time_unit.note}")
+        back = _stamped_back(index, k)
+        if back:
+            notes.append(f"topic '{t.name}': {back}")
         if t.unstamped:
             notes.append(
                 f"topic '{t.name}': {t.unstamped} of {sweeps} messages have no header stamp "
@@ -95,3 +100,20 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
             "with --topic"
         )
     return notes + gt_notes(index.gt_read, gt_topic)
+
+
+def _stamped_back(index: BagIndex, k: int) -> str:
+    """The note on topic ``k``'s messages stamped before the one recorded before them, or
+    "". One publisher stamps its messages in order, so a stamp going back is a clock reset
+    (a sensor's own clock restarting, a simulated clock looping) or two publishers; read
+    in stamp order, such an epoch lands among earlier ones."""
+    stamps = index.sweep_stamp[(index.sweep_topic == k) & ~index.sweep_duplicate]
+    step = np.diff(stamps)
+    back = int(np.count_nonzero(step < 0))
+    if not back:
+        return ""
+    return (
+        f"{back} of {len(stamps)} messages are stamped before the one recorded before them "
+        f"(up to {-step.min() / 1e9:.6g} s earlier: a clock reset, a driver restarted, or "
+        "two publishers?); the epochs are in stamp order, not the recording's"
+    )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from planodom.errors import DatasetError
@@ -49,3 +50,24 @@ def bag_location(path: str | Path) -> Path:
             "metadata.yaml"
         )
     return path
+
+
+def split_parts_note(path: Path) -> list[str]:
+    """The note on the other parts of a split ROS 1 recording beside ``path`` (``NAME_N.bag``
+    beside ``NAME_M.bag``, as ``rosbag record --split`` names them), or none: one part is
+    read alone, so the user should know the rest of the recording lies beside it."""
+    found = re.fullmatch(r"(.+)_(\d+)\.bag", path.name)
+    if not path.is_file() or found is None:
+        return []
+    prefix = found.group(1)
+    named = re.compile(rf"{re.escape(prefix)}_(\d+)\.bag")
+    parts = {p.name: p for p in path.parent.iterdir() if named.fullmatch(p.name)}
+    if len(parts) < 2:
+        return []
+    order = sorted(parts, key=lambda name: int(named.fullmatch(name).group(1)))  # type: ignore[union-attr]
+    others = [name for name in order if name != path.name]
+    return [
+        f"{', '.join(others)} beside {path.name}: parts of one split recording? Only "
+        f"{path.name} is read; `rosbags-convert --src {' '.join(order)} --dst "
+        f"{prefix}.bag` merges them into one bag"
+    ]

@@ -56,7 +56,7 @@ from planodom.datasets.bag_index import (
 from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
 from planodom.datasets.bag_notes import bag_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
-from planodom.datasets.bag_paths import bag_location
+from planodom.datasets.bag_paths import bag_location, split_parts_note
 from planodom.datasets.bag_tf import frame_name
 from planodom.datasets.bag_topics import BagTopic, bag_rig, bag_topics, has_rings
 from planodom.datasets.dataset import write_dataset
@@ -137,7 +137,8 @@ class BagDataset:
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
         self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
-        self.notes = index.tf.loops(self.base_frame) + bag_notes(index, topics_chosen, gt_topic)
+        self.notes = split_parts_note(path) + index.tf.loops(self.base_frame)
+        self.notes += bag_notes(index, topics_chosen, gt_topic)
         if self.epochs_without_gt:
             self.notes.append(
                 self.partial_gt_note(

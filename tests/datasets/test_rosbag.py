@@ -1012,3 +1012,46 @@ def test_ring_ids_that_are_no_ring_are_left_out(tmp_path: Path, ros: int, case: 
             f"numbering beside its rings 0..15 (1 id: {value}; negative, or apart from the "
             "others by more unused ids than they count); left out"
         ]
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_stamps_going_back_within_a_topic_are_said(tmp_path: Path, ros: int) -> None:
+    """Sweep 3 stamped 0.7 s before the first (a sensor clock reset) was read as the first
+    epoch without a word, the odometry then stepping back in time. It is noted."""
+    from dataclasses import replace
+
+    def reset(k, msg):
+        if k != 3:
+            return msg
+        stamp = T0_NS - 700_000_000
+        header = replace(msg.header, stamp=replace(msg.header.stamp, sec=stamp // 10**9,
+                                                   nanosec=stamp % 10**9))  # fmt: skip
+        return replace(msg, header=header)
+
+    _cloud_bag(bag_path(tmp_path, ros, "back"), ros, sweep=reset)
+    with open_bag(bag_path(tmp_path, ros, "back")) as ds:
+        assert len(ds) == 5 and ds.times[0] == pytest.approx(T0_NS / 1e9 - 0.7)
+        assert ds.notes == [
+            "topic '/points': 1 of 5 messages are stamped before the one recorded before "
+            "them (up to 0.9 s earlier: a clock reset, a driver restarted, or two "
+            "publishers?); the epochs are in stamp order, not the recording's"
+        ]
+
+
+def test_a_part_of_a_split_ros1_recording_names_the_others(tmp_path: Path) -> None:
+    """``rosbag record --split`` writes rec_0.bag, rec_1.bag, ...: given rec_0.bag, only its
+    part was read, without a word of the rest beside it. It is said, with the merge."""
+    import shutil
+
+    _cloud_bag(tmp_path / "rec_0.bag", 1)
+    with open_bag(tmp_path / "rec_0.bag") as ds:
+        assert ds.notes == []  # alone: no other part
+    shutil.copy(tmp_path / "rec_0.bag", tmp_path / "rec_10.bag")
+    shutil.copy(tmp_path / "rec_0.bag", tmp_path / "rec_2.bag")
+    (tmp_path / "rec_x.bag").touch()  # not a part
+    with open_bag(tmp_path / "rec_2.bag") as ds:
+        assert ds.notes == [
+            "rec_0.bag, rec_10.bag beside rec_2.bag: parts of one split recording? Only "
+            "rec_2.bag is read; `rosbags-convert --src rec_0.bag rec_2.bag rec_10.bag --dst "
+            "rec.bag` merges them into one bag"
+        ]
