@@ -40,7 +40,7 @@ from planodom.datasets.bag_msgs import (
     sweep_times,
     tagged_noise,
 )
-from planodom.datasets.bag_rings import stray_span
+from planodom.datasets.bag_rings import ring_counts, stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit
 from planodom.errors import DatasetError
@@ -387,8 +387,8 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
             points = len(xyz)
     topic.noise += tagged_noise(msg, topic.msgtype)
     if ring is not None and len(ring):
-        for i, n in zip(*np.unique(ring, return_counts=True), strict=True):
-            topic.ring_points[int(i)] = topic.ring_points.get(int(i), 0) + int(n)
+        for i, n in ring_counts(ring):
+            topic.ring_points[i] = topic.ring_points.get(i, 0) + n
     topic.rings = max(topic.rings, rings)
     topic.empty += points == 0
     return points == 0

@@ -23,6 +23,16 @@ from collections.abc import Mapping
 import numpy as np
 
 
+def ring_counts(ring: np.ndarray) -> list[tuple[int, int]]:
+    """``(id, points)`` of the ring ids (n,) present (a count, not a sort: cheap per sweep)."""
+    lo, hi = int(ring.min()), int(ring.max())
+    if hi - lo >= 1 << 16:  # ids spread too far for a table
+        ids, counts = np.unique(ring, return_counts=True)
+        return [(int(i), int(n)) for i, n in zip(ids, counts, strict=True)]
+    counts = np.bincount(ring - lo)
+    return [(int(i) + lo, int(counts[i])) for i in np.flatnonzero(counts)]
+
+
 def ring_block(counts: Mapping[int, int]) -> tuple[int, int] | None:
     """``(first, last)`` ring ids kept of a topic's ``counts`` (id -> points over the bag),
     by the module docstring's rule; None without any id kept."""

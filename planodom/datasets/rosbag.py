@@ -9,8 +9,9 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
 - Scan topics: every ``sensor_msgs/LaserScan`` and ``sensor_msgs/PointCloud2`` topic with
   messages (sorted by name), or the ``topics`` given (in that order).
 - Rings: the topics' rings are numbered in topic order: a LaserScan topic (a 2D scanner)
-  is one ring; a cloud with a ring field takes ``max ring + 1`` rings. If a cloud has no
-  ring field the scans carry no ``ring``.
+  is one ring; a cloud with a ring field takes ``max ring + 1`` rings, its ids that are
+  no ring of the lidar's numbering left out (:mod:`planodom.datasets.bag_rings`). If a
+  cloud has no ring field the scans carry no ``ring``.
 - Extrinsics: ``T_base_sensor`` of each message's ``header.frame_id``, chained through
   ``/tf_static`` and the rigid ``/tf`` edges (see :mod:`planodom.datasets.bag_tf`; a loop
   whose chains disagree is noted); a topic none of whose messages goes into the epochs

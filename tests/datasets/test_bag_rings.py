@@ -39,3 +39,12 @@ def test_the_span_and_note_only_when_some_ids_are_stray() -> None:
         "unused ids than they count); left out"
     )
     assert stray_span({-1: 5}) == (0, -1)
+
+
+def test_ring_counts_by_table_and_by_sort() -> None:
+    import numpy as np
+
+    from planodom.datasets.bag_rings import ring_counts
+
+    assert ring_counts(np.array([3, -1, 3, 7])) == [(-1, 1), (3, 2), (7, 1)]
+    assert ring_counts(np.array([0, 1 << 20, 0])) == [(0, 2), (1 << 20, 1)]
