@@ -53,21 +53,24 @@ def bag_location(path: str | Path) -> Path:
 
 
 def split_parts_note(path: Path) -> list[str]:
-    """The note on the other parts of a split ROS 1 recording beside ``path`` (``NAME_N.bag``
-    beside ``NAME_M.bag``, as ``rosbag record --split`` names them), or none: one part is
-    read alone, so the user should know the rest of the recording lies beside it."""
+    """The note on the other parts of a split ROS 1 recording beside ``path`` (``NAME_0.bag``,
+    ``NAME_1.bag``, ... as ``rosbag record --split`` names them: numbered from 0 without a
+    hole), or none: one part is read alone, so the user should know the rest lies beside it."""
     found = re.fullmatch(r"(.+)_(\d+)\.bag", path.name)
     if not path.is_file() or found is None:
         return []
     prefix = found.group(1)
     named = re.compile(rf"{re.escape(prefix)}_(\d+)\.bag")
-    parts = {p.name: p for p in path.parent.iterdir() if named.fullmatch(p.name)}
-    if len(parts) < 2:
-        return []
-    order = sorted(parts, key=lambda name: int(named.fullmatch(name).group(1)))  # type: ignore[union-attr]
+    number = {
+        p.name: int(m.group(1)) for p in path.parent.iterdir() if (m := named.fullmatch(p.name))
+    }
+    order = sorted(number, key=number.__getitem__)
+    if len(order) < 2 or sorted(number.values()) != list(range(len(order))):
+        return []  # rosbag numbers the parts 0, 1, 2, ...: run_1.bag, run_2.bag are runs
     others = [name for name in order if name != path.name]
+    shown = ", ".join(others[:5]) + (f", ... ({len(others)} in all)" if len(others) > 5 else "")
+    src = " ".join(order if len(order) <= 5 else [*order[:2], "...", order[-1]])
     return [
-        f"{', '.join(others)} beside {path.name}: parts of one split recording? Only "
-        f"{path.name} is read; `rosbags-convert --src {' '.join(order)} --dst "
-        f"{prefix}.bag` merges them into one bag"
+        f"{shown} beside {path.name}: parts of one split recording? Only {path.name} is "
+        f"read; `rosbags-convert --src {src} --dst {prefix}.bag` merges them into one bag"
     ]

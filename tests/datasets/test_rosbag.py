@@ -1046,12 +1046,16 @@ def test_a_part_of_a_split_ros1_recording_names_the_others(tmp_path: Path) -> No
     _cloud_bag(tmp_path / "rec_0.bag", 1)
     with open_bag(tmp_path / "rec_0.bag") as ds:
         assert ds.notes == []  # alone: no other part
-    shutil.copy(tmp_path / "rec_0.bag", tmp_path / "rec_10.bag")
     shutil.copy(tmp_path / "rec_0.bag", tmp_path / "rec_2.bag")
+    with open_bag(tmp_path / "rec_2.bag") as ds:
+        assert ds.notes == []  # 0 and 2: not rosbag's numbering (run_1.bag, run_2.bag: runs)
+    for k in range(1, 11):
+        shutil.copy(tmp_path / "rec_0.bag", tmp_path / f"rec_{k}.bag")
     (tmp_path / "rec_x.bag").touch()  # not a part
     with open_bag(tmp_path / "rec_2.bag") as ds:
         assert ds.notes == [
-            "rec_0.bag, rec_10.bag beside rec_2.bag: parts of one split recording? Only "
-            "rec_2.bag is read; `rosbags-convert --src rec_0.bag rec_2.bag rec_10.bag --dst "
-            "rec.bag` merges them into one bag"
+            "rec_0.bag, rec_1.bag, rec_3.bag, rec_4.bag, rec_5.bag, ... (10 in all) beside "
+            "rec_2.bag: parts of one split recording? Only rec_2.bag is read; "
+            "`rosbags-convert --src rec_0.bag rec_1.bag ... rec_10.bag --dst rec.bag` "
+            "merges them into one bag"
         ]
