@@ -20,6 +20,7 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
 
     - a cloud topic's time offsets read in a unit other than the documented one, or not
       clear-cut (:mod:`planodom.datasets.bag_time_units`);
+    - a topic whose messages name several frames (each read in its own);
     - messages stamped before the one recorded before them on their topic (a clock reset:
       the epochs are in stamp order, not the recording's);
     - messages without a header stamp (0), for which the bag's record time stands;
@@ -44,6 +45,12 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
     for k, (t, sweeps) in enumerate(zip(index.topics, counts, strict=True)):
         if t.time_unit is not None and t.time_unit.note:
             notes.append(f"topic '{t.name}': {t.time_unit.note}")
+        if len(t.frames) > 1:
+            notes.append(
+                f"topic '{t.name}': its messages name {len(t.frames)} frames "
+                f"({', '.join(t.frames)}: a driver relaunched with another frame_id?); each "
+                f"is read in its own frame, the rig's sensor origin is {t.frames[0]}'s"
+            )
         back = _stamped_back(index, k)
         if back:
             notes.append(f"topic '{t.name}': {back}")

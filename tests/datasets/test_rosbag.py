@@ -1059,3 +1059,37 @@ def test_a_part_of_a_split_ros1_recording_names_the_others(tmp_path: Path) -> No
             "`rosbags-convert --src rec_0.bag rec_1.bag ... rec_10.bag --dst rec.bag` "
             "merges them into one bag"
         ]
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_topic_whose_frame_changes_is_read_in_each_frame_and_said(
+    tmp_path: Path, ros: int
+) -> None:
+    """From sweep 3 on, the lidar's messages name 'velodyne', a frame at the same place (a
+    driver relaunched with another frame_id): each message was read in its own frame, as it
+    is, but without a word. It is said; the reading is the clean bag's."""
+    from dataclasses import replace
+
+    def sweep(k, msg):
+        if k < 3:
+            return msg
+        return replace(msg, header=replace(msg.header, frame_id="velodyne"))
+
+    def tf(bw, k, stamp, msg):
+        if k == 0:
+            T = bw.transform_stamped(T0_NS, "base_link", "velodyne", T_BASE["lidar"])
+            bw.write("/tf_static", bw.tf([T]), stamp + 3_000_000)
+
+    _cloud_bag(bag_path(tmp_path, ros, "clean"), ros)
+    _cloud_bag(bag_path(tmp_path, ros, "frames"), ros, extra=tf, sweep=sweep)
+    opts = BagOptions(gt_topic="/odom")
+    with (
+        open_bag(bag_path(tmp_path, ros, "frames"), opts) as ds,
+        open_bag(bag_path(tmp_path, ros, "clean"), opts) as clean,
+    ):
+        _assert_same_reading(ds, clean)
+        assert ds.notes == [
+            "topic '/points': its messages name 2 frames (lidar, velodyne: a driver "
+            "relaunched with another frame_id?); each is read in its own frame, the rig's "
+            "sensor origin is lidar's"
+        ]
