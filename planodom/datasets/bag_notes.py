@@ -111,9 +111,10 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
 
 def _stamped_back(index: BagIndex, k: int) -> str:
     """The note on topic ``k``'s messages stamped before the one recorded before them, or
-    "". One publisher stamps its messages in order, so a stamp going back is a clock reset
-    (a sensor's own clock restarting, a simulated clock looping) or two publishers; read
-    in stamp order, such an epoch lands among earlier ones."""
+    "". One publisher stamps its messages in order, so a stamp going back is a recording out
+    of order (a short step), a clock reset (a sensor's own clock restarting, a simulated
+    clock looping) or two publishers; read in stamp order, such an epoch lands among
+    earlier ones."""
     stamps = index.sweep_stamp[(index.sweep_topic == k) & ~index.sweep_duplicate]
     step = np.diff(stamps)
     back = int(np.count_nonzero(step < 0))
@@ -121,6 +122,6 @@ def _stamped_back(index: BagIndex, k: int) -> str:
         return ""
     return (
         f"{back} of {len(stamps)} messages are stamped before the one recorded before them "
-        f"(up to {-step.min() / 1e9:.6g} s earlier: a clock reset, a driver restarted, or "
+        f"(up to {-step.min() / 1e9:.6g} s earlier: recorded out of order, a clock reset, or "
         "two publishers?); the epochs are in stamp order, not the recording's"
     )

@@ -1033,7 +1033,7 @@ def test_stamps_going_back_within_a_topic_are_said(tmp_path: Path, ros: int) -> 
         assert len(ds) == 5 and ds.times[0] == pytest.approx(T0_NS / 1e9 - 0.7)
         assert ds.notes == [
             "topic '/points': 1 of 5 messages are stamped before the one recorded before "
-            "them (up to 0.9 s earlier: a clock reset, a driver restarted, or two "
+            "them (up to 0.9 s earlier: recorded out of order, a clock reset, or two "
             "publishers?); the epochs are in stamp order, not the recording's"
         ]
 
