@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from planodom.datasets.bag_gt import gt_notes
-from planodom.datasets.bag_index import BagIndex
+from planodom.datasets.bag_index import BagIndex, TopicIndex
 from planodom.datasets.bag_msgs import LASER_SCAN
 from planodom.datasets.bag_rings import stray_note
 
@@ -45,15 +45,7 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
     for k, (t, sweeps) in enumerate(zip(index.topics, counts, strict=True)):
         if t.time_unit is not None and t.time_unit.note:
             notes.append(f"topic '{t.name}': {t.time_unit.note}")
-        if len(t.frames) > 1:
-            notes.append(
-                f"topic '{t.name}': its messages name {len(t.frames)} frames "
-                f"({', '.join(t.frames)}: a driver relaunched with another frame_id?); each "
-                f"is read in its own frame, the rig's sensor origin is {t.frames[0]}'s"
-            )
-        back = _stamped_back(index, k)
-        if back:
-            notes.append(f"topic '{t.name}': {back}")
+        notes += _frame_and_order_notes(index, k)
         if t.unstamped:
             notes.append(
                 f"topic '{t.name}': {t.unstamped} of {sweeps} messages have no header stamp "
@@ -75,18 +67,7 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
                 f"topic '{t.name}': {t.blank} of {sweeps} scans hold no return (open space, "
                 "or everything beyond range_max?); left out of the epochs"
             )
-        if t.no_ring:
-            notes.append(
-                f"topic '{t.name}': {t.no_ring} points carry their ring field type's largest "
-                'value (65535 in a uint16) as ring id, a driver\'s "no ring"?; left out'
-            )
-        if t.noise:
-            notes.append(
-                f"topic '{t.name}': {t.noise} points the Livox lidar marks as high confidence "
-                "noise (its tag: rain, dust, a return on the window?); left out"
-            )
-        if t.ring_span is not None:
-            notes.append(stray_note(t.name, t.ring_points, t.ring_span))
+        notes += _point_notes(t)
         if t.duplicates:
             notes.append(
                 f"topic '{t.name}': {t.duplicates} of {sweeps} messages recorded twice (the "
@@ -107,6 +88,39 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
             "with --topic"
         )
     return notes + gt_notes(index.gt_read, gt_topic)
+
+
+def _frame_and_order_notes(index: BagIndex, k: int) -> list[str]:
+    """Topic ``k``'s notes on its messages naming several frames and stamped out of order."""
+    t, notes = index.topics[k], []
+    if len(t.frames) > 1:
+        notes.append(
+            f"topic '{t.name}': its messages name {len(t.frames)} frames "
+            f"({', '.join(t.frames)}: a driver relaunched with another frame_id?); each "
+            f"is read in its own frame, the rig's sensor origin is {t.frames[0]}'s"
+        )
+    back = _stamped_back(index, k)
+    if back:
+        notes.append(f"topic '{t.name}': {back}")
+    return notes
+
+
+def _point_notes(t: TopicIndex) -> list[str]:
+    """A topic's notes on the points left out: "no ring" and stray ring ids, Livox noise."""
+    notes = []
+    if t.no_ring:
+        notes.append(
+            f"topic '{t.name}': {t.no_ring} points carry their ring field type's largest "
+            'value (65535 in a uint16) as ring id, a driver\'s "no ring"?; left out'
+        )
+    if t.noise:
+        notes.append(
+            f"topic '{t.name}': {t.noise} points the Livox lidar marks as high confidence "
+            "noise (its tag: rain, dust, a return on the window?); left out"
+        )
+    if t.ring_span is not None:
+        notes.append(stray_note(t.name, t.ring_points, t.ring_span))
+    return notes
 
 
 def _stamped_back(index: BagIndex, k: int) -> str:
