@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from planodom.config import PlanemapConfig
@@ -362,17 +363,17 @@ def _gauss_newton(
     R, t = T0[:3, :3].copy(), T0[:3, 3].copy()
     N, c, lam, E = cur.m.N[jj], cur.m.c[jj], cur.lam[jj], cur.E[jj]
     s2 = cur.variances(jj)
+    s2 = np.ascontiguousarray(np.broadcast_to(s2[:, None], (len(jj), 4)) if s2.ndim == 1 else s2)
+    n_l, d_l, cov_l, c_l, vo_l = M.n[lm], M.d[lm], M.cov_n[lm], M.c[lm], M.var_o[lm]
     H, w = np.eye(6), np.ones(len(lm))
     # Length scale of the solve: rotation and translation steps of comparable size.
     L = max(median(np.linalg.norm(c, axis=1)), 1.0)
     scale = np.r_[np.ones(3), np.full(3, 1.0 / L)]
     for _ in range(config.gn_iterations):
-        r, J, v, chi2 = whitened(M, R, t, N, c, lam, E, s2, lm)
+        # :func:`.outliers.whitened` and the weighted normal equations, compiled
+        r, J, v, chi2 = _whitened_kernel(R, t, c @ R.T, n_l, d_l, cov_l, c_l, vo_l, N, lam, E, s2)
         k2 = residual_scale(chi2)
-        w = 1.0 / (1.0 + chi2 / (k2 * config.cauchy_scale**2))
-        Wr = w[:, None] / (k2 * v)
-        H = np.einsum("mk,mki,mkj->ij", Wr, J, J)
-        g = np.einsum("mk,mki,mk->i", Wr, J, r)
+        w, H, g = _normal_equations_kernel(r, J, v, chi2, k2, config.cauchy_scale**2)
         dx = newton_step(H, g, scale)
         R = rotation_matrices(dx[:3]) @ R
         t = t + dx[3:]
@@ -430,3 +431,80 @@ def score(M: PlaneMap, T: np.ndarray, cur: ScanPlanes, config: PlanemapConfig) -
     chi2 = (cur.m.N[:, None] * e2 - cur.lam[:, :1]) / cur.s2[:, None]
     chi2 = np.where(ang <= lim[:, None], np.maximum(chi2, 0.0), np.inf)
     return float(np.minimum(chi2.min(axis=1), cap).sum())
+
+
+@numba.njit(cache=True)
+def _whitened_kernel(R, t, x, n, d, cov_n, lc, var_o, N, lam, E, s2):  # pragma: no cover
+    """:func:`.outliers.whitened` of m associations with the same arithmetic, compiled:
+    ``r`` (m, 4), ``J`` (m, 4, 6), ``v`` (m, 4), ``chi2`` (m,) under ``(R, t)`` from ``x =
+    c R^T`` (m, 3) (the moved centroids without ``t``, numpy's product), the landmarks'
+    ``n`` (m, 3), ``d`` (m,), ``cov_n`` (m, 3, 3), centroids ``lc`` (m, 3) and ``var_o``
+    (m,), the planes' ``N`` (m,), ``lam`` (m, 3), ``E`` (m, 3, 3) and noise ``s2`` (m, 4).
+    Every element is formed by the same operations in the same order as numpy's (the
+    sums of three products as its ``einsum`` adds them on x86-64: the first and last,
+    then the middle), so the registration's poses are bit-identical (checked against the
+    numpy path on the lidar worlds' runs, ``tests/odometry/planemap/test_register.py``)."""
+    m = N.shape[0]
+    r = np.empty((m, 4))
+    J = np.zeros((m, 4, 6))
+    v = np.empty((m, 4))
+    chi2 = np.empty(m)
+    U = np.empty((3, 3))
+    for i in range(m):
+        sN = np.sqrt(N[i])
+        y0, y1, y2 = x[i, 0] + t[0], x[i, 1] + t[1], x[i, 2] + t[2]
+        r[i, 0] = sN * (((n[i, 0] * y0 + n[i, 2] * y2) + n[i, 1] * y1) + d[i])
+        J[i, 0, 0] = sN * (x[i, 1] * n[i, 2] - x[i, 2] * n[i, 1])
+        J[i, 0, 1] = sN * (x[i, 2] * n[i, 0] - x[i, 0] * n[i, 2])
+        J[i, 0, 2] = sN * (x[i, 0] * n[i, 1] - x[i, 1] * n[i, 0])
+        J[i, 0, 3] = sN * n[i, 0]
+        J[i, 0, 4] = sN * n[i, 1]
+        J[i, 0, 5] = sN * n[i, 2]
+        for a in range(3):  # U = R E
+            for k in range(3):
+                U[a, k] = R[a, 0] * E[i, 0, k] + R[a, 1] * E[i, 1, k] + R[a, 2] * E[i, 2, k]
+        # the landmark's offset variance at the moved centroid (PlaneMap.var_at)
+        e0, e1, e2 = y0 - lc[i, 0], y1 - lc[i, 1], y2 - lc[i, 2]
+        q = 0.0
+        for a, ea in ((0, e0), (1, e1), (2, e2)):
+            q += ea * cov_n[i, a, 0] * e0
+            q += ea * cov_n[i, a, 1] * e1
+            q += ea * cov_n[i, a, 2] * e2
+        v[i, 0] = s2[i, 0] + N[i] * (q + var_o[i])
+        for k in range(3):
+            sl = np.sqrt(max(lam[i, k], 0.0))
+            r[i, k + 1] = sl * (n[i, 0] * U[0, k] + n[i, 1] * U[1, k] + n[i, 2] * U[2, k])
+            J[i, k + 1, 0] = sl * (U[1, k] * n[i, 2] - U[2, k] * n[i, 1])
+            J[i, k + 1, 1] = sl * (U[2, k] * n[i, 0] - U[0, k] * n[i, 2])
+            J[i, k + 1, 2] = sl * (U[0, k] * n[i, 1] - U[1, k] * n[i, 0])
+            qk = 0.0
+            for a in range(3):
+                for b in range(3):
+                    qk += U[a, k] * cov_n[i, a, b] * U[b, k]
+            v[i, k + 1] = s2[i, k + 1] + lam[i, k] * qk
+        chi2[i] = (r[i, 0] ** 2 / v[i, 0] + r[i, 2] ** 2 / v[i, 2] + r[i, 3] ** 2 / v[i, 3]) / 3.0
+    return r, J, v, chi2
+
+
+@numba.njit(cache=True)
+def _normal_equations_kernel(r, J, v, chi2, k2, c2):  # pragma: no cover - compiled
+    """The Cauchy weights ``w`` (m,) of the mean squared whitened residuals ``chi2`` (m,)
+    at the kernel scale ``c2`` (squared) times the residual scale ``k2``, and the
+    weighted normal equations ``H`` (6, 6), ``g`` (6,) of residuals ``r`` (m, 4),
+    Jacobians ``J`` (m, 4, 6) and variances ``v`` (m, 4) (``sum w / (k2 v) J^T J``,
+    ``sum w / (k2 v) J^T r``), added in numpy's ``einsum`` order (bit for bit)."""
+    m = r.shape[0]
+    w = np.empty(m)
+    H = np.zeros((6, 6))
+    g = np.zeros(6)
+    for i in range(m):
+        w[i] = 1.0 / (1.0 + chi2[i] / (k2 * c2))
+    for i in range(m):
+        for k in range(4):
+            wr = w[i] / (k2 * v[i, k])
+            for a in range(6):
+                wa = wr * J[i, k, a]
+                g[a] += wa * r[i, k]
+                for b in range(6):
+                    H[a, b] += wa * J[i, k, b]
+    return w, H, g
