@@ -30,6 +30,9 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.core import types
+from numba.extending import intrinsic
 
 from planodom.config import PlanemapConfig
 from planodom.median import median
@@ -239,6 +242,16 @@ def associate(
     between gated landmarks broken by ``rule`` (:func:`tie_cost`)."""
     if len(M) == 0 or len(cur) == 0:
         return np.full(len(cur), -1)
+    if rule == "distance" and len(M) > 1 and len(cur) > 1:
+        # compiled, the same arithmetic (numpy's products with one plane or landmark are
+        # matrix-vector ones, summed otherwise: those few take the numpy path)
+        R = np.ascontiguousarray(T[:3, :3])
+        ang = np.arccos(np.clip(cur.normals @ R.T @ M.n.T, -1.0, 1.0))
+        return _nearest_gated_kernel(
+            ang, R, T[:3, 3].copy(), cur.m.c, cur.m.S, cur.m.N, cur.var_n, cur.var_o,
+            float(cur.sigma), M.d, M.c, M.radius, M.cov_n, M.var_o, M.n,
+            float(s_r), float(s_t), float(bias),
+        )  # fmt: skip
     cost = tie_cost(candidates(M, T, cur, s_r, s_t, bias), rule)
     best = np.argmin(cost, axis=1)
     has = np.isfinite(cost[np.arange(len(cur)), best])
@@ -508,3 +521,96 @@ def _normal_equations_kernel(r, J, v, chi2, k2, c2):  # pragma: no cover - compi
                 for b in range(6):
                     H[a, b] += wa * J[i, k, b]
     return w, H, g
+
+
+@intrinsic
+def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
+    """``a b + c`` rounded once (LLVM's ``fma``): the products of numpy's matrix products
+    (OpenBLAS's kernels add each product to the running sum so, in order)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@numba.njit(cache=True)
+def _dot3(a0, a1, a2, b0, b1, b2):  # pragma: no cover - compiled
+    """``a . b`` of 3-vectors as a matrix product of numpy's sums it."""
+    return _fma(a2, b2, _fma(a1, b1, a0 * b0))
+
+
+@numba.njit(cache=True)
+def _nearest_gated_kernel(  # noqa: PLR0913 - flat for numba
+    ang, R, t, c, S, N, var_n, var_o, sigma, Md, Mc, Mradius, Mcov, Mvar_o, Mn, s_r, s_t, bias
+):  # pragma: no cover - compiled
+    """:func:`associate` with the ``distance`` rule, compiled: (K,) the gated landmark
+    with the least ``e^2`` of every scan plane (-1: none; the first of equal ones, as
+    ``argmin``), from the angles ``ang`` (K, L) (numpy's ``arccos``), the pose ``R``
+    (3, 3), ``t`` (3,), the planes' ``c`` (K, 3), ``S`` (K, 3, 3), ``N``, ``var_n``,
+    ``var_o`` (K,) and ``sigma``, and the landmarks' ``Md`` (L,), ``Mc`` (L, 3),
+    ``Mradius`` (L,), ``Mcov`` (L, 3, 3), ``Mvar_o`` (L,), ``Mn`` (L, 3). Each value is
+    formed as :func:`candidates` and :func:`plane_landmark_errors` form it (their matrix
+    products as fused multiply-adds in order, their three-term ``einsum`` sums first and
+    last, then the middle), so the gates decide the same bit for bit."""
+    K, L = N.shape[0], Md.shape[0]
+    var_nL = np.empty(L)
+    Cc = np.empty((L, 3))
+    cCc = np.empty(L)
+    nn = np.empty((L, 9))
+    for m in range(L):
+        var_nL[m] = ((Mcov[m, 0, 0] + Mcov[m, 1, 1]) + Mcov[m, 2, 2]) / 2
+        for i in range(3):
+            Cc[m, i] = (Mcov[m, i, 0] * Mc[m, 0] + Mcov[m, i, 2] * Mc[m, 2]) + Mcov[m, i, 1] * Mc[
+                m, 1
+            ]
+        cCc[m] = (Mc[m, 0] * Cc[m, 0] + Mc[m, 2] * Cc[m, 2]) + Mc[m, 1] * Cc[m, 1]
+        for a in range(3):
+            for b in range(3):
+                nn[m, 3 * a + b] = Mn[m, a] * Mn[m, b]
+    out = np.full(K, -1, dtype=np.int64)
+    cw = np.empty(3)
+    RS = np.empty((3, 3))
+    Sw = np.empty(9)
+    xx = np.empty(9)
+    for k in range(K):
+        for a in range(3):
+            cw[a] = _dot3(c[k, 0], c[k, 1], c[k, 2], R[a, 0], R[a, 1], R[a, 2]) + t[a]
+        for a in range(3):
+            for b in range(3):
+                xx[3 * a + b] = cw[a] * cw[b]
+                RS[a, b] = _dot3(R[a, 0], R[a, 1], R[a, 2], S[k, 0, b], S[k, 1, b], S[k, 2, b])
+        for a in range(3):
+            for b in range(3):
+                Sw[3 * a + b] = _dot3(RS[a, 0], RS[a, 1], RS[a, 2], R[b, 0], R[b, 1], R[b, 2])
+        radius = np.sqrt(3.0 * ((S[k, 0, 0] + S[k, 1, 1]) + S[k, 2, 2]) / N[k])
+        lever = np.sqrt((c[k, 0] * c[k, 0] + c[k, 1] * c[k, 1]) + c[k, 2] * c[k, 2]) + radius
+        v_pose = (s_t + s_r * lever) ** 2
+        best = np.inf
+        for m in range(L):
+            # gates first: the normal's, then the distance's
+            g_ang = 3 * np.sqrt(s_r**2 + var_n[k] + var_nL[m])
+            if not ang[k, m] <= g_ang:
+                continue
+            q = xx[0] * Mcov[m, 0, 0]
+            for j in range(1, 9):
+                q = _fma(xx[j], Mcov[m, j // 3, j % 3], q)
+            q2 = _dot3(2.0 * cw[0], 2.0 * cw[1], 2.0 * cw[2], Cc[m, 0], Cc[m, 1], Cc[m, 2])
+            vL = ((q - q2) + cCc[m]) + Mvar_o[m]
+            g_d2 = 9 * ((((v_pose + var_o[k]) + vL) + sigma**2) + bias**2)
+            off = _dot3(cw[0], cw[1], cw[2], Mn[m, 0], Mn[m, 1], Mn[m, 2]) + Md[m]
+            q = Sw[0] * nn[m, 0]
+            for j in range(1, 9):
+                q = _fma(Sw[j], nn[m, j], q)
+            e2 = off * off + q / N[k]
+            if not e2 <= g_d2:
+                continue
+            d0, d1, d2 = cw[0] - Mc[m, 0], cw[1] - Mc[m, 1], cw[2] - Mc[m, 2]
+            sep = np.sqrt((d0 * d0 + d1 * d1) + d2 * d2) - Mradius[m] - radius
+            if sep <= np.sqrt(g_d2) and e2 < best:
+                best = e2
+                out[k] = m
+    return out
