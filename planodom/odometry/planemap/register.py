@@ -26,7 +26,9 @@ no information keeps its value (the prediction).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import numba
 import numpy as np
@@ -523,8 +525,7 @@ def _normal_equations_kernel(r, J, v, chi2, k2, c2):  # pragma: no cover - compi
     return w, H, g
 
 
-@intrinsic
-def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
+def _fma_intrinsic(typingctx, a, b, c):  # pragma: no cover - compiled
     """``a b + c`` rounded once (LLVM's ``fma``): the products of numpy's matrix products
     (OpenBLAS's kernels add each product to the running sum so, in order)."""
     sig = types.float64(types.float64, types.float64, types.float64)
@@ -535,6 +536,9 @@ def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
         return builder.call(fn, args)
 
     return sig, codegen
+
+
+_fma = cast("Callable[[float, float, float], float]", intrinsic(_fma_intrinsic))
 
 
 @numba.njit(cache=True)
