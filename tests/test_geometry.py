@@ -338,3 +338,18 @@ def test_one_rotation_check_with_a_documented_bound() -> None:
     assert g.first_non_rotation(R) is None
     first = g.first_non_rotation(bad)
     assert first is not None and first[0] == 1 and "column norms" in first[1] and first[2] == 3
+
+
+def test_rpy_of_rotations_is_scipys_with_its_checks_skipped_only_when_they_pass() -> None:
+    """``rpy_from_rotation`` skips scipy's validity checks for matrices that pass them:
+    the same angles as scipy with its checks, for rotations, for matrices a little off
+    SO(3) (which scipy projects with an SVD) and for a batch mixing both."""
+    rng = np.random.default_rng(4)
+    R = Rotation.random(200, random_state=5).as_matrix()
+    off = R + rng.normal(0, 1e-9, R.shape)  # scipy projects these on SO(3)
+    for M in (R, off, np.concatenate([R[:3], off[:1]])):
+        expected = Rotation.from_matrix(M).as_euler("ZYX")[:, ::-1]
+        assert g.rpy_from_rotation(M).tobytes() == expected.tobytes()
+    assert g._surely_rotations(R) and not g._surely_rotations(off[:1])
+    with pytest.raises(ValueError, match="determinant"):
+        g.rpy_from_rotation(-R[0])  # left-handed: scipy's error, as before

@@ -50,7 +50,7 @@ def rpy_jacobian(R: np.ndarray, h: float = 1e-6) -> np.ndarray:
     the six rotations go through scipy in one call each way (per rotation the same
     values as one call each)."""
     w = np.concatenate([np.eye(3) * h, -np.eye(3) * h])  # +h e_k, then -h e_k
-    moved = np.array([M @ R for M in rotation_matrices(w)])
+    moved = rotation_matrices(w) @ R  # one 3 x 3 product each (as one at a time)
     rpy = rpy_from_rotation(moved)
     return np.angle(np.exp(1j * (rpy[:3] - rpy[3:]))).T / (2 * h)
 

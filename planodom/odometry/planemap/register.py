@@ -40,6 +40,11 @@ from planodom.odometry.planemap.outliers import (
     residual_scale,
     whitened,
 )
+from planodom.odometry.planemap.register_kernels import (
+    nearest_gated_kernel,
+    normal_equations_kernel,
+    whitened_kernel,
+)
 from planodom.rotvec import rotation_matrices
 
 
@@ -238,6 +243,16 @@ def associate(
     between gated landmarks broken by ``rule`` (:func:`tie_cost`)."""
     if len(M) == 0 or len(cur) == 0:
         return np.full(len(cur), -1)
+    if rule == "distance" and len(M) > 1 and len(cur) > 1:
+        # compiled, the same arithmetic (numpy's products with one plane or landmark are
+        # matrix-vector ones, summed otherwise: those few take the numpy path)
+        R = np.ascontiguousarray(T[:3, :3])
+        ang = np.arccos(np.clip(cur.normals @ R.T @ M.n.T, -1.0, 1.0))
+        return nearest_gated_kernel(
+            ang, R, T[:3, 3].copy(), cur.m.c, cur.m.S, cur.m.N, cur.var_n, cur.var_o,
+            float(cur.sigma), M.d, M.c, M.radius, M.cov_n, M.var_o, M.n,
+            float(s_r), float(s_t), float(bias),
+        )  # fmt: skip
     cost = tie_cost(candidates(M, T, cur, s_r, s_t, bias), rule)
     best = np.argmin(cost, axis=1)
     has = np.isfinite(cost[np.arange(len(cur)), best])
@@ -362,17 +377,17 @@ def _gauss_newton(
     R, t = T0[:3, :3].copy(), T0[:3, 3].copy()
     N, c, lam, E = cur.m.N[jj], cur.m.c[jj], cur.lam[jj], cur.E[jj]
     s2 = cur.variances(jj)
+    s2 = np.ascontiguousarray(np.broadcast_to(s2[:, None], (len(jj), 4)) if s2.ndim == 1 else s2)
+    n_l, d_l, cov_l, c_l, vo_l = M.n[lm], M.d[lm], M.cov_n[lm], M.c[lm], M.var_o[lm]
     H, w = np.eye(6), np.ones(len(lm))
     # Length scale of the solve: rotation and translation steps of comparable size.
     L = max(median(np.linalg.norm(c, axis=1)), 1.0)
     scale = np.r_[np.ones(3), np.full(3, 1.0 / L)]
     for _ in range(config.gn_iterations):
-        r, J, v, chi2 = whitened(M, R, t, N, c, lam, E, s2, lm)
+        # :func:`.outliers.whitened` and the weighted normal equations (:mod:`.register_kernels`)
+        r, J, v, chi2 = whitened_kernel(R, t, c @ R.T, n_l, d_l, cov_l, c_l, vo_l, N, lam, E, s2)
         k2 = residual_scale(chi2)
-        w = 1.0 / (1.0 + chi2 / (k2 * config.cauchy_scale**2))
-        Wr = w[:, None] / (k2 * v)
-        H = np.einsum("mk,mki,mkj->ij", Wr, J, J)
-        g = np.einsum("mk,mki,mk->i", Wr, J, r)
+        w, H, g = normal_equations_kernel(r, J, v, chi2, k2, config.cauchy_scale**2)
         dx = newton_step(H, g, scale)
         R = rotation_matrices(dx[:3]) @ R
         t = t + dx[3:]
