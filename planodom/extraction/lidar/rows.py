@@ -1,4 +1,5 @@
-"""Scan lines (rows) of an unorganised spinning-lidar cloud: no ring field, no times.
+"""Scan lines (rows) of an unorganised spinning-lidar cloud: no ring field, no times; and
+of a cloud whose ring field comes without usable times (:func:`ring_scan_rows`).
 
 A cloud stored without a ring field or per-point time (most recorded PCD / PLY / KITTI
 files) still carries the structure of the sensor that made it, in one of two forms. Angles
@@ -43,6 +44,14 @@ GAP_FRACTION = 0.02
 MIN_ROWS = 4
 #: Most rows (128-beam units, with margin).
 MAX_ROWS = 512
+#: A ring field is a spinning lidar's scan lines when each ring lies at one elevation: the
+#: median over the rings of a ring's elevation spread (1.4826 MAD) is at most this
+#: fraction of the median step between the rings' median elevations. Not from data: a
+#: laser's elevation is constant up to the range noise and the laser's offset from the
+#: axis (libwave's HDL-32E sweeps, a driver's points from the lasers' calibrated angles:
+#: spread / step = 4e-7), while the lines of a non-repetitive scanner (Livox) or a tilted
+#: mount sweep through several ring steps (ratio 1 or more); a quarter separates the two.
+RING_SPREAD_FRACTION = 0.25
 
 
 def azimuth(points: np.ndarray) -> np.ndarray:
@@ -91,6 +100,47 @@ def elevation_rows(points: np.ndarray) -> np.ndarray | None:
         return None
     # Points in a gap bin join the mode below (lab is constant through a gap).
     return np.maximum(lab[b], 0).astype(np.int64)
+
+
+def ring_scan_rows(
+    points: np.ndarray, ring: np.ndarray, origin: np.ndarray | None = None
+) -> np.ndarray | None:
+    """Rows (N,) int64 of a cloud ``points`` (N, 3) (m, base frame) with a ``ring`` field
+    (N,) but no usable times, seen from ``origin`` (3,) m (default the base origin): the
+    rings ordered by their median elevation, lowest first (ring ids need not follow the
+    elevation: raw laser ids interleave). None when the rings are not a spinning lidar's
+    scan lines: fewer than ``MIN_ROWS`` or more than ``MAX_ROWS`` of them, fewer than 100
+    points, or rings that do not lie at one elevation each (``RING_SPREAD_FRACTION``)."""
+    key = np.asarray(ring, dtype=np.int64)
+    if len(points) < 100 or len(key) != len(points):
+        return None
+    ids, row = np.unique(key, return_inverse=True)
+    row = row.reshape(-1).astype(np.int64)
+    H = len(ids)
+    if not MIN_ROWS <= H <= MAX_ROWS:
+        return None
+    rel = points if origin is None else points - np.asarray(origin, dtype=np.float64)
+    r = np.linalg.norm(rel, axis=1)
+    el = np.arcsin(np.clip(rel[:, 2] / np.maximum(r, 1e-9), -1.0, 1.0))
+    mid = _row_medians(row, el, H)
+    spread = 1.4826 * _row_medians(row, np.abs(el - mid[row]), H)
+    order = np.argsort(mid, kind="stable")
+    steps = np.diff(mid[order])
+    step = median(steps) if len(steps) else 0.0
+    if step <= 0.0 or median(spread) > RING_SPREAD_FRACTION * step:
+        return None
+    rank = np.empty(H, dtype=np.int64)
+    rank[order] = np.arange(H)
+    return rank[row]
+
+
+def _row_medians(row: np.ndarray, values: np.ndarray, n_rows: int) -> np.ndarray:
+    """(n_rows,) the median of ``values`` (N,) over each row of ``row`` (N,) int64 (every
+    row in [0, n_rows) present; the upper middle value for an even count)."""
+    order = np.lexsort((values, row))
+    counts = np.bincount(row, minlength=n_rows)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    return values[order[starts + counts // 2]]
 
 
 def scan_rows(
