@@ -23,6 +23,7 @@ Writes OUT/scans/000000.pcd ... (the files' bytes unchanged) and, for garage, OU
 (times in seconds from the first sweep, from the file names; identity poses).
 usage: libwave_garage.py OUT --repo GITDIR [--set garage|lot]
 """
+
 import argparse
 import os
 import re
@@ -31,14 +32,17 @@ import subprocess
 import numpy as np
 from scipy.spatial import cKDTree
 
-COMMITS = {"garage": "855e842cd9ca1b45110f15cc9c6d449ba8922194",
-           "lot": "4acf8dce532e82c0b690ef4caa99cedd32b87908"}
+COMMITS = {
+    "garage": "855e842cd9ca1b45110f15cc9c6d449ba8922194",
+    "lot": "4acf8dce532e82c0b690ef4caa99cedd32b87908",
+}
 COUNTS = {"garage": 153, "lot": 83}
 DIR = "wave_odometry/tests/data/garage"
 
 
 def git(gitdir, *args):
-    return subprocess.run(["git", "--git-dir", gitdir, *args], check=True, capture_output=True).stdout
+    out = subprocess.run(["git", "--git-dir", gitdir, *args], check=True, capture_output=True)
+    return out.stdout
 
 
 def read_xyz(path):
@@ -46,7 +50,8 @@ def read_xyz(path):
     with open(path, "rb") as f:
         raw = f.read()
     header, _, body = raw.partition(b"DATA binary\n")
-    fields = dict(line.split(maxsplit=1) for line in header.decode().splitlines() if line[:1] != "#")
+    lines = [line for line in header.decode().splitlines() if line[:1] != "#"]
+    fields = dict(line.split(maxsplit=1) for line in lines)
     assert fields["FIELDS"].split()[:3] == ["x", "y", "z"], fields["FIELDS"]
     sizes, counts = (np.array(fields[k].split(), int) for k in ("SIZE", "COUNT"))
     n, step = int(fields["POINTS"]), int(np.sum(sizes * counts))

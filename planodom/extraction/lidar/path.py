@@ -74,11 +74,11 @@ def lidar_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
             organised = _organised_planes(epoch, rows, origin, config)
             if organised is not None:  # rows that gave no plane were no lidar's rows
                 return organised
-    elif _untimed_rings(scan, config):
+    elif scan.ring is not None and _untimed_rings(scan.ring, scan.t, config):
         origin = np.zeros(3) if epoch.origins is None else epoch.origins.mean(axis=0)
-        rows = _ring_scan_rows(scan.points, scan.ring, *(float(v) for v in origin))
-        if rows is not None:
-            organised = _organised_planes(epoch, rows, origin, config)
+        ring_rows = _ring_scan_rows(scan.points, scan.ring, *(float(v) for v in origin))
+        if ring_rows is not None:
+            organised = _organised_planes(epoch, ring_rows, origin, config)
             if organised is not None:
                 return organised
     return _candidate_planes(epoch, scan.ring, view, config)
@@ -99,12 +99,13 @@ def _organised_planes(
     return PathResult(planes, inliers, organised.sigma_m, 0, n_cand, n_rejected)
 
 
-def _untimed_rings(scan: Scan, config: ExtractionConfig) -> bool:
-    """Whether ``scan`` has a ring field whose range image has no columns (no usable
-    times) and ``untimed_rings`` asks for the rings' square-pixel image."""
-    if scan.ring is None or not config.range_image or config.untimed_rings != "rows":
+def _untimed_rings(ring: np.ndarray, t: np.ndarray | None, config: ExtractionConfig) -> bool:
+    """Whether a scan's ``ring`` (N,) and times ``t`` (N,) s give a range image without
+    columns (no usable times) and ``untimed_rings`` asks for the rings' square-pixel
+    image."""
+    if not config.range_image or config.untimed_rings != "rows":
         return False
-    return grid_indices(scan.ring, scan.t)[1] is None
+    return grid_indices(ring, t)[1] is None
 
 
 @identity_memo
