@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from planodom.extraction.lidar.grid import ring_layout
 from planodom.median import median
 
 #: Runs shorter than this fraction of the median run join their neighbour (ring-major).
@@ -111,36 +112,30 @@ def ring_scan_rows(
     elevation: raw laser ids interleave). None when the rings are not a spinning lidar's
     scan lines: fewer than ``MIN_ROWS`` or more than ``MAX_ROWS`` of them, fewer than 100
     points, or rings that do not lie at one elevation each (``RING_SPREAD_FRACTION``)."""
-    key = np.asarray(ring, dtype=np.int64)
-    if len(points) < 100 or len(key) != len(points):
+    if len(points) < 100 or len(ring) != len(points):
         return None
-    ids, row = np.unique(key, return_inverse=True)
-    row = row.reshape(-1).astype(np.int64)
-    H = len(ids)
+    row, H, order = ring_layout(ring)
     if not MIN_ROWS <= H <= MAX_ROWS:
         return None
     rel = points if origin is None else points - np.asarray(origin, dtype=np.float64)
     r = np.linalg.norm(rel, axis=1)
     el = np.arcsin(np.clip(rel[:, 2] / np.maximum(r, 1e-9), -1.0, 1.0))
-    mid = _row_medians(row, el, H)
-    spread = 1.4826 * _row_medians(row, np.abs(el - mid[row]), H)
-    order = np.argsort(mid, kind="stable")
-    steps = np.diff(mid[order])
+    bounds = np.r_[0, np.cumsum(np.bincount(row, minlength=H))]
+    mid = _block_medians(el[order], bounds)
+    spread = 1.4826 * _block_medians(np.abs(el - mid[row])[order], bounds)
+    by_elevation = np.argsort(mid, kind="stable")
+    steps = np.diff(mid[by_elevation])
     step = median(steps) if len(steps) else 0.0
     if step <= 0.0 or median(spread) > RING_SPREAD_FRACTION * step:
         return None
     rank = np.empty(H, dtype=np.int64)
-    rank[order] = np.arange(H)
+    rank[by_elevation] = np.arange(H)
     return rank[row]
 
 
-def _row_medians(row: np.ndarray, values: np.ndarray, n_rows: int) -> np.ndarray:
-    """(n_rows,) the median of ``values`` (N,) over each row of ``row`` (N,) int64 (every
-    row in [0, n_rows) present; the upper middle value for an even count)."""
-    order = np.lexsort((values, row))
-    counts = np.bincount(row, minlength=n_rows)
-    starts = np.r_[0, np.cumsum(counts)[:-1]]
-    return values[order[starts + counts // 2]]
+def _block_medians(values: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """(B,) the median of each block ``values[bounds[k]:bounds[k + 1]]`` (none empty)."""
+    return np.array([np.median(values[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
 
 
 def scan_rows(
