@@ -305,8 +305,8 @@ class ExtractionConfig(Section):
     ransac: the RANSAC loop (the rule before). Measured on real HDL-32E sweeps (libwave's,
     docs/RESULTS.md "A second real recording"): a still sensor with people walking
     around it, rotation / translation rms per epoch 1.64 deg / 13 cm (ransac) against
-    0.22 deg / 0.6 cm (rows); a parking lot, 0.10 -> 0.58 of KISS-ICP's epochs/s in the
-    same runs, against KISS-ICP's trajectory translation 4.5 -> 1.8 cm and rotation 0.049
+    0.22 deg / 0.6 cm (rows); a parking lot, 0.10 -> 0.58-0.94 of KISS-ICP's epochs/s in
+    the same runs, against KISS-ICP's trajectory translation 4.5 -> 1.8 cm and rotation 0.049
     -> 0.084 deg rms (yaw and x less noisy than KISS-ICP's, pitch a little more)."""
     region_max_normal_error_deg: float = Field(4.0, gt=0, le=90)
     """Range image: region growing only when the median predicted pixel-normal error

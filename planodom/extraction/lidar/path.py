@@ -24,7 +24,7 @@
      recovered rows; RANSAC when the rings are not scan lines or give no plane. The
      RANSAC loop on such scans (the rule before) measured on libwave's HDL-32E sweeps
      (ring, no time): 1.64 deg and 13 cm rms per epoch on a still sensor against 0.22 deg
-     and 0.6 cm, and 0.10 against 0.58 of KISS-ICP's speed on the parking-lot sweeps;
+     and 0.6 cm, and 0.10 against 0.58-0.94 of KISS-ICP's speed on the parking-lot sweeps;
 2. a fit of each candidate: robust TLS (:func:`planodom.extraction.planes.fit.
    robust_plane_fits`, iterated 1.4826 MAD inlier selection) for the first, plain TLS of
    the members for the organised candidates (their points were already selected within
