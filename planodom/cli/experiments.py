@@ -268,7 +268,9 @@ def experiment_generalisation(
 @experiment_app.command("baselines")
 @reports_errors
 def experiment_baselines(
-    datasets: Annotated[list[Path], typer.Argument(help="Recordings with poses.tum.")],
+    datasets: Annotated[
+        list[Path], typer.Argument(help="Recordings (no poses.tum: KISS-ICP is the reference).")
+    ],
     out: ExpOut = None,
     overwrite: ExpOverwrite = False,
     wocsc: Annotated[bool, typer.Option(help="Also the paper's wocsc pipeline.")] = False,

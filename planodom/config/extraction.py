@@ -27,20 +27,18 @@ class TimeWindowConfig(Section):
     the same sweep, between which the vehicle moved at most ``motion_m``. Each wall then
     gives one plane per window; the earliest (closest to the reference time) is kept."""
     motion_m: float = Field(0.03, ge=0)
-    """Vehicle displacement assumed within one window (m): 2 m/s x 1 / 75 s = 2.7 cm.
-    Added to the member tolerance and the seed floor, and half of it to the RMS limit of a
-    plane."""
+    """Vehicle displacement assumed within one window (m): 2 m/s x 1 / 75 s = 2.7 cm. Added to the
+    member tolerance and the seed floor, and half of it to the RMS limit of a plane."""
     speed_m_s: float = Field(5.0, ge=0)
     """Two planes from different windows are one wall seen twice when their normals are
     within ``repeat_deg`` and their offsets within the member tolerance plus this speed
     (m/s) times their time difference."""
     min_windows: int = Field(3, ge=1)
-    """A wall is a plane only when it is found in at least this many windows (of the ~7
-    sweeps of a 10 Hz epoch): two lines of one sweep far apart can be coplanar by chance,
-    not in several sweeps. On the paper loop at 6 mm, 1 / 2 / 3 gave 85 / 88 / 91 %
-    precision for 5.9 / 5.8 / 5.75 good planes per epoch. The kept plane's normal and
-    offset are extrapolated to the reference time from its windows (a straight line in
-    time)."""
+    """A wall is a plane only when it is found in at least this many windows (of the ~7 sweeps of a
+    10 Hz epoch): two lines of one sweep far apart can be coplanar by chance, not in several
+    sweeps. On the paper loop at 6 mm, 1 / 2 / 3 gave 85 / 88 / 91 % precision for 5.9 / 5.8 / 5.75
+    good planes per epoch. The kept plane's normal and offset are extrapolated to the reference
+    time from its windows (a straight line in time)."""
     repeat_deg: float = Field(5.0, gt=0, le=90)
     """Normal angle (deg) within which planes of two windows may be one wall (the turn of
     the vehicle over an epoch plus the fit error of one sweep's traces)."""
@@ -100,10 +98,9 @@ class ExtractionConfig(Section):
     """A segment seeds a plane only if its direction is known to this (deg), predicted
     as sigma * sqrt(12 / N) / length (line fit of N points spread over length)."""
     min_cross_angle_deg: float = Field(10.0, gt=0, le=90)
-    """Two traces determine a plane only if they cross at least at this angle (deg); at
-    10 deg the normal's error across the traces is about 1 / sin(10 deg) = 5.8 times the
-    error along them. Traces of one ring never seed a plane (they are parallel, or lie in
-    one scan plane)."""
+    """Two traces determine a plane only if they cross at least at this angle (deg); at 10 deg the
+    normal's error across the traces is about 1 / sin(10 deg) = 5.8 times the error along them.
+    Traces of one ring never seed a plane (they are parallel, or lie in one scan plane)."""
     max_seed_normal_error_deg: float = Field(0.0, ge=0, le=90)
     """Two traces crossing below ``min_cross_angle_deg`` (down to 2 deg) still seed a
     plane when its normal is predicted to this (deg), ``(err_i + err_j) / sin(angle)``
@@ -296,6 +293,10 @@ class ExtractionConfig(Section):
     elevation modes, :mod:`planodom.extraction.lidar.rows`) and grow planes on a range
     image of square angular pixels (:mod:`planodom.extraction.lidar.organised`), RANSAC
     when no rows are found; ransac: the RANSAC loop always."""
+    untimed_rings: Literal["rows", "ransac"] = "rows"
+    """3D path, ``ring`` without usable times: rows: the rings, ordered by elevation, grow
+    planes as an unorganised cloud's rows do (RANSAC when they are no scan lines); ransac:
+    the RANSAC loop, as before (measured: planodom.extraction.lidar.path)."""
     region_max_normal_error_deg: float = Field(4.0, gt=0, le=90)
     """Range image: region growing only when the median predicted pixel-normal error
     (from sigma and the pixel spacing) is at most this (deg); else RANSAC. Walls meet the
@@ -334,9 +335,8 @@ class ExtractionConfig(Section):
     falls as 1 / (window^1.5) while pixels within it of an edge get no normal."""
     region_normal_sigmas: float = Field(3.0, ge=0)
     """Range image: two neighbouring pixels join when their normals differ by at most
-    region_normal_floor_deg plus this many predicted errors (and their points lie within
-    the member tolerance plus this many errors times their distance of each other's
-    tangent planes)."""
+    region_normal_floor_deg plus this many predicted errors (and their points lie within the member
+    tolerance plus this many errors times their distance of each other's tangent planes)."""
     region_normal_floor_deg: float = Field(2.0, ge=0, le=90)
     """Range image: angle allowance (deg) added to the predicted normal error of two
     pixels (round-off and ray-casting residue at sigma = 0)."""

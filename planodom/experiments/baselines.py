@@ -1,8 +1,8 @@
 """planodom's odometry against point-based peers on the same recordings, in one run.
 
-Per dataset (anything :func:`planodom.datasets.recording.open_recording` reads, with a
-reference trajectory), every scan is read once into memory (reading is excluded from the
-timings), then each method runs over the same scans:
+Per dataset (anything :func:`planodom.datasets.recording.open_recording` reads), every
+scan is read once into memory (reading is excluded from the timings), then each method
+runs over the same scans:
 
 - ``planodom``: :func:`planodom.odometry.run_odometry` with the given config (default
   pipeline); ``planodom-wocsc``: the same with the paper's ``"wocsc"`` pipeline (optional);
@@ -14,14 +14,21 @@ timings), then each method runs over the same scans:
 
 For each: per-scan rotation and translation error rms and p95 (the error of
 ``inv(T_ref_rel) @ T_est_rel`` per consecutive pair), horizontal drift (final position
-error over the distance travelled), bad epochs (planodom: unresolved or degenerate) and
-gross errors (over 1 deg or 20 cm, every method), epochs per second, and the resident
-memory at the start (planodom: after a tenth of the epochs, its compiled kernels loaded)
-and end of the method's run (flat memory; the scans in memory are part of it). Options
+error over the distance travelled; NaN for a reference that does not move, a still
+sensor) and the final horizontal position error itself, bad epochs (planodom:
+unresolved or degenerate) and gross errors (over 1 deg or 20 cm, every method), epochs
+per second, and the resident memory at the start (planodom: after a tenth of the epochs,
+its compiled kernels loaded) and end of the method's run (flat memory; the scans in
+memory are part of it). Options
 for large-motion checks: ``step`` (every k-th scan), ``turn_deg`` (every scan turned a
 further angle about the base z axis, or alternately +angle / 0 with ``alternate``).
 Writes ``baselines.md``, ``baselines.csv`` and ``trajectories.png`` (top views of all
 trajectories). planodom's compiled kernels are loaded before its timing starts.
+
+The reference is the recording's ``poses.tum`` (or the bag's reference topic); a recording
+without one is compared against KISS-ICP's trajectory instead, a proxy with its own
+errors (the table's note says so; without KISS-ICP installed such a recording is
+refused).
 """
 
 from __future__ import annotations
@@ -35,6 +42,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanodomConfig
+from planodom.errors import DatasetError
 from planodom.experiments.plots import plot_panels
 from planodom.experiments.tables import ExperimentResult, markdown_table, write_tables
 from planodom.geometry import invert_transform
@@ -52,7 +60,7 @@ class Scans:
 
     name: str
     scans: list[Scan]
-    poses: np.ndarray
+    poses: np.ndarray | None
     times: np.ndarray
     rig: object
 
@@ -82,17 +90,15 @@ def rss_mb() -> float:
 
 
 def load_scans(path: Path, limit: int | None, step: int, turn_deg: float, alternate: bool) -> Scans:
-    """The dataset's scans (every ``step``-th, at most ``limit`` read) and reference,
-    optionally turned about z by ``k * turn_deg`` (or ``(k % 2) * turn_deg``)."""
+    """The dataset's scans (every ``step``-th, at most ``limit`` read) and reference (None
+    without one), optionally turned about z by ``k * turn_deg`` (or ``(k % 2) *
+    turn_deg``)."""
     from planodom.datasets.recording import open_recording
-    from planodom.errors import DatasetError
 
     ds = open_recording(path)
-    if ds.gt_poses is None:
-        raise DatasetError(f"{path}: no reference trajectory (poses.tum) to compare with")
     n = len(ds) if limit is None else min(limit, len(ds))
     index = list(range(0, n, step))
-    poses = np.asarray(ds.gt_poses)[index]
+    poses = None if ds.gt_poses is None else np.asarray(ds.gt_poses)[index]
     scans = [ds[k] for k in index]
     times = np.asarray(ds.times)[index]
     if turn_deg:
@@ -104,7 +110,7 @@ def load_scans(path: Path, limit: int | None, step: int, turn_deg: float, altern
         if origins is not None and np.abs(origins[:, :2]).max() > 1e-9:
             raise DatasetError(f"{path}: --turn needs a sensor above the base origin")
         scans = [Scan(s.points @ A[i, :3, :3], s.ring, s.t, s.label) for i, s in enumerate(scans)]
-        poses = poses @ A
+        poses = None if poses is None else poses @ A
     return Scans(Path(path).name, scans, poses, times, ds.rig)
 
 
@@ -185,7 +191,8 @@ def row_of(m: MethodRun, ref: np.ndarray) -> dict[str, object]:
     r, t = errors(m.relative, ref)
     est, gt = chain(m.relative), chain(ref)
     length = float(np.sum(np.linalg.norm(ref[:, :2, 3], axis=1)))
-    drift = float(np.linalg.norm(est[-1, :2, 3] - gt[-1, :2, 3])) / max(length, 1e-9)
+    end = float(np.linalg.norm(est[-1, :2, 3] - gt[-1, :2, 3]))
+    drift = end / length if length > 0 else float("nan")
     return {
         "dataset": m.dataset,
         "method": m.method,
@@ -194,6 +201,7 @@ def row_of(m: MethodRun, ref: np.ndarray) -> dict[str, object]:
         "trans_rms_cm": float(100 * np.sqrt(np.mean(t**2))),
         "trans_p95_cm": float(100 * np.percentile(t, 95)),
         "drift_pct": 100 * drift,
+        "end_cm": 100 * end,
         "bad_epochs": "-" if m.bad is None else f"{m.bad}/{len(r)}",
         "gross": f"{int(np.count_nonzero((r > GROSS_DEG) | (t > GROSS_M)))}/{len(r)}",
         "epochs_per_s": len(r) / m.seconds if m.seconds > 0 else float("nan"),
@@ -232,9 +240,15 @@ def run_baselines_experiment(
     panels = []
     for path in datasets:
         data = load_scans(Path(path), limit, step, turn_deg, alternate)
-        ref = invert_transform(data.poses[:-1]) @ data.poses[1:]
+        methods = _methods(config, wocsc)
+        if data.poses is None:  # KISS-ICP's trajectory is the reference: it runs first
+            methods.sort(key=lambda m: m[0] != "kiss-icp")
+        ref: np.ndarray | None = None
+        if data.poses is not None:
+            ref = invert_transform(data.poses[:-1]) @ data.poses[1:]
+        first = len(runs)
         tracks = []
-        for name, fn in _methods(config, wocsc):
+        for name, fn in methods:
             say(f"{data.name}: {name} on {len(data.scans)} scans")
             before = rss_mb()
             try:
@@ -246,9 +260,18 @@ def run_baselines_experiment(
             bad = result[2] if len(result) > 2 else None
             start = result[3] if len(result) > 3 else before
             m = MethodRun(data.name, name, result[0], result[1], bad, (start, rss_mb()))
+            if ref is None:
+                if name != "kiss-icp":
+                    raise DatasetError(f"{path}: no reference trajectory (poses.tum), and "
+                                       "KISS-ICP, its proxy, is not installed")  # fmt: skip
+                ref = m.relative
+                notes.append(f"{data.name}: no reference trajectory: errors against KISS-ICP's "
+                             "trajectory (a proxy, with its own errors)")  # fmt: skip
             runs.append(m)
-            rows.append(row_of(m, ref))
             tracks.append((name, chain(m.relative), COLOURS.get(name)))
+        if ref is None:
+            raise DatasetError(f"{path}: no reference trajectory (poses.tum) and no method ran")
+        rows.extend(row_of(m, ref) for m in runs[first:])
         panels.append((data.name, chain(ref)[:, :3, 3], tracks))
     text = markdown_table(rows) + "".join(f"\n{n}\n" for n in sorted(set(notes)))
     files = write_tables(out, {"baselines": rows}, {"baselines": lambda _r: text})

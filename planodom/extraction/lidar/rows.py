@@ -1,4 +1,5 @@
-"""Scan lines (rows) of an unorganised spinning-lidar cloud: no ring field, no times.
+"""Scan lines (rows) of an unorganised spinning-lidar cloud: no ring field, no times; and
+of a cloud whose ring field comes without usable times (:func:`ring_scan_rows`).
 
 A cloud stored without a ring field or per-point time (most recorded PCD / PLY / KITTI
 files) still carries the structure of the sensor that made it, in one of two forms. Angles
@@ -29,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from planodom.extraction.lidar.grid import ring_layout
 from planodom.median import median
 
 #: Runs shorter than this fraction of the median run join their neighbour (ring-major).
@@ -43,6 +45,14 @@ GAP_FRACTION = 0.02
 MIN_ROWS = 4
 #: Most rows (128-beam units, with margin).
 MAX_ROWS = 512
+#: A ring field is a spinning lidar's scan lines when each ring lies at one elevation: the
+#: median over the rings of a ring's elevation spread (1.4826 MAD) is at most this
+#: fraction of the median step between the rings' median elevations. Not from data: a
+#: laser's elevation is constant up to the range noise and the laser's offset from the
+#: axis (libwave's HDL-32E sweeps, a driver's points from the lasers' calibrated angles:
+#: spread / step = 4e-7), while the lines of a non-repetitive scanner (Livox) or a tilted
+#: mount sweep through several ring steps (ratio 1 or more); a quarter separates the two.
+RING_SPREAD_FRACTION = 0.25
 
 
 def azimuth(points: np.ndarray) -> np.ndarray:
@@ -91,6 +101,41 @@ def elevation_rows(points: np.ndarray) -> np.ndarray | None:
         return None
     # Points in a gap bin join the mode below (lab is constant through a gap).
     return np.maximum(lab[b], 0).astype(np.int64)
+
+
+def ring_scan_rows(
+    points: np.ndarray, ring: np.ndarray, origin: np.ndarray | None = None
+) -> np.ndarray | None:
+    """Rows (N,) int64 of a cloud ``points`` (N, 3) (m, base frame) with a ``ring`` field
+    (N,) but no usable times, seen from ``origin`` (3,) m (default the base origin): the
+    rings ordered by their median elevation, lowest first (ring ids need not follow the
+    elevation: raw laser ids interleave). None when the rings are not a spinning lidar's
+    scan lines: fewer than ``MIN_ROWS`` or more than ``MAX_ROWS`` of them, fewer than 100
+    points, or rings that do not lie at one elevation each (``RING_SPREAD_FRACTION``)."""
+    if len(points) < 100 or len(ring) != len(points):
+        return None
+    row, H, order = ring_layout(ring)
+    if not MIN_ROWS <= H <= MAX_ROWS:
+        return None
+    rel = points if origin is None else points - np.asarray(origin, dtype=np.float64)
+    r = np.linalg.norm(rel, axis=1)
+    el = np.arcsin(np.clip(rel[:, 2] / np.maximum(r, 1e-9), -1.0, 1.0))
+    bounds = np.r_[0, np.cumsum(np.bincount(row, minlength=H))]
+    mid = _block_medians(el[order], bounds)
+    spread = 1.4826 * _block_medians(np.abs(el - mid[row])[order], bounds)
+    by_elevation = np.argsort(mid, kind="stable")
+    steps = np.diff(mid[by_elevation])
+    step = median(steps) if len(steps) else 0.0
+    if step <= 0.0 or median(spread) > RING_SPREAD_FRACTION * step:
+        return None
+    rank = np.empty(H, dtype=np.int64)
+    rank[by_elevation] = np.arange(H)
+    return rank[row]
+
+
+def _block_medians(values: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """(B,) the median of each block ``values[bounds[k]:bounds[k + 1]]`` (none empty)."""
+    return np.array([np.median(values[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
 
 
 def scan_rows(
