@@ -41,9 +41,13 @@ def relinearize_thresholds(config: SmoothingConfig) -> float | gtsam.ISAM2Thresh
     (world 32 at 2 cm, epochs 69-114), whose walls observe nothing along the travel, and
     that linearisation error alone moved the window 6-7 m along it (measured against the
     batch from the chained odometry: with the planes at 1e-5 and no marginalisation the
-    two agree). With marginalisation, relinearising the landmarks makes the marginals
-    (linearised where each landmark was) inconsistent instead: mixed, off by default
-    (docs/RESULTS.md, LAGWALL).
+    two agree). With marginalisation the threshold reaches only the landmarks no marginal
+    holds yet: gtsam's fixed-lag smoother keeps every variable of a marginal's separator
+    at its linearisation point until it leaves (iSAM2's fixed variables, first-estimate
+    Jacobians; on world 32 at 2 cm, 5-7 of the window's 7-9 landmarks), so a wall is
+    relinearised only until its first observer leaves. Mixed, off by default
+    (docs/RESULTS.md, LAGWALL; relinearising the held variables too, the marginals'
+    residuals moved to first order, measured worse or unstable: FEJLAG).
     """
     if config.relinearize_threshold_planes is None:
         return config.relinearize_threshold
