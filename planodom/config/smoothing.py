@@ -226,8 +226,7 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     relinearize_threshold: Positive = 0.01
     """iSAM2 relinearisation threshold (incremental windowed backend)."""
     relinearize_threshold_planes: Positive | None = None
-    """Its plane landmarks' own (None: the same); reaches only the landmarks in no
-    marginal's separator (gtsam holds those); 1e-5 measured mixed (RESULTS, LAGWALL, FEJLAG)."""
+    """Its landmarks' own (None: the same), for those no marginal holds; 1e-5 mixed (RESULTS)."""
     windowed_factorization: Literal["auto", "QR"] = "auto"
     """iSAM2's factorisation: "auto" Cholesky, QR from the first update Cholesky finds
     indeterminant on (rebuilt from its state); "QR" throughout (planodom.smoothing.windowed)."""
