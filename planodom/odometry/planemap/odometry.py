@@ -4,7 +4,7 @@ Per scan (:meth:`PlaneMapOdometry.estimate`, then :meth:`PlaneMapOdometry.commit
 estimate kept; estimating does not change the state, so an epoch may be extracted again
 with another twist and estimated again):
 
-1. prediction: constant velocity (the last relative motion);
+1. prediction: constant velocity (the last relative motion; ``planemap.degenerate_velocity``);
 2. registration of the scan's plane moments against the map from the prediction, with
    gates from the model's past deviations (:func:`.register.register`);
 3. when that is suspicious (the first pair; fewer than ``min_inliers`` inlier planes or
@@ -19,13 +19,13 @@ with another twist and estimated again):
 4. the 6x6 information gives the covariance; rotation directions with a 1-sigma above
    ``unobserved_rotation_deg`` make the epoch UNRESOLVED (the prediction is kept) when
    all are, else take the prediction's rotation about them (``rotation_partly_observed``,
-   ``planemap.partial_rotation``); a
-   translation direction above ``unobserved_translation_m`` DEGENERATE (the prediction is
-   kept along it, with its uncertainty: ``planemap.degenerate_translation``); a step
-   beyond the run's motion bounds is marked (``beyond_bounds``) and, with
-   ``planemap.motion_bound_gate``, made UNRESOLVED and ``inconsistent`` (bridged by
-   constant velocity) by :meth:`PlaneMapOdometry.judged`, once the epoch's final estimate
-   is chosen (not each extraction tried: the streaming odometry corrects wrong attempts);
+   ``planemap.partial_rotation``); a translation direction above ``unobserved_translation_m``
+   DEGENERATE (the prediction is kept along it, with its uncertainty:
+   ``planemap.degenerate_translation``); a step beyond the run's motion bounds is marked
+   (``beyond_bounds``) and, with ``planemap.motion_bound_gate``, made UNRESOLVED and
+   ``inconsistent`` (bridged by constant velocity) by :meth:`PlaneMapOdometry.judged`,
+   once the epoch's final estimate is chosen (not each extraction tried: the streaming
+   odometry corrects wrong attempts);
 5. the map is updated (:func:`.landmarks.update_map`); after a detected failure (an
    unresolved epoch whose scan had enough planes) it is rebuilt from the current scan.
 
@@ -396,7 +396,7 @@ class PlaneMapOdometry:
             est.against[0] is not self.map or est.against[1] != self.frame
         ):
             est = self.judged(self._estimate(est.used, est.cur, est.plane_set, est.deskew))
-        first = self.frame < 0
+        first, pm = self.frame < 0, self.config.planemap
         self.frame += 1
         T = _orthonormalised(est.T)
         if not first:
@@ -409,7 +409,8 @@ class PlaneMapOdometry:
             self._dev_n += [1, counted]
             rotvec = rotation_vectors(dev[None, :3, :3])[0]
             self._dev_axes += np.r_[rotvec**2, counted * dev[:3, 3] ** 2]
-            self.velocity = _orthonormalised(invert_transform(self.pose) @ T)
+            if est.relative.status is not Status.DEGENERATE or pm.degenerate_velocity == "step":
+                self.velocity = _orthonormalised(invert_transform(self.pose) @ T)
         self.pose = T
         self._prev = est.plane_set
         unresolved = est.relative.status is Status.UNRESOLVED
@@ -417,7 +418,6 @@ class PlaneMapOdometry:
         cur = est.cur
         if cur is None:
             return
-        pm = self.config.planemap
         assoc, w = np.full(len(cur), -1), np.zeros(len(cur))
         measured = est.relative.status is not Status.UNRESOLVED
         if measured and est.reg is not None:
