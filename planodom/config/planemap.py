@@ -287,15 +287,13 @@ class PlanemapConfig(Section):
     VLP-16 corridor walk: 6.4 m in one epoch, 13 sigma off the prediction, where
     KISS-ICP moves 0.5 m); ``registration``: where Gauss-Newton ended (before issue 11).
     A rule of the estimator (the status's meaning), not tuned: OK epochs are unchanged."""
-    degenerate_velocity: Literal["kept", "step"] = "kept"
+    degenerate_velocity: Literal["kept", "step"] = "step"
     """The constant velocity after a degenerate epoch (the next prediction, and the bridge
-    of an unresolved epoch): ``kept``, the last one not measured by a degenerate epoch
-    (fewer planes: its rotation is the least certain of the measured ones, and bridging
-    repeats it every unresolved epoch); ``step``, the degenerate epoch's own step (before).
-    The still libwave garage (walkers occluding 35-50% of a sweep leave 2-6 planes):
-    a degenerate 0.48 deg step repeated over three bridged epochs gave the run's worst
-    epochs. A rule of the model, not tuned (see docs/RESULTS.md, "A second real
-    recording")."""
+    of an unresolved epoch): ``step``, the degenerate epoch's own step; ``kept``, the last
+    one not measured by a degenerate epoch (its rotation rests on the fewest planes, and
+    bridging repeats it). ``kept`` is better on the still libwave garage (rotation rms
+    0.217 -> 0.148 deg) but mixed on the hand-held lidar worlds, so off (docs/RESULTS.md,
+    "A second real recording")."""
     kept_pose: Literal["registration", "reported"] = "reported"
     """The world pose an epoch keeps (its map update, the next prediction and twist) when
     its relative pose took part of itself from the prediction (an unobserved vertical
