@@ -65,3 +65,24 @@ def run_drift(
     var_xy = 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
     floor_r = np.radians(config.association.prior_rotation_deg) / c.loop_sigmas
     return np.diag([var_r + floor_r**2, var_xy, var_xy])
+
+
+def run_drift_xy(
+    travelled: np.ndarray,
+    variances: np.ndarray,
+    spans: Sequence[tuple[np.ndarray, np.ndarray]],
+    config: PlanodomConfig,
+) -> np.ndarray:
+    """(N,) the per-axis xy variance (:func:`run_drift`'s ``[1, 1]``, m^2) of N span sets at
+    once: ``spans`` (a, b) pairs of (N,) int epoch arrays, ``travelled`` (E,) and
+    ``variances`` (E, 2) as for :func:`run_drift`. The same operations in the same order,
+    elementwise; the square may round differently from ``run_drift``'s scalar power by an
+    ulp (:func:`planodom.smoothing.loop_gate._sharpest` re-ranks its near-ties exactly)."""
+    c = config.smoothing
+    travelled, variances = np.asarray(travelled), np.asarray(variances)
+    distance = var_t = var_r = np.zeros(len(spans[0][0]))
+    for a, b in spans:
+        distance = distance + np.abs(travelled[b] - travelled[a])
+        var_t = var_t + np.abs(variances[b, 0] - variances[a, 0])
+        var_r = var_r + np.abs(variances[b, 1] - variances[a, 1])
+    return 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
