@@ -55,7 +55,7 @@ from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.smoothing.graph import GraphUpdate, X
-from planodom.smoothing.loop_drift import RunWalk, run_drift, run_drift_xy
+from planodom.smoothing.loop_drift import RunWalk, run_drift
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch
 from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
 from planodom.smoothing.match_fit import (
@@ -157,15 +157,6 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             return self._drift_covariance(spans, c.loop_candidate_drift == "stated")
         travelled, variances, _ = self._history()
         return run_drift(travelled, variances, spans, self.full_config)
-
-    def _candidate_drift_xy(self, spans: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray | None:
-        """(N,) :meth:`_candidate_drift`'s xy variance (m^2) over N span sets at once
-        (``spans``: (a, b) pairs of (N,) epoch arrays, :func:`.run_drift_xy`) with
-        ``loop_candidate_drift`` "run"; None otherwise."""
-        if self.config.loop_candidate_drift != "run":
-            return None
-        travelled, variances, _ = self._history()
-        return run_drift_xy(travelled, variances, spans, self.full_config)
 
     def _drift_covariance(
         self, spans: list[tuple[int, int]], stated: bool = False, run: bool = False

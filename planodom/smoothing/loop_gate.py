@@ -8,6 +8,7 @@ import gtsam
 import numpy as np
 from scipy.stats import chi2
 
+from planodom.smoothing.loop_drift import run_drift_xy
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch, Reidentification
 
 #: Branches the maximum-weight clique search may open before it keeps the best clique found
@@ -133,18 +134,21 @@ def _sharpest(
     ``loop_candidate_drift``) is least."""
     drift = builder._candidate_drift  # type: ignore[attr-defined]
     pairs = None
-    fast = getattr(builder, "_candidate_drift_xy", None)
-    if fast is not None and len(loops) * len(matches) > 1:
-        # all pairs at once (loop i, match j at i * m + j), then the near-ties (the vectorised
-        # square may differ by an ulp) ranked by the exact key below, in their order: the
-        # same pair as without (a third of the 2 000-epoch batch with loops' time in cProfile)
+    history = getattr(builder, "_history", None)
+    run = history is not None and builder.config.loop_candidate_drift == "run"  # type: ignore[attr-defined]
+    if run and len(loops) * len(matches) > 1:
+        # all pairs at once (loop i, match j at i * m + j; the drift's xy variance,
+        # :func:`.loop_drift.run_drift_xy`), then the near-ties (the vectorised square may
+        # differ by an ulp) ranked by the exact key below, in their order: the same pair as
+        # without (a third of the 2 000-epoch batch with loops' time in cProfile)
         la = np.array([(a.epoch, a.old) for a in loops]).repeat(len(matches), axis=0)
         mb = np.tile(np.array([(b.epoch, b.old) for b in matches]), (len(loops), 1))
-        xy = fast([(la[:, 0], mb[:, 0]), (la[:, 1], mb[:, 1])])
-        if xy is not None:
-            near = np.flatnonzero(xy <= float(xy.min()) * (1 + 1e-9))
-            m = len(matches)
-            pairs = [(loops[i // m], matches[i % m]) for i in near] or None  # (none: NaN)
+        travelled, variances, _ = history()  # type: ignore[misc]
+        spans = [(la[:, 0], mb[:, 0]), (la[:, 1], mb[:, 1])]
+        xy = run_drift_xy(travelled, variances, spans, builder.full_config)  # type: ignore[attr-defined]
+        near = np.flatnonzero(xy <= float(xy.min()) * (1 + 1e-9))
+        m = len(matches)
+        pairs = [(loops[i // m], matches[i % m]) for i in near] or None  # (none: NaN)
     return min(
         pairs or ((a, b) for a in loops for b in matches),
         key=lambda p: float(drift([(p[0].epoch, p[1].epoch), (p[0].old, p[1].old)])[1, 1]),
