@@ -43,7 +43,7 @@ from planodom.extraction.kernels import add_outer
 from planodom.extraction.lidar.clusters import cluster_cells, column_buckets
 from planodom.extraction.lidar.grid import plane_members, ring_layout
 from planodom.extraction.lidar.rangeimage import range_image_candidates
-from planodom.extraction.lidar.ransac import draw_samples, log_fail, segment_drawn
+from planodom.extraction.lidar.ransac import draw_stream, log_fail, seed_stream, segment_drawn
 from planodom.extraction.noise import effective_noise, member_tolerance
 from planodom.median import median
 
@@ -269,8 +269,6 @@ def ransac_candidates(
     cells = angular_cells(points, view, config.cluster_gap_deg)
     vox_az, pt_az = vox_cells[:, 0] % n_az, cells[:, 0] % n_az
     pt_el, vox_el = np.ascontiguousarray(cells[:, 1]), np.ascontiguousarray(vox_cells[:, 1])
-    remaining = np.ones(len(vox), dtype=bool)
-    taken = np.zeros(len(points), dtype=bool)
     min_vox = max(3, config.min_plane_points // 4)
     # Our own RANSAC (.ransac), not open3d's segment_plane: that one gives different
     # planes in two processes despite o3d.utility.random.seed and one thread
@@ -278,22 +276,73 @@ def ransac_candidates(
     # planes.
     # the points and voxels of each azimuth cell (ascending)
     vox_col, pt_col = plane_members(vox_az, n_az), plane_members(pt_az, n_az)
-    rng = np.random.default_rng(config.seed)
     fail = log_fail(config.ransac_probability)
-    out: list[np.ndarray] = []
-    n_rem = len(vox)
-    for _ in range(config.max_planes):
+    # The draws of one np.random.default_rng(config.seed) per scan, made in the compiled
+    # loop from that generator's outputs (bit for bit Generator.integers' draws,
+    # .ransac.draw_stream); a longer stream in the (never seen) case that rejections
+    # exhaust the margin.
+    n_words = (3 * config.max_planes * config.ransac_iterations) // 2 + 1024
+    while True:
+        cand, bounds, done = _ransac_loop(
+            points, vox, float(tol), fail, min_vox, int(config.min_plane_points), n_az,
+            int(config.max_planes), int(config.ransac_iterations),
+            seed_stream(config.seed, n_words), vox_az, vox_el, pt_az, pt_el, *vox_col, *pt_col,
+        )  # fmt: skip
+        if done:
+            return [cand[bounds[k] : bounds[k + 1]] for k in range(len(bounds) - 1)]
+        n_words *= 2
+
+
+@numba.njit(cache=True)
+def _ransac_loop(  # noqa: PLR0913 - the scan's arrays, flat for numba
+    points,
+    vox,
+    tol,
+    fail,
+    min_vox,
+    min_points,
+    n_az,
+    max_planes,
+    iterations,
+    words,
+    vox_az,
+    vox_el,
+    pt_az,
+    pt_el,
+    vox_col,
+    vox_col_b,
+    pt_col,
+    pt_col_b,
+):  # pragma: no cover - compiled
+    """Steps 2 to 4 of the module docstring: up to ``max_planes`` calls of
+    :func:`_ransac_plane`, each with ``iterations`` draws from the generator whose outputs
+    are ``words`` (:func:`.ransac.draw_stream`, from its first output on), in one compiled
+    call per scan (a Python loop cost ~0.1 ms a plane in draws and calls). Returns the
+    candidates (indices, bounds) and False when ``words`` ran out (no result)."""
+    remaining = np.ones(vox.shape[0], dtype=np.bool_)
+    taken = np.zeros(points.shape[0], dtype=np.bool_)
+    state = np.zeros(3, dtype=np.int64)
+    out = np.empty(points.shape[0], dtype=np.int64)  # a point joins one candidate at most
+    bounds = [0]
+    k = 0
+    n_rem = vox.shape[0]
+    for _ in range(max_planes):
         if n_rem < min_vox:
             break
-        samples = draw_samples(rng, n_rem, config.ransac_iterations)
-        n_rem, cand, bounds = _ransac_plane(
-            points, vox, float(tol), fail, min_vox, int(config.min_plane_points), n_az,
-            samples, vox_az, vox_el, pt_az, pt_el, remaining, taken, *vox_col, *pt_col,
+        samples = draw_stream(words, state, n_rem, iterations)
+        if state[2]:
+            return out[:0], np.zeros(1, dtype=np.int64), False
+        n_rem, cand, cb = _ransac_plane(
+            points, vox, tol, fail, min_vox, min_points, n_az, samples, vox_az, vox_el,
+            pt_az, pt_el, remaining, taken, vox_col, vox_col_b, pt_col, pt_col_b,
         )  # fmt: skip
         if n_rem < 0:
             break
-        out.extend(cand[bounds[k] : bounds[k + 1]] for k in range(len(bounds) - 1))
-    return out
+        out[k : k + cand.shape[0]] = cand
+        for j in range(1, cb.shape[0]):
+            bounds.append(k + cb[j])
+        k += cand.shape[0]
+    return out[:k], np.array(bounds), True
 
 
 @numba.njit(cache=True)

@@ -28,6 +28,8 @@ it could not have won), which with the compiled, vectorised count makes a 10 000
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
@@ -45,6 +47,68 @@ def draw_samples(rng: np.random.Generator, m: int, n: int) -> np.ndarray:
     """(n, 3) int64: the raw draws of :func:`sample_triples`, column k uniform in
     [0, m - k) (m >= 3); made distinct by :func:`distinct_triples`."""
     return rng.integers(0, [m, m - 1, m - 2], size=(n, 3), dtype=np.int64)
+
+
+def seed_stream(seed: int, n_words: int) -> np.ndarray:
+    """(n_words,) uint64: the first outputs of the bit generator of
+    ``np.random.default_rng(seed)`` (read-only, memoised), which :func:`draw_stream`
+    turns into the very draws :func:`draw_samples` makes from such a generator."""
+    return _seed_stream(int(seed), int(n_words))
+
+
+@functools.lru_cache(maxsize=4)
+def _seed_stream(seed: int, n_words: int) -> np.ndarray:
+    words = np.random.default_rng(seed).bit_generator.random_raw(n_words)
+    words.flags.writeable = False
+    return words
+
+
+@numba.njit(cache=True)
+def _next_uint32(words, state):  # pragma: no cover - compiled
+    """numpy's ``next_uint32`` of a PCG64 generator over its 64-bit outputs ``words``:
+    the low half of a new word, then its high half. ``state`` (3,) int64: the next word,
+    whether a high half is pending, and set to 1 once ``words`` runs out (0 returned)."""
+    if state[1]:
+        state[1] = 0
+        return (words[state[0] - 1] >> np.uint64(32)) & np.uint64(0xFFFFFFFF)
+    if state[0] >= words.shape[0]:
+        state[2] = 1
+        return np.uint64(0)
+    word = words[state[0]]
+    state[0] += 1
+    state[1] = 1
+    return word & np.uint64(0xFFFFFFFF)
+
+
+@numba.njit(cache=True)
+def _bounded(words, state, high):  # pragma: no cover - compiled
+    """An integer uniform in [0, ``high``) (1 <= high < 2^32) as numpy's
+    ``Generator.integers`` draws it (``random_bounded_uint64``: no draw when ``high`` is
+    1, else Lemire's multiply-and-reject on 32-bit draws, ``buffered_bounded_lemire_uint32``)."""
+    if high == 1:
+        return 0
+    excl = np.uint64(high)
+    m = _next_uint32(words, state) * excl
+    leftover = m & np.uint64(0xFFFFFFFF)
+    if leftover < excl:
+        threshold = (np.uint64(0xFFFFFFFF) - (excl - np.uint64(1))) % excl
+        while leftover < threshold and state[2] == 0:
+            m = _next_uint32(words, state) * excl
+            leftover = m & np.uint64(0xFFFFFFFF)
+    return np.int64(m >> np.uint64(32))
+
+
+@numba.njit(cache=True)
+def draw_stream(words, state, m, n):  # pragma: no cover - compiled
+    """(n, 3) int64: :func:`draw_samples` ``(rng, m, n)`` (m >= 3) from the generator
+    whose outputs are ``words`` (:func:`seed_stream`), at ``state`` (:func:`_next_uint32`,
+    advanced as the generator would be); compiled, so that the RANSAC loop draws without
+    leaving it (bit for bit numpy's draws: tests/extraction/test_lidar.py)."""
+    out = np.empty((n, 3), dtype=np.int64)
+    for r in range(n):
+        for k in range(3):
+            out[r, k] = _bounded(words, state, m - k)
+    return out
 
 
 @numba.njit(cache=True)
