@@ -18,10 +18,11 @@
    earlier plane; these points are the candidate inlier set (the caller refits it
    robustly). Voxel points that the refit plane explains are not searched again.
 
-Steps 2 to 4 run compiled (numba, :func:`_ransac_plane`), one call per RANSAC plane (only
-the samples are drawn in Python, numpy's ``Generator.integers``): sparse lidars give many
-small planes and clusters, and the dozen numpy and numba calls per plane cost more than
-their work (an indoor 16-beam scan at 2 cm: ~18 planes, ~40 clusters).
+Steps 2 to 4 run compiled (numba, :func:`_ransac_loop`), one call per scan, the samples
+included: numpy's ``Generator.integers`` draws, made bit for bit from the seed's PCG64
+outputs (:func:`.ransac.draw_stream`). Sparse lidars give many small planes and clusters,
+and the dozen numpy and numba calls per plane, then a draw and a call per plane, cost
+more than their work (an indoor 16-beam scan at 2 cm: ~18 planes, ~40 clusters).
 
 With rings (and ``range_image``) the candidates come from region growing on the range
 image instead (:mod:`.rangeimage`); the loop above is its fallback.
