@@ -79,7 +79,9 @@ def _python_loop(points, config, view, tol):
     return out
 
 
-@pytest.mark.parametrize(("sigma", "seed", "max_planes"), [(0.0, 0, 40), (0.02, 7, 40), (0.02, 1, 3)])
+@pytest.mark.parametrize(
+    ("sigma", "seed", "max_planes"), [(0.0, 0, 40), (0.02, 7, 40), (0.02, 1, 3)]
+)
 def test_compiled_loop_gives_the_python_loops_candidates(sigma, seed, max_planes):
     scan = scan_lidar(default_scene(), sigma=sigma, seed=seed, n_beams=16, n_azimuth=512)
     config = ExtractionConfig(seed=seed, max_planes=max_planes)
