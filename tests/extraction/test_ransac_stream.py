@@ -92,3 +92,24 @@ def test_compiled_loop_gives_the_python_loops_candidates(sigma, seed, max_planes
     assert len(got) == len(want)
     for a, b in zip(got, want, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_compiled_loop_starts_again_with_a_longer_stream(monkeypatch):
+    """A stream too short for the scan's draws: the loop runs the scan again with one
+    twice as long until it suffices, with the same candidates."""
+    scan = scan_lidar(default_scene(), sigma=0.02, seed=3, n_beams=16, n_azimuth=512)
+    config = ExtractionConfig(seed=3)
+    view = np.array([0.0, 0.0, 1.8])
+    asked = []
+
+    def short(seed, n_words):
+        asked.append(n_words)
+        return seed_stream(seed, max(n_words // 64, 1))
+
+    monkeypatch.setattr(cmod, "seed_stream", short)
+    got = cmod.ransac_candidates(scan.points, config, view, 0.05)
+    assert len(asked) > 1 and asked[1] == 2 * asked[0]
+    want = _python_loop(scan.points, config, view, 0.05)
+    assert len(got) == len(want) >= 4
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_array_equal(a, b)

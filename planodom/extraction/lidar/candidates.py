@@ -280,9 +280,10 @@ def ransac_candidates(
     fail = log_fail(config.ransac_probability)
     # The draws of one np.random.default_rng(config.seed) per scan, made in the compiled
     # loop from that generator's outputs (bit for bit Generator.integers' draws,
-    # .ransac.draw_stream); a longer stream in the (never seen) case that rejections
-    # exhaust the margin.
-    n_words = (3 * config.max_planes * config.ransac_iterations) // 2 + 1024
+    # .ransac.draw_stream): every draw the planes can take, and a margin for Lemire's
+    # rejections, at most 2^20 words (8 MB) to begin with; the scan again with a stream
+    # twice as long when it runs out.
+    n_words = min((3 * config.max_planes * config.ransac_iterations) // 2 + 1024, 1 << 20)
     while True:
         cand, bounds, done = _ransac_loop(
             points, vox, float(tol), fail, min_vox, int(config.min_plane_points), n_az,
@@ -339,6 +340,10 @@ def _ransac_loop(  # noqa: PLR0913 - the scan's arrays, flat for numba
         )  # fmt: skip
         if n_rem < 0:
             break
+        if k + cand.shape[0] > out.shape[0]:  # not expected: taken points join no other
+            grown = np.empty(2 * (k + cand.shape[0]), dtype=np.int64)
+            grown[:k] = out[:k]
+            out = grown
         out[k : k + cand.shape[0]] = cand
         for j in range(1, cb.shape[0]):
             bounds.append(k + cb[j])
