@@ -13,6 +13,7 @@ import yaml
 
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
+from planodom.datasets.scan_names import name_times
 from planodom.datasets.scan_time_units import scan_time_unit
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
@@ -146,8 +147,9 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     compared as numbers (``2.bin`` before ``10.bin``); hidden files are skipped. ``poses.tum``
     and ``rig.yaml`` are looked for in ``path``.
 
-    Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else
-    ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else
+    Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else from the
+    file names when they are the clouds' Unix stamps (:mod:`planodom.datasets.scan_names`,
+    noted), else ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else
     ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s). ``bin_layout`` tells how ``.bin`` scans are read
     (:mod:`planodom.datasets.bin_scan`), ``time_field`` which field holds the point times
     (``auto``, ``none`` or a name, :func:`planodom.datasets.scan_io.read_scan`); integer
@@ -168,6 +170,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     scan_files = _scan_files(root)
     rig = read_rig(root / RIG_FILE) if (root / RIG_FILE).exists() else Rig()
     gt_poses = None
+    name_note = None
     if (root / POSES_FILE).exists():
         times, gt_poses = read_tum(root / POSES_FILE)
         if len(times) != len(scan_files):
@@ -178,13 +181,17 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     elif (root / TIMES_FILE).exists():
         times = read_times(root / TIMES_FILE, len(scan_files))
     else:
-        _check_numbering(scan_files)
-        times = epoch_times(len(scan_files), rig)
+        named, name_note = name_times(scan_files)
+        if named is None:
+            _check_numbering(scan_files)
+        times = epoch_times(len(scan_files), rig) if named is None else named
     ds = Dataset(root, scan_files, times, gt_poses, rig, bin_layout, time_field)
     unit = scan_time_unit(scan_files, times, time_field)
     if unit is not None:
         ds.time_scale = unit.scale
         ds.notes = [f"{root}: {unit.note}"] if unit.note else []
+    if name_note:
+        ds.notes.append(f"{scan_files[0].parent}: {name_note}")
     return ds
 
 
