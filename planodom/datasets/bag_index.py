@@ -40,8 +40,8 @@ from planodom.datasets.bag_msgs import (
     sweep_times,
     tagged_noise,
 )
-from planodom.datasets.bag_rings import ring_counts, stray_span
 from planodom.datasets.bag_paths import broken_part
+from planodom.datasets.bag_rings import ring_counts, stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit
 from planodom.errors import DatasetError
