@@ -176,7 +176,8 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
         if len(times) != len(scan_files):
             raise DatasetError(
                 f"{root / POSES_FILE}: {len(times)} poses for {len(scan_files)} scan files "
-                f"in {scan_files[0].parent}"
+                f"in {scan_files[0].parent} (it holds the reference pose of each scan; a "
+                "reference at its own rate is compared with `planodom eval` after the run)"
             )
     elif (root / TIMES_FILE).exists():
         times = read_times(root / TIMES_FILE, len(scan_files))

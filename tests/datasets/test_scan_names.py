@@ -72,3 +72,16 @@ def test_names_read_two_ways_or_with_two_prefixes_are_not_read(tmp_path: Path) -
     assert ds.notes == []
     _directory(tmp_path / "c", lambda ns: f"{ns // 10**6:09d}_{ns % 10**6}.pcd")  # not Unix
     assert load_dataset(tmp_path / "c").notes == []
+
+
+def test_a_reference_at_its_own_rate_in_poses_tum_says_what_to_do(tmp_path: Path) -> None:
+    """A 100 Hz reference put beside 6 clouds as poses.tum: refused, and the error said
+    only the counts; it says now that `planodom eval` compares such a reference."""
+    from planodom.datasets import write_tum
+    from planodom.errors import DatasetError
+
+    _directory(tmp_path / "clouds", NAMES["ros1"])
+    times = SEC + np.arange(70) * 0.01
+    write_tum(tmp_path / "clouds" / "poses.tum", times, np.tile(np.eye(4), (70, 1, 1)))
+    with pytest.raises(DatasetError, match=r"70 poses for 6 scan files .* `planodom eval`"):
+        load_dataset(tmp_path / "clouds")
