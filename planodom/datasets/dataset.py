@@ -13,7 +13,7 @@ import yaml
 
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
-from planodom.datasets.scan_names import name_times
+from planodom.datasets.scan_names import kitti_raw_times, name_times
 from planodom.datasets.scan_time_units import scan_time_unit
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
@@ -182,7 +182,9 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     elif (root / TIMES_FILE).exists():
         times = read_times(root / TIMES_FILE, len(scan_files))
     else:
-        named, name_note = name_times(scan_files)
+        named, name_note = kitti_raw_times(scan_files)
+        if named is None:
+            named, name_note = name_times(scan_files)
         if named is None:
             _check_numbering(scan_files)
         times = epoch_times(len(scan_files), rig) if named is None else named
@@ -430,9 +432,11 @@ def _scan_files(root: Path) -> list[Path]:
     if unknown:
         more = f" and {len(unknown) - 5} more" if len(unknown) > 5 else ""
         shown = ", ".join(unknown[:5]) + more
+        raw = (root / "data").is_dir() and "timestamps.txt" in unknown
         raise DatasetError(
             f"{files[0].parent}: files with unknown extensions: {shown} "
             f"(scan files are {', '.join(SCAN_EXTENSIONS)})"
+            + (f"; a KITTI raw folder: give its scans, {root / 'data'}" if raw else "")
         )
     suffixes = sorted({f.suffix.lower() for f in files})
     if len(suffixes) > 1:

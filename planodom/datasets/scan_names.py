@@ -1,4 +1,5 @@
-"""Epoch times from scan file names that are the clouds' stamps.
+"""Epoch times the scan files carry: their names, when those are the clouds' stamps, or
+KITTI raw's ``timestamps.txt`` beside their ``data/`` folder (:func:`kitti_raw_times`).
 
 Tools that save a bag's clouds as files name each by its header stamp: ROS 1 ``pcl_ros``
 (``bag_to_pcd``, ``pointcloud_to_pcd``) as ``SEC.NSEC.pcd`` (nanoseconds padded to nine
@@ -15,6 +16,7 @@ unpadded nanoseconds (``.25`` = 25 ns), which differ; the note says so.
 
 from __future__ import annotations
 
+import calendar
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -22,6 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from planodom.datasets.scan_io import UNIX_TIME_RANGE_S
+from planodom.errors import DatasetError
+
+#: A line of KITTI raw's ``timestamps.txt``: ``2011-09-26 13:02:25.964389445``.
+_KITTI_RAW_LINE = re.compile(r"(\d{4})-(\d{2})-(\d{2}) (\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,9}))?")
 
 #: ``PREFIX SEC . FRACTION``: decimal seconds (nanoseconds when padded to nine digits).
 _DECIMAL = re.compile(r"(?P<prefix>(?:.*\D)?)(?P<sec>\d{9,10})\.(?P<frac>\d{1,9})")
@@ -73,3 +79,45 @@ def name_times(files: Sequence[Path]) -> tuple[np.ndarray | None, str | None]:
             f"s median, {steps.max():.3f} s largest)"
         )
     return None, None
+
+
+def kitti_raw_times(files: Sequence[Path]) -> tuple[np.ndarray | None, str | None]:
+    """Epoch times (E,) float64 s from KITTI raw's ``timestamps.txt`` beside the ``data/``
+    folder of ``files`` (``velodyne_points/data/0000000000.bin``, ...: one line
+    ``YYYY-MM-DD HH:MM:SS.NNNNNNNNN`` a scan, read as UTC), and a note; ``(None, None)``
+    for other folders.
+
+    Raises:
+        DatasetError: naming ``timestamps.txt`` (and the line) for a line that is no such
+            time, a count other than the scans', or times that do not increase.
+    """
+    folder = files[0].parent if files else None
+    if folder is None or folder.name != "data" or not (folder.parent / "timestamps.txt").is_file():
+        return None, None
+    path = folder.parent / "timestamps.txt"
+    ns = []
+    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        if not line.strip():
+            continue
+        found = _KITTI_RAW_LINE.fullmatch(line.strip())
+        if found is None:
+            raise DatasetError(
+                f"{path}:{number}: expected a time 'YYYY-MM-DD HH:MM:SS.NNNNNNNNN', got {line!r}"
+            )
+        *fields, frac = found.groups()
+        whole = calendar.timegm(tuple(int(f) for f in fields) + (0, 0, 0))
+        ns.append(whole * 10**9 + int((frac or "0").ljust(9, "0")))
+    if len(ns) != len(files):
+        raise DatasetError(f"{path}: {len(ns)} times for {len(files)} scan files in {folder}")
+    stamps = np.array(ns, dtype=np.int64)
+    if np.any(np.diff(stamps) <= 0):
+        k = int(np.flatnonzero(np.diff(stamps) <= 0)[0]) + 1
+        raise DatasetError(f"{path}: times must increase (scan {k} is not after scan {k - 1})")
+    times = stamps.astype(np.float64) / 1e9
+    steps = np.diff(times)
+    largest = (
+        f", steps {np.median(steps):.3f} s median, {steps.max():.3f} s largest"
+        if len(steps)
+        else ""
+    )
+    return times, f"epoch times from KITTI raw's {path} (read as UTC{largest})"

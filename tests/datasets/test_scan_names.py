@@ -85,3 +85,46 @@ def test_a_reference_at_its_own_rate_in_poses_tum_says_what_to_do(tmp_path: Path
     write_tum(tmp_path / "clouds" / "poses.tum", times, np.tile(np.eye(4), (70, 1, 1)))
     with pytest.raises(DatasetError, match=r"70 poses for 6 scan files .* `planodom eval`"):
         load_dataset(tmp_path / "clouds")
+
+
+def _kitti_raw(folder: Path, lines: list[str]) -> Path:
+    """KITTI raw's ``velodyne_points``: ``data/0000000000.bin``, ... and ``timestamps.txt``."""
+    (folder / "data").mkdir(parents=True)
+    for k in range(len(lines)):
+        rows = np.array([[5.0, 0, 0, 0.1], [0, 5.0, 0, 0.2], [-5.0, 0, 0, 0.3]], np.float32)
+        rows.tofile(folder / "data" / f"{k:010d}.bin")
+    (folder / "timestamps.txt").write_text("".join(f"{line}\n" for line in lines))
+    for name in ("timestamps_start.txt", "timestamps_end.txt"):
+        (folder / name).write_text("".join(f"{line}\n" for line in lines))
+    return folder
+
+
+def test_kitti_raw_timestamps_are_the_epoch_times(tmp_path: Path) -> None:
+    """KITTI raw's ``velodyne_points/data`` was read 0.1 s apart from 0, its
+    ``timestamps.txt`` (the scans' times, a dropped scan's gap included) unread; the folder
+    itself was refused for the unknown timestamps files without saying where the scans are."""
+    lines = [
+        "2011-09-26 13:02:25.964389445",
+        "2011-09-26 13:02:26.068572790",
+        "2011-09-26 13:02:26.275000000",  # a scan dropped before it
+        "2011-09-26 13:02:26.379",
+    ]
+    raw = _kitti_raw(tmp_path / "velodyne_points", lines)
+    ds = load_dataset(raw / "data")
+    base = 1317042145  # 2011-09-26 13:02:25 UTC
+    expected_ns = np.array([964389445, 1068572790, 1275000000, 1379000000])
+    np.testing.assert_allclose(ds.times - base, expected_ns / 1e9, atol=1e-6)
+    assert ds.notes == [
+        f"{raw / 'data'}: epoch times from KITTI raw's {raw / 'timestamps.txt'} (read as UTC, "
+        "steps 0.104 s median, 0.206 s largest)"
+    ]
+    from planodom.errors import DatasetError
+
+    with pytest.raises(DatasetError, match=r"a KITTI raw folder: give its scans, .*data$"):
+        load_dataset(raw)
+    (raw / "timestamps.txt").write_text("\n".join(lines[:3]) + "\n")
+    with pytest.raises(DatasetError, match=r"timestamps.txt: 3 times for 4 scan files"):
+        load_dataset(raw / "data")
+    (raw / "timestamps.txt").write_text("\n".join([*lines[:3], "13:02:26.379"]) + "\n")
+    with pytest.raises(DatasetError, match=r"timestamps.txt:4: expected a time"):
+        load_dataset(raw / "data")
