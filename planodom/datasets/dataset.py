@@ -149,8 +149,9 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
 
     Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else from KITTI
     raw's ``timestamps.txt`` or the file names when they are the clouds' Unix stamps
-    (:mod:`planodom.datasets.scan_names`, noted), else ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else
-    ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s). ``bin_layout`` tells how ``.bin`` scans are read
+    (:mod:`planodom.datasets.scan_names`, noted), else ``k / epoch_rate`` with
+    ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s).
+    ``bin_layout`` tells how ``.bin`` scans are read
     (:mod:`planodom.datasets.bin_scan`), ``time_field`` which field holds the point times
     (``auto``, ``none`` or a name, :func:`planodom.datasets.scan_io.read_scan`); integer
     time offsets in microseconds are told from nanoseconds by the first scans' spans
