@@ -70,7 +70,16 @@ def read_trajectory(path: str | Path) -> Trajectory:
 def associate(
     est: Trajectory, ref: Trajectory, max_diff: float = 0.01, offset: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(times (M,), est poses (M, 4, 4), ref poses (M, 4, 4))`` of the matched pairs.
+    """``(times (M,), est poses (M, 4, 4), ref poses (M, 4, 4))`` of the matched pairs
+    (:func:`associate_indexed` without the index)."""
+    return associate_indexed(est, ref, max_diff, offset)[:3]
+
+
+def associate_indexed(
+    est: Trajectory, ref: Trajectory, max_diff: float = 0.01, offset: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(times (M,), est poses (M, 4, 4), ref poses (M, 4, 4), index (M,))`` of the
+    matched pairs, ``index`` the estimated poses' numbers in ``est`` (increasing).
 
     TUM with TUM: nearest reference time within ``max_diff`` s of each estimated time plus
     ``offset`` (the times returned are the reference's). With a KITTI file: by index, the
@@ -87,7 +96,7 @@ def associate(
             )
         times = next((t for t in (ref.times, est.times) if t is not None), None)
         times = np.arange(len(ref.poses)) * 0.1 if times is None else times
-        return times, est.poses, ref.poses
+        return times, est.poses, ref.poses, np.arange(len(est.poses))
     traj_ref = PoseTrajectory3D(poses_se3=list(ref.poses), timestamps=ref.times)
     traj_est = PoseTrajectory3D(poses_se3=list(est.poses), timestamps=est.times)
     try:
@@ -101,10 +110,13 @@ def associate(
             f"(estimate {span}, reference {ref.times[0]:.3f}..{ref.times[-1]:.3f} s); "
             "see --max-diff and --offset"
         ) from None
+    # evo keeps each trajectory's own stamps: the matched estimated poses are found by theirs
+    index = np.searchsorted(est.times, traj_est.timestamps)
     return (
         np.asarray(traj_ref.timestamps),
         np.array(traj_est.poses_se3),
         np.array(traj_ref.poses_se3),
+        index,
     )
 
 
@@ -113,11 +125,16 @@ def evaluate(
     ref_poses: np.ndarray,
     align: metrics.Alignment = "origin",
     delta: int = 1,
+    index: np.ndarray | None = None,
 ) -> dict[str, float]:
     """:func:`planodom.metrics.summarize` of associated poses (M, 4, 4), with the
-    horizontal ATE / drift (``_xy``) and, over 100 m or more, KITTI's segment errors."""
-    out = metrics.summarize(est_poses, ref_poses, align=align, delta=delta)
-    flat = metrics.summarize(est_poses, ref_poses, align=align, delta=delta, xy_only=True)
+    horizontal ATE / drift (``_xy``) and, over 100 m or more, KITTI's segment errors.
+    ``index`` (M,): the estimated poses' numbers in their file when some have no reference
+    pose (:func:`associate`): no RPE or per-epoch error pairs two poses across a gap."""
+    out = metrics.summarize(est_poses, ref_poses, align=align, delta=delta, index=index)
+    flat = metrics.summarize(
+        est_poses, ref_poses, align=align, delta=delta, xy_only=True, index=index
+    )
     out |= {f"{k}_xy": flat[k] for k in ("ate_rmse_m", "drift_m", "drift_percent")}
     seg = kitti_segment_errors(est_poses, ref_poses)
     if seg["segments"]:

@@ -101,7 +101,11 @@ def ate(
 
 
 def rpe(
-    est_poses: np.ndarray, gt_poses: np.ndarray, delta: int = 1, all_pairs: bool = True
+    est_poses: np.ndarray,
+    gt_poses: np.ndarray,
+    delta: int = 1,
+    all_pairs: bool = True,
+    index: np.ndarray | None = None,
 ) -> dict[str, dict[str, float]]:
     """Relative pose error over ``delta`` epochs (evo RPE).
 
@@ -113,6 +117,10 @@ def rpe(
         delta: epochs between the two poses of a pair (>= 1).
         all_pairs: a pair starts at every epoch (overlapping windows); with False only at
             epochs 0, delta, 2 delta, ... (evo's default). Same for ``delta = 1``.
+        index: (E,) increasing epoch numbers of the poses when some epochs are left out
+            (those without a reference pose); a pair is then only two poses ``delta``
+            epochs apart within a run of consecutive epochs, never one across a gap. None:
+            the poses are consecutive epochs.
 
     Returns:
         ``{"translation": stats (m), "rotation": stats (deg)}`` with ``rmse``, ``mean``,
@@ -124,16 +132,57 @@ def rpe(
         raise GeometryError(f"est_poses {est.shape} and gt_poses {gt.shape} differ in shape")
     if not (isinstance(delta, int | np.integer) and 1 <= delta < len(est)):
         raise GeometryError(f"RPE delta must be an integer in [1, {len(est) - 1}], got {delta!r}")
+    runs = consecutive_runs(index, len(est))
+    if len(runs) > 1:
+        return _rpe_over_runs(est, gt, int(delta), all_pairs, runs)
+    return {key: _stats(m) for key, m in _evo_rpe(est, gt, int(delta), all_pairs).items()}
+
+
+def _evo_rpe(
+    est: np.ndarray, gt: np.ndarray, delta: int, all_pairs: bool
+) -> dict[str, evo_metrics.RPE]:
+    """evo's RPE metrics (``translation``, ``rotation``) of consecutive poses, processed."""
     out = {}
     for key, relation in (
         ("translation", evo_metrics.PoseRelation.translation_part),
         ("rotation", evo_metrics.PoseRelation.rotation_angle_deg),
     ):
         metric = evo_metrics.RPE(
-            relation, delta=int(delta), delta_unit=evo_metrics.Unit.frames, all_pairs=all_pairs
+            relation, delta=delta, delta_unit=evo_metrics.Unit.frames, all_pairs=all_pairs
         )
         metric.process_data((_trajectory(gt), _trajectory(est)))
-        out[key] = _stats(metric)
+        out[key] = metric
+    return out
+
+
+def consecutive_runs(index: np.ndarray | None, n: int) -> list[slice]:
+    """The runs of consecutive epoch numbers in ``index`` (n,) (increasing), as slices of
+    it; one slice over all n without ``index``."""
+    if index is None:
+        return [slice(0, n)]
+    index = np.asarray(index, dtype=np.int64)
+    if len(index) != n or np.any(np.diff(index) <= 0):
+        raise GeometryError(f"index: expected {n} increasing epoch numbers, got {index!r}")
+    cuts = [0, *(np.flatnonzero(np.diff(index) != 1) + 1).tolist(), n]
+    return [slice(a, b) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+
+
+def _rpe_over_runs(
+    est: np.ndarray, gt: np.ndarray, delta: int, all_pairs: bool, runs: list[slice]
+) -> dict[str, dict[str, float]]:
+    """:func:`rpe` over the pairs within each run, pooled (evo's statistics of the errors)."""
+    errors: dict[str, list[np.ndarray]] = {"translation": [], "rotation": []}
+    for run in runs:
+        if run.stop - run.start > delta:
+            for key, metric in _evo_rpe(est[run], gt[run], delta, all_pairs).items():
+                errors[key].append(np.asarray(metric.error, dtype=np.float64))
+    if not errors["translation"]:
+        raise GeometryError(f"RPE: no two poses {delta} epoch(s) apart without a gap")
+    out = {}
+    for key, chunks in errors.items():
+        e = np.concatenate(chunks)
+        stats = (np.sqrt(np.mean(e**2)), np.mean(e), np.median(e), np.max(e))
+        out[key] = {k: float(v) for k, v in zip(STATISTICS, stats, strict=True)}
     return out
 
 
@@ -186,6 +235,7 @@ def summarize(
     align: Alignment = "origin",
     delta: int = 1,
     xy_only: bool = False,
+    index: np.ndarray | None = None,
 ) -> dict[str, float]:
     """Every metric in one flat dict for a results table; keys end with their unit.
 
@@ -193,21 +243,24 @@ def summarize(
     ``rpe_rot_{...}_deg``; ``drift_m``, ``drift_percent``, ``distance_m``; and for each of
     roll, pitch, yaw (deg per epoch) and x, y (m per epoch) the mean and std of the
     per-epoch errors, e.g. ``yaw_err_mean_deg``, ``x_err_std_m``. RPE and per-epoch entries
-    are NaN for a single epoch.
+    are NaN for a single epoch. ``index`` (E,): the poses' epoch numbers when some epochs
+    are left out; RPE and per-epoch errors then take no pair across a gap (:func:`rpe`).
     """
     est = _check_poses(est_poses, "est_poses")
     gt = _check_poses(gt_poses, "gt_poses")
     out: dict[str, float] = {"epochs": float(len(est))}
     for key, value in ate(est, gt, align, xy_only).items():
         out[f"ate_{key}_m"] = value
-    enough = len(est) > delta
-    rel = rpe(est, gt, delta) if enough else None
+    runs = consecutive_runs(index, len(est))
+    enough = any(r.stop - r.start > delta for r in runs)
+    rel = rpe(est, gt, delta, index=index) if enough else None
     for part, prefix, unit in (("translation", "trans", "m"), ("rotation", "rot", "deg")):
         for key in STATISTICS:
             out[f"rpe_{prefix}_{key}_{unit}"] = rel[part][key] if rel else float("nan")
     d = drift(est, gt, xy_only)
     out |= {"drift_m": d["final_error"], "drift_percent": d["percent"], "distance_m": d["distance"]}
-    errors = per_epoch_errors(relative_motions(est), relative_motions(gt))
+    step = np.ones(len(est) - 1, dtype=bool) if index is None else np.diff(index) == 1
+    errors = per_epoch_errors(relative_motions(est)[step], relative_motions(gt)[step])
     for name in POSE5_NAMES:
         scale, unit = (np.degrees(1.0), "deg") if name in ("roll", "pitch", "yaw") else (1.0, "m")
         e = errors[name] * scale

@@ -197,14 +197,20 @@ def trajectory_metrics(poses: np.ndarray, gt_poses: np.ndarray | None) -> dict[s
     The odometry observes 5 DoF, so z is only known where the planes constrain it; the
     horizontal figures are the ones to compare. Empty without ground truth. Over the epochs
     with a reference pose (:func:`referenced`): when some have none, ``epochs`` counts all
-    and ``evaluated_epochs`` those.
+    and ``evaluated_epochs`` those, and no RPE or per-epoch error pairs two epochs across a
+    gap (:func:`planodom.metrics.rpe`).
     """
     epochs = len(poses)
+    index = None
+    if gt_poses is not None and len(gt_poses) == epochs:
+        index = np.flatnonzero(np.all(np.isfinite(gt_poses), axis=(1, 2)))
     poses, gt_poses = referenced(poses, gt_poses)
     if gt_poses is None or len(poses) < 2:
         return {}
-    out = metrics.summarize(poses, gt_poses)
-    flat = metrics.summarize(poses, gt_poses, xy_only=True)
+    if index is not None and len(index) == epochs:
+        index = None  # every epoch has a reference: the poses are consecutive
+    out = metrics.summarize(poses, gt_poses, index=index)
+    flat = metrics.summarize(poses, gt_poses, xy_only=True, index=index)
     out |= {f"{k}_xy": flat[k] for k in ("ate_rmse_m", "drift_m", "drift_percent")}
     if len(poses) < epochs:
         out = {"epochs": float(epochs), "evaluated_epochs": out.pop("epochs")} | out

@@ -328,3 +328,55 @@ SCANNERS = [
     Sensor("/scan_left", "laser_left", 33_000_000),
     Sensor("/scan_rear", "laser_rear", 66_000_000),
 ]
+
+
+def split_ros2_bag(src: Path, dst: Path, cuts: list[int], storage: str = "sqlite3") -> None:
+    """Write the ROS 2 bag ``src`` again as a split recording ``dst`` (as ``ros2 bag record
+    --max-bag-size`` leaves one): the messages recorded before ``cuts[0]`` (ns) in
+    ``dst/<name>_0``, then up to ``cuts[1]`` in ``_1``, ..., one ``metadata.yaml`` listing
+    every part."""
+    from rosbags.rosbag2 import Reader as Reader2
+    from ruamel.yaml import YAML
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    parts = [dst.parent / f"{dst.name}_{k}" for k in range(len(cuts) + 1)]
+    writers = [Writer2(p, version=9, storage_plugin=plugin) for p in parts]
+    with Reader2(src) as reader:
+        for w in writers:
+            w.open()
+        conns: list[dict[int, Any]] = [{} for _ in writers]
+        for conn, bag_ns, raw in reader.messages():
+            k = sum(bag_ns >= c for c in cuts)
+            if conn.id not in conns[k]:
+                conns[k][conn.id] = writers[k].add_connection(
+                    conn.topic, conn.msgtype, typestore=ts
+                )
+            writers[k].write(conns[k][conn.id], bag_ns, raw)
+        for w in writers:
+            w.close()
+    yaml = YAML(typ="safe")
+    metas = [
+        yaml.load((p / "metadata.yaml").read_text())["rosbag2_bagfile_information"] for p in parts
+    ]
+    dst.mkdir()
+    ext = ".mcap" if storage == "mcap" else ".db3"
+    topics: dict[str, Any] = {}
+    for k, (part, meta) in enumerate(zip(parts, metas, strict=True)):
+        (part / f"{part.name}{ext}").rename(dst / f"{dst.name}_{k}{ext}")
+        meta["files"][0]["path"] = f"{dst.name}_{k}{ext}"
+        for t in meta["topics_with_message_count"]:
+            name = t["topic_metadata"]["name"]
+            if name in topics:
+                topics[name]["message_count"] += t["message_count"]
+            else:
+                topics[name] = t
+        (part / "metadata.yaml").unlink()
+        part.rmdir()
+    merged = dict(metas[0])
+    merged["files"] = [m["files"][0] for m in metas]
+    merged["relative_file_paths"] = [f["path"] for f in merged["files"]]
+    merged["message_count"] = sum(m["message_count"] for m in metas)
+    merged["topics_with_message_count"] = list(topics.values())
+    with open(dst / "metadata.yaml", "w") as f:
+        yaml.dump({"rosbag2_bagfile_information": merged}, f)

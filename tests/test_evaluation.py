@@ -102,3 +102,33 @@ def test_eval_against_a_reference_over_part_of_the_run_says_so(tmp_path) -> None
     metrics = json.loads((tmp_path / "e" / "metrics.json").read_text())
     assert (metrics["matched_poses"], metrics["estimate_poses"]) == (15, 40)
     assert metrics["ate_rmse_m"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_eval_pairs_no_two_poses_across_a_gap_in_the_reference(tmp_path) -> None:
+    """A reference with a gap (poses 15-24 missing, a GNSS outage) paired pose 14 with 25 as
+    one RPE step: an estimate whose steps are each about 1 cm too long had a 10-step error
+    there. Only the pairs of consecutive estimated poses are compared now."""
+    est = GT.copy()
+    for k in range(40):  # pose k is k cm ahead in its own x: each step 1 cm too long
+        est[k] = GT[k] @ transform_from_rpy_xyz(0, 0, 0, 0.01 * k, 0, 0)
+    kept = np.r_[0:15, 25:40]
+    write_tum(tmp_path / "gt.tum", TIMES[kept], GT[kept])
+    write_tum(tmp_path / "est.tum", TIMES, est)
+    args = ["eval", tmp_path / "est.tum", tmp_path / "gt.tum", "--out", tmp_path / "e"]
+    result = runner.invoke(app, [str(a) for a in args])
+    assert result.exit_code == 0, result.output
+    metrics = json.loads((tmp_path / "e" / "metrics.json").read_text())
+    assert metrics["matched_poses"] == 30
+    # the error of step k -> k+1: inv(gt_k_k+1) @ est_k_k+1, by hand
+    steps = [k for k in range(39) if k in kept and k + 1 in kept]
+    assert len(steps) == 28
+    errors = []
+    for k in steps:
+        gt_step = np.linalg.inv(GT[k]) @ GT[k + 1]
+        est_step = np.linalg.inv(est[k]) @ est[k + 1]
+        errors.append(np.linalg.norm((np.linalg.inv(gt_step) @ est_step)[:3, 3]))
+    assert metrics["rpe_trans_max_m"] == pytest.approx(max(errors), abs=1e-9)
+    assert metrics["rpe_trans_rmse_m"] == pytest.approx(np.sqrt(np.mean(np.square(errors))))
+    across = np.linalg.inv(np.linalg.inv(GT[14]) @ GT[25]) @ np.linalg.inv(est[14]) @ est[25]
+    assert np.linalg.norm(across[:3, 3]) > 3 * max(errors)  # the pair left out
+    assert "no relative error pairs two poses across the unmatched ones" in result.stderr

@@ -162,6 +162,35 @@ def test_rpe_known_rotation_and_translation_errors() -> None:
     assert res2["translation"]["mean"] == pytest.approx(expected[::2].mean(), rel=1e-9)
 
 
+def test_rpe_and_per_epoch_errors_take_no_pair_across_a_gap() -> None:
+    """Epochs 10-14 without a reference are left out: the poses given are epochs 0-9 and
+    15-29. No pair spans the gap; each run's pairs are those of the whole trajectory."""
+    gt = random_trajectory(np.random.default_rng(7), 30)
+    inc = np.array([inv(gt[k]) @ gt[k + 1] for k in range(29)])
+    c = np.array([0.03, -0.04, 0.0])  # 5 cm per epoch
+    est = _compose(inc @ g.make_transform(np.eye(3), c), np.eye(4))
+    est[15:] = g.make_transform(np.eye(3), np.array([2.0, 0.0, 0.0])) @ est[15:]  # a jump
+    index = np.r_[0:10, 15:30]
+    with pytest.raises(GeometryError, match="increasing epoch numbers"):
+        m.rpe(est[index], gt[index], index=index[::-1])
+    res = m.rpe(est[index], gt[index], index=index)
+    assert res["translation"]["max"] == pytest.approx(0.05, abs=1e-12)  # not the 2 m jump
+    expected = np.array([np.linalg.norm(inc[k + 1][:3, :3].T @ c + c) for k in range(28)])
+    pairs = [k for k in range(28) if k + 2 <= 9 or k >= 15]  # (k, k + 2) within a run
+    res2 = m.rpe(est[index], gt[index], delta=2, index=index)
+    assert res2["translation"]["mean"] == pytest.approx(expected[pairs].mean(), rel=1e-9)
+    assert res2["translation"]["rmse"] == pytest.approx(
+        np.sqrt(np.mean(expected[pairs] ** 2)), rel=1e-9
+    )
+    s = m.summarize(est[index], gt[index], align="none", index=index)
+    steps = [k for k in range(29) if k + 1 <= 9 or k >= 15]  # the increment k -> k + 1
+    x_errors = [(inc[k][:3, :3] @ c)[0] for k in steps]  # est_k_k+1 = inc_k T(c)
+    assert s["x_err_mean_m"] == pytest.approx(np.mean(x_errors), abs=1e-9)
+    assert s["x_err_std_m"] == pytest.approx(np.std(x_errors), abs=1e-9)
+    # without the index the poses 9 and 15 were one step, the jump its error
+    assert m.summarize(est[index], gt[index])["rpe_trans_max_m"] > 1.9
+
+
 def test_drift() -> None:
     gt = random_trajectory(np.random.default_rng(7), 25)
     est = m.relative_to_first(gt)

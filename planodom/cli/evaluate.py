@@ -34,7 +34,9 @@ def evaluate(
     truth: Annotated[
         Path, typer.Argument(help="Reference: a TUM or KITTI file, or a dataset with poses.tum.")
     ],
-    delta: Annotated[int, typer.Option(help="RPE step in (associated) poses.")] = 1,
+    delta: Annotated[
+        int, typer.Option(help="RPE step in estimated poses (matched, without a gap between).")
+    ] = 1,
     align: Annotated[
         str,
         typer.Option(
@@ -55,7 +57,7 @@ def evaluate(
     Writes metrics.json, trajectory.png and errors.png to --out and prints the table.
     """
     from planodom import results
-    from planodom.evaluation import associate, evaluate, read_trajectory
+    from planodom.evaluation import associate_indexed, evaluate, read_trajectory
     from planodom.plots.run import write_eval_plots
     from planodom.report import metrics_table
 
@@ -66,7 +68,7 @@ def evaluate(
     if not math.isfinite(offset):
         raise ConfigError(f"--offset: expected a finite number of seconds, got {offset}")
     est, ref = read_trajectory(estimate), read_trajectory(truth)
-    times, est_poses, ref_poses = associate(est, ref, max_diff, offset)
+    times, est_poses, ref_poses, index = associate_indexed(est, ref, max_diff, offset)
     if len(times) < 2:
         raise DatasetError(
             f"{est.path}: {len(times)} pose matched with {ref.path}; errors over the "
@@ -76,14 +78,15 @@ def evaluate(
         warn(
             f"{len(est.poses) - len(times)} of the {len(est.poses)} poses of {est.path} have "
             f"no reference pose within {max_diff:g} s (the reference spans part of the run?): "
-            f"the errors are over the {len(times)} matched"
+            f"the errors are over the {len(times)} matched, and no relative error pairs two "
+            "poses across the unmatched ones"
         )
     if not 1 <= delta < len(times):
         raise ConfigError(
             f"--delta {delta}: the RPE step needs 1 <= delta < {len(times)} (the matched poses)"
         )
     try:
-        summary = evaluate(est_poses, ref_poses, align, delta)  # type: ignore[arg-type]
+        summary = evaluate(est_poses, ref_poses, align, delta, index)  # type: ignore[arg-type]
     except GeometryError as exc:  # e.g. se3 on poses along a line: name what was aligned
         raise GeometryError(
             f"--align {align}: {exc} ({len(times)} matched poses of {est.path} and "

@@ -24,7 +24,10 @@ Layout::
   increasing; ``#`` comments and blank lines skipped), for a dataset without ground
   truth, e.g. one converted from a bag without a reference (seconds since the Unix epoch,
   the bag's clock). :func:`write_dataset` writes it whenever it writes no ``poses.tum``.
-- Epoch times come from ``poses.tum`` when present, else from ``times.txt``, else
+- Epoch times come from ``poses.tum`` when present, else from ``times.txt``, else from
+  KITTI raw's ``timestamps.txt`` beside a ``data/`` folder of scans, else from the scan
+  file names when they are the clouds' Unix stamps (``SEC.NSEC.pcd``, ``SEC_NSEC.pcd``,
+  integer ns, as tools name a bag's clouds: :mod:`planodom.datasets.scan_names`), else
   ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * 0.1`` s.
   Without either file, a gap in numbered scan files (``000001``, ``000003``) is an
   error, not a guess: the epochs around it would be taken as consecutive.

@@ -95,3 +95,39 @@ def interpolate_poses(
     else:
         out[:, :3, :3] = Slerp(t, rotations)(tq).as_matrix()
     return inside, out
+
+
+def reference_gaps(
+    times: np.ndarray, query: np.ndarray, period: int
+) -> tuple[np.ndarray, tuple[int, int] | None]:
+    """The queries within a gap of the reference poses, and its largest gap.
+
+    A query between two reference poses further apart than both twice the poses' median
+    spacing (at least one pose missing: a GNSS outage, messages dropped) and the epoch
+    ``period`` (a reference slower than the epochs keeps its own rate) is in a gap: a pose
+    interpolated across it is a straight line, not the reference. Queries outside the
+    poses' span and those on a pose's stamp are in none.
+
+    Args:
+        times: (M,) int64 ns stamps of the reference poses (any order, repeats allowed).
+        query: (E,) int64 ns. period: ns between epochs.
+
+    Returns:
+        ``in_gap`` (E,) bool and the largest gap's ``(start, end)`` ns among those holding
+        a query (None without one).
+    """
+    t = np.unique(np.asarray(times, dtype=np.int64))
+    q = np.asarray(query, dtype=np.int64)
+    in_gap = np.zeros(len(q), dtype=bool)
+    if len(t) < 3:
+        return in_gap, None
+    limit = max(2 * float(np.median(np.diff(t))), float(period))
+    after = np.searchsorted(t, q, side="right")
+    inside = (after > 0) & (after < len(t)) & (q != t[np.maximum(after - 1, 0)])
+    lo = t[np.clip(after - 1, 0, len(t) - 1)]
+    hi = t[np.clip(after, 0, len(t) - 1)]
+    in_gap = inside & ((hi - lo) > limit)
+    if not in_gap.any():
+        return in_gap, None
+    widest = int(np.argmax(np.where(in_gap, hi - lo, -1)))
+    return in_gap, (int(lo[widest]), int(hi[widest]))

@@ -13,6 +13,7 @@ import yaml
 
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
+from planodom.datasets.scan_names import kitti_raw_times, name_times
 from planodom.datasets.scan_time_units import scan_time_unit
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
@@ -146,9 +147,11 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     compared as numbers (``2.bin`` before ``10.bin``); hidden files are skipped. ``poses.tum``
     and ``rig.yaml`` are looked for in ``path``.
 
-    Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else
-    ``k / epoch_rate`` with ``epoch_rate`` (Hz) from ``rig.yaml``, else
-    ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s). ``bin_layout`` tells how ``.bin`` scans are read
+    Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else from KITTI
+    raw's ``timestamps.txt`` or the file names when they are the clouds' Unix stamps
+    (:mod:`planodom.datasets.scan_names`, noted), else ``k / epoch_rate`` with
+    ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s).
+    ``bin_layout`` tells how ``.bin`` scans are read
     (:mod:`planodom.datasets.bin_scan`), ``time_field`` which field holds the point times
     (``auto``, ``none`` or a name, :func:`planodom.datasets.scan_io.read_scan`); integer
     time offsets in microseconds are told from nanoseconds by the first scans' spans
@@ -168,23 +171,31 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     scan_files = _scan_files(root)
     rig = read_rig(root / RIG_FILE) if (root / RIG_FILE).exists() else Rig()
     gt_poses = None
+    name_note = None
     if (root / POSES_FILE).exists():
         times, gt_poses = read_tum(root / POSES_FILE)
         if len(times) != len(scan_files):
             raise DatasetError(
                 f"{root / POSES_FILE}: {len(times)} poses for {len(scan_files)} scan files "
-                f"in {scan_files[0].parent}"
+                f"in {scan_files[0].parent} (it holds the reference pose of each scan; a "
+                "reference at its own rate is compared with `planodom eval` after the run)"
             )
     elif (root / TIMES_FILE).exists():
         times = read_times(root / TIMES_FILE, len(scan_files))
     else:
-        _check_numbering(scan_files)
-        times = epoch_times(len(scan_files), rig)
+        named, name_note = kitti_raw_times(scan_files)
+        if named is None:
+            named, name_note = name_times(scan_files)
+        if named is None:
+            _check_numbering(scan_files)
+        times = epoch_times(len(scan_files), rig) if named is None else named
     ds = Dataset(root, scan_files, times, gt_poses, rig, bin_layout, time_field)
     unit = scan_time_unit(scan_files, times, time_field)
     if unit is not None:
         ds.time_scale = unit.scale
         ds.notes = [f"{root}: {unit.note}"] if unit.note else []
+    if name_note:
+        ds.notes.append(f"{scan_files[0].parent}: {name_note}")
     return ds
 
 
@@ -422,9 +433,11 @@ def _scan_files(root: Path) -> list[Path]:
     if unknown:
         more = f" and {len(unknown) - 5} more" if len(unknown) > 5 else ""
         shown = ", ".join(unknown[:5]) + more
+        raw = (root / "data").is_dir() and "timestamps.txt" in unknown
         raise DatasetError(
             f"{files[0].parent}: files with unknown extensions: {shown} "
             f"(scan files are {', '.join(SCAN_EXTENSIONS)})"
+            + (f"; a KITTI raw folder: give its scans, {root / 'data'}" if raw else "")
         )
     suffixes = sorted({f.suffix.lower() for f in files})
     if len(suffixes) > 1:

@@ -30,10 +30,11 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
   ``PoseWithCovarianceStamped`` or ``TransformStamped`` topic, or ``"tf:PARENT:CHILD"`` (a
   direct /tf edge). Poses are interpolated at the epoch times (linear + Slerp); when the
   message's child frame is not the base frame but is rigidly linked to it, the result is
-  ``T_world_child @ T_child_base``. Epochs outside the reference's time span are read, their
-  reference poses NaN (noted; the CLI's metrics are over the others; :func:`convert_bag`
-  leaves them out); a pose with a NaN or infinite value or a zero quaternion is left out
-  (noted).
+  ``T_world_child @ T_child_base``. Epochs outside the reference's time span or in a gap
+  of its poses (:func:`~planodom.datasets.bag_epochs.reference_gaps`) are read, their
+  reference poses NaN (noted; the CLI's metrics are over the others and pair none across
+  them; :func:`convert_bag` leaves them out); a pose with a NaN or infinite value or a zero
+  quaternion is left out (noted).
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ from typing import Any
 import numpy as np
 from rosbags.highlevel import AnyReader
 
-from planodom.datasets.bag_epochs import NS, group_epochs, interpolate_poses
+from planodom.datasets.bag_epochs import NS, group_epochs, interpolate_poses, reference_gaps
 from planodom.datasets.bag_index import (
     BagIndex,
     bag_errors,
@@ -92,7 +93,8 @@ class BagDataset:
         rig: :class:`~planodom.rig.Rig` with ``epoch_rate_hz``, ``sensor_origins`` per ring
             (the sensors' positions, m, base frame), ``extrinsics`` per topic (its first
             frame) and ``extra`` describing the source (bag, base frame, topics).
-        epochs_without_gt: epochs outside the reference's time span (NaN in ``gt_poses``).
+        epochs_without_gt: epochs outside the reference's time span or in a gap of its
+            poses (NaN in ``gt_poses``; :func:`planodom.datasets.bag_epochs.reference_gaps`).
         notes: one line each on how the bag was read that a user should check (a time
             unit other than the documented one, several point-cloud topics merged); the
             CLI prints them as warnings.
@@ -122,6 +124,7 @@ class BagDataset:
         members = [used[m] for m in grouped]
         self.gt_poses: np.ndarray | None = None
         self.epochs_without_gt = 0
+        self._gt_gap: tuple[int, int] | None = None
         if gt_topic is not None:
             inside, poses = interpolate_poses(index.gt_times, index.gt_poses, ref)
             if not inside.any():
@@ -131,9 +134,11 @@ class BagDataset:
                     f"epochs from {ref.min() / NS:.3f} to {ref.max() / NS:.3f} s: the "
                     "scans' header stamps on another clock, such as the sensor's own?)"
                 )
-            self.epochs_without_gt = int((~inside).sum())
             self.gt_poses = np.full((len(ref), 4, 4), np.nan)
             self.gt_poses[inside] = poses @ self._child_to_base(index.gt_child)
+            in_gap, self._gt_gap = reference_gaps(index.gt_times, ref, round(NS / self.epoch_rate))
+            self.gt_poses[in_gap] = np.nan
+            self.epochs_without_gt = int((~inside | in_gap).sum())
         self._members = members
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
@@ -152,9 +157,13 @@ class BagDataset:
         """The note on a reference that spans only some of the epochs, ending in ``what``."""
         gt = self._index.gt_times
         spanned = len(self) - self.epochs_without_gt
+        gap = ""
+        if self._gt_gap is not None:
+            a, b = self._gt_gap
+            gap = f" with a gap from {a / NS:.3f} to {b / NS:.3f} s"
         return (
             f"gt '{self.gt_topic}' spans {spanned} of the {len(self)} epochs (reference poses "
-            f"from {gt.min() / NS:.3f} to {gt.max() / NS:.3f} s, epochs from "
+            f"from {gt.min() / NS:.3f} to {gt.max() / NS:.3f} s{gap}, epochs from "
             f"{self.times[0]:.3f} to {self.times[-1]:.3f} s): {what}"
         )
 

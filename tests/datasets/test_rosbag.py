@@ -853,6 +853,46 @@ def test_a_reference_over_part_of_the_run_keeps_every_epoch(tmp_path: Path, ros:
     np.testing.assert_allclose(written.times, [T0_NS / 1e9 + 0.1])
 
 
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_gap_in_the_reference_leaves_its_epochs_without_one(tmp_path: Path, ros: int) -> None:
+    """Odometry at 200 Hz but for 0.25 s to 0.75 s (a GNSS outage): the five epochs in the gap
+    got a pose interpolated along the straight line across it, silently, and the metrics
+    compared them. Their reference is NaN now, noted; the metrics pair no epochs across it."""
+    from planodom.results import trajectory_metrics
+
+    def odom(bw) -> None:
+        for k in range(241):
+            stamp = T0_NS - 100_000_000 + k * 5_000_000
+            if not T0_NS + 250_000_000 < stamp < T0_NS + 750_000_000:
+                bw.write("/odom", bw.odometry(stamp, true_pose(stamp / 1e9)), stamp)
+
+    path = bag_path(tmp_path, ros, "gap")
+    sensors = [Sensor("/points", "lidar", 0, "velodyne")]
+    write_bag(path, ros, sensors, STATIC_TF, T_BASE, duration_s=1.0, odom=False, extra=odom)
+    with open_bag(path, BagOptions(gt_topic="/odom")) as ds, open_bag(path) as every:
+        assert (len(ds), ds.epochs_without_gt) == (10, 5)
+        _assert_same_scans(ds, every)
+        assert ds.gt_poses is not None
+        gap = [3, 4, 5, 6, 7]  # epochs at 0.3 ... 0.7 s
+        assert np.isnan(ds.gt_poses[gap]).all()
+        kept = [0, 1, 2, 8, 9]
+        assert np.abs(ds.gt_poses[kept] - true_pose(ds.times[kept])).max() < 1e-5
+        assert ds.notes == [
+            "gt '/odom' spans 5 of the 10 epochs (reference poses from 1699999999.900 to "
+            "1700000001.100 s with a gap from 1700000000.250 to 1700000000.750 s, epochs from "
+            "1700000000.000 to 1700000000.900 s): every epoch is read; the metrics are over "
+            "the epochs it spans"
+        ]
+        # an estimate right but for a 1 m jump in the gap: no relative error sees it
+        est = true_pose(ds.times)
+        est[5:, 0, 3] += 1.0
+        m = trajectory_metrics(est, ds.gt_poses)
+        assert (m["epochs"], m["evaluated_epochs"]) == (10, 5)
+        assert m["rpe_trans_max_m"] == pytest.approx(0.0, abs=1e-5)
+    c = convert_bag(path, tmp_path / "ds", BagOptions(gt_topic="/odom"))
+    assert (c.epochs, c.dropped_epochs) == (5, 5)
+
+
 def _assert_same_scans(ds, other) -> None:
     """The same epoch times and scans, to the bit."""
     np.testing.assert_array_equal(ds.times, other.times)
