@@ -23,11 +23,11 @@ at a time), the pose rows of ``A^-1 B`` (``B = J^T G``) are ``P^-1 B~`` with
 fitted path's) the pose block i is ``Sigma_ii + sum_k (Sigma B~)_ik Q_k (Sigma B~)_ik^T``.
 ``B~`` is sparse (an epoch's columns reach the poses that share its landmarks).
 
-Computed without forming ``Sigma``: the pose blocks of ``Sigma`` and of ``Sigma B~ Q B~^T
-Sigma = -d/de (P + e B~ Q B~^T)^-1`` are what a sparse selected inversion (Takahashi's
-recursion over supernodes) and its exact derivative give, at about the cost of the
-fitted marginals' selected inversion (:func:`_sparse_pose_covariances`); the dense path
-(:func:`_dense_pose_covariances`) remains for poses with undetermined axes.
+Optionally (``SELECTED_INVERSION``, off) without forming ``Sigma``: the pose blocks of
+``Sigma`` and of ``Sigma B~ Q B~^T Sigma = -d/de (P + e B~ Q B~^T)^-1`` are what a sparse
+selected inversion (Takahashi's recursion over supernodes) and its exact derivative give
+(:func:`_sparse_pose_covariances`); the dense path (:func:`_dense_pose_covariances`)
+is the default and remains for poses with undetermined axes.
 
 Not modelled: the deskewing error of the relative-pose and loop-candidate factors (they
 enter only where planes are not plane factors, ``smoothing.between_factors``) and of
@@ -121,9 +121,9 @@ def sandwich_pose_covariances(
 ) -> SandwichMarginals:
     """The poses' sandwich covariances (module docstring) of a linearised graph.
 
-    By a sparse selected inversion (:func:`_sparse_pose_covariances`); where that meets a
-    pivot at the undetermined level (a pose axis no factor determines), by the dense
-    path (:func:`_dense_pose_covariances`), which names such axes and sets them NaN.
+    By the dense path (:func:`_dense_pose_covariances`); with ``SELECTED_INVERSION`` by
+    a sparse selected inversion (:func:`_sparse_pose_covariances`), the dense path
+    taking over where that meets a pivot at the undetermined level.
 
     Args:
         linear: the linearised (whitened) graph at the estimate.
@@ -137,6 +137,8 @@ def sandwich_pose_covariances(
         numpy.linalg.LinAlgError: the poses' information is not positive definite even on
             its determined directions.
     """
+    if not SELECTED_INVERSION:
+        return _dense_pose_covariances(linear, pose_keys, dims, error_maps, motion_change)
     try:
         covariances, fitted = _sparse_pose_covariances(
             linear, pose_keys, dims, error_maps, motion_change
@@ -207,6 +209,17 @@ MERGE_WIDTH = 24
 #: The widest block of :func:`_selected_inverse` (columns): wider supernodes are split.
 #: Its products run in numpy's own loops (:func:`_mm`), fast up to about this size.
 NODE_WIDTH = 48
+
+#: Off: the sparse selected inversion is 4-25 times faster than the dense path on the
+#: 2D-rig laps, but its covariances differ from the dense path's (and gtsam's, which
+#: agree to 3e-7) by up to 5e-3 of the standard deviations on 5 of 8 laps, depending on
+#: the elimination order and not on the arithmetic's precision (docs/RESULTS.md,
+#: SANDFAST): not understood, so not used by default.
+SELECTED_INVERSION = False
+
+#: Diagnostic: the selected inversion on the poses' sparse Schur complement instead of
+#: the system with the landmarks' determined directions (the same differences).
+POSE_SPACE = False
 
 
 def _sparse_pose_covariances(
@@ -300,8 +313,12 @@ def _sparse_pose_covariances(
     R = T.shape[1]
     Tt = T.T.tocsr()
     C = (Tt @ H[n:, :n]).tocsr()  # (R, n)
-    K = sp.bmat([[H[:n, :n], C.T], [C, sp.identity(R)]], format="csc")
-    rhs = sp.vstack([B[:n], Tt @ B[n:]]).tocsr()
+    if POSE_SPACE:
+        K = (H[:n, :n] - C.T @ C).tocsc()
+        rhs = (B[:n] - C.T @ (Tt @ B[n:])).tocsr()
+    else:
+        K = sp.bmat([[H[:n, :n], C.T], [C, sp.identity(R)]], format="csc")
+        rhs = sp.vstack([B[:n], Tt @ B[n:]]).tocsr()
     roots = [_psd_root(q) for q in np.asarray(motion_change, dtype=float)]
     rhs = (rhs @ sp.block_diag(roots, format="csr")).tocsc() if roots else rhs.tocsc()
     ds = np.sqrt(K.diagonal())

@@ -225,6 +225,7 @@ def test_selected_inversion_equals_the_dense_path(
     """The sparse selected inversion and its derivative give the dense path's sandwich
     and fitted blocks (global and anchored landmarks, the anchors' undetermined
     directions left out), whatever the blocks' widths."""
+    monkeypatch.setattr(sandwich_module, "SELECTED_INVERSION", True)
     monkeypatch.setattr(sandwich_module, "NODE_WIDTH", node_width)
     monkeypatch.setattr(sandwich_module, "MERGE_WIDTH", merge_width)
     linear, keys, dims, maps, Q = _mixed_system()
@@ -238,9 +239,10 @@ def test_selected_inversion_equals_the_dense_path(
     assert np.all(np.diagonal(fast.covariances - fast.fitted, axis1=1, axis2=2)[1:] > 0)
 
 
-def test_undetermined_pose_takes_the_dense_path() -> None:
+def test_undetermined_pose_takes_the_dense_path(monkeypatch: pytest.MonkeyPatch) -> None:
     """A pose key no factor touches: the sparse path stops at its pivot, the dense path
     names its six axes and sets them NaN; the other poses' blocks as without it."""
+    monkeypatch.setattr(sandwich_module, "SELECTED_INVERSION", True)
     linear, keys, dims, maps, Q = _mixed_system(extra_pose=True)
     out = sandwich_pose_covariances(linear, keys, dims, maps, Q)
     assert out.undetermined == {len(keys) - 1: [0, 1, 2, 3, 4, 5]}
