@@ -325,7 +325,10 @@ def _sparse_pose_covariances(
     ds[ds == 0.0] = 1.0
     Dinv = sp.diags(1.0 / ds)
     Rs = Dinv @ rhs
-    Z, dZ = _selected_inverse(Dinv @ K @ Dinv, (Rs @ Rs.T).tocsc())
+    # each pose's 6 x 6 block wanted whole (some have structural zeros in K)
+    blocks6 = sp.block_diag([np.ones((POSE_DIM, POSE_DIM))] * E, format="csc")
+    wanted = sp.block_diag([blocks6, sp.csc_matrix((K.shape[0] - n, K.shape[0] - n))])
+    Z, dZ = _selected_inverse(Dinv @ K @ Dinv, (Rs @ Rs.T).tocsc(), wanted)
     pos = Z.position[:n].reshape(E, POSE_DIM)
     fitted = Z.values[pos[:, :, None], pos[:, None, :]]
     extra = -dZ[pos[:, :, None], pos[:, None, :]]
@@ -351,8 +354,11 @@ class _Selected:
     position: np.ndarray
 
 
-def _selected_inverse(K: sp.spmatrix, M: sp.spmatrix) -> tuple[_Selected, np.ndarray]:
-    """``K^-1`` on the pattern of ``K + M``'s factor, and there the first-order change
+def _selected_inverse(
+    K: sp.spmatrix, M: sp.spmatrix, wanted: sp.spmatrix
+) -> tuple[_Selected, np.ndarray]:
+    """``K^-1`` on the pattern of ``K + M + wanted``'s factor (``wanted``: a pattern of
+    entries to be computed, e.g. whole diagonal blocks), and there the first-order change
     ``d/de (K + e M)^-1 = -K^-1 M K^-1`` (``K`` (N, N) sparse positive definite, ``M``
     sparse symmetric), both by block elimination over supernodes.
 
@@ -367,7 +373,7 @@ def _selected_inverse(K: sp.spmatrix, M: sp.spmatrix) -> tuple[_Selected, np.nda
             factor not above ``UNDETERMINED_RTOL`` of the largest diagonal entry.
     """
     N = K.shape[0]
-    pattern = (abs(K) + abs(M)).tocsc()
+    pattern = (abs(K) + abs(M) + abs(wanted)).tocsc()
     lu = spla.splu(
         pattern + sp.identity(N, format="csc"), permc_spec="MMD_AT_PLUS_A",
         diag_pivot_thresh=0.0, options={"SymmetricMode": True, "Equil": False},

@@ -239,6 +239,27 @@ def test_selected_inversion_equals_the_dense_path(
     assert np.all(np.diagonal(fast.covariances - fast.fitted, axis1=1, axis2=2)[1:] > 0)
 
 
+def test_pose_block_with_structural_zeros(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A pose whose own 6 x 6 information block has structural zeros (its rotation and
+    its translation tied to the last pose by separate factors) still gets its whole,
+    correlated covariance block: equal to the dense path's."""
+    monkeypatch.setattr(sandwich_module, "SELECTED_INVERSION", True)
+    linear, keys, dims, maps, Q = _mixed_system()
+    rng = np.random.default_rng(9)
+    extra = X(len(keys))
+    unit = gtsam.noiseModel.Unit.Create(3)
+    eye, zero = np.eye(3), np.zeros((3, 3))
+    for A_extra in (np.hstack([eye, zero]), np.hstack([zero, eye])):  # X(5)'s errors, mapped
+        linear.add(extra, 1e3 * A_extra, keys[-1], 1e3 * rng.normal(size=(3, 6)), np.zeros(3), unit)
+    keys, dims = keys + [extra], dims | {extra: 6}
+    Q = np.concatenate([Q, Q[-1:]])
+    fast = sandwich_pose_covariances(linear, keys, dims, maps, Q)
+    dense = _dense_pose_covariances(linear, keys, dims, maps, Q)
+    assert np.any(np.abs(dense.fitted[-1][:3, 3:]) > 1e-3 * np.abs(dense.fitted[-1]).max())
+    np.testing.assert_allclose(fast.fitted, dense.fitted, rtol=1e-8, atol=1e-14)
+    np.testing.assert_allclose(fast.covariances, dense.covariances, rtol=1e-8, atol=1e-14)
+
+
 def test_undetermined_pose_takes_the_dense_path(monkeypatch: pytest.MonkeyPatch) -> None:
     """A pose key no factor touches: the sparse path stops at its pivot, the dense path
     names its six axes and sets them NaN; the other poses' blocks as without it."""
