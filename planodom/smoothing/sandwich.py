@@ -210,11 +210,11 @@ MERGE_WIDTH = 24
 #: Its products run in numpy's own loops (:func:`_mm`), fast up to about this size.
 NODE_WIDTH = 48
 
-#: Off: the sparse selected inversion is 4-25 times faster than the dense path on the
-#: 2D-rig laps, but its covariances differ from the dense path's (and gtsam's, which
-#: agree to 3e-7) by up to 5e-3 of the standard deviations on 5 of 8 laps, depending on
-#: the elimination order and not on the arithmetic's precision (docs/RESULTS.md,
-#: SANDFAST): not understood, so not used by default.
+#: Off: the sparse selected inversion is 1.2-7 times faster than the dense path on the
+#: 2D-rig laps, and equal to it to 3e-11 (worlds 8, 14) or 4e-6 (6, 18) of the standard
+#: deviations, but on the worse conditioned laps it differs by 6e-5 (world 0 at 2 cm)
+#: and 1e-3 (world 2 at 6 mm), where the dense path and gtsam agree to 5e-8 and 3e-7
+#: (docs/RESULTS.md, SANDFAST): not explained yet, so not the default.
 SELECTED_INVERSION = False
 
 #: Diagnostic: the selected inversion on the poses' sparse Schur complement instead of
