@@ -80,7 +80,7 @@ def run(world_index: int, noise: float) -> None:
 
     def linear() -> gtsam.GaussianFactorGraph:
         lin = cov_graph.linearize(estimate)
-        stiff = FIRST_POSE_TIGHTENING / cfg.smoothing.prior_sigma
+        stiff = FIRST_POSE_TIGHTENING / cfg.prior_sigma
         lin.add(X(0), stiff * np.eye(6), np.zeros(6), gtsam.noiseModel.Unit.Create(6))
         return lin
 
@@ -90,9 +90,7 @@ def run(world_index: int, noise: float) -> None:
         for name in ("fitted", "dense", "sparse")[:: 1 if rep % 2 == 0 else -1]:
             start = time.perf_counter()
             if name == "fitted":
-                out[name] = pose_covariances(
-                    cov_graph, estimate, len(Q), True, cfg.smoothing.prior_sigma
-                )[0]
+                out[name] = pose_covariances(cov_graph, estimate, len(Q), True, cfg.prior_sigma)[0]
             elif name == "dense":
                 out[name] = sw._dense_pose_covariances(linear(), keys, dims, maps, Q)
             else:
