@@ -214,7 +214,8 @@ NODE_WIDTH = 48
 #: 2D-rig laps, and equal to it to 3e-11 (worlds 8, 14) or 4e-6 (6, 18) of the standard
 #: deviations, but on the worse conditioned laps it differs by 6e-5 (world 0 at 2 cm)
 #: and 1e-3 (world 2 at 6 mm), where the dense path and gtsam agree to 5e-8 and 3e-7
-#: (docs/RESULTS.md, SANDFAST): not explained yet, so not the default.
+#: (docs/RESULTS.md, SANDFAST; with one-column blocks world 2's fitted blocks are at
+#: round-off, its sandwich term not): not explained yet, so not the default.
 SELECTED_INVERSION = False
 
 #: Diagnostic: the selected inversion on the poses' sparse Schur complement instead of
