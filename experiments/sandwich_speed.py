@@ -21,6 +21,7 @@ import numpy as np
 
 import planodom.smoothing.batch as batch_module
 import planodom.smoothing.sandwich as sw
+import planodom.smoothing.sparse_sandwich as ssw
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import world_for
 from planodom.odometry import run_odometry
@@ -94,7 +95,7 @@ def run(world_index: int, noise: float) -> None:
             elif name == "dense":
                 out[name] = sw._dense_pose_covariances(linear(), keys, dims, maps, Q)
             else:
-                out[name] = sw._sparse_pose_covariances(linear(), keys, dims, maps, Q)
+                out[name] = ssw.sparse_pose_covariances(linear(), keys, dims, maps, Q)
             times[name].append(time.perf_counter() - start)
     dense, sparse = out["dense"], out["sparse"]
     assert isinstance(dense, sw.SandwichMarginals) and isinstance(sparse, tuple)

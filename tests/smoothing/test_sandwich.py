@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import planodom.smoothing.sandwich as sandwich_module
+import planodom.smoothing.sparse_sandwich as sparse_sandwich
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import ConfigError
 from planodom.geometry import Plane
@@ -225,9 +226,9 @@ def test_selected_inversion_equals_the_dense_path(
     """The sparse selected inversion and its derivative give the dense path's sandwich
     and fitted blocks (global and anchored landmarks, the anchors' undetermined
     directions left out), whatever the blocks' widths."""
-    monkeypatch.setattr(sandwich_module, "SELECTED_INVERSION", True)
-    monkeypatch.setattr(sandwich_module, "NODE_WIDTH", node_width)
-    monkeypatch.setattr(sandwich_module, "MERGE_WIDTH", merge_width)
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", True)
+    monkeypatch.setattr(sparse_sandwich, "NODE_WIDTH", node_width)
+    monkeypatch.setattr(sparse_sandwich, "MERGE_WIDTH", merge_width)
     linear, keys, dims, maps, Q = _mixed_system()
     dense = _dense_pose_covariances(linear, keys, dims, maps, Q)
     fast = sandwich_pose_covariances(linear, keys, dims, maps, Q)
@@ -243,7 +244,7 @@ def test_pose_block_with_structural_zeros(monkeypatch: pytest.MonkeyPatch) -> No
     """A pose whose own 6 x 6 information block has structural zeros (its rotation and
     its translation tied to the last pose by separate factors) still gets its whole,
     correlated covariance block: equal to the dense path's."""
-    monkeypatch.setattr(sandwich_module, "SELECTED_INVERSION", True)
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", True)
     linear, keys, dims, maps, Q = _mixed_system()
     rng = np.random.default_rng(9)
     extra = X(len(keys))
@@ -263,7 +264,7 @@ def test_pose_block_with_structural_zeros(monkeypatch: pytest.MonkeyPatch) -> No
 def test_undetermined_pose_takes_the_dense_path(monkeypatch: pytest.MonkeyPatch) -> None:
     """A pose key no factor touches: the sparse path stops at its pivot, the dense path
     names its six axes and sets them NaN; the other poses' blocks as without it."""
-    monkeypatch.setattr(sandwich_module, "SELECTED_INVERSION", True)
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", True)
     linear, keys, dims, maps, Q = _mixed_system(extra_pose=True)
     out = sandwich_pose_covariances(linear, keys, dims, maps, Q)
     assert out.undetermined == {len(keys) - 1: [0, 1, 2, 3, 4, 5]}
