@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import planodom.smoothing.sandwich as sandwich_module
+import planodom.smoothing.sparse_sandwich as sparse_sandwich
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import ConfigError
 from planodom.geometry import Plane
@@ -18,6 +19,7 @@ from planodom.smoothing.graph import A, L, X
 from planodom.smoothing.marginals import pose_marginals
 from planodom.smoothing.sandwich import (
     CHUNK_ROWS,
+    _dense_pose_covariances,
     _mirror_upper,
     _scaled_columns,
     plane_error_map,
@@ -174,6 +176,101 @@ def test_pose_space_equals_dense_sandwich(gaps: bool) -> None:
         out.fitted, pose_marginals(linear, keys, dims), rtol=1e-6, atol=1e-14
     )
     assert np.all(np.diagonal(out.covariances - out.fitted, axis1=1, axis2=2)[1:] > 0)
+
+
+def _mixed_system(
+    extra_pose: bool = False,
+) -> tuple[gtsam.GaussianFactorGraph, list[int], dict[int, int], dict, np.ndarray]:
+    """The linearised system of ``_graph``'s world with walls 3 and 4 as anchored
+    landmarks (anchors without a prior: each group has undetermined directions), between
+    factors, and the error maps; ``extra_pose``: a seventh pose key no factor touches."""
+    poses, walls = _world()
+    rng = np.random.default_rng(4)
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    graph.add(gtsam.PriorFactorPose3(X(0), poses[0], gtsam.noiseModel.Isotropic.Sigma(6, 1e-4)))
+    for k in range(len(poses) - 1):
+        noise = gtsam.noiseModel.Isotropic.Sigma(6, 0.05)
+        graph.add(gtsam.BetweenFactorPose3(X(k), X(k + 1), poses[k].between(poses[k + 1]), noise))
+    for k, T in enumerate(poses):
+        values.insert(X(k), T)
+    anchors = {3: poses[1], 4: poses[2]}
+    for j, w in enumerate(walls):
+        if j in anchors:
+            values.insert(A(j), anchors[j])
+            values.insert(L(j), gtsam.OrientedPlane3(predict_plane(anchors[j].matrix(), w)))
+        else:
+            values.insert(L(j), gtsam.OrientedPlane3(w))
+    maps = {}
+    for k, T in enumerate(poses):
+        for j, w in enumerate(walls):
+            z = predict_plane(T.matrix(), w)
+            M = rng.normal(size=(3, 3))
+            noise = plane_noise(M @ M.T * 1e-5 + np.eye(3) * 1e-6)
+            factor = (anchored_plane_factor(X(k), A(j), L(j), z, noise) if j in anchors
+                      else plane_factor(X(k), L(j), z, noise))  # fmt: skip
+            plane = Plane(z[:3], float(z[3]), deskew_jacobian=rng.normal(scale=0.3, size=(4, 6)))
+            maps[graph.size()] = (k, plane_error_map(factor, plane))
+            graph.add(factor)
+    linear = graph.linearize(values)
+    zero = values.zeroVectors()
+    dims = {key: zero.at(key).size for key in values.keys()}
+    keys = [X(k) for k in range(len(poses))] + ([X(len(poses))] if extra_pose else [])
+    Q = np.stack([np.diag(rng.uniform(1e-6, 1e-4, size=6)) for _ in keys])
+    return linear, keys, dims, maps, Q
+
+
+@pytest.mark.parametrize(("node_width", "merge_width"), [(1, 0), (4, 0), (48, 24)])
+def test_selected_inversion_equals_the_dense_path(
+    node_width: int, merge_width: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The sparse selected inversion and its derivative give the dense path's sandwich
+    and fitted blocks (global and anchored landmarks, the anchors' undetermined
+    directions left out), whatever the blocks' widths."""
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", True)
+    monkeypatch.setattr(sparse_sandwich, "NODE_WIDTH", node_width)
+    monkeypatch.setattr(sparse_sandwich, "MERGE_WIDTH", merge_width)
+    linear, keys, dims, maps, Q = _mixed_system()
+    dense = _dense_pose_covariances(linear, keys, dims, maps, Q)
+    fast = sandwich_pose_covariances(linear, keys, dims, maps, Q)
+    assert dense.undetermined == {} and fast.undetermined == {}
+    for got, want in ((fast.covariances, dense.covariances), (fast.fitted, dense.fitted)):
+        sd = np.sqrt(np.diagonal(want, axis1=1, axis2=2))
+        np.testing.assert_allclose(got / (sd[:, :, None] * sd[:, None, :]),
+                                   want / (sd[:, :, None] * sd[:, None, :]), atol=1e-9)  # fmt: skip
+    assert np.all(np.diagonal(fast.covariances - fast.fitted, axis1=1, axis2=2)[1:] > 0)
+
+
+def test_pose_block_with_structural_zeros(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A pose whose own 6 x 6 information block has structural zeros (its rotation and
+    its translation tied to the last pose by separate factors) still gets its whole,
+    correlated covariance block: equal to the dense path's."""
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", True)
+    linear, keys, dims, maps, Q = _mixed_system()
+    rng = np.random.default_rng(9)
+    extra = X(len(keys))
+    unit = gtsam.noiseModel.Unit.Create(3)
+    eye, zero = np.eye(3), np.zeros((3, 3))
+    for A_extra in (np.hstack([eye, zero]), np.hstack([zero, eye])):  # X(5)'s errors, mapped
+        linear.add(extra, 1e3 * A_extra, keys[-1], 1e3 * rng.normal(size=(3, 6)), np.zeros(3), unit)
+    keys, dims = keys + [extra], dims | {extra: 6}
+    Q = np.concatenate([Q, Q[-1:]])
+    fast = sandwich_pose_covariances(linear, keys, dims, maps, Q)
+    dense = _dense_pose_covariances(linear, keys, dims, maps, Q)
+    assert np.any(np.abs(dense.fitted[-1][:3, 3:]) > 1e-3 * np.abs(dense.fitted[-1]).max())
+    np.testing.assert_allclose(fast.fitted, dense.fitted, rtol=1e-8, atol=1e-14)
+    np.testing.assert_allclose(fast.covariances, dense.covariances, rtol=1e-8, atol=1e-14)
+
+
+def test_undetermined_pose_takes_the_dense_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A pose key no factor touches: the sparse path stops at its pivot, the dense path
+    names its six axes and sets them NaN; the other poses' blocks as without it."""
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", True)
+    linear, keys, dims, maps, Q = _mixed_system(extra_pose=True)
+    out = sandwich_pose_covariances(linear, keys, dims, maps, Q)
+    assert out.undetermined == {len(keys) - 1: [0, 1, 2, 3, 4, 5]}
+    assert np.all(np.isnan(out.covariances[-1]))
+    ref = sandwich_pose_covariances(linear, keys[:-1], dims, maps, Q[:-1])
+    np.testing.assert_allclose(out.covariances[:-1], ref.covariances, rtol=1e-7, atol=1e-14)
 
 
 def test_sandwich_is_the_estimators_monte_carlo_covariance() -> None:
