@@ -122,9 +122,10 @@ def sandwich_pose_covariances(
 ) -> SandwichMarginals:
     """The poses' sandwich covariances (module docstring) of a linearised graph.
 
-    By the dense path (:func:`_dense_pose_covariances`); with ``SELECTED_INVERSION`` by
-    a sparse selected inversion (:func:`.sparse_sandwich.sparse_pose_covariances`), the dense path
-    taking over where that meets a pivot at the undetermined level.
+    By the dense path (:func:`_dense_pose_covariances`); with ``SELECTED_INVERSION`` (and
+    an ``EXTENDED`` precision) by a sparse selected inversion
+    (:func:`.sparse_sandwich.sparse_pose_covariances`), the dense path taking over where
+    that meets a pivot at the undetermined level.
 
     Args:
         linear: the linearised (whitened) graph at the estimate.
@@ -138,7 +139,7 @@ def sandwich_pose_covariances(
         numpy.linalg.LinAlgError: the poses' information is not positive definite even on
             its determined directions.
     """
-    if not sparse_sandwich.SELECTED_INVERSION:
+    if not sparse_sandwich.SELECTED_INVERSION or sparse_sandwich.EXTENDED is None:
         return _dense_pose_covariances(linear, pose_keys, dims, error_maps, motion_change)
     try:
         covariances, fitted = sparse_pose_covariances(

@@ -43,6 +43,13 @@ NODE_WIDTH = 48
 #: round-off, its sandwich term not): not explained yet, so not the default.
 SELECTED_INVERSION = False
 
+#: The selected inversion's arithmetic (:func:`_selected_inverse`: the extra term is a
+#: cancellation that double precision leaves 1e-3 of the standard deviations off on the
+#: worse conditioned laps): numpy's long double where it is the x87 80-bit format (64-bit
+#: significand; x86-64 Linux and macOS), else None and the dense path is used (where long
+#: double is double, or IEEE quad in software, several times slower).
+EXTENDED: type[np.floating] | None = np.longdouble if np.finfo(np.longdouble).nmant == 63 else None
+
 #: Diagnostic: the selected inversion on the poses' sparse Schur complement instead of
 #: the system with the landmarks' determined directions (the same differences).
 POSE_SPACE = False
@@ -105,10 +112,10 @@ def sparse_pose_covariances(
     # each pose's 6 x 6 block wanted whole (some have structural zeros in K)
     blocks6 = sp.block_diag([np.ones((POSE_DIM, POSE_DIM))] * E, format="csc")
     wanted = sp.block_diag([blocks6, sp.csc_matrix((K.shape[0] - n, K.shape[0] - n))])
-    Z, dZ = _selected_inverse(Dinv @ K @ Dinv, (Rs @ Rs.T).tocsc(), wanted)
+    Z, dZ = _selected_inverse(Dinv @ K @ Dinv, Rs, wanted)
     pos = Z.position[:n].reshape(E, POSE_DIM)
-    fitted = Z.values[pos[:, :, None], pos[:, None, :]]
-    extra = -dZ[pos[:, :, None], pos[:, None, :]]
+    fitted = Z.values[pos[:, :, None], pos[:, None, :]].astype(float)
+    extra = -dZ[pos[:, :, None], pos[:, None, :]].astype(float)
     scale = ds[:n].reshape(E, POSE_DIM)
     outer = scale[:, :, None] * scale[:, None, :]
     return (fitted + extra) / outer, fitted / outer
@@ -181,7 +188,7 @@ def _mm(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a @ b`` by numpy's own loops, not BLAS: the selected inversion's blocks are small
     (tens to a few hundred rows), where OpenBLAS's threads cost more than the product
     and stall when the cores are busy (measured, world 14 at 2 cm: 6-15 s against 1.5 s
-    with one BLAS thread)."""
+    with one BLAS thread); and they run in ``EXTENDED``, which BLAS does not have."""
     return np.einsum("ij,jk->ik", a, b)
 
 
@@ -195,74 +202,157 @@ class _Selected:
 
 
 def _selected_inverse(
-    K: sp.spmatrix, M: sp.spmatrix, wanted: sp.spmatrix
+    K: sp.spmatrix, R: sp.spmatrix, wanted: sp.spmatrix
 ) -> tuple[_Selected, np.ndarray]:
-    """``K^-1`` on the pattern of ``K + M + wanted``'s factor (``wanted``: a pattern of
-    entries to be computed, e.g. whole diagonal blocks), and there the first-order change
-    ``d/de (K + e M)^-1 = -K^-1 M K^-1`` (``K`` (N, N) sparse positive definite, ``M``
-    sparse symmetric), both by block elimination over supernodes.
+    """``K^-1`` on the pattern of ``K + R R^T + wanted``'s factor (``wanted``: a pattern
+    of entries to be computed, e.g. whole diagonal blocks), and there the first-order
+    change ``d/de (K + e M)^-1 = -K^-1 M K^-1`` with ``M = R R^T`` (``K`` (N, N) sparse
+    positive definite, ``R`` (N, c) sparse), both by block elimination over supernodes,
+    in ``EXTENDED`` precision (values returned in it).
 
-    Block LDL^T of ``K(e)`` (pivot blocks ``P_J``, ``F = K_IJ P_J^-1``, ``K_II -= F
-    K_JI``) and Takahashi's selected inversion (``Z_IJ = -Z_II F``, ``Z_JJ = P_J^-1 - F^T
-    Z_IJ``, from the last block to the first) on the supernodes' patterns, each carried
-    with its derivative in ``e`` (forward-mode, exact: no finite step): the cost of the
-    fitted marginals' selected inversion, about twice, instead of ``N`` solves.
+    Block Cholesky of ``K(e)`` (pivot blocks ``P_J = L_J L_J^T``, panel ``G = K_IJ
+    L_J^-T``, ``K_II -= G G^T``) and Takahashi's selected inversion (``Z_IJ = -Z_II G
+    L_J^-1``, ``Z_JJ = L_J^-T (I + G^T Z_II G) L_J^-1``, from the last block to the
+    first) on the supernodes' patterns, each carried with its derivative in ``e``
+    (forward-mode, exact: no finite step): the cost of the fitted marginals' selected
+    inversion, about twice, instead of ``N`` solves.
+
+    Why the panel and not ``F = K_IJ P_J^-1`` with an explicit ``P_J^-1``: the pivot
+    blocks of the worse conditioned laps are themselves ill-conditioned, and the Schur
+    update ``F K_JI`` through the explicit inverse put the fitted blocks 2-4e-4 of their
+    standard deviations off on world 2 at 6 mm (one-column blocks were at round-off);
+    ``G G^T`` is at round-off at every width (1.4e-7). Why ``EXTENDED``: ``R``'s columns
+    lie in the range of the whitened Jacobian's transpose, so ``K^-1 R`` is of moderate
+    size while ``K^-1`` is not (condition 6e9 on that lap): ``K^-1 M K^-1`` is a
+    cancellation of terms ``|K^-1| |M| |K^-1|``, and ``M``'s rounding to double alone
+    moves the extra term by 1.6e-4 of the standard deviations (1e-3 with the recursion's
+    own rounding). ``M`` formed and the recursion run in extended precision: 3e-8 from an
+    iteratively refined solve of ``K^-1 R`` (the dense path: 4e-7).
 
     Raises:
         NotDefinite: a pivot block is not positive definite, or a pivot of its Cholesky
             factor not above ``UNDETERMINED_RTOL`` of the largest diagonal entry.
     """
     N = K.shape[0]
-    pattern = (abs(K) + abs(M) + abs(wanted)).tocsc()
+    Rx = sp.csr_matrix(R, dtype=EXTENDED)
+    M = (Rx @ Rx.T.tocsr()).tocsr()  # R R^T, rounded once in EXTENDED
+    pattern = (abs(K) + sp.csr_matrix(M, dtype=float, copy=True) + abs(wanted)).tocsc()
+    pattern.data = np.abs(pattern.data)
     lu = spla.splu(
         pattern + sp.identity(N, format="csc"), permc_spec="MMD_AT_PLUS_A",
         diag_pivot_thresh=0.0, options={"SymmetricMode": True, "Equil": False},
     )  # fmt: skip
     perm = lu.perm_c  # variable i is row perm[i] of the factor
-    inv = np.argsort(perm)
     L = lu.L.tocsc()
     L.sort_indices()
-    ind, ptr = L.indices, L.indptr
-    nodes = _supernodes(ind, ptr, N)
-    A = K.tocsr()[inv][:, inv].toarray()
-    dA = M.tocsr()[inv][:, inv].toarray()
+    nodes = _supernodes(L.indices, L.indptr, N)
+    A, dA = _scattered(K, perm), _scattered(M, perm)
+    factors = _factor(A, dA, nodes)
+    _takahashi(A, dA, nodes, factors)
+    return _Selected(A, perm), dA
+
+
+def _scattered(S: sp.spmatrix, perm: np.ndarray) -> np.ndarray:
+    """The sparse ``S`` (N, N) as a dense ``EXTENDED`` array in the elimination order
+    (``S_ij`` at ``[perm[i], perm[j]]``), written into zeroed memory: pages the
+    factor's pattern never reaches are not touched."""
+    coo = S.tocoo()
+    out = np.zeros(S.shape, dtype=EXTENDED)
+    out[perm[coo.row], perm[coo.col]] = coo.data
+    return out
+
+
+_Factor = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # L_J^-1, its d, G, dG
+
+
+def _factor(
+    A: np.ndarray, dA: np.ndarray, nodes: list[tuple[int, int, np.ndarray]]
+) -> list[_Factor]:
+    """:func:`_selected_inverse`'s block Cholesky over ``nodes`` (columns [c0, c1), rows
+    below) with its derivative, Schur complements left in ``A`` and ``dA`` (in place);
+    each node's ``(L_J^-1, d L_J^-1, G, dG)``."""
     top = float(np.max(np.diag(A), initial=1.0))
     factors = []
     for c0, c1, below in nodes:
         J = slice(c0, c1)
-        P, dP = A[J, J], dA[J, J]
-        try:
-            chol = np.linalg.cholesky(P)  # (blocks of at most NODE_WIDTH: see _mm)
-        except np.linalg.LinAlgError as exc:
-            raise NotDefinite from exc
+        chol = _cholesky(A[J, J])
         if not np.all(np.diag(chol) ** 2 > UNDETERMINED_RTOL * top):
             raise NotDefinite
-        root = np.linalg.inv(chol)
-        Pinv = _mm(root.T, root)
-        KJI, dKJI = A[J][:, below], dA[J][:, below]  # (w, |I|)
-        F = _mm(Pinv, KJI).T  # K_IJ P^-1, (|I|, w)
-        dF = _mm(Pinv, dKJI - _mm(dP, F.T)).T
+        Li = _lower_inverse(chol)
+        # d(L L^T) = dP: dL = L Phi, Phi the lower half of L^-1 dP L^-T (diagonal halved)
+        Phi = np.tril(_mm(_mm(Li, dA[J, J]), Li.T))
+        Phi[np.diag_indices(c1 - c0)] *= 0.5
+        KIJ, dKIJ = A[below, J], dA[below, J]  # (|I|, w)
+        G = _mm(KIJ, Li.T)  # K_IJ L^-T
+        dG = _mm(dKIJ, Li.T) - _mm(G, Phi.T)
         if len(below):
             ix = np.ix_(below, below)
-            A[ix] -= _mm(F, KJI)
-            dA[ix] -= _mm(dF, KJI) + _mm(F, dKJI)
-        factors.append((Pinv, dP, F, dF))
-    for (c0, c1, below), (Pinv, dP, F, dF) in zip(reversed(nodes), reversed(factors), strict=True):
+            A[ix] -= _mm(G, G.T)
+            half = _mm(dG, G.T)
+            dA[ix] -= half + half.T
+        factors.append((Li, -_mm(Phi, Li), G, dG))
+    return factors
+
+
+def _takahashi(
+    A: np.ndarray,
+    dA: np.ndarray,
+    nodes: list[tuple[int, int, np.ndarray]],
+    factors: list[_Factor],
+) -> None:
+    """:func:`_selected_inverse`'s selected inversion with its derivative, from the last
+    node to the first, written over ``A`` and ``dA`` on the nodes' patterns."""
+    for (c0, c1, below), (Li, dLi, G, dG) in zip(reversed(nodes), reversed(factors), strict=True):
         J = slice(c0, c1)
-        ZJJ = Pinv.copy()
-        dZJJ = -_mm(_mm(Pinv, dP), Pinv)
+        inner = np.eye(c1 - c0, dtype=A.dtype)  # I + G^T Z_II G
+        d_inner = np.zeros_like(inner)
         if len(below):
             ix = np.ix_(below, below)
-            ZII, dZII = A[ix], dA[ix]
-            ZIJ = -_mm(ZII, F)
-            dZIJ = -_mm(dZII, F) - _mm(ZII, dF)
-            ZJJ -= _mm(F.T, ZIJ)
-            dZJJ -= _mm(dF.T, ZIJ) + _mm(F.T, dZIJ)
+            w = c1 - c0
+            both = _mm(A[ix], np.hstack([G, dG]))  # Z_II G, Z_II dG
+            U = both[:, :w]
+            dU = _mm(dA[ix], G) + both[:, w:]
+            ZIJ = -_mm(U, Li)
+            dZIJ = -_mm(dU, Li) - _mm(U, dLi)
+            inner += _mm(G.T, U)
+            d_inner = _mm(dG.T, U) + _mm(G.T, dU)
             A[below, J], A[J, below] = ZIJ, ZIJ.T
             dA[below, J], dA[J, below] = dZIJ, dZIJ.T
+        right = _mm(inner, Li)
+        ZJJ = _mm(Li.T, right)
+        dZJJ = _mm(dLi.T, right) + _mm(Li.T, _mm(d_inner, Li) + _mm(inner, dLi))
         A[J, J] = 0.5 * (ZJJ + ZJJ.T)
         dA[J, J] = 0.5 * (dZJJ + dZJJ.T)
-    return _Selected(A, perm), dA
+
+
+def _cholesky(P: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factor of the small ``P`` (w, w) in its own precision (LAPACK has
+    no ``EXTENDED``), a column at a time.
+
+    Raises:
+        NotDefinite: ``P`` is not positive definite.
+    """
+    w = len(P)
+    L = np.zeros_like(P)
+    for j in range(w):
+        pivot = P[j, j] - _mm(L[j : j + 1, :j], L[j, :j, None])[0, 0]
+        if not pivot > 0.0:
+            raise NotDefinite
+        L[j, j] = np.sqrt(pivot)
+        L[j + 1 :, j] = (P[j + 1 :, j] - _mm(L[j + 1 :, :j], L[j, :j, None])[:, 0]) / L[j, j]
+    return L
+
+
+def _lower_inverse(L: np.ndarray) -> np.ndarray:
+    """The inverse of the small lower-triangular ``L`` (w, w) in its own precision, a
+    row at a time (forward substitution on the identity)."""
+    w = len(L)
+    X = np.zeros_like(L)
+    for i in range(w):
+        X[i, : i + 1] = -_mm(L[i : i + 1, :i], X[:i, : i + 1])[0]
+        X[i, i] += 1.0
+        X[i, : i + 1] /= L[i, i]
+    return X
 
 
 def _supernodes(ind: np.ndarray, ptr: np.ndarray, N: int) -> list[tuple[int, int, np.ndarray]]:

@@ -8,6 +8,7 @@ from dataclasses import replace
 import gtsam
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 import planodom.smoothing.sandwich as sandwich_module
 import planodom.smoothing.sparse_sandwich as sparse_sandwich
@@ -16,7 +17,7 @@ from planodom.errors import ConfigError
 from planodom.geometry import Plane
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.graph import A, L, X
-from planodom.smoothing.marginals import pose_marginals
+from planodom.smoothing.marginals import POSE_DIM, pose_marginals
 from planodom.smoothing.sandwich import (
     CHUNK_ROWS,
     _dense_pose_covariances,
@@ -259,6 +260,78 @@ def test_pose_block_with_structural_zeros(monkeypatch: pytest.MonkeyPatch) -> No
     assert np.any(np.abs(dense.fitted[-1][:3, 3:]) > 1e-3 * np.abs(dense.fitted[-1]).max())
     np.testing.assert_allclose(fast.fitted, dense.fitted, rtol=1e-8, atol=1e-14)
     np.testing.assert_allclose(fast.covariances, dense.covariances, rtol=1e-8, atol=1e-14)
+
+
+def _ill_conditioned_chain(
+    anchor: float, nodes: int = 60, columns: int = 4
+) -> tuple[sp.csc_matrix, sp.csc_matrix, np.ndarray]:
+    """A Jacobi-scaled information ``K`` (6 nodes-dims each) of a chain of 6-dof nodes
+    tied to their neighbours and every fourth to the third next (random weights), held in
+    place only by a prior of weight ``anchor`` on the first (condition 9e10 at 1e-4, as
+    the worse conditioned laps' 6e9), and ``R = K V`` with ``V`` (N, 6 columns) of unit
+    size on one node per block of 6 columns: ``K^-1 R = V`` although ``K^-1`` is large,
+    the cancellation of the sandwich's extra term (its columns in the range of the
+    whitened Jacobian's transpose)."""
+    rng = np.random.default_rng(3)
+    N = POSE_DIM * nodes
+    rows = []
+
+    def tie(i: int, j: int, weight: np.ndarray) -> None:
+        row = np.zeros((POSE_DIM, N))
+        row[:, POSE_DIM * i : POSE_DIM * (i + 1)] = -weight
+        row[:, POSE_DIM * j : POSE_DIM * (j + 1)] = weight
+        rows.append(row)
+
+    for i in range(nodes - 1):
+        tie(i, i + 1, np.eye(POSE_DIM) + 0.3 * rng.normal(size=(POSE_DIM, POSE_DIM)))
+        if i % 4 == 0 and i + 3 < nodes:
+            tie(i, i + 3, 0.5 * rng.normal(size=(POSE_DIM, POSE_DIM)))
+    prior = np.zeros((POSE_DIM, N))
+    prior[:, :POSE_DIM] = anchor * np.eye(POSE_DIM)
+    J = np.vstack(rows + [prior])
+    K = J.T @ J
+    d = np.sqrt(np.diag(K))
+    K /= np.outer(d, d)
+    V = np.zeros((N, POSE_DIM * columns))
+    for k, node in enumerate(rng.choice(nodes, size=columns, replace=False)):
+        V[POSE_DIM * node : POSE_DIM * (node + 1), POSE_DIM * k : POSE_DIM * (k + 1)] = rng.normal(
+            size=(POSE_DIM, POSE_DIM)
+        )
+    return sp.csc_matrix(K), sp.csc_matrix(K @ V), V
+
+
+@pytest.mark.skipif(sparse_sandwich.EXTENDED is None, reason="no extended precision")
+@pytest.mark.parametrize("node_width", [1, 6, 48])
+def test_selected_inversion_of_an_ill_conditioned_system(
+    node_width: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On a system as ill-conditioned as world 2's at 6 mm: the extra term
+    ``K^-1 R R^T K^-1`` is ``V V^T`` (closed form) to 1e-7 of the standard deviations, and
+    ``K^-1``'s blocks are a refined dense inverse's to 3e-6, at every block width. The
+    first sparse version was off by 3-4e-6 there (``R R^T`` rounded to double, the
+    recursion in double) and its multi-column blocks' ``K^-1`` by 1.5-2e-5 (the Schur
+    update through an explicit inverse of ill-conditioned pivot blocks)."""
+    monkeypatch.setattr(sparse_sandwich, "NODE_WIDTH", node_width)
+    K, R, V = _ill_conditioned_chain(1e-4)
+    N = K.shape[0]
+    E = N // POSE_DIM
+    wanted = sp.block_diag([np.ones((POSE_DIM, POSE_DIM))] * E, format="csc")
+    Z, dZ = sparse_sandwich._selected_inverse(K, R, wanted)
+    pos = Z.position.reshape(E, POSE_DIM)
+    fitted = Z.values[pos[:, :, None], pos[:, None, :]].astype(float)
+    extra = -dZ[pos[:, :, None], pos[:, None, :]].astype(float)
+    dense = np.linalg.inv(K.toarray())  # one step of refinement, residual in long double
+    residual = np.eye(N) - (K.toarray().astype(np.longdouble) @ dense.astype(np.longdouble))
+    dense = dense + dense @ residual.astype(float)
+    idx = np.arange(N).reshape(E, POSE_DIM)
+    want_fitted = dense[idx[:, :, None], idx[:, None, :]]
+    VV = V @ V.T
+    want_extra = VV[idx[:, :, None], idx[:, None, :]]
+    sd = np.sqrt(np.diagonal(want_fitted + want_extra, axis1=1, axis2=2))
+    sd_fitted = np.sqrt(np.diagonal(want_fitted, axis1=1, axis2=2))
+    assert np.max(np.abs(extra - want_extra) / (sd[:, :, None] * sd[:, None, :])) < 1e-7
+    err = np.abs(fitted - want_fitted) / (sd_fitted[:, :, None] * sd_fitted[:, None, :])
+    assert np.max(err) < 3e-6
 
 
 def test_undetermined_pose_takes_the_dense_path(monkeypatch: pytest.MonkeyPatch) -> None:
