@@ -35,13 +35,12 @@ MERGE_WIDTH = 24
 #: Its products run in numpy's own loops (:func:`_mm`), fast up to about this size.
 NODE_WIDTH = 48
 
-#: Off: the sparse selected inversion is 1.2-7 times faster than the dense path on the
-#: 2D-rig laps, and equal to it to 3e-11 (worlds 8, 14) or 4e-6 (6, 18) of the standard
-#: deviations, but on the worse conditioned laps it differs by 6e-5 (world 0 at 2 cm)
-#: and 1e-3 (world 2 at 6 mm), where the dense path and gtsam agree to 5e-8 and 3e-7
-#: (docs/RESULTS.md, SANDFAST; with one-column blocks world 2's fitted blocks are at
-#: round-off, its sandwich term not): not explained yet, so not the default.
-SELECTED_INVERSION = False
+#: On (the sandwich option's path; the dense one where it meets an undetermined pivot or
+#: without ``EXTENDED``): equal to the dense path to round-off of the standard deviations
+#: on the 2D-rig laps of docs/RESULTS.md (SANDFIX) and several times faster. Before, it
+#: was off: 1e-3 (world 2 at 6 mm) from ``R R^T`` rounded to double and 2-4e-4 in the
+#: fitted blocks from an explicit pivot inverse (:func:`_selected_inverse`).
+SELECTED_INVERSION = True
 
 #: The selected inversion's arithmetic (:func:`_selected_inverse`: the extra term is a
 #: cancellation that double precision leaves 1e-3 of the standard deviations off on the
