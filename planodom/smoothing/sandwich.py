@@ -23,11 +23,12 @@ at a time), the pose rows of ``A^-1 B`` (``B = J^T G``) are ``P^-1 B~`` with
 fitted path's) the pose block i is ``Sigma_ii + sum_k (Sigma B~)_ik Q_k (Sigma B~)_ik^T``.
 ``B~`` is sparse (an epoch's columns reach the poses that share its landmarks).
 
-Optionally (``SELECTED_INVERSION``, off) without forming ``Sigma``: the pose blocks of
+By default (``SELECTED_INVERSION``) without forming ``Sigma``: the pose blocks of
 ``Sigma`` and of ``Sigma B~ Q B~^T Sigma = -d/de (P + e B~ Q B~^T)^-1`` are what a sparse
 selected inversion (Takahashi's recursion over supernodes) and its exact derivative give
-(:func:`.sparse_sandwich.sparse_pose_covariances`); the dense path (:func:`_dense_pose_covariances`)
-is the default and remains for poses with undetermined axes.
+(:func:`.sparse_sandwich.sparse_pose_covariances`, in extended precision); the dense path
+(:func:`_dense_pose_covariances`) remains for poses with undetermined axes and where
+numpy has no extended precision.
 
 Not modelled: the deskewing error of the relative-pose and loop-candidate factors (they
 enter only where planes are not plane factors, ``smoothing.between_factors``) and of

@@ -1,10 +1,11 @@
-"""The sandwich covariances' poses blocks by a sparse selected inversion (off by default:
+"""The sandwich covariances' poses blocks by a sparse selected inversion (on by default:
 ``SELECTED_INVERSION``; :func:`.sandwich.sandwich_pose_covariances` uses it when on).
 
 The pose blocks of ``Sigma`` and of ``Sigma B~ Q B~^T Sigma = -d/de (P + e B~ Q B~^T)^-1``
 (:mod:`.sandwich`'s notation) from Takahashi's recursion over supernodes carried with its
 exact derivative, on a sparse system that keeps the landmark groups' determined
-directions as variables (:func:`sparse_pose_covariances`).
+directions as variables (:func:`sparse_pose_covariances`), in extended precision
+(``EXTENDED``; :func:`_selected_inverse` says why).
 """
 
 from __future__ import annotations
