@@ -226,7 +226,7 @@ def _selected_inverse(
     size while ``K^-1`` is not (condition 6e9 on that lap): ``K^-1 M K^-1`` is a
     cancellation of terms ``|K^-1| |M| |K^-1|``, and ``M``'s rounding to double alone
     moves the extra term by 1.6e-4 of the standard deviations (1e-3 with the recursion's
-    own rounding). ``M`` formed and the recursion run in extended precision: 3e-8 from an
+    own rounding). ``M`` formed and the recursion run in extended precision: 2-4e-8 from an
     iteratively refined solve of ``K^-1 R`` (the dense path: 4e-7).
 
     Raises:
@@ -236,8 +236,8 @@ def _selected_inverse(
     N = K.shape[0]
     Rx = sp.csr_matrix(R, dtype=EXTENDED)
     M = (Rx @ Rx.T.tocsr()).tocsr()  # R R^T, rounded once in EXTENDED
-    pattern = (abs(K) + sp.csr_matrix(M, dtype=float, copy=True) + abs(wanted)).tocsc()
-    pattern.data = np.abs(pattern.data)
+    # (a copy: a float view of M shares its indices, which scipy may sort in place)
+    pattern = (abs(K) + abs(sp.csr_matrix(M, dtype=float, copy=True)) + abs(wanted)).tocsc()
     lu = spla.splu(
         pattern + sp.identity(N, format="csc"), permc_spec="MMD_AT_PLUS_A",
         diag_pivot_thresh=0.0, options={"SymmetricMode": True, "Equil": False},
