@@ -23,6 +23,13 @@ at a time), the pose rows of ``A^-1 B`` (``B = J^T G``) are ``P^-1 B~`` with
 fitted path's) the pose block i is ``Sigma_ii + sum_k (Sigma B~)_ik Q_k (Sigma B~)_ik^T``.
 ``B~`` is sparse (an epoch's columns reach the poses that share its landmarks).
 
+By default (``SELECTED_INVERSION``) without forming ``Sigma``: the pose blocks of
+``Sigma`` and of ``Sigma B~ Q B~^T Sigma = -d/de (P + e B~ Q B~^T)^-1`` are what a sparse
+selected inversion (Takahashi's recursion over supernodes) and its exact derivative give
+(:func:`.sparse_sandwich.sparse_pose_covariances`, in extended precision); the dense path
+(:func:`_dense_pose_covariances`) remains for poses with undetermined axes and where
+numpy has no extended precision.
+
 Not modelled: the deskewing error of the relative-pose and loop-candidate factors (they
 enter only where planes are not plane factors, ``smoothing.between_factors``) and of
 factors the robust kernel down-weights at the estimate (outliers of
@@ -43,6 +50,7 @@ from scipy.linalg import lapack, solve_triangular
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
+from planodom.smoothing import sparse_sandwich
 from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.graph import X
 from planodom.smoothing.marginals import (
@@ -53,6 +61,7 @@ from planodom.smoothing.marginals import (
     pose_columns,
     split_factors,
 )
+from planodom.smoothing.sparse_sandwich import NotDefinite, psd_root, sparse_pose_covariances
 
 #: ``OrientedPlane3::errorVector``'s first-order change with the measured plane's tangent
 #: coordinates ``delta`` (Unit3 basis (2), d) is ``sign * diag(1, 1, -1) delta`` at a
@@ -114,6 +123,11 @@ def sandwich_pose_covariances(
 ) -> SandwichMarginals:
     """The poses' sandwich covariances (module docstring) of a linearised graph.
 
+    By the dense path (:func:`_dense_pose_covariances`); with ``SELECTED_INVERSION`` (and
+    an ``EXTENDED`` precision) by a sparse selected inversion
+    (:func:`.sparse_sandwich.sparse_pose_covariances`), the dense path taking over where
+    that meets a pivot at the undetermined level.
+
     Args:
         linear: the linearised (whitened) graph at the estimate.
         pose_keys: the E pose keys, in output order.
@@ -126,6 +140,26 @@ def sandwich_pose_covariances(
         numpy.linalg.LinAlgError: the poses' information is not positive definite even on
             its determined directions.
     """
+    if not sparse_sandwich.SELECTED_INVERSION or sparse_sandwich.EXTENDED is None:
+        return _dense_pose_covariances(linear, pose_keys, dims, error_maps, motion_change)
+    try:
+        covariances, fitted = sparse_pose_covariances(
+            linear, pose_keys, dims, error_maps, motion_change
+        )
+    except NotDefinite:
+        return _dense_pose_covariances(linear, pose_keys, dims, error_maps, motion_change)
+    return SandwichMarginals(covariances, fitted, {}, len(error_maps))
+
+
+def _dense_pose_covariances(
+    linear: gtsam.GaussianFactorGraph,
+    pose_keys: Sequence[int],
+    dims: Mapping[int, int],
+    error_maps: Mapping[int, tuple[int, np.ndarray]],
+    motion_change: np.ndarray,
+) -> SandwichMarginals:
+    """:func:`sandwich_pose_covariances` by the poses' dense Schur complement: one dense
+    inversion, undetermined pose axes found by pivoted Cholesky and set NaN."""
     pose_index = {key: i for i, key in enumerate(pose_keys)}
     n = POSE_DIM * len(pose_keys)
     S = np.zeros((n, n))
@@ -149,7 +183,7 @@ def sandwich_pose_covariances(
     del S
     # Q_k = L_k L_k^T folded into B~'s columns: the extra term's block i is then
     # (Sigma B~ L)_i (Sigma B~ L)_i^T, one batched product per chunk of poses.
-    roots = [_psd_root(q) for q in np.asarray(motion_change, dtype=float)]
+    roots = [psd_root(q) for q in np.asarray(motion_change, dtype=float)]
     Bs = _scaled_columns(parts, n, roots, 1.0 / d)
     E = len(pose_keys)
     fitted, extra = _pose_blocks(sigma, Bs)
@@ -265,12 +299,6 @@ def _mirror_upper(a: np.ndarray) -> None:
         block = a[start:stop, start:stop]
         block[...] = np.triu(block) + np.triu(block, 1).T
         a[stop:, start:stop] = a[start:stop, stop:].T
-
-
-def _psd_root(q: np.ndarray) -> np.ndarray:
-    """(6, 6) ``L`` with ``L L^T = q`` for a positive semi-definite ``q``."""
-    w, V = np.linalg.eigh(0.5 * (q + q.T))
-    return V * np.sqrt(np.maximum(w, 0.0))
 
 
 def _eliminate(
