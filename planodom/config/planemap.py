@@ -343,6 +343,16 @@ class PlanemapConfig(Section):
     (no point times) unchanged. The default since issue 11: every procedural lidar world
     better against a 2 % loss on one drive with a sweep declared by hand (what a run-to-run
     change of unrelated settings moves there)."""
+    deskew_curve: Literal[0, 2, 3] = 0
+    """Streaming, lidar scans with point times: after the epoch's constant-twist
+    extractions (:func:`planodom.odometry.deskew.register_deskewed`), it is extracted
+    again deskewed along the polynomial of this degree through the poses of the last
+    ``deskew_curve`` epochs and its own estimate (:func:`planodom.odometry.interpolate.
+    deskew_with_poses`), up to ``odometry.deskew_iterations`` times, each kept unless its
+    status is worse; 0: off. A constant twist cannot follow a rate that changes within a
+    sweep (a hand-held lidar's yaw swing); the curve brings the change of rate since the
+    epochs before. Only when those epochs and the step to them were measured (none
+    unresolved, no gap)."""
     prediction: Literal["mean", "last", "trend"] = "trend"
     """The twist each epoch is first deskewed with (the streaming odometry's constant-
     velocity prediction, :func:`planodom.odometry.trend.predicted_twist`): "mean", the

@@ -41,6 +41,7 @@ from planodom.odometry.deskew import (
 )
 from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
+from planodom.odometry.interpolate import deskew_with_poses
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
@@ -189,9 +190,12 @@ class PlaneOdometry:
                 best = reextracted_first(
                     best, dt, ocfg, self._history[0], partial(self._first_round, scan, t)
                 )
+            twist = best.twist  # the epoch's record: the last constant twist it was deskewed with
+            if self._map is not None and pm.deskew_curve:
+                best = self._curve_deskewed(scan, t, best, pm.deskew_curve)
         else:
             best = estimate(None)
-        twist = best.twist
+            twist = best.twist
         if deskewed is not None and keep_first(given, best):
             best, scan, twist = given, deskewed, np.zeros(6)
         return self._commit(_Epoch(k, best.planes, best.plane_set, scan, twist), best, t)
@@ -319,6 +323,33 @@ class PlaneOdometry:
             offset = twist_offset(epoch.scan, epoch.twist, reference.twist, t - self.times[-1])
         return EpochEstimate(epoch.planes, epoch.plane_set, epoch.twist, result, step,
                              reference.planes, est, twist_offset=offset)  # fmt: skip
+
+    def _curve_deskewed(
+        self, scan: Scan, t: float, best: EpochEstimate, order: int
+    ) -> EpochEstimate:
+        """``best`` (epoch ``k`` at time ``t``, extracted with constant twists), extracted
+        again deskewed along the polynomial of degree ``order`` through the poses of the
+        last ``order`` epochs and its own (``planemap.deskew_curve``), up to
+        ``odometry.deskew_iterations`` times, each kept unless its status is worse; ``best``
+        itself when an epoch or step among them was not measured (unresolved, a gap)."""
+        k = len(self.poses)
+        if k < order or best.relative.status is Status.UNRESOLVED:
+            return best
+        steps = self.results[k - order + 1 :]
+        if any(r is None or r.status is Status.UNRESOLVED for r in steps):
+            return best
+        if any(j in self._gaps for j in range(k - order + 1, k + 1)):
+            return best
+        node_times = np.array([*self.times[k - order :], t])
+        for _ in range(self.config.odometry.deskew_iterations):
+            nodes = np.array([*self.poses[k - order :], self.poses[-1] @ best.step])
+            points = deskew_with_poses(scan, node_times, nodes, t, order=order).points
+            # the times kept (a lidar's range-image columns), deskewed already: a zero twist
+            again = self._estimate_scan(replace(scan, points=points), t, np.zeros(6))
+            if again.relative.status.rank < best.relative.status.rank:
+                break
+            best = again
+        return best
 
     def _config_for_gap(self, gap: int) -> PlanodomConfig:
         if gap not in self._gap_configs:
