@@ -343,6 +343,14 @@ class PlanemapConfig(Section):
     (no point times) unchanged. The default since issue 11: every procedural lidar world
     better against a 2 % loss on one drive with a sweep declared by hand (what a run-to-run
     change of unrelated settings moves there)."""
+    restart: Literal["prediction", "previous", "from_previous", "rejected"] = "prediction"
+    """Where an epoch extracted again (with a refined twist) is registered from:
+    ``prediction``, the constant-velocity prediction, as its first extraction;
+    ``previous``, that and the pose its previous extraction was registered at, the
+    better kept (resolved, within the motion bounds, then the lower score). On a swing
+    the prediction is off by the change of the step (a hand-held lidar's yaw: up to
+    10 deg per epoch), and a registration from there can stop in another minimum than
+    the one the previous extraction found."""
     deskew_curve: Literal[0, 2, 3] = 0
     """Streaming, lidar scans with point times: after the epoch's constant-twist
     extractions (:func:`planodom.odometry.deskew.register_deskewed`), it is extracted

@@ -262,27 +262,39 @@ class PlaneOdometry:
     def _estimate_scan(
         self, scan: Scan, t: float, twist: np.ndarray | None,
         source: EpochEstimate | None = None, prior_sigma: TwistSigma | None = None,
+        start: np.ndarray | None = None,
     ) -> EpochEstimate:  # fmt: skip
         """Extract the scan deskewed with ``twist`` and estimate its relative pose; the
         twist's sigma is ``prior_sigma`` (predicted or held), or from ``source`` when it
-        was refined from that estimate's own twist (:mod:`.twist_sigma`)."""
+        was refined from that estimate's own twist (:mod:`.twist_sigma`). A plane map also
+        registers it from ``start`` (4, 4), or the pose ``source`` was registered at
+        (``planemap.restart``)."""
         sigma = prior_sigma if twist is not None else None
         if source is not None and twist is not None and self.times:
             sigma = self._twist_sigma.refined(source, t - self.times[-1], twist)
         k, mode = len(self.poses), self.config.odometry.twist_sigma
-        extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s, sigma), t)  # noqa: E731
+        if start is None and source is not None and source.map_estimate is not None:
+            if source.relative.status is not Status.UNRESOLVED:
+                start = source.map_estimate.T
+                reg = source.map_estimate.reg
+                rejected = reg is not None and reg.stage != "map"
+                if self.config.planemap.restart == "rejected" and not rejected:
+                    start = None
+        extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s, sigma), t, start)  # noqa: E731
         dt, ocfg = t - self.times[-1], self.config.odometry
         agrees = partial(self._twist_sigma.consistent, dt=dt, prediction=self.twist, config=ocfg)
         return widened_if_lost(extract, sigma, mode, len(self.last_planes), agrees)
 
-    def _estimate(self, epoch: _Epoch, t: float) -> EpochEstimate:
+    def _estimate(
+        self, epoch: _Epoch, t: float, start: np.ndarray | None = None
+    ) -> EpochEstimate:
         """The relative pose of ``epoch`` (at time ``t``) from the reference epoch, and the
         step ``T_{k-1}_k`` it implies.
 
         Poses are chained through steps (products of rigid transforms), never through the
         inverse of a chained world pose, so rounding cannot grow from epoch to epoch."""
         if self._map is not None:
-            return self._estimate_map(epoch, t)
+            return self._estimate_map(epoch, t, start)
         reference = self._reference()
         T_ref_last = np.eye(4)  # T_{ref}_{k-1}
         for step in self._steps[reference.index + 1 :]:
@@ -309,13 +321,16 @@ class PlaneOdometry:
         predicted = None if epoch.index in self._gaps else self.twist  # none across a gap
         return self._twist_sigma.gated(estimate, dt, predicted, T_ref_last, ocfg)
 
-    def _estimate_map(self, epoch: _Epoch, t: float) -> EpochEstimate:
+    def _estimate_map(
+        self, epoch: _Epoch, t: float, start: np.ndarray | None = None
+    ) -> EpochEstimate:
         """The plane-map odometry's estimate of ``epoch`` against its map (the previous
-        epoch is the reference of the relative pose); committed in :meth:`_commit`."""
+        epoch is the reference of the relative pose), also registered from ``start``
+        (:meth:`PlaneMapOdometry.estimate`); committed in :meth:`_commit`."""
         assert self._map is not None
         reference = self._history[-1]
         dt = None if epoch.index in self._gaps else t - self.times[-1]  # no twist measured
-        est = self._map.estimate(epoch.planes, epoch.twist, dt)
+        est = self._map.estimate(epoch.planes, epoch.twist, dt, start)
         result = est.relative.between(reference.index, epoch.index)
         step = orthonormalised(result.T_prev_curr)
         offset = None  # the deskewing's offset of the step's twist (twist_offset)
@@ -345,7 +360,8 @@ class PlaneOdometry:
             nodes = np.array([*self.poses[k - order :], self.poses[-1] @ best.step])
             points = deskew_with_poses(scan, node_times, nodes, t, order=order).points
             # the times kept (a lidar's range-image columns), deskewed already: a zero twist
-            again = self._estimate_scan(replace(scan, points=points), t, np.zeros(6))
+            start = None if best.map_estimate is None else best.map_estimate.T
+            again = self._estimate_scan(replace(scan, points=points), t, np.zeros(6), start=start)
             if again.relative.status.rank < best.relative.status.rank:
                 break
             best = again
