@@ -273,21 +273,14 @@ class PlaneOdometry:
         if source is not None and twist is not None and self.times:
             sigma = self._twist_sigma.refined(source, t - self.times[-1], twist)
         k, mode = len(self.poses), self.config.odometry.twist_sigma
-        if start is None and source is not None and source.map_estimate is not None:
-            if source.relative.status is not Status.UNRESOLVED:
-                start = source.map_estimate.T
-                reg = source.map_estimate.reg
-                rejected = reg is not None and reg.stage != "map"
-                if self.config.planemap.restart == "rejected" and not rejected:
-                    start = None
+        if start is None and source is not None:
+            start = self._restart_pose(source)
         extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s, sigma), t, start)  # noqa: E731
         dt, ocfg = t - self.times[-1], self.config.odometry
         agrees = partial(self._twist_sigma.consistent, dt=dt, prediction=self.twist, config=ocfg)
         return widened_if_lost(extract, sigma, mode, len(self.last_planes), agrees)
 
-    def _estimate(
-        self, epoch: _Epoch, t: float, start: np.ndarray | None = None
-    ) -> EpochEstimate:
+    def _estimate(self, epoch: _Epoch, t: float, start: np.ndarray | None = None) -> EpochEstimate:
         """The relative pose of ``epoch`` (at time ``t``) from the reference epoch, and the
         step ``T_{k-1}_k`` it implies.
 
@@ -360,12 +353,26 @@ class PlaneOdometry:
             nodes = np.array([*self.poses[k - order :], self.poses[-1] @ best.step])
             points = deskew_with_poses(scan, node_times, nodes, t, order=order).points
             # the times kept (a lidar's range-image columns), deskewed already: a zero twist
-            start = None if best.map_estimate is None else best.map_estimate.T
+            start = self._restart_pose(best)
             again = self._estimate_scan(replace(scan, points=points), t, np.zeros(6), start=start)
             if again.relative.status.rank < best.relative.status.rank:
                 break
             best = again
         return best
+
+    def _restart_pose(self, earlier: EpochEstimate) -> np.ndarray | None:
+        """The world pose (4, 4) an extraction of an epoch made after ``earlier`` (the same
+        epoch's) is registered from besides or instead of the prediction (``planemap.
+        restart``): the pose ``earlier`` was registered at, unless it is unresolved or not
+        a plane map's; with "rejected" only when its registration did not start from the
+        prediction (a hypothesis of step 3 won, or it was itself registered so)."""
+        est = earlier.map_estimate
+        if est is None or earlier.relative.status is Status.UNRESOLVED:
+            return None
+        if self.config.planemap.restart == "rejected":
+            if est.reg is None or est.reg.stage == "map":
+                return None
+        return est.T
 
     def _config_for_gap(self, gap: int) -> PlanodomConfig:
         if gap not in self._gap_configs:
