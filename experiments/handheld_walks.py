@@ -73,16 +73,18 @@ class _Scans:
         return self.scans[k]
 
 
-def _true_deskewed(world: World, run, times: np.ndarray) -> _Scans:  # noqa: ANN001
-    """Every scan's points brought to its epoch time by the true motion (times kept)."""
+def _true_deskewed(world: World, full, data) -> _Scans:  # noqa: ANN001
+    """The scans of ``data`` (the world's fields) with their points brought to the epoch
+    times by the true motion at the times of ``full`` (all fields: the simulator's)."""
     out = []
-    for k, scan in enumerate(run.scans):
-        M = invert_transform(world.trajectory.pose(times[k]))[None] @ world.trajectory.poses(
-            times[k] + scan.t
+    for k, (scan, timed) in enumerate(zip(data.scans, full.scans, strict=True)):
+        t_k = full.times[k]
+        M = invert_transform(world.trajectory.pose(t_k))[None] @ world.trajectory.poses(
+            t_k + timed.t
         )
-        points = np.einsum("nij,nj->ni", M[:, :3, :3], scan.points) + M[:, :3, 3]
+        points = np.einsum("nij,nj->ni", M[:, :3, :3], timed.points) + M[:, :3, 3]
         out.append(replace(scan, points=points))
-    return _Scans(out, run.times)
+    return _Scans(out, data.times)
 
 
 def run(args: argparse.Namespace) -> None:
@@ -100,7 +102,7 @@ def run(args: argparse.Namespace) -> None:
         overrides |= {"odometry.deskew": False, "planemap.reference_time": "epoch"}
     if overrides:
         cfg = cfg.updated(overrides, source="handheld_walks")
-    source = _true_deskewed(world, data, full.times) if args.true_deskew else data
+    source = _true_deskewed(world, full, data) if args.true_deskew else data
     c0 = time.process_time()
     odo = run_odometry(source, cfg)
     cpu = time.process_time() - c0
