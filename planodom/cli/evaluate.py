@@ -98,7 +98,7 @@ def evaluate(
     with results.results_folder(out, overwrite=overwrite, inputs=[estimate, truth]) as folder:
         results.write_metrics(folder.tmp, info | summary)
         with console.status("drawing the plots"):
-            write_eval_plots(folder.tmp, times, est_poses, ref_poses, align)  # type: ignore[arg-type]
+            write_eval_plots(folder.tmp, times, est_poses, ref_poses, align, index=index)  # type: ignore[arg-type]
     title = f"{est.path.name} vs {ref.path.name}: {len(times)} poses matched -> {folder.path}"
     console.print(metrics_table(summary, title=title))
 
