@@ -31,11 +31,11 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
   direct /tf edge). Poses are interpolated at the epoch times (linear + Slerp); when the
   message's child frame is not the base frame but is rigidly linked to it, the result is
   ``T_world_child @ T_child_base``; a child frame not linked, or none named (a
-  PoseStamped's), is read as the base frame (noted). Epochs outside the reference's time span or in a gap
-  of its poses (:func:`~planodom.datasets.bag_epochs.reference_gaps`) are read, their
-  reference poses NaN (noted; the CLI's metrics are over the others and pair none across
-  them; :func:`convert_bag` leaves them out); a pose with a NaN or infinite value or a zero
-  quaternion is left out (noted).
+  PoseStamped's), is read as the base frame (noted). Epochs outside the reference's time
+  span or in a gap of its poses (:func:`~planodom.datasets.bag_epochs.reference_gaps`) are
+  read, their reference poses NaN (noted; the CLI's metrics are over the others and pair
+  none across them; :func:`convert_bag` leaves them out); a pose with a NaN or infinite
+  value or a zero quaternion is left out (noted).
 """
 
 from __future__ import annotations
@@ -149,7 +149,9 @@ class BagDataset:
         self.notes += bag_notes(index, topics_chosen, gt_topic)
         if gt_topic is not None and not index.gt_child:  # a PoseStamped: of which frame?
             sensors = {f: T for t in self.topics for f, T in t.T_base_sensor.items()}
-            self.notes.append(childless_note(index.gt_read, gt_topic, self.base_frame, sensors))
+            self.notes.append(
+                childless_note(index.gt_read, gt_topic, self.base_frame, sensors, index.tf.moving)
+            )
         elif gt_topic is not None and index.tf.lookup(index.gt_child, self.base_frame) is None:
             self.notes.append(
                 f"gt '{gt_topic}': its poses are of frame '{index.gt_child}', which no static "

@@ -901,15 +901,18 @@ def test_a_reference_of_an_unnamed_or_unlinked_frame_is_noted(tmp_path: Path, ro
     (the lidar 1.60 m from base_link here). They read the same, and are noted now."""
     stamps = [T0_NS - 100_000_000 + k * 5_000_000 for k in range(241)]
 
-    def pose_stamped(bw) -> None:
+    def pose_stamped(bw, topic: str = "/pose", frame: str = "map") -> None:
         for stamp in stamps:
             t, q = bw.geometry(true_pose(stamp / 1e9))
             point = bw.T["geometry_msgs/msg/Point"](x=t[0], y=t[1], z=t[2])
             msg = bw.T["geometry_msgs/msg/PoseStamped"](
-                header=bw.header(stamp, "map"),
+                header=bw.header(stamp, frame),
                 pose=bw.T["geometry_msgs/msg/Pose"](position=point, orientation=q),
             )
-            bw.write("/pose", msg, stamp)
+            bw.write(topic, msg, stamp)
+
+    def pose_in_odom(bw) -> None:  # with the bag's /tf moving base_link in odom
+        pose_stamped(bw, "/pose_odom", "odom")
 
     def odom_of_imu(bw) -> None:
         for stamp in stamps:
@@ -929,9 +932,22 @@ def test_a_reference_of_an_unnamed_or_unlinked_frame_is_noted(tmp_path: Path, ro
         "lever arm between the two (give 'imu' as --base-frame, or record the transform in "
         "/tf_static)",
     }
-    for topic, extra in (("/pose", pose_stamped), ("/odom_imu", odom_of_imu)):
+    notes["/pose_odom"] = (
+        notes["/pose"]
+        .replace("'/pose': its poses in 'map'", "'/pose_odom': its poses in 'odom'")
+        .replace(
+            "--base-frame,",
+            "--base-frame, or a /tf reference of a named frame (tf:odom:base_link),",
+        )
+    )
+    for topic, extra in (
+        ("/pose", pose_stamped),
+        ("/odom_imu", odom_of_imu),
+        ("/pose_odom", pose_in_odom),
+    ):
         path = bag_path(tmp_path, ros, topic[1:])
-        write_bag(path, ros, sensors, STATIC_TF, T_BASE, duration_s=1.0, extra=extra)
+        tf = topic == "/pose_odom"
+        write_bag(path, ros, sensors, STATIC_TF, T_BASE, duration_s=1.0, tf_odom=tf, extra=extra)
         with (
             open_bag(path, BagOptions(gt_topic=topic)) as ds,
             open_bag(path, BagOptions(gt_topic="/odom")) as odom,
