@@ -79,7 +79,8 @@ def evaluate(
             f"{len(est.poses) - len(times)} of the {len(est.poses)} poses of {est.path} have "
             f"no reference pose within {max_diff:g} s (the reference spans part of the run?): "
             f"the errors are over the {len(times)} matched, and no relative error pairs two "
-            "poses across the unmatched ones"
+            "poses across the unmatched ones (the drift's distance takes the reference's "
+            "straight line across a gap)"
         )
     if not 1 <= delta < len(times):
         raise ConfigError(
