@@ -130,7 +130,8 @@ def evaluate(
     """:func:`planodom.metrics.summarize` of associated poses (M, 4, 4), with the
     horizontal ATE / drift (``_xy``) and, over 100 m or more, KITTI's segment errors.
     ``index`` (M,): the estimated poses' numbers in their file when some have no reference
-    pose (:func:`associate`): no RPE or per-epoch error pairs two poses across a gap."""
+    pose (:func:`associate`): no RPE or per-epoch error pairs two poses across a gap (the
+    drift's distance takes the reference's straight line across it, :func:`metrics.drift`)."""
     out = metrics.summarize(est_poses, ref_poses, align=align, delta=delta, index=index)
     flat = metrics.summarize(
         est_poses, ref_poses, align=align, delta=delta, xy_only=True, index=index

@@ -132,3 +132,10 @@ def test_eval_pairs_no_two_poses_across_a_gap_in_the_reference(tmp_path) -> None
     across = np.linalg.inv(np.linalg.inv(GT[14]) @ GT[25]) @ np.linalg.inv(est[14]) @ est[25]
     assert np.linalg.norm(across[:3, 3]) > 3 * max(errors)  # the pair left out
     assert "no relative error pairs two poses across the unmatched ones" in result.stderr
+    assert "the drift's distance takes the reference's straight line across a gap" in " ".join(
+        result.stderr.split()
+    )
+    # the drift's distance: the reference's steps, and the straight line 14 -> 25 (said)
+    length = sum(np.linalg.norm(GT[k + 1, :3, 3] - GT[k, :3, 3]) for k in steps)
+    chord = np.linalg.norm(GT[25, :3, 3] - GT[14, :3, 3])
+    assert metrics["distance_m"] == pytest.approx(length + chord, rel=1e-9)

@@ -204,6 +204,26 @@ def test_drift() -> None:
     assert np.isnan(m.drift(standing, standing)["percent"])
 
 
+def test_drift_distance_across_a_gap_is_the_straight_line() -> None:
+    """Epochs 8-16 without a reference: the distance is the path's length over the steps
+    within epochs 0-7 and 17-24 plus the straight line 7 -> 17 (a lower bound of the path
+    there, tighter than leaving the gap out), the same with or without the index."""
+    gt = random_trajectory(np.random.default_rng(7), 25)
+    est = m.relative_to_first(gt)
+    est[-1, :3, 3] += [0.0, 3.0, 0.0]
+    index = np.r_[0:8, 17:25]
+    within = [k for k in range(24) if k + 1 < 8 or k >= 17]  # the step k -> k + 1
+    length = sum(float(np.linalg.norm(gt[k + 1, :3, 3] - gt[k, :3, 3])) for k in within)
+    chord = float(np.linalg.norm(gt[17, :3, 3] - gt[7, :3, 3]))
+    path = sum(float(np.linalg.norm(gt[k + 1, :3, 3] - gt[k, :3, 3])) for k in range(7, 17))
+    s = m.summarize(est[index], gt[index], index=index)
+    assert s["drift_m"] == pytest.approx(3.0)
+    assert s["distance_m"] == pytest.approx(length + chord, rel=1e-12)
+    assert s["drift_percent"] == pytest.approx(300.0 / (length + chord), rel=1e-12)
+    assert length < length + chord <= length + path  # the whole path's is the smallest
+    assert m.drift(est[index], gt[index])["distance"] == pytest.approx(length + chord)
+
+
 def test_per_epoch_errors_known_biases_and_wrapping() -> None:
     rng = np.random.default_rng(8)
     params = rng.normal(0, [0.02, 0.02, 0.1, 1.0, 0.3, 0.05], (50, 6))

@@ -79,7 +79,8 @@ def evaluate(
             f"{len(est.poses) - len(times)} of the {len(est.poses)} poses of {est.path} have "
             f"no reference pose within {max_diff:g} s (the reference spans part of the run?): "
             f"the errors are over the {len(times)} matched, and no relative error pairs two "
-            "poses across the unmatched ones"
+            "poses across the unmatched ones (the drift's distance takes the reference's "
+            "straight line across a gap)"
         )
     if not 1 <= delta < len(times):
         raise ConfigError(
@@ -98,7 +99,7 @@ def evaluate(
     with results.results_folder(out, overwrite=overwrite, inputs=[estimate, truth]) as folder:
         results.write_metrics(folder.tmp, info | summary)
         with console.status("drawing the plots"):
-            write_eval_plots(folder.tmp, times, est_poses, ref_poses, align)  # type: ignore[arg-type]
+            write_eval_plots(folder.tmp, times, est_poses, ref_poses, align, index=index)  # type: ignore[arg-type]
     title = f"{est.path.name} vs {ref.path.name}: {len(times)} poses matched -> {folder.path}"
     console.print(metrics_table(summary, title=title))
 

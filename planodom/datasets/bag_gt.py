@@ -3,11 +3,14 @@
 ``gt_topic`` is a pose topic or ``"tf:PARENT:CHILD"`` (:func:`parse_gt`); reading it
 (:mod:`planodom.datasets.bag_index`) leaves out a pose with a NaN or infinite value or a
 zero quaternion and counts the stamps given twice and the frame pairs its poses name
-(:class:`GtReading`), which :func:`gt_notes` says.
+(:class:`GtReading`), which :func:`gt_notes` says; a reference whose poses name no child
+frame (the frame they are of: PoseStamped and PoseWithCovarianceStamped have none) is
+read as the base frame's, which :func:`childless_note` says.
 """
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -106,3 +109,39 @@ def gt_notes(gt: GtReading, gt_topic: str | None) -> list[str]:
             "stamp is used"
         )
     return notes
+
+
+def childless_note(
+    gt: GtReading,
+    gt_topic: str,
+    base_frame: str,
+    sensors: dict[str, np.ndarray],
+    moving: Collection[tuple[str, str]] = (),
+) -> str:
+    """The note on a reference whose poses name no child frame: read as ``base_frame``'s.
+
+    A PoseStamped's header names the frame its pose is given in, not the frame it is of,
+    so neither it nor the bag's tf says which frame that is (a lidar's, an IMU's, a GNSS
+    antenna's); a reference of another frame is off by the lever arm between the two.
+    ``sensors``: ``T_base_sensor`` (4, 4) of the scans' frames, whose distances from the
+    base frame (over 1 mm) the note gives as the size of that lever arm; ``moving``: the
+    bag's moving /tf edges ``(parent, child)``, whose children in the poses' frame the note
+    offers as a reference (``tf:PARENT:CHILD``) that names its frame.
+    """
+    parents = sorted({parent for parent, _ in gt.frames} - {""})
+    given = f" in '{parents[0]}'" if len(parents) == 1 else ""
+    apart = [
+        f"'{frame}' {np.linalg.norm(T[:3, 3]):.2f} m"
+        for frame, T in sorted(sensors.items())
+        if frame != base_frame and np.linalg.norm(T[:3, 3]) > 1e-3
+    ]
+    arm = f" (from '{base_frame}' the scans' frame {', '.join(apart)} away)" if apart else ""
+    tf = sorted(f"tf:{p}:{c}" for p, c in moving if p in parents)
+    via = f", or a /tf reference of a named frame ({', '.join(tf)})" if tf else ""
+    return (
+        f"gt '{gt_topic}': its poses{given} name no child frame (a PoseStamped's do not "
+        f"say which frame they are of): read as the base frame '{base_frame}''s poses; if "
+        "they are another frame's (the lidar's, an IMU's, a GNSS antenna's), the reference "
+        f"is off by the lever arm between the two{arm}: give that frame as --base-frame{via}, "
+        "or record an Odometry with its child_frame_id"
+    )

@@ -30,11 +30,12 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
   ``PoseWithCovarianceStamped`` or ``TransformStamped`` topic, or ``"tf:PARENT:CHILD"`` (a
   direct /tf edge). Poses are interpolated at the epoch times (linear + Slerp); when the
   message's child frame is not the base frame but is rigidly linked to it, the result is
-  ``T_world_child @ T_child_base``. Epochs outside the reference's time span or in a gap
-  of its poses (:func:`~planodom.datasets.bag_epochs.reference_gaps`) are read, their
-  reference poses NaN (noted; the CLI's metrics are over the others and pair none across
-  them; :func:`convert_bag` leaves them out); a pose with a NaN or infinite value or a zero
-  quaternion is left out (noted).
+  ``T_world_child @ T_child_base``; a child frame not linked, or none named (a
+  PoseStamped's), is read as the base frame (noted). Epochs outside the reference's time
+  span or in a gap of its poses (:func:`~planodom.datasets.bag_epochs.reference_gaps`) are
+  read, their reference poses NaN (noted; the CLI's metrics are over the others and pair
+  none across them; :func:`convert_bag` leaves them out); a pose with a NaN or infinite
+  value or a zero quaternion is left out (noted).
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ import numpy as np
 from rosbags.highlevel import AnyReader
 
 from planodom.datasets.bag_epochs import NS, group_epochs, interpolate_poses, reference_gaps
+from planodom.datasets.bag_gt import childless_note
 from planodom.datasets.bag_index import (
     BagIndex,
     bag_errors,
@@ -145,6 +147,18 @@ class BagDataset:
         self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
         self.notes = split_parts_note(path) + index.tf.loops(self.base_frame)
         self.notes += bag_notes(index, topics_chosen, gt_topic)
+        if gt_topic is not None and not index.gt_child:  # a PoseStamped: of which frame?
+            sensors = {f: T for t in self.topics for f, T in t.T_base_sensor.items()}
+            self.notes.append(
+                childless_note(index.gt_read, gt_topic, self.base_frame, sensors, index.tf.moving)
+            )
+        elif gt_topic is not None and index.tf.lookup(index.gt_child, self.base_frame) is None:
+            self.notes.append(
+                f"gt '{gt_topic}': its poses are of frame '{index.gt_child}', which no static "
+                f"transform links to the base frame '{self.base_frame}': read as the base "
+                "frame's poses, off by the lever arm between the two (give "
+                f"'{index.gt_child}' as --base-frame, or record the transform in /tf_static)"
+            )
         if self.epochs_without_gt:
             self.notes.append(
                 self.partial_gt_note(
@@ -168,7 +182,8 @@ class BagDataset:
         )
 
     def _child_to_base(self, child: str) -> np.ndarray:
-        """``T_child_base`` when the reference's child frame is rigidly linked, else identity."""
+        """``T_child_base`` when the reference's child frame is rigidly linked, else identity
+        (noted)."""
         if not child or child == self.base_frame:
             return np.eye(4)
         T = self._index.tf.lookup(child, self.base_frame)

@@ -59,6 +59,22 @@ def _increment_errors(est: np.ndarray, gt: np.ndarray) -> dict[str, np.ndarray]:
     return out
 
 
+def _gap_breaks(poses: np.ndarray, index: np.ndarray | None) -> np.ndarray:
+    """``poses`` (M, 4, 4) with a NaN pose between two whose ``index`` (M,) numbers are
+    not consecutive: a line drawn through them breaks at the gap (None: as given)."""
+    if index is None:
+        return poses
+    cuts = np.flatnonzero(np.diff(np.asarray(index)) != 1) + 1
+    return np.insert(poses, cuts, np.nan, axis=0)
+
+
+def _reference_track(gt: np.ndarray) -> np.ndarray:
+    """The reference (E, 4, 4) to draw: from its first to its last epoch with a pose, NaN
+    (a break in the line, not a chord) at the epochs in a gap."""
+    known = np.flatnonzero(np.all(np.isfinite(gt), axis=(1, 2)))
+    return gt[known[0] : known[-1] + 1] if len(known) else gt[:0]
+
+
 def write_run_plots(
     out: str | Path,
     odometry: OdometryRun,
@@ -79,7 +95,7 @@ def write_run_plots(
     if gt_poses is not None and len(best) > 1:
         shown = {k: _origin_aligned(v, gt_poses) for k, v in tracks.items()}
         errors = {k: _increment_errors(v, gt_poses) for k, v in tracks.items()}
-        gt_poses = gt_poses[np.all(np.isfinite(gt_poses), axis=(1, 2))]
+        gt_poses = _reference_track(gt_poses)
     label = "odometry" if smoothed is None else "smoothed"
     others = [("odometry", shown["odometry"])] if smoothed is not None else []
     files = [
@@ -111,15 +127,27 @@ def write_eval_plots(
     reference: np.ndarray,
     align: Alignment = "origin",
     name: str = "planodom eval",
+    index: np.ndarray | None = None,
 ) -> list[Path]:
     """``trajectory.png`` and ``errors.png`` of two associated trajectories (E, 4, 4) at
-    ``times`` (E,) seconds, the estimate aligned by ``align``."""
+    ``times`` (E,) seconds, the estimate aligned by ``align``. ``index`` (E,): the poses'
+    numbers in the estimate when some have no reference pose
+    (:func:`planodom.evaluation.associate_indexed`): the lines break across a gap, and
+    the increment across it (no increment of the estimate) is not drawn."""
     out = Path(out)
     shown = aligned(estimate, reference, align)
     errors = {"estimate": increment_errors(estimate, reference)} if len(times) > 1 else {}
+    if errors and index is not None:
+        across = np.diff(np.asarray(index)) != 1
+        errors = {
+            "estimate": {k: np.where(across, np.nan, e) for k, e in errors["estimate"].items()}
+        }
     return [
         plot_trajectory(
-            out / TRAJECTORY_PNG, shown, reference, title=f"{name}: top view ({align})"
+            out / TRAJECTORY_PNG,
+            _gap_breaks(shown, index),
+            _gap_breaks(reference, index),
+            title=f"{name}: top view ({align})",
         ),
         plot_errors(
             out / ERRORS_PNG, times[1:], errors, title=f"{name}: per-epoch increment errors"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -891,6 +892,70 @@ def test_a_gap_in_the_reference_leaves_its_epochs_without_one(tmp_path: Path, ro
         assert m["rpe_trans_max_m"] == pytest.approx(0.0, abs=1e-5)
     c = convert_bag(path, tmp_path / "ds", BagOptions(gt_topic="/odom"))
     assert (c.epochs, c.dropped_epochs) == (5, 5)
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_reference_of_an_unnamed_or_unlinked_frame_is_noted(tmp_path: Path, ros: int) -> None:
+    """A PoseStamped reference names no child frame, an Odometry's child frame may be linked
+    to the base by no transform: both were read as the base frame's poses without a word
+    (the lidar 1.60 m from base_link here). They read the same, and are noted now."""
+    stamps = [T0_NS - 100_000_000 + k * 5_000_000 for k in range(241)]
+
+    def pose_stamped(bw, topic: str = "/pose", frame: str = "map") -> None:
+        for stamp in stamps:
+            t, q = bw.geometry(true_pose(stamp / 1e9))
+            point = bw.T["geometry_msgs/msg/Point"](x=t[0], y=t[1], z=t[2])
+            msg = bw.T["geometry_msgs/msg/PoseStamped"](
+                header=bw.header(stamp, frame),
+                pose=bw.T["geometry_msgs/msg/Pose"](position=point, orientation=q),
+            )
+            bw.write(topic, msg, stamp)
+
+    def pose_in_odom(bw) -> None:  # with the bag's /tf moving base_link in odom
+        pose_stamped(bw, "/pose_odom", "odom")
+
+    def odom_of_imu(bw) -> None:
+        for stamp in stamps:
+            msg = bw.odometry(stamp, true_pose(stamp / 1e9))
+            bw.write("/odom_imu", replace(msg, child_frame_id="imu"), stamp)
+
+    sensors = [Sensor("/points", "lidar", 0, "velodyne")]
+    notes = {
+        "/pose": "gt '/pose': its poses in 'map' name no child frame (a PoseStamped's do not "
+        "say which frame they are of): read as the base frame 'base_link''s poses; if they "
+        "are another frame's (the lidar's, an IMU's, a GNSS antenna's), the reference is "
+        "off by the lever arm between the two (from 'base_link' the scans' frame 'lidar' "
+        "1.60 m away): give that frame as --base-frame, or record an Odometry with its "
+        "child_frame_id",
+        "/odom_imu": "gt '/odom_imu': its poses are of frame 'imu', which no static transform "
+        "links to the base frame 'base_link': read as the base frame's poses, off by the "
+        "lever arm between the two (give 'imu' as --base-frame, or record the transform in "
+        "/tf_static)",
+    }
+    notes["/pose_odom"] = (
+        notes["/pose"]
+        .replace("'/pose': its poses in 'map'", "'/pose_odom': its poses in 'odom'")
+        .replace(
+            "--base-frame,",
+            "--base-frame, or a /tf reference of a named frame (tf:odom:base_link),",
+        )
+    )
+    for topic, extra in (
+        ("/pose", pose_stamped),
+        ("/odom_imu", odom_of_imu),
+        ("/pose_odom", pose_in_odom),
+    ):
+        path = bag_path(tmp_path, ros, topic[1:])
+        tf = topic == "/pose_odom"
+        write_bag(path, ros, sensors, STATIC_TF, T_BASE, duration_s=1.0, tf_odom=tf, extra=extra)
+        with (
+            open_bag(path, BagOptions(gt_topic=topic)) as ds,
+            open_bag(path, BagOptions(gt_topic="/odom")) as odom,
+        ):
+            assert ds.gt_poses is not None and odom.gt_poses is not None
+            np.testing.assert_allclose(ds.gt_poses, odom.gt_poses, atol=1e-9)
+            assert ds.notes == [notes[topic]]
+            assert odom.notes == []  # an Odometry of base_link
 
 
 def _assert_same_scans(ds, other) -> None:
