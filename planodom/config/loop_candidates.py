@@ -158,6 +158,10 @@ class LoopCandidateConfig(Section):
     loop_gate_quantile: Fraction = 0.999
     """After optimisation, a re-identified observation whose squared whitened error exceeds
     this quantile of chi2(3) is removed and the graph solved again."""
+    loop_gate_resolve_from: Literal["initial", "estimate"] = "initial"
+    """Where the batch's solve after a gate round starts: the initial values ("initial": an
+    estimate a wrong tie or loop hypothesis has pulled is not trusted) or the current
+    estimate ("estimate": fewer steps; the removed factors' pull stays in the start)."""
 
     def check_loop_drift(self) -> None:
         """``loop_verify_drift``, ``loop_drift_yaw`` and ``loop_refuse_ambiguous`` "run" need
