@@ -32,6 +32,7 @@ from __future__ import annotations
 from functools import partial
 
 import gtsam
+import numba
 import numpy as np
 
 Transform = np.ndarray | gtsam.Pose3
@@ -53,8 +54,153 @@ def _matrix(T: Transform) -> np.ndarray:
     return np.array(T.matrix() if isinstance(T, gtsam.Pose3) else T, dtype=float).reshape(4, 4)
 
 
+#: Below this squared angle gtsam 4.3 takes the inverse right Jacobian's coefficient from its
+#: Taylor series (``so3::DexpFunctor``'s near-zero threshold).
+_NEAR_ZERO_THETA2 = 1e-6
+
+
+@numba.njit(cache=True)
+def _logmap(R: np.ndarray) -> tuple[np.ndarray, bool]:
+    """(3,) rotation vector of a (3, 3) rotation matrix, rad, as gtsam's ``SO3::Logmap``
+    computes it for angles below 90 degrees (``theta / (2 sin theta)`` from the trace, its
+    Taylor series near 0); and whether the angle is below 90 degrees (trace > 1). Above,
+    gtsam's branches near pi differ: the caller asks gtsam."""
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    omega = np.empty(3)
+    if not tr > 1.0:
+        return omega, False
+    tr_3 = tr - 3.0
+    if tr_3 < -1e-6:
+        theta = np.arccos((tr - 1.0) / 2.0)
+        magnitude = theta / (2.0 * np.sin(theta))
+    else:
+        magnitude = 0.5 - tr_3 / 12.0 + tr_3 * tr_3 / 60.0
+    omega[0] = magnitude * (R[2, 1] - R[1, 2])
+    omega[1] = magnitude * (R[0, 2] - R[2, 0])
+    omega[2] = magnitude * (R[1, 0] - R[0, 1])
+    return omega, True
+
+
+@numba.njit(cache=True)
+def _logmap_derivative(w: np.ndarray) -> np.ndarray:
+    """(3, 3) inverse right Jacobian of SO(3) at the rotation vector ``w`` (3,), as gtsam
+    4.3's ``SO3::LogmapDerivative``: ``I + W / 2 + D W^2`` with ``W = [w]_x``,
+    ``D = (1 - A / (2 B)) / theta^2``, ``A = sin(theta) / theta``,
+    ``B = 2 sin^2(theta / 2) / theta^2``; ``D = 1/12 + theta^2 / 720`` near 0."""
+    theta2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    if theta2 <= _NEAR_ZERO_THETA2:
+        D = 1.0 / 12.0 + theta2 / 720.0
+    else:
+        theta = np.sqrt(theta2)
+        A = np.sin(theta) / theta
+        s2 = np.sin(theta / 2.0)
+        B = 2.0 * s2 * s2 / theta2
+        D = (1.0 - A / (2.0 * B)) / theta2
+    W = _skew(w)
+    out = np.eye(3)
+    for r in range(3):
+        for q in range(3):
+            WW = W[r, 0] * W[0, q] + W[r, 1] * W[1, q] + W[r, 2] * W[2, q]
+            out[r, q] = out[r, q] + 0.5 * W[r, q] + D * WW
+    return out
+
+
+@numba.njit(cache=True)
 def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    out = np.zeros((3, 3))
+    out[0, 1], out[0, 2], out[1, 2] = -v[2], v[1], -v[0]
+    out[1, 0], out[2, 0], out[2, 1] = v[2], -v[1], v[0]
+    return out
+
+
+@numba.njit(cache=True)
+def _pose5_kernel(
+    T_i_j: np.ndarray, T_world_i: np.ndarray, T_world_j: np.ndarray, jacobians: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """:func:`pose5_error` compiled (it runs once per factor and linearisation): error
+    (5,), H_i and H_j (5, 6) (zeros when ``jacobians`` is false), and false where the
+    rotation error exceeds 90 degrees (then nothing is computed: see :func:`_logmap`)."""
+    R_pred = np.empty((3, 3))
+    R_err = np.empty((3, 3))
+    d = np.empty(3)
+    t_pred = np.empty(3)
+    error = np.empty(5)
+    H_i = np.zeros((5, 6))
+    H_j = np.zeros((5, 6))
+    for r in range(3):
+        d[r] = T_world_j[r, 3] - T_world_i[r, 3]
+    for r in range(3):  # R_pred = R_i^T R_j, t_pred = R_i^T (t_j - t_i)
+        for q in range(3):
+            R_pred[r, q] = (
+                T_world_i[0, r] * T_world_j[0, q]
+                + T_world_i[1, r] * T_world_j[1, q]
+                + T_world_i[2, r] * T_world_j[2, q]
+            )
+        t_pred[r] = T_world_i[0, r] * d[0] + T_world_i[1, r] * d[1] + T_world_i[2, r] * d[2]
+    for r in range(3):  # R_meas^T R_pred
+        for q in range(3):
+            R_err[r, q] = (
+                T_i_j[0, r] * R_pred[0, q] + T_i_j[1, r] * R_pred[1, q] + T_i_j[2, r] * R_pred[2, q]
+            )
+    e_rot, ok = _logmap(R_err)
+    if not ok:
+        return error, H_i, H_j, False
+    error[:3] = e_rot
+    error[3] = t_pred[0] - T_i_j[0, 3]
+    error[4] = t_pred[1] - T_i_j[1, 3]
+    if not jacobians:
+        return error, H_i, H_j, True
+    Jr_inv = _logmap_derivative(e_rot)
+    for r in range(3):
+        for q in range(3):
+            H_i[r, q] = -(
+                Jr_inv[r, 0] * R_pred[q, 0]
+                + Jr_inv[r, 1] * R_pred[q, 1]
+                + Jr_inv[r, 2] * R_pred[q, 2]
+            )
+            H_j[r, q] = Jr_inv[r, q]
+    S = _skew(t_pred)
+    for r in range(2):
+        for q in range(3):
+            H_i[3 + r, q] = S[r, q]
+            H_j[3 + r, 3 + q] = R_pred[r, q]
+    H_i[3, 3] = H_i[4, 4] = -1.0
+    return error, H_i, H_j, True
+
+
+def _pose5_error_gtsam(
+    T_i_j: np.ndarray, T_world_i: np.ndarray, T_world_j: np.ndarray, jacobians: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`pose5_error` by numpy and gtsam's own ``Rot3.Logmap`` (rotation errors above
+    90 degrees, where :func:`_logmap` defers to gtsam)."""
+    Ri_T = T_world_i[:3, :3].T
+    R_pred = Ri_T @ T_world_j[:3, :3]
+    t_pred = Ri_T @ (T_world_j[:3, 3] - T_world_i[:3, 3])
+    e_rot = gtsam.Rot3.Logmap(gtsam.Rot3(T_i_j[:3, :3].T @ R_pred))
+    error = np.empty(5)
+    error[:3] = e_rot
+    error[3:] = t_pred[:2] - T_i_j[:2, 3]
+    H_i = np.zeros((5, 6))
+    H_j = np.zeros((5, 6))
+    if jacobians:
+        Jr_inv = gtsam.Rot3.LogmapDerivative(e_rot)
+        H_i[:3, :3] = -Jr_inv @ R_pred.T
+        H_j[:3, :3] = Jr_inv
+        H_i[3:, :3] = _skew(t_pred)[:2]
+        H_i[3, 3] = H_i[4, 4] = -1.0
+        H_j[3:, 3:] = R_pred[:2]
+    return error, H_i, H_j
+
+
+def _pose5(
+    T_i_j: np.ndarray, T_world_i: np.ndarray, T_world_j: np.ndarray, jacobians: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Error (5,) and Jacobians (5, 6) of three (4, 4) float arrays: compiled, or by gtsam
+    for a rotation error above 90 degrees."""
+    error, H_i, H_j, ok = _pose5_kernel(T_i_j, T_world_i, T_world_j, jacobians)
+    if ok:
+        return error, H_i, H_j
+    return _pose5_error_gtsam(T_i_j, T_world_i, T_world_j, jacobians)
 
 
 def pose5_error(
@@ -73,56 +219,59 @@ def pose5_error(
     Returns:
         error (5,): rad (3), m (2); and H_i, H_j (or None when not asked for).
     """
-    Ri_T = T_world_i[:3, :3].T
-    R_pred = Ri_T @ T_world_j[:3, :3]
-    t_pred = Ri_T @ (T_world_j[:3, 3] - T_world_i[:3, 3])
-    e_rot = gtsam.Rot3.Logmap(gtsam.Rot3(T_i_j[:3, :3].T @ R_pred))
-    error = np.empty(5)
-    error[:3] = e_rot
-    error[3:] = t_pred[:2] - T_i_j[:2, 3]
+    error, H_i, H_j = _pose5(
+        _matrix(T_i_j), _matrix(T_world_i), _matrix(T_world_j), bool(jacobians)
+    )
     if not jacobians:
         return error, None, None
-    Jr_inv = gtsam.Rot3.LogmapDerivative(e_rot)
-    H_i = np.zeros((5, 6))
-    H_j = np.zeros((5, 6))
-    H_i[:3, :3] = -Jr_inv @ R_pred.T
-    H_j[:3, :3] = Jr_inv
-    H_i[3:, :3] = _skew(t_pred)[:2]
-    H_i[3, 3] = H_i[4, 4] = -1.0
-    H_j[3:, 3:] = R_pred[:2]
     return error, H_i, H_j
 
 
-def _poses(this: gtsam.CustomFactor, values: gtsam.Values) -> tuple[np.ndarray, np.ndarray]:
-    """The (4, 4) matrices of a two-pose custom factor's variables ``T_world_i, T_world_j``."""
-    keys = this.keys()
-    return values.atPose3(keys[0]).matrix(), values.atPose3(keys[1]).matrix()
-
-
 def _pose5_error(
-    measured: np.ndarray, rows: slice, this: gtsam.CustomFactor, values: gtsam.Values, H: Jacobians
+    measured: np.ndarray,
+    rows: slice,
+    key_i: int,
+    key_j: int,
+    this: gtsam.CustomFactor,
+    values: gtsam.Values,
+    H: Jacobians,
 ) -> np.ndarray:
-    """``gtsam.CustomFactor`` error of :func:`pose5_error`'s ``rows``."""
-    error, H_i, H_j = pose5_error(measured, *_poses(this, values), H is not None)
+    """``gtsam.CustomFactor`` error of :func:`pose5_error`'s ``rows`` (keys bound at
+    construction: the factor's own ``keys()`` costs a call into gtsam per evaluation)."""
+    error, H_i, H_j = _pose5(
+        measured, values.atPose3(key_i).matrix(), values.atPose3(key_j).matrix(), H is not None
+    )
     if H is not None:
-        assert H_i is not None and H_j is not None
         H[0], H[1] = H_i[rows], H_j[rows]
     return error[rows]
 
 
+@numba.njit(cache=True)
+def _vertical_kernel(
+    dz: float, T_i: np.ndarray, T_j: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Error (1,) of the change of height against ``dz`` (m) and its (1, 6) Jacobians."""
+    # t' = t + R v: the height moves by the third row of R.
+    H_i = np.zeros((1, 6))
+    H_j = np.zeros((1, 6))
+    for q in range(3):
+        H_i[0, 3 + q] = -T_i[2, q]
+        H_j[0, 3 + q] = T_j[2, q]
+    error = np.empty(1)
+    error[0] = T_j[2, 3] - T_i[2, 3] - dz
+    return error, H_i, H_j
+
+
 def _vertical_error(
-    dz: float, this: gtsam.CustomFactor, values: gtsam.Values, H: Jacobians
+    dz: float, key_i: int, key_j: int, this: gtsam.CustomFactor, values: gtsam.Values, H: Jacobians
 ) -> np.ndarray:
     """``gtsam.CustomFactor`` error of the change of height against ``dz`` (m)."""
-    T_i, T_j = _poses(this, values)
+    error, H_i, H_j = _vertical_kernel(
+        dz, values.atPose3(key_i).matrix(), values.atPose3(key_j).matrix()
+    )
     if H is not None:
-        # t' = t + R v: the height moves by the third row of R.
-        H_i = np.zeros((1, 6))
-        H_j = np.zeros((1, 6))
-        H_i[0, 3:] = -T_i[2, :3]
-        H_j[0, 3:] = T_j[2, :3]
         H[0], H[1] = H_i, H_j
-    return np.array([T_j[2, 3] - T_i[2, 3] - dz])
+    return error
 
 
 def pose5_factor(
@@ -137,7 +286,7 @@ def pose5_factor(
             may be robust.
     """
     return gtsam.CustomFactor(
-        noise, [key_i, key_j], partial(_pose5_error, _matrix(T_i_j), slice(0, 5))
+        noise, [key_i, key_j], partial(_pose5_error, _matrix(T_i_j), slice(0, 5), key_i, key_j)
     )
 
 
@@ -153,7 +302,7 @@ def rotation_factor(
         noise: 3-dimensional noise model (rad); may be robust.
     """
     return gtsam.CustomFactor(
-        noise, [key_i, key_j], partial(_pose5_error, _matrix(T_i_j), slice(0, 3))
+        noise, [key_i, key_j], partial(_pose5_error, _matrix(T_i_j), slice(0, 3), key_i, key_j)
     )
 
 
@@ -165,4 +314,6 @@ def vertical_factor(
     With ``dz = 0`` and a weak sigma it is the "no vertical jumps" prior that makes z
     observable when the plane factors do not observe it.
     """
-    return gtsam.CustomFactor(noise, [key_i, key_j], partial(_vertical_error, float(dz)))
+    return gtsam.CustomFactor(
+        noise, [key_i, key_j], partial(_vertical_error, float(dz), key_i, key_j)
+    )

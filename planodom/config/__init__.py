@@ -127,6 +127,41 @@ class PlanodomConfig(Section):
             node[name] = value
         return type(self).from_dict(data, source=source)
 
+    def updated_fields(
+        self, changes: Mapping[str, object], source: str = "config"
+    ) -> PlanodomConfig:
+        """:meth:`updated` by field assignment, for a caller that derives many configs (the
+        loop closure's association bounds, one per attempt: 3 600 on a 2 000-epoch run,
+        where revalidating the whole config took 1 ms each).
+
+        Each changed field is checked as :meth:`updated` checks it (its section's field
+        validation, run on assignment); the unchanged sections are shared with this
+        config, not copied. The one check across sections (the extraction switched on by
+        the smoothing's and the plane map's modes) reads ``extraction``, ``planemap`` and
+        ``smoothing``: changes there go through :meth:`updated`.
+        """
+        by_section: dict[str, dict[str, object]] = {}
+        for dotted, value in changes.items():
+            section, _, name = dotted.partition(".")
+            if section in {"extraction", "planemap", "smoothing"} or "." in name:
+                return self.updated(changes, source)
+            by_section.setdefault(section, {})[name] = value
+        sections: dict[str, Section] = {}
+        for section, fields in by_section.items():
+            current = getattr(self, section, None)
+            if not isinstance(current, Section):
+                raise ConfigError(f"{source}: unknown config section {section!r}")
+            copy = current.model_copy()
+            for name, value in fields.items():
+                if name not in type(current).model_fields:
+                    raise ConfigError(f"{source}: unknown config field {section}.{name!r}")
+                try:
+                    setattr(copy, name, value)
+                except ConfigError as exc:
+                    raise ConfigError(f"{source}: {exc}") from exc
+            sections[section] = copy
+        return self.model_copy(update=sections)
+
     def to_yaml(self, path: str | Path | None = None) -> str:
         """The resolved config as YAML text; also written to ``path`` when given."""
         text = yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)

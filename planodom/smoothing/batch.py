@@ -232,7 +232,8 @@ def _gated(
     """Re-identifications and loop-candidate factors inconsistent with the estimate out
     (loop hypotheses also by what they cost the rest of the graph, once each),
     solved again from the initial ``values`` (not from an estimate a wrong tie has
-    pulled); at most three rounds (four with loop factors)."""
+    pulled), or from the estimate with ``loop_gate_resolve_from: estimate``; at most
+    three rounds (four with loop factors)."""
     cfg = builder.config
     for _ in range(4 if getattr(builder, "loop_factors", None) else 3):
         # loop factors first: the Gaussian start lets a wrong hypothesis pull the
@@ -241,7 +242,8 @@ def _gated(
         removed = removed or test_hypotheses(builder, graph, gaussian, values, estimate)
         if not removed and not gate_reidentifications(builder, graph, gaussian, estimate):
             break
-        start = loop_start(builder, graph, gaussian, values)
+        warm = cfg.loop_gate_resolve_from == "estimate"
+        start = loop_start(builder, graph, gaussian, estimate if warm else values)
         estimate, more = levenberg_marquardt(
             graph, start, cfg.max_iterations, cfg.relative_error_tol
         )

@@ -293,7 +293,7 @@ class LoopClosingBuilder(GraphBuilder):
                 self.full_config.odometry.refine_max_sigma_m, translation / c.loop_sigmas
             ),
         }
-        return self.full_config.updated(changes, source="loop closure bounds")
+        return self.full_config.updated_fields(changes, source="loop closure bounds")
 
     def _reidentify(self, update: GraphUpdate) -> None:
         k, c = update.epoch, self.config

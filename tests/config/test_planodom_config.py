@@ -158,3 +158,30 @@ def test_a_section_built_in_code_raises_one_line() -> None:
     # a file's errors keep naming the file, not the class
     with pytest.raises(ConfigError, match=r"^c\.yaml: field 'association\.max_translation_m'"):
         PlanodomConfig.from_dict({"association": {"max_translation_m": -1}}, source="c.yaml")
+
+
+def test_updated_fields_equals_updated() -> None:
+    """The assignment path gives the config the full revalidation gives (the loop
+    closure's bounds: numpy floats, a boolean), and refuses what it refuses."""
+    import numpy as np
+
+    base = PlanodomConfig().updated({"smoothing.loop_closure": True})
+    changes = {
+        "association.prior_translation_m": np.float64(0.731),
+        "association.prior_rotation_deg": 4.25,
+        "odometry.retry_without_prior": False,
+        "odometry.refine_max_sigma_m": np.float64(0.0625),
+    }
+    fast, full = base.updated_fields(changes), base.updated(changes)
+    assert fast == full
+    assert fast.model_dump() == full.model_dump()
+    assert base.association.prior_translation_m != 0.731  # the base is unchanged
+    for bad in ({"association.prior_translation_m": True}, {"association.nonsense": 1.0}):
+        with pytest.raises(ConfigError):
+            base.updated(bad)
+        with pytest.raises(ConfigError):
+            base.updated_fields(bad)
+    with pytest.raises(ConfigError):
+        base.updated_fields({"association.prior_translation_m": -1.0})
+    with pytest.raises(ConfigError):
+        base.updated({"association.prior_translation_m": -1.0})

@@ -17,7 +17,14 @@ from planodom_factors.planes import (
     plane_noise,
     predict_plane,
 )
-from planodom_factors.pose5 import pose5_factor, rotation_factor, vertical_factor
+from planodom_factors.pose5 import (
+    _logmap,
+    _logmap_derivative,
+    pose5_error,
+    pose5_factor,
+    rotation_factor,
+    vertical_factor,
+)
 
 X = gtsam.symbol_shorthand.X
 L = gtsam.symbol_shorthand.L
@@ -126,6 +133,58 @@ def test_pose5_error_components_and_free_z() -> None:
     e = factor.unwhitenedError(moved)
     assert e[3] == pytest.approx(0.2) and e[4] == pytest.approx(-0.1)
     assert abs(e[2]) == pytest.approx(0.05, abs=2e-3)
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-5, 9e-4, 1.1e-3, 0.05, 0.7, 1.5, 2.0, 3.0, 3.14])
+def test_compiled_logmap_and_its_derivative_match_gtsam(angle: float) -> None:
+    """The compiled rotation-error kernel against gtsam's own Rot3.Logmap and
+    LogmapDerivative (both sides of the Taylor thresholds; above 90 degrees the kernel
+    defers to gtsam)."""
+    rng = np.random.default_rng(int(angle * 1e4))
+    for _ in range(20):
+        axis = rng.normal(size=3)
+        w = axis / np.linalg.norm(axis) * angle
+        R = np.ascontiguousarray(gtsam.Rot3.Expmap(w).matrix())
+        omega, ok = _logmap(R)
+        assert ok == (angle < np.pi / 2)
+        if ok:
+            expected = gtsam.Rot3.Logmap(gtsam.Rot3(R))
+            np.testing.assert_allclose(omega, expected, rtol=1e-14, atol=1e-300)
+        np.testing.assert_allclose(
+            _logmap_derivative(w), gtsam.Rot3.LogmapDerivative(w), rtol=0, atol=1e-15
+        )
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1e-2, 0.5, 2.0])
+def test_pose5_error_matches_the_numpy_gtsam_computation(scale: float) -> None:
+    """pose5_error (compiled) against the same residual and Jacobians computed by numpy and
+    gtsam's Rot3.Logmap / LogmapDerivative, at random poses and measurements (rotation
+    errors up to ~3 rad at the largest scale: those beyond 90 degrees go to gtsam)."""
+    rng = np.random.default_rng(int(scale * 1e6))
+    for _ in range(50):
+        Ti, rel = random_pose(rng), random_pose(rng, scale=3.0)
+        Tj = Ti.compose(rel)
+        measured = rel.retract(rng.normal(scale=scale, size=6)).matrix()
+        Ti_m, Tj_m = Ti.matrix(), Tj.matrix()
+        error, H_i, H_j = pose5_error(measured, Ti_m, Tj_m, jacobians=True)
+        Ri_T = Ti_m[:3, :3].T
+        R_pred = Ri_T @ Tj_m[:3, :3]
+        t_pred = Ri_T @ (Tj_m[:3, 3] - Ti_m[:3, 3])
+        e_rot = gtsam.Rot3.Logmap(gtsam.Rot3(measured[:3, :3].T @ R_pred))
+        Jr_inv = gtsam.Rot3.LogmapDerivative(e_rot)
+        skew = np.array(
+            [[0, -t_pred[2], t_pred[1]], [t_pred[2], 0, -t_pred[0]], [-t_pred[1], t_pred[0], 0]]
+        )
+        np.testing.assert_allclose(error[:3], e_rot, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(error[3:], t_pred[:2] - measured[:2, 3], rtol=0, atol=1e-13)
+        assert H_i is not None and H_j is not None
+        np.testing.assert_allclose(H_i[:3, :3], -Jr_inv @ R_pred.T, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(H_j[:3, :3], Jr_inv, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(H_i[3:, :3], skew[:2], rtol=0, atol=1e-13)
+        np.testing.assert_allclose(H_j[3:, 3:], R_pred[:2], rtol=0, atol=1e-13)
+        np.testing.assert_array_equal(H_i[3:, 3:], [[-1, 0, 0], [0, -1, 0]])
+        for H, zero in ((H_i, np.s_[:3, 3:]), (H_j, np.s_[:3, 3:]), (H_j, np.s_[3:, :3])):
+            np.testing.assert_array_equal(H[zero], 0)
 
 
 @pytest.mark.parametrize("seed", range(6))

@@ -107,7 +107,10 @@ def test_loop_closure_removes_the_drift_at_the_loop_end(problem):
     assert _end_error(with_lc.poses, truth) < 0.6 * _end_error(without.poses, truth)
 
 
-def test_a_planted_false_reidentification_is_rejected(problem, monkeypatch):
+@pytest.mark.parametrize("resolve_from", ["initial", "estimate"])
+def test_a_planted_false_reidentification_is_rejected(problem, monkeypatch, resolve_from):
+    """The gate removes it, and the re-solve closes the loop, started from the initial
+    values or from the estimate the wrong tie pulled."""
     truth, planes, relatives = problem
     original = loops.LoopClosingBuilder._reidentify
 
@@ -122,7 +125,8 @@ def test_a_planted_false_reidentification_is_rejected(problem, monkeypatch):
             self._tie(update, j, i, self.planes[update.epoch][i].normal)
 
     monkeypatch.setattr(loops.LoopClosingBuilder, "_reidentify", planted)
-    res = smooth_batch(planes, relatives, _config(True))
+    cfg = _config(True).updated({"smoothing.loop_gate_resolve_from": resolve_from})
+    res = smooth_batch(planes, relatives, cfg)
     wrong = [r for r in res.reidentifications if r.wrong]
     assert len(wrong) == 1 and wrong[0].removed
     assert _end_error(res.poses, truth) < 0.3  # the loop is still closed
