@@ -16,7 +16,8 @@ times by the true motion, planodom's own deskewing off (``odometry.deskew: false
 sweep of the motion models a streaming odometry could deskew with, from the true middle
 poses: none, the previous step's constant twist, the step's own (what the refinement
 converges to), the true rate at the sweep's middle, the polynomials through the last
-two / three middles and the sweep's own (``planemap.deskew_curve`` 2 / 3).
+two / three middles and the sweep's own (branch ``handheld``'s
+``planemap.deskew_curve`` 2 / 3).
 
 ``... first-pose W``: the error (deg) of the first epoch's pose at its epoch time from
 the true middle poses of the first epochs (:func:`planodom.odometry.planemap.midtime.

@@ -343,37 +343,6 @@ class PlanemapConfig(Section):
     (no point times) unchanged. The default since issue 11: every procedural lidar world
     better against a 2 % loss on one drive with a sweep declared by hand (what a run-to-run
     change of unrelated settings moves there)."""
-    restart: Literal["prediction", "previous", "from_previous", "rejected"] = "prediction"
-    """Where an epoch extracted again (with a refined twist, or along ``deskew_curve``)
-    is registered from: ``prediction``, the constant-velocity prediction, as its first
-    extraction; ``previous``, that and the pose its previous extraction was registered
-    at, the better kept (resolved, within the motion bounds, then the lower score);
-    ``from_previous``, that pose instead of the prediction; ``rejected``, that pose
-    instead of the prediction only when the previous extraction's registration did not
-    start from the prediction (a hypothesis of the fallback won over it, or it was
-    itself registered so). Why: on a hand-held lidar's yaw swing the prediction is off
-    by the change of the step (up to 10 deg an epoch), and each refinement registered
-    again from it, where the first extraction had kept the zero-velocity hypothesis (issue
-    11's hand-held world 40 at 2 cm, epoch 58: 0.27 deg off, its two refinements 5.1 and
-    6.0 deg, all "ok"). Measured (hand-held worlds 40-47, 150 epochs, docs/RESULTS.md,
-    "Hand-held walks"): mixed, each mode better on some worlds and worse on others (world
-    40 at 2 cm 4.08 -> 1.01 deg per epoch with ``rejected``, world 43 0.98 -> 1.18), so
-    off; on vehicle lidar worlds 1-19 odd ``rejected`` leaves most runs bit-identical."""
-    deskew_curve: Literal[0, 2, 3] = 0
-    """Streaming, lidar scans with point times on the plane map: after the epoch's
-    constant-twist extractions (:func:`planodom.odometry.deskew.register_deskewed`), it is
-    extracted again deskewed along the polynomial of this degree through the poses of the
-    last ``deskew_curve`` epochs and its own estimate (:func:`planodom.odometry.
-    interpolate.deskew_with_poses`), up to ``odometry.deskew_iterations`` times, each kept
-    unless its status is worse; only when those epochs and the steps to them were measured
-    (none unresolved, no gap in the epoch times). 0: off. Why: a constant twist cannot
-    follow a rate that changes within a sweep (a hand-held lidar's swing); on the true
-    trajectory of hand-held world 40 (1.45 Hz swing, 10 Hz lidar) the best a sweep's own
-    constant step twist leaves is 1.1 deg rms over the sweep, the quadratic 0.75, the
-    cubic 0.56 (world 43: 0.64 / 0.26 / 0.12; ``experiments/handheld_walks.py deskew``).
-    Measured with the estimated poses: mixed (world 46 at 2 cm 0.161 -> 0.092 deg per
-    epoch, 45 0.61 -> 0.43, world 40 4.08 -> 4.33, 43 0.98 -> 1.13), at up to 3
-    extractions more an epoch: off."""
     prediction: Literal["mean", "last", "trend"] = "trend"
     """The twist each epoch is first deskewed with (the streaming odometry's constant-
     velocity prediction, :func:`planodom.odometry.trend.predicted_twist`): "mean", the

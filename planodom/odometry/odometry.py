@@ -41,7 +41,6 @@ from planodom.odometry.deskew import (
 )
 from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
-from planodom.odometry.interpolate import deskew_with_poses
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
@@ -190,12 +189,9 @@ class PlaneOdometry:
                 best = reextracted_first(
                     best, dt, ocfg, self._history[0], partial(self._first_round, scan, t)
                 )
-            twist = best.twist  # the epoch's record: the last constant twist it was deskewed with
-            if self._map is not None and pm.deskew_curve:
-                best = self._curve_deskewed(scan, t, best, pm.deskew_curve)
         else:
             best = estimate(None)
-            twist = best.twist
+        twist = best.twist
         if deskewed is not None and keep_first(given, best):
             best, scan, twist = given, deskewed, np.zeros(6)
         return self._commit(_Epoch(k, best.planes, best.plane_set, scan, twist), best, t)
@@ -262,32 +258,27 @@ class PlaneOdometry:
     def _estimate_scan(
         self, scan: Scan, t: float, twist: np.ndarray | None,
         source: EpochEstimate | None = None, prior_sigma: TwistSigma | None = None,
-        start: np.ndarray | None = None,
     ) -> EpochEstimate:  # fmt: skip
         """Extract the scan deskewed with ``twist`` and estimate its relative pose; the
         twist's sigma is ``prior_sigma`` (predicted or held), or from ``source`` when it
-        was refined from that estimate's own twist (:mod:`.twist_sigma`). A plane map also
-        registers it from ``start`` (4, 4), or the pose ``source`` was registered at
-        (``planemap.restart``)."""
+        was refined from that estimate's own twist (:mod:`.twist_sigma`)."""
         sigma = prior_sigma if twist is not None else None
         if source is not None and twist is not None and self.times:
             sigma = self._twist_sigma.refined(source, t - self.times[-1], twist)
         k, mode = len(self.poses), self.config.odometry.twist_sigma
-        if start is None and source is not None:
-            start = self._restart_pose(source)
-        extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s, sigma), t, start)  # noqa: E731
+        extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s, sigma), t)  # noqa: E731
         dt, ocfg = t - self.times[-1], self.config.odometry
         agrees = partial(self._twist_sigma.consistent, dt=dt, prediction=self.twist, config=ocfg)
         return widened_if_lost(extract, sigma, mode, len(self.last_planes), agrees)
 
-    def _estimate(self, epoch: _Epoch, t: float, start: np.ndarray | None = None) -> EpochEstimate:
+    def _estimate(self, epoch: _Epoch, t: float) -> EpochEstimate:
         """The relative pose of ``epoch`` (at time ``t``) from the reference epoch, and the
         step ``T_{k-1}_k`` it implies.
 
         Poses are chained through steps (products of rigid transforms), never through the
         inverse of a chained world pose, so rounding cannot grow from epoch to epoch."""
         if self._map is not None:
-            return self._estimate_map(epoch, t, start)
+            return self._estimate_map(epoch, t)
         reference = self._reference()
         T_ref_last = np.eye(4)  # T_{ref}_{k-1}
         for step in self._steps[reference.index + 1 :]:
@@ -314,16 +305,13 @@ class PlaneOdometry:
         predicted = None if epoch.index in self._gaps else self.twist  # none across a gap
         return self._twist_sigma.gated(estimate, dt, predicted, T_ref_last, ocfg)
 
-    def _estimate_map(
-        self, epoch: _Epoch, t: float, start: np.ndarray | None = None
-    ) -> EpochEstimate:
+    def _estimate_map(self, epoch: _Epoch, t: float) -> EpochEstimate:
         """The plane-map odometry's estimate of ``epoch`` against its map (the previous
-        epoch is the reference of the relative pose), also registered from ``start``
-        (:meth:`PlaneMapOdometry.estimate`); committed in :meth:`_commit`."""
+        epoch is the reference of the relative pose); committed in :meth:`_commit`."""
         assert self._map is not None
         reference = self._history[-1]
         dt = None if epoch.index in self._gaps else t - self.times[-1]  # no twist measured
-        est = self._map.estimate(epoch.planes, epoch.twist, dt, start)
+        est = self._map.estimate(epoch.planes, epoch.twist, dt)
         result = est.relative.between(reference.index, epoch.index)
         step = orthonormalised(result.T_prev_curr)
         offset = None  # the deskewing's offset of the step's twist (twist_offset)
@@ -331,48 +319,6 @@ class PlaneOdometry:
             offset = twist_offset(epoch.scan, epoch.twist, reference.twist, t - self.times[-1])
         return EpochEstimate(epoch.planes, epoch.plane_set, epoch.twist, result, step,
                              reference.planes, est, twist_offset=offset)  # fmt: skip
-
-    def _curve_deskewed(
-        self, scan: Scan, t: float, best: EpochEstimate, order: int
-    ) -> EpochEstimate:
-        """``best`` (epoch ``k`` at time ``t``, extracted with constant twists), extracted
-        again deskewed along the polynomial of degree ``order`` through the poses of the
-        last ``order`` epochs and its own (``planemap.deskew_curve``), up to
-        ``odometry.deskew_iterations`` times, each kept unless its status is worse; ``best``
-        itself when an epoch or step among them was not measured (unresolved, a gap)."""
-        k = len(self.poses)
-        if k < order or best.relative.status is Status.UNRESOLVED:
-            return best
-        steps = self.results[k - order + 1 :]
-        if any(r is None or r.status is Status.UNRESOLVED for r in steps):
-            return best
-        if any(j in self._gaps for j in range(k - order + 1, k + 1)):
-            return best
-        node_times = np.array([*self.times[k - order :], t])
-        for _ in range(self.config.odometry.deskew_iterations):
-            nodes = np.array([*self.poses[k - order :], self.poses[-1] @ best.step])
-            points = deskew_with_poses(scan, node_times, nodes, t, order=order).points
-            # the times kept (a lidar's range-image columns), deskewed already: a zero twist
-            start = self._restart_pose(best)
-            again = self._estimate_scan(replace(scan, points=points), t, np.zeros(6), start=start)
-            if again.relative.status.rank < best.relative.status.rank:
-                break
-            best = again
-        return best
-
-    def _restart_pose(self, earlier: EpochEstimate) -> np.ndarray | None:
-        """The world pose (4, 4) an extraction of an epoch made after ``earlier`` (the same
-        epoch's) is registered from besides or instead of the prediction (``planemap.
-        restart``): the pose ``earlier`` was registered at, unless it is unresolved or not
-        a plane map's; with "rejected" only when its registration did not start from the
-        prediction (a hypothesis of step 3 won, or it was itself registered so)."""
-        est = earlier.map_estimate
-        if est is None or earlier.relative.status is Status.UNRESOLVED:
-            return None
-        if self.config.planemap.restart == "rejected":
-            if est.reg is None or est.reg.stage == "map":
-                return None
-        return est.T
 
     def _config_for_gap(self, gap: int) -> PlanodomConfig:
         if gap not in self._gap_configs:

@@ -146,17 +146,11 @@ class PlaneMapOdometry:
     # ------------------------------------------------------------------ one scan
 
     def estimate(
-        self,
-        planes: Sequence[Plane],
-        twist: np.ndarray | None = None,
-        dt: float | None = None,
-        start: np.ndarray | None = None,
+        self, planes: Sequence[Plane], twist: np.ndarray | None = None, dt: float | None = None
     ) -> MapEstimate:
         """Register one scan's planes (base frame); the state is not changed. ``twist``
         (6,): the one they were deskewed with (None: not deskewed), ``dt``: seconds since
-        the previous scan; both only for ``planemap.twist_estimation``. ``start`` (4, 4):
-        the world pose an earlier extraction of the same scan was registered at, also
-        registered from (``planemap.restart``); None: none."""
+        the previous scan; both only for ``planemap.twist_estimation``."""
         used = np.array(
             [
                 k
@@ -168,7 +162,7 @@ class PlaneMapOdometry:
             dtype=np.intp,
         )
         cur = self._scan_planes(planes, used)
-        return self._estimate(used, cur, PlaneSet.from_planes(planes), (twist, dt), start)
+        return self._estimate(used, cur, PlaneSet.from_planes(planes), (twist, dt))
 
     def _estimate(
         self,
@@ -176,7 +170,6 @@ class PlaneMapOdometry:
         cur: ScanPlanes | None,
         plane_set: PlaneSet,
         deskew: tuple[np.ndarray | None, float | None] = (None, None),
-        start: np.ndarray | None = None,
     ) -> MapEstimate:
         """:meth:`estimate` of the planes ``used`` of ``plane_set`` (inputs ``cur``)."""
         T_pred = self.pose @ self.velocity
@@ -186,16 +179,7 @@ class PlaneMapOdometry:
             rel = relative_pose(self, self.velocity, None, status)
             T = self.pose if self.frame < 0 else T_pred
             return MapEstimate(rel, T, T_pred, used, cur, None, plane_set, against)
-        restart = self.config.planemap.restart if start is not None else "prediction"
-        from_start = restart in ("from_previous", "rejected")
-        if from_start:
-            assert start is not None
-            reg = self._best_registration(start, cur, plane_set, "previous")
-        else:
-            reg = self._best_registration(T_pred, cur, plane_set)
-        if restart == "previous":
-            assert start is not None
-            reg = self._restarted(reg, start, cur)
+        reg = self._best_registration(T_pred, cur, plane_set)
         ok = self._resolved(reg, cur)
         ct, filt = self._registered_twist(reg, cur, deskew) if ok else (None, None)
         if ct is not None:
@@ -302,13 +286,12 @@ class PlaneMapOdometry:
         return n_inl >= pm.min_inliers and n_inl >= pm.min_inlier_fraction * len(cur) and tilt_ok
 
     def _best_registration(
-        self, T_pred: np.ndarray, cur: ScanPlanes, plane_set: PlaneSet, stage: str = "map"
+        self, T_pred: np.ndarray, cur: ScanPlanes, plane_set: PlaneSet
     ) -> Registration:
-        """Step 2 from ``T_pred`` (named ``stage``), and step 3 when suspicious (module
-        docstring)."""
+        """Step 2, and step 3 when suspicious (module docstring)."""
         pm = self.config.planemap
         s_r, s_t = self.sigmas()
-        best = register(self.map, T_pred, cur, s_r, s_t, pm, stage)
+        best = register(self.map, T_pred, cur, s_r, s_t, pm, "map")
         frac = len(best.inliers) / max(len(cur), 1)
         typical = median(np.array(self._fractions[-20:])) if self._fractions else 1.0
         ok = self._resolved(best, cur)
@@ -330,17 +313,6 @@ class PlaneMapOdometry:
         keys = [(not self._resolved(c, cur), self._beyond(c.T), score(self.map, c.T, cur, pm))
                 for c in candidates]  # fmt: skip
         return candidates[min(range(len(candidates)), key=lambda i: keys[i])]
-
-    def _restarted(self, reg: Registration, start: np.ndarray, cur: ScanPlanes) -> Registration:
-        """The better of ``reg`` and the registration from ``start`` (4, 4), the pose an
-        earlier extraction of the scan was registered at (``planemap.restart``): resolved
-        first, then within the motion bounds, then the lower :func:`.register.score`."""
-        s_r, s_t = self.sigmas()
-        other = register(self.map, start, cur, s_r, s_t, self.config.planemap, "previous")
-        pm = self.config.planemap
-        keys = [(not self._resolved(c, cur), self._beyond(c.T), score(self.map, c.T, cur, pm))
-                for c in (reg, other)]  # fmt: skip
-        return other if keys[1] < keys[0] else reg
 
     def _result(
         self, reg: Registration, ok: bool, T_pred: np.ndarray, cur: ScanPlanes, used: np.ndarray
