@@ -134,3 +134,34 @@ def test_qr_fallback_takes_a_marginal_with_round_off() -> None:
     )
     expected = np.linalg.solve(G + 1e6 * np.eye(12), g)  # priors at the point, sigma 1e-3
     np.testing.assert_allclose(delta, expected, rtol=1e-5, atol=1e-9)
+
+
+def test_qr_fallback_takes_and_reports_an_indefinite_marginal() -> None:
+    """The fallback rebuilds from a held marginal indefinite by its eliminated round-off
+    (main: ValueError, the run stopped): the estimate is the minimum of the exact marginal
+    and the priors, and the smoother reports the indefiniteness."""
+    (G0, exact0), (G1, exact1) = schur_marginal(seed=0), schur_marginal(seed=3)
+    G = np.block([[G0, np.zeros((6, 6))], [np.zeros((6, 6)), G1]])
+    exact = np.block([[exact0, np.zeros((6, 6))], [np.zeros((6, 6)), exact1]])
+    g = exact @ np.linspace(-1e-3, 1e-3, 12)  # in the exact marginal's range
+    point = gtsam.Values()
+    point.insert(X(0), gtsam.Pose3())
+    point.insert(X(1), gtsam.Pose3())
+    smoother = WindowedSmoother()
+    factors = gtsam.NonlinearFactorGraph()
+    prior = gtsam.noiseModel.Isotropic.Sigma(6, 1.0)  # as weak as the marginal
+    factors.add(gtsam.PriorFactorPose3(X(0), gtsam.Pose3(), prior))
+    factors.add(gtsam.PriorFactorPose3(X(1), gtsam.Pose3(), prior))
+    factors.add(hessian_container(G, g, point))
+    smoother.smoother = gtsam.IncrementalFixedLagSmoother(smoother.lag, smoother._isam_params())
+    smoother.smoother.update(factors, point, {X(0): 0.0, X(1): 0.0})  # type: ignore[arg-type]
+    smoother._fall_back_to_qr()
+    assert smoother.factorization == "QR"
+    worst = max(-np.linalg.eigvalsh(M)[0] / np.linalg.eigvalsh(M)[-1] for M in (G0, G1))
+    assert smoother.indefinite_marginals == [(-1, pytest.approx(worst))]
+    estimate = smoother.smoother.calculateEstimate()
+    delta = np.concatenate(
+        [gtsam.Pose3.Logmap(estimate.atPose3(X(0))), gtsam.Pose3.Logmap(estimate.atPose3(X(1)))]
+    )
+    expected = np.linalg.solve(exact + np.eye(12), g)  # priors at the point
+    np.testing.assert_allclose(delta, expected, atol=1e-3 * np.abs(expected).max())
