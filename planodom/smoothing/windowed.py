@@ -110,6 +110,10 @@ class WindowedSmoother:
         self.covariances: list[np.ndarray] = []
         self.runtime_s = 0.0
         self.qr_fallbacks = 0
+        #: (epoch, -w_min / w_max) per QR fallback whose held marginals were indefinite
+        #: beyond round-off of their own scale (the worst of them; their unobserved
+        #: directions dropped, :mod:`.jacobian_marginal`): reported, not an error.
+        self.indefinite_marginals: list[tuple[int, float]] = []
 
     def _isam_params(self) -> gtsam.ISAM2Params:
         """iSAM2's parameters, factorisation :attr:`factorization`.
@@ -135,15 +139,18 @@ class WindowedSmoother:
         factors (the marginals of the past among them, and the update that failed, which
         iSAM2 took in before eliminating), linearisation point and key timestamps. The
         marginals, Hessians under Cholesky, are split into Jacobian factors first
-        (:mod:`.jacobian_marginal`: QR's own conversion fails on their round-off)."""
+        (:mod:`.jacobian_marginal`: QR's own conversion fails on their round-off); those
+        indefinite beyond round-off of their own scale are recorded in
+        :attr:`indefinite_marginals`."""
         old = self.smoother
         assert isinstance(old, gtsam.IncrementalFixedLagSmoother)
         held = old.getFactors()
         point = old.getLinearizationPoint()
         factors = gtsam.NonlinearFactorGraph()
+        indefinite: list[float] = []
         for factor in (held.at(i) for i in range(held.size())):
             if isinstance(factor, gtsam.LinearContainerFactor) and not factor.isJacobian():
-                factors.add(jacobian_marginal(factor, point))
+                factors.add(jacobian_marginal(factor, point, indefinite=indefinite))
             elif factor is not None:  # removed factors leave empty slots
                 factors.add(factor)
         timestamps: dict[int, float] = dict(old.timestamps())
@@ -151,6 +158,8 @@ class WindowedSmoother:
         self.smoother = gtsam.IncrementalFixedLagSmoother(self.lag, self._isam_params())
         self.smoother.update(factors, point, timestamps)  # type: ignore[arg-type]  # gtsam stub, as in add_epoch
         self.qr_fallbacks += 1
+        if indefinite:
+            self.indefinite_marginals.append((self.builder.n_epochs - 1, max(indefinite)))
 
     @property
     def has_marginals(self) -> bool:
