@@ -72,11 +72,9 @@ def name_times(files: Sequence[Path]) -> tuple[np.ndarray | None, str | None]:
         if seconds.min() < lo * 1e9 or seconds.max() > hi * 1e9 or np.any(np.diff(seconds) <= 0):
             return None, None
         times = seconds.astype(np.float64) / 1e9
-        steps = np.diff(times)
         return times, (
             f"epoch times from the scan file names ({form}, Unix time, {files[0].name} to "
-            f"{files[-1].name}: {times[0]:.3f} to {times[-1]:.3f} s, steps {np.median(steps):.3f} "
-            f"s median, {steps.max():.3f} s largest)"
+            f"{files[-1].name}: {times[0]:.3f} to {times[-1]:.3f} s{_steps(times)})"
         )
     return None, None
 
@@ -114,10 +112,13 @@ def kitti_raw_times(files: Sequence[Path]) -> tuple[np.ndarray | None, str | Non
         k = int(np.flatnonzero(np.diff(stamps) <= 0)[0]) + 1
         raise DatasetError(f"{path}: times must increase (scan {k} is not after scan {k - 1})")
     times = stamps.astype(np.float64) / 1e9
+    return times, f"epoch times from KITTI raw's {path} (read as UTC{_steps(times)})"
+
+
+def _steps(times: np.ndarray) -> str:
+    """The notes' ", steps ... s median, ... s largest" of epoch times (E,) s; empty for
+    fewer than two."""
     steps = np.diff(times)
-    largest = (
-        f", steps {np.median(steps):.3f} s median, {steps.max():.3f} s largest"
-        if len(steps)
-        else ""
-    )
-    return times, f"epoch times from KITTI raw's {path} (read as UTC{largest})"
+    if not len(steps):
+        return ""
+    return f", steps {np.median(steps):.3f} s median, {steps.max():.3f} s largest"
