@@ -382,6 +382,7 @@ def smooth(
     """
     from planodom import results
     from planodom.report import comparison_table
+    from planodom.smoothing.diagnostics import fallback_warning, smoother_metrics
     from planodom.smoothing.run import run_smoothing
 
     source.check()
@@ -417,8 +418,11 @@ def smooth(
         results.write_config(folder.tmp, sm.config)
         smoothed = results.trajectory_metrics(sm.poses, data.gt_poses)
         smoothed |= results.kitti_metrics(sm.poses, data.gt_poses, data.Tr)
+        if (line := fallback_warning(sm.result)) is not None:
+            warn(line)
         _write_pictures(folder.tmp, data, sm.odometry, sm, name=f"planodom smooth ({mode})")
-        results.write_metrics(folder.tmp, {"odometry": odo_metrics, f"smoothing_{mode}": smoothed})
+        counts = {**smoothed, "smoother": smoother_metrics(sm.result)}
+        results.write_metrics(folder.tmp, {"odometry": odo_metrics, f"smoothing_{mode}": counts})
     title = f"planodom smooth -> {folder.path}"
     if data.gt_poses is None:  # nothing to compare: what the odometry under it did
         from planodom.report import odometry_table

@@ -67,6 +67,12 @@ class SmoothingResult:
         variance_components: ``smoothing.covariance_scale``: the noise models' variance
             factors estimated from the residuals (:mod:`.variance_components`).
         covariance_s: wall time of the covariances (part of ``runtime_s``), seconds.
+        qr_fallback_epochs: the fixed-lag smoother's epochs at which Cholesky failed and
+            it went on with QR (windowed: its own; batch: its windowed initial guess's,
+            ``smoothing.batch_initial``).
+        indefinite_marginals: (epoch, -w_min / w_max) of those fallbacks whose held
+            marginals were indefinite beyond round-off of their own scale and split
+            (:attr:`.windowed.WindowedSmoother.indefinite_marginals`).
     """
 
     poses: np.ndarray
@@ -84,6 +90,8 @@ class SmoothingResult:
     loop_factors: list[LoopFactor] = field(default_factory=list)
     variance_components: VarianceComponents | None = None
     covariance_s: float = 0.0
+    qr_fallback_epochs: list[int] = field(default_factory=list)
+    indefinite_marginals: list[tuple[int, float]] = field(default_factory=list)
 
 
 def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> SmoothingConfig:
@@ -266,9 +274,10 @@ def _builder(
     relative_poses: Sequence[RelativePose],
     config: SmoothingConfig | PlanodomConfig | None,
     T_world_first: np.ndarray | None,
-) -> GraphBuilder:
+) -> tuple[GraphBuilder, SmoothingResult | None]:
     """The batch's graph builder (with loop closure and candidates as configured), its
-    initial poses from the fixed-lag smoother when ``batch_initial`` is "windowed"."""
+    initial poses from the fixed-lag smoother when ``batch_initial`` is "windowed" (and
+    that smoother's result, else None)."""
     cfg = smoothing_config(config)
     full = full_config(config)
     builder: GraphBuilder = GraphBuilder(cfg, T_world_first)
@@ -279,15 +288,17 @@ def _builder(
         builder.first_step = first_measured_step(relative_poses)
     for rel in relative_poses if builder.deskew is not None else ():
         builder.deskew.add(rel)  # type: ignore[union-attr]  # batch: the whole run's, at once
+    guess = None
     if cfg.batch_initial == "windowed":
         from planodom.smoothing.windowed import smooth_windowed
 
         # Its poses only: no marginals (a third of the fixed-lag smoother's time on lidar).
         first = full.updated({"smoothing.compute_covariances": False}, source="initial guess")
-        builder.initial_poses = smooth_windowed(epochs_planes, relative_poses, first).poses
+        guess = smooth_windowed(epochs_planes, relative_poses, first)
+        builder.initial_poses = guess.poses
         if T_world_first is not None:
             builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
-    return builder
+    return builder, guess
 
 
 def _covariances(
@@ -368,7 +379,7 @@ def smooth_batch(
     cfg = smoothing_config(config)
     check_epochs(epochs_planes, relative_poses, T_world_first)
     start = time.perf_counter()
-    builder = _builder(epochs_planes, relative_poses, config, T_world_first)
+    builder, guess = _builder(epochs_planes, relative_poses, config, T_world_first)
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     gaussian: dict[int, gtsam.NonlinearFactor] = {}
     fallback: list[int] = []  # indices of the fallback factors
@@ -418,4 +429,6 @@ def smooth_batch(
         loop_factors=list(getattr(builder, "loop_factors", [])),
         variance_components=components,
         covariance_s=covariance_s,
+        qr_fallback_epochs=[] if guess is None else guess.qr_fallback_epochs,
+        indefinite_marginals=[] if guess is None else guess.indefinite_marginals,
     )

@@ -110,6 +110,8 @@ class WindowedSmoother:
         self.covariances: list[np.ndarray] = []
         self.runtime_s = 0.0
         self.qr_fallbacks = 0
+        #: the epochs at which Cholesky failed and the smoother went on with QR.
+        self.qr_fallback_epochs: list[int] = []
         #: (epoch, -w_min / w_max) per QR fallback whose held marginals were indefinite
         #: beyond round-off of their own scale (the worst of them; their unobserved
         #: directions dropped, :mod:`.jacobian_marginal`): reported, not an error.
@@ -158,6 +160,7 @@ class WindowedSmoother:
         self.smoother = gtsam.IncrementalFixedLagSmoother(self.lag, self._isam_params())
         self.smoother.update(factors, point, timestamps)  # type: ignore[arg-type]  # gtsam stub, as in add_epoch
         self.qr_fallbacks += 1
+        self.qr_fallback_epochs.append(self.builder.n_epochs - 1)
         if indefinite:
             self.indefinite_marginals.append((self.builder.n_epochs - 1, max(indefinite)))
 
@@ -246,6 +249,8 @@ class WindowedSmoother:
             mode="windowed",
             runtime_s=self.runtime_s,
             online_poses=np.stack(self.online_poses),
+            qr_fallback_epochs=list(self.qr_fallback_epochs),
+            indefinite_marginals=list(self.indefinite_marginals),
         )
 
 

@@ -159,6 +159,7 @@ def test_qr_fallback_takes_and_reports_an_indefinite_marginal() -> None:
     assert smoother.factorization == "QR"
     worst = max(-np.linalg.eigvalsh(M)[0] / np.linalg.eigvalsh(M)[-1] for M in (G0, G1))
     assert smoother.indefinite_marginals == [(-1, pytest.approx(worst))]
+    assert smoother.qr_fallback_epochs == [-1]  # no epoch added
     estimate = smoother.smoother.calculateEstimate()
     delta = np.concatenate(
         [gtsam.Pose3.Logmap(estimate.atPose3(X(0))), gtsam.Pose3.Logmap(estimate.atPose3(X(1)))]

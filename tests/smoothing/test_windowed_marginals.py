@@ -77,6 +77,7 @@ def test_the_qr_fallback_continues_from_the_smoothers_state() -> None:
             rebuilt._fall_back_to_qr()
     assert rebuilt.factorization == "QR" and rebuilt.qr_fallbacks == 1
     qr, cholesky, after = (s.result() for s in [*runs, rebuilt])
+    assert after.qr_fallback_epochs == [12] and qr.qr_fallback_epochs == []
     np.testing.assert_allclose(cholesky.poses, qr.poses, atol=1e-9)
     error = [np.abs(r.poses[:, :3, 3] - seq.poses[:, :3, 3]).max() for r in (qr, after)]
     assert error[1] < 1.1 * error[0]
