@@ -8,6 +8,7 @@ status 2. Anything else is a bug and keeps its traceback.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import inspect
 import typing
@@ -87,7 +88,8 @@ SkipBadScans = Annotated[
     typer.Option(
         "--skip-bad-scans",
         help="An unreadable scan file becomes an epoch without planes (bridged at constant "
-        "velocity, listed in metrics.json) instead of an error.",
+        "velocity, listed in metrics.json) instead of an error; a ROS 2 bag's unreadable "
+        "storage file (a split recording's part) is left out, its time span a gap.",
     ),
 ]
 Scene = Annotated[
@@ -344,7 +346,8 @@ class Source:
 
         self.check()
         if self.dataset is not None:
-            recording = open_recording(self.dataset, self.bag_options(), self.bin_layout)
+            options = dataclasses.replace(self.bag_options(), skip_broken_parts=skip_bad)
+            recording = open_recording(self.dataset, options, self.bin_layout)
             return ScanEpochs(recording, skip_bad)
         from planodom.simulation.export import write_simulated_dataset
 

@@ -40,7 +40,7 @@ from planodom.datasets.bag_msgs import (
     sweep_times,
     tagged_noise,
 )
-from planodom.datasets.bag_paths import broken_part
+from planodom.datasets.bag_parts import broken_part
 from planodom.datasets.bag_rings import ring_counts, stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit
@@ -89,12 +89,14 @@ def bag_errors(path: Path, what: str = "cannot read bag") -> Iterator[None]:
         raise DatasetError(f"{path}: {what} (truncated or corrupt?): {detail}") from None
 
 
-def open_reader(path: Path) -> AnyReader:
-    """An opened AnyReader on the bag at ``path`` (a ``bag_paths.bag_location``)."""
+def open_reader(path: Path, read_from: Path | None = None) -> AnyReader:
+    """An opened AnyReader on the bag at ``path`` (a ``bag_paths.bag_location``), or on
+    ``read_from`` standing for it (a ROS 2 bag without its broken parts,
+    :func:`.bag_parts.readable_view`; errors name ``path``)."""
     with bag_errors(path):
         typestore = get_typestore(Stores.LATEST)
         register_livox_types(typestore)  # a ROS 2 bag may not carry their definitions
-        reader = AnyReader([path], default_typestore=typestore)
+        reader = AnyReader([read_from or path], default_typestore=typestore)
         reader.open()
     return reader
 

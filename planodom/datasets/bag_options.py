@@ -28,6 +28,10 @@ class BagOptions:
         time_field: the clouds' per-point time field: ``"auto"`` (the first of
             :data:`~planodom.datasets.scan_io.TIME_FIELDS` present), ``"none"`` (ignore
             per-point times, e.g. a sensor clock that is not the stamps'), or a field name.
+        skip_broken_parts: a ROS 2 bag's storage files that cannot be read (a split
+            recording's part missing, cut short, overwritten) are left out and the others
+            read, noted with the time span missing (:mod:`.bag_parts`); off: an error
+            naming the part.
     """
 
     base_frame: str = DEFAULT_BASE_FRAME
@@ -35,6 +39,7 @@ class BagOptions:
     topics: tuple[str, ...] = field(default=())
     gt_topic: str | None = None
     time_field: str = "auto"
+    skip_broken_parts: bool = False
 
     def __post_init__(self) -> None:
         # a list (or a CLI's repeated option) becomes a tuple: the options stay hashable

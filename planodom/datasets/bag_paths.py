@@ -5,8 +5,6 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import yaml
-
 from planodom.errors import DatasetError
 
 #: The last bytes of a closed (complete) mcap file.
@@ -79,35 +77,3 @@ def split_parts_note(path: Path) -> list[str]:
         f"{shown} beside {path.name}: parts of one split recording? Only {path.name} is "
         f"read; `rosbags-convert --src {src} --dst {prefix}.bag` merges them into one bag"
     ]
-
-
-def broken_part(path: Path) -> str | None:
-    """Why a ROS 2 bag folder ``path`` cannot be read, naming its storage file, when one its
-    ``metadata.yaml`` lists is missing or is an mcap file cut short (no end magic: a copy
-    or recording cut off), or None. A split recording (``ros2 bag record
-    --max-bag-size``) has several; the others still read once it is left out."""
-    try:
-        meta = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
-        names = [str(n) for n in meta["rosbag2_bagfile_information"]["relative_file_paths"]]
-    except (OSError, yaml.YAMLError, KeyError, TypeError):
-        return None
-    for k, name in enumerate(names):
-        part = path / name
-        problem = None
-        if not part.is_file():
-            problem = "is missing"
-        elif part.suffix == ".mcap":
-            with open(part, "rb") as f:
-                f.seek(max(part.stat().st_size - len(MCAP_MAGIC), 0))
-                if f.read() != MCAP_MAGIC:
-                    problem = "is cut short (no mcap end magic)"
-        if problem:
-            which = f"part {k + 1} of the {len(names)}" if len(names) > 1 else "the storage file"
-            rest = (
-                f"; the other parts read once it is left out of relative_file_paths and files "
-                f"in {path / 'metadata.yaml'}"
-                if len(names) > 1
-                else ""
-            )
-            return f"{part}, {which} metadata.yaml lists, {problem}{rest}"
-    return None

@@ -66,7 +66,8 @@ def open_recording(
     unfinished = unfinished_bag(path)
     if unfinished:
         raise DatasetError(unfinished)
-    given = [g for g in (options.given() if options is not None else []) if g != "time_field"]
+    given = options.given() if options is not None else []
+    given = [g for g in given if g not in ("time_field", "skip_broken_parts")]
     time_field = options.time_field if options is not None else "auto"
     if given:
         raise DatasetError(f"{path} is not a bag: options {', '.join(given)} apply to bags only")

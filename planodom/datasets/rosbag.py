@@ -60,6 +60,7 @@ from planodom.datasets.bag_index import (
 from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
 from planodom.datasets.bag_notes import bag_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
+from planodom.datasets.bag_parts import missing_part_note, skipped_parts, tf_in_skipped_part
 from planodom.datasets.bag_paths import bag_location, split_parts_note
 from planodom.datasets.bag_tf import frame_name
 from planodom.datasets.bag_topics import BagTopic, bag_rig, bag_topics, has_rings
@@ -166,6 +167,9 @@ class BagDataset:
                 )
             )
         self._reader: AnyReader | None = None
+        #: the folder read instead of ``path`` (its readable parts), and what holds it
+        self.read_from: Path | None = None
+        self._view: object = None
 
     def partial_gt_note(self, what: str) -> str:
         """The note on a reference that spans only some of the epochs, ending in ``what``."""
@@ -198,7 +202,7 @@ class BagDataset:
 
     def _open(self) -> AnyReader:
         if self._reader is None:
-            self._reader = open_reader(self.path)
+            self._reader = open_reader(self.path, self.read_from)
         return self._reader
 
     def close(self) -> None:
@@ -311,23 +315,30 @@ def open_bag(path: str | Path, options: BagOptions | None = None) -> BagDataset:
     """
     opts = options or BagOptions()
     location = bag_location(path)
-    reader = open_reader(location)
+    broken, view = skipped_parts(location, opts.skip_broken_parts)
+    read_from = None if view is None else Path(view.name)
+    reader = open_reader(location, read_from)
     try:
-        index = index_bag(reader, location, opts.topic_list, opts.gt_topic, opts.time_field)
+        with tf_in_skipped_part(broken):
+            index = index_bag(reader, location, opts.topic_list, opts.gt_topic, opts.time_field)
     finally:
         with bag_errors(location):
             reader.close()
     if len(index.sweep_stamp) == 0:
         raise DatasetError(f"{location}: no messages on the scan topics")
-    return BagDataset(
-        location,
-        opts.base_frame,
-        opts.epoch_rate,
-        index,
-        opts.gt_topic,
-        opts.time_field,
-        topics_chosen=bool(opts.topics),
-    )
+    with tf_in_skipped_part(broken):
+        ds = BagDataset(
+            location,
+            opts.base_frame,
+            opts.epoch_rate,
+            index,
+            opts.gt_topic,
+            opts.time_field,
+            topics_chosen=bool(opts.topics),
+        )
+    ds.read_from, ds._view = read_from, view
+    ds.notes[:0] = [missing_part_note(part, ds.times) for part in broken]
+    return ds
 
 
 @dataclass(frozen=True)

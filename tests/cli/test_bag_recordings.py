@@ -96,3 +96,28 @@ def test_run_on_a_reference_over_part_of_the_run_estimates_every_epoch(tmp_path:
     for key in ("ate_rmse_m", "rpe_trans_rmse_m", "drift_m"):
         assert metrics[key] == pytest.approx(truth[key], abs=1e-4)
     assert "spans 3 of the 6 epochs" in metrics["recording_notes"][0]
+
+
+def test_skip_bad_scans_reads_a_split_recording_without_its_broken_part(tmp_path: Path) -> None:
+    """A ROS 2 split recording's middle part lost: refused naming the part (and the flag);
+    with --skip-bad-scans run reads the others, warns of the part and its time span, and
+    reports the epochs after the gap, as for dropped scans. The bag is left as it was."""
+    from bag_factory import T0_NS, split_ros2_bag
+
+    whole, rec = tmp_path / "whole", tmp_path / "rec"
+    write_bag(whole, 2, [Sensor("/points", "lidar", 0, "velodyne")], STATIC_TF, T_BASE)
+    split_ros2_bag(whole, rec, [T0_NS + 350_000_000, T0_NS + 750_000_000])
+    (rec / "rec_1.db3").unlink()
+    args = ["run", str(rec), "--gt-topic", "/odom", "--out"]
+    fails(
+        [*args, tmp_path / "refused"],
+        "rec_1.db3, part 2 of the 3 metadata.yaml lists, is missing; --skip-bad-scans",
+    )
+    result = runner.invoke(app, [*args, str(tmp_path / "run"), "--skip-bad-scans"])
+    assert result.exit_code == 0, result.output
+    (warning,) = [w for w in result.stderr.splitlines() if "rec_1.db3" in w]
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert warning.removeprefix("warning: ") in metrics["recording_notes"]
+    assert "a gap between epoch 3" in warning and metrics["epochs_after_gaps"] == [4]
+    assert metrics["epochs"] == 8  # of the whole bag's 12
+    assert sorted(p.name for p in rec.iterdir()) == ["metadata.yaml", "rec_0.db3", "rec_2.db3"]
