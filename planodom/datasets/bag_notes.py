@@ -139,3 +139,29 @@ def _stamped_back(index: BagIndex, k: int) -> str:
         f"(up to {-step.min() / 1e9:.6g} s earlier: recorded out of order, a clock reset, or "
         "two publishers?); the epochs are in stamp order, not the recording's"
     )
+
+
+def crowded_notes(index: BagIndex, members: list[np.ndarray], times: np.ndarray) -> list[str]:
+    """Notes on epochs holding more sweeps of a topic than most of its epochs hold
+    (``members``: each epoch's sweep rows; ``times`` (E,) the epoch times, s): two sweeps
+    stamped within one epoch period, or a lidar faster than the epoch rate at times; their
+    points are merged into that epoch, each sweep timed by its own stamp."""
+    notes = []
+    for k, t in enumerate(index.topics):
+        counts = np.array([np.count_nonzero(index.sweep_topic[m] == k) for m in members])
+        usual = int(np.median(counts)) if len(counts) else 0
+        crowded = np.flatnonzero(counts > max(usual, 1))
+        if not usual or not len(crowded):
+            continue
+        e = int(crowded[0])
+        stamps = index.sweep_stamp[members[e][index.sweep_topic[members[e]] == k]]
+        shown = ", ".join(f"{s // 10**9}.{s % 10**9:09d}" for s in np.sort(stamps)[:3].tolist())
+        why = "stamped alike: a driver repeating a stamp, or parts of one sweep?"
+        if len(np.unique(stamps)) == len(stamps):
+            why = "stamped too close together, or a lidar faster than --epoch-rate?"
+        notes.append(
+            f"topic '{t.name}': {len(crowded)} epoch(s) hold more of its messages than the "
+            f"{usual} most hold (first: epoch {e}, t = {times[e]:.3f} s, stamps {shown} s: "
+            f"{why}); they are merged into the epoch, each placed by its own stamp"
+        )
+    return notes

@@ -58,7 +58,7 @@ from planodom.datasets.bag_index import (
     open_reader,
 )
 from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
-from planodom.datasets.bag_notes import bag_notes
+from planodom.datasets.bag_notes import bag_notes, crowded_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
 from planodom.datasets.bag_parts import missing_part_note, skipped_parts, tf_in_skipped_part
 from planodom.datasets.bag_paths import bag_location, split_parts_note
@@ -147,7 +147,9 @@ class BagDataset:
         self.times = ref.astype(np.float64) / NS
         self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
         self.notes = split_parts_note(path) + index.tf.loops(self.base_frame)
-        self.notes += bag_notes(index, topics_chosen, gt_topic)
+        self.notes += bag_notes(index, topics_chosen, gt_topic) + crowded_notes(
+            index, members, self.times
+        )
         if gt_topic is not None and not index.gt_child:  # a PoseStamped: of which frame?
             sensors = {f: T for t in self.topics for f, T in t.T_base_sensor.items()}
             self.notes.append(
