@@ -16,7 +16,9 @@ when that is a Unix time too (the dataset's ``poses.tum`` / ``times.txt`` on the
 clock; more than ``MAX_SWEEP_OFFSET_S`` away is another clock and refused), else to the
 scan's earliest point (epoch times counted from 0: the sweep starts at its epoch's time,
 as a driver stamps it). Absolute times in float32 (128 s resolution today) are refused, as
-are times that are neither offsets within ``MAX_POINT_TIME_S`` nor Unix times.
+are times that are neither offsets within ``MAX_POINT_TIME_S`` nor Unix times, and
+absolute times that are all whole seconds (written with too few digits: open3d's ASCII
+PCD keeps 10 significant digits, which rounds a Unix time to the second).
 Points whose three coordinates are all NaN, or all exactly 0 (the origin, no lidar's
 return), are the no-return markers of an organised cloud (PCL's, Ouster's) and are
 dropped; any other non-finite coordinate is an error. ``.bin`` files hold
@@ -293,6 +295,13 @@ def point_times(
             raise DatasetError(
                 f"{path}: point times '{name}' are absolute (Unix) times in {raw.dtype}, "
                 "whose resolution is seconds or worse; store offsets or 64-bit values "
+                "(--time-field none ignores them)"
+            )
+        if len(absolute) > 1 and not np.any(absolute % 1_000_000_000):
+            raise DatasetError(
+                f"{path}: absolute point times '{name}' are all whole seconds: stored with "
+                "too few digits (an ASCII file's 10 significant digits, as open3d writes "
+                "them?), they have lost the sweep's timing; store offsets or binary values "
                 "(--time-field none ignores them)"
             )
         low, high = UNIX_TIME_RANGE_S

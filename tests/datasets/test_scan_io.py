@@ -344,3 +344,31 @@ def test_pcd_with_width_and_height_left_unset_is_unorganised(tmp_path: Path) -> 
         DatasetError, match=r"c\.pcd: PCD header WIDTH 0 x HEIGHT 1 is not POINTS 4"
     ):
         read_scan(tmp_path / "c.pcd")
+
+
+@pytest.mark.parametrize(
+    ("value", "later"), [("1700000000", "1700000000.05"), ("1.7e+18", "1.70000000005e+18")]
+)
+def test_absolute_times_rounded_to_whole_seconds_are_refused(
+    tmp_path: Path, value: str, later: str
+) -> None:
+    """open3d writes an ASCII PCD's floats with 10 significant digits: a Hesai, Robosense
+    (Unix seconds) or livox_ros_driver2 (Unix nanoseconds) ``timestamp`` becomes one whole
+    second for every point. Main read the sweep as one instant, without a word (the points'
+    true times span 0.1 s); now refused naming the file and the field."""
+    rows = "\n".join(f"{x:.3f} 2.0 0.5 {value}" for x in np.linspace(1, 5, 20))
+    path = tmp_path / "hesai.pcd"
+    path.write_text(
+        "VERSION 0.7\nFIELDS x y z timestamp\nSIZE 4 4 4 8\nTYPE F F F F\nCOUNT 1 1 1 1\n"
+        f"WIDTH 20\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 20\nDATA ascii\n{rows}\n"
+    )
+    with pytest.raises(DatasetError) as exc:
+        read_scan(path)
+    assert str(exc.value).startswith(
+        f"{path}: absolute point times 'timestamp' are all whole seconds: stored with too few"
+    )
+    assert len(read_scan(path, time_field="none")) == 20
+    full = path.read_text().replace(f" {value}\n", f" {later}\n", 1)
+    path.write_text(full)  # one point off the whole second: times kept, the first 50 ms on
+    t = read_scan(path).t
+    assert t is not None and np.isclose(t.max(), 0.05) and np.count_nonzero(t) == 1
