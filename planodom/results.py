@@ -35,6 +35,7 @@ import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -45,6 +46,9 @@ from planodom.datasets.kitti import write_kitti_camera_poses
 from planodom.metrics_kitti import kitti_segment_errors
 from planodom.odometry import OdometryRun, epoch_rows
 from planodom.outputs import atomic_folder, link_latest, timestamped_folder
+
+if TYPE_CHECKING:
+    from planodom.smoothing.batch import SmoothingResult
 
 __all__ = ["write_tum"]
 
@@ -215,6 +219,20 @@ def trajectory_metrics(poses: np.ndarray, gt_poses: np.ndarray | None) -> dict[s
     if len(poses) < epochs:
         out = {"epochs": float(epochs), "evaluated_epochs": out.pop("epochs")} | out
     return out
+
+
+def smoothing_metrics(
+    result: SmoothingResult, gt_poses: np.ndarray | None, Tr: np.ndarray | None = None
+) -> dict[str, Any]:
+    """A smoothing run's :func:`trajectory_metrics` and :func:`kitti_metrics` (with ground
+    truth), and under ``smoother`` what the smoother counted
+    (:func:`planodom.smoothing.diagnostics.smoother_metrics`: the graph, the fixed-lag
+    smoother's QR fallbacks and split indefinite marginals, loop closure's verdicts)."""
+    from planodom.smoothing.diagnostics import smoother_metrics
+
+    out: dict[str, Any] = trajectory_metrics(result.poses, gt_poses)
+    out |= kitti_metrics(result.poses, gt_poses, Tr)
+    return out | {"smoother": smoother_metrics(result)}
 
 
 def referenced(

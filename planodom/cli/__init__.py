@@ -249,12 +249,14 @@ def _write_pictures(folder: Path, data: ScanEpochs, odo, sm=None, name: str = ""
     """``covariances.npz`` and the three pictures of a run (and of its smoothing ``sm``)."""
     from planodom.covariances import FILE, odometry_covariances, write_covariances
     from planodom.plots.run import write_run_plots
+    from planodom.smoothing.diagnostics import fallback_warning
 
     arrays = odometry_covariances(odo)
-    if sm is not None:
+    if sm is not None:  # and the smoothing's warnings
         arrays[f"smoothed_{sm.result.mode}"] = sm.result.covariances
-        if sm.result.covariance_note:
-            warn(sm.result.covariance_note)
+        for line in (sm.result.covariance_note, fallback_warning(sm.result)):
+            if line:
+                warn(line)
     write_covariances(folder / FILE, arrays)
     smoothed = None if sm is None else sm.poses
     with console.status("drawing the plots"):
@@ -382,7 +384,6 @@ def smooth(
     """
     from planodom import results
     from planodom.report import comparison_table
-    from planodom.smoothing.diagnostics import fallback_warning, smoother_metrics
     from planodom.smoothing.run import run_smoothing
 
     source.check()
@@ -416,13 +417,9 @@ def smooth(
         results.write_trajectory(folder.tmp, sm.times, sm.poses, data.Tr)  # the output
         results.write_tum(folder.tmp / "odometry.tum", sm.times, sm.odometry.poses)
         results.write_config(folder.tmp, sm.config)
-        smoothed = results.trajectory_metrics(sm.poses, data.gt_poses)
-        smoothed |= results.kitti_metrics(sm.poses, data.gt_poses, data.Tr)
-        if (line := fallback_warning(sm.result)) is not None:
-            warn(line)
+        smoothed = results.smoothing_metrics(sm.result, data.gt_poses, data.Tr)
         _write_pictures(folder.tmp, data, sm.odometry, sm, name=f"planodom smooth ({mode})")
-        counts = {**smoothed, "smoother": smoother_metrics(sm.result)}
-        results.write_metrics(folder.tmp, {"odometry": odo_metrics, f"smoothing_{mode}": counts})
+        results.write_metrics(folder.tmp, {"odometry": odo_metrics, f"smoothing_{mode}": smoothed})
     title = f"planodom smooth -> {folder.path}"
     if data.gt_poses is None:  # nothing to compare: what the odometry under it did
         from planodom.report import odometry_table
