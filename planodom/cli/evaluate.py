@@ -115,15 +115,26 @@ def convert(
     gt_topic: GtTopic = None,
     time_field: TimeField = "auto",
     overwrite: Annotated[bool, typer.Option(help="Replace a dataset at DATASET.")] = False,
+    skip_bad_scans: Annotated[
+        bool,
+        typer.Option(
+            "--skip-bad-scans",
+            help="Leave out a ROS 2 bag's storage files that cannot be read (a split "
+            "recording's part missing, cut short or overwritten): their time span is a gap.",
+        ),
+    ] = False,
 ) -> None:
     """Convert a bag into the dataset format (scans/*.ply with ring and t, rig.yaml, and
     the bag's epoch times in poses.tum with --gt-topic, else in times.txt)."""
+    import dataclasses
+
     from rich.table import Table
 
     from planodom.datasets.bag_options import BagOptions
     from planodom.datasets.rosbag import convert_bag
 
     options = BagOptions.of(base_frame, epoch_rate, topic, gt_topic, time_field)
+    options = dataclasses.replace(options, skip_broken_parts=skip_bad_scans)
     with console.status(f"converting {bag}"):
         c = convert_bag(bag, dataset, options, overwrite=overwrite)
     for note in c.notes:

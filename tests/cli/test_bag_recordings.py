@@ -120,4 +120,7 @@ def test_skip_bad_scans_reads_a_split_recording_without_its_broken_part(tmp_path
     assert warning.removeprefix("warning: ") in metrics["recording_notes"]
     assert "a gap between epoch 3" in warning and metrics["epochs_after_gaps"] == [4]
     assert metrics["epochs"] == 8  # of the whole bag's 12
+    result = runner.invoke(app, ["convert", str(rec), str(tmp_path / "ds"), "--skip-bad-scans"])
+    assert result.exit_code == 0 and "a gap between epoch 3" in " ".join(result.stderr.split())
+    assert len(list((tmp_path / "ds" / "scans").iterdir())) == 8
     assert sorted(p.name for p in rec.iterdir()) == ["metadata.yaml", "rec_0.db3", "rec_2.db3"]
