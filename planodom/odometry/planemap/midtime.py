@@ -186,7 +186,28 @@ def first_pose(
     (quadratic fit), world 19 at 6 mm 4.0 / 3.9 / 3.0 mm. On a hand-held walk (10 Hz, a
     swing of 1.45 Hz: seven epochs) five nodes span most of a swing and the fit's bias
     dominates: from the true middle poses it is 5.1 deg off on world 40 (the quadratic
-    through three 2.5, the cubic 0.8)."""
+    through three 2.5, the cubic 0.8).
+
+    Measured (the first pose's angle to the truth; ``experiments/handheld_walks.py run W
+    NOISE [--vehicle] --set planemap.first_pose=F``, 150 epochs; only the first pose, the
+    first step and what the first pose turns change): hand-held worlds 40-47, 6 mm / 2 cm,
+    quadratic fit -> quadratic -> cubic, deg: 40 5.52 -> 2.17 -> 0.29 / 5.21 -> 2.22 ->
+    0.50; 41 0.32 -> 0.11 -> 0.08 / 0.32 -> 0.10 -> 0.04; 42 0.38 -> 0.18 -> 0.13 / 0.37
+    -> 0.16 -> 0.15; 43 2.79 -> 0.68 -> 1.11 / 2.26 -> 0.89 -> 0.24; 44 0.54 -> 1.11 ->
+    1.70 / 0.63 -> 0.62 -> 0.98; 45 0.82 -> 0.95 -> 2.24 / 0.52 -> 1.42 -> 2.41; 46 0.13
+    -> 0.51 -> 0.77 / 0.14 -> 0.55 -> 0.92; 47 4.3 -> 11.7 -> 11.7 / 2.6 -> 0.5 -> 2.0.
+    The middles' own errors (0.1-1 deg a step on the walks, up to 40 times the
+    registration's reported sigma) then outweigh the fit's bias as often as not: ATE
+    better on 12 of 16 walks with the cubic (geometric mean of the ratios 0.81; world 43
+    at 2 cm 0.327 -> 0.130 m), worse on 4 (world 44 at 2 cm 0.123 -> 0.417 m). Vehicle
+    lidar worlds 1-19 odd at 6 mm and 2 cm, where the fit's bias is 0.000-0.046 deg from
+    the true middles: ATE worse on 15 of 20 with the cubic (geometric mean 1.56; world 7
+    at 2 cm 2.8 -> 10.6 mm), on 16 with the quadratic through three (1.35). The fit
+    chosen per run by the least estimated error (bias from the difference to the cubic,
+    noise from the registration's covariances, or from the nodes' fourth differences)
+    took the cubic on the walks where it was worse too and was worse on the vehicle
+    worlds (ATE geometric mean 1.38): no rule measured here tells the fit's bias from
+    the middles' noise with five or six of them."""
     n = min({"quadratic": 3, "cubic": 4}.get(fit, _END_NODES), len(middles))
     degree = min(2 if fit != "cubic" else 3, n - 1)
     if n > degree + 1:  # a least-squares fit (equal weights) over the n nearest nodes
