@@ -205,9 +205,9 @@ def first_pose(
     at 2 cm 2.8 -> 10.6 mm), on 16 with the quadratic through three (1.35). The fit
     chosen per run by the least estimated error (bias from the difference to the cubic,
     noise from the registration's covariances, or from the nodes' fourth differences)
-    took the cubic on the walks where it was worse too and was worse on the vehicle
-    worlds (ATE geometric mean 1.38): no rule measured here tells the fit's bias from
-    the middles' noise with five or six of them."""
+    took the cubic on the walks where it was worse too; the second was worse on the
+    vehicle worlds (ATE geometric mean 1.38): no rule measured here tells the fit's bias
+    from the middles' noise with the first five to nine of them."""
     n = min({"quadratic": 3, "cubic": 4}.get(fit, _END_NODES), len(middles))
     degree = min(2 if fit != "cubic" else 3, n - 1)
     if n > degree + 1:  # a least-squares fit (equal weights) over the n nearest nodes
