@@ -331,18 +331,21 @@ class PlanemapConfig(Section):
     used: a twist error no longer shifts the scan as a whole). A twist that lags the
     sweep (it comes from the steps before) shifts a scan registered at its start by the
     error times the points' mean time. Applies only to scans with point times (given, or
-    from a declared ``extraction.sweep``); pairwise: ``odometry.pairwise_reference_time``. Measured
-    (``planodom experiment generalisation --worlds 20 --rig lidar --epochs 300``, the
-    ten lidar worlds, ``epoch`` -> ``middle``): better on every world in rotation, xy
-    and ATE at 6 mm and 2 cm; medians 6 mm rotation 21.8x -> 6.5x the oracle (worst 139x
-    -> 51x), xy 2.9x -> 1.7x, ATE 6.5 -> 2.0 mm (28x -> 10x, worst 250x -> 102x); 2 cm
-    rotation 8.5x -> 5.1x, xy 1.9x -> 1.2x, ATE 6.7 -> 2.5 mm (7.6x -> 3.4x); front end
-    2.2x -> 1.9x KISS-ICP's epochs/s (more epochs extracted twice). KITTI raw 0005 with
-    its declared sweep (stamped mid-sweep): RPE rotation 0.0743 -> 0.0760 deg,
-    translation 0.0367 -> 0.0375 m, ATE 1.514 -> 1.515 m (2 % worse); without a sweep
-    (no point times) unchanged. The default since issue 11: every procedural lidar world
-    better against a 2 % loss on one drive with a sweep declared by hand (what a run-to-run
-    change of unrelated settings moves there)."""
+    from a declared ``extraction.sweep``); pairwise: ``odometry.pairwise_reference_time``.
+    Measured: the lidar worlds better in rotation, xy and ATE, KITTI raw 0005 2 % worse
+    (figures in :mod:`planodom.odometry.planemap.midtime`)."""
+    first_pose: Literal["quadratic_fit", "quadratic", "cubic"] = "quadratic_fit"
+    """With the sweeps registered at their middles (``reference_time: middle``, and the
+    pairwise ``odometry.pairwise_reference_time: middle``), the curve the first epoch's
+    pose at its epoch time, half a sweep before the first middle, is extrapolated on
+    (:func:`planodom.odometry.planemap.midtime.first_pose`): ``quadratic_fit``, the
+    least-squares quadratic over the first five middles; ``quadratic`` / ``cubic``, the
+    polynomial through the first three / four. The run's first pose is the identity, so
+    this error turns the whole run. Measured (150 epochs, figures in
+    :func:`~planodom.odometry.planemap.midtime.first_pose`): the cubic is closer on 9 of
+    the 16 hand-held walks (40-47, 6 mm and 2 cm), farther on 7; ATE worse on 15 of the
+    20 vehicle lidar runs (1-19 odd, geometric mean of the ratios 1.56, the quadratic
+    through three 1.35): ``quadratic_fit`` stays the default."""
     prediction: Literal["mean", "last", "trend"] = "trend"
     """The twist each epoch is first deskewed with (the streaming odometry's constant-
     velocity prediction, :func:`planodom.odometry.trend.predicted_twist`): "mean", the

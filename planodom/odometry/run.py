@@ -370,7 +370,8 @@ def _middle_timed_pass(
     # the shifted times are only indexed, each after its epoch was read (MiddleTimed)
     shifted = cast("Sequence[float]", middle.times)
     run = _streaming_pass(middle, cfg, rig, shifted, progress, extractor)
-    return at_epoch_times(run, middle.epoch_times, cfg.odometry.deskew_order)
+    order = cfg.odometry.deskew_order
+    return at_epoch_times(run, middle.epoch_times, order, cfg.planemap.first_pose)
 
 
 def _streaming_pass(

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from planodom.config import PlanodomConfig
+from planodom.errors import ConfigError
 from planodom.geometry import Plane, invert_transform, se3_exp
 from planodom.metrics import per_epoch_errors, relative_motions
 from planodom.odometry import run_odometry
-from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times
+from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times, first_pose
 from planodom.odometry.relative import RelativePose
 from planodom.odometry.run import OdometryRun
 from planodom.scan import Scan
@@ -131,3 +133,60 @@ def test_centred_times_tells_a_sweep_registered_at_its_middle():
     assert not centred_times(Scan(pts, None, np.array([0.0, 0.05, 0.1])))
     assert centred_times(Scan(pts, None, np.array([-0.05, 0.0, 0.0499])))
     assert not centred_times(Scan(pts, None, None))
+
+
+def _yaw_pose(yaw: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:2, :2] = [[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]]
+    return T
+
+
+def test_first_pose_fits_reproduce_the_polynomials_of_their_degree():
+    # a turn about one axis: the tangent at any node is the yaw difference, so a yaw
+    # polynomial of the fit's degree is extrapolated exactly (closed form at t = 0)
+    middles = 0.05 + 0.1 * np.arange(8)
+    cubic = lambda t: 0.3 * t - 2.0 * t**2 + 4.0 * t**3  # noqa: E731
+    quadratic = lambda t: 0.3 * t - 2.0 * t**2  # noqa: E731
+    for fit, yaw, exact in [("cubic", cubic, True), ("quadratic", quadratic, True),
+                            ("quadratic_fit", quadratic, True), ("quadratic", cubic, False),
+                            ("quadratic_fit", cubic, False)]:  # fmt: skip
+        poses = np.array([_yaw_pose(yaw(t)) for t in middles])
+        got = first_pose(middles, poses, 0.0, fit)
+        error = abs(np.arctan2(got[1, 0], got[0, 0]) - yaw(0.0))
+        assert (error < 1e-12) == exact, (fit, error)
+
+
+def test_first_pose_on_a_swing_the_cubic_is_closest():
+    # a hand-held swing: yaw 10 deg at 1.45 Hz sampled at the middles of 10 Hz sweeps;
+    # closed-form truth at the first epoch time (t = 0), rms over the swing's phase
+    middles = 0.05 + 0.1 * np.arange(8)
+    rms = {}
+    for fit in ("quadratic_fit", "quadratic", "cubic"):
+        errors = []
+        for phase in np.linspace(0.0, 2 * np.pi, 16, endpoint=False):
+            yaw = np.radians(10.0) * np.sin(2 * np.pi * 1.45 * middles + phase)
+            got = first_pose(middles, np.array([_yaw_pose(y) for y in yaw]), 0.0, fit)
+            errors.append(np.arctan2(got[1, 0], got[0, 0]) - np.radians(10.0) * np.sin(phase))
+        rms[fit] = np.degrees(np.sqrt(np.mean(np.square(errors))))
+    assert rms["cubic"] < rms["quadratic"] < rms["quadratic_fit"]
+
+
+def test_at_epoch_times_takes_the_first_pose_fit_given():
+    times = np.arange(8) * 0.1
+    yaw = lambda t: 0.3 * t - 2.0 * t**2 + 4.0 * t**3  # noqa: E731
+    M = np.array([_yaw_pose(yaw(t + 0.05)) for t in times])
+    M = invert_transform(M[0])[None] @ M
+    results: list[RelativePose | None] = [None] + [
+        RelativePose(invert_transform(M[k - 1]) @ M[k], None, prev=k - 1, curr=k)
+        for k in range(1, 8)
+    ]
+    run = OdometryRun(M, times + 0.05, results, np.ones(8, int), [[] for _ in times])
+    out = at_epoch_times(run, times, order=3, first="cubic")
+    # the first step from the exact first pose: the yaw from t = 0 to t = 0.1
+    step = out.results[1]
+    assert step is not None
+    turn = np.arctan2(step.T_prev_curr[1, 0], step.T_prev_curr[0, 0])
+    assert abs(turn - (yaw(0.1) - yaw(0.0))) < 1e-9
+    with pytest.raises(ConfigError):
+        PlanodomConfig().updated({"planemap.first_pose": "quartic"})
+    assert PlanodomConfig().updated({"planemap.first_pose": "cubic"}).planemap.first_pose == "cubic"
