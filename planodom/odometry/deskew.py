@@ -301,7 +301,7 @@ def beyond_bounds(step: np.ndarray, bounds: AssociationConfig) -> bool:
     ``bounds.max_rotation_deg`` (its rotation angle) or ``max_translation_m``."""
     cos = np.clip((np.trace(step[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
     turned = float(np.arccos(cos)) > np.radians(bounds.max_rotation_deg)
-    return turned or float(np.linalg.norm(step[:3, 3])) > bounds.max_translation_m
+    return bool(turned or float(np.linalg.norm(step[:3, 3])) > bounds.max_translation_m)
 
 
 def _left_bounds(again: EpochEstimate, best: EpochEstimate, bounds: AssociationConfig) -> bool:
