@@ -256,10 +256,8 @@ def register_deskewed(
             the new ones is worse (``odometry.reference_refresh_guard``).
         lead: the lead of the epoch's own twist and the tolerances and iterations
             that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
-        bounds: the motion bounds the run assumes and what brings the reference's
-            planes back (``odometry.deskew_bounds_guard``): an estimate extracted again
-            whose step leaves them, where the one it was refined from did not, ends the
-            refinement, that one kept (None: no such test).
+        bounds: the motion bounds the run assumes and what brings the reference's planes
+            back (``odometry.deskew_bounds_guard``, :func:`_left_bounds`; None: off).
     """
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
     iterations = config.deskew_iterations if lead is None else lead.iterations
@@ -280,9 +278,7 @@ def register_deskewed(
         if not stale_reference and np.array_equal(new, used):
             break
         again = estimate(new, best)
-        if bounds is not None and _left_bounds(again, best, bounds[0]):
-            if stale_reference:
-                bounds[1]()  # the reference's planes from before the refresh
+        if _left_bounds(again, best, bounds, stale_reference):
             break
         worse = again.relative.status.rank < best.relative.status.rank
         if worse and stale_reference and restore_reference is not None:
@@ -304,12 +300,23 @@ def beyond_bounds(step: np.ndarray, bounds: AssociationConfig) -> bool:
     return bool(turned or float(np.linalg.norm(step[:3, 3])) > bounds.max_translation_m)
 
 
-def _left_bounds(again: EpochEstimate, best: EpochEstimate, bounds: AssociationConfig) -> bool:
+def _left_bounds(
+    again: EpochEstimate,
+    best: EpochEstimate,
+    bounds: tuple[AssociationConfig, Callable[[], None]] | None,
+    stale_reference: bool,
+) -> bool:
     """Whether ``again`` (not unresolved), extracted with ``best``'s own twist, left the
-    motion ``bounds`` within which ``best`` measured its step."""
-    if again.relative.status is Status.UNRESOLVED:
+    motion bounds ``bounds[0]`` within which ``best`` measured its step: then the
+    refinement ends with ``best`` kept, and when the reference was extracted again for
+    ``again`` (``stale_reference``) its planes from before are brought back
+    (``bounds[1]``). Always False when ``bounds`` is None (the guard off)."""
+    if bounds is None or again.relative.status is Status.UNRESOLVED:
         return False
-    return beyond_bounds(again.step, bounds) and not beyond_bounds(best.step, bounds)
+    left = beyond_bounds(again.step, bounds[0]) and not beyond_bounds(best.step, bounds[0])
+    if left and stale_reference:
+        bounds[1]()  # the reference's planes from before the refresh
+    return left
 
 
 def _first_estimate(
