@@ -7,12 +7,12 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from planodom.config.association import AcuteDeg, AngleDeg, AssociationConfig, Positive
-from planodom.config.section import Section
+from planodom.config.odometry_guards import DeskewGuards
 
 __all__ = ["AcuteDeg", "AngleDeg", "AssociationConfig", "OdometryConfig", "Positive"]
 
 
-class OdometryConfig(Section):
+class OdometryConfig(DeskewGuards):
     """Rotation / translation consensus and the divide-and-conquer pipeline.
 
     Pipelines (paper Fig. 3): ``"wocsc"`` = (LDA, WOCSC rotation, WOCSC translation);

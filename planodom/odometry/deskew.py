@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.stats import chi2
 
-from planodom.config import OdometryConfig
+from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status
@@ -224,6 +224,7 @@ def register_deskewed(
     lost_trend: np.ndarray | None = None,
     restore_reference: Callable[[], None] | None = None,
     lead: Lead | None = None,
+    bounds: tuple[AssociationConfig, Callable[[], None]] | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -255,6 +256,8 @@ def register_deskewed(
             the new ones is worse (``odometry.reference_refresh_guard``).
         lead: the lead of the epoch's own twist and the tolerances and iterations
             that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
+        bounds: the motion bounds the run assumes and what brings the reference's planes
+            back (``odometry.deskew_bounds_guard``, :func:`_left_bounds`; None: off).
     """
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
     iterations = config.deskew_iterations if lead is None else lead.iterations
@@ -275,6 +278,8 @@ def register_deskewed(
         if not stale_reference and np.array_equal(new, used):
             break
         again = estimate(new, best)
+        if _left_bounds(again, best, bounds, stale_reference):
+            break
         worse = again.relative.status.rank < best.relative.status.rank
         if worse and stale_reference and restore_reference is not None:
             restore_reference()  # the estimate made against the old planes holds again
@@ -285,6 +290,33 @@ def register_deskewed(
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
+
+
+def beyond_bounds(step: np.ndarray, bounds: AssociationConfig) -> bool:
+    """Whether ``step`` (4, 4), ``T_prev_curr`` of one epoch, exceeds the motion bounds
+    ``bounds.max_rotation_deg`` (its rotation angle) or ``max_translation_m``."""
+    cos = np.clip((np.trace(step[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
+    turned = float(np.arccos(cos)) > np.radians(bounds.max_rotation_deg)
+    return bool(turned or float(np.linalg.norm(step[:3, 3])) > bounds.max_translation_m)
+
+
+def _left_bounds(
+    again: EpochEstimate,
+    best: EpochEstimate,
+    bounds: tuple[AssociationConfig, Callable[[], None]] | None,
+    stale_reference: bool,
+) -> bool:
+    """Whether ``again`` (not unresolved), extracted with ``best``'s own twist, left the
+    motion bounds ``bounds[0]`` within which ``best`` measured its step: then the
+    refinement ends with ``best`` kept, and when the reference was extracted again for
+    ``again`` (``stale_reference``) its planes from before are brought back
+    (``bounds[1]``). Always False when ``bounds`` is None (the guard off)."""
+    if bounds is None or again.relative.status is Status.UNRESOLVED:
+        return False
+    left = beyond_bounds(again.step, bounds[0]) and not beyond_bounds(best.step, bounds[0])
+    if left and stale_reference:
+        bounds[1]()  # the reference's planes from before the refresh
+    return left
 
 
 def _first_estimate(
