@@ -53,7 +53,7 @@ from scipy.stats import chi2
 from planodom.config import OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
-from planodom.odometry.relative import RelativePose, Status
+from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
@@ -147,10 +147,10 @@ def with_deskew(
     (s) and the ``interval_s`` (s) since its reference epoch."""
     spread = time_spread(scan)
     if not spread or twist is None:
-        return replace(result, time_spread=spread, interval_s=interval_s)
+        return replaced(result, time_spread=spread, interval_s=interval_s)
     assert scan.t is not None
     times = (float(np.min(scan.t)), float(np.max(scan.t)))
-    return replace(
+    return replaced(
         result, time_spread=spread, deskew_twist=np.array(twist, dtype=float),
         deskew_times=times, interval_s=interval_s,
     )  # fmt: skip

@@ -33,7 +33,7 @@ from planodom.odometry.canonical import canonical
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
-from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
+from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status, replaced
 from planodom.odometry.rotation import (
     chord,
     chordal_mean_rotation,
@@ -140,13 +140,13 @@ def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) ->
 
     info = result.diagnostics
     assert info is not None
-    info = replace(
+    info = replaced(
         info,
         lda=info.lda.remapped(order_p, order_c),
         rotation_pair=pair(info.rotation_pair),
         translation_pair=pair(info.translation_pair),
     )
-    return replace(
+    return replaced(
         result,
         associations=np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]]) if len(ij) else ij,
         sources=info.sources(result.status),
@@ -218,7 +218,7 @@ def _solve(
     cov = cov + np.diag([floors[0] ** 2] * 3 + [floors[1] ** 2] * 2)
     sda_bound = ocfg.translation_inlier_m if measured else bounds.translation
     final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
-    info = replace(
+    info = replaced(
         info, rotation_consensus=rot_cons, n_translation_pairs=len(elems),
         translation_consensus=tr.consensus if tr is not None else None,
         rotation_pair=rot_pair, translation_pair=trans_pair,
