@@ -52,7 +52,7 @@ from scipy.stats import chi2
 
 from planodom.config import OdometryConfig
 from planodom.extraction.memo import identity_memo
-from planodom.geometry import Plane, se3_log
+from planodom.geometry import Plane, se3_log, vector_norm
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -374,9 +374,9 @@ def refined_twist(
     if lead is not None:
         rate_tol, speed_tol = lead.rate_tolerance_deg_s, lead.speed_tolerance_mps
     new = used.copy()
-    if np.degrees(np.linalg.norm(own[:3] - used[:3])) > rate_tol:
+    if np.degrees(vector_norm(own[:3] - used[:3])) > rate_tol:
         new[:3] = own[:3]
-    if measured and np.linalg.norm(own[3:] - used[3:]) > speed_tol:
+    if measured and vector_norm(own[3:] - used[3:]) > speed_tol:
         new[3:] = own[3:]
     return new
 

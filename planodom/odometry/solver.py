@@ -28,7 +28,7 @@ import numpy as np
 from planodom.association import PairAssociations, lenient_association, strict_association
 from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
-from planodom.geometry import Plane, make_transform, rpy_from_rotation
+from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
@@ -274,7 +274,7 @@ def _measured_translation(
     reach = bounds.translation + cfg.association.offset_tol_m
     if tr.z_observed and abs(tr.z - bounds.t0[2]) > reach:
         tr = _translation(prev, curr, elems, None, bounds.z_prior, method, ocfg)
-    return tr, bool(np.linalg.norm(tr.txy - bounds.t0[:2]) <= reach)
+    return tr, vector_norm(tr.txy - bounds.t0[:2]) <= reach
 
 
 class _Refined(NamedTuple):
@@ -307,7 +307,7 @@ def _refine(prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomC
             ocfg.refine_max_sigma_m, bounds.translation**2, measured,
             ocfg.refine_unmeasured, level, bounds.prediction_var, bounds.prediction,
         )  # fmt: skip
-        if np.linalg.norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
+        if vector_norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
             fit = replace(fit, t=t_c.copy(), measured=False, z_observed=False, n_planes=0)
             break
         t_c = fit.t
