@@ -45,6 +45,13 @@ ROTATION_TOL = 1e-3
 # --------------------------------------------------------------------------- transforms
 
 
+def vector_norm(v: np.ndarray) -> float:
+    """``np.linalg.norm`` of a 1-D float64 array ``v`` (its arithmetic: the square root of
+    ``v.dot(v)``, the same bits), without its per-call overhead (a few microseconds, a
+    few thousand calls a run of the streaming odometry)."""
+    return math.sqrt(v.dot(v))
+
+
 def make_transform(R: np.ndarray, t: ArrayLike) -> np.ndarray:
     """Build ``T`` (4, 4) from a rotation ``R`` (3, 3) and a translation ``t`` (3,), metres."""
     T = np.eye(4)

@@ -353,3 +353,10 @@ def test_rpy_of_rotations_is_scipys_with_its_checks_skipped_only_when_they_pass(
     assert g._surely_rotations(R) and not g._surely_rotations(off[:1])
     with pytest.raises(ValueError, match="determinant"):
         g.rpy_from_rotation(-R[0])  # left-handed: scipy's error, as before
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_vector_norm_has_np_linalg_norms_bits(seed: int) -> None:
+    v = np.random.default_rng(seed).normal(size=2 + seed % 2) * 10.0 ** (seed - 2)
+    assert g.vector_norm(v) == np.linalg.norm(v)
+    assert g.vector_norm(np.array([3.0, 4.0])) == 5.0

@@ -26,18 +26,27 @@ import numpy as np
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-def _key_part(arg: object) -> tuple[object, ...]:
-    """A weak reference for an array (identity), else the value (hashable scalars, None)."""
+def _key_part(arg: object) -> tuple[bool, object]:
+    """A weak reference for an array (identity: True), else the value (hashable scalars,
+    None: False)."""
     if isinstance(arg, np.ndarray):
-        return ("array", weakref.ref(arg))
-    return ("value", arg)
+        return (True, weakref.ref(arg))
+    return (False, arg)
 
 
-def _same(part: tuple[object, ...], arg: object) -> bool:
-    kind, ref = part
-    if kind == "array":
-        return isinstance(arg, np.ndarray) and ref() is arg  # type: ignore[operator]
-    return not isinstance(arg, np.ndarray) and type(arg) is type(ref) and ref == arg
+def _same_args(parts: list[tuple[bool, Any]], args: tuple[object, ...]) -> bool:
+    """Whether ``args`` are the call the key ``parts`` were made of: the very same arrays
+    (alive), and values of the same type and equal (an array never equals a value)."""
+    if len(parts) != len(args):
+        return False
+    for (is_array, ref), arg in zip(parts, args, strict=True):
+        if is_array:
+            held = ref()
+            if held is None or held is not arg:
+                return False
+        elif type(arg) is not type(ref) or not ref == arg:  # values are never arrays
+            return False
+    return True
 
 
 def identity_memo(fn: F) -> F:
@@ -48,9 +57,8 @@ def identity_memo(fn: F) -> F:
     @functools.wraps(fn)
     def wrapper(*args: object) -> Any:
         parts = last[0]
-        if parts is not None and len(parts) == len(args):
-            if all(_same(p, a) for p, a in zip(parts, args, strict=True)):
-                return last[1]
+        if parts is not None and _same_args(parts, args):
+            return last[1]
         result = fn(*args)
         last[0], last[1] = [_key_part(a) for a in args], result
         return result

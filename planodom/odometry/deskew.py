@@ -52,8 +52,8 @@ from scipy.stats import chi2
 
 from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
-from planodom.geometry import Plane, se3_log
-from planodom.odometry.relative import RelativePose, Status
+from planodom.geometry import Plane, se3_log, vector_norm
+from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
@@ -147,10 +147,10 @@ def with_deskew(
     (s) and the ``interval_s`` (s) since its reference epoch."""
     spread = time_spread(scan)
     if not spread or twist is None:
-        return replace(result, time_spread=spread, interval_s=interval_s)
+        return replaced(result, time_spread=spread, interval_s=interval_s)
     assert scan.t is not None
     times = (float(np.min(scan.t)), float(np.max(scan.t)))
-    return replace(
+    return replaced(
         result, time_spread=spread, deskew_twist=np.array(twist, dtype=float),
         deskew_times=times, interval_s=interval_s,
     )  # fmt: skip
@@ -406,9 +406,9 @@ def refined_twist(
     if lead is not None:
         rate_tol, speed_tol = lead.rate_tolerance_deg_s, lead.speed_tolerance_mps
     new = used.copy()
-    if np.degrees(np.linalg.norm(own[:3] - used[:3])) > rate_tol:
+    if np.degrees(vector_norm(own[:3] - used[:3])) > rate_tol:
         new[:3] = own[:3]
-    if measured and np.linalg.norm(own[3:] - used[3:]) > speed_tol:
+    if measured and vector_norm(own[3:] - used[3:]) > speed_tol:
         new[3:] = own[3:]
     return new
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -42,7 +41,7 @@ from planodom.odometry.deskew import (
 from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
-from planodom.odometry.relative import RelativePose, Status
+from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
@@ -295,7 +294,7 @@ class PlaneOdometry:
         result = estimate_relative_pose(reference.plane_set, epoch.plane_set, config, prior, sigma)
         if result.status is Status.UNRESOLVED:  # bridged by constant velocity
             bridge = prediction if prediction is not None else T_ref_last
-            result = replace(result, T_prev_curr=bridge)
+            result = replaced(result, T_prev_curr=bridge)
         result = result.between(reference.index, epoch.index)
         step = orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
         offset = twist_offset(epoch.scan, epoch.twist, reference.twist, dt)

@@ -10,8 +10,9 @@ was computed from. How the solver found it (candidates, consensus scores) is kep
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -145,7 +146,7 @@ class RelativePose:
 
     def between(self, prev: int, curr: int) -> RelativePose:
         """The same relative pose labelled as between epochs ``prev`` and ``curr``."""
-        return replace(self, prev=prev, curr=curr)
+        return replaced(self, prev=prev, curr=curr)
 
     @property
     def delta(self) -> int:
@@ -178,3 +179,20 @@ class RelativePose:
         if self.covariance is None:
             return np.full(5, np.nan)
         return np.sqrt(np.diag(self.covariance))
+
+
+_Replaced = TypeVar("_Replaced", SolverDiagnostics, RelativePose)
+
+
+def replaced(obj: _Replaced, **changes: Any) -> _Replaced:
+    """``dataclasses.replace(obj, **changes)`` for this module's frozen dataclasses (every
+    field an ``__init__`` argument, no ``__post_init__``): a shallow copy with ``changes``
+    set, without ``replace``'s per-field calls (the streaming odometry makes five an
+    epoch pair). TypeError for a name that is no field, as ``replace``."""
+    unknown = changes.keys() - obj.__dataclass_fields__.keys()
+    if unknown:
+        raise TypeError(f"{type(obj).__name__} has no field(s) {sorted(unknown)}")
+    new = object.__new__(type(obj))
+    new.__dict__.update(obj.__dict__)
+    new.__dict__.update(changes)
+    return new

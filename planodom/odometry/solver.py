@@ -28,12 +28,12 @@ import numpy as np
 from planodom.association import PairAssociations, lenient_association, strict_association
 from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
-from planodom.geometry import Plane, make_transform, rpy_from_rotation
+from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
-from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
+from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status, replaced
 from planodom.odometry.rotation import (
     chord,
     chordal_mean_rotation,
@@ -140,13 +140,13 @@ def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) ->
 
     info = result.diagnostics
     assert info is not None
-    info = replace(
+    info = replaced(
         info,
         lda=info.lda.remapped(order_p, order_c),
         rotation_pair=pair(info.rotation_pair),
         translation_pair=pair(info.translation_pair),
     )
-    return replace(
+    return replaced(
         result,
         associations=np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]]) if len(ij) else ij,
         sources=info.sources(result.status),
@@ -218,7 +218,7 @@ def _solve(
     cov = cov + np.diag([floors[0] ** 2] * 3 + [floors[1] ** 2] * 2)
     sda_bound = ocfg.translation_inlier_m if measured else bounds.translation
     final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
-    info = replace(
+    info = replaced(
         info, rotation_consensus=rot_cons, n_translation_pairs=len(elems),
         translation_consensus=tr.consensus if tr is not None else None,
         rotation_pair=rot_pair, translation_pair=trans_pair,
@@ -274,7 +274,7 @@ def _measured_translation(
     reach = bounds.translation + cfg.association.offset_tol_m
     if tr.z_observed and abs(tr.z - bounds.t0[2]) > reach:
         tr = _translation(prev, curr, elems, None, bounds.z_prior, method, ocfg)
-    return tr, bool(np.linalg.norm(tr.txy - bounds.t0[:2]) <= reach)
+    return tr, vector_norm(tr.txy - bounds.t0[:2]) <= reach
 
 
 class _Refined(NamedTuple):
@@ -307,7 +307,7 @@ def _refine(prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomC
             ocfg.refine_max_sigma_m, bounds.translation**2, measured,
             ocfg.refine_unmeasured, level, bounds.prediction_var, bounds.prediction,
         )  # fmt: skip
-        if np.linalg.norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
+        if vector_norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
             fit = replace(fit, t=t_c.copy(), measured=False, z_observed=False, n_planes=0)
             break
         t_c = fit.t

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from planodom.config import ExtractionConfig, OdometryConfig
-from planodom.geometry import se3_exp
+from planodom.geometry import se3_exp, vector_norm
 from planodom.odometry.deskew import EpochEstimate, keep_first, prefer_streaming
 from planodom.odometry.relative import RelativePose, Status
 
@@ -153,7 +153,7 @@ class TwistUncertainty:
         own = source.own_twist(dt)
         sigma = step_sigma(source.relative, dt)
         sigma = np.where(np.isfinite(sigma), sigma, self._tolerance)
-        left = np.array([np.linalg.norm(twist[:3] - own[:3]), np.linalg.norm(twist[3:] - own[3:])])
+        left = np.array([vector_norm(twist[:3] - own[:3]), vector_norm(twist[3:] - own[3:])])
         s = sigma + self.change() + left
         if source.relative.status is not Status.OK:
             # its velocity is the prediction's, kept (not measured): so is its sigma

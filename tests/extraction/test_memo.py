@@ -144,3 +144,24 @@ def test_a_lidar_scan_extracted_again_equals_a_fresh_copy(with_ring):
         np.testing.assert_array_equal(p.coefficients, q.coefficients)
     for i, j in zip(again.inliers, scratch.inliers, strict=True):
         np.testing.assert_array_equal(i, j)
+
+
+def test_memo_tells_an_array_from_a_value_in_the_same_place():
+    calls = []
+
+    @identity_memo
+    def first(x):
+        calls.append(1)
+        return x
+
+    a = np.zeros(2)
+    first(a)
+    first(None)  # a value where an array was
+    first(a)  # an array where a value was
+    first((1.0, float("nan")))
+    n = len(calls)
+    nan_key = (1.0, float("nan"))
+    first(nan_key)  # an equal-looking value that does not compare equal: computed again
+    assert len(calls) == n + 1 == 5
+    first(nan_key)  # the very same tuple (equal to itself, as a tuple): remembered
+    assert len(calls) == 5
