@@ -317,10 +317,10 @@ def test_selected_inversion_of_an_ill_conditioned_system(
     N = K.shape[0]
     E = N // POSE_DIM
     wanted = sp.block_diag([np.ones((POSE_DIM, POSE_DIM))] * E, format="csc")
-    Z, dZ = sparse_sandwich._selected_inverse(K, R, wanted)
-    pos = Z.position.reshape(E, POSE_DIM)
-    fitted = Z.values[pos[:, :, None], pos[:, None, :]].astype(float)
-    extra = -dZ[pos[:, :, None], pos[:, None, :]].astype(float)
+    Z = sparse_sandwich._selected_inverse(K, R, wanted)
+    pos = np.arange(N).reshape(E, POSE_DIM)
+    values, derivative = Z.entries(pos[:, :, None], pos[:, None, :])
+    fitted, extra = values.astype(float), -derivative.astype(float)
     dense = np.linalg.inv(K.toarray())  # one step of refinement, residual in long double
     residual = np.eye(N) - (K.toarray().astype(np.longdouble) @ dense.astype(np.longdouble))
     dense = dense + dense @ residual.astype(float)
