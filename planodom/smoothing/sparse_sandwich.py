@@ -10,6 +10,7 @@ directions as variables (:func:`sparse_pose_covariances`), in extended precision
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -255,8 +256,16 @@ class _Panels:
     def lower(self, below: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The pairs (i >= j) of ``below``'s entries (their local indices, (m(m+1)/2,)
         twice) and their flat positions."""
-        ti, tj = np.tril_indices(len(below))
+        ti, tj = _tril(len(below))
         return ti, tj, self.index(below[ti], below[tj])
+
+
+@functools.lru_cache(maxsize=256)
+def _tril(m: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.tril_indices(m)``, kept (read only): the same widths recur node after node."""
+    ti, tj = np.tril_indices(m)
+    ti.flags.writeable = tj.flags.writeable = False
+    return ti, tj
 
 
 @dataclass
