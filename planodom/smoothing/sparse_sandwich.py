@@ -10,7 +10,6 @@ directions as variables (:func:`sparse_pose_covariances`), in extended precision
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -20,6 +19,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from planodom.smoothing.marginals import POSE_DIM, UNDETERMINED_RTOL, split_factors
+from planodom.smoothing.supernodal import Panels, m_matrix
 
 
 class NotDefinite(Exception):
@@ -194,89 +194,14 @@ def _mm(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class _Panels:
-    """The supernodes' panels of a symmetric (N, N) matrix, in the elimination order:
-    node ``k``'s columns [c0, c1) (width ``w``) and rows ``c0 .. c1-1`` then its rows
-    below, a dense (w + |below|, w) block, row-major, of the flat ``values`` from
-    ``offset[k]``. Only the lower triangle (row >= column) is addressed: the entries
-    of the factor's (padded) pattern, about ``nnz(L)``, instead of ``N x N``.
-
-    Attributes:
-        nodes: each node's (c0, c1, rows below).
-        offset: (nodes + 1,) each panel's start in the flat values.
-        node_of: (N,) the node of each column.
-        keys: ``node * N + row`` of each node's rows in order (sorted).
-        row_start: (nodes + 1,) each node's first row among ``keys``.
-        first: (nodes + 1,) each node's first column, then N.
-    """
-
-    nodes: list[tuple[int, int, np.ndarray]]
-    offset: np.ndarray
-    node_of: np.ndarray
-    keys: np.ndarray
-    row_start: np.ndarray
-    first: np.ndarray
-
-    @classmethod
-    def of(cls, nodes: list[tuple[int, int, np.ndarray]], N: int) -> _Panels:
-        widths = np.array([c1 - c0 for c0, c1, _ in nodes], dtype=np.int64)
-        heights = widths + np.array([len(b) for _, _, b in nodes], dtype=np.int64)
-        offset = np.concatenate([[0], np.cumsum(widths * heights)])
-        node_of = np.repeat(np.arange(len(nodes)), widths)
-        keys = np.concatenate(
-            [k * N + np.concatenate([np.arange(c0, c1), b]) for k, (c0, c1, b) in enumerate(nodes)]
-        ).astype(np.int64)
-        row_start = np.concatenate([[0], np.cumsum(heights)])
-        first = np.array([c0 for c0, _, _ in nodes] + [N], dtype=np.int64)
-        return cls(nodes, offset, node_of, keys, row_start, first)
-
-    def panel(self, values: np.ndarray, k: int) -> np.ndarray:
-        """Node ``k``'s panel of ``values``, a (w + |below|, w) view."""
-        c0, c1, below = self.nodes[k]
-        return values[self.offset[k] : self.offset[k + 1]].reshape(c1 - c0 + len(below), c1 - c0)
-
-    def index(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Flat positions of the entries (``rows``, ``cols``) (elimination order, any
-        shapes that broadcast; each pair read in the lower triangle).
-
-        Raises:
-            ValueError: an entry outside the pattern.
-        """
-        N = len(self.node_of)
-        lo, hi = np.maximum(rows, cols), np.minimum(rows, cols)
-        node = self.node_of[hi]
-        want = node * N + lo
-        slot = np.minimum(np.searchsorted(self.keys, want), len(self.keys) - 1)
-        if not np.array_equal(self.keys[slot], want):
-            raise ValueError("an entry outside the factor's pattern")
-        width = self.first[node + 1] - self.first[node]
-        at = self.offset[node] + (slot - self.row_start[node]) * width
-        return at + (hi - self.first[node])
-
-    def lower(self, below: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The pairs (i >= j) of ``below``'s entries (their local indices, (m(m+1)/2,)
-        twice) and their flat positions."""
-        ti, tj = _tril(len(below))
-        return ti, tj, self.index(below[ti], below[tj])
-
-
-@functools.lru_cache(maxsize=256)
-def _tril(m: int) -> tuple[np.ndarray, np.ndarray]:
-    """``np.tril_indices(m)``, kept (read only): the same widths recur node after node."""
-    ti, tj = np.tril_indices(m)
-    ti.flags.writeable = tj.flags.writeable = False
-    return ti, tj
-
-
-@dataclass
 class _Selected:
     """Entries of a symmetric matrix's inverse and of its derivative on the factor's
-    pattern, as supernodal panels (:class:`_Panels`; variable i at ``position[i]`` in
+    pattern, as supernodal panels (:class:`Panels`; variable i at ``position[i]`` in
     the elimination order)."""
 
     values: np.ndarray
     derivative: np.ndarray
-    panels: _Panels
+    panels: Panels
     position: np.ndarray
 
     def entries(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -292,7 +217,7 @@ def _selected_inverse(K: sp.spmatrix, R: sp.spmatrix, wanted: sp.spmatrix) -> _S
     change ``d/de (K + e M)^-1 = -K^-1 M K^-1`` with ``M = R R^T`` (``K`` (N, N) sparse
     positive definite, ``R`` (N, c) sparse), both by block elimination over supernodes,
     in ``EXTENDED`` precision (values returned in it), stored as the supernodes' panels
-    (:class:`_Panels`: about the factor's entries, not ``N x N``).
+    (:class:`Panels`: about the factor's entries, not ``N x N``).
 
     Block Cholesky of ``K(e)`` (pivot blocks ``P_J = L_J L_J^T``, panel ``G = K_IJ
     L_J^-T``, ``K_II -= G G^T``) and Takahashi's selected inversion (``Z_IJ = -Z_II G
@@ -323,14 +248,14 @@ def _selected_inverse(K: sp.spmatrix, R: sp.spmatrix, wanted: sp.spmatrix) -> _S
     # (a copy: a float view of M shares its indices, which scipy may sort in place)
     pattern = (abs(K) + abs(sp.csr_matrix(M, dtype=float, copy=True)) + abs(wanted)).tocsc()
     lu = spla.splu(
-        _m_matrix(pattern), permc_spec="MMD_AT_PLUS_A",
+        m_matrix(pattern), permc_spec="MMD_AT_PLUS_A",
         diag_pivot_thresh=0.0, options={"SymmetricMode": True, "Equil": False},
     )  # fmt: skip
     perm = lu.perm_c  # variable i is row perm[i] of the factor
     L = lu.L.tocsc()
     L.sort_indices()
     del lu, pattern
-    panels = _Panels.of(_supernodes(L.indices, L.indptr, N), N)
+    panels = Panels.of(_supernodes(L.indices, L.indptr, N), N)
     del L
     A, dA = _scattered(K, perm, panels), _scattered(M, perm, panels)
     del M, Rx
@@ -340,22 +265,7 @@ def _selected_inverse(K: sp.spmatrix, R: sp.spmatrix, wanted: sp.spmatrix) -> _S
     return _Selected(A, dA, panels, perm)
 
 
-def _m_matrix(pattern: sp.csc_matrix) -> sp.csc_matrix:
-    """A matrix of ``pattern``'s structure (N, N; its stored entries, explicit zeros too,
-    so the fill-reducing ordering is the structure's) whose LU factor has the symbolic
-    Cholesky pattern: -1 off the diagonal, each row's count plus one on it (a strictly
-    diagonally dominant M-matrix: every Schur update adds terms of one sign, so no fill
-    entry cancels to zero). ``|K| + |M| + I`` (SANDFIX's) is not one: on the 2 000-epoch
-    lap 45 of its factor's 1.25 M entries cancelled, and the supernodes missed them."""
-    S = pattern.tocsc(copy=True)
-    S.data[:] = -1.0
-    S.setdiag(0.0)
-    count = -np.asarray(S.sum(axis=1)).ravel()
-    S.setdiag(count + 1.0)
-    return S
-
-
-def _scattered(S: sp.spmatrix, perm: np.ndarray, panels: _Panels) -> np.ndarray:
+def _scattered(S: sp.spmatrix, perm: np.ndarray, panels: Panels) -> np.ndarray:
     """The lower triangle of the symmetric sparse ``S`` (N, N) in the elimination order
     (``S_ij`` at row ``perm[i]``, column ``perm[j]``) on ``panels``, flat, ``EXTENDED``."""
     coo = S.tocoo()
@@ -369,7 +279,7 @@ def _scattered(S: sp.spmatrix, perm: np.ndarray, panels: _Panels) -> np.ndarray:
 _Factor = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # L_J^-1, its d, G, dG
 
 
-def _factor(A: np.ndarray, dA: np.ndarray, panels: _Panels, top: float) -> list[_Factor]:
+def _factor(A: np.ndarray, dA: np.ndarray, panels: Panels, top: float) -> list[_Factor]:
     """:func:`_selected_inverse`'s block Cholesky over the nodes (columns [c0, c1), rows
     below) with its derivative, Schur complements left in the panels of ``A`` and ``dA``
     (in place; ``top``: the largest diagonal entry); each node's ``(L_J^-1, d L_J^-1,
@@ -398,7 +308,7 @@ def _factor(A: np.ndarray, dA: np.ndarray, panels: _Panels, top: float) -> list[
     return factors
 
 
-def _takahashi(A: np.ndarray, dA: np.ndarray, panels: _Panels, factors: list[_Factor]) -> None:
+def _takahashi(A: np.ndarray, dA: np.ndarray, panels: Panels, factors: list[_Factor]) -> None:
     """:func:`_selected_inverse`'s selected inversion with its derivative, from the last
     node to the first, written over the panels of ``A`` and ``dA``."""
     for k in reversed(range(len(panels.nodes))):
