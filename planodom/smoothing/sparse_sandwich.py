@@ -19,6 +19,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from planodom.smoothing.marginals import POSE_DIM, UNDETERMINED_RTOL, split_factors
+from planodom.smoothing.supernodal import Panels, m_matrix
 
 
 class NotDefinite(Exception):
@@ -112,10 +113,10 @@ def sparse_pose_covariances(
     # each pose's 6 x 6 block wanted whole (some have structural zeros in K)
     blocks6 = sp.block_diag([np.ones((POSE_DIM, POSE_DIM))] * E, format="csc")
     wanted = sp.block_diag([blocks6, sp.csc_matrix((K.shape[0] - n, K.shape[0] - n))])
-    Z, dZ = _selected_inverse(Dinv @ K @ Dinv, Rs, wanted)
-    pos = Z.position[:n].reshape(E, POSE_DIM)
-    fitted = Z.values[pos[:, :, None], pos[:, None, :]].astype(float)
-    extra = -dZ[pos[:, :, None], pos[:, None, :]].astype(float)
+    Z = _selected_inverse(Dinv @ K @ Dinv, Rs, wanted)
+    pos = np.arange(n).reshape(E, POSE_DIM)
+    values, derivative = Z.entries(pos[:, :, None], pos[:, None, :])
+    fitted, extra = values.astype(float), -derivative.astype(float)
     scale = ds[:n].reshape(E, POSE_DIM)
     outer = scale[:, :, None] * scale[:, None, :]
     return (fitted + extra) / outer, fitted / outer
@@ -194,21 +195,29 @@ def _mm(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @dataclass
 class _Selected:
-    """Entries of a symmetric matrix's inverse on its factor's pattern (dense storage,
-    rows and columns in the elimination order: variable i at ``position[i]``)."""
+    """Entries of a symmetric matrix's inverse and of its derivative on the factor's
+    pattern, as supernodal panels (:class:`Panels`; variable i at ``position[i]`` in
+    the elimination order)."""
 
     values: np.ndarray
+    derivative: np.ndarray
+    panels: Panels
     position: np.ndarray
 
+    def entries(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The inverse's and the derivative's entries (variables ``rows``, ``cols``, any
+        broadcasting shapes, on the pattern), in ``EXTENDED``."""
+        at = self.panels.index(self.position[rows], self.position[cols])
+        return self.values[at], self.derivative[at]
 
-def _selected_inverse(
-    K: sp.spmatrix, R: sp.spmatrix, wanted: sp.spmatrix
-) -> tuple[_Selected, np.ndarray]:
+
+def _selected_inverse(K: sp.spmatrix, R: sp.spmatrix, wanted: sp.spmatrix) -> _Selected:
     """``K^-1`` on the pattern of ``K + R R^T + wanted``'s factor (``wanted``: a pattern
     of entries to be computed, e.g. whole diagonal blocks), and there the first-order
     change ``d/de (K + e M)^-1 = -K^-1 M K^-1`` with ``M = R R^T`` (``K`` (N, N) sparse
     positive definite, ``R`` (N, c) sparse), both by block elimination over supernodes,
-    in ``EXTENDED`` precision (values returned in it).
+    in ``EXTENDED`` precision (values returned in it), stored as the supernodes' panels
+    (:class:`Panels`: about the factor's entries, not ``N x N``).
 
     Block Cholesky of ``K(e)`` (pivot blocks ``P_J = L_J L_J^T``, panel ``G = K_IJ
     L_J^-T``, ``K_II -= G G^T``) and Takahashi's selected inversion (``Z_IJ = -Z_II G
@@ -239,90 +248,94 @@ def _selected_inverse(
     # (a copy: a float view of M shares its indices, which scipy may sort in place)
     pattern = (abs(K) + abs(sp.csr_matrix(M, dtype=float, copy=True)) + abs(wanted)).tocsc()
     lu = spla.splu(
-        pattern + sp.identity(N, format="csc"), permc_spec="MMD_AT_PLUS_A",
+        m_matrix(pattern), permc_spec="MMD_AT_PLUS_A",
         diag_pivot_thresh=0.0, options={"SymmetricMode": True, "Equil": False},
     )  # fmt: skip
     perm = lu.perm_c  # variable i is row perm[i] of the factor
     L = lu.L.tocsc()
     L.sort_indices()
-    nodes = _supernodes(L.indices, L.indptr, N)
-    A, dA = _scattered(K, perm), _scattered(M, perm)
-    factors = _factor(A, dA, nodes)
-    _takahashi(A, dA, nodes, factors)
-    return _Selected(A, perm), dA
+    del lu, pattern
+    panels = Panels.of(_supernodes(L.indices, L.indptr, N), N)
+    del L
+    A, dA = _scattered(K, perm, panels), _scattered(M, perm, panels)
+    del M, Rx
+    top = float(np.max(K.diagonal(), initial=1.0))
+    factors = _factor(A, dA, panels, top)
+    _takahashi(A, dA, panels, factors)
+    return _Selected(A, dA, panels, perm)
 
 
-def _scattered(S: sp.spmatrix, perm: np.ndarray) -> np.ndarray:
-    """The sparse ``S`` (N, N) as a dense ``EXTENDED`` array in the elimination order
-    (``S_ij`` at ``[perm[i], perm[j]]``), written into zeroed memory: pages the
-    factor's pattern never reaches are not touched."""
+def _scattered(S: sp.spmatrix, perm: np.ndarray, panels: Panels) -> np.ndarray:
+    """The lower triangle of the symmetric sparse ``S`` (N, N) in the elimination order
+    (``S_ij`` at row ``perm[i]``, column ``perm[j]``) on ``panels``, flat, ``EXTENDED``."""
     coo = S.tocoo()
-    out = np.zeros(S.shape, dtype=EXTENDED)
-    out[perm[coo.row], perm[coo.col]] = coo.data
+    r, c = perm[coo.row], perm[coo.col]
+    keep = r >= c
+    out = np.zeros(int(panels.offset[-1]), dtype=EXTENDED)
+    out[panels.index(r[keep], c[keep])] = coo.data[keep]
     return out
 
 
 _Factor = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # L_J^-1, its d, G, dG
 
 
-def _factor(
-    A: np.ndarray, dA: np.ndarray, nodes: list[tuple[int, int, np.ndarray]]
-) -> list[_Factor]:
-    """:func:`_selected_inverse`'s block Cholesky over ``nodes`` (columns [c0, c1), rows
-    below) with its derivative, Schur complements left in ``A`` and ``dA`` (in place);
-    each node's ``(L_J^-1, d L_J^-1, G, dG)``."""
-    top = float(np.max(np.diag(A), initial=1.0))
+def _factor(A: np.ndarray, dA: np.ndarray, panels: Panels, top: float) -> list[_Factor]:
+    """:func:`_selected_inverse`'s block Cholesky over the nodes (columns [c0, c1), rows
+    below) with its derivative, Schur complements left in the panels of ``A`` and ``dA``
+    (in place; ``top``: the largest diagonal entry); each node's ``(L_J^-1, d L_J^-1,
+    G, dG)``."""
     factors = []
-    for c0, c1, below in nodes:
-        J = slice(c0, c1)
-        chol = _cholesky(A[J, J])
+    for k, (c0, c1, below) in enumerate(panels.nodes):
+        w = c1 - c0
+        PA, PdA = panels.panel(A, k), panels.panel(dA, k)
+        chol = _cholesky(PA[:w])
         if not np.all(np.diag(chol) ** 2 > UNDETERMINED_RTOL * top):
             raise NotDefinite
         Li = _lower_inverse(chol)
+        dP = np.tril(PdA[:w])
+        dP += np.tril(dP, -1).T
         # d(L L^T) = dP: dL = L Phi, Phi the lower half of L^-1 dP L^-T (diagonal halved)
-        Phi = np.tril(_mm(_mm(Li, dA[J, J]), Li.T))
-        Phi[np.diag_indices(c1 - c0)] *= 0.5
-        KIJ, dKIJ = A[below, J], dA[below, J]  # (|I|, w)
-        G = _mm(KIJ, Li.T)  # K_IJ L^-T
-        dG = _mm(dKIJ, Li.T) - _mm(G, Phi.T)
+        Phi = np.tril(_mm(_mm(Li, dP), Li.T))
+        Phi[np.diag_indices(w)] *= 0.5
+        G = _mm(PA[w:], Li.T)  # K_IJ L^-T, (|I|, w)
+        dG = _mm(PdA[w:], Li.T) - _mm(G, Phi.T)
         if len(below):
-            ix = np.ix_(below, below)
-            A[ix] -= _mm(G, G.T)
+            ti, tj, at = panels.lower(below)
+            A[at] -= _mm(G, G.T)[ti, tj]
             half = _mm(dG, G.T)
-            dA[ix] -= half + half.T
+            dA[at] -= (half + half.T)[ti, tj]
         factors.append((Li, -_mm(Phi, Li), G, dG))
     return factors
 
 
-def _takahashi(
-    A: np.ndarray,
-    dA: np.ndarray,
-    nodes: list[tuple[int, int, np.ndarray]],
-    factors: list[_Factor],
-) -> None:
+def _takahashi(A: np.ndarray, dA: np.ndarray, panels: Panels, factors: list[_Factor]) -> None:
     """:func:`_selected_inverse`'s selected inversion with its derivative, from the last
-    node to the first, written over ``A`` and ``dA`` on the nodes' patterns."""
-    for (c0, c1, below), (Li, dLi, G, dG) in zip(reversed(nodes), reversed(factors), strict=True):
-        J = slice(c0, c1)
-        inner = np.eye(c1 - c0, dtype=A.dtype)  # I + G^T Z_II G
+    node to the first, written over the panels of ``A`` and ``dA``."""
+    for k in reversed(range(len(panels.nodes))):
+        c0, c1, below = panels.nodes[k]
+        Li, dLi, G, dG = factors[k]
+        w = c1 - c0
+        PA, PdA = panels.panel(A, k), panels.panel(dA, k)
+        inner = np.eye(w, dtype=A.dtype)  # I + G^T Z_II G
         d_inner = np.zeros_like(inner)
         if len(below):
-            ix = np.ix_(below, below)
-            w = c1 - c0
-            both = _mm(A[ix], np.hstack([G, dG]))  # Z_II G, Z_II dG
+            ti, tj, at = panels.lower(below)
+            m = len(below)
+            ZII, dZII = np.empty((m, m), dtype=A.dtype), np.empty((m, m), dtype=A.dtype)
+            ZII[ti, tj] = ZII[tj, ti] = A[at]
+            dZII[ti, tj] = dZII[tj, ti] = dA[at]
+            both = _mm(ZII, np.hstack([G, dG]))  # Z_II G, Z_II dG
             U = both[:, :w]
-            dU = _mm(dA[ix], G) + both[:, w:]
-            ZIJ = -_mm(U, Li)
-            dZIJ = -_mm(dU, Li) - _mm(U, dLi)
+            dU = _mm(dZII, G) + both[:, w:]
+            PA[w:] = -_mm(U, Li)
+            PdA[w:] = -_mm(dU, Li) - _mm(U, dLi)
             inner += _mm(G.T, U)
             d_inner = _mm(dG.T, U) + _mm(G.T, dU)
-            A[below, J], A[J, below] = ZIJ, ZIJ.T
-            dA[below, J], dA[J, below] = dZIJ, dZIJ.T
         right = _mm(inner, Li)
         ZJJ = _mm(Li.T, right)
         dZJJ = _mm(dLi.T, right) + _mm(Li.T, _mm(d_inner, Li) + _mm(inner, dLi))
-        A[J, J] = 0.5 * (ZJJ + ZJJ.T)
-        dA[J, J] = 0.5 * (dZJJ + dZJJ.T)
+        PA[:w] = 0.5 * (ZJJ + ZJJ.T)
+        PdA[:w] = 0.5 * (dZJJ + dZJJ.T)
 
 
 def _cholesky(P: np.ndarray) -> np.ndarray:

@@ -317,10 +317,10 @@ def test_selected_inversion_of_an_ill_conditioned_system(
     N = K.shape[0]
     E = N // POSE_DIM
     wanted = sp.block_diag([np.ones((POSE_DIM, POSE_DIM))] * E, format="csc")
-    Z, dZ = sparse_sandwich._selected_inverse(K, R, wanted)
-    pos = Z.position.reshape(E, POSE_DIM)
-    fitted = Z.values[pos[:, :, None], pos[:, None, :]].astype(float)
-    extra = -dZ[pos[:, :, None], pos[:, None, :]].astype(float)
+    Z = sparse_sandwich._selected_inverse(K, R, wanted)
+    pos = np.arange(N).reshape(E, POSE_DIM)
+    values, derivative = Z.entries(pos[:, :, None], pos[:, None, :])
+    fitted, extra = values.astype(float), -derivative.astype(float)
     dense = np.linalg.inv(K.toarray())  # one step of refinement, residual in long double
     residual = np.eye(N) - (K.toarray().astype(np.longdouble) @ dense.astype(np.longdouble))
     dense = dense + dense @ residual.astype(float)
@@ -455,3 +455,40 @@ def test_scaled_columns_dense_and_sparse(
     assert isinstance(out, np.ndarray) == (dense_fraction < 1.0)
     dense = out if isinstance(out, np.ndarray) else out.toarray()
     np.testing.assert_allclose(dense, (scale[:, None] * B) @ R, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.skipif(sparse_sandwich.EXTENDED is None, reason="no extended precision")
+def test_selected_inversion_stores_the_factors_pattern_only() -> None:
+    """The selected inversion's panels hold the factor's (padded) entries, not ``N x N``:
+    every stored entry equals a refined dense inverse's (and the extra term ``V V^T``,
+    closed form) to 1e-7 of the standard deviations, and an entry outside the pattern is
+    refused."""
+    K, R, V = _ill_conditioned_chain(1e-2)
+    N = K.shape[0]
+    wanted = sp.block_diag([np.ones((POSE_DIM, POSE_DIM))] * (N // POSE_DIM), format="csc")
+    Z = sparse_sandwich._selected_inverse(K, R, wanted)
+    panels = Z.panels
+    assert panels.offset[-1] < N * N / 4
+    rows = np.concatenate(
+        [np.repeat(np.concatenate([np.arange(c0, c1), b]), c1 - c0) for c0, c1, b in panels.nodes]
+    )
+    cols = np.concatenate(
+        [np.tile(np.arange(c0, c1), c1 - c0 + len(b)) for c0, c1, b in panels.nodes]
+    )
+    lower = rows >= cols
+    assert len(rows) == panels.offset[-1]
+    dense = np.linalg.inv(K.toarray())
+    residual = np.eye(N) - (K.toarray().astype(np.longdouble) @ dense.astype(np.longdouble))
+    dense = dense + dense @ residual.astype(float)
+    VV = V @ V.T
+    variable = np.argsort(Z.position)  # the variable at each position
+    i, j = variable[rows[lower]], variable[cols[lower]]
+    sd = np.sqrt(np.diag(dense) + np.diag(VV))
+    fitted = Z.values[lower].astype(float)
+    extra = -Z.derivative[lower].astype(float)
+    assert np.max(np.abs(fitted - dense[i, j]) / (sd[i] * sd[j])) < 1e-7
+    assert np.max(np.abs(extra - VV[i, j]) / (sd[i] * sd[j])) < 1e-7
+    c0, c1, below = panels.nodes[0]
+    outside = np.setdiff1d(np.arange(N), np.concatenate([np.arange(c0, c1), below]))
+    with pytest.raises(ValueError, match="outside"):
+        panels.index(np.array([outside[-1]]), np.array([c0]))
