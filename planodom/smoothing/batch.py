@@ -33,6 +33,7 @@ from planodom.smoothing.loops import LoopClosingBuilder
 from planodom.smoothing.marginals import pose_covariances
 from planodom.smoothing.sandwich import batch_sandwich, deskew_motion_change
 from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
+from planodom_factors.batched import BatchedResiduals
 
 
 @dataclass
@@ -153,6 +154,16 @@ def _solve(linear: gtsam.GaussianFactorGraph, ordering: gtsam.Ordering) -> gtsam
         return linear.optimize(ordering, gtsam.EliminateQR)
 
 
+def _damping(dims: Sequence[tuple[int, int]], lam: float) -> gtsam.GaussianFactorGraph:
+    """Levenberg-Marquardt's damping ``lam * I`` as linear factors, one per (key, tangent
+    dimension) in ``dims``, in their order."""
+    out = gtsam.GaussianFactorGraph()
+    root = np.sqrt(lam)
+    for key, dim in dims:
+        out.add(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim))
+    return out
+
+
 def levenberg_marquardt(
     graph: gtsam.NonlinearFactorGraph,
     values: gtsam.Values,
@@ -189,22 +200,22 @@ def levenberg_marquardt(
     ordering = gtsam.Ordering.ColamdNonlinearFactorGraph(graph)
     zero = values.zeroVectors()
     dims = [(key, zero.at(key).size) for key in values.keys()]
-    error = graph.error(values)
+    batched = BatchedResiduals(graph, values)
+    error = batched.initial_error
     errors = [error]
     lam = lambda_initial
+    damping: dict[float, gtsam.GaussianFactorGraph] = {}  # lambda -> its factors, built once
     for _ in range(max_iterations):
-        linear = graph.linearize(values)
+        linear = batched.linearize(values)
         while lam <= lambda_max:
             damped = gtsam.GaussianFactorGraph()
             damped.push_back(linear)
-            root = np.sqrt(lam)
-            for key, dim in dims:
-                damped.add(
-                    key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)
-                )
+            if lam not in damping:
+                damping[lam] = _damping(dims, lam)
+            damped.push_back(damping[lam])
             try:
                 candidate = values.retract(_solve(damped, ordering))
-                new_error = graph.error(candidate)
+                new_error = batched.error(candidate)
             except RuntimeError:  # indeterminant even for QR at this damping: damp more
                 new_error = np.inf
             if new_error <= error:
