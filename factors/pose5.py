@@ -227,6 +227,46 @@ def pose5_error(
     return error, H_i, H_j
 
 
+class _Precomputed:
+    """Residuals and Jacobians of many of the factors below computed in one compiled pass
+    (:mod:`planodom_factors.batched`), which their callbacks hand to gtsam instead of
+    computing their own, while ``values`` is the ``gtsam.Values`` being evaluated (the
+    same numbers either way: the same kernels on the same poses).
+
+    Attributes:
+        values: the values they were computed at, or None (no batch being evaluated).
+        rows: a factor's residual's identity -> its row: ``(id(measured), key_i, key_j)``
+            for the 5-DoF and rotation factors (their measured arrays live as long as they
+            do), ``(dz, key_i, key_j)`` for the vertical ones.
+        errors: (F, 5) residuals (a vertical factor's in column 0).
+        H_i, H_j: (F, 5, 6) Jacobians, or None when only the errors were computed.
+        ok: (F,) false where the compiled kernel deferred to gtsam (see :func:`_pose5`).
+        record: while a list, each callback appends ``(identity, measured (4, 4) or None,
+            dz, key_i, key_j)`` when not precomputed (:func:`.batched.record`).
+    """
+
+    values: gtsam.Values | None = None
+    rows: dict[tuple[float, int, int], int] = {}
+    errors: np.ndarray = np.zeros((0, 5))
+    H_i: np.ndarray | None = None
+    H_j: np.ndarray | None = None
+    ok: np.ndarray = np.zeros(0, dtype=bool)
+    record: list[tuple] | None = None
+
+
+def _precomputed(identity: tuple[float, int, int], values: gtsam.Values, H: Jacobians) -> int:
+    """The row of a factor's precomputed residual (``identity``, :class:`_Precomputed`) at
+    ``values`` (Jacobians too when ``H`` asks for them), or -1. (Not the factor object:
+    gtsam hands each callback a new copy.)"""
+    p = _Precomputed
+    if p.values is not values:
+        return -1
+    r = p.rows.get(identity, -1)
+    if r < 0 or not p.ok[r] or (H is not None and p.H_i is None):
+        return -1
+    return r
+
+
 def _pose5_error(
     measured: np.ndarray,
     rows: slice,
@@ -238,6 +278,15 @@ def _pose5_error(
 ) -> np.ndarray:
     """``gtsam.CustomFactor`` error of :func:`pose5_error`'s ``rows`` (keys bound at
     construction: the factor's own ``keys()`` costs a call into gtsam per evaluation)."""
+    identity = (id(measured), key_i, key_j)
+    r = _precomputed(identity, values, H)
+    if r >= 0:
+        p = _Precomputed
+        if H is not None:
+            H[0], H[1] = p.H_i[r, rows], p.H_j[r, rows]  # type: ignore[index]
+        return p.errors[r, rows]
+    if _Precomputed.record is not None:
+        _Precomputed.record.append((identity, measured, 0.0, key_i, key_j))
     error, H_i, H_j = _pose5(
         measured, values.atPose3(key_i).matrix(), values.atPose3(key_j).matrix(), H is not None
     )
@@ -266,6 +315,15 @@ def _vertical_error(
     dz: float, key_i: int, key_j: int, this: gtsam.CustomFactor, values: gtsam.Values, H: Jacobians
 ) -> np.ndarray:
     """``gtsam.CustomFactor`` error of the change of height against ``dz`` (m)."""
+    identity = (dz, key_i, key_j)
+    r = _precomputed(identity, values, H)
+    if r >= 0:
+        p = _Precomputed
+        if H is not None:
+            H[0], H[1] = p.H_i[r, :1], p.H_j[r, :1]  # type: ignore[index]
+        return p.errors[r, :1]
+    if _Precomputed.record is not None:
+        _Precomputed.record.append((identity, None, dz, key_i, key_j))
     error, H_i, H_j = _vertical_kernel(
         dz, values.atPose3(key_i).matrix(), values.atPose3(key_j).matrix()
     )

@@ -33,6 +33,7 @@ from planodom.smoothing.loops import LoopClosingBuilder
 from planodom.smoothing.marginals import pose_covariances
 from planodom.smoothing.sandwich import batch_sandwich, deskew_motion_change
 from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
+from planodom_factors.batched import BatchedResiduals
 
 
 @dataclass
@@ -161,6 +162,16 @@ def _solve(linear: gtsam.GaussianFactorGraph, ordering: gtsam.Ordering) -> gtsam
         return linear.optimize(ordering, gtsam.EliminateQR)
 
 
+def _damping(dims: Sequence[tuple[int, int]], lam: float) -> gtsam.GaussianFactorGraph:
+    """Levenberg-Marquardt's damping ``lam * I`` as linear factors, one per (key, tangent
+    dimension) in ``dims``, in their order."""
+    out = gtsam.GaussianFactorGraph()
+    root = np.sqrt(lam)
+    for key, dim in dims:
+        out.add(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim))
+    return out
+
+
 def levenberg_marquardt(
     graph: gtsam.NonlinearFactorGraph,
     values: gtsam.Values,
@@ -185,6 +196,11 @@ def levenberg_marquardt(
     condition numbers of 1e16 and more (measured on the paper loop), which Cholesky
     (squaring the Jacobian's condition number) cannot factor; QR is 10x slower.
 
+    The 5-DoF, rotation and vertical factors' residuals and Jacobians come from one compiled
+    pass per evaluation (:class:`planodom_factors.batched.BatchedResiduals`: the same numbers,
+    a third less time in ``linearize`` and half in ``error``), the damping factors are built
+    once per lambda.
+
     Damping: ``lambda * I`` on every variable's tangent (gtsam's default); lambda / 10 on a
     successful step, * 10 on a failed one. Stops when the relative decrease of the error
     falls below ``relative_error_tol`` or its absolute decrease below ``absolute_error_tol``,
@@ -197,22 +213,22 @@ def levenberg_marquardt(
     ordering = gtsam.Ordering.ColamdNonlinearFactorGraph(graph)
     zero = values.zeroVectors()
     dims = [(key, zero.at(key).size) for key in values.keys()]
-    error = graph.error(values)
+    batched = BatchedResiduals(graph, values)
+    error = batched.initial_error
     errors = [error]
     lam = lambda_initial
+    damping: dict[float, gtsam.GaussianFactorGraph] = {}  # lambda -> its factors, built once
     for _ in range(max_iterations):
-        linear = graph.linearize(values)
+        linear = batched.linearize(values)
         while lam <= lambda_max:
             damped = gtsam.GaussianFactorGraph()
             damped.push_back(linear)
-            root = np.sqrt(lam)
-            for key, dim in dims:
-                damped.add(
-                    key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)
-                )
+            if lam not in damping:
+                damping[lam] = _damping(dims, lam)
+            damped.push_back(damping[lam])
             try:
                 candidate = values.retract(_solve(damped, ordering))
-                new_error = graph.error(candidate)
+                new_error = batched.error(candidate)
             except RuntimeError:  # indeterminant even for QR at this damping: damp more
                 new_error = np.inf
             if new_error <= error:

@@ -49,11 +49,11 @@ from collections.abc import Sequence
 
 import gtsam
 import numpy as np
-from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
+from planodom.odometry.twist_sigma import chi2_quantile as chi2_ppf  # (remembered)
 from planodom.smoothing.graph import GraphUpdate, X
 from planodom.smoothing.loop_drift import RunWalk, run_drift
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch
@@ -229,7 +229,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
                 odometry.refine_max_sigma_m, translation / self.config.loop_sigmas
             ),
         }
-        return self.full_config.updated(changes, source="loop candidate bounds")
+        return self.full_config.updated_fields(changes, source="loop candidate bounds")
 
     def old_epoch_candidates(self, k: int) -> list[int]:
         """Old epochs within reach of epoch k's prediction, nearest first (module docstring)."""
@@ -304,7 +304,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         T = np.asarray(rel.T_prev_curr, dtype=float).copy()
         T[:2, 3] = prior[:2, 3]  # the match's rotation at the predicted position
         angle = self.full_config.association.strict_normal_deg
-        sigma, limit = c.default_plane_offset_sigma_m, float(chi2.ppf(c.loop_gate_quantile, 1))
+        sigma, limit = c.default_plane_offset_sigma_m, chi2_ppf(c.loop_gate_quantile, 1)
         if c.loop_candidate_aliases != "off":
             old, curr = self.planes[e], self.planes[k]
             spacing = c.loop_candidate_aliases == "spacing"
@@ -365,7 +365,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         T_a = self._correction(first) @ self.poses[second.curr]
         T_b = self._correction(second) @ self.poses[second.curr]
         v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
-        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+        return float(v @ np.linalg.solve(cov, v)) <= chi2_ppf(self.config.loop_gate_quantile, 3)
 
     def factors_agree(self, a: LoopFactor, b: LoopFactor) -> bool:
         """Whether two loop factors imply the same correction of the chained guess
@@ -385,7 +385,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         cov = cov + a.covariance + b.covariance
         T_b = self.poses[b.epoch]
         v = pose5_from_transform(invert_transform(a.W @ T_b) @ b.W @ T_b)[2:]
-        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+        return float(v @ np.linalg.solve(cov, v)) <= chi2_ppf(self.config.loop_gate_quantile, 3)
 
     def _verify(self, match: LoopMatch, T_world_curr: np.ndarray, full: bool) -> str:
         """:meth:`LoopClosingBuilder._verify`, noting on ``match`` its map epochs (``seen``,
@@ -410,7 +410,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         T_a = self.correction @ self.poses[rel.curr]
         T_b = self._correction(rel) @ self.poses[rel.curr]
         v = pose5_from_transform(invert_transform(T_a) @ T_b)[2:]
-        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+        return float(v @ np.linalg.solve(cov, v)) <= chi2_ppf(self.config.loop_gate_quantile, 3)
 
     def _plausible(self, rel: RelativePose) -> bool:
         """``loop_candidate_drift`` "run", no correction accepted by the map: whether the
@@ -426,7 +426,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         own = np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
         cov = self._candidate_drift([(rel.prev, rel.curr)]) + own
         v = pose5_from_transform(self._correction(rel))[2:]
-        return float(v @ np.linalg.solve(cov, v)) <= chi2.ppf(self.config.loop_gate_quantile, 3)
+        return float(v @ np.linalg.solve(cov, v)) <= chi2_ppf(self.config.loop_gate_quantile, 3)
 
     def _add_loop_factor(self, update: GraphUpdate, rel: RelativePose) -> None:
         """A robust 5-DoF factor ``X(prev) - X(curr)`` for a verified loop pose (its

@@ -46,11 +46,11 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
-from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, PlaneSupport, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
+from planodom.odometry.twist_sigma import chi2_quantile
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
 from planodom.smoothing.loop_records import LoopMatch, Reidentification
 from planodom.smoothing.match_fit import (
@@ -335,7 +335,7 @@ class LoopClosingBuilder(GraphBuilder):
             T_pred = T.copy()
             T_pred[:2, 3] = 0.0
             fit = offset_residuals(walls, curr, old, T_pred, sigma, angle, np.zeros((0, 0)))
-            limit = float(chi2.ppf(c.loop_gate_quantile, 1))
+            limit = chi2_quantile(c.loop_gate_quantile, 1)
             prior = self._prior_sigma(k, oldest, match.ties)
             mode = c.loop_refuse_ambiguous  # "run": as "parts", no "same wall" exclusion
             same = (self._map_drift(candidates), 0.0 if mode == "run" else limit)
@@ -390,7 +390,7 @@ class LoopClosingBuilder(GraphBuilder):
         c, k = self.config, match.epoch
         seen = min(self.landmarks[j].last_seen[0] for j, _ in match.ties)  # type: ignore[index]
         W = T_world_curr @ invert_transform(self.poses[k])
-        limit = float(chi2.ppf(c.loop_gate_quantile, 3 if full else 1))
+        limit = chi2_quantile(c.loop_gate_quantile, 3 if full else 1)
         if self._reference is not None:
             k_ref, seen_ref = self._reference
             match.drift = self._drift_covariance([(k_ref, k), (seen_ref, seen)])
