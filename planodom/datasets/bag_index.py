@@ -40,7 +40,12 @@ from planodom.datasets.bag_msgs import (
     sweep_times,
     tagged_noise,
 )
-from planodom.datasets.bag_parts import broken_part
+from planodom.datasets.bag_parts import (
+    DamagedPartError,
+    broken_parts,
+    damaged_note,
+    damaged_parts,
+)
 from planodom.datasets.bag_rings import ring_counts, stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit
@@ -80,9 +85,11 @@ def bag_errors(path: Path, what: str = "cannot read bag") -> Iterator[None]:
     except DatasetError:
         raise
     except BAG_ERRORS as exc:
-        part = broken_part(path) if path.is_dir() else None
-        if part is not None:
-            raise DatasetError(f"{path}: {what}: {part}") from None
+        damaged = broken_parts(path) if path.is_dir() else []
+        if path.is_dir() and not damaged:
+            damaged = damaged_parts(path)
+        if damaged:
+            raise DamagedPartError(f"{path}: {what}: {damaged_note(damaged)}", damaged) from None
         detail = (" ".join(str(exc).split()) or type(exc).__name__)[:200]
         if path.suffix == ".bag" and "index" in detail.lower():  # rosbags reads indexed bags
             detail += "; a ROS 1 recording cut short has no index: `rosbag reindex` rebuilds it"

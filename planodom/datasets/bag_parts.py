@@ -124,18 +124,58 @@ def broken_parts(path: Path) -> list[BrokenPart]:
     return out
 
 
-def broken_part(path: Path) -> str | None:
-    """The first broken part of the ROS 2 bag folder ``path`` (:func:`broken_parts`), with
-    how to read the others, or None."""
-    broken = broken_parts(path)
-    if not broken:
-        return None
+class DamagedPartError(DatasetError):
+    """A part of a split ROS 2 recording opens but cannot be read further in (``parts``:
+    those found, :func:`damaged_parts`)."""
+
+    def __init__(self, message: str, parts: list[BrokenPart]) -> None:
+        super().__init__(message)
+        self.parts = parts
+
+
+def damaged_parts(path: Path, known: list[BrokenPart] | None = None) -> list[BrokenPart]:
+    """The parts of the ROS 2 bag folder ``path`` that open but fail when read to the end
+    (a corrupt mcap chunk or sqlite3 page behind valid magics and schema): each part not
+    in ``known`` read alone, every message, through a :func:`readable_view` of it. Reads
+    the whole bag again: called only once a reading failed."""
+    info = _metadata(path)
+    if info is None:
+        return []
+    from rosbags.highlevel import AnyReader
+
+    from planodom.datasets.bag_index import BAG_ERRORS  # (imports this module's callers)
+
+    names = [Path(str(n)).name for n in info["relative_file_paths"]]
+    parts = [BrokenPart(path / n, k + 1, len(names), "") for k, n in enumerate(names)]
+    skip = {p.path.name for p in known or []}
+    out = []
+    for part in parts:
+        if len(parts) < 2 or part.path.name in skip or not part.path.is_file():
+            continue
+        view = readable_view(path, [p for p in parts if p is not part])
+        try:
+            with AnyReader([Path(view.name)]) as reader:
+                for _ in reader.messages():
+                    pass
+        except BAG_ERRORS as exc:
+            detail = (" ".join(str(exc).split()) or type(exc).__name__)[:80]
+            problem = f"opens but cannot be read to its end ({detail}: a damaged chunk or page?)"
+            out.append(
+                BrokenPart(part.path, part.number, part.count, problem, _span(info, part.path.name))
+            )
+        finally:
+            view.cleanup()
+    return out
+
+
+def damaged_note(broken: list[BrokenPart]) -> str:
+    """The first of the ``broken`` parts of one bag, with how to read the others."""
     part = broken[0]
     rest = ""
     if part.count > len(broken):
         rest = (
             "; --skip-bad-scans reads the other parts (their epochs only), as does leaving it "
-            f"out of relative_file_paths and files in {path / 'metadata.yaml'}"
+            f"out of relative_file_paths and files in {part.path.parent / 'metadata.yaml'}"
         )
     return part.describe() + rest
 

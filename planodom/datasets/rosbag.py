@@ -54,14 +54,14 @@ from planodom.datasets.bag_gt import childless_note
 from planodom.datasets.bag_index import (
     BagIndex,
     bag_errors,
-    index_bag,
     open_reader,
 )
 from planodom.datasets.bag_msgs import decode_sweep, stamp_ns
 from planodom.datasets.bag_notes import bag_notes, crowded_notes
 from planodom.datasets.bag_options import DEFAULT_BASE_FRAME, DEFAULT_EPOCH_RATE, BagOptions
-from planodom.datasets.bag_parts import missing_part_note, skipped_parts, tf_in_skipped_part
+from planodom.datasets.bag_parts import missing_part_note, tf_in_skipped_part
 from planodom.datasets.bag_paths import bag_location, split_parts_note
+from planodom.datasets.bag_skip import index_skipping
 from planodom.datasets.bag_tf import frame_name
 from planodom.datasets.bag_topics import BagTopic, bag_rig, bag_topics, has_rings
 from planodom.datasets.dataset import write_dataset
@@ -317,15 +317,8 @@ def open_bag(path: str | Path, options: BagOptions | None = None) -> BagDataset:
     """
     opts = options or BagOptions()
     location = bag_location(path)
-    broken, view = skipped_parts(location, opts.skip_broken_parts)
+    index, broken, view = index_skipping(location, opts)
     read_from = None if view is None else Path(view.name)
-    reader = open_reader(location, read_from)
-    try:
-        with tf_in_skipped_part(broken):
-            index = index_bag(reader, location, opts.topic_list, opts.gt_topic, opts.time_field)
-    finally:
-        with bag_errors(location):
-            reader.close()
     if len(index.sweep_stamp) == 0:
         raise DatasetError(f"{location}: no messages on the scan topics")
     with tf_in_skipped_part(broken):

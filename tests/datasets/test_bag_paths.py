@@ -72,16 +72,48 @@ def _break(part: Path, how: str) -> None:
         part.unlink()
     elif how == "cut":
         part.write_bytes(data[: len(data) // 2])
-    else:  # overwritten from its start
+    elif how == "overwritten":  # from its start
         part.write_bytes(bytes(256) + data[256:])
+    else:  # damaged further in: it opens, reading its messages fails
+        part.write_bytes(_damaged(bytearray(data), part.suffix == ".mcap"))
 
 
-@pytest.mark.parametrize("how", ["missing", "cut", "overwritten"])
+def _damaged(data: bytearray, mcap: bool) -> bytes:
+    """A storage file damaged further in, its magics and schema intact: in an mcap file
+    the length of the middle record of its first chunk overwritten with 0xff bytes; in a
+    sqlite3 file the link of an overflow page (a cloud's blob continues there) to the next
+    one zeroed."""
+    if mcap:  # records: opcode (1 byte), length (8, little-endian), content
+        at = 8  # after the magic
+        while data[at] != 0x06:  # the first chunk
+            at += 9 + int.from_bytes(data[at + 1 : at + 9], "little")
+        name = int.from_bytes(data[at + 37 : at + 41], "little")  # its compression's
+        start = at + 41 + name + 8  # its records
+        end = start + int.from_bytes(data[start - 8 : start], "little")
+        heads = []
+        while start < end:
+            heads.append(start)
+            start += 9 + int.from_bytes(data[start + 1 : start + 9], "little")
+        middle = heads[len(heads) // 2]
+        data[middle + 1 : middle + 9] = b"\xff" * 8
+        return bytes(data)
+    n = len(data)
+    pages = n // 4096
+    for a in range(pages // 2 * 4096, n, 4096):  # not a b-tree page (types 2, 5, 10, 13)
+        if data[a] not in (2, 5, 10, 13) and 1 < int.from_bytes(data[a : a + 4], "big") <= pages:
+            data[a : a + 4] = bytes(4)
+            return bytes(data)
+    raise AssertionError("no overflow page")  # pragma: no cover
+
+
+@pytest.mark.parametrize("how", ["missing", "cut", "overwritten", "damaged"])
 def test_a_broken_part_is_named_and_skip_reads_the_others(split, how: str) -> None:
-    """Part 2 of 3 missing, cut short or overwritten. Main: a sqlite3 part cut short or
-    overwritten, or an mcap part overwritten, was refused without saying which part ("Cannot
-    open database ...: database disk image is malformed", "File magic is invalid."), and
-    no option read the rest. Now each is named, and ``skip_broken_parts`` reads the other
+    """Part 2 of 3 missing, cut short, overwritten or damaged further in. Main: a sqlite3
+    part cut short or overwritten, or an mcap part overwritten, was refused without saying
+    which part ("Cannot open database ...: database disk image is malformed", "File magic
+    is invalid."), and no option read the rest; a part that opens but is damaged further in
+    still was ("database disk image is malformed", "Python int too large to convert to C
+    ssize_t"). Now each is named, and ``skip_broken_parts`` reads the other
     parts: the whole bag's epochs outside the part's span, to the bit, the gap noted."""
     whole, rec, storage = split
     ext = ".mcap" if storage == "mcap" else ".db3"
@@ -89,6 +121,9 @@ def test_a_broken_part_is_named_and_skip_reads_the_others(split, how: str) -> No
     _break(part, how)
     with pytest.raises(DatasetError, match=rf"{part.name}, part 2 of the 3 .*skip-bad-scans"):
         open_bag(rec)
+    if how == "damaged":
+        with pytest.raises(DatasetError, match=r"opens but cannot be read to its end \("):
+            open_bag(rec)
     options = BagOptions(gt_topic="/odom", skip_broken_parts=True)
     with open_bag(whole, BagOptions(gt_topic="/odom")) as full, open_bag(rec, options) as ds:
         # the part holds the messages recorded from 0.35 s to 0.75 s: epochs 4 to 7
@@ -121,3 +156,21 @@ def test_skipping_the_first_part_or_every_part(split) -> None:
         (rec / f"rec_{k}{ext}").unlink()
     with pytest.raises(DatasetError, match=r"part 1 of the 3 .* is missing, as are all the others"):
         open_bag(rec, options)
+
+
+def test_a_part_missing_and_another_damaged_further_in_are_both_left_out(split) -> None:
+    """Part 2 missing and part 3 damaged further in: the first is left out before reading,
+    the second once reading it failed; epochs 0 to 3 read, both noted."""
+    whole, rec, storage = split
+    ext = ".mcap" if storage == "mcap" else ".db3"
+    _break(rec / f"rec_1{ext}", "missing")
+    _break(rec / f"rec_2{ext}", "damaged")
+    with open_bag(whole) as full, open_bag(rec, BagOptions(skip_broken_parts=True)) as ds:
+        np.testing.assert_array_equal(ds.times, full.times[:4])
+        for k, scan in enumerate(ds):
+            np.testing.assert_array_equal(scan.points, full[k].points)
+        notes = [n for n in ds.notes if "left out (--skip-bad-scans)" in n]
+        assert len(notes) == 2
+        assert "part 2 of the 3" in notes[0] and "is missing" in notes[0]
+        assert "part 3 of the 3" in notes[1] and "opens but cannot be read" in notes[1]
+        assert "the run ends at epoch 3" in notes[1]

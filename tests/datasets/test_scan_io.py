@@ -347,7 +347,8 @@ def test_pcd_with_width_and_height_left_unset_is_unorganised(tmp_path: Path) -> 
 
 
 @pytest.mark.parametrize(
-    ("value", "later"), [("1700000000", "1700000000.05"), ("1.7e+18", "1.70000000005e+18")]
+    ("value", "later"),
+    [("1700000000", "1700000000.0512345"), ("1.7e+18", "1.7000000000512345e+18")],
 )
 def test_absolute_times_rounded_to_whole_seconds_are_refused(
     tmp_path: Path, value: str, later: str
@@ -369,6 +370,55 @@ def test_absolute_times_rounded_to_whole_seconds_are_refused(
     )
     assert len(read_scan(path, time_field="none")) == 20
     full = path.read_text().replace(f" {value}\n", f" {later}\n", 1)
-    path.write_text(full)  # one point off the whole second: times kept, the first 50 ms on
+    path.write_text(full)  # one point off the whole second (and the 10 ms grid): times kept
     t = read_scan(path).t
-    assert t is not None and np.isclose(t.max(), 0.05) and np.count_nonzero(t) == 1
+    assert t is not None and np.isclose(t.max(), 0.0512345) and np.count_nonzero(t) == 1
+
+
+def _timestamp_pcd(path: Path, stamps: list[str]) -> Path:
+    """An ASCII PCD, one point a row at x = 1 m, 2 m, ..., its ``timestamp`` (f64) given."""
+    rows = "\n".join(f"{k + 1}.0 2.0 0.5 {v}" for k, v in enumerate(stamps))
+    n = len(stamps)
+    path.write_text(
+        "VERSION 0.7\nFIELDS x y z timestamp\nSIZE 4 4 4 8\nTYPE F F F F\nCOUNT 1 1 1 1\n"
+        f"WIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA ascii\n{rows}\n"
+    )
+    return path
+
+
+# a 10 Hz sweep's 200 points' true Unix times, from 0.0377 s past a second
+SWEEP_S = 0.0377 + np.arange(200) * 0.1 / 200
+
+
+@pytest.mark.parametrize(("digits", "values"), [(1, 2), (2, 11)])
+@pytest.mark.parametrize("unit", ["s", "ns"])
+def test_absolute_times_rounded_coarser_than_the_sweep_are_refused(
+    tmp_path: Path, digits: int, values: int, unit: str
+) -> None:
+    """A sweep's Unix times written with 11 or 12 significant digits (rounded to 0.1 s or
+    0.01 s; seconds, or nanoseconds as livox_ros_driver2's): main read them as 2 or 11
+    instants, the motion within each step lost, without a word; now refused naming the
+    file, the field, how many values over what span and the grid."""
+    seconds = 1700000000 + np.round(SWEEP_S, digits)
+    stamps = [f"{v:.{digits}f}" if unit == "s" else f"{v * 1e9:.{10 + digits}e}" for v in seconds]
+    path = _timestamp_pcd(tmp_path / "hesai.pcd", stamps)
+    with pytest.raises(DatasetError) as exc:
+        read_scan(path)
+    span = seconds.max() - seconds.min()
+    assert str(exc.value).startswith(
+        f"{path}: absolute point times 'timestamp' take only {values} values over {span:.3f} "
+        f"s, all multiples of {10.0**-digits:g} s: rounded"
+    )
+    assert len(read_scan(path, time_field="none")) == 200
+
+
+@pytest.mark.parametrize("packets", [75, 10])
+def test_per_packet_absolute_times_are_kept(tmp_path: Path, packets: int) -> None:
+    """Per-packet times (a Velodyne's 75 packets a 10 Hz sweep, 1.33 ms apart; or 10,
+    10 ms apart, off the clock's 10 ms grid): few values, evenly spread, not rounded: kept,
+    to the microsecond."""
+    per_packet = 0.0377 + np.floor(np.arange(200) * packets / 200) * 0.1 / packets
+    path = _timestamp_pcd(tmp_path / "vlp.pcd", [f"{1700000000 + v:.7f}" for v in per_packet])
+    t = read_scan(path).t
+    assert t is not None and len(np.unique(t)) == packets
+    np.testing.assert_allclose(t, per_packet - per_packet[0], atol=1e-6)

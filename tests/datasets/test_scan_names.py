@@ -24,12 +24,12 @@ NAMES = {
 
 def _directory(folder: Path, name_of, absolute: bool = False) -> list[int]:
     """Write one 4-point PCD per stamp; its ``timestamp`` field (Hesai / RoboSense: float64
-    absolute seconds) 10 ms after the stamp and on, or ``time`` offsets (float32 s)."""
+    absolute seconds) 10.3 ms after the stamp and on, or ``time`` offsets (float32 s)."""
     folder.mkdir()
     for ns in OFFSETS_NS:
         xyz = np.array([[5.0, 0, 0], [0, 5.0, 0], [-5.0, 0, 0], [0, -5.0, 0]], np.float32)
         fields = {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]}
-        offsets = 0.01 + 0.02 * np.arange(4)
+        offsets = 0.0103 + 0.02 * np.arange(4)  # off the 10 ms grid, as real times are
         if absolute:
             fields["timestamp"] = SEC + ns / 1e9 + offsets
         else:
@@ -51,11 +51,11 @@ def test_stamps_in_the_file_names_are_the_epoch_times(tmp_path: Path, style: str
 
 def test_absolute_point_times_are_made_relative_to_the_stamp_in_the_name(tmp_path: Path) -> None:
     """Absolute point times (float64 Unix s) were made relative to each scan's first point
-    (the epochs on no Unix clock): 0 for the first point, which lies 10 ms after the stamp."""
+    (the epochs on no Unix clock): 0 for the first point, which lies 10.3 ms after the stamp."""
     _directory(tmp_path / "clouds", NAMES["ros1"], absolute=True)
     ds = load_dataset(tmp_path / "clouds")
     for k in range(len(ds)):
-        np.testing.assert_allclose(ds[k].t, 0.01 + 0.02 * np.arange(4), atol=1e-6)
+        np.testing.assert_allclose(ds[k].t, 0.0103 + 0.02 * np.arange(4), atol=1e-6)
 
 
 def test_names_read_two_ways_or_with_two_prefixes_are_not_read(tmp_path: Path) -> None:
