@@ -18,9 +18,8 @@ scan's earliest point (epoch times counted from 0: the sweep starts at its epoch
 as a driver stamps it). Absolute times in float32 (128 s resolution today) are refused, as
 are times that are neither offsets within ``MAX_POINT_TIME_S`` nor Unix times, and
 absolute times that are all whole seconds (written with too few digits: open3d's ASCII
-PCD keeps 10 significant digits, which rounds a Unix time to the second) or that take a
-few values over a sweep, all multiples of 0.1 s or 0.01 s (rounded; a driver's per-packet
-times are not on such a grid).
+PCD keeps 10 significant digits, which rounds a Unix time to the second). Times on a 0.1
+s or 0.01 s grid are kept (a simulator's per-sweep stamps look the same as rounded ones).
 Points whose three coordinates are all NaN, or all exactly 0 (the origin, no lidar's
 return), are the no-return markers of an organised cloud (PCL's, Ouster's) and are
 dropped; any other non-finite coordinate is an error. ``.bin`` files hold
@@ -325,19 +324,12 @@ def point_times(
     return t
 
 
-#: Absolute point times all on a grid this coarse, or coarser (ns: 0.1 s, 0.01 s), taking
-#: two or more values, were rounded: a lidar's points (or packets: Velodyne 1.3 ms apart,
-#: Ouster's columns 0.1 ms, Hesai's blocks 0.06 ms, Livox's packets 0.5 ms) are not all
-#: on a 10 ms grid of the Unix clock. Within ROUNDED_TOLERANCE_NS (float64 Unix seconds
-#: are exact to 0.24 us, nanoseconds as float64 to 0.13 us).
-ROUNDED_GRIDS_NS = (100_000_000, 10_000_000)
-ROUNDED_TOLERANCE_NS = 1_000
-
-
 def _refuse_rounded(path: Path, name: str, absolute: np.ndarray) -> None:
     """DatasetError naming the file and the field when the absolute times (N,) int64 ns are
-    rounded coarser than a sweep: all whole seconds (two or more points), or all on a
-    :data:`ROUNDED_GRIDS_NS` grid taking two or more values (a sweep-long span in a few)."""
+    all whole seconds (two or more points). Times all on a 0.1 s or 0.01 s grid are kept:
+    they may be rounded, but a simulator's per-sweep or per-line stamps (a 2D rig's sweeps
+    at 50 or 100 Hz on an exact clock) take the same few values, and refusing them would
+    refuse good data."""
     advice = (
         "they have lost the sweep's timing; store offsets or binary values "
         "(--time-field none ignores them)"
@@ -348,19 +340,6 @@ def _refuse_rounded(path: Path, name: str, absolute: np.ndarray) -> None:
             "too few digits (an ASCII file's 10 significant digits, as open3d writes "
             f"them?), {advice}"
         )
-    for grid in ROUNDED_GRIDS_NS:
-        steps = np.round(absolute / grid)
-        if np.abs(absolute - steps.astype(np.int64) * grid).max() > ROUNDED_TOLERANCE_NS:
-            continue
-        values = len(np.unique(steps))
-        if values > 1:
-            span = (absolute.max() - absolute.min()) * 1e-9
-            raise DatasetError(
-                f"{path}: absolute point times '{name}' take only {values} values over "
-                f"{span:.3f} s, all multiples of {grid * 1e-9:g} s: rounded (stored with "
-                f"too few digits?), {advice}"
-            )
-        return
 
 
 def _absolute_ns(raw: np.ndarray) -> np.ndarray | None:

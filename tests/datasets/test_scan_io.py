@@ -386,30 +386,18 @@ def _timestamp_pcd(path: Path, stamps: list[str]) -> Path:
     return path
 
 
-# a 10 Hz sweep's 200 points' true Unix times, from 0.0377 s past a second
-SWEEP_S = 0.0377 + np.arange(200) * 0.1 / 200
-
-
-@pytest.mark.parametrize(("digits", "values"), [(1, 2), (2, 11)])
 @pytest.mark.parametrize("unit", ["s", "ns"])
-def test_absolute_times_rounded_coarser_than_the_sweep_are_refused(
-    tmp_path: Path, digits: int, values: int, unit: str
-) -> None:
-    """A sweep's Unix times written with 11 or 12 significant digits (rounded to 0.1 s or
-    0.01 s; seconds, or nanoseconds as livox_ros_driver2's): main read them as 2 or 11
-    instants, the motion within each step lost, without a word; now refused naming the
-    file, the field, how many values over what span and the grid."""
-    seconds = 1700000000 + np.round(SWEEP_S, digits)
-    stamps = [f"{v:.{digits}f}" if unit == "s" else f"{v * 1e9:.{10 + digits}e}" for v in seconds]
-    path = _timestamp_pcd(tmp_path / "hesai.pcd", stamps)
-    with pytest.raises(DatasetError) as exc:
-        read_scan(path)
-    span = seconds.max() - seconds.min()
-    assert str(exc.value).startswith(
-        f"{path}: absolute point times 'timestamp' take only {values} values over {span:.3f} "
-        f"s, all multiples of {10.0**-digits:g} s: rounded"
-    )
-    assert len(read_scan(path, time_field="none")) == 200
+def test_per_sweep_absolute_times_on_an_exact_clock_are_kept(tmp_path: Path, unit: str) -> None:
+    """A simulated 2D rig's five sweeps an epoch stamped on an exact 50 Hz clock (Unix s, or
+    ns as livox_ros_driver2 writes them): five values, all multiples of 0.01 s, the same
+    pattern as times rounded to 0.01 s: kept, each point at its sweep's time to 1 us (a
+    refusal here would refuse good data; times rounded that way are not caught)."""
+    sweep = np.repeat(np.arange(5) * 0.02, 40)
+    seconds = 1700000000.0 + sweep
+    stamps = [f"{v:.2f}" if unit == "s" else f"{v * 1e9:.12e}" for v in seconds]
+    t = read_scan(_timestamp_pcd(tmp_path / "rig.pcd", stamps)).t
+    assert t is not None
+    np.testing.assert_allclose(t, sweep, atol=1e-6)
 
 
 @pytest.mark.parametrize("packets", [75, 10])
