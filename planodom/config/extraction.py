@@ -191,6 +191,9 @@ class ExtractionConfig(Section):
     0.193 deg, ATE 0.148 -> 0.196 and 0.78 -> 0.63 m (worse at 6 mm: world 2 0.82 -> 3.27,
     16 0.07 -> 0.48, 56 0.14 -> 0.86 m; with ``odometry.pairwise_reference_time: middle``
     rotation 0.047 / 0.165 deg, ATE 0.207 / 0.58 m): still off."""
+    exclusive_seeds: bool = False
+    """2D rig: of two seed pairs sharing a trace on different planes, the one whose lines
+    are farther from coplanar (in noise units) waits (:mod:`planodom.extraction.rig2d.seedconflicts`)."""
     own_scan_plane: Literal["kept", "dropped", "trimmed"] = "kept"
     """2D rig with a sensor origin per ring: what becomes of a group whose plane holds the
     sensor of one of its rings with two or more segments in it (that ring's rays within

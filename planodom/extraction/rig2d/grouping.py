@@ -42,6 +42,7 @@ import numba
 import numpy as np
 
 from planodom.extraction.rig2d.connect import connected_piece
+from planodom.extraction.rig2d.seedconflicts import dominance, release
 from planodom.extraction.rig2d.segments import Segments
 from planodom.extraction.rig2d.sweeplines import distinct_lines, sweep_seed_pairs
 from planodom.extraction.rig2d.traces import build_traces
@@ -74,6 +75,8 @@ class GroupingParams(NamedTuple):
             plane seeded by them (:mod:`.sweeplines`); parallel_rad: their parallelism.
         seed_spans_gap: the piece kept is the one connected to either seed trace when
             they are coplanar within their own noise (``extraction.seed_spans_gap``).
+        exclusive_seeds: of two seeds sharing a trace on different planes, the worse
+            fit waits (:mod:`.seedconflicts`, ``extraction.exclusive_seeds``).
     """
 
     tol_m: float
@@ -92,6 +95,7 @@ class GroupingParams(NamedTuple):
     min_sweep_lines: int = 0
     parallel_rad: float = 0.0
     seed_spans_gap: bool = False
+    exclusive_seeds: bool = False
 
 
 def group_segments(
@@ -129,7 +133,8 @@ def group_segments(
 
 class _Seeds(NamedTuple):
     """P seed pairs: traces ``i`` < ``j`` (P,), their plane's normal (P, 3), whether they
-    form an L (P,) and their time window [win_lo, win_hi] (P,) (s)."""
+    form an L (P,), their time window [win_lo, win_hi] (P,) (s) and the gap between their
+    lines in units of its noise, ``gap / sqrt(1 / N_i + 1 / N_j)`` (P,) (m)."""
 
     i: np.ndarray
     j: np.ndarray
@@ -137,6 +142,7 @@ class _Seeds(NamedTuple):
     is_l: np.ndarray
     win_lo: np.ndarray
     win_hi: np.ndarray
+    fit: np.ndarray
 
 
 @numba.njit(cache=True)
@@ -202,6 +208,7 @@ def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
     is_l = np.empty(P_max, dtype=np.bool_)
     win_lo = np.empty(P_max)
     win_hi = np.empty(P_max)
+    fit = np.empty(P_max)
     P = 0
     for i in range(T):
         if not ok[i]:
@@ -252,8 +259,9 @@ def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
             mid_t = 0.5 * (min(t_lo[i], t_lo[j]) + max(t_hi[i], t_hi[j]))
             win_lo[P] = mid_t - 0.5 * p.max_span_s
             win_hi[P] = mid_t + 0.5 * p.max_span_s
+            fit[P] = gap / np.sqrt(1.0 / count[i] + 1.0 / count[j])
             P += 1
-    return _Seeds(iu[:P], ju[:P], normals[:P], is_l[:P], win_lo[:P], win_hi[:P])
+    return _Seeds(iu[:P], ju[:P], normals[:P], is_l[:P], win_lo[:P], win_hi[:P], fit[:P])
 
 
 @numba.njit(cache=True)
@@ -359,7 +367,7 @@ def _grow_kernel(tr, p):  # pragma: no cover - compiled
     if p.min_sweep_lines > 0 and not np.isfinite(p.max_span_s):
         i, j, normal = sweep_seed_pairs(tr, p, count, ok & available)
         no = np.zeros(i.shape[0])
-        one_ring = _Seeds(i, j, normal, np.zeros(i.shape[0], dtype=np.bool_), no, no)
+        one_ring = _Seeds(i, j, normal, np.zeros(i.shape[0], dtype=np.bool_), no, no, no)
         n_groups, rejected = _greedy(
             tr, p, count, big, one_ring, available, group, n_groups, rejected, True
         )
@@ -391,11 +399,18 @@ def _greedy(tr, p, count, big, seeds, available, group, n_groups, rejected, one_
                 sc += count[t]
         scores[s] = sc + tier[s]
     alive = np.ones(P, dtype=np.bool_)
+    exclusive = p.exclusive_seeds and not one_ring
+    dom, n_dom = np.zeros((0, 0), dtype=np.bool_), np.zeros(P, dtype=np.int64)
+    if exclusive:
+        dom, n_dom = dominance(iu, ju, seeds.fit, seeds.is_l, member)
+    was_alive = alive.copy()
     while True:
+        if exclusive:
+            release(dom, n_dom, was_alive, alive)
         best = -1
         best_score = -np.inf
         for s in range(P):  # the first maximum, as np.argmax
-            sc = scores[s] if alive[s] else -1.0
+            sc = scores[s] if alive[s] and n_dom[s] == 0 else -1.0
             if sc > best_score:
                 best_score = sc
                 best = s
