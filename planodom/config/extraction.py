@@ -162,9 +162,9 @@ class ExtractionConfig(Section):
     16 0.07 -> 0.48, 56 0.14 -> 0.86 m; with ``odometry.pairwise_reference_time: middle``
     rotation 0.047 / 0.165 deg, ATE 0.207 / 0.58 m): still off."""
     exclusive_seeds: bool = False
-    """2D rig: of two seed pairs sharing a trace on different planes, the one whose lines
-    are farther from coplanar (in noise units) waits
-    (:mod:`planodom.extraction.rig2d.seedconflicts`). Off by default (figures: FIGS)."""
+    """2D rig: a seed pair crossing beyond both its traces waits while one sharing a trace,
+    on another plane, is closer to coplanar (:mod:`planodom.extraction.rig2d.seedconflicts`).
+    Off: world 114 at 2 cm 1.13 -> 0.23 deg, but 2 at 2 cm 0.53 -> 1.23 (docs/RESULTS.md)."""
     own_scan_plane: Literal["kept", "dropped", "trimmed"] = "kept"
     """2D rig with a sensor origin per ring: what becomes of a group whose plane holds the
     sensor of one of its rings with two or more segments in it (that ring's rays within

@@ -134,7 +134,8 @@ def group_segments(
 class _Seeds(NamedTuple):
     """P seed pairs: traces ``i`` < ``j`` (P,), their plane's normal (P, 3), whether they
     form an L (P,), their time window [win_lo, win_hi] (P,) (s) and the gap between their
-    lines in units of its noise, ``gap / sqrt(1 / N_i + 1 / N_j)`` (P,) (m)."""
+    lines in units of its noise, ``gap / sqrt(1 / N_i + 1 / N_j)`` (P,) (m), whether they
+    cross beyond the extents of both (P,)."""
 
     i: np.ndarray
     j: np.ndarray
@@ -143,6 +144,7 @@ class _Seeds(NamedTuple):
     win_lo: np.ndarray
     win_hi: np.ndarray
     fit: np.ndarray
+    beyond: np.ndarray
 
 
 @numba.njit(cache=True)
@@ -209,6 +211,7 @@ def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
     win_lo = np.empty(P_max)
     win_hi = np.empty(P_max)
     fit = np.empty(P_max)
+    beyond = np.empty(P_max, dtype=np.bool_)
     P = 0
     for i in range(T):
         if not ok[i]:
@@ -260,8 +263,10 @@ def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
             win_lo[P] = mid_t - 0.5 * p.max_span_s
             win_hi[P] = mid_t + 0.5 * p.max_span_s
             fit[P] = gap / np.sqrt(1.0 / count[i] + 1.0 / count[j])
+            beyond[P] = not (lo[i] <= s_i <= hi[i] or lo[j] <= s_j <= hi[j])
             P += 1
-    return _Seeds(iu[:P], ju[:P], normals[:P], is_l[:P], win_lo[:P], win_hi[:P], fit[:P])
+    fit, beyond = fit[:P], beyond[:P]
+    return _Seeds(iu[:P], ju[:P], normals[:P], is_l[:P], win_lo[:P], win_hi[:P], fit, beyond)
 
 
 @numba.njit(cache=True)
@@ -367,7 +372,8 @@ def _grow_kernel(tr, p):  # pragma: no cover - compiled
     if p.min_sweep_lines > 0 and not np.isfinite(p.max_span_s):
         i, j, normal = sweep_seed_pairs(tr, p, count, ok & available)
         no = np.zeros(i.shape[0])
-        one_ring = _Seeds(i, j, normal, np.zeros(i.shape[0], dtype=np.bool_), no, no, no)
+        nl = np.zeros(i.shape[0], dtype=np.bool_)
+        one_ring = _Seeds(i, j, normal, nl, no, no, no, nl)
         n_groups, rejected = _greedy(
             tr, p, count, big, one_ring, available, group, n_groups, rejected, True
         )
@@ -402,7 +408,7 @@ def _greedy(tr, p, count, big, seeds, available, group, n_groups, rejected, one_
     exclusive = p.exclusive_seeds and not one_ring
     dom, n_dom = np.zeros((0, 0), dtype=np.bool_), np.zeros(P, dtype=np.int64)
     if exclusive:
-        dom, n_dom = dominance(iu, ju, seeds.fit, seeds.is_l, member)
+        dom, n_dom = dominance(iu, ju, seeds.fit, seeds.is_l, seeds.beyond, member)
     was_alive = alive.copy()
     while True:
         if exclusive:

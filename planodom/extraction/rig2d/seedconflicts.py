@@ -8,9 +8,10 @@ planes pierces them, all four lines of the two scanners on the two walls are cop
 within a few cm, pairwise; the greedy growth takes the pair that gathers the most points,
 which may be the cross pair (world 114 at 2 cm: a line of wall A with one of wall B 3 m
 behind it, coplanar within 3.5 cm where extended 8 m, against 1.2 cm for the right pair).
-Here a seed waits while an alternative with a smaller gap between its lines (in units of
-the gap's noise, ``gap / sqrt(1 / N_i + 1 / N_j)``) is alive; an L seed never holds back
-a crossing one. Nothing is tuned: the fit of the two alternatives decides.
+Here a seed whose lines cross beyond the extents of both (its coplanarity rests on
+extrapolation alone) waits while an alternative with a smaller gap between its lines (in
+units of the gap's noise, ``gap / sqrt(1 / N_i + 1 / N_j)``) is alive; an L seed never
+holds back a crossing one. Nothing is tuned: the fit of the two alternatives decides.
 """
 
 from __future__ import annotations
@@ -20,15 +21,17 @@ import numpy as np
 
 
 @numba.njit(cache=True)
-def dominance(i, j, fit, is_l, member):  # pragma: no cover - compiled
+def dominance(i, j, fit, is_l, may_wait, member):  # pragma: no cover - compiled
     """(P, P) bool ``dom[s, q]``: seed q holds seed s back, and (P,) int64 the number
     of seeds holding each back. Seeds are pairs ``i``, ``j`` (P,) of traces with their
-    ``fit`` (P,) (gap in noise units), ``is_l`` (P,) and ``member`` (P, T) (the traces
-    that fit each seed's plane)."""
+    ``fit`` (P,) (gap in noise units), ``is_l`` (P,), ``may_wait`` (P,) (the seeds that
+    may be held back) and ``member`` (P, T) (the traces that fit each seed's plane)."""
     P = i.shape[0]
     dom = np.zeros((P, P), dtype=np.bool_)
     n_dom = np.zeros(P, dtype=np.int64)
     for s in range(P):
+        if not may_wait[s]:
+            continue
         for q in range(P):
             if q == s or (is_l[q] and not is_l[s]):
                 continue
