@@ -41,7 +41,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from planodom.extraction.rig2d.connect import connected_piece
+from planodom.extraction.rig2d.connect import connected_piece, tight_seed
 from planodom.extraction.rig2d.seedconflicts import dominance, release
 from planodom.extraction.rig2d.segments import Segments
 from planodom.extraction.rig2d.sweeplines import distinct_lines, sweep_seed_pairs
@@ -304,26 +304,6 @@ def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _tight(tr, count, seeds, s, p):  # pragma: no cover - compiled
-    """Seed ``s``'s two traces hold a plane's worth of points each (``min_points``) and
-    are coplanar within their own noise (the gap between their lines within ``3 sigma
-    sqrt(1 / N_i + 1 / N_j)`` plus the slack of their direction errors, :func:`_seed_pairs`
-    without its floor): not a coincidence of two far traces (short traces of two walls
-    20 m apart passed the test with its slack)."""
-    i, j = seeds.i[s], seeds.j[s]
-    if count[i] < p.min_points or count[j] < p.min_points:
-        return False
-    n = seeds.normal[s]
-    e = tr.centroid[i] - tr.centroid[j]
-    gap = abs(n[0] * e[0] + n[1] * e[1] + n[2] * e[2])
-    a, b = tr.direction[i], tr.direction[j]
-    c = np.cross(a, b)
-    sin_a = np.sqrt(c @ c)
-    slack = np.sqrt(e @ e) * 2.0 * (tr.dir_err[i] + tr.dir_err[j]) / max(sin_a, 1e-12)
-    return gap <= 3.0 * p.sigma_m * np.sqrt(1.0 / count[i] + 1.0 / count[j]) + slack
-
-
-@numba.njit(cache=True)
 def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - compiled
     """Step 2 for seed ``s`` from its initial ``members`` (T,) bool: refit and re-collect
     the available traces in its window (at most three times), keep the piece connected
@@ -348,7 +328,7 @@ def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - com
             break
         members = new
     if np.isfinite(p.gap_m):  # only the piece of the plane that holds the seed
-        seed2 = seeds.j[s] if p.seed_spans_gap and _tight(tr, count, seeds, s, p) else -1
+        seed2 = seeds.j[s] if p.seed_spans_gap and tight_seed(tr, count, seeds, s, p) else -1
         members = connected_piece(members, seeds.i[s], tr.centroid, tr.direction, tr.lo,
                                   tr.hi, p.gap_m, p.gap_ratio, seed2)  # fmt: skip
     n, d, rms, total = _plane_of(members, count, tr.centroid, tr.scatter)
