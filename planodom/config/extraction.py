@@ -8,40 +8,10 @@ from pydantic import ConfigDict, Field, model_validator
 
 from planodom.config.section import Section
 from planodom.config.sweep import SweepConfig
+from planodom.config.timewindows import TimeWindowConfig
 from planodom.errors import ConfigError
 
-
-class TimeWindowConfig(Section):
-    """The 2D-rig path without a twist (points not deskewed, the odometry's first epochs).
-
-    With per-point times spread over more than ``span_s`` the 2D-rig path only combines
-    points acquired within one window of ``span_s`` (:mod:`planodom.extraction.rig2d.windows`):
-    traces, seeds and planes are built per window, and one plane per wall is kept. With a
-    twist none of this is used."""
-
-    model_config = ConfigDict(allow_inf_nan=False)
-
-    span_s: float = Field(0.015, gt=0)
-    """Longest time span (s) of the points combined into one trace, seed or plane: about
-    one sweep of a 75 Hz scanner (1 / 75 s), i.e. the crossing traces of a scanner pair in
-    the same sweep, between which the vehicle moved at most ``motion_m``. Each wall then
-    gives one plane per window; the earliest (closest to the reference time) is kept."""
-    motion_m: float = Field(0.03, ge=0)
-    """Vehicle displacement assumed within one window (m): 2 m/s x 1 / 75 s = 2.7 cm. Added to the
-    member tolerance and the seed floor, and half of it to the RMS limit of a plane."""
-    speed_m_s: float = Field(5.0, ge=0)
-    """Two planes from different windows are one wall seen twice when their normals are
-    within ``repeat_deg`` and their offsets within the member tolerance plus this speed
-    (m/s) times their time difference."""
-    min_windows: int = Field(3, ge=1)
-    """A wall is a plane only when it is found in at least this many windows (of the ~7 sweeps of a
-    10 Hz epoch): two lines of one sweep far apart can be coplanar by chance, not in several
-    sweeps. On the paper loop at 6 mm, 1 / 2 / 3 gave 85 / 88 / 91 % precision for 5.9 / 5.8 / 5.75
-    good planes per epoch. The kept plane's normal and offset are extrapolated to the reference
-    time from its windows (a straight line in time)."""
-    repeat_deg: float = Field(5.0, gt=0, le=90)
-    """Normal angle (deg) within which planes of two windows may be one wall (the turn of
-    the vehicle over an epoch plus the fit error of one sweep's traces)."""
+__all__ = ["ExtractionConfig", "TimeWindowConfig"]
 
 
 class ExtractionConfig(Section):
@@ -191,6 +161,10 @@ class ExtractionConfig(Section):
     0.193 deg, ATE 0.148 -> 0.196 and 0.78 -> 0.63 m (worse at 6 mm: world 2 0.82 -> 3.27,
     16 0.07 -> 0.48, 56 0.14 -> 0.86 m; with ``odometry.pairwise_reference_time: middle``
     rotation 0.047 / 0.165 deg, ATE 0.207 / 0.58 m): still off."""
+    exclusive_seeds: bool = False
+    """2D rig: a seed pair crossing beyond both its traces waits while one sharing a trace,
+    on another plane, is closer to coplanar (:mod:`planodom.extraction.rig2d.seedconflicts`).
+    Off: world 114 at 2 cm 1.13 -> 0.23 deg, but 2 at 2 cm 0.53 -> 1.23 (docs/RESULTS.md)."""
     own_scan_plane: Literal["kept", "dropped", "trimmed"] = "kept"
     """2D rig with a sensor origin per ring: what becomes of a group whose plane holds the
     sensor of one of its rings with two or more segments in it (that ring's rays within

@@ -98,3 +98,24 @@ def connected_piece(members, seed, centroid, direction, lo, hi, gap_m, gap_ratio
         if reach[k]:
             out[idx[k]] = True
     return out
+
+
+@numba.njit(cache=True)
+def tight_seed(tr, count, seeds, s, p):  # pragma: no cover - compiled
+    """The grouping's seed ``s`` (``extraction.seed_spans_gap``): its two traces hold a
+    plane's worth of points each (``min_points``) and are coplanar within their own noise
+    (the gap between their lines within ``3 sigma sqrt(1 / N_i + 1 / N_j)`` plus the slack
+    of their direction errors, the seed test of :mod:`.grouping` without its floor): not a
+    coincidence of two far traces (short traces of two walls 20 m apart passed the test
+    with its slack)."""
+    i, j = seeds.i[s], seeds.j[s]
+    if count[i] < p.min_points or count[j] < p.min_points:
+        return False
+    n = seeds.normal[s]
+    e = tr.centroid[i] - tr.centroid[j]
+    gap = abs(n[0] * e[0] + n[1] * e[1] + n[2] * e[2])
+    a, b = tr.direction[i], tr.direction[j]
+    c = np.cross(a, b)
+    sin_a = np.sqrt(c @ c)
+    slack = np.sqrt(e @ e) * 2.0 * (tr.dir_err[i] + tr.dir_err[j]) / max(sin_a, 1e-12)
+    return gap <= 3.0 * p.sigma_m * np.sqrt(1.0 / count[i] + 1.0 / count[j]) + slack

@@ -41,7 +41,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from planodom.extraction.rig2d.connect import connected_piece
+from planodom.extraction.rig2d.connect import connected_piece, tight_seed
+from planodom.extraction.rig2d.seedconflicts import dominance, release
 from planodom.extraction.rig2d.segments import Segments
 from planodom.extraction.rig2d.sweeplines import distinct_lines, sweep_seed_pairs
 from planodom.extraction.rig2d.traces import build_traces
@@ -74,6 +75,8 @@ class GroupingParams(NamedTuple):
             plane seeded by them (:mod:`.sweeplines`); parallel_rad: their parallelism.
         seed_spans_gap: the piece kept is the one connected to either seed trace when
             they are coplanar within their own noise (``extraction.seed_spans_gap``).
+        exclusive_seeds: of two seeds sharing a trace on different planes, the worse
+            fit waits (:mod:`.seedconflicts`, ``extraction.exclusive_seeds``).
     """
 
     tol_m: float
@@ -92,6 +95,7 @@ class GroupingParams(NamedTuple):
     min_sweep_lines: int = 0
     parallel_rad: float = 0.0
     seed_spans_gap: bool = False
+    exclusive_seeds: bool = False
 
 
 def group_segments(
@@ -129,7 +133,9 @@ def group_segments(
 
 class _Seeds(NamedTuple):
     """P seed pairs: traces ``i`` < ``j`` (P,), their plane's normal (P, 3), whether they
-    form an L (P,) and their time window [win_lo, win_hi] (P,) (s)."""
+    form an L (P,), their time window [win_lo, win_hi] (P,) (s) and the gap between their
+    lines in units of its noise, ``gap / sqrt(1 / N_i + 1 / N_j)`` (P,) (m), whether they
+    cross beyond the extents of both (P,)."""
 
     i: np.ndarray
     j: np.ndarray
@@ -137,6 +143,8 @@ class _Seeds(NamedTuple):
     is_l: np.ndarray
     win_lo: np.ndarray
     win_hi: np.ndarray
+    fit: np.ndarray
+    beyond: np.ndarray
 
 
 @numba.njit(cache=True)
@@ -202,6 +210,8 @@ def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
     is_l = np.empty(P_max, dtype=np.bool_)
     win_lo = np.empty(P_max)
     win_hi = np.empty(P_max)
+    fit = np.empty(P_max)
+    beyond = np.empty(P_max, dtype=np.bool_)
     P = 0
     for i in range(T):
         if not ok[i]:
@@ -252,8 +262,11 @@ def _seed_pairs(tr, p, count, ok):  # pragma: no cover - compiled
             mid_t = 0.5 * (min(t_lo[i], t_lo[j]) + max(t_hi[i], t_hi[j]))
             win_lo[P] = mid_t - 0.5 * p.max_span_s
             win_hi[P] = mid_t + 0.5 * p.max_span_s
+            fit[P] = gap / np.sqrt(1.0 / count[i] + 1.0 / count[j])
+            beyond[P] = not (lo[i] <= s_i <= hi[i] or lo[j] <= s_j <= hi[j])
             P += 1
-    return _Seeds(iu[:P], ju[:P], normals[:P], is_l[:P], win_lo[:P], win_hi[:P])
+    fit, beyond = fit[:P], beyond[:P]
+    return _Seeds(iu[:P], ju[:P], normals[:P], is_l[:P], win_lo[:P], win_hi[:P], fit, beyond)
 
 
 @numba.njit(cache=True)
@@ -291,26 +304,6 @@ def _membership(tr, p, count, big, seeds):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _tight(tr, count, seeds, s, p):  # pragma: no cover - compiled
-    """Seed ``s``'s two traces hold a plane's worth of points each (``min_points``) and
-    are coplanar within their own noise (the gap between their lines within ``3 sigma
-    sqrt(1 / N_i + 1 / N_j)`` plus the slack of their direction errors, :func:`_seed_pairs`
-    without its floor): not a coincidence of two far traces (short traces of two walls
-    20 m apart passed the test with its slack)."""
-    i, j = seeds.i[s], seeds.j[s]
-    if count[i] < p.min_points or count[j] < p.min_points:
-        return False
-    n = seeds.normal[s]
-    e = tr.centroid[i] - tr.centroid[j]
-    gap = abs(n[0] * e[0] + n[1] * e[1] + n[2] * e[2])
-    a, b = tr.direction[i], tr.direction[j]
-    c = np.cross(a, b)
-    sin_a = np.sqrt(c @ c)
-    slack = np.sqrt(e @ e) * 2.0 * (tr.dir_err[i] + tr.dir_err[j]) / max(sin_a, 1e-12)
-    return gap <= 3.0 * p.sigma_m * np.sqrt(1.0 / count[i] + 1.0 / count[j]) + slack
-
-
-@numba.njit(cache=True)
 def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - compiled
     """Step 2 for seed ``s`` from its initial ``members`` (T,) bool: refit and re-collect
     the available traces in its window (at most three times), keep the piece connected
@@ -335,7 +328,7 @@ def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - com
             break
         members = new
     if np.isfinite(p.gap_m):  # only the piece of the plane that holds the seed
-        seed2 = seeds.j[s] if p.seed_spans_gap and _tight(tr, count, seeds, s, p) else -1
+        seed2 = seeds.j[s] if p.seed_spans_gap and tight_seed(tr, count, seeds, s, p) else -1
         members = connected_piece(members, seeds.i[s], tr.centroid, tr.direction, tr.lo,
                                   tr.hi, p.gap_m, p.gap_ratio, seed2)  # fmt: skip
     n, d, rms, total = _plane_of(members, count, tr.centroid, tr.scatter)
@@ -359,7 +352,8 @@ def _grow_kernel(tr, p):  # pragma: no cover - compiled
     if p.min_sweep_lines > 0 and not np.isfinite(p.max_span_s):
         i, j, normal = sweep_seed_pairs(tr, p, count, ok & available)
         no = np.zeros(i.shape[0])
-        one_ring = _Seeds(i, j, normal, np.zeros(i.shape[0], dtype=np.bool_), no, no)
+        nl = np.zeros(i.shape[0], dtype=np.bool_)
+        one_ring = _Seeds(i, j, normal, nl, no, no, no, nl)
         n_groups, rejected = _greedy(
             tr, p, count, big, one_ring, available, group, n_groups, rejected, True
         )
@@ -391,11 +385,18 @@ def _greedy(tr, p, count, big, seeds, available, group, n_groups, rejected, one_
                 sc += count[t]
         scores[s] = sc + tier[s]
     alive = np.ones(P, dtype=np.bool_)
+    exclusive = p.exclusive_seeds and not one_ring
+    dom, n_dom = np.zeros((0, 0), dtype=np.bool_), np.zeros(P, dtype=np.int64)
+    if exclusive:
+        dom, n_dom = dominance(iu, ju, seeds.fit, seeds.is_l, seeds.beyond, member)
+    was_alive = alive.copy()
     while True:
+        if exclusive:
+            release(dom, n_dom, was_alive, alive)
         best = -1
         best_score = -np.inf
         for s in range(P):  # the first maximum, as np.argmax
-            sc = scores[s] if alive[s] else -1.0
+            sc = scores[s] if alive[s] and n_dom[s] == 0 else -1.0
             if sc > best_score:
                 best_score = sc
                 best = s

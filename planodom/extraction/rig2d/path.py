@@ -67,6 +67,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         min_sweep_lines=int(config.single_scanner_min_sweeps),
         parallel_rad=float(np.radians(config.trace_parallel_deg)),
         seed_spans_gap=bool(config.seed_spans_gap),
+        exclusive_seeds=bool(config.exclusive_seeds),
     )
     groups, n_lost = group_segments(
         segs, params, config.trace_parallel_deg, config.trace_step_m, seg_times

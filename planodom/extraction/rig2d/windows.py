@@ -4,7 +4,7 @@ Without a twist each point is in the base frame of its own time, so traces of su
 sweeps are displaced by the motion between them. When the scan's times spread over more
 than ``time_windows.span_s`` (:func:`is_windowed`), the 2D-rig path only combines points
 acquired within one window of that span (about one sweep,
-:class:`planodom.config.extraction.TimeWindowConfig`):
+:class:`planodom.config.timewindows.TimeWindowConfig`):
 
 - segments merge into a trace only within one sweep and window (:mod:`.traces`);
 - two traces seed a plane only when their times lie within the span, a trace joins a
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from planodom.config.extraction import TimeWindowConfig
+from planodom.config.timewindows import TimeWindowConfig
 from planodom.extraction.planes.builder import Adjust, PlaneFits
 from planodom.extraction.rig2d.scanlines import _angle_reversals
 from planodom.extraction.rig2d.segments import Segments
