@@ -43,6 +43,7 @@ import numpy as np
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform
 from planodom.median import median
+from planodom.odometry.deskew import beyond_bounds
 from planodom.odometry.planemap import fallback
 from planodom.odometry.planemap.bias import fitted_bias
 from planodom.odometry.planemap.ctreg import TwistRegistration, corrected_planes, register_twist
@@ -358,9 +359,7 @@ class PlaneMapOdometry:
 
     def _step_beyond_bounds(self, step: np.ndarray) -> bool:
         """Whether ``step`` (4, 4), T_prev_curr, exceeds the association's motion bounds."""
-        a = self.config.association
-        turned = _angle(step[:3, :3]) > np.radians(a.max_rotation_deg)
-        return turned or float(np.linalg.norm(step[:3, 3])) > a.max_translation_m
+        return beyond_bounds(step, self.config.association)
 
     def _associations(self, reg: Registration, used: np.ndarray) -> np.ndarray:
         """(L, 2) (plane index in the previous scan, plane index in this scan) through the
