@@ -20,6 +20,7 @@ from planodom.config.odometry import OdometryConfig
 from planodom.config.planemap import PlanemapConfig
 from planodom.config.section import Section, one_line
 from planodom.config.smoothing import SmoothingConfig
+from planodom.config.sweep_refine import SweepRefineConfig
 from planodom.errors import ConfigError, read_yaml_file
 
 __all__ = [
@@ -30,6 +31,7 @@ __all__ = [
     "PlanodomConfig",
     "Section",
     "SmoothingConfig",
+    "SweepRefineConfig",
 ]
 
 
@@ -45,6 +47,7 @@ class PlanodomConfig(Section):
     odometry: OdometryConfig = OdometryConfig()
     planemap: PlanemapConfig = PlanemapConfig()
     smoothing: SmoothingConfig = SmoothingConfig()
+    sweep_refine: SweepRefineConfig = SweepRefineConfig()
 
     @model_validator(mode="before")
     @classmethod

@@ -141,6 +141,10 @@ def run_odometry(
         run = _streaming_pass(source, cfg, rig, times, progress, extractor)
     if cfg.odometry.deskew_passes and any_time_spread(source):
         run = redeskewed_run(source, run.times, run.poses, cfg, rig, progress, extractor, run)
+    if cfg.sweep_refine.passes and any_time_spread(source):
+        from planodom.odometry.sweep_refine import sweep_refined_run  # imports this module
+
+        run = sweep_refined_run(source, run, cfg, rig, progress, extractor)
     return run
 
 
