@@ -38,6 +38,14 @@ class EpochSequence(Protocol):
     def __getitem__(self, index: int, /) -> Scan | Sequence[Plane]: ...
 
 
+class DeskewedSequence(Protocol):
+    """Epochs some of which come with their points deskewed already (:class:`_Deskewed`)."""
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, index: int, /) -> Scan | Sequence[Plane] | _Deskewed: ...
+
+
 @dataclass
 class OdometryRun:
     """A whole run of the streaming odometry.
@@ -379,7 +387,7 @@ def _middle_timed_pass(
 
 
 def _streaming_pass(
-    source: EpochSequence | _DeskewedEpochs,
+    source: EpochSequence | DeskewedSequence,
     cfg: PlanodomConfig,
     rig: Rig,
     times: Sequence[float] | np.ndarray | None,

@@ -155,7 +155,8 @@ def epoch_motion(
         return np.r_[np.einsum("nk,npk->np", g, B.transpose(0, 2, 1)), np.diag(1.0 / sigma)]
 
     sol = least_squares(residuals, np.zeros(basis.size), jac=jacobian, loss="cauchy",
-                        f_scale=3.0, method="trf", x_scale="jac", max_nfev=50)  # fmt: skip
+                        f_scale=3.0, method="trf", x_scale="jac", max_nfev=50, ftol=1e-12,
+                        xtol=1e-12, gtol=1e-12)  # fmt: skip
     wv = basis.rows(t_unique) @ sol.x
     C = np.tile(np.eye(4), (len(t_unique), 1, 1))
     C[:, :3, :3], C[:, :3, 3] = rotation_matrices(wv[:, :3]), wv[:, 3:]
