@@ -13,7 +13,7 @@ import yaml
 
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
-from planodom.datasets.scan_names import kitti_raw_times, name_times
+from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
 from planodom.datasets.scan_time_units import scan_time_unit
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
@@ -187,7 +187,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
         if named is None:
             named, name_note = name_times(scan_files)
         if named is None:
-            _check_numbering(scan_files)
+            check_numbering(scan_files, POSES_FILE)
         times = epoch_times(len(scan_files), rig) if named is None else named
     ds = Dataset(root, scan_files, times, gt_poses, rig, bin_layout, time_field)
     unit = scan_time_unit(scan_files, times, time_field)
@@ -340,34 +340,6 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.ndarray | np.generic):
         return value.tolist()
     return value
-
-
-def _check_numbering(files: Sequence[Path]) -> None:
-    """DatasetError at a gap in numbered scan files (when there is no ``poses.tum``).
-
-    Without ``poses.tum`` epoch k is taken at ``k / epoch_rate``: a missing file would make
-    the motion over two epochs look like one epoch's, beyond the association's bounds or
-    silently wrong. Rather than guess (e.g. times from the numbers, with bounds scaled by
-    the gap), a gap is an error naming the files; ``poses.tum`` gives the times. Files
-    count as numbered when each name has a digit run and the most common step between
-    consecutive numbers is 1 (names that are timestamps are not checked).
-    """
-    runs = [re.findall(r"\d+", f.stem) for f in files]
-    if len(files) < 2 or not all(runs):
-        return
-    numbers = np.array([int(r[-1]) for r in runs])
-    steps = np.diff(numbers)
-    values, counts = np.unique(steps, return_counts=True)
-    if values[np.argmax(counts)] != 1 or np.all(steps == 1):
-        return
-    k = int(np.flatnonzero(steps != 1)[0])
-    a, b, step = files[k], files[k + 1], int(steps[k])
-    problem = f"{step - 1} scan(s) missing" if step > 1 else "numbers out of order"
-    raise DatasetError(
-        f"{b}: follows {a.name} in the numbering ({problem}) and "
-        f"there is no {POSES_FILE} to give the epoch times (they would be taken as "
-        f"contiguous); add {POSES_FILE}, or renumber the scans if no epoch is missing"
-    )
 
 
 def is_dataset_entry(path: Path) -> bool:
