@@ -15,10 +15,10 @@ from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
 from planodom.datasets.scan_time_units import scan_time_unit
-from planodom.datasets.tum import read_tum, write_tum
+from planodom.datasets.tum import MAX_TIME_S, read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
 from planodom.outputs import atomic_folder
-from planodom.rig import Rig
+from planodom.rig import RIG_KEYS, Rig, unread_keys
 from planodom.scan import Scan, ScanSequence
 
 SCANS_DIR = "scans"
@@ -196,6 +196,12 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
         ds.notes = [f"{root}: {unit.note}"] if unit.note else []
     if name_note:
         ds.notes.append(f"{scan_files[0].parent}: {name_note}")
+    unread = unread_keys(rig)
+    if unread:
+        ds.notes.append(
+            f"{root / RIG_FILE}: {', '.join(map(repr, unread))} not read (planodom reads "
+            f"{', '.join(RIG_KEYS)}; a typo?), kept as written"
+        )
     return ds
 
 
@@ -203,8 +209,9 @@ def read_times(path: str | Path, n_epochs: int) -> np.ndarray:
     """(E,) epoch times, seconds, from a ``times.txt`` (one number per line).
 
     Raises:
-        DatasetError: naming ``path:line`` for a line that is not one finite number, or
-            the file when the count is not ``n_epochs`` or the times do not increase.
+        DatasetError: naming ``path:line`` for a line that is not one finite number
+            within ``MAX_TIME_S`` (of ``poses.tum``), or the file when the count is not
+            ``n_epochs`` or the times do not increase.
     """
     path = Path(path)
     try:
@@ -221,6 +228,11 @@ def read_times(path: str | Path, n_epochs: int) -> np.ndarray:
             value = float("nan")
         if not np.isfinite(value):
             raise DatasetError(f"{path}:{number}: expected one finite time in seconds")
+        if abs(value) > MAX_TIME_S:  # as poses.tum: read as seconds, ns were 1.7e18 s
+            raise DatasetError(
+                f"{path}:{number}: time {value:g} s is beyond {MAX_TIME_S:g} s "
+                "(nanoseconds? the times are seconds)"
+            )
         times.append(value)
     out = np.array(times, dtype=np.float64)
     if len(out) != n_epochs:
