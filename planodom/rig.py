@@ -31,10 +31,11 @@ from planodom.geometry import first_non_rotation
 
 #: The keys of ``rig.yaml`` planodom reads.
 RIG_KEYS = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics")
-#: Keys planodom itself writes to ``rig.yaml`` beside those it reads, kept in ``extra``: a
-#: simulated dataset's sensor models and simulation, a converted bag's source.
+#: Keys planodom itself puts in ``extra`` (and so in a ``rig.yaml`` it writes): a
+#: simulated dataset's sensor models and simulation, a bag's or a KITTI sequence's source.
 WRITTEN_EXTRA = frozenset(
     {"sensor_rig", "simulation", "source", "bag", "base_frame", "gt_topic", "topics"}
+    | {"sequence", "T_cam0_velo"}
 )
 
 
