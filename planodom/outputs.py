@@ -21,9 +21,11 @@ The rules, checked before anything is written:
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import secrets
 import shutil
+import signal
 from collections.abc import Callable, Iterator, Sequence
 from datetime import datetime
 from pathlib import Path
@@ -57,8 +59,10 @@ def atomic_folder(
         what: what the folder holds, for messages ("results", "a dataset").
 
     Raises:
-        OutputError: naming ``target``, for the rules above or when the folder cannot be
-            created (an OS error on it: below a file, no permission, ``/proc``).
+        OutputError: naming ``target``, for the rules above, when the folder cannot be
+            created (an OS error on it: below a file, no permission, ``/proc``), or when
+            the disk or quota fills while the block writes (:data:`NO_SPACE`; the partial
+            folder removed).
     """
     target = check_target(target, overwrite=overwrite, inputs=inputs, owned=owned, what=what)
     created = _make_parents(target)
@@ -71,10 +75,29 @@ def atomic_folder(
     try:
         yield partial
         _move_into_place(partial, target)
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(partial, ignore_errors=True)
         _remove_empty(created)
+        if isinstance(exc, OSError) and exc.errno in NO_SPACE:
+            raise OutputError(_no_space(target, partial, exc, what)) from None
         raise
+
+
+#: OS errors of a full disk or quota while writing: a file written in the partial folder
+#: raises them from ``write`` or ``close``, which name no file (a traceback before).
+NO_SPACE = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+
+
+def _no_space(target: Path, partial: Path, exc: OSError, what: str) -> str:
+    """The one line of a full disk: the output folder, and the file when it lies elsewhere
+    (a temporary file of the run on another file system)."""
+    where = ""
+    if exc.filename is not None and not Path(str(exc.filename)).absolute().is_relative_to(partial):
+        where = f" ({exc.filename})"
+    return (
+        f"{target}: cannot write {what}: {exc.strerror or exc}{where}; nothing was written "
+        "(an earlier folder there is kept as it was)"
+    )
 
 
 def check_target(
@@ -230,3 +253,23 @@ def _move_into_place(partial: Path, target: Path) -> None:
         os.rename(old, target)  # put the earlier folder back
         raise
     shutil.rmtree(old, ignore_errors=True)
+
+
+#: Signals that end a run as Ctrl-C does: a scheduler's or ``timeout``'s SIGTERM, a closed
+#: terminal's SIGHUP. Their default action killed the process in place, leaving its
+#: hidden ``.<name>.<pid>.<random>.partial`` folder behind.
+TERMINATING = (signal.SIGTERM, signal.SIGHUP)
+
+
+def exit_on_termination() -> None:
+    """Make :data:`TERMINATING` signals raise ``SystemExit(128 + signal)`` (the shell's
+    status of a process they kill), so that :func:`atomic_folder` removes its partial
+    folder. A signal whose action is not the default (``nohup`` ignores SIGHUP) is left
+    as it is. Main thread only (Python's rule for signal handlers)."""
+
+    def _exit(signum: int, frame: object) -> None:
+        raise SystemExit(128 + signum)
+
+    for sig in TERMINATING:
+        if signal.getsignal(sig) is signal.SIG_DFL:
+            signal.signal(sig, _exit)

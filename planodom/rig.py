@@ -12,7 +12,8 @@ Every field is optional: a recording without ``rig.yaml`` is ``Rig()``.
     extrinsics: [[16 numbers row-major], ...]   # T_base_sensor (4, 4) per sensor
 
 Unknown keys are kept in :attr:`Rig.extra` (and written back) so that a dataset's own notes
-survive a round trip.
+survive a round trip; those planodom does not write itself are named by
+:func:`unread_keys`, for a note (``epoch_rate_hz: 20`` read as no rate at all, silently).
 """
 
 from __future__ import annotations
@@ -28,7 +29,14 @@ from planodom.config.section import holds_bool
 from planodom.errors import DatasetError, GeometryError
 from planodom.geometry import first_non_rotation
 
-_KNOWN = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics")
+#: The keys of ``rig.yaml`` planodom reads.
+RIG_KEYS = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics")
+#: Keys planodom itself puts in ``extra`` (and so in a ``rig.yaml`` it writes): a
+#: simulated dataset's sensor models and simulation, a bag's or a KITTI sequence's source.
+WRITTEN_EXTRA = frozenset(
+    {"sensor_rig", "simulation", "source", "bag", "base_frame", "gt_topic", "topics"}
+    | {"sequence", "T_cam0_velo"}
+)
 
 
 @dataclass(frozen=True)
@@ -99,7 +107,7 @@ class Rig:
             sensor_origins=origins if origins is not None and len(origins) else None,
             motion_bounds=_motion_bounds(data.get("motion_bounds"), source),
             extrinsics=_extrinsics(data.get("extrinsics"), source),
-            extra={k: v for k, v in data.items() if k not in _KNOWN},
+            extra={k: v for k, v in data.items() if k not in RIG_KEYS},
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -118,6 +126,12 @@ class Rig:
         if self.extrinsics:
             out["extrinsics"] = [np.asarray(T).tolist() for T in self.extrinsics]
         return out
+
+
+def unread_keys(rig: Rig) -> list[str]:
+    """The keys of ``rig.extra`` planodom neither reads nor writes (:data:`WRITTEN_EXTRA`):
+    a typo of a key it reads, or a dataset's own note."""
+    return [str(k) for k in rig.extra if k not in WRITTEN_EXTRA]
 
 
 def _numbers(value: Any, name: str) -> np.ndarray:

@@ -130,6 +130,33 @@ def test_zero_epochs_name_the_option_not_a_temporary_folder(tmp_path) -> None:
         assert message == f"error: {path}: {problem}"
 
 
+def test_simulation_options_with_a_recording_and_infinite_noise_are_refused(tmp_path) -> None:
+    """``run DATASET --epochs 3`` ran the whole recording, the option ignored without a word;
+    ``simulate --noise inf`` wrote a dataset of NaN ranges."""
+    data = tmp_path / "d"
+    assert runner.invoke(app, ["simulate", "--out", str(data), "--epochs", "2"]).exit_code == 0
+    for command in ("run", "smooth"):
+        args = [
+            command,
+            str(data),
+            "--epochs",
+            "3",
+            "--noise",
+            "0.02",
+            "--out",
+            str(tmp_path / "o"),
+        ]
+        message = _error_line(runner.invoke(app, args))
+        assert message == (
+            "error: --noise, --epochs: options of --scenario (a simulation), not for a "
+            "recording, which is read whole"
+        )
+    args = ["simulate", "--noise", "inf", "--epochs", "2", "--out", str(tmp_path / "s")]
+    message = _error_line(runner.invoke(app, args))
+    assert message == "error: noise sigma must be finite and >= 0 (m), got inf"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d"]
+
+
 def test_results_never_land_in_the_folder_of_a_ros2_bag_given_by_its_file(tmp_path) -> None:
     """``run BAG/data.db3 --out BAG/res`` wrote the results into the bag's folder (only
     the .db3 file counted as the input)."""

@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
+import errno
+import os
+import signal
 from pathlib import Path
 
 import pytest
 
 from planodom.errors import OutputError, OutputExistsError
-from planodom.outputs import atomic_folder, link_latest, timestamped_folder
+from planodom.outputs import (
+    TERMINATING,
+    atomic_folder,
+    exit_on_termination,
+    link_latest,
+    timestamped_folder,
+)
 
 
 def test_failed_block_leaves_nothing(tmp_path: Path) -> None:
@@ -72,3 +81,40 @@ def test_timestamped_and_latest(tmp_path: Path) -> None:
     link_latest(first)
     link_latest(second)
     assert (tmp_path / "latest").resolve() == second.resolve()
+
+
+def test_a_full_disk_is_one_line_naming_the_folder_and_leaves_the_old_one(tmp_path: Path) -> None:
+    """A write or close on a full disk raises an OSError naming no file: a traceback, as a
+    bug, before; now the folder is named and the earlier results stay whole."""
+    target = tmp_path / "out"
+    with atomic_folder(target) as tmp:
+        (tmp / "poses.tum").write_text("old")
+    for code in (errno.ENOSPC, errno.EDQUOT):
+        with (
+            pytest.raises(OutputError, match=rf"out: cannot write results: {os.strerror(code)};"),
+            atomic_folder(target, overwrite=True) as tmp,
+        ):
+            (tmp / "poses.tum").write_text("half")
+            raise OSError(code, os.strerror(code))
+        assert [p.name for p in tmp_path.iterdir()] == ["out"]
+        assert (target / "poses.tum").read_text() == "old"
+    with pytest.raises(OSError, match="Permission"), atomic_folder(tmp_path / "b"):
+        raise OSError(errno.EACCES, "Permission denied")  # others as before
+
+
+def test_termination_signals_end_the_block_and_leave_nothing(tmp_path: Path) -> None:
+    """SIGTERM / SIGHUP killed the process in place, its .partial folder left behind."""
+    saved = {sig: signal.getsignal(sig) for sig in TERMINATING}
+    try:
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)  # as nohup leaves it
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        exit_on_termination()
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+        with pytest.raises(SystemExit) as ended, atomic_folder(tmp_path / "a" / "out") as tmp:
+            (tmp / "poses.tum").write_text("half")
+            os.kill(os.getpid(), signal.SIGTERM)
+        assert ended.value.code == 128 + signal.SIGTERM
+        assert list(tmp_path.iterdir()) == []
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)

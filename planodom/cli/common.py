@@ -339,6 +339,12 @@ class Source:
             raise ConfigError(f"{flags}: bag options, not for --scenario")
         if self.scenario is not None and self.bin_layout != "auto":
             raise ConfigError("--bin-layout: for .bin scan files, not for --scenario")
+        simulated = [f"--{n}" for n, _, d in _SOURCE_OPTIONS[2:7] if getattr(self, n) != d]
+        if self.dataset is not None and simulated:  # ignored before: a whole run, no word
+            raise ConfigError(
+                f"{', '.join(simulated)}: options of --scenario (a simulation), not for a "
+                "recording, which is read whole"
+            )
 
     def load(self, folder: Path, skip_bad: bool = False) -> ScanEpochs:
         """The recording, or the scenario simulated into ``folder/dataset`` and loaded."""

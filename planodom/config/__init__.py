@@ -106,7 +106,7 @@ class PlanodomConfig(Section):
         try:
             return cls.model_validate(data)
         except ValidationError as exc:
-            raise ConfigError(one_line(exc, source)) from None
+            raise ConfigError(one_line(exc, source, cls)) from None
         except ConfigError as exc:  # raised by a section's own cross-field checks
             raise ConfigError(f"{source}: {exc}") from exc
 

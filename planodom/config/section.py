@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import typing
 from typing import Any
 
@@ -38,12 +39,37 @@ def holds_bool(value: Any) -> bool:
     return False
 
 
-def one_line(exc: ValidationError, source: str) -> str:
-    """pydantic's first error in one line: ``source: field 'a.b': problem, got value``."""
+def one_line(exc: ValidationError, source: str, model: type[BaseModel] | None = None) -> str:
+    """pydantic's first error in one line: ``source: field 'a.b': problem, got value``.
+
+    With the ``model`` validated, an unknown key names the nearest field of its section
+    (``Delta``: did you mean 'delta'?) and a dotted key at the top (``odometry.delta``,
+    as the CLI and :meth:`PlanodomConfig.updated` name fields) the nesting a file needs.
+    """
     first = exc.errors()[0]
     loc = ".".join(str(x) for x in first["loc"]) or "(document)"
     got = f", got {first['input']!r:.60}" if first["type"] != "missing" else ""
-    return f"{source}: field '{loc}': {first['msg']}{got}"
+    hint = "" if model is None else _unknown_key_hint(first, model)
+    return f"{source}: field '{loc}': {first['msg']}{got}{hint}"
+
+
+def _unknown_key_hint(error: Any, model: type[BaseModel]) -> str:
+    """For an unknown key of ``model`` (at any depth): the fields it may have meant."""
+    if error["type"] != "extra_forbidden" or not error["loc"]:
+        return ""
+    *path, key = (str(x) for x in error["loc"])
+    for name in path:
+        field = model.model_fields.get(name)
+        annotation = None if field is None else field.annotation
+        if not (isinstance(annotation, type) and issubclass(annotation, BaseModel)):
+            return ""
+        model = annotation
+    section, _, rest = key.partition(".")
+    if not path and rest and section in model.model_fields:
+        return f" (a dotted name: in a file write it nested, '{section}:' then '  {rest}: ...')"
+    fields = list(model.model_fields)
+    near = difflib.get_close_matches(key.lower(), fields, n=1, cutoff=0.6)
+    return f" (did you mean '{near[0]}'?)" if near else ""
 
 
 class Section(BaseModel):

@@ -257,9 +257,9 @@ def index_bag(
     gt_child = gt[1] if isinstance(gt, tuple) else ""
     with bag_errors(path):
         for conn, bag_time, raw in reader.messages(connections=conns):
-            msg = _deserialize(reader, path, conn, raw)
+            msg = _deserialize(reader, path, conn, raw, bag_time)
             if conn.topic in (TF_TOPIC, TF_STATIC_TOPIC):
-                with _message_errors(path, conn.topic):
+                with _message_errors(path, conn.topic, bag_time):
                     tree.add(msg, static=conn.topic == TF_STATIC_TOPIC)
             elif conn.topic in topic_of:
                 k = topic_of[conn.topic]
@@ -353,25 +353,34 @@ def _duplicates(
     return duplicate
 
 
-def _deserialize(reader: AnyReader, path: Path, conn: Connection, raw: bytes) -> Any:
-    """A message, or a one-line DatasetError naming the bag and the topic."""
+def _deserialize(reader: AnyReader, path: Path, conn: Connection, raw: bytes, bag_time: int) -> Any:
+    """A message, or a one-line DatasetError naming the bag, the topic and the message's
+    record time ``bag_time`` (ns since the Unix epoch: which of the topic's messages)."""
     try:
         return reader.deserialize(raw, conn.msgtype)
     except BAG_ERRORS as exc:
         detail = " ".join(str(exc).split())[:200]
         raise DatasetError(
             f"{path}: cannot decode a {conn.msgtype} message on topic '{conn.topic}' "
-            f"(truncated or corrupt?): {detail}"
+            f"recorded at {_seconds(bag_time)} s (truncated or corrupt?): {detail}"
         ) from None
 
 
+def _seconds(ns: int) -> str:
+    """Integer nanoseconds as exact decimal seconds (``1700000000.502000000``)."""
+    sign = "-" if ns < 0 else ""
+    return f"{sign}{abs(ns) // 1_000_000_000}.{abs(ns) % 1_000_000_000:09d}"
+
+
 @contextmanager
-def _message_errors(path: Path, topic: str) -> Iterator[None]:
-    """A ValueError from a decoder as a one-line DatasetError naming the topic."""
+def _message_errors(path: Path, topic: str, bag_time: int | None = None) -> Iterator[None]:
+    """A ValueError from a decoder as a one-line DatasetError naming the topic (and the
+    message's record time ``bag_time``, ns, when given)."""
     try:
         yield
     except ValueError as exc:
-        raise DatasetError(f"{path}: topic '{topic}': {exc}") from None
+        when = "" if bag_time is None else f" (message recorded at {_seconds(bag_time)} s)"
+        raise DatasetError(f"{path}: topic '{topic}'{when}: {exc}") from None
 
 
 def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep: int) -> bool:

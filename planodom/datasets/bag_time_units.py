@@ -23,6 +23,7 @@ concerned.
 
 from __future__ import annotations
 
+import math
 from array import array
 from dataclasses import dataclass, field
 
@@ -97,8 +98,8 @@ class TimeUnit:
 
     Attributes:
         unit: ``ns``, ``us``, ``s`` or ``ms``; scale: seconds per unit.
-        note: one line when the unit is not the documented one or the sweeps disagree
-            (else None); the caller adds the topic.
+        note: one line when the unit is not the documented one, the sweeps disagree, or
+            neither reading spans near the period (else None); the caller adds the topic.
     """
 
     unit: str
@@ -150,17 +151,20 @@ def choose_unit(times: TopicTimes, stamps_ns: np.ndarray, between: str = "messag
         f"{_duration(median * scale)} (median)"
     )
     against = votes_doc if unit == alt else votes_alt
+    # neither reading within the vote's boundary of the period (integer milliseconds read
+    # as microseconds: a 0.1 s sweep as 0.1 ms, deskewing as good as off)
+    far = abs(math.log(median * scale / period)) > 0.5 * math.log(1000.0)
+    neither = "; neither reading spans near the period: another unit, or sweeps cut short?"
+    ignore = f"{neither if far else ''}; --time-field none ignores the times"
     if against:
         note = (
             f"{what} read as {UNIT_WORDS[unit]}, but not clear-cut: {against} of "
-            f"{len(spans)} sweeps span nearer the period as {UNIT_WORDS[other]}; {spread}; "
-            "--time-field none ignores the times"
+            f"{len(spans)} sweeps span nearer the period as {UNIT_WORDS[other]}; {spread}{ignore}"
         )
         return TimeUnit(unit, scale, note)
     if unit == alt:
-        note = (
-            f"{what} read as {UNIT_WORDS[unit]}, not {UNIT_WORDS[doc]}: {spread}; "
-            "--time-field none ignores the times"
-        )
+        note = f"{what} read as {UNIT_WORDS[unit]}, not {UNIT_WORDS[doc]}: {spread}{ignore}"
         return TimeUnit(unit, scale, note)
+    if far:
+        return TimeUnit(unit, scale, f"{what} read as {UNIT_WORDS[unit]}: {spread}{ignore}")
     return TimeUnit(unit, scale)

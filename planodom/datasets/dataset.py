@@ -13,12 +13,12 @@ import yaml
 
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
-from planodom.datasets.scan_names import kitti_raw_times, name_times
+from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
 from planodom.datasets.scan_time_units import scan_time_unit
-from planodom.datasets.tum import read_tum, write_tum
+from planodom.datasets.tum import MAX_TIME_S, read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
 from planodom.outputs import atomic_folder
-from planodom.rig import Rig
+from planodom.rig import RIG_KEYS, Rig, unread_keys
 from planodom.scan import Scan, ScanSequence
 
 SCANS_DIR = "scans"
@@ -187,7 +187,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
         if named is None:
             named, name_note = name_times(scan_files)
         if named is None:
-            _check_numbering(scan_files)
+            check_numbering(scan_files, POSES_FILE)
         times = epoch_times(len(scan_files), rig) if named is None else named
     ds = Dataset(root, scan_files, times, gt_poses, rig, bin_layout, time_field)
     unit = scan_time_unit(scan_files, times, time_field)
@@ -196,6 +196,12 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
         ds.notes = [f"{root}: {unit.note}"] if unit.note else []
     if name_note:
         ds.notes.append(f"{scan_files[0].parent}: {name_note}")
+    unread = unread_keys(rig)
+    if unread:
+        ds.notes.append(
+            f"{root / RIG_FILE}: {', '.join(map(repr, unread))} not read (planodom reads "
+            f"{', '.join(RIG_KEYS)}; a typo?), kept as written"
+        )
     return ds
 
 
@@ -203,8 +209,9 @@ def read_times(path: str | Path, n_epochs: int) -> np.ndarray:
     """(E,) epoch times, seconds, from a ``times.txt`` (one number per line).
 
     Raises:
-        DatasetError: naming ``path:line`` for a line that is not one finite number, or
-            the file when the count is not ``n_epochs`` or the times do not increase.
+        DatasetError: naming ``path:line`` for a line that is not one finite number
+            within ``MAX_TIME_S`` (of ``poses.tum``), or the file when the count is not
+            ``n_epochs`` or the times do not increase.
     """
     path = Path(path)
     try:
@@ -221,6 +228,11 @@ def read_times(path: str | Path, n_epochs: int) -> np.ndarray:
             value = float("nan")
         if not np.isfinite(value):
             raise DatasetError(f"{path}:{number}: expected one finite time in seconds")
+        if abs(value) > MAX_TIME_S:  # as poses.tum: read as seconds, ns were 1.7e18 s
+            raise DatasetError(
+                f"{path}:{number}: time {value:g} s is beyond {MAX_TIME_S:g} s "
+                "(nanoseconds? the times are seconds)"
+            )
         times.append(value)
     out = np.array(times, dtype=np.float64)
     if len(out) != n_epochs:
@@ -340,34 +352,6 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.ndarray | np.generic):
         return value.tolist()
     return value
-
-
-def _check_numbering(files: Sequence[Path]) -> None:
-    """DatasetError at a gap in numbered scan files (when there is no ``poses.tum``).
-
-    Without ``poses.tum`` epoch k is taken at ``k / epoch_rate``: a missing file would make
-    the motion over two epochs look like one epoch's, beyond the association's bounds or
-    silently wrong. Rather than guess (e.g. times from the numbers, with bounds scaled by
-    the gap), a gap is an error naming the files; ``poses.tum`` gives the times. Files
-    count as numbered when each name has a digit run and the most common step between
-    consecutive numbers is 1 (names that are timestamps are not checked).
-    """
-    runs = [re.findall(r"\d+", f.stem) for f in files]
-    if len(files) < 2 or not all(runs):
-        return
-    numbers = np.array([int(r[-1]) for r in runs])
-    steps = np.diff(numbers)
-    values, counts = np.unique(steps, return_counts=True)
-    if values[np.argmax(counts)] != 1 or np.all(steps == 1):
-        return
-    k = int(np.flatnonzero(steps != 1)[0])
-    a, b, step = files[k], files[k + 1], int(steps[k])
-    problem = f"{step - 1} scan(s) missing" if step > 1 else "numbers out of order"
-    raise DatasetError(
-        f"{b}: follows {a.name} in the numbering ({problem}) and "
-        f"there is no {POSES_FILE} to give the epoch times (they would be taken as "
-        f"contiguous); add {POSES_FILE}, or renumber the scans if no epoch is missing"
-    )
 
 
 def is_dataset_entry(path: Path) -> bool:

@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from planodom.datasets.bin_scan import check_bin_layout
+from planodom.datasets.dataset import TIMES_FILE, read_times
 from planodom.datasets.scan_io import check_time_field, read_scan
+from planodom.datasets.scan_names import check_numbering
 from planodom.errors import DatasetError
 from planodom.geometry import first_non_rotation, rotation_problem
 from planodom.rig import Rig
@@ -136,6 +138,7 @@ class KittiSequence:
         gt_file: the pose file read, or None.
         Tr: ``T_cam0_velo`` (4, 4) from ``calib.txt`` (for :func:`write_kitti_camera_poses`).
         rig: rate 10 Hz, the Velodyne at the base frame's origin.
+        notes: what a user should check (no ``times.txt``: the scans taken 0.1 s apart).
     """
 
     def __init__(
@@ -157,6 +160,7 @@ class KittiSequence:
         self.Tr = Tr
         self.gt_poses = gt_poses
         self.gt_file = gt_file
+        self.notes: list[str] = []  # how the sequence was read, warned of by the CLI
         self.rig = Rig(
             epoch_rate_hz=KITTI_RATE_HZ,
             sensor_origins=np.zeros((1, 3)),
@@ -207,18 +211,16 @@ def load_kitti_sequence(
     if not files:
         raise DatasetError(f"{path / 'velodyne'}: no .bin scan files")
     Tr = read_kitti_calib(path / "calib.txt")
-    times_file = path / "times.txt"
+    times_file = path / TIMES_FILE
+    notes = []
     if times_file.is_file():
-        try:
-            times = np.loadtxt(times_file, dtype=np.float64, ndmin=1)
-        except ValueError as exc:
-            raise DatasetError(f"{times_file}: not one number per line: {exc}") from None
-        if len(times) != len(files):
-            raise DatasetError(f"{times_file}: {len(times)} times for {len(files)} scans")
-        if np.any(np.diff(times) <= 0):
-            raise DatasetError(f"{times_file}: times must increase")
+        # the dataset format's reader: a NaN, a second column or a time going back was
+        # read as is by np.loadtxt (NaN compares false, two columns made (E, 2) times)
+        times = read_times(times_file, len(files))
     else:
+        check_numbering(files, TIMES_FILE)
         times = np.arange(len(files)) / KITTI_RATE_HZ
+        notes.append(f"{path}: no {TIMES_FILE}; the scans taken 0.1 s apart (KITTI's 10 Hz)")
     gt_file = kitti_pose_file(path)
     gt = None
     if gt_file is not None:
@@ -226,7 +228,9 @@ def load_kitti_sequence(
         if len(P) != len(files):
             raise DatasetError(f"{gt_file}: {len(P)} poses for {len(files)} scans")
         gt = velo_poses_from_camera(P, Tr)
-    return KittiSequence(path, files, times, Tr, gt, gt_file, bin_layout, time_field)
+    seq = KittiSequence(path, files, times, Tr, gt, gt_file, bin_layout, time_field)
+    seq.notes = notes
+    return seq
 
 
 def _homogeneous(M: np.ndarray) -> np.ndarray:

@@ -122,3 +122,32 @@ def _steps(times: np.ndarray) -> str:
     if not len(steps):
         return ""
     return f", steps {np.median(steps):.3f} s median, {steps.max():.3f} s largest"
+
+
+def check_numbering(files: Sequence[Path], times_file: str) -> None:
+    """DatasetError at a gap in numbered scan files, when no ``times_file`` gives the times.
+
+    Without a file of epoch times (a dataset's ``poses.tum``, a KITTI sequence's
+    ``times.txt``) epoch k is taken at ``k / epoch_rate``: a missing file would make the
+    motion over two epochs look like one epoch's, beyond the association's bounds or
+    silently wrong. Rather than guess (e.g. times from the numbers, with bounds scaled by
+    the gap), a gap is an error naming the files and ``times_file``. Files count as
+    numbered when each name has a digit run and the most common step between consecutive
+    numbers is 1 (names that are timestamps are not checked).
+    """
+    runs = [re.findall(r"\d+", f.stem) for f in files]
+    if len(files) < 2 or not all(runs):
+        return
+    numbers = np.array([int(r[-1]) for r in runs])
+    steps = np.diff(numbers)
+    values, counts = np.unique(steps, return_counts=True)
+    if values[np.argmax(counts)] != 1 or np.all(steps == 1):
+        return
+    k = int(np.flatnonzero(steps != 1)[0])
+    a, b, step = files[k], files[k + 1], int(steps[k])
+    problem = f"{step - 1} scan(s) missing" if step > 1 else "numbers out of order"
+    raise DatasetError(
+        f"{b}: follows {a.name} in the numbering ({problem}) and "
+        f"there is no {times_file} to give the epoch times (they would be taken as "
+        f"contiguous); add {times_file}, or renumber the scans if no epoch is missing"
+    )

@@ -12,6 +12,7 @@ All rays of an epoch go to Embree in one call.
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -222,8 +223,8 @@ def resolve_noise(noise: float | str | None, rig: SensorRig) -> SensorRig:
         if noise not in NOISE_PRESETS:
             raise ConfigError(f"unknown noise preset '{noise}' ({', '.join(NOISE_PRESETS)})")
         noise = NOISE_PRESETS[noise]
-    if not float(noise) >= 0:
-        raise ConfigError(f"noise sigma must be >= 0, got {noise}")
+    if not 0 <= float(noise) < math.inf:  # inf made every range NaN, without a word
+        raise ConfigError(f"noise sigma must be finite and >= 0 (m), got {noise}")
     return rig.with_noise(float(noise))
 
 

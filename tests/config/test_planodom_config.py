@@ -66,6 +66,29 @@ def test_bad_files_name_file_and_field(tmp_path, text: str, match: str) -> None:
         PlanodomConfig.from_yaml(tmp_path / "c.yaml")
 
 
+@pytest.mark.parametrize(
+    ("text", "tail"),
+    [
+        ("odometry: {Delta: 2}\n", "got 2 (did you mean 'delta'?)"),
+        ("Odometry: {delta: 2}\n", "got {'delta': 2} (did you mean 'odometry'?)"),
+        ("extraction: {time_windows: {spam_s: 0.1}}\n", "got 0.1 (did you mean 'span_s'?)"),
+        (  # the CLI's and updated()'s dotted names, read as one unknown key
+            "odometry.delta: 2\n",
+            "got 2 (a dotted name: in a file write it nested, 'odometry:' then '  delta: ...')",
+        ),
+        ("odometry: {xyz: 2}\n", "not permitted, got 2"),  # nothing near: no guess
+    ],
+)
+def test_an_unknown_key_names_the_field_it_may_mean(tmp_path, text: str, tail: str) -> None:
+    """'Extra inputs are not permitted' alone; for a dotted key it read as if the field
+    'odometry.delta' existed and were refused."""
+    (tmp_path / "c.yaml").write_text(text)
+    with pytest.raises(ConfigError) as err:
+        PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    assert "Extra inputs are not permitted" in str(err.value)
+    assert str(err.value).endswith(tail)
+
+
 def test_missing_file(tmp_path) -> None:
     with pytest.raises(ConfigError, match="missing.yaml: cannot read"):
         PlanodomConfig.from_yaml(tmp_path / "missing.yaml")

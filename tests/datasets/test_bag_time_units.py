@@ -80,3 +80,20 @@ def test_times_without_some_sweeps_drop_only_their_spans() -> None:
     assert list(kept.sweeps) == [1, 3, 4]
     assert (kept.name, kept.dtype, kept.largest) == ("t", "uint32", 99_000_005.0)
     assert list(times.spans) == [99_000.0, 99_000_000.0, 98_000.0, 0.0]  # itself untouched
+
+
+@pytest.mark.parametrize(
+    "dtype, sweep, unit",
+    [
+        ("uint32", [0, 50, 99], "us"),  # integer ms: 99 ns or 99 us of a 100 ms period
+        ("float64", [0.0, 5e4, 9.9e4], "ms"),  # float us: 99 000 s or 99 s
+    ],
+)
+def test_neither_reading_near_the_period_is_said(dtype: str, sweep: list, unit: str) -> None:
+    """Integer milliseconds were read as microseconds (a sweep of 0.1 ms) with a note that
+    read as if the choice fitted; it now says that neither reading does."""
+    chosen = choose_unit(_times("t", dtype, [sweep] * 4), _stamps(4))
+    assert chosen.unit == unit and chosen.note is not None
+    assert "neither reading spans near the period: another unit" in chosen.note
+    fitting = choose_unit(_times("t", "uint32", [[0, 5_000_000]] * 4), _stamps(4))
+    assert fitting.note is None  # 5 ms of 100 ms: within the vote's boundary, no word

@@ -86,6 +86,12 @@ def test_epoch_times_without_poses(tmp_path: Path) -> None:
     (tmp_path / "c" / "times.txt").write_text("0\n0.1\n")
     with pytest.raises(DatasetError, match=r"times.txt: 2 times for 5 scan files"):
         load_dataset(tmp_path / "c")
+    # nanosecond stamps were read as seconds (1.7e18 s apart from any clock)
+    (tmp_path / "c" / "times.txt").write_text(
+        "".join(f"{1.7e18 + k * 1e8:.0f}\n" for k in range(5))
+    )
+    with pytest.raises(DatasetError, match=r"times.txt:1: time 1.7e\+18 s is beyond 1e\+11 s"):
+        load_dataset(tmp_path / "c")
 
 
 def test_write_refuses_then_overwrites_without_stale_files(tmp_path: Path) -> None:
@@ -188,6 +194,21 @@ def test_bad_rig(tmp_path: Path, text: str, message: str) -> None:
     with pytest.raises(DatasetError, match=message) as err:
         load_dataset(root)
     assert "rig.yaml" in str(err.value)
+
+
+def test_a_rig_key_planodom_does_not_read_is_noted(tmp_path: Path) -> None:
+    """``epoch_rate_hz: 20`` (a typo of ``epoch_rate``) was kept in ``extra`` without a word,
+    the epochs then 0.1 s apart; the keys planodom writes itself are not noted."""
+    root = _dataset(tmp_path)
+    (root / "rig.yaml").write_text("epoch_rate_hz: 20\nsimulation: {seed: 1}\nsource: rosbag\n")
+    ds = load_dataset(root)
+    assert ds.rig.epoch_rate_hz is None and ds.rig.extra["epoch_rate_hz"] == 20
+    assert [n for n in ds.notes if "rig.yaml" in n] == [
+        f"{root / 'rig.yaml'}: 'epoch_rate_hz' not read (planodom reads epoch_rate, "
+        "sensor_origins, motion_bounds, extrinsics; a typo?), kept as written"
+    ]
+    (root / "rig.yaml").write_text("epoch_rate: 20\nsensor_rig: {name: x}\n")
+    assert load_dataset(root).notes == []
 
 
 def test_empty_rig_states_nothing(tmp_path: Path) -> None:

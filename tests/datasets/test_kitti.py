@@ -60,7 +60,7 @@ def test_camera_pose_writer_round_trips(tmp_path: Path) -> None:
 def test_sequence_errors(tmp_path: Path) -> None:
     seq = make_sequence(tmp_path, poses_beside=True)
     (seq / "times.txt").write_text("0\n0.1\n")
-    with pytest.raises(DatasetError, match="times.txt: 2 times for 3 scans"):
+    with pytest.raises(DatasetError, match="times.txt: 2 times for 3 scan files"):
         load_kitti_sequence(seq)
     (seq / "times.txt").unlink()
     (seq / "calib.txt").write_text("P0: 1 2 3\n")
@@ -69,6 +69,48 @@ def test_sequence_errors(tmp_path: Path) -> None:
     (seq / "calib.txt").write_text("Tr: 1 2 3\n")
     with pytest.raises(DatasetError, match=r"calib.txt:1: 'Tr' must hold 12"):
         load_kitti_sequence(seq)
+
+
+@pytest.mark.parametrize(
+    ("text", "line"),
+    [
+        ("0\nnan\n0.2\n", 2),  # NaN compared false in the increase check: read as a time
+        ("0\n0.1\ninf\n", 3),
+        ("0 1\n0.1 1\n0.2 1\n", 1),  # two columns were read as (E, 2) times
+    ],
+)
+def test_times_that_are_not_one_finite_number_a_line_are_refused(
+    tmp_path: Path, text: str, line: int
+) -> None:
+    seq = make_sequence(tmp_path, poses_beside=True)
+    (seq / "times.txt").write_text(text)
+    with pytest.raises(DatasetError, match=rf"times.txt:{line}: expected one finite time"):
+        load_kitti_sequence(seq)
+
+
+def test_times_with_comments_and_blank_lines_are_read(tmp_path: Path) -> None:
+    seq = make_sequence(tmp_path, poses_beside=True)
+    (seq / "times.txt").write_text("# seconds\n0\n\n0.1\n0.25\n")
+    assert np.array_equal(load_kitti_sequence(seq).times, [0.0, 0.1, 0.25])
+
+
+def test_without_times_a_gap_in_the_numbering_is_refused_and_the_rate_noted(
+    tmp_path: Path,
+) -> None:
+    """Without times.txt the scans are 0.1 s apart: a missing scan was silently one step."""
+    seq = make_sequence(tmp_path, poses_beside=False)
+    (seq / "times.txt").unlink()
+    ds = load_kitti_sequence(seq)
+    assert np.allclose(ds.times, [0.0, 0.1, 0.2])
+    assert len(ds.notes) == 1 and "no times.txt" in ds.notes[0]
+    (seq / "velodyne" / "000002.bin").rename(seq / "velodyne" / "000003.bin")
+    (tmp_path / "dataset" / "poses" / "07.txt").unlink()
+    with pytest.raises(DatasetError, match=r"000003.bin: follows 000001.bin .* no times.txt"):
+        load_kitti_sequence(seq)
+    assert (
+        make_sequence(tmp_path / "b", poses_beside=True)
+        and not load_kitti_sequence(tmp_path / "b" / "dataset" / "sequences" / "07").notes
+    )
 
 
 KITTI_IDENTITY = "1 0 0 0 0 1 0 0 0 0 1 0"
