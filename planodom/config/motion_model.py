@@ -14,7 +14,9 @@ from planodom.config.section import Section
 class MotionModelConfig(Section):
     """What the predicted twist assumes of the platform (field of ``odometry``)."""
 
-    motion_model: Literal["constant_velocity", "nonholonomic"] = "constant_velocity"
+    motion_model: Literal["constant_velocity", "nonholonomic", "nonholonomic_degenerate"] = (
+        "constant_velocity"
+    )
     """The twist predicted for the next epoch (deskewing, prior, bridge, and, with
     ``refine_unmeasured: prediction``, what a degenerate step's unmeasured direction
     keeps): ``constant_velocity``: the recent twist as it was measured (its angular rate,

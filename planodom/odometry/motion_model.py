@@ -26,5 +26,5 @@ def predicted_motion(twist: np.ndarray, model: str) -> np.ndarray:
     if model != "nonholonomic":
         raise ValueError(f"unknown motion model {model!r}")
     out = np.array(twist, dtype=np.float64, copy=True)
-    out[4:6] = 0.0
+    out[4] = 0.0
     return out

@@ -53,6 +53,8 @@ def predicted_twist(
         return np.mean(np.array(recent), axis=0)
     if measured:
         velocities.append(twist[3:])
+    if model == "nonholonomic_degenerate":  # only after a step that did not measure both
+        model = "constant_velocity" if measured else "nonholonomic"
     if not velocities:
         return predicted_motion(np.concatenate((rate, twist[3:])), model)
     return predicted_motion(np.concatenate((rate, column_median(np.array(velocities)))), model)
