@@ -8,7 +8,8 @@ and one wall) does not measure a horizontal direction, what the prediction carri
 it is all that direction gets (``odometry.refine_unmeasured: prediction``), and a
 lateral velocity measured wrong before the stretch is carried to its end (issue 11:
 generalisation world 118 at 2 cm, a sideways 1.5-2.9 m/s held over 30 epochs).
-``nonholonomic`` predicts the forward component only.
+``nonholonomic`` predicts no lateral velocity (the vertical one is kept: the ground
+measures it, and a base that pitches on its suspension moves along its own z).
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ import numpy as np
 def predicted_motion(twist: np.ndarray, model: str) -> np.ndarray:
     """(6,) the twist (rad/s, m/s; angular rate first, then linear velocity, body frame)
     predicted under ``model`` from the constant-velocity prediction ``twist`` (6,):
-    ``"constant_velocity"``: ``twist`` itself; ``"nonholonomic"``: its angular rate and
-    the forward (x) component of its linear velocity, lateral and vertical set to zero."""
+    ``"constant_velocity"``: ``twist`` itself; ``"nonholonomic"``: a copy with the lateral
+    (y) linear velocity zero."""
     if model == "constant_velocity":
         return twist
     if model != "nonholonomic":

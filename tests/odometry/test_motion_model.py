@@ -1,4 +1,4 @@
-"""odometry.motion_model: the predicted twist of a wheeled vehicle (planodom.odometry.motion_model)."""
+"""odometry.motion_model: the predicted twist of a wheeled vehicle (odometry.motion_model)."""
 
 from collections import deque
 
@@ -17,10 +17,10 @@ def test_constant_velocity_is_the_twist_itself():
     assert predicted_motion(twist, "constant_velocity") is twist
 
 
-def test_nonholonomic_keeps_rate_and_forward_velocity_only():
+def test_nonholonomic_drops_the_lateral_velocity_only():
     twist = np.array([0.01, -0.02, 0.3, 4.0, 0.7, -0.1])
     got = predicted_motion(twist, "nonholonomic")
-    np.testing.assert_array_equal(got, [0.01, -0.02, 0.3, 4.0, 0.0, 0.0])
+    np.testing.assert_array_equal(got, [0.01, -0.02, 0.3, 4.0, 0.0, -0.1])
     assert twist[4] == 0.7  # the input is not changed
 
 
@@ -38,7 +38,7 @@ def test_predicted_twist_pairwise_drops_lateral_velocity_map_not():
     vel: deque[np.ndarray] = deque(maxlen=5)
     twist = np.array([0.0, 0.0, 0.1, 3.0, 1.5, 0.2])
     got = predicted_twist(twist, True, deque(), vel, False, "mean", "nonholonomic")
-    np.testing.assert_array_equal(got, [0.0, 0.0, 0.1, 3.0, 0.0, 0.0])
+    np.testing.assert_array_equal(got, [0.0, 0.0, 0.1, 3.0, 0.0, 0.2])
     got = predicted_twist(twist, True, deque(), deque(maxlen=5), True, "mean", "nonholonomic")
     np.testing.assert_array_equal(got, twist)  # the plane map has its own motion model
 
@@ -48,3 +48,16 @@ def test_unknown_model_is_refused():
         predicted_motion(np.zeros(6), "bicycle")
     with pytest.raises(ConfigError):
         PlanodomConfig().updated({"odometry.motion_model": "bicycle"}, source="test")
+
+
+def test_nonholonomic_degenerate_only_after_a_step_that_was_not_ok():
+    """After an "ok" step the constant-velocity prediction; after one that was not, the
+    same median velocity (of the measured steps) without its lateral component."""
+    vel: deque[np.ndarray] = deque(maxlen=5)
+    ok = np.array([0.0, 0.0, 0.1, 3.0, 0.4, 0.1])
+    got = predicted_twist(ok, True, deque(), vel, False, "mean", "nonholonomic_degenerate")
+    np.testing.assert_array_equal(got, ok)
+    degenerate = np.array([0.0, 0.0, 0.2, 2.0, 1.5, 0.3])  # its velocity is not appended
+    got = predicted_twist(degenerate, False, deque(), vel, False, "mean",
+                          "nonholonomic_degenerate")  # fmt: skip
+    np.testing.assert_array_equal(got, [0.0, 0.0, 0.2, 3.0, 0.0, 0.1])
