@@ -6,11 +6,12 @@ the policy's guards are documented together.
 
 from __future__ import annotations
 
-from planodom.config.section import Section
+from planodom.config.motion_model import MotionModelConfig
 
 
-class DeskewGuards(Section):
-    """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``)."""
+class DeskewGuards(MotionModelConfig):
+    """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``), and the motion
+    model the prediction assumes (:class:`.motion_model.MotionModelConfig`)."""
 
     deskew_bounds_guard: bool = False
     """Streaming, pairwise pipelines: an epoch extracted again with its own twist

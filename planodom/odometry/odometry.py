@@ -417,8 +417,8 @@ class PlaneOdometry:
                 self._rates.append((epoch.index, own))
             significant = significant_twist(own, best.relative, dt, self.config.odometry)
             args = (significant, measured, self._recent, self._velocities, self._map is not None)
-            prediction = self.config.planemap.prediction
-            self.twist = registered_prediction(best, dt, predicted_twist(*args, prediction))
+            prediction = (self.config.planemap.prediction, self.config.odometry.motion_model)
+            self.twist = registered_prediction(best, dt, predicted_twist(*args, *prediction))
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
             if gap:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planodom.config import OdometryConfig
+from planodom.odometry.motion_model import predicted_motion
 from planodom.odometry.relative import RelativePose, Status
 
 
@@ -22,6 +23,7 @@ def predicted_twist(
     velocities: deque[np.ndarray],
     against_map: bool,
     prediction: str = "mean",
+    model: str = "constant_velocity",
 ) -> np.ndarray:
     """(6,) the constant-velocity twist (rad/s, m/s) for the next epoch after a step of own
     twist ``twist`` (6,) whose translation was ``measured`` or not: the angular rate of the
@@ -31,7 +33,9 @@ def predicted_twist(
     repeats its prior). ``against_map``: the plane-map pipeline, see below (``recent``,
     appended to); ``prediction`` (``planemap.prediction``): there the mean of the recent
     twists ("mean"), the last one ("last"), or the recent ones extrapolated one epoch
-    along their trend ("trend", :func:`trend_twist`; the mean before 4 of them)."""
+    along their trend ("trend", :func:`trend_twist`; the mean before 4 of them). ``model``
+    (``odometry.motion_model``, pairwise pipelines only): what
+    :func:`planodom.odometry.motion_model.predicted_motion` keeps of the pairwise one."""
     rate = twist[:3]
     if against_map:
         # The map pipeline registers a scan against a map, not against a scan deskewed
@@ -49,9 +53,11 @@ def predicted_twist(
         return np.mean(np.array(recent), axis=0)
     if measured:
         velocities.append(twist[3:])
+    if model == "nonholonomic_degenerate":  # only after a step that did not measure both
+        model = "constant_velocity" if measured else "nonholonomic"
     if not velocities:
-        return np.concatenate((rate, twist[3:]))
-    return np.concatenate((rate, column_median(np.array(velocities))))
+        return predicted_motion(np.concatenate((rate, twist[3:])), model)
+    return predicted_motion(np.concatenate((rate, column_median(np.array(velocities)))), model)
 
 
 def column_median(rows: np.ndarray) -> np.ndarray:

@@ -1,0 +1,35 @@
+"""The motion model of the streaming odometry's prediction (a field of ``OdometryConfig``).
+
+A base of :class:`planodom.config.odometry.OdometryConfig`, in its own module as
+:mod:`.odometry_guards` is.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from planodom.config.section import Section
+
+
+class MotionModelConfig(Section):
+    """What the predicted twist assumes of the platform (field of ``odometry``)."""
+
+    motion_model: Literal["constant_velocity", "nonholonomic", "nonholonomic_degenerate"] = (
+        "constant_velocity"
+    )
+    """Pairwise pipelines (the 2D rig; the plane map has its own motion model): the twist
+    predicted for the next epoch (deskewing, prior, bridge, and, with
+    ``refine_unmeasured: prediction``, what a degenerate step's unmeasured direction
+    keeps). ``constant_velocity``: the recent twist as measured (the step's angular rate,
+    the median linear velocity of the recent measured steps); ``nonholonomic``: the same
+    without its lateral (y) component, as a wheeled vehicle whose base frame is its own
+    (x forward) moves (:func:`planodom.odometry.motion_model.predicted_motion`; the
+    vertical component is kept: the ground measures it, and a base that pitches moves
+    along its z); ``nonholonomic_degenerate``: that only after a step that was not "ok"
+    (degenerate or unresolved), where the prediction fills what the planes did not
+    measure. Never for a hand-held sensor. Aimed at degenerate stretches (the ground and
+    one wall) whose unmeasured horizontal direction the prediction carries (issue 11:
+    generalisation worlds 118 at 2 cm, 108, 78). Off by default: measured mixed over
+    the 2D-rig worlds 0-18 and 100-118 (``nonholonomic_degenerate``: ATE of world 118 at
+    2 cm 1.87 -> 0.42 m, world 78 6.6 -> 0.74 m, but world 6 0.46 -> 2.0 m and world 2
+    at 2 cm 1.27 -> 3.79 m; docs/RESULTS.md, "Non-holonomic prediction")."""
