@@ -51,8 +51,9 @@ class PlanodomConfig(Section):
     def _planes_for_smoothing(cls, data: Any) -> Any:
         """The deskew-noise modes that read each plane's deskewing Jacobian
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
-        ``smoothing.covariance_model: sandwich``, ``planemap.deskew_variance:
-        twist_change``) switch on its computation in the
+        ``smoothing.covariance_model: sandwich``, or "auto", the default, with
+        ``deskew_noise`` and ``covariance_scale`` "none", where it may pick the sandwich;
+        ``planemap.deskew_variance: twist_change``) switch on its computation in the
         extraction (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other
         than ``none`` switches on the planes' time moments (``extraction.time_moments``)."""
         if not isinstance(data, Mapping):
@@ -71,8 +72,12 @@ class PlanodomConfig(Section):
         model = getattr(smoothing, "covariance_model", None)
         if isinstance(smoothing, Mapping):
             model = smoothing.get("covariance_model")
+        scale = getattr(smoothing, "covariance_scale", None)
+        if isinstance(smoothing, Mapping):
+            scale = smoothing.get("covariance_scale")
         wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
-        wanted = wanted or model == "sandwich"
+        auto = model in (None, "auto") and mode in (None, "none") and scale in (None, "none")
+        wanted = wanted or model == "sandwich" or auto
         moments = isinstance(twist, str) and twist != "none"
         if not (wanted or deskew == "twist_change" or moments):
             return data
