@@ -73,10 +73,13 @@ def test_missing_file(tmp_path) -> None:
 
 def test_jacobian_deskew_noise_switches_on_the_planes_deskew_jacobian():
     """The smoothing mode that reads Plane.deskew_jacobian makes the extraction compute it;
-    every other mode leaves it off (it costs time per plane)."""
-    assert PlanodomConfig().extraction.deskew_jacobian is False
+    every other mode leaves it off (it costs time per plane), unless the default
+    covariance model ("auto", which reads it for the sandwich covariances) may use it."""
+    assert PlanodomConfig().extraction.deskew_jacobian is True  # "auto"
+    fitted = {"smoothing.covariance_model": "fitted", "extraction.deskew_jacobian": False}
     for mode in ("twist_change_jacobian", "twist_change_jacobian_net"):
-        assert PlanodomConfig().updated({"smoothing.deskew_noise": mode}).extraction.deskew_jacobian
+        changed = PlanodomConfig().updated(fitted).updated({"smoothing.deskew_noise": mode})
+        assert changed.extraction.deskew_jacobian
         loaded = PlanodomConfig.from_dict({"smoothing": {"deskew_noise": mode}})
         assert loaded.extraction.deskew_jacobian
     other = PlanodomConfig.from_dict({"smoothing": {"deskew_noise": "twist_change_frame_net"}})

@@ -417,6 +417,8 @@ def test_sandwich_config() -> None:
     assert cfg.updated({"smoothing.covariance_model": "sandwich"}).extraction.deskew_jacobian
     assert PlanodomConfig().extraction.deskew_jacobian
     assert PlanodomConfig.from_dict({}).extraction.deskew_jacobian
+    off = {"extraction": {"deskew_jacobian": False}}  # set: "auto" goes without
+    assert not PlanodomConfig.from_dict(off).extraction.deskew_jacobian
     for field, value in (("deskew_noise", "twist_change"), ("covariance_scale", "groups")):
         cfg = PlanodomConfig.from_dict({"smoothing": {field: value}})
         assert cfg.smoothing.covariance_model == "auto"
