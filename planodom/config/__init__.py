@@ -52,11 +52,12 @@ class PlanodomConfig(Section):
         """The deskew-noise modes that read each plane's deskewing Jacobian
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
         ``smoothing.covariance_model: sandwich``, ``planemap.deskew_variance:
-        twist_change``; "auto", the default, with ``deskew_noise`` and ``covariance_scale``
-        "none", unless the extraction sets it: there "auto" gives the fitted covariances
-        without it) switch on its computation in the
-        extraction (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other
-        than ``none`` switches on the planes' time moments (``extraction.time_moments``)."""
+        twist_change``) switch on its computation in the extraction
+        (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other than ``none``
+        switches on the planes' time moments (``extraction.time_moments``). The default
+        covariance model, "auto", leaves it off here: the batch smoothing switches it on for
+        the odometry it runs (:func:`planodom.smoothing.run.smoothing_config`), so that a
+        run without smoothing does not pay for it."""
         if not isinstance(data, Mapping):
             return data
         smoothing = data.get("smoothing")
@@ -73,26 +74,18 @@ class PlanodomConfig(Section):
         model = getattr(smoothing, "covariance_model", None)
         if isinstance(smoothing, Mapping):
             model = smoothing.get("covariance_model")
-        scale = getattr(smoothing, "covariance_scale", None)
-        if isinstance(smoothing, Mapping):
-            scale = smoothing.get("covariance_scale")
         wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
         wanted = wanted or model == "sandwich"
-        auto = model in (None, "auto") and mode in (None, "none") and scale in (None, "none")
         moments = isinstance(twist, str) and twist != "none"
-        if not (wanted or auto or deskew == "twist_change" or moments):
+        if not (wanted or deskew == "twist_change" or moments):
             return data
         extraction = data.get("extraction", {})
-        given = set(extraction) if isinstance(extraction, Mapping) else set()
         if isinstance(extraction, ExtractionConfig):
-            given = set(extraction.model_fields_set)
             extraction = extraction.model_dump()
         if not isinstance(extraction, Mapping):
             return data  # the section's own validation reports it
         switched = {"time_moments": True} if moments else {}
         if wanted or deskew == "twist_change":
-            switched["deskew_jacobian"] = True
-        elif auto and "deskew_jacobian" not in given:  # (set: "auto" goes by it)
             switched["deskew_jacobian"] = True
         # a value that is not a bool stays, for the section's validation to name it
         switched = {k: v for k, v in switched.items() if isinstance(extraction.get(k, v), bool)}
