@@ -20,6 +20,7 @@ import gtsam
 import numpy as np
 
 import planodom.smoothing.batch as batch_module
+import planodom.smoothing.batch_covariances as covariances_module
 import planodom.smoothing.sandwich as sw
 import planodom.smoothing.sparse_sandwich as ssw
 from planodom.config import PlanodomConfig
@@ -49,14 +50,14 @@ def _capture(world_index: int, noise: float) -> tuple:
         got["args"] = args
         raise _Captured
 
-    original = batch_module.batch_sandwich
-    batch_module.batch_sandwich = hook  # type: ignore[assignment]
+    original = covariances_module.batch_sandwich
+    covariances_module.batch_sandwich = hook  # type: ignore[assignment]
     try:
         batch_module.smooth_batch(odo.planes, smoothing_relatives(odo, cfg), cfg)
     except _Captured:
         pass
     finally:
-        batch_module.batch_sandwich = original
+        covariances_module.batch_sandwich = original
     return got["args"]
 
 

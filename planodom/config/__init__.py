@@ -55,9 +55,12 @@ class PlanodomConfig(Section):
         """The deskew-noise modes that read each plane's deskewing Jacobian
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
         ``smoothing.covariance_model: sandwich``, ``planemap.deskew_variance:
-        twist_change``) switch on its computation in the
-        extraction (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other
-        than ``none`` switches on the planes' time moments (``extraction.time_moments``)."""
+        twist_change``) switch on its computation in the extraction
+        (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other than ``none``
+        switches on the planes' time moments (``extraction.time_moments``). The default
+        covariance model, "auto", leaves it off here: the batch smoothing switches it on for
+        the odometry it runs (:func:`planodom.smoothing.run.smoothing_config`), so that a
+        run without smoothing does not pay for it."""
         if not isinstance(data, Mapping):
             return data
         smoothing = data.get("smoothing")
@@ -87,6 +90,8 @@ class PlanodomConfig(Section):
         switched = {"time_moments": True} if moments else {}
         if wanted or deskew == "twist_change":
             switched["deskew_jacobian"] = True
+        # a value that is not a bool stays, for the section's validation to name it
+        switched = {k: v for k, v in switched.items() if isinstance(extraction.get(k, v), bool)}
         return {**data, "extraction": {**extraction, **switched}}
 
     @classmethod

@@ -40,8 +40,9 @@ class ExtractionConfig(Section):
     deskew_jacobian: bool = False
     """Give each plane of a scan with point times its first-order change with the
     deskewing twist (``Plane.deskew_jacobian``). Only ``smoothing.deskew_noise:
-    twist_change_jacobian[_net]``, ``smoothing.covariance_model: sandwich`` and
-    ``planemap.deskew_variance: twist_change`` use it, and they switch it on (PlanodomConfig);
+    twist_change_jacobian[_net]``, ``smoothing.covariance_model: sandwich`` (or "auto", the
+    default, in the batch) and ``planemap.deskew_variance: twist_change`` use it, and they
+    switch it on (PlanodomConfig; for "auto", the batch smoothing's ``smoothing_config``);
     off otherwise because it costs about 80 us per plane of 2 000 points."""
     time_moments: bool = False
     """Give each plane of a scan with point times its time moments (``PlaneSupport.

@@ -235,7 +235,7 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     covariance_inlier_quantile: Fraction | None = 0.99
     """Batch covariances: a robust factor whose squared whitened error at the estimate is
     within this quantile of chi2(its dimension) counts with full (Gaussian) weight, others
-    with the robust kernel's weight (planodom.smoothing.batch.covariance_graph); the
+    with the robust kernel's weight (planodom.smoothing.batch_covariances.covariance_graph); the
     kernel's down-weighting of inliers would otherwise inflate the covariances by about
     1.5 (Cauchy). None: the robust weights throughout."""
     covariances_relative_to_first: bool = True

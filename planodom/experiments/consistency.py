@@ -97,9 +97,11 @@ def simulate_inputs(
     (delta = 1..``smoothing.delta_max``)."""
     from planodom.odometry import run_odometry
     from planodom.odometry.deskew import time_spread
-    from planodom.smoothing.run import relative_poses
+    from planodom.smoothing.run import relative_poses, with_batch_jacobians
 
-    level = simulate_level(scene, noise, config, Simulation(seed, **simulation))
+    level = simulate_level(
+        scene, noise, with_batch_jacobians(config), Simulation(seed, **simulation)
+    )
     sim, planes = level.sim, level.planes
     assert planes is not None
     odo = run_odometry(planes, config.updated({"odometry.delta": 1}), times=sim.times.tolist())

@@ -47,7 +47,7 @@ from planodom.metrics import pose_nees, summarize
 from planodom.odometry import run_odometry
 from planodom.odometry.deskew import time_spread
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
-from planodom.smoothing.run import relative_poses
+from planodom.smoothing.run import relative_poses, with_batch_jacobians
 from planodom.smoothing.windowed import smooth_windowed
 
 #: Scenes of the comparison (built-in simulator names).
@@ -208,7 +208,9 @@ def run_smoothing_experiment(
     for scene in scenes:
         for noise in noise_levels:
             say(f"{scene}: simulating sigma = {noise * 1000:g} mm and extracting planes")
-            runs += run_scene_level(simulate_level(scene, noise, base, simulation), base, say)
+            extracting = with_batch_jacobians(base)  # the batch's sandwich reads them
+            level = simulate_level(scene, noise, extracting, simulation)
+            runs += run_scene_level(level, base, say)
     result = SmoothingExperiment(runs, {"summary": summary_rows(runs), "nees": nees_rows(runs)})
     if out is not None:
         out = Path(out)

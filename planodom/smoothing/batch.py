@@ -8,12 +8,11 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-from scipy.stats import chi2
 
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.deskew_scale import scaled_motion_change
+from planodom.smoothing.batch_covariances import batch_covariances
 from planodom.smoothing.graph import GraphBuilder, GraphStats
 from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
@@ -30,9 +29,7 @@ from planodom.smoothing.loop_records import (
     gate_reidentifications,
 )
 from planodom.smoothing.loops import LoopClosingBuilder
-from planodom.smoothing.marginals import pose_covariances
-from planodom.smoothing.sandwich import batch_sandwich, deskew_motion_change
-from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
+from planodom.smoothing.variance_components import VarianceComponents
 from planodom_factors.batched import BatchedResiduals
 
 
@@ -68,6 +65,8 @@ class SmoothingResult:
         variance_components: ``smoothing.covariance_scale``: the noise models' variance
             factors estimated from the residuals (:mod:`.variance_components`).
         covariance_s: wall time of the covariances (part of ``runtime_s``), seconds.
+        covariance_model: batch: "sandwich" or "fitted", the model the covariances came
+            from (``smoothing.covariance_model``, "auto" resolved); "" when not computed.
         qr_fallback_epochs: the fixed-lag smoother's epochs at which Cholesky failed and
             it went on with QR (windowed: its own; batch: its windowed initial guess's,
             ``smoothing.batch_initial``).
@@ -91,6 +90,7 @@ class SmoothingResult:
     loop_factors: list[LoopFactor] = field(default_factory=list)
     variance_components: VarianceComponents | None = None
     covariance_s: float = 0.0
+    covariance_model: str = ""
     qr_fallback_epochs: list[int] = field(default_factory=list)
     indefinite_marginals: list[tuple[int, float]] = field(default_factory=list)
 
@@ -118,39 +118,6 @@ def group_by_epoch(
     for rel in relatives:
         if 0 <= rel.curr < n_epochs:
             out[rel.curr].append(rel)
-    return out
-
-
-def covariance_graph(
-    graph: gtsam.NonlinearFactorGraph,
-    gaussian: Mapping[int, gtsam.NonlinearFactor],
-    values: gtsam.Values,
-    inlier_quantile: float | None,
-) -> gtsam.NonlinearFactorGraph:
-    """The graph whose linearisation gives the batch covariances.
-
-    A robust factor (index ``i`` in ``graph``, Gaussian twin ``gaussian[i]``) whose
-    squared whitened error at ``values`` lies within the ``inlier_quantile`` of chi2(its
-    dimension) is an inlier: its Gaussian twin is used, with full weight. Others keep the
-    robust kernel's weight. Without this the kernel's weights on inliers make the
-    covariances cautious: a Cauchy kernel (2.38 sigma) weighs a 3-dim factor with a
-    typical error (norm sqrt(3)) by 0.65, so the poses' covariances grow by about 1.5;
-    the estimate itself is the robust one. None: ``graph`` as it is.
-    """
-    if inlier_quantile is None or not gaussian:
-        return graph
-    out = gtsam.NonlinearFactorGraph()
-    limits: dict[int, float] = {}  # dimension -> chi2 quantile (scipy's ppf is slow)
-    for i in range(graph.size()):
-        twin = gaussian.get(i)
-        if graph.at(i) is None:  # removed (a re-identification refused by the gate)
-            continue
-        if twin is not None and twin.dim() not in limits:
-            limits[twin.dim()] = float(chi2.ppf(inlier_quantile, twin.dim()))
-        if twin is not None and 2.0 * twin.error(values) <= limits[twin.dim()]:
-            out.add(twin)
-        else:
-            out.add(graph.at(i))
     return out
 
 
@@ -317,61 +284,6 @@ def _builder(
     return builder, guess
 
 
-def _covariances(
-    builder: GraphBuilder,
-    graph: gtsam.NonlinearFactorGraph,
-    gaussian: dict[int, gtsam.NonlinearFactor],
-    fallback: list[int],
-    estimate: gtsam.Values,
-    n_epochs: int,
-    planes: Mapping[int, tuple[int, Plane]] | None = None,
-    relative_poses: Sequence[RelativePose] = (),
-) -> tuple[gtsam.Values, np.ndarray | None, str | None, VarianceComponents | None]:
-    """The poses' marginal covariances at ``estimate`` (:func:`covariance_graph`), from
-    the graph reweighted by its variance components with ``smoothing.covariance_scale``
-    (then also the estimate it was resolved to), or the sandwich covariances with
-    ``smoothing.covariance_model`` "sandwich" (``planes``: the plane factors' epochs and
-    planes, ``relative_poses``: the run's, for the changes of motion; where no epoch has
-    one, e.g. scans taken at one instant, the fitted ones as they are); a note instead when
-    gtsam finds the system indeterminant. Returns (estimate, covariances, note,
-    components)."""
-    cfg = builder.config
-    cov_graph = covariance_graph(graph, gaussian, estimate, cfg.covariance_inlier_quantile)
-    linear, components = None, None
-    Q = (
-        deskew_motion_change(relative_poses, n_epochs)
-        if cfg.covariance_model == "sandwich"
-        else None
-    )
-    if Q is not None and cfg.sandwich_motion_scale == "run":
-        Q = scaled_motion_change(Q, relative_poses)[0]
-    if Q is not None and np.any(Q):  # (no change of motion, e.g. snapshot scans: fitted)
-        try:
-            covariances, note = batch_sandwich(cfg, graph, cov_graph, planes or {}, Q, estimate)
-        except np.linalg.LinAlgError as exc:
-            note = "sandwich covariances unavailable: " + " ".join(str(exc).split()[:14])
-            return estimate, None, note, None
-        return estimate, covariances, note, None
-    try:
-        if cfg.covariance_scale != "none":
-            loops = [f.factor for f in getattr(builder, "loop_factors", ())]
-            labels = factor_groups(
-                graph, gaussian, estimate, loops, fallback, cfg.covariance_inlier_quantile
-            )
-            resolve = cfg.covariance_scale_estimate == "resolve"
-            estimate, linear, components = scale_noise(
-                cov_graph, labels, estimate, cfg.covariance_scale, resolve
-            )
-        covariances, note = pose_covariances(
-            cov_graph, estimate, n_epochs, cfg.covariances_relative_to_first, cfg.prior_sigma,
-            linear,
-        )  # fmt: skip
-    except (RuntimeError, np.linalg.LinAlgError) as exc:  # e.g. in the variance components
-        note = "marginal covariances unavailable: " + " ".join(str(exc).split()[:14])
-        return estimate, None, note, components
-    return estimate, covariances, note, components
-
-
 def smooth_batch(
     epochs_planes: Sequence[Sequence[Plane]],
     relative_poses: Sequence[RelativePose],
@@ -420,10 +332,10 @@ def smooth_batch(
     )  # fmt: skip
     if isinstance(builder, LoopClosingBuilder):
         estimate = _gated(builder, graph, gaussian, values, estimate, errors)
-    covariances, note, components, covariance_s = None, None, None, 0.0
+    covariances, note, components, covariance_s, model = None, None, None, 0.0, ""
     if cfg.compute_covariances:
         cov_start = time.perf_counter()
-        estimate, covariances, note, components = _covariances(
+        estimate, covariances, note, components, model = batch_covariances(
             builder, graph, gaussian, fallback, estimate, len(epochs_planes), plane_factors,
             relative_poses,
         )  # fmt: skip
@@ -445,6 +357,7 @@ def smooth_batch(
         loop_factors=list(getattr(builder, "loop_factors", [])),
         variance_components=components,
         covariance_s=covariance_s,
+        covariance_model=model,
         qr_fallback_epochs=[] if guess is None else guess.qr_fallback_epochs,
         indefinite_marginals=[] if guess is None else guess.indefinite_marginals,
     )

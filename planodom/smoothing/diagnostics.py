@@ -22,7 +22,9 @@ def smoother_metrics(result: SmoothingResult) -> dict[str, object]:
     initial guess's), ``indefinite_marginals`` (``{"epoch", "ratio"}``: ``-w_min / w_max``
     of a held marginal split at that fallback), with loop closure ``loop_matches``,
     ``loop_factors`` and ``reidentifications`` (accepted, refused), and
-    ``covariance_note`` when the covariances are missing or partly undetermined.
+    ``covariance_model`` (batch: "sandwich" or "fitted", what the covariances came from)
+    and ``covariance_note`` when the covariances are missing or partly undetermined (or
+    fitted for want of the planes' deskewing Jacobians).
     """
     out: dict[str, object] = {"graph": asdict(result.stats)}
     out["qr_fallback_epochs"] = [int(e) for e in result.qr_fallback_epochs]
@@ -39,6 +41,8 @@ def smoother_metrics(result: SmoothingResult) -> dict[str, object]:
         if records:
             refused = sum(r.removed for r in records)
             out[name] = {"accepted": len(records) - refused, "refused": refused}
+    if result.covariance_model:
+        out["covariance_model"] = result.covariance_model
     if result.covariance_note:
         out["covariance_note"] = result.covariance_note
     return out

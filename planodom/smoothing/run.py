@@ -197,9 +197,25 @@ def epoch_time_spread(odometry: OdometryRun) -> list[bool | None]:
 
 def smoothing_config(config: PlanodomConfig, mode: str = "batch") -> PlanodomConfig:
     """``config`` with the odometry the smoothing in ``mode`` runs: in batch, deskewed as
-    ``smoothing.odometry_deskew_twist`` says."""
-    if mode == "batch" and config.smoothing.odometry_deskew_twist == "coplanar":
+    ``smoothing.odometry_deskew_twist`` says, and with the planes' deskewing Jacobians
+    (``extraction.deskew_jacobian``) that the default covariance model ("auto") reads for
+    the sandwich covariances; a run that only does odometry does not compute them."""
+    if mode != "batch":
+        return config
+    config = with_batch_jacobians(config)
+    if config.smoothing.odometry_deskew_twist == "coplanar":
         return config.updated({"odometry.deskew_twist": "coplanar"}, source="smoothing")
+    return config
+
+
+def with_batch_jacobians(config: PlanodomConfig) -> PlanodomConfig:
+    """``config`` with the planes' deskewing Jacobians switched on where the batch's default
+    covariance model ("auto", with ``deskew_noise`` and ``covariance_scale`` "none") reads
+    them for the sandwich covariances: for an extraction whose planes the batch smooths."""
+    smoothing = config.smoothing
+    auto = smoothing.covariance_model == "auto" and smoothing.deskew_noise == "none"
+    if auto and smoothing.covariance_scale == "none" and not config.extraction.deskew_jacobian:
+        return config.updated({"extraction.deskew_jacobian": True}, source="smoothing")
     return config
 
 

@@ -33,7 +33,7 @@ numpy has no extended precision.
 Not modelled: the deskewing error of the relative-pose and loop-candidate factors (they
 enter only where planes are not plane factors, ``smoothing.between_factors``) and of
 factors the robust kernel down-weights at the estimate (outliers of
-:func:`.batch.covariance_graph`); both would only add.
+:func:`.batch_covariances.covariance_graph`); both would only add.
 """
 
 from __future__ import annotations
@@ -362,7 +362,7 @@ def sandwich_covariances(
     undetermined pose axes (None when none).
 
     Args:
-        graph: the covariance graph (:func:`.batch.covariance_graph`).
+        graph: the covariance graph (:func:`.batch_covariances.covariance_graph`).
         values: the estimate.
         n_epochs: E.
         planes: index of a plane factor in ``graph`` -> (its epoch, its oriented measured
@@ -396,8 +396,8 @@ def sandwich_covariances(
 def covariance_graph_index(
     graph: gtsam.NonlinearFactorGraph, cov_graph: gtsam.NonlinearFactorGraph
 ) -> dict[int, int]:
-    """Index in ``graph`` -> index in its :func:`.batch.covariance_graph` ``cov_graph`` (which
-    leaves out removed factors, unless it is ``graph`` itself)."""
+    """Index in ``graph`` -> index in its :func:`.batch_covariances.covariance_graph`
+    ``cov_graph`` (which leaves out removed factors, unless it is ``graph`` itself)."""
     if cov_graph is graph:
         return {i: i for i in range(graph.size())}
     kept = [i for i in range(graph.size()) if graph.at(i) is not None]
@@ -426,7 +426,7 @@ def batch_sandwich(
     estimate: gtsam.Values,
 ) -> tuple[np.ndarray, str | None]:
     """``smoothing.covariance_model`` "sandwich" of the batch (``graph``, its covariance
-    graph ``cov_graph``, :func:`.batch.covariance_graph`): (E, 6, 6) and a note
+    graph ``cov_graph``, :func:`.batch_covariances.covariance_graph`): (E, 6, 6) and a note
     (:func:`sandwich_covariances`; ``Q`` (E, 6, 6) the epochs' changes of
     motion, :func:`deskew_motion_change`)."""
     index = covariance_graph_index(graph, cov_graph)

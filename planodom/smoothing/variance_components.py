@@ -31,7 +31,7 @@ covariances keep under their kernel (beyond ``covariance_inlier_quantile``: outl
 down-weighted to near zero, whose redundancy number would be nearly 1 with a residual
 near 0) keep their weight: ``s = 1``. Their rows still count in ``H``, so the estimated
 groups' redundancy is what remains after them. Robust inliers enter with their Gaussian
-twin (the graph the covariances come from, :func:`.batch.covariance_graph`).
+twin (the graph the covariances come from, :func:`.batch_covariances.covariance_graph`).
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ def factor_groups(
     inlier_quantile: float | None,
 ) -> list[str]:
     """Group label of every factor of ``graph`` that is not None, in order (the order of
-    :func:`.batch.covariance_graph`'s output): "loop" (``loop_factors`` indices),
+    :func:`.batch_covariances.covariance_graph`'s output): "loop" (``loop_factors`` indices),
     "fallback" (``fallback_factors``), "outlier" (a robust factor whose Gaussian twin's
     squared whitened error exceeds chi2(dim) at ``inlier_quantile``; None: none, the
     covariances keep every kernel's weight), "plane" (on a landmark ``L``), "prior" (one

@@ -96,10 +96,18 @@ def test_missing_file(tmp_path) -> None:
 
 def test_jacobian_deskew_noise_switches_on_the_planes_deskew_jacobian():
     """The smoothing mode that reads Plane.deskew_jacobian makes the extraction compute it;
-    every other mode leaves it off (it costs time per plane)."""
+    every other mode leaves it off (it costs time per plane): the default covariance
+    model ("auto") has it switched on by the batch smoothing, for its own odometry."""
+    from planodom.smoothing.run import smoothing_config
+
     assert PlanodomConfig().extraction.deskew_jacobian is False
+    assert smoothing_config(PlanodomConfig()).extraction.deskew_jacobian is True
+    assert smoothing_config(PlanodomConfig(), "windowed").extraction.deskew_jacobian is False
+    fitted = PlanodomConfig().updated({"smoothing.covariance_model": "fitted"})
+    assert smoothing_config(fitted).extraction.deskew_jacobian is False
     for mode in ("twist_change_jacobian", "twist_change_jacobian_net"):
-        assert PlanodomConfig().updated({"smoothing.deskew_noise": mode}).extraction.deskew_jacobian
+        changed = PlanodomConfig().updated({"smoothing.deskew_noise": mode})
+        assert changed.extraction.deskew_jacobian
         loaded = PlanodomConfig.from_dict({"smoothing": {"deskew_noise": mode}})
         assert loaded.extraction.deskew_jacobian
     other = PlanodomConfig.from_dict({"smoothing": {"deskew_noise": "twist_change_frame_net"}})

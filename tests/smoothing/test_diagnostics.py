@@ -48,7 +48,8 @@ def test_the_batch_reports_its_initial_guess_fallbacks(monkeypatch) -> None:
 
 def test_smoother_metrics_are_plain_json() -> None:
     seq = make_sequence(8, seed=2, **NOISE)
-    result = smooth_batch(seq.planes, seq.relatives, SmoothingConfig(window=5, delta_max=3))
+    cfg = SmoothingConfig(window=5, delta_max=3, covariance_model="fitted")
+    result = smooth_batch(seq.planes, seq.relatives, cfg)
     result.qr_fallback_epochs = [3, 6]
     result.indefinite_marginals = [(6, 2.5e-13)]
     out = json.loads(json.dumps(smoother_metrics(result)))
@@ -57,6 +58,7 @@ def test_smoother_metrics_are_plain_json() -> None:
     assert out["graph"]["between"] == result.stats.between > 0
     assert out["graph"]["unresolved_epochs"] == result.stats.unresolved_epochs
     assert "covariance_note" not in out and "loop_factors" not in out
+    assert out["covariance_model"] == "fitted"
     line = fallback_warning(result)
     assert line is not None and "epoch(s) 6 " in line and "2.5e-13" in line
 

@@ -18,6 +18,7 @@ from planodom.geometry import Plane
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.graph import A, L, X
 from planodom.smoothing.marginals import POSE_DIM, pose_marginals
+from planodom.smoothing.run import smoothing_config
 from planodom.smoothing.sandwich import (
     CHUNK_ROWS,
     _dense_pose_covariances,
@@ -393,7 +394,7 @@ def test_batch_sandwich_keeps_the_poses(spread: bool) -> None:
     planes = [[replace(p, deskew_jacobian=rng.normal(scale=0.2, size=(4, 6))) for p in ps]
               for ps in seq.planes]  # fmt: skip
     relatives = [replace(r, time_spread=spread) for r in seq.relatives]
-    base = SmoothingConfig(loop_closure=False)
+    base = SmoothingConfig(loop_closure=False, covariance_model="fitted")
     fitted = smooth_batch(planes, relatives, base)
     sandwich = smooth_batch(
         planes, relatives, base.model_copy(update={"covariance_model": "sandwich"})
@@ -409,11 +410,22 @@ def test_batch_sandwich_keeps_the_poses(spread: bool) -> None:
 
 
 def test_sandwich_config() -> None:
-    """The sandwich switches the planes' deskewing Jacobians on and refuses noise models
-    that already hold the deskewing error or are rescaled."""
-    cfg = PlanodomConfig().updated({"smoothing.covariance_model": "sandwich"})
-    assert cfg.extraction.deskew_jacobian
+    """The sandwich switches the planes' deskewing Jacobians on; "auto", the default, has
+    the batch smoothing switch them on for its odometry (unless the noise models hold the
+    deskewing error or are rescaled), and leaves a run without smoothing without them;
+    "sandwich" refuses noise models that already hold the deskewing error or are rescaled."""
+    cfg = PlanodomConfig.from_dict({"smoothing": {"covariance_model": "fitted"}})
+    assert not cfg.extraction.deskew_jacobian
+    assert not smoothing_config(cfg).extraction.deskew_jacobian
+    assert cfg.updated({"smoothing.covariance_model": "sandwich"}).extraction.deskew_jacobian
     assert not PlanodomConfig().extraction.deskew_jacobian
+    assert smoothing_config(PlanodomConfig()).extraction.deskew_jacobian
+    off = PlanodomConfig.from_dict({"extraction": {"deskew_jacobian": False}})
+    assert smoothing_config(off).extraction.deskew_jacobian  # an earlier run's config.yaml
+    for field, value in (("deskew_noise", "twist_change"), ("covariance_scale", "groups")):
+        cfg = PlanodomConfig.from_dict({"smoothing": {field: value}})
+        assert cfg.smoothing.covariance_model == "auto"
+        assert not smoothing_config(cfg).extraction.deskew_jacobian
     for field, value in (("deskew_noise", "twist_change_jacobian"), ("covariance_scale", "groups")):
         with pytest.raises(ConfigError, match="covariance_model"):
             SmoothingConfig(covariance_model="sandwich", **{field: value})

@@ -294,9 +294,14 @@ def deskew_jacobian(
     w[:, 1:] = q @ evecs[:, :2]
     w *= t[:, None]
     m = w.T @ points
-    sums = np.hstack([np.cross(m, normal), w.sum(axis=0)[:, None] * normal])  # (3, 6)
-    dn = np.zeros((3, 6))
-    for k in (0, 1):
-        gap = max(float(evals[k] - evals[2]), 1e-300)
-        dn -= np.outer(evecs[:, k], sums[k + 1]) / gap
-    return np.vstack([dn, -(c @ dn) - sums[0] / len(points)])
+    sums = np.empty((3, 6))  # [m x n, (sum w) n], the cross product written out (as numpy's)
+    sums[:, 0] = m[:, 1] * normal[2] - m[:, 2] * normal[1]
+    sums[:, 1] = m[:, 2] * normal[0] - m[:, 0] * normal[2]
+    sums[:, 2] = m[:, 0] * normal[1] - m[:, 1] * normal[0]
+    sums[:, 3:] = w.sum(axis=0)[:, None] * normal
+    out = np.zeros((4, 6))
+    dn = out[:3]
+    dn -= (evecs[:, 0, None] * sums[1]) / max(float(evals[0] - evals[2]), 1e-300)
+    dn -= (evecs[:, 1, None] * sums[2]) / max(float(evals[1] - evals[2]), 1e-300)
+    out[3] = -(c @ dn) - sums[0] / len(points)
+    return out
