@@ -52,6 +52,16 @@ def vector_norm(v: np.ndarray) -> float:
     return math.sqrt(v.dot(v))
 
 
+def row_norms(x: np.ndarray) -> np.ndarray:
+    """(N,) ``np.linalg.norm(x, axis=1)`` of ``x`` (N, 3), the same bits (numpy's sum over a
+    row of three: ``(x0^2 + x1^2) + x2^2``, checked on every memory layout), without its
+    reduction over a short axis, ~9x slower on a lidar sweep's points; other shapes go
+    to numpy."""
+    if x.ndim != 2 or x.shape[1] != 3 or x.dtype.kind != "f":
+        return np.linalg.norm(x, axis=1)
+    return np.sqrt((x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1]) + x[:, 2] * x[:, 2])
+
+
 def make_transform(R: np.ndarray, t: ArrayLike) -> np.ndarray:
     """Build ``T`` (4, 4) from a rotation ``R`` (3, 3) and a translation ``t`` (3,), metres."""
     T = np.eye(4)

@@ -360,3 +360,25 @@ def test_vector_norm_has_np_linalg_norms_bits(seed: int) -> None:
     v = np.random.default_rng(seed).normal(size=2 + seed % 2) * 10.0 ** (seed - 2)
     assert g.vector_norm(v) == np.linalg.norm(v)
     assert g.vector_norm(np.array([3.0, 4.0])) == 5.0
+
+
+def test_row_norms_equal_numpy_bit_for_bit_on_every_layout() -> None:
+    rng = np.random.default_rng(3)
+    base = rng.normal(size=(20_000, 4)) * rng.exponential(size=(20_000, 1)) * 30
+    for x in (
+        np.ascontiguousarray(base[:, :3]),
+        np.asfortranarray(base[:, :3]),
+        base[:, 1:],  # a strided view
+        base[::3, :3],
+        base[:, :3].astype(np.float32),
+        np.array([[np.inf, 1.0, 2.0], [np.nan, 1.0, 1.0], [0.0, -0.0, 0.0], [1e-200, 1e-200, 0]]),
+    ):
+        want = np.linalg.norm(x, axis=1)
+        got = g.row_norms(x)
+        assert got.dtype == want.dtype and got.tobytes() == want.tobytes()
+    # The order of the sum matters: another order differs in the last bit on many rows.
+    x = np.ascontiguousarray(base[:, :3])
+    other = np.sqrt(x[:, 0] ** 2 + (x[:, 1] ** 2 + x[:, 2] ** 2))
+    assert np.any(other != np.linalg.norm(x, axis=1))
+    two = base[:, :2]  # another shape: numpy's own
+    assert g.row_norms(two).tobytes() == np.linalg.norm(two, axis=1).tobytes()

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from planodom.median import median
+from planodom.median import block_medians, median
 
 
 def _bits(x: float) -> bytes:
@@ -40,3 +40,32 @@ def test_median_signed_zeros_nan_and_other_inputs():
     v = np.array([5.0, 1.0, 3.0])
     median(v)
     assert v.tolist() == [5.0, 1.0, 3.0]  # the input is not reordered
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_block_medians_equal_numpy_per_block_bit_for_bit(seed):
+    rng = np.random.default_rng(seed)
+    sizes = rng.integers(1, 60, size=40)
+    sizes[:4] = [1, 2, 3, 4]
+    values = np.concatenate([
+        rng.normal(size=sizes[0 :: 3].sum()),
+        rng.integers(-3, 4, size=sizes[1 :: 3].sum()).astype(float),  # ties
+        np.round(rng.normal(size=sizes[2 :: 3].sum()), 1) * 0.1,
+    ])  # fmt: skip
+    bounds = np.r_[0, np.cumsum(sizes)]
+    values = values[: bounds[-1]]
+    got = block_medians(values, bounds)
+    want = [np.median(values[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    assert got.tobytes() == np.array(want).tobytes()
+
+
+def test_block_medians_signed_zeros_nan_and_empty_blocks():
+    blocks = [[-0.0, -0.0], [-0.0, 0.0], [0.0, -0.0], [-0.0], [-0.0, 1.0, -0.0], [1.0, np.nan]]
+    values = np.concatenate([np.array(b) for b in blocks])
+    bounds = np.r_[0, np.cumsum([len(b) for b in blocks])]
+    got = block_medians(values, bounds)
+    for k, b in enumerate(blocks[:-1]):
+        assert _bits(got[k]) == _bits(float(np.median(b)))
+    assert np.isnan(got[-1])
+    assert np.isnan(block_medians(np.zeros(3), np.array([0, 0, 3]))[0])  # an empty block
+    assert block_medians(np.array([3, 1, 2]), [0, 3])[0] == 2.0  # integers, list bounds

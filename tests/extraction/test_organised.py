@@ -8,7 +8,8 @@ import pytest
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract
-from planodom.extraction.lidar.organised import organised_window
+from planodom.extraction.lidar.organised import _row_azimuth_order, organised_window
+from planodom.extraction.lidar.path import _rows_spanned
 from planodom.scan import Scan
 
 from .synth_scans import plane_errors, planes_in_base, rect, scan_lidar
@@ -71,3 +72,31 @@ def test_uncapped_window_loses_the_faces():
     the wider normal tolerance lets them grow anyway)."""
     seen, planes = _faces_seen_and_found(0.006, None)
     assert len(seen & {p.truth_id for p in planes}) <= 6
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_row_azimuth_order_is_numpys_lexsort(seed):
+    """The order of the noise estimate: by row, then azimuth, ties in index order (rings
+    in firing order, shuffled, with repeated azimuths, a missing row, negative rows)."""
+    rng = np.random.default_rng(seed)
+    n, H = 4992, 16
+    az = np.tile(np.linspace(-np.pi, np.pi, n // H, endpoint=False), H)
+    az = np.roll(az, 37) + rng.normal(0, 1e-4, n) * (rng.random(n) < 0.5)  # ties kept
+    rows = np.repeat(np.arange(H), n // H)
+    rows[rows == 5] = 6  # no row 5
+    for perm in (np.arange(n), rng.permutation(n)):
+        rel = np.column_stack([np.cos(az), np.sin(az), rng.normal(size=n)])[perm] * 7.0
+        r = rows[perm].astype(np.int64)
+        want = np.lexsort((np.arctan2(rel[:, 1], rel[:, 0]), r))
+        assert np.array_equal(_row_azimuth_order(rel, r), want)
+        assert np.array_equal(_row_azimuth_order(rel, r - 3), want)  # numpy's lexsort
+
+
+def test_rows_spanned_count_distinct_rows():
+    rng = np.random.default_rng(0)
+    rows = rng.integers(0, 32, size=3000)
+    cands = [rng.choice(3000, size=k, replace=False) for k in (3, 50, 700, 2999)]
+    want = [len(np.unique(rows[c])) for c in cands]
+    assert _rows_spanned(cands, rows).tolist() == want
+    assert _rows_spanned(cands, rows - 1).tolist() == want  # negative: np.unique per set
+    assert _rows_spanned([], rows).tolist() == []

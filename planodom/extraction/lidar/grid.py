@@ -52,6 +52,20 @@ def ring_order(row, n_rows):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
+def distinct_per_block(keys, bounds, n_keys):  # pragma: no cover - compiled
+    """(B,) int64 the number of distinct ``keys`` (N,) int64, values in [0, n_keys), in
+    every block ``keys[bounds[k]:bounds[k + 1]]`` (``len(np.unique(block))``)."""
+    seen = np.full(n_keys, -1, dtype=np.int64)
+    out = np.zeros(bounds.shape[0] - 1, dtype=np.int64)
+    for k in range(out.shape[0]):
+        for i in range(bounds[k], bounds[k + 1]):
+            if seen[keys[i]] != k:
+                seen[keys[i]] = k
+                out[k] += 1
+    return out
+
+
+@numba.njit(cache=True)
 def _ring_time_steps(t, order, row):  # pragma: no cover - compiled
     """The positive time steps (s) between consecutive points of a ring, in scan order."""
     out = np.empty(max(order.shape[0] - 1, 0))

@@ -50,7 +50,12 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.lidar.candidates import ring_noise
-from planodom.extraction.lidar.grid import assign_points, near_pairs, plane_members
+from planodom.extraction.lidar.grid import (
+    assign_points,
+    near_pairs,
+    plane_members,
+    ring_order,
+)
 from planodom.extraction.lidar.normals import _pixel_normals
 from planodom.extraction.lidar.rangeimage import (
     _NEIGHBOURS,
@@ -62,6 +67,7 @@ from planodom.extraction.lidar.rangeimage import (
 )
 from planodom.extraction.lidar.rows import azimuth
 from planodom.extraction.noise import effective_noise, member_tolerance, rms_limit
+from planodom.geometry import row_norms
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,7 +105,7 @@ def grid_of(points: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, int, int]
     """Column (N,) int64 and grid size (H, W) of square angular pixels (step 2) for
     sensor-centred ``points`` (N, 3) and their ``rows`` (N,) int64."""
     H = int(rows.max()) + 1
-    r = np.linalg.norm(points, axis=1)
+    r = row_norms(points)
     el = np.arcsin(np.clip(points[:, 2] / np.maximum(r, 1e-9), -1.0, 1.0))
     counts = np.bincount(rows, minlength=H)
     filled = counts > 0
@@ -157,7 +163,7 @@ def organised_candidates(
     if np.all(rows[1:] >= rows[:-1]):  # ring-major: rows in file order, each in azimuth order
         sigma = effective_noise(config, ring_noise(rel, rows, config))
     else:  # within a row in azimuth order, whatever the file order
-        order = np.lexsort((azimuth(rel), rows))
+        order = _row_azimuth_order(rel, rows)
         sigma = effective_noise(config, ring_noise(rel[order], rows[order], config))
     col, H, W = grid_of(rel, rows)
     P, cnt_pix = _mean_grid(rel, rows * W + col, H * W)
@@ -194,6 +200,25 @@ def organised_candidates(
     idx, bounds = plane_members(owner, C)
     sets = [idx[bounds[k] : bounds[k + 1]] for k in range(C)]
     return OrganisedCandidates([s for s in sets if len(s) >= 3], sigma, (H, W))
+
+
+def _row_azimuth_order(rel: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(N,) int64 ``np.lexsort((azimuth(rel), rows))`` of ``rel`` (N, 3) and ``rows`` (N,)
+    int64, the same permutation: for rows from 0 and finite azimuths, a stable counting
+    sort by row (:func:`.grid.ring_order`), then a stable sort of each row's azimuths
+    (numpy's timsort: a ring in firing order is two sorted runs; lexsort sorts all the
+    azimuths at once, 9x slower on the 6 * 10^4 points of an HDL-32E sweep)."""
+    az = azimuth(rel)
+    if rows.min() < 0 or np.isnan(az).any():
+        return np.lexsort((az, rows))
+    H = int(rows.max()) + 1
+    by_row = ring_order(rows, H)
+    bounds = np.r_[0, np.cumsum(np.bincount(rows, minlength=H))]
+    order = np.empty_like(by_row)
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        idx = by_row[a:b]
+        order[a:b] = idx[np.argsort(az[idx], kind="stable")]
+    return order
 
 
 def organised_window(config: ExtractionConfig, W: int) -> int:

@@ -45,7 +45,7 @@ from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.lidar.agreement import cutting_planes, point_normals
 from planodom.extraction.lidar.candidates import lidar_candidates
 from planodom.extraction.lidar.decimate import kept_points, subset_scan
-from planodom.extraction.lidar.grid import grid_indices
+from planodom.extraction.lidar.grid import distinct_per_block, grid_indices
 from planodom.extraction.lidar.organised import organised_candidates
 from planodom.extraction.lidar.rows import ring_scan_rows, scan_rows
 from planodom.extraction.lidar.sweep import AzimuthTimedScan
@@ -216,8 +216,23 @@ def member_fits(candidates: list[np.ndarray], points: np.ndarray, rows: np.ndarr
     """Plain TLS fits of the candidate inlier sets (indices into ``points`` (N, 3), m,
     three or more each) and the number of distinct ``rows`` (N,) each spans."""
     fits = [tls_fit(points[c]) for c in candidates]
-    n_rows = np.array([len(np.unique(rows[c])) for c in candidates], dtype=np.int64)
-    return _pack(candidates, fits, n_rows)
+    return _pack(candidates, fits, _rows_spanned(candidates, rows))
+
+
+def _rows_spanned(candidates: list[np.ndarray], rows: np.ndarray) -> np.ndarray:
+    """(C,) int64 the number of distinct ``rows`` (N,) of each candidate (indices): one
+    compiled pass (:func:`.grid.distinct_per_block`) for integer rows from 0, else
+    ``np.unique`` per candidate."""
+    r = np.asarray(rows)
+    small = (
+        r.dtype.kind in "iu" and len(r) > 0 and 0 <= r.min() and r.max() < max(2**16, 4 * len(r))
+    )
+    if not candidates or not small:
+        return np.array([len(np.unique(r[c])) for c in candidates], dtype=np.int64)
+    bounds = np.zeros(len(candidates) + 1, dtype=np.int64)
+    np.cumsum([len(c) for c in candidates], out=bounds[1:])
+    keys = r.astype(np.int64)[np.concatenate(candidates)]
+    return distinct_per_block(keys, bounds, int(r.max()) + 1)
 
 
 def _pack(

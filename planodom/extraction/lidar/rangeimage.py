@@ -80,6 +80,7 @@ from planodom.extraction.lidar.grid import (
 )
 from planodom.extraction.lidar.normals import pixel_normals, row_chords, unit_rays
 from planodom.extraction.noise import member_tolerance, rms_limit
+from planodom.geometry import row_norms
 
 #: Step 4's pixel order, (row, column) offsets: own pixel, the 4, the diagonal neighbours.
 _NEIGHBOURS = np.array(
@@ -268,7 +269,7 @@ def within_reach(
     radius = np.sqrt(3.0 * (vals[:, 2] + vals[:, 1]) / np.maximum(cnt, 1.0))
     ia, ib = np.triu_indices(len(cnt), 1)
     reach = radius[ia] + radius[ib] + gap_m
-    near = np.linalg.norm(cen[ia] - cen[ib], axis=1) <= reach
+    near = row_norms(cen[ia] - cen[ib]) <= reach
     return np.r_[a, ia[near]], np.r_[b, ib[near]]
 
 

@@ -31,7 +31,8 @@ from __future__ import annotations
 import numpy as np
 
 from planodom.extraction.lidar.grid import ring_layout
-from planodom.median import median
+from planodom.geometry import row_norms
+from planodom.median import block_medians, median
 
 #: Runs shorter than this fraction of the median run join their neighbour (ring-major).
 MIN_RUN_FRACTION = 0.05
@@ -118,11 +119,11 @@ def ring_scan_rows(
     if not MIN_ROWS <= H <= MAX_ROWS:
         return None
     rel = points if origin is None else points - np.asarray(origin, dtype=np.float64)
-    r = np.linalg.norm(rel, axis=1)
+    r = row_norms(rel)
     el = np.arcsin(np.clip(rel[:, 2] / np.maximum(r, 1e-9), -1.0, 1.0))
     bounds = np.r_[0, np.cumsum(np.bincount(row, minlength=H))]
-    mid = _block_medians(el[order], bounds)
-    spread = 1.4826 * _block_medians(np.abs(el - mid[row])[order], bounds)
+    mid = block_medians(el[order], bounds)
+    spread = 1.4826 * block_medians(np.abs(el - mid[row])[order], bounds)
     by_elevation = np.argsort(mid, kind="stable")
     steps = np.diff(mid[by_elevation])
     step = median(steps) if len(steps) else 0.0
@@ -131,11 +132,6 @@ def ring_scan_rows(
     rank = np.empty(H, dtype=np.int64)
     rank[by_elevation] = np.arange(H)
     return rank[row]
-
-
-def _block_medians(values: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """(B,) the median of each block ``values[bounds[k]:bounds[k + 1]]`` (none empty)."""
-    return np.array([np.median(values[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
 
 
 def scan_rows(
