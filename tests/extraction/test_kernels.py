@@ -41,7 +41,8 @@ def test_group_refits_are_the_moments_of_their_inliers():
     inliers within k_sigma robust scales of that plane."""
     from planodom.config import ExtractionConfig
     from planodom.extraction.rig2d.groupfit import fit_groups
-    from planodom.extraction.rig2d.grouping import GroupingParams, group_segments
+    from planodom.extraction.rig2d.grouping import GroupingParams
+    from planodom.extraction.rig2d.groups import group_segments
     from planodom.extraction.rig2d.segments import split_scan_lines
 
     from .synth_scans import default_scene, scan_rig

@@ -108,3 +108,49 @@ def test_gather_rows_is_numpys_row_indexing():
     for order in (rng.permutation(500), rng.integers(0, 500, size=77), np.zeros(0, np.int64)):
         got = gather_rows(pts, order.astype(np.int64))
         assert got.shape == (len(order), 3) and got.tobytes() == pts[order].tobytes()
+
+
+def _split_step_by_step(points, ring, t, cfg):
+    """The scan lines' segments and sigma by the Python-level sequence of kernels that
+    :func:`.segments._split` runs as one compiled call."""
+    from planodom.extraction.noise import noise_sigma
+    from planodom.extraction.rig2d.scanlines import (
+        estimate_line_noise_2d,
+        ring_plane_coordinates,
+        run_breaks,
+        split_runs,
+    )
+    from planodom.extraction.rig2d.segments import gather_rows, ring_order
+
+    order, rg, tt, timing = ring_order(ring, t)
+    pts = gather_rows(points, order)
+    run_start, sweep_start = run_breaks(
+        pts, rg, tt, cfg.sweep_gap_factor, cfg.min_gap_m, cfg.gap_range_ratio, timing
+    )
+    x, y = ring_plane_coordinates(pts, rg)
+    estimate = estimate_line_noise_2d(x, y, run_start) if cfg.estimate_noise else 0.0
+    sigma = noise_sigma(cfg.estimate_noise, cfg.range_noise_m, estimate)
+    split_tol = max(cfg.split_sigma_factor * sigma, cfg.tolerance_floor_m)
+    starts = np.flatnonzero(run_start)
+    s, e = split_runs(x, y, starts, np.append(starts[1:], len(pts)), split_tol)
+    sweep = np.cumsum(sweep_start) - 1
+    segs = segment_features(pts, order, rg, sweep, s, e, 2, cfg.min_segment_length_m, split_tol)
+    return segs, sigma
+
+
+@pytest.mark.parametrize("times", ["timed", "untimed", "equal"])
+@pytest.mark.parametrize("estimate", [True, False])
+def test_split_in_one_kernel_is_the_kernels_in_sequence(times, estimate):
+    """:func:`.segments.split_scan_lines` (one compiled call) gives the same segments,
+    bit for bit, as its kernels called one by one from Python; with times, without (the
+    scan angle's reversals cut the sweeps) and with all times equal."""
+    scan = scan_rig(default_scene(), twist=XI, sigma=0.006, seed=3)
+    pts = deskew_points(scan.points, scan.t, XI)
+    t = {"timed": scan.t, "untimed": None, "equal": np.zeros(len(scan.t))}[times]
+    cfg = ExtractionConfig(range_noise_m=0.004, estimate_noise=estimate)
+    segs, sigma = split_scan_lines(pts, scan.ring, t, cfg)
+    ref, ref_sigma = _split_step_by_step(pts, scan.ring, t, cfg)
+    assert sigma == ref_sigma and len(segs) == len(ref) > 20
+    for name, a in vars(ref).items():
+        b = getattr(segs, name)
+        assert b.dtype == a.dtype and b.shape == a.shape and b.tobytes() == a.tobytes(), name

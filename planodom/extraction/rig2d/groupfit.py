@@ -1,6 +1,6 @@
 """Robust TLS refit of the 2D-rig groups of segments on their points, all groups at once.
 
-For each group (the segments :func:`.grouping.group_segments` put in
+For each group (the segments :func:`.groups.group_segments` put in
 one plane):
 
 1. a first plane from the interior points of the segments: a segment's end points are left

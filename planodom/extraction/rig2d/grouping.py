@@ -43,9 +43,7 @@ import numpy as np
 
 from planodom.extraction.rig2d.connect import connected_piece, tight_seed
 from planodom.extraction.rig2d.seedconflicts import dominance, release
-from planodom.extraction.rig2d.segments import Segments
 from planodom.extraction.rig2d.sweeplines import distinct_lines, sweep_seed_pairs
-from planodom.extraction.rig2d.traces import build_traces
 
 #: An L-shaped seed pair has its crossing within this (m), or 5 % of each trace's
 #: length, of an end of both.
@@ -96,39 +94,6 @@ class GroupingParams(NamedTuple):
     parallel_rad: float = 0.0
     seed_spans_gap: bool = False
     exclusive_seeds: bool = False
-
-
-def group_segments(
-    segs: Segments,
-    params: GroupingParams,
-    parallel_deg: float,
-    step_m: float,
-    seg_times: tuple[np.ndarray, np.ndarray] | None = None,
-) -> tuple[list[np.ndarray], int]:
-    """Segments grouped into planes (module docstring).
-
-    Args:
-        segs: the epoch's segments.
-        params: seeding and growth thresholds.
-        parallel_deg, step_m: trace merging (``trace_parallel_deg``, ``trace_step_m``,
-            :func:`.traces.build_traces`).
-        seg_times: first and last time (s) of each segment, (S,) each, in time windows.
-
-    Returns:
-        A list of (K,) int64 arrays of segment indices, one per plane, and the number of
-        seeds rejected after refitting.
-    """
-    if len(segs) < 2:
-        return [], 0
-    tr = build_traces(
-        segs, params.tol_m, params.sigma_m, parallel_deg, step_m, seg_times, params.max_span_s
-    )
-    seg_group, n_groups, rejected = _grow_kernel(tr, params)
-    group_of_seg = seg_group[tr.label]
-    order = np.argsort(group_of_seg, kind="stable")
-    bounds = np.searchsorted(group_of_seg[order], np.arange(n_groups + 1))
-    groups = [order[bounds[g] : bounds[g + 1]] for g in range(n_groups)]
-    return groups, int(rejected)
 
 
 class _Seeds(NamedTuple):

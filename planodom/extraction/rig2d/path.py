@@ -26,7 +26,8 @@ from planodom.extraction.noise import member_tolerance, rms_limit
 from planodom.extraction.planes.builder import PlaneFits, build_planes
 from planodom.extraction.rig2d import windows
 from planodom.extraction.rig2d.groupfit import fit_groups
-from planodom.extraction.rig2d.grouping import GroupingParams, group_segments
+from planodom.extraction.rig2d.grouping import GroupingParams
+from planodom.extraction.rig2d.groups import group_segments
 from planodom.extraction.rig2d.segments import Segments, split_scan_lines
 
 

@@ -19,12 +19,12 @@ import numpy as np
 from planodom.config import ExtractionConfig
 from planodom.extraction.kernels import range_moments
 from planodom.extraction.memo import identity_memo, read_only
-from planodom.extraction.noise import noise_sigma
 from planodom.extraction.rig2d.scanlines import (
+    _angle_reversals,
+    _breaks_kernel,
     beam_timing,
     estimate_line_noise_2d,
     ring_plane_coordinates,
-    run_breaks,
     split_runs,
 )
 
@@ -146,30 +146,80 @@ def _split(
         fields
     )
     order, rg, tt, timing = ring_order(ring, t)
-    pts = gather_rows(np.asarray(points, dtype=np.float64), order)
-    run_start, sweep_start = run_breaks(pts, rg, tt, sweep_gap, min_gap, gap_ratio, timing)
-    x, y = ring_plane_coordinates(pts, rg)
-    estimate = estimate_line_noise_2d(x, y, run_start) if estimate_noise else 0.0
-    sigma = noise_sigma(estimate_noise, range_noise, estimate)
-    split_tol = max(split_factor * sigma, floor)
-    starts = np.flatnonzero(run_start)
-    ends = np.append(starts[1:], len(pts))
-    s, e = split_runs(x, y, starts, ends, split_tol)
-    sweep = np.cumsum(sweep_start) - 1
-    segs = segment_features(
-        pts,
-        order,
-        rg,
-        sweep,
-        s,
-        e,
-        2,
-        min_len,
-        split_tol,
-    )
+    has_t = tt is not None
+    tt = np.ascontiguousarray(tt, dtype=np.float64) if has_t else np.zeros(len(order))
+    (pts, s, e, seg_ring, sweep, cen, sc, direction, length, rms, end0, end1, sigma) = (
+        _split_kernel(
+            np.asarray(points, dtype=np.float64), order, rg, tt, has_t, timing[0], timing[1],
+            float(sweep_gap), float(min_gap), float(gap_ratio), bool(estimate_noise),
+            float(range_noise), float(split_factor), float(floor), float(min_len), MAX_END_TRIM,
+        )
+    )  # fmt: skip
+    segs = Segments(
+        points=pts, order=order, starts=s, ends=e, ring=seg_ring, sweep=sweep, count=e - s,
+        centroid=cen, scatter=sc, direction=direction, length=length, rms=rms, end0=end0,
+        end1=end1,
+    )  # fmt: skip
     for a in vars(segs).values():
         read_only(a)
-    return segs, sigma
+    return segs, float(sigma)
+
+
+@numba.njit(cache=True)
+def _split_kernel(
+    points, order, rg, tt, has_t, med, any_forward, sweep_gap, min_gap, gap_ratio,
+    estimate_noise, range_noise, split_factor, floor, min_len, max_trim,
+):  # fmt: skip  # pragma: no cover - compiled
+    """:func:`_split` in one compiled call: the points in ring order (``order`` (N,),
+    rings ``rg`` (N,) int64, times ``tt`` (N,) s, zeros without ``has_t``), the runs
+    (:func:`.scanlines.run_breaks` with the timing ``med``, ``any_forward`` of
+    :func:`.scanlines.beam_timing`), the 2D coordinates, the noise sigma
+    (:func:`planodom.extraction.noise.noise_sigma`), the split and
+    :func:`segment_features` (at least 2 points, RMS within the split tolerance): the
+    same kernels in the same order as their Python-level sequence, without the calls
+    between them. Returns the ring-ordered points (N, 3), the kept segments' starts,
+    ends, rings, sweeps, centroids, scatters, directions, lengths, RMS, end points and the
+    sigma (m)."""
+    pts = gather_rows(points, order)
+    m = pts.shape[0]
+    run_start, sweep_start = _breaks_kernel(pts, rg, tt, has_t, med, sweep_gap, min_gap, gap_ratio)
+    if m > 1 and not any_forward:
+        rev = _angle_reversals(pts, rg)
+        for i in range(m - 1):
+            if rev[i]:
+                sweep_start[i + 1] = True
+                run_start[i + 1] = True
+    x, y = ring_plane_coordinates(pts, rg)
+    estimate = estimate_line_noise_2d(x, y, run_start) if estimate_noise else 0.0
+    sigma = max(range_noise, estimate) if estimate_noise else range_noise
+    split_tol = max(split_factor * sigma, floor)
+    starts = np.flatnonzero(run_start)
+    ends = np.empty(starts.shape[0], dtype=np.int64)
+    ends[:-1] = starts[1:]
+    if m > 0:
+        ends[-1] = m
+    s0, e0 = split_runs(x, y, starts, ends, split_tol)
+    s, e, cen, sc, dirs, length, rms, t0, t1 = _features_kernel(
+        pts, s0, e0, 2, min_len, split_tol, max_trim
+    )
+    n = s.shape[0]
+    seg_ring = np.empty(n, dtype=np.int64)
+    sweep = np.empty(n, dtype=np.int64)
+    end0 = np.empty((n, 3))
+    end1 = np.empty((n, 3))
+    k = 0
+    cum = -1  # np.cumsum(sweep_start) - 1 at the segments' starts (in order)
+    for i in range(m):
+        cum += sweep_start[i]
+        while k < n and s[k] == i:
+            seg_ring[k] = rg[i]
+            sweep[k] = cum
+            k += 1
+    for k in range(n):
+        for u in range(3):
+            end0[k, u] = cen[k, u] + t0[k] * dirs[k, u]
+            end1[k, u] = cen[k, u] + t1[k] * dirs[k, u]
+    return pts, s, e, seg_ring, sweep, cen, sc, dirs, length, rms, end0, end1, sigma
 
 
 @numba.njit(cache=True)
