@@ -13,7 +13,7 @@ def _graph(rows: list[tuple[dict[int, np.ndarray], np.ndarray]]) -> gtsam.Gaussi
         (k1, A1), *rest = blocks.items()
         unit = gtsam.noiseModel.Unit.Create(len(b))
         if rest:
-            (k2, A2), = rest
+            ((k2, A2),) = rest
             graph.add(k1, A1, k2, A2, b, unit)
         else:
             graph.add(k1, A1, b, unit)
