@@ -67,3 +67,39 @@ def test_a_well_posed_system_is_the_multifrontal_cholesky_solution():
         b[3 * i : 3 * i + 3] = rhs
     expected = np.linalg.lstsq(A, b, rcond=None)[0]
     np.testing.assert_allclose(np.concatenate([x.at(k) for k in range(4)]), expected, atol=1e-10)
+
+
+class _RefusingTree:
+    """A Bayes tree whose Cholesky shortcuts gtsam refuses (its marginalCovariance raises)."""
+
+    def __init__(self, tree: gtsam.GaussianBayesTree) -> None:
+        self.tree = tree
+
+    def marginalCovariance(self, key: int) -> np.ndarray:  # noqa: N802 (gtsam's name)
+        raise RuntimeError("Indeterminant linear system detected")
+
+    def marginalFactor(self, key: int, function: object) -> gtsam.GaussianConditional:  # noqa: N802
+        return self.tree.marginalFactor(key, function)
+
+
+def test_a_marginal_whose_cholesky_shortcut_is_refused_comes_from_qr():
+    from planodom.smoothing.marginals import _qr_marginal
+
+    rng = np.random.default_rng(5)
+    rows = [({k: rng.normal(size=(3, 3))}, rng.normal(size=3)) for k in range(4)]
+    rows += [
+        ({k: rng.normal(size=(3, 3)), k + 1: 10.0**k * rng.normal(size=(3, 3))}, np.zeros(3))
+        for k in range(3)
+    ]
+    graph = _graph(rows)
+    A = np.zeros((21, 12))
+    for i, (blocks, _) in enumerate(rows):
+        for k, block in blocks.items():
+            A[3 * i : 3 * i + 3, 3 * k : 3 * k + 3] = block
+    covariance = np.linalg.inv(A.T @ A)  # the exact joint covariance
+    tree = graph.eliminateMultifrontal(_ordering([0, 1, 2, 3]), gtsam.EliminateQR)
+    for k in range(4):
+        expected = covariance[3 * k : 3 * k + 3, 3 * k : 3 * k + 3]
+        got = _qr_marginal(_RefusingTree(tree), k)  # type: ignore[arg-type]
+        np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+        np.testing.assert_allclose(_qr_marginal(tree, k), expected, rtol=1e-9)
