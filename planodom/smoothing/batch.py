@@ -15,6 +15,7 @@ from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch_covariances import batch_covariances
 from planodom.smoothing.graph import GraphBuilder, GraphStats
 from planodom.smoothing.inputs import check_epochs
+from planodom.smoothing.linear_solve import solve as solve_linear
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
 from planodom.smoothing.loop_gate import (
     consistent_hypotheses,
@@ -122,11 +123,8 @@ def group_by_epoch(
 
 
 def _solve(linear: gtsam.GaussianFactorGraph, ordering: gtsam.Ordering) -> gtsam.VectorValues:
-    """Solve a linear graph by Cholesky, falling back to QR when it is too ill-conditioned."""
-    try:
-        return linear.optimize(ordering)
-    except RuntimeError:
-        return linear.optimize(ordering, gtsam.EliminateQR)
+    """A linear step: :func:`.linear_solve.solve` (Cholesky, sequential Cholesky, QR)."""
+    return solve_linear(linear, ordering)
 
 
 def _damping(dims: Sequence[tuple[int, int]], lam: float) -> gtsam.GaussianFactorGraph:
@@ -158,10 +156,10 @@ def levenberg_marquardt(
     called from Python. Here ``graph.linearize`` and ``graph.error`` are called on the
     Python-owned values, which pybind11 passes by reference.
 
-    Linear steps by Cholesky, and by QR when gtsam finds the system indeterminant: a long
-    stretch bridged by weak fallback factors next to stiff plane factors gives Hessian
-    condition numbers of 1e16 and more (measured on the paper loop), which Cholesky
-    (squaring the Jacobian's condition number) cannot factor; QR is 10x slower.
+    Linear steps by Cholesky, sequential where gtsam's multifrontal check refuses a clique,
+    and by QR when that fails too (:mod:`.linear_solve`: a long stretch bridged by weak
+    fallback factors next to stiff plane factors gave Hessian condition numbers of 1e16 and
+    more on the paper loop; QR is 7-10x slower).
 
     The 5-DoF, rotation and vertical factors' residuals and Jacobians come from one compiled
     pass per evaluation (:class:`planodom_factors.batched.BatchedResiduals`: the same numbers,

@@ -369,7 +369,7 @@ def pose_covariances(
         pass
     try:
         tree = linear.eliminateMultifrontal(ordering, gtsam.EliminateQR)
-        return np.stack([tree.marginalCovariance(X(k)) for k in range(n_epochs)]), None
+        return np.stack([_qr_marginal(tree, X(k)) for k in range(n_epochs)]), None
     except RuntimeError:
         pass
     keys = [X(k) for k in range(n_epochs)] + frames
@@ -381,6 +381,18 @@ def pose_covariances(
         )
     marginals = determined_pose_marginals(linear, keys, dims)
     return marginals.covariances[:n_epochs], undetermined_note(marginals, n_epochs)
+
+
+def _qr_marginal(tree: gtsam.GaussianBayesTree, key: int) -> np.ndarray:
+    """(d, d) marginal covariance of ``key`` from a QR Bayes tree: gtsam's, whose shortcuts
+    eliminate by Cholesky; where that refuses a clique (gtsam's check of each pivot against
+    its variable's assembled diagonal, :mod:`.linear_solve`), the shortcuts by QR too."""
+    try:
+        return tree.marginalCovariance(key)
+    except RuntimeError:
+        R, _ = tree.marginalFactor(key, gtsam.EliminateQR).jacobian()  # whitened, d x d
+        R_inv = np.linalg.inv(R)
+        return R_inv @ R_inv.T
 
 
 def undetermined_note(marginals: DeterminedMarginals, n_epochs: int) -> str | None:
