@@ -17,7 +17,11 @@ from scipy.sparse.csgraph import connected_components
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract
-from planodom.extraction.lidar.candidates import lidar_candidates, ring_noise
+from planodom.extraction.lidar.candidates import (
+    lidar_candidates,
+    ring_noise,
+    ring_noise_in_order,
+)
 from planodom.extraction.lidar.grid import (
     fill_grid,
     grid_indices,
@@ -324,6 +328,27 @@ def test_ring_noise_matches_estimate_line_noise():
         run_start[1:] = (rg[1:] != rg[:-1]) | (step > gap)
         expected = estimate_line_noise(p, run_start)
         assert ring_noise(pts, ring, cfg) == pytest.approx(expected, rel=1e-12, abs=1e-15)
+
+
+def test_ring_noise_in_order_matches_the_sorted_copies():
+    """The noise of points visited in a given per-ring order (here each ring's azimuth
+    order, of shuffled points) against estimate_line_noise on the sorted copies, and bit
+    for bit against ring_noise of those copies (the organised path's former call)."""
+    cfg = ExtractionConfig()
+    for seed, sigma in enumerate((0.0, 0.006, 0.05)):
+        scan = scan_lidar(SCENE, sigma=sigma, n_azimuth=512, seed=seed)
+        perm = np.random.default_rng(seed).permutation(len(scan))
+        pts, ring = scan.points[perm], 3 * scan.ring[perm] + 1000
+        order = np.lexsort((np.arctan2(pts[:, 1], pts[:, 0]), ring))
+        p, rg = pts[order], ring[order]
+        run_start = np.ones(len(p), dtype=bool)
+        step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        gap = np.maximum(cfg.min_gap_m, cfg.gap_range_ratio * np.linalg.norm(p[1:], axis=1))
+        run_start[1:] = (rg[1:] != rg[:-1]) | (step > gap)
+        got = ring_noise_in_order(pts, order, ring, cfg)
+        assert got == pytest.approx(estimate_line_noise(p, run_start), rel=1e-12, abs=1e-15)
+        assert np.float64(got).tobytes() == np.float64(ring_noise(p, rg, cfg)).tobytes()
+    assert ring_noise_in_order(pts[:14], order[:14] % 14, ring[:14], cfg) == 0.0
 
 
 # The RANSAC fallback (no rings): reproducible across processes, and its kernel against a

@@ -63,10 +63,22 @@ def ring_noise(points: np.ndarray, ring: np.ndarray | None, config: ExtractionCo
     if ring is None or not config.estimate_noise or len(points) < 15:
         return 0.0
     row, _, order = ring_layout(ring)  # memoised: the scan's ring alone
+    return ring_noise_in_order(points, order, row, config)
+
+
+def ring_noise_in_order(
+    points: np.ndarray, order: np.ndarray, row: np.ndarray, config: ExtractionConfig
+) -> float:
+    """:func:`ring_noise` of the points (N, 3) visited in ``order`` (N,) int64, the
+    rings' scan order, with ``row`` (N,) int64 the ring of each point (only its equality
+    between points counts): ``ring_noise(points[order], row[order], config)`` bit for bit
+    (the same terms in the same order), without the sorted copies."""
+    if not config.estimate_noise or len(points) < 15:
+        return 0.0
     across = _ring_noise_terms(
         np.ascontiguousarray(points, dtype=np.float64),
-        order,
-        row,
+        np.ascontiguousarray(order, dtype=np.int64),
+        np.ascontiguousarray(row, dtype=np.int64),
         float(config.min_gap_m),
         float(config.gap_range_ratio),
     )

@@ -49,7 +49,7 @@ import numba
 import numpy as np
 
 from planodom.config import ExtractionConfig
-from planodom.extraction.lidar.candidates import ring_noise
+from planodom.extraction.lidar.candidates import ring_noise, ring_noise_in_order
 from planodom.extraction.lidar.grid import (
     assign_points,
     near_pairs,
@@ -164,7 +164,7 @@ def organised_candidates(
         sigma = effective_noise(config, ring_noise(rel, rows, config))
     else:  # within a row in azimuth order, whatever the file order
         order = _row_azimuth_order(rel, rows)
-        sigma = effective_noise(config, ring_noise(rel[order], rows[order], config))
+        sigma = effective_noise(config, ring_noise_in_order(rel, order, rows, config))
     col, H, W = grid_of(rel, rows)
     P, cnt_pix = _mean_grid(rel, rows * W + col, H * W)
     m = float(np.median(cnt_pix[cnt_pix > 0]))

@@ -121,9 +121,11 @@ def ring_scan_rows(
     rel = points if origin is None else points - np.asarray(origin, dtype=np.float64)
     r = row_norms(rel)
     el = np.arcsin(np.clip(rel[:, 2] / np.maximum(r, 1e-9), -1.0, 1.0))
-    bounds = np.r_[0, np.cumsum(np.bincount(row, minlength=H))]
-    mid = block_medians(el[order], bounds)
-    spread = 1.4826 * block_medians(np.abs(el - mid[row])[order], bounds)
+    counts = np.bincount(row, minlength=H)
+    bounds = np.r_[0, np.cumsum(counts)]
+    by_ring = el[order]  # row[order] is np.repeat(np.arange(H), counts): a counting sort
+    mid = block_medians(by_ring, bounds)
+    spread = 1.4826 * block_medians(np.abs(by_ring - np.repeat(mid, counts)), bounds)
     by_elevation = np.argsort(mid, kind="stable")
     steps = np.diff(mid[by_elevation])
     step = median(steps) if len(steps) else 0.0
