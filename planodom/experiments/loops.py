@@ -24,8 +24,8 @@ of one facade are one plane), the map matches the verification refused
 truth (a component off by more than 3 of its sigmas) and the largest horizontal error of a
 kept one, the mean NEES of the 5 observed DoF (chi2(5): 95 % interval
 [0.83, 12.8]) and the model of its covariances (``covariance_model``: "sandwich" or
-"fitted", ``smoothing.covariance_model`` "auto" resolved), the variance factors with ``smoothing.covariance_scale``
-(:mod:`planodom.smoothing.variance_components`), and seconds.
+"fitted", ``smoothing.covariance_model`` "auto" resolved), the variance factors with
+``smoothing.covariance_scale`` (:mod:`planodom.smoothing.variance_components`), and seconds.
 ``summary`` gives per noise and method the median and worst over the worlds, and the
 loop-candidate factors kept and wrong over all of them, and the median epochs per second
 (``windowed+loops`` also counts its ties and wrong ones, and the landmarks that re-entered
