@@ -23,8 +23,9 @@ of one facade are one plane), the map matches the verification refused
 (:mod:`planodom.smoothing.loop_candidates`) kept and removed, the kept ones wrong by the
 truth (a component off by more than 3 of its sigmas) and the largest horizontal error of a
 kept one, the mean NEES of the 5 observed DoF (chi2(5): 95 % interval
-[0.83, 12.8]), the variance factors with ``smoothing.covariance_scale``
-(:mod:`planodom.smoothing.variance_components`), and seconds.
+[0.83, 12.8]) and the model of its covariances (``covariance_model``: "sandwich" or
+"fitted", ``smoothing.covariance_model`` "auto" resolved), the variance factors with
+``smoothing.covariance_scale`` (:mod:`planodom.smoothing.variance_components`), and seconds.
 ``summary`` gives per noise and method the median and worst over the worlds, and the
 loop-candidate factors kept and wrong over all of them, and the median epochs per second
 (``windowed+loops`` also counts its ties and wrong ones, and the landmarks that re-entered
@@ -126,6 +127,7 @@ def compare_methods(
             if res.covariances is not None:
                 nees = pose_nees(res.poses[1:], res.covariances[1:], gt[1:], range(5))
                 row["mean_nees5"] = float(np.nanmean(nees))
+                row["covariance_model"] = res.covariance_model
             if res.variance_components is not None:  # smoothing.covariance_scale
                 scales = res.variance_components.scales.items()
                 row["variance_factors"] = " ".join(f"{k}={v:.3g}" for k, v in scales)
@@ -207,7 +209,7 @@ def run_loop_experiment(
     config: PlanodomConfig | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> ExperimentResult[Row]:
-    """Run the comparison (``quick``: worlds 0 and 2, 6 mm, 300 epochs, from the CLI)."""
+    """Run the comparison (``quick``: world 0, 6 mm, 120 epochs, from the CLI)."""
     cfg = config or PlanodomConfig()
     say = progress or (lambda msg: None)
     rows: list[Row] = []
