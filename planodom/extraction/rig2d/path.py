@@ -237,7 +237,7 @@ def lost_cross(
 def _group_fits(
     segs: Segments, groups: list[np.ndarray], epoch: Epoch, config: ExtractionConfig
 ) -> PlaneFits:
-    """The robust refits of the groups (:func:`.groupfit.fit_groups`) as builder input;
+    """The robust refits of the groups as builder input (:func:`.groupfit.plane_fits`);
     the incidence is computed in the refit when the viewpoint is the same for all (no
     sensor origins)."""
     view0 = np.array([0.0, 0.0, config.viewpoint_height_m])
