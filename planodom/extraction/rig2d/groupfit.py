@@ -38,6 +38,7 @@ import numba
 import numpy as np
 
 from planodom.extraction.kernels import add_outer, centred_scatter
+from planodom.extraction.planes.builder import PlaneFits
 from planodom.extraction.rig2d.segments import Segments
 
 #: Refits of a group after the first (module docstring, step 4).
@@ -70,16 +71,13 @@ class GroupFits:
     is_end: np.ndarray
 
 
-class _SegmentMoments(NamedTuple):
+class _SegmentPoints(NamedTuple):
     """The segments as the compiled refit reads them: points (M, 3) m, starts, ends (S,)
-    int64, count (S,) float64, centroid (S, 3) m, scatter (S, 3, 3) m^2."""
+    int64 (segment s holds ``points[starts[s]:ends[s]]``)."""
 
     points: np.ndarray
     starts: np.ndarray
     ends: np.ndarray
-    count: np.ndarray  # type: ignore[assignment]  # shadows tuple.count; numba reads it by name
-    centroid: np.ndarray
-    scatter: np.ndarray
 
 
 def fit_groups(
@@ -100,12 +98,41 @@ def fit_groups(
     gb = np.zeros(len(groups) + 1, dtype=np.int64)
     np.cumsum(sizes, out=gb[1:])
     view = np.zeros(3) if viewpoint is None else np.asarray(viewpoint, dtype=np.float64)
-    seg = _SegmentMoments(
-        segs.points, segs.starts, segs.ends, segs.count.astype(np.float64), segs.centroid,
-        segs.scatter,
-    )  # fmt: skip
+    seg = _SegmentPoints(segs.points, segs.starts, segs.ends)
     out = _fit_groups_kernel(seg, gseg, gb, float(k_sigma), view, viewpoint is not None)
     return GroupFits(*out)
+
+
+def plane_fits(
+    segs: Segments,
+    groups: list[np.ndarray],
+    k_sigma: float,
+    viewpoint: np.ndarray | None,
+) -> PlaneFits:
+    """:func:`fit_groups` as the plane builder's input, in one compiled call.
+
+    The same bits as :func:`fit_groups` followed by: the eigenvalues descending and the
+    eigenvector columns e1, e2, n (reversed views of the refit's ascending arrays), the
+    offsets ``-n . centroid`` (summed in :func:`numpy.einsum`'s order), the inliers as
+    scan indices (``segs.order``), and the incidence only with a viewpoint (else None).
+
+    Args:
+        segs: the epoch's segments. groups: per group, (S_g,) segment indices.
+        k_sigma: inlier threshold in robust scales (``inlier_sigma_factor``).
+        viewpoint: (3,) metres, origin of the rays for the incidence; None: incidence
+            not computed.
+    """
+    sizes = np.fromiter(map(len, groups), np.int64, len(groups))
+    gseg = np.concatenate(groups).astype(np.int64, copy=False) if groups else sizes
+    view = np.zeros(3) if viewpoint is None else np.asarray(viewpoint, dtype=np.float64)
+    cnt, cen, off, vals, vecs, inc, inl, bnd, is_end = _plane_fits_kernel(
+        segs.points, segs.starts, segs.ends, segs.order, gseg, sizes, float(k_sigma), view,
+        viewpoint is not None,
+    )  # fmt: skip
+    return PlaneFits(
+        count=cnt, centroid=cen, offset=off, evals=vals[:, ::-1], evecs=vecs[:, :, ::-1],
+        inliers=inl, bounds=bnd, outline=is_end, incidence=None if viewpoint is None else inc,
+    )  # fmt: skip
 
 
 @numba.njit(cache=True)
@@ -269,3 +296,30 @@ def _fit_groups_kernel(seg, gseg, gb, k_sigma, view, use_view):  # pragma: no co
         cnt_out, cen_out, vals_out, vecs_out, inc_out, inl[:K].copy(), bounds,
         is_end[:K].copy(),
     )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _plane_fits_kernel(
+    points, starts, ends, order, gseg, sizes, k_sigma, view, use_view
+):  # pragma: no cover - compiled
+    """:func:`_fit_groups_kernel` on the groups of ``sizes`` (G,) segments each, listed
+    in ``gseg``: count, centroid, offset (G,) of the normal (the first eigenvector)
+    through the centroid, eigenvalues and eigenvectors (ascending), incidence, inliers
+    as ``order`` indices, bounds and run ends."""
+    gb = np.zeros(sizes.shape[0] + 1, dtype=np.int64)
+    for g in range(sizes.shape[0]):
+        gb[g + 1] = gb[g] + sizes[g]
+    seg = _SegmentPoints(points, starts, ends)
+    cnt, cen, vals, vecs, inc, inl, bnd, is_end = _fit_groups_kernel(
+        seg, gseg, gb, k_sigma, view, use_view
+    )
+    off = np.empty(cnt.shape[0])
+    for g in range(cnt.shape[0]):
+        acc = 0.0  # einsum's order: from zero, one term after the other
+        for i in range(3):
+            acc += vecs[g, i, 0] * cen[g, i]
+        off[g] = -acc
+    idx = np.empty(inl.shape[0], dtype=order.dtype)
+    for j in range(inl.shape[0]):
+        idx[j] = order[inl[j]]
+    return cnt, cen, off, vals, vecs, inc, idx, bnd, is_end

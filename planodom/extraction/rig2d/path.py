@@ -25,7 +25,7 @@ from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.noise import member_tolerance, rms_limit
 from planodom.extraction.planes.builder import PlaneFits, build_planes
 from planodom.extraction.rig2d import windows
-from planodom.extraction.rig2d.groupfit import fit_groups
+from planodom.extraction.rig2d.groupfit import plane_fits
 from planodom.extraction.rig2d.grouping import GroupingParams
 from planodom.extraction.rig2d.groups import group_segments
 from planodom.extraction.rig2d.segments import Segments, split_scan_lines
@@ -237,23 +237,10 @@ def lost_cross(
 def _group_fits(
     segs: Segments, groups: list[np.ndarray], epoch: Epoch, config: ExtractionConfig
 ) -> PlaneFits:
-    """The robust refits of the groups (:func:`.groupfit.fit_groups`) as builder input;
+    """The robust refits of the groups as builder input (:func:`.groupfit.plane_fits`);
     the incidence is computed in the refit when the viewpoint is the same for all (no
     sensor origins)."""
     view0 = np.array([0.0, 0.0, config.viewpoint_height_m])
-    no_origins = epoch.origins is None
-    fits = fit_groups(segs, groups, config.inlier_sigma_factor, view0 if no_origins else None)
-    evals = fits.evals[:, ::-1]  # descending: l1, l2, l3
-    evecs = fits.evecs[:, :, ::-1]  # columns e1, e2, n
-    offsets = -np.einsum("gi,gi->g", evecs[:, :, 2], fits.centroid)
-    return PlaneFits(
-        count=fits.count,
-        centroid=fits.centroid,
-        offset=offsets,
-        evals=evals,
-        evecs=evecs,
-        inliers=segs.order[fits.inliers],
-        bounds=fits.bounds,
-        outline=fits.is_end,
-        incidence=fits.incidence if no_origins else None,
+    return plane_fits(
+        segs, groups, config.inlier_sigma_factor, view0 if epoch.origins is None else None
     )
