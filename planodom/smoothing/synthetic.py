@@ -11,7 +11,7 @@ graph's vertical factor.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import gtsam
 import numpy as np
@@ -181,3 +181,18 @@ def make_sequence(
                 )
             )
     return SyntheticSequence(poses, planes, relatives, walls, centres)
+
+
+def with_deskew_jacobians(
+    seq: SyntheticSequence, *, jacobians: bool = True, spread: bool = True, seed: int = 5
+) -> tuple[list[list[Plane]], list[RelativePose]]:
+    """``seq``'s planes and relative poses as the sandwich covariances see them: each plane
+    with a random (4, 6) deskewing Jacobian (N(0, 0.2²) entries, seeded) or none, and the
+    relative poses of scans spread in time (``time_spread``) or taken at one instant."""
+    rng = np.random.default_rng(seed)
+    planes = [
+        [replace(p, deskew_jacobian=rng.normal(scale=0.2, size=(4, 6)) if jacobians else None)
+         for p in ps]
+        for ps in seq.planes
+    ]  # fmt: skip
+    return planes, [replace(r, time_spread=spread) for r in seq.relatives]

@@ -3,8 +3,6 @@ its mean NEES and the covariance model it came from under ``smoothing.covariance
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
@@ -12,7 +10,7 @@ from planodom.config import PlanodomConfig
 from planodom.experiments.loops import compare_methods
 from planodom.metrics import pose_nees
 from planodom.smoothing.batch import smooth_batch
-from planodom.smoothing.synthetic import make_sequence
+from planodom.smoothing.synthetic import make_sequence, with_deskew_jacobians
 
 
 @pytest.mark.parametrize(("model", "expected"), [("auto", "sandwich"), ("fitted", "fitted")])
@@ -22,10 +20,7 @@ def test_batch_loops_row_names_the_model_of_its_nees(model: str, expected: str) 
     an independent batch run with the named model against the truth."""
     seq = make_sequence(12, seed=4, sigma_rotation=2e-4, sigma_translation=5e-3,
                         sigma_normal=1e-3, sigma_offset=5e-3)  # fmt: skip
-    rng = np.random.default_rng(5)
-    planes = [[replace(p, deskew_jacobian=rng.normal(scale=0.2, size=(4, 6))) for p in ps]
-              for ps in seq.planes]  # fmt: skip
-    relatives = [replace(r, time_spread=True) for r in seq.relatives]
+    planes, relatives = with_deskew_jacobians(seq)
     gt = np.linalg.inv(seq.poses[0])[None] @ seq.poses
     cfg = PlanodomConfig().updated({"smoothing.covariance_model": model})
     rows = compare_methods(planes, relatives, gt, gt, None, cfg)

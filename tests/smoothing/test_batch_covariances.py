@@ -3,8 +3,6 @@ fitted covariances (compared bit for bit with the explicit models' runs)."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
@@ -12,7 +10,7 @@ from planodom.config import SmoothingConfig
 from planodom.smoothing.batch import smooth_batch
 from planodom.smoothing.batch_covariances import NO_JACOBIANS
 from planodom.smoothing.diagnostics import smoother_metrics
-from planodom.smoothing.synthetic import make_sequence
+from planodom.smoothing.synthetic import make_sequence, with_deskew_jacobians
 
 
 def _sequence(jacobians: bool, spread: bool) -> tuple[list, list]:
@@ -20,13 +18,7 @@ def _sequence(jacobians: bool, spread: bool) -> tuple[list, list]:
     the relative poses of scans spread in time or taken at one instant."""
     seq = make_sequence(30, seed=4, sigma_rotation=2e-4, sigma_translation=5e-3,
                         sigma_normal=1e-3, sigma_offset=5e-3)  # fmt: skip
-    rng = np.random.default_rng(5)
-    planes = [
-        [replace(p, deskew_jacobian=rng.normal(scale=0.2, size=(4, 6)) if jacobians else None)
-         for p in ps]
-        for ps in seq.planes
-    ]  # fmt: skip
-    return planes, [replace(r, time_spread=spread) for r in seq.relatives]
+    return with_deskew_jacobians(seq, jacobians=jacobians, spread=spread)
 
 
 @pytest.mark.parametrize(

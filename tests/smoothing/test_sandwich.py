@@ -3,8 +3,6 @@ inverse and the Monte-Carlo covariance of the estimator."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import gtsam
 import numpy as np
 import pytest
@@ -28,7 +26,7 @@ from planodom.smoothing.sandwich import (
     sandwich_covariances,
     sandwich_pose_covariances,
 )
-from planodom.smoothing.synthetic import make_sequence
+from planodom.smoothing.synthetic import make_sequence, with_deskew_jacobians
 from planodom_factors.planes import (
     anchored_plane_factor,
     plane_factor,
@@ -390,10 +388,7 @@ def test_batch_sandwich_keeps_the_poses(spread: bool) -> None:
     fitted ones, bit for bit, for scans taken at one instant."""
     seq = make_sequence(30, seed=4, sigma_rotation=2e-4, sigma_translation=5e-3,
                         sigma_normal=1e-3, sigma_offset=5e-3)  # fmt: skip
-    rng = np.random.default_rng(5)
-    planes = [[replace(p, deskew_jacobian=rng.normal(scale=0.2, size=(4, 6))) for p in ps]
-              for ps in seq.planes]  # fmt: skip
-    relatives = [replace(r, time_spread=spread) for r in seq.relatives]
+    planes, relatives = with_deskew_jacobians(seq, spread=spread)
     base = SmoothingConfig(loop_closure=False, covariance_model="fitted")
     fitted = smooth_batch(planes, relatives, base)
     sandwich = smooth_batch(
