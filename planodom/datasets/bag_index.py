@@ -48,7 +48,7 @@ from planodom.datasets.bag_parts import (
 )
 from planodom.datasets.bag_rings import ring_counts, stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
-from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit
+from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit, time_key
 from planodom.errors import DatasetError
 
 #: Exceptions of rosbags and the storage libraries that mean a broken or unreadable bag.
@@ -117,8 +117,11 @@ class TopicIndex:
         msgtype: ``sensor_msgs/msg/LaserScan`` or ``sensor_msgs/msg/PointCloud2``.
         frames: the ``header.frame_id`` values of its messages (first seen first).
         rings: 1 for a LaserScan, max ring + 1 for a cloud with a ring field, else 0.
-        times: a PointCloud2's relative per-point times (their spans per sweep).
-        time_unit: their unit (:mod:`planodom.datasets.bag_time_units`), or None.
+        times: a PointCloud2's relative per-point times (their spans per sweep) by time
+            field (``time_key``); time_units: the unit of each
+            (:mod:`planodom.datasets.bag_time_units`).
+        timed, untimed, unringed: its clouds with points with and without a time field,
+            and without a ring field.
         unstamped: messages whose header stamp is 0 (their record time stands for it).
         empty: messages without a point (clouds, Livox messages; 0 for a LaserScan), left
             out of the epochs when some topic has points.
@@ -137,8 +140,11 @@ class TopicIndex:
     msgtype: str
     frames: list[str] = field(default_factory=list)
     rings: int = 0
-    times: TopicTimes = field(default_factory=TopicTimes)
-    time_unit: TimeUnit | None = None
+    times: dict[tuple[str, str], TopicTimes] = field(default_factory=dict)
+    time_units: dict[tuple[str, str], TimeUnit] = field(default_factory=dict)
+    timed: int = 0
+    untimed: int = 0
+    unringed: int = 0
     unstamped: int = 0
     empty: int = 0
     blank: int = 0
@@ -403,7 +409,12 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
             rings, points, name, offsets, no_ring, ring = sweep_times(msg, time_field)
             topic.no_ring += no_ring
             if name is not None and offsets is not None:
-                topic.times.add(name, offsets, sweep)
+                key = time_key(name, offsets.dtype)
+                topic.times.setdefault(key, TopicTimes()).add(name, offsets, sweep)
+            if points:  # a driver relaunched with another layout: noted (bag_notes)
+                topic.timed += name is not None
+                topic.untimed += name is None
+                topic.unringed += ring is None
         else:
             xyz, ring, _, rings = decode_sweep(msg, topic.msgtype, time_field)
             points = len(xyz)
@@ -419,14 +430,11 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
 def _choose_time_unit(
     topic: TopicIndex, stamps: np.ndarray, path: Path, duplicates: np.ndarray
 ) -> None:
-    """Set ``topic.time_unit`` from its sweeps' spans and ``stamps`` (ns), each sweep voting
-    once (``duplicates``: the ordinals of its messages recorded again, which do not vote);
-    DatasetError when a time then lies too far from its stamp."""
-    times = topic.times
-    if not times.name:
-        return
-    topic.time_unit = unit = choose_unit(times.without(duplicates), stamps)
-    with _message_errors(path, topic.name):
-        check_offsets(
-            np.array([times.largest * unit.scale]), times.name, np.dtype(times.dtype), unit.scale
-        )
+    """Set ``topic.time_units`` from its sweeps' spans and ``stamps`` (ns), per time field,
+    each sweep voting once (``duplicates``: the ordinals of its messages recorded again,
+    which do not vote); DatasetError when a time then lies too far from its stamp."""
+    for key, times in topic.times.items():
+        topic.time_units[key] = unit = choose_unit(times.without(duplicates), stamps)
+        with _message_errors(path, topic.name):
+            largest = np.array([times.largest * unit.scale])
+            check_offsets(largest, times.name, np.dtype(times.dtype), unit.scale)

@@ -33,13 +33,14 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox, livox_noise
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
-from planodom.datasets.bag_time_units import UNIT_WORDS, unit_of
+from planodom.datasets.bag_time_units import UNIT_WORDS, time_key, unit_of
 from planodom.datasets.returns import RETURN_FIELDS, last_returns
 from planodom.datasets.scan_io import integer_coordinates, time_field_name
 
@@ -70,16 +71,20 @@ def stamp_ns(header: Any) -> int:
 
 
 def decode_sweep(
-    msg: Any, msgtype: str, time_field: str = "auto", time_scale: float | None = None
+    msg: Any,
+    msgtype: str,
+    time_field: str = "auto",
+    time_scales: Mapping[tuple[str, str], float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
     """One sweep in its sensor frame: ``(points (n, 3), ring (n,) int32 or None, dt (n,), rings)``.
 
     ``dt`` is float64 seconds after ``header.stamp``; ``rings`` the ring count (1 for a
     LaserScan, max ring + 1 for a cloud with a ring field, 0 without one). ``time_field``
     (:class:`~planodom.datasets.bag_options.BagOptions`): ``"auto"``, ``"none"`` (every
-    point at the stamp) or the name of a cloud's time field. ``time_scale``: seconds per
-    unit of a cloud's time offsets (:mod:`planodom.datasets.bag_time_units`; None: the
-    documented reading, integers ns and floats s).
+    point at the stamp) or the name of a cloud's time field. ``time_scales``: seconds per
+    unit of a cloud's time offsets by time field (``time_key``: name and kind,
+    :mod:`planodom.datasets.bag_time_units`); a field without one (or None): the
+    documented reading, integers ns and floats s.
 
     Raises:
         ValueError: a malformed message (one line, the caller adds the topic).
@@ -88,7 +93,7 @@ def decode_sweep(
         if msgtype == LASER_SCAN:
             return _decode_laser_scan(msg)
         if msgtype == POINT_CLOUD2:
-            return _decode_cloud(msg, time_field, time_scale)
+            return _decode_cloud(msg, time_field, time_scales)
         if msgtype in LIVOX_CUSTOM:
             points, ring, dt, rings = decode_livox(msg, stamp_ns(msg.header))
             return points, ring, np.zeros_like(dt) if time_field == "none" else dt, rings
@@ -263,13 +268,14 @@ def tagged_noise(msg: Any, msgtype: str) -> int:
 
 
 def _decode_cloud(
-    msg: Any, time_field: str, time_scale: float | None = None
+    msg: Any, time_field: str, time_scales: Mapping[tuple[str, str], float] | None = None
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
     points, ring, rings, time_name, raw, _ = _cloud_parts(msg, time_field)
     dt = np.zeros(len(points))
     if time_name is not None and raw is not None:
-        dt = _relative_times(raw, stamp_ns(msg.header), time_scale)
-        check_offsets(dt, time_name, raw.dtype, time_scale)
+        scale = (time_scales or {}).get(time_key(time_name, raw.dtype))
+        dt = _relative_times(raw, stamp_ns(msg.header), scale)
+        check_offsets(dt, time_name, raw.dtype, scale)
     return points, ring, dt, rings
 
 

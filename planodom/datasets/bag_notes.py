@@ -20,6 +20,9 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
 
     - a cloud topic's time offsets read in a unit other than the documented one, or not
       clear-cut (:mod:`planodom.datasets.bag_time_units`);
+    - a cloud topic whose clouds change layout: times in several fields or types (each
+      read in its own unit), some clouds without the time field the others have (their
+      points at the stamp) or without the ring field;
     - a topic whose messages name several frames (each read in its own);
     - messages stamped before the one recorded before them on their topic (a clock reset:
       the epochs are in stamp order, not the recording's);
@@ -43,8 +46,8 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
     some_points = not all(t.pointless for t in index.topics)
     notes = []
     for k, (t, sweeps) in enumerate(zip(index.topics, counts, strict=True)):
-        if t.time_unit is not None and t.time_unit.note:
-            notes.append(f"topic '{t.name}': {t.time_unit.note}")
+        notes += [f"topic '{t.name}': {u.note}" for u in t.time_units.values() if u.note]
+        notes += _layout_notes(t)
         notes += _frame_and_order_notes(index, k)
         if t.unstamped:
             notes.append(
@@ -102,6 +105,33 @@ def _frame_and_order_notes(index: BagIndex, k: int) -> list[str]:
     back = _stamped_back(index, k)
     if back:
         notes.append(f"topic '{t.name}': {back}")
+    return notes
+
+
+def _layout_notes(t: TopicIndex) -> list[str]:
+    """A cloud topic's notes on clouds of other layouts than the rest (a driver relaunched
+    with other fields): times in several fields or types, clouds without a time or ring
+    field where others have one."""
+    notes, clouds = [], t.timed + t.untimed
+    if len(t.times) > 1:
+        shown = ", ".join(f"'{v.name}' ({v.dtype}) in {len(v.sweeps)}" for v in t.times.values())
+        notes.append(
+            f"topic '{t.name}': its clouds hold their point times in {len(t.times)} fields or "
+            f"types ({shown} clouds: a driver relaunched with another layout?); each is read "
+            "in its own unit"
+        )
+    if t.timed and t.untimed:
+        notes.append(
+            f"topic '{t.name}': {t.untimed} of {clouds} clouds have no time field, the others "
+            "have one (a driver relaunched with another layout?); their points are taken at "
+            "their message's stamp, not deskewed"
+        )
+    if t.unringed and t.unringed < clouds:
+        notes.append(
+            f"topic '{t.name}': {t.unringed} of {clouds} clouds have no ring field, the others "
+            "have one (a driver relaunched with another layout?); their epochs' scans carry "
+            "no rings"
+        )
     return notes
 
 

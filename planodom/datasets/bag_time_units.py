@@ -37,6 +37,13 @@ UNITS: dict[str, tuple[tuple[str, float], tuple[str, float]]] = {
 UNIT_WORDS = {"ns": "nanoseconds", "us": "microseconds", "s": "seconds", "ms": "milliseconds"}
 
 
+def time_key(name: str, dtype: np.dtype) -> tuple[str, str]:
+    """What a unit is chosen for: a time field's name and kind (``integer`` or ``float``).
+    A topic's clouds may change layout mid-bag (a driver relaunched: Velodyne's ``time``
+    in float seconds, then Ouster's ``t`` in integer nanoseconds); each field has its own."""
+    return name, "integer" if np.dtype(dtype).kind in "iu" else "float"
+
+
 def unit_of(scale: float) -> str | None:
     """The unit of :data:`UNITS` whose seconds per unit are ``scale``, None for another."""
     return next((unit for pair in UNITS.values() for unit, s in pair if s == scale), None)

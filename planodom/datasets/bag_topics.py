@@ -3,7 +3,7 @@ typed :class:`~planodom.rig.Rig` they make (:func:`bag_rig`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -25,8 +25,9 @@ class BagTopic:
         T_base_sensor: (frame -> (4, 4)) extrinsics of the frames its messages name (none
             for a topic :attr:`left_out`).
         sweeps: number of messages.
-        time_scale: seconds per unit of a cloud's per-point time offsets
-            (:mod:`planodom.datasets.bag_time_units`), None: the documented reading.
+        time_scales: seconds per unit of a cloud's per-point time offsets by time field
+            (``time_key``, :mod:`planodom.datasets.bag_time_units`); a field without one:
+            the documented reading.
         empty: no message holds a point (its lack of rings costs the others none; a
             cloud message without a point places no epoch when some topic has points).
         read: its messages that go into the epochs (``BagIndex.in_epochs``: not recorded
@@ -42,7 +43,7 @@ class BagTopic:
     rings: int
     T_base_sensor: dict[str, np.ndarray]
     sweeps: int
-    time_scale: float | None = None
+    time_scales: dict[tuple[str, str], float] = field(default_factory=dict)
     empty: bool = False
     read: int = 0
     frame: str = ""
@@ -74,7 +75,7 @@ def bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
     for t, n in zip(index.topics, read, strict=True):
         where = f"{path}: topic '{t.name}'"
         extr = {f: index.tf.require(base_frame, f, where) for f in t.frames} if n else {}
-        scale = None if t.time_unit is None else t.time_unit.scale
+        scales = {key: unit.scale for key, unit in t.time_units.items()}
         topics.append(
             BagTopic(
                 t.name,
@@ -83,7 +84,7 @@ def bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
                 t.rings,
                 extr,
                 t.sweeps,
-                scale,
+                scales,
                 t.pointless,
                 n,
                 t.frames[0],

@@ -279,7 +279,7 @@ class BagDataset:
             topic = self.topics[k]
             try:
                 pts, ring, dt, _ = decode_sweep(
-                    msg, topic.msgtype, self.time_field, topic.time_scale
+                    msg, topic.msgtype, self.time_field, topic.time_scales
                 )
             except ValueError as exc:
                 raise DatasetError(f"{self.path}: topic '{topic.name}': {exc}") from None
