@@ -12,6 +12,7 @@ import numpy as np
 import yaml
 
 from planodom.datasets.bin_scan import check_bin_layout
+from planodom.datasets.file_entries import broken_link, check_file_entries, optional_file
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
 from planodom.datasets.scan_time_units import scan_time_unit
@@ -169,10 +170,10 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     if not root.is_dir():
         raise DatasetError(f"dataset {root} is not a directory")
     scan_files = _scan_files(root)
-    rig = read_rig(root / RIG_FILE) if (root / RIG_FILE).exists() else Rig()
+    rig = read_rig(root / RIG_FILE) if optional_file(root / RIG_FILE) else Rig()
     gt_poses = None
     name_note = None
-    if (root / POSES_FILE).exists():
+    if optional_file(root / POSES_FILE):
         times, gt_poses = read_tum(root / POSES_FILE)
         if len(times) != len(scan_files):
             raise DatasetError(
@@ -180,7 +181,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
                 f"in {scan_files[0].parent} (it holds the reference pose of each scan; a "
                 "reference at its own rate is compared with `planodom eval` after the run)"
             )
-    elif (root / TIMES_FILE).exists():
+    elif optional_file(root / TIMES_FILE):
         times = read_times(root / TIMES_FILE, len(scan_files))
     else:
         named, name_note = kitti_raw_times(scan_files)
@@ -376,7 +377,9 @@ def _files(directory: Path, extensions: Sequence[str] | None = None) -> list[Pat
     """Visible files in ``directory`` (optionally only with ``extensions``); [] if none."""
     if not directory.is_dir():
         return []
-    files = [f for f in directory.iterdir() if f.is_file() and not f.name.startswith(".")]
+    entries = [f for f in directory.iterdir() if not f.name.startswith(".")]
+    check_file_entries(entries, SCAN_EXTENSIONS)  # a broken link is no file: not skipped
+    files = [f for f in entries if f.is_file()]
     if extensions is not None:
         files = [f for f in files if f.suffix.lower() in extensions]
     return files
@@ -390,6 +393,8 @@ def _is_results_folder(root: Path) -> bool:
 def _scan_files(root: Path) -> list[Path]:
     """The scan files of a dataset, checked for a single known extension and sorted."""
     scans_dir = root / SCANS_DIR
+    if broken := broken_link(scans_dir):
+        raise DatasetError(f"{scans_dir}: {broken}")
     if scans_dir.exists():
         if not scans_dir.is_dir():
             raise DatasetError(f"{scans_dir} is not a directory")

@@ -24,6 +24,7 @@ import numpy as np
 
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.dataset import TIMES_FILE, read_times
+from planodom.datasets.file_entries import optional_file
 from planodom.datasets.scan_io import check_time_field, read_scan
 from planodom.datasets.scan_names import check_numbering
 from planodom.errors import DatasetError
@@ -186,7 +187,7 @@ def kitti_pose_file(path: str | Path) -> Path | None:
     """The ground-truth file of a sequence: ``poses.txt`` beside it or ``../../poses/NN.txt``."""
     path = Path(path)
     for candidate in (path / "poses.txt", path.parent.parent / "poses" / f"{path.name}.txt"):
-        if candidate.is_file():
+        if optional_file(candidate):  # a broken link is refused, not read as no file
             return candidate
     return None
 
@@ -213,7 +214,7 @@ def load_kitti_sequence(
     Tr = read_kitti_calib(path / "calib.txt")
     times_file = path / TIMES_FILE
     notes = []
-    if times_file.is_file():
+    if optional_file(times_file):
         # the dataset format's reader: a NaN, a second column or a time going back was
         # read as is by np.loadtxt (NaN compares false, two columns made (E, 2) times)
         times = read_times(times_file, len(files))
