@@ -155,7 +155,8 @@ BinLayoutOption = Annotated[
     typer.Option(
         "--bin-layout",
         help=".bin scan files: kitti (float32 x y z intensity), nuscenes (x y z intensity "
-        "ring) or auto (from each file's size and columns; KITTI sequences: kitti).",
+        "ring), xyz (x y z) or auto (kitti or nuscenes, from each file's size and columns; "
+        "KITTI sequences: kitti).",
     ),
 ]
 Scenario = Annotated[

@@ -5,7 +5,9 @@ A ``.bin`` file has no header, so its layout is not in the file:
 - ``kitti``: float32 ``x y z intensity`` rows (16 bytes a point; KITTI, and most tools
   that copied it);
 - ``nuscenes``: float32 ``x y z intensity ring`` rows (20 bytes a point; nuScenes'
-  ``LIDAR_TOP`` files), the ring a small whole number stored as a float.
+  ``LIDAR_TOP`` files), the ring a small whole number stored as a float;
+- ``xyz``: float32 ``x y z`` rows without intensity (12 bytes a point; a cloud saved with
+  numpy's ``tofile``), read only when given: ``auto`` does not pick it.
 
 A file of N points in one layout also divides into rows of the other whenever N is a
 multiple of 4 (nuScenes read as KITTI) or of 5 (KITTI read as nuScenes): read so, the
@@ -21,9 +23,14 @@ columns are plausible:
   negative behind and beside the sensor.
 
 When neither is plausible, a size KITTI's rows fit is read as KITTI (intensities need
-not be >= 0 in every tool that writes such files; nothing points to rings); otherwise the
-file is refused in one line asking for the layout (``--bin-layout``). The tests are
-evidence about the columns, not tuned to a recording.
+not be >= 0 in every tool that writes such files; nothing points to rings), unless the
+file reads as another common layout: ``x y z`` rows (its size a multiple of 12 bytes too;
+read as KITTI rows, the "intensity" cycles through x, y and z, negative behind, beside or
+below the sensor, and the cloud was garbage nothing refused), or float64 ``x y z
+intensity`` rows whose values are plausible (finite, coordinates within 1e6 m,
+intensities >= 0; a float32 file read so gives values of wild magnitudes). Then, and when
+no layout fits, the file is refused in one line asking for the layout (``--bin-layout``).
+The tests are evidence about the columns, not tuned to a recording.
 """
 
 from __future__ import annotations
@@ -35,18 +42,22 @@ import numpy as np
 
 from planodom.errors import DatasetError
 
-BinLayout = Literal["auto", "kitti", "nuscenes"]
+BinLayout = Literal["auto", "kitti", "nuscenes", "xyz"]
 #: Values per point of each layout.
-BIN_COLUMNS = {"kitti": 4, "nuscenes": 5}
+BIN_COLUMNS = {"kitti": 4, "nuscenes": 5, "xyz": 3}
+#: The layouts ``auto`` chooses from.
+AUTO_LAYOUTS = ("kitti", "nuscenes")
+#: Largest coordinate (m) of a plausible float64 reading (scan_io's MAX_COORDINATE_M).
+_MAX_COORDINATE_M = 1e6
 #: Largest ring id a nuScenes-style file is taken to hold: lidars have at most 128 beams,
 #: so a ring column beyond this is not one (a generous bound, not from data).
 MAX_RING = 1023
 
 
 def check_bin_layout(layout: str) -> BinLayout:
-    """``layout`` if it is one of auto, kitti, nuscenes, else DatasetError naming it."""
+    """``layout`` if it is one of auto, kitti, nuscenes, xyz, else DatasetError naming it."""
     if layout not in get_args(BinLayout):
-        raise DatasetError(f"bin layout must be auto, kitti or nuscenes, got {layout!r}")
+        raise DatasetError(f"bin layout must be auto, kitti, nuscenes or xyz, got {layout!r}")
     return layout  # type: ignore[return-value]
 
 
@@ -55,7 +66,7 @@ def read_bin(path: Path, layout: str = "auto") -> dict[str, np.ndarray]:
 
     Args:
         path: the file.
-        layout: ``kitti``, ``nuscenes`` or ``auto`` (see the module docstring).
+        layout: ``kitti``, ``nuscenes``, ``xyz`` or ``auto`` (see the module docstring).
 
     Raises:
         DatasetError: naming the file, when its size fits no layout (or not the one given),
@@ -63,8 +74,9 @@ def read_bin(path: Path, layout: str = "auto") -> dict[str, np.ndarray]:
     """
     layout = check_bin_layout(layout)
     raw = path.read_bytes()
-    fits = [name for name, cols in BIN_COLUMNS.items() if len(raw) % (4 * cols) == 0]
+    fits = [name for name in AUTO_LAYOUTS if len(raw) % (4 * BIN_COLUMNS[name]) == 0]
     if layout != "auto":
+        fits = [layout] if len(raw) % (4 * BIN_COLUMNS[layout]) == 0 else []
         if layout not in fits:
             cols = BIN_COLUMNS[layout]
             raise DatasetError(
@@ -74,9 +86,11 @@ def read_bin(path: Path, layout: str = "auto") -> dict[str, np.ndarray]:
             )
         return _fields(np.frombuffer(raw, dtype="<f4").reshape(-1, BIN_COLUMNS[layout]))
     if not fits:
+        xyz = len(raw) % 12 == 0 and len(raw) > 0
         raise DatasetError(
             f"{path}: .bin size {len(raw)} bytes is a multiple of neither 16 (KITTI: x y z "
             "intensity) nor 20 (nuScenes: x y z intensity ring) float32 rows; truncated"
+            + ("; or x y z rows without intensity (12 bytes: --bin-layout xyz)?" if xyz else "")
         )
     values = np.frombuffer(raw, dtype="<f4")
     if len(values) == 0:  # an epoch that saw nothing, in either layout
@@ -84,8 +98,15 @@ def read_bin(path: Path, layout: str = "auto") -> dict[str, np.ndarray]:
     plausible = [name for name in fits if _plausible(values.reshape(-1, BIN_COLUMNS[name]))]
     if len(plausible) == 1:
         return _fields(values.reshape(-1, BIN_COLUMNS[plausible[0]]))
-    if not plausible and "kitti" in fits:  # no evidence of rings: KITTI's rows, as before
+    others = _other_layouts(raw) if not plausible else []
+    if not plausible and "kitti" in fits and not others:  # no evidence: KITTI's rows
         return _fields(values.reshape(-1, 4))
+    if others:
+        raise DatasetError(
+            f"{path}: cannot tell the .bin layout: read as KITTI rows its intensities (every "
+            f"4th float32) are negative or not finite, as {' or '.join(others)} would make "
+            "them; give --bin-layout kitti if they are KITTI rows all the same"
+        )
     if plausible:
         problem = "read plausibly both as KITTI and as nuScenes rows"
     else:  # rings not small whole numbers, and 16 bytes a point does not fit the size
@@ -94,6 +115,21 @@ def read_bin(path: Path, layout: str = "auto") -> dict[str, np.ndarray]:
         f"{path}: cannot tell the .bin layout: its {len(values)} float32 values {problem}; "
         "give --bin-layout kitti (x y z intensity) or nuscenes (x y z intensity ring)"
     )
+
+
+def _other_layouts(raw: bytes) -> list[str]:
+    """The other common layouts a file whose KITTI and nuScenes columns are implausible
+    reads as (see the module docstring), in words."""
+    out = []
+    if len(raw) % 12 == 0:
+        out.append("x y z rows without intensity (12 bytes a point: --bin-layout xyz)")
+    if len(raw) % 32 == 0:
+        rows = np.frombuffer(raw, dtype="<f8").reshape(-1, 4)
+        with np.errstate(invalid="ignore"):
+            finite = bool(np.all(np.isfinite(rows)))
+            if finite and np.abs(rows[:, :3]).max() < _MAX_COORDINATE_M and _plausible(rows):
+                out.append("float64 x y z intensity rows (32 bytes a point: convert to float32)")
+    return out
 
 
 def _plausible(rows: np.ndarray) -> bool:

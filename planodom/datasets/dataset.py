@@ -46,7 +46,7 @@ class Dataset:
         times: (E,) float64 seconds, reference time of each epoch (see :func:`load_dataset`).
         gt_poses: (E, 4, 4) float64 ground truth ``T_world_base`` at ``times``, or None.
         rig: the typed ``rig.yaml`` (:class:`planodom.rig.Rig`; ``Rig()`` when there is none).
-        bin_layout: how ``.bin`` scans are read: ``auto``, ``kitti`` or ``nuscenes``
+        bin_layout: how ``.bin`` scans are read: ``auto``, ``kitti``, ``nuscenes`` or ``xyz``
             (:mod:`planodom.datasets.bin_scan`).
         time_field: the scans' per-point time field: ``auto``, ``none`` (ignored) or a
             field name (:func:`planodom.datasets.scan_io.read_scan`).

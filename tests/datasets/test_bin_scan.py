@@ -71,7 +71,7 @@ def test_given_layout_is_obeyed_and_its_size_checked(tmp_path: Path) -> None:
     _nuscenes(tmp_path / "b.bin", 1003)
     with pytest.raises(DatasetError, match=r"b\.bin: .*not a multiple of 16.*--bin-layout kitti"):
         read_scan(tmp_path / "b.bin", "kitti")
-    with pytest.raises(DatasetError, match="auto, kitti or nuscenes"):
+    with pytest.raises(DatasetError, match="auto, kitti, nuscenes or xyz"):
         read_scan(tmp_path / "a.bin", "velodyne")
 
 
@@ -100,7 +100,7 @@ def test_layout_reaches_datasets_and_the_cli(tmp_path: Path) -> None:
     message = " ".join(result.output.split())
     assert "000000.bin: cannot tell the .bin layout" in message and "--bin-layout" in message
     assert "Traceback" not in result.output
-    with pytest.raises(DatasetError, match="auto, kitti or nuscenes"):
+    with pytest.raises(DatasetError, match="auto, kitti, nuscenes or xyz"):
         load_dataset(tmp_path / "ds", bin_layout="kiti")
 
 
@@ -110,3 +110,34 @@ def test_bin_layout_option_is_refused_where_it_means_nothing(tmp_path: Path) -> 
     )
     assert result.exit_code == 2 and "--bin-layout" in result.output
     assert "Traceback" not in result.output
+
+
+def test_xyz_rows_are_not_read_as_kitti_rows(tmp_path: Path) -> None:
+    # x y z float32 rows without intensity (numpy's tofile of an (N, 3) cloud), N a multiple
+    # of 4: read as KITTI rows, a cloud of interleaved coordinates, without a word
+    pts, _ = _sweep(400)
+    pts.tofile(tmp_path / "xyz.bin")
+    with pytest.raises(DatasetError, match=r"xyz.bin: cannot tell .*--bin-layout xyz"):
+        read_scan(tmp_path / "xyz.bin")
+    scan = read_scan(tmp_path / "xyz.bin", bin_layout="xyz")
+    np.testing.assert_array_equal(scan.points, pts.astype(np.float64))
+    pts[:399].tofile(tmp_path / "odd.bin")  # 4788 bytes: no layout fits; xyz is named
+    with pytest.raises(DatasetError, match=r"odd.bin: .* truncated; or x y z rows"):
+        read_scan(tmp_path / "odd.bin")
+
+
+def test_float64_rows_are_named(tmp_path: Path) -> None:
+    # float64 x y z intensity rows: read as float32 KITTI rows, garbage (finite when the
+    # values were float32 ones widened, their low halves zero)
+    pts, _ = _sweep(100)
+    np.column_stack([pts, np.ones(100)]).astype("<f8").tofile(tmp_path / "f64.bin")
+    with pytest.raises(DatasetError, match=r"f64.bin: cannot tell .*float64 x y z intensity"):
+        read_scan(tmp_path / "f64.bin")
+
+
+def test_kitti_rows_with_negative_intensities_are_still_read(tmp_path: Path) -> None:
+    # no other layout fits (101 points: neither 12-byte nor 32-byte rows divide the size)
+    pts, _ = _sweep(101)
+    rows = np.column_stack([pts, -np.ones(101, np.float32)])
+    rows.tofile(tmp_path / "k.bin")
+    np.testing.assert_array_equal(read_scan(tmp_path / "k.bin").points, pts.astype(np.float64))
