@@ -24,9 +24,10 @@ columns are plausible:
 
 When neither is plausible, a size KITTI's rows fit is read as KITTI (intensities need
 not be >= 0 in every tool that writes such files; nothing points to rings), unless the
-file reads as another common layout: ``x y z`` rows (its size a multiple of 12 bytes too;
-read as KITTI rows, the "intensity" cycles through x, y and z, negative behind, beside or
-below the sensor, and the cloud was garbage nothing refused), or float64 ``x y z
+file reads as another common layout: ``x y z`` rows (its size a multiple of 12 bytes too,
+and its points clearly nearer each other in file order read so, see :func:`_step`; read as
+KITTI rows, the "intensity" cycles through x, y and z, negative behind, beside or below the
+sensor, and the cloud was garbage nothing refused), or float64 ``x y z
 intensity`` rows whose values are plausible (finite, coordinates within 1e6 m,
 intensities >= 0; a float32 file read so gives values of wild magnitudes). Then, and when
 no layout fits, the file is refused in one line asking for the layout (``--bin-layout``).
@@ -121,8 +122,10 @@ def _other_layouts(raw: bytes) -> list[str]:
     """The other common layouts a file whose KITTI and nuScenes columns are implausible
     reads as (see the module docstring), in words."""
     out = []
-    if len(raw) % 12 == 0:
-        out.append("x y z rows without intensity (12 bytes a point: --bin-layout xyz)")
+    if len(raw) % 12 == 0 and len(raw) % 16 == 0:
+        values = np.frombuffer(raw, dtype="<f4")
+        if _step(values.reshape(-1, 3)) * 2.0 < _step(values.reshape(-1, 4)[:, :3]):
+            out.append("x y z rows without intensity (12 bytes a point: --bin-layout xyz)")
     if len(raw) % 32 == 0:
         rows = np.frombuffer(raw, dtype="<f8").reshape(-1, 4)
         with np.errstate(invalid="ignore"):
@@ -130,6 +133,19 @@ def _other_layouts(raw: bytes) -> list[str]:
             if finite and np.abs(rows[:, :3]).max() < _MAX_COORDINATE_M and _plausible(rows):
                 out.append("float64 x y z intensity rows (32 bytes a point: convert to float32)")
     return out
+
+
+def _step(points: np.ndarray) -> float:
+    """The median distance between consecutive points (N, 3) of a reading (inf for fewer
+    than two finite steps). A lidar writes its points in scan order, each near the one
+    before; a reading with the wrong row length interleaves coordinates of different points
+    and scatters them over the cloud's extent, so the right reading's steps are several
+    times shorter (a factor 2 asks only that it be clearly so; an unordered cloud, whose
+    steps are long either way, or random values give no evidence)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        steps = np.linalg.norm(np.diff(points.astype(np.float64), axis=0), axis=1)
+    steps = steps[np.isfinite(steps)]
+    return float(np.median(steps)) if len(steps) else float("inf")
 
 
 def _plausible(rows: np.ndarray) -> bool:

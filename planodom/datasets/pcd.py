@@ -77,6 +77,22 @@ def _header(path: Path, data: bytes) -> tuple[_Header, int]:
         if key not in entries:
             raise DatasetError(f"{path}: PCD header has no {key} line")
     names = entries["FIELDS"]
+    twice = sorted({n for n in names if n != "_" and names.count(n) > 1})  # "_": PCL's padding
+    if twice:  # ASCII bodies read the last, binary ones the first (as PCL): refused
+        raise DatasetError(
+            f"{path}: PCD field '{twice[0]}' given twice in FIELDS: which one holds its values "
+            "is unknown"
+        )
+    unread = [
+        f"'{n}' (TYPE {t} SIZE {z})"
+        for n, t, z in zip(names, entries.get("TYPE", []), entries.get("SIZE", []), strict=False)
+        if z.isdigit() and (t, int(z)) not in _TYPES
+    ]
+    if unread:
+        raise DatasetError(
+            f"{path}: PCD field {unread[0]} is of a type planodom does not read (F 4 or 8, "
+            "I or U 1, 2, 4 or 8)"
+        )
     try:
         n = int(entries["POINTS"][0])
         sizes = [int(s) for s in entries["SIZE"]]
