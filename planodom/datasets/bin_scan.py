@@ -28,8 +28,7 @@ file reads as another common layout: ``x y z`` rows (its size a multiple of 12 b
 and its points clearly nearer each other in file order read so, see :func:`_step`; read as
 KITTI rows, the "intensity" cycles through x, y and z, negative behind, beside or below the
 sensor, and the cloud was garbage nothing refused), or float64 ``x y z
-intensity`` rows whose values are plausible (finite, coordinates within 1e6 m,
-intensities >= 0; a float32 file read so gives values of wild magnitudes). Then, and when
+intensity`` rows (see :func:`_float64_rows`). Then, and when
 no layout fits, the file is refused in one line asking for the layout (``--bin-layout``).
 The tests are evidence about the columns, not tuned to a recording.
 """
@@ -126,13 +125,25 @@ def _other_layouts(raw: bytes) -> list[str]:
         values = np.frombuffer(raw, dtype="<f4")
         if _step(values.reshape(-1, 3)) * 2.0 < _step(values.reshape(-1, 4)[:, :3]):
             out.append("x y z rows without intensity (12 bytes a point: --bin-layout xyz)")
-    if len(raw) % 32 == 0:
-        rows = np.frombuffer(raw, dtype="<f8").reshape(-1, 4)
-        with np.errstate(invalid="ignore"):
-            finite = bool(np.all(np.isfinite(rows)))
-            if finite and np.abs(rows[:, :3]).max() < _MAX_COORDINATE_M and _plausible(rows):
-                out.append("float64 x y z intensity rows (32 bytes a point: convert to float32)")
+    if len(raw) % 32 == 0 and _float64_rows(raw):
+        out.append("float64 x y z intensity rows (32 bytes a point: convert to float32)")
     return out
+
+
+def _float64_rows(raw: bytes) -> bool:
+    """Whether ``raw`` holds float64 ``x y z intensity`` rows: plausible so (finite,
+    coordinates within 1e6 m, intensities >= 0), while read as float32 its coordinates are
+    not finite or beyond 1e6 m (refused anyway), or every other float32 is 0 (float32
+    values widened to float64: their low halves); small float32 values also read as
+    plausible doubles, so that alone is no evidence."""
+    rows = np.frombuffer(raw, dtype="<f8").reshape(-1, 4)
+    single = np.frombuffer(raw, dtype="<f4").reshape(-1, 4)[:, :3]
+    with np.errstate(invalid="ignore", over="ignore"):
+        if not (np.all(np.isfinite(rows)) and np.abs(rows[:, :3]).max() < _MAX_COORDINATE_M):
+            return False
+        broken = not np.all(np.abs(single) < _MAX_COORDINATE_M)  # NaN too
+    widened = not np.any(np.frombuffer(raw, dtype="<u4")[0::2])
+    return _plausible(rows) and (broken or widened)
 
 
 def _step(points: np.ndarray) -> float:

@@ -16,7 +16,8 @@ from planodom.datasets.file_entries import broken_link, check_file_entries, opti
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
 from planodom.datasets.scan_time_units import scan_time_unit
-from planodom.datasets.tum import MAX_TIME_S, read_tum, write_tum
+from planodom.datasets.times_file import read_times, unread_times, write_times
+from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
 from planodom.outputs import atomic_folder
 from planodom.rig import RIG_KEYS, Rig, unread_keys
@@ -172,7 +173,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     scan_files = _scan_files(root)
     rig = read_rig(root / RIG_FILE) if optional_file(root / RIG_FILE) else Rig()
     gt_poses = None
-    name_note = None
+    name_note = times_note = None
     if optional_file(root / POSES_FILE):
         times, gt_poses = read_tum(root / POSES_FILE)
         if len(times) != len(scan_files):
@@ -181,6 +182,8 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
                 f"in {scan_files[0].parent} (it holds the reference pose of each scan; a "
                 "reference at its own rate is compared with `planodom eval` after the run)"
             )
+        if optional_file(root / TIMES_FILE):  # not read: say so when it disagrees
+            times_note = unread_times(root / TIMES_FILE, times, POSES_FILE)
     elif optional_file(root / TIMES_FILE):
         times = read_times(root / TIMES_FILE, len(scan_files))
     else:
@@ -197,6 +200,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
         ds.notes = [f"{root}: {unit.note}"] if unit.note else []
     if name_note:
         ds.notes.append(f"{scan_files[0].parent}: {name_note}")
+    ds.notes += [times_note] if times_note else []
     unread = unread_keys(rig)
     if unread:
         ds.notes.append(
@@ -204,50 +208,6 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
             f"{', '.join(RIG_KEYS)}; a typo?), kept as written"
         )
     return ds
-
-
-def read_times(path: str | Path, n_epochs: int) -> np.ndarray:
-    """(E,) epoch times, seconds, from a ``times.txt`` (one number per line).
-
-    Raises:
-        DatasetError: naming ``path:line`` for a line that is not one finite number
-            within ``MAX_TIME_S`` (of ``poses.tum``), or the file when the count is not
-            ``n_epochs`` or the times do not increase.
-    """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DatasetError(f"{path}: cannot read epoch times ({exc})") from None
-    times = []
-    for number, line in enumerate(text.splitlines(), start=1):
-        if not line.strip() or line.lstrip().startswith("#"):
-            continue
-        try:
-            value = float(line)
-        except ValueError:
-            value = float("nan")
-        if not np.isfinite(value):
-            raise DatasetError(f"{path}:{number}: expected one finite time in seconds")
-        if abs(value) > MAX_TIME_S:  # as poses.tum: read as seconds, ns were 1.7e18 s
-            raise DatasetError(
-                f"{path}:{number}: time {value:g} s is beyond {MAX_TIME_S:g} s "
-                "(nanoseconds? the times are seconds)"
-            )
-        times.append(value)
-    out = np.array(times, dtype=np.float64)
-    if len(out) != n_epochs:
-        raise DatasetError(f"{path}: {len(out)} times for {n_epochs} scan files")
-    if np.any(np.diff(out) <= 0):
-        k = int(np.flatnonzero(np.diff(out) <= 0)[0])
-        raise DatasetError(f"{path}: times must increase (epoch {k + 1} is not after {k})")
-    return out
-
-
-def write_times(path: str | Path, times: np.ndarray) -> None:
-    """Write epoch times (E,) seconds to a ``times.txt``, exact (``repr``) decimals."""
-    lines = [repr(float(t)) for t in np.asarray(times, dtype=np.float64).reshape(-1)]
-    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
 def write_dataset(

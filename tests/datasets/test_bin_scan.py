@@ -126,11 +126,14 @@ def test_xyz_rows_are_not_read_as_kitti_rows(tmp_path: Path) -> None:
         read_scan(tmp_path / "odd.bin")
 
 
-def test_float64_rows_are_named(tmp_path: Path) -> None:
-    # float64 x y z intensity rows: read as float32 KITTI rows, garbage (finite when the
-    # values were float32 ones widened, their low halves zero)
+@pytest.mark.parametrize("widened", [True, False])
+def test_float64_rows_are_named(tmp_path: Path, widened: bool) -> None:
+    # float64 x y z intensity rows: read as float32 KITTI rows, garbage, finite and read
+    # without a word when the values were float32 ones widened (their low halves zero), else
+    # refused as "NaN or infinite coordinates"
     pts, _ = _sweep(100)
-    np.column_stack([pts, np.ones(100)]).astype("<f8").tofile(tmp_path / "f64.bin")
+    rows = np.column_stack([pts, np.ones(100)]).astype("<f8")
+    (rows if widened else rows * (1 + 1e-12)).tofile(tmp_path / "f64.bin")
     with pytest.raises(DatasetError, match=r"f64.bin: cannot tell .*float64 x y z intensity"):
         read_scan(tmp_path / "f64.bin")
 
