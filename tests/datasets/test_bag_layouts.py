@@ -61,9 +61,10 @@ def _read(path: Path) -> tuple[list[float], list[float], list[bool], list[str]]:
         errors, spans, ringed = [], [], []
         for k in range(len(ds)):
             scan = ds[k]
-            world = true_pose(ds.times[k] + scan.t) @ np.append(
-                scan.points, np.ones((len(scan), 1)), 1
-            )[..., None]
+            world = (
+                true_pose(ds.times[k] + scan.t)
+                @ np.append(scan.points, np.ones((len(scan), 1)), 1)[..., None]
+            )
             errors.append(float(distance_to_room(world[:, :3, 0]).max()))
             spans.append(float(np.ptp(scan.t)))
             ringed.append(scan.ring is not None)
