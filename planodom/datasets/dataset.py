@@ -13,6 +13,7 @@ import yaml
 
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.file_entries import broken_link, check_file_entries, optional_file
+from planodom.datasets.pcd import viewpoint_note
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
 from planodom.datasets.scan_time_units import scan_time_unit
@@ -201,6 +202,8 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     if name_note:
         ds.notes.append(f"{scan_files[0].parent}: {name_note}")
     ds.notes += [times_note] if times_note else []
+    view = viewpoint_note(scan_files[0]) if scan_files[0].suffix.lower() == ".pcd" else None
+    ds.notes += [view] if view else []
     unread = unread_keys(rig)
     if unread:
         ds.notes.append(

@@ -216,6 +216,34 @@ def _compressed(path: Path, body: bytes, header: _Header) -> dict[str, np.ndarra
     return out
 
 
+def viewpoint_note(path: Path) -> str | None:
+    """A note when the PCD file's ``VIEWPOINT`` (``tx ty tz qw qx qy qz``: PCL's
+    ``sensor_origin_`` and ``sensor_orientation_``, the sensor's pose in the points' frame)
+    is not the identity: the points are then in another frame than the sensor's (a cloud
+    registered into a map frame?), and planodom reads them as they are. None for the
+    identity, no such line or one that is not seven numbers (not read, as before)."""
+    with open(path, "rb") as f:
+        head = f.read(16384)
+    for line in head.split(b"\n")[:_MAX_HEADER_LINES]:
+        words = line.decode("ascii", "replace").split()
+        key = words[0].upper() if words else ""
+        if key == "DATA":
+            break
+        if key == "VIEWPOINT":
+            try:
+                v = np.array([float(w) for w in words[1:]])
+            except ValueError:
+                return None
+            if len(v) != 7 or (not np.any(v[:3]) and abs(v[3]) == 1.0 and not np.any(v[4:])):
+                return None
+            return (
+                f"{path}: PCD VIEWPOINT {' '.join(words[1:])} is not the identity: its points "
+                "are in another frame than the sensor's (a cloud registered into a map?); "
+                "they are read as they are, as the base frame's"
+            )
+    return None
+
+
 def write_pcd(path: Path, fields: dict[str, np.ndarray]) -> None:
     """Write ``{name: (N,) array}`` as a binary PCD (each array keeps its dtype); N may be 0."""
     arrays = {name: np.asarray(a).reshape(-1) for name, a in fields.items()}

@@ -1,5 +1,6 @@
 """PCD headers whose fields cannot be read as written: a field given twice (ASCII bodies
-read the last, binary ones the first), a type planodom does not read (named)."""
+read the last, binary ones the first), a type planodom does not read (named); a
+``VIEWPOINT`` other than the identity (noted)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planodom.datasets import read_scan
+from planodom.datasets import load_dataset, read_scan
+from planodom.datasets.pcd import write_pcd
 from planodom.errors import DatasetError
 
 HEADER = "VERSION 0.7\nFIELDS {}\nSIZE {}\nTYPE {}\nCOUNT {}\nWIDTH 2\nHEIGHT 1\nPOINTS 2\n"
@@ -51,3 +53,29 @@ def test_a_type_not_read_is_named(tmp_path: Path) -> None:
     path = _pcd(tmp_path / "half.pcd", "x y z", "2 2 2", "F F F", [[1, 2, 3], [4, 5, 6]])
     with pytest.raises(DatasetError, match=r"half\.pcd: PCD field 'x' \(TYPE F SIZE 2\)"):
         read_scan(path)
+
+
+@pytest.mark.parametrize(
+    "viewpoint, noted",
+    [
+        ("10 5 2 0.7071068 0 0 0.7071068", True),  # a cloud registered into a map frame
+        ("0 0 0 0 0 0 1", True),  # turned 180 deg about z
+        ("0 0 0 1 0 0 0", False),  # PCL's default, and what planodom writes
+        ("0 0 0 -1 0 0 0", False),  # the identity too
+        (None, False),  # no VIEWPOINT line
+    ],
+)
+def test_a_viewpoint_other_than_the_identity_is_noted(
+    tmp_path: Path, viewpoint: str | None, noted: bool
+) -> None:
+    # read as if in the sensor's frame without a word before
+    (tmp_path / "scans").mkdir()
+    write_pcd(tmp_path / "scans" / "000000.pcd", {c: np.ones(3, np.float32) for c in "xyz"})
+    data = (tmp_path / "scans" / "000000.pcd").read_bytes()
+    line = b"" if viewpoint is None else f"VIEWPOINT {viewpoint}\n".encode()
+    data = data.replace(b"VIEWPOINT 0 0 0 1 0 0 0\n", line)
+    (tmp_path / "scans" / "000000.pcd").write_bytes(data)
+    notes = [n for n in load_dataset(tmp_path).notes if "VIEWPOINT" in n]
+    assert len(notes) == noted
+    if noted:
+        assert f"000000.pcd: PCD VIEWPOINT {viewpoint} is not the identity" in notes[0]
