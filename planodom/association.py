@@ -31,6 +31,7 @@ plane only its best match.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -363,12 +364,35 @@ def strict_association(
         prev.normals, prev.offsets, prev.centroids, prev.radii,
         curr.normals, curr.offsets, curr.centroids, curr.radii,
         np.ascontiguousarray(rotation, dtype=np.float64), t,
-        np.cos(np.radians(cfg.strict_normal_deg)), t_bound + cfg.strict_offset_m,
+        _cos_deg(cfg.strict_normal_deg), t_bound + cfg.strict_offset_m,
         t_bound + cfg.overlap_margin_m,
     )  # fmt: skip
     rows, cols = linear_sum_assignment(cost)
-    keep = ok[rows, cols]
-    return np.column_stack([rows[keep], cols[keep]]).astype(np.intp)
+    return _kept_pairs(ok, rows, cols)
+
+
+@functools.lru_cache(maxsize=64)
+def _cos_deg(angle_deg: float) -> float:
+    """``np.cos(np.radians(angle_deg))`` (the same value), remembered: SDA runs several
+    times a solve with the one configured angle."""
+    return np.cos(np.radians(angle_deg))
+
+
+@numba.njit(cache=True)
+def _kept_pairs(ok, rows, cols):  # pragma: no cover - compiled
+    """(L, 2) intp the assignment's pairs ``(rows[q], cols[q])`` that pass the gate ``ok``
+    (Kp, Kc), in order: ``np.column_stack`` of the kept rows and columns without its
+    numpy calls."""
+    n = 0
+    for q in range(rows.shape[0]):
+        n += ok[rows[q], cols[q]]
+    out = np.empty((n, 2), dtype=np.intp)
+    k = 0
+    for q in range(rows.shape[0]):
+        if ok[rows[q], cols[q]]:
+            out[k, 0], out[k, 1] = rows[q], cols[q]
+            k += 1
+    return out
 
 
 @numba.njit(cache=True)
