@@ -27,7 +27,6 @@ import numpy as np
 from planodom.errors import GeometryError
 from planodom.geometry import Plane, plane_transform_jacobian, transform_planes, transform_points
 
-
 #: The rows of an unknown covariance and centroid.
 _NAN44 = np.full((4, 4), np.nan)
 _NAN3 = np.full(3, np.nan)
