@@ -25,6 +25,12 @@ def cos_of_degrees(angle_deg: float) -> float:
     return float(np.cos(np.radians(angle_deg)))
 
 
+@functools.lru_cache(maxsize=256)
+def sin_of_degrees(angle_deg: float) -> float:
+    """``float(np.sin(np.radians(angle_deg)))``, remembered."""
+    return float(np.sin(np.radians(angle_deg)))
+
+
 @functools.lru_cache(maxsize=64)
 def pose_floor(rotation_deg: float, translation_m: float) -> np.ndarray:
     """(5, 5) read-only ``np.diag`` of the squared sigma floors of (roll, pitch, yaw, x, y):
