@@ -38,6 +38,7 @@ import numba
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from planodom.angles import cos_of_degrees, radians
 from planodom.config import AssociationConfig
 from planodom.geometry import (
     dihedral_angles,
@@ -146,17 +147,17 @@ def lenient_association(
         return PairAssociations.empty()
     if prior is None:
         T0, t_bound = np.eye(4), cfg.max_translation_m
-        rot_bound = np.radians(cfg.max_rotation_deg)
+        rot_bound = radians(cfg.max_rotation_deg)
     else:
         T0, t_bound = np.asarray(prior, dtype=np.float64), cfg.prior_translation_m
-        rot_bound = np.radians(cfg.prior_rotation_deg)
+        rot_bound = radians(cfg.prior_rotation_deg)
     pp, cp, R, w = _lda_kernel(
         prev.normals, prev.offsets, prev.centroids, prev.radii, prev.weights,
         curr.normals, curr.offsets, curr.centroids, curr.radii, curr.weights,
         T0, _LdaBounds(
-            t_bound, rot_bound, np.radians(cfg.normal_tol_deg), cfg.offset_tol_m,
-            cfg.overlap_margin_m, np.radians(cfg.parallel_angle_deg),
-            np.radians(cfg.dihedral_tol_deg), cfg.min_line_verticality,
+            t_bound, rot_bound, radians(cfg.normal_tol_deg), cfg.offset_tol_m,
+            cfg.overlap_margin_m, radians(cfg.parallel_angle_deg),
+            radians(cfg.dihedral_tol_deg), cfg.min_line_verticality,
         ),
     )  # fmt: skip
     if len(w) == 0:
@@ -363,12 +364,28 @@ def strict_association(
         prev.normals, prev.offsets, prev.centroids, prev.radii,
         curr.normals, curr.offsets, curr.centroids, curr.radii,
         np.ascontiguousarray(rotation, dtype=np.float64), t,
-        np.cos(np.radians(cfg.strict_normal_deg)), t_bound + cfg.strict_offset_m,
+        cos_of_degrees(cfg.strict_normal_deg), t_bound + cfg.strict_offset_m,
         t_bound + cfg.overlap_margin_m,
     )  # fmt: skip
     rows, cols = linear_sum_assignment(cost)
-    keep = ok[rows, cols]
-    return np.column_stack([rows[keep], cols[keep]]).astype(np.intp)
+    return _kept_pairs(ok, rows, cols)
+
+
+@numba.njit(cache=True)
+def _kept_pairs(ok, rows, cols):  # pragma: no cover - compiled
+    """(L, 2) intp the assignment's pairs ``(rows[q], cols[q])`` that pass the gate ``ok``
+    (Kp, Kc), in order: ``np.column_stack`` of the kept rows and columns without its
+    numpy calls."""
+    n = 0
+    for q in range(rows.shape[0]):
+        n += ok[rows[q], cols[q]]
+    out = np.empty((n, 2), dtype=np.intp)
+    k = 0
+    for q in range(rows.shape[0]):
+        if ok[rows[q], cols[q]]:
+            out[k, 0], out[k, 1] = rows[q], cols[q]
+            k += 1
+    return out
 
 
 @numba.njit(cache=True)

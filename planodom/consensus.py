@@ -135,7 +135,6 @@ def consensus(
     source = np.asarray(source, dtype=np.float64)
     target = np.asarray(target, dtype=np.float64)
     w = _checked_weights(candidates, source, target, weights)
-    n_cand, n_elem = len(candidates), len(source)
     cap = np.inf if truncate is None else float(truncate) ** 2
     tol2 = np.inf if inlier_tol is None else float(inlier_tol) ** 2
     kind = _KINDS.get(apply, -1) if error is squared_distance else -1
@@ -144,6 +143,7 @@ def consensus(
         done = _compiled_consensus(kind, *args)
         if done is not None:
             return done
+    n_cand, n_elem = len(candidates), len(source)
 
     defined = np.isfinite(source.reshape(n_elem, -1)).all(axis=1)
     defined &= np.isfinite(target.reshape(n_elem, -1)).all(axis=1)
@@ -182,9 +182,8 @@ def _compiled_consensus(
     """:func:`consensus` by :func:`_consensus_kernel` (operator ``kind``); None when the
     shortlist applies (the numpy form runs then)."""
     gid = np.arange(len(source)) if groups is None else np.asarray(groups, dtype=np.int64)
-    cand, src, tgt = (
-        np.ascontiguousarray(a.reshape(len(a), -1)) for a in (candidates, source, target)
-    )
+    # (C, D) and (E, D) views as the kernel takes them (a 2-D C-contiguous array as it is)
+    cand, src, tgt = (_rows(candidates), _rows(source), _rows(target))
     limit = -1 if budget is None else int(budget)
     ok, best, totals, best_errors, inliers = _consensus_kernel(
         kind, cand, src, tgt, w, cap, gid, tol2, shortlist, limit
@@ -192,6 +191,14 @@ def _compiled_consensus(
     if not ok:
         return None
     return ConsensusResult(best, candidates[best], totals, best_errors, inliers)
+
+
+def _rows(a: np.ndarray) -> np.ndarray:
+    """``a`` (N, ...) as a C-contiguous (N, D) array: ``a`` itself when it is one already
+    (``np.ascontiguousarray(a.reshape(len(a), -1))``'s values without its two calls)."""
+    if a.ndim == 2 and a.flags.c_contiguous:
+        return a
+    return np.ascontiguousarray(a.reshape(len(a), -1))
 
 
 def _winner_errors(
@@ -223,10 +230,22 @@ def _checked_weights(
         raise ValueError("consensus needs at least one candidate")
     if len(target) != n_elem:
         raise ValueError(f"consensus: {n_elem} source elements but {len(target)} targets")
-    w = np.ones(n_elem) if weights is None else np.asarray(weights, dtype=np.float64)
-    if w.shape != (n_elem,) or np.any(w < 0) or not np.all(np.isfinite(w)):
+    if weights is None:
+        return np.ones(n_elem)
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (n_elem,) or not _finite_non_negative(w):
         raise ValueError(f"consensus: weights must be {n_elem} finite non-negative numbers")
     return w
+
+
+@numba.njit(cache=True)
+def _finite_non_negative(w):  # pragma: no cover - compiled
+    """Whether every value of ``w`` (E,) is finite and >= 0 (numpy's two reductions and
+    their wrappers cost several times this on a few weights, twice a solve)."""
+    for x in w:
+        if not (np.isfinite(x) and x >= 0.0):
+            return False
+    return True
 
 
 class _Problem(NamedTuple):

@@ -258,9 +258,12 @@ class Plane:
 
     def __post_init__(self) -> None:
         n = np.asarray(self.normal, dtype=np.float64).reshape(-1)
-        if n.shape != (3,) or not np.isfinite(n).all():
+        if n.shape != (3,):
             raise GeometryError(f"plane normal must be 3 finite numbers, got {self.normal!r}")
-        norm = math.sqrt(n.dot(n))  # np.linalg.norm's arithmetic, without its overhead
+        sq = float(n.dot(n))  # finite only if every component is: the full check otherwise
+        if not math.isfinite(sq) and not np.isfinite(n).all():
+            raise GeometryError(f"plane normal must be 3 finite numbers, got {self.normal!r}")
+        norm = math.sqrt(sq)  # np.linalg.norm's arithmetic, without its overhead
         if norm < 1e-12:
             raise GeometryError("plane normal has zero length")
         if not math.isfinite(self.offset):

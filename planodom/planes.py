@@ -27,6 +27,10 @@ import numpy as np
 from planodom.errors import GeometryError
 from planodom.geometry import Plane, plane_transform_jacobian, transform_planes, transform_points
 
+#: The rows of an unknown covariance and centroid.
+_NAN44 = np.full((4, 4), np.nan)
+_NAN3 = np.full(3, np.nan)
+
 
 @dataclass(frozen=True, eq=False)
 class PlaneSet:
@@ -68,17 +72,17 @@ class PlaneSet:
         normals = np.array([p.normal for p in planes], dtype=np.float64)
         offsets = np.array([p.offset for p in planes], dtype=np.float64)
         weights = np.array([p.confidence for p in planes], dtype=np.float64)
-        centroids, radii = np.full((k, 3), np.nan), np.full(k, np.nan)
-        covariances = np.full((k, 4, 4), np.nan)
-        polygons, owners = [], []
-        for i, p in enumerate(planes):
-            if p.covariance is not None:
-                covariances[i] = p.covariance
-            if p.support is not None:
-                centroids[i] = p.support.centroid
-                if len(p.support.polygon):
-                    polygons.append(p.support.polygon)
-                    owners.append(i)
+        # one conversion of the rows each (setting them one by one cost more)
+        covariances = np.array(
+            [_NAN44 if p.covariance is None else p.covariance for p in planes], dtype=np.float64
+        ).reshape(k, 4, 4)
+        supports = [p.support for p in planes]
+        centroids = np.array(
+            [_NAN3 if q is None else q.centroid for q in supports], dtype=np.float64
+        ).reshape(k, 3)
+        radii = np.full(k, np.nan)
+        owners = [i for i, q in enumerate(supports) if q is not None and len(q.polygon)]
+        polygons = [supports[i].polygon for i in owners]  # type: ignore[union-attr]
         if polygons:  # the farthest vertex, all planes at once (np.linalg.norm's arithmetic)
             sizes = [len(q) for q in polygons]
             q = np.concatenate(polygons) - np.repeat(centroids[owners], sizes, axis=0)

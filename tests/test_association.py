@@ -192,3 +192,21 @@ def test_sda_rejects_a_wrong_rotation():
     ij = sda_of(prev, curr, wrong)
     # Only planes whose normals are (nearly) vertical survive a 10 deg yaw error.
     assert all(abs(prev[i].normal[2]) > 0.9 for i, _ in ij)
+
+
+@given(st.integers(0, 7), st.integers(0, 7), st.integers(0, 2**31 - 1))
+def test_sda_kept_pairs_are_numpys_column_stack(kp, kc, seed):
+    """SDA's compiled selection of the gated assignment pairs equals the numpy form it
+    replaced, values, dtype and layout."""
+    from scipy.optimize import linear_sum_assignment
+
+    from planodom.association import _kept_pairs
+
+    rng = np.random.default_rng(seed)
+    ok = rng.random((kp, kc)) < 0.5
+    rows, cols = linear_sum_assignment(rng.random((kp, kc)))
+    keep = ok[rows, cols]
+    want = np.column_stack([rows[keep], cols[keep]]).astype(np.intp)
+    got = _kept_pairs(ok, rows, cols)
+    assert got.dtype == want.dtype and got.shape == want.shape and got.flags.c_contiguous
+    np.testing.assert_array_equal(got, want)

@@ -93,6 +93,16 @@ def test_bad_input_is_rejected():
                   apply_negative_translation, weights=[1.0, -1.0])  # fmt: skip
     with pytest.raises(ValueError, match="targets"):
         consensus(np.zeros((1, 2)), np.zeros((2, 2)), np.zeros((3, 2)), apply_negative_translation)
+    for bad in (np.nan, np.inf, -np.inf):  # the compiled check, as numpy's reductions
+        with pytest.raises(ValueError, match="weights"):
+            consensus(np.zeros((1, 2)), np.zeros((2, 2)), np.zeros((2, 2)),
+                      apply_negative_translation, weights=[1.0, bad])  # fmt: skip
+    with pytest.raises(ValueError, match="weights"):
+        consensus(np.zeros((1, 2)), np.zeros((2, 2)), np.zeros((2, 2)),
+                  apply_negative_translation, weights=[1.0, 1.0, 1.0])  # fmt: skip
+    ok = consensus(np.zeros((1, 2)), np.zeros((2, 2)), np.zeros((2, 2)),
+                   apply_negative_translation, weights=[0.0, 2.0])  # fmt: skip
+    assert ok.best_index == 0 and ok.best_error == 0.0
 
 
 def test_blocks_give_the_same_result_as_one_pass(monkeypatch):

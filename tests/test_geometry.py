@@ -196,8 +196,13 @@ def test_plane_validation_and_normalisation() -> None:
     np.testing.assert_allclose(p.coefficients, [0, 0, 1, 2])
     with pytest.raises(GeometryError, match="zero length"):
         g.Plane(np.zeros(3), 1.0)
+    for bad in (np.nan, np.inf, -np.inf):
+        with pytest.raises(GeometryError, match="finite"):
+            g.Plane(np.array([bad, 0, 1]), 1.0)
+        with pytest.raises(GeometryError, match="finite"):
+            g.Plane(np.array([0, 1, 0.0]), bad)
     with pytest.raises(GeometryError, match="finite"):
-        g.Plane(np.array([np.nan, 0, 1]), 1.0)
+        g.Plane(np.array([0, 1.0]), 1.0)
     with pytest.raises(GeometryError, match="confidence"):
         g.Plane(np.array([0, 0, 1.0]), 1.0, confidence=0.0)
 

@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from planodom.angles import radians
 from planodom.config import PlanodomConfig
 
 
@@ -46,4 +47,4 @@ def pass_bounds(
     else:
         t0, t, r = np.zeros(3), a.max_translation_m, a.max_rotation_deg
     z = float(prior[2, 3]) if prior is not None else 0.0
-    return PassBounds(t0, t, np.radians(r), z, t_pred, var)
+    return PassBounds(t0, t, radians(r), z, t_pred, var)

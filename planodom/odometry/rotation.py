@@ -9,6 +9,8 @@ scored by ``sum |R^-1 n_i - n_j|^2 w_i w_j`` (paper eq. 4).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from planodom.association import PairAssociations
@@ -16,8 +18,10 @@ from planodom.consensus import ConsensusResult, apply_inverse_rotation, consensu
 from planodom.planes import PlaneSet
 
 
+@functools.lru_cache(maxsize=256)
 def chord(angle: float) -> float:
-    """Distance between two unit vectors ``angle`` rad apart."""
+    """Distance between two unit vectors ``angle`` rad apart (remembered: the solver asks
+    for the same configured angles every pass)."""
     return 2.0 * np.sin(angle / 2.0)
 
 

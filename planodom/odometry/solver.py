@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from planodom.angles import cos_of_degrees, pose_floor, radians
 from planodom.association import PairAssociations, lenient_association, strict_association
 from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
@@ -178,9 +179,9 @@ def _solve(
     ij, pp, cp = _translation_pairs(prev, curr, lda, R, trans_method, bounds, cfg)
     elems = translation_elements(
         prev, curr, R, pp, cp, acfg.min_line_verticality,
-        np.radians(ocfg.translation_min_angle_deg),
+        radians(ocfg.translation_min_angle_deg),
     )  # fmt: skip
-    heights = height_elements(prev, curr, ij, np.radians(ocfg.z_plane_max_tilt_deg))
+    heights = height_elements(prev, curr, ij, radians(ocfg.z_plane_max_tilt_deg))
     tr, measured = _measured_translation(prev, curr, elems, heights, trans_method, bounds, cfg)
     if measured:
         assert tr is not None
@@ -214,8 +215,7 @@ def _solve(
     if refined is None and rot_pair is not None and trans_pair is not None:
         assert tr is not None
         cov = _joint_covariance(prev, curr, rot_pair, trans_pair, tr, cov)
-    floors = np.radians(ocfg.min_sigma_rotation_deg), ocfg.min_sigma_translation_m
-    cov = cov + np.diag([floors[0] ** 2] * 3 + [floors[1] ** 2] * 2)
+    cov = cov + pose_floor(ocfg.min_sigma_rotation_deg, ocfg.min_sigma_translation_m)
     sda_bound = ocfg.translation_inlier_m if measured else bounds.translation
     final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
     info = replaced(
@@ -244,9 +244,9 @@ def _translation_pairs(
     acfg = cfg.association
     if method == "cog":
         ij = strict_association(prev, curr, R, acfg, bounds.t0, bounds.translation)
-        pp, cp = pairs_of_associations(ij, prev, np.radians(acfg.parallel_angle_deg))
+        pp, cp = pairs_of_associations(ij, prev, radians(acfg.parallel_angle_deg))
         return ij, pp, cp
-    c = chord(np.radians(cfg.odometry.rotation_inlier_deg))
+    c = chord(radians(cfg.odometry.rotation_inlier_deg))
     pp, cp = lda.prev_pairs, lda.curr_pairs
     e1 = np.linalg.norm(prev.normals[pp[:, 0]] - curr.normals[cp[:, 0]] @ R.T, axis=1)
     e2 = np.linalg.norm(prev.normals[pp[:, 1]] - curr.normals[cp[:, 1]] @ R.T, axis=1)
@@ -288,11 +288,11 @@ def _refine(prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomC
     inlier bound around the first result when it measured the translation. A result
     beyond the motion assumption (a wrong association) is not a measurement."""
     ocfg, acfg = cfg.odometry, cfg.association
-    level = float(np.cos(np.radians(ocfg.z_plane_max_tilt_deg)))
+    level = cos_of_degrees(ocfg.z_plane_max_tilt_deg)
     z_min = level if ocfg.estimate_z else None
     floor_n, parallel = (
-        np.radians(ocfg.refine_normal_floor_deg),
-        np.radians(acfg.parallel_angle_deg),
+        radians(ocfg.refine_normal_floor_deg),
+        radians(acfg.parallel_angle_deg),
     )
     bound = ocfg.translation_inlier_m if measured else bounds.translation
     reach = bounds.translation + acfg.offset_tol_m
@@ -325,7 +325,7 @@ def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str
     covariances when they are known; otherwise, and for the mean, the weighted spread of
     the candidates within ``rotation_inlier_deg`` (over their number for the mean).
     """
-    inlier_angle = np.radians(ocfg.rotation_inlier_deg)
+    inlier_angle = radians(ocfg.rotation_inlier_deg)
     weights = lda.weights if method != "ocsc" else np.ones(len(lda))
     if method == "mean":
         R, cons = chordal_mean_rotation(lda.rotations), None

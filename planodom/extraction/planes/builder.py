@@ -239,22 +239,28 @@ def build_planes(
     polygons = support_polygons(
         epoch.points, fits.inliers, fits.bounds, fits.outline, kept, fits.centroid, fits.evecs
     )
-    for k, g in enumerate(kept):
-        idx = fits.members(int(g))
+    # per plane, Python scalars and rows taken once for all (numpy's scalar access per
+    # item costs more than the items)
+    timed = config.time_moments and epoch.scan.t is not None
+    n_rows_all = (rows if fits.n_rows is None else fits.n_rows[kept]).tolist()
+    count, offset, confidence = fits.count.tolist(), d_or.tolist(), conf.tolist()
+    starts, truths = fits.bounds.tolist(), truth.tolist()
+    for k, g in enumerate(kept.tolist()):
+        idx = fits.inliers[starts[g] : starts[g + 1]]
         dsk = None
         if t is not None and span > 0.0:
             fit = (fits.centroid[g], fits.evals[g], fits.evecs[g])
             dsk = deskew_jacobian(epoch.points[idx], t[idx] / span, n_or[g], fit)
-        n_rows = int(fits.n_rows[g]) if fits.n_rows is not None else int(rows[k])
-        polygon = polygons[k]
-        seen = (fits.centroid[g].copy(), polygon, int(fits.count[g]), scatter[g], n_rows)
+        centroid = fits.centroid[g]
+        moments = _moments_of(epoch, config, idx, centroid) if timed else None
+        seen = (centroid.copy(), polygons[k], count[g], scatter[g], int(n_rows_all[k]))
         plane = Plane(
             normal=n_or[g],
-            offset=float(d_or[g]),
+            offset=offset[g],
             covariance=covs[g],
-            confidence=float(conf[g]),
-            support=PlaneSupport(*seen, _moments_of(epoch, config, idx, fits.centroid[g])),
-            truth_id=int(truth[k]),
+            confidence=confidence[g],
+            support=PlaneSupport(*seen, moments),
+            truth_id=int(truths[k]),
             deskew_jacobian=dsk,
         )
         planes.append(plane)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from planodom.angles import radians
 from planodom.extraction.rig2d.grouping import GroupingParams, _grow_kernel
 from planodom.extraction.rig2d.segments import Segments
 from planodom.extraction.rig2d.traces import (
@@ -49,7 +50,7 @@ def group_segments(
     if S < 2:
         return [], 0
     t0s, t1s = (np.zeros(S), np.zeros(S)) if seg_times is None else seg_times
-    link = _LinkParams(float(params.tol_m), float(np.radians(parallel_deg)), float(step_m),
+    link = _LinkParams(float(params.tol_m), float(radians(parallel_deg)), float(step_m),
                        float(params.max_span_s), LINK_BAND)  # fmt: skip
     members, bounds, rejected = _group_kernel(
         segs.ring, segs.sweep, np.asarray(t0s, dtype=np.float64),

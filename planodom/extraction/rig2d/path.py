@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from planodom.angles import radians, sin_of_degrees
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.noise import member_tolerance, rms_limit
@@ -49,14 +50,14 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     elif epoch.twist is not None:
         if config.single_scanner_min_sweeps and scan.t is not None:
             seg_times = windows.segment_times(scan, segs)  # which sweep a trace is of
-        rate = float(np.radians(config.twist_rate_sigma_deg_s))
+        rate = float(radians(config.twist_rate_sigma_deg_s))
         smear = windows.twist_smear(scan, epoch.points, rate, config.twist_speed_sigma_mps)
         tol, max_rms, seed_floor = windows.widened(tol, max_rms, seed_floor, smear)
     params = GroupingParams(
         tol_m=float(tol),
         sigma_m=float(sigma),
-        sin_min_cross=float(np.sin(np.radians(config.min_cross_angle_deg))),
-        max_seed_err_rad=float(np.radians(config.max_seed_direction_error_deg)),
+        sin_min_cross=sin_of_degrees(config.min_cross_angle_deg),
+        max_seed_err_rad=float(radians(config.max_seed_direction_error_deg)),
         min_points=float(config.min_plane_points),
         max_rms_m=float(max_rms),
         min_trace_points=int(config.min_segment_points),
@@ -64,9 +65,9 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         gap_m=float(config.plane_gap_m),
         gap_ratio=float(config.gap_range_ratio),
         max_span_s=float(span),
-        max_seed_normal_err_rad=float(np.radians(config.max_seed_normal_error_deg)),
+        max_seed_normal_err_rad=float(radians(config.max_seed_normal_error_deg)),
         min_sweep_lines=int(config.single_scanner_min_sweeps),
-        parallel_rad=float(np.radians(config.trace_parallel_deg)),
+        parallel_rad=float(radians(config.trace_parallel_deg)),
         seed_spans_gap=bool(config.seed_spans_gap),
         exclusive_seeds=bool(config.exclusive_seeds),
     )
