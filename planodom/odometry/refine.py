@@ -32,6 +32,7 @@ import numba
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from planodom.odometry.nonholonomic import with_lateral
 from planodom.planes import PlaneSet
 
 #: Fallback (n, d) variances when a plane's covariance is unknown: 1 deg, 1 cm.
@@ -74,6 +75,7 @@ def plane_translation(
     level_min: float = 0.866,
     prediction_var: float | None = None,
     predicted: np.ndarray | None = None,
+    lateral_sigma_m: float = 0.0,
 ) -> PlaneTranslation:
     """Translation by weighted least squares over the plane associations ``ij`` (L, 2).
 
@@ -110,6 +112,9 @@ def plane_translation(
         prediction_var: variance of the prediction's horizontal part, m^2.
         predicted: (3,) the predicted translation, m (its x, y are what "prediction"
             keeps; ``t0`` stays the consensus's, around which the planes associated).
+        lateral_sigma_m: when not every horizontal direction is measured, the
+            non-holonomic constraint of a vehicle (:mod:`planodom.odometry.nonholonomic`)
+            joins the planes with this sigma, m (0: not used).
     """
     unmeasured, unmeasured_var, keep_sigma, prediction = _mode(
         unmeasured, unmeasured_var, max_sigma_m, prediction_var, predicted
@@ -134,6 +139,13 @@ def plane_translation(
         # an unmeasured direction keeps); the measured ones do not depend on it
         t0 = np.array([prediction[0], prediction[1], t0[2]])
         t, h_inv, flags, n_kept = _translation_kernel(*args, t0, *rest)
+    if lateral_sigma_m > 0 and not flags[1]:
+        # degenerate: the vehicle's constraint as one more association (status and count
+        # stay the planes'); what it measures is solved, not kept from the prediction
+        t, h_inv, lat_flags, _ = _translation_kernel(
+            *with_lateral(args, R, lateral_sigma_m), t0, *rest
+        )
+        flags = np.array([lat_flags[0], flags[1]])
     z_observed, measured = bool(flags[0]), bool(flags[1])
     sigma_z = float(np.sqrt(h_inv[2, 2])) if z_observed else np.inf
     return PlaneTranslation(t, h_inv[:2, :2].copy(), sigma_z, z_observed, measured, n_kept)

@@ -31,6 +31,7 @@ from planodom.consensus import ConsensusResult, apply_negative_translation, cons
 from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
+from planodom.odometry.nonholonomic import lateral_sigma
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status, replaced
@@ -306,6 +307,7 @@ def _refine(prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomC
             prev, curr, R_c, ij, t_c, z_min, ocfg.refine_offset_floor_m,
             ocfg.refine_max_sigma_m, bounds.translation**2, measured,
             ocfg.refine_unmeasured, level, bounds.prediction_var, bounds.prediction,
+            lateral_sigma(ocfg),
         )  # fmt: skip
         if vector_norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
             fit = replace(fit, t=t_c.copy(), measured=False, z_observed=False, n_planes=0)
