@@ -64,7 +64,9 @@ def test_degenerate_step_takes_the_unmeasured_direction_from_the_constraint(mode
     assert along @ fit.cov_xy @ along < 0.01**2
 
 
-def test_through_the_solver_only_with_a_nonholonomic_model():
+def test_through_the_solver_only_with_a_nonholonomic_model_and_for_a_step():
+    """Only the streaming odometry's step (``step=True``) of a non-holonomic model: a
+    loop's or a skip's pair of epochs is no step of one constant twist."""
     p, c, T_true, along = _oblique_wall()
     prior = T_true.copy()
     prior[:2, 3] += 0.08 * along
@@ -72,10 +74,12 @@ def test_through_the_solver_only_with_a_nonholonomic_model():
     for model, exact in (("constant_velocity", False), ("nonholonomic", True),
                          ("nonholonomic_degenerate", True)):  # fmt: skip
         cfg = base.updated({"odometry.motion_model": model}, source="test")
-        r = estimate_relative_pose(p, c, cfg, prior, prior_sigma_m=0.02)
+        r = estimate_relative_pose(p, c, cfg, prior, prior_sigma_m=0.02, step=True)
         assert r.status is Status.DEGENERATE
         off = abs((r.T_prev_curr[:2, 3] - T_true[:2, 3]) @ along)
         assert (off < 1e-6) if exact else (off > 0.05)
+        pair = estimate_relative_pose(p, c, cfg, prior, prior_sigma_m=0.02)
+        assert abs((pair.T_prev_curr[:2, 3] - T_true[:2, 3]) @ along) > 0.05
     assert lateral_sigma(base.odometry) == 0.0
 
 
@@ -86,6 +90,7 @@ def test_a_measured_step_is_not_touched():
     T_true = se3_exp(np.array([0.0, 0.0, 0.07, 0.3, 0.04, 0.0]))
     prev, curr = observe(world, np.eye(4)), observe(world, T_true)
     cfg = PlanodomConfig().updated({"odometry.motion_model": "nonholonomic"}, source="test")
-    r = estimate_relative_pose(PlaneSet.from_planes(prev), PlaneSet.from_planes(curr), cfg)
+    r = estimate_relative_pose(PlaneSet.from_planes(prev), PlaneSet.from_planes(curr), cfg,
+                               step=True)  # fmt: skip
     assert r.status is Status.OK
     np.testing.assert_allclose(r.T_prev_curr, T_true, atol=1e-8)
