@@ -30,8 +30,8 @@ from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
 from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
-from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.nonholonomic import lateral_sigma
+from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status, replaced
