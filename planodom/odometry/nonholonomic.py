@@ -34,9 +34,13 @@ def lateral_row(R: np.ndarray) -> np.ndarray:
     return row / np.linalg.norm(row)
 
 
-def with_lateral(
-    args: tuple[np.ndarray, ...], R: np.ndarray, sigma_m: float
-) -> tuple[np.ndarray, ...]:
+#: The kernel's plane arrays: previous normals, offsets, covariances, current ones, R.
+KernelPlanes = tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
+]
+
+
+def with_lateral(args: KernelPlanes, R: np.ndarray, sigma_m: float) -> KernelPlanes:
     """The plane associations ``args`` of :func:`planodom.odometry.refine.plane_translation`'s
     kernel (previous normals (L, 3), offsets (L,), covariances (L, 4, 4), the current ones,
     ``R`` (3, 3)) with the constraint appended as one more association: normals ``c`` and
