@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
+from planodom.config.association import Positive
 from planodom.config.section import Section
 
 
@@ -27,9 +28,20 @@ class MotionModelConfig(Section):
     vertical component is kept: the ground measures it, and a base that pitches moves
     along its z); ``nonholonomic_degenerate``: that only after a step that was not "ok"
     (degenerate or unresolved), where the prediction fills what the planes did not
-    measure. Never for a hand-held sensor. Aimed at degenerate stretches (the ground and
-    one wall) whose unmeasured horizontal direction the prediction carries (issue 11:
-    generalisation worlds 118 at 2 cm, 108, 78). Off by default: measured mixed over
-    the 2D-rig worlds 0-18 and 100-118 (``nonholonomic_degenerate``: ATE of world 118 at
-    2 cm 1.87 -> 0.42 m, world 78 6.6 -> 0.74 m, but world 6 0.46 -> 2.0 m and world 2
-    at 2 cm 1.27 -> 3.79 m; docs/RESULTS.md, "Non-holonomic prediction")."""
+    measure. Both also solve a degenerate step's unmeasured direction from the planes and
+    the vehicle's constraint (``nonholonomic_sigma_m``). Never for a hand-held sensor.
+    Off by default: 2D-rig worlds 0-18 and 100-118, 150 epochs (``nonholonomic_degenerate``,
+    ATE geometric mean of the ratios 0.76 at 6 mm, 0.60 at 2 cm; xy per epoch better on
+    12 / 13 of 20 worlds, worse on 1 / 0), but world 6 0.46 -> 2.2 m (6 mm) and world 2 at
+    2 cm 1.27 -> 3.7 m, their rotation in a tightening turn (docs/RESULTS.md,
+    "Non-holonomic constraint")."""
+
+    nonholonomic_sigma_m: Positive = 0.005
+    """With a non-holonomic ``motion_model``: the sigma, m, of a step's lateral
+    displacement off a vehicle's arc (no lateral velocity at the base origin over the
+    step), with which a degenerate step's translation is solved from its planes and
+    that constraint (:mod:`planodom.odometry.nonholonomic`): a wall oblique to the track
+    then gives the along-track step instead of the prediction. The simulator's vehicles
+    depart from the arc by 0.18 mm rms, 1.3 mm at most per step (2D-rig worlds 0-18,
+    100-118); 5 mm leaves room for the step's rotation error. A real vehicle slips more:
+    about its slip angle times its speed times the epoch interval."""

@@ -291,7 +291,8 @@ class PlaneOdometry:
         sigma = self._twist_sigma.predicted()[1] * dt  # the prediction's translation, m
         prior = prediction if self.config.odometry.use_motion_prior else None
         config = self._config_for_gap(epoch.index - reference.index)
-        result = estimate_relative_pose(reference.plane_set, epoch.plane_set, config, prior, sigma)
+        planes = reference.plane_set, epoch.plane_set
+        result = estimate_relative_pose(*planes, config, prior, sigma, step=True)
         if result.status is Status.UNRESOLVED:  # bridged by constant velocity
             bridge = prediction if prediction is not None else T_ref_last
             result = replaced(result, T_prev_curr=bridge)

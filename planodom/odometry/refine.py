@@ -27,11 +27,13 @@ keeps its initial value.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from planodom.odometry.nonholonomic import KernelPlanes, with_lateral
 from planodom.planes import PlaneSet
 
 #: Fallback (n, d) variances when a plane's covariance is unknown: 1 deg, 1 cm.
@@ -74,6 +76,7 @@ def plane_translation(
     level_min: float = 0.866,
     prediction_var: float | None = None,
     predicted: np.ndarray | None = None,
+    lateral_sigma_m: float = 0.0,
 ) -> PlaneTranslation:
     """Translation by weighted least squares over the plane associations ``ij`` (L, 2).
 
@@ -110,6 +113,7 @@ def plane_translation(
         prediction_var: variance of the prediction's horizontal part, m^2.
         predicted: (3,) the predicted translation, m (its x, y are what "prediction"
             keeps; ``t0`` stays the consensus's, around which the planes associated).
+        lateral_sigma_m: a vehicle's constraint's sigma, m, in a degenerate step (0: none).
     """
     unmeasured, unmeasured_var, keep_sigma, prediction = _mode(
         unmeasured, unmeasured_var, max_sigma_m, prediction_var, predicted
@@ -128,15 +132,37 @@ def plane_translation(
         offset_floor_m, max_sigma_m, unmeasured_var, consensus_measured,
         _UNMEASURED[unmeasured], level_min, keep_sigma,
     )  # fmt: skip
-    t, h_inv, flags, n_kept = _translation_kernel(*args, t0, *rest)
-    if prediction is not None and not flags[1]:
-        # degenerate: solved again from the prediction's x, y (the prior's centre, what
-        # an unmeasured direction keeps); the measured ones do not depend on it
-        t0 = np.array([prediction[0], prediction[1], t0[2]])
-        t, h_inv, flags, n_kept = _translation_kernel(*args, t0, *rest)
+    fit = _translation_kernel(*args, t0, *rest)
+    if not fit[2][1]:
+        fit = _degenerate(args, rest, t0, prediction, lateral_sigma_m, fit)
+    t, h_inv, flags, n_kept = fit
     z_observed, measured = bool(flags[0]), bool(flags[1])
     sigma_z = float(np.sqrt(h_inv[2, 2])) if z_observed else np.inf
     return PlaneTranslation(t, h_inv[:2, :2].copy(), sigma_z, z_observed, measured, n_kept)
+
+
+def _degenerate(
+    args: KernelPlanes,
+    rest: tuple[Any, ...],
+    t0: np.ndarray,
+    prediction: np.ndarray | None,
+    lateral_sigma_m: float,
+    fit: tuple[np.ndarray, np.ndarray, np.ndarray, int],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """:func:`plane_translation`'s kernel ``fit`` (t, inverse normal matrix, flags, count)
+    of a degenerate step solved again: from the prediction's x, y (the prior's centre,
+    what an unmeasured direction keeps; the measured ones do not depend on it), then,
+    with ``lateral_sigma_m`` > 0, with the non-holonomic constraint of a vehicle as one
+    more association (:mod:`planodom.odometry.nonholonomic`; status and count stay the
+    planes'): a direction it measures is solved, not kept from the prediction."""
+    if prediction is not None:
+        t0 = np.array([prediction[0], prediction[1], t0[2]])
+        fit = _translation_kernel(*args, t0, *rest)
+    if lateral_sigma_m > 0 and not fit[2][1]:
+        lateral = with_lateral(args, args[6], lateral_sigma_m)
+        t, h_inv, flags, _ = _translation_kernel(*lateral, t0, *rest)
+        fit = (t, h_inv, np.array([flags[0], fit[2][1]]), fit[3])
+    return fit
 
 
 def _mode(

@@ -31,6 +31,7 @@ from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
 from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
+from planodom.odometry.nonholonomic import lateral_sigma
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
@@ -99,6 +100,7 @@ def estimate_relative_pose(
     config: PlanodomConfig | None = None,
     prior: np.ndarray | None = None,
     prior_sigma_m: float | None = None,
+    step: bool = False,
 ) -> RelativePose:
     """The relative pose ``T_prev_curr`` from the planes of two epochs.
 
@@ -113,6 +115,9 @@ def estimate_relative_pose(
             prior's z fills an unobserved height, its translation an unmeasured one.
         prior_sigma_m: sigma of the prior's translation, m (a prediction's), for
             ``odometry.refine_unmeasured: prediction`` (the directions planes miss).
+        step: the streaming odometry's step of a vehicle (not a loop's or a skip's pair):
+            a non-holonomic ``odometry.motion_model`` adds its constraint to a degenerate
+            one (:func:`planodom.odometry.nonholonomic.lateral_sigma`).
 
     Returns:
         :class:`RelativePose` (``prev``, ``curr`` unset); index arrays refer to the input
@@ -123,9 +128,10 @@ def estimate_relative_pose(
     order_c, curr = canonical(as_plane_set(planes_curr))
     prior = None if prior is None else np.asarray(prior, dtype=np.float64)
 
-    result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m)
+    lateral = lateral_sigma(cfg.odometry) if step else 0.0
+    result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m, lateral)
     if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
-        free = _solve(prev, curr, cfg, prior, False, prior_sigma_m)
+        free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral)
         if free.status.rank > result.status.rank:
             result = free
     return _remapped(result, order_p, order_c)
@@ -162,8 +168,10 @@ def _solve(
     prior: np.ndarray | None,
     bound_by_prior: bool,
     prior_sigma_m: float | None = None,
+    lateral: float = 0.0,
 ) -> RelativePose:
-    """One pass of the pipeline on canonically ordered planes (indices not remapped)."""
+    """One pass of the pipeline on canonically ordered planes (indices not remapped);
+    ``lateral``: the non-holonomic constraint's sigma, m (0: none)."""
     ocfg, acfg = cfg.odometry, cfg.association
     name = pairwise_pipeline(ocfg.pipeline)
     rot_method, trans_method = PIPELINES[name]
@@ -192,7 +200,7 @@ def _solve(
         cov_t, sigma_z, z_observed = np.diag([bounds.translation**2] * 2), np.inf, False
     refined = None
     if ocfg.refinement != "none":
-        refined = _refine(prev, curr, R, np.append(txy, z), measured, bounds, cfg)
+        refined = _refine(prev, curr, R, np.append(txy, z), measured, bounds, cfg, lateral)
         # The planes associated under the consensus pose decide: a consensus pair that
         # SDA does not confirm (a far wall's normal off by degrees) measures nothing.
         R, fit = refined.R, refined.fit
@@ -282,7 +290,9 @@ class _Refined(NamedTuple):
     fit: PlaneTranslation
 
 
-def _refine(prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomConfig) -> _Refined:
+def _refine(
+    prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomConfig, lateral: float
+) -> _Refined:
     """Rotation and translation by weighted least squares over all planes SDA associates
     around ``(R, t)`` (:mod:`planodom.odometry.refine`), twice: the second time with the
     inlier bound around the first result when it measured the translation. A result
@@ -306,6 +316,7 @@ def _refine(prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomC
             prev, curr, R_c, ij, t_c, z_min, ocfg.refine_offset_floor_m,
             ocfg.refine_max_sigma_m, bounds.translation**2, measured,
             ocfg.refine_unmeasured, level, bounds.prediction_var, bounds.prediction,
+            lateral,
         )  # fmt: skip
         if vector_norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
             fit = replace(fit, t=t_c.copy(), measured=False, z_observed=False, n_planes=0)
