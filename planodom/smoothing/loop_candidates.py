@@ -337,6 +337,10 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             last, self._last_verified = self._last_verified, rel
             if last is None or k - last.curr > c.loop_candidate_confirm_epochs:
                 return
+            if c.loop_candidate_confirm_old and abs(rel.prev - last.prev) > (
+                c.loop_candidate_confirm_epochs
+            ):  # far-apart old epochs agree on anything (loop_candidate_confirm_old)
+                return
             if not self._agrees(last, rel):
                 return
             previous = self.loop_factors[-1] if self.loop_factors else None

@@ -10,6 +10,7 @@ from scipy.stats import chi2
 
 from planodom.smoothing.loop_drift import run_drift_xy
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch, Reidentification
+from planodom.smoothing.loop_yield import yield_ties
 
 #: Branches the maximum-weight clique search may open before it keeps the best clique found
 #: (a safeguard: a lap's hypotheses are a few dozen at most, searched in far fewer).
@@ -245,7 +246,10 @@ def test_hypotheses(
     right loop closure costs the rest what the drift it corrects costs; a wrong one bends
     a well-measured map. The
     hypothesis is removed (from ``graph``) when the increase, in squared whitened units,
-    exceeds the ``loop_gate_quantile`` of chi2(5 x its factors). Returns how many were."""
+    exceeds the ``loop_gate_quantile`` of chi2(5 x its factors), unless with
+    ``loop_hypothesis_ties`` "yield" it passes without the map ties it contradicts
+    (:func:`.loop_yield.yield_ties`; those ties removed, the count returned at once).
+    Returns how many were."""
     from planodom.smoothing.batch import levenberg_marquardt  # (batch imports this module)
 
     factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
@@ -263,6 +267,13 @@ def test_hypotheses(
         for f in factors:
             if f.group == group:
                 f.increase = float(increase)
+        if increase > limit and cfg.loop_hypothesis_ties == "yield":  # the ties it contradicts
+            ties, again = yield_ties(builder, graph, gaussian, estimate, alone, mine, loops, limit)
+            if ties:
+                for f in factors:
+                    if f.group == group:
+                        f.increase = again
+                return removed + ties  # solved again before the next hypothesis
         if increase > limit:
             for f in factors:
                 if f.group == group:
