@@ -145,6 +145,13 @@ class LoopCandidateConfig(Section):
     0.035 -> 0.049 (6 mm) and 0.068 -> 0.098 m (2 cm), world 16 at 2 cm 0.021 -> 0.034 m,
     world 14 0.002 -> 0.003 and 0.006 -> 0.007 m. The default: it changes no lap alone and
     keeps the map's word where an aliased set outnumbers the right loop hypothesis."""
+    loop_consistency_pair: Literal["nearest", "sharpest"] = "nearest"
+    """The pair of factors through which ``loop_consistency`` compares two loop hypotheses:
+    "nearest" the nearest in epochs (current and old), "sharpest" the one whose comparison
+    has the least horizontal covariance (drift between them plus both their own). Why:
+    on 2D-rig world 32 at 2 cm the nearest pair of 851-876 and 912-934 (against epochs
+    0 and 1) holds a factor whose sigma along the corridor is 6.5 m, so the two agree
+    although their factors of 2 cm disagree by 3.6 m. Off; see docs/RESULTS.md (W32TIES)."""
     loop_map_epoch: Literal["earliest", "spanning"] = "spanning"
     """``loop_consistency`` "hypotheses_and_map": the map epoch an accepted full-rank match
     places its epoch against when compared with a loop hypothesis (the old end of the

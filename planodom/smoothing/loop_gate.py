@@ -91,10 +91,13 @@ def consistent_hypotheses(
     adjacent = np.ones((n, n), dtype=bool)
     for i in range(len(groups)):
         for j in range(i + 1, len(groups)):
-            a, b = min(
-                ((a, b) for a in members[i] for b in members[j]),
-                key=lambda p: abs(p[0].epoch - p[1].epoch) + abs(p[0].old - p[1].old),
-            )
+            pairs = [(a, b) for a in members[i] for b in members[j]]
+            if builder.config.loop_consistency_pair == "sharpest":  # type: ignore[attr-defined]
+                a, b = min(pairs, key=lambda p: _spread(builder, *p))
+            else:
+                a, b = min(
+                    pairs, key=lambda p: abs(p[0].epoch - p[1].epoch) + abs(p[0].old - p[1].old)
+                )
             adjacent[i, j] = adjacent[j, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
         if matches:
             a, b = _sharpest(builder, members[i], mine)
@@ -115,6 +118,14 @@ def consistent_hypotheses(
         removed += 1
         builder.stats.reidentified_removed += 1  # type: ignore[attr-defined]
     return removed
+
+
+def _spread(builder: object, a: Correction, b: Correction) -> float:
+    """Trace (m^2) of the horizontal covariance two corrections are compared under
+    (:meth:`.CandidateLoopBuilder.corrections_agree`: the drift between them and both
+    their own): the least is the sharpest test (``loop_consistency_pair`` "sharpest")."""
+    drift = builder._candidate_drift([(a.epoch, b.epoch), (a.old, b.old)])  # type: ignore[attr-defined]
+    return float(np.trace((drift + a.covariance + b.covariance)[1:, 1:]))
 
 
 def map_hypothesis(builder: object) -> tuple[list[LoopMatch], list[Reidentification]]:
