@@ -14,9 +14,9 @@ are taken out, the graph solved with the hypothesis, then without it, and the te
 repeated on what is left. If the hypothesis passes, those matches' ties go and it stays;
 else nothing changes here (the caller removes the hypothesis). Nor when, without those
 ties, another kept loop factor fails the chi2(5) gate: two loop hypotheses that disagree
-are the clique's and the gate's to settle, not the map's (2D-rig world 32 at 2 cm: the
-aliased 851-872 against epoch 0, 3.6 m off, would otherwise push out the map ties that
-the right 912-934 against epoch 0 shares).
+are the clique's and the gate's to settle, not the map's. Measured (docs/RESULTS.md,
+W32TIES): on 2D-rig world 32 at 2 cm it keeps an aliased hypothesis (851-872 against
+epoch 0, 3.6 m off) whose rival, the right one, the chi2 gate had already removed.
 
 Written here, not taken from a library: gtsam has the solves, not this decision.
 """
