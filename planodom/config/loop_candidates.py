@@ -110,6 +110,23 @@ class LoopCandidateConfig(Section):
     at most this many epochs before, implies the same correction of the chained guess
     (chi2(3) at ``loop_gate_quantile``); then both do. Two far apart agree on anything:
     the drift between them allows it."""
+    loop_candidate_confirm_old: bool = False
+    """A verified loop candidate confirms the previous one (one hypothesis) only when their
+    old epochs too lie within ``loop_candidate_confirm_epochs`` of each other. Off: the
+    drift between two old epochs far apart lets their loop poses agree on anything, and a
+    wrong one then shares the right one's hypothesis (2D-rig world 32 at 2 cm: 908 against
+    epoch 378, 20 m off, chained with the right 912-934 against epoch 0; the chi2 gate
+    removes them together). See ``loop_hypothesis_ties``."""
+    loop_hypothesis_ties: Literal["keep", "yield"] = "keep"
+    """What a loop hypothesis that fails the likelihood-ratio test (:func:`.loop_gate.
+    test_hypotheses`) is weighed against. "keep": it is removed. "yield": first the map
+    matches whose plane ties it contradicts (a tie's squared whitened error rises by more
+    than chi2(3) at ``loop_gate_quantile`` between the solve without the hypothesis and
+    with it) are taken out, and the test is repeated: if the hypothesis then passes, the
+    ties go and it stays (joint compatibility of the loop and the map: a wall tied one
+    spacing off in a corridor costs the odometry nothing, the loop closure shows it), else
+    it goes and the ties stay (:mod:`planodom.smoothing.loop_yield`). Off by default; see
+    docs/RESULTS.md (W32TIES)."""
     loop_consistency: Literal["off", "hypotheses", "hypotheses_and_map"] = "hypotheses_and_map"
     """Batch: keep, before optimisation, the loop hypotheses of the largest set (in factors)
     that agree pairwise, PCM (:func:`.loop_gate.consistent_hypotheses`). On the 2D-rig worlds
@@ -128,6 +145,13 @@ class LoopCandidateConfig(Section):
     0.035 -> 0.049 (6 mm) and 0.068 -> 0.098 m (2 cm), world 16 at 2 cm 0.021 -> 0.034 m,
     world 14 0.002 -> 0.003 and 0.006 -> 0.007 m. The default: it changes no lap alone and
     keeps the map's word where an aliased set outnumbers the right loop hypothesis."""
+    loop_consistency_pair: Literal["nearest", "sharpest"] = "nearest"
+    """The pair of factors through which ``loop_consistency`` compares two loop hypotheses:
+    "nearest" the nearest in epochs (current and old), "sharpest" the one whose comparison
+    has the least horizontal covariance (drift between them plus both their own). Why:
+    on 2D-rig world 32 at 2 cm the nearest pair of 851-876 and 912-934 (against epochs
+    0 and 1) holds a factor whose sigma along the corridor is 6.5 m, so the two agree
+    although their factors of 2 cm disagree by 3.6 m. Off; see docs/RESULTS.md (W32TIES)."""
     loop_map_epoch: Literal["earliest", "spanning"] = "spanning"
     """``loop_consistency`` "hypotheses_and_map": the map epoch an accepted full-rank match
     places its epoch against when compared with a loop hypothesis (the old end of the

@@ -39,8 +39,7 @@ After optimisation (:func:`planodom.smoothing.loop_gate.gate_loop_factors`) a lo
 whose Gaussian twin's squared whitened error exceeds the ``loop_gate_quantile`` of chi2(5)
 is removed with its hypothesis (the chain of agreeing loop poses it was confirmed with) and
 the graph solved again (with the re-identification gate, :func:`planodom.smoothing.batch._gated`).
-On simulated data each factor is compared with the true relative pose
-(:class:`planodom.smoothing.loop_records.LoopFactor`).
+On simulated data each factor is compared with the truth (:class:`.loop_records.LoopFactor`).
 """
 
 from __future__ import annotations
@@ -335,8 +334,9 @@ class CandidateLoopBuilder(LoopClosingBuilder):
             if not self._agrees_with_map(rel) or not self._plausible(rel):
                 continue
             last, self._last_verified = self._last_verified, rel
-            if last is None or k - last.curr > c.loop_candidate_confirm_epochs:
-                return
+            n, old = c.loop_candidate_confirm_epochs, c.loop_candidate_confirm_old
+            if last is None or k - last.curr > n or (old and abs(rel.prev - last.prev) > n):
+                return  # (loop_candidate_confirm_old: far-apart old epochs agree on anything)
             if not self._agrees(last, rel):
                 return
             previous = self.loop_factors[-1] if self.loop_factors else None

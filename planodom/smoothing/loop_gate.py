@@ -10,6 +10,7 @@ from scipy.stats import chi2
 
 from planodom.smoothing.loop_drift import run_drift_xy
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch, Reidentification
+from planodom.smoothing.loop_yield import yield_ties
 
 #: Branches the maximum-weight clique search may open before it keeps the best clique found
 #: (a safeguard: a lap's hypotheses are a few dozen at most, searched in far fewer).
@@ -90,10 +91,13 @@ def consistent_hypotheses(
     adjacent = np.ones((n, n), dtype=bool)
     for i in range(len(groups)):
         for j in range(i + 1, len(groups)):
-            a, b = min(
-                ((a, b) for a in members[i] for b in members[j]),
-                key=lambda p: abs(p[0].epoch - p[1].epoch) + abs(p[0].old - p[1].old),
-            )
+            pairs = [(a, b) for a in members[i] for b in members[j]]
+            if builder.config.loop_consistency_pair == "sharpest":  # type: ignore[attr-defined]
+                a, b = min(pairs, key=lambda p: _spread(builder, *p))
+            else:
+                a, b = min(
+                    pairs, key=lambda p: abs(p[0].epoch - p[1].epoch) + abs(p[0].old - p[1].old)
+                )
             adjacent[i, j] = adjacent[j, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
         if matches:
             a, b = _sharpest(builder, members[i], mine)
@@ -114,6 +118,14 @@ def consistent_hypotheses(
         removed += 1
         builder.stats.reidentified_removed += 1  # type: ignore[attr-defined]
     return removed
+
+
+def _spread(builder: object, a: Correction, b: Correction) -> float:
+    """Trace (m^2) of the horizontal covariance two corrections are compared under
+    (:meth:`.CandidateLoopBuilder.corrections_agree`: the drift between them and both
+    their own): the least is the sharpest test (``loop_consistency_pair`` "sharpest")."""
+    drift = builder._candidate_drift([(a.epoch, b.epoch), (a.old, b.old)])  # type: ignore[attr-defined]
+    return float(np.trace((drift + a.covariance + b.covariance)[1:, 1:]))
 
 
 def map_hypothesis(builder: object) -> tuple[list[LoopMatch], list[Reidentification]]:
@@ -245,7 +257,10 @@ def test_hypotheses(
     right loop closure costs the rest what the drift it corrects costs; a wrong one bends
     a well-measured map. The
     hypothesis is removed (from ``graph``) when the increase, in squared whitened units,
-    exceeds the ``loop_gate_quantile`` of chi2(5 x its factors). Returns how many were."""
+    exceeds the ``loop_gate_quantile`` of chi2(5 x its factors), unless with
+    ``loop_hypothesis_ties`` "yield" it passes without the map ties it contradicts
+    (:func:`.loop_yield.yield_ties`; those ties removed, the count returned at once).
+    Returns how many were."""
     from planodom.smoothing.batch import levenberg_marquardt  # (batch imports this module)
 
     factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
@@ -263,6 +278,13 @@ def test_hypotheses(
         for f in factors:
             if f.group == group:
                 f.increase = float(increase)
+        if increase > limit and cfg.loop_hypothesis_ties == "yield":  # the ties it contradicts
+            ties, again = yield_ties(builder, graph, gaussian, estimate, alone, mine, loops, limit)
+            if ties:
+                for f in factors:
+                    if f.group == group:
+                        f.increase = again
+                return removed + ties  # solved again before the next hypothesis
         if increase > limit:
             for f in factors:
                 if f.group == group:

@@ -1,0 +1,117 @@
+"""Every wrong plane tie of the batch with loops, classified against the truth (issue 14).
+
+One lap of a procedural world (as ``planodom experiment loops``: the same odometry and
+relative poses), the batch with loop closure (covariances off: they change no pose), and
+one line per re-identification that joins two true surfaces not in one plane (two
+segments of a wall are one plane): its epoch, the true surfaces joined (the scan plane's
+and the landmark's), the angle between them and the offset between them along their
+normal (an alias of parallel walls: the spacing), the map match it came from (rank,
+verdict, squared Mahalanobis distance from the tracked correction, the verification's
+drift sigma per axis since that correction, the predicted and the matched pose's
+horizontal distance from the truth), whether the gate after the solve removed it, and
+its squared whitened error at the gate's last round against the gate's limit. The first
+line (JSON) holds the lap's ATE (xy, rmse), the loop-end error and the counts of
+``planodom experiment loops``; then the loop hypotheses (factors, epochs, truth errors).
+
+    uv run python experiments/wrong_ties.py 32 0.02 [JSON_CONFIG_CHANGES]
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections import defaultdict
+
+import numpy as np
+from scipy.stats import chi2
+
+import planodom.smoothing.batch as batch
+from planodom.config import PlanodomConfig
+from planodom.experiments.generalisation import world_for
+from planodom.experiments.loops import coplanar
+from planodom.geometry import invert_transform
+from planodom.metrics import ate
+from planodom.odometry import run_odometry
+from planodom.simulation.random_world import simulate_world, world_fields
+from planodom.smoothing.loop_records import (
+    gate_reidentifications,
+    loop_factor_counts,
+    reidentification_counts,
+)
+from planodom.smoothing.run import smoothing_config, smoothing_relatives
+
+
+def main(argv: list[str]) -> None:
+    index, noise = int(argv[0]), float(argv[1])
+    changes = json.loads(argv[2]) if len(argv) > 2 else {}
+    world = world_for(index)
+    full = simulate_world(world, noise, n_epochs=None, all_fields=True)
+    gt = invert_transform(full.poses[0])[None] @ full.poses
+    cfg = PlanodomConfig()
+    odo = run_odometry(world_fields(world, full), smoothing_config(cfg))
+    relatives = smoothing_relatives(odo, cfg)
+    chi: dict[int, tuple[float, float]] = {}  # tie factor -> (its chi2, the gate's limit)
+
+    def gate(builder, graph, gaussian, values):  # the gate, its last verdicts noted
+        q = builder.config.loop_gate_quantile
+        ties = {r.factor for r in builder.reidentifications}
+        tracked = [
+            2 * f.error(values) for i, f in gaussian.items() if i not in ties and f.dim() == 3
+        ]
+        limit = max(chi2.ppf(q, 3), float(np.quantile(tracked, q)) if tracked else 0.0)
+        for r in builder.reidentifications:
+            if not r.removed:
+                chi[r.factor] = (
+                    2 * gaussian.get(r.factor, graph.at(r.factor)).error(values),
+                    limit,
+                )
+        return gate_reidentifications(builder, graph, gaussian, values)
+
+    batch.gate_reidentifications = gate  # this process only: the batch's gate, observed
+    run_cfg = cfg.updated(
+        {"smoothing.loop_closure": True, "smoothing.compute_covariances": False, **changes}
+    )
+    res = batch.smooth_batch(odo.planes, relatives, run_cfg)
+    same = coplanar(world.scene)
+    head = {
+        "world": index, "noise_m": noise, "changes": changes,
+        "ate_m": ate(res.poses, gt, xy_only=True)["rmse"],
+        "loop_end_m": float(np.linalg.norm(res.poses[-1][:2, 3] - gt[-1][:2, 3])),
+        **reidentification_counts(res.reidentifications, same),
+        **loop_factor_counts(res.loop_factors, gt),
+    }  # fmt: skip
+    print(json.dumps(head))
+    planes = {s.id: np.append(s.normal, s.offset) for s in world.scene.surfaces}
+    matches = {m.epoch: m for m in res.loop_matches}
+    for r in res.reidentifications:
+        if min(r.truth_plane, r.truth_landmark) < 0 or same(r.truth_plane, r.truth_landmark):
+            continue
+        a, b = planes[r.truth_plane], planes[r.truth_landmark]
+        b = b if a[:3] @ b[:3] >= 0 else -b
+        m, k = matches[r.epoch], r.epoch
+        placed = m.T_world_pred @ m.T_pred_curr
+        sd = float(np.sqrt(m.drift[1, 1])) if m.drift.any() else float("nan")
+        c2, limit = chi.get(r.factor, (float("nan"), float("nan")))
+        print(
+            f"epoch {k} surfaces {r.truth_plane}->{r.truth_landmark} "
+            f"angle {np.degrees(np.arccos(np.clip(a[:3] @ b[:3], -1, 1))):.1f} deg "
+            f"offset {b[3] - a[3]:+.2f} m | match {'full' if m.full else 'rotation'} "
+            f"{m.verdict} mahalanobis {m.mahalanobis:.2f} drift sd {sd:.2f} m "
+            f"predicted {np.linalg.norm(m.T_world_pred[:2, 3] - gt[k][:2, 3]):.2f} m "
+            f"matched {np.linalg.norm(placed[:2, 3] - gt[k][:2, 3]):.2f} m off | "
+            f"{'removed' if r.removed else 'kept'} chi2 {c2:.1f} (limit {limit:.3g})"
+        )
+    groups = defaultdict(list)
+    for f in res.loop_factors:
+        groups[f.group].append(f)
+    for g, fs in sorted(groups.items()):
+        err = [float(np.linalg.norm(f.truth_error(gt)[3:])) for f in fs]
+        print(
+            f"hypothesis {g}: {len(fs)} factors, epochs {fs[0].epoch}-{fs[-1].epoch} against "
+            f"{sorted({f.old for f in fs})}, {min(err):.2f}-{max(err):.2f} m off the truth, "
+            f"{sum(f.removed for f in fs)} removed"
+        )
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
