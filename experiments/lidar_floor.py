@@ -1,0 +1,181 @@
+"""The lidar's rotation floor against the oracle, one stage at a time (issue 11).
+
+``uv run python experiments/lidar_floor.py W NOISE [--epochs N] [--variants a,b,...]
+[--out FILE.npz]``: the generalisation experiment's world ``W`` (a lidar: odd ``W``) at
+range noise NOISE (m), its scans deskewed to the epoch times along the true motion
+(planodom's own deskewing off: ``odometry.deskew: false``, ``planemap.reference_time:
+epoch``), then planodom's plane-map odometry with the truth substituted for one stage at a
+time, one line per variant: rotation and xy rms per epoch (deg, cm; the steps after the
+first), the ratio of the rotation rms to the oracle's, its median epoch, the worst epoch
+and the epochs over 10x the oracle's rms. The variants (combined with ``+``):
+
+- ``true``: the default configuration (the extraction's planes, their weights, the map).
+- ``bias0``: (b) the planes' weights without the laser bias (``planemap.laser_bias_m``
+  0.1 mm: the simulator has none).
+- ``own``: (a) each extracted plane's surface (its ``truth_id``) fitted instead from all
+  the points of that surface (the oracle's plane and moments: true segmentation), one
+  plane per surface, only the surfaces the extraction found.
+- ``all``: (c) every surface the oracle fits (:func:`planodom.oracle.surface_moments`),
+  whether extracted or not.
+- ``relmap``: (d) a map of the last scan only (``memory_scans`` 0.05, ``max_age_scans``
+  1): a relative registration in place of the fusion.
+- ``plain``: (e) the solver without its robust parts (``outliers: kernel``,
+  ``cauchy_scale`` 1e6, ``gn_iterations`` 20).
+
+The oracle (:func:`planodom.oracle.run_oracle`) is run once per world and noise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from planodom.config import PlanodomConfig
+from planodom.experiments.generalisation import declared_sweep, world_for
+from planodom.extraction import extract_planes
+from planodom.geometry import Plane, PlaneSupport, invert_transform
+from planodom.metrics import per_epoch_errors, relative_motions
+from planodom.odometry import run_odometry
+from planodom.oracle import run_oracle, surface_moments
+from planodom.simulation.random_world import simulate_world, world_fields
+
+OVERRIDES = {
+    "true": {},
+    "bias0": {"planemap.laser_bias_m": 1e-4},
+    "relmap": {"planemap.memory_scans": 0.05, "planemap.max_age_scans": 1},
+    "plain": {
+        "planemap.outliers": "kernel",
+        "planemap.cauchy_scale": 1e6,
+        "planemap.gn_iterations": 20,
+    },
+}
+
+
+def _errors(poses: np.ndarray, gt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per step (E - 1,) rotation error (deg) and xy error (m)."""
+    e = per_epoch_errors(relative_motions(poses), relative_motions(gt))
+    rot = np.degrees(np.sqrt(e["roll"] ** 2 + e["pitch"] ** 2 + e["yaw"] ** 2))
+    return rot, np.hypot(e["x"], e["y"])
+
+
+class _Scans:
+    """The scans of a run as the odometry's epoch sequence (``len``, indexing, ``times``)."""
+
+    def __init__(self, scans: list, times: np.ndarray) -> None:
+        self.scans, self.times = scans, times
+
+    def __len__(self) -> int:
+        return len(self.scans)
+
+    def __getitem__(self, k: int):  # noqa: ANN204
+        return self.scans[k]
+
+
+def _oracle_planes(points: np.ndarray, labels: np.ndarray, rings) -> dict[int, Plane]:  # noqa: ANN001
+    """The oracle's plane of every surface of one epoch (base frame, true-deskewed
+    ``points`` (N, 3)), by surface id: TLS normal towards the sensor, moments, scan lines."""
+    m = surface_moments(points, labels)
+    out = {}
+    for k, sid in enumerate(m.ids):
+        n, d, c = m.normal[k], float(m.offset[k]), m.centroid[k]
+        if d < 0:
+            n, d = -n, -d
+        N = int(m.count[k])
+        w, V = np.linalg.eigh(m.scatter[k])
+        sigma2 = max(w[0] / max(N - 3, 1), 1e-8)
+        # TLS covariance of (n, d) (as planodom.extraction.planes.fit.tls_covariance)
+        cov_n = sum(sigma2 * w[i] / (w[i] - w[0]) ** 2 * np.outer(V[:, i], V[:, i]) for i in (1, 2))
+        cov = np.zeros((4, 4))
+        cov[:3, :3], cov[:3, 3], cov[3, :3] = cov_n, -cov_n @ c, -cov_n @ c
+        cov[3, 3] = c @ cov_n @ c + sigma2 / N
+        rows = 0 if rings is None else len(np.unique(rings[labels == sid]))
+        support = PlaneSupport(c, n_points=N, scatter=m.scatter[k], n_rows=rows)
+        out[int(sid)] = Plane(n, d, covariance=cov, support=support, truth_id=int(sid))
+    return out
+
+
+def _key(scan) -> bytes:  # noqa: ANN001
+    """A scan's identity that survives copies (the odometry may add fields)."""
+    return len(scan.points).to_bytes(8, "little") + scan.points[[0, -1]].tobytes()
+
+
+def _extractor(scans: list, oracle: list[dict[int, Plane]], mode: str):  # noqa: ANN202
+    """An extractor that hands the odometry the oracle's planes: ``own`` those of the
+    surfaces the extraction found (one each), ``all`` every one."""
+    index = {_key(s): k for k, s in enumerate(scans)}
+
+    def extract(scan, config, twist=None, **kwargs):  # noqa: ANN001, ANN202
+        planes = oracle[index[_key(scan)]]
+        if mode == "all":
+            return list(planes.values())
+        found = {p.truth_id for p in extract_planes(scan, config, twist=twist, **kwargs)}
+        return [planes[s] for s in sorted(found) if s in planes]
+
+    return extract
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("world", type=int)
+    p.add_argument("noise", type=float)
+    p.add_argument("--epochs", type=int, default=150)
+    p.add_argument("--variants", default="true,bias0,own,own+bias0,all+bias0,relmap,plain")
+    p.add_argument("--out")
+    args = p.parse_args()
+    world = world_for(args.world)
+    full = simulate_world(world, args.noise, n_epochs=args.epochs, all_fields=True)
+    data = world_fields(world, full)
+    gt = invert_transform(full.poses[0])[None] @ full.poses
+    scans, oracle = [], []
+    for k, (scan, timed) in enumerate(zip(data.scans, full.scans, strict=True)):
+        t_k = full.times[k]
+        M = invert_transform(world.trajectory.pose(t_k))[None] @ world.trajectory.poses(
+            t_k + timed.t
+        )
+        points = np.einsum("nij,nj->ni", M[:, :3, :3], timed.points) + M[:, :3, 3]
+        scans.append(replace(scan, points=points))
+        oracle.append(_oracle_planes(points, timed.label, timed.ring))
+    source = _Scans(scans, data.times)
+    orc = run_oracle(full.scans, full.times, world.trajectory, world.scene)
+    orot, oxy = _errors(orc.poses, gt)
+    o_rms = float(np.sqrt(np.mean(orot**2)))
+    head = f"world {args.world} {world.description['family']} {args.noise * 1000:g} mm"
+    print(f"{head} oracle: rotation {o_rms:.5f} deg, xy {100 * np.sqrt(np.mean(oxy**2)):.4f} cm",
+          flush=True)  # fmt: skip
+    base = declared_sweep(world, PlanodomConfig()).updated(
+        {"odometry.deskew": False, "planemap.reference_time": "epoch"}, source="lidar_floor"
+    )
+    out: dict[str, np.ndarray] = {"orot": orot, "oxy": oxy}
+    for variant in args.variants.split(","):
+        parts = variant.split("+")
+        overrides: dict[str, object] = {}
+        for part in parts:
+            overrides |= OVERRIDES.get(part, {})
+        cfg = base.updated(overrides, source="lidar_floor") if overrides else base
+        mode = next((m for m in ("own", "all") if m in parts), None)
+        extractor = None if mode is None else _extractor(scans, oracle, mode)
+        c0 = time.process_time()
+        odo = run_odometry(source, cfg, extractor=extractor)
+        cpu = time.process_time() - c0
+        rot, xy = _errors(odo.poses, gt)
+        rms = float(np.sqrt(np.mean(rot**2)))
+        worst = int(np.argmax(rot))
+        bad = np.flatnonzero(rot > 10 * o_rms) + 1
+        print(
+            f"{head} {variant:>12}: rotation {rms:.5f} deg ({rms / o_rms:.1f}x), median "
+            f"{np.median(rot):.5f} (oracle {np.median(orot):.5f}), xy "
+            f"{100 * np.sqrt(np.mean(xy**2)):.4f} cm, worst epoch {worst + 1} "
+            f"{rot[worst]:.4f} deg, over 10x: {bad.tolist()[:12]}, CPU {cpu:.0f} s",
+            flush=True,
+        )
+        out[f"rot_{variant}"], out[f"xy_{variant}"] = rot, xy
+        out[f"n_{variant}"] = np.asarray(odo.n_planes)
+    if args.out:
+        np.savez(args.out, **out)  # type: ignore[arg-type]
+
+
+if __name__ == "__main__":
+    main()
