@@ -129,6 +129,7 @@ def main() -> None:
     p.add_argument("--variants", default="true,bias0,own,own+bias0,all+bias0,relmap,plain")
     p.add_argument("--out")
     p.add_argument("--as-run", action="store_true", help="planodom's own deskewing")
+    p.add_argument("--untimed", choices=["sweep", "none", "times"], default="sweep")
     args = p.parse_args()
     world = world_for(args.world)
     full = simulate_world(world, args.noise, n_epochs=args.epochs, all_fields=True)
@@ -141,6 +142,10 @@ def main() -> None:
             t_k + timed.t
         )
         points = np.einsum("nij,nj->ni", M[:, :3, :3], timed.points) + M[:, :3, 3]
+        if args.untimed == "times":
+            scan = replace(scan, t=timed.t)
+        if scan.ring is None:  # rows recovered from the deskewed points would be wrong
+            scan = replace(scan, ring=timed.ring)
         scans.append(replace(scan, points=points))
         oracle.append(_oracle_planes(points, timed.label, timed.ring))
     source = data if args.as_run else _Scans(scans, data.times)
@@ -150,7 +155,9 @@ def main() -> None:
     head = f"world {args.world} {world.description['family']} {args.noise * 1000:g} mm"
     print(f"{head} oracle: rotation {o_rms:.5f} deg, xy {100 * np.sqrt(np.mean(oxy**2)):.4f} cm",
           flush=True)  # fmt: skip
-    base = declared_sweep(world, PlanodomConfig())
+    base = PlanodomConfig()
+    if args.as_run or args.untimed != "none":
+        base = declared_sweep(world, base)
     if not args.as_run:
         truth = {"odometry.deskew": False, "planemap.reference_time": "epoch"}
         base = base.updated(truth, source="lidar_floor")
