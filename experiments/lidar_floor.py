@@ -121,6 +121,57 @@ def _extractor(scans: list, oracle: list[dict[int, Plane]], mode: str):  # noqa:
     return extract
 
 
+def _recording(scans: list, record: dict):  # noqa: ANN202
+    """The default extractor, keeping the last planes extracted of every epoch."""
+    index = {_key(s): k for k, s in enumerate(scans)}
+
+    def extract(scan, config, twist=None, **kwargs):  # noqa: ANN001, ANN202
+        planes = extract_planes(scan, config, twist=twist, **kwargs)
+        record[index[_key(scan)]] = planes
+        return planes
+
+    return extract
+
+
+def diagnose(world, times, record: dict, oracle: list[dict[int, Plane]]) -> str:  # noqa: ANN001
+    """(a): the extracted planes against the oracle's plane of their surface and the
+    truth: normal angle (deg) and mean signed distance of the inliers to the true plane
+    (mm, at the centroid), the normal error over its point-noise sigma (``sigma /
+    sqrt(lam_2)``, the weight without the laser bias), planes per surface, points and
+    scan lines against the oracle's."""
+    rows = []
+    for k, planes in sorted(record.items()):
+        T = world.trajectory.pose(float(times[k]))
+        per: dict[int, int] = {}
+        for p in planes:
+            per[p.truth_id] = per.get(p.truth_id, 0) + 1
+        for p in planes:
+            o = oracle[k].get(p.truth_id)
+            if o is None or p.support is None or p.support.scatter is None:
+                continue
+            sf = world.scene.by_id(p.truth_id)
+            n = sf.normal @ T[:3, :3]
+            d = sf.offset + sf.normal @ T[:3, 3]
+            n, d = (n, d) if n @ p.normal > 0 else (-n, -d)
+            lam = np.linalg.eigvalsh(p.support.scatter)
+            sig = np.sqrt(lam[0] / p.support.n_points) / np.sqrt(max(lam[1], 1e-12))
+            a_e = np.degrees(np.arccos(min(abs(n @ p.normal), 1.0)))
+            a_o = np.degrees(np.arccos(min(abs(n @ o.normal), 1.0)))
+            assert o.support is not None
+            rows.append((a_e, a_o, 1e3 * (n @ p.support.centroid + d),
+                         1e3 * (n @ o.support.centroid + d), np.radians(a_e) / sig,
+                         per[p.truth_id], p.support.n_points / o.support.n_points,
+                         p.support.n_rows / max(o.support.n_rows, 1)))  # fmt: skip
+    r = np.array(rows)
+    q = lambda x: f"{np.median(x):.4f}/{np.percentile(x, 90):.4f}"  # noqa: E731
+    return (
+        f"(a) {len(r)} planes: angle deg med/p90 {q(r[:, 0])} (oracle {q(r[:, 1])}), "
+        f"offset mm |med|/p90 {q(np.abs(r[:, 2]))} (oracle {q(np.abs(r[:, 3]))}), "
+        f"z {q(r[:, 4])}, >3 sigma {np.mean(r[:, 4] > 3):.2f}, split {np.mean(r[:, 5] > 1):.2f},"
+        f" points {q(r[:, 6])}, lines {q(r[:, 7])}"
+    )
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("world", type=int)
@@ -170,6 +221,9 @@ def main() -> None:
         cfg = base.updated(overrides, source="lidar_floor") if overrides else base
         mode = next((m for m in ("own", "all") if m in parts), None)
         extractor = None if mode is None else _extractor(scans, oracle, mode)
+        record: dict = {}
+        if "diag" in parts and not args.as_run:
+            extractor = _recording(scans, record)
         c0 = time.process_time()
         odo = run_odometry(source, cfg, extractor=extractor)
         cpu = time.process_time() - c0
@@ -185,6 +239,8 @@ def main() -> None:
             f"{worst + 1} {rot[worst]:.4f} deg, over 10x: {bad.tolist()[:12]}, CPU {cpu:.0f} s",
             flush=True,
         )
+        if record:
+            print(f"{head} {variant:>12}: {diagnose(world, full.times, record, oracle)}")
         out[f"rot_{variant}"], out[f"xy_{variant}"] = rot, xy
         out[f"n_{variant}"] = np.asarray(odo.n_planes)
     if args.out:
