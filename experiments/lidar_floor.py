@@ -133,7 +133,7 @@ def _recording(scans: list, record: dict):  # noqa: ANN202
     return extract
 
 
-def diagnose(world, times, record: dict, oracle: list[dict[int, Plane]]) -> str:  # noqa: ANN001
+def diagnose(world, times, record: dict, oracle: list[dict[int, Plane]], worst=()) -> str:  # noqa: ANN001
     """(a): the extracted planes against the oracle's plane of their surface and the
     truth: normal angle (deg) and mean signed distance of the inliers to the true plane
     (mm, at the centroid), the normal error over its point-noise sigma (``sigma /
@@ -158,6 +158,11 @@ def diagnose(world, times, record: dict, oracle: list[dict[int, Plane]]) -> str:
             a_e = np.degrees(np.arccos(min(abs(n @ p.normal), 1.0)))
             a_o = np.degrees(np.arccos(min(abs(n @ o.normal), 1.0)))
             assert o.support is not None
+            if np.radians(a_e) / sig > 5 and k in worst:
+                print(f"  epoch {k} surface {p.truth_id} ({per[p.truth_id]} planes): N "
+                      f"{p.support.n_points}/{o.support.n_points}, lines {p.support.n_rows}"
+                      f"/{o.support.n_rows}, angle {a_e:.4f} deg, z {np.radians(a_e) / sig:.1f}, "
+                      f"offset {1e3 * (n @ p.support.centroid + d):.2f} mm")  # fmt: skip
             rows.append((a_e, a_o, 1e3 * (n @ p.support.centroid + d),
                          1e3 * (n @ o.support.centroid + d), np.radians(a_e) / sig,
                          per[p.truth_id], p.support.n_points / o.support.n_points,
@@ -240,7 +245,8 @@ def main() -> None:
             flush=True,
         )
         if record:
-            print(f"{head} {variant:>12}: {diagnose(world, full.times, record, oracle)}")
+            spikes = set(np.argsort(rot)[-4:] + 1)
+            print(f"{head} {variant:>12}: {diagnose(world, full.times, record, oracle, spikes)}")
         out[f"rot_{variant}"], out[f"xy_{variant}"] = rot, xy
         out[f"n_{variant}"] = np.asarray(odo.n_planes)
     if args.out:
