@@ -50,6 +50,7 @@ OVERRIDES = {
     "fit": {"planemap.laser_bias": "fitted"},
     "b5": {"planemap.laser_bias_m": 0.005},
     "b1": {"planemap.laser_bias_m": 0.001},
+    "r3": {"planemap.min_rows": 3},
     "plain": {
         "planemap.outliers": "kernel",
         "planemap.cauchy_scale": 1e6,
