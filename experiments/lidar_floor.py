@@ -53,7 +53,7 @@ from planodom.odometry import run_odometry
 from planodom.oracle import run_oracle, surface_moments
 from planodom.simulation.random_world import simulate_world, world_fields
 
-OVERRIDES = {
+OVERRIDES: dict[str, dict[str, object]] = {
     "true": {},
     "bias0": {"planemap.laser_bias_m": 1e-4},
     "relmap": {"planemap.memory_scans": 0.05, "planemap.max_age_scans": 1},
@@ -215,6 +215,7 @@ def main() -> None:
         if scan.ring is None:  # rows recovered from the deskewed points would be wrong
             scan = replace(scan, ring=timed.ring)
         scans.append(replace(scan, points=points))
+        assert timed.label is not None  # the simulator labels every point
         oracle.append(_oracle_planes(points, timed.label, timed.ring))
     source = data if args.as_run else _Scans(scans, data.times)
     orc = run_oracle(full.scans, full.times, world.trajectory, world.scene)
