@@ -138,7 +138,8 @@ def main() -> None:
     P = res.covariances
     n5 = errors_nees(xi[1:], P[1:], range(5))
     print(f"world {args.world} noise {args.noise} epochs {E} model {res.covariance_model}")
-    print(f"mean NEES5 {np.nanmean(n5):.2f}  statuses", {s: odo.statuses.count(s) for s in set(odo.statuses)})
+    counts = {s: odo.statuses.count(s) for s in set(odo.statuses)}
+    print(f"mean NEES5 {np.nanmean(n5):.2f}  statuses", counts)
     print("first steps:", odo.statuses[:6])
     bins = np.array_split(np.arange(1, E), 10)
     print("NEES5 by tenth:", " ".join(f"{np.nanmean(n5[b - 1]):.1f}" for b in bins))

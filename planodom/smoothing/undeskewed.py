@@ -20,12 +20,15 @@ its points' times, times their span, from the odometry's steps around it as
 
     d_k = -span_k sum_j share_j Log(T_j) / dt_j,
 
-and ``d_k d_k^T`` is added to its ``Q_k``: one error along the motion, whose size the
-estimate of the motion gives. The steps need not have measured their translation: a
-bridged step's is the odometry's held velocity, the best knowledge of the motion there
-is (a velocity nobody measured is not deskewed with, but it is a fair size of the error
-of not deskewing). Epochs taken at one instant, and the first epoch (its deskewing is
-not recorded in the relative poses), are left as they are.
+and ``diag(d_k^2)`` is added to its ``Q_k``: per axis the squared motion, whose size
+the estimate of the motion gives. Not the outer product ``d_k d_k^T``: that holds the
+error to the direction of the estimated motion, which is itself off by the steps' error
+(and has no vertical motion where the steps did not measure it), so that a component of
+the true error across it would have no variance at all. The steps need not have measured
+their translation: a bridged step's is the odometry's held velocity, the best knowledge of
+the motion there is (a velocity nobody measured is not deskewed with, but it is a fair
+size of the error of not deskewing). Epochs taken at one instant, and the first epoch
+(its deskewing is not recorded in the relative poses), are left as they are.
 """
 
 from __future__ import annotations
@@ -74,13 +77,14 @@ def undeskewed_errors(relative_poses: Sequence[RelativePose], n_epochs: int) -> 
 
 
 def with_undeskewed(Q: np.ndarray, relative_poses: Sequence[RelativePose]) -> np.ndarray:
-    """(E, 6, 6) ``Q`` (the epochs' deskewing errors' covariances) plus ``d_k d_k^T`` for
-    the epochs kept without deskewing (:func:`undeskewed_errors`); ``Q`` itself when there
-    are none."""
+    """(E, 6, 6) ``Q`` (the epochs' deskewing errors' covariances) plus ``diag(d_k^2)``
+    for the epochs kept without deskewing (:func:`undeskewed_errors`); ``Q`` itself when
+    there are none."""
     d = undeskewed_errors(relative_poses, len(Q))
     rows = np.flatnonzero(np.all(np.isfinite(d), axis=1))
     if not len(rows):
         return Q
     out = np.array(Q, dtype=float, copy=True)
-    out[rows] += d[rows, :, None] * d[rows, None, :]
+    idx = np.arange(6)
+    out[rows[:, None], idx, idx] += d[rows] ** 2
     return out
