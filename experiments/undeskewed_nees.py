@@ -56,11 +56,12 @@ def covariances(cfg: PlanodomConfig) -> np.ndarray:
     return batch_sandwich(s, c["graph"], cov_graph, c["planes"], Q, c["estimate"])[0]
 
 
-def run(world_index: int, noise: float) -> dict:
+def run(world_index: int, noise: float, changes: dict | None = None) -> dict:
+    """One lap (``changes``: further config keys, dotted, for both runs)."""
     world = world_for(world_index)
     full = simulate_world(world, noise, all_fields=True)
     gt = invert_transform(full.poses[0])[None] @ full.poses
-    base = PlanodomConfig().updated({"smoothing.loop_closure": True})
+    base = PlanodomConfig().updated({"smoothing.loop_closure": True} | (changes or {}))
     odo = run_odometry(world_fields(world, full), smoothing_config(base))
     rel = smoothing_relatives(odo, base)
     res = batch_module.smooth_batch(odo.planes, rel, base)
@@ -89,12 +90,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--worlds", default="20,22")
     parser.add_argument("--levels", default="0.006,0.02")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="a further config key, e.g. extraction.own_scan_plane=trimmed")  # fmt: skip
     parser.add_argument("-o", "--out", required=True)
     args = parser.parse_args()
+    changes = dict(item.split("=", 1) for item in args.set)
     rows = []
     for w in [int(x) for x in args.worlds.split(",")]:
         for noise in [float(x) for x in args.levels.split(",")]:
-            rows.append(run(w, noise))
+            rows.append(run(w, noise, changes) | {"set": " ".join(args.set)})
             print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in rows[-1].items()},
                   flush=True)  # fmt: skip
             write_rows(args.out, rows)
