@@ -90,8 +90,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--worlds", default="20,22")
     parser.add_argument("--levels", default="0.006,0.02")
-    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help="a further config key, e.g. extraction.own_scan_plane=trimmed")  # fmt: skip
+    parser.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE",
+        help="a further config key, e.g. extraction.own_scan_plane=trimmed",
+    )  # fmt: skip
     parser.add_argument("-o", "--out", required=True)
     args = parser.parse_args()
     changes = dict(item.split("=", 1) for item in args.set)
