@@ -136,6 +136,7 @@ def main() -> None:
     E = len(gt)
     xi = pose_errors(res.poses, gt)
     P = res.covariances
+    assert P is not None, res.covariance_note
     n5 = errors_nees(xi[1:], P[1:], range(5))
     print(f"world {args.world} noise {args.noise} epochs {E} model {res.covariance_model}")
     counts = {s: odo.statuses.count(s) for s in set(odo.statuses)}
