@@ -144,15 +144,17 @@ def with_deskew(
 ) -> RelativePose:
     """``result`` with its epoch's ``time_spread`` (``scan``'s), the ``twist`` (6,) (rad/s,
     m/s; None: not deskewed) its points were deskewed with, their first and last time
-    (s) and the ``interval_s`` (s) since its reference epoch."""
+    (s; also when not deskewed, if spread) and the ``interval_s`` (s) since its reference
+    epoch."""
     spread = time_spread(scan)
-    if not spread or twist is None:
+    if not spread:
         return replaced(result, time_spread=spread, interval_s=interval_s)
     assert scan.t is not None
-    times = (float(np.min(scan.t)), float(np.max(scan.t)))
+    times = (float(np.min(scan.t)), float(np.max(scan.t)))  # also when not deskewed
+    used = None if twist is None else np.array(twist, dtype=float)
     return replaced(
-        result, time_spread=spread, deskew_twist=np.array(twist, dtype=float),
-        deskew_times=times, interval_s=interval_s,
+        result, time_spread=spread, deskew_twist=used, deskew_times=times,
+        interval_s=interval_s,
     )  # fmt: skip
 
 

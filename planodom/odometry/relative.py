@@ -122,9 +122,10 @@ class RelativePose:
             planes; None: not known (planes given alone, other sources).
         deskew_twist: (6,) the twist epoch ``curr``'s points were deskewed with (rad/s,
             m/s; None: not deskewed or not known); ``deskew_times``: (first, last) of its
-            points' times relative to the epoch's (s); ``interval_s``: ``curr``'s time less
-            ``prev``'s (s; NaN: not known). The sandwich covariances estimate the
-            deskewing error from them (:mod:`planodom.smoothing.deskew_scale`).
+            points' times relative to the epoch's (s; None: not spread or not known);
+            ``interval_s``: ``curr``'s time less ``prev``'s (s; NaN: not known). The
+            sandwich covariances estimate the deskewing error from them
+            (:mod:`planodom.smoothing.deskew_scale`, :mod:`planodom.smoothing.undeskewed`).
     """
 
     T_prev_curr: np.ndarray

@@ -17,6 +17,7 @@ from planodom.smoothing.deskew_scale import scaled_motion_change
 from planodom.smoothing.graph import GraphBuilder
 from planodom.smoothing.marginals import pose_covariances
 from planodom.smoothing.sandwich import batch_sandwich, deskew_motion_change
+from planodom.smoothing.undeskewed import with_undeskewed
 from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
 
 NO_JACOBIANS = (
@@ -66,8 +67,10 @@ def sandwich_inputs(
 ) -> tuple[np.ndarray | None, str | None]:
     """The epochs' (E, 6, 6) changes of motion the sandwich takes as each epoch's
     deskewing error (:func:`.sandwich.deskew_motion_change`, scaled per run with
-    ``sandwich_motion_scale`` "run"), or None for the fitted covariances, and a note why
-    when ``covariance_model`` "auto" falls back although the epochs are spread in time.
+    ``sandwich_motion_scale`` "run"; with ``sandwich_undeskewed`` "motion" the epochs kept
+    without deskewing also the motion over their points, :mod:`.undeskewed`), or None for
+    the fitted covariances, and a note why when ``covariance_model`` "auto" falls back
+    although the epochs are spread in time.
 
     "sandwich": always the changes (zero for epochs taken at one instant). "auto": None
     with ``deskew_noise`` or ``covariance_scale`` other than "none" (those change the noise
@@ -82,6 +85,8 @@ def sandwich_inputs(
     Q = deskew_motion_change(relative_poses, n_epochs)
     if cfg.sandwich_motion_scale == "run":
         Q = scaled_motion_change(Q, relative_poses)[0]
+    if cfg.sandwich_undeskewed == "motion":
+        Q = with_undeskewed(Q, relative_poses)
     if model == "sandwich":
         return Q, None
     if not np.any(Q):

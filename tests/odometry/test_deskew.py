@@ -79,3 +79,4 @@ def test_with_deskew_records_the_twist_its_times_and_the_interval():
     assert instant.deskew_times is None and instant.interval_s == 0.1
     undeskewed = with_deskew(rel, Scan(points=pts, t=np.array([0.0, 0.1, 0.2, 0.3])), None, 0.1)
     assert undeskewed.time_spread and undeskewed.deskew_twist is None
+    assert undeskewed.deskew_times == (0.0, 0.3)  # the sandwich's error of not deskewing
