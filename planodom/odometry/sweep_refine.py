@@ -24,6 +24,7 @@ from planodom.odometry.run import (
     _streaming_pass,
 )
 from planodom.odometry.sweep_motion import SweepMotion, epoch_motion
+from planodom.odometry.sweep_prior import twist_change
 from planodom.rig import Rig
 from planodom.scan import Scan
 
@@ -60,6 +61,7 @@ def epoch_motions(
     measured = _measured(run)
     n = len(source)
     noise = config.extraction.range_noise_m
+    change = twist_change(run.times, run.poses, run.results)
     out: dict[int, SweepMotion] = {}
     for k in range(n):
         r = k - 1 if k > 0 else 1
@@ -69,7 +71,7 @@ def epoch_motions(
         if not isinstance(item, Scan) or item.t is None:
             continue
         motion = epoch_motion(item, k, r, run.times, run.poses, list(run.planes[r]),
-                              config.sweep_refine, noise)  # fmt: skip
+                              config.sweep_refine, noise, change)  # fmt: skip
         if motion is not None:
             out[k] = motion
     return out
