@@ -133,7 +133,7 @@ def map_solve(
         dn, dd = np.zeros((n_pts, 3)), np.zeros(n_pts)
         for j in with_error:
             m = plane_index == j
-            delta = factors[j] @ x[col[j] : col[j] + 3]  # type: ignore[operator]
+            delta = factors[j] @ x[col[j] : col[j] + 3]
             dn[m], dd[m] = delta[:3], delta[3]
         n, d = n0 + dn, d0 + dd
         wv = np.einsum("nkp,p->nk", B, x[:P])
