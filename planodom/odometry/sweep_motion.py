@@ -147,6 +147,8 @@ def epoch_motion(
     sigma = basis.prior(np.deg2rad(cfg.prior_rotation_deg), cfg.prior_translation_m)
     if cfg.prior == "twist" and change is not None and np.isfinite(change).all():
         x, res = _map_solve(p, R, t, which[use], planes_r, basis, B, sigma, scale, change)
+        if not np.isfinite(x).all():
+            return None
         return _motion(basis, x, t_unique, T_init, use.sum(), len(normals), r0, res)
 
     def residuals(x: np.ndarray) -> np.ndarray:
@@ -205,7 +207,8 @@ def _map_solve(
     and the planes' errors their deskewing Jacobians' for that change over the span."""
     from planodom.odometry.sweep_prior import map_solve, plane_error_factor
 
-    per_axis = np.asarray(change) / np.sqrt(3.0)
+    # a change the steps' own errors explain entirely (0): the curve holds, to rounding
+    per_axis = np.maximum(np.asarray(change), 1e-9) / np.sqrt(3.0)
     n_rot = 3 * (basis.dr + 1)
     sigma = sigma.copy()
     sigma[3:n_rot] = per_axis[0] * basis.half
