@@ -49,3 +49,10 @@ class SweepRefineConfig(Section):
     coefficients of degree 1 and up get the run's twist change over half the epoch as
     their sigma, and each reference plane's error (its fit covariance, and its
     deskewing Jacobian's share of the twist change) is an unknown with that prior."""
+    guard: Literal["off", "streaming"] = "off"
+    """``streaming``: after the passes, an epoch where the last pass did not converge (its
+    status worse than the streaming pass's, or its step off the one of the poses its
+    motion was measured along by more than ``odometry.deskew_rate_tolerance_deg_s`` /
+    ``deskew_speed_tolerance_mps``, or no motion measured) keeps the streaming pass's
+    estimate (:func:`planodom.odometry.splice.unconverged`, as ``odometry.
+    deskew_pass_guard`` does for the deskewing passes); ``off``: the last pass's."""
