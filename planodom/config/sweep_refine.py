@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import ConfigDict, Field
 
 from planodom.config.section import Section
@@ -41,3 +43,16 @@ class SweepRefineConfig(Section):
     epoch is off by hundredths of a degree)."""
     prior_translation_m: float = Field(0.1, gt=0)
     """Sigma (m) of the prior of each translation coefficient (as the rotation's)."""
+    prior: Literal["fixed", "twist"] = "fixed"
+    """``fixed``: the priors above on every coefficient, the reference planes taken as
+    exact; ``twist``: a MAP estimate (:mod:`planodom.odometry.sweep_prior`): the
+    coefficients of degree 1 and up get the run's twist change over half the epoch as
+    their sigma, and each reference plane's error (its fit covariance, and its
+    deskewing Jacobian's share of the twist change) is an unknown with that prior."""
+    guard: Literal["off", "streaming"] = "off"
+    """``streaming``: after the passes, an epoch where the last pass did not converge (its
+    status worse than the streaming pass's, or its step off the one of the poses its
+    motion was measured along by more than ``odometry.deskew_rate_tolerance_deg_s`` /
+    ``deskew_speed_tolerance_mps``, or no motion measured) keeps the streaming pass's
+    estimate (:func:`planodom.odometry.splice.unconverged`, as ``odometry.
+    deskew_pass_guard`` does for the deskewing passes); ``off``: the last pass's."""

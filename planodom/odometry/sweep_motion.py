@@ -104,6 +104,7 @@ def epoch_motion(
     planes_r: list[Plane],
     cfg: SweepRefineConfig,
     noise_m: float,
+    change: np.ndarray | None = None,
 ) -> SweepMotion | None:
     """The motion inside epoch ``k`` measured against the planes of epoch ``r`` (see the
     module); None when too few points or planes (under ``min_points``, or their normals
@@ -114,6 +115,8 @@ def epoch_motion(
         times: (N,) epoch times, s. poses: (N, 4, 4) ``T_world_base`` (the curve's nodes).
         planes_r: epoch ``r``'s planes, base frame at ``times[r]``.
         noise_m: the range noise sigma (m), the floor of the residual scale.
+        change: (2,) the run's twist change (rad/s, m/s) for ``cfg.prior`` "twist"
+            (:mod:`planodom.odometry.sweep_prior`; NaN or None: the fixed priors).
     """
     if scan.t is None or len(scan) == 0 or not planes_r:
         return None
@@ -142,6 +145,11 @@ def epoch_motion(
     basis = _Basis(cfg.degree, cfg.translation_degree, mid, half)
     B = basis.rows(ts)  # (N, P, 6): d (w, v) / d x
     sigma = basis.prior(np.deg2rad(cfg.prior_rotation_deg), cfg.prior_translation_m)
+    if cfg.prior == "twist" and change is not None and np.isfinite(change).all():
+        x, res = _map_solve(p, R, t, which[use], planes_r, basis, B, sigma, scale, change)
+        if not np.isfinite(x).all():
+            return None
+        return _motion(basis, x, t_unique, T_init, use.sum(), len(normals), r0, res)
 
     def residuals(x: np.ndarray) -> np.ndarray:
         wv = B @ x
@@ -157,14 +165,57 @@ def epoch_motion(
     sol = least_squares(residuals, np.zeros(basis.size), jac=jacobian, loss="cauchy",
                         f_scale=3.0, method="trf", x_scale="jac", max_nfev=50, ftol=1e-12,
                         xtol=1e-12, gtol=1e-12)  # fmt: skip
-    wv = basis.rows(t_unique) @ sol.x
+    return _motion(basis, sol.x, t_unique, T_init, use.sum(), len(normals), r0,
+                   sol.fun[: len(p)] * scale)  # fmt: skip
+
+
+def _motion(
+    basis: _Basis,
+    x: np.ndarray,
+    t_unique: np.ndarray,
+    T_init: np.ndarray,
+    n_points: int,
+    n_planes: int,
+    r0: np.ndarray,
+    res: np.ndarray,
+) -> SweepMotion:
+    """The motion of the coefficients ``x`` on the curve ``T_init`` (at ``t_unique``)."""
+    wv = basis.rows(t_unique) @ x
     C = np.tile(np.eye(4), (len(t_unique), 1, 1))
     C[:, :3, :3], C[:, :3, 3] = rotation_matrices(wv[:, :3]), wv[:, 3:]
     T_r_t = T_init @ C
     zero = int(np.searchsorted(t_unique, 0.0))
     T_k_t = invert_transform(T_r_t[zero]) @ T_r_t
-    rms = np.sqrt([np.mean(r0**2), np.mean((sol.fun[: len(p)] * scale) ** 2)])
-    return SweepMotion(t_unique, T_k_t, int(use.sum()), len(normals), rms)
+    rms = np.sqrt([np.mean(r0**2), np.mean(res**2)])
+    return SweepMotion(t_unique, T_k_t, int(n_points), n_planes, rms)
+
+
+def _map_solve(
+    p: np.ndarray,
+    R: np.ndarray,
+    t: np.ndarray,
+    index: np.ndarray,
+    planes: list[Plane],
+    basis: _Basis,
+    B: np.ndarray,
+    sigma: np.ndarray,
+    scale: float,
+    change: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`.sweep_prior.map_solve` with the coefficients of degree >= 1 given the
+    twist change (``change`` (2,): rad/s, m/s, over sqrt 3 per axis) over half the span,
+    and the planes' errors their deskewing Jacobians' for that change over the span."""
+    from planodom.odometry.sweep_prior import map_solve, plane_error_factor
+
+    # a change the steps' own errors explain entirely (0): the curve holds, to rounding
+    per_axis = np.maximum(np.asarray(change), 1e-9) / np.sqrt(3.0)
+    n_rot = 3 * (basis.dr + 1)
+    sigma = sigma.copy()
+    sigma[3:n_rot] = per_axis[0] * basis.half
+    sigma[n_rot + 3 :] = per_axis[1] * basis.half
+    motion_change = np.repeat(per_axis * 2.0 * basis.half, 3)
+    factors = [plane_error_factor(pl, motion_change) for pl in planes]
+    return map_solve(p, R, t, index, planes, factors, B, sigma, scale)
 
 
 @dataclass(frozen=True)

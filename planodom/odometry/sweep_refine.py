@@ -13,8 +13,10 @@ from __future__ import annotations
 import time as _time
 from collections.abc import Callable, Sequence
 
+import numpy as np
+
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane
+from planodom.geometry import Plane, invert_transform
 from planodom.odometry.odometry import Extractor
 from planodom.odometry.run import (
     EpochSequence,
@@ -23,7 +25,9 @@ from planodom.odometry.run import (
     _measured,
     _streaming_pass,
 )
+from planodom.odometry.splice import spliced, unconverged
 from planodom.odometry.sweep_motion import SweepMotion, epoch_motion
+from planodom.odometry.sweep_prior import twist_change
 from planodom.rig import Rig
 from planodom.scan import Scan
 
@@ -38,16 +42,26 @@ def sweep_refined_run(
 ) -> OdometryRun:
     """``config.sweep_refine.passes`` passes (see the module) after ``run``, the odometry
     of ``source`` with ``config`` (the rig's motion bounds applied); the last pass's run,
-    its ``seconds`` adding up all passes' (the measurement as ``sweep_refine``)."""
+    its ``seconds`` adding up all passes' (the measurement as ``sweep_refine``). With
+    ``sweep_refine.guard: streaming`` an epoch where the last pass did not converge keeps
+    the streaming estimate (:func:`planodom.odometry.splice.unconverged`, the step
+    compared with the one of the poses its motion was measured along; an epoch without a
+    measured motion keeps it too)."""
     seconds = dict(run.seconds)
+    streaming, along, motions = run, run.poses, {}
     for _ in range(config.sweep_refine.passes):
         c0 = _time.perf_counter()
         motions = epoch_motions(source, run, config)
         spent = _time.perf_counter() - c0
+        along = run.poses
         run = _streaming_pass(_SweepDeskewed(source, motions), config, rig, run.times,
                               progress, extractor)  # fmt: skip
         for key, value in (run.seconds | {"sweep_refine": spent}).items():
             seconds[key] = seconds.get(key, 0.0) + value
+    if config.sweep_refine.guard == "streaming" and config.sweep_refine.passes:
+        steps = invert_transform(along[:-1]) @ along[1:]
+        measured = np.array([k in motions for k in range(len(run.poses))], dtype=bool)
+        run = spliced(streaming, run, unconverged(streaming, run, steps, measured, config))
     run.seconds = seconds
     return run
 
@@ -60,6 +74,7 @@ def epoch_motions(
     measured = _measured(run)
     n = len(source)
     noise = config.extraction.range_noise_m
+    change = twist_change(run.times, run.poses, run.results)
     out: dict[int, SweepMotion] = {}
     for k in range(n):
         r = k - 1 if k > 0 else 1
@@ -69,7 +84,7 @@ def epoch_motions(
         if not isinstance(item, Scan) or item.t is None:
             continue
         motion = epoch_motion(item, k, r, run.times, run.poses, list(run.planes[r]),
-                              config.sweep_refine, noise)  # fmt: skip
+                              config.sweep_refine, noise, change)  # fmt: skip
         if motion is not None:
             out[k] = motion
     return out
