@@ -44,11 +44,14 @@ from dataclasses import replace
 
 import numpy as np
 
+# the walks' per-step errors and epoch sequence (this script runs beside it in experiments/)
+from handheld_walks import _errors, _Scans
+
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import declared_sweep, world_for
 from planodom.extraction import extract_planes
 from planodom.geometry import Plane, PlaneSupport, invert_transform
-from planodom.metrics import ate, per_epoch_errors, relative_motions
+from planodom.metrics import ate
 from planodom.odometry import run_odometry
 from planodom.oracle import run_oracle, surface_moments
 from planodom.simulation.random_world import simulate_world, world_fields
@@ -68,26 +71,6 @@ OVERRIDES: dict[str, dict[str, object]] = {
         "planemap.gn_iterations": 20,
     },
 }
-
-
-def _errors(poses: np.ndarray, gt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per step (E - 1,) rotation error (deg) and xy error (m)."""
-    e = per_epoch_errors(relative_motions(poses), relative_motions(gt))
-    rot = np.degrees(np.sqrt(e["roll"] ** 2 + e["pitch"] ** 2 + e["yaw"] ** 2))
-    return rot, np.hypot(e["x"], e["y"])
-
-
-class _Scans:
-    """The scans of a run as the odometry's epoch sequence (``len``, indexing, ``times``)."""
-
-    def __init__(self, scans: list, times: np.ndarray) -> None:
-        self.scans, self.times = scans, times
-
-    def __len__(self) -> int:
-        return len(self.scans)
-
-    def __getitem__(self, k: int):  # noqa: ANN204
-        return self.scans[k]
 
 
 def _oracle_planes(points: np.ndarray, labels: np.ndarray, rings) -> dict[int, Plane]:  # noqa: ANN001
