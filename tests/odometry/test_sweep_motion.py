@@ -41,14 +41,11 @@ def _scene():
             _square([0, 1.0, 0], -8.0), _square([-0.6, -0.8, 0], -9.0)]  # fmt: skip
 
 
-def test_epoch_motion_recovers_a_motion_off_the_curve():
-    """The true motion of epoch 1 in the frame of epoch 0 is the curve through constant-
-    twist poses times a correction of the model's form (rotation quadratic, translation
-    linear in time): measured at sigma = 0, the motion inside the epoch is exact (to
-    the prior's pull)."""
+def epoch_on_curve(planes, rng):
+    """Epoch 1's points on ``planes`` (frame of epoch 0), seen along the curve through
+    constant-twist poses times a correction of the model's form (rotation quadratic,
+    translation linear in time): the poses at TIMES, the scan, and the truth T_1_t."""
     poses = se3_exp(TIMES[:, None] * XI)
-    planes = _scene()
-    rng = np.random.default_rng(3)
     t = np.sort(np.r_[0.0, rng.uniform(0.0, 0.15, 1999)])  # point times after t_1
     T_curve = interpolated_motion(TIMES, poses, TIMES[0], TIMES[1] + t, 3)
     s = (t - 0.075) / 0.075
@@ -57,7 +54,6 @@ def test_epoch_motion_recovers_a_motion_off_the_curve():
     C = np.tile(np.eye(4), (len(t), 1, 1))
     C[:, :3, :3], C[:, :3, 3] = rotation_matrices(w), v
     T_true = T_curve @ C  # T_0_t
-    # a point on a random plane, seen from the base frame at its time
     which = rng.integers(0, len(planes), len(t))
     p0 = np.empty((len(t), 3))
     for i, j in enumerate(which):
@@ -67,10 +63,19 @@ def test_epoch_motion_recovers_a_motion_off_the_curve():
         p0[i] = q - (n @ q + d) * n
     T_t_0 = np.array([invert_transform(T) for T in T_true])
     pts = np.einsum("nij,nj->ni", T_t_0[:, :3, :3], p0) + T_t_0[:, :3, 3]
-    scan = Scan(pts, t=t)
+    return poses, Scan(pts, t=t), invert_transform(T_true[0]) @ T_true
+
+
+def test_epoch_motion_recovers_a_motion_off_the_curve():
+    """The true motion of epoch 1 in the frame of epoch 0 is the curve through constant-
+    twist poses times a correction of the model's form (rotation quadratic, translation
+    linear in time): measured at sigma = 0, the motion inside the epoch is exact (to
+    the prior's pull)."""
+    planes = _scene()
+    poses, scan, truth = epoch_on_curve(planes, np.random.default_rng(3))
+    t, pts = scan.t, scan.points
     out = epoch_motion(scan, 1, 0, TIMES, poses, planes, SweepRefineConfig(), 0.0)
     assert out is not None and out.n_planes == 4
-    truth = invert_transform(T_true[0]) @ T_true  # T_1_t
     idx = np.searchsorted(out.times, t)
     err = np.linalg.inv(truth) @ out.T_k_t[idx]
     # what is left is the zero-mean prior's pull (5e-8 rad here), far below 1e-4 deg

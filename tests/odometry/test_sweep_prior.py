@@ -7,40 +7,13 @@ from dataclasses import replace
 import numpy as np
 
 from planodom.config.sweep_refine import SweepRefineConfig
-from planodom.geometry import invert_transform, se3_exp
-from planodom.odometry.interpolate import interpolated_motion
+from planodom.geometry import se3_exp
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.sweep_motion import epoch_motion
 from planodom.odometry.sweep_prior import plane_error_factor, tangent_basis, twist_change
-from planodom.rotvec import rotation_matrices
-from planodom.scan import Scan
-from tests.odometry.test_sweep_motion import TIMES, XI, _scene
+from tests.odometry.test_sweep_motion import TIMES, XI, _scene, epoch_on_curve
 
 TWIST = SweepRefineConfig(prior="twist")
-
-
-def _epoch(planes, rng):
-    """Epoch 1's points on ``planes`` (frame of epoch 0), seen along the curve through
-    constant-twist poses times a correction of the model's form; and that truth."""
-    poses = se3_exp(TIMES[:, None] * XI)
-    t = np.sort(np.r_[0.0, rng.uniform(0.0, 0.15, 1999)])
-    T_curve = interpolated_motion(TIMES, poses, TIMES[0], TIMES[1] + t, 3)
-    s = (t - 0.075) / 0.075
-    w = np.deg2rad(0.05) * np.c_[s, -(s**2), 0.5 * s - s**2]
-    v = 0.004 * np.c_[1 + s, -s, 0.5 * s]
-    C = np.tile(np.eye(4), (len(t), 1, 1))
-    C[:, :3, :3], C[:, :3, 3] = rotation_matrices(w), v
-    T_true = T_curve @ C
-    which = rng.integers(0, len(planes), len(t))
-    p0 = np.empty((len(t), 3))
-    for i, j in enumerate(which):
-        n, d = planes[j].normal, planes[j].offset
-        q = rng.uniform(-6, 6, 3) + T_true[i, :3, 3]
-        q[2] = rng.uniform(-1.0, 4.0)
-        p0[i] = q - (n @ q + d) * n
-    T_t_0 = np.array([invert_transform(T) for T in T_true])
-    pts = np.einsum("nij,nj->ni", T_t_0[:, :3, :3], p0) + T_t_0[:, :3, 3]
-    return poses, Scan(pts, t=t), invert_transform(T_true[0]) @ T_true
 
 
 def _rotation_error_rad(out, scan, truth):
@@ -65,7 +38,7 @@ def test_map_motion_is_exact_on_exact_planes():
     the MAP estimate recovers the constructed motion as the fixed priors do."""
     rng = np.random.default_rng(3)
     planes = [_with_covariance(p, 1e-7, 1e-7) for p in _scene()]
-    poses, scan, truth = _epoch(planes, rng)
+    poses, scan, truth = epoch_on_curve(planes, rng)
     change = np.array([1.0, 1.0])  # rad/s, m/s: the prior holds nothing here
     out = epoch_motion(scan, 1, 0, TIMES, poses, planes, TWIST, 0.0, change)
     assert out is not None
@@ -81,7 +54,7 @@ def test_map_motion_does_not_follow_a_reference_plane_error():
     motion's error is several times smaller."""
     rng = np.random.default_rng(5)
     true_planes = _scene()
-    poses, scan, truth = _epoch(true_planes, rng)
+    poses, scan, truth = epoch_on_curve(true_planes, rng)
     tilt = np.deg2rad(0.3)
     planes = [_with_covariance(p, tilt, 0.003) for p in true_planes]
     wall = planes[1]
