@@ -9,7 +9,13 @@ import numpy as np
 from scipy.stats import chi2
 
 from planodom.smoothing.loop_drift import run_drift_xy
-from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch, Reidentification
+from planodom.smoothing.loop_records import (
+    Correction,
+    LoopFactor,
+    LoopMatch,
+    Reidentification,
+    graph_without,
+)
 from planodom.smoothing.loop_yield import yield_ties
 
 #: Branches the maximum-weight clique search may open before it keeps the best clique found
@@ -231,17 +237,6 @@ def gate_loop_factors(
     return removed
 
 
-def _without(
-    graph: gtsam.NonlinearFactorGraph, drop: set[int], gaussian: dict[int, gtsam.NonlinearFactor]
-) -> gtsam.NonlinearFactorGraph:
-    """``graph`` without the factors ``drop`` (indices); Gaussian twins where given."""
-    out = gtsam.NonlinearFactorGraph()
-    for i in range(graph.size()):
-        if i not in drop and graph.at(i) is not None:
-            out.add(gaussian.get(i, graph.at(i)))
-    return out
-
-
 def test_hypotheses(
     builder: object,
     graph: gtsam.NonlinearFactorGraph,
@@ -269,8 +264,8 @@ def test_hypotheses(
     removed = 0
     for group in sorted({f.group for f in factors if np.isnan(f.increase)}):  # once each
         mine = {f.factor for f in factors if f.group == group}
-        rest = _without(graph, loops, {})
-        others = _without(graph, mine, {})
+        rest = graph_without(graph, loops)
+        others = graph_without(graph, mine)
         # from the estimate: the hypothesis's removal relaxes it (one solve, not two)
         alone = levenberg_marquardt(others, estimate, cfg.max_iterations, cfg.relative_error_tol)[0]
         increase = 2.0 * (rest.error(estimate) - rest.error(alone))

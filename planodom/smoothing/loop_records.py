@@ -200,6 +200,20 @@ def loop_factor_counts(
     return out
 
 
+def graph_without(
+    graph: gtsam.NonlinearFactorGraph,
+    drop: set[int],
+    gaussian: dict[int, gtsam.NonlinearFactor] | None = None,
+) -> gtsam.NonlinearFactorGraph:
+    """``graph`` without the factors ``drop`` (indices); Gaussian twins where given."""
+    twins = gaussian or {}
+    out = gtsam.NonlinearFactorGraph()
+    for i in range(graph.size()):
+        if i not in drop and graph.at(i) is not None:
+            out.add(twins.get(i, graph.at(i)))
+    return out
+
+
 def gate_reidentifications(
     builder: Any,
     graph: gtsam.NonlinearFactorGraph,

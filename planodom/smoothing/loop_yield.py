@@ -26,16 +26,7 @@ from __future__ import annotations
 import gtsam
 from scipy.stats import chi2
 
-from planodom.smoothing.loop_records import Reidentification
-
-
-def _without(graph: gtsam.NonlinearFactorGraph, drop: set[int]) -> gtsam.NonlinearFactorGraph:
-    """``graph`` without the factors ``drop`` (indices)."""
-    out = gtsam.NonlinearFactorGraph()
-    for i in range(graph.size()):
-        if i not in drop and graph.at(i) is not None:
-            out.add(graph.at(i))
-    return out
+from planodom.smoothing.loop_records import Reidentification, graph_without
 
 
 def contradicted(
@@ -81,15 +72,15 @@ def yield_ties(
         return 0, float("nan")
     cfg = builder.config  # type: ignore[attr-defined]
     drop = {r.factor for r in ties}
-    reduced = _without(graph, drop)
+    reduced = graph_without(graph, drop)
     solved = levenberg_marquardt(reduced, estimate, cfg.max_iterations, cfg.relative_error_tol)[0]
     gate = float(chi2.ppf(cfg.loop_gate_quantile, 5))
     for i in loops - mine:  # a conflict with another loop hypothesis is not the ties' to settle
         if 2.0 * float(gaussian.get(i, graph.at(i)).error(solved)) > gate:
             return 0, float("nan")
-    others = _without(graph, drop | mine)
+    others = graph_without(graph, drop | mine)
     relaxed = levenberg_marquardt(others, solved, cfg.max_iterations, cfg.relative_error_tol)[0]
-    rest = _without(graph, drop | loops)
+    rest = graph_without(graph, drop | loops)
     increase = 2.0 * (rest.error(solved) - rest.error(relaxed))
     if increase > limit:
         return 0, float(increase)
