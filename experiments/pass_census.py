@@ -32,6 +32,7 @@ from planodom.config import PlanodomConfig  # noqa: E402
 from planodom.experiments.generalisation import declared_sweep, world_for  # noqa: E402
 from planodom.geometry import invert_transform, se3_log  # noqa: E402
 from planodom.odometry import run_odometry  # noqa: E402
+from planodom.odometry.twist_sigma import step_sigma  # noqa: E402
 from planodom.simulation.random_world import simulate_world, world_fields  # noqa: E402
 
 STATE: dict[str, Any] = {"label": "other", "scan": None}
@@ -51,6 +52,18 @@ def _displacement_mm(scan: Any, new: np.ndarray, used: np.ndarray | None) -> flo
     p, t = np.asarray(scan.points), np.asarray(scan.t)
     moved = np.cross(d[:3], p) + d[3:]
     return float(1e3 * np.max(np.linalg.norm(moved, axis=1) * np.abs(t)))
+
+
+def _twist_change(new: np.ndarray, source: Any, dt: float) -> dict[str, float]:
+    """The refined twist's change from the one used, and the own twist's sigma
+    (:func:`planodom.odometry.twist_sigma.step_sigma`): deg/s and m/s."""
+    used = np.zeros(6) if source.twist is None else source.twist
+    sigma = step_sigma(source.relative, dt)
+    return {
+        "drate": float(np.degrees(np.linalg.norm(new[:3] - used[:3]))),
+        "dspeed": float(np.linalg.norm(new[3:] - used[3:])),
+        "rate_sigma": float(np.degrees(sigma[0])), "speed_sigma": float(sigma[1]),
+    }  # fmt: skip
 
 
 def instrument() -> None:
@@ -119,6 +132,7 @@ def instrument() -> None:
                 "better": float(again.relative.status.rank > source.relative.status.rank),
                 "moved_mm": _displacement_mm(STATE["scan"], twist, source.twist),
                 "index": float(len(refines) + 1),
+                **_twist_change(twist, source, dt),
             }  # fmt: skip
             refines.append((source, again, rec))
             return again
@@ -133,8 +147,8 @@ def instrument() -> None:
         return best
 
     deskew_mod._first_estimate = first  # type: ignore[assignment]
-    odo_mod.register_deskewed = register  # type: ignore[assignment]
-    odo_mod.widened_if_lost = widened  # type: ignore[assignment]
+    odo_mod.register_deskewed = register
+    odo_mod.widened_if_lost = widened
     odo_mod.PlaneOdometry._extract = extract  # type: ignore[method-assign]
     odo_mod.PlaneOdometry._estimate_scan = estimate_scan  # type: ignore[method-assign]
 
@@ -144,15 +158,19 @@ def main() -> None:
     ap.add_argument("--worlds", type=int, nargs="+", default=[0, 2, 4])
     ap.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
     ap.add_argument("--epochs", type=int, default=150)
+    ap.add_argument("--change-gate", action="store_true", help="odometry.deskew_change_gate on")
     args = ap.parse_args()
     instrument()
+    base = PlanodomConfig()
+    if args.change_gate:
+        base = base.updated({"odometry.deskew_change_gate": True}, source="pass_census")
     for noise in args.noise:
         COUNTS.clear()
         REFINES.clear()
         STATE["noise"] = noise
         for w in args.worlds:
             world = world_for(w)
-            cfg = declared_sweep(world, PlanodomConfig())
+            cfg = declared_sweep(world, base)
             sim = simulate_world(world, noise, n_epochs=args.epochs, all_fields=True)
             run_odometry(world_fields(world, sim), cfg)
         _print(noise, args.epochs * len(args.worlds))
@@ -180,6 +198,11 @@ def _print_refines(r: dict[str, np.ndarray], noise: float, i: int) -> None:
         print(f"    p{q}: step moved {np.percentile(r['rot_deg'], q):.4f} deg "
               f"{np.percentile(r['mm'], q):.2f} mm; points moved "
               f"{np.percentile(r['moved_mm'], q):.2f} mm")  # fmt: skip
+    for key in ("drate", "rate_sigma", "dspeed", "speed_sigma"):
+        v = r[key][np.isfinite(r[key])]
+        print(
+            f"    {key}: p10/50/90 " + " ".join(f"{np.percentile(v, q):.3f}" for q in (10, 50, 90))
+        )
     for frac in (0.25, 0.5, 1.0):
         small = r["moved_mm"] < frac * noise * 1e3
         print(f"    points moved < {frac:g} sigma: {int(small.sum())} passes, "

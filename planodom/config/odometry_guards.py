@@ -32,3 +32,8 @@ class DeskewGuards(MotionModelConfig):
     rotation 0.117 -> 0.160 deg, ATE 0.232 -> 0.197 m; 2 cm 0.140 -> 0.132 deg, 0.072 ->
     0.089 m); every other run is bit-identical. It is only as good as the bounds declared
     (docs/RESULTS.md, "New worlds 100-119")."""
+    deskew_change_gate: bool = False
+    """Streaming: extract an epoch again with its own twist (:mod:`planodom.odometry.
+    deskew`, step 2) only where it differs from the twist used by more than the own
+    twist's error explains (chi-square 95 %, :mod:`planodom.odometry.change_gate`), on
+    top of ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``."""

@@ -53,6 +53,7 @@ from scipy.stats import chi2
 from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log, vector_norm
+from planodom.odometry.change_gate import significant_change
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -276,6 +277,8 @@ def register_deskewed(
         elif lead is not None:
             own = lead.led(own, measured, dt)
         new = refined_twist(own, used, measured, config, lead)
+        if config.deskew_change_gate:  # only a change the step measured (.change_gate)
+            new = significant_change(new, used, best.relative, dt)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break
