@@ -277,8 +277,7 @@ def register_deskewed(
         elif lead is not None:
             own = lead.led(own, measured, dt)
         new = refined_twist(own, used, measured, config, lead)
-        if config.deskew_change_gate:  # only a change the step measured (.change_gate)
-            new = significant_change(new, used, best.relative, dt)
+        new = significant_change(new, used, best.relative, dt) if config.deskew_change_gate else new
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break
