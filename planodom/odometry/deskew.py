@@ -31,7 +31,8 @@ it again:
    epoch that was never deskewed (the first) is extracted again with it too; with
    ``odometry.deskew_significance_gate`` (off by default) only what the step measured
    beyond its noise counts (:func:`significant_twist`: a parked lidar's step is noise,
-   not a motion to deskew with) (with
+   not a motion to deskew with); with ``odometry.deskew_change_gate`` (off) only where
+   it differs from the twist used beyond its own error (:mod:`.change_gate`) (with
    ``odometry.reference_refresh_guard``, off by default, its old planes are brought
    back when the estimate against the new ones is worse). An epoch
    kept without deskewing is refined only once its translation is measured (never with
