@@ -10,7 +10,10 @@ refinement pass: whether it was kept, whether it changed the status, and how far
 moved from the estimate it replaced (rotation deg, translation mm), and the largest
 displacement its twist change makes on the epoch's points (``max |dw x p + dv| |t|``, mm).
 
-    uv run python experiments/pass_census.py --worlds 0 2 4 --noise 0.006 0.02
+``--change-gate`` runs with ``odometry.deskew_change_gate`` on. Worlds 0-18 even at 6 mm and
+2 cm (docs/RESULTS.md, RIG2DPASS) take about 50 s of CPU:
+
+    uv run python experiments/pass_census.py --worlds 0 2 4 6 8 10 12 14 16 18
 """
 
 from __future__ import annotations
@@ -114,7 +117,7 @@ def instrument() -> None:
         out = real_first(predicted, dt, labelled, *a)
         if calls[0] > 1:
             COUNTS["alternative kept"] += int(out is not STATE["first_out"])
-        STATE["label"] = "refine"
+        STATE["label"] = "reference refresh"
         return out
 
     def register(predicted: Any, dt: Any, estimate: Any, *a: Any, **k: Any) -> Any:
@@ -143,7 +146,7 @@ def instrument() -> None:
             rec["kept"] = float(again is best or any(again is s for s, _, _ in refines))
             REFINES.append(rec)
         COUNTS["epochs"] += 1
-        STATE["label"] = "reference"
+        STATE["label"] = "reference (first-epoch rounds)"
         return best
 
     deskew_mod._first_estimate = first  # type: ignore[assignment]
