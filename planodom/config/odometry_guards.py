@@ -32,3 +32,14 @@ class DeskewGuards(MotionModelConfig):
     rotation 0.117 -> 0.160 deg, ATE 0.232 -> 0.197 m; 2 cm 0.140 -> 0.132 deg, 0.072 ->
     0.089 m); every other run is bit-identical. It is only as good as the bounds declared
     (docs/RESULTS.md, "New worlds 100-119")."""
+    deskew_change_gate: bool = False
+    """Streaming: extract an epoch again with its own twist (:mod:`planodom.odometry.
+    deskew`, step 2) only where it differs from the twist used by more than the own
+    twist's error explains (chi-square 95 %, :mod:`planodom.odometry.change_gate`), on
+    top of ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``. Off by
+    default: on issue 11's 2D-rig worlds 0-18 (even, 150 epochs) it saves 6 % / 13 % of
+    the extractions (2.46 -> 2.30 an epoch at 6 mm, 2.66 -> 2.31 at 2 cm) and 10-11 % of
+    the CPU time, but at 2 cm the rotation gets worse on 9 of 10 worlds (median 0.146 ->
+    0.178 deg rms, unresolved epochs 32 -> 42) and at 6 mm it is mixed (xy 1.95 -> 1.32
+    cm median; world 6 0.24 -> 0.36 deg, world 0 ATE 0.29 -> 0.78 m): a twist within one
+    step's error still smears a 2D scanner's sweep (docs/RESULTS.md, RIG2DPASS)."""

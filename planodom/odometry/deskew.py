@@ -31,7 +31,8 @@ it again:
    epoch that was never deskewed (the first) is extracted again with it too; with
    ``odometry.deskew_significance_gate`` (off by default) only what the step measured
    beyond its noise counts (:func:`significant_twist`: a parked lidar's step is noise,
-   not a motion to deskew with) (with
+   not a motion to deskew with); with ``odometry.deskew_change_gate`` (off) only where
+   it differs from the twist used beyond its own error (:mod:`.change_gate`) (with
    ``odometry.reference_refresh_guard``, off by default, its old planes are brought
    back when the estimate against the new ones is worse). An epoch
    kept without deskewing is refined only once its translation is measured (never with
@@ -53,6 +54,7 @@ from scipy.stats import chi2
 from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log, vector_norm
+from planodom.odometry.change_gate import significant_change
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -276,6 +278,7 @@ def register_deskewed(
         elif lead is not None:
             own = lead.led(own, measured, dt)
         new = refined_twist(own, used, measured, config, lead)
+        new = significant_change(new, used, best.relative, dt) if config.deskew_change_gate else new
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break

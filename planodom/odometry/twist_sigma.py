@@ -41,6 +41,7 @@ from scipy.stats import chi2
 
 from planodom.config import ExtractionConfig, OdometryConfig
 from planodom.geometry import se3_exp, vector_norm
+from planodom.odometry.change_gate import step_sigma
 from planodom.odometry.deskew import EpochEstimate, keep_first, prefer_streaming
 from planodom.odometry.relative import RelativePose, Status
 
@@ -53,22 +54,6 @@ def chi2_quantile(q: float, dof: int) -> float:
     """``chi2.ppf(q, dof)``, remembered: the gate's quantile and DoF come from the config,
     and scipy.stats costs ~0.2 ms a call (a few calls an epoch when the gate runs)."""
     return float(chi2.ppf(q, dof))
-
-
-def step_sigma(relative: RelativePose, dt: float) -> np.ndarray:
-    """(2,) standard deviations of the twist a measured step gives over ``dt`` seconds:
-    angular rate (rad/s) and linear velocity (m/s), from its 5-DoF covariance (module
-    docstring); inf when unknown or not measured (degenerate: the velocity)."""
-    cov = relative.covariance
-    if cov is None or dt <= 0 or relative.status is Status.UNRESOLVED:
-        return np.full(2, np.inf)
-    rate = np.sqrt(max(float(np.trace(cov[:3, :3])), 0.0)) / dt
-    if relative.status is not Status.OK:
-        return np.array([rate, np.inf])
-    var_t = float(np.trace(cov[3:, 3:]))
-    if np.isfinite(relative.sigma_z):
-        var_t += relative.sigma_z**2
-    return np.array([rate, np.sqrt(max(var_t, 0.0)) / dt])
 
 
 class TwistUncertainty:
