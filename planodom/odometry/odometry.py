@@ -8,10 +8,9 @@ T_{k-delta}_k``. The first epoch defines the world frame (identity). When the re
 epoch has fewer than two planes, the latest earlier epoch with two or more is used instead
 (bounds scaled by the gap). An unresolved epoch (no associated non-parallel pair) is
 bridged by constant velocity (the last increment's twist times the elapsed time, its rate
-along the recent trend with ``odometry.bridge_rate: trend``; standing still before any
-motion is known): its result has ``status == Status.UNRESOLVED`` and that bridge as
-``T_prev_curr``. No motion is carried across a gap in the epoch times: see
-:data:`.epoch_time.RESET_PERIODS`.
+along the trend with ``odometry.bridge_rate``; standing still before any motion is known):
+its result has ``status == Status.UNRESOLVED`` and that bridge as ``T_prev_curr``. No
+motion is carried across a gap in the epoch times: see :data:`.epoch_time.RESET_PERIODS`.
 """
 
 from __future__ import annotations
@@ -173,7 +172,8 @@ class PlaneOdometry:
             # a twist never outlives an unresolved epoch: until one is measured again, epochs are
             # extracted without it (still the prior and bridge; tried when that is suspect)
             unresolved = getattr(self.last_relative, "status", None) is Status.UNRESOLVED
-            held = bridge_twist(self.twist, self._rates, k, ocfg) if unresolved else None
+            rates = self._rates if self._map is None else ()  # bridge_rate: pairwise only
+            held = bridge_twist(self.twist, rates, k, ocfg) if unresolved else None
             twist = None if unresolved else self.twist
             if k in self._gaps:  # its step across the gap gives no twist to refine with
                 ocfg = ocfg.model_copy(update={"deskew_iterations": 0})
