@@ -6,6 +6,8 @@ the policy's guards are documented together.
 
 from __future__ import annotations
 
+from typing import Literal
+
 from planodom.config.motion_model import MotionModelConfig
 
 
@@ -32,3 +34,12 @@ class DeskewGuards(MotionModelConfig):
     rotation 0.117 -> 0.160 deg, ATE 0.232 -> 0.197 m; 2 cm 0.140 -> 0.132 deg, 0.072 ->
     0.089 m); every other run is bit-identical. It is only as good as the bounds declared
     (docs/RESULTS.md, "New worlds 100-119")."""
+
+    deskew_rate_solve: Literal["fixed_point", "secant"] = "fixed_point"
+    """Streaming: how an epoch's angular rate is refined when it is extracted again with its
+    own twist (:mod:`planodom.odometry.deskew`, step 2). ``fixed_point``: with its own
+    rate each time; ``secant``: from the second refinement on, along the secant through
+    the last two (rate used, own rate) towards the rate that is its own
+    (:mod:`planodom.odometry.deskew_secant`): a degenerate step whose yaw rests on one far
+    wall, which the deskewing tilts, diverges under the fixed point (issue 11's world 6 at
+    6 mm, epoch 51: 12.36 -> 11.21 -> 8.04 deg/s for a true 12.74)."""

@@ -53,6 +53,7 @@ from scipy.stats import chi2
 from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log, vector_norm
+from planodom.odometry.deskew_secant import secant_rate
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -263,6 +264,7 @@ def register_deskewed(
     """
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
     iterations = config.deskew_iterations if lead is None else lead.iterations
+    before = None  # (used, own) of the refinement before (odometry.deskew_rate_solve)
     for _ in range(iterations if dt > 0 else 0):
         if best.relative.status is Status.UNRESOLVED:
             break
@@ -276,6 +278,9 @@ def register_deskewed(
         elif lead is not None:
             own = lead.led(own, measured, dt)
         new = refined_twist(own, used, measured, config, lead)
+        if before is not None and config.deskew_rate_solve == "secant":
+            new = secant_rate(new, used, own, *before)
+        before = (used, own)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break
