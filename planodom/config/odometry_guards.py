@@ -36,7 +36,7 @@ class DeskewGuards(MotionModelConfig):
     (docs/RESULTS.md, "New worlds 100-119")."""
 
     deskew_rate_solve: Literal["fixed_point", "secant"] = "fixed_point"
-    """Streaming: how an epoch's angular rate is refined when it is extracted again with its
+    """Streaming, pairwise pipelines (the 2D rig's; the plane map keeps ``fixed_point``): how an
     own twist (:mod:`planodom.odometry.deskew`, step 2). ``fixed_point``: with its own
     rate each time; ``secant``: from the second refinement on, along the secant through
     the last two (rate used, own rate) towards the rate that is its own

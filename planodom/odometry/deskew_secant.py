@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from planodom.config import OdometryConfig
+
 #: The secant's step at most this many times the fixed-point step's length.
 MAX_STEP_RATIO = 2.0
 
@@ -36,3 +38,14 @@ def secant_rate(
         limit = MAX_STEP_RATIO * abs(g1)
         out[i] = used[i] + np.clip(-g1 * dr / (g1 - g0), -limit, limit)
     return out
+
+
+def epoch_deskew_config(config: OdometryConfig, gap: bool, pairwise: bool) -> OdometryConfig:
+    """``config`` for one epoch's deskewing policy: no refinement after a ``gap`` in the
+    epoch times (its step across the gap gives no twist to refine with), and the fixed
+    point off the ``pairwise`` pipelines (``deskew_rate_solve: secant`` was measured on
+    the 2D rig only); ``config`` itself otherwise."""
+    changes: dict[str, object] = {"deskew_iterations": 0} if gap else {}
+    if not pairwise and config.deskew_rate_solve != "fixed_point":
+        changes["deskew_rate_solve"] = "fixed_point"
+    return config.model_copy(update=changes) if changes else config

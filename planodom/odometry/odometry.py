@@ -39,6 +39,7 @@ from planodom.odometry.deskew import (
     twist_offset,
     with_deskew,
 )
+from planodom.odometry.deskew_secant import epoch_deskew_config
 from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
@@ -175,8 +176,7 @@ class PlaneOdometry:
             rates = self._rates if self._map is None else ()  # bridge_rate: pairwise only
             held = bridge_twist(self.twist, rates, k, ocfg) if unresolved else None
             twist = None if unresolved else self.twist
-            if k in self._gaps:  # its step across the gap gives no twist to refine with
-                ocfg = ocfg.model_copy(update={"deskew_iterations": 0})
+            ocfg = epoch_deskew_config(ocfg, k in self._gaps, self._map is None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg, pm.prediction) if against_map else None
             middle = self.config.planemap.reference_time == "middle" and centred_times(scan)
