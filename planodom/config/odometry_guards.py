@@ -36,8 +36,9 @@ class DeskewGuards(MotionModelConfig):
     (docs/RESULTS.md, "New worlds 100-119")."""
 
     deskew_rate_solve: Literal["fixed_point", "secant"] = "fixed_point"
-    """Streaming, pairwise pipelines (the 2D rig's; the plane map keeps ``fixed_point``): how an
-    own twist (:mod:`planodom.odometry.deskew`, step 2). ``fixed_point``: with its own
+    """Streaming, pairwise pipelines (the 2D rig's; the plane map keeps ``fixed_point``):
+    how an epoch's angular rate is refined when it is extracted again with its own twist
+    (:mod:`planodom.odometry.deskew`, step 2). ``fixed_point``: with its own
     rate each time; ``secant``: from the second refinement on, along the secant through
     the last two (rate used, own rate) towards the rate that is its own
     (:mod:`planodom.odometry.deskew_secant`): a degenerate step whose yaw rests on one far
