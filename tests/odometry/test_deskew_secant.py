@@ -76,3 +76,16 @@ def test_a_diverging_refinement_reaches_the_true_rate_only_by_secant(solve):
 def test_config_refuses_an_unknown_solve_naming_the_key():
     with pytest.raises(ConfigError, match="^config: field 'odometry.deskew_rate_solve': "):
         PlanodomConfig.from_dict({"odometry": {"deskew_rate_solve": "newton"}})
+
+
+def test_the_epoch_config_keeps_the_secant_to_pairwise_pipelines_and_a_gap_unrefined():
+    from planodom.odometry.deskew_secant import epoch_deskew_config
+
+    plain = OdometryConfig()
+    assert epoch_deskew_config(plain, False, True) is plain  # nothing to change: itself
+    assert epoch_deskew_config(plain, False, False) is plain
+    assert epoch_deskew_config(plain, True, True).deskew_iterations == 0
+    secant = OdometryConfig(deskew_rate_solve="secant")
+    assert epoch_deskew_config(secant, False, True).deskew_rate_solve == "secant"
+    mapped = epoch_deskew_config(secant, True, False)
+    assert mapped.deskew_rate_solve == "fixed_point" and mapped.deskew_iterations == 0
