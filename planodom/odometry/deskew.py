@@ -53,7 +53,7 @@ from scipy.stats import chi2
 from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log, vector_norm
-from planodom.odometry.deskew_secant import secant_rate
+from planodom.odometry.deskew_secant import solved_rate
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -233,9 +233,8 @@ def register_deskewed(
 
     Args:
         predicted: (6,) the constant-velocity twist predicted for the epoch (None: none).
-        dt: seconds since the previous epoch.
+        dt: seconds since the previous epoch; config: its ``deskew_*`` fields.
         estimate, refresh_reference: see :data:`Estimator`, :data:`Refresher`.
-        config: ``deskew_*`` fields.
         previous_planes: planes of the previous epoch (fewer than half of them now is
             suspect).
         held: (6,) the twist held from before an unresolved epoch, tried only when
@@ -264,7 +263,7 @@ def register_deskewed(
     """
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
     iterations = config.deskew_iterations if lead is None else lead.iterations
-    before = None  # (used, own) of the refinement before (odometry.deskew_rate_solve)
+    before = None  # (used, own) of the refinement before: odometry.deskew_rate_solve
     for _ in range(iterations if dt > 0 else 0):
         if best.relative.status is Status.UNRESOLVED:
             break
@@ -278,9 +277,7 @@ def register_deskewed(
         elif lead is not None:
             own = lead.led(own, measured, dt)
         new = refined_twist(own, used, measured, config, lead)
-        if before is not None and config.deskew_rate_solve == "secant":
-            new = secant_rate(new, used, own, *before)
-        before = (used, own)
+        new, before = solved_rate(new, used, own, before, config), (used, own)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break

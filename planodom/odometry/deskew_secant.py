@@ -40,6 +40,21 @@ def secant_rate(
     return out
 
 
+def solved_rate(
+    new: np.ndarray,
+    used: np.ndarray,
+    own: np.ndarray,
+    before: tuple[np.ndarray, np.ndarray] | None,
+    config: OdometryConfig,
+) -> np.ndarray:
+    """(6,) the twist a refinement extracts again with under ``config.deskew_rate_solve``:
+    ``new`` (the fixed point's, from ``used`` and ``own``), or with ``secant`` and the
+    ``before`` refinement's (used, own) :func:`secant_rate`."""
+    if before is None or config.deskew_rate_solve != "secant":
+        return new
+    return secant_rate(new, used, own, *before)
+
+
 def epoch_deskew_config(config: OdometryConfig, gap: bool, pairwise: bool) -> OdometryConfig:
     """``config`` for one epoch's deskewing policy: no refinement after a ``gap`` in the
     epoch times (its step across the gap gives no twist to refine with), and the fixed
