@@ -6,7 +6,9 @@ A base of :class:`planodom.config.odometry.OdometryConfig`, in its own module as
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
+
+from pydantic import Field
 
 from planodom.config.association import Positive
 from planodom.config.section import Section
@@ -45,3 +47,15 @@ class MotionModelConfig(Section):
     depart from the arc by 0.18 mm rms, 1.3 mm at most per step (2D-rig worlds 0-18,
     100-118); 5 mm leaves room for the step's rotation error. A real vehicle slips more:
     about its slip angle times its speed times the epoch interval."""
+
+    bridge_rate: Literal["last", "trend"] = "last"
+    """Streaming, pairwise pipelines: the angular rate an unresolved epoch is bridged with
+    (and the epoch after it is tried deskewed with, the held twist): ``last``, the
+    prediction's (the last measured step's); ``trend``: along the straight-line trend of
+    the recent epochs that measured it (:mod:`planodom.odometry.bridge_trend`), for a turn
+    that tightens steadily, where the held rate lags (issue 11's world 6 at 6 mm: 8.2
+    deg/s held for a true 13.7-15.9). The velocity stays the prediction's."""
+
+    bridge_trend_epochs: Annotated[int, Field(ge=1, le=20)] = 3
+    """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
+    may run; further bridged epochs keep the rate it reached there."""

@@ -194,7 +194,7 @@ class OdometryConfig(DeskewGuards):
     rotation (3 DoF) and the horizontal translation (2 DoF) of the step are each taken as
     zero where they are within the chi-square 95 % bound of zero given the step's 5-DoF
     covariance, both for the re-extraction with the epoch's own twist and for the twist
-    predicted for the next epoch (:func:`planodom.odometry.deskew.significant_twist`).
+    predicted for the next epoch (:func:`planodom.odometry.twist_refine.significant_twist`).
     Measured on nebula's parked test scans with per-point times (5 scans each, the car
     still): a step's noise deskewed the next extractions (a Hesai QT64's first step,
     9 cm of noise, re-extracted as 1.28 m; steps 127.8/41.1/5.2/3.0 cm, with the gate

@@ -6,6 +6,8 @@ the policy's guards are documented together.
 
 from __future__ import annotations
 
+from typing import Literal
+
 from planodom.config.motion_model import MotionModelConfig
 
 
@@ -32,6 +34,7 @@ class DeskewGuards(MotionModelConfig):
     rotation 0.117 -> 0.160 deg, ATE 0.232 -> 0.197 m; 2 cm 0.140 -> 0.132 deg, 0.072 ->
     0.089 m); every other run is bit-identical. It is only as good as the bounds declared
     (docs/RESULTS.md, "New worlds 100-119")."""
+
     deskew_change_gate: bool = False
     """Streaming: extract an epoch again with its own twist (:mod:`planodom.odometry.
     deskew`, step 2) only where it differs from the twist used by more than the own
@@ -43,3 +46,13 @@ class DeskewGuards(MotionModelConfig):
     0.178 deg rms, unresolved epochs 32 -> 42) and at 6 mm it is mixed (xy 1.95 -> 1.32
     cm median; world 6 0.24 -> 0.36 deg, world 0 ATE 0.29 -> 0.78 m): a twist within one
     step's error still smears a 2D scanner's sweep (docs/RESULTS.md, RIG2DPASS)."""
+
+    deskew_rate_solve: Literal["fixed_point", "secant"] = "fixed_point"
+    """Streaming, pairwise pipelines (the 2D rig's; the plane map keeps ``fixed_point``):
+    how an epoch's angular rate is refined when it is extracted again with its own twist
+    (:mod:`planodom.odometry.deskew`, step 2). ``fixed_point``: with its own
+    rate each time; ``secant``: from the second refinement on, along the secant through
+    the last two (rate used, own rate) towards the rate that is its own
+    (:mod:`planodom.odometry.deskew_secant`): a degenerate step whose yaw rests on one far
+    wall, which the deskewing tilts, diverges under the fixed point (issue 11's world 6 at
+    6 mm, epoch 51: 12.36 -> 11.21 -> 8.04 deg/s for a true 12.74)."""

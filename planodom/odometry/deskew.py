@@ -49,13 +49,12 @@ from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.stats import chi2
 
 from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
-from planodom.geometry import Plane, se3_log, vector_norm
-from planodom.odometry.change_gate import significant_change
+from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status, replaced
+from planodom.odometry.twist_refine import next_twist, significant_twist
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
@@ -234,9 +233,8 @@ def register_deskewed(
 
     Args:
         predicted: (6,) the constant-velocity twist predicted for the epoch (None: none).
-        dt: seconds since the previous epoch.
+        dt: seconds since the previous epoch; config: its ``deskew_*`` fields.
         estimate, refresh_reference: see :data:`Estimator`, :data:`Refresher`.
-        config: ``deskew_*`` fields.
         previous_planes: planes of the previous epoch (fewer than half of them now is
             suspect).
         held: (6,) the twist held from before an unresolved epoch, tried only when
@@ -265,6 +263,7 @@ def register_deskewed(
     """
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
     iterations = config.deskew_iterations if lead is None else lead.iterations
+    before = None  # (used, own) of the refinement before: odometry.deskew_rate_solve
     for _ in range(iterations if dt > 0 else 0):
         if best.relative.status is Status.UNRESOLVED:
             break
@@ -277,8 +276,7 @@ def register_deskewed(
             own = 0.5 * (own + used)
         elif lead is not None:
             own = lead.led(own, measured, dt)
-        new = refined_twist(own, used, measured, config, lead)
-        new = significant_change(new, used, best.relative, dt) if config.deskew_change_gate else new
+        new, before = next_twist(own, used, measured, config, lead, before, best.relative, dt)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
             break
@@ -394,53 +392,3 @@ def keep_first(first: EpochEstimate, second: EpochEstimate) -> bool:
 def _score(candidate: EpochEstimate) -> tuple[int, int]:
     """How good one extraction of an epoch is: its status, then its plane count."""
     return candidate.relative.status.rank, len(candidate.planes)
-
-
-def refined_twist(
-    own: np.ndarray,
-    used: np.ndarray,
-    measured: bool,
-    config: OdometryConfig,
-    lead: Lead | None = None,
-) -> np.ndarray:
-    """The twist (6,) to extract again with: the epoch's ``own`` angular rate and (when its
-    translation was ``measured``) linear velocity, each only where it differs from the
-    twist ``used`` by more than its tolerance (``config``'s, or ``lead``'s); else ``used``
-    unchanged."""
-    rate_tol, speed_tol = config.deskew_rate_tolerance_deg_s, config.deskew_speed_tolerance_mps
-    if lead is not None:
-        rate_tol, speed_tol = lead.rate_tolerance_deg_s, lead.speed_tolerance_mps
-    new = used.copy()
-    if np.degrees(vector_norm(own[:3] - used[:3])) > rate_tol:
-        new[:3] = own[:3]
-    if measured and vector_norm(own[3:] - used[3:]) > speed_tol:
-        new[3:] = own[3:]
-    return new
-
-
-def significant_twist(
-    twist: np.ndarray, relative: RelativePose, dt: float, config: OdometryConfig
-) -> np.ndarray:
-    """(6,) ``twist`` (rad/s, m/s) of a step of ``dt`` seconds with the blocks its step
-    did not measure beyond noise set to zero (``config.deskew_significance_gate``; else
-    ``twist`` as it is): the rotation ``twist[:3] dt`` when within the chi-square 95 %
-    bound (3 DoF) of zero given the rotation block of ``relative.covariance``, the linear
-    velocity when its horizontal step ``twist[3:5] dt`` is within the bound (2 DoF) of the
-    (x, y) block (the vertical is not in the covariance and goes with it). A parked
-    lidar's step is noise, and deskewing with it moves the next extraction by it: only a
-    twist told apart from zero is a motion."""
-    cov = relative.covariance
-    if not config.deskew_significance_gate or cov is None or dt <= 0:
-        return twist
-    out = np.array(twist, dtype=np.float64, copy=True)
-    for block, dims in ((slice(0, 3), slice(0, 3)), (slice(3, 6), slice(3, 5))):
-        step = out[dims] * dt
-        c = np.asarray(cov)[dims, dims]
-        m2 = float(step @ np.linalg.pinv(c) @ step) if np.all(np.isfinite(c)) else 0.0
-        if m2 <= _CHI2_95[len(step)]:
-            out[block] = 0.0
-    return out
-
-
-#: chi-square 95 % quantiles by degrees of freedom (scipy.stats.chi2.ppf(0.95, k)).
-_CHI2_95 = {2: float(chi2.ppf(0.95, 2)), 3: float(chi2.ppf(0.95, 3))}

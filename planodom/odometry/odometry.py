@@ -7,10 +7,10 @@ constant-velocity prediction as prior, and chain: ``T_world_k = T_world_{k-delta
 T_{k-delta}_k``. The first epoch defines the world frame (identity). When the reference
 epoch has fewer than two planes, the latest earlier epoch with two or more is used instead
 (bounds scaled by the gap). An unresolved epoch (no associated non-parallel pair) is
-bridged by constant velocity (the last increment's twist times the elapsed time; standing
-still before any motion is known): its result has ``status == Status.UNRESOLVED`` and that
-bridge as ``T_prev_curr``. No motion is carried across a gap in the epoch times: see
-:data:`.epoch_time.RESET_PERIODS`.
+bridged by constant velocity (the last increment's twist times the elapsed time, its rate
+along the trend with ``odometry.bridge_rate``; standing still before any motion is known):
+its result has ``status == Status.UNRESOLVED`` and that bridge as ``T_prev_curr``. No
+motion is carried across a gap in the epoch times: see :data:`.epoch_time.RESET_PERIODS`.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, orthonormalised, twist_step
+from planodom.odometry.bridge_trend import bridge, bridge_twist
 from planodom.odometry.coplanar import coplanar_by
 from planodom.odometry.deskew import (
     EpochEstimate,
@@ -38,6 +39,7 @@ from planodom.odometry.deskew import (
     twist_offset,
     with_deskew,
 )
+from planodom.odometry.deskew_secant import epoch_deskew_config
 from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
@@ -170,10 +172,11 @@ class PlaneOdometry:
             refresh, previous = self._refresh_reference, len(self.last_planes)
             # a twist never outlives an unresolved epoch: until one is measured again, epochs are
             # extracted without it (still the prior and bridge; tried when that is suspect)
-            unresolved = self._unresolved_last()
-            twist, held = (None, self.twist) if unresolved else (self.twist, None)
-            if k in self._gaps:  # its step across the gap gives no twist to refine with
-                ocfg = ocfg.model_copy(update={"deskew_iterations": 0})
+            unresolved = getattr(self.last_relative, "status", None) is Status.UNRESOLVED
+            rates = self._rates if self._map is None else ()  # bridge_rate: pairwise only
+            held = bridge_twist(self.twist, rates, k, ocfg) if unresolved else None
+            twist = None if unresolved else self.twist
+            ocfg = epoch_deskew_config(ocfg, k in self._gaps, self._map is None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg, pm.prediction) if against_map else None
             middle = self.config.planemap.reference_time == "middle" and centred_times(scan)
@@ -293,9 +296,10 @@ class PlaneOdometry:
         config = self._config_for_gap(epoch.index - reference.index)
         planes = reference.plane_set, epoch.plane_set
         result = estimate_relative_pose(*planes, config, prior, sigma, step=True)
-        if result.status is Status.UNRESOLVED:  # bridged by constant velocity
-            bridge = prediction if prediction is not None else T_ref_last
-            result = replaced(result, T_prev_curr=bridge)
+        ocfg, k = self.config.odometry, epoch.index  # bridged by constant velocity (its trend)
+        if result.status is Status.UNRESOLVED:
+            bridged = bridge(prediction, T_ref_last, self.twist, dt, self._rates, k, ocfg)
+            result = replaced(result, T_prev_curr=bridged)
         result = result.between(reference.index, epoch.index)
         step = orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
         offset = twist_offset(epoch.scan, epoch.twist, reference.twist, dt)
@@ -303,9 +307,9 @@ class PlaneOdometry:
             epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes,
             twist_offset=offset,
         )  # fmt: skip
-        ocfg = self.config.odometry  # a degenerate step off the prediction: bridged
-        predicted = None if epoch.index in self._gaps else self.twist  # none across a gap
-        return self._twist_sigma.gated(estimate, dt, predicted, T_ref_last, ocfg)
+        predicted = None if k in self._gaps else self.twist  # none across a gap
+        bridging = bridge_twist(predicted, self._rates, k, ocfg)  # one off the prediction
+        return self._twist_sigma.gated(estimate, dt, predicted, T_ref_last, ocfg, bridging)
 
     def _estimate_map(self, epoch: _Epoch, t: float) -> EpochEstimate:
         """The plane-map odometry's estimate of ``epoch`` against its map (the previous
@@ -444,7 +448,3 @@ class PlaneOdometry:
         self._history.append(epoch)
         if len(epoch.planes) >= 2:
             self._last_usable = epoch
-
-    def _unresolved_last(self) -> bool:
-        last = self.last_relative
-        return last is not None and last.status is Status.UNRESOLVED

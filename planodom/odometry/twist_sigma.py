@@ -183,16 +183,18 @@ class TwistUncertainty:
         prediction: np.ndarray | None,
         T_ref_last: np.ndarray,
         config: OdometryConfig,
+        bridging: np.ndarray | None = None,
     ) -> EpochEstimate:
         """``estimate`` as ``config.degenerate_gate`` says: a degenerate step whose angular
         rate disagrees with the constant-velocity ``prediction`` (6,) (:meth:`consistent`,
         ``degenerate``) is reported unresolved and ``inconsistent`` and bridged as the
-        odometry bridges an unresolved one (``T_ref_last`` (4, 4): ``T_{ref}_{k-1}``)."""
+        odometry bridges an unresolved one (``T_ref_last`` (4, 4): ``T_{ref}_{k-1}``),
+        with ``bridging`` (6,) (``odometry.bridge_rate``; None: ``prediction``)."""
         if config.degenerate_gate == "off" or estimate.relative.status is not Status.DEGENERATE:
             return estimate
         if prediction is None or self.consistent(estimate, dt, prediction, config, "degenerate"):
             return estimate
-        step = se3_exp(prediction * dt)
+        step = se3_exp((prediction if bridging is None else bridging) * dt)
         no_pairs = np.zeros((0, 2), dtype=np.intp)
         relative = replace(
             estimate.relative, T_prev_curr=T_ref_last @ step, status=Status.UNRESOLVED,

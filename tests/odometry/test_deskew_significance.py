@@ -7,8 +7,9 @@ import numpy as np
 
 from planodom.config import OdometryConfig
 from planodom.geometry import Plane, se3_exp
-from planodom.odometry.deskew import EpochEstimate, register_deskewed, significant_twist
+from planodom.odometry.deskew import EpochEstimate, register_deskewed
 from planodom.odometry.relative import RelativePose, Status
+from planodom.odometry.twist_refine import significant_twist
 from planodom.planes import PlaneSet
 
 DT = 0.1

@@ -93,7 +93,7 @@ def test_map_lead_takes_the_previous_epochs_own_twist(mode: str):
 def test_the_lead_refines_with_its_own_tolerances():
     """An own twist 0.3 deg/s and 0.1 m/s off the one used is within the general
     tolerances (0.5 each, unchanged) but beyond the lead's (0.1 deg/s, 0.05 m/s)."""
-    from planodom.odometry.deskew import refined_twist
+    from planodom.odometry.twist_refine import refined_twist
 
     used = np.zeros(6)
     own = np.r_[np.radians([0.3, 0.0, 0.0]), 0.1, 0.0, 0.0]

@@ -1,0 +1,71 @@
+"""The angular rate an unresolved epoch is bridged with (``odometry.bridge_rate``).
+
+An epoch whose planes do not fix its step is bridged by the prediction: the last
+measured step's angular rate held over the stretch. In a turn that tightens steadily
+(issue 11's 2D-rig world 6 at 6 mm, epochs 45-61: 9 -> 20 deg/s, about 0.7 deg/s more
+each epoch) the held rate lags more with every bridged epoch, and the epoch after the
+stretch is tried deskewed with it too (the held twist): epoch 51's far wall, deskewed with
+11.3 deg/s for a true 12.7, came out 0.89 deg off in yaw under the true rotation (its
+association right, truth id 86 on both sides), and that wrong rate (8.2 deg/s) was held
+over the three epochs bridged after it. ``trend`` bridges with the rate along the
+straight-line trend of the recent epochs that measured it
+(:func:`planodom.odometry.trend.trend_twist`, its slope shrunk by how well the fit
+determines it, so a rate that only shakes is averaged), extrapolated to the bridged
+epoch but never more than ``bridge_trend_epochs`` past the last of them (a trend does
+not run on through a whole lost stretch; past the bound the rate stays the bound's).
+The velocity stays the prediction's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from planodom.config import OdometryConfig
+from planodom.geometry import twist_step
+from planodom.odometry.trend import trend_twist
+
+#: Fewest measured rates the trend is fit to (a slope and its residuals' variance).
+MIN_RATES = 4
+
+
+def bridge_twist(
+    twist: np.ndarray | None,
+    rates: Sequence[tuple[int, np.ndarray]],
+    k: int,
+    config: OdometryConfig,
+) -> np.ndarray | None:
+    """(6,) the twist (rad/s, m/s) an unresolved epoch ``k`` is bridged with: ``twist``
+    (the prediction; None: none) with ``config.bridge_rate`` "last", or before
+    :data:`MIN_RATES` of ``rates`` ((epoch, own twist (6,)) of the recent epochs that
+    measured their rate, oldest first, each the mean over its step); with "trend" its
+    angular rate extrapolated along their trend to epoch ``min(k, last + bridge_trend_
+    epochs)``."""
+    if twist is None or config.bridge_rate == "last" or len(rates) < MIN_RATES:
+        return twist
+    x = np.array([j for j, _ in rates], dtype=float)
+    at = min(float(k), x[-1] + config.bridge_trend_epochs)
+    trend = trend_twist(np.array([tw for _, tw in rates]), x, at)
+    return np.r_[trend[:3], twist[3:]]
+
+
+def bridge(
+    prediction: np.ndarray | None,
+    T_ref_last: np.ndarray,
+    twist: np.ndarray | None,
+    dt: float,
+    rates: Sequence[tuple[int, np.ndarray]],
+    k: int,
+    config: OdometryConfig,
+) -> np.ndarray:
+    """(4, 4) ``T_{ref}_k`` an unresolved epoch ``k`` is bridged with: ``prediction``
+    (``T_ref_last @ twist_step(twist, dt)``; None: none, e.g. across a gap, then
+    ``T_ref_last`` (4, 4), standing still), or with ``bridge_rate: trend`` the same step
+    made with :func:`bridge_twist`."""
+    if prediction is None:
+        return T_ref_last
+    used = bridge_twist(twist, rates, k, config)
+    if used is twist or used is None:
+        return prediction
+    return T_ref_last @ twist_step(used, dt)
