@@ -17,6 +17,7 @@ from planodom.datasets.pcd import viewpoint_note
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
 from planodom.datasets.scan_time_units import scan_time_unit
+from planodom.datasets.time_wraps import WRAP_NS
 from planodom.datasets.times_file import read_times, unread_times, write_times
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
@@ -37,6 +38,8 @@ DEFAULT_EPOCH_PERIOD = 0.1
 #: nonsense. Not from data: any factor between the sweep overlap (about 1) and a unit
 #: step (1000) separates them.
 MAX_TIME_SPAN_PERIODS = 10.0
+#: Times spread over a sweep within 4.29 s of 0 but far from the epoch's time: a 32-bit field.
+_CUT32 = f", or a clock's nanoseconds cut to 32 bits, which wrap every {WRAP_NS * 1e-9:.3g} s"
 
 
 class Dataset:
@@ -123,8 +126,9 @@ class Dataset:
             raise DatasetError(
                 f"{self.scan_files[index]}: point times ('t') reach {far:g} s from the epoch's "
                 f"reference time, {far / period:.0f} epoch periods of {period:g} s: another "
-                "clock or unit (integer Unix seconds read as nanoseconds?; --time-field none "
-                "ignores them)"
+                "clock or unit (integer Unix seconds read as nanoseconds"
+                + (_CUT32 if 0 < span and far < WRAP_NS * 1e-9 else "")
+                + "?; --time-field none ignores them)"
             )
         if period > 0 and span >= MAX_TIME_SPAN_PERIODS * period:
             raise DatasetError(
