@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -16,6 +15,7 @@ from planodom.datasets.file_entries import broken_link, check_file_entries, opti
 from planodom.datasets.pcd import viewpoint_note
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
+from planodom.datasets.scan_order import scan_order_key
 from planodom.datasets.scan_time_units import scan_time_unit
 from planodom.datasets.time_wraps import WRAP_NS
 from planodom.datasets.times_file import read_times, unread_times, write_times
@@ -151,7 +151,8 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
 
     ``path`` is either a dataset (scan files in ``path/scans/``) or a directory of scan
     files itself (e.g. KITTI's ``velodyne/``). Files are sorted by name with digit runs
-    compared as numbers (``2.bin`` before ``10.bin``); hidden files are skipped. ``poses.tum``
+    compared as numbers (``-1.bin`` before ``2.bin`` before ``10.bin``,
+    :mod:`planodom.datasets.scan_order`); hidden files are skipped. ``poses.tum``
     and ``rig.yaml`` are looked for in ``path``.
 
     Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else from KITTI
@@ -334,12 +335,6 @@ def is_dataset_entry(path: Path) -> bool:
     return all(is_dataset_entry(f) for f in path.iterdir())
 
 
-def _natural_key(path: Path) -> tuple:
-    """Sort key comparing digit runs as numbers: ``2.ply`` < ``10.ply``."""
-    parts = re.split(r"(\d+)", path.name)
-    return tuple((0, int(p), p) if p.isdigit() else (1, 0, p) for p in parts)
-
-
 def _files(directory: Path, extensions: Sequence[str] | None = None) -> list[Path]:
     """Visible files in ``directory`` (optionally only with ``extensions``); [] if none."""
     if not directory.is_dir():
@@ -398,4 +393,4 @@ def _scan_files(root: Path) -> list[Path]:
     suffixes = sorted({f.suffix.lower() for f in files})
     if len(suffixes) > 1:
         raise DatasetError(f"{files[0].parent}: scan files mix extensions {', '.join(suffixes)}")
-    return sorted(files, key=_natural_key)
+    return sorted(files, key=scan_order_key)
