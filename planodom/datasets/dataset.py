@@ -347,9 +347,16 @@ def _files(directory: Path, extensions: Sequence[str] | None = None) -> list[Pat
     return files
 
 
-def _is_results_folder(root: Path) -> bool:
-    """What ``planodom run`` and ``smooth`` both write (a dataset holds neither)."""
-    return (root / "config.yaml").is_file() and (root / "covariances.npz").is_file()
+#: Files of a results folder of ``planodom run`` / ``smooth`` that no dataset holds.
+_RESULT_FILES = ("config.yaml", "covariances.npz", "epochs.csv", "metrics.json", "timing.json")
+
+
+def _results_files(root: Path) -> list[str]:
+    """The :data:`_RESULT_FILES` in ``root`` when two or more are there (a results folder,
+    perhaps cut short or of an earlier release: without ``covariances.npz`` it read as a
+    folder of "files with unknown extensions"), else []."""
+    found = [name for name in _RESULT_FILES if (root / name).is_file()]
+    return found if len(found) >= 2 else []
 
 
 def _scan_files(root: Path) -> list[Path]:
@@ -371,12 +378,12 @@ def _scan_files(root: Path) -> list[Path]:
                 f"{root} has velodyne/ but no calib.txt: a KITTI sequence needs both (or give "
                 "velodyne/ itself, a folder of scans, without the KITTI camera frame)"
             )
-        if not scans and _is_results_folder(root):
+        if not scans and (results := _results_files(root)):
             inner = " (its dataset/ is the one it ran on)" if (root / "dataset").is_dir() else ""
             raise DatasetError(
-                f"{root} is a results folder of planodom run or smooth (config.yaml, "
-                f"covariances.npz), not a recording: give the recording it ran on{inner}; "
-                f"`planodom eval` reads its {POSES_FILE}"
+                f"{root} is a results folder of planodom run or smooth ({', '.join(results[:2])})"
+                f", not a recording: give the recording it ran on{inner}; `planodom eval` "
+                f"reads its {POSES_FILE}"
             )
         if not files:
             raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files")
