@@ -56,9 +56,10 @@ def test_a_cut_clock_that_does_not_wrap_in_the_sweep_is_named(tmp_path: Path) ->
         load_dataset(tmp_path)[0]
 
 
-def _bag(path: Path, ros: int, cut: bool) -> None:
+def _bag(path: Path, ros: int, cut: bool, clock_ns: int = 0) -> None:
     """Six Ouster sweeps (``t`` uint32 at byte 16 of 24, rows padded by 8 bytes) whose ``t``
-    holds, if ``cut``, the stamp's clock cut to 32 bits instead of the offsets."""
+    holds, if ``cut``, the stamp's clock (plus ``clock_ns``) cut to 32 bits instead of the
+    offsets."""
     truth = Truth(T_base_sensor=T_BASE)
     with BagWriter(path, ros) as bw:
         bw.write("/tf_static", bw.tf([bw.transform_stamped(T0_NS, *e) for e in STATIC_TF]), T0_NS)
@@ -72,7 +73,7 @@ def _bag(path: Path, ros: int, cut: bool) -> None:
                 rows = np.frombuffer(msg.data, np.uint8).reshape(msg.height, msg.row_step).copy()
                 t = rows[:, : msg.width * 24].reshape(msg.height, msg.width, 24)[..., 16:20]
                 offsets = t.copy().view("<u4").astype(np.int64)
-                t[...] = ((stamp + offsets) % 2**32).astype("<u4").view(np.uint8)
+                t[...] = ((stamp + clock_ns + offsets) % 2**32).astype("<u4").view(np.uint8)
                 msg.data = rows.reshape(-1)
             bw.write("/points", msg, stamp + 2_000_000)
 
@@ -91,3 +92,12 @@ def test_a_bag_whose_time_field_is_its_stamps_cut_to_32_bits_is_refused(
     _bag(ok, ros, cut=False)
     with open_bag(ok, BagOptions(gt_topic="/odom")) as ds:
         assert len(ds) == 6 and 0.09 < np.ptp(ds[3].t) < 0.1
+
+
+def test_a_bag_sweep_whose_32_bit_clock_wraps_inside_it_is_refused(tmp_path: Path) -> None:
+    # another clock than the stamps' (so not their lowest bits), wrapping 50 ms into the
+    # first sweep: read as offsets from 0 to 4.29 s, without a word
+    clock = (2**32 - 50_000_000 - T0_NS) % 2**32
+    _bag(tmp_path / "wrap", 2, cut=True, clock_ns=clock)
+    with pytest.raises(DatasetError, match=r"topic '/points'.*'t' \(uint32\) wrap round 2\^32"):
+        open_bag(tmp_path / "wrap", BagOptions(gt_topic="/odom"))
