@@ -48,7 +48,8 @@ from planodom.datasets.bag_parts import (
 )
 from planodom.datasets.bag_rings import ring_counts, stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
-from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit, time_key
+from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit, period_s, time_key
+from planodom.datasets.time_wraps import cut_clock_error
 from planodom.errors import DatasetError
 
 #: Exceptions of rosbags and the storage libraries that mean a broken or unreadable bag.
@@ -410,7 +411,8 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
             topic.no_ring += no_ring
             if name is not None and offsets is not None:
                 key = time_key(name, offsets.dtype)
-                topic.times.setdefault(key, TopicTimes()).add(name, offsets, sweep)
+                stamp = stamp_ns(msg.header)
+                topic.times.setdefault(key, TopicTimes()).add(name, offsets, sweep, stamp)
             if points:  # a driver relaunched with another layout: noted (bag_notes)
                 topic.timed += name is not None
                 topic.untimed += name is None
@@ -436,5 +438,8 @@ def _choose_time_unit(
     for key, times in topic.times.items():
         topic.time_units[key] = unit = choose_unit(times.without(duplicates), stamps)
         with _message_errors(path, topic.name):
+            plain, cut = (np.frombuffer(a, dtype=np.float64) for a in (times.plain, times.cut))
+            if wrapped := cut_clock_error(times.name, times.dtype, plain, cut, period_s(stamps)):
+                raise ValueError(wrapped)
             largest = np.array([times.largest * unit.scale])
             check_offsets(largest, times.name, np.dtype(times.dtype), unit.scale)

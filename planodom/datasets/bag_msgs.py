@@ -43,6 +43,7 @@ from planodom.datasets.bag_tf import frame_name, transform_from_msg
 from planodom.datasets.bag_time_units import UNIT_WORDS, time_key, unit_of
 from planodom.datasets.returns import RETURN_FIELDS, last_returns
 from planodom.datasets.scan_io import integer_coordinates, time_field_name
+from planodom.datasets.time_wraps import wrap_message, wraps_inside
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
@@ -305,6 +306,8 @@ def sweep_times(
         finite = np.isfinite(raw.astype(np.float64))
     if not finite.all():
         check_offsets(np.where(finite, 0.0, np.nan), time_name, raw.dtype)
+    if wraps_inside(raw):  # a clock's nanoseconds cut to 32 bits, not the stamps' (time_wraps)
+        raise ValueError(f"PointCloud2 {wrap_message(time_name, raw)}")
     return rings, len(points), time_name, raw, no_ring, ring
 
 

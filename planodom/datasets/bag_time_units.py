@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from planodom.datasets.time_wraps import is_32bit, modular_offset_ns
+
 #: The two readings of relative times by field kind: (unit, seconds per unit), documented first.
 UNITS: dict[str, tuple[tuple[str, float], tuple[str, float]]] = {
     "integer": (("ns", 1e-9), ("us", 1e-6)),
@@ -59,6 +61,9 @@ class TopicTimes:
         spans: per such sweep, its times' span (max - min) in the field's own unit.
         sweeps: per span, the caller's number for its sweep (-1 without one).
         largest: the largest ``|time|`` of any sweep, in the field's own unit.
+        plain, cut: per sweep of a 32-bit integer field with a stamp, its largest
+            ``|value|`` and its largest distance from the stamp's lowest 32 bits (ns;
+            :mod:`planodom.datasets.time_wraps`).
     """
 
     name: str = ""
@@ -66,16 +71,22 @@ class TopicTimes:
     spans: array = field(default_factory=lambda: array("d"))
     sweeps: array = field(default_factory=lambda: array("q"))
     largest: float = 0.0
+    plain: array = field(default_factory=lambda: array("d"))
+    cut: array = field(default_factory=lambda: array("d"))
 
-    def add(self, name: str, values: np.ndarray, sweep: int = -1) -> None:
+    def add(self, name: str, values: np.ndarray, sweep: int = -1, stamp: int = 0) -> None:
         """Add one sweep's relative times ``values`` (n,) (finite, the field's own type);
-        ``sweep``: a number for it, which :meth:`without` can name."""
+        ``sweep``: a number for it, which :meth:`without` can name; ``stamp``: its stamp,
+        ns (0: none)."""
         self.name, self.dtype = name, values.dtype.name
         if len(values):
             low, high = float(values.min()), float(values.max())
             self.spans.append(high - low)
             self.sweeps.append(sweep)
             self.largest = max(self.largest, abs(low), abs(high))
+            if stamp and is_32bit(values.dtype):
+                self.plain.append(max(abs(low), abs(high)))
+                self.cut.append(modular_offset_ns(values, stamp))
 
     def without(self, sweeps: np.ndarray) -> TopicTimes:
         """These times without the spans of the sweeps numbered ``sweeps`` (k,) (so that a

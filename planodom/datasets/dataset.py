@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -16,7 +15,9 @@ from planodom.datasets.file_entries import broken_link, check_file_entries, opti
 from planodom.datasets.pcd import viewpoint_note
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
+from planodom.datasets.scan_order import scan_order_key
 from planodom.datasets.scan_time_units import scan_time_unit
+from planodom.datasets.time_wraps import WRAP_NS
 from planodom.datasets.times_file import read_times, unread_times, write_times
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
@@ -37,6 +38,8 @@ DEFAULT_EPOCH_PERIOD = 0.1
 #: nonsense. Not from data: any factor between the sweep overlap (about 1) and a unit
 #: step (1000) separates them.
 MAX_TIME_SPAN_PERIODS = 10.0
+#: Times spread over a sweep within 4.29 s of 0 but far from the epoch's time: a 32-bit field.
+_CUT32 = f", or a clock's nanoseconds cut to 32 bits, which wrap every {WRAP_NS * 1e-9:.3g} s"
 
 
 class Dataset:
@@ -123,8 +126,9 @@ class Dataset:
             raise DatasetError(
                 f"{self.scan_files[index]}: point times ('t') reach {far:g} s from the epoch's "
                 f"reference time, {far / period:.0f} epoch periods of {period:g} s: another "
-                "clock or unit (integer Unix seconds read as nanoseconds?; --time-field none "
-                "ignores them)"
+                "clock or unit (integer Unix seconds read as nanoseconds"
+                + (_CUT32 if 0 < span and far < WRAP_NS * 1e-9 else "")
+                + "?; --time-field none ignores them)"
             )
         if period > 0 and span >= MAX_TIME_SPAN_PERIODS * period:
             raise DatasetError(
@@ -147,7 +151,8 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
 
     ``path`` is either a dataset (scan files in ``path/scans/``) or a directory of scan
     files itself (e.g. KITTI's ``velodyne/``). Files are sorted by name with digit runs
-    compared as numbers (``2.bin`` before ``10.bin``); hidden files are skipped. ``poses.tum``
+    compared as numbers (``-1.bin`` before ``2.bin`` before ``10.bin``,
+    :mod:`planodom.datasets.scan_order`); hidden files are skipped. ``poses.tum``
     and ``rig.yaml`` are looked for in ``path``.
 
     Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else from KITTI
@@ -330,12 +335,6 @@ def is_dataset_entry(path: Path) -> bool:
     return all(is_dataset_entry(f) for f in path.iterdir())
 
 
-def _natural_key(path: Path) -> tuple:
-    """Sort key comparing digit runs as numbers: ``2.ply`` < ``10.ply``."""
-    parts = re.split(r"(\d+)", path.name)
-    return tuple((0, int(p), p) if p.isdigit() else (1, 0, p) for p in parts)
-
-
 def _files(directory: Path, extensions: Sequence[str] | None = None) -> list[Path]:
     """Visible files in ``directory`` (optionally only with ``extensions``); [] if none."""
     if not directory.is_dir():
@@ -348,9 +347,16 @@ def _files(directory: Path, extensions: Sequence[str] | None = None) -> list[Pat
     return files
 
 
-def _is_results_folder(root: Path) -> bool:
-    """What ``planodom run`` and ``smooth`` both write (a dataset holds neither)."""
-    return (root / "config.yaml").is_file() and (root / "covariances.npz").is_file()
+#: Files of a results folder of ``planodom run`` / ``smooth`` that no dataset holds.
+_RESULT_FILES = ("config.yaml", "covariances.npz", "epochs.csv", "metrics.json", "timing.json")
+
+
+def _results_files(root: Path) -> list[str]:
+    """The :data:`_RESULT_FILES` in ``root`` when two or more are there (a results folder,
+    perhaps cut short or of an earlier release: without ``covariances.npz`` it read as a
+    folder of "files with unknown extensions"), else []."""
+    found = [name for name in _RESULT_FILES if (root / name).is_file()]
+    return found if len(found) >= 2 else []
 
 
 def _scan_files(root: Path) -> list[Path]:
@@ -372,12 +378,12 @@ def _scan_files(root: Path) -> list[Path]:
                 f"{root} has velodyne/ but no calib.txt: a KITTI sequence needs both (or give "
                 "velodyne/ itself, a folder of scans, without the KITTI camera frame)"
             )
-        if not scans and _is_results_folder(root):
+        if not scans and (results := _results_files(root)):
             inner = " (its dataset/ is the one it ran on)" if (root / "dataset").is_dir() else ""
             raise DatasetError(
-                f"{root} is a results folder of planodom run or smooth (config.yaml, "
-                f"covariances.npz), not a recording: give the recording it ran on{inner}; "
-                f"`planodom eval` reads its {POSES_FILE}"
+                f"{root} is a results folder of planodom run or smooth ({', '.join(results[:2])})"
+                f", not a recording: give the recording it ran on{inner}; `planodom eval` "
+                f"reads its {POSES_FILE}"
             )
         if not files:
             raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files")
@@ -394,4 +400,4 @@ def _scan_files(root: Path) -> list[Path]:
     suffixes = sorted({f.suffix.lower() for f in files})
     if len(suffixes) > 1:
         raise DatasetError(f"{files[0].parent}: scan files mix extensions {', '.join(suffixes)}")
-    return sorted(files, key=_natural_key)
+    return sorted(files, key=scan_order_key)

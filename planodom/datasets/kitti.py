@@ -27,6 +27,7 @@ from planodom.datasets.dataset import TIMES_FILE, read_times
 from planodom.datasets.file_entries import optional_file
 from planodom.datasets.scan_io import check_time_field, read_scan
 from planodom.datasets.scan_names import check_numbering
+from planodom.datasets.scan_order import scan_order_key
 from planodom.errors import DatasetError
 from planodom.geometry import first_non_rotation, rotation_problem
 from planodom.rig import Rig
@@ -208,7 +209,10 @@ def load_kitti_sequence(
     path = Path(path)
     if not is_kitti_sequence(path):
         raise DatasetError(f"{path} is not a KITTI sequence (needs velodyne/ and calib.txt)")
-    files = sorted((path / "velodyne").glob("*.bin"))
+    # hidden files skipped (a Mac's ._000000.bin beside each scan), as in a dataset; the
+    # names' numbers compared as numbers (unpadded names were read 0, 1, 10, 11, 2, ...)
+    scans = (f for f in (path / "velodyne").glob("*.bin") if not f.name.startswith("."))
+    files = sorted(scans, key=scan_order_key)
     if not files:
         raise DatasetError(f"{path / 'velodyne'}: no .bin scan files")
     Tr = read_kitti_calib(path / "calib.txt")

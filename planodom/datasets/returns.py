@@ -61,15 +61,9 @@ def last_returns(
         return None
     dist = np.einsum("ij,ij->i", points, points)
     if ring is not None and t is not None and np.ptp(t) > 0:  # constant: no firing times
-        _, firing, counts = np.unique(
-            np.column_stack([np.asarray(ring, np.float64), np.asarray(t, np.float64)]),
-            axis=0,
-            return_inverse=True,
-            return_counts=True,
-        )
+        firing, counts = _firings(np.asarray(ring, np.float64), np.asarray(t, np.float64))
         if counts.max() == 1:
             return None  # one point per firing: single return already
-        firing = firing.reshape(-1)
         order = np.lexsort((dist, firing))  # by firing, then range: each firing's last
         ends = np.flatnonzero(np.diff(firing[order], append=firing[order][-1] + 1))
         if counts.max() <= MAX_RETURNS and _one_ray_each(points, firing, order[ends]):
@@ -92,3 +86,20 @@ def _one_ray_each(points: np.ndarray, firing: np.ndarray, last: np.ndarray) -> b
     unit = points / np.where(norm > 0, norm, 1.0)[:, None]
     cos = np.einsum("ij,ij->i", unit, unit[last][firing])
     return bool(np.all(cos >= np.cos(RAY_TOLERANCE_RAD)))
+
+
+def _firings(ring: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's firing, the rank (n,) of its distinct ``(ring, t)`` pair in their
+    lexicographic order, and the points (F,) of each firing: ``np.unique`` of the pairs
+    with ``axis=0`` (its inverse and counts, the same numbers), which sorts the rows as
+    structured values: 39 s of a 10M-point cloud's 62 s of reading, where two sort keys
+    take a few seconds."""
+    order = np.lexsort((t, ring))
+    r, s = ring[order], t[order]
+    new = np.empty(len(order), dtype=bool)
+    new[:1] = True
+    new[1:] = (r[1:] != r[:-1]) | (s[1:] != s[:-1])  # as np.unique: NaN is never equal
+    firing = np.empty(len(order), dtype=np.intp)
+    firing[order] = np.cumsum(new) - 1
+    counts = np.diff(np.append(np.flatnonzero(new), len(order)))
+    return firing, counts

@@ -52,6 +52,7 @@ from planodom.datasets.bin_scan import read_bin
 from planodom.datasets.pcd import read_pcd, write_pcd
 from planodom.datasets.ply import read_ply_vertices, write_ply_vertices
 from planodom.datasets.returns import RETURN_FIELDS, last_returns
+from planodom.datasets.time_wraps import wrap_message, wraps_inside
 from planodom.errors import DatasetError
 from planodom.scan import Scan
 
@@ -288,6 +289,8 @@ def point_times(
             the epoch's.
     """
     integer = raw.dtype.kind in "iu"
+    if wraps_inside(raw):  # a clock's nanoseconds cut to 32 bits (time_wraps)
+        raise DatasetError(f"{path}: {wrap_message(name, raw)}")
     scale = (1e-9 if time_scale is None else time_scale) if integer else 1.0
     unit = (unit_of(scale) or "s") if integer else "s"
     absolute = _absolute_ns(raw)

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from planodom.datasets.scan_io import UNIX_TIME_RANGE_S
+from planodom.datasets.scan_order import name_numbers
 from planodom.errors import DatasetError
 
 #: A line of KITTI raw's ``timestamps.txt``: ``2011-09-26 13:02:25.964389445``.
@@ -135,10 +136,10 @@ def check_numbering(files: Sequence[Path], times_file: str) -> None:
     numbered when each name has a digit run and the most common step between consecutive
     numbers is 1 (names that are timestamps are not checked).
     """
-    runs = [re.findall(r"\d+", f.stem) for f in files]
+    runs = [name_numbers(f.stem) for f in files]
     if len(files) < 2 or not all(runs):
         return
-    numbers = np.array([int(r[-1]) for r in runs])
+    numbers = np.array([r[-1] for r in runs])
     steps = np.diff(numbers)
     values, counts = np.unique(steps, return_counts=True)
     if values[np.argmax(counts)] != 1 or np.all(steps == 1):

@@ -268,3 +268,13 @@ def test_a_results_folder_is_named_as_one(tmp_path: Path) -> None:
         "covariances.npz), not a recording: give the recording it ran on (its dataset/ is "
         "the one it ran on); `planodom eval` reads its poses.tum"
     )
+
+
+@pytest.mark.parametrize("kept", ["config.yaml epochs.csv", "epochs.csv metrics.json timing.json"])
+def test_a_results_folder_cut_short_is_named_as_one(tmp_path: Path, kept: str) -> None:
+    """A results folder without ``covariances.npz`` (cut short, copied in part, or of an
+    earlier release) answered "files with unknown extensions: config.yaml, epochs.csv, ..."."""
+    for name in ["poses.tum", "trajectory.png", *kept.split()]:
+        (tmp_path / name).write_text("x")
+    with pytest.raises(DatasetError, match="is a results folder of planodom run or smooth"):
+        load_dataset(tmp_path)
