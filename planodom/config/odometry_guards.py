@@ -32,3 +32,11 @@ class DeskewGuards(MotionModelConfig):
     rotation 0.117 -> 0.160 deg, ATE 0.232 -> 0.197 m; 2 cm 0.140 -> 0.132 deg, 0.072 ->
     0.089 m); every other run is bit-identical. It is only as good as the bounds declared
     (docs/RESULTS.md, "New worlds 100-119")."""
+    start_refresh: bool = False
+    """Streaming, pairwise pipelines, scans with point times: once a step is measured
+    (status OK) after a start whose epochs were kept without deskewing (first steps
+    degenerate or unresolved: no velocity measured), extract those epochs again with the
+    measured epoch's twist, estimate the steps between them again with its constant-
+    velocity prediction as prior, and chain the poses again
+    (:mod:`planodom.odometry.start_epochs`; the first epochs' poses are then not causal).
+    False: the deskewing policy's refresh of the last reference only."""

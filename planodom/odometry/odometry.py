@@ -43,6 +43,7 @@ from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
+from planodom.odometry.start_epochs import StartEpochs
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
 from planodom.planes import PlaneSet
@@ -115,6 +116,7 @@ class PlaneOdometry:
         self._twist_sigma = TwistUncertainty(self.config.odometry)
         self._undo: tuple = ()  # what the last reference refresh replaced
         self._gaps: set[int] = set()  # epochs after a gap in the epoch times (is_gap)
+        self.start = StartEpochs(self.config.odometry.start_refresh)  # the undeskewed start
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -170,7 +172,7 @@ class PlaneOdometry:
             refresh, previous = self._refresh_reference, len(self.last_planes)
             # a twist never outlives an unresolved epoch: until one is measured again, epochs are
             # extracted without it (still the prior and bridge; tried when that is suspect)
-            unresolved = self._unresolved_last()
+            unresolved = (last := self.last_relative) and last.status is Status.UNRESOLVED
             twist, held = (None, self.twist) if unresolved else (self.twist, None)
             if k in self._gaps:  # its step across the gap gives no twist to refine with
                 ocfg = ocfg.model_copy(update={"deskew_iterations": 0})
@@ -444,7 +446,4 @@ class PlaneOdometry:
         self._history.append(epoch)
         if len(epoch.planes) >= 2:
             self._last_usable = epoch
-
-    def _unresolved_last(self) -> bool:
-        last = self.last_relative
-        return last is not None and last.status is Status.UNRESOLVED
+        self.start.appended(self, epoch)

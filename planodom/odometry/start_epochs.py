@@ -1,0 +1,157 @@
+"""The epochs kept without deskewing at the start of a run, deskewed once a step measures
+the motion (``odometry.start_refresh``).
+
+The deskewing policy (:mod:`planodom.odometry.deskew`) extracts the first epoch before
+any twist is known, and extracts a reference epoch again only with the twist of the step
+right after it. When the first steps are degenerate (rotation only: no velocity is
+measured) or unresolved, every epoch before the first measured step keeps its planes as
+first extracted, not deskewed, and only the last of them is extracted again: the first
+epoch, whose pose is the frame of the whole run, keeps planes off by the whole motion
+over its points' times (on the 2D-rig world 18 at 6 mm, whose first two steps are
+degenerate: a deskewing error of 14 cm along track, which turns the whole smoothed lap
+about 2 mrad against the truth). The degenerate steps themselves carry no velocity: their
+translation along the unmeasured direction is the prediction's, standing still before
+any motion is known.
+
+Here, once an epoch's step is measured (status OK, its planes deskewed with a twist),
+every earlier epoch of the run's start that still has its planes as first extracted is
+extracted again deskewed with that epoch's twist (the constant velocity the odometry
+would have predicted for them, had it known it; the extraction widens its tolerances by
+the predicted twist's uncertainty, as for the policy's refresh of a reference), and each
+step between them is estimated again against the new planes with the constant-velocity
+prediction of that twist as its prior (so a degenerate step's unmeasured direction is the
+measured velocity, not zero). A step estimated again is kept when its status is no worse
+than before; otherwise the step is kept as it was and its epoch marked superseded (its
+result indexes planes that are gone; the batch estimates it again from the planes). The
+poses from the first epoch on are chained again through the steps. Only the pairwise
+pipelines (the map holds its planes), scans with point times, and no gap in the epoch
+times before the measured step.
+
+The odometry's outputs are then not causal for those first epochs: their poses change
+when the measured step arrives (the run's poses are those after it). The first epoch's
+twist is recorded (:attr:`StartEpochs.first_twist`; ``OdometryRun.first_twist``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planodom.geometry import orthonormalised, twist_step
+from planodom.odometry.deskew import time_spread, with_deskew
+from planodom.odometry.kept_epoch import KeptEpoch
+from planodom.odometry.relative import RelativePose, Status, replaced
+from planodom.odometry.solver import estimate_relative_pose
+from planodom.planes import PlaneSet
+
+if TYPE_CHECKING:
+    from planodom.odometry.odometry import PlaneOdometry
+
+
+#: The start's epochs held at most (their scans are kept): a run whose first this many
+#: epochs measure no motion is not deskewed at its start (a bound on the memory held).
+MAX_EPOCHS = 20
+
+
+@dataclass
+class StartEpochs:
+    """The run's first epochs while none of them was deskewed (``enabled``: the option).
+
+    Attributes:
+        epochs: the epochs from the first on, each extracted without a twist from a scan
+            with point times, until one is committed deskewed.
+        first_twist: (6,) the twist the first epoch's planes were extracted with at last
+            (rad/s, m/s), None while not deskewed (kept by the odometry's own refresh too).
+    """
+
+    enabled: bool
+    epochs: list[KeptEpoch] = field(default_factory=list)
+    open: bool = True
+
+    def appended(self, odo: PlaneOdometry, epoch: KeptEpoch) -> None:
+        """Note ``epoch``, just appended to ``odo``; when it closes the start with a
+        measured step, deskew the start's epochs (module docstring)."""
+        if not (self.enabled and self.open):
+            return
+        undeskewed = epoch.twist is None and epoch.scan is not None and time_spread(epoch.scan)
+        if undeskewed and len(self.epochs) < MAX_EPOCHS:
+            self.epochs.append(epoch)
+            return
+        self.open = False
+        result = odo.results[epoch.index]
+        if epoch.twist is None or result is None or result.status is not Status.OK:
+            return
+        stale = [e for e in self.epochs if e.twist is None and e.scan is not None]
+        gaps = any(0 < k <= epoch.index for k in odo._gaps)
+        if stale and odo._map is None and not gaps:
+            known = {e.index: e for e in [*self.epochs, epoch]}
+            refresh_start(odo, stale, known, np.asarray(epoch.twist, dtype=float), epoch.index)
+
+    @property
+    def first_twist(self) -> np.ndarray | None:
+        """(6,) the twist of the first epoch's planes when this module deskewed them."""
+        if not self.epochs or self.epochs[0].index != 0 or self.epochs[0].twist is None:
+            return None
+        return np.array(self.epochs[0].twist, dtype=float)
+
+
+def refresh_start(
+    odo: PlaneOdometry, stale: list[KeptEpoch], known: dict[int, KeptEpoch],
+    twist: np.ndarray, last: int,
+) -> None:  # fmt: skip
+    """Extract the ``stale`` epochs of ``odo`` again with ``twist`` (6,), estimate again
+    every step up to epoch ``last`` (the measured one) that joins a new extraction
+    (``known``: the epochs by index, their scans and twists), and chain the poses again
+    (module docstring)."""
+    changed = set()
+    sigma = odo._twist_sigma.predicted()
+    for epoch in stale:
+        assert epoch.scan is not None
+        odo._set_planes(epoch, *odo._extract(epoch.scan, twist, prior=sigma))
+        changed.add(epoch.index)
+    for k in range(1, last + 1):
+        old = odo.results[k]
+        if old is None or not ({old.prev, k} & changed):
+            continue
+        new = _solved(odo, old, twist, known.get(k))
+        if new is None or new.status.rank < old.status.rank:
+            odo.superseded.add(k)
+            continue
+        odo.results[k] = new
+        odo.superseded.discard(k)
+        T_ref_last = np.eye(4)  # T_{prev}_{k-1}: the steps between (a reference gap)
+        for step in odo._steps[new.prev + 1 : k]:
+            T_ref_last = T_ref_last @ step
+        odo._steps[k] = orthonormalised(np.linalg.inv(T_ref_last) @ new.T_prev_curr)
+    for k in range(1, len(odo.poses)):
+        odo.poses[k] = orthonormalised(odo.poses[k - 1] @ odo._steps[k])
+
+
+def _solved(
+    odo: PlaneOdometry, old: RelativePose, twist: np.ndarray, epoch: KeptEpoch | None
+) -> RelativePose | None:
+    """The step ``old`` (``prev`` .. ``curr``) estimated again on the current planes with
+    the constant-velocity prediction of ``twist`` (6,) as prior; None without a positive
+    interval."""
+    prev, curr = old.prev, old.curr
+    dt = odo.times[curr] - odo.times[prev]
+    if dt <= 0:
+        return None
+    prior = twist_step(twist, dt)
+    sigma = odo._twist_sigma.predicted()[1] * dt
+    config = odo._config_for_gap(curr - prev)
+    rel = estimate_relative_pose(
+        PlaneSet.from_planes(odo.planes[prev]), PlaneSet.from_planes(odo.planes[curr]), config,
+        prior if config.odometry.use_motion_prior else None, sigma, step=True,
+    )  # fmt: skip
+    if rel.status is Status.UNRESOLVED:  # bridged by constant velocity
+        rel = replaced(rel, T_prev_curr=np.array(prior))
+    rel = rel.between(prev, curr)
+    scan = None if epoch is None else epoch.scan
+    used = None if epoch is None else epoch.twist
+    if scan is None:
+        return replaced(rel, time_spread=old.time_spread, deskew_twist=old.deskew_twist,
+                        deskew_times=old.deskew_times, interval_s=old.interval_s)  # fmt: skip
+    return with_deskew(rel, scan, used, dt)
