@@ -60,8 +60,8 @@ class StartEpochs:
     """The run's first epochs while none of them was deskewed (``enabled``: the option).
 
     Attributes:
-        epochs: the epochs from the first on, each extracted without a twist from a scan
-            with point times, until one is committed deskewed.
+        epochs: the epochs from the first on until the first whose step is measured
+            (status OK): none of them was deskewed with a measured velocity.
         first_twist: (6,) the twist the first epoch's planes were extracted with at last
             (rad/s, m/s), None while not deskewed (kept by the odometry's own refresh too).
     """
@@ -71,23 +71,30 @@ class StartEpochs:
     open: bool = True
 
     def appended(self, odo: PlaneOdometry, epoch: KeptEpoch) -> None:
-        """Note ``epoch``, just appended to ``odo``; when it closes the start with a
-        measured step, deskew the start's epochs (module docstring)."""
+        """Note ``epoch``, just appended to ``odo``; when its step is the first measured
+        one, deskew the start's epochs with its twist (module docstring)."""
         if not (self.enabled and self.open):
             return
-        undeskewed = epoch.twist is None and epoch.scan is not None and time_spread(epoch.scan)
-        if undeskewed and len(self.epochs) < MAX_EPOCHS:
-            self.epochs.append(epoch)
+        result = odo.results[epoch.index]
+        if result is None or result.status is not Status.OK:
+            if len(self.epochs) < MAX_EPOCHS:
+                self.epochs.append(epoch)
+            else:  # too long a start: left as it is, its scans let go
+                self.open, self.epochs = False, []
             return
         self.open = False
-        result = odo.results[epoch.index]
-        if epoch.twist is None or result is None or result.status is not Status.OK:
-            return
-        stale = [e for e in self.epochs if e.twist is None and e.scan is not None]
         gaps = any(0 < k <= epoch.index for k in odo._gaps)
-        if stale and odo._map is None and not gaps:
+        if epoch.twist is None or odo._map is not None or gaps:
+            return
+        twist = np.asarray(epoch.twist, dtype=float)
+        stale = [
+            e for e in self.epochs
+            if e.scan is not None and time_spread(e.scan)
+            and (e.twist is None or not np.array_equal(e.twist, twist))
+        ]  # fmt: skip
+        if stale:
             known = {e.index: e for e in [*self.epochs, epoch]}
-            refresh_start(odo, stale, known, np.asarray(epoch.twist, dtype=float), epoch.index)
+            refresh_start(odo, stale, known, twist, epoch.index)
 
     @property
     def first_twist(self) -> np.ndarray | None:
