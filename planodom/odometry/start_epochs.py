@@ -14,8 +14,9 @@ translation along the unmeasured direction is the prediction's, standing still b
 any motion is known.
 
 Here, once an epoch's step is measured (status OK, its planes deskewed with a twist),
-every earlier epoch of the run's start that still has its planes as first extracted is
-extracted again deskewed with that epoch's twist (the constant velocity the odometry
+every earlier epoch of the run's start that still has its planes as first extracted (not
+deskewed, or deskewed with a prediction whose velocity no step measured: a degenerate
+step's translation is its prior's) is extracted again deskewed with that epoch's twist (the constant velocity the odometry
 would have predicted for them, had it known it; the extraction widens its tolerances by
 the predicted twist's uncertainty, as for the policy's refresh of a reference), and each
 step between them is estimated again against the new planes with the constant-velocity
@@ -69,6 +70,7 @@ class StartEpochs:
     enabled: bool
     epochs: list[KeptEpoch] = field(default_factory=list)
     open: bool = True
+    _twists: list[np.ndarray | None] = field(default_factory=list)  # before the last epoch
 
     def appended(self, odo: PlaneOdometry, epoch: KeptEpoch) -> None:
         """Note ``epoch``, just appended to ``odo``; when its step is the first measured
@@ -79,17 +81,20 @@ class StartEpochs:
         if result is None or result.status is not Status.OK:
             if len(self.epochs) < MAX_EPOCHS:
                 self.epochs.append(epoch)
+                self._twists = [e.twist for e in self.epochs]
             else:  # too long a start: left as it is, its scans let go
-                self.open, self.epochs = False, []
+                self.open, self.epochs, self._twists = False, [], []
             return
         self.open = False
         gaps = any(0 < k <= epoch.index for k in odo._gaps)
         if epoch.twist is None or odo._map is not None or gaps:
             return
         twist = np.asarray(epoch.twist, dtype=float)
+        # not extracted again while this epoch was (the policy's refresh of its reference
+        # gave that one a measured twist), and not with this twist already
         stale = [
-            e for e in self.epochs
-            if e.scan is not None and time_spread(e.scan)
+            e for e, was in zip(self.epochs, self._twists, strict=True)
+            if e.scan is not None and time_spread(e.scan) and e.twist is was
             and (e.twist is None or not np.array_equal(e.twist, twist))
         ]  # fmt: skip
         if stale:
