@@ -57,7 +57,7 @@ def row(world_index: int, noise: float, epochs: int, config: PlanodomConfig) -> 
     err = per_epoch_errors(relative_motions(odo.poses), relative_motions(gt))
     rot = np.degrees(np.sqrt(err["roll"] ** 2 + err["pitch"] ** 2 + err["yaw"] ** 2))
     xy = np.hypot(err["x"], err["y"])
-    kept = [k for k in range(1, 6) if odo.results[k].deskew_twist is None]
+    kept = [k for k, r in enumerate(odo.results[1:6], 1) if r and r.deskew_twist is None]
     out = {
         "world": world_index, "noise": noise,
         "status1_5": " ".join(s[:3] for s in odo.statuses[1:6]),

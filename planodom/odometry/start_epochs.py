@@ -1,36 +1,36 @@
-"""The epochs kept without deskewing at the start of a run, deskewed once a step measures
-the motion (``odometry.start_refresh``).
+"""The epochs at the start of a run that no measured velocity deskewed, deskewed once a
+step measures the motion (``odometry.start_refresh``).
 
 The deskewing policy (:mod:`planodom.odometry.deskew`) extracts the first epoch before
 any twist is known, and extracts a reference epoch again only with the twist of the step
 right after it. When the first steps are degenerate (rotation only: no velocity is
-measured) or unresolved, every epoch before the first measured step keeps its planes as
-first extracted, not deskewed, and only the last of them is extracted again: the first
-epoch, whose pose is the frame of the whole run, keeps planes off by the whole motion
-over its points' times (on the 2D-rig world 18 at 6 mm, whose first two steps are
-degenerate: a deskewing error of 14 cm along track, which turns the whole smoothed lap
-about 2 mrad against the truth). The degenerate steps themselves carry no velocity: their
-translation along the unmeasured direction is the prediction's, standing still before
-any motion is known.
+measured) or unresolved, the epochs before the first measured step keep their planes as
+first extracted: not deskewed, or deskewed with a prediction whose velocity is a
+degenerate step's prior (standing still before any motion is known); only the last of
+them is extracted again. The first epoch, whose pose is the frame of the whole run, then
+keeps planes off by the motion over its points' times (the 2D-rig world 18 at 6 mm, its
+first two steps degenerate: a deskewing error of 14 cm along track, which turns the
+whole smoothed lap about 2 mrad against the truth), and the degenerate steps' unmeasured
+direction is the prediction's: standing still (world 18: 0.74 m off after one step).
 
 Here, once an epoch's step is measured (status OK, its planes deskewed with a twist),
-every earlier epoch of the run's start that still has its planes as first extracted (not
-deskewed, or deskewed with a prediction whose velocity no step measured: a degenerate
-step's translation is its prior's) is extracted again deskewed with that epoch's twist (the constant velocity the odometry
-would have predicted for them, had it known it; the extraction widens its tolerances by
-the predicted twist's uncertainty, as for the policy's refresh of a reference), and each
-step between them is estimated again against the new planes with the constant-velocity
-prediction of that twist as its prior (so a degenerate step's unmeasured direction is the
-measured velocity, not zero). A step estimated again is kept when its status is no worse
-than before; otherwise the step is kept as it was and its epoch marked superseded (its
-result indexes planes that are gone; the batch estimates it again from the planes). The
-poses from the first epoch on are chained again through the steps. Only the pairwise
-pipelines (the map holds its planes), scans with point times, and no gap in the epoch
-times before the measured step.
+every epoch of the start before it that was not extracted again while it was registered
+(the policy's refresh of its reference used the measured twist) is extracted again
+deskewed with that epoch's final twist (the constant velocity the odometry would have
+predicted, had it known it; the extraction widens its tolerances by the predicted
+twist's uncertainty, as for the policy's refresh), and each step that joins a new
+extraction is estimated again against the new planes with the constant-velocity
+prediction of that twist as its prior (a degenerate step's unmeasured direction is then
+the measured velocity's). A step estimated again is kept when its status is no worse;
+otherwise the old one stays and its epoch is marked superseded (its result indexes
+planes that are gone; the batch estimates it again from the planes). The poses are then
+chained again through the steps. Only the pairwise pipelines (the map holds its planes),
+scans with point times, no gap in the epoch times up to the measured step, and a start
+of at most :data:`MAX_EPOCHS` epochs.
 
 The odometry's outputs are then not causal for those first epochs: their poses change
-when the measured step arrives (the run's poses are those after it). The first epoch's
-twist is recorded (:attr:`StartEpochs.first_twist`; ``OdometryRun.first_twist``).
+when the measured step arrives (the run's poses are those after it). The twist the first
+epoch's planes were extracted with at last is kept (:attr:`StartEpochs.first_twist`).
 """
 
 from __future__ import annotations
