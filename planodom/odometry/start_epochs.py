@@ -17,8 +17,10 @@ Here, once an epoch's step is measured (status OK, its planes deskewed with a tw
 every epoch of the start before it that was not extracted again while it was registered
 (the policy's refresh of its reference used the measured twist) is extracted again
 deskewed with that epoch's final twist (the constant velocity the odometry would have
-predicted, had it known it; the extraction widens its tolerances by the predicted
-twist's uncertainty, as for the policy's refresh), and each step that joins a new
+predicted, had it known it), its angular rate replaced by that of the degenerate step
+into the epoch where there is one (the extraction widens its tolerances by the predicted
+twist's uncertainty, as for the policy's refresh). An extraction with far fewer planes
+(under half, or under two, as the policy judges one) is not kept. Each step that joins a new
 extraction is estimated again against the new planes with the constant-velocity
 prediction of that twist as its prior (a degenerate step's unmeasured direction is then
 the measured velocity's). A step estimated again is kept when its status is no worse;
@@ -40,7 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planodom.geometry import orthonormalised, twist_step
+from planodom.geometry import orthonormalised, se3_log, twist_step
 from planodom.odometry.deskew import time_spread, with_deskew
 from planodom.odometry.kept_epoch import KeptEpoch
 from planodom.odometry.relative import RelativePose, Status, replaced
@@ -119,15 +121,19 @@ def refresh_start(
     (module docstring)."""
     changed = set()
     sigma = odo._twist_sigma.predicted()
+    twists = {k: epoch_twist(odo, k, twist) for k in range(last + 1)}
     for epoch in stale:
         assert epoch.scan is not None
-        odo._set_planes(epoch, *odo._extract(epoch.scan, twist, prior=sigma))
+        planes, used = odo._extract(epoch.scan, twists[epoch.index], prior=sigma)
+        if len(planes) < max(2.0, 0.5 * len(epoch.planes)):
+            continue  # far fewer planes (as the policy judges an extraction): kept as it was
+        odo._set_planes(epoch, planes, used)
         changed.add(epoch.index)
     for k in range(1, last + 1):
         old = odo.results[k]
         if old is None or not ({old.prev, k} & changed):
             continue
-        new = _solved(odo, old, twist, known.get(k))
+        new = _solved(odo, old, twists[k], known.get(k))
         if new is None or new.status.rank < old.status.rank:
             odo.superseded.add(k)
             continue
@@ -139,6 +145,19 @@ def refresh_start(
         odo._steps[k] = orthonormalised(np.linalg.inv(T_ref_last) @ new.T_prev_curr)
     for k in range(1, len(odo.poses)):
         odo.poses[k] = orthonormalised(odo.poses[k - 1] @ odo._steps[k])
+
+
+def epoch_twist(odo: PlaneOdometry, k: int, twist: np.ndarray) -> np.ndarray:
+    """(6,) the twist to deskew epoch ``k`` of the start with: ``twist`` (6,), the measured
+    one, with the angular rate of the step into the epoch (out of it for the first) where
+    that step is degenerate (its rotation measured: the rate over the start, where the
+    measured step's may be seconds later)."""
+    j = max(k, 1)
+    result = odo.results[j]
+    dt = odo.times[j] - odo.times[j - 1]
+    if result is None or result.status is not Status.DEGENERATE or result.prev != j - 1 or dt <= 0:
+        return twist
+    return np.r_[se3_log(odo._steps[j])[:3] / dt, twist[3:]]
 
 
 def _solved(
