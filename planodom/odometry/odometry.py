@@ -45,6 +45,7 @@ from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
+from planodom.odometry.start_epochs import StartEpochs
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
 from planodom.planes import PlaneSet
@@ -117,6 +118,7 @@ class PlaneOdometry:
         self._twist_sigma = TwistUncertainty(self.config.odometry)
         self._undo: tuple = ()  # what the last reference refresh replaced
         self._gaps: set[int] = set()  # epochs after a gap in the epoch times (is_gap)
+        self.start = StartEpochs(self.config.odometry.start_refresh)  # the undeskewed start
 
     @property
     def last_pose(self) -> np.ndarray | None:
@@ -208,8 +210,6 @@ class PlaneOdometry:
             self._start_map(None)
             return self._commit_first(epoch, t)
         return self._commit(epoch, self._estimate(epoch, t), t)
-
-    # ------------------------------------------------------------------ one epoch
 
     def _start_map(self, scan: Scan | None) -> None:
         """Decide at the first epoch whether the plane-map odometry runs: pipeline "map",
@@ -395,8 +395,6 @@ class PlaneOdometry:
 
         return self._estimate_scan(scan, t, twist, source=best), undo
 
-    # ------------------------------------------------------------------ state
-
     def _commit_first(self, epoch: _Epoch, t: float) -> np.ndarray:
         if self._map is not None:
             self._map.commit(self._map.estimate(epoch.planes))
@@ -448,3 +446,4 @@ class PlaneOdometry:
         self._history.append(epoch)
         if len(epoch.planes) >= 2:
             self._last_usable = epoch
+        self.start.appended(self, epoch)

@@ -1,0 +1,188 @@
+"""The epochs at the start of a run that no measured velocity deskewed, deskewed once a
+step measures the motion (``odometry.start_refresh``).
+
+The deskewing policy (:mod:`planodom.odometry.deskew`) extracts the first epoch before
+any twist is known, and extracts a reference epoch again only with the twist of the step
+right after it. When the first steps are degenerate (rotation only: no velocity is
+measured) or unresolved, the epochs before the first measured step keep their planes as
+first extracted: not deskewed, or deskewed with a prediction whose velocity is a
+degenerate step's prior (standing still before any motion is known); only the last of
+them is extracted again. The first epoch, whose pose is the frame of the whole run, then
+keeps planes off by the motion over its points' times (the 2D-rig world 18 at 6 mm, its
+first two steps degenerate: a deskewing error of 14 cm along track, which turns the
+whole smoothed lap about 2 mrad against the truth), and the degenerate steps' unmeasured
+direction is the prediction's: standing still (world 18: 0.74 m off after one step).
+
+Here, once an epoch's step is measured (status OK, its planes deskewed with a twist),
+every epoch of the start before it that was not extracted again while it was registered
+(the policy's refresh of its reference used the measured twist) is extracted again
+deskewed with that epoch's final twist (the constant velocity the odometry would have
+predicted, had it known it), its angular rate replaced by that of the degenerate step
+into the epoch where there is one (the extraction widens its tolerances by the predicted
+twist's uncertainty, as for the policy's refresh). An extraction with far fewer planes
+(under half, or under two, as the policy judges one) is not kept. Each step that joins a new
+extraction is estimated again against the new planes with the constant-velocity
+prediction of that twist as its prior (a degenerate step's unmeasured direction is then
+the measured velocity's). A step estimated again is kept when its status is no worse;
+otherwise the old one stays and its epoch is marked superseded (its result indexes
+planes that are gone; the batch estimates it again from the planes). The poses are then
+chained again through the steps. Only the pairwise pipelines (the map holds its planes),
+scans with point times, no gap in the epoch times up to the measured step, and a start
+of at most :data:`MAX_EPOCHS` epochs.
+
+The odometry's outputs are then not causal for those first epochs: their poses change
+when the measured step arrives (the run's poses are those after it). The twist the first
+epoch's planes were extracted with at last is kept (:attr:`StartEpochs.first_twist`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planodom.geometry import orthonormalised, se3_log, twist_step
+from planodom.odometry.deskew import time_spread, with_deskew
+from planodom.odometry.kept_epoch import KeptEpoch
+from planodom.odometry.relative import RelativePose, Status, replaced
+from planodom.odometry.solver import estimate_relative_pose
+from planodom.planes import PlaneSet
+
+if TYPE_CHECKING:
+    from planodom.odometry.odometry import PlaneOdometry
+
+
+#: The start's epochs held at most (their scans are kept): a run whose first this many
+#: epochs measure no motion is not deskewed at its start (a bound on the memory held).
+MAX_EPOCHS = 20
+
+
+@dataclass
+class StartEpochs:
+    """The run's first epochs while none of them was deskewed (``enabled``: the option).
+
+    Attributes:
+        epochs: the epochs from the first on until the first whose step is measured
+            (status OK): none of them was deskewed with a measured velocity.
+        first_twist: (6,) the twist the first epoch's planes were extracted with at last
+            (rad/s, m/s), None while not deskewed (kept by the odometry's own refresh too).
+    """
+
+    enabled: bool
+    epochs: list[KeptEpoch] = field(default_factory=list)
+    open: bool = True
+    _twists: list[np.ndarray | None] = field(default_factory=list)  # before the last epoch
+
+    def appended(self, odo: PlaneOdometry, epoch: KeptEpoch) -> None:
+        """Note ``epoch``, just appended to ``odo``; when its step is the first measured
+        one, deskew the start's epochs with its twist (module docstring)."""
+        if not (self.enabled and self.open):
+            return
+        result = odo.results[epoch.index]
+        if result is None or result.status is not Status.OK:
+            if len(self.epochs) < MAX_EPOCHS:
+                self.epochs.append(epoch)
+                self._twists = [e.twist for e in self.epochs]
+            else:  # too long a start: left as it is, its scans let go
+                self.open, self.epochs, self._twists = False, [], []
+            return
+        self.open = False
+        gaps = any(0 < k <= epoch.index for k in odo._gaps)
+        if epoch.twist is None or odo._map is not None or gaps:
+            return
+        twist = np.asarray(epoch.twist, dtype=float)
+        # not extracted again while this epoch was (the policy's refresh of its reference
+        # gave that one a measured twist), and not with this twist already
+        stale = [
+            e for e, was in zip(self.epochs, self._twists, strict=True)
+            if e.scan is not None and time_spread(e.scan) and e.twist is was
+            and (e.twist is None or not np.array_equal(e.twist, twist))
+        ]  # fmt: skip
+        if stale:
+            known = {e.index: e for e in [*self.epochs, epoch]}
+            refresh_start(odo, stale, known, twist, epoch.index)
+
+    @property
+    def first_twist(self) -> np.ndarray | None:
+        """(6,) the twist of the first epoch's planes when this module deskewed them."""
+        if not self.epochs or self.epochs[0].index != 0 or self.epochs[0].twist is None:
+            return None
+        return np.array(self.epochs[0].twist, dtype=float)
+
+
+def refresh_start(
+    odo: PlaneOdometry, stale: list[KeptEpoch], known: dict[int, KeptEpoch],
+    twist: np.ndarray, last: int,
+) -> None:  # fmt: skip
+    """Extract the ``stale`` epochs of ``odo`` again with ``twist`` (6,), estimate again
+    every step up to epoch ``last`` (the measured one) that joins a new extraction
+    (``known``: the epochs by index, their scans and twists), and chain the poses again
+    (module docstring)."""
+    changed = set()
+    sigma = odo._twist_sigma.predicted()
+    twists = {k: epoch_twist(odo, k, twist) for k in range(last + 1)}
+    for epoch in stale:
+        assert epoch.scan is not None
+        planes, used = odo._extract(epoch.scan, twists[epoch.index], prior=sigma)
+        if len(planes) < max(2.0, 0.5 * len(epoch.planes)):
+            continue  # far fewer planes (as the policy judges an extraction): kept as it was
+        odo._set_planes(epoch, planes, used)
+        changed.add(epoch.index)
+    for k in range(1, last + 1):
+        old = odo.results[k]
+        if old is None or not ({old.prev, k} & changed):
+            continue
+        new = _solved(odo, old, twists[k], known.get(k))
+        if new is None or new.status.rank < old.status.rank:
+            odo.superseded.add(k)
+            continue
+        odo.results[k] = new
+        odo.superseded.discard(k)
+        T_ref_last = np.eye(4)  # T_{prev}_{k-1}: the steps between (a reference gap)
+        for step in odo._steps[new.prev + 1 : k]:
+            T_ref_last = T_ref_last @ step
+        odo._steps[k] = orthonormalised(np.linalg.inv(T_ref_last) @ new.T_prev_curr)
+    for k in range(1, len(odo.poses)):
+        odo.poses[k] = orthonormalised(odo.poses[k - 1] @ odo._steps[k])
+
+
+def epoch_twist(odo: PlaneOdometry, k: int, twist: np.ndarray) -> np.ndarray:
+    """(6,) the twist to deskew epoch ``k`` of the start with: ``twist`` (6,), the measured
+    one, with the angular rate of the step into the epoch (out of it for the first) where
+    that step is degenerate (its rotation measured: the rate over the start, where the
+    measured step's may be seconds later)."""
+    j = max(k, 1)
+    result = odo.results[j]
+    dt = odo.times[j] - odo.times[j - 1]
+    if result is None or result.status is not Status.DEGENERATE or result.prev != j - 1 or dt <= 0:
+        return twist
+    return np.r_[se3_log(odo._steps[j])[:3] / dt, twist[3:]]
+
+
+def _solved(
+    odo: PlaneOdometry, old: RelativePose, twist: np.ndarray, epoch: KeptEpoch | None
+) -> RelativePose | None:
+    """The step ``old`` (``prev`` .. ``curr``) estimated again on the current planes with
+    the constant-velocity prediction of ``twist`` (6,) as prior; None without a positive
+    interval."""
+    prev, curr = old.prev, old.curr
+    dt = odo.times[curr] - odo.times[prev]
+    if dt <= 0:
+        return None
+    prior = twist_step(twist, dt)
+    sigma = odo._twist_sigma.predicted()[1] * dt
+    config = odo._config_for_gap(curr - prev)
+    rel = estimate_relative_pose(
+        PlaneSet.from_planes(odo.planes[prev]), PlaneSet.from_planes(odo.planes[curr]), config,
+        prior if config.odometry.use_motion_prior else None, sigma, step=True,
+    )  # fmt: skip
+    if rel.status is Status.UNRESOLVED:  # bridged by constant velocity
+        rel = replaced(rel, T_prev_curr=np.array(prior))
+    rel = rel.between(prev, curr)
+    scan = None if epoch is None else epoch.scan
+    used = None if epoch is None else epoch.twist
+    if scan is None:
+        return replaced(rel, time_spread=old.time_spread, deskew_twist=old.deskew_twist,
+                        deskew_times=old.deskew_times, interval_s=old.interval_s)  # fmt: skip
+    return with_deskew(rel, scan, used, dt)

@@ -1,0 +1,81 @@
+"""The start's undeskewed epochs deskewed once a step is measured
+(:mod:`planodom.odometry.start_epochs`, ``odometry.start_refresh``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from planes_factory import observe, square_polygon
+
+from planodom.config import PlanodomConfig
+from planodom.geometry import Plane, PlaneSupport, transform_from_rpy_xyz
+from planodom.odometry import PlaneOdometry, Status
+from planodom.scan import Scan
+
+DT, SPEED, SPAN = 0.1, 4.0, 0.1  # s, m/s along x, s of each epoch's points
+
+
+def plane(normal, centroid, half, truth_id) -> Plane:  # noqa: ANN001
+    n, c = np.asarray(normal, float), np.asarray(centroid, float)
+    support = PlaneSupport(c, square_polygon(c, n, half), 200)
+    return Plane(n, float(-n @ c), confidence=0.8, support=support, truth_id=truth_id)
+
+
+#: a corridor along x (two parallel walls and the ground: the translation along x is not
+#: measured) and a wall across it, seen from the third epoch (index 2) on.
+CORRIDOR = [
+    plane([0, -1, 0], [5, 2, 0.5], 4, 0),
+    plane([0, 1, 0], [5, -2, 0.5], 4, 1),
+    plane([0, 0, 1], [5, 0, -1.5], 5, 2),
+]
+ACROSS = plane([-1, 0, 0], [30, 0, 0.5], 2, 3)
+
+
+def run(start_refresh: bool) -> tuple[PlaneOdometry, list[tuple[int, np.ndarray | None]]]:
+    """Five epochs at SPEED along the corridor; each scan's points spread over SPAN s. The
+    extractor sees the planes from the pose at the points' mean time, less the motion the
+    twist it is given deskews (the twist's x velocity times that time)."""
+    calls: list[tuple[int, np.ndarray | None]] = []
+
+    def extractor(scan, cfg, twist=None):  # noqa: ANN001, ANN202
+        k = int(scan.points[0, 0])
+        calls.append((k, None if twist is None else np.array(twist)))
+        used = 0.0 if twist is None else float(twist[3])
+        x = SPEED * DT * k + (SPEED - used) * SPAN / 2
+        seen = CORRIDOR + ([ACROSS] if k >= 2 else [])
+        return observe(seen, transform_from_rpy_xyz(0, 0, 0, x, 0, 0))
+
+    cfg = PlanodomConfig().updated(
+        {"odometry.pipeline": "wocsc", "odometry.start_refresh": start_refresh}
+    )
+    odo = PlaneOdometry(cfg, extractor=extractor)
+    for k in range(5):
+        odo.register_epoch(Scan(np.full((2, 3), float(k)), t=[0.0, SPAN]), DT * k)
+    return odo, calls
+
+
+def test_the_start_is_deskewed_and_its_steps_move_once_the_motion_is_measured():
+    off, _ = run(False)
+    on, calls = run(True)
+    # the scenario: the first two steps are degenerate (no velocity), the third measured;
+    # without the option the first epochs stand still and epoch 0 is never deskewed
+    assert [r.status for r in off.results[1:4]] == [Status.DEGENERATE] * 2 + [Status.OK]
+    assert abs(off.poses[1][0, 3]) < 0.05 and abs(off.poses[2][0, 3]) < 0.05
+    truth = SPEED * DT * np.arange(5)
+    x_on = np.array([T[0, 3] for T in on.poses])
+    np.testing.assert_allclose(x_on, truth, atol=0.01)
+    # epochs 0-2 (1 and 2 deskewed with the zero velocity the degenerate steps carried)
+    # extracted last with the measured twist (SPEED along x)
+    last = {k: twist for k, twist in calls}
+    for k in (0, 1, 2):
+        np.testing.assert_allclose(last[k], [0, 0, 0, SPEED, 0, 0], atol=0.05)
+    assert on.start.first_twist is not None
+    np.testing.assert_allclose(on.start.first_twist, last[0])
+    # the steps estimated again carry the twist their epoch's planes were deskewed with
+    for k in (1, 2):
+        assert on.results[k].deskew_twist is not None and k not in on.superseded
+
+
+def test_off_by_default_and_nothing_without_point_times():
+    assert PlanodomConfig().odometry.start_refresh is False
+    a, calls_a = run(False)
+    assert all(k != 0 or twist is None for k, twist in calls_a)  # epoch 0 never deskewed
