@@ -46,10 +46,24 @@ STAGES = (
     ("planodom.extraction.lidar.path", "lidar_candidates", "  candidates"),
     ("planodom.extraction.lidar.candidates", "ring_noise", "    ring noise"),
     ("planodom.extraction.lidar.candidates", "range_image_candidates", "    range image"),
+    ("planodom.extraction.lidar.rangeimage", "grid_indices", "      grid indices"),
+    ("planodom.extraction.lidar.rangeimage", "point_grid", "      point grid"),
+    ("planodom.extraction.lidar.rangeimage", "pixel_normals", "      pixel normals"),
+    ("planodom.extraction.lidar.rangeimage", "row_spacing", "      row spacing"),
+    ("planodom.extraction.lidar.rangeimage", "_grow_pieces", "      growing"),
+    ("planodom.extraction.lidar.rangeimage", "_flat_pieces", "      flat pieces"),
+    ("planodom.extraction.lidar.rangeimage", "_merge_pieces", "      merging"),
+    ("planodom.extraction.lidar.rangeimage", "assign_points", "      point assignment"),
+    ("planodom.extraction.lidar.rangeimage", "plane_members", "      members"),
     ("planodom.extraction.lidar.candidates", "ransac_candidates", "    RANSAC fallback"),
     ("planodom.extraction.lidar.path", "fit_candidates", "  robust fits"),
     ("planodom.extraction.lidar.path", "build_planes", "  plane builder"),
-    ("planodom.odometry.planemap.odometry", "register", "map registration"),
+    ("planodom.odometry.odometry", "widened_if_lost", "extraction + estimate (and retry)"),
+    ("planodom.odometry.planemap.odometry.PlaneMapOdometry", "estimate", "map estimate"),
+    ("planodom.odometry.planemap.odometry", "register", "  map registration"),
+    ("planodom.odometry.planemap.odometry", "register_twist", "  twist registration"),
+    ("planodom.odometry.planemap.odometry", "relative_pose", "  relative pose, covariance"),
+    ("planodom.odometry.planemap.odometry.PlaneMapOdometry", "commit", "map commit"),
     ("planodom.odometry.planemap.odometry", "update_map", "map update"),
     ("planodom.odometry.planemap.fallback", "lda_hypothesis", "LDA fallback"),
 )
@@ -72,7 +86,11 @@ def instrument(acc: defaultdict[str, float], n: defaultdict[str, int]) -> list[s
     """Wrap the stages of :data:`STAGES` that exist; their labels, in order."""
     labels = []
     for module, name, label in STAGES:
-        mod = importlib.import_module(module)
+        try:
+            mod: Any = importlib.import_module(module)
+        except ModuleNotFoundError:  # a class of the module before it
+            parent, cls = module.rsplit(".", 1)
+            mod = getattr(importlib.import_module(parent), cls)
         if not hasattr(mod, name):
             continue
         setattr(mod, name, _timed(getattr(mod, name), label, acc, n))
