@@ -1,6 +1,7 @@
 """Small compiled (numba) helpers shared by the extraction kernels.
 
 - :func:`find_root`: union-find with path halving (trace linking, range-image growing);
+- :func:`components`: connected components of an undirected edge list, labelled as scipy's;
 - :func:`range_moments`: centroid and centred scatter of a contiguous range of points;
 - :func:`add_outer`: add one centred point's outer product to a scatter's upper triangle;
 - :func:`median_nonnegative`: ``np.median`` of non-negative values by radix selection.
@@ -19,6 +20,31 @@ def find_root(parent, i):  # pragma: no cover - compiled
         parent[i] = parent[parent[i]]
         i = parent[i]
     return i
+
+
+@numba.njit(cache=True)
+def components(a, b, n):  # pragma: no cover - compiled
+    """Connected components of the undirected graph of ``n`` nodes and the edges
+    ``(a[i], b[i])`` (int64, each in 0..n-1): their number and the label (n,) int64 of
+    every node, labels numbered in the order of each component's smallest node, as
+    ``scipy.sparse.csgraph.connected_components(directed=False)`` numbers them (its
+    search starts from the unlabelled nodes in ascending order). Ours because scipy's
+    call on the range image's few dozen pieces costs ~0.4 ms, mostly building the
+    sparse matrix, against microseconds here (INDOOR16)."""
+    parent = np.arange(n)
+    for i in range(a.shape[0]):
+        ra, rb = find_root(parent, a[i]), find_root(parent, b[i])
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    label = np.full(n, -1, dtype=np.int64)
+    m = 0
+    for v in range(n):
+        r = find_root(parent, v)
+        if label[r] < 0:
+            label[r] = m
+            m += 1
+        label[v] = label[r]
+    return m, label
 
 
 @numba.njit(cache=True)

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
-from planodom.extraction.kernels import median_nonnegative
+from planodom.extraction.kernels import components, median_nonnegative
 
 
 def _samples(kind: str, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -68,3 +70,31 @@ def test_group_refits_are_the_moments_of_their_inliers():
         np.testing.assert_allclose(fits.centroid[g], c, rtol=0, atol=1e-12)
         np.testing.assert_allclose(fits.evals[g], vals, rtol=1e-9, atol=1e-12)
         assert abs(abs(fits.evecs[g][:, 0] @ vecs[:, 0]) - 1.0) < 1e-9
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 40, 300])
+def test_components_are_scipys_labels(n):
+    """The number of components and every node's label as scipy numbers them (the order
+    of each component's smallest node), on random sparse and dense edge lists with
+    repeated edges, self-loops, isolated nodes and edges given in either direction."""
+    rng = np.random.default_rng(n)
+    for m in [0, 1, n // 2, n, 3 * n]:
+        a = rng.integers(0, n, m).astype(np.int64)
+        b = rng.integers(0, n, m).astype(np.int64)
+        if m > 2:
+            a[-1], b[-1] = b[0], a[0]  # an edge repeated the other way round
+        graph = coo_matrix((np.ones(m), (a, b)), shape=(n, n))
+        want_m, want = connected_components(graph, directed=False)
+        got_m, got = components(a, b, n)
+        assert got_m == want_m
+        np.testing.assert_array_equal(got, want)
+
+
+def test_components_number_by_smallest_node_not_by_edges():
+    """A chain given from its largest node down, and a component whose smallest node
+    comes after another component's nodes: the labels follow the smallest nodes."""
+    a = np.array([5, 4, 1], dtype=np.int64)
+    b = np.array([4, 3, 6], dtype=np.int64)
+    m, label = components(a, b, 7)
+    assert m == 4
+    np.testing.assert_array_equal(label, [0, 1, 2, 3, 3, 3, 1])

@@ -66,11 +66,9 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from planodom.config import ExtractionConfig
-from planodom.extraction.kernels import find_root
+from planodom.extraction.kernels import components, find_root
 from planodom.extraction.lidar.grid import (
     assign_points,
     grid_indices,
@@ -434,8 +432,5 @@ def merge_coplanar(
     same = cosang >= np.cos(np.minimum(lim, np.pi / 2))
     same &= np.abs(np.einsum("ij,ij->i", normal[a], centroid[b]) + offset[a]) <= tol
     same &= np.abs(np.einsum("ij,ij->i", normal[b], centroid[a]) + offset[b]) <= tol
-    a, b = a[same], b[same]
-    C = len(normal)
-    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(C, C))
-    M, merged = connected_components(graph, directed=False)
+    M, merged = components(a[same].astype(np.int64), b[same].astype(np.int64), len(normal))
     return int(M), merged
