@@ -1,0 +1,59 @@
+"""One scanner's lines of several sweeps against the plane they were grouped into (2D rig).
+
+The grouping (:mod:`.grouping`) makes a plane of two traces of two scanners that cross and
+are coplanar. Two lines of two scanners on two different walls are coplanar too when they
+meet at the walls' common edge, extended: two near-level lines at one height on two walls
+make a level "plane" between them (world 20 at 6 mm: 22 such planes in 150 epochs, 84-90
+deg from the walls whose points they hold, declared sigma 0.01-0.1 deg; ``docs/RESULTS.md``).
+Each scanner's own lines tell them apart. A scanner sees a surface along one line per
+sweep; the motion between sweeps moves that line over the surface, so its deskewed lines
+of several sweeps are displaced *within* the true surface (they span it with the line's
+direction), and on a plane that is not the surface they are displaced *across* it (on the
+level plane between two walls, each scanner's lines climb its wall). :func:`tilted_rings`
+names the rings whose lines, by their sweeps' centroids, are displaced farther across the
+plane than within it, beyond their noise: the surface the ring's lines span is then more
+than 45 deg from the plane. No threshold of its own: 45 deg is "closer to another plane
+than to this one", the noise is the extraction's sigma times ``member_sigma_factor``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planodom.extraction.rig2d.segments import Segments
+
+
+def tilted_rings(
+    segs: Segments, group: np.ndarray, normal: np.ndarray, sigma_m: float, factor: float
+) -> list[int]:
+    """The rings of ``group`` (K,) segment indices with segments of two or more sweeps
+    whose sweep centroids (count-weighted over the ring's segments of each sweep) spread
+    farther along ``normal`` (3,) than across the ring's line within the plane, by more
+    than ``factor * sigma_m * sqrt(2 / n)`` m, ``n`` the fewest points of one sweep (the
+    spread of two means of ``n`` points of noise ``sigma_m``)."""
+    rings = segs.ring[group]
+    bad = []
+    for r in np.unique(rings):
+        mine = group[rings == r]
+        sweeps = segs.sweep[mine]
+        if len(np.unique(sweeps)) < 2:
+            continue
+        n_k = segs.count[mine].astype(np.float64)
+        u = segs.direction[mine]
+        u = u * np.where(u @ u[0] < 0, -1.0, 1.0)[:, None]
+        u = (n_k[:, None] * u).sum(axis=0)
+        u -= (u @ normal) * normal
+        if not np.linalg.norm(u) > 0:
+            continue
+        w = np.cross(normal, u / np.linalg.norm(u))
+        across, within, counts = [], [], []
+        for s in np.unique(sweeps):
+            k = sweeps == s
+            c = (n_k[k, None] * segs.centroid[mine[k]]).sum(axis=0) / n_k[k].sum()
+            across.append(c @ normal)
+            within.append(c @ w)
+            counts.append(n_k[k].sum())
+        noise = factor * sigma_m * np.sqrt(2.0 / min(counts))
+        if np.ptp(across) > np.ptp(within) + noise:
+            bad.append(int(r))
+    return bad
