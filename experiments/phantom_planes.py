@@ -3,11 +3,16 @@
 For procedural worlds (even seeds: the 2D rig) at a range noise, the streaming odometry as
 ``planodom experiment generalisation`` runs it (default config, or ``-c`` overrides), with
 every extraction's inliers recorded. A plane the odometry kept for an epoch is a
-*phantom* when its normal lies more than ``--tol-deg`` (5) from the true surface of the
-majority of its inliers (base frame at the epoch's true pose), or when no surface holds
-half of them. Printed per world: planes, phantoms, unresolved epochs, rotation and xy rms
-per epoch, ATE; with ``--detail``, per phantom: its rings, sweeps, labels, the angle
-between the plane and each ring's own scan plane, and each ring's sensor distance to it.
+*phantom* when its normal lies more than 5 deg from the true surface of the majority of
+its inliers (base frame at the epoch's true pose), or when no surface holds half of them.
+Printed per world (and appended to ``-o`` as JSON lines): planes, phantoms, epochs with
+one, unresolved epochs, rotation and xy rms per epoch, ATE (xy, origin-aligned, as the
+generalisation experiment). With ``--detail``, per phantom: the epoch's status, how it
+was extracted (with a twist, or in time windows without one), the largest tilt of one
+ring's lines of several sweeps about the plane (:mod:`planodom.extraction.rig2d.
+sweeptilt`, here from time bins of 1/75 s), its rings with their sweeps and labels, the
+angle between the plane and each ring's own scan plane and each ring's sensor distance to
+it; and the tilts of the phantoms and of the true planes.
 
     uv run python experiments/phantom_planes.py --worlds 20 32 --noise 0.006 --epochs 150
 """
@@ -21,27 +26,39 @@ from collections import Counter
 import numpy as np
 
 import planodom.extraction.pipeline as pipeline
+import planodom.extraction.rig2d.windows as pipeline_windows
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import world_for
-from planodom.extraction.rig2d.freespace import pierce_counts
 from planodom.geometry import invert_transform, transform_planes
 from planodom.metrics import ate, per_epoch_errors, relative_motions
 from planodom.odometry import run_odometry
 from planodom.simulation.random_world import simulate_world, world_fields
 
 RECORD: dict[int, tuple] = {}
-PIERCE: list = []
+TILTS: list = []
 _ORIGINAL = pipeline._result
 
 
 def _spy(found, mode, points):  # noqa: ANN001, ANN202
     out = _ORIGINAL(found, mode, points)
     for p, idx in zip(out.planes, out.inliers, strict=True):
-        RECORD[id(p)] = (p, idx, points)
+        RECORD[id(p)] = (p, idx, points, LAST[0])
     return out
 
 
+LAST = ["?"]
+_PATH = pipeline.rig2d_planes
+
+
+def _path(epoch, config):  # noqa: ANN001, ANN202
+    tw = config.time_windows
+    windowed = pipeline_windows.is_windowed(epoch.scan, epoch.twist, tw)
+    LAST[0] = "windowed" if windowed else ("twist" if epoch.twist is not None else "none")
+    return _PATH(epoch, config)
+
+
 pipeline._result = _spy
+pipeline.rig2d_planes = _path
 
 
 def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -112,10 +129,7 @@ def run_world(seed: int, noise: float, epochs: int, overrides: dict, detail: boo
             pure = 2 * c >= max(len(labels), 1)
             bad = not (ang <= 5.0 and pure)
             if rec is not None:
-                ray_o = origins[scan.ring]
-                pc = pierce_counts(p.normal, p.offset, p.support.polygon, rec[2], ray_o, 0.05)
-                st = sweep_stack(p, rec[1], rec[2], scan, noise)
-                PIERCE.append((bad, pc, len(rec[1]), st))
+                TILTS.append((bad, sweep_stack(p, rec[1], rec[2], scan, noise)))
             if not bad:
                 continue
             n_phantom += 1
@@ -140,25 +154,27 @@ def run_world(seed: int, noise: float, epochs: int, overrides: dict, detail: boo
                 )
             sig = np.degrees(np.sqrt(max(np.linalg.eigvalsh(p.covariance[:3, :3])[-1], 0)))
             print(
-                f"  epoch {k} [{odo.statuses[k]}] tilt {PIERCE[-1][3][0]:.0f} deg stack {1000 * PIERCE[-1][3][1]:.1f} mm: {len(idx)} pts, {ang:.1f} deg off surface "
+                f"  epoch {k} [{odo.statuses[k]}, {rec[3]}] tilt {TILTS[-1][1][0]:.0f} deg "
+                f"stack {1000 * TILTS[-1][1][1]:.1f} mm: {len(idx)} pts, {ang:.1f} deg off surface "
                 f"{lab} ({c}/{len(labels)}), normal {np.round(p.normal, 3)}, sigma {sig:.3f} deg"
             )
             for s in info:
                 print("     " + s)
-    err = per_epoch_errors(relative_motions(odo.poses), relative_motions(
-        invert_transform(full.poses[0])[None] @ full.poses))
+    err = per_epoch_errors(
+        relative_motions(odo.poses),
+        relative_motions(invert_transform(full.poses[0])[None] @ full.poses),
+    )
     rot = np.degrees(np.sqrt(err["roll"] ** 2 + err["pitch"] ** 2 + err["yaw"] ** 2))
     xy = np.hypot(err["x"], err["y"])
     gt = invert_transform(full.poses[0])[None] @ full.poses
-    pb = sorted(c for b, c, _, _ in PIERCE if b)
-    pg = sorted(c for b, c, _, _ in PIERCE if not b)
-    sb = sorted(round(x[0]) for b, _, _, x in PIERCE if b)
-    sg = sorted(round(x[0]) for b, _, _, x in PIERCE if not b)
-    print("tilt deg phantoms", sb)
-    print("tilt deg good: n", len(sg), "pcts 50/90/99", np.percentile(sg, [50, 90, 99]), "top", sg[-25:])
-    print("pierce phantoms", pb)
-    print("pierce good: n", len(pg), "zero", sum(c == 0 for c in pg), "top", pg[-30:])
-    PIERCE.clear()
+    if detail:
+        sb = sorted(round(x[0]) for b, x in TILTS if b)
+        sg = sorted(round(x[0]) for b, x in TILTS if not b)
+        print("tilt deg, phantoms:", sb)
+        print(
+            f"tilt deg, {len(sg)} true planes: 99th pct {np.percentile(sg, 99):.0f}, top", sg[-10:]
+        )
+    TILTS.clear()
     return {
         "world": seed, "noise": noise, "planes": n_planes, "phantoms": n_phantom,
         "phantom_epochs": len(set(phantom_epochs)), "unresolved": odo.n_unresolved,

@@ -83,9 +83,10 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     elif origins is not None and config.own_scan_plane == "trimmed":
         trimmed = [without_own_scan_plane(segs, g, params, origins) for g in groups]
         groups = [g for g in trimmed if g is not None]
-    if config.sweep_tilt == "trimmed" and epoch.twist is not None and not windowed:
-        factor = config.member_sigma_factor
-        tilted = [without_sweep_tilt(segs, g, params, factor) for g in groups]
+    if config.sweep_tilt == "trimmed" and epoch.twist is not None and scan.t is not None:
+        first, last = windows.segment_times(scan, segs)
+        mid, factor = 0.5 * (first + last), config.member_sigma_factor
+        tilted = [without_sweep_tilt(segs, g, params, mid, factor) for g in groups]
         groups = [g for g in tilted if g is not None]
     n_lost += n_groups - len(groups)
     if not groups:
@@ -139,16 +140,18 @@ def without_own_scan_plane(
 
 
 def without_sweep_tilt(
-    segs: Segments, group: np.ndarray, params: GroupingParams, factor: float
-) -> np.ndarray | None:
+    segs: Segments, group: np.ndarray, params: GroupingParams, seg_times: np.ndarray,
+    factor: float,
+) -> np.ndarray | None:  # fmt: skip
     """``group`` (K,) segment indices without the rings whose lines of several sweeps are
-    displaced across the group's plane more than within it
-    (:func:`.sweeptilt.tilted_rings`, noise ``factor`` times ``params.sigma_m``), or None
+    displaced across the group's plane more than within it (:func:`.sweeptilt.tilted_rings`:
+    ``seg_times`` (S,) s the segments' mean times, noise ``factor`` times
+    ``params.sigma_m``), or None
     when what is left is not a plane (:func:`without_rings`); the same array when none is
     (``extraction.sweep_tilt: trimmed``)."""
     scatter = _moments(segs, group)[1]
     normal = np.linalg.eigh(scatter)[1][:, 0]
-    bad = tilted_rings(segs, group, normal, params.sigma_m, factor)
+    bad = tilted_rings(segs, group, normal, seg_times, params.sigma_m, factor)
     if not bad:
         return group
     return without_rings(segs, group, bad, params)

@@ -10,9 +10,9 @@ sweep; the motion between sweeps moves that line over the surface, so its deskew
 of several sweeps are displaced *within* the true surface (they span it with the line's
 direction), and on a plane that is not the surface they are displaced *across* it (on the
 level plane between two walls, each scanner's lines climb its wall). :func:`tilted_rings`
-names the rings whose lines, by their sweeps' centroids, are displaced farther across the
-plane than within it, beyond their noise: the surface the ring's lines span is then more
-than 45 deg from the plane. No threshold of its own: 45 deg is "closer to another plane
+names the rings whose lines, by their segments' centroids against time, move farther
+across the plane than within it, beyond their noise: the surface the ring's lines span is
+then more than 45 deg from the plane. No threshold of its own: 45 deg is "closer to another plane
 than to this one", the noise is the extraction's sigma times ``member_sigma_factor``.
 """
 
@@ -24,21 +24,33 @@ from planodom.extraction.rig2d.segments import Segments
 
 
 def tilted_rings(
-    segs: Segments, group: np.ndarray, normal: np.ndarray, sigma_m: float, factor: float
+    segs: Segments,
+    group: np.ndarray,
+    normal: np.ndarray,
+    seg_times: np.ndarray,
+    sigma_m: float,
+    factor: float,
 ) -> list[int]:
-    """The rings of ``group`` (K,) segment indices with segments of two or more sweeps
-    whose sweep centroids (count-weighted over the ring's segments of each sweep) spread
-    farther along ``normal`` (3,) than across the ring's line within the plane, by more
-    than ``factor * sigma_m * sqrt(2 / n)`` m, ``n`` the fewest points of one sweep (the
-    spread of two means of ``n`` points of noise ``sigma_m``)."""
+    """The rings of ``group`` (K,) segment indices whose lines move with time farther
+    along ``normal`` (3,) than across the ring's line within the plane: the slopes
+    ``alpha`` (along the normal) and ``beta`` (within the plane, across the line) of the
+    ring's segment centroids against their mean times ``seg_times`` (S,) s (least squares,
+    weighted by point counts) with ``|alpha| - |beta|`` above ``factor`` times its noise
+    ``sigma_m sqrt(2 / S_tt)`` (m/s; ``S_tt`` the count-weighted sum of squared time
+    deviations). The segment ids of one sweep do not separate sweeps (a scanner without a
+    dead angle has no time gap between them), the times do."""
     rings = segs.ring[group]
     bad = []
     for r in np.unique(rings):
         mine = group[rings == r]
-        sweeps = segs.sweep[mine]
-        if len(np.unique(sweeps)) < 2:
+        if len(mine) < 2:
             continue
         n_k = segs.count[mine].astype(np.float64)
+        tau = seg_times[mine]
+        dt = tau - (n_k @ tau) / n_k.sum()
+        s_tt = float(n_k @ dt**2)
+        if not s_tt > 0:
+            continue
         u = segs.direction[mine]
         u = u * np.where(u @ u[0] < 0, -1.0, 1.0)[:, None]
         u = (n_k[:, None] * u).sum(axis=0)
@@ -46,14 +58,9 @@ def tilted_rings(
         if not np.linalg.norm(u) > 0:
             continue
         w = np.cross(normal, u / np.linalg.norm(u))
-        across, within, counts = [], [], []
-        for s in np.unique(sweeps):
-            k = sweeps == s
-            c = (n_k[k, None] * segs.centroid[mine[k]]).sum(axis=0) / n_k[k].sum()
-            across.append(c @ normal)
-            within.append(c @ w)
-            counts.append(n_k[k].sum())
-        noise = factor * sigma_m * np.sqrt(2.0 / min(counts))
-        if np.ptp(across) > np.ptp(within) + noise:
+        c = segs.centroid[mine]
+        alpha = float((n_k * dt) @ (c @ normal)) / s_tt
+        beta = float((n_k * dt) @ (c @ w)) / s_tt
+        if abs(alpha) - abs(beta) > factor * sigma_m * np.sqrt(2.0 / s_tt):
             bad.append(int(r))
     return bad
