@@ -119,6 +119,7 @@ def run_world(seed: int, noise: float, epochs: int, overrides: dict, detail: boo
         n_true, d_true = transform_planes(T_base_world, scene.normals, scene.offsets)
         row = {int(i): j for j, i in enumerate(scene.ids)}
         scan = full.scans[k]
+        assert scan.label is not None and scan.ring is not None and scan.t is not None
         for p in planes:
             n_planes += 1
             rec = RECORD.get(id(p))
