@@ -153,7 +153,8 @@ def run_world(seed: int, noise: float, epochs: int, overrides: dict, detail: boo
                     f"sensor {on:.2f} m off at range {rng:.1f} m, labels "
                     f"{dict(Counter(labels[m].tolist()).most_common(3))}"
                 )
-            sig = np.degrees(np.sqrt(max(np.linalg.eigvalsh(p.covariance[:3, :3])[-1], 0)))
+            cov = np.zeros((4, 4)) if p.covariance is None else p.covariance
+            sig = np.degrees(np.sqrt(max(np.linalg.eigvalsh(cov[:3, :3])[-1], 0)))
             print(
                 f"  epoch {k} [{odo.statuses[k]}, {rec[3]}] tilt {TILTS[-1][1][0]:.0f} deg "
                 f"stack {1000 * TILTS[-1][1][1]:.1f} mm: {len(idx)} pts, {ang:.1f} deg off surface "
