@@ -13,7 +13,7 @@ from planodom.extraction.rig2d.sweeptilt import tilted_rings
 SIGMA = 0.006
 TIMES = np.array([0.0, 0.0133, 0.0267])  # three sweeps of a 75 Hz scanner
 RULES = GroupingParams(
-    tol_m=0.02, sigma_m=SIGMA, sin_min_cross=float(np.sin(np.radians(10.0))),
+    tol_m=0.01, sigma_m=SIGMA, sin_min_cross=float(np.sin(np.radians(10.0))),
     max_seed_err_rad=0.05, min_points=20.0, max_rms_m=0.03, min_trace_points=5,
     seed_floor_m=0.02, gap_m=10.0, gap_ratio=0.0, max_span_s=np.inf,
     parallel_rad=float(np.radians(2.0)),
@@ -62,23 +62,25 @@ def test_lines_climbing_their_walls_are_not_a_level_plane():
     # sweeps' means of 100 points at 6 mm is 0.85 mm, the test's noise 3 times that over
     # the times' spread (~0.15 m/s): both rings name themselves
     climbing = _two_walls(0.45)
-    assert tilted_rings(climbing, EVERY, UP, np.tile(TIMES, 2), SIGMA, 3.0) == [0, 1]
+    assert tilted_rings(climbing, EVERY, UP, np.tile(TIMES, 2), SIGMA, 3.0, 0.01) == [0, 1]
+    # the climb over the epoch's 27 ms is 12 mm: within a member tolerance of 2 cm
+    assert tilted_rings(climbing, EVERY, UP, np.tile(TIMES, 2), SIGMA, 3.0, 0.02) == []
     assert without_sweep_tilt(_two_walls(0.45), EVERY, RULES, np.tile(TIMES, 2), 3.0) is None
 
 
 def test_a_floor_the_lines_move_over_is_kept():
     segs = _floor(1.5)
-    assert tilted_rings(segs, EVERY, UP, np.tile(TIMES, 2), SIGMA, 3.0) == []
+    assert tilted_rings(segs, EVERY, UP, np.tile(TIMES, 2), SIGMA, 3.0, 0.01) == []
     assert without_sweep_tilt(segs, EVERY, RULES, np.tile(TIMES, 2), 3.0) is EVERY
 
 
 def test_a_climb_within_the_noise_is_kept():
     # 0.05 m/s: 1.3 mm over the epoch's three sweeps, within the noise of the means
     segs = _two_walls(0.05)
-    assert tilted_rings(segs, EVERY, UP, np.tile(TIMES, 2), SIGMA, 3.0) == []
+    assert tilted_rings(segs, EVERY, UP, np.tile(TIMES, 2), SIGMA, 3.0, 0.01) == []
     # one sweep per ring (a time window): nothing to tell
     one = np.zeros(6)
-    assert tilted_rings(_two_walls(0.45), EVERY, UP, one, SIGMA, 3.0) == []
+    assert tilted_rings(_two_walls(0.45), EVERY, UP, one, SIGMA, 3.0, 0.01) == []
 
 
 def test_only_the_climbing_ring_leaves():

@@ -151,7 +151,7 @@ def without_sweep_tilt(
     (``extraction.sweep_tilt: trimmed``)."""
     scatter = _moments(segs, group)[1]
     normal = np.linalg.eigh(scatter)[1][:, 0]
-    bad = tilted_rings(segs, group, normal, seg_times, params.sigma_m, factor)
+    bad = tilted_rings(segs, group, normal, seg_times, params.sigma_m, factor, params.tol_m)
     if not bad:
         return group
     return without_rings(segs, group, bad, params)

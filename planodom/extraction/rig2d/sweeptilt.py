@@ -13,7 +13,10 @@ level plane between two walls, each scanner's lines climb its wall). :func:`tilt
 names the rings whose lines, by their segments' centroids against time, move farther
 across the plane than within it, beyond their noise: the surface the ring's lines span is
 then more than 45 deg from the plane. No threshold of its own: 45 deg is "closer to another plane
-than to this one", the noise is the extraction's sigma times ``member_sigma_factor``.
+than to this one", the noise is the extraction's sigma times ``member_sigma_factor``, and
+the climb over the ring's time span must exceed the member tolerance (whose floor,
+``tolerance_floor_m``, holds the deskewing's residue: without it the test took true walls,
+whose lines a twist error moves across them).
 """
 
 from __future__ import annotations
@@ -30,15 +33,18 @@ def tilted_rings(
     seg_times: np.ndarray,
     sigma_m: float,
     factor: float,
+    tol_m: float,
 ) -> list[int]:
     """The rings of ``group`` (K,) segment indices whose lines move with time farther
     along ``normal`` (3,) than across the ring's line within the plane: the slopes
     ``alpha`` (along the normal) and ``beta`` (within the plane, across the line) of the
     ring's segment centroids against their mean times ``seg_times`` (S,) s (least squares,
-    weighted by point counts) with ``|alpha| - |beta|`` above ``factor`` times its noise
+    weighted by point counts), with ``|alpha| - |beta|`` above ``factor`` times its noise
     ``sigma_m sqrt(2 / S_tt)`` (m/s; ``S_tt`` the count-weighted sum of squared time
-    deviations). The segment ids of one sweep do not separate sweeps (a scanner without a
-    dead angle has no time gap between them), the times do."""
+    deviations) and, over the ring's time span, above ``tol_m`` (m, the member
+    tolerance, whose floor holds the deskewing's residue): the lines leave the plane.
+    Times, not the segments' sweep ids: a scanner without a dead angle has no time gap
+    between its sweeps, so one id may hold several."""
     rings = segs.ring[group]
     bad = []
     for r in np.unique(rings):
@@ -61,6 +67,7 @@ def tilted_rings(
         c = segs.centroid[mine]
         alpha = float((n_k * dt) @ (c @ normal)) / s_tt
         beta = float((n_k * dt) @ (c @ w)) / s_tt
-        if abs(alpha) - abs(beta) > factor * sigma_m * np.sqrt(2.0 / s_tt):
+        excess = abs(alpha) - abs(beta)
+        if excess > factor * sigma_m * np.sqrt(2.0 / s_tt) and excess * np.ptp(tau) > tol_m:
             bad.append(int(r))
     return bad
