@@ -183,6 +183,17 @@ class ExtractionConfig(Section):
     (whole lap 2.95 -> 3.67 m), and with batch smoothing and loops 0.14 -> 3.55 m (loop
     end 6 mm -> 7.1 m): one step 0.10 m off (``refit_keeps_cross``), carried by the bridge
     through a corridor. ``dropped`` gives the same poses but on worlds 64, 76 (< 0.1 mm)."""
+    sweep_tilt: Literal["kept", "trimmed"] = "kept"
+    """2D rig, deskewed points (a twist, not in time windows): ``trimmed`` takes out of a
+    group the rings whose lines of several sweeps are displaced farther across its plane
+    than within it, beyond ``member_sigma_factor`` noise sigmas; the group stays a plane
+    only if the rest still is one (as ``own_scan_plane: trimmed``). Two scanners' lines on
+    two walls meeting at their edge are coplanar, a level "plane" between the walls; each
+    scanner's lines climb its own wall as it moves (:mod:`.rig2d.sweeptilt`); the climb
+    over the ring's time span must exceed the member tolerance. Off (``kept``), measured
+    on the even worlds 0-38 (150 epochs): 354 -> 351 phantom planes, and its other
+    changes are chance (world 26 at 6 mm ATE 9.9 -> 4.7 m, world 6 at 2 cm 1.0 -> 5.7 m);
+    without the tolerance it took true walls (unresolved epochs 32 -> 73 at 6 mm)."""
     refit_keeps_cross: bool = False
     """2D rig: drop a group of two or more rings whose robust refit keeps one ring's line
     alone (:func:`.rig2d.path.lost_cross`, which gives the measurements). Off."""

@@ -30,6 +30,7 @@ from planodom.extraction.rig2d.groupfit import plane_fits
 from planodom.extraction.rig2d.grouping import GroupingParams
 from planodom.extraction.rig2d.groups import group_segments
 from planodom.extraction.rig2d.segments import Segments, split_scan_lines
+from planodom.extraction.rig2d.sweeptilt import tilted_rings
 
 
 def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
@@ -82,6 +83,11 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     elif origins is not None and config.own_scan_plane == "trimmed":
         trimmed = [without_own_scan_plane(segs, g, params, origins) for g in groups]
         groups = [g for g in trimmed if g is not None]
+    if config.sweep_tilt == "trimmed" and epoch.twist is not None and scan.t is not None:
+        first, last = windows.segment_times(scan, segs)
+        mid, factor = 0.5 * (first + last), config.member_sigma_factor
+        tilted = [without_sweep_tilt(segs, g, params, mid, factor) for g in groups]
+        groups = [g for g in tilted if g is not None]
     n_lost += n_groups - len(groups)
     if not groups:
         return PathResult([], [], sigma, len(segs), 0, n_lost)
@@ -130,6 +136,32 @@ def without_own_scan_plane(
     bad = on_plane_rings(segs, group, float(np.sin(params.parallel_rad)), origins)
     if not bad:
         return group
+    return without_rings(segs, group, bad, params)
+
+
+def without_sweep_tilt(
+    segs: Segments, group: np.ndarray, params: GroupingParams, seg_times: np.ndarray,
+    factor: float,
+) -> np.ndarray | None:  # fmt: skip
+    """``group`` (K,) segment indices without the rings whose lines of several sweeps are
+    displaced across the group's plane more than within it (:func:`.sweeptilt.tilted_rings`:
+    ``seg_times`` (S,) s the segments' mean times, noise ``factor`` times
+    ``params.sigma_m``), or None
+    when what is left is not a plane (:func:`without_rings`); the same array when none is
+    (``extraction.sweep_tilt: trimmed``)."""
+    scatter = _moments(segs, group)[1]
+    normal = np.linalg.eigh(scatter)[1][:, 0]
+    bad = tilted_rings(segs, group, normal, seg_times, params.sigma_m, factor, params.tol_m)
+    if not bad:
+        return group
+    return without_rings(segs, group, bad, params)
+
+
+def without_rings(
+    segs: Segments, group: np.ndarray, bad: list[int], params: GroupingParams
+) -> np.ndarray | None:
+    """``group`` (K,) segment indices without the segments of rings ``bad``, or None when
+    what is left is not a plane by the grouping's own rules (:func:`without_own_scan_plane`)."""
     rest = group[~np.isin(segs.ring[group], bad)]
     if len(np.unique(segs.ring[rest])) < 2:
         return None
