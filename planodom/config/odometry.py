@@ -362,7 +362,7 @@ class OdometryConfig(DeskewGuards):
     0.155 / 3.6 / 0.91 / 2, world 0 slightly better; at 6 mm world 6 0.294 / 7.2 / 1.07 /
     9 / 4 -> 0.335 / 11.4 / 3.76 / 9 / 3, world 2 0.531 / 5.6 / 0.82 / 5 -> 0.472 / 4.1 /
     1.22 / 4, world 18 0.437 / 7.5 / 2.00 / 1 -> 0.361 / 6.6 / 1.83 / 0, worlds 0 and 8
-    within a few per cent."""
+    within a few per cent. Over 30 worlds at 150 epochs: docs/RESULTS.md (REFGUARD)."""
     first_epoch_reextract: Annotated[int, Field(ge=0, le=5)] = 0
     """Streaming, scans with point times: once the second epoch's step is measured, extract
     the first epoch again with that step's own twist and estimate the step again (the
