@@ -149,3 +149,20 @@ def test_a_lost_trend_is_tried_last_and_only_for_a_lost_epoch():
     status_far = Status.DEGENERATE
     best = register_deskewed(PREDICTED, DT, model, lambda t: False, config, 2, lost_trend=trend)
     assert best.relative.status is Status.DEGENERATE and len(tried) == 2
+
+
+def test_an_unmeasured_vertical_takes_no_deskewing_offset():
+    """Walls alone do not measure z: the step's z is the prediction's (no vertical motion
+    here), and the vertical of the twists the epochs were deskewed with (which the walls do
+    not fix either) must not enter the own twist, else it walks from epoch to epoch (HEIGHT:
+    2D-rig world 142's corridors, -1.3 m an epoch). Measured, z takes the offset as x, y."""
+    offset = np.array([0.01, -0.02, 0.03, 0.4, -0.1, 2.5])  # deskewed vz off by metres/s
+    planes = [Plane(np.array([1.0, 0, 0]), -5.0), Plane(np.array([0, 1.0, 0]), -2.0)]
+    step = se3_exp(PREDICTED * DT)  # z = 0: the prediction's
+    for z_observed in (False, True):
+        rel = RelativePose(step, None, Status.OK, z_observed=z_observed)
+        est = EpochEstimate(planes, PlaneSet.from_planes(planes), PREDICTED, rel, step,
+                            planes, twist_offset=offset)  # fmt: skip
+        own = est.own_twist(DT)
+        np.testing.assert_allclose(own[:5], PREDICTED[:5] + offset[:5], atol=1e-12)
+        assert own[5] == (offset[5] if z_observed else 0.0)
