@@ -32,3 +32,13 @@ class DeskewGuards(MotionModelConfig):
     rotation 0.117 -> 0.160 deg, ATE 0.232 -> 0.197 m; 2 cm 0.140 -> 0.132 deg, 0.072 ->
     0.089 m); every other run is bit-identical. It is only as good as the bounds declared
     (docs/RESULTS.md, "New worlds 100-119")."""
+    z_offset_measured_only: bool = False
+    """Streaming, pairwise pipelines: the epoch's own twist takes the deskewing offset of
+    its vertical velocity only when its step measured z (a near-level plane associated);
+    else the vertical keeps the prediction's velocity (:mod:`planodom.odometry.
+    vertical_offset`). Off: the offset is added to the prediction's vertical, and walks.
+    On 2D-rig world 142's lap (293 epochs, 6 mm, smoothing's coplanar twist) odometry ATE
+    5.54 -> 0.35 m, loop end 759 -> 1.9 m low, batch + loops 73.4 -> 0.015 m. Off by
+    default: 150 epochs at 6 mm on worlds 0-18 it is mixed and small (HEIGHT in
+    docs/RESULTS.md; default twist: xy ATE geometric mean ratio 1.025, world 14 0.045 ->
+    0.054 m; coplanar: 1.008, 3-D 0.96; quick start 3-D ATE 0.0707 -> 0.0728 m)."""

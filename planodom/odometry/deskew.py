@@ -99,10 +99,8 @@ class EpochEstimate:
         """(6,) the epoch's twist, rad/s and m/s, over the ``dt`` seconds of its step: the
         step's twist plus ``twist_offset`` where it was measured (all of it when the
         status is OK, the angular rate when degenerate, nothing when unresolved: a
-        bridge; the vertical velocity only when the step measured z: else the step's z is
-        the prediction's and so stays its vertical velocity, HEIGHT); with
-        ``planemap.twist_estimation``, the twist its registration measured (unless
-        unresolved)."""
+        bridge); with ``planemap.twist_estimation``, the twist its registration measured
+        (unless unresolved)."""
         status = self.relative.status
         registered = None if self.map_estimate is None else self.map_estimate.twist
         if registered is not None and status is not Status.UNRESOLVED:
@@ -110,9 +108,9 @@ class EpochEstimate:
         own = self._step_log / dt
         if self.twist_offset is None or status is Status.UNRESOLVED:
             return own
-        ok = status is Status.OK
-        kept = np.array([1, 1, 1, ok, ok, ok and self.relative.z_observed], dtype=float)
-        return own + kept * self.twist_offset
+        return own + (
+            self.twist_offset if status is Status.OK else np.r_[self.twist_offset[:3], 0, 0, 0]
+        )
 
 
 #: ``estimate(twist, source=None) -> EpochEstimate``: extract the epoch deskewed with

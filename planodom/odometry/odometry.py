@@ -45,6 +45,7 @@ from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
+from planodom.odometry.vertical_offset import step_twist_offset
 from planodom.planes import PlaneSet
 from planodom.scan import Scan, check_is_scan
 
@@ -298,11 +299,9 @@ class PlaneOdometry:
             result = replaced(result, T_prev_curr=bridge)
         result = result.between(reference.index, epoch.index)
         step = orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
-        offset = twist_offset(epoch.scan, epoch.twist, reference.twist, dt)
-        estimate = EpochEstimate(
-            epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes,
-            twist_offset=offset,
-        )  # fmt: skip
+        offset = step_twist_offset(epoch, reference.twist, dt, result, self.config.odometry)
+        estimate = EpochEstimate(epoch.planes, epoch.plane_set, epoch.twist, result, step,
+                                 reference.planes, twist_offset=offset)  # fmt: skip
         ocfg = self.config.odometry  # a degenerate step off the prediction: bridged
         predicted = None if epoch.index in self._gaps else self.twist  # none across a gap
         return self._twist_sigma.gated(estimate, dt, predicted, T_ref_last, ocfg)
