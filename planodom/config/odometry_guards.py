@@ -38,7 +38,8 @@ class DeskewGuards(MotionModelConfig):
     else the vertical keeps the prediction's velocity (:mod:`planodom.odometry.
     vertical_offset`). Off: the offset is added to the prediction's vertical, and walks.
     On 2D-rig world 142's lap (293 epochs, 6 mm, smoothing's coplanar twist) odometry ATE
-    5.54 -> 0.35 m, loop end 759 -> 1.9 m low, batch + loops 73.4 -> 0.015 m. Off by
-    default: 150 epochs at 6 mm on worlds 0-18 it is mixed and small (HEIGHT in
+    5.54 -> 0.35 m, loop end's height 759 -> 1.9 m off, batch + loops 73.4 -> 0.015 m
+    (world 20, 300 epochs: 0.027 -> 0.0085 m; world 0 the same). Off by default: over
+    150 epochs at 6 mm on worlds 0-18 it is mixed and small (HEIGHT in
     docs/RESULTS.md; default twist: xy ATE geometric mean ratio 1.025, world 14 0.045 ->
     0.054 m; coplanar: 1.008, 3-D 0.96; quick start 3-D ATE 0.0707 -> 0.0728 m)."""
