@@ -48,6 +48,7 @@ from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.start_epochs import StartEpochs
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
+from planodom.odometry.vertical_offset import step_twist_offset
 from planodom.planes import PlaneSet
 from planodom.scan import Scan, check_is_scan
 
@@ -302,11 +303,9 @@ class PlaneOdometry:
             result = replaced(result, T_prev_curr=bridged)
         result = result.between(reference.index, epoch.index)
         step = orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
-        offset = twist_offset(epoch.scan, epoch.twist, reference.twist, dt)
-        estimate = EpochEstimate(
-            epoch.planes, epoch.plane_set, epoch.twist, result, step, reference.planes,
-            twist_offset=offset,
-        )  # fmt: skip
+        offset = step_twist_offset(epoch, reference.twist, dt, result, ocfg)
+        estimate = EpochEstimate(epoch.planes, epoch.plane_set, epoch.twist, result, step,
+                                 reference.planes, twist_offset=offset)  # fmt: skip
         predicted = None if k in self._gaps else self.twist  # none across a gap
         bridging = bridge_twist(predicted, self._rates, k, ocfg)  # one off the prediction
         return self._twist_sigma.gated(estimate, dt, predicted, T_ref_last, ocfg, bridging)

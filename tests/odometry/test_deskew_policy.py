@@ -149,3 +149,35 @@ def test_a_lost_trend_is_tried_last_and_only_for_a_lost_epoch():
     status_far = Status.DEGENERATE
     best = register_deskewed(PREDICTED, DT, model, lambda t: False, config, 2, lost_trend=trend)
     assert best.relative.status is Status.DEGENERATE and len(tried) == 2
+
+
+def test_an_unmeasured_vertical_takes_no_deskewing_offset():
+    """Walls alone do not measure z: the step's z is the prediction's (no vertical motion
+    here), and the vertical velocities of the twists the two epochs were deskewed with
+    (which the walls do not fix either) must not enter the own twist, else it walks from
+    epoch to epoch (HEIGHT: 2D-rig world 142's corridors, -1.3 m an epoch). Measured, z
+    takes the offset as x and y do; without ``z_offset_measured_only`` it always does."""
+    from planodom.odometry.kept_epoch import KeptEpoch
+    from planodom.odometry.vertical_offset import step_twist_offset
+    from planodom.scan import Scan
+
+    t = np.linspace(0.0, DT, 11)  # tm = DT / 2
+    used = np.array([0.0, 0.0, 0.12, 2.4, 0.1, 13.0])  # deskewed with vz 13 m/s
+    used_ref = np.array([0.0, 0.0, 0.1, 2.0, 0.0, -6.0])
+    expected = 0.5 * (used - used_ref)  # (tm / dt) (u - u_r)
+    planes = [Plane(np.array([1.0, 0, 0]), -5.0), Plane(np.array([0, 1.0, 0]), -2.0)]
+    scan = Scan(np.zeros((11, 3)), t=t)
+    epoch = KeptEpoch(1, planes, PlaneSet.from_planes(planes), scan, used)
+    step = se3_exp(PREDICTED * DT)  # z = 0: the prediction's
+    on, off = OdometryConfig(z_offset_measured_only=True), OdometryConfig()
+    for z_observed in (False, True):
+        rel = RelativePose(step, None, Status.OK, z_observed=z_observed)
+        for config in (on, off):
+            offset = step_twist_offset(epoch, used_ref, DT, rel, config)
+            assert offset is not None
+            est = EpochEstimate(planes, PlaneSet.from_planes(planes), used, rel, step,
+                                planes, twist_offset=offset)  # fmt: skip
+            own = est.own_twist(DT)
+            np.testing.assert_allclose(own[:5], PREDICTED[:5] + expected[:5], atol=1e-9)
+            vz = expected[5] if z_observed or config is off else 0.0
+            np.testing.assert_allclose(own[5], vz, atol=1e-9)
