@@ -57,19 +57,20 @@ class DeskewGuards(MotionModelConfig):
     wall, which the deskewing tilts, diverges under the fixed point (issue 11's world 6 at
     6 mm, epoch 51: 12.36 -> 11.21 -> 8.04 deg/s for a true 12.74)."""
 
-    start_refresh: bool = False
+    start_refresh: bool = True
     """Streaming, pairwise pipelines, scans with point times: once a step is measured
     (status OK) after a start whose epochs were kept without deskewing (first steps
     degenerate or unresolved: no velocity measured), extract those epochs again with the
     measured epoch's twist, estimate the steps between them again with its constant-
     velocity prediction as prior, and chain the poses again
     (:mod:`planodom.odometry.start_epochs`; the first epochs' poses are then not causal).
-    Off by default, mixed: on the even 2D-rig worlds 0-38, 150 epochs, it changes 10 of
-    the 13 runs whose first step is not measured (30 of 40 bit-identical); ATE better on 7
-    (world 18 at 6 mm 1.65 -> 0.29 m, world 4 at 2 cm 0.41 -> 0.010 m), worse on 3 (world
-    34 at 2 cm 0.177 -> 0.227 m, world 6 at 6 mm 0.46 -> 0.51 m), the steps' rotation rms
-    up to 13 % worse (world 6 at 2 cm); with loops, world 18's lap NEES5 207 -> 2.9 at 6 mm
-    and 70.8 -> 1.6 at 2 cm (docs/RESULTS.md, FIRSTEPOCH)."""
+    On by default, decided on worlds that did not choose it (a rule fixed before): on the
+    even 2D-rig worlds 100-118 and 140-158, 150 epochs, it changes 8 of 40 runs (the rest
+    bit-identical), ATE geometric-mean ratio 0.27 at 6 mm (2 of 2 better: world 108 0.335
+    -> 0.039 m) and 0.54 at 2 cm (5 of 6 better: world 154 1.28 -> 0.10 m; worse world
+    116 0.255 -> 0.280 m), unresolved epochs 18 -> 14. On worlds 0-38 it was mixed (ATE
+    better on 7 of 10 changed, worse on 3: world 34 at 2 cm 0.177 -> 0.227 m); world 18's
+    lap NEES5 207 -> 2.9 at 6 mm (docs/RESULTS.md, FIRSTEPOCH and STARTDEF)."""
 
     z_offset_measured_only: bool = False
     """Streaming, pairwise pipelines: the epoch's own twist takes the deskewing offset of
@@ -81,4 +82,6 @@ class DeskewGuards(MotionModelConfig):
     (world 20, 300 epochs: 0.027 -> 0.0085 m; world 0 the same). Off by default: over
     150 epochs at 6 mm on worlds 0-18 it is mixed and small (HEIGHT in
     docs/RESULTS.md; default twist: xy ATE geometric mean ratio 1.025, world 14 0.045 ->
-    0.054 m; coplanar: 1.008, 3-D 0.96; quick start 3-D ATE 0.0707 -> 0.0728 m)."""
+    0.054 m; coplanar: 1.008, 3-D 0.96; quick start 3-D ATE 0.0707 -> 0.0728 m). Not yet
+    on for the smoothing's odometry either: its batch with loops has turned small odometry
+    changes into large ones before (``deskew_twist``), and only three laps were run."""

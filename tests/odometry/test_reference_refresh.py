@@ -41,7 +41,11 @@ def test_a_reference_that_loses_its_planes_with_the_next_twist_keeps_them(guard)
 
     odo = PlaneOdometry(
         PlanodomConfig().updated(
-            {"odometry.pipeline": "wocsc", "odometry.reference_refresh_guard": guard}
+            {
+                "odometry.pipeline": "wocsc",
+                "odometry.reference_refresh_guard": guard,
+                "odometry.start_refresh": False,  # the policy's own refresh alone
+            }
         ),
         extractor=extractor,
     )

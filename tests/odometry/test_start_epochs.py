@@ -75,7 +75,7 @@ def test_the_start_is_deskewed_and_its_steps_move_once_the_motion_is_measured():
         assert on.results[k].deskew_twist is not None and k not in on.superseded
 
 
-def test_off_by_default_and_nothing_without_point_times():
-    assert PlanodomConfig().odometry.start_refresh is False
+def test_on_by_default_and_nothing_without_point_times():
+    assert PlanodomConfig().odometry.start_refresh is True
     a, calls_a = run(False)
     assert all(k != 0 or twist is None for k, twist in calls_a)  # epoch 0 never deskewed
