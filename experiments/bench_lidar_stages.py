@@ -21,16 +21,16 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import importlib  # noqa: E402
 import time  # noqa: E402
 from collections import defaultdict  # noqa: E402
-from collections.abc import Callable  # noqa: E402
-from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+# the stage timers (this script runs beside it in experiments/)
+from bench_rig2d_stages import instrument  # noqa: E402
+
 from planodom.config import PlanodomConfig  # noqa: E402
-from planodom.experiments.generalisation import declared_sweep  # noqa: E402
+from planodom.experiments.generalisation import declared_sweep, world_for  # noqa: E402
 from planodom.experiments.peers import kiss_icp_poses  # noqa: E402
 from planodom.odometry import run_odometry  # noqa: E402
 from planodom.simulation.random_world import random_world, simulate_world, world_fields  # noqa: E402
@@ -69,35 +69,6 @@ STAGES = (
 )
 
 
-def _timed(fn: Callable[..., Any], key: str, acc: defaultdict[str, float],
-           n: defaultdict[str, int]) -> Any:  # fmt: skip
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        c0 = time.process_time()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            acc[key] += time.process_time() - c0
-            n[key] += 1
-
-    return wrapper
-
-
-def instrument(acc: defaultdict[str, float], n: defaultdict[str, int]) -> list[str]:
-    """Wrap the stages of :data:`STAGES` that exist; their labels, in order."""
-    labels = []
-    for module, name, label in STAGES:
-        try:
-            mod: Any = importlib.import_module(module)
-        except ModuleNotFoundError:  # a class of the module before it
-            parent, cls = module.rsplit(".", 1)
-            mod = getattr(importlib.import_module(parent), cls)
-        if not hasattr(mod, name):
-            continue
-        setattr(mod, name, _timed(getattr(mod, name), label, acc, n))
-        labels.append(label)
-    return labels
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--worlds", type=int, nargs="+", default=[13, 3])
@@ -108,10 +79,10 @@ def main() -> None:
     args = ap.parse_args()
     acc: defaultdict[str, float] = defaultdict(float)
     n: defaultdict[str, int] = defaultdict(int)
-    labels = [] if args.plain else instrument(acc, n)
+    labels = [] if args.plain else instrument(acc, n, STAGES)
     for w in args.worlds:
         for fam in args.family or [None]:
-            world = random_world(w, rig=fam) if fam else random_world(w)
+            world = random_world(w, rig=fam) if fam else world_for(w)
             cfg = declared_sweep(world, PlanodomConfig())
             sim = simulate_world(world, args.noise, n_epochs=args.epochs, all_fields=True)
             run = world_fields(world, sim)

@@ -66,11 +66,20 @@ def _timed(
     return wrapper
 
 
-def instrument(acc: defaultdict[str, float], n: defaultdict[str, int]) -> list[str]:
-    """Wrap the stages of :data:`STAGES` that exist; their labels, in order."""
+def instrument(
+    acc: defaultdict[str, float],
+    n: defaultdict[str, int],
+    stages: tuple[tuple[str, str, str], ...] = STAGES,
+) -> list[str]:
+    """Wrap the ``stages`` (module or module.Class, name, label) that exist; their labels,
+    in order (``bench_lidar_stages.py`` times its own stages with it)."""
     labels = []
-    for module, name, label in STAGES:
-        mod = importlib.import_module(module)
+    for module, name, label in stages:
+        try:
+            mod: Any = importlib.import_module(module)
+        except ModuleNotFoundError:  # a class of the module before it
+            parent, cls = module.rsplit(".", 1)
+            mod = getattr(importlib.import_module(parent), cls)
         if not hasattr(mod, name):
             continue
         setattr(mod, name, _timed(getattr(mod, name), label, acc, n))
