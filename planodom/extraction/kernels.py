@@ -36,14 +36,23 @@ def components(a, b, n):  # pragma: no cover - compiled
         ra, rb = find_root(parent, a[i]), find_root(parent, b[i])
         if ra != rb:
             parent[max(ra, rb)] = min(ra, rb)
-    label = np.full(n, -1, dtype=np.int64)
+    return root_labels(parent)
+
+
+@numba.njit(cache=True)
+def root_labels(parent):  # pragma: no cover - compiled
+    """The number of trees of the union-find forest ``parent`` (n,) int64 and each node's
+    label (n,) int64, trees numbered in the order of their first node."""
+    n = parent.shape[0]
+    label = np.empty(n, dtype=np.int64)
+    root_label = np.full(n, -1, dtype=np.int64)
     m = 0
     for v in range(n):
         r = find_root(parent, v)
-        if label[r] < 0:
-            label[r] = m
+        if root_label[r] < 0:
+            root_label[r] = m
             m += 1
-        label[v] = label[r]
+        label[v] = root_label[r]
     return m, label
 
 

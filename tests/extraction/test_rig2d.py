@@ -117,13 +117,15 @@ def test_modes(mode):
     assert extract(scan_rig(SCENE), ExtractionConfig(mode=mode)).mode == "rig2d"
 
 
-def _segments(ring, centroid, direction, count, length):
-    """Segments of ``count`` points spread evenly over ``length`` m along ``direction``
-    about ``centroid``: what :func:`spans_own_scan_plane` reads (points and ends empty)."""
+def _segments(ring, centroid, direction, count=100, length=2.0):
+    """Segments of ``count`` points spread evenly over ``length`` m (each a scalar or one
+    per segment) along ``direction`` about ``centroid``: what :func:`spans_own_scan_plane`
+    and :mod:`planodom.extraction.rig2d.sweeptilt` read (points and ends empty)."""
     s = len(ring)
     u = np.asarray(direction, dtype=np.float64)
     u = u / np.linalg.norm(u, axis=1)[:, None]
-    n, ln = np.asarray(count, dtype=np.int64), np.asarray(length, dtype=np.float64)
+    n = np.broadcast_to(np.asarray(count, dtype=np.int64), (s,)).copy()
+    ln = np.broadcast_to(np.asarray(length, dtype=np.float64), (s,)).copy()
     scatter = (n * ln**2 / 12.0)[:, None, None] * np.einsum("ki,kj->kij", u, u)
     z3, zi = np.zeros((s, 3)), np.zeros(s, dtype=np.int64)
     return Segments(

@@ -9,6 +9,7 @@ from planodom.extraction.rig2d.grouping import GroupingParams
 from planodom.extraction.rig2d.path import without_sweep_tilt
 from planodom.extraction.rig2d.segments import Segments
 from planodom.extraction.rig2d.sweeptilt import tilted_rings
+from tests.extraction.test_rig2d import _segments
 
 SIGMA = 0.006
 TIMES = np.array([0.0, 0.0133, 0.0267])  # three sweeps of a 75 Hz scanner
@@ -18,22 +19,6 @@ RULES = GroupingParams(
     seed_floor_m=0.02, gap_m=10.0, gap_ratio=0.0, max_span_s=np.inf,
     parallel_rad=float(np.radians(2.0)),
 )  # fmt: skip
-
-
-def _segments(ring, centroid, direction, count=100, length=2.0):
-    """Straight segments (moments only) of ``count`` points over ``length`` m."""
-    s = len(ring)
-    u = np.asarray(direction, dtype=np.float64)
-    u = u / np.linalg.norm(u, axis=1)[:, None]
-    n, ln = np.full(s, count, dtype=np.int64), np.full(s, length)
-    scatter = (n * ln**2 / 12.0)[:, None, None] * np.einsum("ki,kj->kij", u, u)
-    z3, zi = np.zeros((s, 3)), np.zeros(s, dtype=np.int64)
-    return Segments(
-        points=np.zeros((0, 3)), order=np.zeros(0, dtype=np.int64), starts=zi, ends=zi,
-        ring=np.asarray(ring, dtype=np.int64), sweep=zi, count=n,
-        centroid=np.asarray(centroid, dtype=np.float64), scatter=scatter, direction=u,
-        length=ln, rms=np.zeros(s), end0=z3, end1=z3,
-    )  # fmt: skip
 
 
 def _two_walls(climb_m_s: float) -> Segments:

@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from planodom.extraction.kernels import find_root
+from planodom.extraction.kernels import find_root, root_labels
 from planodom.extraction.rig2d.segments import Segments
 
 #: Segments after each one (same ring, in time order) searched for its continuation in
@@ -179,17 +179,7 @@ def _link_segments(g, p):  # pragma: no cover - compiled
             ri, rj = find_root(parent, i), find_root(parent, j)
             if ri != rj:
                 parent[max(ri, rj)] = min(ri, rj)
-    # Labels in the order of each component's first segment.
-    label = np.empty(S, dtype=np.int64)
-    root_label = np.full(S, -1, dtype=np.int64)
-    n_lab = 0
-    for i in range(S):
-        r = find_root(parent, i)
-        if root_label[r] < 0:
-            root_label[r] = n_lab
-            n_lab += 1
-        label[i] = root_label[r]
-    return label
+    return root_labels(parent)[1]  # in the order of each component's first segment
 
 
 @numba.njit(cache=True)
