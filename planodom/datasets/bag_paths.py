@@ -12,6 +12,8 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 #: The first bytes of an SQLite 3 database file.
 SQLITE_MAGIC = b"SQLite format 3\x00"
 STORAGE_SUFFIXES = (".db3", ".mcap")
+#: Their names compressed whole (``ros2 bag record --compression-mode file``).
+ZSTD_NAMES = (".db3.zstd", ".mcap.zstd")
 
 
 def is_bag(path: str | Path) -> bool:
@@ -21,6 +23,14 @@ def is_bag(path: str | Path) -> bool:
     if path.is_file():
         return path.suffix == ".bag" or is_storage_file(path)
     return path.is_dir() and (path / "metadata.yaml").is_file()
+
+
+def is_bag_part(path: str | Path) -> bool:
+    """True for a storage file of a ROS 2 bag folder (``.db3``, ``.mcap``, or either
+    compressed whole as ``.zstd``): the folder is the bag it stands for."""
+    path = Path(path)
+    names = (*STORAGE_SUFFIXES, *ZSTD_NAMES)
+    return path.is_file() and path.name.endswith(names) and is_bag(path.parent)
 
 
 def is_storage_file(path: str | Path) -> bool:
@@ -52,6 +62,11 @@ def unfinished_bag(path: str | Path) -> str | None:
             f"{path} is an unfinished ROS 1 recording (.bag.active: the recorder was not "
             "closed, the bag has no index): `rosbag reindex` it and rename it to .bag"
         )
+    if path.is_file() and path.name.endswith(ZSTD_NAMES):
+        return (
+            f"{path} is a ROS 2 storage file compressed whole (zstd) without its bag's "
+            f"metadata.yaml: `zstd -d` it and give the {path.suffixes[-2]} file"
+        )
     folder = path.parent if path.is_file() and path.suffix in STORAGE_SUFFIXES else path
     storage = folder.is_dir() and (any(folder.glob("*.db3")) or any(folder.glob("*.mcap")))
     if storage and not (folder / "metadata.yaml").is_file():
@@ -73,7 +88,7 @@ def bag_location(path: str | Path) -> Path:
     path = Path(path)
     if not path.exists():
         raise DatasetError(f"bag {path} does not exist")
-    if path.is_file() and path.suffix in STORAGE_SUFFIXES and is_bag(path.parent):
+    if is_bag_part(path):
         return path.parent
     if not is_bag(path):
         raise DatasetError(

@@ -1,7 +1,8 @@
 """Bags as other recorders and drivers leave them: a ROS 2 storage file without its
-``metadata.yaml`` (an mcap file as Foxglove records it, a bag's file copied alone), a
-LaserScan whose beams cannot be placed, a static transform given again with another value.
-Each read as its bag, refused in one line naming the message, or noted."""
+``metadata.yaml`` (an mcap file as Foxglove records it, a bag's file copied alone) or
+compressed whole (``.mcap.zstd``), a LaserScan whose beams cannot be placed, a static
+transform given again with another value. Each read as its bag, refused in one line naming
+the message or the way out, or noted."""
 
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from bag_factory import (
     true_pose,
     write_bag,
 )
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
 from planodom.datasets.bag_options import BagOptions
 from planodom.datasets.recording import recording_kind
@@ -75,10 +77,34 @@ def test_a_storage_file_cut_short_or_its_folder_names_the_way_out(tmp_path: Path
         assert "no metadata.yaml" in str(exc.value) and "itself" not in str(exc.value)
 
 
-def _scan_bag(path: Path, change: dict[str, float], at: int = 3) -> None:
-    """Six LaserScans of /scan_front, sweep ``at`` with the fields ``change``."""
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_a_storage_file_compressed_whole_reads_as_its_bag(tmp_path: Path, storage: str) -> None:
+    """Its ``.db3.zstd`` / ``.mcap.zstd`` given: "dataset ... is not a directory" before."""
+    _scan_bag(tmp_path / "z", {}, storage=storage, zstd=True)
+    (part,) = (tmp_path / "z").glob("*.zstd")
+    assert recording_kind(part) == "bag"
+    with open_bag(part) as ds, open_bag(tmp_path / "z") as folder:
+        assert ds.path == folder.path == tmp_path / "z" and len(ds) == 6
+    alone = tmp_path / part.name
+    shutil.copy(part, alone)
+    with pytest.raises(DatasetError) as exc:
+        open_bag(alone)
+    assert str(exc.value) == (
+        f"{alone} is a ROS 2 storage file compressed whole (zstd) without its bag's "
+        f"metadata.yaml: `zstd -d` it and give the {part.suffixes[-2]} file"
+    )
+
+
+def _scan_bag(
+    path: Path, change: dict[str, float], at: int = 3, storage: str = "sqlite3", zstd: bool = False
+) -> None:
+    """Six LaserScans of /scan_front, sweep ``at`` with the fields ``change``; ``zstd``: the
+    storage file compressed whole (``ros2 bag record --compression-mode file``)."""
     truth = Truth(T_base_sensor=T_BASE)
-    with BagWriter(path, 2) as bw:
+    writer = BagWriter(path, 2, storage)
+    if zstd:
+        writer.writer.set_compression(CompressionMode.FILE, CompressionFormat.ZSTD)
+    with writer as bw:
         bw.write("/tf_static", bw.tf([bw.transform_stamped(T0_NS, *e) for e in STATIC_TF]), T0_NS)
         for k in range(6):
             stamp = T0_NS + k * 100_000_000
