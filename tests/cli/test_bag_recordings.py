@@ -71,6 +71,9 @@ def test_eval_against_a_bag_names_the_conversion(us_bag: Path, tmp_path: Path) -
     est = tmp_path / "est.tum"
     est.write_text("0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n")
     fails(["eval", est, us_bag], "us.bag is a ROS bag", "convert BAG OUT --gt-topic")
+    packed = tmp_path / "rec_0.mcap.zstd"  # a storage file compressed whole: not UTF-8 text
+    packed.write_bytes(bytes([0x28, 0xB5, 0x2F, 0xFD]) + bytes(60))
+    fails(["eval", est, packed], "rec_0.mcap.zstd is a ROS bag")
 
 
 def test_run_on_a_reference_over_part_of_the_run_estimates_every_epoch(tmp_path: Path) -> None:
