@@ -42,7 +42,8 @@ def read_trajectory(path: str | Path) -> Trajectory:
         DatasetError: naming the file (and line) when it is neither (or a ROS bag).
     """
     path = Path(path)
-    if path.suffix in (".bag", ".db3", ".mcap") or (path / "metadata.yaml").is_file():
+    bag_names = (".bag", ".db3", ".mcap", ".db3.zstd", ".mcap.zstd")
+    if path.name.endswith(bag_names) or (path / "metadata.yaml").is_file():
         raise DatasetError(
             f"{path} is a ROS bag: eval reads TUM or KITTI trajectory files; `planodom "
             "convert BAG OUT --gt-topic TOPIC` writes a bag's reference to OUT/poses.tum"

@@ -109,11 +109,11 @@ def simulate(
 def _inputs(source: Source, config: Path | None) -> list[Path]:
     """The files and folders a run reads, which its results may not touch (for a ROS 2
     bag's .db3 / .mcap file, its bag folder: results were written into it)."""
-    from planodom.datasets.bag_paths import is_bag
+    from planodom.datasets.bag_paths import is_bag_part
 
     inputs = [p for p in (source.dataset, config) if p is not None]
     given = source.dataset
-    if given is not None and given.suffix in (".db3", ".mcap") and is_bag(given.parent):
+    if given is not None and is_bag_part(given):
         inputs.append(given.parent)
     return inputs
 

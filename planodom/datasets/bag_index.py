@@ -402,7 +402,8 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
     topic.unstamped += stamp_ns(msg.header) == 0
     if topic.msgtype == LASER_SCAN:
         topic.rings = 1
-        blank = not laser_scan_returns(msg)
+        with _message_errors(path, topic.name):
+            blank = not laser_scan_returns(msg)
         topic.blank += blank
         return blank
     with _message_errors(path, topic.name):

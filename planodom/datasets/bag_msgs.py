@@ -112,8 +112,27 @@ def _laser_scan_valid(msg: Any) -> np.ndarray:
 
 
 def laser_scan_returns(msg: Any) -> int:
-    """The number of returns of a ``sensor_msgs/LaserScan`` (the points it decodes to)."""
-    return int(np.count_nonzero(_laser_scan_valid(msg)))
+    """The number of returns of a ``sensor_msgs/LaserScan`` (the points it decodes to).
+
+    Raises:
+        ValueError: a scan with returns whose beam angles or times cannot be placed: a
+            non-finite ``angle_min``, ``angle_increment``, ``time_increment`` or
+            ``range_min``, or an ``angle_increment`` of 0 under several beams (all on one ray).
+    """
+    returns = int(np.count_nonzero(_laser_scan_valid(msg)))
+    bad = [
+        f"{name} {value}"
+        for name in ("angle_min", "angle_increment", "time_increment", "range_min")
+        if not np.isfinite(value := float(getattr(msg, name)))
+    ]
+    if not bad and float(msg.angle_increment) == 0.0 and returns > 1:
+        bad = ["angle_increment 0 under several beams"]
+    if bad and (returns or not np.isfinite(float(msg.range_min))):
+        raise ValueError(
+            f"LaserScan stamped {stamp_ns(msg.header) / 1e9:.3f} s has {', '.join(bad)}: its "
+            "beams cannot be placed (a damaged message or a driver's bug)"
+        )
+    return returns
 
 
 def _decode_laser_scan(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:

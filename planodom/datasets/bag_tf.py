@@ -96,6 +96,8 @@ class TfTree:
         tracked: the ``(parent, child)`` edge whose every value is kept (for a tf-pair
             ground truth), or None.
         track: the tracked edge's values ``T_parent_child`` at their stamps.
+        restated: per ``/tf_static`` edge given another value later in the bag, how many
+            times, and the largest distance (m) and angle (rad) from its first value.
     """
 
     rigid: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
@@ -103,6 +105,8 @@ class TfTree:
     static_edges: set[tuple[str, str]] = field(default_factory=set)
     tracked: tuple[str, str] | None = None
     track: PoseLog = field(default_factory=PoseLog)
+    restated: dict[tuple[str, str], tuple[int, float, float]] = field(default_factory=dict)
+    _first_static: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
 
     def add(self, msg: Any, static: bool) -> None:
         """Add the transforms of one ``tf2_msgs/TFMessage`` (from /tf_static when ``static``).
@@ -117,6 +121,7 @@ class TfTree:
                 stamp = tr.header.stamp
                 self.track.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec), T)
             if static:
+                self._restate(edge, T)
                 self.static_edges.add(edge)
                 self.rigid[edge] = T
                 self.moving.discard(edge)
@@ -127,6 +132,31 @@ class TfTree:
             elif not _same_transform(self.rigid[edge], T):
                 del self.rigid[edge]
                 self.moving.add(edge)
+
+    def _restate(self, edge: tuple[str, str], T: np.ndarray) -> None:
+        """Count a static edge's value ``T`` that differs from the one before it."""
+        if edge not in self.static_edges:
+            self._first_static[edge] = T
+            return
+        if _same_transform(self.rigid[edge], T):
+            return
+        D = invert_transform(self._first_static[edge]) @ T
+        dist = float(np.linalg.norm(D[:3, 3]))
+        angle = float(np.arccos(np.clip((np.trace(D[:3, :3]) - 1) / 2, -1, 1)))
+        n, d0, a0 = self.restated.get(edge, (0, 0.0, 0.0))
+        self.restated[edge] = (n + 1, max(d0, dist), max(a0, angle))
+
+    def restated_notes(self) -> list[str]:
+        """One line for each ``/tf_static`` edge given several values (two static publishers
+        of one frame, or an extrinsic set again mid-bag): the last value is used throughout,
+        as tf2 would use it after its message."""
+        return [
+            f"/tf_static: '{parent}' -> '{child}' is given another value {n} time(s), up to "
+            f"{dist:.3f} m and {np.degrees(angle):.2f} deg from its first (two static "
+            "publishers of one frame, or an extrinsic set again mid-bag?); the last is used "
+            "for the whole bag"
+            for (parent, child), (n, dist, angle) in sorted(self.restated.items())
+        ]
 
     def frames(self) -> list[str]:
         """Every frame named by a rigid or moving edge, sorted."""

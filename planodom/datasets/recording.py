@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from planodom.datasets.bag_options import BagOptions
-from planodom.datasets.bag_paths import is_bag, unfinished_bag
+from planodom.datasets.bag_paths import is_bag, is_bag_part, unfinished_bag
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.dataset import load_dataset
 from planodom.datasets.kitti import is_kitti_sequence, load_kitti_sequence
@@ -32,7 +32,7 @@ RecordingKind = Literal["bag", "kitti", "dataset"]
 def recording_kind(path: str | Path) -> RecordingKind:
     """What :func:`open_recording` will read at ``path``: "bag", "kitti" or "dataset"."""
     path = Path(path)
-    if is_bag(path) or (path.suffix in (".db3", ".mcap") and is_bag(path.parent)):
+    if is_bag(path) or is_bag_part(path):
         return "bag"
     if is_kitti_sequence(path):
         return "kitti"

@@ -43,7 +43,8 @@ def test_run_and_convert_say_the_time_unit_chosen(us_bag: Path, tmp_path: Path) 
 
 def test_unfinished_recordings_name_the_reindex(us_bag: Path, tmp_path: Path) -> None:
     """A .bag.active file was 'not a directory'; ROS 2 storage without metadata.yaml
-    'files with unknown extensions'; a ROS 1 bag cut short a damaged index, no way out."""
+    'files with unknown extensions'; a ROS 1 bag cut short a damaged index, no way out.
+    (A complete storage file given by itself is read alone: test_bag_recorders.)"""
     active = tmp_path / "rec.bag.active"
     shutil.copy(us_bag, active)
     fails(["run", active, "--out", tmp_path / "o"], "unfinished ROS 1", "rosbag reindex")
@@ -51,8 +52,14 @@ def test_unfinished_recordings_name_the_reindex(us_bag: Path, tmp_path: Path) ->
     ros2 = tmp_path / "ros2"
     write_bag(ros2, 2, [Sensor("/points", "lidar", 0, "velodyne")], STATIC_TF, T_BASE)
     (ros2 / "metadata.yaml").unlink()
-    for given in (ros2, next(ros2.glob("*.db3"))):
-        fails(["run", given, "--out", tmp_path / "o"], "no metadata.yaml", "ros2 bag reindex")
+    (db3,) = ros2.glob("*.db3")
+    fails(["run", ros2, "--out", tmp_path / "o"], "no metadata.yaml", "ros2 bag reindex")
+    shutil.copy(db3, ros2 / "part_1.db3")  # two storage files: the folder names no file
+    fails(["run", ros2, "--out", tmp_path / "o"], "ros2 bag reindex", absent=("itself",))
+    result = runner.invoke(app, ["run", str(db3), "--out", str(tmp_path / "alone")])
+    assert result.exit_code == 0, result.output
+    assert "warning: part_1.db3 beside " in result.stderr
+    assert (tmp_path / "alone" / "poses.tum").is_file()
     cut = tmp_path / "cut.bag"
     cut.write_bytes(us_bag.read_bytes()[:5000])
     fails(["run", cut, "--out", tmp_path / "o"], "cut.bag: cannot read bag", "rosbag reindex")
@@ -64,6 +71,9 @@ def test_eval_against_a_bag_names_the_conversion(us_bag: Path, tmp_path: Path) -
     est = tmp_path / "est.tum"
     est.write_text("0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n")
     fails(["eval", est, us_bag], "us.bag is a ROS bag", "convert BAG OUT --gt-topic")
+    packed = tmp_path / "rec_0.mcap.zstd"  # a storage file compressed whole: not UTF-8 text
+    packed.write_bytes(bytes([0x28, 0xB5, 0x2F, 0xFD]) + bytes(60))
+    fails(["eval", est, packed], "rec_0.mcap.zstd is a ROS bag")
 
 
 def test_run_on_a_reference_over_part_of_the_run_estimates_every_epoch(tmp_path: Path) -> None:
