@@ -188,3 +188,20 @@ def test_a_sparse_rigs_walls_count_their_points_over_their_windows():
     assert len(walls) >= 6  # measured: 8 (walls 33, 48, 13 and pole 5000)
     assert all(a <= 3.0 and e <= 0.15 for a, e in walls)
     assert np.median([e for _, e in walls]) <= 0.05
+
+
+def test_a_windows_share_of_the_plane_minimum_adds_up_to_it():
+    """Each window's minimum times the windows a wall must be found in is at least
+    ``min_plane_points`` (and no more than one window's worth above it); off, the
+    config is left as it is."""
+    from planodom.config.extraction import TimeWindowConfig
+    from planodom.extraction.rig2d.windows import per_window
+
+    cfg = ExtractionConfig()
+    assert per_window(cfg, TimeWindowConfig()) is cfg
+    for n_min in (3, 7, 20, 21, 50):
+        for m in (1, 2, 3, 5):
+            c = ExtractionConfig(min_plane_points=n_min)
+            share = per_window(c, TimeWindowConfig(min_windows=m, min_points_over_windows=True))
+            k = share.min_plane_points
+            assert k >= 3 and k * m >= n_min and (k - 1) * m < max(n_min, 3 * m)
