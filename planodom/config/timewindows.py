@@ -43,7 +43,9 @@ class TimeWindowConfig(Section):
     few points in one sweep: issue 11's world 140 (1 deg steps, five 25 Hz sweeps an
     epoch) has 4-18 points per sweep on walls of 21-91 points per epoch, so its first
     epochs found only the ground, were unresolved for 8 epochs (9 later) and the run lost
-    12 m. Off by default (docs/RESULTS.md, GAPS: measured over 60 2D-rig runs)."""
+    12 m (15.3 -> 1.5 m at 2 cm). Off by default: mixed over 60 2D-rig runs (worlds 0-18,
+    100-118, 140-158 at 6 mm and 2 cm), 5 runs of worlds 0, 6 and 14 worse by up to 30x,
+    with phantom planes of two sweeps at 2 cm (docs/RESULTS.md, GAPS)."""
     repeat_deg: float = Field(5.0, gt=0, le=90)
     """Normal angle (deg) within which planes of two windows may be one wall (the turn of
     the vehicle over an epoch plus the fit error of one sweep's traces)."""
