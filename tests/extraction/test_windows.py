@@ -185,7 +185,7 @@ def test_a_sparse_rigs_walls_count_their_points_over_their_windows():
                 )
     assert [i for i, _, _ in found[False]] == [0, 0, 0]  # the ground alone
     walls = [(a, e) for i, a, e in found[True] if i != 0]
-    assert len(walls) >= 6  # measured: 8 (walls 33, 48, 13 and pole 5000)
+    assert len(walls) >= 6  # measured: 8 (walls 33, 48, 13 and surface 5000)
     assert all(a <= 3.0 and e <= 0.15 for a, e in walls)
     assert np.median([e for _, e in walls]) <= 0.05
 
