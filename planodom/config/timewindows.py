@@ -35,6 +35,17 @@ class TimeWindowConfig(Section):
     sweeps. On the paper loop at 6 mm, 1 / 2 / 3 gave 85 / 88 / 91 % precision for 5.9 / 5.8 / 5.75
     good planes per epoch. The kept plane's normal and offset are extrapolated to the reference
     time from its windows (a straight line in time)."""
+    min_points_over_windows: bool = False
+    """A wall's ``extraction.min_plane_points`` counted over the ``min_windows`` windows it
+    must be found in, not in each: a window then needs ceil(min_plane_points /
+    min_windows) points (at least 3), so the windows of a kept plane hold min_plane_points
+    between them, as one epoch's plane does on the other paths. A sparse rig's wall has
+    few points in one sweep: issue 11's world 140 (1 deg steps, five 25 Hz sweeps an
+    epoch) has 4-18 points per sweep on walls of 21-91 points per epoch, so its first
+    epochs found only the ground, were unresolved for 8 epochs (9 later) and the run lost
+    12 m (15.3 -> 1.5 m at 2 cm). Off by default: mixed over 60 2D-rig runs (worlds 0-18,
+    100-118, 140-158 at 6 mm and 2 cm), 5 runs of worlds 0, 6 and 14 worse by up to 30x,
+    with phantom planes of two sweeps at 2 cm (docs/RESULTS.md, GAPS)."""
     repeat_deg: float = Field(5.0, gt=0, le=90)
     """Normal angle (deg) within which planes of two windows may be one wall (the turn of
     the vehicle over an epoch plus the fit error of one sweep's traces)."""

@@ -23,6 +23,10 @@ from planodom.errors import ConfigError
         ({"min_plane_points": 2}, "extraction.min_plane_points"),
         ({"time_windows": {"min_windows": 0}}, "extraction.time_windows.min_windows"),
         ({"time_windows": {"span_s": -1.0}}, "extraction.time_windows.span_s"),
+        (
+            {"time_windows": {"min_points_over_windows": "maybe"}},
+            "extraction.time_windows.min_points_over_windows",
+        ),
         ({"rms_floor_m": 0.05}, "extraction.rms_floor_m"),
         ({"trace_parallel_deg": 20.0}, "extraction.trace_parallel_deg"),
         ({"min_segment_points": 30}, "extraction.min_segment_points"),

@@ -155,3 +155,53 @@ def test_median_range_is_numpys_median_of_the_point_norms_bit_for_bit():
         if n > 4:
             pts[: n // 4] = pts[0]  # ties
         assert median_range(pts) == np.median(np.linalg.norm(pts, axis=1))
+
+
+def test_a_sparse_rigs_walls_count_their_points_over_their_windows():
+    """World 140 (1 deg steps, five 25 Hz sweeps an epoch, 3.7 m/s): a wall has 4-18
+    points in one sweep, so with ``min_plane_points`` (20) in each window only the ground
+    is found. Counted over the windows a wall must be found in
+    (``time_windows.min_points_over_windows``), the walls are found too, each on its true
+    surface at the epoch time (the oracle's fit of its labelled points, true motion
+    removed) within the motion of one sweep (3.7 m/s over 40 ms: 15 cm)."""
+    from planodom.oracle import epoch_moments
+    from planodom.simulation.random_world import random_world, simulate_world, world_fields
+
+    world = random_world(140, rig="rig2d")
+    full = simulate_world(world, 0.0, n_epochs=3, all_fields=True)
+    scans = world_fields(world, full)
+    on = ExtractionConfig(time_windows={"min_points_over_windows": True})
+    found: dict[bool, list[tuple[int, float, float]]] = {False: [], True: []}
+    for k in range(3):
+        truth = epoch_moments(full.scans[k], world.trajectory, full.times[k])
+        ids = list(truth.ids)
+        for flag, cfg in ((False, ExtractionConfig()), (True, on)):
+            for p in extract(scans[k], cfg).planes:
+                j = ids.index(p.truth_id)
+                cos = float(p.normal @ truth.normal[j])
+                angle = float(np.degrees(np.arccos(min(1.0, abs(cos)))))
+                found[flag].append(
+                    (p.truth_id, angle, abs(p.offset - np.sign(cos) * truth.offset[j]))
+                )
+    assert [i for i, _, _ in found[False]] == [0, 0, 0]  # the ground alone
+    walls = [(a, e) for i, a, e in found[True] if i != 0]
+    assert len(walls) >= 6  # measured: 8 (walls 33, 48, 13 and surface 5000)
+    assert all(a <= 3.0 and e <= 0.15 for a, e in walls)
+    assert np.median([e for _, e in walls]) <= 0.05
+
+
+def test_a_windows_share_of_the_plane_minimum_adds_up_to_it():
+    """Each window's minimum times the windows a wall must be found in is at least
+    ``min_plane_points`` (and no more than one window's worth above it); off, the
+    config is left as it is."""
+    from planodom.config.extraction import TimeWindowConfig
+    from planodom.extraction.rig2d.windows import per_window
+
+    cfg = ExtractionConfig()
+    assert per_window(cfg, TimeWindowConfig()) is cfg
+    for n_min in (3, 7, 20, 21, 50):
+        for m in (1, 2, 3, 5):
+            c = ExtractionConfig(min_plane_points=n_min)
+            share = per_window(c, TimeWindowConfig(min_windows=m, min_points_over_windows=True))
+            k = share.min_plane_points
+            assert k >= 3 and k * m >= n_min and (k - 1) * m < max(n_min, 3 * m)

@@ -46,6 +46,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     if windowed:
         seg_times = windows.segment_times(scan, segs)
         tw = windows.for_epoch(tw, scan, segs)
+        config = windows.per_window(config, tw)  # a wall's points over its windows
         span = tw.span_s
         tol, max_rms, seed_floor = windows.windowed_tolerances(tol, max_rms, seed_floor, tw)
     elif epoch.twist is not None:

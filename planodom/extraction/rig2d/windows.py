@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from planodom.config.extraction import ExtractionConfig
 from planodom.config.timewindows import TimeWindowConfig
 from planodom.extraction.planes.builder import Adjust, PlaneFits
 from planodom.extraction.rig2d.scanlines import _angle_reversals
@@ -94,6 +95,18 @@ def for_epoch(windows: TimeWindowConfig, scan: Scan, segs: Segments) -> TimeWind
     update = {"span_s": span, "motion_m": windows.motion_m * span / windows.span_s,
               "min_windows": min(windows.min_windows, n)}  # fmt: skip
     return windows.model_copy(update=update)
+
+
+def per_window(config: ExtractionConfig, windows: TimeWindowConfig) -> ExtractionConfig:
+    """``config`` with the plane minimum of one window: with
+    ``windows.min_points_over_windows``, ``min_plane_points`` divided among the
+    ``windows.min_windows`` windows a plane must be found in (rounded up, at least 3), so
+    that those windows hold ``min_plane_points`` between them; else ``config`` itself.
+    ``windows``: the epoch's (:func:`for_epoch`)."""
+    if not windows.min_points_over_windows:
+        return config
+    share = max(3, -(-config.min_plane_points // max(1, windows.min_windows)))
+    return config.model_copy(update={"min_plane_points": share})
 
 
 def segment_times(scan: Scan, segs: Segments) -> tuple[np.ndarray, np.ndarray]:
