@@ -72,16 +72,17 @@ class DeskewGuards(MotionModelConfig):
     better on 7 of 10 changed, worse on 3: world 34 at 2 cm 0.177 -> 0.227 m); world 18's
     lap NEES5 207 -> 2.9 at 6 mm (docs/RESULTS.md, FIRSTEPOCH and STARTDEF)."""
 
-    z_offset_measured_only: bool = False
+    z_offset_measured_only: bool | None = None
     """Streaming, pairwise pipelines: the epoch's own twist takes the deskewing offset of
     its vertical velocity only when its step measured z (a near-level plane associated);
     else the vertical keeps the prediction's velocity (:mod:`planodom.odometry.
     vertical_offset`). Off: the offset is added to the prediction's vertical, and walks.
-    On 2D-rig world 142's lap (293 epochs, 6 mm, smoothing's coplanar twist) odometry ATE
-    5.54 -> 0.35 m, loop end's height 759 -> 1.9 m off, batch + loops 73.4 -> 0.015 m
-    (world 20, 300 epochs: 0.027 -> 0.0085 m; world 0 the same). Off by default: over
-    150 epochs at 6 mm on worlds 0-18 it is mixed and small (HEIGHT in
-    docs/RESULTS.md; default twist: xy ATE geometric mean ratio 1.025, world 14 0.045 ->
-    0.054 m; coplanar: 1.008, 3-D 0.96; quick start 3-D ATE 0.0707 -> 0.0728 m). Not yet
-    on for the smoothing's odometry either: its batch with loops has turned small odometry
-    changes into large ones before (``deskew_twist``), and only three laps were run."""
+    None (default): on in the batch smoothing's odometry when it deskews with the coplanar
+    twist (``smoothing.odometry_deskew_twist: coplanar``, :func:`planodom.smoothing.run.
+    smoothing_config`), off elsewhere (``planodom run``). On 2D-rig world 142's lap (293
+    epochs, 6 mm, coplanar twist) odometry ATE 5.54 -> 0.35 m, loop end's height 759 ->
+    1.9 m off, batch + loops 73.4 -> 0.015 m; over ten held-out laps per noise (LAPZ in
+    docs/RESULTS.md) batch + loops ATE geometric-mean ratio 0.35 at 6 mm, 0.94 at 2 cm,
+    none worse by 5 %. Off for ``planodom run``: over 150 epochs at
+    6 mm on worlds 0-18 it is mixed and small (HEIGHT; default twist: xy ATE geometric mean
+    ratio 1.025, world 14 0.045 -> 0.054 m; quick start 3-D ATE 0.0707 -> 0.0728 m)."""

@@ -197,14 +197,19 @@ def epoch_time_spread(odometry: OdometryRun) -> list[bool | None]:
 
 def smoothing_config(config: PlanodomConfig, mode: str = "batch") -> PlanodomConfig:
     """``config`` with the odometry the smoothing in ``mode`` runs: in batch, deskewed as
-    ``smoothing.odometry_deskew_twist`` says, and with the planes' deskewing Jacobians
-    (``extraction.deskew_jacobian``) that the default covariance model ("auto") reads for
-    the sandwich covariances; a run that only does odometry does not compute them."""
+    ``smoothing.odometry_deskew_twist`` says (with the coplanar twist, the vertical offset
+    taken only where a step measured z unless ``odometry.z_offset_measured_only`` is set),
+    and with the planes' deskewing Jacobians (``extraction.deskew_jacobian``) that the
+    default covariance model ("auto") reads for the sandwich covariances; a run that only
+    does odometry does not compute them."""
     if mode != "batch":
         return config
     config = with_batch_jacobians(config)
     if config.smoothing.odometry_deskew_twist == "coplanar":
-        return config.updated({"odometry.deskew_twist": "coplanar"}, source="smoothing")
+        changes: dict[str, object] = {"odometry.deskew_twist": "coplanar"}
+        if config.odometry.z_offset_measured_only is None:
+            changes["odometry.z_offset_measured_only"] = True
+        return config.updated(changes, source="smoothing")
     return config
 
 

@@ -20,3 +20,17 @@ def test_odometry_keeps_the_odometry_s_own_choice():
         )
         assert smoothing_config(cfg, "batch").odometry.deskew_twist == own
         assert smoothing_config(cfg, "windowed").odometry.deskew_twist == own
+
+
+def test_the_coplanar_batch_takes_the_vertical_offset_only_where_z_was_measured():
+    """odometry.z_offset_measured_only: None (default) is on in the batch's coplanar
+    odometry only; an explicit value is kept everywhere."""
+    cfg = PlanodomConfig()
+    assert not cfg.odometry.z_offset_measured_only  # planodom run: off
+    assert smoothing_config(cfg, "batch").odometry.z_offset_measured_only is True
+    assert not smoothing_config(cfg, "windowed").odometry.z_offset_measured_only
+    own = cfg.updated({"smoothing.odometry_deskew_twist": "odometry"})
+    assert not smoothing_config(own, "batch").odometry.z_offset_measured_only
+    for value in (False, True):
+        set_ = cfg.updated({"odometry.z_offset_measured_only": value})
+        assert smoothing_config(set_, "batch").odometry.z_offset_measured_only is value
