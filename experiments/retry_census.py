@@ -72,14 +72,14 @@ class Recorder:
             rec.bridged = getattr(odo.last_relative, "status", None) is Status.UNRESOLVED
             return rec._register(odo, *args, **kwargs)
 
-        odometry_module.PlaneOdometry.register_epoch = register  # type: ignore[method-assign]
+        odometry_module.PlaneOdometry.register_epoch = register  # type: ignore[method-assign,assignment]
 
     def solve(self, prev: Any, curr: Any, cfg: Any, prior: Any, bound: bool, *rest: Any) -> Any:
         if bound or prior is None:  # a first solve
             self.first = self._solve(prev, curr, cfg, prior, bound, *rest)
             return self.first
         c0 = time.process_time()
-        free = self._solve(prev, curr, cfg, prior, bound, *rest)
+        free: Any = self._solve(prev, curr, cfg, prior, bound, *rest)
         spent = time.process_time() - c0
         self.cpu += spent
         first = self.first
