@@ -116,3 +116,20 @@ def test_exact_on_a_simulated_world_at_zero_noise(family):
             step = invert_transform(gt[k - 1]) @ gt[k]
             rot, trans = pose_error(invert_transform(orc.poses[k - 1]) @ orc.poses[k], step)
             assert rot < 1e-9 and trans < 1e-9
+
+
+def test_jacobian_is_the_forward_difference_of_the_residuals():
+    """The Jacobian's stored perturbations give each column bit for bit as the forward
+    difference computed here, through ``se3_exp`` of the step (its definition)."""
+    from planodom.oracle import _jacobian, _residuals, _roots
+
+    rng = np.random.default_rng(3)
+    prev = surface_moments(*_epoch(T_PREV, rng, 0.01))
+    curr = surface_moments(*_epoch(T_PREV @ T_STEP, rng, 0.01))
+    roots = (_roots(prev.scatter), _roots(curr.scatter))
+    r0 = _residuals(T_STEP, prev, curr, roots)
+    for h in (1e-7, 1e-6):
+        J = _jacobian(T_STEP, prev, curr, roots, r0, h)
+        for i, e in enumerate(np.eye(6)):
+            col = (_residuals(T_STEP @ se3_exp(h * e), prev, curr, roots) - r0) / h
+            assert np.array_equal(J[:, i], col)
