@@ -149,7 +149,10 @@ def lenient_association(
         T0, t_bound = np.eye(4), cfg.max_translation_m
         rot_bound = radians(cfg.max_rotation_deg)
     else:
-        T0, t_bound = np.asarray(prior, dtype=np.float64), cfg.prior_translation_m
+        # a writeable C-contiguous copy: a read-only or strided prior would make numba
+        # compile a second specialisation of the kernel, seconds of CPU in a timed run
+        T0 = np.require(prior, np.float64, ("C", "W"))
+        t_bound = cfg.prior_translation_m
         rot_bound = radians(cfg.prior_rotation_deg)
     pp, cp, R, w = _lda_kernel(
         prev.normals, prev.offsets, prev.centroids, prev.radii, prev.weights,
@@ -358,7 +361,8 @@ def strict_association(
     cfg = config or AssociationConfig()
     if len(prev) == 0 or len(curr) == 0:
         return np.zeros((0, 2), dtype=np.intp)
-    t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
+    # C-contiguous (a column of a transform is strided): one compiled specialisation
+    t = np.zeros(3) if translation is None else np.ascontiguousarray(translation, np.float64)
     t_bound = cfg.max_translation_m if translation_bound is None else float(translation_bound)
     ok, cost = _strict_costs(
         prev.normals, prev.offsets, prev.centroids, prev.radii,

@@ -181,7 +181,8 @@ def _compiled_consensus(
 ) -> ConsensusResult | None:
     """:func:`consensus` by :func:`_consensus_kernel` (operator ``kind``); None when the
     shortlist applies (the numpy form runs then)."""
-    gid = np.arange(len(source)) if groups is None else np.asarray(groups, dtype=np.int64)
+    # C-contiguous groups (a strided view would compile a second specialisation)
+    gid = np.arange(len(source)) if groups is None else np.ascontiguousarray(groups, np.int64)
     # (C, D) and (E, D) views as the kernel takes them (a 2-D C-contiguous array as it is)
     cand, src, tgt = (_rows(candidates), _rows(source), _rows(target))
     limit = -1 if budget is None else int(budget)

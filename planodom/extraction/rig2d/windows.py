@@ -141,7 +141,8 @@ def twist_smear(scan: Scan, points: np.ndarray, rate_rad_s: float, speed_m_s: fl
     range is the median of the points' (``points`` (N, 3) m): walls at all ranges count."""
     if scan.t is None or len(scan.t) == 0 or (rate_rad_s == 0 and speed_m_s == 0):
         return 0.0
-    rng = float(median_range(np.ascontiguousarray(points, dtype=np.float64)))
+    # writeable and C-contiguous: a read-only array would compile a second specialisation
+    rng = float(median_range(np.require(points, np.float64, ("C", "W"))))
     return 0.5 * float(np.ptp(scan.t)) * (speed_m_s + rate_rad_s * rng)
 
 
