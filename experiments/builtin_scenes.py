@@ -29,30 +29,14 @@ import sys
 import time
 
 import numpy as np
+from first_epochs import plane_errors  # the same check of planes against their surfaces
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import invert_transform, se3_log, transform_planes
+from planodom.geometry import invert_transform, se3_log
 from planodom.metrics import aligned, ate, per_epoch_errors, pose_errors, relative_motions
 from planodom.odometry import run_odometry
 
 SCENES = ("paper-loop", "urban-canyon", "random", "random-outdoor", "random-indoor")
-
-
-def plane_errors(planes, T_world_base: np.ndarray, scene) -> tuple[float, float]:  # noqa: ANN001
-    """Median angle (mrad) and |offset| (cm) of ``planes`` against their true surfaces."""
-    n_w, d_w = transform_planes(invert_transform(T_world_base), scene.normals, scene.offsets)
-    ids = {int(i): j for j, i in enumerate(scene.ids)}
-    ang, off = [], []
-    for p in planes:
-        j = ids.get(int(p.truth_id))
-        if j is None:
-            continue
-        n, d = n_w[j], float(d_w[j])
-        if p.normal @ n < 0:
-            n, d = -n, -d
-        ang.append(np.arccos(np.clip(p.normal @ n, -1, 1)) * 1e3)
-        off.append(abs(p.offset - d) * 100)
-    return (float(np.median(ang)), float(np.median(off))) if ang else (np.nan, np.nan)
 
 
 def true_twist(sim, k: int) -> np.ndarray:  # noqa: ANN001

@@ -26,18 +26,10 @@ from bag_factory import (
 )
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
-from planodom.datasets.bag_options import BagOptions
 from planodom.datasets.recording import recording_kind
 from planodom.datasets.rosbag import open_bag
 from planodom.errors import DatasetError
-
-
-def _reading(path: Path) -> list[np.ndarray]:
-    with open_bag(path, BagOptions(gt_topic="/odom")) as ds:
-        out = [ds.times, ds.gt_poses, ds.rig.sensor_origins]
-        for scan in ds:
-            out += [scan.points, scan.ring, scan.t]
-    return out
+from tests.datasets.test_bag_paths import _reading
 
 
 @pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
