@@ -25,10 +25,11 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import time  # noqa: E402
 from collections import defaultdict  # noqa: E402
-from collections.abc import Callable  # noqa: E402
-from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
+
+# the stage bench's wrappers (this script runs beside it in experiments/)
+from bench_rig2d_stages import instrument  # noqa: E402
 
 from planodom.config import PlanodomConfig  # noqa: E402
 from planodom.experiments.generalisation import declared_sweep, world_for  # noqa: E402
@@ -36,29 +37,13 @@ from planodom.experiments.peers import kiss_available, kiss_icp_poses  # noqa: E
 from planodom.odometry import run_odometry  # noqa: E402
 from planodom.simulation.random_world import simulate_world, world_fields  # noqa: E402
 
-#: (module, name, counter): the calls counted, as the stage bench wraps them.
+#: (module, name, counter): the calls counted, wrapped by the stage bench's ``instrument``
+#: (its per-call timer costs microseconds against milliseconds an epoch).
 COUNTED = (
     ("planodom.extraction.pipeline", "rig2d_planes", "extractions"),
     ("planodom.odometry.odometry", "estimate_relative_pose", "poses"),
     ("planodom.odometry.solver", "_solve", "solves"),
 )
-
-
-def _counting(fn: Callable[..., Any], key: str, n: defaultdict[str, int]) -> Any:
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        n[key] += 1
-        return fn(*args, **kwargs)
-
-    return wrapper
-
-
-def count_calls(n: defaultdict[str, int]) -> None:
-    """Count the calls of :data:`COUNTED` into ``n`` (by counter name)."""
-    import importlib
-
-    for module, name, key in COUNTED:
-        mod = importlib.import_module(module)
-        setattr(mod, name, _counting(getattr(mod, name), key, n))
 
 
 def one_world(w: int, noise: float, epochs: int, reps: int, n: defaultdict[str, int]) -> dict:
@@ -102,7 +87,7 @@ def main() -> None:
     if any(w % 2 for w in args.worlds):
         raise SystemExit("the 2D rig's worlds are the even ones")
     n: defaultdict[str, int] = defaultdict(int)
-    count_calls(n)
+    instrument(defaultdict(float), n, COUNTED)
     blocks: defaultdict[int, list[float]] = defaultdict(list)
     print(f"{args.noise * 1e3:g} mm, {args.epochs} epochs, CPU ms an epoch (best of {args.reps})")
     for w in args.worlds:
