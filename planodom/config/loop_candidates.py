@@ -152,6 +152,12 @@ class LoopCandidateConfig(Section):
     on 2D-rig world 32 at 2 cm the nearest pair of 851-876 and 912-934 (against epochs
     0 and 1) holds a factor whose sigma along the corridor is 6.5 m, so the two agree
     although their factors of 2 cm disagree by 3.6 m. Off; see docs/RESULTS.md (W32TIES)."""
+    loop_consistency_weight: Literal["factors", "revisits"] = "factors"
+    """What a hypothesis weighs in ``loop_consistency``'s clique: "factors" its loop factors
+    (the map its kept plane ties), "revisits" its runs of current epochs at most
+    ``loop_candidate_confirm_epochs`` apart, ties broken by the factors
+    (:mod:`planodom.smoothing.loop_weights`): consecutive loop poses of one pass are one
+    observation of a place, and of its alias. Off; see docs/RESULTS.md (CLIQUE)."""
     loop_map_epoch: Literal["earliest", "spanning"] = "spanning"
     """``loop_consistency`` "hypotheses_and_map": the map epoch an accepted full-rank match
     places its epoch against when compared with a loop hypothesis (the old end of the

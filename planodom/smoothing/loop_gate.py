@@ -16,6 +16,7 @@ from planodom.smoothing.loop_records import (
     Reidentification,
     graph_without,
 )
+from planodom.smoothing.loop_weights import clique_weights
 from planodom.smoothing.loop_yield import yield_ties
 
 #: Branches the maximum-weight clique search may open before it keeps the best clique found
@@ -61,13 +62,14 @@ def consistent_hypotheses(
     Two hypotheses agree when their nearest factors (in current plus old epochs: the least
     drift between them, the sharpest test) imply the same correction of the chained guess
     (:meth:`CandidateLoopBuilder.corrections_agree`); the kept set is the clique of mutually
-    agreeing hypotheses with the most factors (pairwise consistency maximisation, PCM: a
-    right hypothesis agrees with every other right one, an aliased one only with those
-    aliased alike). Why before the optimisation: after it the gate and the likelihood-ratio
-    test see an estimate that has torn apart to fit both (the plane factors' robust kernels
-    give in along a corridor), so every factor fits and every hypothesis costs the rest
-    little (2D-rig world 16 at 2 cm with ``odometry.coplanar_reextract: moved``: 18 factors
-    aliased 4.6 m along its corridor, and 27 right ones, all with chi2 below 5).
+    agreeing hypotheses with the most factors (``loop_consistency_weight``: or revisits;
+    pairwise consistency maximisation, PCM: a right hypothesis agrees with every other right
+    one, an aliased one only with those aliased alike). Why before the optimisation: after
+    it the gate and the likelihood-ratio test see an estimate that has torn apart to fit
+    both (the plane factors' robust kernels give in along a corridor), so every factor fits
+    and every hypothesis costs the rest little (2D-rig world 16 at 2 cm with
+    ``odometry.coplanar_reextract: moved``: 18 factors aliased 4.6 m along its corridor, and
+    27 right ones, all with chi2 below 5).
 
     "hypotheses_and_map": the map's accepted matches are one hypothesis too, weighed by their
     kept plane ties (the map verifies its matches in a chain, :meth:`LoopClosingBuilder._verify`;
@@ -89,7 +91,6 @@ def consistent_hypotheses(
     poses = builder.poses  # type: ignore[attr-defined]
     groups = sorted({f.group for f in factors})
     members = [[Correction.of_factor(f, poses) for f in factors if f.group == g] for g in groups]
-    weights = [float(len(m)) for m in members]
     matches, ties = map_hypothesis(builder) if mode == "hypotheses_and_map" else ([], [])
     spanning = builder.config.loop_map_epoch == "spanning"  # type: ignore[attr-defined]
     mine = [Correction.of_match(m, poses, spanning) for m in matches]
@@ -108,9 +109,15 @@ def consistent_hypotheses(
         if matches:
             a, b = _sharpest(builder, members[i], mine)
             adjacent[i, -1] = adjacent[-1, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
-    if matches:
-        weights.append(float(len(ties)))
-    kept = set(max_weight_clique(adjacent, np.array(weights)))
+    epochs = [[c.epoch for c in m] for m in members] + [[r.epoch for r in ties]] * bool(matches)
+    counts = [len(m) for m in members] + [len(ties)] * bool(matches)
+    weights = clique_weights(
+        builder.config.loop_consistency_weight,  # type: ignore[attr-defined]
+        builder.config.loop_candidate_confirm_epochs,  # type: ignore[attr-defined]
+        epochs,
+        counts,
+    )
+    kept = set(max_weight_clique(adjacent, weights))
     removed = 0
     for i, g in enumerate(groups):
         for f in factors if i not in kept else ():
