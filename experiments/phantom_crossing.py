@@ -21,7 +21,7 @@ import json
 from collections import Counter
 
 import numpy as np
-from phantom_planes import RECORD, angle_deg  # importing it records every extraction
+from phantom_planes import RECORD, angle_deg, plane_labels  # importing it records every extraction
 
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import world_for
@@ -75,6 +75,7 @@ def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) 
     odo = run_odometry(world_fields(world, full), cfg)
     scene = full.scene
     row = {int(i): j for j, i in enumerate(scene.ids)}
+    canon = plane_labels(scene)
     rows = []
     for k, planes in enumerate(odo.planes):
         n_true, _ = transform_planes(invert_transform(full.poses[k]), scene.normals, scene.offsets)
@@ -86,7 +87,7 @@ def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) 
                 continue
             idx, pts = rec[1], rec[2]
             labels = scan.label[idx]
-            lab, c = Counter(labels.tolist()).most_common(1)[0]
+            lab, c = Counter(canon.get(x, x) for x in labels.tolist()).most_common(1)[0]
             ang = angle_deg(p.normal, n_true[row[lab]]) if lab in row else 90.0
             bad = not (ang <= 5.0 and 2 * c >= len(labels))
             lines = ring_lines(p.normal, pts[idx], scan.ring[idx], 10)
@@ -103,8 +104,8 @@ def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) 
             for r in lines:
                 m = scan.ring[idx] == r[0]
                 rl = Counter(labels[m].tolist()).most_common(1)[0][0]
-                rings.append([r[0], r[1], round(r[5] - r[4], 3),
-                              round(float(np.linalg.norm(r[2])), 2), round(r[6], 4), rl])  # fmt: skip
+                rng = round(float(np.linalg.norm(r[2])), 2)
+                rings.append([r[0], r[1], round(r[5] - r[4], 3), rng, round(r[6], 4), rl])
             rows.append({"world": seed, "noise": noise, "epoch": k, "phantom": bad,
                          "mode": rec[3], "status": str(odo.statuses[k]), "points": len(idx),
                          "off_deg": round(ang, 1), "rings": rings, "pairs": pairs})  # fmt: skip

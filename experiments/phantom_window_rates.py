@@ -20,7 +20,7 @@ import json
 from collections import Counter
 
 import numpy as np
-from phantom_planes import RECORD, angle_deg  # importing it records every extraction
+from phantom_planes import RECORD, angle_deg, plane_labels  # importing it records every extraction
 
 import planodom.extraction.rig2d.windows as windows
 from planodom.config import PlanodomConfig
@@ -60,6 +60,7 @@ def run(seed: int, noise: float, epochs: int, out: str | None) -> None:
     odo = run_odometry(world_fields(world, full), PlanodomConfig())
     scene = full.scene
     row = {int(i): j for j, i in enumerate(scene.ids)}
+    canon = plane_labels(scene)
     rows = []
     for k, planes in enumerate(odo.planes):
         T_bw = invert_transform(full.poses[k])
@@ -76,7 +77,7 @@ def run(seed: int, noise: float, epochs: int, out: str | None) -> None:
             if rec is None or rec[3] != "windowed":
                 continue
             labels = scan.label[rec[1]]
-            lab, c = Counter(labels.tolist()).most_common(1)[0]
+            lab, c = Counter(canon.get(x, x) for x in labels.tolist()).most_common(1)[0]
             ang = angle_deg(p.normal, n_true[row[lab]]) if lab in row else 90.0
             bad = not (ang <= 5.0 and 2 * c >= len(labels))
             match = [r for r in RATES if abs(r[0] @ p.normal) > 0.9999 and
