@@ -8,7 +8,9 @@ line in the plane (principal direction of its inliers in the plane, its extent a
 and, for every pair of rings crossing at 2 deg or more, how far their crossing point lies
 beyond each line's extent (0 on the line). One JSON line per plane to ``-o``: its label
 (phantom or not), how it was extracted (twist or windowed), the rings (points, length,
-range from the base origin) and the pairs (angle, excess beyond each line).
+range from the base origin, RMS across the line, its most common surface, the rate at
+which its points move across the plane with its standard error and time span) and the
+pairs (angle, excess beyond each line, range of the crossing point).
 
     uv run python experiments/phantom_crossing.py --worlds 20 16 --noise 0.006 0.02 \
         --epochs 150 -o OUT.jsonl
@@ -49,6 +51,25 @@ def ring_lines(normal: np.ndarray, q: np.ndarray, ring: np.ndarray, min_points: 
     return out
 
 
+def across_rate(
+    normal: np.ndarray, offset: float, q: np.ndarray, t: np.ndarray, u: np.ndarray
+) -> tuple[float, float, float]:
+    """A ring's points ``q`` (K, 3) m at times ``t`` (K,) s, its line's direction ``u``
+    (3,): the rate (m/s) at which they move along ``normal`` (distance to the plane
+    regressed on time and on the position along the line, which a sweep's times follow),
+    its standard error (m/s) and the time span (s); nan without two sweeps' spread."""
+    span = float(np.ptp(t)) if len(t) else 0.0
+    A = np.column_stack([np.ones(len(t)), q @ u, t - t.mean()])
+    res = q @ normal + offset
+    coef, _, rank, _ = np.linalg.lstsq(A, res, rcond=None)
+    if rank < 3 or len(t) < 6:
+        return np.nan, np.nan, span
+    dof = len(t) - 3
+    s2 = float(np.sum((res - A @ coef) ** 2)) / dof
+    cov = s2 * np.linalg.inv(A.T @ A)
+    return float(coef[2]), float(np.sqrt(cov[2, 2])), span
+
+
 def crossing(a: tuple, b: tuple) -> tuple[float, float, float, np.ndarray]:
     """Angle (deg) of two ring lines and the excess (m) of their crossing point beyond
     each one's extent (0 when on it); the crossing point (3,)."""
@@ -80,7 +101,7 @@ def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) 
     for k, planes in enumerate(odo.planes):
         n_true, _ = transform_planes(invert_transform(full.poses[k]), scene.normals, scene.offsets)
         scan = full.scans[k]
-        assert scan.label is not None and scan.ring is not None
+        assert scan.label is not None and scan.ring is not None and scan.t is not None
         for p in planes:
             rec = RECORD.get(id(p))
             if rec is None:
@@ -105,7 +126,9 @@ def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) 
                 m = scan.ring[idx] == r[0]
                 rl = Counter(labels[m].tolist()).most_common(1)[0][0]
                 rng = round(float(np.linalg.norm(r[2])), 2)
-                rings.append([r[0], r[1], round(r[5] - r[4], 3), rng, round(r[6], 4), rl])
+                rate = across_rate(p.normal, p.offset, pts[idx][m], scan.t[idx][m], r[3])
+                rings.append([r[0], r[1], round(r[5] - r[4], 3), rng, round(r[6], 4), rl,
+                              *(round(x, 5) for x in rate)])  # fmt: skip
             rows.append({"world": seed, "noise": noise, "epoch": k, "phantom": bad,
                          "mode": rec[3], "status": str(odo.statuses[k]), "points": len(idx),
                          "off_deg": round(ang, 1), "rings": rings, "pairs": pairs})  # fmt: skip
