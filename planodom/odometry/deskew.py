@@ -54,6 +54,7 @@ from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status, replaced
+from planodom.odometry.surfaces import Ranking, ranking
 from planodom.odometry.twist_refine import next_twist, significant_twist
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -228,6 +229,7 @@ def register_deskewed(
     restore_reference: Callable[[], None] | None = None,
     lead: Lead | None = None,
     bounds: tuple[AssociationConfig, Callable[[], None]] | None = None,
+    association: AssociationConfig | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -260,8 +262,11 @@ def register_deskewed(
             that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
         bounds: the motion bounds the run assumes and what brings the reference's planes
             back (``odometry.deskew_bounds_guard``, :func:`_left_bounds`; None: off).
+        association: the margins two planes count as one surface within, with
+            ``odometry.deskew_rank: surfaces`` (:mod:`.surfaces`; None: plane count).
     """
-    best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
+    rank = ranking(config.deskew_rank, association)
+    best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend, rank)
     iterations = config.deskew_iterations if lead is None else lead.iterations
     before = None  # (used, own) of the refinement before: odometry.deskew_rate_solve
     for _ in range(iterations if dt > 0 else 0):
@@ -283,7 +288,7 @@ def register_deskewed(
         again = estimate(new, best)
         if _left_bounds(again, best, bounds, stale_reference):
             break
-        worse = again.relative.status.rank < best.relative.status.rank
+        worse = _worse(again, best, rank, config)
         if worse and stale_reference and restore_reference is not None:
             restore_reference()  # the estimate made against the old planes holds again
             break
@@ -293,6 +298,15 @@ def register_deskewed(
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
+
+
+def _worse(again: EpochEstimate, best: EpochEstimate, rank: Ranking, config: OdometryConfig) -> bool:
+    """Whether the refinement ``again`` is worse than ``best``: its status
+    (``odometry.deskew_rank: planes``), or its rank (``surfaces``: status, then distinct
+    surfaces; :mod:`.surfaces`)."""
+    if config.deskew_rank == "planes":
+        return again.relative.status.rank < best.relative.status.rank
+    return rank(again) < rank(best)
 
 
 def beyond_bounds(step: np.ndarray, bounds: AssociationConfig) -> bool:
@@ -330,10 +344,11 @@ def _first_estimate(
     held: np.ndarray | None,
     trend: np.ndarray | None,
     lost_trend: np.ndarray | None,
+    rank: Ranking,
 ) -> EpochEstimate:
     """Step 1 of the module docstring: the best of the epoch deskewed with ``predicted``
     and, when that is suspect, with ``trend``, none or ``held`` and ``lost_trend`` (see
-    :func:`register_deskewed`)."""
+    :func:`register_deskewed`), by ``rank`` (:func:`.surfaces.ranking`)."""
     best = estimate(predicted)
     few = _few(best, previous_planes)
     others: list[np.ndarray | None] = [] if trend is None or predicted is None else [trend]
@@ -342,11 +357,11 @@ def _first_estimate(
     if dt > 0 and (best.relative.status is not Status.OK or few):
         for other in others:
             alternative = estimate(other)
-            if _score(alternative) > _score(best):
+            if rank(alternative) > rank(best):
                 best = alternative
     if dt > 0 and lost_trend is not None and _lost(best, previous_planes):
         alternative = estimate(lost_trend)
-        if _score(alternative) > _score(best):
+        if rank(alternative) > rank(best):
             best = alternative
     return best
 

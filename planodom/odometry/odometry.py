@@ -190,8 +190,9 @@ class PlaneOdometry:
             lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg) if middle else None
             guard = pairwise and ocfg.deskew_bounds_guard
             bounds = (self.config.association, self._restore_reference) if guard else None
-            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held,
-                                     damped, trend, lost_trend, restore, lead, bounds)  # fmt: skip
+            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held, damped,
+                                     trend, lost_trend, restore, lead, bounds,
+                                     self.config.association)  # fmt: skip
             if k == 1 and ocfg.first_epoch_reextract:  # the second epoch: the first's rounds
                 best = reextracted_first(
                     best, dt, ocfg, self._history[0], partial(self._first_round, scan, t)

@@ -1,0 +1,56 @@
+"""How the deskewing policy ranks two extractions of one epoch (``odometry.deskew_rank``).
+
+:func:`planodom.odometry.deskew.register_deskewed` keeps the best of several extractions of
+an epoch, each deskewed with another twist. ``planes`` (the default) ranks them by status,
+then plane count, and drops a refinement only when its status is worse. A twist off the
+truth splits a wall into one plane per sweep: fragments count as planes, so a wrong twist
+wins a tie of statuses, and a refinement that loses surfaces but splits others is kept.
+``surfaces`` ranks by status, then the number of *distinct surfaces*: planes whose normals
+agree within ``association.normal_tol_deg`` and whose offsets agree within
+``association.offset_tol_m`` (the margins within which the association cannot tell two
+planes apart) count once; a refinement is dropped when this rank is worse.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.sparse import csr_array
+from scipy.sparse.csgraph import connected_components
+
+from planodom.config import AssociationConfig
+from planodom.geometry import Plane
+
+if TYPE_CHECKING:
+    from planodom.odometry.deskew import EpochEstimate
+
+#: ``rank(estimate) -> (status rank, count)``: higher is better.
+Ranking = Callable[["EpochEstimate"], tuple[int, int]]
+
+
+def distinct_surfaces(planes: Sequence[Plane], normal_tol_deg: float, offset_tol_m: float) -> int:
+    """How many distinct surfaces ``planes`` hold: planes ``n . p + d = 0`` (same frame) whose
+    unit normals are within ``normal_tol_deg`` degrees of each other and whose offsets ``d``
+    are within ``offset_tol_m`` metres are one surface, and so is every chain of such
+    pairs (connected components). Normals point towards the sensor, so a plane and its
+    opposite (a thin wall's two sides) stay two."""
+    if len(planes) < 2:
+        return len(planes)
+    normals = np.array([p.normal for p in planes])  # (P, 3)
+    offsets = np.array([p.offset for p in planes])  # (P,)
+    close = normals @ normals.T >= np.cos(np.radians(normal_tol_deg))
+    close &= np.abs(offsets[:, None] - offsets[None, :]) <= offset_tol_m
+    n, _ = connected_components(csr_array(close), directed=False)
+    return int(n)
+
+
+def ranking(rank: str, association: AssociationConfig | None) -> Ranking:
+    """The key an extraction of an epoch is ranked by (higher is better): its status, then
+    its plane count (``rank == "planes"``, or no ``association``) or its distinct
+    surfaces within ``association``'s normal and offset margins (``"surfaces"``)."""
+    if rank == "planes" or association is None:
+        return lambda e: (e.relative.status.rank, len(e.planes))
+    tol_deg, tol_m = association.normal_tol_deg, association.offset_tol_m
+    return lambda e: (e.relative.status.rank, distinct_surfaces(e.planes, tol_deg, tol_m))
