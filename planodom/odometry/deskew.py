@@ -300,7 +300,9 @@ def register_deskewed(
     return best
 
 
-def _worse(again: EpochEstimate, best: EpochEstimate, rank: Ranking, config: OdometryConfig) -> bool:
+def _worse(
+    again: EpochEstimate, best: EpochEstimate, rank: Ranking, config: OdometryConfig
+) -> bool:
     """Whether the refinement ``again`` is worse than ``best``: its status
     (``odometry.deskew_rank: planes``), or its rank (``surfaces``: status, then distinct
     surfaces; :mod:`.surfaces`)."""
