@@ -16,7 +16,8 @@ it again:
    where the sweep turned at 23, the epoch lost with it and without deskewing, ATE 0.55
    m; resolved with the trend's 21 deg/s, ATE 0.033 m); with the trend as the prediction
    (``trend``, the default), the mean is tried instead. The best of them is kept:
-   status first, then plane count. After an
+   status first, then plane count (distinct surfaces with ``odometry.deskew_rank:
+   surfaces``, :mod:`.surfaces`). After an
    unresolved epoch no twist is predicted (a twist never outlives an unresolved epoch),
    but the one held from before it is tried the same way when the epoch extracted
    without deskewing is suspect: on a 2D-rig world a turn left only the ground without
@@ -36,9 +37,10 @@ it again:
    ``odometry.reference_refresh_guard``, off by default, its old planes are brought
    back when the estimate against the new ones is worse). An epoch
    kept without deskewing is refined only once its translation is measured (never with
-   a velocity of zero nobody measured). A new estimate is kept while its status does not
-   get worse, and always once the reference was extracted again (the earlier estimate
-   was made against the reference's old planes).
+   a velocity of zero nobody measured). A new estimate is kept while its status (with
+   ``surfaces``: status, then distinct surfaces) does not get worse, and always once
+   the reference was extracted again (the earlier estimate was made against the
+   reference's old planes).
 """
 
 from __future__ import annotations
