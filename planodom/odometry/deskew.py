@@ -56,7 +56,7 @@ from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status, replaced
-from planodom.odometry.surfaces import Ranking, ranking
+from planodom.odometry.surfaces import Ranking, by_planes
 from planodom.odometry.twist_refine import next_twist, significant_twist
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -231,7 +231,7 @@ def register_deskewed(
     restore_reference: Callable[[], None] | None = None,
     lead: Lead | None = None,
     bounds: tuple[AssociationConfig, Callable[[], None]] | None = None,
-    association: AssociationConfig | None = None,
+    rank: Ranking = by_planes,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -264,10 +264,8 @@ def register_deskewed(
             that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
         bounds: the motion bounds the run assumes and what brings the reference's planes
             back (``odometry.deskew_bounds_guard``, :func:`_left_bounds`; None: off).
-        association: the margins two planes count as one surface within, with
-            ``odometry.deskew_rank: surfaces`` (:mod:`.surfaces`; None: plane count).
+        rank: how extractions are ranked (``odometry.deskew_rank``, :func:`.surfaces.ranking`).
     """
-    rank = ranking(config.deskew_rank, association)
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend, rank)
     iterations = config.deskew_iterations if lead is None else lead.iterations
     before = None  # (used, own) of the refinement before: odometry.deskew_rate_solve
@@ -290,12 +288,11 @@ def register_deskewed(
         again = estimate(new, best)
         if _left_bounds(again, best, bounds, stale_reference):
             break
-        worse = _worse(again, best, rank, config)
-        if worse and stale_reference and restore_reference is not None:
-            restore_reference()  # the estimate made against the old planes holds again
-            break
-        if worse and not stale_reference:
-            break
+        if _worse(again, best, rank, config):
+            if stale_reference and restore_reference is not None:
+                restore_reference()  # the estimate made against the old planes holds again
+            if not stale_reference or restore_reference is not None:
+                break
         # once the reference was extracted again, an estimate made against its old
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again

@@ -20,7 +20,7 @@ import numpy as np
 from scipy.sparse import csr_array
 from scipy.sparse.csgraph import connected_components
 
-from planodom.config import AssociationConfig
+from planodom.config import PlanodomConfig
 from planodom.geometry import Plane
 
 if TYPE_CHECKING:
@@ -46,11 +46,17 @@ def distinct_surfaces(planes: Sequence[Plane], normal_tol_deg: float, offset_tol
     return int(n)
 
 
-def ranking(rank: str, association: AssociationConfig | None) -> Ranking:
-    """The key an extraction of an epoch is ranked by (higher is better): its status, then
-    its plane count (``rank == "planes"``, or no ``association``) or its distinct
-    surfaces within ``association``'s normal and offset margins (``"surfaces"``)."""
-    if rank == "planes" or association is None:
-        return lambda e: (e.relative.status.rank, len(e.planes))
-    tol_deg, tol_m = association.normal_tol_deg, association.offset_tol_m
+def by_planes(estimate: EpochEstimate) -> tuple[int, int]:
+    """An extraction's status, then its plane count (``odometry.deskew_rank: planes``)."""
+    return estimate.relative.status.rank, len(estimate.planes)
+
+
+def ranking(config: PlanodomConfig) -> Ranking:
+    """The key an extraction of an epoch is ranked by (higher is better) under ``config``'s
+    ``odometry.deskew_rank``: its status, then its plane count (``planes``) or its
+    distinct surfaces within ``association.normal_tol_deg`` and ``offset_tol_m``
+    (``surfaces``)."""
+    if config.odometry.deskew_rank == "planes":
+        return by_planes
+    tol_deg, tol_m = config.association.normal_tol_deg, config.association.offset_tol_m
     return lambda e: (e.relative.status.rank, distinct_surfaces(e.planes, tol_deg, tol_m))

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planodom.config import AssociationConfig, OdometryConfig, PlanodomConfig
+from planodom.config import OdometryConfig, PlanodomConfig
 from planodom.errors import ConfigError
 from planodom.geometry import Plane
 from planodom.odometry.deskew import EpochEstimate, register_deskewed
 from planodom.odometry.relative import RelativePose, Status
-from planodom.odometry.surfaces import distinct_surfaces
+from planodom.odometry.surfaces import distinct_surfaces, ranking
 from planodom.planes import PlaneSet
 
 DT = 0.1
@@ -60,13 +60,14 @@ def _held_model(twist: np.ndarray | None, source: EpochEstimate | None = None) -
 def test_fragments_of_a_held_twist_do_not_win_a_tie_of_statuses():
     """Ranked by plane count, the five fragments beat the three surfaces (the GAPS case of
     world 140, epochs 18-26); ranked by distinct surfaces, they are two."""
-    association = AssociationConfig()
+    rank = ranking(PlanodomConfig())
     planes = register_deskewed(None, DT, _held_model, lambda t: False, OdometryConfig(), 3,
-                               held=HELD, association=association)  # fmt: skip
+                               held=HELD, rank=rank)  # fmt: skip
     assert planes.twist is not None and len(planes.planes) == 5
     config = OdometryConfig(deskew_rank="surfaces")
+    rank = ranking(PlanodomConfig.from_dict({"odometry": {"deskew_rank": "surfaces"}}))
     surfaces = register_deskewed(None, DT, _held_model, lambda t: False, config, 3,
-                                 held=HELD, association=association)  # fmt: skip
+                                 held=HELD, rank=rank)  # fmt: skip
     assert surfaces.twist is None and len(surfaces.planes) == 3
 
 
@@ -90,12 +91,12 @@ def test_a_refinement_that_loses_surfaces_is_dropped():
         step[:2, :2] = [[c, -s], [s, c]]
         return EpochEstimate(est.planes, est.plane_set, twist, est.relative, step, est.planes)
 
-    kwargs = dict(association=AssociationConfig())
     cfg = OdometryConfig(deskew_iterations=1)
-    planes = register_deskewed(first, DT, step_model, lambda t: False, cfg, 3, **kwargs)
+    planes = register_deskewed(first, DT, step_model, lambda t: False, cfg, 3)
     assert len(planes.planes) == 5  # the refinement, kept on its status
     cfg = OdometryConfig(deskew_iterations=1, deskew_rank="surfaces")
-    surfaces = register_deskewed(first, DT, step_model, lambda t: False, cfg, 3, **kwargs)
+    rank = ranking(PlanodomConfig.from_dict({"odometry": cfg.model_dump()}))
+    surfaces = register_deskewed(first, DT, step_model, lambda t: False, cfg, 3, rank=rank)
     assert len(surfaces.planes) == 3 and np.array_equal(surfaces.twist, first)
 
 
