@@ -303,9 +303,9 @@ def _worse(
     again: EpochEstimate, best: EpochEstimate, rank: Ranking, config: OdometryConfig
 ) -> bool:
     """Whether the refinement ``again`` is worse than ``best``: its status
-    (``odometry.deskew_rank: planes``), or its rank (``surfaces``: status, then distinct
-    surfaces; :mod:`.surfaces`)."""
-    if config.deskew_rank == "planes":
+    (``odometry.deskew_rank: planes`` or ``surfaces_first``), or its rank (``surfaces``:
+    status, then distinct surfaces; :mod:`.surfaces`)."""
+    if config.deskew_rank != "surfaces":
         return again.relative.status.rank < best.relative.status.rank
     return rank(again) < rank(best)
 

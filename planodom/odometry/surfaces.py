@@ -9,6 +9,8 @@ wins a tie of statuses, and a refinement that loses surfaces but splits others i
 agree within ``association.normal_tol_deg`` and whose offsets agree within
 ``association.offset_tol_m`` (the margins within which the association cannot tell two
 planes apart) count once; a refinement is dropped when this rank is worse.
+``surfaces_first`` ranks the first extractions (predicted, held, none) so and refinements
+as ``planes`` does.
 """
 
 from __future__ import annotations

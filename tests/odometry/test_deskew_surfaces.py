@@ -69,6 +69,11 @@ def test_fragments_of_a_held_twist_do_not_win_a_tie_of_statuses():
     surfaces = register_deskewed(None, DT, _held_model, lambda t: False, config, 3,
                                  held=HELD, rank=rank)  # fmt: skip
     assert surfaces.twist is None and len(surfaces.planes) == 3
+    config = OdometryConfig(deskew_rank="surfaces_first")
+    rank = ranking(PlanodomConfig.from_dict({"odometry": {"deskew_rank": "surfaces_first"}}))
+    first = register_deskewed(None, DT, _held_model, lambda t: False, config, 3,
+                              held=HELD, rank=rank)  # fmt: skip
+    assert first.twist is None and len(first.planes) == 3
 
 
 def test_a_refinement_that_loses_surfaces_is_dropped():
@@ -98,6 +103,10 @@ def test_a_refinement_that_loses_surfaces_is_dropped():
     rank = ranking(PlanodomConfig.from_dict({"odometry": cfg.model_dump()}))
     surfaces = register_deskewed(first, DT, step_model, lambda t: False, cfg, 3, rank=rank)
     assert len(surfaces.planes) == 3 and np.array_equal(surfaces.twist, first)
+    cfg = OdometryConfig(deskew_iterations=1, deskew_rank="surfaces_first")
+    rank = ranking(PlanodomConfig.from_dict({"odometry": cfg.model_dump()}))
+    only_first = register_deskewed(first, DT, step_model, lambda t: False, cfg, 3, rank=rank)
+    assert len(only_first.planes) == 5  # refinements ranked as with ``planes``
 
 
 def test_a_bad_rank_names_its_key():
