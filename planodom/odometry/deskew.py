@@ -17,7 +17,7 @@ it again:
    m; resolved with the trend's 21 deg/s, ATE 0.033 m); with the trend as the prediction
    (``trend``, the default), the mean is tried instead. The best of them is kept:
    status first, then plane count (distinct surfaces with ``odometry.deskew_rank:
-   surfaces``, :mod:`.surfaces`). After an
+   surfaces`` or ``surfaces_first``, :mod:`.surfaces`). After an
    unresolved epoch no twist is predicted (a twist never outlives an unresolved epoch),
    but the one held from before it is tried the same way when the epoch extracted
    without deskewing is suspect: on a 2D-rig world a turn left only the ground without
