@@ -35,6 +35,17 @@ class DeskewGuards(MotionModelConfig):
     0.089 m); every other run is bit-identical. It is only as good as the bounds declared
     (docs/RESULTS.md, "New worlds 100-119")."""
 
+    deskew_rank: Literal["planes", "surfaces", "surfaces_first"] = "planes"
+    """Streaming: how the deskewing policy ranks two extractions of an epoch
+    (:mod:`planodom.odometry.surfaces`). ``planes``: status, then plane count, and a
+    refinement is dropped only when its status is worse. ``surfaces``: status, then
+    distinct surfaces (planes within ``association.normal_tol_deg`` and ``offset_tol_m``
+    of each other count once: a wrong twist splits a wall into one plane per sweep), for
+    both, a refinement dropped when that is worse. ``surfaces_first``: distinct surfaces
+    among the first extractions only (predicted, held, none), refinements as ``planes``.
+    Off (``planes``): both mixed on 2D-rig worlds 100-118, 140-158, 160-178 at 6 mm and
+    2 cm (docs/RESULTS.md, REFINE)."""
+
     deskew_change_gate: bool = False
     """Streaming: extract an epoch again with its own twist (:mod:`planodom.odometry.
     deskew`, step 2) only where it differs from the twist used by more than the own

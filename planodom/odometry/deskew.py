@@ -16,7 +16,8 @@ it again:
    where the sweep turned at 23, the epoch lost with it and without deskewing, ATE 0.55
    m; resolved with the trend's 21 deg/s, ATE 0.033 m); with the trend as the prediction
    (``trend``, the default), the mean is tried instead. The best of them is kept:
-   status first, then plane count. After an
+   status first, then plane count (distinct surfaces with ``odometry.deskew_rank:
+   surfaces`` or ``surfaces_first``, :mod:`.surfaces`). After an
    unresolved epoch no twist is predicted (a twist never outlives an unresolved epoch),
    but the one held from before it is tried the same way when the epoch extracted
    without deskewing is suspect: on a 2D-rig world a turn left only the ground without
@@ -36,9 +37,10 @@ it again:
    ``odometry.reference_refresh_guard``, off by default, its old planes are brought
    back when the estimate against the new ones is worse). An epoch
    kept without deskewing is refined only once its translation is measured (never with
-   a velocity of zero nobody measured). A new estimate is kept while its status does not
-   get worse, and always once the reference was extracted again (the earlier estimate
-   was made against the reference's old planes).
+   a velocity of zero nobody measured). A new estimate is kept while its status (with
+   ``surfaces``: status, then distinct surfaces) does not get worse, and always once
+   the reference was extracted again (the earlier estimate was made against the
+   reference's old planes).
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ from planodom.config import AssociationConfig, OdometryConfig
 from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status, replaced
+from planodom.odometry.surfaces import Ranking, by_planes
 from planodom.odometry.twist_refine import next_twist, significant_twist
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -228,6 +231,7 @@ def register_deskewed(
     restore_reference: Callable[[], None] | None = None,
     lead: Lead | None = None,
     bounds: tuple[AssociationConfig, Callable[[], None]] | None = None,
+    rank: Ranking = by_planes,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -260,8 +264,9 @@ def register_deskewed(
             that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
         bounds: the motion bounds the run assumes and what brings the reference's planes
             back (``odometry.deskew_bounds_guard``, :func:`_left_bounds`; None: off).
+        rank: how extractions are ranked (``odometry.deskew_rank``, :func:`.surfaces.ranking`).
     """
-    best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend)
+    best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend, rank)
     iterations = config.deskew_iterations if lead is None else lead.iterations
     before = None  # (used, own) of the refinement before: odometry.deskew_rate_solve
     for _ in range(iterations if dt > 0 else 0):
@@ -283,16 +288,26 @@ def register_deskewed(
         again = estimate(new, best)
         if _left_bounds(again, best, bounds, stale_reference):
             break
-        worse = again.relative.status.rank < best.relative.status.rank
-        if worse and stale_reference and restore_reference is not None:
-            restore_reference()  # the estimate made against the old planes holds again
-            break
-        if worse and not stale_reference:
-            break
+        if _worse(again, best, rank, config):
+            if stale_reference and restore_reference is not None:
+                restore_reference()  # the estimate made against the old planes holds again
+            if not stale_reference or restore_reference is not None:
+                break
         # once the reference was extracted again, an estimate made against its old
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
+
+
+def _worse(
+    again: EpochEstimate, best: EpochEstimate, rank: Ranking, config: OdometryConfig
+) -> bool:
+    """Whether the refinement ``again`` is worse than ``best``: its status
+    (``odometry.deskew_rank: planes`` or ``surfaces_first``), or its rank (``surfaces``:
+    status, then distinct surfaces; :mod:`.surfaces`)."""
+    if config.deskew_rank != "surfaces":
+        return again.relative.status.rank < best.relative.status.rank
+    return rank(again) < rank(best)
 
 
 def beyond_bounds(step: np.ndarray, bounds: AssociationConfig) -> bool:
@@ -330,10 +345,11 @@ def _first_estimate(
     held: np.ndarray | None,
     trend: np.ndarray | None,
     lost_trend: np.ndarray | None,
+    rank: Ranking,
 ) -> EpochEstimate:
     """Step 1 of the module docstring: the best of the epoch deskewed with ``predicted``
     and, when that is suspect, with ``trend``, none or ``held`` and ``lost_trend`` (see
-    :func:`register_deskewed`)."""
+    :func:`register_deskewed`), by ``rank`` (:func:`.surfaces.ranking`)."""
     best = estimate(predicted)
     few = _few(best, previous_planes)
     others: list[np.ndarray | None] = [] if trend is None or predicted is None else [trend]
@@ -342,11 +358,11 @@ def _first_estimate(
     if dt > 0 and (best.relative.status is not Status.OK or few):
         for other in others:
             alternative = estimate(other)
-            if _score(alternative) > _score(best):
+            if rank(alternative) > rank(best):
                 best = alternative
     if dt > 0 and lost_trend is not None and _lost(best, previous_planes):
         alternative = estimate(lost_trend)
-        if _score(alternative) > _score(best):
+        if rank(alternative) > rank(best):
             best = alternative
     return best
 

@@ -46,6 +46,7 @@ from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.start_epochs import StartEpochs
+from planodom.odometry.surfaces import ranking
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
 from planodom.odometry.vertical_offset import step_twist_offset
@@ -190,8 +191,9 @@ class PlaneOdometry:
             lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg) if middle else None
             guard = pairwise and ocfg.deskew_bounds_guard
             bounds = (self.config.association, self._restore_reference) if guard else None
-            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held,
-                                     damped, trend, lost_trend, restore, lead, bounds)  # fmt: skip
+            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held, damped,
+                                     trend, lost_trend, restore, lead, bounds,
+                                     ranking(self.config))  # fmt: skip
             if k == 1 and ocfg.first_epoch_reextract:  # the second epoch: the first's rounds
                 best = reextracted_first(
                     best, dt, ocfg, self._history[0], partial(self._first_round, scan, t)

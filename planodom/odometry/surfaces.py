@@ -1,0 +1,64 @@
+"""How the deskewing policy ranks two extractions of one epoch (``odometry.deskew_rank``).
+
+:func:`planodom.odometry.deskew.register_deskewed` keeps the best of several extractions of
+an epoch, each deskewed with another twist. ``planes`` (the default) ranks them by status,
+then plane count, and drops a refinement only when its status is worse. A twist off the
+truth splits a wall into one plane per sweep: fragments count as planes, so a wrong twist
+wins a tie of statuses, and a refinement that loses surfaces but splits others is kept.
+``surfaces`` ranks by status, then the number of *distinct surfaces*: planes whose normals
+agree within ``association.normal_tol_deg`` and whose offsets agree within
+``association.offset_tol_m`` (the margins within which the association cannot tell two
+planes apart) count once; a refinement is dropped when this rank is worse.
+``surfaces_first`` ranks the first extractions (predicted, held, none) so and refinements
+as ``planes`` does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.sparse import csr_array
+from scipy.sparse.csgraph import connected_components
+
+from planodom.config import PlanodomConfig
+from planodom.geometry import Plane
+
+if TYPE_CHECKING:
+    from planodom.odometry.deskew import EpochEstimate
+
+#: ``rank(estimate) -> (status rank, count)``: higher is better.
+Ranking = Callable[["EpochEstimate"], tuple[int, int]]
+
+
+def distinct_surfaces(planes: Sequence[Plane], normal_tol_deg: float, offset_tol_m: float) -> int:
+    """How many distinct surfaces ``planes`` hold: planes ``n . p + d = 0`` (same frame) whose
+    unit normals are within ``normal_tol_deg`` degrees of each other and whose offsets ``d``
+    are within ``offset_tol_m`` metres are one surface, and so is every chain of such
+    pairs (connected components). Normals point towards the sensor, so a plane and its
+    opposite (a thin wall's two sides) stay two."""
+    if len(planes) < 2:
+        return len(planes)
+    normals = np.array([p.normal for p in planes])  # (P, 3)
+    offsets = np.array([p.offset for p in planes])  # (P,)
+    close = normals @ normals.T >= np.cos(np.radians(normal_tol_deg))
+    close &= np.abs(offsets[:, None] - offsets[None, :]) <= offset_tol_m
+    n, _ = connected_components(csr_array(close), directed=False)
+    return int(n)
+
+
+def by_planes(estimate: EpochEstimate) -> tuple[int, int]:
+    """An extraction's status, then its plane count (``odometry.deskew_rank: planes``)."""
+    return estimate.relative.status.rank, len(estimate.planes)
+
+
+def ranking(config: PlanodomConfig) -> Ranking:
+    """The key an extraction of an epoch is ranked by (higher is better) under ``config``'s
+    ``odometry.deskew_rank``: its status, then its plane count (``planes``) or its
+    distinct surfaces within ``association.normal_tol_deg`` and ``offset_tol_m``
+    (``surfaces``)."""
+    if config.odometry.deskew_rank == "planes":
+        return by_planes
+    tol_deg, tol_m = config.association.normal_tol_deg, config.association.offset_tol_m
+    return lambda e: (e.relative.status.rank, distinct_surfaces(e.planes, tol_deg, tol_m))
