@@ -25,7 +25,7 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.noise import member_tolerance, rms_limit
 from planodom.extraction.planes.builder import PlaneFits, build_planes
-from planodom.extraction.rig2d import windows
+from planodom.extraction.rig2d import onescanner, windows
 from planodom.extraction.rig2d.groupfit import plane_fits
 from planodom.extraction.rig2d.grouping import GroupingParams
 from planodom.extraction.rig2d.groups import group_segments
@@ -105,6 +105,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
             fits = _group_fits(segs, groups, epoch, config)
     adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw) if windowed else None
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
+    planes = onescanner.widened_planes(planes, inliers, epoch, config)
     return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)
 
 
