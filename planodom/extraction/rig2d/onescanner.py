@@ -16,10 +16,15 @@ change of the plane's ``(n, d)`` with the deskewing twist
 that ``J`` is per rad/s and m/s). That term is large for the tilt about the lines (a wall
 at range r, lines of sweeps ``dt`` apart: ``s_w r dt`` across a separation of about
 ``w r dt``) and small for the normal's component across the lines and the offset near
-them, which the lines fix. Its confidence (the consensus's weight, WOCSC) is scaled by
-the share of the fit in the normal's variance, ``tr C_fit / tr C`` (normal block): the
-consensus, which weighs planes by one number, then hardly counts it, and the translation
-refinement (:mod:`planodom.odometry.refine`) weighs its offset by the widened covariance.
+them, which the lines fix. The odometry keeps a plane whose normal sigma this takes above
+``extraction.max_normal_sigma_deg`` out of the rotation and the consensus
+(:mod:`planodom.odometry.rotation_planes`); the translation refinement
+(:mod:`planodom.odometry.refine`) weighs its offset by the widened covariance.
+
+Measured against the simulator's truth (world 6, epochs 51-54, and world 166, epochs
+78-82, 6 mm, deskewed with the true twist plus 1 deg/s of yaw rate): such planes are
+tilted by 4.5 and 7.6 deg (median); the tilt's 2-DoF NEES is 744 and 1872 (median) with
+the fit's covariance, 1.1 (1 deg/s, 0.2 m/s) and 2.4 (0.5 deg/s, 0.5 m/s) widened.
 """
 
 from __future__ import annotations
@@ -32,9 +37,6 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch
 from planodom.extraction.planes.fit import deskew_jacobian
 from planodom.geometry import Plane
-
-#: The smallest confidence kept (``Plane`` wants (0, 1]).
-_MIN_CONFIDENCE = 1e-6
 
 
 def twist_covariance(
@@ -53,7 +55,7 @@ def widened_planes(
     planes: list[Plane], inliers: list[np.ndarray], epoch: Epoch, config: ExtractionConfig
 ) -> list[Plane]:
     """``planes`` (with their ``inliers``, scan indices) with the one-ring planes'
-    covariance widened and confidence scaled (module docstring); the list unchanged when
+    covariance widened (module docstring); the list unchanged when
     the option is off, the epoch has no twist or its points no times."""
     rate = float(np.radians(config.single_scanner_rate_sigma_deg_s))
     speed = float(config.single_scanner_speed_sigma_mps)
@@ -67,8 +69,5 @@ def widened_planes(
             out.append(plane)
             continue
         extra = twist_covariance(epoch.points[idx], t[idx], plane.normal, rate, speed)
-        cov = plane.covariance + extra
-        share = np.trace(plane.covariance[:3, :3]) / max(np.trace(cov[:3, :3]), 1e-300)
-        confidence = max(plane.confidence * float(share), _MIN_CONFIDENCE)
-        out.append(replace(plane, covariance=cov, confidence=confidence))
+        out.append(replace(plane, covariance=plane.covariance + extra))
     return out

@@ -9,7 +9,9 @@
    take a ring whose sensor lies on a group's plane out of the group, a tilted scanner's
    own scan plane taken for a wall (:func:`without_own_scan_plane`), or drop the group;
 4. refit every group robustly on its points (:mod:`.groupfit`);
-5. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
+5. build the planes (:func:`planodom.extraction.planes.builder.build_planes`);
+6. with ``single_scanner_rate_sigma_deg_s`` / ``..._speed_sigma_mps`` (off), widen the
+   covariance of one ring's planes by the twist's error (:mod:`.onescanner`).
 
 Without a twist on a moving epoch, all of this works in time windows (:mod:`.windows`);
 with one, the tolerances grow by the smear the twist's uncertainty leaves
