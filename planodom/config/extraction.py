@@ -108,7 +108,8 @@ class ExtractionConfig(Section):
     single_scanner_rate_sigma_deg_s: float = Field(0.0, ge=0)
     """A one-ring plane of a deskewed epoch: its covariance widened by a twist error of
     this (deg/s) and ``single_scanner_speed_sigma_mps``, kept out of the rotation
-    (:mod:`planodom.extraction.rig2d.onescanner`). 0 and 0: the fit's alone (default)."""
+    (:mod:`planodom.extraction.rig2d.onescanner`). 0 and 0: the fit's alone (default:
+    0.5 and 0.5 measured worse on worlds 166 and 178, docs/RESULTS.md, ONESCANNER)."""
     single_scanner_speed_sigma_mps: float = Field(0.0, ge=0)
     """Likewise for the linear velocity (m/s)."""
     twist_rate_sigma_deg_s: float = Field(0.0, ge=0)
