@@ -105,6 +105,13 @@ class ExtractionConfig(Section):
     -> 0.504 and 0.211 -> 0.332 deg, median ATE 0.19 -> 0.92 and 1.01 -> 1.61 m (world 8
     at 6 mm 0.28 -> 10 m). A use needs the motion within an epoch known to a few
     hundredths of a deg/s."""
+    single_scanner_rate_sigma_deg_s: float = Field(0.0, ge=0)
+    """A one-ring plane of a deskewed epoch: its covariance widened by a twist error of
+    this (deg/s) and ``single_scanner_speed_sigma_mps``, kept out of the rotation
+    (:mod:`planodom.extraction.rig2d.onescanner`). 0 and 0: the fit's alone (default:
+    0.5 and 0.5 measured worse on worlds 166 and 178, docs/RESULTS.md, ONESCANNER)."""
+    single_scanner_speed_sigma_mps: float = Field(0.0, ge=0)
+    """Likewise for the linear velocity (m/s)."""
     twist_rate_sigma_deg_s: float = Field(0.0, ge=0)
     """2D-rig path with a twist: how far (deg/s) the angular rate the points were
     deskewed with may be off. A twist off by ``e`` moves a point acquired ``t`` after the

@@ -42,6 +42,7 @@ from planodom.odometry.rotation import (
     rotation_angles_to,
     rotation_consensus,
 )
+from planodom.odometry.rotation_planes import rotation_pairs
 from planodom.odometry.translation import (
     HeightElements,
     TranslationElements,
@@ -176,6 +177,7 @@ def _solve(
     name = pairwise_pipeline(ocfg.pipeline)
     rot_method, trans_method = PIPELINES[name]
     lda = lenient_association(prev, curr, acfg, prior if bound_by_prior else None)
+    lda = rotation_pairs(prev, curr, lda, cfg.extraction)  # not one scanner's tilted planes
     bounds = pass_bounds(cfg, prior, bound_by_prior, prior_sigma_m)
     info = SolverDiagnostics(name, lda, used_prior=bound_by_prior)
     if len(lda) == 0:

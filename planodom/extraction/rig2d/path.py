@@ -9,7 +9,9 @@
    take a ring whose sensor lies on a group's plane out of the group, a tilted scanner's
    own scan plane taken for a wall (:func:`without_own_scan_plane`), or drop the group;
 4. refit every group robustly on its points (:mod:`.groupfit`);
-5. build the planes (:func:`planodom.extraction.planes.builder.build_planes`).
+5. build the planes (:func:`planodom.extraction.planes.builder.build_planes`);
+6. with ``single_scanner_rate_sigma_deg_s`` / ``..._speed_sigma_mps`` (off), widen the
+   covariance of one ring's planes by the twist's error (:mod:`.onescanner`).
 
 Without a twist on a moving epoch, all of this works in time windows (:mod:`.windows`);
 with one, the tolerances grow by the smear the twist's uncertainty leaves
@@ -25,7 +27,7 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.noise import member_tolerance, rms_limit
 from planodom.extraction.planes.builder import PlaneFits, build_planes
-from planodom.extraction.rig2d import windows
+from planodom.extraction.rig2d import onescanner, windows
 from planodom.extraction.rig2d.groupfit import plane_fits
 from planodom.extraction.rig2d.grouping import GroupingParams
 from planodom.extraction.rig2d.groups import group_segments
@@ -105,6 +107,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
             fits = _group_fits(segs, groups, epoch, config)
     adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw) if windowed else None
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
+    planes = onescanner.widened_planes(planes, inliers, epoch, config)
     return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)
 
 

@@ -26,7 +26,8 @@ after the crossing seeds have taken their planes:
 The price: such a plane's tilt about its lines is the deskewing's, not the wall's (the
 lines move across each other by the motion the twist removes): a turn rate off by 1 deg/s
 tilts far walls by 4-8 deg, so this is off by default (measured in
-:class:`planodom.config.ExtractionConfig`, ``single_scanner_min_sweeps``).
+:class:`planodom.config.ExtractionConfig`, ``single_scanner_min_sweeps``). :mod:`.onescanner`
+can give such planes a covariance that says so (an option, off).
 
 Points not deskewed (time windows) never seed this way: there, the sweeps' lines are
 displaced by the motion the reference frame does not remove.

@@ -1,0 +1,48 @@
+"""Which planes may seed and vote on the rotation: not those whose normal the twist sets.
+
+With ``extraction.single_scanner_rate_sigma_deg_s`` / ``..._speed_sigma_mps`` on, a plane of
+one scanner's lines carries a covariance widened by the deskewing twist's error
+(:mod:`planodom.extraction.rig2d.onescanner`): its tilt about its lines is known to
+degrees, its offset near the lines to the fit's noise. Such a plane is kept out of the
+rotation (the LDA pairs that seed and the associations that vote,
+:mod:`planodom.odometry.rotation`) and of the translation consensus built on those pairs,
+and measures the translation in the refinement only (:mod:`planodom.odometry.refine`,
+weighted by its covariance). The bar is the extraction's own for a plane's normal,
+``extraction.max_normal_sigma_deg`` (``sqrt(trace Cov(n))``): the fit's planes all pass it,
+so only the widened ones are left out. Off (the option's sigmas 0): the pairs unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planodom.association import PairAssociations
+from planodom.config import ExtractionConfig
+from planodom.planes import PlaneSet
+
+
+def rotation_pairs(
+    prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, config: ExtractionConfig
+) -> PairAssociations:
+    """The LDA pairs ``lda`` whose four planes' normals are known within
+    ``config.max_normal_sigma_deg`` (unknown covariances pass); ``lda`` itself when the
+    one-scanner widening is off or every pair passes (module docstring)."""
+    if not (config.single_scanner_rate_sigma_deg_s or config.single_scanner_speed_sigma_mps):
+        return lda
+    if len(lda) == 0:
+        return lda
+    limit = float(np.radians(config.max_normal_sigma_deg)) ** 2
+    ok_p, ok_c = _sharp(prev, limit), _sharp(curr, limit)
+    keep = ok_p[lda.prev_pairs].all(axis=1) & ok_c[lda.curr_pairs].all(axis=1)
+    if keep.all():
+        return lda
+    return PairAssociations(
+        lda.prev_pairs[keep], lda.curr_pairs[keep], lda.rotations[keep], lda.weights[keep]
+    )
+
+
+def _sharp(planes: PlaneSet, limit: float) -> np.ndarray:
+    """(K,) whether each plane's normal variance (trace) is within ``limit`` rad^2 (NaN:
+    unknown, passes)."""
+    var_n = np.trace(planes.covariances[:, :3, :3], axis1=1, axis2=2)
+    return ~(var_n > limit)
