@@ -14,7 +14,7 @@ converges to; today's prediction is the step before's); ``sweep``: over [t_k, t_
 
 ``--source truth``: the previous rates are the true ones plus Gaussian noise of ``--sigma``
 deg/s per component. ``--source odometry``: they are the odometry's own twists of a
-default run (each predictor fed the rates measured, the unresolved epochs skipped), the
+default run (each predictor fed the contiguous run of rates measured before the epoch), the
 error taken against the truth and against the own twist measured (the refinement's
 trigger). Epochs after the first ``--skip`` are scored.
 
@@ -54,7 +54,9 @@ def _ar(h: np.ndarray, order: int, window: int) -> np.ndarray:
     out = np.empty(h.shape[1])
     for j in range(h.shape[1]):
         x = h[:, j]
-        A = np.column_stack([np.ones(n)] + [x[order - i - 1 : len(x) - i - 1] for i in range(order)])
+        A = np.column_stack(
+            [np.ones(n)] + [x[order - i - 1 : len(x) - i - 1] for i in range(order)]
+        )
         coef = np.linalg.lstsq(A, x[order:], rcond=None)[0]
         out[j] = coef[0] + coef[1:] @ x[::-1][:order]
         lo, hi, span = x.min(), x.max(), x.max() - x.min()
@@ -139,6 +141,18 @@ def odometry_rates(world_index: int, noise: float, epochs: int) -> tuple[np.ndar
     return own, np.isfinite(own[:, 0])
 
 
+def _cached(folder: str | None, w: int, noise: float, epochs: int) -> np.ndarray:
+    """:func:`odometry_rates` of world ``w``, kept in (and read from) ``folder``."""
+    path = None if folder is None else os.path.join(folder, f"own_{w}_{noise:g}_{epochs}.npy")
+    if path is not None and os.path.exists(path):
+        return np.load(path)
+    own = odometry_rates(w, noise, epochs)[0]
+    if path is not None:
+        os.makedirs(folder, exist_ok=True)  # type: ignore[arg-type]
+        np.save(path, own)
+    return own
+
+
 def score(
     measured: np.ndarray, truth: np.ndarray, skip: int, part: slice
 ) -> dict[str, dict[str, np.ndarray]]:
@@ -146,15 +160,19 @@ def score(
     velocity: ``part``) of its predictions for epochs ``skip`` .. E-1. ``measured`` (E, 6)
     NaN where not measured (left out of the history); ``truth`` (E+1, 6) true steps.
     Targets: ``step`` truth[k], ``sweep`` truth[k+1] (predicted two ahead), ``own``
-    measured[k] (where measured)."""
+    measured[k] (where measured). Only epochs after a measured one are scored; the
+    history is the contiguous run of measured steps before (an even sampling)."""
     scale = np.degrees(1.0) if part == slice(0, 3) else 1.0
     out: dict[str, dict[str, list[float]]] = {n: {"step": [], "sweep": [], "own": []}
                                               for n in PREDICTORS}  # fmt: skip
     ok = np.isfinite(measured[:, 0])
     for k in range(skip, len(measured)):
-        h = measured[1:k][ok[1:k]][:, part]
-        if len(h) < 2:
+        if not ok[k - 1]:  # after an unresolved epoch the odometry deskews with no twist
             continue
+        start = k - 1
+        while start > 1 and ok[start - 1]:
+            start -= 1
+        h = measured[start:k][:, part]  # the contiguous run of measured steps before k
         for name, pred in PREDICTORS.items():
             p1 = pred(h)
             p2 = pred(np.vstack([h, p1]))
@@ -170,7 +188,10 @@ def _table(scores: list[dict[str, dict[str, np.ndarray]]], title: str, tol: floa
     """Print median, 90th percentile and share within ``tol`` of each predictor's errors
     pooled over ``scores`` (one per world)."""
     print(f"--- {title}")
-    print(f"  {'predictor':12s} " + "  ".join(f"{t + ' med/p90/<tol':>22s}" for t in ("step", "sweep", "own")))
+    print(
+        f"  {'predictor':12s} "
+        + "  ".join(f"{t + ' med/p90/<tol':>22s}" for t in ("step", "sweep", "own"))
+    )
     base = None
     for name in PREDICTORS:
         cells = []
@@ -182,7 +203,9 @@ def _table(scores: list[dict[str, dict[str, np.ndarray]]], title: str, tol: floa
                 base = base or {}
                 base[t] = med
             rel = med / base[t] if base else 1.0
-            cells.append(f"{med:6.3f} ({rel:4.2f}) {np.percentile(e, 90):6.3f} {np.mean(e < tol):4.2f}")
+            cells.append(
+                f"{med:6.3f} ({rel:4.2f}) {np.percentile(e, 90):6.3f} {np.mean(e < tol):4.2f}"
+            )
         print(f"  {name:12s} " + "  ".join(f"{c:>22s}" for c in cells))
 
 
@@ -194,6 +217,7 @@ def main() -> None:
     ap.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
     ap.add_argument("--epochs", type=int, default=150)
     ap.add_argument("--skip", type=int, default=10)
+    ap.add_argument("--cache", help="folder keeping the odometry's own twists (npz)")
     args = ap.parse_args()
     rng = np.random.default_rng(0)
     truths = {w: true_steps(w, args.epochs) for w in args.worlds}
@@ -202,10 +226,12 @@ def main() -> None:
         rates, speeds = [], []
         for w, (truth, _) in truths.items():
             if args.source == "truth":
-                measured = truth[: args.epochs] + np.r_[np.radians(level) * np.ones(3), 0.01 * level * np.ones(3)] * rng.standard_normal((args.epochs, 6))
+                measured = truth[: args.epochs] + np.r_[
+                    np.radians(level) * np.ones(3), 0.01 * level * np.ones(3)
+                ] * rng.standard_normal((args.epochs, 6))
                 measured[0] = np.nan
             else:
-                measured, _ = odometry_rates(w, level, args.epochs)
+                measured = _cached(args.cache, w, level, args.epochs)
             rates.append(score(measured, truth, args.skip, slice(0, 3)))
             speeds.append(score(measured, truth, args.skip, slice(3, 6)))
         tag = f"sigma {level} deg/s" if args.source == "truth" else f"noise {level * 1e3:g} mm"
