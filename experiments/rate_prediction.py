@@ -95,6 +95,11 @@ PREDICTORS: dict[str, Predictor] = {
     "ar2-12": lambda h: _ar(h, 2, 12),
     "ar2-20": lambda h: _ar(h, 2, 20),
     "ar2-40": lambda h: _ar(h, 2, 40),
+    "ar2-60": lambda h: _ar(h, 2, 60),
+    "ar3-40": lambda h: _ar(h, 3, 40),
+    "ar4-40": lambda h: _ar(h, 4, 40),
+    "ar4-60": lambda h: _ar(h, 4, 60),
+    "ar6-60": lambda h: _ar(h, 6, 60),
 }
 
 

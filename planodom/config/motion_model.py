@@ -59,3 +59,18 @@ class MotionModelConfig(Section):
     bridge_trend_epochs: Annotated[int, Field(ge=1, le=20)] = 3
     """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
     may run; further bridged epochs keep the rate it reached there."""
+
+    rate_prediction: Literal["constant", "autoregressive"] = "constant"
+    """Streaming, pairwise pipelines (the 2D rig's): the angular rate predicted for the next
+    epoch (its deskewing, prior and bridge). ``constant``: the last step's;
+    ``autoregressive``: each component along an autoregression of ``rate_prediction_order``
+    fitted online to the last ``rate_prediction_window`` steps that measured the rate one
+    after the other (:mod:`planodom.odometry.rate_prediction`; a generic linear predictor,
+    no model of the vehicle)."""
+
+    rate_prediction_order: Annotated[int, Field(ge=1, le=8)] = 2
+    """With ``rate_prediction: autoregressive``: the autoregression's order (lags)."""
+
+    rate_prediction_window: Annotated[int, Field(ge=8, le=400)] = 40
+    """With ``rate_prediction: autoregressive``: how many measured steps it is fitted to
+    (it predicts once it has twice as many equations as terms, the last rate before)."""
