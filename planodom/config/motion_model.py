@@ -68,9 +68,9 @@ class MotionModelConfig(Section):
     after the other (:mod:`planodom.odometry.rate_prediction`; a generic linear predictor,
     no model of the vehicle)."""
 
-    rate_prediction_order: Annotated[int, Field(ge=1, le=8)] = 2
+    rate_prediction_order: Annotated[int, Field(ge=1, le=8)] = 4
     """With ``rate_prediction: autoregressive``: the autoregression's order (lags)."""
 
-    rate_prediction_window: Annotated[int, Field(ge=8, le=400)] = 40
+    rate_prediction_window: Annotated[int, Field(ge=8, le=400)] = 60
     """With ``rate_prediction: autoregressive``: how many measured steps it is fitted to
     (it predicts once it has twice as many equations as terms, the last rate before)."""
