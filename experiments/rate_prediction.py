@@ -67,6 +67,42 @@ def _ar(h: np.ndarray, order: int, window: int) -> np.ndarray:
     return out
 
 
+def _ari(h: np.ndarray, order: int, window: int) -> np.ndarray:
+    """Autoregression of ``order`` on the changes (no intercept: ARI(order, 1)), fitted on
+    the last ``window`` values: the last value plus the predicted change. A lasting
+    change of level (a turn) is kept, not pulled back to the window's mean."""
+    d = np.diff(h[-window:], axis=0)
+    if len(d) - order < 2 * order:
+        return h[-1].copy()
+    return h[-1] + _ar_fit(d, order, intercept=False)
+
+
+def _ar_fit(x: np.ndarray, order: int, intercept: bool) -> np.ndarray:
+    """(D,) the next row of ``x`` (H, D) by a least-squares autoregression per column."""
+    n = len(x) - order
+    out = np.empty(x.shape[1])
+    for j in range(x.shape[1]):
+        c = x[:, j]
+        lags = [c[order - i - 1 : len(c) - i - 1] for i in range(order)]
+        A = np.column_stack(([np.ones(n)] if intercept else []) + lags)
+        coef = np.linalg.lstsq(A, c[order:], rcond=None)[0]
+        out[j] = (coef[0] if intercept else 0.0) + coef[int(intercept) :] @ c[::-1][:order]
+    return out
+
+
+def _selected(h: np.ndarray, order: int, window: int, recent: int) -> np.ndarray:
+    """The autoregression's prediction (:func:`_ar`) where it predicted the last ``recent``
+    values of ``h`` better than the constant one did (summed squared error, all
+    components), else the last value: an online choice between the two forecasts."""
+    if len(h) < 3 * order + 2 + recent:
+        return h[-1].copy()
+    err_ar = err_c = 0.0
+    for i in range(len(h) - recent, len(h)):
+        err_ar += float(np.sum((_ar(h[:i], order, window) - h[i]) ** 2))
+        err_c += float(np.sum((h[i - 1] - h[i]) ** 2))
+    return _ar(h, order, window) if err_ar < err_c else h[-1].copy()
+
+
 def _damped(h: np.ndarray, window: int) -> np.ndarray:
     """Damped trend: the last value plus phi times the last change, phi (in [0, 1]) the
     least-squares lag-one regression of the changes over the last ``window`` values."""
@@ -103,6 +139,11 @@ PREDICTORS: dict[str, Predictor] = {
     "ar4-40": lambda h: _ar(h, 4, 40),
     "ar4-60": lambda h: _ar(h, 4, 60),
     "ar6-60": lambda h: _ar(h, 6, 60),
+    "sel4-60-10": lambda h: _selected(h, 4, 60, 10),
+    "sel4-60-20": lambda h: _selected(h, 4, 60, 20),
+    "ari2-40": lambda h: _ari(h, 2, 40),
+    "ari3-60": lambda h: _ari(h, 3, 60),
+    "ari4-60": lambda h: _ari(h, 4, 60),
 }
 
 
@@ -226,7 +267,12 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=150)
     ap.add_argument("--skip", type=int, default=10)
     ap.add_argument("--cache", help="folder keeping the odometry's own twists (npz)")
+    ap.add_argument("--predictors", nargs="+", help="only these (and constant)")
+    ap.add_argument("--per-world", action="store_true", help="each world's medians too")
     args = ap.parse_args()
+    if args.predictors:
+        for name in [n for n in PREDICTORS if n != "constant" and n not in args.predictors]:
+            del PREDICTORS[name]
     rng = np.random.default_rng(0)
     truths = {w: true_steps(w, args.epochs) for w in args.worlds}
     levels = args.sigma if args.source == "truth" else args.noise
@@ -242,6 +288,10 @@ def main() -> None:
             else:
                 measured = _cached(args.cache, w, level, args.epochs)
             rates.append(score(measured, truth, args.skip, slice(0, 3)))
+            if args.per_world:
+                cells = [f"{n} {np.nanmedian(d['epoch']):.2f}/{np.nanmedian(d['own']):.2f}"
+                         for n, d in rates[-1].items()]  # fmt: skip
+                print(f"  world {w} epoch/own median deg/s: " + ", ".join(cells))
             speeds.append(score(measured, truth, args.skip, slice(3, 6)))
         tag = f"sigma {level} deg/s" if args.source == "truth" else f"noise {level * 1e3:g} mm"
         _table(rates, f"{tag}: angular rate, deg/s (median (x constant's), p90, share < 0.5)", 0.5)

@@ -60,13 +60,14 @@ class MotionModelConfig(Section):
     """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
     may run; further bridged epochs keep the rate it reached there."""
 
-    rate_prediction: Literal["constant", "autoregressive"] = "constant"
+    rate_prediction: Literal["constant", "autoregressive", "selected"] = "constant"
     """Streaming, pairwise pipelines (the 2D rig's): the angular rate predicted for the next
     epoch (its deskewing, prior and bridge). ``constant``: the last step's;
     ``autoregressive``: each component along an autoregression of ``rate_prediction_order``
     fitted online to the last ``rate_prediction_window`` steps that measured the rate one
     after the other (:mod:`planodom.odometry.rate_prediction`; a generic linear predictor,
-    no model of the vehicle)."""
+    no model of the vehicle); ``selected``: that only where it predicted the last
+    ``rate_prediction_check`` measured rates better than the constant rate did."""
 
     rate_prediction_order: Annotated[int, Field(ge=1, le=8)] = 4
     """With ``rate_prediction: autoregressive``: the autoregression's order (lags)."""
@@ -74,3 +75,8 @@ class MotionModelConfig(Section):
     rate_prediction_window: Annotated[int, Field(ge=8, le=400)] = 60
     """With ``rate_prediction: autoregressive``: how many measured steps it is fitted to
     (it predicts once it has twice as many equations as terms, the last rate before)."""
+
+    rate_prediction_check: Annotated[int, Field(ge=1, le=100)] = 10
+    """With ``rate_prediction: selected``: on how many of the last measured rates the
+    autoregression must have predicted better than the constant rate (summed squared
+    error) to be used."""

@@ -56,6 +56,9 @@ class RatePredictor:
         self.mode = config.rate_prediction
         self.order = config.rate_prediction_order
         self._rates: deque[np.ndarray] = deque(maxlen=config.rate_prediction_window)
+        # (autoregression's, constant's) squared errors on the last rates ("selected")
+        self._errors: deque[tuple[float, float]] = deque(maxlen=config.rate_prediction_check)
+        self._pending: np.ndarray | None = None  # the autoregression's last prediction
         self._last = -2  # the epoch of the last rate kept
 
     def after(
@@ -67,18 +70,43 @@ class RatePredictor:
         unresolved; a run restarts after an epoch that did not measure its rate).
         ``twist`` as it is with ``rate_prediction: constant``, under a plane map
         (``plane_map`` not None: it predicts its own) and where the prediction's rate is
-        zero (``deskew_significance_gate``)."""
+        zero (``deskew_significance_gate``); with ``selected``, also unless the
+        autoregression predicted the last ``rate_prediction_check`` rates better than the
+        constant rate did (summed squared error)."""
         if self.mode == "constant" or plane_map is not None:
             return twist
+        rate = np.array(own[:3], dtype=np.float64)
+        if relative.status is Status.UNRESOLVED or k != self._last + 1:
+            self._rates.clear()
+            self._errors.clear()
+            self._pending = None
         if relative.status is Status.UNRESOLVED:
-            self._rates.clear()
             return twist
-        if k != self._last + 1:
-            self._rates.clear()
-        self._rates.append(np.array(own[:3], dtype=np.float64))
+        if self._pending is not None:
+            self._errors.append(_squared(self._pending, rate, self._rates[-1]))
+        self._rates.append(rate)
         self._last = k
-        if not np.any(twist[:3]) or len(self._rates) < 3 * self.order + 2:
+        self._pending = None
+        if len(self._rates) < 3 * self.order + 2:
             return twist  # too few equations (autoregressive_next): the last step's rate
+        self._pending = autoregressive_next(np.array(self._rates), self.order)
+        if not np.any(twist[:3]) or not self._chosen():
+            return twist
         out = np.array(twist, dtype=np.float64, copy=True)
-        out[:3] = autoregressive_next(np.array(self._rates), self.order)
+        out[:3] = self._pending
         return out
+
+    def _chosen(self) -> bool:
+        """Whether the autoregression's prediction is used (``selected``: it predicted a
+        full window of the last rates better than the constant rate)."""
+        if self.mode == "autoregressive":
+            return True
+        if len(self._errors) < (self._errors.maxlen or 0):
+            return False
+        return sum(a for a, _ in self._errors) < sum(c for _, c in self._errors)
+
+
+def _squared(predicted: np.ndarray, rate: np.ndarray, last: np.ndarray) -> tuple[float, float]:
+    """(autoregression's, constant's) squared error (rad^2/s^2) on ``rate`` (3,): of
+    ``predicted`` (3,) and of the last rate ``last`` (3,)."""
+    return float(np.sum((predicted - rate) ** 2)), float(np.sum((last - rate) ** 2))

@@ -120,3 +120,22 @@ def test_a_swaying_vehicle_s_next_rate(mode):
     else:
         assert odo.twist[0] == pytest.approx(true_next, abs=1e-6)
         assert abs(true_next - last) > 0.005  # the constant one is off by 0.46 deg/s
+
+
+def test_selected_waits_for_a_full_check_and_then_follows_the_better_forecast():
+    """``selected`` on a sampled sinusoid (the autoregression exact, the constant rate
+    off): the prediction's rate until the autoregression has been checked on
+    ``rate_prediction_check`` rates, then the autoregression's (as ``autoregressive``)."""
+    cfg = OdometryConfig(rate_prediction="selected", rate_prediction_check=5)
+    k = np.arange(40)
+    rates = np.column_stack([0.05 * np.sin(0.5 * k), 0.03 * np.sin(0.3 * k + 1), 0.1 + 0 * k])
+    first = 3 * cfg.rate_prediction_order + 2  # rates before the autoregression predicts
+    sel, ar = RatePredictor(cfg), RatePredictor(AR)
+    for j, r in enumerate(rates):
+        own, ok = np.r_[r, 3.0, 0.0, 0.0], _relative(Status.OK)
+        got, want = sel.after(j, own, ok, TWIST, None), ar.after(j, own, ok, TWIST, None)
+        if j + 1 < first + 5:
+            assert got is TWIST
+        else:
+            np.testing.assert_allclose(got, want, atol=1e-12)
+            assert not np.allclose(got[:3], TWIST[:3])
