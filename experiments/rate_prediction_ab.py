@@ -21,6 +21,7 @@ import argparse  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+import yaml  # noqa: E402
 
 import planodom.odometry.odometry as odo_mod  # noqa: E402
 from planodom.config import PlanodomConfig  # noqa: E402
@@ -56,9 +57,11 @@ def main() -> None:
     ap.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
     ap.add_argument("--epochs", type=int, default=150)
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--set", nargs="*", default=[], help="more KEY=VALUE (yaml) for 'on'")
     args = ap.parse_args()
     _counting()
     on = {"odometry.rate_prediction": "autoregressive"}
+    on |= {kv.split("=", 1)[0]: yaml.safe_load(kv.split("=", 1)[1]) for kv in args.set}
     for noise in args.noise:
         tot = {"off": [0.0, 0, 0], "on": [0.0, 0, 0]}
         for w in args.worlds:
