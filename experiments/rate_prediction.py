@@ -174,7 +174,7 @@ def odometry_rates(world_index: int, noise: float, epochs: int) -> tuple[np.ndar
     first: list[int] = []
     real = odo_mod.PlaneOdometry._commit
 
-    def commit(self, epoch, best, t):  # type: ignore[no-untyped-def]
+    def commit(self, epoch, best, t):
         first.append(id(self)) if not first else None
         if id(self) == first[0] and self.times and best.relative.status is not Status.UNRESOLVED:
             own[epoch.index] = best.own_twist(t - self.times[-1])
@@ -226,9 +226,9 @@ def score(
             p1 = pred(h)
             e = out[name]
             epoch = 0.5 * (truth[k, part] + truth[k + 1, part])
-            e["epoch"].append(scale * np.linalg.norm(p1 - epoch))
-            e["sweep"].append(scale * np.linalg.norm(p1 - truth[k + 1, part]))
-            own = scale * np.linalg.norm(p1 - measured[k, part]) if ok[k] else np.nan
+            e["epoch"].append(scale * float(np.linalg.norm(p1 - epoch)))
+            e["sweep"].append(scale * float(np.linalg.norm(p1 - truth[k + 1, part])))
+            own = scale * float(np.linalg.norm(p1 - measured[k, part])) if ok[k] else np.nan
             e["own"].append(own)
     return {n: {t: np.array(v) for t, v in d.items()} for n, d in out.items()}
 

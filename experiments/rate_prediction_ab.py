@@ -36,14 +36,14 @@ WARM: list = []
 def _counting() -> None:
     real = odo_mod.PlaneOdometry._extract
 
-    def extract(self, *a, **k):  # type: ignore[no-untyped-def]
+    def extract(self, *a, **k):
         COUNT[0] += 1
         return real(self, *a, **k)
 
     odo_mod.PlaneOdometry._extract = extract  # type: ignore[method-assign]
 
 
-def _run(sim, cfg: PlanodomConfig) -> tuple[float, int, np.ndarray]:  # type: ignore[no-untyped-def]
+def _run(sim, cfg: PlanodomConfig) -> tuple[float, int, np.ndarray]:
     """(CPU s, extractions, poses (E, 4, 4)) of one run."""
     COUNT[0] = 0
     t0 = time.process_time()
