@@ -59,3 +59,30 @@ class MotionModelConfig(Section):
     bridge_trend_epochs: Annotated[int, Field(ge=1, le=20)] = 3
     """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
     may run; further bridged epochs keep the rate it reached there."""
+
+    rate_prediction: Literal["constant", "autoregressive", "selected"] = "constant"
+    """Streaming, pairwise pipelines (the 2D rig's): the angular rate predicted for the next
+    epoch (its deskewing, prior and bridge). ``constant``: the last step's;
+    ``autoregressive``: each component along an autoregression of ``rate_prediction_order``
+    fitted online to the last ``rate_prediction_window`` steps that measured the rate one
+    after the other (:mod:`planodom.odometry.rate_prediction`; a generic linear predictor,
+    no model of the vehicle); ``selected``: that only where it predicted the last
+    ``rate_prediction_check`` measured rates better than the constant rate did. Off by
+    default: on the measured rates of 2D-rig worlds 0-18 and 160-178 (150 epochs) it is
+    off the epoch's true rate by 0.37-0.74x the constant rate's error (median), and the
+    first refinement is skipped more often (extractions an epoch 2.46 -> 1.97 at 6 mm,
+    2.69 -> 2.43 at 2 cm, worlds 0-18), but the runs lose: ATE geometric-mean ratio 1.31
+    / 1.22 (6 mm / 2 cm) on worlds 0-18, world 6 0.51 -> 1.56 m; a wrong rate of a
+    degenerate step is extrapolated (docs/RESULTS.md, PREDICT)."""
+
+    rate_prediction_order: Annotated[int, Field(ge=1, le=8)] = 4
+    """With ``rate_prediction: autoregressive``: the autoregression's order (lags)."""
+
+    rate_prediction_window: Annotated[int, Field(ge=8, le=400)] = 60
+    """With ``rate_prediction: autoregressive``: how many measured steps it is fitted to
+    (it predicts once it has twice as many equations as terms, the last rate before)."""
+
+    rate_prediction_check: Annotated[int, Field(ge=1, le=100)] = 10
+    """With ``rate_prediction: selected``: on how many of the last measured rates the
+    autoregression must have predicted better than the constant rate (summed squared
+    error) to be used."""

@@ -43,6 +43,7 @@ from planodom.odometry.deskew_secant import epoch_deskew_config
 from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
+from planodom.odometry.rate_prediction import RatePredictor
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.start_epochs import StartEpochs
@@ -87,8 +88,8 @@ class PlaneOdometry:
         superseded: epochs whose result indexes planes (its own or its reference's) that
             were extracted again later, so not ``planes``.
         twist: (6,) constant-velocity body twist, rad/s and m/s, predicted for the next
-            epoch (angular rate of the last step, median recent measured linear
-            velocity); None before the second epoch.
+            epoch (angular rate of the last step or ``odometry.rate_prediction``'s,
+            median recent measured linear velocity); None before the second epoch.
     """
 
     def __init__(
@@ -118,6 +119,7 @@ class PlaneOdometry:
         # pairwise pipelines: (epoch, own twist) of the last epochs that measured the rate
         self._rates: deque[tuple[int, np.ndarray]] = deque(maxlen=self._recent.maxlen)
         self._twist_sigma = TwistUncertainty(self.config.odometry)
+        self._rate = RatePredictor(self.config.odometry)  # odometry.rate_prediction
         self._undo: tuple = ()  # what the last reference refresh replaced
         self._gaps: set[int] = set()  # epochs after a gap in the epoch times (is_gap)
         self.start = StartEpochs(self.config.odometry.start_refresh)  # the undeskewed start
@@ -247,9 +249,8 @@ class PlaneOdometry:
             self.extractor = _default_extractor()
         config = widened(self.config.extraction, twist, sigma)
         if twist is not None and self.config.odometry.deskew_twist == "coplanar":
-            got = coplanar_by(
-                self.extractor, scan, self.config, config, twist, prior, self.sensor_origins
-            )
+            origins = self.sensor_origins
+            got = coplanar_by(self.extractor, scan, self.config, config, twist, prior, origins)
             if got is not None:  # None: not the default extractor
                 return got.planes, got.twist
         kwargs = {} if self.sensor_origins is None else {"sensor_origins": self.sensor_origins}
@@ -423,6 +424,7 @@ class PlaneOdometry:
             args = (significant, measured, self._recent, self._velocities, self._map is not None)
             prediction = (self.config.planemap.prediction, self.config.odometry.motion_model)
             self.twist = registered_prediction(best, dt, predicted_twist(*args, *prediction))
+            self.twist = self._rate.after(epoch.index, own, best.relative, self.twist, self._map)
         if best.map_estimate is not None and self._map is not None:
             self._map.commit(best.map_estimate)
             if gap:

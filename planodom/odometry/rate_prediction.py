@@ -1,0 +1,112 @@
+"""The angular rate predicted for the next epoch of a pairwise pipeline
+(``odometry.rate_prediction``).
+
+The constant-velocity prediction repeats the last step's rate. On a vehicle that sways on
+its suspension (and turns through curves) the rate changes by about a degree per second
+from one step to the next (docs/RESULTS.md, RIG2DPASS: a median 1.35 / 1.82 deg/s from
+the rate used at 6 mm / 2 cm on the 2D rig), so the epoch is extracted again with its own.
+``autoregressive`` predicts each component of the rate by an autoregression fitted online
+(least squares, with an intercept) on the last ``rate_prediction_window`` steps that
+measured it one after the other: a generic linear predictor of a stationary sequence (an
+oscillation, a steady turn, a trend), not a model of any one vehicle. Where the run of
+measured steps is shorter than twice the model's terms, or the fit extrapolates beyond the
+window's range widened by its span (a fit of a few noisy points can be explosive), the
+last rate is kept.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from planodom.config import OdometryConfig
+from planodom.odometry.relative import RelativePose, Status
+
+
+def autoregressive_next(history: np.ndarray, order: int) -> np.ndarray:
+    """(D,) the next row of ``history`` (H, D), oldest first, predicted per column by an
+    autoregression of ``order`` with an intercept, fitted by least squares on the whole
+    history (the last row where H < 2 (order + 1) + order, or where the prediction leaves
+    the column's range widened by its span on either side). numpy's least squares on a
+    (H - order, order + 1) design, one column at a time."""
+    h = np.asarray(history, dtype=np.float64)
+    n = len(h) - order
+    last = h[-1].copy()
+    if n < 2 * (order + 1):
+        return last
+    out = last
+    for j in range(h.shape[1]):
+        x = h[:, j]
+        lags = [x[order - i - 1 : len(x) - i - 1] for i in range(order)]
+        A = np.column_stack([np.ones(n), *lags])
+        coef = np.linalg.lstsq(A, x[order:], rcond=None)[0]
+        value = float(coef[0] + coef[1:] @ x[::-1][:order])
+        lo, hi = float(x.min()), float(x.max())
+        if lo - (hi - lo) <= value <= hi + (hi - lo):
+            out[j] = value
+    return out
+
+
+class RatePredictor:
+    """The measured angular rates of a pairwise pipeline's last steps, and the rate they
+    predict for the next epoch (``config.rate_prediction``)."""
+
+    def __init__(self, config: OdometryConfig) -> None:
+        self.mode = config.rate_prediction
+        self.order = config.rate_prediction_order
+        self._rates: deque[np.ndarray] = deque(maxlen=config.rate_prediction_window)
+        # (autoregression's, constant's) squared errors on the last rates ("selected")
+        self._errors: deque[tuple[float, float]] = deque(maxlen=config.rate_prediction_check)
+        self._pending: np.ndarray | None = None  # the autoregression's last prediction
+        self._last = -2  # the epoch of the last rate kept
+
+    def after(
+        self, k: int, own: np.ndarray, relative: RelativePose, twist: np.ndarray, plane_map: object
+    ) -> np.ndarray:
+        """(6,) ``twist`` (the constant-velocity prediction after epoch ``k``, rad/s and
+        m/s) with its angular rate predicted from the run of measured steps ending at
+        ``k`` (its own twist ``own`` (6,) appended unless ``relative``'s status is
+        unresolved; a run restarts after an epoch that did not measure its rate).
+        ``twist`` as it is with ``rate_prediction: constant``, under a plane map
+        (``plane_map`` not None: it predicts its own) and where the prediction's rate is
+        zero (``deskew_significance_gate``); with ``selected``, also unless the
+        autoregression predicted the last ``rate_prediction_check`` rates better than the
+        constant rate did (summed squared error)."""
+        if self.mode == "constant" or plane_map is not None:
+            return twist
+        rate = np.array(own[:3], dtype=np.float64)
+        if relative.status is Status.UNRESOLVED or k != self._last + 1:
+            self._rates.clear()
+            self._errors.clear()
+            self._pending = None
+        if relative.status is Status.UNRESOLVED:
+            return twist
+        if self._pending is not None:
+            self._errors.append(_squared(self._pending, rate, self._rates[-1]))
+        self._rates.append(rate)
+        self._last = k
+        self._pending = None
+        if len(self._rates) < 3 * self.order + 2:
+            return twist  # too few equations (autoregressive_next): the last step's rate
+        self._pending = autoregressive_next(np.array(self._rates), self.order)
+        if not np.any(twist[:3]) or not self._chosen():
+            return twist
+        out = np.array(twist, dtype=np.float64, copy=True)
+        out[:3] = self._pending
+        return out
+
+    def _chosen(self) -> bool:
+        """Whether the autoregression's prediction is used (``selected``: it predicted a
+        full window of the last rates better than the constant rate)."""
+        if self.mode == "autoregressive":
+            return True
+        if len(self._errors) < (self._errors.maxlen or 0):
+            return False
+        return sum(a for a, _ in self._errors) < sum(c for _, c in self._errors)
+
+
+def _squared(predicted: np.ndarray, rate: np.ndarray, last: np.ndarray) -> tuple[float, float]:
+    """(autoregression's, constant's) squared error (rad^2/s^2) on ``rate`` (3,): of
+    ``predicted`` (3,) and of the last rate ``last`` (3,)."""
+    return float(np.sum((predicted - rate) ** 2)), float(np.sum((last - rate) ** 2))

@@ -1,0 +1,141 @@
+"""The angular rate predicted for the next epoch (``odometry.rate_prediction``,
+:mod:`planodom.odometry.rate_prediction`), against closed forms and a swaying vehicle."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from planes_factory import observe, world_planes
+
+from planodom.config import OdometryConfig, PlanodomConfig
+from planodom.errors import ConfigError
+from planodom.geometry import transform_from_rpy_xyz
+from planodom.odometry import PlaneOdometry
+from planodom.odometry.rate_prediction import RatePredictor, autoregressive_next
+from planodom.odometry.relative import RelativePose, Status
+
+AR = OdometryConfig(rate_prediction="autoregressive")
+TWIST = np.array([0.01, -0.02, 0.1, 3.0, 0.0, 0.0])
+
+
+def _relative(status: Status) -> RelativePose:
+    return RelativePose(np.eye(4), None, status)
+
+
+def test_a_sampled_sinusoid_is_continued_exactly():
+    """x_n = a sin(w n + p) + c obeys x_{n+1} = 2 cos(w) x_n - x_{n-1} + 2 c (1 - cos w):
+    an order-2 fit recovers it, and its next value is the sinusoid's (closed form)."""
+    n = np.arange(30)
+    cols = [0.3 * np.sin(0.7 * n + 0.2) + 0.05, 1.2 * np.sin(0.25 * n - 1.0) - 0.4]
+    x = np.column_stack(cols)
+    got = autoregressive_next(x, 2)
+    want = [0.3 * np.sin(0.7 * 30 + 0.2) + 0.05, 1.2 * np.sin(0.25 * 30 - 1.0) - 0.4]
+    np.testing.assert_allclose(got, want, atol=1e-9)
+
+
+def test_a_ramp_is_continued_and_a_short_history_keeps_the_last():
+    ramp = (0.1 + 0.02 * np.arange(12))[:, None]
+    assert autoregressive_next(ramp, 1)[0] == pytest.approx(0.1 + 0.02 * 12, abs=1e-12)
+    short = ramp[:7]  # 6 equations for an order-2 fit's 3 terms: too few
+    np.testing.assert_array_equal(autoregressive_next(short, 2), short[-1])
+
+
+def test_an_explosive_fit_keeps_the_last_value():
+    """A doubling sequence is fitted exactly (x_{n+1} = 2 x_n), and its next value leaves
+    the history's range widened by its span: the last value is kept."""
+    x = (2.0 ** np.arange(10))[:, None]
+    assert autoregressive_next(x, 1)[0] == x[-1, 0]
+
+
+def test_constant_and_plane_map_return_the_prediction_itself():
+    """``constant`` (the default) and a plane map: the same object (outputs cannot move)."""
+    ok = _relative(Status.OK)
+    assert RatePredictor(OdometryConfig()).after(5, TWIST, ok, TWIST, None) is TWIST
+    assert RatePredictor(AR).after(5, TWIST, ok, TWIST, object()) is TWIST
+
+
+def _fed(pred: RatePredictor, rates: np.ndarray, first: int = 0) -> np.ndarray:
+    out = TWIST
+    for j, r in enumerate(rates):
+        out = pred.after(first + j, np.r_[r, 3.0, 0.0, 0.0], _relative(Status.OK), TWIST, None)
+    return out
+
+
+def test_a_run_restarts_after_an_unresolved_or_missing_epoch():
+    """The fit sees only the contiguous run of measured rates: after a break the rate is
+    the prediction's until the run is long enough again."""
+    k = np.arange(20)
+    rates = np.column_stack([0.02 * np.sin(0.6 * k), 0.01 * np.cos(0.4 * k), 0.1 + 0.0 * k])
+    pred = RatePredictor(AR)
+    got = _fed(pred, rates)
+    assert not np.allclose(got[:3], TWIST[:3])  # predicted: the run is long enough
+    unresolved = pred.after(20, TWIST, _relative(Status.UNRESOLVED), TWIST, None)
+    assert unresolved is TWIST
+    np.testing.assert_array_equal(_fed(pred, rates[:5], first=21), TWIST)  # run restarted
+    pred = RatePredictor(AR)
+    _fed(pred, rates)
+    np.testing.assert_array_equal(_fed(pred, rates[:5], first=25), TWIST)  # epochs 20-24 missing
+
+
+def test_a_zero_rate_prediction_stays_zero():
+    """``deskew_significance_gate`` set the prediction's rate to zero: it is kept."""
+    still = np.r_[0.0, 0.0, 0.0, TWIST[3:]]
+    pred = RatePredictor(AR)
+    k = np.arange(20)
+    rates = np.column_stack([0.02 * np.sin(0.6 * k), 0 * k, 0 * k])
+    for j, r in enumerate(rates):
+        out = pred.after(j, np.r_[r, 3.0, 0, 0], _relative(Status.OK), still, None)
+    assert out is still
+
+
+def test_config_refuses_a_bad_value_naming_the_key():
+    with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction': "):
+        PlanodomConfig.from_dict({"odometry": {"rate_prediction": "ar2"}})
+    with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_order': "):
+        PlanodomConfig.from_dict({"odometry": {"rate_prediction_order": 0}})
+    with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_window': "):
+        PlanodomConfig.from_dict({"odometry": {"rate_prediction_window": 4}})
+
+
+@pytest.mark.parametrize("mode", ["constant", "autoregressive"])
+def test_a_swaying_vehicle_s_next_rate(mode):
+    """Roll swaying as 2 deg sin(2 pi 0.4 t) while driving at 3 m/s, planes seen exactly at
+    10 Hz: each step's rate is a sampled sinusoid. The odometry's predicted roll rate for
+    the next step lags it by one epoch's change with ``constant``; the autoregression
+    predicts it (closed form: the true next step's mean rate)."""
+    rng = np.random.default_rng(7)
+    world = world_planes(rng, 10)
+    dt, n = 0.1, 40
+    roll = np.radians(2.0) * np.sin(2 * np.pi * 0.4 * dt * np.arange(n + 1))
+    poses = [transform_from_rpy_xyz(roll[k], 0.0, 0.0, 0.3 * k, 0.0, 0.0) for k in range(n)]
+    cfg = {"pipeline": "wocsc", "rate_prediction": mode}
+    odo = PlaneOdometry(PlanodomConfig.from_dict({"odometry": cfg}))
+    for k, T in enumerate(poses):
+        odo.register_planes(observe(world, T), time=dt * k)
+    assert odo.twist is not None
+    true_next = (roll[n] - roll[n - 1]) / dt  # the step after the last epoch (no pitch, yaw)
+    last = (roll[n - 1] - roll[n - 2]) / dt
+    if mode == "constant":
+        assert odo.twist[0] == pytest.approx(last, abs=1e-6)
+    else:
+        assert odo.twist[0] == pytest.approx(true_next, abs=1e-6)
+        assert abs(true_next - last) > 0.005  # the constant one is off by 0.46 deg/s
+
+
+def test_selected_waits_for_a_full_check_and_then_follows_the_better_forecast():
+    """``selected`` on a sampled sinusoid (the autoregression exact, the constant rate
+    off): the prediction's rate until the autoregression has been checked on
+    ``rate_prediction_check`` rates, then the autoregression's (as ``autoregressive``)."""
+    cfg = OdometryConfig(rate_prediction="selected", rate_prediction_check=5)
+    k = np.arange(40)
+    rates = np.column_stack([0.05 * np.sin(0.5 * k), 0.03 * np.sin(0.3 * k + 1), 0.1 + 0 * k])
+    first = 3 * cfg.rate_prediction_order + 2  # rates before the autoregression predicts
+    sel, ar = RatePredictor(cfg), RatePredictor(AR)
+    for j, r in enumerate(rates):
+        own, ok = np.r_[r, 3.0, 0.0, 0.0], _relative(Status.OK)
+        got, want = sel.after(j, own, ok, TWIST, None), ar.after(j, own, ok, TWIST, None)
+        if j + 1 < first + 5:
+            assert got is TWIST
+        else:
+            np.testing.assert_allclose(got, want, atol=1e-12)
+            assert not np.allclose(got[:3], TWIST[:3])
