@@ -41,6 +41,7 @@ from planodom.odometry.deskew import (
 )
 from planodom.odometry.deskew_secant import epoch_deskew_config
 from planodom.odometry.epoch_time import is_gap, next_epoch_time
+from planodom.odometry.extractor import Extractor, default_extractor
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.rate_prediction import RatePredictor
@@ -56,15 +57,6 @@ from planodom.scan import Scan, check_is_scan
 
 if TYPE_CHECKING:
     from planodom.odometry.planemap import PlaneMapOdometry
-
-#: ``extractor(scan, extraction_config, twist=..., [sensor_origins=...]) -> list[Plane]``
-Extractor = Callable[..., list[Plane]]
-
-
-def _default_extractor() -> Extractor:
-    from planodom.extraction import extract_planes
-
-    return extract_planes
 
 
 class PlaneOdometry:
@@ -246,7 +238,7 @@ class PlaneOdometry:
         used: ``twist``, or with ``odometry.deskew_twist: coplanar`` the one fit to the
         planes with ``twist`` as the prior of sigma ``prior`` (:mod:`.coplanar`)."""
         if self.extractor is None:
-            self.extractor = _default_extractor()
+            self.extractor = default_extractor()
         config = widened(self.config.extraction, twist, sigma)
         if twist is not None and self.config.odometry.deskew_twist == "coplanar":
             origins = self.sensor_origins

@@ -14,13 +14,14 @@ from planodom.config import PlanodomConfig
 from planodom.extraction.lidar.sweep import sweep_timed
 from planodom.geometry import Plane
 from planodom.odometry.deskew import time_spread
+from planodom.odometry.extractor import Extractor, default_extractor
 from planodom.odometry.interpolate import (
     curve_steps,
     deskew_with_poses,
     epoch_middles,
     midpoint_nodes,
 )
-from planodom.odometry.odometry import Extractor, PlaneOdometry, _default_extractor
+from planodom.odometry.odometry import PlaneOdometry
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.splice import spliced, unconverged
 from planodom.rig import MotionBounds, Rig
@@ -435,7 +436,7 @@ class _TimedExtractor:
 
     def __call__(self, *args: object, **kwargs: object) -> list[Plane]:
         if self.extractor is None:
-            self.extractor = _default_extractor()
+            self.extractor = default_extractor()
         return self.timed(self.extractor, *args, **kwargs)
 
     def timed(self, function: Callable[..., T], *args: object, **kwargs: object) -> T:

@@ -17,7 +17,7 @@ import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform
-from planodom.odometry.odometry import Extractor
+from planodom.odometry.extractor import Extractor
 from planodom.odometry.run import (
     EpochSequence,
     OdometryRun,
