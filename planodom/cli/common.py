@@ -138,7 +138,8 @@ GtTopic = Annotated[
     typer.Option(
         "--gt-topic",
         help="Bags: reference poses (Odometry, PoseStamped, PoseWithCovarianceStamped, "
-        "TransformStamped topic, or tf:PARENT:CHILD), interpolated at the epoch times.",
+        "TransformStamped topic, a nav_msgs/Path read from its last message, or "
+        "tf:PARENT:CHILD), interpolated at the epoch times.",
     ),
 ]
 TimeField = Annotated[
