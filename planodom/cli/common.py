@@ -138,7 +138,8 @@ GtTopic = Annotated[
     typer.Option(
         "--gt-topic",
         help="Bags: reference poses (Odometry, PoseStamped, PoseWithCovarianceStamped, "
-        "TransformStamped topic, or tf:PARENT:CHILD), interpolated at the epoch times.",
+        "TransformStamped topic, a nav_msgs/Path read from its last message, or "
+        "tf:PARENT:CHILD), interpolated at the epoch times.",
     ),
 ]
 TimeField = Annotated[
@@ -263,8 +264,9 @@ class ScanEpochs:
         except DatasetError as exc:
             if not self.skip_bad:
                 raise
-            warn(f"{one_line(exc)} (skipped: epoch {k} has no planes)")
-            self.skipped.append(self.scan_name(k))
+            if (name := self.scan_name(k)) not in self.skipped:  # the first is read twice
+                warn(f"{one_line(exc)} (skipped: epoch {k} has no planes)")
+                self.skipped.append(name)
             return []  # a plane list: no extraction, an epoch without planes
         if isinstance(scan, Scan):
             far = points_beyond_range(scan)

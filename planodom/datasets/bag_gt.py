@@ -1,6 +1,7 @@
 """The reference (ground-truth) source of a bag: which it is, and how its poses read.
 
-``gt_topic`` is a pose topic or ``"tf:PARENT:CHILD"`` (:func:`parse_gt`); reading it
+``gt_topic`` is a pose topic (a ``nav_msgs/Path`` read from its last message), or
+``"tf:PARENT:CHILD"`` (:func:`parse_gt`); reading it
 (:mod:`planodom.datasets.bag_index`) leaves out a pose with a NaN or infinite value or a
 zero quaternion and counts the stamps given twice and the frame pairs its poses name
 (:class:`GtReading`), which :func:`gt_notes` says; a reference whose poses name no child
@@ -17,10 +18,14 @@ from pathlib import Path
 import numpy as np
 from rosbags.highlevel import AnyReader
 
+from planodom.datasets.bag_gt_poses import PATH, path_note
 from planodom.datasets.bag_msgs import POSE_TYPES
 from planodom.datasets.bag_tf import frame_name
 from planodom.errors import DatasetError
 
+#: The message types a gt topic may have: a pose each, or a trajectory whole (read from its
+#: last message, :mod:`planodom.datasets.bag_gt_poses`).
+GT_TYPES = (*POSE_TYPES, PATH)
 #: Prefix of a ``gt_topic`` naming a tf frame pair: ``"tf:PARENT:CHILD"``.
 TF_PAIR_PREFIX = "tf:"
 
@@ -38,6 +43,8 @@ class GtReading:
             of a stamp is used, :func:`planodom.datasets.bag_epochs.interpolate_poses`).
         frames: a pose topic's poses per ``(frame_id, child frame)`` (child "" for the
             pose types without one), in the order first seen.
+        path_messages: a ``nav_msgs/Path`` topic's messages (0 for the other types).
+        path_recorded: the bag time (ns) of the Path message read, its last with poses.
     """
 
     messages: int
@@ -46,6 +53,8 @@ class GtReading:
     repeated: int = 0
     conflicting: int = 0
     frames: dict[tuple[str, str], int] = field(default_factory=dict)
+    path_messages: int = 0
+    path_recorded: int = 0
 
     def count_repeats(self, times: np.ndarray, poses: np.ndarray) -> None:
         """Count the repeated and conflicting stamps of ``times`` (M,) ns, ``poses`` (M, 4, 4)."""
@@ -68,13 +77,13 @@ def parse_gt(reader: AnyReader, path: Path, gt_topic: str | None) -> tuple[str, 
         return frame_name(parts[0]), frame_name(parts[1])
     info = reader.topics.get(gt_topic)
     if info is None:
-        poses = sorted(n for n, i in reader.topics.items() if i.msgtype in POSE_TYPES)
+        poses = sorted(n for n, i in reader.topics.items() if i.msgtype in GT_TYPES)
         raise DatasetError(
             f"{path}: no gt topic '{gt_topic}' (pose topics: {', '.join(poses) or 'none'})"
         )
-    if info.msgtype not in POSE_TYPES:
+    if info.msgtype not in GT_TYPES:
         raise DatasetError(
-            f"{path}: gt topic '{gt_topic}' is {info.msgtype}, not one of {', '.join(POSE_TYPES)}"
+            f"{path}: gt topic '{gt_topic}' is {info.msgtype}, not one of {', '.join(GT_TYPES)}"
         )
     return gt_topic
 
@@ -83,6 +92,8 @@ def gt_notes(gt: GtReading, gt_topic: str | None) -> list[str]:
     """One line each on the reference poses a user should check (see
     :func:`planodom.datasets.bag_notes.bag_notes`)."""
     notes = []
+    if gt.path_messages:
+        notes.append(path_note(gt_topic, gt.path_messages, gt.messages, gt.path_recorded))
     if gt.invalid:
         notes.append(
             f"gt '{gt_topic}': {gt.invalid} of {gt.messages} poses invalid (the first: "

@@ -27,13 +27,13 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 
 from planodom.datasets.bag_gt import GtReading, parse_gt
+from planodom.datasets.bag_gt_poses import GtPoses
 from planodom.datasets.bag_livox import register_livox_types
 from planodom.datasets.bag_msgs import (
     LASER_SCAN,
     POINT_CLOUD2,
     SCAN_TYPES,
     check_offsets,
-    decode_pose,
     decode_sweep,
     laser_scan_returns,
     stamp_ns,
@@ -47,7 +47,7 @@ from planodom.datasets.bag_parts import (
     damaged_parts,
 )
 from planodom.datasets.bag_rings import ring_counts, stray_span
-from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, PoseLog, TfTree, frame_name
+from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, TfTree, frame_name
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit, period_s, time_key
 from planodom.datasets.time_wraps import cut_clock_error
 from planodom.errors import DatasetError
@@ -258,10 +258,7 @@ def index_bag(
     rows = array("q")  # topic, bag time, stamp per sweep: 24 bytes each
     empty = array("b")  # per sweep: a message without a point
     seen = [0] * len(names)  # messages per topic so far
-    gt_log = PoseLog()
-    gt_invalid: list[str] = []  # why each reference pose left out was
-    gt_frames: dict[tuple[str, str], int] = {}  # poses per (frame_id, child frame)
-    gt_child = gt[1] if isinstance(gt, tuple) else ""
+    gt_read = GtPoses(gt[1] if isinstance(gt, tuple) else "")
     with bag_errors(path):
         for conn, bag_time, raw in reader.messages(connections=conns):
             msg = _deserialize(reader, path, conn, raw, bag_time)
@@ -274,16 +271,10 @@ def index_bag(
                 empty.append(_note_sweep(index[k], msg, path, time_field, seen[k]))
                 seen[k] += 1
             else:
-                try:
-                    stamp, T, parent, child = decode_pose(msg, conn.msgtype)
-                except ValueError as exc:  # NaN, or a zero quaternion: left out, noted
-                    gt_invalid.append(str(exc))
-                    continue
-                gt_log.append(stamp or bag_time, T)
-                gt_child = gt_child or child
-                gt_frames[(parent, child)] = gt_frames.get((parent, child), 0) + 1
-    if isinstance(gt, tuple):
-        gt_log = tree.track
+                gt_read.add(msg, conn.msgtype, bag_time)
+    with _message_errors(path, str(gt)):
+        gt_read.finish()
+    gt_log, gt_invalid = tree.track if isinstance(gt, tuple) else gt_read.log, gt_read.invalid
     if gt is not None and not len(gt_log):
         what = f"/tf transform '{gt[0]}' -> '{gt[1]}'" if isinstance(gt, tuple) else gt
         why = f" (all {len(gt_invalid)} invalid: {gt_invalid[0]})" if gt_invalid else ""
@@ -298,10 +289,11 @@ def index_bag(
         if (span := stray_span(topic.ring_points)) is not None:
             topic.ring_span, topic.rings = span, span[1] + 1
     gt_times, gt_poses = gt_log.arrays()
-    gt_read = GtReading(
-        len(gt_times) + len(gt_invalid), gt_invalid[:1], len(gt_invalid), frames=gt_frames
+    reading = GtReading(
+        len(gt_times) + len(gt_invalid), gt_invalid[:1], len(gt_invalid), frames=gt_read.frames
     )
-    gt_read.count_repeats(gt_times, gt_poses)
+    reading.count_repeats(gt_times, gt_poses)
+    reading.path_messages, reading.path_recorded = gt_read.path_messages, gt_read.path_recorded
     return BagIndex(
         index,
         table[:, 0].astype(np.int32),
@@ -312,8 +304,8 @@ def index_bag(
         tree,
         gt_times,
         gt_poses,
-        gt_child,
-        gt_read,
+        gt_read.child,
+        reading,
     )
 
 

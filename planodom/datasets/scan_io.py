@@ -124,6 +124,10 @@ def read_scan(
     suffix = _suffix(path, SCAN_EXTENSIONS, "unknown scan file extension")
     if not path.is_file():
         raise DatasetError(f"{path}: scan file does not exist")
+    if suffix != ".bin" and path.stat().st_size == 0:  # a .bin of 0 bytes is 0 points
+        raise DatasetError(
+            f"{path}: empty file (0 bytes), no {suffix[1:].upper()} header (a write cut short?)"
+        )
     try:
         if suffix == ".bin":
             fields = read_bin(path, bin_layout)

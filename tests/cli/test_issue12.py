@@ -186,6 +186,16 @@ def test_scan_unreadable_mid_run(ds: Path, monkeypatch: pytest.MonkeyPatch) -> N
     assert len(rows) == 6 and ",unresolved," in rows[4]
 
 
+def test_first_scan_unreadable_is_skipped_once(ds: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The first scan is read twice (a probe, then its epoch): it was warned of, counted
+    and listed in metrics.json twice."""
+    out = ds.parent / "o"
+    _unreadable(monkeypatch, ds / "scans" / "000000.ply")
+    ok(["run", ds, "--out", out, "--skip-bad-scans"])
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["skipped_scans"] == [str(ds / "scans" / "000000.ply")]
+
+
 # --------------------------------------------------------------------------- config and rig
 
 

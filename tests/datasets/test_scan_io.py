@@ -148,6 +148,8 @@ def _good_pcd(tmp_path: Path) -> bytes:
             "coordinates",
         ),
         ("garbage.pcd", lambda p: np.random.default_rng(1).bytes(500), "PCD"),
+        ("empty.pcd", lambda p: b"", r"empty.pcd: empty file \(0 bytes\), no PCD header"),
+        ("empty.ply", lambda p: b"", r"empty.ply: empty file \(0 bytes\), no PLY header"),
         ("truncated.pcd", lambda p: _good_pcd(p)[:-9], "truncated"),
         (
             "ascii.pcd",
