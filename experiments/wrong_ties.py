@@ -47,7 +47,7 @@ def main(argv: list[str]) -> None:
     world = world_for(index)
     full = simulate_world(world, noise, n_epochs=None, all_fields=True)
     gt = invert_transform(full.poses[0])[None] @ full.poses
-    cfg = PlanodomConfig()
+    cfg = PlanodomConfig().updated(changes)  # the odometry's options too, not only the smoothing's
     odo = run_odometry(world_fields(world, full), smoothing_config(cfg))
     relatives = smoothing_relatives(odo, cfg)
     chi: dict[int, tuple[float, float]] = {}  # tie factor -> (its chi2, the gate's limit)
