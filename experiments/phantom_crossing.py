@@ -18,12 +18,17 @@ pairs (angle, excess beyond each line, range of the crossing point).
 
 from __future__ import annotations
 
-import argparse
 import json
 from collections import Counter
 
 import numpy as np
-from phantom_planes import RECORD, angle_deg, plane_labels  # importing it records every extraction
+from phantom_planes import (  # importing it records every extraction
+    RECORD,
+    angle_deg,
+    append_rows,
+    plane_labels,
+    world_parser,
+)
 
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import world_for
@@ -134,18 +139,11 @@ def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) 
                          "off_deg": round(ang, 1), "rings": rings, "pairs": pairs})  # fmt: skip
     n_bad = sum(r["phantom"] for r in rows)
     print(f"world {seed} noise {noise}: {len(rows)} planes, {n_bad} phantoms", flush=True)
-    if out:
-        with open(out, "a") as f:
-            for r in rows:
-                f.write(json.dumps(r) + "\n")
+    append_rows(out, rows)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--worlds", type=int, nargs="+", default=[20])
-    ap.add_argument("--noise", type=float, nargs="+", default=[0.006])
-    ap.add_argument("--epochs", type=int, default=150)
-    ap.add_argument("-c", "--overrides", default="{}", help="JSON config overrides")
+    ap = world_parser(__doc__)
     ap.add_argument("-o", "--out", help="append one JSON line per plane")
     a = ap.parse_args()
     for w in a.worlds:

@@ -200,12 +200,27 @@ def run_world(seed: int, noise: float, epochs: int, overrides: dict, detail: boo
     }  # fmt: skip
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def world_parser(doc: str, overrides: bool = True) -> argparse.ArgumentParser:
+    """The arguments the phantom scripts share: worlds, noise levels, epochs, overrides."""
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
     ap.add_argument("--worlds", type=int, nargs="+", default=[20])
     ap.add_argument("--noise", type=float, nargs="+", default=[0.006])
     ap.add_argument("--epochs", type=int, default=150)
-    ap.add_argument("-c", "--overrides", default="{}", help="JSON config overrides")
+    if overrides:
+        ap.add_argument("-c", "--overrides", default="{}", help="JSON config overrides")
+    return ap
+
+
+def append_rows(out: str | None, rows: list[dict]) -> None:
+    """Append ``rows`` to ``out`` as JSON lines (nothing without ``out``)."""
+    if out:
+        with open(out, "a") as f:
+            for r in rows:
+                f.write(json.dumps(r) + "\n")
+
+
+def main() -> None:
+    ap = world_parser(__doc__)
     ap.add_argument("--detail", action="store_true")
     ap.add_argument("-o", "--out", help="append one JSON line per run")
     a = ap.parse_args()

@@ -15,12 +15,16 @@ the epoch (from the true poses). One JSON line per plane to ``-o``.
 
 from __future__ import annotations
 
-import argparse
-import json
 from collections import Counter
 
 import numpy as np
-from phantom_planes import RECORD, angle_deg, plane_labels  # importing it records every extraction
+from phantom_planes import (  # importing it records every extraction
+    RECORD,
+    angle_deg,
+    append_rows,
+    plane_labels,
+    world_parser,
+)
 
 import planodom.extraction.rig2d.windows as windows
 from planodom.config import PlanodomConfig
@@ -89,17 +93,11 @@ def run(seed: int, noise: float, epochs: int, out: str | None) -> None:
                          "windows": m[3], "span": m[4], "v_along": float(v @ p.normal),
                          "v_z": float(v[2]), "speed": float(np.linalg.norm(v))})  # fmt: skip
     print(f"world {seed} noise {noise}: {len(rows)} windowed planes", flush=True)
-    if out:
-        with open(out, "a") as f:
-            for r in rows:
-                f.write(json.dumps(r) + "\n")
+    append_rows(out, rows)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--worlds", type=int, nargs="+", default=[20])
-    ap.add_argument("--noise", type=float, nargs="+", default=[0.006])
-    ap.add_argument("--epochs", type=int, default=150)
+    ap = world_parser(__doc__, overrides=False)
     ap.add_argument("-o", "--out", help="append one JSON line per plane")
     a = ap.parse_args()
     for w in a.worlds:
