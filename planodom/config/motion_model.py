@@ -86,3 +86,15 @@ class MotionModelConfig(Section):
     """With ``rate_prediction: selected``: on how many of the last measured rates the
     autoregression must have predicted better than the constant rate (summed squared
     error) to be used."""
+
+    rate_prediction_fit: Literal["measured", "ok"] = "measured"
+    """With ``rate_prediction`` not ``constant``: which steps' rates the autoregression is
+    fitted to. ``measured``: every step that measured its rotation; ``ok``: only steps of
+    status ok with the whole rotation observed (a degenerate step's rate can be wrong by
+    ten degrees a second, docs/RESULTS.md, PREDICT2); another step stands in the run as
+    the rate predicted for it, and the prediction after it is the fit's."""
+
+    rate_prediction_bound: bool = False
+    """With ``rate_prediction`` not ``constant``: limit the predicted change from the last
+    fitted rate, per component, to the largest change between consecutive rates of the
+    window."""
