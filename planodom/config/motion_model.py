@@ -87,12 +87,14 @@ class MotionModelConfig(Section):
     autoregression must have predicted better than the constant rate (summed squared
     error) to be used."""
 
-    rate_prediction_fit: Literal["measured", "ok"] = "measured"
+    rate_prediction_fit: Literal["measured", "ok_filled", "ok_runs"] = "measured"
     """With ``rate_prediction`` not ``constant``: which steps' rates the autoregression is
-    fitted to. ``measured``: every step that measured its rotation; ``ok``: only steps of
-    status ok with the whole rotation observed (a degenerate step's rate can be wrong by
-    ten degrees a second, docs/RESULTS.md, PREDICT2); another step stands in the run as
-    the rate predicted for it, and the prediction after it is the fit's."""
+    fitted to. ``measured``: every step that measured its rotation; ``ok_filled`` and
+    ``ok_runs``: only steps of status ok with the whole rotation observed (a degenerate
+    step's rate can be wrong by ten degrees a second); another step stands in the run as
+    the rate predicted for it (``ok_filled``, the prediction after it the fit's) or
+    restarts the run (``ok_runs``, the prediction after it the constant rate's). Both lose
+    over the worlds (docs/RESULTS.md, PREDICT2)."""
 
     rate_prediction_bound: bool = False
     """With ``rate_prediction`` not ``constant``: limit the predicted change from the last

@@ -11,9 +11,11 @@ measured it one after the other: a generic linear predictor of a stationary sequ
 oscillation, a steady turn, a trend), not a model of any one vehicle. Where the run of
 measured steps is shorter than twice the model's terms, or the fit extrapolates beyond the
 window's range widened by its span (a fit of a few noisy points can be explosive), the
-last rate is kept. ``rate_prediction_fit: ok`` keeps the rates of steps that did not
-measure the whole rotation and translation out of the fit (a degenerate step's wrong
-rate was extrapolated, docs/RESULTS.md, PREDICT2); ``rate_prediction_bound`` limits the
+last rate is kept. ``rate_prediction_fit`` ``ok_filled`` and ``ok_runs`` keep the rates of
+steps that did not measure the whole rotation and translation out of the fit (a
+degenerate step's wrong rate was extrapolated, docs/RESULTS.md, PREDICT2): the rate
+predicted for such a step stands in for it, or the run restarts after it;
+``rate_prediction_bound`` limits the
 predicted change to the window's largest step-to-step change.
 """
 
@@ -58,7 +60,7 @@ class RatePredictor:
     def __init__(self, config: OdometryConfig) -> None:
         self.mode = config.rate_prediction
         self.order = config.rate_prediction_order
-        self.fit_ok = config.rate_prediction_fit == "ok"
+        self.fit = config.rate_prediction_fit
         self.bound = config.rate_prediction_bound
         self._rates: deque[np.ndarray] = deque(maxlen=config.rate_prediction_window)
         # (autoregression's, constant's) squared errors on the last rates ("selected")
@@ -87,8 +89,13 @@ class RatePredictor:
             self._pending = None
         if relative.status is Status.UNRESOLVED:
             return twist
-        if self.fit_ok and not _well_measured(relative):
-            return self._stand_in(k, twist)
+        if self.fit != "measured" and not _well_measured(relative):
+            if self.fit == "ok_filled":
+                return self._stand_in(k, twist)
+            self._rates.clear()  # ok_runs: the next run starts after it
+            self._errors.clear()
+            self._pending = None
+            return twist
         if self._pending is not None:
             self._errors.append(_squared(self._pending, rate, self._rates[-1]))
         self._rates.append(rate)
@@ -96,7 +103,7 @@ class RatePredictor:
         return self._predicted(twist)
 
     def _stand_in(self, k: int, twist: np.ndarray) -> np.ndarray:
-        """``rate_prediction_fit: ok``, after epoch ``k`` that measured its rate not well
+        """``rate_prediction_fit: ok_filled``, after epoch ``k`` that measured its rate not well
         enough: the run goes on with the rate predicted for it (the last rate before a
         prediction; none in an empty run), and ``twist`` (6,) gets the fit's next rate."""
         self._last = k

@@ -96,7 +96,7 @@ def test_config_refuses_a_bad_value_naming_the_key():
     with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_window': "):
         PlanodomConfig.from_dict({"odometry": {"rate_prediction_window": 4}})
     with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_fit': "):
-        PlanodomConfig.from_dict({"odometry": {"rate_prediction_fit": "good"}})
+        PlanodomConfig.from_dict({"odometry": {"rate_prediction_fit": "ok"}})
     with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_bound': "):
         PlanodomConfig.from_dict({"odometry": {"rate_prediction_bound": "tight"}})
 
@@ -163,7 +163,7 @@ def test_fit_ok_keeps_a_badly_measured_rate_out_of_the_fit(wrong):
         if wrong == "degenerate"
         else RelativePose(np.eye(4), None, Status.OK, rotation_partly_observed=True)
     )
-    for fit, exact in (("ok", True), ("measured", False)):
+    for fit, exact in (("ok_filled", True), ("measured", False)):
         cfg = OdometryConfig(rate_prediction="autoregressive", rate_prediction_order=2)
         pred = RatePredictor(cfg.model_copy(update={"rate_prediction_fit": fit}))
         _fed(pred, rates[:20])
@@ -187,3 +187,23 @@ def test_the_bound_limits_the_change_to_the_window_s_largest_step():
     np.testing.assert_allclose(
         _fed(bounded, rates)[:3], [x[-1] + step, -x[-1] - step, 0.1], atol=1e-12
     )
+
+
+def test_fit_ok_runs_restarts_the_run_after_a_degenerate_step():
+    """``ok_runs``: after a degenerate step the prediction is the constant rate's until a
+    new run of ok steps is long enough, then the sinusoid's exact rate (closed form)."""
+    k = np.arange(60)
+    rates = _sinusoids(k)
+    cfg = OdometryConfig(
+        rate_prediction="autoregressive", rate_prediction_order=2, rate_prediction_fit="ok_runs"
+    )
+    pred = RatePredictor(cfg)
+    _fed(pred, rates[:20])
+    wrong = pred.after(20, np.r_[rates[20] + 0.2, 3.0, 0.0, 0.0], _degenerate(), TWIST, None)
+    assert wrong is TWIST
+    np.testing.assert_array_equal(_fed(pred, rates[21:28], first=21), TWIST)  # 7 < 3 * 2 + 2
+    np.testing.assert_allclose(_fed(pred, rates[28:40], first=28)[:3], rates[40], atol=1e-9)
+
+
+def _degenerate() -> RelativePose:
+    return _relative(Status.DEGENERATE)
