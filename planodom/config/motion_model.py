@@ -86,3 +86,18 @@ class MotionModelConfig(Section):
     """With ``rate_prediction: selected``: on how many of the last measured rates the
     autoregression must have predicted better than the constant rate (summed squared
     error) to be used."""
+
+    rate_prediction_fit: Literal["measured", "ok_filled", "ok_runs"] = "measured"
+    """With ``rate_prediction`` not ``constant``: which steps' rates the autoregression is
+    fitted to. ``measured``: every step that measured its rotation; ``ok_filled`` and
+    ``ok_runs``: only steps of status ok with the whole rotation observed (a degenerate
+    step's rate can be wrong by ten degrees a second); any other step is replaced in the
+    run by the rate predicted for it (``ok_filled``, the prediction after it the fit's) or
+    restarts the run (``ok_runs``, the prediction after it the constant rate's). Both lose
+    over the worlds too (ATE ratio 1.05-1.47 at 6 mm on 2D-rig worlds 0-18 and 160-178,
+    docs/RESULTS.md, PREDICT2)."""
+
+    rate_prediction_bound: bool = False
+    """With ``rate_prediction`` not ``constant``: limit the predicted change from the last
+    fitted rate, per component, to the largest change between consecutive rates of the
+    window (no better: docs/RESULTS.md, PREDICT2)."""

@@ -11,7 +11,12 @@ measured it one after the other: a generic linear predictor of a stationary sequ
 oscillation, a steady turn, a trend), not a model of any one vehicle. Where the run of
 measured steps is shorter than twice the model's terms, or the fit extrapolates beyond the
 window's range widened by its span (a fit of a few noisy points can be explosive), the
-last rate is kept.
+last rate is kept. ``rate_prediction_fit`` ``ok_filled`` and ``ok_runs`` keep the rates of
+steps that did not measure the whole rotation and translation out of the fit (a
+degenerate step's wrong rate was extrapolated, docs/RESULTS.md, PREDICT2): the rate
+predicted for such a step stands in for it, or the run restarts after it;
+``rate_prediction_bound`` limits the
+predicted change to the window's largest step-to-step change.
 """
 
 from __future__ import annotations
@@ -55,6 +60,8 @@ class RatePredictor:
     def __init__(self, config: OdometryConfig) -> None:
         self.mode = config.rate_prediction
         self.order = config.rate_prediction_order
+        self.fit = config.rate_prediction_fit
+        self.bound = config.rate_prediction_bound
         self._rates: deque[np.ndarray] = deque(maxlen=config.rate_prediction_window)
         # (autoregression's, constant's) squared errors on the last rates ("selected")
         self._errors: deque[tuple[float, float]] = deque(maxlen=config.rate_prediction_check)
@@ -82,14 +89,40 @@ class RatePredictor:
             self._pending = None
         if relative.status is Status.UNRESOLVED:
             return twist
+        if self.fit != "measured" and not _well_measured(relative):
+            if self.fit == "ok_filled":
+                return self._stand_in(k, twist)
+            self._rates.clear()  # ok_runs: the next run starts after it
+            self._errors.clear()
+            self._pending = None
+            return twist
         if self._pending is not None:
             self._errors.append(_squared(self._pending, rate, self._rates[-1]))
         self._rates.append(rate)
         self._last = k
+        return self._predicted(twist)
+
+    def _stand_in(self, k: int, twist: np.ndarray) -> np.ndarray:
+        """``rate_prediction_fit: ok_filled``, after epoch ``k`` that measured its rate not well
+        enough: the run goes on with the rate predicted for it (the last rate before a
+        prediction; none in an empty run), and ``twist`` (6,) gets the fit's next rate."""
+        self._last = k
+        if not self._rates:
+            return twist
+        self._rates.append(self._rates[-1] if self._pending is None else self._pending)
+        return self._predicted(twist)
+
+    def _predicted(self, twist: np.ndarray) -> np.ndarray:
+        """(6,) ``twist`` with the rate the run of rates predicts (as it is where the run
+        is too short, the prediction's rate is zero or ``selected`` does not choose it)."""
         self._pending = None
         if len(self._rates) < 3 * self.order + 2:
             return twist  # too few equations (autoregressive_next): the last step's rate
-        self._pending = autoregressive_next(np.array(self._rates), self.order)
+        history = np.array(self._rates)
+        self._pending = autoregressive_next(history, self.order)
+        if self.bound:
+            step = np.max(np.abs(np.diff(history, axis=0)), axis=0)
+            self._pending = np.clip(self._pending, history[-1] - step, history[-1] + step)
         if not np.any(twist[:3]) or not self._chosen():
             return twist
         out = np.array(twist, dtype=np.float64, copy=True)
@@ -104,6 +137,12 @@ class RatePredictor:
         if len(self._errors) < (self._errors.maxlen or 0):
             return False
         return sum(a for a, _ in self._errors) < sum(c for _, c in self._errors)
+
+
+def _well_measured(relative: RelativePose) -> bool:
+    """Whether ``relative`` measured the whole rotation and the horizontal translation
+    (status ok, no axis of the rotation taken from the prediction)."""
+    return relative.status is Status.OK and not relative.rotation_partly_observed
 
 
 def _squared(predicted: np.ndarray, rate: np.ndarray, last: np.ndarray) -> tuple[float, float]:

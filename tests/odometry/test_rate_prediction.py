@@ -95,6 +95,10 @@ def test_config_refuses_a_bad_value_naming_the_key():
         PlanodomConfig.from_dict({"odometry": {"rate_prediction_order": 0}})
     with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_window': "):
         PlanodomConfig.from_dict({"odometry": {"rate_prediction_window": 4}})
+    with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_fit': "):
+        PlanodomConfig.from_dict({"odometry": {"rate_prediction_fit": "ok"}})
+    with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_bound': "):
+        PlanodomConfig.from_dict({"odometry": {"rate_prediction_bound": "tight"}})
 
 
 @pytest.mark.parametrize("mode", ["constant", "autoregressive"])
@@ -139,3 +143,67 @@ def test_selected_waits_for_a_full_check_and_then_follows_the_better_forecast():
         else:
             np.testing.assert_allclose(got, want, atol=1e-12)
             assert not np.allclose(got[:3], TWIST[:3])
+
+
+def _sinusoids(k: np.ndarray) -> np.ndarray:
+    """(K, 3) rates (rad/s) of epochs ``k``: each an exact order-2 recurrence."""
+    return np.column_stack([0.02 * np.sin(0.6 * k), 0.01 * np.cos(0.4 * k), 0.1 + 0.0 * k])
+
+
+@pytest.mark.parametrize("wrong", ["degenerate", "partly"])
+def test_fit_ok_keeps_a_badly_measured_rate_out_of_the_fit(wrong):
+    """A sinusoidal rate, epoch 20's measured 0.2 rad/s wrong (degenerate, or a rotation
+    partly observed). ``fit: ok`` predicts the sinusoid's exact rates after it (closed
+    form); ``measured`` fits the wrong rate and misses them by more than 1e-3 rad/s."""
+    k = np.arange(30)
+    rates = _sinusoids(k)
+    wrong_rate = np.r_[rates[20] + 0.2, 3.0, 0.0, 0.0]
+    bad = (
+        _relative(Status.DEGENERATE)
+        if wrong == "degenerate"
+        else RelativePose(np.eye(4), None, Status.OK, rotation_partly_observed=True)
+    )
+    for fit, exact in (("ok_filled", True), ("measured", False)):
+        cfg = OdometryConfig(rate_prediction="autoregressive", rate_prediction_order=2)
+        pred = RatePredictor(cfg.model_copy(update={"rate_prediction_fit": fit}))
+        _fed(pred, rates[:20])
+        after = pred.after(20, wrong_rate, bad, TWIST, None)
+        later = _fed(pred, rates[21:29], first=21)
+        for got, want in ((after, rates[21]), (later, rates[29])):
+            close = np.allclose(got[:3], want, atol=1e-9)
+            assert close if exact else np.max(np.abs(got[:3] - want)) > 1e-3
+
+
+def test_the_bound_limits_the_change_to_the_window_s_largest_step():
+    """A rate growing by 10 % a step (an exact order-1 fit predicts x 1.1): bounded, the
+    prediction is the last rate plus the window's largest step, 0.1 x the one before."""
+    x = 0.01 * 1.1 ** np.arange(12)
+    rates = np.column_stack([x, -x, 0.1 + 0.0 * x])
+    cfg = OdometryConfig(rate_prediction="autoregressive", rate_prediction_order=1)
+    free = _fed(RatePredictor(cfg), rates)
+    np.testing.assert_allclose(free[:3], [x[-1] * 1.1, -x[-1] * 1.1, 0.1], atol=1e-12)
+    bounded = RatePredictor(cfg.model_copy(update={"rate_prediction_bound": True}))
+    step = 0.1 * x[-2]
+    np.testing.assert_allclose(
+        _fed(bounded, rates)[:3], [x[-1] + step, -x[-1] - step, 0.1], atol=1e-12
+    )
+
+
+def test_fit_ok_runs_restarts_the_run_after_a_degenerate_step():
+    """``ok_runs``: after a degenerate step the prediction is the constant rate's until a
+    new run of ok steps is long enough, then the sinusoid's exact rate (closed form)."""
+    k = np.arange(60)
+    rates = _sinusoids(k)
+    cfg = OdometryConfig(
+        rate_prediction="autoregressive", rate_prediction_order=2, rate_prediction_fit="ok_runs"
+    )
+    pred = RatePredictor(cfg)
+    _fed(pred, rates[:20])
+    wrong = pred.after(20, np.r_[rates[20] + 0.2, 3.0, 0.0, 0.0], _degenerate(), TWIST, None)
+    assert wrong is TWIST
+    np.testing.assert_array_equal(_fed(pred, rates[21:28], first=21), TWIST)  # 7 < 3 * 2 + 2
+    np.testing.assert_allclose(_fed(pred, rates[28:40], first=28)[:3], rates[40], atol=1e-9)
+
+
+def _degenerate() -> RelativePose:
+    return _relative(Status.DEGENERATE)
