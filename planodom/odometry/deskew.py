@@ -402,9 +402,4 @@ def prefer_streaming(given: EpochEstimate, previous_planes: int) -> bool:
 
 def keep_first(first: EpochEstimate, second: EpochEstimate) -> bool:
     """Whether ``first`` is at least as good as ``second``: status, then plane count."""
-    return _score(first) >= _score(second)
-
-
-def _score(candidate: EpochEstimate) -> tuple[int, int]:
-    """How good one extraction of an epoch is: its status, then its plane count."""
-    return candidate.relative.status.rank, len(candidate.planes)
+    return by_planes(first) >= by_planes(second)
