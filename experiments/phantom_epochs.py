@@ -36,7 +36,7 @@ from phantom_planes import (  # importing it records every extraction
 from planodom.association import strict_association
 from planodom.config import AssociationConfig, PlanodomConfig
 from planodom.experiments.generalisation import world_for
-from planodom.geometry import invert_transform, transform_planes
+from planodom.geometry import invert_transform, plane_transform_jacobian, transform_planes
 from planodom.odometry import run_odometry
 from planodom.planes import PlaneSet
 from planodom.simulation.random_world import simulate_world, world_fields
@@ -46,7 +46,7 @@ def nearest(a: PlaneSet, b: PlaneSet, T_a_b: np.ndarray, cfg: AssociationConfig)
     """Per plane of ``a``: [matched by SDA (bool), normal angle deg, offset difference m]
     of its SDA match, else of its nearest plane of ``b`` (moved by ``T_a_b`` into a's frame)
     among those whose supports overlap (NaN when none does)."""
-    out = [[False, np.nan, np.nan] for _ in range(len(a))]
+    out = [[False, np.nan, np.nan, np.nan] for _ in range(len(a))]
     if len(a) == 0 or len(b) == 0:
         return out
     R, t = T_a_b[:3, :3], T_a_b[:3, 3]
@@ -64,8 +64,22 @@ def nearest(a: PlaneSet, b: PlaneSet, T_a_b: np.ndarray, cfg: AssociationConfig)
     for i in range(len(a)):
         j = matched.get(i, int(np.argmin(cost[i])))
         if i in matched or np.isfinite(cost[i, j]):
-            out[i] = [i in matched, round(float(ang[i, j]), 3), round(float(dd[i, j]), 4)]
+            chi2 = whitened(a, b, i, j, T_a_b)
+            out[i] = [i in matched, round(float(ang[i, j]), 3), round(float(dd[i, j]), 4), chi2]
     return out
+
+
+def whitened(a: PlaneSet, b: PlaneSet, i: int, j: int, T_a_b: np.ndarray) -> float:
+    """Squared whitened difference of plane ``i`` of ``a`` and plane ``j`` of ``b`` (moved
+    into a's frame): ``(n, d)`` differences over the sum of their declared covariances
+    (rank 3, pseudo-inverse; NaN when one is unknown)."""
+    J = plane_transform_jacobian(T_a_b)
+    n_b, d_b = transform_planes(T_a_b, b.normals[j : j + 1], b.offsets[j : j + 1])
+    diff = np.append(a.normals[i] - n_b[0], a.offsets[i] - d_b[0])
+    cov = a.covariances[i] + J @ b.covariances[j] @ J.T
+    if not np.all(np.isfinite(cov)):
+        return float("nan")
+    return round(float(diff @ np.linalg.pinv(cov, rcond=1e-10) @ diff), 2)
 
 
 def labels_of(planes: list, scan, canon: dict, n_true, row: dict) -> list[bool]:  # noqa: ANN001
@@ -79,6 +93,19 @@ def labels_of(planes: list, scan, canon: dict, n_true, row: dict) -> list[bool]:
         ang = angle_deg(p.normal, n_true[row[lab]]) if lab in row else 90.0
         bad.append(not (ang <= 5.0 and 2 * c >= max(len(labels), 1)))
     return bad
+
+
+def sources_of(results: list, k: int) -> tuple[set, set]:
+    """The plane indices of epoch ``k`` among the sources of its own relative pose (as
+    current) and of the next epoch's when its reference is ``k`` (as previous)."""
+    own, nxt = set(), set()
+    r = results[k]
+    if r is not None and r.sources is not None:
+        own = {int(x) for x in r.sources[:, 1]}
+    r = results[k + 1] if k + 1 < len(results) else None
+    if r is not None and r.sources is not None and r.prev == k:
+        nxt = {int(x) for x in r.sources[:, 0]}
+    return own, nxt
 
 
 def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) -> None:
@@ -106,11 +133,13 @@ def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) 
                     tests[f"{side}_{name}"] = nearest(
                         sets[k], sets[m], invert_transform(P[k]) @ P[m], cfg.association
                     )
+        src = sources_of(odo.results, k)
         for i, p in enumerate(planes):
             rec = RECORD.get(id(p))
             rows.append({"world": seed, "noise": noise, "epoch": k, "phantom": bad[i],
                          "mode": rec[3] if rec is not None else "?",
                          "status": str(odo.statuses[k]),
+                         "source": [i in src[0], i in src[1]],
                          "level_deg": round(angle_deg(p.normal, np.array([0.0, 0, 1])), 2),
                          **{key: v[i] for key, v in tests.items()}})  # fmt: skip
     n_bad = sum(r["phantom"] for r in rows)
