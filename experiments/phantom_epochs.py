@@ -13,10 +13,16 @@ strict_association`, its own margins: normals within ``strict_normal_deg``, offs
 given, so no translation bound is added) matches it, and the residual of its nearest
 neighbour among the planes whose supports overlap (normal angle, offset difference; the
 smallest of angle / strict_normal_deg + |offset| / strict_offset_m). One JSON line per
-plane to ``-o``; a summary per run on stdout.
+plane to ``-o``; a summary per run on stdout. ``--summary OUT.jsonl`` prints the tables
+of such a file instead: per noise, the phantoms and true planes each test would remove
+(a plane not matched by the previous epoch, the next, both, either; with the true and the
+estimated relative pose; with the association's margins and with a tighter normal gate),
+how many of the removed planes the relative poses were computed from (their sources), and
+the residuals of the matched planes.
 
     uv run python experiments/phantom_epochs.py --worlds 20 16 --noise 0.006 0.02 \
         --epochs 150 -o OUT.jsonl
+    uv run python experiments/phantom_epochs.py --summary OUT.jsonl
 """
 
 from __future__ import annotations
@@ -155,10 +161,58 @@ def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) 
     append_rows(out, rows)
 
 
+def confirmed(r: dict, key: str, max_deg: float) -> bool:
+    """Whether row ``r``'s test ``key`` (e.g. "next_est") matched it within ``max_deg``."""
+    v = r.get(key)
+    return v is not None and bool(v[0]) and v[1] <= max_deg
+
+
+TESTS = {
+    "not prev": lambda r, p, a: not confirmed(r, f"prev_{p}", a),
+    "not next": lambda r, p, a: not confirmed(r, f"next_{p}", a),
+    "neither": lambda r, p, a: not (confirmed(r, f"prev_{p}", a) or confirmed(r, f"next_{p}", a)),
+    "not both": lambda r, p, a: not (confirmed(r, f"prev_{p}", a) and confirmed(r, f"next_{p}", a)),
+}
+
+
+def summarise(path: str) -> None:
+    """Print the tables of a file of ``-o`` rows (see the module docstring)."""
+    with open(path) as f:
+        rows = [json.loads(line) for line in f]
+    for noise in sorted({r["noise"] for r in rows}):
+        rs = [r for r in rows if r["noise"] == noise]
+        ph = [r for r in rs if r["phantom"]]
+        tr = [r for r in rs if not r["phantom"]]
+        print(f"noise {noise}: {len(ph)} phantoms, {len(tr)} true planes, "
+              f"{len({r['world'] for r in rs})} worlds")  # fmt: skip
+        for pose in ("true", "est"):
+            for a in (3.0, 1.0, 0.5):
+                cells = []
+                for name, test in TESTS.items():
+                    x = sum(test(r, pose, a) for r in ph)
+                    y = sum(test(r, pose, a) for r in tr)
+                    cells.append(f"{name} {x} ({100 * x / max(len(ph), 1):.0f} %) / "
+                                 f"{y} ({100 * y / max(len(tr), 1):.1f} %)")  # fmt: skip
+                print(f"  {pose} pose, normals within {a} deg: " + "; ".join(cells))
+        for name, group in (("phantoms", ph), ("true planes", tr)):
+            gone = [r for r in group if TESTS["neither"](r, "est", 3.0)]
+            src = [r for r in gone if "source" in r]
+            own, nxt = sum(r["source"][0] for r in src), sum(r["source"][1] for r in src)
+            ang = [r["next_est"][1] for r in group if confirmed(r, "next_est", 3.0)]
+            pct = np.round(np.percentile(ang, [50, 90, 99]), 3) if ang else []
+            print(f"  {name}: matched by neither (est, 3 deg) {len(gone)}, of {len(src)} with "
+                  f"sources {own} in their pose's, {nxt} in the next's; matched next: {len(ang)}, "
+                  f"normal residual deg 50/90/99 % {pct}")  # fmt: skip
+
+
 def main() -> None:
     ap = world_parser(__doc__)
     ap.add_argument("-o", "--out", help="append one JSON line per plane")
+    ap.add_argument("--summary", help="print the tables of a file of -o rows and stop")
     a = ap.parse_args()
+    if a.summary:
+        summarise(a.summary)
+        return
     for w in a.worlds:
         for noise in a.noise:
             run(w, noise, a.epochs, json.loads(a.overrides), a.out)
