@@ -19,10 +19,10 @@ nearest other old wall parallel to it: the association ties the nearer.
 
     uv run python experiments/wrong_ties.py 32 0.02 [JSON_CONFIG_CHANGES] [--odometry FILE]
 
-``--odometry FILE``: the lap's odometry (planes and relative poses, a pickle) is read from
-FILE if it exists (made by the same world, noise and changes, else an error), else run and
+``--odometry FILE``: the lap's odometry (a pickle) is read from FILE if it exists (made by
+the same world, noise and options but the smoothing's, else an error), else run and
 written there: the smoothing's options can then be compared without the odometry's
-minutes (the odometry's own options need a file of their own).
+minutes (a change of the odometry's own options needs a file of its own).
 """
 
 from __future__ import annotations
@@ -52,26 +52,28 @@ from planodom.smoothing.loop_records import (
 from planodom.smoothing.run import smoothing_config, smoothing_relatives
 
 
-def lap_odometry(index: int, noise: float, changes: dict, cache: Path | None) -> tuple:
-    """(planes, relative poses, true poses (E, 4, 4) from the first) of one lap, the
-    odometry run with ``changes`` (the odometry's options too), or read from ``cache``."""
-    key = {"world": index, "noise_m": noise, "changes": changes}
+def lap_odometry(index: int, noise: float, cfg: PlanodomConfig, cache: Path | None) -> tuple:
+    """(planes, relative poses, true poses (E, 4, 4) from the first) of one lap: the batch's
+    odometry (:func:`smoothing_config` of ``cfg``), run or read from ``cache`` (keyed on the
+    world, the noise and every option but the smoothing's, which the odometry does not
+    read); the relative poses, which read the smoothing's options, computed here."""
+    odometry_cfg = smoothing_config(cfg)
+    key = {"world": index, "noise_m": noise, **odometry_cfg.model_dump(exclude={"smoothing"})}
     if cache is not None and cache.exists():
         with cache.open("rb") as f:
             stored = pickle.load(f)  # a file this script wrote
         if stored["key"] != key:
-            raise SystemExit(f"{cache} holds {stored['key']}, not {key}")
-        return stored["planes"], stored["relatives"], stored["gt"]
-    world = world_for(index)
-    full = simulate_world(world, noise, n_epochs=None, all_fields=True)
-    gt = invert_transform(full.poses[0])[None] @ full.poses
-    cfg = PlanodomConfig().updated(changes)
-    odo = run_odometry(world_fields(world, full), smoothing_config(cfg))
-    relatives = smoothing_relatives(odo, cfg)
-    if cache is not None:
-        with cache.open("wb") as f:
-            pickle.dump({"key": key, "planes": odo.planes, "relatives": relatives, "gt": gt}, f)
-    return odo.planes, relatives, gt
+            raise SystemExit(f"{cache}: made by another world, noise or odometry option")
+        odo, gt = stored["odometry"], stored["gt"]
+    else:
+        world = world_for(index)
+        full = simulate_world(world, noise, n_epochs=None, all_fields=True)
+        gt = invert_transform(full.poses[0])[None] @ full.poses
+        odo = run_odometry(world_fields(world, full), odometry_cfg)
+        if cache is not None:
+            with cache.open("wb") as f:
+                pickle.dump({"key": key, "odometry": odo, "gt": gt}, f)
+    return odo.planes, smoothing_relatives(odo, cfg), gt
 
 
 def offset_note(m, landmark: int) -> str:
@@ -94,8 +96,8 @@ def main(argv: list[str]) -> None:
     index, noise = int(argv[0]), float(argv[1])
     changes = json.loads(argv[2]) if len(argv) > 2 else {}
     world = world_for(index)
-    epoch_planes, relatives, gt = lap_odometry(index, noise, changes, cache)
-    cfg = PlanodomConfig().updated(changes)
+    cfg = PlanodomConfig().updated(changes)  # the odometry's options too, not only the smoothing's
+    epoch_planes, relatives, gt = lap_odometry(index, noise, cfg, cache)
     chi: dict[int, tuple[float, float]] = {}  # tie factor -> (its chi2, the gate's limit)
 
     def gate(builder, graph, gaussian, values):  # the gate, its last verdicts noted
