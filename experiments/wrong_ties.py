@@ -11,16 +11,27 @@ drift sigma per axis since that correction, the predicted and the matched pose's
 horizontal distance from the truth), whether the gate after the solve removed it, and
 its squared whitened error at the gate's last round against the gate's limit. The first
 line (JSON) holds the lap's ATE (xy, rmse), the loop-end error and the counts of
-``planodom experiment loops``; then the loop hypotheses (factors, epochs, truth errors).
+``planodom experiment loops``; then the loop hypotheses (factors, epochs, truth errors,
+each factor's chi2 at the gate's last round and the likelihood-ratio increase). A tie of a
+rotation-only match also shows its offset residual at the match's pose (``d_old - d_curr``,
+:class:`planodom.smoothing.match_fit.OffsetFit`) against its tied wall and against the
+nearest other old wall parallel to it: the association ties the nearer.
 
-    uv run python experiments/wrong_ties.py 32 0.02 [JSON_CONFIG_CHANGES]
+    uv run python experiments/wrong_ties.py 32 0.02 [JSON_CONFIG_CHANGES] [--odometry FILE]
+
+``--odometry FILE``: the lap's odometry (a pickle) is read from FILE if it exists (made by
+the same world, noise and options but the smoothing's, else an error), else run and
+written there: the smoothing's options can then be compared without the odometry's
+minutes (a change of the odometry's own options needs a file of its own).
 """
 
 from __future__ import annotations
 
 import json
+import pickle
 import sys
 from collections import defaultdict
+from pathlib import Path
 
 import numpy as np
 from scipy.stats import chi2
@@ -41,15 +52,52 @@ from planodom.smoothing.loop_records import (
 from planodom.smoothing.run import smoothing_config, smoothing_relatives
 
 
+def lap_odometry(index: int, noise: float, cfg: PlanodomConfig, cache: Path | None) -> tuple:
+    """(planes, relative poses, true poses (E, 4, 4) from the first) of one lap: the batch's
+    odometry (:func:`smoothing_config` of ``cfg``), run or read from ``cache`` (keyed on the
+    world, the noise and every option but the smoothing's, which the odometry does not
+    read); the relative poses, which read the smoothing's options, computed here."""
+    odometry_cfg = smoothing_config(cfg)
+    key = {"world": index, "noise_m": noise, **odometry_cfg.model_dump(exclude={"smoothing"})}
+    if cache is not None and cache.exists():
+        with cache.open("rb") as f:
+            stored = pickle.load(f)  # a file this script wrote
+        if stored["key"] != key:
+            raise SystemExit(f"{cache}: made by another world, noise or odometry option")
+        odo, gt = stored["odometry"], stored["gt"]
+    else:
+        world = world_for(index)
+        full = simulate_world(world, noise, n_epochs=None, all_fields=True)
+        gt = invert_transform(full.poses[0])[None] @ full.poses
+        odo = run_odometry(world_fields(world, full), odometry_cfg)
+        if cache is not None:
+            with cache.open("wb") as f:
+                pickle.dump({"key": key, "odometry": odo, "gt": gt}, f)
+    return odo.planes, smoothing_relatives(odo, cfg), gt
+
+
+def offset_note(m, landmark: int) -> str:
+    """A rotation-only match's offset residuals (m) of the tie to ``landmark``: against its
+    tied wall and the nearest other parallel old wall ('' for a full match)."""
+    rows = [t for t, (j, _) in enumerate(m.ties) if j == landmark]
+    if m.offsets is None or not rows:
+        return ""
+    row, tied = m.offsets.residuals[rows[0]], m.offsets.tied[rows[0]]
+    others = [abs(x) for n, x in enumerate(row) if n != tied and np.isfinite(x)]
+    nearest = f"{min(others):.2f}" if others else "none"
+    return f" | offset residual tied {row[tied]:+.2f} m, nearest other parallel wall {nearest} m"
+
+
 def main(argv: list[str]) -> None:
+    cache = None
+    if "--odometry" in argv:
+        at = argv.index("--odometry")
+        cache, argv = Path(argv[at + 1]), argv[:at] + argv[at + 2 :]
     index, noise = int(argv[0]), float(argv[1])
     changes = json.loads(argv[2]) if len(argv) > 2 else {}
     world = world_for(index)
-    full = simulate_world(world, noise, n_epochs=None, all_fields=True)
-    gt = invert_transform(full.poses[0])[None] @ full.poses
     cfg = PlanodomConfig().updated(changes)  # the odometry's options too, not only the smoothing's
-    odo = run_odometry(world_fields(world, full), smoothing_config(cfg))
-    relatives = smoothing_relatives(odo, cfg)
+    epoch_planes, relatives, gt = lap_odometry(index, noise, cfg, cache)
     chi: dict[int, tuple[float, float]] = {}  # tie factor -> (its chi2, the gate's limit)
 
     def gate(builder, graph, gaussian, values):  # the gate, its last verdicts noted
@@ -71,7 +119,7 @@ def main(argv: list[str]) -> None:
     run_cfg = cfg.updated(
         {"smoothing.loop_closure": True, "smoothing.compute_covariances": False, **changes}
     )
-    res = batch.smooth_batch(odo.planes, relatives, run_cfg)
+    res = batch.smooth_batch(epoch_planes, relatives, run_cfg)
     same = coplanar(world.scene)
     head = {
         "world": index, "noise_m": noise, "changes": changes,
@@ -100,6 +148,7 @@ def main(argv: list[str]) -> None:
             f"predicted {np.linalg.norm(m.T_world_pred[:2, 3] - gt[k][:2, 3]):.2f} m "
             f"matched {np.linalg.norm(placed[:2, 3] - gt[k][:2, 3]):.2f} m off | "
             f"{'removed' if r.removed else 'kept'} chi2 {c2:.1f} (limit {limit:.3g})"
+            + offset_note(m, r.landmark)
         )
     groups = defaultdict(list)
     for f in res.loop_factors:
@@ -109,7 +158,9 @@ def main(argv: list[str]) -> None:
         print(
             f"hypothesis {g}: {len(fs)} factors, epochs {fs[0].epoch}-{fs[-1].epoch} against "
             f"{sorted({f.old for f in fs})}, {min(err):.2f}-{max(err):.2f} m off the truth, "
-            f"{sum(f.removed for f in fs)} removed"
+            f"{sum(f.removed for f in fs)} removed; chi2 {[round(f.chi2, 1) for f in fs]} "
+            f"(limit {chi2.ppf(run_cfg.smoothing.loop_gate_quantile, 5):.1f}), "
+            f"increase {fs[0].increase:.3g}"
         )
 
 
