@@ -11,9 +11,10 @@ agree within ``association.normal_tol_deg`` and whose offsets agree within
 planes apart) count once; a refinement is dropped when this rank is worse.
 ``surfaces_first`` ranks the first extractions (predicted, held, none) so and refinements
 as ``planes`` does. With the one-scanner widening on
-(``extraction.single_scanner_rate_sigma_deg_s`` or ``..._speed_sigma_mps``), each ranks by
-status, then the planes that can take part in the rotation
-(:func:`planodom.odometry.rotation_planes.rotation_planes`), then its count.
+(``extraction.single_scanner_rate_sigma_deg_s`` or ``..._speed_sigma_mps``), unresolved
+extractions rank by the planes that can take part in the rotation
+(:func:`planodom.odometry.rotation_planes.rotation_planes`) before their count: one is kept
+only as the next epoch's reference, and a reference of one scanner's planes pairs with none.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from scipy.sparse.csgraph import connected_components
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane
+from planodom.odometry.relative import Status
 from planodom.odometry.rotation_planes import rotation_planes, widened
 
 if TYPE_CHECKING:
@@ -61,8 +63,8 @@ def ranking(config: PlanodomConfig) -> Ranking:
     """The key an extraction of an epoch is ranked by (higher is better) under ``config``'s
     ``odometry.deskew_rank``: its status, then its plane count (``planes``) or its
     distinct surfaces within ``association.normal_tol_deg`` and ``offset_tol_m``
-    (``surfaces``); with the one-scanner widening on, the planes that can take part in the
-    rotation come between (module docstring)."""
+    (``surfaces``); with the one-scanner widening on, an unresolved extraction's planes
+    that can take part in the rotation come between (module docstring)."""
     tol_deg, tol_m = config.association.normal_tol_deg, config.association.offset_tol_m
     ext = config.extraction
 
@@ -71,8 +73,14 @@ def ranking(config: PlanodomConfig) -> Ranking:
             return len(e.planes)
         return distinct_surfaces(e.planes, tol_deg, tol_m)
 
+    def seeds(e: EpochEstimate) -> int:
+        """An unresolved extraction is kept only as the next epoch's reference: its planes
+        that can take part in the rotation; 0 (no say) for a measured one."""
+        lost = e.relative.status is Status.UNRESOLVED
+        return rotation_planes(e.planes, ext) if lost else 0
+
     if widened(ext):
-        return lambda e: (e.relative.status.rank, rotation_planes(e.planes, ext), count(e))
+        return lambda e: (e.relative.status.rank, seeds(e), count(e))
     if config.odometry.deskew_rank == "planes":
         return by_planes
     return lambda e: (e.relative.status.rank, count(e))
