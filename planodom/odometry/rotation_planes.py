@@ -11,8 +11,8 @@ weighted by its covariance). The bar is the extraction's own for a plane's norma
 ``extraction.max_normal_sigma_deg`` (``sqrt(trace Cov(n))``): the fit's planes all pass it,
 so only the widened ones are left out. Off (the option's sigmas 0): the pairs unchanged.
 
-The deskewing policy (:mod:`planodom.odometry.surfaces`) then ranks an epoch's extractions
-of equal status by how many planes can take part in the rotation (:func:`rotation_planes`)
+The deskewing policy (:mod:`planodom.odometry.surfaces`) then ranks an epoch's unresolved
+extractions by how many planes can take part in the rotation (:func:`rotation_planes`)
 before their plane count: on world 178 at 2 cm, every extraction of epoch 94 was unresolved,
 the one richest in one-scanner planes won the tie on plane count and became the reference,
 and a reference with fewer than two planes within the bar has no LDA pair with any later
