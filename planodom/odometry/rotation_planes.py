@@ -10,15 +10,30 @@ and measures the translation in the refinement only (:mod:`planodom.odometry.ref
 weighted by its covariance). The bar is the extraction's own for a plane's normal,
 ``extraction.max_normal_sigma_deg`` (``sqrt(trace Cov(n))``): the fit's planes all pass it,
 so only the widened ones are left out. Off (the option's sigmas 0): the pairs unchanged.
+
+The deskewing policy (:mod:`planodom.odometry.surfaces`) then ranks an epoch's unresolved
+extractions by how many planes can take part in the rotation (:func:`rotation_planes`)
+before their plane count: on world 178 at 2 cm, every extraction of epoch 94 was unresolved,
+the one richest in one-scanner planes won the tie on plane count and became the reference,
+and a reference with fewer than two planes within the bar has no LDA pair with any later
+epoch: 56 epochs stayed unresolved.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 
 from planodom.association import PairAssociations
 from planodom.config import ExtractionConfig
+from planodom.geometry import Plane
 from planodom.planes import PlaneSet
+
+
+def widened(config: ExtractionConfig) -> bool:
+    """Whether the one-scanner widening is on (either of its sigmas above 0)."""
+    return bool(config.single_scanner_rate_sigma_deg_s or config.single_scanner_speed_sigma_mps)
 
 
 def rotation_pairs(
@@ -27,7 +42,7 @@ def rotation_pairs(
     """The LDA pairs ``lda`` whose four planes' normals are known within
     ``config.max_normal_sigma_deg`` (unknown covariances pass); ``lda`` itself when the
     one-scanner widening is off or every pair passes (module docstring)."""
-    if not (config.single_scanner_rate_sigma_deg_s or config.single_scanner_speed_sigma_mps):
+    if not widened(config):
         return lda
     if len(lda) == 0:
         return lda
@@ -46,3 +61,13 @@ def _sharp(planes: PlaneSet, limit: float) -> np.ndarray:
     unknown, passes)."""
     var_n = np.trace(planes.covariances[:, :3, :3], axis1=1, axis2=2)
     return ~(var_n > limit)
+
+
+def rotation_planes(planes: Sequence[Plane], config: ExtractionConfig) -> int:
+    """How many of ``planes`` may take part in the rotation: their normal variance (trace
+    of the (n, n) block of the covariance) within ``config.max_normal_sigma_deg`` squared,
+    or no covariance (module docstring)."""
+    limit = float(np.radians(config.max_normal_sigma_deg)) ** 2
+    return sum(
+        p.covariance is None or not float(np.trace(p.covariance[:3, :3])) > limit for p in planes
+    )

@@ -10,7 +10,11 @@ agree within ``association.normal_tol_deg`` and whose offsets agree within
 ``association.offset_tol_m`` (the margins within which the association cannot tell two
 planes apart) count once; a refinement is dropped when this rank is worse.
 ``surfaces_first`` ranks the first extractions (predicted, held, none) so and refinements
-as ``planes`` does.
+as ``planes`` does. With the one-scanner widening on
+(``extraction.single_scanner_rate_sigma_deg_s`` or ``..._speed_sigma_mps``), unresolved
+extractions rank by the planes that can take part in the rotation
+(:func:`planodom.odometry.rotation_planes.rotation_planes`) before their count: one is kept
+only as the next epoch's reference, and a reference of one scanner's planes pairs with none.
 """
 
 from __future__ import annotations
@@ -24,12 +28,14 @@ from scipy.sparse.csgraph import connected_components
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane
+from planodom.odometry.relative import Status
+from planodom.odometry.rotation_planes import rotation_planes, widened
 
 if TYPE_CHECKING:
     from planodom.odometry.deskew import EpochEstimate
 
-#: ``rank(estimate) -> (status rank, count)``: higher is better.
-Ranking = Callable[["EpochEstimate"], tuple[int, int]]
+#: ``rank(estimate) -> (status rank, [rotation planes,] count)``: higher is better.
+Ranking = Callable[["EpochEstimate"], tuple[int, ...]]
 
 
 def distinct_surfaces(planes: Sequence[Plane], normal_tol_deg: float, offset_tol_m: float) -> int:
@@ -57,8 +63,24 @@ def ranking(config: PlanodomConfig) -> Ranking:
     """The key an extraction of an epoch is ranked by (higher is better) under ``config``'s
     ``odometry.deskew_rank``: its status, then its plane count (``planes``) or its
     distinct surfaces within ``association.normal_tol_deg`` and ``offset_tol_m``
-    (``surfaces``)."""
+    (``surfaces``); with the one-scanner widening on, an unresolved extraction's planes
+    that can take part in the rotation come between (module docstring)."""
+    tol_deg, tol_m = config.association.normal_tol_deg, config.association.offset_tol_m
+    ext = config.extraction
+
+    def count(e: EpochEstimate) -> int:
+        if config.odometry.deskew_rank == "planes":
+            return len(e.planes)
+        return distinct_surfaces(e.planes, tol_deg, tol_m)
+
+    def seeds(e: EpochEstimate) -> int:
+        """An unresolved extraction is kept only as the next epoch's reference: its planes
+        that can take part in the rotation; 0 (no say) for a measured one."""
+        lost = e.relative.status is Status.UNRESOLVED
+        return rotation_planes(e.planes, ext) if lost else 0
+
+    if widened(ext):
+        return lambda e: (e.relative.status.rank, seeds(e), count(e))
     if config.odometry.deskew_rank == "planes":
         return by_planes
-    tol_deg, tol_m = config.association.normal_tol_deg, config.association.offset_tol_m
-    return lambda e: (e.relative.status.rank, distinct_surfaces(e.planes, tol_deg, tol_m))
+    return lambda e: (e.relative.status.rank, count(e))
