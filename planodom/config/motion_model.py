@@ -101,3 +101,11 @@ class MotionModelConfig(Section):
     """With ``rate_prediction`` not ``constant``: limit the predicted change from the last
     fitted rate, per component, to the largest change between consecutive rates of the
     window (no better: docs/RESULTS.md, PREDICT2)."""
+
+    rate_prediction_use: Literal["all", "first_deskew"] = "all"
+    """With ``rate_prediction`` not ``constant``: where the predicted rate is used.
+    ``all``: the twist predicted for the next epoch (its deskewing, prior, bridge and
+    gates); ``first_deskew``: only the twist the epoch is first deskewed with, the prior,
+    the bridge, the gates and the retries keeping the constant rate. Off by default: 2D-rig
+    worlds 0-18 at 6 mm, extractions an epoch 2.46 -> 1.91, but ATE ratio 1.05 / 1.14 (6 mm /
+    2 cm), and on 160-178 world 166 0.48 -> 1.92 m (docs/RESULTS.md, PREDICT3)."""

@@ -173,7 +173,7 @@ class PlaneOdometry:
             unresolved = getattr(self.last_relative, "status", None) is Status.UNRESOLVED
             rates = self._rates if self._map is None else ()  # bridge_rate: pairwise only
             held = bridge_twist(self.twist, rates, k, ocfg) if unresolved else None
-            twist = None if unresolved else self.twist
+            twist = None if unresolved else self._rate.deskewing(self.twist)
             ocfg = epoch_deskew_config(ocfg, k in self._gaps, self._map is None)
             against_map = self._map is not None and self.twist is not None
             trend = map_trend(self._recent, ocfg, pm.prediction) if against_map else None

@@ -16,7 +16,10 @@ steps that did not measure the whole rotation and translation out of the fit (a
 degenerate step's wrong rate was extrapolated, docs/RESULTS.md, PREDICT2): the rate
 predicted for such a step stands in for it, or the run restarts after it;
 ``rate_prediction_bound`` limits the
-predicted change to the window's largest step-to-step change.
+predicted change to the window's largest step-to-step change. With
+``rate_prediction_use: first_deskew`` the predicted rate is only the twist an epoch is
+first deskewed with (:meth:`RatePredictor.deskewing`); the prior, the bridge, the gates
+and the retries keep the constant rate (docs/RESULTS.md, PREDICT3).
 """
 
 from __future__ import annotations
@@ -62,6 +65,9 @@ class RatePredictor:
         self.order = config.rate_prediction_order
         self.fit = config.rate_prediction_fit
         self.bound = config.rate_prediction_bound
+        self.use = config.rate_prediction_use
+        # first_deskew: (the twist predicted as before, the same with the predicted rate)
+        self._deskew: tuple[np.ndarray, np.ndarray] | None = None
         self._rates: deque[np.ndarray] = deque(maxlen=config.rate_prediction_window)
         # (autoregression's, constant's) squared errors on the last rates ("selected")
         self._errors: deque[tuple[float, float]] = deque(maxlen=config.rate_prediction_check)
@@ -69,6 +75,27 @@ class RatePredictor:
         self._last = -2  # the epoch of the last rate kept
 
     def after(
+        self, k: int, own: np.ndarray, relative: RelativePose, twist: np.ndarray, plane_map: object
+    ) -> np.ndarray:
+        """(6,) the twist predicted for the epoch after ``k``: :meth:`predicted_after`'s with
+        ``rate_prediction_use: all``; with ``first_deskew``, ``twist`` itself (the prior,
+        bridge and gates keep it), the prediction kept for :meth:`deskewing`."""
+        predicted = self.predicted_after(k, own, relative, twist, plane_map)
+        if self.use == "all":
+            return predicted
+        self._deskew = (twist, predicted)
+        return twist
+
+    def deskewing(self, twist: np.ndarray | None) -> np.ndarray | None:
+        """(6,) the twist the next epoch is first deskewed with, given ``twist``, the one
+        :meth:`after` returned for it (rad/s, m/s; None: none): with ``rate_prediction_use:
+        first_deskew`` the same with the predicted rate; else (or for any other twist)
+        ``twist`` itself."""
+        if self._deskew is None or self._deskew[0] is not twist:
+            return twist
+        return self._deskew[1]
+
+    def predicted_after(
         self, k: int, own: np.ndarray, relative: RelativePose, twist: np.ndarray, plane_map: object
     ) -> np.ndarray:
         """(6,) ``twist`` (the constant-velocity prediction after epoch ``k``, rad/s and

@@ -99,6 +99,8 @@ def test_config_refuses_a_bad_value_naming_the_key():
         PlanodomConfig.from_dict({"odometry": {"rate_prediction_fit": "ok"}})
     with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_bound': "):
         PlanodomConfig.from_dict({"odometry": {"rate_prediction_bound": "tight"}})
+    with pytest.raises(ConfigError, match="^config: field 'odometry.rate_prediction_use': "):
+        PlanodomConfig.from_dict({"odometry": {"rate_prediction_use": "deskew"}})
 
 
 @pytest.mark.parametrize("mode", ["constant", "autoregressive"])
@@ -207,3 +209,72 @@ def test_fit_ok_runs_restarts_the_run_after_a_degenerate_step():
 
 def _degenerate() -> RelativePose:
     return _relative(Status.DEGENERATE)
+
+
+@pytest.mark.parametrize("use", ["all", "first_deskew"])
+def test_first_deskew_gets_the_prediction_and_the_prior_keeps_the_constant_rate(use, monkeypatch):
+    """A swaying vehicle's epochs as time-spread scans, their planes given exactly by a stub
+    extractor (the deskewing twist recorded; point times centred, so no twist offset):
+    the epochs' own rates are a sampled sinusoid. ``first_deskew``: the last epoch is
+    first deskewed with the autoregression's rate, the true step's (closed form), while
+    the prior of its relative pose, and ``twist``, keep the last step's rate; ``all``:
+    both get the prediction."""
+    import planodom.odometry.odometry as odometry_module
+    from planodom.geometry import se3_log
+    from planodom.scan import Scan
+
+    rng = np.random.default_rng(7)
+    world = world_planes(rng, 10)
+    dt, n = 0.1, 44
+    roll = np.radians(2.0) * np.sin(2 * np.pi * 0.4 * dt * np.arange(n + 1))
+    poses = [transform_from_rpy_xyz(roll[k], 0.0, 0.0, 0.3 * k, 0.0, 0.0) for k in range(n)]
+    scans = [Scan(np.zeros((2, 3)), t=np.array([-0.05, 0.05])) for _ in range(n)]
+    first_twist: dict[int, np.ndarray | None] = {}
+
+    def extractor(scan, config, twist=None, **_):
+        k = next(j for j, s in enumerate(scans) if s is scan)
+        first_twist.setdefault(k, None if twist is None else np.array(twist))
+        return observe(world, poses[k])
+
+    priors: list[np.ndarray | None] = []
+    solve = odometry_module.estimate_relative_pose
+
+    def recording(*args, **kwargs):
+        priors.append(args[3])
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(odometry_module, "estimate_relative_pose", recording)
+    cfg = {"pipeline": "wocsc", "rate_prediction": "autoregressive", "rate_prediction_use": use}
+    odo = PlaneOdometry(PlanodomConfig.from_dict({"odometry": cfg}), extractor=extractor)
+    for k in range(n - 1):
+        odo.register_epoch(scans[k], time=dt * k)
+    assert odo.twist is not None
+    constant = (roll[n - 2] - roll[n - 3]) / dt  # the last step's rate (no pitch, yaw)
+    true_next = (roll[n - 1] - roll[n - 2]) / dt
+    assert abs(true_next - constant) > 0.015  # the two are 1.1 deg/s apart
+    priors.clear()
+    odo.register_epoch(scans[n - 1], time=dt * (n - 1))
+    assert priors[0] is not None
+    prior_rate = se3_log(priors[0])[0] / dt  # delta 1: the prior is the predicted step
+    deskewed_with = first_twist[n - 1]
+    assert deskewed_with is not None
+    assert deskewed_with[0] == pytest.approx(true_next, abs=1e-6)
+    expected_prior = constant if use == "first_deskew" else true_next
+    assert prior_rate == pytest.approx(expected_prior, abs=1e-6)
+    last_rate, next_rate = (roll[n - 1] - roll[n - 2]) / dt, (roll[n] - roll[n - 1]) / dt
+    want = last_rate if use == "first_deskew" else next_rate  # the twist after the last
+    assert odo.twist[0] == pytest.approx(want, abs=1e-6)
+
+
+def test_deskewing_returns_the_twist_itself_unless_first_deskew():
+    """``all`` (the default): the twist passed; ``first_deskew``: the prediction made
+    with it, and for any other twist (held across a change) that twist."""
+    k = np.arange(20)
+    ar = RatePredictor(AR)
+    got = _fed(ar, _sinusoids(k))
+    assert ar.deskewing(TWIST) is TWIST and not np.allclose(got[:3], TWIST[:3])
+    first = RatePredictor(AR.model_copy(update={"rate_prediction_use": "first_deskew"}))
+    assert _fed(first, _sinusoids(k)) is TWIST
+    np.testing.assert_allclose(first.deskewing(TWIST), got, atol=1e-12)
+    other = TWIST.copy()
+    assert first.deskewing(other) is other and first.deskewing(None) is None
