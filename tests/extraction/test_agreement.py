@@ -38,7 +38,6 @@ def test_cutting_planes_by_the_share_of_agreeing_pixel_normals():
     assert not off.any()
 
 
-
 def test_unjudged_planes_refused_only_when_asked():
     """``ransac_unjudged: refused``: a plane with fewer than MIN_JUDGED inliers that have
     a pixel normal is refused (a level cut whose points lie where the image has no normal:
@@ -66,6 +65,7 @@ def test_unjudged_planes_refused_only_when_asked():
     ]  # fmt: skip
     off = on.model_copy(update={"ransac_normal_agreement_deg": None})
     assert not cutting_planes(normals, members, point_normal, has, off).any()
+
 
 def _facades(seed: int = 1) -> list:
     """Ground (id 0) and 24 facades 6-16 m wide, 12 m high, 20-70 m away all around,
