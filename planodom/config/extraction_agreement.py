@@ -15,7 +15,7 @@ class AgreementFields(Section):
     """What the RANSAC planes' agreement check (``ransac_normal_agreement_deg``) does with
     a plane it cannot judge (fields of ``extraction``)."""
 
-    ransac_unjudged: Literal["kept", "refused"] = "kept"
+    ransac_unjudged: Literal["kept", "refused", "seed"] = "kept"
     """3D path, where ``ransac_normal_agreement_deg`` judges RANSAC planes: a plane with
     fewer than 3 inliers that have a pixel normal (:data:`planodom.extraction.lidar.
     agreement.MIN_JUDGED`). ``kept`` (default): nothing judges it. ``refused``: it is not a
@@ -25,4 +25,6 @@ class AgreementFields(Section):
     (first 4 epochs, every extraction): 16 of 176 kept planes cut across facades (level,
     88-90 deg off their points' surfaces), 13 of them unjudged, against 1 true plane of
     the 160; they seeded the map and held the first steps' roll (0.17 deg off, later
-    steps 0.001-0.005 deg). Measured in docs/RESULTS.md (LIDARSEED); off by default."""
+    steps 0.001-0.005 deg). ``seed``: refused only while the streaming odometry registers
+    its first two epochs (:mod:`planodom.odometry.seed_extraction`). Measured in
+    docs/RESULTS.md (LIDARSEED); kept by default."""
