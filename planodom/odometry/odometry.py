@@ -46,6 +46,7 @@ from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.rate_prediction import RatePredictor
 from planodom.odometry.relative import RelativePose, Status, replaced
+from planodom.odometry.seed_extraction import seed_extraction
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.start_epochs import StartEpochs
 from planodom.odometry.surfaces import ranking
@@ -239,7 +240,7 @@ class PlaneOdometry:
         planes with ``twist`` as the prior of sigma ``prior`` (:mod:`.coplanar`)."""
         if self.extractor is None:
             self.extractor = default_extractor()
-        config = widened(self.config.extraction, twist, sigma)
+        config = seed_extraction(widened(self.config.extraction, twist, sigma), len(self.poses))
         if twist is not None and self.config.odometry.deskew_twist == "coplanar":
             origins = self.sensor_origins
             got = coplanar_by(self.extractor, scan, self.config, config, twist, prior, origins)

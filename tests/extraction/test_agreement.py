@@ -38,6 +38,35 @@ def test_cutting_planes_by_the_share_of_agreeing_pixel_normals():
     assert not off.any()
 
 
+def test_unjudged_planes_refused_only_when_asked():
+    """``ransac_unjudged: refused``: a plane with fewer than MIN_JUDGED inliers that have
+    a pixel normal is refused (a level cut whose points lie where the image has no normal:
+    facade edges, lone lines; lidar world 161's first scans), one judged and agreeing is
+    kept, one judged and disagreeing refused as before; "kept" (default) keeps it."""
+    up, side = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    point_normal = np.array([up] * 10 + [side] * 10 + [up] * 10)
+    has = np.ones(30, dtype=bool)
+    has[20:] = False  # the last ten points have no pixel normal
+    members = [
+        np.arange(0, 10),  # judged, agrees: a level surface
+        np.arange(10, 20),  # judged, at 90 deg: a cut the check sees
+        np.r_[np.arange(20, 30), np.arange(10, 10 + MIN_JUDGED - 1)],  # unjudged cut
+        np.arange(20, 30),  # no inlier judged at all
+    ]
+    normals = np.tile(up, (len(members), 1))
+    on = ExtractionConfig(ransac_normal_agreement_deg=45.0, ransac_unjudged="refused")
+    assert cutting_planes(normals, members, point_normal, has, on).tolist() == [
+        False, True, True, True
+    ]  # fmt: skip
+    default = ExtractionConfig(ransac_normal_agreement_deg=45.0)
+    assert default.ransac_unjudged == "kept"
+    assert cutting_planes(normals, members, point_normal, has, default).tolist() == [
+        False, True, False, False
+    ]  # fmt: skip
+    off = on.model_copy(update={"ransac_normal_agreement_deg": None})
+    assert not cutting_planes(normals, members, point_normal, has, off).any()
+
+
 def _facades(seed: int = 1) -> list:
     """Ground (id 0) and 24 facades 6-16 m wide, 12 m high, 20-70 m away all around,
     turned up to 35 deg from the line of sight."""

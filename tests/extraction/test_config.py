@@ -36,6 +36,7 @@ from planodom.errors import ConfigError
         ({"organised_window_deg": 0.0}, "extraction.organised_window_deg"),
         ({"ransac_normal_agreement_deg": 90.0}, "extraction.ransac_normal_agreement_deg"),
         ({"region_noisy_pixels": "grown"}, "extraction.region_noisy_pixels"),
+        ({"ransac_unjudged": "dropped"}, "extraction.ransac_unjudged"),
     ],
 )
 def test_bad_values_fail_at_load_naming_the_field(section, field) -> None:

@@ -62,15 +62,18 @@ def cutting_planes(
     is refused: more than half of its inliers that have a pixel normal (``point_normal``
     (N, 3), ``has_normal`` (N,)) differ from it by more than
     ``config.ransac_normal_agreement_deg`` (sign-free; None: none is). A plane with
-    fewer than :data:`MIN_JUDGED` such inliers is kept: there is nothing to judge it by."""
+    fewer than :data:`MIN_JUDGED` such inliers is kept: there is nothing to judge it by
+    (refused with ``config.ransac_unjudged: refused``)."""
     angle = config.ransac_normal_agreement_deg
     if angle is None:
         return np.zeros(len(members), dtype=bool)
     limit = np.cos(np.radians(angle))
+    unjudged = config.ransac_unjudged == "refused"
     out = np.zeros(len(members), dtype=bool)
     for g, idx in enumerate(members):
         own = idx[has_normal[idx]]
         if len(own) < MIN_JUDGED:
+            out[g] = unjudged
             continue
         agree = np.abs(point_normal[own] @ normals[g]) >= limit
         out[g] = np.count_nonzero(agree) * 2 < len(own)
