@@ -279,3 +279,23 @@ def test_an_unknown_echo_mode_is_refused_naming_the_key() -> None:
     with pytest.raises(DatasetError, match=r"^echo must be one of first, last, strongest, all"):
         BagOptions(echo="nearest")
     assert BagOptions().echo == "first" and BagOptions.of(echo="all").given() == ["echo"]
+
+
+def test_the_echo_option_of_the_command_line(tmp_path: Path) -> None:
+    """``convert --echo all`` writes every return; a bad value, or ``--echo`` for a
+    simulation or a dataset directory, is one error line naming the option."""
+    from cli_checks import fails, runner
+
+    from planodom.cli import app
+    from planodom.datasets import load_dataset
+
+    sweeps = _sweeps()
+    _write(tmp_path / "e.bag", 1, sweeps, _multi_echo)
+    out = tmp_path / "ds"
+    result = runner.invoke(app, ["convert", str(tmp_path / "e.bag"), str(out), "--echo", "all"])
+    assert result.exit_code == 0, result.output
+    ds = load_dataset(out)
+    assert [len(ds[k]) for k in range(3)] == [len(_expected(b, "all")[0]) for b in sweeps]
+    fails(["convert", tmp_path / "e.bag", tmp_path / "o", "--echo", "near"], "echo must be")
+    fails(["run", "--scenario", "paper-loop", "--echo", "last"], "--echo", "not for --scenario")
+    fails(["run", out, "--echo", "last", "--out", tmp_path / "r"], "not a bag", "echo")
