@@ -21,6 +21,7 @@ import typer
 from rich.console import Console
 from rich.text import Text
 
+from planodom.cli.echo_option import Echo
 from planodom.errors import DatasetError, OutputExistsError, PlanodomError
 from planodom.scan import Scan, points_beyond_range
 
@@ -322,13 +323,14 @@ class Source:
     gt_topic: str | None = None
     time_field: str = "auto"
     bin_layout: str = "auto"
+    echo: str = "first"
 
     def bag_options(self) -> Any:
         """The :class:`~planodom.datasets.bag_options.BagOptions` of the bag options."""
         from planodom.datasets.bag_options import BagOptions
 
         return BagOptions.of(
-            self.base_frame, self.epoch_rate, self.topic, self.gt_topic, self.time_field
+            self.base_frame, self.epoch_rate, self.topic, self.gt_topic, self.time_field, self.echo
         )
 
     def check(self) -> None:
@@ -382,6 +384,7 @@ _SOURCE_OPTIONS = (
     ("gt_topic", GtTopic, None),
     ("time_field", TimeField, "auto"),
     ("bin_layout", BinLayoutOption, "auto"),
+    ("echo", Echo, "first"),
 )
 
 

@@ -22,6 +22,7 @@ from planodom.cli.common import (
     reports_errors,
     warn,
 )
+from planodom.cli.echo_option import Echo
 from planodom.errors import ConfigError, DatasetError, GeometryError
 
 ALIGNMENTS = ("none", "origin", "se3", "4dof")
@@ -114,6 +115,7 @@ def convert(
     topic: Topics = None,
     gt_topic: GtTopic = None,
     time_field: TimeField = "auto",
+    echo: Echo = "first",
     overwrite: Annotated[bool, typer.Option(help="Replace a dataset at DATASET.")] = False,
     skip_bad_scans: Annotated[
         bool,
@@ -133,7 +135,7 @@ def convert(
     from planodom.datasets.bag_options import BagOptions
     from planodom.datasets.rosbag import convert_bag
 
-    options = BagOptions.of(base_frame, epoch_rate, topic, gt_topic, time_field)
+    options = BagOptions.of(base_frame, epoch_rate, topic, gt_topic, time_field, echo)
     options = dataclasses.replace(options, skip_broken_parts=skip_bad_scans)
     with console.status(f"converting {bag}"):
         c = convert_bag(bag, dataset, options, overwrite=overwrite)

@@ -30,7 +30,7 @@ from planodom.datasets.bag_gt import GtReading, parse_gt
 from planodom.datasets.bag_gt_poses import GtPoses
 from planodom.datasets.bag_livox import register_livox_types
 from planodom.datasets.bag_msgs import (
-    LASER_SCAN,
+    LASER_TYPES,
     POINT_CLOUD2,
     SCAN_TYPES,
     check_offsets,
@@ -159,7 +159,7 @@ class TopicIndex:
     @property
     def pointless(self) -> bool:
         """A cloud topic none of whose messages holds a point."""
-        return self.msgtype != LASER_SCAN and self.empty == self.sweeps
+        return self.msgtype not in LASER_TYPES and self.empty == self.sweeps
 
 
 @dataclass
@@ -203,7 +203,7 @@ class BagIndex:
         keep = ~self.sweep_duplicate
         if all(t.pointless for t in self.topics):
             return keep
-        scan = np.array([t.msgtype == LASER_SCAN for t in self.topics], dtype=bool)
+        scan = np.array([t.msgtype in LASER_TYPES for t in self.topics], dtype=bool)
         if len(self.topics) > 1 or self.topics[0].blank == self.topics[0].sweeps:
             return keep & ~(self.sweep_empty & ~scan[self.sweep_topic])
         return keep & ~self.sweep_empty
@@ -218,7 +218,7 @@ def select_topics(reader: AnyReader, path: Path, topics: Sequence[str] | None) -
         if not chosen:
             shown = ", ".join(f"{n} ({available[n].msgtype})" for n in sorted(available))
             raise DatasetError(
-                f"{path}: no sensor_msgs/LaserScan or sensor_msgs/PointCloud2 topic with "
+                f"{path}: no sensor_msgs/LaserScan, MultiEchoLaserScan or PointCloud2 topic with "
                 f"messages (topics: {shown or 'none'}); raw packets or a vendor's point "
                 "message must first be decoded to PointCloud2 by the lidar's ROS driver"
             )
@@ -231,7 +231,7 @@ def select_topics(reader: AnyReader, path: Path, topics: Sequence[str] | None) -
         if available[name].msgtype not in SCAN_TYPES:
             raise DatasetError(
                 f"{path}: topic '{name}' is {available[name].msgtype}, not "
-                "sensor_msgs/LaserScan or sensor_msgs/PointCloud2"
+                "sensor_msgs/LaserScan, MultiEchoLaserScan or PointCloud2"
             )
         if available[name].msgcount == 0:
             raise DatasetError(f"{path}: topic '{name}' has no messages")
@@ -392,10 +392,10 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
     if frame not in topic.frames:
         topic.frames.append(frame)
     topic.unstamped += stamp_ns(msg.header) == 0
-    if topic.msgtype == LASER_SCAN:
+    if topic.msgtype in LASER_TYPES:
         topic.rings = 1
         with _message_errors(path, topic.name):
-            blank = not laser_scan_returns(msg)
+            blank = not laser_scan_returns(msg, topic.msgtype, sweep)
         topic.blank += blank
         return blank
     with _message_errors(path, topic.name):

@@ -8,7 +8,8 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
   sensor's x-y plane, seen at ``i time_increment`` after the stamp (the ROS convention:
   the stamp is the first beam's time). Beams with a non-finite range, one outside
   ``[range_min, range_max]`` or 0 (a driver's "no echo" beside a ``range_min`` of 0) are
-  no returns and are dropped.
+  no returns and are dropped. A ``MultiEchoLaserScan``'s beams likewise, with the echoes
+  of each that ``echo`` chooses (:mod:`planodom.datasets.bag_multiecho`).
 - ``sensor_msgs/PointCloud2``: fields ``x y z`` (float32/float64); an optional ring field
   (:data:`RING_FIELDS`) and time field (:data:`~planodom.datasets.scan_io.TIME_FIELDS`,
   first present wins). A ring id of its integer field's largest value (65535 in a uint16)
@@ -38,7 +39,9 @@ from typing import Any
 
 import numpy as np
 
+from planodom.datasets.bag_beams import beam_returns, place_beams
 from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox, livox_noise
+from planodom.datasets.bag_multiecho import MULTI_ECHO, decode_multi_echo, multi_echo_returns
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
 from planodom.datasets.bag_time_units import UNIT_WORDS, time_key, unit_of
 from planodom.datasets.returns import RETURN_FIELDS, last_returns
@@ -47,7 +50,9 @@ from planodom.datasets.time_wraps import wrap_message, wraps_inside
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
-SCAN_TYPES = (LASER_SCAN, POINT_CLOUD2, *LIVOX_CUSTOM)
+#: The 2D scanners' messages: one ring, beams at angles (a scan without a return is normal).
+LASER_TYPES = (LASER_SCAN, MULTI_ECHO)
+SCAN_TYPES = (LASER_SCAN, MULTI_ECHO, POINT_CLOUD2, *LIVOX_CUSTOM)
 ODOMETRY = "nav_msgs/msg/Odometry"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 POSE_COV_STAMPED = "geometry_msgs/msg/PoseWithCovarianceStamped"
@@ -76,6 +81,7 @@ def decode_sweep(
     msgtype: str,
     time_field: str = "auto",
     time_scales: Mapping[tuple[str, str], float] | None = None,
+    echo: str = "first",
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
     """One sweep in its sensor frame: ``(points (n, 3), ring (n,) int32 or None, dt (n,), rings)``.
 
@@ -85,7 +91,8 @@ def decode_sweep(
     point at the stamp) or the name of a cloud's time field. ``time_scales``: seconds per
     unit of a cloud's time offsets by time field (``time_key``: name and kind,
     :mod:`planodom.datasets.bag_time_units`); a field without one (or None): the
-    documented reading, integers ns and floats s.
+    documented reading, integers ns and floats s. ``echo``: a MultiEchoLaserScan's
+    returns read (:mod:`planodom.datasets.bag_multiecho`).
 
     Raises:
         ValueError: a malformed message (one line, the caller adds the topic).
@@ -93,6 +100,8 @@ def decode_sweep(
     with np.errstate(invalid="ignore", over="ignore"):  # corrupt or signalling-NaN values
         if msgtype == LASER_SCAN:
             return _decode_laser_scan(msg)
+        if msgtype == MULTI_ECHO:
+            return decode_multi_echo(msg, echo)
         if msgtype == POINT_CLOUD2:
             return _decode_cloud(msg, time_field, time_scales)
         if msgtype in LIVOX_CUSTOM:
@@ -103,33 +112,39 @@ def decode_sweep(
 
 def _laser_scan_valid(msg: Any) -> np.ndarray:
     """(n,) bool, the LaserScan's ranges that are returns: finite, in its range limits."""
-    ranges = np.asarray(msg.ranges, dtype=np.float64)
-    with np.errstate(invalid="ignore"):
-        valid = np.isfinite(ranges) & (ranges >= float(msg.range_min)) & (ranges > 0.0)
-        if float(msg.range_max) > 0:
-            valid &= ranges <= float(msg.range_max)
-    return valid
+    return beam_returns(np.asarray(msg.ranges, dtype=np.float64), msg)
 
 
-def laser_scan_returns(msg: Any) -> int:
-    """The number of returns of a ``sensor_msgs/LaserScan`` (the points it decodes to).
+def laser_scan_returns(msg: Any, msgtype: str = LASER_SCAN, sweep: int | None = None) -> int:
+    """The number of returns of a ``sensor_msgs/LaserScan`` (the points it decodes to), or
+    of a ``MultiEchoLaserScan`` (its echoes that are returns; ``sweep``: its ordinal in
+    its topic, for the errors).
 
     Raises:
         ValueError: a scan with returns whose beam angles or times cannot be placed: a
             non-finite ``angle_min``, ``angle_increment``, ``time_increment`` or
-            ``range_min``, or an ``angle_increment`` of 0 under several beams (all on one ray).
+            ``range_min``, or an ``angle_increment`` of 0 under several beams (all on one
+            ray); a MultiEchoLaserScan's intensities that do not match its ranges.
     """
-    returns = int(np.count_nonzero(_laser_scan_valid(msg)))
+    what = "LaserScan"
+    if msgtype == MULTI_ECHO:
+        what = f"MultiEchoLaserScan (message {sweep} of the topic, from 0)"
+        try:
+            returns, lit = multi_echo_returns(msg)
+        except ValueError as exc:
+            raise ValueError(f"{what} stamped {stamp_ns(msg.header) / 1e9:.3f} s: {exc}") from None
+    else:
+        returns = lit = int(np.count_nonzero(_laser_scan_valid(msg)))
     bad = [
         f"{name} {value}"
         for name in ("angle_min", "angle_increment", "time_increment", "range_min")
         if not np.isfinite(value := float(getattr(msg, name)))
     ]
-    if not bad and float(msg.angle_increment) == 0.0 and returns > 1:
+    if not bad and float(msg.angle_increment) == 0.0 and lit > 1:
         bad = ["angle_increment 0 under several beams"]
     if bad and (returns or not np.isfinite(float(msg.range_min))):
         raise ValueError(
-            f"LaserScan stamped {stamp_ns(msg.header) / 1e9:.3f} s has {', '.join(bad)}: its "
+            f"{what} stamped {stamp_ns(msg.header) / 1e9:.3f} s has {', '.join(bad)}: its "
             "beams cannot be placed (a damaged message or a driver's bug)"
         )
     return returns
@@ -137,13 +152,8 @@ def laser_scan_returns(msg: Any) -> int:
 
 def _decode_laser_scan(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     ranges = np.asarray(msg.ranges, dtype=np.float64)
-    index = np.arange(len(ranges), dtype=np.float64)
-    angles = float(msg.angle_min) + index * float(msg.angle_increment)
     valid = _laser_scan_valid(msg)
-    r, a = ranges[valid], angles[valid]
-    points = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)])
-    dt = index[valid] * float(msg.time_increment)
-    return points, np.zeros(len(r), dtype=np.int32), dt, 1
+    return place_beams(msg, ranges[valid], np.flatnonzero(valid).astype(np.float64))
 
 
 def _cloud_array(msg: Any) -> tuple[np.ndarray, dict[str, str]]:

@@ -11,7 +11,7 @@ import numpy as np
 
 from planodom.datasets.bag_gt import gt_notes
 from planodom.datasets.bag_index import BagIndex, TopicIndex
-from planodom.datasets.bag_msgs import LASER_SCAN
+from planodom.datasets.bag_msgs import LASER_TYPES
 from planodom.datasets.bag_rings import stray_note
 
 
@@ -81,7 +81,7 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
     clouds = [
         (t, n)
         for t, n in zip(index.topics, read, strict=True)
-        if t.msgtype != LASER_SCAN and not t.pointless  # a topic without points adds none
+        if t.msgtype not in LASER_TYPES and not t.pointless  # a topic without points adds none
     ]
     if not chosen and len(clouds) > 1:
         shown = ", ".join(f"'{t.name}' ({t.frames[0]}, {n} sweeps)" for t, n in clouds)

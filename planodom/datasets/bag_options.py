@@ -1,6 +1,7 @@
 """How a bag is read: :class:`BagOptions`, shared by :func:`~planodom.datasets.rosbag.open_bag`,
 :func:`~planodom.datasets.rosbag.convert_bag`, :func:`~planodom.datasets.recording.open_recording`
-and the CLI (``--base-frame``, ``--epoch-rate``, ``--topic``, ``--gt-topic``, ``--time-field``)."""
+and the CLI (``--base-frame``, ``--epoch-rate``, ``--topic``, ``--gt-topic``, ``--time-field``,
+``--echo``)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 
+from planodom.datasets.bag_multiecho import ECHO_MODES
 from planodom.errors import DatasetError
 
 DEFAULT_BASE_FRAME = "base_link"
@@ -22,8 +24,8 @@ class BagOptions:
         base_frame: tf frame of the vehicle the points and the reference are expressed in.
         epoch_rate: epochs per second, Hz; an epoch gathers the sweeps of one
             ``1 / epoch_rate`` window.
-        topics: scan topics to read, in ring order (empty: every LaserScan / PointCloud2
-            topic with messages, sorted by name).
+        topics: scan topics to read, in ring order (empty: every LaserScan,
+            MultiEchoLaserScan, PointCloud2 or Livox topic with messages, sorted by name).
         gt_topic: reference trajectory: a pose topic or ``"tf:PARENT:CHILD"`` (None: none).
         time_field: the clouds' per-point time field: ``"auto"`` (the first of
             :data:`~planodom.datasets.scan_io.TIME_FIELDS` present), ``"none"`` (ignore
@@ -32,6 +34,9 @@ class BagOptions:
             recording's part missing, cut short, overwritten) are left out and the others
             read, noted with the time span missing (:mod:`.bag_parts`); off: an error
             naming the part.
+        echo: the returns read of each beam of a ``MultiEchoLaserScan``: ``first`` (the
+            nearest), ``last``, ``strongest`` (by intensity) or ``all``
+            (:mod:`.bag_multiecho`).
     """
 
     base_frame: str = DEFAULT_BASE_FRAME
@@ -40,6 +45,7 @@ class BagOptions:
     gt_topic: str | None = None
     time_field: str = "auto"
     skip_broken_parts: bool = False
+    echo: str = "first"
 
     def __post_init__(self) -> None:
         # a list (or a CLI's repeated option) becomes a tuple: the options stay hashable
@@ -51,6 +57,8 @@ class BagOptions:
             raise DatasetError(
                 f"time field must be auto, none or a field name, got {self.time_field!r}"
             )
+        if self.echo not in ECHO_MODES:
+            raise DatasetError(f"echo must be one of {', '.join(ECHO_MODES)}, got {self.echo!r}")
 
     @classmethod
     def of(
@@ -60,9 +68,11 @@ class BagOptions:
         topics: Sequence[str] | None = None,
         gt_topic: str | None = None,
         time_field: str = "auto",
+        echo: str = "first",
     ) -> BagOptions:
         """The options from possibly-None values (as a command line gives them)."""
-        return cls(base_frame, epoch_rate, tuple(topics or ()), gt_topic, time_field)
+        topics = tuple(topics or ())
+        return cls(base_frame, epoch_rate, topics, gt_topic, time_field, echo=echo)
 
     def given(self) -> list[str]:
         """Names of the options that differ from their defaults."""

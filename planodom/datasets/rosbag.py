@@ -6,12 +6,14 @@ streaming pass and returns a :class:`BagDataset` (``len(ds)``, ``ds[k] -> Scan``
 :func:`convert_bag` writes it as a dataset directory (``scans/*.ply`` with ``ring`` and
 ``t``, ``poses.tum``, ``rig.yaml``).
 
-- Scan topics: every ``sensor_msgs/LaserScan`` and ``sensor_msgs/PointCloud2`` topic with
-  messages (sorted by name), or the ``topics`` given (in that order).
-- Rings: the topics' rings are numbered in topic order: a LaserScan topic (a 2D scanner)
-  is one ring; a cloud with a ring field takes ``max ring + 1`` rings, its ids that are
-  no ring of the lidar's numbering left out (:mod:`planodom.datasets.bag_rings`). If a
-  cloud has no ring field the scans carry no ``ring``.
+- Scan topics: every ``sensor_msgs/LaserScan``, ``MultiEchoLaserScan``
+  (:mod:`planodom.datasets.bag_multiecho`) and ``PointCloud2`` topic (and Livox's
+  ``CustomMsg``) with messages (sorted by name), or the ``topics`` given (in that order).
+- Rings: the topics' rings are numbered in topic order: a (multi-echo) LaserScan topic
+  (a 2D scanner) is one ring; a cloud with a ring field takes ``max ring + 1`` rings, its
+  ids that are no ring of the lidar's numbering left out
+  (:mod:`planodom.datasets.bag_rings`). If a cloud has no ring field the scans carry no
+  ``ring``.
 - Extrinsics: ``T_base_sensor`` of each message's ``header.frame_id``, chained through
   ``/tf_static`` and the rigid ``/tf`` edges (see :mod:`planodom.datasets.bag_tf`; a loop
   whose chains disagree is noted); a topic none of whose messages goes into the epochs
@@ -114,9 +116,10 @@ class BagDataset:
         gt_topic: str | None,
         time_field: str = "auto",
         topics_chosen: bool = False,
+        echo: str = "first",
     ) -> None:
         self.path = path
-        self.time_field = time_field
+        self.time_field, self.echo = time_field, echo
         self.base_frame = frame_name(base_frame)
         self.epoch_rate = float(epoch_rate)
         self.gt_topic = gt_topic
@@ -280,7 +283,7 @@ class BagDataset:
             topic = self.topics[k]
             try:
                 pts, ring, dt, _ = decode_sweep(
-                    msg, topic.msgtype, self.time_field, topic.time_scales
+                    msg, topic.msgtype, self.time_field, topic.time_scales, self.echo
                 )
             except ValueError as exc:
                 raise DatasetError(f"{self.path}: topic '{topic.name}': {exc}") from None
@@ -331,6 +334,7 @@ def open_bag(path: str | Path, options: BagOptions | None = None) -> BagDataset:
             opts.gt_topic,
             opts.time_field,
             topics_chosen=bool(opts.topics),
+            echo=opts.echo,
         )
     ds.read_from, ds._view = read_from, view
     ds.notes[:0] = [missing_part_note(part, ds.times) for part in broken]
