@@ -46,14 +46,14 @@ class TimeWindowConfig(Section):
     12 m (15.3 -> 1.5 m at 2 cm). Off by default: mixed over 60 2D-rig runs (worlds 0-18,
     100-118, 140-158 at 6 mm and 2 cm), 5 runs of worlds 0, 6 and 14 worse by up to 30x,
     with phantom planes of two sweeps at 2 cm (docs/RESULTS.md, GAPS)."""
-    sparse_normal_sigma_deg: float | None = Field(None, gt=0, le=180)
+    sparse_windows_determined: bool = False
     """With ``min_points_over_windows``, a window's plane of fewer than
     ``extraction.min_plane_points`` inliers is kept (and counts as one of a wall's
-    windows) only when its normal's 1-sigma error (deg), from its points' spread and the
-    epoch's noise sigma rather than its own residual, is at most this
-    (:mod:`planodom.extraction.rig2d.sparsewindows`): a few points of a sweep fix a wall
-    at 6 mm, not at 2 cm, where two sweeps' coincidences passed as walls. None (default):
-    no such test."""
+    windows) only when its points determine it as a plane must be known: its normal to
+    ``extraction.max_normal_sigma_deg`` and its offset to the member tolerance, with the
+    epoch's noise sigma rather than the fit's own residual
+    (:mod:`planodom.extraction.rig2d.sparsewindows`). Off by default (docs/RESULTS.md,
+    GAPS3)."""
     repeat_deg: float = Field(5.0, gt=0, le=90)
     """Normal angle (deg) within which planes of two windows may be one wall (the turn of
     the vehicle over an epoch plus the fit error of one sweep's traces)."""

@@ -107,7 +107,10 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
             fits = _group_fits(segs, groups, epoch, config)
     adjust = None
     if windowed:
-        allowed = sparsewindows.determined(fits, sigma, full_min, tw.sparse_normal_sigma_deg)
+        allowed = None
+        if tw.sparse_windows_determined:  # the member tolerance before the window's motion
+            lim_n, lim_d = config.max_normal_sigma_deg, member_tolerance(config, sigma)
+            allowed = sparsewindows.determined(fits, sigma, full_min, lim_n, lim_d)
         adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw, allowed)
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
     planes = onescanner.widened_planes(planes, inliers, epoch, config)

@@ -2,18 +2,21 @@
 
 With ``extraction.time_windows.min_points_over_windows`` a window's plane needs only a
 share of ``min_plane_points`` (:func:`.windows.per_window`). How well a few points fix a
-plane depends on the noise: seven points of a sweep on two short crossing traces give a
-wall's normal to a fraction of a degree at 6 mm and to several degrees at 2 cm, where two
-sweeps' coincidences pass as walls (issue 11's phantoms, docs/RESULTS.md, GAPS). With
-``time_windows.sparse_normal_sigma_deg`` such a plane (fewer than ``min_plane_points``
-inliers) is kept only when its normal's 1-sigma error, from its points' spread and the
-epoch's noise sigma, is at most that: :func:`determined`.
+plane depends on the noise and on how far the plane is: a sweep's seven points on two
+short traces give a near wall's normal to a fraction of a degree at 6 mm, but the offset
+of a wall 40 m away, at the base origin, only to decimetres at 2 cm (issue 11's world 6,
+docs/RESULTS.md, GAPS3). With ``time_windows.sparse_windows_determined`` such a plane
+(fewer than ``min_plane_points`` inliers) is kept, and counts as one of a wall's
+windows, only when its fit determines it as a plane of the epoch must be known
+(:func:`determined`): its normal to ``extraction.max_normal_sigma_deg`` and its offset
+to the member tolerance (:func:`planodom.extraction.noise.member_tolerance`), the
+distance within which a point belongs to a plane.
 
-The error is the TLS fit's (:func:`planodom.extraction.planes.fit.tls_covariance`) with
-the residual sigma replaced by the larger of it and the epoch's noise sigma. The fit's
-own residual says little with a handful of points (its chi-square has N - 3 degrees of
-freedom, two to five here), and a chance coincidence of two traces is the case where it
-is small by construction: the traces were grouped because they fit.
+The sigmas are the TLS fit's (:func:`planodom.extraction.planes.fit.tls_covariance`)
+with the residual sigma floored at the epoch's noise sigma. The fit's own residual says
+little with a handful of points (its chi-square has N - 3 degrees of freedom, two to
+five here), and a chance coincidence of two traces is the case where it is small by
+construction: the traces were grouped because they fit.
 """
 
 from __future__ import annotations
@@ -21,28 +24,34 @@ from __future__ import annotations
 import numpy as np
 
 from planodom.extraction.planes.builder import PlaneFits
+from planodom.extraction.planes.fit import tls_covariance
 
 
-def normal_sigma(fits: PlaneFits, sigma_m: float) -> np.ndarray:
-    """(G,) 1-sigma error (rad, ``sqrt(trace Cov(n))``) of each fit's normal with a point
-    noise of ``max(sigma_m, sqrt(l3 / (N - 3)))`` (m) across the plane: ``sigma^2 (l1 /
-    (l1 - l3)^2 + l2 / (l2 - l3)^2)`` of the scatter eigenvalues l1 >= l2 >= l3 (m^2).
-    Infinite where the points do not span a plane (l2 = l3)."""
-    n = np.maximum(fits.count.astype(np.float64), 1.0)
-    l1, l2, l3 = fits.evals[:, 0], fits.evals[:, 1], fits.evals[:, 2]
-    s2 = np.maximum(sigma_m**2, l3 / np.maximum(n - 3.0, 1.0))
+def plane_sigmas(fits: PlaneFits, sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(G,) 1-sigma errors of each fit's normal (rad, ``sqrt(trace Cov(n))``) and offset
+    (m, at the base origin) with a point noise across the plane of ``max(sigma_m,
+    sqrt(l3 / (N - 3)))`` (m); infinite where the points do not span a plane."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        var = s2 * (l1 / (l1 - l3) ** 2 + l2 / (l2 - l3) ** 2)
-    return np.sqrt(np.where(np.isfinite(var), var, np.inf))
+        cov = tls_covariance(fits.evals, fits.evecs, fits.centroid, fits.count, sigma_m)
+        var_n = np.trace(cov[:, :3, :3], axis1=1, axis2=2)
+        var_d = cov[:, 3, 3]
+    ok = np.isfinite(var_n) & np.isfinite(var_d)
+    return (
+        np.sqrt(np.where(ok, var_n, np.inf)),
+        np.sqrt(np.where(ok, np.maximum(var_d, 0.0), np.inf)),
+    )
 
 
 def determined(
-    fits: PlaneFits, sigma_m: float, min_plane_points: int, max_sigma_deg: float | None
-) -> np.ndarray | None:
-    """(G,) bool: the fits a window may keep, those of at least ``min_plane_points``
-    inliers and the others whose :func:`normal_sigma` at noise ``sigma_m`` (m) is at most
-    ``max_sigma_deg``; None when ``max_sigma_deg`` is None (no test)."""
-    if max_sigma_deg is None:
-        return None
-    full = fits.count >= min_plane_points
-    return full | (normal_sigma(fits, sigma_m) <= np.radians(max_sigma_deg))
+    fits: PlaneFits,
+    sigma_m: float,
+    min_plane_points: int,
+    max_normal_sigma_deg: float,
+    max_offset_sigma_m: float,
+) -> np.ndarray:
+    """(G,) bool: the fits a window may keep: those of at least ``min_plane_points``
+    inliers, and the others whose :func:`plane_sigmas` at noise ``sigma_m`` (m) are at
+    most ``max_normal_sigma_deg`` and ``max_offset_sigma_m`` (m)."""
+    sig_n, sig_d = plane_sigmas(fits, sigma_m)
+    ok = (sig_n <= np.radians(max_normal_sigma_deg)) & (sig_d <= max_offset_sigma_m)
+    return (fits.count >= min_plane_points) | ok
