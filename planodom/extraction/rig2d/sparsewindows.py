@@ -2,15 +2,17 @@
 
 With ``extraction.time_windows.min_points_over_windows`` a window's plane needs only a
 share of ``min_plane_points`` (:func:`.windows.per_window`). How well a few points fix a
-plane depends on the noise and on how far the plane is: a sweep's seven points on two
-short traces give a near wall's normal to a fraction of a degree at 6 mm, but the offset
-of a wall 40 m away, at the base origin, only to decimetres at 2 cm (issue 11's world 6,
-docs/RESULTS.md, GAPS3). With ``time_windows.sparse_windows_determined`` such a plane
-(fewer than ``min_plane_points`` inliers) is kept, and counts as one of a wall's
-windows, only when its fit determines it as a plane of the epoch must be known
-(:func:`determined`): its normal to ``extraction.max_normal_sigma_deg`` and its offset
-to the member tolerance (:func:`planodom.extraction.noise.member_tolerance`), the
-distance within which a point belongs to a plane.
+plane depends on the noise and on where the points lie: a sweep's seven points on two
+short traces give a wall's normal to a fraction of a degree at 6 mm and to about a
+degree at 2 cm, and the offset at the base origin of a wall seen far along it (a lever
+arm of tens of metres on that angle) only to decimetres (issue 11's world 6 at 2 cm: a
+wall kept 94 cm off, docs/RESULTS.md, GAPS3). With
+``time_windows.sparse_windows_determined`` such a plane (fewer than
+``min_plane_points`` inliers) is kept, and counts as one of a wall's windows, only
+when its fit determines it as a plane must be known (:func:`determined`): its normal
+to ``extraction.max_normal_sigma_deg`` and its offset to the member tolerance
+(:func:`planodom.extraction.noise.member_tolerance`), the distance within which a point
+belongs to a plane.
 
 The sigmas are the TLS fit's (:func:`planodom.extraction.planes.fit.tls_covariance`)
 with the residual sigma floored at the epoch's noise sigma. The fit's own residual says
