@@ -46,6 +46,17 @@ class TimeWindowConfig(Section):
     12 m (15.3 -> 1.5 m at 2 cm). Off by default: mixed over 60 2D-rig runs (worlds 0-18,
     100-118, 140-158 at 6 mm and 2 cm), 5 runs of worlds 0, 6 and 14 worse by up to 30x,
     with phantom planes of two sweeps at 2 cm (docs/RESULTS.md, GAPS)."""
+    sparse_windows_determined: bool = False
+    """With ``min_points_over_windows``, a window's plane of fewer than
+    ``extraction.min_plane_points`` inliers is kept (and counts as one of a wall's
+    windows) only when its points determine it: its normal to
+    ``extraction.max_normal_sigma_deg`` and its offset at the base origin to the member
+    tolerance, with the epoch's noise sigma rather than the fit's own residual
+    (:mod:`planodom.extraction.rig2d.sparsewindows`). Off by default: with
+    ``min_points_over_windows`` on 60 2D-rig runs it keeps world 140's gain at 6 mm
+    (12.1 -> 4.3 m, longest gap 9 -> 2) and takes world 6 at 2 cm from the old option's
+    22.5 m to 2.3 m, but loses world 140's at 2 cm (15.3 -> 16.7 m) and world 6 at 2 cm
+    is still 3x its base 0.75 m (docs/RESULTS.md, GAPS3)."""
     repeat_deg: float = Field(5.0, gt=0, le=90)
     """Normal angle (deg) within which planes of two windows may be one wall (the turn of
     the vehicle over an epoch plus the fit error of one sweep's traces)."""

@@ -27,6 +27,10 @@ from planodom.errors import ConfigError
             {"time_windows": {"min_points_over_windows": "maybe"}},
             "extraction.time_windows.min_points_over_windows",
         ),
+        (
+            {"time_windows": {"sparse_windows_determined": "maybe"}},
+            "extraction.time_windows.sparse_windows_determined",
+        ),
         ({"rms_floor_m": 0.05}, "extraction.rms_floor_m"),
         ({"trace_parallel_deg": 20.0}, "extraction.trace_parallel_deg"),
         ({"min_segment_points": 30}, "extraction.min_segment_points"),

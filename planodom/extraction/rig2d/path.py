@@ -27,7 +27,7 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.noise import member_tolerance, rms_limit
 from planodom.extraction.planes.builder import PlaneFits, build_planes
-from planodom.extraction.rig2d import onescanner, windows
+from planodom.extraction.rig2d import onescanner, sparsewindows, windows
 from planodom.extraction.rig2d.groupfit import plane_fits
 from planodom.extraction.rig2d.grouping import GroupingParams
 from planodom.extraction.rig2d.groups import group_segments
@@ -44,7 +44,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     seed_floor = config.tolerance_floor_m
     tw = config.time_windows
     windowed = windows.is_windowed(scan, epoch.twist, tw)
-    seg_times, span = None, np.inf
+    seg_times, span, full_min = None, np.inf, config.min_plane_points
     if windowed:
         seg_times = windows.segment_times(scan, segs)
         tw = windows.for_epoch(tw, scan, segs)
@@ -105,7 +105,13 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
             if not groups:
                 return PathResult([], [], sigma, len(segs), 0, n_lost)
             fits = _group_fits(segs, groups, epoch, config)
-    adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw) if windowed else None
+    adjust = None
+    if windowed:
+        allowed = None
+        if tw.sparse_windows_determined:  # the member tolerance before the window's motion
+            lim_n, lim_d = config.max_normal_sigma_deg, member_tolerance(config, sigma)
+            allowed = sparsewindows.determined(fits, sigma, full_min, lim_n, lim_d)
+        adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw, allowed)
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
     planes = onescanner.widened_planes(planes, inliers, epoch, config)
     return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)

@@ -161,14 +161,25 @@ def median_range(points):  # pragma: no cover - compiled
 
 
 def keep_one_per_wall(
-    fits: PlaneFits, points: np.ndarray, scan: Scan, tol_m: float, windows: TimeWindowConfig
+    fits: PlaneFits,
+    points: np.ndarray,
+    scan: Scan,
+    tol_m: float,
+    windows: TimeWindowConfig,
+    allowed: np.ndarray | None = None,
 ) -> Adjust:
     """The builder's ``adjust`` step (:func:`planodom.extraction.planes.builder.build_planes`)
     for time windows: :func:`drop_repeats` on the kept planes, with each plane's mean
     inlier time and support radius (the farthest outline point from its centroid: the
-    polygon's vertices are among them). ``points`` (N, 3) m: the scan's points."""
+    polygon's vertices are among them). ``points`` (N, 3) m: the scan's points.
+    ``allowed`` (G,) bool: when given, only these fits are kept and count as a wall's
+    windows (:func:`.sparsewindows.determined`)."""
 
     def adjust(kept: np.ndarray, n_or: np.ndarray, d_or: np.ndarray) -> np.ndarray:
+        if allowed is not None:
+            kept = kept[allowed[kept]]
+            if not len(kept):
+                return kept
         G = len(fits)
         cnt = np.maximum(fits.count, 1).astype(np.float64)
         assert scan.t is not None
