@@ -57,7 +57,7 @@ def plane_chis(planes, T_world_base: np.ndarray, scene, Q: np.ndarray) -> tuple:
         rows.append(W @ J)
         rhs.append(W @ err)
     if not rows:
-        return np.nan, np.nan, np.nan, 0, len(planes), 0, 0
+        return np.nan, np.nan, np.nan, 0, len(planes), 0, 0, np.full(6, np.nan), np.zeros((6, 6))
     A, b = np.vstack(rows), np.concatenate(rhs)
     chi0 = float(b @ b)
     S = np.eye(len(b)) + A @ Q @ A.T
@@ -65,7 +65,7 @@ def plane_chis(planes, T_world_base: np.ndarray, scene, Q: np.ndarray) -> tuple:
     e = np.linalg.lstsq(A, b, rcond=None)[0]
     r = b - A @ e
     rank = np.linalg.matrix_rank(A)
-    return chi0, chiQ, float(r @ r), len(b), len(planes), len(rows), rank
+    return chi0, chiQ, float(r @ r), len(b), len(planes), len(rows), rank, e, A.T @ A
 
 
 def summary(path: Path) -> None:
@@ -155,9 +155,10 @@ def main() -> None:
     n5 = np.full(E, np.nan)
     n5[1:] = errors_nees(xi[1:], P[1:], range(5))
     chis = np.full((E, 7), np.nan)
+    desk_e, desk_info = np.full((E, 6), np.nan), np.zeros((E, 6, 6))
     for k in range(E):
-        out = plane_chis(odo.planes[k], full.poses[k], full.scene, Q[k])
-        chis[k, : len(out)] = out
+        *out, desk_e[k], desk_info[k] = plane_chis(odo.planes[k], full.poses[k], full.scene, Q[k])
+        chis[k] = out
     status = np.array(odo.statuses)
     deskewed = np.array(
         [r is not None and r.deskew_twist is not None for r in odo.results], dtype=bool
@@ -168,7 +169,7 @@ def main() -> None:
     travel = np.zeros(E)
     travel[1:] = np.linalg.norm(step[:, :2, 3], axis=1)
     np.savez(
-        args.output, xi=xi, P=P, poses=poses, n5=n5, Q=Q, chis=chis, status=status, deskewed=deskewed,
+        args.output, xi=xi, P=P, poses=poses, n5=n5, Q=Q, chis=chis, desk_e=desk_e, desk_info=desk_info, status=status, deskewed=deskewed,
         turn=turn, travel=travel, superseded=np.array(sorted(odo.superseded), dtype=int),
     )  # fmt: skip
     summary(args.output)
