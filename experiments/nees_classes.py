@@ -110,6 +110,24 @@ def factor_class(factor) -> str:  # noqa: ANN001
     return "other " + "".join(sorted(set(keys))) + str(factor.dim())
 
 
+def report_betweens(betweens: list[tuple[int, int, float, int]]) -> None:
+    """The between factors' squared whitened errors at the truth per dimension, by delta."""
+    b = np.array(betweens)
+    for dim in (3, 5):
+        m = b[:, 3] == dim
+        if not m.any():
+            continue
+        print(f"  between{dim}: chi2/dof at the truth mean {np.mean(b[m, 2] / dim):.2f} "
+              f"median {np.median(b[m, 2] / dim):.2f} (n {m.sum()})")  # fmt: skip
+        for delta in sorted(set((b[m, 1] - b[m, 0]).astype(int))):
+            md = m & (b[:, 1] - b[:, 0] == delta)
+            print(f"    delta {delta}: n {md.sum():5d} chi2/dof mean {np.mean(b[md, 2] / dim):7.2f} "
+                  f"median {np.median(b[md, 2] / dim):6.2f}")  # fmt: skip
+        first = b[m & (b[:, 0] < 3)]
+        print("    from epochs 0-2 (prev, curr, chi2):",
+              " ".join(f"{int(a)}-{int(c)}:{x:.1f}" for a, c, x, _ in first))  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--world", type=int, required=True)
@@ -139,6 +157,7 @@ def main() -> None:
         n_cols += zero.at(key).size
     rows, cols, vals = [], [], []
     rhs: dict[str, list] = {}
+    betweens: list[tuple[int, int, float, int]] = []
     n_rows = 0
     for i in range(cov_graph.size()):
         f = cov_graph.at(i)
@@ -156,6 +175,10 @@ def main() -> None:
             vals.append(block[rr, cc])
             c0 += dim
         name = factor_class(f)
+        if name.startswith("between"):
+            ks = sorted(symbol(k)[1] for k in f.keys())
+            betweens.append((ks[0], ks[1], float(r @ r), len(r)))
+            name += " from x0" if ks[0] == 0 else " from x1-9" if ks[0] < 10 else ""
         parts = {name: r}
         if i in planes:
             epoch, plane = planes[i]
@@ -192,6 +215,7 @@ def main() -> None:
         print(f"  {name:22s} factors {len(pieces):6d} NEES5 of its response {np.nanmean(own):8.2f} "
               f"error without it {np.nanmean(without):8.2f}  d^2/P (r p y x y) "
               + " ".join(f"{c:.1f}" for c in comp))  # fmt: skip
+    report_betweens(betweens)
     lin = errors_nees(total[1:], P[1:], range(5))
     resid = errors_nees(xi[1:] - total[1:], P[1:], range(5))
     print(
