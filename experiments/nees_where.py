@@ -123,9 +123,11 @@ def summary(path: Path) -> None:
     print("  largest epochs: k NEES5 status desk turn_deg travel_m roll pitch yaw x y (sigmas) "
           "chi0/dof chiQ/dof")  # fmt: skip
     for k in order[:15]:
-        print(f"   {k:5d} {n5[k]:8.1f} {status[k]:12s} {int(deskewed[k])} {np.degrees(turn[k]):6.2f} "
+        print(f"   {k:5d} {n5[k]:8.1f} {status[k]:12s} {int(deskewed[k])} "
+              f"{np.degrees(turn[k]):6.2f} "
               f"{travel[k]:.3f} " + " ".join(f"{v:6.1f}" for v in u[k, :5])
-              + f" {chis[k, 0] / max(dof[k], 1):6.2f} {chis[k, 1] / max(dof[k], 1):6.2f}")  # fmt: skip
+              + f" {chis[k, 0] / max(dof[k], 1):6.2f}"
+              f" {chis[k, 1] / max(dof[k], 1):6.2f}")  # fmt: skip
 
 
 def main() -> None:
@@ -169,7 +171,8 @@ def main() -> None:
     travel = np.zeros(E)
     travel[1:] = np.linalg.norm(step[:, :2, 3], axis=1)
     np.savez(
-        args.output, xi=xi, P=P, poses=poses, n5=n5, Q=Q, chis=chis, desk_e=desk_e, desk_info=desk_info, status=status, deskewed=deskewed,
+        args.output, xi=xi, P=P, poses=poses, n5=n5, Q=Q, chis=chis, desk_e=desk_e,
+        desk_info=desk_info, status=status, deskewed=deskewed,
         turn=turn, travel=travel, superseded=np.array(sorted(odo.superseded), dtype=int),
     )  # fmt: skip
     summary(args.output)
