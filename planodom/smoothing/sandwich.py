@@ -53,6 +53,7 @@ from planodom.odometry.relative import RelativePose
 from planodom.smoothing import sparse_sandwich
 from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.graph import X
+from planodom.smoothing.loop_sources import loop_source_maps
 from planodom.smoothing.marginals import (
     FIRST_POSE_TIGHTENING,
     POSE_DIM,
@@ -357,6 +358,7 @@ def sandwich_covariances(
     motion_change: np.ndarray,
     relative_to_first: bool = True,
     prior_sigma: float = 1e-4,
+    extra: tuple[dict[int, tuple[int, np.ndarray]], np.ndarray] | None = None,
 ) -> tuple[SandwichMarginals, str | None]:
     """(E, 6, 6) sandwich covariances of ``X(0..E-1)`` at ``values`` and a note naming
     undetermined pose axes (None when none).
@@ -371,6 +373,7 @@ def sandwich_covariances(
             (:meth:`.DeskewNoise.plane_motion_change`).
         relative_to_first, prior_sigma: conditioned on the first pose as
             :func:`.marginals.pose_covariances`.
+        extra: more error maps (columns from E on) and their (K, 6, 6) covariances.
     """
     linear = graph.linearize(values)
     if relative_to_first:
@@ -383,6 +386,8 @@ def sandwich_covariances(
         g = plane_error_map(graph.at(i), plane)
         if g is not None and np.any(motion_change[epoch]):
             maps[i] = (epoch, g)
+    if extra is not None and len(extra[1]):
+        maps, motion_change = maps | extra[0], np.concatenate([motion_change, extra[1]])
     keys = [X(k) for k in range(n_epochs)]
     out = sandwich_pose_covariances(linear, keys, dims, maps, motion_change)
     poses = sorted(out.undetermined)
@@ -431,8 +436,10 @@ def batch_sandwich(
     motion, :func:`deskew_motion_change`)."""
     index = covariance_graph_index(graph, cov_graph)
     mapped = {index[i]: obs for i, obs in planes.items() if i in index}
+    shared = cfg.sandwich_loop_sources == "shared"
+    extra = loop_source_maps(cov_graph, len(Q), cfg.delta_max) if shared else None
     out, note = sandwich_covariances(
         cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
-        cfg.prior_sigma,
+        cfg.prior_sigma, extra,
     )  # fmt: skip
     return out.covariances, note
