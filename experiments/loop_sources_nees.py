@@ -11,7 +11,6 @@ m), mean NEES5 both ways, the loop factors and the older epochs they come from.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -20,7 +19,6 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 import nees_gauge  # noqa: E402  (patches the batch to capture its graph)
 
-from planodom.geometry import invert_transform  # noqa: E402
 from planodom.metrics import errors_nees, pose_errors  # noqa: E402
 from planodom.smoothing.batch import smooth_batch  # noqa: E402
 from planodom.smoothing.batch_covariances import covariance_graph  # noqa: E402
@@ -28,13 +26,8 @@ from planodom.smoothing.loop_sources import loop_source_maps  # noqa: E402
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--world", type=int, required=True)
-    parser.add_argument("--noise", type=float, required=True)
-    parser.add_argument("--cache", type=Path, default=None)
-    args = parser.parse_args()
-    world, full, cfg, odo, rel = nees_gauge.load(args.world, args.noise, args.cache)
-    gt = invert_transform(full.poses[0])[None] @ full.poses
+    args = nees_gauge.lap_parser(__doc__.splitlines()[0]).parse_args()
+    world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
     res = smooth_batch(odo.planes, rel, cfg)
     assert res.covariances is not None, res.covariance_note
     cap = nees_gauge.CAPTURED

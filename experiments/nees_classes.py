@@ -20,7 +20,6 @@ and per component the mean ``d^2 / P_ii``.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections import Counter
 from pathlib import Path
@@ -130,13 +129,8 @@ def report_betweens(betweens: list[tuple[int, int, float, int]]) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--world", type=int, required=True)
-    parser.add_argument("--noise", type=float, required=True)
-    parser.add_argument("--cache", type=Path, default=None)
-    args = parser.parse_args()
-    world, full, cfg, odo, rel = nees_gauge.load(args.world, args.noise, args.cache)
-    gt = invert_transform(full.poses[0])[None] @ full.poses
+    args = nees_gauge.lap_parser(__doc__.splitlines()[0]).parse_args()
+    world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
     res = smooth_batch(odo.planes, rel, cfg)
     E = len(gt)
     cap = nees_gauge.CAPTURED

@@ -124,14 +124,26 @@ def load(world_index: int, noise: float, cache: Path | None):  # noqa: ANN201
     return world, full, cfg, odo, rel
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def lap_parser(description: str) -> argparse.ArgumentParser:
+    """The lap scripts' common arguments: ``--world``, ``--noise``, ``--cache``."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--world", type=int, required=True)
     parser.add_argument("--noise", type=float, required=True)
     parser.add_argument("--cache", type=Path, default=None)
-    args = parser.parse_args()
+    return parser
+
+
+def load_lap(args: argparse.Namespace):  # noqa: ANN201
+    """:func:`load` of ``args`` (from :func:`lap_parser`), with the true poses relative to
+    the first: ``(world, full, cfg, odo, rel, gt)``."""
     world, full, cfg, odo, rel = load(args.world, args.noise, args.cache)
     gt = invert_transform(full.poses[0])[None] @ full.poses
+    return world, full, cfg, odo, rel, gt
+
+
+def main() -> None:
+    args = lap_parser(__doc__.splitlines()[0]).parse_args()
+    world, full, cfg, odo, rel, gt = load_lap(args)
     res = smooth_batch(odo.planes, rel, cfg)
     E = len(gt)
     xi = pose_errors(res.poses, gt)

@@ -21,7 +21,6 @@ with ``--cache DIR``), the batch with loops with the default covariances. Saved 
 
 from __future__ import annotations
 
-import argparse
 import pickle
 import sys
 from pathlib import Path
@@ -131,18 +130,14 @@ def summary(path: Path) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--world", type=int, required=True)
-    parser.add_argument("--noise", type=float, required=True)
-    parser.add_argument("--cache", type=Path, default=None)
+    parser = nees_gauge.lap_parser(__doc__.splitlines()[0])
     parser.add_argument("-o", "--output", type=Path, required=True)
     parser.add_argument("--summary", action="store_true", help="print a saved -o only")
     args = parser.parse_args()
     if args.summary:
         summary(args.output)
         return
-    world, full, cfg, odo, rel = nees_gauge.load(args.world, args.noise, args.cache)
-    gt = invert_transform(full.poses[0])[None] @ full.poses
+    world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
     path = None if args.cache is None else args.cache / f"batch_w{args.world}_{args.noise}.pkl"
     if path is not None and path.exists():
         poses, P, Q = pickle.loads(path.read_bytes())

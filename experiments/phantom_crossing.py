@@ -26,15 +26,12 @@ from phantom_planes import (  # importing it records every extraction
     RECORD,
     angle_deg,
     append_rows,
+    odometry_of,
     plane_labels,
     world_parser,
 )
 
-from planodom.config import PlanodomConfig
-from planodom.experiments.generalisation import world_for
 from planodom.geometry import invert_transform, transform_planes
-from planodom.odometry import run_odometry
-from planodom.simulation.random_world import simulate_world, world_fields
 
 
 def ring_lines(normal: np.ndarray, q: np.ndarray, ring: np.ndarray, min_points: int) -> list:
@@ -92,13 +89,7 @@ def crossing(a: tuple, b: tuple) -> tuple[float, float, float, np.ndarray]:
 
 
 def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) -> None:
-    world = world_for(seed)
-    full = simulate_world(world, noise, n_epochs=epochs, all_fields=True)
-    cfg = PlanodomConfig()
-    if overrides:
-        cfg = cfg.updated(overrides, source="phantom_crossing")
-    RECORD.clear()
-    odo = run_odometry(world_fields(world, full), cfg)
+    _, full, _, odo = odometry_of(seed, noise, epochs, overrides, "phantom_crossing")
     scene = full.scene
     row = {int(i): j for j, i in enumerate(scene.ids)}
     canon = plane_labels(scene)

@@ -35,17 +35,15 @@ from phantom_planes import (  # importing it records every extraction
     RECORD,
     angle_deg,
     append_rows,
+    odometry_of,
     plane_labels,
     world_parser,
 )
 
 from planodom.association import strict_association
-from planodom.config import AssociationConfig, PlanodomConfig
-from planodom.experiments.generalisation import world_for
+from planodom.config import AssociationConfig
 from planodom.geometry import invert_transform, plane_transform_jacobian, transform_planes
-from planodom.odometry import run_odometry
 from planodom.planes import PlaneSet
-from planodom.simulation.random_world import simulate_world, world_fields
 
 
 def nearest(a: PlaneSet, b: PlaneSet, T_a_b: np.ndarray, cfg: AssociationConfig) -> list:
@@ -115,13 +113,7 @@ def sources_of(results: list, k: int) -> tuple[set, set]:
 
 
 def run(seed: int, noise: float, epochs: int, overrides: dict, out: str | None) -> None:
-    world = world_for(seed)
-    full = simulate_world(world, noise, n_epochs=epochs, all_fields=True)
-    cfg = PlanodomConfig()
-    if overrides:
-        cfg = cfg.updated(overrides, source="phantom_epochs")
-    RECORD.clear()
-    odo = run_odometry(world_fields(world, full), cfg)
+    _, full, cfg, odo = odometry_of(seed, noise, epochs, overrides, "phantom_epochs")
     scene = full.scene
     row = {int(i): j for j, i in enumerate(scene.ids)}
     canon = plane_labels(scene)

@@ -111,15 +111,21 @@ def sweep_stack(p, idx, pts, scan, sigma) -> tuple[float, float]:
     return best, stack
 
 
-def run_world(seed: int, noise: float, epochs: int, overrides: dict, detail: bool) -> dict:
+def odometry_of(seed: int, noise: float, epochs: int, overrides: dict, source: str):  # noqa: ANN201
+    """World ``seed`` simulated with every field and its odometry under ``overrides``
+    (``source`` names them in errors), the extractions recorded afresh in ``RECORD``:
+    ``(world, full, cfg, odo)``."""
     world = world_for(seed)
     full = simulate_world(world, noise, n_epochs=epochs, all_fields=True)
-    run = world_fields(world, full)
     cfg = PlanodomConfig()
     if overrides:
-        cfg = cfg.updated(overrides, source="phantom_planes")
+        cfg = cfg.updated(overrides, source=source)
     RECORD.clear()
-    odo = run_odometry(run, cfg)
+    return world, full, cfg, run_odometry(world_fields(world, full), cfg)
+
+
+def run_world(seed: int, noise: float, epochs: int, overrides: dict, detail: bool) -> dict:
+    world, full, _, odo = odometry_of(seed, noise, epochs, overrides, "phantom_planes")
     rig = world.sensor_rig
     offsets = rig.ring_offsets
     scan_normals = {int(offsets[i]): s.T_base_sensor[:3, 2] for i, s in enumerate(rig.sensors)}
