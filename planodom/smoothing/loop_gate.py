@@ -84,7 +84,10 @@ def consistent_hypotheses(
     after the loop's old epoch allow a large drift and agree with anything). Left out of
     the clique, the map loses its ties. (World 16 at 2 cm with ``first_epoch_refresh``:
     two hypotheses aliased 4.6 m along the corridor, 23 factors, outnumber the right one,
-    4, while the map's ties imply a correction 4-5 m from theirs.)"""
+    4, while the map's ties imply a correction 4-5 m from theirs.)
+    ``loop_map_parts`` "corrections": the map is one node per correction its verification
+    took anew (:mod:`.loop_map_parts`), each compared with the loop hypotheses and the
+    other parts as above."""
     factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
     mode = builder.config.loop_consistency  # type: ignore[attr-defined]
     if mode == "off" or not factors:
