@@ -85,9 +85,9 @@ def consistent_hypotheses(
     the clique, the map loses its ties. (World 16 at 2 cm with ``first_epoch_refresh``:
     two hypotheses aliased 4.6 m along the corridor, 23 factors, outnumber the right one,
     4, while the map's ties imply a correction 4-5 m from theirs.)
-    ``loop_map_parts`` "corrections": the map is one node per correction its verification
-    took anew (:mod:`.loop_map_parts`), each compared with the loop hypotheses and the
-    other parts as above."""
+    ``loop_map_parts`` "corrections" ("matches"): the map is one node per correction its
+    verification took anew (per accepted full-rank match, :mod:`.loop_map_parts`), each
+    compared with the loop hypotheses and the other parts as above."""
     factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
     mode = builder.config.loop_consistency  # type: ignore[attr-defined]
     if mode == "off" or not factors:
@@ -97,8 +97,10 @@ def consistent_hypotheses(
     members = [[Correction.of_factor(f, poses) for f in factors if f.group == g] for g in groups]
     parts = map_hypothesis(builder) if mode == "hypotheses_and_map" else ([], [])
     parts_list = [parts] if parts[0] else []
-    if parts_list and builder.config.loop_map_parts == "corrections":  # type: ignore[attr-defined]
-        parts_list = split_at_corrections(*parts, builder.config.loop_gate_quantile)  # type: ignore[attr-defined]
+    split = builder.config.loop_map_parts  # type: ignore[attr-defined]
+    if parts_list and split != "one":
+        q = builder.config.loop_gate_quantile  # type: ignore[attr-defined]
+        parts_list = split_at_corrections(*parts, q, split == "matches")
     spanning = builder.config.loop_map_epoch == "spanning"  # type: ignore[attr-defined]
     mine = [[Correction.of_match(m, poses, spanning) for m in p[0]] for p in parts_list]
     g = len(groups)
