@@ -91,3 +91,10 @@ def test_parts_start_at_each_new_correction():
 def test_a_bad_value_names_the_key():
     with pytest.raises(Exception, match="loop_map_parts"):
         PlanodomConfig().updated({"smoothing.loop_map_parts": "two"})
+
+
+def test_matches_a_part_per_accepted_full_rank_match():
+    _, matches, ties = _lap()
+    parts = split_at_corrections(matches, ties, 0.999, every=True)
+    assert [p[0][0].epoch for p in parts] == list(range(100, 111)) + list(range(200, 211))
+    assert [len(p[1]) for p in parts] == [5] * 11 + [4] * 11
