@@ -177,6 +177,13 @@ class LoopCandidateConfig(Section):
     the right hypothesis is kept by the clique but fails the chi2 gate against the 118
     wrong ties). The default: it changes no lap but world 32 at 6 mm, better in ATE.
     """
+    loop_map_parts: Literal["one", "corrections", "matches"] = "one"
+    """``loop_consistency`` "hypotheses_and_map": the map is one node of the clique ("one"),
+    or one per correction its verification took anew, with the ties up to the next
+    ("corrections", :mod:`planodom.smoothing.loop_map_parts`), or per accepted full-rank
+    match with the rotation-only ties up to the next ("matches"): each part is tested against
+    the loop hypotheses and the other parts, so the ties after a wrong correction no longer
+    outvote a right loop closure. Off; see docs/RESULTS.md (SPLIT32)."""
     loop_gate_removes: Literal["hypothesis", "factor"] = "hypothesis"
     """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
     on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``

@@ -9,6 +9,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from planodom.smoothing.loop_drift import run_drift_xy
+from planodom.smoothing.loop_map_parts import split_at_corrections
 from planodom.smoothing.loop_records import (
     Correction,
     LoopFactor,
@@ -83,7 +84,10 @@ def consistent_hypotheses(
     after the loop's old epoch allow a large drift and agree with anything). Left out of
     the clique, the map loses its ties. (World 16 at 2 cm with ``first_epoch_refresh``:
     two hypotheses aliased 4.6 m along the corridor, 23 factors, outnumber the right one,
-    4, while the map's ties imply a correction 4-5 m from theirs.)"""
+    4, while the map's ties imply a correction 4-5 m from theirs.)
+    ``loop_map_parts`` "corrections" ("matches"): the map is one node per correction its
+    verification took anew (per accepted full-rank match, :mod:`.loop_map_parts`), each
+    compared with the loop hypotheses and the other parts as above."""
     factors: list[LoopFactor] = [f for f in getattr(builder, "loop_factors", []) if not f.removed]
     mode = builder.config.loop_consistency  # type: ignore[attr-defined]
     if mode == "off" or not factors:
@@ -91,26 +95,18 @@ def consistent_hypotheses(
     poses = builder.poses  # type: ignore[attr-defined]
     groups = sorted({f.group for f in factors})
     members = [[Correction.of_factor(f, poses) for f in factors if f.group == g] for g in groups]
-    matches, ties = map_hypothesis(builder) if mode == "hypotheses_and_map" else ([], [])
+    parts = map_hypothesis(builder) if mode == "hypotheses_and_map" else ([], [])
+    parts_list = [parts] if parts[0] else []
+    split = builder.config.loop_map_parts  # type: ignore[attr-defined]
+    if parts_list and split != "one":
+        q = builder.config.loop_gate_quantile  # type: ignore[attr-defined]
+        parts_list = split_at_corrections(*parts, q, split == "matches")
     spanning = builder.config.loop_map_epoch == "spanning"  # type: ignore[attr-defined]
-    mine = [Correction.of_match(m, poses, spanning) for m in matches]
-    n = len(groups) + bool(matches)
-    adjacent = np.ones((n, n), dtype=bool)
-    for i in range(len(groups)):
-        for j in range(i + 1, len(groups)):
-            pairs = [(a, b) for a in members[i] for b in members[j]]
-            if builder.config.loop_consistency_pair == "sharpest":  # type: ignore[attr-defined]
-                a, b = min(pairs, key=lambda p: _spread(builder, *p))
-            else:
-                a, b = min(
-                    pairs, key=lambda p: abs(p[0].epoch - p[1].epoch) + abs(p[0].old - p[1].old)
-                )
-            adjacent[i, j] = adjacent[j, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
-        if matches:
-            a, b = _sharpest(builder, members[i], mine)
-            adjacent[i, -1] = adjacent[-1, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
-    epochs = [[c.epoch for c in m] for m in members] + [[r.epoch for r in ties]] * bool(matches)
-    counts = [len(m) for m in members] + [len(ties)] * bool(matches)
+    mine = [[Correction.of_match(m, poses, spanning) for m in p[0]] for p in parts_list]
+    g = len(groups)
+    adjacent = _adjacency(builder, members, mine)
+    epochs = [[c.epoch for c in m] for m in members] + [[r.epoch for r in p[1]] for p in parts_list]
+    counts = [len(m) for m in members] + [len(p[1]) for p in parts_list]
     weights = clique_weights(
         builder.config.loop_consistency_weight,  # type: ignore[attr-defined]
         builder.config.loop_candidate_confirm_epochs,  # type: ignore[attr-defined]
@@ -119,18 +115,43 @@ def consistent_hypotheses(
     )
     kept = set(max_weight_clique(adjacent, weights))
     removed = 0
-    for i, g in enumerate(groups):
+    for i, g_i in enumerate(groups):
         for f in factors if i not in kept else ():
-            if f.group == g:
+            if f.group == g_i:
                 _remove(graph, gaussian, f.factor)
                 f.removed = True
                 removed += 1
-    for r in ties if matches and n - 1 not in kept else ():
-        _remove(graph, gaussian, r.factor)
-        r.removed = True
-        removed += 1
-        builder.stats.reidentified_removed += 1  # type: ignore[attr-defined]
+    for j, part in enumerate(parts_list, start=g):
+        for r in part[1] if j not in kept else ():
+            _remove(graph, gaussian, r.factor)
+            r.removed = True
+            removed += 1
+            builder.stats.reidentified_removed += 1  # type: ignore[attr-defined]
     return removed
+
+
+def _adjacency(
+    builder: object, members: list[list[Correction]], mine: list[list[Correction]]
+) -> np.ndarray:
+    """(n, n) bool: which of the loop hypotheses (``members``, their factors' corrections)
+    and the map's parts (``mine``, their full-rank matches' corrections) agree pairwise."""
+    g, n = len(members), len(members) + len(mine)
+    adjacent = np.ones((n, n), dtype=bool)
+    for i in range(g):
+        for j in range(i + 1, g):
+            pairs = [(a, b) for a in members[i] for b in members[j]]
+            if builder.config.loop_consistency_pair == "sharpest":  # type: ignore[attr-defined]
+                a, b = min(pairs, key=lambda p: _spread(builder, *p))
+            else:
+                a, b = min(
+                    pairs, key=lambda p: abs(p[0].epoch - p[1].epoch) + abs(p[0].old - p[1].old)
+                )
+            adjacent[i, j] = adjacent[j, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
+    for j, part in enumerate(mine, start=g):
+        for i in range(j):  # the loop hypotheses, then the map's earlier parts
+            a, b = _sharpest(builder, members[i] if i < g else mine[i - g], part)
+            adjacent[i, j] = adjacent[j, i] = builder.corrections_agree(a, b)  # type: ignore[attr-defined]
+    return adjacent
 
 
 def _spread(builder: object, a: Correction, b: Correction) -> float:
