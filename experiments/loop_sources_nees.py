@@ -2,16 +2,21 @@
 "independent" against "shared" (the same poses; issue 14, NEES2CM).
 
 The lap and its odometry as ``nees_gauge.py`` (``--cache DIR`` reuses the odometry), the
-batch with loops once with the default config; its covariances then computed again from
-the same graph and estimate with the option "shared". Printed per lap: ATE (xy rmse,
-m), mean NEES5 both ways, the loop factors and the older epochs they come from.
+batch with loops once with the default config but "independent"; its covariances then
+computed again from the same graph and estimate with the option "shared". Printed per
+lap: ATE (xy rmse, m), mean NEES5 both ways, the loop factors and the older epochs they
+come from.
 
     uv run python experiments/loop_sources_nees.py --world 148 --noise 0.02 --cache DIR
+
+``--time N``: the covariances (``batch_covariances`` on the captured graph and estimate)
+computed N times each way, alternating independent / shared, process time per call.
 """
 
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -26,8 +31,20 @@ from planodom.smoothing.loop_sources import loop_source_maps  # noqa: E402
 
 
 def main() -> None:
+<<<<<<< HEAD
     args = nees_gauge.lap_parser(__doc__.splitlines()[0]).parse_args()
     world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
+=======
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--world", type=int, required=True)
+    parser.add_argument("--noise", type=float, required=True)
+    parser.add_argument("--cache", type=Path, default=None)
+    parser.add_argument("--time", type=int, default=0, help="repeats of the CPU timing")
+    args = parser.parse_args()
+    world, full, cfg, odo, rel = nees_gauge.load(args.world, args.noise, args.cache)
+    cfg = cfg.updated({"smoothing.sandwich_loop_sources": "independent"})
+    gt = invert_transform(full.poses[0])[None] @ full.poses
+>>>>>>> neesdef
     res = smooth_batch(odo.planes, rel, cfg)
     assert res.covariances is not None, res.covariance_note
     cap = nees_gauge.CAPTURED
@@ -50,6 +67,25 @@ def main() -> None:
     print(f"world {args.world} noise {args.noise} epochs {len(gt)} ATE(body xy) {ate:.4f} "
           f"model {model} loop factors {len(maps)} from {len(cols)} epochs "
           f"NEES5 independent {off5:.2f} shared {on5:.2f}")  # fmt: skip
+    if args.time:
+        _time_covariances(builder, cfg.smoothing, on, cap, args.time)
+
+
+def _time_covariances(builder, off, on, cap, repeats: int) -> None:  # noqa: ANN001
+    """Process time of the batch's covariances, independent and shared, alternating."""
+    times: dict[str, list[float]] = {"independent": [], "shared": []}
+    for _ in range(repeats):
+        for name, config in (("independent", off), ("shared", on)):
+            builder.config = config
+            t0 = time.process_time()
+            nees_gauge.ORIGINAL(
+                builder, cap["graph"], cap["gaussian"], cap["fallback"], cap["estimate"],
+                cap["n"], cap["planes"], cap["rel"],
+            )  # fmt: skip
+            times[name].append(time.process_time() - t0)
+    off_t, on_t = np.median(times["independent"]), np.median(times["shared"])
+    print(f"covariance CPU s (median of {repeats}) independent {off_t:.2f} shared {on_t:.2f} "
+          f"ratio {on_t / off_t:.3f}; all: {times}")  # fmt: skip
 
 
 if __name__ == "__main__":
