@@ -31,20 +31,11 @@ from planodom.smoothing.loop_sources import loop_source_maps  # noqa: E402
 
 
 def main() -> None:
-<<<<<<< HEAD
-    args = nees_gauge.lap_parser(__doc__.splitlines()[0]).parse_args()
-    world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
-=======
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--world", type=int, required=True)
-    parser.add_argument("--noise", type=float, required=True)
-    parser.add_argument("--cache", type=Path, default=None)
+    parser = nees_gauge.lap_parser(__doc__.splitlines()[0])
     parser.add_argument("--time", type=int, default=0, help="repeats of the CPU timing")
     args = parser.parse_args()
-    world, full, cfg, odo, rel = nees_gauge.load(args.world, args.noise, args.cache)
+    world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
     cfg = cfg.updated({"smoothing.sandwich_loop_sources": "independent"})
-    gt = invert_transform(full.poses[0])[None] @ full.poses
->>>>>>> neesdef
     res = smooth_batch(odo.planes, rel, cfg)
     assert res.covariances is not None, res.covariance_note
     cap = nees_gauge.CAPTURED
