@@ -2,19 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
+from experiment_scripts import load_script
 from plot_checks import assert_nontrivial_png
-
-SCRIPT = Path(__file__).resolve().parents[1] / "experiments" / "walkthrough.py"
 
 
 def test_walkthrough_runs(tmp_path, capsys) -> None:
-    spec = importlib.util.spec_from_file_location("walkthrough", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script("walkthrough")
     files = module.main(tmp_path, epochs=4)
     for path in files.values():
         assert_nontrivial_png(path)

@@ -2,22 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
-
-ROOT = Path(__file__).resolve().parents[2]
+from experiment_scripts import load_script
 
 
 def _script():
-    path = ROOT / "experiments/odometry_chain.py"
-    spec = importlib.util.spec_from_file_location("odometry_chain", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("odometry_chain")
 
 
 def test_bridged_runs() -> None:

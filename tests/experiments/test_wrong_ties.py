@@ -2,22 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
-
-ROOT = Path(__file__).resolve().parents[2]
+from experiment_scripts import load_script
 
 
 def _script():
-    path = ROOT / "experiments/wrong_ties.py"
-    spec = importlib.util.spec_from_file_location("wrong_ties", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("wrong_ties")
 
 
 def test_offset_note_names_the_tied_wall_and_the_nearest_other() -> None:

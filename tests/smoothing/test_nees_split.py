@@ -3,23 +3,15 @@ against the closed form."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import gtsam
 import numpy as np
+from experiment_scripts import load_script
 
 from planodom.metrics import pose_errors
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 def _script():
-    spec = importlib.util.spec_from_file_location("nees_split", ROOT / "experiments/nees_split.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("nees_split")
 
 
 def _lap(n: int = 24, radius: float = 10.0) -> np.ndarray:

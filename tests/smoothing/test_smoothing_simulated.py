@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
+from experiment_scripts import load_script
 from pose_checks import pose_error
 
 from planodom.config import PlanodomConfig
@@ -16,8 +14,6 @@ from planodom.geometry import invert_transform
 from planodom.simulation import simulate_named
 from planodom.smoothing.run import run_smoothing
 from planodom.smoothing.synthetic import make_sequence
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -54,9 +50,7 @@ def test_smoothing_experiment_writes_its_figures_and_tables(tmp_path) -> None:
 
 
 def test_benchmark_script_runs_on_a_short_sequence() -> None:
-    spec = importlib.util.spec_from_file_location("bench", ROOT / "experiments/bench_smoothing.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("bench_smoothing")
     seq = make_sequence(15, seed=3, sigma_rotation=1e-3, sigma_translation=0.01)
     rows = bench.bench(
         "synthetic", seq.planes, seq.relatives, seq.poses, PlanodomConfig().smoothing
