@@ -26,6 +26,7 @@ from rosbags.rosbag2 import ReaderError as Reader2Error
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 
+from planodom.datasets.bag_beam_notes import BeamCounts
 from planodom.datasets.bag_gt import GtReading, parse_gt
 from planodom.datasets.bag_gt_poses import GtPoses
 from planodom.datasets.bag_livox import register_livox_types
@@ -127,7 +128,8 @@ class TopicIndex:
         empty: messages without a point (clouds, Livox messages; 0 for a LaserScan), left
             out of the epochs when some topic has points.
         blank: LaserScans without a return, left out of the epochs when theirs is the only
-            scan topic and some of its scans have returns.
+            scan topic and some of its scans have returns; beams: a 2D scan topic's beam
+            counts and intensities (:mod:`planodom.datasets.bag_beam_notes`).
         sweeps: its messages (duplicates included).
         duplicates: messages recorded again (same stamp and content as an earlier one,
             ROS 1's ``header.seq`` aside), left out of the epochs.
@@ -149,6 +151,7 @@ class TopicIndex:
     unstamped: int = 0
     empty: int = 0
     blank: int = 0
+    beams: BeamCounts = field(default_factory=BeamCounts)
     duplicates: int = 0
     sweeps: int = 0
     no_ring: int = 0
@@ -397,6 +400,7 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
         with _message_errors(path, topic.name):
             blank = not laser_scan_returns(msg, topic.msgtype, sweep)
         topic.blank += blank
+        topic.beams.add(msg, topic.msgtype)
         return blank
     with _message_errors(path, topic.name):
         if topic.msgtype == POINT_CLOUD2:

@@ -9,13 +9,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from planodom.datasets.bag_beam_notes import beam_notes
 from planodom.datasets.bag_gt import gt_notes
 from planodom.datasets.bag_index import BagIndex, TopicIndex
 from planodom.datasets.bag_msgs import LASER_TYPES
 from planodom.datasets.bag_rings import stray_note
 
 
-def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> list[str]:
+def bag_notes(
+    index: BagIndex, chosen: bool, gt_topic: str | None = None, echo: str = "first"
+) -> list[str]:
     """One line each (see the module docstring), naming the topic and what to do.
 
     - a cloud topic's time offsets read in a unit other than the documented one, or not
@@ -31,6 +34,8 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
       another topic has points), or some of whose messages hold none (left out of the
       epochs: they would place epochs without points), or the only scan topic some of
       whose LaserScans hold no return (left out likewise);
+    - a 2D scan topic whose beam count changes, or whose MultiEchoLaserScans carry no
+      intensities under ``echo`` strongest (:mod:`planodom.datasets.bag_beam_notes`);
     - points whose ring id is their ring field type's largest value ("no ring"), or no ring
       of the lidar's numbering (:mod:`planodom.datasets.bag_rings`), left out;
     - points a Livox lidar marks as high confidence noise (their ``tag``), left out;
@@ -70,7 +75,7 @@ def bag_notes(index: BagIndex, chosen: bool, gt_topic: str | None = None) -> lis
                 f"topic '{t.name}': {t.blank} of {sweeps} scans hold no return (open space, "
                 "or everything beyond range_max?); left out of the epochs"
             )
-        notes += _point_notes(t)
+        notes += beam_notes(t.name, t.sweeps, t.beams, echo) + _point_notes(t)
         if t.duplicates:
             notes.append(
                 f"topic '{t.name}': {t.duplicates} of {sweeps} messages recorded twice (the "

@@ -151,7 +151,7 @@ class BagDataset:
         self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
         self.notes = split_parts_note(path) + index.tf.loops(self.base_frame)
         self.notes += index.tf.restated_notes()
-        self.notes += bag_notes(index, topics_chosen, gt_topic) + crowded_notes(
+        self.notes += bag_notes(index, topics_chosen, gt_topic, echo) + crowded_notes(
             index, members, self.times
         )
         if gt_topic is not None and not index.gt_child:  # a PoseStamped: of which frame?

@@ -23,6 +23,12 @@ WALL, PANE = 6.0, 2.5  # m, x of the wall and of the pane in the laser frame
 A0, INC, DT = -0.6, 0.02, 2e-4  # rad, rad, s
 RANGE_MIN, RANGE_MAX = 0.05, 30.0
 MODES = ("first", "last", "strongest", "all")
+#: The note on _sweeps()' beam counts (40, 45 and 50 beams, one message each).
+CHANGING = (
+    "topic '/echoes': its 3 messages hold 3 beam counts (beams in messages: 40 in 1, 45 in 1, "
+    "50 in 1: a driver relaunched with another resolution or field of view, or two scanners "
+    "on one topic?); each is read with its own angles"
+)
 
 
 def _beams(n: int, k: int) -> list[tuple[list[float], list[float]]]:
@@ -131,7 +137,7 @@ def test_each_echo_mode_reads_its_returns_at_the_beams_angles_and_times(
         assert len(ds) == 3 and [t.msgtype for t in ds.topics] == [
             "sensor_msgs/msg/MultiEchoLaserScan"
         ]
-        assert ds.topics[0].rings == 1 and ds.notes == []
+        assert ds.topics[0].rings == 1 and ds.notes == [CHANGING]
         for k, (scan, beams) in enumerate(zip(ds, sweeps, strict=True)):
             ranges, index = _expected(beams, mode)
             a = A0 + np.array(index) * INC
@@ -162,6 +168,13 @@ def test_strongest_without_intensities_reads_the_first_return(tmp_path: Path, ro
         _assert_same(ds, first)
         ranges, _ = _expected(sweeps[0], "strongest", n_intensities=False)
         assert len(ds[0]) == len(ranges)
+        lit = sum(len(rs) > 0 for beams in sweeps for rs, _ in beams)  # beams with echoes
+        assert ds.notes == [
+            CHANGING,
+            f"topic '/echoes': 3 of 3 messages carry no intensities for beams with echoes "
+            f"({lit} beams in all): --echo strongest reads those beams' first return",
+        ]
+        assert first.notes == [CHANGING]
 
 
 def _assert_same(ds, other) -> None:
@@ -299,3 +312,68 @@ def test_the_echo_option_of_the_command_line(tmp_path: Path) -> None:
     fails(["convert", tmp_path / "e.bag", tmp_path / "o", "--echo", "near"], "echo must be")
     fails(["run", "--scenario", "paper-loop", "--echo", "last"], "--echo", "not for --scenario")
     fails(["run", out, "--echo", "last", "--out", tmp_path / "r"], "not a bag", "echo")
+
+
+def _unlit(bw: BagWriter, stamp: int, beams, k: int):
+    """Sweep ``k``'s message; the second's beams 0, 4, 8, ... without intensities."""
+    msg = _multi_echo(bw, stamp, beams)
+    if k != 1:
+        return msg
+    none = bw.T["sensor_msgs/msg/LaserEcho"](echoes=np.zeros(0, np.float32))
+    lit = [none if i % 4 == 0 else e for i, e in enumerate(msg.intensities)]
+    return type(msg)(**{**msg.__dict__, "intensities": lit})
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+@pytest.mark.parametrize("mode", MODES)
+def test_the_notes_on_beam_counts_and_missing_intensities_come_exactly_with_their_case(
+    tmp_path: Path, ros: int, mode: str
+) -> None:
+    """One beam count: no note. Some beams of one message without intensities: noted under
+    ``strongest`` only, counting that message and those of its beams with echoes, whose
+    first return is read (the others their strongest), against the closed form."""
+    sweeps = [_beams(45, k) for k in range(3)]
+    path = _path(tmp_path, ros, "u")
+    order = iter(range(3))
+    _write(path, ros, sweeps, lambda bw, s, b: _unlit(bw, s, b, next(order)))
+    unlit = [i for i, (rs, _) in enumerate(sweeps[1]) if i % 4 == 0 and rs]
+    with open_bag(path, BagOptions(echo=mode)) as ds:
+        if mode == "strongest":
+            assert ds.notes == [
+                f"topic '/echoes': 1 of 3 messages carry no intensities for beams with echoes "
+                f"({len(unlit)} beams in all): --echo strongest reads those beams' first return"
+            ]
+        else:
+            assert ds.notes == []
+        # a beam without intensities: its echoes' powers falling, so its first return wins
+        beams = [
+            (rs, [-float(j) for j in range(len(rs))] if i in unlit else ps)
+            for i, (rs, ps) in enumerate(sweeps[1])
+        ]
+        ranges, index = _expected(beams, mode)
+        a = A0 + np.array(index) * INC
+        r = np.array(ranges, np.float32).astype(np.float64)
+        local = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros(len(r))])
+        expected = local @ T_BASE_LASER[:3, :3].T + T_BASE_LASER[:3, 3]
+        np.testing.assert_allclose(ds[1].points, expected, atol=1e-6)
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_laser_scan_topic_whose_beam_count_changes_is_noted(tmp_path: Path, ros: int) -> None:
+    """LaserScans of 30, 31, 30, 32, 33 and 30 beams: the note counts the messages of each
+    count, most first, the fourth count summed up; one count: no note."""
+    counts = [30, 31, 30, 32, 33, 30]
+    sweeps = [_beams(n, 0) for n in counts]
+    path = _path(tmp_path, ros, "l")
+    _write(path, ros, sweeps, lambda bw, s, b: _laser_scan(bw, s, _first_returns(b)))
+    with open_bag(path) as ds:
+        assert ds.notes == [
+            "topic '/echoes': its 6 messages hold 4 beam counts (beams in messages: 30 in 3, "
+            "31 in 1, 32 in 1, …: a driver relaunched with another resolution or field of "
+            "view, or two scanners on one topic?); each is read with its own angles"
+        ]
+        assert [len(ds[k]) for k in range(6)] == [len(_expected(b, "first")[0]) for b in sweeps]
+    same = _path(tmp_path, ros, "same")
+    _write(same, ros, sweeps[:1] * 3, lambda bw, s, b: _laser_scan(bw, s, _first_returns(b)))
+    with open_bag(same) as ds:
+        assert ds.notes == []
