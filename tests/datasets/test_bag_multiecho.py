@@ -73,10 +73,10 @@ def _expected(beams, mode: str, n_intensities: bool = True) -> tuple[list[float]
     return ranges, index
 
 
-def _multi_echo(bw: BagWriter, stamp: int, beams, intensities: bool = True, frame="laser"):
-    echo = bw.T["sensor_msgs/msg/LaserEcho"]
-    n = len(beams)
-    return bw.T["sensor_msgs/msg/MultiEchoLaserScan"](
+def _beam_fields(bw: BagWriter, stamp: int, n: int, frame: str) -> dict:
+    """The fields a LaserScan and a MultiEchoLaserScan of ``n`` beams share: the same
+    header, angles, times and range limits in both."""
+    return dict(
         header=bw.header(stamp, frame),
         angle_min=A0,
         angle_max=A0 + INC * (n - 1),
@@ -85,24 +85,23 @@ def _multi_echo(bw: BagWriter, stamp: int, beams, intensities: bool = True, fram
         scan_time=0.1,
         range_min=RANGE_MIN,
         range_max=RANGE_MAX,
+    )
+
+
+def _multi_echo(bw: BagWriter, stamp: int, beams, intensities: bool = True, frame="laser"):
+    echo = bw.T["sensor_msgs/msg/LaserEcho"]
+    return bw.T["sensor_msgs/msg/MultiEchoLaserScan"](
+        **_beam_fields(bw, stamp, len(beams), frame),
         ranges=[echo(echoes=np.array(r, np.float32)) for r, _ in beams],
         intensities=[echo(echoes=np.array(p, np.float32)) for _, p in beams] if intensities else [],
     )
 
 
 def _laser_scan(bw: BagWriter, stamp: int, ranges: np.ndarray, frame="laser"):
-    n = len(ranges)
     return bw.T["sensor_msgs/msg/LaserScan"](
-        header=bw.header(stamp, frame),
-        angle_min=A0,
-        angle_max=A0 + INC * (n - 1),
-        angle_increment=INC,
-        time_increment=DT,
-        scan_time=0.1,
-        range_min=RANGE_MIN,
-        range_max=RANGE_MAX,
+        **_beam_fields(bw, stamp, len(ranges), frame),
         ranges=ranges.astype(np.float32),
-        intensities=np.zeros(n, np.float32),
+        intensities=np.zeros(len(ranges), np.float32),
     )
 
 
