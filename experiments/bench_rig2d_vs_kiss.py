@@ -10,6 +10,8 @@ epoch and their ratio (KISS-ICP's time over planodom's: planodom's epochs/s as a
 multiple of KISS-ICP's), planodom's extractions, relative poses and solves an epoch
 (counted around the functions the stage bench times, ``bench_rig2d_stages.py``) and its
 degenerate and unresolved epochs; then the median ratio per block of worlds.
+``--deskew-iterations 0`` times planodom without the deskewing's refinement passes (a
+what-if of the speed one pass an epoch would give, not a setting measured for accuracy).
 
     uv run --extra baselines python experiments/bench_rig2d_vs_kiss.py --noise 0.02 \\
         --epochs 150 --worlds 0 2 4 6 8 10 12 14 16 18 140 142 144 146 148
@@ -46,10 +48,17 @@ COUNTED = (
 )
 
 
-def one_world(w: int, noise: float, epochs: int, reps: int, n: defaultdict[str, int]) -> dict:
-    """The figures of world ``w`` (module docstring)."""
+def one_world(
+    w: int, noise: float, epochs: int, reps: int, n: defaultdict[str, int],
+    deskew_iterations: int | None = None,
+) -> dict:  # fmt: skip
+    """The figures of world ``w`` (module docstring); ``deskew_iterations``: that
+    ``odometry.deskew_iterations`` instead of the default (a what-if of fewer passes)."""
     world = world_for(w)
     cfg = declared_sweep(world, PlanodomConfig())
+    if deskew_iterations is not None:
+        odo_cfg = cfg.odometry.model_copy(update={"deskew_iterations": deskew_iterations})
+        cfg = cfg.model_copy(update={"odometry": odo_cfg})
     run = world_fields(world, simulate_world(world, noise, n_epochs=epochs, all_fields=True))
     warm = world_fields(world, simulate_world(world, 0.0, n_epochs=3, all_fields=True))
     max_range = max(s.max_range for s in world.sensor_rig.sensors)
@@ -81,6 +90,10 @@ def main() -> None:
     ap.add_argument("--noise", type=float, default=0.02)
     ap.add_argument("--epochs", type=int, default=150)
     ap.add_argument("--reps", type=int, default=2)
+    ap.add_argument(
+        "--deskew-iterations", type=int, default=None,
+        help="odometry.deskew_iterations for planodom (default: the config's)",
+    )  # fmt: skip
     args = ap.parse_args()
     if not kiss_available():
         raise SystemExit("KISS-ICP is not installed: uv sync --extra baselines")
@@ -91,7 +104,7 @@ def main() -> None:
     blocks: defaultdict[int, list[float]] = defaultdict(list)
     print(f"{args.noise * 1e3:g} mm, {args.epochs} epochs, CPU ms an epoch (best of {args.reps})")
     for w in args.worlds:
-        r = one_world(w, args.noise, args.epochs, args.reps, n)
+        r = one_world(w, args.noise, args.epochs, args.reps, n, args.deskew_iterations)
         ratio = r["kiss_ms"] / r["planodom_ms"]
         blocks[w // 20].append(ratio)
         print(
