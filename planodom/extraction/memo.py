@@ -70,3 +70,15 @@ def read_only(a: np.ndarray) -> np.ndarray:
     """``a`` marked read-only (in place) and returned: a memoised result is shared."""
     a.flags.writeable = False
     return a
+
+
+def float64_c(a: np.ndarray) -> np.ndarray:
+    """``a`` (any shape) as a C-contiguous float64 array: ``a`` itself when it is one, else
+    ``np.ascontiguousarray(a, dtype=np.float64)``. For an array numba allocated (the
+    deskewed points) numpy's call returns a new view each time even when nothing needs
+    converting (its dtype object is another, equal one), so a memo keyed on identity
+    (:func:`identity_memo`) downstream missed every time (measured: the RANSAC agreement
+    check recomputed the range image's grid and pixel normals on every deskewed scan)."""
+    if isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous:
+        return a
+    return np.ascontiguousarray(a, dtype=np.float64)

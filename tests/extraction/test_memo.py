@@ -165,3 +165,32 @@ def test_memo_tells_an_array_from_a_value_in_the_same_place():
     assert len(calls) == n + 1 == 5
     first(nan_key)  # the very same tuple (equal to itself, as a tuple): remembered
     assert len(calls) == 5
+
+
+def test_the_agreement_check_reuses_the_range_images_grid_of_deskewed_points(monkeypatch):
+    """Deskewed points are an array numba allocated, of which ``np.ascontiguousarray(a,
+    dtype=np.float64)`` makes a new view on every call: the RANSAC agreement check's
+    grid (and pixel normals) must still be the range image's of the same points, built
+    once (``float64_c`` passes the array itself)."""
+    import planodom.extraction.lidar.grid as grid
+    from planodom.extraction.deskew import deskew_points
+    from planodom.extraction.lidar.agreement import point_normals
+    from planodom.extraction.lidar.rangeimage import range_image_candidates
+    from planodom.extraction.memo import float64_c
+
+    scan = scan_lidar(default_scene(), np.array([0, 0, 0.3, 1.5, 0, 0]), 0.005, n_azimuth=512)
+    points = deskew_points(scan.points, scan.t, np.array([0, 0, 0.3, 1.5, 0, 0]))
+    assert float64_c(points) is points
+    assert float64_c(points.astype(np.float32)).dtype == np.float64
+    built = []
+    fill = grid.fill_grid
+    monkeypatch.setattr(grid, "fill_grid", lambda *a: built.append(1) or fill(*a))
+    cfg = ExtractionConfig()
+    range_image_candidates(points, scan.ring, scan.t, 0.005, cfg, np.zeros(3))
+    found = point_normals(points, scan.ring, scan.t, 0.005, cfg)
+    assert found is not None and len(built) == 1
+    # and the reused normals are those of a grid built anew from a copy
+    again = point_normals(points.copy(), scan.ring, scan.t, 0.005, cfg)
+    assert again is not None and len(built) == 2
+    np.testing.assert_array_equal(found[0], again[0])
+    np.testing.assert_array_equal(found[1], again[1])

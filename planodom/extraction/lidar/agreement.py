@@ -23,6 +23,7 @@ import numpy as np
 from planodom.config import ExtractionConfig
 from planodom.extraction.lidar.grid import grid_indices, point_grid
 from planodom.extraction.lidar.normals import first_row_step
+from planodom.extraction.memo import float64_c
 from planodom.extraction.noise import member_tolerance
 
 #: Fewest inliers with a pixel normal that judge a plane (a cut through other surfaces'
@@ -44,7 +45,7 @@ def point_normals(
     if col is None or H < 3:
         return None
     flat = row * W + col
-    P = point_grid(np.ascontiguousarray(points, dtype=np.float64), row, col, H, W)
+    P = point_grid(float64_c(points), row, col, H, W)
     tol = member_tolerance(config, sigma)
     K = max(1, int(config.region_window))
     n, _, ok = first_row_step(P, K, float(sigma), float(tol), float(config.region_normal_sigmas))

@@ -77,6 +77,7 @@ from planodom.extraction.lidar.grid import (
     point_grid,
 )
 from planodom.extraction.lidar.normals import pixel_normals, row_chords, unit_rays
+from planodom.extraction.memo import float64_c
 from planodom.extraction.noise import member_tolerance, rms_limit
 from planodom.geometry import row_norms
 
@@ -102,7 +103,7 @@ def range_image_candidates(
     row, col, H, W = grid_indices(ring, t)
     if col is None:  # no usable times
         return None
-    points = np.ascontiguousarray(points, dtype=np.float64)
+    points = float64_c(points)
     # One point per pixel (the first in scan order); the others join in step 4.
     P = point_grid(points, row, col, H, W)
 
