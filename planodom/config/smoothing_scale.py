@@ -88,7 +88,7 @@ class CovarianceScaleConfig(Section):
     epoch (the previous release). Only the covariances change: mean NEES5 on held-out world
     22 at 2 cm (31 such epochs) 31.8 -> 13.1, on 6 more held-out runs with 1-6 of them
     within 4 %, runs without them unchanged (docs/RESULTS.md, NEESHI)."""
-    sandwich_loop_sources: Literal["independent", "shared"] = "independent"
+    sandwich_loop_sources: Literal["independent", "shared", "deskew"] = "independent"
     """With the sandwich covariances: "shared" takes half of each loop factor's covariance
     (a relative pose beyond ``delta_max``) as an error shared by every loop factor from the
     same older epoch, solved from that epoch's same planes (:mod:`planodom.smoothing.
