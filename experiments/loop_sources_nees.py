@@ -3,7 +3,8 @@
 
 The lap and its odometry as ``nees_gauge.py`` (``--cache DIR`` reuses the odometry), the
 batch with loops once with the default config but "independent"; its covariances then
-computed again from the same graph and estimate with the option "shared", then "deskew".
+computed again from the same graph and estimate with the option "shared", then "deskew",
+then (a diagnostic, "apart") "deskew"'s maps in a column of their own per older epoch.
 Printed per lap: ATE (xy rmse, m), mean NEES5 each way, the loop factors and the older
 epochs they come from, and for "deskew" the loop factors given a map and the mean of
 ``tr(g Q_a g^T) / dim`` (the added whitened variance against the factor's own, 1).
@@ -27,10 +28,11 @@ sys.path.insert(0, str(Path(__file__).parent))
 import nees_gauge  # noqa: E402  (patches the batch to capture its graph)
 
 from planodom.metrics import errors_nees, pose_errors  # noqa: E402
+from planodom.smoothing import sandwich  # noqa: E402
 from planodom.smoothing.batch import smooth_batch  # noqa: E402
 from planodom.smoothing.batch_covariances import covariance_graph  # noqa: E402
 from planodom.smoothing.loop_deskew import loop_deskew_maps  # noqa: E402
-from planodom.smoothing.loop_sources import loop_source_maps  # noqa: E402
+from planodom.smoothing.loop_sources import loop_error_maps, loop_source_maps  # noqa: E402
 from planodom.smoothing.sandwich import covariance_graph_index  # noqa: E402
 
 
@@ -53,14 +55,17 @@ def main() -> None:
     xi = pose_errors(res.poses, gt)
     ate = float(np.sqrt(np.mean(np.sum(xi[:, 3:5] ** 2, axis=1))))
     nees = {"independent": np.nanmean(errors_nees(xi[1:], res.covariances[1:], range(5)))}
-    for mode in ("shared", "deskew"):
-        builder.config = cfg.updated({"smoothing.sandwich_loop_sources": mode}).smoothing
+    for mode in ("shared", "deskew", "apart"):
+        value = "deskew" if mode == "apart" else mode
+        builder.config = cfg.updated({"smoothing.sandwich_loop_sources": value}).smoothing
+        sandwich.loop_error_maps = _apart if mode == "apart" else loop_error_maps
         _, P_on, note, _, model = nees_gauge.ORIGINAL(
             builder, cap["graph"], cap["gaussian"], cap["fallback"], cap["estimate"],
             cap["n"], cap["planes"], cap["rel"],
         )  # fmt: skip
         assert P_on is not None, note
         nees[mode] = np.nanmean(errors_nees(xi[1:], P_on[1:], range(5)))
+    sandwich.loop_error_maps = loop_error_maps
     Q = nees_gauge.CAPTURED_Q()
     index = covariance_graph_index(cap["graph"], cov_graph)
     dmaps = loop_deskew_maps(
@@ -70,11 +75,22 @@ def main() -> None:
     print(f"world {args.world} noise {args.noise} epochs {len(gt)} ATE(body xy) {ate:.4f} "
           f"model {model} loop factors {len(maps)} from {len(cols)} epochs "
           f"NEES5 independent {nees['independent']:.2f} shared {nees['shared']:.2f} "
-          f"deskew {nees['deskew']:.2f} (maps {len(dmaps)}, mean added "
+          f"deskew {nees['deskew']:.2f} apart {nees['apart']:.2f} (maps {len(dmaps)}, mean added "
           f"{np.mean(share):.3g}, max {max(share):.3g})")  # fmt: skip
     if args.time:
         timed = cfg.updated({"smoothing.sandwich_loop_sources": args.timed}).smoothing
         _time_covariances(builder, cfg.smoothing, timed, cap, args.time)
+
+
+def _apart(mode, cov_graph, values, Q, delta_max, index, loops):  # noqa: ANN001, ANN202
+    """A diagnostic: "deskew"'s maps, each older epoch in a column of its own (a copy of
+    its ``Q_a``) instead of its plane factors' (the loop factors' share uncorrelated
+    with them)."""
+    maps, _ = loop_error_maps(mode, cov_graph, values, Q, delta_max, index, loops)
+    olders = sorted({a for a, _ in maps.values()})
+    column = {a: len(Q) + j for j, a in enumerate(olders)}
+    apart = {i: (column[a], g) for i, (a, g) in maps.items()}
+    return apart, np.stack([Q[a] for a in olders]) if olders else np.zeros((0, 6, 6))
 
 
 def _time_covariances(builder, off, on, cap, repeats: int) -> None:  # noqa: ANN001
