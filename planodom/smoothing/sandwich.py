@@ -31,9 +31,10 @@ selected inversion (Takahashi's recursion over supernodes) and its exact derivat
 numpy has no extended precision.
 
 Not modelled: the deskewing error of the relative-pose and loop-candidate factors (they
-enter only where planes are not plane factors, ``smoothing.between_factors``) and of
-factors the robust kernel down-weights at the estimate (outliers of
-:func:`.batch_covariances.covariance_graph`); both would only add.
+enter only where planes are not plane factors, ``smoothing.between_factors``; the loop
+factors' older epoch's with ``sandwich_loop_sources`` "deskew", :mod:`.loop_deskew`) and
+of factors the robust kernel down-weights at the estimate (outliers of
+:func:`.batch_covariances.covariance_graph`).
 """
 
 from __future__ import annotations
