@@ -60,7 +60,7 @@ def main() -> None:
             print(f"  {f.old}-{f.epoch}: no map (removed {f.removed})")
             continue
         a, g = maps[i]
-        R = np.asarray(cov_graph.at(i).noiseModel().R())
+        R = np.asarray(cov_graph.at(i).noiseModel().R())  # type: ignore[attr-defined]
         w = R @ f.truth_error(gt)
         pred = g @ errs[a]
         added = np.trace(g @ Q[a] @ g.T) / len(g)

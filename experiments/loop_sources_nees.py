@@ -111,7 +111,9 @@ def _apart(mode, cov_graph, values, Q, delta_max, index, loops):  # noqa: ANN001
     """A diagnostic: "deskew"'s maps, each older epoch in a column of its own (a copy of
     its ``Q_a``) instead of its plane factors' (the loop factors' share uncorrelated
     with them)."""
-    maps, _ = loop_error_maps(mode, cov_graph, values, Q, delta_max, index, loops)
+    out = loop_error_maps(mode, cov_graph, values, Q, delta_max, index, loops)
+    assert out is not None
+    maps = out[0]
     olders = sorted({a for a, _ in maps.values()})
     column = {a: len(Q) + j for j, a in enumerate(olders)}
     apart = {i: (column[a], g) for i, (a, g) in maps.items()}
