@@ -88,14 +88,17 @@ class CovarianceScaleConfig(Section):
     epoch (the previous release). Only the covariances change: mean NEES5 on held-out world
     22 at 2 cm (31 such epochs) 31.8 -> 13.1, on 6 more held-out runs with 1-6 of them
     within 4 %, runs without them unchanged (docs/RESULTS.md, NEESHI)."""
-    sandwich_loop_sources: Literal["independent", "shared"] = "independent"
+    sandwich_loop_sources: Literal["independent", "shared", "deskew"] = "independent"
     """With the sandwich covariances: "shared" takes half of each loop factor's covariance
     (a relative pose beyond ``delta_max``) as an error shared by every loop factor from the
     same older epoch, solved from that epoch's same planes (:mod:`planodom.smoothing.
-    loop_sources`); "independent" (default) each loop factor's error its own. Only the
-    covariances change (docs/RESULTS.md, NEES2CM). Off: over the 40 decision-lap runs
-    NEES5 inside [0.83, 12.8] on 10 -> 13 of 20 at 2 cm and 11 -> 12 of 20 at 6 mm, but
-    world 38 at 6 mm leaves it (1.29 -> 0.71; NEESDEF)."""
+    loop_sources`); "deskew" sizes that shared part by the older epoch's deskewing error
+    through each factor's Jacobian, in the column of that epoch's own plane factors
+    (:mod:`planodom.smoothing.loop_deskew`); "independent" (default) each loop factor's
+    error its own. Only the covariances change (docs/RESULTS.md, NEES2CM). Off: over the
+    40 decision-lap runs "shared" has NEES5 inside [0.83, 12.8] on 10 -> 13 of 20 at 2 cm
+    and 11 -> 12 of 20 at 6 mm, but world 38 at 6 mm leaves it (1.29 -> 0.71; NEESDEF);
+    "deskew" takes it to 0.64 and leaves 144 at 2 cm at 16.4 (NEESJAC)."""
     covariance_scale_estimate: Literal["keep", "resolve"] = "keep"
     """With ``covariance_scale``: "keep" the estimate (only the covariances change);
     "resolve" Gauss-Newton on the reweighted graph (the covariance graph: robust inliers

@@ -120,7 +120,10 @@ def batch_covariances(
     Q, why = sandwich_inputs(cfg, planes or {}, relative_poses, n_epochs)
     if Q is not None and np.any(Q):  # (no change of motion, e.g. snapshot scans: fitted)
         try:
-            covariances, note = batch_sandwich(cfg, graph, cov_graph, planes or {}, Q, estimate)
+            sources = (getattr(builder, "loop_factors", ()), builder.planes)
+            covariances, note = batch_sandwich(
+                cfg, graph, cov_graph, planes or {}, Q, estimate, sources
+            )
         except np.linalg.LinAlgError as exc:
             note = "sandwich covariances unavailable: " + " ".join(str(exc).split()[:14])
             return estimate, None, note, None, "sandwich"

@@ -97,8 +97,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._arrays = (np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))  # see _history
         self._last_verified: RelativePose | None = None
         self._group = -1  # hypothesis of the latest loop factors (chained agreeing poses)
-        # loop_candidate_drift "run": the bridged epochs' xy and (loop_drift_yaw) yaw error
-        self._walk, self._yaw_walk = RunWalk(), RunWalk()
+        self._walk, self._yaw_walk = RunWalk(), RunWalk()  # "run" drift: bridged xy, yaw
         #: epochs a measured relative pose (delta <= D) fixed the translation to or from
         self._translated: set[int] = set()
         self._aliased = -1  # the last epoch ``loop_candidate_aliases`` found ambiguous
@@ -446,5 +445,6 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         update.factors.add(pose5_factor(X(e), X(k), rel.T_prev_curr, noise))
         self.loop_factors.append(
             LoopFactor(k, e, np.asarray(rel.T_prev_curr, dtype=float), cov,
-                       len(rel.associations), self._graph_size + index, self._group)
+                       len(rel.associations), self._graph_size + index, self._group,
+                       associations=rel.associations)
         )  # fmt: skip

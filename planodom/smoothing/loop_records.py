@@ -160,6 +160,8 @@ class LoopFactor:
             before optimisation). increase: what its hypothesis costs the rest of the
             graph (:func:`planodom.smoothing.loop_gate.test_hypotheses`).
             removed: refused by the gate or that test after optimisation.
+        associations: (L, 2) the strict plane associations (index in the old epoch's
+            planes, index in the current's) it was solved from (None: not recorded).
     """
 
     epoch: int
@@ -172,6 +174,7 @@ class LoopFactor:
     chi2: float = float("nan")
     increase: float = float("nan")
     removed: bool = False
+    associations: np.ndarray | None = None
 
     def truth_error(self, gt_poses: np.ndarray) -> np.ndarray:
         """(5,) the factor's error at the true poses ``gt_poses`` (E, 4, 4): rotation

@@ -16,13 +16,21 @@ part ``sqrt(share) u_a`` (``u_a`` standard normal, one per older epoch ``a``, th
 every loop factor from ``a``) in the sandwich's ``S`` (:mod:`.sandwich`): half its
 covariance by default, the older epoch's planes' half of a relative pose solved from two
 epochs' planes alike. Whitened alike, loop factors from one epoch with similar covariances
-then share that part whole. Only the covariances change.
+then share that part whole. "deskew" sizes the shared part instead by the older epoch's
+deskewing error through each factor's Jacobian, in that epoch's own column
+(:mod:`.loop_deskew`). Only the covariances change.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import gtsam
 import numpy as np
+
+from planodom.geometry import Plane
+from planodom.smoothing.loop_deskew import loop_deskew_maps
+from planodom.smoothing.loop_records import LoopFactor
 
 #: The share of a loop factor's covariance its older epoch's planes make (two epochs'
 #: planes alike: half).
@@ -54,3 +62,25 @@ def loop_source_maps(
         g[:, : factor.dim()] = np.sqrt(share) * np.eye(factor.dim())
         maps[i] = (column, g)
     return maps, np.tile(np.eye(6), (len(columns), 1, 1))
+
+
+def loop_error_maps(
+    mode: str,
+    cov_graph: gtsam.NonlinearFactorGraph,
+    values: gtsam.Values,
+    motion_change: np.ndarray,
+    delta_max: int,
+    index: Mapping[int, int],
+    loops: tuple[Sequence[LoopFactor], Mapping[int, Sequence[Plane]]],
+) -> tuple[dict[int, tuple[int, np.ndarray]], np.ndarray] | None:
+    """The sandwich's ``extra`` error maps for ``smoothing.sandwich_loop_sources`` ``mode``:
+    None for "independent", :func:`loop_source_maps` for "shared", for "deskew"
+    :func:`.loop_deskew.loop_deskew_maps` (``loops``: the builder's loop factors and
+    planes per epoch; ``index``: whole graph -> ``cov_graph``) in the epochs' own columns
+    of ``motion_change`` (E, 6, 6), no new column."""
+    if mode == "shared":
+        return loop_source_maps(cov_graph, len(motion_change), delta_max)
+    if mode == "deskew":
+        maps = loop_deskew_maps(cov_graph, values, loops[0], index, loops[1], motion_change)
+        return maps, np.zeros((0, 6, 6))
+    return None

@@ -31,9 +31,10 @@ selected inversion (Takahashi's recursion over supernodes) and its exact derivat
 numpy has no extended precision.
 
 Not modelled: the deskewing error of the relative-pose and loop-candidate factors (they
-enter only where planes are not plane factors, ``smoothing.between_factors``) and of
-factors the robust kernel down-weights at the estimate (outliers of
-:func:`.batch_covariances.covariance_graph`); both would only add.
+enter only where planes are not plane factors, ``smoothing.between_factors``; the loop
+factors' older epoch's with ``sandwich_loop_sources`` "deskew", :mod:`.loop_deskew`) and
+of factors the robust kernel down-weights at the estimate (outliers of
+:func:`.batch_covariances.covariance_graph`).
 """
 
 from __future__ import annotations
@@ -53,7 +54,8 @@ from planodom.odometry.relative import RelativePose
 from planodom.smoothing import sparse_sandwich
 from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.graph import X
-from planodom.smoothing.loop_sources import loop_source_maps
+from planodom.smoothing.loop_records import LoopFactor
+from planodom.smoothing.loop_sources import loop_error_maps
 from planodom.smoothing.marginals import (
     FIRST_POSE_TIGHTENING,
     POSE_DIM,
@@ -386,7 +388,7 @@ def sandwich_covariances(
         g = plane_error_map(graph.at(i), plane)
         if g is not None and np.any(motion_change[epoch]):
             maps[i] = (epoch, g)
-    if extra is not None and len(extra[1]):
+    if extra is not None and extra[0]:
         maps, motion_change = maps | extra[0], np.concatenate([motion_change, extra[1]])
     keys = [X(k) for k in range(n_epochs)]
     out = sandwich_pose_covariances(linear, keys, dims, maps, motion_change)
@@ -429,15 +431,17 @@ def batch_sandwich(
     planes: Mapping[int, tuple[int, Plane]],
     Q: np.ndarray,
     estimate: gtsam.Values,
+    loops: tuple[Sequence[LoopFactor], Mapping[int, Sequence[Plane]]] = ((), {}),
 ) -> tuple[np.ndarray, str | None]:
     """``smoothing.covariance_model`` "sandwich" of the batch (``graph``, its covariance
     graph ``cov_graph``, :func:`.batch_covariances.covariance_graph`): (E, 6, 6) and a note
-    (:func:`sandwich_covariances`; ``Q`` (E, 6, 6) the epochs' changes of
-    motion, :func:`deskew_motion_change`)."""
+    (:func:`sandwich_covariances`; ``Q`` (E, 6, 6) the epochs' changes of motion,
+    :func:`deskew_motion_change`; ``loops``: the loop factors and planes per epoch for
+    ``sandwich_loop_sources`` "deskew", :func:`.loop_sources.loop_error_maps`)."""
     index = covariance_graph_index(graph, cov_graph)
     mapped = {index[i]: obs for i, obs in planes.items() if i in index}
-    shared = cfg.sandwich_loop_sources == "shared"
-    extra = loop_source_maps(cov_graph, len(Q), cfg.delta_max) if shared else None
+    mode, dm = cfg.sandwich_loop_sources, cfg.delta_max
+    extra = loop_error_maps(mode, cov_graph, estimate, Q, dm, index, loops)
     out, note = sandwich_covariances(
         cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
         cfg.prior_sigma, extra,
