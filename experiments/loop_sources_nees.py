@@ -98,7 +98,9 @@ def _first_step(cfg, planes, relative_poses, n_epochs):  # noqa: ANN001, ANN202
     ``Q_0`` the first step's declared covariance times ``(span / interval)^2`` (it was
     deskewed with that step's twist: its error is the step's)."""
     Q, why = SANDWICH_INPUTS(cfg, planes, relative_poses, n_epochs)
-    step = next(r for r in relative_poses if r.delta == 1 and r.curr == 1 and r.measured)
+    step = next((r for r in relative_poses if r.delta == 1 and r.curr == 1 and r.measured), None)
+    if step is None:
+        raise SystemExit("--modes first*: this lap's first step (0 -> 1) was not measured")
     lo, hi = step.deskew_times or (0.0, step.interval_s)
     var = np.append(np.diag(np.asarray(step.covariance, dtype=float).reshape(5, 5)), 0.0)
     var[5] = step.sigma_z**2 if step.z_observed and np.isfinite(step.sigma_z) else 0.0
