@@ -68,7 +68,7 @@ RING_FIELDS = ("ring", "line", "channel")
 #: microseconds, a clock of its own), which deskewing would turn into nonsense.
 MAX_SWEEP_OFFSET_S = 10.0
 #: PointField datatype codes -> numpy types.
-_POINT_FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+POINT_FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 
 
 def stamp_ns(header: Any) -> int:
@@ -164,7 +164,7 @@ def _cloud_array(msg: Any) -> tuple[np.ndarray, dict[str, str]]:
     seen: dict[str, str] = {}
     twice: dict[str, str] = {}
     for f in msg.fields:
-        code = _POINT_FIELD_TYPES.get(int(f.datatype))
+        code = POINT_FIELD_TYPES.get(int(f.datatype))
         if code is None:
             continue
         layout = f"{np.dtype(code).name} at offset {int(f.offset)}" + (
@@ -311,33 +311,52 @@ def _decode_cloud(
 
 def sweep_times(
     msg: Any, time_field: str = "auto"
-) -> tuple[int, int, str | None, np.ndarray | None, int, np.ndarray | None]:
+) -> tuple[int, int, str | None, np.ndarray | None, int, np.ndarray | None, np.ndarray | None]:
     """A cloud's ring count, point count, time field and raw relative times, for the index.
 
-    Returns ``(rings, n, time field or None, values, no ring, ring)``: ``values`` (n,) in the
-    field's own type and unit when the times are offsets (whose unit
+    Returns ``(rings, n, time field or None, values, no ring, ring, absolute)``: ``values``
+    (n,) in the field's own type and unit when the times are offsets (whose unit
     :func:`planodom.datasets.bag_time_units.choose_unit` decides over the topic), None
     without a time field or for absolute times, which are checked here; ``no ring`` the
     points left out for a "no ring" id (:func:`_ring_ids`); ``ring`` (n,) the points' ring
-    ids (None without a ring field).
+    ids (None without a ring field); ``absolute`` (n,) float64 s after the stamp for
+    absolute times (else None).
 
     Raises:
-        ValueError: a malformed cloud, non-finite times, absolute times far off the stamp.
+        ValueError: a malformed cloud, non-finite times, absolute times far off the stamp
+            or in a float32 field (which cannot hold a Unix time to the sweep's scale).
     """
     points, ring, rings, time_name, raw, no_ring = _cloud_parts(msg, time_field)
     if time_name is None or raw is None:
-        return rings, len(points), None, None, no_ring, ring
+        return rings, len(points), None, None, no_ring, ring, None
     if _is_absolute(raw):
+        _check_absolute_type(raw, time_name)
         dt = _relative_times(raw, stamp_ns(msg.header))
         check_offsets(dt, time_name, raw.dtype)
-        return rings, len(points), time_name, None, no_ring, ring
+        return rings, len(points), time_name, None, no_ring, ring, dt
     with np.errstate(invalid="ignore"):
         finite = np.isfinite(raw.astype(np.float64))
     if not finite.all():
         check_offsets(np.where(finite, 0.0, np.nan), time_name, raw.dtype)
     if wraps_inside(raw):  # a clock's nanoseconds cut to 32 bits, not the stamps' (time_wraps)
         raise ValueError(f"PointCloud2 {wrap_message(time_name, raw)}")
-    return rings, len(points), time_name, raw, no_ring, ring
+    return rings, len(points), time_name, raw, no_ring, ring, None
+
+
+def _check_absolute_type(raw: np.ndarray, time_name: str) -> None:
+    """ValueError when absolute times ``raw`` (n,) are in a float32 field: at a Unix time
+    (1.7e9 s, or 1.7e18 ns) a float32 steps by 128 s, so a sweep's 0.1 s is lost and its
+    points are put up to a minute from their time (or all at one)."""
+    if raw.dtype != np.float32:
+        return
+    largest = float(np.nanmax(np.abs(raw.astype(np.float64))))
+    step = float(np.spacing(np.float32(largest)))
+    unit = "ns" if largest > 1e15 else "s"
+    raise ValueError(
+        f"PointCloud2 time field '{time_name}' (float32) holds absolute times ({largest:.4g} "
+        f"{unit}), which a float32 rounds to steps of {step:.3g} {unit}: each point's time is "
+        "lost (store offsets from the stamp, or float64); --time-field none ignores it"
+    )
 
 
 def check_offsets(

@@ -1,0 +1,82 @@
+"""A bag topic's per-point times on another clock than its stamps': far from every point.
+
+A lidar's sweep lasts about the period between its topic's messages and its driver stamps
+it at its start or its end (or when its last packet arrived, a few milliseconds later), so
+the stamp lies within or next to the span of the sweep's point times. Per-point times on
+another clock than the stamps' do not: a lidar's own clock read as absolute times while
+the stamps are the host's (a clock off by a fraction of a second up to the
+:data:`~planodom.datasets.bag_msgs.MAX_SWEEP_OFFSET_S` that the decoder refuses beyond),
+or offsets counted from the recording's start instead of each sweep's stamp. Read as
+they are, every point of a sweep is deskewed by the motion of that gap, so the sweep is
+placed along the trajectory where the vehicle was then: metres off at walking speed, no
+word. Such times are refused when the nearest point of some sweep lies more than
+:data:`~planodom.datasets.time_wraps.CUT_PERIODS` periods from its stamp, the bound the
+32-bit clock check uses for the same reason (a sweep lies within one period of its stamp;
+the second leaves room for a stamp taken late; not fitted to data). Without a period
+(fewer than two distinct stamps) nothing is refused here.
+"""
+
+from __future__ import annotations
+
+from array import array
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planodom.datasets.time_wraps import CUT_PERIODS
+
+
+@dataclass
+class SweepBounds:
+    """Per sweep of one time field of a topic: the earliest and latest point time after
+    its stamp (``lows``, ``highs``: in the field's unit for offsets, seconds for absolute
+    times) and its stamp (``stamps``, ns)."""
+
+    name: str = ""
+    dtype: str = ""
+    lows: array = field(default_factory=lambda: array("d"))
+    highs: array = field(default_factory=lambda: array("d"))
+    stamps: array = field(default_factory=lambda: array("q"))
+
+    def add(self, name: str, dtype: str, low: float, high: float, stamp: int) -> None:
+        """One sweep's earliest and latest time after its ``stamp`` (ns)."""
+        self.name, self.dtype = name, dtype
+        self.lows.append(low)
+        self.highs.append(high)
+        self.stamps.append(stamp)
+
+
+def clock_error(bounds: SweepBounds, scale: float, period: float | None, kind: str) -> str | None:
+    """Why a topic's time field is refused as another clock than its stamps' (see the
+    module docstring), or None.
+
+    Args:
+        bounds: its sweeps' earliest and latest times after their stamps.
+        scale: seconds per unit of ``bounds`` (1.0 for absolute times, already seconds).
+        period: the topic's period between messages, s (None: fewer than two stamps).
+        kind: ``absolute times`` or ``offsets``, how the field was read (for the message).
+    """
+    if period is None or not len(bounds.lows):
+        return None
+    lows = np.frombuffer(bounds.lows, dtype=np.float64) * scale
+    highs = np.frombuffer(bounds.highs, dtype=np.float64) * scale
+    gaps = np.maximum(np.maximum(lows, -highs), 0.0)  # the stamp to the sweep's nearest point
+    far = gaps > CUT_PERIODS * period
+    if not far.any():
+        return None
+    k = int(np.flatnonzero(far)[0])
+    stamp = int(bounds.stamps[k])
+    what = (
+        "absolute times on another clock than the stamps' (the lidar's own, not synchronised?)"
+        if kind != "offsets"
+        else "offsets from another time than each sweep's stamp (the recording's start?)"
+    )
+    return (
+        f"PointCloud2 time field '{bounds.name}' ({bounds.dtype}, read as {kind}) puts "
+        f"{int(far.sum())} of {len(gaps)} sweeps away from their stamps: the nearest point "
+        f"more than {CUT_PERIODS:g} periods ({CUT_PERIODS * period:.3g} s) from its stamp, up "
+        f"to {float(gaps.max()):.3g} s (first the sweep stamped {stamp // 10**9}."
+        f"{stamp % 10**9:09d} s, its points {lows[k]:+.3g} to {highs[k]:+.3g} s from it): "
+        f"{what}, which would deskew each sweep by that much motion; --time-field none "
+        "ignores them"
+    )
