@@ -50,6 +50,7 @@ from planodom.datasets.bag_parts import (
     damaged_parts,
 )
 from planodom.datasets.bag_rings import ring_counts, stray_span
+from planodom.datasets.bag_time_notes import time_like_fields
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, TfTree, frame_name
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit, period_s, time_key
 from planodom.datasets.time_wraps import cut_clock_error
@@ -141,6 +142,8 @@ class TopicIndex:
             some are not (:mod:`planodom.datasets.bag_rings`; None: all).
         absolute: per time field read as absolute times, its sweeps' earliest and latest
             time after their stamps, s (:mod:`planodom.datasets.bag_clock`).
+        time_like: fields (name -> type) of its clouds without a time field read whose
+            names say they may hold times (:mod:`planodom.datasets.bag_time_notes`).
     """
 
     name: str
@@ -163,6 +166,7 @@ class TopicIndex:
     ring_points: dict[int, int] = field(default_factory=dict)
     ring_span: tuple[int, int] | None = None
     absolute: dict[str, SweepBounds] = field(default_factory=dict)
+    time_like: dict[str, str] = field(default_factory=dict)
 
     @property
     def pointless(self) -> bool:
@@ -378,6 +382,9 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
             if points:  # a driver relaunched with another layout: noted (bag_notes)
                 topic.timed += name is not None
                 topic.untimed += name is None
+                if name is None and time_field == "auto":
+                    fields = [(f.name, _dtype_of(msg, f.name)) for f in msg.fields]
+                    topic.time_like.update(time_like_fields(fields))
                 topic.unringed += ring is None
         else:
             xyz, ring, _, rings = decode_sweep(msg, topic.msgtype, time_field)
@@ -416,4 +423,4 @@ def _choose_time_unit(
 def _dtype_of(msg: Any, name: str) -> str:
     """The numpy name of a PointCloud2's field ``name`` (its first, for the messages)."""
     code = next(int(f.datatype) for f in msg.fields if f.name == name)
-    return np.dtype(POINT_FIELD_TYPES[code]).name
+    return np.dtype(POINT_FIELD_TYPES[code]).name if code in POINT_FIELD_TYPES else f"type {code}"
