@@ -21,11 +21,13 @@ from planodom.datasets.scan_io import TIME_FIELDS
 
 def time_like_fields(fields: Sequence[tuple[str, str]]) -> dict[str, str]:
     """The fields ``(name, numpy type)`` whose name says they may hold times (``time`` or
-    ``stamp`` in it, any case) but that are not among the names read (:data:`TIME_FIELDS`)."""
+    ``stamp`` in it, any case) but that are not among the names read (:data:`TIME_FIELDS`),
+    or are but of a PointField type that is not read (``type 9``: no ROS type)."""
     return {
         name: dtype
         for name, dtype in fields
-        if name not in TIME_FIELDS and ("time" in name.lower() or "stamp" in name.lower())
+        if ("time" in name.lower() or "stamp" in name.lower() or name in TIME_FIELDS)
+        and (name not in TIME_FIELDS or dtype.startswith("type "))
     }
 
 
@@ -34,13 +36,20 @@ def unread_time_note(topic: str, untimed: int, clouds: int, fields: Mapping[str,
     while they have the time-like ``fields`` (name -> type), or ""."""
     if not untimed or not fields:
         return ""
-    shown = ", ".join(f"'{n}' ({d})" for n, d in fields.items())
-    first = next(iter(fields))
+    shown = ", ".join(
+        f"'{n}' ({'PointField ' + d + ', not read' if d.startswith('type ') else d})"
+        for n, d in fields.items()
+    )
+    readable = [n for n, d in fields.items() if not d.startswith("type ")]
+    advice = (
+        f"; if {'it holds' if len(fields) == 1 else 'one holds'} each point's time from the "
+        f"stamp (or since the Unix epoch), --time-field {readable[0]} reads it"
+        if readable
+        else ""
+    )
     return (
         f"topic '{topic}': {untimed} of {clouds} clouds have none of the time fields read "
-        f"({', '.join(TIME_FIELDS)}) but {shown}: their sweeps are not deskewed; if "
-        f"{'it holds' if len(fields) == 1 else 'one holds'} each point's time from the "
-        f"stamp (or since the Unix epoch), --time-field {first} reads it"
+        f"({', '.join(TIME_FIELDS)}) but {shown}: their sweeps are not deskewed{advice}"
     )
 
 
