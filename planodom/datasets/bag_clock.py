@@ -14,6 +14,10 @@ word. Such times are refused when the nearest point of some sweep lies more than
 32-bit clock check uses for the same reason (a sweep lies within one period of its stamp;
 the second leaves room for a stamp taken late; not fitted to data). Without a period
 (fewer than two distinct stamps) nothing is refused here.
+
+Absolute times in a float32 field are refused too (:func:`check_absolute_type`): at a
+Unix time a float32 steps by 128 s, so a sweep's times are lost, each put up to a minute
+from the truth (or all at one), which the 10 s bound catches only by chance.
 """
 
 from __future__ import annotations
@@ -79,4 +83,20 @@ def clock_error(bounds: SweepBounds, scale: float, period: float | None, kind: s
         f"{stamp % 10**9:09d} s, its points {lows[k]:+.3g} to {highs[k]:+.3g} s from it): "
         f"{what}, which would deskew each sweep by that much motion; --time-field none "
         "ignores them"
+    )
+
+
+def check_absolute_type(raw: np.ndarray, time_name: str) -> None:
+    """ValueError when absolute times ``raw`` (n,) are in a float32 field: at a Unix time
+    (1.7e9 s, or 1.7e18 ns) a float32 steps by 128 s, so a sweep's 0.1 s is lost and its
+    points are put up to a minute from their time (or all at one)."""
+    if raw.dtype != np.float32:
+        return
+    largest = float(np.nanmax(np.abs(raw.astype(np.float64))))
+    step = float(np.spacing(np.float32(largest)))
+    unit = "ns" if largest > 1e15 else "s"
+    raise ValueError(
+        f"PointCloud2 time field '{time_name}' (float32) holds absolute times ({largest:.4g} "
+        f"{unit}), which a float32 rounds to steps of {step:.3g} {unit}: each point's time is "
+        "lost (store offsets from the stamp, or float64); --time-field none ignores it"
     )

@@ -50,8 +50,8 @@ from planodom.datasets.bag_parts import (
     damaged_parts,
 )
 from planodom.datasets.bag_rings import ring_counts, stray_span
-from planodom.datasets.bag_time_notes import time_like_fields
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, TfTree, frame_name
+from planodom.datasets.bag_time_notes import time_like_fields
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit, period_s, time_key
 from planodom.datasets.time_wraps import cut_clock_error
 from planodom.errors import DatasetError

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from planodom.datasets.bag_beams import beam_returns, place_beams
+from planodom.datasets.bag_clock import check_absolute_type
 from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox, livox_noise
 from planodom.datasets.bag_multiecho import MULTI_ECHO, decode_multi_echo, multi_echo_returns
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
@@ -330,7 +331,7 @@ def sweep_times(
     if time_name is None or raw is None:
         return rings, len(points), None, None, no_ring, ring, None
     if _is_absolute(raw):
-        _check_absolute_type(raw, time_name)
+        check_absolute_type(raw, time_name)
         dt = _relative_times(raw, stamp_ns(msg.header))
         check_offsets(dt, time_name, raw.dtype)
         return rings, len(points), time_name, None, no_ring, ring, dt
@@ -341,22 +342,6 @@ def sweep_times(
     if wraps_inside(raw):  # a clock's nanoseconds cut to 32 bits, not the stamps' (time_wraps)
         raise ValueError(f"PointCloud2 {wrap_message(time_name, raw)}")
     return rings, len(points), time_name, raw, no_ring, ring, None
-
-
-def _check_absolute_type(raw: np.ndarray, time_name: str) -> None:
-    """ValueError when absolute times ``raw`` (n,) are in a float32 field: at a Unix time
-    (1.7e9 s, or 1.7e18 ns) a float32 steps by 128 s, so a sweep's 0.1 s is lost and its
-    points are put up to a minute from their time (or all at one)."""
-    if raw.dtype != np.float32:
-        return
-    largest = float(np.nanmax(np.abs(raw.astype(np.float64))))
-    step = float(np.spacing(np.float32(largest)))
-    unit = "ns" if largest > 1e15 else "s"
-    raise ValueError(
-        f"PointCloud2 time field '{time_name}' (float32) holds absolute times ({largest:.4g} "
-        f"{unit}), which a float32 rounds to steps of {step:.3g} {unit}: each point's time is "
-        "lost (store offsets from the stamp, or float64); --time-field none ignores it"
-    )
 
 
 def check_offsets(
