@@ -100,3 +100,16 @@ def check_absolute_type(raw: np.ndarray, time_name: str) -> None:
         f"{unit}), which a float32 rounds to steps of {step:.3g} {unit}: each point's time is "
         "lost (store offsets from the stamp, or float64); --time-field none ignores it"
     )
+
+
+def far_message(t: np.ndarray, near: float, period: float) -> str:
+    """Why a scan file's point times ``t`` (n,) s from its epoch's time, whose nearest lies
+    ``near`` s from it, are refused (the dataset reader's version of :func:`clock_error`;
+    ``period``: the epochs' period there, s; the caller names the file)."""
+    return (
+        f"point times lie {float(t.min()):+.3g} to {float(t.max()):+.3g} s from the epoch's "
+        f"reference time, the nearest more than {CUT_PERIODS:g} epoch periods of {period:.3g} "
+        "s from it: another clock than the epoch times' (poses.tum / times.txt), or offsets "
+        "from another time (the recording's start?), which would deskew the scan by "
+        f"{near:.3g} s of motion; --time-field none ignores them"
+    )

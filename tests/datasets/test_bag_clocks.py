@@ -151,13 +151,13 @@ def test_a_stamp_taken_late_is_not_another_clock(tmp_path: Path) -> None:
 def test_offsets_from_the_recordings_start_are_refused(tmp_path: Path) -> None:
     """``t`` (uint32 ns) counted from the first sweep's stamp: read before, the sweeps
     after the second deskewed by up to 0.5 s of motion."""
-    layout: Layout = lambda x, y, z, r, t, s: (
-        _xyz(x, y, z)
-        + [  # noqa: E731
+
+    def layout(x, y, z, r, t, s):
+        return _xyz(x, y, z) + [
             ("t", "u4", np.round((s - T0_NS) + t * 1e9)),
             ("ring", "u2", r),
         ]
-    )
+
     with pytest.raises(DatasetError) as exc:
         _read(_bag(tmp_path / "since_start", 2, layout))
     msg = str(exc.value)
@@ -168,13 +168,13 @@ def test_offsets_from_the_recordings_start_are_refused(tmp_path: Path) -> None:
 def test_unix_times_in_a_float32_are_refused(tmp_path: Path) -> None:
     """A float32 steps by 128 s at 1.7e9 s: read before as one time a sweep up to a minute
     off its stamp (or refused as 10 s off, the unit blamed)."""
-    layout: Layout = lambda x, y, z, r, t, s: (
-        _xyz(x, y, z)
-        + [  # noqa: E731
+
+    def layout(x, y, z, r, t, s):
+        return _xyz(x, y, z) + [
             ("ring", "u2", r),
             ("time", "f4", s / 1e9 + t),
         ]
-    )
+
     with pytest.raises(DatasetError) as exc:
         _read(_bag(tmp_path / "f4", 1, layout))
     assert "'time' (float32) holds absolute times (1.7e+09 s)" in str(exc.value)
@@ -184,15 +184,15 @@ def test_unix_times_in_a_float32_are_refused(tmp_path: Path) -> None:
 def test_times_under_another_name_are_noted_and_read_when_named(tmp_path: Path) -> None:
     """A converter's Livox layout (``time_offset`` ns from ``timebase_low`` / ``_high``):
     read before without a word, its sweeps not deskewed."""
-    layout: Layout = lambda x, y, z, r, t, s: (
-        _xyz(x, y, z)
-        + [  # noqa: E731
+
+    def layout(x, y, z, r, t, s):
+        return _xyz(x, y, z) + [
             ("ring", "u1", r),
             ("timebase_low", "u4", s % 2**32),
             ("timebase_high", "u4", s >> 32),
             ("time_offset", "u4", np.round(t * 1e9)),
         ]
-    )
+
     bag = _bag(tmp_path / "converted", 2, layout)
     worst, span, notes = _read(bag)
     assert span == 0.0 and worst > 0.3  # not deskewed
@@ -205,13 +205,13 @@ def test_times_under_another_name_are_noted_and_read_when_named(tmp_path: Path) 
 
 def test_a_time_field_of_a_type_not_read_is_noted(tmp_path: Path) -> None:
     """``t`` written with PointField datatype 9 (no ROS type): skipped without a word."""
-    layout: Layout = lambda x, y, z, r, t, s: (
-        _xyz(x, y, z)
-        + [  # noqa: E731
+
+    def layout(x, y, z, r, t, s):
+        return _xyz(x, y, z) + [
             ("t", "u4", np.round(t * 1e9)),
             ("ring", "u2", r),
         ]
-    )
+
     _, _, notes = _read(_bag(tmp_path / "t9", 2, layout, {"t": 9}))
     (note,) = notes
     assert "but 't' (PointField type 9, not read): their sweeps are not deskewed" in note
@@ -223,13 +223,13 @@ def test_one_time_for_all_the_points_of_each_sweep_is_noted(
     tmp_path: Path, name: str, kind: str
 ) -> None:
     """Every point at 0 s, or at the stamp as an absolute time: not deskewed, no word."""
-    layout: Layout = lambda x, y, z, r, t, s: (
-        _xyz(x, y, z)
-        + [  # noqa: E731
+
+    def layout(x, y, z, r, t, s):
+        return _xyz(x, y, z) + [
             ("ring", "u2", r),
             (name, kind, 0.0 * t + (s / 1e9 if name == "timestamp" else 0.0)),
         ]
-    )
+
     _, span, notes = _read(_bag(tmp_path / "flat", 2, layout))
     assert span == 0.0
     (note,) = notes
