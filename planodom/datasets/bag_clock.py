@@ -15,7 +15,9 @@ word. Such times are refused when the nearest point of some sweep lies more than
 the second leaves room for a stamp taken late; not fitted to data). Without a period
 (fewer than two distinct stamps) nothing is refused here.
 
-Absolute times in a float32 field are refused too (:func:`check_absolute_type`): at a
+A Livox ``CustomMsg``'s times (its ``timebase`` plus each point's ``offset_time``) are
+held to the same bounds (:func:`livox_time_error`), which nothing checked before. Absolute
+times in a float32 field are refused too (:func:`check_absolute_type`): at a
 Unix time a float32 steps by 128 s, so a sweep's times are lost, each put up to a minute
 from the truth (or all at one), which the 10 s bound catches only by chance.
 """
@@ -75,8 +77,13 @@ def clock_error(bounds: SweepBounds, scale: float, period: float | None, kind: s
         if kind != "offsets"
         else "offsets from another time than each sweep's stamp (the recording's start?)"
     )
+    field = (
+        f"PointCloud2 time field '{bounds.name}' ({bounds.dtype}, read as {kind})"
+        if bounds.dtype
+        else f"Livox CustomMsg point times ({bounds.name})"
+    )
     return (
-        f"PointCloud2 time field '{bounds.name}' ({bounds.dtype}, read as {kind}) puts "
+        f"{field} put{'s' if bounds.dtype else ''} "
         f"{int(far.sum())} of {len(gaps)} sweeps away from their stamps: the nearest point "
         f"more than {CUT_PERIODS:g} periods ({CUT_PERIODS * period:.3g} s) from its stamp, up "
         f"to {float(gaps.max()):.3g} s (first the sweep stamped {stamp // 10**9}."
@@ -112,4 +119,19 @@ def far_message(t: np.ndarray, near: float, period: float) -> str:
         "s from it: another clock than the epoch times' (poses.tum / times.txt), or offsets "
         "from another time (the recording's start?), which would deskew the scan by "
         f"{near:.3g} s of motion; --time-field none ignores them"
+    )
+
+
+def livox_time_error(dt: np.ndarray, bound: float) -> str | None:
+    """Why a Livox CustomMsg's point times ``dt`` (n,) s after its header stamp
+    (``timebase + offset_time``) are refused, when one lies beyond ``bound`` s (the
+    decoder's bound for any sweep) or is not finite, or None."""
+    if not len(dt) or np.all(np.abs(dt) <= bound):
+        return None
+    worst = float(dt[np.argmax(np.nan_to_num(np.abs(dt), nan=np.inf))])
+    return (
+        f"Livox CustomMsg's timebase + offset_time put a point {worst:.6g} s from its header "
+        f"stamp, beyond {bound:g} s: its timebase is not on the stamps' clock (the lidar's "
+        "own, not synchronised, and the messages stamped again?); --time-field none ignores "
+        "the point times"
     )

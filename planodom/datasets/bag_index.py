@@ -26,13 +26,14 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 
 from planodom.datasets.bag_beam_notes import BeamCounts
-from planodom.datasets.bag_clock import SweepBounds, clock_error
+from planodom.datasets.bag_clock import SweepBounds, clock_error, livox_time_error
 from planodom.datasets.bag_duplicates import duplicate_sweeps
 from planodom.datasets.bag_gt import GtReading, parse_gt
 from planodom.datasets.bag_gt_poses import GtPoses
 from planodom.datasets.bag_livox import register_livox_types
 from planodom.datasets.bag_msgs import (
     LASER_TYPES,
+    MAX_SWEEP_OFFSET_S,
     POINT_CLOUD2,
     POINT_FIELD_TYPES,
     SCAN_TYPES,
@@ -360,7 +361,8 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
         raise DatasetError(f"{path}: topic '{topic.name}' has a message without frame_id")
     if frame not in topic.frames:
         topic.frames.append(frame)
-    topic.unstamped += stamp_ns(msg.header) == 0
+    stamp = stamp_ns(msg.header)
+    topic.unstamped += stamp == 0
     if topic.msgtype in LASER_TYPES:
         topic.rings = 1
         with _message_errors(path, topic.name):
@@ -372,7 +374,6 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
         if topic.msgtype == POINT_CLOUD2:
             rings, points, name, offsets, no_ring, ring, dt = sweep_times(msg, time_field)
             topic.no_ring += no_ring
-            stamp = stamp_ns(msg.header)
             if name is not None and offsets is not None:
                 key = time_key(name, offsets.dtype)
                 topic.times.setdefault(key, TopicTimes()).add(name, offsets, sweep, stamp)
@@ -387,8 +388,13 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
                     topic.time_like.update(time_like_fields(fields))
                 topic.unringed += ring is None
         else:
-            xyz, ring, _, rings = decode_sweep(msg, topic.msgtype, time_field)
+            xyz, ring, dt, rings = decode_sweep(msg, topic.msgtype, time_field)
             points = len(xyz)
+            if far := livox_time_error(dt, MAX_SWEEP_OFFSET_S):
+                raise ValueError(far)
+            if len(dt):  # a Livox CustomMsg: absolute times, on its stamps' clock or not
+                bounds = topic.absolute.setdefault("timebase", SweepBounds())
+                bounds.add("timebase + offset_time", "", float(dt.min()), float(dt.max()), stamp)
     topic.noise += tagged_noise(msg, topic.msgtype)
     if ring is not None and len(ring):
         for i, n in ring_counts(ring):

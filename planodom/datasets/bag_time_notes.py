@@ -65,7 +65,7 @@ def one_time_notes(
     ]
     for b in absolute.values():
         lows, highs = (np.frombuffer(a, dtype=np.float64) for a in (b.lows, b.highs))
-        if len(lows) > 1 and np.array_equal(lows, highs):
+        if b.dtype and len(lows) > 1 and np.array_equal(lows, highs):  # not a Livox message
             flat.append((b.name, b.dtype, len(lows)))
     return [
         f"topic '{topic}': time field '{name}' ({dtype}) holds one value for all the points "

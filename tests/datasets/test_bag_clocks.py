@@ -234,3 +234,32 @@ def test_one_time_for_all_the_points_of_each_sweep_is_noted(
     assert span == 0.0
     (note,) = notes
     assert f"'{name}' ({np.dtype(kind).name}) holds one value for all the points" in note
+
+
+@pytest.mark.parametrize("timebase_ns, message", [
+    (500_000_000, "Livox CustomMsg point times (timebase + offset_time) put 3 of 3 sweeps"),
+    (-T0_NS + 120 * 10**9, "Livox CustomMsg's timebase + offset_time put a point -1.7e+09 s"),
+])  # fmt: skip
+def test_livox_times_on_another_clock_are_refused(
+    tmp_path: Path, timebase_ns: int, message: str
+) -> None:
+    """A CustomMsg's ``timebase`` 0.5 s off its stamp, or the lidar's uptime (120 s) while
+    the messages carry Unix stamps: read before, each point deskewed by that much motion
+    (1.7e9 s), no word."""
+    from tests.datasets import test_bag_livox as livox
+
+    def shifted(*args, **kwargs):
+        msg = custom(*args, **kwargs)
+        msg.timebase = int(msg.timebase) + timebase_ns
+        return msg
+
+    custom = livox._custom_msg
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(livox, "_custom_msg", shifted)
+        sweeps = livox._sweeps(np.random.default_rng(2))
+        livox._write(tmp_path / "l", 2, livox.LIVOX_CUSTOM[1], sweeps)
+    with pytest.raises(DatasetError) as exc:
+        open_bag(tmp_path / "l", BagOptions())
+    assert message in str(exc.value) and "--time-field none" in str(exc.value)
+    with open_bag(tmp_path / "l", BagOptions(time_field="none")) as ds:
+        assert len(ds) == 3 and not ds[0].t.any()
