@@ -23,7 +23,9 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
   times (since the Unix epoch), smaller ones offsets from the stamp; float values above
   1e15 are absolute nanoseconds (livox_ros_driver2 stores its ``timestamp`` as a double of
   nanoseconds). A sweep whose times then lie more than :data:`MAX_SWEEP_OFFSET_S` from its
-  stamp is refused: its field is in a unit these rules do not cover. Points with a
+  stamp is refused: its field is in a unit these rules do not cover; so is a topic whose
+  sweeps lie more than two periods from their stamps, or absolute times in a float32
+  (:mod:`planodom.datasets.bag_clock`). Points with a
   non-finite coordinate or exactly at the origin (a common no-return marker) are dropped.
   A multi-return cloud keeps the last return of each beam firing
   (:mod:`planodom.datasets.returns`).
