@@ -9,11 +9,12 @@ the stamps are the host's (a clock off by a fraction of a second up to the
 or offsets counted from the recording's start instead of each sweep's stamp. Read as
 they are, every point of a sweep is deskewed by the motion of that gap, so the sweep is
 placed along the trajectory where the vehicle was then: metres off at walking speed, no
-word. Such times are refused when the nearest point of some sweep lies more than
-:data:`~planodom.datasets.time_wraps.CUT_PERIODS` periods from its stamp, the bound the
-32-bit clock check uses for the same reason (a sweep lies within one period of its stamp;
-the second leaves room for a stamp taken late; not fitted to data). Without a period
-(fewer than two distinct stamps) nothing is refused here.
+word. Such times are refused when the nearest point of at least half a topic's sweeps
+lies more than :data:`~planodom.datasets.time_wraps.CUT_PERIODS` periods from its stamp,
+the bound the 32-bit clock check uses for the same reason (a sweep lies within one period
+of its stamp; the second leaves room for a stamp taken late; not fitted to data); fewer
+such sweeps are noted and read (stamps taken late while a recorder stalled, the points'
+own times right). Without a period (fewer than two distinct stamps) nothing is refused.
 
 A Livox ``CustomMsg``'s times (its ``timebase`` plus each point's ``offset_time``) are
 held to the same bounds (:func:`livox_time_error`), which nothing checked before. Absolute
@@ -52,9 +53,17 @@ class SweepBounds:
         self.stamps.append(stamp)
 
 
-def clock_error(bounds: SweepBounds, scale: float, period: float | None, kind: str) -> str | None:
-    """Why a topic's time field is refused as another clock than its stamps' (see the
-    module docstring), or None.
+def clock_error(
+    bounds: SweepBounds, scale: float, period: float | None, kind: str
+) -> tuple[bool, str] | None:
+    """Whether a topic's time field is refused as another clock than its stamps' (see the
+    module docstring) and why, or None when every sweep lies near its stamp.
+
+    At least half its sweeps far from their stamps: refused (``True``; a clock off, or
+    offsets counted from the recording's start, put every sweep, or every sweep after the
+    first few, far). Fewer: a note (``False``), the times read as they are: stamps taken
+    late for a while (a recorder stalled, then catching up: receipt times bunched) with
+    per-point times that are right.
 
     Args:
         bounds: its sweeps' earliest and latest times after their stamps.
@@ -72,24 +81,28 @@ def clock_error(bounds: SweepBounds, scale: float, period: float | None, kind: s
         return None
     k = int(np.flatnonzero(far)[0])
     stamp = int(bounds.stamps[k])
-    what = (
-        "absolute times on another clock than the stamps' (the lidar's own, not synchronised?)"
-        if kind != "offsets"
-        else "offsets from another time than each sweep's stamp (the recording's start?)"
-    )
     field = (
         f"PointCloud2 time field '{bounds.name}' ({bounds.dtype}, read as {kind})"
         if bounds.dtype
         else f"Livox CustomMsg point times ({bounds.name})"
     )
-    return (
-        f"{field} put{'s' if bounds.dtype else ''} "
-        f"{int(far.sum())} of {len(gaps)} sweeps away from their stamps: the nearest point "
-        f"more than {CUT_PERIODS:g} periods ({CUT_PERIODS * period:.3g} s) from its stamp, up "
-        f"to {float(gaps.max()):.3g} s (first the sweep stamped {stamp // 10**9}."
-        f"{stamp % 10**9:09d} s, its points {lows[k]:+.3g} to {highs[k]:+.3g} s from it): "
-        f"{what}, which would deskew each sweep by that much motion; --time-field none "
-        "ignores them"
+    where = (
+        f"{field} put{'s' if bounds.dtype else ''} {int(far.sum())} of {len(gaps)} sweeps "
+        f"away from their stamps: the nearest point more than {CUT_PERIODS:g} periods "
+        f"({CUT_PERIODS * period:.3g} s) from its stamp, up to {float(gaps.max()):.3g} s (first "
+        f"the sweep stamped {stamp // 10**9}.{stamp % 10**9:09d} s, its points "
+        f"{lows[k]:+.3g} to {highs[k]:+.3g} s from it)"
+    )
+    if 2 * int(far.sum()) < len(gaps):
+        return False, f"{where}: stamps taken late (a recorder stalled?); read as they are"
+    what = (
+        "absolute times on another clock than the stamps' (the lidar's own, not synchronised?)"
+        if kind != "offsets"
+        else "offsets from another time than each sweep's stamp (the recording's start?)"
+    )
+    return True, (
+        f"{where}: {what}, which would deskew each sweep by that much motion; --time-field "
+        "none ignores them"
     )
 
 

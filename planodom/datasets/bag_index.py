@@ -145,6 +145,7 @@ class TopicIndex:
             time after their stamps, s (:mod:`planodom.datasets.bag_clock`).
         time_like: fields (name -> type) of its clouds without a time field read whose
             names say they may hold times (:mod:`planodom.datasets.bag_time_notes`).
+        clock_notes: a few sweeps far from their stamps (:mod:`planodom.datasets.bag_clock`).
     """
 
     name: str
@@ -168,6 +169,7 @@ class TopicIndex:
     ring_span: tuple[int, int] | None = None
     absolute: dict[str, SweepBounds] = field(default_factory=dict)
     time_like: dict[str, str] = field(default_factory=dict)
+    clock_notes: list[str] = field(default_factory=list)
 
     @property
     def pointless(self) -> bool:
@@ -418,12 +420,19 @@ def _choose_time_unit(
                 raise ValueError(wrapped)
             largest = np.array([times.largest * unit.scale])
             check_offsets(largest, times.name, np.dtype(times.dtype), unit.scale)
-            if far := clock_error(times.bounds, unit.scale, period_s(stamps), "offsets"):
-                raise ValueError(far)
+            far = clock_error(times.bounds, unit.scale, period_s(stamps), "offsets")
+            _clock_verdict(topic, far)
     for bounds in topic.absolute.values():
         with _message_errors(path, topic.name):
-            if far := clock_error(bounds, 1.0, period_s(stamps), "absolute times"):
-                raise ValueError(far)
+            _clock_verdict(topic, clock_error(bounds, 1.0, period_s(stamps), "absolute times"))
+
+
+def _clock_verdict(topic: TopicIndex, verdict: tuple[bool, str] | None) -> None:
+    """Raise :func:`clock_error`'s refusal (ValueError), or keep its note in ``topic``."""
+    if verdict is not None and verdict[0]:
+        raise ValueError(verdict[1])
+    if verdict is not None:
+        topic.clock_notes.append(f"topic '{topic.name}': {verdict[1]}")
 
 
 def _dtype_of(msg: Any, name: str) -> str:

@@ -132,7 +132,7 @@ def _layout_notes(t: TopicIndex) -> list[str]:
             "have one (a driver relaunched with another layout?); their points are taken at "
             "their message's stamp, not deskewed"
         )
-    notes += one_time_notes(t.name, t.times, t.absolute)
+    notes += one_time_notes(t.name, t.times, t.absolute) + t.clock_notes
     if note := unread_time_note(t.name, t.untimed, clouds, t.time_like):
         notes.append(note)
     if t.unringed and t.unringed < clouds:

@@ -81,8 +81,15 @@ def _recoded(bw: BagWriter, msg, layout: Layout, codes: dict[str, int] | None = 
     )
 
 
-def _bag(path: Path, ros: int, layout: Layout, codes: dict[str, int] | None = None) -> Path:
-    """Six 10 Hz sweeps of the room on /points in ``layout``, with /tf_static and /odom."""
+def _bag(
+    path: Path,
+    ros: int,
+    layout: Layout,
+    codes: dict[str, int] | None = None,
+    late: dict[int, int] | None = None,
+) -> Path:
+    """Six 10 Hz sweeps of the room on /points in ``layout``, with /tf_static and /odom;
+    ``late``: ns by sweep number, its header stamp taken that much late after encoding."""
     truth = Truth(T_base_sensor=T_BASE)
     path = path.with_suffix(".bag") if ros == 1 else path
     with BagWriter(path, ros) as bw:
@@ -93,7 +100,10 @@ def _bag(path: Path, ros: int, layout: Layout, codes: dict[str, int] | None = No
         for k in range(6):
             stamp = T0_NS + k * 100_000_000
             msg = lidar_cloud(bw, truth, "/points", "lidar", stamp, "velodyne")
-            bw.write("/points", _recoded(bw, msg, layout, codes), stamp + 2_000_000)
+            msg = _recoded(bw, msg, layout, codes)
+            if late and k in late:
+                msg.header = bw.header(stamp + late[k], msg.header.frame_id)
+            bw.write("/points", msg, stamp + 2_000_000)
     return path
 
 
@@ -263,3 +273,15 @@ def test_livox_times_on_another_clock_are_refused(
     assert message in str(exc.value) and "--time-field none" in str(exc.value)
     with open_bag(tmp_path / "l", BagOptions(time_field="none")) as ds:
         assert len(ds) == 3 and not ds[0].t.any()
+
+
+def test_a_few_sweeps_stamped_late_are_noted_and_read(tmp_path: Path) -> None:
+    """Two of six sweeps 0.35 s before their stamps (receipt times of a recorder that
+    stalled): their absolute times are right, so they are read, and noted."""
+
+    late = {2: 350_000_000, 3: 350_000_000}
+    worst, _, notes = _read(_bag(tmp_path / "stalled", 2, _hesai(0.0), late=late))
+    assert worst < 1e-3
+    (note,) = [n for n in notes if "away from their stamps" in n]  # and the stamp order's
+    assert "puts 2 of 6 sweeps away from their stamps" in note and "-0.35 to -0.25 s" in note
+    assert note.endswith("stamps taken late (a recorder stalled?); read as they are")
