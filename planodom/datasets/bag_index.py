@@ -50,6 +50,7 @@ from planodom.datasets.bag_parts import (
     damaged_note,
     damaged_parts,
 )
+from planodom.datasets.bag_ring_order import RingElevations
 from planodom.datasets.bag_rings import ring_counts, stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, TfTree, frame_name
 from planodom.datasets.bag_time_notes import time_like_fields
@@ -146,6 +147,7 @@ class TopicIndex:
         time_like: fields (name -> type) of its clouds without a time field read whose
             names say they may hold times (:mod:`planodom.datasets.bag_time_notes`).
         clock_notes: a few sweeps far from their stamps (:mod:`planodom.datasets.bag_clock`).
+        elevations: a cloud's rings' elevations (:mod:`planodom.datasets.bag_ring_order`).
     """
 
     name: str
@@ -170,6 +172,7 @@ class TopicIndex:
     absolute: dict[str, SweepBounds] = field(default_factory=dict)
     time_like: dict[str, str] = field(default_factory=dict)
     clock_notes: list[str] = field(default_factory=list)
+    elevations: RingElevations = field(default_factory=RingElevations)
 
     @property
     def pointless(self) -> bool:
@@ -374,8 +377,11 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
         return blank
     with _message_errors(path, topic.name):
         if topic.msgtype == POINT_CLOUD2:
-            rings, points, name, offsets, no_ring, ring, dt = sweep_times(msg, time_field)
+            xyz, rings, name, offsets, no_ring, ring, dt = sweep_times(msg, time_field)
+            points = len(xyz)
             topic.no_ring += no_ring
+            if ring is not None:
+                topic.elevations.add(xyz, ring)
             if name is not None and offsets is not None:
                 key = time_key(name, offsets.dtype)
                 topic.times.setdefault(key, TopicTimes()).add(name, offsets, sweep, stamp)

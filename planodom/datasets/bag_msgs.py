@@ -314,10 +314,13 @@ def _decode_cloud(
 
 def sweep_times(
     msg: Any, time_field: str = "auto"
-) -> tuple[int, int, str | None, np.ndarray | None, int, np.ndarray | None, np.ndarray | None]:
-    """A cloud's ring count, point count, time field and raw relative times, for the index.
+) -> tuple[
+    np.ndarray, int, str | None, np.ndarray | None, int, np.ndarray | None, np.ndarray | None
+]:
+    """A cloud's points, ring count, time field and raw relative times, for the index.
 
-    Returns ``(rings, n, time field or None, values, no ring, ring, absolute)``: ``values``
+    Returns ``(points (n, 3), rings, time field or None, values, no ring, ring, absolute)``
+    (the points kept, in the sensor's frame): ``values``
     (n,) in the field's own type and unit when the times are offsets (whose unit
     :func:`planodom.datasets.bag_time_units.choose_unit` decides over the topic), None
     without a time field or for absolute times, which are checked here; ``no ring`` the
@@ -331,19 +334,19 @@ def sweep_times(
     """
     points, ring, rings, time_name, raw, no_ring = _cloud_parts(msg, time_field)
     if time_name is None or raw is None:
-        return rings, len(points), None, None, no_ring, ring, None
+        return points, rings, None, None, no_ring, ring, None
     if _is_absolute(raw):
         check_absolute_type(raw, time_name)
         dt = _relative_times(raw, stamp_ns(msg.header))
         check_offsets(dt, time_name, raw.dtype)
-        return rings, len(points), time_name, None, no_ring, ring, dt
+        return points, rings, time_name, None, no_ring, ring, dt
     with np.errstate(invalid="ignore"):
         finite = np.isfinite(raw.astype(np.float64))
     if not finite.all():
         check_offsets(np.where(finite, 0.0, np.nan), time_name, raw.dtype)
     if wraps_inside(raw):  # a clock's nanoseconds cut to 32 bits, not the stamps' (time_wraps)
         raise ValueError(f"PointCloud2 {wrap_message(time_name, raw)}")
-    return rings, len(points), time_name, raw, no_ring, ring, None
+    return points, rings, time_name, raw, no_ring, ring, None
 
 
 def check_offsets(

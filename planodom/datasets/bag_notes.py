@@ -13,6 +13,7 @@ from planodom.datasets.bag_beam_notes import beam_notes
 from planodom.datasets.bag_gt import gt_notes
 from planodom.datasets.bag_index import BagIndex, TopicIndex
 from planodom.datasets.bag_msgs import LASER_TYPES
+from planodom.datasets.bag_ring_order import ring_order_note
 from planodom.datasets.bag_rings import stray_note
 from planodom.datasets.bag_time_notes import one_time_notes, unread_time_note
 
@@ -133,6 +134,8 @@ def _layout_notes(t: TopicIndex) -> list[str]:
             "their message's stamp, not deskewed"
         )
     notes += one_time_notes(t.name, t.times, t.absolute) + t.clock_notes
+    if note := ring_order_note(t.name, t.elevations):
+        notes.append(note)
     if note := unread_time_note(t.name, t.untimed, clouds, t.time_like):
         notes.append(note)
     if t.unringed and t.unringed < clouds:
