@@ -134,7 +134,7 @@ def _layout_notes(t: TopicIndex) -> list[str]:
             "their message's stamp, not deskewed"
         )
     notes += one_time_notes(t.name, t.times, t.absolute) + t.clock_notes
-    if note := ring_order_note(t.name, t.elevations):
+    if note := ring_order_note(t.name, t.elevations, t.ring_span):
         notes.append(note)
     if note := unread_time_note(t.name, t.untimed, clouds, t.time_like):
         notes.append(note)

@@ -10,9 +10,11 @@ The index pass sums each ring's point elevations in the sensor's frame (where a 
 lidar's ring is a cone: one elevation); a topic is noted when its rings are cones (each
 ring's elevation spread, its standard deviation, below half the median step between
 neighbouring rings' mean elevations, which a Livox lidar's rosette lines are not) whose
-means, in id order, neither rise nor fall throughout; its ids are then given to its rings
-in elevation order (the same ids, lowest beam first: :func:`ring_renumbering`), so the
-range image's rows are neighbouring beams. No threshold fitted to data: the half step
+means, in id order, neither rise nor fall throughout; unless the ids form runs of
+:data:`MERGED_RUN` rings or more in elevation order (blocks: several lidars merged into one
+cloud, left as they are), its ids are then given to its rings in elevation order (the same
+ids, lowest beam first: :func:`ring_renumbering`), so the range image's rows are
+neighbouring beams. No threshold fitted to data: the half step
 separates a cone from its neighbours.
 """
 
@@ -21,6 +23,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
+#: Rings in a row whose elevations rise (or fall) throughout that make a topic's ids blocks
+#: of several lidars merged, not one lidar's lasers in firing order, which interleave its
+#: beams (runs of 2 in a VLP-16's, at most 3 in a VLP-32C's); a judgment, not fitted.
+MERGED_RUN = 4
 
 
 @dataclass
@@ -46,10 +53,15 @@ class RingElevations:
             self.sums[int(i) + lo] = (c + int(n[i]), a + float(s1[i]), b + float(s2[i]))
 
 
-def _means(rings: RingElevations) -> tuple[np.ndarray, np.ndarray] | None:
+def _means(
+    rings: RingElevations, span: tuple[int, int] | None
+) -> tuple[np.ndarray, np.ndarray] | None:
     """The ring ids (k,) and their mean elevations (k,) rad when the rings are cones whose
-    means in id order neither rise nor fall throughout (module docstring), else None."""
-    ids = np.array(sorted(rings.sums), dtype=np.int64)
+    means in id order neither rise nor fall throughout (module docstring), else None;
+    ``span``: the ids kept, ``(first, last)`` (None: all; the others are no rings,
+    :mod:`planodom.datasets.bag_rings`)."""
+    first, last = span or (min(rings.sums, default=0), max(rings.sums, default=0))
+    ids = np.array(sorted(i for i in rings.sums if first <= i <= last), dtype=np.int64)
     if len(ids) < 3:
         return None
     n, s1, s2 = (np.array([rings.sums[i][k] for i in ids], dtype=np.float64) for k in range(3))
@@ -62,11 +74,23 @@ def _means(rings: RingElevations) -> tuple[np.ndarray, np.ndarray] | None:
     return ids, mean
 
 
-def ring_renumbering(rings: RingElevations) -> tuple[np.ndarray, np.ndarray] | None:
+def _longest_run(mean: np.ndarray) -> int:
+    """The most rings (k,) in a row, in id order, whose mean elevations ``mean`` (k,) rise
+    throughout or fall throughout."""
+    up = np.diff(mean) > 0
+    change = np.flatnonzero(up[1:] != up[:-1])
+    bounds = np.concatenate([[-1], change, [len(up) - 1]])
+    return int(np.diff(bounds).max()) + 1
+
+
+def ring_renumbering(
+    rings: RingElevations, span: tuple[int, int] | None = None
+) -> tuple[np.ndarray, np.ndarray] | None:
     """``(ids (k,), new ids (k,))``: each ring id and the id its ring gets, the topic's ids
-    in its rings' elevation order (lowest first), or None when its ids follow them."""
-    found = _means(rings)
-    if found is None:
+    in its rings' elevation order (lowest first), or None when its ids follow them
+    (``span``: the ids kept, as :func:`_means`)."""
+    found = _means(rings, span)
+    if found is None or _longest_run(found[1]) >= MERGED_RUN:
         return None
     ids, mean = found
     new = np.empty_like(ids)
@@ -74,16 +98,24 @@ def ring_renumbering(rings: RingElevations) -> tuple[np.ndarray, np.ndarray] | N
     return ids, new
 
 
-def ring_order_note(topic: str, rings: RingElevations) -> str:
-    """The note on a topic whose ring ids do not follow its beams' elevations, or ""."""
-    found = _means(rings)
+def ring_order_note(topic: str, rings: RingElevations, span: tuple[int, int] | None) -> str:
+    """The note on a topic whose ring ids (those of ``span``) do not follow its beams'
+    elevations, or ""."""
+    found = _means(rings, span)
     if found is None:
         return ""
     ids, mean = found
+    run = _longest_run(mean)
     shown = ", ".join(f"{i}: {np.rad2deg(m):+.1f}" for i, m in zip(ids[:4], mean[:4], strict=False))
     return (
         f"topic '{topic}': its ring ids do not follow its beams' elevations (ring {shown}"
-        f"{', ...' if len(ids) > 4 else ''} deg: laser ids in firing order?); the same ids "
-        "are given to its rings in elevation order, lowest first, so that the range image's "
-        "neighbouring rows are neighbouring beams"
+        f"{', ...' if len(ids) > 4 else ''} deg"
+        + (
+            f", runs of up to {run} rings in elevation order: several lidars merged?); read in "
+            "id order, the range image's rows as those ids"
+            if run >= MERGED_RUN
+            else ": laser ids in firing order?); the same ids are given to its rings in "
+            "elevation order, lowest first, so that the range image's neighbouring rows are "
+            "neighbouring beams"
+        )
     )

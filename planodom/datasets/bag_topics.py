@@ -93,7 +93,7 @@ def bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
                 n,
                 t.frames[0],
                 t.ring_span,
-                ring_renumbering(t.elevations),
+                ring_renumbering(t.elevations, t.ring_span),
             )
         )
         first += t.rings

@@ -321,3 +321,20 @@ def test_ring_ids_in_firing_order_are_renumbered_by_elevation(tmp_path: Path, ro
     np.testing.assert_array_equal(got, truth)
     (note,) = notes
     assert "ring ids do not follow its beams' elevations (ring 0: -15.0, 1: +1.0, 2: -13.0" in note
+
+
+def test_ring_ids_of_lidars_merged_are_kept_and_noted(tmp_path: Path) -> None:
+    """Two lidars' rings merged into one cloud (ids 0..7 one's beams, 8..15 the other's,
+    each block in elevation order): not interleaved by elevation, noted."""
+
+    def merged(x, y, z, r, t, s):
+        ids = np.where(r % 2 == 0, r // 2, 8 + r // 2)
+        return _xyz(x, y, z) + [("ring", "u2", ids), ("time", "f4", t)]
+
+    with open_bag(_bag(tmp_path / "merged", 2, merged), BagOptions(gt_topic="/odom")) as ds:
+        scan, notes = ds[0], list(ds.notes)
+    z = np.arctan2(scan.points[:, 2], np.hypot(scan.points[:, 0], scan.points[:, 1]))
+    means = [z[scan.ring == i].mean() for i in range(16)]
+    assert np.all(np.diff(means[:8]) > 0) and np.all(np.diff(means[8:]) > 0)
+    (note,) = notes
+    assert "runs of up to 8 rings in elevation order: several lidars merged?" in note
