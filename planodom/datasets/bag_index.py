@@ -8,7 +8,6 @@ the bag and, where it applies, the topic or frame.
 
 from __future__ import annotations
 
-import hashlib
 import sqlite3
 import struct
 from array import array
@@ -27,12 +26,16 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 
 from planodom.datasets.bag_beam_notes import BeamCounts
+from planodom.datasets.bag_clock import SweepBounds, clock_error, livox_time_error
+from planodom.datasets.bag_duplicates import duplicate_sweeps
 from planodom.datasets.bag_gt import GtReading, parse_gt
 from planodom.datasets.bag_gt_poses import GtPoses
 from planodom.datasets.bag_livox import register_livox_types
 from planodom.datasets.bag_msgs import (
     LASER_TYPES,
+    MAX_SWEEP_OFFSET_S,
     POINT_CLOUD2,
+    POINT_FIELD_TYPES,
     SCAN_TYPES,
     check_offsets,
     decode_sweep,
@@ -47,8 +50,10 @@ from planodom.datasets.bag_parts import (
     damaged_note,
     damaged_parts,
 )
+from planodom.datasets.bag_ring_order import RingElevations
 from planodom.datasets.bag_rings import ring_counts, stray_span
 from planodom.datasets.bag_tf import TF_STATIC_TOPIC, TF_TOPIC, TfTree, frame_name
+from planodom.datasets.bag_time_notes import time_like_fields
 from planodom.datasets.bag_time_units import TimeUnit, TopicTimes, choose_unit, period_s, time_key
 from planodom.datasets.time_wraps import cut_clock_error
 from planodom.errors import DatasetError
@@ -137,6 +142,12 @@ class TopicIndex:
         noise: points left out as a Livox lidar's high confidence noise (their ``tag``).
         ring_points: points per ring id; ring_span: the ids kept, ``(first, last)``, when
             some are not (:mod:`planodom.datasets.bag_rings`; None: all).
+        absolute: per time field read as absolute times, its sweeps' earliest and latest
+            time after their stamps, s (:mod:`planodom.datasets.bag_clock`).
+        time_like: fields (name -> type) of its clouds without a time field read whose
+            names say they may hold times (:mod:`planodom.datasets.bag_time_notes`).
+        clock_notes: a few sweeps far from their stamps (:mod:`planodom.datasets.bag_clock`).
+        elevations: a cloud's rings' elevations (:mod:`planodom.datasets.bag_ring_order`).
     """
 
     name: str
@@ -158,6 +169,10 @@ class TopicIndex:
     noise: int = 0
     ring_points: dict[int, int] = field(default_factory=dict)
     ring_span: tuple[int, int] | None = None
+    absolute: dict[str, SweepBounds] = field(default_factory=dict)
+    time_like: dict[str, str] = field(default_factory=dict)
+    clock_notes: list[str] = field(default_factory=list)
+    elevations: RingElevations = field(default_factory=RingElevations)
 
     @property
     def pointless(self) -> bool:
@@ -283,7 +298,7 @@ def index_bag(
         why = f" (all {len(gt_invalid)} invalid: {gt_invalid[0]})" if gt_invalid else ""
         raise DatasetError(f"{path}: no reference poses in gt {what}{why}")
     table = np.frombuffer(rows, dtype=np.int64).reshape(-1, 3).copy()
-    duplicate = _duplicates(reader, path, topic_of, table)
+    duplicate = duplicate_sweeps(reader, path, topic_of, table)
     for k, topic in enumerate(index):
         rows = table[:, 0] == k
         _choose_time_unit(topic, table[rows, 2], path, np.flatnonzero(duplicate[rows]))
@@ -310,49 +325,6 @@ def index_bag(
         gt_read.child,
         reading,
     )
-
-
-def _digest(raw: bytes, ros1: bool) -> int:
-    """A 64-bit digest of a scan message's serialized content. A ROS 1 message starts with
-    its header's ``seq`` (4 bytes), a publisher's counter, not content: it is left out."""
-    body = memoryview(raw)[4:] if ros1 else raw
-    return int.from_bytes(hashlib.blake2b(body, digest_size=8).digest(), "little", signed=True)
-
-
-def _duplicates(
-    reader: AnyReader, path: Path, topic_of: dict[str, int], table: np.ndarray
-) -> np.ndarray:
-    """(n,) bool, the sweeps of ``table`` (topic, bag time, stamp per row, in bag order)
-    repeating an earlier one's topic, stamp and content (the first is not one). Only rows
-    sharing a topic and stamp are read again, for their content's digest: usually none."""
-    n = len(table)
-    duplicate = np.zeros(n, dtype=bool)
-    order = np.lexsort((np.arange(n), table[:, 2], table[:, 0]))
-    key = table[order][:, [0, 2]]
-    same = np.flatnonzero(np.all(key[1:] == key[:-1], axis=1))
-    if not len(same):
-        return duplicate
-    suspects = np.union1d(order[same], order[same + 1])  # ascending: bag order
-    at = {(int(table[s, 0]), int(table[s, 1])) for s in suspects}
-    rows_at: dict[tuple[int, int], list[int]] = {}
-    for s in range(n):  # every row of those (topic, bag time): the messages come in row order
-        if (k := (int(table[s, 0]), int(table[s, 1]))) in at:
-            rows_at.setdefault(k, []).append(s)
-    digest: dict[int, int] = {}
-    conns = [c for c in reader.connections if c.topic in topic_of]
-    with bag_errors(path):
-        for conn, bag_time, raw in reader.messages(connections=conns):
-            waiting = rows_at.get((topic_of[conn.topic], bag_time))
-            if waiting:
-                digest[waiting.pop(0)] = _digest(raw, ros1=not reader.is2)
-    seen: set[tuple[int, int, int]] = set()
-    for s in suspects:
-        if s not in digest:  # pragma: no cover - every suspect is read again
-            continue
-        content = (int(table[s, 0]), int(table[s, 2]), digest[s])
-        duplicate[s] = content in seen
-        seen.add(content)
-    return duplicate
 
 
 def _deserialize(reader: AnyReader, path: Path, conn: Connection, raw: bytes, bag_time: int) -> Any:
@@ -394,7 +366,8 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
         raise DatasetError(f"{path}: topic '{topic.name}' has a message without frame_id")
     if frame not in topic.frames:
         topic.frames.append(frame)
-    topic.unstamped += stamp_ns(msg.header) == 0
+    stamp = stamp_ns(msg.header)
+    topic.unstamped += stamp == 0
     if topic.msgtype in LASER_TYPES:
         topic.rings = 1
         with _message_errors(path, topic.name):
@@ -404,19 +377,32 @@ def _note_sweep(topic: TopicIndex, msg: Any, path: Path, time_field: str, sweep:
         return blank
     with _message_errors(path, topic.name):
         if topic.msgtype == POINT_CLOUD2:
-            rings, points, name, offsets, no_ring, ring = sweep_times(msg, time_field)
+            xyz, rings, name, offsets, no_ring, ring, dt = sweep_times(msg, time_field)
+            points = len(xyz)
             topic.no_ring += no_ring
+            if ring is not None:
+                topic.elevations.add(xyz, ring)
             if name is not None and offsets is not None:
                 key = time_key(name, offsets.dtype)
-                stamp = stamp_ns(msg.header)
                 topic.times.setdefault(key, TopicTimes()).add(name, offsets, sweep, stamp)
+            if name is not None and dt is not None and len(dt):
+                bounds = topic.absolute.setdefault(name, SweepBounds())
+                bounds.add(name, _dtype_of(msg, name), float(dt.min()), float(dt.max()), stamp)
             if points:  # a driver relaunched with another layout: noted (bag_notes)
                 topic.timed += name is not None
                 topic.untimed += name is None
+                if name is None and time_field == "auto":
+                    fields = [(f.name, _dtype_of(msg, f.name)) for f in msg.fields]
+                    topic.time_like.update(time_like_fields(fields))
                 topic.unringed += ring is None
         else:
-            xyz, ring, _, rings = decode_sweep(msg, topic.msgtype, time_field)
+            xyz, ring, dt, rings = decode_sweep(msg, topic.msgtype, time_field)
             points = len(xyz)
+            if far := livox_time_error(dt, MAX_SWEEP_OFFSET_S):
+                raise ValueError(far)
+            if len(dt):  # a Livox CustomMsg: absolute times, on its stamps' clock or not
+                bounds = topic.absolute.setdefault("timebase", SweepBounds())
+                bounds.add("timebase + offset_time", "", float(dt.min()), float(dt.max()), stamp)
     topic.noise += tagged_noise(msg, topic.msgtype)
     if ring is not None and len(ring):
         for i, n in ring_counts(ring):
@@ -440,3 +426,22 @@ def _choose_time_unit(
                 raise ValueError(wrapped)
             largest = np.array([times.largest * unit.scale])
             check_offsets(largest, times.name, np.dtype(times.dtype), unit.scale)
+            far = clock_error(times.bounds, unit.scale, period_s(stamps), "offsets")
+            _clock_verdict(topic, far)
+    for bounds in topic.absolute.values():
+        with _message_errors(path, topic.name):
+            _clock_verdict(topic, clock_error(bounds, 1.0, period_s(stamps), "absolute times"))
+
+
+def _clock_verdict(topic: TopicIndex, verdict: tuple[bool, str] | None) -> None:
+    """Raise :func:`clock_error`'s refusal (ValueError), or keep its note in ``topic``."""
+    if verdict is not None and verdict[0]:
+        raise ValueError(verdict[1])
+    if verdict is not None:
+        topic.clock_notes.append(f"topic '{topic.name}': {verdict[1]}")
+
+
+def _dtype_of(msg: Any, name: str) -> str:
+    """The numpy name of a PointCloud2's field ``name`` (its first, for the messages)."""
+    code = next(int(f.datatype) for f in msg.fields if f.name == name)
+    return np.dtype(POINT_FIELD_TYPES[code]).name if code in POINT_FIELD_TYPES else f"type {code}"

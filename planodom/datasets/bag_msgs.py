@@ -23,7 +23,9 @@ point's time (n,) float64 seconds relative to the message's ``header.stamp``.
   times (since the Unix epoch), smaller ones offsets from the stamp; float values above
   1e15 are absolute nanoseconds (livox_ros_driver2 stores its ``timestamp`` as a double of
   nanoseconds). A sweep whose times then lie more than :data:`MAX_SWEEP_OFFSET_S` from its
-  stamp is refused: its field is in a unit these rules do not cover. Points with a
+  stamp is refused: its field is in a unit these rules do not cover; so is a topic whose
+  sweeps lie more than two periods from their stamps, or absolute times in a float32
+  (:mod:`planodom.datasets.bag_clock`). Points with a
   non-finite coordinate or exactly at the origin (a common no-return marker) are dropped.
   A multi-return cloud keeps the last return of each beam firing
   (:mod:`planodom.datasets.returns`).
@@ -40,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from planodom.datasets.bag_beams import beam_returns, place_beams
+from planodom.datasets.bag_clock import check_absolute_type
 from planodom.datasets.bag_livox import LIVOX_CUSTOM, decode_livox, livox_noise
 from planodom.datasets.bag_multiecho import MULTI_ECHO, decode_multi_echo, multi_echo_returns
 from planodom.datasets.bag_tf import frame_name, transform_from_msg
@@ -68,7 +71,7 @@ RING_FIELDS = ("ring", "line", "channel")
 #: microseconds, a clock of its own), which deskewing would turn into nonsense.
 MAX_SWEEP_OFFSET_S = 10.0
 #: PointField datatype codes -> numpy types.
-_POINT_FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+POINT_FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 
 
 def stamp_ns(header: Any) -> int:
@@ -164,7 +167,7 @@ def _cloud_array(msg: Any) -> tuple[np.ndarray, dict[str, str]]:
     seen: dict[str, str] = {}
     twice: dict[str, str] = {}
     for f in msg.fields:
-        code = _POINT_FIELD_TYPES.get(int(f.datatype))
+        code = POINT_FIELD_TYPES.get(int(f.datatype))
         if code is None:
             continue
         layout = f"{np.dtype(code).name} at offset {int(f.offset)}" + (
@@ -311,33 +314,39 @@ def _decode_cloud(
 
 def sweep_times(
     msg: Any, time_field: str = "auto"
-) -> tuple[int, int, str | None, np.ndarray | None, int, np.ndarray | None]:
-    """A cloud's ring count, point count, time field and raw relative times, for the index.
+) -> tuple[
+    np.ndarray, int, str | None, np.ndarray | None, int, np.ndarray | None, np.ndarray | None
+]:
+    """A cloud's points, ring count, time field and raw relative times, for the index.
 
-    Returns ``(rings, n, time field or None, values, no ring, ring)``: ``values`` (n,) in the
-    field's own type and unit when the times are offsets (whose unit
+    Returns ``(points (n, 3), rings, time field or None, values, no ring, ring, absolute)``
+    (the points kept, in the sensor's frame): ``values``
+    (n,) in the field's own type and unit when the times are offsets (whose unit
     :func:`planodom.datasets.bag_time_units.choose_unit` decides over the topic), None
     without a time field or for absolute times, which are checked here; ``no ring`` the
     points left out for a "no ring" id (:func:`_ring_ids`); ``ring`` (n,) the points' ring
-    ids (None without a ring field).
+    ids (None without a ring field); ``absolute`` (n,) float64 s after the stamp for
+    absolute times (else None).
 
     Raises:
-        ValueError: a malformed cloud, non-finite times, absolute times far off the stamp.
+        ValueError: a malformed cloud, non-finite times, absolute times far off the stamp
+            or in a float32 field (which cannot hold a Unix time to the sweep's scale).
     """
     points, ring, rings, time_name, raw, no_ring = _cloud_parts(msg, time_field)
     if time_name is None or raw is None:
-        return rings, len(points), None, None, no_ring, ring
+        return points, rings, None, None, no_ring, ring, None
     if _is_absolute(raw):
+        check_absolute_type(raw, time_name)
         dt = _relative_times(raw, stamp_ns(msg.header))
         check_offsets(dt, time_name, raw.dtype)
-        return rings, len(points), time_name, None, no_ring, ring
+        return points, rings, time_name, None, no_ring, ring, dt
     with np.errstate(invalid="ignore"):
         finite = np.isfinite(raw.astype(np.float64))
     if not finite.all():
         check_offsets(np.where(finite, 0.0, np.nan), time_name, raw.dtype)
     if wraps_inside(raw):  # a clock's nanoseconds cut to 32 bits, not the stamps' (time_wraps)
         raise ValueError(f"PointCloud2 {wrap_message(time_name, raw)}")
-    return rings, len(points), time_name, raw, no_ring, ring
+    return points, rings, time_name, raw, no_ring, ring, None
 
 
 def check_offsets(

@@ -13,7 +13,9 @@ from planodom.datasets.bag_beam_notes import beam_notes
 from planodom.datasets.bag_gt import gt_notes
 from planodom.datasets.bag_index import BagIndex, TopicIndex
 from planodom.datasets.bag_msgs import LASER_TYPES
+from planodom.datasets.bag_ring_order import ring_order_note
 from planodom.datasets.bag_rings import stray_note
+from planodom.datasets.bag_time_notes import one_time_notes, unread_time_note
 
 
 def bag_notes(
@@ -131,6 +133,11 @@ def _layout_notes(t: TopicIndex) -> list[str]:
             "have one (a driver relaunched with another layout?); their points are taken at "
             "their message's stamp, not deskewed"
         )
+    notes += one_time_notes(t.name, t.times, t.absolute) + t.clock_notes
+    if note := ring_order_note(t.name, t.elevations, t.ring_span):
+        notes.append(note)
+    if note := unread_time_note(t.name, t.untimed, clouds, t.time_like):
+        notes.append(note)
     if t.unringed and t.unringed < clouds:
         notes.append(
             f"topic '{t.name}': {t.unringed} of {clouds} clouds have no ring field, the others "

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from planodom.datasets.bag_clock import SweepBounds
 from planodom.datasets.time_wraps import is_32bit, modular_offset_ns
 
 #: The two readings of relative times by field kind: (unit, seconds per unit), documented first.
@@ -64,6 +65,8 @@ class TopicTimes:
         plain, cut: per sweep of a 32-bit integer field with a stamp, its largest
             ``|value|`` and its largest distance from the stamp's lowest 32 bits (ns;
             :mod:`planodom.datasets.time_wraps`).
+        bounds: per sweep its earliest and latest value (the field's unit) and its stamp
+            (:mod:`planodom.datasets.bag_clock`).
     """
 
     name: str = ""
@@ -73,6 +76,7 @@ class TopicTimes:
     largest: float = 0.0
     plain: array = field(default_factory=lambda: array("d"))
     cut: array = field(default_factory=lambda: array("d"))
+    bounds: SweepBounds = field(default_factory=SweepBounds)
 
     def add(self, name: str, values: np.ndarray, sweep: int = -1, stamp: int = 0) -> None:
         """Add one sweep's relative times ``values`` (n,) (finite, the field's own type);
@@ -84,6 +88,7 @@ class TopicTimes:
             self.spans.append(high - low)
             self.sweeps.append(sweep)
             self.largest = max(self.largest, abs(low), abs(high))
+            self.bounds.add(name, self.dtype, low, high, stamp)
             if stamp and is_32bit(values.dtype):
                 self.plain.append(max(abs(low), abs(high)))
                 self.cut.append(modular_offset_ns(values, stamp))

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from planodom.datasets.bag_index import BagIndex
+from planodom.datasets.bag_ring_order import ring_renumbering
 from planodom.rig import Rig
 
 
@@ -35,6 +36,8 @@ class BagTopic:
         frame: the first frame its messages name.
         ring_span: the ring ids read, ``(first, last)``, when some ids are not rings
             (:mod:`planodom.datasets.bag_rings`); None: every id.
+        renumber: ``(ids, new ids)`` when its ring ids do not follow its beams' elevations
+            (:mod:`planodom.datasets.bag_ring_order`); None: read as they are.
     """
 
     name: str
@@ -48,6 +51,7 @@ class BagTopic:
     read: int = 0
     frame: str = ""
     ring_span: tuple[int, int] | None = None
+    renumber: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def left_out(self) -> bool:
@@ -89,6 +93,7 @@ def bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
                 n,
                 t.frames[0],
                 t.ring_span,
+                ring_renumbering(t.elevations, t.ring_span),
             )
         )
         first += t.rings

@@ -10,14 +10,16 @@ from typing import Any
 import numpy as np
 import yaml
 
+from planodom.datasets.bag_clock import far_message
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.file_entries import broken_link, check_file_entries, optional_file
 from planodom.datasets.pcd import viewpoint_note
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
 from planodom.datasets.scan_order import scan_order_key
+from planodom.datasets.scan_time_notes import scan_time_notes
 from planodom.datasets.scan_time_units import scan_time_unit
-from planodom.datasets.time_wraps import WRAP_NS
+from planodom.datasets.time_wraps import CUT_PERIODS, WRAP_NS
 from planodom.datasets.times_file import read_times, unread_times, write_times
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError, read_yaml_file
@@ -115,7 +117,9 @@ class Dataset:
 
     def _check_time_span(self, index: int, scan: Scan) -> None:
         """Refuse point times spanning :data:`MAX_TIME_SPAN_PERIODS` epoch periods or more,
-        or as far from the epoch's reference time (e.g. integer Unix seconds read as ns)."""
+        or as far from the epoch's reference time (e.g. integer Unix seconds read as ns), or
+        whose nearest point lies more than ``CUT_PERIODS`` periods from it (another clock,
+        :mod:`planodom.datasets.bag_clock`)."""
         if scan.t is None or len(scan.t) == 0 or len(self.times) < 2:
             return
         gaps = np.diff(self.times[max(index - 1, 0) : index + 2])
@@ -130,6 +134,9 @@ class Dataset:
                 + (_CUT32 if 0 < span and far < WRAP_NS * 1e-9 else "")
                 + "?; --time-field none ignores them)"
             )
+        near = max(float(scan.t.min()), -float(scan.t.max()), 0.0)  # the nearest point
+        if period > 0 and near > CUT_PERIODS * period:
+            raise DatasetError(f"{self.scan_files[index]}: {far_message(scan.t, near, period)}")
         if period > 0 and span >= MAX_TIME_SPAN_PERIODS * period:
             raise DatasetError(
                 f"{self.scan_files[index]}: point times ('t') span {span:g} s, "
@@ -207,6 +214,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     if name_note:
         ds.notes.append(f"{scan_files[0].parent}: {name_note}")
     ds.notes += [times_note] if times_note else []
+    ds.notes += scan_time_notes(scan_files, time_field)
     view = viewpoint_note(scan_files[0]) if scan_files[0].suffix.lower() == ".pcd" else None
     ds.notes += [view] if view else []
     unread = unread_keys(rig)

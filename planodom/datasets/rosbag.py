@@ -290,6 +290,8 @@ class BagDataset:
             if ring is not None and topic.ring_span is not None:  # ids that are no ring
                 keep = (ring >= topic.ring_span[0]) & (ring <= topic.ring_span[1])
                 pts, ring, dt = pts[keep], ring[keep], dt[keep]
+            if ring is not None and topic.renumber is not None:  # ids in elevation order
+                ring = topic.renumber[1][np.searchsorted(topic.renumber[0], ring)]
             if ring is not None:
                 order = np.argsort(ring, kind="stable")
                 pts, ring, dt = pts[order], ring[order], dt[order]
