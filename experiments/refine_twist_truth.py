@@ -39,6 +39,11 @@ def _rot_err_deg(step: np.ndarray, truth: np.ndarray) -> float:
     return float(np.degrees(np.linalg.norm(se3_log(invert_transform(truth) @ step)[:3])))
 
 
+def _rot_vec_deg(step: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """(3,) rotation vector (deg) of ``inv(truth) @ step``: the signed error."""
+    return np.degrees(se3_log(invert_transform(truth) @ step)[:3])
+
+
 def _rate(tw: np.ndarray | None) -> list[float] | None:
     return None if tw is None else [float(x) for x in np.degrees(np.asarray(tw)[:3])]
 
@@ -97,6 +102,8 @@ def analyse(sim: Any) -> list[dict[str, Any]]:
         ]  # fmt: skip
         rec["status"] = row["best"].relative.status.name
         rec["rot_err"] = _rot_err_deg(row["best"].step, step_true)
+        rec["rot_vec"] = [float(x) for x in _rot_vec_deg(row["best"].step, step_true)]
+        rec["refined"] = any(p["refine"] and p["kept"] for p in rec["passes"])
         out.append(rec)
     return out
 
