@@ -133,18 +133,35 @@ def main() -> None:
             json.dump(result, f)
 
 
+def _paired(recs: list[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
+    """Angular-rate errors (deg/s, norm of the 3-vector) of the first pass's twist and of
+    the first refinement's, on the epochs that have both."""
+    first, refined = [], []
+    for r in recs:
+        truth = np.array(r["true_rate"])
+        f = [p for p in r["passes"] if not p["refine"] and p["rate"] is not None]
+        g = [p for p in r["passes"] if p["refine"]]
+        if f and g:
+            first.append(np.linalg.norm(np.array(f[0]["rate"]) - truth))
+            refined.append(np.linalg.norm(np.array(g[0]["rate"]) - truth))
+    return np.array(first), np.array(refined)
+
+
 def _summary(w: int, recs: list[dict[str, Any]]) -> None:
-    first = [p for r in recs for p in r["passes"][:1] if p["rate_err"] is not None]
-    ref = [p for r in recs for p in r["passes"] if p["refine"]]
-    med = lambda xs: float(np.median(xs)) if xs else float("nan")  # noqa: E731
-    print(f"world {w}: epochs {len(recs)}, unresolved "
-          f"{sum(r['status'] == 'UNRESOLVED' for r in recs)}, rot err median "
-          f"{med([r['rot_err'] for r in recs]):.3f} deg")  # fmt: skip
-    print(f"  first pass: rate err median {med([p['rate_err'] for p in first]):.2f} deg/s, "
-          f"step rot err {med([p['rot_err'] for p in first]):.3f} deg")  # fmt: skip
-    print(f"  refinements {len(ref)} (kept {sum(p['kept'] for p in ref)}): rate err median "
-          f"{med([p['rate_err'] for p in ref if p['rate_err'] is not None]):.2f} deg/s, "
-          f"step rot err {med([p['rot_err'] for p in ref]):.3f} deg")  # fmt: skip
+    first, refined = _paired(recs)
+    lost = [r for r in recs if r["status"] == "UNRESOLVED"]
+    by_refine = [
+        r for r in lost
+        if any(p["refine"] and p["kept"] for p in r["passes"])
+        and any(p["status"] != "UNRESOLVED" for p in r["passes"])
+    ]  # fmt: skip
+    med = np.median(first) if len(first) else np.nan
+    med_r = np.median(refined) if len(refined) else np.nan
+    better = 100.0 * float(np.mean(refined < first)) if len(first) else np.nan
+    print(f"world {w}: epochs {len(recs)}; rate error of the first pass / first refinement "
+          f"(median, {len(first)} epochs) {med:.2f} / {med_r:.2f} deg/s, refinement closer "
+          f"in {better:.0f} %; unresolved {len(lost)}, of them a kept refinement after a "
+          f"resolved pass {len(by_refine)}")  # fmt: skip
 
 
 if __name__ == "__main__":
