@@ -1,0 +1,282 @@
+"""What the 2D rig loses against the oracle, ingredient by ingredient (issue 11).
+
+The oracle (:mod:`planodom.oracle`) differs from planodom in four ingredients: the
+deskewing (the true motion removed), the segmentation (every labelled point of a surface
+is one plane), the association (the labels) and the solve (weighted least squares of the
+points' distances to the other epoch's planes over all common planes, both ways). Per
+world and range noise this runs planodom and variants with oracle ingredients swapped in:
+
+- ``planodom``: planodom as it is (default configuration).
+- ``true-deskew``: every scan deskewed with the true motion (:func:`oracle.deskewed_points`)
+  and given to planodom as deskewed already, always kept (the streaming deskewing is never
+  tried: ``prefer_streaming`` forced off); planodom's extraction, association and solve.
+- ``<run>+osolve``: the planes and strict associations planodom committed for every epoch
+  (recorded at commit: the epoch's planes and the reference planes they were estimated
+  against), the relative pose solved by the oracle's solve over all associated pairs
+  (each plane's inlier moments as its weight; what is measured judged on the surfaces'
+  true normals, from the planes' ``truth_id``), chained as the oracle chains.
+- ``<run>+labels+osolve``: the same planes grouped by their true surface (``truth_id``,
+  fragments of one surface merged into one plane by their moments), associated by the
+  label, the oracle's solve.
+- ``oracle-pdeskew``: the oracle (labels, all labelled points, its solve) on the points
+  deskewed with the twist planodom deskewed each epoch with (zero where it did not
+  deskew: the time windows; the first epoch with the second's twist).
+- ``oracle``.
+
+``<run>`` is ``planodom`` or ``true-deskew``. Per variant: per-epoch rotation and xy rms,
+ATE (xy, origin-aligned) as in ``planodom experiment generalisation``, and their ratios to
+the oracle's. Writes a CSV (one row per world, noise and variant).
+
+    uv run python experiments/rig2d_ingredients.py --worlds 160,168,172,178 \
+        --noise 0.006 0.02 --epochs 150 -o OUT.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+import planodom.odometry.odometry as odometry_module
+from planodom.config import PlanodomConfig
+from planodom.experiments.generalisation import world_for
+from planodom.extraction.deskew import deskew_points
+from planodom.geometry import Plane, invert_transform, se3_exp, se3_log
+from planodom.metrics import ate, per_epoch_errors, relative_motions
+from planodom.odometry.odometry import PlaneOdometry
+from planodom.odometry.relative import Status
+from planodom.odometry.run import _Deskewed, _streaming_pass, with_motion_bounds
+from planodom.oracle import (
+    SurfaceMoments,
+    deskewed_points,
+    relative_pose,
+    run_oracle,
+    surface_moments,
+)
+from planodom.results import write_rows
+from planodom.rig import Rig
+from planodom.scan import Scan
+from planodom.simulation.random_world import simulate_world, world_fields
+
+
+@dataclass
+class Committed:
+    """What planodom committed for one epoch: its planes, the reference epoch's planes
+    they were estimated against, the relative pose (None: the first epoch) and the twist
+    the scan was deskewed with (None: not deskewed)."""
+
+    planes: list[Plane]
+    reference_planes: list[Plane]
+    relative: object
+    twist: np.ndarray | None
+
+
+@contextlib.contextmanager
+def recording(log: list[Committed], force_given: bool = False) -> Iterator[None]:
+    """Record every epoch PlaneOdometry commits in ``log``; with ``force_given`` an epoch
+    given deskewed already is always kept (``prefer_streaming`` off)."""
+    commit, first, prefer = (
+        PlaneOdometry._commit,
+        PlaneOdometry._commit_first,
+        odometry_module.prefer_streaming,
+    )
+
+    def _commit(self, epoch, best, t):  # type: ignore[no-untyped-def]
+        log.append(Committed(best.planes, best.reference_planes, best.relative, epoch.twist))
+        return commit(self, epoch, best, t)
+
+    def _commit_first(self, epoch, t):  # type: ignore[no-untyped-def]
+        log.append(Committed(epoch.planes, [], None, epoch.twist))
+        return first(self, epoch, t)
+
+    PlaneOdometry._commit = _commit  # type: ignore[method-assign]
+    PlaneOdometry._commit_first = _commit_first  # type: ignore[method-assign]
+    if force_given:
+        odometry_module.prefer_streaming = lambda given, previous: False
+    try:
+        yield
+    finally:
+        PlaneOdometry._commit = commit  # type: ignore[method-assign]
+        PlaneOdometry._commit_first = first  # type: ignore[method-assign]
+        odometry_module.prefer_streaming = prefer
+
+
+def plane_moments(
+    planes: Sequence[Plane], ids: np.ndarray, true_normals: np.ndarray, merge: bool
+) -> SurfaceMoments:
+    """The oracle's moments of ``planes`` with ``ids`` (K,); with ``merge`` the planes of
+    one id merged (summed moments, TLS plane; a single plane keeps its own fit)."""
+    rows = []
+    for i in dict.fromkeys(ids.tolist()) if merge else range(len(planes)):
+        members = np.flatnonzero(ids == i) if merge else np.array([i])
+        ps = [planes[j] for j in members]
+        if any(p.support is None or p.support.scatter is None for p in ps):
+            continue
+        counts = np.array([p.support.n_points for p in ps], float)  # type: ignore[union-attr]
+        cents = np.array([p.support.centroid for p in ps])  # type: ignore[union-attr]
+        n = counts.sum()
+        c = counts @ cents / n
+        S = sum(p.support.scatter for p in ps) + np.einsum(  # type: ignore[union-attr]
+            "k,ki,kj->ij", counts, cents - c, cents - c
+        )
+        if len(ps) == 1:
+            normal, offset = ps[0].normal, ps[0].offset
+        else:
+            normal = np.linalg.eigh(S)[1][:, 0]
+            offset = float(-normal @ c)
+        key = i if merge else int(ids[i])
+        rows.append((key, n, c, S, normal, offset, true_normals[members[0]]))
+    if not rows:
+        z = np.zeros((0, 3))
+        return SurfaceMoments(np.zeros(0, int), np.zeros(0), z, np.zeros((0, 3, 3)), z,
+                              np.zeros(0), z)  # fmt: skip
+    cols = [np.array(c) for c in zip(*rows, strict=True)]
+    return SurfaceMoments(*cols)
+
+
+def true_normals(planes: Sequence[Plane], scene, R_world_base: np.ndarray) -> np.ndarray:
+    """(K, 3) the true surface normals of ``planes`` in the base frame (the fitted
+    normal where the plane has no ``truth_id``)."""
+    out = []
+    for p in planes:
+        if p.truth_id >= 0:
+            out.append(scene.by_id(p.truth_id).normal @ R_world_base)
+        else:
+            out.append(p.normal)
+    return np.array(out).reshape(-1, 3)
+
+
+def oracle_solve(
+    log: Sequence[Committed], times: np.ndarray, gt: np.ndarray, scene, labels: bool
+) -> tuple[np.ndarray, list[str]]:
+    """Poses (E, 4, 4) and statuses of the oracle's solve over planodom's committed planes
+    (module docstring): associated by planodom (``labels`` False) or by ``truth_id``."""
+    poses, statuses = [np.eye(4)], ["first"]
+    velocity = np.zeros(6)
+    for k in range(1, len(log)):
+        c = log[k]
+        rel = c.relative
+        prev = rel.prev  # type: ignore[attr-defined]
+        dt = float(times[k] - times[k - 1])
+        T_prev_last = invert_transform(poses[prev]) @ poses[k - 1]
+        init = T_prev_last @ se3_exp(velocity * dt)
+        Rp, Rc = gt[prev][:3, :3], gt[k][:3, :3]
+        refs, curs = c.reference_planes, c.planes
+        if labels:
+            ids_p = np.array([p.truth_id for p in refs], int)
+            ids_c = np.array([p.truth_id for p in curs], int)
+            keep_p, keep_c = np.flatnonzero(ids_p >= 0), np.flatnonzero(ids_c >= 0)
+            mp = plane_moments([refs[i] for i in keep_p], ids_p[keep_p],
+                               true_normals([refs[i] for i in keep_p], scene, Rp), True)
+            mc = plane_moments([curs[i] for i in keep_c], ids_c[keep_c],
+                               true_normals([curs[i] for i in keep_c], scene, Rc), True)  # fmt: skip
+        else:
+            assoc = np.asarray(rel.associations, int).reshape(-1, 2)  # type: ignore[attr-defined]
+            ids = np.arange(len(assoc))
+            pp = [refs[i] for i in assoc[:, 0]]
+            cc = [curs[i] for i in assoc[:, 1]]
+            mp = plane_moments(pp, ids, true_normals(pp, scene, Rp), False)
+            mc = plane_moments(cc, ids, true_normals(cc, scene, Rc), False)
+        est = relative_pose(mp, mc, init)
+        T_prev_curr = est.T_prev_curr
+        step = invert_transform(T_prev_last) @ T_prev_curr
+        if est.status != "unresolved" and dt > 0:
+            velocity = se3_log(step) / dt
+        poses.append(poses[k - 1] @ step)
+        statuses.append(est.status)
+    return np.array(poses), statuses
+
+
+def oracle_pdeskew(run, log: Sequence[Committed], scene) -> tuple[np.ndarray, list[str]]:
+    """The oracle on the points deskewed with planodom's twists (module docstring)."""
+    twists = [c.twist for c in log]
+    if twists[0] is None and len(twists) > 1:
+        twists[0] = twists[1]
+    scans = []
+    for scan, twist in zip(run.scans, twists, strict=True):
+        pts = scan.points if twist is None else deskew_points(scan.points, scan.t, twist)
+        scans.append(Scan(pts, scan.ring, np.zeros(len(pts)), scan.label))
+    orc = run_oracle(scans, run.times, run.trajectory, scene)
+    return orc.poses, orc.statuses
+
+
+def metrics(poses: np.ndarray, gt: np.ndarray) -> dict[str, float]:
+    """Per-epoch rotation and xy rms, ATE (as ``generalisation._metrics``)."""
+    err = per_epoch_errors(relative_motions(poses), relative_motions(gt))
+    rot = np.degrees(np.sqrt(err["roll"] ** 2 + err["pitch"] ** 2 + err["yaw"] ** 2))
+    xy = np.hypot(err["x"], err["y"])
+    return {
+        "rot_rms_deg": float(np.sqrt(np.mean(rot**2))),
+        "xy_rms_m": float(np.sqrt(np.mean(xy**2))),
+        "ate_xy_m": float(ate(poses, gt, align="origin", xy_only=True)["rmse"]),
+    }
+
+
+def run_world(index: int, noise: float, n_epochs: int, config: PlanodomConfig) -> list[dict]:
+    """Every variant on world ``index`` at ``noise`` (m)."""
+    world = world_for(index)
+    full = simulate_world(world, noise, n_epochs=n_epochs, all_fields=True)
+    run = world_fields(world, full)
+    gt = invert_transform(full.poses[0])[None] @ full.poses
+    out: dict[str, tuple[np.ndarray, list[str]]] = {}
+    orc = run_oracle(full.scans, full.times, world.trajectory, world.scene)
+    out["oracle"] = orc.poses, orc.statuses
+    rig = getattr(run, "rig", None) or Rig()
+    config = with_motion_bounds(config, rig.motion_bounds)  # as run_odometry
+    logs: dict[str, list[Committed]] = {}
+    for name in ("planodom", "true-deskew"):
+        log: list[Committed] = []
+        if name == "planodom":
+            source: Sequence = run.scans
+        else:
+            source = [
+                _Deskewed(s, replace(s, points=deskewed_points(f, world.trajectory, float(t))))
+                for s, f, t in zip(run.scans, full.scans, full.times, strict=True)
+            ]
+        with recording(log, force_given=name == "true-deskew"):
+            odo = _streaming_pass(source, config, rig, full.times, None, None)
+        assert len(log) == len(odo.poses)
+        out[name] = odo.poses, odo.statuses
+        logs[name] = log
+        for labels in (False, True):
+            key = f"{name}+labels+osolve" if labels else f"{name}+osolve"
+            out[key] = oracle_solve(log, full.times, gt, world.scene, labels)
+    out["oracle-pdeskew"] = oracle_pdeskew(full, logs["planodom"], world.scene)
+    rows = []
+    ref = metrics(*out["oracle"][:1], gt)
+    for name, (poses, statuses) in out.items():
+        m = metrics(poses, gt)
+        row: dict[str, object] = {"world": index, "noise_m": noise, "variant": name}
+        row |= m
+        row |= {f"{k}_x_oracle": m[k] / ref[k] if ref[k] > 0 else float("nan") for k in m}
+        st = np.array(statuses)
+        row |= {"unresolved": int((st == "unresolved").sum()),
+                "degenerate": int((st == "degenerate").sum())}  # fmt: skip
+        rows.append(row)
+        print(index, noise, name, {k: round(float(v), 5) for k, v in m.items()},
+              "x oracle", {k: round(float(row[f"{k}_x_oracle"]), 2) for k in m},  # type: ignore[arg-type]
+              flush=True)  # fmt: skip
+    return rows
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--worlds", default="160,168,172,178")
+    ap.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
+    ap.add_argument("--epochs", type=int, default=150)
+    ap.add_argument("-o", "--out", default=None, help="CSV of the rows")
+    args = ap.parse_args(argv)
+    config = PlanodomConfig()
+    rows: list[dict] = []
+    for w in (int(x) for x in args.worlds.split(",")):
+        for noise in args.noise:
+            rows += run_world(w, noise, args.epochs, config)
+            if args.out:
+                write_rows(args.out, rows)
+
+
+if __name__ == "__main__":
+    main()
