@@ -44,7 +44,7 @@ import planodom.odometry.odometry as odometry_module
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import world_for
 from planodom.extraction.deskew import deskew_points
-from planodom.geometry import Plane, invert_transform, se3_exp, se3_log
+from planodom.geometry import Plane, invert_transform, orthonormalised, se3_exp, se3_log
 from planodom.metrics import ate, per_epoch_errors, relative_motions
 from planodom.odometry.odometry import PlaneOdometry
 from planodom.odometry.relative import Status
@@ -60,6 +60,10 @@ from planodom.results import write_rows
 from planodom.rig import Rig
 from planodom.scan import Scan
 from planodom.simulation.random_world import simulate_world, world_fields
+
+
+#: Solves that failed (diverged), what they were given: counted per variant.
+FAILURES: list[str] = []
 
 
 @dataclass
@@ -150,20 +154,24 @@ def true_normals(planes: Sequence[Plane], scene, R_world_base: np.ndarray) -> np
 
 
 def oracle_solve(
-    log: Sequence[Committed], times: np.ndarray, gt: np.ndarray, scene, labels: bool
+    log: Sequence[Committed], times: np.ndarray, T_world_base: np.ndarray, scene, labels: bool,
+    bounds: tuple[float, float],
 ) -> tuple[np.ndarray, list[str]]:
     """Poses (E, 4, 4) and statuses of the oracle's solve over planodom's committed planes
-    (module docstring): associated by planodom (``labels`` False) or by ``truth_id``."""
-    poses, statuses = [np.eye(4)], ["first"]
+    (module docstring): associated by planodom (``labels`` False) or by ``truth_id``;
+    ``T_world_base`` (E, 4, 4) the true poses in the scene's frame (the true normals)."""
+    poses, statuses, steps = [np.eye(4)], ["first"], [np.eye(4)]
     velocity = np.zeros(6)
     for k in range(1, len(log)):
         c = log[k]
         rel = c.relative
         prev = rel.prev  # type: ignore[attr-defined]
         dt = float(times[k] - times[k - 1])
-        T_prev_last = invert_transform(poses[prev]) @ poses[k - 1]
+        T_prev_last = np.eye(4)  # through the steps: inverting chained poses amplifies drift
+        for st in steps[prev + 1 : k]:
+            T_prev_last = T_prev_last @ st
         init = T_prev_last @ se3_exp(velocity * dt)
-        Rp, Rc = gt[prev][:3, :3], gt[k][:3, :3]
+        Rp, Rc = T_world_base[prev][:3, :3], T_world_base[k][:3, :3]
         refs, curs = c.reference_planes, c.planes
         if labels:
             ids_p = np.array([p.truth_id for p in refs], int)
@@ -180,14 +188,38 @@ def oracle_solve(
             cc = [curs[i] for i in assoc[:, 1]]
             mp = plane_moments(pp, ids, true_normals(pp, scene, Rp), False)
             mc = plane_moments(cc, ids, true_normals(cc, scene, Rc), False)
-        est = relative_pose(mp, mc, init)
-        T_prev_curr = est.T_prev_curr
-        step = invert_transform(T_prev_last) @ T_prev_curr
-        if est.status != "unresolved" and dt > 0:
+        step, status = solved_step(mp, mc, init, T_prev_last, bounds)
+        if status != "unresolved" and dt > 0:
             velocity = se3_log(step) / dt
-        poses.append(poses[k - 1] @ step)
-        statuses.append(est.status)
+        step = orthonormalised(step)
+        steps.append(step)
+        poses.append(orthonormalised(poses[k - 1] @ step))
+        statuses.append(status)
     return np.array(poses), statuses
+
+
+def solved_step(
+    mp: SurfaceMoments, mc: SurfaceMoments, init: np.ndarray, T_prev_last: np.ndarray,
+    bounds: tuple[float, float],
+) -> tuple[np.ndarray, str]:
+    """The oracle's step ``T_{k-1}_k`` (4, 4) and status from the moments; a solve that
+    fails or lands beyond the association's bounds (rad, m) from ``init`` (a wrong
+    association planodom made: the oracle has none) is unresolved and keeps ``init``."""
+    try:
+        with np.errstate(all="ignore"):
+            est = relative_pose(mp, mc, init)
+        T, status = est.T_prev_curr, est.status
+        R = T[:3, :3]
+        if not (np.all(np.isfinite(T)) and np.allclose(R.T @ R, np.eye(3), atol=1e-3)):
+            raise ValueError("diverged")
+        T = orthonormalised(T)  # the Gauss-Newton products drift from a rotation (1e-5)
+        off = se3_log(invert_transform(init) @ T)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        FAILURES.append(f"{exc}: {len(mp)} / {len(mc)} planes, points {mc.count.tolist()}")
+        T, status, off = init, "unresolved", np.full(6, np.inf)
+    if not (np.linalg.norm(off[:3]) <= bounds[0] and np.linalg.norm(off[3:]) <= bounds[1]):
+        T, status = init, "unresolved"
+    return invert_transform(T_prev_last) @ T, status
 
 
 def oracle_pdeskew(run, log: Sequence[Committed], scene) -> tuple[np.ndarray, list[str]]:
@@ -227,6 +259,8 @@ def run_world(index: int, noise: float, n_epochs: int, config: PlanodomConfig) -
     rig = getattr(run, "rig", None) or Rig()
     config = with_motion_bounds(config, rig.motion_bounds)  # as run_odometry
     logs: dict[str, list[Committed]] = {}
+    a = config.association
+    bounds = (float(np.radians(a.max_rotation_deg)), float(a.max_translation_m))
     for name in ("planodom", "true-deskew"):
         log: list[Committed] = []
         if name == "planodom":
@@ -243,7 +277,10 @@ def run_world(index: int, noise: float, n_epochs: int, config: PlanodomConfig) -
         logs[name] = log
         for labels in (False, True):
             key = f"{name}+labels+osolve" if labels else f"{name}+osolve"
-            out[key] = oracle_solve(log, full.times, gt, world.scene, labels)
+            FAILURES.clear()
+            out[key] = oracle_solve(log, full.times, full.poses, world.scene, labels, bounds)
+            if FAILURES:
+                print(key, len(FAILURES), "solves failed, e.g.", FAILURES[0], flush=True)
     out["oracle-pdeskew"] = oracle_pdeskew(full, logs["planodom"], world.scene)
     rows = []
     ref = metrics(*out["oracle"][:1], gt)
