@@ -39,6 +39,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+import yaml
 
 import planodom.odometry.odometry as odometry_module
 from planodom.config import PlanodomConfig
@@ -47,20 +48,17 @@ from planodom.extraction.deskew import deskew_points
 from planodom.geometry import Plane, invert_transform, orthonormalised, se3_exp, se3_log
 from planodom.metrics import ate, per_epoch_errors, relative_motions
 from planodom.odometry.odometry import PlaneOdometry
-from planodom.odometry.relative import Status
 from planodom.odometry.run import _Deskewed, _streaming_pass, with_motion_bounds
 from planodom.oracle import (
     SurfaceMoments,
     deskewed_points,
     relative_pose,
     run_oracle,
-    surface_moments,
 )
 from planodom.results import write_rows
 from planodom.rig import Rig
 from planodom.scan import Scan
 from planodom.simulation.random_world import simulate_world, world_fields
-
 
 #: Solves that failed (diverged), what they were given: counted per variant.
 FAILURES: list[str] = []
@@ -154,7 +152,11 @@ def true_normals(planes: Sequence[Plane], scene, R_world_base: np.ndarray) -> np
 
 
 def oracle_solve(
-    log: Sequence[Committed], times: np.ndarray, T_world_base: np.ndarray, scene, labels: bool,
+    log: Sequence[Committed],
+    times: np.ndarray,
+    T_world_base: np.ndarray,
+    scene,
+    labels: bool,
     bounds: tuple[float, float],
 ) -> tuple[np.ndarray, list[str]]:
     """Poses (E, 4, 4) and statuses of the oracle's solve over planodom's committed planes
@@ -177,10 +179,18 @@ def oracle_solve(
             ids_p = np.array([p.truth_id for p in refs], int)
             ids_c = np.array([p.truth_id for p in curs], int)
             keep_p, keep_c = np.flatnonzero(ids_p >= 0), np.flatnonzero(ids_c >= 0)
-            mp = plane_moments([refs[i] for i in keep_p], ids_p[keep_p],
-                               true_normals([refs[i] for i in keep_p], scene, Rp), True)
-            mc = plane_moments([curs[i] for i in keep_c], ids_c[keep_c],
-                               true_normals([curs[i] for i in keep_c], scene, Rc), True)  # fmt: skip
+            mp = plane_moments(
+                [refs[i] for i in keep_p],
+                ids_p[keep_p],
+                true_normals([refs[i] for i in keep_p], scene, Rp),
+                True,
+            )
+            mc = plane_moments(
+                [curs[i] for i in keep_c],
+                ids_c[keep_c],
+                true_normals([curs[i] for i in keep_c], scene, Rc),
+                True,
+            )
         else:
             assoc = np.asarray(rel.associations, int).reshape(-1, 2)  # type: ignore[attr-defined]
             ids = np.arange(len(assoc))
@@ -199,7 +209,10 @@ def oracle_solve(
 
 
 def solved_step(
-    mp: SurfaceMoments, mc: SurfaceMoments, init: np.ndarray, T_prev_last: np.ndarray,
+    mp: SurfaceMoments,
+    mc: SurfaceMoments,
+    init: np.ndarray,
+    T_prev_last: np.ndarray,
     bounds: tuple[float, float],
 ) -> tuple[np.ndarray, str]:
     """The oracle's step ``T_{k-1}_k`` (4, 4) and status from the moments; a solve that
@@ -247,8 +260,11 @@ def metrics(poses: np.ndarray, gt: np.ndarray) -> dict[str, float]:
     }
 
 
-def run_world(index: int, noise: float, n_epochs: int, config: PlanodomConfig) -> list[dict]:
-    """Every variant on world ``index`` at ``noise`` (m)."""
+def run_world(
+    index: int, noise: float, n_epochs: int, config: PlanodomConfig, quick: bool = False
+) -> list[dict]:
+    """Every variant on world ``index`` at ``noise`` (m); with ``quick`` only planodom
+    and the oracle."""
     world = world_for(index)
     full = simulate_world(world, noise, n_epochs=n_epochs, all_fields=True)
     run = world_fields(world, full)
@@ -261,7 +277,7 @@ def run_world(index: int, noise: float, n_epochs: int, config: PlanodomConfig) -
     logs: dict[str, list[Committed]] = {}
     a = config.association
     bounds = (float(np.radians(a.max_rotation_deg)), float(a.max_translation_m))
-    for name in ("planodom", "true-deskew"):
+    for name in ("planodom",) if quick else ("planodom", "true-deskew"):
         log: list[Committed] = []
         if name == "planodom":
             source: Sequence = run.scans
@@ -275,13 +291,14 @@ def run_world(index: int, noise: float, n_epochs: int, config: PlanodomConfig) -
         assert len(log) == len(odo.poses)
         out[name] = odo.poses, odo.statuses
         logs[name] = log
-        for labels in (False, True):
+        for labels in () if quick else (False, True):
             key = f"{name}+labels+osolve" if labels else f"{name}+osolve"
             FAILURES.clear()
             out[key] = oracle_solve(log, full.times, full.poses, world.scene, labels, bounds)
             if FAILURES:
                 print(key, len(FAILURES), "solves failed, e.g.", FAILURES[0], flush=True)
-    out["oracle-pdeskew"] = oracle_pdeskew(full, logs["planodom"], world.scene)
+    if not quick:
+        out["oracle-pdeskew"] = oracle_pdeskew(full, logs["planodom"], world.scene)
     rows = []
     ref = metrics(*out["oracle"][:1], gt)
     for name, (poses, statuses) in out.items():
@@ -305,12 +322,15 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
     ap.add_argument("--epochs", type=int, default=150)
     ap.add_argument("-o", "--out", default=None, help="CSV of the rows")
+    ap.add_argument("--set", nargs="*", default=[], help="config overrides KEY=VALUE (YAML)")
+    ap.add_argument("--quick", action="store_true", help="planodom and the oracle only")
     args = ap.parse_args(argv)
-    config = PlanodomConfig()
+    changes = {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.set)}
+    config = PlanodomConfig().updated(changes, source="--set") if changes else PlanodomConfig()
     rows: list[dict] = []
     for w in (int(x) for x in args.worlds.split(",")):
         for noise in args.noise:
-            rows += run_world(w, noise, args.epochs, config)
+            rows += run_world(w, noise, args.epochs, config, args.quick)
             if args.out:
                 write_rows(args.out, rows)
 
