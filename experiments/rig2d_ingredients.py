@@ -86,18 +86,18 @@ def recording(log: list[Committed], force_given: bool = False) -> Iterator[None]
         odometry_module.prefer_streaming,
     )
 
-    def _commit(self, epoch, best, t):  # type: ignore[no-untyped-def]
+    def _commit(self, epoch, best, t):
         log.append(Committed(best.planes, best.reference_planes, best.relative, epoch.twist))
         return commit(self, epoch, best, t)
 
-    def _commit_first(self, epoch, t):  # type: ignore[no-untyped-def]
+    def _commit_first(self, epoch, t):
         log.append(Committed(epoch.planes, [], None, epoch.twist))
         return first(self, epoch, t)
 
     PlaneOdometry._commit = _commit  # type: ignore[method-assign]
     PlaneOdometry._commit_first = _commit_first  # type: ignore[method-assign]
     if force_given:
-        odometry_module.prefer_streaming = lambda given, previous: False
+        odometry_module.prefer_streaming = lambda given, previous_planes: False
     try:
         yield
     finally:
@@ -114,16 +114,16 @@ def plane_moments(
     rows = []
     for i in dict.fromkeys(ids.tolist()) if merge else range(len(planes)):
         members = np.flatnonzero(ids == i) if merge else np.array([i])
-        ps = [planes[j] for j in members]
-        if any(p.support is None or p.support.scatter is None for p in ps):
+        ps = [planes[int(j)] for j in members]
+        supports = [p.support for p in ps]
+        if any(s is None or s.scatter is None for s in supports):
             continue
-        counts = np.array([p.support.n_points for p in ps], float)  # type: ignore[union-attr]
-        cents = np.array([p.support.centroid for p in ps])  # type: ignore[union-attr]
+        counts = np.array([s.n_points for s in supports if s is not None], dtype=np.float64)
+        cents = np.array([s.centroid for s in supports if s is not None])
         n = counts.sum()
         c = counts @ cents / n
-        S = sum(p.support.scatter for p in ps) + np.einsum(  # type: ignore[union-attr]
-            "k,ki,kj->ij", counts, cents - c, cents - c
-        )
+        scatters = [s.scatter for s in supports if s is not None and s.scatter is not None]
+        S = np.sum(scatters, axis=0) + np.einsum("k,ki,kj->ij", counts, cents - c, cents - c)
         if len(ps) == 1:
             normal, offset = ps[0].normal, ps[0].offset
         else:
@@ -192,7 +192,7 @@ def oracle_solve(
                 True,
             )
         else:
-            assoc = np.asarray(rel.associations, int).reshape(-1, 2)  # type: ignore[attr-defined]
+            assoc = np.asarray(rel.associations, dtype=np.int64).reshape(-1, 2)  # type: ignore[attr-defined]
             ids = np.arange(len(assoc))
             pp = [refs[i] for i in assoc[:, 0]]
             cc = [curs[i] for i in assoc[:, 1]]
