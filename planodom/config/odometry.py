@@ -38,12 +38,12 @@ class OdometryConfig(DeskewGuards):
     translation_min_angle_deg: AcuteDeg = 20.0
     """Pairs closer than this to parallel give no reference point (its error grows as
     1 / sin(angle)); rotation uses every non-parallel pair."""
-    refinement: Literal["none", "translation", "pose"] = "translation"
-    """After the consensus: ``"translation"`` re-associates (SDA) and solves the
-    translation by weighted least squares over all associated planes
-    (:mod:`planodom.odometry.refine`), so walls a few degrees apart in yaw measure it
-    together; ``"pose"`` the rotation too (weighted Procrustes); ``"none"``: the paper's
-    single consensus candidate."""
+    refinement: Literal["none", "translation", "pose", "moments"] = "translation"
+    """After the consensus: ``"translation"`` re-associates (SDA) and solves the translation
+    by weighted least squares over all associated planes (:mod:`planodom.odometry.refine`),
+    walls a few degrees apart in yaw measuring it together; ``"pose"`` the rotation too
+    (Procrustes); ``"moments"`` "translation", then the pairwise odometry's 6-DoF pose over
+    the planes' inlier points (:mod:`.moment_refine`); ``"none"``: the paper's consensus."""
     refine_offset_floor_m: Positive = 0.003
     """Refinement: added (squared) to every plane association's offset sigma, m (what a
     fit's covariance misses: deskewing, bend)."""

@@ -44,6 +44,7 @@ from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.extractor import Extractor, default_extractor
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
+from planodom.odometry.moment_refine import moment_refined
 from planodom.odometry.rate_prediction import RatePredictor
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.seed_extraction import seed_extraction
@@ -294,6 +295,8 @@ class PlaneOdometry:
         planes = reference.plane_set, epoch.plane_set
         result = estimate_relative_pose(*planes, config, prior, sigma, step=True)
         ocfg, k = self.config.odometry, epoch.index  # bridged by constant velocity (its trend)
+        if ocfg.refinement == "moments":  # the oracle's solve over the associated planes' points
+            result = moment_refined(result, reference.planes, epoch.planes, ocfg)
         if result.status is Status.UNRESOLVED:
             bridged = bridge(prediction, T_ref_last, self.twist, dt, self._rates, k, ocfg)
             result = replaced(result, T_prev_curr=bridged)
