@@ -25,10 +25,11 @@ extraction is estimated again against the new planes with the constant-velocity
 prediction of that twist as its prior (a degenerate step's unmeasured direction is then
 the measured velocity's). A step estimated again is kept when its status is no worse;
 otherwise the old one stays and its epoch is marked superseded (its result indexes
-planes that are gone; the batch estimates it again from the planes). The poses are then
-chained again through the steps. Only the pairwise pipelines (the map holds its planes),
-scans with point times, no gap in the epoch times up to the measured step, and a start
-of at most :data:`MAX_EPOCHS` epochs.
+planes that are gone; the batch estimates it again from the planes); a degenerate one
+is then estimated again on the planes it had, with that prior (:func:`_primed_again`).
+The poses are then chained again through the steps. Only the pairwise pipelines (the
+map holds its planes), scans with point times, no gap in the epoch times up to the
+measured step, and a start of at most :data:`MAX_EPOCHS` epochs.
 
 The odometry's outputs are then not causal for those first epochs: their poses change
 when the measured step arrives (the run's poses are those after it). The twist the first
