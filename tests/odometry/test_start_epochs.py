@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from planes_factory import observe, square_polygon
 
@@ -30,10 +32,13 @@ CORRIDOR = [
 ACROSS = plane([-1, 0, 0], [30, 0, 0.5], 2, 3)
 
 
-def run(start_refresh: bool) -> tuple[PlaneOdometry, list[tuple[int, np.ndarray | None]]]:
+def run(
+    start_refresh: bool, walls_only: Callable[[int, np.ndarray | None], bool] | None = None
+) -> tuple[PlaneOdometry, list[tuple[int, np.ndarray | None]]]:
     """Five epochs at SPEED along the corridor; each scan's points spread over SPAN s. The
     extractor sees the planes from the pose at the points' mean time, less the motion the
-    twist it is given deskews (the twist's x velocity times that time)."""
+    twist it is given deskews (the twist's x velocity times that time); only the two
+    walls where ``walls_only(epoch, twist)``."""
     calls: list[tuple[int, np.ndarray | None]] = []
 
     def extractor(scan, cfg, twist=None):  # noqa: ANN001, ANN202
@@ -42,6 +47,8 @@ def run(start_refresh: bool) -> tuple[PlaneOdometry, list[tuple[int, np.ndarray 
         used = 0.0 if twist is None else float(twist[3])
         x = SPEED * DT * k + (SPEED - used) * SPAN / 2
         seen = CORRIDOR + ([ACROSS] if k >= 2 else [])
+        if walls_only is not None and walls_only(k, twist):
+            seen = CORRIDOR[:2]
         return observe(seen, transform_from_rpy_xyz(0, 0, 0, x, 0, 0))
 
     cfg = PlanodomConfig().updated(
@@ -79,3 +86,21 @@ def test_on_by_default_and_nothing_without_point_times():
     assert PlanodomConfig().odometry.start_refresh is True
     a, calls_a = run(False)
     assert all(k != 0 or twist is None for k, twist in calls_a)  # epoch 0 never deskewed
+
+
+def test_a_degenerate_step_kept_over_a_worse_estimate_takes_the_measured_velocity():
+    """Epoch 1 extracted again with the measured twist keeps only the two parallel walls
+    (its steps on the new planes are then unresolved, worse than degenerate): the steps
+    into and out of it keep their planes as they were, but estimated again with the
+    measured velocity's prior, not standing still along the corridor."""
+
+    def walls_only(k, twist):  # noqa: ANN001, ANN202
+        return k == 1 and twist is not None and twist[3] > SPEED / 2
+
+    on, calls = run(True, walls_only)
+    assert any(walls_only(k, twist) for k, twist in calls)  # the scenario happened
+    truth = SPEED * DT * np.arange(5)
+    x_on = np.array([T[0, 3] for T in on.poses])
+    np.testing.assert_allclose(x_on, truth, atol=0.01)
+    for k in (1, 2):  # still degenerate, on planes epoch 1 no longer holds
+        assert on.results[k].status is Status.DEGENERATE and k in on.superseded
