@@ -1,0 +1,126 @@
+"""Where a lidar world's rotation error over the oracle comes from, split (issue 11).
+
+``uv run python experiments/lidar_split.py W NOISE [--epochs N] [--variants a,b,...]
+[--out FILE.npz]``: the generalisation experiment's world ``W`` (odd: a lidar) at range
+noise NOISE (m), run by the oracle and by planodom's odometry with the truth substituted
+for one stage at a time (:mod:`lidar_floor`'s variants, combined with ``+``), and one
+line per variant: the rotation rms per step (deg) over all steps, over steps 1-2 and over
+steps 3 on, each with its ratio to the oracle's over the same steps, the share of the
+squared rotation error in steps 1-2, the xy rms per step (cm) and the ATE (xy, aligned at
+the origin, mm). The variants:
+
+- ``run``: planodom as the experiment runs it (its own deskewing, the default
+  configuration with the world's sweep declared): the figure to explain.
+- ``true``: the scans deskewed along the true motion (planodom's deskewing off,
+  registered at the epoch times), the default otherwise: ``run`` -> ``true`` is the
+  deskewing's share (with the reference time's).
+- ``bias0``: also the planes' weights without the 2 cm laser bias: the weights' share.
+- ``own``: also each surface the extraction found fitted from all its points (true
+  segmentation, one plane per surface): the extraction's fit and split share.
+- ``all``: every surface the oracle fits, found or not: the share of the surfaces the
+  extraction misses.
+
+The steps 1-2 / 3+ split answers whether the excess is the start's (LIDARSTART).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+
+import numpy as np
+
+# the walks' per-step errors and epoch sequence; the floor's oracle planes and extractor
+from handheld_walks import _errors, _Scans
+from lidar_floor import OVERRIDES, _extractor, _oracle_planes
+
+from planodom.config import PlanodomConfig
+from planodom.experiments.generalisation import declared_sweep, world_for
+from planodom.geometry import invert_transform
+from planodom.metrics import ate
+from planodom.odometry import run_odometry
+from planodom.oracle import run_oracle
+from planodom.simulation.random_world import simulate_world, world_fields
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2))) if len(x) else float("nan")
+
+
+def split(rot: np.ndarray, orot: np.ndarray, head: int = 2) -> dict[str, float]:
+    """Rotation rms per step (deg) over all steps, the first ``head`` and the rest, their
+    ratios to the oracle's ``orot`` over the same steps, and the first steps' share of
+    the squared error."""
+    out = {"all": _rms(rot), "head": _rms(rot[:head]), "tail": _rms(rot[head:])}
+    ref = {"all": _rms(orot), "head": _rms(orot[:head]), "tail": _rms(orot[head:])}
+    out |= {f"x_{k}": out[k] / ref[k] for k in ref}
+    out["share_head"] = float(np.sum(rot[:head] ** 2) / max(np.sum(rot**2), 1e-30))
+    return out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("world", type=int)
+    p.add_argument("noise", type=float)
+    p.add_argument("--epochs", type=int, default=150)
+    p.add_argument("--variants", default="run,true,bias0,own+bias0,all+bias0")
+    p.add_argument("--out")
+    args = p.parse_args()
+    world = world_for(args.world)
+    full = simulate_world(world, args.noise, n_epochs=args.epochs, all_fields=True)
+    data = world_fields(world, full)
+    gt = invert_transform(full.poses[0])[None] @ full.poses
+    scans, oracle = [], []
+    for k, (scan, timed) in enumerate(zip(data.scans, full.scans, strict=True)):
+        t_k = full.times[k]
+        M = invert_transform(world.trajectory.pose(t_k))[None] @ world.trajectory.poses(
+            t_k + timed.t
+        )
+        points = np.einsum("nij,nj->ni", M[:, :3, :3], timed.points) + M[:, :3, 3]
+        if scan.ring is None:  # rows recovered from deskewed points would be wrong
+            scan = replace(scan, ring=timed.ring)
+        scans.append(replace(scan, points=points))
+        assert timed.label is not None  # the simulator labels every point
+        oracle.append(_oracle_planes(points, timed.label, timed.ring))
+    orc = run_oracle(full.scans, full.times, world.trajectory, world.scene)
+    orot, oxy = _errors(orc.poses, gt)
+    oa = ate(orc.poses, gt, align="origin", xy_only=True)["rmse"]
+    head = f"world {args.world} {world.description['family']} {args.noise * 1000:g} mm"
+    s = split(orot, orot)
+    print(f"{head} {'oracle':>10}: rot {s['all']:.5f} (1-2 {s['head']:.5f}, 3+ "
+          f"{s['tail']:.5f}) xy {100 * _rms(oxy):.4f} cm ATE {1000 * oa:.2f} mm",
+          flush=True)  # fmt: skip
+    sweep = declared_sweep(world, PlanodomConfig())
+    truth = {"odometry.deskew": False, "planemap.reference_time": "epoch"}
+    out: dict[str, np.ndarray] = {"orot": orot, "oxy": oxy}
+    for variant in args.variants.split(","):
+        parts = variant.split("+")
+        overrides: dict[str, object] = {} if "run" in parts else dict(truth)
+        for part in parts:
+            overrides |= OVERRIDES.get(part, {})
+        cfg = sweep.updated(overrides, source="lidar_split") if overrides else sweep
+        mode = next((m for m in ("own", "all") if m in parts), None)
+        extractor = None if mode is None else _extractor(scans, oracle, mode)
+        source = data if "run" in parts else _Scans(scans, data.times)
+        c0 = time.process_time()
+        odo = run_odometry(source, cfg, extractor=extractor)
+        cpu = time.process_time() - c0
+        rot, xy = _errors(odo.poses, gt)
+        a = ate(odo.poses, gt, align="origin", xy_only=True)["rmse"]
+        s = split(rot, orot)
+        top = np.argsort(rot)[::-1][:3] + 1
+        print(
+            f"{head} {variant:>10}: rot {s['all']:.5f} ({s['x_all']:.1f}x) 1-2 {s['head']:.5f}"
+            f" ({s['x_head']:.1f}x) 3+ {s['tail']:.5f} ({s['x_tail']:.1f}x) share1-2 "
+            f"{s['share_head']:.2f} xy {100 * _rms(xy):.4f} cm ({_rms(xy) / _rms(oxy):.2f}x) "
+            f"ATE {1000 * a:.2f} mm ({a / oa:.1f}x) worst steps {top.tolist()} CPU {cpu:.0f} s",
+            flush=True,
+        )
+        out[f"rot_{variant}"], out[f"xy_{variant}"] = rot, xy
+    if args.out:
+        np.savez(args.out, **out)  # type: ignore[arg-type]
+
+
+if __name__ == "__main__":
+    main()
