@@ -19,6 +19,10 @@ the origin, mm). The variants:
   segmentation, one plane per surface): the extraction's fit and split share.
 - ``all``: every surface the oracle fits, found or not: the share of the surfaces the
   extraction misses.
+- ``ttwist`` (with ``run``): planodom's own deskewing, but every extraction given the
+  sweep's true constant twist (``log(T(t_k)^-1 T(t_k + period)) / period``) in place of
+  the odometry's: the twist's share, apart from the motion's change within a sweep.
+- ``b5``, ``b1``, ``fit``, ``dv``, ``r3``: :mod:`lidar_floor`'s configurations.
 
 The steps 1-2 / 3+ split answers whether the excess is the start's (LIDARSTART).
 """
@@ -33,11 +37,12 @@ import numpy as np
 
 # the walks' per-step errors and epoch sequence; the floor's oracle planes and extractor
 from handheld_walks import _errors, _Scans
-from lidar_floor import OVERRIDES, _extractor, _oracle_planes
+from lidar_floor import OVERRIDES, _extractor, _key, _oracle_planes
 
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import declared_sweep, world_for
-from planodom.geometry import invert_transform
+from planodom.extraction import extract_planes
+from planodom.geometry import invert_transform, se3_log
 from planodom.metrics import ate
 from planodom.odometry import run_odometry
 from planodom.oracle import run_oracle
@@ -57,6 +62,26 @@ def split(rot: np.ndarray, orot: np.ndarray, head: int = 2) -> dict[str, float]:
     out |= {f"x_{k}": out[k] / ref[k] for k in ref}
     out["share_head"] = float(np.sum(rot[:head] ** 2) / max(np.sum(rot**2), 1e-30))
     return out
+
+
+def _true_twist_extractor(scans: list, full, world):  # noqa: ANN001, ANN202
+    """An extractor that deskews every epoch of ``scans`` (as run) with its sweep's true
+    constant body twist (6,) (rad/s, m/s) from its first to its last point time (the
+    simulator's), whatever twist the odometry passes."""
+    index = {_key(s): k for k, s in enumerate(scans)}
+
+    def extract(scan, config, twist=None, **kwargs):  # noqa: ANN001, ANN202
+        k = index.get(_key(scan))
+        extract.calls = getattr(extract, "calls", 0) + 1  # type: ignore[attr-defined]
+        extract.missed = getattr(extract, "missed", 0) + (k is None)  # type: ignore[attr-defined]
+        if k is not None:
+            t = full.scans[k].t
+            span = np.array([t.min(), t.max()]) + float(full.times[k])
+            T = world.trajectory.poses(span)
+            twist = se3_log(invert_transform(T[0]) @ T[1]) / (span[1] - span[0])
+        return extract_planes(scan, config, twist=twist, **kwargs)
+
+    return extract
 
 
 def main() -> None:
@@ -102,6 +127,8 @@ def main() -> None:
         cfg = sweep.updated(overrides, source="lidar_split") if overrides else sweep
         mode = next((m for m in ("own", "all") if m in parts), None)
         extractor = None if mode is None else _extractor(scans, oracle, mode)
+        if "ttwist" in parts:
+            extractor = _true_twist_extractor(data.scans, full, world)
         source = data if "run" in parts else _Scans(scans, data.times)
         c0 = time.process_time()
         odo = run_odometry(source, cfg, extractor=extractor)
@@ -117,6 +144,8 @@ def main() -> None:
             f"ATE {1000 * a:.2f} mm ({a / oa:.1f}x) worst steps {top.tolist()} CPU {cpu:.0f} s",
             flush=True,
         )
+        if hasattr(extractor, "missed"):
+            print(f"  true twist: {extractor.missed} of {extractor.calls} extractions missed")  # type: ignore[union-attr]
         out[f"rot_{variant}"], out[f"xy_{variant}"] = rot, xy
     if args.out:
         np.savez(args.out, **out)  # type: ignore[arg-type]
