@@ -22,6 +22,10 @@ the origin, mm). The variants:
 - ``ttwist`` (with ``run``): planodom's own deskewing, but every extraction given the
   sweep's true constant twist (``log(T(t_k)^-1 T(t_k + period)) / period``) in place of
   the odometry's: the twist's share, apart from the motion's change within a sweep.
+- ``tdesk`` (with ``run``, scans with point times): every extraction given the scan's
+  points brought exactly along the true motion to its reference time (and a zero twist):
+  the constant-twist model's share beside ``ttwist``.
+- ``epoch``: ``planemap.reference_time: epoch`` (registered at the sweeps' starts).
 - ``b5``, ``b1``, ``fit``, ``dv``, ``r3``: :mod:`lidar_floor`'s configurations.
 
 The steps 1-2 / 3+ split answers whether the excess is the start's (LIDARSTART).
@@ -84,6 +88,26 @@ def _true_twist_extractor(scans: list, full, world):  # noqa: ANN001, ANN202
     return extract
 
 
+def _true_deskew_extractor(scans: list, full, world):  # noqa: ANN001, ANN202
+    """An extractor that brings every epoch of ``scans`` (as run, with point times) to its
+    reference time along the true motion and extracts it with a zero twist."""
+    index = {_key(s): k for k, s in enumerate(scans)}
+
+    def extract(scan, config, twist=None, **kwargs):  # noqa: ANN001, ANN202
+        k = index.get(_key(scan))
+        extract.calls = getattr(extract, "calls", 0) + 1  # type: ignore[attr-defined]
+        extract.missed = getattr(extract, "missed", 0) + (k is None or scan.t is None)  # type: ignore[attr-defined]
+        if k is None or scan.t is None:
+            return extract_planes(scan, config, twist=twist, **kwargs)
+        t_abs = float(full.times[k]) + full.scans[k].t  # (N,) the points' true times
+        t_ref = float(t_abs[0] - scan.t[0])  # the scan's times are relative to it
+        M = invert_transform(world.trajectory.pose(t_ref))[None] @ world.trajectory.poses(t_abs)
+        p = np.einsum("nij,nj->ni", M[:, :3, :3], scan.points) + M[:, :3, 3]
+        return extract_planes(replace(scan, points=p), config, twist=np.zeros(6), **kwargs)
+
+    return extract
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("world", type=int)
@@ -129,6 +153,10 @@ def main() -> None:
         extractor = None if mode is None else _extractor(scans, oracle, mode)
         if "ttwist" in parts:
             extractor = _true_twist_extractor(data.scans, full, world)
+        if "tdesk" in parts:
+            extractor = _true_deskew_extractor(data.scans, full, world)
+        if "epoch" in parts:
+            cfg = cfg.updated({"planemap.reference_time": "epoch"}, source="lidar_split")
         source = data if "run" in parts else _Scans(scans, data.times)
         c0 = time.process_time()
         odo = run_odometry(source, cfg, extractor=extractor)
