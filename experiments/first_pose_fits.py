@@ -130,7 +130,7 @@ def main() -> None:
         c = capture(int(w), float(n), args.epochs, not args.no_oracle)
         if args.save:
             args.save.mkdir(parents=True, exist_ok=True)
-            np.savez(args.save / f"{w}_{n}.npz", **c)  # type: ignore[arg-type]
+            np.savez(args.save / f"{w}_{n}.npz", **c)
         evaluate(c)
 
 

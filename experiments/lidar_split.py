@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -68,7 +69,7 @@ def split(rot: np.ndarray, orot: np.ndarray, head: int = 2) -> dict[str, float]:
     return out
 
 
-def _true_twist_extractor(scans: list, full, world):  # noqa: ANN001, ANN202
+def _true_twist_extractor(scans: Sequence, full, world):  # noqa: ANN001, ANN202
     """An extractor that deskews every epoch of ``scans`` (as run) with its sweep's true
     constant body twist (6,) (rad/s, m/s) from its first to its last point time (the
     simulator's), whatever twist the odometry passes."""
@@ -88,7 +89,7 @@ def _true_twist_extractor(scans: list, full, world):  # noqa: ANN001, ANN202
     return extract
 
 
-def _true_deskew_extractor(scans: list, full, world):  # noqa: ANN001, ANN202
+def _true_deskew_extractor(scans: Sequence, full, world):  # noqa: ANN001, ANN202
     """An extractor that brings every epoch of ``scans`` (as run, with point times) to its
     reference time along the true motion and extracts it with a zero twist."""
     index = {_key(s): k for k, s in enumerate(scans)}

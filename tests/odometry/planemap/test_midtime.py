@@ -196,9 +196,11 @@ def _sway(t: np.ndarray) -> np.ndarray:
     """(N, 6) tangents at the first middle: roll and pitch cubic, yaw and translation
     quadratic in ``t`` (s)."""
     t = np.asarray(t)[:, None]
-    return np.array([0.01, -0.02, 0.3, 5.0, 0.2, 0.01]) * t + np.array(
-        [-0.3, 0.2, -1.0, 0.8, -0.5, 0.0]
-    ) * t**2 + np.array([2.0, -1.5, 0.0, 0.0, 0.0, 0.0]) * t**3
+    return (
+        np.array([0.01, -0.02, 0.3, 5.0, 0.2, 0.01]) * t
+        + np.array([-0.3, 0.2, -1.0, 0.8, -0.5, 0.0]) * t**2
+        + np.array([2.0, -1.5, 0.0, 0.0, 0.0, 0.0]) * t**3
+    )
 
 
 def test_first_pose_mixed_takes_roll_and_pitch_cubic_and_yaw_smooth():
