@@ -334,7 +334,7 @@ class PlanemapConfig(Section):
     from a declared ``extraction.sweep``); pairwise: ``odometry.pairwise_reference_time``.
     Measured: the lidar worlds better in rotation, xy and ATE, KITTI raw 0005 2 % worse
     (figures in :mod:`planodom.odometry.planemap.midtime`)."""
-    first_pose: Literal["quadratic_fit", "quadratic", "cubic"] = "quadratic_fit"
+    first_pose: Literal["quadratic_fit", "quadratic", "cubic", "mixed"] = "quadratic_fit"
     """With the sweeps registered at their middles (``reference_time: middle``, and the
     pairwise ``odometry.pairwise_reference_time: middle``), the curve the first epoch's
     pose at its epoch time, half a sweep before the first middle, is extrapolated on
@@ -345,7 +345,9 @@ class PlanemapConfig(Section):
     :func:`~planodom.odometry.planemap.midtime.first_pose`): the cubic is closer on 9 of
     the 16 hand-held walks (40-47, 6 mm and 2 cm), farther on 7; ATE worse on 15 of the
     20 vehicle lidar runs (1-19 odd, geometric mean of the ratios 1.56, the quadratic
-    through three 1.35): ``quadratic_fit`` stays the default."""
+    through three 1.35): ``quadratic_fit`` stays the default. ``mixed``: roll and pitch
+    from the least-squares cubic over six, yaw and translation from the quadratic over
+    seven (:func:`~planodom.odometry.planemap.midtime._mixed`; docs/RESULTS.md, LIDARACC)."""
     prediction: Literal["mean", "last", "trend"] = "trend"
     """The twist each epoch is first deskewed with (the streaming odometry's constant-
     velocity prediction, :func:`planodom.odometry.trend.predicted_twist`): "mean", the

@@ -76,6 +76,7 @@ from planodom.geometry import Plane, invert_transform
 from planodom.odometry.deskew import time_spread
 from planodom.odometry.interpolate import curve_poses
 from planodom.scan import Scan
+from planodom.se3 import se3_exp, se3_log
 
 if TYPE_CHECKING:
     from planodom.odometry.run import EpochSequence, OdometryRun
@@ -171,7 +172,8 @@ def first_pose(
     ``middles`` (N,) s, extrapolated on the curve through the ``poses`` (N, 4, 4) there
     (``planemap.first_pose``): ``quadratic_fit``, the least-squares quadratic over the
     ``_END_NODES`` nearest; ``quadratic`` / ``cubic``, the polynomial through the nearest
-    three / four (fewer nodes: the degree they allow).
+    three / four (fewer nodes: the degree they allow); ``mixed``, roll and pitch from one
+    fit, yaw and translation from another (:func:`_mixed`).
 
     The run's first pose is the identity, so the first pose's error turns the whole run.
     A polynomial extrapolated outside its nodes multiplies their errors: half a node
@@ -208,13 +210,46 @@ def first_pose(
     took the cubic on the walks where it was worse too; the second was worse on the
     vehicle worlds (ATE geometric mean 1.38): no rule measured here tells the fit's bias
     from the middles' noise with the first five to nine of them."""
-    n = min({"quadratic": 3, "cubic": 4}.get(fit, _END_NODES), len(middles))
-    degree = min(2 if fit != "cubic" else 3, n - 1)
-    if n > degree + 1:  # a least-squares fit (equal weights) over the n nearest nodes
+    if fit == "mixed":
+        return _mixed(middles, poses, t)
+    return _polynomial(middles, poses, t, *_FITS[fit])
+
+
+def _polynomial(
+    middles: np.ndarray, poses: np.ndarray, t: float, degree: int, nodes: int
+) -> np.ndarray:
+    """The pose (4, 4) at ``t`` on the polynomial of ``degree`` through the ``nodes``
+    middles nearest ``t``, or (more nodes than the degree needs) their least-squares one
+    with equal weights; fewer middles: the degree they allow."""
+    n = min(nodes, len(middles))
+    degree = min(degree, n - 1)
+    if n > degree + 1:
         weights = np.ones((len(middles), 6))
         return curve_poses(middles, poses, t, np.array([t]), degree, weights, n)[0]
     return curve_poses(middles, poses, t, np.array([t]), degree)[0]
 
 
+def _mixed(middles: np.ndarray, poses: np.ndarray, t: float) -> np.ndarray:
+    """``planemap.first_pose: mixed``: in the tangent space of the fits' middle node (their
+    chart, :func:`planodom.odometry.interpolate.curve_poses`), roll and pitch (rotation
+    x, y) from the least-squares cubic over six middles, yaw (z) and translation from the
+    least-squares quadratic over seven. A vehicle's sway in roll and pitch needs the
+    cubic; its yaw and translation, which turn and shift the whole run in the plane, are
+    smooth, and the longer fit averages their noise (figures: ``config.planemap
+    .first_pose``)."""
+    n = min(_MIXED[1][1], len(middles))  # the chart both fits use at the first middles
+    P = poses[n // 2] if t <= middles[0] else poses[len(middles) - 1 - n // 2]
+    P_inv = invert_transform(P)
+    xi = se3_log(P_inv @ _polynomial(middles, poses, t, *_MIXED[1]))
+    xi[:2] = se3_log(P_inv @ _polynomial(middles, poses, t, *_MIXED[0]))[:2]
+    return P @ se3_exp(xi)
+
+
 _END_NODES = 5
 """Nodes of the least-squares quadratic beyond the first or last middle (:func:`first_pose`)."""
+
+_FITS = {"quadratic_fit": (2, _END_NODES), "quadratic": (2, 3), "cubic": (3, 4)}
+"""``planemap.first_pose`` -> (degree, nodes) of its polynomial (:func:`_polynomial`)."""
+
+_MIXED = ((3, 6), (2, 7))
+"""``mixed``'s (degree, nodes) for roll and pitch, then for yaw and translation."""

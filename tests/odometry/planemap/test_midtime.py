@@ -190,3 +190,41 @@ def test_at_epoch_times_takes_the_first_pose_fit_given():
     with pytest.raises(ConfigError):
         PlanodomConfig().updated({"planemap.first_pose": "quartic"})
     assert PlanodomConfig().updated({"planemap.first_pose": "cubic"}).planemap.first_pose == "cubic"
+
+
+def _sway(t: np.ndarray) -> np.ndarray:
+    """(N, 6) tangents at the first middle: roll and pitch cubic, yaw and translation
+    quadratic in ``t`` (s)."""
+    t = np.asarray(t)[:, None]
+    return (
+        np.array([0.01, -0.02, 0.3, 5.0, 0.2, 0.01]) * t
+        + np.array([-0.3, 0.2, -1.0, 0.8, -0.5, 0.0]) * t**2
+        + np.array([2.0, -1.5, 0.0, 0.0, 0.0, 0.0]) * t**3
+    )
+
+
+def test_first_pose_mixed_takes_roll_and_pitch_cubic_and_yaw_smooth():
+    # poses A exp(xi(t)) in the chart of the fits' middle node A (the fourth middle),
+    # xi's roll and pitch cubic, the rest quadratic: `mixed` (a cubic for roll and pitch,
+    # a quadratic for the rest) extrapolates it exactly to t = 0, the quadratic fit does
+    # not (roll and pitch); closed-form truth
+    middles = 0.05 + 0.1 * np.arange(9)
+    A = se3_exp(np.array([0.1, -0.05, 1.2, 3.0, -2.0, 0.5]))
+    poses = np.array([A @ se3_exp(x) for x in _sway(middles - middles[3])])
+    truth = A @ se3_exp(_sway(np.array([-middles[3]]))[0])
+    for fit, exact in [("mixed", True), ("quadratic_fit", False)]:
+        error = np.abs(invert_transform(truth) @ first_pose(middles, poses, 0.0, fit) - np.eye(4))
+        assert (error.max() < 1e-9) == exact, (fit, error.max())
+    # a node's yaw error reaches the first pose less than through the cubic: the sum of
+    # the squared responses to each node's yaw (its noise gain), from the first pose's yaw
+    gains = {}
+    for fit in ("mixed", "cubic"):
+        base = first_pose(middles, poses, 0.0, fit)
+        response = []
+        for j in range(len(middles)):
+            moved = poses.copy()
+            moved[j] = moved[j] @ se3_exp(np.array([0, 0, 1e-6, 0, 0, 0]))
+            got = invert_transform(base) @ first_pose(middles, moved, 0.0, fit)
+            response.append(np.arctan2(got[1, 0], got[0, 0]) / 1e-6)
+        gains[fit] = float(np.sum(np.square(response)))
+    assert gains["mixed"] < 0.5 * gains["cubic"], gains
