@@ -7,7 +7,7 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract
-from planodom.extraction.lidar.agreement import MIN_JUDGED, cutting_planes
+from planodom.extraction.lidar.agreement import MIN_JUDGED, PointNormals, cutting_planes
 
 from .synth_scans import planes_in_base, rect, scan_lidar
 
@@ -21,6 +21,7 @@ def test_cutting_planes_by_the_share_of_agreeing_pixel_normals():
     point_normal = np.array([up] * 10 + [side] * 10 + [tilted] * 10)
     has = np.ones(30, dtype=bool)
     has[25:] = False
+    found = PointNormals(point_normal, has, np.arange(30))  # a pixel a point
     members = [
         np.arange(0, 10),  # all agree with "up"
         np.arange(10, 20),  # all at 90 deg: a cut across walls
@@ -30,10 +31,10 @@ def test_cutting_planes_by_the_share_of_agreeing_pixel_normals():
         np.r_[np.arange(10, 10 + MIN_JUDGED - 1), np.arange(25, 30)],  # too few judged
     ]
     normals = np.tile(up, (len(members), 1))
-    refused = cutting_planes(normals, members, point_normal, has, cfg)
+    refused = cutting_planes(normals, members, found, cfg)
     assert refused.tolist() == [False, True, True, False, False, False]
     off = cutting_planes(
-        normals, members, point_normal, has, ExtractionConfig(ransac_normal_agreement_deg=None)
+        normals, members, found, ExtractionConfig(ransac_normal_agreement_deg=None)
     )
     assert not off.any()
 
@@ -47,6 +48,7 @@ def test_unjudged_planes_refused_only_when_asked():
     point_normal = np.array([up] * 10 + [side] * 10 + [up] * 10)
     has = np.ones(30, dtype=bool)
     has[20:] = False  # the last ten points have no pixel normal
+    found = PointNormals(point_normal, has, np.arange(30))  # a pixel a point
     members = [
         np.arange(0, 10),  # judged, agrees: a level surface
         np.arange(10, 20),  # judged, at 90 deg: a cut the check sees
@@ -55,16 +57,16 @@ def test_unjudged_planes_refused_only_when_asked():
     ]
     normals = np.tile(up, (len(members), 1))
     on = ExtractionConfig(ransac_normal_agreement_deg=45.0, ransac_unjudged="refused")
-    assert cutting_planes(normals, members, point_normal, has, on).tolist() == [
+    assert cutting_planes(normals, members, found, on).tolist() == [
         False, True, True, True
     ]  # fmt: skip
     default = ExtractionConfig(ransac_normal_agreement_deg=45.0)
     assert default.ransac_unjudged == "kept"
-    assert cutting_planes(normals, members, point_normal, has, default).tolist() == [
+    assert cutting_planes(normals, members, found, default).tolist() == [
         False, True, False, False
     ]  # fmt: skip
     off = on.model_copy(update={"ransac_normal_agreement_deg": None})
-    assert not cutting_planes(normals, members, point_normal, has, off).any()
+    assert not cutting_planes(normals, members, found, off).any()
 
 
 def _facades(seed: int = 1) -> list:
@@ -124,9 +126,51 @@ def test_point_normals_share_the_range_images_grid_and_first_row_step():
     tol = member_tolerance(cfg, 0.02)
     pixel_normals(P, 0.02, tol, cfg, np.array([0.0, 0.0, 1.8]))  # the range image's step 1
     shared = first_row_step(P, cfg.region_window, 0.02, tol, cfg.region_normal_sigmas)
-    n, has = point_normals(points, scan.ring, scan.t, 0.02, cfg)
+    found = point_normals(points, scan.ring, scan.t, 0.02, cfg)
+    assert found is not None
     assert first_row_step(P, cfg.region_window, 0.02, tol, cfg.region_normal_sigmas) is shared
     n0, _, ok0 = _pixel_normals(fresh, cfg.region_window, 1, 0.02, tol, cfg.region_normal_sigmas)
     flat = row * W + col
+    n, has = found.normals[found.pixel], found.has[found.pixel]
     assert np.array_equal(n, n0.reshape(-1, 3)[flat]) and np.array_equal(has, ok0.reshape(-1)[flat])
     assert has.any()
+
+
+def test_judged_normals_are_the_all_points_lookup_restricted_to_the_inliers():
+    """:meth:`PointNormals.judged` (the normals looked up for a plane's inliers only)
+    equals, bit for bit and in order, the earlier lookup of every point's normal (an
+    (N, 3) array and an (N,) mask, computed here from a fresh grid) restricted to the
+    inliers that have one; so does the verdict of :func:`cutting_planes` on RANSAC sets."""
+    from planodom.extraction.lidar.agreement import point_normals
+    from planodom.extraction.lidar.grid import fill_grid, grid_indices
+    from planodom.extraction.lidar.normals import _pixel_normals
+    from planodom.extraction.noise import member_tolerance
+
+    scan = scan_lidar(_facades(2), sigma=0.02, seed=5, n_beams=64, n_azimuth=1024, height=1.8)
+    cfg = ExtractionConfig(range_noise_m=0.02, estimate_noise=False)
+    points = np.ascontiguousarray(scan.points, dtype=np.float64)
+    found = point_normals(points, scan.ring, scan.t, 0.02, cfg)
+    assert found is not None
+    row, col, H, W = grid_indices(scan.ring, scan.t)
+    assert col is not None
+    flat = row * W + col
+    fresh = fill_grid(points.copy(), flat, H * W).reshape(H, W, 3)
+    tol = member_tolerance(cfg, 0.02)
+    n0, _, ok0 = _pixel_normals(fresh, cfg.region_window, 1, 0.02, tol, cfg.region_normal_sigmas)
+    every_normal, every_has = n0.reshape(-1, 3)[flat], ok0.reshape(-1)[flat]  # the old lookup
+    rng = np.random.default_rng(7)
+    members = [np.flatnonzero(scan.label == i) for i in np.unique(scan.label)]
+    members += [np.sort(rng.choice(len(points), size=k, replace=False)) for k in (1, 50, 4000)]
+    members += [rng.permutation(m) for m in members[:3]]  # any order, kept
+    for idx in members:
+        own = idx[every_has[idx]]
+        assert found.judged(idx).tobytes() == every_normal[own].tobytes()
+    normals = rng.normal(size=(len(members), 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    for g, idx in enumerate(members[: len(members) // 2]):  # some planes of their own normals
+        own = found.judged(idx)
+        normals[g] = own[0] if len(own) else normals[g]
+    old = PointNormals(every_normal, every_has, np.arange(len(points)))
+    got = cutting_planes(normals, members, found, cfg)
+    assert got.tolist() == cutting_planes(normals, members, old, cfg).tolist()
+    assert 0 < got.sum() < len(got)

@@ -192,5 +192,6 @@ def test_the_agreement_check_reuses_the_range_images_grid_of_deskewed_points(mon
     # and the reused normals are those of a grid built anew from a copy
     again = point_normals(points.copy(), scan.ring, scan.t, 0.005, cfg)
     assert again is not None and len(built) == 2
-    np.testing.assert_array_equal(found[0], again[0])
-    np.testing.assert_array_equal(found[1], again[1])
+    np.testing.assert_array_equal(found.normals, again.normals)
+    np.testing.assert_array_equal(found.has, again.has)
+    np.testing.assert_array_equal(found.pixel, again.pixel)

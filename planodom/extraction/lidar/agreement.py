@@ -18,6 +18,8 @@ inliers that have a pixel normal disagree with it by more than
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from planodom.config import ExtractionConfig
@@ -31,37 +33,53 @@ from planodom.extraction.noise import member_tolerance
 MIN_JUDGED = 3
 
 
+class PointNormals(NamedTuple):
+    """The pixel normals of a scan's grid and each point's pixel: a point's normal is
+    looked up only when a plane's inliers are judged (not for all N points)."""
+
+    #: (M, 3) unit pixel normals of the grid's M pixels (rows of the grid, flattened)
+    normals: np.ndarray
+    #: (M,) bool: whether the pixel has a normal
+    has: np.ndarray
+    #: (N,) int: each point's pixel (index into ``normals``)
+    pixel: np.ndarray
+
+    def judged(self, idx: np.ndarray) -> np.ndarray:
+        """(k, 3) the pixel normals of those points ``idx`` (int array) that have one,
+        in the order of ``idx``."""
+        pix = self.pixel[idx]
+        return self.normals[pix[self.has[pix]]]
+
+
 def point_normals(
     points: np.ndarray,
     ring: np.ndarray,
     t: np.ndarray | None,
     sigma: float,
     config: ExtractionConfig,
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """(N, 3) the pixel normal of every point (its pixel's, rows ``r +- 1``, window
-    ``region_window``) and (N,) bool whether it has one; None without a grid (no usable
-    times). ``points`` (N, 3) m, ``ring`` (N,), ``t`` (N,) s, ``sigma`` m."""
+) -> PointNormals | None:
+    """The pixel normals of the points' grid (rows ``r +- 1``, window ``region_window``)
+    and each point's pixel; None without a grid (no usable times). ``points`` (N, 3) m,
+    ``ring`` (N,), ``t`` (N,) s, ``sigma`` m."""
     row, col, H, W = grid_indices(ring, t)
     if col is None or H < 3:
         return None
-    flat = row * W + col
     P = point_grid(float64_c(points), row, col, H, W)
     tol = member_tolerance(config, sigma)
     K = max(1, int(config.region_window))
     n, _, ok = first_row_step(P, K, float(sigma), float(tol), float(config.region_normal_sigmas))
-    return n.reshape(-1, 3)[flat], ok.reshape(-1)[flat]
+    return PointNormals(n.reshape(-1, 3), ok.reshape(-1), row * W + col)
 
 
 def cutting_planes(
     normals: np.ndarray,
     members: list[np.ndarray],
-    point_normal: np.ndarray,
-    has_normal: np.ndarray,
+    found: PointNormals,
     config: ExtractionConfig,
 ) -> np.ndarray:
     """(G,) bool: whether each plane (unit ``normals`` (G, 3), inlier indices ``members``)
-    is refused: more than half of its inliers that have a pixel normal (``point_normal``
-    (N, 3), ``has_normal`` (N,)) differ from it by more than
+    is refused: more than half of its inliers that have a pixel normal (``found``)
+    differ from it by more than
     ``config.ransac_normal_agreement_deg`` (sign-free; None: none is). A plane with
     fewer than :data:`MIN_JUDGED` such inliers is kept: there is nothing to judge it by
     (refused with ``config.ransac_unjudged: refused``)."""
@@ -72,10 +90,10 @@ def cutting_planes(
     unjudged = config.ransac_unjudged == "refused"
     out = np.zeros(len(members), dtype=bool)
     for g, idx in enumerate(members):
-        own = idx[has_normal[idx]]
+        own = found.judged(idx)
         if len(own) < MIN_JUDGED:
             out[g] = unjudged
             continue
-        agree = np.abs(point_normal[own] @ normals[g]) >= limit
+        agree = np.abs(own @ normals[g]) >= limit
         out[g] = np.count_nonzero(agree) * 2 < len(own)
     return out

@@ -153,11 +153,10 @@ def _agreement(
     found = point_normals(epoch.points, ring, epoch.scan.t, sigma, config)
     if found is None:
         return None
-    point_normal, has_normal = found
 
     def adjust(kept: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         members = [fits.members(int(g)) for g in kept]
-        refused = cutting_planes(normals[kept], members, point_normal, has_normal, config)
+        refused = cutting_planes(normals[kept], members, found, config)
         return kept[~refused]
 
     return adjust
