@@ -9,8 +9,9 @@ are measured in the lidar's frame, ``rig.yaml``'s one ``T_base_sensor`` (several
 with different extrinsics: left alone, their rings need not be one lidar's), over the
 first :data:`SAMPLE_SCANS` scans (a scan that cannot be read is left to the run, which
 names it; rings of a few points, :data:`MIN_RING_POINTS`, are not looked at). Renumbered
-ids hold for the whole run (one lidar, one numbering), noted once. Without extrinsics the points' own frame is tried and an order
-found is only noted: the lidar's frame is not known, so neither is whether it is one lidar.
+ids hold for the whole run (one lidar, one numbering), noted once. Without extrinsics the
+points' own frame is tried and an order found is only noted: the lidar's frame is not
+known, so neither is whether it is one lidar.
 """
 
 from __future__ import annotations
