@@ -15,9 +15,10 @@ Layout::
   and raw ``.bin`` files (float32 ``x y z intensity`` rows as KITTI's, or ``x y z
   intensity ring`` as nuScenes', :mod:`planodom.datasets.bin_scan`) are read too; all
   files of a dataset share one extension. Point times may be absolute (Unix) times, and
-  multi-return clouds keep one return per firing (:mod:`planodom.datasets.scan_io`). A
-  directory of scan files can be given directly instead of a dataset with a ``scans/``
-  folder.
+  multi-return clouds keep one return per firing (:mod:`planodom.datasets.scan_io`); ring
+  ids in a lidar's firing order are given to its rings in elevation order, noted
+  (:mod:`planodom.datasets.folder_ring_order`). A directory of scan files can be given
+  directly instead of a dataset with a ``scans/`` folder.
 - ``poses.tum``: ``time tx ty tz qx qy qz qw`` per epoch, ``T_world_base`` at the epoch's
   reference time (the TUM format of evo).
 - ``times.txt``: one reference time per epoch (seconds, one number per line, strictly

@@ -98,9 +98,17 @@ def ring_renumbering(
     return ids, new
 
 
-def ring_order_note(topic: str, rings: RingElevations, span: tuple[int, int] | None) -> str:
+def ring_order_note(
+    topic: str,
+    rings: RingElevations,
+    span: tuple[int, int] | None,
+    subject: str = "topic",
+    unread: str = "",
+) -> str:
     """The note on a topic whose ring ids (those of ``span``) do not follow its beams'
-    elevations, or ""."""
+    elevations, or ""; ``subject`` names what ``topic`` is (a dataset folder's scans:
+    :mod:`planodom.datasets.folder_ring_order`), ``unread`` (when not "") why firing-order
+    ids are read as they are instead of renumbered."""
     found = _means(rings, span)
     if found is None:
         return ""
@@ -108,12 +116,14 @@ def ring_order_note(topic: str, rings: RingElevations, span: tuple[int, int] | N
     run = _longest_run(mean)
     shown = ", ".join(f"{i}: {np.rad2deg(m):+.1f}" for i, m in zip(ids[:4], mean[:4], strict=False))
     return (
-        f"topic '{topic}': its ring ids do not follow its beams' elevations (ring {shown}"
+        f"{subject} '{topic}': its ring ids do not follow its beams' elevations (ring {shown}"
         f"{', ...' if len(ids) > 4 else ''} deg"
         + (
             f", runs of up to {run} rings in elevation order: several lidars merged?); read in "
             "id order, the range image's rows as those ids"
             if run >= MERGED_RUN
+            else f": laser ids in firing order?); read in id order: {unread}"
+            if unread
             else ": laser ids in firing order?); the same ids are given to its rings in "
             "elevation order, lowest first, so that the range image's neighbouring rows are "
             "neighbouring beams"

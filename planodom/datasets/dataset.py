@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +14,7 @@ import yaml
 from planodom.datasets.bag_clock import far_message
 from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.file_entries import broken_link, check_file_entries, optional_file
+from planodom.datasets.folder_ring_order import folder_ring_order, renumbered_rig, renumbered_rings
 from planodom.datasets.pcd import viewpoint_note
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
 from planodom.datasets.scan_names import check_numbering, kitti_raw_times, name_times
@@ -61,6 +63,8 @@ class Dataset:
             :func:`load_dataset` (:mod:`planodom.datasets.scan_time_units`).
         notes: one line each on how the scans are read that a user should check (a time
             unit other than the documented one); the CLI prints them as warnings.
+        ring_renumber: ``(ids (k,), new ids (k,))`` given to the scans' rings when read, their
+            ids in elevation order (:mod:`planodom.datasets.folder_ring_order`), or None.
     """
 
     def __init__(
@@ -82,6 +86,7 @@ class Dataset:
         self.rig = rig if rig is not None else Rig()
         self.time_scale: float | None = None
         self.notes: list[str] = []
+        self.ring_renumber: tuple[np.ndarray, np.ndarray] | None = None
         if len(self.times) != len(self.scan_files):
             raise DatasetError(
                 f"{self.path}: {len(self.times)} epoch times for {len(self.scan_files)} scans"
@@ -99,6 +104,8 @@ class Dataset:
         scan = read_scan(
             file, self.bin_layout, float(self.times[index]), self.time_field, self.time_scale
         )
+        if self.ring_renumber is not None and scan.ring is not None:
+            scan = replace(scan, ring=renumbered_rings(scan.ring, self.ring_renumber))
         origins = self.rig.sensor_origins
         if origins is not None and len(origins) > 1:  # per ring: the rings must index them
             rig_file = self.path / RIG_FILE
@@ -217,6 +224,10 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     ds.notes += scan_time_notes(scan_files, time_field)
     view = viewpoint_note(scan_files[0]) if scan_files[0].suffix.lower() == ".pcd" else None
     ds.notes += [view] if view else []
+    ds.ring_renumber, ring_note = folder_ring_order(ds)
+    if ds.ring_renumber is not None:
+        ds.rig = renumbered_rig(ds.rig, ds.ring_renumber)
+    ds.notes += [ring_note] if ring_note else []
     unread = unread_keys(rig)
     if unread:
         ds.notes.append(
