@@ -313,10 +313,12 @@ def _restorer(
     """What brings back the reference's planes when the refinement ``again`` is worse than
     the (resolved) estimate before it: ``restore_reference`` with
     ``reference_refresh_guard``; with ``refresh_keep_resolved`` only when ``again`` is
-    unresolved; None (``again`` kept once the reference was extracted again) otherwise."""
-    if restore_reference is None or config.reference_refresh_guard:
+    unresolved; None (``again`` kept once the reference was extracted again) otherwise,
+    whether or not ``restore_reference`` is given."""
+    if config.reference_refresh_guard:
         return restore_reference
-    return restore_reference if again.relative.status is Status.UNRESOLVED else None
+    lost = config.refresh_keep_resolved and again.relative.status is Status.UNRESOLVED
+    return restore_reference if lost else None
 
 
 def _worse(
