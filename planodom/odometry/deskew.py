@@ -259,8 +259,7 @@ def register_deskewed(
             its angular rate, which step 2 deskews it with; an unresolved one has nothing
             better than a trend.
         restore_reference: brings back the reference's planes a refresh replaced (None:
-            never): called, and the estimate against them kept, when the estimate against
-            the new ones is worse (``odometry.reference_refresh_guard``).
+            never), when the estimate against the new ones is worse (:func:`_restorer`).
         lead: the lead of the epoch's own twist and the tolerances and iterations
             that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
         bounds: the motion bounds the run assumes and what brings the reference's planes
