@@ -97,3 +97,12 @@ class DeskewGuards(MotionModelConfig):
     none worse by 5 %. Off for ``planodom run``: over 150 epochs at
     6 mm on worlds 0-18 it is mixed and small (HEIGHT; default twist: xy ATE geometric mean
     ratio 1.025, world 14 0.045 -> 0.054 m; quick start 3-D ATE 0.0707 -> 0.0728 m)."""
+
+    refresh_keep_resolved: bool = False
+    """Streaming, pairwise pipelines: like ``reference_refresh_guard`` but only for an
+    estimate that the refresh left unresolved: when the next epoch's refinement against
+    the reference extracted again with its twist is unresolved and the estimate before it
+    was resolved, the reference's old planes are brought back and the resolved estimate
+    kept (:mod:`planodom.odometry.deskew`, step 2). Off by default (REFKEEP in
+    docs/RESULTS.md: PASSES2CM counted 14 of the 2 cm unresolved epochs on 2D-rig worlds
+    160-178 made that way)."""

@@ -35,7 +35,8 @@ it again:
    not a motion to deskew with); with ``odometry.deskew_change_gate`` (off) only where
    it differs from the twist used beyond its own error (:mod:`.change_gate`) (with
    ``odometry.reference_refresh_guard``, off by default, its old planes are brought
-   back when the estimate against the new ones is worse). An epoch
+   back when the estimate against the new ones is worse; with
+   ``odometry.refresh_keep_resolved``, off, only when it is unresolved). An epoch
    kept without deskewing is refined only once its translation is measured (never with
    a velocity of zero nobody measured). A new estimate is kept while its status (with
    ``surfaces``: status, then distinct surfaces) does not get worse, and always once
@@ -258,8 +259,7 @@ def register_deskewed(
             its angular rate, which step 2 deskews it with; an unresolved one has nothing
             better than a trend.
         restore_reference: brings back the reference's planes a refresh replaced (None:
-            never): called, and the estimate against them kept, when the estimate against
-            the new ones is worse (``odometry.reference_refresh_guard``).
+            never), when the estimate against the new ones is worse (:func:`_restorer`).
         lead: the lead of the epoch's own twist and the tolerances and iterations
             that replace ``config``'s (:class:`planodom.odometry.trend.Lead`); None: none.
         bounds: the motion bounds the run assumes and what brings the reference's planes
@@ -289,14 +289,35 @@ def register_deskewed(
         if _left_bounds(again, best, bounds, stale_reference):
             break
         if _worse(again, best, rank, config):
-            if stale_reference and restore_reference is not None:
-                restore_reference()  # the estimate made against the old planes holds again
-            if not stale_reference or restore_reference is not None:
+            restore = _restorer(again, restore_reference, config)
+            if stale_reference and restore is not None:
+                restore()  # the estimate made against the old planes holds again
+            if not stale_reference or restore is not None:
                 break
         # once the reference was extracted again, an estimate made against its old
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
+
+
+def guarded(config: OdometryConfig) -> bool:
+    """Whether a refresh of the reference may be undone (``odometry.reference_refresh_guard``
+    or ``odometry.refresh_keep_resolved``): then ``restore_reference`` is passed."""
+    return config.reference_refresh_guard or config.refresh_keep_resolved
+
+
+def _restorer(
+    again: EpochEstimate, restore_reference: Callable[[], None] | None, config: OdometryConfig
+) -> Callable[[], None] | None:
+    """What brings back the reference's planes when the refinement ``again`` is worse than
+    the (resolved) estimate before it: ``restore_reference`` with
+    ``reference_refresh_guard``; with ``refresh_keep_resolved`` only when ``again`` is
+    unresolved; None (``again`` kept once the reference was extracted again) otherwise,
+    whether or not ``restore_reference`` is given."""
+    if config.reference_refresh_guard:
+        return restore_reference
+    lost = config.refresh_keep_resolved and again.relative.status is Status.UNRESOLVED
+    return restore_reference if lost else None
 
 
 def _worse(

@@ -29,6 +29,7 @@ from planodom.odometry.coplanar import coplanar_by
 from planodom.odometry.deskew import (
     EpochEstimate,
     centred_times,
+    guarded,
     judged,
     keep_first,
     prefer_streaming,
@@ -183,7 +184,7 @@ class PlaneOdometry:
             pairwise, middle = self._map is None, middle and self._map is not None
             damped = against_map and not middle  # see centred_times
             lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg) if pairwise else None
-            restore = self._restore_reference if pairwise and ocfg.reference_refresh_guard else None
+            restore = self._restore_reference if pairwise and guarded(ocfg) else None
             lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg) if middle else None
             guard = pairwise and ocfg.deskew_bounds_guard
             bounds = (self.config.association, self._restore_reference) if guard else None
