@@ -172,6 +172,33 @@ def diagnose(world, times, record: dict, oracle: list[dict[int, Plane]], worst=(
     )
 
 
+def truly_deskewed(index: int, noise: float, epochs: int, untimed: str = "sweep"):  # noqa: ANN201
+    """World ``index`` simulated at range noise ``noise`` (m) for ``epochs`` epochs: the
+    world, the full simulation, its fields as a recording gives them, the true poses from
+    the first epoch (k, 4, 4), each scan's points moved along the true motion to its epoch
+    time (``untimed == "times"``: with the true point times kept) and the oracle's planes
+    per scan."""
+    world = world_for(index)
+    full = simulate_world(world, noise, n_epochs=epochs, all_fields=True)
+    data = world_fields(world, full)
+    gt = invert_transform(full.poses[0])[None] @ full.poses
+    scans, oracle = [], []
+    for k, (scan, timed) in enumerate(zip(data.scans, full.scans, strict=True)):
+        t_k = full.times[k]
+        M = invert_transform(world.trajectory.pose(t_k))[None] @ world.trajectory.poses(
+            t_k + timed.t
+        )
+        points = np.einsum("nij,nj->ni", M[:, :3, :3], timed.points) + M[:, :3, 3]
+        if untimed == "times":
+            scan = replace(scan, t=timed.t)
+        if scan.ring is None:  # rows recovered from the deskewed points would be wrong
+            scan = replace(scan, ring=timed.ring)
+        scans.append(replace(scan, points=points))
+        assert timed.label is not None  # the simulator labels every point
+        oracle.append(_oracle_planes(points, timed.label, timed.ring))
+    return world, full, data, gt, scans, oracle
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("world", type=int)
@@ -182,24 +209,9 @@ def main() -> None:
     p.add_argument("--as-run", action="store_true", help="planodom's own deskewing")
     p.add_argument("--untimed", choices=["sweep", "none", "times"], default="sweep")
     args = p.parse_args()
-    world = world_for(args.world)
-    full = simulate_world(world, args.noise, n_epochs=args.epochs, all_fields=True)
-    data = world_fields(world, full)
-    gt = invert_transform(full.poses[0])[None] @ full.poses
-    scans, oracle = [], []
-    for k, (scan, timed) in enumerate(zip(data.scans, full.scans, strict=True)):
-        t_k = full.times[k]
-        M = invert_transform(world.trajectory.pose(t_k))[None] @ world.trajectory.poses(
-            t_k + timed.t
-        )
-        points = np.einsum("nij,nj->ni", M[:, :3, :3], timed.points) + M[:, :3, 3]
-        if args.untimed == "times":
-            scan = replace(scan, t=timed.t)
-        if scan.ring is None:  # rows recovered from the deskewed points would be wrong
-            scan = replace(scan, ring=timed.ring)
-        scans.append(replace(scan, points=points))
-        assert timed.label is not None  # the simulator labels every point
-        oracle.append(_oracle_planes(points, timed.label, timed.ring))
+    world, full, data, gt, scans, oracle = truly_deskewed(
+        args.world, args.noise, args.epochs, args.untimed
+    )
     source = data if args.as_run else _Scans(scans, data.times)
     orc = run_oracle(full.scans, full.times, world.trajectory, world.scene)
     orot, oxy = _errors(orc.poses, gt)

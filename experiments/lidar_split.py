@@ -42,16 +42,15 @@ import numpy as np
 
 # the walks' per-step errors and epoch sequence; the floor's oracle planes and extractor
 from handheld_walks import _errors, _Scans
-from lidar_floor import OVERRIDES, _extractor, _key, _oracle_planes
+from lidar_floor import OVERRIDES, _extractor, _key, truly_deskewed
 
 from planodom.config import PlanodomConfig
-from planodom.experiments.generalisation import declared_sweep, world_for
+from planodom.experiments.generalisation import declared_sweep
 from planodom.extraction import extract_planes
 from planodom.geometry import invert_transform, se3_log
 from planodom.metrics import ate
 from planodom.odometry import run_odometry
 from planodom.oracle import run_oracle
-from planodom.simulation.random_world import simulate_world, world_fields
 
 
 def _rms(x: np.ndarray) -> float:
@@ -117,22 +116,7 @@ def main() -> None:
     p.add_argument("--variants", default="run,true,bias0,own+bias0,all+bias0")
     p.add_argument("--out")
     args = p.parse_args()
-    world = world_for(args.world)
-    full = simulate_world(world, args.noise, n_epochs=args.epochs, all_fields=True)
-    data = world_fields(world, full)
-    gt = invert_transform(full.poses[0])[None] @ full.poses
-    scans, oracle = [], []
-    for k, (scan, timed) in enumerate(zip(data.scans, full.scans, strict=True)):
-        t_k = full.times[k]
-        M = invert_transform(world.trajectory.pose(t_k))[None] @ world.trajectory.poses(
-            t_k + timed.t
-        )
-        points = np.einsum("nij,nj->ni", M[:, :3, :3], timed.points) + M[:, :3, 3]
-        if scan.ring is None:  # rows recovered from deskewed points would be wrong
-            scan = replace(scan, ring=timed.ring)
-        scans.append(replace(scan, points=points))
-        assert timed.label is not None  # the simulator labels every point
-        oracle.append(_oracle_planes(points, timed.label, timed.ring))
+    world, full, data, gt, scans, oracle = truly_deskewed(args.world, args.noise, args.epochs)
     orc = run_oracle(full.scans, full.times, world.trajectory, world.scene)
     orot, oxy = _errors(orc.poses, gt)
     oa = ate(orc.poses, gt, align="origin", xy_only=True)["rmse"]
