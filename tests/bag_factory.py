@@ -330,6 +330,15 @@ SCANNERS = [
 ]
 
 
+def write_rig_and_odometry(bw: BagWriter, last: int) -> None:
+    """/tf_static (:data:`STATIC_TF`) and /odom on the 100 ms grid, from one period before
+    T0_NS to ``last - 1`` periods after it (the true pose at each stamp)."""
+    bw.write("/tf_static", bw.tf([bw.transform_stamped(T0_NS, *e) for e in STATIC_TF]), T0_NS)
+    for k in range(-1, last):
+        odom = T0_NS + k * 100_000_000
+        bw.write("/odom", bw.odometry(odom, true_pose(odom / 1e9)), odom)
+
+
 def split_ros2_bag(src: Path, dst: Path, cuts: list[int], storage: str = "sqlite3") -> None:
     """Write the ROS 2 bag ``src`` again as a split recording ``dst`` (as ``ros2 bag record
     --max-bag-size`` leaves one): the messages recorded before ``cuts[0]`` (ns) in

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bag_factory import (
-    STATIC_TF,
     T0_NS,
     T_BASE,
     BagWriter,
@@ -19,6 +18,7 @@ from bag_factory import (
     distance_to_room,
     lidar_cloud,
     true_pose,
+    write_rig_and_odometry,
 )
 
 from planodom.datasets.bag_options import BagOptions
@@ -93,10 +93,7 @@ def _bag(
     truth = Truth(T_base_sensor=T_BASE)
     path = path.with_suffix(".bag") if ros == 1 else path
     with BagWriter(path, ros) as bw:
-        bw.write("/tf_static", bw.tf([bw.transform_stamped(T0_NS, *e) for e in STATIC_TF]), T0_NS)
-        for k in range(-1, 9):
-            odom = T0_NS + k * 100_000_000
-            bw.write("/odom", bw.odometry(odom, true_pose(odom / 1e9)), odom)
+        write_rig_and_odometry(bw, 9)
         for k in range(6):
             stamp = T0_NS + k * 100_000_000
             msg = lidar_cloud(bw, truth, "/points", "lidar", stamp, "velodyne")

@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bag_factory import (
-    STATIC_TF,
     T0_NS,
     T_BASE,
     BagWriter,
@@ -17,6 +16,7 @@ from bag_factory import (
     distance_to_room,
     lidar_cloud,
     true_pose,
+    write_rig_and_odometry,
 )
 
 from planodom.datasets.bag_options import BagOptions
@@ -43,10 +43,7 @@ def _bag(path: Path, ros: int, layouts: list[str], dropped: list[str | None]) ->
     ``dropped[k]``, with /tf_static and /odom."""
     truth = Truth(T_base_sensor=T_BASE)
     with BagWriter(path, ros) as bw:
-        bw.write("/tf_static", bw.tf([bw.transform_stamped(T0_NS, *e) for e in STATIC_TF]), T0_NS)
-        for k in range(-1, len(layouts) + 2):
-            odom = T0_NS + k * 100_000_000
-            bw.write("/odom", bw.odometry(odom, true_pose(odom / 1e9)), odom)
+        write_rig_and_odometry(bw, len(layouts) + 2)
         for k, (layout, name) in enumerate(zip(layouts, dropped, strict=True)):
             stamp = T0_NS + k * 100_000_000
             msg = lidar_cloud(bw, truth, "/points", "lidar", stamp, layout)

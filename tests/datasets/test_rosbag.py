@@ -432,15 +432,11 @@ def _cloud_bag(path: Path, ros: int, extra=None, layout="velodyne", sweep=None) 
     """Five 10 Hz sweeps on /points (stamps on the 100 ms grid, ``layout`` of
     :func:`lidar_cloud`) and /odom; ``sweep(k, msg)`` gives the message written for sweep
     ``k`` (None: none), ``extra(bw, k, stamp, msg)`` writes more messages after it."""
-    from bag_factory import BagWriter, lidar_cloud
+    from bag_factory import BagWriter, lidar_cloud, write_rig_and_odometry
 
     truth = Truth(T_base_sensor=T_BASE)
     with BagWriter(path, ros) as bw:
-        tf = [bw.transform_stamped(T0_NS, p, c, T) for p, c, T in STATIC_TF]
-        bw.write("/tf_static", bw.tf(tf), T0_NS)
-        for k in range(-1, 7):
-            odom = T0_NS + k * 100_000_000
-            bw.write("/odom", bw.odometry(odom, true_pose(odom / 1e9)), odom)
+        write_rig_and_odometry(bw, 7)
         for k in range(5):
             stamp = T0_NS + k * 100_000_000
             msg = lidar_cloud(bw, truth, "/points", "lidar", stamp, layout)

@@ -8,7 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bag_factory import STATIC_TF, T0_NS, T_BASE, BagWriter, Truth, lidar_cloud, true_pose
+from bag_factory import (
+    T0_NS,
+    T_BASE,
+    BagWriter,
+    Truth,
+    lidar_cloud,
+    write_rig_and_odometry,
+)
 
 from planodom.datasets import load_dataset, read_scan
 from planodom.datasets.bag_options import BagOptions
@@ -62,10 +69,7 @@ def _bag(path: Path, ros: int, cut: bool, clock_ns: int = 0) -> None:
     offsets."""
     truth = Truth(T_base_sensor=T_BASE)
     with BagWriter(path, ros) as bw:
-        bw.write("/tf_static", bw.tf([bw.transform_stamped(T0_NS, *e) for e in STATIC_TF]), T0_NS)
-        for k in range(-1, 8):
-            odom = T0_NS + k * 100_000_000
-            bw.write("/odom", bw.odometry(odom, true_pose(odom / 1e9)), odom)
+        write_rig_and_odometry(bw, 8)
         for k in range(6):
             stamp = T0_NS + k * 100_000_000
             msg = lidar_cloud(bw, truth, "/points", "lidar", stamp, "ouster")
