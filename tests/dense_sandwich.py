@@ -33,3 +33,22 @@ def assert_sandwich_equals_dense(
             cov, dense[6 * k : 6 * k + 6, 6 * k : 6 * k + 6], rtol=1e-6, atol=1e-12
         )
     assert not np.allclose(covariances[-1], A_inv[-6:, -6:], rtol=1e-3)
+
+
+def odometry_chain(
+    rng: np.random.Generator, step: gtsam.Pose3, n: int
+) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    """Poses X(0..n-1) a constant ``step`` apart, each estimate perturbed by 0.01, a tight
+    prior on X(0) and a between factor per step, its sigmas uniform in [0.01, 0.05]."""
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    pose = gtsam.Pose3()
+    for k in range(n):
+        values.insert(X(k), pose.retract(rng.normal(0.0, 0.01, 6)))
+        pose = pose.compose(step)
+    graph.add(
+        gtsam.PriorFactorPose3(X(0), gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 1e-3))
+    )
+    for k in range(1, n):
+        noise = gtsam.noiseModel.Diagonal.Sigmas(rng.uniform(0.01, 0.05, 6))
+        graph.add(gtsam.BetweenFactorPose3(X(k - 1), X(k), step, noise))
+    return graph, values

@@ -8,7 +8,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 import pytest
-from dense_sandwich import assert_sandwich_equals_dense, whitened_jacobian
+from dense_sandwich import assert_sandwich_equals_dense, odometry_chain, whitened_jacobian
 from scipy.linalg import sqrtm
 from scipy.optimize import least_squares
 
@@ -84,18 +84,8 @@ def _lap() -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, list[LoopFactor], 
     """A chain of poses with between factors and two 5-DoF loop factors from X0, each
     solved from five plane pairs."""
     rng = np.random.default_rng(5)
-    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     step = gtsam.Pose3(gtsam.Rot3.RzRyRx(0.02, -0.01, 0.9), gtsam.Point3(2.0, 0.5, 0.05))
-    pose = gtsam.Pose3()
-    for k in range(E):
-        values.insert(X(k), pose.retract(rng.normal(0.0, 0.01, 6)))
-        pose = pose.compose(step)
-    graph.add(
-        gtsam.PriorFactorPose3(X(0), gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 1e-3))
-    )
-    for k in range(1, E):
-        noise = gtsam.noiseModel.Diagonal.Sigmas(rng.uniform(0.01, 0.05, 6))
-        graph.add(gtsam.BetweenFactorPose3(X(k - 1), X(k), step, noise))
+    graph, values = odometry_chain(rng, step, E)
     planes: dict[int, list[Plane]] = {0: _old_planes(rng)}
     loops = []
     for b in (4, 5):

@@ -7,7 +7,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 import pytest
-from dense_sandwich import assert_sandwich_equals_dense, whitened_jacobian
+from dense_sandwich import assert_sandwich_equals_dense, odometry_chain, whitened_jacobian
 
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import ConfigError
@@ -21,19 +21,8 @@ LOOPS = [(0, 5), (0, 6), (1, 6)]
 
 def _graph(robust_loop: bool = False) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
     rng = np.random.default_rng(3)
-    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     step = gtsam.Pose3(gtsam.Rot3.Yaw(0.3), gtsam.Point3(1.0, 0.2, 0.0))
-    pose = gtsam.Pose3()
-    for k in range(E):
-        values.insert(X(k), pose.retract(rng.normal(0.0, 0.01, 6)))
-        pose = pose.compose(step)
-    graph.add(
-        gtsam.PriorFactorPose3(X(0), gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 1e-3))
-    )
-    for k in range(1, E):
-        sig = rng.uniform(0.01, 0.05, 6)
-        noise = gtsam.noiseModel.Diagonal.Sigmas(sig)
-        graph.add(gtsam.BetweenFactorPose3(X(k - 1), X(k), step, noise))
+    graph, values = odometry_chain(rng, step, E)
     for a, b in LOOPS:
         T = values.atPose3(X(a)).between(values.atPose3(X(b)))
         noise = gtsam.noiseModel.Diagonal.Sigmas(rng.uniform(0.02, 0.06, 6))
