@@ -29,7 +29,8 @@ planes that are gone; the batch estimates it again from the planes); a degenerat
 is then estimated again on the planes it had, with that prior (:func:`_primed_again`).
 The poses are then chained again through the steps. Only the pairwise pipelines (the
 map holds its planes), scans with point times, no gap in the epoch times up to the
-measured step, and a start of at most :data:`MAX_EPOCHS` epochs.
+measured step, and a start of at most :data:`MAX_EPOCHS` epochs, or more while their scans
+hold at most :data:`MAX_BYTES`.
 
 The odometry's outputs are then not causal for those first epochs: their poses change
 when the measured step arrives (the run's poses are those after it). The twist the first
@@ -54,9 +55,15 @@ if TYPE_CHECKING:
     from planodom.odometry.odometry import PlaneOdometry
 
 
-#: The start's epochs held at most (their scans are kept): a run whose first this many
-#: epochs measure no motion is not deskewed at its start (a bound on the memory held).
+#: The start's epochs held at most (their scans are kept), unless their scans fit in
+#: :data:`MAX_BYTES`: a run whose first epochs measure no motion for longer is not
+#: deskewed at its start (a bound on the memory held).
 MAX_EPOCHS = 20
+
+#: The bytes the start's scans may hold beyond :data:`MAX_EPOCHS` epochs. A 2D-rig epoch
+#: holds 0.07 MB (240 epochs), a simulated 16-beam lidar's 0.24 MB (66), a 64-beam one's
+#: 2.5 MB (20 epochs: the bound as it was for scans of over 0.8 MB).
+MAX_BYTES = 16_000_000
 
 
 @dataclass
@@ -82,7 +89,7 @@ class StartEpochs:
             return
         result = odo.results[epoch.index]
         if result is None or result.status is not Status.OK:
-            if len(self.epochs) < MAX_EPOCHS:
+            if len(self.epochs) < MAX_EPOCHS or _held(self.epochs, epoch) <= MAX_BYTES:
                 self.epochs.append(epoch)
                 self._twists = [e.twist for e in self.epochs]
             else:  # too long a start: left as it is, its scans let go
@@ -110,6 +117,12 @@ class StartEpochs:
         if not self.epochs or self.epochs[0].index != 0 or self.epochs[0].twist is None:
             return None
         return np.array(self.epochs[0].twist, dtype=float)
+
+
+def _held(epochs: list[KeptEpoch], epoch: KeptEpoch) -> int:
+    """The bytes the scans of ``epochs`` and ``epoch`` hold (their arrays)."""
+    scans = [e.scan for e in [*epochs, epoch] if e.scan is not None]
+    return sum(a.nbytes for s in scans for a in (s.points, s.ring, s.t, s.label) if a is not None)
 
 
 def refresh_start(

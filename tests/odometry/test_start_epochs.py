@@ -6,11 +6,12 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import pytest
 from planes_factory import observe, square_polygon
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, PlaneSupport, transform_from_rpy_xyz
-from planodom.odometry import PlaneOdometry, Status
+from planodom.odometry import PlaneOdometry, Status, start_epochs
 from planodom.scan import Scan
 
 DT, SPEED, SPAN = 0.1, 4.0, 0.1  # s, m/s along x, s of each epoch's points
@@ -33,12 +34,13 @@ ACROSS = plane([-1, 0, 0], [30, 0, 0.5], 2, 3)
 
 
 def run(
-    start_refresh: bool, walls_only: Callable[[int, np.ndarray | None], bool] | None = None
-) -> tuple[PlaneOdometry, list[tuple[int, np.ndarray | None]]]:
-    """Five epochs at SPEED along the corridor; each scan's points spread over SPAN s. The
+    start_refresh: bool, walls_only: Callable[[int, np.ndarray | None], bool] | None = None,
+    n: int = 5, across_from: int = 2,
+) -> tuple[PlaneOdometry, list[tuple[int, np.ndarray | None]]]:  # fmt: skip
+    """``n`` epochs at SPEED along the corridor; each scan's points spread over SPAN s. The
     extractor sees the planes from the pose at the points' mean time, less the motion the
-    twist it is given deskews (the twist's x velocity times that time); only the two
-    walls where ``walls_only(epoch, twist)``."""
+    twist it is given deskews (the twist's x velocity times that time), the wall across
+    from epoch ``across_from`` on; only the two walls where ``walls_only(epoch, twist)``."""
     calls: list[tuple[int, np.ndarray | None]] = []
 
     def extractor(scan, cfg, twist=None):  # noqa: ANN001, ANN202
@@ -46,7 +48,7 @@ def run(
         calls.append((k, None if twist is None else np.array(twist)))
         used = 0.0 if twist is None else float(twist[3])
         x = SPEED * DT * k + (SPEED - used) * SPAN / 2
-        seen = CORRIDOR + ([ACROSS] if k >= 2 else [])
+        seen = CORRIDOR + ([ACROSS] if k >= across_from else [])
         if walls_only is not None and walls_only(k, twist):
             seen = CORRIDOR[:2]
         return observe(seen, transform_from_rpy_xyz(0, 0, 0, x, 0, 0))
@@ -55,7 +57,7 @@ def run(
         {"odometry.pipeline": "wocsc", "odometry.start_refresh": start_refresh}
     )
     odo = PlaneOdometry(cfg, extractor=extractor)
-    for k in range(5):
+    for k in range(n):
         odo.register_epoch(Scan(np.full((2, 3), float(k)), t=[0.0, SPAN]), DT * k)
     return odo, calls
 
@@ -104,3 +106,21 @@ def test_a_degenerate_step_kept_over_a_worse_estimate_takes_the_measured_velocit
     np.testing.assert_allclose(x_on, truth, atol=0.01)
     for k in (1, 2):  # still degenerate, on planes epoch 1 no longer holds
         assert on.results[k].status is Status.DEGENERATE and k in on.superseded
+
+
+def test_a_start_longer_than_max_epochs_is_refreshed_while_its_scans_are_small(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The first measured step is epoch 25 (the wall across seen from then on), past
+    MAX_EPOCHS: its tiny scans fit in MAX_BYTES, so the start is still deskewed and its
+    degenerate steps take the measured velocity; with no bytes allowed beyond MAX_EPOCHS
+    (scans too large), it is left standing still as before."""
+    n, first = 27, 25
+    assert first > start_epochs.MAX_EPOCHS
+    truth = SPEED * DT * np.arange(n)
+    on, _ = run(True, n=n, across_from=first)
+    assert [r.status for r in on.results[1:first]] == [Status.DEGENERATE] * (first - 1)
+    np.testing.assert_allclose([T[0, 3] for T in on.poses], truth, atol=0.01)
+    monkeypatch.setattr(start_epochs, "MAX_BYTES", 0)
+    bounded, _ = run(True, n=n, across_from=first)
+    assert abs(bounded.poses[first - 1][0, 3]) < 0.05  # the zero velocity carried
