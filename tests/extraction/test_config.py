@@ -41,6 +41,7 @@ from planodom.errors import ConfigError
         ({"ransac_normal_agreement_deg": 90.0}, "extraction.ransac_normal_agreement_deg"),
         ({"region_noisy_pixels": "grown"}, "extraction.region_noisy_pixels"),
         ({"ransac_unjudged": "dropped"}, "extraction.ransac_unjudged"),
+        ({"segmentation_reuse": "always"}, "extraction.segmentation_reuse"),
     ],
 )
 def test_bad_values_fail_at_load_naming_the_field(section, field) -> None:

@@ -47,6 +47,7 @@ from planodom.extraction.lidar.candidates import lidar_candidates
 from planodom.extraction.lidar.decimate import kept_points, subset_scan
 from planodom.extraction.lidar.grid import distinct_per_block, grid_indices
 from planodom.extraction.lidar.organised import organised_candidates
+from planodom.extraction.lidar.reuse import Segmentation, remembered, reused
 from planodom.extraction.lidar.rows import ring_scan_rows, scan_rows
 from planodom.extraction.lidar.sweep import AzimuthTimedScan
 from planodom.extraction.memo import identity_memo, read_only
@@ -134,9 +135,13 @@ def _candidate_planes(
         found = _candidate_planes(sub, sub_ring, view, config.model_copy(
             update={"grid_max_columns": None, "grid_max_rows": None}))  # fmt: skip
         return replace(found, inliers=[keep[i] for i in found.inliers])
-    candidates, sigma, ransac = lidar_candidates(epoch.points, config, ring, view, epoch.scan.t)
+    seg = reused(epoch, ring, view, config)  # extraction.segmentation_reuse
+    if seg is None:
+        made = lidar_candidates(epoch.points, config, ring, view, epoch.scan.t)
+        seg = remembered(epoch, ring, view, config, *made)
+    candidates, sigma, ransac = seg.candidates, seg.sigma, seg.ransac
     fits, n_small = fit_candidates(candidates, epoch.points, config)
-    adjust = _agreement(epoch, ring, sigma, config, fits) if ransac else None
+    adjust = _agreement(epoch, ring, seg, config, fits) if ransac else None
     planes, inliers, n_rejected = build_planes(
         fits, epoch, sigma, _fit_config(config, ransac), adjust
     )
@@ -144,13 +149,21 @@ def _candidate_planes(
 
 
 def _agreement(
-    epoch: Epoch, ring: np.ndarray | None, sigma: float, config: ExtractionConfig, fits: PlaneFits
+    epoch: Epoch,
+    ring: np.ndarray | None,
+    seg: Segmentation,
+    config: ExtractionConfig,
+    fits: PlaneFits,
 ) -> Adjust | None:
     """The plane builder's hook that refuses RANSAC fits across other surfaces
-    (``ransac_normal_agreement_deg``, :mod:`.agreement`); None when off or without a grid."""
+    (``ransac_normal_agreement_deg``, :mod:`.agreement`); None when off or without a grid.
+    The pixel normals are those of the segmentation's points (a reused one's: of the
+    extraction that made it)."""
     if config.ransac_normal_agreement_deg is None or ring is None:
         return None
-    found = point_normals(epoch.points, ring, epoch.scan.t, sigma, config)
+    found = seg.agreement_normals(
+        lambda: point_normals(epoch.points, ring, epoch.scan.t, seg.sigma, config)
+    )
     if found is None:
         return None
 
