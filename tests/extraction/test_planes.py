@@ -10,6 +10,7 @@ from planodom.extraction.deskew import deskew_points
 from planodom.extraction.planes.builder import _COS45, _orientation_kernel, orientation_sign
 from planodom.extraction.planes.confidence import cpef, mean_incidence
 from planodom.extraction.planes.fit import (
+    _tls_kernel,
     deskew_jacobian,
     fit_arrays,
     robust_plane_fit,
@@ -117,6 +118,11 @@ def test_batched_robust_fits_match_one_at_a_time():
         np.testing.assert_allclose(c[g], one.centroid, atol=1e-12)
         np.testing.assert_allclose(evals[g], one.evals, rtol=1e-9, atol=1e-12)
         assert abs(abs(evecs[g, :, 2] @ one.normal) - 1.0) < 1e-12
+        # the fit returned is the fit of the returned inliers, bit for bit (a converged
+        # set keeps its last fit instead of fitting the same inliers again)
+        c2, w2, v2 = _tls_kernel(np.ascontiguousarray(pts), mine)
+        assert np.array_equal(c[g], c2) and np.array_equal(evals[g], w2)
+        assert np.array_equal(evecs[g], v2)
 
 
 def test_cpef_factors():

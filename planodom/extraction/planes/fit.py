@@ -143,11 +143,13 @@ def _robust_fits_kernel(points, bounds, k_sigma, max_iter, inlier, ok, c_out, e_
         p = points[bounds[g] : bounds[g + 1]]
         idx = np.arange(len(p))
         failed = False
+        converged = False  # the last fit is of the final inliers: not fitted again
+        c, w, V = np.zeros(3), np.zeros(3), np.zeros((3, 3))
         for _ in range(max_iter):
             if len(idx) < 3:
                 failed = True
                 break
-            c, _w, V = _tls_kernel(p, idx)
+            c, w, V = _tls_kernel(p, idx)
             r = np.empty(len(p))
             for i in range(len(p)):
                 r[i] = abs(
@@ -158,11 +160,13 @@ def _robust_fits_kernel(points, bounds, k_sigma, max_iter, inlier, ok, c_out, e_
             thr = max(k_sigma * 1.4826 * np.median(r[idx]), _EXACT_M)
             new = np.flatnonzero(r <= thr)
             if len(new) == len(idx) and np.all(new == idx):
+                converged = True
                 break
             idx = new
         if failed or len(idx) < 3:
             continue
-        c, w, V = _tls_kernel(p, idx)
+        if not converged:
+            c, w, V = _tls_kernel(p, idx)
         ok[g] = True
         c_out[g], e_out[g], v_out[g] = c, w, V
         for j in idx:
