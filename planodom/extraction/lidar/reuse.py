@@ -1,7 +1,7 @@
 """A ringed scan's segmentation reused when it is extracted again with a nearby twist.
 
 The streaming odometry extracts an epoch's scan with its predicted twist, then, when the
-epoch's own twist differs, again with that one (:mod:`planodom.odometry.deskew`): 1.3-1.7
+epoch's own twist differs, again with that one (:mod:`planodom.odometry.deskew`): 1.07-1.7
 extractions an epoch on the indoor lidar worlds. Each segments the scan anew (ring noise,
 range image or RANSAC loop: about half of an indoor extraction), though the two
 deskewings move the points by millimetres. With ``extraction.segmentation_reuse:
