@@ -25,6 +25,7 @@ class ReuseFields(AgreementFields):
     own deskewed points (robust fits, plane builder): the streaming odometry extracts an
     epoch 1.07-1.7 times (its predicted twist, then its own), and the segmentation is
     about half of an indoor lidar extraction (:mod:`planodom.extraction.lidar.reuse`).
-    Measured (docs/RESULTS.md, LIDARSPEED5; held-out lidar worlds 163, 179, 181-199):
-    0.83-0.96x the CPU time on 8 of 10 indoor runs, at 6 mm 11 of 12 runs identical,
-    at 2 cm ATE 1.07x in geometric mean (up to 1.25x): off by default."""
+    Measured (docs/RESULTS.md, LIDARSPEED5): 0.83-0.96x the CPU time on 8 of 10 runs of
+    the indoor worlds 153, 159, 163, 173, 179; on the held-out lidar worlds 163, 179 and
+    181-199, 11 of 12 runs identical at 6 mm, at 2 cm ATE 1.07x in geometric mean (up
+    to 1.25x): off by default."""
