@@ -32,6 +32,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import time  # noqa: E402
+import weakref  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numba  # noqa: E402
@@ -104,10 +105,13 @@ def compiled_jacobian(points: np.ndarray, t: np.ndarray, normal: np.ndarray, fit
     )  # fmt: skip
 
 
-def patch_refinement(counts: dict[str, int]) -> None:
+def patch_refinement(counts: dict[str, int], first_only: bool = False) -> None:
     """Replace the refinement's extraction (module docstring); ``counts`` counts the
-    refinements done by the Jacobians and by extraction."""
+    refinements done by the Jacobians and by extraction. ``first_only``: a refinement of
+    an estimate the Jacobians gave is extracted (its own twist still asked for a change
+    beyond the tolerances after one first-order step)."""
     real = odo_mod.PlaneOdometry._estimate_scan
+    by_jacobian: weakref.WeakSet[Any] = weakref.WeakSet()  # the estimates the Jacobians gave
 
     def estimate_scan(
         self: Any, scan: Any, t: float, twist: Any, source: Any = None, prior_sigma: Any = None
@@ -117,6 +121,7 @@ def patch_refinement(counts: dict[str, int]) -> None:
             source is not None and twist is not None and source.twist is not None
             and scan.t is not None and len(scan.t) and len(planes)
             and all(p.deskew_jacobian is not None for p in planes)
+            and not (first_only and source in by_jacobian)
         )  # fmt: skip
         if not usable:
             if source is not None:
@@ -128,7 +133,10 @@ def patch_refinement(counts: dict[str, int]) -> None:
         new = [moved(p, delta) for p in planes]
         used = np.array(twist, dtype=np.float64)
         epoch = KeptEpoch(len(self.poses), new, PlaneSet.from_planes(new), scan, used)
-        return self._estimate(epoch, t)
+        out = self._estimate(epoch, t)
+        if first_only:
+            by_jacobian.add(out)
+        return out
 
     odo_mod.PlaneOdometry._estimate_scan = estimate_scan  # type: ignore[method-assign]
 
@@ -148,7 +156,10 @@ def time_runs(cpu: list[tuple[int, float]]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--mode", choices=("default", "jacobian-off", "jacobian"), required=True)
+    ap.add_argument(
+        "--mode", choices=("default", "jacobian-off", "jacobian", "jacobian-first"),
+        required=True,
+    )  # fmt: skip
     ap.add_argument("--first-world", type=int, default=180)
     ap.add_argument("--worlds", type=int, default=20)
     ap.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
@@ -164,8 +175,8 @@ def main() -> None:
     if args.mode != "default":
         cfg = cfg.updated({"extraction.deskew_jacobian": True}, source="jacobian_refine")
     counts = {"jacobian": 0, "extracted": 0}
-    if args.mode == "jacobian":
-        patch_refinement(counts)
+    if args.mode.startswith("jacobian") and args.mode != "jacobian-off":
+        patch_refinement(counts, first_only=args.mode == "jacobian-first")
         if args.compiled:
             builder_mod.deskew_jacobian = compiled_jacobian  # type: ignore[assignment]
     cpu: list[tuple[int, float]] = []
