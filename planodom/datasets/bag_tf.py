@@ -262,6 +262,12 @@ class TfTree:
                 f"; '{frame_name(target)}' is in no transform of the bag: choose another base "
                 f"frame (--base-frame), such as the sensor's own '{frame_name(source)}'"
             )
+        if not self.static_edges:
+            hint += (
+                "; the bag holds no /tf_static transform (a recording started after the "
+                "static transform publishers can miss their latched messages): add them to "
+                "the bag"
+            )
         if self.ignored:
             hint += "; " + "; ".join(self.ignored_notes()[:3])
         raise DatasetError(

@@ -34,12 +34,15 @@ Edit = Callable[..., Any]
 
 def _bag(path: Path, ros: int, static: Edit | None = None, arm: Edit | None = None) -> None:
     """Five lidar sweeps on /points, /odom, /tf_static (:data:`STATIC_TF`, each transform
-    passed through ``static``) and, with ``arm``, a robot arm's moving frame on /tf (each
-    of its five transforms ``k`` passed through ``arm(bw, tr, k)``)."""
+    passed through ``static``; none when it returns None for all) and, with ``arm``, a
+    robot arm's moving frame on /tf (each of its five transforms ``k`` passed through
+    ``arm(bw, tr, k)``)."""
     truth = Truth(T_base_sensor=T_BASE)
     with BagWriter(path, ros) as bw:
         tf = [bw.transform_stamped(T0_NS, *edge) for edge in STATIC_TF]
-        bw.write("/tf_static", bw.tf([static(bw, tr) if static else tr for tr in tf]), T0_NS)
+        tf = [static(bw, tr) for tr in tf] if static else tf
+        if any(tr is not None for tr in tf):  # ``static`` returning None: no /tf_static
+            bw.write("/tf_static", bw.tf(tf), T0_NS)
         for k in range(-1, 7):
             stamp = T0_NS + k * 100_000_000
             bw.write("/odom", bw.odometry(stamp, true_pose(stamp / 1e9)), stamp)
@@ -161,3 +164,19 @@ def test_invalid_transforms_of_a_frame_not_needed_are_ignored(tmp_path: Path, ro
         for scan, other in zip(ds, clean, strict=True):
             np.testing.assert_array_equal(scan.points, other.points)
             np.testing.assert_array_equal(scan.t, other.t)
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_bag_without_static_transforms_is_said(tmp_path: Path, ros: int) -> None:
+    """A recording started after the static transform publishers, their latched /tf_static
+    messages missed: the error offered only another base frame, no way out for a rig of
+    several sensors. It now says the bag holds no /tf_static transform."""
+    _bag(_path(tmp_path, ros, "none"), ros, static=lambda bw, tr: None)
+    with pytest.raises(DatasetError) as err:
+        open_bag(_path(tmp_path, ros, "none"))
+    message = str(err.value)
+    assert "\n" not in message
+    assert message.endswith(
+        "; the bag holds no /tf_static transform (a recording started after the static "
+        "transform publishers can miss their latched messages): add them to the bag"
+    )
