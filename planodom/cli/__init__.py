@@ -128,8 +128,9 @@ def _report_skipped(data: ScanEpochs, metrics: dict) -> None:
 
 
 def _report_far_points(data: ScanEpochs, metrics: dict) -> None:
-    """Warn of (and list in metrics.json) scans with points beyond any sensor's range, and
-    of scans without points: the two reasons for an unresolved epoch nothing else names."""
+    """Warn of (and list in metrics.json) scans with points beyond any sensor's range, scans
+    without points and scans that repeat the one before them (a frozen driver): the
+    reasons for an unresolved epoch nothing else names."""
     from planodom.scan import MAX_RANGE_M
 
     if data.empty:
@@ -139,6 +140,9 @@ def _report_far_points(data: ScanEpochs, metrics: dict) -> None:
             "metrics.json)"
         )
         metrics["scans_without_points"] = list(data.empty)
+    if data.repeated.found:
+        warn(data.repeated.note())
+        metrics["scans_repeated"] = list(data.repeated.found)
 
     if data.far:
         name, (far, total, extent) = next(iter(data.far.items()))

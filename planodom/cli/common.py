@@ -22,6 +22,7 @@ from rich.console import Console
 from rich.text import Text
 
 from planodom.cli.echo_option import Echo
+from planodom.datasets.repeated_scans import RepeatedScans
 from planodom.errors import DatasetError, OutputExistsError, PlanodomError
 from planodom.scan import Scan, points_beyond_range
 
@@ -243,6 +244,7 @@ class ScanEpochs:
         # scan -> (points beyond MAX_RANGE_M, all points, the scan's widest extent, m)
         self.far: dict[str, tuple[int, int, float]] = {}
         self.empty: dict[str, None] = {}  # scans without points (kept in order, once each)
+        self.repeated = RepeatedScans()  # scans that repeat the one before them
         self.notes: list[str] = list(getattr(dataset, "notes", []))
         for note in self.notes:
             warn(note)
@@ -276,6 +278,7 @@ class ScanEpochs:
                 self.far[self.current] = (far, len(scan), extent)
             if len(scan) == 0:
                 self.empty[self.current] = None
+            self.repeated.check(k, self.current, scan)
         return scan
 
     def close(self) -> None:

@@ -7,6 +7,7 @@ field name says ``_deg``; everything else is SI.
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -108,6 +109,8 @@ class PlanodomConfig(Section):
             raise ConfigError(
                 f"{source}: a config holds a mapping of sections, not {type(data).__name__}"
             )
+        if _another_file(data, list(cls.model_fields)):
+            raise ConfigError(_no_section(source, [str(k) for k in data], list(cls.model_fields)))
         try:
             return cls.model_validate(data)
         except ValidationError as exc:
@@ -176,3 +179,33 @@ class PlanodomConfig(Section):
         if path is not None:
             Path(path).write_text(text)
         return text
+
+
+#: Top-level keys of a dataset's ``rig.yaml`` (:mod:`planodom.rig`), given as a config.
+_RIG_FILE_KEYS = frozenset({"epoch_rate", "sensor_origins", "motion_bounds", "extrinsics"})
+
+
+def _another_file(data: Mapping, sections: list[str]) -> bool:
+    """Whether none of ``data``'s keys names a section, nor is a dotted field name, and
+    either some are a ``rig.yaml``'s or there are several and none misspells a section (a
+    misspelt or unknown section alone gets its own hint, :func:`.section.one_line`)."""
+    keys = [str(k).partition(".")[0].lower() for k in data]
+    if not keys or set(keys) & set(sections):
+        return False
+    near = [k for k in keys if difflib.get_close_matches(k, sections, n=1, cutoff=0.6)]
+    return bool(_RIG_FILE_KEYS & set(keys)) or (len(keys) > 1 and not near)
+
+
+def _no_section(source: str, keys: list[str], sections: list[str]) -> str:
+    """The error for a mapping without any config section (another YAML or JSON file): its
+    keys and the sections, and where a dataset's ``rig.yaml`` (the likeliest) belongs."""
+    shown = ", ".join(keys[:4]) + (" ..." if len(keys) > 4 else "")
+    rig = (
+        ": a dataset's rig.yaml, which is read from the dataset folder"
+        if _RIG_FILE_KEYS & set(keys)
+        else ""
+    )
+    return (
+        f"{source}: not a planodom config: its keys ({shown}) are none of the config's "
+        f"sections ({', '.join(sections)}){rig}"
+    )

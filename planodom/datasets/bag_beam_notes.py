@@ -1,4 +1,4 @@
-"""Two ways a 2D scan topic is read that a user should know of: :func:`beam_notes`.
+"""Ways a 2D scan topic is read that a user should know of: :func:`beam_notes`.
 
 - A beam count that changes from one message to the next (``LaserScan`` or
   ``MultiEchoLaserScan``): a driver relaunched with another resolution or field of view,
@@ -8,8 +8,14 @@
 - ``--echo strongest`` on a ``MultiEchoLaserScan`` topic whose messages carry no
   intensities for beams with echoes: those beams' strongest echo is unknown and their
   first return is read (:mod:`planodom.datasets.bag_multiecho`), as ``--echo first`` would.
+- A ``range_min`` above a positive ``range_max`` (the limits swapped in the driver's
+  settings): no range lies within them, so the message holds no return and is read as an
+  empty scan (a rig of one scanner then has no point at all, a rig of several loses one).
+- A ``time_increment`` of 0 under several beams (a driver that gives no beam times, or a
+  converter such as pointcloud_to_laserscan): every beam is read at the stamp, so the
+  scan is not deskewed.
 
-Neither changes a point read; both only count, during the index pass.
+None changes a point read; they only count, during the index pass.
 """
 
 from __future__ import annotations
@@ -33,11 +39,19 @@ class BeamCounts:
         messages: messages by beam count (``len(ranges)``), in first-seen order.
         unlit: MultiEchoLaserScans with a beam that holds echoes but no intensities.
         unlit_beams: those beams, over all such messages.
+        swapped: messages whose ``range_min`` lies above their positive ``range_max``;
+            limits: the first such message's ``(range_min, range_max)``, m.
+        untimed: messages of several beams with a ``time_increment`` of 0; scan_time: the
+            first such message's ``scan_time``, s.
     """
 
     messages: dict[int, int] = field(default_factory=dict)
     unlit: int = 0
     unlit_beams: int = 0
+    swapped: int = 0
+    limits: tuple[float, float] = (0.0, 0.0)
+    untimed: int = 0
+    scan_time: float = 0.0
 
     def add(self, msg: Any, msgtype: str) -> None:
         """Count a LaserScan's or MultiEchoLaserScan's beams (and, for the latter, its
@@ -45,6 +59,13 @@ class BeamCounts:
         against its ranges, :func:`.bag_multiecho.echo_arrays`)."""
         beams = len(msg.ranges)
         self.messages[beams] = self.messages.get(beams, 0) + 1
+        low, high = float(msg.range_min), float(msg.range_max)
+        if high > 0.0 and low > high:
+            self.limits = self.limits if self.swapped else (low, high)
+            self.swapped += 1
+        if beams > 1 and float(msg.time_increment) == 0.0:
+            self.scan_time = self.scan_time if self.untimed else float(msg.scan_time)
+            self.untimed += 1
         if msgtype != MULTI_ECHO:
             return
         echoes = np.array([len(e.echoes) for e in msg.ranges], dtype=np.int64)
@@ -75,5 +96,19 @@ def beam_notes(topic: str, sweeps: int, counts: BeamCounts, echo: str) -> list[s
             f"topic '{topic}': {counts.unlit} of {sweeps} messages carry no intensities for "
             f"beams with echoes ({counts.unlit_beams} beams in all): --echo strongest reads "
             "those beams' first return"
+        )
+    if counts.swapped:
+        low, high = counts.limits
+        notes.append(
+            f"topic '{topic}': {counts.swapped} of {sweeps} messages have a range_min of "
+            f"{low:g} m above their range_max of {high:g} m (the limits swapped in the "
+            "driver's settings?): no range lies within them, so they are read without a return"
+        )
+    if counts.untimed:
+        notes.append(
+            f"topic '{topic}': {counts.untimed} of {sweeps} messages have a time_increment of "
+            f"0 (scan_time {counts.scan_time:g} s): their beams are all read at the stamp, "
+            "not deskewed (a driver or a converter such as pointcloud_to_laserscan that "
+            "gives no beam times)"
         )
     return notes

@@ -35,9 +35,12 @@ def bag_notes(
     - a scan topic none of whose messages holds a point (left out of the epochs when
       another topic has points), or some of whose messages hold none (left out of the
       epochs: they would place epochs without points), or the only scan topic some of
-      whose LaserScans hold no return (left out likewise);
-    - a 2D scan topic whose beam count changes, or whose MultiEchoLaserScans carry no
-      intensities under ``echo`` strongest (:mod:`planodom.datasets.bag_beam_notes`);
+      whose LaserScans hold no return (left out likewise); a 2D scan topic none of whose
+      scans holds a return (kept: its stamps keep the rig's timing), unless its range
+      limits are swapped (said alone);
+    - a 2D scan topic whose beam count changes, whose MultiEchoLaserScans carry no
+      intensities under ``echo`` strongest, whose range limits are swapped or whose
+      ``time_increment`` is 0 (:mod:`planodom.datasets.bag_beam_notes`);
     - points whose ring id is their ring field type's largest value ("no ring"), or no ring
       of the lidar's numbering (:mod:`planodom.datasets.bag_rings`), left out;
     - points a Livox lidar marks as high confidence noise (their ``tag``), left out;
@@ -61,22 +64,7 @@ def bag_notes(
                 f"topic '{t.name}': {t.unstamped} of {sweeps} messages have no header stamp "
                 "(0): the bag's record time stands for it, late by the message's transport"
             )
-        if t.pointless:
-            notes.append(
-                f"topic '{t.name}': none of its {sweeps} messages holds a point (the sensor "
-                "off, or everything filtered out?)"
-                + ("; left out of the epochs" if some_points else "")
-            )
-        elif t.empty:
-            notes.append(
-                f"topic '{t.name}': {t.empty} of {sweeps} messages hold no point (dropouts, "
-                "or everything filtered out?); left out of the epochs"
-            )
-        elif t.blank and len(index.topics) == 1 and t.blank < sweeps:
-            notes.append(
-                f"topic '{t.name}': {t.blank} of {sweeps} scans hold no return (open space, "
-                "or everything beyond range_max?); left out of the epochs"
-            )
+        notes += _empty_notes(t, sweeps, some_points, len(index.topics))
         notes += beam_notes(t.name, t.sweeps, t.beams, echo) + _point_notes(t)
         if t.duplicates:
             notes.append(
@@ -98,6 +86,34 @@ def bag_notes(
             "with --topic"
         )
     return notes + gt_notes(index.gt_read, gt_topic)
+
+
+def _empty_notes(t: TopicIndex, sweeps: int, some_points: bool, topics: int) -> list[str]:
+    """Topic ``t``'s notes on its messages without a point or a return (``sweeps``
+    messages; ``some_points``: some topic has points; ``topics``: the scan topics read)."""
+    notes: list[str] = []
+    if t.pointless:
+        notes.append(
+            f"topic '{t.name}': none of its {sweeps} messages holds a point (the sensor "
+            "off, or everything filtered out?)"
+            + ("; left out of the epochs" if some_points else "")
+        )
+    elif t.empty:
+        notes.append(
+            f"topic '{t.name}': {t.empty} of {sweeps} messages hold no point (dropouts, "
+            "or everything filtered out?); left out of the epochs"
+        )
+    elif t.msgtype in LASER_TYPES and sweeps and t.blank == sweeps > t.beams.swapped:
+        notes.append(
+            f"topic '{t.name}': none of its {sweeps} scans holds a return (the scanner "
+            "blocked or off, or its range limits?): it adds no point to the epochs"
+        )
+    elif t.blank and topics == 1 and t.blank < sweeps:
+        notes.append(
+            f"topic '{t.name}': {t.blank} of {sweeps} scans hold no return (open space, "
+            "or everything beyond range_max?); left out of the epochs"
+        )
+    return notes
 
 
 def _frame_and_order_notes(index: BagIndex, k: int) -> list[str]:

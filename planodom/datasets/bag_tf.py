@@ -6,6 +6,12 @@ rigid by definition; a ``/tf`` edge counts as rigid (an extrinsic) while every m
 repeats its first value to within 1 micrometre / 1 microradian, and as moving otherwise
 (``odom -> base_link``). Extrinsics are chained through rigid edges only, in either
 direction (up to a common ancestor and down again).
+
+A transform with a NaN or infinite value, or a quaternion whose squared norm is 0.01 or
+more off 1 (a zero quaternion, angles written where a quaternion goes), is ignored, as
+tf2 ignores it (``TF_NAN_INPUT``, ``TF_DENORMALIZED_QUATERNION``), and counted per edge
+for a note (:meth:`TfTree.ignored_notes`): a robot arm's servo or a visual odometry that
+lost track publishes such transforms of frames the vehicle does not need.
 """
 
 from __future__ import annotations
@@ -28,6 +34,10 @@ RIGID_TOL = 1e-6
 #: Largest disagreement (metres, radians) of two rigid chains between two frames that is
 #: not reported as a loop: 1 mm / 1 mrad, a hand-written extrinsic's rounding.
 LOOP_TOL = 1e-3
+#: tf2's tolerance on a quaternion's squared norm (``QUATERNION_NORMALIZATION_TOLERANCE =
+#: 10e-3`` in tf2's buffer_core, ROS 1 and 2): a transform whose ``|x² + y² + z² + w² - 1|``
+#: reaches it is ignored by tf2, so by every node of the recording. Not fitted: tf2's.
+QUATERNION_NORM2_TOL = 10e-3
 
 
 def frame_name(name: str) -> str:
@@ -39,12 +49,21 @@ def transform_from_msg(translation: Any, rotation: Any) -> np.ndarray:
     """``T`` (4, 4) from a ROS ``Vector3``/``Point`` and a ``Quaternion`` (normalised).
 
     Raises:
-        ValueError: the quaternion is zero or not finite, or the translation not finite.
+        ValueError: the quaternion is zero or not finite, or its squared norm is
+            :data:`QUATERNION_NORM2_TOL` or more off 1 (tf2 would ignore it), or the
+            translation is not finite.
     """
     q = np.array([rotation.x, rotation.y, rotation.z, rotation.w], dtype=np.float64)
     norm = float(np.linalg.norm(q))
     if not np.isfinite(norm) or norm < 1e-9:
         raise ValueError(f"invalid quaternion {q.tolist()}")
+    if abs(norm * norm - 1.0) >= QUATERNION_NORM2_TOL:
+        shown = ", ".join(f"{v:.4g}" for v in q)
+        raise ValueError(
+            f"quaternion ({shown}) of norm {norm:.4g} is no unit quaternion (tf2 ignores one "
+            f"whose squared norm is {QUATERNION_NORM2_TOL:g} or more off 1; angles written "
+            "where a quaternion goes?)"
+        )
     t = np.array([translation.x, translation.y, translation.z], dtype=np.float64)
     if not np.isfinite(t).all():
         raise ValueError(f"invalid translation {t.tolist()}")
@@ -98,6 +117,8 @@ class TfTree:
         track: the tracked edge's values ``T_parent_child`` at their stamps.
         restated: per ``/tf_static`` edge given another value later in the bag, how many
             times, and the largest distance (m) and angle (rad) from its first value.
+        ignored: per ``(topic, parent, child)``, the transforms left out for an invalid
+            value (as tf2 leaves them out) and why the first was.
     """
 
     rigid: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
@@ -106,17 +127,21 @@ class TfTree:
     tracked: tuple[str, str] | None = None
     track: PoseLog = field(default_factory=PoseLog)
     restated: dict[tuple[str, str], tuple[int, float, float]] = field(default_factory=dict)
+    ignored: dict[tuple[str, str, str], tuple[int, str]] = field(default_factory=dict)
     _first_static: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
 
     def add(self, msg: Any, static: bool) -> None:
-        """Add the transforms of one ``tf2_msgs/TFMessage`` (from /tf_static when ``static``).
-
-        Raises:
-            ValueError: a transform has an invalid quaternion.
-        """
+        """Add the transforms of one ``tf2_msgs/TFMessage`` (from /tf_static when
+        ``static``); one with an invalid value is left out and counted in ``ignored``."""
         for tr in msg.transforms:
             edge = (frame_name(tr.header.frame_id), frame_name(tr.child_frame_id))
-            T = transform_from_msg(tr.transform.translation, tr.transform.rotation)
+            try:
+                T = transform_from_msg(tr.transform.translation, tr.transform.rotation)
+            except ValueError as exc:
+                key = (TF_STATIC_TOPIC if static else TF_TOPIC, *edge)
+                n, why = self.ignored.get(key, (0, str(exc)))
+                self.ignored[key] = (n + 1, why)
+                continue
             if edge == self.tracked:
                 stamp = tr.header.stamp
                 self.track.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec), T)
@@ -156,6 +181,14 @@ class TfTree:
             "publishers of one frame, or an extrinsic set again mid-bag?); the last is used "
             "for the whole bag"
             for (parent, child), (n, dist, angle) in sorted(self.restated.items())
+        ]
+
+    def ignored_notes(self) -> list[str]:
+        """One line for each edge some of whose transforms were left out (``ignored``)."""
+        return [
+            f"{topic}: {n} transform(s) '{parent}' -> '{child}' ignored, as tf2 ignores them "
+            f"(the first: {why})"
+            for (topic, parent, child), (n, why) in sorted(self.ignored.items())
         ]
 
     def frames(self) -> list[str]:
@@ -229,6 +262,14 @@ class TfTree:
                 f"; '{frame_name(target)}' is in no transform of the bag: choose another base "
                 f"frame (--base-frame), such as the sensor's own '{frame_name(source)}'"
             )
+        if not self.static_edges:
+            hint += (
+                "; the bag holds no /tf_static transform (a recording started after the "
+                "static transform publishers can miss their latched messages): add them to "
+                "the bag"
+            )
+        if self.ignored:
+            hint += "; " + "; ".join(self.ignored_notes()[:3])
         raise DatasetError(
             f"{where}: no transform from frame '{frame_name(source)}' to base frame "
             f"'{frame_name(target)}' in /tf_static or /tf ({why}; frames: {shown or 'none'})" + hint

@@ -13,7 +13,12 @@ import yaml
 
 from planodom.datasets.bag_clock import far_message
 from planodom.datasets.bin_scan import check_bin_layout
-from planodom.datasets.file_entries import broken_link, check_file_entries, optional_file
+from planodom.datasets.file_entries import (
+    broken_link,
+    check_file_entries,
+    optional_file,
+    subfolders_hint,
+)
 from planodom.datasets.folder_ring_order import folder_ring_order, renumbered_rig, renumbered_rings
 from planodom.datasets.pcd import viewpoint_note
 from planodom.datasets.scan_io import SCAN_EXTENSIONS, check_time_field, read_scan, write_scan
@@ -388,7 +393,8 @@ def _scan_files(root: Path) -> list[Path]:
             raise DatasetError(f"{scans_dir} is not a directory")
         files = _files(scans_dir)
         if not files:
-            raise DatasetError(f"{scans_dir} is empty: no scan files")
+            hint = subfolders_hint(scans_dir, SCAN_EXTENSIONS)
+            raise DatasetError(f"{scans_dir} is empty: no scan files{hint}")
     else:
         files = [f for f in _files(root) if f.name not in (POSES_FILE, RIG_FILE, TIMES_FILE)]
         scans = [f for f in files if f.suffix.lower() in SCAN_EXTENSIONS]

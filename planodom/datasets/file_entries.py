@@ -5,7 +5,9 @@ nowhere (its target moved or on a drive not mounted, or a loop), a directory, a 
 kept only files dropped such a scan without a word (the last epoch lost, or every later
 epoch one period early without ``poses.tum``), and a ``poses.tum``, ``times.txt`` or
 ``rig.yaml`` behind a broken link read as absent (no reference, the default epoch times,
-no rig). These checks name the entry instead.
+no rig). These checks name the entry instead; and a ``scans/`` without scan files but
+with sub-folders that hold some (one per sensor, as many recorders write) is told so
+(:func:`subfolders_hint`), not called empty.
 """
 
 from __future__ import annotations
@@ -57,3 +59,20 @@ def optional_file(path: Path) -> bool:
     if why:
         raise DatasetError(f"{path}: {why}")
     return True
+
+
+def subfolders_hint(directory: Path, suffixes: Sequence[str]) -> str:
+    """For a ``directory`` without scan files: its sub-folders (at most 3 named) holding
+    files that end in one of ``suffixes`` (lower case), as the end of the error, or ""."""
+    found = []
+    for sub in sorted(d for d in directory.iterdir() if d.is_dir() and d.name[0] != "."):
+        count = sum(1 for f in sub.iterdir() if f.suffix.lower() in suffixes)
+        found += [f"{sub.name}/ ({count})"] if count else []
+    if not found:
+        return ""
+    return (
+        f", but its sub-folder(s) {', '.join(found[:3])}{' ...' if len(found) > 3 else ''} "
+        "hold scan files: a dataset reads the files in scans/ itself, one per epoch with "
+        "every sensor's points in the base frame (move one folder's files there, or merge "
+        "the sensors' files of each epoch)"
+    )

@@ -150,7 +150,7 @@ class BagDataset:
         self.times = ref.astype(np.float64) / NS
         self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
         self.notes = split_parts_note(path) + index.tf.loops(self.base_frame)
-        self.notes += index.tf.restated_notes()
+        self.notes += index.tf.restated_notes() + index.tf.ignored_notes()
         self.notes += bag_notes(index, topics_chosen, gt_topic, echo) + crowded_notes(
             index, members, self.times
         )

@@ -216,3 +216,28 @@ def test_updated_fields_equals_updated() -> None:
         base.updated_fields({"association.prior_translation_m": -1.0})
     with pytest.raises(ConfigError):
         base.updated({"association.prior_translation_m": -1.0})
+
+
+@pytest.mark.parametrize(
+    ("text", "tail"),
+    [
+        (  # a dataset's rig.yaml given as --config: "field 'sensor_rig': Extra inputs ..."
+            "sensor_rig: {name: r}\nsimulation: {}\nepoch_rate: 10.0\nsensor_origins: []\n"
+            "extrinsics: []\n",
+            "not a planodom config: its keys (sensor_rig, simulation, epoch_rate, "
+            "sensor_origins ...) are none of the config's sections (extraction, association, "
+            "odometry, planemap, smoothing, sweep_refine): a dataset's rig.yaml, which is "
+            "read from the dataset folder",
+        ),
+        (  # a results folder's metrics.json: "field 'epochs': Extra inputs ..."
+            '{"epochs": 20, "ate_rmse_m": 0.06}',
+            "not a planodom config: its keys (epochs, ate_rmse_m) are none of the config's "
+            "sections (extraction, association, odometry, planemap, smoothing, sweep_refine)",
+        ),
+    ],
+)
+def test_another_files_mapping_is_named_as_no_config(tmp_path, text: str, tail: str) -> None:
+    (tmp_path / "c.yaml").write_text(text)
+    with pytest.raises(ConfigError) as exc:
+        PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    assert str(exc.value) == f"{tmp_path / 'c.yaml'}: {tail}"

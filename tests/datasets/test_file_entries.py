@@ -83,3 +83,25 @@ def test_a_broken_link_in_a_kitti_sequence_is_named(tmp_path: Path, name: str) -
     (seq / name).symlink_to(tmp_path / "unmounted" / name)
     with pytest.raises(DatasetError, match=f"{name}: a symbolic link that leads nowhere"):
         load_kitti_sequence(seq)
+
+
+def test_scans_in_sub_folders_are_named(tmp_path: Path) -> None:
+    # Scans written one folder per sensor (scans/front/, scans/rear/) were refused as "scans
+    # is empty: no scan files", which looks wrong to whoever sees the files in there.
+    root = _dataset(tmp_path)
+    for sensor in ("front", "rear"):
+        (root / "scans" / sensor).mkdir()
+        for f in sorted((root / "scans").glob("*.ply"))[:2]:
+            shutil.copy(f, root / "scans" / sensor / f.name)
+    for f in (root / "scans").glob("*.ply"):
+        f.unlink()
+    with pytest.raises(DatasetError) as exc:
+        load_dataset(root)
+    assert str(exc.value).startswith(
+        f"{root / 'scans'} is empty: no scan files, but its sub-folder(s) front/ (2), rear/ "
+        "(2) hold scan files: a dataset reads the files in scans/ itself"
+    )
+    shutil.rmtree(root / "scans" / "front")
+    shutil.rmtree(root / "scans" / "rear")
+    with pytest.raises(DatasetError, match="is empty: no scan files$"):
+        load_dataset(root)
