@@ -97,10 +97,15 @@ def moment_solve(
                 break
         return T
 
-    # As the oracle: judged at the start, solved, judged again there, solved again.
+    # As the oracle: judged at the start, solved, judged again there, solved again; when
+    # both judge every direction strong, the second solve is the first's (the full space,
+    # only its basis differs): it is not repeated.
     basis, measured = _strong_subspace(jac(T0)[1])
-    basis, measured = _strong_subspace(jac(solve(basis))[1])
     T = solve(basis)
+    full = basis.shape[1] == 6
+    basis, measured = _strong_subspace(jac(T)[1])
+    if not (full and basis.shape[1] == 6):
+        T = solve(basis)
     J = jac(T)[1]
     rot_ok, xy_ok = bool(measured[:3].all()), bool(measured[3:5].all())
     status = "ok" if rot_ok and xy_ok else "degenerate" if rot_ok else "unresolved"
