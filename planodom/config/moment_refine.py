@@ -18,6 +18,7 @@ class MomentRefineConfig(MotionModelConfig):
     consensus's (roll, pitch, yaw, x, y) has a squared Mahalanobis distance under the
     consensus's covariance of at most this (:mod:`planodom.odometry.moment_refine`); None:
     the association's inlier bounds only. 20.5 is the chi-square quantile 0.999 of 5 DoF
-    (a probability, not fitted to a scene); on the 2D rig the refinements that moved the
-    consensus farther than that were mostly worse against the truth (worlds 152-158,
-    docs/RESULTS.md MOMENTS2)."""
+    (a probability, not fitted to a scene); on the 2D rig, refinements that moved the
+    consensus by 50 or more were worse against the truth on 12 of 17 (worlds 154 and 158),
+    those below 15 better on most (docs/RESULTS.md MOMENTS2). Off: by its rule it did not
+    become the default (worlds 160-198)."""

@@ -4,13 +4,14 @@ Jacobian, for ``odometry.refinement: moments`` (beyond the paper).
 :func:`planodom.oracle.relative_pose` minimises the squared point-to-plane distances of two
 epochs' planes, each summarised by its inlier moments (:class:`planodom.oracle.
 SurfaceMoments`), with a forward-difference Jacobian (seven residual evaluations per
-Gauss-Newton step) and a stop at steps below 1e-12, which that Jacobian's own rounding
-(about 1e-9) rarely reaches: 30 iterations, twice, per call. The odometry calls it two or
-three times an epoch, which made the option 1.7-3.4x the CPU of the 2D rig's odometry.
-Here the same cost, the same strong-subspace restriction (:func:`planodom.oracle.
-_strong_subspace`: directions the planes do not measure keep the initial pose) and the same
-status, with the Jacobian in closed form (right perturbation ``T exp(xi)``, ``xi = (w, v)``;
-to first order ``R' = R (I + [w]x)``, ``t' = t + R v``, with ``u = R^T n_p`` and ``q =
+Gauss-Newton step; a median 11 steps a call over its two solves, up to 60, world 154 at
+6 mm). The odometry calls it two or three times an epoch, which made the option 3.2x the
+CPU of the 2D rig's odometry (docs/RESULTS.md MOMENTS2; 1.4x here). Here the same cost,
+the same strong-subspace restriction (:func:`planodom.oracle._strong_subspace`: directions
+the planes do not measure keep the initial pose) and the same status, with the second solve
+skipped when both judgements find every direction strong (the same full space, only its
+basis differs) and the Jacobian in closed form (right perturbation ``T exp(xi)``, ``xi =
+(w, v)``; to first order ``R' = R (I + [w]x)``, ``t' = t + R v``, with ``u = R^T n_p`` and ``q =
 R^T (c_p - t)``):
 
     a = L_c^T R^T n_p                  da/dw = L_c^T [u]x                 da/dv = 0
@@ -20,7 +21,8 @@ R^T (c_p - t)``):
 
 Own code rather than gtsam: the cost is a few dozen residuals of closed form, and a gtsam
 graph per call would cost more than the solve. The returned information ``J^T J`` (6, 6),
-per unit residual variance, is what :mod:`planodom.odometry.moment_refine` gates with.
+per unit residual variance, is for diagnostics: :mod:`planodom.odometry.moment_refine`
+gates with the consensus's own covariance.
 """
 
 from __future__ import annotations
