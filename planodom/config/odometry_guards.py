@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from typing import Literal
 
-from planodom.config.motion_model import MotionModelConfig
+from planodom.config.moment_refine import MomentRefineConfig
 
 
-class DeskewGuards(MotionModelConfig):
+class DeskewGuards(MomentRefineConfig):
     """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``), and the motion
     model the prediction assumes (:class:`.motion_model.MotionModelConfig`)."""
 

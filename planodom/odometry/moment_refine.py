@@ -13,12 +13,15 @@ This step does the same: for an OK estimate, the 6-DoF pose minimising the squar
 distances of each epoch's inlier points to the other epoch's planes over all its strict
 associations, both ways, each plane's points summarised by their moments
 (:class:`planodom.geometry.PlaneSupport`: count, centroid, scatter), is solved by
-:func:`planodom.oracle.relative_pose` from the estimate: Gauss-Newton restricted to the
-directions the planes measure strongly (judged on the fitted normals). The estimate is
-kept when a plane lacks its moments, fewer than three are associated, the solve does not
-measure all five of roll, pitch, yaw, x and y, or it moves the estimate by more than the
-association's inlier bounds (``rotation_inlier_deg``, ``translation_inlier_m``). The
-covariance stays the solver's.
+:func:`planodom.odometry.moment_solve.moment_solve` (the oracle's solve,
+:func:`planodom.oracle.relative_pose`, with an analytic Jacobian) from the estimate:
+Gauss-Newton restricted to the directions the planes measure strongly (judged on the
+fitted normals). The estimate is kept when a plane lacks its moments, fewer than three are
+associated, the solve does not measure all five of roll, pitch, yaw, x and y, or it moves
+the estimate by more than the association's inlier bounds (``rotation_inlier_deg``,
+``translation_inlier_m``), or, with ``moment_gate_chi2``, farther than that squared
+Mahalanobis distance under the estimate's own covariance. The covariance stays the
+solver's.
 """
 
 from __future__ import annotations
@@ -28,9 +31,16 @@ from collections.abc import Sequence
 import numpy as np
 
 from planodom.config.odometry import OdometryConfig
-from planodom.geometry import Plane, invert_transform, orthonormalised, se3_log
+from planodom.geometry import (
+    Plane,
+    invert_transform,
+    orthonormalised,
+    rpy_from_rotation,
+    se3_log,
+)
+from planodom.odometry.moment_solve import moment_solve
 from planodom.odometry.relative import RelativePose, Status, replaced
-from planodom.oracle import SurfaceMoments, relative_pose
+from planodom.oracle import SurfaceMoments
 
 #: Fewest associations refined (three planes of independent normals fix a pose).
 MIN_ASSOCIATIONS = 3
@@ -69,7 +79,7 @@ def moment_refined(
     T0 = result.T_prev_curr
     with np.errstate(all="ignore"):
         try:
-            est = relative_pose(prev, curr, T0)
+            est = moment_solve(prev, curr, T0)
         except np.linalg.LinAlgError:
             return result
     T = est.T_prev_curr
@@ -83,4 +93,19 @@ def moment_refined(
         or np.linalg.norm(change[3:]) > config.translation_inlier_m
     ):
         return result
+    if config.moment_gate_chi2 is not None and result.covariance is not None:
+        if mahalanobis2(T0, T, result.covariance) > config.moment_gate_chi2:
+            return result
     return replaced(result, T_prev_curr=T)
+
+
+def mahalanobis2(T0: np.ndarray, T: np.ndarray, covariance: np.ndarray) -> float:
+    """The squared Mahalanobis distance of ``T`` (4, 4) from ``T0`` (4, 4) in (roll, pitch,
+    yaw, x, y) of ``T_prev_curr``, the parameters of ``covariance`` (5, 5; rad^2, m^2); inf
+    when it is singular."""
+    d_rpy = np.asarray(rpy_from_rotation(T[:3, :3])) - np.asarray(rpy_from_rotation(T0[:3, :3]))
+    d = np.concatenate([np.angle(np.exp(1j * d_rpy)), T[:2, 3] - T0[:2, 3]])
+    try:
+        return float(d @ np.linalg.solve(covariance, d))
+    except np.linalg.LinAlgError:
+        return float("inf")

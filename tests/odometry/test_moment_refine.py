@@ -4,7 +4,7 @@ import numpy as np
 
 from planodom.config import OdometryConfig
 from planodom.geometry import Plane, PlaneSupport, invert_transform, se3_exp, se3_log
-from planodom.odometry.moment_refine import moment_refined
+from planodom.odometry.moment_refine import mahalanobis2, moment_refined
 from planodom.odometry.relative import RelativePose, Status
 
 #: Surfaces in the previous frame: (unit normal, offset), n . p + d = 0, and two in-plane axes.
@@ -85,3 +85,30 @@ def test_kept_when_not_ok_too_few_or_too_far():
     assert moment_refined(far, prev, curr, tight) is far
     bare = [Plane(p.normal, p.offset) for p in prev]  # no moments
     assert moment_refined(far, bare, curr, cfg) is far
+
+
+def test_the_chi_square_gate_keeps_what_the_covariance_says_is_too_far():
+    truth = se3_exp(np.array([0.0, 0.0, 0.02, 0.5, 0.0, 0.0]))
+    prev, curr = _epochs(truth)
+    ij = np.array([[0, 0], [1, 1], [2, 2], [3, 3]])
+    start = truth @ se3_exp(np.array([0.0, 0.0, 0.0, 0.03, 0.0, 0.0]))  # 3 cm off in x
+    gated = OdometryConfig().model_copy(update={"moment_gate_chi2": 20.5})
+    # x sigma 1 cm: the refinement's 3 cm move is 9 (chi-square), within 20.5: to the truth
+    loose = RelativePose(start, np.diag([1e-4] * 3 + [1e-4, 1e-4]), Status.OK, ij)
+    out = moment_refined(loose, prev, curr, gated)
+    assert np.abs(se3_log(invert_transform(truth) @ out.T_prev_curr)).max() < 1e-8
+    # x sigma 5 mm: the same move is 36: the consensus is kept
+    tight = RelativePose(start, np.diag([1e-4] * 3 + [2.5e-5, 1e-4]), Status.OK, ij)
+    assert moment_refined(tight, prev, curr, gated) is tight
+    # without the gate (the default) the covariance is not consulted
+    assert moment_refined(tight, prev, curr, OdometryConfig()) is not tight
+
+
+def test_the_distance_is_in_the_covariances_parameters():
+    T0 = se3_exp(np.array([0.0, 0.0, 0.5, 1.0, 2.0, 0.0]))
+    T = T0.copy()
+    T[:2, 3] += [0.03, -0.04]  # 5 cm in the previous frame's x, y
+    T[:3, :3] = T0[:3, :3] @ se3_exp(np.array([0.0, 0.0, 0.01, 0, 0, 0]))[:3, :3]  # yaw + 0.01
+    cov = np.diag([1e-4, 1e-4, 1e-4, 1e-4, 1e-4])
+    # (0.01^2 + 0.03^2 + 0.04^2) / 1e-4 = 1 + 9 + 16
+    assert abs(mahalanobis2(T0, T, cov) - 26.0) < 1e-9

@@ -1,0 +1,24 @@
+"""The guard of ``odometry.refinement: moments`` (a field of ``OdometryConfig``).
+
+A base of :class:`planodom.config.odometry.OdometryConfig`, in its own module as
+:mod:`.odometry_guards` is.
+"""
+
+from __future__ import annotations
+
+from planodom.config.association import Positive
+from planodom.config.motion_model import MotionModelConfig
+
+
+class MomentRefineConfig(MotionModelConfig):
+    """How far ``refinement: moments`` may move the consensus (field of ``odometry``)."""
+
+    moment_gate_chi2: Positive | None = None
+    """``refinement: moments``: the refined pose is kept only when its change from the
+    consensus's (roll, pitch, yaw, x, y) has a squared Mahalanobis distance under the
+    consensus's covariance of at most this (:mod:`planodom.odometry.moment_refine`); None:
+    the association's inlier bounds only. 20.5 is the chi-square quantile 0.999 of 5 DoF
+    (a probability, not fitted to a scene); on the 2D rig, refinements that moved the
+    consensus by 50 or more were worse against the truth on 12 of 17 (worlds 154 and 158),
+    those below 15 better on most (docs/RESULTS.md MOMENTS2). Off: by its rule it did not
+    become the default (worlds 160-198)."""
