@@ -32,6 +32,24 @@ def median(values: np.ndarray) -> float:
     return float("nan") if np.isnan(p[n - 1]) else float(mid)
 
 
+def median_at_most(values: np.ndarray, limit: float) -> bool:
+    """``median(values) <= limit``, the same verdict, of the values (N,) (any shape, taken
+    flat) by counting: more values at most ``limit`` than over it puts both middle values
+    at most it (their mean too: rounding is monotonic), fewer puts both over it; only a
+    tie (an even count, half on each side) takes the median. A NaN or no value: False (a
+    NaN median). For ``|limit|`` under 8e307 (no sum of two middle values overflows).
+    One pass instead of a partition of the N values (the pixel normals' tests on a
+    64-beam grid: 6 * 10^4 values, ~0.3 ms a partition)."""
+    a = np.asarray(values, dtype=np.float64).reshape(-1)
+    at_most = int(np.count_nonzero(a <= limit))
+    over = int(np.count_nonzero(a > limit))
+    if at_most + over < a.shape[0] or a.shape[0] == 0:  # a NaN (or none): a NaN median
+        return False
+    if at_most != over:
+        return at_most > over
+    return median(a) <= limit
+
+
 def block_medians(values: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     """(B,) ``np.median(values[bounds[k]:bounds[k + 1]])`` of every block, bit for bit (as
     :func:`median`; NaN for a block holding a NaN or none), of ``values`` (N,) (converted

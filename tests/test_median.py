@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from planodom.median import block_medians, median
+from planodom.median import block_medians, median, median_at_most
 
 
 def _bits(x: float) -> bytes:
@@ -40,6 +40,33 @@ def test_median_signed_zeros_nan_and_other_inputs():
     v = np.array([5.0, 1.0, 3.0])
     median(v)
     assert v.tolist() == [5.0, 1.0, 3.0]  # the input is not reordered
+
+
+def _around(m: float) -> tuple[float, float, float]:
+    """``m`` and its neighbouring floats below and above."""
+    return m, np.nextafter(m, -np.inf), np.nextafter(m, np.inf)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_median_at_most_is_numpys_verdict_at_every_limit_near_the_middle(seed):
+    """The counted verdict equals ``np.median(v) <= limit`` for limits at, one ulp around,
+    and between the middle values (the ties of an even count: the mean of the two middle
+    values and its neighbours decide), on odd and even counts with repeated values."""
+    rng = np.random.default_rng(seed)
+    for n in (1, 2, 3, 4, 5, 8, 9, 64, 101):
+        for v in (rng.normal(size=n), rng.integers(-2, 3, size=n).astype(float)):
+            s = np.sort(v)
+            mids = {s[(n - 1) // 2], s[n // 2], (0.0 + s[(n - 1) // 2] + s[n // 2]) / 2.0}
+            limits = {x for m in mids for x in _around(m)}
+            limits |= {s[0], s[-1], -np.inf, np.inf}
+            for limit in limits:
+                assert median_at_most(v, limit) == bool(np.median(v) <= limit), (v, limit)
+    tie = np.array([1.0, 3.0])  # the mean of the two middle values is 2.0
+    assert median_at_most(tie, 2.0) and not median_at_most(tie, np.nextafter(2.0, 0.0))
+    assert not median_at_most(np.array([0.0, np.nan, 0.0]), 1.0)  # a NaN median
+    assert not median_at_most(np.zeros(0), 1.0)
+    assert median_at_most(np.array([np.inf, 0.0, 0.0]), 0.0)
+    assert not median_at_most(np.array([np.inf, np.inf, 0.0]), 1e300)
 
 
 @pytest.mark.parametrize("seed", range(3))

@@ -91,3 +91,48 @@ def test_row_errors_rays_and_stencil_ratios_match_numpy_bit_for_bit():
         assert np.array_equal(got_ray, ray, equal_nan=True)
         assert np.array_equal(got_width, width, equal_nan=True)
         assert np.array_equal(_stencil_ratios(got_ray, S, got_width), ratio)
+
+
+def _reference_pixel_normals(P, sigma, tol, cfg, view):
+    """:func:`pixel_normals` ("ransac") written with ``np.median`` for every test."""
+    from planodom.extraction.lidar.normals import (
+        _chord_widths,
+        _pixel_normals,
+        _row_errors,
+        _stencil_ratios,
+        unit_rays,
+    )
+
+    K, ks = cfg.region_window, cfg.region_normal_sigmas
+    limit = np.radians(cfg.region_max_normal_error_deg)
+    e_row = _row_errors(P, K, sigma)
+    if len(e_row) and np.median(e_row) > limit:
+        return None
+    ray = unit_rays(P, view)
+    width = _chord_widths(ray, K)
+    for S in range(1, P.shape[0] // 4 + 1):
+        ratio = _stencil_ratios(ray, S, width)
+        if S > 1 and not (len(ratio) and np.median(ratio) <= 1.0):
+            return None
+        n, e, ok = _pixel_normals(P, K, S, sigma, tol, ks)
+        if np.count_nonzero(ok) < cfg.min_plane_points or np.median(e[ok]) <= limit:
+            return S, n, e, ok
+    return None
+
+
+def test_pixel_normals_row_step_and_verdict_equal_the_np_median_rule():
+    """The medians compared by counting (:func:`planodom.median.median_at_most`) pick the
+    same row step, or decline, as ``np.median`` would, with the same arrays: a 64-beam
+    scan from 2 mm (row step 1) through 6 and 12 mm (a taller step, or none) to 3 cm."""
+    view = np.array([0.0, 0.0, 0.8])
+    seen = set()
+    for sigma in (0.002, 0.006, 0.012, 0.03):
+        P = _ground_and_walls(sigma)[0]
+        cfg = ExtractionConfig(range_noise_m=sigma, estimate_noise=False)
+        want = _reference_pixel_normals(P, sigma, 3 * sigma, cfg, view)
+        got = pixel_normals(P, sigma, 3 * sigma, cfg, view)
+        assert (got is None) == (want is None), sigma
+        if got is not None:
+            assert all(a.tobytes() == b.tobytes() for a, b in zip(got, want[1:], strict=True))
+        seen.add(None if want is None else want[0])
+    assert None in seen and 1 in seen  # both verdicts were exercised

@@ -15,7 +15,7 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.memo import identity_memo, read_only
-from planodom.median import median
+from planodom.median import median_at_most
 
 
 def pixel_normals(
@@ -30,7 +30,10 @@ def pixel_normals(
     while across rows two or three apart they are not (the error falls as ``1 / S``);
     a wider stencil only loses the pixels within ``S`` rows of an edge. Only the column
     tangent's part of the error falls with ``S``: None at once when the row tangent's
-    part alone is over the limit."""
+    part alone is over the limit. The medians are compared with their limits by counting
+    (:func:`planodom.median.median_at_most`, the same verdicts): on a 64-beam room at 6 mm,
+    declined at row steps 1 and 2, the five partitions of ~6 * 10^4 values were a fifth
+    of this function's time."""
     ks = float(config.region_normal_sigmas)
     K = int(config.region_window)
     limit = np.radians(config.region_max_normal_error_deg)
@@ -40,7 +43,7 @@ def pixel_normals(
     masked = config.region_noisy_pixels == "masked"
     if not masked:
         e_row = _row_errors(P, K, float(sigma))
-        if len(e_row) and median(e_row) > limit:
+        if len(e_row) and not median_at_most(e_row, limit):
             return None
     ray = unit_rays(P, np.ascontiguousarray(viewpoint, dtype=np.float64))
     width = _chord_widths(ray, K)
@@ -52,7 +55,7 @@ def pixel_normals(
             n, e, ok = first_row_step(P, K, float(sigma), float(tol), ks)
         else:
             n, e, ok = _pixel_normals(P, K, S, float(sigma), float(tol), ks)
-        if np.count_nonzero(ok) < config.min_plane_points or median(e[ok]) <= limit:
+        if np.count_nonzero(ok) < config.min_plane_points or median_at_most(e[ok], limit):
             return n, e, ok
         tallest = (n, e, ok)
     if not masked or tallest is None:
@@ -85,8 +88,7 @@ def _stencil_within_width(ray: np.ndarray, S: int, width: np.ndarray) -> bool:
     16-beam lidar's rows are 2 deg apart: rows 4 apart span 8 deg where 2 x 3 columns of
     1024 span 2; measured on an indoor lidar16 world at 6 mm, such stencils gave 10
     planes instead of 15 and 0.9 deg errors)."""
-    ratio = _stencil_ratios(ray, S, width)
-    return len(ratio) > 0 and float(np.median(ratio)) <= 1.0
+    return median_at_most(_stencil_ratios(ray, S, width), 1.0)
 
 
 @numba.njit(cache=True, error_model="numpy")
