@@ -36,13 +36,3 @@ class KeptEpoch:
             return False
         normals = self.plane_set.normals
         return bool(nonparallel_pairs(normals, radians(association.parallel_angle_deg))[1].any())
-
-
-def usable_after(
-    ref: KeptEpoch, last: KeptEpoch | None, association: AssociationConfig
-) -> KeptEpoch | None:
-    """The last epoch usable as a reference once ``ref`` was extracted again: ``ref`` when
-    it has a pair (:meth:`KeptEpoch.has_pair`) and is not older than ``last``, else
-    ``last``."""
-    newer = last is None or last.index <= ref.index
-    return ref if newer and ref.has_pair(association) else last

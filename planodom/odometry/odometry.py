@@ -45,7 +45,6 @@ from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.extractor import Extractor, default_extractor
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
-from planodom.odometry.kept_epoch import usable_after
 from planodom.odometry.moment_refine import moment_refined
 from planodom.odometry.rate_prediction import RatePredictor
 from planodom.odometry.relative import RelativePose, Status, replaced
@@ -333,8 +332,10 @@ class PlaneOdometry:
 
     def _reference(self) -> _Epoch:
         """The epoch the next one is associated with (see ``results``)."""
-        ref, last = self._history[0], self._last_usable
-        return last if last is not None and not ref.has_pair(self.config.association) else ref
+        ref = self._history[0]
+        if not ref.has_pair(self.config.association) and self._last_usable is not None:
+            ref = self._last_usable
+        return ref
 
     def _refresh_reference(self, twist: np.ndarray) -> bool:
         """Extract the reference epoch again with ``twist`` when it has a scan that was
@@ -347,19 +348,17 @@ class PlaneOdometry:
             return False  # the map holds the epoch's planes: only the first is seeded again
         was = ref.index in self.superseded
         self._undo = (ref, ref.planes, ref.plane_set, was, self._last_usable)
-        paired = ref.has_pair(self.config.association)
         self._set_planes(ref, *self._extract(ref.scan, twist, prior=self._twist_sigma.predicted()))
-        if paired and not ref.has_pair(self.config.association):
-            self._restore_reference()  # a refresh never takes the reference's pair away
-            return False
         if self.results[ref.index] is not None:
             self.superseded.add(ref.index)
-        self._last_usable = usable_after(ref, self._last_usable, self.config.association)
+        last = self._last_usable
+        if ref.has_pair(self.config.association) and (last is None or last.index <= ref.index):
+            self._last_usable = ref
         return True
 
     def _restore_reference(self) -> None:
-        """Bring back the planes the last :meth:`_refresh_reference` replaced (the estimate
-        against them was worse, or they lost the pair); the epoch is not extracted again."""
+        """Bring back the planes the last :meth:`_refresh_reference` replaced (the epoch's
+        estimate against the new ones was worse); the epoch is not extracted again."""
         ref, planes, plane_set, superseded, last_usable = self._undo
         self._set_planes(ref, planes, None, plane_set)
         ref.kept, self._last_usable = True, last_usable
