@@ -6,6 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planodom.angles import radians
+from planodom.association import nonparallel_pairs
+from planodom.config import AssociationConfig
 from planodom.geometry import Plane
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -22,3 +25,14 @@ class KeptEpoch:
     scan: Scan | None = None
     twist: np.ndarray | None = None
     kept: bool = False  # its planes were brought back after extracting it again made it worse
+
+    def has_pair(self, association: AssociationConfig) -> bool:
+        """Whether its planes hold a non-parallel pair (normals more than
+        ``association.parallel_angle_deg`` apart, either orientation): what the lenient
+        association needs of a reference epoch. Two planes of one surface (a ground
+        split in two groups) are two planes but no pair: against them every epoch is
+        unresolved."""
+        if len(self.planes) < 2:
+            return False
+        normals = self.plane_set.normals
+        return bool(nonparallel_pairs(normals, radians(association.parallel_angle_deg))[1].any())

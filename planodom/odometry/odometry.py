@@ -102,7 +102,7 @@ class PlaneOdometry:
         self.planes: list[list[Plane]] = []
         self.superseded: set[int] = set()
         self.twist: np.ndarray | None = None
-        # The last delta epochs, and the last one with two planes or more.
+        # The last delta epochs, and the last one with a non-parallel pair of planes.
         self._history: deque[_Epoch] = deque(maxlen=self.config.odometry.delta)
         self._last_usable: _Epoch | None = None
         self._velocities: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
@@ -333,7 +333,7 @@ class PlaneOdometry:
     def _reference(self) -> _Epoch:
         """The epoch the next one is associated with (see ``results``)."""
         ref = self._history[0]
-        if len(ref.planes) < 2 and self._last_usable is not None:
+        if not ref.has_pair(self.config.association) and self._last_usable is not None:
             ref = self._last_usable
         return ref
 
@@ -352,7 +352,7 @@ class PlaneOdometry:
         if self.results[ref.index] is not None:
             self.superseded.add(ref.index)
         last = self._last_usable
-        if len(ref.planes) >= 2 and (last is None or last.index <= ref.index):
+        if ref.has_pair(self.config.association) and (last is None or last.index <= ref.index):
             self._last_usable = ref
         return True
 
@@ -386,7 +386,7 @@ class PlaneOdometry:
         assert first.scan is not None and first.index == 0
         prior = self._twist_sigma.refined(best, t - self.times[-1], twist)
         self._set_planes(first, *self._extract(first.scan, twist, prior=prior))
-        self._last_usable = first if len(first.planes) >= 2 else None
+        self._last_usable = first if first.has_pair(self.config.association) else None
 
         def undo() -> None:
             self._set_planes(first, *old)
@@ -444,6 +444,6 @@ class PlaneOdometry:
         self.results.append(result)
         self.planes.append(epoch.planes)
         self._history.append(epoch)
-        if len(epoch.planes) >= 2:
+        if epoch.has_pair(self.config.association):
             self._last_usable = epoch
         self.start.appended(self, epoch)
