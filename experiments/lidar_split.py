@@ -52,6 +52,16 @@ from planodom.metrics import ate
 from planodom.odometry import run_odometry
 from planodom.oracle import run_oracle
 
+# the deskewing passes along the curve through the neighbouring poses (LIDARCURVE)
+CURVE: dict[str, dict[str, object]] = {
+    "p1": {"odometry.deskew_passes": 1},
+    "p2": {"odometry.deskew_passes": 2},
+    "wfit": {"odometry.deskew_fit": "weighted"},
+    "ifit": {"odometry.deskew_fit": "increments"},
+    "noguard": {"odometry.deskew_pass_guard": "off"},
+    "mid": {"planemap.pass_reference_time": "middle"},
+}
+
 
 def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x**2))) if len(x) else float("nan")
@@ -108,6 +118,21 @@ def _true_deskew_extractor(scans: Sequence, full, world):  # noqa: ANN001, ANN20
     return extract
 
 
+def _true_curve_run(data, gt: np.ndarray, cfg: PlanodomConfig):  # noqa: ANN001, ANN202
+    """The odometry on the scans deskewed along the curve through the true poses ``gt``
+    (N, 4, 4) at the epoch times (``odometry.deskew_passes`` passes to the middles, then
+    one to the epoch times, :func:`planodom.odometry.run.redeskewed_run`): the floor of
+    the curve's model without its nodes' errors."""
+    from planodom.extraction.lidar.sweep import sweep_timed
+    from planodom.odometry.run import redeskewed_run, with_motion_bounds
+    from planodom.rig import Rig
+
+    rig = getattr(data, "rig", None) or Rig()
+    cfg = with_motion_bounds(cfg, rig.motion_bounds)
+    source = sweep_timed(data, cfg.extraction.sweep, rig)
+    return redeskewed_run(source, np.asarray(data.times), gt, cfg, rig)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("world", type=int)
@@ -142,9 +167,15 @@ def main() -> None:
             extractor = _true_deskew_extractor(data.scans, full, world)
         if "epoch" in parts:
             cfg = cfg.updated({"planemap.reference_time": "epoch"}, source="lidar_split")
+        for part in parts:
+            if part in CURVE:
+                cfg = cfg.updated(CURVE[part], source="lidar_split")
         source = data if "run" in parts else _Scans(scans, data.times)
         c0 = time.process_time()
-        odo = run_odometry(source, cfg, extractor=extractor)
+        if "tcurve" in parts:  # deskewed along the curve through the true poses
+            odo = _true_curve_run(data, gt, cfg)
+        else:
+            odo = run_odometry(source, cfg, extractor=extractor)
         cpu = time.process_time() - c0
         rot, xy = _errors(odo.poses, gt)
         a = ate(odo.poses, gt, align="origin", xy_only=True)["rmse"]

@@ -348,6 +348,11 @@ class PlanemapConfig(Section):
     through three 1.35): ``quadratic_fit`` stays the default. ``mixed``: roll and pitch
     from the least-squares cubic over six, yaw and translation from the quadratic over
     seven (:func:`~planodom.odometry.planemap.midtime._mixed`; docs/RESULTS.md, LIDARACC)."""
+    pass_reference_time: Literal["epoch", "middle"] = "epoch"
+    """``odometry.deskew_passes`` with ``reference_time: middle``: ``middle``, every pass
+    registered at the sweeps' middles, its curve through the last pass's poses there,
+    then brought to the epoch times (:mod:`planodom.odometry.middle_passes`); ``epoch``,
+    the last pass at the epoch times. docs/RESULTS.md, LIDARCURVE."""
     prediction: Literal["mean", "last", "trend"] = "trend"
     """The twist each epoch is first deskewed with (the streaming odometry's constant-
     velocity prediction, :func:`planodom.odometry.trend.predicted_twist`): "mean", the

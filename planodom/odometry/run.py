@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Protocol, TypeVar, cast
 
 import numpy as np
@@ -14,13 +14,9 @@ from planodom.config import PlanodomConfig
 from planodom.extraction.lidar.sweep import sweep_timed
 from planodom.geometry import Plane
 from planodom.odometry.deskew import time_spread
+from planodom.odometry.deskewed_epochs import Curve, Deskewed, DeskewedEpochs
 from planodom.odometry.extractor import Extractor, default_extractor
-from planodom.odometry.interpolate import (
-    curve_steps,
-    deskew_with_poses,
-    epoch_middles,
-    midpoint_nodes,
-)
+from planodom.odometry.interpolate import curve_steps, epoch_middles, midpoint_nodes
 from planodom.odometry.odometry import PlaneOdometry
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.splice import spliced, unconverged
@@ -40,11 +36,11 @@ class EpochSequence(Protocol):
 
 
 class DeskewedSequence(Protocol):
-    """Epochs some of which come with their points deskewed already (:class:`_Deskewed`)."""
+    """Epochs some of which come with their points deskewed already (:class:`Deskewed`)."""
 
     def __len__(self) -> int: ...
 
-    def __getitem__(self, index: int, /) -> Scan | Sequence[Plane] | _Deskewed: ...
+    def __getitem__(self, index: int, /) -> Scan | Sequence[Plane] | Deskewed: ...
 
 
 @dataclass
@@ -145,10 +141,13 @@ def run_odometry(
     if times is None:
         times = getattr(source, "times", None)
     source = sweep_timed(source, cfg.extraction.sweep, rig)  # times from the azimuth
-    run = _middle_timed_pass(source, cfg, rig, times, progress, extractor)
-    if run is None:
-        run = _streaming_pass(source, cfg, rig, times, progress, extractor)
-    if cfg.odometry.deskew_passes and any_time_spread(source):
+    pair = _middle_timed_pass(source, cfg, rig, times, progress, extractor)
+    run = pair[0] if pair else _streaming_pass(source, cfg, rig, times, progress, extractor)
+    if pair and cfg.odometry.deskew_passes and cfg.planemap.pass_reference_time == "middle":
+        from planodom.odometry.middle_passes import middle_redeskewed_run  # imports this
+
+        run = middle_redeskewed_run(source, pair[1], run, cfg, rig, progress, extractor)
+    elif cfg.odometry.deskew_passes and any_time_spread(source):
         run = redeskewed_run(source, run.times, run.poses, cfg, rig, progress, extractor, run)
     if cfg.sweep_refine.passes and any_time_spread(source):
         from planodom.odometry.sweep_refine import sweep_refined_run  # imports this module
@@ -214,8 +213,8 @@ def redeskewed_run(
     increments = config.odometry.deskew_fit == "increments"
     for reference in [middles] * config.odometry.deskew_passes + [times]:
         trusted = _near_all_measured(measured, order)
-        curve = _Curve(*nodes, variances if n_fit else None, order, n_fit, increments)
-        deskewed = _DeskewedEpochs(source, times, reference, curve, trusted)
+        curve = Curve(*nodes, variances if n_fit else None, order, n_fit, increments)
+        deskewed = DeskewedEpochs(source, times, reference, curve, trusted)
         run = _streaming_pass(deskewed, config, rig, reference, progress, extractor)
         nodes, measured = (reference, run.poses), _measured(run)
         steps = step_variances(run, measured)  # node k, the middle of epoch k: its two steps
@@ -289,70 +288,6 @@ def any_time_spread(source: EpochSequence) -> bool:
     return False
 
 
-@dataclass(frozen=True)
-class _Curve:
-    """The deskewing curve's nodes (times (J,) s, poses (J, 4, 4)), their variances
-    (J, 6) (None: interpolation), polynomial degree and fit window
-    (:func:`planodom.odometry.interpolate.curve_poses`)."""
-
-    times: np.ndarray
-    poses: np.ndarray
-    variances: np.ndarray | None
-    order: int
-    n_fit: int | None
-    increments: bool = False
-
-
-@dataclass(frozen=True)
-class _Deskewed:
-    """An epoch's scan (times relative to the pass's reference time) and the same points
-    deskewed along the curve (:meth:`PlaneOdometry.register_epoch`'s ``deskewed``)."""
-
-    scan: Scan
-    deskewed: Scan
-
-
-class _DeskewedEpochs:
-    """``source``'s epochs, each scan (epoch k at ``times[k]``) deskewed to
-    ``reference[k]`` along ``curve`` where ``trusted[k]``, else with
-    its times shifted to that reference (see :func:`redeskewed_run`); ``seconds`` adds up
-    the time spent deskewing."""
-
-    def __init__(
-        self,
-        source: EpochSequence,
-        times: np.ndarray,
-        reference: np.ndarray,
-        curve: _Curve,
-        trusted: np.ndarray,
-    ) -> None:
-        self.source, self.times, self.reference = source, times, reference
-        self.curve, self.trusted = curve, trusted
-        self.seconds = 0.0
-
-    def __len__(self) -> int:
-        return len(self.source)
-
-    def __getitem__(self, k: int) -> Scan | Sequence[Plane] | _Deskewed:
-        item = self.source[k]
-        if not isinstance(item, Scan):
-            return item
-        shift = float(self.reference[k] - self.times[k])
-        raw = item if item.t is None or shift == 0 else replace(item, t=item.t - shift)
-        if not self.trusted[k]:  # the streaming deskewing, to the reference time
-            return raw
-        c0 = _time.perf_counter()
-        c = self.curve
-        out = deskew_with_poses(
-            item, c.times, c.poses, float(self.times[k]), c.order, float(self.reference[k]),
-            c.variances, c.n_fit, c.increments,
-        )  # fmt: skip
-        self.seconds += _time.perf_counter() - c0
-        # the times stay (extracted with a zero twist): a lidar's range image takes its
-        # columns from them (with zeros it has none and falls back to RANSAC fragments)
-        return _Deskewed(raw, replace(out, t=raw.t))
-
-
 def _middle_timed_pass(
     source: EpochSequence,
     cfg: PlanodomConfig,
@@ -360,12 +295,12 @@ def _middle_timed_pass(
     times: Sequence[float] | np.ndarray | None,
     progress: Callable[[int, int], None] | None,
     extractor: Extractor | None,
-) -> OdometryRun | None:
+) -> tuple[OdometryRun, OdometryRun] | None:
     """The streaming pass with each scan registered at its sweep's middle and brought
     back to the epoch times (:mod:`planodom.odometry.planemap.midtime`): for the plane map
     with ``planemap.reference_time: middle``, for the pairwise pipelines with
     ``odometry.pairwise_reference_time: middle``; None when the pipeline's field is off
-    or no scan has point times."""
+    or no scan has point times. Returns the run at the epoch times and at the middles."""
     from planodom.odometry.planemap import uses_plane_map
     from planodom.odometry.planemap.midtime import MiddleTimed, at_epoch_times
 
@@ -384,7 +319,7 @@ def _middle_timed_pass(
     shifted = cast("Sequence[float]", middle.times)
     run = _streaming_pass(middle, cfg, rig, shifted, progress, extractor)
     order = cfg.odometry.deskew_order
-    return at_epoch_times(run, middle.epoch_times, order, cfg.planemap.first_pose)
+    return at_epoch_times(run, middle.epoch_times, order, cfg.planemap.first_pose), run
 
 
 def _streaming_pass(
@@ -405,7 +340,7 @@ def _streaming_pass(
         item = source[k]
         t_k = None if times is None else float(times[k])
         c0 = _time.perf_counter()
-        if isinstance(item, _Deskewed):
+        if isinstance(item, Deskewed):
             odo.register_epoch(item.scan, t_k, item.deskewed)
         elif isinstance(item, Scan):
             odo.register_epoch(item, t_k)

@@ -17,14 +17,9 @@ import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform
+from planodom.odometry.deskewed_epochs import Deskewed
 from planodom.odometry.extractor import Extractor
-from planodom.odometry.run import (
-    EpochSequence,
-    OdometryRun,
-    _Deskewed,
-    _measured,
-    _streaming_pass,
-)
+from planodom.odometry.run import EpochSequence, OdometryRun, _measured, _streaming_pass
 from planodom.odometry.splice import spliced, unconverged
 from planodom.odometry.sweep_motion import SweepMotion, epoch_motion
 from planodom.odometry.sweep_prior import twist_change
@@ -92,7 +87,7 @@ def epoch_motions(
 
 class _SweepDeskewed:
     """``source``'s epochs, those with a measured motion given with their points deskewed
-    by it (:class:`planodom.odometry.run._Deskewed`), the others as they are."""
+    by it (:class:`planodom.odometry.deskewed_epochs.Deskewed`), the others as they are."""
 
     def __init__(self, source: EpochSequence, motions: dict[int, SweepMotion]) -> None:
         self.source, self.motions = source, motions
@@ -100,9 +95,9 @@ class _SweepDeskewed:
     def __len__(self) -> int:
         return len(self.source)
 
-    def __getitem__(self, k: int) -> Scan | Sequence[Plane] | _Deskewed:
+    def __getitem__(self, k: int) -> Scan | Sequence[Plane] | Deskewed:
         item = self.source[k]
         if not isinstance(item, Scan) or k not in self.motions:
             return item
         out = self.motions[k].deskewed(item)
-        return _Deskewed(item, Scan(out.points, out.ring, item.t, out.label))
+        return Deskewed(item, Scan(out.points, out.ring, item.t, out.label))
