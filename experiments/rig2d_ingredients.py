@@ -47,8 +47,9 @@ from planodom.experiments.generalisation import world_for
 from planodom.extraction.deskew import deskew_points
 from planodom.geometry import Plane, invert_transform, orthonormalised, se3_exp, se3_log
 from planodom.metrics import ate, per_epoch_errors, relative_motions
+from planodom.odometry.deskewed_epochs import Deskewed
 from planodom.odometry.odometry import PlaneOdometry
-from planodom.odometry.run import _Deskewed, _streaming_pass, with_motion_bounds
+from planodom.odometry.run import _streaming_pass, with_motion_bounds
 from planodom.oracle import (
     SurfaceMoments,
     deskewed_points,
@@ -283,7 +284,7 @@ def run_world(
             source: Sequence = run.scans
         else:
             source = [
-                _Deskewed(s, replace(s, points=deskewed_points(f, world.trajectory, float(t))))
+                Deskewed(s, replace(s, points=deskewed_points(f, world.trajectory, float(t))))
                 for s, f, t in zip(run.scans, full.scans, full.times, strict=True)
             ]
         with recording(log, force_given=name == "true-deskew"):
