@@ -70,7 +70,7 @@ def sandwich_inputs(
     deskewing error (:func:`.sandwich.deskew_motion_change`, scaled per run with
     ``sandwich_motion_scale`` "run"; with ``sandwich_undeskewed`` "motion" the epochs kept
     without deskewing also the motion over their points, :mod:`.undeskewed`; with
-    ``sandwich_first_epoch`` "step" the first epoch also its first step's error,
+    ``sandwich_first_epoch`` the first epoch also its first step's error,
     :mod:`.first_epoch_noise`), or None for
     the fitted covariances, and a note why when ``covariance_model`` "auto" falls back
     although the epochs are spread in time.
@@ -90,8 +90,8 @@ def sandwich_inputs(
         Q = scaled_motion_change(Q, relative_poses)[0]
     if cfg.sandwich_undeskewed == "motion":
         Q = with_undeskewed(Q, relative_poses)
-    if cfg.sandwich_first_epoch == "step":
-        Q = with_first_step(Q, relative_poses)
+    if cfg.sandwich_first_epoch != "motion":
+        Q = with_first_step(Q, relative_poses, cfg.sandwich_first_epoch == "degenerate_step")
     if model == "sandwich":
         return Q, None
     if not np.any(Q):

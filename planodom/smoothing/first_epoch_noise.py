@@ -21,6 +21,13 @@ that close on epoch 0 turn the whole lap by it (docs/RESULTS.md, NEES2CM, NEESJA
 stamp (the first epoch's are not recorded; one rig), ``interval`` the step's: the first
 order error of a twist ``Log(T_01) / interval`` applied over ``span``. Added, not in place
 of ``Q_0``: the twist's error and the motion's change within the epoch are two sources.
+
+"degenerate_step" adds it only where that step did not measure its translation
+(degenerate): a measured step's error is of the size the run's scale already gives every
+epoch's twist (:mod:`.deskew_scale`; on world 30 at 6 mm the step's declared covariance
+sizes epoch 0's planes' errors at chi2 48.8 on 30 dof, the changes of motion at 23.4, and
+"step" takes the lap's NEES5 out of the interval, 0.92 -> 0.62: docs/RESULTS.md,
+NEESFIRST), a velocity nobody measured is not.
 """
 
 from __future__ import annotations
@@ -32,13 +39,18 @@ import numpy as np
 from planodom.odometry.relative import RelativePose
 
 
-def first_step_covariance(relative_poses: Sequence[RelativePose]) -> np.ndarray | None:
+def first_step_covariance(
+    relative_poses: Sequence[RelativePose], degenerate_only: bool = False
+) -> np.ndarray | None:
     """(6, 6) ``(span / interval)^2 Sigma_01`` of the module docstring (rad^2, m^2; the
     order roll, pitch, yaw, x, y, z of the sandwich's ``Q``), or None where the step
     0 -> 1 is unknown, unmeasured (unresolved), without a covariance, or its epoch's
-    points were not spread in time."""
+    points were not spread in time; with ``degenerate_only`` also where it measured its
+    translation (status OK)."""
     step = next((r for r in relative_poses if r.prev == 0 and r.curr == 1), None)
     if step is None or not step.measured or step.covariance is None:
+        return None
+    if degenerate_only and step.translation_observed:
         return None
     if not step.time_spread or step.deskew_times is None:
         return None
@@ -54,10 +66,12 @@ def first_step_covariance(relative_poses: Sequence[RelativePose]) -> np.ndarray 
     return out * (max(abs(lo), abs(hi)) / interval) ** 2
 
 
-def with_first_step(Q: np.ndarray, relative_poses: Sequence[RelativePose]) -> np.ndarray:
+def with_first_step(
+    Q: np.ndarray, relative_poses: Sequence[RelativePose], degenerate_only: bool = False
+) -> np.ndarray:
     """(E, 6, 6) ``Q`` (the epochs' deskewing errors' covariances) with
     :func:`first_step_covariance` added to ``Q[0]``; ``Q`` itself where there is none."""
-    add = first_step_covariance(relative_poses)
+    add = first_step_covariance(relative_poses, degenerate_only)
     if add is None or not len(Q):
         return Q
     out = np.array(Q, dtype=float, copy=True)

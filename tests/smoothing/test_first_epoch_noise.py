@@ -79,3 +79,20 @@ def test_added_to_the_first_epoch_only_and_taken_by_the_sandwich_inputs() -> Non
     assert Q0 is not None and Q1 is not None
     np.testing.assert_allclose(Q1[0], Q0[0] + add, rtol=1e-9, atol=1e-18)
     assert np.array_equal(Q1[1:], Q0[1:])
+
+
+def test_degenerate_only_where_the_first_step_did_not_measure_its_translation() -> None:
+    step = _step(np.diag([1e-6, 2e-6, 3e-6, 4e-4, 5e-4]))
+    assert first_step_covariance([step], degenerate_only=True) is None  # status OK
+    degenerate = replace(step, status=Status.DEGENERATE)
+    got = first_step_covariance([degenerate], degenerate_only=True)
+    assert got is not None
+    np.testing.assert_array_equal(got, first_step_covariance([step]))
+    Q = np.zeros((2, 6, 6))
+    assert with_first_step(Q, [step], degenerate_only=True) is Q
+    cfg = SmoothingConfig(covariance_model="sandwich", sandwich_first_epoch="degenerate_step")
+    rels = [step, replace(step, prev=1, curr=2)]
+    Q_ok, _ = sandwich_inputs(cfg, {}, rels, 3)
+    base, _ = sandwich_inputs(SmoothingConfig(covariance_model="sandwich"), {}, rels, 3)
+    assert Q_ok is not None and base is not None
+    np.testing.assert_array_equal(Q_ok, base)  # a measured first step: nothing added
