@@ -6,7 +6,8 @@ The lap as ``nees_gauge.py`` (``--cache DIR``), the batch with loops once; per l
 the parts predicted by the older epoch a's and the younger epoch b's planes' least-squares
 deskewing errors against the true surfaces (``nees_gauge.plane_deskew_error``) through
 the factor's Jacobian (:mod:`planodom.smoothing.loop_deskew`; b's through the inverse
-relative pose), with the chi2/dof of what is left.
+relative pose), with the chi2/dof of what is left, and the true surfaces (``truth_id``)
+of its associated plane pairs.
 
     uv run python experiments/loop_ends_check.py --world 156 --noise 0.006 --cache DIR
 """
@@ -81,9 +82,11 @@ def main() -> None:
         d = len(w)
         chis = [w @ w / d, pa @ pa / d, pb @ pb / d, (w - pa - pb) @ (w - pa - pb) / d]
         tot += chis
+        pa_, pb_ = builder.planes[f.old], builder.planes[f.epoch]
+        ids = " ".join(f"{pa_[i].truth_id}/{pb_[j].truth_id}" for i, j in f.associations)
         print(f"  {f.old}-{f.epoch}: err {np.round(raw * 1e3, 2)} sigma {np.round(sig * 1e3, 2)} "
               f"(mrad, mm) chi2/dof {chis[0]:.1f}, a's part {chis[1]:.1f}, b's {chis[2]:.1f}, "
-              f"rest {chis[3]:.1f}")  # fmt: skip
+              f"rest {chis[3]:.1f}; pairs' true surfaces {ids}")  # fmt: skip
     n = sum(1 for f in builder.loop_factors if not f.removed)
     print(f"world {args.world} noise {args.noise}: mean over {n} loop factors chi2/dof "
           f"{tot[0] / max(n, 1):.2f}, a's {tot[1] / max(n, 1):.2f}, "
