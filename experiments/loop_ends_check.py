@@ -7,7 +7,8 @@ the parts predicted by the older epoch a's and the younger epoch b's planes' lea
 deskewing errors against the true surfaces (``nees_gauge.plane_deskew_error``) through
 the factor's Jacobian (:mod:`planodom.smoothing.loop_deskew`; b's through the inverse
 relative pose), with the chi2/dof of what is left, and the true surfaces (``truth_id``)
-of its associated plane pairs.
+of its associated plane pairs, and the pairs' whitened misfit at the measured and at the
+true relative pose.
 
     uv run python experiments/loop_ends_check.py --world 156 --noise 0.006 --cache DIR
 """
@@ -39,6 +40,28 @@ def adjoint(T: np.ndarray) -> np.ndarray:
     out[3:, :3] = skew @ R
     out[3:, 3:] = R
     return out
+
+
+def pair_cost(T_a_b: np.ndarray, planes_a, planes_b, pairs: np.ndarray) -> float:  # noqa: ANN001
+    """Sum over the associated pairs of ``r^T W r``, ``r = pi_a - T_a_b pi_b`` in (n, d),
+    ``W`` the pseudo-inverse of both planes' covariance (as :mod:`.loop_deskew` weighs)."""
+    JT = np.eye(4)
+    JT[:3, :3] = T_a_b[:3, :3]
+    JT[3, :3] = -(T_a_b[:3, 3] @ T_a_b[:3, :3])
+    total = 0.0
+    for i, j in np.asarray(pairs, dtype=int).reshape(-1, 2):
+        pa, pb = planes_a[i], planes_b[j]
+        if pa.covariance is None or pb.covariance is None:
+            continue
+        n_b = T_a_b[:3, :3] @ pb.normal
+        d_b = pb.offset - n_b @ T_a_b[:3, 3]
+        if n_b @ pa.normal < 0:
+            n_b, d_b = -n_b, -d_b
+        r = np.append(pa.normal - n_b, pa.offset - d_b)
+        W = np.linalg.pinv(np.asarray(pa.covariance) + JT @ np.asarray(pb.covariance) @ JT.T,
+                           rcond=1e-9, hermitian=True)  # fmt: skip
+        total += float(r @ W @ r)
+    return total
 
 
 def main() -> None:
@@ -83,6 +106,11 @@ def main() -> None:
         chis = [w @ w / d, pa @ pa / d, pb @ pb / d, (w - pa - pb) @ (w - pa - pb) / d]
         tot += chis
         pa_, pb_ = builder.planes[f.old], builder.planes[f.epoch]
+        T_true = invert_transform(gt[f.old]) @ gt[f.epoch]
+        fits = [pair_cost(Tx, pa_, pb_, f.associations) for Tx in (T, T_true)]
+        dof = 4 * len(f.associations)
+        print(f"    pairs' chi2 (whitened, both planes' covariances) at the measured "
+              f"{fits[0]:.1f}, at the true relative pose {fits[1]:.1f}; dof {dof}")  # fmt: skip
         ids = " ".join(f"{pa_[i].truth_id}/{pb_[j].truth_id}" for i, j in f.associations)
         print(f"  {f.old}-{f.epoch}: err {np.round(raw * 1e3, 2)} sigma {np.round(sig * 1e3, 2)} "
               f"(mrad, mm) chi2/dof {chis[0]:.1f}, a's part {chis[1]:.1f}, b's {chis[2]:.1f}, "
