@@ -68,7 +68,8 @@ def main() -> None:
             changes = {"smoothing.sandwich_loop_sources": mode[5:] or "independent",
                        "smoothing.sandwich_first_epoch": "step"}  # fmt: skip
         if mode == "degenerate_step":
-            changes["smoothing.sandwich_first_epoch"] = "degenerate_step"
+            changes = {"smoothing.sandwich_loop_sources": "independent",
+                       "smoothing.sandwich_first_epoch": "degenerate_step"}  # fmt: skip
         builder.config = cfg.updated(changes).smoothing
         sandwich.loop_error_maps = _apart if mode == "apart" else loop_error_maps
         first = mode.startswith("first")
