@@ -8,7 +8,8 @@ deskewing errors against the true surfaces (``nees_gauge.plane_deskew_error``) t
 the factor's Jacobian (:mod:`planodom.smoothing.loop_deskew`; b's through the inverse
 relative pose), with the chi2/dof of what is left, and the true surfaces (``truth_id``)
 of its associated plane pairs, and the pairs' whitened misfit at the measured and at the
-true relative pose.
+true relative pose; and the relative pose refitted over its pairs (weighted least squares)
+with its misfit and its error at the truth.
 
     uv run python experiments/loop_ends_check.py --world 156 --noise 0.006 --cache DIR
 """
@@ -29,6 +30,7 @@ from planodom.smoothing.batch_covariances import covariance_graph  # noqa: E402
 from planodom.smoothing.graph import X  # noqa: E402
 from planodom.smoothing.loop_deskew import error_change, relative_pose_change  # noqa: E402
 from planodom.smoothing.sandwich import covariance_graph_index  # noqa: E402
+from planodom_factors.pose5 import pose5_error  # noqa: E402
 
 
 def adjoint(T: np.ndarray) -> np.ndarray:
@@ -62,6 +64,46 @@ def pair_cost(T_a_b: np.ndarray, planes_a, planes_b, pairs: np.ndarray) -> float
                            rcond=1e-9, hermitian=True)  # fmt: skip
         total += float(r @ W @ r)
     return total
+
+
+def refit(T_a_b: np.ndarray, planes_a, planes_b, pairs: np.ndarray, iters: int = 10) -> np.ndarray:  # noqa: ANN001
+    """``T_a_b`` refitted by Gauss-Newton to the associated pairs (weighted least squares,
+    the weights of :func:`pair_cost`; right tangent, :func:`.loop_deskew.pair_jacobian`)."""
+    from types import SimpleNamespace
+
+    from planodom.se3 import se3_exp
+    from planodom.smoothing.loop_deskew import pair_jacobian
+
+    T = np.array(T_a_b, dtype=float)
+    planes_b = list(planes_b)
+    for _, j in np.asarray(pairs, dtype=int).reshape(-1, 2):  # normals as the pairs join
+        pb = planes_b[j]
+        if (T[:3, :3] @ pb.normal) @ planes_a[_].normal < 0:
+            planes_b[j] = SimpleNamespace(
+                normal=-pb.normal, offset=-pb.offset, covariance=pb.covariance
+            )
+    for _ in range(iters):
+        JT = np.eye(4)
+        JT[:3, :3] = T[:3, :3]
+        JT[3, :3] = -(T[:3, 3] @ T[:3, :3])
+        H, g = np.zeros((6, 6)), np.zeros(6)
+        for i, j in np.asarray(pairs, dtype=int).reshape(-1, 2):
+            pa, pb = planes_a[i], planes_b[j]
+            if pa.covariance is None or pb.covariance is None:
+                continue
+            n_b = T[:3, :3] @ pb.normal
+            d_b = pb.offset - n_b @ T[:3, 3]
+            r = np.append(pa.normal - n_b, pa.offset - d_b)
+            W = np.linalg.pinv(np.asarray(pa.covariance) + JT @ np.asarray(pb.covariance) @ JT.T,
+                               rcond=1e-9, hermitian=True)  # fmt: skip
+            K = -pair_jacobian(T, pb)
+            H += K.T @ W @ K
+            g += K.T @ W @ r
+        step = -np.linalg.pinv(H, rcond=1e-9, hermitian=True) @ g
+        T = T @ se3_exp(step)
+        if np.linalg.norm(step) < 1e-12:
+            break
+    return T
 
 
 def main() -> None:
@@ -108,6 +150,11 @@ def main() -> None:
         pa_, pb_ = builder.planes[f.old], builder.planes[f.epoch]
         T_true = invert_transform(gt[f.old]) @ gt[f.epoch]
         fits = [pair_cost(Tx, pa_, pb_, f.associations) for Tx in (T, T_true)]
+        T_fit = refit(T, pa_, pb_, f.associations)
+        fit_err = pose5_error(T_fit, gt[f.old], gt[f.epoch])[0]
+        misfit = pair_cost(T_fit, pa_, pb_, f.associations)
+        print(f"    refitted over its pairs: misfit {misfit:.1f}, "
+              f"error at the truth {np.round(fit_err * 1e3, 2)} (mrad, mm)")  # fmt: skip
         dof = 4 * len(f.associations)
         print(f"    pairs' chi2 (whitened, both planes' covariances) at the measured "
               f"{fits[0]:.1f}, at the true relative pose {fits[1]:.1f}; dof {dof}")  # fmt: skip
