@@ -6,7 +6,9 @@ batch with loops once with the default config but "independent"; its covariances
 computed again from the same graph and estimate with the option "shared", then "deskew",
 then (a diagnostic, "apart") "deskew"'s maps in a column of their own per older epoch, and
 (diagnostics, "first", "first_deskew") "independent" and "deskew" with the first epoch's
-``Q_0`` its first step's declared covariance (:func:`_first_step`); ``--modes`` picks.
+``Q_0`` its first step's declared covariance (:func:`_first_step`); "step" (NEESFIRST)
+``smoothing.sandwich_first_epoch`` "step" with independent loop factors, "step_shared" and
+"step_deskew" with those loop sources, "degenerate_step" that value; ``--modes`` picks.
 Printed per lap: ATE (xy rmse, m), mean NEES5 each way, the loop factors and the older
 epochs they come from, and for "deskew" the loop factors given a map and the mean of
 ``tr(g Q_a g^T) / dim`` (the added whitened variance against the factor's own, 1).
@@ -61,7 +63,14 @@ def main() -> None:
     for mode in args.modes.split(","):
         value = {"apart": "deskew", "first": "independent", "first_deskew": "deskew"}
         value = value.get(mode, mode)
-        builder.config = cfg.updated({"smoothing.sandwich_loop_sources": value}).smoothing
+        changes = {"smoothing.sandwich_loop_sources": value}
+        if mode.startswith("step"):  # NEESFIRST: smoothing.sandwich_first_epoch "step"
+            changes = {"smoothing.sandwich_loop_sources": mode[5:] or "independent",
+                       "smoothing.sandwich_first_epoch": "step"}  # fmt: skip
+        if mode == "degenerate_step":
+            changes = {"smoothing.sandwich_loop_sources": "independent",
+                       "smoothing.sandwich_first_epoch": "degenerate_step"}  # fmt: skip
+        builder.config = cfg.updated(changes).smoothing
         sandwich.loop_error_maps = _apart if mode == "apart" else loop_error_maps
         first = mode.startswith("first")
         batch_covariances.sandwich_inputs = _first_step if first else SANDWICH_INPUTS

@@ -99,6 +99,14 @@ class CovarianceScaleConfig(Section):
     40 decision-lap runs "shared" has NEES5 inside [0.83, 12.8] on 10 -> 13 of 20 at 2 cm
     and 11 -> 12 of 20 at 6 mm, but world 38 at 6 mm leaves it (1.29 -> 0.71; NEESDEF);
     "deskew" takes it to 0.64 and leaves 144 at 2 cm at 16.4 (NEESJAC)."""
+    sandwich_first_epoch: Literal["motion", "step", "degenerate_step"] = "motion"
+    """With the sandwich covariances: the first epoch's deskewing error. "motion"
+    (default) the run's changes of motion like any epoch; "step" adds its first step's
+    declared covariance times (span / interval)^2: it was deskewed with that step's twist,
+    which the changes cannot size where the step was degenerate (:mod:`planodom.
+    smoothing.first_epoch_noise`); "degenerate_step" adds it only where that step was
+    degenerate. Only the covariances change. Off: "step" takes world 30 at 6 mm out of
+    the interval (docs/RESULTS.md, NEESFIRST)."""
     covariance_scale_estimate: Literal["keep", "resolve"] = "keep"
     """With ``covariance_scale``: "keep" the estimate (only the covariances change);
     "resolve" Gauss-Newton on the reweighted graph (the covariance graph: robust inliers

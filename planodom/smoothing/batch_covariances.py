@@ -14,6 +14,7 @@ from planodom.config import SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.deskew_scale import scaled_motion_change
+from planodom.smoothing.first_epoch_noise import with_first_step
 from planodom.smoothing.graph import GraphBuilder
 from planodom.smoothing.marginals import pose_covariances
 from planodom.smoothing.sandwich import batch_sandwich, deskew_motion_change
@@ -68,7 +69,9 @@ def sandwich_inputs(
     """The epochs' (E, 6, 6) changes of motion the sandwich takes as each epoch's
     deskewing error (:func:`.sandwich.deskew_motion_change`, scaled per run with
     ``sandwich_motion_scale`` "run"; with ``sandwich_undeskewed`` "motion" the epochs kept
-    without deskewing also the motion over their points, :mod:`.undeskewed`), or None for
+    without deskewing also the motion over their points, :mod:`.undeskewed`; with
+    ``sandwich_first_epoch`` the first epoch also its first step's error,
+    :mod:`.first_epoch_noise`), or None for
     the fitted covariances, and a note why when ``covariance_model`` "auto" falls back
     although the epochs are spread in time.
 
@@ -87,6 +90,8 @@ def sandwich_inputs(
         Q = scaled_motion_change(Q, relative_poses)[0]
     if cfg.sandwich_undeskewed == "motion":
         Q = with_undeskewed(Q, relative_poses)
+    if cfg.sandwich_first_epoch != "motion":
+        Q = with_first_step(Q, relative_poses, cfg.sandwich_first_epoch == "degenerate_step")
     if model == "sandwich":
         return Q, None
     if not np.any(Q):
