@@ -66,7 +66,7 @@ def one_world(w: int, noise: float, epochs: int, reps: int, n: defaultdict[str, 
     for rep in range(reps + 1):
         for name, c, k in (("default", cfg, 0), ("jacobian", cfg_j, 1)):
             odo_mod.PlaneOdometry._estimate_scan = scans[k]  # type: ignore[method-assign]
-            builder_mod.deskew_jacobian = jacs[k]  # type: ignore[assignment]
+            builder_mod.deskew_jacobian = jacs[k]
             n.clear()
             c0 = time.process_time()
             run_odometry(warm if rep == 0 else run, c)
