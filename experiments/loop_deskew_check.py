@@ -21,22 +21,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 import nees_gauge  # noqa: E402  (patches the batch to capture its graph)
 
-from planodom.smoothing.batch import smooth_batch  # noqa: E402
-from planodom.smoothing.batch_covariances import covariance_graph  # noqa: E402
 from planodom.smoothing.loop_deskew import loop_deskew_maps  # noqa: E402
-from planodom.smoothing.sandwich import covariance_graph_index  # noqa: E402
 
 
 def main() -> None:
     args = nees_gauge.lap_parser(__doc__.splitlines()[0]).parse_args()
-    world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
-    smooth_batch(odo.planes, rel, cfg)
-    cap = nees_gauge.CAPTURED
-    builder, est = cap["builder"], cap["estimate"]
-    cov_graph = covariance_graph(
-        cap["graph"], cap["gaussian"], est, builder.config.covariance_inlier_quantile
+    (world, full, cfg, odo, rel, gt), builder, est, cov_graph, index = nees_gauge.captured_batch(
+        args
     )
-    index = covariance_graph_index(cap["graph"], cov_graph)
+    cap = nees_gauge.CAPTURED
     Q = nees_gauge.CAPTURED_Q()
     maps = loop_deskew_maps(cov_graph, est, builder.loop_factors, index, builder.planes, Q)
     sig = np.sqrt(np.diagonal(Q, axis1=1, axis2=2))
@@ -60,7 +53,7 @@ def main() -> None:
             print(f"  {f.old}-{f.epoch}: no map (removed {f.removed})")
             continue
         a, g = maps[i]
-        R = np.asarray(cov_graph.at(i).noiseModel().R())  # type: ignore[attr-defined]
+        R = np.asarray(cov_graph.at(i).noiseModel().R())
         w = R @ f.truth_error(gt)
         pred = g @ errs[a]
         added = np.trace(g @ Q[a] @ g.T) / len(g)

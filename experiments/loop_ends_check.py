@@ -25,11 +25,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 import nees_gauge  # noqa: E402  (patches the batch to capture its graph)
 
 from planodom.geometry import invert_transform  # noqa: E402
-from planodom.smoothing.batch import smooth_batch  # noqa: E402
-from planodom.smoothing.batch_covariances import covariance_graph  # noqa: E402
 from planodom.smoothing.graph import X  # noqa: E402
 from planodom.smoothing.loop_deskew import error_change, relative_pose_change  # noqa: E402
-from planodom.smoothing.sandwich import covariance_graph_index  # noqa: E402
 from planodom_factors.pose5 import pose5_error  # noqa: E402
 
 
@@ -44,26 +41,32 @@ def adjoint(T: np.ndarray) -> np.ndarray:
     return out
 
 
-def pair_cost(T_a_b: np.ndarray, planes_a, planes_b, pairs: np.ndarray) -> float:  # noqa: ANN001
-    """Sum over the associated pairs of ``r^T W r``, ``r = pi_a - T_a_b pi_b`` in (n, d),
-    ``W`` the pseudo-inverse of both planes' covariance (as :mod:`.loop_deskew` weighs)."""
+def _weighted_pairs(T_a_b: np.ndarray, planes_a, planes_b, pairs: np.ndarray, flip: bool):  # noqa: ANN001, ANN202
+    """Per associated pair with covariances: ``(plane b, r, W)``, ``r = pi_a - T_a_b pi_b``
+    in (n, d) (b's normal flipped to a's side when ``flip``), ``W`` the pseudo-inverse of
+    both planes' covariance in a's frame (as :mod:`.loop_deskew` weighs)."""
     JT = np.eye(4)
     JT[:3, :3] = T_a_b[:3, :3]
     JT[3, :3] = -(T_a_b[:3, 3] @ T_a_b[:3, :3])
-    total = 0.0
     for i, j in np.asarray(pairs, dtype=int).reshape(-1, 2):
         pa, pb = planes_a[i], planes_b[j]
         if pa.covariance is None or pb.covariance is None:
             continue
         n_b = T_a_b[:3, :3] @ pb.normal
         d_b = pb.offset - n_b @ T_a_b[:3, 3]
-        if n_b @ pa.normal < 0:
+        if flip and n_b @ pa.normal < 0:
             n_b, d_b = -n_b, -d_b
         r = np.append(pa.normal - n_b, pa.offset - d_b)
         W = np.linalg.pinv(np.asarray(pa.covariance) + JT @ np.asarray(pb.covariance) @ JT.T,
                            rcond=1e-9, hermitian=True)  # fmt: skip
-        total += float(r @ W @ r)
-    return total
+        yield pb, r, W
+
+
+def pair_cost(T_a_b: np.ndarray, planes_a, planes_b, pairs: np.ndarray) -> float:  # noqa: ANN001
+    """Sum over the associated pairs of ``r^T W r`` (:func:`_weighted_pairs`)."""
+    return sum(
+        float(r @ W @ r) for _, r, W in _weighted_pairs(T_a_b, planes_a, planes_b, pairs, True)
+    )
 
 
 def refit(T_a_b: np.ndarray, planes_a, planes_b, pairs: np.ndarray, iters: int = 10) -> np.ndarray:  # noqa: ANN001
@@ -83,19 +86,8 @@ def refit(T_a_b: np.ndarray, planes_a, planes_b, pairs: np.ndarray, iters: int =
                 normal=-pb.normal, offset=-pb.offset, covariance=pb.covariance
             )
     for _ in range(iters):
-        JT = np.eye(4)
-        JT[:3, :3] = T[:3, :3]
-        JT[3, :3] = -(T[:3, 3] @ T[:3, :3])
         H, g = np.zeros((6, 6)), np.zeros(6)
-        for i, j in np.asarray(pairs, dtype=int).reshape(-1, 2):
-            pa, pb = planes_a[i], planes_b[j]
-            if pa.covariance is None or pb.covariance is None:
-                continue
-            n_b = T[:3, :3] @ pb.normal
-            d_b = pb.offset - n_b @ T[:3, 3]
-            r = np.append(pa.normal - n_b, pa.offset - d_b)
-            W = np.linalg.pinv(np.asarray(pa.covariance) + JT @ np.asarray(pb.covariance) @ JT.T,
-                               rcond=1e-9, hermitian=True)  # fmt: skip
+        for pb, r, W in _weighted_pairs(T, planes_a, planes_b, pairs, False):
             K = -pair_jacobian(T, pb)
             H += K.T @ W @ K
             g += K.T @ W @ r
@@ -108,14 +100,9 @@ def refit(T_a_b: np.ndarray, planes_a, planes_b, pairs: np.ndarray, iters: int =
 
 def main() -> None:
     args = nees_gauge.lap_parser(__doc__.splitlines()[0]).parse_args()
-    world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
-    smooth_batch(odo.planes, rel, cfg)
-    cap = nees_gauge.CAPTURED
-    builder, est = cap["builder"], cap["estimate"]
-    cov_graph = covariance_graph(
-        cap["graph"], cap["gaussian"], est, builder.config.covariance_inlier_quantile
+    (world, full, cfg, odo, rel, gt), builder, est, cov_graph, index = nees_gauge.captured_batch(
+        args
     )
-    index = covariance_graph_index(cap["graph"], cov_graph)
     errs: dict[int, np.ndarray] = {}
 
     def e_of(k: int) -> np.ndarray:
@@ -129,7 +116,7 @@ def main() -> None:
         if f.removed or i is None or f.associations is None:
             continue
         factor = cov_graph.at(i)
-        noise = factor.noiseModel()  # type: ignore[attr-defined]
+        noise = factor.noiseModel()
         R = np.asarray(noise.R())
         T = np.asarray(f.T_old_curr, dtype=float)
         raw = np.asarray(f.truth_error(gt))

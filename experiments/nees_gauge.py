@@ -141,6 +141,22 @@ def load_lap(args: argparse.Namespace):  # noqa: ANN201
     return world, full, cfg, odo, rel, gt
 
 
+def captured_batch(args: argparse.Namespace):  # noqa: ANN201
+    """The lap of ``args`` (:func:`load_lap`) smoothed in batch, with what the batch built:
+    ``(lap, builder, estimate, covariance graph, its factor index)``; ``CAPTURED`` holds
+    the rest (the graph, the planes)."""
+    from planodom.smoothing.batch_covariances import covariance_graph
+    from planodom.smoothing.sandwich import covariance_graph_index
+
+    lap = load_lap(args)
+    smooth_batch(lap[3].planes, lap[4], lap[2])
+    builder, est = CAPTURED["builder"], CAPTURED["estimate"]
+    cov_graph = covariance_graph(
+        CAPTURED["graph"], CAPTURED["gaussian"], est, builder.config.covariance_inlier_quantile
+    )
+    return lap, builder, est, cov_graph, covariance_graph_index(CAPTURED["graph"], cov_graph)
+
+
 def main() -> None:
     args = lap_parser(__doc__.splitlines()[0]).parse_args()
     world, full, cfg, odo, rel, gt = load_lap(args)
