@@ -106,3 +106,11 @@ class DeskewGuards(MomentRefineConfig):
     kept (:mod:`planodom.odometry.deskew`, step 2). Off by default (REFKEEP in
     docs/RESULTS.md: PASSES2CM counted 14 of the 2 cm unresolved epochs on 2D-rig worlds
     160-178 made that way)."""
+
+    refresh_keep_pair_held: bool = False
+    """Streaming, pairwise pipelines: a reference extracted again while the epoch after an
+    unresolved one is registered (its twist's linear velocity held over the unresolved
+    epochs) keeps its planes when the new ones lose the non-parallel pair it had
+    (:mod:`planodom.odometry.refresh_held`). Off: on 2D-rig world 192 at 2 cm it closes a
+    6-epoch gap (ATE 2.34 -> 1.80 m) but on world 182 at 6 mm it keeps a phantom pair
+    (0.93 -> 5.93 m; REFRESHHELD in docs/RESULTS.md)."""

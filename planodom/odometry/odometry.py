@@ -47,6 +47,7 @@ from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.moment_refine import moment_refined
 from planodom.odometry.rate_prediction import RatePredictor
+from planodom.odometry.refresh_held import held_refresh
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.seed_extraction import seed_extraction
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
@@ -170,10 +171,10 @@ class PlaneOdometry:
         estimate = partial(self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted())
         if self.config.odometry.deskew and time_spread(scan):
             dt, ocfg, pm = t - self.times[-1], self.config.odometry, self.config.planemap
-            refresh, previous = self._refresh_reference, len(self.last_planes)
             # a twist never outlives an unresolved epoch: until one is measured again, epochs are
             # extracted without it (still the prior and bridge; tried when that is suspect)
             unresolved = getattr(self.last_relative, "status", None) is Status.UNRESOLVED
+            refresh, previous = held_refresh(self, unresolved), len(self.last_planes)
             rates = self._rates if self._map is None else ()  # bridge_rate: pairwise only
             held = bridge_twist(self.twist, rates, k, ocfg) if unresolved else None
             twist = None if unresolved else self._rate.deskewing(self.twist)
