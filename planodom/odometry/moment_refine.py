@@ -35,7 +35,7 @@ from planodom.geometry import (
     Plane,
     invert_transform,
     orthonormalised,
-    rpy_from_rotation,
+    pose5_from_transform,
     se3_log,
 )
 from planodom.odometry.moment_solve import moment_solve
@@ -103,8 +103,8 @@ def mahalanobis2(T0: np.ndarray, T: np.ndarray, covariance: np.ndarray) -> float
     """The squared Mahalanobis distance of ``T`` (4, 4) from ``T0`` (4, 4) in (roll, pitch,
     yaw, x, y) of ``T_prev_curr``, the parameters of ``covariance`` (5, 5; rad^2, m^2); inf
     when it is singular."""
-    d_rpy = np.asarray(rpy_from_rotation(T[:3, :3])) - np.asarray(rpy_from_rotation(T0[:3, :3]))
-    d = np.concatenate([np.angle(np.exp(1j * d_rpy)), T[:2, 3] - T0[:2, 3]])
+    d = pose5_from_transform(T) - pose5_from_transform(T0)
+    d[:3] = np.angle(np.exp(1j * d[:3]))
     try:
         return float(d @ np.linalg.solve(covariance, d))
     except np.linalg.LinAlgError:
