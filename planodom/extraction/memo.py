@@ -26,7 +26,7 @@ import numpy as np
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-def _key_part(arg: object) -> tuple[bool, object]:
+def key_part(arg: object) -> tuple[bool, object]:
     """A weak reference for an array (identity: True), else the value (hashable scalars,
     None: False)."""
     if isinstance(arg, np.ndarray):
@@ -34,7 +34,7 @@ def _key_part(arg: object) -> tuple[bool, object]:
     return (False, arg)
 
 
-def _same_args(parts: list[tuple[bool, Any]], args: tuple[object, ...]) -> bool:
+def same_args(parts: list[tuple[bool, Any]], args: tuple[object, ...]) -> bool:
     """Whether ``args`` are the call the key ``parts`` were made of: the very same arrays
     (alive), and values of the same type and equal (an array never equals a value)."""
     if len(parts) != len(args):
@@ -57,10 +57,10 @@ def identity_memo(fn: F) -> F:
     @functools.wraps(fn)
     def wrapper(*args: object) -> Any:
         parts = last[0]
-        if parts is not None and _same_args(parts, args):
+        if parts is not None and same_args(parts, args):
             return last[1]
         result = fn(*args)
-        last[0], last[1] = [_key_part(a) for a in args], result
+        last[0], last[1] = [key_part(a) for a in args], result
         return result
 
     return wrapper  # type: ignore[return-value]

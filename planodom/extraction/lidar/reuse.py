@@ -25,15 +25,16 @@ the scan's arrays): it never keeps a scan alive, and another scan replaces it.
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch
 from planodom.extraction.lidar.agreement import PointNormals
+from planodom.extraction.memo import key_part, same_args
 from planodom.extraction.noise import member_tolerance
 
 #: The largest point motion between the two deskewings, as a share of the member tolerance.
@@ -69,7 +70,7 @@ class Segmentation:
 class _Entry:
     """The last segmentation and what it was made of (arrays by weak reference)."""
 
-    arrays: tuple[weakref.ref | None, ...]
+    arrays: list[tuple[bool, Any]]  # memo.key_part of the raw points, times and ring
     config: ExtractionConfig
     view: np.ndarray
     found: Segmentation
@@ -84,13 +85,6 @@ def _scan_arrays(epoch: Epoch, ring: np.ndarray | None) -> tuple[np.ndarray | No
     return (epoch.scan.points, epoch.scan.t, ring)
 
 
-def _same(entry: _Entry, arrays: tuple[np.ndarray | None, ...]) -> bool:
-    for ref, arr in zip(entry.arrays, arrays, strict=True):
-        if (ref is None) != (arr is None) or (ref is not None and ref() is not arr):
-            return False
-    return True
-
-
 def reused(
     epoch: Epoch, ring: np.ndarray | None, view: np.ndarray, config: ExtractionConfig
 ) -> Segmentation | None:
@@ -100,7 +94,7 @@ def reused(
     entry = _LAST[0]
     if config.segmentation_reuse == "off" or entry is None or epoch.scan.t is None:
         return None
-    if not _same(entry, _scan_arrays(epoch, ring)):
+    if not same_args(entry.arrays, _scan_arrays(epoch, ring)):
         return None
     if not np.array_equal(entry.view, view) or entry.config != config:
         return None
@@ -132,6 +126,6 @@ def remembered(
     twist = np.zeros(6) if epoch.twist is None else np.array(epoch.twist, dtype=np.float64)
     found = Segmentation(candidates, float(sigma), bool(ransac), twist)
     if config.segmentation_reuse != "off":
-        refs = tuple(None if a is None else weakref.ref(a) for a in _scan_arrays(epoch, ring))
-        _LAST[0] = _Entry(refs, config, np.array(view, dtype=np.float64), found)
+        parts = [key_part(a) for a in _scan_arrays(epoch, ring)]
+        _LAST[0] = _Entry(parts, config, np.array(view, dtype=np.float64), found)
     return found
