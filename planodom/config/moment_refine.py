@@ -6,6 +6,8 @@ A base of :class:`planodom.config.odometry.OdometryConfig`, in its own module as
 
 from __future__ import annotations
 
+from typing import Literal
+
 from planodom.config.association import Positive
 from planodom.config.motion_model import MotionModelConfig
 
@@ -22,3 +24,12 @@ class MomentRefineConfig(MotionModelConfig):
     consensus by 50 or more were worse against the truth on 12 of 17 (worlds 154 and 158),
     those below 15 better on most (docs/RESULTS.md MOMENTS2). Off: by its rule it did not
     become the default (worlds 160-198)."""
+
+    moment_translation: Literal["moments", "offsets"] = "moments"
+    """``refinement: moments``: where the refined step's translation comes from.
+    ``"moments"``: the moments' solve (rotation and translation together). ``"offsets"``:
+    the solve's rotation, then the translation refinement's fit of the plane offsets under
+    it (:func:`planodom.odometry.refine.plane_translation`, the default pipeline's): an
+    epoch's offset error then enters the steps into and out of it with opposite signs,
+    where the moments' centroid residuals weigh one epoch's normal error by the other
+    epoch's centroids (docs/RESULTS.md MOMENTS3). Off: see there."""

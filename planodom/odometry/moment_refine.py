@@ -22,6 +22,14 @@ the estimate by more than the association's inlier bounds (``rotation_inlier_deg
 ``translation_inlier_m``), or, with ``moment_gate_chi2``, farther than that squared
 Mahalanobis distance under the estimate's own covariance. The covariance stays the
 solver's.
+
+With ``moment_translation: offsets`` only the solve's rotation is taken, and the
+translation is fitted again under it to the associated planes' offsets
+(:func:`planodom.odometry.refine.plane_translation`, the translation refinement's fit):
+the moments' centroid residuals weigh one epoch's normal error by the other epoch's
+centroids (metres of lever arm), so an epoch's plane errors enter the steps into and out
+of it differently and do not cancel along the path; a plane's offset at its own epoch's
+origin enters both with opposite signs (docs/RESULTS.md MOMENTS3).
 """
 
 from __future__ import annotations
@@ -30,6 +38,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from planodom.angles import cos_of_degrees
 from planodom.config.odometry import OdometryConfig
 from planodom.geometry import (
     Plane,
@@ -39,8 +48,10 @@ from planodom.geometry import (
     se3_log,
 )
 from planodom.odometry.moment_solve import moment_solve
+from planodom.odometry.refine import plane_translation
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.oracle import SurfaceMoments
+from planodom.planes import PlaneSet
 
 #: Fewest associations refined (three planes of independent normals fix a pose).
 MIN_ASSOCIATIONS = 3
@@ -65,10 +76,12 @@ def moment_refined(
     prev_planes: Sequence[Plane],
     curr_planes: Sequence[Plane],
     config: OdometryConfig,
+    plane_sets: tuple[PlaneSet, PlaneSet] | None = None,
 ) -> RelativePose:
     """``result`` (from ``prev_planes`` to ``curr_planes``, its ``associations`` indexing
     them) with ``T_prev_curr`` refined over its associated planes' points (module
-    docstring); unchanged when not OK or not refinable. ``config``: its inlier bounds."""
+    docstring); unchanged when not OK or not refinable. ``config``: its inlier bounds.
+    ``plane_sets``: the same planes as plane sets, for ``moment_translation: offsets``."""
     ij = np.asarray(result.associations, dtype=np.int64).reshape(-1, 2)
     if result.status is not Status.OK or len(ij) < MIN_ASSOCIATIONS:
         return result
@@ -86,6 +99,8 @@ def moment_refined(
     if est.status != "ok" or not np.all(np.isfinite(T)):
         return result
     T = orthonormalised(T)
+    if config.moment_translation == "offsets" and plane_sets is not None:
+        T = offset_translated(T, T0, plane_sets, ij, config)
     change = se3_log(invert_transform(T0) @ T)
     max_rotation = np.radians(config.rotation_inlier_deg)
     if (
@@ -109,3 +124,27 @@ def mahalanobis2(T0: np.ndarray, T: np.ndarray, covariance: np.ndarray) -> float
         return float(d @ np.linalg.solve(covariance, d))
     except np.linalg.LinAlgError:
         return float("inf")
+
+
+def offset_translated(
+    T: np.ndarray,
+    T0: np.ndarray,
+    plane_sets: tuple[PlaneSet, PlaneSet],
+    ij: np.ndarray,
+    config: OdometryConfig,
+) -> np.ndarray:
+    """``T`` (4, 4) with its translation fitted again under its rotation to the offsets of
+    the associations ``ij`` (L, 2) of ``plane_sets`` (previous, current), from ``T0``'s
+    (the consensus's) translation, as the translation refinement fits it; ``T`` unchanged
+    when that fit does not measure the horizontal translation."""
+    level = cos_of_degrees(config.z_plane_max_tilt_deg)
+    fit = plane_translation(
+        *plane_sets, T[:3, :3], ij, T0[:3, 3], level if config.estimate_z else None,
+        config.refine_offset_floor_m, config.refine_max_sigma_m,
+        config.translation_inlier_m**2, True, config.refine_unmeasured, level,
+    )  # fmt: skip
+    if not fit.measured or not fit.n_planes or not np.all(np.isfinite(fit.t)):
+        return T
+    out = T.copy()
+    out[:3, 3] = fit.t
+    return out

@@ -298,7 +298,7 @@ class PlaneOdometry:
         result = estimate_relative_pose(*planes, config, prior, sigma, step=True)
         ocfg, k = self.config.odometry, epoch.index  # bridged by constant velocity (its trend)
         if ocfg.refinement == "moments":  # the oracle's solve over the associated planes' points
-            result = moment_refined(result, reference.planes, epoch.planes, ocfg)
+            result = moment_refined(result, reference.planes, epoch.planes, ocfg, planes)
         if result.status is Status.UNRESOLVED:
             bridged = bridge(prediction, T_ref_last, self.twist, dt, self._rates, k, ocfg)
             result = replaced(result, T_prev_curr=bridged)

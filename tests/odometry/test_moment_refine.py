@@ -4,8 +4,9 @@ import numpy as np
 
 from planodom.config import OdometryConfig
 from planodom.geometry import Plane, PlaneSupport, invert_transform, se3_exp, se3_log
-from planodom.odometry.moment_refine import mahalanobis2, moment_refined
+from planodom.odometry.moment_refine import mahalanobis2, moment_refined, offset_translated
 from planodom.odometry.relative import RelativePose, Status
+from planodom.planes import PlaneSet
 
 #: Surfaces in the previous frame: (unit normal, offset), n . p + d = 0, and two in-plane axes.
 SURFACES = [
@@ -112,3 +113,59 @@ def test_the_distance_is_in_the_covariances_parameters():
     cov = np.diag([1e-4, 1e-4, 1e-4, 1e-4, 1e-4])
     # (0.01^2 + 0.03^2 + 0.04^2) / 1e-4 = 1 + 9 + 16
     assert abs(mahalanobis2(T0, T, cov) - 26.0) < 1e-9
+
+
+def test_offsets_take_the_rotation_and_fit_the_translation_to_the_offsets():
+    truth = se3_exp(np.array([0.002, -0.001, 0.03, 0.8, 0.05, 0.01]))
+    prev, curr = _epochs(truth)
+    ij = np.array([[0, 0], [1, 1], [2, 2], [3, 3]])
+    cfg = OdometryConfig().model_copy(update={"moment_translation": "offsets"})
+    sets = (PlaneSet.from_planes(prev), PlaneSet.from_planes(curr))
+    # the consensus's rotation 0.3 deg off, its translation true: both to the truth
+    start = truth.copy()
+    start[:3, :3] = se3_exp(np.array([0.003, -0.002, 0.004, 0, 0, 0]))[:3, :3] @ truth[:3, :3]
+    out = moment_refined(RelativePose(start, None, Status.OK, ij), prev, curr, cfg, sets)
+    assert np.abs(se3_log(invert_transform(truth) @ out.T_prev_curr)).max() < 1e-8
+
+
+def _seen(k: int, T_world_k: np.ndarray, tilt: float, rng: np.random.Generator) -> list[Plane]:
+    """Epoch ``k``'s planes of :data:`SURFACES` (world frame) in its frame ``T_world_k``, each
+    from a stretch 3.6 m farther along the surface than epoch ``k - 1``'s, every plane
+    tilted about its centroid by ``tilt`` rad about a random axis (a deskewing error)."""
+    out = []
+    T_k_world = invert_transform(T_world_k)
+    for n, d in SURFACES:
+        u = np.cross(n, [0.3, 0.5, 0.8])
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        ab = rng.uniform(-1.5, 1.5, (300, 2)) + [3.0 * k, -2.0 * k]
+        q = (-d * n + ab[:, :1] * u + ab[:, 1:] * v) @ T_k_world[:3, :3].T + T_k_world[:3, 3]
+        c = q.mean(axis=0)
+        tilted = se3_exp(np.r_[tilt * rng.standard_normal(3), 0.0, 0.0, 0.0])[:3, :3]
+        out.append(_plane((q - c) @ tilted.T + c))
+    return out
+
+
+def test_offsets_cancel_an_epochs_plane_errors_between_its_two_steps():
+    # Epoch 1's planes tilted by ~3 mrad about their centroids, 5-10 m from its origin;
+    # each step's translation fitted under its true rotation from a 1 cm error. The steps
+    # into and out of epoch 1 then err by cm in x, y, with opposite signs: the two
+    # together are off by less than a twentieth of one (the telescoping the offsets keep).
+    rng = np.random.default_rng(5)
+    T_world = [np.eye(4), se3_exp(np.array([0, 0, 0.02, 1.0, 0, 0])),
+               se3_exp(np.array([0, 0, 0.04, 2.0, 0.05, 0]))]  # fmt: skip
+    epochs = [_seen(k, T, 0.003 if k == 1 else 0.0, rng) for k, T in enumerate(T_world)]
+    ij = np.array([[0, 0], [1, 1], [2, 2], [3, 3]])
+    cfg = OdometryConfig()
+    both, xy_step = np.eye(4), []
+    for k in (1, 2):
+        truth = invert_transform(T_world[k - 1]) @ T_world[k]
+        start = truth.copy()
+        start[:2, 3] += 0.01
+        sets = (PlaneSet.from_planes(epochs[k - 1]), PlaneSet.from_planes(epochs[k]))
+        T = offset_translated(truth, start, sets, ij, cfg)
+        assert np.array_equal(T[:3, :3], truth[:3, :3])
+        xy_step.append(np.linalg.norm(T[:2, 3] - truth[:2, 3]))
+        both = both @ T
+    assert min(xy_step) > 0.01
+    assert np.linalg.norm(both[:2, 3] - T_world[2][:2, 3]) < xy_step[0] / 20
