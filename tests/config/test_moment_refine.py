@@ -18,3 +18,13 @@ def test_a_bad_gate_names_file_and_field(tmp_path, value: str) -> None:
     with pytest.raises(ConfigError, match=r"c\.yaml: field 'odometry\.moment_gate_chi2'") as err:
         PlanodomConfig.from_yaml(tmp_path / "c.yaml")
     assert "\n" not in str(err.value)
+
+
+def test_the_translations_source_is_the_moments_by_default_and_read_from_a_file(tmp_path) -> None:
+    assert PlanodomConfig().odometry.moment_translation == "moments"
+    (tmp_path / "c.yaml").write_text("odometry: {moment_translation: offsets}\n")
+    assert PlanodomConfig.from_yaml(tmp_path / "c.yaml").odometry.moment_translation == "offsets"
+    (tmp_path / "c.yaml").write_text("odometry: {moment_translation: centroids}\n")
+    with pytest.raises(ConfigError, match=r"c\.yaml: field 'odometry\.moment_translation'") as err:
+        PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    assert "\n" not in str(err.value)

@@ -149,8 +149,9 @@ def _seen(k: int, T_world_k: np.ndarray, tilt: float, rng: np.random.Generator) 
 def test_offsets_cancel_an_epochs_plane_errors_between_its_two_steps():
     # Epoch 1's planes tilted by ~3 mrad about their centroids, 5-10 m from its origin;
     # each step's translation fitted under its true rotation from a 1 cm error. The steps
-    # into and out of epoch 1 then err by cm in x, y, with opposite signs: the two
-    # together are off by less than a twentieth of one (the telescoping the offsets keep).
+    # into and out of epoch 1 then err by 2 cm in x, y, with opposite signs: the two
+    # together are off by less than a quarter of one (what is left is second order: the
+    # tilt times the 1-2 m steps, where errors of one sign would add to 4 cm).
     rng = np.random.default_rng(5)
     T_world = [np.eye(4), se3_exp(np.array([0, 0, 0.02, 1.0, 0, 0])),
                se3_exp(np.array([0, 0, 0.04, 2.0, 0.05, 0]))]  # fmt: skip
@@ -168,4 +169,4 @@ def test_offsets_cancel_an_epochs_plane_errors_between_its_two_steps():
         xy_step.append(np.linalg.norm(T[:2, 3] - truth[:2, 3]))
         both = both @ T
     assert min(xy_step) > 0.01
-    assert np.linalg.norm(both[:2, 3] - T_world[2][:2, 3]) < xy_step[0] / 20
+    assert np.linalg.norm(both[:2, 3] - T_world[2][:2, 3]) < xy_step[0] / 4
