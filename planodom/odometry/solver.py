@@ -349,7 +349,7 @@ def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str
         R = lda.rotations[cons.best_index]
         i, j = lda.prev_pairs[cons.best_index], lda.curr_pairs[cons.best_index]
         cp, cc = prev.covariances[i], curr.covariances[j]
-        if np.all(np.isfinite(cp)) and np.all(np.isfinite(cc)):
+        if np.isfinite(cp).all() and np.isfinite(cc).all():
             return R, rotation_covariance(prev.normals[i], curr.normals[j], cp, cc), cons
     close = rotation_angles_to(lda.rotations, R) <= inlier_angle
     d = rpy_from_rotation(lda.rotations[close]) - rpy_from_rotation(R[None])
