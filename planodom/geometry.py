@@ -346,8 +346,8 @@ def dihedral_angles(normals: np.ndarray) -> np.ndarray:
     invariant under rigid motion of the sensor, which is what the relative constraints
     of data association compare.
     """
-    c = np.clip(normals @ normals.T, -1.0, 1.0)
-    return np.arccos(c)
+    # np.clip's arithmetic (NaN kept) without its dispatch through two Python wrappers
+    return np.arccos(np.minimum(np.maximum(normals @ normals.T, -1.0), 1.0))
 
 
 def rotation_frames(n1: np.ndarray, n2: np.ndarray) -> np.ndarray:

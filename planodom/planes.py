@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from planodom.errors import GeometryError
@@ -84,10 +85,9 @@ class PlaneSet:
         owners = [i for i, q in enumerate(supports) if q is not None and len(q.polygon)]
         polygons = [supports[i].polygon for i in owners]  # type: ignore[union-attr]
         if polygons:  # the farthest vertex, all planes at once (np.linalg.norm's arithmetic)
-            sizes = [len(q) for q in polygons]
-            q = np.concatenate(polygons) - np.repeat(centroids[owners], sizes, axis=0)
-            starts = np.cumsum([0] + sizes[:-1])
-            radii[owners] = np.sqrt(np.maximum.reduceat((q * q).sum(axis=1), starts))
+            sizes = np.array([len(q) for q in polygons], dtype=np.int64)
+            verts = np.concatenate(polygons).astype(np.float64, copy=False)
+            radii[owners] = _radii_kernel(verts, centroids[owners], sizes)
         return cls(normals, offsets, weights, centroids, radii, covariances)
 
     def __len__(self) -> int:
@@ -121,3 +121,26 @@ class PlaneSet:
 def as_plane_set(planes: Sequence[Plane] | PlaneSet) -> PlaneSet:
     """A list of :class:`Plane` as a :class:`PlaneSet`; a ready set unchanged."""
     return planes if isinstance(planes, PlaneSet) else PlaneSet.from_planes(planes)
+
+
+@numba.njit(cache=True)
+def _radii_kernel(verts, centroids, sizes):  # pragma: no cover - compiled
+    """(G,) the largest distance, m, from each centroid (G, 3) to its polygon's vertices:
+    ``verts`` (M, 3), the polygons one after another, ``sizes`` (G,) int64 their vertex
+    counts (each at least 1). The arithmetic of ``np.sqrt(np.max(((v - c) ** 2).sum(axis=1)))``
+    (a row's squares summed left to right, as numpy's reduction over three elements: the
+    same bits), one compiled call instead of six numpy calls a plane set."""
+    out = np.empty(sizes.shape[0])
+    k = 0
+    for g in range(sizes.shape[0]):
+        best = -np.inf
+        for _ in range(sizes[g]):
+            a = verts[k, 0] - centroids[g, 0]
+            b = verts[k, 1] - centroids[g, 1]
+            c = verts[k, 2] - centroids[g, 2]
+            s = a * a + b * b + c * c
+            if s > best or s != s:  # NaN propagates as np.maximum does
+                best = s
+            k += 1
+        out[g] = np.sqrt(best)
+    return out

@@ -30,7 +30,7 @@ def check_twist(twist: np.ndarray | None) -> np.ndarray | None:
         xi = np.asarray(twist, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise GeometryError(f"twist must be 6 finite numbers, got {twist!r}") from exc
-    if xi.shape != (6,) or not np.all(np.isfinite(xi)):
+    if xi.shape != (6,) or not np.isfinite(xi).all():
         raise GeometryError(
             f"twist must be 6 finite numbers (wx, wy, wz, vx, vy, vz), got {twist!r}"
         )

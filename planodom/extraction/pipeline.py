@@ -136,7 +136,8 @@ def refit(
 
 def _result(found: PathResult, mode: str, points: np.ndarray) -> ExtractionResult:
     """The path's planes, largest support first (stable)."""
-    order = np.argsort([-len(i) for i in found.inliers], kind="stable")
+    # largest first, ties in path order: Python's sort is stable, as argsort(kind="stable")
+    order = sorted(range(len(found.inliers)), key=lambda k: -len(found.inliers[k]))
     return ExtractionResult(
         planes=[found.planes[i] for i in order],
         inliers=[found.inliers[i] for i in order],

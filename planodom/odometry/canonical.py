@@ -29,7 +29,8 @@ def canonical(planes: PlaneSet) -> tuple[np.ndarray, PlaneSet]:
 
 def canonical_order(planes: PlaneSet) -> np.ndarray:
     """A permutation sorting planes by their values, so the input order cannot matter."""
-    keys = np.column_stack(
-        [planes.normals, planes.offsets, planes.weights, planes.centroids, planes.radii]
-    )
-    return np.lexsort(keys.T[::-1])
+    n, c = planes.normals, planes.centroids
+    # the columns (n, d, weight, centroid, radius), the first the primary key (lexsort's
+    # last), given as columns: no stacked copy of them
+    keys = (planes.radii, c[:, 2], c[:, 1], c[:, 0], planes.weights, planes.offsets)
+    return np.lexsort(keys + (n[:, 2], n[:, 1], n[:, 0]))

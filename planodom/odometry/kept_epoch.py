@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,6 +25,11 @@ class KeptEpoch:
     scan: Scan | None = None
     twist: np.ndarray | None = None
     kept: bool = False  # its planes were brought back after extracting it again made it worse
+    # (plane set, plane count, parallel angle, answer) of the last has_pair: the odometry
+    # asks it of its reference with every extraction of the next epoch
+    _paired: tuple[PlaneSet, int, float, bool] | None = field(
+        default=None, init=False, repr=False, compare=False
+    )
 
     def has_pair(self, association: AssociationConfig) -> bool:
         """Whether its planes hold a non-parallel pair (normals more than
@@ -32,7 +37,15 @@ class KeptEpoch:
         association needs of a reference epoch. Two planes of one surface (a ground
         split in two groups) are two planes but no pair: against them every epoch is
         unresolved."""
-        if len(self.planes) < 2:
-            return False
-        normals = self.plane_set.normals
-        return bool(nonparallel_pairs(normals, radians(association.parallel_angle_deg))[1].any())
+        known, angle = self._paired, association.parallel_angle_deg
+        if (
+            known is not None
+            and known[0] is self.plane_set
+            and known[1:3] == (len(self.planes), angle)
+        ):
+            return known[3]
+        paired = len(self.planes) >= 2 and bool(
+            nonparallel_pairs(self.plane_set.normals, radians(angle))[1].any()
+        )
+        self._paired = (self.plane_set, len(self.planes), angle, paired)
+        return paired

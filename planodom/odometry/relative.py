@@ -77,11 +77,13 @@ class SolverDiagnostics:
             pairs.append(self.translation_pair)
         if any(p is None for p in pairs):
             return None
-        rows = np.concatenate([np.asarray(p, dtype=int).reshape(2, 2).T for p in pairs])
-        # np.unique(rows, axis=0) (sorted distinct rows), without its per-call overhead
-        rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]
-        distinct = np.concatenate(([True], np.any(rows[1:] != rows[:-1], axis=1)))
-        return rows[distinct]
+        # np.unique(rows, axis=0) of the (prev, curr) rows (sorted distinct), over the
+        # two to four rows as Python integers: numpy's per-call overhead was the cost
+        rows: set[tuple[int, int]] = set()
+        for p in pairs:
+            i1, i2, j1, j2 = np.asarray(p, dtype=int).reshape(4).tolist()
+            rows.update(((i1, j1), (i2, j2)))
+        return np.array(sorted(rows), dtype=int)
 
 
 @dataclass(frozen=True, eq=False)

@@ -29,7 +29,7 @@ from planodom.angles import cos_of_degrees, pose_floor, radians
 from planodom.association import PairAssociations, lenient_association, strict_association
 from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
-from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
+from planodom.geometry import Plane, make_transform, row_norms, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
 from planodom.odometry.nonholonomic import lateral_sigma
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
@@ -258,8 +258,8 @@ def _translation_pairs(
         return ij, pp, cp
     c = chord(radians(cfg.odometry.rotation_inlier_deg))
     pp, cp = lda.prev_pairs, lda.curr_pairs
-    e1 = np.linalg.norm(prev.normals[pp[:, 0]] - curr.normals[cp[:, 0]] @ R.T, axis=1)
-    e2 = np.linalg.norm(prev.normals[pp[:, 1]] - curr.normals[cp[:, 1]] @ R.T, axis=1)
+    e1 = row_norms(prev.normals[pp[:, 0]] - curr.normals[cp[:, 0]] @ R.T)
+    e2 = row_norms(prev.normals[pp[:, 1]] - curr.normals[cp[:, 1]] @ R.T)
     agree = (e1 <= c) & (e2 <= c)
     return lda.plane_associations(agree), pp[agree], cp[agree]
 
@@ -349,7 +349,7 @@ def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str
         R = lda.rotations[cons.best_index]
         i, j = lda.prev_pairs[cons.best_index], lda.curr_pairs[cons.best_index]
         cp, cc = prev.covariances[i], curr.covariances[j]
-        if np.all(np.isfinite(cp)) and np.all(np.isfinite(cc)):
+        if np.isfinite(cp).all() and np.isfinite(cc).all():
             return R, rotation_covariance(prev.normals[i], curr.normals[j], cp, cc), cons
     close = rotation_angles_to(lda.rotations, R) <= inlier_angle
     d = rpy_from_rotation(lda.rotations[close]) - rpy_from_rotation(R[None])

@@ -33,3 +33,24 @@ def test_canonical_sorts_by_values_whatever_the_input_order_and_remembers_the_se
     again = canonical(planes)
     assert again[1] is ordered and again[0] is order
     np.testing.assert_array_equal(canonical_order(planes), order)
+
+
+def test_canonical_order_is_the_lexsort_of_the_stacked_values_ties_included():
+    """Against the values stacked into one (K, 9) table and sorted row by row (column 0
+    first): ties in the normals (a plane repeated, one with a NaN radius) are broken by
+    the later columns in the same way."""
+    rng = np.random.default_rng(8)
+    for _ in range(50):
+        planes = _set(rng, 6)
+        rep = planes.take(np.array([0, 1, 2, 0, 4, 0]))
+        radii = rep.radii.copy()
+        radii[3] = np.nan
+        rep = PlaneSet(rep.normals, rep.offsets, rep.weights, rep.centroids, radii,
+                       rep.covariances)  # fmt: skip
+        for s in (planes, rep):
+            table = np.column_stack([s.normals, s.offsets, s.weights, s.centroids, s.radii])
+            rows = [tuple(r) for r in table.tolist()]
+            # Python's sort of the rows (NaN last, as numpy sorts it): an independent order
+            key = [tuple((np.isnan(v), 0.0 if np.isnan(v) else v) for v in r) for r in rows]
+            expected = sorted(range(len(rows)), key=lambda i: key[i])
+            np.testing.assert_array_equal(canonical_order(s), expected)

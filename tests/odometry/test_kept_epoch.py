@@ -69,3 +69,22 @@ def test_an_epoch_of_parallel_planes_is_not_the_next_epochs_reference():
     assert odo.results[4].status is Status.OK
     truth = invert_transform(poses[0]) @ poses[4]
     np.testing.assert_allclose(odo.poses[4], truth, atol=1e-6)
+
+
+def test_has_pair_follows_the_planes_and_the_angle_it_is_asked_with():
+    """The answer is remembered per plane set: new planes (a refresh) and another
+    ``parallel_angle_deg`` are judged again, against the closed form (a pair is two normals
+    more than the angle apart); the planes brought back judge as before."""
+    association = PlanodomConfig().association
+    epoch = kept([plane(tilted(0.0), [0, 0, -1]), plane(tilted(20.0), [0, 0, -1])])
+    assert epoch.has_pair(association)  # 20 deg apart, the default angle 15
+    wide = association.model_copy(update={"parallel_angle_deg": 25.0})
+    assert not epoch.has_pair(wide) and epoch.has_pair(association)
+    old = (epoch.planes, epoch.plane_set)
+    flat = [plane(tilted(0.0), [0, 0, -1]), plane(tilted(3.0), [2, 0, -1])]
+    epoch.planes, epoch.plane_set = flat, PlaneSet.from_planes(flat)
+    assert not epoch.has_pair(association)
+    epoch.planes, epoch.plane_set = old
+    assert epoch.has_pair(association)
+    epoch.planes = epoch.planes[:1]  # one plane left in the list: no pair
+    assert not epoch.has_pair(association)

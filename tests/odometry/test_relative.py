@@ -35,3 +35,21 @@ def test_replaced_refuses_a_name_that_is_no_field():
     rel = RelativePose(np.eye(4), None)
     with pytest.raises(TypeError, match="no field"):
         replaced(rel, previous=1)
+
+
+def test_sources_are_the_sorted_distinct_rows_of_the_winning_pairs():
+    """Against numpy's own ``np.unique(rows, axis=0)`` of the (prev, curr) rows, on pairs
+    with shared planes (repeated rows), any order of indices, and the degenerate case
+    (the rotation pair only)."""
+    rng = np.random.default_rng(11)
+    info0 = SolverDiagnostics("wocsc", PairAssociations.empty())
+    for _ in range(200):
+        rot, trans = rng.integers(0, 4, 4), rng.integers(0, 4, 4)
+        info = replaced(info0, rotation_pair=rot, translation_pair=trans)
+        for status, pairs in ((Status.OK, (rot, trans)), (Status.DEGENERATE, (rot,))):
+            rows = np.concatenate([p.reshape(2, 2).T for p in pairs])
+            got = info.sources(status)
+            assert got is not None
+            np.testing.assert_array_equal(got, np.unique(rows, axis=0))
+            assert got.dtype == np.unique(rows, axis=0).dtype
+    assert info0.sources(Status.OK) is None

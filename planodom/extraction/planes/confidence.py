@@ -95,4 +95,5 @@ def cpef(
     w_res = np.exp(-((np.asarray(rms_m) / (2.0 * max(sigma_m, 1e-12))) ** 2))
     w_cnt = 1.0 - np.exp(-np.asarray(n_points, dtype=np.float64) / points_ref)
     w_ext = 1.0 - np.exp(-np.asarray(width_m) / width_ref_m)
-    return np.clip(w_res * w_cnt * w_ext * np.asarray(incidence), 1e-6, 1.0)
+    # np.clip's arithmetic (NaN kept) without its dispatch through two Python wrappers
+    return np.minimum(np.maximum(w_res * w_cnt * w_ext * np.asarray(incidence), 1e-6), 1.0)
