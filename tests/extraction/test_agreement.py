@@ -7,7 +7,12 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction import extract
-from planodom.extraction.lidar.agreement import MIN_JUDGED, PointNormals, cutting_planes
+from planodom.extraction.lidar.agreement import (
+    MIN_JUDGED,
+    PointNormals,
+    _verdicts,
+    cutting_planes,
+)
 
 from .synth_scans import planes_in_base, rect, scan_lidar
 
@@ -174,3 +179,53 @@ def test_judged_normals_are_the_all_points_lookup_restricted_to_the_inliers():
     got = cutting_planes(normals, members, found, cfg)
     assert got.tolist() == cutting_planes(normals, members, old, cfg).tolist()
     assert 0 < got.sum() < len(got)
+
+
+def _per_plane(normals, members, found, config):
+    """The verdicts by one numpy gather and product per plane (the rule as written)."""
+    limit = np.cos(np.radians(config.ransac_normal_agreement_deg))
+    out = np.zeros(len(members), dtype=bool)
+    for g, idx in enumerate(members):
+        own = found.judged(idx)
+        if len(own) < MIN_JUDGED:
+            out[g] = config.ransac_unjudged == "refused"
+            continue
+        out[g] = np.count_nonzero(np.abs(own @ normals[g]) >= limit) * 2 < len(own)
+    return out
+
+
+def test_compiled_verdicts_equal_the_per_plane_numpy_products():
+    """Random pixel normals around each plane's, some at the limit angle to it (45 deg,
+    products within rounding of cos 45: decided by numpy's product), unjudged planes,
+    NaN normals: the same verdicts as the per-plane numpy rule, for both unjudged rules."""
+    rng = np.random.default_rng(41)
+    seen_unsure = False
+    for trial in range(40):
+        G, M = int(rng.integers(1, 30)), 3000
+        normals = rng.normal(size=(G, 3))
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        pix = rng.normal(size=(M, 3))
+        pix /= np.linalg.norm(pix, axis=1, keepdims=True)
+        members = [
+            np.sort(rng.choice(M, int(rng.integers(0, 60)), replace=False)) for _ in range(G)
+        ]
+        for g, idx in enumerate(members[: G // 2]):  # at the limit: rotate n by 45 deg
+            axis = np.cross(normals[g], rng.normal(size=3))
+            axis /= np.linalg.norm(axis)
+            c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
+            at = c * normals[g] + s * np.cross(axis, normals[g])
+            pix[idx[: len(idx) // 2]] = at * rng.choice([-1.0, 1.0])
+        if trial % 5 == 0:
+            pix[rng.integers(0, M, 20)] = np.nan
+        has = rng.random(M) < 0.8
+        found = PointNormals(pix, has, rng.permutation(M))
+        for rule in ("kept", "refused"):
+            cfg = ExtractionConfig(ransac_normal_agreement_deg=45.0, ransac_unjudged=rule)
+            got = cutting_planes(normals, members, found, cfg)
+            np.testing.assert_array_equal(got, _per_plane(normals, members, found, cfg))
+        bounds = np.concatenate([[0], np.cumsum([len(m) for m in members])]).astype(np.int64)
+        flat = np.concatenate(members).astype(np.int64)
+        limit = float(np.cos(np.radians(45.0)))
+        _, unsure = _verdicts(pix, has, found.pixel, flat, bounds, normals, limit, False)
+        seen_unsure |= bool(unsure.any())
+    assert seen_unsure  # the numpy product decided some planes

@@ -8,13 +8,13 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from planodom.extraction.lidar.candidates import _tls_normal, _within
+from planodom.extraction.lidar.cells import cell_members
 from planodom.extraction.lidar.clusters import (
     buckets,
+    cell_buckets,
     clusters,
-    column_buckets,
     region_buckets,
 )
-from planodom.extraction.lidar.grid import plane_members
 from planodom.extraction.lidar.ransac import distinct_triples
 from planodom.extraction.planes.fit import tls_fit
 
@@ -99,23 +99,26 @@ def test_region_buckets_equal_the_numpy_gather_and_buckets():
         np.testing.assert_array_equal(got[1], expected[1])
 
 
-def test_column_buckets_equal_the_numpy_gather_and_buckets():
-    """Visiting only the azimuth cells with a cluster gives the same (members, bounds) as
-    the numpy gather over every point, with the lookup grid's rows from ``lo`` on."""
+def test_cell_buckets_equal_the_numpy_gather_and_buckets():
+    """Visiting only the angular cells with a cluster gives the same (members, bounds) as
+    the numpy gather over every point, with the lookup grid's rows from ``lo`` on and the
+    points above its top row in that row's cells; windows reaching above the points'
+    elevations too."""
     rng = np.random.default_rng(9)
-    for _ in range(30):
-        n_az, n_el, n, lo = 40, int(rng.integers(3, 9)), 2000, int(rng.integers(0, 5))
-        window = rng.integers(-1, 5, (n_az, n_el))
+    for _ in range(60):
+        n_az, n_win, n, lo = 40, int(rng.integers(1, 9)), 2000, int(rng.integers(0, 5))
+        window = rng.integers(-1, 5, (n_az, n_win))
         window[rng.random(n_az) < 0.6] = -1  # most azimuth cells without a cluster
-        az, el = rng.integers(0, n_az, n), rng.integers(0, lo + n_el + 4, n)
+        n_el = int(rng.integers(1, lo + n_win + 5))  # the points' elevations: [0, n_el)
+        az, el = rng.integers(0, n_az, n), rng.integers(0, n_el, n)
         taken = rng.random(n) < 0.3
         n_lab = int(window.max()) + 1
         lookup = np.hstack([np.full((n_az, lo), -1), window])  # rows below lo free
         free = np.flatnonzero(~taken)
-        top = lo + n_el - 1
+        top = lo + n_win - 1
         expected = buckets(free, lookup[az[free], np.minimum(el[free], top)], n_lab)
-        col_idx, col_b = plane_members(az, n_az)
-        got = column_buckets(col_idx, col_b, el, taken, window, lo, n_lab)
+        cell_idx, cell_b = cell_members(az, el, n_az, n_el)
+        got = cell_buckets(cell_idx, cell_b, n_el, taken, window, lo, n_lab)
         np.testing.assert_array_equal(got[0], expected[0])
         np.testing.assert_array_equal(got[1], expected[1])
 

@@ -9,7 +9,7 @@ import pytest
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.lidar import candidates as cmod
-from planodom.extraction.lidar.grid import plane_members
+from planodom.extraction.lidar.cells import angular_cells, cell_members
 from planodom.extraction.lidar.ransac import draw_samples, draw_stream, log_fail, seed_stream
 
 from .synth_scans import default_scene, scan_lidar
@@ -54,14 +54,15 @@ def _python_loop(points, config, view, tol):
         .voxel_down_sample(config.voxel_size_m)
         .points
     )
-    vc = cmod.angular_cells(vox, view, config.cluster_gap_deg)
-    pc = cmod.angular_cells(points, view, config.cluster_gap_deg)
+    vc = angular_cells(vox, view, config.cluster_gap_deg)
+    pc = angular_cells(points, view, config.cluster_gap_deg)
     vox_az, pt_az = vc[:, 0] % n_az, pc[:, 0] % n_az
     pt_el, vox_el = np.ascontiguousarray(pc[:, 1]), np.ascontiguousarray(vc[:, 1])
+    n_el = 1 + max(int(pt_el.max()), int(vox_el.max()))
     remaining = np.ones(len(vox), dtype=bool)
     taken = np.zeros(len(points), dtype=bool)
     min_vox = max(3, config.min_plane_points // 4)
-    cols = (*plane_members(vox_az, n_az), *plane_members(pt_az, n_az))
+    cols = (*cell_members(vox_az, vox_el, n_az, n_el), *cell_members(pt_az, pt_el, n_az, n_el))
     rng = np.random.default_rng(config.seed)
     out, n_rem = [], len(vox)
     for _ in range(config.max_planes):
@@ -70,7 +71,7 @@ def _python_loop(points, config, view, tol):
         samples = draw_samples(rng, n_rem, config.ransac_iterations)
         n_rem, cand, bounds = cmod._ransac_plane(
             points, vox, tol, log_fail(config.ransac_probability), min_vox,
-            config.min_plane_points, n_az, samples, vox_az, vox_el, pt_az, pt_el,
+            config.min_plane_points, n_az, samples, vox_az, vox_el, n_el,
             remaining, taken, *cols,
         )  # fmt: skip
         if n_rem < 0:

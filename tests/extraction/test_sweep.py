@@ -13,6 +13,7 @@ from planodom.config.extraction import SweepConfig
 from planodom.errors import ConfigError
 from planodom.extraction import extract
 from planodom.extraction.lidar.sweep import (
+    SEAM_TOLERANCE,
     AzimuthTimedScan,
     rig_lidar_pose,
     sweep_timed,
@@ -74,6 +75,40 @@ def test_seam_round_off_is_not_a_whole_period_late():
     t = sweep_times(p, sweep)
     assert t[0] == 0.0
     assert t[1] == pytest.approx(0.1 * (1 - np.arctan2(5e-3, 5.0) / (2 * np.pi)), abs=1e-12)
+
+
+def _numpy_times(points, sweep):
+    """The times written with numpy's floor modulo, as sweep_times computed them before
+    its compiled pass (points in the sensor frame)."""
+    azimuth = np.arctan2(points[:, 1], points[:, 0])
+    sense = 1.0 if sweep.rotation == "ccw" else -1.0
+    turn = sense * (azimuth - np.radians(sweep.start_azimuth_deg)) / (2.0 * np.pi)
+    frac = np.mod(turn, 1.0)
+    frac[frac > 1.0 - SEAM_TOLERANCE] = 0.0
+    return sweep.start_time_s + sweep.period_s * frac
+
+
+@pytest.mark.parametrize(
+    ("rotation", "start_deg", "period", "t0"),
+    [("ccw", -180.0, 0.05, 0.0), ("cw", 180.0, 0.1, -0.05), ("ccw", 0.0, 0.1, 0.0),
+     ("cw", 37.5, 0.1, 0.01)],
+)  # fmt: skip
+def test_times_equal_numpys_floor_modulo_bit_for_bit(rotation, start_deg, period, t0):
+    """Random azimuths, azimuths on the start and one ulp around it, the seam (signed
+    zeros, -pi and pi), the origin and a NaN: the same float64 as numpy's expression."""
+    sweep = SweepConfig(
+        rotation=rotation, start_azimuth_deg=start_deg, period_s=period, start_time_s=t0
+    )
+    rng = np.random.default_rng(21)
+    a0 = np.radians(start_deg)
+    ang = np.concatenate([rng.uniform(-np.pi, np.pi, 4000), [a0, np.nextafter(a0, 9.0),
+                          np.nextafter(a0, -9.0), np.pi, -np.pi]])  # fmt: skip
+    p = np.column_stack([np.cos(ang), np.sin(ang), rng.normal(size=len(ang))])
+    seam = [[-1.0, 0.0, 0], [-1.0, -0.0, 0], [-1.0, -1e-300, 0], [0.0, 0.0, 0], [0.0, -0.0, 0]]
+    p = np.vstack([p * rng.uniform(0.5, 80.0, (len(p), 1)), seam, [[np.nan, 1.0, 0.0]]])
+    got, want = sweep_times(p, sweep), _numpy_times(p, sweep)
+    assert np.array_equal(got, want, equal_nan=True)
+    assert np.array_equal(np.signbit(got), np.signbit(want))
 
 
 def test_no_convention_declared_keeps_scans_as_they_are():

@@ -41,7 +41,8 @@ import numpy as np
 from planodom._open3d import o3d
 from planodom.config import ExtractionConfig
 from planodom.extraction.kernels import add_outer
-from planodom.extraction.lidar.clusters import cluster_cells, column_buckets
+from planodom.extraction.lidar.cells import cell_index, cell_members
+from planodom.extraction.lidar.clusters import cell_buckets, cluster_cells
 from planodom.extraction.lidar.grid import plane_members, ring_layout
 from planodom.extraction.lidar.rangeimage import range_image_candidates
 from planodom.extraction.lidar.ransac import draw_stream, log_fail, seed_stream, segment_drawn
@@ -132,18 +133,6 @@ def _ring_noise_terms(points, order, row, min_gap, gap_ratio):  # pragma: no cov
         out[k] = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / norm
         k += 1
     return out[:k]
-
-
-def angular_cells(points: np.ndarray, viewpoint: np.ndarray, cell_deg: float) -> np.ndarray:
-    """(N, 2) int64 (azimuth, elevation) cells of ``cell_deg`` of the points seen from
-    ``viewpoint`` (3,)."""
-    rel = points - viewpoint
-    az = np.arctan2(rel[:, 1], rel[:, 0])
-    el = np.arctan2(rel[:, 2], np.hypot(rel[:, 0], rel[:, 1]))
-    cell = np.radians(cell_deg)
-    return np.floor(np.column_stack([(az + np.pi) / cell, (el + np.pi / 2) / cell])).astype(
-        np.int64
-    )
 
 
 @numba.njit(cache=True)
@@ -278,17 +267,17 @@ def ransac_candidates(
     # chance recurred over several epochs (paper loop, lidar32, sigma = 0: 5 of 40).
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     vox = np.asarray(pcd.voxel_down_sample(config.voxel_size_m).points)
-    vox_cells = angular_cells(vox, view, config.cluster_gap_deg)
-    cells = angular_cells(points, view, config.cluster_gap_deg)
-    vox_az, pt_az = vox_cells[:, 0] % n_az, cells[:, 0] % n_az
-    pt_el, vox_el = np.ascontiguousarray(cells[:, 1]), np.ascontiguousarray(vox_cells[:, 1])
+    vox_az, vox_el = cell_index(vox, view, config.cluster_gap_deg, n_az)
+    pt_az, pt_el = cell_index(points, view, config.cluster_gap_deg, n_az)
     min_vox = max(3, config.min_plane_points // 4)
     # Our own RANSAC (.ransac), not open3d's segment_plane: that one gives different
     # planes in two processes despite o3d.utility.random.seed and one thread
     # (isl-org/Open3D#7270). One generator per scan: the same scan and seed give the same
     # planes.
-    # the points and voxels of each azimuth cell (ascending)
-    vox_col, pt_col = plane_members(vox_az, n_az), plane_members(pt_az, n_az)
+    # the points and voxels of each angular cell (ascending)
+    n_el = 1 + max(int(pt_el.max(initial=0)), int(vox_el.max(initial=0)))
+    vox_cell = cell_members(vox_az, vox_el, n_az, n_el)
+    pt_cell = cell_members(pt_az, pt_el, n_az, n_el)
     fail = log_fail(config.ransac_probability)
     # The draws of one np.random.default_rng(config.seed) per scan, made in the compiled
     # loop from that generator's outputs (bit for bit Generator.integers' draws,
@@ -300,7 +289,7 @@ def ransac_candidates(
         cand, bounds, done = _ransac_loop(
             points, vox, float(tol), fail, min_vox, int(config.min_plane_points), n_az,
             int(config.max_planes), int(config.ransac_iterations),
-            seed_stream(config.seed, n_words), vox_az, vox_el, pt_az, pt_el, *vox_col, *pt_col,
+            seed_stream(config.seed, n_words), vox_az, vox_el, n_el, *vox_cell, *pt_cell,
         )  # fmt: skip
         if done:
             return [cand[bounds[k] : bounds[k + 1]] for k in range(len(bounds) - 1)]
@@ -321,12 +310,11 @@ def _ransac_loop(  # noqa: PLR0913 - the scan's arrays, flat for numba
     words,
     vox_az,
     vox_el,
-    pt_az,
-    pt_el,
-    vox_col,
-    vox_col_b,
-    pt_col,
-    pt_col_b,
+    n_el,
+    vox_cell,
+    vox_cell_b,
+    pt_cell,
+    pt_cell_b,
 ):  # pragma: no cover - compiled
     """Steps 2 to 4 of the module docstring: up to ``max_planes`` calls of
     :func:`_ransac_plane`, each with ``iterations`` draws from the generator whose outputs
@@ -348,7 +336,7 @@ def _ransac_loop(  # noqa: PLR0913 - the scan's arrays, flat for numba
             return out[:0], np.zeros(1, dtype=np.int64), False
         n_rem, cand, cb = _ransac_plane(
             points, vox, tol, fail, min_vox, min_points, n_az, samples, vox_az, vox_el,
-            pt_az, pt_el, remaining, taken, vox_col, vox_col_b, pt_col, pt_col_b,
+            n_el, remaining, taken, vox_cell, vox_cell_b, pt_cell, pt_cell_b,
         )  # fmt: skip
         if n_rem < 0:
             break
@@ -375,14 +363,13 @@ def _ransac_plane(  # noqa: PLR0913 - one RANSAC plane's step, flat for numba
     samples,
     vox_az,
     vox_el,
-    pt_az,
-    pt_el,
+    n_el,
     remaining,
     taken,
-    vox_col,
-    vox_col_b,
-    pt_col,
-    pt_col_b,
+    vox_cell,
+    vox_cell_b,
+    pt_cell,
+    pt_cell_b,
 ):  # pragma: no cover - compiled
     """Steps 2 to 4 of the module docstring for one RANSAC plane of the voxels
     ``vox`` (V, 3) still ``remaining`` (V,), with the raw draws ``samples`` (T, 3) of
@@ -419,9 +406,9 @@ def _ransac_plane(  # noqa: PLR0913 - one RANSAC plane's step, flat for numba
     # clusters are disjoint (one label per cell), so that `taken`, updated cluster by
     # cluster in _refit_clusters, never changes another cluster's region: they are
     # grouped once, over the points not yet taken (each group ascending).
-    pt_idx, pt_b = column_buckets(pt_col, pt_col_b, pt_el, taken, window, lo, n_lab)
+    pt_idx, pt_b = cell_buckets(pt_cell, pt_cell_b, n_el, taken, window, lo, n_lab)
     # only the voxels still remaining: the others have nothing left to clear
-    vx_idx, vx_b = column_buckets(vox_col, vox_col_b, vox_el, ~remaining, window, lo, n_lab)
+    vx_idx, vx_b = cell_buckets(vox_cell, vox_cell_b, n_el, ~remaining, window, lo, n_lab)
     pos, mem_b = plane_members(labels, n_lab)  # labels in [1, n_lab): all kept
     mem_idx = inl[pos]
     cand, bounds = _refit_clusters(

@@ -129,31 +129,33 @@ def window_buckets(az, el, taken, window, lo, n_lab):  # pragma: no cover - comp
 
 
 @numba.njit(cache=True)
-def column_buckets(col_idx, col_b, el, taken, window, lo, n_lab):  # pragma: no cover
-    """:func:`window_buckets` of the points grouped by azimuth cell (``col_idx``,
-    ``col_b``: :func:`.grid.plane_members` of their azimuth cells): only the azimuth
+def cell_buckets(cell_idx, cell_b, n_el, taken, window, lo, n_lab):  # pragma: no cover
+    """:func:`window_buckets` of the points grouped by angular cell (``cell_idx``,
+    ``cell_b``: :func:`.cells.cell_members`, elevations in ``[0, n_el)``): only the
     cells in which ``window`` has a cluster are visited (a wall's clusters cover a few of
-    them), then each bucket is sorted (ascending, as there)."""
-    n_az = window.shape[0]
-    top = lo + window.shape[1] - 1
-    used = np.zeros(n_az, dtype=np.bool_)
+    them), a point of elevation ``el >= top`` in the top row's cell of its azimuth as
+    there (``min(el, top)``), then each bucket is sorted (ascending, as there)."""
+    n_az, n_win = window.shape
+    top = lo + n_win - 1
+    n_hit = 0
     for a in range(n_az):
-        for e in range(window.shape[1]):
+        for e in range(n_win):
             g = window[a, e]
-            if 0 <= g < n_lab:
-                used[a] = True
-                break
-    hit = np.empty(col_idx.shape[0], dtype=np.int64)
-    lab = np.empty(col_idx.shape[0], dtype=np.int64)
+            if 0 <= g < n_lab and lo + e < n_el:
+                hi = n_el if e == n_win - 1 else lo + e + 1
+                n_hit += cell_b[a * n_el + hi] - cell_b[a * n_el + lo + e]
+    hit = np.empty(n_hit, dtype=np.int64)
+    lab = np.empty(n_hit, dtype=np.int64)
     k = 0
     for a in range(n_az):
-        if not used[a]:
-            continue
-        for q in range(col_b[a], col_b[a + 1]):
-            i = col_idx[q]
-            if not taken[i] and el[i] >= lo:
-                g = window[a, min(el[i], top) - lo]
-                if 0 <= g < n_lab:
+        for e in range(n_win):
+            g = window[a, e]
+            if not (0 <= g < n_lab and lo + e < n_el):
+                continue
+            hi = n_el if lo + e == top else lo + e + 1  # the top row takes all above it
+            for q in range(cell_b[a * n_el + lo + e], cell_b[a * n_el + hi]):
+                i = cell_idx[q]
+                if not taken[i]:
                     hit[k] = i
                     lab[k] = g
                     k += 1

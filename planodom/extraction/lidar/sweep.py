@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
+import numba
 import numpy as np
 
 from planodom.config.extraction import SweepConfig
@@ -69,10 +70,31 @@ def sweep_times(
         pts = pts @ T_sensor_base[:3, :3].T + T_sensor_base[:3, 3]
     azimuth = np.arctan2(pts[:, 1], pts[:, 0])
     sense = 1.0 if sweep.rotation == "ccw" else -1.0
-    turn = sense * (azimuth - np.radians(sweep.start_azimuth_deg)) / (2.0 * np.pi)
-    frac = np.mod(turn, 1.0)
-    frac[frac > 1.0 - SEAM_TOLERANCE] = 0.0
-    return sweep.start_time_s + sweep.period_s * frac
+    start = float(np.radians(sweep.start_azimuth_deg))
+    return _times_kernel(azimuth, sense, start, float(sweep.start_time_s), float(sweep.period_s))
+
+
+@numba.njit(cache=True)
+def _times_kernel(azimuth, sense, start, t0, period):  # pragma: no cover - compiled
+    """(N,) s: ``t0 + period * frac``, ``frac = mod(sense * (azimuth - start) / (2 pi),
+    1)`` (numpy's floor modulo: ``fmod``, plus 1 when negative, +0 for 0), 0 above
+    ``1 - SEAM_TOLERANCE``; the numpy expression's IEEE operations in its order, in one
+    compiled pass (numba, no fast-math) instead of seven numpy passes
+    (tests/extraction/test_sweep.py checks it against numpy)."""
+    out = np.empty(azimuth.shape[0])
+    two_pi = 2.0 * np.pi
+    edge = 1.0 - SEAM_TOLERANCE
+    for i in range(azimuth.shape[0]):
+        turn = sense * (azimuth[i] - start) / two_pi
+        frac = np.fmod(turn, 1.0)
+        if frac < 0.0:
+            frac += 1.0
+        elif frac == 0.0:
+            frac = 0.0
+        if frac > edge:
+            frac = 0.0
+        out[i] = t0 + period * frac
+    return out
 
 
 def with_sweep_times(
