@@ -42,6 +42,7 @@ from planodom.errors import ConfigError
         ({"region_noisy_pixels": "grown"}, "extraction.region_noisy_pixels"),
         ({"ransac_unjudged": "dropped"}, "extraction.ransac_unjudged"),
         ({"segmentation_reuse": "always"}, "extraction.segmentation_reuse"),
+        ({"noise_estimate": "along"}, "extraction.noise_estimate"),
     ],
 )
 def test_bad_values_fail_at_load_naming_the_field(section, field) -> None:

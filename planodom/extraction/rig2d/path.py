@@ -39,7 +39,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     """The planes of a 2D-rig epoch (module docstring)."""
     scan = epoch.scan
     assert scan.ring is not None  # the pipeline sends scans without rings to the lidar path
-    segs, sigma = split_scan_lines(epoch.points, scan.ring, scan.t, config)
+    segs, sigma = split_scan_lines(epoch.points, scan.ring, scan.t, config, epoch.origins)
     tol, max_rms = member_tolerance(config, sigma), rms_limit(config, sigma)
     seed_floor = config.tolerance_floor_m
     tw = config.time_windows

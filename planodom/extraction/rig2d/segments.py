@@ -19,6 +19,7 @@ import numpy as np
 from planodom.config import ExtractionConfig
 from planodom.extraction.kernels import range_moments
 from planodom.extraction.memo import identity_memo, read_only
+from planodom.extraction.rig2d.rangenoise import estimate_range_noise_2d
 from planodom.extraction.rig2d.scanlines import (
     _angle_reversals,
     _breaks_kernel,
@@ -28,6 +29,8 @@ from planodom.extraction.rig2d.scanlines import (
     split_runs,
 )
 
+#: The kernel's ``origins`` when there are none (numba needs an array of one type).
+_NO_ORIGINS = np.zeros((1, 3))
 #: End points a segment may lose to :func:`_features_kernel`'s trimming, per segment.
 MAX_END_TRIM = 3
 
@@ -110,14 +113,18 @@ def ring_order(
 
 
 def split_scan_lines(
-    points: np.ndarray, ring: np.ndarray, t: np.ndarray | None, config: ExtractionConfig
-) -> tuple[Segments, float]:
+    points: np.ndarray, ring: np.ndarray, t: np.ndarray | None, config: ExtractionConfig,
+    origins: np.ndarray | None = None,
+) -> tuple[Segments, float]:  # fmt: skip
     """Straight segments of every ring of a 2D-rig epoch.
 
     Args:
         points: (N, 3) metres, finite (already deskewed when a twist is known).
         ring: (N,) scanner id of each point; points of one ring in scan order.
         t: (N,) seconds or None, used to find sweep boundaries.
+        origins: (R, 3) the sensor origin of each ring id (m, base frame; one row: one for
+            all) or None; with ``config.noise_estimate: range`` the noise is estimated
+            along the rays (:mod:`.rangenoise`), else (or without origins) across the lines.
         config: thresholds (``sweep_gap_factor``, ``min_gap_m``, ``gap_range_ratio``,
             ``split_sigma_factor``, ``min_segment_length_m``). Segments of two points are
             kept: one sweep may put only two beams on a narrow or distant wall, and
@@ -130,18 +137,22 @@ def split_scan_lines(
     fields = (config.sweep_gap_factor, config.min_gap_m, config.gap_range_ratio,
               config.estimate_noise, config.range_noise_m, config.split_sigma_factor,
               config.tolerance_floor_m, config.min_segment_length_m)  # fmt: skip
+    if config.noise_estimate == "range" and origins is not None:
+        return _split(points, np.asarray(ring), t, fields, np.asarray(origins, dtype=np.float64))
     return _split(points, np.asarray(ring), t, fields)
 
 
 @identity_memo
 def _split(
-    points: np.ndarray, ring: np.ndarray, t: np.ndarray | None, fields: tuple
-) -> tuple[Segments, float]:
+    points: np.ndarray, ring: np.ndarray, t: np.ndarray | None, fields: tuple,
+    origins: np.ndarray | None = None,
+) -> tuple[Segments, float]:  # fmt: skip
     """:func:`split_scan_lines` with the config ``fields`` it reads, memoised
     (:mod:`planodom.extraction.memo`): an epoch lost with its tolerances is extracted
     again with the same deskewed points and only the grouping's tolerances widened
     (:func:`planodom.odometry.twist_sigma.widened_if_lost`). The segments' arrays are
-    read-only: they are shared."""
+    read-only: they are shared. ``origins`` (R, 3): the noise along the rays
+    (:mod:`.rangenoise`); None: across the lines."""
     sweep_gap, min_gap, gap_ratio, estimate_noise, range_noise, split_factor, floor, min_len = (
         fields
     )
@@ -153,6 +164,7 @@ def _split(
             np.asarray(points, dtype=np.float64), order, rg, tt, has_t, timing[0], timing[1],
             float(sweep_gap), float(min_gap), float(gap_ratio), bool(estimate_noise),
             float(range_noise), float(split_factor), float(floor), float(min_len), MAX_END_TRIM,
+            origins is not None, _NO_ORIGINS if origins is None else origins,
         )
     )  # fmt: skip
     segs = Segments(
@@ -168,13 +180,14 @@ def _split(
 @numba.njit(cache=True)
 def _split_kernel(
     points, order, rg, tt, has_t, med, any_forward, sweep_gap, min_gap, gap_ratio,
-    estimate_noise, range_noise, split_factor, floor, min_len, max_trim,
+    estimate_noise, range_noise, split_factor, floor, min_len, max_trim, along_rays, origins,
 ):  # fmt: skip  # pragma: no cover - compiled
     """:func:`_split` in one compiled call: the points in ring order (``order`` (N,),
     rings ``rg`` (N,) int64, times ``tt`` (N,) s, zeros without ``has_t``), the runs
     (:func:`.scanlines.run_breaks` with the timing ``med``, ``any_forward`` of
     :func:`.scanlines.beam_timing`), the 2D coordinates, the noise sigma
-    (:func:`planodom.extraction.noise.noise_sigma`), the split and
+    (:func:`planodom.extraction.noise.noise_sigma`; ``along_rays``: from the range noise
+    of :mod:`.rangenoise` with ``origins`` (R, 3)), the split and
     :func:`segment_features` (at least 2 points, RMS within the split tolerance): the
     same kernels in the same order as their Python-level sequence, without the calls
     between them. Returns the ring-ordered points (N, 3), the kept segments' starts,
@@ -190,7 +203,11 @@ def _split_kernel(
                 sweep_start[i + 1] = True
                 run_start[i + 1] = True
     x, y = ring_plane_coordinates(pts, rg)
-    estimate = estimate_line_noise_2d(x, y, run_start) if estimate_noise else 0.0
+    estimate = 0.0
+    if estimate_noise and along_rays:
+        estimate = estimate_range_noise_2d(x, y, pts, rg, origins, run_start)
+    elif estimate_noise:
+        estimate = estimate_line_noise_2d(x, y, run_start)
     sigma = max(range_noise, estimate) if estimate_noise else range_noise
     split_tol = max(split_factor * sigma, floor)
     starts = np.flatnonzero(run_start)
