@@ -111,17 +111,16 @@ def main() -> None:
                 C = C + g @ Q[epoch] @ g.T
         kind = kind_of(f, i, fallback, builder.config.delta_max, planes)
         if kind.startswith(("step", "loop")):
-            a, b = sorted(nees_classes.symbol(k)[1] for k in f.keys())
+            ea, eb = sorted(nees_classes.symbol(k)[1] for k in f.keys())
+            source = None
             if i in loops:
-                lf = loops[i]
-                T, pairs = np.asarray(lf.T_old_curr), lf.associations
-            else:
-                rp = rels.get((a, b))
-                T, pairs = (None, None) if rp is None else (rp.T_prev_curr, rp.associations)
-            g_a, g_b = (None, None) if T is None else end_maps(
-                f, est, T, builder.planes[a], builder.planes[b], pairs)  # fmt: skip
-            Ca = np.eye(m) + (0 if g_a is None else g_a @ Q[a] @ g_a.T)
-            Cb = Ca + (0 if g_b is None else g_b @ Q[b] @ g_b.T)
+                source = (np.asarray(loops[i].T_old_curr), loops[i].associations)
+            elif (ea, eb) in rels:
+                source = (rels[ea, eb].T_prev_curr, rels[ea, eb].associations)
+            g_a, g_b = (None, None) if source is None else end_maps(
+                f, est, source[0], builder.planes[ea], builder.planes[eb], source[1])  # fmt: skip
+            Ca = np.eye(m) + (0 if g_a is None else g_a @ Q[ea] @ g_a.T)
+            Cb = Ca + (0 if g_b is None else g_b @ Q[eb] @ g_b.T)
             alt.setdefault(kind, []).append(
                 (float(r @ np.linalg.solve(Ca, r)) / m, float(r @ np.linalg.solve(Cb, r)) / m, m)
             )
@@ -148,12 +147,12 @@ def main() -> None:
             print("    worst:", " ".join(f"{x[4]}:{x[2]:.1f}" for x in worst))
     print("relative-pose factors normalised by their ends' deskewing maps (mean, median, >95%):")
     for kind, v in sorted(alt.items()):
-        a = np.array(v)
+        arr = np.array(v)
         cells = []
         for c in (0, 1):
-            over = np.mean(a[:, c] * a[:, 2] > chi2.ppf(0.95, a[:, 2]))
-            cells.append(f"{a[:, c].mean():9.2f} {np.median(a[:, c]):7.2f} {over:5.2f}")
-        print(f"  {kind:22s} n {len(a):5d} older end {cells[0]}   both ends {cells[1]}")
+            over = np.mean(arr[:, c] * arr[:, 2] > chi2.ppf(0.95, arr[:, 2]))
+            cells.append(f"{arr[:, c].mean():9.2f} {np.median(arr[:, c]):7.2f} {over:5.2f}")
+        print(f"  {kind:22s} n {len(arr):5d} older end {cells[0]}   both ends {cells[1]}")
 
 
 if __name__ == "__main__":

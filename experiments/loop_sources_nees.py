@@ -8,7 +8,8 @@ then (a diagnostic, "apart") "deskew"'s maps in a column of their own per older 
 (diagnostics, "first", "first_deskew") "independent" and "deskew" with the first epoch's
 ``Q_0`` its first step's declared covariance (:func:`_first_step`); "step" (NEESFIRST)
 ``smoothing.sandwich_first_epoch`` "step" with independent loop factors, "step_shared" and
-"step_deskew" with those loop sources, "degenerate_step" that value; ``--modes`` picks.
+"step_deskew" with those loop sources, "degenerate_step" that value; "both" (NEES6)
+``smoothing.sandwich_relative_ends`` "both"; ``--modes`` picks.
 Printed per lap: ATE (xy rmse, m), mean NEES5 each way, the loop factors and the older
 epochs they come from, and for "deskew" the loop factors given a map and the mean of
 ``tr(g Q_a g^T) / dim`` (the added whitened variance against the factor's own, 1).
@@ -67,6 +68,9 @@ def main() -> None:
         if mode.startswith("step"):  # NEESFIRST: smoothing.sandwich_first_epoch "step"
             changes = {"smoothing.sandwich_loop_sources": mode[5:] or "independent",
                        "smoothing.sandwich_first_epoch": "step"}  # fmt: skip
+        if mode == "both":  # NEES6: smoothing.sandwich_relative_ends "both"
+            changes = {"smoothing.sandwich_loop_sources": "independent",
+                       "smoothing.sandwich_relative_ends": "both"}  # fmt: skip
         if mode == "degenerate_step":
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_first_epoch": "degenerate_step"}  # fmt: skip

@@ -24,12 +24,17 @@ the run's ``Q_a``, ``Q_b`` and the planes' own Jacobians.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence, Set
 
+import gtsam
 import numpy as np
 
 from planodom.geometry import Plane
-from planodom.smoothing.loop_deskew import pair_jacobian
+from planodom.odometry.relative import RelativePose
+from planodom.smoothing.error_maps import ErrorMap
+from planodom.smoothing.graph import X
+from planodom.smoothing.loop_deskew import error_change, pair_jacobian
+from planodom.smoothing.loop_records import LoopFactor
 
 #: Relative rank below which (K^T W K)'s directions are left out (not measured).
 RCOND = 1e-9
@@ -73,3 +78,58 @@ def pair_fit_changes(
     M_a = -inverse @ KWD_a if moved[0] else None
     M_b = inverse @ KWD_b if moved[1] else None
     return M_a, M_b
+
+
+def relative_error_maps(
+    cov_graph: gtsam.NonlinearFactorGraph,
+    values: gtsam.Values,
+    motion_change: np.ndarray,
+    delta_max: int,
+    index: Mapping[int, int],
+    loops: tuple[Sequence[LoopFactor], Mapping[int, Sequence[Plane]]],
+    relatives: Sequence[RelativePose],
+    skip: Set[int] = frozenset(),
+) -> dict[int, list[ErrorMap]]:
+    """Error maps for the sandwich (:func:`.sandwich.sandwich_covariances`' ``extra``):
+    factor index in ``cov_graph`` -> its terms ``(epoch, g)`` for epochs a and b of
+    every relative-pose factor ``X(a) - X(b)`` with a Gaussian noise model (an inlier) and
+    recorded associations: the kept loop factors (``loops``: the builder's loop factors
+    and its planes per epoch; ``index``: whole graph -> ``cov_graph``) and the measured
+    ``relatives`` at most ``delta_max`` apart; an end whose ``motion_change`` ((E, 6, 6))
+    is zero or whose planes have no Jacobian has no term. ``skip``: ``cov_graph`` indices
+    left out (the fallback factors, which no planes measured)."""
+    loop_of = {index[f.factor]: f for f in loops[0] if not f.removed and f.factor in index}
+    rel_of = {(r.prev, r.curr): r for r in relatives if r.measured}
+    maps: dict[int, list[ErrorMap]] = {}
+    for i in range(cov_graph.size()):
+        factor = cov_graph.at(i)
+        if i in skip or factor is None or len(factor.keys()) != 2 or factor.dim() not in (3, 5):
+            continue
+        symbols = [gtsam.Symbol(key) for key in factor.keys()]
+        if any(chr(s.chr()) != "x" for s in symbols):
+            continue
+        a, b = sorted(int(s.index()) for s in symbols)
+        noise = factor.noiseModel()  # type: ignore[attr-defined]  # a NoiseModelFactor
+        source = _source(loop_of.get(i), rel_of.get((a, b)) if b - a <= delta_max else None)
+        if source is None or not isinstance(noise, gtsam.noiseModel.Gaussian):
+            continue
+        T, pairs = source
+        ends = pair_fit_changes(T, loops[1][a], loops[1][b], pairs)
+        Ta, Tb = (values.atPose3(X(k)).matrix() for k in (a, b))
+        RE = np.asarray(noise.R()) @ error_change(T, Ta, Tb, factor.dim())
+        terms = [(k, RE @ M) for k, M in zip((a, b), ends, strict=True)
+                 if M is not None and np.any(motion_change[k])]  # fmt: skip
+        if terms:
+            maps[i] = terms
+    return maps
+
+
+def _source(
+    loop: LoopFactor | None, rel: RelativePose | None
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """(T_a_b, associations) of a loop factor or a relative pose, None without any."""
+    if loop is not None and loop.associations is not None and len(loop.associations):
+        return np.asarray(loop.T_old_curr, dtype=float), np.asarray(loop.associations)
+    if loop is None and rel is not None and rel.associations is not None and len(rel.associations):
+        return np.asarray(rel.T_prev_curr, dtype=float), np.asarray(rel.associations)
+    return None

@@ -1,17 +1,27 @@
 """Both ends' deskewing errors of a relative-pose factor (planodom.smoothing.relative_deskew):
 each end's first-order change of the fitted relative pose against a nonlinear refit
-(scipy) of the relative pose from planes moved by their deskewing Jacobians."""
+(scipy) of the relative pose from planes moved by their deskewing Jacobians, the factor
+maps against the refit factor's own whitened error, and the sandwich with two terms per
+factor against a dense computation."""
 
 from __future__ import annotations
 
+import gtsam
 import numpy as np
 import pytest
+from dense_sandwich import assert_sandwich_equals_dense, whitened_jacobian
 from scipy.linalg import sqrtm
 from scipy.optimize import least_squares
 
+from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.errors import ConfigError
 from planodom.geometry import Plane, transform_planes
+from planodom.odometry.relative import RelativePose, Status
 from planodom.se3 import se3_exp, se3_log
-from planodom.smoothing.relative_deskew import pair_fit_changes
+from planodom.smoothing.graph import X
+from planodom.smoothing.relative_deskew import pair_fit_changes, relative_error_maps
+from planodom.smoothing.sandwich import sandwich_covariances
+from planodom_factors.pose5 import pose5_factor, rotation_factor
 
 
 def _cov(rng: np.random.Generator, n: np.ndarray) -> np.ndarray:
@@ -101,3 +111,94 @@ def test_an_end_without_jacobians_does_not_move() -> None:
     M_a, M_b = pair_fit_changes(T, a, still, pairs)
     assert M_a is not None and M_b is None
     assert pair_fit_changes(T, a, b, np.zeros((0, 2), dtype=int)) == (None, None)
+
+
+def _chain() -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, list[RelativePose], dict]:
+    """Poses X0..X3 each seeing six planes (their own Jacobians), a prior on X0, a 5-DoF
+    step per neighbour and a rotation-only step X1-X3, measured where the planes are; the
+    estimate is off the poses; weak priors on X1..X3 hold z."""
+    rng = np.random.default_rng(11)
+    step = se3_exp(np.array([0.01, -0.02, 0.3, 1.2, 0.2, 0.03]))
+    values, graph = gtsam.Values(), gtsam.NonlinearFactorGraph()
+    poses = [np.eye(4)]
+    for _ in range(3):
+        poses.append(poses[-1] @ step)
+    for k, T in enumerate(poses):
+        values.insert(X(k), gtsam.Pose3(T @ se3_exp(rng.normal(0.0, 0.002, 6))))
+        if k:  # weak: the steps leave z undetermined
+            weak = gtsam.noiseModel.Isotropic.Sigma(6, 0.5)
+            graph.add(gtsam.PriorFactorPose3(X(k), gtsam.Pose3(T), weak))
+    graph.add(
+        gtsam.PriorFactorPose3(X(0), gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 1e-3))
+    )
+    normals = rng.normal(size=(6, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    offsets = rng.uniform(-8.0, 8.0, 6)
+    planes = {}
+    for k, T in enumerate(poses):
+        n_k, d_k = transform_planes(np.linalg.inv(T), normals, offsets)
+        planes[k] = [Plane(n, float(d), _cov(rng, n), deskew_jacobian=_jacobian(rng, n))
+                     for n, d in zip(n_k, d_k, strict=True)]  # fmt: skip
+    pairs = np.column_stack([np.arange(6), np.arange(6)])
+    rels = []
+    for a, b in ((0, 1), (1, 2), (2, 3), (1, 3)):
+        T = np.linalg.inv(poses[a]) @ poses[b]  # the planes' own: the estimate is off
+        A = rng.normal(size=(5, 5)) * 0.01
+        status = Status.DEGENERATE if (a, b) == (1, 3) else Status.OK
+        rel = RelativePose(T, A @ A.T + 1e-5 * np.eye(5), status, pairs, prev=a, curr=b)
+        rels.append(rel)
+        make, dim = (pose5_factor, 5) if status is Status.OK else (rotation_factor, 3)
+        cov = (A @ A.T + 1e-5 * np.eye(5))[:dim, :dim]
+        graph.add(make(X(a), X(b), T, gtsam.noiseModel.Gaussian.Covariance(cov)))
+    return graph, values, rels, planes
+
+
+def test_factor_maps_are_the_refit_factors_whitened_error_change() -> None:
+    graph, values, rels, planes = _chain()
+    Q = np.tile(np.eye(6), (4, 1, 1))
+    index = {i: i for i in range(graph.size())}
+    maps = relative_error_maps(graph, values, Q, 3, index, ((), planes), rels)
+    assert sorted(maps) == [4, 5, 6, 7]  # every step, not the priors
+    for i, rel in zip((4, 5, 6, 7), rels, strict=True):
+        factor = graph.at(i)
+        terms = dict(maps[i])
+        assert sorted(terms) == [rel.prev, rel.curr]
+        base = factor.whitenedError(values)
+        make = pose5_factor if factor.dim() == 5 else rotation_factor
+        for end, epoch in enumerate((rel.prev, rel.curr)):
+            for c, eps in enumerate((2e-5, -3e-5, 1e-5, 4e-5, -2e-5, 3e-5)):
+                shifts = [np.zeros(6), np.zeros(6)]
+                shifts[end][c] = eps
+                T = rel.T_prev_curr @ se3_exp(
+                    _refit(rel.T_prev_curr, planes[rel.prev], planes[rel.curr], *shifts)
+                )
+                moved = make(X(rel.prev), X(rel.curr), T, factor.noiseModel())
+                change = (moved.whitenedError(values) - base) / eps
+                g = terms[epoch]
+                np.testing.assert_allclose(g[:, c], change, rtol=2e-3, atol=2e-3 * np.abs(g).max())
+
+
+def test_sandwich_with_both_ends_equals_the_dense() -> None:
+    graph, values, rels, planes = _chain()
+    rng = np.random.default_rng(2)
+    Q = np.stack([(lambda A: A @ A.T)(rng.normal(size=(6, 6)) * 0.02) for _ in range(4)])
+    index = {i: i for i in range(graph.size())}
+    maps = relative_error_maps(graph, values, Q, 3, index, ((), planes), rels)
+    out, _ = sandwich_covariances(graph, values, 4, {}, Q, False, 1e-3, (maps, np.zeros((0, 6, 6))))
+    J, rows = whitened_jacobian(graph, values, 4)
+    G = np.zeros((J.shape[0], 24))  # one column block per epoch
+    for i, terms in maps.items():
+        for k, g in terms:
+            G[rows[i] : rows[i + 1], 6 * k : 6 * k + 6] += g
+    S = np.zeros((24, 24))
+    for k in range(4):
+        S[6 * k : 6 * k + 6, 6 * k : 6 * k + 6] = Q[k]
+    assert_sandwich_equals_dense(list(out.covariances), J, G, S)
+
+
+def test_option_value_both() -> None:
+    assert SmoothingConfig().sandwich_relative_ends == "none"
+    cfg = PlanodomConfig().updated({"smoothing.sandwich_relative_ends": "both"})
+    assert cfg.smoothing.sandwich_relative_ends == "both"
+    with pytest.raises(ConfigError, match="sandwich_relative_ends"):
+        PlanodomConfig().updated({"smoothing.sandwich_relative_ends": "older"})
