@@ -30,11 +30,12 @@ selected inversion (Takahashi's recursion over supernodes) and its exact derivat
 (:func:`_dense_pose_covariances`) remains for poses with undetermined axes and where
 numpy has no extended precision.
 
-Not modelled: the deskewing error of the relative-pose and loop-candidate factors (they
-enter only where planes are not plane factors, ``smoothing.between_factors``; the loop
-factors' older epoch's with ``sandwich_loop_sources`` "deskew", :mod:`.loop_deskew`) and
-of factors the robust kernel down-weights at the estimate (outliers of
-:func:`.batch_covariances.covariance_graph`).
+Not modelled by default: the deskewing error of the relative-pose and loop-candidate
+factors (they enter only where planes are not plane factors, ``smoothing.between_factors``;
+the loop factors' older epoch's with ``sandwich_loop_sources`` "deskew", :mod:`.loop_deskew`;
+both epochs' of every such factor with ``sandwich_relative_ends`` "both",
+:mod:`.relative_deskew`) and of factors the robust kernel down-weights at the estimate
+(outliers of :func:`.batch_covariances.covariance_graph`).
 """
 
 from __future__ import annotations
