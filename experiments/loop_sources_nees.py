@@ -8,7 +8,9 @@ then (a diagnostic, "apart") "deskew"'s maps in a column of their own per older 
 (diagnostics, "first", "first_deskew") "independent" and "deskew" with the first epoch's
 ``Q_0`` its first step's declared covariance (:func:`_first_step`); "step" (NEESFIRST)
 ``smoothing.sandwich_first_epoch`` "step" with independent loop factors, "step_shared" and
-"step_deskew" with those loop sources, "degenerate_step" that value; ``--modes`` picks.
+"step_deskew" with those loop sources, "degenerate_step" that value; "both" (NEES6)
+``smoothing.sandwich_relative_ends`` "both"; "both_loops", "both_steps" (diagnostics)
+its maps of the loop factors alone or of the steps alone; ``--modes`` picks.
 Printed per lap: ATE (xy rmse, m), mean NEES5 each way, the loop factors and the older
 epochs they come from, and for "deskew" the loop factors given a map and the mean of
 ``tr(g Q_a g^T) / dim`` (the added whitened variance against the factor's own, 1).
@@ -26,6 +28,7 @@ import sys
 import time
 from pathlib import Path
 
+import gtsam
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -37,6 +40,7 @@ from planodom.smoothing.batch import smooth_batch  # noqa: E402
 from planodom.smoothing.batch_covariances import covariance_graph  # noqa: E402
 from planodom.smoothing.loop_deskew import loop_deskew_maps  # noqa: E402
 from planodom.smoothing.loop_sources import loop_error_maps, loop_source_maps  # noqa: E402
+from planodom.smoothing.relative_deskew import relative_error_maps  # noqa: E402
 from planodom.smoothing.sandwich import covariance_graph_index  # noqa: E402
 
 
@@ -67,11 +71,15 @@ def main() -> None:
         if mode.startswith("step"):  # NEESFIRST: smoothing.sandwich_first_epoch "step"
             changes = {"smoothing.sandwich_loop_sources": mode[5:] or "independent",
                        "smoothing.sandwich_first_epoch": "step"}  # fmt: skip
+        if mode.startswith("both"):  # NEES6: smoothing.sandwich_relative_ends "both"
+            changes = {"smoothing.sandwich_loop_sources": "independent",
+                       "smoothing.sandwich_relative_ends": "both"}  # fmt: skip
         if mode == "degenerate_step":
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_first_epoch": "degenerate_step"}  # fmt: skip
         builder.config = cfg.updated(changes).smoothing
         sandwich.loop_error_maps = _apart if mode == "apart" else loop_error_maps
+        sandwich.relative_error_maps = RELATIVE_KINDS.get(mode, relative_error_maps)
         first = mode.startswith("first")
         batch_covariances.sandwich_inputs = _first_step if first else SANDWICH_INPUTS
         _, P_on, note, _, model = nees_gauge.ORIGINAL(
@@ -82,6 +90,7 @@ def main() -> None:
         nees[mode] = np.nanmean(errors_nees(xi[1:], P_on[1:], range(5)))
     batch_covariances.sandwich_inputs = SANDWICH_INPUTS
     sandwich.loop_error_maps = loop_error_maps
+    sandwich.relative_error_maps = relative_error_maps
     Q = nees_gauge.CAPTURED_Q()
     index = covariance_graph_index(cap["graph"], cov_graph)
     dmaps = loop_deskew_maps(
@@ -95,11 +104,27 @@ def main() -> None:
           + f" (maps {len(dmaps)}, mean added "
           f"{np.mean(share):.3g}, max {max(share):.3g})")  # fmt: skip
     if args.time:
-        timed = cfg.updated({"smoothing.sandwich_loop_sources": args.timed}).smoothing
+        key = "relative_ends" if args.timed == "both" else "loop_sources"
+        timed = cfg.updated({f"smoothing.sandwich_{key}": args.timed}).smoothing
         _time_covariances(builder, cfg.smoothing, timed, cap, args.time)
 
 
 SANDWICH_INPUTS = batch_covariances.sandwich_inputs
+
+
+def _kind(loops: bool):  # noqa: ANN202
+    """A diagnostic ("both_loops", "both_steps"): "both"'s maps of the loop factors (two
+    poses beyond ``delta_max``) alone, or of the steps alone."""
+
+    def maps(cov_graph, values, Q, delta_max, *args):  # noqa: ANN001, ANN002, ANN202
+        out = relative_error_maps(cov_graph, values, Q, delta_max, *args)
+        gap = {i: np.ptp([gtsam.Symbol(k).index() for k in cov_graph.at(i).keys()]) for i in out}
+        return {i: t for i, t in out.items() if (gap[i] > delta_max) == loops}
+
+    return maps
+
+
+RELATIVE_KINDS = {"both_loops": _kind(True), "both_steps": _kind(False)}
 
 
 def _first_step(cfg, planes, relative_poses, n_epochs):  # noqa: ANN001, ANN202
@@ -145,7 +170,7 @@ def _time_covariances(builder, off, on, cap, repeats: int) -> None:  # noqa: ANN
             times[name].append(time.process_time() - t0)
     off_t, on_t = np.median(times["independent"]), np.median(times["on"])
     print(f"covariance CPU s (median of {repeats}) independent {off_t:.2f} "
-          f"{on.sandwich_loop_sources} {on_t:.2f} "
+          f"{on.sandwich_loop_sources}/{on.sandwich_relative_ends} {on_t:.2f} "
           f"ratio {on_t / off_t:.3f}; all: {times}")  # fmt: skip
 
 

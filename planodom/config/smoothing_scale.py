@@ -107,6 +107,14 @@ class CovarianceScaleConfig(Section):
     smoothing.first_epoch_noise`); "degenerate_step" adds it only where that step was
     degenerate. Only the covariances change. Off: "step" takes world 30 at 6 mm out of
     the interval (docs/RESULTS.md, NEESFIRST)."""
+    sandwich_relative_ends: Literal["none", "both"] = "none"
+    """With the sandwich covariances: "both" gives every relative-pose factor (steps within
+    ``delta_max``, rotation-only steps, loop factors) both its epochs' deskewing errors, in
+    those epochs' own columns: the change of the relative pose fitted to its plane pairs
+    when either epoch's planes move by their deskewing Jacobians (:mod:`planodom.smoothing.
+    relative_deskew`; it includes ``sandwich_loop_sources`` "deskew"'s older end, which it
+    then replaces); "none" (default) those factors' errors their own. Only the
+    covariances change (docs/RESULTS.md, NEES6)."""
     covariance_scale_estimate: Literal["keep", "resolve"] = "keep"
     """With ``covariance_scale``: "keep" the estimate (only the covariances change);
     "resolve" Gauss-Newton on the reweighted graph (the covariance graph: robust inliers

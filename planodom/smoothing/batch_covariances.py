@@ -127,8 +127,9 @@ def batch_covariances(
         try:
             sources = (getattr(builder, "loop_factors", ()), builder.planes)
             covariances, note = batch_sandwich(
-                cfg, graph, cov_graph, planes or {}, Q, estimate, sources
-            )
+                cfg, graph, cov_graph, planes or {}, Q, estimate, sources,
+                (relative_poses, fallback),
+            )  # fmt: skip
         except np.linalg.LinAlgError as exc:
             note = "sandwich covariances unavailable: " + " ".join(str(exc).split()[:14])
             return estimate, None, note, None, "sandwich"

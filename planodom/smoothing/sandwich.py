@@ -30,11 +30,12 @@ selected inversion (Takahashi's recursion over supernodes) and its exact derivat
 (:func:`_dense_pose_covariances`) remains for poses with undetermined axes and where
 numpy has no extended precision.
 
-Not modelled: the deskewing error of the relative-pose and loop-candidate factors (they
-enter only where planes are not plane factors, ``smoothing.between_factors``; the loop
-factors' older epoch's with ``sandwich_loop_sources`` "deskew", :mod:`.loop_deskew`) and
-of factors the robust kernel down-weights at the estimate (outliers of
-:func:`.batch_covariances.covariance_graph`).
+Not modelled by default: the deskewing error of the relative-pose and loop-candidate
+factors (they enter only where planes are not plane factors, ``smoothing.between_factors``;
+the loop factors' older epoch's with ``sandwich_loop_sources`` "deskew", :mod:`.loop_deskew`;
+both epochs' of every such factor with ``sandwich_relative_ends`` "both",
+:mod:`.relative_deskew`) and of factors the robust kernel down-weights at the estimate
+(outliers of :func:`.batch_covariances.covariance_graph`).
 """
 
 from __future__ import annotations
@@ -43,7 +44,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import gtsam
-import gtsam_unstable
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack, solve_triangular
@@ -53,6 +53,7 @@ from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing import sparse_sandwich
 from planodom.smoothing.deskew_noise import DeskewNoise
+from planodom.smoothing.error_maps import ErrorMaps, map_terms, merged, plane_error_map
 from planodom.smoothing.graph import X
 from planodom.smoothing.loop_records import LoopFactor
 from planodom.smoothing.loop_sources import loop_error_maps
@@ -64,13 +65,8 @@ from planodom.smoothing.marginals import (
     pose_columns,
     split_factors,
 )
+from planodom.smoothing.relative_deskew import relative_error_maps
 from planodom.smoothing.sparse_sandwich import NotDefinite, psd_root, sparse_pose_covariances
-
-#: ``OrientedPlane3::errorVector``'s first-order change with the measured plane's tangent
-#: coordinates ``delta`` (Unit3 basis (2), d) is ``sign * diag(1, 1, -1) delta`` at a
-#: vanishing residual: +1 for the global factor, -1 for the anchored one (which takes the
-#: difference the other way round; checked numerically in tests/smoothing/test_sandwich.py).
-ERROR_SIGN = {gtsam.OrientedPlane3Factor: 1.0, gtsam_unstable.LocalOrientedPlane3Factor: -1.0}
 
 #: Pose rows per chunk of ``Sigma B~`` (memory: chunk times the poses' dimension).
 CHUNK_ROWS = 1200
@@ -79,25 +75,6 @@ CHUNK_ROWS = 1200
 #: (a ground plane seen by every epoch fills it; scipy's sparse product is single-threaded
 #: and several times slower per non-zero than a dense one).
 DENSE_FRACTION = 0.1
-
-
-def plane_error_map(factor: gtsam.NonlinearFactor, plane: Plane) -> np.ndarray | None:
-    """(3, 6) first-order change of a plane factor's whitened error with its epoch's change
-    of motion ``dxi`` (rotation (rad), translation (m) per epoch span), through the
-    measured ``plane``'s ``deskew_jacobian`` (as oriented in the factor); None for a plane
-    without it or a factor whose noise model is not Gaussian (a robust outlier)."""
-    if plane.deskew_jacobian is None:
-        return None
-    sign = next((s for t, s in ERROR_SIGN.items() if isinstance(factor, t)), None)
-    noise = factor.noiseModel()  # type: ignore[attr-defined]  # a NoiseModelFactor
-    if sign is None or not isinstance(noise, gtsam.noiseModel.Gaussian):
-        return None
-    P = np.zeros((3, 4))  # (n, d) -> tangent, as plane_tangent_covariance
-    P[:2, :3] = np.asarray(gtsam.Unit3(plane.normal).basis()).T
-    P[2, 3] = 1.0
-    tangent = P @ np.asarray(plane.deskew_jacobian, dtype=float)
-    tangent[2] *= -1.0  # errorVector's offset part (planodom_factors.planes.plane_noise)
-    return sign * np.asarray(noise.R()) @ tangent
 
 
 @dataclass
@@ -121,7 +98,7 @@ def sandwich_pose_covariances(
     linear: gtsam.GaussianFactorGraph,
     pose_keys: Sequence[int],
     dims: Mapping[int, int],
-    error_maps: Mapping[int, tuple[int, np.ndarray]],
+    error_maps: ErrorMaps,
     motion_change: np.ndarray,
 ) -> SandwichMarginals:
     """The poses' sandwich covariances (module docstring) of a linearised graph.
@@ -136,7 +113,8 @@ def sandwich_pose_covariances(
         pose_keys: the E pose keys, in output order.
         dims: tangent dimension of every key of ``linear``.
         error_maps: index of a factor in ``linear`` -> (its epoch column k, (m, 6) change
-            of its whitened error with ``dxi_k``, m its dimension).
+            of its whitened error with ``dxi_k``, m its dimension), or several such terms
+            (:mod:`.error_maps`).
         motion_change: (K, 6, 6) ``Q_k``, the covariance of ``dxi_k`` per epoch column.
 
     Raises:
@@ -158,7 +136,7 @@ def _dense_pose_covariances(
     linear: gtsam.GaussianFactorGraph,
     pose_keys: Sequence[int],
     dims: Mapping[int, int],
-    error_maps: Mapping[int, tuple[int, np.ndarray]],
+    error_maps: ErrorMaps,
     motion_change: np.ndarray,
 ) -> SandwichMarginals:
     """:func:`sandwich_pose_covariances` by the poses' dense Schur complement: one dense
@@ -177,8 +155,7 @@ def _dense_pose_covariances(
         A = factor.jacobian()[0]
         pcols = pose_columns(factor.keys(), pose_index)
         S[np.ix_(pcols, pcols)] += A.T @ A
-        if i in error_maps:
-            k, g = error_maps[i]
+        for k, g in map_terms(error_maps, i):
             add_block(pcols, {k: 0}, A.T @ g)
     for members in by_group.values():
         _eliminate(linear, members, pose_index, dims, error_maps, S, add_block)
@@ -309,7 +286,7 @@ def _eliminate(
     members: list[int],
     pose_index: dict[int, int],
     dims: Mapping[int, int],
-    error_maps: Mapping[int, tuple[int, np.ndarray]],
+    error_maps: ErrorMaps,
     S: np.ndarray,
     add_block,  # noqa: ANN001  (the closure of sandwich_pose_covariances)
 ) -> None:
@@ -319,7 +296,7 @@ def _eliminate(
     out, as :func:`.marginals._reduce_determined` (no information on the poses)."""
     factors = [linear.at(i) for i in members]
     local, m, poses, size = local_layout(factors, pose_index, dims)
-    epochs = sorted({error_maps[i][0] for i in members if i in error_maps})
+    epochs = sorted({k for i in members for k, _ in map_terms(error_maps, i)})
     col_of = {k: POSE_DIM * j for j, k in enumerate(epochs)}
     H = np.zeros((size, size))
     B = np.zeros((size, POSE_DIM * len(epochs)))
@@ -329,8 +306,7 @@ def _eliminate(
         )
         A = factor.jacobian()[0]
         H[np.ix_(idx, idx)] += A.T @ A
-        if i in error_maps:
-            k, g = error_maps[i]
+        for k, g in map_terms(error_maps, i):
             B[idx, col_of[k] : col_of[k] + POSE_DIM] += A.T @ g
     H_ll, H_lp, H_pp = H[:m, :m], H[:m, m:], H[m:, m:]
     dl = np.sqrt(np.diag(H_ll))
@@ -360,7 +336,7 @@ def sandwich_covariances(
     motion_change: np.ndarray,
     relative_to_first: bool = True,
     prior_sigma: float = 1e-4,
-    extra: tuple[dict[int, tuple[int, np.ndarray]], np.ndarray] | None = None,
+    extra: tuple[ErrorMaps, np.ndarray] | None = None,
 ) -> tuple[SandwichMarginals, str | None]:
     """(E, 6, 6) sandwich covariances of ``X(0..E-1)`` at ``values`` and a note naming
     undetermined pose axes (None when none).
@@ -375,7 +351,8 @@ def sandwich_covariances(
             (:meth:`.DeskewNoise.plane_motion_change`).
         relative_to_first, prior_sigma: conditioned on the first pose as
             :func:`.marginals.pose_covariances`.
-        extra: more error maps (columns from E on) and their (K, 6, 6) covariances.
+        extra: more error maps (into the epochs' columns or columns from E on) and the
+            (K, 6, 6) covariances of the columns from E on.
     """
     linear = graph.linearize(values)
     if relative_to_first:
@@ -383,13 +360,13 @@ def sandwich_covariances(
         linear.add(X(0), stiff * np.eye(6), np.zeros(6), gtsam.noiseModel.Unit.Create(6))
     zero = values.zeroVectors()
     dims = {key: zero.at(key).size for key in values.keys()}
-    maps: dict[int, tuple[int, np.ndarray]] = {}
+    maps: ErrorMaps = {}
     for i, (epoch, plane) in planes.items():
         g = plane_error_map(graph.at(i), plane)
         if g is not None and np.any(motion_change[epoch]):
-            maps[i] = (epoch, g)
+            maps[i] = (epoch, g)  # type: ignore[index]  # built here, a dict
     if extra is not None and extra[0]:
-        maps, motion_change = maps | extra[0], np.concatenate([motion_change, extra[1]])
+        maps, motion_change = merged(maps, extra[0]), np.concatenate([motion_change, extra[1]])
     keys = [X(k) for k in range(n_epochs)]
     out = sandwich_pose_covariances(linear, keys, dims, maps, motion_change)
     poses = sorted(out.undetermined)
@@ -432,16 +409,25 @@ def batch_sandwich(
     Q: np.ndarray,
     estimate: gtsam.Values,
     loops: tuple[Sequence[LoopFactor], Mapping[int, Sequence[Plane]]] = ((), {}),
+    relatives: tuple[Sequence[RelativePose], Sequence[int]] = ((), ()),
 ) -> tuple[np.ndarray, str | None]:
     """``smoothing.covariance_model`` "sandwich" of the batch (``graph``, its covariance
     graph ``cov_graph``, :func:`.batch_covariances.covariance_graph`): (E, 6, 6) and a note
     (:func:`sandwich_covariances`; ``Q`` (E, 6, 6) the epochs' changes of motion,
     :func:`deskew_motion_change`; ``loops``: the loop factors and planes per epoch for
-    ``sandwich_loop_sources`` "deskew", :func:`.loop_sources.loop_error_maps`)."""
+    ``sandwich_loop_sources`` "deskew", :func:`.loop_sources.loop_error_maps`;
+    ``relatives``: the run's relative poses and the fallback factors' indices in ``graph``
+    for ``sandwich_relative_ends`` "both", :mod:`.relative_deskew`)."""
     index = covariance_graph_index(graph, cov_graph)
     mapped = {index[i]: obs for i, obs in planes.items() if i in index}
-    mode, dm = cfg.sandwich_loop_sources, cfg.delta_max
+    mode, dm, ends = cfg.sandwich_loop_sources, cfg.delta_max, cfg.sandwich_relative_ends
+    mode = "independent" if ends == "both" and mode == "deskew" else mode  # "both" has it
+    extra: tuple[ErrorMaps, np.ndarray] | None
     extra = loop_error_maps(mode, cov_graph, estimate, Q, dm, index, loops)
+    if ends == "both":
+        skip = {index[i] for i in relatives[1] if i in index}
+        both = relative_error_maps(cov_graph, estimate, Q, dm, index, loops, relatives[0], skip)
+        extra = (both, np.zeros((0, 6, 6))) if extra is None else (merged(extra[0], both), extra[1])
     out, note = sandwich_covariances(
         cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
         cfg.prior_sigma, extra,

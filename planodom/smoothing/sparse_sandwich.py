@@ -18,6 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from planodom.smoothing.error_maps import ErrorMaps, map_terms
 from planodom.smoothing.marginals import POSE_DIM, UNDETERMINED_RTOL, split_factors
 from planodom.smoothing.supernodal import Panels, m_matrix
 
@@ -60,7 +61,7 @@ def sparse_pose_covariances(
     linear: gtsam.GaussianFactorGraph,
     pose_keys: Sequence[int],
     dims: Mapping[int, int],
-    error_maps: Mapping[int, tuple[int, np.ndarray]],
+    error_maps: ErrorMaps,
     motion_change: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(E, 6, 6) twice, the sandwich and the fitted pose blocks, by a sparse selected
@@ -126,7 +127,7 @@ def _whitened_system(
     linear: gtsam.GaussianFactorGraph,
     pose_keys: Sequence[int],
     dims: Mapping[int, int],
-    error_maps: Mapping[int, tuple[int, np.ndarray]],
+    error_maps: ErrorMaps,
     K_count: int,
 ) -> tuple[sp.csr_matrix, sp.csr_matrix, list[tuple[int, int]]]:
     """``H = J^T J`` (N, N) and ``B = J^T G`` (N, 6 K_count) of the whitened Jacobian ``J``
@@ -164,8 +165,7 @@ def _whitened_system(
         rows.append(np.repeat(r, len(c)))
         cols.append(np.tile(c, len(r)))
         vals.append(A.ravel())
-        if i in error_maps:
-            k, g = error_maps[i]
+        for k, g in map_terms(error_maps, i):
             g_rows.append(np.repeat(r, POSE_DIM))
             g_cols.append(np.tile(POSE_DIM * k + np.arange(POSE_DIM), len(r)))
             g_vals.append(np.asarray(g, dtype=float).ravel())
