@@ -119,6 +119,11 @@ def _out_folder(
     folder.mkdir(parents=True, exist_ok=True)
     try:
         yield folder
+    except KeyboardInterrupt as exc:  # each table is written whole (write_tables)
+        written = any(folder.iterdir())
+        exc.add_note(f"the tables written so far are kept in {folder}" if written else
+                     f"nothing written to {folder}")  # fmt: skip
+        raise
     finally:
         if made and not any(folder.iterdir()):
             folder.rmdir()

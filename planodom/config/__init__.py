@@ -22,7 +22,8 @@ from planodom.config.planemap import PlanemapConfig
 from planodom.config.section import Section, one_line
 from planodom.config.smoothing import SmoothingConfig
 from planodom.config.sweep_refine import SweepRefineConfig
-from planodom.errors import ConfigError, read_yaml_file
+from planodom.errors import ConfigError
+from planodom.yaml_files import read_yaml_file
 
 __all__ = [
     "AssociationConfig",

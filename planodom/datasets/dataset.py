@@ -29,10 +29,11 @@ from planodom.datasets.scan_time_units import scan_time_unit
 from planodom.datasets.time_wraps import CUT_PERIODS, WRAP_NS
 from planodom.datasets.times_file import read_times, unread_times, write_times
 from planodom.datasets.tum import read_tum, write_tum
-from planodom.errors import DatasetError, read_yaml_file
+from planodom.errors import DatasetError
 from planodom.outputs import atomic_folder
 from planodom.rig import RIG_KEYS, Rig, unread_keys
 from planodom.scan import Scan, ScanSequence
+from planodom.yaml_files import read_yaml_file
 
 SCANS_DIR = "scans"
 POSES_FILE = "poses.tum"
