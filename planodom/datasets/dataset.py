@@ -30,8 +30,9 @@ from planodom.datasets.time_wraps import CUT_PERIODS, WRAP_NS
 from planodom.datasets.times_file import read_times, unread_times, write_times
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError
+from planodom.mounts import check_mounts
 from planodom.outputs import atomic_folder
-from planodom.rig import RIG_KEYS, Rig, unread_keys
+from planodom.rig import RIG_KEYS, Rig, rig_mounts, unread_keys
 from planodom.scan import Scan, ScanSequence
 from planodom.yaml_files import read_yaml_file
 
@@ -234,6 +235,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     if ds.ring_renumber is not None:
         ds.rig = renumbered_rig(ds.rig, ds.ring_renumber)
     ds.notes += [ring_note] if ring_note else []
+    ds.notes += check_mounts(rig_mounts(rig, str(root / RIG_FILE)), "")
     unread = unread_keys(rig)
     if unread:
         ds.notes.append(

@@ -30,6 +30,7 @@ from planodom.datasets.scan_names import check_numbering
 from planodom.datasets.scan_order import scan_order_key
 from planodom.errors import DatasetError
 from planodom.geometry import first_non_rotation, rotation_problem
+from planodom.mounts import check_mounts
 from planodom.rig import Rig
 from planodom.scan import Scan
 
@@ -68,6 +69,7 @@ def read_kitti_calib(path: str | Path) -> np.ndarray:
         problem = rotation_problem(Tr[:3, :3])
         if problem is not None:
             raise DatasetError(f"{path}:{number}: 'Tr' is not a rigid transform ({problem})")
+        check_mounts([(f"{path}:{number}: 'Tr'", Tr[:3, 3])], "")  # millimetres: refused
         return Tr
     raise DatasetError(f"{path}: no 'Tr:' line (the Velodyne-to-camera transform)")
 
