@@ -16,6 +16,7 @@ from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.file_entries import (
     broken_link,
     check_file_entries,
+    kitti_sequences_hint,
     optional_file,
     subfolders_hint,
 )
@@ -414,7 +415,8 @@ def _scan_files(root: Path) -> list[Path]:
                 f"reads its {POSES_FILE}"
             )
         if not files:
-            raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files")
+            hint = kitti_sequences_hint(root)
+            raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files{hint}")
     unknown = sorted(f.name for f in files if f.suffix.lower() not in SCAN_EXTENSIONS)
     if unknown:
         more = f" and {len(unknown) - 5} more" if len(unknown) > 5 else ""

@@ -71,7 +71,12 @@ def read_kitti_calib(path: str | Path) -> np.ndarray:
             raise DatasetError(f"{path}:{number}: 'Tr' is not a rigid transform ({problem})")
         check_mounts([(f"{path}:{number}: 'Tr'", Tr[:3, 3])], "")  # millimetres: refused
         return Tr
-    raise DatasetError(f"{path}: no 'Tr:' line (the Velodyne-to-camera transform)")
+    keys = [k.strip() for k, sep, _ in (x.partition(":") for x in lines) if sep and k.strip()]
+    found = f"; its keys: {', '.join(keys[:8])}" if keys else "; it holds no 'KEY: numbers' line"
+    raise DatasetError(
+        f"{path}: no 'Tr:' line (the Velodyne-to-camera transform of KITTI odometry's "
+        f"calib.txt){found}"
+    )
 
 
 def read_kitti_poses(path: str | Path) -> np.ndarray:
