@@ -19,7 +19,24 @@ def main() -> None:
     """Run the ``planodom`` command line (:func:`planodom.cli.main.main`)."""
     try:
         from planodom.cli.main import main as command_line
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ImportError) as exc:
+        if not interrupted_import(exc):
+            raise
         sys.stderr.write("interrupted (Ctrl-C) while starting: nothing was read or written\n")
         raise SystemExit(INTERRUPTED) from None
     command_line()
+
+
+def interrupted_import(exc: BaseException) -> bool:
+    """Whether ``exc`` is a Ctrl-C, or an ImportError a Ctrl-C caused: a compiled module's
+    initialisation interrupted (pybind11's ``ImportError: initialization failed``, seen
+    for open3d, raised from the KeyboardInterrupt)."""
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        if not isinstance(exc, ImportError):
+            return False
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+    return False

@@ -32,6 +32,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from planodom.entry import interrupted_import
 from planodom.errors import OutputError, OutputExistsError
 
 LATEST = "latest"
@@ -81,7 +82,7 @@ def atomic_folder(
             _move_into_place(partial, target)
             moved = True
     except BaseException as exc:
-        if isinstance(exc, KeyboardInterrupt):
+        if interrupted_import(exc):  # a Ctrl-C (or an import it cut short)
             exc.add_note(_interrupted(target, moved))
         if moved:  # the Ctrl-C held while the folder moved: it is complete
             raise

@@ -53,3 +53,47 @@ def test_importing_the_entry_point_imports_nothing_heavy() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+#: open3d imported with a real SIGINT sent while its compiled module initialises (when it
+#: imports numpy): pybind11 raises ``ImportError: initialization failed`` from the
+#: KeyboardInterrupt, which a Ctrl-C 12 s into ``planodom simulate`` printed as a traceback.
+_INTERRUPT_IN_OPEN3D = """
+import os, signal, sys
+from planodom.entry import interrupted_import
+
+armed = []
+
+class SigintInPybind:
+    def find_spec(self, name, path=None, target=None):
+        if name == "open3d.pybind":
+            armed.append(name)
+        elif len(armed) == 1:  # the next import: numpy, from the compiled init
+            armed.append(name)
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+
+sys.meta_path.insert(0, SigintInPybind())
+try:
+    from planodom._open3d import o3d
+except ImportError as exc:
+    print(type(exc.__cause__).__name__, interrupted_import(exc))
+"""
+
+
+def test_an_import_a_ctrl_c_cut_short_is_an_interrupt() -> None:
+    out = subprocess.run(
+        [sys.executable, "-c", _INTERRUPT_IN_OPEN3D], capture_output=True, text=True, timeout=300
+    )
+    assert out.stdout.strip() == "KeyboardInterrupt True", out.stderr[-2000:]
+
+
+def test_other_import_errors_are_not_interrupts() -> None:
+    from planodom.entry import interrupted_import
+
+    try:
+        raise ImportError("initialization failed") from OSError("libusb")
+    except ImportError as exc:
+        assert not interrupted_import(exc)
+    assert not interrupted_import(ImportError("no module named x"))
+    assert interrupted_import(KeyboardInterrupt())

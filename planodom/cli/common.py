@@ -24,7 +24,7 @@ from rich.text import Text
 from planodom.cli.echo_option import Echo
 from planodom.cli.simulated import simulate_scene
 from planodom.datasets.repeated_scans import RepeatedScans
-from planodom.entry import INTERRUPTED
+from planodom.entry import INTERRUPTED, interrupted_import
 from planodom.errors import DatasetError, OutputExistsError, PlanodomError
 from planodom.scan import Scan, points_beyond_range
 
@@ -65,16 +65,18 @@ def reports_errors(func: Callable[..., Any]) -> Callable[..., Any]:
                 raise  # not about a file the user named: a bug, keep the traceback
             error(one_line(exc))
             raise typer.Exit(2) from None
-        except KeyboardInterrupt as exc:
+        except (KeyboardInterrupt, ImportError) as exc:  # an import a Ctrl-C cut short too
+            if not interrupted_import(exc):
+                raise
             err_console.print(interrupted(exc), style="bold red", soft_wrap=True, markup=False)
             raise typer.Exit(INTERRUPTED) from None
 
     return wrapper
 
 
-def interrupted(exc: KeyboardInterrupt) -> str:
+def interrupted(exc: BaseException) -> str:
     """The line of a command ended by Ctrl-C: what became of its output, as the output
-    folders noted on the exception (:func:`planodom.outputs.note_interrupted`)."""
+    folders noted on the exception (:func:`planodom.outputs.atomic_folder`)."""
     notes = getattr(exc, "__notes__", [])
     return "; ".join(["interrupted (Ctrl-C)", *notes] if notes else ["interrupted (Ctrl-C)"])
 

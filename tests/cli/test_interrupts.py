@@ -74,3 +74,22 @@ def test_ctrl_c_mid_run_is_one_line_and_keeps_the_earlier_results(
         f"interrupted (Ctrl-C); nothing written to {new}"
     ]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res"]  # nor the parent made for it
+
+
+def test_an_import_cut_short_by_ctrl_c_is_an_interrupt(
+    simulated: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A Ctrl-C inside a compiled module's initialisation arrives as pybind11's
+    ``ImportError: initialization failed`` (raised from the KeyboardInterrupt): a traceback
+    and exit status 1 before."""
+    import planodom.odometry as odometry
+
+    def run_odometry(*args: object, **kwargs: object) -> None:
+        raise ImportError("initialization failed") from KeyboardInterrupt()
+
+    monkeypatch.setattr(odometry, "run_odometry", run_odometry)
+    out = tmp_path / "res"
+    assert _interrupted("run", simulated, "--out", out) == [
+        f"interrupted (Ctrl-C); nothing written to {out}"
+    ]
+    assert list(tmp_path.iterdir()) == []
