@@ -245,6 +245,20 @@ class ScanEpochs:
             self.repeated.check(k, self.current, scan)
         return scan
 
+    def reference_order(self, poses: Any, metrics: dict) -> None:
+        """Warn of (and list in metrics.json) a dataset's ``poses.tum`` whose quaternions
+        agree with the estimated ``poses`` (E, 4, 4) only read as qw qx qy qz
+        (:func:`planodom.quaternion_order.wxyz_note`): its metrics are wrong."""
+        from planodom.datasets.dataset import POSES_FILE, Dataset
+        from planodom.quaternion_order import wxyz_note
+
+        if not isinstance(self.dataset, Dataset) or self.gt_poses is None:
+            return
+        note = wxyz_note(poses, self.gt_poses, str(self.dataset.path / POSES_FILE))
+        if note is not None:
+            warn(note)
+            metrics["reference_notes"] = [note]
+
     def close(self) -> None:
         """Release the recording's files (a bag's reader)."""
         close = getattr(self.dataset, "close", None)
