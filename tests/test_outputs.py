@@ -167,3 +167,21 @@ def test_a_file_is_written_whole_or_the_earlier_one_kept(tmp_path: Path) -> None
     write_whole(path, lambda tmp: tmp.write_text("new\n"))
     assert path.read_text() == "new\n"
     assert [p.name for p in tmp_path.iterdir()] == ["summary.csv"]
+
+
+def test_a_second_ctrl_c_while_the_partial_folder_is_removed_waits_for_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import shutil
+
+    rmtree = shutil.rmtree
+
+    def ctrl_c_then_rmtree(path: object, ignore_errors: bool = False) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # the second Ctrl-C, held
+        rmtree(path, ignore_errors=ignore_errors)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(shutil, "rmtree", ctrl_c_then_rmtree)
+    with pytest.raises(KeyboardInterrupt), atomic_folder(tmp_path / "out") as tmp:
+        (tmp / "poses.tum").write_text("half")
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
