@@ -28,7 +28,7 @@ from planodom.datasets.scan_order import scan_order_key
 from planodom.datasets.scan_time_notes import scan_time_notes
 from planodom.datasets.scan_time_units import scan_time_unit
 from planodom.datasets.time_wraps import CUT_PERIODS, WRAP_NS
-from planodom.datasets.times_file import read_times, unread_times, write_times
+from planodom.datasets.times_file import epoch_unit_note, read_times, unread_times, write_times
 from planodom.datasets.tum import read_tum, write_tum
 from planodom.errors import DatasetError
 from planodom.mounts import check_mounts
@@ -222,10 +222,11 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
             check_numbering(scan_files, POSES_FILE)
         times = epoch_times(len(scan_files), rig) if named is None else named
     ds = Dataset(root, scan_files, times, gt_poses, rig, bin_layout, time_field)
+    ds.notes = [unit_note] if (unit_note := epoch_unit_note(times, str(root))) else []
     unit = scan_time_unit(scan_files, times, time_field)
     if unit is not None:
         ds.time_scale = unit.scale
-        ds.notes = [f"{root}: {unit.note}"] if unit.note else []
+        ds.notes += [f"{root}: {unit.note}"] if unit.note else []
     if name_note:
         ds.notes.append(f"{scan_files[0].parent}: {name_note}")
     ds.notes += [times_note] if times_note else []

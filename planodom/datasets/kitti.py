@@ -28,6 +28,7 @@ from planodom.datasets.file_entries import optional_file
 from planodom.datasets.scan_io import check_time_field, read_scan
 from planodom.datasets.scan_names import check_numbering
 from planodom.datasets.scan_order import scan_order_key
+from planodom.datasets.times_file import epoch_unit_note
 from planodom.errors import DatasetError
 from planodom.geometry import first_non_rotation, rotation_problem
 from planodom.mounts import check_mounts
@@ -233,6 +234,7 @@ def load_kitti_sequence(
         check_numbering(files, TIMES_FILE)
         times = np.arange(len(files)) / KITTI_RATE_HZ
         notes.append(f"{path}: no {TIMES_FILE}; the scans taken 0.1 s apart (KITTI's 10 Hz)")
+    notes += [unit] if (unit := epoch_unit_note(times, str(path))) else []
     gt_file = kitti_pose_file(path)
     gt = None
     if gt_file is not None:
