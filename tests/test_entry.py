@@ -13,6 +13,8 @@ from pathlib import Path
 _INTERRUPT_IN_IMPORT = """
 import os, signal, sys
 
+signal.signal(signal.SIGINT, signal.default_int_handler)  # ignored under `cmd &`
+
 class SigintOnNumpy:
     def find_spec(self, name, path=None, target=None):
         if name == "numpy":
@@ -60,6 +62,8 @@ def test_importing_the_entry_point_imports_nothing_heavy() -> None:
 #: KeyboardInterrupt, which a Ctrl-C 12 s into ``planodom simulate`` printed as a traceback.
 _INTERRUPT_IN_OPEN3D = """
 import os, signal, sys
+
+signal.signal(signal.SIGINT, signal.default_int_handler)  # ignored under `cmd &`
 from planodom.entry import interrupted_import
 
 armed = []

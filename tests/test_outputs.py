@@ -5,6 +5,7 @@ from __future__ import annotations
 import errno
 import os
 import signal
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -121,6 +122,18 @@ def test_termination_signals_end_the_block_and_leave_nothing(tmp_path: Path) -> 
             signal.signal(sig, handler)
 
 
+@pytest.fixture
+def python_sigint() -> Iterator[None]:
+    """Python's SIGINT handler for the test: a shell ignores SIGINT in a command started in
+    the background (``nohup pytest ... &``), and Python then installs none."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+@pytest.mark.usefixtures("python_sigint")
 def test_ctrl_c_while_the_folder_moves_into_place_keeps_one_whole(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -169,6 +182,7 @@ def test_a_file_is_written_whole_or_the_earlier_one_kept(tmp_path: Path) -> None
     assert [p.name for p in tmp_path.iterdir()] == ["summary.csv"]
 
 
+@pytest.mark.usefixtures("python_sigint")
 def test_a_second_ctrl_c_while_the_partial_folder_is_removed_waits_for_it(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import os
+import signal
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -22,12 +24,11 @@ def simulated(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture
-def ctrl_c_mid_run(monkeypatch: pytest.MonkeyPatch) -> Callable[[], None]:
-    """Arms the next run: a Ctrl-C after the odometry's second epoch, raised as Python's
-    SIGINT handler raises it. (A real SIGINT, ``os.kill``, let one run of the whole suite
-    finish: Python may run the handler inside a finaliser, which swallows the
-    KeyboardInterrupt; the real signal is sent in tests/test_entry.py and
-    tests/test_outputs.py.)"""
+def ctrl_c_mid_run(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[], None]]:
+    """Arms the next run: a real SIGINT (a terminal's Ctrl-C) sent to this process from
+    the odometry's progress call after its second epoch. Python's handler is installed
+    for the test: a shell ignores SIGINT in a command started in the background (``nohup
+    pytest ... &``), and Python then installs none."""
     import planodom.odometry as odometry
 
     real = odometry.run_odometry
@@ -36,11 +37,15 @@ def ctrl_c_mid_run(monkeypatch: pytest.MonkeyPatch) -> Callable[[], None]:
         def step(k: int, n: int) -> None:
             progress(k, n)
             if k == 2:
-                raise KeyboardInterrupt
+                os.kill(os.getpid(), signal.SIGINT)
 
         return real(data, cfg, rig, progress=step)
 
-    return lambda: monkeypatch.setattr(odometry, "run_odometry", run_odometry)
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield lambda: monkeypatch.setattr(odometry, "run_odometry", run_odometry)
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 def _snapshot(folder: Path) -> dict[str, bytes]:
