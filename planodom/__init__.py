@@ -25,7 +25,6 @@ Conventions: ``T_a_b`` (4, 4) maps frame b to frame a; planes ``n . p + d = 0``;
 from __future__ import annotations
 
 import importlib
-from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING, Any
 
 from planodom.errors import (
@@ -37,10 +36,9 @@ from planodom.errors import (
     PlanodomError,
 )
 
-try:
-    __version__ = version("planodom")
-except PackageNotFoundError:  # pragma: no cover - running from a source tree
-    __version__ = "0+unknown"
+#: The installed version, read on first use (importlib.metadata costs more than the rest of
+#: ``import planodom``, which the ``planodom`` command does before it can handle a Ctrl-C).
+__version__: str
 
 if TYPE_CHECKING:
     from planodom.config import PlanodomConfig
@@ -121,12 +119,24 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
+    if name == "__version__":
+        globals()[name] = _version()
+        return globals()[name]
     target = _ALIASES.get(name, name)
     if target not in _LAZY:
         raise AttributeError(f"module 'planodom' has no attribute {name!r}")
     value = getattr(importlib.import_module(_LAZY[target]), target)
     globals()[name] = value  # later look-ups skip this function
     return value
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("planodom")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "0+unknown"
 
 
 def __dir__() -> list[str]:

@@ -56,15 +56,36 @@ def read_trajectory(path: str | Path) -> Trajectory:
         raise DatasetError(f"{path}: cannot read trajectory ({exc.strerror or exc})") from None
     except UnicodeDecodeError:
         raise DatasetError(f"{path}: not a trajectory file (not UTF-8 text)") from None
-    first = next((x.split() for x in lines if x.strip() and not x.startswith("#")), [])
+    data = [x.strip() for x in lines if x.strip() and not x.startswith("#")]
+    first = data[0].split() if data else []
     if len(first) == 12:
         return Trajectory(path, read_kitti_poses(path), None)
     if len(first) == 8:
         times, poses = read_tum(path)
         return Trajectory(path, poses, times)
-    raise DatasetError(
-        f"{path}: not a TUM (8 numbers per line) or KITTI (12 numbers) trajectory; "
-        f"the first line has {len(first)} fields"
+    raise DatasetError(f"{path}: {_not_tum_or_kitti(lines[0] if lines else '', data)}")
+
+
+def _not_tum_or_kitti(head: str, data: list[str]) -> str:
+    """Why a file with ``data`` lines (its first line ``head``) is no TUM or KITTI file:
+    a CSV export, a EuRoC ground truth, no poses, or another count of fields."""
+    if not data:
+        return "no poses in the trajectory file (only blank or '#' comment lines)"
+    if "," not in data[0]:
+        return (
+            "not a TUM (8 numbers per line) or KITTI (12 numbers) trajectory; the first "
+            f"line has {len(data[0].split())} fields"
+        )
+    fields = len(data[0].split(","))
+    if "p_rs_r" in head.lower() or fields == 17:  # EuRoC's / ASL's ground-truth CSV
+        return (
+            "a EuRoC ground-truth CSV (times in ns, quaternions qw qx qy qz): eval reads "
+            "TUM or KITTI files; `evo_traj euroc FILE --save_as_tum` writes it as TUM"
+        )
+    return (
+        f"values separated by commas ({fields} per line, a CSV export?): a TUM file "
+        "separates 'time tx ty tz qx qy qz qw' by spaces, a KITTI file its 12 numbers "
+        "(check the quaternion's order, qx qy qz qw, when converting)"
     )
 
 

@@ -26,10 +26,13 @@ import os
 import secrets
 import shutil
 import signal
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from datetime import datetime
 from pathlib import Path
+from typing import Any
 
+from planodom.entry import interrupted_import
 from planodom.errors import OutputError, OutputExistsError
 
 LATEST = "latest"
@@ -72,15 +75,31 @@ def atomic_folder(
     except OSError as exc:
         _remove_empty(created)
         raise OutputError(f"{target}: cannot create the output folder ({exc.strerror})") from None
+    moved = False
     try:
         yield partial
-        _move_into_place(partial, target)
+        with _signals_held():  # a Ctrl-C between its two renames lost the earlier folder
+            _move_into_place(partial, target)
+            moved = True
     except BaseException as exc:
-        shutil.rmtree(partial, ignore_errors=True)
-        _remove_empty(created)
+        if interrupted_import(exc):  # a Ctrl-C (or an import it cut short)
+            exc.add_note(_interrupted(target, moved))
+        if moved:  # the Ctrl-C held while the folder moved: it is complete
+            raise
+        with _signals_held():  # a second Ctrl-C left the partial folder behind
+            shutil.rmtree(partial, ignore_errors=True)
+            _remove_empty(created)
         if isinstance(exc, OSError) and exc.errno in NO_SPACE:
             raise OutputError(_no_space(target, partial, exc, what)) from None
         raise
+
+
+def _interrupted(target: Path, moved: bool) -> str:
+    """What a Ctrl-C left of the output folder ``target`` (a note on the interrupt)."""
+    if moved:
+        return f"{target} was written whole before it"
+    kept = " (the folder there is kept as it was)" if target.exists() else ""
+    return f"nothing written to {target}{kept}"
 
 
 #: OS errors of a full disk or quota while writing: a file written in the partial folder
@@ -98,6 +117,22 @@ def _no_space(target: Path, partial: Path, exc: OSError, what: str) -> str:
         f"{target}: cannot write {what}: {exc.strerror or exc}{where}; nothing was written "
         "(an earlier folder there is kept as it was)"
     )
+
+
+def write_whole(path: str | Path, write: Callable[[Path], object]) -> None:
+    """``write(tmp)`` into a hidden sibling of ``path`` with its suffix (matplotlib reads
+    the format from it), then renamed over ``path``: an experiment's table or plot,
+    rewritten as the experiment goes, is never left half written by a Ctrl-C or a failure;
+    the earlier file stays until the new one is complete."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
 
 
 def check_target(
@@ -253,6 +288,32 @@ def _move_into_place(partial: Path, target: Path) -> None:
         os.rename(old, target)  # put the earlier folder back
         raise
     shutil.rmtree(old, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold Ctrl-C and the :data:`TERMINATING` signals whose handler is Python's while the
+    block runs, and run the handler of the first that came after it, so that a folder
+    being moved into place is not left half moved. (Blocking them with ``pthread_sigmask``
+    does not hold them: the kernel hands the signal to another thread, numpy's or
+    open3d's, and Python raises in the main thread all the same.) Main thread only, as
+    signal handlers are; elsewhere nothing is held."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[tuple[signal.Signals, Any]] = []
+    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, *TERMINATING)}
+    held = {sig: handler for sig, handler in handlers.items() if callable(handler)}
+    for sig in held:
+        signal.signal(sig, lambda signum, frame: came.append((signal.Signals(signum), frame)))
+    try:
+        yield
+    finally:
+        for sig, handler in held.items():
+            signal.signal(sig, handler)
+        if came:
+            signum, frame = came[0]
+            held[signum](signum, frame)  # e.g. KeyboardInterrupt, now
 
 
 #: Signals that end a run as Ctrl-C does: a scheduler's or ``timeout``'s SIGTERM, a closed

@@ -28,6 +28,7 @@ import numpy as np
 from planodom.config.section import holds_bool
 from planodom.errors import DatasetError, GeometryError
 from planodom.geometry import first_non_rotation
+from planodom.mounts import check_mounts
 
 #: The keys of ``rig.yaml`` planodom reads.
 RIG_KEYS = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics")
@@ -102,13 +103,15 @@ class Rig:
         origins = data.get("sensor_origins")
         if origins is not None:
             origins = _array(origins, source, "sensor_origins", (-1, 3))
-        return cls(
+        rig = cls(
             epoch_rate_hz=None if rate is None else _positive(rate, source, "epoch_rate"),
             sensor_origins=origins if origins is not None and len(origins) else None,
             motion_bounds=_motion_bounds(data.get("motion_bounds"), source),
             extrinsics=_extrinsics(data.get("extrinsics"), source),
             extra={k: v for k, v in data.items() if k not in RIG_KEYS},
         )
+        check_mounts(rig_mounts(rig, source), "")  # millimetres: refused
+        return rig
 
     def to_dict(self) -> dict[str, Any]:
         """The ``rig.yaml`` mapping (plain Python types; absent fields are left out)."""
@@ -126,6 +129,19 @@ class Rig:
         if self.extrinsics:
             out["extrinsics"] = [np.asarray(T).tolist() for T in self.extrinsics]
         return out
+
+
+def rig_mounts(rig: Rig, source: str) -> list[tuple[str, np.ndarray]]:
+    """``(where, translation (3,) m)`` of each distinct sensor origin and extrinsic of
+    ``rig`` (:func:`planodom.mounts.check_mounts`), ``where`` naming ``source`` and the field."""
+    mounts = []
+    origins = () if rig.sensor_origins is None else rig.sensor_origins
+    _, first = np.unique(np.asarray(origins).reshape(-1, 3), axis=0, return_index=True)
+    for k in sorted(first):
+        mounts.append((f"{source}: field 'sensor_origins.{k}'", np.asarray(origins)[k]))
+    for k, T in enumerate(rig.extrinsics):
+        mounts.append((f"{source}: field 'extrinsics.{k}'", T[:3, 3]))
+    return mounts
 
 
 def unread_keys(rig: Rig) -> list[str]:

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from cli_checks import fails
 from plot_checks import assert_nontrivial_png
 from typer.testing import CliRunner
 
@@ -139,3 +140,29 @@ def test_eval_pairs_no_two_poses_across_a_gap_in_the_reference(tmp_path) -> None
     length = sum(np.linalg.norm(GT[k + 1, :3, 3] - GT[k, :3, 3]) for k in steps)
     chord = np.linalg.norm(GT[25, :3, 3] - GT[14, :3, 3])
     assert metrics["distance_m"] == pytest.approx(length + chord, rel=1e-9)
+
+
+def test_csv_euroc_and_empty_references_are_named(tmp_path) -> None:
+    """Before: 'not a TUM (8 numbers per line) or KITTI (12 numbers) trajectory; the first
+    line has 1 fields' for each."""
+    path = tmp_path / "ref.csv"
+    path.write_text("timestamp,tx,ty,tz,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n")
+    with pytest.raises(DatasetError, match=r"ref.csv: values separated by commas \(8 per line"):
+        read_trajectory(path)
+    euroc = "#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w []\n"
+    path.write_text(euroc + "1403636579758555392," + ",".join(["0"] * 15) + ",1\n")
+    with pytest.raises(DatasetError, match=r"ref.csv: a EuRoC ground-truth CSV .*evo_traj euroc"):
+        read_trajectory(path)
+    path.write_text("# timestamp tx ty tz qx qy qz qw\n\n")
+    with pytest.raises(DatasetError, match=r"ref.csv: no poses in the trajectory file"):
+        read_trajectory(path)
+
+
+def test_a_reference_in_nanoseconds_is_named_by_its_span(tmp_path) -> None:
+    times = np.arange(20) * 0.1
+    poses = np.tile(np.eye(4), (20, 1, 1))
+    poses[:, 0, 3] = times
+    write_tum(tmp_path / "est.tum", times, poses)
+    write_tum(tmp_path / "ref.tum", times * 1e9, poses)
+    line = fails(["eval", tmp_path / "est.tum", tmp_path / "ref.tum"], "1 pose matched")
+    assert "reference 0..1.9e+09 s; one lasts 1e+09 times the other: another time unit?" in line

@@ -5,6 +5,7 @@ from __future__ import annotations
 import errno
 import os
 import signal
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -16,6 +17,7 @@ from planodom.outputs import (
     exit_on_termination,
     link_latest,
     timestamped_folder,
+    write_whole,
 )
 
 
@@ -118,3 +120,82 @@ def test_termination_signals_end_the_block_and_leave_nothing(tmp_path: Path) -> 
     finally:
         for sig, handler in saved.items():
             signal.signal(sig, handler)
+
+
+@pytest.fixture
+def python_sigint() -> Iterator[None]:
+    """Python's SIGINT handler for the test: a shell ignores SIGINT in a command started in
+    the background (``nohup pytest ... &``), and Python then installs none."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+@pytest.mark.usefixtures("python_sigint")
+def test_ctrl_c_while_the_folder_moves_into_place_keeps_one_whole(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A Ctrl-C between the move's two renames (the earlier folder moved aside, the new one
+    not yet in place) lost both: the earlier was removed, the new one deleted as partial."""
+    target = tmp_path / "out"
+    target.mkdir()
+    (target / "poses.tum").write_text("old")
+    rename = os.rename
+
+    def rename_then_ctrl_c(src: object, dst: object) -> None:
+        rename(src, dst)  # type: ignore[arg-type]
+        if str(dst).endswith(".old"):
+            os.kill(os.getpid(), signal.SIGINT)  # held until the move is complete
+
+    monkeypatch.setattr(os, "rename", rename_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt) as stopped:
+        with atomic_folder(target, overwrite=True) as tmp:
+            (tmp / "poses.tum").write_text("new")
+    assert (target / "poses.tum").read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert stopped.value.__notes__ == [f"{target} was written whole before it"]
+
+
+def test_ctrl_c_in_the_block_notes_what_was_kept(tmp_path: Path) -> None:
+    target = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt) as stopped, atomic_folder(target):
+        raise KeyboardInterrupt
+    assert stopped.value.__notes__ == [f"nothing written to {target}"]
+
+
+def test_a_file_is_written_whole_or_the_earlier_one_kept(tmp_path: Path) -> None:
+    path = tmp_path / "summary.csv"
+    path.write_text("earlier\n")
+
+    def half_then_ctrl_c(tmp: Path) -> None:
+        tmp.write_text("half")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        write_whole(path, half_then_ctrl_c)
+    assert path.read_text() == "earlier\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.csv"]
+    write_whole(path, lambda tmp: tmp.write_text("new\n"))
+    assert path.read_text() == "new\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.csv"]
+
+
+@pytest.mark.usefixtures("python_sigint")
+def test_a_second_ctrl_c_while_the_partial_folder_is_removed_waits_for_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import shutil
+
+    rmtree = shutil.rmtree
+
+    def ctrl_c_then_rmtree(path: object, ignore_errors: bool = False) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # the second Ctrl-C, held
+        rmtree(path, ignore_errors=ignore_errors)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(shutil, "rmtree", ctrl_c_then_rmtree)
+    with pytest.raises(KeyboardInterrupt), atomic_folder(tmp_path / "out") as tmp:
+        (tmp / "poses.tum").write_text("half")
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []

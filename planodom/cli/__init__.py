@@ -118,8 +118,9 @@ def _inputs(source: Source, config: Path | None) -> list[Path]:
     return inputs
 
 
-def _report_skipped(data: ScanEpochs, metrics: dict) -> None:
+def _report_skipped(data: ScanEpochs, metrics: dict, poses) -> None:
     """List in metrics.json the scans skipped and the recording's notes (warned of)."""
+    data.reference_order(poses, metrics)  # the estimate's ``poses``: a reference misread?
     if data.notes:
         metrics["recording_notes"] = data.notes
     if data.skipped:
@@ -304,7 +305,7 @@ def run(
         data.close()
         metrics = results.odometry_metrics(odo, data.gt_poses)
         metrics |= results.kitti_metrics(odo.poses, data.gt_poses, data.Tr)
-        _report_skipped(data, metrics)
+        _report_skipped(data, metrics, odo.poses)
         _report_far_points(data, metrics)
         _report_gaps(odo, metrics)
         _report_beyond_bounds(odo, metrics)
@@ -411,7 +412,7 @@ def smooth(
         data.close()
         odo_metrics = results.odometry_metrics(sm.odometry, data.gt_poses)
         odo_metrics |= results.kitti_metrics(sm.odometry.poses, data.gt_poses, data.Tr)
-        _report_skipped(data, odo_metrics)
+        _report_skipped(data, odo_metrics, sm.odometry.poses)
         _report_far_points(data, odo_metrics)
         _report_gaps(sm.odometry, odo_metrics)
         _report_beyond_bounds(sm.odometry, odo_metrics)

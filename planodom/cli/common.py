@@ -22,7 +22,9 @@ from rich.console import Console
 from rich.text import Text
 
 from planodom.cli.echo_option import Echo
+from planodom.cli.simulated import simulate_scene
 from planodom.datasets.repeated_scans import RepeatedScans
+from planodom.entry import INTERRUPTED, interrupted_import
 from planodom.errors import DatasetError, OutputExistsError, PlanodomError
 from planodom.scan import Scan, points_beyond_range
 
@@ -51,7 +53,8 @@ def one_line(exc: BaseException) -> str:
 
 
 def reports_errors(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Turn known failures into a one-line message on stderr and exit status 2."""
+    """Turn known failures into a one-line message on stderr and exit status 2, and a
+    Ctrl-C into one line (:func:`interrupted`) and exit status 130 (typer's, silently)."""
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -62,8 +65,20 @@ def reports_errors(func: Callable[..., Any]) -> Callable[..., Any]:
                 raise  # not about a file the user named: a bug, keep the traceback
             error(one_line(exc))
             raise typer.Exit(2) from None
+        except (KeyboardInterrupt, ImportError) as exc:  # an import a Ctrl-C cut short too
+            if not interrupted_import(exc):
+                raise
+            err_console.print(interrupted(exc), style="bold red", soft_wrap=True, markup=False)
+            raise typer.Exit(INTERRUPTED) from None
 
     return wrapper
+
+
+def interrupted(exc: BaseException) -> str:
+    """The line of a command ended by Ctrl-C: what became of its output, as the output
+    folders noted on the exception (:func:`planodom.outputs.atomic_folder`)."""
+    notes = getattr(exc, "__notes__", [])
+    return "; ".join(["interrupted (Ctrl-C)", *notes] if notes else ["interrupted (Ctrl-C)"])
 
 
 def error(message: str) -> None:
@@ -171,57 +186,6 @@ Scenario = Annotated[
 ]
 
 
-def simulate_scene(
-    scene: str,
-    rig: str | None,
-    noise: str,
-    seed: int,
-    epochs: int | None,
-    motion: str,
-    handheld: bool = False,
-):
-    from planodom.errors import ConfigError
-    from planodom.simulation import simulate_named
-
-    if epochs is not None and epochs < 1:  # before simulating; it named a temporary folder
-        raise ConfigError(f"--epochs {epochs}: expected 1 or more (default: one lap)")
-    try:
-        sigma: float | str = float(noise)
-    except ValueError:
-        sigma = noise  # a preset name
-    if epochs is not None and epochs > MEMORY_CHECK_EPOCHS:
-        one = simulate_named(scene, rig, noise=sigma, seed=seed, n_epochs=1, motion=motion,
-                             handheld=handheld)  # fmt: skip
-        _check_simulation_memory(one, epochs)
-    with console.status(f"simulating {scene} with the {rig or 'drawn'} rig"):
-        return simulate_named(scene, rig, noise=sigma, seed=seed, n_epochs=epochs, motion=motion,
-                              handheld=handheld)  # fmt: skip
-
-
-#: Above this many epochs a simulation's memory is estimated (from one simulated epoch)
-#: before it runs: every epoch's points and ranges are held until the dataset is written.
-MEMORY_CHECK_EPOCHS = 1000
-
-
-def _check_simulation_memory(one: Any, epochs: int) -> None:
-    """Refuse ``--epochs`` whose simulated scans (estimated from the one-epoch run ``one``)
-    would not fit in this machine's memory (it ran for minutes, then failed or was killed)."""
-    import os
-
-    from planodom.errors import ConfigError
-
-    arrays = [a for s in one.scans for a in (s.points, s.ring, s.t, s.label) if a is not None]
-    arrays += [r for per_sensor in one.ranges for r in per_sensor]
-    need = epochs * sum(a.nbytes for a in arrays)
-    have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    if need > have:
-        raise ConfigError(
-            f"--epochs {epochs}: the simulated scans would take about {need / 1e9:.3g} GB of "
-            f"memory ({need / epochs / 1e6:.2g} MB an epoch), more than this machine's "
-            f"{have / 1e9:.3g} GB"
-        )
-
-
 class ScanEpochs:
     """A recording's epochs as the odometry reads them, naming the scan behind a failure.
 
@@ -280,6 +244,20 @@ class ScanEpochs:
                 self.empty[self.current] = None
             self.repeated.check(k, self.current, scan)
         return scan
+
+    def reference_order(self, poses: Any, metrics: dict) -> None:
+        """Warn of (and list in metrics.json) a dataset's ``poses.tum`` whose quaternions
+        agree with the estimated ``poses`` (E, 4, 4) only read as qw qx qy qz
+        (:func:`planodom.quaternion_order.wxyz_note`): its metrics are wrong."""
+        from planodom.datasets.dataset import POSES_FILE, Dataset
+        from planodom.quaternion_order import wxyz_note
+
+        if not isinstance(self.dataset, Dataset) or self.gt_poses is None:
+            return
+        note = wxyz_note(poses, self.gt_poses, str(self.dataset.path / POSES_FILE))
+        if note is not None:
+            warn(note)
+            metrics["reference_notes"] = [note]
 
     def close(self) -> None:
         """Release the recording's files (a bag's reader)."""

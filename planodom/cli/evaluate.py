@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -71,9 +71,10 @@ def evaluate(
     est, ref = read_trajectory(estimate), read_trajectory(truth)
     times, est_poses, ref_poses, index = associate_indexed(est, ref, max_diff, offset)
     if len(times) < 2:
+        spans = "" if est.times is None or ref.times is None else _spans(est.times, ref.times)
         raise DatasetError(
             f"{est.path}: {len(times)} pose matched with {ref.path}; errors over the "
-            "trajectory need 2 or more (see --max-diff and --offset)"
+            f"trajectory need 2 or more {spans}(see --max-diff and --offset)"
         )
     if len(times) < len(est.poses):  # a reference over part of the run: said, not silent
         warn(
@@ -97,12 +98,35 @@ def evaluate(
     info: dict[str, object] = {"estimate": str(est.path), "reference": str(ref.path)}
     info |= {"align": align, "matched_poses": len(times), "estimate_poses": len(est.poses)}
     info |= {"reference_poses": len(ref.poses)}
+    if (order := _quaternion_order(est, ref, est_poses, ref_poses)) is not None:
+        warn(order)
+        info["notes"] = [order]
     with results.results_folder(out, overwrite=overwrite, inputs=[estimate, truth]) as folder:
         results.write_metrics(folder.tmp, info | summary)
         with console.status("drawing the plots"):
             write_eval_plots(folder.tmp, times, est_poses, ref_poses, align, index=index)  # type: ignore[arg-type]
     title = f"{est.path.name} vs {ref.path.name}: {len(times)} poses matched -> {folder.path}"
     console.print(metrics_table(summary, title=title))
+
+
+def _quaternion_order(est: Any, ref: Any, est_poses: Any, ref_poses: Any) -> str | None:
+    """Whether either TUM file's quaternions read right only as qw qx qy qz
+    (:func:`planodom.quaternion_order.wxyz_note`; KITTI files hold matrices)."""
+    from planodom.quaternion_order import wxyz_note
+
+    note = None if ref.times is None else wxyz_note(est_poses, ref_poses, str(ref.path))
+    if note is None and est.times is not None:
+        note = wxyz_note(ref_poses, est_poses, str(est.path))
+    return note
+
+
+def _spans(est: Any, ref: Any) -> str:
+    """The two files' time spans, and whether one looks like another unit (ns for s)."""
+    a, b = float(est[-1] - est[0]), float(ref[-1] - ref[0])
+    text = f"(estimate {est[0]:.6g}..{est[-1]:.6g} s, reference {ref[0]:.6g}..{ref[-1]:.6g} s"
+    if min(a, b) > 0 and max(a, b) / min(a, b) > 100:
+        text += f"; one lasts {max(a, b) / min(a, b):.3g} times the other: another time unit?"
+    return text + ") "
 
 
 @app.command("convert")

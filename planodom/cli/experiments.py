@@ -104,6 +104,7 @@ def _out_folder(
     new ``results/<name>/<timestamp>``, linked as ``results/<name>/latest`` once it holds
     anything. Nothing an earlier run or the user left is ever written over unasked; a
     folder made for a run that failed before writing anything is removed again."""
+    from planodom.entry import interrupted_import
     from planodom.outputs import check_target, link_latest, timestamped_folder
 
     if out is None:
@@ -119,6 +120,13 @@ def _out_folder(
     folder.mkdir(parents=True, exist_ok=True)
     try:
         yield folder
+    except (KeyboardInterrupt, ImportError) as exc:  # each table is written whole
+        if not interrupted_import(exc):
+            raise
+        written = any(folder.iterdir())
+        exc.add_note(f"the tables written so far are kept in {folder}" if written else
+                     f"nothing written to {folder}")  # fmt: skip
+        raise
     finally:
         if made and not any(folder.iterdir()):
             folder.rmdir()

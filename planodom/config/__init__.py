@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from pydantic import ValidationError, model_validator
+from pydantic import BaseModel, ValidationError, model_validator
 
 from planodom.config.association import AssociationConfig
 from planodom.config.extraction import ExtractionConfig
@@ -22,7 +22,8 @@ from planodom.config.planemap import PlanemapConfig
 from planodom.config.section import Section, one_line
 from planodom.config.smoothing import SmoothingConfig
 from planodom.config.sweep_refine import SweepRefineConfig
-from planodom.errors import ConfigError, read_yaml_file
+from planodom.errors import ConfigError
+from planodom.yaml_files import read_yaml_file
 
 __all__ = [
     "AssociationConfig",
@@ -100,7 +101,7 @@ class PlanodomConfig(Section):
         """Load a (partial) config; missing keys keep their defaults."""
         path = Path(path)
         data = read_yaml_file(path, "config", ConfigError) or {}
-        return cls.from_dict(data, source=str(path))
+        return cls.from_dict(_empty_sections(data, cls), source=str(path))
 
     @classmethod
     def from_dict(cls, data: dict, source: str = "config") -> PlanodomConfig:
@@ -209,3 +210,19 @@ def _no_section(source: str, keys: list[str], sections: list[str]) -> str:
         f"{source}: not a planodom config: its keys ({shown}) are none of the config's "
         f"sections ({', '.join(sections)}){rig}"
     )
+
+
+def _empty_sections(data: Any, model: type[BaseModel]) -> Any:
+    """``data`` with a section left empty in the file (``odometry:`` above keys all
+    commented out: YAML's null, refused before as "Input should be a valid dictionary")
+    read as no changes to it, as an empty file is; nested sections likewise."""
+    if not isinstance(data, Mapping):
+        return data
+    out = dict(data)
+    for key, value in data.items():
+        field = model.model_fields.get(key) if isinstance(key, str) else None
+        kind = None if field is None else field.annotation
+        if not (isinstance(kind, type) and issubclass(kind, BaseModel)):
+            continue
+        out[key] = {} if value is None else _empty_sections(value, kind)
+    return out

@@ -27,10 +27,12 @@ def is_bag(path: str | Path) -> bool:
 
 def is_bag_part(path: str | Path) -> bool:
     """True for a storage file of a ROS 2 bag folder (``.db3``, ``.mcap``, or either
-    compressed whole as ``.zstd``): the folder is the bag it stands for."""
+    compressed whole as ``.zstd``) or its ``metadata.yaml``: the folder is the bag it
+    stands for (a ``metadata.yaml`` given was "not a directory")."""
     path = Path(path)
     names = (*STORAGE_SUFFIXES, *ZSTD_NAMES)
-    return path.is_file() and path.name.endswith(names) and is_bag(path.parent)
+    part = path.name.endswith(names) or path.name == "metadata.yaml"
+    return path.is_file() and part and is_bag(path.parent)
 
 
 def is_storage_file(path: str | Path) -> bool:

@@ -11,6 +11,7 @@ import numpy as np
 
 from planodom.datasets.bag_index import BagIndex
 from planodom.datasets.bag_ring_order import ring_renumbering
+from planodom.mounts import check_mounts
 from planodom.rig import Rig
 
 
@@ -98,6 +99,22 @@ def bag_topics(path: Path, base_frame: str, index: BagIndex) -> list[BagTopic]:
         )
         first += t.rings
     return topics
+
+
+def mount_notes(path: Path, base_frame: str, topics: list[BagTopic]) -> list[str]:
+    """Notes of sensor frames far from the base frame (:func:`planodom.mounts.check_mounts`);
+    DatasetError naming the transform for one beyond any vehicle (millimetres, or a base
+    frame not on the vehicle)."""
+    hint = (
+        f", or the base frame '{base_frame}' not on the vehicle (--base-frame: the "
+        "vehicle's own frame, such as base_link)"
+    )
+    mounts = [
+        (f"{path}: topic '{t.name}': transform '{base_frame}' -> '{frame}'", T[:3, 3])
+        for t in topics
+        for frame, T in t.T_base_sensor.items()
+    ]
+    return check_mounts(mounts, hint)
 
 
 def bag_rig(

@@ -16,6 +16,7 @@ from planodom.datasets.bin_scan import check_bin_layout
 from planodom.datasets.file_entries import (
     broken_link,
     check_file_entries,
+    kitti_sequences_hint,
     optional_file,
     subfolders_hint,
 )
@@ -27,12 +28,14 @@ from planodom.datasets.scan_order import scan_order_key
 from planodom.datasets.scan_time_notes import scan_time_notes
 from planodom.datasets.scan_time_units import scan_time_unit
 from planodom.datasets.time_wraps import CUT_PERIODS, WRAP_NS
-from planodom.datasets.times_file import read_times, unread_times, write_times
+from planodom.datasets.times_file import epoch_unit_note, read_times, unread_times, write_times
 from planodom.datasets.tum import read_tum, write_tum
-from planodom.errors import DatasetError, read_yaml_file
+from planodom.errors import DatasetError
+from planodom.mounts import check_mounts
 from planodom.outputs import atomic_folder
-from planodom.rig import RIG_KEYS, Rig, unread_keys
+from planodom.rig import RIG_KEYS, Rig, rig_mounts, unread_keys
 from planodom.scan import Scan, ScanSequence
+from planodom.yaml_files import read_yaml_file
 
 SCANS_DIR = "scans"
 POSES_FILE = "poses.tum"
@@ -219,10 +222,11 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
             check_numbering(scan_files, POSES_FILE)
         times = epoch_times(len(scan_files), rig) if named is None else named
     ds = Dataset(root, scan_files, times, gt_poses, rig, bin_layout, time_field)
+    ds.notes = [unit_note] if (unit_note := epoch_unit_note(times, str(root))) else []
     unit = scan_time_unit(scan_files, times, time_field)
     if unit is not None:
         ds.time_scale = unit.scale
-        ds.notes = [f"{root}: {unit.note}"] if unit.note else []
+        ds.notes += [f"{root}: {unit.note}"] if unit.note else []
     if name_note:
         ds.notes.append(f"{scan_files[0].parent}: {name_note}")
     ds.notes += [times_note] if times_note else []
@@ -233,6 +237,7 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     if ds.ring_renumber is not None:
         ds.rig = renumbered_rig(ds.rig, ds.ring_renumber)
     ds.notes += [ring_note] if ring_note else []
+    ds.notes += check_mounts(rig_mounts(rig, str(root / RIG_FILE)), "")
     unread = unread_keys(rig)
     if unread:
         ds.notes.append(
@@ -411,7 +416,8 @@ def _scan_files(root: Path) -> list[Path]:
                 f"reads its {POSES_FILE}"
             )
         if not files:
-            raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files")
+            hint = kitti_sequences_hint(root)
+            raise DatasetError(f"{root} has no {SCANS_DIR}/ directory and no scan files{hint}")
     unknown = sorted(f.name for f in files if f.suffix.lower() not in SCAN_EXTENSIONS)
     if unknown:
         more = f" and {len(unknown) - 5} more" if len(unknown) > 5 else ""

@@ -76,3 +76,17 @@ def subfolders_hint(directory: Path, suffixes: Sequence[str]) -> str:
         "every sensor's points in the base frame (move one folder's files there, or merge "
         "the sensors' files of each epoch)"
     )
+
+
+def kitti_sequences_hint(root: Path) -> str:
+    """For a KITTI odometry tree's root or its ``sequences/`` (which hold sequences, not
+    scans): the sequence folders to give instead."""
+    found = sorted(p.parent for p in root.glob("*/velodyne")) or sorted(
+        p.parent for p in root.glob("sequences/*/velodyne")
+    )
+    if not found:
+        return ""
+    shown = ", ".join(str(p.relative_to(root)) for p in found[:3]) + (
+        " ..." if len(found) > 3 else ""
+    )
+    return f"; it holds {len(found)} KITTI sequence folder(s) ({shown}): give one, e.g. {found[0]}"

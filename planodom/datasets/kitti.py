@@ -28,8 +28,10 @@ from planodom.datasets.file_entries import optional_file
 from planodom.datasets.scan_io import check_time_field, read_scan
 from planodom.datasets.scan_names import check_numbering
 from planodom.datasets.scan_order import scan_order_key
+from planodom.datasets.times_file import epoch_unit_note
 from planodom.errors import DatasetError
 from planodom.geometry import first_non_rotation, rotation_problem
+from planodom.mounts import check_mounts
 from planodom.rig import Rig
 from planodom.scan import Scan
 
@@ -68,8 +70,14 @@ def read_kitti_calib(path: str | Path) -> np.ndarray:
         problem = rotation_problem(Tr[:3, :3])
         if problem is not None:
             raise DatasetError(f"{path}:{number}: 'Tr' is not a rigid transform ({problem})")
+        check_mounts([(f"{path}:{number}: 'Tr'", Tr[:3, 3])], "")  # millimetres: refused
         return Tr
-    raise DatasetError(f"{path}: no 'Tr:' line (the Velodyne-to-camera transform)")
+    keys = [k.strip() for k, sep, _ in (x.partition(":") for x in lines) if sep and k.strip()]
+    found = f"; its keys: {', '.join(keys[:8])}" if keys else "; it holds no 'KEY: numbers' line"
+    raise DatasetError(
+        f"{path}: no 'Tr:' line (the Velodyne-to-camera transform of KITTI odometry's "
+        f"calib.txt){found}"
+    )
 
 
 def read_kitti_poses(path: str | Path) -> np.ndarray:
@@ -226,6 +234,7 @@ def load_kitti_sequence(
         check_numbering(files, TIMES_FILE)
         times = np.arange(len(files)) / KITTI_RATE_HZ
         notes.append(f"{path}: no {TIMES_FILE}; the scans taken 0.1 s apart (KITTI's 10 Hz)")
+    notes += [unit] if (unit := epoch_unit_note(times, str(path))) else []
     gt_file = kitti_pose_file(path)
     gt = None
     if gt_file is not None:

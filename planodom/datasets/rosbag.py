@@ -65,7 +65,7 @@ from planodom.datasets.bag_parts import missing_part_note, tf_in_skipped_part
 from planodom.datasets.bag_paths import bag_location, split_parts_note
 from planodom.datasets.bag_skip import index_skipping
 from planodom.datasets.bag_tf import frame_name
-from planodom.datasets.bag_topics import BagTopic, bag_rig, bag_topics, has_rings
+from planodom.datasets.bag_topics import BagTopic, bag_rig, bag_topics, has_rings, mount_notes
 from planodom.datasets.dataset import write_dataset
 from planodom.errors import DatasetError
 from planodom.geometry import transform_points
@@ -125,6 +125,7 @@ class BagDataset:
         self.gt_topic = gt_topic
         self._index = index
         self.topics = bag_topics(path, self.base_frame, index)
+        far_mounts = mount_notes(path, self.base_frame, self.topics)
         used = np.flatnonzero(index.in_epochs())
         grouped, ref = group_epochs(index.sweep_stamp[used], round(NS / self.epoch_rate))
         members = [used[m] for m in grouped]
@@ -149,7 +150,7 @@ class BagDataset:
         self._ref = ref
         self.times = ref.astype(np.float64) / NS
         self.rig = bag_rig(path, self.base_frame, self.epoch_rate, gt_topic, self.topics)
-        self.notes = split_parts_note(path) + index.tf.loops(self.base_frame)
+        self.notes = split_parts_note(path) + index.tf.loops(self.base_frame) + far_mounts
         self.notes += index.tf.restated_notes() + index.tf.ignored_notes()
         self.notes += bag_notes(index, topics_chosen, gt_topic, echo) + crowded_notes(
             index, members, self.times

@@ -325,10 +325,26 @@ def point_times(
         raise DatasetError(
             f"{path}: {bad} of {len(t)} point times '{name}' (read as {unit}) are NaN, "
             f"infinite, or neither within {MAX_POINT_TIME_S:g} s of the epoch's reference "
-            f"time nor Unix times ({UNIX_TIME_RANGE_S[0]:g} to {UNIX_TIME_RANGE_S[1]:g} s; "
-            "--time-field none ignores them)"
+            f"time nor Unix times ({UNIX_TIME_RANGE_S[0]:g} to {UNIX_TIME_RANGE_S[1]:g} s"
+            f"{'' if integer else _float_unit_hint(t)}; --time-field none ignores them)"
         )
     return t
+
+
+def _float_unit_hint(t: np.ndarray) -> str:
+    """For float point times refused as seconds: the one smaller unit in which their span
+    is a sweep's (5 ms to 2 s), e.g. relative nanoseconds in a float64 field."""
+    finite = t[np.isfinite(t)]
+    span = float(finite.max() - finite.min()) if len(finite) > 1 else 0.0
+    units = [(u, span * f) for u, f in (("nanoseconds", 1e-9), ("microseconds", 1e-6))]
+    fits = [(u, s) for u, s in units if 0.005 <= s <= 2.0]
+    if len(fits) != 1:
+        return ""
+    unit, seconds = fits[0]
+    return (
+        f"; they span {span:.3g}, a sweep of {seconds:.3g} s in {unit}: a float time field "
+        "is read as seconds, so write seconds"
+    )
 
 
 def _refuse_rounded(path: Path, name: str, absolute: np.ndarray) -> None:

@@ -51,7 +51,8 @@ def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         raise DatasetError(f"{path}: cannot read trajectory file ({exc.strerror})") from None
     except UnicodeDecodeError:
         raise DatasetError(f"{path}: not a trajectory file (not UTF-8 text)") from None
-    rows, line_numbers = [], []
+    rows: list[list[float]] = []
+    line_numbers: list[int] = []
     for number, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()
         if not stripped or stripped.startswith("#"):
@@ -64,7 +65,7 @@ def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         if len(tokens) != 8 or len(values) != 8 or not np.all(np.isfinite(values)):
             raise DatasetError(
                 f"{path}:{number}: expected 8 finite numbers 'time tx ty tz qx qy qz qw', "
-                f"got {stripped[:80]!r}"
+                f"got {stripped[:80]!r}{_hint(stripped, not rows)}"
             )
         rows.append(values)
         line_numbers.append(number)
@@ -101,6 +102,15 @@ def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     poses[:, :3, :3] = Rotation.from_quat(quat / norm[:, None]).as_matrix()
     poses[:, :3, 3] = xyz
     return times, poses
+
+
+def _hint(line: str, first: bool) -> str:
+    """What a bad line looks like: values separated by commas, or a header line."""
+    if "," in line:
+        return " (values separated by commas: a TUM file separates them by spaces)"
+    if first and not any(c.isdigit() for c in line):
+        return " (a header line? a TUM file's comments start with '#')"
+    return ""
 
 
 def write_tum(path: str | Path, times: np.ndarray, poses: np.ndarray) -> None:

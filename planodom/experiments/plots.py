@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from planodom.outputs import write_whole
+
 
 def top_view(ax, gt: np.ndarray, tracks: Iterable[tuple[str, np.ndarray, str | None]], title: str):
     """Truth (blue crosses, at most ~150) and each ``(label, poses (E, 4, 4), colour)`` in xy."""
@@ -29,7 +31,7 @@ def save_grid(fig, axes, n_used: int, path: Path) -> None:
     for ax in axes.ravel()[n_used:]:
         ax.axis("off")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    write_whole(path, lambda tmp: fig.savefig(tmp, dpi=120))  # whole or not at all
     plt.close(fig)
 
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
+from planodom.outputs import write_whole
 from planodom.results import write_rows
 
 Rows = Sequence[Mapping[str, Any]]
@@ -44,11 +45,13 @@ def write_tables(
 ) -> dict[str, Path]:
     """``<name>.md`` and ``<name>.csv`` in ``out`` per table; returns their paths, keyed
     ``<name>_md`` and ``<name>_csv``. ``markdown`` maps a table name to its own Markdown
-    layout (default :func:`markdown_table`)."""
+    layout (default :func:`markdown_table`). Each file is written whole
+    (:func:`planodom.outputs.write_whole`): a Ctrl-C keeps the earlier one."""
     files: dict[str, Path] = {}
     for name, rows in tables.items():
         files[f"{name}_md"] = out / f"{name}.md"
         files[f"{name}_csv"] = out / f"{name}.csv"
-        files[f"{name}_md"].write_text((markdown or {}).get(name, markdown_table)(rows))
-        write_rows(files[f"{name}_csv"], rows)
+        text = (markdown or {}).get(name, markdown_table)(rows)
+        write_whole(files[f"{name}_md"], lambda tmp: tmp.write_text(text))  # noqa: B023 (called at once)
+        write_whole(files[f"{name}_csv"], lambda tmp: write_rows(tmp, rows))  # noqa: B023
     return files

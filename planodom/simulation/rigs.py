@@ -46,10 +46,11 @@ import numpy as np
 import yaml
 
 from planodom.config.section import holds_bool
-from planodom.errors import ConfigError, DatasetError, read_yaml_file
+from planodom.errors import ConfigError, DatasetError
 from planodom.geometry import make_transform
 from planodom.rig import Rig
 from planodom.simulation.sensors import Scanner2D, Sensor, SpinningLidar
+from planodom.yaml_files import read_yaml_file
 
 __all__ = [
     "SensorRig",

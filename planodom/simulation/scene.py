@@ -40,7 +40,8 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from planodom.config.section import admits_bool, holds_bool
-from planodom.errors import DatasetError, GeometryError, read_yaml_file
+from planodom.errors import DatasetError, GeometryError
+from planodom.yaml_files import read_yaml_file
 
 Kind = Literal["wall", "facade", "ground", "polygon"]
 VERTICAL_KINDS = ("wall", "facade")

@@ -107,3 +107,27 @@ def test_interrupted_generalisation_keeps_finished_worlds(tmp_path, monkeypatch)
     rows = list(csv.DictReader((tmp_path / "runs.csv").open()))
     assert [(r["world"], r["method"]) for r in rows] == [(str(calls[0]), "oracle")]
     assert (tmp_path / "summary.csv").is_file() and (tmp_path / "config.yaml").is_file()
+
+
+def test_ctrl_c_in_an_experiment_names_the_tables_kept(tmp_path, monkeypatch):
+    """typer ended it with a silent 130: nothing said which tables were kept, and where."""
+    real = generalisation.run_world
+    calls: list[int] = []
+
+    def ctrl_c_on_second_world(world, noise, n_epochs, *args, **kwargs):
+        if n_epochs == 3:  # the untimed warm-up
+            return real(world, noise, n_epochs, *args, **kwargs)
+        calls.append(world.seed)
+        if len(calls) > 1:
+            raise KeyboardInterrupt
+        return real(world, noise, n_epochs, *args, **kwargs)
+
+    monkeypatch.setattr(generalisation, "run_world", ctrl_c_on_second_world)
+    out = tmp_path / "gen"
+    args = ["experiment", "generalisation", "--worlds", "2", "--noise", "0.006"]
+    result = runner.invoke(app, [*args, "--epochs", "4", "--methods", "oracle", "-o", str(out)])
+    assert result.exit_code == 130, result.output
+    lines = [line for line in result.stderr.splitlines() if line.startswith("interrupted")]
+    assert lines == [f"interrupted (Ctrl-C); the tables written so far are kept in {out}"]
+    rows = list(csv.DictReader((out / "runs.csv").open()))
+    assert [r["world"] for r in rows] == [str(calls[0])]

@@ -241,3 +241,16 @@ def test_another_files_mapping_is_named_as_no_config(tmp_path, text: str, tail: 
     with pytest.raises(ConfigError) as exc:
         PlanodomConfig.from_yaml(tmp_path / "c.yaml")
     assert str(exc.value) == f"{tmp_path / 'c.yaml'}: {tail}"
+
+
+def test_a_section_left_empty_in_a_file_keeps_its_defaults(tmp_path) -> None:
+    """``odometry:`` above keys all commented out is YAML's null: refused before with
+    "field 'odometry': Input should be a valid dictionary ..., got None"."""
+    path = tmp_path / "c.yaml"
+    path.write_text("odometry:\n#  delta: 2\nextraction:\n  time_windows:\n  range_noise_m: 0.01\n")
+    cfg = PlanodomConfig.from_yaml(path)
+    expected = PlanodomConfig().updated({"extraction.range_noise_m": 0.01})
+    assert cfg == expected
+    path.write_text("odometry: 3\n")  # a value that is no section is still named
+    with pytest.raises(ConfigError, match=r"c.yaml: field 'odometry'"):
+        PlanodomConfig.from_yaml(path)

@@ -10,6 +10,7 @@ import pytest
 from bag_factory import STATIC_TF, T0_NS, T_BASE, Sensor, split_ros2_bag, write_bag
 
 from planodom.datasets.bag_options import BagOptions
+from planodom.datasets.recording import open_recording
 from planodom.datasets.rosbag import open_bag
 from planodom.errors import DatasetError
 
@@ -43,6 +44,11 @@ def test_a_split_ros2_recording_reads_as_the_whole_bag(split) -> None:
     ext = ".mcap" if storage == "mcap" else ".db3"
     with open_bag(rec / f"rec_1{ext}", BagOptions(gt_topic="/odom")) as ds:
         assert len(ds) == 10
+    # its metadata.yaml given (before: "dataset .../metadata.yaml is not a directory")
+    with open_recording(rec / "metadata.yaml") as ds:
+        assert len(ds) == 10
+    for a, b in zip(_reading(rec / "metadata.yaml"), _reading(rec), strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_a_part_missing_or_cut_short_is_named(split) -> None:

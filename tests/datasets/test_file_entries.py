@@ -105,3 +105,16 @@ def test_scans_in_sub_folders_are_named(tmp_path: Path) -> None:
     shutil.rmtree(root / "scans" / "rear")
     with pytest.raises(DatasetError, match="is empty: no scan files$"):
         load_dataset(root)
+
+
+def test_a_kitti_trees_root_names_its_sequences(tmp_path: Path) -> None:
+    """Before: 'has no scans/ directory and no scan files' for dataset/ and sequences/."""
+    seq = make_sequence(tmp_path, poses_beside=True)
+    for root, shown in ((tmp_path / "dataset", "sequences/07"), (seq.parent, "07")):
+        with pytest.raises(DatasetError) as err:
+            load_dataset(root)
+        assert str(err.value) == (
+            f"{root} has no scans/ directory and no scan files; it holds 1 KITTI sequence "
+            f"folder(s) ({shown}): give one, e.g. {seq}"
+        )
+    assert len(load_kitti_sequence(seq)) == 3  # which reads

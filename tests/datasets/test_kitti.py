@@ -64,7 +64,11 @@ def test_sequence_errors(tmp_path: Path) -> None:
         load_kitti_sequence(seq)
     (seq / "times.txt").unlink()
     (seq / "calib.txt").write_text("P0: 1 2 3\n")
-    with pytest.raises(DatasetError, match=r"calib.txt: no 'Tr:' line"):
+    with pytest.raises(DatasetError, match=r"calib.txt: no 'Tr:' line .*; its keys: P0$"):
+        load_kitti_sequence(seq)
+    # KITTI object / tracking's calib (another key): its keys named
+    (seq / "calib.txt").write_text("P0: 1 2 3\nTr_velo_to_cam: 1 0 0 0 0 1 0 0 0 0 1 0\n")
+    with pytest.raises(DatasetError, match=r"its keys: P0, Tr_velo_to_cam$"):
         load_kitti_sequence(seq)
     (seq / "calib.txt").write_text("Tr: 1 2 3\n")
     with pytest.raises(DatasetError, match=r"calib.txt:1: 'Tr' must hold 12"):

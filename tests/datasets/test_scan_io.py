@@ -412,3 +412,22 @@ def test_per_packet_absolute_times_are_kept(tmp_path: Path, packets: int) -> Non
     t = read_scan(path).t
     assert t is not None and len(np.unique(t)) == packets
     np.testing.assert_allclose(t, per_packet - per_packet[0], atol=1e-6)
+
+
+def test_float_times_in_nanoseconds_are_named_so(tmp_path: Path) -> None:
+    """A float64 't' of relative nanoseconds: refused before as times neither near the
+    epoch nor Unix times, with nothing saying they were nanoseconds."""
+    from planodom.datasets.pcd import write_pcd
+
+    rng = np.random.default_rng(2)
+    points = rng.uniform(-10, 10, (200, 3))
+    t = np.sort(rng.uniform(0, 0.1, 200))
+    fields = {"x": points[:, 0], "y": points[:, 1], "z": points[:, 2], "t": t * 1e9}
+    write_pcd(tmp_path / "a.pcd", fields)
+    with pytest.raises(DatasetError, match=r"a sweep of 0.0\d+ s in nanoseconds: a float time"):
+        read_scan(tmp_path / "a.pcd", reference_time=0.0)
+    write_pcd(tmp_path / "b.pcd", fields | {"t": t * 1e6})
+    with pytest.raises(DatasetError, match=r"a sweep of 0.0\d+ s in microseconds"):
+        read_scan(tmp_path / "b.pcd", reference_time=0.0)
+    write_pcd(tmp_path / "c.pcd", fields | {"t": t})  # seconds: read
+    assert np.array_equal(read_scan(tmp_path / "c.pcd", reference_time=0.0).t, t)

@@ -77,3 +77,18 @@ def test_tum_accepts_nearly_unit_quaternions(tmp_path: Path) -> None:
         poses[0, :3, :3], Rotation.from_euler("z", 0.3).as_matrix(), atol=2e-6
     )
     np.testing.assert_allclose(poses[0, :3, :3] @ poses[0, :3, :3].T, np.eye(3), atol=1e-15)
+
+
+def test_a_header_or_commas_are_named_as_such(tmp_path: Path) -> None:
+    """One line before too, but naming only the bad line: a CSV export or a header line
+    was left for the user to recognise."""
+    path = tmp_path / "p.tum"
+    path.write_text("timestamp tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n")
+    with pytest.raises(DatasetError, match=r"p.tum:1: .*\(a header line\? a TUM file's comments"):
+        read_tum(path)
+    path.write_text("0, 0, 0, 0, 0, 0, 0, 1\n")
+    with pytest.raises(DatasetError, match=r"p.tum:1: .*\(values separated by commas: a TUM"):
+        read_tum(path)
+    path.write_text("0 0 0 0 0 0 0 1\n1 x 0 0 0 0 0 1\n")  # a bad value: no hint
+    with pytest.raises(DatasetError, match=r"p.tum:2: expected 8 finite numbers .*'$"):
+        read_tum(path)

@@ -8,7 +8,8 @@ import pytest
 
 from planodom.config import PlanodomConfig
 from planodom.datasets.dataset import read_rig
-from planodom.errors import ConfigError, DatasetError, read_yaml_file
+from planodom.errors import ConfigError, DatasetError
+from planodom.yaml_files import read_yaml_file
 
 
 def test_a_key_given_twice_is_refused_naming_file_line_and_key(tmp_path: Path) -> None:
