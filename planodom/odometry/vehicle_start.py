@@ -33,7 +33,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planodom.geometry import make_transform, se3_log
 from planodom.odometry.deskew import EpochEstimate
+from planodom.odometry.nonholonomic import lateral_row
 from planodom.odometry.relative import Status
 from planodom.scan import Scan
 
@@ -41,10 +43,27 @@ if TYPE_CHECKING:
     from planodom.odometry.odometry import PlaneOdometry
 
 
-def vehicle_twist(own: np.ndarray) -> np.ndarray:
-    """(6,) a vehicle's twist (rad/s, m/s) from a step's own ``own`` (6,): its yaw rate
-    (about the base z) and its velocity along the base x; the roll and pitch rates and the
-    lateral and vertical velocity zero."""
+def vehicle_twist(estimate: EpochEstimate, dt: float, sin_parallel: float) -> np.ndarray | None:
+    """(6,) a vehicle's twist (rad/s, m/s) from a degenerate step ``estimate`` of ``dt`` s:
+    its yaw rate (about the base z) and its velocity along the base x, the roll and pitch
+    rates and the lateral and vertical velocity zero. The step's translation along the
+    direction its associated planes' normals leave unmeasured (the smallest singular
+    vector of the reference normals) is the prior's (standing still at a start): it is
+    replaced by the one that puts the step on a vehicle's arc (no lateral velocity,
+    :func:`.nonholonomic.lateral_row`), as ``odometry.motion_model: nonholonomic`` solves
+    it. None when that direction is within ``sin_parallel`` (sine) of the arc's own (a wall
+    along the track: the speed is not measured) or no plane was associated."""
+    pairs = estimate.relative.associations
+    if len(pairs) == 0:
+        return None
+    normals = np.array([estimate.reference_planes[int(i)].normal for i in pairs[:, 0]])
+    u = np.linalg.svd(normals)[2][-1]  # the least measured direction of the translation
+    R, t = estimate.step[:3, :3], estimate.step[:3, 3]
+    c = lateral_row(R)
+    if abs(float(c @ u)) <= sin_parallel:
+        return None
+    t = t - float(c @ t) / float(c @ u) * u
+    own = se3_log(make_transform(R, t)) / dt
     out = np.zeros(6)
     out[2], out[3] = own[2], own[3]
     return out
@@ -53,18 +72,21 @@ def vehicle_twist(own: np.ndarray) -> np.ndarray:
 def vehicle_started(odo: PlaneOdometry, scan: Scan, t: float, best: EpochEstimate) -> EpochEstimate:
     """``best``, the estimate of the epoch ``scan`` at ``t`` s, or the estimate of it and
     its reference deskewed with a vehicle's twist (module docstring) when that is OK."""
-    ungated = odo._twist_sigma.ungated
     if not odo.config.odometry.start_vehicle_twist or odo._map is not None or odo._rates:
         return best
-    if not best.relative.inconsistent or ungated is None:
+    ungated = _ungated(odo, best)
+    if ungated is None:
         return best
     ref = odo._reference()
     if ref.scan is None:
         return best
     dt = t - odo.times[-1]
     saved, last = (ref.planes, ref.twist, ref.plane_set), odo._last_usable
+    sin_parallel = float(np.sin(np.radians(odo.config.association.parallel_angle_deg)))
     for _ in range(max(odo.config.odometry.deskew_iterations, 1)):
-        twist = vehicle_twist(ungated.own_twist(dt))
+        twist = vehicle_twist(ungated, dt, sin_parallel)
+        if twist is None:
+            break
         odo._set_planes(ref, *odo._extract(ref.scan, twist))
         again = odo._estimate_scan(scan, t, twist)
         if again.relative.status is Status.OK:
@@ -73,9 +95,18 @@ def vehicle_started(odo: PlaneOdometry, scan: Scan, t: float, best: EpochEstimat
             if ref.has_pair(odo.config.association) and (last is None or last.index <= ref.index):
                 odo._last_usable = ref
             return again
-        if not again.relative.inconsistent or odo._twist_sigma.ungated is None:
+        ungated = _ungated(odo, again)
+        if ungated is None:
             break
-        ungated = odo._twist_sigma.ungated
     odo._set_planes(ref, *saved)
     odo._last_usable = last
     return best
+
+
+def _ungated(odo: PlaneOdometry, estimate: EpochEstimate) -> EpochEstimate | None:
+    """The degenerate step ``estimate`` was before ``degenerate_gate`` bridged it (None
+    when it was not bridged by the gate)."""
+    if not estimate.relative.inconsistent:
+        return None
+    found = [e for e in odo._twist_sigma.ungated if e.planes is estimate.planes]
+    return found[-1] if found else None
