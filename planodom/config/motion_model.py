@@ -109,3 +109,15 @@ class MotionModelConfig(Section):
     the bridge, the gates and the retries keeping the constant rate. Off by default: 2D-rig
     worlds 0-18 at 6 mm, extractions an epoch 2.46 -> 1.91, but ATE ratio 1.05 / 1.14 (6 mm /
     2 cm), and on 160-178 world 166 0.48 -> 1.92 m (docs/RESULTS.md, PREDICT3)."""
+
+    start_vehicle_twist: bool = False
+    """Pairwise pipelines, a vehicle (never a hand-held sensor): at the start, while no
+    step has measured an angular rate, an epoch whose own step is degenerate but reported
+    unresolved by ``degenerate_gate`` (its rate against the prediction of a start that
+    measured none) is extracted again, with its reference, deskewed with a vehicle's twist
+    made of that step: its yaw rate (about the base z) and its velocity along the base x,
+    the roll and pitch rates and the lateral and vertical velocity zero (a vehicle's are
+    small; a degenerate step's roll and pitch come from a wall the undeskewed extraction
+    tilts). Repeated with the new step's own (``deskew_iterations`` rounds) and kept only
+    when the step is OK; else the reference's planes come back
+    (:mod:`planodom.odometry.vehicle_start`). Off by default (docs/RESULTS.md, GAPS6)."""

@@ -189,9 +189,9 @@ class PlaneOdometry:
             lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg) if middle else None
             guard = pairwise and ocfg.deskew_bounds_guard
             bounds = (self.config.association, self._restore_reference) if guard else None
-            best = register_deskewed(twist, dt, estimate, refresh, ocfg, previous, held, damped,
-                                     trend, lost_trend, restore, lead, bounds,
-                                     ranking(self.config))  # fmt: skip
+            best = self.start.vehicle(self, scan, t, register_deskewed(
+                twist, dt, estimate, refresh, ocfg, previous, held, damped, trend, lost_trend,
+                restore, lead, bounds, ranking(self.config)))  # fmt: skip
             if k == 1 and ocfg.first_epoch_reextract:  # the second epoch: the first's rounds
                 best = reextracted_first(
                     best, dt, ocfg, self._history[0], partial(self._first_round, scan, t)

@@ -45,11 +45,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planodom.geometry import Plane, orthonormalised, se3_log, twist_step
-from planodom.odometry.deskew import time_spread, with_deskew
+from planodom.odometry.deskew import EpochEstimate, time_spread, with_deskew
 from planodom.odometry.kept_epoch import KeptEpoch
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.solver import estimate_relative_pose
+from planodom.odometry.vehicle_start import vehicle_started
 from planodom.planes import PlaneSet
+from planodom.scan import Scan
 
 if TYPE_CHECKING:
     from planodom.odometry.odometry import PlaneOdometry
@@ -110,6 +112,13 @@ class StartEpochs:
         if stale:
             known = {e.index: e for e in [*self.epochs, epoch]}
             refresh_start(odo, stale, known, twist, epoch.index)
+
+    def vehicle(
+        self, odo: PlaneOdometry, scan: Scan, t: float, best: EpochEstimate
+    ) -> EpochEstimate:
+        """``best`` or the start's epoch deskewed with a vehicle's twist
+        (:func:`.vehicle_start.vehicle_started`, ``odometry.start_vehicle_twist``)."""
+        return vehicle_started(odo, scan, t, best)
 
     @property
     def first_twist(self) -> np.ndarray | None:

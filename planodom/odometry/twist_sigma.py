@@ -76,10 +76,13 @@ class TwistUncertainty:
         # what change() and predicted() return until the next update (asked for with
         # every extraction of an epoch)
         self._memo: dict[object, object] = {}
+        # the estimates gated()'s gate bridged since the last update (their steps before it)
+        self.ungated: list[EpochEstimate] = []
 
     def update(self, own: np.ndarray, relative: RelativePose, dt: float) -> None:
         """Record a committed epoch's own twist ``own`` (6,) and its step's ``relative``."""
         self._memo.clear()
+        self.ungated.clear()
         if relative.status is Status.UNRESOLVED:
             self._unresolved += 1
             self._previous = None
@@ -194,6 +197,7 @@ class TwistUncertainty:
             return estimate
         if prediction is None or self.consistent(estimate, dt, prediction, config, "degenerate"):
             return estimate
+        self.ungated.append(estimate)  # the step before the gate (start_vehicle_twist)
         step = se3_exp((prediction if bridging is None else bridging) * dt)
         no_pairs = np.zeros((0, 2), dtype=np.intp)
         relative = replace(

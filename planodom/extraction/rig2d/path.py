@@ -27,7 +27,7 @@ from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch, PathResult
 from planodom.extraction.noise import member_tolerance, rms_limit
 from planodom.extraction.planes.builder import PlaneFits, build_planes
-from planodom.extraction.rig2d import onescanner, sparsewindows, windows
+from planodom.extraction.rig2d import coplanargroups, onescanner, sparsewindows, windows
 from planodom.extraction.rig2d.groupfit import plane_fits
 from planodom.extraction.rig2d.grouping import GroupingParams
 from planodom.extraction.rig2d.groups import group_segments
@@ -94,17 +94,10 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     n_lost += n_groups - len(groups)
     if not groups:
         return PathResult([], [], sigma, len(segs), 0, n_lost)
-    fits = _group_fits(segs, groups, epoch, config)
-    if config.refit_keeps_cross:
-        ring = scan.ring
-        lost = [lost_cross(segs, g, ring[fits.members(k)], config.min_segment_points)
-                for k, g in enumerate(groups)]  # fmt: skip
-        if any(lost):
-            groups = [g for g, drop in zip(groups, lost, strict=True) if not drop]
-            n_lost += len(lost) - len(groups)
-            if not groups:
-                return PathResult([], [], sigma, len(segs), 0, n_lost)
-            fits = _group_fits(segs, groups, epoch, config)
+    groups, fits, n_dropped = _refit_groups(segs, groups, epoch, config, params, windowed)
+    n_lost += n_dropped
+    if fits is None:
+        return PathResult([], [], sigma, len(segs), 0, n_lost)
     adjust = None
     if windowed:
         allowed = None
@@ -115,6 +108,33 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
     planes = onescanner.widened_planes(planes, inliers, epoch, config)
     return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)
+
+
+def _refit_groups(
+    segs: Segments, groups: list[np.ndarray], epoch: Epoch, config: ExtractionConfig,
+    params: GroupingParams, windowed: bool,
+) -> tuple[list[np.ndarray], PlaneFits | None, int]:  # fmt: skip
+    """The groups' robust refits (:func:`_group_fits`), without the groups whose refit lost
+    its crossing (``refit_keeps_cross``) and, deskewed, with the groups of one plane joined
+    (``merge_coplanar_groups``, :mod:`.coplanargroups`): the groups kept, their fits (None
+    when none is left) and the number dropped."""
+    fits, dropped = _group_fits(segs, groups, epoch, config), 0
+    if config.refit_keeps_cross:
+        ring = epoch.scan.ring
+        assert ring is not None
+        lost = [lost_cross(segs, g, ring[fits.members(k)], config.min_segment_points)
+                for k, g in enumerate(groups)]  # fmt: skip
+        if any(lost):
+            groups = [g for g, drop in zip(groups, lost, strict=True) if not drop]
+            dropped = len(lost) - len(groups)
+            if not groups:
+                return groups, None, dropped
+            fits = _group_fits(segs, groups, epoch, config)
+    if config.merge_coplanar_groups and not windowed:
+        merged = coplanargroups.merged_groups(groups, fits, params.tol_m, params.max_rms_m)
+        if merged is not None:
+            groups, fits = merged, _group_fits(segs, merged, epoch, config)
+    return groups, fits, dropped
 
 
 def without_own_scan_plane(
