@@ -35,6 +35,16 @@ class DeskewGuards(MomentRefineConfig):
     0.089 m); every other run is bit-identical. It is only as good as the bounds declared
     (docs/RESULTS.md, "New worlds 100-119")."""
 
+    twist_sigma_fragments: bool = False
+    """Streaming, ``twist_sigma: lost``: an extraction whose planes hold fewer distinct
+    surfaces than planes (:func:`planodom.odometry.surfaces.distinct_surfaces`: a twist off
+    the truth splits a wall into one plane per sweep) is lost too, and the widened one is
+    then kept unless the first has a better status or as many distinct surfaces (the
+    widened one as before only when consistent with the prediction). Off by default:
+    found on 2D-rig world 166 at 6 mm (docs/RESULTS.md, DEGEN166), where a twist lagging
+    a turn's exit split the walls and lost the ground while the plane count rose; not
+    judged on other worlds."""
+
     deskew_rank: Literal["planes", "surfaces", "surfaces_first"] = "planes"
     """Streaming: how the deskewing policy ranks two extractions of an epoch
     (:mod:`planodom.odometry.surfaces`). ``planes``: status, then plane count, and a

@@ -52,7 +52,7 @@ from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.seed_extraction import seed_extraction
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.start_epochs import StartEpochs
-from planodom.odometry.surfaces import ranking
+from planodom.odometry.surfaces import fragment_count, ranking
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
 from planodom.odometry.vertical_offset import step_twist_offset
@@ -269,11 +269,11 @@ class PlaneOdometry:
         sigma = prior_sigma if twist is not None else None
         if source is not None and twist is not None and self.times:
             sigma = self._twist_sigma.refined(source, t - self.times[-1], twist)
-        k, mode = len(self.poses), self.config.odometry.twist_sigma
+        k, ocfg, count = len(self.poses), self.config.odometry, fragment_count(self.config)
         extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s, sigma), t)  # noqa: E731
-        dt, ocfg = t - self.times[-1], self.config.odometry
+        dt, mode = t - self.times[-1], ocfg.twist_sigma
         agrees = partial(self._twist_sigma.consistent, dt=dt, prediction=self.twist, config=ocfg)
-        return widened_if_lost(extract, sigma, mode, len(self.last_planes), agrees)
+        return widened_if_lost(extract, sigma, mode, len(self.last_planes), agrees, count)
 
     def _estimate(self, epoch: _Epoch, t: float) -> EpochEstimate:
         """The relative pose of ``epoch`` (at time ``t``) from the reference epoch, and the

@@ -84,3 +84,14 @@ def ranking(config: PlanodomConfig) -> Ranking:
     if config.odometry.deskew_rank == "planes":
         return by_planes
     return lambda e: (e.relative.status.rank, count(e))
+
+
+def fragment_count(config: PlanodomConfig) -> Callable[[EpochEstimate], int] | None:
+    """With ``odometry.twist_sigma_fragments``, an estimate's distinct surfaces within
+    ``association.normal_tol_deg`` and ``offset_tol_m`` (:func:`distinct_surfaces`), which
+    :func:`planodom.odometry.twist_sigma.widened_if_lost` compares with its plane count;
+    None when off."""
+    if not config.odometry.twist_sigma_fragments:
+        return None
+    tol_deg, tol_m = config.association.normal_tol_deg, config.association.offset_tol_m
+    return lambda e: distinct_surfaces(e.planes, tol_deg, tol_m)

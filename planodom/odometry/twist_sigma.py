@@ -213,6 +213,7 @@ def widened_if_lost(
     mode: Literal["lost", "always", "fixed"],
     previous_planes: int,
     consistent: Callable[[EpochEstimate], bool] = lambda _: True,
+    surfaces: Callable[[EpochEstimate], int] | None = None,
 ) -> EpochEstimate:
     """One extraction of an epoch with a twist of ``sigma`` (None: exact or no twist), as
     ``odometry.twist_sigma`` says: ``lost``: first with the extraction's own tolerances,
@@ -222,16 +223,26 @@ def widened_if_lost(
     (:meth:`TwistUncertainty.consistent`); ``always``: widened; ``fixed``: the
     extraction's tolerances.
     ``estimate(sigma)`` extracts with that sigma (None: the extraction config's) and
-    estimates the relative pose."""
+    estimates the relative pose. ``surfaces`` (``odometry.twist_sigma_fragments``): an
+    estimate's distinct surfaces; with it, a first extraction with fewer than its planes
+    (a wall split per sweep) is lost too, and is kept over the widened one only with a
+    better status or, at the same status, as many distinct surfaces."""
     if sigma is None or mode == "fixed":
         return estimate(None)
     if mode == "always":
         return estimate(sigma)
     tight = estimate(None)
-    if not prefer_streaming(tight, previous_planes):
+    split = surfaces is not None and surfaces(tight) < len(tight.planes)
+    if not split and not prefer_streaming(tight, previous_planes):
         return tight
     wide = estimate(sigma)
-    return tight if keep_first(tight, wide) or not consistent(wide) else wide
+    if split:
+        assert surfaces is not None
+        rank = lambda e: (e.relative.status.rank, surfaces(e))  # noqa: E731
+        first = rank(tight) >= rank(wide)
+    else:
+        first = keep_first(tight, wide)
+    return tight if first or not consistent(wide) else wide
 
 
 def widened(

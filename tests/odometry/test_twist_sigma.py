@@ -6,9 +6,10 @@ import numpy as np
 from planes_factory import observe, world_planes
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import invert_transform, se3_log, transform_from_rpy_xyz
+from planodom.geometry import Plane, invert_transform, se3_log, transform_from_rpy_xyz
 from planodom.odometry import PlaneOdometry, RelativePose, Status
 from planodom.odometry.deskew import EpochEstimate
+from planodom.odometry.surfaces import fragment_count
 from planodom.odometry.twist_sigma import TwistUncertainty, step_sigma, widened_if_lost
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -260,3 +261,47 @@ def test_remembered_sigmas_are_those_of_a_model_asked_only_at_the_end():
     assert asked.predicted() == fresh.predicted()
     assert asked.predicted(gate=True) == fresh.predicted(gate=True)
     np.testing.assert_array_equal(asked.change(), fresh.change())
+
+
+def _wall(yaw_deg: float, offset: float) -> Plane:
+    a = np.radians(yaw_deg)
+    return Plane(np.array([np.cos(a), np.sin(a), 0.0]), offset)
+
+
+def test_a_first_extraction_of_wall_fragments_is_lost_with_twist_sigma_fragments():
+    """A twist off the truth splits each wall into one plane per sweep (world 166 at 6 mm,
+    epoch 74: 13 planes of 4 surfaces, no ground, where the widened extraction held 6
+    surfaces). Here two walls, each in three fragments 0.3 deg and 5 cm apart (2 distinct
+    surfaces by construction), against a widened extraction of the ground and three walls
+    (4): by plane count (the default) the fragments are not lost and are kept; with
+    ``odometry.twist_sigma_fragments`` they are, and the widened one wins on surfaces."""
+    fragments = [
+        _wall(y + f * 0.3, d + f * 0.05) for y, d in ((0, -4.0), (70, -6.0)) for f in range(3)
+    ]
+    ground = Plane(np.array([0.0, 0.0, 1.0]), 1.5)
+    four = [ground, _wall(0, -4.0), _wall(70, -6.0), _wall(150, -9.0)]
+
+    def estimate(planes: list[Plane], status: Status = Status.OK) -> EpochEstimate:
+        return EpochEstimate(planes, None, None, _relative(status), np.eye(4), [])  # type: ignore[arg-type]
+
+    tight, wide = estimate(fragments), estimate(four)
+    pick = lambda s: tight if s is None else wide  # noqa: E731
+    on = PlanodomConfig().updated({"odometry.twist_sigma_fragments": True}, source="test")
+    count = fragment_count(on)
+    assert fragment_count(PlanodomConfig()) is None
+    assert count is not None and count(tight) == 2 and count(wide) == 4
+    assert widened_if_lost(pick, (0.1, 1.0), "lost", 6) is tight
+    assert widened_if_lost(pick, (0.1, 1.0), "lost", 6, surfaces=count) is wide
+    # a widened extraction of fewer surfaces, or a worse status, leaves the fragments
+    fewer = estimate([ground])
+    assert widened_if_lost(lambda s: tight if s is None else fewer, (0.1, 1.0), "lost", 6,
+                           surfaces=count) is tight  # fmt: skip
+    worse = estimate(four, Status.DEGENERATE)
+    assert widened_if_lost(lambda s: tight if s is None else worse, (0.1, 1.0), "lost", 6,
+                           surfaces=count) is tight  # fmt: skip
+    # without fragments the first extraction is kept and the widened one never made
+    whole = estimate(four[1:])
+    made = []
+    got = widened_if_lost(lambda s: made.append(s) or (whole if s is None else wide),
+                          (0.1, 1.0), "lost", 3, surfaces=count)  # fmt: skip
+    assert got is whole and made == [None]
