@@ -107,7 +107,45 @@ def step_rows(sim, run, odo, config: PlanodomConfig, steps: range) -> None:  # n
               f"{fmt3(rotation_error_deg(r.T_prev_curr, T_true))} sigma "
               f"{'none' if sig is None else fmt3(sig)}  deskewed with {tw} true "
               f"{fmt3(np.degrees(true_rate(sim, k)))}  exact deskew: {ex.status} "
-              f"{fmt3(rotation_error_deg(ex.T_prev_curr, T_true))}")  # fmt: skip
+              f"{fmt3(rotation_error_deg(ex.T_prev_curr, T_true))}  the same pairs "
+              f"covariance-weighted: {weighted_pairs(P, C, r.sources, T_true)}")  # fmt: skip
+
+
+def weighted_pairs(P, C, sources, T_true: np.ndarray) -> str:  # noqa: ANN001
+    """The rotation error (deg) of the step's winning pairs ``sources`` (S, 2) fitted by
+    Procrustes weighted by the inverse normal variance (trace, both planes) instead of
+    the consensus's frame, which fits its first normal exactly; "-" without two pairs."""
+    if sources is None or len(sources) < 2 or max(i for i, _ in sources) >= len(P):
+        return "-"
+    if max(j for _, j in sources) >= len(C):
+        return "-"
+    pairs = [(P[i], C[j]) for i, j in sources]
+    if any(p.covariance is None or c.covariance is None for p, c in pairs):
+        return "-"
+    var = [np.trace(p.covariance[:3, :3]) + np.trace(c.covariance[:3, :3]) for p, c in pairs]
+    n_p = np.array([p.normal for p, _ in pairs])
+    n_c = np.array([c.normal for _, c in pairs])
+    rot, _ = Rotation.align_vectors(n_p, n_c, weights=1.0 / (np.array(var) + 1e-12))
+    T = np.eye(4)
+    T[:3, :3] = rot.as_matrix()
+    return fmt3(rotation_error_deg(T, T_true))
+
+
+def census(sim, odo, name: str) -> None:  # noqa: ANN001
+    """Measured steps (OK or degenerate, not gated) whose winning pairs hold no
+    near-horizontal plane (|n_z| > 0.5: walls only) or one: count, roll/pitch error rms."""
+    groups: dict[str, list[float]] = {"walls only": [], "with the ground": []}
+    for k, r in enumerate(odo.results):
+        if r is None or r.sources is None or r.inconsistent or str(r.status) == "unresolved":
+            continue
+        P = odo.planes[r.prev]
+        ground = any(abs(P[i].normal[2]) > 0.5 for i, _ in r.sources if i < len(P))
+        T_true = invert_transform(sim.poses[r.prev]) @ sim.poses[k]
+        e = rotation_error_deg(r.T_prev_curr, T_true)
+        groups["with the ground" if ground else "walls only"].append(float(np.hypot(*e[:2])))
+    cells = [f"{key} {len(v)} steps, roll/pitch rms {np.sqrt(np.mean(np.square(v))):.2f} deg"
+             for key, v in groups.items() if v]  # fmt: skip
+    print(f"{name}: " + "; ".join(cells))
 
 
 def plane_rows(sim, run, configs: dict[str, PlanodomConfig], epochs: range) -> None:  # noqa: ANN001
@@ -158,6 +196,8 @@ def main() -> None:
         summary(name, runs[name], gt, args.at)
         exact = run_odometry(run, config, extractor=exact_extractor(sim, run))
         summary(name + " exact", exact, gt, args.at)
+    for name, odo in runs.items():
+        census(sim, odo, name)
     steps = range(args.steps[0], args.steps[1] + 1)
     step_rows(sim, run, runs["option"], runs["option"].config or option, steps)
     plane_rows(sim, run, {"default": base, "option": option}, steps)
