@@ -11,7 +11,8 @@ step and its stated sigma (deg), the roll / pitch / yaw rate the epoch was deske
 against the true rate (deg/s), and the same step solved again from both epochs extracted
 from exactly deskewed points (true motion as the prior). Last, per epoch of the steps,
 the planes of the exactly deskewed points under the default config and under the option:
-true surface, normal error (deg), inliers, the share of inliers labelled with it.
+true surface, normal error (deg), inliers, the share of inliers labelled with it; and
+the option's run's own planes (true surface, normal error).
 
     uv run python experiments/deskew_chain.py --world 166 --noise 0.02 --steps 52 60 \
         --set extraction.noise_estimate=range
@@ -148,8 +149,9 @@ def census(sim, odo, name: str) -> None:  # noqa: ANN001
     print(f"{name}: " + "; ".join(cells))
 
 
-def plane_rows(sim, run, configs: dict[str, PlanodomConfig], epochs: range) -> None:  # noqa: ANN001
-    """Planes of the exactly deskewed epochs under each config (module docstring)."""
+def plane_rows(sim, run, configs: dict[str, PlanodomConfig], epochs: range, odo) -> None:  # noqa: ANN001
+    """Planes of the exactly deskewed epochs under each config (module docstring), and
+    the option's run's own planes (``odo``): true surface and normal error (deg)."""
     scene = sim.scene
     ids = {int(i): j for j, i in enumerate(scene.ids)}
     for k in epochs:
@@ -169,6 +171,13 @@ def plane_rows(sim, run, configs: dict[str, PlanodomConfig], epochs: range) -> N
                 pure = float(np.mean(labels[inl] == p.truth_id))
                 cells.append(f"{p.truth_id}:{err:.2f}deg/{len(inl)}/{pure:.2f}")
             print(f"epoch {k} {name} sigma {found.sigma_m * 100:.2f} cm: {' '.join(cells)}")
+        own = []
+        for p in odo.planes[k]:
+            j = ids.get(int(p.truth_id))
+            n = R_base_world @ scene.normals[j] if j is not None else p.normal
+            err = np.degrees(np.arccos(min(1.0, abs(float(p.normal @ n)))))
+            own.append(f"{p.truth_id}:{err:.2f}deg" if j is not None else f"{p.truth_id}:?")
+        print(f"epoch {k} option's run: {' '.join(own)}")
 
 
 def main() -> None:
@@ -200,7 +209,7 @@ def main() -> None:
         census(sim, odo, name)
     steps = range(args.steps[0], args.steps[1] + 1)
     step_rows(sim, run, runs["option"], runs["option"].config or option, steps)
-    plane_rows(sim, run, {"default": base, "option": option}, steps)
+    plane_rows(sim, run, {"default": base, "option": option}, steps, runs["option"])
 
 
 if __name__ == "__main__":
