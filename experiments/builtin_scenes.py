@@ -130,6 +130,16 @@ def pair_rows(scene: str, noise: str, config: PlanodomConfig) -> list[dict]:
     ]
 
 
+def config_with(sets: list[str]) -> PlanodomConfig:
+    """The default configuration with the ``key=value`` overrides ``sets`` (dotted keys;
+    ``true`` / ``false`` read as booleans, other values as the config reads them)."""
+    changes: dict[str, object] = {}
+    for item in sets:
+        key, value = item.split("=", 1)
+        changes[key] = {"true": True, "false": False}.get(value.lower(), value)
+    return PlanodomConfig().updated(changes, source="cli") if changes else PlanodomConfig()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=list(SCENES))
@@ -140,11 +150,7 @@ def main() -> None:
     parser.add_argument("--pair", action="store_true",
                         help="start_refresh on and off, split at the same epoch")  # fmt: skip
     args = parser.parse_args()
-    changes: dict[str, object] = {}
-    for item in args.set:
-        key, value = item.split("=", 1)
-        changes[key] = {"true": True, "false": False}.get(value.lower(), value)
-    config = PlanodomConfig().updated(changes, source="cli") if changes else PlanodomConfig()
+    config = config_with(args.set)
     header = False
     for scene in args.scenes:
         for noise in args.noise:

@@ -38,7 +38,7 @@ import dataclasses
 import sys
 
 import numpy as np
-from builtin_scenes import SCENES, simulated
+from builtin_scenes import SCENES, config_with, simulated
 
 from planodom.angles import radians
 from planodom.config import PlanodomConfig
@@ -267,11 +267,7 @@ def main() -> None:
     parser.add_argument("--why", action="store_true", help="the rule that drops each plane")
     parser.add_argument("--part", action="store_true", help="GAPS5's reference rule, parted")
     args = parser.parse_args()
-    changes: dict[str, object] = {}
-    for item in args.set:
-        key, value = item.split("=", 1)
-        changes[key] = {"true": True, "false": False}.get(value.lower(), value)
-    config = PlanodomConfig().updated(changes, source="cli") if changes else PlanodomConfig()
+    config = config_with(args.set)
     for scene in args.scenes:
         for noise in args.noise:
             if args.part:

@@ -24,6 +24,7 @@ import argparse
 import dataclasses
 
 import numpy as np
+from builtin_scenes import config_with
 from scipy.spatial.transform import Rotation
 
 from planodom.config import PlanodomConfig
@@ -189,16 +190,12 @@ def main() -> None:
     parser.add_argument("--at", type=int, nargs="*", default=[56, 59, 75, 149])
     parser.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
     args = parser.parse_args()
-    changes: dict[str, object] = {}
-    for item in args.set:
-        key, value = item.split("=", 1)
-        changes[key] = {"true": True, "false": False}.get(value.lower(), value)
     world = world_for(args.world)
     sim = simulate_world(world, args.noise, n_epochs=args.epochs, all_fields=True)
     run = world_fields(world, sim)
     gt = invert_transform(sim.poses[0])[None] @ sim.poses
     base = declared_sweep(world, PlanodomConfig())
-    option = declared_sweep(world, PlanodomConfig().updated(changes, source="cli"))
+    option = declared_sweep(world, config_with(args.set))
     runs = {}
     for name, config in (("default", base), ("option", option)):
         runs[name] = run_odometry(run, config)
