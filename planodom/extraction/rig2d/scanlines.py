@@ -289,10 +289,22 @@ def ring_plane_coordinates(pts, ring_sorted):  # pragma: no cover - compiled
 @numba.njit(cache=True)
 def estimate_line_noise_2d(x, y, run_start):  # pragma: no cover - compiled
     """:func:`estimate_line_noise` on 2D points (x, y) (M,) (a ring in its scan plane)."""
+    none = np.empty((0, 3))
+    return noise_sigma_2d(x, y, run_start, none, np.empty(0, np.int64), none, False)
+
+
+@numba.njit(cache=True)
+def noise_sigma_2d(x, y, run_start, pts, ring_sorted, origins, along_rays):  # pragma: no cover
+    """The noise sigma (m) from the second differences ``p[c-1] - 2 p[c] + p[c+1]`` across
+    the chords ``p[c+2] - p[c-2]`` of 2D points (x, y) (M,) in runs (``run_start`` (M,)
+    bool): across the lines, or with ``along_rays`` each divided by the sine of the angle
+    between the ray and the line (:mod:`.rangenoise`: ``pts`` (M, 3) m, ``ring_sorted`` (M,)
+    int64, ``origins`` (R, 3) m, one row: one for all), then their robust median. 0.0 with
+    fewer than 15 points or fewer than 10 usable second differences."""
     m = x.shape[0]
     if m < 15:
         return 0.0
-    across = np.empty(m)
+    values = np.empty(m)
     k = 0
     run = np.cumsum(run_start)
     for c in range(2, m - 2):  # points c with c-2 .. c+2 in one run
@@ -304,8 +316,27 @@ def estimate_line_noise_2d(x, y, run_start):  # pragma: no cover - compiled
             continue
         sx = x[c - 1] - 2.0 * x[c] + x[c + 1]
         sy = y[c - 1] - 2.0 * y[c] + y[c + 1]
-        across[k] = abs(sx * dy - sy * dx) / norm
+        across = abs(sx * dy - sy * dx) / norm
+        if along_rays:
+            sin_a = _ray_line_sine(pts, c, origins[ring_sorted[c] if origins.shape[0] > 1 else 0])
+            if not sin_a > 0:
+                continue
+            across = across / sin_a
+        values[k] = across
         k += 1
     if k < 10:
         return 0.0
-    return median_nonnegative(across, k) / (0.6745 * np.sqrt(6.0))
+    return median_nonnegative(values, k) / (0.6745 * np.sqrt(6.0))
+
+
+@numba.njit(cache=True)
+def _ray_line_sine(pts, c, o):  # pragma: no cover - compiled
+    """The sine of the angle between the ray from ``o`` (3,) m to point ``c`` of ``pts``
+    (M, 3) m and the chord ``pts[c+2] - pts[c-2]`` (0.0 when either is zero)."""
+    r0, r1, r2 = pts[c, 0] - o[0], pts[c, 1] - o[1], pts[c, 2] - o[2]
+    d0 = pts[c + 2, 0] - pts[c - 2, 0]
+    d1 = pts[c + 2, 1] - pts[c - 2, 1]
+    d2 = pts[c + 2, 2] - pts[c - 2, 2]
+    c0, c1, c2 = r1 * d2 - r2 * d1, r2 * d0 - r0 * d2, r0 * d1 - r1 * d0
+    rd = np.sqrt((r0 * r0 + r1 * r1 + r2 * r2) * (d0 * d0 + d1 * d1 + d2 * d2))
+    return np.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / rd if rd > 0 else 0.0
