@@ -57,7 +57,8 @@ class PlanodomConfig(Section):
         """The deskew-noise modes that read each plane's deskewing Jacobian
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
         ``smoothing.covariance_model: sandwich``, ``planemap.deskew_variance:
-        twist_change``) switch on its computation in the extraction
+        twist_change``, ``odometry.plane_deskew_noise: twist``) switch on its computation
+        in the extraction
         (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other than ``none``
         switches on the planes' time moments (``extraction.time_moments``). The default
         covariance model, "auto", leaves it off here: the batch smoothing switches it on for
@@ -79,8 +80,12 @@ class PlanodomConfig(Section):
         model = getattr(smoothing, "covariance_model", None)
         if isinstance(smoothing, Mapping):
             model = smoothing.get("covariance_model")
+        odometry = data.get("odometry")
+        planes = getattr(odometry, "plane_deskew_noise", None)
+        if isinstance(odometry, Mapping):
+            planes = odometry.get("plane_deskew_noise")
         wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
-        wanted = wanted or model == "sandwich"
+        wanted = wanted or model == "sandwich" or planes == "twist"
         moments = isinstance(twist, str) and twist != "none"
         if not (wanted or deskew == "twist_change" or moments):
             return data

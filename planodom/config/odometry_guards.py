@@ -9,9 +9,10 @@ from __future__ import annotations
 from typing import Literal
 
 from planodom.config.moment_refine import MomentRefineConfig
+from planodom.config.plane_deskew_noise import PlaneDeskewNoiseConfig
 
 
-class DeskewGuards(MomentRefineConfig):
+class DeskewGuards(MomentRefineConfig, PlaneDeskewNoiseConfig):
     """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``), and the motion
     model the prediction assumes (:class:`.motion_model.MotionModelConfig`)."""
 

@@ -25,7 +25,6 @@ import numpy as np
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, orthonormalised, twist_step
 from planodom.odometry.bridge_trend import bridge, bridge_twist
-from planodom.odometry.coplanar import coplanar_by
 from planodom.odometry.deskew import (
     EpochEstimate,
     centred_times,
@@ -41,20 +40,20 @@ from planodom.odometry.deskew import (
     with_deskew,
 )
 from planodom.odometry.deskew_secant import epoch_deskew_config
+from planodom.odometry.epoch_extraction import extract_epoch
 from planodom.odometry.epoch_time import is_gap, next_epoch_time
-from planodom.odometry.extractor import Extractor, default_extractor
+from planodom.odometry.extractor import Extractor
 from planodom.odometry.first_epoch import reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.moment_refine import moment_refined
 from planodom.odometry.rate_prediction import RatePredictor
 from planodom.odometry.refresh_held import held_refresh
 from planodom.odometry.relative import RelativePose, Status, replaced
-from planodom.odometry.seed_extraction import seed_extraction
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.start_epochs import StartEpochs
 from planodom.odometry.surfaces import fragment_count, ranking
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
-from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened, widened_if_lost
+from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened_if_lost
 from planodom.odometry.vertical_offset import step_twist_offset
 from planodom.planes import PlaneSet
 from planodom.scan import Scan, check_is_scan
@@ -134,6 +133,11 @@ class PlaneOdometry:
     def last_planes(self) -> list[Plane]:
         """The planes of the last epoch."""
         return self._history[-1].planes if self._history else []
+
+    @property
+    def pairwise(self) -> bool:
+        """Whether a pairwise pipeline runs, not the plane map (decided at the first epoch)."""
+        return self._map is None
 
     @property
     def reference_index(self) -> list[int]:
@@ -237,20 +241,9 @@ class PlaneOdometry:
         self, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,
         prior: TwistSigma | None = None,
     ) -> tuple[list[Plane], np.ndarray | None]:  # fmt: skip
-        """The planes of ``scan`` deskewed with ``twist`` (None: not deskewed), whose error
-        is taken to be ``sigma`` (rad/s, m/s; None: the extraction config's), and the twist
-        used: ``twist``, or with ``odometry.deskew_twist: coplanar`` the one fit to the
-        planes with ``twist`` as the prior of sigma ``prior`` (:mod:`.coplanar`)."""
-        if self.extractor is None:
-            self.extractor = default_extractor()
-        config = seed_extraction(widened(self.config.extraction, twist, sigma), len(self.poses))
-        if twist is not None and self.config.odometry.deskew_twist == "coplanar":
-            origins = self.sensor_origins
-            got = coplanar_by(self.extractor, scan, self.config, config, twist, prior, origins)
-            if got is not None:  # None: not the default extractor
-                return got.planes, got.twist
-        kwargs = {} if self.sensor_origins is None else {"sensor_origins": self.sensor_origins}
-        return list(self.extractor(scan, config, twist=twist, **kwargs)), twist
+        """The planes of ``scan`` deskewed with ``twist`` and the twist used
+        (:func:`.epoch_extraction.extract_epoch`)."""
+        return extract_epoch(self, scan, twist, sigma, prior)
 
     def _new_epoch(
         self, k: int, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,

@@ -1,0 +1,46 @@
+"""One extraction of an epoch in the streaming odometry (:meth:`PlaneOdometry._extract`)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planodom.geometry import Plane
+from planodom.odometry.coplanar import coplanar_by
+from planodom.odometry.extractor import default_extractor
+from planodom.odometry.plane_deskew import with_deskew_noise
+from planodom.odometry.seed_extraction import seed_extraction
+from planodom.odometry.twist_sigma import TwistSigma, widened
+from planodom.scan import Scan
+
+if TYPE_CHECKING:
+    from planodom.odometry.odometry import PlaneOdometry
+
+
+def extract_epoch(
+    odo: PlaneOdometry, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,
+    prior: TwistSigma | None = None,
+) -> tuple[list[Plane], np.ndarray | None]:  # fmt: skip
+    """The planes of ``scan`` deskewed with ``twist`` (None: not deskewed) by ``odo``'s
+    extractor, whose error is taken to be ``sigma`` (rad/s, m/s; None: the extraction
+    config's), and the twist used: ``twist``, or with ``odometry.deskew_twist: coplanar``
+    the one fit to the planes with ``twist`` as the prior of sigma ``prior``
+    (:mod:`.coplanar`). With ``odometry.plane_deskew_noise: twist`` (pairwise pipelines)
+    the planes' covariances hold the error of a twist of sigma ``prior``
+    (:mod:`.plane_deskew`)."""
+    if odo.extractor is None:
+        odo.extractor = default_extractor()
+    config = seed_extraction(widened(odo.config.extraction, twist, sigma), len(odo.poses))
+    planes, used = None, twist
+    if twist is not None and odo.config.odometry.deskew_twist == "coplanar":
+        origins = odo.sensor_origins
+        got = coplanar_by(odo.extractor, scan, odo.config, config, twist, prior, origins)
+        if got is not None:  # None: not the default extractor
+            planes, used = got.planes, got.twist
+    if planes is None:
+        kwargs = {} if odo.sensor_origins is None else {"sensor_origins": odo.sensor_origins}
+        planes = list(odo.extractor(scan, config, twist=twist, **kwargs))
+    if odo.config.odometry.plane_deskew_noise == "twist" and odo.pairwise:
+        planes = with_deskew_noise(planes, scan, used, prior)
+    return planes, used
