@@ -57,7 +57,7 @@ class PlanodomConfig(Section):
         """The deskew-noise modes that read each plane's deskewing Jacobian
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
         ``smoothing.covariance_model: sandwich``, ``planemap.deskew_variance:
-        twist_change``, ``odometry.plane_deskew_noise: twist``) switch on its computation
+        twist_change``, ``odometry.plane_deskew_noise`` not off) switch on its computation
         in the extraction
         (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other than ``none``
         switches on the planes' time moments (``extraction.time_moments``). The default
@@ -85,7 +85,7 @@ class PlanodomConfig(Section):
         if isinstance(odometry, Mapping):
             planes = odometry.get("plane_deskew_noise")
         wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
-        wanted = wanted or model == "sandwich" or planes == "twist"
+        wanted = wanted or model == "sandwich" or planes in ("twist", "change")
         moments = isinstance(twist, str) and twist != "none"
         if not (wanted or deskew == "twist_change" or moments):
             return data

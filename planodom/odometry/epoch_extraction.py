@@ -26,9 +26,10 @@ def extract_epoch(
     extractor, whose error is taken to be ``sigma`` (rad/s, m/s; None: the extraction
     config's), and the twist used: ``twist``, or with ``odometry.deskew_twist: coplanar``
     the one fit to the planes with ``twist`` as the prior of sigma ``prior``
-    (:mod:`.coplanar`). With ``odometry.plane_deskew_noise: twist`` (pairwise pipelines)
-    the planes' covariances hold the error of a twist of sigma ``prior``
-    (:mod:`.plane_deskew`)."""
+    (:mod:`.coplanar`). With ``odometry.plane_deskew_noise`` (pairwise pipelines; an
+    epoch deskewed with a twist of known sigma ``prior``) the planes' covariances hold the
+    error of a twist of sigma ``prior`` (``twist``) or of the run's change of motion over
+    an epoch (``change``, :meth:`.TwistUncertainty.raw_change`), :mod:`.plane_deskew`."""
     if odo.extractor is None:
         odo.extractor = default_extractor()
     config = seed_extraction(widened(odo.config.extraction, twist, sigma), len(odo.poses))
@@ -41,6 +42,9 @@ def extract_epoch(
     if planes is None:
         kwargs = {} if odo.sensor_origins is None else {"sensor_origins": odo.sensor_origins}
         planes = list(odo.extractor(scan, config, twist=twist, **kwargs))
-    if odo.config.odometry.plane_deskew_noise == "twist" and odo.pairwise:
-        planes = with_deskew_noise(planes, scan, used, prior)
+    mode = odo.config.odometry.plane_deskew_noise
+    if mode != "off" and odo.pairwise and prior is not None:
+        change = odo.twist_uncertainty.raw_change()
+        size = prior if mode == "twist" else (float(change[0]), float(change[1]))
+        planes = with_deskew_noise(planes, scan, used, size)
     return planes, used

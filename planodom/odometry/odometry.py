@@ -140,6 +140,11 @@ class PlaneOdometry:
         return self._map is None
 
     @property
+    def twist_uncertainty(self) -> TwistUncertainty:
+        """The model of the deskewing twist's error (:mod:`.twist_sigma`)."""
+        return self._twist_sigma
+
+    @property
     def reference_index(self) -> list[int]:
         """Per epoch the epoch it was associated with (``results[k].prev``); -1 first."""
         return [-1 if r is None else r.prev for r in self.results]

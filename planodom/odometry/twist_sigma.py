@@ -67,6 +67,7 @@ class TwistUncertainty:
         # differences of successive measured twists (the change is a property of the
         # motion: it is kept across unresolved epochs, only not measured over them)
         self._changes: deque[np.ndarray] = deque(maxlen=config.velocity_window)
+        self._raw_changes: deque[np.ndarray] = deque(maxlen=config.velocity_window)  # noise in
         self._previous: np.ndarray | None = None  # the last measured twist, when the last
         self._previous_var = np.zeros(2)  # and its step's variance
         self._last = self._fallback.copy()  # the last measured step's sigma
@@ -104,6 +105,7 @@ class TwistUncertainty:
             self._rate_changes.append(float(sq[0]))
             if np.isfinite(sq[1]):  # two OK steps
                 self._changes.append(sq)
+                self._raw_changes.append(np.array([d[:3] @ d[:3], d[3:] @ d[3:]]))
         self._previous, self._previous_var = own, var
 
     def change(self) -> np.ndarray:
@@ -114,6 +116,15 @@ class TwistUncertainty:
             mean = np.sqrt(np.mean(np.array(changes), axis=0)) if changes else self._fallback
             self._memo["change"] = mean
         return cast("np.ndarray", self._memo["change"])
+
+    def raw_change(self) -> np.ndarray:
+        """(2,) rms of the differences of successive measured twists between OK steps,
+        their errors left in (rad/s, m/s): the change of the motion over one epoch with
+        the measurement noise, no step's stated covariance subtracted; the deskewing
+        tolerances before two were measured (as :meth:`change`)."""
+        if not self._raw_changes:
+            return self._fallback.copy()
+        return np.sqrt(np.mean(np.array(self._raw_changes), axis=0))
 
     def gate_change(self) -> np.ndarray:
         """:meth:`change` with the angular rate's measured across degenerate steps too: on

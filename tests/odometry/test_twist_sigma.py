@@ -56,6 +56,10 @@ def test_change_per_epoch_is_the_rms_of_successive_twist_differences_less_their_
         noisy.update(np.array(v, float), _relative(), 0.1)
     np.testing.assert_allclose(noisy.change(), [0.0, 0.0])
     np.testing.assert_allclose(noisy.predicted(), [0.03, 0.5])
+    # with their errors left in: the raw difference (0.04, 0.7)
+    np.testing.assert_allclose(noisy.raw_change(), [0.04, 0.7])
+    np.testing.assert_allclose(model.raw_change(), change)  # exact steps: the same
+    np.testing.assert_allclose(TwistUncertainty(cfg).raw_change(), fallback)
 
 
 def test_a_refined_twist_is_given_its_step_error_and_what_was_left_of_the_difference():
