@@ -4,8 +4,8 @@ Reads the ``runs.csv`` of each (several folders each, e.g. ``--first-world 180``
 ``20``), pairs the rows by world, noise and method, and prints per noise: the geometric
 means of the per-world ratios variant / base of the ATE and the per-epoch rotation and
 xy rms, with the worlds better and worse by more than 1 %, the worst ratio (world), the
-summed unresolved epochs of each, and the worlds whose ATE is worse by more than 2x and
-0.1 m (the clauses of DESKEWCOV's rule, docs/RESULTS.md).
+summed unresolved and degenerate epochs of each, and the worlds whose ATE is worse by
+more than 2x and 0.1 m (the clauses of DESKEWCOV's rule, docs/RESULTS.md).
 
     uv run python experiments/runs_ratio.py --base B180 B20 --variant V180 V20
 """
@@ -45,8 +45,9 @@ def compare(base: dict, variant: dict) -> list[str]:
                 f"{name} {np.exp(np.mean(np.log(r))):.3f} ({int(np.sum(r < 0.99))} better / "
                 f"{int(np.sum(r > 1.01))} worse, worst {r[worst]:.2f} world {ks[worst][0]})"
             )
-        unres = [sum(float(d[k]["unresolved"]) for k in ks) for d in (base, variant)]
-        parts.append(f"unresolved {unres[0]:g} -> {unres[1]:g}")
+        for col in ("unresolved", "degenerate"):
+            total = [sum(float(d[k][col]) for k in ks) for d in (base, variant)]
+            parts.append(f"{col} {total[0]:g} -> {total[1]:g}")
         bad = [
             f"{k[0]} {float(base[k]['ate_xy_m']):.3f} -> {float(variant[k]['ate_xy_m']):.3f}"
             for k in ks
