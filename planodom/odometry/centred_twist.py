@@ -1,0 +1,90 @@
+"""The epoch's own angular rate led to its points' mean time (``odometry.deskew_rate_lead``).
+
+A 2D-rig epoch holds the points of the ``T`` seconds after its reference time ``t_k`` (their
+mean time ``t_k + tm``). Step 2 of :mod:`planodom.odometry.deskew` extracts it again with
+its own twist, the mean over its step ``[t_{k-1}, t_k]``: centred ``dt / 2 + tm`` before
+its points (0.19 s on a 5 Hz rig whose sweeps take 0.18 s). Where the turn rate changes,
+that lag splits walls into one plane per sweep: on the 2D-rig world 166 (a left turn
+leaving its 23 deg/s peak, about 1.3 deg/s less an epoch) the true twist of the step into
+epochs 74-78 is 1.1-1.35 deg/s high in yaw, and extracted with it (sigma 0 and 6 mm) they
+keep 2-4 of their 4-6 true surfaces in 3-8 planes; with its yaw rate led to the points'
+mean time along its change since the step before, they keep all of them, once each, with
+the ground (docs/RESULTS.md, TURNLAG).
+
+:func:`centring` gives the lead: each refinement's own rate ``w_k`` becomes ``w_k + (w_k -
+w_{k-1}) (dt / 2 + tm) / dt``, ``w_{k-1}`` the previous epoch's own rate (a straight line
+through the two step means, ``dt`` apart, evaluated ``dt / 2 + tm`` after the later one),
+for the yaw rate (``yaw``: about the base frame's z; the roll and pitch rates of a vehicle
+sway faster than an epoch, and one step measures them far less well: on world 166 the own
+roll/pitch rates were 0.3-5 deg/s off the true step's where the yaw rate was 0.03-1.6)
+or for the whole rate (``rate``). Only the rates of OK steps (rotation and translation
+measured) are led and lead: on world 166 at 6 mm the degenerate steps' own yaw rates were
+up to 3 deg/s off the true step's, roll and pitch up to 14, and a lead doubles such errors.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planodom.config import OdometryConfig
+from planodom.odometry.relative import RelativePose, Status
+
+
+@dataclass(frozen=True)
+class Centring:
+    """The lead of one epoch's own rate (module docstring).
+
+    Attributes:
+        previous: (3,) the previous epoch's own angular rate, rad/s.
+        steps: how far the own rate is led, in steps: ``(dt / 2 + tm) / dt``.
+        axes: (3,) bool, the rate's components led.
+    """
+
+    previous: np.ndarray
+    steps: float
+    axes: np.ndarray
+
+    def led(self, own: np.ndarray, measured: bool = True) -> np.ndarray:
+        """(6,) ``own`` (rad/s, m/s) with its rate's ``axes`` led by ``steps`` along
+        its change since ``previous``, the velocity as it is; ``own`` as it is when its
+        step is not ``measured`` (status OK)."""
+        out = np.array(own, dtype=np.float64, copy=True)
+        if not measured:
+            return out
+        change = (out[:3] - self.previous) * self.steps
+        out[:3] += np.where(self.axes, change, 0.0)
+        return out
+
+
+def centring(
+    rates: Sequence[tuple[int, np.ndarray]],
+    k: int,
+    times: np.ndarray | None,
+    dt: float,
+    config: OdometryConfig,
+    last: RelativePose | None = None,
+) -> Centring | None:
+    """The lead of epoch ``k``'s own rate under ``config.deskew_rate_lead`` (None: off,
+    no points' times, or the previous epoch's rate not measured).
+
+    Args:
+        rates: (epoch, own twist (6,) rad/s, m/s) of the recent epochs that measured
+            their rate (the pairwise odometry's ``_rates``).
+        k: the epoch; times: its points' times (N,), seconds after its reference time.
+        dt: seconds since the previous epoch (its step and the one before taken as equal).
+        last: the previous epoch's relative pose: its rate is used only when its status is
+            OK (a degenerate step's rate can be degrees a second off; None: not checked).
+    """
+    mode = config.deskew_rate_lead
+    if mode == "off" or times is None or not len(times) or dt <= 0:
+        return None
+    if not rates or rates[-1][0] != k - 1:
+        return None
+    if last is not None and last.status is not Status.OK:
+        return None
+    steps = 0.5 + float(np.mean(times)) / dt
+    axes = np.array([False, False, True]) if mode == "yaw" else np.ones(3, dtype=bool)
+    return Centring(np.array(rates[-1][1][:3], dtype=np.float64), steps, axes)
