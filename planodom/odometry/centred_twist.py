@@ -17,9 +17,11 @@ through the two step means, ``dt`` apart, evaluated ``dt / 2 + tm`` after the la
 for the yaw rate (``yaw``: about the base frame's z; the roll and pitch rates of a vehicle
 sway faster than an epoch, and one step measures them far less well: on world 166 the own
 roll/pitch rates were 0.3-5 deg/s off the true step's where the yaw rate was 0.03-1.6)
-or for the whole rate (``rate``). Only the rates of OK steps (rotation and translation
-measured) are led and lead: on world 166 at 6 mm the degenerate steps' own yaw rates were
-up to 3 deg/s off the true step's, roll and pitch up to 14, and a lead doubles such errors.
+or for the whole rate (``rate``). The change is shrunk by how well the two steps'
+covariances tell it apart from their noise (a steady turn or a straight road is not led),
+and only the rates of OK steps (rotation and translation measured) are led and lead: on
+world 166 at 6 mm the degenerate steps' own yaw rates were up to 3 deg/s off the true
+step's, roll and pitch up to 14, and a lead doubles such errors.
 """
 
 from __future__ import annotations
@@ -39,24 +41,45 @@ class Centring:
 
     Attributes:
         previous: (3,) the previous epoch's own angular rate, rad/s.
-        steps: how far the own rate is led, in steps: ``(dt / 2 + tm) / dt``.
+        previous_var: (3,) its variances, (rad/s)^2 (inf: unknown, nothing is led).
+        dt: the step's seconds; steps: how far the own rate is led, in steps: ``(dt / 2
+            + tm) / dt``.
         axes: (3,) bool, the rate's components led.
     """
 
     previous: np.ndarray
+    previous_var: np.ndarray
+    dt: float
     steps: float
     axes: np.ndarray
 
-    def led(self, own: np.ndarray, measured: bool = True) -> np.ndarray:
-        """(6,) ``own`` (rad/s, m/s) with its rate's ``axes`` led by ``steps`` along
-        its change since ``previous``, the velocity as it is; ``own`` as it is when its
-        step is not ``measured`` (status OK)."""
+    def led(self, own: np.ndarray, relative: RelativePose | None = None) -> np.ndarray:
+        """(6,) ``own`` (rad/s, m/s; the twist of the step ``relative``) with its rate's
+        ``axes`` led by ``steps`` along its change since ``previous``, shrunk where the
+        change is not told apart from the two rates' noise: ``change (1 - var / change^2)``,
+        at least 0, ``var`` the sum of their variances (the rotation block of the step's
+        covariance over ``dt^2``; :func:`planodom.odometry.trend.trend_twist` shrinks its
+        slope so). The velocity as it is; ``own`` as it is when the step is not OK.
+        ``relative`` None: an OK step of no variance."""
         out = np.array(own, dtype=np.float64, copy=True)
-        if not measured:
+        if relative is not None and relative.status is not Status.OK:
             return out
-        change = (out[:3] - self.previous) * self.steps
-        out[:3] += np.where(self.axes, change, 0.0)
+        change = out[:3] - self.previous
+        var = self.previous_var + _rate_variances(relative, self.dt)
+        shrink = np.clip(1.0 - var / np.maximum(change**2, 1e-300), 0.0, 1.0)
+        out[:3] += np.where(self.axes, change * shrink * self.steps, 0.0)
         return out
+
+
+def _rate_variances(relative: RelativePose | None, dt: float) -> np.ndarray:
+    """(3,) the variances of a step's angular rate, (rad/s)^2: its covariance's rotation
+    diagonal over ``dt^2`` (zeros without a step, inf without a covariance)."""
+    if relative is None:
+        return np.zeros(3)
+    cov = relative.covariance
+    if cov is None or not np.all(np.isfinite(np.diag(cov)[:3])):
+        return np.full(3, np.inf)
+    return np.diag(cov)[:3] / dt**2
 
 
 def centring(
@@ -76,7 +99,8 @@ def centring(
         k: the epoch; times: its points' times (N,), seconds after its reference time.
         dt: seconds since the previous epoch (its step and the one before taken as equal).
         last: the previous epoch's relative pose: its rate is used only when its status is
-            OK (a degenerate step's rate can be degrees a second off; None: not checked).
+            OK (a degenerate step's rate can be degrees a second off), with its covariance
+            (None: not checked, of no variance).
     """
     mode = config.deskew_rate_lead
     if mode == "off" or times is None or not len(times) or dt <= 0:
@@ -87,4 +111,5 @@ def centring(
         return None
     steps = 0.5 + float(np.mean(times)) / dt
     axes = np.array([False, False, True]) if mode == "yaw" else np.ones(3, dtype=bool)
-    return Centring(np.array(rates[-1][1][:3], dtype=np.float64), steps, axes)
+    previous = np.array(rates[-1][1][:3], dtype=np.float64)
+    return Centring(previous, _rate_variances(last, dt), dt, steps, axes)

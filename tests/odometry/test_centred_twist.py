@@ -44,13 +44,28 @@ def test_nothing_is_led_when_off_without_times_or_without_the_previous_rate():
     assert centring([(6, previous)], 7, times, 0.0, YAW) is None
     # a degenerate step's rate neither leads nor is led
     degenerate = RelativePose(np.eye(4), None, Status.DEGENERATE)
-    ok = RelativePose(np.eye(4), None, Status.OK)
+    ok = RelativePose(np.eye(4), np.zeros((5, 5)), Status.OK)
     assert centring([(6, previous)], 7, times, DT, YAW, degenerate) is None
     c = centring([(6, previous)], 7, times, DT, YAW, ok)
     assert c is not None
     own = np.r_[0.0, 0.0, 0.3, 1.0, 0.0, 0.0]
-    np.testing.assert_array_equal(c.led(own, measured=False), own)
+    np.testing.assert_array_equal(c.led(own, degenerate), own)
     assert not np.array_equal(c.led(own), own)
+
+
+def test_a_change_within_the_steps_noise_is_shrunk_as_the_trend_shrinks_its_slope():
+    previous, own = np.r_[0.0, 0.0, 0.40, 5.0, 0, 0], np.r_[0.0, 0.0, 0.36, 5.0, 0, 0]
+    times = np.array([0.0, 0.12])  # 0.8 steps
+    cov = np.diag([0.0, 0.0, (0.02 * DT) ** 2, 0.0, 0.0])  # yaw rate sigma 0.02 rad/s
+    last = RelativePose(np.eye(4), cov, Status.OK)
+    c = centring([(6, previous)], 7, times, DT, YAW, last)
+    assert c is not None
+    # change -0.04 rad/s, variance 2 * 0.02^2: shrunk by 1 - 0.0008 / 0.0016 = 0.5
+    np.testing.assert_allclose(c.led(own, last)[2], 0.36 - 0.04 * 0.5 * 0.8)
+    noisy = RelativePose(np.eye(4), 4.0 * cov, Status.OK)  # the change is noise: not led
+    np.testing.assert_allclose(c.led(own, noisy), own)
+    unknown = RelativePose(np.eye(4), None, Status.OK)  # no covariance: not led
+    np.testing.assert_allclose(c.led(own, unknown), own)
 
 
 def test_a_bad_lead_names_its_key():
@@ -64,7 +79,7 @@ def _estimate(own: np.ndarray, twist: np.ndarray | None) -> EpochEstimate:
     c, s = np.cos(own[2] * DT), np.sin(own[2] * DT)
     step[:2, :2] = [[c, -s], [s, c]]
     step[:3, 3] = own[3:] * DT
-    rel = RelativePose(step, None, Status.OK)
+    rel = RelativePose(step, np.zeros((5, 5)), Status.OK)  # exact
     return EpochEstimate([], PlaneSet.from_planes([]), twist, rel, step, [])
 
 
