@@ -17,22 +17,31 @@ through the two step means, ``dt`` apart, evaluated ``dt / 2 + tm`` after the la
 for the yaw rate (``yaw``: about the base frame's z; the roll and pitch rates of a vehicle
 sway faster than an epoch, and one step measures them far less well: on world 166 the own
 roll/pitch rates were 0.3-5 deg/s off the true step's where the yaw rate was 0.03-1.6)
-or for the whole rate (``rate``). The change is shrunk by how well the two steps'
-covariances tell it apart from their noise (a steady turn or a straight road is not led),
-and only the rates of OK steps (rotation and translation measured) are led and lead: on
-world 166 at 6 mm the degenerate steps' own yaw rates were up to 3 deg/s off the true
-step's, roll and pitch up to 14, and a lead doubles such errors.
+or for the whole rate (``rate``); ``yaw_split``: the yaw rate of an extraction that
+splits a wall (fewer distinct surfaces than planes) only: a deskewing error common to
+successive epochs cancels in their step, a lead that differs from epoch to epoch does not.
+The change is shrunk by how well the two steps' covariances tell it apart from their noise
+(a steady turn or a straight road is not led), and only the rates of OK steps (rotation and
+translation measured) are led and lead: on world 166 at 6 mm the degenerate steps' own yaw
+rates were up to 3 deg/s off the true step's, roll and pitch up to 14, and a lead doubles
+such errors.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planodom.config import OdometryConfig
+from planodom.config import PlanodomConfig
+from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose, Status
+from planodom.odometry.surfaces import distinct_surfaces
+
+if TYPE_CHECKING:
+    from planodom.odometry.deskew import EpochEstimate
 
 
 @dataclass(frozen=True)
@@ -45,6 +54,9 @@ class Centring:
         dt: the step's seconds; steps: how far the own rate is led, in steps: ``(dt / 2
             + tm) / dt``.
         axes: (3,) bool, the rate's components led.
+        split: with ``yaw_split``, whether an extraction's planes split a wall (fewer
+            distinct surfaces than planes, :func:`.surfaces.distinct_surfaces`); None:
+            every OK step's rate is led.
     """
 
     previous: np.ndarray
@@ -52,6 +64,14 @@ class Centring:
     dt: float
     steps: float
     axes: np.ndarray
+    split: Callable[[list[Plane]], bool] | None = None
+
+    def led_for(self, own: np.ndarray, estimate: EpochEstimate) -> np.ndarray:
+        """(6,) :meth:`led` for the own twist ``own`` of ``estimate``; with ``split``, only
+        when ``split(estimate.planes)`` (else ``own`` as it is)."""
+        if self.split is not None and not self.split(estimate.planes):
+            return np.array(own, dtype=np.float64, copy=True)
+        return self.led(own, estimate.relative)
 
     def led(self, own: np.ndarray, relative: RelativePose | None = None) -> np.ndarray:
         """(6,) ``own`` (rad/s, m/s; the twist of the step ``relative``) with its rate's
@@ -87,7 +107,7 @@ def centring(
     k: int,
     times: np.ndarray | None,
     dt: float,
-    config: OdometryConfig,
+    config: PlanodomConfig,
     last: RelativePose | None = None,
 ) -> Centring | None:
     """The lead of epoch ``k``'s own rate under ``config.deskew_rate_lead`` (None: off,
@@ -102,7 +122,7 @@ def centring(
             OK (a degenerate step's rate can be degrees a second off), with its covariance
             (None: not checked, of no variance).
     """
-    mode = config.deskew_rate_lead
+    mode = config.odometry.deskew_rate_lead
     if mode == "off" or times is None or not len(times) or dt <= 0:
         return None
     if not rates or rates[-1][0] != k - 1:
@@ -110,6 +130,10 @@ def centring(
     if last is not None and last.status is not Status.OK:
         return None
     steps = 0.5 + float(np.mean(times)) / dt
-    axes = np.array([False, False, True]) if mode == "yaw" else np.ones(3, dtype=bool)
+    axes = np.array([False, False, mode != "rate"]) if mode != "rate" else np.ones(3, bool)
     previous = np.array(rates[-1][1][:3], dtype=np.float64)
-    return Centring(previous, _rate_variances(last, dt), dt, steps, axes)
+    split = None
+    if mode == "yaw_split":
+        tol_deg, tol_m = config.association.normal_tol_deg, config.association.offset_tol_m
+        split = lambda planes: distinct_surfaces(planes, tol_deg, tol_m) < len(planes)  # noqa: E731
+    return Centring(previous, _rate_variances(last, dt), dt, steps, axes, split)

@@ -287,7 +287,7 @@ def register_deskewed(
         elif lead is not None:
             own = lead.led(own, measured, dt)
         elif centring is not None:
-            own = centring.led(own, best.relative)
+            own = centring.led_for(own, best)
         new, before = next_twist(own, used, measured, config, lead, before, best.relative, dt)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):

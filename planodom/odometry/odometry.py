@@ -193,7 +193,7 @@ class PlaneOdometry:
             best = self.start.vehicle(self, scan, t, register_deskewed(
                 twist, dt, estimate, refresh, ocfg, previous, held, damped, trend, lost_trend,
                 restore, lead, bounds, ranking(self.config),
-                centring(rates, k, scan.t, dt, ocfg, self.last_relative)))  # fmt: skip
+                centring(rates, k, scan.t, dt, self.config, self.last_relative)))  # fmt: skip
             if k == 1 and ocfg.first_epoch_reextract:  # the second epoch: the first's rounds
                 best = reextracted_first(
                     best, dt, ocfg, self._history[0], partial(self._first_round, scan, t)

@@ -9,7 +9,7 @@ from planodom.config import OdometryConfig, PlanodomConfig
 from planodom.errors import ConfigError
 from planodom.experiments.generalisation import world_for
 from planodom.extraction import extract_planes
-from planodom.geometry import invert_transform, se3_log
+from planodom.geometry import Plane, invert_transform, se3_log
 from planodom.odometry.centred_twist import centring
 from planodom.odometry.deskew import EpochEstimate, register_deskewed
 from planodom.odometry.relative import RelativePose, Status
@@ -17,7 +17,13 @@ from planodom.planes import PlaneSet
 from planodom.simulation.simulate import simulate
 
 DT = 0.2
-YAW = OdometryConfig(deskew_rate_lead="yaw")
+
+
+def _lead(mode: str) -> PlanodomConfig:
+    return PlanodomConfig.from_dict({"odometry": {"deskew_rate_lead": mode}})
+
+
+YAW = _lead("yaw")
 
 
 def test_the_lead_is_the_line_through_the_two_step_means_at_the_points_mean_time():
@@ -28,7 +34,7 @@ def test_the_lead_is_the_line_through_the_two_step_means_at_the_points_mean_time
     assert c is not None and np.isclose(c.steps, 0.8)
     led = c.led(own)
     np.testing.assert_allclose(led, own + np.r_[0, 0, -0.04 * 0.8, 0, 0, 0])
-    rate = centring([(6, previous)], 7, times, DT, OdometryConfig(deskew_rate_lead="rate"))
+    rate = centring([(6, previous)], 7, times, DT, _lead("rate"))
     assert rate is not None
     np.testing.assert_allclose(rate.led(own)[:3], own[:3] + 0.8 * (own[:3] - previous[:3]))
     np.testing.assert_array_equal(rate.led(own)[3:], own[3:])  # the velocity as it is
@@ -36,7 +42,7 @@ def test_the_lead_is_the_line_through_the_two_step_means_at_the_points_mean_time
 
 def test_nothing_is_led_when_off_without_times_or_without_the_previous_rate():
     previous, times = np.zeros(6), np.array([0.0, 0.1])
-    assert centring([(6, previous)], 7, times, DT, OdometryConfig()) is None  # off
+    assert centring([(6, previous)], 7, times, DT, PlanodomConfig()) is None  # off
     assert centring([(6, previous)], 7, None, DT, YAW) is None
     assert centring([(6, previous)], 7, np.array([]), DT, YAW) is None
     assert centring([(5, previous)], 7, times, DT, YAW) is None  # epoch 6 not measured
@@ -66,6 +72,24 @@ def test_a_change_within_the_steps_noise_is_shrunk_as_the_trend_shrinks_its_slop
     np.testing.assert_allclose(c.led(own, noisy), own)
     unknown = RelativePose(np.eye(4), None, Status.OK)  # no covariance: not led
     np.testing.assert_allclose(c.led(own, unknown), own)
+
+
+def _wall(yaw_deg: float, offset: float) -> Plane:
+    a = np.radians(yaw_deg)
+    return Plane(np.array([np.cos(a), np.sin(a), 0.0]), offset)
+
+
+def test_yaw_split_leads_only_an_extraction_that_splits_a_wall():
+    previous, own = np.r_[0.0, 0.0, 0.40, 5.0, 0, 0], np.r_[0.0, 0.0, 0.36, 5.0, 0, 0]
+    ok = RelativePose(np.eye(4), np.zeros((5, 5)), Status.OK)
+    c = centring([(6, previous)], 7, np.array([0.0, 0.12]), DT, _lead("yaw_split"), ok)
+    assert c is not None
+    whole = [_wall(0.0, -5.0), _wall(90.0, -3.0)]
+    split = [_wall(0.0, -5.0), _wall(0.8, -5.04), _wall(90.0, -3.0)]  # one wall twice
+    for planes, led in ((whole, False), (split, True)):
+        est = EpochEstimate(planes, PlaneSet.from_planes(planes), None, ok, np.eye(4), [])
+        expected = 0.36 - 0.04 * 0.8 if led else 0.36
+        np.testing.assert_allclose(c.led_for(own, est)[2], expected)
 
 
 def test_a_bad_lead_names_its_key():
