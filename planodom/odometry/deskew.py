@@ -281,13 +281,7 @@ def register_deskewed(
             break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
-        own = significant_twist(best.own_twist(dt), best.relative, dt, config)
-        if against_map and not config.map_twist_offset:
-            own = 0.5 * (own + used)
-        elif lead is not None:
-            own = lead.led(own, measured, dt)
-        elif centring is not None:
-            own = centring.led_for(own, best)
+        own = _own(best, used, dt, config, against_map, lead, centring)
         new, before = next_twist(own, used, measured, config, lead, before, best.relative, dt)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
@@ -305,6 +299,20 @@ def register_deskewed(
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
+
+
+def _own(
+    best: EpochEstimate, used: np.ndarray, dt: float, config: OdometryConfig, against_map: bool,
+    lead: Lead | None, centring: Centring | None,
+) -> np.ndarray:  # fmt: skip
+    """(6,) the twist ``best`` (deskewed with ``used``) is refined towards, before the
+    tolerances (:func:`register_deskewed`, its arguments)."""
+    own = significant_twist(best.own_twist(dt), best.relative, dt, config)
+    if against_map and not config.map_twist_offset:
+        return 0.5 * (own + used)
+    if lead is not None:
+        return lead.led(own, best.relative.status is Status.OK, dt)
+    return own if centring is None else centring.led_for(own, best)
 
 
 def guarded(config: OdometryConfig) -> bool:
