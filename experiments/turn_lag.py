@@ -23,7 +23,15 @@ built-in scene (``planodom run --scenario``'s simulation) is run with the defaul
   the true centre twist, the true step twist and the own twist led to the points' mean
   time along its change since the previous epoch's own (``p/s`` and status).
 
+With ``--exact`` (a world only) nothing is run: each epoch of ``--steps`` is simulated
+alone and extracted with true twists: the step's into the epoch before (a perfect
+prediction), the step's into the epoch (a perfect own twist), that one with its yaw rate
+led to the points' mean time along its change since the step before (``odometry.
+deskew_rate_lead: yaw`` with exact rates) and the mean over the points (the truth), each
+as yaw-rate error (deg/s) and planes / distinct true surfaces (``g``: with the ground).
+
     uv run python experiments/turn_lag.py --world 166 --noise 0.006 --steps 70 82
+    uv run python experiments/turn_lag.py --world 166 --noise 0 0.006 --steps 72 78 --exact
     uv run python experiments/turn_lag.py --scene random-indoor --noise 0.02 --steps 488 502
 """
 
@@ -38,11 +46,14 @@ from builtin_scenes import config_with, simulated
 
 import planodom.odometry.deskew as deskew_mod
 import planodom.odometry.odometry as odo_mod
+from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import declared_sweep, world_for
+from planodom.extraction import extract_planes
 from planodom.geometry import invert_transform, se3_log
 from planodom.odometry import run_odometry
 from planodom.odometry.relative import Status
 from planodom.simulation.random_world import simulate_world, world_fields
+from planodom.simulation.simulate import simulate
 
 ROWS: dict[int, dict[str, Any]] = {}
 
@@ -178,16 +189,53 @@ def report(sim: Any, ground: int) -> None:
             print(f"    probe {name:11s} {got.relative.status.name[:5]:5s} {surfaces(got, ground)}")
 
 
+def exact(world_index: int, noises: list[float], steps: range) -> None:
+    """The ``--exact`` table (module docstring)."""
+    world = world_for(world_index)
+    dt, config = 1.0 / world.epoch_rate, PlanodomConfig()
+
+    def step(k: int) -> np.ndarray:
+        T = invert_transform(world.trajectory.pose((k - 1) * dt)) @ world.trajectory.pose(k * dt)
+        return se3_log(T) / dt
+
+    for noise in noises:
+        for k in steps:
+            sim = simulate(world.scene, world.trajectory, world.sensor_rig, n_epochs=1,
+                           epoch_rate=world.epoch_rate, noise_sigma=noise, seed=1,
+                           start_time=k * dt)  # fmt: skip
+            scan = sim.scans[0]
+            t = np.asarray(scan.t)
+            a, b = k * dt + float(t.min()), k * dt + float(t.max())
+            truth = se3_log(invert_transform(world.trajectory.pose(a)) @ world.trajectory.pose(b))
+            truth = truth / (b - a)
+            own, led = step(k), step(k).copy()
+            led[2] += (own[2] - step(k - 1)[2]) * (0.5 + float(np.mean(t)) / dt)
+            cells = []
+            for name, tw in (("step before", step(k - 1)), ("own step", own), ("led", led),
+                             ("points", truth)):  # fmt: skip
+                planes = extract_planes(scan, config.extraction, twist=tw,
+                                        sensor_origins=sim.rig.sensor_origins)  # fmt: skip
+                ids = [p.truth_id for p in planes]
+                g = "g" if 0 in ids else " "
+                yaw = np.degrees(tw[2] - truth[2])
+                cells.append(f"{name} {yaw:+.2f} {len(ids)}/{len(set(ids))}{g}")
+            print(f"{noise * 1000:g} mm, epoch {k}: " + " | ".join(cells))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--world", type=int, default=None)
     ap.add_argument("--scene", default=None)
-    ap.add_argument("--noise", type=float, default=0.006)
+    ap.add_argument("--noise", type=float, nargs="+", default=[0.006])
+    ap.add_argument("--exact", action="store_true", help="true twists only, nothing run")
     ap.add_argument("--steps", type=int, nargs=2, default=[70, 82])
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     args = ap.parse_args()
     steps = range(args.steps[0], args.steps[1] + 1)
+    if args.exact:
+        return exact(args.world, args.noise, steps)
     config = config_with(args.set)
+    args.noise = args.noise[0]
     if args.world is not None:
         world = world_for(args.world)
         sim = simulate_world(world, args.noise, n_epochs=steps.stop + 1, all_fields=True)
