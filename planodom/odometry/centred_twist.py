@@ -7,7 +7,7 @@ its points (0.19 s on a 5 Hz rig whose sweeps take 0.18 s). Where the turn rate 
 that lag splits walls into one plane per sweep: on the 2D-rig world 166 (a left turn
 leaving its 23 deg/s peak, about 1.3 deg/s less an epoch) the true twist of the step into
 epochs 74-78 is 1.1-1.35 deg/s high in yaw, and extracted with it (sigma 0 and 6 mm) they
-keep 2-4 of their 4-6 true surfaces in 3-8 planes; with its yaw rate led to the points'
+keep 2-5 of their 4-6 true surfaces in 3-8 planes; with its yaw rate led to the points'
 mean time along its change since the step before, they keep all of them, once each, with
 the ground (docs/RESULTS.md, TURNLAG).
 
@@ -15,16 +15,16 @@ the ground (docs/RESULTS.md, TURNLAG).
 w_{k-1}) (dt / 2 + tm) / dt``, ``w_{k-1}`` the previous epoch's own rate (a straight line
 through the two step means, ``dt`` apart, evaluated ``dt / 2 + tm`` after the later one),
 for the yaw rate (``yaw``: about the base frame's z; the roll and pitch rates of a vehicle
-sway faster than an epoch, and one step measures them far less well: on world 166 the own
-roll/pitch rates were 0.3-5 deg/s off the true step's where the yaw rate was 0.03-1.6)
-or for the whole rate (``rate``); ``yaw_split``: the yaw rate of an extraction that
+sway faster than an epoch, and one step measures them far less well: on world 166 at 6
+mm, epochs 68-81, the own rates were 0.3-6.0 deg/s off the true step's in roll and pitch,
+0.03-1.6 in yaw but at one degenerate step, 7.0) or for the whole rate (``rate``);
+``yaw_split``: the yaw rate of an extraction that
 splits a wall (fewer distinct surfaces than planes) only: a deskewing error common to
 successive epochs cancels in their step, a lead that differs from epoch to epoch does not.
 The change is shrunk by how well the two steps' covariances tell it apart from their noise
 (a steady turn or a straight road is not led), and only the rates of OK steps (rotation and
-translation measured) are led and lead: on world 166 at 6 mm the degenerate steps' own yaw
-rates were up to 3 deg/s off the true step's, roll and pitch up to 14, and a lead doubles
-such errors.
+translation measured) are led and lead: there the degenerate steps' own rates were up to 7.0
+deg/s off the true step's in yaw and 6.0 in roll and pitch, and a lead doubles such errors.
 """
 
 from __future__ import annotations
