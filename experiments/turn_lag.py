@@ -20,8 +20,10 @@ built-in scene (``planodom run --scenario``'s simulation) is run with the defaul
   ``deskew_rate_tolerance_deg_s`` of the twist used; ``worse``: the refinement's status
   was worse, dropped; ``kept``: refined and kept);
 - probes, the epoch extracted again (against the same reference, nothing committed) with
-  the true centre twist, the true step twist and the own twist led to the points' mean
-  time along its change since the previous epoch's own (``p/s`` and status).
+  the true centre twist, the true step twist and the own twist's three rates led to the
+  points' mean time along their change since the previous epoch's own (``p/s`` and
+  status; the velocity the own twist's; ``why``'s "not deskewed, velocity unmeasured":
+  kept without a twist and not OK, so not refined).
 
 With ``--exact`` (a world only) nothing is run: each epoch of ``--steps`` is simulated
 alone and extracted with true twists: the step's into the epoch before (a perfect
