@@ -56,6 +56,16 @@ class MotionModelConfig(Section):
     that tightens steadily, where the held rate lags (issue 11's world 6 at 6 mm: 8.2
     deg/s held for a true 13.7-15.9). The velocity stays the prediction's."""
 
+    deskew_rate_lead: Literal["off", "yaw", "yaw_split", "rate"] = "off"
+    """Streaming, pairwise pipelines: the own twist an epoch is extracted again with
+    (``deskew_iterations``), the mean over its step, is centred half an epoch plus its
+    points' mean time before them and lags a turn whose rate changes (the 2D rig's world
+    166: 1.1-1.35 deg/s in yaw, its walls split one plane per sweep). ``yaw``: its yaw rate
+    led to the points' mean time along its change since the previous epoch's own, both
+    steps OK (:mod:`planodom.odometry.centred_twist`); ``rate``: the roll and pitch rates too
+    (measured far less well by one step); ``yaw_split``: the yaw rate of an extraction
+    that splits a wall only; ``off``: as it is (docs/RESULTS.md, TURNLAG)."""
+
     bridge_trend_epochs: Annotated[int, Field(ge=1, le=20)] = 3
     """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
     may run; further bridged epochs keep the rate it reached there."""

@@ -25,6 +25,7 @@ import numpy as np
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, orthonormalised, twist_step
 from planodom.odometry.bridge_trend import bridge, bridge_twist
+from planodom.odometry.centred_twist import centring
 from planodom.odometry.coplanar import coplanar_by
 from planodom.odometry.deskew import (
     EpochEstimate,
@@ -191,7 +192,8 @@ class PlaneOdometry:
             bounds = (self.config.association, self._restore_reference) if guard else None
             best = self.start.vehicle(self, scan, t, register_deskewed(
                 twist, dt, estimate, refresh, ocfg, previous, held, damped, trend, lost_trend,
-                restore, lead, bounds, ranking(self.config)))  # fmt: skip
+                restore, lead, bounds, ranking(self.config),
+                centring(rates, k, scan.t, dt, self.config, self.last_relative)))  # fmt: skip
             if k == 1 and ocfg.first_epoch_reextract:  # the second epoch: the first's rounds
                 best = reextracted_first(
                     best, dt, ocfg, self._history[0], partial(self._first_round, scan, t)
@@ -213,8 +215,7 @@ class PlaneOdometry:
         return self._commit(epoch, self._estimate(epoch, t), t)
 
     def _start_map(self, scan: Scan | None) -> None:
-        """Decide at the first epoch whether the plane-map odometry runs: pipeline "map",
-        or "auto" with delta 1 on a scan that takes the lidar extraction path."""
+        """Whether the plane map runs: pipeline "map", or "auto", delta 1, a lidar's scan."""
         from planodom.odometry.planemap import PlaneMapOdometry, uses_plane_map
 
         if uses_plane_map(self.config, scan):
@@ -380,8 +381,7 @@ class PlaneOdometry:
     def _first_round(
         self, scan: Scan, t: float, twist: np.ndarray, best: EpochEstimate
     ) -> tuple[EpochEstimate, Callable[[], None]]:
-        """:data:`planodom.odometry.first_epoch.Round` for the second epoch (``scan`` at
-        ``t``, estimated as ``best``)."""
+        """:data:`.first_epoch.Round` for the second epoch (``scan`` at ``t``, as ``best``)."""
         first, last = self._history[0], self._last_usable
         old = (first.planes, first.twist, first.plane_set)
         assert first.scan is not None and first.index == 0
