@@ -1,0 +1,26 @@
+"""How a pair association's candidate rotation uses its normals (a field of ``OdometryConfig``).
+
+A base of :class:`planodom.config.odometry.OdometryConfig`, in its own module as
+:mod:`.odometry_guards` is.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from planodom.config.motion_model import MotionModelConfig
+
+
+class PairRotationConfig(MotionModelConfig):
+    """The candidate rotation of an LDA pair (field of ``odometry``)."""
+
+    pair_rotation: Literal["first", "weighted"] = "first"
+    """Pairwise pipelines: the candidate rotation of each LDA pair association
+    ``(i1, i2) -> (j1, j2)`` that the rotation consensus scores. ``first`` (the paper's,
+    eq. 1): ``U_k U_{k+d}^T`` with ``U = [n1, n2', n1 x n2]``, which fits the first normal
+    exactly, so the first plane's normal error goes whole into the rotation.
+    ``weighted``: the rotation that fits both normal associations weighted by their
+    inverse normal variances (both planes', plus ``refine_normal_floor_deg`` squared), a
+    weighted Wahba/Procrustes solution in closed form
+    (:mod:`planodom.odometry.pair_rotation`); the winner's stated covariance is
+    propagated through it. The association's gates stay the paper's."""
