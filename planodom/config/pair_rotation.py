@@ -23,4 +23,8 @@ class PairRotationConfig(MotionModelConfig):
     inverse normal variances (both planes', plus ``refine_normal_floor_deg`` squared), a
     weighted Wahba/Procrustes solution in closed form
     (:mod:`planodom.odometry.pair_rotation`); the winner's stated covariance is
-    propagated through it. The association's gates stay the paper's."""
+    propagated through it. The association's gates stay the paper's. Off by default: on
+    the 2D-rig worlds 180-198 and 20-38 (150 epochs) the per-epoch rotation improves
+    (median rms 0.86x at 6 mm, 0.89x at 2 cm) but the ATE does not (geometric mean of the
+    ratios 0.93 / 1.03; at 6 mm worlds 22, 180 and 186 more than twice worse): its rule
+    fails (docs/RESULTS.md, WPROC)."""
