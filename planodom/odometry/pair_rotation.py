@@ -18,6 +18,12 @@ over all pairs at once (one batched SVD) rather than by scipy's
 to hundreds of candidates, and the closed form is the same (the tests compare the two).
 The association's gates (LDA's rotation bound, reference points) stay the paper's; the
 result is deterministic.
+
+``winner``: the consensus scores the paper's candidates (the same winner as the paper's)
+and only the winner's rotation is fitted to both its normals (:func:`winner_rotation`).
+Weighted candidates lower every pair's own misfit, a pair of two walls of equal weight
+the most (half its dihedral misfit on each), so walls-only pairs win more steps and bring
+the walls' poorly measured tilt into roll and pitch (docs/RESULTS.md, WPROC).
 """
 
 from __future__ import annotations
@@ -80,9 +86,29 @@ def rotation_weights(
     ocfg: OdometryConfig,
 ) -> np.ndarray | None:
     """(2,) the weights of one pair's two normal associations ``prev_pair -> curr_pair``
-    (2,) under ``odometry.pair_rotation: weighted`` (what its covariance is propagated
-    through, :mod:`planodom.odometry.propagate`); None for the paper's candidate."""
-    if ocfg.pair_rotation != "weighted":
+    (2,) under ``odometry.pair_rotation`` ``weighted`` or ``winner`` (what its covariance
+    is propagated through, :mod:`planodom.odometry.propagate`); None for the paper's
+    candidate."""
+    if ocfg.pair_rotation == "first":
         return None
     floor = radians(ocfg.refine_normal_floor_deg)
     return pair_weights(prev, curr, prev_pair[None], curr_pair[None], floor)[0]
+
+
+def winner_rotation(
+    prev: PlaneSet,
+    curr: PlaneSet,
+    prev_pair: np.ndarray,
+    curr_pair: np.ndarray,
+    R: np.ndarray,
+    ocfg: OdometryConfig,
+) -> np.ndarray:
+    """The consensus winner's rotation (3, 3): its pair ``prev_pair -> curr_pair`` (2,)
+    fitted to both normals under ``odometry.pair_rotation: winner``, else ``R`` (its
+    candidate) as it is (module docstring)."""
+    if ocfg.pair_rotation != "winner":
+        return R
+    w = rotation_weights(prev, curr, prev_pair, curr_pair, ocfg)
+    assert w is not None
+    n_p, n_c = prev.normals[prev_pair][None], curr.normals[curr_pair][None]
+    return weighted_pair_rotations(n_p, n_c, w[None])[0]

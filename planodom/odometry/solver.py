@@ -32,7 +32,7 @@ from planodom.consensus import ConsensusResult, apply_negative_translation, cons
 from planodom.geometry import Plane, make_transform, row_norms, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
 from planodom.odometry.nonholonomic import lateral_sigma
-from planodom.odometry.pair_rotation import candidate_pairs, rotation_weights
+from planodom.odometry.pair_rotation import candidate_pairs, rotation_weights, winner_rotation
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
@@ -349,8 +349,8 @@ def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str
         cons, _ = rotation_consensus(
             prev, curr, lda, weighted=method == "wocsc", inlier_angle=inlier_angle
         )
-        R = lda.rotations[cons.best_index]
         i, j = lda.prev_pairs[cons.best_index], lda.curr_pairs[cons.best_index]
+        R = winner_rotation(prev, curr, i, j, lda.rotations[cons.best_index], ocfg)
         cp, cc = prev.covariances[i], curr.covariances[j]
         if np.isfinite(cp).all() and np.isfinite(cc).all():
             w = rotation_weights(prev, curr, i, j, ocfg)
