@@ -103,8 +103,11 @@ def _plane(n, d: float, sigma_deg: float, c) -> Plane:
     return Plane(n, d, covariance=cov, support=PlaneSupport(c, square_polygon(c, n, 3.0), 100))
 
 
+@pytest.mark.parametrize("mode", ["weighted", "winner"])
 @pytest.mark.parametrize("wall_sigma_deg", [0.1, 0.3, 1.0])
-def test_the_solver_puts_a_walls_tilt_on_roll_pitch_by_its_weight(wall_sigma_deg: float) -> None:
+def test_the_solver_puts_a_walls_tilt_on_roll_pitch_by_its_weight(
+    wall_sigma_deg: float, mode: str
+) -> None:
     """Ground and one wall (the wall sorts first), the current wall's normal tilted by 0.5
     deg towards the ground's normal. The paper's candidate fits the wall exactly: the
     whole tilt in the rotation. Weighted, the rotation error is the tilt times the wall's
@@ -125,7 +128,7 @@ def test_the_solver_puts_a_walls_tilt_on_roll_pitch_by_its_weight(wall_sigma_deg
             _plane(curr[1].normal, curr[1].offset, sg, curr[1].support.centroid)]  # fmt: skip
     first = estimate_relative_pose(prev, curr)
     weighted = estimate_relative_pose(
-        prev, curr, PlanodomConfig().updated({"odometry.pair_rotation": "weighted"})
+        prev, curr, PlanodomConfig().updated({"odometry.pair_rotation": mode})
     )
     # per tangent axis, both epochs: 2 sigma^2, plus the floor
     var_w = 2 * np.radians(wall_sigma_deg) ** 2 + np.radians(floor) ** 2
@@ -154,3 +157,35 @@ def test_the_papers_candidates_are_kept_when_off() -> None:
     np.testing.assert_allclose(lda.rotations, paper, rtol=0, atol=1e-12)
     same = PairAssociations(lda.prev_pairs, lda.curr_pairs, lda.rotations, lda.weights)
     assert candidate_pairs(P, C, same, cfg.odometry) is same
+
+
+def test_winner_keeps_the_papers_winner_and_fits_its_pair_as_scipy_does() -> None:
+    """``winner``: the same consensus winner as the paper's; its rotation is scipy's
+    ``align_vectors`` of the winner's two normal associations weighted by the inverse of
+    their normal variances plus the floor (an independent solve)."""
+    rng = np.random.default_rng(11)
+    world = world_planes(rng, 5)
+    T_true = random_motion(rng)
+    prev, curr = (
+        [_plane(q.normal, q.offset, s, q.support.centroid) for q, s in zip(ps, sig, strict=True)]
+        for ps, sig in (
+            (noisy(observe(world, np.eye(4)), rng, 0.003, 0.01), rng.uniform(0.05, 0.5, 6)),
+            (noisy(observe(world, T_true), rng, 0.003, 0.01), rng.uniform(0.05, 0.5, 6)),
+        )
+    )
+    paper = estimate_relative_pose(prev, curr)
+    cfg = PlanodomConfig().updated(
+        {"odometry.pair_rotation": "winner", "odometry.refinement": "none"}
+    )
+    winner = estimate_relative_pose(prev, curr, cfg)
+    pair = paper.diagnostics.rotation_pair  # type: ignore[union-attr]
+    np.testing.assert_array_equal(winner.diagnostics.rotation_pair, pair)  # type: ignore[union-attr]
+    n_p = np.array([prev[i].normal for i in pair[:2]])
+    n_c = np.array([curr[j].normal for j in pair[2:]])
+    var = [
+        (np.trace(prev[i].covariance[:3, :3]) + np.trace(curr[j].covariance[:3, :3])) / 2
+        for i, j in zip(pair[:2], pair[2:], strict=True)
+    ]
+    w = 1.0 / (np.array(var) + np.radians(cfg.odometry.refine_normal_floor_deg) ** 2)
+    expected = Rotation.align_vectors(n_p, n_c, weights=w)[0].as_matrix()
+    np.testing.assert_allclose(winner.T_prev_curr[:3, :3], expected, rtol=0, atol=1e-12)
