@@ -6,10 +6,13 @@ from planodom.config import PlanodomConfig
 from planodom.errors import ConfigError
 
 
-def test_the_papers_candidate_is_the_default_and_weighted_is_read_from_a_file(tmp_path) -> None:
+@pytest.mark.parametrize("value", ["weighted", "winner"])
+def test_the_papers_candidate_is_the_default_and_the_others_read_from_a_file(
+    tmp_path, value: str
+) -> None:
     assert PlanodomConfig().odometry.pair_rotation == "first"
-    (tmp_path / "c.yaml").write_text("odometry: {pair_rotation: weighted}\n")
-    assert PlanodomConfig.from_yaml(tmp_path / "c.yaml").odometry.pair_rotation == "weighted"
+    (tmp_path / "c.yaml").write_text(f"odometry: {{pair_rotation: {value}}}\n")
+    assert PlanodomConfig.from_yaml(tmp_path / "c.yaml").odometry.pair_rotation == value
 
 
 @pytest.mark.parametrize("value", ["second", "1", "true"])
