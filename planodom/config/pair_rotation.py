@@ -30,4 +30,6 @@ class PairRotationConfig(MotionModelConfig):
     the 2D-rig worlds 180-198 and 20-38 (150 epochs) the per-epoch rotation improves
     (median rms 0.86x at 6 mm, 0.89x at 2 cm) but the ATE does not (geometric mean of the
     ratios 0.93 / 1.03; at 6 mm worlds 22, 180 and 186 more than twice worse): its rule
-    fails (docs/RESULTS.md, WPROC); so is ``winner`` (WPROC)."""
+    fails (docs/RESULTS.md, WPROC). ``winner`` is off too: on worlds 160-178 ATE 0.72 / 0.86
+    in geometric mean, but unresolved epochs 11 -> 13 / 37 -> 44 and world 176 at 6 mm,
+    166, 168 and 174 at 2 cm more than twice worse (WPROC)."""
