@@ -10,7 +10,9 @@ then (a diagnostic, "apart") "deskew"'s maps in a column of their own per older 
 ``smoothing.sandwich_first_epoch`` "step" with independent loop factors, "step_shared" and
 "step_deskew" with those loop sources, "degenerate_step" that value; "both" (NEES6)
 ``smoothing.sandwich_relative_ends`` "both"; "both_loops", "both_steps" (diagnostics)
-its maps of the loop factors alone or of the steps alone; ``--modes`` picks.
+its maps of the loop factors alone or of the steps alone; "epoch" (NEESRUN)
+``smoothing.sandwich_motion_scale`` "epoch", "epoch_both" that with "both"; ``--modes``
+picks.
 Printed per lap: ATE (xy rmse, m), mean NEES5 each way, the loop factors and the older
 epochs they come from, and for "deskew" the loop factors given a map and the mean of
 ``tr(g Q_a g^T) / dim`` (the added whitened variance against the factor's own, 1).
@@ -74,6 +76,10 @@ def main() -> None:
         if mode.startswith("both"):  # NEES6: smoothing.sandwich_relative_ends "both"
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_relative_ends": "both"}  # fmt: skip
+        if mode.startswith("epoch"):  # NEESRUN: smoothing.sandwich_motion_scale "epoch"
+            changes = {"smoothing.sandwich_loop_sources": "independent",
+                       "smoothing.sandwich_motion_scale": "epoch",
+                       "smoothing.sandwich_relative_ends": mode[6:] or "none"}  # fmt: skip
         if mode == "degenerate_step":
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_first_epoch": "degenerate_step"}  # fmt: skip
@@ -105,6 +111,7 @@ def main() -> None:
           f"{np.mean(share):.3g}, max {max(share):.3g})")  # fmt: skip
     if args.time:
         key = "relative_ends" if args.timed == "both" else "loop_sources"
+        key = "motion_scale" if args.timed == "epoch" else key
         timed = cfg.updated({f"smoothing.sandwich_{key}": args.timed}).smoothing
         _time_covariances(builder, cfg.smoothing, timed, cap, args.time)
 
@@ -170,7 +177,8 @@ def _time_covariances(builder, off, on, cap, repeats: int) -> None:  # noqa: ANN
             times[name].append(time.process_time() - t0)
     off_t, on_t = np.median(times["independent"]), np.median(times["on"])
     print(f"covariance CPU s (median of {repeats}) independent {off_t:.2f} "
-          f"{on.sandwich_loop_sources}/{on.sandwich_relative_ends} {on_t:.2f} "
+          f"{on.sandwich_loop_sources}/{on.sandwich_relative_ends}/{on.sandwich_motion_scale} "
+          f"{on_t:.2f} "
           f"ratio {on_t / off_t:.3f}; all: {times}")  # fmt: skip
 
 
