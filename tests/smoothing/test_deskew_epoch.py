@@ -151,9 +151,16 @@ def test_sandwich_inputs_with_epoch() -> None:
         wk = w + np.array([0.0, 0.01 * k**2, 0.02 * k, 0.1 * k, 0.0, 0.0])
         rels.append(
             RelativePose(
-                se3_exp(wk * 0.1), np.eye(5) * 1e-6, prev=k - 1, curr=k, time_spread=True,
-                deskew_twist=w + 0.9 * (wk - w), deskew_times=(0.0, 0.09), interval_s=0.1,
-                z_observed=True, sigma_z=1e-3,
+                se3_exp(wk * 0.1),
+                np.eye(5) * 1e-6,
+                prev=k - 1,
+                curr=k,
+                time_spread=True,
+                deskew_twist=w + 0.9 * (wk - w),
+                deskew_times=(0.0, 0.09),
+                interval_s=0.1,
+                z_observed=True,
+                sigma_z=1e-3,
             )  # fmt: skip
         )
     factors = {i: (i % 6, p) for i, p in enumerate(planes)}
