@@ -10,6 +10,12 @@ share of epochs above chi2's 95 % quantile (0.05 if the model is right), the fir
 epoch's chi / dof, and the median over epochs of ``tr(A Q_k A^T) / dof`` (the modelled
 deskewing variance per whitened plane row).
 
+Then, per axis over the epochs whose planes fix all six components, the run-level scale's
+input ``d_k`` (:func:`planodom.smoothing.deskew_scale.deskew_differences`) against the
+least-squares deskewing error ``e_k`` the planes give against the true surfaces: rms and
+median |.| of each, the planes' own sigma of ``e_k`` (median), their correlation, and the
+median sigma the steps' declared covariances give their part of ``d_k``.
+
     uv run python experiments/deskew_epoch_sizes.py --world 38 --noise 0.006 --cache DIR
 """
 
@@ -26,6 +32,9 @@ import nees_gauge  # noqa: E402
 import nees_where  # noqa: E402
 
 from planodom.smoothing.batch_covariances import sandwich_inputs  # noqa: E402
+from planodom.smoothing.deskew_scale import deskew_differences  # noqa: E402
+
+AXES = ("roll", "pitch", "yaw", "x", "y", "z")
 
 
 def main() -> None:
@@ -73,6 +82,30 @@ def main() -> None:
             f"         e_k: chi/rank median {np.median(pe / r):.3g} mean {np.mean(pe / r):.3g} "
             f">95% {np.mean(pe > chi2.ppf(0.95, r)):.3f} <5% {np.mean(pe < chi2.ppf(0.05, r)):.3f} "
             f"epoch0 {first_e:.3g}"
+        )
+
+    differences(odo, full, rel, E)
+
+
+def differences(odo, full, rel, E: int) -> None:  # noqa: ANN001
+    """The module docstring's ``d_k`` against ``e_k`` per axis."""
+    d, var = deskew_differences(rel, E)
+    rows = []
+    for k in range(E):
+        out = nees_where.plane_chis(odo.planes[k], full.poses[k], full.scene, np.zeros((6, 6)))
+        if out[3] and out[6] == 6:
+            fit_var = np.diag(np.linalg.inv(out[8]))
+            rows.append((out[7], d[k], fit_var, var[k]))
+    e, dd, fit, step = (np.array(x) for x in zip(*rows, strict=True))
+    print(f"  d_k against e_k ({len(e)} epochs with all six fixed; rad, m):")
+    for i, axis in enumerate(AXES):
+        ok = np.isfinite(dd[:, i])
+        a, b = e[ok, i], dd[ok, i]
+        print(
+            f"   {axis:5s} e rms {np.sqrt(np.mean(a**2)):.3g} med|e| {np.median(np.abs(a)):.3g} "
+            f"planes' sigma {np.median(np.sqrt(fit[ok, i])):.3g}  d rms "
+            f"{np.sqrt(np.mean(b**2)):.3g} med|d| {np.median(np.abs(b)):.3g}  corr "
+            f"{np.corrcoef(a, b)[0, 1]:.2f}  steps' sigma {np.median(np.sqrt(step[ok, i])):.3g}"
         )
 
 

@@ -76,10 +76,12 @@ def main() -> None:
         if mode.startswith("both"):  # NEES6: smoothing.sandwich_relative_ends "both"
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_relative_ends": "both"}  # fmt: skip
-        if mode.startswith("epoch"):  # NEESRUN: smoothing.sandwich_motion_scale "epoch"
+        if mode in ("epoch", "epoch_both"):  # NEESRUN: sandwich_motion_scale "epoch"
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_motion_scale": "epoch",
                        "smoothing.sandwich_relative_ends": mode[6:] or "none"}  # fmt: skip
+        if mode in EPOCH_SPLITS:
+            changes = {"smoothing.sandwich_loop_sources": "independent"}
         if mode == "degenerate_step":
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_first_epoch": "degenerate_step"}  # fmt: skip
@@ -88,6 +90,8 @@ def main() -> None:
         sandwich.relative_error_maps = RELATIVE_KINDS.get(mode, relative_error_maps)
         first = mode.startswith("first")
         batch_covariances.sandwich_inputs = _first_step if first else SANDWICH_INPUTS
+        if mode in EPOCH_SPLITS:  # NEESRUN diagnostics: "epoch" and "run" mixed at epoch 0
+            batch_covariances.sandwich_inputs = EPOCH_SPLITS[mode]
         _, P_on, note, _, model = nees_gauge.ORIGINAL(
             builder, cap["graph"], cap["gaussian"], cap["fallback"], cap["estimate"],
             cap["n"], cap["planes"], cap["rel"],
@@ -148,6 +152,26 @@ def _first_step(cfg, planes, relative_poses, n_epochs):  # noqa: ANN001, ANN202
     Q = np.array(Q, copy=True)
     Q[0] = np.diag(var * (max(abs(lo), abs(hi)) / step.interval_s) ** 2)
     return Q, why
+
+
+def _epoch_split(first_from_epoch: bool):  # noqa: ANN202
+    """A diagnostic ("epoch_keep0", "epoch0_only"): the sandwich's inputs with
+    ``sandwich_motion_scale`` "epoch" in every epoch but the first (its "run" ``Q_0``), or
+    "run" in every epoch but the first (its "epoch" ``Q_0``)."""
+
+    def inputs(cfg, planes, relative_poses, n_epochs):  # noqa: ANN001, ANN202
+        run, why = SANDWICH_INPUTS(cfg, planes, relative_poses, n_epochs)
+        epoch_cfg = cfg.model_copy(update={"sandwich_motion_scale": "epoch"})
+        epoch, _ = SANDWICH_INPUTS(epoch_cfg, planes, relative_poses, n_epochs)
+        assert run is not None and epoch is not None
+        out = np.array(run if first_from_epoch else epoch, copy=True)
+        out[0] = epoch[0] if first_from_epoch else run[0]
+        return out, why
+
+    return inputs
+
+
+EPOCH_SPLITS = {"epoch_keep0": _epoch_split(False), "epoch0_only": _epoch_split(True)}
 
 
 def _apart(mode, cov_graph, values, Q, delta_max, index, loops):  # noqa: ANN001, ANN202
