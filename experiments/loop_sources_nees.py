@@ -11,7 +11,9 @@ then (a diagnostic, "apart") "deskew"'s maps in a column of their own per older 
 "step_deskew" with those loop sources, "degenerate_step" that value; "both" (NEES6)
 ``smoothing.sandwich_relative_ends`` "both"; "both_loops", "both_steps" (diagnostics)
 its maps of the loop factors alone or of the steps alone; "epoch" (NEESRUN)
-``smoothing.sandwich_motion_scale`` "epoch", "epoch_both" that with "both"; ``--modes``
+``smoothing.sandwich_motion_scale`` "epoch", "epoch_both" that with "both",
+"epoch_shared" (a diagnostic) that with ``sandwich_loop_sources`` "shared", "epoch_keep0"
+and "epoch0_only" (diagnostics) "epoch" but at the first epoch, or only there; ``--modes``
 picks.
 Printed per lap: ATE (xy rmse, m), mean NEES5 each way, the loop factors and the older
 epochs they come from, and for "deskew" the loop factors given a map and the mean of
@@ -80,6 +82,9 @@ def main() -> None:
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_motion_scale": "epoch",
                        "smoothing.sandwich_relative_ends": mode[6:] or "none"}  # fmt: skip
+        if mode == "epoch_shared":  # NEESRUN diagnostic: with sandwich_loop_sources shared
+            changes = {"smoothing.sandwich_loop_sources": "shared",
+                       "smoothing.sandwich_motion_scale": "epoch"}  # fmt: skip
         if mode in EPOCH_SPLITS:
             changes = {"smoothing.sandwich_loop_sources": "independent"}
         if mode == "degenerate_step":
