@@ -81,7 +81,9 @@ class CovarianceScaleConfig(Section):
     same cost as "none". "epoch" sizes each epoch's error as the coplanar twist
     fit's: the "run" value (the first epoch: its first step's covariance) narrowed by what
     the epoch's own planes fix of the twist (:mod:`planodom.smoothing.deskew_epoch`).
-    Only the covariances change (docs/RESULTS.md, NEESRUN)."""
+    Only the covariances change. Off: right epoch by epoch on a good 6 mm lap, too small
+    at 2 cm (the motion within the epoch), and the laps inside the NEES interval fall from
+    7 to 4 of 14 at 2 cm and 5 to 0 of 9 at 6 mm (docs/RESULTS.md, NEESRUN)."""
     sandwich_undeskewed: Literal["none", "motion"] = "motion"
     """With ``covariance_model`` "sandwich" (or "auto" where it gives the sandwich): the
     deskewing error of an epoch the odometry kept without deskewing although its points
