@@ -58,7 +58,7 @@ from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.surfaces import Ranking, by_planes
-from planodom.odometry.twist_refine import next_twist, significant_twist
+from planodom.odometry.twist_refine import Blend, next_twist, refined_own
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
@@ -233,6 +233,7 @@ def register_deskewed(
     lead: Lead | None = None,
     bounds: tuple[AssociationConfig, Callable[[], None]] | None = None,
     rank: Ranking = by_planes,
+    blend: Blend | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -265,6 +266,8 @@ def register_deskewed(
         bounds: the motion bounds the run assumes and what brings the reference's planes
             back (``odometry.deskew_bounds_guard``, :func:`_left_bounds`; None: off).
         rank: how extractions are ranked (``odometry.deskew_rank``, :func:`.surfaces.ranking`).
+        blend: the own twist's rate weighed against the prediction before it is refined
+            with (``odometry.twist_blend``, :data:`.twist_refine.Blend`); None: off.
     """
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend, rank)
     iterations = config.deskew_iterations if lead is None else lead.iterations
@@ -276,11 +279,7 @@ def register_deskewed(
             break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
-        own = significant_twist(best.own_twist(dt), best.relative, dt, config)
-        if against_map and not config.map_twist_offset:
-            own = 0.5 * (own + used)
-        elif lead is not None:
-            own = lead.led(own, measured, dt)
+        own = refined_own(best, dt, used, measured, config, against_map, lead, blend)
         new, before = next_twist(own, used, measured, config, lead, before, best.relative, dt)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
