@@ -157,3 +157,24 @@ def test_the_deskewing_refinement_extracts_again_with_the_blended_rate():
 def test_config_refuses_an_unknown_blend_naming_the_key():
     with pytest.raises(ConfigError, match="^config: field 'odometry.twist_blend': "):
         PlanodomConfig.from_dict({"odometry": {"twist_blend": "twist"}})
+
+
+def test_with_degenerate_only_an_ok_step_replaces_the_rate_and_a_degenerate_one_is_weighed():
+    """``twist_blend: degenerate``: an OK step's own rate is returned as it is (the
+    posterior is the step's, its covariance too); a degenerate step after it is weighed
+    against it, each axis the scalar update."""
+    config = OdometryConfig(twist_blend="degenerate")
+    model = TwistUncertainty(config)
+    first, second = np.array([-1.0, 1.0, 10.0]), np.array([0.5, -0.5, 12.0])
+    model.update(_own(first), _relative(first, np.full(3, 0.02), Status.OK), DT)
+    own = _own(second)
+    got = model.update(own, _relative(second, np.full(3, 0.02), Status.OK), DT)
+    np.testing.assert_array_equal(got, own)
+    np.testing.assert_allclose(model.blend.cov, np.diag(np.full(3, np.radians(0.02) ** 2 / DT**2)))
+    wrong, sigma = np.array([14.0, -16.0, 11.0]), np.array([3.0, 3.0, 0.01])
+    prior_var = np.radians(0.02) ** 2 / DT**2 + model.change()[0] ** 2 / 3
+    got = model.update(_own(wrong), _relative(wrong, sigma, Status.DEGENERATE), DT)
+    for i in range(3):
+        want = _scalar(np.radians(second[i]), prior_var, np.radians(wrong[i]),
+                       np.radians(sigma[i]) ** 2 / DT**2)[0]  # fmt: skip
+        assert got[i] == pytest.approx(want, rel=1e-9)
