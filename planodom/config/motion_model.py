@@ -120,6 +120,17 @@ class MotionModelConfig(Section):
     worlds 0-18 at 6 mm, extractions an epoch 2.46 -> 1.91, but ATE ratio 1.05 / 1.14 (6 mm /
     2 cm), and on 160-178 world 166 0.48 -> 1.92 m (docs/RESULTS.md, PREDICT3)."""
 
+    twist_blend: Literal["off", "rate", "degenerate"] = "off"
+    """Streaming, pairwise pipelines (the 2D rig's): how a step's own angular rate enters
+    the twist its epoch is deskewed with again and the one predicted for the next.
+    ``off``: it replaces the prediction (beyond ``deskew_rate_tolerance_deg_s``);
+    ``rate``: a Kalman update per axis, weighed against the prediction by the step's
+    rotation covariance and the prediction's (the previous posterior plus one epoch of
+    the rate's measured change), so an axis a degenerate step hardly measures (roll and
+    pitch from walls alone) keeps the prediction (:mod:`planodom.odometry.twist_blend`);
+    ``degenerate``: that for steps that are not OK only, an OK step's rate replacing the
+    prediction as with ``off``. Off by default (docs/RESULTS.md, TWISTBLEND)."""
+
     start_vehicle_twist: bool = False
     """Pairwise pipelines, a vehicle (never a hand-held sensor): at the start, while no
     step has measured an angular rate, an epoch whose own step is degenerate but reported

@@ -59,7 +59,7 @@ from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.surfaces import Ranking, by_planes
-from planodom.odometry.twist_refine import next_twist, significant_twist
+from planodom.odometry.twist_refine import Blend, next_twist, refined_own
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
@@ -236,6 +236,7 @@ def register_deskewed(
     bounds: tuple[AssociationConfig, Callable[[], None]] | None = None,
     rank: Ranking = by_planes,
     centring: Centring | None = None,
+    blend: Blend | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -268,8 +269,8 @@ def register_deskewed(
         bounds: the motion bounds the run assumes and what brings the reference's planes
             back (``odometry.deskew_bounds_guard``, :func:`_left_bounds`; None: off).
         rank: how extractions are ranked (``odometry.deskew_rank``, :func:`.surfaces.ranking`).
-        centring: the lead of the refinements' own rate to the epoch's points
-            (``odometry.deskew_rate_lead``, :mod:`.centred_twist`; None: none).
+        centring, blend: the refinements' own rate led to the epoch's points (``odometry.
+            deskew_rate_lead``) / weighed against the prediction (``twist_blend``); None: off.
     """
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend, rank)
     iterations = config.deskew_iterations if lead is None else lead.iterations
@@ -281,7 +282,7 @@ def register_deskewed(
             break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
-        own = _own(best, used, dt, config, against_map, lead, centring)
+        own = refined_own(best, dt, used, measured, config, against_map, lead, blend, centring)
         new, before = next_twist(own, used, measured, config, lead, before, best.relative, dt)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):
@@ -299,20 +300,6 @@ def register_deskewed(
         # extraction (or the map seeded with it) refers to planes that are gone
         best = again
     return best
-
-
-def _own(
-    best: EpochEstimate, used: np.ndarray, dt: float, config: OdometryConfig, against_map: bool,
-    lead: Lead | None, centring: Centring | None,
-) -> np.ndarray:  # fmt: skip
-    """(6,) the twist ``best`` (deskewed with ``used``) is refined towards, before the
-    tolerances (:func:`register_deskewed`, its arguments)."""
-    own = significant_twist(best.own_twist(dt), best.relative, dt, config)
-    if against_map and not config.map_twist_offset:
-        return 0.5 * (own + used)
-    if lead is not None:
-        return lead.led(own, best.relative.status is Status.OK, dt)
-    return own if centring is None else centring.led_for(own, best)
 
 
 def guarded(config: OdometryConfig) -> bool:
