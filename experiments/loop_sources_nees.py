@@ -10,7 +10,11 @@ then (a diagnostic, "apart") "deskew"'s maps in a column of their own per older 
 ``smoothing.sandwich_first_epoch`` "step" with independent loop factors, "step_shared" and
 "step_deskew" with those loop sources, "degenerate_step" that value; "both" (NEES6)
 ``smoothing.sandwich_relative_ends`` "both"; "both_loops", "both_steps" (diagnostics)
-its maps of the loop factors alone or of the steps alone; ``--modes`` picks.
+its maps of the loop factors alone or of the steps alone; "epoch" (NEESRUN)
+``smoothing.sandwich_motion_scale`` "epoch", "epoch_both" that with "both",
+"epoch_shared" (a diagnostic) that with ``sandwich_loop_sources`` "shared", "epoch_keep0"
+and "epoch0_only" (diagnostics) "epoch" but at the first epoch, or only there; ``--modes``
+picks.
 Printed per lap: ATE (xy rmse, m), mean NEES5 each way, the loop factors and the older
 epochs they come from, and for "deskew" the loop factors given a map and the mean of
 ``tr(g Q_a g^T) / dim`` (the added whitened variance against the factor's own, 1).
@@ -74,6 +78,15 @@ def main() -> None:
         if mode.startswith("both"):  # NEES6: smoothing.sandwich_relative_ends "both"
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_relative_ends": "both"}  # fmt: skip
+        if mode in ("epoch", "epoch_both"):  # NEESRUN: sandwich_motion_scale "epoch"
+            changes = {"smoothing.sandwich_loop_sources": "independent",
+                       "smoothing.sandwich_motion_scale": "epoch",
+                       "smoothing.sandwich_relative_ends": mode[6:] or "none"}  # fmt: skip
+        if mode == "epoch_shared":  # NEESRUN diagnostic: with sandwich_loop_sources shared
+            changes = {"smoothing.sandwich_loop_sources": "shared",
+                       "smoothing.sandwich_motion_scale": "epoch"}  # fmt: skip
+        if mode in EPOCH_SPLITS:
+            changes = {"smoothing.sandwich_loop_sources": "independent"}
         if mode == "degenerate_step":
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_first_epoch": "degenerate_step"}  # fmt: skip
@@ -82,6 +95,8 @@ def main() -> None:
         sandwich.relative_error_maps = RELATIVE_KINDS.get(mode, relative_error_maps)
         first = mode.startswith("first")
         batch_covariances.sandwich_inputs = _first_step if first else SANDWICH_INPUTS
+        if mode in EPOCH_SPLITS:  # NEESRUN diagnostics: "epoch" and "run" mixed at epoch 0
+            batch_covariances.sandwich_inputs = EPOCH_SPLITS[mode]
         _, P_on, note, _, model = nees_gauge.ORIGINAL(
             builder, cap["graph"], cap["gaussian"], cap["fallback"], cap["estimate"],
             cap["n"], cap["planes"], cap["rel"],
@@ -105,6 +120,7 @@ def main() -> None:
           f"{np.mean(share):.3g}, max {max(share):.3g})")  # fmt: skip
     if args.time:
         key = "relative_ends" if args.timed == "both" else "loop_sources"
+        key = "motion_scale" if args.timed == "epoch" else key
         timed = cfg.updated({f"smoothing.sandwich_{key}": args.timed}).smoothing
         _time_covariances(builder, cfg.smoothing, timed, cap, args.time)
 
@@ -143,6 +159,26 @@ def _first_step(cfg, planes, relative_poses, n_epochs):  # noqa: ANN001, ANN202
     return Q, why
 
 
+def _epoch_split(first_from_epoch: bool):  # noqa: ANN202
+    """A diagnostic ("epoch_keep0", "epoch0_only"): the sandwich's inputs with
+    ``sandwich_motion_scale`` "epoch" in every epoch but the first (its "run" ``Q_0``), or
+    "run" in every epoch but the first (its "epoch" ``Q_0``)."""
+
+    def inputs(cfg, planes, relative_poses, n_epochs):  # noqa: ANN001, ANN202
+        run, why = SANDWICH_INPUTS(cfg, planes, relative_poses, n_epochs)
+        epoch_cfg = cfg.model_copy(update={"sandwich_motion_scale": "epoch"})
+        epoch, _ = SANDWICH_INPUTS(epoch_cfg, planes, relative_poses, n_epochs)
+        assert run is not None and epoch is not None
+        out = np.array(run if first_from_epoch else epoch, copy=True)
+        out[0] = epoch[0] if first_from_epoch else run[0]
+        return out, why
+
+    return inputs
+
+
+EPOCH_SPLITS = {"epoch_keep0": _epoch_split(False), "epoch0_only": _epoch_split(True)}
+
+
 def _apart(mode, cov_graph, values, Q, delta_max, index, loops):  # noqa: ANN001, ANN202
     """A diagnostic: "deskew"'s maps, each older epoch in a column of its own (a copy of
     its ``Q_a``) instead of its plane factors' (the loop factors' share uncorrelated
@@ -170,7 +206,8 @@ def _time_covariances(builder, off, on, cap, repeats: int) -> None:  # noqa: ANN
             times[name].append(time.process_time() - t0)
     off_t, on_t = np.median(times["independent"]), np.median(times["on"])
     print(f"covariance CPU s (median of {repeats}) independent {off_t:.2f} "
-          f"{on.sandwich_loop_sources}/{on.sandwich_relative_ends} {on_t:.2f} "
+          f"{on.sandwich_loop_sources}/{on.sandwich_relative_ends}/{on.sandwich_motion_scale} "
+          f"{on_t:.2f} "
           f"ratio {on_t / off_t:.3f}; all: {times}")  # fmt: skip
 
 

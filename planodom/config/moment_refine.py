@@ -9,10 +9,10 @@ from __future__ import annotations
 from typing import Literal
 
 from planodom.config.association import Positive
-from planodom.config.motion_model import MotionModelConfig
+from planodom.config.pair_rotation import PairRotationConfig
 
 
-class MomentRefineConfig(MotionModelConfig):
+class MomentRefineConfig(PairRotationConfig):
     """How far ``refinement: moments`` may move the consensus (field of ``odometry``)."""
 
     moment_gate_chi2: Positive | None = None

@@ -56,6 +56,16 @@ class MotionModelConfig(Section):
     that tightens steadily, where the held rate lags (issue 11's world 6 at 6 mm: 8.2
     deg/s held for a true 13.7-15.9). The velocity stays the prediction's."""
 
+    deskew_rate_lead: Literal["off", "yaw", "yaw_split", "rate"] = "off"
+    """Streaming, pairwise pipelines: the own twist an epoch is extracted again with
+    (``deskew_iterations``), the mean over its step, is centred half an epoch plus its
+    points' mean time before them and lags a turn whose rate changes (the 2D rig's world
+    166: 1.1-1.35 deg/s in yaw, its walls split one plane per sweep). ``yaw``: its yaw rate
+    led to the points' mean time along its change since the previous epoch's own, both
+    steps OK (:mod:`planodom.odometry.centred_twist`); ``rate``: the roll and pitch rates too
+    (measured far less well by one step); ``yaw_split``: the yaw rate of an extraction
+    that splits a wall only; ``off``: as it is (docs/RESULTS.md, TURNLAG)."""
+
     bridge_trend_epochs: Annotated[int, Field(ge=1, le=20)] = 3
     """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
     may run; further bridged epochs keep the rate it reached there."""
@@ -109,6 +119,17 @@ class MotionModelConfig(Section):
     the bridge, the gates and the retries keeping the constant rate. Off by default: 2D-rig
     worlds 0-18 at 6 mm, extractions an epoch 2.46 -> 1.91, but ATE ratio 1.05 / 1.14 (6 mm /
     2 cm), and on 160-178 world 166 0.48 -> 1.92 m (docs/RESULTS.md, PREDICT3)."""
+
+    twist_blend: Literal["off", "rate", "degenerate"] = "off"
+    """Streaming, pairwise pipelines (the 2D rig's): how a step's own angular rate enters
+    the twist its epoch is deskewed with again and the one predicted for the next.
+    ``off``: it replaces the prediction (beyond ``deskew_rate_tolerance_deg_s``);
+    ``rate``: a Kalman update per axis, weighed against the prediction by the step's
+    rotation covariance and the prediction's (the previous posterior plus one epoch of
+    the rate's measured change), so an axis a degenerate step hardly measures (roll and
+    pitch from walls alone) keeps the prediction (:mod:`planodom.odometry.twist_blend`);
+    ``degenerate``: that for steps that are not OK only, an OK step's rate replacing the
+    prediction as with ``off``. Off by default (docs/RESULTS.md, TWISTBLEND)."""
 
     start_vehicle_twist: bool = False
     """Pairwise pipelines, a vehicle (never a hand-held sensor): at the start, while no

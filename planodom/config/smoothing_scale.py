@@ -64,7 +64,7 @@ class CovarianceScaleConfig(Section):
     the change of motion taken as its error) and 5-17 times the fitted covariances' time in
     median (dense in the poses; docs/RESULTS.md). With ``sandwich_motion_scale`` "run"
     (this release) inside on 14 of 18 (world 4 not run), none too cautious, 4 above."""
-    sandwich_motion_scale: Literal["none", "run"] = "run"
+    sandwich_motion_scale: Literal["none", "run", "epoch"] = "run"
     """With ``covariance_model`` "sandwich": "none" each epoch's deskewing error has the
     covariance of the run's changes of motion around it; "run" that covariance scaled per
     axis by one factor each, estimated from the run by the method of moments (the twists
@@ -78,7 +78,12 @@ class CovarianceScaleConfig(Section):
     (2 cm: world 16 9.5 -> 20, 18 12.2 -> 71), and the two above before rise (world 18 at
     6 mm 25 -> 207, world 0 at 2 cm 19.5 -> 47; with the true deskewing errors' scale, a
     diagnostic, 255 and 65: their excess is not the deskewing; docs/RESULTS.md). The
-    same cost as "none"."""
+    same cost as "none". "epoch" sizes each epoch's error as the coplanar twist
+    fit's: the "run" value (the first epoch: its first step's covariance) narrowed by what
+    the epoch's own planes fix of the twist (:mod:`planodom.smoothing.deskew_epoch`).
+    Only the covariances change. Off: right epoch by epoch on a good 6 mm lap, too small
+    at 2 cm (the motion within the epoch), and the laps inside the NEES interval fall from
+    7 to 4 of 14 at 2 cm and 5 to 0 of 9 at 6 mm (docs/RESULTS.md, NEESRUN)."""
     sandwich_undeskewed: Literal["none", "motion"] = "motion"
     """With ``covariance_model`` "sandwich" (or "auto" where it gives the sandwich): the
     deskewing error of an epoch the odometry kept without deskewing although its points

@@ -28,8 +28,9 @@ it again:
 2. up to ``deskew_iterations`` times: with the epoch's own angular rate and (when its
    translation was measured) velocity (against a plane map: their mean with the twist
    used, see ``against_map``) wherever they differ from the twist used by more
-   than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps``; a reference
-   epoch that was never deskewed (the first) is extracted again with it too; with
+   than ``deskew_rate_tolerance_deg_s`` / ``deskew_speed_tolerance_mps`` (with
+   ``odometry.deskew_rate_lead``, off, the rate led to the points, :mod:`.centred_twist`);
+   a reference epoch that was never deskewed (the first) is extracted again with it too; with
    ``odometry.deskew_significance_gate`` (off by default) only what the step measured
    beyond its noise counts (:func:`significant_twist`: a parked lidar's step is noise,
    not a motion to deskew with); with ``odometry.deskew_change_gate`` (off) only where
@@ -58,11 +59,12 @@ from planodom.extraction.memo import identity_memo
 from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.surfaces import Ranking, by_planes
-from planodom.odometry.twist_refine import next_twist, significant_twist
+from planodom.odometry.twist_refine import Blend, next_twist, refined_own
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
 if TYPE_CHECKING:
+    from planodom.odometry.centred_twist import Centring
     from planodom.odometry.planemap import MapEstimate
     from planodom.odometry.trend import Lead
 
@@ -233,6 +235,8 @@ def register_deskewed(
     lead: Lead | None = None,
     bounds: tuple[AssociationConfig, Callable[[], None]] | None = None,
     rank: Ranking = by_planes,
+    centring: Centring | None = None,
+    blend: Blend | None = None,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -265,6 +269,8 @@ def register_deskewed(
         bounds: the motion bounds the run assumes and what brings the reference's planes
             back (``odometry.deskew_bounds_guard``, :func:`_left_bounds`; None: off).
         rank: how extractions are ranked (``odometry.deskew_rank``, :func:`.surfaces.ranking`).
+        centring, blend: the refinements' own rate led to the epoch's points (``odometry.
+            deskew_rate_lead``) / weighed against the prediction (``twist_blend``); None: off.
     """
     best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend, rank)
     iterations = config.deskew_iterations if lead is None else lead.iterations
@@ -276,11 +282,7 @@ def register_deskewed(
             break  # never deskew with a linear velocity nobody measured (v = 0)
         used = np.zeros(6) if best.twist is None else best.twist
         measured = best.relative.status is Status.OK
-        own = significant_twist(best.own_twist(dt), best.relative, dt, config)
-        if against_map and not config.map_twist_offset:
-            own = 0.5 * (own + used)
-        elif lead is not None:
-            own = lead.led(own, measured, dt)
+        own = refined_own(best, dt, used, measured, config, against_map, lead, blend, centring)
         new, before = next_twist(own, used, measured, config, lead, before, best.relative, dt)
         stale_reference = refresh_reference(new)
         if not stale_reference and np.array_equal(new, used):

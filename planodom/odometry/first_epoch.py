@@ -43,7 +43,7 @@ the coplanar fit (:mod:`.coplanar`), of the sigma of a twist refined from the st
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -51,6 +51,9 @@ from planodom.config import OdometryConfig
 from planodom.odometry.deskew import EpochEstimate, time_spread
 from planodom.odometry.relative import Status
 from planodom.scan import Scan
+
+if TYPE_CHECKING:
+    from planodom.odometry.odometry import PlaneOdometry
 
 #: ``round(twist, best) -> (again, undo)``: extract the first epoch again deskewed with
 #: ``twist`` (6,), estimate the second epoch's step again against the new planes
@@ -113,3 +116,22 @@ def reextracted_first(
             break
         best = again
     return best
+
+
+def first_round(
+    odo: PlaneOdometry, scan: Scan, t: float, twist: np.ndarray, best: EpochEstimate
+) -> tuple[EpochEstimate, Callable[[], None]]:
+    """:data:`Round` for the streaming odometry ``odo``'s second epoch (``scan`` at ``t``,
+    estimated as ``best``): its first epoch extracted again with ``twist`` (6,)."""
+    first, last = odo._history[0], odo._last_usable
+    old = (first.planes, first.twist, first.plane_set)
+    assert first.scan is not None and first.index == 0
+    prior = odo._twist_sigma.refined(best, t - odo.times[-1], twist)
+    odo._set_planes(first, *odo._extract(first.scan, twist, prior=prior))
+    odo._last_usable = first if first.has_pair(odo.config.association) else None
+
+    def undo() -> None:
+        odo._set_planes(first, *old)
+        odo._last_usable = last
+
+    return odo._estimate_scan(scan, t, twist, source=best), undo

@@ -16,7 +16,7 @@ motion is carried across a gap in the epoch times: see :data:`.epoch_time.RESET_
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -25,6 +25,7 @@ import numpy as np
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, orthonormalised, twist_step
 from planodom.odometry.bridge_trend import bridge, bridge_twist
+from planodom.odometry.centred_twist import centring
 from planodom.odometry.deskew import (
     EpochEstimate,
     centred_times,
@@ -34,7 +35,6 @@ from planodom.odometry.deskew import (
     prefer_streaming,
     register_deskewed,
     registered_prediction,
-    significant_twist,
     time_spread,
     twist_offset,
     with_deskew,
@@ -43,7 +43,7 @@ from planodom.odometry.deskew_secant import epoch_deskew_config
 from planodom.odometry.epoch_extraction import extract_epoch
 from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.extractor import Extractor
-from planodom.odometry.first_epoch import reextracted_first
+from planodom.odometry.first_epoch import first_round, reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.moment_refine import moment_refined
 from planodom.odometry.rate_prediction import RatePredictor
@@ -53,6 +53,7 @@ from planodom.odometry.solver import config_for_gap, estimate_relative_pose
 from planodom.odometry.start_epochs import StartEpochs
 from planodom.odometry.surfaces import fragment_count, ranking
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
+from planodom.odometry.twist_refine import significant_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened_if_lost
 from planodom.odometry.vertical_offset import step_twist_offset
 from planodom.planes import PlaneSet
@@ -83,8 +84,9 @@ class PlaneOdometry:
         superseded: epochs whose result indexes planes (its own or its reference's) that
             were extracted again later, so not ``planes``.
         twist: (6,) constant-velocity body twist, rad/s and m/s, predicted for the next
-            epoch (angular rate of the last step or ``odometry.rate_prediction``'s,
-            median recent measured linear velocity); None before the second epoch.
+            epoch (angular rate of the last step, ``odometry.rate_prediction``'s or,
+            with ``odometry.twist_blend``, weighed against the prediction; median recent
+            measured linear velocity); None before the second epoch.
     """
 
     def __init__(
@@ -198,12 +200,15 @@ class PlaneOdometry:
             lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg) if middle else None
             guard = pairwise and ocfg.deskew_bounds_guard
             bounds = (self.config.association, self._restore_reference) if guard else None
+            blend = self._twist_sigma.blend.bound(self._map)  # odometry.twist_blend
             best = self.start.vehicle(self, scan, t, register_deskewed(
                 twist, dt, estimate, refresh, ocfg, previous, held, damped, trend, lost_trend,
-                restore, lead, bounds, ranking(self.config)))  # fmt: skip
+                restore, lead, bounds, ranking(self.config),
+                centring(rates, k, scan.t, dt, self.config, self.last_relative),
+                blend))  # fmt: skip
             if k == 1 and ocfg.first_epoch_reextract:  # the second epoch: the first's rounds
                 best = reextracted_first(
-                    best, dt, ocfg, self._history[0], partial(self._first_round, scan, t)
+                    best, dt, ocfg, self._history[0], partial(first_round, self, scan, t)
                 )
         else:
             best = estimate(None)
@@ -222,8 +227,7 @@ class PlaneOdometry:
         return self._commit(epoch, self._estimate(epoch, t), t)
 
     def _start_map(self, scan: Scan | None) -> None:
-        """Decide at the first epoch whether the plane-map odometry runs: pipeline "map",
-        or "auto" with delta 1 on a scan that takes the lidar extraction path."""
+        """Whether the plane map runs: pipeline "map", or "auto", delta 1, a lidar's scan."""
         from planodom.odometry.planemap import PlaneMapOdometry, uses_plane_map
 
         if uses_plane_map(self.config, scan):
@@ -375,24 +379,6 @@ class PlaneOdometry:
         if self._map is not None and ref.index == 0:
             self._map.reseed(planes)
 
-    def _first_round(
-        self, scan: Scan, t: float, twist: np.ndarray, best: EpochEstimate
-    ) -> tuple[EpochEstimate, Callable[[], None]]:
-        """:data:`planodom.odometry.first_epoch.Round` for the second epoch (``scan`` at
-        ``t``, estimated as ``best``)."""
-        first, last = self._history[0], self._last_usable
-        old = (first.planes, first.twist, first.plane_set)
-        assert first.scan is not None and first.index == 0
-        prior = self._twist_sigma.refined(best, t - self.times[-1], twist)
-        self._set_planes(first, *self._extract(first.scan, twist, prior=prior))
-        self._last_usable = first if first.has_pair(self.config.association) else None
-
-        def undo() -> None:
-            self._set_planes(first, *old)
-            self._last_usable = last
-
-        return self._estimate_scan(scan, t, twist, source=best), undo
-
     def _commit_first(self, epoch: _Epoch, t: float) -> np.ndarray:
         if self._map is not None:
             self._map.commit(self._map.estimate(epoch.planes))
@@ -410,13 +396,14 @@ class PlaneOdometry:
         if gap:
             self._recent.clear()
             self._rates.clear()
+            self._twist_sigma.blend.reset()
         elif dt > 0:
             measured = best.relative.status is Status.OK
-            own = best.own_twist(dt)
-            self._twist_sigma.update(own, best.relative, dt)
+            own = best.own_twist(dt)  # its rate blended with odometry.twist_blend:
+            blended = self._twist_sigma.update(own, best.relative, dt, self._map)
             if best.relative.status is not Status.UNRESOLVED:
                 self._rates.append((epoch.index, own))
-            significant = significant_twist(own, best.relative, dt, self.config.odometry)
+            significant = significant_twist(blended, best.relative, dt, self.config.odometry)
             args = (significant, measured, self._recent, self._velocities, self._map is not None)
             prediction = (self.config.planemap.prediction, self.config.odometry.motion_model)
             self.twist = registered_prediction(best, dt, predicted_twist(*args, *prediction))

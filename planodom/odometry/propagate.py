@@ -4,7 +4,9 @@ A WOCSC result is one candidate, computed from one pair of planes in each epoch.
 covariance follows from the (4, 4) covariances of ``(n, d)`` of those four planes (the
 extraction's total-least-squares covariances) by linearisation; the Jacobians are taken by
 central differences, in one batch. Rotation (:func:`rotation_covariance`): (roll, pitch,
-yaw) of ``R = U(n1, n2) U(n1', n2')^T``.
+yaw) of ``R = U(n1, n2) U(n1', n2')^T``, or of the rotation fitted to both normals
+(``odometry.pair_rotation: weighted``, :mod:`planodom.odometry.pair_rotation`, its weights
+held fixed).
 
 :func:`pose_covariance` does rotation and translation (``varpi_k - varpi'(z)`` of the
 translation pair under that rotation, with the uncertainty of the height z) at once, as
@@ -27,6 +29,7 @@ from planodom.geometry import (
     rotation_frames,
     rpy_from_rotation,
 )
+from planodom.odometry.pair_rotation import weighted_pair_rotations
 from planodom.planes import PlaneSet
 
 _STEP = 1e-7
@@ -70,16 +73,22 @@ def rotation_covariance(
     curr_normals: np.ndarray,
     prev_cov: np.ndarray,
     curr_cov: np.ndarray,
+    weights: np.ndarray | None = None,
 ) -> np.ndarray:
     """(3, 3) covariance of (roll, pitch, yaw), rad^2, of the pair rotation.
 
     Args:
         prev_normals, curr_normals: (2, 3) the pair's normals in each epoch.
         prev_cov, curr_cov: (2, 4, 4) their planes' ``(n, d)`` covariances.
+        weights: (2,) the weights of the pair's rotation fitted to both normals
+            (:mod:`planodom.odometry.pair_rotation`, held fixed); None: the paper's frames.
     """
 
     x = np.concatenate([prev_normals.ravel(), curr_normals.ravel()])
     S = _block_diag([c[:3, :3] for c in (*prev_cov, *curr_cov)])
+    if weights is not None:
+        J = _jacobian(lambda b: _rpy(_weighted(b[:, :6], b[:, 6:], weights)), x)
+        return J @ S @ J.T
     J = _rotation_jacobian(x, _STEP)
     if np.isnan(J[0, 0]):  # near gimbal lock: scipy's conversion (see _rpy)
 
@@ -90,6 +99,16 @@ def rotation_covariance(
 
         J = _jacobian(f, x)
     return J @ S @ J.T
+
+
+def _weighted(prev: np.ndarray, curr: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(B, 3, 3) the rotations fitted to both normals (:func:`.pair_rotation.
+    weighted_pair_rotations`) of ``B`` pairs given as (B, 6) rows ``n1, n2`` of each epoch,
+    the normals made unit (as the paper's frames make them), ``weights`` (2,) fixed."""
+    p, c = prev.reshape(-1, 2, 3), curr.reshape(-1, 2, 3)
+    p = p / np.linalg.norm(p, axis=2, keepdims=True)
+    c = c / np.linalg.norm(c, axis=2, keepdims=True)
+    return weighted_pair_rotations(p, c, np.broadcast_to(weights, (len(p), 2)))
 
 
 @numba.njit(cache=True)
@@ -127,6 +146,7 @@ def pose_covariance(
     translation_pair: np.ndarray,
     z: float,
     sigma_z: float,
+    rotation_weights: np.ndarray | None = None,
 ) -> np.ndarray:
     """(5, 5) covariance of (roll, pitch, yaw, x, y), rad and m, of a relative pose.
 
@@ -140,6 +160,7 @@ def pose_covariance(
         rotation_pair, translation_pair: (4,) ``(i1, i2, j1, j2)``: planes i1, i2 of
             ``prev`` associated with j1, j2 of ``curr``.
         z: the height used, m. sigma_z: its standard deviation, m (0 or inf: exact).
+        rotation_weights: (2,) as :func:`rotation_covariance`'s ``weights``.
     """
     rp, tp = np.asarray(rotation_pair, dtype=int), np.asarray(translation_pair, dtype=int)
     ids_p = list(dict.fromkeys([*rp[:2], *tp[:2]]))
@@ -163,9 +184,12 @@ def pose_covariance(
         return b[:, s.start : s.start + 3], b[:, s.start + 3]
 
     def f(b: np.ndarray) -> np.ndarray:
-        U_p = rotation_frames(plane(b, "p", rp[0])[0], plane(b, "p", rp[1])[0])
-        U_c = rotation_frames(plane(b, "c", rp[2])[0], plane(b, "c", rp[3])[0])
-        R = U_p @ np.swapaxes(U_c, 1, 2)
+        (p1, _), (p2, _) = plane(b, "p", rp[0]), plane(b, "p", rp[1])
+        (c1, _), (c2, _) = plane(b, "c", rp[2]), plane(b, "c", rp[3])
+        if rotation_weights is None:
+            R = rotation_frames(p1, p2) @ np.swapaxes(rotation_frames(c1, c2), 1, 2)
+        else:
+            R = _weighted(np.hstack([p1, p2]), np.hstack([c1, c2]), rotation_weights)
         (m1, e1), (m2, e2) = plane(b, "p", tp[0]), plane(b, "p", tp[1])
         (k1, f1), (k2, f2) = plane(b, "c", tp[2]), plane(b, "c", tp[3])
         ref_p = horizontal_reference_points(m1, e1, m2, e2, 0.0)

@@ -402,10 +402,18 @@ def plane_rotation(
     s = np.linalg.svd(n_p / np.sqrt(len(n_p)), compute_uv=False)
     if s[1] < np.sin(min_angle / 2.0):
         return R
-    var = (
-        np.trace(prev.covariances[ij[:, 0], :3, :3], axis1=1, axis2=2)
-        + np.trace(curr.covariances[ij[:, 1], :3, :3], axis1=1, axis2=2)
-    ) / 2.0
-    var = np.where(np.isfinite(var), var, 2.0 * _FALLBACK_VAR_N)
+    var = normal_variances(prev.covariances[ij[:, 0]], curr.covariances[ij[:, 1]])
     rot, _ = Rotation.align_vectors(n_p, n_c, weights=1.0 / (var + normal_floor**2))
     return rot.as_matrix()
+
+
+def normal_variances(prev_cov: np.ndarray, curr_cov: np.ndarray) -> np.ndarray:
+    """(...,) variance, rad^2, of a normal association's residual along one tangent axis:
+    the traces of both planes' normal blocks of the ``(n, d)`` covariances (..., 4, 4),
+    summed and halved (a unit normal's covariance lies in its 2-D tangent plane); unknown
+    (NaN) covariances count 1 deg per plane."""
+    var = (
+        np.trace(prev_cov[..., :3, :3], axis1=-2, axis2=-1)
+        + np.trace(curr_cov[..., :3, :3], axis1=-2, axis2=-1)
+    ) / 2.0
+    return np.where(np.isfinite(var), var, 2.0 * _FALLBACK_VAR_N)

@@ -32,6 +32,7 @@ from planodom.consensus import ConsensusResult, apply_negative_translation, cons
 from planodom.geometry import Plane, make_transform, row_norms, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
 from planodom.odometry.nonholonomic import lateral_sigma
+from planodom.odometry.pair_rotation import candidate_pairs, rotation_weights, winner_rotation
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
@@ -178,6 +179,7 @@ def _solve(
     rot_method, trans_method = PIPELINES[name]
     lda = lenient_association(prev, curr, acfg, prior if bound_by_prior else None)
     lda = rotation_pairs(prev, curr, lda, cfg.extraction)  # not one scanner's tilted planes
+    lda = candidate_pairs(prev, curr, lda, ocfg)  # odometry.pair_rotation
     bounds = pass_bounds(cfg, prior, bound_by_prior, prior_sigma_m)
     info = SolverDiagnostics(name, lda, used_prior=bound_by_prior)
     if len(lda) == 0:
@@ -224,7 +226,8 @@ def _solve(
     cov[:3, :3], cov[3:, 3:] = cov_r, cov_t
     if refined is None and rot_pair is not None and trans_pair is not None:
         assert tr is not None
-        cov = _joint_covariance(prev, curr, rot_pair, trans_pair, tr, cov)
+        w = rotation_weights(prev, curr, rot_pair[:2], rot_pair[2:], ocfg)
+        cov = _joint_covariance(prev, curr, rot_pair, trans_pair, tr, cov, w)
     cov = cov + pose_floor(ocfg.min_sigma_rotation_deg, ocfg.min_sigma_translation_m)
     sda_bound = ocfg.translation_inlier_m if measured else bounds.translation
     final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
@@ -346,11 +349,12 @@ def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str
         cons, _ = rotation_consensus(
             prev, curr, lda, weighted=method == "wocsc", inlier_angle=inlier_angle
         )
-        R = lda.rotations[cons.best_index]
         i, j = lda.prev_pairs[cons.best_index], lda.curr_pairs[cons.best_index]
+        R = winner_rotation(prev, curr, i, j, lda.rotations[cons.best_index], ocfg)
         cp, cc = prev.covariances[i], curr.covariances[j]
         if np.isfinite(cp).all() and np.isfinite(cc).all():
-            return R, rotation_covariance(prev.normals[i], curr.normals[j], cp, cc), cons
+            w = rotation_weights(prev, curr, i, j, ocfg)
+            return R, rotation_covariance(prev.normals[i], curr.normals[j], cp, cc, w), cons
     close = rotation_angles_to(lda.rotations, R) <= inlier_angle
     d = rpy_from_rotation(lda.rotations[close]) - rpy_from_rotation(R[None])
     d = (d + np.pi) % (2.0 * np.pi) - np.pi
@@ -427,13 +431,14 @@ def _translation(prev, curr, elems: TranslationElements, heights, z0: float, met
     return _Translation(a - z * g, z, cov, cons, sigma_z, True, best, h)
 
 
-def _joint_covariance(prev, curr, rot_pair, trans_pair, tr: _Translation, fallback):
+def _joint_covariance(prev, curr, rot_pair, trans_pair, tr: _Translation, fallback, weights):
     """(5, 5) covariance of (roll, pitch, yaw, x, y) propagated jointly from the planes of
     the winning rotation and translation pairs (:func:`pose_covariance`: shared planes
-    counted once), or ``fallback`` when a plane covariance is unknown."""
+    counted once; ``weights``: :func:`pose_covariance`'s ``rotation_weights``), or
+    ``fallback`` when a plane covariance is unknown."""
     c_p = prev.covariances[np.r_[rot_pair[:2], trans_pair[:2]]]
     c_c = curr.covariances[np.r_[rot_pair[2:], trans_pair[2:]]]
     if not (np.all(np.isfinite(c_p)) and np.all(np.isfinite(c_c))):
         return fallback
     sigma_z = tr.sigma_z if tr.z_observed else 0.0
-    return pose_covariance(prev, curr, rot_pair, trans_pair, tr.z, sigma_z)
+    return pose_covariance(prev, curr, rot_pair, trans_pair, tr.z, sigma_z, weights)

@@ -1,10 +1,12 @@
 """The twist an epoch is extracted again with (:func:`planodom.odometry.deskew.
 register_deskewed`, step 2): its own twist with the blocks its step did not measure set to
-zero, refined against the twist used by the tolerances, the rate along the secant, gated by
-the step's error. Split from :mod:`planodom.odometry.deskew`, which uses it."""
+zero (its rate weighed against the prediction with ``odometry.twist_blend``), refined
+against the twist used by the tolerances, the rate along the secant, gated by the step's
+error. Split from :mod:`planodom.odometry.deskew`, which uses it."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -17,7 +19,13 @@ from planodom.odometry.deskew_secant import solved_rate
 from planodom.odometry.relative import RelativePose
 
 if TYPE_CHECKING:
+    from planodom.odometry.centred_twist import Centring
+    from planodom.odometry.deskew import EpochEstimate
     from planodom.odometry.trend import Lead
+
+#: ``blend(own, relative, dt) -> own``: an epoch's own twist (6,) over its step ``relative``
+#: of ``dt`` s with its rate weighed against the prediction (:mod:`.twist_blend`).
+Blend = Callable[[np.ndarray, RelativePose, float], np.ndarray]
 
 
 def next_twist(
@@ -39,6 +47,33 @@ def next_twist(
     if config.deskew_change_gate:
         new = significant_change(new, used, relative, dt)
     return new, (used, own)
+
+
+def refined_own(
+    best: EpochEstimate,
+    dt: float,
+    used: np.ndarray,
+    measured: bool,
+    config: OdometryConfig,
+    against_map: bool,
+    lead: Lead | None,
+    blend: Blend | None,
+    centring: Centring | None = None,
+) -> np.ndarray:
+    """(6,) the own twist of ``best`` over ``dt`` s that step 2 refines the twist ``used``
+    from (:func:`planodom.odometry.deskew.register_deskewed`): its rate weighed by
+    ``blend`` (None: as it is), then :func:`significant_twist`, then, against a map,
+    averaged with ``used`` (unless ``config.map_twist_offset``), or led by ``lead`` (its
+    velocity only when ``measured``), or its rate led to the points by ``centring``
+    (``odometry.deskew_rate_lead``, :mod:`.centred_twist`; None: not)."""
+    own = best.own_twist(dt)
+    own = own if blend is None else blend(own, best.relative, dt)
+    own = significant_twist(own, best.relative, dt, config)
+    if against_map and not config.map_twist_offset:
+        return 0.5 * (own + used)
+    if lead is not None:
+        return lead.led(own, measured, dt)
+    return own if centring is None else centring.led_for(own, best)
 
 
 def refined_twist(

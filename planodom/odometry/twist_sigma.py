@@ -44,6 +44,7 @@ from planodom.geometry import se3_exp, vector_norm
 from planodom.odometry.change_gate import step_sigma
 from planodom.odometry.deskew import EpochEstimate, keep_first, prefer_streaming
 from planodom.odometry.relative import RelativePose, Status
+from planodom.odometry.twist_blend import RateBlend
 
 #: (angular rate sigma rad/s, linear velocity sigma m/s)
 TwistSigma = tuple[float, float]
@@ -79,15 +80,21 @@ class TwistUncertainty:
         self._memo: dict[object, object] = {}
         # the estimates gated()'s gate bridged since the last update (their steps before it)
         self.ungated: list[EpochEstimate] = []
+        self.blend = RateBlend(config, self.change)  # odometry.twist_blend
 
-    def update(self, own: np.ndarray, relative: RelativePose, dt: float) -> None:
-        """Record a committed epoch's own twist ``own`` (6,) and its step's ``relative``."""
+    def update(
+        self, own: np.ndarray, relative: RelativePose, dt: float, plane_map: object = None
+    ) -> np.ndarray:
+        """Record a committed epoch's own twist ``own`` (6,) and its step's ``relative``;
+        returns ``own`` with its rate blended with the prediction (``odometry.twist_blend``,
+        :mod:`.twist_blend`; ``own`` itself when off or under a plane map ``plane_map``)."""
         self._memo.clear()
         self.ungated.clear()
+        blended = own if plane_map is not None else self.blend.committed(own, relative, dt)
         if relative.status is Status.UNRESOLVED:
             self._unresolved += 1
             self._previous = None
-            return
+            return blended
         self._unresolved = 0
         sigma = step_sigma(relative, dt)
         self._last = np.where(np.isfinite(sigma), sigma, self._fallback)
@@ -107,6 +114,7 @@ class TwistUncertainty:
                 self._changes.append(sq)
                 self._raw_changes.append(np.array([d[:3] @ d[:3], d[3:] @ d[3:]]))
         self._previous, self._previous_var = own, var
+        return blended
 
     def change(self) -> np.ndarray:
         """(2,) rms change of the angular rate (rad/s) and velocity (m/s) over one epoch,

@@ -13,6 +13,7 @@ from scipy.stats import chi2
 from planodom.config import SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
+from planodom.smoothing.deskew_epoch import epoch_sizes
 from planodom.smoothing.deskew_scale import scaled_motion_change
 from planodom.smoothing.first_epoch_noise import with_first_step
 from planodom.smoothing.graph import GraphBuilder
@@ -68,7 +69,8 @@ def sandwich_inputs(
 ) -> tuple[np.ndarray | None, str | None]:
     """The epochs' (E, 6, 6) changes of motion the sandwich takes as each epoch's
     deskewing error (:func:`.sandwich.deskew_motion_change`, scaled per run with
-    ``sandwich_motion_scale`` "run"; with ``sandwich_undeskewed`` "motion" the epochs kept
+    ``sandwich_motion_scale`` "run", or sized per epoch with "epoch",
+    :mod:`.deskew_epoch`; with ``sandwich_undeskewed`` "motion" the epochs kept
     without deskewing also the motion over their points, :mod:`.undeskewed`; with
     ``sandwich_first_epoch`` the first epoch also its first step's error,
     :mod:`.first_epoch_noise`), or None for
@@ -86,8 +88,10 @@ def sandwich_inputs(
     if model == "auto" and (cfg.deskew_noise != "none" or cfg.covariance_scale != "none"):
         return None, None
     Q = deskew_motion_change(relative_poses, n_epochs)
-    if cfg.sandwich_motion_scale == "run":
+    if cfg.sandwich_motion_scale != "none":
         Q = scaled_motion_change(Q, relative_poses)[0]
+    if cfg.sandwich_motion_scale == "epoch":
+        Q = epoch_sizes(Q, planes, relative_poses)
     if cfg.sandwich_undeskewed == "motion":
         Q = with_undeskewed(Q, relative_poses)
     if cfg.sandwich_first_epoch != "motion":

@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from planodom.extraction.deskew import deskew_points
-from planodom.extraction.planes.builder import _COS45, _orientation_kernel, orientation_sign
+from planodom.extraction.planes.builder import _COS45, orientation_sign
 from planodom.extraction.planes.confidence import cpef, mean_incidence
 from planodom.extraction.planes.fit import (
     _tls_kernel,
@@ -18,6 +18,7 @@ from planodom.extraction.planes.fit import (
     tls_covariance,
     tls_fit,
 )
+from planodom.extraction.planes.passes import _orientation_kernel
 from planodom.extraction.planes.support import distinct_and_majority
 from planodom.geometry import Plane
 

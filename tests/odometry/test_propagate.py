@@ -42,3 +42,47 @@ def test_sources_are_the_sorted_distinct_associations():
         rotation_pair=np.array([0, 4, 5, 5]), translation_pair=np.array([4, 0, 1, 5]),
     )  # fmt: skip
     np.testing.assert_array_equal(info.sources(Status.OK), [[0, 5], [4, 1], [4, 5]])
+
+
+def _ground_and_walls(sigmas_deg: list[float]):
+    """The ground (z), a wall (x) and a wall (y), unmoved, with isotropic normal covariances
+    of ``sigmas_deg`` per tangent axis (1 mm offsets)."""
+    from planodom.geometry import Plane
+    from planodom.planes import PlaneSet
+
+    planes = []
+    for n, s in zip(np.eye(3)[[2, 0, 1]], sigmas_deg, strict=True):
+        cov = np.zeros((4, 4))
+        cov[:3, :3] = np.radians(s) ** 2 * (np.eye(3) - np.outer(n, n))
+        cov[3, 3] = 1e-6
+        planes.append(Plane(n, 3.0, covariance=cov))
+    return PlaneSet.from_planes(planes)
+
+
+def test_a_pairs_rotation_covariance_in_closed_form():
+    """Ground z (per-axis variance v1 over both epochs) and wall x (v2), no motion. Roll
+    (about x) only the ground sees, yaw only the wall, pitch both. The paper's frame with
+    the ground first: (v1, v1, v2); the wall first: (v1, v2, v2); fitted to both with
+    weights 1 / v: pitch 1 / (1 / v1 + 1 / v2)."""
+    from planodom.odometry.propagate import pose_covariance, rotation_covariance
+
+    planes = _ground_and_walls([0.01, 0.3, 0.2])
+    v1, v2 = 2 * np.radians(0.01) ** 2, 2 * np.radians(0.3) ** 2
+    n, c = planes.normals[:2], planes.covariances[:2]
+    tol = dict(rtol=1e-6, atol=1e-16)
+    np.testing.assert_allclose(rotation_covariance(n, n, c, c), np.diag([v1, v1, v2]), **tol)
+    np.testing.assert_allclose(
+        rotation_covariance(n[::-1], n[::-1], c[::-1], c[::-1]), np.diag([v1, v2, v2]), **tol
+    )
+    weighted = np.diag([v1, 1 / (1 / v1 + 1 / v2), v2])
+    w = np.array([1 / v1, 1 / v2])
+    np.testing.assert_allclose(rotation_covariance(n, n, c, c, w), weighted, **tol)
+    np.testing.assert_allclose(rotation_covariance(n[::-1], n[::-1], c[::-1], c[::-1], w[::-1]),
+                               weighted, **tol)  # fmt: skip
+    # The joint covariance's rotation block (translation from the two walls) is the same.
+    joint = pose_covariance(planes, planes, np.array([0, 1, 0, 1]), np.array([1, 2, 1, 2]),
+                            0.0, 0.0, w)  # fmt: skip
+    np.testing.assert_allclose(joint[:3, :3], weighted, **tol)
+    wall_first, walls = np.array([1, 0, 1, 0]), np.array([1, 2, 1, 2])
+    joint = pose_covariance(planes, planes, wall_first, walls, 0.0, 0.0)
+    np.testing.assert_allclose(joint[:3, :3], np.diag([v1, v2, v2]), **tol)

@@ -32,14 +32,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch
-from planodom.extraction.planes.confidence import cpef, mean_incidences
-from planodom.extraction.planes.fit import deskew_jacobian, fit_arrays
-from planodom.extraction.planes.support import distinct_and_majority, support_polygons
+from planodom.extraction.planes.confidence import cpef
+from planodom.extraction.planes.fit import deskew_jacobian
+from planodom.extraction.planes.passes import fits_views_signs, rows_labels_polygons, view_mode
 from planodom.geometry import Plane, PlaneSupport
 
 #: ``adjust(kept, normals, offsets) -> kept``: may change the oriented (G, 3) normals and
@@ -115,31 +114,6 @@ def orientation_sign(
     return np.where(np.abs(dist) >= 1e-3, np.where(dist > 0, 1.0, -1.0), on_plane)
 
 
-@numba.njit(cache=True)
-def _orientation_kernel(normals, offsets, centroids, views, cos45):  # pragma: no cover
-    """:func:`orientation_sign` in one compiled pass (``cos45``: ``cos(radians(45))`` as
-    numpy gives it), its sums of products in numpy's order: the same signs."""
-    G = normals.shape[0]
-    signs = np.empty(G)
-    for g in range(G):
-        n0, n1, n2 = normals[g, 0], normals[g, 1], normals[g, 2]
-        dist = 0.0
-        dist += n0 * views[g, 0]
-        dist += n1 * views[g, 1]
-        dist += n2 * views[g, 2]
-        dist += offsets[g]
-        if abs(dist) >= 1e-3:
-            signs[g] = 1.0 if dist > 0 else -1.0
-        elif abs(n2) >= cos45:
-            signs[g] = 1.0 if n2 > 0 else -1.0
-        else:
-            towards = 0.0
-            towards += n0 * centroids[g, 0]
-            towards += n1 * centroids[g, 1]
-            signs[g] = -1.0 if -towards < 0 else 1.0
-    return signs
-
-
 def through_viewpoint(
     fits: PlaneFits,
     scatter: np.ndarray,
@@ -201,44 +175,35 @@ def build_planes(
     G = len(fits)
     if G == 0:
         return [], [], 0
-    normals = fits.evecs[:, :, 2]
     floor = config.covariance_sigma_floor_m
-    # tls_covariance, the widths, RMS, plane tests (too_uncertain) and scatters at once
+    # the plane tests, viewpoints, incidences and orientation in one compiled call
     max_var_n = float(np.radians(config.max_normal_sigma_deg) ** 2)
-    covs, width, rms, keep, scatter = fit_arrays(
-        fits.evals, fits.evecs, fits.centroid, fits.count, floor**2,
-        config.min_plane_points, config.min_plane_width_m, max_var_n,
+    inl = fits.inliers.astype(np.int64, copy=False)
+    points = np.ascontiguousarray(epoch.points, dtype=np.float64)
+    mode, org, ring_v, t_v, xi = view_mode(epoch)
+    covs, width, rms, kept, scatter, views, incidence, n_or, d_or = fits_views_signs(
+        fits.evals, fits.evecs, fits.centroid, fits.count, fits.offset, floor**2,
+        config.min_plane_points, config.min_plane_width_m, max_var_n, points, inl,
+        fits.bounds.astype(np.int64, copy=False),
+        np.ones(G) if fits.incidence is None else fits.incidence,
+        fits.incidence is None or epoch.origins is not None, mode,
+        float(config.viewpoint_height_m), org, ring_v, t_v, xi, _COS45,
     )  # fmt: skip
-    kept = np.flatnonzero(keep)
-    height = config.viewpoint_height_m
-    views = np.zeros((G, 3))
-    views[:, 2] = height
-    incidence = np.ones(G) if fits.incidence is None else fits.incidence.copy()
-    if fits.incidence is None or epoch.origins is not None:
-        inl, bnd = fits.inliers.astype(np.int64), fits.bounds.astype(np.int64)
-        views[kept] = epoch.viewpoints(inl, bnd, kept, height)
-        incidence[kept] = mean_incidences(epoch.points, inl, bnd, kept, views[kept], normals[kept])
     if config.viewpoint_planes == "rejected" and len(kept):
         kept = kept[~through_viewpoint(fits, scatter, kept, views[kept], sigma_m, config)]
-    signs = _orientation_kernel(normals, fits.offset, fits.centroid, views, _COS45)
     conf = cpef(
         rms, max(sigma_m, floor), fits.count, width, incidence,
         config.confidence_points_ref, config.confidence_width_ref_m,
     )  # fmt: skip
-    n_or = signs[:, None] * normals
-    d_or = signs * fits.offset
     if adjust is not None and len(kept):
         kept = adjust(kept, n_or, d_or)
     planes, inliers = [], []
-    labels, ring = epoch.scan.label, epoch.scan.ring
-    rows, truth = distinct_and_majority(
-        ring if fits.n_rows is None else None, labels, fits.inliers, fits.bounds, kept
-    )
+    rows, truth, polygons = rows_labels_polygons(
+        epoch, points, inl, fits.bounds.astype(np.int64, copy=False), fits.outline,
+        kept.astype(np.int64, copy=False), fits.centroid, fits.evecs, fits.n_rows is None,
+    )  # fmt: skip
     t = epoch.scan.t if config.deskew_jacobian else None
     span = 0.0 if t is None or len(t) == 0 else float(np.max(np.abs(t)))
-    polygons = support_polygons(
-        epoch.points, fits.inliers, fits.bounds, fits.outline, kept, fits.centroid, fits.evecs
-    )
     # per plane, Python scalars and rows taken once for all (numpy's scalar access per
     # item costs more than the items)
     timed = config.time_moments and epoch.scan.t is not None
