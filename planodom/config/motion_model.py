@@ -121,7 +121,7 @@ class MotionModelConfig(Section):
     ``handheld`` and ``unknown``: none of them (the behaviour before this field); both
     override what the dataset declares. The resolved configuration a run writes names
     the platform it used. Evidence for ``start_vehicle_twist`` (docs/RESULTS.md, GAPS6):
-    2D-rig world 190 at 2 cm, its start's gap 8 -> 0 epochs, ATE 11.1 -> 5.3 m; all 40
+    2D-rig world 190 at 2 cm, its start's gap 8 -> 0 epochs, ATE 11.1 -> 5.3 m; all 20
     runs of worlds 160-178 (6 mm, 2 cm, 150 epochs; a rule written first) and the 15
     built-in scene rows identical; 1 of the 60 runs of 140-198 changed, for the better.
     Never measured on hand-held sensors, hence not for ``unknown``."""
