@@ -10,6 +10,7 @@ Every field is optional: a recording without ``rig.yaml`` is ``Rig()``.
     sensor_origins: [[x, y, z], ...]      # metres, base frame, one row per ring (scanner)
     motion_bounds: {max_translation_m: 3.0, max_rotation_deg: 45.0}   # per epoch
     extrinsics: [[16 numbers row-major], ...]   # T_base_sensor (4, 4) per sensor
+    platform: vehicle                     # or handheld; absent: unknown
 
 Unknown keys are kept in :attr:`Rig.extra` (and written back) so that a dataset's own notes
 survive a round trip; those planodom does not write itself are named by
@@ -31,7 +32,11 @@ from planodom.geometry import first_non_rotation
 from planodom.mounts import check_mounts
 
 #: The keys of ``rig.yaml`` planodom reads.
-RIG_KEYS = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics")
+RIG_KEYS = ("epoch_rate", "sensor_origins", "motion_bounds", "extrinsics", "platform")
+#: What carries the sensors (``rig.yaml``'s ``platform``; absent: unknown): a wheeled
+#: vehicle, whose base frame is its own (x forward, z up), or a hand-held sensor. The
+#: config's ``odometry.platform: auto`` takes it (:mod:`planodom.odometry.platform`).
+PLATFORMS = ("vehicle", "handheld")
 #: Keys planodom itself puts in ``extra`` (and so in a ``rig.yaml`` it writes): a
 #: simulated dataset's sensor models and simulation, a bag's or a KITTI sequence's source.
 WRITTEN_EXTRA = frozenset(
@@ -64,6 +69,7 @@ class Rig:
             stated).
         motion_bounds: the largest motion per epoch, or None.
         extrinsics: ``T_base_sensor`` (4, 4) per sensor (may be empty).
+        platform: "vehicle" | "handheld" (:data:`PLATFORMS`), or None: not stated.
         extra: keys of ``rig.yaml`` this class does not interpret, kept as read.
     """
 
@@ -72,8 +78,14 @@ class Rig:
     motion_bounds: MotionBounds | None = None
     extrinsics: tuple[np.ndarray, ...] = ()
     extra: Mapping[str, Any] = field(default_factory=dict)
+    platform: str | None = None
 
     def __post_init__(self) -> None:
+        if self.platform is not None and self.platform not in PLATFORMS:
+            raise DatasetError(
+                f"Rig: platform must be {' or '.join(PLATFORMS)} (None: not stated), "
+                f"got {self.platform!r}"
+            )
         # Built in code (a simulated rig) as well as from YAML: hold arrays of one form.
         # A (3,) origin is one sensor; any other shape than (S, 3) is refused, not
         # reshaped: a (3, 2) array read as (2, 3) was two made-up origins.
@@ -109,6 +121,7 @@ class Rig:
             motion_bounds=_motion_bounds(data.get("motion_bounds"), source),
             extrinsics=_extrinsics(data.get("extrinsics"), source),
             extra={k: v for k, v in data.items() if k not in RIG_KEYS},
+            platform=_platform(data.get("platform"), source),
         )
         check_mounts(rig_mounts(rig, source), "")  # millimetres: refused
         return rig
@@ -128,6 +141,8 @@ class Rig:
             out["motion_bounds"] = {k: v for k, v in mb.items() if v is not None}
         if self.extrinsics:
             out["extrinsics"] = [np.asarray(T).tolist() for T in self.extrinsics]
+        if self.platform is not None:
+            out["platform"] = self.platform
         return out
 
 
@@ -159,6 +174,16 @@ def _numbers(value: Any, name: str) -> np.ndarray:
     if not np.all(np.isfinite(array)):
         raise GeometryError(f"Rig: {name} must be finite")
     return array
+
+
+def _platform(value: Any, source: str) -> str | None:
+    """``rig.yaml``'s ``platform`` (None when absent), or DatasetError naming the value."""
+    if value is None or value in PLATFORMS:
+        return value
+    raise DatasetError(
+        f"{source}: field 'platform' must be {' or '.join(PLATFORMS)} (or left out: "
+        f"unknown), got {value!r}"
+    )
 
 
 def _motion_bounds(bounds: Any, source: str) -> MotionBounds | None:

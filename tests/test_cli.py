@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import yaml
 from typer.testing import CliRunner
 
 from planodom.cli import app
@@ -42,6 +43,9 @@ def test_run_noise_free_snapshot_recovers_the_truth(tmp_path) -> None:
     assert metrics["unresolved_epochs"] == 0
     assert (out / "epochs.csv").read_text().count("\n") == 13
     assert (out / "config.yaml").exists() and (out / "poses_kitti.txt").exists()
+    # the simulated dataset's rig.yaml declares a vehicle: the run's resolved config says so
+    odometry = yaml.safe_load((out / "config.yaml").read_text())["odometry"]
+    assert (odometry["platform"], odometry["start_vehicle_twist"]) == ("vehicle", True)
 
 
 def test_run_reports_bad_input_in_one_line(tmp_path) -> None:

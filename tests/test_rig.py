@@ -49,6 +49,10 @@ def test_one_origin_for_all_rings_is_one_row() -> None:
         # no rotation: accepted as a sensor's pose before
         ({"extrinsics": [np.diag([2.0, 2, 2, 1]).tolist()]}, "'extrinsics.0': not a rigid"),
         ({"extrinsics": [np.diag([1.0, 1, -1, 1]).tolist()]}, "'extrinsics.0'.*reflection"),
+        ({"platform": "car"}, "field 'platform' must be vehicle or handheld .* got 'car'"),
+        ({"platform": "Vehicle"}, "field 'platform' must be vehicle or handheld"),
+        ({"platform": True}, "field 'platform' must be vehicle or handheld .* got True"),
+        ({"platform": ["vehicle"]}, "field 'platform' must be vehicle or handheld"),
     ],
 )
 def test_bad_fields_fail_in_one_line_naming_source_and_field(data, message) -> None:
@@ -89,3 +93,15 @@ def test_a_simulated_rig_states_origins_per_ring_and_extrinsics_per_sensor(senso
         np.testing.assert_array_equal(T, sensor.T_base_sensor)
         rings = rig.sensor_origins[offset : offset + sensor.n_rings]
         np.testing.assert_array_equal(rings, np.broadcast_to(T[:3, 3], rings.shape))
+
+
+@pytest.mark.parametrize("platform", ["vehicle", "handheld"])
+def test_the_platform_round_trips_and_its_absence_is_unknown(platform: str) -> None:
+    rig = Rig.from_dict({"epoch_rate": 10, "platform": platform})
+    assert rig.platform == platform and rig.extra == {}
+    assert rig.to_dict() == {"epoch_rate": 10.0, "platform": platform}
+    assert Rig.from_dict(rig.to_dict()).platform == platform
+    assert Rig.from_dict({"epoch_rate": 10}).platform is None  # an old rig.yaml
+    assert "platform" not in Rig().to_dict()
+    with pytest.raises(DatasetError, match="^Rig: platform must be vehicle or handheld"):
+        Rig(platform="car")

@@ -131,6 +131,9 @@ class PlanodomConfig(Section):
         odometry's widened bounds): ``changes`` maps dotted field names to values, e.g.
         ``{"association.max_translation_m": 2.0, "extraction.time_windows.span_s": 0.02}``;
         the result is validated like a loaded file (``model_copy`` would skip that).
+        The fields set explicitly (pydantic's ``model_fields_set``: read from a file, given
+        in code or changed here) stay so, the others stay defaults that a dataset's
+        platform may change (:mod:`planodom.odometry.platform`).
         Raises :class:`ConfigError` naming ``source`` and the field.
         """
         data = self.model_dump(mode="python")
@@ -142,7 +145,9 @@ class PlanodomConfig(Section):
             if not path or not isinstance(node, dict) or name not in node:
                 raise ConfigError(f"{source}: unknown config field {dotted!r}")
             node[name] = value
-        return type(self).from_dict(data, source=source)
+        new = type(self).from_dict(data, source=source)
+        _keep_fields_set(new, self, [tuple(dotted.split(".")) for dotted in changes])
+        return new
 
     def updated_fields(
         self, changes: Mapping[str, object], source: str = "config"
@@ -215,6 +220,20 @@ def _no_section(source: str, keys: list[str], sections: list[str]) -> str:
         f"{source}: not a planodom config: its keys ({shown}) are none of the config's "
         f"sections ({', '.join(sections)}){rig}"
     )
+
+
+def _keep_fields_set(new: BaseModel, old: BaseModel, changed: list[tuple[str, ...]]) -> None:
+    """Mark in ``new`` (validated from ``old``'s whole dump with ``changed`` applied, which
+    marks every field as set) only the fields ``old`` had set and the ``changed`` ones
+    (dotted paths split), in nested sections too; a section replaced whole keeps what its
+    validation set."""
+    mine = {path[0] for path in changed}
+    object.__setattr__(new, "__pydantic_fields_set__", set(old.model_fields_set) | mine)
+    for name in type(new).model_fields:
+        inner, before = getattr(new, name), getattr(old, name, None)
+        same = isinstance(inner, BaseModel) and isinstance(before, type(inner))
+        if same and before is not None and (name,) not in changed:
+            _keep_fields_set(inner, before, [p[1:] for p in changed if p[0] == name])
 
 
 def _empty_sections(data: Any, model: type[BaseModel]) -> Any:

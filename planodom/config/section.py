@@ -67,9 +67,18 @@ def _unknown_key_hint(error: Any, model: type[BaseModel]) -> str:
     section, _, rest = key.partition(".")
     if not path and rest and section in model.model_fields:
         return f" (a dotted name: in a file write it nested, '{section}:' then '  {rest}: ...')"
+    owners = [name for name, f in model.model_fields.items() if key in _fields_of(f.annotation)]
+    if not path and len(owners) == 1:  # a section's field at the top (``platform: vehicle``)
+        return f" (a field of '{owners[0]}': in a file write '{owners[0]}:' then '  {key}: ...')"
     fields = list(model.model_fields)
     near = difflib.get_close_matches(key.lower(), fields, n=1, cutoff=0.6)
     return f" (did you mean '{near[0]}'?)" if near else ""
+
+
+def _fields_of(annotation: Any) -> dict[str, Any]:
+    """The fields of ``annotation`` when it is a model (a section), else none."""
+    is_model = isinstance(annotation, type) and issubclass(annotation, BaseModel)
+    return annotation.model_fields if is_model else {}
 
 
 class Section(BaseModel):

@@ -34,7 +34,7 @@ Layout::
   error, not a guess: the epochs around it would be taken as consecutive.
 - ``rig.yaml`` is read and validated once, into ``Dataset.rig`` (a typed
   :class:`planodom.rig.Rig`: epoch rate, sensor origins per ring, motion bounds,
-  extrinsics); keys it does not interpret (for simulated data the sensor models, the
+  extrinsics, platform); keys it does not interpret (for simulated data the sensor models, the
   scene and the seed) are kept in ``Rig.extra``.
 
 Every problem with a dataset raises :class:`planodom.errors.DatasetError` naming the file.

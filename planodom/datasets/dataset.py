@@ -178,7 +178,8 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
     and ``rig.yaml`` are looked for in ``path``.
 
     Epoch times: from ``poses.tum`` when present, else from ``times.txt``, else from KITTI
-    raw's ``timestamps.txt`` or the file names when they are the clouds' Unix stamps
+    raw's ``timestamps.txt`` (its ``rig.platform`` then "vehicle", a car, unless
+    ``rig.yaml`` states one) or the file names when they are the clouds' Unix stamps
     (:mod:`planodom.datasets.scan_names`, noted), else ``k / epoch_rate`` with
     ``epoch_rate`` (Hz) from ``rig.yaml``, else ``k * DEFAULT_EPOCH_PERIOD`` (0.1 s).
     ``bin_layout`` tells how ``.bin`` scans are read
@@ -216,6 +217,8 @@ def load_dataset(path: str | Path, bin_layout: str = "auto", time_field: str = "
         times = read_times(root / TIMES_FILE, len(scan_files))
     else:
         named, name_note = kitti_raw_times(scan_files)
+        if named is not None and rig.platform is None:  # KITTI raw: a car
+            rig = replace(rig, platform="vehicle")
         if named is None:
             named, name_note = name_times(scan_files)
         if named is None:

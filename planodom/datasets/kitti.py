@@ -147,7 +147,8 @@ class KittiSequence:
         gt_poses: (E, 4, 4) ``T_world_velo`` or None without a pose file.
         gt_file: the pose file read, or None.
         Tr: ``T_cam0_velo`` (4, 4) from ``calib.txt`` (for :func:`write_kitti_camera_poses`).
-        rig: rate 10 Hz, the Velodyne at the base frame's origin.
+        rig: rate 10 Hz, the Velodyne at the base frame's origin, platform "vehicle" (a
+            car; ``odometry.platform`` in the config overrides it).
         notes: what a user should check (no ``times.txt``: the scans taken 0.1 s apart).
     """
 
@@ -176,6 +177,7 @@ class KittiSequence:
             sensor_origins=np.zeros((1, 3)),
             extrinsics=(np.eye(4),),
             extra={"source": "kitti", "sequence": str(path), "T_cam0_velo": Tr.tolist()},
+            platform="vehicle",
         )
 
     def __len__(self) -> int:

@@ -6,10 +6,12 @@
 - :class:`RelativePose` (:mod:`.relative`): what it returns, shared with the smoother;
   :class:`Status` ranks it.
 - :class:`PlaneOdometry` (:mod:`.odometry`): streaming, one epoch at a time, with the
-  deskewing policy of :mod:`.deskew`; :func:`run_odometry` (:mod:`.run`): a whole run.
+  deskewing policy of :mod:`.deskew`; :func:`run_odometry` (:mod:`.run`): a whole run,
+  its config resolved against the dataset's platform first (:func:`with_platform`).
 """
 
 from planodom.odometry.odometry import PlaneOdometry
+from planodom.odometry.platform import with_platform
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status
 from planodom.odometry.rows import epoch_rows
 from planodom.odometry.run import OdometryRun, run_odometry, with_motion_bounds
@@ -27,4 +29,5 @@ __all__ = [
     "estimate_relative_pose",
     "run_odometry",
     "with_motion_bounds",
+    "with_platform",
 ]

@@ -18,6 +18,7 @@ from planodom.odometry.deskewed_epochs import Curve, Deskewed, DeskewedEpochs
 from planodom.odometry.extractor import Extractor, default_extractor
 from planodom.odometry.interpolate import curve_steps, epoch_middles, midpoint_nodes
 from planodom.odometry.odometry import PlaneOdometry
+from planodom.odometry.platform import with_platform
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.splice import spliced, unconverged
 from planodom.rig import MotionBounds, Rig
@@ -58,8 +59,8 @@ class OdometryRun:
             (:attr:`PlaneOdometry.superseded`).
         seconds: wall time spent in extraction and in odometry (over all passes), and
             in deskewing through the poses (``deskew``, passes after the first), seconds.
-        config: the configuration the run used (with a rig's motion bounds, and the
-            plane-map pipeline's extraction limits when it ran).
+        config: the configuration the run used (with a rig's platform and motion bounds,
+            and the plane-map pipeline's extraction limits when it ran).
     """
 
     poses: np.ndarray
@@ -122,7 +123,8 @@ def run_odometry(
             present and ``times`` is None.
         config: pipeline configuration.
         rig: the vehicle: its ``sensor_origins`` orient the extracted normals, its
-            ``motion_bounds`` widen the association's (:func:`with_motion_bounds`);
+            ``motion_bounds`` widen the association's (:func:`with_motion_bounds`), its
+            ``platform`` is the config's ``auto`` (:func:`.platform.with_platform`);
             default: ``source.rig`` when the source has one (a dataset), else ``Rig()``.
         times: epoch reference times (N,), seconds.
         progress: called as ``progress(k, n)`` after each epoch.
@@ -137,7 +139,8 @@ def run_odometry(
     """
     if rig is None:
         rig = getattr(source, "rig", None) or Rig()
-    cfg = with_motion_bounds(config or PlanodomConfig(), rig.motion_bounds)
+    cfg = with_platform(config or PlanodomConfig(), rig)  # before: it keeps what is set
+    cfg = with_motion_bounds(cfg, rig.motion_bounds)
     if times is None:
         times = getattr(source, "times", None)
     source = sweep_timed(source, cfg.extraction.sweep, rig)  # times from the azimuth

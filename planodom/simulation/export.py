@@ -14,7 +14,8 @@ def dataset_rig(run: SimulatedRun, scene_name: str | None = None) -> Rig:
     """The typed ``rig.yaml`` of a simulated run: :attr:`SimulatedRun.rig` (epoch rate,
     sensor origins per ring, extrinsics) plus, as extra keys, ``sensor_rig`` (the sensor
     models: :meth:`SensorRig.to_dict`) and ``simulation`` (scene name and polygons, seed,
-    motion, noise sigma in metres)."""
+    motion, noise sigma in metres); ``platform`` the trajectory's ("vehicle" for the
+    built-in scenes' and the random worlds' routes, "handheld" for a walk)."""
     sensors = run.sensor_rig.sensors
     simulation = {
         "scene_name": scene_name,
@@ -24,7 +25,7 @@ def dataset_rig(run: SimulatedRun, scene_name: str | None = None) -> Rig:
         "scene": scene_to_dict(run.scene),
     }
     extra = {"sensor_rig": run.sensor_rig.to_dict(), "simulation": simulation}
-    return run.sensor_rig.dataset_rig(run.epoch_rate, extra)
+    return run.sensor_rig.dataset_rig(run.epoch_rate, extra, run.trajectory.platform)
 
 
 def write_simulated_dataset(

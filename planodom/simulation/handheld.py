@@ -121,6 +121,8 @@ class HandheldTrajectory(RouteTrajectory):
     (:func:`random_handheld` does) for the lap to close.
     """
 
+    platform: str | None = "handheld"
+
     def __init__(
         self,
         waypoints: np.ndarray,

@@ -96,14 +96,21 @@ class SensorRig:
         origins = [s.T_base_sensor[:3, 3] for s in self.sensors]
         return np.repeat(origins, [s.n_rings for s in self.sensors], axis=0)
 
-    def dataset_rig(self, epoch_rate_hz: float, extra: dict[str, Any] | None = None) -> Rig:
+    def dataset_rig(
+        self,
+        epoch_rate_hz: float,
+        extra: dict[str, Any] | None = None,
+        platform: str | None = None,
+    ) -> Rig:
         """The typed :class:`planodom.rig.Rig` a dataset of this rig states: sensor origins
-        per ring, extrinsics per sensor, ``epoch_rate_hz`` and ``extra`` (kept as given)."""
+        per ring, extrinsics per sensor, ``epoch_rate_hz``, ``extra`` (kept as given) and
+        the ``platform`` carrying it (None: not stated)."""
         return Rig(
             epoch_rate_hz=float(epoch_rate_hz),
             sensor_origins=self.sensor_origins,
             extrinsics=tuple(s.T_base_sensor for s in self.sensors),
             extra=dict(extra or {}),
+            platform=platform,
         )
 
     def with_noise(self, sigma: float) -> SensorRig:

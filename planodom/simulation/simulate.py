@@ -49,7 +49,7 @@ class SimulatedRun:
         scene, sensor_rig (its sensors' ``noise_sigma`` = the noise used), trajectory,
         epoch_rate (Hz), motion, seed.
         rig: what a dataset of this run states (:class:`planodom.rig.Rig`, the same as a
-            recorded dataset's ``Dataset.rig``).
+            recorded dataset's ``Dataset.rig``), its platform the trajectory's.
     """
 
     scans: tuple[Scan, ...]
@@ -66,8 +66,9 @@ class SimulatedRun:
 
     @property
     def rig(self) -> Rig:
-        """The typed rig of the run: sensor origins per ring, extrinsics, epoch rate."""
-        return self.sensor_rig.dataset_rig(self.epoch_rate)
+        """The typed rig of the run: sensor origins per ring, extrinsics, epoch rate and
+        the platform (``trajectory.platform``: "vehicle" for a driven route)."""
+        return self.sensor_rig.dataset_rig(self.epoch_rate, platform=self.trajectory.platform)
 
     def __len__(self) -> int:
         return len(self.scans)

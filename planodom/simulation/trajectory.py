@@ -49,9 +49,12 @@ def _cubic(x: np.ndarray, c: np.ndarray, u: np.ndarray, deriv: bool = True):
 
 
 class Trajectory(ABC):
-    """Ground truth ``T_world_base(t)``; ``duration`` (s) is one lap or the whole path."""
+    """Ground truth ``T_world_base(t)``; ``duration`` (s) is one lap or the whole path.
+    ``platform``: what moves the base, as a dataset of it declares it
+    (:data:`planodom.rig.PLATFORMS`, None: not stated)."""
 
     duration: float
+    platform: str | None = None
 
     @abstractmethod
     def poses(self, t: np.ndarray) -> np.ndarray:
@@ -113,8 +116,11 @@ class WaypointTrajectory(Trajectory):
             ``Sway.still()`` for none).
 
     ``duration`` is one lap (closed) or the path (open). Open paths hold the last pose
-    after the end and the first before the start; closed loops repeat.
+    after the end and the first before the start; closed loops repeat. A vehicle: its
+    base's x axis along the path (``platform`` "vehicle").
     """
+
+    platform: str | None = "vehicle"
 
     def __init__(
         self,

@@ -36,6 +36,7 @@ from planodom.odometry import (
     estimate_relative_pose,
     run_odometry,
 )
+from planodom.odometry.platform import with_platform
 from planodom.odometry.run import EpochSequence
 from planodom.rig import Rig
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
@@ -241,7 +242,7 @@ def run_smoothing(
         source: a sequence of :class:`planodom.scan.Scan` (a dataset or a simulated run),
             or of plane lists; ``source.times`` is used when present.
         config: pipeline configuration (default: defaults).
-        rig: the vehicle (sensor origins, motion bounds), see
+        rig: the vehicle (sensor origins, motion bounds, platform), see
             :func:`planodom.odometry.run_odometry`.
         window: W, epochs of the fixed-lag smoother (default ``smoothing.window``).
         delta: D, relative poses for delta = 1..D (default ``smoothing.delta_max``).
@@ -262,6 +263,8 @@ def run_smoothing(
     if delta is not None:
         changes["smoothing.delta_max"] = delta
     cfg = smoothing_config((config or PlanodomConfig()).updated(changes, source="smoothing"), mode)
+    rig = rig or getattr(source, "rig", None) or Rig()
+    cfg = with_platform(cfg, rig)  # as run_odometry: also for the passes after it
     seconds: dict[str, float] = {}
 
     if odometry is None:
@@ -280,7 +283,7 @@ def run_smoothing(
     seconds["smoothing"] = result.runtime_s
     run = SmoothingRun(result, odometry, relatives, np.asarray(odometry.times), cfg, seconds)
     if mode == "batch":
-        _redeskew(run, source, rig or getattr(source, "rig", None) or Rig())
+        _redeskew(run, source, rig)
     return run
 
 

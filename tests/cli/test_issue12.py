@@ -230,6 +230,7 @@ def test_binary_config(ds: Path) -> None:
         ("motion_bounds", {"max_translation_m": -2}),
         ("sensor_origins", [[1.0, 2.0]]),
         ("sensor_origins", "left"),
+        ("platform", "car"),
     ],
 )
 def test_rig_values_checked_at_load(ds: Path, key: str, value: object) -> None:

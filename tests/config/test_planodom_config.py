@@ -49,6 +49,12 @@ def test_round_trip(tmp_path) -> None:
         ("extraction: {grid_max_columns: 8}\n", r"c\.yaml: field 'extraction\.grid_max_columns'"),
         ("extraction: {grid_max_rows: 2}\n", r"c\.yaml: field 'extraction\.grid_max_rows'"),
         ("extraction: {time_moments: 3}\n", r"c\.yaml: field 'extraction\.time_moments'"),
+        (
+            "odometry: {platform: car}\n",
+            r"c\.yaml: field 'odometry\.platform': Input should be 'auto', 'vehicle', "
+            r"'handheld' or 'unknown', got 'car'$",
+        ),
+        ("odometry: {platform: true}\n", r"c\.yaml: field 'odometry\.platform'.* got True$"),
         ("planemap: {twist_estimation: yes}\n", r"c\.yaml: field 'planemap\.twist_estimation'"),
         ("planemap: {twist_map_update: raw}\n", r"c\.yaml: field 'planemap\.twist_map_update'"),
         ("planemap: {prediction: median}\n", r"c\.yaml: field 'planemap\.prediction'"),
@@ -77,6 +83,11 @@ def test_bad_files_name_file_and_field(tmp_path, text: str, match: str) -> None:
             "got 2 (a dotted name: in a file write it nested, 'odometry:' then '  delta: ...')",
         ),
         ("odometry: {xyz: 2}\n", "not permitted, got 2"),  # nothing near: no guess
+        (  # a section's field at the top (it read "did you mean 'planemap'?")
+            "platform: vehicle\n",
+            "got 'vehicle' (a field of 'odometry': in a file write 'odometry:' then "
+            "'  platform: ...')",
+        ),
     ],
 )
 def test_an_unknown_key_names_the_field_it_may_mean(tmp_path, text: str, tail: str) -> None:
@@ -87,6 +98,24 @@ def test_an_unknown_key_names_the_field_it_may_mean(tmp_path, text: str, tail: s
         PlanodomConfig.from_yaml(tmp_path / "c.yaml")
     assert "Extra inputs are not permitted" in str(err.value)
     assert str(err.value).endswith(tail)
+
+
+def test_updated_keeps_which_fields_were_set(tmp_path) -> None:
+    """updated() validated a whole dump, which marked every field as set: a default and a
+    user's value were one (the platform's options follow only the defaults)."""
+    (tmp_path / "c.yaml").write_text("odometry: {delta: 2}\nextraction: {sweep: {period_s: 0.1}}\n")
+    loaded = PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    out = loaded.updated({"odometry.pipeline": "wocsc", "smoothing.window": 7})
+    assert out.odometry.model_fields_set == {"delta", "pipeline"}
+    assert out.smoothing.model_fields_set == {"window"}
+    assert out.extraction.model_fields_set == {"sweep"}
+    assert out.extraction.sweep.model_fields_set == {"period_s"}
+    assert out.association.model_fields_set == set()
+    assert out.model_fields_set == {"odometry", "extraction", "smoothing"}
+    whole = out.updated({"extraction.sweep": {"rotation": "ccw"}})  # a section replaced
+    assert whole.extraction.sweep.model_fields_set == {"rotation"}
+    assert whole.extraction.sweep.period_s == PlanodomConfig().extraction.sweep.period_s
+    assert out.updated({}).model_dump() == out.model_dump()
 
 
 def test_missing_file(tmp_path) -> None:

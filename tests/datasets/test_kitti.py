@@ -11,6 +11,7 @@ import pytest
 from evo.tools import file_interface
 from kitti_factory import POINTS, TR, P, make_sequence
 
+from planodom.config import PlanodomConfig
 from planodom.datasets.kitti import (
     is_kitti_sequence,
     load_kitti_sequence,
@@ -20,6 +21,7 @@ from planodom.datasets.kitti import (
 from planodom.datasets.recording import open_recording
 from planodom.errors import DatasetError
 from planodom.metrics_kitti import kitti_segment_errors
+from planodom.odometry import with_platform
 
 
 @pytest.mark.parametrize("poses_beside", [False, True])
@@ -44,6 +46,15 @@ def test_sequence_layout_and_velodyne_frame_truth(tmp_path: Path, poses_beside: 
     assert np.allclose(ds.gt_poses[1], expected_1, atol=1e-9)
     assert np.allclose(ds.gt_poses[2], expected_2, atol=1e-9)
     assert ds.rig.epoch_rate_hz == 10.0 and np.array_equal(ds.rig.sensor_origins, np.zeros((1, 3)))
+
+
+def test_a_sequence_is_a_car_and_the_config_may_say_otherwise(tmp_path: Path) -> None:
+    ds = load_kitti_sequence(make_sequence(tmp_path, True))
+    assert ds.rig.platform == "vehicle"
+    assert with_platform(PlanodomConfig(), ds.rig).odometry.start_vehicle_twist
+    handheld = PlanodomConfig().updated({"odometry.platform": "handheld"})
+    resolved = with_platform(handheld, ds.rig).odometry
+    assert (resolved.platform, resolved.start_vehicle_twist) == ("handheld", False)
 
 
 def test_camera_pose_writer_round_trips(tmp_path: Path) -> None:

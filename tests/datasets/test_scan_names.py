@@ -128,3 +128,14 @@ def test_kitti_raw_timestamps_are_the_epoch_times(tmp_path: Path) -> None:
     (raw / "timestamps.txt").write_text("\n".join([*lines[:3], "13:02:26.379"]) + "\n")
     with pytest.raises(DatasetError, match=r"timestamps.txt:4: expected a time"):
         load_dataset(raw / "data")
+
+
+def test_a_kitti_raw_folder_is_a_car_unless_its_rig_yaml_says_otherwise(tmp_path: Path) -> None:
+    lines = ["2011-09-26 13:02:25.964389445", "2011-09-26 13:02:26.068572790"]
+    raw = _kitti_raw(tmp_path / "velodyne_points", lines)
+    assert load_dataset(raw / "data").rig.platform == "vehicle"
+    (raw / "data" / "rig.yaml").write_text("platform: handheld\n")
+    assert load_dataset(raw / "data").rig.platform == "handheld"
+    (raw / "timestamps.txt").unlink()  # a folder of scans: nothing declared
+    (raw / "data" / "rig.yaml").unlink()
+    assert load_dataset(raw / "data").rig.platform is None

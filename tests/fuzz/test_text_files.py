@@ -99,6 +99,7 @@ WRONG += [{"a": 1}, [[math.nan, 0, 0]], [["x", 0, 0]], [[[1]]]]
 
 
 def assert_valid_rig(rig: Rig) -> None:
+    assert rig.platform in (None, "vehicle", "handheld")
     if rig.epoch_rate_hz is not None:
         assert math.isfinite(rig.epoch_rate_hz) and rig.epoch_rate_hz > 0
     if rig.sensor_origins is not None:
@@ -119,7 +120,9 @@ def _read_rig(tmp: Path, data: bytes) -> Rig | None:
     return rig
 
 
-@pytest.mark.parametrize("key", ["epoch_rate", "sensor_origins", "motion_bounds", "extrinsics"])
+@pytest.mark.parametrize(
+    "key", ["epoch_rate", "sensor_origins", "motion_bounds", "extrinsics", "platform"]
+)
 @pytest.mark.parametrize("value", WRONG, ids=repr)
 def test_rig_wrong_values_name_file_and_field(tmp_path: Path, key: str, value: object) -> None:
     for where in (key, "motion_bounds.max_translation_m"):

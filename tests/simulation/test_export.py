@@ -1,12 +1,16 @@
-"""A simulated run written as a dataset reads back identically."""
+"""A simulated run written as a dataset reads back identically, its platform too."""
 
 from __future__ import annotations
 
 import numpy as np
+import yaml
 
+from planodom.config import PlanodomConfig
 from planodom.datasets import load_dataset
+from planodom.odometry import with_platform
 from planodom.simulation import SensorRig, simulate_named
-from planodom.simulation.export import write_simulated_dataset
+from planodom.simulation.export import dataset_rig, write_simulated_dataset
+from planodom.simulation.trajectory import TwistTrajectory
 
 
 def test_simulated_dataset_round_trip(tmp_path) -> None:
@@ -35,3 +39,38 @@ def test_simulated_dataset_round_trip(tmp_path) -> None:
     # the sensor models travel in rig.yaml too, and read back as the same rig
     back = SensorRig.from_dict(rig.extra["sensor_rig"])
     assert back.to_dict() == sensors.to_dict()
+
+
+def test_a_simulated_dataset_declares_its_platform_and_an_old_one_reads_as_unknown(
+    tmp_path,
+) -> None:
+    run = simulate_named("paper-loop", "isoclinal", noise=0.006, seed=3, n_epochs=1)
+    write_simulated_dataset(run, tmp_path / "ds", scene_name="paper-loop")
+    text = (tmp_path / "ds" / "rig.yaml").read_text()
+    assert yaml.safe_load(text)["platform"] == "vehicle" == run.rig.platform
+    ds = load_dataset(tmp_path / "ds")
+    assert ds.rig.platform == "vehicle" and "platform" not in ds.rig.extra
+    assert with_platform(PlanodomConfig(), ds.rig).odometry.start_vehicle_twist
+    # a dataset written before the field: its rig.yaml without the key
+    old = {k: v for k, v in yaml.safe_load(text).items() if k != "platform"}
+    (tmp_path / "ds" / "rig.yaml").write_text(yaml.safe_dump(old))
+    ds = load_dataset(tmp_path / "ds")
+    assert ds.rig.platform is None and ds.notes == load_dataset(tmp_path / "ds").notes
+    assert not any("platform" in note for note in ds.notes)
+    resolved = with_platform(PlanodomConfig(), ds.rig).odometry
+    assert (resolved.platform, resolved.start_vehicle_twist) == ("unknown", False)
+
+
+def test_a_walk_declares_handheld_and_a_bare_trajectory_nothing(tmp_path) -> None:
+    walk = simulate_named("random", "lidar16", seed=2, n_epochs=1, handheld=True)
+    assert walk.rig.platform == "handheld"
+    ds = write_simulated_dataset(walk, tmp_path / "walk")
+    assert load_dataset(ds.path).rig.platform == "handheld"
+    assert not with_platform(PlanodomConfig(), ds.rig).odometry.start_vehicle_twist
+    T0 = np.eye(4)
+    T0[2, 3] = 1.0
+    bare = simulate_named(
+        "paper-loop", "isoclinal", n_epochs=1, trajectory=TwistTrajectory(T0, np.zeros(6))
+    )
+    assert bare.rig.platform is None
+    assert "platform" not in dataset_rig(bare).to_dict()

@@ -29,6 +29,11 @@ def test_noise_free_loop_is_smoothed_to_the_truth(loop, mode: str) -> None:
     errors = np.array([pose_error(a, b) for a, b in zip(run.poses, gt, strict=True)])
     assert errors[:, 0].max() < 1e-5 and errors[:, 1].max() < 1e-3
     assert run.config.smoothing.window == 8 and run.config.smoothing.delta_max == 3
+    # the loop declares a vehicle: the smoothing's config (written as config.yaml) and its
+    # odometry's resolve the platform alike
+    assert run.odometry.config is not None
+    for cfg in (run.config, run.odometry.config):
+        assert cfg.odometry.platform == "vehicle" and cfg.odometry.start_vehicle_twist
     assert {r.delta for r in run.relatives} == {1, 2, 3}
     assert run.result.stats.plane_factors > 0
     if mode == "batch":
