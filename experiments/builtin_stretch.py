@@ -12,6 +12,9 @@ the summed yaw error of its steps (deg; a step's error is the rotation vector of
 surfaces with each wall's normal error in yaw (deg, against its true surface), the
 step's yaw error (deg) and the yaw rate its epoch was extracted with (deg/s; the true
 one last); and the oracle's status and planes there (:func:`planodom.oracle.run_oracle`).
+With ``--bridge-median N`` both runs bridge an unresolved epoch with the median angular
+rate of the last N measured steps instead of the last one's (a what-if: the library's
+``bridge_twist`` replaced for the runs, as ``builtin_unresolved.py`` patches a refresh).
 
     uv run python experiments/builtin_stretch.py --scene random-outdoor --noise 0.02 \\
         --set extraction.noise_estimate=range --cuts 549 600 --steps 558 578
@@ -20,7 +23,9 @@ one last); and the oracle's status and planes there (:func:`planodom.oracle.run_
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+from collections.abc import Iterator
 
 import numpy as np
 from builtin_scenes import config_with, simulated, true_twist
@@ -29,7 +34,8 @@ from scipy.spatial.transform import Rotation
 from planodom.extraction import extract_planes
 from planodom.geometry import invert_transform
 from planodom.metrics import ate
-from planodom.odometry import run_odometry
+from planodom.odometry import bridge_trend, run_odometry
+from planodom.odometry import odometry as odometry_module
 from planodom.oracle import deskewed_points, run_oracle
 from planodom.simulation.named import RANDOM_SCENES
 from planodom.simulation.random_world import random_world, simulate_world
@@ -61,6 +67,29 @@ def exact_extractor(sim):  # noqa: ANN001, ANN201
         return extract_planes(cache[k], config, np.zeros(6), **kwargs)
 
     return extractor
+
+
+@contextlib.contextmanager
+def median_bridge(n: int | None) -> Iterator[None]:
+    """Within it, an unresolved epoch is bridged with the median angular rate (rad/s) of
+    the last ``n`` measured steps (at least 3 of them), its velocity the prediction's;
+    ``n`` None: the library's bridge unchanged."""
+    if n is None:
+        yield
+        return
+    original = bridge_trend.bridge_twist
+
+    def bridge_twist(twist, rates, k, config):  # noqa: ANN001, ANN202
+        if twist is None or len(rates) < 3:
+            return twist
+        rate = np.median(np.array([tw[:3] for _, tw in list(rates)[-n:]]), axis=0)
+        return np.r_[rate, twist[3:]]
+
+    bridge_trend.bridge_twist = odometry_module.bridge_twist = bridge_twist
+    try:
+        yield
+    finally:
+        bridge_trend.bridge_twist = odometry_module.bridge_twist = original
 
 
 def yaw_errors(poses: np.ndarray, gt: np.ndarray) -> np.ndarray:
@@ -99,11 +128,13 @@ def main() -> None:
     parser.add_argument("--exact", action="store_true", help="extract exactly deskewed points")
     parser.add_argument("--cuts", type=int, nargs="*", default=[], help="segment bounds")
     parser.add_argument("--steps", type=int, nargs=2, default=None, help="first last")
+    parser.add_argument("--bridge-median", type=int, default=None, help="what-if: N rates")
     args = parser.parse_args()
     sim, gt = simulated_seed(args.scene, args.noise, args.noise_seed)
     extractor = exact_extractor(sim) if args.exact else None
-    runs = {name: run_odometry(sim, config_with(sets), sim.rig, extractor=extractor)
-            for name, sets in (("default", []), ("option", args.set))}  # fmt: skip
+    with median_bridge(args.bridge_median):
+        runs = {name: run_odometry(sim, config_with(sets), sim.rig, extractor=extractor)
+                for name, sets in (("default", []), ("option", args.set))}  # fmt: skip
     bounds = [0, *args.cuts, len(gt) - 1]
     errors = {}
     for name, run in runs.items():
