@@ -13,8 +13,8 @@ surfaces with each wall's normal error in yaw (deg, against its true surface), t
 step's yaw error (deg) and the yaw rate its epoch was extracted with (deg/s; the true
 one last); and the oracle's status and planes there (:func:`planodom.oracle.run_oracle`).
 With ``--bridge-median N`` both runs bridge an unresolved epoch with the median angular
-rate of the last N measured steps instead of the last one's (a what-if: the library's
-``bridge_twist`` replaced for the runs, as ``builtin_unresolved.py`` patches a refresh).
+rate of the last N measured steps instead of the last one's (``odometry.bridge_rate:
+median``, ``bridge_median_steps: N``, added to both runs' overrides).
 
     uv run python experiments/builtin_stretch.py --scene random-outdoor --noise 0.02 \\
         --set extraction.noise_estimate=range --cuts 549 600 --steps 558 578
@@ -23,9 +23,7 @@ rate of the last N measured steps instead of the last one's (a what-if: the libr
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
-from collections.abc import Iterator
 
 import numpy as np
 from builtin_scenes import config_with, simulated, true_twist
@@ -34,8 +32,7 @@ from scipy.spatial.transform import Rotation
 from planodom.extraction import extract_planes
 from planodom.geometry import invert_transform
 from planodom.metrics import ate
-from planodom.odometry import bridge_trend, run_odometry
-from planodom.odometry import odometry as odometry_module
+from planodom.odometry import run_odometry
 from planodom.oracle import deskewed_points, run_oracle
 from planodom.simulation.named import RANDOM_SCENES
 from planodom.simulation.random_world import random_world, simulate_world
@@ -67,29 +64,6 @@ def exact_extractor(sim):  # noqa: ANN001, ANN201
         return extract_planes(cache[k], config, np.zeros(6), **kwargs)
 
     return extractor
-
-
-@contextlib.contextmanager
-def median_bridge(n: int | None) -> Iterator[None]:
-    """Within it, an unresolved epoch is bridged with the median angular rate (rad/s) of
-    the last ``n`` measured steps (at least 3 of them), its velocity the prediction's;
-    ``n`` None: the library's bridge unchanged."""
-    if n is None:
-        yield
-        return
-    original = bridge_trend.bridge_twist
-
-    def bridge_twist(twist, rates, k, config):  # noqa: ANN001, ANN202
-        if twist is None or len(rates) < 3:
-            return twist
-        rate = np.median(np.array([tw[:3] for _, tw in list(rates)[-n:]]), axis=0)
-        return np.r_[rate, twist[3:]]
-
-    bridge_trend.bridge_twist = odometry_module.bridge_twist = bridge_twist
-    try:
-        yield
-    finally:
-        bridge_trend.bridge_twist = odometry_module.bridge_twist = original
 
 
 def yaw_errors(poses: np.ndarray, gt: np.ndarray) -> np.ndarray:
@@ -132,9 +106,13 @@ def main() -> None:
     args = parser.parse_args()
     sim, gt = simulated_seed(args.scene, args.noise, args.noise_seed)
     extractor = exact_extractor(sim) if args.exact else None
-    with median_bridge(args.bridge_median):
-        runs = {name: run_odometry(sim, config_with(sets), sim.rig, extractor=extractor)
-                for name, sets in (("default", []), ("option", args.set))}  # fmt: skip
+    median = (
+        []
+        if args.bridge_median is None
+        else ["odometry.bridge_rate=median", f"odometry.bridge_median_steps={args.bridge_median}"]
+    )
+    runs = {name: run_odometry(sim, config_with(median + sets), sim.rig, extractor=extractor)
+            for name, sets in (("default", []), ("option", args.set))}  # fmt: skip
     bounds = [0, *args.cuts, len(gt) - 1]
     errors = {}
     for name, run in runs.items():

@@ -48,13 +48,22 @@ class MotionModelConfig(Section):
     100-118); 5 mm leaves room for the step's rotation error. A real vehicle slips more:
     about its slip angle times its speed times the epoch interval."""
 
-    bridge_rate: Literal["last", "trend"] = "last"
+    bridge_rate: Literal["last", "trend", "median"] = "last"
     """Streaming, pairwise pipelines: the angular rate an unresolved epoch is bridged with
     (and the epoch after it is tried deskewed with, the held twist): ``last``, the
     prediction's (the last measured step's); ``trend``: along the straight-line trend of
     the recent epochs that measured it (:mod:`planodom.odometry.bridge_trend`), for a turn
     that tightens steadily, where the held rate lags (issue 11's world 6 at 6 mm: 8.2
-    deg/s held for a true 13.7-15.9). The velocity stays the prediction's."""
+    deg/s held for a true 13.7-15.9); ``median``: the component-wise median of the angular
+    rates of the last ``bridge_median_steps`` steps that measured it, so one degenerate
+    step's wrong rate is not held over a whole gap (issue 11's random-outdoor at 2 cm: 11
+    epochs bridged with one step's rate 2 deg off; docs/RESULTS.md, RANGEOUT and
+    BRIDGEMED). The velocity stays the prediction's."""
+
+    bridge_median_steps: Annotated[int, Field(ge=1, le=50)] = 5
+    """With ``bridge_rate: median``: how many of the last measured steps' angular rates
+    the median is taken over (at most ``velocity_window`` are kept; 5 is RANGEOUT's
+    what-if, not tuned)."""
 
     deskew_rate_lead: Literal["off", "yaw", "yaw_split", "rate"] = "off"
     """Streaming, pairwise pipelines: the own twist an epoch is extracted again with

@@ -13,6 +13,9 @@ straight-line trend of the recent epochs that measured it
 determines it, so a rate that only shakes is averaged), extrapolated to the bridged
 epoch but never more than ``bridge_trend_epochs`` past the last of them (a trend does
 not run on through a whole lost stretch; past the bound the rate stays the bound's).
+``median`` bridges with the component-wise median angular rate of the last
+``bridge_median_steps`` epochs that measured it: a single degenerate step's wrong rate
+(issue 11's random-outdoor at 2 cm, 2 deg off, held over 11 bridged epochs) is outvoted.
 The velocity stays the prediction's.
 """
 
@@ -29,6 +32,9 @@ from planodom.odometry.trend import trend_twist
 #: Fewest measured rates the trend is fit to (a slope and its residuals' variance).
 MIN_RATES = 4
 
+#: Fewest measured rates a median of more than that many is taken over.
+MEDIAN_MIN_RATES = 3
+
 
 def bridge_twist(
     twist: np.ndarray | None,
@@ -41,13 +47,28 @@ def bridge_twist(
     :data:`MIN_RATES` of ``rates`` ((epoch, own twist (6,)) of the recent epochs that
     measured their rate, oldest first, each the mean over its step); with "trend" its
     angular rate extrapolated along their trend to epoch ``min(k, last + bridge_trend_
-    epochs)``."""
-    if twist is None or config.bridge_rate == "last" or len(rates) < MIN_RATES:
+    epochs)``; with "median" see :func:`median_twist`."""
+    if twist is None or config.bridge_rate == "last":
+        return twist
+    if config.bridge_rate == "median":
+        return median_twist(twist, rates, config.bridge_median_steps)
+    if len(rates) < MIN_RATES:
         return twist
     x = np.array([j for j, _ in rates], dtype=float)
     at = min(float(k), x[-1] + config.bridge_trend_epochs)
     trend = trend_twist(np.array([tw for _, tw in rates]), x, at)
     return np.r_[trend[:3], twist[3:]]
+
+
+def median_twist(twist: np.ndarray, rates: Sequence[tuple[int, np.ndarray]], n: int) -> np.ndarray:
+    """(6,) ``twist`` (rad/s, m/s) with its angular rate replaced by the component-wise
+    median of the angular rates of the last ``n`` of ``rates`` ((epoch, own twist (6,)),
+    oldest first); ``twist`` itself while fewer than ``min(n, MEDIAN_MIN_RATES)`` are
+    known (RANGEOUT's what-if in experiments/builtin_stretch.py asked for 3)."""
+    if len(rates) < min(n, MEDIAN_MIN_RATES):
+        return twist
+    recent = np.array([tw[:3] for _, tw in list(rates)[-n:]], dtype=float)
+    return np.r_[np.median(recent, axis=0), twist[3:]]
 
 
 def bridge(
@@ -61,8 +82,8 @@ def bridge(
 ) -> np.ndarray:
     """(4, 4) ``T_{ref}_k`` an unresolved epoch ``k`` is bridged with: ``prediction``
     (``T_ref_last @ twist_step(twist, dt)``; None: none, e.g. across a gap, then
-    ``T_ref_last`` (4, 4), standing still), or with ``bridge_rate: trend`` the same step
-    made with :func:`bridge_twist`."""
+    ``T_ref_last`` (4, 4), standing still), or with ``bridge_rate`` trend or median the
+    same step made with :func:`bridge_twist`."""
     if prediction is None:
         return T_ref_last
     used = bridge_twist(twist, rates, k, config)
