@@ -205,7 +205,7 @@ def test_a_rig_key_planodom_does_not_read_is_noted(tmp_path: Path) -> None:
     assert ds.rig.epoch_rate_hz is None and ds.rig.extra["epoch_rate_hz"] == 20
     assert [n for n in ds.notes if "rig.yaml" in n] == [
         f"{root / 'rig.yaml'}: 'epoch_rate_hz' not read (planodom reads epoch_rate, "
-        "sensor_origins, motion_bounds, extrinsics; a typo?), kept as written"
+        "sensor_origins, motion_bounds, extrinsics, platform; a typo?), kept as written"
     ]
     (root / "rig.yaml").write_text("epoch_rate: 20\nsensor_rig: {name: x}\n")
     assert load_dataset(root).notes == []
