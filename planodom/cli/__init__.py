@@ -8,7 +8,6 @@ all, never over the inputs or earlier results (:func:`planodom.results.results_f
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -36,6 +35,7 @@ from planodom.cli.common import (
     takes_source,
     warn,
 )
+from planodom.cli.help_text import reflow_help
 from planodom.errors import ConfigError
 
 __all__ = ["app"]
@@ -445,5 +445,4 @@ def show_config(config: ConfigFile = None) -> None:
     typer.echo(load_config(config).to_yaml(), nl=False)
 
 
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(app())
+reflow_help(app)  # last: every command registered
