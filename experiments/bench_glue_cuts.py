@@ -5,7 +5,8 @@ The 2D rig's default odometry runs each world's simulated run with the code as i
 ("cuts") and with the four former expressions put back ("former", below):
 ``orthonormalised``'s check in numpy, ``rotation_covariance``'s concatenation and block
 diagonal in numpy, ``se3_exp`` with both branches through ``np.where``, and
-``plane_associations`` with copied indices. They alternate, ``--reps`` times each after an
+``plane_associations`` with copied indices, the odometry's inverse of an identity chain
+computed at every estimate. They alternate, ``--reps`` times each after an
 untimed warm-up of both, with KISS-ICP on the same scans (as ``bench_rig2d_vs_kiss.py``
 runs it). The fastest repetition of each counts (process time: the machine's load moves
 wall time by more than the difference). Per world: both variants' CPU ms an epoch, their
@@ -31,6 +32,7 @@ import numpy as np  # noqa: E402
 
 import planodom.extraction.epoch as extraction_epoch  # noqa: E402
 import planodom.geometry as geometry  # noqa: E402
+import planodom.odometry.odometry as odometry_module  # noqa: E402
 import planodom.odometry.propagate as propagate  # noqa: E402
 import planodom.se3 as se3  # noqa: E402
 from planodom.association import PairAssociations, _unique_pairs  # noqa: E402
@@ -78,6 +80,11 @@ def former_se3_exp(xi: np.ndarray) -> np.ndarray:
     return out.reshape(xi.shape[:-1] + (4, 4))
 
 
+def former_inverse_chain(T_ref_last: np.ndarray, steps: list[np.ndarray]) -> np.ndarray:
+    """The odometry's ``invert_transform(T_ref_last)`` of every estimate before SPEED2D8."""
+    return geometry.invert_transform(T_ref_last)
+
+
 def former_plane_associations(self: PairAssociations, index: Any = None) -> np.ndarray:
     """``PairAssociations.plane_associations`` before SPEED2D8 (copied indices)."""
     pp, cp = self.prev_pairs, self.curr_pairs
@@ -93,6 +100,7 @@ FORMER = (
     (se3, "se3_exp", former_se3_exp),
     (extraction_epoch, "se3_exp", former_se3_exp),
     (PairAssociations, "plane_associations", former_plane_associations),
+    (odometry_module, "_inverse_chain", former_inverse_chain),
 )
 CUTS = tuple((obj, name, getattr(obj, name)) for obj, name, _ in FORMER)
 
