@@ -6,7 +6,8 @@ The 2D rig's default odometry runs each world's simulated run with the code as i
 ``orthonormalised``'s check in numpy, ``rotation_covariance``'s concatenation and block
 diagonal in numpy, ``se3_exp`` with both branches through ``np.where``, and
 ``plane_associations`` with copied indices, the odometry's inverse of an identity chain
-computed at every estimate. They alternate, ``--reps`` times each after an
+computed at every estimate, the solver's pairs agreeing with the rotation and its height
+elements in numpy. They alternate, ``--reps`` times each after an
 untimed warm-up of both, with KISS-ICP on the same scans (as ``bench_rig2d_vs_kiss.py``
 runs it). The fastest repetition of each counts (process time: the machine's load moves
 wall time by more than the difference). Per world: both variants' CPU ms an epoch, their
@@ -34,12 +35,15 @@ import planodom.extraction.epoch as extraction_epoch  # noqa: E402
 import planodom.geometry as geometry  # noqa: E402
 import planodom.odometry.odometry as odometry_module  # noqa: E402
 import planodom.odometry.propagate as propagate  # noqa: E402
+import planodom.odometry.solver as solver  # noqa: E402
 import planodom.se3 as se3  # noqa: E402
 from planodom.association import PairAssociations, _unique_pairs  # noqa: E402
 from planodom.config import PlanodomConfig  # noqa: E402
 from planodom.experiments.generalisation import declared_sweep, world_for  # noqa: E402
 from planodom.experiments.peers import kiss_available, kiss_icp_poses  # noqa: E402
 from planodom.odometry import run_odometry  # noqa: E402
+from planodom.odometry.pair_agreement import numpy_agreeing  # noqa: E402
+from planodom.odometry.translation import HeightElements  # noqa: E402
 from planodom.simulation.random_world import simulate_world, world_fields  # noqa: E402
 
 
@@ -85,6 +89,16 @@ def former_inverse_chain(T_ref_last: np.ndarray, steps: list[np.ndarray]) -> np.
     return geometry.invert_transform(T_ref_last)
 
 
+def former_height_elements(prev: Any, curr: Any, ij: np.ndarray, max_tilt: float) -> Any:
+    """``height_elements`` before SPEED2D8 (numpy)."""
+    n = prev.normals[ij[:, 0]]
+    keep = n[:, 2] >= np.cos(max_tilt)
+    ij, n = ij[keep], n[keep]
+    b = (curr.offsets[ij[:, 1]] - prev.offsets[ij[:, 0]]) / n[:, 2]
+    w = prev.weights[ij[:, 0]] * curr.weights[ij[:, 1]]
+    return HeightElements(b, n[:, :2] / n[:, 2:3], w, ij)
+
+
 def former_plane_associations(self: PairAssociations, index: Any = None) -> np.ndarray:
     """``PairAssociations.plane_associations`` before SPEED2D8 (copied indices)."""
     pp, cp = self.prev_pairs, self.curr_pairs
@@ -101,6 +115,8 @@ FORMER = (
     (extraction_epoch, "se3_exp", former_se3_exp),
     (PairAssociations, "plane_associations", former_plane_associations),
     (odometry_module, "_inverse_chain", former_inverse_chain),
+    (solver, "agreeing_pairs", numpy_agreeing),
+    (solver, "height_elements", former_height_elements),
 )
 CUTS = tuple((obj, name, getattr(obj, name)) for obj, name, _ in FORMER)
 
