@@ -84,7 +84,9 @@ class PairAssociations:
         pp, cp = self.prev_pairs, self.curr_pairs
         if index is not None:
             pp, cp = pp[index], cp[index]
-        return _unique_pairs(pp.astype(np.int64), cp.astype(np.int64)).astype(np.intp)
+        # no copies of int64 (intp) indices: integers, the same pairs
+        pairs = _unique_pairs(np.asarray(pp, np.int64), np.asarray(cp, np.int64))
+        return pairs.astype(np.intp, copy=False)
 
     def remapped(self, prev_index: np.ndarray, curr_index: np.ndarray) -> PairAssociations:
         """The same associations with plane indices mapped through the given arrays."""

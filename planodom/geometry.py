@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from planodom.errors import GeometryError
+from planodom.orthonormality import is_orthonormal
 
 # re-exported: the SE(3) maps were split to planodom.se3
 from planodom.se3 import cross_rows as cross_rows
@@ -168,7 +169,7 @@ def pose5_from_transform(T: np.ndarray) -> np.ndarray:
 def orthonormalised(T: np.ndarray, tol: float = 1e-12) -> np.ndarray:
     """``T`` (4, 4) with its rotation projected on SO(3) (SVD) once rounding exceeds ``tol``."""
     R = T[:3, :3]
-    if np.max(np.abs(R.T @ R - np.eye(3))) <= tol:
+    if is_orthonormal(R, tol):  # np.max(np.abs(R.T @ R - np.eye(3))) <= tol, compiled
         return T
     U, _, Vt = np.linalg.svd(R)
     out = T.copy()

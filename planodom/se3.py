@@ -30,11 +30,11 @@ def se3_exp(xi: np.ndarray) -> np.ndarray:
     w, v = flat[:, :3], flat[:, 3:]
     th = np.linalg.norm(w, axis=1)
     small = th < 1e-3
-    ths = np.where(small, 1.0, th)
-    t2 = th**2
-    a = np.where(small, 1.0 - t2 / 6.0 + t2**2 / 120.0, np.sin(ths) / ths)
-    b = np.where(small, 0.5 - t2 / 24.0 + t2**2 / 720.0, (1.0 - np.cos(ths)) / ths**2)
-    c = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t2**2 / 5040.0, (ths - np.sin(ths)) / ths**3)
+    if len(flat) == 1:  # one twist (a prediction an epoch): its own branch only, the same ops
+        a, b, c = _series(th) if small[0] else _closed(th)
+    else:
+        pairs = zip(_series(th), _closed(np.where(small, 1.0, th)), strict=True)
+        a, b, c = (np.where(small, p, q) for p, q in pairs)
     K = _skew(w)
     K2 = K @ K
     eye = np.eye(3)
@@ -44,6 +44,22 @@ def se3_exp(xi: np.ndarray) -> np.ndarray:
     out[:, :3, 3] = np.einsum("tij,tj->ti", V, v)
     out[:, 3, 3] = 1.0
     return out.reshape(xi.shape[:-1] + (4, 4))
+
+
+def _series(th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`se3_exp`'s coefficients ``sin(th) / th``, ``(1 - cos th) / th^2`` and
+    ``(th - sin th) / th^3`` of angles ``th`` (N,), rad, by their Taylor series to th^4."""
+    t2 = th**2
+    return (
+        1.0 - t2 / 6.0 + t2**2 / 120.0,
+        0.5 - t2 / 24.0 + t2**2 / 720.0,
+        1.0 / 6.0 - t2 / 120.0 + t2**2 / 5040.0,
+    )
+
+
+def _closed(th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_series`'s coefficients in closed form (``th`` not zero)."""
+    return np.sin(th) / th, (1.0 - np.cos(th)) / th**2, (th - np.sin(th)) / th**3
 
 
 def twist_step(twist: np.ndarray, dt: float) -> np.ndarray:

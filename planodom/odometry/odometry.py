@@ -62,6 +62,15 @@ from planodom.scan import Scan, check_is_scan
 if TYPE_CHECKING:
     from planodom.odometry.planemap import PlaneMapOdometry
 
+#: ``invert_transform(np.eye(4))`` (its -0.0 included), once: a reference one epoch back
+_EYE_INVERTED = invert_transform(np.eye(4))
+_EYE_INVERTED.flags.writeable = False
+
+
+def _inverse_chain(T_ref_last: np.ndarray, steps: list[np.ndarray]) -> np.ndarray:
+    """``invert_transform(T_ref_last)`` of the product of ``steps`` (identity: none)."""
+    return invert_transform(T_ref_last) if steps else _EYE_INVERTED
+
 
 class PlaneOdometry:
     """Streaming plane odometry (``register_epoch`` per scan, or ``register_planes``).
@@ -286,9 +295,10 @@ class PlaneOdometry:
         if self._map is not None:
             return self._estimate_map(epoch, t)
         reference = self._reference()
-        T_ref_last = np.eye(4)  # T_{ref}_{k-1}
-        for step in self._steps[reference.index + 1 :]:
+        T_ref_last, steps = np.eye(4), self._steps[reference.index + 1 :]  # T_{ref}_{k-1}
+        for step in steps:
             T_ref_last = T_ref_last @ step
+        T_last_ref = _inverse_chain(T_ref_last, steps)
         dt = t - self.times[-1]
         prediction = None  # constant velocity: T_{ref}_k
         if self.twist is not None and dt > 0 and epoch.index not in self._gaps:
@@ -305,7 +315,7 @@ class PlaneOdometry:
             bridged = bridge(prediction, T_ref_last, self.twist, dt, self._rates, k, ocfg)
             result = replaced(result, T_prev_curr=bridged)
         result = result.between(reference.index, epoch.index)
-        step = orthonormalised(invert_transform(T_ref_last) @ result.T_prev_curr)
+        step = orthonormalised(T_last_ref @ result.T_prev_curr)
         offset = step_twist_offset(epoch, reference.twist, dt, result, ocfg)
         estimate = EpochEstimate(epoch.planes, epoch.plane_set, epoch.twist, result, step,
                                  reference.planes, twist_offset=offset)  # fmt: skip

@@ -54,6 +54,36 @@ def _block_diag(blocks: list[np.ndarray]) -> np.ndarray:
     return out
 
 
+def _stacked(
+    prev_normals: np.ndarray, curr_normals: np.ndarray, prev_cov: np.ndarray, curr_cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rotation_covariance`'s four normals as one vector (12,) and the block-diagonal
+    (12, 12) of their four normal covariances (the (3, 3) blocks of the (2, 4, 4) plane
+    covariances), in one compiled copy (numpy's concatenations and slice assignments
+    cost more than this covariance's arithmetic; copies: the same values)."""
+    return _stacked_kernel(
+        np.ascontiguousarray(prev_normals, dtype=np.float64),
+        np.ascontiguousarray(curr_normals, dtype=np.float64),
+        np.ascontiguousarray(prev_cov, dtype=np.float64),
+        np.ascontiguousarray(curr_cov, dtype=np.float64),
+    )
+
+
+@numba.njit(cache=True)
+def _stacked_kernel(pn, cn, pc, cc):  # pragma: no cover - compiled
+    """:func:`_stacked` of C-contiguous (2, 3), (2, 3), (2, 4, 4), (2, 4, 4) arrays."""
+    x = np.empty(12)
+    S = np.zeros((12, 12))
+    for k in range(4):
+        n = pn[k] if k < 2 else cn[k - 2]
+        c = pc[k] if k < 2 else cc[k - 2]
+        for a in range(3):
+            x[3 * k + a] = n[a]
+            for b in range(3):
+                S[3 * k + a, 3 * k + b] = c[a, b]
+    return x, S
+
+
 def _rpy(R: np.ndarray) -> np.ndarray:
     """(B, 3) roll, pitch, yaw of rotations ``R`` (B, 3, 3) = Rz(yaw) Ry(pitch) Rx(roll),
     as :func:`planodom.geometry.rpy_from_rotation` (to rounding), in closed form: scipy's
@@ -84,8 +114,7 @@ def rotation_covariance(
             (:mod:`planodom.odometry.pair_rotation`, held fixed); None: the paper's frames.
     """
 
-    x = np.concatenate([prev_normals.ravel(), curr_normals.ravel()])
-    S = _block_diag([c[:3, :3] for c in (*prev_cov, *curr_cov)])
+    x, S = _stacked(prev_normals, curr_normals, prev_cov, curr_cov)
     if weights is not None:
         J = _jacobian(lambda b: _rpy(_weighted(b[:, :6], b[:, 6:], weights)), x)
         return J @ S @ J.T

@@ -29,9 +29,10 @@ from planodom.angles import cos_of_degrees, pose_floor, radians
 from planodom.association import PairAssociations, lenient_association, strict_association
 from planodom.config import PlanodomConfig
 from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
-from planodom.geometry import Plane, make_transform, row_norms, rpy_from_rotation, vector_norm
+from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
 from planodom.odometry.nonholonomic import lateral_sigma
+from planodom.odometry.pair_agreement import agreeing_pairs
 from planodom.odometry.pair_rotation import candidate_pairs, rotation_weights, winner_rotation
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
@@ -261,9 +262,7 @@ def _translation_pairs(
         return ij, pp, cp
     c = chord(radians(cfg.odometry.rotation_inlier_deg))
     pp, cp = lda.prev_pairs, lda.curr_pairs
-    e1 = row_norms(prev.normals[pp[:, 0]] - curr.normals[cp[:, 0]] @ R.T)
-    e2 = row_norms(prev.normals[pp[:, 1]] - curr.normals[cp[:, 1]] @ R.T)
-    agree = (e1 <= c) & (e2 <= c)
+    agree = agreeing_pairs(prev.normals, curr.normals, pp, cp, R, c)
     return lda.plane_associations(agree), pp[agree], cp[agree]
 
 

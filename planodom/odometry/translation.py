@@ -166,12 +166,36 @@ def height_elements(
     """Elements from the associations ``ij`` (L, 2) whose previous plane is ground-like:
     within ``max_tilt`` rad of horizontal and facing up (below the sensor, normal towards
     it), the ground a vehicle drives on."""
-    n = prev.normals[ij[:, 0]]
-    keep = n[:, 2] >= np.cos(max_tilt)
-    ij, n = ij[keep], n[keep]
-    b = (curr.offsets[ij[:, 1]] - prev.offsets[ij[:, 0]]) / n[:, 2]
-    w = prev.weights[ij[:, 0]] * curr.weights[ij[:, 1]]
-    return HeightElements(b, n[:, :2] / n[:, 2:3], w, ij)
+    keep, b, m, w = _heights_kernel(
+        prev.normals, prev.offsets, prev.weights, curr.offsets, curr.weights,
+        np.asarray(ij, np.int64), float(np.cos(max_tilt)),
+    )  # fmt: skip
+    return HeightElements(b, m, w, ij[keep])
+
+
+@numba.njit(cache=True)
+def _heights_kernel(pn, po, pw, co, cw, ij, cos_tilt):  # pragma: no cover - compiled
+    """:func:`height_elements`' kept mask (L,) and ``b`` (H,), ``m`` (H, 2), weights (H,),
+    compiled: each value one or two IEEE operations, as numpy's elementwise ones (its
+    ~15 calls on a few rows cost ten times the arithmetic)."""
+    L = ij.shape[0]
+    keep = np.empty(L, dtype=np.bool_)
+    for q in range(L):
+        keep[q] = pn[ij[q, 0], 2] >= cos_tilt
+    H = int(keep.sum())
+    b = np.empty(H)
+    m = np.empty((H, 2))
+    w = np.empty(H)
+    h = 0
+    for q in range(L):
+        if keep[q]:
+            i, j = ij[q, 0], ij[q, 1]
+            nz = pn[i, 2]
+            b[h] = (co[j] - po[i]) / nz
+            m[h, 0], m[h, 1] = pn[i, 0] / nz, pn[i, 1] / nz
+            w[h] = pw[i] * cw[j]
+            h += 1
+    return keep, b, m, w
 
 
 def solve_height(a: np.ndarray, g: np.ndarray, b: float, m: np.ndarray) -> float | None:

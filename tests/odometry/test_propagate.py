@@ -6,7 +6,7 @@ import numpy as np
 from scipy.linalg import block_diag
 from scipy.spatial.transform import Rotation
 
-from planodom.odometry.propagate import _block_diag, _rpy
+from planodom.odometry.propagate import _block_diag, _rpy, _stacked
 
 
 def test_closed_form_rpy_matches_scipy_zyx():
@@ -24,6 +24,19 @@ def test_block_diag_matches_scipy():
     rng = np.random.default_rng(4)
     blocks = [rng.normal(size=(n, n)) for n in (3, 4, 1, 2)]
     np.testing.assert_array_equal(_block_diag(blocks), block_diag(*blocks))
+
+
+def test_stacked_normals_and_blocks_are_scipys_and_numpys():
+    """The compiled copy against the former construction (numpy's concatenation, scipy's
+    block_diag of the normals' blocks): equal values, for strided and read-only inputs."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        pn, cn = rng.normal(size=(2, 3)), rng.normal(size=(2, 3))
+        pc, cc = rng.normal(size=(2, 4, 4)), rng.normal(size=(2, 4, 4))
+        pc.flags.writeable = False
+        x, S = _stacked(pn, cn[::-1][::-1], pc, np.asfortranarray(cc))
+        np.testing.assert_array_equal(x, np.concatenate([pn.ravel(), cn.ravel()]))
+        np.testing.assert_array_equal(S, block_diag(*[c[:3, :3] for c in (*pc, *cc)]))
 
 
 def test_sources_are_the_sorted_distinct_associations():

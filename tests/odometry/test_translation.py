@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from planodom.geometry import horizontal_reference_points
-from planodom.odometry.translation import translation_elements
+from planodom.odometry.translation import height_elements, translation_elements
 from planodom.planes import PlaneSet
 
 
@@ -70,3 +70,30 @@ def test_translation_candidates_recover_a_horizontal_shift():
     el = translation_elements(prev, curr, np.eye(3), pairs, pairs, 0.2, np.radians(5.0))
     assert len(el) == 10
     np.testing.assert_allclose(el.candidates(0.0), np.tile(t[:2], (10, 1)), atol=1e-12)
+
+
+def _former_heights(prev, curr, ij, max_tilt):
+    """``height_elements``' numpy expression before SPEED2D8 (the oracle)."""
+    n = prev.normals[ij[:, 0]]
+    keep = n[:, 2] >= np.cos(max_tilt)
+    ij, n = ij[keep], n[keep]
+    b = (curr.offsets[ij[:, 1]] - prev.offsets[ij[:, 0]]) / n[:, 2]
+    w = prev.weights[ij[:, 0]] * curr.weights[ij[:, 1]]
+    return b, n[:, :2] / n[:, 2:3], w, ij
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_height_elements_equal_the_former_expression_bit_for_bit(seed):
+    """Ground-like planes among tilted ones, none, all; the compiled values are numpy's."""
+    rng = np.random.default_rng(40 + seed)
+    prev, curr = _plane_set(rng, 8), _plane_set(rng, 8)
+    prev.normals[1:4] = Rotation.from_rotvec(rng.normal(size=(3, 3)) * 0.2).apply([0, 0, 1.0])
+    ij = np.column_stack([rng.permutation(8), rng.permutation(8)]).astype(np.intp)
+    for tilt in (np.radians(5.0), np.radians(20.0), 0.0, np.pi):
+        for rows in (ij, ij[:0], ij[:3]):
+            got = height_elements(prev, curr, rows, tilt)
+            b, m, w, kept = _former_heights(prev, curr, rows, tilt)
+            for a, e in ((got.b, b), (got.m, m), (got.weights, w), (got.ij, kept)):
+                assert a.dtype == e.dtype and a.shape == e.shape
+                assert a.tobytes() == e.tobytes()
+    assert 0 < len(height_elements(prev, curr, ij, np.radians(20.0))) < 8
