@@ -1,0 +1,144 @@
+"""A gap's bridge rate robust to one bad step (``odometry.bridge_rate: robust``,
+:mod:`planodom.odometry.bridge_robust`), against closed forms and a simulated turn."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from planes_factory import observe, world_planes
+
+from planodom.config import OdometryConfig, PlanodomConfig
+from planodom.errors import ConfigError
+from planodom.geometry import invert_transform, se3_log, transform_from_rpy_xyz
+from planodom.odometry import PlaneOdometry
+from planodom.odometry.bridge_robust import rate_variance, robust_rate, robust_twist
+from planodom.odometry.bridge_trend import bridge_twist
+from planodom.odometry.relative import RelativePose
+
+TWIST = np.array([0.01, -0.02, 0.2, 2.9, 0.05, 0.01])  # a prediction (rad/s, m/s)
+ROBUST = OdometryConfig(bridge_rate="robust")
+
+
+def _window(y: list[float], sd: list[float]) -> tuple[list, list]:
+    """(rates, variances) of epochs 3, 4, ...: yaw rates ``y`` (rad/s) with stated yaw
+    sds ``sd`` (rad/s), roll and pitch equal to the prediction's, same sds."""
+    rates = [(3 + i, np.r_[TWIST[:2], yi, TWIST[3:]]) for i, yi in enumerate(y)]
+    return rates, [np.full(3, s**2) for s in sd]
+
+
+def test_a_steady_turn_with_one_poor_outlier_is_pulled_to_the_others():
+    """Four steps at 0.1 rad/s, each stated sd 0.01, and a last one 0.35 rad/s off with
+    sd 0.05: the others' line is their mean (no slope, no scatter beyond their noise),
+    0.1 with variance 0.01^2 / 4; one Kalman update of it by the last rate gives
+    0.1 + 0.35 (2.5e-5 / (2.5e-5 + 2.5e-3)) (closed form)."""
+    rates, var = _window([0.1, 0.1, 0.1, 0.1, 0.45], [0.01] * 4 + [0.05])
+    got = robust_twist(np.r_[TWIST[:2], 0.45, TWIST[3:]], rates, var)
+    p = 0.01**2 / 4
+    assert got[2] == pytest.approx(0.1 + 0.35 * p / (p + 0.05**2), abs=1e-12)
+    np.testing.assert_array_equal(got[[0, 1, 3, 4, 5]], TWIST[[0, 1, 3, 4, 5]])
+
+
+def test_a_ramp_with_one_outlier_is_pulled_to_the_ramps_line():
+    """Rates on a line (0.1 + 0.05 per epoch, sd 0.002 each, so the slope is told apart),
+    the last 0.3 rad/s above it with sd 0.02: the line's value at the last epoch and its
+    ordinary least-squares prediction variance (sd^2 (1/m + (x - mean)^2 / Sxx)), then
+    one Kalman update (closed form)."""
+    x = np.arange(3, 7, dtype=float)
+    line = 0.1 + 0.05 * (x - 3)
+    y_hat = 0.1 + 0.05 * 4
+    rates, var = _window([*line, y_hat + 0.3], [0.002] * 4 + [0.02])
+    got = robust_rate(np.arange(3, 8, dtype=float), np.array([r[1][2] for r in rates]),
+                      np.array([v[2] for v in var]))  # fmt: skip
+    p = 0.002**2 * (1 / 4 + (7 - x.mean()) ** 2 / ((x - x.mean()) ** 2).sum())
+    assert got == pytest.approx(y_hat + 0.3 * p / (p + 0.02**2), abs=1e-12)
+
+
+def test_a_ramping_rate_is_kept_as_the_last():
+    """A turn's onset: rates rising on a line, the last on it too (or off it by less than
+    its noise allows): the prediction itself, the same object."""
+    rates, var = _window([0.0, 0.05, 0.1, 0.15, 0.2], [0.002] * 5)
+    assert robust_twist(TWIST, rates, var) is TWIST
+    rates, var = _window([0.0, 0.05, 0.1, 0.15, 0.205], [0.002] * 5)  # 2.5 sd off
+    assert robust_twist(TWIST, rates, var) is TWIST
+
+
+def test_a_precise_step_at_a_turns_onset_stays_near_its_own_rate():
+    """World 200's onset (BRIDGEMED): four steps near -5 deg/s that scatter by 0.5 deg/s
+    (more than their stated 0.03), then +3.9 deg/s stated 0.06: an outlier of the line,
+    but its own variance is far below the line's, so it moves by under 1 %."""
+    y = np.radians([-4.3, -5.4, -5.0, -4.1, 3.9])
+    rates, var = _window(list(y), list(np.radians([0.02, 0.02, 0.03, 0.04, 0.06])))
+    got = robust_twist(TWIST, rates, var)
+    assert got is not TWIST
+    assert abs(got[2] - y[-1]) < 0.01 * abs(y[-1] - y[:-1].mean())
+
+
+def test_a_constant_rate_keeps_the_prediction():
+    rates, var = _window([0.2] * 5, [0.01] * 5)
+    assert robust_twist(TWIST, rates, var) is TWIST
+    assert bridge_twist(TWIST, rates, 9, ROBUST, var) is TWIST
+
+
+def test_too_few_or_unknown_keep_the_prediction():
+    """Fewer than four rates, variances not given, the last's unknown, or fewer than
+    three others known: the prediction."""
+    rates, var = _window([0.1, 0.1, 0.1, 0.45], [0.01] * 3 + [0.05])
+    assert robust_twist(TWIST, rates[1:], var[1:]) is TWIST
+    assert bridge_twist(TWIST, rates, 9, ROBUST) is TWIST  # no variances (the map's)
+    assert bridge_twist(None, rates, 9, ROBUST, var) is None
+    unknown = [*var[:-1], np.full(3, np.nan)]
+    assert robust_twist(TWIST, rates, unknown) is TWIST
+    two_known = [np.full(3, np.nan), *var[1:]]
+    assert robust_twist(TWIST, rates, two_known) is TWIST
+    assert robust_twist(TWIST, rates, var) is not TWIST  # all known: an outlier
+
+
+def test_rate_variance_is_the_rotation_diagonal_over_dt_squared():
+    cov = np.diag([1e-4, 4e-4, 9e-4, 1e-2, 1e-2])
+    rel = RelativePose(T_prev_curr=np.eye(4), covariance=cov)
+    np.testing.assert_allclose(rate_variance(rel, 0.1), [1e-2, 4e-2, 9e-2], rtol=1e-12)
+    assert np.isnan(rate_variance(RelativePose(np.eye(4), None), 0.1)).all()
+    assert np.isnan(rate_variance(rel, 0.0)).all()
+
+
+def test_config_refuses_a_bad_value_naming_the_key():
+    assert PlanodomConfig.from_dict({"odometry": {"bridge_rate": "robust"}})
+    with pytest.raises(ConfigError, match="^config: field 'odometry.bridge_rate': "):
+        PlanodomConfig.from_dict({"odometry": {"bridge_rate": "robustly"}})
+
+
+def _turn(mode: str, bad_rad: float, rate: float = 0.3) -> tuple[float, PlaneOdometry]:
+    """A steady turn (``rate`` rad/s, 0.1 s epochs, 3 m/s), epoch 7 seen from a pose
+    ``bad_rad`` further in yaw (its step measures that much too much), epoch 8 blind:
+    the bridged step 7-8's yaw error (rad) against the truth, and the run."""
+    rng = np.random.default_rng(4)
+    world = world_planes(rng, 10)
+    dt, n = 0.1, 11
+    poses = [transform_from_rpy_xyz(0.0, 0.0, rate * dt * k, 0.3 * k, 0.0, 0.0) for k in range(n)]
+    cfg = PlanodomConfig.from_dict({"odometry": {"pipeline": "wocsc", "bridge_rate": mode}})
+    odo = PlaneOdometry(cfg)
+    for k, T in enumerate(poses):
+        seen = T @ transform_from_rpy_xyz(0.0, 0.0, bad_rad, 0.0, 0.0, 0.0) if k == 7 else T
+        odo.register_planes([] if k == 8 else observe(world, seen), time=dt * k)
+    assert str(odo.results[8].status) == "unresolved"
+    step = invert_transform(odo.poses[7]) @ odo.poses[8]
+    true = invert_transform(poses[7]) @ poses[8]
+    return float(se3_log(step)[2] - se3_log(true)[2]), odo
+
+
+def test_a_run_bridges_one_bad_step_with_a_fifth_of_its_error():
+    """Epoch 7's step measured 0.01 rad too far, its stated variance the others' (the
+    same planes): ``last`` holds it, the bridged step 0.01 rad off; ``robust`` weighs it
+    as one of five equally precise rates of a steady turn (four others, one Kalman
+    update), 0.01 / 5 off (closed form)."""
+    last, _ = _turn("last", 0.01)
+    robust, _ = _turn("robust", 0.01)
+    assert last == pytest.approx(0.01, abs=1e-6)
+    assert robust == pytest.approx(0.01 / 5, abs=1e-6)
+
+
+def test_a_run_without_an_outlier_is_last_bit_for_bit():
+    _, last = _turn("last", 0.0)
+    _, robust = _turn("robust", 0.0)
+    for a, b in zip(last.poses, robust.poses, strict=True):
+        np.testing.assert_array_equal(a, b)
