@@ -58,9 +58,10 @@ class MotionModelConfig(Section):
     rates of the last ``bridge_median_steps`` steps that measured it, so one degenerate
     step's wrong rate is not held over a whole gap (issue 11's random-outdoor at 2 cm: 11
     epochs bridged with one step's rate 2 deg off; docs/RESULTS.md, RANGEOUT and
-    BRIDGEMED); ``robust``: the last rate unless it is an outlier of the line through
-    the window's others, then moved towards that line by the steps' stated variances, so
-    a precise step at a turn's onset is kept and a poor outlying one is not
+    BRIDGEMED); ``robust``: a Kalman filter's rate at the last of the recent measured
+    steps (a random walk, its variance from how the steps before the last moved, each
+    step weighed by its stated covariance), so a precise step at a turn's onset is kept
+    and a poor one that departs from steady neighbours is not
     (:mod:`planodom.odometry.bridge_robust`, BRIDGE3). The velocity stays the
     prediction's."""
 

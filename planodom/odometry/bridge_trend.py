@@ -16,8 +16,8 @@ not run on through a whole lost stretch; past the bound the rate stays the bound
 ``median`` bridges with the component-wise median angular rate of the last
 ``bridge_median_steps`` epochs that measured it: a single degenerate step's wrong rate
 (issue 11's random-outdoor at 2 cm, 2 deg off, held over 11 bridged epochs) is outvoted.
-``robust`` keeps the last rate unless it is an outlier of the line through the others,
-weighed by the steps' stated variances (:mod:`planodom.odometry.bridge_robust`).
+``robust`` bridges with a Kalman filter's rate at the last measured step, each step
+weighed by its stated variance (:mod:`planodom.odometry.bridge_robust`).
 The velocity stays the prediction's.
 """
 
