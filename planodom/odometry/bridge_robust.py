@@ -10,14 +10,17 @@ last step states about itself, not in how far it departs from the ones before. S
 angular component is the rate a Kalman filter over the window's steps gives at the last
 one: the rate a random walk, each step a measurement of it with its stated variance.
 
-- ``q``, the walk's variance an epoch, is how far the other steps' (all but the last)
-  successive rates move beyond their stated variances: the mean of ``(d^2 - v_i - v_j)
-  / (x_j - x_i)`` over their successive pairs, at least 0. A turn's onset or a steady
-  ramp moves them: ``q`` grows and the last step's own rate is kept (world 200's onset:
-  steps that moved by 1 deg/s an epoch, then one at sd 0.06 deg/s: within 0.3 % of its
-  rate). Steps that only scatter within their noise give ``q`` = 0: the filter is their
-  variance-weighted mean, and a last step that states itself poor (its variance far
-  above that mean's) gives way to it.
+- ``q``, the walk's variance an epoch, must be seen twice in the steps before the last:
+  their neighbours' squared differences beyond their stated variances, and the growth of
+  their variogram (second neighbours' squared differences over neighbours', which a walk
+  makes grow with the gap and noise of any size, stated or not, does not); ``q`` is the
+  smaller, at least 0. A turn's onset or a steady ramp makes both large and a precise
+  last step is kept (world 200's onset: within 0.5 % of its departure). Steps that scatter
+  within their stated noise, or more widely but from step to step (a deskewing chain,
+  random-outdoor at 2 cm in another noise draw: 2, 0, +20, -21 deg/s, each stated sd 4.5),
+  give ``q`` = 0: the filter is their variance-weighted mean, to which a last step that
+  states itself poor gives way. (BRIDGE3's first filter had the stated differences alone:
+  such a chain made it trust its last step.)
 - The last step is left out of ``q``: its own departure must not make the filter trust
   it.
 
@@ -33,7 +36,8 @@ import numpy as np
 
 from planodom.odometry.relative import RelativePose
 
-#: Fewest other rates (besides the last) the walk's variance is estimated from.
+#: Fewest other rates (besides the last) the walk's variance is estimated from (two
+#: neighbours' differences and one second neighbours').
 MIN_OTHERS = 3
 
 #: Variance floor, (rad/s)^2, so that exact rates (noise-free tests) give finite gains.
@@ -49,11 +53,31 @@ def rate_variance(relative: RelativePose, dt: float) -> np.ndarray:
     return np.diag(relative.covariance)[:3] / dt**2
 
 
-def walk_variance(x: np.ndarray, y: np.ndarray, v: np.ndarray) -> float:
-    """``q`` (module docstring), (rad/s)^2 an epoch, from steps at epochs ``x`` (m,) with
-    rates ``y`` (m,) rad/s and stated variances ``v`` (m,) (rad/s)^2, m >= 2."""
+def variogram_walk(x: np.ndarray, y: np.ndarray) -> float:
+    """A walk's variance, (rad/s)^2 an epoch, from steps at epochs ``x`` (m,), m >= 3,
+    with rates ``y`` (m,) rad/s: the growth of the rates' variogram from neighbours to
+    second neighbours, ``(mean(d2^2) - mean(d1^2)) / (mean(gap2) - mean(gap1))``, at
+    least 0. A walk's squared differences grow with their gap, white noise's do not, and
+    the noise cancels in the difference whatever its size (stated or not)."""
+    d1, g1 = np.diff(y), np.diff(x)
+    d2, g2 = y[2:] - y[:-2], x[2:] - x[:-2]
+    growth = float(np.mean(g2) - np.mean(g1))
+    return max(float(np.mean(d2**2) - np.mean(d1**2)) / growth, 0.0)
+
+
+def stated_walk(x: np.ndarray, y: np.ndarray, v: np.ndarray) -> float:
+    """A walk's variance from the neighbours' squared differences beyond their stated
+    variances ``v`` (m,): ``mean((d^2 - v_i - v_j) / gap)``, at least 0."""
     d, gap = np.diff(y), np.diff(x)
     return max(float(np.mean((d**2 - v[:-1] - v[1:]) / gap)), 0.0)
+
+
+def walk_variance(x: np.ndarray, y: np.ndarray, v: np.ndarray) -> float:
+    """``q`` (module docstring), (rad/s)^2 an epoch, of steps at epochs ``x`` (m,), m >= 3,
+    with rates ``y`` (m,) rad/s and stated variances ``v`` (m,) (rad/s)^2: the smaller of
+    :func:`variogram_walk` and :func:`stated_walk` (the rate moves only where both say
+    so)."""
+    return min(variogram_walk(x, y), stated_walk(x, y, v))
 
 
 def robust_rate(x: np.ndarray, y: np.ndarray, v: np.ndarray) -> float | None:
