@@ -48,7 +48,7 @@ class MotionModelConfig(Section):
     100-118); 5 mm leaves room for the step's rotation error. A real vehicle slips more:
     about its slip angle times its speed times the epoch interval."""
 
-    bridge_rate: Literal["last", "trend", "median"] = "last"
+    bridge_rate: Literal["last", "trend", "median", "robust"] = "last"
     """Streaming, pairwise pipelines: the angular rate an unresolved epoch is bridged with
     (and the epoch after it is tried deskewed with, the held twist): ``last``, the
     prediction's (the last measured step's); ``trend``: along the straight-line trend of
@@ -58,7 +58,12 @@ class MotionModelConfig(Section):
     rates of the last ``bridge_median_steps`` steps that measured it, so one degenerate
     step's wrong rate is not held over a whole gap (issue 11's random-outdoor at 2 cm: 11
     epochs bridged with one step's rate 2 deg off; docs/RESULTS.md, RANGEOUT and
-    BRIDGEMED). The velocity stays the prediction's."""
+    BRIDGEMED); ``robust``: a Kalman filter's rate at the last of the recent measured
+    steps (a random walk, its variance from how the steps before the last moved, each
+    step weighed by its stated covariance), so a precise step at a turn's onset is kept
+    and a poor one that departs from steady neighbours is not
+    (:mod:`planodom.odometry.bridge_robust`, BRIDGE3). The velocity stays the
+    prediction's."""
 
     bridge_median_steps: Annotated[int, Field(ge=1, le=50)] = 5
     """With ``bridge_rate: median``: how many of the last measured steps' angular rates

@@ -16,6 +16,8 @@ not run on through a whole lost stretch; past the bound the rate stays the bound
 ``median`` bridges with the component-wise median angular rate of the last
 ``bridge_median_steps`` epochs that measured it: a single degenerate step's wrong rate
 (issue 11's random-outdoor at 2 cm, 2 deg off, held over 11 bridged epochs) is outvoted.
+``robust`` bridges with a Kalman filter's rate at the last measured step, each step
+weighed by its stated variance (:mod:`planodom.odometry.bridge_robust`).
 The velocity stays the prediction's.
 """
 
@@ -27,6 +29,7 @@ import numpy as np
 
 from planodom.config import OdometryConfig
 from planodom.geometry import twist_step
+from planodom.odometry.bridge_robust import robust_twist
 from planodom.odometry.trend import trend_twist
 
 #: Fewest measured rates the trend is fit to (a slope and its residuals' variance).
@@ -41,15 +44,19 @@ def bridge_twist(
     rates: Sequence[tuple[int, np.ndarray]],
     k: int,
     config: OdometryConfig,
+    variances: Sequence[np.ndarray] = (),
 ) -> np.ndarray | None:
     """(6,) the twist (rad/s, m/s) an unresolved epoch ``k`` is bridged with: ``twist``
     (the prediction; None: none) with ``config.bridge_rate`` "last", or before
     :data:`MIN_RATES` of ``rates`` ((epoch, own twist (6,)) of the recent epochs that
     measured their rate, oldest first, each the mean over its step); with "trend" its
     angular rate extrapolated along their trend to epoch ``min(k, last + bridge_trend_
-    epochs)``; with "median" see :func:`median_twist`."""
+    epochs)``; with "median" see :func:`median_twist`; with "robust" (``variances``: the
+    rates' stated variances (3,) each) :func:`planodom.odometry.bridge_robust.robust_twist`."""
     if twist is None or config.bridge_rate == "last":
         return twist
+    if config.bridge_rate == "robust":
+        return robust_twist(twist, rates, variances)
     if config.bridge_rate == "median":
         return median_twist(twist, rates, config.bridge_median_steps)
     if len(rates) < MIN_RATES:
@@ -79,14 +86,15 @@ def bridge(
     rates: Sequence[tuple[int, np.ndarray]],
     k: int,
     config: OdometryConfig,
+    variances: Sequence[np.ndarray] = (),
 ) -> np.ndarray:
     """(4, 4) ``T_{ref}_k`` an unresolved epoch ``k`` is bridged with: ``prediction``
     (``T_ref_last @ twist_step(twist, dt)``; None: none, e.g. across a gap, then
-    ``T_ref_last`` (4, 4), standing still), or with ``bridge_rate`` trend or median the
-    same step made with :func:`bridge_twist`."""
+    ``T_ref_last`` (4, 4), standing still), or with ``bridge_rate`` trend, median or
+    robust the same step made with :func:`bridge_twist` (``variances`` its)."""
     if prediction is None:
         return T_ref_last
-    used = bridge_twist(twist, rates, k, config)
+    used = bridge_twist(twist, rates, k, config, variances)
     if used is twist or used is None:
         return prediction
     return T_ref_last @ twist_step(used, dt)

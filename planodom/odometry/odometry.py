@@ -24,6 +24,7 @@ import numpy as np
 
 from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, orthonormalised, twist_step
+from planodom.odometry.bridge_robust import rate_variance
 from planodom.odometry.bridge_trend import bridge, bridge_twist
 from planodom.odometry.centred_twist import centring
 from planodom.odometry.deskew import (
@@ -124,6 +125,7 @@ class PlaneOdometry:
         self._recent: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
         # pairwise pipelines: (epoch, own twist) of the last epochs that measured the rate
         self._rates: deque[tuple[int, np.ndarray]] = deque(maxlen=self._recent.maxlen)
+        self._rate_vars: deque[np.ndarray] = deque(maxlen=self._recent.maxlen)  # their variances
         self._twist_sigma = TwistUncertainty(self.config.odometry)
         self._rate = RatePredictor(self.config.odometry)  # odometry.rate_prediction
         self._undo: tuple = ()  # what the last reference refresh replaced
@@ -196,7 +198,7 @@ class PlaneOdometry:
             unresolved = getattr(self.last_relative, "status", None) is Status.UNRESOLVED
             refresh, previous = held_refresh(self, unresolved), len(self.last_planes)
             rates = self._rates if self._map is None else ()  # bridge_rate: pairwise only
-            held = bridge_twist(self.twist, rates, k, ocfg) if unresolved else None
+            held = bridge_twist(self.twist, rates, k, ocfg, self._rate_vars) if unresolved else None
             twist = None if unresolved else self._rate.deskewing(self.twist)
             ocfg = epoch_deskew_config(ocfg, k in self._gaps, self._map is None)
             against_map = self._map is not None and self.twist is not None
@@ -312,7 +314,8 @@ class PlaneOdometry:
         if ocfg.refinement == "moments":  # the oracle's solve over the associated planes' points
             result = moment_refined(result, reference.planes, epoch.planes, ocfg, planes)
         if result.status is Status.UNRESOLVED:
-            bridged = bridge(prediction, T_ref_last, self.twist, dt, self._rates, k, ocfg)
+            bridged = bridge(prediction, T_ref_last, self.twist, dt, self._rates, k, ocfg,
+                             self._rate_vars)  # fmt: skip
             result = replaced(result, T_prev_curr=bridged)
         result = result.between(reference.index, epoch.index)
         step = orthonormalised(T_last_ref @ result.T_prev_curr)
@@ -320,7 +323,7 @@ class PlaneOdometry:
         estimate = EpochEstimate(epoch.planes, epoch.plane_set, epoch.twist, result, step,
                                  reference.planes, twist_offset=offset)  # fmt: skip
         predicted = None if k in self._gaps else self.twist  # none across a gap
-        bridging = bridge_twist(predicted, self._rates, k, ocfg)  # one off the prediction
+        bridging = bridge_twist(predicted, self._rates, k, ocfg, self._rate_vars)  # one off it
         return self._twist_sigma.gated(estimate, dt, predicted, T_ref_last, ocfg, bridging)
 
     def _estimate_map(self, epoch: _Epoch, t: float) -> EpochEstimate:
@@ -406,6 +409,7 @@ class PlaneOdometry:
         if gap:
             self._recent.clear()
             self._rates.clear()
+            self._rate_vars.clear()
             self._twist_sigma.blend.reset()
         elif dt > 0:
             measured = best.relative.status is Status.OK
@@ -413,6 +417,7 @@ class PlaneOdometry:
             blended = self._twist_sigma.update(own, best.relative, dt, self._map)
             if best.relative.status is not Status.UNRESOLVED:
                 self._rates.append((epoch.index, own))
+                self._rate_vars.append(rate_variance(best.relative, dt))
             significant = significant_twist(blended, best.relative, dt, self.config.odometry)
             args = (significant, measured, self._recent, self._velocities, self._map is not None)
             prediction = (self.config.planemap.prediction, self.config.odometry.motion_model)
