@@ -180,8 +180,8 @@ class PlaneOdometry:
             if not prefer_streaming(given, len(self.last_planes)):
                 epoch = _Epoch(k, given.planes, given.plane_set, deskewed, np.zeros(6))
                 return self._commit(epoch, given, t)
-        estimate = partial(self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted())
-        estimate = split_reference(self, estimate)  # odometry.split_reference
+        estimate = split_reference(self, partial(  # odometry.split_reference
+            self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted()))  # fmt: skip
         if self.config.odometry.deskew and time_spread(scan):
             dt, ocfg, pm = t - self.times[-1], self.config.odometry, self.config.planemap
             # a twist never outlives an unresolved epoch: until one is measured again, epochs are

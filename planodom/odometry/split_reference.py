@@ -12,7 +12,7 @@ The refinement's twist is the mean over the step from the reference epoch to thi
 centred half a step after the reference's time: about the middle of the reference's own
 points (a sweep of the 2D rig's epoch follows its reference time), where the twist the
 reference was deskewed with was centred a step and a half earlier. So with
-``odometry.split_reference`` (pairwise pipelines), when a refinement
+``odometry.split_reference: split`` (pairwise pipelines), when a refinement
 
 - has a worse status than the estimate it was refined from,
 - splits fewer walls than it (fewer planes beyond its distinct surfaces,
@@ -22,7 +22,8 @@ reference was deskewed with was centred a step and a half earlier. So with
   planes),
 
 the reference epoch is extracted again with the refinement's twist and the epoch estimated
-again against it. The new pair is kept when it is better than the estimate refined from
+again against it (``split``; ``any``: every refinement of a worse status, the second and
+third conditions dropped). The new pair is kept when it is better than the estimate refined from
 by status, then distinct surfaces; else the reference's planes (and twist) come back and
 the refinement is dropped as before. The reference's pose is not changed; its own result,
 made against its old planes, is marked superseded.
@@ -45,9 +46,10 @@ if TYPE_CHECKING:
 def split_reference(odometry: PlaneOdometry, estimate: Estimator) -> Estimator:
     """``estimate`` (an :data:`.deskew.Estimator` of ``odometry``'s epoch being registered)
     with its refinements tried again against a reference extracted again with their twist
-    (module docstring) when ``odometry.split_reference`` is on and the pipeline is
-    pairwise; ``estimate`` itself otherwise."""
-    if not odometry.config.odometry.split_reference or not odometry.pairwise:
+    (module docstring) when ``odometry.split_reference`` is not ``off`` and the pipeline
+    is pairwise; ``estimate`` itself otherwise."""
+    mode = odometry.config.odometry.split_reference
+    if mode == "off" or not odometry.pairwise:
         return estimate
     association = odometry.config.association
     tol = association.normal_tol_deg, association.offset_tol_m
@@ -65,9 +67,9 @@ def split_reference(odometry: PlaneOdometry, estimate: Estimator) -> Estimator:
             return again
         if again.relative.status.rank >= source.relative.status.rank:
             return again
-        if fragments(again.planes) >= fragments(source.planes):
+        if mode == "split" and fragments(again.planes) >= fragments(source.planes):
             return again
-        if not fragments(again.reference_planes):
+        if mode == "split" and not fragments(again.reference_planes):
             return again
         undo = _refresh(odometry, twist)
         if undo is None:
