@@ -3,13 +3,15 @@ split_reference`), on 2D-rig world 166's sharp left turn, against the simulator'
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 import planodom.odometry.split_reference as split
 from planodom.config import PlanodomConfig
 from planodom.experiments.generalisation import world_for
-from planodom.geometry import invert_transform, se3_log
+from planodom.geometry import Plane, invert_transform, se3_log
 from planodom.odometry.odometry import PlaneOdometry
 from planodom.odometry.relative import Status
 from planodom.simulation.simulate import simulate
@@ -102,3 +104,54 @@ def test_off_or_against_a_plane_map_the_estimator_is_left_alone(turn):
     mapped.register_epoch(turn.scans[0], float(turn.times[0]))
     assert not mapped.pairwise
     assert split.split_reference(mapped, estimate) is estimate
+
+
+def _wall(yaw_deg: float, offset: float) -> Plane:
+    a = np.radians(yaw_deg)
+    return Plane(np.array([np.cos(a), np.sin(a), 0.0]), offset)
+
+
+TWO = [_wall(0.0, 10.0), _wall(90.0, 5.0)]  # two distinct surfaces
+SPLIT = TWO + [_wall(0.4, 10.05), _wall(90.3, 5.02)]  # the same two, each in two planes
+
+
+def _estimate(status: Status, planes: list[Plane], reference: list[Plane]):
+    relative = SimpleNamespace(status=status)
+    return SimpleNamespace(relative=relative, planes=planes, reference_planes=reference)
+
+
+@pytest.mark.parametrize(
+    ("mode", "source", "again", "tried"),
+    [
+        # split: worse, fewer fragments, against a split reference: tried
+        ("split", (Status.OK, SPLIT), (Status.DEGENERATE, TWO, SPLIT), True),
+        ("split", (Status.OK, SPLIT), (Status.OK, TWO, SPLIT), False),  # not worse
+        ("split", (Status.OK, TWO), (Status.DEGENERATE, TWO, SPLIT), False),  # merges nothing
+        ("split", (Status.OK, SPLIT), (Status.DEGENERATE, TWO, TWO), False),  # reference whole
+        ("any", (Status.OK, TWO), (Status.DEGENERATE, TWO, TWO), True),  # any worse one
+        ("any", (Status.DEGENERATE, TWO), (Status.DEGENERATE, TWO, TWO), False),
+    ],
+)
+def test_which_refinements_are_tried_against_the_reference_extracted_again(
+    monkeypatch, mode, source, again, tried
+):
+    """The conditions of the module docstring, by construction (distinct surfaces within the
+    association's 5 deg and 0.2 m): where the reference is extracted again (here it cannot
+    be: the refresh is recorded and declined), the refinement is estimated once more."""
+    calls: list[np.ndarray] = []
+    monkeypatch.setattr(split, "_refresh", lambda odometry, twist: calls.append(twist))
+    config = PlanodomConfig.from_dict({"odometry": {"split_reference": mode}})
+    odometry = SimpleNamespace(config=config, pairwise=True)
+    refined = _estimate(*again)
+    estimates: list[object] = []
+
+    def estimate(twist, source=None):
+        estimates.append(twist)
+        return refined
+
+    wrapped = split.split_reference(odometry, estimate)  # type: ignore[arg-type]
+    twist = np.r_[0.0, 0.0, 0.3, 5.0, 0.0, 0.0]
+    first = _estimate(source[0], source[1], SPLIT)
+    assert wrapped(twist, first) is refined  # declined: the refinement as it was
+    assert len(calls) == int(tried)
+    assert wrapped(twist) is refined and len(calls) == int(tried)  # a first extraction: never
