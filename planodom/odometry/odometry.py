@@ -51,6 +51,7 @@ from planodom.odometry.rate_prediction import RatePredictor
 from planodom.odometry.refresh_held import held_refresh
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.solver import config_for_gap, estimate_relative_pose
+from planodom.odometry.split_reference import split_reference
 from planodom.odometry.start_epochs import StartEpochs
 from planodom.odometry.surfaces import fragment_count, ranking
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
@@ -190,7 +191,8 @@ class PlaneOdometry:
             if not prefer_streaming(given, len(self.last_planes)):
                 epoch = _Epoch(k, given.planes, given.plane_set, deskewed, np.zeros(6))
                 return self._commit(epoch, given, t)
-        estimate = partial(self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted())
+        estimate = split_reference(self, partial(  # odometry.split_reference
+            self._estimate_scan, scan, t, prior_sigma=self._twist_sigma.predicted()))  # fmt: skip
         if self.config.odometry.deskew and time_spread(scan):
             dt, ocfg, pm = t - self.times[-1], self.config.odometry, self.config.planemap
             # a twist never outlives an unresolved epoch: until one is measured again, epochs are
