@@ -10,9 +10,10 @@ from typing import Literal
 
 from planodom.config.moment_refine import MomentRefineConfig
 from planodom.config.plane_deskew_noise import PlaneDeskewNoiseConfig
+from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
 
 
-class DeskewGuards(MomentRefineConfig, PlaneDeskewNoiseConfig):
+class DeskewGuards(MomentRefineConfig, PlaneDeskewNoiseConfig, StatedDeskewNoiseConfig):
     """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``), and the motion
     model the prediction assumes (:class:`.motion_model.MotionModelConfig`)."""
 
