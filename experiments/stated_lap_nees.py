@@ -46,7 +46,8 @@ def probe_planes(odo) -> list:  # noqa: ANN001
         if r is None or r.deskew_twist is None or r.deskew_times is None:
             out.append(list(planes))
             continue
-        out.append(with_deskew_noise(planes, _Span(r.deskew_times), r.deskew_twist, sigma))
+        scan = _Span(r.deskew_times)
+        out.append(with_deskew_noise(planes, scan, r.deskew_twist, sigma))  # type: ignore[arg-type]
     return out
 
 

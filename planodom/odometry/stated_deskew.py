@@ -27,9 +27,10 @@ applied after the run: the estimate is not touched. Only the stated covariances 
 Epochs add nothing when they were not deskewed (no recorded twist or times: the first
 epoch, a scan taken at one instant), and a step whose epoch was extracted again later
 (``OdometryRun.superseded``: its associations index planes no longer kept) keeps its
-covariance (the smoothing estimates it again from the kept planes, and states it there). Measured before it was built (docs/RESULTS.md, DESKEWCOV, the probe rows):
-on 2D-rig worlds 140-158 the OK steps above chi2(5)'s 95 % quantile fell from 35 % to
-2-4 %, the estimate unchanged.
+covariance (the smoothing estimates it again from the kept planes, and states it there).
+Measured before it was built (docs/RESULTS.md, DESKEWCOV, the probe rows): on 2D-rig
+worlds 140-158 the OK steps above chi2(5)'s 95 % quantile fell from 35 % to 2-4 %, the
+estimate unchanged.
 """
 
 from __future__ import annotations

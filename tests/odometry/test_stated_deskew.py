@@ -12,7 +12,6 @@ from scipy.linalg import sqrtm
 from scipy.optimize import least_squares
 
 from planodom.config import PlanodomConfig
-from planodom.errors import ConfigError
 from planodom.experiments.generalisation import declared_sweep, world_for
 from planodom.geometry import Plane, rpy_from_rotation, transform_planes
 from planodom.odometry import run_odometry
@@ -196,12 +195,3 @@ def test_the_option_leaves_the_estimate_and_only_grows_the_stated_covariances(ru
     restated = with_stated_deskew(default)  # the post-pass on the default's run is the option
     for r0, r1 in zip(restated.results[1:], option.results[1:], strict=True):
         np.testing.assert_array_equal(r0.covariance, r1.covariance)
-
-
-def test_option_values_and_the_sandwichs_both_ends():
-    config = PlanodomConfig().updated({"odometry.stated_deskew_noise": "shared"})
-    assert config.extraction.deskew_jacobian  # the Jacobians the term needs
-    with pytest.raises(ConfigError, match="stated_deskew_noise"):
-        config.updated({"smoothing.sandwich_relative_ends": "both"})
-    with pytest.raises(ConfigError, match="odometry.stated_deskew_noise"):
-        PlanodomConfig().updated({"odometry.stated_deskew_noise": "planes"})
