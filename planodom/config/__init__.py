@@ -57,7 +57,8 @@ class PlanodomConfig(Section):
         """The deskew-noise modes that read each plane's deskewing Jacobian
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
         ``smoothing.covariance_model: sandwich``, ``planemap.deskew_variance:
-        twist_change``, ``odometry.plane_deskew_noise`` not off) switch on its computation
+        twist_change``, ``odometry.plane_deskew_noise`` and ``stated_deskew_noise`` not off)
+        switch on its computation
         in the extraction
         (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other than ``none``
         switches on the planes' time moments (``extraction.time_moments``). The default
@@ -82,10 +83,13 @@ class PlanodomConfig(Section):
             model = smoothing.get("covariance_model")
         odometry = data.get("odometry")
         planes = getattr(odometry, "plane_deskew_noise", None)
+        stated = getattr(odometry, "stated_deskew_noise", None)
         if isinstance(odometry, Mapping):
             planes = odometry.get("plane_deskew_noise")
+            stated = odometry.get("stated_deskew_noise")
         wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
         wanted = wanted or model == "sandwich" or planes in ("twist", "change")
+        wanted = wanted or stated == "shared"
         moments = isinstance(twist, str) and twist != "none"
         if not (wanted or deskew == "twist_change" or moments):
             return data
@@ -100,6 +104,20 @@ class PlanodomConfig(Section):
         # a value that is not a bool stays, for the section's validation to name it
         switched = {k: v for k, v in switched.items() if isinstance(extraction.get(k, v), bool)}
         return {**data, "extraction": {**extraction, **switched}}
+
+    @model_validator(mode="after")
+    def _stated_once(self) -> PlanodomConfig:
+        """The steps' deskewing error in one place: ``odometry.stated_deskew_noise`` puts it
+        in their stated covariances, ``smoothing.sandwich_relative_ends: both`` in the
+        sandwich; both would count it twice."""
+        if self.odometry.stated_deskew_noise != "off" and (
+            self.smoothing.sandwich_relative_ends == "both"
+        ):
+            raise ConfigError(
+                "odometry.stated_deskew_noise: shared and smoothing.sandwich_relative_ends: "
+                "both model the same deskewing error of the steps; set one of them off/none"
+            )
+        return self
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> PlanodomConfig:

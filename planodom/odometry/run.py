@@ -135,7 +135,9 @@ def run_odometry(
     followed by passes on the scans deskewed through the poses of the pass before
     (:func:`redeskewed_run`); ``progress`` then counts each pass's epochs anew. Scans
     without point times get them from the azimuth when ``extraction.sweep`` declares the
-    lidar's convention (:mod:`planodom.extraction.lidar.sweep`).
+    lidar's convention (:mod:`planodom.extraction.lidar.sweep`). With
+    ``odometry.stated_deskew_noise: shared`` the steps' stated covariances then hold both
+    their epochs' deskewing errors (:mod:`.stated_deskew`).
     """
     if rig is None:
         rig = getattr(source, "rig", None) or Rig()
@@ -156,6 +158,10 @@ def run_odometry(
         from planodom.odometry.sweep_refine import sweep_refined_run  # imports this module
 
         run = sweep_refined_run(source, run, cfg, rig, progress, extractor)
+    if cfg.odometry.stated_deskew_noise == "shared":
+        from planodom.odometry.stated_deskew import with_stated_deskew  # imports this module
+
+        run = with_stated_deskew(run)  # the stated covariances only; the poses stay
     return run
 
 

@@ -38,6 +38,11 @@ from planodom.odometry import (
 )
 from planodom.odometry.platform import with_platform
 from planodom.odometry.run import EpochSequence
+from planodom.odometry.stated_deskew import (
+    epoch_deskew_covariances,
+    run_twist_change,
+    stated_relatives,
+)
 from planodom.rig import Rig
 from planodom.smoothing.batch import SmoothingResult, smooth_batch
 from planodom.smoothing.motion import measured_step_prior
@@ -169,7 +174,9 @@ def smoothing_relatives(
     """The relative poses for delta = 1..``smoothing.delta_max``: the streaming odometry's
     own results (but those it superseded), then the others estimated from its planes
     (:func:`relative_poses`, its poses as priors, with ``smoothing.relative_prior``
-    "measured_steps" the unmeasured translations replaced, its epochs' ``time_spread``)."""
+    "measured_steps" the unmeasured translations replaced, its epochs' ``time_spread``;
+    with ``odometry.stated_deskew_noise: shared`` stating their epochs' deskewing errors,
+    :func:`stated_steps`)."""
     reused = [
         _checked(r, odometry.planes[r.curr])
         for r in odometry.results
@@ -186,7 +193,24 @@ def smoothing_relatives(
         ]
         prior = measured_step_prior(np.asarray(odometry.poses), measured)
     rest = relative_poses(odometry.planes, config, deltas, prior, progress, known, spread, bridged)
+    if config.odometry.stated_deskew_noise == "shared":
+        return stated_steps(odometry, reused, rest)
     return reused + rest
+
+
+def stated_steps(
+    odometry: OdometryRun, reused: list[RelativePose], rest: list[RelativePose]
+) -> list[RelativePose]:
+    """``odometry.stated_deskew_noise: shared`` for the smoothing's relative poses: those
+    estimated from the planes (``rest``) state both their epochs' deskewing errors, sized
+    by the odometry run's (:mod:`planodom.odometry.stated_deskew`); the odometry's own
+    (``reused``) already do when it ran with the option, else they get them here too."""
+    sigma = run_twist_change(odometry.results, np.asarray(odometry.times, dtype=float))
+    Q = epoch_deskew_covariances(odometry.results, sigma)
+    ran = getattr(getattr(odometry.config, "odometry", None), "stated_deskew_noise", "off")
+    if ran != "shared":
+        reused = stated_relatives(reused, odometry.planes, Q, odometry.superseded)
+    return reused + stated_relatives(rest, odometry.planes, Q)  # from the kept planes
 
 
 def epoch_time_spread(odometry: OdometryRun) -> list[bool | None]:

@@ -428,3 +428,51 @@ def test_smoothers_refuse_relative_poses_whose_epochs_are_not_ordered(smoother, 
     rel = replace(seq.relatives[0], prev=prev, curr=curr)
     with pytest.raises(GeometryError, match=rf"relative pose 0 links epoch {prev} to epoch {curr}"):
         smoother(seq.planes, [rel, *seq.relatives[1:]])
+
+
+def test_stated_steps_restate_the_odometrys_steps_only_when_it_ran_without_the_option():
+    """:func:`planodom.smoothing.run.stated_steps`: the relative poses estimated from the
+    planes always get the term; the odometry's own only when its run did not state it."""
+    from dataclasses import replace as _replace
+
+    from planodom.config import PlanodomConfig
+    from planodom.geometry import transform_planes
+    from planodom.odometry.relative import RelativePose, Status
+    from planodom.odometry.run import OdometryRun
+    from planodom.odometry.stated_deskew import (
+        epoch_deskew_covariances,
+        run_twist_change,
+        shared_term,
+    )
+    from planodom.se3 import se3_exp
+    from planodom.smoothing.run import stated_steps
+
+    rng = np.random.default_rng(2)
+    T = se3_exp(np.array([0.0, 0.0, 0.05, 1.0, 0.1, 0.0]))
+    normals = rng.normal(size=(5, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    offsets = rng.uniform(2.0, 8.0, 5)
+    planes = []
+    for k in range(3):
+        n, d = transform_planes(np.linalg.inv(np.linalg.matrix_power(T, k)), normals, offsets)
+        planes.append([Plane(m, float(e), np.diag([1e-6, 1e-6, 1e-6, 1e-4]),
+                             deskew_jacobian=rng.normal(size=(4, 6)) * 0.1)
+                       for m, e in zip(n, d, strict=True)])  # fmt: skip
+    pairs = np.column_stack([np.arange(5), np.arange(5)])
+    steps = [RelativePose(se3_exp(np.array([0, 0, 0.05 * k, 1.0 + 0.1 * k, 0.1, 0])),
+                          np.eye(5) * 1e-6, Status.OK, pairs, prev=k - 1, curr=k,
+                          deskew_twist=np.ones(6), deskew_times=(0.0, 0.1))
+             for k in (1, 2)]  # fmt: skip
+    far = RelativePose(T @ T, np.eye(5) * 1e-6, Status.OK, pairs, prev=0, curr=2)
+    run = OdometryRun(np.stack([np.eye(4)] * 3), np.array([0.0, 0.1, 0.2]), [None, *steps],
+                      np.full(3, 5), planes, config=PlanodomConfig())  # fmt: skip
+    Q = epoch_deskew_covariances(run.results, run_twist_change(run.results, run.times))
+    assert np.any(Q[1]) and not np.any(Q[0])
+    out = stated_steps(run, steps, [far])
+    for r, s in zip(steps + [far], out, strict=True):
+        term = shared_term(r, planes[r.prev], planes[r.curr], Q[r.prev], Q[r.curr])
+        assert np.any(term)
+        np.testing.assert_allclose(s.covariance, r.covariance + term)
+    ran = _replace(run, config=PlanodomConfig().updated({"odometry.stated_deskew_noise": "shared"}))
+    out = stated_steps(ran, steps, [far])
+    assert out[0] is steps[0] and out[1] is steps[1] and out[2] is not far
