@@ -190,8 +190,10 @@ class LoopCandidateConfig(Section):
     the graph without the hypothesis and, per such part, without the part's ties but with
     the hypothesis (eligible when the hypothesis then passes the gate) are solved, and the
     one of least robust chi2 per degree of freedom is kept (:mod:`planodom.smoothing.
-    loop_gate_parts`); with ``loop_gate_removes`` "factor" the gate is as "off". Off; see
-    docs/RESULTS.md (W32C)."""
+    loop_gate_parts`); with ``loop_gate_removes`` "factor" the gate is as "off". Off: on
+    2D-rig world 32 at 2 cm it removes a large right part on that part's own misfit (the
+    plane covariances too small) and lets aliased loop hypotheses in; see docs/RESULTS.md
+    (W32C)."""
     loop_gate_removes: Literal["hypothesis", "factor"] = "hypothesis"
     """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
     on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``
