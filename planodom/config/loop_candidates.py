@@ -184,6 +184,16 @@ class LoopCandidateConfig(Section):
     match with the rotation-only ties up to the next ("matches"): each part is tested against
     the loop hypotheses and the other parts, so the ties after a wrong correction no longer
     outvote a right loop closure. Off; see docs/RESULTS.md (SPLIT32)."""
+    loop_gate_parts: Literal["off", "corrections", "matches"] = "off"
+    """A loop hypothesis that fails the chi2(5) gate is weighed against the map's parts
+    whose plane ties it contradicts (split as ``loop_map_parts`` splits the clique's node):
+    the graph without the hypothesis and, per such part, without the part's ties but with
+    the hypothesis (eligible when the hypothesis then passes the gate) are solved, and the
+    one of least robust chi2 per degree of freedom is kept (:mod:`planodom.smoothing.
+    loop_gate_parts`); with ``loop_gate_removes`` "factor" the gate is as "off". Off: on
+    2D-rig world 32 at 2 cm it removes a large right part on that part's own misfit (the
+    plane covariances too small) and lets aliased loop hypotheses in; see docs/RESULTS.md
+    (W32C)."""
     loop_gate_removes: Literal["hypothesis", "factor"] = "hypothesis"
     """The chi2(5) gate removes a failing loop factor alone or with its hypothesis. "factor":
     on the ten laps world 12 at 2 cm 0.0357 -> 0.0359 m, no other change; with ``moved``

@@ -17,12 +17,8 @@ from planodom.smoothing.graph import GraphBuilder, GraphStats
 from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.linear_solve import solve as solve_linear
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
-from planodom.smoothing.loop_gate import (
-    consistent_hypotheses,
-    gate_loop_factors,
-    loop_start,
-    test_hypotheses,
-)
+from planodom.smoothing.loop_gate import consistent_hypotheses, loop_start, test_hypotheses
+from planodom.smoothing.loop_gate_parts import gate_loops
 from planodom.smoothing.loop_records import (
     LoopFactor,
     LoopMatch,
@@ -227,7 +223,7 @@ def _gated(
     for _ in range(4 if getattr(builder, "loop_factors", None) else 3):
         # loop factors first: the Gaussian start lets a wrong hypothesis pull the
         # estimate, and re-identifications would fail by its pull
-        removed = gate_loop_factors(builder, graph, gaussian, estimate)
+        removed = gate_loops(builder, graph, gaussian, values, estimate)
         removed = removed or test_hypotheses(builder, graph, gaussian, values, estimate)
         if not removed and not gate_reidentifications(builder, graph, gaussian, estimate):
             break
