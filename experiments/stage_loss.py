@@ -165,8 +165,9 @@ def main() -> None:
     rows = [stage(sim, k, config, args.deskew, oracle) for k in sorted(steps)]
     for r in rows:
         rules = ", ".join(f"{n} {w}" for w, n in r["rules"].most_common())
-        print(f"{r['step']:4d} {r['stage']:18s} {r['status']:10s} lda {r['lda']:3d} planes/"
-              f"surfaces {r['prev']:>6s} {r['curr']:>6s} oracle {r['oracle']:10s} {rules}")  # fmt: skip
+        sizes = f"planes/surfaces {r['prev']:>6s} {r['curr']:>6s}"
+        print(f"{r['step']:4d} {r['stage']:18s} {r['status']:10s} lda {r['lda']:3d} {sizes} "
+              f"oracle {r['oracle']:10s} {rules}")  # fmt: skip
     stages = collections.Counter((r["stage"], r["oracle"]) for r in rows)
     print(f"{args.scene} {args.noise}, deskew {args.deskew}, {len(rows)} steps:")
     for (kind, orc), n in sorted(stages.items()):

@@ -19,9 +19,8 @@ class NarrowSeedFields(MergeFields):
     """2D rig: two traces crossing under ``min_cross_angle_deg`` (down to 2 deg) seed a
     plane when its normal is predicted to this (deg), as with
     ``max_seed_normal_error_deg``, but such narrow seeds are taken only after every other
-    seed (L seeds too), on the traces those left (:mod:`planodom.extraction.rig2d.
-    grouping`): every plane the wide seeds give is kept as it is, and a narrow seed never
-    takes a trace from one. In a sharp turn of a corridor the walls lie near 45 deg to
+    seed (L seeds too), on the traces those left (:mod:`.rig2d.grouping`): every plane
+    the wide seeds give is kept as it is, and a narrow seed never takes a trace from one. In a sharp turn of a corridor the walls lie near 45 deg to
     the heading, where each scanner pair of the isoclinal rig draws two long lines
     crossing at 4-9 deg on a wall and no wall is found (the built-in random-indoor at 2
     cm, epochs 490-500, deskewed with the truth: docs/RESULTS.md, INDOOR3); a thousand

@@ -9,7 +9,9 @@ The traces (:mod:`.traces`) are the input.
    within the noise of their centroids, ``floor + 3 sigma sqrt(1 / N_i + 1 / N_j)`` (at
    most the member tolerance), plus the slack of their direction errors. A pair whose
    lines cross at an end of both (an "L") may be two traces of two walls that meet at a
-   corner, ending there: such seeds are tried only after every other seed.
+   corner, ending there: such seeds are tried only after every other seed. With
+   ``narrow_last`` (``extraction.narrow_seed_last_deg``) the narrow seeds (crossing under
+   ``min_cross_angle_deg``) are tried after those, on the traces left.
    Traces of one ring never seed: they are parallel or lie in one scan plane.
 2. Growth. Seeds are taken greedily, the one whose plane gathers the most points first;
    every available trace whose RMS distance to the plane and whose end points lie within
