@@ -131,8 +131,8 @@ def detail(sim, k: int, config: PlanodomConfig) -> None:  # noqa: ANN001
             for j in own[a + 1 :]:
                 if tr.ring[i] == tr.ring[j]:
                     continue
-                ang = np.degrees(np.arcsin(min(1.0, np.linalg.norm(
-                    np.cross(tr.direction[i], tr.direction[j])))))  # fmt: skip
+                sin_a = float(np.linalg.norm(np.cross(tr.direction[i], tr.direction[j])))
+                ang = np.degrees(np.arcsin(min(1.0, sin_a)))
                 ends = [tr.centroid[t] + tr.direction[t] * np.array([[tr.lo[t]], [tr.hi[t]]])
                         for t in (i, j)]  # fmt: skip
                 gap = connect.segment_distance(ends[0][0], ends[0][1], ends[1][0], ends[1][1])
