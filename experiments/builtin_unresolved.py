@@ -143,9 +143,9 @@ def missed_rules(sim, k: int, config: PlanodomConfig) -> collections.Counter:  #
     return tally
 
 
-def rule_of(captured: dict, labels: np.ndarray, missing: list[int]) -> list[str]:
-    """The grouping's rule that drops each surface of ``missing`` (module docstring), from
-    the segments and parameters the extraction grouped with (``captured``)."""
+def labelled_traces(captured: dict, labels: np.ndarray):  # noqa: ANN201
+    """The traces the grouping built from the ``captured`` segments (:func:`missed_rules`)
+    and, per trace, its majority truth label: ``(TraceSet, label (T,), params)``."""
     segs, p = captured["segs"], captured["params"]
     parallel_deg, step = captured["args"][:2]
     S = len(segs)
@@ -165,7 +165,14 @@ def rule_of(captured: dict, labels: np.ndarray, missing: list[int]) -> list[str]
     label = np.array([np.bincount(np.concatenate([lab[segs.starts[s] : segs.ends[s]]
                       for s in np.flatnonzero(trace_of == t)]) + 1).argmax() - 1
                       for t in range(len(count))])  # fmt: skip
-    count = count.astype(float)
+    return tr, label, p
+
+
+def rule_of(captured: dict, labels: np.ndarray, missing: list[int]) -> list[str]:
+    """The grouping's rule that drops each surface of ``missing`` (module docstring), from
+    the segments and parameters the extraction grouped with (``captured``)."""
+    tr, label, p = labelled_traces(captured, labels)
+    ring, count = tr.ring, tr.count.astype(float)
     seeds = grouping._seed_pairs(tr, p, count, count >= p.min_trace_points)
     member = grouping._membership(tr, p, count, count >= p.min_trace_points, seeds)
     out = []

@@ -9,7 +9,9 @@ The traces (:mod:`.traces`) are the input.
    within the noise of their centroids, ``floor + 3 sigma sqrt(1 / N_i + 1 / N_j)`` (at
    most the member tolerance), plus the slack of their direction errors. A pair whose
    lines cross at an end of both (an "L") may be two traces of two walls that meet at a
-   corner, ending there: such seeds are tried only after every other seed.
+   corner, ending there: such seeds are tried only after every other seed. With
+   ``narrow_last`` (``extraction.narrow_seed_last_deg``) the narrow seeds (crossing under
+   ``min_cross_angle_deg``) are tried after those, on the traces left.
    Traces of one ring never seed: they are parallel or lie in one scan plane.
 2. Growth. Seeds are taken greedily, the one whose plane gathers the most points first;
    every available trace whose RMS distance to the plane and whose end points lie within
@@ -75,6 +77,9 @@ class GroupingParams(NamedTuple):
             they are coplanar within their own noise (``extraction.seed_spans_gap``).
         exclusive_seeds: of two seeds sharing a trace on different planes, the worse
             fit waits (:mod:`.seedconflicts`, ``extraction.exclusive_seeds``).
+        narrow_last: narrow seeds (crossing under ``sin_min_cross``) are taken after
+            every other seed, L seeds too, on the traces left
+            (``extraction.narrow_seed_last_deg``).
     """
 
     tol_m: float
@@ -94,6 +99,7 @@ class GroupingParams(NamedTuple):
     parallel_rad: float = 0.0
     seed_spans_gap: bool = False
     exclusive_seeds: bool = False
+    narrow_last: bool = False
 
 
 class _Seeds(NamedTuple):
@@ -301,6 +307,15 @@ def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - com
 
 
 @numba.njit(cache=True)
+def _narrow(direction, i, j, sin_min_cross):  # pragma: no cover - compiled
+    """Whether traces ``i`` and ``j`` cross under the seeds' smallest angle (a narrow
+    seed, admitted by its predicted normal error)."""
+    a, b = direction[i], direction[j]
+    n0, n1, n2 = a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+    return np.sqrt(n0 * n0 + n1 * n1 + n2 * n2) < sin_min_cross
+
+
+@numba.njit(cache=True)
 def _grow_kernel(tr, p):  # pragma: no cover - compiled
     """Seeds, membership and greedy growth (module docstring); then, with
     ``min_sweep_lines`` (deskewed points only), the same on the traces left, seeded by
@@ -340,10 +355,17 @@ def _greedy(tr, p, count, big, seeds, available, group, n_groups, rejected, one_
     # L seeds come last: the traces of a wall that meets another at a corner are taken
     # by the walls' own crossing pairs first, and the L dies with them. An L that is
     # left is two traces of one wall meeting at its edge (or an unresolved corner).
+    # With ``narrow_last`` narrow seeds come after the L seeds: the default's planes are
+    # taken first, whole, and narrow seeds group only the traces they leave.
     tier = np.empty(P)
     scores = np.empty(P)
+    step = 2.0 * weight_sum + 1.0  # a tier above every score of the tiers below
     for s in range(P):
-        tier[s] = 0.0 if seeds.is_l[s] else 2.0 * weight_sum + 1.0
+        tier[s] = 0.0 if seeds.is_l[s] else step
+        if p.narrow_last and not one_ring:  # narrow seeds after all others (docstring)
+            tier[s] = (
+                0.0 if _narrow(tr.direction, iu[s], ju[s], p.sin_min_cross) else tier[s] + step
+            )
         sc = 0.0
         for t in range(T):
             if member[s, t] and available[t]:

@@ -69,11 +69,14 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         gap_m=float(config.plane_gap_m),
         gap_ratio=float(config.gap_range_ratio),
         max_span_s=float(span),
-        max_seed_normal_err_rad=float(radians(config.max_seed_normal_error_deg)),
+        max_seed_normal_err_rad=float(
+            radians(max(config.max_seed_normal_error_deg, config.narrow_seed_last_deg))
+        ),
         min_sweep_lines=int(config.single_scanner_min_sweeps),
         parallel_rad=float(radians(config.trace_parallel_deg)),
         seed_spans_gap=bool(config.seed_spans_gap),
         exclusive_seeds=bool(config.exclusive_seeds),
+        narrow_last=config.narrow_seed_last_deg > 0,
     )
     groups, n_lost = group_segments(
         segs, params, config.trace_parallel_deg, config.trace_step_m, seg_times
