@@ -99,6 +99,7 @@ def main() -> None:
     tally: dict[str, int] = {}
     for k in range(max(a, 1), b + 1):
         r, m = odo.results[k], moments[k]
+        assert r is not None  # only the first epoch has no result
         own = {p.truth_id for p in odo.planes[k]}
         ref = {p.truth_id for p in odo.planes[r.prev]}
         true_step = invert_transform(sim.poses[k - 1]) @ sim.poses[k]
