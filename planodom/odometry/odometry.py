@@ -23,10 +23,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, invert_transform, orthonormalised, twist_step
+from planodom.geometry import Plane, orthonormalised, twist_step
 from planodom.odometry.bridge_robust import rate_variance
 from planodom.odometry.bridge_trend import bridge, bridge_twist
 from planodom.odometry.centred_twist import centring
+from planodom.odometry.chain import inverse_chain
 from planodom.odometry.deskew import (
     EpochEstimate,
     centred_times,
@@ -63,15 +64,6 @@ from planodom.scan import Scan, check_is_scan
 
 if TYPE_CHECKING:
     from planodom.odometry.planemap import PlaneMapOdometry
-
-#: ``invert_transform(np.eye(4))`` (its -0.0 included), once: a reference one epoch back
-_EYE_INVERTED = invert_transform(np.eye(4))
-_EYE_INVERTED.flags.writeable = False
-
-
-def _inverse_chain(T_ref_last: np.ndarray, steps: list[np.ndarray]) -> np.ndarray:
-    """``invert_transform(T_ref_last)`` of the product of ``steps`` (identity: none)."""
-    return invert_transform(T_ref_last) if steps else _EYE_INVERTED
 
 
 class PlaneOdometry:
@@ -302,7 +294,7 @@ class PlaneOdometry:
         T_ref_last, steps = np.eye(4), self._steps[reference.index + 1 :]  # T_{ref}_{k-1}
         for step in steps:
             T_ref_last = T_ref_last @ step
-        T_last_ref = _inverse_chain(T_ref_last, steps)
+        T_last_ref = inverse_chain(T_ref_last, steps)
         dt = t - self.times[-1]
         prediction = None  # constant velocity: T_{ref}_k
         if self.twist is not None and dt > 0 and epoch.index not in self._gaps:

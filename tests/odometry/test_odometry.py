@@ -466,15 +466,3 @@ def test_status_ranks_once():
     assert [s.rank for s in Status] == [0, 1, 2]
     assert Status.UNRESOLVED.rank < Status.DEGENERATE.rank < Status.OK.rank
     assert Status("ok") is Status.OK and f"{Status.DEGENERATE}" == "degenerate"
-
-
-def test_the_inverse_of_no_steps_is_invert_transforms_of_the_identity():
-    """The constant a reference one epoch back uses: invert_transform's bytes (its -0.0
-    translation included); with steps, invert_transform of their product."""
-    from planodom.odometry.odometry import _inverse_chain
-
-    eye = np.eye(4)
-    assert _inverse_chain(eye, []).tobytes() == invert_transform(eye).tobytes()
-    T = transform_from_rpy_xyz(0.1, -0.05, 0.3, 1.0, -2.0, 0.5)
-    assert _inverse_chain(T, [T]).tobytes() == invert_transform(T).tobytes()
-    np.testing.assert_allclose(_inverse_chain(T, [T]) @ T, eye, atol=1e-15)
