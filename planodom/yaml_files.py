@@ -6,6 +6,7 @@ a Ctrl-C still prints Python's traceback): PyYAML takes a tenth of a second to i
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,15 @@ def yaml_problem(exc: Exception) -> str:
 
 class _UniqueKeyLoader(yaml.SafeLoader):
     """PyYAML's safe loader, refusing a key given twice in one mapping (PyYAML keeps the
-    last silently: ``range_noise_m`` set twice in a config took the second, unnoticed)."""
+    last silently: ``range_noise_m`` set twice in a config took the second, unnoticed),
+    with YAML 1.2's booleans: only true / false. YAML 1.1's ``off``, ``on``, ``yes``,
+    ``no`` stay strings, so ``split_reference: off`` is the option's "off", not False
+    (the config's bool fields still read those strings as booleans)."""
+
+    yaml_implicit_resolvers = {
+        first: [(tag, regexp) for tag, regexp in resolvers if tag != "tag:yaml.org,2002:bool"]
+        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+    }
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
         seen: set = set()
@@ -43,6 +52,11 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                 )
             seen.add(key)
         return super().construct_mapping(node, deep=deep)
+
+
+_UniqueKeyLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF")
+)
 
 
 def read_yaml_file(path: Path, what: str, error: type[PlanodomError]) -> Any:

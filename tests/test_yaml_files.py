@@ -36,3 +36,21 @@ def test_merge_keys_and_equal_keys_in_different_mappings_stay_valid(tmp_path: Pa
         "b": {"k": 3, "j": 2},
         "c": {"k": 4},
     }
+
+
+def test_yaml_1_2_booleans_keep_off_and_on_as_strings(tmp_path: Path) -> None:
+    """``off`` / ``on`` / ``yes`` / ``no`` are strings (YAML 1.2), ``true`` / ``false`` are
+    booleans; PyYAML's own safe loader (YAML 1.1) reads ``off`` as False."""
+    path = tmp_path / "values.yaml"
+    path.write_text("a: off\nb: on\nc: yes\nd: no\ne: true\nf: False\ng: offset\n")
+    got = read_yaml_file(path, "test", ConfigError)
+    assert got == {"a": "off", "b": "on", "c": "yes", "d": "no", "e": True, "f": False,
+                   "g": "offset"}  # fmt: skip
+
+
+def test_an_unquoted_off_is_an_options_off_and_a_bools_false(tmp_path: Path) -> None:
+    path = tmp_path / "config.yaml"
+    path.write_text("odometry:\n  split_reference: off\n  estimate_z: off\n  deskew: no\n")
+    cfg = PlanodomConfig.from_yaml(path)
+    assert cfg.odometry.split_reference == "off"
+    assert cfg.odometry.estimate_z is False and cfg.odometry.deskew is False
