@@ -34,8 +34,10 @@ from __future__ import annotations
 
 import argparse
 import collections
+import contextlib
 import dataclasses
 import sys
+from collections.abc import Iterator
 
 import numpy as np
 from builtin_scenes import SCENES, config_with, simulated
@@ -119,8 +121,10 @@ def classify(run, log, sim, config: PlanodomConfig, oracle) -> list[dict]:  # no
     return rows
 
 
-def missed_rules(sim, k: int, config: PlanodomConfig) -> collections.Counter:  # noqa: ANN001
-    """Per rule, the oracle's planes of epoch ``k`` the exact extraction misses (``--why``)."""
+@contextlib.contextmanager
+def captured_grouping() -> Iterator[dict]:
+    """Within the block, every call of the 2D rig's ``path.group_segments`` records its
+    ``segs``, ``params`` and further ``args`` in the dict yielded (the last call's)."""
     captured: dict = {}
     original = path.group_segments
 
@@ -130,9 +134,15 @@ def missed_rules(sim, k: int, config: PlanodomConfig) -> collections.Counter:  #
 
     path.group_segments = capture
     try:
-        found, exact = exact_planes(sim, k, config)
+        yield captured
     finally:
         path.group_segments = original
+
+
+def missed_rules(sim, k: int, config: PlanodomConfig) -> collections.Counter:  # noqa: ANN001
+    """Per rule, the oracle's planes of epoch ``k`` the exact extraction misses (``--why``)."""
+    with captured_grouping() as captured:
+        found, exact = exact_planes(sim, k, config)
     got = {p.truth_id for p in found.planes}
     m = epoch_moments(sim.scans[k], sim.trajectory, float(sim.times[k]), sim.scene)
     want = [int(i) for i, c in zip(m.ids, m.count, strict=True) if c >= MIN_SURFACE_POINTS]

@@ -32,13 +32,19 @@ import dataclasses
 
 import numpy as np
 from builtin_scenes import config_with, simulated
-from builtin_unresolved import MIN_SURFACE_POINTS, has_pair, labelled_traces, missed_rules
+from builtin_unresolved import (
+    MIN_SURFACE_POINTS,
+    captured_grouping,
+    has_pair,
+    labelled_traces,
+    missed_rules,
+)
 from turn_lag import centre_twist
 
 from planodom.angles import radians
 from planodom.config import PlanodomConfig
 from planodom.extraction.pipeline import extract
-from planodom.extraction.rig2d import connect, path
+from planodom.extraction.rig2d import connect
 from planodom.geometry import invert_transform
 from planodom.odometry import run_odometry
 from planodom.odometry.solver import estimate_relative_pose
@@ -99,21 +105,11 @@ def detail(sim, k: int, config: PlanodomConfig) -> None:  # noqa: ANN001
     ``MIN_SURFACE_POINTS`` points) whether it was found, its normal's z, and its traces
     (ring, points, length m, range m of the centroid); per pair of its traces of two rings
     their crossing angle (deg) and the distance between their centre lines (m)."""
-    captured: dict = {}
-    original = path.group_segments
-
-    def capture(segs, params, *args):  # noqa: ANN001, ANN002, ANN202
-        captured.update(segs=segs, params=params, args=args)
-        return original(segs, params, *args)
-
-    path.group_segments = capture
-    try:
+    with captured_grouping() as captured:
         scan = sim.scans[k]
         moved = dataclasses.replace(scan, points=deskewed_points(scan, sim.trajectory,
                                                                  float(sim.times[k])))  # fmt: skip
         found = extract(moved, config.extraction, np.zeros(6), sim.rig.sensor_origins)
-    finally:
-        path.group_segments = original
     got = {p.truth_id for p in found.planes}
     tr, label, p = labelled_traces(captured, moved.label)
     print(f"epoch {k}: sigma {p.sigma_m * 100:.2f} cm, tol {p.tol_m * 100:.2f} cm, rms limit "
