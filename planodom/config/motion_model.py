@@ -80,6 +80,16 @@ class MotionModelConfig(Section):
     (measured far less well by one step); ``yaw_split``: the yaw rate of an extraction
     that splits a wall only; ``off``: as it is (docs/RESULTS.md, TURNLAG)."""
 
+    turn_trend_retry: bool = False
+    """Streaming, pairwise pipelines (the 2D rig's): when the epoch deskewed with the
+    prediction (the last step's rate, 1.5 epochs before its points) is suspect (not OK, or
+    far fewer planes than the epoch before), it is tried first, before without deskewing,
+    with the yaw rate along the trend of the recent measured rates extrapolated to its
+    points' mean time, where that differs from the prediction's by more than
+    ``deskew_rate_tolerance_deg_s``; kept when it ranks higher (``deskew_rank``)
+    (:mod:`planodom.odometry.turn_trend`; a turn that tightens, the 2D-rig world 244 at 6
+    mm: 3.8 deg/s predicted low, its epoch degenerate; docs/RESULTS.md, TURN244)."""
+
     bridge_trend_epochs: Annotated[int, Field(ge=1, le=20)] = 3
     """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
     may run; further bridged epochs keep the rate it reached there."""

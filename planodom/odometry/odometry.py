@@ -56,6 +56,7 @@ from planodom.odometry.split_reference import split_reference
 from planodom.odometry.start_epochs import StartEpochs
 from planodom.odometry.surfaces import fragment_count, ranking
 from planodom.odometry.trend import map_lead, map_trend, pairwise_trend, predicted_twist
+from planodom.odometry.turn_trend import turn_trend
 from planodom.odometry.twist_refine import significant_twist
 from planodom.odometry.twist_sigma import TwistSigma, TwistUncertainty, widened_if_lost
 from planodom.odometry.vertical_offset import step_twist_offset
@@ -196,7 +197,8 @@ class PlaneOdometry:
             twist = None if unresolved else self._rate.deskewing(self.twist)
             ocfg = epoch_deskew_config(ocfg, k in self._gaps, self._map is None)
             against_map = self._map is not None and self.twist is not None
-            trend = map_trend(self._recent, ocfg, pm.prediction) if against_map else None
+            trend = (map_trend(self._recent, ocfg, pm.prediction) if against_map
+                     else turn_trend(rates, k, scan.t, dt, twist, ocfg))  # fmt: skip
             middle = self.config.planemap.reference_time == "middle" and centred_times(scan)
             pairwise, middle = self._map is None, middle and self._map is not None
             damped = against_map and not middle  # see centred_times
