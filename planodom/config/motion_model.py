@@ -90,6 +90,12 @@ class MotionModelConfig(Section):
     (:mod:`planodom.odometry.turn_trend`; a turn that tightens, the 2D-rig world 244 at 6
     mm: 3.8 deg/s predicted low, its epoch degenerate; docs/RESULTS.md, TURN244)."""
 
+    turn_trend_rates: Annotated[int, Field(ge=3, le=20)] = 3
+    """With ``turn_trend_retry``: over how many of the last measured rates the trend is
+    fitted (at most ``velocity_window`` are kept). A turn that tightens ever faster (the
+    2D-rig world 244: 1.6, 1.7, 2.0, 2.2 deg/s more each epoch) is followed by a short
+    line; a longer one averages more noise."""
+
     bridge_trend_epochs: Annotated[int, Field(ge=1, le=20)] = 3
     """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
     may run; further bridged epochs keep the rate it reached there."""

@@ -29,9 +29,6 @@ import numpy as np
 from planodom.config import OdometryConfig
 from planodom.odometry.trend import trend_twist
 
-#: the fewest recent rates a trend is fitted to (a slope and its residual variance)
-MIN_RATES = 4
-
 
 def turn_trend(
     rates: Sequence[tuple[int, np.ndarray]],
@@ -45,8 +42,8 @@ def turn_trend(
     ``predicted`` (6,) (rad/s, m/s) with its yaw rate replaced by the trend of the
     ``rates`` (epoch, own twist (6,)) extrapolated to the epoch's points' mean time; None
     when off, without a prediction, ``times`` (the points' times, seconds after the epoch
-    time) or ``dt`` (seconds since the previous epoch), with fewer than :data:`MIN_RATES`
-    rates, the last not the previous epoch's, or a trend within the deskewing tolerance
+    time) or ``dt`` (seconds since the previous epoch), with fewer than ``turn_trend_rates``
+    rates (the trend is fitted to the last so many), the last not the previous epoch's, or a trend within the deskewing tolerance
     of the prediction.
 
     An own rate ``j`` is the mean over the step into epoch ``j``, centred at ``j - 1/2`` in
@@ -54,8 +51,9 @@ def turn_trend(
     ``k + 1/2 + tm / dt`` in the rates' own numbering."""
     if not config.turn_trend_retry or predicted is None or times is None or not len(times):
         return None
-    if dt <= 0 or len(rates) < MIN_RATES or rates[-1][0] != k - 1:
+    if dt <= 0 or len(rates) < config.turn_trend_rates or rates[-1][0] != k - 1:
         return None
+    rates = list(rates)[-config.turn_trend_rates :]
     x = np.array([j for j, _ in rates], dtype=np.float64)
     at = k + 0.5 + float(np.mean(times)) / dt
     yaw = float(trend_twist(np.array([tw for _, tw in rates]), x, at)[2])
