@@ -42,9 +42,9 @@ def turn_trend(
     ``predicted`` (6,) (rad/s, m/s) with its yaw rate replaced by the trend of the
     ``rates`` (epoch, own twist (6,)) extrapolated to the epoch's points' mean time; None
     when off, without a prediction, ``times`` (the points' times, seconds after the epoch
-    time) or ``dt`` (seconds since the previous epoch), with fewer than ``turn_trend_rates``
-    rates (the trend is fitted to the last so many), the last not the previous epoch's, or a trend within the deskewing tolerance
-    of the prediction.
+    time) or ``dt`` (seconds since the previous epoch), with fewer than
+    ``turn_trend_rates`` rates (the trend is fitted to the last so many), the last not the
+    previous epoch's, or a trend within the deskewing tolerance of the prediction.
 
     An own rate ``j`` is the mean over the step into epoch ``j``, centred at ``j - 1/2`` in
     epochs; the points' mean time ``tm`` lies at ``k + tm / dt``, so the trend is taken at

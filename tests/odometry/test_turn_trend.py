@@ -1,4 +1,4 @@
-"""The yaw rate along its trend to a suspect epoch's points (:mod:`planodom.odometry.turn_trend`)."""
+"""The yaw rate along its trend to a suspect epoch's points (:mod:`.odometry.turn_trend`)."""
 
 from __future__ import annotations
 
@@ -30,10 +30,16 @@ def test_a_steady_tightening_is_extrapolated_to_the_points_mean_time():
     w0, a, k = 0.3, 0.6, 36  # rad/s, rad/s^2: 6.9 deg/s an epoch
     times = np.array([0.0, 0.09, 0.18])  # mean 0.09 s after the epoch time
     predicted = np.r_[0.02, 0.01, w0 + a * (k - 1.5) * DT, 4.0, 0.1, 0.0]  # the last step's
-    out = turn_trend(_rates(w0, a, range(31, 36)), k, times, DT, predicted, ON)
+    for cfg in (ON, OdometryConfig(turn_trend_retry=True, turn_trend_rates=5)):
+        out = turn_trend(_rates(w0, a, range(31, 36)), k, times, DT, predicted, cfg)
+        assert out is not None
+        np.testing.assert_allclose(out[2], w0 + a * (k * DT + 0.09))  # the rate at the points
+        np.testing.assert_array_equal(np.delete(out, 2), np.delete(predicted, 2))  # the rest
+    # the last three only: a trend that changed before them is not followed
+    bent = _rates(w0, -a, range(28, 33)) + _rates(w0 - 2 * a * 32.5 * DT, a, range(33, 36))
+    out = turn_trend(bent, k, times, DT, predicted, ON)
     assert out is not None
-    np.testing.assert_allclose(out[2], w0 + a * (k * DT + 0.09))  # the rate at the points
-    np.testing.assert_array_equal(np.delete(out, 2), np.delete(predicted, 2))  # the rest
+    np.testing.assert_allclose(out[2], w0 - 2 * a * 32.5 * DT + a * (k * DT + 0.09))
 
 
 def test_nothing_is_tried_when_off_short_stale_or_within_the_tolerance():
@@ -45,8 +51,10 @@ def test_nothing_is_tried_when_off_short_stale_or_within_the_tolerance():
     assert turn_trend(rates, k, None, DT, predicted, ON) is None
     assert turn_trend(rates, k, np.array([]), DT, predicted, ON) is None
     assert turn_trend(rates, k, times, 0.0, predicted, ON) is None
-    assert turn_trend(rates[1:], k, times, DT, predicted, ON) is not None  # four are enough
-    assert turn_trend(rates[2:], k, times, DT, predicted, ON) is None  # three are not
+    assert turn_trend(rates[2:], k, times, DT, predicted, ON) is not None  # three are enough
+    assert turn_trend(rates[3:], k, times, DT, predicted, ON) is None  # two are not
+    four = OdometryConfig(turn_trend_retry=True, turn_trend_rates=4)
+    assert turn_trend(rates[2:], k, times, DT, predicted, four) is None
     assert turn_trend(rates[:-1], k, times, DT, predicted, ON) is None  # 35 not measured
     steady = _rates(0.3, 0.0, range(31, 36))  # a steady turn: the trend is the prediction
     assert turn_trend(steady, k, times, DT, steady[-1][1], ON) is None
@@ -71,7 +79,7 @@ def test_the_trend_is_tried_before_none_only_for_a_suspect_epoch_and_kept_when_b
     for first, tried in ((Status.OK, 1), (Status.DEGENERATE, 3)):
         calls: list[np.ndarray | None] = []
 
-        def estimate(twist, source=None, first=first):  # noqa: ANN001, ANN202
+        def estimate(twist, source=None, first=first, calls=calls):  # noqa: ANN001, ANN202
             calls.append(twist)
             if twist is None:
                 return _estimate(Status.DEGENERATE, 2, None)
@@ -92,10 +100,11 @@ def _twist(world, a: float, b: float) -> np.ndarray:  # noqa: ANN001
 
 def test_world_244s_tightening_turn_keeps_its_surfaces_with_the_trend():
     """The 2D-rig world 244 (10 Hz) tightens a left turn by about 2.5 deg/s an epoch at
-    epochs 31-38. The prediction for epoch 36, the true rate of the step into 35, lags
-    the twist over 36's points by more than 4 deg/s and loses surfaces; the trend of the
-    true steps into 31-35 extrapolated to the points' mean time is within 0.5 deg/s of it
-    and keeps each true surface the true twist over the points gives."""
+    epochs 31-38, ever faster. The prediction for epoch 36, the true rate of the step into
+    35, lags the twist over 36's points by 5 deg/s and keeps 2 of the 5 true surfaces the
+    true twist over the points gives (sigma 0); the trend of the true steps into 33-35
+    extrapolated to the points' mean time is 1.0 deg/s low (a line through a rate whose
+    change grows) and keeps 4 of them, none split."""
     world, k = world_for(244), 36
     dt = 1.0 / world.epoch_rate
     sim = simulate(world.scene, world.trajectory, world.sensor_rig, n_epochs=1,
@@ -107,8 +116,7 @@ def test_world_244s_tightening_turn_keeps_its_surfaces_with_the_trend():
     led = turn_trend(rates, k, scan.t, dt, predicted, ON)
     assert led is not None
     assert np.degrees(truth[2] - predicted[2]) > 4.0  # the lag
-    print(np.degrees([truth[2], predicted[2], led[2]]), np.mean(scan.t), np.ptp(scan.t))
-    assert abs(np.degrees(led[2] - truth[2])) < 5.5
+    assert abs(np.degrees(led[2] - truth[2])) < 1.1
 
     def surfaces(twist: np.ndarray) -> list[int]:
         planes = extract_planes(scan, PlanodomConfig().extraction, twist=twist,
@@ -116,7 +124,7 @@ def test_world_244s_tightening_turn_keeps_its_surfaces_with_the_trend():
         return [p.truth_id for p in planes]
 
     exact, lagging, trended = surfaces(truth), surfaces(predicted), surfaces(led)
-    print(np.degrees([truth[2], predicted[2], led[2]]), exact, lagging, trended)
     assert len(exact) == len(set(exact)) >= 4
     assert len(set(lagging)) < len(lagging) or set(lagging) < set(exact)  # split or lost
-    assert sorted(trended) == sorted(exact)
+    assert len(trended) == len(set(trended)) and set(trended) <= set(exact)
+    assert len(trended) >= len(set(lagging)) + 2
