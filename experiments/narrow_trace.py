@@ -18,6 +18,7 @@ ATE's growth comes from. ``--steps`` prints those steps' rows.
 
     uv run python experiments/narrow_trace.py --scene paper-loop --noise 0.02
     uv run python experiments/narrow_trace.py --scene paper-loop --noise 0 --steps
+    uv run python experiments/narrow_trace.py --world 284 --noise 0.02 --steps
 """
 
 from __future__ import annotations
@@ -106,6 +107,19 @@ def simulated_seed(scene: str, noise: str, seed: int):  # noqa: ANN201
     return sim, invert_transform(sim.poses[0])[None] @ sim.poses
 
 
+def generalisation_world(index: int, noise: float, epochs: int = 150):  # noqa: ANN201
+    """World ``index`` of ``planodom experiment generalisation`` (its first ``epochs``),
+    its truth, and a function running planodom's odometry on it as the experiment does."""
+    from planodom.experiments.generalisation import declared_sweep, world_for
+    from planodom.simulation.random_world import simulate_world, world_fields
+
+    world = world_for(index)
+    full = simulate_world(world, noise, n_epochs=epochs, all_fields=True)
+    run = world_fields(world, full)
+    gt = invert_transform(full.poses[0])[None] @ full.poses
+    return full, gt, lambda c: run_odometry(run, declared_sweep(world, c))
+
+
 def chained(steps: np.ndarray) -> np.ndarray:
     """(E, 4, 4) poses from the first (identity) chained through ``steps`` (E-1, 4, 4)."""
     out = [np.eye(4)]
@@ -153,11 +167,17 @@ def main() -> None:
     parser.add_argument("--variant", nargs="*", default=["extraction.narrow_seed_last_deg=0.5"])
     parser.add_argument("--steps", action="store_true", help="rows of the steps involved")
     parser.add_argument("--seed", type=int, default=0, help="the simulation's noise seed")
+    parser.add_argument("--world", type=int, default=-1,
+                        help="a generalisation world instead of --scene (150 epochs)")  # fmt: skip
     parser.add_argument("--save", default="", help="npz of both runs' poses and the truth")
     args = parser.parse_args()
-    sim, gt = simulated_seed(args.scene, args.noise, args.seed)
-    base = run_odometry(sim, config_with(args.set), sim.rig)
-    var = run_odometry(sim, config_with(args.set + args.variant), sim.rig)
+    if args.world >= 0:
+        sim, gt, run_of = generalisation_world(args.world, float(args.noise))
+    else:
+        sim, gt = simulated_seed(args.scene, args.noise, args.seed)
+        run_of = lambda c: run_odometry(sim, c, sim.rig)  # noqa: E731
+    base = run_of(config_with(args.set))
+    var = run_of(config_with(args.set + args.variant))
     for name, run in (("base", base), ("variant", var)):
         print(f"{name}: ATE xy {ate(run.poses, gt, 'origin', xy_only=True)['rmse']:.4f} m, "
               f"3-D {ate(run.poses, gt, 'origin')['rmse']:.4f} m, unresolved "
