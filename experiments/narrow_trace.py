@@ -216,6 +216,14 @@ def main() -> None:
               f"-> {np.sum(rot_b[mask] ** 2):.5f} deg^2; mean xy {np.mean(xy_a[mask]):.3f} "
               f"-> {np.mean(xy_b[mask]):.3f} cm")  # fmt: skip
     print_hybrids(base.poses, var.poses, gt, involved)
+    worst = np.argsort(-np.abs(xy_b - xy_a))[:8]
+    print("steps changed most (xy cm, rotation deg, statuses, planes of both epochs):")
+    for s in sorted(worst.tolist()):
+        print(f"  {s}->{s + 1}: xy {xy_a[s]:.3f} -> {xy_b[s]:.3f}, rot {rot_a[s]:.4f} -> "
+              f"{rot_b[s]:.4f}, {base.statuses[s + 1]} -> {var.statuses[s + 1]}, planes "
+              f"{len(base.planes[s])}/{len(base.planes[s + 1])} -> "
+              f"{len(var.planes[s])}/{len(var.planes[s + 1])}"
+              f"{' (gained)' if involved[s] else ''}")  # fmt: skip
     if args.save:
         np.savez(args.save, base=base.poses, variant=var.poses, gt=gt, involved=involved)
     if args.steps:
