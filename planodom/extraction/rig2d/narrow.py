@@ -9,10 +9,13 @@ deskewing's residue along a line), which that angle amplifies alike. The odometr
 keep such planes out of the rotation where pairs of other planes give it
 (``odometry.narrow_rotation``, :mod:`planodom.odometry.rotation_planes`).
 
-A group is narrow when none of its segments of two different rings whose predicted
-direction errors are within the seeds' bar (``max_seed_direction_error_deg``, as the
-seeds') cross at ``sin_min_cross`` or more: a group grown from a wide seed holds that
-seed's two traces, whose segments cross as they do.
+A group is narrow when the directions of its rings' lines, each ring's pooled over its
+segments (the principal axis of the sum of the segments' own centred scatters: the lines'
+common direction, whatever their displacement across each other between sweeps), cross
+under ``sin_min_cross`` for every two rings. A group grown from a wide seed holds that
+seed's two traces, of two rings whose lines cross as they do. (A first version judged
+single segments within the seeds' direction-error bar; a short ground plane of a wide
+seed, 44 points, then passed for narrow: world 284 at 2 cm, docs/RESULTS.md, NARROW4.)
 """
 
 from __future__ import annotations
@@ -20,26 +23,20 @@ from __future__ import annotations
 import numpy as np
 
 from planodom.extraction.rig2d.segments import Segments
-from planodom.extraction.rig2d.traces import direction_error
 
 
-def narrow_groups(
-    segs: Segments,
-    groups: list[np.ndarray],
-    sigma_m: float,
-    sin_min_cross: float,
-    max_seed_err_rad: float,
-) -> np.ndarray:
-    """(G,) bool: whether each group (segment indices) is narrow (module docstring)."""
+def narrow_groups(segs: Segments, groups: list[np.ndarray], sin_min_cross: float) -> np.ndarray:
+    """(G,) bool: whether each group (segment indices) is narrow (module docstring); a
+    group of one ring's lines is not."""
     out = np.zeros(len(groups), dtype=bool)
-    err = direction_error(sigma_m, segs.count, segs.length)
     for g, members in enumerate(groups):
-        m = members[err[members] <= max_seed_err_rad]
-        if len(m) < 2:
-            out[g] = True
+        rings = np.unique(segs.ring[members])
+        if len(rings) < 2:
             continue
-        d, ring = segs.direction[m], segs.ring[m]
-        sin = np.linalg.norm(np.cross(d[:, None, :], d[None, :, :]), axis=2)
-        other = ring[:, None] != ring[None, :]
-        out[g] = not bool(np.any(other & (sin >= sin_min_cross)))
+        dirs = np.empty((len(rings), 3))
+        for r, ring in enumerate(rings):
+            pooled = segs.scatter[members[segs.ring[members] == ring]].sum(axis=0)
+            dirs[r] = np.linalg.eigh(pooled)[1][:, -1]  # the largest eigenvalue's axis
+        sin = np.linalg.norm(np.cross(dirs[:, None, :], dirs[None, :, :]), axis=2)
+        out[g] = not bool(np.any(sin >= sin_min_cross))
     return out

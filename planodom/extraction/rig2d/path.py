@@ -111,7 +111,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw, allowed)
     narrow = None
     if config.narrow_seed_last_deg > 0:  # which planes the narrow seeds gave (.narrow)
-        narrow = narrow_groups(segs, groups, sigma, params.sin_min_cross, params.max_seed_err_rad)
+        narrow = narrow_groups(segs, groups, params.sin_min_cross)
     planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust, narrow)
     planes = onescanner.widened_planes(planes, inliers, epoch, config)
     return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)
