@@ -50,11 +50,12 @@ from planodom.simulation.random_world import simulate_world, world_fields  # noq
 
 def former_build_planes(
     fits: PlaneFits, epoch: Epoch, sigma_m: float, config: ExtractionConfig,
-    adjust: Adjust | None = None,
+    adjust: Adjust | None = None, narrow: np.ndarray | None = None,
 ) -> tuple[list[Plane], list[np.ndarray], int]:  # fmt: skip
     """:func:`planodom.extraction.planes.builder.build_planes` as it was before SPEED2D7
     (one wrapper and one compiled call per stage), for the default configuration (no
-    deskewing Jacobian, no time moments, ``viewpoint_planes`` not ``rejected``)."""
+    deskewing Jacobian, no time moments, ``viewpoint_planes`` not ``rejected``, no
+    narrow planes: ``narrow`` is not used)."""
     G = len(fits)
     if G == 0:
         return [], [], 0

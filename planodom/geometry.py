@@ -247,6 +247,8 @@ class Plane:
             points were deskewed with a twist off by ``(dw, dv)`` over the epoch's time
             span (rad, m: the motion change over the span), or None when unknown (points
             without times) (:func:`planodom.extraction.planes.fit.deskew_jacobian`).
+        narrow: its scanners' lines cross under ``min_cross_angle_deg`` (2D rig, marked
+            with ``extraction.narrow_seed_last_deg``; :mod:`planodom.extraction.rig2d.narrow`).
     """
 
     normal: np.ndarray
@@ -256,6 +258,7 @@ class Plane:
     support: PlaneSupport | None = None
     truth_id: int = -1
     deskew_jacobian: np.ndarray | None = None
+    narrow: bool = False
 
     def __post_init__(self) -> None:
         n = np.asarray(self.normal, dtype=np.float64).reshape(-1)

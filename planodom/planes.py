@@ -44,6 +44,7 @@ class PlaneSet:
         radii: (K,) largest distance from centroid to support polygon vertex, metres
             (NaN when the polygon is unknown).
         covariances: (K, 4, 4) covariances of ``(n, d)`` (NaN when unknown).
+        narrow: (K,) bool, :attr:`planodom.geometry.Plane.narrow`; None: none is.
     """
 
     normals: np.ndarray
@@ -52,6 +53,7 @@ class PlaneSet:
     centroids: np.ndarray
     radii: np.ndarray
     covariances: np.ndarray
+    narrow: np.ndarray | None = None
 
     @classmethod
     def from_planes(cls, planes: Sequence[Plane]) -> PlaneSet:
@@ -88,7 +90,11 @@ class PlaneSet:
             sizes = np.array([len(q) for q in polygons], dtype=np.int64)
             verts = np.concatenate(polygons).astype(np.float64, copy=False)
             radii[owners] = _radii_kernel(verts, centroids[owners], sizes)
-        return cls(normals, offsets, weights, centroids, radii, covariances)
+        narrow = np.array([p.narrow for p in planes], dtype=bool)
+        return cls(
+            normals, offsets, weights, centroids, radii, covariances,
+            narrow if narrow.any() else None,
+        )  # fmt: skip
 
     def __len__(self) -> int:
         return len(self.offsets)
@@ -104,7 +110,7 @@ class PlaneSet:
         J = plane_transform_jacobian(T_a_b)
         cov = J @ self.covariances @ J.T
         centroids = transform_points(T_a_b, self.centroids)
-        return PlaneSet(n, d, self.weights, centroids, self.radii, cov)
+        return PlaneSet(n, d, self.weights, centroids, self.radii, cov, self.narrow)
 
     def take(self, index: np.ndarray) -> PlaneSet:
         """The planes at ``index`` (int array or mask), in that order."""
@@ -115,6 +121,7 @@ class PlaneSet:
             self.centroids[index],
             self.radii[index],
             self.covariances[index],
+            None if self.narrow is None else self.narrow[index],
         )
 
 

@@ -9,13 +9,18 @@ from __future__ import annotations
 from typing import Literal
 
 from planodom.config.moment_refine import MomentRefineConfig
+from planodom.config.narrow_rotation import NarrowRotationConfig
 from planodom.config.plane_deskew_noise import PlaneDeskewNoiseConfig
 from planodom.config.split_reference import SplitReferenceConfig
 from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
 
 
 class DeskewGuards(
-    MomentRefineConfig, PlaneDeskewNoiseConfig, SplitReferenceConfig, StatedDeskewNoiseConfig
+    MomentRefineConfig,
+    NarrowRotationConfig,
+    PlaneDeskewNoiseConfig,
+    SplitReferenceConfig,
+    StatedDeskewNoiseConfig,
 ):
     """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``), and the motion
     model the prediction assumes (:class:`.motion_model.MotionModelConfig`)."""

@@ -11,6 +11,11 @@ weighted by its covariance). The bar is the extraction's own for a plane's norma
 ``extraction.max_normal_sigma_deg`` (``sqrt(trace Cov(n))``): the fit's planes all pass it,
 so only the widened ones are left out. Off (the option's sigmas 0): the pairs unchanged.
 
+With ``odometry.narrow_rotation: last`` the pairs that hold a narrow plane
+(:attr:`planodom.planes.PlaneSet.narrow`, :mod:`planodom.extraction.rig2d.narrow`) are
+left out the same way, unless no other pair is left: then they give the rotation (a
+corridor's turn, where every wall is narrow).
+
 The deskewing policy (:mod:`planodom.odometry.surfaces`) then ranks an epoch's unresolved
 extractions by how many planes can take part in the rotation (:func:`rotation_planes`)
 before their plane count: on world 178 at 2 cm, every extraction of epoch 94 was unresolved,
@@ -37,11 +42,19 @@ def widened(config: ExtractionConfig) -> bool:
 
 
 def rotation_pairs(
-    prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, config: ExtractionConfig
+    prev: PlaneSet,
+    curr: PlaneSet,
+    lda: PairAssociations,
+    config: ExtractionConfig,
+    narrow_last: bool = False,
 ) -> PairAssociations:
     """The LDA pairs ``lda`` whose four planes' normals are known within
     ``config.max_normal_sigma_deg`` (unknown covariances pass); ``lda`` itself when the
-    one-scanner widening is off or every pair passes (module docstring)."""
+    one-scanner widening is off or every pair passes (module docstring). With
+    ``narrow_last`` (``odometry.narrow_rotation: last``) those of them without a narrow
+    plane (:attr:`PlaneSet.narrow`) when any is left."""
+    if narrow_last and len(lda) and (prev.narrow is not None or curr.narrow is not None):
+        lda = _without_narrow(prev, curr, lda)
     if not widened(config):
         return lda
     if len(lda) == 0:
@@ -50,6 +63,19 @@ def rotation_pairs(
     ok_p, ok_c = _sharp(prev, limit), _sharp(curr, limit)
     keep = ok_p[lda.prev_pairs].all(axis=1) & ok_c[lda.curr_pairs].all(axis=1)
     if keep.all():
+        return lda
+    return PairAssociations(
+        lda.prev_pairs[keep], lda.curr_pairs[keep], lda.rotations[keep], lda.weights[keep]
+    )
+
+
+def _without_narrow(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations) -> PairAssociations:
+    """The pairs of ``lda`` none of whose four planes is narrow, ``lda`` itself when every
+    pair holds one (the narrow planes' pairs are the rotation's last resort)."""
+    wide_p = np.ones(len(prev), bool) if prev.narrow is None else ~prev.narrow
+    wide_c = np.ones(len(curr), bool) if curr.narrow is None else ~curr.narrow
+    keep = wide_p[lda.prev_pairs].all(axis=1) & wide_c[lda.curr_pairs].all(axis=1)
+    if keep.all() or not keep.any():
         return lda
     return PairAssociations(
         lda.prev_pairs[keep], lda.curr_pairs[keep], lda.rotations[keep], lda.weights[keep]

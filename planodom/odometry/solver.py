@@ -179,7 +179,8 @@ def _solve(
     name = pairwise_pipeline(ocfg.pipeline)
     rot_method, trans_method = PIPELINES[name]
     lda = lenient_association(prev, curr, acfg, prior if bound_by_prior else None)
-    lda = rotation_pairs(prev, curr, lda, cfg.extraction)  # not one scanner's tilted planes
+    # not one scanner's tilted planes, nor (odometry.narrow_rotation) narrow ones if others
+    lda = rotation_pairs(prev, curr, lda, cfg.extraction, ocfg.narrow_rotation == "last")
     lda = candidate_pairs(prev, curr, lda, ocfg)  # odometry.pair_rotation
     bounds = pass_bounds(cfg, prior, bound_by_prior, prior_sigma_m)
     info = SolverDiagnostics(name, lda, used_prior=bound_by_prior)

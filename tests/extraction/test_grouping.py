@@ -127,3 +127,14 @@ def test_the_built_in_indoor_turn_keeps_its_walls():
 def test_a_bad_bar_is_refused_at_load(bad):
     with pytest.raises((ConfigError, ValidationError), match="narrow_seed_last_deg"):
         ExtractionConfig(narrow_seed_last_deg=bad)
+
+
+def test_the_narrow_wall_is_marked_and_the_wide_planes_are_not():
+    """``Plane.narrow`` (:mod:`planodom.extraction.rig2d.narrow`): the wall of two lines
+    crossing at 5 deg is narrow, the floor (60 deg) is not; at 30 deg neither is, and
+    without the option no plane is marked."""
+    got = {p.truth_id: p.narrow for p in _planes(_corridor_turn(5.0), narrow_seed_last_deg=0.5)}
+    assert got == {0: False, 1: True}
+    wide = _planes(_corridor_turn(30.0), narrow_seed_last_deg=0.5)
+    assert sorted(p.truth_id for p in wide) == [0, 1] and not any(p.narrow for p in wide)
+    assert not any(p.narrow for p in _planes(_corridor_turn(30.0)))

@@ -166,8 +166,10 @@ def build_planes(
     sigma_m: float,
     config: ExtractionConfig,
     adjust: Adjust | None = None,
+    narrow: np.ndarray | None = None,
 ) -> tuple[list[Plane], list[np.ndarray], int]:
-    """Planes of the fits that pass the tests (module docstring), in fit order.
+    """Planes of the fits that pass the tests (module docstring), in fit order;
+    ``narrow`` (G,) bool: :attr:`Plane.narrow` of each fit (None: all False).
 
     Returns the planes, their inliers ((K,) int64 scan indices each) and the number of
     fits rejected (by the tests or by ``adjust``).
@@ -227,6 +229,7 @@ def build_planes(
             support=PlaneSupport(*seen, moments),
             truth_id=int(truths[k]),
             deskew_jacobian=dsk,
+            narrow=narrow is not None and bool(narrow[g]),
         )
         planes.append(plane)
         inliers.append(idx)

@@ -31,6 +31,7 @@ from planodom.extraction.rig2d import coplanargroups, onescanner, sparsewindows,
 from planodom.extraction.rig2d.groupfit import plane_fits
 from planodom.extraction.rig2d.grouping import GroupingParams
 from planodom.extraction.rig2d.groups import group_segments
+from planodom.extraction.rig2d.narrow import narrow_groups
 from planodom.extraction.rig2d.segments import Segments, split_scan_lines
 from planodom.extraction.rig2d.sweeptilt import tilted_rings
 
@@ -108,7 +109,10 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
             lim_n, lim_d = config.max_normal_sigma_deg, member_tolerance(config, sigma)
             allowed = sparsewindows.determined(fits, sigma, full_min, lim_n, lim_d)
         adjust = windows.keep_one_per_wall(fits, epoch.points, scan, tol, tw, allowed)
-    planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust)
+    narrow = None
+    if config.narrow_seed_last_deg > 0:  # which planes the narrow seeds gave (.narrow)
+        narrow = narrow_groups(segs, groups, params.sin_min_cross)
+    planes, inliers, n_rejected = build_planes(fits, epoch, sigma, config, adjust, narrow)
     planes = onescanner.widened_planes(planes, inliers, epoch, config)
     return PathResult(planes, inliers, sigma, len(segs), len(groups), n_lost + n_rejected)
 
