@@ -39,7 +39,10 @@ from wrong_ties import lap_odometry  # noqa: E402
 
 import planodom.smoothing.batch as batch  # noqa: E402
 from planodom.config import PlanodomConfig  # noqa: E402
+from planodom.experiments.generalisation import world_for  # noqa: E402
+from planodom.experiments.loops import coplanar  # noqa: E402
 from planodom.geometry import invert_transform, pose5_from_transform  # noqa: E402
+from planodom.metrics import ate  # noqa: E402
 from planodom.odometry import Status, estimate_relative_pose  # noqa: E402
 from planodom.smoothing.loop_candidates import REVISIT_RATIO, CandidateLoopBuilder  # noqa: E402
 from planodom.smoothing.match_fit import _extent, non_parallel  # noqa: E402
@@ -78,7 +81,13 @@ def traced_builder(gt: np.ndarray, log: dict) -> type[CandidateLoopBuilder]:
                 prior = invert_transform(self.poses[e]) @ pred
                 err_m, err_deg = pose_error(prior, invert_transform(gt[e]) @ gt[k])
                 _, _, positions = self._history()
+                chained = invert_transform(self.poses[e]) @ self.poses[k]
+                chained_m, _ = pose_error(chained, invert_transform(gt[e]) @ gt[k])
+                reference, self._reference = self._reference, None
+                untracked = float(self._bounds(k, np.array([e]))[0][0])
+                self._reference = reference
                 row |= {
+                    "reference": reference, "chained_err_m": chained_m, "untracked_m": untracked,
                     "nearest": e, "true_dist": float(dist[e]),
                     "pred_dist": float(np.linalg.norm(positions[e] - pred[:2, 3])),
                     "reach": float(c.loop_candidate_radius_m + translation[0]),
@@ -195,10 +204,43 @@ def main(argv: list[str]) -> None:
         "epochs_with_candidates": sum(bool(r["found"]) for r in searched.values()),
         "true_revisit_and_candidates": sum(bool(searched[k]["found"]) for k in revisits),
         "tried": len(tried), "stages": dict(stages),
+        "ate_m": ate(res.poses, gt, xy_only=True)["rmse"],
+        "loop_end_m": float(np.linalg.norm(res.poses[-1][:2, 3] - gt[-1][:2, 3])),
         "loop_factors": len(res.loop_factors),
         "loop_factors_removed": sum(f.removed for f in res.loop_factors),
     }  # fmt: skip
     print(json.dumps(head))
+    world = world_for(index)
+    same = coplanar(world.scene)
+    normals = {s.id: np.asarray(s.normal, float) for s in world.scene.surfaces}
+    normals[-1] = np.zeros(3)
+    reids: dict[int, list] = {}
+    for r in res.reidentifications:
+        reids.setdefault(r.epoch, []).append(r)
+    for m in res.loop_matches if start is not None else ():  # the map's matches
+        if m.epoch < (start or 0):
+            continue
+        k, placed = m.epoch, m.T_world_pred @ m.T_pred_curr
+        err = placed[:2, 3] - gt[k][:2, 3]  # world frame = the truth's (both from epoch 0)
+        ties = [
+            f"{r.truth_plane}->{r.truth_landmark} "
+            f"{'ok' if same(r.truth_plane, r.truth_landmark) else 'WRONG'}"
+            + (
+                f" n.err {normals[r.truth_plane][:2] @ err:+.2f}"
+                if r.truth_plane in normals
+                else ""
+            )
+            for r in reids.get(k, [])
+        ]
+        sd = float(np.sqrt(m.drift[1, 1])) if m.drift.any() else float("nan")
+        print(
+            f"map match {k}: {'full' if m.full else 'rotation'} {m.verdict}, seen {m.seen} "
+            f"spanning {m.spanning}, "
+            f"mahalanobis {m.mahalanobis:.2f}, drift sd {sd:.2f} m, predicted "
+            f"{pose_error(m.T_world_pred, gt[k])[0]:.2f} m, matched "
+            f"{pose_error(placed, gt[k])[0]:.2f} m off the truth, {len(m.ties)} ties "
+            f"{ties}"
+        )
     for k in sorted(searched):
         row = searched[k]
         if (start is None and not row["true"]) or (start is not None and k < start):
@@ -209,7 +251,9 @@ def main(argv: list[str]) -> None:
                 f", nearest {row['nearest']} {row['true_dist']:.2f} m (predicted "
                 f"{row['pred_dist']:.2f} m, reach {row['reach']:.2f} m; prior off "
                 f"{row['prior_err_m']:.2f} m {row['prior_err_deg']:.1f} deg, bounds "
-                f"{row['bound_m']:.2f} m {row['bound_deg']:.1f} deg)"
+                f"{row['bound_m']:.2f} m {row['bound_deg']:.1f} deg; map's reference "
+                f"{row['reference']}; chained guess off {row['chained_err_m']:.2f} m, bound "
+                f"without the reference {row['untracked_m']:.2f} m)"
             )
         parts = []
         for e in row["found"]:
