@@ -155,6 +155,18 @@ def traced_builder(gt: np.ndarray, log: dict) -> type[CandidateLoopBuilder]:
             log[(second.curr, second.prev)]["agrees"] = ok
             return ok
 
+        def corrections_agree(self, a, b) -> bool:  # noqa: ANN001
+            ok = super().corrections_agree(a, b)
+            cov = self._candidate_drift([(a.epoch, b.epoch), (a.old, b.old)])
+            cov = cov + a.covariance + b.covariance
+            T_b = self.poses[b.epoch]
+            v = pose5_from_transform(invert_transform(a.W @ T_b) @ b.W @ T_b)[2:]
+            chi = float(v @ np.linalg.solve(cov, v))
+            log.setdefault("agree", []).append(
+                (a.epoch, a.old, b.epoch, b.old, ok, chi, float(np.sqrt(cov[1, 1])), v)
+            )
+            return ok
+
         def _add_loop_factor(self, update, rel) -> None:  # noqa: ANN001
             super()._add_loop_factor(update, rel)
             log.setdefault((rel.curr, rel.prev), {})["added"] = True
@@ -196,6 +208,23 @@ def main(argv: list[str]) -> None:
     res = batch.smooth_batch(planes, relatives, run_cfg)
     tried = {key: rec for key, rec in log.items() if isinstance(key, tuple)}
     searched = {k: row for k, row in log.items() if isinstance(k, int)}
+    groups: dict[int, list] = {}
+    for f in res.loop_factors:
+        groups.setdefault(f.group, []).append(f)
+    for g, fs in sorted(groups.items()):
+        err = [float(np.linalg.norm(f.truth_error(gt)[3:])) for f in fs]
+        print(
+            f"hypothesis {g}: {len(fs)} factors {fs[0].epoch}-{fs[-1].epoch} against "
+            f"{sorted({f.old for f in fs})}, {min(err):.2f}-{max(err):.2f} m off the truth, "
+            f"removed {sum(f.removed for f in fs)}, chi2 at the gate {fs[0].chi2:.1f}, "
+            f"increase {fs[0].increase:.3g}"
+        )
+    for a_k, a_o, b_k, b_o, ok, chi, sd, v in log.get("agree", []):  # the clique's tests
+        print(
+            f"agreement {a_k}-{a_o} with {b_k}-{b_o}: {'agree' if ok else 'DISAGREE'}, chi2 "
+            f"{chi:.1f}, drift sd {sd:.2f} m, difference yaw {np.degrees(v[0]):.2f} deg "
+            f"xy {np.hypot(v[1], v[2]):.2f} m"
+        )
     stages = Counter(final_stage(r) for r in tried.values())
     revisits = [k for k, row in searched.items() if row["true"]]
     head = {
