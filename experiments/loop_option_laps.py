@@ -10,6 +10,7 @@ no pose).
 
     uv run python experiments/loop_option_laps.py --worlds 280,282 --noise 0.006 \\
         --set '{"smoothing.loop_candidate_reference": "spanning"}' --cache DIR --out FILE.csv
+    uv run python experiments/loop_option_laps.py --summarise FILE.csv ...
 """
 
 from __future__ import annotations
@@ -53,7 +54,45 @@ def lap_row(world_index: int, noise: float, changes: dict, cache: Path | None) -
     }  # fmt: skip
 
 
+def summarise(paths: list[Path]) -> None:
+    """Per noise: the option's rows against the default's (the rule's figures, W32D)."""
+    rows = [r for p in paths for r in csv.DictReader(p.open())]
+    for noise in sorted({r["noise_m"] for r in rows}):
+        pairs: dict[str, dict[str, dict]] = {}
+        for r in rows:
+            if r["noise_m"] == noise:
+                pairs.setdefault(r["world"], {})[
+                    "default" if r["setting"] == "{}" else "option"
+                ] = r
+        both = {w: p for w, p in pairs.items() if len(p) == 2}
+        ratios = [float(p["option"]["ate_m"]) / float(p["default"]["ate_m"]) for p in both.values()]
+        print(f"noise {noise}: {len(both)} laps, ATE geometric-mean ratio "
+              f"{float(np.exp(np.mean(np.log(ratios)))):.4f}")  # fmt: skip
+        for key in ("wrong_kept", "loop_factors", "loop_factors_wrong_kept"):
+            sums = [sum(int(p[s][key]) for p in both.values()) for s in ("default", "option")]
+            print(f"  {key}: {sums[0]} -> {sums[1]}")
+        under = [
+            sum(float(p[s]["loop_end_m"]) < 0.1 for p in both.values())
+            for s in ("default", "option")
+        ]
+        print(f"  loop ends under 10 cm: {under[0]} -> {under[1]}")
+        for w, p in sorted(both.items(), key=lambda x: int(x[0])):
+            d, o = p["default"], p["option"]
+            print(
+                f"  world {w}: ATE {float(d['ate_m']):.4f} -> {float(o['ate_m']):.4f} m, loop end "
+                f"{float(d['loop_end_m']) * 100:.2f} -> {float(o['loop_end_m']) * 100:.2f} cm, "
+                f"loop factors kept {d['loop_factors']} -> {o['loop_factors']} (wrong "
+                f"{d['loop_factors_wrong_kept']} -> {o['loop_factors_wrong_kept']}, worst "
+                f"{float(d['kept_factor_max_error_m']):.2f} -> "
+                f"{float(o['kept_factor_max_error_m']):.2f} m), wrong ties "
+                f"{d['wrong_kept']} -> {o['wrong_kept']}"
+            )
+
+
 def main() -> None:
+    if sys.argv[1:2] == ["--summarise"]:
+        summarise([Path(p) for p in sys.argv[2:]])
+        return
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--worlds", required=True, help="comma-separated world indices")
     parser.add_argument("--noise", type=float, nargs="+", required=True)
