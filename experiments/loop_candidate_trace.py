@@ -23,6 +23,9 @@ The first line (JSON) holds the stage counts and the lap's loop factors; then on
 per traced epoch (``--from K``: from epoch K on; default: every epoch with a true revisit).
 
     uv run python experiments/loop_candidate_trace.py 32 0.02 [JSON] --odometry FILE [--from K]
+    uv run python experiments/loop_candidate_trace.py 284 0.02 [JSON] [--from K] --lap-cache DIR
+
+``--lap-cache DIR`` (last): the default odometry from ``nees_gauge.load``'s cache instead.
 """
 
 from __future__ import annotations
@@ -197,9 +200,16 @@ def main(argv: list[str]) -> None:
             value, argv = argv[at + 1], argv[:at] + argv[at + 2 :]
             cache, start = (Path(value), start) if flag == "--odometry" else (cache, int(value))
     index, noise = int(argv[0]), float(argv[1])
-    changes = json.loads(argv[2]) if len(argv) > 2 else {}
+    changes = json.loads(argv[2]) if len(argv) > 2 and argv[2] != "--lap-cache" else {}
     cfg = PlanodomConfig().updated(changes)
-    planes, relatives, gt = lap_odometry(index, noise, cfg, cache)
+    if "--lap-cache" in argv:  # nees_gauge's cache of the default odometry (DIR)
+        import nees_gauge
+
+        _, full, _, odo, relatives = nees_gauge.load(index, noise, Path(argv[-1]))
+        planes, gt = odo.planes, invert_transform(full.poses[0])[None] @ full.poses
+        argv = argv[: argv.index("--lap-cache")]
+    else:
+        planes, relatives, gt = lap_odometry(index, noise, cfg, cache)
     log: dict = {}
     batch.CandidateLoopBuilder = traced_builder(gt, log)  # type: ignore[misc]  # this process
     run_cfg = cfg.updated(
