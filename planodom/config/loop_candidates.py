@@ -187,7 +187,9 @@ class LoopCandidateConfig(Section):
     at 2 cm, W32D): the map's correction from epoch 834 on ties a wall last seen at 30 and
     walls seen at 111-429, after the odometry lost 3.8 m at 45-107; the prediction is 4.0-4.6
     m off the truth at the lap's end, the bound from 30 0.6-2.0 m, so epoch 0 is never in
-    reach and the lap makes no loop factor. Off; see docs/RESULTS.md (W32D)."""
+    reach and the lap makes no loop factor. Off: the wider bound lets aliases in (world 32's
+    right closure is then outvoted in the clique; fresh worlds 280-298 at 2 cm: ATE ratio
+    1.023, wrong loop factors kept 17 -> 18; at 6 mm 0.971); see docs/RESULTS.md (W32D)."""
     loop_map_parts: Literal["one", "corrections", "matches"] = "one"
     """``loop_consistency`` "hypotheses_and_map": the map is one node of the clique ("one"),
     or one per correction its verification took anew, with the ties up to the next
