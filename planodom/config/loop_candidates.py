@@ -32,7 +32,7 @@ class LoopCandidateConfig(Section):
     translation variance per axis), "stated" as the odometry states it (their measured
     yaw, the fallback's sigma on each axis), "run": as "chained", but a bridged epoch adds
     the error of the run's own constant velocity (a random walk as large per epoch as the
-    run's measured consecutive steps changed, :meth:`.CandidateLoopBuilder._run_variance`),
+    run's measured consecutive steps changed, :class:`planodom.smoothing.loop_drift.RunWalk`),
     in the candidates' bounds too, and before the map has accepted a correction a loop
     pose's must lie within it. As that drift the fallback factor's 0.5 m per epoch let
     aliased places through: on 2D-rig world 16 at 6 mm (coplanar deskewing) 72 bridged
@@ -177,6 +177,19 @@ class LoopCandidateConfig(Section):
     the right hypothesis is kept by the clique but fails the chi2 gate against the 118
     wrong ties). The default: it changes no lap but world 32 at 6 mm, better in ATE.
     """
+    loop_candidate_reference: Literal["earliest", "spanning"] = "earliest"
+    """``loop_verify`` "tracked": the map epoch of the accepted correction from which the
+    loop candidates' bounds and their agreement with the map grow the drift to the old
+    epoch (the span from it to the old epoch): "earliest" the earliest last sighting of the
+    accepting match's tied walls, "spanning" the last sighting by which they span two
+    non-parallel normals (as ``loop_map_epoch``): the correction rests on those later walls,
+    and the drift between them and the old epoch is the prediction's. Why (2D-rig world 32
+    at 2 cm, W32D): the map's correction from epoch 834 on ties a wall last seen at 30 and
+    walls seen at 111-429, after the odometry lost 3.8 m at 45-107; the prediction is 4.0-4.6
+    m off the truth at the lap's end, the bound from 30 0.6-2.0 m, so epoch 0 is never in
+    reach and the lap makes no loop factor. Off: the wider bound lets aliases in (world 32's
+    right closure is then outvoted in the clique; fresh worlds 280-298 at 2 cm: ATE ratio
+    1.023, wrong loop factors kept 17 -> 18; at 6 mm 0.971); see docs/RESULTS.md (W32D)."""
     loop_map_parts: Literal["one", "corrections", "matches"] = "one"
     """``loop_consistency`` "hypotheses_and_map": the map is one node of the clique ("one"),
     or one per correction its verification took anew, with the ties up to the next

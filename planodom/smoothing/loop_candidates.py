@@ -101,6 +101,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         #: epochs a measured relative pose (delta <= D) fixed the translation to or from
         self._translated: set[int] = set()
         self._aliased = -1  # the last epoch ``loop_candidate_aliases`` found ambiguous
+        #: (k, spanning epoch) of the map's accepted correction (``loop_candidate_reference``)
+        self._spanning_reference: tuple[int, int] | None = None
 
     def add_epoch(
         self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
@@ -122,7 +124,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
                     var_t = float(cov[3, 3] + cov[4, 4])
                     step = np.asarray(r.T_prev_curr, dtype=float)[:2, 3]
         if c.loop_candidate_drift == "run" and k:
-            var_t = self._run_variance(step, var_t)
+            var_t = self._walk.variance(step, var_t)  # the run's drift (:class:`.RunWalk`)
             if c.loop_drift_yaw == "run":
                 var_r = self._yaw_walk.variance(yaw, var_r)
         last = self._variances[-1] if k else np.zeros(2)
@@ -131,25 +133,10 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._graph_size += update.factors.size()
         return update
 
-    def _run_variance(self, step: np.ndarray | None, var_t: float) -> float:
-        """``loop_candidate_drift`` "run": the horizontal variance (m^2, x plus y) the step
-        into this epoch adds to the chained drift. Measured (``step``, its xy in m): its
-        own ``var_t``. Bridged by constant velocity (None), the n-th in a row: the error
-        of a velocity that changes by a random walk, as much per epoch as the run's
-        measured consecutive steps changed so far (mean square, both axes; their
-        measurement noise makes it cautious): the bridge's position variance grows as
-        n^3 / 3 times it, so this epoch adds its n^3 - (n - 1)^3 share; at most ``var_t``
-        (the fallback's variance) and ``var_t`` itself before two measured steps. The
-        fallback factors' 0.5 m per epoch is what lets the graph recover from a wrong
-        step; as the drift a loop pose must agree with it let a corridor aliased 4.6 m
-        along pass after 72 bridged epochs whose true drift was 0.45 m (2D-rig world 16
-        at 6 mm with the coplanar twist: 21 wrong loop factors kept, ATE 3.06 m)."""
-        return self._walk.variance(step, var_t)
-
     def _candidate_drift(self, spans: list[tuple[int, int]]) -> np.ndarray:
         """(3, 3) covariance of the chained guess's (yaw, x, y) drift over ``spans`` for the
         loop candidates' agreement (``loop_candidate_drift``): as the map's verification's
-        (:meth:`LoopClosingBuilder._drift_covariance`), "run" the run's (:meth:`_run_variance`)."""
+        (:meth:`LoopClosingBuilder._drift_covariance`), "run" the run's (:class:`.RunWalk`)."""
         c = self.config
         if c.loop_candidate_drift != "run":
             return self._drift_covariance(spans, c.loop_candidate_drift == "stated")
@@ -204,7 +191,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         c = self.config
         travelled, variances, _ = self._history()
         tracked = c.loop_verify == "tracked" and self._reference is not None
-        a, b = (k, k) if not tracked else self._reference  # type: ignore[misc]
+        a, b = (k, k) if not tracked else self._map_reference()
         # spans (a, k) and (b, e): |cumulative(k) - cumulative(a)| + |cumulative(e) - ...(b)|
         span = lambda v: np.abs(v[k] - v[a]) + np.abs(v[old] - v[b])  # noqa: E731
         distance, var_t, var_r = span(travelled), span(variances[:, 0]), span(variances[:, 1])
@@ -393,7 +380,19 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         match.seen, match.full = min(seen), full
         normals = np.array([self.landmarks[j].plane_world[:3] for j, _ in match.ties])
         match.spanning = spanning_epoch(seen, normals)
-        return super()._verify(match, T_world_curr, full)
+        reference = self._reference
+        verdict = super()._verify(match, T_world_curr, full)
+        if self._reference is not reference:  # a new accepted correction
+            self._spanning_reference = (match.epoch, match.spanning)
+        return verdict
+
+    def _map_reference(self) -> tuple[int, int]:
+        """(k, map epoch) of the map's accepted correction as the loop candidates' bounds
+        and agreement take it (``loop_candidate_reference``: the map epoch the earliest
+        or the spanning last sighting of its match's tied walls)."""
+        if self.config.loop_candidate_reference == "spanning" and self._spanning_reference:
+            return self._spanning_reference
+        return self._reference  # type: ignore[return-value]
 
     def _agrees_with_map(self, rel: RelativePose) -> bool:
         """Whether a verified loop pose agrees with the map's accepted correction (the
@@ -402,7 +401,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         True while no correction is accepted."""
         if self._reference is None or rel.covariance is None:
             return self._reference is None
-        k_ref, seen_ref = self._reference
+        k_ref, seen_ref = self._map_reference()
         spans = [(k_ref, rel.curr), (seen_ref, rel.prev)]
         own = np.asarray(rel.covariance, dtype=float).reshape(5, 5)[2:, 2:]
         cov = self._candidate_drift(spans) + own

@@ -22,7 +22,11 @@ class RunWalk:
     epoch as the run's measured consecutive steps changed so far (mean square over their
     components; their measurement noise makes it cautious): the bridge's variance grows as
     n^3 / 3 times it, so this epoch adds its n^3 - (n - 1)^3 share; at most ``var`` (the
-    fallback's variance), and ``var`` itself before two measured steps."""
+    fallback's variance), and ``var`` itself before two measured steps. The fallback
+    factors' 0.5 m per epoch is what lets the graph recover from a wrong step; as the drift
+    a loop pose must agree with it let a corridor aliased 4.6 m along pass after 72 bridged
+    epochs whose true drift was 0.45 m (2D-rig world 16 at 6 mm with the coplanar twist: 21
+    wrong loop factors kept, ATE 3.06 m)."""
 
     def __init__(self) -> None:
         self.bridged = 0  # epochs bridged in a row

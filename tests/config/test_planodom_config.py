@@ -34,6 +34,10 @@ def test_round_trip(tmp_path) -> None:
         ("odometry: {map_trend_rescue: perhaps}\n", r"c\.yaml: field 'odometry\.map_trend_rescue'"),
         ("smoothing: {loop_map_epoch: latest}\n", r"c\.yaml: field 'smoothing\.loop_map_epoch'"),
         (
+            "smoothing: {loop_candidate_reference: latest}\n",
+            r"c\.yaml: field 'smoothing\.loop_candidate_reference'",
+        ),
+        (
             "smoothing: {loop_candidate_aliases: on}\n",
             r"c\.yaml: field 'smoothing\.loop_candidate_aliases'",
         ),

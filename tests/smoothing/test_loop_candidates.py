@@ -145,7 +145,7 @@ def test_run_drift_of_bridged_epochs_grows_as_a_velocity_random_walk():
     np.testing.assert_allclose(added[9:], sigma2 * np.array([1.0, 7.0]) / 3.0)
     capped = loop_candidates.CandidateLoopBuilder(cfg)
     capped._walk.change[:] = (1.0, 1.0)  # a change of 1 m per epoch: the fallback caps it
-    assert capped._run_variance(None, 0.25) == 0.25
+    assert capped._walk.variance(None, 0.25) == 0.25
 
 
 def test_an_aliased_place_after_a_bridged_stretch_is_refused(problem, monkeypatch):
