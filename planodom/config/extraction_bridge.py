@@ -29,6 +29,6 @@ class GapBridgeFields(NarrowSeedFields):
     2 cm, docs/RESULTS.md, INDOOR3). ``off``: the gap rule alone (default);
     ``predicted``: bridged as above. Off by default, measured (docs/RESULTS.md, GAPRULE):
     on the 2D-rig worlds 280-298 ATE geometric mean 0.67x / 0.85x at 6 mm / 2 cm,
-    unresolved 25 -> 16 / 19 -> 17 (world 296 5.0 -> 0.06 m at 6 mm), and 11 of the 15
+    unresolved 25 -> 16 / 19 -> 17 (world 296 5.0 -> 0.06 m at 6 mm), and 10 of the 15
     built-in rows better (random-indoor 2 cm 6.00 -> 4.94 m), but random-outdoor at
     sigma 0 0.061 -> 0.146 m ATE xy, which its rule forbids."""
