@@ -17,7 +17,9 @@ The traces (:mod:`.traces`) are the input.
    every available trace whose RMS distance to the plane and whose end points lie within
    the tolerance joins, the plane is refit from the members' moments (total least
    squares) and the members re-collected; only the traces connected to the seed through
-   gaps of at most ``max(plane_gap_m, gap_range_ratio * range)`` stay. The group is a
+   gaps of at most ``max(plane_gap_m, gap_range_ratio * range)`` stay (with
+   ``extraction.gap_bridge``, also the piece of the seed's second trace where one piece's
+   plane predicts the other, :mod:`.bridge`). The group is a
    plane only if it still holds its seed pair, has ``min_points`` points and its RMS
    residual is at most ``max_rms_m``. Members of an accepted plane are not used again.
 
@@ -43,9 +45,11 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from planodom.extraction.rig2d.bridge import bridged_piece
 from planodom.extraction.rig2d.connect import connected_piece, tight_seed
 from planodom.extraction.rig2d.seedconflicts import dominance, release
 from planodom.extraction.rig2d.sweeplines import distinct_lines, sweep_seed_pairs
+from planodom.extraction.rig2d.tracefit import trace_fits as _fits
 
 #: An L-shaped seed pair has its crossing within this (m), or 5 % of each trace's
 #: length, of an end of both.
@@ -80,6 +84,9 @@ class GroupingParams(NamedTuple):
         narrow_last: narrow seeds (crossing under ``sin_min_cross``) are taken after
             every other seed, L seeds too, on the traces left
             (``extraction.narrow_seed_last_deg``).
+        gap_bridge: the piece beyond the gap that holds the seed's second trace joins
+            when one piece's plane predicts the other (:mod:`.bridge`,
+            ``extraction.gap_bridge: predicted``).
     """
 
     tol_m: float
@@ -100,6 +107,7 @@ class GroupingParams(NamedTuple):
     seed_spans_gap: bool = False
     exclusive_seeds: bool = False
     narrow_last: bool = False
+    gap_bridge: bool = False
 
 
 class _Seeds(NamedTuple):
@@ -147,23 +155,6 @@ def _plane_of(members, count, centroid, scatter):  # pragma: no cover - compiled
     vals, vecs = np.linalg.eigh(sc)
     n = vecs[:, 0].copy()
     return n, -(n[0] * c[0] + n[1] * c[1] + n[2] * c[2]), np.sqrt(max(vals[0], 0.0) / total), total
-
-
-@numba.njit(cache=True)
-def _fits(centroid, scatter, direction, lo, hi, count, t, n, d, tol):  # pragma: no cover
-    """Trace ``t``'s RMS distance to the plane (n, d) and its end points (the ends of its
-    extent, at its centroid's offset) are within ``tol`` (``count``: (T,) float64; the
-    trace arrays one by one: read through the named tuple they cost ~10x the maths)."""
-    off = centroid[t, 0] * n[0] + centroid[t, 1] * n[1] + centroid[t, 2] * n[2] + d
-    slope = direction[t, 0] * n[0] + direction[t, 1] * n[1] + direction[t, 2] * n[2]
-    ends = max(abs(off + slope * lo[t]), abs(off + slope * hi[t]))
-    if not ends <= tol:  # most (seed, trace) pairs end here: the scatter's form is skipped
-        return False
-    q = 0.0
-    for u in range(3):
-        for v in range(3):
-            q += n[u] * scatter[t, u, v] * n[v]
-    return q / count[t] + off * off <= tol * tol
 
 
 @numba.njit(cache=True)
@@ -300,8 +291,12 @@ def _grow(tr, p, count, seeds, s, members, available):  # pragma: no cover - com
         members = new
     if np.isfinite(p.gap_m):  # only the piece of the plane that holds the seed
         seed2 = seeds.j[s] if p.seed_spans_gap and tight_seed(tr, count, seeds, s, p) else -1
-        members = connected_piece(members, seeds.i[s], tr.centroid, tr.direction, tr.lo,
-                                  tr.hi, p.gap_m, p.gap_ratio, seed2)  # fmt: skip
+        if p.gap_bridge and seed2 < 0:  # the far piece joins where one side predicts it
+            members = bridged_piece(tr, count, members, seeds.i[s], seeds.j[s], p.gap_m,
+                                    p.gap_ratio, p.tol_m)  # fmt: skip
+        else:
+            members = connected_piece(members, seeds.i[s], tr.centroid, tr.direction, tr.lo,
+                                      tr.hi, p.gap_m, p.gap_ratio, seed2)  # fmt: skip
     n, d, rms, total = _plane_of(members, count, tr.centroid, tr.scatter)
     return members, rms, total
 

@@ -78,6 +78,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         seed_spans_gap=bool(config.seed_spans_gap),
         exclusive_seeds=bool(config.exclusive_seeds),
         narrow_last=config.narrow_seed_last_deg > 0,
+        gap_bridge=config.gap_bridge == "predicted",
     )
     groups, n_lost = group_segments(
         segs, params, config.trace_parallel_deg, config.trace_step_m, seg_times
