@@ -151,9 +151,9 @@ def test_two_calls_equal_the_stage_sequence_on_simulated_epochs(monkeypatch, wor
     seen: list[tuple[PlaneFits, Epoch]] = []
     build = builder.build_planes
 
-    def spy(fits, epoch, sigma_m, config, adjust=None):  # type: ignore[no-untyped-def]
+    def spy(fits, epoch, sigma_m, config, adjust=None, narrow=None):  # type: ignore[no-untyped-def]
         seen.append((fits, epoch))
-        return build(fits, epoch, sigma_m, config, adjust)
+        return build(fits, epoch, sigma_m, config, adjust, narrow)
 
     monkeypatch.setattr("planodom.extraction.rig2d.path.build_planes", spy)
     twist = np.array([0.01, -0.02, 0.3, 4.0, 0.1, 0.0])
