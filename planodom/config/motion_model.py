@@ -96,6 +96,14 @@ class MotionModelConfig(Section):
     2D-rig world 244: 1.6, 1.7, 2.0, 2.2 deg/s more each epoch) is followed by a short
     line; a longer one averages more noise."""
 
+    turn_trend_keep: Literal["rank", "status"] = "rank"
+    """With ``turn_trend_retry``: when the trend's extraction is kept over the
+    prediction's: ``rank``, when it ranks higher (``deskew_rank``: status, then planes);
+    ``status``, only when its step's status is better (a degenerate step's plane count
+    picked the trend where it was no nearer the truth: the 2D-rig world 282 at 2 cm, a
+    steady 4 deg/s turn, the trend kept at 5 epochs and nearer the true rate at 11 of 25;
+    docs/RESULTS.md, TURN244)."""
+
     bridge_trend_epochs: Annotated[int, Field(ge=1, le=20)] = 3
     """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
     may run; further bridged epochs keep the rate it reached there."""

@@ -237,6 +237,7 @@ def register_deskewed(
     rank: Ranking = by_planes,
     centring: Centring | None = None,
     blend: Blend | None = None,
+    trend_status: bool = False,
 ) -> EpochEstimate:
     """The best estimate of a time-spread epoch (module docstring).
 
@@ -271,8 +272,12 @@ def register_deskewed(
         rank: how extractions are ranked (``odometry.deskew_rank``, :func:`.surfaces.ranking`).
         centring, blend: the refinements' own rate led to the epoch's points (``odometry.
             deskew_rate_lead``) / weighed against the prediction (``twist_blend``); None: off.
+        trend_status: ``trend`` kept only when its status beats the prediction's
+            (``odometry.turn_trend_keep: status``), not by ``rank``.
     """
-    best = _first_estimate(predicted, dt, estimate, previous_planes, held, trend, lost_trend, rank)
+    best = _first_estimate(
+        predicted, dt, estimate, previous_planes, held, trend, lost_trend, rank, trend_status
+    )
     iterations = config.deskew_iterations if lead is None else lead.iterations
     before = None  # (used, own) of the refinement before: odometry.deskew_rate_solve
     for _ in range(iterations if dt > 0 else 0):
@@ -369,10 +374,12 @@ def _first_estimate(
     trend: np.ndarray | None,
     lost_trend: np.ndarray | None,
     rank: Ranking,
+    trend_status: bool = False,
 ) -> EpochEstimate:
     """Step 1 of the module docstring: the best of the epoch deskewed with ``predicted``
     and, when that is suspect, with ``trend``, none or ``held`` and ``lost_trend`` (see
-    :func:`register_deskewed`), by ``rank`` (:func:`.surfaces.ranking`)."""
+    :func:`register_deskewed`), by ``rank`` (:func:`.surfaces.ranking`); ``trend`` by
+    status alone with ``trend_status``."""
     best = estimate(predicted)
     few = _few(best, previous_planes)
     others: list[np.ndarray | None] = [] if trend is None or predicted is None else [trend]
@@ -381,7 +388,11 @@ def _first_estimate(
     if dt > 0 and (best.relative.status is not Status.OK or few):
         for other in others:
             alternative = estimate(other)
-            if rank(alternative) > rank(best):
+            if trend_status and other is trend:
+                better = alternative.relative.status.rank > best.relative.status.rank
+            else:
+                better = rank(alternative) > rank(best)
+            if better:
                 best = alternative
     if dt > 0 and lost_trend is not None and _lost(best, previous_planes):
         alternative = estimate(lost_trend)

@@ -212,7 +212,7 @@ class PlaneOdometry:
                 twist, dt, estimate, refresh, ocfg, previous, held, damped, trend, lost_trend,
                 restore, lead, bounds, ranking(self.config),
                 centring(rates, k, scan.t, dt, self.config, self.last_relative),
-                blend))  # fmt: skip
+                blend, pairwise and ocfg.turn_trend_keep == "status"))  # fmt: skip
             if k == 1 and ocfg.first_epoch_reextract:  # the second epoch: the first's rounds
                 best = reextracted_first(
                     best, dt, ocfg, self._history[0], partial(first_round, self, scan, t)
