@@ -388,7 +388,7 @@ def _first_estimate(
     if dt > 0 and (best.relative.status is not Status.OK or few):
         for other in others:
             alternative = estimate(other)
-            if trend_status and other is trend:
+            if trend_status and trend is not None and other is trend:
                 better = alternative.relative.status.rank > best.relative.status.rank
             else:
                 better = rank(alternative) > rank(best)
