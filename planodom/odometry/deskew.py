@@ -245,8 +245,7 @@ def register_deskewed(
         predicted: (6,) the constant-velocity twist predicted for the epoch (None: none).
         dt: seconds since the previous epoch; config: its ``deskew_*`` fields.
         estimate, refresh_reference: see :data:`Estimator`, :data:`Refresher`.
-        previous_planes: planes of the previous epoch (fewer than half of them now is
-            suspect).
+        previous_planes: planes of the previous epoch (under half of them now: suspect).
         held: (6,) the twist held from before an unresolved epoch, tried only when
             ``predicted`` is None and the epoch extracted without it is suspect.
         against_map: the estimate registers the epoch against a map (the plane-map
@@ -257,12 +256,11 @@ def register_deskewed(
             taken off, as for the pairwise pipelines). Not for centred times (odometry.py).
         trend: (6,) the twist extrapolated along the recent change of the twists (None:
             none): tried first when the epoch deskewed with ``predicted`` is suspect (a
-            prediction that averages recent twists lags a turn that tightens).
-        lost_trend: (6,) a twist tried last when the epoch is still lost (unresolved, or
-            far fewer planes than the epoch before) after those (None: none;
-            :func:`planodom.odometry.trend.pairwise_trend`): a degenerate epoch measured
-            its angular rate, which step 2 deskews it with; an unresolved one has nothing
-            better than a trend.
+            prediction lags a turn that tightens); with ``trend_status`` (``odometry.
+            turn_trend_keep: status``) kept only for a better status, not by ``rank``.
+        lost_trend: (6,) tried last when the epoch is still lost (unresolved, or far fewer
+            planes than the epoch before; None: none; :func:`.trend.pairwise_trend`): an
+            unresolved epoch measured no rate for step 2, and has nothing better.
         restore_reference: brings back the reference's planes a refresh replaced (None:
             never), when the estimate against the new ones is worse (:func:`_restorer`).
         lead: the lead of the epoch's own twist and the tolerances and iterations
@@ -272,12 +270,9 @@ def register_deskewed(
         rank: how extractions are ranked (``odometry.deskew_rank``, :func:`.surfaces.ranking`).
         centring, blend: the refinements' own rate led to the epoch's points (``odometry.
             deskew_rate_lead``) / weighed against the prediction (``twist_blend``); None: off.
-        trend_status: ``trend`` kept only when its status beats the prediction's
-            (``odometry.turn_trend_keep: status``), not by ``rank``.
     """
-    best = _first_estimate(
-        predicted, dt, estimate, previous_planes, held, trend, lost_trend, rank, trend_status
-    )
+    first = (previous_planes, held, trend, lost_trend, rank, trend_status)
+    best = _first_estimate(predicted, dt, estimate, *first)
     iterations = config.deskew_iterations if lead is None else lead.iterations
     before = None  # (used, own) of the refinement before: odometry.deskew_rate_solve
     for _ in range(iterations if dt > 0 else 0):
@@ -388,7 +383,7 @@ def _first_estimate(
     if dt > 0 and (best.relative.status is not Status.OK or few):
         for other in others:
             alternative = estimate(other)
-            if trend_status and other is trend:
+            if trend_status and trend is not None and other is trend:
                 better = alternative.relative.status.rank > best.relative.status.rank
             else:
                 better = rank(alternative) > rank(best)

@@ -128,3 +128,26 @@ def test_world_244s_tightening_turn_keeps_its_surfaces_with_the_trend():
     assert len(set(lagging)) < len(lagging) or set(lagging) < set(exact)  # split or lost
     assert len(trended) == len(set(trended)) and set(trended) <= set(exact)
     assert len(trended) >= len(set(lagging)) + 2
+
+
+def test_with_status_the_trend_needs_a_better_status_and_none_keeps_its_rank():
+    predicted, trend = np.r_[0.0, 0.0, 0.40, 5.0, 0, 0], np.r_[0.0, 0.0, 0.47, 5.0, 0, 0]
+    cfg = OdometryConfig(deskew_iterations=0)
+
+    def run(trend_given, trend_result, none_result):  # noqa: ANN001, ANN202
+        def estimate(twist, source=None):  # noqa: ANN001, ANN202
+            if twist is None:
+                return _estimate(*none_result, None)
+            if twist is trend:
+                return _estimate(*trend_result, twist)
+            return _estimate(Status.DEGENERATE, 2, twist)
+
+        return register_deskewed(predicted, DT, estimate, lambda t: False, cfg,
+                                 trend=trend_given, trend_status=True)  # fmt: skip
+
+    more_planes = run(trend, (Status.DEGENERATE, 5), (Status.UNRESOLVED, 1))
+    assert more_planes.twist is predicted  # by rank it would be the trend
+    better = run(trend, (Status.OK, 3), (Status.UNRESOLVED, 1))
+    assert better.twist is trend
+    # without a trend, the extraction without a twist is still judged by its rank
+    assert run(None, (Status.OK, 3), (Status.DEGENERATE, 4)).twist is None
