@@ -4,7 +4,9 @@ default, on one odometry (issue 14, NEESPLANE).
 The lap and its odometry as ``nees_gauge.py`` loads them (``--cache DIR`` reuses the
 odometry, which the option does not change), then the batch with loops once with the
 default config and once with the option (each plane factor's noise model holding its own
-share of its epoch's deskewing error, the sandwich the shared part). Printed per arm:
+share of its epoch's deskewing error, the sandwich the shared part); ``--arms`` may add
+"twice" (a diagnostic, no option: the option's noise models with the default's sandwich,
+which then counts each plane's own share twice, as STEPCOV's planes probe). Printed per arm:
 epochs, odometry and batch ATE xy (m, rmse against the truth from the first pose), mean
 and median NEES5 of the smoothed poses (chi2(5)'s 95 % interval for a lap's mean: [0.83,
 12.8]), loop factors kept, covariance model, and the arm's process time (the smoothing and
@@ -25,17 +27,21 @@ sys.path.insert(0, str(Path(__file__).parent))
 import nees_gauge  # noqa: E402
 from lap_nees_option import xy_rmse  # noqa: E402
 
+import planodom.smoothing.sandwich as sandwich_module  # noqa: E402
 from planodom.metrics import errors_nees, pose_errors  # noqa: E402
 from planodom.smoothing.batch import smooth_batch  # noqa: E402
 
 
 def main() -> None:
     parser = nees_gauge.lap_parser(__doc__.splitlines()[0])
-    parser.add_argument("--arms", default="default,own", help="default, own (comma-separated)")
+    parser.add_argument("--arms", default="default,own", help="default, own, twice (a list)")
     args = parser.parse_args()
     world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
-    configs = {"default": cfg, "own": cfg.updated({"smoothing.sandwich_plane_share": "own"})}
+    own = cfg.updated({"smoothing.sandwich_plane_share": "own"})
+    configs = {"default": cfg, "own": own, "twice": own}
+    less_own = sandwich_module.less_own
     for name in args.arms.split(","):
+        sandwich_module.less_own = (lambda out, _: out) if name == "twice" else less_own
         start = time.process_time()
         res = smooth_batch(odo.planes, rel, configs[name])
         cpu = time.process_time() - start
