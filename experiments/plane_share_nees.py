@@ -32,6 +32,11 @@ from planodom.metrics import errors_nees, pose_errors  # noqa: E402
 from planodom.smoothing.batch import smooth_batch  # noqa: E402
 
 
+def _keep_own(out, _own):  # noqa: ANN001, ANN202
+    """The "twice" arm's sandwich: the own blocks kept (counted again)."""
+    return out
+
+
 def main() -> None:
     parser = nees_gauge.lap_parser(__doc__.splitlines()[0])
     parser.add_argument("--arms", default="default,own", help="default, own, twice (a list)")
@@ -41,7 +46,7 @@ def main() -> None:
     configs = {"default": cfg, "own": own, "twice": own}
     less_own = sandwich_module.less_own
     for name in args.arms.split(","):
-        sandwich_module.less_own = (lambda out, _: out) if name == "twice" else less_own
+        sandwich_module.less_own = _keep_own if name == "twice" else less_own  # type: ignore[assignment]
         start = time.process_time()
         res = smooth_batch(odo.planes, rel, configs[name])
         cpu = time.process_time() - start
