@@ -46,7 +46,7 @@ def main() -> None:
     configs = {"default": cfg, "own": own, "twice": own}
     less_own = sandwich_module.less_own
     for name in args.arms.split(","):
-        sandwich_module.less_own = _keep_own if name == "twice" else less_own  # type: ignore[assignment]
+        sandwich_module.less_own = _keep_own if name == "twice" else less_own
         start = time.process_time()
         res = smooth_batch(odo.planes, rel, configs[name])
         cpu = time.process_time() - start
