@@ -6,7 +6,9 @@ odometry, which the option does not change), then the batch with loops once with
 default config and once with the option (each plane factor's noise model holding its own
 share of its epoch's deskewing error, the sandwich the shared part); ``--arms`` may add
 "twice" (a diagnostic, no option: the option's noise models with the default's sandwich,
-which then counts each plane's own share twice, as STEPCOV's planes probe). Printed per arm:
+which then counts each plane's own share twice, as STEPCOV's planes probe), "both" (the
+default with ``smoothing.sandwich_relative_ends: both``, NEES6) and "own_both" (the option
+with it: the relative-pose factors' deskewing error in the sandwich too). Printed per arm:
 epochs, odometry and batch ATE xy (m, rmse against the truth from the first pose), mean
 and median NEES5 of the smoothed poses (chi2(5)'s 95 % interval for a lap's mean: [0.83,
 12.8]), loop factors kept, covariance model, and the arm's process time (the smoothing and
@@ -39,11 +41,13 @@ def _keep_own(out, _own):  # noqa: ANN001, ANN202
 
 def main() -> None:
     parser = nees_gauge.lap_parser(__doc__.splitlines()[0])
-    parser.add_argument("--arms", default="default,own", help="default, own, twice (a list)")
+    parser.add_argument("--arms", default="default,own", help="default, own, twice, both, own_both")
     args = parser.parse_args()
     world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
     own = cfg.updated({"smoothing.sandwich_plane_share": "own"})
+    both = {"smoothing.sandwich_relative_ends": "both"}
     configs = {"default": cfg, "own": own, "twice": own}
+    configs |= {"both": cfg.updated(both), "own_both": own.updated(both)}
     less_own = sandwich_module.less_own
     for name in args.arms.split(","):
         sandwich_module.less_own = _keep_own if name == "twice" else less_own
