@@ -42,6 +42,7 @@ def _keep_own(out, _own):  # noqa: ANN001, ANN202
 def main() -> None:
     parser = nees_gauge.lap_parser(__doc__.splitlines()[0])
     parser.add_argument("--arms", default="default,own", help="default, own, twice, both, own_both")
+    parser.add_argument("--detail", action="store_true", help="per component: e^2/P, sizes")
     args = parser.parse_args()
     world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
     own = cfg.updated({"smoothing.sandwich_plane_share": "own"})
@@ -58,6 +59,12 @@ def main() -> None:
         n5 = np.array([np.nan]) if P is None else errors_nees(
             pose_errors(res.poses, gt)[1:], P[1:], range(5))  # fmt: skip
         loops = sum(not f.removed for f in getattr(res, "loop_factors", None) or [])
+        if args.detail and P is not None:
+            xi = pose_errors(res.poses, gt)[1:, :5]
+            var = np.diagonal(P[1:], axis1=1, axis2=2)[:, :5]
+            print(f"  {name}: mean e^2/P (roll pitch yaw x y)", np.round(np.mean(xi**2 / var, 0), 2),
+                  "rms error", np.round(np.sqrt(np.mean(xi**2, 0)) * [1e3] * 3 + [1e2] * 2, 3),
+                  "median sigma (mrad, cm)", np.round(np.sqrt(np.median(var, 0)) * [1e3] * 3 + [1e2] * 2, 3))  # fmt: skip
         print(
             f"world {args.world} {args.noise * 1000:g} mm {name}: epochs {len(gt)}, "
             f"odometry ATE {xy_rmse(odo.poses, gt):.4f}, batch ATE {xy_rmse(res.poses, gt):.4f}, "
