@@ -62,9 +62,11 @@ def main() -> None:
         if args.detail and P is not None:
             xi = pose_errors(res.poses, gt)[1:, :5]
             var = np.diagonal(P[1:], axis1=1, axis2=2)[:, :5]
-            print(f"  {name}: mean e^2/P (roll pitch yaw x y)", np.round(np.mean(xi**2 / var, 0), 2),
-                  "rms error", np.round(np.sqrt(np.mean(xi**2, 0)) * [1e3] * 3 + [1e2] * 2, 3),
-                  "median sigma (mrad, cm)", np.round(np.sqrt(np.median(var, 0)) * [1e3] * 3 + [1e2] * 2, 3))  # fmt: skip
+            scale = np.array([1e3, 1e3, 1e3, 1e2, 1e2])  # mrad, cm
+            print(f"  {name}: mean e^2/P (roll pitch yaw x y)",
+                  np.round(np.mean(xi**2 / var, 0), 2), "rms error (mrad, cm)",
+                  np.round(np.sqrt(np.mean(xi**2, 0)) * scale, 3), "median sigma",
+                  np.round(np.sqrt(np.median(var, 0)) * scale, 3))  # fmt: skip
         print(
             f"world {args.world} {args.noise * 1000:g} mm {name}: epochs {len(gt)}, "
             f"odometry ATE {xy_rmse(odo.poses, gt):.4f}, batch ATE {xy_rmse(res.poses, gt):.4f}, "
