@@ -107,7 +107,7 @@ def test_batch_with_and_without_the_share() -> None:
     """smooth_batch: "own" moves the poses where the epochs' motion changes and leaves the
     covariances finite and positive; on scans taken at one instant (no deskewing error)
     it is the default, bit for bit."""
-    seq = make_sequence(30, seed=4, sigma_rotation=2e-4, sigma_translation=5e-3,
+    seq = make_sequence(15, seed=4, sigma_rotation=2e-4, sigma_translation=5e-3,
                         sigma_normal=1e-3, sigma_offset=5e-3)  # fmt: skip
     base = SmoothingConfig(loop_closure=False, covariance_model="sandwich")
     own = base.model_copy(update={"sandwich_plane_share": "own"})
