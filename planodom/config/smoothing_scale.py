@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from typing import Literal
 
+from pydantic import model_validator
+
 from planodom.config.section import Section
+from planodom.errors import ConfigError
 
 
 class CovarianceScaleConfig(Section):
@@ -120,6 +123,19 @@ class CovarianceScaleConfig(Section):
     relative_deskew`; it includes ``sandwich_loop_sources`` "deskew"'s older end, which it
     then replaces); "none" (default) those factors' errors their own. Only the
     covariances change (docs/RESULTS.md, NEES6)."""
+    sandwich_plane_share: Literal["off", "own"] = "off"
+    """Batch, with the sandwich covariances: "own" gives every plane factor's noise model
+    its own share of its epoch's deskewing error, ``J Q_k J^T`` (``J`` the plane's
+    ``deskew_jacobian`` in the factor's tangent coordinates, ``Q_k`` the sandwich's size of
+    the epoch's error), so that a plane the deskewing moves much weighs less in the
+    estimate; the sandwich then carries only the part the epoch's planes share, ``G Q G^T``
+    less each factor's own block (:mod:`planodom.smoothing.plane_share`), and the modelled
+    error stays the same. The estimate changes (weights, gate, loop ties); the fixed-lag
+    smoother and its initial guess do not. "off" (default): the noise models hold the fits'
+    covariances alone, the sandwich all of ``G Q G^T``. Off: on the 2D-rig laps of worlds
+    280-298 the laps' mean NEES5 rises (inside [0.83, 12.8]: 8 -> 8 of 10 at 6 mm, 8 -> 7 at
+    2 cm) and the batch ATE moves both ways (2 cm: world 292 0.118 -> 0.175 m; 6 mm: 298
+    0.155 -> 0.070 m; geometric mean 1.027x; docs/RESULTS.md, NEESPLANE)."""
     covariance_scale_estimate: Literal["keep", "resolve"] = "keep"
     """With ``covariance_scale``: "keep" the estimate (only the covariances change);
     "resolve" Gauss-Newton on the reweighted graph (the covariance graph: robust inliers
@@ -128,3 +144,20 @@ class CovarianceScaleConfig(Section):
     runs (world 6 at 6 mm 0.078 -> 0.066 m, world 4 at 2 cm 0.069 -> 0.057 m), worse on
     10 (world 16 at 6 mm 0.025 -> 0.048 m, world 0 at 2 cm 0.148 -> 0.184 m, world 10 at
     2 cm 0.024 -> 0.037 m); urban-canyon continuous 6 mm 0.035 -> 0.040 m. Off."""
+
+    @model_validator(mode="after")
+    def _plane_share_needs_the_sandwich(self) -> CovarianceScaleConfig:
+        """``sandwich_plane_share`` "own" moves part of the sandwich's deskewing error into
+        the noise models: it needs the sandwich (not "fitted"; no ``deskew_noise`` or
+        ``covariance_scale``, which change the noise models themselves)."""
+        if self.sandwich_plane_share != "off" and (
+            self.covariance_model == "fitted"
+            or getattr(self, "deskew_noise", "none") != "none"
+            or self.covariance_scale != "none"
+        ):
+            raise ConfigError(
+                "smoothing.sandwich_plane_share: 'own' needs the sandwich covariances "
+                "(covariance_model 'auto' or 'sandwich', deskew_noise and covariance_scale "
+                "'none')"
+            )
+        return self

@@ -12,7 +12,7 @@ import numpy as np
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
-from planodom.smoothing.batch_covariances import batch_covariances
+from planodom.smoothing.batch_covariances import batch_covariances, sandwich_inputs
 from planodom.smoothing.graph import GraphBuilder, GraphStats
 from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.linear_solve import solve as solve_linear
@@ -265,6 +265,10 @@ def _builder(
         builder.first_step = first_measured_step(relative_poses)
     for rel in relative_poses if builder.deskew is not None else ():
         builder.deskew.add(rel)  # type: ignore[union-attr]  # batch: the whole run's, at once
+    if cfg.sandwich_plane_share == "own":  # the sandwich's Q, before any plane factor
+        observed = enumerate((k, p) for k, planes in enumerate(epochs_planes) for p in planes)
+        Q, _ = sandwich_inputs(cfg, dict(observed), relative_poses, len(epochs_planes))
+        builder.plane_share = Q if Q is not None and np.any(Q) else None
     guess = None
     if cfg.batch_initial == "windowed":
         from planodom.smoothing.windowed import smooth_windowed

@@ -127,6 +127,8 @@ def batch_covariances(
     cov_graph = covariance_graph(graph, gaussian, estimate, cfg.covariance_inlier_quantile)
     linear, components = None, None
     Q, why = sandwich_inputs(cfg, planes or {}, relative_poses, n_epochs)
+    if builder.plane_share is not None:  # sandwich_plane_share "own": the same Q as the planes'
+        Q = builder.plane_share
     if Q is not None and np.any(Q):  # (no change of motion, e.g. snapshot scans: fitted)
         try:
             sources = (getattr(builder, "loop_factors", ()), builder.planes)

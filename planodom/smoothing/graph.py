@@ -144,6 +144,7 @@ class GraphBuilder:
         self._update = GraphUpdate(-1, gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
         self.reidentified: dict[tuple[int, int], int] = {}  # (epoch, plane) -> old landmark
         self.deskew = deskew_from_config(config.deskew_noise)
+        self.plane_share: np.ndarray | None = None  # sandwich_plane_share: (E, 6, 6)
 
     def _initial_pose(self, k: int, resolved: list[RelativePose]) -> np.ndarray | None:
         """Chained guess of ``T_world_k`` from the resolved relative poses, or None.
@@ -389,7 +390,7 @@ class GraphBuilder:
         self, lm: _Landmark, e: int, plane: Plane, graph: gtsam.NonlinearFactorGraph, robust: bool
     ) -> None:
         """A plane factor of observation ``plane`` (oriented) from ``X(e)`` on ``lm``."""
-        cov = plane_factor_covariance(plane, self.config, self.deskew, e)
+        cov = plane_factor_covariance(plane, self.config, self.deskew, e, share=self.plane_share)
         noise = plane_noise(cov, isotropic_normal=lm.anchor_key is None)
         key = F(e) if self.deskew is not None and e in self.deskew.frames else X(e)
         self._update.planes[graph.size()] = (e, plane)

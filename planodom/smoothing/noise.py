@@ -15,6 +15,7 @@ from planodom.config import SmoothingConfig
 from planodom.geometry import Plane, plane_tangent_covariance, rpy_from_rotation
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.deskew_noise import TIME_SPREAD, DeskewNoise, plane_deskew_covariance
+from planodom.smoothing.plane_share import own_share
 
 #: Default robust kernel parameters (95 % efficiency on Gaussian noise), in sigmas.
 ROBUST_DEFAULTS = {"huber": 1.345, "cauchy": 2.3849}
@@ -75,16 +76,23 @@ def plane_factor_covariance(
     model: DeskewNoise | None,
     epoch: int,
     jacobian: bool = True,
+    share: np.ndarray | None = None,
 ) -> np.ndarray:
     """(3, 3) :func:`plane_covariance` of ``plane`` seen at epoch ``epoch`` with the
     deskewing error that ``model`` (None: none) gives its plane factors; without
     ``jacobian`` not the change of motion through the plane's own Jacobian (the scale of
     an anchor's prior, pure gauge: a plane whose deskewing leaves it barely known made
-    its anchor's marginal indeterminate, world 2)."""
+    its anchor's marginal indeterminate, world 2). ``share``: (E, 6, 6) the sandwich's
+    epochs' deskewing errors, of which the plane's own share is added
+    (``smoothing.sandwich_plane_share`` "own", :func:`.plane_share.own_share`)."""
     if model is None:
-        return plane_covariance(plane, config)
-    change = model.plane_motion_change(epoch) if jacobian else None
-    return plane_covariance(plane, config, model.plane_pose_covariance(epoch), change)
+        cov = plane_covariance(plane, config)
+    else:
+        change = model.plane_motion_change(epoch) if jacobian else None
+        cov = plane_covariance(plane, config, model.plane_pose_covariance(epoch), change)
+    if share is not None and jacobian and epoch < len(share):
+        cov = cov + own_share(plane, share[epoch])
+    return cov
 
 
 def plane_covariance(

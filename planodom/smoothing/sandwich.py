@@ -65,6 +65,7 @@ from planodom.smoothing.marginals import (
     pose_columns,
     split_factors,
 )
+from planodom.smoothing.plane_share import less_own, own_columns
 from planodom.smoothing.relative_deskew import relative_error_maps
 from planodom.smoothing.sparse_sandwich import NotDefinite, psd_root, sparse_pose_covariances
 
@@ -337,6 +338,7 @@ def sandwich_covariances(
     relative_to_first: bool = True,
     prior_sigma: float = 1e-4,
     extra: tuple[ErrorMaps, np.ndarray] | None = None,
+    own: bool = False,
 ) -> tuple[SandwichMarginals, str | None]:
     """(E, 6, 6) sandwich covariances of ``X(0..E-1)`` at ``values`` and a note naming
     undetermined pose axes (None when none).
@@ -353,6 +355,9 @@ def sandwich_covariances(
             :func:`.marginals.pose_covariances`.
         extra: more error maps (into the epochs' columns or columns from E on) and the
             (K, 6, 6) covariances of the columns from E on.
+        own: the plane factors' noise models hold their own share of their epoch's
+            deskewing error (``sandwich_plane_share`` "own"): it is left out of ``S``
+            (:mod:`.plane_share`).
     """
     linear = graph.linearize(values)
     if relative_to_first:
@@ -365,10 +370,14 @@ def sandwich_covariances(
         g = plane_error_map(graph.at(i), plane)
         if g is not None and np.any(motion_change[epoch]):
             maps[i] = (epoch, g)  # type: ignore[index]  # built here, a dict
+    plane_maps = dict(maps)
     if extra is not None and extra[0]:
         maps, motion_change = merged(maps, extra[0]), np.concatenate([motion_change, extra[1]])
     keys = [X(k) for k in range(n_epochs)]
     out = sandwich_pose_covariances(linear, keys, dims, maps, motion_change)
+    if own and plane_maps:
+        own_maps, q_own = own_columns(plane_maps, motion_change)
+        out = less_own(out, sandwich_pose_covariances(linear, keys, dims, own_maps, q_own))
     poses = sorted(out.undetermined)
     note = None
     if poses:
@@ -430,6 +439,6 @@ def batch_sandwich(
         extra = (both, np.zeros((0, 6, 6))) if extra is None else (merged(extra[0], both), extra[1])
     out, note = sandwich_covariances(
         cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
-        cfg.prior_sigma, extra,
+        cfg.prior_sigma, extra, cfg.sandwich_plane_share == "own",
     )  # fmt: skip
     return out.covariances, note
