@@ -78,7 +78,8 @@ def translation_elements(
         n1, n2, i1.astype(np.int64), i2.astype(np.int64), j1.astype(np.int64),
         j2.astype(np.int64), float(min_verticality), float(np.cos(min_angle)),
     )  # fmt: skip
-    pairs = np.column_stack([prev_pairs, curr_pairs])
+    # np.column_stack's values for two (E, 2) arrays, without its per-array conversions
+    pairs = np.concatenate((prev_pairs, curr_pairs), axis=1)
     return TranslationElements(pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok])
 
 
