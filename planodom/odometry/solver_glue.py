@@ -144,3 +144,14 @@ def _remap4_kernel(q, order_p, order_c):  # pragma: no cover - compiled
     out[0], out[1] = order_p[q[0]], order_p[q[1]]
     out[2], out[3] = order_c[q[2]], order_c[q[3]]
     return out
+
+
+def stacked_pairs(prev_pairs: np.ndarray, curr_pairs: np.ndarray) -> np.ndarray:
+    """(E, 4) the pair associations' rows ``(i1, i2, j1, j2)`` of ``prev_pairs`` and
+    ``curr_pairs`` (E, 2) each: ``np.column_stack``'s values (a concatenation along the
+    columns, numpy's dtype promotion) without its per-array conversions."""
+    if not (isinstance(prev_pairs, np.ndarray) and isinstance(curr_pairs, np.ndarray)):
+        return np.column_stack([prev_pairs, curr_pairs])
+    if prev_pairs.ndim != 2 or curr_pairs.ndim != 2:
+        return np.column_stack([prev_pairs, curr_pairs])
+    return np.concatenate((prev_pairs, curr_pairs), axis=1)

@@ -21,6 +21,7 @@ import numba
 import numpy as np
 
 from planodom.association import nonparallel_pairs
+from planodom.odometry.solver_glue import stacked_pairs
 from planodom.planes import PlaneSet
 
 
@@ -78,8 +79,7 @@ def translation_elements(
         n1, n2, i1.astype(np.int64), i2.astype(np.int64), j1.astype(np.int64),
         j2.astype(np.int64), float(min_verticality), float(np.cos(min_angle)),
     )  # fmt: skip
-    # np.column_stack's values for two (E, 2) arrays, without its per-array conversions
-    pairs = np.concatenate((prev_pairs, curr_pairs), axis=1)
+    pairs = stacked_pairs(prev_pairs, curr_pairs)
     return TranslationElements(pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok])
 
 

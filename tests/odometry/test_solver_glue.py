@@ -16,6 +16,7 @@ from planodom.odometry.solver_glue import (
     pair_ids,
     remapped_pair,
     remapped_pairs,
+    stacked_pairs,
 )
 
 
@@ -101,3 +102,12 @@ def test_remaps_numpy_values(seed: int) -> None:
     _same(remapped_pair(q32, order_p, order_c), numpy_remapped_pair(q32, order_p, order_c))
     ij32 = ij.astype(np.int32)
     _same(remapped_pairs(ij32, order_p, order_c), numpy_remapped_pairs(ij32, order_p, order_c))
+
+
+def test_stacked_pairs_numpy_values() -> None:
+    rng = np.random.default_rng(3)
+    pp = rng.integers(0, 9, (5, 2)).astype(np.intp)
+    cp = rng.integers(0, 9, (5, 2)).astype(np.intp)
+    for a, b in ((pp, cp), (pp, cp.astype(np.int32)), (pp[:0], cp[:0]), (pp[:, ::-1], cp)):
+        _same(stacked_pairs(a, b), np.column_stack([a, b]))
+    _same(stacked_pairs(pp[:, 0], cp[:, 0]), np.column_stack([pp[:, 0], cp[:, 0]]))
