@@ -5,8 +5,9 @@ The 2D rig's default odometry runs each world's simulated run with the code as i
 of :mod:`planodom.odometry.solver_glue` and numpy's ``np.append``, ``np.column_stack``
 and ``np.isfinite(...).all()``): the translation consensus's pair ids, the winner's
 neighbours, the refinement's initial translation, the rotation covariance's finiteness
-test, the translation elements' rows and the remapping of the solve's indices to the
-input order. They alternate, ``--reps`` times each after an untimed warm-up of both,
+test, the translation elements' rows, the rows kept by boolean masks (translation
+elements, agreeing pairs, the winner's neighbours) and the remapping of the solve's
+indices to the input order. They alternate, ``--reps`` times each after an untimed warm-up of both,
 with KISS-ICP on the same scans (as ``bench_rig2d_vs_kiss.py`` runs it); the fastest
 repetition of each counts (process time). Per world: both variants' CPU ms an epoch,
 their ratio, KISS-ICP's, and planodom's epochs/s as a multiple of KISS-ICP's with
@@ -55,6 +56,11 @@ def former_appended(txy: np.ndarray, z: float) -> np.ndarray:
     return np.append(txy, z)
 
 
+def former_kept_rows(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The boolean selections of rows before SPEED2D9."""
+    return tuple(a[mask] for a in arrays)
+
+
 def former_stacked_pairs(prev_pairs: np.ndarray, curr_pairs: np.ndarray) -> np.ndarray:
     """The translation elements' rows before SPEED2D9."""
     return np.column_stack([prev_pairs, curr_pairs])
@@ -68,7 +74,9 @@ FORMER = (
     (solver, "all_finite", former_all_finite),
     (solver, "remapped_pair", numpy_remapped_pair),
     (solver, "remapped_pairs", numpy_remapped_pairs),
+    (solver, "kept_rows", former_kept_rows),
     (translation, "stacked_pairs", former_stacked_pairs),
+    (translation, "kept_rows", former_kept_rows),
 )
 CUTS = tuple((obj, name, getattr(obj, name)) for obj, name, _ in FORMER)
 

@@ -48,6 +48,7 @@ from planodom.odometry.rotation_planes import rotation_pairs
 from planodom.odometry.solver_glue import (
     all_finite,
     appended,
+    kept_rows,
     near_rows,
     pair_ids,
     remapped_pair,
@@ -266,7 +267,8 @@ def _translation_pairs(
     c = chord(radians(cfg.odometry.rotation_inlier_deg))
     pp, cp = lda.prev_pairs, lda.curr_pairs
     agree = agreeing_pairs(prev.normals, curr.normals, pp, cp, R, c)
-    return lda.plane_associations(agree), pp[agree], cp[agree]
+    kept_pp, kept_cp = kept_rows(agree, pp, cp)
+    return lda.plane_associations(agree), kept_pp, kept_cp
 
 
 def _measured_translation(
@@ -405,7 +407,8 @@ def _translation(prev, curr, elems: TranslationElements, heights, z0: float, met
         a, g = a_all[best], g_all[best]
         w = elems.weights if method == "wocsc" else np.ones(len(elems))
         near = near_rows(cands, best, ocfg.translation_inlier_m)
-        cov = _spread(cands[near] - cands[best], w[near])
+        near_cands, near_w = kept_rows(near, cands, w)
+        cov = _spread(near_cands - cands[best], near_w)
     txy = a - z0 * g
     if heights is None:
         return _Translation(txy, z0, cov, cons, np.inf, False, best)

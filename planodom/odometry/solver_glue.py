@@ -155,3 +155,17 @@ def stacked_pairs(prev_pairs: np.ndarray, curr_pairs: np.ndarray) -> np.ndarray:
     if prev_pairs.ndim != 2 or curr_pairs.ndim != 2:
         return np.column_stack([prev_pairs, curr_pairs])
     return np.concatenate((prev_pairs, curr_pairs), axis=1)
+
+
+def kept_rows(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``a[mask]`` of each of ``arrays`` (N, ...) for a boolean ``mask`` (N,): the same
+    rows copied, by one ``nonzero`` and a ``take`` per array (numpy's boolean indexing of
+    a 2-D array costs about four times that on a few rows). Other masks, or arrays of
+    another length, go to the boolean indexing itself (and its errors)."""
+    if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.ndim != 1:
+        return tuple(a[mask] for a in arrays)
+    n = mask.shape[0]
+    if not all(isinstance(a, np.ndarray) and a.ndim >= 1 and len(a) == n for a in arrays):
+        return tuple(a[mask] for a in arrays)
+    index = mask.nonzero()[0]
+    return tuple(a.take(index, axis=0) for a in arrays)

@@ -8,6 +8,7 @@ import pytest
 from planodom.odometry.solver_glue import (
     all_finite,
     appended,
+    kept_rows,
     near_rows,
     numpy_near_rows,
     numpy_pair_ids,
@@ -111,3 +112,24 @@ def test_stacked_pairs_numpy_values() -> None:
     for a, b in ((pp, cp), (pp, cp.astype(np.int32)), (pp[:0], cp[:0]), (pp[:, ::-1], cp)):
         _same(stacked_pairs(a, b), np.column_stack([a, b]))
     _same(stacked_pairs(pp[:, 0], cp[:, 0]), np.column_stack([pp[:, 0], cp[:, 0]]))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_kept_rows_boolean_indexing_values(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(0, 12))
+    mask = rng.random(n) < 0.6
+    arrays = (
+        rng.normal(size=(n, 2)), rng.integers(0, 9, (n, 4)).astype(np.intp),
+        rng.normal(size=n), rng.normal(size=(n, 3, 3)), rng.normal(size=(n, 4))[:, ::2],
+    )  # fmt: skip
+    for got, a in zip(kept_rows(mask, *arrays), arrays, strict=True):
+        _same(got, a[mask])
+        assert got.flags.c_contiguous
+
+
+def test_kept_rows_other_masks_as_numpy() -> None:
+    a = np.arange(10.0).reshape(5, 2)
+    _same(kept_rows(np.array([0, 2]), a)[0], a[np.array([0, 2])])  # an index array
+    with pytest.raises(IndexError):
+        kept_rows(np.array([True, False]), a)  # a mask of another length
