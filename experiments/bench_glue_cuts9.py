@@ -1,18 +1,18 @@
 """SPEED2D9's exact cuts of the solver's glue against the code they replaced, in one process.
 
 The 2D rig's default odometry runs each world's simulated run with the code as it is
-("cuts") and with the former expressions put back ("former", the ``numpy_*`` functions
-of :mod:`planodom.odometry.solver_glue` and numpy's ``np.append``, ``np.column_stack``
-and ``np.isfinite(...).all()``): the translation consensus's pair ids, the winner's
-neighbours, the refinement's initial translation, the rotation covariance's finiteness
-test, the translation elements' rows, the rows kept by boolean masks (translation
-elements, agreeing pairs, the winner's neighbours) and the remapping of the solve's
-indices to the input order. They alternate, ``--reps`` times each after an untimed warm-up of both,
-with KISS-ICP on the same scans (as ``bench_rig2d_vs_kiss.py`` runs it); the fastest
-repetition of each counts (process time). Per world: both variants' CPU ms an epoch,
-their ratio, KISS-ICP's, and planodom's epochs/s as a multiple of KISS-ICP's with
-each; the two variants' poses must be the same bits (checked on every repetition).
-(``rotation_covariance``'s ``math.isnan`` of one value, for ``np.isnan``, is in both.)
+("cuts") and with the former expressions put back ("former": the ``numpy_*`` functions
+of :mod:`planodom.odometry.solver_glue`, ``np.append``, ``np.isfinite(...).all()`` and
+boolean indexing): the translation consensus's pair ids, the winner's neighbours, the
+refinement's initial translation, the rotation covariance's finiteness test, the rows
+kept by boolean masks (translation elements, agreeing pairs, the winner's neighbours)
+and the remapping of the solve's associations to the input order. They alternate,
+``--reps`` times each after an untimed warm-up of both, with KISS-ICP on the same scans
+(as ``bench_rig2d_vs_kiss.py`` runs it); the fastest repetition of each counts (process
+time). Per world: both variants' CPU ms an epoch, their ratio, KISS-ICP's, and
+planodom's epochs/s as a multiple of KISS-ICP's with each; the two variants' poses must
+be the same bits (checked on every repetition). (``rotation_covariance``'s
+``math.isnan`` of one value, for ``np.isnan``, is in both.)
 
     uv run --extra baselines python experiments/bench_glue_cuts9.py --noise 0.02 \\
         --epochs 150 --worlds 160 162 164 168 170 172 --reps 5
@@ -40,7 +40,6 @@ from planodom.odometry import run_odometry  # noqa: E402
 from planodom.odometry.solver_glue import (  # noqa: E402
     numpy_near_rows,
     numpy_pair_ids,
-    numpy_remapped_pair,
     numpy_remapped_pairs,
 )
 from planodom.simulation.random_world import simulate_world, world_fields  # noqa: E402
@@ -61,21 +60,14 @@ def former_kept_rows(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray,
     return tuple(a[mask] for a in arrays)
 
 
-def former_stacked_pairs(prev_pairs: np.ndarray, curr_pairs: np.ndarray) -> np.ndarray:
-    """The translation elements' rows before SPEED2D9."""
-    return np.column_stack([prev_pairs, curr_pairs])
-
-
 #: (object, attribute, former): what "former" puts back
 FORMER = (
     (solver, "pair_ids", numpy_pair_ids),
     (solver, "near_rows", numpy_near_rows),
     (solver, "appended", former_appended),
     (solver, "all_finite", former_all_finite),
-    (solver, "remapped_pair", numpy_remapped_pair),
     (solver, "remapped_pairs", numpy_remapped_pairs),
     (solver, "kept_rows", former_kept_rows),
-    (translation, "stacked_pairs", former_stacked_pairs),
     (translation, "kept_rows", former_kept_rows),
 )
 CUTS = tuple((obj, name, getattr(obj, name)) for obj, name, _ in FORMER)

@@ -51,7 +51,6 @@ from planodom.odometry.solver_glue import (
     kept_rows,
     near_rows,
     pair_ids,
-    remapped_pair,
     remapped_pairs,
 )
 from planodom.odometry.translation import (
@@ -150,7 +149,7 @@ def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) ->
     ij = result.associations
 
     def pair(q: np.ndarray | None) -> np.ndarray | None:
-        return None if q is None else remapped_pair(q, order_p, order_c)
+        return None if q is None else np.concatenate((order_p[q[:2]], order_c[q[2:]]))
 
     info = result.diagnostics
     assert info is not None

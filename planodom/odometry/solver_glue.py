@@ -107,19 +107,6 @@ def numpy_remapped_pairs(ij: np.ndarray, order_p: np.ndarray, order_c: np.ndarra
     return np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]])
 
 
-def remapped_pair(q: np.ndarray, order_p: np.ndarray, order_c: np.ndarray) -> np.ndarray:
-    """(4,) a winning pair ``q`` ``(i1, i2, j1, j2)`` mapped through the orders, as
-    :func:`numpy_remapped_pair`."""
-    if not _int64s(q, order_p, order_c) or q.shape != (4,):
-        return numpy_remapped_pair(q, order_p, order_c)
-    return _remap4_kernel(q, order_p, order_c)
-
-
-def numpy_remapped_pair(q: np.ndarray, order_p: np.ndarray, order_c: np.ndarray) -> np.ndarray:
-    """:func:`remapped_pair` in numpy (the solver's expression before SPEED2D9)."""
-    return np.concatenate((order_p[q[:2]], order_c[q[2:]]))
-
-
 def _int64s(*arrays: np.ndarray) -> bool:
     """Whether every one of ``arrays`` is an int64 ndarray (then the compiled remaps give
     numpy's values and dtype)."""
@@ -135,26 +122,6 @@ def _remap_kernel(ij, order_p, order_c):  # pragma: no cover - compiled
         out[k, 0] = order_p[ij[k, 0]]
         out[k, 1] = order_c[ij[k, 1]]
     return out
-
-
-@numba.njit(cache=True)
-def _remap4_kernel(q, order_p, order_c):  # pragma: no cover - compiled
-    """:func:`remapped_pair` of int64 arrays."""
-    out = np.empty(4, dtype=np.int64)
-    out[0], out[1] = order_p[q[0]], order_p[q[1]]
-    out[2], out[3] = order_c[q[2]], order_c[q[3]]
-    return out
-
-
-def stacked_pairs(prev_pairs: np.ndarray, curr_pairs: np.ndarray) -> np.ndarray:
-    """(E, 4) the pair associations' rows ``(i1, i2, j1, j2)`` of ``prev_pairs`` and
-    ``curr_pairs`` (E, 2) each: ``np.column_stack``'s values (a concatenation along the
-    columns, numpy's dtype promotion) without its per-array conversions."""
-    if not (isinstance(prev_pairs, np.ndarray) and isinstance(curr_pairs, np.ndarray)):
-        return np.column_stack([prev_pairs, curr_pairs])
-    if prev_pairs.ndim != 2 or curr_pairs.ndim != 2:
-        return np.column_stack([prev_pairs, curr_pairs])
-    return np.concatenate((prev_pairs, curr_pairs), axis=1)
 
 
 def kept_rows(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:

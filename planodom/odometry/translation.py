@@ -21,7 +21,7 @@ import numba
 import numpy as np
 
 from planodom.association import nonparallel_pairs
-from planodom.odometry.solver_glue import kept_rows, stacked_pairs
+from planodom.odometry.solver_glue import kept_rows
 from planodom.planes import PlaneSet
 
 
@@ -79,7 +79,7 @@ def translation_elements(
         n1, n2, i1.astype(np.int64), i2.astype(np.int64), j1.astype(np.int64),
         j2.astype(np.int64), float(min_verticality), float(np.cos(min_angle)),
     )  # fmt: skip
-    pairs = stacked_pairs(prev_pairs, curr_pairs)
+    pairs = np.column_stack([prev_pairs, curr_pairs])
     return TranslationElements(*kept_rows(ok, pairs, ref_p, ref_c, slope, w))
 
 

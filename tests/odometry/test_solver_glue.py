@@ -12,12 +12,9 @@ from planodom.odometry.solver_glue import (
     near_rows,
     numpy_near_rows,
     numpy_pair_ids,
-    numpy_remapped_pair,
     numpy_remapped_pairs,
     pair_ids,
-    remapped_pair,
     remapped_pairs,
-    stacked_pairs,
 )
 
 
@@ -91,27 +88,14 @@ def test_appended_values() -> None:
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_remaps_numpy_values(seed: int) -> None:
+def test_remapped_pairs_numpy_values(seed: int) -> None:
     rng = np.random.default_rng(seed)
     order_p, order_c = rng.permutation(9), rng.permutation(7)
     ij = np.column_stack([rng.integers(0, 9, 6), rng.integers(0, 7, 6)]).astype(np.intp)
     _same(remapped_pairs(ij, order_p, order_c), numpy_remapped_pairs(ij, order_p, order_c))
-    q = np.array([rng.integers(0, 9), rng.integers(0, 9), rng.integers(0, 7), 0], np.intp)
-    _same(remapped_pair(q, order_p, order_c), numpy_remapped_pair(q, order_p, order_c))
     # other dtypes go to numpy's expression
-    q32 = q.astype(np.int32)
-    _same(remapped_pair(q32, order_p, order_c), numpy_remapped_pair(q32, order_p, order_c))
     ij32 = ij.astype(np.int32)
     _same(remapped_pairs(ij32, order_p, order_c), numpy_remapped_pairs(ij32, order_p, order_c))
-
-
-def test_stacked_pairs_numpy_values() -> None:
-    rng = np.random.default_rng(3)
-    pp = rng.integers(0, 9, (5, 2)).astype(np.intp)
-    cp = rng.integers(0, 9, (5, 2)).astype(np.intp)
-    for a, b in ((pp, cp), (pp, cp.astype(np.int32)), (pp[:0], cp[:0]), (pp[:, ::-1], cp)):
-        _same(stacked_pairs(a, b), np.column_stack([a, b]))
-    _same(stacked_pairs(pp[:, 0], cp[:, 0]), np.column_stack([pp[:, 0], cp[:, 0]]))
 
 
 @pytest.mark.parametrize("seed", range(4))
