@@ -5,8 +5,9 @@ The 2D rig's default odometry runs each world's simulated run with the code as i
 of :mod:`planodom.odometry.solver_glue`, ``np.append``, ``np.isfinite(...).all()`` and
 boolean indexing): the translation consensus's pair ids, the winner's neighbours, the
 refinement's initial translation, the rotation covariance's finiteness test, the rows
-kept by boolean masks (translation elements, agreeing pairs, the winner's neighbours)
-and the remapping of the solve's associations to the input order. They alternate,
+kept by boolean masks (translation elements, agreeing pairs, the winner's neighbours),
+the remapping of the solve's associations to the input order, and the refinement's
+planes gathered in its compiled call (former: by numpy). They alternate,
 ``--reps`` times each after an untimed warm-up of both, with KISS-ICP on the same scans
 (as ``bench_rig2d_vs_kiss.py`` runs it); the fastest repetition of each counts (process
 time). Per world: both variants' CPU ms an epoch, their ratio, KISS-ICP's, and
@@ -27,9 +28,11 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import time  # noqa: E402
+from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+import planodom.odometry.refine as refine  # noqa: E402
 import planodom.odometry.solver as solver  # noqa: E402
 import planodom.odometry.translation as translation  # noqa: E402
 import planodom.se3 as se3  # noqa: E402
@@ -55,6 +58,17 @@ def former_appended(txy: np.ndarray, z: float) -> np.ndarray:
     return np.append(txy, z)
 
 
+def former_gathered_fit(
+    prev: Any, curr: Any, i: np.ndarray, j: np.ndarray, R: np.ndarray, t0: np.ndarray,
+    rest: tuple[Any, ...],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:  # fmt: skip
+    """``plane_translation``'s fit before SPEED2D9: the planes' rows gathered by numpy."""
+    return refine._translation_kernel(
+        prev.normals[i], prev.offsets[i], prev.covariances[i], curr.normals[j],
+        curr.offsets[j], curr.covariances[j], R, t0, *rest,
+    )  # fmt: skip
+
+
 def former_kept_rows(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
     """The boolean selections of rows before SPEED2D9."""
     return tuple(a[mask] for a in arrays)
@@ -68,6 +82,7 @@ FORMER = (
     (solver, "all_finite", former_all_finite),
     (solver, "remapped_pairs", numpy_remapped_pairs),
     (solver, "kept_rows", former_kept_rows),
+    (refine, "gathered_fit", former_gathered_fit),
     (translation, "kept_rows", former_kept_rows),
 )
 CUTS = tuple((obj, name, getattr(obj, name)) for obj, name, _ in FORMER)
