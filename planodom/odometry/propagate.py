@@ -20,6 +20,8 @@ two pairs are one.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
@@ -119,7 +121,7 @@ def rotation_covariance(
         J = _jacobian(lambda b: _rpy(_weighted(b[:, :6], b[:, 6:], weights)), x)
         return J @ S @ J.T
     J = _rotation_jacobian(x, _STEP)
-    if np.isnan(J[0, 0]):  # near gimbal lock: scipy's conversion (see _rpy)
+    if math.isnan(J[0, 0]):  # near gimbal lock: scipy's conversion (see _rpy)
 
         def f(x: np.ndarray) -> np.ndarray:
             U_p = rotation_frames(x[:, 0:3], x[:, 3:6])

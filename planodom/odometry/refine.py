@@ -31,13 +31,15 @@ from typing import Any
 
 import numba
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planodom.odometry.nonholonomic import KernelPlanes, with_lateral
+from planodom.odometry.refine_rotation import (  # noqa: F401 - plane_rotation re-exported
+    _FALLBACK_VAR_D,
+    _FALLBACK_VAR_N,
+    normal_variances,
+    plane_rotation,
+)
 from planodom.planes import PlaneSet
-
-#: Fallback (n, d) variances when a plane's covariance is unknown: 1 deg, 1 cm.
-_FALLBACK_VAR_N, _FALLBACK_VAR_D = np.radians(1.0) ** 2, 0.01**2
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,19 +124,21 @@ def plane_translation(
     if len(ij) == 0:
         return PlaneTranslation(t0.copy(), np.eye(2) * unmeasured_var, np.inf, False, False, 0)
     i, j = ij[:, 0], ij[:, 1]
-    args = (
-        prev.normals[i], prev.offsets[i], prev.covariances[i],
-        curr.normals[j], curr.offsets[j], curr.covariances[j],
-        np.ascontiguousarray(R, dtype=np.float64),
-    )  # fmt: skip
+    R_c = np.ascontiguousarray(R, dtype=np.float64)
     rest = (
         -np.inf if z_normal_min is None else float(z_normal_min), z_normal_min is not None,
         offset_floor_m, max_sigma_m, unmeasured_var, consensus_measured,
         _UNMEASURED[unmeasured], level_min, keep_sigma,
     )  # fmt: skip
-    fit = _translation_kernel(*args, t0, *rest)
-    if not fit[2][1]:
-        fit = _degenerate(args, rest, t0, prediction, lateral_sigma_m, fit)
+    fit = gathered_fit(prev, curr, i, j, R_c, t0, rest)
+    if fit is None or not fit[2][1]:
+        args = (
+            prev.normals[i], prev.offsets[i], prev.covariances[i],
+            curr.normals[j], curr.offsets[j], curr.covariances[j], R_c,
+        )  # fmt: skip
+        fit = _translation_kernel(*args, t0, *rest) if fit is None else fit
+        if not fit[2][1]:
+            fit = _degenerate(args, rest, t0, prediction, lateral_sigma_m, fit)
     t, h_inv, flags, n_kept = fit
     z_observed, measured = bool(flags[0]), bool(flags[1])
     sigma_z = float(np.sqrt(h_inv[2, 2])) if z_observed else np.inf
@@ -379,41 +383,40 @@ def _inliers_kernel(m, b, w, t0, free):  # pragma: no cover - compiled
     return keep
 
 
-def plane_rotation(
-    prev: PlaneSet,
-    curr: PlaneSet,
-    R: np.ndarray,
-    ij: np.ndarray,
-    normal_floor: float,
-    min_angle: float,
-) -> np.ndarray:
-    """``R_prev_curr`` (3, 3) fitting the normals of the associations ``ij`` (L, 2) by
-    weighted Procrustes (closed form); ``R`` when no two previous normals are ``min_angle``
-    rad or more apart (the rotation about their direction would be unobserved).
-
-    Weights: inverse of each association's normal variance (mean over the tangent axes,
-    both planes) plus ``normal_floor`` rad squared.
-    """
-    if len(ij) < 2:
-        return R
-    n_p, n_c = prev.normals[ij[:, 0]], curr.normals[ij[:, 1]]
-    # Two unit vectors theta apart: singular values of [n1 n2]^T / sqrt(2) are
-    # cos(theta / 2) and sin(theta / 2).
-    s = np.linalg.svd(n_p / np.sqrt(len(n_p)), compute_uv=False)
-    if s[1] < np.sin(min_angle / 2.0):
-        return R
-    var = normal_variances(prev.covariances[ij[:, 0]], curr.covariances[ij[:, 1]])
-    rot, _ = Rotation.align_vectors(n_p, n_c, weights=1.0 / (var + normal_floor**2))
-    return rot.as_matrix()
+def gathered_fit(
+    prev: PlaneSet, curr: PlaneSet, i: np.ndarray, j: np.ndarray, R: np.ndarray,
+    t0: np.ndarray, rest: tuple[Any, ...],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:  # fmt: skip
+    """:func:`_translation_kernel` of the associations ``i`` -> ``j`` (L,) with the planes'
+    rows gathered in the compiled call (the same copies numpy's six fancy indexings make,
+    SPEED2D9: they cost as much as the kernel), or None when an array is not a writeable
+    C-contiguous float64 one (int64 indices), or an index is outside ``[0, K)``: then the
+    caller gathers in numpy (and its errors)."""
+    arrays = (prev.normals, prev.offsets, prev.covariances, curr.normals, curr.offsets,
+              curr.covariances)  # fmt: skip
+    if i.dtype != np.int64 or j.dtype != np.int64 or not all(map(_plain, arrays)):
+        return None
+    ok, t, h_inv, flags, n_kept = _gathered_kernel(*arrays, i, j, R, t0, *rest)
+    return (t, h_inv, flags, n_kept) if ok else None
 
 
-def normal_variances(prev_cov: np.ndarray, curr_cov: np.ndarray) -> np.ndarray:
-    """(...,) variance, rad^2, of a normal association's residual along one tangent axis:
-    the traces of both planes' normal blocks of the ``(n, d)`` covariances (..., 4, 4),
-    summed and halved (a unit normal's covariance lies in its 2-D tangent plane); unknown
-    (NaN) covariances count 1 deg per plane."""
-    var = (
-        np.trace(prev_cov[..., :3, :3], axis1=-2, axis2=-1)
-        + np.trace(curr_cov[..., :3, :3], axis1=-2, axis2=-1)
-    ) / 2.0
-    return np.where(np.isfinite(var), var, 2.0 * _FALLBACK_VAR_N)
+def _plain(a: np.ndarray) -> bool:
+    """A writeable C-contiguous float64 array (one compiled specialisation)."""
+    return a.dtype == np.float64 and a.flags.c_contiguous and a.flags.writeable
+
+
+@numba.njit(cache=True)
+def _gathered_kernel(
+    pn, pd, pc, cn, cd, cc, i, j, R, t0, z_min, use_z, floor, max_sigma, var0, measured0,
+    weak, level, keep_sigma,
+):  # fmt: skip  # pragma: no cover - compiled
+    """:func:`gathered_fit`: False (and empty results) when an index is outside the
+    planes; else True and :func:`_translation_kernel` of the gathered rows."""
+    for k in range(i.shape[0]):
+        if i[k] < 0 or i[k] >= pd.shape[0] or j[k] < 0 or j[k] >= cd.shape[0]:
+            return False, np.zeros(3), np.zeros((3, 3)), np.zeros(2, np.bool_), 0
+    t, h_inv, flags, n_kept = _translation_kernel(
+        pn[i], pd[i], pc[i], cn[j], cd[j], cc[j], R, t0, z_min, use_z, floor, max_sigma,
+        var0, measured0, weak, level, keep_sigma,
+    )  # fmt: skip
+    return True, t, h_inv, flags, n_kept

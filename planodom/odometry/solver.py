@@ -45,6 +45,14 @@ from planodom.odometry.rotation import (
     rotation_consensus,
 )
 from planodom.odometry.rotation_planes import rotation_pairs
+from planodom.odometry.solver_glue import (
+    all_finite,
+    appended,
+    kept_rows,
+    near_rows,
+    pair_ids,
+    remapped_pairs,
+)
 from planodom.odometry.translation import (
     HeightElements,
     TranslationElements,
@@ -85,11 +93,6 @@ def config_for_gap(config: PlanodomConfig, gap: int) -> PlanodomConfig:
         "association.max_rotation_deg": min(a.max_rotation_deg * gap, 180.0),
     }
     return config.updated(changes, source=f"bounds for a gap of {gap} epochs")
-
-
-def _pair_ids(pairs: np.ndarray) -> np.ndarray:
-    """(M,) one integer id per plane index pair (M, 2)."""
-    return pairs[:, 0].astype(np.int64) * (int(pairs.max(initial=0)) + 1) + pairs[:, 1]
 
 
 def _spread(d: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -158,7 +161,7 @@ def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) ->
     )
     return replaced(
         result,
-        associations=np.column_stack([order_p[ij[:, 0]], order_c[ij[:, 1]]]) if len(ij) else ij,
+        associations=remapped_pairs(ij, order_p, order_c) if len(ij) else ij,
         sources=info.sources(result.status),
         diagnostics=info,
     )
@@ -206,7 +209,7 @@ def _solve(
         cov_t, sigma_z, z_observed = np.diag([bounds.translation**2] * 2), np.inf, False
     refined = None
     if ocfg.refinement != "none":
-        refined = _refine(prev, curr, R, np.append(txy, z), measured, bounds, cfg, lateral)
+        refined = _refine(prev, curr, R, appended(txy, z), measured, bounds, cfg, lateral)
         # The planes associated under the consensus pose decide: a consensus pair that
         # SDA does not confirm (a far wall's normal off by degrees) measures nothing.
         R, fit = refined.R, refined.fit
@@ -264,7 +267,8 @@ def _translation_pairs(
     c = chord(radians(cfg.odometry.rotation_inlier_deg))
     pp, cp = lda.prev_pairs, lda.curr_pairs
     agree = agreeing_pairs(prev.normals, curr.normals, pp, cp, R, c)
-    return lda.plane_associations(agree), pp[agree], cp[agree]
+    kept_pp, kept_cp = kept_rows(agree, pp, cp)
+    return lda.plane_associations(agree), kept_pp, kept_cp
 
 
 def _measured_translation(
@@ -352,7 +356,7 @@ def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str
         i, j = lda.prev_pairs[cons.best_index], lda.curr_pairs[cons.best_index]
         R = winner_rotation(prev, curr, i, j, lda.rotations[cons.best_index], ocfg)
         cp, cc = prev.covariances[i], curr.covariances[j]
-        if np.isfinite(cp).all() and np.isfinite(cc).all():
+        if all_finite(cp, cc):
             w = rotation_weights(prev, curr, i, j, ocfg)
             return R, rotation_covariance(prev.normals[i], curr.normals[j], cp, cc, w), cons
     close = rotation_angles_to(lda.rotations, R) <= inlier_angle
@@ -397,13 +401,14 @@ def _translation(prev, curr, elems: TranslationElements, heights, z0: float, met
         cons = consensus(
             cands, elems.ref_prev, elems.targets(z0), apply_negative_translation,
             weights=elems.weights if method == "wocsc" else None,
-            inlier_tol=ocfg.translation_inlier_m, groups=_pair_ids(elems.pairs[:, :2]),
+            inlier_tol=ocfg.translation_inlier_m, groups=pair_ids(elems.pairs[:, :2]),
         )  # fmt: skip
         best = cons.best_index
         a, g = a_all[best], g_all[best]
         w = elems.weights if method == "wocsc" else np.ones(len(elems))
-        near = np.linalg.norm(cands - cands[best], axis=1) <= ocfg.translation_inlier_m
-        cov = _spread(cands[near] - cands[best], w[near])
+        near = near_rows(cands, best, ocfg.translation_inlier_m)
+        near_cands, near_w = kept_rows(near, cands, w)
+        cov = _spread(near_cands - cands[best], near_w)
     txy = a - z0 * g
     if heights is None:
         return _Translation(txy, z0, cov, cons, np.inf, False, best)

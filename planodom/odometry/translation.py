@@ -21,6 +21,7 @@ import numba
 import numpy as np
 
 from planodom.association import nonparallel_pairs
+from planodom.odometry.solver_glue import kept_rows
 from planodom.planes import PlaneSet
 
 
@@ -79,7 +80,7 @@ def translation_elements(
         j2.astype(np.int64), float(min_verticality), float(np.cos(min_angle)),
     )  # fmt: skip
     pairs = np.column_stack([prev_pairs, curr_pairs])
-    return TranslationElements(pairs[ok], ref_p[ok], ref_c[ok], slope[ok], w[ok])
+    return TranslationElements(*kept_rows(ok, pairs, ref_p, ref_c, slope, w))
 
 
 @numba.njit(cache=True)
