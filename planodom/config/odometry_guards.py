@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
+from planodom.config.map_lead_shrink import MapLeadShrinkConfig
 from planodom.config.moment_refine import MomentRefineConfig
 from planodom.config.plane_deskew_noise import PlaneDeskewNoiseConfig
 from planodom.config.split_reference import SplitReferenceConfig
@@ -15,7 +16,11 @@ from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
 
 
 class DeskewGuards(
-    MomentRefineConfig, PlaneDeskewNoiseConfig, SplitReferenceConfig, StatedDeskewNoiseConfig
+    MapLeadShrinkConfig,
+    MomentRefineConfig,
+    PlaneDeskewNoiseConfig,
+    SplitReferenceConfig,
+    StatedDeskewNoiseConfig,
 ):
     """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``), and the motion
     model the prediction assumes (:class:`.motion_model.MotionModelConfig`)."""
