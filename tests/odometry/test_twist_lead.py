@@ -87,7 +87,8 @@ def test_map_lead_takes_the_previous_epochs_own_twist(mode: str):
         assert lost is not None and lost.previous is None
         own = np.ones(6)
         np.testing.assert_array_equal(lost.led(own, True, 0.1), own)
-    assert map_lead(recent, 5, times, _relative(Status.OK), OdometryConfig()) is None
+    off = OdometryConfig(map_twist_lead="off")
+    assert map_lead(recent, 5, times, _relative(Status.OK), off) is None
 
 
 def test_the_lead_refines_with_its_own_tolerances():
@@ -150,7 +151,7 @@ def test_the_shrunk_lead_is_nearer_the_true_rate_than_the_full_lead(accel: float
 
 
 def test_map_lead_shrink_off_keeps_the_full_lead():
-    config = OdometryConfig(map_twist_lead="rate")
+    config = OdometryConfig(map_twist_lead="rate", map_lead_shrink="off")
     lead = map_lead([(0, np.zeros(6))], 1, [0.0, 0.1], _relative(Status.OK), config,
                     [np.ones(3)])  # fmt: skip
     assert lead is not None and lead.previous_var is None
