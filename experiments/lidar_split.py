@@ -60,6 +60,9 @@ CURVE: dict[str, dict[str, object]] = {
     "ifit": {"odometry.deskew_fit": "increments"},
     "noguard": {"odometry.deskew_pass_guard": "off"},
     "mid": {"planemap.pass_reference_time": "middle"},
+    # the own twist led by half an epoch along its change (odometry.map_twist_lead)
+    "lead": {"odometry.map_twist_lead": "rate"},
+    "leads": {"odometry.map_twist_lead": "rate", "odometry.map_lead_shrink": "stated"},
 }
 
 

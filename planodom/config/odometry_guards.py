@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
+from planodom.config.map_lead_shrink import MapLeadShrinkConfig
 from planodom.config.moment_refine import MomentRefineConfig
 from planodom.config.narrow_rotation import NarrowRotationConfig
 from planodom.config.plane_deskew_noise import PlaneDeskewNoiseConfig
@@ -16,8 +17,13 @@ from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
 
 
 class DeskewGuards(
+<<<<<<< HEAD
     MomentRefineConfig,
     NarrowRotationConfig,
+=======
+    MapLeadShrinkConfig,
+    MomentRefineConfig,
+>>>>>>> lidarrot
     PlaneDeskewNoiseConfig,
     SplitReferenceConfig,
     StatedDeskewNoiseConfig,

@@ -204,7 +204,9 @@ class PlaneOdometry:
             damped = against_map and not middle  # see centred_times
             lost_trend = pairwise_trend(self._rates, k, self.twist, ocfg) if pairwise else None
             restore = self._restore_reference if pairwise and guarded(ocfg) else None
-            lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg) if middle else None
+            led = middle and k not in self._gaps  # a lead never crosses a gap
+            lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg,
+                            self._rate_vars) if led else None  # fmt: skip
             guard = pairwise and ocfg.deskew_bounds_guard
             bounds = (self.config.association, self._restore_reference) if guard else None
             blend = self._twist_sigma.blend.bound(self._map)  # odometry.twist_blend

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planodom.config import OdometryConfig
+from planodom.odometry.bridge_robust import rate_variance
 from planodom.odometry.motion_model import predicted_motion
 from planodom.odometry.relative import RelativePose, Status
 
@@ -145,12 +146,37 @@ class Lead:
     rate_tolerance_deg_s: float
     speed_tolerance_mps: float
     iterations: int
+    previous_var: np.ndarray | None = None
 
-    def led(self, own: np.ndarray, measured: bool, dt: float) -> np.ndarray:
-        """(6,) ``own`` led along its change since ``previous`` (:func:`led_twist`)."""
+    def led(
+        self, own: np.ndarray, measured: bool, dt: float, relative: RelativePose | None = None
+    ) -> np.ndarray:
+        """(6,) ``own`` led along its change since ``previous`` (:func:`led_twist`); with
+        ``previous_var`` (``odometry.map_lead_shrink: stated``) and ``relative``, the step
+        ``own`` was measured by, its rate's lead shrunk by :func:`shrunk_lead`."""
         if self.previous is None:
             return own
-        return led_twist(own, measured, dt, self.previous, self.previous_dt)
+        out = led_twist(own, measured, dt, self.previous, self.previous_dt)
+        if self.previous_var is None or relative is None:
+            return out
+        variance = self.previous_var + rate_variance(relative, dt)
+        out[:3] = own[:3] + shrunk_lead(out[:3] - own[:3], own[:3] - self.previous[:3], variance)
+        return out
+
+
+def shrunk_lead(lead: np.ndarray, change: np.ndarray, variance: np.ndarray) -> np.ndarray:
+    """(3,) a rate's ``lead`` (rad/s) scaled per axis by the Wiener gain ``c^2 / (c^2 +
+    v)`` of the ``change`` ``c`` (3,) it extrapolates, two epochs' own rates apart, whose
+    noise has the ``variance`` ``v`` (3,, (rad/s)^2: both steps' stated rate variances).
+    A change within its noise is mostly noise, and leading by it amplifies the noise
+    (``own + 1/2 (own - previous)``: 1.6x the rate's standard deviation); a change far
+    beyond it is the motion's, led in full. Axes whose variance is unknown (NaN) or whose
+    change is zero keep ``lead`` as it is."""
+    c2 = change**2
+    gain = np.ones(3)
+    known = np.isfinite(variance) & (c2 > 0)
+    gain[known] = c2[known] / (c2[known] + np.maximum(variance[known], 0.0))
+    return gain * np.nan_to_num(lead)
 
 
 def map_lead(
@@ -159,13 +185,15 @@ def map_lead(
     times: Sequence[float],
     last: RelativePose | None,
     config: OdometryConfig,
+    variances: Sequence[np.ndarray] = (),
 ) -> Lead | None:
     """How epoch ``k`` of a plane map registered at its sweep's middle is extracted again
     (``config.map_twist_lead``; None when off): its own twist led along the change from
     the previous epoch's, taken from ``recent`` (epoch, own twist) of the epochs that
     measured their rate (none when the previous epoch is not among them), its velocity
     only when the lead covers it and that step (``last``) measured it; ``times``: the
-    epochs' so far, seconds."""
+    epochs' so far, seconds; ``variances``: the stated rate variances (3,) of ``recent``
+    (one each), which ``odometry.map_lead_shrink: stated`` shrinks the lead by."""
     mode = config.map_twist_lead
     if mode == "off":
         return None
@@ -175,8 +203,13 @@ def map_lead(
         previous_dt = float(times[-1] - times[-2])
         if mode == "rate" or last.status is not Status.OK:
             previous[3:] = np.nan
+    previous_var = None
+    shrink = config.map_lead_shrink == "stated" and previous is not None
+    if shrink and len(variances) == len(recent):
+        previous_var = np.asarray(variances[-1], dtype=np.float64)
     return Lead(previous, previous_dt, config.map_lead_rate_tolerance_deg_s,
-                config.map_lead_speed_tolerance_mps, config.map_lead_iterations)  # fmt: skip
+                config.map_lead_speed_tolerance_mps, config.map_lead_iterations,
+                previous_var)  # fmt: skip
 
 
 def led_twist(

@@ -72,7 +72,7 @@ def refined_own(
     if against_map and not config.map_twist_offset:
         return 0.5 * (own + used)
     if lead is not None:
-        return lead.led(own, measured, dt)
+        return lead.led(own, measured, dt, best.relative)
     return own if centring is None else centring.led_for(own, best)
 
 

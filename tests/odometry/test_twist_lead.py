@@ -87,7 +87,8 @@ def test_map_lead_takes_the_previous_epochs_own_twist(mode: str):
         assert lost is not None and lost.previous is None
         own = np.ones(6)
         np.testing.assert_array_equal(lost.led(own, True, 0.1), own)
-    assert map_lead(recent, 5, times, _relative(Status.OK), OdometryConfig()) is None
+    off = OdometryConfig(map_twist_lead="off")
+    assert map_lead(recent, 5, times, _relative(Status.OK), off) is None
 
 
 def test_the_lead_refines_with_its_own_tolerances():
@@ -102,3 +103,66 @@ def test_the_lead_refines_with_its_own_tolerances():
     lead = map_lead([], 1, [0.0], None, config)
     np.testing.assert_array_equal(refined_twist(own, used, True, config, lead), own)
     np.testing.assert_array_equal(refined_twist(own, used, False, config, lead)[3:], 0.0)
+
+
+def test_the_shrunk_lead_keeps_a_change_beyond_its_noise_and_halves_one_at_it():
+    from planodom.odometry.trend import shrunk_lead
+
+    lead = np.array([0.5, -0.2, 0.1])
+    change = np.array([1.0, 0.02, 0.1])
+    variance = np.array([1e-6, 0.02**2, np.nan])
+    got = shrunk_lead(lead, change, variance)
+    assert got[0] == pytest.approx(lead[0], rel=1e-5)  # far beyond the noise: in full
+    assert got[1] == pytest.approx(0.5 * lead[1])  # at one sigma: c^2 / (c^2 + c^2)
+    assert got[2] == lead[2]  # the noise unknown: led as without shrinking
+    np.testing.assert_array_equal(shrunk_lead(lead, np.zeros(3), np.ones(3)), lead)
+
+
+@pytest.mark.parametrize("accel", [0.0, 2.0])
+def test_the_shrunk_lead_is_nearer_the_true_rate_than_the_full_lead(accel: float):
+    """Own rates of 0.1 s steps with noise of 0.01 rad/s, under a constant rate (its
+    change is all noise: the full lead carries 1.6x it) and a rate changing at 2 rad/s^2
+    (a change of 0.2 rad/s, twenty sigmas: led in full): the error against the true rate
+    at the next sweep's middle (half a step on), over 4000 draws."""
+    rng = np.random.default_rng(0)
+    dt, sigma, n = 0.1, 0.01, 4000
+    # the own rate of a step is the true rate at its middle; the sweep's half a step on
+    previous = -0.5 * accel * dt + rng.normal(0, sigma, (n, 3))
+    own = 0.5 * accel * dt + rng.normal(0, sigma, (n, 3))
+    true = accel * dt
+    config = OdometryConfig(map_twist_lead="rate", map_lead_shrink="stated")
+    cov = np.diag(np.r_[np.full(3, (sigma * dt) ** 2), 1e-4, 1e-4])
+    errors = {"full": [], "shrunk": []}
+    for p, o in zip(previous, own, strict=True):
+        twist_p, twist_o = np.r_[p, 1.0, 0, 0], np.r_[o, 1.0, 0, 0]
+        lead = map_lead([(0, twist_p)], 1, [0.0, dt], _relative(Status.OK), config,
+                        [np.full(3, sigma**2)])  # fmt: skip
+        assert lead is not None
+        step = RelativePose(np.eye(4), cov, Status.OK)
+        errors["shrunk"].append(lead.led(twist_o, True, dt, step)[:3] - true)
+        errors["full"].append(lead.led(twist_o, True, dt)[:3] - true)
+    rms = {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in errors.items()}
+    if accel == 0.0:
+        assert rms["full"] == pytest.approx(np.sqrt(2.5) * sigma, rel=0.05)
+        assert rms["shrunk"] < 0.9 * rms["full"]  # 0.87: the gain is itself noisy
+    else:
+        assert rms["full"] == pytest.approx(np.sqrt(2.5) * sigma, rel=0.05)  # unbiased
+        assert rms["shrunk"] < 1.02 * rms["full"]
+
+
+def test_map_lead_shrink_off_keeps_the_full_lead():
+    config = OdometryConfig(map_twist_lead="rate", map_lead_shrink="off")
+    lead = map_lead([(0, np.zeros(6))], 1, [0.0, 0.1], _relative(Status.OK), config,
+                    [np.ones(3)])  # fmt: skip
+    assert lead is not None and lead.previous_var is None
+
+
+@pytest.mark.parametrize("value", ["on", "1", "fitted"])
+def test_a_bad_map_lead_shrink_names_file_and_field(tmp_path, value: str) -> None:
+    from planodom.config import PlanodomConfig
+    from planodom.errors import ConfigError
+
+    (tmp_path / "c.yaml").write_text(f"odometry: {{map_lead_shrink: {value}}}\n")
+    with pytest.raises(ConfigError, match=r"c\.yaml: field 'odometry\.map_lead_shrink'") as err:
+        PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    assert "\n" not in str(err.value)
