@@ -17,13 +17,9 @@ from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
 
 
 class DeskewGuards(
-<<<<<<< HEAD
-    MomentRefineConfig,
-    NarrowRotationConfig,
-=======
     MapLeadShrinkConfig,
     MomentRefineConfig,
->>>>>>> lidarrot
+    NarrowRotationConfig,
     PlaneDeskewNoiseConfig,
     SplitReferenceConfig,
     StatedDeskewNoiseConfig,
