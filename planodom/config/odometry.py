@@ -416,7 +416,7 @@ class OdometryConfig(DeskewGuards):
     defaults): median rotation rms 0.00376 -> 0.00327 deg at 6 mm (5.8 -> 5.8x the oracle,
     worst 50 -> 31x), 0.00789 -> 0.00675 at 2 cm (5.1 -> 4.8x, worst 15.4 -> 10.6x); ATE
     1.01 -> 0.63 mm (4.5 -> 2.9x), 2.45 -> 1.91 mm (3.5 -> 2.8x); world 17 0.0127 -> 0.0038
-    deg, 5 0.0030 -> 0.0013; epochs/s 26.2 -> 25.7, 22.2 -> 19.4. Off by default, some
+    deg, 5 0.0030 -> 0.0013; epochs/s 26.2 -> 25.7, 22.2 -> 19.4. Off until LIDARROT, some
     worlds worse: world 9's ATE at 6 mm 1.12 -> 1.69 cm (rotation 0.0071 -> 0.0060 deg), 19's
     at 2 cm 1.43 -> 1.90 mm, 11's 0.66 -> 0.83 mm (rotation at 6 mm 0.0009 -> 0.0011 deg),
     7's rotation at 2 cm 0.0064 -> 0.0070 deg. With the general tolerances (0.5 deg/s, 0.5
