@@ -1,5 +1,6 @@
-"""SPEED2D8's exact cuts call by call: each cut's CPU a call, as it is and as it was
-(``bench_glue_cuts.py``'s former expressions), on calls captured from runs.
+"""The exact glue cuts call by call: each cut's CPU a call, as it is and as it was (the
+former expressions of ``bench_glue_cuts.py``, SPEED2D8, or with ``--cuts speed2d9``
+``bench_glue_cuts9.py``), on calls captured from runs.
 
 For each world (the 2D rig's default odometry, 150 epochs), an untimed run, then one run
 with every cut function wrapped to record its arguments; the recorded calls are then
@@ -8,6 +9,7 @@ replayed ``--replays`` times per trial with the cut and with its former expressi
 Per cut: calls an epoch, us a call both ways, and the us saved an epoch.
 
     uv run python experiments/bench_glue_calls.py --noise 0.02 --worlds 162 168
+    uv run python experiments/bench_glue_calls.py --cuts speed2d9 --worlds 162 168
 """
 
 from __future__ import annotations
@@ -18,12 +20,11 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import importlib  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable  # noqa: E402
+from types import ModuleType  # noqa: E402
 from typing import Any  # noqa: E402
-
-# the cuts and their former expressions (this script runs beside it in experiments/)
-import bench_glue_cuts as cuts  # noqa: E402
 
 from planodom.config import PlanodomConfig  # noqa: E402
 from planodom.experiments.generalisation import declared_sweep, world_for  # noqa: E402
@@ -41,7 +42,11 @@ def _recording(name: str, fn: Callable[..., Any], calls: Calls) -> Callable[...,
     return wrapper
 
 
-def captured(worlds: list[int], noise: float, epochs: int) -> Calls:
+#: the cuts and their former expressions (the scripts beside this one in experiments/)
+CUT_SETS = {"speed2d8": "bench_glue_cuts", "speed2d9": "bench_glue_cuts9"}
+
+
+def captured(cuts: ModuleType, worlds: list[int], noise: float, epochs: int) -> Calls:
     """The cut functions' calls in one run of each world (after an untimed one)."""
     calls: Calls = {}
     for w in worlds:
@@ -76,8 +81,10 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=150)
     ap.add_argument("--replays", type=int, default=10)
     ap.add_argument("--trials", type=int, default=5)
+    ap.add_argument("--cuts", choices=sorted(CUT_SETS), default="speed2d8")
     args = ap.parse_args()
-    calls = captured(args.worlds, args.noise, args.epochs)
+    cuts = importlib.import_module(CUT_SETS[args.cuts])
+    calls = captured(cuts, args.worlds, args.noise, args.epochs)
     epochs = args.epochs * len(args.worlds)
     new = {name: fn for _, name, fn in cuts.CUTS}
     former = {name: fn for _, name, fn in cuts.FORMER}

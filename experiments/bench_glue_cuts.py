@@ -114,21 +114,30 @@ FORMER = (
     (se3, "se3_exp", former_se3_exp),
     (extraction_epoch, "se3_exp", former_se3_exp),
     (PairAssociations, "plane_associations", former_plane_associations),
-    (odometry_module, "_inverse_chain", former_inverse_chain),
+    (odometry_module, "inverse_chain", former_inverse_chain),
     (solver, "agreeing_pairs", numpy_agreeing),
     (solver, "height_elements", former_height_elements),
 )
-CUTS = tuple((obj, name, getattr(obj, name)) for obj, name, _ in FORMER)
 
 
-def use(variant: str) -> None:
+def cuts_of(former: tuple) -> tuple:
+    """(object, attribute, function as it is now) for each entry of ``former``."""
+    return tuple((obj, name, getattr(obj, name)) for obj, name, _ in former)
+
+
+CUTS = cuts_of(FORMER)
+
+
+def use(variant: str, cuts: tuple = CUTS, former: tuple = FORMER) -> None:
     """Put the ``variant``'s functions in place ("cuts" or "former")."""
-    for obj, name, fn in CUTS if variant == "cuts" else FORMER:
+    for obj, name, fn in cuts if variant == "cuts" else former:
         setattr(obj, name, fn)
     se3._twist_step.cache_clear()  # no prediction remembered from the other variant's run
 
 
-def one_world(w: int, noise: float, epochs: int, reps: int) -> dict:
+def one_world(
+    w: int, noise: float, epochs: int, reps: int, cuts: tuple = CUTS, former: tuple = FORMER
+) -> dict:
     """CPU ms an epoch (best of ``reps``) of both variants and KISS-ICP on world ``w``."""
     world = world_for(w)
     cfg = declared_sweep(world, PlanodomConfig())
@@ -137,14 +146,14 @@ def one_world(w: int, noise: float, epochs: int, reps: int) -> dict:
     max_range = max(s.max_range for s in world.sensor_rig.sensors)
     period = 1.0 / world.epoch_rate
     for name in ("former", "cuts"):
-        use(name)
+        use(name, cuts, former)
         run_odometry(warm, cfg)
     kiss_icp_poses(warm.scans, period, max_range)
     cpu: dict[str, list[float]] = {"former": [], "cuts": [], "kiss": []}
     poses: dict[str, np.ndarray] = {}
     for _ in range(reps):
         for name in ("former", "cuts"):
-            use(name)
+            use(name, cuts, former)
             c0 = time.process_time()
             odo = run_odometry(run, cfg)
             cpu[name].append(time.process_time() - c0)
@@ -154,13 +163,14 @@ def one_world(w: int, noise: float, epochs: int, reps: int) -> dict:
         c0 = time.process_time()
         kiss_icp_poses(run.scans, period, max_range)
         cpu["kiss"].append(time.process_time() - c0)
-    use("cuts")
+    use("cuts", cuts, former)
     ms = {name: 1e3 * min(v) / epochs for name, v in cpu.items()}
     return {"world": w, "kind": world.kind, **ms}
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(cuts: tuple = CUTS, former: tuple = FORMER, doc: str = __doc__) -> None:
+    """The A/B of ``former`` against ``cuts`` (this script's, or another release's)."""
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
     ap.add_argument("--worlds", type=int, nargs="+", default=[160, 162, 164, 168, 170, 172])
     ap.add_argument("--noise", type=float, default=0.02)
     ap.add_argument("--epochs", type=int, default=150)
@@ -173,7 +183,7 @@ def main() -> None:
     print(f"{args.noise * 1e3:g} mm, {args.epochs} epochs, CPU ms an epoch (best of {args.reps})")
     shares, before, after = [], [], []
     for w in args.worlds:
-        r = one_world(w, args.noise, args.epochs, args.reps)
+        r = one_world(w, args.noise, args.epochs, args.reps, cuts, former)
         shares.append(r["cuts"] / r["former"])
         before.append(r["kiss"] / r["former"])
         after.append(r["kiss"] / r["cuts"])
