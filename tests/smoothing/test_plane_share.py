@@ -8,7 +8,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 import pytest
-from smoothing.test_sandwich import _jacobians, _perturbed, _world
+from smoothing.test_sandwich import _jacobians, _monte_carlo_covariances, _perturbed, _world
 
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import ConfigError
@@ -79,22 +79,10 @@ def test_sandwich_without_the_own_blocks_is_the_monte_carlo_covariance() -> None
     out, note = sandwich_covariances(graph, values, len(poses), planes, Q, False, 1e-6, own=True)
     twice, _ = sandwich_covariances(graph, values, len(poses), planes, Q, False, 1e-6)
     assert note is None
-    rng = np.random.default_rng(11)
-    jac = _jacobians()
-    errors = []
-    for _ in range(400):
-        dxi = [rng.multivariate_normal(np.zeros(6), q) for q in Q]
-        measured = {}
-        for (k, j), z in truth.items():
-            z = _perturbed(z, jac[j] @ dxi[k])
-            fit = rng.normal(size=3) * sig_plane
-            measured[(k, j)] = np.asarray(gtsam.OrientedPlane3(z).retract(fit).planeCoefficients())
-        between = [Z.compose(gtsam.Pose3.Expmap(rng.normal(size=6) * sig_between)) for Z in rel]
-        g, _, _ = _graph(poses, walls, measured, between, *args)
-        est = gtsam.LevenbergMarquardtOptimizer(g, values).optimize()
-        errors.append([est.atPose3(X(k)).localCoordinates(poses[k]) for k in range(len(poses))])
-    err = np.array(errors)  # (400, E, 6)
-    mc = np.einsum("ski,skj->kij", err, err) / len(err)
+    mc = _monte_carlo_covariances(
+        lambda measured, between: _graph(poses, walls, measured, between, *args)[0],
+        poses, truth, rel, sig_plane, sig_between, Q, values,
+    )  # fmt: skip
     ratios = []
     for k in range(1, len(poses)):
         var_mc = np.diag(mc[k])

@@ -346,6 +346,29 @@ def test_undetermined_pose_takes_the_dense_path(monkeypatch: pytest.MonkeyPatch)
     np.testing.assert_allclose(out.covariances[:-1], ref.covariances, rtol=1e-7, atol=1e-14)
 
 
+def _monte_carlo_covariances(  # noqa: PLR0913
+    make_graph, poses, truth, rel, sig_plane, sig_between, Q, values, n=400, seed=11
+):  # noqa: ANN001, ANN202
+    """The solved poses' covariance (E, 6, 6) over ``n`` seeded samples: each plane moved by
+    one change of motion per epoch (``Q``) through its deskewing Jacobian and by its fit
+    noise, each relative pose by its noise; ``make_graph(measured, between)`` the graph."""
+    rng = np.random.default_rng(seed)
+    jac = _jacobians()
+    errors = []
+    for _ in range(n):
+        dxi = [rng.multivariate_normal(np.zeros(6), q) for q in Q]
+        measured = {}
+        for (k, j), z in truth.items():
+            z = _perturbed(z, jac[j] @ dxi[k])
+            fit = rng.normal(size=3) * sig_plane
+            measured[(k, j)] = np.asarray(gtsam.OrientedPlane3(z).retract(fit).planeCoefficients())
+        between = [Z.compose(gtsam.Pose3.Expmap(rng.normal(size=6) * sig_between)) for Z in rel]
+        est = gtsam.LevenbergMarquardtOptimizer(make_graph(measured, between), values).optimize()
+        errors.append([est.atPose3(X(k)).localCoordinates(poses[k]) for k in range(len(poses))])
+    err = np.array(errors)  # (n, E, 6)
+    return np.einsum("ski,skj->kij", err, err) / len(err)
+
+
 def test_sandwich_is_the_estimators_monte_carlo_covariance() -> None:
     """Planes perturbed by their fit noise plus one change of motion per epoch through
     their deskewing Jacobians: the solved poses' covariance (400 seeded samples) matches
@@ -359,22 +382,11 @@ def test_sandwich_is_the_estimators_monte_carlo_covariance() -> None:
     graph, planes, values = _graph(poses, walls, truth, rel, sig_plane, sig_between)
     out, note = sandwich_covariances(graph, values, len(poses), planes, Q, False, 1e-6)
     assert note is None
-    rng = np.random.default_rng(11)
-    jac = _jacobians()
-    errors = []
-    for _ in range(400):
-        dxi = [rng.multivariate_normal(np.zeros(6), q) for q in Q]
-        measured = {}
-        for (k, j), z in truth.items():
-            z = _perturbed(z, jac[j] @ dxi[k])
-            fit = rng.normal(size=3) * sig_plane
-            measured[(k, j)] = np.asarray(gtsam.OrientedPlane3(z).retract(fit).planeCoefficients())
-        between = [Z.compose(gtsam.Pose3.Expmap(rng.normal(size=6) * sig_between)) for Z in rel]
-        g, _, _ = _graph(poses, walls, measured, between, sig_plane, sig_between)
-        est = gtsam.LevenbergMarquardtOptimizer(g, values).optimize()
-        errors.append([est.atPose3(X(k)).localCoordinates(poses[k]) for k in range(len(poses))])
-    err = np.array(errors)  # (400, E, 6)
-    mc = np.einsum("ski,skj->kij", err, err) / len(err)
+
+    def make_graph(measured, between):  # noqa: ANN001, ANN202
+        return _graph(poses, walls, measured, between, sig_plane, sig_between)[0]
+
+    mc = _monte_carlo_covariances(make_graph, poses, truth, rel, sig_plane, sig_between, Q, values)
     for k in range(1, len(poses)):
         var_mc, var_sw = np.diag(mc[k]), np.diag(out.covariances[k])
         np.testing.assert_allclose(var_mc, var_sw, rtol=0.2)
