@@ -8,17 +8,17 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 import pytest
-from smoothing.test_sandwich import _jacobians, _monte_carlo_covariances, _perturbed, _world
+from smoothing.test_sandwich import _graph as _sandwich_graph
+from smoothing.test_sandwich import _monte_carlo_covariances, _perturbed, _world
 
 from planodom.config import PlanodomConfig, SmoothingConfig
 from planodom.errors import ConfigError
 from planodom.geometry import Plane
 from planodom.smoothing.batch import smooth_batch
-from planodom.smoothing.graph import L, X
 from planodom.smoothing.plane_share import own_share
 from planodom.smoothing.sandwich import sandwich_covariances
 from planodom.smoothing.synthetic import make_sequence, with_deskew_jacobians
-from planodom_factors.planes import plane_factor, plane_noise, predict_plane
+from planodom_factors.planes import predict_plane
 
 
 def test_own_share_is_the_tangent_covariance_of_the_moved_plane() -> None:
@@ -41,25 +41,10 @@ def test_own_share_is_the_tangent_covariance_of_the_moved_plane() -> None:
 
 
 def _graph(poses, walls, measured, between, sig_plane, sig_between, Q, own):  # noqa: ANN001, ANN202, PLR0913
-    """The prior, between factors and a global plane factor per (pose, wall); with ``own``
-    each plane factor's noise holds its share of ``Q[k]`` (the option's noise model)."""
-    graph = gtsam.NonlinearFactorGraph()
-    graph.add(gtsam.PriorFactorPose3(X(0), poses[0], gtsam.noiseModel.Isotropic.Sigma(6, 1e-6)))
-    for k, Z in enumerate(between):
-        noise = gtsam.noiseModel.Isotropic.Sigma(6, sig_between)
-        graph.add(gtsam.BetweenFactorPose3(X(k), X(k + 1), Z, noise))
-    planes: dict[int, tuple[int, Plane]] = {}
-    for (k, j), z in measured.items():
-        plane = Plane(z[:3], float(z[3]), deskew_jacobian=_jacobians()[j])
-        cov = np.diag(sig_plane**2) + (own_share(plane, Q[k]) if own else 0.0)
-        planes[graph.size()] = (k, plane)
-        graph.add(plane_factor(X(k), L(j), z, plane_noise(cov)))
-    values = gtsam.Values()
-    for k, T in enumerate(poses):
-        values.insert(X(k), T)
-    for j, w in enumerate(walls):
-        values.insert(L(j), gtsam.OrientedPlane3(w))
-    return graph, planes, values
+    """The sandwich test's graph; with ``own`` each plane factor's noise holds its share of
+    ``Q[k]`` (the option's noise model)."""
+    share = (lambda k, plane: own_share(plane, Q[k])) if own else None
+    return _sandwich_graph(poses, walls, measured, between, sig_plane, sig_between, share)
 
 
 def test_sandwich_without_the_own_blocks_is_the_monte_carlo_covariance() -> None:

@@ -3,6 +3,8 @@ inverse and the Monte-Carlo covariance of the estimator."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import gtsam
 import numpy as np
 import pytest
@@ -100,8 +102,10 @@ def test_error_map_is_the_whitened_errors_change(kind: str) -> None:
 def _graph(
     poses: list[gtsam.Pose3], walls: np.ndarray, measured: dict[tuple[int, int], np.ndarray],
     between: list[gtsam.Pose3], plane_sigmas: np.ndarray, between_sigma: float,
+    own_covariance: Callable[[int, Plane], np.ndarray] | None = None,
 ) -> tuple[gtsam.NonlinearFactorGraph, dict[int, tuple[int, Plane]], gtsam.Values]:  # fmt: skip
-    """A graph: prior on X(0), between factors, a global plane factor per (pose, wall)."""
+    """A graph: prior on X(0), between factors, a global plane factor per (pose, wall);
+    ``own_covariance(k, plane)`` (3, 3), when given, is added to each plane factor's noise."""
     graph = gtsam.NonlinearFactorGraph()
     graph.add(gtsam.PriorFactorPose3(X(0), poses[0], gtsam.noiseModel.Isotropic.Sigma(6, 1e-6)))
     for k, Z in enumerate(between):
@@ -110,8 +114,10 @@ def _graph(
     planes: dict[int, tuple[int, Plane]] = {}
     noise = plane_noise(np.diag(plane_sigmas**2))
     for (k, j), z in measured.items():
-        jac = _jacobians()[j]
-        planes[graph.size()] = (k, Plane(z[:3], float(z[3]), deskew_jacobian=jac))
+        plane = Plane(z[:3], float(z[3]), deskew_jacobian=_jacobians()[j])
+        planes[graph.size()] = (k, plane)
+        if own_covariance is not None:
+            noise = plane_noise(np.diag(plane_sigmas**2) + own_covariance(k, plane))
         graph.add(plane_factor(X(k), L(j), z, noise))
     values = gtsam.Values()
     for k, T in enumerate(poses):
