@@ -20,7 +20,7 @@ unobserved.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
@@ -28,9 +28,11 @@ import numpy as np
 from planodom.angles import cos_of_degrees, pose_floor, radians
 from planodom.association import PairAssociations, lenient_association, strict_association
 from planodom.config import PlanodomConfig
-from planodom.consensus import ConsensusResult, apply_negative_translation, consensus
+from planodom.consensus import apply_negative_translation, consensus
 from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
+from planodom.odometry.fused_translation import MeasuredTranslation as _Translation
+from planodom.odometry.fused_translation import fused_translation
 from planodom.odometry.nonholonomic import lateral_sigma
 from planodom.odometry.pair_agreement import agreeing_pairs
 from planodom.odometry.pair_rotation import candidate_pairs, rotation_weights, winner_rotation
@@ -194,12 +196,8 @@ def _solve(
 
     R, cov_r, rot_cons = _rotation(prev, curr, lda, rot_method, ocfg)
     ij, pp, cp = _translation_pairs(prev, curr, lda, R, trans_method, bounds, cfg)
-    elems = translation_elements(
-        prev, curr, R, pp, cp, acfg.min_line_verticality,
-        radians(ocfg.translation_min_angle_deg),
-    )  # fmt: skip
-    heights = height_elements(prev, curr, ij, radians(ocfg.z_plane_max_tilt_deg))
-    tr, measured = _measured_translation(prev, curr, elems, heights, trans_method, bounds, cfg)
+    tr_args = (prev, curr, R, pp, cp, ij, trans_method, bounds, cfg)
+    pairs, tr, measured = _measured_translation(*tr_args)
     if measured:
         assert tr is not None
         txy, z, cov_t, sigma_z, z_observed = tr.txy, tr.z, tr.cov, tr.sigma_z, tr.z_observed
@@ -226,7 +224,7 @@ def _solve(
             (lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index])
         )
     if measured and tr is not None and tr.best >= 0:
-        trans_pair = elems.pairs[tr.best]
+        trans_pair = pairs[tr.best]
     cov = np.zeros((5, 5))
     cov[:3, :3], cov[3:, 3:] = cov_r, cov_t
     if refined is None and rot_pair is not None and trans_pair is not None:
@@ -237,7 +235,7 @@ def _solve(
     sda_bound = ocfg.translation_inlier_m if measured else bounds.translation
     final_ij = strict_association(prev, curr, R, acfg, T[:3, 3], sda_bound)
     info = replaced(
-        info, rotation_consensus=rot_cons, n_translation_pairs=len(elems),
+        info, rotation_consensus=rot_cons, n_translation_pairs=len(pairs),
         translation_consensus=tr.consensus if tr is not None else None,
         rotation_pair=rot_pair, translation_pair=trans_pair,
     )  # fmt: skip
@@ -271,7 +269,24 @@ def _translation_pairs(
     return lda.plane_associations(agree), kept_pp, kept_cp
 
 
-def _measured_translation(
+def _measured_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg):
+    """The pair elements' rows (E, 4) of the pairs ``pp`` -> ``cp`` under ``R``, then as
+    :func:`_elements_translation`; consensus methods in two compiled calls (the same bits:
+    :mod:`planodom.odometry.fused_translation`), else (or where those do not apply) numpy."""
+    done = (
+        None
+        if method == "cog"
+        else fused_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg)
+    )
+    if done is not None:
+        return done
+    elems = translation_elements(prev, curr, R, pp, cp, cfg.association.min_line_verticality,
+                                 radians(cfg.odometry.translation_min_angle_deg))  # fmt: skip
+    heights = height_elements(prev, curr, ij, radians(cfg.odometry.z_plane_max_tilt_deg))
+    return elems.pairs, *_elements_translation(prev, curr, elems, heights, method, bounds, cfg)
+
+
+def _elements_translation(
     prev: PlaneSet,
     curr: PlaneSet,
     elems: TranslationElements,
@@ -366,22 +381,6 @@ def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str
     if method == "mean":
         cov = cov / max(int(close.sum()), 1)
     return R, cov, cons
-
-
-@dataclass(frozen=True)
-class _Translation:
-    """Result of :func:`_translation`: horizontal translation (2,), height, covariance of
-    the horizontal part (spread based), consensus, sigma of z, whether z was measured,
-    and the indices of the winning pair element and height element (-1: a mean / none)."""
-
-    txy: np.ndarray
-    z: float
-    cov: np.ndarray
-    consensus: ConsensusResult | None
-    sigma_z: float
-    z_observed: bool
-    best: int = -1
-    height: int = -1
 
 
 def _translation(prev, curr, elems: TranslationElements, heights, z0: float, method, ocfg):

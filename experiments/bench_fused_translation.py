@@ -1,0 +1,73 @@
+"""SPEED2D10's measured translation in two compiled calls against the numpy path it
+replaces, in one process, with KISS-ICP on the same scans.
+
+The 2D rig's default odometry runs each world's simulated run with the solver's
+translation as it is ("cuts": :mod:`planodom.odometry.fused_translation`) and with the
+numpy path ("former": ``fused_translation`` answering None, so the solver's
+``_elements_translation`` runs), alternating, ``--reps`` times each after an untimed
+warm-up of both, and KISS-ICP on the same scans (``bench_glue_cuts.py``'s loop: the
+fastest repetition of each counts, process time; the two variants' poses must be the
+same bits, checked on every repetition). ``--count`` first counts, on one run of each
+world, the solves the compiled path served and those it handed to numpy.
+
+    uv run --extra baselines python experiments/bench_fused_translation.py --noise 0.02 \\
+        --epochs 150 --worlds 160 162 164 168 170 172 --reps 5
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import bench_glue_cuts
+
+import planodom.odometry.solver as solver
+
+
+def former_fused_translation(*args: Any) -> None:
+    """The solver's translation before SPEED2D10: the numpy path always."""
+    return None
+
+
+#: (object, attribute, former): what "former" puts back
+FORMER = ((solver, "fused_translation", former_fused_translation),)
+CUTS = bench_glue_cuts.cuts_of(FORMER)
+
+
+def count(worlds: list[int], noise: float, epochs: int) -> None:
+    """Print, per world, the solves the compiled path served and those it left to numpy."""
+    from planodom.config import PlanodomConfig
+    from planodom.experiments.generalisation import declared_sweep, world_for
+    from planodom.odometry import run_odometry
+    from planodom.simulation.random_world import simulate_world, world_fields
+
+    fused = CUTS[0][2]
+    for w in worlds:
+        n = {"compiled": 0, "numpy": 0}
+
+        def counted(*args: Any, n: dict = n) -> Any:
+            out = fused(*args)
+            n["numpy" if out is None else "compiled"] += 1
+            return out
+
+        solver.fused_translation = counted
+        world = world_for(w)
+        run = world_fields(world, simulate_world(world, noise, n_epochs=epochs, all_fields=True))
+        run_odometry(run, declared_sweep(world, PlanodomConfig()))
+        print(f"world {w}: {n['compiled']} solves compiled, {n['numpy']} to numpy", flush=True)
+    solver.fused_translation = fused
+
+
+if __name__ == "__main__":
+    if "--count" in sys.argv:
+        sys.argv.remove("--count")
+        import argparse
+
+        ap = argparse.ArgumentParser()
+        ap.add_argument("--worlds", type=int, nargs="+", default=[160, 162])
+        ap.add_argument("--noise", type=float, default=0.02)
+        ap.add_argument("--epochs", type=int, default=150)
+        ap.add_argument("--reps", type=int, default=5)
+        a = ap.parse_args()
+        count(a.worlds, a.noise, a.epochs)
+    bench_glue_cuts.main(CUTS, FORMER, __doc__)
