@@ -129,23 +129,33 @@ def _ints(*arrays: np.ndarray) -> bool:
 
 @numba.njit(cache=True)
 def _pairwise_sum(a):  # pragma: no cover - compiled
-    """numpy's sum of a contiguous float64 (N,) array (``pairwise_sum``: a plain loop
-    under 8 values, else eight running sums combined in pairs, then the rest)."""
-    n = a.shape[0]
+    """numpy's sum of a contiguous float64 (N,) array (``pairwise_sum``)."""
+    return _pairwise_part(a, 0, a.shape[0])
+
+
+@numba.njit(cache=True)
+def _pairwise_part(a, start, n):  # pragma: no cover - compiled
+    """numpy's ``pairwise_sum`` of ``a[start:start + n]``: a plain loop under 8 values,
+    up to 128 eight running sums combined in pairs and then the rest, beyond that the
+    two halves (the first a multiple of 8) summed each this way."""
     if n < 8:
         res = 0.0
-        for i in range(n):
+        for i in range(start, start + n):
             res += a[i]
         return res
-    r = a[:8].copy()
+    if n > 128:
+        half = n // 2
+        half -= half % 8
+        return _pairwise_part(a, start, half) + _pairwise_part(a, start + half, n - half)
+    r = a[start : start + 8].copy()
     i = 8
     while i < n - n % 8:
         for u in range(8):
-            r[u] += a[i + u]
+            r[u] += a[start + i + u]
         i += 8
     res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
     while i < n:
-        res += a[i]
+        res += a[start + i]
         i += 1
     return res
 
