@@ -22,7 +22,8 @@ The same IEEE operations in the same order as the numpy path, so the same bits (
 tests compare both on random and simulated solves). Anything the compiled path does not
 cover returns None and the numpy path runs: the consensus's shortlist (more than 2^20
 candidate-element evaluations), weights that are not finite and non-negative (numpy's
-error), arrays of another type or layout.
+error), more than 128 near rows or ground associations (numpy's sum of them splits
+recursively), arrays of another type or layout.
 """
 
 from __future__ import annotations
@@ -127,35 +128,34 @@ def _ints(*arrays: np.ndarray) -> bool:
     )
 
 
+#: The most values :func:`_pairwise_sum` takes: numpy's ``pairwise_sum`` splits longer
+#: arrays recursively, and numba's cache of a recursive function crashes on loading;
+#: the kernels hand longer sums (more near rows or ground associations) to numpy.
+_MAX_SUM = 128
+
+
 @numba.njit(cache=True)
 def _pairwise_sum(a):  # pragma: no cover - compiled
-    """numpy's sum of a contiguous float64 (N,) array (``pairwise_sum``)."""
-    return _pairwise_part(a, 0, a.shape[0])
-
-
-@numba.njit(cache=True)
-def _pairwise_part(a, start, n):  # pragma: no cover - compiled
-    """numpy's ``pairwise_sum`` of ``a[start:start + n]``: a plain loop under 8 values,
-    up to 128 eight running sums combined in pairs and then the rest, beyond that the
-    two halves (the first a multiple of 8) summed each this way."""
+    """numpy's ``pairwise_sum`` of a contiguous float64 (N,) array, N <= 128 (else NaN):
+    a plain loop under 8 values, else eight running sums combined in pairs, then the
+    rest."""
+    n = a.shape[0]
+    if n > _MAX_SUM:
+        return np.nan
     if n < 8:
         res = 0.0
-        for i in range(start, start + n):
+        for i in range(n):
             res += a[i]
         return res
-    if n > 128:
-        half = n // 2
-        half -= half % 8
-        return _pairwise_part(a, start, half) + _pairwise_part(a, start + half, n - half)
-    r = a[start : start + 8].copy()
+    r = a[:8].copy()
     i = 8
     while i < n - n % 8:
         for u in range(8):
-            r[u] += a[start + i + u]
+            r[u] += a[i + u]
         i += 8
     res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
     while i < n:
-        res += a[start + i]
+        res += a[i]
         i += 1
     return res
 
@@ -229,6 +229,8 @@ def _pairs_kernel(
         return 2, pairs, empty, empty, no, vec, hb, hm
     near = _near_kernel(cands, best, tol)
     M = int(near.sum())
+    if M > _MAX_SUM:
+        return 2, pairs, empty, empty, no, vec, hb, hm
     d, nw = np.empty((M, 2)), np.empty(M)
     q = 0
     for e in range(E):
@@ -264,7 +266,7 @@ def _height_kernel(
             q += 1
     wc = w.copy() if weighted else np.ones(H)
     txy = np.zeros(2)
-    if weighted and not _weights_ok(wc):
+    if H > _MAX_SUM or (weighted and not _weights_ok(wc)):
         return 2, 0.0, 0.0, -1, txy
     col = hz.copy().reshape((H, 1))
     done, h, _, _, _ = _consensus_kernel(

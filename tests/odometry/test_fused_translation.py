@@ -144,15 +144,16 @@ def test_cases_left_to_numpy(monkeypatch):
     assert fused_translation(*args) is None
 
 
-@pytest.mark.parametrize("n", [*range(0, 40), 63, 64, 65, 100, 128, 129, 136, 257, 1000, 4099])
+@pytest.mark.parametrize("n", [*range(0, 40), 63, 64, 65, 100, 127, 128])
 def test_pairwise_sum_is_numpys(n):
     rng = np.random.default_rng(n)
     for scale in (1e-6, 1.0, 1e6):
         a = rng.random(n) * scale * 10.0 ** rng.uniform(-3, 3, n)
         assert _same(_pairwise_sum(a), float(a.sum()))
+    assert np.isnan(_pairwise_sum(np.ones(129)))  # longer sums are left to numpy
 
 
-@pytest.mark.parametrize("m", [0, 1, 2, 3, 7, 8, 9, 16, 17, 40, 300])
+@pytest.mark.parametrize("m", [0, 1, 2, 3, 7, 8, 9, 16, 17, 40, 128])
 def test_spread_is_the_solvers_einsum(m):
     rng = np.random.default_rng(m)
     for _ in range(20):
