@@ -37,6 +37,11 @@ FORMER = ((solver, "fused_translation", former_fused_translation),)
 CUTS = bench_glue_cuts.cuts_of(FORMER)
 
 
+def _put(name: str, fn: Any) -> None:
+    """Put ``fn`` in the solver's module as ``name``."""
+    setattr(solver, name, fn)
+
+
 def count(worlds: list[int], noise: float, epochs: int) -> None:
     """Print, per world, the solves the compiled path served and those it left to numpy."""
     from planodom.config import PlanodomConfig
@@ -53,12 +58,12 @@ def count(worlds: list[int], noise: float, epochs: int) -> None:
             n["numpy" if out is None else "compiled"] += 1
             return out
 
-        solver.fused_translation = counted
+        _put("fused_translation", counted)
         world = world_for(w)
         run = world_fields(world, simulate_world(world, noise, n_epochs=epochs, all_fields=True))
         run_odometry(run, declared_sweep(world, PlanodomConfig()))
         print(f"world {w}: {n['compiled']} solves compiled, {n['numpy']} to numpy", flush=True)
-    solver.fused_translation = fused
+    _put("fused_translation", fused)
 
 
 def calls(worlds: list[int], noise: float, epochs: int) -> None:
@@ -80,12 +85,12 @@ def calls(worlds: list[int], noise: float, epochs: int) -> None:
 
         world = world_for(w)
         run = world_fields(world, simulate_world(world, noise, n_epochs=epochs, all_fields=True))
-        solver._measured_translation = spy
+        _put("_measured_translation", spy)
         run_odometry(run, declared_sweep(world, PlanodomConfig()))
-        solver._measured_translation = measured
+        _put("_measured_translation", measured)
         best = {}
         for name, fn in (("former", former_fused_translation), ("cuts", fused)):
-            solver.fused_translation = fn
+            _put("fused_translation", fn)
             rounds = []
             for _ in range(5):
                 c0 = time.process_time()
@@ -94,7 +99,7 @@ def calls(worlds: list[int], noise: float, epochs: int) -> None:
                         measured(*args)
                 rounds.append((time.process_time() - c0) / 10)
             best[name] = min(rounds)
-        solver.fused_translation = fused
+        _put("fused_translation", fused)
         per = {k: 1e6 * v / len(seen) for k, v in best.items()}
         saved = 1e6 * (best["former"] - best["cuts"]) / epochs
         print(f"world {w}: {len(seen)} calls ({len(seen) / epochs:.2f} an epoch), us a call "
