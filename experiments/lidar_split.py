@@ -26,6 +26,8 @@ the origin, mm). The variants:
   points brought exactly along the true motion to its reference time (and a zero twist):
   the constant-twist model's share beside ``ttwist``.
 - ``epoch``: ``planemap.reference_time: epoch`` (registered at the sweeps' starts).
+- ``lw`` (with ``run``): ``planemap.lead_weights: stated`` (LIDARW); ``lb1``, ``lb20``
+  with it: its ``led_bias_m`` 1 mm or 2 cm instead of 5 mm.
 - ``b5``, ``b1``, ``fit``, ``dv``, ``r3``: :mod:`lidar_floor`'s configurations.
 
 The steps 1-2 / 3+ split answers whether the excess is the start's (LIDARSTART).
@@ -63,6 +65,10 @@ CURVE: dict[str, dict[str, object]] = {
     # the own twist led by half an epoch along its change (odometry.map_twist_lead)
     "lead": {"odometry.map_twist_lead": "rate"},
     "leads": {"odometry.map_twist_lead": "rate", "odometry.map_lead_shrink": "stated"},
+    # the led twist's error in the planes' weights, led bias 5 mm (planemap.lead_weights)
+    "lw": {"planemap.lead_weights": "stated"},
+    "lb1": {"planemap.led_bias_m": 0.001},  # with lw: the led scans' bias 1 mm
+    "lb20": {"planemap.led_bias_m": 0.02},  # with lw: the term alone, the bias kept
 }
 
 

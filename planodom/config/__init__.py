@@ -57,9 +57,8 @@ class PlanodomConfig(Section):
         """The deskew-noise modes that read each plane's deskewing Jacobian
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
         ``smoothing.covariance_model: sandwich``, ``planemap.deskew_variance:
-        twist_change``, ``odometry.plane_deskew_noise`` and ``stated_deskew_noise`` not off)
-        switch on its computation
-        in the extraction
+        twist_change`` and ``lead_weights: stated``, ``odometry.plane_deskew_noise`` and
+        ``stated_deskew_noise`` not off) switch on its computation in the extraction
         (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other than ``none``
         switches on the planes' time moments (``extraction.time_moments``). The default
         covariance model, "auto", leaves it off here: the batch smoothing switches it on for
@@ -73,8 +72,10 @@ class PlanodomConfig(Section):
             mode = smoothing.get("deskew_noise")
         planemap = data.get("planemap")
         deskew = getattr(planemap, "deskew_variance", None)
+        lead = getattr(planemap, "lead_weights", None)
         if isinstance(planemap, Mapping):
             deskew = planemap.get("deskew_variance")
+            lead = planemap.get("lead_weights")
         twist = getattr(planemap, "twist_estimation", None)
         if isinstance(planemap, Mapping):
             twist = planemap.get("twist_estimation")
@@ -91,7 +92,8 @@ class PlanodomConfig(Section):
         wanted = wanted or model == "sandwich" or planes in ("twist", "change")
         wanted = wanted or stated == "shared"
         moments = isinstance(twist, str) and twist != "none"
-        if not (wanted or deskew == "twist_change" or moments):
+        wanted = wanted or deskew == "twist_change" or lead == "stated"
+        if not (wanted or moments):
             return data
         extraction = data.get("extraction", {})
         if isinstance(extraction, ExtractionConfig):
@@ -99,7 +101,7 @@ class PlanodomConfig(Section):
         if not isinstance(extraction, Mapping):
             return data  # the section's own validation reports it
         switched = {"time_moments": True} if moments else {}
-        if wanted or deskew == "twist_change":
+        if wanted:
             switched["deskew_jacobian"] = True
         # a value that is not a bool stays, for the section's validation to name it
         switched = {k: v for k, v in switched.items() if isinstance(extraction.get(k, v), bool)}

@@ -11,12 +11,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field
 
-from planodom.config.section import Section
+from planodom.config.lead_weights import LeadWeightsConfig
 
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
-class PlanemapConfig(Section):
+class PlanemapConfig(LeadWeightsConfig):
     """The plane-landmark odometry against a local plane map
     (:mod:`planodom.odometry.planemap`)."""
 

@@ -25,6 +25,7 @@ class KeptEpoch:
     scan: Scan | None = None
     twist: np.ndarray | None = None
     kept: bool = False  # its planes were brought back after extracting it again made it worse
+    led: tuple[np.ndarray, float] | None = None  # its led twist's variance (planemap.lead_weights)
     # (plane set, plane count, parallel angle, answer) of the last has_pair: the odometry
     # asks it of its reference with every extraction of the next epoch
     _paired: tuple[PlaneSet, int, float, bool] | None = field(

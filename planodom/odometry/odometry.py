@@ -47,6 +47,7 @@ from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.extractor import Extractor
 from planodom.odometry.first_epoch import first_round, reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
+from planodom.odometry.led_variance import led_variance
 from planodom.odometry.moment_refine import moment_refined
 from planodom.odometry.rate_prediction import RatePredictor
 from planodom.odometry.refresh_held import held_refresh
@@ -265,10 +266,10 @@ class PlaneOdometry:
 
     def _new_epoch(
         self, k: int, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,
-        prior: TwistSigma | None = None,
+        prior: TwistSigma | None = None, led: tuple[np.ndarray, float] | None = None,
     ) -> _Epoch:  # fmt: skip
         planes, used = self._extract(scan, twist, sigma, prior)
-        return _Epoch(k, planes, PlaneSet.from_planes(planes), scan, used)
+        return _Epoch(k, planes, PlaneSet.from_planes(planes), scan, used, led=led)
 
     def _estimate_scan(
         self, scan: Scan, t: float, twist: np.ndarray | None,
@@ -281,7 +282,8 @@ class PlaneOdometry:
         if source is not None and twist is not None and self.times:
             sigma = self._twist_sigma.refined(source, t - self.times[-1], twist)
         k, ocfg, count = len(self.poses), self.config.odometry, fragment_count(self.config)
-        extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s, sigma), t)  # noqa: E731
+        led = led_variance(self, scan, t, twist, source)  # planemap.lead_weights
+        extract = lambda s: self._estimate(self._new_epoch(k, scan, twist, s, sigma, led), t)  # noqa: E731
         dt, mode = t - self.times[-1], ocfg.twist_sigma
         agrees = partial(self._twist_sigma.consistent, dt=dt, prediction=self.twist, config=ocfg)
         return widened_if_lost(extract, sigma, mode, len(self.last_planes), agrees, count)
@@ -330,7 +332,7 @@ class PlaneOdometry:
         assert self._map is not None
         reference = self._history[-1]
         dt = None if epoch.index in self._gaps else t - self.times[-1]  # no twist measured
-        est = self._map.estimate(epoch.planes, epoch.twist, dt)
+        est = self._map.estimate(epoch.planes, epoch.twist, dt, epoch.led)
         result = est.relative.between(reference.index, epoch.index)
         step = orthonormalised(result.T_prev_curr)
         offset = None  # the deskewing's offset of the step's twist (twist_offset)

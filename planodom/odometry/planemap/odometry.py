@@ -47,6 +47,7 @@ from planodom.odometry.deskew import beyond_bounds
 from planodom.odometry.planemap import fallback
 from planodom.odometry.planemap.bias import fitted_bias
 from planodom.odometry.planemap.ctreg import TwistRegistration, corrected_planes, register_twist
+from planodom.odometry.planemap.deskew_weights import change_covariance, led_weights
 from planodom.odometry.planemap.landmarks import PlaneMap, update_map
 from planodom.odometry.planemap.moments import Moments, scan_sigma
 from planodom.odometry.planemap.pose import relative_pose
@@ -147,11 +148,13 @@ class PlaneMapOdometry:
     # ------------------------------------------------------------------ one scan
 
     def estimate(
-        self, planes: Sequence[Plane], twist: np.ndarray | None = None, dt: float | None = None
-    ) -> MapEstimate:
+        self, planes: Sequence[Plane], twist: np.ndarray | None = None, dt: float | None = None,
+        led: tuple[np.ndarray, float] | None = None,
+    ) -> MapEstimate:  # fmt: skip
         """Register one scan's planes (base frame); the state is not changed. ``twist``
         (6,): the one they were deskewed with (None: not deskewed), ``dt``: seconds since
-        the previous scan; both only for ``planemap.twist_estimation``."""
+        the previous scan; both only for ``planemap.twist_estimation``; ``led``: the led
+        twist's variance and the span (``planemap.lead_weights``, :mod:`.deskew_weights`)."""
         used = np.array(
             [
                 k
@@ -162,7 +165,7 @@ class PlaneMapOdometry:
             ],
             dtype=np.intp,
         )
-        cur = self._scan_planes(planes, used)
+        cur = self._scan_planes(planes, used, led)
         return self._estimate(used, cur, PlaneSet.from_planes(planes), (twist, dt))
 
     def _estimate(
@@ -250,33 +253,27 @@ class PlaneMapOdometry:
         rel = _with_associations(replace(rel, inconsistent=True), np.zeros((0, 2), np.intp), stage)
         return replace(est, relative=rel, T=est.T_pred, beyond_bounds=False, bias_m=None)
 
-    def _scan_planes(self, planes: Sequence[Plane], used: np.ndarray) -> ScanPlanes | None:
+    def _scan_planes(
+        self, planes: Sequence[Plane], used: np.ndarray, led: tuple[np.ndarray, float] | None
+    ) -> ScanPlanes | None:
         if len(used) == 0:
             return None
         m = Moments.of_planes([planes[k] for k in used])
         normals = np.array([planes[k].normal for k in used])
         sigma = scan_sigma(m, self.config.extraction.range_noise_m)
-        cur = ScanPlanes.of(m, normals, sigma, self.bias_m, self._deskew_cov(planes, used))
+        weights = led_weights(self.config.planemap, planes, used, led)
+        change = self._dev_sse, self._dev_n  # planemap.deskew_variance
+        bias, cov = weights or (
+            self.bias_m,
+            change_covariance(self.config.planemap, planes, used, *change),
+        )
+        cur = ScanPlanes.of(m, normals, sigma, bias, cov)
         if self.config.planemap.twist_estimation == "none":
             return cur
         tm = [planes[k].support.time_moments for k in used]
         if any(x is None for x in tm):
             return cur
         return replace(cur, time_moments=np.array(tm))
-
-    def _deskew_cov(self, planes: Sequence[Plane], used: np.ndarray) -> np.ndarray | None:
-        """(K, 4, 4) covariance of the ``used`` planes' ``(n, d)`` from the deskewing
-        twist's error (``planemap.deskew_variance``), None when off or before any motion
-        was measured; zero for a plane without its deskewing Jacobian."""
-        if self.config.planemap.deskew_variance == "off" or self._dev_n[0] == 0:
-            return None
-        rms = np.sqrt(self._dev_sse / np.maximum(self._dev_n, 1))
-        per_axis = np.r_[np.full(3, rms[0] ** 2), np.full(3, rms[1] ** 2)] / 3.0
-        J = np.zeros((len(used), 4, 6))
-        for i, k in enumerate(used):
-            if planes[k].deskew_jacobian is not None:
-                J[i] = planes[k].deskew_jacobian
-        return np.einsum("kia,a,kja->kij", J, per_axis, J)
 
     def _resolved(self, reg: Registration, cur: ScanPlanes) -> bool:
         """Enough inliers, and no flip of the z axis relative to the last pose."""
@@ -426,8 +423,9 @@ class PlaneMapOdometry:
             self.map = PlaneMap()  # a detected failure: rebuild from this scan
         if est.bias_m is not None:
             self.bias_m = est.bias_m
+        bias = self.bias_m if est.bias_m is not None else cur.bias  # lead_weights: the scan's
         update_map(self.map, est.T, cur.m, cur.normals, assoc, w, self.frame, est.used,
-                   cur.sigma, pm, self.bias_m)  # fmt: skip
+                   cur.sigma, pm, bias)  # fmt: skip
 
 
 def uses_plane_map(config: PlanodomConfig, scan: Scan | None) -> bool:
