@@ -126,11 +126,15 @@ def main() -> None:
     out = run_variants(args.scene, args.noise, args.set, args.variants.split(","), args.epochs)
     if args.npz:
         gt = out["truth"][0]
-        np.savez(args.npz, **{f"{n}:{what}": v for n in out if n != "truth"
-                              for what, v in zip(("yaw", "xy"), step_errors(out[n][0], gt))},
-                 **{f"{n}:status": np.array(out[n][1]) for n in out if n != "truth"},
-                 **{f"{n}:poses": out[n][0] for n in out},
-                 **{f"{n}:twists": out[n][3] for n in out if out[n][3] is not None})  # fmt: skip
+        saved: dict[str, np.ndarray] = {}
+        for n in out:
+            saved[f"{n}:poses"] = out[n][0]
+            if out[n][3] is not None:
+                saved[f"{n}:twists"] = out[n][3]
+            if n != "truth":
+                saved[f"{n}:yaw"], saved[f"{n}:xy"] = step_errors(out[n][0], gt)
+                saved[f"{n}:status"] = np.array(out[n][1])
+        np.savez(args.npz, **saved)  # type: ignore[arg-type]
     report(out, args.top, args.window)
 
 

@@ -50,15 +50,19 @@ def bridged_stretches(results: Sequence[RelativePose | None]) -> list[tuple[int,
         b = k - 1
         before = results[a - 1] if a >= 2 else None
         after = results[b + 1] if b + 1 < n else None
-        if (before is not None and after is not None and before.status in MEASURED
-                and after.status in MEASURED and before.prev == a - 2 and after.prev == b):  # fmt: skip
+        if (
+            before is not None
+            and after is not None
+            and before.status in MEASURED
+            and after.status in MEASURED
+            and before.prev == a - 2
+            and after.prev == b
+        ):
             out.append((a, b))
     return out
 
 
-def interpolated_steps(
-    steps: np.ndarray, times: np.ndarray, a: int, b: int
-) -> np.ndarray:
+def interpolated_steps(steps: np.ndarray, times: np.ndarray, a: int, b: int) -> np.ndarray:
     """(b - a + 1, 4, 4) the steps ``T_{j-1}_j`` of epochs ``j = a..b``, each made with the
     twist interpolated linearly in time between the twists of ``steps[a - 1]`` (``T_{a-2}_
     {a-1}``) and ``steps[b + 1]`` (``T_b_{b+1}``), each at its step's middle time;
