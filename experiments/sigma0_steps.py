@@ -134,7 +134,7 @@ def main() -> None:
             if n != "truth":
                 saved[f"{n}:yaw"], saved[f"{n}:xy"] = step_errors(out[n][0], gt)
                 saved[f"{n}:status"] = np.array(out[n][1])
-        np.savez(args.npz, **saved)  # type: ignore[arg-type]
+        np.savez(args.npz, **saved)
     report(out, args.top, args.window)
 
 
