@@ -108,6 +108,18 @@ class MotionModelConfig(Section):
     """With ``bridge_rate: trend``: how many epochs past the last measured rate the trend
     may run; further bridged epochs keep the rate it reached there."""
 
+    bridge_ends: Literal["held", "interpolated"] = "held"
+    """Any pipeline: the steps of a stretch of unresolved epochs in the run's poses.
+    ``held``: as the streaming odometry bridged them (``bridge_rate``). ``interpolated``:
+    after the run, where the stretch ends with a measured step (ok or degenerate, between
+    consecutive epochs, as is the step into the epoch before it), each bridged step is
+    made again with the twist interpolated linearly in time between those two measured
+    steps, and the poses are chained through them (:mod:`planodom.odometry.bridge_ends`;
+    the streaming estimates and the measured steps are unchanged). No threshold. Off by
+    default: found on the built-in random-outdoor at sigma = 0, where the stretch 563-573
+    (a turn whose rate climbs 5.72 -> 5.99 deg/s) held step 562's rate (docs/RESULTS.md,
+    SIGMA0), and its rule's figures are there."""
+
     rate_prediction: Literal["constant", "autoregressive", "selected"] = "constant"
     """Streaming, pairwise pipelines (the 2D rig's): the angular rate predicted for the next
     epoch (its deskewing, prior and bridge). ``constant``: the last step's;

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol, TypeVar, cast
 
 import numpy as np
@@ -158,6 +158,11 @@ def run_odometry(
         from planodom.odometry.sweep_refine import sweep_refined_run  # imports this module
 
         run = sweep_refined_run(source, run, cfg, rig, progress, extractor)
+    if cfg.odometry.bridge_ends == "interpolated":
+        from planodom.odometry.bridge_ends import interpolated_bridges
+
+        poses, results = interpolated_bridges(run.poses, run.times, run.results)
+        run = replace(run, poses=poses, results=results)
     if cfg.odometry.stated_deskew_noise == "shared":
         from planodom.odometry.stated_deskew import with_stated_deskew  # imports this module
 
