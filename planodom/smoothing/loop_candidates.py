@@ -53,8 +53,8 @@ from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.odometry.twist_sigma import chi2_quantile as chi2_ppf  # (remembered)
-from planodom.smoothing.graph import GraphUpdate, X
 from planodom.smoothing.deskew_noise import DeskewNoise
+from planodom.smoothing.graph import GraphUpdate, X
 from planodom.smoothing.loop_drift import RunWalk, run_drift
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch
 from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
