@@ -215,6 +215,17 @@ class LoopCandidateConfig(Section):
     "hypothesis" removes with their hypotheses, where the map's ties close the laps
     better: ATE 0.0169 -> 0.0204 m, loop end 0.5 -> 1.5 cm, 47 -> 71 s (same machine, one
     after the other), beyond the 60 s the issue allows; hence "hypothesis"."""
+    loop_factor_deskew: Literal["off", "both_epochs"] = "off"
+    """Batch, with ``deskew_noise`` "none": the loop-candidate factors alone take both
+    epochs' deskewing error in their covariance (:meth:`.DeskewNoise.loop_covariance`,
+    the "twist_change" model of the run's own changes of motion; every other factor as
+    before). Why: on continuous-motion laps a loop factor is solved from two epochs'
+    planes, each deskewed with a twist off by its change of motion, an error its fit's
+    covariance misses: on the fresh 2D-rig laps 320-338 25 of 26 loop factors the truth
+    puts beyond 3 of their own sigmas (bar one aliased hypothesis) were within 3 sigma
+    with it. No constant is new: the model is ``deskew_noise``'s. Off: on those laps the
+    ATE geometric-mean ratio was 1.080 / 1.072 (6 mm / 2 cm, 7 / 4 laps), and on world
+    324 the gate kept 23 loop factors it removes by default (docs/RESULTS.md, WRONGTIE)."""
     loop_gate_quantile: Fraction = 0.999
     """After optimisation, a re-identified observation whose squared whitened error exceeds
     this quantile of chi2(3) is removed and the graph solved again."""

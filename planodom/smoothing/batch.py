@@ -26,6 +26,7 @@ from planodom.smoothing.loop_records import (
     gate_reidentifications,
 )
 from planodom.smoothing.loops import LoopClosingBuilder
+from planodom.smoothing.noise import loop_deskew_model
 from planodom.smoothing.variance_components import VarianceComponents
 from planodom_factors.batched import BatchedResiduals
 
@@ -261,6 +262,8 @@ def _builder(
     if cfg.loop_closure:
         loop_builder = CandidateLoopBuilder if cfg.loop_candidates else LoopClosingBuilder
         builder = loop_builder(full, T_world_first)
+        if isinstance(builder, CandidateLoopBuilder):  # (smoothing.loop_factor_deskew)
+            builder.loop_deskew = loop_deskew_model(cfg, relative_poses)
     if cfg.fallback_start == "first_step":
         builder.first_step = first_measured_step(relative_poses)
     for rel in relative_poses if builder.deskew is not None else ():

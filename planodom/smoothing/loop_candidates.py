@@ -53,6 +53,7 @@ from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, invert_transform, pose5_from_transform
 from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.odometry.twist_sigma import chi2_quantile as chi2_ppf  # (remembered)
+from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.graph import GraphUpdate, X
 from planodom.smoothing.loop_drift import RunWalk, run_drift
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch
@@ -68,9 +69,8 @@ from planodom.smoothing.match_fit import (
 from planodom.smoothing.noise import between_covariance, with_robust_kernel
 from planodom_factors.pose5 import pose5_factor
 
-#: An old epoch is a loop candidate only when the route between it and the current
-#: epoch is at least this many times as long as their predicted distance plus the
-#: candidate radius (a revisit, not a straight stretch).
+#: An old epoch is a loop candidate only when the route between it and the current epoch is
+#: at least this many times their predicted distance plus the candidate radius (a revisit).
 REVISIT_RATIO = 3.0
 #: Robust kernel of loop factors when the config asks for none, in sigmas (gtsam's
 #: Cauchy default at 95 % efficiency, as :data:`planodom.smoothing.noise.ROBUST_DEFAULTS`).
@@ -82,7 +82,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
 
     Attributes:
         loop_factors: every loop factor added, in order (global factor indices).
-        candidate_attempts: epochs at which old epochs were tried.
+        candidate_attempts: epochs at which old epochs were tried. loop_deskew: the loop
+            factors' own deskewing model (``smoothing.loop_factor_deskew``; batch sets it).
     """
 
     def __init__(self, config: PlanodomConfig, T_world_first: np.ndarray | None = None) -> None:
@@ -103,12 +104,12 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         self._aliased = -1  # the last epoch ``loop_candidate_aliases`` found ambiguous
         #: (k, spanning epoch) of the map's accepted correction (``loop_candidate_reference``)
         self._spanning_reference: tuple[int, int] | None = None
+        self.loop_deskew: DeskewNoise | None = None
 
     def add_epoch(
         self, planes: Sequence[Plane], relatives: Sequence[RelativePose] = (), min_epoch: int = 0
     ) -> GraphUpdate:
-        """:meth:`LoopClosingBuilder.add_epoch`, keeping count of the graph's factors (the
-        batch loop pushes every update whole, in order)."""
+        """:meth:`LoopClosingBuilder.add_epoch`, counting the graph's factors (batch: in order)."""
         k, c = self.n_epochs, self.config
         var_t, var_r = c.fallback_translation_sigma_m**2, c.fallback_rotation_sigma_rad**2
         step = yaw = None
@@ -430,8 +431,8 @@ class CandidateLoopBuilder(LoopClosingBuilder):
         """A robust 5-DoF factor ``X(prev) - X(curr)`` for a verified loop pose (its
         Gaussian twin in ``update.gaussian``), recorded in :attr:`loop_factors`."""
         c, e, k = self.config, rel.prev, rel.curr
-        # the deskewing error of both epochs (zero without a model or for instant scans)
-        dsk = None if self.deskew is None else self.deskew.loop_covariance(e, k, rel.T_prev_curr)
+        model = self.deskew or self.loop_deskew  # (none: no deskewing error; instant: zero)
+        dsk = None if model is None else model.loop_covariance(e, k, rel.T_prev_curr)
         cov = between_covariance(rel, c, dsk)
         base = gtsam.noiseModel.Gaussian.Covariance(cov)
         if c.robust_kernel != "none":

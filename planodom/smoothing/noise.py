@@ -8,6 +8,8 @@ input carries no uncertainty at all.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import gtsam
 import numpy as np
 
@@ -129,3 +131,18 @@ def plane_covariance(
     elif motion_change is not None:
         cov = cov + plane_deskew_covariance(plane.normal, TIME_SPREAD * motion_change)
     return cov + floor
+
+
+def loop_deskew_model(
+    config: SmoothingConfig, relatives: Sequence[RelativePose]
+) -> DeskewNoise | None:
+    """``smoothing.loop_factor_deskew`` "both_epochs" with ``deskew_noise`` "none": the
+    "twist_change" model of the deskewing error (:class:`.DeskewNoise`) fed the whole run's
+    ``relatives``, for the loop-candidate factors alone; None otherwise (with a
+    ``deskew_noise`` model the loop factors take that one's)."""
+    if config.loop_factor_deskew == "off" or config.deskew_noise != "none":
+        return None
+    model = DeskewNoise()
+    for rel in relatives:
+        model.add(rel)
+    return model
