@@ -5,7 +5,9 @@ The lap and its odometry as ``nees_gauge.py`` loads them (``planodom experiment 
 lap, the odometry as ``planodom smooth`` runs it; ``--cache DIR`` reuses it), the batch
 with loops once with the default config, its covariances then computed again from the
 same graph and estimate with "motion" (the option changes only the sandwich's ``Q``, so
-the poses, ATE and loop factors are the default's). Printed (and with ``--csv`` appended
+the poses, ATE and loop factors are the default's); ``--arms`` may add "both"
+(``smoothing.sandwich_relative_ends: both``, NEES6) and "both_motion" (the two together),
+which change only the covariances too. Printed (and with ``--csv`` appended
 as one row): epochs, the epochs the option gives a term (no measured step into them),
 ATE xy (m, rmse against the truth from the first pose, as ``planodom experiment
 loops``), loop factors kept, mean NEES5 each way (chi2(5)'s 95 % interval for a lap's
@@ -31,9 +33,19 @@ from planodom.smoothing.batch import smooth_batch  # noqa: E402
 from planodom.smoothing.unmeasured import unmeasured_errors  # noqa: E402
 
 
+BOTH = {"smoothing.sandwich_relative_ends": "both"}
+ARMS = {
+    "change": {"smoothing.sandwich_unmeasured": "change"},
+    "motion": {"smoothing.sandwich_unmeasured": "motion"},
+    "both": BOTH,  # NEES6's option: the relative-pose factors' ends' deskewing errors
+    "both_motion": {"smoothing.sandwich_unmeasured": "motion"} | BOTH,
+}
+
+
 def main() -> None:
     parser = nees_gauge.lap_parser(__doc__.splitlines()[0])
     parser.add_argument("--csv", type=Path, default=None, help="append the row here")
+    parser.add_argument("--arms", default="change,motion", help=", ".join(ARMS))
     args = parser.parse_args()
     world, full, cfg, odo, rel, gt = nees_gauge.load_lap(args)
     res = smooth_batch(odo.planes, rel, cfg)
@@ -47,8 +59,8 @@ def main() -> None:
     row["epochs_with_term"] = int(np.all(np.isfinite(d), axis=1).sum())
     row["ate_m"] = ate
     row["loop_factors"] = sum(not f.removed for f in getattr(res, "loop_factors", None) or [])
-    for value in ("change", "motion"):
-        builder.config = cfg.updated({"smoothing.sandwich_unmeasured": value}).smoothing
+    for value in args.arms.split(","):
+        builder.config = cfg.updated(ARMS[value]).smoothing
         t0 = time.process_time()
         _, P, note, _, model = nees_gauge.ORIGINAL(
             builder, cap["graph"], cap["gaussian"], cap["fallback"], cap["estimate"],
