@@ -32,7 +32,6 @@ from planodom.metrics import errors_nees, pose_errors  # noqa: E402
 from planodom.smoothing.batch import smooth_batch  # noqa: E402
 from planodom.smoothing.unmeasured import unmeasured_errors  # noqa: E402
 
-
 BOTH = {"smoothing.sandwich_relative_ends": "both"}
 ARMS = {
     "change": {"smoothing.sandwich_unmeasured": "change"},

@@ -60,7 +60,8 @@ def test_measured_instant_and_undeskewed_epochs_are_left_alone() -> None:
     rels = _steps(twists, {2, 5})
     # a measured step into epoch 2 besides its bridge (delta 1): the epoch was measured
     twin = RelativePose(se3_exp(twists[1] * DT), None, prev=1, curr=2, time_spread=True,
-                        deskew_twist=twists[1], deskew_times=(0.0, 0.15), interval_s=DT)  # fmt: skip
+                        deskew_twist=twists[1], deskew_times=(0.0, 0.15),
+                        interval_s=DT)  # fmt: skip
     assert np.all(np.isnan(unmeasured_errors([twin, *rels], 7)[2]))
     # taken at one instant: nothing to deskew
     instant = [replace(r, time_spread=False) if r.curr == 5 else r for r in rels]
@@ -82,8 +83,8 @@ def test_with_unmeasured_adds_the_squared_motion_on_those_epochs_only() -> None:
 
 
 def test_sandwich_inputs_take_it_only_when_asked() -> None:
-    """"motion" adds the bridged epoch's squared motion to its ``Q_k``; "change" (the
-    default) leaves ``Q`` as before; "fitted" reads neither."""
+    """With "motion" the sandwich adds the bridged epoch's squared motion to its
+    ``Q_k``; "change" (the default) leaves ``Q`` as before; "fitted" reads neither."""
     twists = np.random.default_rng(3).normal(0.0, 0.5, (9, 6))
     rels = _steps(twists, {5})
     on, _ = sandwich_inputs(
