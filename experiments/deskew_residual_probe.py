@@ -54,10 +54,11 @@ def main() -> None:
         g = plane_error_map(f, plane)
         if g is None:
             continue
-        noise = f.noiseModel()
+        noise = f.noiseModel()  # type: ignore[attr-defined]  # a NoiseModelFactor
         if not isinstance(noise, gtsam.noiseModel.Gaussian):
             continue
-        r = np.asarray(noise.whiten(np.asarray(f.unwhitenedError(est))))
+        error = f.unwhitenedError(est)  # type: ignore[attr-defined]
+        r = np.asarray(noise.whiten(np.asarray(error)))
         Gs.setdefault(epoch, []).append(g)
         rs.setdefault(epoch, []).append(r)
     e_hat = np.full((E, 6), np.nan)
@@ -94,6 +95,7 @@ def main() -> None:
         cap["rel"],
     )  # fmt: skip
     batch_covariances.sandwich_inputs = SANDWICH_INPUTS
+    assert P_new is not None, note
     n_new = np.nanmean(errors_nees(xi[1:], P_new[1:], range(5)))
     raised = np.mean([np.any(np.diag(Q_new[k]) > np.diag(Q[k]) * 1.0001) for k in range(E)])
     ratio = np.nanmedian(
