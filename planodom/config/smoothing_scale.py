@@ -105,7 +105,9 @@ class CovarianceScaleConfig(Section):
     smoothing.unmeasured`): its twist was never measured, and in a gap no change of motion
     is measured around it. Derived as ``sandwich_undeskewed`` "motion", not fitted; the
     trace that led to it is world 292 at 6 mm, a lap developed on. Only the covariances
-    change (docs/RESULTS.md, NEESLAP)."""
+    change. Off: on the fresh laps 320-326 the count inside the NEES interval stays 2 of 4
+    at 6 mm and 4 of 4 at 2 cm (the lost lap 322 at 6 mm 1.5e5 -> 5.4e4; docs/RESULTS.md,
+    NEESLAP)."""
     sandwich_loop_sources: Literal["independent", "shared", "deskew"] = "independent"
     """With the sandwich covariances: "shared" takes half of each loop factor's covariance
     (a relative pose beyond ``delta_max``) as an error shared by every loop factor from the
