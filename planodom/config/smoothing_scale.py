@@ -96,6 +96,18 @@ class CovarianceScaleConfig(Section):
     epoch (the previous release). Only the covariances change: mean NEES5 on held-out world
     22 at 2 cm (31 such epochs) 31.8 -> 13.1, on 6 more held-out runs with 1-6 of them
     within 4 %, runs without them unchanged (docs/RESULTS.md, NEESHI)."""
+    sandwich_unmeasured: Literal["change", "motion"] = "change"
+    """With the sandwich covariances: the deskewing error of an epoch no step into was
+    measured (its delta = 1 step unresolved, bridged by the held velocity; spread in time,
+    not already kept without deskewing). "change" (default, as before) the run's changes
+    of motion like any epoch; "motion" adds the whole motion over its points' times, the
+    bridged step's motion times the points' span over the interval (:mod:`planodom.
+    smoothing.unmeasured`): its twist was never measured, and in a gap no change of motion
+    is measured around it. Derived as ``sandwich_undeskewed`` "motion", not fitted; the
+    trace that led to it is world 292 at 6 mm, a lap developed on. Only the covariances
+    change. Off: on the fresh laps 320-326 the count inside the NEES interval stays 2 of 4
+    at 6 mm and 4 of 4 at 2 cm (the lost lap 322 at 6 mm 1.5e5 -> 5.4e4; docs/RESULTS.md,
+    NEESLAP)."""
     sandwich_loop_sources: Literal["independent", "shared", "deskew"] = "independent"
     """With the sandwich covariances: "shared" takes half of each loop factor's covariance
     (a relative pose beyond ``delta_max``) as an error shared by every loop factor from the

@@ -20,6 +20,7 @@ from planodom.smoothing.graph import GraphBuilder
 from planodom.smoothing.marginals import pose_covariances
 from planodom.smoothing.sandwich import batch_sandwich, deskew_motion_change
 from planodom.smoothing.undeskewed import with_undeskewed
+from planodom.smoothing.unmeasured import with_unmeasured
 from planodom.smoothing.variance_components import VarianceComponents, factor_groups, scale_noise
 
 NO_JACOBIANS = (
@@ -71,7 +72,9 @@ def sandwich_inputs(
     deskewing error (:func:`.sandwich.deskew_motion_change`, scaled per run with
     ``sandwich_motion_scale`` "run", or sized per epoch with "epoch",
     :mod:`.deskew_epoch`; with ``sandwich_undeskewed`` "motion" the epochs kept
-    without deskewing also the motion over their points, :mod:`.undeskewed`; with
+    without deskewing also the motion over their points, :mod:`.undeskewed`, with
+    ``sandwich_unmeasured`` "motion" the epochs no step into was measured,
+    :mod:`.unmeasured`; with
     ``sandwich_first_epoch`` the first epoch also its first step's error,
     :mod:`.first_epoch_noise`), or None for
     the fitted covariances, and a note why when ``covariance_model`` "auto" falls back
@@ -94,6 +97,8 @@ def sandwich_inputs(
         Q = epoch_sizes(Q, planes, relative_poses)
     if cfg.sandwich_undeskewed == "motion":
         Q = with_undeskewed(Q, relative_poses)
+    if cfg.sandwich_unmeasured == "motion":
+        Q = with_unmeasured(Q, relative_poses)
     if cfg.sandwich_first_epoch != "motion":
         Q = with_first_step(Q, relative_poses, cfg.sandwich_first_epoch == "degenerate_step")
     if model == "sandwich":
