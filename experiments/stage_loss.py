@@ -18,9 +18,12 @@ step as the prior. The step is put in the first stage that loses it:
 - ``ok``.
 
 Per step: the stage, planes / distinct true surfaces of both epochs, the oracle's status
-and, where the planes were not formed, the rules.
+and, where the planes were not formed, the rules. ``--world W`` takes world ``W`` of
+``planodom experiment generalisation`` (``world_for``; 150 epochs with ``--unresolved``,
+else to the last step) instead of a built-in scene.
 
     uv run python experiments/stage_loss.py --scene random-indoor --noise 0.02 --steps 490 500
+    uv run python experiments/stage_loss.py --world 292 --noise 0.006 --steps 20 36
     uv run python experiments/stage_loss.py --scene random-indoor --noise 0.02 --unresolved
 """
 
@@ -43,12 +46,14 @@ from turn_lag import centre_twist
 
 from planodom.angles import radians
 from planodom.config import PlanodomConfig
+from planodom.experiments.generalisation import declared_sweep, world_for
 from planodom.extraction.pipeline import extract
 from planodom.extraction.rig2d import connect
 from planodom.geometry import invert_transform
 from planodom.odometry import run_odometry
 from planodom.odometry.solver import estimate_relative_pose
 from planodom.oracle import deskewed_points, epoch_moments, relative_pose
+from planodom.simulation.random_world import simulate_world
 
 
 def true_planes(sim, k: int, config: PlanodomConfig, deskew: str):  # noqa: ANN001, ANN201
@@ -139,6 +144,7 @@ def detail(sim, k: int, config: PlanodomConfig) -> None:  # noqa: ANN001
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="random-indoor")
+    ap.add_argument("--world", type=int, default=None, help="a generalisation world")
     ap.add_argument("--noise", default="0.02")
     ap.add_argument("--steps", type=int, nargs=2, default=None)
     ap.add_argument("--unresolved", action="store_true", help="the run's unresolved steps")
@@ -147,7 +153,15 @@ def main() -> None:
     ap.add_argument("--detail", type=int, nargs="*", default=[], help="epochs to show")
     args = ap.parse_args()
     config = config_with(args.set)
-    sim, _ = simulated(args.scene, args.noise)
+    if args.world is None:
+        sim, _ = simulated(args.scene, args.noise)
+    else:
+        world = world_for(args.world)
+        ends = [*(args.steps or [])[1:], *args.detail]
+        last = 150 if args.unresolved or not ends else max(ends) + 1
+        sim = simulate_world(world, float(args.noise), n_epochs=last, all_fields=True)
+        config = declared_sweep(world, config)
+        args.scene = f"world {args.world}"
     for k in args.detail:
         detail(sim, k, config)
     if args.detail and not (args.steps or args.unresolved):
