@@ -5,7 +5,8 @@ Reads the ``runs.csv`` of each (several folders each, e.g. ``--first-world 180``
 means of the per-world ratios variant / base of the ATE and the per-epoch rotation and
 xy rms, with the worlds better and worse by more than 1 %, the worst ratio (world), the
 summed unresolved and degenerate epochs of each, and the worlds whose ATE is worse by
-more than 2x and 0.1 m (the clauses of DESKEWCOV's rule, docs/RESULTS.md).
+more than 2x and 0.1 m (the clauses of DESKEWCOV's rule, docs/RESULTS.md); one line per noise
+and method.
 
     uv run python experiments/runs_ratio.py --base B180 B20 --variant V180 V20
 """
@@ -35,9 +36,11 @@ def compare(base: dict, variant: dict) -> list[str]:
     """The lines of the comparison (module docstring)."""
     keys = sorted(set(base) & set(variant))
     lines = []
-    for noise in sorted({k[1] for k in keys}):
-        ks = [k for k in keys if k[1] == noise]
-        parts = [f"{noise * 1000:g} mm, {len(ks)} worlds"]
+    # One line per noise and method: pooling the methods would count the oracle's rows
+    # (equal in both runs, ratio 1) into the means and pull them towards 1.
+    for noise, method in sorted({(k[1], k[2]) for k in keys}):
+        ks = [k for k in keys if k[1] == noise and k[2] == method]
+        parts = [f"{noise * 1000:g} mm, {method}, {len(ks)} worlds"]
         for name, col in METRICS.items():
             r = np.array([float(variant[k][col]) / float(base[k][col]) for k in ks])
             worst = int(np.argmax(r))
