@@ -27,6 +27,11 @@ the origin, mm). The variants:
   the constant-twist model's share beside ``ttwist``.
 - ``epoch``: ``planemap.reference_time: epoch`` (registered at the sweeps' starts).
 - ``b5``, ``b1``, ``fit``, ``dv``, ``r3``: :mod:`lidar_floor`'s configurations.
+- ``nolead`` / ``leadfull`` (with ``run``): ``odometry.map_twist_lead: off`` / the lead
+  not shrunk (``map_lead_shrink: off``), the default's two neighbours.
+
+With ``--out`` the file also holds each variant's poses (``poses_VARIANT``), the true
+poses (``gt``) and the epoch times, for signed per-step errors and the drift.
 
 The steps 1-2 / 3+ split answers whether the excess is the start's (LIDARSTART).
 """
@@ -63,6 +68,9 @@ CURVE: dict[str, dict[str, object]] = {
     # the own twist led by half an epoch along its change (odometry.map_twist_lead)
     "lead": {"odometry.map_twist_lead": "rate"},
     "leads": {"odometry.map_twist_lead": "rate", "odometry.map_lead_shrink": "stated"},
+    # the lead off, and led in full (not shrunk): the default's two neighbours (LIDAR9)
+    "nolead": {"odometry.map_twist_lead": "off"},
+    "leadfull": {"odometry.map_twist_lead": "rate", "odometry.map_lead_shrink": "off"},
 }
 
 
@@ -155,7 +163,7 @@ def main() -> None:
           flush=True)  # fmt: skip
     sweep = declared_sweep(world, PlanodomConfig())
     truth = {"odometry.deskew": False, "planemap.reference_time": "epoch"}
-    out: dict[str, np.ndarray] = {"orot": orot, "oxy": oxy}
+    out: dict[str, np.ndarray] = {"orot": orot, "oxy": oxy, "gt": gt, "times": data.times}
     for variant in args.variants.split(","):
         parts = variant.split("+")
         overrides: dict[str, object] = {} if "run" in parts else dict(truth)
@@ -194,6 +202,7 @@ def main() -> None:
         if hasattr(extractor, "missed"):
             print(f"  true twist: {extractor.missed} of {extractor.calls} extractions missed")  # type: ignore[union-attr]
         out[f"rot_{variant}"], out[f"xy_{variant}"] = rot, xy
+        out[f"poses_{variant}"] = np.asarray(odo.poses)  # signed errors, drift (LIDAR9)
     if args.out:
         np.savez(args.out, **out)  # type: ignore[arg-type]
 
