@@ -28,7 +28,8 @@ the origin, mm). The variants:
 - ``epoch``: ``planemap.reference_time: epoch`` (registered at the sweeps' starts).
 - ``b5``, ``b1``, ``fit``, ``dv``, ``r3``: :mod:`lidar_floor`'s configurations.
 - ``nolead`` / ``leadfull`` (with ``run``): ``odometry.map_twist_lead: off`` / the lead
-  not shrunk (``map_lead_shrink: off``), the default's two neighbours.
+  not shrunk (``map_lead_shrink: off``), the default's two neighbours; ``acc``: with
+  ``odometry.map_lead_acceleration: rate``.
 
 With ``--out`` the file also holds each variant's poses (``poses_VARIANT``), the true
 poses (``gt``) and the epoch times, for signed per-step errors and the drift.
@@ -71,6 +72,8 @@ CURVE: dict[str, dict[str, object]] = {
     # the lead off, and led in full (not shrunk): the default's two neighbours (LIDAR9)
     "nolead": {"odometry.map_twist_lead": "off"},
     "leadfull": {"odometry.map_twist_lead": "rate", "odometry.map_lead_shrink": "off"},
+    # the led epochs deskewed with the rate's change too (odometry.map_lead_acceleration)
+    "acc": {"odometry.map_lead_acceleration": "rate"},
 }
 
 
