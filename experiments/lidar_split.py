@@ -29,6 +29,12 @@ the origin, mm). The variants:
 - ``lw`` (with ``run``): ``planemap.lead_weights: stated`` (LIDARW); ``lb1``, ``lb20``
   with it: its ``led_bias_m`` 1 mm or 2 cm instead of 5 mm.
 - ``b5``, ``b1``, ``fit``, ``dv``, ``r3``: :mod:`lidar_floor`'s configurations.
+- ``nolead`` / ``leadfull`` (with ``run``): ``odometry.map_twist_lead: off`` / the lead
+  not shrunk (``map_lead_shrink: off``), the default's two neighbours; ``acc``: with
+  ``odometry.map_lead_acceleration: rate``.
+
+With ``--out`` the file also holds each variant's poses (``poses_VARIANT``), the true
+poses (``gt``) and the epoch times, for signed per-step errors and the drift.
 
 The steps 1-2 / 3+ split answers whether the excess is the start's (LIDARSTART).
 """
@@ -69,6 +75,11 @@ CURVE: dict[str, dict[str, object]] = {
     "lw": {"planemap.lead_weights": "stated"},
     "lb1": {"planemap.led_bias_m": 0.001},  # with lw: the led scans' bias 1 mm
     "lb20": {"planemap.led_bias_m": 0.02},  # with lw: the term alone, the bias kept
+    # the lead off, and led in full (not shrunk): the default's two neighbours (LIDAR9)
+    "nolead": {"odometry.map_twist_lead": "off"},
+    "leadfull": {"odometry.map_twist_lead": "rate", "odometry.map_lead_shrink": "off"},
+    # the led epochs deskewed with the rate's change too (odometry.map_lead_acceleration)
+    "acc": {"odometry.map_lead_acceleration": "rate"},
 }
 
 
@@ -161,7 +172,7 @@ def main() -> None:
           flush=True)  # fmt: skip
     sweep = declared_sweep(world, PlanodomConfig())
     truth = {"odometry.deskew": False, "planemap.reference_time": "epoch"}
-    out: dict[str, np.ndarray] = {"orot": orot, "oxy": oxy}
+    out: dict[str, np.ndarray] = {"orot": orot, "oxy": oxy, "gt": gt, "times": data.times}
     for variant in args.variants.split(","):
         parts = variant.split("+")
         overrides: dict[str, object] = {} if "run" in parts else dict(truth)
@@ -200,6 +211,7 @@ def main() -> None:
         if hasattr(extractor, "missed"):
             print(f"  true twist: {extractor.missed} of {extractor.calls} extractions missed")  # type: ignore[union-attr]
         out[f"rot_{variant}"], out[f"xy_{variant}"] = rot, xy
+        out[f"poses_{variant}"] = np.asarray(odo.poses)  # signed errors, drift (LIDAR9)
     if args.out:
         np.savez(args.out, **out)  # type: ignore[arg-type]
 

@@ -33,6 +33,8 @@ def extract_epoch(
     if odo.extractor is None:
         odo.extractor = default_extractor()
     config = seed_extraction(widened(odo.config.extraction, twist, sigma), len(odo.poses))
+    if odo.acceleration is not None:  # odometry.map_lead_acceleration
+        scan = odo.acceleration.accelerated(scan, twist)
     planes, used = None, twist
     if twist is not None and odo.config.odometry.deskew_twist == "coplanar":
         origins = odo.sensor_origins

@@ -47,6 +47,7 @@ from planodom.odometry.epoch_time import is_gap, next_epoch_time
 from planodom.odometry.extractor import Extractor
 from planodom.odometry.first_epoch import first_round, reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
+from planodom.odometry.lead_acceleration import LeadAcceleration, lead_acceleration
 from planodom.odometry.led_variance import led_variance
 from planodom.odometry.moment_refine import moment_refined
 from planodom.odometry.rate_prediction import RatePredictor
@@ -115,8 +116,8 @@ class PlaneOdometry:
         self._velocities: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
         self._steps: list[np.ndarray] = []  # T_{k-1}_k per epoch (identity first)
         self._gap_configs: dict[int, PlanodomConfig] = {1: self.config}
-        # The plane-map odometry when the pipeline is (or resolves to) "map".
-        self._map: PlaneMapOdometry | None = None
+        self._map: PlaneMapOdometry | None = None  # when the pipeline is (resolves to) "map"
+        self.acceleration: LeadAcceleration | None = None  # odometry.map_lead_acceleration
         self._recent: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
         # pairwise pipelines: (epoch, own twist) of the last epochs that measured the rate
         self._rates: deque[tuple[int, np.ndarray]] = deque(maxlen=self._recent.maxlen)
@@ -208,6 +209,7 @@ class PlaneOdometry:
             led = middle and k not in self._gaps  # a lead never crosses a gap
             lead = map_lead(self._rates, k, self.times, self.results[-1], ocfg,
                             self._rate_vars) if led else None  # fmt: skip
+            self.acceleration = lead_acceleration(lead, scan, self._history, dt, ocfg)
             guard = pairwise and ocfg.deskew_bounds_guard
             bounds = (self.config.association, self._restore_reference) if guard else None
             blend = self._twist_sigma.blend.bound(self._map)  # odometry.twist_blend
@@ -290,10 +292,8 @@ class PlaneOdometry:
 
     def _estimate(self, epoch: _Epoch, t: float) -> EpochEstimate:
         """The relative pose of ``epoch`` (at time ``t``) from the reference epoch, and the
-        step ``T_{k-1}_k`` it implies.
-
-        Poses are chained through steps (products of rigid transforms), never through the
-        inverse of a chained world pose, so rounding cannot grow from epoch to epoch."""
+        step ``T_{k-1}_k`` it implies; poses are chained through steps (products of rigid
+        transforms), never through a chained world pose's inverse: rounding cannot grow."""
         if self._map is not None:
             return self._estimate_map(epoch, t)
         reference = self._reference()
