@@ -106,10 +106,10 @@ def report(out: dict, top: int, window: int) -> None:
     starts = np.arange(0, len(yaw0) - window + 1, window)
     order = starts[np.argsort(-np.abs(sums[names[0]][starts]))][:top]
     for s in sorted(order):
-        st = [x[:3] for x in st0[s : s + window]]
+        short = [x[:3] for x in st0[s : s + window]]
         bad = sum(x != "ok" for x in st0[s : s + window])
         print(f"{s:4d}-{s + window - 1:4d} " + " ".join(f"{sums[n][s]:+9.4f}" for n in names)
-              + f"  not ok {bad} {' '.join(sorted(set(st)))}")  # fmt: skip
+              + f"  not ok {bad} {' '.join(sorted(set(short)))}")  # fmt: skip
 
 
 def main() -> None:
@@ -134,7 +134,7 @@ def main() -> None:
             if n != "truth":
                 saved[f"{n}:yaw"], saved[f"{n}:xy"] = step_errors(out[n][0], gt)
                 saved[f"{n}:status"] = np.array(out[n][1])
-        np.savez(args.npz, **saved)
+        np.savez(args.npz, **saved)  # type: ignore[arg-type]
     report(out, args.top, args.window)
 
 
