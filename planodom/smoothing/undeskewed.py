@@ -80,7 +80,12 @@ def with_undeskewed(Q: np.ndarray, relative_poses: Sequence[RelativePose]) -> np
     """(E, 6, 6) ``Q`` (the epochs' deskewing errors' covariances) plus ``diag(d_k^2)``
     for the epochs kept without deskewing (:func:`undeskewed_errors`); ``Q`` itself when
     there are none."""
-    d = undeskewed_errors(relative_poses, len(Q))
+    return plus_diagonal(Q, undeskewed_errors(relative_poses, len(Q)))
+
+
+def plus_diagonal(Q: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(E, 6, 6) ``Q`` plus ``diag(d_k^2)`` for each row ``k`` of ``d`` ((E, 6)) that is
+    finite (NaN rows add nothing); ``Q`` itself when there are none."""
     rows = np.flatnonzero(np.all(np.isfinite(d), axis=1))
     if not len(rows):
         return Q

@@ -38,7 +38,7 @@ import numpy as np
 
 from planodom.odometry.relative import RelativePose
 from planodom.se3 import se3_log
-from planodom.smoothing.undeskewed import undeskewed_errors
+from planodom.smoothing.undeskewed import plus_diagonal, undeskewed_errors
 
 
 def span_ratio(relative_poses: Sequence[RelativePose]) -> float:
@@ -83,11 +83,4 @@ def unmeasured_errors(relative_poses: Sequence[RelativePose], n_epochs: int) -> 
 def with_unmeasured(Q: np.ndarray, relative_poses: Sequence[RelativePose]) -> np.ndarray:
     """(E, 6, 6) ``Q`` plus ``diag(d_k^2)`` for the epochs of :func:`unmeasured_errors`;
     ``Q`` itself when there are none."""
-    d = unmeasured_errors(relative_poses, len(Q))
-    rows = np.flatnonzero(np.all(np.isfinite(d), axis=1))
-    if not len(rows):
-        return Q
-    out = np.array(Q, dtype=float, copy=True)
-    idx = np.arange(6)
-    out[rows[:, None], idx, idx] += d[rows] ** 2
-    return out
+    return plus_diagonal(Q, unmeasured_errors(relative_poses, len(Q)))
