@@ -45,13 +45,17 @@ def span_ratio(relative_poses: Sequence[RelativePose]) -> float:
     """The run's median ``max(|first|, |last|) / interval`` of the delta = 1 steps that
     carry their epoch's point times (``deskew_times``) and a positive interval; 1 where
     none does."""
-    ratios = [
-        max(abs(r.deskew_times[0]), abs(r.deskew_times[1])) / r.interval_s
-        for r in relative_poses
-        if r.delta == 1 and r.deskew_times is not None
-        and np.isfinite(r.interval_s) and r.interval_s > 0
-    ]  # fmt: skip
-    return float(np.median(ratios)) if ratios else 1.0
+    ratios = [own_ratio(r) for r in relative_poses if r.delta == 1]
+    known = [r for r in ratios if r is not None]
+    return float(np.median(known)) if known else 1.0
+
+
+def own_ratio(rel: RelativePose) -> float | None:
+    """``max(|first|, |last|) / interval`` of ``rel``'s own point times (``deskew_times``),
+    None where it carries none or its interval is not positive."""
+    if rel.deskew_times is None or not (np.isfinite(rel.interval_s) and rel.interval_s > 0):
+        return None
+    return max(abs(rel.deskew_times[0]), abs(rel.deskew_times[1])) / rel.interval_s
 
 
 def unmeasured_errors(relative_poses: Sequence[RelativePose], n_epochs: int) -> np.ndarray:
@@ -71,11 +75,8 @@ def unmeasured_errors(relative_poses: Sequence[RelativePose], n_epochs: int) -> 
     for k, rel in into.items():
         if rel.measured or rel.time_spread is False or kept[k]:
             continue
-        own = rel.deskew_times is not None and np.isfinite(rel.interval_s) and rel.interval_s > 0
-        r = ratio
-        if own:
-            assert rel.deskew_times is not None
-            r = max(abs(rel.deskew_times[0]), abs(rel.deskew_times[1])) / rel.interval_s
+        own = own_ratio(rel)
+        r = ratio if own is None else own
         out[k] = -r * se3_log(np.asarray(rel.T_prev_curr, dtype=float))
     return out
 
