@@ -7,8 +7,10 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
-from planodom.config import SmoothingConfig
+from planodom.config import PlanodomConfig, SmoothingConfig
+from planodom.errors import ConfigError
 from planodom.odometry.relative import RelativePose, Status
 from planodom.se3 import se3_exp
 from planodom.smoothing.batch_covariances import sandwich_inputs
@@ -97,3 +99,8 @@ def test_sandwich_inputs_take_it_only_when_asked() -> None:
     assert np.array_equal(np.delete(on, 5, axis=0), np.delete(off, 5, axis=0))
     fitted = SmoothingConfig(covariance_model="fitted", sandwich_unmeasured="motion")
     assert sandwich_inputs(fitted, {}, rels, 10) == (None, None)
+
+
+def test_a_bad_value_is_refused():
+    with pytest.raises(ConfigError, match="sandwich_unmeasured"):
+        PlanodomConfig().updated({"smoothing.sandwich_unmeasured": "yes"})
