@@ -60,7 +60,8 @@ class PlanodomConfig(Section):
         twist_change`` and ``lead_weights: stated``, ``odometry.plane_deskew_noise`` and
         ``stated_deskew_noise`` not off) switch on its computation in the extraction
         (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other than ``none``
-        switches on the planes' time moments (``extraction.time_moments``). The default
+        and ``lead_weights: unknown`` switch on the planes' time moments
+        (``extraction.time_moments``). The default
         covariance model, "auto", leaves it off here: the batch smoothing switches it on for
         the odometry it runs (:func:`planodom.smoothing.run.smoothing_config`), so that a
         run without smoothing does not pay for it."""
@@ -91,7 +92,7 @@ class PlanodomConfig(Section):
         wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
         wanted = wanted or model == "sandwich" or planes in ("twist", "change")
         wanted = wanted or stated == "shared"
-        moments = isinstance(twist, str) and twist != "none"
+        moments = (isinstance(twist, str) and twist != "none") or lead == "unknown"
         wanted = wanted or deskew == "twist_change" or lead == "stated"
         if not (wanted or moments):
             return data

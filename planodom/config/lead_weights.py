@@ -16,7 +16,7 @@ from planodom.config.section import Section
 class LeadWeightsConfig(Section):
     """How a plane-map epoch extracted again with its led twist is weighted."""
 
-    lead_weights: Literal["off", "stated"] = "off"
+    lead_weights: Literal["off", "stated", "unknown"] = "off"
     """``odometry.map_twist_lead`` on (a sweep registered at its middle): ``stated``, an
     epoch extracted again with a twist led from a measured step registers each of its
     planes with the variance the led twist's error gives it through the plane's own
@@ -34,7 +34,16 @@ class LeadWeightsConfig(Section):
     docs/RESULTS.md, LIDARW): rotation rms geometric-mean ratio 0.956 at 6 mm, 0.771 at 2
     cm (every world better; median 6.0x -> 4.7x the oracle), ATE 1.043 / 0.901 (world 315 at
     6 mm 0.52 -> 0.82 mm), no epoch unresolved. Off: its rule asked for the ATE < 1 at both
-    noises."""
+    noises. ``unknown``: the led twist's error is one unknown shared by the scan's planes,
+    not an independent term per plane: the registration solves the pose and a correction
+    of the twist the scan was deskewed with together (continuous time, the planes' time
+    moments, :mod:`planodom.odometry.planemap.ctreg`, switched on in the extraction), the
+    correction's prior zero-mean with that closed-form variance per axis
+    (:mod:`planodom.odometry.planemap.led_twist`); the pose is the joint solve's, the map
+    is updated with the planes moved by the correction, the laser bias is ``led_bias_m``
+    as with ``stated``; the correction is not fed back into the epoch's twist (the lead
+    and the next prediction stay the steps'). A rule of the estimator (no threshold); its
+    figures are in docs/RESULTS.md, LIDARTW."""
     led_bias_m: float = Field(0.005, ge=0, le=1)
     """With ``lead_weights: stated``, the laser bias sigma (m) of a scan extracted again
     with its led twist. The procedural lidars have no per-laser bias (the 2 cm of

@@ -10,7 +10,8 @@ constant-velocity model's deviations so far (per epoch span, :func:`change_covar
 ``lead_weights: stated`` by the led twist's own variance in closed form
 (:mod:`planodom.odometry.led_variance`, :func:`led_weights`), and with it the scan's laser
 bias is ``planemap.led_bias_m`` (the 2 cm of ``laser_bias_m`` also absorbs the deskewing
-error).
+error); ``lead_weights: unknown`` keeps that bias but solves the error as one unknown of
+the registration (:mod:`.led_twist`) instead of a term per plane.
 """
 
 from __future__ import annotations
@@ -57,13 +58,16 @@ def led_weights(
     planes: Sequence[Plane],
     used: np.ndarray,
     led: tuple[np.ndarray, float] | None,
-) -> tuple[float, np.ndarray] | None:
+) -> tuple[float, np.ndarray | None] | None:
     """(the laser bias, m; the (K, 4, 4) covariance of the ``used`` (K,) planes' ``(n, d)``
     from the led twist's error ``led`` = (its variance (6,) per axis, (rad/s)^2 and
     (m/s)^2; the scan's span, s)), or None when ``lead_weights`` is off or the scan's twist
-    is not led (then weighted as without it)."""
+    is not led (then weighted as without it). With ``lead_weights: unknown`` no
+    covariance (None): the error is the registration's unknown (:mod:`.led_twist`)."""
     if config.lead_weights == "off" or led is None:
         return None
+    if config.lead_weights == "unknown":
+        return config.led_bias_m, None
     var, span = led
     J = _jacobians(planes, used)
     return config.led_bias_m, span**2 * np.einsum("kia,a,kja->kij", J, var, J)

@@ -49,6 +49,7 @@ from planodom.odometry.planemap.bias import fitted_bias
 from planodom.odometry.planemap.ctreg import TwistRegistration, corrected_planes, register_twist
 from planodom.odometry.planemap.deskew_weights import change_covariance, led_weights
 from planodom.odometry.planemap.landmarks import PlaneMap, update_map
+from planodom.odometry.planemap.led_twist import led_registration, timed_planes
 from planodom.odometry.planemap.moments import Moments, scan_sigma
 from planodom.odometry.planemap.pose import relative_pose
 from planodom.odometry.planemap.register import Registration, ScanPlanes, register, score
@@ -186,6 +187,7 @@ class PlaneMapOdometry:
         reg = self._best_registration(T_pred, cur, plane_set)
         ok = self._resolved(reg, cur)
         ct, filt = self._registered_twist(reg, cur, deskew) if ok else (None, None)
+        own = ct is not None and cur.led_var is None  # lead_weights: unknown, the pose only
         if ct is not None:
             reg = replace(reg, T=ct.T)
             if self.config.planemap.twist_map_update == "corrected":
@@ -199,7 +201,7 @@ class PlaneMapOdometry:
             upper = self.config.planemap.laser_bias_m
             bias = fitted_bias(self.map, reg.T, cur, reg.landmarks[inl], reg.planes[inl], upper)
         twist = acceleration = None
-        if ct is not None and measured:
+        if ct is not None and own and measured:
             twist = (np.zeros(6) if deskew[0] is None else deskew[0]) + ct.correction
             if self.config.planemap.twist_estimation == "registered_acceleration":
                 acceleration = ct.acceleration
@@ -219,8 +221,11 @@ class PlaneMapOdometry:
         the last one measured: it is off by the change of the twist over a step), the
         acceleration's twice that over ``dt`` (the rate may change by the twist's error
         within half an epoch). With ``planemap.twist_filter``, the filter's prediction
-        instead, and the filter after the scan (else None)."""
+        instead, and the filter after the scan (else None). A scan with the led twist's
+        variance (``lead_weights: unknown``): that prior instead (:mod:`.led_twist`)."""
         mode, dt = self.config.planemap.twist_estimation, deskew[1]
+        if cur.led_var is not None:  # lead_weights: unknown, the led twist's variance
+            return led_registration(self.map, reg, cur, self.config.planemap.gn_iterations), None
         if mode == "none" or cur.time_moments is None or self._dev_n[0] == 0:
             return None, None
         if dt is None or dt <= 0:
@@ -268,12 +273,7 @@ class PlaneMapOdometry:
             change_covariance(self.config.planemap, planes, used, *change),
         )
         cur = ScanPlanes.of(m, normals, sigma, bias, cov)
-        if self.config.planemap.twist_estimation == "none":
-            return cur
-        tm = [planes[k].support.time_moments for k in used]
-        if any(x is None for x in tm):
-            return cur
-        return replace(cur, time_moments=np.array(tm))
+        return timed_planes(self.config.planemap, cur, planes, used, led)
 
     def _resolved(self, reg: Registration, cur: ScanPlanes) -> bool:
         """Enough inliers, and no flip of the z axis relative to the last pose."""

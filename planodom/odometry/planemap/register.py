@@ -62,6 +62,7 @@ class ScanPlanes:
             (``planemap.deskew_variance``, :func:`deskew_variances`), or None.
         time_moments: (K, 5, 4, 4) the planes' time moments (``PlaneSupport.
             time_moments``) for the continuous-time registration (:mod:`.ctreg`), or None.
+        led_var: (6,) the led twist's error variance (``lead_weights: unknown``), or None.
     """
 
     m: Moments
@@ -75,6 +76,7 @@ class ScanPlanes:
     bias: float = 0.0
     deskew: np.ndarray | None = None
     time_moments: np.ndarray | None = None
+    led_var: np.ndarray | None = None
 
     @classmethod
     def of(
