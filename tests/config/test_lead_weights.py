@@ -28,3 +28,13 @@ def test_a_bad_value_names_file_and_field(tmp_path, text: str, field: str) -> No
     with pytest.raises(ConfigError, match=rf"c\.yaml: field 'planemap\.{field}'") as err:
         PlanodomConfig.from_yaml(tmp_path / "c.yaml")
     assert "\n" not in str(err.value)
+
+
+def test_unknown_asks_the_extraction_for_the_planes_time_moments(tmp_path) -> None:
+    assert not PlanodomConfig().extraction.time_moments
+    (tmp_path / "c.yaml").write_text("planemap: {lead_weights: unknown}\n")
+    config = PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    assert config.planemap.lead_weights == "unknown"
+    assert config.extraction.time_moments and not config.extraction.deskew_jacobian
+    updated = PlanodomConfig().updated({"planemap.lead_weights": "unknown"})
+    assert updated.extraction.time_moments
