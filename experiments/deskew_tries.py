@@ -3,9 +3,9 @@ SIGMA0B).
 
 Runs the odometry as ``planodom run --scenario`` does (``--set`` overrides) and, at each
 epoch of ``--epochs-at``, prints every extraction :func:`planodom.odometry.deskew.
-register_deskewed` asked for, in order: the twist (yaw rate, deg/s / speed, m/s; ``none``:
-not deskewed), whether it was refined from an estimate's own twist, the status, the
-plane count, the true surfaces (``truth_id``) and distinct surfaces, the step's yaw error
+register_deskewed` asked for, in order: the twist (roll, pitch, yaw rates, deg/s /
+speed, m/s; ``none``: not deskewed), whether it was refined from an estimate's own
+twist, the status, the plane count, the true surfaces (``truth_id``) and distinct surfaces, the step's yaw error
 against the truth (mdeg), its own yaw rate and ``twist_offset``'s share (deg/s); then
 what was committed against the true twist.
 
@@ -50,9 +50,10 @@ def main() -> None:
             own, off = e.own_twist(t - self.times[-1]), e.twist_offset
             used = "none"
             if twist is not None:
-                used = f"{np.degrees(twist[2]):+.3f}/{np.linalg.norm(twist[3:]):.3f}"
+                rates = ",".join(f"{r:+.3f}" for r in np.degrees(twist[:3]))
+                used = f"{rates}/{np.linalg.norm(twist[3:]):.3f}"
             log.setdefault(k, []).append(
-                f"  {used:>14s} {'refined' if source is not None else 'first  '} "
+                f"  {used:>26s} {'refined' if source is not None else 'first  '} "
                 f"{e.relative.status.name:10s} planes {len(e.planes):2d} "
                 f"ids {[p.truth_id for p in e.planes]} "
                 f"surfaces {distinct_surfaces(e.planes, *tol)} "
@@ -72,8 +73,8 @@ def main() -> None:
     for k in args.epochs_at:
         used, true = run.results[k].deskew_twist, true_twist(sim, k)
         print(f"epoch {k}: {run.statuses[k]}, deskewed with "
-              f"{'none' if used is None else f'{np.degrees(used[2]):+.3f}'} deg/s (true "
-              f"{np.degrees(true[2]):+.3f}), step yaw "
+              f"{'none' if used is None else np.round(np.degrees(used[:3]), 3)} deg/s (true "
+              f"{np.round(np.degrees(true[:3]), 3)}), step yaw "
               f"{err(k):+.2f} mdeg")  # fmt: skip
         print("\n".join(log.get(k, [])))
 
