@@ -5,9 +5,9 @@ Runs the odometry as ``planodom run --scenario`` does (``--set`` overrides) and,
 epoch of ``--epochs-at``, prints every extraction :func:`planodom.odometry.deskew.
 register_deskewed` asked for, in order: the twist (roll, pitch, yaw rates, deg/s /
 speed, m/s; ``none``: not deskewed), whether it was refined from an estimate's own
-twist, the status, the plane count, the true surfaces (``truth_id``) and distinct surfaces, the step's yaw error
-against the truth (mdeg), its own yaw rate and ``twist_offset``'s share (deg/s); then
-what was committed against the true twist.
+twist, the status, the plane count, the true surfaces (``truth_id``) and distinct
+surfaces, the step's yaw error against the truth (mdeg), its own yaw rate and
+``twist_offset``'s share (deg/s); then what was committed against the true twist.
 
     uv run python experiments/deskew_tries.py --scene random-outdoor --noise 0 \\
         --epochs-at 240 515 584
