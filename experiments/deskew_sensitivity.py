@@ -47,8 +47,8 @@ def main() -> None:
                 twist = true_twist(sim, j)
                 twist[2] += e
                 planes.append(extract_planes(sim.scans[j], cfg.extraction, twist, origins))
-            sets = [PlaneSet.from_planes(p) for p in planes]
-            r = estimate_relative_pose(*sets, cfg, None, 1.0, step=True)
+            ref, cur = (PlaneSet.from_planes(p) for p in planes)
+            r = estimate_relative_pose(ref, cur, cfg, None, 1.0, step=True)
             out[er, ec] = (yaw(r.T_prev_curr) - yaw(true_steps[k - 1])) * 1e3
             print(f"{k:4d} reference {np.degrees(er):+.2f} epoch {np.degrees(ec):+.2f} deg/s off: "
                   f"{r.status.name:10s} planes {len(planes[0])}/{len(planes[1])} step yaw "

@@ -41,7 +41,7 @@ def main() -> None:
     n = max(args.epochs_at) + 1
     cfg, true_steps = config_with(args.set), relative_motions(gt[:n])
     tol = (cfg.association.normal_tol_deg, cfg.association.offset_tol_m)
-    original, log = PlaneOdometry._estimate_scan, {}
+    original, log = PlaneOdometry._estimate_scan, dict[int, list[str]]()
 
     def traced(self, scan, t, twist, source=None, prior_sigma=None):  # noqa: ANN001, ANN202
         e = original(self, scan, t, twist, source, prior_sigma)
