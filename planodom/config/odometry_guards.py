@@ -68,6 +68,18 @@ class DeskewGuards(
     Off (``planes``): both mixed on 2D-rig worlds 100-118, 140-158, 160-178 at 6 mm and
     2 cm (docs/RESULTS.md, REFINE)."""
 
+    deskew_tie: Literal["first", "deskewed"] = "first"
+    """Streaming, pairwise pipelines: which of two first extractions of an epoch that rank
+    alike (``deskew_rank``) is kept. ``first``: the one tried first (after an unresolved
+    epoch, the one extracted without deskewing; the held twist only when it ranks higher).
+    ``deskewed``: the one deskewed with a twist (predicted, held, trend), by geometry: the
+    scan's points were taken while the platform moved, and an extraction without a twist
+    leaves that motion in them; when the ranks do not tell the two apart, the extraction
+    that models the motion is kept. No threshold. Off by default: found on the built-in
+    random-outdoor at sigma 0 (epoch 240, after unresolved 239: the undeskewed and the
+    held-twist extractions both degenerate on the ground and one wall; the undeskewed one
+    kept, its step 23 mdeg off, the held one's 0.05; docs/RESULTS.md, SIGMA0B)."""
+
     deskew_change_gate: bool = False
     """Streaming: extract an epoch again with its own twist (:mod:`planodom.odometry.
     deskew`, step 2) only where it differs from the twist used by more than the own

@@ -215,7 +215,7 @@ class PlaneOdometry:
             blend = self._twist_sigma.blend.bound(self._map)  # odometry.twist_blend
             best = self.start.vehicle(self, scan, t, register_deskewed(
                 twist, dt, estimate, refresh, ocfg, previous, held, damped, trend, lost_trend,
-                restore, lead, bounds, ranking(self.config),
+                restore, lead, bounds, ranking(self.config, pairwise),
                 centring(rates, k, scan.t, dt, self.config, self.last_relative),
                 blend, pairwise and ocfg.turn_trend_keep == "status"))  # fmt: skip
             if k == 1 and ocfg.first_epoch_reextract:  # the second epoch: the first's rounds

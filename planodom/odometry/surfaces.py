@@ -59,12 +59,28 @@ def by_planes(estimate: EpochEstimate) -> tuple[int, int]:
     return estimate.relative.status.rank, len(estimate.planes)
 
 
-def ranking(config: PlanodomConfig) -> Ranking:
+def ranking(config: PlanodomConfig, pairwise: bool = False) -> Ranking:
     """The key an extraction of an epoch is ranked by (higher is better) under ``config``'s
     ``odometry.deskew_rank``: its status, then its plane count (``planes``) or its
     distinct surfaces within ``association.normal_tol_deg`` and ``offset_tol_m``
     (``surfaces``); with the one-scanner widening on, an unresolved extraction's planes
-    that can take part in the rotation come between (module docstring)."""
+    that can take part in the rotation come between (module docstring). With
+    ``odometry.deskew_tie: deskewed`` on a ``pairwise`` pipeline, last whether it was
+    deskewed with a twist (:func:`deskewed_last`)."""
+    key = _ranking(config)
+    if pairwise and config.odometry.deskew_tie == "deskewed":
+        return deskewed_last(key)
+    return key
+
+
+def deskewed_last(key: Ranking) -> Ranking:
+    """``key`` with, last, whether the extraction was deskewed with a twist: of two that
+    rank alike by ``key``, the deskewed one ranks higher (``odometry.deskew_tie``)."""
+    return lambda e: (*key(e), int(e.twist is not None))
+
+
+def _ranking(config: PlanodomConfig) -> Ranking:
+    """:func:`ranking` without ``odometry.deskew_tie``."""
     tol_deg, tol_m = config.association.normal_tol_deg, config.association.offset_tol_m
     ext = config.extraction
 

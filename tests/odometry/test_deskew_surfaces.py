@@ -8,6 +8,7 @@ import pytest
 
 from planodom.config import OdometryConfig, PlanodomConfig
 from planodom.errors import ConfigError
+from planodom.extraction.deskew import deskew_points
 from planodom.geometry import Plane
 from planodom.odometry.deskew import EpochEstimate, register_deskewed
 from planodom.odometry.relative import RelativePose, Status
@@ -112,3 +113,60 @@ def test_a_refinement_that_loses_surfaces_is_dropped():
 def test_a_bad_rank_names_its_key():
     with pytest.raises(ConfigError, match="deskew_rank"):
         PlanodomConfig.from_dict({"odometry": {"deskew_rank": "walls"}})
+
+
+def _wall_seen_while_turning(rate: float, twist: np.ndarray | None) -> Plane:
+    """The wall x = 5 (normal (-1, 0, 0) towards the sensor) as a sensor at the origin
+    sees it over the 0.1 s before the epoch time while yawing at ``rate`` rad/s, its
+    points deskewed with ``twist`` (None: as they are), fitted by least squares (σ = 0)."""
+    t = np.linspace(-0.1, 0.0, 41)
+    y, z = np.linspace(-3.0, 3.0, 41), np.tile([-0.5, 0.5, 1.5], 14)[:41]  # three lines
+    world = np.column_stack([np.full(41, 5.0), y, z])
+    c, s = np.cos(rate * t), np.sin(rate * t)  # the body frame at t: yawed by rate t
+    seen = np.column_stack([c * world[:, 0] + s * world[:, 1],
+                            -s * world[:, 0] + c * world[:, 1], world[:, 2]])  # fmt: skip
+    points = seen if twist is None else deskew_points(seen, t, twist)
+    centre = points.mean(axis=0)
+    normal = np.linalg.svd(points - centre)[2][-1]
+    normal = -normal if normal[0] > 0 else normal
+    return Plane(normal, -float(normal @ centre))
+
+
+def test_a_tie_keeps_the_deskewed_extraction_whose_wall_is_the_true_one():
+    """After an unresolved epoch, the extraction without a twist and the one with the held
+    twist (here the true one) both give the ground and one wall, degenerate: a tie
+    (SIGMA0B, random-outdoor epoch 240). ``first`` keeps the undeskewed one, whose wall is
+    turned by the sweep's motion; ``deskewed`` keeps the held one, whose wall is the true
+    wall at σ = 0."""
+    rate = np.radians(8.0)
+    held = np.array([0.0, 0.0, rate, 0.0, 0.0, 0.0])
+
+    def model(twist: np.ndarray | None, source: EpochEstimate | None = None) -> EpochEstimate:
+        return _estimate([GROUND, _wall_seen_while_turning(rate, twist)], twist,
+                         Status.DEGENERATE)  # fmt: skip
+
+    def wall_error_deg(est: EpochEstimate) -> float:
+        n = est.planes[1].normal
+        return float(np.degrees(np.arccos(np.clip(-n[0], -1.0, 1.0))))
+
+    for tie, deskewed in (("first", False), ("deskewed", True)):
+        odo = {"deskew_tie": tie, "deskew_iterations": 0}  # the first extractions only
+        cfg = PlanodomConfig.from_dict({"odometry": odo})
+        rank = ranking(cfg, pairwise=True)
+        kept = register_deskewed(None, DT, model, lambda t: False, cfg.odometry, 2,
+                                 held=held, rank=rank)  # fmt: skip
+        assert (kept.twist is not None) is deskewed
+        if deskewed:
+            assert wall_error_deg(kept) < 1e-9  # the true wall
+        else:  # turned by the rate times the points' mean time, 8 deg/s x 0.05 s
+            assert wall_error_deg(kept) == pytest.approx(0.4, rel=0.05)
+    # the plane-map pipeline is not changed: the tie stays with the first
+    cfg = PlanodomConfig.from_dict({"odometry": {"deskew_tie": "deskewed", "deskew_iterations": 0}})
+    kept = register_deskewed(None, DT, model, lambda t: False, cfg.odometry, 2, held=held,
+                             rank=ranking(cfg, pairwise=False))  # fmt: skip
+    assert kept.twist is None
+
+
+def test_a_bad_tie_names_its_key():
+    with pytest.raises(ConfigError, match="deskew_tie"):
+        PlanodomConfig.from_dict({"odometry": {"deskew_tie": "last"}})
