@@ -1,0 +1,111 @@
+"""A vehicle's twist searched for an unresolved step at the start
+(``odometry.start_twist_search``).
+
+Until a step measures the angular rate, the streaming odometry extracts every epoch
+without a twist. A vehicle that starts in a turn smears its 2D rig's walls over the
+epoch's sweep: issue 11's world 292 at 6 mm (36 deg/s of yaw at 4.5 m/s at its start)
+leaves steps 1-3 unresolved, each 5-2 deg off in yaw, a heading the whole lap keeps
+(ATE 8.0 m; docs/RESULTS.md, GAP292), where the same epochs deskewed with the true
+twist give OK steps. ``start_vehicle_twist`` takes its twist from a degenerate step; an
+unresolved step has none to give.
+
+So, with the option on, while no step has measured a rate (pairwise pipelines, the first
+:data:`MAX_SEARCHED` epochs), an epoch whose step is unresolved is extracted
+again, with its reference, deskewed with each of a vehicle's yaw rates
+(:func:`candidates`: about the base z, no other rate or velocity; both signs, up to
+:data:`MAX_RATE_DEG_S`) and estimated again. Among the candidates whose step is OK (three
+normal directions: the rotation checked by the step's own planes), the one whose step's
+own yaw rate is nearest the rate it was deskewed with (the deskewing agrees with the
+motion it measures) is refined: both epochs are extracted again with the vehicle's part
+of the step's own twist (its yaw rate and velocity along the base x, :func:`vehicle_part`),
+up to ``deskew_iterations`` rounds, each kept while the step stays OK. Without an OK
+candidate the reference's planes come back and the estimate is the one before. From an OK
+step on the run is the usual one (``start_refresh`` deskews the start's epochs).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planodom.geometry import se3_log
+from planodom.odometry.deskew import EpochEstimate
+from planodom.odometry.relative import Status
+from planodom.scan import Scan
+
+if TYPE_CHECKING:
+    from planodom.odometry.odometry import PlaneOdometry
+
+#: The largest yaw rate tried, deg/s: a car's turn at walking pace to a roundabout
+#: (about 60 deg/s at 3 m/s on a 3 m radius), not taken from any world.
+MAX_RATE_DEG_S = 60.0
+
+#: The yaw rates' spacing, deg/s: the candidates are k * STEP_DEG_S, k = +-1 .. N.
+STEP_DEG_S = 10.0
+
+#: Epochs at the start searched at most (as many as the start's refresh holds,
+#: :data:`.start_epochs.MAX_EPOCHS`): a bound on the extractions spent.
+MAX_SEARCHED = 20
+
+
+def candidates() -> list[np.ndarray]:
+    """The vehicle's twists tried (6,): yaw rates of both signs, nearest zero first."""
+    n = int(round(MAX_RATE_DEG_S / STEP_DEG_S))
+    rates = [s * k * STEP_DEG_S for k in range(1, n + 1) for s in (1.0, -1.0)]
+    return [np.array([0.0, 0.0, np.radians(r), 0.0, 0.0, 0.0]) for r in rates]
+
+
+def vehicle_part(estimate: EpochEstimate, dt: float) -> np.ndarray:
+    """(6,) the yaw rate and the velocity along the base x of the step's own twist over
+    ``dt`` s (rad/s, m/s), the other components zero (a vehicle's)."""
+    own = se3_log(estimate.step) / dt
+    out = np.zeros(6)
+    out[2], out[3] = own[2], own[3]
+    return out
+
+
+def searched_start(odo: PlaneOdometry, scan: Scan, t: float, best: EpochEstimate) -> EpochEstimate:
+    """``best``, the estimate of the epoch ``scan`` at ``t`` s, or, when it is an
+    unresolved step of the start, the estimate of it and its reference deskewed with a
+    searched vehicle's twist (module docstring)."""
+    ocfg = odo.config.odometry
+    if not ocfg.start_twist_search or odo._map is not None or odo._rates:
+        return best
+    if best.relative.status is not Status.UNRESOLVED or len(odo.poses) > MAX_SEARCHED:
+        return best
+    ref = odo._reference()
+    dt = t - odo.times[-1]
+    if ref.scan is None or dt <= 0:
+        return best
+    saved, last = (ref.planes, ref.twist, ref.plane_set), odo._last_usable
+
+    def tried(twist: np.ndarray) -> tuple[EpochEstimate, tuple]:
+        odo._set_planes(ref, *odo._extract(ref.scan, twist))  # type: ignore[arg-type]
+        return odo._estimate_scan(scan, t, twist), (ref.planes, ref.twist, ref.plane_set)
+
+    found = []  # (|own yaw rate - used|, order, twist, estimate, the reference's planes)
+    for twist in candidates():
+        again, planes = tried(twist)
+        if again.relative.status is Status.OK:
+            gap = abs(vehicle_part(again, dt)[2] - twist[2])
+            found.append((gap, len(found), twist, again, planes))
+    if not found:
+        odo._set_planes(ref, *saved)
+        odo._last_usable = last
+        return best
+    _, _, used, kept, planes = min(found, key=lambda f: (f[0], f[1]))
+    for _ in range(ocfg.deskew_iterations):
+        new = vehicle_part(kept, dt)
+        if np.array_equal(new, used):
+            break
+        again, new_planes = tried(new)
+        if again.relative.status is not Status.OK:
+            break
+        kept, used, planes = again, new, new_planes
+    odo._set_planes(ref, *planes)
+    if odo.results[ref.index] is not None:
+        odo.superseded.add(ref.index)  # its step refers to planes that are gone
+    if ref.has_pair(odo.config.association) and (last is None or last.index <= ref.index):
+        odo._last_usable = ref
+    return kept
