@@ -16,8 +16,8 @@ DT = 0.1
 #: a start in a turn (2D-rig world 292's: 36 deg/s of yaw at 4.5 m/s), with the small
 #: roll and pitch rates and vertical velocity of a vehicle's sway
 TRUTH = np.array([0.028, 0.016, 0.636, 4.526, 0.009, 0.065])
-#: the yaw-rate error of the deskewing twist the steps stay OK within (rad/s)
-OK_WITHIN = np.radians(7.0)
+#: the yaw-rate (rad/s) and speed (m/s) errors of the deskewing twist the steps stay OK within
+OK_WITHIN = np.array([np.radians(7.0), 1.0])
 #: how much of the deskewing's yaw-rate and speed error a step's own twist keeps
 BIAS = 0.3
 
@@ -39,7 +39,8 @@ class _Ref:
 class _StartInATurn:
     """What :func:`searched_start` uses of the odometry, for a vehicle starting in a turn
     of the constant twist :data:`TRUTH`: an epoch (and its reference) deskewed with a
-    twist whose yaw rate is within :data:`OK_WITHIN` of the truth gives an OK step, whose
+    twist whose yaw rate and speed are within :data:`OK_WITHIN` of the truth's gives an OK
+    step (the twist's prediction its prior: ``twist`` is the candidate then), whose
     own twist keeps :data:`BIAS` of the deskewing twist's error in the yaw rate and the
     forward speed (a deskewing error moves the measured motion); else the step is
     unresolved, as without a twist."""
@@ -48,7 +49,7 @@ class _StartInATurn:
         self.config = PlanodomConfig().updated({"odometry.start_twist_search": on})
         self._map, self._rates, self.times, self.poses = None, rates or [], [0.0], [np.eye(4)]
         self.ref, self._last_usable, self.results, self.superseded = _Ref(), None, [None], set()
-        self.truth, self.extracted = truth, []
+        self.truth, self.extracted, self.twist, self.priors = truth, [], None, []
 
     def _reference(self):
         return self.ref
@@ -61,7 +62,8 @@ class _StartInATurn:
         return [f"{scan} at {twist[2]:.4f}"], twist
 
     def _estimate_scan(self, scan, t, twist):
-        if abs(twist[2] - self.truth[2]) > OK_WITHIN:
+        self.priors.append(self.twist)
+        if np.any(np.abs(twist[2:4] - self.truth[2:4]) > OK_WITHIN):
             return _estimate(Status.UNRESOLVED, twist, np.zeros(6))
         own = self.truth.copy()
         own[2:4] += BIAS * (twist[2:4] - self.truth[2:4])
@@ -72,10 +74,12 @@ def _unresolved() -> EpochEstimate:
     return _estimate(Status.UNRESOLVED, None, np.zeros(6))
 
 
-def test_the_candidates_are_a_vehicles_yaw_rates():
+def test_the_candidates_are_a_vehicles_yaw_rates_and_speeds():
     got = np.array(candidates())
-    assert got.shape == (12, 6) and not np.any(got[:, [0, 1, 3, 4, 5]])
-    np.testing.assert_allclose(np.sort(np.degrees(got[:, 2])), [*range(-60, 0, 10), *range(10, 70, 10)])
+    assert got.shape == (48, 6) and not np.any(got[:, [0, 1, 4, 5]])
+    rates = sorted({round(float(np.degrees(w)), 6) for w in got[:, 2]})
+    assert rates == [*range(-60, 0, 10), *range(10, 70, 10)]
+    assert sorted(set(got[:, 3])) == [1.5, 3.0, 4.5, 6.0]
 
 
 def test_a_start_in_a_turn_finds_the_true_yaw_rate_and_speed():
@@ -88,12 +92,14 @@ def test_a_start_in_a_turn_finds_the_true_yaw_rate_and_speed():
     got = searched_start(odo, "scan1", DT, best)
     assert got.relative.status is Status.OK
     rounds = odo.config.odometry.deskew_iterations
-    first = np.array([np.radians(40.0), 0.0])  # the nearest candidate: 40 deg/s, 0 m/s
+    first = np.array([np.radians(40.0), 4.5])  # the most consistent candidate
     bound = BIAS**rounds * np.abs(first - TRUTH[2:4]) + 1e-9
     assert np.all(np.abs(got.twist[2:4] - TRUTH[2:4]) <= bound)
     assert not np.any(got.twist[[0, 1, 4, 5]])
     assert odo.ref.twist is got.twist and odo.ref.planes == [f"scan0 at {got.twist[2]:.4f}"]
     assert odo._last_usable is odo.ref
+    assert all(np.array_equal(p, u) for p, u in zip(odo.priors, odo.extracted, strict=True))
+    assert odo.twist is None  # the odometry's prediction as it was
 
 
 def test_a_turn_to_the_right_too():
