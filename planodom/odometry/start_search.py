@@ -109,7 +109,8 @@ def searched_start(odo: PlaneOdometry, scan: Scan, t: float, best: EpochEstimate
             odo.twist = predicted
         return again, (ref.planes, ref.twist, ref.plane_set)
 
-    found = []  # (-status rank, |own yaw rate - used|, order, twist, estimate, ref planes)
+    # (-status rank, |own yaw rate - used|, order, twist, estimate, the reference's planes)
+    found: list[tuple] = []
     for twist in candidates():
         again, planes = tried(twist)
         if again.relative.status in (Status.OK, Status.DEGENERATE):
