@@ -51,6 +51,9 @@ RATE_STEP_DEG_S = 10.0
 #: apart; not taken from any world.
 SPEEDS_MPS = (1.5, 3.0, 4.5, 6.0)
 
+#: The statuses a candidate's step is kept with (measured: OK, then degenerate).
+MEASURED = (Status.OK, Status.DEGENERATE)
+
 #: Epochs at the start searched at most (as many as the start's refresh holds,
 #: :data:`.start_epochs.MAX_EPOCHS`): a bound on the extractions spent.
 MAX_SEARCHED = 20
@@ -113,7 +116,7 @@ def searched_start(odo: PlaneOdometry, scan: Scan, t: float, best: EpochEstimate
     found: list[tuple] = []
     for twist in candidates():
         again, planes = tried(twist)
-        if again.relative.status in (Status.OK, Status.DEGENERATE):
+        if again.relative.status in MEASURED:
             gap = abs(vehicle_part(again, dt)[2] - twist[2])
             found.append((-again.relative.status.rank, gap, len(found), twist, again, planes))
     if not found:
