@@ -209,3 +209,15 @@ class MotionModelConfig(Section):
     when the step is OK; else the reference's planes come back
     (:mod:`planodom.odometry.vehicle_start`). Off by default, on with ``platform``
     vehicle unless set here (docs/RESULTS.md, GAPS6 and PLATFORM)."""
+
+    start_twist_search: bool = False
+    """Pairwise pipelines, a vehicle: at the start, while no step has measured an angular
+    rate (the first 20 epochs at most), an epoch whose step is unresolved (no twist from
+    it for ``start_vehicle_twist``) is extracted again, with its reference, deskewed with
+    each of a vehicle's yaw rates (10 to 60 deg/s, both signs, 10 deg/s apart: a car's
+    turns, not taken from any world) and estimated again; of the OK steps, the one whose
+    own yaw rate is nearest its deskewing rate is refined with its own yaw rate and
+    forward velocity (``deskew_iterations`` rounds, each kept while OK); with none OK
+    the reference's planes come back (:mod:`planodom.odometry.start_search`). Off by
+    default: built for 2D-rig world 292 at 6 mm, a start in a 36 deg/s turn
+    (docs/RESULTS.md, GAP292 and START292)."""

@@ -49,6 +49,7 @@ from planodom.odometry.deskew import EpochEstimate, time_spread, with_deskew
 from planodom.odometry.kept_epoch import KeptEpoch
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.solver import estimate_relative_pose
+from planodom.odometry.start_search import searched_start
 from planodom.odometry.vehicle_start import vehicle_started
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
@@ -117,8 +118,9 @@ class StartEpochs:
         self, odo: PlaneOdometry, scan: Scan, t: float, best: EpochEstimate
     ) -> EpochEstimate:
         """``best`` or the start's epoch deskewed with a vehicle's twist
-        (:func:`.vehicle_start.vehicle_started`, ``odometry.start_vehicle_twist``)."""
-        return vehicle_started(odo, scan, t, best)
+        (:func:`.vehicle_start.vehicle_started`, ``odometry.start_vehicle_twist``; for an
+        unresolved step, :func:`.start_search.searched_start`, ``start_twist_search``)."""
+        return searched_start(odo, scan, t, vehicle_started(odo, scan, t, best))
 
     @property
     def first_twist(self) -> np.ndarray | None:
