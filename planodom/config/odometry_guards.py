@@ -14,6 +14,7 @@ from planodom.config.narrow_rotation import NarrowRotationConfig
 from planodom.config.plane_deskew_noise import PlaneDeskewNoiseConfig
 from planodom.config.split_reference import SplitReferenceConfig
 from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
+from planodom.config.wall_yaw import WallYawConfig
 
 
 class DeskewGuards(
@@ -23,6 +24,7 @@ class DeskewGuards(
     PlaneDeskewNoiseConfig,
     SplitReferenceConfig,
     StatedDeskewNoiseConfig,
+    WallYawConfig,
 ):
     """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``), and the motion
     model the prediction assumes (:class:`.motion_model.MotionModelConfig`)."""
