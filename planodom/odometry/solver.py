@@ -63,7 +63,6 @@ from planodom.odometry.translation import (
     solve_height,
     translation_elements,
 )
-from planodom.odometry.wall_yaw import no_pair_step
 from planodom.planes import PlaneSet, as_plane_set
 
 #: pipeline name -> (rotation method, translation method)
@@ -190,9 +189,10 @@ def _solve(
     lda = candidate_pairs(prev, curr, lda, ocfg)  # odometry.pair_rotation
     bounds = pass_bounds(cfg, prior, bound_by_prior, prior_sigma_m)
     info = SolverDiagnostics(name, lda, used_prior=bound_by_prior)
-    if len(lda) == 0:  # unresolved, or (odometry.wall_yaw) degenerate: its walls' yaw
-        refine = lambda *a: _refine(*a, lateral)  # noqa: E731
-        return no_pair_step(prev, curr, cfg, prior, bounds, info, bound_by_prior, refine)
+    if len(lda) == 0:
+        T = prior.copy() if prior is not None else np.eye(4)
+        cov = np.diag([bounds.rotation**2] * 3 + [bounds.translation**2] * 2)
+        return RelativePose(T, cov, Status.UNRESOLVED, diagnostics=info)
 
     R, cov_r, rot_cons = _rotation(prev, curr, lda, rot_method, ocfg)
     ij, pp, cp = _translation_pairs(prev, curr, lda, R, trans_method, bounds, cfg)
