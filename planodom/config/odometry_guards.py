@@ -8,23 +8,23 @@ from __future__ import annotations
 
 from typing import Literal
 
+from planodom.config.bridge_normals import BridgeNormalsConfig
 from planodom.config.map_lead_shrink import MapLeadShrinkConfig
 from planodom.config.moment_refine import MomentRefineConfig
 from planodom.config.narrow_rotation import NarrowRotationConfig
 from planodom.config.plane_deskew_noise import PlaneDeskewNoiseConfig
 from planodom.config.split_reference import SplitReferenceConfig
 from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
-from planodom.config.wall_yaw import WallYawConfig
 
 
 class DeskewGuards(
+    BridgeNormalsConfig,
     MapLeadShrinkConfig,
     MomentRefineConfig,
     NarrowRotationConfig,
     PlaneDeskewNoiseConfig,
     SplitReferenceConfig,
     StatedDeskewNoiseConfig,
-    WallYawConfig,
 ):
     """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``), and the motion
     model the prediction assumes (:class:`.motion_model.MotionModelConfig`)."""
