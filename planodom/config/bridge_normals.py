@@ -28,6 +28,7 @@ class BridgeNormalsConfig(Section):
     are planes for 28 epochs and the rate bridged, the turn's last, put 75 deg into the
     heading (ATE 12.3 -> 3.0 m with it, 2 cm 3.9 -> 2.4 m). Off by default: its rule
     failed (docs/RESULTS.md, GAP334): on the fresh 2D-rig worlds 340-358 the ATE
-    geometric-mean ratio is 1.048 at 6 mm (0.995 at 2 cm), and random-outdoor at sigma 0
+    geometric-mean ratio is 1.048 at 6 mm (0.995 at 2 cm); random-outdoor at sigma 0
     goes 0.061 -> 0.457 m (its bridged steps 568-573 take 0.01-0.04 deg more yaw error
-    from their planes' model errors)."""
+    from their planes' model errors) and random at 6 mm 0.46 -> 0.61 m, while
+    random-indoor goes 2.40 -> 0.72 m at 6 mm and 6.00 -> 2.09 m at 2 cm."""
