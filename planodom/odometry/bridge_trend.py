@@ -18,7 +18,9 @@ not run on through a whole lost stretch; past the bound the rate stays the bound
 (issue 11's random-outdoor at 2 cm, 2 deg off, held over 11 bridged epochs) is outvoted.
 ``robust`` bridges with a Kalman filter's rate at the last measured step, each step
 weighed by its stated variance (:mod:`planodom.odometry.bridge_robust`).
-The velocity stays the prediction's.
+The velocity stays the prediction's. With ``odometry.bridge_normals`` the bridge's rotation
+is then corrected by the normals the epoch shares with its reference
+(:mod:`.bridge_normals`).
 """
 
 from __future__ import annotations
@@ -27,10 +29,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planodom.config import OdometryConfig
+from planodom.config import OdometryConfig, PlanodomConfig
 from planodom.geometry import twist_step
+from planodom.odometry.bridge_normals import normals_bridged
 from planodom.odometry.bridge_robust import robust_twist
 from planodom.odometry.trend import trend_twist
+from planodom.planes import PlaneSet
 
 #: Fewest measured rates the trend is fit to (a slope and its residuals' variance).
 MIN_RATES = 4
@@ -87,14 +91,16 @@ def bridge(
     k: int,
     config: OdometryConfig,
     variances: Sequence[np.ndarray] = (),
+    walls: tuple[PlaneSet, PlaneSet, PlanodomConfig] | None = None,
 ) -> np.ndarray:
     """(4, 4) ``T_{ref}_k`` an unresolved epoch ``k`` is bridged with: ``prediction``
     (``T_ref_last @ twist_step(twist, dt)``; None: none, e.g. across a gap, then
     ``T_ref_last`` (4, 4), standing still), or with ``bridge_rate`` trend, median or
-    robust the same step made with :func:`bridge_twist` (``variances`` its)."""
+    robust the same step made with :func:`bridge_twist` (``variances`` its); with
+    ``walls`` (the reference's planes, the epoch's, the config), its rotation corrected by
+    their normals with ``odometry.bridge_normals`` (:func:`.bridge_normals.normals_bridged`)."""
     if prediction is None:
         return T_ref_last
     used = bridge_twist(twist, rates, k, config, variances)
-    if used is twist or used is None:
-        return prediction
-    return T_ref_last @ twist_step(used, dt)
+    T = prediction if used is twist or used is None else T_ref_last @ twist_step(used, dt)
+    return T if walls is None else normals_bridged(T, *walls)
