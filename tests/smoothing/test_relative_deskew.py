@@ -218,8 +218,12 @@ def test_loops_value_maps_the_loop_factors_ends_alone() -> None:
     for k in range(4):
         S[6 * k : 6 * k + 6, 6 * k : 6 * k + 6] = Q[k]
     for value, kept in (("loops", [loop.factor]), ("both", list(maps))):
-        cfg = SmoothingConfig(delta_max=2, sandwich_relative_ends=value, prior_sigma=1e-3,
-                              covariances_relative_to_first=False)
+        cfg = SmoothingConfig(
+            delta_max=2,
+            sandwich_relative_ends=value,
+            prior_sigma=1e-3,
+            covariances_relative_to_first=False,
+        )
         out, _ = batch_sandwich(cfg, graph, graph, {}, Q, values, ([loop], planes), (rels, ()))
         G = np.zeros((J.shape[0], 24))
         for i in kept:
