@@ -10,7 +10,8 @@ then (a diagnostic, "apart") "deskew"'s maps in a column of their own per older 
 ``smoothing.sandwich_first_epoch`` "step" with independent loop factors, "step_shared" and
 "step_deskew" with those loop sources, "degenerate_step" that value; "both" (NEES6)
 ``smoothing.sandwich_relative_ends`` "both"; "both_loops", "both_steps" (diagnostics)
-its maps of the loop factors alone or of the steps alone; "epoch" (NEESRUN)
+its maps of the loop factors alone or of the steps alone; "loops" (LOOP0)
+``smoothing.sandwich_relative_ends`` "loops" (the option for "both_loops"); "epoch" (NEESRUN)
 ``smoothing.sandwich_motion_scale`` "epoch", "epoch_both" that with "both",
 "epoch_shared" (a diagnostic) that with ``sandwich_loop_sources`` "shared", "epoch_keep0"
 and "epoch0_only" (diagnostics) "epoch" but at the first epoch, or only there; ``--modes``
@@ -78,6 +79,9 @@ def main() -> None:
         if mode.startswith("both"):  # NEES6: smoothing.sandwich_relative_ends "both"
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_relative_ends": "both"}  # fmt: skip
+        if mode == "loops":  # LOOP0: smoothing.sandwich_relative_ends "loops"
+            changes = {"smoothing.sandwich_loop_sources": "independent",
+                       "smoothing.sandwich_relative_ends": "loops"}  # fmt: skip
         if mode in ("epoch", "epoch_both"):  # NEESRUN: sandwich_motion_scale "epoch"
             changes = {"smoothing.sandwich_loop_sources": "independent",
                        "smoothing.sandwich_motion_scale": "epoch",

@@ -127,14 +127,17 @@ class CovarianceScaleConfig(Section):
     smoothing.first_epoch_noise`); "degenerate_step" adds it only where that step was
     degenerate. Only the covariances change. Off: "step" takes world 30 at 6 mm out of
     the interval (docs/RESULTS.md, NEESFIRST)."""
-    sandwich_relative_ends: Literal["none", "both"] = "none"
+    sandwich_relative_ends: Literal["none", "both", "loops"] = "none"
     """With the sandwich covariances: "both" gives every relative-pose factor (steps within
     ``delta_max``, rotation-only steps, loop factors) both its epochs' deskewing errors, in
     those epochs' own columns: the change of the relative pose fitted to its plane pairs
     when either epoch's planes move by their deskewing Jacobians (:mod:`planodom.smoothing.
     relative_deskew`; it includes ``sandwich_loop_sources`` "deskew"'s older end, which it
-    then replaces); "none" (default) those factors' errors their own. Only the
-    covariances change (docs/RESULTS.md, NEES6)."""
+    then replaces); "loops" the same for the kept loop factors alone (the steps' errors
+    their own: NEES6 found the gains and losses in the loop factors' maps, the steps' maps
+    cost the CPU); "none" (default) those factors' errors their own. Only the covariances
+    change; the sizes are the run's ``Q_k``, nothing fitted (docs/RESULTS.md, NEES6,
+    LOOP0)."""
     sandwich_plane_share: Literal["off", "own"] = "off"
     """Batch, with the sandwich covariances: "own" gives every plane factor's noise model
     its own share of its epoch's deskewing error, ``J Q_k J^T`` (``J`` the plane's

@@ -426,16 +426,18 @@ def batch_sandwich(
     :func:`deskew_motion_change`; ``loops``: the loop factors and planes per epoch for
     ``sandwich_loop_sources`` "deskew", :func:`.loop_sources.loop_error_maps`;
     ``relatives``: the run's relative poses and the fallback factors' indices in ``graph``
-    for ``sandwich_relative_ends`` "both", :mod:`.relative_deskew`)."""
+    for ``sandwich_relative_ends`` "both", :mod:`.relative_deskew`; "loops" takes the
+    loop factors' maps alone)."""
     index = covariance_graph_index(graph, cov_graph)
     mapped = {index[i]: obs for i, obs in planes.items() if i in index}
     mode, dm, ends = cfg.sandwich_loop_sources, cfg.delta_max, cfg.sandwich_relative_ends
-    mode = "independent" if ends == "both" and mode == "deskew" else mode  # "both" has it
+    mode = "independent" if ends != "none" and mode == "deskew" else mode  # "both" has it
     extra: tuple[ErrorMaps, np.ndarray] | None
     extra = loop_error_maps(mode, cov_graph, estimate, Q, dm, index, loops)
-    if ends == "both":
+    if ends != "none":  # "loops": the loop factors' ends alone (no relative pose is a source)
         skip = {index[i] for i in relatives[1] if i in index}
-        both = relative_error_maps(cov_graph, estimate, Q, dm, index, loops, relatives[0], skip)
+        steps = relatives[0] if ends == "both" else ()
+        both = relative_error_maps(cov_graph, estimate, Q, dm, index, loops, steps, skip)
         extra = (both, np.zeros((0, 6, 6))) if extra is None else (merged(extra[0], both), extra[1])
     out, note = sandwich_covariances(
         cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,

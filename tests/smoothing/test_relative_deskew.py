@@ -19,8 +19,9 @@ from planodom.geometry import Plane, transform_planes
 from planodom.odometry.relative import RelativePose, Status
 from planodom.se3 import se3_exp, se3_log
 from planodom.smoothing.graph import X
+from planodom.smoothing.loop_records import LoopFactor
 from planodom.smoothing.relative_deskew import pair_fit_changes, relative_error_maps
-from planodom.smoothing.sandwich import sandwich_covariances
+from planodom.smoothing.sandwich import batch_sandwich, sandwich_covariances
 from planodom_factors.pose5 import pose5_factor, rotation_factor
 
 
@@ -196,9 +197,45 @@ def test_sandwich_with_both_ends_equals_the_dense() -> None:
     assert_sandwich_equals_dense(list(out.covariances), J, G, S)
 
 
+def test_loops_value_maps_the_loop_factors_ends_alone() -> None:
+    """``sandwich_relative_ends`` "loops": a loop factor X0-X3 (beyond ``delta_max`` 2)
+    beside the chain's steps; the batch's sandwich equals the dense one whose maps are
+    "both"'s rows of the loop factor only (fails if a step's map or the loop's is lost)."""
+    graph, values, rels, planes = _chain()
+    pairs = np.column_stack([np.arange(6), np.arange(6)])
+    T = values.atPose3(X(0)).inverse().compose(values.atPose3(X(3))).matrix()
+    T = T @ se3_exp(np.array([1e-3, -2e-3, 1e-3, 0.01, -0.02, 0.0]))
+    cov = np.diag([1e-5, 2e-5, 1e-5, 1e-4, 2e-4])
+    loop = LoopFactor(3, 0, T, cov, 6, graph.size(), associations=pairs)
+    graph.add(pose5_factor(X(0), X(3), T, gtsam.noiseModel.Gaussian.Covariance(cov)))
+    rng = np.random.default_rng(5)
+    Q = np.stack([(lambda A: A @ A.T)(rng.normal(size=(6, 6)) * 0.02) for _ in range(4)])
+    index = {i: i for i in range(graph.size())}
+    maps = relative_error_maps(graph, values, Q, 2, index, ([loop], planes), rels)
+    assert loop.factor in maps and len(maps) > 1  # "both" maps the steps too
+    J, rows = whitened_jacobian(graph, values, 4)
+    S = np.zeros((24, 24))
+    for k in range(4):
+        S[6 * k : 6 * k + 6, 6 * k : 6 * k + 6] = Q[k]
+    for value, kept in (("loops", [loop.factor]), ("both", list(maps))):
+        cfg = SmoothingConfig(
+            delta_max=2,
+            sandwich_relative_ends=value,
+            prior_sigma=1e-3,
+            covariances_relative_to_first=False,
+        )
+        out, _ = batch_sandwich(cfg, graph, graph, {}, Q, values, ([loop], planes), (rels, ()))
+        G = np.zeros((J.shape[0], 24))
+        for i in kept:
+            for k, g in maps[i]:
+                G[rows[i] : rows[i + 1], 6 * k : 6 * k + 6] += g
+        assert_sandwich_equals_dense(list(out), J, G, S)
+
+
 def test_option_value_both() -> None:
     assert SmoothingConfig().sandwich_relative_ends == "none"
     cfg = PlanodomConfig().updated({"smoothing.sandwich_relative_ends": "both"})
     assert cfg.smoothing.sandwich_relative_ends == "both"
+    assert PlanodomConfig().updated({"smoothing.sandwich_relative_ends": "loops"}) is not None
     with pytest.raises(ConfigError, match="sandwich_relative_ends"):
         PlanodomConfig().updated({"smoothing.sandwich_relative_ends": "older"})
