@@ -11,6 +11,7 @@ otherwise than scipy would pick other pairs and fail here.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -62,7 +63,8 @@ def test_sda_gives_scipys_pairs_on_synthetic_solves(monkeypatch: pytest.MonkeyPa
             prev, curr = curr, prev
         cfg = PlanodomConfig()
         for args in _captured(
-            monkeypatch, lambda: solver.estimate_relative_pose(prev, curr, cfg)  # noqa: B023
+            monkeypatch,
+            lambda: solver.estimate_relative_pose(prev, curr, cfg),  # noqa: B023
         ):
             _assert_same_pairs(args)
             ok, _ = association._strict_costs(*args)
@@ -78,22 +80,32 @@ def test_sda_gives_scipys_pairs_on_a_simulated_run(monkeypatch: pytest.MonkeyPat
 
     world = world_for(162)
     run = world_fields(world, simulate_world(world, 0.02, n_epochs=12, all_fields=True))
-    calls = _captured(monkeypatch, lambda: run_odometry(run, declared_sweep(world, PlanodomConfig())))
+    calls = _captured(
+        monkeypatch, lambda: run_odometry(run, declared_sweep(world, PlanodomConfig()))
+    )
     assert len(calls) >= 36
     for args in calls:
         _assert_same_pairs(args)
 
 
+def _far_plane(seed: int) -> PlaneSet:
+    """Planes of a seeded world, the first one's offset infinite."""
+    planes = PlaneSet.from_planes(observe(world_planes(np.random.default_rng(seed), 5), np.eye(4)))
+    offsets = planes.offsets.copy()
+    offsets[0] = np.inf
+    return replace(planes, offsets=offsets)
+
+
 def test_costs_scipy_rejects_raise_scipys_error() -> None:
-    """Costs scipy rejects (NaN: an offset bound of 0 m makes an exact match's offset term
-    0 / 0) give no pairs from the kernel, and SDA raises scipy's own error. SDA's bounds
-    are positive (``strict_offset_m`` is), so this path is a guard."""
-    rng = np.random.default_rng(3)
-    planes = PlaneSet.from_planes(observe(world_planes(rng, 5), np.eye(4)))
+    """Costs scipy rejects (NaN: an infinite offset within an infinite offset bound makes
+    its offset term inf / inf) give no pairs from the kernel, and the three calls raise
+    scipy's own error. SDA's bounds are finite in a run, so this path is a guard."""
+    far, planes = _far_plane(3), _far_plane(3)
+    planes = replace(planes, offsets=np.where(np.isinf(planes.offsets), 1.0, planes.offsets))
     args = (
+        far.normals, far.offsets, far.centroids, far.radii,
         planes.normals, planes.offsets, planes.centroids, planes.radii,
-        planes.normals, planes.offsets, planes.centroids, planes.radii,
-        np.eye(3), np.zeros(3), 0.99, 0.0, 1.0,
+        np.eye(3), np.zeros(3), 0.99, np.inf, np.inf,
     )  # fmt: skip
     status, pairs = sda_kernel(*args)
     assert status == INVALID and pairs.shape == (0, 2)
@@ -102,10 +114,9 @@ def test_costs_scipy_rejects_raise_scipys_error() -> None:
 
 
 def test_sda_raises_where_scipy_raised() -> None:
-    """Through :func:`planodom.association.strict_association`: an offset bound of 0 m
-    (a translation bound of minus the margin) raises scipy's error, as before the kernel."""
-    rng = np.random.default_rng(4)
-    planes = PlaneSet.from_planes(observe(world_planes(rng, 5), np.eye(4)))
-    margin = PlanodomConfig().association.strict_offset_m
+    """Through :func:`planodom.association.strict_association`: the same costs (an
+    infinite translation bound) raise scipy's error, as before the kernel."""
+    far, planes = _far_plane(4), _far_plane(4)
+    planes = replace(planes, offsets=np.where(np.isinf(planes.offsets), 1.0, planes.offsets))
     with pytest.raises(ValueError, match="invalid numeric entries"):
-        association.strict_association(planes, planes, np.eye(3), translation_bound=-margin)
+        association.strict_association(far, planes, np.eye(3), translation_bound=np.inf)
