@@ -25,14 +25,15 @@ generated and the absolute constraints and the consensus decide.
 
 Strict data association (SDA) runs once the rotation is known: current planes are rotated
 into the previous orientation, strict gates on normal angle, offset and overlap apply,
-and an injective assignment (``scipy.optimize.linear_sum_assignment``) keeps for every
-plane only its best match.
+and an injective assignment (``scipy.optimize.linear_sum_assignment``'s algorithm, ported
+to run in SDA's one compiled call: :mod:`planodom.sda_kernel`, :mod:`planodom.lsap`) keeps
+for every plane only its best match.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -44,10 +45,9 @@ from planodom.geometry import (
     dihedral_angles,
     rotation_frame_into,
 )
+from planodom.lsap import SOLVED
 from planodom.planes import PlaneSet
-
-#: Cost of a forbidden match in the SDA assignment (gated costs are at most 2).
-_FORBIDDEN = 1e6
+from planodom.sda_kernel import _FORBIDDEN, _kept_pairs, _strict_costs, sda_kernel  # noqa: F401
 
 
 @dataclass(frozen=True, eq=False)
@@ -366,63 +366,22 @@ def strict_association(
     # C-contiguous (a column of a transform is strided): one compiled specialisation
     t = np.zeros(3) if translation is None else np.ascontiguousarray(translation, np.float64)
     t_bound = cfg.max_translation_m if translation_bound is None else float(translation_bound)
-    ok, cost = _strict_costs(
+    args = (
         prev.normals, prev.offsets, prev.centroids, prev.radii,
         curr.normals, curr.offsets, curr.centroids, curr.radii,
         np.ascontiguousarray(rotation, dtype=np.float64), t,
         cos_of_degrees(cfg.strict_normal_deg), t_bound + cfg.strict_offset_m,
         t_bound + cfg.overlap_margin_m,
     )  # fmt: skip
+    status, pairs = sda_kernel(*args)
+    return pairs if status == SOLVED else scipy_strict_pairs(*args)
+
+
+def scipy_strict_pairs(*args: Any) -> np.ndarray:
+    """SDA's pairs of :func:`strict_association`'s kernel arguments as they were made
+    before :func:`planodom.sda_kernel.sda_kernel`: its costs, scipy's
+    ``linear_sum_assignment`` and the gate in three calls (the same pairs; the path of
+    costs scipy rejects, which raises scipy's error, and the tests' reference)."""
+    ok, cost = _strict_costs(*args)
     rows, cols = linear_sum_assignment(cost)
     return _kept_pairs(ok, rows, cols)
-
-
-@numba.njit(cache=True)
-def _kept_pairs(ok, rows, cols):  # pragma: no cover - compiled
-    """(L, 2) intp the assignment's pairs ``(rows[q], cols[q])`` that pass the gate ``ok``
-    (Kp, Kc), in order: ``np.column_stack`` of the kept rows and columns without its
-    numpy calls."""
-    n = 0
-    for q in range(rows.shape[0]):
-        n += ok[rows[q], cols[q]]
-    out = np.empty((n, 2), dtype=np.intp)
-    k = 0
-    for q in range(rows.shape[0]):
-        if ok[rows[q], cols[q]]:
-            out[k, 0], out[k, 1] = rows[q], cols[q]
-            k += 1
-    return out
-
-
-@numba.njit(cache=True)
-def _strict_costs(
-    n_p, d_p, c_p, r_p, n_c, d_c, c_c, r_c, R, t, cos_max, d_bound, reach_add
-):  # pragma: no cover - compiled
-    """SDA's gate (Kp, Kc) bool and assignment costs (Kp, Kc) (:data:`_FORBIDDEN` where
-    gated out) of the current planes ``(n_c, d_c)`` with support centroids ``c_c`` and
-    radii ``r_c`` moved by ``(R, t)`` against the previous ones: the arithmetic of
-    :func:`planodom.geometry.transform_planes` and of the gates, compiled (a dozen numpy
-    calls on 5 x 5 arrays cost several times their arithmetic; SDA runs 3-4 times a
-    solve). Unknown supports (NaN) pass the overlap gate."""
-    Kp, Kc = len(d_p), len(d_c)
-    ok = np.zeros((Kp, Kc), dtype=np.bool_)
-    cost = np.full((Kp, Kc), _FORBIDDEN)
-    n = np.empty(3)
-    c = np.empty(3)
-    for j in range(Kc):
-        for a in range(3):
-            n[a] = R[a, 0] * n_c[j, 0] + R[a, 1] * n_c[j, 1] + R[a, 2] * n_c[j, 2]
-            c[a] = R[a, 0] * c_c[j, 0] + R[a, 1] * c_c[j, 1] + R[a, 2] * c_c[j, 2] + t[a]
-        d = d_c[j] - (n[0] * t[0] + n[1] * t[1] + n[2] * t[2])
-        for i in range(Kp):
-            cos = n_p[i, 0] * n[0] + n_p[i, 1] * n[1] + n_p[i, 2] * n[2]
-            cos = min(max(cos, -1.0), 1.0)
-            dd = abs(d_p[i] - d)
-            dist = np.sqrt(
-                (c_p[i, 0] - c[0]) ** 2 + (c_p[i, 1] - c[1]) ** 2 + (c_p[i, 2] - c[2]) ** 2
-            )
-            reach = r_p[i] + r_c[j] + reach_add
-            if cos >= cos_max and dd <= d_bound and not dist > reach:
-                ok[i, j] = True
-                cost[i, j] = (1.0 - cos) / (1.0 - cos_max) + (dd / d_bound) ** 2
-    return ok, cost

@@ -20,12 +20,10 @@ unobserved.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
-from typing import NamedTuple
 
 import numpy as np
 
-from planodom.angles import cos_of_degrees, pose_floor, radians
+from planodom.angles import pose_floor, radians
 from planodom.association import PairAssociations, lenient_association, strict_association
 from planodom.config import PlanodomConfig
 from planodom.consensus import apply_negative_translation, consensus
@@ -38,7 +36,7 @@ from planodom.odometry.pair_agreement import agreeing_pairs
 from planodom.odometry.pair_rotation import candidate_pairs, rotation_weights, winner_rotation
 from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
-from planodom.odometry.refine import PlaneTranslation, plane_rotation, plane_translation
+from planodom.odometry.refine_loop import refine
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status, replaced
 from planodom.odometry.rotation import (
     chord,
@@ -207,7 +205,7 @@ def _solve(
         cov_t, sigma_z, z_observed = np.diag([bounds.translation**2] * 2), np.inf, False
     refined = None
     if ocfg.refinement != "none":
-        refined = _refine(prev, curr, R, appended(txy, z), measured, bounds, cfg, lateral)
+        refined = refine(prev, curr, R, appended(txy, z), measured, bounds, cfg, lateral)
         # The planes associated under the consensus pose decide: a consensus pair that
         # SDA does not confirm (a far wall's normal off by degrees) measures nothing.
         R, fit = refined.R, refined.fit
@@ -307,50 +305,6 @@ def _elements_translation(
     if tr.z_observed and abs(tr.z - bounds.t0[2]) > reach:
         tr = _translation(prev, curr, elems, None, bounds.z_prior, method, ocfg)
     return tr, vector_norm(tr.txy - bounds.t0[:2]) <= reach
-
-
-class _Refined(NamedTuple):
-    R: np.ndarray
-    fit: PlaneTranslation
-
-
-def _refine(
-    prev, curr, R, t, measured: bool, bounds: PassBounds, cfg: PlanodomConfig, lateral: float
-) -> _Refined:
-    """Rotation and translation by weighted least squares over all planes SDA associates
-    around ``(R, t)`` (:mod:`planodom.odometry.refine`), twice: the second time with the
-    inlier bound around the first result when it measured the translation. A result
-    beyond the motion assumption (a wrong association) is not a measurement."""
-    ocfg, acfg = cfg.odometry, cfg.association
-    level = cos_of_degrees(ocfg.z_plane_max_tilt_deg)
-    z_min = level if ocfg.estimate_z else None
-    floor_n, parallel = (
-        radians(ocfg.refine_normal_floor_deg),
-        radians(acfg.parallel_angle_deg),
-    )
-    bound = ocfg.translation_inlier_m if measured else bounds.translation
-    reach = bounds.translation + acfg.offset_tol_m
-    R_c, t_c = R, np.asarray(t, dtype=np.float64)
-    fit = None
-    for _ in range(2):
-        ij = strict_association(prev, curr, R_c, acfg, t_c, bound)
-        if ocfg.refinement == "pose":
-            R_c = plane_rotation(prev, curr, R_c, ij, floor_n, parallel)
-        fit = plane_translation(
-            prev, curr, R_c, ij, t_c, z_min, ocfg.refine_offset_floor_m,
-            ocfg.refine_max_sigma_m, bounds.translation**2, measured,
-            ocfg.refine_unmeasured, level, bounds.prediction_var, bounds.prediction,
-            lateral,
-        )  # fmt: skip
-        if vector_norm(fit.t[:2] - bounds.t0[:2]) > reach or abs(fit.t[2] - t_c[2]) > reach:
-            fit = replace(fit, t=t_c.copy(), measured=False, z_observed=False, n_planes=0)
-            break
-        t_c = fit.t
-        if not fit.measured and not measured:
-            break
-        bound = ocfg.translation_inlier_m
-    assert fit is not None
-    return _Refined(R_c, fit)
 
 
 def _rotation(prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, method: str, ocfg):
