@@ -69,3 +69,11 @@ def noisy(planes: list[Plane], rng: np.random.Generator, angle_sigma: float, d_s
         out.append(Plane(n, p.offset + rng.normal(0, d_sigma), confidence=p.confidence,
                          support=p.support, truth_id=p.truth_id))  # fmt: skip
     return out
+
+
+def with_covariances(planes, rng: np.random.Generator):
+    """``planes`` (a PlaneSet) with random (n, d) covariances (positive definite)."""
+    from dataclasses import replace
+
+    A = rng.normal(0.0, 1e-3, (len(planes), 4, 4))
+    return replace(planes, covariances=A @ A.transpose(0, 2, 1) + 1e-8 * np.eye(4))

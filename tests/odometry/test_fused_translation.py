@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from planes_factory import noisy, observe, random_motion, world_planes
+from planes_factory import noisy, observe, random_motion, with_covariances, world_planes
 
 import planodom.odometry.fused_translation as fused_module
 import planodom.odometry.solver as solver
@@ -78,12 +78,6 @@ def _captured(monkeypatch: pytest.MonkeyPatch, solve: Any) -> list[tuple]:
     return seen
 
 
-def _with_covariances(planes: PlaneSet, rng: np.random.Generator) -> PlaneSet:
-    """``planes`` with random (n, d) covariances (positive definite)."""
-    A = rng.normal(0.0, 1e-3, (len(planes), 4, 4))
-    return replace(planes, covariances=A @ A.transpose(0, 2, 1) + 1e-8 * np.eye(4))
-
-
 def _synthetic_solves(monkeypatch: pytest.MonkeyPatch, seed: int, pipeline: str) -> list[tuple]:
     rng = np.random.default_rng(seed)
     world = world_planes(rng, int(rng.integers(3, 10)), ground=bool(seed % 3))
@@ -91,7 +85,7 @@ def _synthetic_solves(monkeypatch: pytest.MonkeyPatch, seed: int, pipeline: str)
     prev = PlaneSet.from_planes(noisy(observe(world, np.eye(4)), rng, 0.004, 0.01))
     curr = PlaneSet.from_planes(noisy(observe(world, T), rng, 0.004, 0.01))
     if seed % 2:
-        prev, curr = _with_covariances(prev, rng), _with_covariances(curr, rng)
+        prev, curr = with_covariances(prev, rng), with_covariances(curr, rng)
     cfg = PlanodomConfig().updated({"odometry.pipeline": pipeline}, source="test")
     prior = T if seed % 4 == 0 else None
     solve = lambda: solver.estimate_relative_pose(prev, curr, cfg, prior=prior)  # noqa: E731

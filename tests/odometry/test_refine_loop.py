@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from planes_factory import noisy, observe, random_motion, world_planes
+from planes_factory import noisy, observe, random_motion, with_covariances, world_planes
 
 import planodom.odometry.solver as solver
 from planodom.config import PlanodomConfig
@@ -67,11 +67,6 @@ def _check(calls: list[tuple]) -> dict[str, int]:
     return n
 
 
-def _with_covariances(planes: PlaneSet, rng: np.random.Generator) -> PlaneSet:
-    A = rng.normal(0.0, 1e-3, (len(planes), 4, 4))
-    return replace(planes, covariances=A @ A.transpose(0, 2, 1) + 1e-8 * np.eye(4))
-
-
 @pytest.mark.parametrize("unmeasured", ["prediction", "prior", "kept", "walls"])
 def test_compiled_gives_the_calls_bits_on_synthetic_solves(monkeypatch, unmeasured):
     total = 0
@@ -82,7 +77,7 @@ def test_compiled_gives_the_calls_bits_on_synthetic_solves(monkeypatch, unmeasur
         prev = PlaneSet.from_planes(noisy(observe(world, np.eye(4)), rng, 0.004, 0.01))
         curr = PlaneSet.from_planes(noisy(observe(world, T), rng, 0.004, 0.01))
         if seed % 2:
-            prev, curr = _with_covariances(prev, rng), _with_covariances(curr, rng)
+            prev, curr = with_covariances(prev, rng), with_covariances(curr, rng)
         cfg = PlanodomConfig().updated(
             {"odometry.refine_unmeasured": unmeasured, "odometry.estimate_z": seed % 5 != 0},
             source="test",
@@ -107,13 +102,20 @@ def test_compiled_gives_the_calls_bits_on_a_simulated_run(monkeypatch, world_id,
     assert n["compiled"] >= 12
 
 
-def test_cases_left_to_the_calls(monkeypatch) -> None:
+def _six_walls(monkeypatch) -> tuple[PlaneSet, PlaneSet, tuple]:
+    """A seeded solve of six walls and a ground: its two plane sets and the refinement's
+    captured arguments."""
     rng = np.random.default_rng(1)
     world = world_planes(rng, 6)
     T = random_motion(rng)
     prev = PlaneSet.from_planes(noisy(observe(world, np.eye(4)), rng, 0.004, 0.01))
     curr = PlaneSet.from_planes(noisy(observe(world, T), rng, 0.004, 0.01))
     args = _captured(monkeypatch, lambda: solver.estimate_relative_pose(prev, curr))[0]
+    return prev, curr, args
+
+
+def test_cases_left_to_the_calls(monkeypatch) -> None:
+    prev, curr, args = _six_walls(monkeypatch)
     assert compiled_refine(*args) is not None
     pose = args[6].updated({"odometry.refinement": "pose"}, source="test")
     assert compiled_refine(*args[:6], pose, args[7]) is None
@@ -126,12 +128,7 @@ def test_the_reach_test_and_no_associations(monkeypatch) -> None:
     """A fit beyond the reach keeps the initial translation (both ways); at the reach,
     within 1e-9 of it, the calls decide; planes SDA cannot associate give the fit of no
     associations (the initial translation, the prior's covariance)."""
-    rng = np.random.default_rng(1)
-    world = world_planes(rng, 6)
-    T = random_motion(rng)
-    prev = PlaneSet.from_planes(noisy(observe(world, np.eye(4)), rng, 0.004, 0.01))
-    curr = PlaneSet.from_planes(noisy(observe(world, T), rng, 0.004, 0.01))
-    args = _captured(monkeypatch, lambda: solver.estimate_relative_pose(prev, curr))[0]
+    prev, curr, args = _six_walls(monkeypatch)
     fit = called_refine(*args).fit
     assert fit.measured and fit.n_planes >= 4
     norm = float(np.hypot(*(fit.t[:2] - args[5].t0[:2])))
