@@ -77,3 +77,16 @@ def with_covariances(planes, rng: np.random.Generator):
 
     A = rng.normal(0.0, 1e-3, (len(planes), 4, 4))
     return replace(planes, covariances=A @ A.transpose(0, 2, 1) + 1e-8 * np.eye(4))
+
+
+def observed_pair(world: list[Plane], T: np.ndarray, rng: np.random.Generator, covariances=False):
+    """(prev, curr) PlaneSets: ``world`` observed from the identity and from ``T`` (4, 4),
+    each noisy (0.004 rad, 0.01 m: :func:`noisy`), then, with ``covariances``, each given
+    random covariances (:func:`with_covariances`), drawing from ``rng`` in that order."""
+    from planodom.planes import PlaneSet
+
+    prev = PlaneSet.from_planes(noisy(observe(world, np.eye(4)), rng, 0.004, 0.01))
+    curr = PlaneSet.from_planes(noisy(observe(world, T), rng, 0.004, 0.01))
+    if covariances:
+        prev, curr = with_covariances(prev, rng), with_covariances(curr, rng)
+    return prev, curr

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from planes_factory import noisy, observe, random_motion, world_planes
+from planes_factory import observe, observed_pair, random_motion, world_planes
 
 import planodom.association as association
 from planodom.config import PlanodomConfig
@@ -57,8 +57,7 @@ def test_sda_gives_scipys_pairs_on_synthetic_solves(monkeypatch: pytest.MonkeyPa
         rng = np.random.default_rng(seed)
         world = world_planes(rng, int(rng.integers(2, 10)), ground=bool(seed % 3))
         T = random_motion(rng, max_angle_deg=10.0, max_xy=1.0)
-        prev = PlaneSet.from_planes(noisy(observe(world, np.eye(4)), rng, 0.004, 0.01))
-        curr = PlaneSet.from_planes(noisy(observe(world, T), rng, 0.004, 0.01))
+        prev, curr = observed_pair(world, T, rng)
         # drop some current planes: rectangular costs, both ways across the seeds
         curr = curr.take(np.flatnonzero(rng.random(len(curr)) < 0.7))
         if seed % 2:

@@ -15,7 +15,11 @@ from typing import Any
 
 import numpy as np
 import pytest
-from planes_factory import noisy, observe, random_motion, with_covariances, world_planes
+from planes_factory import (
+    observed_pair,
+    random_motion,
+    world_planes,
+)
 
 import planodom.odometry.fused_translation as fused_module
 import planodom.odometry.solver as solver
@@ -25,7 +29,6 @@ from planodom.odometry.fused_translation import (
     _spread_kernel,
     fused_translation,
 )
-from planodom.planes import PlaneSet
 
 
 def _numpy_path(args: tuple) -> tuple:
@@ -82,10 +85,7 @@ def _synthetic_solves(monkeypatch: pytest.MonkeyPatch, seed: int, pipeline: str)
     rng = np.random.default_rng(seed)
     world = world_planes(rng, int(rng.integers(3, 10)), ground=bool(seed % 3))
     T = random_motion(rng, tz=float(rng.normal(0.0, 0.05)))
-    prev = PlaneSet.from_planes(noisy(observe(world, np.eye(4)), rng, 0.004, 0.01))
-    curr = PlaneSet.from_planes(noisy(observe(world, T), rng, 0.004, 0.01))
-    if seed % 2:
-        prev, curr = with_covariances(prev, rng), with_covariances(curr, rng)
+    prev, curr = observed_pair(world, T, rng, covariances=bool(seed % 2))
     cfg = PlanodomConfig().updated({"odometry.pipeline": pipeline}, source="test")
     prior = T if seed % 4 == 0 else None
     solve = lambda: solver.estimate_relative_pose(prev, curr, cfg, prior=prior)  # noqa: E731

@@ -18,7 +18,11 @@ from typing import Any
 
 import numpy as np
 import pytest
-from planes_factory import noisy, observe, random_motion, with_covariances, world_planes
+from planes_factory import (
+    observed_pair,
+    random_motion,
+    world_planes,
+)
 
 import planodom.odometry.solver as solver
 from planodom.config import PlanodomConfig
@@ -74,10 +78,7 @@ def test_compiled_gives_the_calls_bits_on_synthetic_solves(monkeypatch, unmeasur
         rng = np.random.default_rng(seed)
         world = world_planes(rng, int(rng.integers(1, 8)), ground=bool(seed % 3))
         T = random_motion(rng, tz=float(rng.normal(0.0, 0.05)))
-        prev = PlaneSet.from_planes(noisy(observe(world, np.eye(4)), rng, 0.004, 0.01))
-        curr = PlaneSet.from_planes(noisy(observe(world, T), rng, 0.004, 0.01))
-        if seed % 2:
-            prev, curr = with_covariances(prev, rng), with_covariances(curr, rng)
+        prev, curr = observed_pair(world, T, rng, covariances=bool(seed % 2))
         cfg = PlanodomConfig().updated(
             {"odometry.refine_unmeasured": unmeasured, "odometry.estimate_z": seed % 5 != 0},
             source="test",
@@ -108,8 +109,7 @@ def _six_walls(monkeypatch) -> tuple[PlaneSet, PlaneSet, tuple]:
     rng = np.random.default_rng(1)
     world = world_planes(rng, 6)
     T = random_motion(rng)
-    prev = PlaneSet.from_planes(noisy(observe(world, np.eye(4)), rng, 0.004, 0.01))
-    curr = PlaneSet.from_planes(noisy(observe(world, T), rng, 0.004, 0.01))
+    prev, curr = observed_pair(world, T, rng)
     args = _captured(monkeypatch, lambda: solver.estimate_relative_pose(prev, curr))[0]
     return prev, curr, args
 
