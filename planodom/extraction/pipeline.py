@@ -29,6 +29,7 @@ from planodom.extraction.memo import identity_memo, read_only
 from planodom.extraction.planes.builder import PlaneFits, build_planes
 from planodom.extraction.planes.fit import tls_fit
 from planodom.extraction.rig2d.path import rig2d_planes
+from planodom.extraction.scan_prep import compiled_count_rings, points_times_finite
 from planodom.geometry import Plane
 from planodom.scan import Scan, check_is_scan
 
@@ -175,7 +176,17 @@ def _checked_origins(ring: np.ndarray | None, sensor_origins: np.ndarray) -> np.
 def _check_points_times(pts: np.ndarray, t: np.ndarray | None) -> None:
     """Raises :class:`GeometryError` for non-finite or absurdly large points (N, 3) or
     non-finite times (N,); memoised (:mod:`.memo`): a scan extracted again is not checked
-    again."""
+    again. A scan that passes is passed in one compiled pass
+    (:func:`.scan_prep.points_times_finite`, the same decision); the numpy checks find
+    and word what fails."""
+    if points_times_finite(pts, t, MAX_COORDINATE_M):
+        return
+    numpy_check_points_times(pts, t)
+
+
+def numpy_check_points_times(pts: np.ndarray, t: np.ndarray | None) -> None:
+    """:func:`_check_points_times` in numpy (not memoised): its errors, and the tests'
+    reference."""
     if not np.isfinite(pts).all():
         finite = np.isfinite(pts).all(axis=1)
         raise GeometryError(
@@ -227,7 +238,15 @@ def choose_mode(scan: Scan, config: ExtractionConfig) -> str:
 
 @identity_memo
 def count_rings(ring: np.ndarray) -> int:
-    """Number of distinct ring ids in ``ring`` (N,) (a counting pass for small ids)."""
+    """Number of distinct ring ids in ``ring`` (N,) (a counting pass for small ids:
+    compiled, :func:`.scan_prep.compiled_count_rings`, where it applies, else
+    :func:`numpy_count_rings`)."""
+    n = compiled_count_rings(ring)
+    return numpy_count_rings(ring) if n is None else n
+
+
+def numpy_count_rings(ring: np.ndarray) -> int:
+    """:func:`count_rings` in numpy (not memoised): the fallback and the tests' reference."""
     if len(ring) == 0:
         return 0
     lo, hi = int(ring.min()), int(ring.max())

@@ -28,6 +28,7 @@ from planodom.extraction.rig2d.scanlines import (
     ring_plane_coordinates,
     split_runs,
 )
+from planodom.extraction.scan_prep import compiled_ring_order
 
 #: The kernel's ``origins`` when there are none (numba needs an array of one type).
 _NO_ORIGINS = np.zeros((1, 3))
@@ -97,7 +98,22 @@ def ring_order(
     """What :func:`split_scan_lines` needs of a scan's ``ring`` (N,) and ``t`` (N,) s or
     None, which do not change when the scan is deskewed again with another twist
     (memoised, :mod:`planodom.extraction.memo`): the stable order by ring (N,) int64, the
-    rings (int64) and times in that order, and :func:`.scanlines.beam_timing`."""
+    rings (int64) and times in that order, and :func:`.scanlines.beam_timing`; in one
+    compiled call (:func:`planodom.extraction.scan_prep.compiled_ring_order`, the same
+    bits) where it applies, else :func:`numpy_ring_order`."""
+    done = compiled_ring_order(ring, t)
+    if done is None:
+        return numpy_ring_order(ring, t)
+    order, rg, tt, timing = done
+    frozen = tuple(read_only(a) for a in (order, rg) + (() if tt is None else (tt,)))
+    return frozen[0], frozen[1], (None if tt is None else frozen[2]), timing
+
+
+def numpy_ring_order(
+    ring: np.ndarray, t: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, tuple[float, bool]]:
+    """:func:`ring_order` in numpy (not memoised): the fallback of the compiled call and
+    the tests' reference."""
     if len(ring) > 1 and np.any(ring[1:] < ring[:-1]):
         key = ring - ring.min()
         # A stable radix sort on small integer keys is ~10x faster than on int64.
