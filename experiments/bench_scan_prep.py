@@ -80,7 +80,7 @@ def calls(worlds: list[int], noise: float, epochs: int) -> None:
         n: Counter[str] = Counter()
         for obj, name, fn in CUTS:
 
-            def counted(*args: Any, fn: Any = fn, name: str = name) -> Any:
+            def counted(*args: Any, fn: Any = fn, name: str = name, n: Counter = n) -> Any:
                 n[name] += 1
                 return fn(*args)
 
