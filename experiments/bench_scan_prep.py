@@ -19,6 +19,7 @@ an epoch, less moved by the load.
 
 from __future__ import annotations
 
+import inspect
 import sys
 import time
 from collections import Counter
@@ -44,10 +45,13 @@ FORMER = (
 CUTS = bench_glue_cuts.cuts_of(FORMER)
 
 #: the entry points replayed by ``--calls`` (unmemoised), by name
+_RING_ORDER = inspect.unwrap(segments.ring_order)
+_COUNT_RINGS = inspect.unwrap(pipeline.count_rings)
+_CHECKS = inspect.unwrap(pipeline._check_points_times)
 ENTRIES = {
-    "ring order": lambda s: segments.ring_order.__wrapped__(s.ring, s.t),
-    "ring count": lambda s: pipeline.count_rings.__wrapped__(s.ring),
-    "points' checks": lambda s: pipeline._check_points_times.__wrapped__(s.points, s.t),
+    "ring order": lambda s: _RING_ORDER(s.ring, s.t),
+    "ring count": lambda s: _COUNT_RINGS(s.ring),
+    "points' checks": lambda s: _CHECKS(s.points, s.t),
 }
 
 
