@@ -10,6 +10,11 @@ world and range noise this runs planodom and variants with oracle ingredients sw
 - ``true-deskew``: every scan deskewed with the true motion (:func:`oracle.deskewed_points`)
   and given to planodom as deskewed already, always kept (the streaming deskewing is never
   tried: ``prefer_streaming`` forced off); planodom's extraction, association and solve.
+- ``curve-deskew``: every scan deskewed along the cubic curve through the *true* epoch
+  poses (:func:`planodom.odometry.interpolate.midpoint_nodes`, as
+  ``odometry.deskew_passes`` deskews through its own poses) and given to planodom as
+  deskewed already (as ``true-deskew``): what a deskewing by the poses of the epochs on
+  both sides reaches when those poses are exact (``--runs``; not run by default).
 - ``<run>+osolve``: the planes and strict associations planodom committed for every epoch
   (recorded at commit: the epoch's planes and the reference planes they were estimated
   against), the relative pose solved by the oracle's solve over all associated pairs
@@ -23,12 +28,15 @@ world and range noise this runs planodom and variants with oracle ingredients sw
   deskew: the time windows; the first epoch with the second's twist).
 - ``oracle``.
 
-``<run>`` is ``planodom`` or ``true-deskew``. Per variant: per-epoch rotation and xy rms,
-ATE (xy, origin-aligned) as in ``planodom experiment generalisation``, and their ratios to
-the oracle's. Writes a CSV (one row per world, noise and variant).
+``<run>`` is ``planodom``, ``true-deskew`` or ``curve-deskew``. Per variant: per-epoch
+rotation and xy rms, ATE (xy, origin-aligned) as in ``planodom experiment
+generalisation``, and their ratios to the oracle's. Writes a CSV (one row per world,
+noise and variant).
 
     uv run python experiments/rig2d_ingredients.py --worlds 160,168,172,178 \
         --noise 0.006 0.02 --epochs 150 -o OUT.csv
+    uv run python experiments/rig2d_ingredients.py --worlds 340,346,352,356 \
+        --noise 0.006 0.02 --epochs 150 --runs curve-deskew -o CURVE.csv
 """
 
 from __future__ import annotations
@@ -48,6 +56,7 @@ from planodom.extraction.deskew import deskew_points
 from planodom.geometry import Plane, invert_transform, orthonormalised, se3_exp, se3_log
 from planodom.metrics import ate, per_epoch_errors, relative_motions
 from planodom.odometry.deskewed_epochs import Deskewed
+from planodom.odometry.interpolate import deskew_with_poses, midpoint_nodes
 from planodom.odometry.odometry import PlaneOdometry
 from planodom.odometry.run import _streaming_pass, with_motion_bounds
 from planodom.oracle import (
@@ -262,10 +271,16 @@ def metrics(poses: np.ndarray, gt: np.ndarray) -> dict[str, float]:
 
 
 def run_world(
-    index: int, noise: float, n_epochs: int, config: PlanodomConfig, quick: bool = False
+    index: int,
+    noise: float,
+    n_epochs: int,
+    config: PlanodomConfig,
+    quick: bool = False,
+    runs: Sequence[str] = ("planodom", "true-deskew"),
 ) -> list[dict]:
-    """Every variant on world ``index`` at ``noise`` (m); with ``quick`` only planodom
-    and the oracle."""
+    """Every variant on world ``index`` at ``noise`` (m) whose ``<run>`` is in ``runs``
+    (``oracle-pdeskew`` with ``planodom``); with ``quick`` only planodom and the
+    oracle."""
     world = world_for(index)
     full = simulate_world(world, noise, n_epochs=n_epochs, all_fields=True)
     run = world_fields(world, full)
@@ -278,16 +293,23 @@ def run_world(
     logs: dict[str, list[Committed]] = {}
     a = config.association
     bounds = (float(np.radians(a.max_rotation_deg)), float(a.max_translation_m))
-    for name in ("planodom",) if quick else ("planodom", "true-deskew"):
+    for name in ("planodom",) if quick else runs:
         log: list[Committed] = []
         if name == "planodom":
             source: Sequence = run.scans
+        elif name == "curve-deskew":
+            node_times, node_poses = midpoint_nodes(full.times, full.poses)
+            source = [
+                Deskewed(s, replace(s, points=deskew_with_poses(f, node_times, node_poses,
+                                                                float(t)).points))
+                for s, f, t in zip(run.scans, full.scans, full.times, strict=True)
+            ]  # fmt: skip
         else:
             source = [
                 Deskewed(s, replace(s, points=deskewed_points(f, world.trajectory, float(t))))
                 for s, f, t in zip(run.scans, full.scans, full.times, strict=True)
             ]
-        with recording(log, force_given=name == "true-deskew"):
+        with recording(log, force_given=name != "planodom"):
             odo = _streaming_pass(source, config, rig, full.times, None, None)
         assert len(log) == len(odo.poses)
         out[name] = odo.poses, odo.statuses
@@ -298,7 +320,7 @@ def run_world(
             out[key] = oracle_solve(log, full.times, full.poses, world.scene, labels, bounds)
             if FAILURES:
                 print(key, len(FAILURES), "solves failed, e.g.", FAILURES[0], flush=True)
-    if not quick:
+    if not quick and "planodom" in logs:
         out["oracle-pdeskew"] = oracle_pdeskew(full, logs["planodom"], world.scene)
     rows = []
     ref = metrics(*out["oracle"][:1], gt)
@@ -325,13 +347,17 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("-o", "--out", default=None, help="CSV of the rows")
     ap.add_argument("--set", nargs="*", default=[], help="config overrides KEY=VALUE (YAML)")
     ap.add_argument("--quick", action="store_true", help="planodom and the oracle only")
+    ap.add_argument(
+        "--runs", default="planodom,true-deskew",
+        help="of planodom, true-deskew, curve-deskew (each with its osolve variants)",
+    )  # fmt: skip
     args = ap.parse_args(argv)
     changes = {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.set)}
     config = PlanodomConfig().updated(changes, source="--set") if changes else PlanodomConfig()
     rows: list[dict] = []
     for w in (int(x) for x in args.worlds.split(",")):
         for noise in args.noise:
-            rows += run_world(w, noise, args.epochs, config, args.quick)
+            rows += run_world(w, noise, args.epochs, config, args.quick, args.runs.split(","))
             if args.out:
                 write_rows(args.out, rows)
 
