@@ -7,13 +7,15 @@ A base of :class:`planodom.config.odometry.OdometryConfig`, in its own module as
 
 from __future__ import annotations
 
+from typing import Literal
+
 from planodom.config.section import Section
 
 
 class BridgeNormalsConfig(Section):
     """Whether an unresolved step's bridge takes the rotation its shared normals give."""
 
-    bridge_normals: bool = False
+    bridge_normals: Literal[False, True, "weighed"] = False
     """Streaming, pairwise pipelines: an unresolved step (no associated non-parallel
     pair), bridged by constant velocity, has its rotation corrected by the planes it
     shares with its reference: SDA associates them under the bridge (normals within
