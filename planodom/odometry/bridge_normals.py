@@ -20,6 +20,15 @@ under ``sin^2(association.parallel_angle_deg)`` times its largest are not observ
 rotation about one family's normal): ``delta`` has no part along them, and they keep the
 bridge's rotation. The translation and the step's status stay the bridge's (its twist
 is what the odometry makes of the bridged step).
+
+``weighed`` takes the bridge as a measurement too: its rotation error, per axis of
+variance ``v`` (rad^2; :meth:`planodom.odometry.twist_sigma.TwistUncertainty.
+bridged_rotation_sigma`, the held rate's sigma summed over the bridged steps), is a prior
+on ``delta``, and each pass solves the combined normal equations ``(A + I/v) delta = b +
+r/v`` in the observed directions, ``r`` the bridge's rotation relative to the pass's
+(0 in the first; Gauss-Newton with the prior held at the bridge): a short bridge of a
+well-measured rate keeps most of its rotation, a long one held through a turn's end
+takes the normals'. ``v`` = 0 gives the bridge, ``v`` -> inf ``true``'s rotation.
 """
 
 from __future__ import annotations
@@ -30,7 +39,7 @@ from planodom.association import strict_association
 from planodom.config import PlanodomConfig
 from planodom.geometry import make_transform
 from planodom.planes import PlaneSet
-from planodom.rotvec import rotation_matrices
+from planodom.rotvec import rotation_matrices, rotation_vectors
 
 
 def normal_variances(planes: PlaneSet, idx: np.ndarray) -> np.ndarray:
@@ -42,11 +51,18 @@ def normal_variances(planes: PlaneSet, idx: np.ndarray) -> np.ndarray:
 
 
 def normals_rotation(
-    prev: PlaneSet, curr: PlaneSet, T: np.ndarray, cfg: PlanodomConfig, widen: float = 0.0
+    prev: PlaneSet,
+    curr: PlaneSet,
+    T: np.ndarray,
+    cfg: PlanodomConfig,
+    widen: float = 0.0,
+    prior: tuple[np.ndarray, float] | None = None,
 ) -> np.ndarray | None:
     """(3,) the rotation vector (rad, reference frame) that corrects ``T``'s rotation by
     the normals SDA associates under ``T`` (4, 4), its normal gate widened by ``widen``
-    deg (module docstring); None when none is associated."""
+    deg (module docstring); None when none is associated. With ``prior`` (the bridge's
+    rotation (3, 3) and its variance per axis, rad^2) the combined estimate of
+    ``weighed`` (module docstring)."""
     R0, t0 = T[:3, :3], T[:3, 3]
     acfg = cfg.association
     gate = acfg.model_copy(update={"strict_normal_deg": acfg.strict_normal_deg + widen})
@@ -62,21 +78,34 @@ def normals_rotation(
     vals, vecs = np.linalg.eigh(A)
     seen = vals > np.sin(np.radians(acfg.parallel_angle_deg)) ** 2 * vals[-1]
     V = vecs[:, seen]
-    return V @ ((V.T @ b) / vals[seen])
+    if prior is None:
+        return V @ ((V.T @ b) / vals[seen])
+    r = rotation_vectors((prior[0] @ R0.T)[None])[0]  # the bridge, from T's rotation
+    if not prior[1] > 0:  # an exact bridge: back to it in the observed directions
+        return V @ (V.T @ r)
+    return V @ ((V.T @ (b + r / prior[1])) / (vals[seen] + 1.0 / prior[1]))
 
 
 def normals_bridged(
-    T: np.ndarray, prev: PlaneSet, curr: PlaneSet, cfg: PlanodomConfig
+    T: np.ndarray,
+    prev: PlaneSet,
+    curr: PlaneSet,
+    cfg: PlanodomConfig,
+    variance: float | None = None,
 ) -> np.ndarray:
     """(4, 4) the bridged ``T`` (``T_ref_k``) with its rotation corrected by the normals
     of ``prev`` (the reference's planes) and ``curr`` (the epoch's) when
     ``odometry.bridge_normals`` is on, in three passes (module docstring); ``T`` itself
-    when off or when a pass associates nothing."""
+    when off or when a pass associates nothing. ``variance`` (rad^2 per axis; None:
+    unknown, the bridge is given no weight): the bridge's rotation error, weighed
+    against the normals with ``weighed``."""
     if not cfg.odometry.bridge_normals:
         return T
+    weighed = cfg.odometry.bridge_normals == "weighed" and variance is not None
+    prior = (T[:3, :3], float(variance)) if weighed and variance is not None else None
     out = T
     for widen in (cfg.association.prior_rotation_deg, 0.0, 0.0):
-        delta = normals_rotation(prev, curr, out, cfg, widen)
+        delta = normals_rotation(prev, curr, out, cfg, widen, prior)
         if delta is None:
             return T
         out = make_transform(rotation_matrices(delta[None])[0] @ out[:3, :3], T[:3, 3])

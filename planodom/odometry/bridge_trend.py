@@ -26,6 +26,7 @@ is then corrected by the normals the epoch shares with its reference
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -35,6 +36,9 @@ from planodom.odometry.bridge_normals import normals_bridged
 from planodom.odometry.bridge_robust import robust_twist
 from planodom.odometry.trend import trend_twist
 from planodom.planes import PlaneSet
+
+if TYPE_CHECKING:
+    from planodom.odometry.twist_sigma import TwistUncertainty
 
 #: Fewest measured rates the trend is fit to (a slope and its residuals' variance).
 MIN_RATES = 4
@@ -91,16 +95,24 @@ def bridge(
     k: int,
     config: OdometryConfig,
     variances: Sequence[np.ndarray] = (),
-    walls: tuple[PlaneSet, PlaneSet, PlanodomConfig] | None = None,
+    walls: tuple[PlaneSet, PlaneSet, PlanodomConfig, TwistUncertainty | None] | None = None,
 ) -> np.ndarray:
     """(4, 4) ``T_{ref}_k`` an unresolved epoch ``k`` is bridged with: ``prediction``
     (``T_ref_last @ twist_step(twist, dt)``; None: none, e.g. across a gap, then
     ``T_ref_last`` (4, 4), standing still), or with ``bridge_rate`` trend, median or
     robust the same step made with :func:`bridge_twist` (``variances`` its); with
-    ``walls`` (the reference's planes, the epoch's, the config), its rotation corrected by
-    their normals with ``odometry.bridge_normals`` (:func:`.bridge_normals.normals_bridged`)."""
+    ``walls`` (the reference's planes, the epoch's, the config, the run's twist
+    uncertainty), its rotation corrected by their normals with ``odometry.bridge_normals``
+    (:func:`.bridge_normals.normals_bridged`; ``weighed``: against the bridge's rotation
+    sigma, :meth:`.twist_sigma.TwistUncertainty.bridged_rotation_sigma`)."""
     if prediction is None:
         return T_ref_last
     used = bridge_twist(twist, rates, k, config, variances)
     T = prediction if used is twist or used is None else T_ref_last @ twist_step(used, dt)
-    return T if walls is None else normals_bridged(T, *walls)
+    if walls is None:
+        return T
+    prev, curr, cfg, uncertainty = walls
+    variance = None
+    if uncertainty is not None and cfg.odometry.bridge_normals == "weighed":
+        variance = uncertainty.bridged_rotation_sigma(dt) ** 2 / 3
+    return normals_bridged(T, prev, curr, cfg, variance)

@@ -315,7 +315,7 @@ class PlaneOdometry:
             result = moment_refined(result, reference.planes, epoch.planes, ocfg, planes)
         if result.status is Status.UNRESOLVED:
             bridged = bridge(prediction, T_ref_last, self.twist, dt, self._rates, k, ocfg,
-                             self._rate_vars, (*planes, config))  # fmt: skip
+                             self._rate_vars, (*planes, config, self._twist_sigma))  # fmt: skip
             result = replaced(result, T_prev_curr=bridged)
         result = result.between(reference.index, epoch.index)
         step = orthonormalised(T_last_ref @ result.T_prev_curr)

@@ -155,6 +155,15 @@ class TwistUncertainty:
             self._memo[gate] = (float(s[0]), float(s[1]))
         return cast("TwistSigma", self._memo[gate])
 
+    def bridged_rotation_sigma(self, dt: float) -> float:
+        """Sigma (rad, a root of a trace over 3 axes) of the rotation a bridge holds over
+        the ``n`` steps of ``dt`` s since the last measured one (this one included): the
+        predicted rate's sigma of each, ``last + (1 + j) change`` for the j-th, summed
+        (a held rate's error is common to the steps; ``odometry.bridge_normals:
+        weighed``)."""
+        n = self._unresolved + 1
+        return float(dt * (n * self._last[0] + self.change()[0] * (n + n * (n + 1) / 2)))
+
     def refined(self, source: EpochEstimate, dt: float, twist: np.ndarray) -> TwistSigma:
         """Sigma of ``twist`` (6,) refined from ``source``'s own twist over ``dt`` s."""
         own = source.own_twist(dt)

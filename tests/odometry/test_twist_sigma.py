@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from planes_factory import observe, world_planes
 
 from planodom.config import PlanodomConfig
@@ -309,3 +310,22 @@ def test_a_first_extraction_of_wall_fragments_is_lost_with_twist_sigma_fragments
     got = widened_if_lost(lambda s: made.append(s) or (whole if s is None else wide),
                           (0.1, 1.0), "lost", 3, surfaces=count)  # fmt: skip
     assert got is whole and made == [None]
+
+
+def test_a_bridges_rotation_sigma_sums_the_predicted_rate_sigmas_of_its_steps():
+    """``bridged_rotation_sigma``: the held rate's sigma of each bridged step since the last
+    measured one (``predicted()`` as it stood before each), summed, times ``dt``; by hand
+    for the first: (0.03 + 2 c) * 0.1, ``c`` the rms of the rate changes (0.04 three
+    times, then 0.04 less the last step's 0.03 sigma, in squares)."""
+    model = TwistUncertainty(PlanodomConfig().odometry)
+    for rate in (0.0, 0.04, 0.0, 0.04):  # exact steps: change sqrt(mean(0.04^2)) = 0.04
+        model.update(np.r_[0, 0, rate, 1.0, 0, 0], _relative(scale=0.0), 0.1)
+    model.update(np.r_[0, 0, 0.0, 1.0, 0, 0], _relative(), 0.1)  # last sigma 0.03 rad/s
+    c = np.sqrt((3 * 0.04**2 + 0.04**2 - 0.03**2) / 4)
+    assert model.change()[0] == pytest.approx(c)
+    assert model.bridged_rotation_sigma(0.1) == pytest.approx((0.03 + 2 * c) * 0.1)
+    held = [model.predicted()[0]]
+    for _ in range(4):
+        model.update(np.zeros(6), _relative(Status.UNRESOLVED), 0.1)
+        held.append(model.predicted()[0])
+        assert model.bridged_rotation_sigma(0.1) == pytest.approx(0.1 * sum(held))
