@@ -32,6 +32,13 @@ map holds its planes), scans with point times, no gap in the epoch times up to t
 measured step, and a start of at most :data:`MAX_EPOCHS` epochs, or more while their scans
 hold at most :data:`MAX_BYTES`.
 
+With ``start_twist_search`` and ``start_search_speed: measured``, when the search gave
+a step of the start (:attr:`StartEpochs.searched`), every epoch of the start is taken
+as stale, whether or not it was extracted again: the search's candidate, and the
+predictions its steps then gave, deskewed those epochs with a guessed speed that their
+degenerate steps' unmeasured direction kept (2D-rig world 356 at 2 cm; docs/RESULTS.md,
+START356).
+
 The odometry's outputs are then not causal for those first epochs: their poses change
 when the measured step arrives (the run's poses are those after it). The twist the first
 epoch's planes were extracted with at last is kept (:attr:`StartEpochs.first_twist`).
@@ -83,6 +90,7 @@ class StartEpochs:
     enabled: bool
     epochs: list[KeptEpoch] = field(default_factory=list)
     open: bool = True
+    searched: bool = False  # the search (start_search) gave a step of the start
     _twists: list[np.ndarray | None] = field(default_factory=list)  # before the last epoch
 
     def appended(self, odo: PlaneOdometry, epoch: KeptEpoch) -> None:
@@ -103,11 +111,16 @@ class StartEpochs:
         if epoch.twist is None or odo._map is not None or gaps:
             return
         twist = np.asarray(epoch.twist, dtype=float)
+        held = list(zip(self.epochs, self._twists, strict=True))
+        every = self.searched and odo.config.odometry.start_search_speed == "measured"
+        if every:  # the measured step's own twist; its epoch too was deskewed with a guess
+            twist = measured_twist(odo, result)
+            held.append((epoch, epoch.twist))
         # not extracted again while this epoch was (the policy's refresh of its reference
-        # gave that one a measured twist), and not with this twist already
+        # gave that one a measured twist), or any after a search, and not with this twist
         stale = [
-            e for e, was in zip(self.epochs, self._twists, strict=True)
-            if e.scan is not None and time_spread(e.scan) and e.twist is was
+            e for e, was in held
+            if e.scan is not None and time_spread(e.scan) and (every or e.twist is was)
             and (e.twist is None or not np.array_equal(e.twist, twist))
         ]  # fmt: skip
         if stale:
@@ -120,7 +133,10 @@ class StartEpochs:
         """``best`` or the start's epoch deskewed with a vehicle's twist
         (:func:`.vehicle_start.vehicle_started`, ``odometry.start_vehicle_twist``; for an
         unresolved step, :func:`.start_search.searched_start`, ``start_twist_search``)."""
-        return searched_start(odo, scan, t, vehicle_started(odo, scan, t, best))
+        started = vehicle_started(odo, scan, t, best)
+        searched = searched_start(odo, scan, t, started)
+        self.searched = self.searched or searched is not started
+        return searched
 
     @property
     def first_twist(self) -> np.ndarray | None:
@@ -128,6 +144,14 @@ class StartEpochs:
         if not self.epochs or self.epochs[0].index != 0 or self.epochs[0].twist is None:
             return None
         return np.array(self.epochs[0].twist, dtype=float)
+
+
+def measured_twist(odo: PlaneOdometry, result: RelativePose) -> np.ndarray:
+    """(6,) the own twist (rad/s, m/s) of the measured step ``result`` of ``odo``: its
+    motion over its interval, not the twist its epoch was deskewed with (after a search,
+    the guessed speed its degenerate predecessors carried)."""
+    dt = odo.times[result.curr] - odo.times[result.prev]
+    return se3_log(result.T_prev_curr) / dt
 
 
 def _held(epochs: list[KeptEpoch], epoch: KeptEpoch) -> int:
