@@ -111,20 +111,18 @@ class StartEpochs:
         if epoch.twist is None or odo._map is not None or gaps:
             return
         twist = np.asarray(epoch.twist, dtype=float)
-        held = list(zip(self.epochs, self._twists, strict=True))
-        every = self.searched and odo.config.odometry.start_search_speed == "measured"
-        if every:  # the measured step's own twist; its epoch too was deskewed with a guess
-            twist = measured_twist(odo, result)
-            held.append((epoch, epoch.twist))
+        known = {e.index: e for e in [*self.epochs, epoch]}
+        if self.searched and odo.config.odometry.start_search_speed == "measured":
+            measured_start(odo, [*self.epochs, epoch], known, epoch.index)
+            return
         # not extracted again while this epoch was (the policy's refresh of its reference
-        # gave that one a measured twist), or any after a search, and not with this twist
+        # gave that one a measured twist), and not with this twist already
         stale = [
-            e for e, was in held
-            if e.scan is not None and time_spread(e.scan) and (every or e.twist is was)
+            e for e, was in zip(self.epochs, self._twists, strict=True)
+            if e.scan is not None and time_spread(e.scan) and e.twist is was
             and (e.twist is None or not np.array_equal(e.twist, twist))
         ]  # fmt: skip
         if stale:
-            known = {e.index: e for e in [*self.epochs, epoch]}
             refresh_start(odo, stale, known, twist, epoch.index)
 
     def vehicle(
@@ -152,6 +150,41 @@ def measured_twist(odo: PlaneOdometry, result: RelativePose) -> np.ndarray:
     the guessed speed its degenerate predecessors carried)."""
     dt = odo.times[result.curr] - odo.times[result.prev]
     return se3_log(result.T_prev_curr) / dt
+
+
+def measured_start(
+    odo: PlaneOdometry, epochs: list[KeptEpoch], known: dict[int, KeptEpoch], last: int
+) -> None:
+    """``start_search_speed: measured``: every epoch of a searched start, ``epochs`` up to
+    the measured one ``last`` included, extracted again with the measured step's own
+    twist, its steps estimated again (:func:`refresh_start`), and again with the own
+    twist of the measured step so estimated, ``deskew_iterations`` rounds at most (at
+    least one) while it changes. The own twist of a step whose two epochs were deskewed
+    with different velocities is off by their difference times the points' time offset
+    over the interval (a reference deskewed with the guessed speed, its epoch with the
+    prediction), so one round gives a speed between the guess and the truth; a round on
+    epochs deskewed alike measures it. The run's next prediction takes the last round's
+    velocity (the step's own velocity, as the odometry's prediction would)."""
+    twist = measured_twist(odo, odo.results[last])  # type: ignore[arg-type]
+    for _ in range(max(odo.config.odometry.deskew_iterations, 2)):
+        stale = [
+            e for e in epochs
+            if e.scan is not None and time_spread(e.scan)
+            and (e.twist is None or not np.array_equal(e.twist, twist))
+        ]  # fmt: skip
+        if not stale:
+            break
+        refresh_start(odo, stale, known, twist, last)
+        result = odo.results[last]
+        if result is None or result.status is not Status.OK:
+            break
+        new = measured_twist(odo, result)
+        if np.array_equal(new, twist):
+            break
+        twist = new
+    if odo._velocities and odo.twist is not None:  # the run's velocity: this step's
+        odo._velocities[-1] = np.array(twist[3:])
+        odo.twist = np.r_[odo.twist[:3], twist[3:]]
 
 
 def _held(epochs: list[KeptEpoch], epoch: KeptEpoch) -> int:
