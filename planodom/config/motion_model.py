@@ -221,3 +221,16 @@ class MotionModelConfig(Section):
     the reference's planes come back (:mod:`planodom.odometry.start_search`). Off by
     default: built for 2D-rig world 292 at 6 mm, a start in a 36 deg/s turn
     (docs/RESULTS.md, GAP292 and START292)."""
+
+    start_search_speed: Literal["candidate", "measured"] = "candidate"
+    """With ``start_twist_search``, once a step of a searched start is measured (status
+    OK; ``start_refresh`` on): the speed of the start's steps that measure only rotation
+    (degenerate: one wall along the track leaves the speed to the prior).
+    ``candidate``: ``start_refresh`` extracts again only the start's epochs not extracted
+    again since they were registered, so the searched epochs, and those deskewed with the
+    predictions that followed, keep the searched candidate's guessed speed (2D-rig world
+    356 at 2 cm: steps 1-8 within 0.15 deg of yaw, 67-71 cm off in xy each).
+    ``measured``: when the search gave the start's step, every epoch of the start is
+    extracted again with the measured step's velocity (and its degenerate step's rate)
+    and its steps estimated again with that velocity as their prior
+    (:mod:`planodom.odometry.start_epochs`). No threshold (docs/RESULTS.md, START356)."""

@@ -32,6 +32,13 @@ map holds its planes), scans with point times, no gap in the epoch times up to t
 measured step, and a start of at most :data:`MAX_EPOCHS` epochs, or more while their scans
 hold at most :data:`MAX_BYTES`.
 
+With ``start_twist_search`` and ``start_search_speed: measured``, when the search gave
+a step of the start (:attr:`StartEpochs.searched`), every epoch of the start is taken
+as stale, whether or not it was extracted again: the search's candidate, and the
+predictions its steps then gave, deskewed those epochs with a guessed speed that their
+degenerate steps' unmeasured direction kept (2D-rig world 356 at 2 cm; docs/RESULTS.md,
+START356).
+
 The odometry's outputs are then not causal for those first epochs: their poses change
 when the measured step arrives (the run's poses are those after it). The twist the first
 epoch's planes were extracted with at last is kept (:attr:`StartEpochs.first_twist`).
@@ -83,6 +90,7 @@ class StartEpochs:
     enabled: bool
     epochs: list[KeptEpoch] = field(default_factory=list)
     open: bool = True
+    searched: bool = False  # the search (start_search) gave a step of the start
     _twists: list[np.ndarray | None] = field(default_factory=list)  # before the last epoch
 
     def appended(self, odo: PlaneOdometry, epoch: KeptEpoch) -> None:
@@ -103,6 +111,10 @@ class StartEpochs:
         if epoch.twist is None or odo._map is not None or gaps:
             return
         twist = np.asarray(epoch.twist, dtype=float)
+        known = {e.index: e for e in [*self.epochs, epoch]}
+        if self.searched and odo.config.odometry.start_search_speed == "measured":
+            measured_start(odo, [*self.epochs, epoch], known, epoch.index)
+            return
         # not extracted again while this epoch was (the policy's refresh of its reference
         # gave that one a measured twist), and not with this twist already
         stale = [
@@ -111,7 +123,6 @@ class StartEpochs:
             and (e.twist is None or not np.array_equal(e.twist, twist))
         ]  # fmt: skip
         if stale:
-            known = {e.index: e for e in [*self.epochs, epoch]}
             refresh_start(odo, stale, known, twist, epoch.index)
 
     def vehicle(
@@ -120,7 +131,10 @@ class StartEpochs:
         """``best`` or the start's epoch deskewed with a vehicle's twist
         (:func:`.vehicle_start.vehicle_started`, ``odometry.start_vehicle_twist``; for an
         unresolved step, :func:`.start_search.searched_start`, ``start_twist_search``)."""
-        return searched_start(odo, scan, t, vehicle_started(odo, scan, t, best))
+        started = vehicle_started(odo, scan, t, best)
+        searched = searched_start(odo, scan, t, started)
+        self.searched = self.searched or searched is not started
+        return searched
 
     @property
     def first_twist(self) -> np.ndarray | None:
@@ -128,6 +142,49 @@ class StartEpochs:
         if not self.epochs or self.epochs[0].index != 0 or self.epochs[0].twist is None:
             return None
         return np.array(self.epochs[0].twist, dtype=float)
+
+
+def measured_twist(odo: PlaneOdometry, result: RelativePose) -> np.ndarray:
+    """(6,) the own twist (rad/s, m/s) of the measured step ``result`` of ``odo``: its
+    motion over its interval, not the twist its epoch was deskewed with (after a search,
+    the guessed speed its degenerate predecessors carried)."""
+    dt = odo.times[result.curr] - odo.times[result.prev]
+    return se3_log(result.T_prev_curr) / dt
+
+
+def measured_start(
+    odo: PlaneOdometry, epochs: list[KeptEpoch], known: dict[int, KeptEpoch], last: int
+) -> None:
+    """``start_search_speed: measured``: every epoch of a searched start, ``epochs`` up to
+    the measured one ``last`` included, extracted again with the measured step's own
+    twist, its steps estimated again (:func:`refresh_start`), and again with the own
+    twist of the measured step so estimated, ``deskew_iterations`` rounds at most (at
+    least one) while it changes. The own twist of a step whose two epochs were deskewed
+    with different velocities is off by their difference times the points' time offset
+    over the interval (a reference deskewed with the guessed speed, its epoch with the
+    prediction), so one round gives a speed between the guess and the truth; a round on
+    epochs deskewed alike measures it. The run's next prediction takes the last round's
+    velocity (the step's own velocity, as the odometry's prediction would)."""
+    twist = measured_twist(odo, odo.results[last])  # type: ignore[arg-type]
+    for _ in range(max(odo.config.odometry.deskew_iterations, 2)):
+        stale = [
+            e for e in epochs
+            if e.scan is not None and time_spread(e.scan)
+            and (e.twist is None or not np.array_equal(e.twist, twist))
+        ]  # fmt: skip
+        if not stale:
+            break
+        refresh_start(odo, stale, known, twist, last)
+        result = odo.results[last]
+        if result is None or result.status is not Status.OK:
+            break
+        new = measured_twist(odo, result)
+        if np.array_equal(new, twist):
+            break
+        twist = new
+    if odo._velocities and odo.twist is not None:  # the run's velocity: this step's
+        odo._velocities[-1] = np.array(twist[3:])
+        odo.twist = np.r_[odo.twist[:3], twist[3:]]
 
 
 def _held(epochs: list[KeptEpoch], epoch: KeptEpoch) -> int:

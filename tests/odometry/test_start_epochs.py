@@ -10,7 +10,7 @@ import pytest
 from planes_factory import observe, square_polygon
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, PlaneSupport, transform_from_rpy_xyz
+from planodom.geometry import Plane, PlaneSupport, se3_log, transform_from_rpy_xyz
 from planodom.odometry import PlaneOdometry, Status, start_epochs
 from planodom.scan import Scan
 
@@ -124,3 +124,74 @@ def test_a_start_longer_than_max_epochs_is_refreshed_while_its_scans_are_small(
     monkeypatch.setattr(start_epochs, "MAX_BYTES", 0)
     bounded, _ = run(True, n=n, across_from=first)
     assert abs(bounded.poses[first - 1][0, 3]) < 0.05  # the zero velocity carried
+
+
+#: the speed, m/s, a searched start guessed (``start_twist_search``'s candidate): the
+#: prediction the start's epochs were deskewed with and their degenerate steps' prior
+GUESS = 1.5
+
+
+def searched_run(
+    speed: str, deskew_iterations: int, searched: bool = True
+) -> tuple[PlaneOdometry, list[tuple[int, np.ndarray | None]]]:
+    """:func:`run`'s corridor (the wall across from epoch 2 on: step 3 the first OK one),
+    its start as a search leaves it (``searched``): from epoch 1 on the prediction is the
+    guessed speed :data:`GUESS` along x, and with ``odometry.start_search_speed``
+    ``speed``."""
+    calls: list[tuple[int, np.ndarray | None]] = []
+
+    def extractor(scan, cfg, twist=None):  # noqa: ANN001, ANN202
+        k = int(scan.points[0, 0])
+        calls.append((k, None if twist is None else np.array(twist)))
+        used = 0.0 if twist is None else float(twist[3])
+        x = SPEED * DT * k + (SPEED - used) * SPAN / 2
+        return observe(CORRIDOR + ([ACROSS] if k >= 2 else []),
+                       transform_from_rpy_xyz(0, 0, 0, x, 0, 0))  # fmt: skip
+
+    cfg = PlanodomConfig().updated({
+        "odometry.pipeline": "wocsc", "odometry.start_twist_search": True,
+        "odometry.start_search_speed": speed, "odometry.deskew_iterations": deskew_iterations,
+    })  # fmt: skip
+    odo = PlaneOdometry(cfg, extractor=extractor)
+    odo.start.searched = searched
+    for k in range(5):
+        if k == 1:
+            odo.twist = np.array([0.0, 0.0, 0.0, GUESS, 0.0, 0.0])
+        odo.register_epoch(Scan(np.full((2, 3), float(k)), t=[0.0, SPAN]), DT * k)
+    return odo, calls
+
+
+def test_the_measured_twist_is_the_steps_own_motion_over_its_interval():
+    odo, _ = run(True)
+    result = odo.results[3]
+    got = start_epochs.measured_twist(odo, result)
+    np.testing.assert_allclose(got, se3_log(result.T_prev_curr) / DT, atol=1e-12)
+    np.testing.assert_allclose(got, [0, 0, 0, SPEED, 0, 0], atol=0.05)  # the truth
+
+
+@pytest.mark.parametrize("deskew_iterations", [0, 1, 2])
+def test_a_searched_start_takes_the_measured_speed_not_the_guess(deskew_iterations: int):
+    """Without the policy's own re-extraction (0 iterations) the measured epoch keeps the
+    guessed speed it was predicted with and ``candidate`` refreshes the start with it: the
+    degenerate steps move at the guess. With one, the measured step's own speed is off
+    (its reference deskewed with the guess, its epoch with its own): a second round on
+    epochs deskewed alike finds the truth. ``measured`` ends at the truth each time."""
+    truth = SPEED * DT * np.arange(5)
+    measured, calls = searched_run("measured", deskew_iterations)
+    assert [r.status for r in measured.results[1:4]] == [Status.DEGENERATE] * 2 + [Status.OK]
+    np.testing.assert_allclose([T[0, 3] for T in measured.poses], truth, atol=0.01)
+    last = {k: twist for k, twist in calls}
+    for k in range(4):  # the start and the measured epoch extracted last at the truth
+        np.testing.assert_allclose(last[k], [0, 0, 0, SPEED, 0, 0], atol=0.05)
+    np.testing.assert_allclose(measured.twist[3:], [SPEED, 0, 0], atol=0.05)
+    if deskew_iterations == 0:
+        candidate, _ = searched_run("candidate", 0)
+        x = np.array([T[0, 3] for T in candidate.poses])
+        np.testing.assert_allclose(x[1:3], GUESS * DT * np.arange(1, 3), atol=0.01)
+
+
+def test_measured_changes_nothing_where_no_search_gave_the_start():
+    a, calls_a = searched_run("measured", 0, searched=False)
+    b, calls_b = searched_run("candidate", 0, searched=False)
+    np.testing.assert_array_equal(np.array(a.poses), np.array(b.poses))
+    assert len(calls_a) == len(calls_b)
