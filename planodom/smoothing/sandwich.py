@@ -55,6 +55,7 @@ from planodom.smoothing import sparse_sandwich
 from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.error_maps import ErrorMaps, map_terms, merged, plane_error_map
 from planodom.smoothing.graph import X
+from planodom.smoothing.loop_planes import loop_plane_maps, own_maps
 from planodom.smoothing.loop_records import LoopFactor
 from planodom.smoothing.loop_sources import loop_error_maps
 from planodom.smoothing.marginals import (
@@ -439,8 +440,22 @@ def batch_sandwich(
         steps = relatives[0] if ends == "both" else ()
         both = relative_error_maps(cov_graph, estimate, Q, dm, index, loops, steps, skip)
         extra = (both, np.zeros((0, 6, 6))) if extra is None else (merged(extra[0], both), extra[1])
+    shared = None
+    if mode == "planes":  # loop_planes: the planes' fit errors shared, after any other columns
+        first = len(Q) + (0 if extra is None else len(extra[1]))
+        shared = loop_plane_maps(cov_graph, estimate, loops[0], index, loops[1], mapped, first)
+        if extra is None:
+            extra = shared
+        else:
+            extra = (merged(extra[0], shared[0]), np.concatenate([extra[1], shared[1]]))
     out, note = sandwich_covariances(
         cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
         cfg.prior_sigma, extra, cfg.sandwich_plane_share == "own",
     )  # fmt: skip
+    if shared is not None and shared[0]:  # each factor's own variance kept (loop_planes)
+        own, _ = sandwich_covariances(
+            cov_graph, estimate, len(Q), {}, np.zeros_like(Q), cfg.covariances_relative_to_first,
+            cfg.prior_sigma, own_maps(shared[0], shared[1], first, len(Q)),
+        )  # fmt: skip
+        out = less_own(out, own)
     return out.covariances, note
