@@ -34,7 +34,7 @@ import gtsam
 import numpy as np
 
 from planodom.geometry import Plane
-from planodom.smoothing.error_maps import ERROR_SIGN, ErrorMap
+from planodom.smoothing.error_maps import ERROR_SIGN, ErrorMap, ErrorMaps, merged
 from planodom.smoothing.graph import X
 from planodom.smoothing.loop_deskew import error_change, pair_jacobian
 from planodom.smoothing.loop_records import LoopFactor
@@ -177,3 +177,30 @@ def own_maps(
                 sizes.append(Q[c - first_column])
             out.setdefault(i, []).append((own[c], g))
     return out, np.array(sizes, dtype=float).reshape(-1, 6, 6)
+
+
+def with_plane_columns(
+    mode: str,
+    extra: tuple[ErrorMaps, np.ndarray] | None,
+    cov_graph: gtsam.NonlinearFactorGraph,
+    values: gtsam.Values,
+    loops: tuple[Sequence[LoopFactor], Mapping[int, Sequence[Plane]]],
+    index: Mapping[int, int],
+    plane_factors: Mapping[int, tuple[int, Plane]],
+    n_epochs: int,
+) -> tuple[tuple[ErrorMaps, np.ndarray] | None, tuple[ErrorMaps, np.ndarray] | None]:
+    """The sandwich's ``extra`` maps and columns with :func:`loop_plane_maps`' after them
+    (columns from ``n_epochs`` plus ``extra``'s on), and the :func:`own_maps` of those
+    (columns from ``n_epochs`` on) whose sandwich less its fitted part is to be taken off
+    again; (``extra``, None) where no loop factor maps or ``mode`` (``smoothing.
+    sandwich_loop_sources``) is not "planes"."""
+    if mode != "planes":
+        return extra, None
+    first = n_epochs + (0 if extra is None else len(extra[1]))
+    maps, cols = loop_plane_maps(cov_graph, values, loops[0], index, loops[1], plane_factors, first)
+    if not maps:
+        return extra, None
+    own = own_maps(maps, cols, first, n_epochs)
+    if extra is None:
+        return (maps, cols), own
+    return (merged(extra[0], maps), np.concatenate([extra[1], cols])), own
