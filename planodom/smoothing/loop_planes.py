@@ -179,7 +179,7 @@ def own_maps(
     return out, np.array(sizes, dtype=float).reshape(-1, 6, 6)
 
 
-def with_plane_columns(
+def plane_columns(
     mode: str,
     extra: tuple[ErrorMaps, np.ndarray] | None,
     cov_graph: gtsam.NonlinearFactorGraph,

@@ -55,7 +55,7 @@ from planodom.smoothing import sparse_sandwich
 from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.error_maps import ErrorMaps, map_terms, merged, plane_error_map
 from planodom.smoothing.graph import X
-from planodom.smoothing.loop_planes import with_plane_columns
+from planodom.smoothing.loop_planes import plane_columns
 from planodom.smoothing.loop_records import LoopFactor
 from planodom.smoothing.loop_sources import loop_error_maps
 from planodom.smoothing.marginals import (
@@ -437,14 +437,14 @@ def batch_sandwich(
         steps = relatives[0] if ends == "both" else ()
         both = relative_error_maps(cov_graph, estimate, Q, dm, index, loops, steps, skip)
         extra = (both, np.zeros((0, 6, 6))) if extra is None else (merged(extra[0], both), extra[1])
-    extra, own_extra = with_plane_columns(  # "planes" (loop_planes); else (extra, None)
-        mode, extra, cov_graph, estimate, loops, index, mapped, len(Q)
-    )
+    extra, own = plane_columns(mode, extra, cov_graph, estimate, loops, index, mapped, len(Q))
     out, note = sandwich_covariances(
         cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
         cfg.prior_sigma, extra, cfg.sandwich_plane_share == "own",
     )  # fmt: skip
-    if own_extra is not None:  # each factor's own variance kept (loop_planes)
-        args = (cov_graph, estimate, len(Q), {}, 0 * Q, cfg.covariances_relative_to_first)
-        out = less_own(out, sandwich_covariances(*args, cfg.prior_sigma, own_extra)[0])
+    if own is not None:  # "planes": each factor's own variance kept (loop_planes)
+        q0, rel, sigma = 0 * Q, cfg.covariances_relative_to_first, cfg.prior_sigma
+        out = less_own(
+            out, sandwich_covariances(cov_graph, estimate, len(Q), {}, q0, rel, sigma, own)[0]
+        )
     return out.covariances, note
