@@ -108,7 +108,7 @@ class CovarianceScaleConfig(Section):
     change. Off: on the fresh laps 320-326 the count inside the NEES interval stays 2 of 4
     at 6 mm and 4 of 4 at 2 cm (the lost lap 322 at 6 mm 1.5e5 -> 5.4e4; docs/RESULTS.md,
     NEESLAP)."""
-    sandwich_loop_sources: Literal["independent", "shared", "deskew"] = "independent"
+    sandwich_loop_sources: Literal["independent", "shared", "deskew", "planes"] = "independent"
     """With the sandwich covariances: "shared" takes half of each loop factor's covariance
     (a relative pose beyond ``delta_max``) as an error shared by every loop factor from the
     same older epoch, solved from that epoch's same planes (:mod:`planodom.smoothing.
@@ -118,7 +118,11 @@ class CovarianceScaleConfig(Section):
     error its own. Only the covariances change (docs/RESULTS.md, NEES2CM). Off: over the
     40 decision-lap runs "shared" has NEES5 inside [0.83, 12.8] on 10 -> 13 of 20 at 2 cm
     and 11 -> 12 of 20 at 6 mm, but world 38 at 6 mm leaves it (1.29 -> 0.71; NEESDEF);
-    "deskew" takes it to 0.64 and leaves 144 at 2 cm at 16.4 (NEESJAC)."""
+    "deskew" takes it to 0.64 and leaves 144 at 2 cm at 16.4 (NEESJAC). "planes" sizes
+    the shared part by the planes' own fit covariances: each plane a loop factor was
+    solved from is one error in every loop factor (and the plane factor) that uses it,
+    each factor keeping its own variance (:mod:`planodom.smoothing.loop_planes`;
+    docs/RESULTS.md, LOOPNEES)."""
     sandwich_first_epoch: Literal["motion", "step", "degenerate_step"] = "motion"
     """With the sandwich covariances: the first epoch's deskewing error. "motion"
     (default) the run's changes of motion like any epoch; "step" adds its first step's

@@ -55,6 +55,7 @@ from planodom.smoothing import sparse_sandwich
 from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.error_maps import ErrorMaps, map_terms, merged, plane_error_map
 from planodom.smoothing.graph import X
+from planodom.smoothing.loop_planes import plane_columns
 from planodom.smoothing.loop_records import LoopFactor
 from planodom.smoothing.loop_sources import loop_error_maps
 from planodom.smoothing.marginals import (
@@ -420,14 +421,11 @@ def batch_sandwich(
     loops: tuple[Sequence[LoopFactor], Mapping[int, Sequence[Plane]]] = ((), {}),
     relatives: tuple[Sequence[RelativePose], Sequence[int]] = ((), ()),
 ) -> tuple[np.ndarray, str | None]:
-    """``smoothing.covariance_model`` "sandwich" of the batch (``graph``, its covariance
-    graph ``cov_graph``, :func:`.batch_covariances.covariance_graph`): (E, 6, 6) and a note
-    (:func:`sandwich_covariances`; ``Q`` (E, 6, 6) the epochs' changes of motion,
-    :func:`deskew_motion_change`; ``loops``: the loop factors and planes per epoch for
-    ``sandwich_loop_sources`` "deskew", :func:`.loop_sources.loop_error_maps`;
-    ``relatives``: the run's relative poses and the fallback factors' indices in ``graph``
-    for ``sandwich_relative_ends`` "both", :mod:`.relative_deskew`; "loops" takes the
-    loop factors' maps alone)."""
+    """``smoothing.covariance_model`` "sandwich" of the batch (``graph``; ``cov_graph`` its
+    :func:`.batch_covariances.covariance_graph`): (E, 6, 6) and a note. ``Q`` (E, 6, 6): the
+    epochs' changes of motion; ``loops``: the loop factors and planes per epoch
+    (``sandwich_loop_sources``: :mod:`.loop_sources`, :mod:`.loop_planes`); ``relatives``: the
+    relative poses and the fallbacks (``sandwich_relative_ends``, :mod:`.relative_deskew`)."""
     index = covariance_graph_index(graph, cov_graph)
     mapped = {index[i]: obs for i, obs in planes.items() if i in index}
     mode, dm, ends = cfg.sandwich_loop_sources, cfg.delta_max, cfg.sandwich_relative_ends
@@ -439,8 +437,14 @@ def batch_sandwich(
         steps = relatives[0] if ends == "both" else ()
         both = relative_error_maps(cov_graph, estimate, Q, dm, index, loops, steps, skip)
         extra = (both, np.zeros((0, 6, 6))) if extra is None else (merged(extra[0], both), extra[1])
+    extra, own = plane_columns(mode, extra, cov_graph, estimate, loops, index, mapped, len(Q))
     out, note = sandwich_covariances(
         cov_graph, estimate, len(Q), mapped, Q, cfg.covariances_relative_to_first,
         cfg.prior_sigma, extra, cfg.sandwich_plane_share == "own",
     )  # fmt: skip
+    if own is not None:  # "planes": each factor's own variance kept (loop_planes)
+        q0, rel, sigma = 0 * Q, cfg.covariances_relative_to_first, cfg.prior_sigma
+        out = less_own(
+            out, sandwich_covariances(cov_graph, estimate, len(Q), {}, q0, rel, sigma, own)[0]
+        )
     return out.covariances, note

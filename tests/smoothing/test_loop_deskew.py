@@ -149,4 +149,4 @@ def test_option_value_deskew() -> None:
     cfg = PlanodomConfig().updated({"smoothing.sandwich_loop_sources": "deskew"})
     assert cfg.smoothing.sandwich_loop_sources == "deskew"
     with pytest.raises(ConfigError, match="sandwich_loop_sources"):
-        PlanodomConfig().updated({"smoothing.sandwich_loop_sources": "planes"})
+        PlanodomConfig().updated({"smoothing.sandwich_loop_sources": "nonsense"})
