@@ -11,12 +11,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field
 
-from planodom.config.lead_weights import LeadWeightsConfig
+from planodom.config.few_inliers import FewInliersConfig
 
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
-class PlanemapConfig(LeadWeightsConfig):
+class PlanemapConfig(FewInliersConfig):
     """The plane-landmark odometry against a local plane map
     (:mod:`planodom.odometry.planemap`)."""
 
@@ -172,26 +172,6 @@ class PlanemapConfig(LeadWeightsConfig):
     others, only world 23 at 6 mm by 3e-4 of its figures (rotation 0.036766 -> 0.036776
     deg, ATE 0.9122 -> 0.9125 mm, xy 0.02497 -> 0.02493 cm); KITTI raw 0005's poses are
     byte-identical. Not measured better overall, so 6 stays."""
-    few_inliers: Literal["unresolved", "observed"] = "unresolved"
-    """A registration with fewer than ``min_inliers`` but at least ``few_inliers_floor``
-    inlier planes: ``unresolved``, left unresolved (as every such count before);
-    ``observed``, resolved when those planes' information fixes every direction, each
-    rotation axis' 1-sigma within ``unobserved_rotation_deg`` and each translation
-    direction's (the vertical too) within ``unobserved_translation_m`` (the limits the
-    status is judged by; an epoch they judge partly observed stays unresolved here). Lidar
-    world 335 (indoor, 64 beams, no ring or time: floor, ceiling, two walls and an end
-    wall, 5 planes an epoch in its corridor) at 6 mm: an extraction deskewed with its twist
-    gave those 5 planes, all inliers, rotation 1-sigma 0.03 / 0.13 / 0.04 deg, and was
-    left unresolved; the odometry then took whichever other extraction reached 6 planes
-    (most often the one without the twist, its swaying walls in fragments), and one epoch
-    none did: the map rebuilt from one scan, 20 epochs of roll and pitch errors of
-    0.1-0.2 deg alternating in sign, 76 % of the run's squared rotation error (LIDAR335 in
-    docs/RESULTS.md)."""
-    few_inliers_floor: Annotated[int, Field(ge=3)] = 4
-    """Fewest inlier planes ``few_inliers: observed`` resolves an epoch with: three
-    planes with independent normals fix the six degrees of freedom, a fourth leaves one
-    redundant constraint for the robust kernel to find an outlier by (4: the value
-    ``min_inliers`` was measured with on world 37's corridors, see there)."""
     min_inlier_fraction: float = Field(0.3, gt=0, le=1)
     """...and at least this fraction of the scan's planes inliers (a wrong prediction
     still lets a few planes, e.g. the ground, associate). Measured on KITTI 0005."""

@@ -57,8 +57,13 @@ def test_five_planes_that_fix_every_direction_give_the_true_step():
 
 def test_five_planes_that_leave_the_corridor_free_stay_unresolved():
     """Without a normal along the corridor, nothing fixes the translation along it: five
-    planes are not trusted then (six would make the epoch degenerate)."""
+    planes are not trusted then, where a count of 4 (``min_inliers: 4``) would keep the
+    epoch as degenerate."""
     assert _step("observed", end_wall=False).status is Status.UNRESOLVED
+    cfg = PlanodomConfig().updated({"planemap.laser_bias_m": 0.0, "planemap.min_inliers": 4})
+    odo = PlaneMapOdometry(cfg)
+    odo.commit(odo.estimate(_room(np.eye(4), end_wall=False)))
+    assert odo.estimate(_room(T_TRUE, end_wall=False)).relative.status is Status.DEGENERATE
 
 
 def test_the_floor_bounds_the_count():
