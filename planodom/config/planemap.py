@@ -11,12 +11,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field
 
-from planodom.config.lead_weights import LeadWeightsConfig
+from planodom.config.few_inliers import FewInliersConfig
 
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
-class PlanemapConfig(LeadWeightsConfig):
+class PlanemapConfig(FewInliersConfig):
     """The plane-landmark odometry against a local plane map
     (:mod:`planodom.odometry.planemap`)."""
 

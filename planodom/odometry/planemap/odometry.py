@@ -48,6 +48,7 @@ from planodom.odometry.planemap import fallback
 from planodom.odometry.planemap.bias import fitted_bias
 from planodom.odometry.planemap.ctreg import TwistRegistration, corrected_planes, register_twist
 from planodom.odometry.planemap.deskew_weights import change_covariance, led_weights
+from planodom.odometry.planemap.few_inliers import observed_few
 from planodom.odometry.planemap.landmarks import PlaneMap, update_map
 from planodom.odometry.planemap.led_twist import led_registration, timed_planes
 from planodom.odometry.planemap.moments import Moments, scan_sigma
@@ -276,12 +277,14 @@ class PlaneMapOdometry:
         return timed_planes(self.config.planemap, cur, planes, used, led)
 
     def _resolved(self, reg: Registration, cur: ScanPlanes) -> bool:
-        """Enough inliers, and no flip of the z axis relative to the last pose."""
+        """Enough inliers (or fewer that fix every direction, :mod:`.few_inliers`), and no
+        flip of the z axis relative to the last pose."""
         pm = self.config.planemap
         n_inl = len(reg.inliers)
         R_rel = self.pose[:3, :3].T @ reg.T[:3, :3]
         tilt_ok = _tilt(R_rel) <= np.radians(pm.max_tilt_change_deg)
-        return n_inl >= pm.min_inliers and n_inl >= pm.min_inlier_fraction * len(cur) and tilt_ok
+        enough = n_inl >= pm.min_inliers or observed_few(reg.H, n_inl, self.config)
+        return enough and n_inl >= pm.min_inlier_fraction * len(cur) and tilt_ok
 
     def _best_registration(
         self, T_pred: np.ndarray, cur: ScanPlanes, plane_set: PlaneSet
