@@ -26,7 +26,7 @@ and the planes' fit noise (in the factor's covariance already).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 
 import gtsam
 import numpy as np
@@ -101,6 +101,29 @@ def error_change(
     return out
 
 
+def gaussian_loop_factors(
+    cov_graph: gtsam.NonlinearFactorGraph,
+    values: gtsam.Values,
+    loop_factors: Sequence[LoopFactor],
+    index: Mapping[int, int],
+) -> Iterator[tuple[LoopFactor, int, np.ndarray, np.ndarray]]:
+    """The kept loop factors with recorded associations and a Gaussian noise model in
+    ``cov_graph`` (inliers; ``index``: whole graph -> ``cov_graph``): (the record, its
+    index in ``cov_graph``, its relative pose T_old_curr (4, 4), and R·dE, the whitened
+    change of its error with its measured pose ((dim, 6); :func:`error_change`))."""
+    for f in loop_factors:
+        i = index.get(f.factor)
+        if f.removed or i is None or f.associations is None:
+            continue
+        factor = cov_graph.at(i)
+        noise = factor.noiseModel()  # type: ignore[attr-defined]  # a NoiseModelFactor
+        if not isinstance(noise, gtsam.noiseModel.Gaussian):
+            continue
+        T = np.asarray(f.T_old_curr, dtype=float)
+        Ta, Tb = (values.atPose3(X(k)).matrix() for k in (f.old, f.epoch))
+        yield f, i, T, np.asarray(noise.R()) @ error_change(T, Ta, Tb, factor.dim())
+
+
 def loop_deskew_maps(
     cov_graph: gtsam.NonlinearFactorGraph,
     values: gtsam.Values,
@@ -116,19 +139,11 @@ def loop_deskew_maps(
     Gaussian noise model there (an inlier), recorded associations, planes with
     Jacobians and a non-zero ``motion_change[a]`` ((E, 6, 6))."""
     maps: dict[int, tuple[int, np.ndarray]] = {}
-    for f in loop_factors:
-        i = index.get(f.factor)
-        if f.removed or i is None or f.associations is None or not np.any(motion_change[f.old]):
+    for f, i, T, RE in gaussian_loop_factors(cov_graph, values, loop_factors, index):
+        if not np.any(motion_change[f.old]):
             continue
-        factor = cov_graph.at(i)
-        noise = factor.noiseModel()  # type: ignore[attr-defined]  # a NoiseModelFactor
-        if not isinstance(noise, gtsam.noiseModel.Gaussian):
-            continue
-        T = np.asarray(f.T_old_curr, dtype=float)
+        assert f.associations is not None  # gaussian_loop_factors keeps recorded ones only
         M = relative_pose_change(T, planes[f.old], planes[f.epoch], f.associations)
-        if M is None:
-            continue
-        Ta, Tb = (values.atPose3(X(k)).matrix() for k in (f.old, f.epoch))
-        E = error_change(T, Ta, Tb, factor.dim())
-        maps[i] = (f.old, np.asarray(noise.R()) @ E @ M)
+        if M is not None:
+            maps[i] = (f.old, RE @ M)
     return maps

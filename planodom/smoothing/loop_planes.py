@@ -35,8 +35,7 @@ import numpy as np
 
 from planodom.geometry import Plane
 from planodom.smoothing.error_maps import ERROR_SIGN, ErrorMap, ErrorMaps, merged
-from planodom.smoothing.graph import X
-from planodom.smoothing.loop_deskew import error_change, pair_jacobian
+from planodom.smoothing.loop_deskew import gaussian_loop_factors, pair_jacobian
 from planodom.smoothing.loop_records import LoopFactor
 
 #: A plane's (n, d) -> the plane factor's tangent (Unit3 basis (2), d) with errorVector's
@@ -101,20 +100,11 @@ def loop_plane_maps(
     column: dict[tuple[int, int], int] = {}
     sizes: list[np.ndarray] = []
     maps: dict[int, list[ErrorMap]] = {}
-    for f in loop_factors:
-        i = index.get(f.factor)
-        if f.removed or i is None or f.associations is None:
-            continue
-        factor = cov_graph.at(i)
-        noise = factor.noiseModel()  # type: ignore[attr-defined]  # a NoiseModelFactor
-        if not isinstance(noise, gtsam.noiseModel.Gaussian):
-            continue
-        T = np.asarray(f.T_old_curr, dtype=float)
+    for f, i, T, RE in gaussian_loop_factors(cov_graph, values, loop_factors, index):
+        assert f.associations is not None  # gaussian_loop_factors keeps recorded ones only
         changes = pair_fit_plane_changes(T, planes[f.old], planes[f.epoch], f.associations)
         if changes is None:
             continue
-        Ta, Tb = (values.atPose3(X(k)).matrix() for k in (f.old, f.epoch))
-        RE = np.asarray(noise.R()) @ error_change(T, Ta, Tb, factor.dim())
         for (end, p), M in changes.items():
             epoch = f.old if end == "a" else f.epoch
             plane = planes[epoch][p]
