@@ -3,7 +3,7 @@
 import numpy as np
 
 from planodom.geometry import invert_transform, se3_exp, se3_log
-from planodom.odometry.moment_solve import moment_jacobian, moment_solve
+from planodom.odometry.moment_solve import _cross, moment_jacobian, moment_solve
 from planodom.oracle import SurfaceMoments, _residuals, _roots, relative_pose, surface_moments
 
 #: Surfaces (unit normal, offset) in the previous frame: ground, three walls.
@@ -61,3 +61,10 @@ def test_noisy_planes_give_the_oracles_solution():
     ref = relative_pose(prev, curr, START)  # forward differences, same cost
     assert est.status == ref.status == "ok"
     assert np.abs(se3_log(invert_transform(ref.T_prev_curr) @ est.T_prev_curr)).max() < 1e-7
+
+
+def test_the_cross_product_is_numpys_to_the_bit():
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(7, 3)) * 1e3, rng.normal(size=(7, 3)) * 1e-3
+    assert np.array_equal(_cross(a, b), np.cross(a, b))
+    assert np.array_equal(_cross(a[:0], b[:0]), np.cross(a[:0], b[:0]).reshape(0, 3))
