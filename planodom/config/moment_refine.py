@@ -35,3 +35,13 @@ class MomentRefineConfig(PairRotationConfig):
     epoch's centroids (docs/RESULTS.md MOMENTS3). Off: by its rule it did not become the
     default (worlds 160-198: ATE 0.83 / 0.80 of the default's at 6 mm / 2 cm in geometric
     mean, but world 166 3.5-3.8x worse and the per-step xy no better)."""
+
+    moment_passes: Literal["all", "deskew_passes"] = "all"
+    """``refinement: moments``: in which passes of a run over scans with point times.
+    ``"all"``: the streaming pass and the deskewing passes (``deskew_passes``);
+    ``"deskew_passes"``: only the deskewing passes, the streaming pass refining the
+    translation (``refinement: translation``), so that its twists, which deskew its next
+    epochs and choose their planes, are the default's (with ``deskew_passes: 0`` the
+    moments are then not used). On world 386 at 6 mm the moments in the streaming pass
+    sent a stretch of few planes down other extractions whose OK steps were 0.5-2.5 deg
+    off (docs/RESULTS.md DESKEW13). Off (``"all"``): measured on seen worlds only."""

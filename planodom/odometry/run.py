@@ -146,8 +146,9 @@ def run_odometry(
     if times is None:
         times = getattr(source, "times", None)
     source = sweep_timed(source, cfg.extraction.sweep, rig)  # times from the azimuth
-    pair = _middle_timed_pass(source, cfg, rig, times, progress, extractor)
-    run = pair[0] if pair else _streaming_pass(source, cfg, rig, times, progress, extractor)
+    first = streaming_config(cfg) if any_time_spread(source) else cfg
+    pair = _middle_timed_pass(source, first, rig, times, progress, extractor)
+    run = pair[0] if pair else _streaming_pass(source, first, rig, times, progress, extractor)
     if pair and cfg.odometry.deskew_passes and cfg.planemap.pass_reference_time == "middle":
         from planodom.odometry.middle_passes import middle_redeskewed_run  # imports this
 
@@ -168,6 +169,15 @@ def run_odometry(
 
         run = with_stated_deskew(run)  # the stated covariances only; the poses stay
     return run
+
+
+def streaming_config(config: PlanodomConfig) -> PlanodomConfig:
+    """The streaming pass's config: ``config``, but with ``odometry.moment_passes:
+    deskew_passes`` the translation refinement instead of the moments'."""
+    odo = config.odometry
+    if odo.refinement == "moments" and odo.moment_passes == "deskew_passes":
+        return config.updated({"odometry.refinement": "translation"}, source="moment_passes")
+    return config
 
 
 def redeskewed_run(

@@ -10,6 +10,10 @@ from planodom.geometry import invert_transform
 from planodom.metrics import per_epoch_errors, relative_motions
 from planodom.odometry import run_odometry
 from planodom.simulation.random_world import random_world, simulate_world
+from planodom.simulation.rigs import rig_from_name
+from planodom.simulation.simulate import simulate
+from planodom.simulation.trajectory import paper_loop_trajectory
+from planodom.simulation.worlds import scene_from_name
 
 
 def _rotation_errors_deg(poses: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -37,3 +41,19 @@ def test_middle_reference_on_a_rolling_2d_rig_is_closer_to_the_truth():
     assert np.sqrt(np.mean(middle**2)) < 0.5 * np.sqrt(np.mean(start**2))
     assert runs["middle"].statuses[7:] == ["ok"] * 9
     assert np.max(middle[5:]) < 0.06  # sigma 0: what is left is the curve's, not a lag
+
+
+def test_moments_kept_to_the_deskewing_passes_leave_the_streaming_pass_the_defaults():
+    """``moment_passes: deskew_passes`` without passes: the streaming pass refines the
+    translation, so the run is the default config's, epoch for epoch (the moments in
+    every pass give another run)."""
+    sim = simulate(scene_from_name("paper-loop"), paper_loop_trajectory(),
+                   rig_from_name("isoclinal"), n_epochs=8, noise_sigma=0.006,
+                   motion="continuous")  # fmt: skip
+    kept = PlanodomConfig().updated(
+        {"odometry.refinement": "moments", "odometry.moment_passes": "deskew_passes"}, source="t"
+    )
+    default = run_odometry(sim, PlanodomConfig(), sim.rig).poses
+    assert np.array_equal(run_odometry(sim, kept, sim.rig).poses, default)
+    everywhere = kept.updated({"odometry.moment_passes": "all"}, source="t")
+    assert not np.array_equal(run_odometry(sim, everywhere, sim.rig).poses, default)
