@@ -75,6 +75,8 @@ def lap_rows(world_index: int, noise: float, settings: list[dict], cache: Path |
             **loop_factor_counts(res.loop_factors, gt),
             **reidentification_counts(res.reidentifications, coplanar(world.scene)),
             "batch_cpu_s": cpu,
+            # batch_initial "checked": worst chi2 of the windowed guess, its span, replaced
+            "initial_check": "" if res.initial_check is None else json.dumps(res.initial_check),
         })  # fmt: skip
         if npz is not None:
             tag = "default" if not changes else "option"

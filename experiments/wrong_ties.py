@@ -19,6 +19,7 @@ nearest other old wall parallel to it: the association ties the nearer.
 
     uv run python experiments/wrong_ties.py 32 0.02 [JSON_CONFIG_CHANGES] [--odometry FILE]
 
+``--lap-cache DIR``: the default odometry from ``nees_gauge.load``'s cache instead.
 ``--odometry FILE``: the lap's odometry (a pickle) is read from FILE if it exists (made by
 the same world, noise and options but the smoothing's, else an error), else run and
 written there: the smoothing's options can then be compared without the odometry's
@@ -93,11 +94,22 @@ def main(argv: list[str]) -> None:
     if "--odometry" in argv:
         at = argv.index("--odometry")
         cache, argv = Path(argv[at + 1]), argv[:at] + argv[at + 2 :]
+    lap_cache = None
+    if "--lap-cache" in argv:  # nees_gauge's cache of the default odometry (DIR)
+        at = argv.index("--lap-cache")
+        lap_cache, argv = Path(argv[at + 1]), argv[:at] + argv[at + 2 :]
     index, noise = int(argv[0]), float(argv[1])
     changes = json.loads(argv[2]) if len(argv) > 2 else {}
     world = world_for(index)
     cfg = PlanodomConfig().updated(changes)  # the odometry's options too, not only the smoothing's
-    epoch_planes, relatives, gt = lap_odometry(index, noise, cfg, cache)
+    if lap_cache is not None:
+        sys.path.insert(0, str(Path(__file__).parent))
+        import nees_gauge
+
+        _, full, _, odo, relatives = nees_gauge.load(index, noise, lap_cache)
+        epoch_planes, gt = odo.planes, invert_transform(full.poses[0])[None] @ full.poses
+    else:
+        epoch_planes, relatives, gt = lap_odometry(index, noise, cfg, cache)
     chi: dict[int, tuple[float, float]] = {}  # tie factor -> (its chi2, the gate's limit)
 
     def gate(builder, graph, gaussian, values):  # the gate, its last verdicts noted

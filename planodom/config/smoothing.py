@@ -244,11 +244,11 @@ class SmoothingConfig(LoopCandidateConfig, CovarianceScaleConfig):
     its uncertainty would otherwise be added to every pose's (``prior_sigma`` times the
     distance in translation). False: gtsam's marginals with that prior."""
 
-    batch_initial: Literal["odometry", "windowed"] = "windowed"
-    """Batch: initial guess (and loop closure's predicted poses) from the chained odometry,
-    or from the fixed-lag smoother run first (a few seconds; it follows the planes through
-    odometry failures, where Levenberg-Marquardt from the chained guess can stop in a
-    wrong minimum)."""
+    batch_initial: Literal["odometry", "windowed", "checked"] = "windowed"
+    """Batch: initial guess (and loop closure's predictions) from the chained odometry, or the
+    fixed-lag smoother run first (it follows the planes through odometry failures), or
+    "checked": that one unless its motion contradicts the odometry's beyond the run's drift
+    (then the chained; planodom.smoothing.initial_check; docs/RESULTS.md, LAP362)."""
     loop_closure: bool = True
     """Batch: re-identify planes of a global map near the predicted pose and tie revisited
     landmarks (planodom.smoothing.loops); off: landmarks only from the tracks (delta <= D)."""

@@ -14,6 +14,7 @@ from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch_covariances import batch_covariances, sandwich_inputs
 from planodom.smoothing.graph import GraphBuilder, GraphStats
+from planodom.smoothing.initial_check import checked_guess
 from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.linear_solve import solve as solve_linear
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
@@ -71,6 +72,10 @@ class SmoothingResult:
         indefinite_marginals: (epoch, -w_min / w_max) of those fallbacks whose held
             marginals were indefinite beyond round-off of their own scale and split
             (:attr:`.windowed.WindowedSmoother.indefinite_marginals`).
+        initial_check: batch with ``batch_initial`` "checked": the windowed guess's worst
+            squared Mahalanobis distance from the chained odometry, its span (a, b), and
+            whether the batch started from the chained odometry instead
+            (:mod:`.initial_check`); None otherwise.
     """
 
     poses: np.ndarray
@@ -91,6 +96,7 @@ class SmoothingResult:
     covariance_model: str = ""
     qr_fallback_epochs: list[int] = field(default_factory=list)
     indefinite_marginals: list[tuple[int, float]] = field(default_factory=list)
+    initial_check: tuple[float, int, int, bool] | None = None
 
 
 def smoothing_config(config: SmoothingConfig | PlanodomConfig | None) -> SmoothingConfig:
@@ -273,14 +279,21 @@ def _builder(
         Q, _ = sandwich_inputs(cfg, dict(observed), relative_poses, len(epochs_planes))
         builder.plane_share = Q if Q is not None and np.any(Q) else None
     guess = None
-    if cfg.batch_initial == "windowed":
+    if cfg.batch_initial in ("windowed", "checked"):
         from planodom.smoothing.windowed import smooth_windowed
 
         # Its poses only: no marginals (a third of the fixed-lag smoother's time on lidar).
         first = full.updated({"smoothing.compute_covariances": False}, source="initial guess")
         guess = smooth_windowed(epochs_planes, relative_poses, first)
         builder.initial_poses = guess.poses
-        if T_world_first is not None:
+        if cfg.batch_initial == "checked":  # the chained odometry where it contradicts it
+            chained, worst, span = checked_guess(
+                guess.poses, relative_poses, full, builder.first_step
+            )
+            guess.initial_check = (worst, *span, chained is not None)
+            if chained is not None:
+                builder.initial_poses = None
+        if T_world_first is not None and builder.initial_poses is not None:
             builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
     return builder, guess
 
@@ -361,4 +374,5 @@ def smooth_batch(
         covariance_model=model,
         qr_fallback_epochs=[] if guess is None else guess.qr_fallback_epochs,
         indefinite_marginals=[] if guess is None else guess.indefinite_marginals,
+        initial_check=None if guess is None else guess.initial_check,
     )
