@@ -234,3 +234,16 @@ class MotionModelConfig(Section):
     extracted again with the measured step's velocity (and its degenerate step's rate)
     and its steps estimated again with that velocity as their prior
     (:mod:`planodom.odometry.start_epochs`). No threshold (docs/RESULTS.md, START356)."""
+
+    start_redeskew: Literal["off", "converged"] = "off"
+    """Pairwise pipelines: the start's epochs deskewed again once the measured velocity has
+    converged. The first epochs are deskewed with the twist the first one or two steps
+    measured, each step's noise in it (2D-rig lap 342 at 6 mm: first step 3.27 m/s for a
+    true 3.45, epoch 0's planes 4.3 cm off, and every loop factor closes on epoch 0).
+    ``converged``: the own velocities of the first OK steps are averaged, weighed by their
+    covariances, until the mean moves by less than its own standard error (or a step
+    disagrees with it: the motion changed); then epochs 0 .. K (the last averaged step)
+    are extracted again with that mean velocity (each with its step's own angular rate)
+    and their steps estimated again, a new step kept only when its status is no worse and
+    its rotation agrees with the old one within their covariances
+    (:mod:`planodom.odometry.start_converged`). Off by default (docs/RESULTS.md, START3)."""
