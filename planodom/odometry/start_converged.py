@@ -20,11 +20,14 @@ steps' own covariances decide, not a count. Then every epoch of the start up to 
 step is extracted again deskewed with the mean velocity (the step's own angular rate and
 vertical velocity: the rotation is measured far better than the speed) and the steps
 between them are estimated again with that twist's constant-velocity prior
-(:func:`.start_epochs._solved`). A step estimated again is kept only when its status is
-no worse than the old one's and its rotation agrees with the old one within the sum of
-their covariances (chi-square 95 %, 3 DoF): a degenerate start step estimated again on
-planes extracted anew can be wrong in rotation by degrees (2D-rig world 378 at 2 cm: one
-step 16 deg off in pitch, docs/RESULTS.md, START356). A step not kept keeps its old
+(:func:`.start_epochs._solved`); repeated with the mean of the steps so estimated
+(``deskew_iterations`` rounds, at least two) while it changes, since the first steps
+were measured on epochs deskewed with the first step's own error (lap 342: a mean of
+3.40 m/s, then 3.44, for a true 3.45). A step estimated again is kept only when its
+status is no worse than the first estimate's and its rotation agrees with that one
+within the sum of their covariances (chi-square 95 %, 3 DoF): a degenerate start step
+estimated again on planes extracted anew can be wrong in rotation by degrees (2D-rig
+world 378 at 2 cm: one step 16 deg off in pitch, docs/RESULTS.md, START356). A step not kept keeps its old
 estimate, marked superseded (it indexes planes that are gone). The poses are chained
 again. Only the pairwise pipelines, scans with point times, no gap in the epoch times,
 and a start of at most :data:`.start_epochs.MAX_EPOCHS` epochs; otherwise nothing.
@@ -113,12 +116,33 @@ class ConvergedStart:
         self.open, self.epochs = False, []
 
     def _finish(self, odo: PlaneOdometry, last: int) -> None:
-        """Deskew epochs 0 .. ``last`` again with the mean (two averaged steps at least)."""
+        """Deskew epochs 0 .. ``last`` again with the mean (two averaged steps at least),
+        ``deskew_iterations`` rounds at most (at least two) while the mean of the steps
+        estimated again changes: the first steps were measured on epochs deskewed with
+        their own noisy velocity, so the mean over them is pulled by that error too."""
         epochs = [e for e in self.epochs if e.index <= last]
         if len(self.steps) >= 2 and self.mean is not None and last >= 1:
-            self.converged_at, self.velocity = last, np.array(self.mean)
-            redeskew_start(odo, epochs, self.mean, last)
+            originals = {k: odo.results[k] for k in range(1, last + 1)}
+            velocity = np.array(self.mean)
+            for _ in range(max(odo.config.odometry.deskew_iterations, 2)):
+                redeskew_start(odo, epochs, velocity, last, originals)
+                again = _mean(odo, self.steps)
+                if again is None or np.allclose(again, velocity, rtol=0, atol=1e-6):
+                    break
+                velocity = again
+            self.converged_at, self.velocity = last, velocity
         self._close()
+
+
+def _mean(odo: PlaneOdometry, steps: list[int]) -> np.ndarray | None:
+    """(2,) the weighed mean of the own x, y velocities of ``steps`` as they are now; None
+    when one of them is no longer measured."""
+    own = [_own_velocity(odo, odo.results[k]) for k in steps]  # type: ignore[arg-type]
+    if any(o is None for o in own):
+        return None
+    information = sum(o[1] for o in own if o is not None)
+    weighed = sum(o[1] @ o[0] for o in own if o is not None)
+    return np.linalg.solve(information, weighed)
 
 
 def _own_velocity(odo: PlaneOdometry, result: RelativePose) -> tuple[np.ndarray, np.ndarray] | None:
@@ -159,11 +183,13 @@ def rotation_agrees(old: RelativePose, new: RelativePose) -> bool:
 
 
 def redeskew_start(
-    odo: PlaneOdometry, epochs: list[KeptEpoch], velocity: np.ndarray, last: int
-) -> None:
+    odo: PlaneOdometry, epochs: list[KeptEpoch], velocity: np.ndarray, last: int,
+    originals: dict[int, RelativePose | None],
+) -> None:  # fmt: skip
     """Extract ``epochs`` (0 .. ``last``) of ``odo`` again with the mean ``velocity`` (2,),
-    estimate their steps again (kept by :func:`rotation_agrees` and status), and chain
-    the poses again (module docstring)."""
+    estimate their steps again (kept by their status and :func:`rotation_agrees` against
+    the step as first estimated, ``originals``), and chain the poses again (module
+    docstring)."""
     sigma = odo._twist_sigma.predicted()
     twists = {k: epoch_twist(odo, k, velocity) for k in range(last + 1)}
     was: set[int] = set()
@@ -181,7 +207,8 @@ def redeskew_start(
         if old is None or not ({old.prev, k} & was):
             continue
         new = _solved(odo, old, twists[k], known.get(k))
-        if new is None or new.status.rank < old.status.rank or not rotation_agrees(old, new):
+        first = originals.get(k) or old
+        if new is None or new.status.rank < first.status.rank or not rotation_agrees(first, new):
             odo.superseded.add(k)
             continue
         odo.superseded.discard(k)
