@@ -27,10 +27,11 @@ were measured on epochs deskewed with the first step's own error (lap 342: a mea
 status is no worse than the first estimate's and its rotation agrees with that one
 within the sum of their covariances (chi-square 95 %, 3 DoF): a degenerate start step
 estimated again on planes extracted anew can be wrong in rotation by degrees (2D-rig
-world 378 at 2 cm: one step 16 deg off in pitch, docs/RESULTS.md, START356). A step not kept keeps its old
-estimate, marked superseded (it indexes planes that are gone). The poses are chained
-again. Only the pairwise pipelines, scans with point times, no gap in the epoch times,
-and a start of at most :data:`.start_epochs.MAX_EPOCHS` epochs; otherwise nothing.
+world 378 at 2 cm: one step 16 deg off in pitch, docs/RESULTS.md, START356). A step
+not kept keeps its old estimate, marked superseded (it indexes planes that are gone).
+The poses are chained again. Only the pairwise pipelines, scans with point times, no
+gap in the epoch times, and a start of at most :data:`.start_epochs.MAX_EPOCHS` epochs;
+otherwise nothing.
 """
 
 from __future__ import annotations
