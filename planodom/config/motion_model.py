@@ -247,3 +247,11 @@ class MotionModelConfig(Section):
     and their steps estimated again, a new step kept only when its status is no worse and
     its rotation agrees with the old one within their covariances
     (:mod:`planodom.odometry.start_converged`). Off by default (docs/RESULTS.md, START3)."""
+
+    start_redeskew_guard: Literal["step", "all"] = "step"
+    """With ``start_redeskew: converged``, what a step refused by its guard (status
+    worse, or its rotation outside the two estimates' covariances) undoes: ``step``, that
+    step alone (its first estimate kept, marked superseded; its epochs keep the planes
+    extracted again); ``all``: the whole round (every epoch's planes and every step as
+    they were before it), and the rounds end (docs/RESULTS.md, START3: world 382 at 6 mm,
+    a refused step whose epoch kept its new planes)."""

@@ -124,15 +124,38 @@ class ConvergedStart:
         epochs = [e for e in self.epochs if e.index <= last]
         if len(self.steps) >= 2 and self.mean is not None and last >= 1:
             originals = {k: odo.results[k] for k in range(1, last + 1)}
-            velocity = np.array(self.mean)
+            velocity, kept = np.array(self.mean), None
+            whole = odo.config.odometry.start_redeskew_guard == "all"
             for _ in range(max(odo.config.odometry.deskew_iterations, 2)):
-                redeskew_start(odo, epochs, velocity, last, originals)
+                saved = _saved(odo, epochs, last) if whole else None
+                if not redeskew_start(odo, epochs, velocity, last, originals) and saved:
+                    _restore(odo, epochs, saved)  # a step refused: the round undone
+                    break
+                kept = velocity
                 again = _mean(odo, self.steps)
                 if again is None or np.allclose(again, velocity, rtol=0, atol=1e-6):
                     break
                 velocity = again
-            self.converged_at, self.velocity = last, velocity
+            if kept is not None:
+                self.converged_at, self.velocity = last, kept
         self._close()
+
+
+def _saved(odo: PlaneOdometry, epochs: list[KeptEpoch], last: int) -> tuple:
+    """What a round of :func:`redeskew_start` changes, to undo it (``start_redeskew_guard:
+    all``): the epochs' planes and twists, the results, steps, poses, superseded set."""
+    planes = [(e.planes, e.plane_set, e.twist) for e in epochs]
+    return planes, list(odo.results), list(odo._steps), list(odo.poses), set(odo.superseded)
+
+
+def _restore(odo: PlaneOdometry, epochs: list[KeptEpoch], saved: tuple) -> None:
+    """Undo a round of :func:`redeskew_start` (:func:`_saved`)."""
+    planes, results, steps, poses, superseded = saved
+    for epoch, (p, plane_set, twist) in zip(epochs, planes, strict=True):
+        odo._set_planes(epoch, p, twist, plane_set)
+    odo.results[:], odo._steps[:], odo.poses[:] = results, steps, poses
+    odo.superseded.clear()
+    odo.superseded.update(superseded)
 
 
 def _mean(odo: PlaneOdometry, steps: list[int]) -> np.ndarray | None:
@@ -186,12 +209,13 @@ def rotation_agrees(old: RelativePose, new: RelativePose) -> bool:
 def redeskew_start(
     odo: PlaneOdometry, epochs: list[KeptEpoch], velocity: np.ndarray, last: int,
     originals: dict[int, RelativePose | None],
-) -> None:  # fmt: skip
+) -> bool:  # fmt: skip
     """Extract ``epochs`` (0 .. ``last``) of ``odo`` again with the mean ``velocity`` (2,),
     estimate their steps again (kept by their status and :func:`rotation_agrees` against
     the step as first estimated, ``originals``), and chain the poses again (module
-    docstring)."""
+    docstring). Returns whether every step estimated again was kept."""
     sigma = odo._twist_sigma.predicted()
+    every = True
     twists = {k: epoch_twist(odo, k, velocity) for k in range(last + 1)}
     was: set[int] = set()
     for epoch in epochs:
@@ -211,6 +235,7 @@ def redeskew_start(
         first = originals.get(k) or old
         if new is None or new.status.rank < first.status.rank or not rotation_agrees(first, new):
             odo.superseded.add(k)
+            every = False
             continue
         odo.superseded.discard(k)
         odo.results[k] = new
@@ -220,3 +245,4 @@ def redeskew_start(
         odo._steps[k] = orthonormalised(np.linalg.inv(T_ref_last) @ new.T_prev_curr)
     for k in range(1, len(odo.poses)):
         odo.poses[k] = orthonormalised(odo.poses[k - 1] @ odo._steps[k])
+    return every

@@ -35,13 +35,14 @@ WORLD = [
 ]
 
 
-def run(option: str, tilt_again: float = 0.0, n: int = 12):  # noqa: ANN201
+def run(option: str, tilt_again: float = 0.0, n: int = 12, guard: str = "step"):  # noqa: ANN201
     """``n`` epochs at SPEED along x; each scan's points spread over SPAN s, their planes
     seen from the pose at the points' mean time less the motion the given twist deskews
     (its x velocity times that time, as :mod:`.test_start_epochs`), epoch k's wall across
     WALL_NOISE[k] off. With ``tilt_again`` (deg), epoch 1 extracted once epoch 3 was
     registered (only the re-deskewing does that) sees every plane pitched by it about
-    the base y axis: a wrong rotation the guard must refuse. Returns the odometry and
+    the base y axis: a wrong rotation the guard must refuse (``guard``:
+    ``odometry.start_redeskew_guard``). Returns the odometry and
     per epoch the x velocity of its last extraction's twist and its extractions' count."""
     last: dict[int, float] = {}
     state = {"seen": 0}
@@ -64,8 +65,9 @@ def run(option: str, tilt_again: float = 0.0, n: int = 12):  # noqa: ANN201
         return planes
 
     cfg = PlanodomConfig().updated(
-        {"odometry.pipeline": "wocsc", "odometry.start_redeskew": option}
-    )
+        {"odometry.pipeline": "wocsc", "odometry.start_redeskew": option,
+         "odometry.start_redeskew_guard": guard}
+    )  # fmt: skip
     odo = PlaneOdometry(cfg, extractor=extractor)
     for k in range(n):
         odo.register_epoch(Scan(np.full((2, 3), float(k)), t=[0.0, SPAN]), DT * k)
@@ -130,3 +132,21 @@ def test_rotation_agreement_is_the_chi_square_bound_on_both_covariances():
     assert not rotation_agrees(_pose(0, s), _pose(1.01 * bound, s))
     assert not rotation_agrees(_pose(0, s), _pose(16.0, s))  # START356's step
     assert rotation_agrees(RelativePose(np.eye(4), None), _pose(16.0, s))  # not judged
+
+
+def test_guard_all_undoes_the_whole_round_a_refused_step_was_in():
+    """``start_redeskew_guard: all``: the pitched re-extraction of epoch 1 refuses a step,
+    so the round is undone: every epoch keeps the planes the option-off run has, no step
+    is superseded, the poses are the option-off run's (and the steps' rotation the
+    truth's)."""
+    off, _ = run("off", tilt_again=10.0)
+    on, _ = run("converged", tilt_again=10.0, guard="all")
+    assert on.start.converged is not None and on.start.converged.converged_at is None
+    assert not on.superseded & {1, 2, 3, 4}
+    for k in range(5):
+        np.testing.assert_allclose([p.offset for p in on.planes[k]],
+                                   [p.offset for p in off.planes[k]], atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(np.array(on.poses), np.array(off.poses), atol=1e-12)
+    for k in (1, 2):
+        R = on.results[k].T_prev_curr[:3, :3]
+        assert np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))) < 0.1
