@@ -255,3 +255,10 @@ class MotionModelConfig(Section):
     extracted again); ``all``: the whole round (every epoch's planes and every step as
     they were before it), and the rounds end (docs/RESULTS.md, START3: world 382 at 6 mm,
     a refused step whose epoch kept its new planes)."""
+
+    start_redeskew_rate: Literal["step", "kept"] = "step"
+    """With ``start_redeskew: converged``, the angular rate each epoch of the start is
+    deskewed with again: ``step``, its step's own; ``kept``, the one it was deskewed with
+    (only the speed is the converged quantity: a step's own rate, changed, turns the
+    steps estimated again beyond their covariances, refused by the guard on 2D-rig
+    worlds 382, 390 and 396 at 6 mm; docs/RESULTS.md, START3)."""

@@ -184,14 +184,20 @@ def _own_velocity(odo: PlaneOdometry, result: RelativePose) -> tuple[np.ndarray,
     return se3_log(result.T_prev_curr)[3:5] / dt, np.linalg.inv(cov)
 
 
-def epoch_twist(odo: PlaneOdometry, k: int, velocity: np.ndarray) -> np.ndarray:
-    """(6,) the twist to deskew epoch ``k`` of the start with: the own angular rate and
-    vertical velocity of the step into it (out of it for the first), the x, y velocity
-    ``velocity`` (2,)."""
+def epoch_twist(
+    odo: PlaneOdometry, k: int, velocity: np.ndarray, epoch: KeptEpoch | None = None
+) -> np.ndarray:
+    """(6,) the twist to deskew epoch ``k`` of the start with: the x, y velocity
+    ``velocity`` (2,), the vertical velocity of the step into it (out of it for the
+    first), and the angular rate of that step (``start_redeskew_rate: step``) or the one
+    ``epoch`` was last extracted with (``kept``; the step's where it was not deskewed)."""
     j = max(k, 1)
     dt = odo.times[j] - odo.times[j - 1]
     own = se3_log(odo._steps[j]) / dt if dt > 0 else np.zeros(6)
-    return np.r_[own[:3], velocity, own[5]]
+    rate = own[:3]
+    if odo.config.odometry.start_redeskew_rate == "kept" and epoch is not None:
+        rate = rate if epoch.twist is None else np.asarray(epoch.twist, dtype=float)[:3]
+    return np.r_[rate, velocity, own[5]]
 
 
 def rotation_agrees(old: RelativePose, new: RelativePose) -> bool:
@@ -216,7 +222,8 @@ def redeskew_start(
     docstring). Returns whether every step estimated again was kept."""
     sigma = odo._twist_sigma.predicted()
     every = True
-    twists = {k: epoch_twist(odo, k, velocity) for k in range(last + 1)}
+    known = {e.index: e for e in epochs}
+    twists = {k: epoch_twist(odo, k, velocity, known.get(k)) for k in range(last + 1)}
     was: set[int] = set()
     for epoch in epochs:
         if epoch.scan is None or not time_spread(epoch.scan):
@@ -226,7 +233,6 @@ def redeskew_start(
             continue  # far fewer planes (as the policy judges an extraction): kept as it was
         was.add(epoch.index)
         odo._set_planes(epoch, planes, used)
-    known = {e.index: e for e in epochs}
     for k in range(1, last + 1):
         old = odo.results[k]
         if old is None or not ({old.prev, k} & was):

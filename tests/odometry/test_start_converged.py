@@ -150,3 +150,28 @@ def test_guard_all_undoes_the_whole_round_a_refused_step_was_in():
     for k in (1, 2):
         R = on.results[k].T_prev_curr[:3, :3]
         assert np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))) < 0.1
+
+
+def test_the_epochs_rate_is_the_steps_own_or_the_one_it_was_deskewed_with():
+    """:func:`epoch_twist` against the twist the step was made from (closed form): the
+    step's own rate with ``step``, the epoch's last deskewing rate with ``kept``; the x,
+    y velocity given, the vertical velocity the step's."""
+    from types import SimpleNamespace
+
+    from planodom.geometry import twist_step
+    from planodom.odometry.kept_epoch import KeptEpoch
+    from planodom.odometry.start_converged import epoch_twist
+
+    true = np.array([0.01, -0.02, 0.3, 4.0, 0.1, 0.05])
+    steps = [np.eye(4), twist_step(true, DT), twist_step(true, DT)]
+    velocity = np.array([3.9, 0.0])
+    was = np.array([0.0, 0.0, 0.25, 3.5, 0.0, 0.0])
+    epoch = KeptEpoch(2, [], None, twist=was)  # type: ignore[arg-type]
+    for rate, expected in (("step", true[:3]), ("kept", was[:3])):
+        cfg = PlanodomConfig().updated({"odometry.start_redeskew_rate": rate})
+        odo = SimpleNamespace(times=[0.0, DT, 2 * DT], _steps=steps, config=cfg)
+        got = epoch_twist(odo, 2, velocity, epoch)  # type: ignore[arg-type]
+        np.testing.assert_allclose(got, np.r_[expected, velocity, true[5]], atol=1e-9)
+    # the first epoch takes its step out of it
+    got = epoch_twist(odo, 0, velocity, None)  # type: ignore[arg-type]
+    np.testing.assert_allclose(got, np.r_[true[:3], velocity, true[5]], atol=1e-9)
