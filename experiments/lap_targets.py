@@ -14,7 +14,8 @@ batch's process time (s, covariances included). Per epoch (``--npz DIR``): the p
 covariances and the epochs' odometry status, for ``nees_where``-style tracing.
 
     uv run python experiments/lap_targets.py --worlds 360,362 --noise 0.006 0.02 \\
-        --cache DIR --out FILE.csv [--set '{"smoothing.KEY": VALUE}'] [--npz DIR]
+        --cache DIR --out FILE.csv [--set '{"smoothing.KEY": VALUE}'] [--npz DIR] \\
+        [--odometry-set '{"odometry.KEY": VALUE}']
 """
 
 from __future__ import annotations
@@ -47,13 +48,15 @@ def _ate(poses: np.ndarray, gt: np.ndarray) -> float:
 
 
 def lap_rows(world_index: int, noise: float, settings: list[dict], cache: Path | None,
-             npz: Path | None) -> list[dict]:  # fmt: skip
-    """One row per setting on one lap (the odometry and oracle shared)."""
-    world, full, cfg, odo, rel = nees_gauge.load(world_index, noise, cache)
+             npz: Path | None, odometry: dict | None = None) -> list[dict]:  # fmt: skip
+    """One row per setting on one lap (the odometry, with the config changes ``odometry``,
+    and the oracle shared)."""
+    world, full, cfg, odo, rel = nees_gauge.load(world_index, noise, cache, odometry)
     gt = invert_transform(full.poses[0])[None] @ full.poses
     oracle = run_oracle(full.scans, full.times, world.trajectory, world.scene)
     common = {
-        "world": world_index, "noise_m": noise, "epochs": len(gt),
+        "world": world_index, "noise_m": noise, "odometry": json.dumps(odometry or {}),
+        "epochs": len(gt),
         "unresolved": odo.statuses.count("unresolved"),
         "odometry_ate_m": _ate(odo.poses, gt), "oracle_ate_m": _ate(oracle.poses, gt),
     }  # fmt: skip
@@ -93,6 +96,11 @@ def main() -> None:
     parser.add_argument("--worlds", required=True, help="comma-separated world indices (even)")
     parser.add_argument("--noise", type=float, nargs="+", required=True)
     parser.add_argument("--set", default=None, help="JSON config changes (a second batch)")
+    parser.add_argument(
+        "--odometry-set",
+        default=None,
+        help="JSON config changes of the odometry (every batch on it)",
+    )
     parser.add_argument("--cache", type=Path, default=None)
     parser.add_argument("--npz", type=Path, default=None)
     parser.add_argument("--out", type=Path, required=True)
@@ -101,7 +109,8 @@ def main() -> None:
     rows: list[dict] = []
     for w in (int(x) for x in args.worlds.split(",")):
         for noise in args.noise:
-            rows += lap_rows(w, noise, settings, args.cache, args.npz)
+            odometry = json.loads(args.odometry_set) if args.odometry_set else None
+            rows += lap_rows(w, noise, settings, args.cache, args.npz, odometry)
             for r in rows[-len(settings) :]:
                 print(json.dumps(r), flush=True)
             keys = list(dict.fromkeys(k for r in rows for k in r))

@@ -109,11 +109,14 @@ def plane_deskew_error(planes, T_world_base: np.ndarray, scene) -> tuple[np.ndar
     return e, chi_before, len(rows)
 
 
-def load(world_index: int, noise: float, cache: Path | None):  # noqa: ANN201
+def load(world_index: int, noise: float, cache: Path | None, changes: dict | None = None):  # noqa: ANN201
+    """The lap, its odometry (with config ``changes``, e.g. an odometry option; cached
+    under a name that holds them) and the smoothing relatives."""
     world = world_for(world_index)
     full = simulate_world(world, noise, all_fields=True)
-    cfg = PlanodomConfig().updated({"smoothing.loop_closure": True})
-    path = None if cache is None else cache / f"odo_w{world_index}_{noise}.pkl"
+    cfg = PlanodomConfig().updated({"smoothing.loop_closure": True, **(changes or {})})
+    tag = "".join(f"_{k}={v}" for k, v in sorted((changes or {}).items()))
+    path = None if cache is None else cache / f"odo_w{world_index}_{noise}{tag}.pkl"
     if path is not None and path.exists():
         odo, rel = pickle.loads(path.read_bytes())
     else:

@@ -234,3 +234,31 @@ class MotionModelConfig(Section):
     extracted again with the measured step's velocity (and its degenerate step's rate)
     and its steps estimated again with that velocity as their prior
     (:mod:`planodom.odometry.start_epochs`). No threshold (docs/RESULTS.md, START356)."""
+
+    start_redeskew: Literal["off", "converged"] = "off"
+    """Pairwise pipelines: the start's epochs deskewed again once the measured velocity has
+    converged. The first epochs are deskewed with the twist the first one or two steps
+    measured, each step's noise in it (2D-rig lap 342 at 6 mm: first step 3.27 m/s for a
+    true 3.45, epoch 0's planes 4.3 cm off, and every loop factor closes on epoch 0).
+    ``converged``: the own velocities of the first OK steps are averaged, weighed by their
+    covariances, until the mean moves by less than its own standard error (or a step
+    disagrees with it: the motion changed); then epochs 0 .. K (the last averaged step)
+    are extracted again with that mean velocity (each with its step's own angular rate)
+    and their steps estimated again, a new step kept only when its status is no worse and
+    its rotation agrees with the old one within their covariances
+    (:mod:`planodom.odometry.start_converged`). Off by default (docs/RESULTS.md, START3)."""
+
+    start_redeskew_guard: Literal["step", "all"] = "step"
+    """With ``start_redeskew: converged``, what a step refused by its guard (status
+    worse, or its rotation outside the two estimates' covariances) undoes: ``step``, that
+    step alone (its first estimate kept, marked superseded; its epochs keep the planes
+    extracted again); ``all``: the whole round (every epoch's planes and every step as
+    they were before it), and the rounds end (docs/RESULTS.md, START3: world 382 at 6 mm,
+    a refused step whose epoch kept its new planes)."""
+
+    start_redeskew_rate: Literal["step", "kept"] = "step"
+    """With ``start_redeskew: converged``, the angular rate each epoch of the start is
+    deskewed with again: ``step``, its step's own; ``kept``, the one it was deskewed with
+    (only the speed is the converged quantity: a step's own rate, changed, turns the
+    steps estimated again beyond their covariances, refused by the guard on 2D-rig
+    worlds 382, 390 and 396 at 6 mm; docs/RESULTS.md, START3)."""

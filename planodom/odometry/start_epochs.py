@@ -63,6 +63,7 @@ from planodom.scan import Scan
 
 if TYPE_CHECKING:
     from planodom.odometry.odometry import PlaneOdometry
+    from planodom.odometry.start_converged import ConvergedStart
 
 
 #: The start's epochs held at most (their scans are kept), unless their scans fit in
@@ -91,11 +92,22 @@ class StartEpochs:
     epochs: list[KeptEpoch] = field(default_factory=list)
     open: bool = True
     searched: bool = False  # the search (start_search) gave a step of the start
+    converged: ConvergedStart | None = None  # odometry.start_redeskew
     _twists: list[np.ndarray | None] = field(default_factory=list)  # before the last epoch
 
     def appended(self, odo: PlaneOdometry, epoch: KeptEpoch) -> None:
         """Note ``epoch``, just appended to ``odo``; when its step is the first measured
-        one, deskew the start's epochs with its twist (module docstring)."""
+        one, deskew the start's epochs with its twist (module docstring); then, with
+        ``start_redeskew: converged``, :class:`.start_converged.ConvergedStart`'s turn."""
+        self._appended(odo, epoch)
+        if odo.config.odometry.start_redeskew == "converged":
+            if self.converged is None:
+                from planodom.odometry.start_converged import ConvergedStart
+
+                self.converged = ConvergedStart()
+            self.converged.appended(odo, epoch)
+
+    def _appended(self, odo: PlaneOdometry, epoch: KeptEpoch) -> None:
         if not (self.enabled and self.open):
             return
         result = odo.results[epoch.index]
