@@ -439,20 +439,6 @@ class OdometryConfig(DeskewGuards):
     """``map_twist_lead`` on: replaces ``deskew_speed_tolerance_mps``. 0.5 (the prediction's
     velocity stays; 10 lidar worlds as in ``map_twist_lead``): world 17 at 6 mm 0.0127 deg
     against 0.0038; medians 0.00333 / 0.00660 deg; ATE worse at 2 cm on worlds 1 and 13."""
-    map_lead_vertical_tolerance_mps: Positive | None = None
-    """``map_twist_lead`` on: the vertical velocity's own tolerance (m/s; None, off: it
-    goes with the velocity under ``map_lead_speed_tolerance_mps``). When set, an epoch's
-    own vertical velocity replaces the one it was deskewed with wherever they differ by
-    more than this, whatever the horizontal velocity does (which keeps its tolerance).
-    Why: a spinning lidar's sweep starts and ends behind the sensor, so a vertical
-    velocity error ``d`` leaves a floor or ceiling seen all around at radius ``r`` with a
-    sawtooth height error and tilts its plane about the forward axis by ``d T / (pi r)``
-    (period ``T``): 3 cm/s at 10 Hz and 3 m, 0.018 deg. On the indoor 64-beam lidar world
-    329 (6 mm, 150 epochs) the velocity its epochs were finally deskewed with was 3.4 cm/s
-    off the sweeps' true vertical velocity (rms, the prediction's, kept within the 5 cm/s
-    speed tolerance); the true vertical velocity alone in every extraction took the
-    rotation rms from step 3 on from 0.0100 to 0.0038 deg (LIDAR13, docs/RESULTS.md).
-    Experimental, off: see LIDAR13 for the deciding runs."""
     map_lead_iterations: Annotated[int, Field(ge=0, le=10)] = 3
     """``map_twist_lead`` on: replaces ``deskew_iterations`` (2, at 0.1 deg/s: worlds 3 / 9
     at 6 mm 0.0054 / 0.0061 deg against 0.0040 / 0.0042 with 3)."""

@@ -172,7 +172,7 @@ def test_a_vertical_velocity_error_tilts_a_swept_floor_by_its_closed_form():
     """Why the lead's speed tolerance matters indoors (LIDAR13, docs/RESULTS.md): a spinning
     lidar's sweep of period T starts and ends behind the sensor, so a level floor seen in a
     ring of radius r while the sensor rises at v, deskewed with a vertical velocity off by
-    d, is left with a height error -d t that is a sawtooth in the azimuth (t = theta T /
+    d, is left with a height error d t that is a sawtooth in the azimuth (t = theta T /
     2 pi about the sweep's middle); its least-squares plane is tilted about the forward
     axis (a roll) by d T / (pi r), the continuous ring's closed form (int theta sin theta
     / int sin^2 theta = 2 over one turn). 3 cm/s at 10 Hz and 3 m: 0.018 deg, twice the
@@ -196,16 +196,33 @@ def test_a_vertical_velocity_error_tilts_a_swept_floor_by_its_closed_form():
     np.testing.assert_allclose(level[:, 2], -h, atol=1e-12)
 
 
-@pytest.mark.parametrize(("tolerance", "taken"), [(0.05, False), (0.01, True)])
-def test_the_leads_speed_tolerance_decides_whether_a_velocity_is_taken(tolerance, taken):
-    """An own vertical velocity 3 cm/s off the one used (world 329's rms error of the
-    velocity its epochs were finally deskewed with) is extracted again with only when
-    ``odometry.map_lead_speed_tolerance_mps`` is below it."""
+@pytest.mark.parametrize("vertical", [None, 0.01])
+def test_the_vertical_tolerance_takes_the_vertical_velocity_alone(vertical):
+    """An own velocity 3 cm/s off the one used along x and along z (world 329's rms error
+    of the vertical velocity its epochs were finally deskewed with) is within the lead's
+    speed tolerance (5 cm/s): nothing is taken by default; with ``odometry.
+    map_lead_vertical_tolerance_mps`` 1 cm/s the vertical velocity is, the rest not."""
     from planodom.odometry.twist_refine import refined_twist
 
     used = np.zeros(6)
-    own = np.r_[0.0, 0.0, 0.0, 0.0, 0.0, 0.03]
-    config = OdometryConfig(map_twist_lead="rate", map_lead_speed_tolerance_mps=tolerance)
+    own = np.r_[0.0, 0.0, 0.0, 0.03, 0.0, 0.03]
+    config = OdometryConfig(map_twist_lead="rate", map_lead_vertical_tolerance_mps=vertical)
     lead = map_lead([], 1, [0.0], None, config)
     got = refined_twist(own, used, True, config, lead)
-    np.testing.assert_array_equal(got, own if taken else used)
+    np.testing.assert_array_equal(got, used if vertical is None else np.r_[0.0, 0, 0, 0, 0, 0.03])
+    np.testing.assert_array_equal(refined_twist(own, used, False, config, lead), used)
+    # beyond the speed tolerance the whole velocity is taken as before
+    far = np.r_[0.0, 0.0, 0.0, 0.06, 0.0, 0.03]
+    np.testing.assert_array_equal(refined_twist(far, used, True, config, lead), far)
+
+
+@pytest.mark.parametrize("value", ["0", "-0.01", "off", ".nan"])
+def test_a_bad_vertical_tolerance_names_file_and_field(tmp_path, value: str) -> None:
+    from planodom.config import PlanodomConfig
+    from planodom.errors import ConfigError
+
+    (tmp_path / "c.yaml").write_text(f"odometry: {{map_lead_vertical_tolerance_mps: {value}}}\n")
+    field = r"c\.yaml: field 'odometry\.map_lead_vertical_tolerance_mps'"
+    with pytest.raises(ConfigError, match=field) as err:
+        PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    assert "\n" not in str(err.value)
