@@ -80,6 +80,11 @@ CURVE: dict[str, dict[str, object]] = {
     "leadfull": {"odometry.map_twist_lead": "rate", "odometry.map_lead_shrink": "off"},
     # the led epochs deskewed with the rate's change too (odometry.map_lead_acceleration)
     "acc": {"odometry.map_lead_acceleration": "rate"},
+    # the led epochs' re-extraction tolerances (LIDAR13; the general deskew_* ones are
+    # replaced by these under the lead): rate 0.02 deg/s, speed 1 cm/s, the vertical alone
+    "rtol": {"odometry.map_lead_rate_tolerance_deg_s": 0.02},
+    "stol": {"odometry.map_lead_speed_tolerance_mps": 0.01},
+    "vtol": {"odometry.map_lead_vertical_tolerance_mps": 0.01},
 }
 
 

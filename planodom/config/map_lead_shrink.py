@@ -6,9 +6,14 @@ A base of :class:`planodom.config.odometry.OdometryConfig`, in its own module as
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
+
+from pydantic import Field
 
 from planodom.config.section import Section
+
+#: a positive finite number, or None for off
+PositiveOrOff = Annotated[float, Field(gt=0, allow_inf_nan=False)] | None
 
 
 class MapLeadShrinkConfig(Section):
@@ -44,3 +49,17 @@ class MapLeadShrinkConfig(Section):
     1, 3, 5, 9 (6 mm): ATE geometric-mean ratio 0.77 / 0.70, rotation 1.00 / 0.995. No
     threshold (the 6.5 of "stated" is the led rates' algebra). Off: not yet measured on
     worlds no session has run."""
+    map_lead_vertical_tolerance_mps: PositiveOrOff = None
+    """``map_twist_lead`` on: the vertical velocity's own tolerance (m/s; None, off: it
+    goes with the velocity under ``map_lead_speed_tolerance_mps``). When set, an epoch's
+    own vertical velocity replaces the one it was deskewed with wherever they differ by
+    more than this, whatever the horizontal velocity does (which keeps its tolerance).
+    Why: a spinning lidar's sweep starts and ends behind the sensor, so a vertical
+    velocity error ``d`` leaves a floor or ceiling seen all around at radius ``r`` with a
+    sawtooth height error and tilts its plane about the forward axis by ``d T / (pi r)``
+    (period ``T``): 3 cm/s at 10 Hz and 3 m, 0.018 deg. On the indoor 64-beam lidar world
+    329 (6 mm, 150 epochs) the velocity its epochs were finally deskewed with was 3.4 cm/s
+    off the sweeps' true vertical velocity (rms, the prediction's, kept within the 5 cm/s
+    speed tolerance); the true vertical velocity alone in every extraction took the
+    rotation rms from step 3 on from 0.0100 to 0.0038 deg (LIDAR13, docs/RESULTS.md).
+    Experimental, off: see LIDAR13 for the deciding runs."""

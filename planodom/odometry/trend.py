@@ -139,6 +139,9 @@ class Lead:
         rate_tolerance_deg_s, speed_tolerance_mps, iterations: replace ``odometry.
             deskew_rate_tolerance_deg_s``, ``deskew_speed_tolerance_mps`` and
             ``deskew_iterations`` (``odometry.map_lead_*``).
+        previous_var: the previous own rate's stated variance (3,) (``map_lead_shrink``).
+        vertical_tolerance_mps: the vertical velocity's own tolerance (None: with the
+            velocity's; ``odometry.map_lead_vertical_tolerance_mps``).
     """
 
     previous: np.ndarray | None
@@ -147,6 +150,7 @@ class Lead:
     speed_tolerance_mps: float
     iterations: int
     previous_var: np.ndarray | None = None
+    vertical_tolerance_mps: float | None = None
 
     def led(
         self, own: np.ndarray, measured: bool, dt: float, relative: RelativePose | None = None
@@ -209,7 +213,7 @@ def map_lead(
         previous_var = np.asarray(variances[-1], dtype=np.float64)
     return Lead(previous, previous_dt, config.map_lead_rate_tolerance_deg_s,
                 config.map_lead_speed_tolerance_mps, config.map_lead_iterations,
-                previous_var)  # fmt: skip
+                previous_var, config.map_lead_vertical_tolerance_mps)  # fmt: skip
 
 
 def led_twist(

@@ -86,7 +86,8 @@ def refined_twist(
     """The twist (6,) to extract again with: the epoch's ``own`` angular rate and (when its
     translation was ``measured``) linear velocity, each only where it differs from the
     twist ``used`` by more than its tolerance (``config``'s, or ``lead``'s); else ``used``
-    unchanged."""
+    unchanged. With the lead's vertical tolerance (``odometry.map_lead_vertical_
+    tolerance_mps``) the vertical velocity is also taken alone beyond it."""
     rate_tol, speed_tol = config.deskew_rate_tolerance_deg_s, config.deskew_speed_tolerance_mps
     if lead is not None:
         rate_tol, speed_tol = lead.rate_tolerance_deg_s, lead.speed_tolerance_mps
@@ -95,6 +96,9 @@ def refined_twist(
         new[:3] = own[:3]
     if measured and vector_norm(own[3:] - used[3:]) > speed_tol:
         new[3:] = own[3:]
+    vertical = None if lead is None else lead.vertical_tolerance_mps
+    if measured and vertical is not None and abs(own[5] - used[5]) > vertical:
+        new[5] = own[5]  # a floor seen across the sweep's seam tilts with it (LIDAR13)
     return new
 
 

@@ -166,3 +166,63 @@ def test_a_bad_map_lead_shrink_names_file_and_field(tmp_path, value: str) -> Non
     with pytest.raises(ConfigError, match=r"c\.yaml: field 'odometry\.map_lead_shrink'") as err:
         PlanodomConfig.from_yaml(tmp_path / "c.yaml")
     assert "\n" not in str(err.value)
+
+
+def test_a_vertical_velocity_error_tilts_a_swept_floor_by_its_closed_form():
+    """Why the lead's speed tolerance matters indoors (LIDAR13, docs/RESULTS.md): a spinning
+    lidar's sweep of period T starts and ends behind the sensor, so a level floor seen in a
+    ring of radius r while the sensor rises at v, deskewed with a vertical velocity off by
+    d, is left with a height error d t that is a sawtooth in the azimuth (t = theta T /
+    2 pi about the sweep's middle); its least-squares plane is tilted about the forward
+    axis (a roll) by d T / (pi r), the continuous ring's closed form (int theta sin theta
+    / int sin^2 theta = 2 over one turn). 3 cm/s at 10 Hz and 3 m: 0.018 deg, twice the
+    indoor world 329's per-step roll error."""
+    from planodom.extraction.deskew import deskew_points
+
+    T, r, h, v, d = 0.1, 3.0, 1.8, 0.07, 0.03
+    theta = np.linspace(-np.pi, np.pi, 20001)[:-1] + np.pi / 20000  # one turn, middle at 0
+    t = theta * T / (2 * np.pi)  # seconds from the sweep's middle
+    # the sensor at height v t over a level floor 1.8 m below it at t = 0
+    seen = np.c_[r * np.cos(theta), r * np.sin(theta), -h - v * t]
+    twist = np.array([0.0, 0.0, 0.0, 0.0, 0.0, v + d])
+    p = deskew_points(seen, t, twist)
+    # least-squares plane z = a x + b y + c through the deskewed floor
+    (a, b, c), *_ = np.linalg.lstsq(np.c_[p[:, 0], p[:, 1], np.ones(len(p))], p[:, 2], rcond=None)
+    assert abs(a) < 1e-9 and c == pytest.approx(-h, abs=1e-6)
+    assert np.degrees(np.arctan(b)) == pytest.approx(np.degrees(d * T / (np.pi * r)), rel=1e-3)
+    assert np.degrees(d * T / (np.pi * r)) == pytest.approx(0.018, abs=5e-4)
+    # deskewed with the true velocity the floor is level
+    level = deskew_points(seen, t, np.r_[0.0, 0.0, 0.0, 0.0, 0.0, v])
+    np.testing.assert_allclose(level[:, 2], -h, atol=1e-12)
+
+
+@pytest.mark.parametrize("vertical", [None, 0.01])
+def test_the_vertical_tolerance_takes_the_vertical_velocity_alone(vertical):
+    """An own velocity 3 cm/s off the one used along x and along z (world 329's rms error
+    of the vertical velocity its epochs were finally deskewed with) is within the lead's
+    speed tolerance (5 cm/s): nothing is taken by default; with ``odometry.
+    map_lead_vertical_tolerance_mps`` 1 cm/s the vertical velocity is, the rest not."""
+    from planodom.odometry.twist_refine import refined_twist
+
+    used = np.zeros(6)
+    own = np.r_[0.0, 0.0, 0.0, 0.03, 0.0, 0.03]
+    config = OdometryConfig(map_twist_lead="rate", map_lead_vertical_tolerance_mps=vertical)
+    lead = map_lead([], 1, [0.0], None, config)
+    got = refined_twist(own, used, True, config, lead)
+    np.testing.assert_array_equal(got, used if vertical is None else np.r_[0.0, 0, 0, 0, 0, 0.03])
+    np.testing.assert_array_equal(refined_twist(own, used, False, config, lead), used)
+    # beyond the speed tolerance the whole velocity is taken as before
+    far = np.r_[0.0, 0.0, 0.0, 0.06, 0.0, 0.03]
+    np.testing.assert_array_equal(refined_twist(far, used, True, config, lead), far)
+
+
+@pytest.mark.parametrize("value", ["0", "-0.01", "off", ".nan"])
+def test_a_bad_vertical_tolerance_names_file_and_field(tmp_path, value: str) -> None:
+    from planodom.config import PlanodomConfig
+    from planodom.errors import ConfigError
+
+    (tmp_path / "c.yaml").write_text(f"odometry: {{map_lead_vertical_tolerance_mps: {value}}}\n")
+    field = r"c\.yaml: field 'odometry\.map_lead_vertical_tolerance_mps'"
+    with pytest.raises(ConfigError, match=field) as err:
+        PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    assert "\n" not in str(err.value)
