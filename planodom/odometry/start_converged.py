@@ -43,11 +43,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
-from planodom.geometry import orthonormalised, se3_log
+from planodom.geometry import se3_log
 from planodom.odometry.deskew import time_spread
 from planodom.odometry.kept_epoch import KeptEpoch
 from planodom.odometry.relative import RelativePose, Status
-from planodom.odometry.start_epochs import MAX_EPOCHS, _solved
+from planodom.odometry.start_epochs import MAX_EPOCHS, _solved, commit_step, rechain_poses
 
 if TYPE_CHECKING:
     from planodom.odometry.odometry import PlaneOdometry
@@ -244,11 +244,6 @@ def redeskew_start(
             every = False
             continue
         odo.superseded.discard(k)
-        odo.results[k] = new
-        T_ref_last = np.eye(4)  # T_{prev}_{k-1}: the steps between (a reference gap)
-        for step in odo._steps[new.prev + 1 : k]:
-            T_ref_last = T_ref_last @ step
-        odo._steps[k] = orthonormalised(np.linalg.inv(T_ref_last) @ new.T_prev_curr)
-    for k in range(1, len(odo.poses)):
-        odo.poses[k] = orthonormalised(odo.poses[k - 1] @ odo._steps[k])
+        commit_step(odo, k, new)
+    rechain_poses(odo)
     return every

@@ -235,13 +235,8 @@ def refresh_start(
                 continue
         else:
             odo.superseded.discard(k)
-        odo.results[k] = new
-        T_ref_last = np.eye(4)  # T_{prev}_{k-1}: the steps between (a reference gap)
-        for step in odo._steps[new.prev + 1 : k]:
-            T_ref_last = T_ref_last @ step
-        odo._steps[k] = orthonormalised(np.linalg.inv(T_ref_last) @ new.T_prev_curr)
-    for k in range(1, len(odo.poses)):
-        odo.poses[k] = orthonormalised(odo.poses[k - 1] @ odo._steps[k])
+        commit_step(odo, k, new)
+    rechain_poses(odo)
 
 
 def epoch_twist(odo: PlaneOdometry, k: int, twist: np.ndarray) -> np.ndarray:
@@ -305,3 +300,19 @@ def _solved(
         return replaced(rel, time_spread=old.time_spread, deskew_twist=old.deskew_twist,
                         deskew_times=old.deskew_times, interval_s=old.interval_s)  # fmt: skip
     return with_deskew(rel, scan, used, dt)
+
+
+def commit_step(odo: PlaneOdometry, k: int, new: RelativePose) -> None:
+    """Make ``new`` epoch ``k``'s result and its step T_{k-1}_{k}, taking out the steps
+    between its reference and epoch k - 1 (a reference gap)."""
+    odo.results[k] = new
+    T_ref_last = np.eye(4)  # T_{prev}_{k-1}
+    for step in odo._steps[new.prev + 1 : k]:
+        T_ref_last = T_ref_last @ step
+    odo._steps[k] = orthonormalised(np.linalg.inv(T_ref_last) @ new.T_prev_curr)
+
+
+def rechain_poses(odo: PlaneOdometry) -> None:
+    """The poses chained again from the (changed) steps, epoch 0 kept."""
+    for k in range(1, len(odo.poses)):
+        odo.poses[k] = orthonormalised(odo.poses[k - 1] @ odo._steps[k])

@@ -37,7 +37,7 @@ from planodom.geometry import invert_transform, pose5_from_transform
 from planodom.odometry.relative import RelativePose
 from planodom.odometry.twist_sigma import chi2_quantile
 from planodom.smoothing.graph import GraphBuilder, GraphUpdate
-from planodom.smoothing.loop_drift import RunWalk
+from planodom.smoothing.loop_drift import RunWalk, measured_step_terms
 from planodom.smoothing.motion import FALLBACK_STEPS
 
 
@@ -85,12 +85,7 @@ def run_history(
         step = yaw = None
         r = step_of.get(k)
         if r is not None and r.covariance is not None:
-            cov = np.asarray(r.covariance, dtype=float).reshape(5, 5)
-            var_r = float(cov[2, 2])
-            yaw = pose5_from_transform(np.asarray(r.T_prev_curr, dtype=float))[2:3]
-            if r.translation_observed:
-                var_t = float(cov[3, 3] + cov[4, 4])
-                step = np.asarray(r.T_prev_curr, dtype=float)[:2, 3]
+            var_r, yaw, var_t, step = measured_step_terms(r, var_t, step)
         var_t = walk.variance(step, var_t)
         if c.loop_drift_yaw == "run":
             var_r = yaw_walk.variance(yaw, var_r)

@@ -55,7 +55,7 @@ from planodom.odometry import RelativePose, Status, estimate_relative_pose
 from planodom.odometry.twist_sigma import chi2_quantile as chi2_ppf  # (remembered)
 from planodom.smoothing.deskew_noise import DeskewNoise
 from planodom.smoothing.graph import GraphUpdate, X
-from planodom.smoothing.loop_drift import RunWalk, run_drift
+from planodom.smoothing.loop_drift import RunWalk, measured_step_terms, run_drift
 from planodom.smoothing.loop_records import Correction, LoopFactor, LoopMatch
 from planodom.smoothing.loops import MAX_ROTATION_BOUND_DEG, LoopClosingBuilder
 from planodom.smoothing.match_fit import (
@@ -118,12 +118,7 @@ class CandidateLoopBuilder(LoopClosingBuilder):
                 self._translated |= {r.prev, r.curr}
         for r in relatives:  # the yaw of a rotation-only epoch is measured too
             if r.curr == k and r.delta == 1 and r.measured and r.covariance is not None:
-                cov = np.asarray(r.covariance, dtype=float).reshape(5, 5)
-                var_r = float(cov[2, 2])
-                yaw = pose5_from_transform(np.asarray(r.T_prev_curr, dtype=float))[2:3]
-                if r.translation_observed:
-                    var_t = float(cov[3, 3] + cov[4, 4])
-                    step = np.asarray(r.T_prev_curr, dtype=float)[:2, 3]
+                var_r, yaw, var_t, step = measured_step_terms(r, var_t, step)
         if c.loop_candidate_drift == "run" and k:
             var_t = self._walk.variance(step, var_t)  # the run's drift (:class:`.RunWalk`)
             if c.loop_drift_yaw == "run":

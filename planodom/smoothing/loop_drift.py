@@ -11,6 +11,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from planodom.config import PlanodomConfig
+from planodom.geometry import pose5_from_transform
+from planodom.odometry.relative import RelativePose
 
 
 class RunWalk:
@@ -90,3 +92,18 @@ def run_drift_xy(
         var_t = var_t + np.abs(variances[b, 0] - variances[a, 0])
         var_r = var_r + np.abs(variances[b, 1] - variances[a, 1])
     return 0.5 * var_t + var_r * distance**2 + (c.loop_min_translation_m / c.loop_sigmas) ** 2
+
+
+def measured_step_terms(
+    r: RelativePose, var_t: float, step: np.ndarray | None
+) -> tuple[float, np.ndarray, float, np.ndarray | None]:
+    """The drift terms of a measured step ``r`` with a covariance: its yaw variance (rad^2),
+    its yaw (1,) rad and, where its translation is observed, its xy variance (m^2) and xy
+    step (2,) m (else ``var_t`` and ``step`` as given). Shared by the loop candidates' and
+    the initial guess check's sums of the run's drift."""
+    cov = np.asarray(r.covariance, dtype=float).reshape(5, 5)
+    yaw = pose5_from_transform(np.asarray(r.T_prev_curr, dtype=float))[2:3]
+    if r.translation_observed:
+        var_t = float(cov[3, 3] + cov[4, 4])
+        step = np.asarray(r.T_prev_curr, dtype=float)[:2, 3]
+    return float(cov[2, 2]), yaw, var_t, step
