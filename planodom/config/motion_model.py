@@ -120,6 +120,19 @@ class MotionModelConfig(Section):
     (a turn whose rate climbs 5.72 -> 5.99 deg/s) held step 562's rate (docs/RESULTS.md,
     SIGMA0), and its rule's figures are there."""
 
+    degenerate_ends: Literal["kept", "interpolated"] = "kept"
+    """Any pipeline: a stretch of degenerate steps in the run's poses. ``kept``: as
+    estimated. ``interpolated``: after the run (its deskewing passes), where the stretch
+    has an OK step on both sides, each degenerate step's translation along its unmeasured
+    direction (its x, y covariance's larger axis) is made again from the velocity
+    interpolated linearly in time between the median velocities of up to
+    ``velocity_window`` OK steps at each end, and the poses are chained through them
+    (:mod:`planodom.odometry.degenerate_ends`; rotations and measured directions kept).
+    Off by default: found on the built-in urban canyon at 6 mm with one deskewing pass
+    and the moments (its degenerate steps' weak along-track translation 13.7 mm rms,
+    ATE xy 0.089 -> 0.031 m); without the passes the OK steps at the ends are too noisy
+    (5.8 mm rms there, ATE 0.072 -> 0.077 m). Docs/RESULTS.md, P1MP14."""
+
     rate_prediction: Literal["constant", "autoregressive", "selected"] = "constant"
     """Streaming, pairwise pipelines (the 2D rig's): the angular rate predicted for the next
     epoch (its deskewing, prior and bridge). ``constant``: the last step's;

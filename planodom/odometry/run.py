@@ -159,6 +159,12 @@ def run_odometry(
         from planodom.odometry.sweep_refine import sweep_refined_run  # imports this module
 
         run = sweep_refined_run(source, run, cfg, rig, progress, extractor)
+    if cfg.odometry.degenerate_ends == "interpolated":
+        from planodom.odometry.degenerate_ends import interpolated_degenerate
+
+        window = cfg.odometry.velocity_window
+        poses, results = interpolated_degenerate(run.poses, run.times, run.results, window)
+        run = replace(run, poses=poses, results=results)
     if cfg.odometry.bridge_ends == "interpolated":
         from planodom.odometry.bridge_ends import interpolated_bridges
 
