@@ -65,7 +65,7 @@ def _end(steps: np.ndarray, times: np.ndarray, ks: list[int]) -> tuple[np.ndarra
 
 def _ok_run(results: Sequence[RelativePose | None], k: int, step: int, window: int) -> list[int]:
     """Up to ``window`` consecutive OK steps from ``k`` on, in direction ``step`` (+-1)."""
-    out = []
+    out: list[int] = []
     while len(out) < window and _chained(results, k, Status.OK):
         out.append(k)
         k += step
