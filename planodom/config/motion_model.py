@@ -133,6 +133,15 @@ class MotionModelConfig(Section):
     ATE xy 0.089 -> 0.031 m); without the passes the OK steps at the ends are too noisy
     (5.8 mm rms there, ATE 0.072 -> 0.077 m). Docs/RESULTS.md, P1MP14."""
 
+    pairwise_deskew: Literal["streaming", "passes_moments"] = "streaming"
+    """Runs over a sequence (``run_odometry``): ``passes_moments``, where a pairwise
+    pipeline runs (the 2D rig), ``deskew_passes: 1``, ``refinement: moments``,
+    ``moment_gate_chi2: 20.5``, ``moment_passes: deskew_passes`` and ``degenerate_ends:
+    interpolated``, each unless the config sets it (:mod:`planodom.odometry.
+    pairwise_deskew`); the plane map (the lidars) keeps its fields. ``streaming``: the
+    fields as set. Off by default: the candidate of docs/RESULTS.md P1MP14, decided by
+    the lead's rule there; making it the 2D rig's default is this one value."""
+
     rate_prediction: Literal["constant", "autoregressive", "selected"] = "constant"
     """Streaming, pairwise pipelines (the 2D rig's): the angular rate predicted for the next
     epoch (its deskewing, prior and bridge). ``constant``: the last step's;

@@ -18,6 +18,7 @@ from planodom.odometry.deskewed_epochs import Curve, Deskewed, DeskewedEpochs
 from planodom.odometry.extractor import Extractor, default_extractor
 from planodom.odometry.interpolate import curve_steps, epoch_middles, midpoint_nodes
 from planodom.odometry.odometry import PlaneOdometry
+from planodom.odometry.pairwise_deskew import with_pairwise_deskew
 from planodom.odometry.platform import with_platform
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.splice import spliced, unconverged
@@ -146,6 +147,7 @@ def run_odometry(
     if times is None:
         times = getattr(source, "times", None)
     source = sweep_timed(source, cfg.extraction.sweep, rig)  # times from the azimuth
+    cfg = with_pairwise_deskew(cfg, source[0] if len(source) else None)
     first = streaming_config(cfg) if any_time_spread(source) else cfg
     pair = _middle_timed_pass(source, first, rig, times, progress, extractor)
     run = pair[0] if pair else _streaming_pass(source, first, rig, times, progress, extractor)
