@@ -16,6 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from planodom.config import PlanodomConfig
+from planodom.odometry.relative import RelativePose
+
 
 def predicted_motion(twist: np.ndarray, model: str) -> np.ndarray:
     """(6,) the twist (rad/s, m/s; angular rate first, then linear velocity, body frame)
@@ -29,3 +32,12 @@ def predicted_motion(twist: np.ndarray, model: str) -> np.ndarray:
     out = np.array(twist, dtype=np.float64, copy=True)
     out[4] = 0.0
     return out
+
+
+def vertical_prediction(config: PlanodomConfig, relative: RelativePose) -> tuple[str, str, bool]:
+    """The last three arguments of :func:`planodom.odometry.trend.predicted_twist` for a
+    step ``relative``: ``planemap.prediction``, ``odometry.motion_model``, and whether its
+    vertical velocity counts as zero (``odometry.unobserved_vertical: zero``, z not
+    observed)."""
+    zero = config.odometry.unobserved_vertical == "zero" and not relative.z_observed
+    return config.planemap.prediction, config.odometry.motion_model, zero

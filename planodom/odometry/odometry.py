@@ -50,6 +50,7 @@ from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.lead_acceleration import LeadAcceleration, lead_acceleration
 from planodom.odometry.led_variance import led_variance
 from planodom.odometry.moment_refine import moment_refined
+from planodom.odometry.motion_model import vertical_prediction
 from planodom.odometry.rate_prediction import RatePredictor
 from planodom.odometry.refresh_held import held_refresh
 from planodom.odometry.relative import RelativePose, Status, replaced
@@ -110,9 +111,8 @@ class PlaneOdometry:
         self.planes: list[list[Plane]] = []
         self.superseded: set[int] = set()
         self.twist: np.ndarray | None = None
-        # The last delta epochs, and the last one with a non-parallel pair of planes.
-        self._history: deque[_Epoch] = deque(maxlen=self.config.odometry.delta)
-        self._last_usable: _Epoch | None = None
+        self._history: deque[_Epoch] = deque(maxlen=self.config.odometry.delta)  # last delta
+        self._last_usable: _Epoch | None = None  # the last with a non-parallel plane pair
         self._velocities: deque[np.ndarray] = deque(maxlen=self.config.odometry.velocity_window)
         self._steps: list[np.ndarray] = []  # T_{k-1}_k per epoch (identity first)
         self._gap_configs: dict[int, PlanodomConfig] = {1: self.config}
@@ -420,7 +420,7 @@ class PlaneOdometry:
                 self._rate_vars.append(rate_variance(best.relative, dt))
             significant = significant_twist(blended, best.relative, dt, self.config.odometry)
             args = (significant, measured, self._recent, self._velocities, self._map is not None)
-            prediction = (self.config.planemap.prediction, self.config.odometry.motion_model)
+            prediction = vertical_prediction(self.config, best.relative)
             self.twist = registered_prediction(best, dt, predicted_twist(*args, *prediction))
             self.twist = self._rate.after(epoch.index, own, best.relative, self.twist, self._map)
         if best.map_estimate is not None and self._map is not None:

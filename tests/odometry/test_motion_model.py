@@ -61,3 +61,46 @@ def test_nonholonomic_degenerate_only_after_a_step_that_was_not_ok():
     got = predicted_twist(degenerate, False, deque(), vel, False, "mean",
                           "nonholonomic_degenerate")  # fmt: skip
     np.testing.assert_array_equal(got, [0.0, 0.0, 0.2, 3.0, 0.0, 0.1])
+
+
+def test_unobserved_vertical_zero_keeps_a_held_vertical_velocity_out():
+    """``odometry.unobserved_vertical: zero``: steps that kept the prior's z add a vertical
+    velocity of zero to the window, so a wrong held one (-21 m/s, lap 366's) is gone from
+    the median once the window holds more such steps than measured ones; rate and
+    horizontal velocity are the steps' own."""
+    held = np.array([0.0, 0.0, 0.05, 1.2, 0.01, -21.0])
+    vel: deque[np.ndarray] = deque(maxlen=5)
+    got = [predicted_twist(held, True, deque(), vel, False, "mean", "constant_velocity", True)
+           for _ in range(3)]  # fmt: skip
+    np.testing.assert_array_equal(got[-1], [0.0, 0.0, 0.05, 1.2, 0.01, 0.0])
+    vel_held: deque[np.ndarray] = deque(maxlen=5)
+    for _ in range(3):  # "held" (the default) carries it on
+        out = predicted_twist(held, True, deque(), vel_held, False)
+    assert out[5] == -21.0
+    # a step that observed z keeps its own; median of (0, 0, 0, 0.3, 0.3) is 0
+    seen = np.array([0.0, 0.0, 0.05, 1.2, 0.01, 0.3])
+    for _ in range(2):
+        out = predicted_twist(seen, True, deque(), vel, False, "mean", "constant_velocity")
+    assert out[5] == 0.0
+    out = predicted_twist(seen, True, deque(), vel, False, "mean", "constant_velocity")
+    assert out[5] == 0.3  # median of (0, 0, 0.3, 0.3, 0.3)
+
+
+def test_vertical_prediction_follows_the_option_and_the_step():
+    from planodom.odometry.motion_model import vertical_prediction
+    from planodom.odometry.relative import RelativePose
+
+    fields = RelativePose.__dataclass_fields__
+    assert "z_observed" in fields
+    base = PlanodomConfig()
+    zero = base.updated({"odometry.unobserved_vertical": "zero"}, source="test")
+
+    class Step:
+        def __init__(self, z_observed: bool) -> None:
+            self.z_observed = z_observed
+
+    assert vertical_prediction(base, Step(False))[2] is False  # type: ignore[arg-type]
+    assert vertical_prediction(zero, Step(False))[2] is True  # type: ignore[arg-type]
+    assert vertical_prediction(zero, Step(True))[2] is False  # type: ignore[arg-type]
+    with pytest.raises(ConfigError):
+        base.updated({"odometry.unobserved_vertical": "kept"}, source="test")
