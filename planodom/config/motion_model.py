@@ -48,17 +48,20 @@ class MotionModelConfig(Section):
     100-118); 5 mm leaves room for the step's rotation error. A real vehicle slips more:
     about its slip angle times its speed times the epoch interval."""
 
-    unobserved_vertical: Literal["held", "zero"] = "held"
+    unobserved_vertical: Literal["held", "zero", "measured"] = "held"
     """Pairwise pipelines: the vertical velocity a step whose vertical translation was not
     observed (no ground-like plane associated, ``estimate_z``) passes to the predicted
     twist. ``held``: its own, which is the prediction's it started from (the solver keeps
     the prior's z), so a vertical velocity that no step measured is carried on;
     ``zero``: none, the body frame's vertical velocity of a base that moves along its own
-    axis. Built for the seen 2D-rig lap 366 at 6 mm (docs/RESULTS.md, VERTICAL14): a wrong
-    step (108 deg) and its bridge left a vertical velocity of -21 m/s in the prediction;
-    deskewed with it the floor was no plane, so no later step observed z, and the held
-    value was carried over the last 716 epochs (-1.39 m a step, "ok" throughout; the
-    5-DoF errors do not show it, the lap's ATE does: 389 m)."""
+    axis; ``measured``: the median of the recent measured steps' (those that observed z,
+    or counted as their median), zero where there are none (after an unresolved epoch),
+    so a bridge's vertical velocity is never held. Built for the seen 2D-rig lap 366 at
+    6 mm (docs/RESULTS.md, VERTICAL14): a wrong step (108 deg) and its bridge left a
+    vertical velocity of -21 m/s in the prediction; deskewed with it the floor was no
+    plane, so no later step observed z, and the held value was carried over the last 716
+    epochs (-1.39 m a step, "ok" throughout; the 5-DoF errors do not show it, the lap's
+    ATE does: 389 m)."""
 
     bridge_rate: Literal["last", "trend", "median", "robust"] = "last"
     """Streaming, pairwise pipelines: the angular rate an unresolved epoch is bridged with

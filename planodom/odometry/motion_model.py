@@ -34,10 +34,10 @@ def predicted_motion(twist: np.ndarray, model: str) -> np.ndarray:
     return out
 
 
-def vertical_prediction(config: PlanodomConfig, relative: RelativePose) -> tuple[str, str, bool]:
+def vertical_prediction(config: PlanodomConfig, relative: RelativePose) -> tuple[str, str, str]:
     """The last three arguments of :func:`planodom.odometry.trend.predicted_twist` for a
-    step ``relative``: ``planemap.prediction``, ``odometry.motion_model``, and whether its
-    vertical velocity counts as zero (``odometry.unobserved_vertical: zero``, z not
-    observed)."""
-    zero = config.odometry.unobserved_vertical == "zero" and not relative.z_observed
-    return config.planemap.prediction, config.odometry.motion_model, zero
+    step ``relative``: ``planemap.prediction``, ``odometry.motion_model``, and what its
+    vertical velocity counts as (``odometry.unobserved_vertical`` where z was not
+    observed, else "held": its own)."""
+    vertical = "held" if relative.z_observed else config.odometry.unobserved_vertical
+    return config.planemap.prediction, config.odometry.motion_model, vertical

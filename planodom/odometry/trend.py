@@ -25,7 +25,7 @@ def predicted_twist(
     against_map: bool,
     prediction: str = "mean",
     model: str = "constant_velocity",
-    z_unobserved_zero: bool = False,
+    z_unobserved: str = "held",
 ) -> np.ndarray:
     """(6,) the constant-velocity twist (rad/s, m/s) for the next epoch after a step of own
     twist ``twist`` (6,) whose translation was ``measured`` or not: the angular rate of the
@@ -38,9 +38,10 @@ def predicted_twist(
     along their trend ("trend", :func:`trend_twist`; the mean before 4 of them). ``model``
     (``odometry.motion_model``, pairwise pipelines only): what
     :func:`planodom.odometry.motion_model.predicted_motion` keeps of the pairwise one.
-    ``z_unobserved_zero`` (pairwise, ``odometry.unobserved_vertical: zero`` for a step that
-    did not observe z): the step's vertical velocity counts as zero, not as the prior's it
-    kept."""
+    ``z_unobserved`` (pairwise; ``odometry.unobserved_vertical`` for a step that did not
+    observe z, else "held"): what its vertical velocity counts as: "held", its own (the
+    prior's it kept); "zero"; "measured", the median of the window's (which then hold only
+    measured ones or copies of them), zero with none, so a bridge's never enters."""
     rate = twist[:3]
     if against_map:
         # The map pipeline registers a scan against a map, not against a scan deskewed
@@ -56,8 +57,10 @@ def predicted_twist(
         if prediction == "trend" and len(recent) >= 4:
             return trend_twist(np.array(recent))
         return np.mean(np.array(recent), axis=0)
-    if z_unobserved_zero:  # the solver kept the prior's z: nothing measured it
-        twist = np.r_[twist[:5], 0.0]
+    if z_unobserved != "held":  # the solver kept the prior's z: nothing measured it
+        kept = [v[2] for v in velocities] if z_unobserved == "measured" else []
+        vz = float(np.median(kept)) if kept else 0.0
+        twist = np.r_[twist[:5], vz]
     if measured:
         velocities.append(twist[3:])
     if model == "nonholonomic_degenerate":  # only after a step that did not measure both

@@ -70,7 +70,7 @@ def test_unobserved_vertical_zero_keeps_a_held_vertical_velocity_out():
     horizontal velocity are the steps' own."""
     held = np.array([0.0, 0.0, 0.05, 1.2, 0.01, -21.0])
     vel: deque[np.ndarray] = deque(maxlen=5)
-    got = [predicted_twist(held, True, deque(), vel, False, "mean", "constant_velocity", True)
+    got = [predicted_twist(held, True, deque(), vel, False, "mean", "constant_velocity", "zero")
            for _ in range(3)]  # fmt: skip
     np.testing.assert_array_equal(got[-1], [0.0, 0.0, 0.05, 1.2, 0.01, 0.0])
     vel_held: deque[np.ndarray] = deque(maxlen=5)
@@ -86,21 +86,37 @@ def test_unobserved_vertical_zero_keeps_a_held_vertical_velocity_out():
     assert out[5] == 0.3  # median of (0, 0, 0.3, 0.3, 0.3)
 
 
+def test_unobserved_vertical_measured_counts_the_window_median():
+    """``measured``: an unobserved step counts as the median of the measured ones in the
+    window (so the window's median is theirs), zero when the window is empty (after an
+    unresolved epoch cleared it): a bridged -21 m/s never enters."""
+    bridged = np.array([0.0, 0.0, 0.05, 1.2, 0.01, -21.0])
+    vel: deque[np.ndarray] = deque(maxlen=5)
+    out = predicted_twist(bridged, True, deque(), vel, False, "mean", "constant_velocity",
+                          "measured")  # fmt: skip
+    assert out[5] == 0.0 and out[3] == 1.2
+    for vz in (0.2, 0.4):  # two steps that observed z
+        predicted_twist(np.r_[bridged[:5], vz], True, deque(), vel, False)
+    out = predicted_twist(bridged, True, deque(), vel, False, "mean", "constant_velocity",
+                          "measured")  # fmt: skip
+    # window (0, 0.2, 0.4) -> the unobserved step counts as its median 0.2; then
+    # (0, 0.2, 0.4, 0.2) -> 0.2
+    assert out[5] == 0.2
+    assert [v[2] for v in vel] == [0.0, 0.2, 0.4, 0.2]
+
+
 def test_vertical_prediction_follows_the_option_and_the_step():
     from planodom.odometry.motion_model import vertical_prediction
-    from planodom.odometry.relative import RelativePose
 
-    fields = RelativePose.__dataclass_fields__
-    assert "z_observed" in fields
     base = PlanodomConfig()
     zero = base.updated({"odometry.unobserved_vertical": "zero"}, source="test")
 
-    class Step:
+    class Step:  # what vertical_prediction reads of a RelativePose
         def __init__(self, z_observed: bool) -> None:
             self.z_observed = z_observed
 
-    assert vertical_prediction(base, Step(False))[2] is False  # type: ignore[arg-type]
-    assert vertical_prediction(zero, Step(False))[2] is True  # type: ignore[arg-type]
-    assert vertical_prediction(zero, Step(True))[2] is False  # type: ignore[arg-type]
+    assert vertical_prediction(base, Step(False))[2] == "held"  # type: ignore[arg-type]
+    assert vertical_prediction(zero, Step(False))[2] == "zero"  # type: ignore[arg-type]
+    assert vertical_prediction(zero, Step(True))[2] == "held"  # type: ignore[arg-type]
     with pytest.raises(ConfigError):
         base.updated({"odometry.unobserved_vertical": "kept"}, source="test")
