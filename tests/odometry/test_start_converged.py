@@ -236,3 +236,23 @@ def test_information_test_waits_for_four_times_the_first_steps_information():
     assert abs(start.velocity[0] - SPEED) < 0.5 * abs(last_off[0] - SPEED)
     truth = observe(WORLD, np.eye(4))[3].offset
     assert abs(on.planes[0][3].offset - truth) < 0.5 * abs(off.planes[0][3].offset - truth)
+
+
+def test_significant_test_acts_only_on_a_correction_beyond_the_means_noise(monkeypatch):  # noqa: ANN001
+    """``significant``: with epoch 1's wall 3 cm off (the first step 0.3 m/s fast) the
+    mean's correction is many standard errors and the start is deskewed again (its
+    wall across brought to the truth); with every wall where the truth puts it, the
+    first step is the truth's, the correction within the mean's noise, and the start
+    stays as the option-off run has it."""
+    off, _ = run("off")
+    on, _ = run("converged", guard="all", start_redeskew_test="significant")
+    assert on.start.converged is not None and on.start.converged.converged_at is not None
+    truth = observe(WORLD, np.eye(4))[3].offset
+    assert abs(on.planes[0][3].offset - truth) < 0.5 * abs(off.planes[0][3].offset - truth)
+    monkeypatch.setattr(f"{__name__}.WALL_NOISE", {})
+    off, _ = run("off")
+    on, _ = run("converged", guard="all", start_redeskew_test="significant")
+    assert on.start.converged is not None and on.start.converged.converged_at is None
+    for k in range(6):
+        np.testing.assert_allclose([p.offset for p in on.planes[k]],
+                                   [p.offset for p in off.planes[k]], atol=1e-12)  # fmt: skip
