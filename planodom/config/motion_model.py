@@ -293,6 +293,26 @@ class MotionModelConfig(Section):
     they were before it), and the rounds end (docs/RESULTS.md, START3: world 382 at 6 mm,
     a refused step whose epoch kept its new planes)."""
 
+    start_redeskew_test: Literal["move", "information", "significant"] = "move"
+    """With ``start_redeskew: converged``, when the mean of the start's velocities counts
+    as converged: ``move``, once a step moves it by less than its standard error (a coin
+    toss with two steps: 2D-rig world 382 at 6 mm stopped on two steps whose lateral
+    noise agreed); ``information``, that and the mean's information at least four times
+    the first averaged step's in every direction (the start's deskewing error, the first
+    step's velocity error over the sweep, at least halved in standard deviation)
+    (:func:`planodom.odometry.start_converged.informed`); ``significant``, ``information``
+    and the mean's correction of the velocity epoch 0 was deskewed with beyond the
+    mean's covariance (chi-square 95 %, 2 DoF: a correction within its noise changes
+    the start's planes by the new extraction more than by the deskewing; built after
+    START4's decision) (docs/RESULTS.md, START4)."""
+
+    start_redeskew_translation_guard: bool = False
+    """With ``start_redeskew: converged``, a step estimated again is refused also when its
+    own x, y velocity disagrees with the first estimate's beyond the sum of their
+    covariances (chi-square 99 %, 2 DoF), beside the rotation guard (2D-rig world 398 at
+    6 mm: a re-estimated step 2.43 m/s for a first 1.97 and a true 2.0; docs/RESULTS.md,
+    START3 and START4)."""
+
     start_redeskew_rate: Literal["step", "kept"] = "step"
     """With ``start_redeskew: converged``, the angular rate each epoch of the start is
     deskewed with again: ``step``, its step's own; ``kept``, the one it was deskewed with

@@ -10,7 +10,14 @@ from planodom.config import PlanodomConfig
 from planodom.geometry import Plane, PlaneSupport, transform_from_rpy_xyz
 from planodom.odometry import PlaneOdometry, Status
 from planodom.odometry.relative import RelativePose
-from planodom.odometry.start_converged import CHI2_95_3, ConvergedStart, rotation_agrees
+from planodom.odometry.start_converged import (
+    CHI2_95_3,
+    CHI2_99_2,
+    ConvergedStart,
+    informed,
+    rotation_agrees,
+    velocity_agrees,
+)
 from planodom.scan import Scan
 
 DT, SPEED, SPAN = 0.1, 4.0, 0.2  # s, m/s along x (the truth), s of each epoch's points
@@ -35,7 +42,7 @@ WORLD = [
 ]
 
 
-def run(option: str, tilt_again: float = 0.0, n: int = 12, guard: str = "step"):  # noqa: ANN201
+def run(option: str, tilt_again: float = 0.0, n: int = 12, guard: str = "step", **more):  # noqa: ANN003, ANN201
     """``n`` epochs at SPEED along x; each scan's points spread over SPAN s, their planes
     seen from the pose at the points' mean time less the motion the given twist deskews
     (its x velocity times that time, as :mod:`.test_start_epochs`), epoch k's wall across
@@ -66,7 +73,7 @@ def run(option: str, tilt_again: float = 0.0, n: int = 12, guard: str = "step"):
 
     cfg = PlanodomConfig().updated(
         {"odometry.pipeline": "wocsc", "odometry.start_redeskew": option,
-         "odometry.start_redeskew_guard": guard}
+         "odometry.start_redeskew_guard": guard, **{f"odometry.{k}": v for k, v in more.items()}}
     )  # fmt: skip
     odo = PlaneOdometry(cfg, extractor=extractor)
     for k in range(n):
@@ -175,3 +182,77 @@ def test_the_epochs_rate_is_the_steps_own_or_the_one_it_was_deskewed_with():
     # the first epoch takes its step out of it
     got = epoch_twist(odo, 0, velocity, None)  # type: ignore[arg-type]
     np.testing.assert_allclose(got, np.r_[true[:3], velocity, true[5]], atol=1e-9)
+
+
+def test_information_test_is_four_times_the_first_steps_in_every_direction():
+    """Closed form: the mean's information against 4x the first step's (the deskewing
+    error's standard deviation halved), in every direction, not on the trace."""
+    first = np.diag([1 / 0.03**2, 1 / 0.04**2])
+    assert informed(4.0 * first, first)
+    assert not informed(3.9 * first, first)
+    # two steps of equal noise: twice the first's, a converged "move" is not enough
+    assert not informed(2.0 * first, first)
+    # 382's case: a precise along-track mean, lateral information only 1.1x the first's
+    assert not informed(np.diag([10 / 0.03**2, 1.1 / 0.04**2]), first)
+    # a later step far more precise than the first outweighs it alone
+    assert informed(first + np.diag([1 / 0.01**2, 1 / 0.015**2]), first)
+
+
+def test_velocity_agreement_is_the_chi_square_bound_on_both_covariances():
+    """Closed form: a re-estimated step's x, y velocity against the first estimate's,
+    the difference d (m/s) against the summed variance 2 s^2 / dt^2."""
+    s, dt = 0.004, DT  # m per step
+    C = np.diag([1e-6] * 3 + [s**2, s**2])
+    bound = np.sqrt(CHI2_99_2 * 2) * s / dt  # m/s
+
+    def step(v: float) -> RelativePose:
+        return RelativePose(transform_from_rpy_xyz(0, 0, 0, v * dt, 0, 0), C)
+
+    assert velocity_agrees(step(4.0), step(4.0 + 0.99 * bound), dt)
+    assert not velocity_agrees(step(4.0), step(4.0 + 1.01 * bound), dt)
+    assert not velocity_agrees(step(1.97), step(2.43), dt)  # START3's world 398
+    assert velocity_agrees(RelativePose(np.eye(4), None), step(2.43), dt)  # not judged
+
+
+def test_information_test_waits_for_four_times_the_first_steps_information():
+    """Epoch 1's wall 3 cm off, the steps after it agree: ``move`` stops once a step
+    moves the mean by less than its standard error, on four steps whose information is
+    just under four times the first's (the steps' covariances differ slightly);
+    ``information`` waits one step more, until it is four times the first's in every
+    direction, and still brings the velocity and epoch 0's wall across to the truth."""
+    off, last_off = run("off")
+    move, _ = run("converged", guard="all")
+    on, _ = run("converged", guard="all", start_redeskew_test="information",
+                start_redeskew_translation_guard=True)  # fmt: skip
+    stopped, start = move.start.converged, on.start.converged
+    assert stopped is not None and stopped.converged_at is not None
+    assert stopped.information is not None and stopped.first is not None
+    assert not informed(stopped.information, stopped.first)
+    assert start is not None and start.converged_at is not None
+    assert start.information is not None and start.first is not None
+    assert informed(start.information, start.first)
+    assert start.converged_at > stopped.converged_at
+    assert start.velocity is not None
+    assert abs(start.velocity[0] - SPEED) < 0.5 * abs(last_off[0] - SPEED)
+    truth = observe(WORLD, np.eye(4))[3].offset
+    assert abs(on.planes[0][3].offset - truth) < 0.5 * abs(off.planes[0][3].offset - truth)
+
+
+def test_significant_test_acts_only_on_a_correction_beyond_the_means_noise(monkeypatch):  # noqa: ANN001
+    """``significant``: with epoch 1's wall 3 cm off (the first step 0.3 m/s fast) the
+    mean's correction is many standard errors and the start is deskewed again (its
+    wall across brought to the truth); with every wall where the truth puts it, the
+    first step is the truth's, the correction within the mean's noise, and the start
+    stays as the option-off run has it."""
+    off, _ = run("off")
+    on, _ = run("converged", guard="all", start_redeskew_test="significant")
+    assert on.start.converged is not None and on.start.converged.converged_at is not None
+    truth = observe(WORLD, np.eye(4))[3].offset
+    assert abs(on.planes[0][3].offset - truth) < 0.5 * abs(off.planes[0][3].offset - truth)
+    monkeypatch.setattr(f"{__name__}.WALL_NOISE", {})
+    off, _ = run("off")
+    on, _ = run("converged", guard="all", start_redeskew_test="significant")
+    assert on.start.converged is not None and on.start.converged.converged_at is None
+    for k in range(6):
+        np.testing.assert_allclose([p.offset for p in on.planes[k]],
+                                   [p.offset for p in off.planes[k]], atol=1e-12)  # fmt: skip
