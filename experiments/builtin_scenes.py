@@ -145,7 +145,9 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="+", default=list(SCENES))
     parser.add_argument("--noise", nargs="+", default=["0", "0.006", "0.02"],
                         help="metres or a preset (lms221)")  # fmt: skip
-    parser.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
+    parser.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
+    )
     parser.add_argument("--detail", type=int, default=0, help="per-epoch rows of the first N")
     parser.add_argument("--pair", action="store_true",
                         help="start_refresh on and off, split at the same epoch")  # fmt: skip

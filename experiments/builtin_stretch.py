@@ -98,7 +98,9 @@ def main() -> None:
     parser.add_argument("--scene", default="random-outdoor", choices=list(RANDOM_SCENES))
     parser.add_argument("--noise", type=float, default=0.02, help="range noise, m")
     parser.add_argument("--noise-seed", type=int, default=0)
-    parser.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
+    parser.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
+    )
     parser.add_argument("--exact", action="store_true", help="extract exactly deskewed points")
     parser.add_argument("--cuts", type=int, nargs="*", default=[], help="segment bounds")
     parser.add_argument("--steps", type=int, nargs=2, default=None, help="first last")

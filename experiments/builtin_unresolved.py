@@ -280,7 +280,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=list(SCENES))
     parser.add_argument("--noise", nargs="+", default=["0.02"])
-    parser.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
+    parser.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
+    )
     parser.add_argument("--why", action="store_true", help="the rule that drops each plane")
     parser.add_argument("--part", action="store_true", help="GAPS5's reference rule, parted")
     args = parser.parse_args()

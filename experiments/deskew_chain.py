@@ -188,7 +188,9 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=150)
     parser.add_argument("--steps", type=int, nargs=2, default=[52, 60], help="first last")
     parser.add_argument("--at", type=int, nargs="*", default=[56, 59, 75, 149])
-    parser.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
+    parser.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
+    )
     args = parser.parse_args()
     world = world_for(args.world)
     sim = simulate_world(world, args.noise, n_epochs=args.epochs, all_fields=True)

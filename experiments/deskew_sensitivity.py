@@ -32,7 +32,9 @@ def main() -> None:
     ap.add_argument("--noise", default="0")
     ap.add_argument("--epochs-at", type=int, nargs="+", required=True)
     ap.add_argument("--delta", type=float, default=0.3, help="deg/s added to a yaw rate")
-    ap.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
+    ap.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
+    )
     args = ap.parse_args()
     sim, gt = simulated(args.scene, args.noise)
     cfg = with_motion_bounds(config_with(args.set), sim.rig.motion_bounds)

@@ -35,7 +35,9 @@ def main() -> None:
     ap.add_argument("--scene", default="random-outdoor")
     ap.add_argument("--noise", default="0")
     ap.add_argument("--epochs-at", type=int, nargs="+", required=True)
-    ap.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
+    ap.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
+    )
     args = ap.parse_args()
     sim, gt = simulated(args.scene, args.noise)
     n = max(args.epochs_at) + 1

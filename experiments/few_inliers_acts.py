@@ -39,7 +39,7 @@ def main() -> None:
     p.add_argument("--worlds", type=int, nargs="+", required=True)
     p.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
     p.add_argument("--epochs", type=int, default=150)
-    p.add_argument("--set", nargs="*", default=[])
+    p.add_argument("--set", nargs="*", action="extend", default=[])
     p.add_argument("--out", required=True)
     args = p.parse_args()
     pairs = (s.split("=", 1) for s in args.set)  # "off" / "on" stay words

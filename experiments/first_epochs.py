@@ -82,7 +82,9 @@ def main() -> None:
     parser.add_argument("--worlds", type=int, nargs="+", required=True)
     parser.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
     parser.add_argument("--epochs", type=int, default=150)
-    parser.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
+    parser.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
+    )
     parser.add_argument("-o", "--out", type=Path, default=None)
     args = parser.parse_args()
     changes = {}

@@ -59,7 +59,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--world", type=int, required=True)
     parser.add_argument("--noise", type=float, required=True)
-    parser.add_argument("--set", nargs="*", default=[], help="the option's overrides key=value")
+    parser.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="the option's overrides key=value"
+    )
     parser.add_argument("--probe-planes", action="store_true", help="the planes-only probe")
     args = parser.parse_args()
     world = world_for(args.world)

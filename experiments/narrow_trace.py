@@ -163,7 +163,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="paper-loop")
     parser.add_argument("--noise", default="0.02")
-    parser.add_argument("--set", nargs="*", default=[], help="base overrides key=value")
+    parser.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="base overrides key=value"
+    )
     parser.add_argument("--variant", nargs="*", default=["extraction.narrow_seed_last_deg=0.5"])
     parser.add_argument("--steps", action="store_true", help="rows of the steps involved")
     parser.add_argument("--seed", type=int, default=0, help="the simulation's noise seed")

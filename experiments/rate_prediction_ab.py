@@ -57,7 +57,9 @@ def main() -> None:
     ap.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
     ap.add_argument("--epochs", type=int, default=150)
     ap.add_argument("--repeats", type=int, default=1)
-    ap.add_argument("--set", nargs="*", default=[], help="more KEY=VALUE (yaml) for 'on'")
+    ap.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="more KEY=VALUE (yaml) for 'on'"
+    )
     args = ap.parse_args()
     _counting()
     on = {"odometry.rate_prediction": "autoregressive"}

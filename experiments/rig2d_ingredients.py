@@ -345,7 +345,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
     ap.add_argument("--epochs", type=int, default=150)
     ap.add_argument("-o", "--out", default=None, help="CSV of the rows")
-    ap.add_argument("--set", nargs="*", default=[], help="config overrides KEY=VALUE (YAML)")
+    ap.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides KEY=VALUE (YAML)"
+    )
     ap.add_argument("--quick", action="store_true", help="planodom and the oracle only")
     ap.add_argument(
         "--runs", default="planodom,true-deskew",

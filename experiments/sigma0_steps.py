@@ -116,7 +116,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="random-outdoor")
     ap.add_argument("--noise", default="0")
-    ap.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
+    ap.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
+    )
     ap.add_argument("--variants", default=",".join(VARIANTS))
     ap.add_argument("--top", type=int, default=20)
     ap.add_argument("--window", type=int, default=20)

@@ -47,7 +47,7 @@ def main() -> None:
     parser.add_argument("--delta", type=int, default=3)
     parser.add_argument("--variants", nargs="+", default=["graph"], choices=list(VARIANTS))
     parser.add_argument("--motion", default="snapshot", choices=["snapshot", "continuous"])
-    parser.add_argument("--set", nargs="*", default=[], dest="overrides")
+    parser.add_argument("--set", nargs="*", action="extend", default=[], dest="overrides")
     args = parser.parse_args()
     config = config_with([f"smoothing.delta_max={args.delta}", *args.overrides])
     t0 = time.perf_counter()

@@ -149,7 +149,9 @@ def main() -> None:
     ap.add_argument("--steps", type=int, nargs=2, default=None)
     ap.add_argument("--unresolved", action="store_true", help="the run's unresolved steps")
     ap.add_argument("--deskew", choices=("exact", "centre"), default="exact")
-    ap.add_argument("--set", nargs="*", default=[], help="config overrides key=value")
+    ap.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
+    )
     ap.add_argument("--detail", type=int, nargs="*", default=[], help="epochs to show")
     args = ap.parse_args()
     config = config_with(args.set)

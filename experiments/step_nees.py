@@ -153,7 +153,9 @@ def main() -> None:
     parser.add_argument("--worlds", type=int, default=20)
     parser.add_argument("--noise", type=float, nargs="+", default=[0.006, 0.02])
     parser.add_argument("--epochs", type=int, default=150)
-    parser.add_argument("--set", nargs="*", default=[], help="the option's overrides key=value")
+    parser.add_argument(
+        "--set", nargs="*", action="extend", default=[], help="the option's overrides key=value"
+    )
     parser.add_argument("--out", help="CSV of every step (both configs)")
     parser.add_argument("--coherent", action="store_true", help="the shared-error probe")
     args = parser.parse_args()
