@@ -10,9 +10,9 @@ those numpy formulas, so that the solve's poses stay the same bit for bit
 (tests/odometry/test_moment_kernel.py checks both against the numpy forms): elementwise
 arithmetic as written; numpy's matrix products as OpenBLAS forms them (each product added
 to the running sum by a fused multiply-add, in order:
-:func:`planodom.odometry.planemap.register_kernels._dot3`); ``einsum``'s sums over one
+:func:`planodom.fma.dot3`); ``einsum``'s sums over one
 index as it adds them (from zero, in index order), its ``ki,ki->k`` as it adds that on
-x86-64 (the first and the last term, then the middle), its three-operand sum with the
+x86-64 (the first and the last term, then the middle, added to its zeroed output), its three-operand sum with the
 products formed left to right and the outer summed index outermost.
 """
 
@@ -21,7 +21,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planodom.odometry.planemap.register_kernels import _dot3
+from planodom.fma import dot3 as _dot3
 
 
 @numba.njit(cache=True)
@@ -74,9 +74,9 @@ def moment_terms(T, npr, ncr, cp, cc, count_p, count_c, off_p, off_c, Lp, Lc):  
                         jc = jc + Lp[k, j, i] * R[j, mm] * sn[mm, col]
                 J[3 * k + i, col] = ja
                 J[oc + 3 * k + i, col] = -jc
-        pb = (npr[k, 0] * y[k, 0] + npr[k, 2] * y[k, 2]) + npr[k, 1] * y[k, 1]
+        pb = 0.0 + ((npr[k, 0] * y[k, 0] + npr[k, 2] * y[k, 2]) + npr[k, 1] * y[k, 1])
         r[ob + k] = sc * (pb + off_p[k])
-        pe = (ncr[k, 0] * q[k, 0] + ncr[k, 2] * q[k, 2]) + ncr[k, 1] * q[k, 1]
+        pe = 0.0 + ((ncr[k, 0] * q[k, 0] + ncr[k, 2] * q[k, 2]) + ncr[k, 1] * q[k, 1])
         r[oe + k] = sp * (pe + off_c[k])
         a0, a1, a2, b0, b1, b2 = cc[k, 0], cc[k, 1], cc[k, 2], u[k, 0], u[k, 1], u[k, 2]
         J[ob + k, 0] = sc * (a1 * b2 - a2 * b1)
