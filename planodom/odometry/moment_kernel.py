@@ -5,15 +5,16 @@
 moment_jacobian` are some twenty numpy calls on arrays of a few rows (an epoch's
 associated planes), called at every Gauss-Newton iterate, five a solve: their calls, not
 their arithmetic, were most of ``odometry.refinement: moments``'s cost (docs/RESULTS.md
-DESKEW13, MOMENTS14). Here every value is formed with the operations, in the order, of
-those numpy formulas, so that the solve's poses stay the same bit for bit
-(tests/odometry/test_moment_kernel.py checks both against the numpy forms): elementwise
-arithmetic as written; numpy's matrix products as OpenBLAS forms them (each product added
-to the running sum by a fused multiply-add, in order:
-:func:`planodom.fma.dot3`); ``einsum``'s sums over one
-index as it adds them (from zero, in index order), its ``ki,ki->k`` as it adds that on
-x86-64 (the first and the last term, then the middle, added to its zeroed output), its three-operand sum with the
-products formed left to right and the outer summed index outermost.
+DESKEW13, MOMENTS14).
+
+Here every value is formed with the operations, in the order, of those numpy formulas, so
+that the solve's poses stay the same bit for bit (tests/odometry/test_moment_kernel.py
+checks both against the numpy forms): elementwise arithmetic as written; numpy's matrix
+products as OpenBLAS forms them (each product added to the running sum by a fused
+multiply-add, in order: :func:`planodom.fma.dot3`); ``einsum``'s sums over one index as it
+adds them (from zero, in index order), its ``ki,ki->k`` as it adds that on x86-64 (the
+first and the last term, then the middle, added to its zeroed output), its three-operand
+sum with the products formed left to right and the outer summed index outermost.
 """
 
 from __future__ import annotations
