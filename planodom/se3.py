@@ -29,6 +29,8 @@ def se3_exp(xi: np.ndarray) -> np.ndarray:
     xi = np.asarray(xi, dtype=np.float64)
     flat = xi.reshape(-1, 6)
     contiguous = np.ascontiguousarray(flat)
+    if not contiguous.flags.writeable:  # one compiled layout (a read-only one compiles again)
+        contiguous = contiguous.copy()
     out, code = _se3_exp_kernel(contiguous, _NO_CUBE)  # compiled, the same bits
     if code == _NEEDS_CUBE:  # an angle on the closed form: its th**3 is numpy's power
         out, code = _se3_exp_kernel(contiguous, np.linalg.norm(flat[:, :3], axis=1) ** 3)

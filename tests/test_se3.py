@@ -83,3 +83,22 @@ def test_compiled_path_gives_the_former_bytes_signed_zeros_included() -> None:
         xi[rng.random((n, 6)) < 0.2] = -0.0
         x = xi[0] if n == 1 else xi
         assert se3_exp(x).tobytes() == _former_se3_exp(x).tobytes()
+
+
+def test_a_read_only_twist_reaches_the_kernel_writeable(monkeypatch) -> None:
+    """numba compiles a read-only array as another type: a read-only twist (a cached
+    prediction's) must not compile the kernel a second time in the middle of a run."""
+    import planodom.se3 as se3
+
+    seen: list[np.ndarray] = []
+    kernel = se3._se3_exp_kernel
+
+    def spy(flat, cube):  # type: ignore[no-untyped-def]
+        seen.append(flat)
+        return kernel(flat, cube)
+
+    monkeypatch.setattr(se3, "_se3_exp_kernel", spy)
+    x = np.array([0.1, 0.2, 0.3, 1.0, 2.0, 3.0])
+    x.flags.writeable = False
+    se3_exp(x)
+    assert seen and all(f.flags.writeable and f.flags.c_contiguous for f in seen)

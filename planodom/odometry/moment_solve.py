@@ -93,13 +93,11 @@ def moment_solve(
     (:func:`planodom.oracle.relative_pose`, judged on the planes' own normals) with the
     analytic Jacobian."""
     T0 = np.array(T_init, dtype=np.float64)  # writeable, C-ordered: one compiled layout
-    c = np.ascontiguousarray
+    c = lambda a: np.array(a, dtype=np.float64, order="C")  # noqa: E731 - writeable copies
     planes = (
-        c(prev.normal, dtype=np.float64), c(curr.normal, dtype=np.float64),
-        c(prev.centroid, dtype=np.float64), c(curr.centroid, dtype=np.float64),
-        c(prev.count, dtype=np.float64), c(curr.count, dtype=np.float64),
-        c(prev.offset, dtype=np.float64), c(curr.offset, dtype=np.float64),
-        c(_roots(prev.scatter)), c(_roots(curr.scatter)),
+        c(prev.normal), c(curr.normal), c(prev.centroid), c(curr.centroid), c(prev.count),
+        c(curr.count), c(prev.offset), c(curr.offset), c(_roots(prev.scatter)),
+        c(_roots(curr.scatter)),
     )  # fmt: skip
 
     last: list = [None, None]  # the pose last evaluated (the same array) and its values
