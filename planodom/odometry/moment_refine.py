@@ -118,7 +118,8 @@ def mahalanobis2(T0: np.ndarray, T: np.ndarray, covariance: np.ndarray) -> float
     """The squared Mahalanobis distance of ``T`` (4, 4) from ``T0`` (4, 4) in (roll, pitch,
     yaw, x, y) of ``T_prev_curr``, the parameters of ``covariance`` (5, 5; rad^2, m^2); inf
     when it is singular."""
-    d = pose5_from_transform(T) - pose5_from_transform(T0)
+    p = pose5_from_transform(np.stack([T, T0]))  # one scipy call: the same rows' angles
+    d = p[0] - p[1]
     d[:3] = np.angle(np.exp(1j * d[:3]))
     try:
         return float(d @ np.linalg.solve(covariance, d))

@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from planodom.geometry import se3_exp
-from planodom.oracle import SurfaceMoments, _residuals, _roots, _strong_subspace
+from planodom.odometry.moment_kernel import moment_terms
+from planodom.oracle import SurfaceMoments, _roots, _strong_subspace
 
 #: Gauss-Newton stops when no parameter of a step exceeds this (rad, m): far below any
 #: error that matters, above the analytic solve's rounding.
@@ -91,8 +92,13 @@ def moment_solve(
     ``i`` of ``curr``), from ``T_init`` (4, 4): the oracle's solve
     (:func:`planodom.oracle.relative_pose`, judged on the planes' own normals) with the
     analytic Jacobian."""
-    T0 = np.asarray(T_init, dtype=np.float64)
-    roots = (_roots(prev.scatter), _roots(curr.scatter))
+    T0 = np.array(T_init, dtype=np.float64)  # writeable, C-ordered: one compiled layout
+    c = lambda a: np.array(a, dtype=np.float64, order="C")  # noqa: E731 - writeable copies
+    planes = (
+        c(prev.normal), c(curr.normal), c(prev.centroid), c(curr.centroid), c(prev.count),
+        c(curr.count), c(prev.offset), c(curr.offset), c(_roots(prev.scatter)),
+        c(_roots(curr.scatter)),
+    )  # fmt: skip
 
     last: list = [None, None]  # the pose last evaluated (the same array) and its values
 
@@ -100,7 +106,7 @@ def moment_solve(
         # The start is judged and then solved from, the solution judged and then its
         # information taken: each pose twice in a row, evaluated once (the same values).
         if last[0] is not T:
-            last[:] = T, (_residuals(T, prev, curr, roots), moment_jacobian(T, prev, curr, roots))
+            last[:] = T, moment_terms(T, *planes)  # the numpy forms' values, compiled
         return last[1]
 
     def solve(basis: np.ndarray) -> np.ndarray:

@@ -7,21 +7,18 @@ replaces, so that the registration's poses stay the same bit for bit (checked on
 lidar worlds' runs against the numpy path, call by call): elementwise arithmetic as
 written, numpy's three-term ``einsum`` sums as it adds them on x86-64 (the first and the
 last term, then the middle), numpy's matrix products as OpenBLAS forms them (each product
-added to the running sum by a fused multiply-add, in order: :func:`_fma`). Functions of
+added to the running sum by a fused multiply-add, in order: :func:`planodom.fma.fma`). Functions of
 numpy's own (``arccos``, its AVX-512 routine) and LAPACK's (eigen-decompositions) stay
 outside, in numpy.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import cast
-
 import numba
 import numpy as np
-from llvmlite import ir
-from numba.core import types
-from numba.extending import intrinsic
+
+from planodom.fma import dot3 as _dot3
+from planodom.fma import fma as _fma
 
 
 @numba.njit(cache=True)
@@ -96,28 +93,6 @@ def normal_equations_kernel(r, J, v, chi2, k2, c2):  # pragma: no cover - compil
                 for b in range(6):
                     H[a, b] += wa * J[i, k, b]
     return w, H, g
-
-
-def _fma_intrinsic(typingctx, a, b, c):  # pragma: no cover - compiled
-    """``a b + c`` rounded once (LLVM's ``fma``): the products of numpy's matrix products
-    (OpenBLAS's kernels add each product to the running sum so, in order)."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):
-        d = ir.DoubleType()
-        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
-        return builder.call(fn, args)
-
-    return sig, codegen
-
-
-_fma = cast("Callable[[float, float, float], float]", intrinsic(_fma_intrinsic))
-
-
-@numba.njit(cache=True)
-def _dot3(a0, a1, a2, b0, b1, b2):  # pragma: no cover - compiled
-    """``a . b`` of 3-vectors as a matrix product of numpy's sums it."""
-    return _fma(a2, b2, _fma(a1, b1, a0 * b0))
 
 
 @numba.njit(cache=True)
