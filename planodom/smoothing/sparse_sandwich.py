@@ -20,7 +20,7 @@ import scipy.sparse.linalg as spla
 
 from planodom.smoothing.error_maps import ErrorMaps, map_terms
 from planodom.smoothing.marginals import POSE_DIM, UNDETERMINED_RTOL, split_factors
-from planodom.smoothing.supernodal import Panels, m_matrix
+from planodom.smoothing.supernodal import Panels, cholesky_pattern, m_matrix
 
 
 class NotDefinite(Exception):
@@ -252,11 +252,11 @@ def _selected_inverse(K: sp.spmatrix, R: sp.spmatrix, wanted: sp.spmatrix) -> _S
         diag_pivot_thresh=0.0, options={"SymmetricMode": True, "Equil": False},
     )  # fmt: skip
     perm = lu.perm_c  # variable i is row perm[i] of the factor
-    L = lu.L.tocsc()
-    L.sort_indices()
-    del lu, pattern
-    panels = Panels.of(_supernodes(L.indices, L.indptr, N), N)
-    del L
+    del lu  # its ordering only: its L drops fill entries that underflow to zero
+    indices, indptr = cholesky_pattern(pattern, perm)
+    del pattern
+    panels = Panels.of(_supernodes(indices, indptr, N), N)
+    del indices, indptr
     A, dA = _scattered(K, perm, panels), _scattered(M, perm, panels)
     del M, Rx
     top = float(np.max(K.diagonal(), initial=1.0))
