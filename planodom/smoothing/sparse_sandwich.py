@@ -81,7 +81,8 @@ def sparse_pose_covariances(
 
     Raises:
         NotDefinite: a pivot of the Jacobi-scaled ``K`` is not above
-            ``UNDETERMINED_RTOL`` of its largest diagonal entry (an undetermined pose axis).
+            ``UNDETERMINED_RTOL`` of its largest diagonal entry (an undetermined pose axis),
+            or a pose's variance comes out not positive (a system near singular).
     """
     E = len(pose_keys)
     n = POSE_DIM * E
@@ -118,6 +119,12 @@ def sparse_pose_covariances(
     pos = np.arange(n).reshape(E, POSE_DIM)
     values, derivative = Z.entries(pos[:, :, None], pos[:, None, :])
     fitted, extra = values.astype(float), -derivative.astype(float)
+    # Not rank-revealing: a system near singular (lap 366 at 6 mm: condition 7e15, its
+    # smallest pivot 2e-12 passes) comes out with negative variances; the dense path's
+    # pivoted Cholesky takes over there (LAP14).
+    diagonal = np.diagonal(fitted, axis1=1, axis2=2), np.diagonal(fitted + extra, axis1=1, axis2=2)
+    if not all(np.all(d > 0.0) for d in diagonal):
+        raise NotDefinite
     scale = ds[:n].reshape(E, POSE_DIM)
     outer = scale[:, :, None] * scale[:, None, :]
     return (fitted + extra) / outer, fitted / outer

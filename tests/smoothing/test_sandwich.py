@@ -540,3 +540,23 @@ def test_selected_inversion_of_a_long_loop() -> None:
     sd = np.sqrt(want + want_extra)
     assert np.max(np.abs(values.astype(float) - want) / sd**2) < 1e-9
     assert np.max(np.abs(-derivative.astype(float) - want_extra) / sd**2) < 1e-9
+
+
+def test_negative_variance_takes_the_dense_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The selected inversion is not rank-revealing: on a system near singular its pivots
+    pass and its variances come out negative (LAP14: lap 366 at 6 mm, condition 7e15). A
+    variance not positive hands over to the dense path: the result is the dense path's."""
+    linear, keys, dims, maps, Q = _mixed_system()
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", False)
+    dense = sandwich_pose_covariances(linear, keys, dims, maps, Q)
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", True)
+    original = sparse_sandwich._selected_inverse
+
+    def negated(*args: object) -> object:
+        Z = original(*args)  # type: ignore[arg-type]
+        Z.values = -Z.values
+        return Z
+
+    monkeypatch.setattr(sparse_sandwich, "_selected_inverse", negated)
+    out = sandwich_pose_covariances(linear, keys, dims, maps, Q)
+    np.testing.assert_array_equal(out.covariances, dense.covariances)
