@@ -20,7 +20,7 @@ import scipy.sparse.linalg as spla
 
 from planodom.smoothing.error_maps import ErrorMaps, map_terms
 from planodom.smoothing.marginals import POSE_DIM, UNDETERMINED_RTOL, split_factors
-from planodom.smoothing.supernodal import Panels, m_matrix
+from planodom.smoothing.supernodal import Panels, cholesky_pattern, m_matrix
 
 
 class NotDefinite(Exception):
@@ -81,7 +81,8 @@ def sparse_pose_covariances(
 
     Raises:
         NotDefinite: a pivot of the Jacobi-scaled ``K`` is not above
-            ``UNDETERMINED_RTOL`` of its largest diagonal entry (an undetermined pose axis).
+            ``UNDETERMINED_RTOL`` of its largest diagonal entry (an undetermined pose axis),
+            or a pose's variance comes out not positive (a system near singular).
     """
     E = len(pose_keys)
     n = POSE_DIM * E
@@ -118,6 +119,12 @@ def sparse_pose_covariances(
     pos = np.arange(n).reshape(E, POSE_DIM)
     values, derivative = Z.entries(pos[:, :, None], pos[:, None, :])
     fitted, extra = values.astype(float), -derivative.astype(float)
+    # Not rank-revealing: a system near singular (lap 366 at 6 mm: condition 7e15, its
+    # smallest pivot 2e-12 passes) comes out with negative variances; the dense path's
+    # pivoted Cholesky takes over there (LAP14).
+    diagonal = np.diagonal(fitted, axis1=1, axis2=2), np.diagonal(fitted + extra, axis1=1, axis2=2)
+    if not all(np.all(d > 0.0) for d in diagonal):
+        raise NotDefinite
     scale = ds[:n].reshape(E, POSE_DIM)
     outer = scale[:, :, None] * scale[:, None, :]
     return (fitted + extra) / outer, fitted / outer
@@ -252,11 +259,11 @@ def _selected_inverse(K: sp.spmatrix, R: sp.spmatrix, wanted: sp.spmatrix) -> _S
         diag_pivot_thresh=0.0, options={"SymmetricMode": True, "Equil": False},
     )  # fmt: skip
     perm = lu.perm_c  # variable i is row perm[i] of the factor
-    L = lu.L.tocsc()
-    L.sort_indices()
-    del lu, pattern
-    panels = Panels.of(_supernodes(L.indices, L.indptr, N), N)
-    del L
+    del lu  # its ordering only: its L drops fill entries that underflow to zero
+    indices, indptr = cholesky_pattern(pattern, perm)
+    del pattern
+    panels = Panels.of(_supernodes(indices, indptr, N), N)
+    del indices, indptr
     A, dA = _scattered(K, perm, panels), _scattered(M, perm, panels)
     del M, Rx
     top = float(np.max(K.diagonal(), initial=1.0))

@@ -91,10 +91,50 @@ def m_matrix(pattern: sp.csc_matrix) -> sp.csc_matrix:
     Cholesky pattern: -1 off the diagonal, each row's count plus one on it (a strictly
     diagonally dominant M-matrix: every Schur update adds terms of one sign, so no fill
     entry cancels to zero). ``|K| + |M| + I`` (SANDFIX's) is not one: on the 2 000-epoch
-    lap 45 of its factor's 1.25 M entries cancelled, and the supernodes missed them."""
+    lap 45 of its factor's 1.25 M entries cancelled, and the supernodes missed them.
+    Its factor's pattern is still not taken: fill entries underflow to zero on long
+    chains (LAP14: 72 on lap 366 at 6 mm); only the ordering is, the pattern comes from
+    :func:`cholesky_pattern`."""
     S = pattern.tocsc(copy=True)
     S.data[:] = -1.0
     S.setdiag(0.0)
     count = -np.asarray(S.sum(axis=1)).ravel()
     S.setdiag(count + 1.0)
     return S
+
+
+def cholesky_pattern(pattern: sp.spmatrix, perm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The symbolic Cholesky factor's pattern of the symmetric ``pattern`` (N, N; its
+    stored entries, explicit zeros too) in the elimination order ``perm`` (variable i at
+    position ``perm[i]``): CSC ``(indices, indptr)``, each column's rows sorted, the
+    diagonal first. From the structure alone (each column: its own lower entries and its
+    elimination-tree children's columns less their diagonals), so no entry can go
+    missing: a numeric factor's pattern drops the fill entries whose values reach exactly
+    zero, and even :func:`m_matrix`'s, which cannot cancel, underflows on long chains
+    (LAP14: lap 366 at 6 mm)."""
+    N = pattern.shape[0]
+    coo = sp.coo_matrix(pattern)
+    r, c = perm[coo.row], perm[coo.col]
+    lo, hi = np.maximum(r, c), np.minimum(r, c)
+    lower = sp.csc_matrix(
+        (
+            np.ones(len(lo) + N),
+            (np.concatenate([lo, np.arange(N)]), np.concatenate([hi, np.arange(N)])),
+        ),
+        shape=(N, N),
+    )  # duplicates summed: one entry per (row, column)
+    lower.sort_indices()
+    ind, ptr = lower.indices, lower.indptr
+    children: list[list[int]] = [[] for _ in range(N)]
+    columns: list[np.ndarray] = []
+    for j in range(N):
+        own = ind[ptr[j] : ptr[j + 1]]
+        if children[j]:
+            col = np.unique(np.concatenate([own] + [columns[k][1:] for k in children[j]]))
+        else:
+            col = own
+        columns.append(col)
+        if len(col) > 1:
+            children[int(col[1])].append(j)
+    indptr = np.concatenate([[0], np.cumsum([len(col) for col in columns])]).astype(np.int64)
+    return np.concatenate(columns).astype(np.int32), indptr

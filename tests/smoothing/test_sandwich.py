@@ -517,3 +517,46 @@ def test_selected_inversion_stores_the_factors_pattern_only() -> None:
     outside = np.setdiff1d(np.arange(N), np.concatenate([np.arange(c0, c1), below]))
     with pytest.raises(ValueError, match="outside"):
         panels.index(np.array([outside[-1]]), np.array([c0]))
+
+
+@pytest.mark.skipif(sparse_sandwich.EXTENDED is None, reason="no extended precision")
+def test_selected_inversion_of_a_long_loop() -> None:
+    """A loop of 3 000 variables, where the M-matrix's numeric factor underflows fill
+    entries to zero (LAP14: lap 366 at 6 mm stopped on "an entry outside the factor's
+    pattern"): the inverse's diagonal and the extra term ``V V^T`` (closed form) against
+    a dense inverse to 1e-9 of the standard deviations."""
+    n = 3000
+    A = sp.diags([np.ones(n - 1), np.ones(n - 1)], [-1, 1], shape=(n, n), format="lil")
+    A[0, n - 1] = A[n - 1, 0] = 1.0
+    K = sp.csc_matrix(2.5 * sp.identity(n) - A)
+    V = np.zeros((n, 2))
+    V[[0, 1500], [0, 1]] = 1.0
+    R = sp.csc_matrix(K @ V)
+    Z = sparse_sandwich._selected_inverse(K, R, sp.identity(n, format="csc"))
+    i = np.arange(n)
+    values, derivative = Z.entries(i, i)
+    want = np.diag(np.linalg.inv(K.toarray()))
+    want_extra = (V**2).sum(axis=1)
+    sd = np.sqrt(want + want_extra)
+    assert np.max(np.abs(values.astype(float) - want) / sd**2) < 1e-9
+    assert np.max(np.abs(-derivative.astype(float) - want_extra) / sd**2) < 1e-9
+
+
+def test_negative_variance_takes_the_dense_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The selected inversion is not rank-revealing: on a system near singular its pivots
+    pass and its variances come out negative (LAP14: lap 366 at 6 mm, condition 7e15). A
+    variance not positive hands over to the dense path: the result is the dense path's."""
+    linear, keys, dims, maps, Q = _mixed_system()
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", False)
+    dense = sandwich_pose_covariances(linear, keys, dims, maps, Q)
+    monkeypatch.setattr(sparse_sandwich, "SELECTED_INVERSION", True)
+    original = sparse_sandwich._selected_inverse
+
+    def negated(*args: object) -> object:
+        Z = original(*args)  # type: ignore[arg-type]
+        Z.values = -Z.values
+        return Z
+
+    monkeypatch.setattr(sparse_sandwich, "_selected_inverse", negated)
+    out = sandwich_pose_covariances(linear, keys, dims, maps, Q)
+    np.testing.assert_array_equal(out.covariances, dense.covariances)
