@@ -217,20 +217,20 @@ class OdometryConfig(DeskewGuards):
     loop, urban canyon) and 4e-4 deg (issue 11's world), and at 6 mm by about a third on
     that world, but at 2 cm they interpolate the poses' noise: rms rotation error 0.36
     against 0.28 deg there (a fit weighing the poses' covariances would be needed)."""
-    deskew_pass_guard: Literal["streaming", "off"] = "streaming"
-    """The passes' result per epoch (``deskew_passes`` > 0): "streaming", kept only where
-    the last pass converged: the epoch was deskewed along the curve, its status is not
-    worse than in the streaming pass, and its step agrees with the curve's within
-    ``deskew_rate_tolerance_deg_s`` and ``deskew_speed_tolerance_mps`` (as rates over the
-    step); elsewhere the streaming pass's estimate (:mod:`planodom.odometry.splice`: where
-    the poses are off, the curve through them deskews the scans wrongly); "off": the
-    passes' result everywhere. Measured on issue 11's worlds 0-9, 100 epochs, 2 passes
-    (interpolate), median over the 5 2D-rig worlds of the per-epoch rotation rms (deg),
-    streaming / "off" / "streaming": 0 mm 0.122 / 0.276 / 0.117, 6 mm 0.208 / 0.225 /
-    0.174, 2 cm 0.143 / 0.221 / 0.097 (no world above 1.08x the streaming pass, against
-    4.1x); on the 5 lidar worlds the gains stay (0.0162 / 0.0026 / 0.0026 at 0 mm, 0.0199 /
-    0.0146 / 0.0146 at 2 cm), the worst world (64 beams, its first and last epochs)
-    1.3-1.7x the streaming pass against 3.7-5.5x."""
+    deskew_pass_guard: Literal["streaming", "consistent", "off"] = "streaming"
+    """The passes' result per epoch (``deskew_passes`` > 0): "streaming", kept only where the last
+    pass converged: the epoch was deskewed along the curve, its status is not worse than in the
+    streaming pass, and its step agrees with the curve's within ``deskew_rate_tolerance_deg_s`` and
+    ``deskew_speed_tolerance_mps`` (as rates over the step); elsewhere the streaming pass's estimate
+    (:mod:`planodom.odometry.splice`: where the poses are off, the curve through them deskews the
+    scans wrongly); "off": the passes' result everywhere; "consistent": "streaming" without a switch
+    of run at an epoch the runs place differently (``splice.consistent``). Measured on issue 11's
+    worlds 0-9, 100 epochs, 2 passes (interpolate), median over the 5 2D-rig worlds of the per-epoch
+    rotation rms (deg), streaming / "off" / "streaming": 0 mm 0.122 / 0.276 / 0.117, 6 mm 0.208 /
+    0.225 / 0.174, 2 cm 0.143 / 0.221 / 0.097 (no world above 1.08x the streaming pass, against
+    4.1x); on the 5 lidar worlds the gains stay (0.0162 / 0.0026 / 0.0026 at 0 mm, 0.0199 / 0.0146 /
+    0.0146 at 2 cm), the worst world (64 beams, its first and last epochs) 1.3-1.7x the streaming
+    pass against 3.7-5.5x."""
     deskew_order: Literal[1, 3, 5] = 3
     """Degree of the polynomial (in the tangent space of a node's pose) through the
     ``deskew_order + 1`` nearest nodes that the passes deskew along. 3: converges in a

@@ -39,7 +39,7 @@ from planodom.odometry.run import (
     fit_nodes,
     step_variances,
 )
-from planodom.odometry.splice import spliced, unconverged
+from planodom.odometry.splice import kept_epochs, spliced
 from planodom.rig import Rig
 
 
@@ -85,10 +85,10 @@ def middle_redeskewed_run(
         for key, value in (run.seconds | {"deskew": deskewed.seconds}).items():
             seconds[key] = seconds.get(key, 0.0) + value
     out = at_epoch_times(run, epoch_times, order, config.planemap.first_pose)
-    if odo.deskew_pass_guard == "streaming":
+    if odo.deskew_pass_guard != "off":
         c = curve
         steps = curve_steps(c.times, c.poses, epoch_times, c.order, c.variances, c.n_fit,
                             c.increments)  # fmt: skip
-        out = spliced(streaming, out, unconverged(streaming, out, steps, trusted, config))
+        out = spliced(streaming, out, kept_epochs(streaming, out, steps, trusted, config))
     out.seconds = seconds
     return out

@@ -21,7 +21,7 @@ from planodom.odometry.odometry import PlaneOdometry
 from planodom.odometry.pairwise_deskew import with_pairwise_deskew
 from planodom.odometry.platform import with_platform
 from planodom.odometry.relative import RelativePose, Status
-from planodom.odometry.splice import spliced, unconverged
+from planodom.odometry.splice import kept_epochs, spliced
 from planodom.rig import MotionBounds, Rig
 from planodom.scan import Scan
 
@@ -253,10 +253,10 @@ def redeskewed_run(
         variances = 0.5 * (steps + np.r_[steps[1:], steps[-1:]])
         for key, value in (run.seconds | {"deskew": deskewed.seconds}).items():
             seconds[key] = seconds.get(key, 0.0) + value
-    if previous is not None and config.odometry.deskew_pass_guard == "streaming":
+    if previous is not None and config.odometry.deskew_pass_guard != "off":
         steps = curve_steps(curve.times, curve.poses, times, curve.order,
                             curve.variances, curve.n_fit, curve.increments)  # fmt: skip
-        run = spliced(previous, run, unconverged(previous, run, steps, trusted, config))
+        run = spliced(previous, run, kept_epochs(previous, run, steps, trusted, config))
     if previous is not None:
         for key, value in previous.seconds.items():
             seconds[key] = seconds.get(key, 0.0) + value

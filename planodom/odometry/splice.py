@@ -73,6 +73,56 @@ def unconverged(
     return out
 
 
+def consistent(
+    streaming: OdometryRun, passes: OdometryRun, keep: np.ndarray, config: PlanodomConfig
+) -> np.ndarray:
+    """(N,) bool: ``keep`` (the epochs whose step ``T_{k-1}_k`` comes from ``streaming``)
+    with no switch between the runs at an epoch the two runs place differently.
+
+    Why: an epoch's own error (its planes off) enters its step and leaves, with the
+    opposite sign, in the next one, so each run's two steps around the epoch cancel it.
+    Where the splice takes one of those steps from each run, it keeps the difference of
+    the two runs' errors at that epoch for the rest of the trajectory (issue 11's world
+    436 at 2 cm: the streaming pass's epoch 81 was -0.30 deg off, its steps 81 and 82
+    -0.30 and +0.29 deg; the guard kept step 81 and took the pass's 82, and the -0.30 deg
+    stayed). The difference of the two runs' steps, ``D_k``, shows such an epoch as a pair
+    ``D_k``, ``D_{k+1}`` of opposite signs; the part that cancels, per component the
+    smaller magnitude of the two, is the two runs' difference in placing epoch ``k``.
+    Where it exceeds ``odometry.deskew_rate_tolerance_deg_s`` /
+    ``deskew_speed_tolerance_mps`` (as rates over the two steps' mean time, the guard's
+    own tolerances) at a switch, both steps come from the pass: what differs there is one
+    epoch's placement, which cancels within the pass's two steps, not the pass's motion
+    over them (the guard judged single steps). Repeated until no switch is at such an
+    epoch. Measured offline on the passes' runs of seen worlds (372, 386, 414, 340, 346,
+    384, 356 at 6 mm and 2 cm, 436 at 2 cm): see docs/RESULTS.md, SPLICE14."""
+    keep = np.asarray(keep, dtype=bool).copy()
+    n = len(keep)
+    if n < 3 or not keep.any() or len(streaming.poses) != n:
+        return keep
+    a_steps = invert_transform(streaming.poses[:-1]) @ streaming.poses[1:]
+    b_steps = invert_transform(passes.poses[:-1]) @ passes.poses[1:]
+    d = se3_log(invert_transform(b_steps) @ a_steps)  # (N - 1, 6): step k + 1's difference
+    first, second = d[:-1], d[1:]  # the two steps around epochs 1 .. N - 2
+    cancel = np.where(first * second < 0, np.minimum(abs(first), abs(second)), 0.0)
+    dt = np.diff(np.asarray(passes.times, dtype=np.float64))
+    span = 0.5 * (dt[:-1] + dt[1:])
+    span = np.where(span > 0, span, np.inf)
+    odo = config.odometry
+    spike = np.zeros(n, dtype=bool)  # epoch k: its own placement differs between the runs
+    spike[1:-1] = (
+        np.degrees(np.linalg.norm(cancel[:, :3], axis=1)) / span > odo.deskew_rate_tolerance_deg_s
+    ) | (np.linalg.norm(cancel[:, 3:], axis=1) / span > odo.deskew_speed_tolerance_mps)
+    for _ in range(n):  # each round only clears kept steps: at most n rounds
+        switch = np.zeros(n, dtype=bool)
+        switch[1:-1] = spike[1:-1] & (keep[1:-1] != keep[2:])  # steps k and k + 1 differ
+        if not switch.any():
+            break
+        idx = np.flatnonzero(switch)
+        keep[idx] = False
+        keep[idx + 1] = False
+    return keep
+
+
 def spliced(streaming: OdometryRun, passes: OdometryRun, keep: np.ndarray) -> OdometryRun:
     """``passes`` with the epochs ``keep`` (N,) bool taken from ``streaming``: their
     results, planes and plane counts, and the poses chained from the steps of the run each
@@ -112,3 +162,18 @@ def spliced(streaming: OdometryRun, passes: OdometryRun, keep: np.ndarray) -> Od
 def _statuses(run: OdometryRun) -> np.ndarray:
     """(N,) the rank of each epoch's status (the first: OK's)."""
     return np.array([Status.OK.rank if r is None else r.status.rank for r in run.results])
+
+
+def kept_epochs(
+    streaming: OdometryRun,
+    passes: OdometryRun,
+    curve_steps: np.ndarray,
+    deskewed: np.ndarray,
+    config: PlanodomConfig,
+) -> np.ndarray:
+    """(N,) bool: the epochs taken from ``streaming`` under ``odometry.deskew_pass_guard``
+    (``streaming``: :func:`unconverged`; ``consistent``: those, made :func:`consistent`)."""
+    keep = unconverged(streaming, passes, curve_steps, deskewed, config)
+    if config.odometry.deskew_pass_guard == "consistent":
+        keep = consistent(streaming, passes, keep, config)
+    return keep

@@ -10,7 +10,7 @@ from planodom.geometry import se3_exp
 from planodom.odometry import RelativePose, Status
 from planodom.odometry.interpolate import curve_steps
 from planodom.odometry.run import OdometryRun
-from planodom.odometry.splice import spliced, unconverged
+from planodom.odometry.splice import consistent, spliced, unconverged
 
 DT = 0.2
 
@@ -119,3 +119,51 @@ def test_curve_steps_of_nodes_on_a_constant_twist_are_that_twist():
     times = 0.1 * np.arange(9)
     steps = curve_steps(node_times, nodes, times)
     np.testing.assert_allclose(steps, np.tile(se3_exp(twist * 0.1), (8, 1, 1)), atol=1e-9)
+
+
+def test_consistent_splice_leaves_no_epochs_own_error_behind():
+    """Ground truth: a straight drive at 1 m/s. The streaming run places epoch 3 with its
+    own yaw error e (its steps 3 and 4: +e and -e), the pass places every epoch right.
+    The guard keeps steps 2-3 from the streaming run (its epoch 3 error enters step 3)
+    and takes the pass's step 4: the plain splice ends e off in yaw; the consistent one
+    takes steps 3 and 4 from the pass (epoch 3 is placed differently by the two runs), so
+    it ends on the truth, with step 2 (where the runs agree) still the streaming run's."""
+    e = np.radians(1.0)  # 5 deg/s over a 0.2 s step: beyond the 0.5 deg/s tolerance
+    n = 7
+    truth = np.zeros((n - 1, 6))
+    truth[:, 3] = 1.0  # twist: (rotation, translation) per second
+    b_steps = _steps(truth)
+    a_twists = truth.copy()
+    a_twists[2, 2] += e / DT  # step 3 (0-based row 2): +e
+    a_twists[3, 2] -= e / DT  # step 4: -e
+    a_steps = _steps(a_twists)
+    ok = [Status.OK] * n
+    streaming, passes = _run(a_steps, ok, 1), _run(b_steps, ok, 2)
+    keep = np.array([False, False, True, True, False, False, False])
+    cfg = PlanodomConfig()
+    plain = spliced(streaming, passes, keep)
+    yaw = np.arctan2(plain.poses[-1][1, 0], plain.poses[-1][0, 0])
+    np.testing.assert_allclose(yaw, e, atol=1e-9)  # the plain splice keeps e
+    kept = consistent(streaming, passes, keep, cfg)
+    assert list(np.flatnonzero(kept)) == [2]
+    out = spliced(streaming, passes, kept)
+    truth_poses = _run(b_steps, ok, 0).poses
+    np.testing.assert_allclose(out.poses, truth_poses, atol=1e-9)
+
+
+def test_consistent_keeps_a_switch_where_the_runs_differ_without_cancelling():
+    """A streaming step off by a drift (not an epoch's own error: its next step is right)
+    at the switch is no placement difference: the guard's keep is returned unchanged,
+    and an epoch's own error below the tolerance does not move a switch either."""
+    n = 7
+    truth = np.zeros((n - 1, 6))
+    truth[:, 3] = 1.0
+    a_twists = truth.copy()
+    a_twists[3, 2] += np.radians(2.0) / DT  # step 4 off, step 5 right: no cancelling pair
+    a_twists[1, 2] += np.radians(0.05) / DT  # epoch 2's own error, 0.25 deg/s: below
+    a_twists[2, 2] -= np.radians(0.05) / DT
+    ok = [Status.OK] * n
+    streaming, passes = _run(_steps(a_twists), ok, 1), _run(_steps(truth), ok, 2)
+    keep = np.array([False, False, False, True, True, False, False])  # switches at 2 and 4
+    kept = consistent(streaming, passes, keep, PlanodomConfig())
+    np.testing.assert_array_equal(kept, keep)
