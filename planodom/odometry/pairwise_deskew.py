@@ -1,7 +1,7 @@
 """The deskewing refinement a run makes on the pairwise pipelines only
 (``odometry.pairwise_deskew``).
 
-    cfg = with_pairwise_deskew(config, first)   # in run_odometry, after with_platform
+    cfg = with_pairwise_deskew(config, source)   # in run_odometry, after with_platform
 
 ``odometry.pairwise_deskew: passes_moments`` means, where a pairwise pipeline runs (the 2D
 rig: ``uses_plane_map`` false for the sequence's first epoch), each of
@@ -16,8 +16,13 @@ Only :func:`planodom.odometry.run.run_odometry` resolves it (the passes are its)
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from planodom.config import PlanodomConfig
 from planodom.scan import Scan
+
+if TYPE_CHECKING:
+    from planodom.extraction.lidar.sweep import Epochs
 
 #: ``odometry`` fields of the candidate ``p1mpd`` (docs/RESULTS.md, P1MP14): one
 #: deskewing pass, the gated moments in the passes only, degenerate stretches made again.
@@ -30,14 +35,16 @@ PASSES_OPTIONS: dict[str, object] = {
 }
 
 
-def with_pairwise_deskew(config: PlanodomConfig, first: object) -> PlanodomConfig:
-    """``config`` with ``odometry.pairwise_deskew`` resolved for a sequence whose first
-    epoch is ``first`` (a :class:`Scan`, or planes: pairwise) (module docstring)."""
+def with_pairwise_deskew(config: PlanodomConfig, source: Epochs) -> PlanodomConfig:
+    """``config`` with ``odometry.pairwise_deskew`` resolved for the sequence ``source``
+    by its first epoch (a :class:`Scan`, or planes: pairwise) (module docstring); the
+    epoch is read only when the option is on (a dataset reads it from disk)."""
     from planodom.odometry.planemap import uses_plane_map
 
     odometry = config.odometry
     if odometry.pairwise_deskew != "passes_moments":
         return config
+    first = source[0] if len(source) else None
     if uses_plane_map(config, first if isinstance(first, Scan) else None):
         return config
     explicit = odometry.model_fields_set

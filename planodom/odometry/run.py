@@ -147,17 +147,18 @@ def run_odometry(
     if times is None:
         times = getattr(source, "times", None)
     source = sweep_timed(source, cfg.extraction.sweep, rig)  # times from the azimuth
-    cfg = with_pairwise_deskew(cfg, source[0] if len(source) else None)
-    first = streaming_config(cfg) if any_time_spread(source) else cfg
+    cfg = with_pairwise_deskew(cfg, source)
+    spread = any_time_spread(source)  # reads the first scans: once
+    first = streaming_config(cfg) if spread else cfg
     pair = _middle_timed_pass(source, first, rig, times, progress, extractor)
     run = pair[0] if pair else _streaming_pass(source, first, rig, times, progress, extractor)
     if pair and cfg.odometry.deskew_passes and cfg.planemap.pass_reference_time == "middle":
         from planodom.odometry.middle_passes import middle_redeskewed_run  # imports this
 
         run = middle_redeskewed_run(source, pair[1], run, cfg, rig, progress, extractor)
-    elif cfg.odometry.deskew_passes and any_time_spread(source):
+    elif cfg.odometry.deskew_passes and spread:
         run = redeskewed_run(source, run.times, run.poses, cfg, rig, progress, extractor, run)
-    if cfg.sweep_refine.passes and any_time_spread(source):
+    if cfg.sweep_refine.passes and spread:
         from planodom.odometry.sweep_refine import sweep_refined_run  # imports this module
 
         run = sweep_refined_run(source, run, cfg, rig, progress, extractor)

@@ -19,14 +19,14 @@ def test_a_2d_rig_takes_the_candidates_fields_unless_set():
     sim = simulate_named("paper-loop", "isoclinal", noise=0.006, seed=0, n_epochs=2,
                          motion="continuous")  # fmt: skip
     on = PlanodomConfig().updated(ON, source="t")
-    odo = with_pairwise_deskew(on, sim.scans[0]).odometry
+    odo = with_pairwise_deskew(on, sim.scans).odometry
     assert {k: getattr(odo, k) for k in PASSES_OPTIONS} == PASSES_OPTIONS
     mine = on.updated({"odometry.deskew_passes": 2}, source="t")
-    odo = with_pairwise_deskew(mine, sim.scans[0]).odometry
+    odo = with_pairwise_deskew(mine, sim.scans).odometry
     assert odo.deskew_passes == 2 and odo.refinement == "moments"
     default = PlanodomConfig()
-    assert with_pairwise_deskew(default, sim.scans[0]) is default
-    assert with_pairwise_deskew(on, None).odometry.deskew_passes == 1  # planes: pairwise
+    assert with_pairwise_deskew(default, sim.scans) is default
+    assert with_pairwise_deskew(on, []).odometry.deskew_passes == 1  # planes: pairwise
 
 
 def test_the_2d_rig_run_is_the_candidates():
@@ -47,7 +47,7 @@ def test_the_lidar_path_is_unchanged():
     sim = simulate_named("urban-canyon", "lidar32", noise=0.006, seed=1, n_epochs=5,
                          motion="continuous")  # fmt: skip
     on = PlanodomConfig().updated(ON, source="t")
-    assert with_pairwise_deskew(on, sim.scans[0]) is on
+    assert with_pairwise_deskew(on, sim.scans) is on
     default = run_odometry(sim, PlanodomConfig(), sim.rig).poses
     assert np.array_equal(run_odometry(sim, on, sim.rig).poses, default)
     passes = PlanodomConfig().updated({"odometry.deskew_passes": 1}, source="t")
