@@ -29,6 +29,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from planodom.geometry import invert_transform, orthonormalised, se3_exp, se3_log
+from planodom.odometry.chain import rechained, run_steps
 from planodom.odometry.relative import RelativePose, Status, replaced
 
 #: Statuses whose step measured the rotation (a stretch's ends).
@@ -89,15 +90,10 @@ def interpolated_bridges(
     stretches = bridged_stretches(results)
     if not stretches:
         return poses, list(results)
-    E = len(poses)
-    steps = np.empty((E, 4, 4))
-    steps[0] = np.eye(4)
-    steps[1:] = invert_transform(poses[:-1]) @ poses[1:]
+    steps = run_steps(poses)
     for a, b in stretches:
         steps[a : b + 1] = interpolated_steps(steps, times, a, b)
-    out = poses.copy()
-    for k in range(stretches[0][0], E):
-        out[k] = orthonormalised(out[k - 1] @ steps[k])
+    out = rechained(poses, steps, stretches[0][0])
     new = list(results)
     for a, b in stretches:
         for j in range(a, b + 1):

@@ -29,7 +29,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planodom.geometry import invert_transform, orthonormalised
+from planodom.odometry.chain import rechained, run_steps
 from planodom.odometry.relative import RelativePose, Status, replaced
 
 
@@ -95,10 +95,7 @@ def interpolated_degenerate(
     if not stretches:
         return poses, list(results)
     times = np.asarray(times, dtype=np.float64)
-    E = len(poses)
-    steps = np.empty((E, 4, 4))
-    steps[0] = np.eye(4)
-    steps[1:] = invert_transform(poses[:-1]) @ poses[1:]
+    steps = run_steps(poses)
     new = list(results)
     for a, b in stretches:
         (v0, t0), (v1, t1) = (_end(steps, times, _ok_run(results, a - 1, -1, window)),
@@ -114,7 +111,5 @@ def interpolated_degenerate(
             t = steps[j][:3, 3].copy()
             steps[j][:3, 3] = t + u * (u @ ((1.0 - f) * v0 + f * v1) * dt - u @ t)
             new[j] = replaced(r, T_prev_curr=steps[j].copy())
-    out = poses.copy()
-    for k in range(stretches[0][0], E):
-        out[k] = orthonormalised(out[k - 1] @ steps[k])
+    out = rechained(poses, steps, stretches[0][0])
     return out, new
