@@ -13,6 +13,7 @@ from planodom.config.map_lead_shrink import MapLeadShrinkConfig
 from planodom.config.moment_refine import MomentRefineConfig
 from planodom.config.narrow_rotation import NarrowRotationConfig
 from planodom.config.plane_deskew_noise import PlaneDeskewNoiseConfig
+from planodom.config.retry_status import RetryStatusConfig
 from planodom.config.split_reference import SplitReferenceConfig
 from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
 
@@ -23,6 +24,7 @@ class DeskewGuards(
     MomentRefineConfig,
     NarrowRotationConfig,
     PlaneDeskewNoiseConfig,
+    RetryStatusConfig,
     SplitReferenceConfig,
     StatedDeskewNoiseConfig,
 ):

@@ -138,7 +138,8 @@ def estimate_relative_pose(
     result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m, lateral)
     if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
         free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral)
-        if free.status.rank > result.status.rank:
+        kept = free.status is Status.OK or cfg.odometry.retry_accepts == "degenerate"
+        if kept and free.status.rank > result.status.rank:
             result = free
     return _remapped(result, order_p, order_c)
 
