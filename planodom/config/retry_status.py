@@ -15,10 +15,12 @@ class RetryStatusConfig(Section):
     """The status a solve without the prior's bounds must reach to replace the solve under
     them (``odometry.retry_without_prior``)."""
 
-    retry_accepts: Literal["degenerate", "ok"] = "degenerate"
+    retry_accepts: Literal["degenerate", "across_gap", "ok"] = "degenerate"
     """``ok``: the prior-free retry replaces the solve under the prior only when it is OK
     (its rotation checked by the associated planes of three normal directions, its
-    translation measured); ``degenerate`` (default): also when it is degenerate. Without
+    translation measured); ``across_gap``: so for a step whose reference is more than one
+    epoch back (after bridged epochs, the bounds widened with the gap), as ``degenerate``
+    for a step over one epoch; ``degenerate`` (default): whenever it is degenerate. Without
     the prior's bounds the association spans every rotation up to
     ``association.max_rotation_deg`` times the gap (180 deg after nine epochs): a
     degenerate step's rotation then rests on one pair of planes whose dihedral angle

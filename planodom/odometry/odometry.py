@@ -307,9 +307,9 @@ class PlaneOdometry:
             prediction = T_ref_last @ twist_step(self.twist, dt)
         sigma = self._twist_sigma.predicted()[1] * dt  # the prediction's translation, m
         prior = prediction if self.config.odometry.use_motion_prior else None
-        config = self._config_for_gap(epoch.index - reference.index)
-        planes = reference.plane_set, epoch.plane_set
-        result = estimate_relative_pose(*planes, config, prior, sigma, step=True)
+        gap = epoch.index - reference.index
+        config, planes = self._config_for_gap(gap), (reference.plane_set, epoch.plane_set)
+        result = estimate_relative_pose(*planes, config, prior, sigma, step=True, gap=gap)
         ocfg, k = self.config.odometry, epoch.index  # bridged by constant velocity (its trend)
         if ocfg.refinement == "moments":  # the oracle's solve over the associated planes' points
             result = moment_refined(result, reference.planes, epoch.planes, ocfg, planes)

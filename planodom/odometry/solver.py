@@ -107,6 +107,7 @@ def estimate_relative_pose(
     prior: np.ndarray | None = None,
     prior_sigma_m: float | None = None,
     step: bool = False,
+    gap: int = 1,
 ) -> RelativePose:
     """The relative pose ``T_prev_curr`` from the planes of two epochs.
 
@@ -124,6 +125,8 @@ def estimate_relative_pose(
         step: the streaming odometry's step of a vehicle (not a loop's or a skip's pair):
             a non-holonomic ``odometry.motion_model`` adds its constraint to a degenerate
             one (:func:`planodom.odometry.nonholonomic.lateral_sigma`).
+        gap: epochs from the previous to the current one (the streaming odometry's
+            reference is older after bridged epochs), for ``odometry.retry_accepts``.
 
     Returns:
         :class:`RelativePose` (``prev``, ``curr`` unset); index arrays refer to the input
@@ -138,10 +141,20 @@ def estimate_relative_pose(
     result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m, lateral)
     if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
         free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral)
-        kept = free.status is Status.OK or cfg.odometry.retry_accepts == "degenerate"
+        kept = _retry_kept(free, cfg.odometry.retry_accepts, gap)
         if kept and free.status.rank > result.status.rank:
             result = free
     return _remapped(result, order_p, order_c)
+
+
+def _retry_kept(free: RelativePose, accepts: str, gap: int) -> bool:
+    """Whether the prior-free retry ``free`` of a step across ``gap`` epochs may replace
+    the solve under the prior (``odometry.retry_accepts``): OK, or degenerate with
+    "degenerate", or with "across_gap" degenerate over one epoch (its bounds the
+    per-epoch ones, not widened with a gap)."""
+    if free.status is Status.OK or accepts == "degenerate":
+        return True
+    return accepts == "across_gap" and gap <= 1
 
 
 def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) -> RelativePose:

@@ -64,3 +64,31 @@ def test_retry_accepts_ok_keeps_an_ok_retry():
         r = estimate_relative_pose(prev, curr, cfg, prior, 0.02, step=True)
         assert r.status is Status.OK
         np.testing.assert_allclose(r.T_prev_curr, T_true, atol=1e-8)
+
+
+def test_retry_accepts_across_gap():
+    """``across_gap`` drops the alias across a 12-epoch gap (as ``ok``) and keeps a
+    degenerate retry over one epoch (as the default): a corridor (the ground and two
+    parallel walls; the step along it unmeasured) under a prior 30 deg off, whose
+    rotation is then the truth's."""
+    prev, curr = _ambiguous_step()
+    base = PlanodomConfig().updated({"odometry.retry_accepts": "across_gap"}, source="test")
+    r = estimate_relative_pose(prev, curr, config_for_gap(base, 12), np.eye(4), 0.02,
+                               step=True, gap=12)  # fmt: skip
+    assert r.status is Status.UNRESOLVED
+    world = [_ground(0), _wall(0.0, 3.0, 0.0, 1), _wall(np.pi, 2.5, 0.0, 2)]
+    c, s = np.cos(np.radians(3.0)), np.sin(np.radians(3.0))
+    T_true = np.array([[c, -s, 0, 0.3], [s, c, 0, 0.05], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+    prev = PlaneSet.from_planes(observe(world, np.eye(4)))
+    curr = PlaneSet.from_planes(observe(world, T_true))
+    c, s = np.cos(np.radians(33.0)), np.sin(np.radians(33.0))
+    prior = np.array([[c, -s, 0, 0.3], [s, c, 0, 0.05], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+    for value, gap, status in (("across_gap", 1, Status.DEGENERATE),
+                               ("across_gap", 2, Status.UNRESOLVED),
+                               ("ok", 1, Status.UNRESOLVED)):  # fmt: skip
+        cfg = base.updated({"odometry.retry_accepts": value}, source="test")
+        r = estimate_relative_pose(prev, curr, config_for_gap(cfg, 2), prior, 0.02,
+                                   step=True, gap=gap)  # fmt: skip
+        assert r.status is status
+        if status is Status.DEGENERATE:
+            np.testing.assert_allclose(r.T_prev_curr[:3, :3], T_true[:3, :3], atol=1e-8)
