@@ -6,10 +6,10 @@ noise NOISE (m), simulated once (kept with ``--cache`` as :mod:`lidar_epoch_trac
 it), then planodom's odometry once per variant on the same scans, one line each: the
 rotation rms per step over all steps and over steps 3 on (0.001 deg), per axis (roll,
 pitch, yaw) over steps 3 on, the ATE (xy, aligned at the origin, mm), the first three
-steps' signed errors (roll, pitch, yaw, 0.001 deg), the CPU, and the rms error of the
-twist each epoch was last extracted with against its sweep's true constant twist
-(``log(T(t0)^-1 T(t1)) / (t1 - t0)`` over the sweep's first and last point times; epochs
-3 on; rates deg/s, velocity cm/s). A variant's parts, joined by ``+``:
+steps' signed errors (roll, pitch, yaw, 0.001 deg), the CPU and the extractions made,
+and the rms error of the twist each epoch was last extracted with against its sweep's
+true constant twist (``log(T(t0)^-1 T(t1)) / (t1 - t0)`` over the sweep's first and last
+point times; epochs 3 on; rates deg/s, velocity cm/s). A variant's parts, joined by ``+``:
 
 - ``run``: planodom as the experiment runs it (the world's sweep declared);
 - ``skipN``: the first N epochs dropped (the run starts at epoch N): whether the start's
@@ -64,6 +64,7 @@ def recording_extractor(scans, truth: np.ndarray, parts: list[int], inner=None):
 
     def extract(scan, config, twist=None, **kwargs):  # noqa: ANN001, ANN202
         k = index.get(_key(scan))
+        extract.calls += 1  # type: ignore[attr-defined]
         if k is not None:
             last[k] = np.zeros(6) if twist is None else np.array(twist, dtype=np.float64)
             if parts:
@@ -71,7 +72,7 @@ def recording_extractor(scans, truth: np.ndarray, parts: list[int], inner=None):
                 twist[parts] = truth[k][parts]
         return (inner or extract_planes)(scan, config, twist=twist, **kwargs)
 
-    extract.last = last  # type: ignore[attr-defined]
+    extract.last, extract.calls = last, 0  # type: ignore[attr-defined]
     return extract
 
 
@@ -124,7 +125,8 @@ def main() -> None:
         print(f"{args.world} {args.noise * 1000:g} mm {variant}: rot {1000 * rms:.3f}"
               f" / 3+ {1000 * tail:.3f} axes 3+ "
               f"{np.round(1000 * np.sqrt(np.mean(e[2:, :3] ** 2, 0)), 3).tolist()} ATE "
-              f"{1000 * a:.2f} mm steps 1-3 {head} CPU {cpu:.0f} s; twist error rate "
+              f"{1000 * a:.2f} mm steps 1-3 {head} CPU {cpu:.0f} s, {extract.calls} extractions; "
+              f"twist error rate "
               f"{np.round(np.degrees(terr[:3]), 3).tolist()} deg/s velocity "
               f"{np.round(100 * terr[3:], 2).tolist()} cm/s", flush=True)  # fmt: skip
 
