@@ -196,6 +196,42 @@ def test_a_vertical_velocity_error_tilts_a_swept_floor_by_its_closed_form():
     np.testing.assert_allclose(level[:, 2], -h, atol=1e-12)
 
 
+@pytest.mark.parametrize("radius", [3.0, 10.0, 30.0])
+def test_a_pitch_rate_error_tilts_a_swept_ground_in_roll_at_any_range(radius: float):
+    """Why the lead's rate tolerance reaches the roll (LIDAR15, docs/RESULTS.md): a level
+    ground seen in a ring of radius r by a spinning lidar whose sweep of period T starts and
+    ends behind the sensor, while the vehicle pitches at w, deskewed with a pitch rate off
+    by e, has its points turned about y by e t (t = theta T / 2 pi about the sweep's
+    middle), a height error -e t r cos(theta); its least-squares plane is tilted about the
+    forward axis (a roll) by e T / (4 pi), the continuous ring's closed form (int theta
+    sin(2 theta) / 2 over one turn is -pi / 2, over int r^2 sin^2 = pi r^2), whatever the
+    radius. 0.1 deg/s at 10 Hz: 0.0008 deg; the vertical velocity's tilt, d T / (pi r),
+    falls with the range, this one does not. The sensor's pitch is made with scipy, not
+    with the code's deskewing."""
+    from scipy.spatial.transform import Rotation
+
+    from planodom.extraction.deskew import deskew_points
+
+    T, h, w, e = 0.1, 1.8, np.radians(2.0), np.radians(0.1)
+    theta = np.linspace(-np.pi, np.pi, 20001)[:-1] + np.pi / 20000  # one turn, middle at 0
+    t = theta * T / (2 * np.pi)  # seconds from the sweep's middle
+    ground = np.c_[radius * np.cos(theta), radius * np.sin(theta), np.full_like(theta, -h)]
+    # each point seen in the base frame of its own time, the base pitched by w t
+    seen = Rotation.from_rotvec(np.outer(w * t, [0.0, 1.0, 0.0])).inv().apply(ground)
+
+    def plane(p: np.ndarray) -> np.ndarray:
+        """(a, b, c) of the least-squares z = a x + b y + c."""
+        a = np.c_[p[:, 0], p[:, 1], np.ones(len(p))]
+        return np.linalg.lstsq(a, p[:, 2], rcond=None)[0]
+
+    level = plane(deskew_points(seen, t, np.r_[0.0, w, 0.0, 0.0, 0.0, 0.0]))
+    np.testing.assert_allclose(level, [0.0, 0.0, -h], atol=1e-9)
+    a, b, c = plane(deskew_points(seen, t, np.r_[0.0, w + e, 0.0, 0.0, 0.0, 0.0]))
+    assert abs(a) < 1e-8 and c == pytest.approx(-h, abs=1e-6)
+    assert np.arctan(b) == pytest.approx(e * T / (4 * np.pi), rel=1e-3)
+    assert np.degrees(e * T / (4 * np.pi)) == pytest.approx(0.0008, abs=1e-5)
+
+
 @pytest.mark.parametrize("vertical", [None, 0.01])
 def test_the_vertical_tolerance_takes_the_vertical_velocity_alone(vertical):
     """An own velocity 3 cm/s off the one used along x and along z (world 329's rms error
