@@ -83,7 +83,7 @@ class OdometryConfig(DeskewGuards):
     """Streaming: use the constant-velocity prediction as prior for association."""
     retry_without_prior: bool = True
     """Solve again with the prior-free bounds when the solve under the prior is unresolved or
-    degenerate (a wrong prior must not lock the odometry out); the better status is kept."""
+    degenerate (a wrong prior must not lock the odometry out); kept if OK (``retry_accepts``)."""
     deskew: bool = True
     """Streaming: deskew each epoch with the constant-velocity twist of the last estimate."""
     deskew_iterations: Annotated[int, Field(ge=0)] = 2

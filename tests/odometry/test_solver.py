@@ -27,21 +27,23 @@ def _ambiguous_step():
     return prev, curr
 
 
-def test_prior_free_degenerate_retry_kept_by_default_is_the_dihedral_alias():
-    """The default keeps the retry's degenerate step: its yaw is the alias, 90 deg off the
-    truth (the failure ``retry_accepts: ok`` is for)."""
+def test_prior_free_degenerate_retry_kept_with_degenerate_is_the_dihedral_alias():
+    """``retry_accepts: degenerate`` keeps the retry's degenerate step: its yaw is the
+    alias, 90 deg off the truth (the failure ``ok`` is for)."""
     prev, curr = _ambiguous_step()
-    cfg = config_for_gap(PlanodomConfig(), 12)  # bounds of a 12-epoch gap: 180 deg
+    base = PlanodomConfig().updated({"odometry.retry_accepts": "degenerate"}, source="test")
+    cfg = config_for_gap(base, 12)  # bounds of a 12-epoch gap: 180 deg
     r = estimate_relative_pose(prev, curr, cfg, np.eye(4), 0.02, step=True)
     assert r.status is Status.DEGENERATE
     assert abs(abs(_yaw_deg(r.T_prev_curr)) - 90.0) < 1e-6
 
 
 def test_retry_accepts_ok_leaves_the_step_unresolved_on_the_prior():
-    """With ``retry_accepts: ok`` the degenerate alias is not kept: the step is unresolved
-    and its pose is the prior's (here the truth)."""
+    """With ``retry_accepts: ok`` (the default) the degenerate alias is not kept: the step
+    is unresolved and its pose is the prior's (here the truth)."""
     prev, curr = _ambiguous_step()
-    base = PlanodomConfig().updated({"odometry.retry_accepts": "ok"}, source="test")
+    base = PlanodomConfig()
+    assert base.odometry.retry_accepts == "ok"
     r = estimate_relative_pose(prev, curr, config_for_gap(base, 12), np.eye(4), 0.02, step=True)
     assert r.status is Status.UNRESOLVED
     np.testing.assert_allclose(r.T_prev_curr, np.eye(4), atol=1e-12)
