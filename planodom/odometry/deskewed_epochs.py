@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -35,17 +35,21 @@ class Curve:
 @dataclass(frozen=True)
 class Deskewed:
     """An epoch's scan (times relative to the pass's reference time) and the same points
-    deskewed along the curve (:meth:`PlaneOdometry.register_epoch`'s ``deskewed``)."""
+    deskewed along the curve (:meth:`PlaneOdometry.register_epoch`'s ``deskewed``); with
+    ``planes``, the planes to take for ``deskewed`` instead of extracting it
+    (``odometry.deskew_pass_skip``, :mod:`planodom.odometry.pass_skip`)."""
 
     scan: Scan
     deskewed: Scan
+    planes: list[Plane] | None = None
 
 
 class DeskewedEpochs:
     """``source``'s epochs, each scan (epoch k at ``times[k]``) deskewed to
     ``reference[k]`` along ``curve`` where ``trusted[k]``, else with
     its times shifted to that reference (see :func:`redeskewed_run`); ``seconds`` adds up
-    the time spent deskewing."""
+    the time spent deskewing. ``given(k)``: planes of a deskewed epoch k to take instead
+    of extracting it, or None (:mod:`planodom.odometry.pass_skip`)."""
 
     def __init__(
         self,
@@ -54,9 +58,10 @@ class DeskewedEpochs:
         reference: np.ndarray,
         curve: Curve,
         trusted: np.ndarray,
+        given: Callable[[int], list[Plane] | None] | None = None,
     ) -> None:
         self.source, self.times, self.reference = source, times, reference
-        self.curve, self.trusted = curve, trusted
+        self.curve, self.trusted, self.given = curve, trusted, given
         self.seconds = 0.0
 
     def __len__(self) -> int:
@@ -79,4 +84,5 @@ class DeskewedEpochs:
         self.seconds += _time.perf_counter() - c0
         # the times stay (extracted with a zero twist): a lidar's range image takes its
         # columns from them (with zeros it has none and falls back to RANSAC fragments)
-        return Deskewed(raw, replace(out, t=raw.t))
+        planes = None if self.given is None else self.given(k)
+        return Deskewed(raw, replace(out, t=raw.t), planes)
