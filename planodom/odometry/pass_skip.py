@@ -7,17 +7,25 @@ is most of the passes' cost (docs/RESULTS.md P1MP14: ``p1mp`` at 2.8-3.0x the de
 CPU). Where the curve's twist over an epoch's sweep agrees with the twist the streaming
 pass deskewed the epoch with, within the curve's own uncertainty, the pass has nothing
 to tell the two deskewings apart by, and its extraction would differ from the streaming
-one by that noise only. So the test is a chi-square test of the twist difference:
+one by that noise only. The pass's twist is the curve's secant over the points' times
+(``deskew_times`` of the streaming result: the constant twist that moves the base frame
+as the curve does over the sweep, in the deskewing's convention ``T_ref_t = exp(t xi)``,
+:mod:`planodom.extraction.deskew`). Two chi-square tests of its difference ``dxi`` from
+the streaming twist:
 
-- the pass's twist is the curve's secant over the points' times (``deskew_times`` of the
-  streaming result: the constant twist that moves the base frame as the curve does over
-  the sweep, in the deskewing's convention ``T_ref_t = exp(t xi)``,
-  :mod:`planodom.extraction.deskew`);
-- its variance is the curve's node variance at the epoch's middle (the step the sweep
-  lies in, from the odometry's covariances, :func:`planodom.odometry.run.step_variances`)
-  over the square of that step's time: a twist measured by one step;
-- the streaming twist is the hypothesis tested, so its own uncertainty does not enter:
-  the question is whether the pass can show it wrong.
+- ``twist``: against the curve's own uncertainty. Its variance is the curve's node
+  variance at the epoch's middle (the step the sweep lies in, from the odometry's
+  covariances, :func:`planodom.odometry.run.step_variances`) over the square of that
+  step's time: a twist measured by one step. The streaming twist
+  is the hypothesis tested, so its own uncertainty does not enter: the question is
+  whether the pass can show it wrong.
+- ``planes``: what the difference would do to the epoch's planes against their own
+  noise. Deskewed with a twist off by ``dxi``, a plane fitted to the points moves by
+  ``span D dxi`` to first order (``D`` its ``deskew_jacobian``, ``span = max |t|``,
+  :mod:`planodom.odometry.plane_deskew`); the sum over the epoch's planes of that move's
+  squared Mahalanobis distance under each plane's fit covariance (rank 3) is tested
+  against the chi-square quantile of 3 DoF a plane: whether extracting again would move
+  the planes by more than their range noise does.
 
 Where the test passes, the pass takes the streaming pass's planes of the epoch, moved
 from the epoch's time to the pass's reference time along the curve. An epoch without a
@@ -68,12 +76,29 @@ def twist_test(difference: np.ndarray, variance: np.ndarray, quantile: float) ->
     return d2 <= chi2_quantile(quantile, int(ok.sum()))
 
 
+def plane_test(planes: list[Plane], difference: np.ndarray, span: float, quantile: float) -> bool:
+    """Whether moving ``planes`` by a deskewing twist off by ``difference`` (6,) (rad/s,
+    m/s) over ``span`` s (``span D difference`` each, ``D`` its ``deskew_jacobian``) stays
+    within their fit covariances at the chi-square ``quantile`` (3 DoF a plane, summed);
+    False when a plane has no Jacobian or covariance, or there is none (nothing to test)."""
+    if not planes or span <= 0:
+        return False
+    d2 = 0.0
+    for p in planes:
+        if p.deskew_jacobian is None or p.covariance is None:
+            return False
+        move = span * (np.asarray(p.deskew_jacobian) @ difference)
+        d2 += float(move @ np.linalg.pinv(np.asarray(p.covariance), hermitian=True) @ move)
+    return d2 <= chi2_quantile(quantile, 3 * len(planes))
+
+
 def consistent_epochs(
     streaming: OdometryRun,
     curve: Curve,
     times: np.ndarray,
     variances: np.ndarray,
     quantile: float,
+    mode: str = "twist",
 ) -> np.ndarray:
     """(N,) bool: the epochs whose streaming deskewing twist agrees with ``curve``'s over
     their sweep (module docstring).
@@ -84,7 +109,8 @@ def consistent_epochs(
         curve: the pass's curve. times: (N,) epoch times, s.
         variances: (J, 6) the curve's node variances (rad^2, m^2), node k at the middle of
             epoch k (J = N or N - 1: the last epoch takes the last node's).
-        quantile: the test's chi-square quantile.
+        quantile: the test's chi-square quantile. mode: ``twist`` or ``planes`` (module
+            docstring; ``planes`` reads the streaming run's ``planes``).
     """
     times = np.asarray(times, dtype=np.float64)
     n = len(times)
@@ -101,6 +127,11 @@ def consistent_epochs(
         if not (last > first and dt[k] > 0):
             continue
         twist = curve_twist(curve, times[k] + first, times[k] + last)
+        if mode == "planes":
+            span = max(abs(first), abs(last))  # the extraction's (plane_deskew.epoch_span)
+            planes = streaming.planes[k] if len(streaming.planes) == n else []
+            out[k] = plane_test(planes, twist - r.deskew_twist, span, quantile)
+            continue
         variance = np.asarray(variances[min(k, len(variances) - 1)], dtype=np.float64) / dt[k] ** 2
         out[k] = twist_test(twist - r.deskew_twist, variance, quantile)
     return out
@@ -122,10 +153,11 @@ def reused_planes(
     reference: np.ndarray,
     variances: np.ndarray,
     quantile: float,
+    mode: str = "twist",
 ) -> Callable[[int], list[Plane] | None]:
     """``planes(k)``: the streaming planes of epoch k at ``reference[k]`` where
     :func:`consistent_epochs` holds, else None (extract it again)."""
-    keep = consistent_epochs(streaming, curve, times, variances, quantile)
+    keep = consistent_epochs(streaming, curve, times, variances, quantile, mode)
     if len(streaming.planes) != len(keep):
         keep[:] = False
 

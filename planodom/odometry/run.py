@@ -249,15 +249,15 @@ def redeskewed_run(
     seconds = {"deskew": _time.perf_counter() - c0}
     middles = epoch_middles(times)
     increments = config.odometry.deskew_fit == "increments"
-    skip = previous is not None and config.odometry.deskew_pass_skip == "consistent"
+    skip = config.odometry.deskew_pass_skip
     counts = (0, 0) if previous is None else (previous.extractions, previous.reused)
     for reference in [middles] * config.odometry.deskew_passes + [times]:
         trusted = _near_all_measured(measured, order)
         curve = Curve(*nodes, variances if n_fit else None, order, n_fit, increments)
         given = None  # odometry.deskew_pass_skip: the streaming planes where the twists agree
-        if skip and previous is not None:
+        if skip != "none" and previous is not None:
             quantile = config.odometry.deskew_pass_skip_quantile
-            given = reused_planes(previous, curve, times, reference, variances, quantile)
+            given = reused_planes(previous, curve, times, reference, variances, quantile, skip)
         deskewed = DeskewedEpochs(source, times, reference, curve, trusted, given)
         run = _streaming_pass(deskewed, config, rig, reference, progress, extractor)
         counts = (counts[0] + run.extractions, counts[1] + run.reused)

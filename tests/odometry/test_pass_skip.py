@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -12,7 +14,13 @@ from planodom.errors import ConfigError
 from planodom.geometry import Plane, invert_transform, se3_exp
 from planodom.odometry import RelativePose, run_odometry
 from planodom.odometry.deskewed_epochs import Curve
-from planodom.odometry.pass_skip import consistent_epochs, curve_twist, moved_planes, twist_test
+from planodom.odometry.pass_skip import (
+    consistent_epochs,
+    curve_twist,
+    moved_planes,
+    plane_test,
+    twist_test,
+)
 from planodom.odometry.run import OdometryRun
 from planodom.simulation import simulate_named
 
@@ -65,6 +73,28 @@ def test_the_twist_test_is_the_chi_square_quantile():
     assert not twist_test(np.zeros(6), np.full(6, np.inf), q)  # nothing to test by
 
 
+def test_the_plane_test_is_the_chi_square_of_the_planes_moves():
+    """A plane z = 2 with sigmas 1 mm in its normal's x, y and 2 mm in its offset (none
+    along the normal): a twist error that moves it by ``span J dxi`` = (a, 0, 0, b) has
+    the squared distance (a / 1 mm)^2 + (b / 2 mm)^2, tested against chi2(q, 3)."""
+    q, span = 0.99, 0.1
+    J = np.zeros((4, 6))
+    J[0, 2] = 1.0  # the yaw rate tilts the normal's x
+    J[3, 3] = 1.0  # the x speed moves the offset
+    plane = Plane(np.array([0.0, 0.0, 1.0]), -2.0,
+                  covariance=np.diag([1e-6, 1e-6, 0.0, 4e-6]), deskew_jacobian=J)  # fmt: skip
+    limit = chi2.ppf(q, 3)
+    a = np.sqrt(0.5 * limit) * 1e-3  # half the budget each
+    b = np.sqrt(0.5 * limit) * 2e-3
+    dxi = np.array([0.0, 0.0, a, b, 0.0, 0.0]) / span
+    assert plane_test([plane], 0.999 * dxi, span, q)
+    assert not plane_test([plane], 1.001 * dxi, span, q)
+    # two such planes: six DoF, the sum of both
+    assert plane_test([plane, plane], 0.999 * dxi * np.sqrt(chi2.ppf(q, 6) / (2 * limit)), span, q)
+    assert not plane_test([plane, replace(plane, deskew_jacobian=None)], 0 * dxi, span, q)
+    assert not plane_test([], dxi, span, q)
+
+
 def test_epochs_whose_streaming_twist_is_off_by_more_than_the_curves_noise_are_extracted():
     """Ten epochs on the constant-twist motion, step variances (1e-4 rad, 1 mm)^2 (a twist
     sigma of 1e-3 rad/s and 1 cm/s): the epochs deskewed with the true twist, or one off
@@ -106,11 +136,11 @@ def test_a_run_that_reextracts_every_epoch_is_the_passes_run(loop):
     """With a quantile no difference passes, the skip keeps nothing and the run is the
     passes' run to the bit; at 0.99 it keeps some epochs' planes and extracts fewer."""
     passes = run_odometry(loop, _config(deskew_passes=1), loop.rig)
-    none = run_odometry(loop, _config(deskew_passes=1, deskew_pass_skip="consistent",
+    none = run_odometry(loop, _config(deskew_passes=1, deskew_pass_skip="twist",
                                       deskew_pass_skip_quantile=1e-12), loop.rig)  # fmt: skip
     assert np.array_equal(none.poses, passes.poses)
     assert none.reused == 0 and none.extractions == passes.extractions
-    skip = run_odometry(loop, _config(deskew_passes=1, deskew_pass_skip="consistent"), loop.rig)
+    skip = run_odometry(loop, _config(deskew_passes=1, deskew_pass_skip="twist"), loop.rig)
     assert skip.reused > 0 and skip.extractions - skip.reused < passes.extractions
     assert passes.reused == 0
 
@@ -118,5 +148,6 @@ def test_a_run_that_reextracts_every_epoch_is_the_passes_run(loop):
 def test_the_options_are_validated():
     with pytest.raises(ConfigError, match="odometry.deskew_pass_skip"):
         _config(deskew_pass_skip="all")
+    assert _config(deskew_pass_skip="planes").extraction.deskew_jacobian  # what it reads
     with pytest.raises(ConfigError, match="deskew_pass_skip_quantile"):
         _config(deskew_pass_skip_quantile=1.0)
