@@ -37,7 +37,8 @@ class Deskewed:
     """An epoch's scan (times relative to the pass's reference time) and the same points
     deskewed along the curve (:meth:`PlaneOdometry.register_epoch`'s ``deskewed``); with
     ``planes``, the planes to take for ``deskewed`` instead of extracting it
-    (``odometry.deskew_pass_skip``, :mod:`planodom.odometry.pass_skip`)."""
+    (``odometry.deskew_pass_skip``, :mod:`planodom.odometry.pass_skip`; ``deskewed`` is
+    then a copy of ``scan``, its points not deskewed: they are not read)."""
 
     scan: Scan
     deskewed: Scan
@@ -75,6 +76,9 @@ class DeskewedEpochs:
         raw = item if item.t is None or shift == 0 else replace(item, t=item.t - shift)
         if not self.trusted[k]:  # the streaming deskewing, to the reference time
             return raw
+        planes = None if self.given is None else self.given(k)
+        if planes is not None:  # not extracted: its points are not read (a copy: not raw)
+            return Deskewed(raw, replace(raw), planes)
         c0 = _time.perf_counter()
         c = self.curve
         out = deskew_with_poses(
@@ -84,5 +88,4 @@ class DeskewedEpochs:
         self.seconds += _time.perf_counter() - c0
         # the times stay (extracted with a zero twist): a lidar's range image takes its
         # columns from them (with zeros it has none and falls back to RANSAC fragments)
-        planes = None if self.given is None else self.given(k)
-        return Deskewed(raw, replace(out, t=raw.t), planes)
+        return Deskewed(raw, replace(out, t=raw.t))
