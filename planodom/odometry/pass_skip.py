@@ -46,6 +46,7 @@ from planodom.odometry.interpolate import curve_poses
 from planodom.odometry.twist_sigma import chi2_quantile
 
 if TYPE_CHECKING:
+    from planodom.config import PlanodomConfig
     from planodom.odometry.run import OdometryRun
 
 
@@ -167,3 +168,20 @@ def reused_planes(
         return moved_planes(streaming.planes[k], curve, float(times[k]), float(reference[k]))
 
     return planes
+
+
+def pass_planes(
+    config: PlanodomConfig,
+    streaming: OdometryRun | None,
+    curve: Curve,
+    times: np.ndarray,
+    reference: np.ndarray,
+    variances: np.ndarray,
+) -> Callable[[int], list[Plane] | None] | None:
+    """:func:`reused_planes` under ``odometry.deskew_pass_skip`` (None: ``none``, or no
+    streaming run to take planes from)."""
+    mode = config.odometry.deskew_pass_skip
+    if mode == "none" or streaming is None:
+        return None
+    quantile = config.odometry.deskew_pass_skip_quantile
+    return reused_planes(streaming, curve, times, reference, variances, quantile, mode)

@@ -19,7 +19,7 @@ from planodom.odometry.extractor import Extractor, default_extractor
 from planodom.odometry.interpolate import curve_steps, epoch_middles, midpoint_nodes
 from planodom.odometry.odometry import PlaneOdometry
 from planodom.odometry.pairwise_deskew import with_pairwise_deskew
-from planodom.odometry.pass_skip import reused_planes
+from planodom.odometry.pass_skip import pass_planes
 from planodom.odometry.platform import with_platform
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.splice import kept_epochs, spliced
@@ -249,15 +249,11 @@ def redeskewed_run(
     seconds = {"deskew": _time.perf_counter() - c0}
     middles = epoch_middles(times)
     increments = config.odometry.deskew_fit == "increments"
-    skip = config.odometry.deskew_pass_skip
     counts = (0, 0) if previous is None else (previous.extractions, previous.reused)
     for reference in [middles] * config.odometry.deskew_passes + [times]:
         trusted = _near_all_measured(measured, order)
         curve = Curve(*nodes, variances if n_fit else None, order, n_fit, increments)
-        given = None  # odometry.deskew_pass_skip: the streaming planes where the twists agree
-        if skip != "none" and previous is not None:
-            quantile = config.odometry.deskew_pass_skip_quantile
-            given = reused_planes(previous, curve, times, reference, variances, quantile, skip)
+        given = pass_planes(config, previous, curve, times, reference, variances)
         deskewed = DeskewedEpochs(source, times, reference, curve, trusted, given)
         run = _streaming_pass(deskewed, config, rig, reference, progress, extractor)
         counts = (counts[0] + run.extractions, counts[1] + run.reused)
