@@ -102,9 +102,13 @@ def main(argv: Sequence[str] | None = None) -> None:
                     row |= {f"{k}_x_oracle": m[k] / ref[k] for k in m}
                 st = np.array(odo.statuses)
                 row |= {"unresolved": int((st == "unresolved").sum()), "cpu_s": cpu}
+                # extractor calls over all passes, and those given the streaming pass's
+                # planes (odometry.deskew_pass_skip)
+                row |= {"extractions": odo.extractions, "reused": odo.reused}
                 rows.append(row)
                 figures = {k: round(float(v), 5) for k, v in m.items()}
-                print(w, noise, name, figures, row["unresolved"], round(cpu, 1), flush=True)
+                print(w, noise, name, figures, row["unresolved"], round(cpu, 1), odo.extractions,
+                      odo.reused, flush=True)  # fmt: skip
                 if args.out:
                     write_rows(args.out, rows)
 

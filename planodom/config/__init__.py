@@ -58,9 +58,10 @@ class PlanodomConfig(Section):
         (``smoothing.deskew_noise: twist_change_jacobian[_net]``,
         ``smoothing.covariance_model: sandwich``, ``planemap.deskew_variance:
         twist_change`` and ``lead_weights: stated``, ``odometry.plane_deskew_noise`` and
-        ``stated_deskew_noise`` not off) switch on its computation in the extraction
-        (``extraction.deskew_jacobian``); ``planemap.twist_estimation`` other than ``none``
-        and ``lead_weights: unknown`` switch on the planes' time moments
+        ``stated_deskew_noise`` not off, ``odometry.deskew_pass_skip: planes``) switch on
+        its computation in the extraction (``extraction.deskew_jacobian``);
+        ``planemap.twist_estimation`` other than ``none`` and ``lead_weights: unknown``
+        switch on the planes' time moments
         (``extraction.time_moments``). The default
         covariance model, "auto", leaves it off here: the batch smoothing switches it on for
         the odometry it runs (:func:`planodom.smoothing.run.smoothing_config`), so that a
@@ -86,12 +87,14 @@ class PlanodomConfig(Section):
         odometry = data.get("odometry")
         planes = getattr(odometry, "plane_deskew_noise", None)
         stated = getattr(odometry, "stated_deskew_noise", None)
+        skip = getattr(odometry, "deskew_pass_skip", None)
         if isinstance(odometry, Mapping):
             planes = odometry.get("plane_deskew_noise")
             stated = odometry.get("stated_deskew_noise")
+            skip = odometry.get("deskew_pass_skip")
         wanted = isinstance(mode, str) and mode.startswith("twist_change_jacobian")
         wanted = wanted or model == "sandwich" or planes in ("twist", "change")
-        wanted = wanted or stated == "shared"
+        wanted = wanted or stated == "shared" or skip == "planes"
         moments = (isinstance(twist, str) and twist != "none") or lead == "unknown"
         wanted = wanted or deskew == "twist_change" or lead == "stated"
         if not (wanted or moments):

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Literal
 
 from planodom.config.bridge_normals import BridgeNormalsConfig
+from planodom.config.deskew_pass_skip import DeskewPassSkipConfig
 from planodom.config.map_lead_shrink import MapLeadShrinkConfig
 from planodom.config.moment_refine import MomentRefineConfig
 from planodom.config.narrow_rotation import NarrowRotationConfig
@@ -20,6 +21,7 @@ from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
 
 class DeskewGuards(
     BridgeNormalsConfig,
+    DeskewPassSkipConfig,
     MapLeadShrinkConfig,
     MomentRefineConfig,
     NarrowRotationConfig,

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -35,17 +35,22 @@ class Curve:
 @dataclass(frozen=True)
 class Deskewed:
     """An epoch's scan (times relative to the pass's reference time) and the same points
-    deskewed along the curve (:meth:`PlaneOdometry.register_epoch`'s ``deskewed``)."""
+    deskewed along the curve (:meth:`PlaneOdometry.register_epoch`'s ``deskewed``); with
+    ``planes``, the planes to take for ``deskewed`` instead of extracting it
+    (``odometry.deskew_pass_skip``, :mod:`planodom.odometry.pass_skip`; ``deskewed`` is
+    then a copy of ``scan``, its points not deskewed: they are not read)."""
 
     scan: Scan
     deskewed: Scan
+    planes: list[Plane] | None = None
 
 
 class DeskewedEpochs:
     """``source``'s epochs, each scan (epoch k at ``times[k]``) deskewed to
     ``reference[k]`` along ``curve`` where ``trusted[k]``, else with
     its times shifted to that reference (see :func:`redeskewed_run`); ``seconds`` adds up
-    the time spent deskewing."""
+    the time spent deskewing. ``given(k)``: planes of a deskewed epoch k to take instead
+    of extracting it, or None (:mod:`planodom.odometry.pass_skip`)."""
 
     def __init__(
         self,
@@ -54,9 +59,10 @@ class DeskewedEpochs:
         reference: np.ndarray,
         curve: Curve,
         trusted: np.ndarray,
+        given: Callable[[int], list[Plane] | None] | None = None,
     ) -> None:
         self.source, self.times, self.reference = source, times, reference
-        self.curve, self.trusted = curve, trusted
+        self.curve, self.trusted, self.given = curve, trusted, given
         self.seconds = 0.0
 
     def __len__(self) -> int:
@@ -70,6 +76,9 @@ class DeskewedEpochs:
         raw = item if item.t is None or shift == 0 else replace(item, t=item.t - shift)
         if not self.trusted[k]:  # the streaming deskewing, to the reference time
             return raw
+        planes = None if self.given is None else self.given(k)
+        if planes is not None:  # not extracted: its points are not read (a copy: not raw)
+            return Deskewed(raw, replace(raw), planes)
         c0 = _time.perf_counter()
         c = self.curve
         out = deskew_with_poses(

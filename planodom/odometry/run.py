@@ -19,6 +19,7 @@ from planodom.odometry.extractor import Extractor, default_extractor
 from planodom.odometry.interpolate import curve_steps, epoch_middles, midpoint_nodes
 from planodom.odometry.odometry import PlaneOdometry
 from planodom.odometry.pairwise_deskew import with_pairwise_deskew
+from planodom.odometry.pass_skip import pass_planes
 from planodom.odometry.platform import with_platform
 from planodom.odometry.relative import RelativePose, Status
 from planodom.odometry.splice import kept_epochs, spliced
@@ -62,6 +63,8 @@ class OdometryRun:
             in deskewing through the poses (``deskew``, passes after the first), seconds.
         config: the configuration the run used (with a rig's platform and motion bounds,
             and the plane-map pipeline's extraction limits when it ran).
+        extractions: calls of the extractor over all passes; reused: of them, those
+            answered with the streaming pass's planes (``odometry.deskew_pass_skip``).
     """
 
     poses: np.ndarray
@@ -72,6 +75,8 @@ class OdometryRun:
     superseded: list[int] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
     config: PlanodomConfig | None = None
+    extractions: int = 0
+    reused: int = 0
 
     @property
     def statuses(self) -> list[str]:
@@ -244,11 +249,14 @@ def redeskewed_run(
     seconds = {"deskew": _time.perf_counter() - c0}
     middles = epoch_middles(times)
     increments = config.odometry.deskew_fit == "increments"
+    counts = (0, 0) if previous is None else (previous.extractions, previous.reused)
     for reference in [middles] * config.odometry.deskew_passes + [times]:
         trusted = _near_all_measured(measured, order)
         curve = Curve(*nodes, variances if n_fit else None, order, n_fit, increments)
-        deskewed = DeskewedEpochs(source, times, reference, curve, trusted)
+        given = pass_planes(config, previous, curve, times, reference, variances)
+        deskewed = DeskewedEpochs(source, times, reference, curve, trusted, given)
         run = _streaming_pass(deskewed, config, rig, reference, progress, extractor)
+        counts = (counts[0] + run.extractions, counts[1] + run.reused)
         nodes, measured = (reference, run.poses), _measured(run)
         steps = step_variances(run, measured)  # node k, the middle of epoch k: its two steps
         variances = 0.5 * (steps + np.r_[steps[1:], steps[-1:]])
@@ -262,6 +270,7 @@ def redeskewed_run(
         for key, value in previous.seconds.items():
             seconds[key] = seconds.get(key, 0.0) + value
     run.seconds = seconds
+    run.extractions, run.reused = counts
     return run
 
 
@@ -374,6 +383,7 @@ def _streaming_pass(
         t_k = None if times is None else float(times[k])
         c0 = _time.perf_counter()
         if isinstance(item, Deskewed):
+            timed.given = None if item.planes is None else (item.deskewed, item.planes)
             odo.register_epoch(item.scan, t_k, item.deskewed)
         elif isinstance(item, Scan):
             odo.register_epoch(item, t_k)
@@ -392,17 +402,27 @@ def _streaming_pass(
         superseded=sorted(odo.superseded),
         seconds={"extraction": timed.seconds, "odometry": total - timed.seconds},
         config=odo.config,
+        extractions=timed.calls,
+        reused=timed.reused,
     )
 
 
 class _TimedExtractor:
-    """An extractor that adds up the wall time spent in it (``seconds``)."""
+    """An extractor that adds up the wall time spent in it (``seconds``) and its ``calls``;
+    a call on the scan of ``given`` (scan, planes) returns those planes instead
+    (``odometry.deskew_pass_skip``), counted in ``reused``."""
 
     def __init__(self, extractor: Extractor | None) -> None:
         self.extractor = extractor
         self.seconds = 0.0
+        self.calls = self.reused = 0
+        self.given: tuple[Scan, list[Plane]] | None = None
 
     def __call__(self, *args: object, **kwargs: object) -> list[Plane]:
+        self.calls += 1
+        if self.given is not None and args and args[0] is self.given[0]:
+            self.reused += 1
+            return list(self.given[1])
         if self.extractor is None:
             self.extractor = default_extractor()
         return self.timed(self.extractor, *args, **kwargs)
