@@ -52,6 +52,7 @@ from planodom.odometry.solver_glue import (
     near_rows,
     pair_ids,
     remapped_pairs,
+    same_pairs,
 )
 from planodom.odometry.translation import (
     HeightElements,
@@ -135,9 +136,10 @@ def estimate_relative_pose(
     prior = None if prior is None else np.asarray(prior, dtype=np.float64)
 
     lateral = lateral_sigma(cfg.odometry) if step else 0.0
-    result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m, lateral)
+    held: list = []  # the first solve's rotation, for the second's (:func:`_rotated`)
+    result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m, lateral, held)
     if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
-        free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral)
+        free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral, held)
         if free.status.rank > result.status.rank:
             result = free
     return _remapped(result, order_p, order_c)
@@ -175,9 +177,11 @@ def _solve(
     bound_by_prior: bool,
     prior_sigma_m: float | None = None,
     lateral: float = 0.0,
+    held: list | None = None,
 ) -> RelativePose:
     """One pass of the pipeline on canonically ordered planes (indices not remapped);
-    ``lateral``: the non-holonomic constraint's sigma, m (0: none)."""
+    ``lateral``: the non-holonomic constraint's sigma, m (0: none); ``held``: see
+    :func:`_rotated` (None: nothing reused)."""
     ocfg, acfg = cfg.odometry, cfg.association
     name = pairwise_pipeline(ocfg.pipeline)
     rot_method, trans_method = PIPELINES[name]
@@ -192,8 +196,8 @@ def _solve(
         cov = np.diag([bounds.rotation**2] * 3 + [bounds.translation**2] * 2)
         return RelativePose(T, cov, Status.UNRESOLVED, diagnostics=info)
 
-    R, cov_r, rot_cons = _rotation(prev, curr, lda, rot_method, ocfg)
-    ij, pp, cp = _translation_pairs(prev, curr, lda, R, trans_method, bounds, cfg)
+    R, cov_r, rot_cons, ij, pp, cp = _rotated(prev, curr, lda, (rot_method, trans_method),
+                                              bounds, cfg, held)  # fmt: skip
     tr_args = (prev, curr, R, pp, cp, ij, trans_method, bounds, cfg)
     pairs, tr, measured = _measured_translation(*tr_args)
     if measured:
@@ -241,6 +245,27 @@ def _solve(
     return RelativePose(
         T, cov, status, final_ij, z_observed=z_observed, sigma_z=sigma_z, diagnostics=info
     )
+
+
+def _rotated(
+    prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, methods: tuple[str, str],
+    bounds: PassBounds, cfg: PlanodomConfig, held: list | None,
+) -> tuple:  # fmt: skip
+    """:func:`_rotation` and :func:`_translation_pairs` of ``lda`` (``methods``: rotation,
+    translation), ``(R, cov_r, consensus, ij, pp, cp)``. ``held`` (a list, None: nothing
+    reused) keeps them with ``lda`` for the next solve of the same planes and config: the
+    solve without the prior (:func:`estimate_relative_pose`) gets the same LDA pairs
+    (the same bytes, :func:`.solver_glue.same_pairs`) in nearly every retry, and both
+    are then functions of the planes, those pairs and the config alone (the pairs of
+    "cog" also of the bounds: never reused), so they are returned again, not computed
+    again (the same bits by construction; about a third of that solve's time)."""
+    if held and methods[1] != "cog" and same_pairs(held[0], lda):
+        return held[1]
+    R, cov_r, cons = _rotation(prev, curr, lda, methods[0], cfg.odometry)
+    out = (R, cov_r, cons, *_translation_pairs(prev, curr, lda, R, methods[1], bounds, cfg))
+    if held is not None:
+        held[:] = [lda, out]
+    return out
 
 
 def _translation_pairs(
