@@ -30,7 +30,7 @@ from planodom.consensus import apply_negative_translation, consensus
 from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
 from planodom.odometry.fused_translation import MeasuredTranslation as _Translation
-from planodom.odometry.fused_translation import fused_translation
+from planodom.odometry.fused_translation import fused_parts, fused_translation
 from planodom.odometry.nonholonomic import lateral_sigma
 from planodom.odometry.pair_agreement import agreeing_pairs
 from planodom.odometry.pair_rotation import candidate_pairs, rotation_weights, winner_rotation
@@ -199,7 +199,7 @@ def _solve(
     R, cov_r, rot_cons, ij, pp, cp = _rotated(prev, curr, lda, (rot_method, trans_method),
                                               bounds, cfg, held)  # fmt: skip
     tr_args = (prev, curr, R, pp, cp, ij, trans_method, bounds, cfg)
-    pairs, tr, measured = _measured_translation(*tr_args)
+    pairs, tr, measured = _measured_translation(*tr_args, held=held)
     if measured:
         assert tr is not None
         txy, z, cov_t, sigma_z, z_observed = tr.txy, tr.z, tr.cov, tr.sigma_z, tr.z_observed
@@ -258,7 +258,8 @@ def _rotated(
     (the same bytes, :func:`.solver_glue.same_pairs`) in nearly every retry, and both
     are then functions of the planes, those pairs and the config alone (the pairs of
     "cog" also of the bounds: never reused), so they are returned again, not computed
-    again (the same bits by construction; about a third of that solve's time)."""
+    again (the same bits by construction); so are the compiled translation's results that
+    do not read the bounds (:func:`_measured_translation`, which adds them to ``held``)."""
     if held and methods[1] != "cog" and same_pairs(held[0], lda):
         return held[1]
     R, cov_r, cons = _rotation(prev, curr, lda, methods[0], cfg.odometry)
@@ -266,6 +267,11 @@ def _rotated(
     if held is not None:
         held[:] = [lda, out]
     return out
+
+
+def _same_float(a: float, b: float) -> bool:
+    """The same float64 bits (a signed zero, a NaN too)."""
+    return np.float64(a).tobytes() == np.float64(b).tobytes()
 
 
 def _translation_pairs(
@@ -292,15 +298,23 @@ def _translation_pairs(
     return lda.plane_associations(agree), kept_pp, kept_cp
 
 
-def _measured_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg):
+def _measured_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg, held=None):
     """The pair elements' rows (E, 4) of the pairs ``pp`` -> ``cp`` under ``R``, then as
     :func:`_elements_translation`; consensus methods in two compiled calls (the same bits:
-    :mod:`planodom.odometry.fused_translation`), else (or where those do not apply) numpy."""
-    done = (
-        None
-        if method == "cog"
-        else fused_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg)
-    )
+    :mod:`planodom.odometry.fused_translation`), else (or where those do not apply) numpy.
+    ``held``: :func:`_rotated`'s; the compiled calls' results (all but the bounds' tests,
+    :func:`.fused_translation.fused_parts`) are kept there with the rotation ``R`` they
+    were computed under and the bounds' ``z_prior``, and reused for the same."""
+    done, z0 = None, float(bounds.z_prior)
+    if method != "cog":
+        mine = held is not None and len(held) >= 2 and held[1][0] is R  # ``_rotated``'s
+        if mine and len(held) == 3 and _same_float(held[2][0], z0):
+            parts = held[2][1]
+        else:
+            parts = fused_parts(prev, curr, R, pp, cp, ij, method, z0, cfg)
+            if mine:
+                held[2:] = [(z0, parts)]
+        done = fused_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg, parts)
     if done is not None:
         return done
     elems = translation_elements(prev, curr, R, pp, cp, cfg.association.min_line_verticality,

@@ -1,10 +1,12 @@
-"""The solve without the prior reuses the first solve's rotation only where that changes
-no bit (:func:`planodom.odometry.solver._rotated`).
+"""The solve without the prior reuses the first solve's rotation and translation parts
+only where that changes no bit (:func:`planodom.odometry.solver._rotated`,
+``_measured_translation``).
 
 Every relative pose of seeded synthetic epochs (degenerate ones among them: two walls
 and the ground) and of a short simulated 2D-rig run at 2 cm is computed twice: as the
 solver does it, and with nothing reused (``held`` None: the rotation and the
-translation pairs computed again by the retry, the solver before SPEED2D15). The results
+translation pairs and the compiled translation's parts computed again by the retry, the
+solver before SPEED2D15). The results
 must be equal to the last bit, and the reuse must have served retries in both.
 """
 
@@ -46,8 +48,12 @@ def _assert_same(got: Any, want: Any) -> None:
 def _counted(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
     """Counts of the retries that reused the rotation (``_rotated`` answering from
     ``held`` without calling ``_rotation``)."""
-    n = {"rotated": 0, "computed": 0}
-    rotated, rotation = solver._rotated, solver._rotation
+    n = {"rotated": 0, "computed": 0, "parts": 0}
+    rotated, rotation, parts = solver._rotated, solver._rotation, solver.fused_parts
+
+    def spy_parts(*args: Any) -> Any:
+        n["parts"] += 1
+        return parts(*args)
 
     def spy_rotated(*args: Any) -> Any:
         n["rotated"] += 1
@@ -59,6 +65,7 @@ def _counted(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
 
     monkeypatch.setattr(solver, "_rotated", spy_rotated)
     monkeypatch.setattr(solver, "_rotation", spy_rotation)
+    monkeypatch.setattr(solver, "fused_parts", spy_parts)
     return n
 
 
@@ -89,6 +96,7 @@ def test_reuse_gives_the_bits_of_the_solve_again_on_synthetic_epochs(monkeypatch
         _assert_same(g, w)
     reused = n["rotated"] - n["computed"]
     assert reused >= 5 if pipeline != "sda-mean" else reused == 0  # "cog": never reused
+    assert n["parts"] <= n["rotated"] - reused  # the translation's parts with them
 
 
 def test_reuse_gives_the_bits_of_the_solve_again_on_a_simulated_run(monkeypatch):
@@ -107,6 +115,7 @@ def test_reuse_gives_the_bits_of_the_solve_again_on_a_simulated_run(monkeypatch)
     assert _same(np.asarray(got.poses), np.asarray(want.poses))
     assert got.statuses == want.statuses
     assert n["rotated"] - n["computed"] >= 5
+    assert n["parts"] == n["computed"]  # every solve reaching them: none computed again
 
 
 def test_rotated_reuses_only_the_same_bytes():
