@@ -138,9 +138,12 @@ def estimate_relative_pose(
     lateral = lateral_sigma(cfg.odometry) if step else 0.0
     held: list = []  # the first solve's rotation, for the second's (:func:`_rotated`)
     result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m, lateral, held)
+    assert result is not None  # None only for a rank to beat
     if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
-        free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral, held)
-        if free.status.rank > result.status.rank:
+        # kept only with a better status: one that is not ends once its status is known
+        free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral, held,
+                      result.status.rank)  # fmt: skip
+        if free is not None and free.status.rank > result.status.rank:
             result = free
     return _remapped(result, order_p, order_c)
 
@@ -178,10 +181,12 @@ def _solve(
     prior_sigma_m: float | None = None,
     lateral: float = 0.0,
     held: list | None = None,
-) -> RelativePose:
+    beat: int = -1,
+) -> RelativePose | None:
     """One pass of the pipeline on canonically ordered planes (indices not remapped);
     ``lateral``: the non-holonomic constraint's sigma, m (0: none); ``held``: see
-    :func:`_rotated` (None: nothing reused)."""
+    :func:`_rotated` (None: nothing reused). None once its status's rank is known to be
+    ``beat`` or less (its covariance, SDA and diagnostics would never be used)."""
     ocfg, acfg = cfg.odometry, cfg.association
     name = pairwise_pipeline(ocfg.pipeline)
     rot_method, trans_method = PIPELINES[name]
@@ -218,13 +223,13 @@ def _solve(
             txy, z, cov_t = fit.t[:2], fit.t[2], fit.cov_xy
             if fit.z_observed:
                 sigma_z, z_observed = fit.sigma_z, True
+    if (Status.OK if measured else Status.DEGENERATE).rank <= beat:
+        return None  # loses to the solve it retries (docstring)
     T = make_transform(R, [txy[0], txy[1], z])
-
     rot_pair = trans_pair = None
     if rot_cons is not None:
-        rot_pair = np.concatenate(
-            (lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index])
-        )
+        b = rot_cons.best_index
+        rot_pair = np.concatenate((lda.prev_pairs[b], lda.curr_pairs[b]))
     if measured and tr is not None and tr.best >= 0:
         trans_pair = pairs[tr.best]
     cov = np.zeros((5, 5))

@@ -1,13 +1,15 @@
-"""The solve without the prior reuses the first solve's rotation and translation parts
-only where that changes no bit (:func:`planodom.odometry.solver._rotated`,
-``_measured_translation``).
+"""The solve without the prior reuses the first solve's rotation and translation parts,
+and ends once it cannot win, only where that changes no bit
+(:func:`planodom.odometry.solver._rotated`, ``_measured_translation``, ``_solve``'s
+``beat``).
 
 Every relative pose of seeded synthetic epochs (degenerate ones among them: two walls
 and the ground) and of a short simulated 2D-rig run at 2 cm is computed twice: as the
 solver does it, and with nothing reused (``held`` None: the rotation and the
-translation pairs and the compiled translation's parts computed again by the retry, the
-solver before SPEED2D15). The results
-must be equal to the last bit, and the reuse must have served retries in both.
+translation pairs and the compiled translation's parts computed again by the retry, and
+a retry that cannot win finished: the solver before SPEED2D15). The results
+must be equal to the last bit, and the reuse and the early end must have served retries
+in both.
 """
 
 from __future__ import annotations
@@ -48,8 +50,14 @@ def _assert_same(got: Any, want: Any) -> None:
 def _counted(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
     """Counts of the retries that reused the rotation (``_rotated`` answering from
     ``held`` without calling ``_rotation``)."""
-    n = {"rotated": 0, "computed": 0, "parts": 0}
+    n = {"rotated": 0, "computed": 0, "parts": 0, "ended": 0}
     rotated, rotation, parts = solver._rotated, solver._rotation, solver.fused_parts
+    solve = solver._solve
+
+    def spy_solve(*args: Any) -> Any:
+        out = solve(*args)
+        n["ended"] += out is None
+        return out
 
     def spy_parts(*args: Any) -> Any:
         n["parts"] += 1
@@ -66,12 +74,14 @@ def _counted(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
     monkeypatch.setattr(solver, "_rotated", spy_rotated)
     monkeypatch.setattr(solver, "_rotation", spy_rotation)
     monkeypatch.setattr(solver, "fused_parts", spy_parts)
+    monkeypatch.setattr(solver, "_solve", spy_solve)
     return n
 
 
 def _without_reuse(monkeypatch: pytest.MonkeyPatch) -> None:
-    rotated = solver._rotated
-    monkeypatch.setattr(solver, "_rotated", lambda *a: rotated(*a[:-1], None))
+    """Every solve as before SPEED2D15: nothing held, no rank to beat."""
+    solve = solver._solve
+    monkeypatch.setattr(solver, "_solve", lambda *a: solve(*a[:7]))
 
 
 def _synthetic(seed: int) -> tuple:
@@ -97,6 +107,7 @@ def test_reuse_gives_the_bits_of_the_solve_again_on_synthetic_epochs(monkeypatch
     reused = n["rotated"] - n["computed"]
     assert reused >= 5 if pipeline != "sda-mean" else reused == 0  # "cog": never reused
     assert n["parts"] <= n["rotated"] - reused  # the translation's parts with them
+    assert n["ended"] >= 5  # retries that could not win, ended at their status
 
 
 def test_reuse_gives_the_bits_of_the_solve_again_on_a_simulated_run(monkeypatch):
@@ -116,6 +127,7 @@ def test_reuse_gives_the_bits_of_the_solve_again_on_a_simulated_run(monkeypatch)
     assert got.statuses == want.statuses
     assert n["rotated"] - n["computed"] >= 5
     assert n["parts"] == n["computed"]  # every solve reaching them: none computed again
+    assert n["ended"] >= 5
 
 
 def test_rotated_reuses_only_the_same_bytes():
