@@ -72,17 +72,34 @@ def fused_translation(
     method: str,
     bounds: PassBounds,
     cfg: Any,
+    parts: tuple | None = None,
 ) -> tuple[np.ndarray, MeasuredTranslation | None, bool] | None:
     """The pair elements' rows ``(i1, i2, j1, j2)`` (E, 4), the translation (None without
     elements) and whether it is a measurement, as the solver's numpy path gives them for
-    the consensus ``method`` ("wocsc" or "ocsc"), or None where that path must run."""
+    the consensus ``method`` ("wocsc" or "ocsc"), or None where that path must run.
+    ``parts``: :func:`fused_parts` of these arguments when the caller has them (a solve of
+    the same planes, rotation and pairs with other bounds, SPEED2D15), else computed."""
+    if parts is None:
+        parts = fused_parts(prev, curr, R, pp, cp, ij, method, float(bounds.z_prior), cfg)
+    return bounded(parts, bounds, cfg)
+
+
+def fused_parts(
+    prev: PlaneSet, curr: PlaneSet, R: np.ndarray, pp: np.ndarray, cp: np.ndarray,
+    ij: np.ndarray, method: str, z0: float, cfg: Any,
+) -> tuple | None:  # fmt: skip
+    """What :func:`fused_translation` computes before its bounds' tests, which alone read
+    the bounds' centre ``t0`` and reach (``z0``: the bounds' ``z_prior``, m): None (the
+    numpy path), ``(pairs, None, None)`` (no elements), or ``(pairs, translation, height)``
+    with the translation at ``z0`` and ``height`` the height kernel's result (None when
+    the height is not estimated)."""
     arrays = (prev.normals, prev.offsets, prev.weights, prev.covariances,
               curr.normals, curr.offsets, curr.weights, curr.covariances)  # fmt: skip
     if not all(map(_plain, arrays)) or not _ints(pp, cp, ij):
         return None
     ocfg, acfg = cfg.odometry, cfg.association
     r1, r2 = curr.normals[cp[:, 0]] @ R.T, curr.normals[cp[:, 1]] @ R.T
-    weighted, z0, tol = method == "wocsc", float(bounds.z_prior), ocfg.translation_inlier_m
+    weighted, tol = method == "wocsc", ocfg.translation_inlier_m
     status, pairs, totals, errors, inliers, vec, hb, hm = _pairs_kernel(
         prev.normals, prev.offsets, prev.weights, curr.normals, curr.offsets, curr.weights,
         np.ascontiguousarray(r1), np.ascontiguousarray(r2), pp, cp, ij,
@@ -93,12 +110,12 @@ def fused_translation(
     if status == 2:
         return None
     if status == 1:
-        return pairs, None, False
+        return pairs, None, None
     best = int(vec[12])
     cons = ConsensusResult(best, vec[10:12].copy(), totals, errors, inliers)
     txy, a, g, cov = vec[0:2].copy(), vec[2:4], vec[4:6], vec[6:10].reshape(2, 2).copy()
     tr = MeasuredTranslation(txy, z0, cov, cons, np.inf, False, best)
-    reach = bounds.translation + acfg.offset_tol_m
+    done = None
     if ocfg.estimate_z and len(hb):
         hz = hb - hm @ txy
         done = _height_kernel(
@@ -107,11 +124,28 @@ def fused_translation(
             np.ascontiguousarray(hz), weighted, a.copy(), g.copy(),
             float(ocfg.min_sigma_translation_m), _SHORTLIST, _BUDGET,
         )  # fmt: skip
-        h_status, z, sigma_z, h, txy_z = done
-        if h_status == 2:
+        if done[0] == 2:
             return None
+    return pairs, tr, done
+
+
+def bounded(
+    parts: tuple | None, bounds: PassBounds, cfg: Any
+) -> tuple[np.ndarray, MeasuredTranslation | None, bool] | None:
+    """:func:`fused_translation`'s result from its :func:`fused_parts` and ``bounds``: the
+    height kept only within the bounds' reach of their centre, and the translation a
+    measurement only within it."""
+    if parts is None:
+        return None
+    pairs, tr, done = parts
+    if tr is None:
+        return pairs, None, False
+    reach = bounds.translation + cfg.association.offset_tol_m
+    if done is not None:
+        h_status, z, sigma_z, h, txy_z = done
         if h_status == 0 and not abs(z - bounds.t0[2]) > reach:
-            tr = MeasuredTranslation(txy_z, z, cov, cons, sigma_z, True, best, int(h))
+            tr = MeasuredTranslation(txy_z, z, tr.cov, tr.consensus, sigma_z, True, tr.best,
+                                     int(h))  # fmt: skip
     return pairs, tr, vector_norm(tr.txy - bounds.t0[:2]) <= reach
 
 

@@ -30,7 +30,7 @@ from planodom.consensus import apply_negative_translation, consensus
 from planodom.geometry import Plane, make_transform, rpy_from_rotation, vector_norm
 from planodom.odometry.canonical import canonical
 from planodom.odometry.fused_translation import MeasuredTranslation as _Translation
-from planodom.odometry.fused_translation import fused_translation
+from planodom.odometry.fused_translation import fused_parts, fused_translation
 from planodom.odometry.nonholonomic import lateral_sigma
 from planodom.odometry.pair_agreement import agreeing_pairs
 from planodom.odometry.pair_rotation import candidate_pairs, rotation_weights, winner_rotation
@@ -38,6 +38,7 @@ from planodom.odometry.pass_bounds import PassBounds, pass_bounds
 from planodom.odometry.propagate import pose_covariance, rotation_covariance
 from planodom.odometry.refine_loop import refine
 from planodom.odometry.relative import RelativePose, SolverDiagnostics, Status, replaced
+from planodom.odometry.retry_status import degenerate_kept
 from planodom.odometry.rotation import (
     chord,
     chordal_mean_rotation,
@@ -52,6 +53,7 @@ from planodom.odometry.solver_glue import (
     near_rows,
     pair_ids,
     remapped_pairs,
+    same_pairs,
 )
 from planodom.odometry.translation import (
     HeightElements,
@@ -125,8 +127,7 @@ def estimate_relative_pose(
         step: the streaming odometry's step of a vehicle (not a loop's or a skip's pair):
             a non-holonomic ``odometry.motion_model`` adds its constraint to a degenerate
             one (:func:`planodom.odometry.nonholonomic.lateral_sigma`).
-        gap: epochs from the previous to the current one (the streaming odometry's
-            reference is older after bridged epochs), for ``odometry.retry_accepts``.
+        gap: epochs from the previous epoch to the current one (``odometry.retry_accepts``).
 
     Returns:
         :class:`RelativePose` (``prev``, ``curr`` unset); index arrays refer to the input
@@ -138,23 +139,17 @@ def estimate_relative_pose(
     prior = None if prior is None else np.asarray(prior, dtype=np.float64)
 
     lateral = lateral_sigma(cfg.odometry) if step else 0.0
-    result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m, lateral)
+    held: list = []  # the first solve's rotation, for the second's (:func:`_rotated`)
+    result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m, lateral, held)
+    assert result is not None  # None only for a rank to beat
     if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
-        free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral)
-        kept = _retry_kept(free, cfg.odometry.retry_accepts, gap)
-        if kept and free.status.rank > result.status.rank:
+        # kept only with a better status (OK alone without degenerate_kept); ends when it cannot
+        worst = -1 if degenerate_kept(cfg.odometry.retry_accepts, gap) else Status.DEGENERATE.rank
+        floor = max(result.status.rank, worst)
+        free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral, held, floor)
+        if free is not None and free.status.rank > floor:
             result = free
     return _remapped(result, order_p, order_c)
-
-
-def _retry_kept(free: RelativePose, accepts: str, gap: int) -> bool:
-    """Whether the prior-free retry ``free`` of a step across ``gap`` epochs may replace
-    the solve under the prior (``odometry.retry_accepts``): OK, or degenerate with
-    "degenerate", or with "across_gap" degenerate over one epoch (its bounds the
-    per-epoch ones, not widened with a gap)."""
-    if free.status is Status.OK or accepts == "degenerate":
-        return True
-    return accepts == "across_gap" and gap <= 1
 
 
 def _remapped(result: RelativePose, order_p: np.ndarray, order_c: np.ndarray) -> RelativePose:
@@ -189,9 +184,13 @@ def _solve(
     bound_by_prior: bool,
     prior_sigma_m: float | None = None,
     lateral: float = 0.0,
-) -> RelativePose:
+    held: list | None = None,
+    beat: int = -1,
+) -> RelativePose | None:
     """One pass of the pipeline on canonically ordered planes (indices not remapped);
-    ``lateral``: the non-holonomic constraint's sigma, m (0: none)."""
+    ``lateral``: the non-holonomic constraint's sigma, m (0: none); ``held``: see
+    :func:`_rotated` (None: nothing reused). None once its status's rank is known to be
+    ``beat`` or less (its covariance, SDA and diagnostics would never be used)."""
     ocfg, acfg = cfg.odometry, cfg.association
     name = pairwise_pipeline(ocfg.pipeline)
     rot_method, trans_method = PIPELINES[name]
@@ -206,10 +205,10 @@ def _solve(
         cov = np.diag([bounds.rotation**2] * 3 + [bounds.translation**2] * 2)
         return RelativePose(T, cov, Status.UNRESOLVED, diagnostics=info)
 
-    R, cov_r, rot_cons = _rotation(prev, curr, lda, rot_method, ocfg)
-    ij, pp, cp = _translation_pairs(prev, curr, lda, R, trans_method, bounds, cfg)
+    R, cov_r, rot_cons, ij, pp, cp = _rotated(prev, curr, lda, (rot_method, trans_method),
+                                              bounds, cfg, held)  # fmt: skip
     tr_args = (prev, curr, R, pp, cp, ij, trans_method, bounds, cfg)
-    pairs, tr, measured = _measured_translation(*tr_args)
+    pairs, tr, measured = _measured_translation(*tr_args, held=held)
     if measured:
         assert tr is not None
         txy, z, cov_t, sigma_z, z_observed = tr.txy, tr.z, tr.cov, tr.sigma_z, tr.z_observed
@@ -228,13 +227,13 @@ def _solve(
             txy, z, cov_t = fit.t[:2], fit.t[2], fit.cov_xy
             if fit.z_observed:
                 sigma_z, z_observed = fit.sigma_z, True
+    if (Status.OK if measured else Status.DEGENERATE).rank <= beat:
+        return None  # loses to the solve it retries (docstring)
     T = make_transform(R, [txy[0], txy[1], z])
-
     rot_pair = trans_pair = None
     if rot_cons is not None:
-        rot_pair = np.concatenate(
-            (lda.prev_pairs[rot_cons.best_index], lda.curr_pairs[rot_cons.best_index])
-        )
+        b = rot_cons.best_index
+        rot_pair = np.concatenate((lda.prev_pairs[b], lda.curr_pairs[b]))
     if measured and tr is not None and tr.best >= 0:
         trans_pair = pairs[tr.best]
     cov = np.zeros((5, 5))
@@ -255,6 +254,33 @@ def _solve(
     return RelativePose(
         T, cov, status, final_ij, z_observed=z_observed, sigma_z=sigma_z, diagnostics=info
     )
+
+
+def _rotated(
+    prev: PlaneSet, curr: PlaneSet, lda: PairAssociations, methods: tuple[str, str],
+    bounds: PassBounds, cfg: PlanodomConfig, held: list | None,
+) -> tuple:  # fmt: skip
+    """:func:`_rotation` and :func:`_translation_pairs` of ``lda`` (``methods``: rotation,
+    translation), ``(R, cov_r, consensus, ij, pp, cp)``. ``held`` (a list, None: nothing
+    reused) keeps them with ``lda`` for the next solve of the same planes and config: the
+    solve without the prior (:func:`estimate_relative_pose`) gets the same LDA pairs
+    (the same bytes, :func:`.solver_glue.same_pairs`) in nearly every retry, and both
+    are then functions of the planes, those pairs and the config alone (the pairs of
+    "cog" also of the bounds: never reused), so they are returned again, not computed
+    again (the same bits by construction); so are the compiled translation's results that
+    do not read the bounds (:func:`_measured_translation`, which adds them to ``held``)."""
+    if held and methods[1] != "cog" and same_pairs(held[0], lda):
+        return held[1]
+    R, cov_r, cons = _rotation(prev, curr, lda, methods[0], cfg.odometry)
+    out = (R, cov_r, cons, *_translation_pairs(prev, curr, lda, R, methods[1], bounds, cfg))
+    if held is not None:
+        held[:] = [lda, out]
+    return out
+
+
+def _same_float(a: float, b: float) -> bool:
+    """The same float64 bits (a signed zero, a NaN too)."""
+    return np.float64(a).tobytes() == np.float64(b).tobytes()
 
 
 def _translation_pairs(
@@ -281,15 +307,23 @@ def _translation_pairs(
     return lda.plane_associations(agree), kept_pp, kept_cp
 
 
-def _measured_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg):
+def _measured_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg, held=None):
     """The pair elements' rows (E, 4) of the pairs ``pp`` -> ``cp`` under ``R``, then as
     :func:`_elements_translation`; consensus methods in two compiled calls (the same bits:
-    :mod:`planodom.odometry.fused_translation`), else (or where those do not apply) numpy."""
-    done = (
-        None
-        if method == "cog"
-        else fused_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg)
-    )
+    :mod:`planodom.odometry.fused_translation`), else (or where those do not apply) numpy.
+    ``held``: :func:`_rotated`'s; the compiled calls' results (all but the bounds' tests,
+    :func:`.fused_translation.fused_parts`) are kept there with the rotation ``R`` they
+    were computed under and the bounds' ``z_prior``, and reused for the same."""
+    done, z0 = None, float(bounds.z_prior)
+    if method != "cog":
+        mine = held is not None and len(held) >= 2 and held[1][0] is R  # ``_rotated``'s
+        if mine and len(held) == 3 and _same_float(held[2][0], z0):
+            parts = held[2][1]
+        else:
+            parts = fused_parts(prev, curr, R, pp, cp, ij, method, z0, cfg)
+            if mine:
+                held[2:] = [(z0, parts)]
+        done = fused_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg, parts)
     if done is not None:
         return done
     elems = translation_elements(prev, curr, R, pp, cp, cfg.association.min_line_verticality,

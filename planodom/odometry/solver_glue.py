@@ -12,8 +12,13 @@ a few rows cost several times their arithmetic there.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numba
 import numpy as np
+
+if TYPE_CHECKING:
+    from planodom.association import PairAssociations
 
 
 def pair_ids(pairs: np.ndarray) -> np.ndarray:
@@ -136,3 +141,15 @@ def kept_rows(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
         return tuple(a[mask] for a in arrays)
     index = mask.nonzero()[0]
     return tuple(a.take(index, axis=0) for a in arrays)
+
+
+def same_pairs(a: PairAssociations, b: PairAssociations) -> bool:
+    """Whether two LDA results hold the same bytes in every array (dtype and shape
+    too): not ``np.array_equal``, for which -0.0 equals 0.0 and which a rotation's sign
+    of zero could tell apart downstream."""
+    fields = ("prev_pairs", "curr_pairs", "rotations", "weights")
+    return all(_same_bytes(getattr(a, f), getattr(b, f)) for f in fields)
+
+
+def _same_bytes(x: np.ndarray, y: np.ndarray) -> bool:
+    return x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes()

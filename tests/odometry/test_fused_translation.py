@@ -72,7 +72,7 @@ def _captured(monkeypatch: pytest.MonkeyPatch, solve: Any) -> list[tuple]:
     seen: list[tuple] = []
 
     def spy(*args: Any) -> Any:
-        seen.append(args)
+        seen.append(args[:9])  # not the parts the solver computed (or reused) for it
         return None  # the numpy path answers the solve itself
 
     monkeypatch.setattr(solver, "fused_translation", spy)
@@ -156,3 +156,27 @@ def test_spread_is_the_solvers_einsum(m):
         with np.errstate(invalid="ignore"):
             expected = solver._spread(d, w)
         assert _same(_spread_kernel(d, w), expected)
+
+
+def test_parts_do_not_read_the_bounds_centre_or_reach(monkeypatch):
+    """:func:`fused_parts` under one pass's bounds, finished (``bounded``) under another's
+    with the same ``z_prior``, gives the bits of :func:`fused_translation` under that
+    other's: the solve without the prior reuses them (SPEED2D15)."""
+    from planodom.odometry.fused_translation import bounded, fused_parts
+
+    checked = 0
+    for seed in range(40):
+        for args in _synthetic_solves(monkeypatch, seed, "wocsc"):
+            prev, curr, R, pp, cp, ij, method, bounds, cfg = args
+            parts = fused_parts(prev, curr, R, pp, cp, ij, method, float(bounds.z_prior), cfg)
+            rng = np.random.default_rng(seed)
+            for t0, reach in ((bounds.t0, bounds.translation), (np.zeros(3), 2.0),
+                              (rng.normal(0.0, 0.5, 3), 0.05)):  # fmt: skip
+                other = bounds._replace(t0=t0, translation=reach)
+                want = fused_translation(prev, curr, R, pp, cp, ij, method, other, cfg)
+                got = bounded(parts, other, cfg)
+                assert (got is None) == (want is None)
+                if want is not None:
+                    _assert_same(got, want)
+                    checked += 1
+    assert checked >= 100

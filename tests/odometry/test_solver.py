@@ -1,15 +1,166 @@
-"""Tests of planodom.odometry.solver: the prior-free retry's status (``odometry.retry_accepts``)."""
+"""Tests of planodom.odometry.solver. The prior-free retry's status (``odometry.retry_accepts``);
+and the solve without the prior reuses the first solve's rotation and translation parts,
+and ends once it cannot win, only where that changes no bit
+(:func:`planodom.odometry.solver._rotated`, ``_measured_translation``, ``_solve``'s
+``beat``).
+
+Every relative pose of seeded synthetic epochs (degenerate ones among them: two walls
+and the ground) and of a short simulated 2D-rig run at 2 cm is computed twice: as the
+solver does it, and with nothing reused (``held`` None: the rotation and the
+translation pairs and the compiled translation's parts computed again by the retry, and
+a retry that cannot win finished: the solver before SPEED2D15). The results
+must be equal to the last bit, and the reuse and the early end must have served retries
+in both.
+"""
 
 from __future__ import annotations
 
-import numpy as np
+from typing import Any
 
+import numpy as np
+import pytest
+from planes_factory import observed_pair, random_motion, world_planes
+
+import planodom.odometry.solver as solver
+from planodom.association import PairAssociations
 from planodom.config import PlanodomConfig
+from planodom.geometry import make_transform
 from planodom.odometry import Status, estimate_relative_pose
 from planodom.odometry.solver import config_for_gap
 from planodom.planes import PlaneSet
 from tests.odometry.test_refine import _ground, _wall
 from tests.planes_factory import observe
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal to the last bit: arrays by dtype, shape and bytes, floats by their bits."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+    if isinstance(a, float) or isinstance(b, float):
+        return bool(np.float64(a).tobytes() == np.float64(b).tobytes())
+    return bool(a == b)
+
+
+def _assert_same(got: Any, want: Any) -> None:
+    for name in ("T_prev_curr", "covariance", "status", "associations", "z_observed",
+                 "sigma_z", "sources"):  # fmt: skip
+        assert _same(getattr(got, name), getattr(want, name)), name
+    g, w = got.diagnostics, want.diagnostics
+    for name in ("rotation_pair", "translation_pair", "n_translation_pairs", "used_prior"):
+        assert _same(getattr(g, name), getattr(w, name)), name
+    for name in ("prev_pairs", "curr_pairs", "rotations", "weights"):
+        assert _same(getattr(g.lda, name), getattr(w.lda, name)), name
+
+
+def _counted(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
+    """Counts of the retries that reused the rotation (``_rotated`` answering from
+    ``held`` without calling ``_rotation``)."""
+    n = {"rotated": 0, "computed": 0, "parts": 0, "ended": 0}
+    rotated, rotation, parts = solver._rotated, solver._rotation, solver.fused_parts
+    solve = solver._solve
+
+    def spy_solve(*args: Any) -> Any:
+        out = solve(*args)
+        n["ended"] += out is None
+        return out
+
+    def spy_parts(*args: Any) -> Any:
+        n["parts"] += 1
+        return parts(*args)
+
+    def spy_rotated(*args: Any) -> Any:
+        n["rotated"] += 1
+        return rotated(*args)
+
+    def spy_rotation(*args: Any) -> Any:
+        n["computed"] += 1
+        return rotation(*args)
+
+    monkeypatch.setattr(solver, "_rotated", spy_rotated)
+    monkeypatch.setattr(solver, "_rotation", spy_rotation)
+    monkeypatch.setattr(solver, "fused_parts", spy_parts)
+    monkeypatch.setattr(solver, "_solve", spy_solve)
+    return n
+
+
+def _without_reuse(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every solve as before SPEED2D15: nothing held, no rank to beat."""
+    solve = solver._solve
+    monkeypatch.setattr(solver, "_solve", lambda *a: solve(*a[:7]))
+
+
+def _synthetic(seed: int) -> tuple:
+    rng = np.random.default_rng(seed)
+    world = world_planes(rng, 2 if seed % 2 else int(rng.integers(3, 8)), ground=True)
+    T = random_motion(rng, tz=float(rng.normal(0.0, 0.05)))
+    prev, curr = observed_pair(world, T, rng, covariances=bool(seed % 3))
+    off = make_transform(np.eye(3), rng.normal(0.0, 0.3, 3))  # a prior off by decimetres
+    return prev, curr, T @ off
+
+
+@pytest.mark.parametrize("pipeline", ["wocsc", "ocsc", "sda-mean"])
+def test_reuse_gives_the_bits_of_the_solve_again_on_synthetic_epochs(monkeypatch, pipeline):
+    cfg = PlanodomConfig().updated({"odometry.pipeline": pipeline}, source="test")
+    cases = [_synthetic(seed) for seed in range(60)]
+    n = _counted(monkeypatch)
+    got = [solver.estimate_relative_pose(p, c, cfg, prior=T, step=True) for p, c, T in cases]
+    monkeypatch.undo()
+    _without_reuse(monkeypatch)
+    want = [solver.estimate_relative_pose(p, c, cfg, prior=T, step=True) for p, c, T in cases]
+    for g, w in zip(got, want, strict=True):
+        _assert_same(g, w)
+    reused = n["rotated"] - n["computed"]
+    assert reused >= 5 if pipeline != "sda-mean" else reused == 0  # "cog": never reused
+    assert n["parts"] <= n["rotated"] - reused  # the translation's parts with them
+    assert n["ended"] >= 5  # retries that could not win, ended at their status
+
+
+def test_reuse_gives_the_bits_of_the_solve_again_on_a_simulated_run(monkeypatch):
+    from planodom.experiments.generalisation import declared_sweep, world_for
+    from planodom.odometry import run_odometry
+    from planodom.simulation.random_world import simulate_world, world_fields
+
+    world = world_for(426)  # degenerate in most steps at 2 cm: the retry runs
+    run = world_fields(world, simulate_world(world, 0.02, n_epochs=15, all_fields=True))
+    cfg = declared_sweep(world, PlanodomConfig())
+    n = _counted(monkeypatch)
+    got = run_odometry(run, cfg)
+    monkeypatch.undo()
+    _without_reuse(monkeypatch)
+    want = run_odometry(run, cfg)
+    assert _same(np.asarray(got.poses), np.asarray(want.poses))
+    assert got.statuses == want.statuses
+    assert n["rotated"] - n["computed"] >= 5
+    assert n["parts"] == n["computed"]  # every solve reaching them: none computed again
+    assert n["ended"] >= 5
+
+
+def test_rotated_reuses_only_the_same_bytes():
+    prev, curr, T = _synthetic(4)
+    cfg, methods = PlanodomConfig(), ("wocsc", "wocsc")
+    lda = solver.lenient_association(prev, curr, cfg.association, None)
+    assert len(lda) > 1
+    bounds = solver.pass_bounds(cfg, T, False, None)
+    held: list = []
+    first = solver._rotated(prev, curr, lda, methods, bounds, cfg, held)
+    assert held[0] is lda and held[1] is first
+    copied = PairAssociations(lda.prev_pairs.copy(), lda.curr_pairs.copy(),
+                              lda.rotations.copy(), lda.weights.copy())  # fmt: skip
+    assert solver._rotated(prev, curr, copied, methods, bounds, cfg, held) is first
+    nudged = lda.weights.copy()
+    nudged[0] = np.nextafter(nudged[0], 2.0)  # one ulp
+    for other in (
+        PairAssociations(
+            lda.prev_pairs[1:], lda.curr_pairs[1:], lda.rotations[1:], lda.weights[1:]
+        ),  # fmt: skip
+        PairAssociations(lda.prev_pairs, lda.curr_pairs, lda.rotations, nudged),
+    ):
+        out = solver._rotated(prev, curr, other, methods, bounds, cfg, held)
+        assert out is not first and held[0] is other  # computed again, and held
+        fresh = solver._rotated(prev, curr, other, methods, bounds, cfg, None)
+        for a, b in zip(out[:2] + out[3:], fresh[:2] + fresh[3:], strict=True):
+            assert _same(a, b)
 
 
 def _yaw_deg(T: np.ndarray) -> float:

@@ -117,3 +117,25 @@ def test_kept_rows_other_masks_as_numpy() -> None:
     _same(kept_rows(np.array([0, 2]), a)[0], a[np.array([0, 2])])  # an index array
     with pytest.raises(IndexError):
         kept_rows(np.array([True, False]), a)  # a mask of another length
+
+
+def test_same_pairs_compares_bytes():
+    from planodom.association import PairAssociations
+    from planodom.odometry.solver_glue import same_pairs
+
+    rng = np.random.default_rng(0)
+    pp = rng.integers(0, 9, (5, 2)).astype(np.intp)
+    cp = rng.integers(0, 9, (5, 2)).astype(np.intp)
+    rot = rng.normal(size=(5, 3, 3))
+    rot[0, 0, 1] = 0.0
+    w = rng.random(5)
+    a = PairAssociations(pp, cp, rot, w)
+    assert same_pairs(a, PairAssociations(pp.copy(), cp.copy(), rot.copy(), w.copy()))
+    signed = rot.copy()
+    signed[0, 0, 1] = -0.0  # equal as numbers, not as bytes
+    assert np.array_equal(signed, rot)
+    assert not same_pairs(a, PairAssociations(pp, cp, signed, w))
+    assert not same_pairs(a, PairAssociations(pp.astype(np.int32), cp, rot, w))
+    assert not same_pairs(a, PairAssociations(pp[:4], cp[:4], rot[:4], w[:4]))
+    assert not same_pairs(a, PairAssociations(cp, pp, rot, w))
+    assert same_pairs(PairAssociations.empty(), PairAssociations.empty())
