@@ -28,7 +28,7 @@ from planodom_factors.pose5 import _pose5_kernel, _Precomputed, _vertical_kernel
 def record() -> Iterator[list[tuple]]:
     """Collect, in a list, a description of each 5-DoF, rotation and vertical factor that
     gtsam evaluates inside the ``with`` block: ``(identity, measured (4, 4) or None, dz,
-    key_i, key_j)`` (the identity: :class:`.pose5._Precomputed`)."""
+    key_i, key_j, cell)`` (the identity and the callback's cell: :class:`.pose5._Precomputed`)."""
     previous, _Precomputed.record = _Precomputed.record, []
     try:
         yield _Precomputed.record
@@ -100,7 +100,8 @@ class BatchedResiduals:
         pose_keys = list(gtsam.utilities.allPose3s(values).keys())
         row = {key: i for i, key in enumerate(pose_keys)}
         self._n_poses = len(pose_keys)
-        self._rows = {f[0]: r for r, f in enumerate(factors)}
+        self._cells = [f[5] for f in factors]  # each callback's row, written by _at
+        self._token = object()  # (whose rows the cells hold: _Precomputed.owner)
         self._index_i = np.array([row[f[3]] for f in factors], dtype=np.int64)
         self._index_j = np.array([row[f[4]] for f in factors], dtype=np.int64)
         self._vertical = np.array([f[1] is None for f in factors], dtype=np.bool_)
@@ -113,7 +114,7 @@ class BatchedResiduals:
     def _at(self, values: gtsam.Values, jacobians: bool) -> Iterator[None]:
         """The callbacks take their rows from one pass at ``values`` inside the block."""
         poses = gtsam.utilities.extractPose3(values)
-        if not self._rows or poses.shape[0] != self._n_poses:
+        if not self._cells or poses.shape[0] != self._n_poses:
             yield  # nothing to batch, or other values: each factor computes its own
             return
         errors, H_i, H_j, ok = _residuals(
@@ -121,13 +122,17 @@ class BatchedResiduals:
             jacobians,
         )  # fmt: skip
         p = _Precomputed
-        p.rows, p.errors, p.ok = self._rows, errors, ok
+        if p.owner is not self._token:  # another batch's rows (the factors may be shared)
+            for r, cell in enumerate(self._cells):
+                cell[0] = r
+            p.owner = self._token
+        p.errors, p.ok = errors, ok
         p.H_i, p.H_j = (H_i, H_j) if jacobians else (None, None)
         p.values = values
         try:
             yield
         finally:
-            p.values, p.rows, p.H_i, p.H_j = None, {}, None, None
+            p.values, p.H_i, p.H_j = None, None, None
 
     def error(self, values: gtsam.Values) -> float:
         """``graph.error(values)``."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 
@@ -124,17 +125,59 @@ def cholesky_pattern(pattern: sp.spmatrix, perm: np.ndarray) -> tuple[np.ndarray
         shape=(N, N),
     )  # duplicates summed: one entry per (row, column)
     lower.sort_indices()
-    ind, ptr = lower.indices, lower.indptr
-    children: list[list[int]] = [[] for _ in range(N)]
-    columns: list[np.ndarray] = []
+    return _symbolic_columns(lower.indices.astype(np.int64), lower.indptr.astype(np.int64), N)
+
+
+@numba.njit(cache=True)
+def _symbolic_columns(
+    ind: np.ndarray, ptr: np.ndarray, N: int
+) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """:func:`cholesky_pattern`'s columns from the lower triangle's sorted CSC (``ind``,
+    ``ptr``; the diagonal stored): column j is its own entries and its elimination-tree
+    children's columns less their diagonals, sorted; its parent is its first row below
+    the diagonal. Compiled (numba) because it is a loop over the N columns, each merging
+    a few short index lists: in Python it was 0.3 s at N = 9 255 (LAP14); no scipy
+    routine returns a symbolic Cholesky pattern. Children are kept as linked lists
+    (``head``/``nxt``), the union by a marker per row."""
+    head = np.full(N, -1, np.int64)  # each column's first child, then the next sibling
+    nxt = np.full(N, -1, np.int64)
+    mark = np.full(N, -1, np.int64)
+    indptr = np.zeros(N + 1, np.int64)
+    out = np.empty(max(2 * len(ind), 16), np.int64)
     for j in range(N):
-        own = ind[ptr[j] : ptr[j + 1]]
-        if children[j]:
-            col = np.unique(np.concatenate([own] + [columns[k][1:] for k in children[j]]))
-        else:
-            col = own
-        columns.append(col)
-        if len(col) > 1:
-            children[int(col[1])].append(j)
-    indptr = np.concatenate([[0], np.cumsum([len(col) for col in columns])]).astype(np.int64)
-    return np.concatenate(columns).astype(np.int32), indptr
+        start = indptr[j]
+        n = 0
+        for q in range(ptr[j], ptr[j + 1]):
+            r = ind[q]
+            if mark[r] != j:
+                mark[r] = j
+                if start + n >= len(out):
+                    out = _grown(out)
+                out[start + n] = r
+                n += 1
+        child = head[j]
+        while child != -1:
+            for q in range(indptr[child] + 1, indptr[child + 1]):
+                r = out[q]
+                if mark[r] != j:
+                    mark[r] = j
+                    if start + n >= len(out):
+                        out = _grown(out)
+                    out[start + n] = r
+                    n += 1
+            child = nxt[child]
+        out[start : start + n].sort()
+        indptr[j + 1] = start + n
+        if n > 1:
+            parent = out[start + 1]
+            nxt[j] = head[parent]
+            head[parent] = j
+    return out[: indptr[N]].astype(np.int32), indptr
+
+
+@numba.njit(cache=True)
+def _grown(a: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """``a`` copied into an array twice as long."""
+    b = np.empty(2 * len(a), a.dtype)
+    b[: len(a)] = a
+    return b

@@ -82,25 +82,45 @@ def test_batched_errors_and_linearisation_equal_gtsams_bit_for_bit() -> None:
 
 def test_the_callbacks_take_the_batched_rows(monkeypatch: object) -> None:
     """Every 5-DoF, rotation and vertical factor but the one beyond 90 degrees is served
-    from the batch (the point of it), and nothing is left set after an evaluation."""
+    from the batch (the point of it): only that one computes its own residual; and
+    nothing is left set after an evaluation."""
     graph, values = _graph(np.random.default_rng(4), 8)
     batched = BatchedResiduals(graph, values)
-    served = []
-    original = pose5._precomputed
+    own = []  # the factors that computed their own residual (not served)
+    pose5_own, vertical_own = pose5._pose5, pose5._vertical_kernel
 
-    def counting(identity: tuple, at: gtsam.Values, H: object) -> int:
-        served.append(original(identity, at, H))
-        return served[-1]
+    def counting_pose5(*args: object) -> object:
+        own.append("pose5")
+        return pose5_own(*args)
 
-    monkeypatch.setattr(pose5, "_precomputed", counting)  # type: ignore[attr-defined]
+    def counting_vertical(*args: object) -> object:
+        own.append("vertical")
+        return vertical_own(*args)
+
+    monkeypatch.setattr(pose5, "_pose5", counting_pose5)  # type: ignore[attr-defined]
+    monkeypatch.setattr(pose5, "_vertical_kernel", counting_vertical)  # type: ignore[attr-defined]
     batched.linearize(values)
     custom = [graph.at(i) for i in range(graph.size())]
     n_custom = sum(isinstance(f, gtsam.CustomFactor) for f in custom)
-    assert len(served) == n_custom and sum(r >= 0 for r in served) == n_custom - 1
+    assert own == ["pose5"]  # the one beyond 90 degrees (the kernel defers to gtsam)
     assert pose5._Precomputed.values is None
-    served.clear()
+    own.clear()
     graph.error(values)  # outside the batch: every factor computes its own
-    assert len(served) == n_custom and all(r < 0 for r in served)
+    assert len(own) == n_custom
+
+
+def test_a_shared_factor_takes_its_row_in_each_batch() -> None:
+    """The same factors in two graphs at other rows (the loop start's graph shares the
+    batch's factors): each batch writes its rows into the callbacks' cells before it
+    evaluates, so either one, evaluated after the other, equals gtsam's own evaluation."""
+    graph, values = _graph(np.random.default_rng(6), 8)
+    other = gtsam.NonlinearFactorGraph()
+    for i in reversed(range(graph.size())):  # the same factor objects, reversed
+        other.add(graph.at(i))
+    first, second = BatchedResiduals(graph, values), BatchedResiduals(other, values)
+    for batched, fg in ((first, graph), (second, other), (first, graph), (second, other)):
+        assert batched.error(values) == fg.error(values)
+        assert _same_linear(batched.linearize(values), fg.linearize(values))
 
 
 def test_other_values_fall_back_to_the_callbacks() -> None:
