@@ -127,7 +127,7 @@ def estimate_relative_pose(
         step: the streaming odometry's step of a vehicle (not a loop's or a skip's pair):
             a non-holonomic ``odometry.motion_model`` adds its constraint to a degenerate
             one (:func:`planodom.odometry.nonholonomic.lateral_sigma`).
-        gap: epochs from the previous epoch to the current one (``odometry.retry_accepts``).
+        gap: epochs from the previous to the current one (a ``step``'s ``retry_accepts``).
 
     Returns:
         :class:`RelativePose` (``prev``, ``curr`` unset); index arrays refer to the input
@@ -143,8 +143,8 @@ def estimate_relative_pose(
     result = _solve(prev, curr, cfg, prior, prior is not None, prior_sigma_m, lateral, held)
     assert result is not None  # None only for a rank to beat
     if result.status is not Status.OK and prior is not None and cfg.odometry.retry_without_prior:
-        # kept only with a better status (OK alone without degenerate_kept); ends when it cannot
-        worst = -1 if degenerate_kept(cfg.odometry.retry_accepts, gap) else Status.DEGENERATE.rank
+        accepts = cfg.odometry.retry_accepts if step else "degenerate"  # a better status only
+        worst = -1 if degenerate_kept(accepts, gap) else Status.DEGENERATE.rank
         floor = max(result.status.rank, worst)
         free = _solve(prev, curr, cfg, prior, False, prior_sigma_m, lateral, held, floor)
         if free is not None and free.status.rank > floor:

@@ -245,3 +245,13 @@ def test_retry_accepts_across_gap():
         assert r.status is status
         if status is Status.DEGENERATE:
             np.testing.assert_allclose(r.T_prev_curr[:3, :3], T_true[:3, :3], atol=1e-8)
+
+
+def test_retry_accepts_is_the_streaming_steps_only():
+    """A pair that is not a streaming step (the smoothing's pairs, loop candidates, map
+    matches) keeps a degenerate retry under the default ``ok``: the alias comes back."""
+    prev, curr = _ambiguous_step()
+    cfg = config_for_gap(PlanodomConfig(), 12)
+    r = estimate_relative_pose(prev, curr, cfg, np.eye(4), 0.02)
+    assert r.status is Status.DEGENERATE
+    assert abs(abs(_yaw_deg(r.T_prev_curr)) - 90.0) < 1e-6
