@@ -316,6 +316,8 @@ def _vertical_error(
     H: Jacobians,
 ) -> np.ndarray:
     """``gtsam.CustomFactor`` error of the change of height against ``dz`` (m)."""
+    # _pose5_error's fast path, inline: a shared helper would add a Python call to each of
+    # the batch's evaluations (about 1.25 M on the 2 000-epoch lap, BATCH15)
     p = _Precomputed
     r = cell[0]
     if r >= 0 and p.values is values and p.ok[r] and (H is None or p.H_i is not None):

@@ -148,23 +148,11 @@ def _symbolic_columns(
         start = indptr[j]
         n = 0
         for q in range(ptr[j], ptr[j + 1]):
-            r = ind[q]
-            if mark[r] != j:
-                mark[r] = j
-                if start + n >= len(out):
-                    out = _grown(out)
-                out[start + n] = r
-                n += 1
+            out, n = _taken(out, start, n, ind[q], mark, j)
         child = head[j]
         while child != -1:
             for q in range(indptr[child] + 1, indptr[child + 1]):
-                r = out[q]
-                if mark[r] != j:
-                    mark[r] = j
-                    if start + n >= len(out):
-                        out = _grown(out)
-                    out[start + n] = r
-                    n += 1
+                out, n = _taken(out, start, n, out[q], mark, j)
             child = nxt[child]
         out[start : start + n].sort()
         indptr[j + 1] = start + n
@@ -173,6 +161,21 @@ def _symbolic_columns(
             nxt[j] = head[parent]
             head[parent] = j
     return out[: indptr[N]].astype(np.int32), indptr
+
+
+@numba.njit(cache=True)
+def _taken(
+    out: np.ndarray, start: int, n: int, r: int, mark: np.ndarray, j: int
+) -> tuple[np.ndarray, int]:  # pragma: no cover - compiled
+    """Row ``r`` appended to column ``j``'s rows ``out[start : start + n]`` unless
+    ``mark`` holds it already (``out`` grown when full); the array and the new count."""
+    if mark[r] != j:
+        mark[r] = j
+        if start + n >= len(out):
+            out = _grown(out)
+        out[start + n] = r
+        n += 1
+    return out, n
 
 
 @numba.njit(cache=True)

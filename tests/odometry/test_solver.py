@@ -28,18 +28,9 @@ from planodom.geometry import make_transform
 from planodom.odometry import Status, estimate_relative_pose
 from planodom.odometry.solver import config_for_gap
 from planodom.planes import PlaneSet
+from tests.odometry.test_fused_translation import _same
 from tests.odometry.test_refine import _ground, _wall
 from tests.planes_factory import observe
-
-
-def _same(a: Any, b: Any) -> bool:
-    """Equal to the last bit: arrays by dtype, shape and bytes, floats by their bits."""
-    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-        a, b = np.asarray(a), np.asarray(b)
-        return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
-    if isinstance(a, float) or isinstance(b, float):
-        return bool(np.float64(a).tobytes() == np.float64(b).tobytes())
-    return bool(a == b)
 
 
 def _assert_same(got: Any, want: Any) -> None:
@@ -167,6 +158,20 @@ def _yaw_deg(T: np.ndarray) -> float:
     return float(np.degrees(np.arctan2(T[1, 0], T[0, 0])))
 
 
+def _yawed(yaw_deg: float) -> np.ndarray:
+    """(4, 4) a yaw of ``yaw_deg`` and a step of (0.3, 0.05) m."""
+    c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
+    return np.array([[c, -s, 0, 0.3], [s, c, 0, 0.05], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+def _turned(world: list) -> tuple:
+    """``world`` seen from the identity and after a 3 deg turn, and a prior 30 deg off
+    the truth: (prev, curr, T_true, prior)."""
+    T_true = _yawed(3.0)
+    prev = PlaneSet.from_planes(observe(world, np.eye(4)))
+    return prev, PlaneSet.from_planes(observe(world, T_true)), T_true, _yawed(33.0)
+
+
 def _ambiguous_step():
     """A vehicle standing still (the truth: identity) whose reference holds the ground and
     one wall, and whose current epoch the ground and another wall at 90 deg to it (the
@@ -205,12 +210,7 @@ def test_retry_accepts_ok_keeps_an_ok_retry():
     deg): under the prior's bounds nothing associates, the prior-free retry is OK and is
     kept with either value, equal to the truth."""
     world = [_ground(0), _wall(0.4, 8.0, 0.0, 1), _wall(0.4 + np.radians(70), 6.0, 1.0, 2)]
-    c, s = np.cos(np.radians(3.0)), np.sin(np.radians(3.0))
-    T_true = np.array([[c, -s, 0, 0.3], [s, c, 0, 0.05], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-    prev = PlaneSet.from_planes(observe(world, np.eye(4)))
-    curr = PlaneSet.from_planes(observe(world, T_true))
-    c, s = np.cos(np.radians(33.0)), np.sin(np.radians(33.0))
-    prior = np.array([[c, -s, 0, 0.3], [s, c, 0, 0.05], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+    prev, curr, T_true, prior = _turned(world)
     for value in ("degenerate", "ok"):
         cfg = config_for_gap(PlanodomConfig().updated({"odometry.retry_accepts": value},
                                                       source="test"), 3)  # fmt: skip
@@ -230,12 +230,7 @@ def test_retry_accepts_across_gap():
                                step=True, gap=12)  # fmt: skip
     assert r.status is Status.UNRESOLVED
     world = [_ground(0), _wall(0.0, 3.0, 0.0, 1), _wall(np.pi, 2.5, 0.0, 2)]
-    c, s = np.cos(np.radians(3.0)), np.sin(np.radians(3.0))
-    T_true = np.array([[c, -s, 0, 0.3], [s, c, 0, 0.05], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-    prev = PlaneSet.from_planes(observe(world, np.eye(4)))
-    curr = PlaneSet.from_planes(observe(world, T_true))
-    c, s = np.cos(np.radians(33.0)), np.sin(np.radians(33.0))
-    prior = np.array([[c, -s, 0, 0.3], [s, c, 0, 0.05], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+    prev, curr, T_true, prior = _turned(world)
     for value, gap, status in (("across_gap", 1, Status.DEGENERATE),
                                ("across_gap", 2, Status.UNRESOLVED),
                                ("ok", 1, Status.UNRESOLVED)):  # fmt: skip
