@@ -27,8 +27,8 @@ from planodom_factors.pose5 import _pose5_kernel, _Precomputed, _vertical_kernel
 @contextmanager
 def record() -> Iterator[list[tuple]]:
     """Collect, in a list, a description of each 5-DoF, rotation and vertical factor that
-    gtsam evaluates inside the ``with`` block: ``(identity, measured (4, 4) or None, dz,
-    key_i, key_j, cell)`` (the identity and the callback's cell: :class:`.pose5._Precomputed`)."""
+    gtsam evaluates inside the ``with`` block: ``(measured (4, 4) or None, dz, key_i,
+    key_j, cell)`` (the callback's cell: :class:`.pose5._Precomputed`)."""
     previous, _Precomputed.record = _Precomputed.record, []
     try:
         yield _Precomputed.record
@@ -96,18 +96,17 @@ class BatchedResiduals:
         with record() as factors:
             self.initial_error = float(graph.error(values))
         self._graph = graph
-        self._factors = factors  # (keeps the measured arrays alive: their ids are keys)
         pose_keys = list(gtsam.utilities.allPose3s(values).keys())
         row = {key: i for i, key in enumerate(pose_keys)}
         self._n_poses = len(pose_keys)
-        self._cells = [f[5] for f in factors]  # each callback's row, written by _at
+        self._cells = [f[4] for f in factors]  # each callback's row, written by _at
         self._token = object()  # (whose rows the cells hold: _Precomputed.owner)
-        self._index_i = np.array([row[f[3]] for f in factors], dtype=np.int64)
-        self._index_j = np.array([row[f[4]] for f in factors], dtype=np.int64)
-        self._vertical = np.array([f[1] is None for f in factors], dtype=np.bool_)
-        self._dz = np.array([f[2] for f in factors], dtype=float)
+        self._index_i = np.array([row[f[2]] for f in factors], dtype=np.int64)
+        self._index_j = np.array([row[f[3]] for f in factors], dtype=np.int64)
+        self._vertical = np.array([f[0] is None for f in factors], dtype=np.bool_)
+        self._dz = np.array([f[1] for f in factors], dtype=float)
         self._measured = np.stack(
-            [np.eye(4) if f[1] is None else f[1] for f in factors] or [np.eye(4)]
+            [np.eye(4) if f[0] is None else f[0] for f in factors] or [np.eye(4)]
         )[: len(factors)]
 
     @contextmanager

@@ -246,10 +246,8 @@ class _Precomputed:
         errors: (F, 5) residuals (a vertical factor's in column 0).
         H_i, H_j: (F, 5, 6) Jacobians, or None when only the errors were computed.
         ok: (F,) false where the compiled kernel deferred to gtsam (see :func:`_pose5`).
-        record: while a list, each callback appends ``(identity, measured (4, 4) or None,
-            dz, key_i, key_j, cell)`` when not precomputed (:func:`.batched.record`;
-            ``identity``: ``(id(measured), key_i, key_j)`` for the 5-DoF and rotation
-            factors, ``(dz, key_i, key_j)`` for the vertical ones).
+        record: while a list, each callback appends ``(measured (4, 4) or None, dz,
+            key_i, key_j, cell)`` when not precomputed (:func:`.batched.record`).
     """
 
     values: gtsam.Values | None = None
@@ -281,7 +279,7 @@ def _pose5_error(
             H[0], H[1] = p.H_i[r, rows], p.H_j[r, rows]  # type: ignore[index]
         return p.errors[r, rows]
     if p.record is not None:
-        p.record.append(((id(measured), key_i, key_j), measured, 0.0, key_i, key_j, cell))
+        p.record.append((measured, 0.0, key_i, key_j, cell))
     error, H_i, H_j = _pose5(
         measured, values.atPose3(key_i).matrix(), values.atPose3(key_j).matrix(), H is not None
     )
@@ -325,7 +323,7 @@ def _vertical_error(
             H[0], H[1] = p.H_i[r, :1], p.H_j[r, :1]  # type: ignore[index]
         return p.errors[r, :1]
     if p.record is not None:
-        p.record.append(((dz, key_i, key_j), None, dz, key_i, key_j, cell))
+        p.record.append((None, dz, key_i, key_j, cell))
     error, H_i, H_j = _vertical_kernel(
         dz, values.atPose3(key_i).matrix(), values.atPose3(key_j).matrix()
     )

@@ -30,7 +30,7 @@ class DeskewPassSkipConfig(Section):
     extracted again."""
 
     deskew_pass_skip_quantile: Annotated[float, Field(gt=0, lt=1)] = 0.99
-    """``deskew_pass_skip: consistent``: the chi-square quantile of the test (one DoF
+    """``deskew_pass_skip`` ``twist`` or ``planes``: the chi-square quantile of the test (one DoF
     per tangent component with a finite variance): an epoch whose streaming twist is
     the true one is extracted again with probability one minus this, if the stated
     covariances are right (a probability, not fitted to a scene)."""

@@ -1,5 +1,5 @@
 """The streaming pass's extraction kept in a deskewing pass where the pass would deskew
-the epoch alike (``odometry.deskew_pass_skip: consistent``).
+the epoch alike (``odometry.deskew_pass_skip``: ``twist`` or ``planes``).
 
 Each deskewing pass (:func:`planodom.odometry.run.redeskewed_run`) extracts every epoch
 again, deskewed along the curve through the poses of the pass before; on the 2D rig that

@@ -53,6 +53,7 @@ from planodom.odometry.solver_glue import (
     near_rows,
     pair_ids,
     remapped_pairs,
+    same_float,
     same_pairs,
 )
 from planodom.odometry.translation import (
@@ -278,11 +279,6 @@ def _rotated(
     return out
 
 
-def _same_float(a: float, b: float) -> bool:
-    """The same float64 bits (a signed zero, a NaN too)."""
-    return np.float64(a).tobytes() == np.float64(b).tobytes()
-
-
 def _translation_pairs(
     prev: PlaneSet,
     curr: PlaneSet,
@@ -311,17 +307,17 @@ def _measured_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg, held=N
     """The pair elements' rows (E, 4) of the pairs ``pp`` -> ``cp`` under ``R``, then as
     :func:`_elements_translation`; consensus methods in two compiled calls (the same bits:
     :mod:`planodom.odometry.fused_translation`), else (or where those do not apply) numpy.
-    ``held``: :func:`_rotated`'s; the compiled calls' results (all but the bounds' tests,
-    :func:`.fused_translation.fused_parts`) are kept there with the rotation ``R`` they
-    were computed under and the bounds' ``z_prior``, and reused for the same."""
+    ``held``: :func:`_rotated`'s, which holds this solve's ``R`` and pairs; the compiled
+    calls' results (all but the bounds' tests, :func:`.fused_translation.fused_parts`) are
+    kept there with the bounds' ``z_prior``, and reused for the same (a rotation reused
+    by ``_rotated`` keeps them; one computed again drops them)."""
     done, z0 = None, float(bounds.z_prior)
     if method != "cog":
-        mine = held is not None and len(held) >= 2 and held[1][0] is R  # ``_rotated``'s
-        if mine and len(held) == 3 and _same_float(held[2][0], z0):
+        if held is not None and len(held) == 3 and same_float(held[2][0], z0):
             parts = held[2][1]
         else:
             parts = fused_parts(prev, curr, R, pp, cp, ij, method, z0, cfg)
-            if mine:
+            if held is not None:
                 held[2:] = [(z0, parts)]
         done = fused_translation(prev, curr, R, pp, cp, ij, method, bounds, cfg, parts)
     if done is not None:

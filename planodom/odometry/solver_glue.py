@@ -153,3 +153,8 @@ def same_pairs(a: PairAssociations, b: PairAssociations) -> bool:
 
 def _same_bytes(x: np.ndarray, y: np.ndarray) -> bool:
     return x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes()
+
+
+def same_float(a: float, b: float) -> bool:
+    """The same float64 bits (a signed zero, a NaN too)."""
+    return _same_bytes(np.asarray(a, np.float64), np.asarray(b, np.float64))

@@ -139,3 +139,11 @@ def test_same_pairs_compares_bytes():
     assert not same_pairs(a, PairAssociations(pp[:4], cp[:4], rot[:4], w[:4]))
     assert not same_pairs(a, PairAssociations(cp, pp, rot, w))
     assert same_pairs(PairAssociations.empty(), PairAssociations.empty())
+
+
+def test_same_float_tells_the_bits():
+    """Equal numbers with other bits differ (a signed zero), NaN equals itself."""
+    from planodom.odometry.solver_glue import same_float
+
+    assert same_float(1.25, 1.25) and same_float(float("nan"), float("nan"))
+    assert not same_float(0.0, -0.0) and not same_float(1.0, np.nextafter(1.0, 2.0))
