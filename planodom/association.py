@@ -16,7 +16,9 @@ or ``prior_*`` around a motion prior ``T_prev_curr``):
   ``|t| + 2 r sin(theta / 2)``), plus ``overlap_margin_m``;
 - the candidate rotation of the pair (paper eq. 1) is within the rotation bound, and the
   pair's reference point (its intersection line cut with z = 0) within the translation
-  bound.
+  bound;
+- with ``max_tilt_deg`` below 180, the candidate rotation tilts the base z axis by at
+  most that bound (plus ``normal_tol_deg``), whatever the rotation bound.
 
 Pair order: the dihedral angle is symmetric, so ``(i1, i2) -> (j1, j2)`` and
 ``(i1, i2) -> (j2, j1)`` both match. The frames ``U = [n1, n2', n1 x n2]`` are
@@ -163,6 +165,7 @@ def lenient_association(
             t_bound, rot_bound, radians(cfg.normal_tol_deg), cfg.offset_tol_m,
             cfg.overlap_margin_m, radians(cfg.parallel_angle_deg),
             radians(cfg.dihedral_tol_deg), cfg.min_line_verticality,
+            _cos_tilt(cfg.max_tilt_deg, cfg.normal_tol_deg),
         ),
     )  # fmt: skip
     if len(w) == 0:
@@ -173,7 +176,8 @@ def lenient_association(
 class _LdaBounds(NamedTuple):
     """LDA's gates (:func:`lenient_association`): translation bound m, rotation bound rad,
     normal tolerance rad, offset tolerance m, overlap margin m, parallel angle rad,
-    dihedral tolerance rad, minimum verticality of a reference point's line."""
+    dihedral tolerance rad, minimum verticality of a reference point's line, cosine of
+    the tilt bound plus the normal tolerance (-2: no bound; ``max_tilt_deg``)."""
 
     t_bound: float
     rot_bound: float
@@ -183,6 +187,14 @@ class _LdaBounds(NamedTuple):
     parallel: float
     dihedral_tol: float
     min_verticality: float
+    cos_tilt: float
+
+
+def _cos_tilt(max_tilt_deg: float, normal_tol_deg: float) -> float:
+    """The LDA's tilt gate: the cosine of ``max_tilt_deg`` plus the normal tolerance, or
+    -2 (every rotation passes) when the bound is 180 deg or the sum reaches it."""
+    bound = max_tilt_deg + normal_tol_deg
+    return -2.0 if max_tilt_deg >= 180.0 or bound >= 180.0 else float(np.cos(radians(bound)))
 
 
 @numba.njit(cache=True)
@@ -194,7 +206,8 @@ def _lda_kernel(n_p, d_p, c_p, r_p, w_p, n_c, d_c, c_c, r_c, w_c, T0, b):  # pra
     the translation bound plus the offset tolerance plus the chord of the rotation bound
     times ``|t0|``, bounding circles within reach, unknown supports (NaN) passing), then
     per pair of pairs (non-parallel, dihedral angles within tolerance, the pair rotation
-    within the rotation bound of ``T0``'s, :func:`_pair_moves_within`). Compiled: numpy
+    within the rotation bound of ``T0``'s and its tilt within ``b.cos_tilt``,
+    :func:`_pair_moves_within`). Compiled: numpy
     built them as arrays over all combinations, ~60 small calls a solve that cost ten
     times the arithmetic."""
     Kp, Kc = len(d_p), len(d_c)
@@ -263,6 +276,8 @@ def _lda_kernel(n_p, d_p, c_p, r_p, w_p, n_c, d_c, c_c, r_c, w_c, T0, b):  # pra
                             R[u, v] = acc
                             trace += R0[u, v] * acc
                     if not (trace - 1.0) / 2.0 >= cos_gate:
+                        continue
+                    if R[2, 2] < b.cos_tilt:  # the angle between the base z axes
                         continue
                     if not _pair_moves_within(
                         R, n_c[j1], d_c[j1], n_c[j2], d_c[j2], t0, ref_p, bound, b.min_verticality

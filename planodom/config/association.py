@@ -36,6 +36,10 @@ class AssociationConfig(Section):
     """Assumed maximum translation between consecutive epochs, metres (no prior)."""
     max_rotation_deg: AngleDeg = 20.0
     """Assumed maximum rotation angle between consecutive epochs, degrees (no prior)."""
+    max_tilt_deg: AngleDeg = 180.0
+    """Bound on the relative tilt between two epochs (the angle between their base z
+    axes), degrees, whatever the other bounds (180: none). Not multiplied by a gap's
+    epochs; ``odometry.gap_tilt: held`` sets it to ``max_rotation_deg`` for a gap."""
     prior_translation_m: Positive = 0.3
     """Allowed deviation from the motion prior's translation, metres."""
     prior_rotation_deg: AngleDeg = 5.0

@@ -38,3 +38,15 @@ class RetryStatusConfig(Section):
     (geometric mean, 6 mm / 2 cm), rotation 0.9995 / 1.006, unresolved 75 -> 73 / 95 ->
     104 (world 532 at 2 cm 7.70 -> 3.57 m; 540 at 2 cm rotation 0.88 -> 1.18 deg, 16 ->
     29 unresolved)."""
+
+    gap_tilt: Literal["widened", "held"] = "widened"
+    """What a gap of several epochs does to the association's bound on the relative tilt
+    (the angle between the two epochs' base z axes, ``association.max_tilt_deg``).
+    ``widened`` (default): nothing; the rotation bound ``max_rotation_deg`` times the gap
+    (up to 180 deg) bounds tilt as it bounds yaw. ``held``: the tilt stays bounded by one
+    epoch's ``max_rotation_deg`` whatever the gap, while yaw widens with it: the tilt of
+    a wheeled vehicle's base against gravity is bounded by the ground it stands on, so
+    its change between two epochs does not grow with the time between them as its
+    heading's may. Found on the 2D-rig world 570 at 6 mm (docs/RESULTS.md, TILT16): after
+    11 bridged epochs the prior-free retry kept an OK step 46 deg off in tilt (roll -21,
+    pitch 42 deg) against a reference of four planes, ATE 14.1 m."""

@@ -86,7 +86,8 @@ def config_for_gap(config: PlanodomConfig, gap: int) -> PlanodomConfig:
     """``config`` with the association's motion bounds widened for ``gap`` epochs.
 
     The per-epoch bounds ``max_translation_m`` and ``max_rotation_deg`` times the gap
-    (rotation at most 180 deg); the prior bounds stay (the prior carries the gap).
+    (rotation at most 180 deg); the prior bounds stay (the prior carries the gap). With
+    ``odometry.gap_tilt: held`` the tilt stays bounded by one epoch's rotation bound.
     """
     if gap <= 1:
         return config
@@ -95,6 +96,8 @@ def config_for_gap(config: PlanodomConfig, gap: int) -> PlanodomConfig:
         "association.max_translation_m": a.max_translation_m * gap,
         "association.max_rotation_deg": min(a.max_rotation_deg * gap, 180.0),
     }
+    if config.odometry.gap_tilt == "held":  # a vehicle's tilt does not grow with the gap
+        changes["association.max_tilt_deg"] = min(a.max_tilt_deg, a.max_rotation_deg)
     return config.updated(changes, source=f"bounds for a gap of {gap} epochs")
 
 
