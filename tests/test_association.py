@@ -210,3 +210,23 @@ def test_sda_kept_pairs_are_numpys_column_stack(kp, kc, seed):
     got = _kept_pairs(ok, rows, cols)
     assert got.dtype == want.dtype and got.shape == want.shape and got.flags.c_contiguous
     np.testing.assert_array_equal(got, want)
+
+
+def test_tilt_bound_drops_tilted_candidates_and_keeps_a_large_yaw():
+    """``max_tilt_deg``: every kept candidate rotation tilts the base z axis by at most the
+    bound plus the normal tolerance (checked on its own matrix), whatever the rotation
+    bound; a 90 deg yaw with 3 deg of tilt keeps its true pairs, a 40 deg roll loses them."""
+    tilted = AssociationConfig(max_translation_m=1e3, max_rotation_deg=180.0, max_tilt_deg=20.0,
+                               overlap_margin_m=1e3, offset_tol_m=1e3)  # fmt: skip
+    limit = np.cos(np.radians(20.0 + tilted.normal_tol_deg))
+    yawed = transform_from_rpy_xyz(0.05, 0.0, np.pi / 2, 0.5, 0.2)
+    rolled = transform_from_rpy_xyz(np.radians(40.0), 0.0, 0.3, 0.5, 0.2)
+    for motion, kept in ((yawed, True), (rolled, False)):
+        _, prev, curr, _ = two_epochs(5, n_walls=8, motion=motion)
+        want = true_pairs(prev, curr, 15.0)
+        assert want and want <= as_set(lda_of(prev, curr, LOOSE))  # without the tilt bound
+        lda = lda_of(prev, curr, tilted)
+        assert all(R[2, 2] >= limit for R in lda.rotations)
+        assert (want <= as_set(lda)) is kept
+        if not kept:
+            assert not want & as_set(lda)

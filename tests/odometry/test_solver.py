@@ -22,7 +22,7 @@ import pytest
 from planes_factory import observed_pair, random_motion, world_planes
 
 import planodom.odometry.solver as solver
-from planodom.association import PairAssociations
+from planodom.association import PairAssociations, lenient_association
 from planodom.config import PlanodomConfig
 from planodom.geometry import make_transform
 from planodom.odometry import Status, estimate_relative_pose
@@ -250,3 +250,34 @@ def test_retry_accepts_is_the_streaming_steps_only():
     r = estimate_relative_pose(prev, curr, cfg, np.eye(4), 0.02)
     assert r.status is Status.DEGENERATE
     assert abs(abs(_yaw_deg(r.T_prev_curr)) - 90.0) < 1e-6
+
+
+def test_gap_tilt_held_keeps_one_epochs_tilt_bound():
+    """``gap_tilt: held``: a 12-epoch gap widens the rotation bound to 180 deg and keeps
+    the tilt bound at one epoch's 20 deg; ``widened`` leaves it unbounded; a one-epoch
+    step is the config itself."""
+    held = PlanodomConfig().updated({"odometry.gap_tilt": "held"}, source="test")
+    assert config_for_gap(held, 1) is held
+    a = config_for_gap(held, 12).association
+    assert (a.max_rotation_deg, a.max_tilt_deg) == (180.0, 20.0)
+    a = config_for_gap(PlanodomConfig(), 12).association
+    assert (a.max_rotation_deg, a.max_tilt_deg) == (180.0, 180.0)
+
+
+def test_gap_tilt_held_drops_a_tilted_alias_across_a_gap():
+    """Across a 12-epoch gap the prior-free association may pair the reference's ground
+    and wall with the current wall and ground (same dihedral angle): a 90 deg tilt. With
+    ``widened`` LDA offers it; with ``held`` every candidate keeps the base z axis within
+    one epoch's bound plus the normal tolerance (each rotation checked on its matrix)."""
+    ground, wall_a = _ground(0), _wall(0.0, 8.0, 0.0, 1)
+    wall_b = _wall(np.pi / 2, 6.0, 0.0, 2)
+    prev = PlaneSet.from_planes(observe([ground, wall_a], np.eye(4)))
+    curr = PlaneSet.from_planes(observe([ground, wall_b], np.eye(4)))
+    tilts = {}
+    for value in ("widened", "held"):
+        cfg = config_for_gap(PlanodomConfig().updated({"odometry.gap_tilt": value},
+                                                      source="test"), 12)  # fmt: skip
+        lda = lenient_association(prev, curr, cfg.association)
+        tilts[value] = [np.degrees(np.arccos(np.clip(R[2, 2], -1, 1))) for R in lda.rotations]
+    assert max(tilts["widened"]) > 80.0
+    assert tilts["held"] and max(tilts["held"]) <= 25.0
