@@ -224,7 +224,8 @@ class MotionModelConfig(Section):
     random worlds write "vehicle", a hand-held walk "handheld"; the KITTI readers
     "vehicle"), else ``unknown``; a bag or a folder of scans declares nothing. ``vehicle``
     switches on the options that assume a wheeled vehicle whose base frame is its own (x
-    forward, z up) and that passed their rules: ``start_vehicle_twist``. An option the
+    forward, z up) and that passed their rules: ``start_vehicle_twist`` and ``gap_tilt:
+    held`` (TILT16). An option the
     config sets explicitly keeps its value (:mod:`planodom.odometry.platform`).
     ``handheld`` and ``unknown``: none of them (the behaviour before this field); both
     override what the dataset declares. The resolved configuration a run writes names

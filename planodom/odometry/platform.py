@@ -17,8 +17,9 @@ from planodom.config import PlanodomConfig
 from planodom.rig import Rig
 
 #: ``odometry`` fields a vehicle switches on, with their vehicle value. Evidence in
-#: docs/RESULTS.md: ``start_vehicle_twist``, GAPS6 (its rule on 2D-rig worlds 160-178).
-VEHICLE_OPTIONS: dict[str, object] = {"start_vehicle_twist": True}
+#: docs/RESULTS.md: ``start_vehicle_twist``, GAPS6 (its rule on 2D-rig worlds 160-178);
+#: ``gap_tilt``, TILT16 (its rule on 2D-rig worlds 580-598 and the built-in scenes).
+VEHICLE_OPTIONS: dict[str, object] = {"start_vehicle_twist": True, "gap_tilt": "held"}
 
 
 def resolved_platform(configured: str, declared: str | None) -> str:

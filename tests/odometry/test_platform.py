@@ -38,6 +38,8 @@ def test_explicit_beats_platform_beats_dataset(
     resolved = with_platform(config, Rig(platform=declared))
     assert resolved.odometry.platform == platform
     assert resolved.odometry.start_vehicle_twist is start
+    # gap_tilt follows the platform as start_vehicle_twist does (never set in CASES)
+    assert resolved.odometry.gap_tilt == ("held" if platform == "vehicle" else "widened")
     assert resolved_platform(config.odometry.platform, declared) == platform
     # resolving again, or the config.yaml a run writes of it on any dataset, changes nothing
     again = PlanodomConfig.from_dict(resolved.model_dump(mode="json"))
