@@ -162,6 +162,15 @@ def _moments_of(
     )
 
 
+def _plane(fields: dict, unit: bool, normal: np.ndarray, offset: float) -> Plane:
+    """The plane of ``fields``: made as it is when ``unit`` (its normal and offset checked
+    and scaled, :func:`.assembly.unit_rows`), else by the constructor from the unscaled
+    ``normal`` and ``offset``, which checks and raises as it always did."""
+    if unit:
+        return made(Plane, fields)
+    return Plane(**{**fields, "normal": normal, "offset": offset})
+
+
 def build_planes(
     fits: PlaneFits,
     epoch: Epoch,
@@ -235,9 +244,7 @@ def build_planes(
             "confidence": confidence[g], "support": support, "truth_id": int(truths[k]),
             "deskew_jacobian": dsk, "narrow": narrow is not None and bool(narrow[g]),
         }  # fmt: skip
-        if not unit:  # the constructor checks (and raises) as it always did
-            fields["normal"], fields["offset"] = n_or[g], offset[g]
-        planes.append(made(Plane, fields) if unit else Plane(**fields))
+        planes.append(_plane(fields, unit, n_or[g], offset[g]))
         inliers.append(idx)
     if unit and planes:
         hand_over(planes, kept_set(unit_n, unit_d, conf, covs, fits.centroid, polygons,
