@@ -59,7 +59,11 @@ class PlaneSet:
     def from_planes(cls, planes: Sequence[Plane]) -> PlaneSet:
         """The arrays of a list of :class:`Plane` (in that order); GeometryError for an
         item that is no Plane (e.g. the rows of an (N, 3) array of points given as an
-        epoch, which ended in an AttributeError)."""
+        epoch, which ended in an AttributeError). The set an extraction built with these
+        very planes is returned when it was handed over (:func:`hand_over`)."""
+        ready = _handed(planes)
+        if ready is not None:
+            return ready
         bad = next((p for p in planes if not isinstance(p, Plane)), None)
         if bad is not None:
             raise GeometryError(
@@ -83,14 +87,26 @@ class PlaneSet:
         centroids = np.array(
             [_NAN3 if q is None else q.centroid for q in supports], dtype=np.float64
         ).reshape(k, 3)
-        radii = np.full(k, np.nan)
-        owners = [i for i, q in enumerate(supports) if q is not None and len(q.polygon)]
-        polygons = [supports[i].polygon for i in owners]  # type: ignore[union-attr]
-        if polygons:  # the farthest vertex, all planes at once (np.linalg.norm's arithmetic)
-            sizes = np.array([len(q) for q in polygons], dtype=np.int64)
-            verts = np.concatenate(polygons).astype(np.float64, copy=False)
-            radii[owners] = _radii_kernel(verts, centroids[owners], sizes)
+        polygons = [None if q is None else q.polygon for q in supports]
         narrow = np.array([p.narrow for p in planes], dtype=bool)
+        return cls.from_arrays(normals, offsets, weights, covariances, centroids, polygons, narrow)
+
+    @classmethod
+    def from_arrays(
+        cls, normals: np.ndarray, offsets: np.ndarray, weights: np.ndarray,
+        covariances: np.ndarray, centroids: np.ndarray, polygons: Sequence[np.ndarray | None],
+        narrow: np.ndarray,
+    ) -> PlaneSet:  # fmt: skip
+        """The set of K planes from their fields stacked (the arrays are taken, not
+        copied; ``narrow`` (K,) bool) and their support ``polygons`` (None or (0, 3):
+        unknown), whose farthest vertices from the centroids give the radii."""
+        radii = np.full(len(offsets), np.nan)
+        owners = [i for i, q in enumerate(polygons) if q is not None and len(q)]
+        if owners:  # the farthest vertex, all planes at once (np.linalg.norm's arithmetic)
+            held = [polygons[i] for i in owners]
+            sizes = np.array([len(q) for q in held], dtype=np.int64)  # type: ignore[arg-type]
+            verts = np.concatenate(held).astype(np.float64, copy=False)  # type: ignore[arg-type]
+            radii[owners] = _radii_kernel(verts, centroids[owners], sizes)
         return cls(
             normals, offsets, weights, centroids, radii, covariances,
             narrow if narrow.any() else None,
@@ -123,6 +139,45 @@ class PlaneSet:
             self.covariances[index],
             None if self.narrow is None else self.narrow[index],
         )
+
+
+#: The set an extraction built with its planes, for the next ``from_planes`` of them:
+#: [the planes (a tuple), the set], or [None, None].
+_HANDED: list = [None, None]
+
+
+def hand_over(planes: Sequence[Plane], plane_set: PlaneSet) -> None:
+    """Leave ``plane_set``, the arrays of ``planes`` built with them (what
+    :meth:`PlaneSet.from_planes` would give), to the next ``from_planes`` call, which
+    returns it if that call is given these very plane objects in this order (the
+    odometry's, right after the extraction) and drops it either way: a set is handed to
+    one caller at most, as ``from_planes`` gives each a set of its own."""
+    _HANDED[0], _HANDED[1] = tuple(planes), plane_set
+
+
+def reorder_handed(planes: Sequence[Plane], order: Sequence[int]) -> None:
+    """The set handed over with ``planes`` (:func:`hand_over`), if it is, handed over
+    again with the planes in ``order`` (K,) (the extraction's largest-first order)."""
+    held, ready = _HANDED
+    if held is None or not _same_objects(held, planes):
+        return
+    if list(order) != list(range(len(planes))):
+        ready = ready.take(np.asarray(order, dtype=np.int64))
+    hand_over([planes[i] for i in order], ready)
+
+
+def _handed(planes: Sequence[Plane]) -> PlaneSet | None:
+    """The set handed over with these very ``planes`` (None: none was), dropped."""
+    held, ready = _HANDED
+    if held is None:
+        return None
+    _HANDED[0] = _HANDED[1] = None
+    return ready if _same_objects(held, planes) else None
+
+
+def _same_objects(a: Sequence[object], b: Sequence[object]) -> bool:
+    """Whether ``a`` and ``b`` hold the same objects (identity) in the same order."""
+    return len(a) == len(b) and all(x is y for x, y in zip(a, b, strict=True))
 
 
 def as_plane_set(planes: Sequence[Plane] | PlaneSet) -> PlaneSet:

@@ -31,6 +31,7 @@ from planodom.extraction.planes.fit import tls_fit
 from planodom.extraction.rig2d.path import rig2d_planes
 from planodom.extraction.scan_prep import compiled_count_rings, points_times_finite
 from planodom.geometry import Plane
+from planodom.planes import reorder_handed
 from planodom.scan import Scan, check_is_scan
 
 #: Largest coordinate (m) accepted; beyond it squares lose all precision.
@@ -139,6 +140,7 @@ def _result(found: PathResult, mode: str, points: np.ndarray) -> ExtractionResul
     """The path's planes, largest support first (stable)."""
     # largest first, ties in path order: Python's sort is stable, as argsort(kind="stable")
     order = sorted(range(len(found.inliers)), key=lambda k: -len(found.inliers[k]))
+    reorder_handed(found.planes, order)  # the builder's set of them (planodom.planes)
     return ExtractionResult(
         planes=[found.planes[i] for i in order],
         inliers=[found.inliers[i] for i in order],

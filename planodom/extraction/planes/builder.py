@@ -36,10 +36,12 @@ import numpy as np
 
 from planodom.config import ExtractionConfig
 from planodom.extraction.epoch import Epoch
+from planodom.extraction.planes.assembly import kept_set, made, unit_rows
 from planodom.extraction.planes.confidence import cpef
 from planodom.extraction.planes.fit import deskew_jacobian
 from planodom.extraction.planes.passes import fits_views_signs, rows_labels_polygons, view_mode
 from planodom.geometry import Plane, PlaneSupport
+from planodom.planes import hand_over
 
 #: ``adjust(kept, normals, offsets) -> kept``: may change the oriented (G, 3) normals and
 #: (G,) offsets of the kept planes in place and drop planes (step 4).
@@ -160,6 +162,15 @@ def _moments_of(
     )
 
 
+def _plane(fields: dict, unit: bool, normal: np.ndarray, offset: float) -> Plane:
+    """The plane of ``fields``: made as it is when ``unit`` (its normal and offset checked
+    and scaled, :func:`.assembly.unit_rows`), else by the constructor from the unscaled
+    ``normal`` and ``offset``, which checks and raises as it always did."""
+    if unit:
+        return made(Plane, fields)
+    return Plane(**{**fields, "normal": normal, "offset": offset})
+
+
 def build_planes(
     fits: PlaneFits,
     epoch: Epoch,
@@ -212,6 +223,10 @@ def build_planes(
     n_rows_all = (rows if fits.n_rows is None else fits.n_rows[kept]).tolist()
     count, offset, confidence = fits.count.tolist(), d_or.tolist(), conf.tolist()
     starts, truths = fits.bounds.tolist(), truth.tolist()
+    # every plane's checks and scaling at once (.assembly): then no constructor runs
+    kept_i = kept.astype(np.int64, copy=False)
+    unit, unit_n, unit_d = unit_rows(n_or, d_or, conf, kept_i)
+    unit_offset = unit_d.tolist()
     for k, g in enumerate(kept.tolist()):
         idx = fits.inliers[starts[g] : starts[g + 1]]
         dsk = None
@@ -220,17 +235,18 @@ def build_planes(
             dsk = deskew_jacobian(epoch.points[idx], t[idx] / span, n_or[g], fit)
         centroid = fits.centroid[g]
         moments = _moments_of(epoch, config, idx, centroid) if timed else None
-        seen = (centroid.copy(), polygons[k], count[g], scatter[g], int(n_rows_all[k]))
-        plane = Plane(
-            normal=n_or[g],
-            offset=offset[g],
-            covariance=covs[g],
-            confidence=confidence[g],
-            support=PlaneSupport(*seen, moments),
-            truth_id=int(truths[k]),
-            deskew_jacobian=dsk,
-            narrow=narrow is not None and bool(narrow[g]),
-        )
-        planes.append(plane)
+        support = made(PlaneSupport, {
+            "centroid": centroid.copy(), "polygon": polygons[k], "n_points": count[g],
+            "scatter": scatter[g], "n_rows": int(n_rows_all[k]), "time_moments": moments,
+        })  # fmt: skip
+        fields = {
+            "normal": unit_n[k], "offset": unit_offset[k], "covariance": covs[g],
+            "confidence": confidence[g], "support": support, "truth_id": int(truths[k]),
+            "deskew_jacobian": dsk, "narrow": narrow is not None and bool(narrow[g]),
+        }  # fmt: skip
+        planes.append(_plane(fields, unit, n_or[g], offset[g]))
         inliers.append(idx)
+    if unit and planes:
+        hand_over(planes, kept_set(unit_n, unit_d, conf, covs, fits.centroid, polygons,
+                                   narrow, kept_i))  # fmt: skip
     return planes, inliers, G - len(kept)

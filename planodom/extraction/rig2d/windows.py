@@ -31,6 +31,7 @@ from planodom.config.timewindows import TimeWindowConfig
 from planodom.extraction.planes.builder import Adjust, PlaneFits
 from planodom.extraction.rig2d.scanlines import _angle_reversals
 from planodom.extraction.rig2d.segments import Segments
+from planodom.extraction.rig2d.window_kernels import compiled_sweep_timing, outline_radii
 from planodom.scan import Scan
 
 
@@ -57,9 +58,19 @@ class SweepTiming:
 def sweep_timing(scan: Scan, segs: Segments) -> SweepTiming:
     """:class:`SweepTiming` of the scan. Sweeps restart where a ring's scan angle jumps
     back (:func:`.scanlines._angle_reversals`): a time gap also opens where the beams see
-    nothing (the sky), so the ``sweep`` ids of the segments count too many."""
+    nothing (the sky), so the ``sweep`` ids of the segments count too many. One compiled
+    pass where it applies (:func:`.window_kernels.compiled_sweep_timing`, the same bits),
+    else :func:`numpy_sweep_timing`."""
     if len(segs.order) < 3 or scan.ring is None or scan.t is None:
         return SweepTiming(1, float("inf"), 0.0)
+    done = compiled_sweep_timing(scan.ring, scan.t, segs.order, segs.points)
+    return numpy_sweep_timing(scan, segs) if done is None else SweepTiming(*done)
+
+
+def numpy_sweep_timing(scan: Scan, segs: Segments) -> SweepTiming:
+    """:func:`sweep_timing` in numpy (a scan with rings and times, three or more
+    segment points): the fallback of the compiled pass and the tests' reference."""
+    assert scan.ring is not None and scan.t is not None
     ring, t = scan.ring[segs.order], scan.t[segs.order]
     new = np.ones(len(ring), dtype=bool)
     new[1:] = (ring[1:] != ring[:-1]) | _angle_reversals(segs.points, ring.astype(np.int64))
@@ -180,14 +191,10 @@ def keep_one_per_wall(
             kept = kept[allowed[kept]]
             if not len(kept):
                 return kept
-        G = len(fits)
         cnt = np.maximum(fits.count, 1).astype(np.float64)
         assert scan.t is not None
         tm = np.add.reduceat(scan.t[fits.inliers], fits.bounds[:-1]) / cnt
-        gid = np.repeat(np.arange(G), np.diff(fits.bounds))[fits.outline]
-        r_end = np.linalg.norm(points[fits.inliers[fits.outline]] - fits.centroid[gid], axis=1)
-        rad = np.zeros(G)
-        np.maximum.at(rad, gid, r_end)
+        rad = support_radii(fits, points)
         sel, n_k, d_k = drop_repeats(
             n_or[kept], d_or[kept], fits.centroid[kept], rad[kept], tm[kept], tol_m, windows
         )
@@ -196,6 +203,30 @@ def keep_one_per_wall(
         return kept
 
     return adjust
+
+
+def support_radii(fits: PlaneFits, points: np.ndarray) -> np.ndarray:
+    """(G,) each fit's support radius (m): the farthest of its outline inliers from its
+    centroid (0 without any), of the scan's ``points`` (N, 3) m; one compiled pass
+    (:func:`.window_kernels.outline_radii`, the same bits) for float64 points and
+    centroids, else :func:`numpy_support_radii`."""
+    if points.dtype != np.float64 or fits.centroid.dtype != np.float64:
+        return numpy_support_radii(fits, points)
+    return outline_radii(
+        points, fits.inliers.astype(np.int64, copy=False),
+        fits.bounds.astype(np.int64, copy=False), fits.outline.astype(bool, copy=False),
+        np.ascontiguousarray(fits.centroid),
+    )  # fmt: skip
+
+
+def numpy_support_radii(fits: PlaneFits, points: np.ndarray) -> np.ndarray:
+    """:func:`support_radii` in numpy: the fallback and the tests' reference."""
+    G = len(fits)
+    gid = np.repeat(np.arange(G), np.diff(fits.bounds))[fits.outline]
+    r_end = np.linalg.norm(points[fits.inliers[fits.outline]] - fits.centroid[gid], axis=1)
+    rad = np.zeros(G)
+    np.maximum.at(rad, gid, r_end)
+    return rad
 
 
 def drop_repeats(
