@@ -15,7 +15,7 @@ from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch_covariances import batch_covariances, sandwich_inputs
 from planodom.smoothing.graph import GraphBuilder, GraphStats
-from planodom.smoothing.initial_ahead import GuessAhead
+from planodom.smoothing.initial_ahead import GuessAhead, finished
 from planodom.smoothing.initial_check import checked_guess
 from planodom.smoothing.inputs import check_epochs
 from planodom.smoothing.linear_solve import solve_step
@@ -342,7 +342,7 @@ def smooth_batch(
     fallback: list[int] = []  # indices of the fallback factors
     plane_factors: dict[int, tuple[int, Plane]] = {}  # their epochs and planes
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
-    try:
+    with finished(guess):  # (batch_initial_concurrent: the child's end)
         for k, planes in enumerate(epochs_planes):
             n_reids = len(getattr(builder, "reidentifications", ()))
             update = builder.add_epoch(planes, by_epoch[k])
@@ -353,11 +353,6 @@ def smooth_batch(
             plane_factors |= {graph.size() + i: obs for i, obs in update.planes.items()}
             graph.push_back(update.factors)
             values.insert(update.values)
-        if isinstance(guess, GuessAhead):
-            guess.finish()
-    finally:
-        if isinstance(guess, GuessAhead):
-            guess.close()  # (the child's end where the graph's construction failed)
     initial = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
     consistent_hypotheses(builder, graph, gaussian)
 

@@ -19,7 +19,9 @@ from __future__ import annotations
 import multiprocessing
 import os
 import resource
-from collections.abc import Sequence
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from multiprocessing.connection import Connection
 
 import numpy as np
@@ -73,6 +75,7 @@ class GuessAhead:
         qr_fallback_epochs, indefinite_marginals: the child's smoother's (after
             :meth:`finish`), as :class:`.batch.SmoothingResult` reports them.
         child_cpu_s: the child's CPU time (user + system), seconds (after :meth:`finish`).
+        wait_s: wall time this process spent waiting for the child's poses, seconds.
     """
 
     def __init__(
@@ -100,6 +103,7 @@ class GuessAhead:
         self.qr_fallback_epochs: list[int] = []
         self.indefinite_marginals: list[tuple[int, float]] = []
         self.child_cpu_s = 0.0
+        self.wait_s = 0.0
         self.initial_check: tuple[float, int, int, bool] | None = None  # ("checked" only)
 
     def __len__(self) -> int:
@@ -107,6 +111,7 @@ class GuessAhead:
 
     def _receive(self) -> None:
         """One message from the child (the next poses, or its end)."""
+        start = time.perf_counter()
         try:
             kind, payload = self._conn.recv()
         except EOFError:
@@ -116,6 +121,8 @@ class GuessAhead:
                 f"(exit code {self._process.exitcode}); set smoothing.batch_initial_concurrent "
                 "false"
             ) from None
+        finally:
+            self.wait_s += time.perf_counter() - start
         if kind == "error":
             self.close()
             raise payload
@@ -148,3 +155,17 @@ class GuessAhead:
             self._process.terminate()
         self._process.join()
         self._conn.close()
+
+
+@contextmanager
+def finished(guess: object) -> Iterator[None]:
+    """Around the graph's construction: a :class:`GuessAhead` ``guess`` waited for at the
+    end (its QR fallbacks and CPU), its child ended in any case (also where the
+    construction failed); anything else untouched."""
+    try:
+        yield
+        if isinstance(guess, GuessAhead):
+            guess.finish()
+    finally:
+        if isinstance(guess, GuessAhead):
+            guess.close()
