@@ -15,11 +15,11 @@ class BatchSpeedConfig(Section):
     epoch; each pose is handed over once it has left the window (its value final), and the
     graph's construction waits only where it needs a pose not yet sent
     (planodom.smoothing.initial_ahead). The same poses, covariances and loop closures bit
-    for bit; less wall time where a second core is free, a little more CPU time (the
-    child's guess took 0.6-2 s more than in-process on the 2 000-epoch lap). Needs ``os.fork`` (POSIX); "checked" and "odometry" run as before.
-    Off by default: on the 2 000-epoch lap with loops 53.5 -> 37.6 s of wall time at load
-    2.5, but slower in 3 of 6 pairs at load 3-6, where no core is free and the child's extra
-    CPU counts (docs/RESULTS.md, BATCH16)."""
+    for bit; less wall time where a second core is free, about as much CPU time (the child's
+    and the parent's together). Needs ``os.fork`` (POSIX); "checked" and "odometry" run as
+    before. Off by default: on the 2 000-epoch lap with loops 53.5 -> 37.6 s of wall time at
+    load 2.5, but slower in 3 of 6 pairs at load 3-6, where no core is free
+    (docs/RESULTS.md, BATCH16)."""
     sequential_after_refusal: bool = False
     """Batch Levenberg-Marquardt (the loop start's and the loop gate's solves): once gtsam
     refuses a multifrontal Cholesky step (its clique pivot test, planodom.smoothing.
