@@ -8,17 +8,22 @@ ground truth (origin-aligned) and the odometry's poses. ``time`` re-times
 ``smooth_batch(planes, relatives, config)`` with ``smoothing.loop_closure`` on, as
 ``compare_methods`` runs it, ``--repeats`` times, and prints wall and process time, the
 machine's load and the ATE; ``--save FILE`` keeps the last run's poses and covariances
-(``.npz``) so two checkouts' outputs can be compared bit for bit.
+(``.npz``) so two checkouts' outputs can be compared bit for bit; ``--set JSON`` overrides
+config fields (e.g. ``{"smoothing.batch_initial_concurrent": true}``, whose child process's
+CPU time is printed as "children").
 
     uv run python experiments/bench_batch2k.py cache FILE.pkl [--epochs 2000]
-    uv run python experiments/bench_batch2k.py time FILE.pkl [--repeats 3] [--save FILE.npz]
+    uv run python experiments/bench_batch2k.py time FILE.pkl [--repeats 3] [--save FILE.npz] \\
+        [--set JSON]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import pickle
+import resource
 import time
 from pathlib import Path
 
@@ -49,18 +54,24 @@ def cache(path: Path, world: int, noise: float, epochs: int) -> None:
     path.write_bytes(pickle.dumps(data))
 
 
-def time_batch(path: Path, repeats: int, save: Path | None) -> None:
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def time_batch(path: Path, repeats: int, save: Path | None, changes: dict) -> None:
     """Time the batch with loops on the cached inputs ``repeats`` times."""
     data = pickle.loads(path.read_bytes())
-    cfg = PlanodomConfig().updated({"smoothing.loop_closure": True})
+    cfg = PlanodomConfig().updated({"smoothing.loop_closure": True, **changes})
     for k in range(repeats):
         load = os.getloadavg()[0]
-        wall, cpu = time.perf_counter(), time.process_time()
+        wall, cpu, child = time.perf_counter(), time.process_time(), _children_cpu()
         res = smooth_batch(data["planes"], data["relatives"], cfg)
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        child = _children_cpu() - child
         a = ate(res.poses, data["gt"], xy_only=True)["rmse"]
-        print(f"run {k}: wall {wall:.1f} s, CPU {cpu:.1f} s, load {load:.2f} -> "
-              f"{os.getloadavg()[0]:.2f}, ATE {a:.7f} m", flush=True)  # fmt: skip
+        print(f"run {k}: wall {wall:.1f} s, CPU {cpu:.1f} s (+ children {child:.1f} s), load "
+              f"{load:.2f} -> {os.getloadavg()[0]:.2f}, ATE {a:.7f} m", flush=True)  # fmt: skip
     if save is not None:
         cov = res.covariances if res.covariances is not None else np.zeros(0)
         np.savez(save, poses=res.poses, covariances=cov)
@@ -78,11 +89,12 @@ def main() -> None:
     t.add_argument("path", type=Path)
     t.add_argument("--repeats", type=int, default=3)
     t.add_argument("--save", type=Path)
+    t.add_argument("--set", default="{}", help="config changes, JSON")
     args = parser.parse_args()
     if args.command == "cache":
         cache(args.path, args.world, args.noise, args.epochs)
     else:
-        time_batch(args.path, args.repeats, args.save)
+        time_batch(args.path, args.repeats, args.save, json.loads(args.set))
 
 
 if __name__ == "__main__":

@@ -4,14 +4,16 @@ the batch with loops side by side, with the smoothed poses' NEES.
 Per world and range noise, the lap and its odometry as ``nees_gauge.load`` (``planodom smooth``'s
 odometry, cached with ``--cache DIR``), the oracle's pure odometry on the same scans
 (:func:`planodom.oracle.run_oracle`), and the batch with loops (default covariances) once with
-the default config and, with ``--set``, once more with the overrides on the same odometry.
+the default config and, with ``--set`` (repeatable), once more per set of overrides on the same
+odometry.
 Per row: epochs, unresolved odometry epochs, odometry / oracle / batch ATE (xy rmse,
 origin-aligned, m), the batch's xy error at the loop's end (m), mean NEES5 of the smoothed
 poses (chi2(5) 95 % interval for a lap's mean: [0.83, 12.8]), loop factors kept and wrong
 (``loop_factor_counts``: a component off by more than 3 of its sigmas), their largest
 horizontal truth error (cm), plane ties kept and wrong (``reidentification_counts``), and the
-batch's process time (s, covariances included). Per epoch (``--npz DIR``): the pose errors,
-covariances and the epochs' odometry status, for ``nees_where``-style tracing.
+batch's process time (s, covariances included), wall time and its child processes' CPU time.
+Per epoch (``--npz DIR``): the pose errors, covariances and the epochs' odometry status, for
+``nees_where``-style tracing.
 
     uv run python experiments/lap_targets.py --worlds 360,362 --noise 0.006 0.02 \\
         --cache DIR --out FILE.csv [--set '{"smoothing.KEY": VALUE}'] [--npz DIR] \\
@@ -23,6 +25,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import resource
 import sys
 import time
 from pathlib import Path
@@ -47,6 +50,12 @@ def _ate(poses: np.ndarray, gt: np.ndarray) -> float:
     return float(ate(poses, gt, xy_only=True)["rmse"])
 
 
+def _children_cpu() -> float:
+    """CPU time of this process's ended children, s (``batch_initial_concurrent``'s)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def lap_rows(world_index: int, noise: float, settings: list[dict], cache: Path | None,
              npz: Path | None, odometry: dict | None = None) -> list[dict]:  # fmt: skip
     """One row per setting on one lap (the odometry, with the config changes ``odometry``,
@@ -61,10 +70,11 @@ def lap_rows(world_index: int, noise: float, settings: list[dict], cache: Path |
         "odometry_ate_m": _ate(odo.poses, gt), "oracle_ate_m": _ate(oracle.poses, gt),
     }  # fmt: skip
     rows = []
-    for changes in settings:
-        start = time.process_time()
+    for i, changes in enumerate(settings):
+        start, wall, child = time.process_time(), time.perf_counter(), _children_cpu()
         res = smooth_batch(odo.planes, rel, cfg.updated(changes))
-        cpu = time.process_time() - start
+        cpu, wall = time.process_time() - start, time.perf_counter() - wall
+        child = _children_cpu() - child
         xi = pose_errors(res.poses, gt)
         nees = (
             np.full(len(gt) - 1, np.nan)
@@ -77,12 +87,12 @@ def lap_rows(world_index: int, noise: float, settings: list[dict], cache: Path |
             "mean_nees5": float(np.nanmean(nees)), "covariance_model": res.covariance_model,
             **loop_factor_counts(res.loop_factors, gt),
             **reidentification_counts(res.reidentifications, coplanar(world.scene)),
-            "batch_cpu_s": cpu,
+            "batch_cpu_s": cpu, "batch_wall_s": wall, "batch_children_cpu_s": child,
             # batch_initial "checked": worst chi2 of the windowed guess, its span, replaced
             "initial_check": "" if res.initial_check is None else json.dumps(res.initial_check),
         })  # fmt: skip
         if npz is not None:
-            tag = "default" if not changes else "option"
+            tag = "default" if i == 0 else "option" if i == 1 else f"option{i}"
             np.savez_compressed(
                 npz / f"lap_w{world_index}_{noise}_{tag}.npz", xi=xi, nees5=nees,
                 P=res.covariances if res.covariances is not None else np.zeros(0),
@@ -95,7 +105,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--worlds", required=True, help="comma-separated world indices (even)")
     parser.add_argument("--noise", type=float, nargs="+", required=True)
-    parser.add_argument("--set", default=None, help="JSON config changes (a second batch)")
+    parser.add_argument(
+        "--set", action="append", default=[], help="JSON config changes (another batch; repeatable)"
+    )
     parser.add_argument(
         "--odometry-set",
         default=None,
@@ -105,7 +117,7 @@ def main() -> None:
     parser.add_argument("--npz", type=Path, default=None)
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
-    settings = [{}] + ([json.loads(args.set)] if args.set else [])
+    settings = [{}] + [json.loads(changes) for changes in args.set]
     rows: list[dict] = []
     for w in (int(x) for x in args.worlds.split(",")):
         for noise in args.noise:

@@ -6,11 +6,11 @@ from typing import Literal
 
 from pydantic import model_validator
 
-from planodom.config.section import Section
+from planodom.config.batch_speed import BatchSpeedConfig
 from planodom.errors import ConfigError
 
 
-class CovarianceScaleConfig(Section):
+class CovarianceScaleConfig(BatchSpeedConfig):
     """The scale of the batch graph's noise models estimated from its own residuals
     (a part of :class:`~planodom.config.smoothing.SmoothingConfig`)."""
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import cast
 
 import gtsam
 import numpy as np
@@ -14,9 +15,10 @@ from planodom.geometry import Plane
 from planodom.odometry.relative import RelativePose
 from planodom.smoothing.batch_covariances import batch_covariances, sandwich_inputs
 from planodom.smoothing.graph import GraphBuilder, GraphStats
+from planodom.smoothing.initial_ahead import GuessAhead, finished
 from planodom.smoothing.initial_check import checked_guess
 from planodom.smoothing.inputs import check_epochs
-from planodom.smoothing.linear_solve import solve as solve_linear
+from planodom.smoothing.linear_solve import solve_step
 from planodom.smoothing.loop_candidates import CandidateLoopBuilder
 from planodom.smoothing.loop_gate import consistent_hypotheses, loop_start, test_hypotheses
 from planodom.smoothing.loop_gate_parts import gate_loops
@@ -125,9 +127,12 @@ def group_by_epoch(
     return out
 
 
-def _solve(linear: gtsam.GaussianFactorGraph, ordering: gtsam.Ordering) -> gtsam.VectorValues:
-    """A linear step: :func:`.linear_solve.solve` (Cholesky, sequential Cholesky, QR)."""
-    return solve_linear(linear, ordering)
+def _solve(
+    linear: gtsam.GaussianFactorGraph, ordering: gtsam.Ordering, multifrontal: bool = True
+) -> tuple[gtsam.VectorValues, bool]:
+    """A linear step: :func:`.linear_solve.solve_step` (Cholesky, sequential Cholesky, QR),
+    and whether the multifrontal Cholesky was refused (or, ``multifrontal`` False, skipped)."""
+    return solve_step(linear, ordering, multifrontal)
 
 
 def _damping(dims: Sequence[tuple[int, int]], lam: float) -> gtsam.GaussianFactorGraph:
@@ -148,6 +153,7 @@ def levenberg_marquardt(
     absolute_error_tol: float = 1e-9,
     lambda_initial: float = 1e-5,
     lambda_max: float = 1e10,
+    sticky: bool = False,
 ) -> tuple[gtsam.Values, list[float]]:
     """Levenberg-Marquardt on a nonlinear graph, the loop in Python, the algebra in gtsam.
 
@@ -172,7 +178,8 @@ def levenberg_marquardt(
     Damping: ``lambda * I`` on every variable's tangent (gtsam's default); lambda / 10 on a
     successful step, * 10 on a failed one. Stops when the relative decrease of the error
     falls below ``relative_error_tol`` or its absolute decrease below ``absolute_error_tol``,
-    or when lambda exceeds ``lambda_max``.
+    or when lambda exceeds ``lambda_max``. With ``sticky`` (``sequential_after_refusal``)
+    once gtsam refuses a multifrontal step, the call's later steps skip it.
 
     Returns:
         The optimised values and the error (0.5 sum of squared whitened residuals) at the
@@ -186,6 +193,7 @@ def levenberg_marquardt(
     errors = [error]
     lam = lambda_initial
     damping: dict[float, gtsam.GaussianFactorGraph] = {}  # lambda -> its factors, built once
+    refused = False  # a multifrontal step refused in this call
     for _ in range(max_iterations):
         linear = batched.linearize(values)
         while lam <= lambda_max:
@@ -195,7 +203,9 @@ def levenberg_marquardt(
                 damping[lam] = _damping(dims, lam)
             damped.push_back(damping[lam])
             try:
-                candidate = values.retract(_solve(damped, ordering))
+                step, refusal = _solve(damped, ordering, not (sticky and refused))
+                refused |= refusal
+                candidate = values.retract(step)
                 new_error = batched.error(candidate)
             except RuntimeError:  # indeterminant even for QR at this damping: damp more
                 new_error = np.inf
@@ -237,8 +247,9 @@ def _gated(
         warm = cfg.loop_gate_resolve_from == "estimate"
         start = loop_start(builder, graph, gaussian, estimate if warm else values)
         estimate, more = levenberg_marquardt(
-            graph, start, cfg.max_iterations, cfg.relative_error_tol
-        )
+            graph, start, cfg.max_iterations, cfg.relative_error_tol,
+            sticky=cfg.sequential_after_refusal,
+        )  # fmt: skip
         errors += more
     return estimate
 
@@ -258,10 +269,11 @@ def _builder(
     relative_poses: Sequence[RelativePose],
     config: SmoothingConfig | PlanodomConfig | None,
     T_world_first: np.ndarray | None,
-) -> tuple[GraphBuilder, SmoothingResult | None]:
+) -> tuple[GraphBuilder, SmoothingResult | GuessAhead | None]:
     """The batch's graph builder (with loop closure and candidates as configured), its
     initial poses from the fixed-lag smoother when ``batch_initial`` is "windowed" (and
-    that smoother's result, else None)."""
+    that smoother's result, else None; with ``batch_initial_concurrent`` the smoother
+    running ahead in a child process, :mod:`.initial_ahead`, its poses arriving)."""
     cfg = smoothing_config(config)
     full = full_config(config)
     builder: GraphBuilder = GraphBuilder(cfg, T_world_first)
@@ -278,23 +290,26 @@ def _builder(
         observed = enumerate((k, p) for k, planes in enumerate(epochs_planes) for p in planes)
         Q, _ = sandwich_inputs(cfg, dict(observed), relative_poses, len(epochs_planes))
         builder.plane_share = Q if Q is not None and np.any(Q) else None
-    guess = None
-    if cfg.batch_initial in ("windowed", "checked"):
-        from planodom.smoothing.windowed import smooth_windowed
+    if cfg.batch_initial == "odometry":
+        return builder, None
+    # Its poses only: no marginals (a third of the fixed-lag smoother's time on lidar).
+    first = full.updated({"smoothing.compute_covariances": False}, source="initial guess")
+    if cfg.batch_initial == "windowed" and cfg.batch_initial_concurrent:
+        # the same poses, computed in a child process while the graph is built
+        ahead = GuessAhead(epochs_planes, relative_poses, first, T_world_first)
+        builder.initial_poses = cast(np.ndarray, ahead)  # indexed by epoch, as the stack
+        return builder, ahead
+    from planodom.smoothing.windowed import smooth_windowed
 
-        # Its poses only: no marginals (a third of the fixed-lag smoother's time on lidar).
-        first = full.updated({"smoothing.compute_covariances": False}, source="initial guess")
-        guess = smooth_windowed(epochs_planes, relative_poses, first)
-        builder.initial_poses = guess.poses
-        if cfg.batch_initial == "checked":  # the chained odometry where it contradicts it
-            chained, worst, span = checked_guess(
-                guess.poses, relative_poses, full, builder.first_step
-            )
-            guess.initial_check = (worst, *span, chained is not None)
-            if chained is not None:
-                builder.initial_poses = None
-        if T_world_first is not None and builder.initial_poses is not None:
-            builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
+    guess = smooth_windowed(epochs_planes, relative_poses, first)
+    builder.initial_poses = guess.poses
+    if cfg.batch_initial == "checked":  # the chained odometry where it contradicts it
+        chained, worst, span = checked_guess(guess.poses, relative_poses, full, builder.first_step)
+        guess.initial_check = (worst, *span, chained is not None)
+        if chained is not None:
+            builder.initial_poses = None
+    if T_world_first is not None and builder.initial_poses is not None:
+        builder.initial_poses = np.asarray(T_world_first) @ builder.initial_poses
     return builder, guess
 
 
@@ -327,22 +342,23 @@ def smooth_batch(
     fallback: list[int] = []  # indices of the fallback factors
     plane_factors: dict[int, tuple[int, Plane]] = {}  # their epochs and planes
     by_epoch = group_by_epoch(relative_poses, len(epochs_planes))
-    for k, planes in enumerate(epochs_planes):
-        n_reids = len(getattr(builder, "reidentifications", ()))
-        update = builder.add_epoch(planes, by_epoch[k])
-        for r in getattr(builder, "reidentifications", ())[n_reids:]:
-            r.factor += graph.size()
-        gaussian |= {graph.size() + i: f for i, f in update.gaussian.items()}
-        fallback += [graph.size() + i for i in update.fallback]
-        plane_factors |= {graph.size() + i: obs for i, obs in update.planes.items()}
-        graph.push_back(update.factors)
-        values.insert(update.values)
+    with finished(guess):  # (batch_initial_concurrent: the child's end)
+        for k, planes in enumerate(epochs_planes):
+            n_reids = len(getattr(builder, "reidentifications", ()))
+            update = builder.add_epoch(planes, by_epoch[k])
+            for r in getattr(builder, "reidentifications", ())[n_reids:]:
+                r.factor += graph.size()
+            gaussian |= {graph.size() + i: f for i, f in update.gaussian.items()}
+            fallback += [graph.size() + i for i in update.fallback]
+            plane_factors |= {graph.size() + i: obs for i, obs in update.planes.items()}
+            graph.push_back(update.factors)
+            values.insert(update.values)
     initial = np.stack([builder.poses[k] for k in range(len(epochs_planes))])
     consistent_hypotheses(builder, graph, gaussian)
 
     estimate, errors = levenberg_marquardt(
         graph, loop_start(builder, graph, gaussian, values), cfg.max_iterations,
-        cfg.relative_error_tol,
+        cfg.relative_error_tol, sticky=cfg.sequential_after_refusal,
     )  # fmt: skip
     if isinstance(builder, LoopClosingBuilder):
         estimate = _gated(builder, graph, gaussian, values, estimate, errors)

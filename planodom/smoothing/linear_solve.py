@@ -30,11 +30,22 @@ def solve(linear: gtsam.GaussianFactorGraph, ordering: gtsam.Ordering) -> gtsam.
     """The least-squares solution of ``linear`` (whitened Jacobian factors) eliminated in
     ``ordering``: gtsam's multifrontal Cholesky; when gtsam finds a clique indeterminant, a
     sequential Cholesky in the same ordering; when that fails too, multifrontal QR."""
+    return solve_step(linear, ordering)[0]
+
+
+def solve_step(
+    linear: gtsam.GaussianFactorGraph, ordering: gtsam.Ordering, multifrontal: bool = True
+) -> tuple[gtsam.VectorValues, bool]:
+    """:func:`solve`, and whether the multifrontal Cholesky was refused; with
+    ``multifrontal`` False it is not tried (``smoothing.sequential_after_refusal``: the
+    rest of a Levenberg-Marquardt call after a refusal; there each later step of the 2 000-
+    epoch lap's gate re-solves was refused too, 0.094 s wasted a step, BATCH15)."""
+    if multifrontal:
+        try:
+            return linear.optimize(ordering), False
+        except RuntimeError:
+            pass
     try:
-        return linear.optimize(ordering)
+        return linear.eliminateSequential(ordering).optimize(), True
     except RuntimeError:
-        pass
-    try:
-        return linear.eliminateSequential(ordering).optimize()
-    except RuntimeError:
-        return linear.optimize(ordering, gtsam.EliminateQR)
+        return linear.optimize(ordering, gtsam.EliminateQR), True

@@ -4,7 +4,7 @@ import gtsam
 import numpy as np
 import pytest
 
-from planodom.smoothing.linear_solve import solve
+from planodom.smoothing.linear_solve import solve, solve_step
 
 
 def _graph(rows: list[tuple[dict[int, np.ndarray], np.ndarray]]) -> gtsam.GaussianFactorGraph:
@@ -103,3 +103,67 @@ def test_a_marginal_whose_cholesky_shortcut_is_refused_comes_from_qr():
         got = _qr_marginal(_RefusingTree(tree), k)  # type: ignore[arg-type]
         np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
         np.testing.assert_allclose(_qr_marginal(tree, k), expected, rtol=1e-9)
+
+
+def _refused_pair() -> tuple[gtsam.GaussianFactorGraph, gtsam.Ordering]:
+    """The first test's system: one clique gtsam's multifrontal check refuses."""
+    stiff = 1e4
+    rows = [
+        ({1: np.array([[stiff]]), 2: np.array([[stiff]])}, np.array([1.0])),
+        ({1: np.array([[1.0]])}, np.array([0.5])),
+        ({2: np.array([[1.0]])}, np.array([-0.2])),
+    ]
+    return _graph(rows), _ordering([1, 2])
+
+
+def test_a_step_reports_the_refusal_and_skipping_gives_the_sequential_solution():
+    graph, ordering = _refused_pair()
+    sequential = graph.eliminateSequential(ordering).optimize()
+    for multifrontal in (True, False):
+        x, refused = solve_step(graph, ordering, multifrontal)
+        assert refused
+        assert [x.at(k)[0] for k in (1, 2)] == [sequential.at(k)[0] for k in (1, 2)]
+    rng = np.random.default_rng(4)
+    rows = [({k: rng.normal(size=(2, 2))}, rng.normal(size=2)) for k in range(3)]
+    well = _graph(rows)
+    x, refused = solve_step(well, _ordering([0, 1, 2]))
+    assert not refused
+    direct = well.optimize(_ordering([0, 1, 2]))
+    assert all(np.array_equal(x.at(k), direct.at(k)) for k in range(3))
+
+
+def test_sticky_levenberg_marquardt_skips_only_steps_the_multifrontal_path_refuses(monkeypatch):
+    """Two points held by unit priors and tied by a stiff between factor: every step's
+    clique is refused, so skipping the multifrontal attempt after the first refusal gives
+    the same iterates, bit for bit, and the multifrontal path is tried once."""
+    from planodom.smoothing import batch
+
+    tried: list[bool] = []
+    original = batch.solve_step
+
+    def recorded(linear, ordering, multifrontal=True):
+        tried.append(multifrontal)
+        return original(linear, ordering, multifrontal)
+
+    monkeypatch.setattr(batch, "solve_step", recorded)
+    graph = gtsam.NonlinearFactorGraph()
+    unit, stiff = (
+        gtsam.noiseModel.Isotropic.Sigma(2, 1.0),
+        gtsam.noiseModel.Isotropic.Sigma(2, 1e-4),
+    )
+    graph.add(gtsam.PriorFactorPoint2(1, gtsam.Point2(0.5, 0.1), unit))
+    graph.add(gtsam.PriorFactorPoint2(2, gtsam.Point2(-0.2, 0.3), unit))
+    graph.add(gtsam.BetweenFactorPoint2(1, 2, gtsam.Point2(1.0, 2.0), stiff))
+    values = gtsam.Values()
+    values.insert(1, gtsam.Point2(3.0, 3.0))
+    values.insert(2, gtsam.Point2(-3.0, 1.0))
+    plain, plain_errors = batch.levenberg_marquardt(graph, values)
+    assert len(tried) >= 2 and all(tried)
+    tried.clear()
+    sticky, sticky_errors = batch.levenberg_marquardt(graph, values, sticky=True)
+    assert tried[0] and not any(tried[1:]) and len(tried) >= 2
+    assert sticky_errors == plain_errors
+    for k in (1, 2):
+        assert np.array_equal(sticky.atPoint2(k), plain.atPoint2(k))
+    # the closed form: priors' mean split by the tie (a + (1, 2) = b, equal weights)
+    np.testing.assert_allclose(sticky.atPoint2(1), [-0.35, -0.8], atol=1e-6)
