@@ -10,6 +10,7 @@ from typing import Literal
 
 from planodom.config.bridge_normals import BridgeNormalsConfig
 from planodom.config.deskew_pass_skip import DeskewPassSkipConfig
+from planodom.config.gate_release import GateReleaseConfig
 from planodom.config.map_lead_shrink import MapLeadShrinkConfig
 from planodom.config.moment_refine import MomentRefineConfig
 from planodom.config.narrow_rotation import NarrowRotationConfig
@@ -22,6 +23,7 @@ from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
 class DeskewGuards(
     BridgeNormalsConfig,
     DeskewPassSkipConfig,
+    GateReleaseConfig,
     MapLeadShrinkConfig,
     MomentRefineConfig,
     NarrowRotationConfig,

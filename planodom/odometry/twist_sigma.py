@@ -80,6 +80,10 @@ class TwistUncertainty:
         self._memo: dict[object, object] = {}
         # the estimates gated()'s gate bridged since the last update (their steps before it)
         self.ungated: list[EpochEstimate] = []
+        # degenerate_gate_release: the own twists of this epoch's gated steps (by the id of
+        # the relative pose the gate made), and the committed one's since the last kept step
+        self._gated_twists: dict[int, tuple[RelativePose, np.ndarray]] = {}
+        self._gated_rate: np.ndarray | None = None
         self.blend = RateBlend(config, self.change)  # odometry.twist_blend
 
     def update(
@@ -90,6 +94,12 @@ class TwistUncertainty:
         :mod:`.twist_blend`; ``own`` itself when off or under a plane map ``plane_map``)."""
         self._memo.clear()
         self.ungated.clear()
+        if relative.status is not Status.UNRESOLVED:
+            self._gated_rate = None  # a kept step: the gate's prediction is its
+        elif relative.inconsistent:
+            kept = self._gated_twists.get(id(relative))  # held: ids are not reused
+            self._gated_rate = None if kept is None else kept[1]
+        self._gated_twists.clear()
         blended = own if plane_map is not None else self.blend.committed(own, relative, dt)
         if relative.status is Status.UNRESOLVED:
             self._unresolved += 1
@@ -225,6 +235,10 @@ class TwistUncertainty:
             return estimate
         if prediction is None or self.consistent(estimate, dt, prediction, config, "degenerate"):
             return estimate
+        held = self._gated_rate  # degenerate_gate_release: the last gated step's own twist
+        if config.degenerate_gate_release == "agreeing" and held is not None:
+            if self.consistent(estimate, dt, held, config, "degenerate"):
+                return estimate  # two successive measurements overrule the prediction
         self.ungated.append(estimate)  # the step before the gate (start_vehicle_twist)
         step = se3_exp((prediction if bridging is None else bridging) * dt)
         no_pairs = np.zeros((0, 2), dtype=np.intp)
@@ -232,6 +246,8 @@ class TwistUncertainty:
             estimate.relative, T_prev_curr=T_ref_last @ step, status=Status.UNRESOLVED,
             associations=no_pairs, sources=None, inconsistent=True,
         )  # fmt: skip
+        if config.degenerate_gate_release == "agreeing":
+            self._gated_twists[id(relative)] = (relative, estimate.own_twist(dt))
         return replace(estimate, relative=relative, step=step)
 
 

@@ -329,3 +329,40 @@ def test_a_bridges_rotation_sigma_sums_the_predicted_rate_sigmas_of_its_steps():
         model.update(np.zeros(6), _relative(Status.UNRESOLVED), 0.1)
         held.append(model.predicted()[0])
         assert model.bridged_rotation_sigma(0.1) == pytest.approx(0.1 * sum(held))
+
+
+def test_a_second_gated_step_that_agrees_with_the_first_overrules_the_prediction():
+    """``degenerate_gate_release: agreeing``, with the chi2 limit above (0.0825 rad/s): a
+    degenerate step 0.3 rad/s off the held prediction is bridged; the next one, within the
+    limit of that bridged step's own rate, is kept (bridged with ``off``); one beyond it is
+    bridged; and a step kept in between leaves nothing to agree with."""
+    odometry = PlanodomConfig().odometry
+    bridge = odometry.model_copy(update={"rescue_gate_quantile": 0.99, "degenerate_gate": "bridge"})
+    agreeing = bridge.model_copy(update={"degenerate_gate_release": "agreeing"})
+    limit = np.sqrt(11.345 * 2 * 0.03**2 / 3)
+    prediction, T_ref_last = np.zeros(6), np.eye(4)
+
+    def candidate(rate, status=Status.DEGENERATE):
+        T = transform_from_rpy_xyz(0, 0, rate * 0.1, 0.0, 0, 0)
+        return EpochEstimate([], PlaneSet.from_planes([]), None, _relative(status), T, [])
+
+    def model_after_one_gated(config):
+        model = TwistUncertainty(config)
+        for _ in range(2):
+            model.update(np.zeros(6), _relative(), 0.1)  # sigma (0.03, 0.5), change 0
+        first = model.gated(candidate(0.3), 0.1, prediction, T_ref_last, config)
+        assert first.relative.inconsistent
+        model.update(np.zeros(6), first.relative, 0.1)  # committed as the bridge
+        return model
+
+    near, far = candidate(0.3 + limit - 2e-3), candidate(0.3 + limit + 2e-3)
+    assert (
+        model_after_one_gated(agreeing).gated(near, 0.1, prediction, T_ref_last, agreeing) is near
+    )
+    off = model_after_one_gated(bridge).gated(near, 0.1, prediction, T_ref_last, bridge)
+    assert off.relative.inconsistent
+    gated = model_after_one_gated(agreeing).gated(far, 0.1, prediction, T_ref_last, agreeing)
+    assert gated.relative.inconsistent
+    model = model_after_one_gated(agreeing)
+    model.update(np.zeros(6), _relative(Status.DEGENERATE), 0.1)  # a kept step between
+    assert model.gated(near, 0.1, prediction, T_ref_last, agreeing).relative.inconsistent
