@@ -64,6 +64,13 @@ def test_round_trip(tmp_path) -> None:
         ("planemap: {prediction: median}\n", r"c\.yaml: field 'planemap\.prediction'"),
         ("planemap: {twist_filter: yes}\n", r"c\.yaml: field 'planemap\.twist_filter'"),
         ("planemap: {kept_pose: predicted}\n", r"c\.yaml: field 'planemap\.kept_pose'"),
+        ("odometry: {gap_tilt: frozen}\n", r"c\.yaml: field 'odometry\.gap_tilt'"),
+        ("association: {max_tilt_deg: 0}\n", r"c\.yaml: field 'association\.max_tilt_deg'"),
+        ("association: {max_tilt_deg: 200}\n", r"c\.yaml: field 'association\.max_tilt_deg'"),
+        (
+            "odometry: {degenerate_gate_release: always}\n",
+            r"c\.yaml: field 'odometry\.degenerate_gate_release'",
+        ),
         (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",
