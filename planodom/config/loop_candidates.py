@@ -8,14 +8,14 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from planodom.config.odometry import Positive
-from planodom.config.section import Section
+from planodom.config.tie_gate import TieGateConfig
 from planodom.errors import ConfigError
 
 #: A probability or fraction in (0, 1].
 Fraction = Annotated[float, Field(gt=0, le=1)]
 
 
-class LoopCandidateConfig(Section):
+class LoopCandidateConfig(TieGateConfig):
     """Loop candidates (5-DoF loop factors between revisited epochs), their hypotheses and
     the gate after optimisation; fields of the ``smoothing`` section."""
 

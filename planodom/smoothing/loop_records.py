@@ -10,10 +10,10 @@ from typing import Any
 
 import gtsam
 import numpy as np
-from scipy.stats import chi2
 
 from planodom.geometry import invert_transform
 from planodom.smoothing.match_fit import OffsetFit
+from planodom.smoothing.tie_gate import tie_gate_limit
 from planodom_factors.pose5 import pose5_error
 
 
@@ -225,10 +225,10 @@ def gate_reidentifications(
 ) -> int:
     """Remove the re-identified factors inconsistent with ``values`` (see module
     docstring) from ``graph`` (and their Gaussian twins); returns how many."""
-    q = builder.config.loop_gate_quantile
+    c = builder.config
     ties = {r.factor for r in builder.reidentifications}
     tracked = [2.0 * f.error(values) for i, f in gaussian.items() if i not in ties and f.dim() == 3]
-    limit = max(chi2.ppf(q, 3), float(np.quantile(tracked, q)) if tracked else 0.0)
+    limit = tie_gate_limit(np.asarray(tracked), c.loop_gate_quantile, c.loop_tie_gate_limit)
     failed = set()
     for r in builder.reidentifications:
         if not r.removed and 2.0 * gaussian.get(r.factor, graph.at(r.factor)).error(values) > limit:
