@@ -1,0 +1,29 @@
+"""Narrow seeds for an epoch the odometry leaves unresolved (a field of ``OdometryConfig``).
+
+A base of :class:`planodom.config.odometry.OdometryConfig`, in its own module as
+:mod:`.gate_release` is.
+"""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from planodom.config.section import Section
+
+
+class LostNarrowConfig(Section):
+    """``odometry.lost_narrow_seed_deg``: the narrow seeds tried where a step is lost."""
+
+    lost_narrow_seed_deg: float = Field(0.0, ge=0, le=90)
+    """Pairwise pipelines (the 2D rig): an epoch whose kept estimate is unresolved is
+    extracted once more with the same twist and ``extraction.narrow_seed_last_deg`` at
+    least this (deg; :mod:`planodom.odometry.lost_narrow`), and that estimate is kept
+    when it resolves the step (degenerate or ok). In a corridor turned near 45 deg to the
+    heading each scanner pair of the isoclinal rig draws two lines crossing under
+    ``min_cross_angle_deg`` on a wall, and the extraction keeps only the walls it crosses
+    well: on the 2D-rig world 570 at 6 mm two parallel walls where the oracle fits six
+    surfaces, 11 epochs bridged (docs/RESULTS.md, TILT16, GAP17). The narrow seeds found
+    those walls (INDOOR3) but as a default cost the paper loop 4-16 % ATE and world 312
+    its yaw (NARROW4), where every epoch resolves without them; here they are tried only
+    where the step is lost anyway. 0: off (default); 0.5 is the narrow seeds' measured
+    value (``max_seed_normal_error_deg``, INDOOR3), not tuned here."""
