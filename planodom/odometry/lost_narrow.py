@@ -41,9 +41,13 @@ def narrow_if_lost(odo: PlaneOdometry, best: EpochEstimate, scan: Scan, t: float
     ``odometry.lost_narrow_seed_deg`` above 0, the epoch ``scan`` (at time ``t``, s)
     extracted again with ``best``'s twist by ``odo``'s extractor with narrow seeds and
     estimated again, kept when its step resolves (degenerate or ok; the degenerate gate
-    and the bounds of :meth:`PlaneOdometry._estimate` judge it as any step)."""
-    degrees = odo.config.odometry.lost_narrow_seed_deg
-    if degrees <= 0 or best.relative.status is not Status.UNRESOLVED or not odo.pairwise:
+    and the bounds of :meth:`PlaneOdometry._estimate` judge it as any step). A step the
+    degenerate gate reported unresolved is left as it is."""
+    degrees, lost = odo.config.odometry.lost_narrow_seed_deg, best.relative
+    # a step the degenerate gate bridged had its planes: lost to the gate, not the extraction
+    if degrees <= 0 or lost.status is not Status.UNRESOLVED or lost.inconsistent:
+        return best
+    if not odo.pairwise:  # the plane map's extraction has no narrow seeds
         return best
     base = default_extractor() if odo.extractor is None else odo.extractor
     odo.extractor = narrow_extractor(base, degrees)
