@@ -6,13 +6,16 @@ A base of :class:`planodom.config.odometry.OdometryConfig`, in its own module as
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field
 
 from planodom.config.section import Section
 
 
 class LostNarrowConfig(Section):
-    """``odometry.lost_narrow_seed_deg``: the narrow seeds tried where a step is lost."""
+    """``odometry.lost_narrow_seed_deg``: the narrow seeds tried where a step is lost;
+    ``odometry.gap_end_rate``: the rate a step that ends a bridged stretch measures."""
 
     lost_narrow_seed_deg: float = Field(0.0, ge=0, le=90)
     """Pairwise pipelines (the 2D rig): an epoch whose kept estimate is unresolved is
@@ -27,3 +30,14 @@ class LostNarrowConfig(Section):
     its yaw (NARROW4), where every epoch resolves without them; here they are tried only
     where the step is lost anyway. 0: off (default); 0.5 is the narrow seeds' measured
     value (``max_seed_normal_error_deg``, INDOOR3), not tuned here."""
+
+    gap_end_rate: Literal["step", "span"] = "step"
+    """Pairwise pipelines: the own twist (the next epoch's deskewing twist, its prior and
+    bridge) of a measured step whose reference is further back than the epoch before, a
+    step that ends a bridged stretch. ``step`` (default): the step's, which holds the
+    error of every bridged step before it, taken back at once: on the 2D-rig world 570 at
+    6 mm with ``lost_narrow_seed_deg`` the step ending a 3-epoch stretch took back 2.1
+    deg of bridged yaw, and the next epoch was bridged 2.5 deg off with that rate
+    (docs/RESULTS.md, GAP17). ``span``: the twist of its measured relative pose over the
+    epochs it spans (epochs at a constant period; with ``delta`` above 1, where every
+    step spans several epochs, nothing changes). No threshold."""
