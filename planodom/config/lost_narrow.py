@@ -29,7 +29,11 @@ class LostNarrowConfig(Section):
     those walls (INDOOR3) but as a default cost the paper loop 4-16 % ATE and world 312
     its yaw (NARROW4), where every epoch resolves without them; here they are tried only
     where the step is lost anyway. 0: off (default); 0.5 is the narrow seeds' measured
-    value (``max_seed_normal_error_deg``, INDOOR3), not tuned here."""
+    value (``max_seed_normal_error_deg``, INDOOR3), not tuned here. Judged with
+    ``gap_end_rate: span`` (GAP17): world 570's gap* 11 -> 3 / 6 -> 3 (6 mm / 2 cm), the
+    fresh worlds 660-678 unchanged but 678 (better), random-indoor better at every noise;
+    the rule failed on random-outdoor at 2 cm (4.66 -> 9.24 m), which the span rate
+    loses (this option alone: 4.55 m)."""
 
     gap_end_rate: Literal["step", "span"] = "step"
     """Pairwise pipelines: the own twist (the next epoch's deskewing twist, its prior and
@@ -40,4 +44,5 @@ class LostNarrowConfig(Section):
     deg of bridged yaw, and the next epoch was bridged 2.5 deg off with that rate
     (docs/RESULTS.md, GAP17). ``span``: the twist of its measured relative pose over the
     epochs it spans (epochs at a constant period; with ``delta`` above 1, where every
-    step spans several epochs, nothing changes). No threshold."""
+    step spans several epochs, nothing changes). No threshold. Off: alone it doubles the
+    built-in random-outdoor's ATE at 2 cm (4.66 -> 9.38 m, GAP17)."""
