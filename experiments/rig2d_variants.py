@@ -7,7 +7,11 @@ the per-epoch rotation and xy rms, the ATE (xy, origin-aligned; as
 ``experiments/rig2d_ingredients.py``'s ``metrics``), the unresolved epochs and the
 process time of ``run_odometry`` (CPU, not wall: the machine is shared). With
 ``--oracle CSV`` (the rows of ``rig2d_ingredients.py`` on the same worlds and noises)
-each figure is also given as a ratio to the oracle's. Writes a CSV (one row per world,
+each figure is also given as a ratio to the oracle's. With ``--gaps`` the oracle
+(:func:`planodom.oracle.run_oracle`) is run on each simulated run too, and each row gets
+``gap`` (the longest run of unresolved epochs) and ``gap_oracle`` (the same where the
+oracle measures: the generalisation summary's gap*, issue 11's "no run of more than 3
+epochs without a measurement where the oracle measures"). Writes a CSV (one row per world,
 noise and variant). Used by SPLIT2D (docs/RESULTS.md) to measure the deskewing passes
 (``odometry.deskew_passes``, the motion between the neighbouring epochs' solved poses)
 with and without the gated moments' solve on seen worlds:
@@ -31,10 +35,11 @@ import numpy as np
 import yaml
 
 from planodom.config import PlanodomConfig
-from planodom.experiments.generalisation import declared_sweep, world_for
+from planodom.experiments.generalisation import declared_sweep, longest_run, world_for
 from planodom.geometry import invert_transform
 from planodom.metrics import ate, per_epoch_errors, relative_motions
 from planodom.odometry import run_odometry
+from planodom.oracle import run_oracle
 from planodom.results import write_rows
 from planodom.simulation.random_world import simulate_world, world_fields
 
@@ -72,6 +77,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--epochs", type=int, default=150)
     ap.add_argument("--oracle", default=None, help="rig2d_ingredients.py CSV (oracle rows)")
     ap.add_argument("-o", "--out", default=None, help="CSV of the rows")
+    ap.add_argument("--gaps", action="store_true", help="gap and gap* against the oracle")
     ap.add_argument(
         "--variant", nargs="+", action="append", required=True,
         help="NAME [KEY=VALUE ...] (repeat per variant)",
@@ -91,6 +97,10 @@ def main(argv: Sequence[str] | None = None) -> None:
             run = world_fields(world, full)
             gt = invert_transform(full.poses[0])[None] @ full.poses
             ref = oracle.get((w, noise))
+            measures = None  # per epoch: whether the oracle measures it (--gaps)
+            if args.gaps:
+                orc = run_oracle(full.scans, full.times, world.trajectory, world.scene)
+                measures = np.array(orc.statuses) != "unresolved"
             for name, cfg in variants:
                 c0 = time.process_time()
                 odo = run_odometry(run, declared_sweep(world, cfg))
@@ -102,13 +112,16 @@ def main(argv: Sequence[str] | None = None) -> None:
                     row |= {f"{k}_x_oracle": m[k] / ref[k] for k in m}
                 st = np.array(odo.statuses)
                 row |= {"unresolved": int((st == "unresolved").sum()), "cpu_s": cpu}
+                if measures is not None:
+                    lost = st == "unresolved"
+                    row |= {"gap": longest_run(lost), "gap_oracle": longest_run(lost & measures)}
                 # extractor calls over all passes, and those given the streaming pass's
                 # planes (odometry.deskew_pass_skip)
                 row |= {"extractions": odo.extractions, "reused": odo.reused}
                 rows.append(row)
                 figures = {k: round(float(v), 5) for k, v in m.items()}
-                print(w, noise, name, figures, row["unresolved"], round(cpu, 1), odo.extractions,
-                      odo.reused, flush=True)  # fmt: skip
+                print(w, noise, name, figures, row["unresolved"], row.get("gap_oracle", ""),
+                      round(cpu, 1), odo.extractions, odo.reused, flush=True)  # fmt: skip
                 if args.out:
                     write_rows(args.out, rows)
 

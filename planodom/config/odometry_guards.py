@@ -11,6 +11,7 @@ from typing import Literal
 from planodom.config.bridge_normals import BridgeNormalsConfig
 from planodom.config.deskew_pass_skip import DeskewPassSkipConfig
 from planodom.config.gate_release import GateReleaseConfig
+from planodom.config.lost_narrow import LostNarrowConfig
 from planodom.config.map_lead_shrink import MapLeadShrinkConfig
 from planodom.config.moment_refine import MomentRefineConfig
 from planodom.config.narrow_rotation import NarrowRotationConfig
@@ -24,6 +25,7 @@ class DeskewGuards(
     BridgeNormalsConfig,
     DeskewPassSkipConfig,
     GateReleaseConfig,
+    LostNarrowConfig,
     MapLeadShrinkConfig,
     MomentRefineConfig,
     NarrowRotationConfig,

@@ -84,6 +84,10 @@ class EpochEstimate:
             estimate is kept (``pipeline: map``), else None.
         twist_offset: (6,) what the deskewing of the two epochs took off the step's
             twist, rad/s and m/s (:meth:`own_twist`); None: nothing.
+        span_epochs: with ``odometry.gap_end_rate: span``, the epochs its measured
+            relative pose spans when its reference is further back than the epoch before
+            (a step that ends a bridged stretch): its own twist is then the relative
+            pose's over that span (:meth:`own_twist`); 1: the step's.
     """
 
     planes: list[Plane]
@@ -94,6 +98,7 @@ class EpochEstimate:
     reference_planes: list[Plane]
     map_estimate: MapEstimate | None = None
     twist_offset: np.ndarray | None = None
+    span_epochs: int = 1
 
     @cached_property
     def _step_log(self) -> np.ndarray:
@@ -107,12 +112,18 @@ class EpochEstimate:
         step's twist plus ``twist_offset`` where it was measured (all of it when the
         status is OK, the angular rate when degenerate, nothing when unresolved: a
         bridge); with ``planemap.twist_estimation``, the twist its registration measured
-        (unless unresolved)."""
+        (unless unresolved). With ``span_epochs`` above 1 (a measured step ending a
+        bridged stretch, epochs at a constant period ``dt``) the twist of its relative
+        pose over the span instead of the step's."""
         status = self.relative.status
         registered = None if self.map_estimate is None else self.map_estimate.twist
         if registered is not None and status is not Status.UNRESOLVED:
             return registered  # planemap.twist_estimation: measured in the registration
         own = self._step_log / dt
+        if self.span_epochs > 1 and status is not Status.UNRESOLVED:
+            # the step holds the bridged epochs' error, taken back at once; the relative
+            # pose measured over the span does not (odometry.gap_end_rate, GAP17)
+            own = se3_log(self.relative.T_prev_curr) / (dt * self.span_epochs)
         if self.twist_offset is None or status is Status.UNRESOLVED:
             return own
         return own + (

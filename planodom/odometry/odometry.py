@@ -49,6 +49,7 @@ from planodom.odometry.first_epoch import first_round, reextracted_first
 from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.lead_acceleration import LeadAcceleration, lead_acceleration
 from planodom.odometry.led_variance import led_variance
+from planodom.odometry.lost_narrow import narrow_if_lost
 from planodom.odometry.moment_refine import moment_refined
 from planodom.odometry.motion_model import vertical_prediction
 from planodom.odometry.rate_prediction import RatePredictor
@@ -224,6 +225,7 @@ class PlaneOdometry:
                 )
         else:
             best = estimate(None)
+        best = narrow_if_lost(self, best, scan, t)  # odometry.lost_narrow_seed_deg
         twist = best.twist
         if deskewed is not None and keep_first(given, best):
             best, scan, twist = given, deskewed, np.zeros(6)
@@ -249,8 +251,7 @@ class PlaneOdometry:
             self._map = PlaneMapOdometry(self.config)
 
     def _next_time(self, time: float | None) -> float:
-        """:func:`.epoch_time.next_epoch_time` of this odometry's epochs; the epoch noted as
-        after a gap when it is one (:func:`.epoch_time.is_gap`), the map's motion forgotten."""
+        """:func:`.epoch_time.next_epoch_time`; a gap (:func:`.is_gap`) noted, the map stopped."""
         t = next_epoch_time(time, self.times, self.config.odometry.epoch_period_s)
         if is_gap(self.times, t):
             self._gaps.add(len(self.poses))
@@ -262,8 +263,7 @@ class PlaneOdometry:
         self, scan: Scan, twist: np.ndarray | None, sigma: TwistSigma | None = None,
         prior: TwistSigma | None = None,
     ) -> tuple[list[Plane], np.ndarray | None]:  # fmt: skip
-        """The planes of ``scan`` deskewed with ``twist`` and the twist used
-        (:func:`.epoch_extraction.extract_epoch`)."""
+        """The planes and the twist used: :func:`.epoch_extraction.extract_epoch`."""
         return extract_epoch(self, scan, twist, sigma, prior)
 
     def _new_epoch(

@@ -230,7 +230,12 @@ class TwistUncertainty:
         rate disagrees with the constant-velocity ``prediction`` (6,) (:meth:`consistent`,
         ``degenerate``) is reported unresolved and ``inconsistent`` and bridged as the
         odometry bridges an unresolved one (``T_ref_last`` (4, 4): ``T_{ref}_{k-1}``),
-        with ``bridging`` (6,) (``odometry.bridge_rate``; None: ``prediction``)."""
+        with ``bridging`` (6,) (``odometry.bridge_rate``; None: ``prediction``). With
+        ``odometry.gap_end_rate: span`` a measured step whose reference is further back
+        than the epoch before gets its own twist over the span first (``span_epochs``)."""
+        span = estimate.relative.delta if config.delta == 1 else 1  # delta > 1: every step
+        if config.gap_end_rate == "span" and span > 1 and estimate.relative.measured:
+            estimate = replace(estimate, span_epochs=span)
         if config.degenerate_gate == "off" or estimate.relative.status is not Status.DEGENERATE:
             return estimate
         if prediction is None or self.consistent(estimate, dt, prediction, config, "degenerate"):

@@ -7,7 +7,13 @@ import pytest
 from planes_factory import observe, world_planes
 
 from planodom.config import PlanodomConfig
-from planodom.geometry import Plane, invert_transform, se3_log, transform_from_rpy_xyz
+from planodom.geometry import (
+    Plane,
+    invert_transform,
+    se3_exp,
+    se3_log,
+    transform_from_rpy_xyz,
+)
 from planodom.odometry import PlaneOdometry, RelativePose, Status
 from planodom.odometry.deskew import EpochEstimate
 from planodom.odometry.surfaces import fragment_count
@@ -366,3 +372,42 @@ def test_a_second_gated_step_that_agrees_with_the_first_overrules_the_prediction
     model = model_after_one_gated(agreeing)
     model.update(np.zeros(6), _relative(Status.DEGENERATE), 0.1)  # a kept step between
     assert model.gated(near, 0.1, prediction, T_ref_last, agreeing).relative.inconsistent
+
+
+def _gap_end(status: Status, prev: int, curr: int) -> tuple[EpochEstimate, np.ndarray]:
+    """A step ending a 3-epoch bridged stretch under a constant true twist: its relative
+    pose from epoch ``prev`` is the truth, its last step holds 2 deg of bridged yaw
+    taken back; returns it and the true twist (rad/s, m/s)."""
+    true = np.r_[0.0, 0.0, np.radians(40.0), 5.0, 0.0, 0.0]
+    dt = 0.1
+    relative = RelativePose(se3_exp(true * dt * (curr - prev)), None, status, prev=prev, curr=curr)
+    step = se3_exp(true * dt) @ transform_from_rpy_xyz(0.0, 0.0, np.radians(2.0), 0.0, 0.0, 0.0)
+    return EpochEstimate([], PlaneSet.from_planes([]), None, relative, step, []), true
+
+
+@pytest.mark.parametrize("status", [Status.OK, Status.DEGENERATE])
+def test_a_gap_end_measures_its_rate_over_the_span_with_span(status: Status) -> None:
+    est, true = _gap_end(status, 6, 9)
+    dt = 0.1
+    on = PlanodomConfig().updated({"odometry.gap_end_rate": "span"}).odometry
+    ungated = on.model_copy(update={"degenerate_gate": "off"})
+    got = TwistUncertainty(on).gated(est, dt, None, np.eye(4), ungated)
+    assert got.span_epochs == 3
+    np.testing.assert_allclose(got.own_twist(dt), true, atol=1e-9)  # the truth
+    # the step's own rate holds the 2 deg taken back: 20 deg/s off in yaw
+    step_rate = est.own_twist(dt)
+    assert abs(np.degrees(step_rate[2] - true[2]) - 20.0) < 0.5
+    # off (default), an unresolved step, or delta > 1: the step's rate as before
+    off = PlanodomConfig().odometry.model_copy(update={"degenerate_gate": "off"})
+    assert TwistUncertainty(off).gated(est, dt, None, np.eye(4), off).span_epochs == 1
+    lost, _ = _gap_end(Status.UNRESOLVED, 6, 9)
+    assert TwistUncertainty(on).gated(lost, dt, None, np.eye(4), ungated).span_epochs == 1
+    wide = ungated.model_copy(update={"delta": 3})
+    assert TwistUncertainty(on).gated(est, dt, None, np.eye(4), wide).span_epochs == 1
+    near, _ = _gap_end(status, 8, 9)  # the epoch before: a plain step
+    assert TwistUncertainty(on).gated(near, dt, None, np.eye(4), ungated).span_epochs == 1
+
+
+def test_a_bad_gap_end_rate_is_named_at_load() -> None:
+    with pytest.raises(Exception, match="gap_end_rate"):
+        PlanodomConfig().updated({"odometry.gap_end_rate": "mean"})
