@@ -51,8 +51,8 @@ class MomentRefineConfig(PairRotationConfig):
     moment_extractions: Literal["all", "committed"] = "all"
     """``refinement: moments``: which of an epoch's extractions are refined
     (:mod:`planodom.odometry.moment_when`). ``"all"``: every extraction the deskewing policy
-    tries, as it is estimated, the policy choosing among refined steps (about 2.5 an epoch
-    on the 2D rig); ``"committed"``: only the one the policy commits, chosen among the
+    tries, as it is estimated, the policy choosing among refined steps (254 on world 498's
+    150 epochs); ``"committed"``: only the one the policy commits, chosen among the
     consensus's steps as by the default; its refined step still sets the next epoch's
     deskewing twist. Off (``"all"``): measured on worlds 560-678 only (docs/RESULTS.md
     ROT2D17)."""
