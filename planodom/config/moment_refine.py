@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import Literal
 
+from pydantic import Field
+
 from planodom.config.association import Positive
 from planodom.config.pair_rotation import PairRotationConfig
 
@@ -45,3 +47,19 @@ class MomentRefineConfig(PairRotationConfig):
     moments are then not used). On world 386 at 6 mm the moments in the streaming pass
     sent a stretch of few planes down other extractions whose OK steps were 0.5-2.5 deg
     off (docs/RESULTS.md DESKEW13). Off (``"all"``): measured on seen worlds only."""
+
+    moment_extractions: Literal["all", "committed"] = "all"
+    """``refinement: moments``: which of an epoch's extractions are refined
+    (:mod:`planodom.odometry.moment_when`). ``"all"``: every extraction the deskewing policy
+    tries, as it is estimated, the policy choosing among refined steps (254 on world 498's
+    150 epochs); ``"committed"``: only the one the policy commits, chosen among the
+    consensus's steps as by the default; its refined step still sets the next epoch's
+    deskewing twist. Off (``"all"``): measured on worlds 560-678 only (docs/RESULTS.md
+    ROT2D17)."""
+
+    moment_after_ok: int = Field(0, ge=0)
+    """``refinement: moments``: refine an epoch's step only when this many steps
+    before it were OK and none of the last this many epochs follows a gap in the epoch
+    times (a start, and the epochs after an unresolved or degenerate stretch, keep the
+    consensus's step; :mod:`planodom.odometry.moment_when`); 0: every OK step. Off (0):
+    measured on worlds 560-678 only (docs/RESULTS.md ROT2D17)."""

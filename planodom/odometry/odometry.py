@@ -50,7 +50,7 @@ from planodom.odometry.kept_epoch import KeptEpoch as _Epoch
 from planodom.odometry.lead_acceleration import LeadAcceleration, lead_acceleration
 from planodom.odometry.led_variance import led_variance
 from planodom.odometry.lost_narrow import narrow_if_lost
-from planodom.odometry.moment_refine import moment_refined
+from planodom.odometry.moment_when import refined_commit, refined_estimate
 from planodom.odometry.motion_model import vertical_prediction
 from planodom.odometry.rate_prediction import RatePredictor
 from planodom.odometry.refresh_held import held_refresh
@@ -311,8 +311,7 @@ class PlaneOdometry:
         config, planes = self._config_for_gap(gap), (reference.plane_set, epoch.plane_set)
         result = estimate_relative_pose(*planes, config, prior, sigma, step=True, gap=gap)
         ocfg, k = self.config.odometry, epoch.index  # bridged by constant velocity (its trend)
-        if ocfg.refinement == "moments":  # the oracle's solve over the associated planes' points
-            result = moment_refined(result, reference.planes, epoch.planes, ocfg, planes)
+        result = refined_estimate(self, result, reference.planes, k, epoch.planes, planes)
         if result.status is Status.UNRESOLVED:
             bridged = bridge(prediction, T_ref_last, self.twist, dt, self._rates, k, ocfg,
                              self._rate_vars, (*planes, config, self._twist_sigma))  # fmt: skip
@@ -400,6 +399,7 @@ class PlaneOdometry:
 
     def _commit(self, epoch: _Epoch, best: EpochEstimate, t: float) -> np.ndarray:
         """Append the epoch with its pose from ``best.step``; update the twist."""
+        best = refined_commit(self, best, epoch.index)  # moment_extractions: committed
         if self._map is not None:  # planemap.motion_bound_gate judges the final estimate
             best = judged(best, self._map.judged)
         dt = t - self.times[-1]

@@ -28,3 +28,24 @@ def test_the_translations_source_is_the_moments_by_default_and_read_from_a_file(
     with pytest.raises(ConfigError, match=r"c\.yaml: field 'odometry\.moment_translation'") as err:
         PlanodomConfig.from_yaml(tmp_path / "c.yaml")
     assert "\n" not in str(err.value)
+
+
+def test_the_guard_and_the_extractions_are_off_by_default_and_read_from_a_file(tmp_path) -> None:
+    odo = PlanodomConfig().odometry
+    assert odo.moment_after_ok == 0 and odo.moment_extractions == "all"
+    (tmp_path / "c.yaml").write_text(
+        "odometry: {moment_after_ok: 3, moment_extractions: committed}\n"
+    )
+    odo = PlanodomConfig.from_yaml(tmp_path / "c.yaml").odometry
+    assert odo.moment_after_ok == 3 and odo.moment_extractions == "committed"
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("moment_after_ok", "-1"), ("moment_after_ok", "2.5"), ("moment_extractions", "some")],
+)
+def test_a_bad_guard_or_extractions_names_file_and_field(tmp_path, field: str, value: str) -> None:
+    (tmp_path / "c.yaml").write_text(f"odometry: {{{field}: {value}}}\n")
+    with pytest.raises(ConfigError, match=rf"c\.yaml: field 'odometry\.{field}'") as err:
+        PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    assert "\n" not in str(err.value)
