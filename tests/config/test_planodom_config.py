@@ -72,6 +72,11 @@ def test_round_trip(tmp_path) -> None:
             r"c\.yaml: field 'odometry\.degenerate_gate_release'",
         ),
         (
+            "odometry: {lost_narrow_seed_deg: -0.5}\n",
+            r"c\.yaml: field 'odometry\.lost_narrow_seed_deg'",
+        ),
+        ("odometry: {gap_end_rate: mean}\n", r"c\.yaml: field 'odometry\.gap_end_rate'"),
+        (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",
         ),
