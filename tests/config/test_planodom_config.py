@@ -72,6 +72,11 @@ def test_round_trip(tmp_path) -> None:
             r"c\.yaml: field 'odometry\.degenerate_gate_release'",
         ),
         (
+            "odometry: {untwisted_try: never}\n",
+            r"c\.yaml: field 'odometry\.untwisted_try': Input should be 'suspect' or "
+            r"'fewer_planes', got 'never'$",
+        ),
+        (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",
         ),
