@@ -37,7 +37,9 @@ def _estimate(twist: np.ndarray | None, status: Status, n_planes: int) -> EpochE
         (Status.DEGENERATE, 2, 0, False, True, False),  # no epoch before
     ],
 )
-def test_which_first_extractions_are_suspect(status, n_planes, previous, few, default, fewer_planes):
+def test_which_first_extractions_are_suspect(
+    status, n_planes, previous, few, default, fewer_planes
+):
     first = _estimate(PREDICTED, status, n_planes)
     assert suspect(first, few, previous, "suspect") is default
     assert suspect(first, few, previous, "fewer_planes") is fewer_planes
