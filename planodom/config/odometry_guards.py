@@ -19,6 +19,7 @@ from planodom.config.plane_deskew_noise import PlaneDeskewNoiseConfig
 from planodom.config.retry_status import RetryStatusConfig
 from planodom.config.split_reference import SplitReferenceConfig
 from planodom.config.stated_deskew_noise import StatedDeskewNoiseConfig
+from planodom.config.untwisted_try import UntwistedTryConfig
 
 
 class DeskewGuards(
@@ -33,6 +34,7 @@ class DeskewGuards(
     RetryStatusConfig,
     SplitReferenceConfig,
     StatedDeskewNoiseConfig,
+    UntwistedTryConfig,
 ):
     """Guards of :mod:`planodom.odometry.deskew` (fields of ``odometry``), and the motion
     model the prediction assumes (:class:`.motion_model.MotionModelConfig`)."""

@@ -60,6 +60,7 @@ from planodom.geometry import Plane, se3_log
 from planodom.odometry.relative import RelativePose, Status, replaced
 from planodom.odometry.surfaces import Ranking, by_planes
 from planodom.odometry.twist_refine import Blend, next_twist, refined_own
+from planodom.odometry.untwisted_try import suspect
 from planodom.planes import PlaneSet
 from planodom.scan import Scan
 
@@ -283,7 +284,7 @@ def register_deskewed(
             deskew_rate_lead``) / weighed against the prediction (``twist_blend``); None: off.
     """
     first = (previous_planes, held, trend, lost_trend, rank, trend_status)
-    best = _first_estimate(predicted, dt, estimate, *first)
+    best = _first_estimate(predicted, dt, estimate, *first, config.untwisted_try)
     iterations = config.deskew_iterations if lead is None else lead.iterations
     before = None  # (used, own) of the refinement before: odometry.deskew_rate_solve
     for _ in range(iterations if dt > 0 else 0):
@@ -381,17 +382,19 @@ def _first_estimate(
     lost_trend: np.ndarray | None,
     rank: Ranking,
     trend_status: bool = False,
+    untwisted_try: str = "suspect",
 ) -> EpochEstimate:
     """Step 1 of the module docstring: the best of the epoch deskewed with ``predicted``
     and, when that is suspect, with ``trend``, none or ``held`` and ``lost_trend`` (see
     :func:`register_deskewed`), by ``rank`` (:func:`.surfaces.ranking`); ``trend`` by
-    status alone with ``trend_status``."""
+    status alone with ``trend_status``; ``untwisted_try`` (``odometry.untwisted_try``,
+    :func:`.untwisted_try.suspect`) says which epochs are suspect."""
     best = estimate(predicted)
     few = _few(best, previous_planes)
     others: list[np.ndarray | None] = [] if trend is None or predicted is None else [trend]
     if predicted is not None or held is not None:
         others.append(None if predicted is not None else held)
-    if dt > 0 and (best.relative.status is not Status.OK or few):
+    if dt > 0 and suspect(best, few, previous_planes, untwisted_try):
         for other in others:
             alternative = estimate(other)
             if trend_status and trend is not None and other is trend:

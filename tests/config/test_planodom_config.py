@@ -77,6 +77,11 @@ def test_round_trip(tmp_path) -> None:
         ),
         ("odometry: {gap_end_rate: mean}\n", r"c\.yaml: field 'odometry\.gap_end_rate'"),
         (
+            "odometry: {untwisted_try: never}\n",
+            r"c\.yaml: field 'odometry\.untwisted_try': Input should be 'suspect' or "
+            r"'fewer_planes', got 'never'$",
+        ),
+        (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",
         ),
