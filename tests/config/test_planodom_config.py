@@ -77,6 +77,14 @@ def test_round_trip(tmp_path) -> None:
         ),
         ("odometry: {gap_end_rate: mean}\n", r"c\.yaml: field 'odometry\.gap_end_rate'"),
         (
+            "extraction: {seed_spans_gap_max_tilt_deg: 0}\n",
+            r"c\.yaml: field 'extraction\.seed_spans_gap_max_tilt_deg'",
+        ),
+        (
+            "extraction: {seed_spans_gap_max_tilt_deg: 120}\n",
+            r"c\.yaml: field 'extraction\.seed_spans_gap_max_tilt_deg'",
+        ),
+        (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",
         ),
