@@ -58,6 +58,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         rate = float(radians(config.twist_rate_sigma_deg_s))
         smear = windows.twist_smear(scan, epoch.points, rate, config.twist_speed_sigma_mps)
         tol, max_rms, seed_floor = windows.widened(tol, max_rms, seed_floor, smear)
+    seed_normal_deg = max(config.max_seed_normal_error_deg, config.narrow_seed_last_deg)
     params = GroupingParams(
         tol_m=float(tol),
         sigma_m=float(sigma),
@@ -70,9 +71,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         gap_m=float(config.plane_gap_m),
         gap_ratio=float(config.gap_range_ratio),
         max_span_s=float(span),
-        max_seed_normal_err_rad=float(
-            radians(max(config.max_seed_normal_error_deg, config.narrow_seed_last_deg))
-        ),
+        max_seed_normal_err_rad=float(radians(seed_normal_deg)),
         min_sweep_lines=int(config.single_scanner_min_sweeps),
         parallel_rad=float(radians(config.trace_parallel_deg)),
         seed_spans_gap=bool(config.seed_spans_gap),
