@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import ConfigDict, Field, model_validator
 
-from planodom.config.extraction_bridge import GapBridgeFields
+from planodom.config.extraction_span import SpanFields
 from planodom.config.sweep import SweepConfig
 from planodom.config.timewindows import TimeWindowConfig
 from planodom.errors import ConfigError
@@ -14,7 +14,7 @@ from planodom.errors import ConfigError
 __all__ = ["ExtractionConfig", "TimeWindowConfig"]
 
 
-class ExtractionConfig(GapBridgeFields):
+class ExtractionConfig(SpanFields):
     """Plane extraction (planodom.extraction).
 
     Distance tolerances scale with the sensor noise: ``sigma`` is ``range_noise_m``, or

@@ -82,6 +82,14 @@ def test_round_trip(tmp_path) -> None:
             r"'fewer_planes', got 'never'$",
         ),
         (
+            "extraction: {seed_spans_gap_max_tilt_deg: 0}\n",
+            r"c\.yaml: field 'extraction\.seed_spans_gap_max_tilt_deg'",
+        ),
+        (
+            "extraction: {seed_spans_gap_max_tilt_deg: 120}\n",
+            r"c\.yaml: field 'extraction\.seed_spans_gap_max_tilt_deg'",
+        ),
+        (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",
         ),

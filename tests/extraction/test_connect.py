@@ -80,3 +80,27 @@ def test_short_traces_far_apart_are_not_one_plane():
         cfg = ExtractionConfig(range_noise_m=0.003, seed_spans_gap=True)
         planes = extract(_floor_scan(apart, n=12), cfg, twist=np.zeros(6)).planes
         assert len(planes) == expected, apart
+
+
+def _tilted(scan: Scan, tilt_deg: float) -> Scan:
+    """``scan`` turned about the x axis by ``tilt_deg``: its floor becomes a plane whose
+    normal is ``tilt_deg`` from z (90: a wall)."""
+    c, s = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
+    R = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    return Scan(scan.points @ R.T, ring=scan.ring, t=scan.t)
+
+
+def test_the_span_kept_for_level_planes_only():
+    """With ``seed_spans_gap_max_tilt_deg: 30`` two crossing traces 20 m apart stay one
+    plane when their plane is within 30 deg of level (0 and 20 deg), and are dropped by the
+    gap rule when it is steeper (45 deg, a wall at 90); the default 90 keeps every tilt."""
+    for tilt in (0.0, 20.0, 45.0, 90.0):
+        scan = _tilted(_floor_scan(20.0), tilt)
+        for max_tilt, expected in ((30.0, 1 if tilt < 30.0 else 0), (90.0, 1)):
+            cfg = ExtractionConfig(
+                range_noise_m=0.003, seed_spans_gap=True, seed_spans_gap_max_tilt_deg=max_tilt
+            )
+            planes = extract(scan, cfg, twist=np.zeros(6)).planes
+            assert len(planes) == expected, (tilt, max_tilt)
+            for p in planes:
+                assert abs(abs(p.normal[2]) - np.cos(np.radians(tilt))) < 0.01

@@ -112,6 +112,8 @@ def tight_seed(tr, count, seeds, s, p):  # pragma: no cover - compiled
     if count[i] < p.min_points or count[j] < p.min_points:
         return False
     n = seeds.normal[s]
+    if abs(n[2]) < p.span_min_nz:  # seed_spans_gap_max_tilt_deg: a wall keeps the gap rule
+        return False
     e = tr.centroid[i] - tr.centroid[j]
     gap = abs(n[0] * e[0] + n[1] * e[1] + n[2] * e[2])
     a, b = tr.direction[i], tr.direction[j]

@@ -79,6 +79,8 @@ class GroupingParams(NamedTuple):
             plane seeded by them (:mod:`.sweeplines`); parallel_rad: their parallelism.
         seed_spans_gap: the piece kept is the one connected to either seed trace when
             they are coplanar within their own noise (``extraction.seed_spans_gap``).
+        span_min_nz: ... and their plane's normal has at least this z component in the
+            base frame (``extraction.seed_spans_gap_max_tilt_deg``'s cosine; 0: any).
         exclusive_seeds: of two seeds sharing a trace on different planes, the worse
             fit waits (:mod:`.seedconflicts`, ``extraction.exclusive_seeds``).
         narrow_last: narrow seeds (crossing under ``sin_min_cross``) are taken after
@@ -105,6 +107,7 @@ class GroupingParams(NamedTuple):
     min_sweep_lines: int = 0
     parallel_rad: float = 0.0
     seed_spans_gap: bool = False
+    span_min_nz: float = 0.0
     exclusive_seeds: bool = False
     narrow_last: bool = False
     gap_bridge: bool = False

@@ -58,6 +58,7 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         rate = float(radians(config.twist_rate_sigma_deg_s))
         smear = windows.twist_smear(scan, epoch.points, rate, config.twist_speed_sigma_mps)
         tol, max_rms, seed_floor = windows.widened(tol, max_rms, seed_floor, smear)
+    seed_normal_deg = max(config.max_seed_normal_error_deg, config.narrow_seed_last_deg)
     params = GroupingParams(
         tol_m=float(tol),
         sigma_m=float(sigma),
@@ -70,12 +71,11 @@ def rig2d_planes(epoch: Epoch, config: ExtractionConfig) -> PathResult:
         gap_m=float(config.plane_gap_m),
         gap_ratio=float(config.gap_range_ratio),
         max_span_s=float(span),
-        max_seed_normal_err_rad=float(
-            radians(max(config.max_seed_normal_error_deg, config.narrow_seed_last_deg))
-        ),
+        max_seed_normal_err_rad=float(radians(seed_normal_deg)),
         min_sweep_lines=int(config.single_scanner_min_sweeps),
         parallel_rad=float(radians(config.trace_parallel_deg)),
         seed_spans_gap=bool(config.seed_spans_gap),
+        span_min_nz=_level_cosine(config.seed_spans_gap_max_tilt_deg),
         exclusive_seeds=bool(config.exclusive_seeds),
         narrow_last=config.narrow_seed_last_deg > 0,
         gap_bridge=config.gap_bridge == "predicted",
@@ -315,3 +315,8 @@ def _group_fits(
     return plane_fits(
         segs, groups, config.inlier_sigma_factor, view0 if epoch.origins is None else None
     )
+
+
+def _level_cosine(max_tilt_deg: float) -> float:
+    """The smallest |n_z| of a plane within ``max_tilt_deg`` of level; 0 at 90 deg (any)."""
+    return 0.0 if max_tilt_deg >= 90.0 else float(np.cos(radians(max_tilt_deg)))
