@@ -90,6 +90,24 @@ def test_round_trip(tmp_path) -> None:
             r"c\.yaml: field 'extraction\.seed_spans_gap_max_tilt_deg'",
         ),
         (
+            "smoothing: {loop_tie_gate_limit: median}\n",
+            r"c\.yaml: field 'smoothing\.loop_tie_gate_limit'",
+        ),
+        (
+            "smoothing: {loop_tie_gate_limit: true}\n",
+            r"c\.yaml: field 'smoothing\.loop_tie_gate_limit'",
+        ),
+        (
+            "smoothing: {loop_tie_gate_limit: 0.99}\n",
+            r"c\.yaml: field 'smoothing\.loop_tie_gate_limit'",
+        ),
+        ("odometry: {moment_after_ok: -1}\n", r"c\.yaml: field 'odometry\.moment_after_ok'"),
+        ("odometry: {moment_after_ok: 2.5}\n", r"c\.yaml: field 'odometry\.moment_after_ok'"),
+        (
+            "odometry: {moment_extractions: some}\n",
+            r"c\.yaml: field 'odometry\.moment_extractions'",
+        ),
+        (
             "smoothing: {deskew_noise: twist_change_jacobian}\nextraction: 5\n",
             r"c\.yaml: field 'extraction'",
         ),
@@ -97,8 +115,9 @@ def test_round_trip(tmp_path) -> None:
 )
 def test_bad_files_name_file_and_field(tmp_path, text: str, match: str) -> None:
     (tmp_path / "c.yaml").write_text(text)
-    with pytest.raises(ConfigError, match=match):
+    with pytest.raises(ConfigError, match=match) as err:
         PlanodomConfig.from_yaml(tmp_path / "c.yaml")
+    assert "\n" not in str(err.value)  # one line
 
 
 @pytest.mark.parametrize(
