@@ -9,8 +9,10 @@ what the start's poses do not touch), the steps' rotation / xy rms (deg, cm) and
 error (mm per step, + too far forward), unresolved and degenerate epochs, the statuses
 of steps 1-5, the first measured step (status OK; where ``odometry.start_refresh``'s
 start closes; -1 none) and CPU seconds; and ATE xy aligned by a rigid fit (``se3``).
-With ``--pair`` each scene is run with ``odometry.start_refresh`` on and off, both rows
-split at the later first measured step, with a note on stderr (:func:`pair_rows`).
+With ``--draws`` each scene and noise is run once per noise draw (the same world and
+route; a row each, the noise column naming the draw). With ``--pair`` each scene is run
+with ``odometry.start_refresh`` on and off, both rows split at the later first measured
+step, with a note on stderr (:func:`pair_rows`).
 With ``--detail N`` it also prints, for epochs 0..N-1, the status, the twist the
 epoch's planes were last extracted with against the true one at the epoch (rad/s, m/s),
 the pose's error (mrad, cm; the first pose is the frame) and the planes' error against
@@ -20,6 +22,8 @@ their true surfaces (median mrad, cm).
     uv run python experiments/builtin_scenes.py --scenes urban-canyon --noise 0.02 \\
         --set odometry.start_refresh=false --detail 12
     uv run python experiments/builtin_scenes.py --scenes random --noise 0.02 --pair
+    uv run python experiments/builtin_scenes.py --scenes random-outdoor --noise 0.02 \
+        --draws 0 1 2 3 4    # the same world with five draws of its range noise
 """
 
 from __future__ import annotations
@@ -54,12 +58,18 @@ def start_closed(run) -> int:  # noqa: ANN001
     return next((k for k, s in enumerate(run.statuses) if s == "ok"), -1)
 
 
-def simulated(scene: str, noise: str):  # noqa: ANN201
+def simulated(scene: str, noise: str, draw: int = 0):  # noqa: ANN201
     """The scene as ``planodom run --scenario`` simulates it, and its true poses (E, 4, 4)
-    in the first pose's frame."""
+    in the first pose's frame; ``draw`` > 0: the same scene and route with the range
+    noise drawn with seed ``draw`` (0: the scene's own draw)."""
     from planodom.cli.common import simulate_scene
+    from planodom.simulation.named import RANDOM_SCENES, simulate_random
 
-    sim = simulate_scene(scene, "isoclinal", noise, 0, None, "continuous")
+    if draw and scene in RANDOM_SCENES:  # their seed draws the world: keep it, redraw noise
+        sigma: float | str = float(noise) if noise.replace(".", "", 1).isdigit() else noise
+        sim = simulate_random(scene, "isoclinal", sigma, 0, None, "continuous", noise_seed=draw)
+    else:
+        sim = simulate_scene(scene, "isoclinal", noise, draw, None, "continuous")
     return sim, invert_transform(sim.poses[0])[None] @ sim.poses
 
 
@@ -149,6 +159,8 @@ def main() -> None:
         "--set", nargs="*", action="extend", default=[], help="config overrides key=value"
     )
     parser.add_argument("--detail", type=int, default=0, help="per-epoch rows of the first N")
+    parser.add_argument("--draws", type=int, nargs="+", default=[0],
+                        help="noise seeds (0: the scene's own); a row per draw")  # fmt: skip
     parser.add_argument("--pair", action="store_true",
                         help="start_refresh on and off, split at the same epoch")  # fmt: skip
     args = parser.parse_args()
@@ -159,11 +171,14 @@ def main() -> None:
             if args.pair:
                 rows = pair_rows(scene, noise, config)
             else:
-                sim, gt = simulated(scene, noise)
-                run, cpu = timed_run(sim, config)
-                if args.detail:
-                    print_detail(sim, run, gt, args.detail)
-                rows = [row(scene, noise, run, gt, cpu)]
+                rows = []
+                for draw in args.draws:
+                    sim, gt = simulated(scene, noise, draw)
+                    run, cpu = timed_run(sim, config)
+                    if args.detail:
+                        print_detail(sim, run, gt, args.detail)
+                    label = noise if draw == 0 else f"{noise} draw {draw}"
+                    rows.append(row(scene, label, run, gt, cpu))
             for out in rows:
                 if not header:
                     print(",".join(out), flush=True)

@@ -33,11 +33,13 @@ def simulate_random(
     n_epochs: int | None = None,
     motion: str = "continuous",
     handheld: bool = False,
+    noise_seed: int | None = None,
 ) -> SimulatedRun:
     """Simulate the procedural world of ``seed`` (:func:`random_world`): ``scene`` one of
     :data:`RANDOM_SCENES`; ``rig`` None (the world's own, drawn), a family of
     :data:`RANDOM_RIG_FAMILIES` (drawn within it), or a built-in rig name / a
-    :class:`SensorRig` replacing the world's. One lap by default; noise seed ``seed``.
+    :class:`SensorRig` replacing the world's. One lap by default; noise seed ``seed``, or
+    ``noise_seed`` (another draw of the noise on the same world).
     ``handheld``: the route walked with a hand-held lidar (a lidar family only)."""
     if scene not in RANDOM_SCENES:
         names = ", ".join(RANDOM_SCENES)
@@ -51,7 +53,7 @@ def simulate_random(
     elif rig is not None and family is None:
         choices = ", ".join((*RANDOM_RIG_FAMILIES, *RIGS))
         raise ConfigError(f"unknown rig '{rig}' for a random scene (choose from {choices})")
-    return simulate_world(world, noise, n_epochs=n_epochs, motion=motion)
+    return simulate_world(world, noise, n_epochs=n_epochs, motion=motion, seed=noise_seed)
 
 
 def simulate_named(

@@ -32,3 +32,19 @@ def test_seed_that_numpy_refuses_is_a_config_error_naming_it(scene, seed):
     ValueError traceback from deep inside numpy (``simulate --scene random --seed -1``)."""
     with pytest.raises(ConfigError, match=r"^seed: expected an integer >= 0, got .*--seed"):
         simulate_named(scene, None, seed=seed, n_epochs=2)
+
+
+def test_another_noise_draw_keeps_the_world_and_redraws_the_noise():
+    """``noise_seed`` keeps the world of ``seed`` (its route, rig and, without noise, every
+    point) and draws another range noise: the points move by the noise's size only."""
+    from planodom.simulation.named import simulate_random
+
+    clean = simulate_random("random-outdoor", "isoclinal", 0.0, 3, n_epochs=2)
+    own = simulate_random("random-outdoor", "isoclinal", 0.02, 3, n_epochs=2)
+    other = simulate_random("random-outdoor", "isoclinal", 0.02, 3, n_epochs=2, noise_seed=9)
+    again = simulate_random("random-outdoor", "isoclinal", 0.0, 3, n_epochs=2, noise_seed=9)
+    assert np.array_equal(other.poses, own.poses)
+    assert np.array_equal(again.scans[1].points, clean.scans[1].points)
+    assert len(other.scans[1]) == len(own.scans[1]) == len(clean.scans[1])
+    moved = np.linalg.norm(other.scans[1].points - own.scans[1].points, axis=1)
+    assert 0.005 < np.median(moved) < 0.06  # two draws of 2 cm apart, not the same draw
