@@ -63,13 +63,8 @@ def simulated(scene: str, noise: str, draw: int = 0):  # noqa: ANN201
     in the first pose's frame; ``draw`` > 0: the same scene and route with the range
     noise drawn with seed ``draw`` (0: the scene's own draw)."""
     from planodom.cli.common import simulate_scene
-    from planodom.simulation.named import RANDOM_SCENES, simulate_random
 
-    if draw and scene in RANDOM_SCENES:  # their seed draws the world: keep it, redraw noise
-        sigma: float | str = float(noise) if noise.replace(".", "", 1).isdigit() else noise
-        sim = simulate_random(scene, "isoclinal", sigma, 0, None, "continuous", noise_seed=draw)
-    else:
-        sim = simulate_scene(scene, "isoclinal", noise, draw, None, "continuous")
+    sim = simulate_scene(scene, "isoclinal", noise, 0, None, "continuous", noise_seed=draw or None)
     return sim, invert_transform(sim.poses[0])[None] @ sim.poses
 
 

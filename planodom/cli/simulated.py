@@ -14,6 +14,7 @@ def simulate_scene(
     epochs: int | None,
     motion: str,
     handheld: bool = False,
+    noise_seed: int | None = None,
 ):
     from planodom.errors import ConfigError
     from planodom.simulation import simulate_named
@@ -32,7 +33,7 @@ def simulate_scene(
 
     with console.status(f"simulating {scene} with the {rig or 'drawn'} rig"):
         return simulate_named(scene, rig, noise=sigma, seed=seed, n_epochs=epochs, motion=motion,
-                              handheld=handheld)  # fmt: skip
+                              handheld=handheld, noise_seed=noise_seed)  # fmt: skip
 
 
 #: Above this many epochs a simulation's memory is estimated (from one simulated epoch)

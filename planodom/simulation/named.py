@@ -68,6 +68,7 @@ def simulate_named(
     speed: float = 2.0,
     trajectory: Trajectory | None = None,
     handheld: bool = False,
+    noise_seed: int | None = None,
 ) -> SimulatedRun:
     """Simulate ``scene`` (``"paper-loop"`` | ``"urban-canyon"`` or a :class:`Scene`) with
     ``rig`` (``"isoclinal"`` | ``"lidar16"`` | ``"lidar32"`` | ``"lidar64"`` or a
@@ -82,10 +83,12 @@ def simulate_named(
         motion: "continuous" or "snapshot". epoch_rate: Hz. speed: m/s of the built-in
             trajectory. trajectory: overrides it (required for a custom :class:`Scene`).
         handheld: a random scene's route walked with a hand-held lidar (random scenes only).
+        noise_seed: another draw of the range noise on the same scene and route (a random
+            scene's ``seed`` draws its world; a built-in scene's is the noise seed).
     """
     check_seed(seed)
     if isinstance(scene, str) and scene in RANDOM_SCENES and trajectory is None:
-        return simulate_random(scene, rig, noise, seed, n_epochs, motion, handheld)
+        return simulate_random(scene, rig, noise, seed, n_epochs, motion, handheld, noise_seed)
     if handheld:
         raise ConfigError("--handheld: only with a random scene (random, random-outdoor, ...)")
     if trajectory is None:
@@ -97,4 +100,5 @@ def simulate_named(
     scene_obj = scene_from_name(scene) if isinstance(scene, str) else scene
     rig_obj = rig_from_name(rig or "isoclinal") if not isinstance(rig, SensorRig) else rig
     return simulate(scene_obj, trajectory, rig_obj, n_epochs=n_epochs, duration=duration,
-                    epoch_rate=epoch_rate, noise_sigma=noise, seed=seed, motion=motion)  # fmt: skip
+                    epoch_rate=epoch_rate, noise_sigma=noise,
+                    seed=seed if noise_seed is None else noise_seed, motion=motion)  # fmt: skip

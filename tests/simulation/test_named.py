@@ -32,6 +32,8 @@ def test_seed_that_numpy_refuses_is_a_config_error_naming_it(scene, seed):
     ValueError traceback from deep inside numpy (``simulate --scene random --seed -1``)."""
     with pytest.raises(ConfigError, match=r"^seed: expected an integer >= 0, got .*--seed"):
         simulate_named(scene, None, seed=seed, n_epochs=2)
+    with pytest.raises(ConfigError, match=r"^seed: expected an integer >= 0, got "):
+        simulate_named(scene, None, noise=0.01, n_epochs=2, noise_seed=seed)
 
 
 def test_another_noise_draw_keeps_the_world_and_redraws_the_noise():
